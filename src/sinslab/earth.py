@@ -1,0 +1,146 @@
+"""The Earth model: WGS-84 ellipsoid, normal gravity, Earth and transport rates.
+
+One model for the whole package: the trajectory generator, the mechanization and the
+error-state models all call these functions, so that error-free navigation of
+synthesised data reproduces the truth.
+
+Frames: navigation frame n = ENU (east, north, up). Latitude ``lat`` and longitude
+``lon`` in rad, ellipsoidal height ``h`` in m, velocity ``v = [vE, vN, vU]`` in m/s.
+
+The ``*_s`` functions are numba-compiled scalar versions for hot loops; the others
+accept numpy arrays and broadcast.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = [
+    "A", "F", "E2", "B", "WIE", "GM", "radii", "gravity", "gravity_vector", "wie_n",
+    "wen_n", "win_n", "schuler_frequency", "schuler_period", "foucault_frequency",
+    "check_latitude", "radii_s", "gravity_s", "metres_per_rad",
+]
+
+A = 6378137.0                     #: WGS-84 semi-major axis [m]
+F = 1.0 / 298.257223563           #: WGS-84 flattening [-]
+E2 = F * (2.0 - F)                #: first eccentricity squared [-] (0.00669437999014)
+B = A * (1.0 - F)                 #: semi-minor axis [m]
+WIE = 7.2921151467e-5             #: Earth rotation rate [rad/s]
+GM = 3.986004418e14               #: gravitational constant [m^3/s^2]
+
+# Normal gravity, Somigliana's closed form with a linear free-air height term.
+G_EQ = 9.7803267714               #: normal gravity at the equator [m/s^2]
+K_SOM = 0.00193185138639          #: Somigliana constant [-]
+DGDH = 3.086e-6                   #: free-air gradient [1/s^2]
+
+
+@njit(cache=True, inline="always")
+def radii_s(lat, h):
+    """Meridian and prime-vertical radii plus height, ``(R_M + h, R_N + h)`` [m]."""
+    sl = math.sin(lat)
+    sq2 = 1.0 - E2 * sl * sl
+    sq = math.sqrt(sq2)
+    return A * (1.0 - E2) / (sq2 * sq) + h, A / sq + h
+
+
+@njit(cache=True, inline="always")
+def gravity_s(lat, h):
+    """Normal gravity magnitude [m/s^2] at latitude ``lat`` [rad] and height ``h`` [m]."""
+    sl = math.sin(lat)
+    return G_EQ * (1.0 + K_SOM * sl * sl) / math.sqrt(1.0 - E2 * sl * sl) - DGDH * h
+
+
+def check_latitude(lat) -> None:
+    """Raise ValueError if any latitude [rad] is beyond ±90° or not finite."""
+    lat = np.asarray(lat, dtype=float)
+    if not np.all(np.isfinite(lat)):
+        raise ValueError("latitude is not finite")
+    if np.any(np.abs(lat) > math.pi / 2):
+        bad = float(np.degrees(lat[np.argmax(np.abs(lat))] if lat.ndim else lat))
+        raise ValueError(f"latitude {bad:.6g} deg is beyond ±90 deg")
+
+
+def radii(lat, h=0.0):
+    """Meridian radius R_M and prime-vertical radius R_N, each plus height.
+
+    Parameters
+    ----------
+    lat : float or array_like
+        Geodetic latitude [rad].
+    h : float or array_like
+        Ellipsoidal height [m].
+
+    Returns
+    -------
+    rm_h, rn_h : ndarray
+        ``R_M + h`` and ``R_N + h`` [m].
+    """
+    lat = np.asarray(lat, dtype=float)
+    sl2 = np.sin(lat) ** 2
+    sq2 = 1.0 - E2 * sl2
+    return A * (1.0 - E2) / sq2 ** 1.5 + h, A / np.sqrt(sq2) + h
+
+
+def gravity(lat, h=0.0):
+    """Normal gravity magnitude [m/s^2] (Somigliana + free-air), positive number."""
+    lat = np.asarray(lat, dtype=float)
+    sl2 = np.sin(lat) ** 2
+    return G_EQ * (1.0 + K_SOM * sl2) / np.sqrt(1.0 - E2 * sl2) - DGDH * np.asarray(h)
+
+
+def gravity_vector(lat, h=0.0):
+    """Normal gravity in ENU, ``[0, 0, -g]`` [m/s^2], shape ``(..., 3)``."""
+    g = np.asarray(gravity(lat, h))
+    out = np.zeros(g.shape + (3,))
+    out[..., 2] = -g
+    return out
+
+
+def wie_n(lat):
+    """Earth rate in ENU, ``[0, ω cos L, ω sin L]`` [rad/s], shape ``(..., 3)``."""
+    lat = np.asarray(lat, dtype=float)
+    out = np.zeros(lat.shape + (3,))
+    out[..., 1] = WIE * np.cos(lat)
+    out[..., 2] = WIE * np.sin(lat)
+    return out
+
+
+def wen_n(lat, h, v):
+    """Transport rate in ENU, ``[-vN/(R_M+h), vE/(R_N+h), vE tan L/(R_N+h)]`` [rad/s]."""
+    lat = np.asarray(lat, dtype=float)
+    v = np.asarray(v, dtype=float)
+    rm, rn = radii(lat, h)
+    out = np.empty(np.broadcast_shapes(lat.shape, v.shape[:-1]) + (3,))
+    out[..., 0] = -v[..., 1] / rm
+    out[..., 1] = v[..., 0] / rn
+    out[..., 2] = v[..., 0] * np.tan(lat) / rn
+    return out
+
+
+def win_n(lat, h, v):
+    """Rate of the navigation frame w.r.t. inertial space, ω_ie + ω_en [rad/s]."""
+    return wie_n(lat) + wen_n(lat, h, v)
+
+
+def metres_per_rad(lat, h=0.0):
+    """Metres per radian of latitude and of longitude: ``(R_M + h, (R_N + h) cos L)``."""
+    rm, rn = radii(lat, h)
+    return rm, rn * np.cos(lat)
+
+
+def schuler_frequency(lat=0.0, h=0.0):
+    """Schuler angular frequency ω_s = sqrt(g / R) [rad/s], R = sqrt(R_M R_N) + h."""
+    rm, rn = radii(lat, 0.0)
+    return np.sqrt(gravity(lat, h) / (np.sqrt(rm * rn) + h))
+
+
+def schuler_period(lat=0.0, h=0.0):
+    """Schuler period 2π sqrt(R/g) [s] (≈ 84.4 min), R = sqrt(R_M R_N) + h."""
+    return 2.0 * np.pi / schuler_frequency(lat, h)
+
+
+def foucault_frequency(lat):
+    """Foucault frequency ω_ie sin L [rad/s] (sign follows the hemisphere)."""
+    return WIE * np.sin(np.asarray(lat, dtype=float))
