@@ -36,16 +36,16 @@ def check_times(t, name="time", rel_tol=1e-3, uniform=True) -> float:
     d = np.diff(t)
     if (d == 0).any():
         i = int(np.argmax(d == 0))
-        raise ValueError(f"{name} has a duplicated stamp {t[i]!r} at index {i + 1}")
+        raise ValueError(f"{name} has a duplicated stamp {float(t[i])!r} at index {i + 1}")
     if (d < 0).any():
         i = int(np.argmax(d < 0))
-        raise ValueError(f"{name} is not sorted: {t[i + 1]!r} follows {t[i]!r} at index {i + 1}")
+        raise ValueError(f"{name} is not sorted: {t[i + 1]!r} follows {float(t[i])!r} at index {i + 1}")
     dt = (t[-1] - t[0]) / (t.size - 1)
     if uniform:
         dev = np.abs(d - dt) > rel_tol * dt
         if dev.any():
             i = int(np.argmax(dev))
-            raise ValueError(f"{name} is not uniformly sampled: interval {d[i]!r} s at index "
+            raise ValueError(f"{name} is not uniformly sampled: interval {float(d[i])!r} s at index "
                              f"{i + 1} vs mean {dt!r} s (tolerance {rel_tol:g} relative)")
     return float(dt)
 
