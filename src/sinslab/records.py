@@ -39,7 +39,7 @@ def check_times(t, name="time", rel_tol=1e-3, uniform=True) -> float:
         raise ValueError(f"{name} has a duplicated stamp {float(t[i])!r} at index {i + 1}")
     if (d < 0).any():
         i = int(np.argmax(d < 0))
-        raise ValueError(f"{name} is not sorted: {t[i + 1]!r} follows {float(t[i])!r} at index {i + 1}")
+        raise ValueError(f"{name} is not sorted: {float(t[i + 1])!r} follows {float(t[i])!r} at index {i + 1}")
     dt = (t[-1] - t[0]) / (t.size - 1)
     if uniform:
         dev = np.abs(d - dt) > rel_tol * dt
