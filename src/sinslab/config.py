@@ -1,0 +1,408 @@
+"""Experiment configuration: pydantic models with unit strings, TOML files, ``--set``.
+
+An experiment's configuration is a pydantic model built from :class:`Section` (unknown
+keys are errors) with one nested section per concern (``scenario``, ``imu``, ``init``,
+``filter``, ...). Physical values are unit strings validated by :func:`sinslab.units.parse`
+for the declared kind::
+
+    from sinslab.config import ExperimentConfig, Section, Q, QV
+    from pydantic import Field
+
+    class Imu(Section):
+        gyro_bias: QV("angular_rate") = Field("0.01 deg/h", description="constant drift, per axis")
+        accel_bias: QV("acceleration") = "50 ug"
+
+    class Scenario(Section):
+        latitude: Q("angle", ge="-90 deg", le="90 deg") = "34.246 deg"
+        duration: Q("time", gt="0 s") = "2 h"
+
+    class Config(ExperimentConfig):
+        scenario: Scenario = Scenario()
+        imu: Imu = Imu()
+
+A validated value is a :class:`Quantity` — a ``float`` holding the SI value that also
+remembers the text it came from (``q.text``), so that the resolved ``config.toml`` shows
+``"2 h"`` and not ``7200.0``. Vectors (:func:`QV`) are :class:`QuantityVec`, a tuple of
+SI floats (``np.asarray(cfg.imu.gyro_bias)``). A bare number is refused unless the key
+names its unit (``duration_s: float``), as DESIGN §2 asks.
+
+Resolution order (:func:`resolve`): model defaults (the paper's scenario) → the
+experiment's ``quick`` overrides (with ``--quick``) → the TOML file (``--config``) →
+``--set key=value`` items. Every problem is a :class:`ConfigError` whose one-line message
+names the dotted key (and the file or ``--set`` item it came from).
+"""
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import re
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Mapping
+
+from pydantic import (BaseModel, PlainValidator, ConfigDict, Field, PlainSerializer,
+                      ValidationError, WithJsonSchema)
+
+from . import units
+
+__all__ = ["ConfigError", "Quantity", "QuantityVec", "Q", "QV", "Section", "ExperimentConfig",
+           "load_toml", "parse_set", "deep_merge", "resolve", "dump_toml", "config_to_toml",
+           "flatten", "describe", "Field"]
+
+
+class ConfigError(ValueError):
+    """A configuration problem; ``str(err)`` is one line naming the key or file."""
+
+
+# ------------------------------------------------------------------ quantities ----------
+
+class Quantity(float):
+    """An SI float that remembers its source text (``Quantity(7200.0, "2 h")``)."""
+
+    text: str
+    kind: str
+
+    def __new__(cls, si: float, text: str, kind: str = ""):
+        obj = super().__new__(cls, si)
+        obj.text, obj.kind = text, kind
+        return obj
+
+    def __repr__(self):
+        return f"Quantity({float(self)!r}, {self.text!r})"
+
+    def __reduce__(self):
+        return (Quantity, (float(self), self.text, self.kind))
+
+
+class QuantityVec(tuple):
+    """A tuple of SI floats that remembers its source text (str or list of str)."""
+
+    text: Any
+    kind: str
+
+    def __new__(cls, si, text, kind: str = ""):
+        obj = super().__new__(cls, (float(x) for x in si))
+        obj.text, obj.kind = text, kind
+        return obj
+
+    def __repr__(self):
+        return f"QuantityVec({tuple(self)!r}, {self.text!r})"
+
+    def __reduce__(self):
+        return (QuantityVec, (tuple(self), self.text, self.kind))
+
+
+def _bound(text, kind):
+    return None if text is None else (units.parse(text, kind), text)
+
+
+def _check_range(shown, v, lims):
+    ge, gt, le, lt = lims
+    if ge is not None and not v >= ge[0]:
+        raise ValueError(f"{shown} is out of range: must be >= {ge[1]}")
+    if gt is not None and not v > gt[0]:
+        raise ValueError(f"{shown} is out of range: must be > {gt[1]}")
+    if le is not None and not v <= le[0]:
+        raise ValueError(f"{shown} is out of range: must be <= {le[1]}")
+    if lt is not None and not v < lt[0]:
+        raise ValueError(f"{shown} is out of range: must be < {lt[1]}")
+
+
+def Q(kind: str, *, ge: str | None = None, gt: str | None = None, le: str | None = None,
+      lt: str | None = None):
+    """Type of a scalar quantity of ``kind`` (a key of :data:`sinslab.units.KINDS`).
+
+    Bounds are unit strings (``ge="0 deg/h"``); a value outside is an error.
+    """
+    if kind not in units.KINDS:
+        raise ValueError(f"unknown quantity kind {kind!r}")
+    lims = tuple(_bound(b, kind) for b in (ge, gt, le, lt))
+    example = units._example_unit(kind)
+
+    def validate(v):
+        if isinstance(v, Quantity):
+            v = v.text
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and kind != "dimensionless":
+            raise ValueError(f"{v!r} has no unit; expected {kind.replace('_', ' ')} "
+                             f"(write e.g. \"{v} {example}\")")
+        if not isinstance(v, (str, int, float)) or isinstance(v, bool):
+            raise ValueError(f"{v!r} is not a quantity (expected a string like \"1 {example}\")")
+        text = str(v).strip()
+        try:
+            si = units.parse(text, kind)
+        except units.UnitError as e:
+            raise ValueError(str(e)) from None
+        _check_range(repr(text), si, lims)
+        return Quantity(si, text, kind)
+
+    return Annotated[Quantity, PlainValidator(validate),
+                     PlainSerializer(lambda q: q.text, return_type=str),
+                     WithJsonSchema({"type": "string", "description": f"{kind} with unit"})]
+
+
+def QV(kind: str, n: int = 3, *, ge: str | None = None, gt: str | None = None,
+       le: str | None = None, lt: str | None = None):
+    """Type of an ``n``-vector of ``kind``: ``"0.01 deg/h"`` (all axes),
+    ``"[0.003, -0.002, 0.0005] deg/h"`` or ``["0.003 deg/h", "-0.002 deg/h", "0 deg/h"]``."""
+    if kind not in units.KINDS:
+        raise ValueError(f"unknown quantity kind {kind!r}")
+    lims = tuple(_bound(b, kind) for b in (ge, gt, le, lt))
+    example = units._example_unit(kind)
+
+    def validate(v):
+        if isinstance(v, QuantityVec):
+            v = v.text
+        items = v if isinstance(v, (list, tuple)) else [v]
+        for x in items:
+            if isinstance(x, (int, float)) and not isinstance(x, bool):
+                raise ValueError(f"{x!r} has no unit; expected {kind.replace('_', ' ')} "
+                                 f"(write e.g. \"{x} {example}\")")
+            if not isinstance(x, str):
+                raise ValueError(f"{x!r} is not a quantity string")
+        text = [str(x).strip() for x in v] if isinstance(v, (list, tuple)) else str(v).strip()
+        try:
+            si = units.parse_vector(text, kind, n)
+        except units.UnitError as e:
+            raise ValueError(str(e)) from None
+        for i, x in enumerate(si):
+            _check_range(f"{text!r} (component {i})" if n > 1 else repr(text), x, lims)
+        return QuantityVec(si, text, kind)
+
+    return Annotated[QuantityVec, PlainValidator(validate),
+                     PlainSerializer(lambda q: q.text),
+                     WithJsonSchema({"description": f"{n} x {kind} with unit"})]
+
+
+# ------------------------------------------------------------------ models --------------
+
+class Section(BaseModel):
+    """Base of every config section: unknown keys are errors."""
+
+    model_config = ConfigDict(extra="forbid", validate_default=True)
+
+
+class ExperimentConfig(Section):
+    """Base of an experiment's top-level config: adds ``seed`` and ``runs``."""
+
+    seed: int = Field(0, ge=0, description="seed of every random draw (same seed, same bytes)")
+    runs: int = Field(1, ge=1, description="Monte Carlo runs (1 = a single simulation)")
+
+
+# ------------------------------------------------------------------ sources -------------
+
+def load_toml(path: str | Path) -> dict:
+    """Read a TOML config file; ConfigError (naming the file) if unreadable, empty or bad."""
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except FileNotFoundError:
+        raise ConfigError(f"config file {p}: not found") from None
+    except IsADirectoryError:
+        raise ConfigError(f"config file {p}: is a folder, not a file") from None
+    except OSError as e:
+        raise ConfigError(f"config file {p}: cannot read ({e.strerror or e})") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(f"config file {p}: not UTF-8 text") from None
+    if not text.strip():
+        raise ConfigError(f"config file {p}: is empty")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"config file {p}: not valid TOML ({e})") from None
+    if not data:
+        raise ConfigError(f"config file {p}: holds no settings")
+    return data
+
+
+_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
+
+
+def parse_set(items: list[str] | tuple[str, ...] | None) -> tuple[dict, dict[str, str]]:
+    """Parse ``--set key=value`` items into a nested dict (and key -> item map).
+
+    The value is read as a TOML value when it is one (``3``, ``true``, ``"2 h"``,
+    ``["1 deg", "2 deg", "3 deg"]``); otherwise it is taken as a plain string, so the shell
+    form ``--set imu.gyro_bias="0.02 deg/h"`` (quotes eaten by the shell) works.
+    """
+    out: dict = {}
+    origin: dict[str, str] = {}
+    for item in items or ():
+        if "=" not in item:
+            raise ConfigError(f"--set {item!r}: expected key=value (e.g. imu.gyro_bias=\"0.02 deg/h\")")
+        key, value = (s.strip() for s in item.split("=", 1))
+        if not _KEY.match(key):
+            raise ConfigError(f"--set {item!r}: {key!r} is not a dotted config key")
+        if value == "":
+            raise ConfigError(f"--set {item!r}: no value for {key}")
+        try:
+            parsed = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            parsed = value
+        d = out
+        parts = key.split(".")
+        for part in parts[:-1]:
+            d = d.setdefault(part, {})
+            if not isinstance(d, dict):
+                raise ConfigError(f"--set {item!r}: {part} is set both as a value and a section")
+        d[parts[-1]] = parsed
+        origin[key] = item
+    return out, origin
+
+
+def deep_merge(base: Mapping, over: Mapping) -> dict:
+    """Recursive dict merge; ``over`` wins; neither input is modified."""
+    out = dict(base)
+    for k, v in over.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = deep_merge(out[k], v)
+        else:
+            out[k] = v
+    return out
+
+
+def flatten(d: Mapping, prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}``."""
+    out = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, Mapping):
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def _model_at(model_cls, path):
+    """The model class of the section at ``path`` (list of keys), or None."""
+    m = model_cls
+    for part in path:
+        f = getattr(m, "model_fields", {}).get(part)
+        ann = getattr(f, "annotation", None) if f else None
+        if not (isinstance(ann, type) and issubclass(ann, BaseModel)):
+            return None
+        m = ann
+    return m
+
+
+def _format_error(model_cls, err: ValidationError, origins: dict[str, str]) -> str:
+    e = err.errors()[0]
+    loc = [str(x) for x in e["loc"]]
+    key = ".".join(loc)
+    where = ""
+    for k in (key, *[".".join(loc[:i]) for i in range(len(loc) - 1, 0, -1)]):
+        if k in origins:
+            where = f" ({origins[k]})"
+            break
+    if e["type"] == "extra_forbidden":
+        parent = _model_at(model_cls, [x for x in loc[:-1]])
+        known = list(parent.model_fields) if parent else []
+        hint = difflib.get_close_matches(loc[-1], known, n=1)
+        msg = f"unknown config key {key}{where}"
+        if hint:
+            msg += f"; did you mean {'.'.join(loc[:-1] + hint)}?"
+        elif known:
+            msg += f"; known keys{' in ' + '.'.join(loc[:-1]) if loc[:-1] else ''}: {', '.join(known)}"
+        return msg
+    msg = e["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    elif "input" in e and not isinstance(e["input"], (dict, list)):
+        msg = f"{msg[0].lower()}{msg[1:]} (got {e['input']!r})"
+    return f"config key {key}{where}: {msg}"
+
+
+def resolve(model_cls: type[ExperimentConfig], *, quick: Mapping | None = None,
+            file: str | Path | None = None, sets: list[str] | None = None,
+            overrides: Mapping | None = None) -> ExperimentConfig:
+    """Build the resolved config: defaults <- quick <- file <- overrides <- --set items."""
+    data = model_cls().model_dump(mode="json")
+    origins: dict[str, str] = {}
+    if quick:
+        data = deep_merge(data, quick)
+    if file is not None:
+        fdata = load_toml(file)
+        for k in flatten(fdata):
+            origins[k] = f"config file {file}"
+        data = deep_merge(data, fdata)
+    if overrides:
+        data = deep_merge(data, overrides)
+    sdata, sorigin = parse_set(sets)
+    for k, item in sorigin.items():
+        origins[k] = f"--set {item}"
+    data = deep_merge(data, sdata)
+    try:
+        return model_cls.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(_format_error(model_cls, err, origins)) from None
+
+
+# ------------------------------------------------------------------ TOML output ---------
+
+_BARE = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def _tkey(k: str) -> str:
+    return k if _BARE.match(k) else json.dumps(k, ensure_ascii=False)
+
+
+def _tval(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_tval(x) for x in v) + "]"
+    if isinstance(v, Mapping):
+        return "{" + ", ".join(f"{_tkey(k)} = {_tval(x)}" for k, x in v.items() if x is not None) + "}"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def dump_toml(data: Mapping, _prefix: str = "") -> str:
+    """Write a nested dict as TOML (scalars first, then ``[tables]``); ``None`` is omitted."""
+    lines = []
+    tables = []
+    for k, v in data.items():
+        if v is None:
+            continue
+        if isinstance(v, Mapping):
+            tables.append((k, v))
+        else:
+            lines.append(f"{_tkey(k)} = {_tval(v)}")
+    out = "\n".join(lines)
+    for k, v in tables:
+        name = f"{_prefix}{_tkey(k)}"
+        body = dump_toml(v, name + ".")
+        head = f"[{name}]"
+        out += ("\n\n" if out else "") + head + ("\n" + body if body else "")
+    return out + ("\n" if not _prefix and out else "")
+
+
+def config_to_toml(cfg: BaseModel, header: str = "") -> str:
+    """The resolved config as TOML text, with ``header`` as leading comment lines."""
+    head = "".join(f"# {line}\n" if line else "#\n" for line in header.splitlines())
+    return head + dump_toml(cfg.model_dump(mode="json"))
+
+
+def describe(model_cls: type[BaseModel]) -> list[tuple[str, Any, str]]:
+    """``[(dotted key, default (as written in TOML), description), ...]`` of a config model."""
+    def walk(m, data, prefix):
+        out = []
+        for name, f in m.model_fields.items():
+            ann = f.annotation
+            if isinstance(ann, type) and issubclass(ann, BaseModel):
+                out.extend(walk(ann, data.get(name) or {}, f"{prefix}{name}."))
+            else:
+                out.append((f"{prefix}{name}", data.get(name), f.description or ""))
+        return out
+    return walk(model_cls, model_cls().model_dump(mode="json"), "")

@@ -1,0 +1,122 @@
+"""Progress bars for long loops: rich on a terminal, silent otherwise.
+
+Any module with a long loop (mechanization of a long record, a Kalman time loop, a
+Monte Carlo campaign) reports progress through this helper, so that the look and the
+"quiet when not a TTY" rule live in one place::
+
+    from sinslab.progress import progress
+
+    with progress("navigating", total=n_samples, unit="samples") as bar:
+        for lo in range(0, n_samples, chunk):
+            hi = min(lo + chunk, n_samples)
+            step_chunk(state, dtheta[lo:hi], dv[lo:hi], dt)   # compiled hot loop
+            bar.advance(hi - lo)
+
+Compiled loops stay compiled: call them on chunks (10^5–10^6 samples) and advance the
+bar between chunks. ``track(iterable, "label")`` wraps a Python iterable.
+
+The bars go to stderr and are shown only when stderr is a terminal. They are silenced
+for the whole process by ``SINSLAB_QUIET=1`` or :func:`set_quiet`; the CLI's ``--quiet``
+flag (if present) and test runners use that. Nested bars share one live display.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import threading
+from typing import Iterable, Iterator, TypeVar
+
+__all__ = ["progress", "track", "set_quiet", "is_quiet", "Bar"]
+
+T = TypeVar("T")
+
+_state = threading.local()
+_quiet_override: bool | None = None
+
+
+def set_quiet(quiet: bool | None) -> None:
+    """Force bars off (True), on when on a terminal (False), or back to automatic (None)."""
+    global _quiet_override
+    _quiet_override = quiet
+
+
+def is_quiet() -> bool:
+    """True when bars are not shown: forced quiet, ``SINSLAB_QUIET`` set, or not a TTY."""
+    if _quiet_override is not None:
+        return _quiet_override
+    if os.environ.get("SINSLAB_QUIET", "") not in ("", "0"):
+        return True
+    try:
+        return not sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return True
+
+
+class Bar:
+    """Handle of one progress task; ``advance(n)`` and ``update(completed=...)``.
+
+    A quiet bar accepts the same calls and does nothing.
+    """
+
+    def __init__(self, prog=None, task=None):
+        self._p, self._t = prog, task
+
+    def advance(self, n: float = 1) -> None:
+        if self._p is not None:
+            self._p.advance(self._t, n)
+
+    def update(self, *, completed: float | None = None, total: float | None = None,
+               description: str | None = None) -> None:
+        if self._p is not None:
+            kw = {k: v for k, v in (("completed", completed), ("total", total),
+                                    ("description", description)) if v is not None}
+            self._p.update(self._t, **kw)
+
+
+@contextlib.contextmanager
+def progress(description: str, total: float | None = None, unit: str = "") -> Iterator[Bar]:
+    """Context manager yielding a :class:`Bar` for a loop of ``total`` steps.
+
+    ``total=None`` shows an indeterminate spinner. Quiet (no output at all) when
+    :func:`is_quiet` is true.
+    """
+    if is_quiet():
+        yield Bar()
+        return
+    from rich.console import Console
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn,
+                               TextColumn, TimeElapsedColumn, TimeRemainingColumn)
+
+    outer = getattr(_state, "progress", None)
+    if outer is not None:                      # nested: add a task to the live display
+        task = outer.add_task(description, total=total)
+        try:
+            yield Bar(outer, task)
+        finally:
+            outer.remove_task(task)
+        return
+    cols = [SpinnerColumn(), TextColumn("[bold]{task.description}"), BarColumn(),
+            MofNCompleteColumn(), TextColumn(unit) if unit else TextColumn(""),
+            TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn()]
+    prog = Progress(*cols, console=Console(stderr=True), transient=True)
+    _state.progress = prog
+    try:
+        with prog:
+            task = prog.add_task(description, total=total)
+            yield Bar(prog, task)
+    finally:
+        _state.progress = None
+
+
+def track(iterable: Iterable[T], description: str, total: float | None = None) -> Iterator[T]:
+    """Iterate ``iterable`` with a progress bar (``total`` defaults to ``len(iterable)``)."""
+    if total is None:
+        try:
+            total = len(iterable)  # type: ignore[arg-type]
+        except TypeError:
+            total = None
+    with progress(description, total) as bar:
+        for item in iterable:
+            yield item
+            bar.advance(1)
