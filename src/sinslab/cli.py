@@ -1,0 +1,243 @@
+"""The ``sinslab`` command line (typer).
+
+Commands: ``list``, ``run NAME``, ``config NAME``, ``report DIR``, ``demo --out DIR``.
+
+Errors a user can fix (bad config key or unit, unreadable file, unusable output folder,
+unknown experiment) print one line ``sinslab: error: ...`` on stderr and exit with
+status 2, before any output file is created. Ctrl-C or SIGTERM stops the run; files
+being written are discarded (exit 130 / 143). A bug prints its traceback (exit 1).
+
+Adding a command (``navigate``, ``allan``, ``align``, ...)::
+
+    @app.command()
+    def allan(file: Path = typer.Argument(..., help="recorded IMU file"),
+              out: Optional[Path] = typer.Option(None, help="output folder")):
+        \"\"\"Allan deviation of recorded IMU data.\"\"\"
+        with user_errors():                      # ValueError subclasses -> exit 2
+            rd = RunDir(out or default_out_dir("allan"), "allan").prepare()
+            ...
+            rd.write_table(...); rd.write_figure(...); rd.finish()
+
+Raise :class:`CliError` (or any of ``USER_ERRORS``) for a one-line user error.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from . import __version__
+from .config import ConfigError, config_to_toml, resolve
+from .outputs import OutputDirError, RunDir, default_out_dir  # noqa: F401  (for new commands)
+from .report import ReportError
+from .units import UnitError
+
+__all__ = ["app", "main", "user_errors", "CliError", "USER_ERRORS"]
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+                  pretty_exceptions_enable=False,
+                  help="sinslab: strapdown inertial navigation — experiments, runs and reports.")
+
+
+class CliError(ValueError):
+    """A user error: printed as one line, exit status 2."""
+
+
+def _unknown_experiment():
+    from .experiments import UnknownExperiment
+
+    return UnknownExperiment
+
+
+USER_ERRORS: tuple = (CliError, ConfigError, OutputDirError, ReportError, UnitError)
+
+
+def _err(msg: str) -> None:
+    typer.echo(f"sinslab: error: {msg}", err=True)
+
+
+def _log(msg: str) -> None:
+    typer.echo(f"sinslab: {msg}", err=True)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, delivered as an exception so that temporary files are cleaned up."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated()
+
+
+@contextlib.contextmanager
+def user_errors():
+    """Turn user errors into one stderr line + exit 2, interrupts into exit 130/143."""
+    old = None
+    with contextlib.suppress(ValueError):          # not in the main thread: leave it
+        old = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        yield
+    except USER_ERRORS + (_unknown_experiment(),) as e:
+        _err(str(e).splitlines()[0] if str(e) else type(e).__name__)
+        raise typer.Exit(2) from None
+    except _Terminated:
+        _err("terminated; no partial file was left under a final name")
+        raise typer.Exit(143) from None
+    except KeyboardInterrupt:
+        _err("interrupted; no partial file was left under a final name")
+        raise typer.Exit(130) from None
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
+
+
+def _version(value: bool):
+    if value:
+        typer.echo(f"sinslab {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars"),
+          version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="print the version and exit")):
+    """sinslab: strapdown inertial navigation — experiments, runs and reports."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    if quiet:
+        from .progress import set_quiet
+
+        set_quiet(True)
+
+
+@app.command("list")
+def list_() -> None:
+    """List the experiments and their one-line purpose."""
+    from .experiments import broken, registry
+
+    reg = registry()
+    width = max((len(n) for n in reg), default=0)
+    for name, exp in reg.items():
+        typer.echo(f"{name.ljust(width)}  {exp.purpose}")
+    for mod, err in broken().items():
+        _log(f"warning: experiment module {mod} failed to import ({err})")
+
+
+def _resolve(name, config, sets, seed, runs, quick):
+    from .experiments import get
+
+    exp = get(name)
+    over = {}
+    if seed is not None:
+        over["seed"] = seed
+    if runs is not None:
+        over["runs"] = runs
+    cfg = resolve(exp.config, quick=exp.quick if quick else None, file=config, sets=sets,
+                  overrides=over)
+    return exp, cfg
+
+
+def _print_summary(summary: dict, out: Path) -> None:
+    claims = summary["claims"]
+    n = sum(c["passed"] for c in claims)
+    for c in claims:
+        typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {c['statement']}")
+    typer.echo(f"{summary['experiment']}: {n}/{len(claims)} claims passed, "
+               f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s -> {out / 'report.html'}")
+
+
+@app.command()
+def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (see `sinslab list`)"),
+        config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML config file"),
+        set_: Optional[List[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE",
+                                                 help='override a dotted config key, e.g. imu.gyro_bias="0.02 deg/h" (repeatable)'),
+        out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/NAME-<timestamp>]"),
+        seed: Optional[int] = typer.Option(None, "--seed", min=0, help="random seed (overrides config seed)"),
+        runs: Optional[int] = typer.Option(None, "--runs", min=1, help="Monte Carlo runs (overrides config runs)"),
+        scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address for Monte Carlo campaigns"),
+        quick: bool = typer.Option(False, "--quick", help="shortened run for tests and demos"),
+        strict: bool = typer.Option(False, "--strict", help="exit status 1 if any claim fails")) -> None:
+    """Run an experiment; write config.toml, summary.json, series, figures, report.html."""
+    from .experiments import execute
+
+    with user_errors():
+        exp, cfg = _resolve(name, config, set_, seed, runs, quick)
+        out = out if out is not None else default_out_dir(exp.name)
+        RunDir(out, exp.name).check()
+        summary = execute(exp, cfg, out, quick=quick, scheduler=scheduler, log=_log)
+    _print_summary(summary, Path(out))
+    if strict and not all(c["passed"] for c in summary["claims"]):
+        raise typer.Exit(1)
+
+
+@app.command("config")
+def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment name"),
+            config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML config file"),
+            set_: Optional[List[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE"),
+            quick: bool = typer.Option(False, "--quick", help="show the --quick configuration")) -> None:
+    """Print the resolved configuration of an experiment as TOML (a starting point for --config)."""
+    with user_errors():
+        exp, cfg = _resolve(name, config, set_, None, None, quick)
+    typer.echo(config_to_toml(cfg, f"sinslab {__version__} — {exp.name}: {exp.purpose}"), nl=False)
+
+
+@app.command()
+def report(dir: Path = typer.Argument(..., metavar="DIR", help="run folder holding summary.json")) -> None:
+    """(Re)build DIR/report.html from the run's files."""
+    from . import report as _report
+
+    with user_errors():
+        path = _report.build(dir)
+    typer.echo(str(path))
+
+
+@app.command()
+def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for the runs and index.html"),
+         quick: bool = typer.Option(False, "--quick", help="shortened runs"),
+         only: Optional[List[str]] = typer.Option(None, "--only", help="run only these experiments")) -> None:
+    """Run every registered experiment (full scale) into OUT/NAME and write OUT/index.html."""
+    from . import report as _report
+    from .experiments import execute, get, registry
+
+    done, failed = [], {}
+    with user_errors():
+        if out.exists() and not out.is_dir():
+            raise CliError(f"output folder {out} exists and is a file")
+        names = list(only) if only else list(registry())
+        exps = [get(n) for n in names]
+        for exp in exps:                                   # check every folder first
+            RunDir(out / exp.name, exp.name).check()
+        for exp in exps:
+            cfg = resolve(exp.config, quick=exp.quick if quick else None)
+            _log(f"running {exp.name}{' (quick)' if quick else ''} ...")
+            try:
+                summary = execute(exp, cfg, out / exp.name, quick=quick, log=_log)
+            except (KeyboardInterrupt, *USER_ERRORS):
+                raise
+            except Exception as e:                          # one broken experiment: go on
+                import traceback
+
+                traceback.print_exc()
+                failed[exp.name] = f"{type(e).__name__}: {e}"
+                continue
+            _print_summary(summary, out / exp.name)
+            done.append((exp.name, out / exp.name))
+        idx = _report.index(out, done, failed)
+    typer.echo(f"index: {idx}")
+    if failed:
+        raise typer.Exit(1)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    app(prog_name="sinslab")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,176 @@
+"""Experiment registry and runner.
+
+Every module in this package that defines ``NAME`` is an experiment (see
+:mod:`sinslab.experiments.base` for what it declares). Adding an experiment is adding a
+module: :func:`registry` discovers it, ``sinslab list`` shows it, ``sinslab run NAME``
+runs it and ``sinslab demo`` includes it.
+
+:func:`execute` is the whole run contract of DESIGN §4 in one function; the CLI calls it
+and so can Python code::
+
+    from sinslab.experiments import get, execute
+    from sinslab.config import resolve
+    exp = get("free-inertial")
+    cfg = resolve(exp.config, quick=exp.quick, sets=["imu.gyro_bias=0.02 deg/h"])
+    summary = execute(exp, cfg, "runs/fi-test")
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import importlib
+import pkgutil
+import sys
+import time
+from pathlib import Path
+from typing import Callable
+
+from .. import __version__
+from ..config import ExperimentConfig, config_to_toml
+from ..outputs import RunDir
+from .base import Experiment, Result, RunContext
+
+__all__ = ["registry", "register", "get", "names", "execute", "UnknownExperiment", "Experiment"]
+
+_SKIP = {"base"}
+_registry: dict[str, Experiment] | None = None
+_broken: dict[str, str] = {}
+
+
+class UnknownExperiment(KeyError):
+    def __str__(self):
+        return self.args[0]
+
+
+def registry() -> dict[str, Experiment]:
+    """``{name: Experiment}`` of every experiment module (imported once, sorted by name).
+
+    A module that fails to import is left out and its error kept in :func:`broken`.
+    """
+    global _registry
+    if _registry is None:
+        found: dict[str, Experiment] = {}
+        for info in pkgutil.iter_modules(__path__):
+            if info.name.startswith("_") or info.name in _SKIP:
+                continue
+            modname = f"{__name__}.{info.name}"
+            try:
+                mod = importlib.import_module(modname)
+                if not hasattr(mod, "NAME"):
+                    continue
+                exp = Experiment.from_module(mod)
+            except Exception as e:  # a half-written module must not hide the others
+                _broken[modname] = f"{type(e).__name__}: {e}"
+                continue
+            if exp.name in found:
+                raise RuntimeError(f"experiment name {exp.name!r} declared twice "
+                                   f"({found[exp.name].module}, {modname})")
+            found[exp.name] = exp
+        _registry = dict(sorted(found.items()))
+    return _registry
+
+
+def register(exp_or_module) -> Experiment:
+    """Add an experiment (an :class:`Experiment` or a module with the declarations).
+
+    Modules inside this package are found automatically; this is for experiments defined
+    elsewhere (plugins, tests).
+    """
+    exp = exp_or_module if isinstance(exp_or_module, Experiment) else Experiment.from_module(exp_or_module)
+    reg = registry()
+    reg[exp.name] = exp
+    return exp
+
+
+def broken() -> dict[str, str]:
+    """Experiment modules that failed to import: ``{module: error}``."""
+    registry()
+    return dict(_broken)
+
+
+def names() -> list[str]:
+    return list(registry())
+
+
+def get(name: str) -> Experiment:
+    """The experiment called ``name``; UnknownExperiment (with the known names) otherwise."""
+    reg = registry()
+    if name not in reg:
+        import difflib
+
+        hint = difflib.get_close_matches(name, reg, n=1)
+        msg = f"unknown experiment {name!r}"
+        msg += f"; did you mean {hint[0]!r}?" if hint else f"; known: {', '.join(reg) or 'none'}"
+        raise UnknownExperiment(msg)
+    return reg[name]
+
+
+def _check_result(exp: Experiment, res: Result, log) -> None:
+    if not isinstance(res, Result):
+        raise TypeError(f"{exp.module}.run must return a Result, got {type(res).__name__}")
+    for m in res.metrics:
+        if m not in exp.metrics:
+            log(f"warning: metric {m!r} is not declared in {exp.module}.METRICS")
+    ids = [c.id for c in res.claims]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"{exp.module}: duplicate claim ids {ids}")
+
+
+def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: bool = False,
+            scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
+    """Run ``exp`` with the resolved ``cfg`` into folder ``out``; return the summary dict.
+
+    Order of writes: marker, ``config.toml`` (so an interrupted run still says what it
+    was), series, tables, figures, ``summary.json``, ``report.html``, marker "complete".
+    Raises :class:`sinslab.outputs.OutputDirError` before writing anything if ``out`` is
+    not usable.
+    """
+    from .. import report
+
+    log = log or (lambda msg: None)
+    rd = RunDir(out, exp.name).prepare()
+    started = _dt.datetime.now().astimezone()
+    header = (f"sinslab {__version__} — experiment {exp.name}{' (--quick)' if quick else ''}\n"
+              f"resolved configuration, {started.isoformat(timespec='seconds')}\n"
+              f"reproduce: sinslab run {exp.name} --config config.toml")
+    rd.write_text("config.toml", config_to_toml(cfg, header))
+    ctx = RunContext(name=exp.name, out=rd.path, seed=cfg.seed, runs=cfg.runs, quick=quick,
+                     scheduler=scheduler, log=log)
+    t0 = time.perf_counter()
+    res = exp.run(cfg, ctx)
+    runtime = time.perf_counter() - t0
+    _check_result(exp, res, log)
+    metrics = dict(res.metrics)
+    metrics.setdefault("runtime_s", runtime)
+
+    for name, table in res.series.items():
+        rd.write_table(name, table)
+    tables = []
+    for t in res.tables:
+        info = rd.write_table(f"table_{t.name}", t.data, t.caption)
+        tables.append({**info, "caption": t.caption})
+    for f in res.figures:
+        rd.write_figure(f.name, f.fig, f.caption)
+
+    summary = {
+        "experiment": exp.name,
+        "sinslab_version": __version__,
+        "config": cfg.model_dump(mode="json"),
+        "metrics": metrics,
+        "claims": [c.as_dict() for c in res.claims],
+        # --- beyond the contract: what the report needs to rebuild itself
+        "purpose": exp.purpose,
+        "paper": exp.paper,
+        "quick": quick,
+        "started": started.isoformat(timespec="seconds"),
+        "python": sys.version.split()[0],
+        "metric_info": {m: {"unit": exp.metrics[m].unit, "description": exp.metrics[m].description}
+                        for m in metrics if m in exp.metrics},
+        "figures": rd.figure_files,
+        "series": [s for s in rd.series_info if not s["name"].startswith("table_")],
+        "tables": tables,
+        "notes": list(exp.notes) + list(res.notes),
+    }
+    rd.write_json("summary.json", summary)
+    rd.write_text("report.html", report.render(rd.path))
+    rd.finish()
+    return summary

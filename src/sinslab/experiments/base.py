@@ -1,0 +1,243 @@
+"""What an experiment module writes, and what the framework does for it.
+
+An experiment is one module in :mod:`sinslab.experiments` declaring::
+
+    NAME = "static-alignment"                     # the CLI name
+    PURPOSE = "one line shown by `sinslab list`"
+    PAPER = "Yan & Qin 2006, papers/000_...txt"     # optional: source of the defaults
+    NOTES = ["latitude not stated by the paper: 34.246 deg N"]   # optional, shown in report
+
+    class Config(ExperimentConfig):               # sinslab.config; defaults = paper scenario
+        scenario: Scenario = Scenario()
+        imu: Imu = Imu()
+
+    QUICK = {"scenario": {"duration": "5 min"}}    # overrides applied by --quick
+
+    METRICS = {                                    # every metric it returns, declared
+        "final_err_phiE_arcmin": Metric("arcmin", "east attitude estimation error at the end"),
+    }
+
+    def run(config: Config, ctx: RunContext) -> Result:
+        ...
+        return Result(metrics={...}, claims=[Claim.within(...)], series={...},
+                      figures=[Figure("att_err", fig, "caption")])
+
+The framework (:func:`sinslab.experiments.execute`) resolves and validates the config,
+claims the output folder, writes ``config.toml`` first, calls ``run``, adds the
+``runtime_s`` metric, then writes the series (CSV/Parquet), figures (PNG + SVG), tables,
+``summary.json`` and ``report.html`` — each file atomically. ``run`` itself never
+writes files and never prints; it may log a line through ``ctx.log`` and show progress
+with ``ctx.progress(...)`` (see :mod:`sinslab.progress`).
+
+Monte Carlo: ``config.runs`` (``--runs N``) and ``ctx.scheduler`` (``--scheduler``) are
+passed through; an experiment that supports it returns its statistics as extra metrics
+(e.g. ``final_err_phiE_arcmin_rms``), a :class:`Table` (per-run or per-state statistics,
+shown in the report and written as CSV) and extra figures. Nothing else changes.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from .. import progress as _progress
+from ..config import ExperimentConfig, Field, Q, QV, Section  # noqa: F401  (re-exported)
+
+__all__ = ["Claim", "Metric", "Figure", "Table", "Result", "RunContext", "Experiment",
+           "ExperimentConfig", "Section", "Q", "QV", "Field", "METRIC_NAME"]
+
+#: Metric names: stable snake_case; SI unless the name carries its unit (``_arcmin``).
+METRIC_NAME = re.compile(r"^[a-z][a-z0-9]*(_[a-zA-Z0-9]+)*$")
+
+
+def _num(x):
+    """Plain Python number (or list) for JSON; NaN stays NaN here (None in JSON)."""
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_num(v) for v in np.asarray(x).tolist()]
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x)
+    return x
+
+
+def _fmt(x, digits=4):
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_fmt(v, digits) for v in x) + "]"
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "n/a"
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    if isinstance(x, (float, np.floating)):
+        return f"{float(x):.{digits}g}"
+    return str(x)
+
+
+@dataclass
+class Claim:
+    """A checked statement of an experiment (one row of the report's claims table).
+
+    ``measured`` is what the run produced (number, list or text); ``expected`` says what
+    would make the claim true (text with unit and criterion, or a number); ``passed`` is
+    the verdict. A claim must be able to fail: compute ``passed`` from the run, never
+    assert it. The helpers build the common shapes and keep the criterion and the verdict
+    consistent; a measurement that is NaN/None never passes.
+    """
+
+    id: str
+    statement: str
+    measured: Any
+    expected: Any
+    passed: bool
+
+    def __post_init__(self):
+        self.measured = _num(self.measured)
+        self.expected = _num(self.expected)
+        self.passed = bool(self.passed)
+
+    def as_dict(self) -> dict:
+        return {"id": self.id, "statement": self.statement, "measured": self.measured,
+                "expected": self.expected, "passed": self.passed}
+
+    @staticmethod
+    def _ok(v) -> bool:
+        return v is not None and np.all(np.isfinite(np.asarray(v, dtype=float)))
+
+    @classmethod
+    def within(cls, id: str, statement: str, measured, target, *, rel: float | None = None,
+               abs: float | None = None, unit: str = "") -> "Claim":
+        """``|measured − target| <= abs`` or ``<= rel·|target|`` (every component)."""
+        if rel is None and abs is None:
+            raise ValueError("Claim.within needs rel or abs")
+        tol = np.asarray(abs if abs is not None else 0.0, float)
+        if rel is not None:
+            tol = np.maximum(tol, rel * np.abs(np.asarray(target, float)))
+        ok = cls._ok(measured) and bool(np.all(
+            np.abs(np.asarray(measured, float) - np.asarray(target, float)) <= tol))
+        crit = f"{_fmt(target, 6)} {unit}".strip() + " ± " + (
+            f"{rel * 100:g} %" if rel is not None and abs is None else f"{_fmt(tol)} {unit}".strip())
+        return cls(id, statement, measured, crit, ok)
+
+    @classmethod
+    def at_most(cls, id: str, statement: str, measured, limit, unit: str = "") -> "Claim":
+        """``measured <= limit`` (every component)."""
+        ok = cls._ok(measured) and bool(np.all(np.asarray(measured, float) <= np.asarray(limit, float)))
+        return cls(id, statement, measured, f"<= {_fmt(limit, 6)} {unit}".strip(), ok)
+
+    @classmethod
+    def at_least(cls, id: str, statement: str, measured, limit, unit: str = "") -> "Claim":
+        """``measured >= limit`` (every component)."""
+        ok = cls._ok(measured) and bool(np.all(np.asarray(measured, float) >= np.asarray(limit, float)))
+        return cls(id, statement, measured, f">= {_fmt(limit, 6)} {unit}".strip(), ok)
+
+    @classmethod
+    def equals(cls, id: str, statement: str, measured, expected) -> "Claim":
+        """Exact equality (ranks, counts, orderings)."""
+        return cls(id, statement, measured, expected, _num(measured) == _num(expected))
+
+
+@dataclass(frozen=True)
+class Metric:
+    """Declaration of a metric: its unit (as printed) and a one-line description."""
+
+    unit: str
+    description: str
+
+
+@dataclass
+class Figure:
+    """A matplotlib figure to save as ``name.png`` + ``name.svg`` and show in the report."""
+
+    name: str
+    fig: Any
+    caption: str = ""
+
+
+@dataclass
+class Table:
+    """A small table (e.g. Monte Carlo statistics) shown in the report and written as CSV."""
+
+    name: str
+    data: Any            # pandas.DataFrame or dict of equal-length columns
+    caption: str = ""
+
+
+@dataclass
+class Result:
+    """What ``run`` returns; the framework writes it out.
+
+    metrics : {name: number | list | None}; names declared in the module's ``METRICS``.
+    claims : list of :class:`Claim`.
+    series : {name: DataFrame or dict of 1-D arrays} — time series, written as
+        ``name.csv`` (``name.parquet`` too when longer than 100k rows).
+    figures : list of :class:`Figure`.
+    tables : list of :class:`Table` — shown in the report (Monte Carlo statistics ...).
+    notes : lines of text for the report (assumptions, conventions of printed angles).
+    """
+
+    metrics: dict[str, Any]
+    claims: list[Claim] = field(default_factory=list)
+    series: dict[str, Any] = field(default_factory=dict)
+    figures: list[Figure] = field(default_factory=list)
+    tables: list[Table] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class RunContext:
+    """What the framework hands to ``run`` besides the config."""
+
+    name: str
+    out: Path
+    seed: int = 0
+    runs: int = 1
+    quick: bool = False
+    scheduler: str | None = None
+    log: Callable[[str], None] = lambda msg: None
+
+    def rng(self, *stream: int) -> np.random.Generator:
+        """Generator for the run's seed (and optional sub-stream ids): same seed, same bytes."""
+        return np.random.default_rng([self.seed, *stream])
+
+    @staticmethod
+    def progress(description: str, total: float | None = None, unit: str = ""):
+        """Progress bar context manager (:func:`sinslab.progress.progress`)."""
+        return _progress.progress(description, total, unit)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A registered experiment: the module's declarations, checked."""
+
+    name: str
+    purpose: str
+    config: type[ExperimentConfig]
+    run: Callable[[ExperimentConfig, RunContext], Result]
+    quick: Mapping = field(default_factory=dict)
+    metrics: Mapping[str, Metric] = field(default_factory=dict)
+    paper: str = ""
+    notes: tuple = ()
+    module: str = ""
+
+    @classmethod
+    def from_module(cls, mod) -> "Experiment":
+        missing = [a for a in ("NAME", "PURPOSE", "Config", "run") if not hasattr(mod, a)]
+        if missing:
+            raise TypeError(f"experiment module {mod.__name__} lacks {', '.join(missing)}")
+        if not (isinstance(mod.Config, type) and issubclass(mod.Config, ExperimentConfig)):
+            raise TypeError(f"{mod.__name__}.Config must subclass sinslab.config.ExperimentConfig")
+        metrics = dict(getattr(mod, "METRICS", {}))
+        metrics.setdefault("runtime_s", Metric("s", "wall time of the experiment's computation"))
+        bad = [m for m in metrics if not METRIC_NAME.match(m)]
+        if bad:
+            raise TypeError(f"{mod.__name__}: metric names must be snake_case: {bad}")
+        return cls(name=mod.NAME, purpose=mod.PURPOSE, config=mod.Config, run=mod.run,
+                   quick=dict(getattr(mod, "QUICK", {})), metrics=metrics,
+                   paper=getattr(mod, "PAPER", ""), notes=tuple(getattr(mod, "NOTES", ())),
+                   module=mod.__name__)
