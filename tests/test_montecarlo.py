@@ -1,0 +1,109 @@
+"""Monte Carlo on Dask: determinism across workers and batches, worker loss, statistics."""
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+
+import cloudpickle
+import numpy as np
+import pytest
+
+from sinslab import kalman as kf
+from sinslab import montecarlo as mc
+
+cloudpickle.register_pickle_by_value(sys.modules[__name__])   # workers need not import tests/
+
+
+def _model():
+    F = np.array([[0.0, 1.0], [0.0, -0.05]])
+    Phi, Q = kf.discretize(F, np.diag([0.0, 0.02]), 1.0)
+    H = np.array([[1.0, 0.0]])
+    R = np.array([[0.5]])
+    P0 = np.diag([4.0, 1.0])
+    return Phi, Q, H, R, P0
+
+
+def slow_batch(seeds, delay):
+    """Pure per-run draws, slowed down so a worker can be killed mid-campaign."""
+    time.sleep(delay)
+    return np.stack([np.random.default_rng(s).standard_normal(5) for s in seeds])
+
+
+def test_seeds_belong_to_runs_whatever_the_batching():
+    a = mc.run_campaign(slow_batch, 10, 42, batch=3, scheduler="sync", kwargs=dict(delay=0))
+    b = mc.run_campaign(slow_batch, 10, 42, batch=10, scheduler="sync", kwargs=dict(delay=0))
+    c = np.stack([np.random.default_rng(s).standard_normal(5) for s in mc.spawn_seeds(42, 10)])
+    assert np.array_equal(a, b) and np.array_equal(a, c)
+
+
+def test_same_seed_identical_for_1_2_4_workers():
+    Phi, Q, H, R, P0 = _model()
+    kw = dict(Phi=Phi, Q=Q, H=H, R=R, P0=P0, n_steps=50)
+    ref = mc.run_campaign(mc.linear_batch, 24, 7, batch=5, scheduler="sync", kwargs=kw)
+    for nw in (1, 2, 4):
+        out = mc.run_campaign(mc.linear_batch, 24, 7, batch=3 + nw, n_workers=nw,
+                              progress=False, kwargs=kw)
+        for k in ref:
+            assert np.array_equal(out[k], ref[k]), (nw, k)
+
+
+def test_killed_worker_campaign_completes_identically():
+    from distributed import Client, LocalCluster
+    ref = mc.run_campaign(slow_batch, 16, 3, batch=2, scheduler="sync", kwargs=dict(delay=0))
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.CRITICAL)
+    client = Client(cluster)
+    killed = []
+
+    def kill():
+        nanny = next(iter(cluster.workers.values()))
+        pid = nanny.process.process.pid       # the worker's OS process
+        killed.append(pid)
+        os.kill(pid, signal.SIGKILL)
+
+    try:
+        timer = threading.Timer(1.0, kill)
+        timer.start()
+        t0 = time.perf_counter()
+        out = mc.run_campaign(slow_batch, 16, 3, batch=2, scheduler=client, progress=False,
+                              kwargs=dict(delay=0.4))
+        elapsed = time.perf_counter() - t0
+        timer.join()
+    finally:
+        client.close()
+        cluster.close()
+    assert killed, "the worker was not killed"
+    assert elapsed > 1.0, "campaign finished before the worker was killed"
+    assert np.array_equal(out, ref)
+
+
+def test_linear_campaign_statistics_agree_with_covariance():
+    Phi, Q, H, R, P0 = _model()
+    K = 60
+    mask = np.arange(K) % 3 == 0
+    out = mc.run_campaign(mc.linear_batch, 400, 11, batch=100, scheduler="sync",
+                          kwargs=dict(Phi=Phi, Q=Q, H=H, R=R, P0=P0, n_steps=K, mask=mask))
+    cov = kf.propagate_covariance(P0, Phi, Q, H, R, mask=mask)
+    np.testing.assert_allclose(out["sigma"][0], cov.sigma, rtol=1e-10)
+    s = mc.summarize(out["err"], sigma=out["sigma"], nees=out["nees"], nis=out["nis"],
+                     nis_dof=mask.astype(int))
+    ratio = s.rms_over_sigma()
+    assert 0.8 < ratio.min() and ratio.max() < 1.2, ratio
+    assert s.nees_inside > 0.85 and s.nis_inside > 0.85
+    lo, hi = mc.chi2_bounds(2, 400)
+    assert lo < 2 < hi
+    # a biased truth is caught by the NEES
+    bad = mc.run_campaign(mc.linear_batch, 100, 11, batch=100, scheduler="sync",
+                          kwargs=dict(Phi=Phi, Q=Q, H=H, R=R, P0=P0, n_steps=K, mask=mask,
+                                      x0_bias=[10.0, 0.0]))
+    sb = mc.summarize(bad["err"], nees=bad["nees"])
+    assert sb.nees[0] > sb.nees_bounds[1][0]
+
+
+def test_bad_campaign_output_is_an_error():
+    with pytest.raises(ValueError, match="first axis"):
+        mc.run_campaign(lambda seeds: np.zeros(3), 2, 0, batch=2, scheduler="sync")
+    with pytest.raises(ValueError, match="n_runs"):
+        mc.spawn_seeds(0, 0)
