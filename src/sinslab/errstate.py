@@ -1,0 +1,949 @@
+"""Error-state models of strapdown INS (φ-angle family, ENU) and their discretisation.
+
+Conventions (binding for every model in this module)
+-----------------------------------------------------
+- Navigation frame n = ENU, body frame b = RFU (IMU axes x right, y forward, z up).
+- Every error is **computed minus true**:
+
+  * attitude: the misalignment φ (rad, n frame) of the computed frame n',
+    ``C_b^{n'} = (I − φ×) C_b^n`` (DESIGN.md), i.e. ``φ = attitude.misalignment(C_true, C_comp)``;
+  * velocity: ``δv^n = ṽ^n − v^n`` [m/s];
+  * position: ``δp = [δL, δλ, δh] = p̃ − p`` [rad, rad, m];
+  * sensors: ``ω̃_ib^b = ω_ib^b + δω_ib^b``, ``f̃^b = f^b + δf^b`` (measured minus true), so a
+    positive gyro bias ε makes the gyro read high.
+
+- The continuous model is ``ẋ = F(t) x + G(t) w`` with ``E[w(t) w(s)ᵀ] = diag(q) δ(t − s)``;
+  ``q`` holds spectral densities in SI (gyro white noise [rad²/s] = ARW², accelerometer white
+  noise [(m/s²)²/Hz = m²/s³] = VRW², Gauss–Markov driving noise ``2σ²/τ``).
+
+Core equations (Savage; PSINS ``etm``) with ω_in = ω_ie + ω_en::
+
+    φ̇  = −ω_in×φ + δω_in − C_b^n δω_ib^b                          (Maa, Mav, Map)
+    δv̇ = f^n×φ + C_b^n δf^b − (2ω_ie+ω_en)×δv − (2δω_ie+δω_en)×v + δg^n   (Mva, Mvv, Mvp)
+    δL̇ = δvN/(R_M+h) − vN/(R_M+h)² (R_M' δL + δh)
+    δλ̇ = δvE/((R_N+h)cosL) + vE tanL/((R_N+h)cosL) δL − vE/((R_N+h)² cosL)(R_N' δL + δh)
+    δḣ = δvU                                                          (Mpv, Mpp)
+
+``R_M' = dR_M/dL``, ``R_N' = dR_N/dL`` and ``∂g/∂L`` are kept when ``radius_derivatives=True``
+(the default: the F is then the exact Jacobian of the mechanization equations with
+sinslab's Earth model; PSINS drops them, a relative effect of order e² ≈ 0.007 on a few
+position-coupling terms). ``δg^n = [0, 0, −(∂g/∂L δL + ∂g/∂h δh)]``.
+
+Model building blocks
+---------------------
+A model = a *core* (which navigation errors are states) + *sensor blocks*:
+
+========================  =====================================================
+core                      states
+========================  =====================================================
+``"full"``                φ (3), δv (3), δp = [δL, δλ, δh] (9)
+``"horizontal"``          φ (3), δvE, δvN, δL, δλ (7): vertical channel held
+``"attvel"``              φ (3), δv (3) (6): position externally known (transfer alignment)
+``"attvel-horizontal"``   φ (3), δvE, δvN (5)
+``"attitude"``            φ (3)
+========================  =====================================================
+
+Sensor blocks (:func:`gyro_bias`, :func:`accel_bias`, :func:`gyro_markov`,
+:func:`accel_markov`, :func:`gyro_scale`, :func:`accel_scale`, :func:`installation`) add
+states with their own dynamics and a linear map into ``δω_ib^b`` or ``δf^b``. The
+:class:`DifferenceModel` models ``INS 1 − INS k`` for two INS on one carrier (paper 001).
+
+All builders are vectorised: a :class:`NavPoint` whose fields have a leading shape ``S``
+gives ``F`` of shape ``S + (n, n)``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Sequence
+
+import numpy as np
+import scipy.linalg
+from numba import njit
+
+from . import units
+from .attitude import euler_to_dcm, skew
+from .earth import A, DGDH, E2, G_EQ, K_SOM, WIE, gravity
+
+__all__ = [
+    "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
+    "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
+    "ErrorModel", "DifferenceModel", "core_matrices", "static_alignment_model",
+    "joint_rotation_model", "discretize", "phi_series_nb", "discretize_series_nb", "CORES",
+]
+
+# ----------------------------------------------------------------------------- layout
+_DISPLAY = {  # unit name -> SI value of one display unit
+    "arcmin": units.arcmin, "arcsec": units.arcsec, "m/s": 1.0, "m": 1.0, "deg/h": units.dph,
+    "ug": units.ug, "ppm": units.ppm, "rad": 1.0, "-": 1.0, "deg": units.deg,
+}
+
+
+@dataclass(frozen=True)
+class Block:
+    """A named group of consecutive states.
+
+    Attributes
+    ----------
+    name : str
+        Block name (``"phi"``, ``"dv"``, ``"dp"``, ``"eps"``, ...).
+    labels : tuple of str
+        One label per state (``"phiE"``, ``"dvN"``, ``"eps_x"``...), unique in a layout.
+    units : tuple of str
+        Display unit per state (``"arcmin"``, ``"m/s"``, ``"deg/h"``, ``"ug"``, ``"ppm"``,
+        ``"arcsec"``, ``"m"``); states are SI inside, the unit is for printing only.
+    """
+
+    name: str
+    labels: tuple
+    units: tuple
+
+    def __post_init__(self):
+        if len(self.labels) != len(self.units):
+            raise ValueError(f"block {self.name!r}: {len(self.labels)} labels, {len(self.units)} units")
+
+    @property
+    def size(self) -> int:
+        return len(self.labels)
+
+
+class StateLayout:
+    """Ordered named blocks of an error-state vector, with slices and display units.
+
+    Parameters
+    ----------
+    blocks : sequence of Block
+        In state order.
+
+    Examples
+    --------
+    >>> lay = ErrorModel("full", [gyro_bias(), accel_bias()]).layout
+    >>> lay.n, lay.slice("eps"), lay.index("dvN")
+    (15, slice(9, 12, None), 4)
+    """
+
+    def __init__(self, blocks: Sequence[Block]):
+        self.blocks = tuple(blocks)
+        names = [b.name for b in self.blocks]
+        if len(set(names)) != len(names):
+            raise ValueError(f"duplicate block names in {names}")
+        self.labels = tuple(l for b in self.blocks for l in b.labels)
+        if len(set(self.labels)) != len(self.labels):
+            raise ValueError(f"duplicate state labels in {self.labels}")
+        self.units = tuple(u for b in self.blocks for u in b.units)
+        self.n = len(self.labels)
+        self._slices = {}
+        i = 0
+        for b in self.blocks:
+            self._slices[b.name] = slice(i, i + b.size)
+            i += b.size
+
+    @property
+    def names(self):
+        """Block names in order."""
+        return tuple(b.name for b in self.blocks)
+
+    def slice(self, name: str) -> slice:
+        """Slice of block ``name`` in the state vector."""
+        try:
+            return self._slices[name]
+        except KeyError:
+            raise KeyError(f"no block {name!r}; blocks are {self.names}") from None
+
+    def index(self, label):
+        """Index of a state label, or array of indices for a list of labels."""
+        if isinstance(label, str):
+            try:
+                return self.labels.index(label)
+            except ValueError:
+                raise KeyError(f"no state {label!r}; states are {self.labels}") from None
+        return np.array([self.index(l) for l in label], dtype=int)
+
+    def selector(self, labels) -> np.ndarray:
+        """Selection matrix ``H`` (len(labels), n) with ``H x = x[labels]``."""
+        idx = self.index(list(labels))
+        H = np.zeros((idx.size, self.n))
+        H[np.arange(idx.size), idx] = 1.0
+        return H
+
+    @property
+    def display_scale(self) -> np.ndarray:
+        """SI value of one display unit per state, shape (n,): ``x / display_scale``."""
+        return np.array([_DISPLAY[u] for u in self.units])
+
+    def to_display(self, x):
+        """State vector(s) (..., n) in display units."""
+        return np.asarray(x, dtype=float) / self.display_scale
+
+    def format(self, x, digits: int = 4) -> str:
+        """One line per state: label, value in its display unit."""
+        xd = self.to_display(x)
+        return "\n".join(f"{l:>10s} {v: .{digits}g} {u}" for l, v, u in zip(self.labels, xd, self.units))
+
+    def __repr__(self):
+        return "StateLayout(" + ", ".join(f"{b.name}[{b.size}]" for b in self.blocks) + ")"
+
+
+# ------------------------------------------------------------------------- nav sample
+@dataclass(frozen=True)
+class NavPoint:
+    """Navigation state (true or best estimate) at which F and G are evaluated.
+
+    All fields broadcast to a common leading shape ``S`` (empty for one epoch).
+
+    Attributes
+    ----------
+    lat : array_like, shape S
+        Latitude [rad].
+    h : array_like, shape S
+        Height [m].
+    vel : array_like, shape S + (3,)
+        Velocity ENU [m/s].
+    Cbn : array_like, shape S + (3, 3)
+        Attitude ``C_b^n`` of the IMU body frame.
+    fb : array_like, shape S + (3,)
+        Specific force in body axes [m/s²].
+    wb : array_like, shape S + (3,)
+        Angular rate ω_ib^b [rad/s] (needed by gyro scale-factor states only).
+    """
+
+    lat: np.ndarray
+    h: np.ndarray
+    vel: np.ndarray
+    Cbn: np.ndarray
+    fb: np.ndarray
+    wb: np.ndarray = None
+
+    def __post_init__(self):
+        lat = np.asarray(self.lat, dtype=float)
+        h = np.asarray(self.h, dtype=float)
+        vel = np.asarray(self.vel, dtype=float)
+        C = np.asarray(self.Cbn, dtype=float)
+        fb = np.asarray(self.fb, dtype=float)
+        wb = np.zeros(3) if self.wb is None else np.asarray(self.wb, dtype=float)
+        for name, a, tail in (("vel", vel, (3,)), ("Cbn", C, (3, 3)), ("fb", fb, (3,)), ("wb", wb, (3,))):
+            if a.shape[a.ndim - len(tail):] != tail:
+                raise ValueError(f"NavPoint.{name} must end with shape {tail}, got {a.shape}")
+        S = np.broadcast_shapes(lat.shape, h.shape, vel.shape[:-1], C.shape[:-2], fb.shape[:-1],
+                                wb.shape[:-1])
+        for name, a, tail in (("lat", lat, ()), ("h", h, ()), ("vel", vel, (3,)), ("Cbn", C, (3, 3)),
+                              ("fb", fb, (3,)), ("wb", wb, (3,))):
+            a = np.broadcast_to(a, S + tail)
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"NavPoint.{name} has non-finite values")
+            object.__setattr__(self, name, a)
+        if np.any(np.abs(lat) >= np.pi / 2):
+            raise ValueError("NavPoint latitude must be inside (-90, 90) deg")
+
+    @property
+    def shape(self):
+        """Leading shape ``S``."""
+        return self.lat.shape
+
+    @property
+    def fn(self):
+        """Specific force in n, ``C_b^n f^b`` [m/s²], shape S + (3,)."""
+        return np.einsum("...ij,...j->...i", self.Cbn, self.fb)
+
+    def __getitem__(self, idx):
+        return NavPoint(self.lat[idx], self.h[idx], self.vel[idx], self.Cbn[idx], self.fb[idx], self.wb[idx])
+
+    def with_attitude(self, Cbn, fb=None, wb=None):
+        """Same carrier position/velocity, another body frame (e.g. a second IMU).
+
+        ``fb``/``wb`` default to the same specific force / rate in n re-expressed in
+        the new body axes (a mount whose own rotation rate is not included).
+        """
+        Cbn = np.asarray(Cbn, dtype=float)
+        if fb is None:
+            fb = np.einsum("...ji,...j->...i", Cbn, self.fn)
+        if wb is None:
+            wb = np.einsum("...ji,...j->...i", Cbn, np.einsum("...ij,...j->...i", self.Cbn, self.wb))
+        return NavPoint(self.lat, self.h, self.vel, Cbn, fb, wb)
+
+    @classmethod
+    def static(cls, lat, att=(0.0, 0.0, 0.0), h=0.0):
+        """A stationary point: v = 0, ``f^n = [0, 0, g]``, ``ω_ib^n = ω_ie^n``.
+
+        Parameters
+        ----------
+        lat : float or array
+            Latitude [rad].
+        att : array_like (..., 3) or (3, 3) DCM
+            ``[pitch, roll, yaw]`` [rad] of the IMU, or ``C_b^n`` itself.
+        h : float
+            Height [m].
+        """
+        att = np.asarray(att, dtype=float)
+        C = att if att.shape[-2:] == (3, 3) else euler_to_dcm(att)
+        lat = np.asarray(lat, dtype=float)
+        g = gravity(lat, h)
+        fn = np.stack(np.broadcast_arrays(0.0 * g, 0.0 * g, g), -1)
+        wn = np.stack(np.broadcast_arrays(0.0 * lat, WIE * np.cos(lat), WIE * np.sin(lat)), -1)
+        fb = np.einsum("...ji,...j->...i", C, fn)
+        wb = np.einsum("...ji,...j->...i", C, wn)
+        return cls(lat, h, np.zeros(3), C, fb, wb)
+
+    @classmethod
+    def from_series(cls, series, imu=None, idx=None, imu_frame=True):
+        """Nav points at the epochs of a :class:`sinslab.records.NavSeries`.
+
+        Parameters
+        ----------
+        series : NavSeries
+            M epochs (truth or navigation solution).
+        imu : ImuRecord, optional
+            Increments on the same grid (N = M − 1 samples); epoch k ≥ 1 uses sample k − 1's
+            mean rates, epoch 0 uses sample 0. Without it ``fb`` is the level static value and
+            ``wb`` the Earth rate (a rough approximation for slow vehicles).
+        idx : index, optional
+            Epochs to take (slice, mask or indices); default all.
+        imu_frame : bool
+            Use ``series.att_imu`` when present (the IMU body frame), else ``series.att``.
+        """
+        from .attitude import euler_to_dcm as e2d
+        sel = slice(None) if idx is None else idx
+        att = series.att_imu if (imu_frame and series.att_imu is not None) else series.att
+        C = e2d(att[sel])
+        lat = series.lat[sel]
+        if imu is None:
+            st = cls.static(lat, C, series.h[sel])
+            return cls(lat, series.h[sel], series.vel[sel], C, st.fb, st.wb)
+        k = np.arange(series.t.size)[sel]
+        j = np.clip(k - 1, 0, len(imu) - 1)
+        fb = imu.dv[j] / imu.dt
+        wb = imu.dtheta[j] / imu.dt
+        return cls(lat, series.h[sel], series.vel[sel], C, fb, wb)
+
+
+# --------------------------------------------------------------------------- the core
+def core_matrices(nav: NavPoint, radius_derivatives: bool = True):
+    """The 9×9 navigation-error matrix of the full core and the 3 body-input maps.
+
+    Parameters
+    ----------
+    nav : NavPoint
+        Leading shape S.
+    radius_derivatives : bool
+        Keep dR_M/dL, dR_N/dL and ∂g/∂L terms (exact Jacobian); PSINS drops them.
+
+    Returns
+    -------
+    Fc : ndarray, shape S + (9, 9)
+        Rows/columns ``[φE φN φU, δvE δvN δvU, δL δλ δh]``.
+    Cbn : ndarray, shape S + (3, 3)
+        ``C_b^n``: ``φ̇ += −C_b^n δω_ib^b``, ``δv̇ += C_b^n δf^b``.
+    """
+    L, h, v = nav.lat, nav.h, nav.vel
+    S = L.shape
+    sL, cL = np.sin(L), np.cos(L)
+    tL = sL / cL
+    q = 1.0 - E2 * sL * sL
+    RM0 = A * (1.0 - E2) / q ** 1.5
+    RN0 = A / np.sqrt(q)
+    RMh, RNh = RM0 + h, RN0 + h
+    if radius_derivatives:
+        dRM = RM0 * 3.0 * E2 * sL * cL / q
+        dRN = RN0 * E2 * sL * cL / q
+        dgdL = G_EQ * (2.0 * K_SOM * sL * cL / np.sqrt(q) + (1.0 + K_SOM * sL * sL) * E2 * sL * cL / q ** 1.5)
+    else:
+        dRM = dRN = dgdL = np.zeros(S)
+    vE, vN, vU = v[..., 0], v[..., 1], v[..., 2]
+    z = np.zeros(S)
+    wie = np.stack([z, WIE * cL, WIE * sL], -1)
+    wen = np.stack([-vN / RMh, vE / RNh, vE * tL / RNh], -1)
+    win = wie + wen
+    Mav = np.zeros(S + (3, 3))
+    Mav[..., 0, 1] = -1.0 / RMh
+    Mav[..., 1, 0] = 1.0 / RNh
+    Mav[..., 2, 0] = tL / RNh
+    M1 = np.zeros(S + (3, 3))                      # ∂ω_ie/∂p
+    M1[..., 1, 0] = -WIE * sL
+    M1[..., 2, 0] = WIE * cL
+    M2 = np.zeros(S + (3, 3))                      # ∂ω_en/∂p
+    M2[..., 0, 0] = vN * dRM / RMh ** 2
+    M2[..., 0, 2] = vN / RMh ** 2
+    M2[..., 1, 0] = -vE * dRN / RNh ** 2
+    M2[..., 1, 2] = -vE / RNh ** 2
+    M2[..., 2, 0] = vE / (cL * cL * RNh) - vE * tL * dRN / RNh ** 2
+    M2[..., 2, 2] = -vE * tL / RNh ** 2
+    vx = skew(v)
+    Fc = np.zeros(S + (9, 9))
+    Fc[..., 0:3, 0:3] = -skew(win)
+    Fc[..., 0:3, 3:6] = Mav
+    Fc[..., 0:3, 6:9] = M1 + M2
+    Fc[..., 3:6, 0:3] = skew(nav.fn)
+    Fc[..., 3:6, 3:6] = vx @ Mav - skew(2.0 * wie + wen)
+    Fc[..., 3:6, 6:9] = vx @ (2.0 * M1 + M2)
+    Fc[..., 5, 6] += -dgdL
+    Fc[..., 5, 8] += DGDH                          # δg_U = −∂g/∂h δh, ∂g/∂h = −DGDH
+    Fc[..., 6, 4] = 1.0 / RMh
+    Fc[..., 6, 6] = -vN * dRM / RMh ** 2
+    Fc[..., 6, 8] = -vN / RMh ** 2
+    Fc[..., 7, 3] = 1.0 / (RNh * cL)
+    Fc[..., 7, 6] = vE * tL / (RNh * cL) - vE * dRN / (RNh ** 2 * cL)
+    Fc[..., 7, 8] = -vE / (RNh ** 2 * cL)
+    Fc[..., 8, 5] = 1.0
+    return Fc, nav.Cbn
+
+
+_CORE_LABELS = ("phiE", "phiN", "phiU", "dvE", "dvN", "dvU", "dL", "dlam", "dh")
+_CORE_UNITS = ("arcmin",) * 3 + ("m/s",) * 3 + ("arcsec", "arcsec", "m")
+#: core name -> indices of the kept states among the 9 of the full core
+CORES = {
+    "full": (0, 1, 2, 3, 4, 5, 6, 7, 8),
+    "horizontal": (0, 1, 2, 3, 4, 6, 7),
+    "attvel": (0, 1, 2, 3, 4, 5),
+    "attvel-horizontal": (0, 1, 2, 3, 4),
+    "attitude": (0, 1, 2),
+}
+
+
+def _core_blocks(core, suffix=""):
+    keep = CORES[core]
+    blocks = []
+    for name, rng in (("phi", range(0, 3)), ("dv", range(3, 6)), ("dp", range(6, 9))):
+        idx = [i for i in rng if i in keep]
+        if idx:
+            blocks.append(Block(name, tuple(_CORE_LABELS[i] + suffix for i in idx),
+                                tuple(_CORE_UNITS[i] for i in idx)))
+    return blocks
+
+
+# ----------------------------------------------------------------------- sensor blocks
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass(frozen=True)
+class SensorBlock:
+    """States describing sensor (or installation) errors.
+
+    Use the constructors :func:`gyro_bias`, :func:`accel_bias`, :func:`gyro_markov`,
+    :func:`accel_markov`, :func:`gyro_scale`, :func:`accel_scale`, :func:`installation`.
+
+    Attributes
+    ----------
+    name : str
+        Block name (labels are ``name + "_" + axis``).
+    sensor : {"gyro", "accel", None}
+        Which input error the states drive (``δω_ib`` or ``δf``); None: no coupling
+        (random constants seen only by measurements, e.g. installation angles).
+    kind : {"bias", "markov", "scale", "constant"}
+        ``bias``: the states are added to the sensor output (``δω = x``); ``markov``: same
+        coupling, dynamics ``ẋ = −x/τ + w``; ``scale``: ``δω = diag(ω^b) x`` /
+        ``δf = diag(f^b) x``; ``constant``: no coupling.
+    axes : str
+        Sensor axes carried, a subset of ``"xyz"`` in order (``"xy"``: horizontal
+        accelerometers only, paper 001).
+    frame : {"body", "nav"}
+        ``nav``: the states are already in n (paper 000's ε^n, ∇^n): coupling without C_b^n.
+    tau : float or None
+        Correlation time [s] for ``markov``.
+    q : ndarray, shape (k,)
+        Spectral density of each state's driving noise (0 = random constant).
+    unit : str
+        Display unit.
+    """
+
+    name: str
+    sensor: str | None
+    kind: str
+    axes: str = "xyz"
+    frame: str = "body"
+    tau: float | None = None
+    q: np.ndarray = field(default=None)
+    unit: str = "-"
+
+    def __post_init__(self):
+        if not self.axes or any(a not in _AXES for a in self.axes) or len(set(self.axes)) != len(self.axes):
+            raise ValueError(f"block {self.name!r}: axes must be a subset of 'xyz', got {self.axes!r}")
+        if self.frame not in ("body", "nav"):
+            raise ValueError(f"block {self.name!r}: frame must be 'body' or 'nav'")
+        if self.kind == "markov" and not (self.tau and self.tau > 0):
+            raise ValueError(f"block {self.name!r}: Gauss-Markov correlation time must be > 0, got {self.tau}")
+        q = np.zeros(len(self.axes)) if self.q is None else np.broadcast_to(
+            np.asarray(self.q, dtype=float), (len(self.axes),)).copy()
+        if np.any(q < 0) or not np.all(np.isfinite(q)):
+            raise ValueError(f"block {self.name!r}: noise densities must be finite and >= 0")
+        object.__setattr__(self, "q", q)
+
+    @property
+    def size(self):
+        return len(self.axes)
+
+    def block(self, suffix="") -> Block:
+        ax = self.axes if self.frame == "body" else "".join("ENU"[_AXES[a]] for a in self.axes)
+        return Block(self.name + suffix, tuple(f"{self.name}_{a}{suffix}" for a in ax), (self.unit,) * self.size)
+
+    def coupling(self, nav: NavPoint) -> np.ndarray:
+        """Map ``S + (3, k)`` from the block's states to ``δω_ib^b`` or ``δf^b``."""
+        idx = [_AXES[a] for a in self.axes]
+        S = nav.shape
+        M = np.zeros(S + (3, self.size))
+        if self.kind in ("bias", "markov"):
+            M[..., idx, np.arange(self.size)] = 1.0
+        elif self.kind == "scale":
+            src = nav.wb if self.sensor == "gyro" else nav.fb
+            M[..., idx, np.arange(self.size)] = src[..., idx]
+        return M
+
+    def dynamics(self) -> np.ndarray:
+        """Diagonal of the block's own dynamics matrix, shape (k,)."""
+        if self.kind == "markov":
+            return np.full(self.size, -1.0 / self.tau)
+        return np.zeros(self.size)
+
+
+def gyro_bias(axes="xyz", rrw=0.0, frame="body", name="eps"):
+    """Gyro bias ε [rad/s]: random constant, or random walk with density ``rrw²``.
+
+    ``rrw`` is the rate random walk [rad/s/√s] (scalar or per axis).
+    """
+    return SensorBlock(name, "gyro", "bias", axes, frame, None, np.asarray(rrw, float) ** 2, "deg/h")
+
+
+def accel_bias(axes="xyz", arw=0.0, frame="body", name="nabla"):
+    """Accelerometer bias ∇ [m/s²]: random constant, or random walk (``arw`` [m/s²/√s])."""
+    return SensorBlock(name, "accel", "bias", axes, frame, None, np.asarray(arw, float) ** 2, "ug")
+
+
+def gyro_markov(tau, sigma, axes="xyz", frame="body", name="eps_m"):
+    """First-order Gauss–Markov gyro drift: ``ẋ = −x/τ + w``, q = 2σ²/τ (σ steady-state [rad/s])."""
+    return SensorBlock(name, "gyro", "markov", axes, frame, float(tau),
+                       2.0 * np.asarray(sigma, float) ** 2 / float(tau), "deg/h")
+
+
+def accel_markov(tau, sigma, axes="xyz", frame="body", name="nabla_m"):
+    """First-order Gauss–Markov accelerometer bias, q = 2σ²/τ (σ [m/s²], τ [s])."""
+    return SensorBlock(name, "accel", "markov", axes, frame, float(tau),
+                       2.0 * np.asarray(sigma, float) ** 2 / float(tau), "ug")
+
+
+def gyro_scale(axes="xyz", name="kg"):
+    """Gyro scale-factor errors (diagonal) [-]: ``δω_ib^b = diag(ω_ib^b) k_g``, random constant."""
+    return SensorBlock(name, "gyro", "scale", axes, "body", None, None, "ppm")
+
+
+def accel_scale(axes="xyz", name="ka"):
+    """Accelerometer scale-factor errors (diagonal) [-]: ``δf^b = diag(f^b) k_a``, random constant."""
+    return SensorBlock(name, "accel", "scale", axes, "body", None, None, "ppm")
+
+
+def installation(name="lam", axes="xyz"):
+    """Installation (master–slave misalignment) angles [rad], random constant.
+
+    They have no dynamics and no effect on the INS error propagation; measurement models
+    (attitude matching, paper 002: ``φ_m = λ − C φ``) read them.
+    """
+    return SensorBlock(name, None, "constant", axes, "body", None, None, "arcmin")
+
+
+# ------------------------------------------------------------------------------ models
+def _noise_columns(axes, sensor, suffix):
+    return [f"w{sensor}_{a}{suffix}" for a in axes]
+
+
+class ErrorModel:
+    """Continuous error-state model ``ẋ = F x + G w`` of one INS.
+
+    Parameters
+    ----------
+    core : str
+        One of :data:`CORES` (``"full"``, ``"horizontal"``, ``"attvel"``,
+        ``"attvel-horizontal"``, ``"attitude"``).
+    sensors : sequence of SensorBlock
+        Extra states, in order after the core.
+    gyro_noise : float or (3,)
+        Gyro white noise (angle random walk) [rad/√s]; q = gyro_noise².
+    accel_noise : float or (3,)
+        Accelerometer white noise (velocity random walk) [m/s/√s]; q = accel_noise².
+    gyro_noise_axes, accel_noise_axes : str
+        Body axes that carry white noise (default all three).
+    order : sequence of str, optional
+        Block order (names); default core then sensors.
+    radius_derivatives : bool
+        Keep the dR/dL and ∂g/∂L terms (exact Jacobian). See module docstring.
+
+    Attributes
+    ----------
+    layout : StateLayout
+    noise_labels : tuple of str
+        Names of the columns of G.
+    q : ndarray (m,)
+        Spectral densities of w (SI).
+
+    Notes
+    -----
+    ``F(nav)`` and ``G(nav)`` accept a :class:`NavPoint` of leading shape S and return
+    ``S + (n, n)`` / ``S + (n, m)``.
+    """
+
+    def __init__(self, core="full", sensors: Sequence[SensorBlock] = (), gyro_noise=0.0, accel_noise=0.0,
+                 gyro_noise_axes="xyz", accel_noise_axes="xyz", order=None, radius_derivatives=True):
+        if core not in CORES:
+            raise ValueError(f"unknown core {core!r}; choose from {list(CORES)}")
+        self.core = core
+        self.radius_derivatives = radius_derivatives
+        self._ins = [dict(sensors=tuple(sensors), sign=1.0, suffix="",
+                          gnoise=self._noise(gyro_noise, gyro_noise_axes), gaxes=gyro_noise_axes,
+                          anoise=self._noise(accel_noise, accel_noise_axes), aaxes=accel_noise_axes)]
+        self._finish(order)
+
+    # -- construction helpers
+    @staticmethod
+    def _noise(val, axes):
+        a = np.broadcast_to(np.asarray(val, dtype=float), (len(axes),)).copy()
+        if np.any(a < 0) or not np.all(np.isfinite(a)):
+            raise ValueError("white-noise densities must be finite and >= 0")
+        return a
+
+    def _finish(self, order):
+        sfx = self._ins[0]["suffix"] if len(self._ins) == 1 else self._core_suffix
+        blocks = _core_blocks(self.core, sfx)
+        self._core_names = [b.name for b in blocks]
+        for ins in self._ins:
+            for s in ins["sensors"]:
+                blocks.append(s.block(ins["suffix"]))
+        by_name = {b.name: b for b in blocks}
+        if order is not None:
+            order = list(order)
+            if sorted(order) != sorted(by_name):
+                raise ValueError(f"order {order} must list exactly the blocks {list(by_name)}")
+            blocks = [by_name[o] for o in order]
+        self.layout = StateLayout(blocks)
+        # noise columns: per INS gyro white, accel white, then sensor-block driving noises
+        labels, q = [], []
+        for ins in self._ins:
+            labels += _noise_columns(ins["gaxes"], "g", ins["suffix"])
+            q.append(ins["gnoise"] ** 2)
+            labels += _noise_columns(ins["aaxes"], "a", ins["suffix"])
+            q.append(ins["anoise"] ** 2)
+        for ins in self._ins:
+            for s in ins["sensors"]:
+                if np.any(s.q > 0):
+                    labels += [f"w_{l}" for l in s.block(ins["suffix"]).labels]
+                    q.append(s.q)
+        self.noise_labels = tuple(labels)
+        self.q = np.concatenate(q) if q else np.zeros(0)
+
+    @property
+    def n(self):
+        """Number of states."""
+        return self.layout.n
+
+    def __repr__(self):
+        return f"{type(self).__name__}(core={self.core!r}, {self.layout!r}, noises={len(self.q)})"
+
+    # -- assembly
+    def _rows(self):
+        """Positions (in the model's state vector) of the kept core states, per full-core index."""
+        keep = CORES[self.core]
+        rows = {}
+        lab = self.layout.labels
+        sfx = "" if len(self._ins) == 1 else self._core_suffix
+        for i in keep:
+            rows[i] = lab.index(_CORE_LABELS[i] + sfx)
+        return rows
+
+    def _assemble(self, navs, core_nav):
+        n = self.n
+        S = core_nav.shape
+        Fc, _ = core_matrices(core_nav, self.radius_derivatives)
+        rows = self._rows()
+        ki = np.array(list(rows.keys()))
+        ri = np.array(list(rows.values()))
+        F = np.zeros(S + (n, n))
+        F[..., ri[:, None], ri[None, :]] = Fc[..., ki[:, None], ki[None, :]]
+        m = len(self.q)
+        G = np.zeros(S + (n, m))
+        att_k = [k for k in ki if k < 3]
+        vel_k = [k for k in ki if 3 <= k < 6]
+        att_r = np.array([rows[k] for k in att_k], dtype=int)
+        vel_r = np.array([rows[k] for k in vel_k], dtype=int)
+        vel_k = np.array(vel_k, dtype=int) - 3
+        col = 0
+        for ins, nav in zip(self._ins, navs):
+            C = nav.Cbn
+            sg = ins["sign"]
+            gi = [_AXES[a] for a in ins["gaxes"]]
+            G[..., att_r[:, None], col + np.arange(len(gi))[None, :]] = -sg * C[..., np.array(att_k)[:, None], np.array(gi)[None, :]]
+            col += len(gi)
+            ai = [_AXES[a] for a in ins["aaxes"]]
+            if vel_r.size:
+                G[..., vel_r[:, None], col + np.arange(len(ai))[None, :]] = sg * C[..., vel_k[:, None], np.array(ai)[None, :]]
+            col += len(ai)
+            for s in ins["sensors"]:
+                if s.sensor is None:
+                    continue
+                sl = self.layout.slice(s.name + ins["suffix"])
+                M = s.coupling(nav)                       # S + (3, k)
+                if s.frame == "body":
+                    M = C @ M
+                if s.sensor == "gyro":
+                    F[..., att_r[:, None], np.arange(sl.start, sl.stop)[None, :]] = -sg * M[..., att_k, :]
+                elif vel_r.size:
+                    F[..., vel_r[:, None], np.arange(sl.start, sl.stop)[None, :]] = sg * M[..., vel_k, :]
+        for ins in self._ins:
+            for s in ins["sensors"]:
+                sl = self.layout.slice(s.name + ins["suffix"])
+                d = s.dynamics()
+                F[..., np.arange(sl.start, sl.stop), np.arange(sl.start, sl.stop)] = d
+                if np.any(s.q > 0):
+                    G[..., np.arange(sl.start, sl.stop), col + np.arange(s.size)] = 1.0
+                    col += s.size
+        return F, G
+
+    def matrices(self, nav: NavPoint):
+        """``(F, G)`` at ``nav``: shapes ``S + (n, n)`` and ``S + (n, m)``."""
+        return self._assemble([nav], nav)
+
+    def F(self, nav: NavPoint) -> np.ndarray:
+        """System matrix F [1/s or mixed SI], shape ``S + (n, n)``."""
+        return self.matrices(nav)[0]
+
+    def G(self, nav: NavPoint) -> np.ndarray:
+        """Noise input matrix G, shape ``S + (n, m)`` (columns: :attr:`noise_labels`)."""
+        return self.matrices(nav)[1]
+
+    def Qc(self, nav: NavPoint) -> np.ndarray:
+        """Continuous process-noise density ``G diag(q) Gᵀ``, shape ``S + (n, n)``."""
+        G = self.G(nav)
+        return (G * self.q) @ np.swapaxes(G, -1, -2)
+
+    def discretize(self, nav: NavPoint, T: float, method="vanloan"):
+        """``(Φ, Q_k)`` over a step T [s] with F, G frozen at ``nav``; see :func:`discretize`."""
+        F, G = self.matrices(nav)
+        return discretize(F, G, self.q, T, method)
+
+
+class DifferenceModel(ErrorModel):
+    """Error model of the difference of two INS on one carrier: ``x = x_1 − x_k`` (core) +
+    the sensor states of both.
+
+    Both INS navigate the same carrier, so the core dynamics (which depend on position,
+    velocity and ``f^n``) are common and the core states are the differences
+    ``δp_1 − δp_k``, ``δv_1 − δv_k``, ``φ_1 − φ_k``. Each INS's sensor errors enter through
+    its own ``C_b^n`` (different under indexing/rotation mechanisms), INS 1 with ``+`` and
+    INS k with ``−`` (paper 001 eqs 3–8: ``F10 = [−C_b1^n, C_b2^n]``, ``F6 = [C̄_b1^n, −C̄_b2^n]``).
+
+    Parameters
+    ----------
+    core : str
+        As in :class:`ErrorModel` (paper 001: ``"horizontal"``).
+    sensors1, sensorsk : sequences of SensorBlock
+        Sensor states of INS 1 and INS k (block names get the suffixes).
+    gyro_noise1, gyro_noisek, accel_noise1, accel_noisek : float or array
+        White-noise densities of each INS [rad/√s], [m/s/√s].
+    suffixes : (str, str)
+        Appended to the sensor block names and labels, default ``("_1", "_k")``.
+    core_suffix : str
+        Appended to the difference core labels, default ``"_1k"``.
+
+    Notes
+    -----
+    ``F(nav1, navk)``: ``nav1`` supplies the common position, velocity and ``f^n``; each
+    nav supplies its own ``C_b^n`` (and ``f^b``, ``ω^b`` for scale-factor states).
+    """
+
+    def __init__(self, core="horizontal", sensors1=(), sensorsk=(), gyro_noise1=0.0, gyro_noisek=0.0,
+                 accel_noise1=0.0, accel_noisek=0.0, gyro_noise_axes="xyz", accel_noise_axes="xyz",
+                 suffixes=("_1", "_k"), core_suffix="_1k", order=None, radius_derivatives=True):
+        if core not in CORES:
+            raise ValueError(f"unknown core {core!r}; choose from {list(CORES)}")
+        self.core = core
+        self.radius_derivatives = radius_derivatives
+        self._core_suffix = core_suffix
+        self._ins = []
+        for sens, gn, an, sg, sfx in ((sensors1, gyro_noise1, accel_noise1, 1.0, suffixes[0]),
+                                      (sensorsk, gyro_noisek, accel_noisek, -1.0, suffixes[1])):
+            self._ins.append(dict(sensors=tuple(sens), sign=sg, suffix=sfx,
+                                  gnoise=self._noise(gn, gyro_noise_axes), gaxes=gyro_noise_axes,
+                                  anoise=self._noise(an, accel_noise_axes), aaxes=accel_noise_axes))
+        self._finish(order)
+
+    def _finish(self, order):
+        # core blocks carry the difference suffix in labels, plain names
+        super()._finish(order)
+
+    def matrices(self, nav1: NavPoint, navk: NavPoint = None):
+        """``(F, G)``: ``nav1`` gives the carrier state and C_b1^n, ``navk`` gives C_bk^n."""
+        if navk is None:
+            raise TypeError("DifferenceModel needs both nav1 and navk")
+        return self._assemble([nav1, navk], nav1)
+
+    def F(self, nav1, navk=None):
+        return self.matrices(nav1, navk)[0]
+
+    def G(self, nav1, navk=None):
+        return self.matrices(nav1, navk)[1]
+
+    def Qc(self, nav1, navk=None):
+        G = self.G(nav1, navk)
+        return (G * self.q) @ np.swapaxes(G, -1, -2)
+
+    def discretize(self, nav1, navk, T, method="vanloan"):
+        F, G = self.matrices(nav1, navk)
+        return discretize(F, G, self.q, T, method)
+
+
+def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
+                         radius_derivatives=False) -> DifferenceModel:
+    """Paper 001's 17-state joint error model of INS 1 (single-axis) and INS k (dual-axis).
+
+    State order (paper eq 1)::
+
+        x1 = [δL δλ δvE δvN]_1k                      (differences, 1 − k)
+        x2 = [φE φN φU]_1k, ε_1 (x y z, body 1), ε_k (x y z, body k),
+             ∇_1 (x y, body 1), ∇_k (x y, body k)
+
+    Horizontal core (vertical channel damped by a depth gauge), random-constant drifts
+    and biases; the noise vector is ``[w_g1 (3), w_a1 (x,y), w_gk (3), w_ak (x,y)]``
+    (paper eq 7 orders gyros first; only the column order differs). With
+    ``radius_derivatives=False`` F equals the paper's eqs 3–6 (tested).
+    """
+    return DifferenceModel(
+        "horizontal", [gyro_bias(name="eps"), accel_bias("xy", name="nabla")],
+        [gyro_bias(name="eps"), accel_bias("xy", name="nabla")],
+        gyro_noise1, gyro_noisek, accel_noise1, accel_noisek, accel_noise_axes="xy",
+        order=["dp", "dv", "phi", "eps_1", "eps_k", "nabla_1", "nabla_k"],
+        radius_derivatives=radius_derivatives)
+
+
+def static_alignment_model(lat, g=None):
+    """Paper 000's 8-state stationary fine-alignment model (ENU).
+
+    States ``X = [φE φN φU εE εN εU ∇E ∇N]`` (ε, ∇ in n, random constants)::
+
+        φ̇ = φ×ω_ie^n − ε − w_g        (= −ω_ie×φ − ε − w_g)
+        Z = [f̃_E, f̃_N] = [−g φN + ∇E, g φE + ∇N] + v
+
+    Parameters
+    ----------
+    lat : float
+        Latitude [rad].
+    g : float, optional
+        Gravity [m/s²]; default normal gravity at ``lat``, h = 0.
+
+    Returns
+    -------
+    F : ndarray (8, 8)
+    G : ndarray (8, 3)
+        Gyro white noise (n frame) input: ``[−I₃; 0]``.
+    H : ndarray (2, 8)
+    """
+    g = float(gravity(lat, 0.0)) if g is None else float(g)
+    wN, wU = WIE * math.cos(lat), WIE * math.sin(lat)
+    F = np.zeros((8, 8))
+    F[0:3, 0:3] = -skew(np.array([0.0, wN, wU]))
+    F[0:3, 3:6] = -np.eye(3)
+    G = np.zeros((8, 3))
+    G[0:3, :] = -np.eye(3)
+    H = np.zeros((2, 8))
+    H[0, 1], H[0, 6] = -g, 1.0
+    H[1, 0], H[1, 7] = g, 1.0
+    return F, G, H
+
+
+# ------------------------------------------------------------------------ discretisation
+def discretize(F, G, q, T, method="vanloan"):
+    """Discrete transition and process-noise matrices of ``ẋ = F x + G w`` over T.
+
+    Parameters
+    ----------
+    F : array (..., n, n)
+        Continuous system matrix (frozen over the step); leading dims = many epochs.
+    G : array (..., n, m)
+        Noise input matrix.
+    q : array (m,) or (..., m)
+        Spectral densities of w (SI, e.g. rad²/s).
+    T : float
+        Step [s].
+    method : {"vanloan", "series"}
+        ``"vanloan"``: Φ = expm(F T) and ``Q_k = ∫₀ᵀ Φ(s) G q Gᵀ Φ(s)ᵀ ds`` exactly by Van
+        Loan's block exponential. ``"series"``: Φ ≈ I + F T + (F T)²/2 and the trapezoid
+        ``Q_k ≈ (Q̄ T + Φ Q̄ Φᵀ T)/2`` with ``Q̄ = G q Gᵀ``; both err by O(T³) (tested).
+
+    Returns
+    -------
+    Phi, Qk : ndarray (..., n, n)
+    """
+    F = np.asarray(F, dtype=float)
+    G = np.asarray(G, dtype=float)
+    q = np.asarray(q, dtype=float)
+    n = F.shape[-1]
+    if F.shape[-2] != n or G.shape[-2] != n or G.shape[-1] != q.shape[-1]:
+        raise ValueError(f"shape mismatch: F {F.shape}, G {G.shape}, q {q.shape}")
+    if np.any(q < 0):
+        raise ValueError("noise spectral densities must be >= 0")
+    T = float(T)
+    Qc = (G * q[..., None, :]) @ np.swapaxes(G, -1, -2)
+    Qc = 0.5 * (Qc + np.swapaxes(Qc, -1, -2))
+    if method == "vanloan":
+        S = np.broadcast_shapes(F.shape[:-2], Qc.shape[:-2])
+        M = np.zeros(S + (2 * n, 2 * n))
+        M[..., :n, :n] = -F * T
+        M[..., :n, n:] = Qc * T
+        M[..., n:, n:] = np.swapaxes(F, -1, -2) * T
+        E = scipy.linalg.expm(M)
+        Phi = np.swapaxes(E[..., n:, n:], -1, -2)
+        Qk = Phi @ E[..., :n, n:]
+    elif method == "series":
+        FT = F * T
+        Phi = np.eye(n) + FT + 0.5 * FT @ FT
+        Qk = 0.5 * T * (Qc + Phi @ Qc @ np.swapaxes(Phi, -1, -2))
+    else:
+        raise ValueError(f"unknown discretisation method {method!r} (vanloan|series)")
+    return Phi, 0.5 * (Qk + np.swapaxes(Qk, -1, -2))
+
+
+@njit(cache=True)
+def phi_series_nb(F, T):
+    """Φ ≈ I + F T + (F T)²/2 (numba, for compiled Kalman loops); F (n, n), T [s]."""
+    n = F.shape[0]
+    Phi = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += F[i, k] * F[k, j]
+            Phi[i, j] = F[i, j] * T + 0.5 * s * T * T
+        Phi[i, i] += 1.0
+    return Phi
+
+
+@njit(cache=True)
+def discretize_series_nb(F, Qc, T, Phi, Qk):
+    """In-place series discretisation (numba): Φ ≈ I + FT + (FT)²/2, Q_k ≈ (Q̄T + ΦQ̄ΦᵀT)/2.
+
+    Parameters
+    ----------
+    F, Qc : ndarray (n, n)
+        Continuous system matrix and noise density ``G q Gᵀ``.
+    T : float
+        Step [s].
+    Phi, Qk : ndarray (n, n)
+        Outputs, overwritten.
+    """
+    n = F.shape[0]
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += F[i, k] * F[k, j]
+            Phi[i, j] = F[i, j] * T + 0.5 * s * T * T
+        Phi[i, i] += 1.0
+    tmp = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += Phi[i, k] * Qc[k, j]
+            tmp[i, j] = s
+    for i in range(n):
+        for j in range(i + 1):
+            s = 0.0
+            for k in range(n):
+                s += tmp[i, k] * Phi[j, k]
+            v = 0.5 * T * (0.5 * (Qc[i, j] + Qc[j, i]) + s)
+            Qk[i, j] = v
+            Qk[j, i] = v
