@@ -89,7 +89,7 @@ KINDS: dict[str, tuple] = {
 }
 
 _NUM = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
-_TOKEN = re.compile(r"\s*(sqrt|\(|\)|\*|/|\^|[-+]?\d+(?:\.\d+)?|[A-Za-z%°'′\"″µμ]+|·)")
+_TOKEN = re.compile(r"\s*(sqrt|√|²|³|\(|\)|\*|/|\^|[-+]?\d+(?:\.\d+)?|[A-Za-z%°'′\"″µμ]+|·)")
 
 
 class UnitError(ValueError):
@@ -118,7 +118,7 @@ def _tokens(s: str) -> list[str]:
 
 class _Parser:
     """Recursive descent over  expr := term (('*'|'/') term)* ;  term := factor ('^' num)? ;
-    factor := atom | 'sqrt' '(' expr ')' | '(' expr ')'."""
+    factor := atom | 'sqrt' '(' expr ')' | '√' factor | '(' expr ')'; '²', '³' are exponents."""
 
     def __init__(self, text):
         self.text = text
@@ -148,9 +148,9 @@ class _Parser:
 
     def term(self):
         scale, dim = self.factor()
-        if self.peek() == "^":
-            self.take()
-            e = Fraction(self.take())
+        if self.peek() in ("^", "²", "³"):
+            op = self.take()
+            e = Fraction(self.take()) if op == "^" else Fraction(2 if op == "²" else 3)
             scale, dim = scale ** float(e), tuple(a * e for a in dim)
         return scale, dim
 
@@ -160,6 +160,9 @@ class _Parser:
             self.take("(")
             s, d = self.expr()
             self.take(")")
+            return math.sqrt(s), tuple(a / 2 for a in d)
+        if tok == "√":                      # as printed in papers: °/√h, µg/√Hz, √(h)
+            s, d = self.factor()
             return math.sqrt(s), tuple(a / 2 for a in d)
         if tok == "(":
             s, d = self.expr()
