@@ -58,7 +58,7 @@ def check_latitude(lat) -> None:
     if not np.all(np.isfinite(lat)):
         raise ValueError("latitude is not finite")
     if np.any(np.abs(lat) > math.pi / 2):
-        bad = float(np.degrees(lat[np.argmax(np.abs(lat))] if lat.ndim else lat))
+        bad = float(np.degrees(lat.flat[np.argmax(np.abs(lat))]))
         raise ValueError(f"latitude {bad:.6g} deg is beyond ±90 deg")
 
 
