@@ -1,0 +1,142 @@
+"""Validation of the record containers: every bad input is a ValueError naming the problem."""
+import math
+
+import numpy as np
+import pytest
+
+from sinslab.records import ImuRecord, NavSeries, NavState, check_times
+
+
+def imu(n=10, dt=0.01, t0=0.0):
+    t = t0 + dt * np.arange(1, n + 1)
+    return t, np.zeros((n, 3)), np.zeros((n, 3))
+
+
+def test_valid_record():
+    t, a, b = imu(100)
+    r = ImuRecord(t, a, b)
+    assert len(r) == 100 and r.dt == pytest.approx(0.01) and r.t0 == pytest.approx(0.0)
+    assert r.dtheta.dtype == np.float64 and r.dtheta.flags.c_contiguous
+    r2 = ImuRecord(t, a.tolist(), b, dt=0.01)
+    assert r2.dt == pytest.approx(0.01)
+
+
+@pytest.mark.parametrize("where", ["dtheta", "dv"])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_nonfinite_increments(where, bad):
+    t, a, b = imu()
+    (a if where == "dtheta" else b)[4, 1] = bad
+    with pytest.raises(ValueError, match=rf"{where} has a NaN/inf value at sample 4"):
+        ImuRecord(t, a, b)
+
+
+def test_time_problems():
+    t, a, b = imu()
+    t2 = t.copy()
+    t2[5] = t2[4]
+    with pytest.raises(ValueError, match="duplicated stamp.*index 5"):
+        ImuRecord(t2, a, b)
+    t2 = t.copy()
+    t2[[5, 6]] = t2[[6, 5]]
+    with pytest.raises(ValueError, match="not sorted.*index 6"):
+        ImuRecord(t2, a, b)
+    t2 = t.copy()
+    t2[3] += 0.004
+    with pytest.raises(ValueError, match="not uniformly sampled"):
+        ImuRecord(t2, a, b)
+    t2 = t.copy()
+    t2[3] = np.nan
+    with pytest.raises(ValueError, match="non-finite value at index 3"):
+        ImuRecord(t2, a, b)
+    # a gap is non-uniform sampling
+    t2 = np.concatenate([t[:5], t[5:] + 1.0])
+    with pytest.raises(ValueError, match="not uniformly sampled"):
+        ImuRecord(t2, a, b)
+    # jitter within tolerance is accepted
+    t2 = t + np.random.default_rng(0).uniform(-1e-6, 1e-6, t.size)
+    ImuRecord(t2, a, b)
+
+
+def test_shapes_and_empty():
+    t, a, b = imu()
+    with pytest.raises(ValueError, match=r"dtheta must have shape \(10, 3\), got \(10, 2\)"):
+        ImuRecord(t, a[:, :2], b)
+    with pytest.raises(ValueError, match=r"dv must have shape \(10, 3\), got \(9, 3\)"):
+        ImuRecord(t, a, b[:9])
+    with pytest.raises(ValueError, match=r"dtheta must have shape"):
+        ImuRecord(t, a.T, b)
+    with pytest.raises(ValueError, match="empty"):
+        ImuRecord(np.array([]), np.zeros((0, 3)), np.zeros((0, 3)))
+    with pytest.raises(ValueError, match="1-D"):
+        ImuRecord(t.reshape(2, 5), a, b)
+    with pytest.raises(ValueError, match="explicit dt"):
+        ImuRecord([0.01], np.zeros((1, 3)), np.zeros((1, 3)))
+    one = ImuRecord([0.01], np.zeros((1, 3)), np.zeros((1, 3)), dt=0.01)
+    assert len(one) == 1 and one.t0 == pytest.approx(0.0)
+    with pytest.raises(ValueError, match="disagrees"):
+        ImuRecord(t, a, b, dt=0.02)
+
+
+def test_from_rates_and_slice():
+    n, dt = 50, 0.02
+    t = dt * np.arange(1, n + 1)
+    w = np.tile([0.1, -0.2, 0.3], (n, 1))
+    f = np.tile([0.0, 0.0, 9.8], (n, 1))
+    r = ImuRecord.from_rates(t, w, f)
+    assert np.allclose(r.dtheta, w * dt) and np.allclose(r.dv, f * dt) and r.dt == pytest.approx(dt)
+    s = r.slice(0.1, 0.3)
+    assert s.t[0] > 0.1 and s.t[-1] <= 0.3 + 1e-12 and len(s) == 10
+    with pytest.raises(ValueError, match="no IMU samples"):
+        r.slice(5.0, 6.0)
+    with pytest.raises(ValueError, match="NaN/inf"):
+        ImuRecord.from_rates(t, np.full((n, 3), np.nan), f)
+
+
+def test_check_times_direct():
+    assert check_times([1.0, 2.0, 3.0]) == pytest.approx(1.0)
+    assert math.isnan(check_times([1.0]))
+    assert check_times([0.0, 1.0, 3.0], uniform=False) == pytest.approx(1.5)
+    with pytest.raises(ValueError, match="gnss time is empty"):
+        check_times([], "gnss time")
+    with pytest.raises(ValueError, match="one-dimensional"):
+        check_times(np.zeros((2, 2)))
+
+
+def navseries(m=5):
+    return dict(t=np.arange(m, dtype=float), lat=np.full(m, 0.5), lon=np.full(m, 2.0), h=np.zeros(m),
+                vel=np.zeros((m, 3)), att=np.zeros((m, 3)))
+
+
+def test_navseries():
+    s = NavSeries(**navseries())
+    assert len(s) == 5 and s.pos.shape == (5, 3) and s.att_imu is None
+    sub = s.at(slice(1, 3))
+    assert len(sub) == 2 and sub.t[0] == 1.0
+    for name, bad in (("vel", np.zeros((5, 2))), ("att", np.zeros((4, 3))), ("lat", np.zeros(4)),
+                      ("att_imu", np.zeros((5, 4)))):
+        kw = navseries()
+        kw[name] = bad
+        with pytest.raises(ValueError, match=rf"{name} must have shape"):
+            NavSeries(**kw)
+    s = NavSeries(**navseries(), att_imu=np.ones((5, 3)))
+    st = NavState.from_series(s, 2)
+    assert np.all(st.att == 1.0) and st.t == 2.0
+    assert np.all(NavState.from_series(s, 2, imu_frame=False).att == 0.0)
+
+
+def test_navstate_validation():
+    st = NavState(0.5, 2.0, 100.0, [1, 2, 3], [0.1, 0.2, 0.3])
+    assert st.vel.shape == (3,) and st.t == 0.0
+    with pytest.raises(ValueError, match="latitude 95 deg is beyond"):
+        NavState(math.radians(95), 0.0, 0.0, [0, 0, 0], [0, 0, 0])
+    with pytest.raises(ValueError, match="latitude -90.1 deg"):
+        NavState(math.radians(-90.1), 0.0, 0.0, [0, 0, 0], [0, 0, 0])
+    NavState(math.pi / 2, 0.0, 0.0, [0, 0, 0], [0, 0, 0])           # the pole itself is fine
+    with pytest.raises(ValueError, match="initial h is not finite"):
+        NavState(0.5, 0.0, np.nan, [0, 0, 0], [0, 0, 0])
+    with pytest.raises(ValueError, match="initial lat is not finite"):
+        NavState(np.inf, 0.0, 0.0, [0, 0, 0], [0, 0, 0])
+    with pytest.raises(ValueError, match="initial vel must be 3 finite numbers"):
+        NavState(0.5, 0.0, 0.0, [0, 0], [0, 0, 0])
+    with pytest.raises(ValueError, match="initial att must be 3 finite numbers"):
+        NavState(0.5, 0.0, 0.0, [0, 0, 0], [0, np.nan, 0])
