@@ -103,8 +103,13 @@ def _fmt_vec(values, unit):
     if len(v) > 1 and all(x == v[0] for x in v):
         v = v[:1]
     if len(v) == 1:
-        return f"{v[0]!r} {unit}"
-    return "[" + ", ".join(repr(x) for x in v) + f"] {unit}"
+        return f"{_num(v[0])} {unit}"
+    return "[" + ", ".join(_num(x) for x in v) + f"] {unit}"
+
+
+def _num(x):
+    """12 significant digits: readable in a config ("30 deg", not "29.999999999999996 deg")."""
+    return f"{x:.12g}"
 
 
 def _parse_vec(key, value, kind, n=3):
@@ -571,7 +576,7 @@ class ImuErrors:
             if full or (m != 0).any():
                 off = m[~np.eye(3, dtype=bool)]
                 out[f"{s}_misalignment"] = "[" + ", ".join(
-                    repr(float(x)) for x in off / U.arcsec) + "] arcsec"
+                    _num(float(x)) for x in off / U.arcsec) + "] arcsec"
             tr = getattr(self, f"{s}_trend")
             if tr is not None:
                 out[f"{s}_trend"] = tr.to_dict(s)
