@@ -427,23 +427,32 @@ def _kernel(s, dth, dvl, dt, nsub, nupd, vmode, href, vref, k1, k2, k3,
 
 
 @njit(cache=True)
-def _rows_to_euler(rows, mq, att, att_imu):
-    """Euler angles of the IMU (``att_imu``) and carrier (``att``) from state rows.
+def _split_rows(rows, mq, lat, lon, h, vel, att, att_imu):
+    """Split state rows into output columns and Euler angles (one pass; serial so that it
+    is safe to call from several threads, e.g. Dask workers).
 
-    ``mq`` (M, 4): quaternions of C_imu^carrier, or shape (0, 4) for a fixed IMU.
-    Carrier: C_c^n = C_b^n (C_b^c)^T, i.e. q_c = q_b ⊗ conj(q_m).
+    ``mq`` (M, 4): quaternions of C_imu^carrier, or shape (0, 4) for a fixed IMU (then
+    ``att_imu`` is not written). Carrier: C_c^n = C_b^n (C_b^c)^T, q_c = q_b ⊗ conj(q_m).
     """
     m = rows.shape[0]
     has_mount = mq.shape[0] > 0
     for k in range(m):
         q0, q1, q2, q3 = rows[k, 0], rows[k, 1], rows[k, 2], rows[k, 3]
-        p, r, y = q2euler_s(q0, q1, q2, q3)
-        att_imu[k, 0] = p
-        att_imu[k, 1] = r
-        att_imu[k, 2] = y
+        vel[k, 0] = rows[k, 4]
+        vel[k, 1] = rows[k, 5]
+        vel[k, 2] = rows[k, 6]
+        lat[k] = rows[k, 7]
+        lon[k] = rows[k, 8]
+        h[k] = rows[k, 9]
         if has_mount:
+            p, r, y = q2euler_s(q0, q1, q2, q3)
+            att_imu[k, 0] = p
+            att_imu[k, 1] = r
+            att_imu[k, 2] = y
             c0, c1, c2, c3 = qmul_s(q0, q1, q2, q3, mq[k, 0], -mq[k, 1], -mq[k, 2], -mq[k, 3])
             p, r, y = q2euler_s(c0, c1, c2, c3)
+        else:
+            p, r, y = q2euler_s(q0, q1, q2, q3)
         att[k, 0] = p
         att[k, 1] = r
         att[k, 2] = y
@@ -772,11 +781,13 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
             lo = hi
             advance(cu * nsub)
     upd_idx = np.arange(1, m_out + 1) * out_every * nsub      # epoch index (0 = t0)
-    t_all = np.concatenate([[imu.t0], imu.t])
     ep = np.concatenate([[0], upd_idx])
-    att_imu = np.empty((m_out + 1, 3))
-    att = np.empty((m_out + 1, 3))
+    t_all = np.concatenate([[imu.t0], imu.t[upd_idx - 1]])
+    m = m_out + 1
+    lat, lon, h = np.empty(m), np.empty(m), np.empty(m)
+    vel, att = np.empty((m, 3)), np.empty((m, 3))
+    att_imu = np.empty((m, 3)) if mount is not None else np.empty((0, 3))
     mq = np.zeros((0, 4)) if mount is None else _mount_quats(mount, ep)
-    _rows_to_euler(rows, mq, att, att_imu)
-    return NavSeries(t_all[ep], rows[:, 7].copy(), rows[:, 8].copy(), rows[:, 9].copy(),
-                     rows[:, 4:7].copy(), att, att_imu if mount is not None else None)
+    _split_rows(rows, mq, lat, lon, h, vel, att, att_imu)
+    del rows
+    return NavSeries(t_all, lat, lon, h, vel, att, att_imu if mount is not None else None)
