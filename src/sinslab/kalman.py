@@ -400,20 +400,19 @@ def _cov_predict(P, Phi, Q, nzc, nnz, T1, T2):
     for i in range(n):
         for j in range(n):
             T2[j, i] = T1[i, j]
-    # P = Phi @ T2 + Q  (= Phi P Phi^T + Q since P symmetric)
+    # upper triangle of P = Phi @ T2 + Q (= Phi P Phi^T + Q), then mirrored: the result
+    # is exactly symmetric
     for i in range(n):
-        for j in range(n):
-            P[i, j] = Q[i, j]
+        for j in range(i, n):
+            P[i, j] = 0.5 * (Q[i, j] + Q[j, i])
         for a in range(nnz[i]):
             k = nzc[i, a]
             f = Phi[i, k]
-            for j in range(n):
+            for j in range(i, n):
                 P[i, j] += f * T2[k, j]
     for i in range(n):
         for j in range(i + 1, n):
-            s = 0.5 * (P[i, j] + P[j, i])
-            P[i, j] = s
-            P[j, i] = s
+            P[j, i] = P[i, j]
 
 
 @njit(cache=True)
@@ -1425,3 +1424,257 @@ class KalmanFilter:
         cur.updates = []
         buf.append(cur)
         return res
+
+
+# ----------------------------------------------------------------------------------------
+# loosely coupled INS + position fixes (the filter beside the mechanization)
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LooselyCoupled:
+    """Output of :func:`loosely_coupled`, at the filter epochs (every ``kf_dt``).
+
+    Attributes
+    ----------
+    t : ndarray, shape (M,)
+        Epoch times [s] (M = filter steps + 1; row 0 = start).
+    nav : ndarray, shape (M, 10)
+        Navigation state ``[q0..q3, vE, vN, vU, lat, lon, h]`` after any feedback at that
+        epoch (feedback mode) or the free INS (feed-forward mode; subtract ``x``).
+    x : ndarray, shape (M, n)
+        Error-state estimate after the updates of the epoch, before feedback.
+    sigma : ndarray, shape (M, n)
+        Filter σ of every state.
+    gyro_bias, accel_bias : ndarray, shape (M, 3)
+        Sensor compensation in use after the epoch [rad/s], [m/s²] (feedback mode).
+    fix_t : ndarray, shape (J,)
+        Validity times of the applied fixes [s].
+    innovation : ndarray, shape (J, 3)
+        Fix innovations [m] (north, east, up).
+    nis : ndarray, shape (J,)
+    layout : object
+        The error-state layout of the model (names of the states).
+    """
+
+    t: np.ndarray
+    nav: np.ndarray
+    x: np.ndarray
+    sigma: np.ndarray
+    gyro_bias: np.ndarray
+    accel_bias: np.ndarray
+    fix_t: np.ndarray
+    innovation: np.ndarray
+    nis: np.ndarray
+    layout: object
+
+
+def default_lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0):
+    """The 15-state loosely coupled model: φ, δv, δp=[δL, δλ, δh], gyro bias ε (body),
+    accelerometer bias ∇ (body), from :mod:`sinslab.errstate`.
+
+    Parameters
+    ----------
+    gyro_arw : float
+        Angle random walk [rad/√s].
+    accel_vrw : float
+        Velocity random walk [m/s/√s].
+    gyro_rrw, accel_rrw : float
+        Bias random-walk densities [rad/s/√s], [m/s²/√s] (0: random constants).
+    """
+    from . import errstate as es
+    return es.ErrorModel("full", [es.gyro_bias(rrw=gyro_rrw), es.accel_bias(arw=accel_rrw)],
+                         gyro_noise=gyro_arw, accel_noise=accel_vrw)
+
+
+def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyro_arw=None,
+                    accel_vrw=None, kf_dt=0.1, nsub=2, feedback=True, fix_lag=0.0,
+                    vertical="free", max_block=10.0, progress=True):
+    """Loosely coupled INS / position-fix integration with a closed-loop Kalman filter.
+
+    The strapdown mechanization (:func:`sinslab.strapdown.step`) runs on the IMU stream
+    in compiled blocks between fixes; the error-state model (default 15 states, see
+    :func:`default_lc_model`) is evaluated for all filter epochs of a block at once and
+    discretised with the series form; the covariance is propagated every ``kf_dt``.
+    At a fix the filter updates and (``feedback=True``) corrects the navigation state
+    with :func:`sinslab.strapdown.correct` and the gyro/accelerometer compensation, then
+    zeroes those states.
+
+    Parameters
+    ----------
+    imu : sinslab.records.ImuRecord
+        IMU increments (with errors), N samples at ``dt``.
+    init : sinslab.records.NavState
+        Initial navigation state (IMU attitude) at ``imu.t0``.
+    fix_t : array_like, shape (J,)
+        Validity times of the position fixes [s], inside the IMU record, increasing.
+    fix_pos : array_like, shape (J, 3)
+        Fix positions ``[lat, lon, h]`` [rad, rad, m].
+    fix_sigma : array_like, shape (3,) or (J, 3)
+        Fix standard deviations north, east, up [m].
+    P0 : array_like, shape (n, n)
+        Initial covariance of the error state.
+    model : sinslab.errstate.ErrorModel, optional
+        Error-state model with blocks ``phi``, ``dv``, ``dp`` and optionally ``eps``
+        (gyro bias, body) and ``nabla`` (accel bias, body). Default
+        :func:`default_lc_model` (``gyro_arw`` [rad/√s], ``accel_vrw`` [m/s/√s] needed).
+    kf_dt : float
+        Covariance propagation step [s]; a multiple of ``nsub * imu.dt``.
+    nsub : int
+        Mechanization subsamples (coning/sculling).
+    feedback : bool
+        Closed loop (default) or feed-forward (the INS runs free; ``x`` holds the
+        estimated errors).
+    fix_lag : float
+        Fixes valid at ``t`` arrive at ``t + fix_lag`` [s] and are applied with
+        :meth:`KalmanFilter.update_lagged` (exact form, INS state of ``t`` from history).
+    vertical : {"free", "hold", "damped"}
+        Only "free" is supported here (height is estimated from the fixes).
+    max_block : float
+        Longest stretch [s] the INS is run in one compiled call when no fix arrives.
+
+    Returns
+    -------
+    LooselyCoupled
+    """
+    from . import errstate as es
+    from . import strapdown as sd
+    from .attitude import quat_to_dcm
+    from .earth import radii
+    from .progress import progress as _progress
+
+    if vertical != "free":
+        raise ValueError("loosely_coupled supports vertical='free' only (the fixes hold height)")
+    if model is None:
+        if gyro_arw is None or accel_vrw is None:
+            raise ValueError("give a model or gyro_arw [rad/sqrt(s)] and accel_vrw [m/s/sqrt(s)]")
+        model = default_lc_model(gyro_arw, accel_vrw)
+    lay = model.layout
+    n = model.n
+    names = [b.name for b in lay.blocks]
+    for req in ("phi", "dv", "dp"):
+        if req not in names:
+            raise ValueError(f"the model needs a {req!r} block (has {names})")
+    s_att, s_vel, s_pos = lay.slice("phi"), lay.slice("dv"), lay.slice("dp")
+    if s_pos.stop - s_pos.start != 3 or s_vel.stop - s_vel.start != 3:
+        raise ValueError("the model needs the full core (3 velocity and 3 position errors)")
+    s_gb = lay.slice("eps") if "eps" in names else None
+    s_ab = lay.slice("nabla") if "nabla" in names else None
+    dt = imu.dt
+    k_kf = int(round(kf_dt / dt))
+    if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % nsub:
+        raise ValueError(f"kf_dt={kf_dt} s must be a multiple of nsub*dt = {nsub * dt} s")
+    T = k_kf * dt
+    n_ep = len(imu) // k_kf
+    if n_ep < 1:
+        raise ValueError(f"the IMU record ({len(imu)} samples) is shorter than one filter step")
+    t0 = imu.t0
+    t_ep = t0 + T * np.arange(n_ep + 1)
+    fix_t = np.atleast_1d(np.asarray(fix_t, dtype=float))
+    fix_pos = np.atleast_2d(np.asarray(fix_pos, dtype=float))
+    J = fix_t.size
+    if fix_pos.shape != (J, 3):
+        raise ValueError(f"fix_pos must have shape ({J}, 3) for {J} fix times, got {fix_pos.shape}")
+    fix_sigma = np.broadcast_to(np.asarray(fix_sigma, dtype=float), (J, 3))
+    if J:
+        if not (np.all(np.isfinite(fix_t)) and np.all(np.isfinite(fix_pos))):
+            raise ValueError("fix times/positions contain NaN/inf")
+        if np.any(np.diff(fix_t) <= 0):
+            raise ValueError("fix times must be strictly increasing")
+        if fix_t[0] < t_ep[0] - 1e-9 or fix_t[-1] > t_ep[-1] + 1e-9:
+            raise ValueError(f"fix times {fix_t[0]:.6g}..{fix_t[-1]:.6g} s lie outside the IMU data "
+                             f"{t_ep[0]:.6g}..{t_ep[-1]:.6g} s")
+        if np.any(~(fix_sigma > 0)):
+            raise ValueError("fix_sigma must be > 0")
+    if fix_lag < 0:
+        raise ValueError("fix_lag must be >= 0")
+    e_valid = np.ceil((fix_t - t0) / T - 1e-9).astype(np.int64)     # epoch the fix is applied at
+    e_arr = np.ceil((fix_t + fix_lag - t0) / T - 1e-9).astype(np.int64)
+    keep = e_arr <= n_ep
+    arrivals = {}
+    for j in np.flatnonzero(keep):
+        arrivals.setdefault(int(e_arr[j]), []).append(int(j))
+    hist = int(np.max(e_arr[keep] - e_valid[keep])) + 2 if (fix_lag > 0 and keep.any()) else 0
+
+    state = sd.initial_state_array(init)
+    filt = KalmanFilter(np.zeros(n), P0, t0=t0, history=hist, check=False)
+    gb = np.zeros(3)
+    ab = np.zeros(3)
+    nav_h = np.empty((n_ep + 1, 10))
+    x_h = np.zeros((n_ep + 1, n))
+    sig_h = np.empty((n_ep + 1, n))
+    gb_h = np.zeros((n_ep + 1, 3))
+    ab_h = np.zeros((n_ep + 1, 3))
+    nav_h[0] = state[:10]
+    sig_h[0] = filt.sigma
+    filt.set_aux(state[:10].copy())
+    used_t, innov, nis = [], [], []
+    n_use = n_ep * k_kf
+    dth_sum = imu.dtheta[:n_use].reshape(n_ep, k_kf, 3).sum(1)
+    dv_sum = imu.dv[:n_use].reshape(n_ep, k_kf, 3).sum(1)
+    stops = sorted(set(arrivals) | {n_ep})
+    per = k_kf // nsub
+    max_ep = max(1, int(round(max_block / T)))
+    H = np.zeros((3, n))
+    with _progress("loosely coupled", total=n_ep, unit="steps") as bar:
+        e0 = 0
+        si = 0
+        while e0 < n_ep:
+            while stops[si] <= e0:
+                si += 1
+            e1 = min(stops[si], e0 + max_ep)
+            m = e1 - e0
+            out = np.empty((m, 10))
+            sd.step(state, imu.dtheta[e0 * k_kf:e1 * k_kf], imu.dv[e0 * k_kf:e1 * k_kf], dt, nsub,
+                    gyro_bias=gb, accel_bias=ab, out=out, out_every=per)
+            rows = np.vstack([nav_h[e0][None], out])                 # epochs e0..e1
+            # error model at the start of each interval, with the compensated sensor means
+            C = quat_to_dcm(rows[:-1, :4])
+            npnt = es.NavPoint(rows[:-1, 7], rows[:-1, 9], rows[:-1, 4:7], C,
+                               dv_sum[e0:e1] / T - ab, dth_sum[e0:e1] / T - gb)
+            F, G = model.matrices(npnt)
+            Phi, Qk = es.discretize(F, G, model.q, T, "series")
+            for i in range(m):
+                filt.predict(Phi[i], Qk[i], T, aux=rows[i + 1].copy())
+                x_h[e0 + i + 1] = filt.x
+                sig_h[e0 + i + 1] = filt.sigma
+                nav_h[e0 + i + 1] = rows[i + 1]
+                gb_h[e0 + i + 1] = gb
+                ab_h[e0 + i + 1] = ab
+            fixes = arrivals.get(e1, []) if e1 == stops[si] else []
+            for j in fixes:
+                ev = int(e_valid[j])
+                navv = rows[-1] if ev == e1 else filt.aux_at(t_ep[ev])
+                rm, rn = radii(navv[7], navv[9])
+                rm, rn = float(rm), float(rn) * math.cos(navv[7])
+                dtf = t_ep[ev] - fix_t[j]                 # fix extrapolated to the epoch
+                z = np.array([(navv[7] - fix_pos[j, 0]) * rm - navv[5] * dtf,
+                              (navv[8] - fix_pos[j, 1]) * rn - navv[4] * dtf,
+                              (navv[9] - fix_pos[j, 2]) - navv[6] * dtf])
+                H[:] = 0.0
+                H[0, s_pos.start] = rm
+                H[1, s_pos.start + 1] = rn
+                H[2, s_pos.start + 2] = 1.0
+                R = fix_sigma[j] ** 2
+                if ev == e1:
+                    res = filt.update(z, H, R)
+                else:
+                    res = filt.update_lagged(z, H, R, t_ep[ev])
+                used_t.append(fix_t[j])
+                innov.append(res.innovation)
+                nis.append(res.nis)
+            if fixes:
+                x_h[e1] = filt.x
+                sig_h[e1] = filt.sigma
+                if feedback:
+                    d = filt.feedback()
+                    sd.correct(state, phi=d[s_att], dvel=d[s_vel], dpos=d[s_pos])
+                    if s_gb is not None:
+                        gb = gb + d[s_gb]
+                    if s_ab is not None:
+                        ab = ab + d[s_ab]
+                    nav_h[e1] = state[:10]
+                    gb_h[e1] = gb
+                    ab_h[e1] = ab
+            bar.advance(m)
+            e0 = e1
+    return LooselyCoupled(t_ep, nav_h, x_h, sig_h, gb_h, ab_h, np.array(used_t),
+                          np.array(innov).reshape(-1, 3), np.array(nis), lay)
