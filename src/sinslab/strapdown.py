@@ -76,7 +76,7 @@ from .records import ImuRecord, NavSeries, NavState
 
 __all__ = [
     "navigate", "initial_state_array", "step", "correct", "state_to_navstate",
-    "VerticalDamping", "CONING_COEFFS", "NSTATE", "NAV", "VERTICAL_MODES",
+    "VerticalDamping", "CONING_COEFFS", "NSTATE", "NAV", "VERTICAL_MODES", "step_chunk",
 ]
 
 #: Length of the full state array.
@@ -662,6 +662,10 @@ def step(state: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float, nsub:
     return nupd
 
 
+#: Name used in docs/INTERFACES.md for :func:`step`.
+step_chunk = step
+
+
 def _progress_ctx(progress, total):
     """A context manager yielding ``advance(n)``; see :func:`navigate` ``progress``."""
     import contextlib
@@ -704,8 +708,9 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
         Samples per update, 1..5 (coning/sculling order; see module docstring). If N is
         not a multiple of ``nsub`` the trailing ``N mod nsub`` samples are not used.
     vertical : {"free", "hold", "damped"}
-        Vertical channel: pure inertial, held to ``height`` (v_U = its derivative), or
-        damped towards ``height`` by the loop of :class:`VerticalDamping`.
+        Vertical channel: pure inertial, held to ``height`` (v_U = its derivative; the
+        run then starts on ``height[0]`` whatever ``init.h``), or damped towards ``height``
+        by the loop of :class:`VerticalDamping`.
     height : array_like (N + 1,), float, or NavSeries, optional
         Height [m] at the N + 1 epochs ``t0, t[0], ..., t[N−1]`` (a scalar means constant;
         a NavSeries gives its ``h``). Required for "hold" and "damped".
