@@ -119,7 +119,7 @@ def run_copies(y0s, errs, T=60.0, hold=False, inputs=None, t_eval=None):
             out[k] = nav_rhs(Y[k], w, f, hold)
         return out.ravel()
 
-    sol = solve_ivp(rhs, (0.0, T), np.concatenate(y0s), method="DOP853", rtol=1e-12, atol=1e-13,
+    sol = solve_ivp(rhs, (0.0, T), np.concatenate(y0s), method="DOP853", rtol=1e-10, atol=1e-12,
                     dense_output=True, t_eval=t_eval)
     assert sol.success
     return sol
@@ -137,14 +137,20 @@ def errors_of(Ytrue, Ycomp):
     return np.concatenate([phi, Ycomp[4:7] - Ytrue[4:7], Ycomp[7:10] - Ytrue[7:10]])
 
 
+def transition(Fs, ts):
+    """Φ(t_end, t_0) of ẋ = F(t) x given F at the midpoints of the steps of ts (exponential
+    midpoint rule, O(dt²))."""
+    Phis = scipy.linalg.expm(Fs * np.diff(ts)[:, None, None])
+    while len(Phis) > 1:                 # pairwise products: log2(N) vectorised sweeps
+        odd = Phis[-1:] if len(Phis) % 2 else Phis[:0]
+        even = Phis[: len(Phis) - len(odd)]
+        Phis = np.concatenate([even[1::2] @ even[0::2], odd])
+    return Phis[0]
+
+
 def propagate_linear(Fs, ts, x0):
-    """x(t_end) for ẋ = F(t) x given F at the midpoints of the steps of ts."""
-    dts = np.diff(ts)
-    Phis = scipy.linalg.expm(Fs * dts[:, None, None])
-    x = x0.copy()
-    for P in Phis:
-        x = P @ x
-    return x
+    """x(t_end) for ẋ = F(t) x, x(t_0) = x0."""
+    return transition(Fs, ts) @ x0
 
 
 # -------------------------------------------------------------- exact FD Jacobian test
@@ -332,21 +338,21 @@ def perturbed_runs(request):
     navs = nav_points(Ymid, MID)
     model = es.ErrorModel(core, [es.gyro_bias(), es.accel_bias(), es.gyro_markov(20.0, 0.0),
                                  es.accel_markov(30.0, 0.0), es.gyro_scale(), es.accel_scale()])
-    Fs = model.F(navs)
+    Phi = transition(model.F(navs), GRID)
     Yend = sol.y[:, -1].reshape(len(y0s), 10)
-    return core, model, Fs, Yend
+    return core, model, Phi, Yend
 
 
 @pytest.mark.parametrize("group", list(GROUPS))
 def test_linear_model_matches_nonlinear_60s(perturbed_runs, group):
     """60 s manoeuvring flight: nonlinear error (computed − true) vs Φ-propagated linear error."""
-    core, model, Fs, Yend = perturbed_runs
+    core, model, Phi, Yend = perturbed_runs
     k = list(GROUPS).index(group) + 1
     g = GROUPS[group]
     x0 = _x0_for(model, g)
     if core == "horizontal":
         pass  # δvU, δh are not states; the nonlinear run holds them at zero
-    x_lin = propagate_linear(Fs, GRID, x0)
+    x_lin = Phi @ x0
     e_nl = errors_of(Yend[0], Yend[k])
     lay = model.layout
     names9 = ["phiE", "phiN", "phiU", "dvE", "dvN", "dvU", "dL", "dlam", "dh"]
@@ -366,3 +372,249 @@ def test_linear_model_matches_nonlinear_60s(perturbed_runs, group):
             a, lin = a - a0, lin - a0
         rel = np.linalg.norm(a - lin) / np.linalg.norm(a)
         assert rel < 0.02, f"{core} {group}: block {b} differs by {100 * rel:.2f} % ({a} vs {lin})"
+
+
+# -------------------------------------------------------- difference of two INS (001)
+OMEGA_MOUNT = np.array([0.03, 0.0, 0.1])       # INS k rotates about its roll and azimuth axes
+
+
+def _mount(t):
+    return rotvec_to_dcm(np.multiply.outer(np.asarray(t, float), OMEGA_MOUNT))   # C_bk^b1
+
+
+def wbk(t):
+    R = _mount(t)
+    return np.einsum("...ji,...j->...i", R, wb_true(t)) + OMEGA_MOUNT
+
+
+def fbk(t):
+    return np.einsum("...ji,...j->...i", _mount(t), fb_true(t))
+
+
+def test_difference_model_matches_two_nonlinear_ins_60s():
+    """Paper 001 eqs 3–8 (17-state joint model): INS 1 strapped to the carrier, INS k on a
+    rotating mount; both held vertically; the nonlinear difference of their errors agrees
+    with the linear joint model within 2 % after 60 s of manoeuvres."""
+    C0 = euler_to_dcm(ATT0)
+    v0 = V0.copy()
+    p0 = np.array([LAT0, LON0, H0])
+    phi1, phik = np.array([1e-3, -2e-3, 3e-3]), np.array([-1.5e-3, 1e-3, -2e-3])
+    dv1, dvk = np.array([0.2, -0.1, 0.0]), np.array([-0.1, 0.3, 0.0])
+    dp1, dpk = np.array([1e-6, -2e-6, 0.0]), np.array([-1e-6, 1e-6, 0.0])
+    e1 = SensorErr(eps=np.array([1e-5, -2e-5, 1.5e-5]), nabla=np.array([1e-3, -2e-3, 0.0]))
+    ek = SensorErr(eps=np.array([-2e-5, 1e-5, 2e-5]), nabla=np.array([-1.5e-3, 1e-3, 0.0]))
+    y0s = [nav_state(C0, v0, p0), nav_state(rotvec_to_dcm(-phi1) @ C0, v0 + dv1, p0 + dp1),
+           nav_state(C0, v0, p0), nav_state(rotvec_to_dcm(-phik) @ C0, v0 + dvk, p0 + dpk)]
+    inputs = [(wb_true, fb_true)] * 2 + [(wbk, fbk)] * 2
+    sol = run_copies(y0s, [None, e1, None, ek], T_END, hold=True, inputs=inputs)
+    Ym = sol.sol(MID).T.reshape(MID.size, 4, 10)
+    nav1 = nav_points(Ym[:, 0], MID)
+    navk = nav_points(Ym[:, 2], MID, wbk, fbk)
+    # the truth of INS k is the carrier truth seen through the mount
+    assert np.allclose(navk.Cbn, nav1.Cbn @ _mount(MID), atol=1e-9)
+    model = es.joint_rotation_model()
+    lay = model.layout
+    Fs = model.F(nav1, navk)
+    x0 = np.zeros(17)
+    x0[lay.slice("dp")] = (dp1 - dpk)[:2]
+    x0[lay.slice("dv")] = (dv1 - dvk)[:2]
+    x0[lay.slice("phi")] = phi1 - phik
+    x0[lay.slice("eps_1")], x0[lay.slice("eps_k")] = e1.eps, ek.eps
+    x0[lay.slice("nabla_1")], x0[lay.slice("nabla_k")] = e1.nabla[:2], ek.nabla[:2]
+    x_lin = propagate_linear(Fs, GRID, x0)
+    Y = sol.y[:, -1].reshape(4, 10)
+    d = errors_of(Y[0], Y[1]) - errors_of(Y[2], Y[3])
+    for b, idx in (("phi", [0, 1, 2]), ("dv", [3, 4]), ("dp", [6, 7])):
+        a = d[idx] - x0[lay.slice(b)]
+        lin = x_lin[lay.slice(b)] - x0[lay.slice(b)]
+        rel = np.linalg.norm(a - lin) / np.linalg.norm(a)
+        assert rel < 0.02, f"block {b}: {100 * rel:.2f} %"
+
+
+def test_joint_model_is_paper_001_equations_3_to_8():
+    """F1..F10 and G of paper 001 typed in from the paper (R_N meridian, R_E prime vertical)."""
+    L, h = 0.49, 10.0
+    vE, vN = 5.0, -3.0
+    C1 = euler_to_dcm([0.01, -0.02, 0.4])
+    C2 = euler_to_dcm([0.5, 2.0, -1.1])
+    fn = np.array([0.3, -0.2, 9.79])
+    nav1 = es.NavPoint(L, h, [vE, vN, 0.0], C1, C1.T @ fn)
+    nav2 = nav1.with_attitude(C2)
+    model = es.joint_rotation_model(1.0, 2.0, 3.0, 4.0)
+    F, G = model.matrices(nav1, nav2)
+    RNm, REm = radii(L, h)                      # paper: R_N meridian, R_E prime vertical
+    w = WIE
+    sL, cL, tL = np.sin(L), np.cos(L), np.tan(L)
+    fE, fN, fU = fn
+    F1 = [[0, 0], [vE * tL / (REm * cL), 0]]
+    F2 = [[0, 1 / RNm], [1 / (REm * cL), 0]]
+    F3 = [[2 * w * vN * cL + vN * vE / (REm * cL ** 2), 0], [-2 * w * vE * cL - vE ** 2 / (REm * cL ** 2), 0]]
+    F4 = [[vN * tL / REm, vE * tL / REm + 2 * w * sL], [-2 * w * sL - 2 * vE * tL / REm, 0]]
+    F5 = [[0, -fU, fN], [fU, 0, -fE]]
+    M = np.eye(3)[:2]
+    F6 = np.hstack([M @ C1 @ M.T, -M @ C2 @ M.T])
+    F7 = [[0, 0], [-w * sL, 0], [w * cL + vE / (REm * cL ** 2), 0]]
+    F8 = [[0, -1 / RNm], [1 / REm, 0], [tL / REm, 0]]
+    F9 = [[0, vE * tL / REm + w * sL, -w * cL - vE / REm], [-vE * tL / REm - w * sL, 0, -vN / RNm],
+          [w * cL + vE / REm, vN / RNm, 0]]
+    F10 = np.hstack([-C1, C2])
+    P = np.zeros((17, 17))
+    P[0:4, 0:4] = np.block([[np.array(F1), np.array(F2)], [np.array(F3), np.array(F4)]])
+    P[2:4, 4:7] = F5
+    P[2:4, 13:17] = F6
+    P[4:7, 0:2] = F7
+    P[4:7, 2:4] = F8
+    P[4:7, 4:7] = F9
+    P[4:7, 7:13] = F10
+    np.testing.assert_allclose(F, P, rtol=1e-12, atol=1e-18)
+    # G (eq 8), our noise columns: [w_g1 (3), w_a1 (2), w_gk (3), w_ak (2)]
+    Gp = np.zeros((17, 10))
+    Gp[2:4, 3:5], Gp[2:4, 8:10] = M @ C1 @ M.T, -M @ C2 @ M.T
+    Gp[4:7, 0:3], Gp[4:7, 5:8] = -C1, C2
+    np.testing.assert_allclose(G, Gp, rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(model.q, [1, 1, 1, 9, 9, 4, 4, 4, 16, 16])
+
+
+@pytest.mark.parametrize("lat_deg", [-60.0, 0.0, 34.246, 80.0])
+def test_static_alignment_model_is_the_general_model_at_rest(lat_deg):
+    """Paper 000: φ̇ = φ×ω_ie − ε (ε, ∇ in n), f_E = −gφN + ∇E, f_N = gφE + ∇N.
+
+    F is the general model's φ/bias rows at rest with n-frame bias blocks; H is the
+    finite-difference derivative of the horizontal specific force in the computed frame."""
+    lat = np.radians(lat_deg)
+    F8, G8, H8 = es.static_alignment_model(lat)
+    nav = es.NavPoint.static(lat, [-5 * np.pi / 180, 2 * np.pi / 180, -235 * np.pi / 180])
+    gen = es.ErrorModel("attvel", [es.gyro_bias(frame="nav"), es.accel_bias("xy", frame="nav")],
+                        gyro_noise=1.0)
+    F = gen.F(nav)
+    idx = gen.layout.index(["phiE", "phiN", "phiU", "eps_E", "eps_N", "eps_U", "nabla_E", "nabla_N"])
+    np.testing.assert_allclose(F8, F[np.ix_(idx, idx)], atol=1e-20)
+    # velocity rows of the general model: δv̇ = f^n×φ + ∇ -> the measurement of paper 000
+    vel = gen.layout.index(["dvE", "dvN"])
+    np.testing.assert_allclose(H8, F[np.ix_(vel, idx)], rtol=1e-12, atol=1e-15)
+    # H by finite differences of the computed-frame specific force
+    g = float(gravity(lat))
+    fn = np.array([0.0, 0.0, g])
+    def z(x):
+        Cc = rotvec_to_dcm(-x[:3])            # C_n^{n'} = exp(-φ×)
+        return (Cc @ fn)[:2] + x[6:8]
+    J = np.array([(z(e) - z(-e)) / 2e-6 for e in np.eye(8) * 1e-6]).T
+    np.testing.assert_allclose(H8, J, rtol=1e-8, atol=1e-9)
+    assert np.allclose(G8[:3], -np.eye(3)) and np.all(G8[3:] == 0)
+
+
+# ------------------------------------------------------------------ discretisation
+def _test_F(seed=0):
+    nav = es.NavPoint(LAT0, H0, V0, euler_to_dcm(ATT0), fb_true(3.0), wb_true(3.0))
+    m = es.ErrorModel("full", [es.gyro_bias(rrw=1e-7), es.accel_bias(), es.gyro_markov(30.0, 1e-5),
+                               es.accel_scale()], gyro_noise=0.01 * np.pi / 180 / 60,
+                      accel_noise=50 * ug)
+    return m, nav
+
+
+def test_vanloan_matches_ornstein_uhlenbeck_closed_form():
+    """Scalar Gauss–Markov: Φ = e^{−T/τ}, Q_k = σ²(1 − e^{−2T/τ})."""
+    tau, sigma = 7.0, 3.0
+    for T in (0.01, 1.0, 20.0):
+        Phi, Q = es.discretize([[-1 / tau]], [[1.0]], [2 * sigma ** 2 / tau], T)
+        assert Phi[0, 0] == pytest.approx(np.exp(-T / tau), rel=1e-13)
+        assert Q[0, 0] == pytest.approx(sigma ** 2 * (1 - np.exp(-2 * T / tau)), rel=1e-12)
+
+
+def test_vanloan_matches_numerical_integral():
+    m, nav = _test_F()
+    F, G = m.matrices(nav)
+    T = 5.0
+    Phi, Q = es.discretize(F, G, m.q, T)
+    np.testing.assert_allclose(Phi, scipy.linalg.expm(F * T), rtol=1e-12, atol=1e-12 * np.abs(Phi).max())
+    s = np.linspace(0, T, 2001)
+    Qc = (G * m.q) @ G.T
+    E = scipy.linalg.expm(F[None] * s[:, None, None])
+    from scipy.integrate import simpson
+    Qn = simpson(E @ Qc @ np.swapaxes(E, -1, -2), x=s, axis=0)
+    np.testing.assert_allclose(Q, Qn, rtol=1e-8, atol=1e-10 * np.abs(Qn).max())
+
+
+def test_series_minus_expm_is_third_order_and_bounded():
+    """‖Φ_series − expm(FT)‖ ≤ ‖FT‖³/6·e^‖FT‖ (Taylor remainder) and both Φ and Q_k errors
+    scale as T³ (halving T divides them by ≈ 8)."""
+    m, nav = _test_F()
+    F, G = m.matrices(nav)
+    Ts = np.array([0.01, 0.02, 0.04, 0.08, 0.16, 0.32])
+    dP, dQ, QQ = [], [], []
+    for T in Ts:
+        P1, Q1 = es.discretize(F, G, m.q, T, "vanloan")
+        P2, Q2 = es.discretize(F, G, m.q, T, "series")
+        a = np.linalg.norm(F * T, 2)
+        d = np.linalg.norm(P2 - P1, 2)
+        assert d <= a ** 3 / 6 * np.exp(a)
+        dP.append(d)
+        dQ.append(np.linalg.norm(Q2 - Q1, 2))
+        QQ.append(np.linalg.norm(Q1, 2))
+    rP = np.array(dP[1:]) / np.array(dP[:-1])
+    rQ = np.array(dQ[1:]) / np.array(dQ[:-1])
+    assert np.all((rP > 7.0) & (rP < 9.0)), rP
+    assert np.all((rQ > 7.0) & (rQ < 9.0)), rQ
+    # relative Q_k error grows as T² (≈ 0.17 T² here: 1.7e-5 at 0.01 s, 1.1e-3 at 0.08 s)
+    assert np.all(np.array(dQ) / np.array(QQ) < 0.2 * Ts ** 2)
+
+
+def test_discretize_vectorised_and_numba_agree():
+    m, _ = _test_F()
+    t = np.linspace(0, 50, 7)
+    navs = es.NavPoint(LAT0 + 1e-4 * t, H0 + t, V0 + t[:, None], euler_to_dcm(ATT0 + 0.01 * t[:, None]),
+                       fb_true(t), wb_true(t))
+    F, G = m.matrices(navs)
+    for method in ("vanloan", "series"):
+        P, Q = es.discretize(F, G, m.q, 0.5, method)
+        for k in range(t.size):
+            P1, Q1 = es.discretize(F[k], G[k], m.q, 0.5, method)
+            np.testing.assert_allclose(P[k], P1, rtol=1e-13, atol=1e-16)
+            np.testing.assert_allclose(Q[k], Q1, rtol=1e-12, atol=1e-20)
+    P, Q = es.discretize(F[3], G[3], m.q, 0.5, "series")
+    np.testing.assert_allclose(es.phi_series_nb(F[3], 0.5), P, rtol=1e-13, atol=1e-16)
+    Pn, Qn = np.empty_like(P), np.empty_like(P)
+    Qc = (G[3] * m.q) @ G[3].T
+    es.discretize_series_nb(F[3], Qc, 0.5, Pn, Qn)
+    np.testing.assert_allclose(Pn, P, rtol=1e-13, atol=1e-16)
+    np.testing.assert_allclose(Qn, Q, rtol=1e-12, atol=1e-22)
+
+
+# ---------------------------------------------------------------------- layout, errors
+def test_layout_names_units_and_order():
+    m = es.ErrorModel("horizontal", [es.gyro_bias(), es.gyro_markov(100.0, 1e-6), es.accel_markov(100.0, 1e-4)],
+                      order=["phi", "dv", "dp", "eps", "eps_m", "nabla_m"])
+    lay = m.layout
+    assert lay.n == 16          # paper 003's 16 states
+    assert lay.labels[:7] == ("phiE", "phiN", "phiU", "dvE", "dvN", "dL", "dlam")
+    assert lay.slice("eps_m") == slice(10, 13)
+    H = lay.selector(["dL", "dlam"])
+    x = np.arange(16.0)
+    assert np.all(H @ x == [5.0, 6.0])
+    assert "arcmin" in lay.format(np.ones(16) * 1e-3)
+    np.testing.assert_allclose(lay.to_display(np.r_[np.full(3, 1 * arcmin), np.zeros(13)])[:3], 1.0)
+    m2 = es.ErrorModel("attvel", [es.installation(), es.gyro_bias(), es.gyro_scale(), es.accel_bias(),
+                                  es.accel_scale()])
+    assert m2.n == 21           # paper 002's 21 states
+    assert m2.layout.names == ("phi", "dv", "lam", "eps", "kg", "nabla", "ka")
+
+
+def test_bad_inputs_are_clear_errors():
+    with pytest.raises(ValueError, match="core"):
+        es.ErrorModel("nope")
+    with pytest.raises(ValueError, match="axes"):
+        es.gyro_bias("xw")
+    with pytest.raises(ValueError, match="correlation time"):
+        es.gyro_markov(0.0, 1.0)
+    with pytest.raises(ValueError, match="order"):
+        es.ErrorModel("full", [es.gyro_bias()], order=["phi", "dv"])
+    with pytest.raises(ValueError, match="latitude"):
+        es.NavPoint.static(np.pi / 2)
+    with pytest.raises(ValueError, match="non-finite"):
+        es.NavPoint(np.nan, 0.0, np.zeros(3), np.eye(3), np.zeros(3))
+    with pytest.raises(ValueError, match="shape"):
+        es.discretize(np.eye(3), np.eye(2), [1.0, 1.0], 1.0)
+    with pytest.raises(ValueError, match=">= 0"):
+        es.discretize(np.eye(2), np.eye(2), [1.0, -1.0], 1.0)
+    with pytest.raises(ValueError, match="method"):
+        es.discretize(np.eye(2), np.eye(2), [1.0, 1.0], 1.0, "euler")

@@ -507,14 +507,23 @@ def accel_bias(axes="xyz", arw=0.0, frame="body", name="nabla"):
     return SensorBlock(name, "accel", "bias", axes, frame, None, np.asarray(arw, float) ** 2, "ug")
 
 
+def _check_tau(tau, name):
+    tau = float(tau)
+    if not (np.isfinite(tau) and tau > 0):
+        raise ValueError(f"block {name!r}: Gauss-Markov correlation time must be > 0, got {tau}")
+    return tau
+
+
 def gyro_markov(tau, sigma, axes="xyz", frame="body", name="eps_m"):
     """First-order Gauss–Markov gyro drift: ``ẋ = −x/τ + w``, q = 2σ²/τ (σ steady-state [rad/s])."""
+    tau = _check_tau(tau, name)
     return SensorBlock(name, "gyro", "markov", axes, frame, float(tau),
                        2.0 * np.asarray(sigma, float) ** 2 / float(tau), "deg/h")
 
 
 def accel_markov(tau, sigma, axes="xyz", frame="body", name="nabla_m"):
     """First-order Gauss–Markov accelerometer bias, q = 2σ²/τ (σ [m/s²], τ [s])."""
+    tau = _check_tau(tau, name)
     return SensorBlock(name, "accel", "markov", axes, frame, float(tau),
                        2.0 * np.asarray(sigma, float) ** 2 / float(tau), "ug")
 
