@@ -380,6 +380,11 @@ def test_bad_input():
         sd.step(s, imu.dtheta, imu.dv, 0.1)
     with pytest.raises(ValueError, match="latitude"):
         NavState(np.radians(91.0), 0.0, 0.0, np.zeros(3), np.zeros(3))
+    with pytest.raises(ValueError, match="pole"):
+        sd.navigate(imu, NavState(np.pi / 2, 0.0, 0.0, np.zeros(3), np.zeros(3)))
+    with pytest.raises(ValueError, match="non-finite"):
+        huge = ImuRecord(imu.t, imu.dtheta, imu.dv + 1e307, imu.dt)
+        sd.navigate(huge, init, progress=False)
     with pytest.raises(ValueError, match="shape"):
         sd.step(sd.initial_state_array(init), imu.dtheta[:, :2], imu.dv, 0.1)
     with pytest.raises(ValueError, match="gyro_bias"):

@@ -490,6 +490,12 @@ def _bias3(b, name) -> np.ndarray:
     return a
 
 
+def _check_not_pole(lat):
+    if abs(float(lat)) > math.pi / 2 - 1e-9:
+        raise ValueError(f"latitude {math.degrees(float(lat)):.9g} deg is at a pole, where the "
+                         "ENU mechanization (longitude, transport rate) is singular")
+
+
 def initial_state_array(init: NavState) -> np.ndarray:
     """Full state array (length :data:`NSTATE`) for an initial :class:`NavState`.
 
@@ -497,6 +503,7 @@ def initial_state_array(init: NavState) -> np.ndarray:
     ``[q0, q1, q2, q3, vE, vN, vU, lat, lon, h]`` (quaternion of C_b^n, m/s, rad, m).
     """
     check_latitude(init.lat)
+    _check_not_pole(init.lat)
     s = np.zeros(NSTATE)
     s[:4] = euler_to_quat(np.asarray(init.att, dtype=float))
     s[4:7] = init.vel
@@ -627,6 +634,7 @@ def step(state: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float, nsub:
         raise ValueError(f"state must be a float64 array of length {NAV} or {NSTATE}, "
                          f"got {s.dtype} {s.shape}")
     check_latitude(s[7])
+    _check_not_pole(s[7])
     dth = np.ascontiguousarray(dtheta, dtype=float)
     dvl = np.ascontiguousarray(dv, dtype=float)
     if dth.ndim != 2 or dth.shape[1] != 3 or dvl.shape != dth.shape:
@@ -783,6 +791,9 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
             _kernel(s, imu.dtheta[lo:hi], imu.dv[lo:hi], dt, nsub, cu, mode, hs, vs, k1, k2, k3,
                     gb[0], gb[1], gb[2], ab[0], ab[1], ab[2], CONING_COEFFS, rows[r:], out_every)
             r += cu // out_every
+            if not np.all(np.isfinite(s[:NAV])):
+                raise ValueError(f"navigation became non-finite by t = {imu.t[hi - 1]:.6g} s "
+                                 "(a pole crossed, or diverging input)")
             lo = hi
             advance(cu * nsub)
     upd_idx = np.arange(1, m_out + 1) * out_every * nsub      # epoch index (0 = t0)
