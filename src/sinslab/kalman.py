@@ -1076,6 +1076,33 @@ def error_budget(P0_parts, Phi, Q_parts, H, R_parts, *, n_steps=None, mask=None,
     return Budget(list(names), var, np.diag(Ptot).copy(), Chist if hist_every > 0 else None)
 
 
+@njit(cache=True)
+def _predict_many(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out):
+    m = Phis.shape[0]
+    n = x.shape[0]
+    for i in range(m):
+        _cov_predict(P, Phis[i], Qs[i], nzc[i], nnz[i], T1, T2)
+        _state_predict(x, Phis[i], nzc[i], nnz[i], tmp)
+        _state_predict(c, Phis[i], nzc[i], nnz[i], tmp)
+        for j in range(n):
+            sig_out[i, j] = math.sqrt(max(P[j, j], 0.0))
+            x_out[i, j] = x[j]
+
+
+@njit(cache=True)
+def _seq_update(x, P, z, H, r, innov, sdiag, tmp, B):
+    n = x.shape[0]
+    pht = np.empty(n)
+    kk = np.empty(n)
+    nis = 0.0
+    for c in range(z.shape[0]):
+        nu, s = _scalar_update(x, P, H[c], r[c], z[c], True, pht, kk, tmp, B)
+        innov[c] = nu
+        sdiag[c] = s
+        nis += nu * nu / s
+    return nis
+
+
 # ----------------------------------------------------------------------------------------
 # stateful filter: feedback / feed-forward, lagged measurements
 # ----------------------------------------------------------------------------------------
@@ -1278,8 +1305,49 @@ class KalmanFilter:
         self.t += float(dt)
         self._new_epoch(aux)
 
+    def predict_many(self, Phis, Qs, dt, *, aux=None, sigma_out=None, x_out=None):
+        """Several :meth:`predict` steps in one compiled loop.
+
+        Parameters
+        ----------
+        Phis, Qs : ndarray, shape (m, n, n)
+            Transition and process-noise matrices of the m steps.
+        dt : float
+            Step length [s].
+        aux : sequence of length m, optional
+            Payloads of the new epochs (history only).
+        sigma_out, x_out : ndarray, shape (m, n), optional
+            Receive σ and x after each step.
+        """
+        Phis = np.ascontiguousarray(Phis, dtype=float)
+        Qs = np.ascontiguousarray(Qs, dtype=float)
+        m = Phis.shape[0]
+        if self._buf is not None or self.check:
+            for i in range(m):
+                self.predict(Phis[i], Qs[i], dt, aux=None if aux is None else aux[i])
+                if sigma_out is not None:
+                    sigma_out[i] = self.sigma
+                if x_out is not None:
+                    x_out[i] = self.x
+            return
+        n = self.n
+        if Phis.shape != (m, n, n) or Qs.shape != (m, n, n):
+            raise ValueError(f"Phis and Qs must have shape (m, {n}, {n}), got {Phis.shape}, {Qs.shape}")
+        nzc = np.zeros((m, n, max(n, 1)), dtype=np.int64)
+        nnz = np.zeros((m, n), dtype=np.int64)
+        _sparsity_nb(Phis, nzc, nnz)
+        so = np.empty((m, n)) if sigma_out is None else sigma_out
+        xo = np.empty((m, n)) if x_out is None else x_out
+        _predict_many(self.x, self.c, self.P, Phis, Qs, nzc, nnz, self._T1, self._T2, self._tmp,
+                      so, xo)
+        self.t += m * float(dt)
+
     def update(self, z, H, R, *, mask=None, sequential=None):
         """Apply a measurement valid now (see :func:`update`). Returns :class:`UpdateResult`."""
+        if not self.check and self._buf is None and mask is None and sequential is not False:
+            fast = self._fast_update(z, H, R)
+            if fast is not None:
+                return fast
         res = update(self.x, self.P, z, H, R, mask=mask, sequential=sequential)
         if self._buf is not None:
             z = np.atleast_1d(np.asarray(z, dtype=float))
@@ -1287,6 +1355,26 @@ class KalmanFilter:
             self._buf[-1].updates.append((z + Hm @ self.c, Hm, R, res.used.copy(), sequential))
         self.x, self.P = res.x, res.P
         return res
+
+    def _fast_update(self, z, H, R):
+        """Sequential scalar Joseph updates in compiled code (diagonal R, finite z)."""
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        H = np.ascontiguousarray(np.atleast_2d(H), dtype=float)
+        R = np.asarray(R, dtype=float)
+        m = z.size
+        if R.ndim == 2:
+            if R.shape != (m, m) or not _is_diag(R):
+                return None
+            r = np.diag(R).copy()
+        else:
+            r = np.broadcast_to(R, (m,)).astype(float)
+        if H.shape != (m, self.n) or not np.all(np.isfinite(z)) or not np.all(r > 0):
+            return None
+        S = H @ self.P @ H.T + np.diag(r)
+        innov = np.empty(m)
+        sdiag = np.empty(m)
+        nis = _seq_update(self.x, self.P, z, H, r, innov, sdiag, self._tmp, self._T1)
+        return UpdateResult(self.x, self.P, innov, S, float(nis), np.ones(m, dtype=bool))
 
     def feedback(self, indices=None):
         """Return the estimate of the given states and zero them (closed-loop correction).
@@ -1487,7 +1575,7 @@ def default_lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0):
 
 def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyro_arw=None,
                     accel_vrw=None, kf_dt=0.1, nsub=2, feedback=True, fix_lag=0.0,
-                    vertical="free", max_block=10.0, progress=True):
+                    vertical="free", max_block=10.0, model_every=10.0, progress=True):
     """Loosely coupled INS / position-fix integration with a closed-loop Kalman filter.
 
     The strapdown mechanization (:func:`sinslab.strapdown.step`) runs on the IMU stream
@@ -1530,6 +1618,13 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         Only "free" is supported here (height is estimated from the fixes).
     max_block : float
         Longest stretch [s] the INS is run in one compiled call when no fix arrives.
+    model_every : float
+        The error model F, G (and Φ, Q_k) is evaluated for all filter epochs of the next
+        ``model_every`` seconds at once, along a look-ahead free-inertial run started from
+        the current (corrected) state; the linearisation point then differs from the
+        corrected path only by the feedback applied within that stretch (metres and
+        arc-seconds with 1 Hz fixes). Use ``kf_dt`` to evaluate it on the corrected path
+        exactly (slower).
 
     Returns
     -------
@@ -1614,6 +1709,10 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     per = k_kf // nsub
     max_ep = max(1, int(round(max_block / T)))
     H = np.zeros((3, n))
+    la_ep = max(1, int(round(model_every / T)))
+    la_end = -1
+    la0 = 0
+    Phi_la = Q_la = None
     with _progress("loosely coupled", total=n_ep, unit="steps") as bar:
         e0 = 0
         si = 0
@@ -1626,19 +1725,37 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
             sd.step(state, imu.dtheta[e0 * k_kf:e1 * k_kf], imu.dv[e0 * k_kf:e1 * k_kf], dt, nsub,
                     gyro_bias=gb, accel_bias=ab, out=out, out_every=per)
             rows = np.vstack([nav_h[e0][None], out])                 # epochs e0..e1
-            # error model at the start of each interval, with the compensated sensor means
-            C = quat_to_dcm(rows[:-1, :4])
-            npnt = es.NavPoint(rows[:-1, 7], rows[:-1, 9], rows[:-1, 4:7], C,
-                               dv_sum[e0:e1] / T - ab, dth_sum[e0:e1] / T - gb)
-            F, G = model.matrices(npnt)
-            Phi, Qk = es.discretize(F, G, model.q, T, "series")
-            for i in range(m):
-                filt.predict(Phi[i], Qk[i], T, aux=rows[i + 1].copy())
-                x_h[e0 + i + 1] = filt.x
-                sig_h[e0 + i + 1] = filt.sigma
-                nav_h[e0 + i + 1] = rows[i + 1]
-                gb_h[e0 + i + 1] = gb
-                ab_h[e0 + i + 1] = ab
+            if e1 > la_end:
+                # error model for the next stretch, from a look-ahead free run of the INS
+                # (the linearisation point differs from the corrected path only by the
+                # feedback applied inside the stretch)
+                la0 = e0
+                la_end = max(e1, min(n_ep, e0 + la_ep))
+                if la_end > e1:
+                    la = state.copy()                                 # at epoch e1
+                    la_out = np.empty((la_end - e1, 10))
+                    sd.step(la, imu.dtheta[e1 * k_kf:la_end * k_kf], imu.dv[e1 * k_kf:la_end * k_kf],
+                            dt, nsub, gyro_bias=gb, accel_bias=ab, out=la_out, out_every=per)
+                    la_rows = np.vstack([rows, la_out[:-1]])          # epochs e0..la_end-1
+                else:
+                    la_rows = rows[:-1]
+                C = quat_to_dcm(la_rows[:, :4])
+                npnt = es.NavPoint(la_rows[:, 7], la_rows[:, 9], la_rows[:, 4:7], C,
+                                   dv_sum[e0:la_end] / T - ab, dth_sum[e0:la_end] / T - gb)
+                F, G = model.matrices(npnt)
+                Phi_la, Q_la = es.discretize(F, G, model.q, T, "series")
+            sl = slice(e0 - la0, e1 - la0)
+            if hist:
+                for i in range(m):
+                    filt.predict(Phi_la[sl][i], Q_la[sl][i], T, aux=rows[i + 1].copy())
+                    x_h[e0 + i + 1] = filt.x
+                    sig_h[e0 + i + 1] = filt.sigma
+            else:
+                filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
+                                  x_out=x_h[e0 + 1:e1 + 1])
+            nav_h[e0 + 1:e1 + 1] = rows[1:]
+            gb_h[e0 + 1:e1 + 1] = gb
+            ab_h[e0 + 1:e1 + 1] = ab
             fixes = arrivals.get(e1, []) if e1 == stops[si] else []
             for j in fixes:
                 ev = int(e_valid[j])
