@@ -592,7 +592,14 @@ class FineAlignment:
     feedback : bool
     rest : RestCheck
     gyro_arw, accel_vrw : ndarray (3,)
-        Noise densities used in Q and R.
+        Noise densities used in Q and R (for R from data: the E, N Allan deviations ×√T
+        and their mean).
+    R : ndarray (2, 2)
+        Measurement-noise covariance used.
+    z : ndarray (K, 2)
+        The measurements ``[f_E', f_N']`` [m/s²] (mean over each period).
+    Phi, Qk, P0 : ndarray
+        The filter's discrete model and initial covariance.
     warnings : tuple of str
     """
 
@@ -615,6 +622,11 @@ class FineAlignment:
     gyro_arw: np.ndarray
     accel_vrw: np.ndarray
     P_final: np.ndarray = field(repr=False, default=None)
+    R: np.ndarray = field(repr=False, default=None)
+    z: np.ndarray = field(repr=False, default=None)
+    Phi: np.ndarray = field(repr=False, default=None)
+    Qk: np.ndarray = field(repr=False, default=None)
+    P0: np.ndarray = field(repr=False, default=None)
     warnings: tuple = ()
 
     @property
@@ -656,9 +668,14 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
     model : {"reduced", "full"}
     period : float
         Filter period [s] (rounded to whole samples).
-    gyro_arw, accel_vrw : float or array_like (3,), optional
-        Body-frame white-noise densities [rad/√s, m/s/√s]; default from the data
-        (:func:`noise_from_data`).
+    gyro_arw : float or array_like (3,), optional
+        Body-frame gyro white noise [rad/√s] for Q; default :func:`noise_from_data`
+        (which counts any angular motion as noise: give the sensor's value when known).
+    accel_vrw : float or array_like (3,), optional
+        Body-frame accelerometer white noise [m/s/√s] for R = (C Q_a Cᵀ)_hor / T; default:
+        R from the data, the Allan deviation at τ = ``period`` of the horizontal specific
+        force in the open-loop computed frame (sensor noise plus whatever disturbance the
+        attitude propagation does not remove).
     p0_att : array_like (3,)
         1σ initial φ [rad] (the paper: 100·(10′,10′,60′)² as variance, i.e. 10× these).
     p0_gyro_bias, p0_accel_bias : float
@@ -689,14 +706,26 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
     warns = [] if rest.at_rest else [rest.message]
     if warns:
         _warnings.warn(rest.message, NotAtRestWarning, stacklevel=2)
-    if gyro_arw is None or accel_vrw is None:
-        ga, av = noise_from_data(imu, T)
-        gyro_arw = ga if gyro_arw is None else gyro_arw
-        accel_vrw = av if accel_vrw is None else accel_vrw
-    gyro_arw = _vec3(gyro_arw, "gyro_arw")
-    accel_vrw = _vec3(accel_vrw, "accel_vrw")
     att0 = np.asarray(att0, dtype=float).reshape(3)
     C0 = att_.euler_to_dcm(att0)
+    wn = earth.wie_n(lat)
+    if gyro_arw is None:
+        gyro_arw = noise_from_data(imu, T)[0]
+    gyro_arw = _vec3(gyro_arw, "gyro_arw")
+    if accel_vrw is None:
+        # measurement noise as the filter sees it: Allan deviation at τ = T of the
+        # horizontal specific force in the (open-loop) computed frame
+        fm = np.empty((K, 3))
+        _propagate(att_.euler_to_quat(att0).astype(float), imu.dtheta, imu.dv, imu.dt, wn,
+                   0, nper, K, np.empty((K, 4)), fm)
+        adev = np.sqrt(0.5 * np.mean(np.diff(fm[:, :2], axis=0) ** 2, axis=0))
+        R = np.diag(np.maximum(adev, 1e-12) ** 2)
+        accel_vrw = np.r_[adev, adev.mean()] * math.sqrt(T)
+    else:
+        accel_vrw = _vec3(accel_vrw, "accel_vrw")
+        R = (C0 @ np.diag(accel_vrw ** 2) @ C0.T)[:2, :2] / T
+        if abs(R[0, 1]) <= 1e-9 * math.sqrt(R[0, 0] * R[1, 1]):
+            R = np.diag(np.diag(R))          # isotropic noise: exactly diagonal (scalar updates)
     if model == "full":
         F, G, H = full_model(lat, g)
         sig0 = np.r_[np.asarray(p0_att, float), [p0_gyro_bias] * 3, [p0_accel_bias] * 2]
@@ -708,9 +737,7 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
     n = F.shape[0]
     Qg = C0 @ np.diag(gyro_arw ** 2) @ C0.T
     Phi, Qk = kalman.discretize(F, Qg, T, G=G)
-    R = (C0 @ np.diag(accel_vrw ** 2) @ C0.T)[:2, :2] / T
     P0 = np.diag(sig0 ** 2)
-    wn = earth.wie_n(lat)
     q = att_.euler_to_quat(att0).astype(float)
     qs = np.empty((K + 1, 4))
     qs[0] = q
@@ -718,7 +745,8 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
     if not feedback:
         fm = np.empty((K, 3))
         _propagate(q, imu.dtheta, imu.dv, imu.dt, wn, 0, nper, K, qs[1:], fm)
-        run = kalman.run_linear(np.zeros(n), P0, Phi, Qk, H, R, fm[:, :2])
+        zs = fm[:, :2].copy()
+        run = kalman.run_linear(np.zeros(n), P0, Phi, Qk, H, R, zs)
         x, sig, nis = run.x, run.sigma, run.nis
         Pf = run.P_saved[-1]
     else:
@@ -726,6 +754,7 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
         x = np.empty((K + 1, n))
         sig = np.empty((K + 1, n))
         nis = np.empty(K)
+        zs = np.empty((K, 2))
         x[0], sig[0] = kf.x, kf.sigma
         fm = np.empty((1, 3))
         qo = np.empty((1, 4))
@@ -733,7 +762,8 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
             _propagate(q, imu.dtheta, imu.dv, imu.dt, wn, j * nper, nper, 1, qo, fm)
             qs[j + 1] = q
             kf.predict(Phi, Qk, T)
-            res = kf.update(fm[0, :2], H, R)
+            zs[j] = fm[0, :2]
+            res = kf.update(zs[j], H, R)
             x[j + 1], sig[j + 1], nis[j] = kf.x, kf.sigma, res.nis
             d = kf.feedback(slice(0, 3))
             # C_true ≈ exp(φ̂×) C_comp: rotate the computed attitude by +φ̂
@@ -746,7 +776,7 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
     att_sigma = euler_sigma(Cc[-1], Pf[:3, :3])
     return FineAlignment(model, names, t, x, sig, qs, att_path[-1], att_sigma, att_path,
                          np.asarray(nis), lat, float(h), g, T, bool(feedback), rest,
-                         gyro_arw, accel_vrw, Pf, tuple(warns))
+                         gyro_arw, accel_vrw, Pf, R, zs, Phi, Qk, P0, tuple(warns))
 
 
 def residuals(fine: FineAlignment, C_true, gyro_bias_n):
