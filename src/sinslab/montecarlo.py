@@ -20,9 +20,9 @@ and NEES / NIS with their chi-square acceptance bounds.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
-import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,17 +70,6 @@ def _run_batch(fn, first, seeds, args, kwargs):
     return first, out
 
 
-def _progress(total, enabled):
-    """A rich progress bar on a terminal, or a no-op."""
-    if not (enabled and sys.stderr.isatty()):
-        return None
-    from rich.progress import Progress
-    p = Progress(transient=True)
-    task = p.add_task("Monte Carlo", total=total)
-    p.start()
-    return p, task
-
-
 def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None,
                  progress=True, args=(), kwargs=None, retries=0):
     """Run ``n_runs`` independent runs of ``fn`` in batches on Dask.
@@ -104,7 +93,8 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     n_workers : int, optional
         Workers of the local cluster (default: number of CPUs, at least 1).
     progress : bool
-        Show a progress bar when stderr is a terminal.
+        Show a progress bar (via :mod:`sinslab.progress`: only on a terminal, silenced by
+        ``SINSLAB_QUIET=1``).
     args, kwargs
         Extra arguments passed to every ``fn`` call (sent to the workers once).
     retries : int
@@ -144,13 +134,15 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
         raise ValueError(f"batch must be >= 1, got {batch}")
     starts = list(range(0, n, batch))
     parts = {}
-    bar = _progress(len(starts), progress)
+    from .progress import progress as _progress
+    ctx = _progress("Monte Carlo", total=n, unit="runs") if progress else contextlib.nullcontext()
     try:
+        bar = ctx.__enter__()
         if client is None:
             for s in starts:
                 parts[s] = _run_batch(fn, s, seeds[s:s + batch], args, kwargs)[1]
-                if bar:
-                    bar[0].advance(bar[1])
+                if bar is not None:
+                    bar.advance(len(seeds[s:s + batch]))
         else:
             from distributed import as_completed
             a_f = client.scatter([args, kwargs], broadcast=True, hash=False)
@@ -159,11 +151,10 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
             for fut in as_completed(futs):
                 s, out = fut.result()
                 parts[s] = out
-                if bar:
-                    bar[0].advance(bar[1])
+                if bar is not None:
+                    bar.advance(len(seeds[s:s + batch]))
     finally:
-        if bar:
-            bar[0].stop()
+        ctx.__exit__(None, None, None)
         if own is not None:
             own[0].close()
             if own[1] is not None:
