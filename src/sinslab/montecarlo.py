@@ -388,3 +388,113 @@ def linear_batch(seeds, Phi, Q, H, R, P0, n_steps, mask=None, x0_bias=None):
     nees = np.einsum("bti,tij,btj->bt", err, Pinv, err)
     sigma = np.broadcast_to(np.sqrt(np.diagonal(Ps, axis1=1, axis2=2)), (B, K + 1, n)).copy()
     return {"err": err, "sigma": sigma, "nees": nees, "nis": nis}
+
+
+# ----------------------------------------------------------------------------------------
+# free-inertial campaign: Monte Carlo RMS next to covariance-analysis σ
+# ----------------------------------------------------------------------------------------
+def _free_model(gyro_arw, accel_vrw):
+    from . import errstate as es
+    return es.ErrorModel("full", [es.gyro_bias(), es.accel_bias()], gyro_noise=gyro_arw,
+                         accel_noise=accel_vrw)
+
+
+def free_inertial_batch(seeds, truth, imu, *, init_sigma, gyro_bias_sigma, accel_bias_sigma,
+                        gyro_arw, accel_vrw, out_every, nsub=2):
+    """Campaign function: free-inertial navigation with random initial and sensor errors.
+
+    Per run (own ``default_rng(seed)``, fixed draw order): initial errors
+    ``[φ (3) rad, δv (3) m/s, δp = δL, δλ [rad], δh [m]] ~ N(0, diag(init_sigma²))``,
+    constant gyro and accelerometer biases (body) ``~ N(0, σ²)``, white noise of the given
+    densities (:func:`sinslab.imu.apply`). The INS runs free (vertical channel included)
+    with :func:`sinslab.strapdown.navigate`.
+
+    Parameters
+    ----------
+    seeds : list of SeedSequence
+    truth : sinslab.records.NavSeries
+        Truth at every IMU epoch (N + 1 epochs).
+    imu : sinslab.records.ImuRecord
+        Error-free increments (N samples).
+    init_sigma : array_like, shape (9,)
+        σ of the initial errors, state order φ, δv, δp (SI).
+    gyro_bias_sigma, accel_bias_sigma : float or (3,)
+        σ of the constant biases [rad/s], [m/s²].
+    gyro_arw, accel_vrw : float
+        Angle [rad/√s] and velocity [m/s/√s] random walk.
+    out_every : int
+        Keep errors every ``out_every`` updates (epochs ``0, out_every*nsub, ...`` of
+        the IMU grid).
+
+    Returns
+    -------
+    dict
+        ``err`` (B, T, 15): errors φ, δv, δp and the bias residuals (estimate 0 − truth,
+        so minus the drawn biases) at the kept epochs; ``t`` (B, T).
+    """
+    from . import imu as imu_mod
+    from . import strapdown as sd
+    from .attitude import apply_misalignment, dcm_to_euler, euler_to_dcm, misalignment
+    from .records import NavState
+    init_sigma = np.asarray(init_sigma, dtype=float)
+    if init_sigma.shape != (9,):
+        raise ValueError(f"init_sigma must have 9 entries (φ, δv, δp), got {init_sigma.shape}")
+    att_true = truth.att_imu if truth.att_imu is not None else truth.att
+    stride = out_every * nsub
+    idx = np.arange(0, truth.t.size, stride)
+    C_true = euler_to_dcm(att_true[idx])
+    out = []
+    for s in seeds:
+        rng = np.random.default_rng(s)
+        e0 = rng.standard_normal(9) * init_sigma
+        gb = rng.standard_normal(3) * gyro_bias_sigma
+        ab = rng.standard_normal(3) * accel_bias_sigma
+        errs = imu_mod.ImuErrors(gyro_bias=gb, gyro_arw=np.full(3, gyro_arw), accel_bias=ab,
+                                 accel_vrw=np.full(3, accel_vrw))
+        meas = imu_mod.apply(imu, errs, rng)
+        C0 = apply_misalignment(euler_to_dcm(att_true[0]), e0[:3])
+        init = NavState(truth.lat[0] + e0[6], truth.lon[0] + e0[7], truth.h[0] + e0[8],
+                        truth.vel[0] + e0[3:6], dcm_to_euler(C0), truth.t[0])
+        nav = sd.navigate(meas, init, nsub=nsub, out_every=out_every, progress=False)
+        att_nav = nav.att_imu if nav.att_imu is not None else nav.att
+        T = min(idx.size, nav.t.size)
+        e = np.empty((T, 15))
+        e[:, 0:3] = misalignment(C_true[:T], euler_to_dcm(att_nav[:T]))
+        e[:, 3:6] = nav.vel[:T] - truth.vel[idx[:T]]
+        e[:, 6] = nav.lat[:T] - truth.lat[idx[:T]]
+        e[:, 7] = nav.lon[:T] - truth.lon[idx[:T]]
+        e[:, 8] = nav.h[:T] - truth.h[idx[:T]]
+        e[:, 9:12] = -gb
+        e[:, 12:15] = -ab
+        out.append(e)
+    T = min(o.shape[0] for o in out)
+    return {"err": np.stack([o[:T] for o in out]), "t": np.tile(truth.t[idx[:T]], (len(seeds), 1))}
+
+
+def free_inertial_covariance(truth, imu, *, init_sigma, gyro_bias_sigma, accel_bias_sigma,
+                             gyro_arw, accel_vrw, out_every, nsub=2):
+    """Covariance analysis matching :func:`free_inertial_batch`: σ at the same epochs.
+
+    The 15-state model of :mod:`sinslab.errstate` is evaluated along the truth at every
+    kept epoch and discretised exactly (Van Loan) over the interval to the next one;
+    :func:`sinslab.kalman.propagate_covariance` propagates P0 with no measurements.
+
+    Returns
+    -------
+    t : ndarray, shape (T,)
+    sigma : ndarray, shape (T, 15)
+    """
+    from . import errstate as es
+    from .kalman import propagate_covariance
+    model = _free_model(gyro_arw, accel_vrw)
+    stride = out_every * nsub
+    idx = np.arange(0, truth.t.size, stride)
+    T = idx.size
+    nav = es.NavPoint.from_series(truth, imu, idx[:-1] + stride // 2)
+    F, G = model.matrices(nav)
+    Phi, Qk = es.discretize(F, G, model.q, stride * imu.dt, "vanloan")
+    P0 = np.diag(np.r_[np.asarray(init_sigma, float) ** 2,
+                       np.broadcast_to(np.asarray(gyro_bias_sigma, float) ** 2, (3,)),
+                       np.broadcast_to(np.asarray(accel_bias_sigma, float) ** 2, (3,))])
+    run = propagate_covariance(P0, Phi, Qk, n_steps=T - 1, check=False)
+    return truth.t[idx], run.sigma
