@@ -233,6 +233,9 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
         raise typer.Exit(1)
 
 
+from .experiments.static_alignment import register as _register_align; _register_align(app)  # noqa: E702,E402  `sinslab align` (paper 000)
+
+
 def main() -> None:
     """Console-script entry point."""
     os.environ.setdefault("MPLBACKEND", "Agg")
