@@ -7,17 +7,22 @@ unknown experiment) print one line ``sinslab: error: ...`` on stderr and exit wi
 status 2, before any output file is created. Ctrl-C or SIGTERM stops the run; files
 being written are discarded (exit 130 / 143). A bug prints its traceback (exit 1).
 
-Adding a command (``navigate``, ``allan``, ``align``, ...)::
+Adding a command (``navigate``, ``allan``, ``align``, ...): in your module define
+``register(app)`` containing the command, and add the module to ``COMMAND_MODULES``::
 
-    @app.command()
-    def allan(file: Path = typer.Argument(..., help="recorded IMU file"),
-              out: Optional[Path] = typer.Option(None, help="output folder")):
-        \"\"\"Allan deviation of recorded IMU data.\"\"\"
-        with user_errors():                      # ValueError subclasses -> exit 2
-            rd = RunDir(out or default_out_dir("allan"), "allan").prepare()
-            ...
-            rd.write_table(...); rd.write_figure(...); rd.finish()
+    def register(app):
+        @app.command()
+        def allan(file: Path = typer.Argument(..., help="recorded IMU file"),
+                  out: Optional[Path] = typer.Option(None, help="output folder")):
+            \"\"\"Allan deviation of recorded IMU data.\"\"\"
+            from sinslab.cli import user_errors
+            from sinslab.outputs import RunDir, default_out_dir
+            with user_errors():                  # ValueError subclasses -> exit 2
+                rd = RunDir(out or default_out_dir("allan"), "allan").prepare()
+                ...
+                rd.write_table(...); rd.write_figure(...); rd.finish()
 
+(annotations are evaluated by typer: import ``Optional``/``Path`` in that module).
 Raise :class:`CliError` (or any of ``USER_ERRORS``) for a one-line user error.
 """
 from __future__ import annotations
@@ -126,6 +131,8 @@ def list_() -> None:
         typer.echo(f"{name.ljust(width)}  {exp.purpose}")
     for mod, err in broken().items():
         _log(f"warning: experiment module {mod} failed to import ({err})")
+    for mod, err in _BROKEN_COMMANDS.items():
+        _log(f"warning: commands of {mod} failed to load ({err})")
 
 
 def _resolve(name, config, sets, seed, runs, quick):
@@ -233,7 +240,35 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
         raise typer.Exit(1)
 
 
-from .experiments.static_alignment import register as _register_align; _register_align(app)  # noqa: E702,E402  `sinslab align` (paper 000)
+#: Modules adding commands (``navigate``, ``allan``, ``align``, ...): each defines
+#: ``register(app)`` that decorates its command functions with ``@app.command()``.
+COMMAND_MODULES = (
+    "sinslab.experiments.static_alignment",          # sinslab align (paper 000)
+)
+_BROKEN_COMMANDS: dict[str, str] = {}
+
+
+def _load_commands() -> None:
+    """Register the commands of COMMAND_MODULES; a broken one is skipped, not fatal.
+
+    Each module's commands are first built on a scratch app (typer resolves the
+    signatures then), so an error in one command cannot break the whole CLI.
+    """
+    import importlib
+
+    for modname in COMMAND_MODULES:
+        try:
+            mod = importlib.import_module(modname)
+            scratch = typer.Typer()
+            mod.register(scratch)
+            typer.main.get_command(scratch)
+        except Exception as e:  # noqa: BLE001 - reported by `sinslab list`
+            _BROKEN_COMMANDS[modname] = f"{type(e).__name__}: {e}"
+            continue
+        mod.register(app)
+
+
+_load_commands()
 
 
 def main() -> None:
