@@ -618,3 +618,77 @@ def test_bad_inputs_are_clear_errors():
         es.discretize(np.eye(2), np.eye(2), [1.0, -1.0], 1.0)
     with pytest.raises(ValueError, match="method"):
         es.discretize(np.eye(2), np.eye(2), [1.0, 1.0], 1.0, "euler")
+
+
+# ------------------------------------- with sinslab's own trajectory + mechanization
+def _sinslab_flight():
+    from sinslab.trajectory import Accelerate, Climb, Start, Turn, WingRock, generate
+    segs = [Accelerate(duration=10.0, accel=3.0), Turn(duration=20.0, rate=np.radians(4.0)),
+            Climb(duration=12.0, angle=np.radians(8.0)), WingRock(duration=18.0, amplitude=np.radians(25.0),
+                                                                  period=6.0)]
+    start = Start(lat=np.radians(34.0), lon=np.radians(108.0), h=1000.0, speed=150.0,
+                  heading=np.radians(30.0))
+    return generate(segs, start, 0.01)
+
+
+SINSLAB_GROUPS = {
+    "phi0 (Maa, Mva)": dict(phi=np.array([2e-3, -1.5e-3, 3e-3])),
+    "dv0 (Mav, Mvv, Mpv)": dict(dv=np.array([0.3, -0.2, 0.1])),
+    "dp0 (Map, Mvp, Mpp)": dict(dp=np.array([2e-6, -3e-6, 20.0])),
+    "eps, nabla (-C eps, C nabla)": dict(eps=np.array([1e-5, -2e-5, 1.5e-5]), nabla=np.array([1e-3, -2e-3, 1.5e-3])),
+    "kg, ka (C diag(w) kg, C diag(f) ka)": dict(kg=np.array([300.0, -200.0, 500.0]) * ppm,
+                                               ka=np.array([-400.0, 300.0, 200.0]) * ppm),
+}
+
+
+@pytest.fixture(scope="module")
+def sinslab_flight():
+    pytest.importorskip("sinslab.strapdown")
+    return _sinslab_flight()
+
+
+@pytest.mark.parametrize("core", ["full", "horizontal"])
+def test_linear_model_matches_sinslab_navigate_60s(sinslab_flight, core):
+    """Same 2 % criterion with sinslab.trajectory.generate (accelerate, turn, climb, wing rock;
+    100 Hz) and sinslab.strapdown.navigate; errors are perturbed − unperturbed navigation."""
+    from sinslab.records import ImuRecord, NavState
+    from sinslab.strapdown import navigate
+    gen = sinslab_flight
+    truth, imu = gen.truth, gen.imu
+    hold = core == "horizontal"
+    kw = dict(vertical="hold", height=truth.h) if hold else {}
+    init = NavState.from_series(truth, 0)
+    base = navigate(imu, init, **kw)
+    model = es.ErrorModel(core, [es.gyro_bias(), es.accel_bias(), es.gyro_scale(), es.accel_scale()])
+    lay = model.layout
+    navs = es.NavPoint.from_series(truth, imu)
+    Fk = model.F(navs)
+    Phi = transition(0.5 * (Fk[1:] + Fk[:-1]), truth.t)
+    C_base = euler_to_dcm(base.att[-1])
+    for name, g in SINSLAB_GROUPS.items():
+        phi, dv, dp = (g.get(k, np.zeros(3)).copy() for k in ("phi", "dv", "dp"))
+        if hold:
+            dv[2] = dp[2] = 0.0
+        C0 = rotvec_to_dcm(-phi) @ euler_to_dcm(init.att)
+        from sinslab.attitude import dcm_to_euler
+        pinit = NavState(init.lat + dp[0], init.lon + dp[1], init.h + dp[2], init.vel + dv, dcm_to_euler(C0), init.t)
+        eps, nab, kg, ka = (g.get(k, np.zeros(3)) for k in ("eps", "nabla", "kg", "ka"))
+        pimu = ImuRecord(imu.t, imu.dtheta * (1 + kg) + eps * imu.dt, imu.dv * (1 + ka) + nab * imu.dt, imu.dt)
+        nav = navigate(pimu, pinit, **kw)
+        e_nl = dict(zip(["phiE", "phiN", "phiU", "dvE", "dvN", "dvU", "dL", "dlam", "dh"], np.concatenate([
+            misalignment(C_base, euler_to_dcm(nav.att[-1])), nav.vel[-1] - base.vel[-1],
+            [nav.lat[-1] - base.lat[-1], nav.lon[-1] - base.lon[-1], nav.h[-1] - base.h[-1]]])))
+        x0 = np.zeros(lay.n)
+        for lab, v in zip(["phiE", "phiN", "phiU", "dvE", "dvN", "dvU", "dL", "dlam", "dh"], np.r_[phi, dv, dp]):
+            if lab in lay.labels:
+                x0[lay.index(lab)] = v
+        x0[lay.slice("eps")], x0[lay.slice("nabla")] = eps, nab
+        x0[lay.slice("kg")], x0[lay.slice("ka")] = kg, ka
+        x_lin = Phi @ x0
+        for b in ("phi", "dv", "dp"):
+            labs = lay.blocks[lay.names.index(b)].labels
+            a = np.array([e_nl[l] for l in labs]) - x0[lay.slice(b)]
+            lin = x_lin[lay.slice(b)] - x0[lay.slice(b)]
+            rel = np.linalg.norm(a - lin) / np.linalg.norm(a)
+            print(f"{core:10s} {name:38s} {b:3s} {100 * rel:.3f} %")
+            assert rel < 0.02, f"{core} {name}: block {b} differs by {100 * rel:.2f} %"
