@@ -18,6 +18,7 @@ is counter-clockwise from north, i.e. sinslab's yaw ψ (heading = −ψ).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -93,7 +94,9 @@ def read_psins_imu(path) -> PsinsImu:
         names = ("attitude/velocity", "position/time/g", "scale factor")
         h = [_header_line(s, 6, nm, path, ln) for (s, ln), nm in zip(headers, names)]
         try:
-            data = np.loadtxt(fh, comments="%", ndmin=2)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)     # "input contained no data"
+                data = np.loadtxt(fh, comments="%", ndmin=2)
         except ValueError as e:
             raise ValueError(f"{path}: bad sample line after line {lineno}: {e}") from None
     if data.size == 0:
