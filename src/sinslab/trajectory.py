@@ -1,0 +1,1380 @@
+"""Trajectory generator: motion segments -> truth and exact IMU increments.
+
+A motion is a list of segments (:class:`Static`, :class:`Accelerate`, :class:`Turn`,
+:class:`Climb`, :class:`Level`, :class:`WingRock`, :class:`Ship`) flown from a
+:class:`Start`, optionally with the IMU on a moving mount (:mod:`sinslab.indexing`:
+rotate-stop indexing or a swinging table). :func:`generate` returns the truth (position,
+ENU velocity, attitude of the carrier and of the IMU) and the IMU increments
+``Δθ = ∫ω_ib^b dt``, ``Δv = ∫f^b dt`` in the IMU frame, consistent with
+:mod:`sinslab.earth` (same radii, normal gravity and Earth rate), so that error-free
+strapdown navigation of the increments reproduces the truth.
+
+Model
+-----
+The carrier's velocity follows a *track*: speed ``V``, track yaw ``ψ_v`` (``= −course``)
+and path angle ``θ_v``::
+
+    v^n = R_z(ψ_v) R_x(θ_v) [0, V, 0]^T + [0, 0, ḣ_heave]
+
+The body attitude is the track plus offsets: pitch ``θ_v + θ_sway``, yaw ``ψ_v + ψ_sway``,
+roll ``φ_bank + γ_offset`` where ``tan φ_bank = V·ω/g0`` during coordinated turns
+(ω = heading rate; right turn, right wing down = positive roll). Each of these
+channels is a sum of smooth pieces — rate trapezoids with quintic smooth-step corners
+(accelerations, turns, indexing rotations), quintic transitions (climbs), sinusoids with
+smooth envelopes (wing rock, ship sway) — so velocity, attitude and their first two
+derivatives are continuous. ``ω_nb^b`` follows from the analytic Euler-angle rates and
+
+    ω_ib^b = ω_nb^b + C_n^b (ω_ie^n + ω_en^n),
+    f^b    = C_n^b (v̇^n + (2ω_ie^n + ω_en^n) × v^n − g^n),   g^n = [0, 0, −g(L, h)].
+
+With a mount, ``C_b^n = C_c^n C_b^c`` and ``ω_ib^b = C_c^b ω_ic^c + ω_cb^b`` (IMU at the
+navigation point, no lever arm).
+
+Numerics: the increments are integrated with Lobatto (default, 3 nodes: shared end points,
+order 4) or Gauss–Legendre quadrature over each IMU interval, split at every breakpoint of
+the piecewise profiles; position is integrated by collocation on the same nodes.
+Everything per sample runs in one numba kernel; segments are compiled into parameter
+arrays first.
+
+Units: SI inside (rad, m, s). Configs/TOML give unit strings (``"3 deg/s"``); heading in
+:class:`Start` is clockwise from north, the Euler yaw in the outputs is ``−heading``.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+from numba import njit
+
+from . import earth, indexing, units
+from .records import ImuRecord, NavSeries
+
+__all__ = [
+    "Start", "Segment", "Static", "Accelerate", "Turn", "Climb", "Level", "WingRock", "Ship",
+    "SEGMENT_KINDS", "segment_from_dict", "segments_from_list", "load_segments", "load_motion",
+    "dump_segments", "Motion", "Generated", "generate", "static", "aircraft_mixed",
+    "ship_manoeuvring", "total_duration",
+]
+
+G0 = units.g0          # gravity used for the coordinated-turn bank angle (a body attitude only)
+
+_DUMP_UNITS = {"time": "s", "angle": "deg", "angular_rate": "deg/s", "velocity": "m/s",
+               "acceleration": "m/s^2", "length": "m"}
+
+
+def _q(kind):
+    return field(metadata={"q": kind})
+
+
+def _qd(kind, default):
+    return field(default=default, metadata={"q": kind})
+
+
+# --- start -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Start:
+    """Initial condition of a motion (SI: rad, m, m/s).
+
+    ``heading`` is clockwise from north (the Euler yaw is ``−heading``); ``pitch`` is
+    the initial path angle (and body pitch), ``roll`` a constant body roll.
+    """
+
+    lat: float = _q("angle")
+    lon: float = _q("angle")
+    h: float = _qd("length", 0.0)
+    speed: float = _qd("velocity", 0.0)
+    heading: float = _qd("angle", 0.0)
+    pitch: float = _qd("angle", 0.0)
+    roll: float = _qd("angle", 0.0)
+
+    def __post_init__(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+                raise ValueError(f"start: key {f.name!r} must be a number in SI units, got {v!r}")
+            v = float(v)
+            if not math.isfinite(v):
+                raise ValueError(f"start: key {f.name!r} is not finite")
+            object.__setattr__(self, f.name, v)
+        if abs(self.lat) > math.pi / 2:
+            raise ValueError(f"start: key 'lat': latitude {math.degrees(self.lat):.6g} deg is beyond ±90 deg")
+        if abs(self.pitch) >= math.pi / 2:
+            raise ValueError("start: key 'pitch' must be within ±90 deg")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Start":
+        """From a table of unit strings, e.g. ``{lat="32 deg", lon="118 deg", h="1000 m"}``."""
+        return cls(**_parse_fields(cls, d, "start"))
+
+    def to_dict(self) -> dict:
+        return _dump_fields(self)
+
+
+# --- segments ----------------------------------------------------------------------------
+def _parse_fields(cls, d, where, extra=None):
+    """Parse a table of unit strings into SI keyword arguments of dataclass ``cls``.
+
+    ``extra`` maps additional allowed keys (handled by the caller) to the field they stand
+    in for (that field is then not required)."""
+    if not isinstance(d, dict):
+        raise ValueError(f"{where}: expected a table, got {type(d).__name__}")
+    extra = extra or {}
+    flds = {f.name: f for f in fields(cls)}
+    out = {}
+    for key, value in d.items():
+        if key == "kind" or key in extra:
+            continue
+        if key not in flds:
+            raise ValueError(f"{where}: unknown key {key!r}; allowed: "
+                             f"{', '.join(list(flds) + list(extra))}")
+        q = flds[key].metadata.get("q")
+        if q is None:                                   # booleans
+            if not isinstance(value, bool):
+                raise ValueError(f"{where}: key {key!r} must be true or false, got {value!r}")
+            out[key] = value
+            continue
+        try:
+            out[key] = units.parse(value, q)
+        except ValueError as e:
+            raise ValueError(f"{where}: key {key!r}: {e}") from None
+    covered = {v for k, v in extra.items() if k in d}
+    for name, f in flds.items():
+        if name not in out and name not in covered and f.default is _MISSING \
+                and f.default_factory is _MISSING:
+            raise ValueError(f"{where}: missing key {name!r}")
+    return out
+
+
+from dataclasses import MISSING as _MISSING  # noqa: E402
+
+
+def _fmt(v, q):
+    u = _DUMP_UNITS[q]
+    return f"{v / units.unit_scale(u)!r} {u}"
+
+
+def _dump_fields(obj):
+    d = {}
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        if v is None:
+            continue
+        q = f.metadata.get("q")
+        d[f.name] = v if q is None else _fmt(v, q)
+    return d
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Base of the motion segments: a duration [s] (> 0) and kind-specific fields (SI)."""
+
+    kind: ClassVar[str] = ""
+
+    def __post_init__(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.metadata.get("q") is None:
+                if not isinstance(v, bool):
+                    raise ValueError(f"key {f.name!r} must be true or false, got {v!r}")
+                continue
+            if v is None:
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+                raise ValueError(f"key {f.name!r} must be a number in SI units, got {v!r}")
+            if not math.isfinite(float(v)):
+                raise ValueError(f"key {f.name!r} is not finite")
+            object.__setattr__(self, f.name, float(v))
+        if not self.duration > 0:
+            raise ValueError(f"key 'duration' must be > 0, got {self.duration!r} s")
+        self._check()
+
+    def _check(self):
+        pass
+
+    def _ramp_ok(self, key, n=2):
+        r = getattr(self, key)
+        if r < 0:
+            raise ValueError(f"key {key!r} must be >= 0, got {r!r} s")
+        if n * r > self.duration * (1 + 1e-12):
+            raise ValueError(f"key {key!r}: {n} x {r:g} s does not fit in duration {self.duration:g} s")
+
+    @classmethod
+    def from_dict(cls, d: dict, index: int | None = None) -> "Segment":
+        """From a table of unit strings (``{kind="turn", duration="60 s", rate="3 deg/s"}``)."""
+        where = f"segment {index} ({cls.kind})" if index is not None else f"segment ({cls.kind})"
+        kw = _parse_fields(cls, d, where, cls._extra_keys())
+        kw = cls._from_parsed(kw, d, where)
+        try:
+            return cls(**kw)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"{where}: {e}") from None
+
+    @classmethod
+    def _extra_keys(cls):
+        return None
+
+    @classmethod
+    def _from_parsed(cls, kw, raw, where):
+        return kw
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **_dump_fields(self)}
+
+
+@dataclass(frozen=True)
+class Static(Segment):
+    """The carrier stands still (speed must be 0 at its start)."""
+
+    duration: float = _q("time")
+    kind: ClassVar[str] = "static"
+
+
+@dataclass(frozen=True)
+class Accelerate(Segment):
+    """Along-track acceleration ``accel`` [m/s²] (negative: decelerate).
+
+    The acceleration rises to ``accel`` along a smooth step of ``ramp`` seconds and falls
+    back at the end: the speed changes by ``accel·(duration − ramp)``.
+    """
+
+    duration: float = _q("time")
+    accel: float = _q("acceleration")
+    ramp: float = _qd("time", 1.0)
+    kind: ClassVar[str] = "accelerate"
+
+    def _check(self):
+        self._ramp_ok("ramp")
+
+    @property
+    def speed_change(self) -> float:
+        return self.accel * (self.duration - self.ramp)
+
+
+@dataclass(frozen=True)
+class Turn(Segment):
+    """Constant-rate turn: heading rate ``rate`` [rad/s], positive = turning right.
+
+    The rate rises and falls along smooth steps of ``ramp`` seconds, so the heading changes
+    by ``rate·(duration − ramp)``. In a config, ``angle`` (the heading change) may be
+    given instead of ``rate``. ``coordinated``: bank the carrier with
+    ``tan φ = V·ω/g0`` (roll-in and roll-out follow the rate ramps); otherwise the turn is
+    flat (ship, car).
+    """
+
+    duration: float = _q("time")
+    rate: float = _q("angular_rate")
+    ramp: float = _qd("time", 2.0)
+    coordinated: bool = True
+    kind: ClassVar[str] = "turn"
+
+    def _check(self):
+        self._ramp_ok("ramp")
+        if abs(self.rate) >= math.pi:
+            raise ValueError(f"key 'rate' is implausibly large ({math.degrees(self.rate):g} deg/s)")
+
+    @classmethod
+    def _extra_keys(cls):
+        return {"angle": "rate"}
+
+    @classmethod
+    def _from_parsed(cls, kw, raw, where):
+        if ("angle" in raw) == ("rate" in raw):
+            raise ValueError(f"{where}: give exactly one of 'rate' or 'angle'")
+        if "angle" in raw:
+            try:
+                ang = units.parse(raw["angle"], "angle")
+            except ValueError as e:
+                raise ValueError(f"{where}: key 'angle': {e}") from None
+            ramp = kw.get("ramp", 2.0)
+            if "duration" not in kw or kw["duration"] <= ramp:
+                raise ValueError(f"{where}: key 'duration' must exceed 'ramp' to turn by an angle")
+            kw["rate"] = ang / (kw["duration"] - ramp)
+        return kw
+
+    @property
+    def angle(self) -> float:
+        return self.rate * (self.duration - self.ramp)
+
+
+@dataclass(frozen=True)
+class Climb(Segment):
+    """Change the path angle (and body pitch) to ``angle`` [rad] (negative: descend) over the
+    first ``transition`` seconds (default min(5 s, duration)) along a smooth step, then
+    hold it. ``kind="descend"`` in a
+    config takes a positive angle downwards."""
+
+    duration: float = _q("time")
+    angle: float = _q("angle")
+    transition: float | None = _qd("time", None)
+    kind: ClassVar[str] = "climb"
+
+    def _check(self):
+        if self.transition is None:
+            object.__setattr__(self, "transition", min(5.0, self.duration))
+        self._ramp_ok("transition", 1)
+        if abs(self.angle) >= math.pi / 2:
+            raise ValueError("key 'angle' must be within ±90 deg")
+
+
+@dataclass(frozen=True)
+class Level(Segment):
+    """Level flight / uniform motion: the path angle returns to 0 over ``transition``
+    seconds (default min(5 s, duration); nothing changes if it is 0 already); speed and
+    course are held."""
+
+    duration: float = _q("time")
+    transition: float | None = _qd("time", None)
+    kind: ClassVar[str] = "level"
+
+    def _check(self):
+        if self.transition is None:
+            object.__setattr__(self, "transition", min(5.0, self.duration))
+        self._ramp_ok("transition", 1)
+
+
+@dataclass(frozen=True)
+class WingRock(Segment):
+    """Sinusoidal roll ``amplitude·E(t)·sin(2π t/period)`` with a smooth envelope ``E``
+    rising over ``ramp`` seconds and falling over the last ``ramp`` seconds
+    (default: one period)."""
+
+    duration: float = _q("time")
+    amplitude: float = _q("angle")
+    period: float = _q("time")
+    ramp: float | None = _qd("time", None)
+    kind: ClassVar[str] = "wing_rock"
+
+    def _check(self):
+        if not self.period > 0:
+            raise ValueError(f"key 'period' must be > 0, got {self.period!r} s")
+        if self.ramp is None:
+            object.__setattr__(self, "ramp", min(self.period, self.duration / 2))
+        self._ramp_ok("ramp")
+
+
+_SHIP_CH = ("pitch", "roll", "yaw", "heave", "speed", "course")
+
+
+@dataclass(frozen=True)
+class Ship(Segment):
+    """Ship motion: sinusoidal sway in pitch, roll and yaw (body only), heave (vertical
+    displacement), speed (around the speed at the segment start) and course (track and
+    heading together). Each sinusoid ``A·E(t)·sin(2π t/T)`` has a smooth envelope rising
+    over ``ramp`` seconds and falling over the last ``ramp`` seconds. Amplitudes default
+    to 0 (channel off)."""
+
+    duration: float = _q("time")
+    pitch_amplitude: float = _qd("angle", 0.0)
+    pitch_period: float = _qd("time", 8.0)
+    roll_amplitude: float = _qd("angle", 0.0)
+    roll_period: float = _qd("time", 12.0)
+    yaw_amplitude: float = _qd("angle", 0.0)
+    yaw_period: float = _qd("time", 15.0)
+    heave_amplitude: float = _qd("length", 0.0)
+    heave_period: float = _qd("time", 10.0)
+    speed_amplitude: float = _qd("velocity", 0.0)
+    speed_period: float = _qd("time", 300.0)
+    course_amplitude: float = _qd("angle", 0.0)
+    course_period: float = _qd("time", 600.0)
+    ramp: float = _qd("time", 10.0)
+    kind: ClassVar[str] = "ship"
+
+    def _check(self):
+        for c in _SHIP_CH:
+            if not getattr(self, f"{c}_period") > 0:
+                raise ValueError(f"key '{c}_period' must be > 0")
+        self._ramp_ok("ramp")
+
+
+SEGMENT_KINDS: dict[str, type] = {c.kind: c for c in
+                                  (Static, Accelerate, Turn, Climb, Level, WingRock, Ship)}
+_NEGATED = {"decelerate": ("accelerate", "accel"), "descend": ("climb", "angle")}
+
+
+def segment_from_dict(d: dict, index: int | None = None) -> Segment:
+    """One segment from a config table; ``kind`` selects the class.
+
+    ``kind="decelerate"`` is an :class:`Accelerate` with the sign of ``accel`` flipped,
+    ``kind="descend"`` a :class:`Climb` with the sign of ``angle`` flipped.
+    """
+    where = f"segment {index}" if index is not None else "segment"
+    if not isinstance(d, dict):
+        raise ValueError(f"{where}: expected a table, got {type(d).__name__}")
+    kind = d.get("kind")
+    if kind in _NEGATED:
+        base, key = _NEGATED[kind]
+        seg = SEGMENT_KINDS[base].from_dict({**d, "kind": base}, index)
+        return type(seg)(**{f.name: (-getattr(seg, f.name) if f.name == key else getattr(seg, f.name))
+                            for f in fields(seg)})
+    if kind not in SEGMENT_KINDS:
+        raise ValueError(f"{where}: key 'kind': unknown {kind!r}; known: "
+                         f"{', '.join(list(SEGMENT_KINDS) + list(_NEGATED))}")
+    return SEGMENT_KINDS[kind].from_dict(d, index)
+
+
+def segments_from_list(items) -> list[Segment]:
+    """Segments from a list of tables or :class:`Segment` objects."""
+    out = []
+    for i, s in enumerate(items):
+        out.append(s if isinstance(s, Segment) else segment_from_dict(s, i))
+    return out
+
+
+def total_duration(segments) -> float:
+    """Sum of segment durations [s]."""
+    return float(sum(s.duration for s in segments))
+
+
+# --- TOML ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Motion:
+    """What a motion file holds: segments, an optional start and an optional mount."""
+
+    segments: list
+    start: Start | None = None
+    mount: object = None
+
+
+def _toml_value(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {v!r} to TOML")
+
+
+def _toml_table(d):
+    return "".join(f"{k} = {_toml_value(v)}\n" for k, v in d.items())
+
+
+def dump_segments(segments, path, *, start: Start | None = None, mount=None) -> None:
+    """Write segments (and optionally the start and the mount) to a TOML file.
+
+    Layout: an optional ``[start]`` table, an optional ``[mount]`` table and one
+    ``[[segment]]`` table per segment, all values as unit strings.
+    """
+    segments = segments_from_list(segments)
+    parts = ["# sinslab motion: segments in order; values are unit strings\n"]
+    if start is not None:
+        parts.append("\n[start]\n" + _toml_table(_as_start(start).to_dict()))
+    if mount is not None:
+        parts.append("\n[mount]\n" + _toml_table(_as_mount(mount).to_dict()))
+    for s in segments:
+        parts.append("\n[[segment]]\n" + _toml_table(s.to_dict()))
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text("".join(parts), encoding="utf-8")
+    tmp.replace(path)
+
+
+def load_motion(path) -> Motion:
+    """Read a motion TOML file (see :func:`dump_segments`)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"{path}: not valid TOML: {e}") from None
+    bad = sorted(set(data) - {"segment", "start", "mount"})
+    if bad:
+        raise ValueError(f"{path}: unknown table {bad[0]!r}; expected [start], [mount], [[segment]]")
+    segs = data.get("segment")
+    if not segs:
+        raise ValueError(f"{path}: no [[segment]] tables")
+    if not isinstance(segs, list):
+        raise ValueError(f"{path}: 'segment' must be an array of tables ([[segment]])")
+    try:
+        return Motion(segments_from_list(segs),
+                      Start.from_dict(data["start"]) if "start" in data else None,
+                      indexing.mount_from_dict(data["mount"]) if "mount" in data else None)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
+
+
+def load_segments(path) -> list[Segment]:
+    """Segments of a motion TOML file."""
+    return load_motion(path).segments
+
+
+# --- compilation of segments into kernel tables -------------------------------------------
+NCH = 10
+CH_V, CH_PSI, CH_THETA, CH_ROLL, CH_PITCH, CH_YAW, CH_HEAVE, CH_MP, CH_MR, CH_MY = range(NCH)
+T_TRAP, T_STEP, T_SINE = 0, 1, 2
+
+
+def _as_start(start) -> Start:
+    if isinstance(start, Start):
+        return start
+    if isinstance(start, dict):
+        return Start.from_dict(start)
+    raise ValueError(f"start must be a Start or a table, got {type(start).__name__}")
+
+
+def _as_mount(mount):
+    if mount is None or isinstance(mount, (indexing.RotateStop, indexing.Swing)):
+        return mount
+    if isinstance(mount, dict):
+        return indexing.mount_from_dict(mount)
+    raise ValueError(f"mount must be RotateStop, Swing, a table or None, got {type(mount).__name__}")
+
+
+class _Terms:
+    def __init__(self):
+        self.rows = []        # (type, ch, ta, params[6], final, internal breakpoints)
+        self.coord = []       # coordinated-turn windows
+
+    def trap(self, ch, ta, T, Tr, r):
+        self.rows.append((T_TRAP, ch, ta, (r, T, Tr, 0, 0, 0), r * (T - Tr), (ta, ta + Tr, ta + T - Tr, ta + T)))
+        return r * (T - Tr)
+
+    def step(self, ch, ta, T, d):
+        self.rows.append((T_STEP, ch, ta, (d, T, 0, 0, 0, 0), d, (ta, ta + T)))
+        return d
+
+    def sine(self, ch, ta, T, A, w, ph, r_in, r_out):
+        final = 0.0 if r_out > 0 else A * math.sin(w * T + ph)
+        self.rows.append((T_SINE, ch, ta, (A, w, ph, T, r_in, r_out), final,
+                          (ta, ta + r_in, ta + T - r_out, ta + T)))
+        return final
+
+
+def _compile(segments, start: Start, mount, t_end):
+    terms = _Terms()
+    init = np.zeros(NCH)
+    init[CH_V] = start.speed
+    init[CH_PSI] = -start.heading
+    init[CH_THETA] = start.pitch
+    init[CH_ROLL] = start.roll
+    cur = init.copy()
+    t = 0.0
+    for i, s in enumerate(segments):
+        T = s.duration
+        where = f"segment {i} ({s.kind})"
+        if isinstance(s, Static):
+            if abs(cur[CH_V]) > 1e-9:
+                raise ValueError(f"{where}: speed at its start is {cur[CH_V]:.6g} m/s; "
+                                 f"decelerate to 0 first")
+        elif isinstance(s, Accelerate):
+            if cur[CH_V] + s.speed_change < -1e-9:
+                raise ValueError(f"{where}: key 'accel': speed would become "
+                                 f"{cur[CH_V] + s.speed_change:.6g} m/s")
+            cur[CH_V] += terms.trap(CH_V, t, T, s.ramp, s.accel)
+        elif isinstance(s, Turn):
+            cur[CH_PSI] += terms.trap(CH_PSI, t, T, s.ramp, -s.rate)
+            if s.coordinated:
+                terms.coord.append((t, t + T))
+        elif isinstance(s, (Climb, Level)):
+            target = s.angle if isinstance(s, Climb) else 0.0
+            d = target - cur[CH_THETA]
+            if d != 0.0 and s.transition > 0:
+                cur[CH_THETA] += terms.step(CH_THETA, t, s.transition, d)
+            elif d != 0.0:
+                raise ValueError(f"{where}: key 'transition' must be > 0 to change the path angle")
+        elif isinstance(s, WingRock):
+            cur[CH_ROLL] += terms.sine(CH_ROLL, t, T, s.amplitude, 2 * math.pi / s.period, 0.0,
+                                       s.ramp, s.ramp)
+        elif isinstance(s, Ship):
+            if s.speed_amplitude > cur[CH_V] + 1e-9:
+                raise ValueError(f"{where}: key 'speed_amplitude' ({s.speed_amplitude:g} m/s) exceeds "
+                                 f"the speed at its start ({cur[CH_V]:.6g} m/s)")
+            for name, ch in (("pitch", CH_PITCH), ("roll", CH_ROLL), ("yaw", CH_YAW),
+                             ("heave", CH_HEAVE), ("speed", CH_V), ("course", CH_PSI)):
+                a = getattr(s, f"{name}_amplitude")
+                if a != 0.0:
+                    if name == "course":
+                        a = -a                      # course is clockwise, ψ_v counter-clockwise
+                    cur[ch] += terms.sine(ch, t, T, a, 2 * math.pi / getattr(s, f"{name}_period"),
+                                          0.0, s.ramp, s.ramp)
+        else:
+            raise ValueError(f"{where}: not a segment object ({type(s).__name__})")
+        t += T
+    # mount
+    if mount is not None:
+        init[CH_MP:CH_MY + 1] = mount.initial
+        if isinstance(mount, indexing.Swing):
+            terms.sine(CH_MP + indexing.AXES[mount.axis], 0.0, t_end + 10.0, mount.amplitude,
+                       2 * math.pi / mount.period, mount.phase, mount.ramp, 0.0)
+        else:
+            for ts, d, ax, ang in mount.timeline(t_end):
+                terms.trap(CH_MP + ax, ts, d, mount.ramp, math.copysign(mount.rate, ang))
+    return _tables(terms, init, t_end)
+
+
+def _tables(terms: _Terms, init, t_end):
+    rows = terms.rows
+    bp = [0.0]
+    for r in rows:
+        bp.extend(r[5])
+    for a, b in terms.coord:
+        bp.extend((a, b))
+    bp = np.unique(np.asarray(bp, dtype=float))
+    bp = bp[bp >= 0.0]
+    keep = np.concatenate([[True], np.diff(bp) > 1e-9])      # merge near-duplicates
+    bp = bp[keep]
+    P = bp.size
+    mids = np.empty(P)
+    mids[:-1] = 0.5 * (bp[:-1] + bp[1:])
+    mids[-1] = bp[-1] + 1.0
+    nt = len(rows)
+    ttype = np.array([r[0] for r in rows], dtype=np.int64).reshape(nt)
+    tch = np.array([r[1] for r in rows], dtype=np.int64).reshape(nt)
+    tta = np.array([r[2] for r in rows], dtype=float).reshape(nt)
+    tpar = np.array([r[3] for r in rows], dtype=float).reshape(nt, 6)
+    tfin = np.array([r[4] for r in rows], dtype=float).reshape(nt)
+    tend = np.array([r[5][-1] for r in rows], dtype=float).reshape(nt)
+    # base of each piece: initial values + finals of terms ended before the piece
+    base = np.tile(init, (P, 1))
+    order = np.argsort(tend, kind="stable")
+    cum = np.zeros((nt + 1, NCH))
+    for k, ti in enumerate(order):
+        cum[k + 1] = cum[k]
+        cum[k + 1, tch[ti]] += tfin[ti]
+    nend = np.searchsorted(tend[order], mids, side="right")
+    base += cum[nend]
+    # active terms per piece: ta <= mid < tend
+    lo = np.searchsorted(mids, tta, side="left")
+    hi = np.searchsorted(mids, tend, side="left")
+    counts = np.zeros(P + 1, dtype=np.int64)
+    np.add.at(counts, lo, 1)
+    np.add.at(counts, hi, -1)
+    nact = np.cumsum(counts)[:P]
+    plo = np.concatenate([[0], np.cumsum(nact)[:-1]]).astype(np.int64)
+    phi = plo + nact
+    act = np.empty(int(nact.sum()), dtype=np.int64)
+    fill = plo.copy()
+    for k in range(nt):
+        for p in range(lo[k], hi[k]):
+            act[fill[p]] = k
+            fill[p] += 1
+    flag = np.zeros(P, dtype=np.int64)
+    for a, b in terms.coord:
+        flag[(mids >= a) & (mids < b)] = 1
+    return bp, base, flag, plo, phi, act, ttype, tch, tta, tpar
+
+
+# --- quadrature rules ----------------------------------------------------------------------
+def _rule(quadrature: str, n: int):
+    """Nodes c, weights b on [0, 1] and the collocation matrix A_ij = ∫_0^{c_i} ℓ_j."""
+    P = np.polynomial.legendre
+    if quadrature == "gauss":
+        if not 1 <= n <= 8:
+            raise ValueError(f"gauss quadrature needs 1..8 nodes, got {n}")
+        x, w = P.leggauss(n)
+    elif quadrature == "lobatto":
+        if not 2 <= n <= 8:
+            raise ValueError(f"lobatto quadrature needs 2..8 nodes, got {n}")
+        Pn1 = P.Legendre.basis(n - 1)
+        x = np.concatenate([[-1.0], np.sort(Pn1.deriv().roots().real), [1.0]])
+        w = 2.0 / (n * (n - 1) * Pn1(x) ** 2)
+    else:
+        raise ValueError(f"quadrature must be 'lobatto' or 'gauss', got {quadrature!r}")
+    c, b = (x + 1) / 2, w / 2
+    A = np.empty((n, n))
+    for j in range(n):
+        others = np.delete(c, j)
+        poly = (np.polynomial.Polynomial.fromroots(others) / np.prod(c[j] - others)
+                if others.size else np.polynomial.Polynomial([1.0]))
+        ip = poly.integ()
+        A[:, j] = ip(c) - ip(0.0)
+    return c, b, A
+
+
+# --- numba kernel --------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _s5(x):
+    return x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+
+
+@njit(cache=True, inline="always")
+def _s5d(x):
+    y = x * (1.0 - x)
+    return 30.0 * y * y
+
+
+@njit(cache=True, inline="always")
+def _s5dd(x):
+    return 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x)
+
+
+@njit(cache=True, inline="always")
+def _s5i(x):
+    x2 = x * x
+    return x2 * x2 * (2.5 + x * (-3.0 + x))
+
+
+@njit(cache=True, inline="always")
+def _wrap(a):
+    """Wrap to (−π, π]."""
+    if -math.pi < a <= math.pi:
+        return a
+    return a + 2.0 * math.pi * math.floor((math.pi - a) / (2.0 * math.pi))
+
+
+@njit(cache=True, inline="always")
+def _channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2):
+    for c in range(NCH):
+        val[c] = base[j, c]
+        d1[c] = 0.0
+        d2[c] = 0.0
+    for a in range(plo[j], phi[j]):
+        k = act[a]
+        u = t - tta[k]
+        ch = tch[k]
+        typ = ttype[k]
+        if typ == 0:                       # rate trapezoid: r, T, Tr
+            r = tpar[k, 0]
+            T = tpar[k, 1]
+            Tr = tpar[k, 2]
+            if Tr > 0.0 and u < Tr:
+                x = u / Tr
+                val[ch] += r * Tr * _s5i(x)
+                d1[ch] += r * _s5(x)
+                d2[ch] += r * _s5d(x) / Tr
+            elif Tr > 0.0 and u > T - Tr:
+                x = (T - u) / Tr
+                if x < 0.0:
+                    x = 0.0
+                val[ch] += r * (T - Tr - Tr * _s5i(x))
+                d1[ch] += r * _s5(x)
+                d2[ch] -= r * _s5d(x) / Tr
+            else:
+                val[ch] += r * (0.5 * Tr + (u - Tr))
+                d1[ch] += r
+        elif typ == 1:                     # smooth step: d, T
+            dd = tpar[k, 0]
+            T = tpar[k, 1]
+            x = u / T
+            if x > 1.0:
+                x = 1.0
+            elif x < 0.0:
+                x = 0.0
+            val[ch] += dd * _s5(x)
+            d1[ch] += dd * _s5d(x) / T
+            d2[ch] += dd * _s5dd(x) / (T * T)
+        else:                              # sine: A, w, phase, T, ramp_in, ramp_out
+            A = tpar[k, 0]
+            w = tpar[k, 1]
+            T = tpar[k, 3]
+            ri = tpar[k, 4]
+            ro = tpar[k, 5]
+            arg = w * u + tpar[k, 2]
+            s = math.sin(arg)
+            c = math.cos(arg)
+            e = 1.0
+            ed = 0.0
+            edd = 0.0
+            if ri > 0.0 and u < ri:
+                x = u / ri
+                e = _s5(x)
+                ed = _s5d(x) / ri
+                edd = _s5dd(x) / (ri * ri)
+            elif ro > 0.0 and u > T - ro:
+                x = (T - u) / ro
+                if x < 0.0:
+                    x = 0.0
+                e = _s5(x)
+                ed = -_s5d(x) / ro
+                edd = _s5dd(x) / (ro * ro)
+            val[ch] += A * e * s
+            d1[ch] += A * (ed * s + e * w * c)
+            d2[ch] += A * (edd * s + 2.0 * ed * w * c - e * w * w * s)
+
+
+@njit(cache=True, inline="always")
+def _state(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2, S, i):
+    """Kinematic state at time t into S[i]: v(3) vdot(3) C_b^n(9) w_nb^b(3) att_c(3) mount(3)."""
+    _channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2)
+    V = val[CH_V]
+    Vd = d1[CH_V]
+    psv = val[CH_PSI]
+    psd = d1[CH_PSI]
+    thv = val[CH_THETA]
+    thd = d1[CH_THETA]
+    sth = math.sin(thv)
+    cth = math.cos(thv)
+    sps = math.sin(psv)
+    cps = math.cos(psv)
+    S[i, 0] = -V * cth * sps
+    S[i, 1] = V * cth * cps
+    S[i, 2] = V * sth + d1[CH_HEAVE]
+    S[i, 3] = -Vd * cth * sps + V * sth * thd * sps - V * cth * cps * psd
+    S[i, 4] = Vd * cth * cps - V * sth * thd * cps - V * cth * sps * psd
+    S[i, 5] = Vd * sth + V * cth * thd + d2[CH_HEAVE]
+    # body attitude
+    roll = val[CH_ROLL]
+    rolld = d1[CH_ROLL]
+    if flag[j] != 0:
+        u = -V * psd / G0
+        roll += math.atan(u)
+        rolld += -(Vd * psd + V * d2[CH_PSI]) / G0 / (1.0 + u * u)
+    pitch = thv
+    pitchd = thd
+    yaw = psv
+    yawd = psd
+    if val[CH_PITCH] != 0.0 or d1[CH_PITCH] != 0.0:
+        pitch += val[CH_PITCH]
+        pitchd += d1[CH_PITCH]
+        sth = math.sin(pitch)
+        cth = math.cos(pitch)
+    if val[CH_YAW] != 0.0 or d1[CH_YAW] != 0.0:
+        yaw += val[CH_YAW]
+        yawd += d1[CH_YAW]
+        sps = math.sin(yaw)
+        cps = math.cos(yaw)
+    sg = math.sin(roll)
+    cg = math.cos(roll)
+    c00 = cps * cg - sps * sth * sg
+    c01 = -sps * cth
+    c02 = cps * sg + sps * sth * cg
+    c10 = sps * cg + cps * sth * sg
+    c11 = cps * cth
+    c12 = sps * sg - cps * sth * cg
+    c20 = -cth * sg
+    c21 = sth
+    c22 = cth * cg
+    wx = cg * pitchd - sg * cth * yawd
+    wy = rolld + sth * yawd
+    wz = sg * pitchd + cg * cth * yawd
+    S[i, 18] = pitch
+    S[i, 19] = roll
+    S[i, 20] = yaw
+    if has_mount:
+        mp = val[CH_MP]
+        mr = val[CH_MR]
+        my = val[CH_MY]
+        mpd = d1[CH_MP]
+        mrd = d1[CH_MR]
+        myd = d1[CH_MY]
+        st = math.sin(mp)
+        ct = math.cos(mp)
+        sy = math.sin(my)
+        cy = math.cos(my)
+        sr = math.sin(mr)
+        cr = math.cos(mr)
+        # M = C_b^c
+        m00 = cy * cr - sy * st * sr
+        m01 = -sy * ct
+        m02 = cy * sr + sy * st * cr
+        m10 = sy * cr + cy * st * sr
+        m11 = cy * ct
+        m12 = sy * sr - cy * st * cr
+        m20 = -ct * sr
+        m21 = st
+        m22 = ct * cr
+        # w_nb^b = M^T w_nc^c + w_cb^b
+        ux = cr * mpd - sr * ct * myd
+        uy = mrd + st * myd
+        uz = sr * mpd + cr * ct * myd
+        S[i, 15] = m00 * wx + m10 * wy + m20 * wz + ux
+        S[i, 16] = m01 * wx + m11 * wy + m21 * wz + uy
+        S[i, 17] = m02 * wx + m12 * wy + m22 * wz + uz
+        # C_b^n = C_c^n M
+        S[i, 6] = c00 * m00 + c01 * m10 + c02 * m20
+        S[i, 7] = c00 * m01 + c01 * m11 + c02 * m21
+        S[i, 8] = c00 * m02 + c01 * m12 + c02 * m22
+        S[i, 9] = c10 * m00 + c11 * m10 + c12 * m20
+        S[i, 10] = c10 * m01 + c11 * m11 + c12 * m21
+        S[i, 11] = c10 * m02 + c11 * m12 + c12 * m22
+        S[i, 12] = c20 * m00 + c21 * m10 + c22 * m20
+        S[i, 13] = c20 * m01 + c21 * m11 + c22 * m21
+        S[i, 14] = c20 * m02 + c21 * m12 + c22 * m22
+        S[i, 21] = mp
+        S[i, 22] = mr
+        S[i, 23] = my
+    else:
+        S[i, 6] = c00
+        S[i, 7] = c01
+        S[i, 8] = c02
+        S[i, 9] = c10
+        S[i, 10] = c11
+        S[i, 11] = c12
+        S[i, 12] = c20
+        S[i, 13] = c21
+        S[i, 14] = c22
+        S[i, 15] = wx
+        S[i, 16] = wy
+        S[i, 17] = wz
+
+
+@njit(cache=True, inline="always")
+def _earth_terms(S, i, sl, cl, h, W, F):
+    """ω_ib^b, f^b into W[i] and the position rates into F[i], at latitude (sin, cos) and
+    height h. Radii and gravity: the formulas of earth.radii_s / earth.gravity_s."""
+    sq2 = 1.0 - earth.E2 * sl * sl
+    rsq = 1.0 / math.sqrt(sq2)
+    irm = 1.0 / (earth.A * (1.0 - earth.E2) * rsq * rsq * rsq + h)
+    irn = 1.0 / (earth.A * rsq + h)
+    g = earth.G_EQ * (1.0 + earth.K_SOM * sl * sl) * rsq - earth.DGDH * h
+    ve = S[i, 0]
+    vn = S[i, 1]
+    vu = S[i, 2]
+    wiy = earth.WIE * cl
+    wiz = earth.WIE * sl
+    ex = -vn * irm
+    ey = ve * irn
+    icl = 1.0 / cl
+    ez = ey * sl * icl
+    # w_in^n
+    nx = ex
+    ny = wiy + ey
+    nz = wiz + ez
+    # f^n = vdot + (2 w_ie + w_en) x v + [0, 0, g]
+    ax = ex
+    ay = 2.0 * wiy + ey
+    az = 2.0 * wiz + ez
+    fx = S[i, 3] + ay * vu - az * vn
+    fy = S[i, 4] + az * ve - ax * vu
+    fz = S[i, 5] + ax * vn - ay * ve + g
+    c00 = S[i, 6]
+    c01 = S[i, 7]
+    c02 = S[i, 8]
+    c10 = S[i, 9]
+    c11 = S[i, 10]
+    c12 = S[i, 11]
+    c20 = S[i, 12]
+    c21 = S[i, 13]
+    c22 = S[i, 14]
+    W[i, 0] = S[i, 15] + c00 * nx + c10 * ny + c20 * nz
+    W[i, 1] = S[i, 16] + c01 * nx + c11 * ny + c21 * nz
+    W[i, 2] = S[i, 17] + c02 * nx + c12 * ny + c22 * nz
+    W[i, 3] = c00 * fx + c10 * fy + c20 * fz
+    W[i, 4] = c01 * fx + c11 * fy + c21 * fz
+    W[i, 5] = c02 * fx + c12 * fy + c22 * fz
+    F[i, 0] = vn * irm
+    F[i, 1] = ey * icl
+    F[i, 2] = vu
+
+
+@njit(cache=True, inline="always")
+def _advance(t, j, bp):
+    n = bp.shape[0]
+    while j + 1 < n and t >= bp[j + 1]:
+        j += 1
+    return j
+
+
+@njit(cache=True, inline="always")
+def _write_truth(S, i, m, lat, lon, h, has_mount, pos, vel, att, atti):
+    pos[m, 0] = lat
+    pos[m, 1] = lon
+    pos[m, 2] = h
+    vel[m, 0] = S[i, 0]
+    vel[m, 1] = S[i, 1]
+    vel[m, 2] = S[i, 2]
+    att[m, 0] = S[i, 18]
+    att[m, 1] = _wrap(S[i, 19])
+    att[m, 2] = _wrap(S[i, 20])
+    if has_mount:
+        c21 = S[i, 13]
+        if c21 > 1.0:
+            c21 = 1.0
+        elif c21 < -1.0:
+            c21 = -1.0
+        atti[m, 0] = math.asin(c21)
+        atti[m, 1] = math.atan2(-S[i, 12], S[i, 14])
+        atti[m, 2] = math.atan2(-S[i, 7], S[i, 10])
+
+
+@njit(cache=True, inline="always")
+def _put_mount(src, si, mnt, m):
+    mnt[m, 0] = src[si, 21]
+    mnt[m, 1] = _wrap(src[si, 22])
+    mnt[m, 2] = _wrap(src[si, 23])
+
+
+@njit(cache=True)
+def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
+           bp, base, flag, plo, phi, act, ttype, tch, tta, tpar,
+           lat, lon, h, dth, dvl, pos, vel, att, atti, mnt):
+    """Increments, position and truth for n IMU intervals of length dt.
+
+    Every epoch t_e = e·dt is evaluated once (kinematics into a ring buffer). With a
+    stencil (``sw`` of length m > 0, first point at offset ``lo_off``), the increment over
+    [t_k, t_k+1] is dt·Σ sw_j·W(t_{k+lo_off+j}) — the exact integral of the interpolating
+    polynomial through m epochs — whenever no breakpoint of the profiles lies strictly
+    inside the stencil; otherwise (and always when m = 0) the interval is split at the
+    breakpoints and integrated with the node rule (cn, wn) and collocation matrix amat.
+    Earth terms at look-ahead epochs use a predicted position (error ~µm, immaterial).
+    """
+    m = sw.shape[0]
+    L = m + lo_off - 1 if m > 0 else 1
+    RB = 16
+    RM = RB - 1
+    slat = math.sin(lat)
+    clat = math.cos(lat)
+    RS = np.zeros((RB, 24))
+    RW = np.zeros((RB, 6))
+    RF = np.zeros((RB, 3))
+    ns = cn.shape[0]
+    S = np.zeros((ns, 24))
+    W = np.zeros((ns, 6))
+    F = np.zeros((ns, 3))
+    P = np.zeros((ns, 3))
+    val = np.zeros(NCH)
+    d1 = np.zeros(NCH)
+    d2 = np.zeros(NCH)
+    nbp = bp.shape[0]
+    tol = 1e-9 * dt
+    je = 0          # piece of the newest evaluated epoch
+    jn = 0          # piece of the newest fallback node
+    bi = 1          # first breakpoint after the current fallback sub-interval start
+    bq = 1          # first breakpoint after the stencil start
+    # epochs 0..L
+    for e in range(L + 1):
+        je = _advance(e * dt, je, bp)
+        _state(e * dt, je, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
+               val, d1, d2, RS, e & RM)
+    _write_truth(RS, 0, 0, lat, lon, h, has_mount, pos, vel, att, atti)
+    if has_mount:
+        _put_mount(RS, 0, mnt, 0)
+    for k in range(n):
+        e_new = k + L
+        if k > 0:
+            je = _advance(e_new * dt, je, bp)
+            _state(e_new * dt, je, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
+                   val, d1, d2, RS, e_new & RM)
+        if k & 1023 == 0:                    # exact sin/cos now and then, updated in between
+            slat = math.sin(lat)
+            clat = math.cos(lat)
+        use_stencil = False
+        if m > 0:
+            sl0 = slat
+            cl0 = clat
+            rsq = 1.0 / math.sqrt(1.0 - earth.E2 * sl0 * sl0)
+            irm = 1.0 / (earth.A * (1.0 - earth.E2) * rsq * rsq * rsq + h)
+            # Earth terms of the stencil epochs not done yet (all of them at k = 0)
+            e0 = e_new if k > 0 else 0
+            for e in range(e0, e_new + 1):
+                dl = 0.0
+                dhh = 0.0
+                for q in range(k, e):
+                    a0 = q & RM
+                    a1 = (q + 1) & RM
+                    dl += RS[a0, 1] + RS[a1, 1]
+                    dhh += RS[a0, 2] + RS[a1, 2]
+                d = 0.5 * dt * dl * irm
+                d2h = 0.5 * d * d
+                _earth_terms(RS, e & RM, sl0 * (1.0 - d2h) + cl0 * d, cl0 * (1.0 - d2h) - sl0 * d,
+                             h + 0.5 * dt * dhh, RW, RF)
+            t_lo = (k + lo_off) * dt
+            t_hi = (k + lo_off + m - 1) * dt
+            while bq < nbp and bp[bq] <= t_lo + tol:
+                bq += 1
+            # t = 0 is always a breakpoint, so stencils reaching before the start fall back
+            use_stencil = k + lo_off >= 0 and not (bq < nbp and bp[bq] < t_hi - tol)
+        lat_prev = lat
+        th0 = 0.0
+        th1 = 0.0
+        th2 = 0.0
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        if use_stencil:
+            dl = 0.0
+            do = 0.0
+            dh = 0.0
+            for jj in range(m):
+                r = (k + lo_off + jj) & RM
+                wq = sw[jj] * dt
+                th0 += wq * RW[r, 0]
+                th1 += wq * RW[r, 1]
+                th2 += wq * RW[r, 2]
+                v0 += wq * RW[r, 3]
+                v1 += wq * RW[r, 4]
+                v2 += wq * RW[r, 5]
+                dl += wq * RF[r, 0]
+                do += wq * RF[r, 1]
+                dh += wq * RF[r, 2]
+            lat += dl
+            lon += do
+            h += dh
+        else:
+            a = k * dt
+            b = (k + 1) * dt
+            s0 = a
+            while True:
+                while bi < nbp and bp[bi] <= s0 + tol:
+                    bi += 1
+                s1 = b
+                hh = b - s0
+                if s0 == a:
+                    hh = dt                     # b - a is off by an ulp of t
+                if bi < nbp and bp[bi] < b - tol:
+                    s1 = bp[bi]
+                    hh = s1 - s0
+                for i in range(ns):
+                    tt = s0 + cn[i] * hh
+                    jn = _advance(tt, jn, bp)
+                    _state(tt, jn, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
+                           val, d1, d2, S, i)
+                sl0 = math.sin(lat)
+                cl0 = math.cos(lat)
+                rsq = 1.0 / math.sqrt(1.0 - earth.E2 * sl0 * sl0)
+                irm = 1.0 / (earth.A * (1.0 - earth.E2) * rsq * rsq * rsq + h)
+                irc = 1.0 / ((earth.A * rsq + h) * cl0)
+                for i in range(ns):
+                    pl = 0.0
+                    ph = 0.0
+                    for q in range(ns):
+                        aa = amat[i, q]
+                        pl += aa * S[q, 1]
+                        ph += aa * S[q, 2]
+                    d = hh * pl * irm           # latitude offset of the node
+                    d2h = 0.5 * d * d
+                    _earth_terms(S, i, sl0 * (1.0 - d2h) + cl0 * d, cl0 * (1.0 - d2h) - sl0 * d,
+                                 h + hh * ph, W, F)
+                dl = 0.0
+                do = 0.0
+                dh = 0.0
+                for i in range(ns):
+                    wq = wn[i] * hh
+                    dl += wq * F[i, 0]
+                    do += wq * F[i, 1]
+                    dh += wq * F[i, 2]
+                    th0 += wq * W[i, 0]
+                    th1 += wq * W[i, 1]
+                    th2 += wq * W[i, 2]
+                    v0 += wq * W[i, 3]
+                    v1 += wq * W[i, 4]
+                    v2 += wq * W[i, 5]
+                lat += dl
+                lon += do
+                h += dh
+                if s1 >= b - tol:
+                    break
+                s0 = s1
+        dlt = lat - lat_prev                # rotate (sin, cos) of the latitude by its change
+        c2 = 1.0 - 0.5 * dlt * dlt
+        slat, clat = slat * c2 + clat * dlt, clat * c2 - slat * dlt
+        dth[k, 0] = th0
+        dth[k, 1] = th1
+        dth[k, 2] = th2
+        dvl[k, 0] = v0
+        dvl[k, 1] = v1
+        dvl[k, 2] = v2
+        r1 = (k + 1) & RM
+        if (k + 1) % out_every == 0:
+            _write_truth(RS, r1, (k + 1) // out_every, lat, lon, h, has_mount, pos, vel, att, atti)
+        if has_mount:
+            _put_mount(RS, r1, mnt, k + 1)
+
+
+def _stencil(m: int):
+    """Weights of ∫_0^1 p(x) dx for the interpolating polynomial through x = lo..lo+m−1
+    (lo = −(m//2 − 1)): a centred m-point rule of order m for one interval. Computed in
+    exact rational arithmetic (m = 6: [11, −93, 802, 802, −93, 11]/1440)."""
+    from fractions import Fraction
+    lo = -(m // 2 - 1)
+    x = [Fraction(lo + i) for i in range(m)]
+    # solve sum_j w_j x_j^p = ∫_0^1 x^p dx = 1/(p+1), p = 0..m-1 (Gauss-Jordan, exact)
+    M = [[x[j] ** p for j in range(m)] + [Fraction(1, p + 1)] for p in range(m)]
+    for c in range(m):
+        piv = next(r for r in range(c, m) if M[r][c] != 0)
+        M[c], M[piv] = M[piv], M[c]
+        M[c] = [v / M[c][c] for v in M[c]]
+        for r in range(m):
+            if r != c and M[r][c] != 0:
+                f = M[r][c]
+                M[r] = [a - f * b for a, b in zip(M[r], M[c])]
+    return np.array([float(M[j][m]) for j in range(m)]), lo
+
+
+# --- public API ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Generated:
+    """Output of :func:`generate`.
+
+    Attributes
+    ----------
+    truth : NavSeries
+        Epochs ``t0, t0 + k·out_every·dt, ...`` (``N + 1`` epochs with ``out_every = 1``):
+        position, ENU velocity, carrier attitude ``att`` and, with a mount, the IMU
+        attitude ``att_imu``.
+    imu : ImuRecord
+        The ``N`` exact increments in the IMU frame.
+    mount : ndarray, shape (N + 1, 3) or None
+        Euler angles ``[pitch, roll, yaw]`` of ``C_imu^carrier`` at every IMU epoch
+        (regardless of ``out_every``), wrapped to (−π, π].
+    segments, start, mount_spec : the inputs, as objects.
+    """
+
+    truth: NavSeries
+    imu: ImuRecord
+    mount: np.ndarray | None
+    segments: list
+    start: Start
+    mount_spec: object = None
+
+    @property
+    def dt(self) -> float:
+        return self.imu.dt
+
+
+def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_every=1,
+             quadrature="stencil", nodes=8) -> Generated:
+    """Synthesize the truth and exact IMU increments of a segment motion.
+
+    Parameters
+    ----------
+    segments : list of Segment or of config tables
+    start : Start or table
+        Initial position, speed, heading (clockwise from north), pitch, roll.
+    dt : float
+        IMU sampling interval [s].
+    duration : float, optional
+        Length of the run [s]; default: the sum of the segment durations. After the last
+        segment the motion continues unchanged.
+    mount : indexing.RotateStop, indexing.Swing, table or None
+        IMU mount motion relative to the carrier.
+    t0 : float
+        Time of the first epoch [s].
+    out_every : int
+        Keep the truth at every ``out_every``-th epoch only (memory for long runs).
+    quadrature, nodes : str, int
+        Rule for the increments and position. ``"stencil"`` (default, ``nodes`` = 4, 6 or 8
+        points): one evaluation per epoch, the increment over an interval is the exact
+        integral of the polynomial interpolating ``nodes`` neighbouring epochs (order
+        ``nodes``); intervals whose stencil straddles a breakpoint of the profiles are split
+        there and integrated with Gauss–Legendre of ``nodes/2`` points. ``"gauss"``
+        (1..8 nodes) or ``"lobatto"`` (2..8 nodes): that rule on every interval (slower;
+        for checks).
+
+    Returns
+    -------
+    Generated
+    """
+    segments = segments_from_list(segments)
+    if not segments:
+        raise ValueError("no segments")
+    start = _as_start(start)
+    mount = _as_mount(mount)
+    dt = float(dt)
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be > 0, got {dt!r}")
+    total = total_duration(segments) if duration is None else float(duration)
+    if not (math.isfinite(total) and total > 0):
+        raise ValueError(f"duration must be > 0, got {total!r}")
+    n = int(math.floor(total / dt + 1e-6))
+    if n < 1:
+        raise ValueError(f"duration {total} s is shorter than one sample ({dt} s)")
+    out_every = int(out_every)
+    if out_every < 1:
+        raise ValueError(f"out_every must be >= 1, got {out_every}")
+    if quadrature == "stencil":
+        if int(nodes) not in (4, 6, 8):
+            raise ValueError(f"stencil quadrature needs 4, 6 or 8 points, got {nodes}")
+        sw, lo = _stencil(int(nodes))
+        c, b, A = _rule("gauss", int(nodes) // 2)          # fallback near breakpoints, same order
+    else:
+        c, b, A = _rule(quadrature, int(nodes))
+        sw, lo = np.zeros(0), 0
+    tabs = _compile(segments, start, mount, n * dt)
+    m = n // out_every + 1
+    dth = np.empty((n, 3))
+    dvl = np.empty((n, 3))
+    pos = np.empty((m, 3))
+    vel = np.empty((m, 3))
+    att = np.empty((m, 3))
+    has_mount = mount is not None
+    atti = np.empty((m, 3) if has_mount else (1, 3))
+    mnt = np.empty((n + 1, 3) if has_mount else (1, 3))
+    _synth(n, dt, out_every, sw, lo, c, b, A, has_mount, *tabs,
+           start.lat, start.lon, start.h, dth, dvl, pos, vel, att, atti, mnt)
+    t_imu = t0 + dt * np.arange(1, n + 1)
+    t_nav = t0 + dt * out_every * np.arange(m)
+    truth = NavSeries(t_nav, pos[:, 0].copy(), pos[:, 1].copy(), pos[:, 2].copy(), vel, att,
+                      atti if has_mount else None)
+    return Generated(truth, ImuRecord(t_imu, dth, dvl, dt), mnt if has_mount else None,
+                     segments, start, mount)
+
+
+# --- ready-made motions ------------------------------------------------------------------------
+def static(duration: float = 3600.0) -> list[Segment]:
+    """A carrier at rest for ``duration`` seconds."""
+    return [Static(float(duration))]
+
+
+def _fill(cycle, duration):
+    out, t = [], 0.0
+    while True:
+        added = False
+        for s in cycle:
+            if t + s.duration > duration + 1e-9:
+                rest = duration - t
+                if rest > 1e-9:
+                    out.append(Level(rest, transition=min(5.0, rest)))
+                return out
+            out.append(s)
+            t += s.duration
+            added = True
+        if not added:
+            return out
+
+
+def aircraft_mixed(duration: float = 3600.0, *, turn_rate: float = 1.5 * units.deg,
+                   climb_angle: float = 5.0 * units.deg, accel: float = 2.0,
+                   wing_rock_amplitude: float = 10.0 * units.deg,
+                   wing_rock_period: float = 4.0) -> list[Segment]:
+    """Aircraft manoeuvres repeated to fill ``duration`` [s]: level flight, coordinated
+    turns (right and left), climb and descent, acceleration and deceleration, wing rock
+    (SI arguments).
+
+    One cycle lasts 700 s and returns to the same speed and height; its net heading change
+    is +90° (turns of 90°, −180°, +180° at ``turn_rate``, rolled in and out over 5 s). At
+    the paper-003 start (32° N, 118° E, 1000 m, heading 0°, 300 m/s) the default turns
+    bank by about 39°. A last incomplete cycle is cut and ends with level flight.
+    """
+    tr = turn_rate
+    t90 = (math.pi / 2) / tr + 5.0
+    t180 = math.pi / tr + 5.0
+    cycle = [
+        Level(40.0),
+        Accelerate(25.0, accel, ramp=3.0),
+        Turn(t90, tr, ramp=5.0),                         # +90° (right)
+        Climb(60.0, climb_angle, transition=10.0),
+        Level(40.0, transition=10.0),
+        WingRock(40.0, wing_rock_amplitude, wing_rock_period, ramp=wing_rock_period),
+        Turn(t180, -tr, ramp=5.0),                       # 180° left
+        Climb(60.0, -climb_angle, transition=10.0),      # descend
+        Level(40.0, transition=10.0),
+        Accelerate(25.0, -accel, ramp=3.0),
+        Turn(t180, tr, ramp=5.0),                        # 180° right
+    ]
+    used = sum(s.duration for s in cycle)
+    if used < 700.0:
+        cycle.append(Level(700.0 - used))
+    return _fill(cycle, float(duration))
+
+
+def ship_manoeuvring(duration: float = 48 * 3600.0, *, static_time: float = 0.0,
+                     mean_speed: float = 15.0, speed_amplitude: float = 15.0,
+                     speed_period: float = 1200.0, course_amplitude: float = 30.0 * units.deg,
+                     course_period: float = 1800.0, roll_amplitude: float = 5.0 * units.deg,
+                     roll_period: float = 12.0, pitch_amplitude: float = 2.0 * units.deg,
+                     pitch_period: float = 8.0, yaw_amplitude: float = 1.0 * units.deg,
+                     yaw_period: float = 15.0, heave_amplitude: float = 0.5,
+                     heave_period: float = 10.0, accel: float = 0.1) -> list[Segment]:
+    """Continuously manoeuvring ship (paper 004 default): optional rest, acceleration to
+    ``mean_speed``, then sinusoidal speed (amplitude 15 m/s: 0–30 m/s), sinusoidal course
+    (±30°: with a start heading of 30° the heading stays within 0–60°), roll/pitch/yaw
+    sway and heave, for the rest of ``duration`` [s] (SI arguments)."""
+    segs: list[Segment] = []
+    if static_time > 0:
+        segs.append(Static(static_time))
+    ta = mean_speed / accel + 10.0
+    segs.append(Accelerate(ta, accel, ramp=10.0))
+    rest = duration - static_time - ta
+    if rest <= 20.0:
+        raise ValueError(f"duration {duration} s is too short for the ship manoeuvres")
+    segs.append(Ship(rest, pitch_amplitude, pitch_period, roll_amplitude, roll_period,
+                     yaw_amplitude, yaw_period, heave_amplitude, heave_period,
+                     speed_amplitude, speed_period, course_amplitude, course_period,
+                     ramp=min(60.0, rest / 2)))
+    return segs
