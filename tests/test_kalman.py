@@ -389,3 +389,23 @@ def test_loosely_coupled_bad_fixes(lc_case):
         kf.loosely_coupled(meas, init, ft, fix[:, :2], sig, P0, progress=False, **kw)
     with pytest.raises(ValueError, match="multiple"):
         kf.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.015, progress=False, **kw)
+
+
+def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
+    _, _, Phi, Q, H, R, P0, rng = _model()
+    z = rng.normal(size=(5, 2))
+    slow = kf.KalmanFilter(np.zeros(6), P0)                 # checked path
+    fast = kf.KalmanFilter(np.zeros(6), P0, check=False)    # compiled path
+    for k in range(5):
+        slow.predict(Phi, Q, 1.0)
+        fast.predict_many(Phi[None], Q[None], 1.0)
+        r1 = slow.update(z[k], H, R)
+        r2 = fast.update(z[k], H, R)
+        np.testing.assert_allclose(r2.x, r1.x, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(r2.P, r1.P, rtol=1e-10, atol=1e-14)
+        assert r2.nis == pytest.approx(r1.nis, rel=1e-10)
+    P_keep, x_keep = r2.P.copy(), r2.x.copy()
+    fast.predict_many(np.array([Phi, Phi]), np.array([Q, Q]), 1.0)
+    fast.feedback()
+    assert np.array_equal(r2.P, P_keep) and np.array_equal(r2.x, x_keep)
+    assert fast.t == pytest.approx(7.0)

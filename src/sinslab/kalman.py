@@ -489,7 +489,7 @@ def _vector_update(x, P, H, R, z, used, with_x):
             Ru[a, b] = R[used[a], used[b]]
     PHt = P @ Hu.T
     S = Hu @ PHt + Ru
-    L = np.linalg.cholesky(S)
+    np.linalg.cholesky(S)            # raises if S is not positive definite
     Sinv = np.linalg.inv(S)
     K = PHt @ Sinv
     nu = np.zeros(mu)
@@ -504,7 +504,6 @@ def _vector_update(x, P, H, R, z, used, with_x):
     for i in range(n):
         for j in range(n):
             P[i, j] = 0.5 * (Pn[i, j] + Pn[j, i])
-    L[0, 0] += 0.0
     return nu, S, nis
 
 
@@ -1353,7 +1352,8 @@ class KalmanFilter:
             z = np.atleast_1d(np.asarray(z, dtype=float))
             Hm = np.atleast_2d(np.asarray(H, dtype=float))
             self._buf[-1].updates.append((z + Hm @ self.c, Hm, R, res.used.copy(), sequential))
-        self.x, self.P = res.x, res.P
+        # own copies: predict() and feedback() work in place
+        self.x, self.P = res.x.copy(), res.P.copy()
         return res
 
     def _fast_update(self, z, H, R):
@@ -1374,7 +1374,8 @@ class KalmanFilter:
         innov = np.empty(m)
         sdiag = np.empty(m)
         nis = _seq_update(self.x, self.P, z, H, r, innov, sdiag, self._tmp, self._T1)
-        return UpdateResult(self.x, self.P, innov, S, float(nis), np.ones(m, dtype=bool))
+        return UpdateResult(self.x.copy(), self.P.copy(), innov, S, float(nis),
+                            np.ones(m, dtype=bool))
 
     def feedback(self, indices=None):
         """Return the estimate of the given states and zero them (closed-loop correction).
@@ -1470,7 +1471,7 @@ class KalmanFilter:
                 ei.P_post = P.copy()
         buf[j].updates.insert(0, (z_ff, Hm, R, first.used.copy(), sequential))
         self.x = xff - self.c
-        self.P = P
+        self.P = np.array(P, dtype=float, order="C", copy=True)
         return UpdateResult(first.x - e.c_prior, first.P, first.innovation, first.S, first.nis, first.used)
 
     def _lagged_paper003(self, z, H, R, t_m, F, Qc, mask, sequential, tol):
