@@ -296,6 +296,10 @@ def _format_error(model_cls, err: ValidationError, origins: dict[str, str]) -> s
         if k in origins:
             where = f" ({origins[k]})"
             break
+    else:                                   # a whole unknown section: name where it came from
+        inner = [v for k, v in origins.items() if k.startswith(key + ".")]
+        if inner:
+            where = f" ({inner[-1]})"
     if e["type"] == "extra_forbidden":
         parent = _model_at(model_cls, [x for x in loc[:-1]])
         known = list(parent.model_fields) if parent else []
@@ -311,6 +315,8 @@ def _format_error(model_cls, err: ValidationError, origins: dict[str, str]) -> s
         msg = msg[len("Value error, "):]
     elif "input" in e and not isinstance(e["input"], (dict, list)):
         msg = f"{msg[0].lower()}{msg[1:]} (got {e['input']!r})"
+    if not key:                              # a check across keys (model validator)
+        return f"config: {msg}"
     return f"config key {key}{where}: {msg}"
 
 

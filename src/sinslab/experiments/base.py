@@ -51,11 +51,13 @@ __all__ = ["Claim", "Metric", "Figure", "Table", "Result", "RunContext", "Experi
            "ExperimentConfig", "Section", "Q", "QV", "Field", "METRIC_NAME"]
 
 #: Metric names: stable snake_case; SI unless the name carries its unit (``_arcmin``).
-METRIC_NAME = re.compile(r"^[a-z][a-z0-9]*(_[a-zA-Z0-9]+)*$")
+METRIC_NAME = re.compile(r"^[a-z][a-zA-Z0-9]*(_[a-zA-Z0-9]+)*$")
 
 
 def _num(x):
     """Plain Python number (or list) for JSON; NaN stays NaN here (None in JSON)."""
+    if isinstance(x, np.ndarray) and x.ndim == 0:
+        x = x.item()
     if isinstance(x, (list, tuple, np.ndarray)):
         return [_num(v) for v in np.asarray(x).tolist()]
     if isinstance(x, (bool, np.bool_)):
@@ -68,6 +70,8 @@ def _num(x):
 
 
 def _fmt(x, digits=4):
+    if isinstance(x, np.ndarray) and x.ndim == 0:
+        x = x.item()
     if isinstance(x, (list, tuple, np.ndarray)):
         return "[" + ", ".join(_fmt(v, digits) for v in x) + "]"
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
