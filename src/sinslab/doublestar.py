@@ -1,0 +1,745 @@
+"""Beidou-1 ("double-star", two-GEO) positioning and its lag-aware fusion with a SINS.
+
+Paper 003 (Liu, Lin, Lai, Sun 2004). Three parts, usable with any parameters and data:
+
+1. **Fix error model** (paper eqs 11–15). A two-GEO RDSS fix measures two ranges through
+   two geostationary satellites and takes the height from a map or a barometer. With
+   satellite longitudes λ1, λ2 and the user at (λ, L, h), ranging error m0 (after
+   differential correction), equivalent ephemeris range error m1 and height error ΔH::
+
+       s_ns0 = m0 / (2 sinL sin(λ2−λ1)) · sqrt(sin²(λ2−λ) + 5 sin²(λ1−λ) + 2 sin(λ2−λ) sin(λ1−λ))
+       s_ew0 = m0 / (2 sin(λ2−λ1))      · sqrt(cos²(λ2−λ) + 5 cos²(λ1−λ) + 2 cos(λ2−λ) cos(λ1−λ))
+       s_ns1, s_ew1: the same with m1
+       s_nsH = | cotL·ΔH − k ΔH (sin(λ2−λ) − sin(λ1−λ)) / (sinL sin(λ2−λ1)) |
+       s_ewH = k ΔH | (cos(λ2−λ) − cos(λ1−λ)) / sin(λ1−λ2) |
+       s_ns = sqrt(s_ns0² + s_ns1² + s_nsH²),  s_ew likewise
+
+   :func:`fix_error` evaluates them (vectorised over any grid). The paper prints
+   ``k = R_N / (R_N + h)`` with h the *user* height (``height_factor="paper"``, the
+   default, reproduces that). Derivation (module tests, :func:`fix_error_linearised`):
+   the two measured quantities are the round trip through satellite 1,
+   ``ρa = 2 r1``, and the path through both satellites, ``ρb = r1 + r2``, each with
+   error σ = m0 — the 5 and 2 of eqs 11–12 are exactly the variances of
+   ``r1 = ρa/2``, ``r2 = ρb − ρa/2``; eqs 11–12 are then the first-order solution with
+   ``r_i ≈ r_s`` (user–satellite range ≈ orbit radius). The same first-order solution
+   gives the height terms with ``k = (R_N + h)/r_s`` ≈ 0.15 (Earth radius over the GEO
+   orbit radius), i.e. the paper's "h" must be read as the satellite's altitude, not the
+   user's (``height_factor="geometric"``). With the paper's literal k ≈ 1 the height
+   term is larger (ns 106 m instead of 84 m at 32° N, 118° E for the paper's
+   parameters). Satellite 1 is the one that carries the round trip (the inquiry
+   satellite).
+
+2. **Fix simulator** (:func:`request_schedule`, :func:`simulate_fixes`): inside covert
+   windows the receiver requests a fix at t, receives the position *of time t* at
+   t + ΔT and immediately requests the next one (paper §2); ΔT constant or random.
+
+3. **Integration filter** (:func:`horizontal_model`, :func:`integrate`): the 16-state
+   horizontal error model (φ 3, δvE, δvN, δL, δλ, gyro constant drift 3, gyro first-order
+   Markov drift 3, accelerometer first-order Markov bias 3) from
+   :mod:`sinslab.errstate`, the strapdown mechanization of :mod:`sinslab.strapdown`
+   (vertical channel held to an external height) and one
+   :class:`sinslab.kalman.KalmanFilter`, in three modes:
+
+   * ``"lag-aware"``: the fix valid at t arrives at t + ΔT and is applied with
+     :meth:`~sinslab.kalman.KalmanFilter.update_lagged` (the paper's eqs 4–10,
+     ``method="paper003"``: update at t from the state stored at the last step, then one
+     prediction ``expm(A ΔT)`` with the integrated Q; or ``method="exact"``: re-process
+     the stored steps), then the correction is fed back to the INS;
+   * ``"lag-ignore"``: the fix is applied at its arrival as if it were current;
+   * ``"zero-lag"``: an ideal receiver whose fix of time t is available at t.
+
+   Feedback: φ, δv, δp and the gyro constant drift are fed back (navigation state and
+   gyro compensation); the Gauss–Markov states stay in the filter (feed-forward) because
+   a constant compensation of a decaying process would not follow the model.
+
+Conventions: ENU, errors computed − true (:mod:`sinslab.errstate`); the position
+measurement is ``z = [(L_ins − L_fix)(R_M+h), (λ_ins − λ_fix)(R_N+h) cosL]`` (north, east,
+metres) with ``H = [0₂ₓ₅, diag(R_M+h, (R_N+h)cosL), 0₂ₓ₉]`` (paper eq 2).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import errstate as es
+from .earth import A, E2, radii
+
+__all__ = [
+    "GEO_RADIUS", "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
+    "ecef", "measure_ranges", "solve_fix", "request_schedule", "Fixes", "simulate_fixes",
+    "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate",
+    "MODES", "nav_errors", "check_windows",
+]
+
+#: Geocentric radius of the geostationary orbit [m].
+GEO_RADIUS = 42164.1696e3
+_SMALL = 1e-9
+MODES = ("lag-aware", "lag-ignore", "zero-lag")
+
+
+# ======================================================================== error model
+@dataclass(frozen=True)
+class FixError:
+    """Standard deviations of a two-GEO fix [m], each of shape S (the broadcast grid).
+
+    ``ns``/``ew``: north–south and east–west totals (eq 15); ``*_range`` from the ranging
+    error m0 (eqs 11, 12), ``*_ephem`` from the equivalent ephemeris error m1,
+    ``*_height`` from the height error ΔH (eqs 13, 14).
+    """
+
+    ns: np.ndarray
+    ew: np.ndarray
+    ns_range: np.ndarray
+    ew_range: np.ndarray
+    ns_ephem: np.ndarray
+    ew_ephem: np.ndarray
+    ns_height: np.ndarray
+    ew_height: np.ndarray
+
+
+def _check_geometry(lat, sat_lon1, sat_lon2):
+    lat = np.asarray(lat, dtype=float)
+    l1 = np.asarray(sat_lon1, dtype=float)
+    l2 = np.asarray(sat_lon2, dtype=float)
+    if not (np.all(np.isfinite(lat)) and np.all(np.isfinite(l1)) and np.all(np.isfinite(l2))):
+        raise ValueError("latitude and satellite longitudes must be finite")
+    if np.any(np.abs(np.sin(l2 - l1)) < _SMALL):
+        raise ValueError("satellite longitudes are equal (or 180 deg apart): the two-GEO geometry "
+                         "is singular (sin(lon2 - lon1) = 0)")
+    if np.any(np.abs(lat) >= math.pi / 2):
+        raise ValueError("latitude must be inside (-90, 90) deg")
+    if np.any(np.abs(np.sin(lat)) < _SMALL):
+        raise ValueError("user on the equator (sin L = 0): the two-GEO fix has no north-south "
+                         "solution there (the two range spheres meet the Earth symmetrically)")
+    return lat, l1, l2
+
+
+def _height_k(lat, h, height_factor, sat_radius):
+    _, rn = radii(lat, 0.0)
+    if height_factor == "paper":
+        return rn / (rn + h)
+    if height_factor == "geometric":
+        return (rn + h) / sat_radius
+    raise ValueError(f"height_factor must be 'paper' or 'geometric', got {height_factor!r}")
+
+
+def _coefficients(lat, lon, h, sat_lon1, sat_lon2, height_factor, sat_radius):
+    """First-order maps (closed form, r_i ≈ r_s) from [e_a, e_b, ΔH] to [dN, dE].
+
+    e_a: error of the round trip through satellite 1 (ρa = 2 r1), e_b: of the path through
+    both (ρb = r1 + r2), ΔH: height error. Returns cN (S+(3,)), cE (S+(3,)).
+    """
+    lat, l1, l2 = _check_geometry(lat, sat_lon1, sat_lon2)
+    lon = np.asarray(lon, dtype=float)
+    h = np.asarray(h, dtype=float)
+    a1 = lon - l1
+    a2 = lon - l2
+    sL = np.sin(lat)
+    d = np.sin(a2 - a1)                         # = sin(λ1 − λ2)
+    D = sL * d
+    k = _height_k(lat, h, height_factor, sat_radius)
+    s1, s2, c1, c2 = np.sin(a1), np.sin(a2), np.cos(a1), np.cos(a2)
+    cN = np.stack(np.broadcast_arrays((s1 + s2) / 2 / D, -s1 / D,
+                                      np.cos(lat) / sL - k * (s2 - s1) / D), -1)
+    cE = np.stack(np.broadcast_arrays(-(c1 + c2) / 2 / d, c1 / d, k * (c2 - c1) / d), -1)
+    return cN, cE
+
+
+def fix_error(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *, height_factor="paper",
+              sat_radius=GEO_RADIUS) -> FixError:
+    """Two-GEO fix standard deviations, paper eqs 11–15 (vectorised).
+
+    Parameters
+    ----------
+    lat, lon : array_like
+        User latitude and longitude [rad] (any broadcastable shapes, e.g. a meshgrid).
+    sat_lon1, sat_lon2 : float or array_like
+        Longitudes [rad] of satellite 1 (round trip, inquiry) and satellite 2.
+    m0 : float
+        Ranging error (after differential correction) [m], σ of each measured path.
+    m1 : float
+        Equivalent ranging error of the ephemeris after differential correction [m].
+    dH : float
+        Height (elevation) error σ [m].
+    h : float or array_like
+        User height [m].
+    height_factor : {"paper", "geometric"}
+        ``k`` of the height terms: ``R_N/(R_N+h)`` as printed, or ``(R_N+h)/r_s`` from the
+        derivation (see the module notes).
+    sat_radius : float
+        Geocentric orbit radius [m] (``"geometric"`` only).
+
+    Returns
+    -------
+    FixError
+
+    Raises
+    ------
+    ValueError
+        Equal satellite longitudes (singular geometry), a user on the equator, negative σ.
+    """
+    for name, v in (("m0", m0), ("m1", m1), ("dH", dH)):
+        if not (np.all(np.isfinite(v)) and np.all(np.asarray(v) >= 0)):
+            raise ValueError(f"{name} must be a finite standard deviation >= 0, got {v!r}")
+    cN, cE = _coefficients(lat, lon, h, sat_lon1, sat_lon2, height_factor, sat_radius)
+    # e_a and e_b each have σ = m; the two parts of one error source are independent
+    gN = np.sqrt(cN[..., 0] ** 2 + cN[..., 1] ** 2)
+    gE = np.sqrt(cE[..., 0] ** 2 + cE[..., 1] ** 2)
+    ns0, ew0 = m0 * gN, m0 * gE
+    ns1, ew1 = m1 * gN, m1 * gE
+    nsH, ewH = np.abs(cN[..., 2]) * dH, np.abs(cE[..., 2]) * dH
+    return FixError(np.sqrt(ns0 ** 2 + ns1 ** 2 + nsH ** 2), np.sqrt(ew0 ** 2 + ew1 ** 2 + ewH ** 2),
+                    ns0, ew0, ns1, ew1, nsH, ewH)
+
+
+def fix_covariance(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *, height_factor="paper",
+                   sat_radius=GEO_RADIUS):
+    """Full 2×2 covariance [m²] of the (north, east) fix error, shape S + (2, 2).
+
+    Its diagonal is ``fix_error(...).ns**2`` and ``.ew**2``; the off-diagonal is the
+    correlation the paper neglects (north and east errors come from the same two range
+    errors and the same height error).
+    """
+    cN, cE = _coefficients(lat, lon, h, sat_lon1, sat_lon2, height_factor, sat_radius)
+    w = np.array([m0 ** 2 + m1 ** 2, m0 ** 2 + m1 ** 2, dH ** 2], dtype=float)
+    P = np.empty(cN.shape[:-1] + (2, 2))
+    P[..., 0, 0] = (cN * cN * w).sum(-1)
+    P[..., 1, 1] = (cE * cE * w).sum(-1)
+    P[..., 0, 1] = P[..., 1, 0] = (cN * cE * w).sum(-1)
+    return P
+
+
+# ------------------------------------------------------------------ exact geometry
+def ecef(lat, lon, h):
+    """WGS-84 geodetic → ECEF [m], shape S + (3,)."""
+    lat, lon, h = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (lat, lon, h)))
+    sL = np.sin(lat)
+    rn = A / np.sqrt(1.0 - E2 * sL * sL)
+    return np.stack([(rn + h) * np.cos(lat) * np.cos(lon), (rn + h) * np.cos(lat) * np.sin(lon),
+                     (rn * (1.0 - E2) + h) * sL], -1)
+
+
+def _sat(lon_s, sat_radius):
+    lon_s = np.asarray(lon_s, dtype=float)
+    return np.stack(np.broadcast_arrays(sat_radius * np.cos(lon_s), sat_radius * np.sin(lon_s),
+                                        0.0 * lon_s), -1)
+
+
+def measure_ranges(lat, lon, h, sat_lon1, sat_lon2, sat_radius=GEO_RADIUS):
+    """The two measured paths ``ρa = 2 r1`` and ``ρb = r1 + r2`` [m] (shape S + (2,))."""
+    u = ecef(lat, lon, h)
+    r1 = np.linalg.norm(u - _sat(sat_lon1, sat_radius), axis=-1)
+    r2 = np.linalg.norm(u - _sat(sat_lon2, sat_radius), axis=-1)
+    return np.stack([2.0 * r1, r1 + r2], -1)
+
+
+def solve_fix(rho, h, sat_lon1, sat_lon2, guess, *, sat_radius=GEO_RADIUS, tol=1e-7, max_iter=20):
+    """Position (lat, lon) [rad] from the two measured paths and the height (Newton).
+
+    Parameters
+    ----------
+    rho : array_like (2,)
+        ``[ρa, ρb]`` [m] (see :func:`measure_ranges`).
+    h : float
+        Assumed height [m] (map / barometer).
+    guess : (lat, lon) [rad]
+        Start of the iteration, on the right side of the equator (two-GEO fixes have a
+        mirror solution in the other hemisphere).
+
+    Returns
+    -------
+    ndarray (2,)
+    """
+    x = np.array(guess, dtype=float)
+    rho = np.asarray(rho, dtype=float)
+    for _ in range(max_iter):
+        f = measure_ranges(x[0], x[1], h, sat_lon1, sat_lon2, sat_radius) - rho
+        J = np.empty((2, 2))
+        for i, d in enumerate((1e-7, 1e-7)):
+            xp = x.copy()
+            xp[i] += d
+            xm = x.copy()
+            xm[i] -= d
+            J[:, i] = (measure_ranges(xp[0], xp[1], h, sat_lon1, sat_lon2, sat_radius)
+                       - measure_ranges(xm[0], xm[1], h, sat_lon1, sat_lon2, sat_radius)) / (2 * d)
+        dx = np.linalg.solve(J, -f)
+        x += dx
+        if np.max(np.abs(dx)) < tol * 1e-7:
+            break
+    return x
+
+
+def fix_error_linearised(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *,
+                         sat_radius=GEO_RADIUS) -> FixError:
+    """Exact first-order fix σ on the WGS-84 ellipsoid (no r_i ≈ r_s approximation).
+
+    Same measurements and error sources as :func:`fix_error` (ρa = 2 r1, ρb = r1 + r2,
+    σ = m0 and m1 each, height error ΔH), linearised exactly in ECEF: the reference the
+    closed form is compared with.
+    """
+    lat, l1, l2 = _check_geometry(lat, sat_lon1, sat_lon2)
+    lat, lon, h = np.broadcast_arrays(lat, np.asarray(lon, float), np.asarray(h, float))
+    u = ecef(lat, lon, h)
+    sL, cL, sl, cl = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    eN = np.stack([-sL * cl, -sL * sl, cL], -1)
+    eE = np.stack([-sl, cl, 0.0 * sl], -1)
+    eU = np.stack([cL * cl, cL * sl, sL], -1)
+    g = []
+    for ls in (l1, l2):
+        d = u - _sat(ls, sat_radius)
+        g.append(d / np.linalg.norm(d, axis=-1, keepdims=True))        # ∂r/∂u
+    # ∂[ρa, ρb]/∂[N, E] and ∂/∂U
+    M = np.empty(lat.shape + (2, 2))
+    b = np.empty(lat.shape + (2,))
+    for j, e in enumerate((eN, eE)):
+        dr1 = (g[0] * e).sum(-1)
+        dr2 = (g[1] * e).sum(-1)
+        M[..., 0, j] = 2 * dr1
+        M[..., 1, j] = dr1 + dr2
+    dr1u, dr2u = (g[0] * eU).sum(-1), (g[1] * eU).sum(-1)
+    b[..., 0] = 2 * dr1u
+    b[..., 1] = dr1u + dr2u
+    Minv = np.linalg.inv(M)
+    # position error = Minv (e − b ΔH); e = [e_a, e_b]
+    cR = Minv                                          # S + (2 [N,E], 2 [e_a, e_b])
+    cH = -np.einsum("...ij,...j->...i", Minv, b)       # S + (2,)
+    gN = np.sqrt((cR[..., 0, :] ** 2).sum(-1))
+    gE = np.sqrt((cR[..., 1, :] ** 2).sum(-1))
+    ns0, ew0, ns1, ew1 = m0 * gN, m0 * gE, m1 * gN, m1 * gE
+    nsH, ewH = np.abs(cH[..., 0]) * dH, np.abs(cH[..., 1]) * dH
+    return FixError(np.sqrt(ns0 ** 2 + ns1 ** 2 + nsH ** 2), np.sqrt(ew0 ** 2 + ew1 ** 2 + ewH ** 2),
+                    ns0, ew0, ns1, ew1, nsH, ewH)
+
+
+# ======================================================================== fix simulator
+def check_windows(windows, t_start=None, t_end=None):
+    """Windows as a float array (W, 2), sorted, non-overlapping, inside [t_start, t_end]."""
+    w = np.asarray(windows, dtype=float).reshape(-1, 2) if len(windows) else np.zeros((0, 2))
+    if not np.all(np.isfinite(w)):
+        raise ValueError("fix windows must be finite times")
+    for a, b in w:
+        if not b > a:
+            raise ValueError(f"fix window ({a:g}, {b:g}) s ends before it starts")
+    if np.any(w[1:, 0] < w[:-1, 1]):
+        raise ValueError("fix windows must be sorted and must not overlap")
+    if t_start is not None and w.size and (w[0, 0] < t_start - 1e-9 or w[-1, 1] > t_end + 1e-9):
+        raise ValueError(f"fix windows {w[0, 0]:g}..{w[-1, 1]:g} s lie outside the IMU record "
+                         f"{t_start:g}..{t_end:g} s")
+    return w
+
+
+def request_schedule(windows, latency, *, jitter=0.0, grid=1.0, t0=0.0, rng=None):
+    """Fix requests and arrivals inside covert windows (paper §2, Fig. 1).
+
+    In each window ``[a, b]`` the first request is at ``a``; each fix arrives ``ΔT`` after
+    its request, and the next request is made at the first grid time at or after that
+    arrival. Requests whose fix would arrive after ``b`` are not made.
+
+    Parameters
+    ----------
+    windows : sequence of (start, end) [s]
+    latency : float
+        Mean delay ΔT [s] (≥ 0).
+    jitter : float
+        ΔT is uniform in ``[latency − jitter, latency + jitter]`` (needs ``rng``).
+    grid : float
+        Request times are multiples of ``grid`` after ``t0`` (the filter step, so the
+        validity times are filter epochs).
+
+    Returns
+    -------
+    t_request, t_arrive : ndarray (J,)
+
+    Raises
+    ------
+    ValueError
+        Negative latency, latency ≥ a window's length (no fix could arrive inside it), jitter
+        larger than the latency.
+    """
+    w = check_windows(windows)
+    latency, jitter = float(latency), float(jitter)
+    if not (math.isfinite(latency) and latency >= 0):
+        raise ValueError(f"latency must be >= 0 s, got {latency!r}")
+    if not (math.isfinite(jitter) and 0 <= jitter <= latency):
+        raise ValueError(f"latency jitter must be within 0..latency ({latency:g} s), got {jitter!r}")
+    if jitter > 0 and rng is None:
+        raise ValueError("a random latency (jitter > 0) needs rng")
+    if not grid > 0:
+        raise ValueError(f"grid must be > 0 s, got {grid!r}")
+    req, arr = [], []
+    for a, b in w:
+        if latency + jitter >= b - a:
+            raise ValueError(f"latency {latency + jitter:g} s >= the length of the fix window "
+                             f"({a:g}, {b:g}) s: no fix requested in it could arrive inside it")
+        t = t0 + math.ceil((a - t0) / grid - 1e-9) * grid
+        while True:
+            dT = latency if jitter == 0 else latency + jitter * (2.0 * rng.random() - 1.0)
+            if t + dT > b + 1e-9:
+                break
+            req.append(t)
+            arr.append(t + dT)
+            nxt = t0 + math.ceil((t + dT - t0) / grid - 1e-9) * grid
+            t = nxt if nxt > t + 1e-9 else t + grid
+    return np.array(req), np.array(arr)
+
+
+@dataclass(frozen=True)
+class Fixes:
+    """Two-GEO fixes: position of time ``t_valid`` delivered at ``t_arrive``.
+
+    Attributes (shape (J,))
+    -----------------------
+    t_valid, t_arrive : s
+    lat, lon : rad (fix positions, with errors)
+    sigma_ns, sigma_ew : m (the model σ the filter uses, R = diag(σ_ns², σ_ew²))
+    err_n, err_e : m (the drawn errors, north/east; NaN for real data)
+    """
+
+    t_valid: np.ndarray
+    t_arrive: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    sigma_ns: np.ndarray
+    sigma_ew: np.ndarray
+    err_n: np.ndarray = None
+    err_e: np.ndarray = None
+
+    def __post_init__(self):
+        J = np.asarray(self.t_valid).size
+        for name in ("t_valid", "t_arrive", "lat", "lon", "sigma_ns", "sigma_ew", "err_n", "err_e"):
+            v = getattr(self, name)
+            v = np.full(J, np.nan) if v is None else np.asarray(v, dtype=float).reshape(-1)
+            if v.size != J:
+                raise ValueError(f"Fixes.{name} has {v.size} values for {J} fixes")
+            object.__setattr__(self, name, v)
+        for name in ("t_valid", "t_arrive", "lat", "lon", "sigma_ns", "sigma_ew"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise ValueError(f"Fixes.{name} has NaN/inf values")
+        if np.any(self.t_arrive < self.t_valid - 1e-9):
+            raise ValueError("a fix arrives before the time it is valid for")
+        if np.any(np.diff(self.t_valid) <= 0):
+            raise ValueError("fix validity times must be strictly increasing")
+        if np.any(~(self.sigma_ns > 0)) or np.any(~(self.sigma_ew > 0)):
+            raise ValueError("fix sigmas must be > 0")
+
+    def __len__(self):
+        return self.t_valid.size
+
+
+def _interp_truth(truth, t):
+    tt = truth.t
+    if np.any(t < tt[0] - 1e-9) or np.any(t > tt[-1] + 1e-9):
+        raise ValueError(f"fix times {t.min():g}..{t.max():g} s lie outside the truth record "
+                         f"{tt[0]:g}..{tt[-1]:g} s")
+    lon = np.unwrap(truth.lon)
+    return np.interp(t, tt, truth.lat), np.interp(t, tt, lon), np.interp(t, tt, truth.h)
+
+
+def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, rng,
+                   latency_jitter=0.0, grid=1.0, correlated=False, height_factor="paper",
+                   sat_radius=GEO_RADIUS) -> Fixes:
+    """Draw two-GEO fixes along a true trajectory inside covert windows.
+
+    Request/arrival times from :func:`request_schedule` (``grid`` from ``truth.t[0]``);
+    the error of each fix is normal with the σ of :func:`fix_error` at the true position
+    (independent north and east errors as the paper's filter assumes, or with
+    ``correlated=True`` the full covariance of :func:`fix_covariance`).
+
+    Parameters
+    ----------
+    truth : sinslab.records.NavSeries
+    windows : sequence of (start, end) [s], inside the truth record
+    rng : numpy.random.Generator or int
+    """
+    rng = np.random.default_rng(rng)
+    check_windows(windows, truth.t[0], truth.t[-1])
+    t_req, t_arr = request_schedule(windows, latency, jitter=latency_jitter, grid=grid,
+                                    t0=float(truth.t[0]), rng=rng)
+    if t_arr.size and t_arr.max() > truth.t[-1] + 1e-9:
+        raise ValueError(f"a fix arrives at {t_arr.max():g} s, after the end of the record")
+    lat, lon, h = _interp_truth(truth, t_req)
+    fe = fix_error(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h, height_factor=height_factor,
+                   sat_radius=sat_radius)
+    J = t_req.size
+    if correlated:
+        P = fix_covariance(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h,
+                           height_factor=height_factor, sat_radius=sat_radius)
+        Lc = np.linalg.cholesky(P + 1e-12 * np.eye(2))
+        e = np.einsum("jab,jb->ja", Lc, rng.standard_normal((J, 2)))
+    else:
+        e = rng.standard_normal((J, 2)) * np.stack([fe.ns, fe.ew], -1)
+    rm, rn = radii(lat, h)
+    return Fixes(t_req, t_arr, lat + e[:, 0] / rm, lon + e[:, 1] / (rn * np.cos(lat)),
+                 fe.ns, fe.ew, e[:, 0], e[:, 1])
+
+
+# ======================================================================== the filter
+def horizontal_model(gyro_white, gyro_markov_sigma, gyro_markov_tau, accel_markov_sigma,
+                     accel_markov_tau, *, radius_derivatives=True) -> es.ErrorModel:
+    """The paper's 16-state horizontal error model (eq 1) from :mod:`sinslab.errstate`.
+
+    States ``[φE φN φU, δvE δvN, δL δλ, ε_b (3, body), ε_r (3, body, Markov), ∇ (3, body,
+    Markov)]``; noise ``[w_g (3), w_r (3), w_a (3)]``.
+
+    Parameters
+    ----------
+    gyro_white : float or (3,)
+        Gyro white noise (angle random walk) [rad/√s].
+    gyro_markov_sigma, gyro_markov_tau : steady-state σ [rad/s], correlation time [s]
+    accel_markov_sigma, accel_markov_tau : steady-state σ [m/s²], correlation time [s]
+    """
+    return es.ErrorModel("horizontal",
+                         [es.gyro_bias(name="eps_b"),
+                          es.gyro_markov(gyro_markov_tau, gyro_markov_sigma, name="eps_r"),
+                          es.accel_markov(accel_markov_tau, accel_markov_sigma, name="nabla")],
+                         gyro_noise=gyro_white, accel_noise=0.0, accel_noise_axes="xyz",
+                         radius_derivatives=radius_derivatives)
+
+
+def initial_covariance(model, lat, h, att, vel, pos, gyro_bias, gyro_markov, accel_markov):
+    """Diagonal P0 of :func:`horizontal_model`.
+
+    ``att`` (3,) [rad], ``vel`` (2,) or scalar [m/s], ``pos`` (2,) or scalar [m] (north,
+    east), sensor σ per axis (SI).
+    """
+    rm, rn = radii(lat, h)
+    pos = np.broadcast_to(np.asarray(pos, float), (2,))
+    d = np.concatenate([np.broadcast_to(att, (3,)), np.broadcast_to(vel, (2,)),
+                        [pos[0] / float(rm), pos[1] / (float(rn) * math.cos(lat))],
+                        np.broadcast_to(gyro_bias, (3,)), np.broadcast_to(gyro_markov, (3,)),
+                        np.broadcast_to(accel_markov, (3,))]).astype(float)
+    if d.size != model.n:
+        raise ValueError(f"P0 has {d.size} states, the model {model.n}")
+    return np.diag(d ** 2)
+
+
+#: States fed back to the INS: φ (3), δv (2), δp (2), gyro constant drift (3).
+FEEDBACK = np.arange(10)
+
+
+@dataclass(frozen=True)
+class Integration:
+    """Output of :func:`integrate`, at the filter epochs (every ``kf_dt``).
+
+    Attributes
+    ----------
+    t : (K+1,) s
+    nav : (K+1, 10) navigation state ``[q0..q3, vE, vN, vU, lat, lon, h]`` after any
+        feedback at that epoch
+    x : (K+1, 16) the filter estimate after the epoch's updates and feedback (Markov states)
+    sigma : (K+1, 16) filter σ
+    gyro_comp : (K+1, 3) gyro compensation in use after the epoch [rad/s]
+    applied : (J',) validity times of the fixes used; ``t_applied`` their processing times
+    innovation : (J', 2) north/east [m]
+    mode, lag_method : str
+    """
+
+    t: np.ndarray
+    nav: np.ndarray
+    x: np.ndarray
+    sigma: np.ndarray
+    gyro_comp: np.ndarray
+    applied: np.ndarray
+    t_applied: np.ndarray
+    innovation: np.ndarray
+    mode: str
+    lag_method: str
+
+
+def _epoch_of(t, t0, T, what):
+    e = (np.asarray(t) - t0) / T
+    r = np.round(e)
+    if np.any(np.abs(e - r) > 1e-6):
+        i = int(np.argmax(np.abs(e - r) > 1e-6))
+        raise ValueError(f"{what} {float(np.asarray(t)[i]):.9g} s is not on the filter grid "
+                         f"(t0 + k·{T:g} s)")
+    return r.astype(np.int64)
+
+
+def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aware",
+              lag_method="paper003", height, windows=None, kf_dt=1.0, nsub=2, max_block=60.0,
+              discretization="series") -> Integration:
+    """SINS / two-GEO integration with feedback, fixes only inside windows.
+
+    Parameters
+    ----------
+    imu : sinslab.records.ImuRecord
+        Measured increments (with errors).
+    init : sinslab.records.NavState
+        Initial navigation state (IMU attitude) at ``imu.t0``.
+    fixes : Fixes
+        Validity times must be filter epochs (``imu.t0 + k·kf_dt``); arrivals are processed
+        at the first epoch at or after ``t_arrive``.
+    model : errstate.ErrorModel
+        :func:`horizontal_model` (blocks phi, dv, dp, eps_b, eps_r, nabla).
+    P0 : (16, 16)
+    mode : {"lag-aware", "lag-ignore", "zero-lag"}
+    lag_method : {"paper003", "exact"}
+        The lagged update of the lag-aware mode (:meth:`KalmanFilter.update_lagged`).
+    height : array_like (N+1,) or float
+        External height [m] at the IMU epochs (barometer / map); the vertical channel is
+        held to it (the model has no vertical channel).
+    windows : sequence of (start, end) [s], optional
+        Fixes processed outside these windows are dropped (receiver silent); the
+        covariance is propagated throughout, the INS runs free between updates.
+    kf_dt : float
+        Filter step [s], a multiple of ``nsub * imu.dt``.
+    max_block : float
+        Longest stretch [s] the INS runs in one compiled call.
+    discretization : {"vanloan", "series"}
+        Φ, Q_k of each step from F, G frozen at the epoch.
+
+    Returns
+    -------
+    Integration
+    """
+    from . import strapdown as sd
+    from .attitude import quat_to_dcm
+    from .kalman import KalmanFilter
+
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if lag_method not in ("paper003", "exact"):
+        raise ValueError(f"lag_method must be 'paper003' or 'exact', got {lag_method!r}")
+    lay = model.layout
+    if lay.n != 16 or lay.names[:3] != ("phi", "dv", "dp"):
+        raise ValueError(f"integrate needs the 16-state horizontal model, got {lay!r}")
+    dt = imu.dt
+    k_kf = int(round(kf_dt / dt))
+    if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % nsub:
+        raise ValueError(f"kf_dt={kf_dt} s must be a multiple of nsub*dt = {nsub * dt} s")
+    T = k_kf * dt
+    K = len(imu) // k_kf
+    if K < 1:
+        raise ValueError("the IMU record is shorter than one filter step")
+    t0 = imu.t0
+    t_ep = t0 + T * np.arange(K + 1)
+    hgt = np.asarray(height, dtype=float)
+    if hgt.ndim == 0:
+        hgt = np.full(len(imu) + 1, float(hgt))
+    if hgt.shape != (len(imu) + 1,):
+        raise ValueError(f"height must have {len(imu) + 1} values (IMU epochs), got {hgt.shape}")
+    J = len(fixes)
+    if J and (fixes.t_valid[0] < t_ep[0] - 1e-9 or fixes.t_arrive[-1] > t_ep[-1] + 1e-9
+              or fixes.t_valid[-1] > t_ep[-1] + 1e-9):
+        raise ValueError(f"fix times {fixes.t_valid[0]:g}..{fixes.t_arrive.max():g} s lie outside "
+                         f"the IMU record {t_ep[0]:g}..{t_ep[-1]:g} s")
+    e_val = _epoch_of(fixes.t_valid, t0, T, "fix validity time") if J else np.zeros(0, np.int64)
+    e_arr = np.ceil((fixes.t_arrive - t0) / T - 1e-6).astype(np.int64) if J else e_val
+    e_use = e_val if mode == "zero-lag" else e_arr
+    w = None if windows is None else check_windows(windows)
+    events = {}
+    for j in range(J):
+        if w is not None and not np.any((t_ep[e_use[j]] >= w[:, 0] - 1e-9) & (t_ep[e_use[j]] <= w[:, 1] + 1e-9)):
+            continue
+        events.setdefault(int(e_use[j]), []).append(j)
+    hist = int(np.max(e_arr - e_val)) + 2 if (J and mode == "lag-aware") else 0
+
+    s_gb = lay.slice("eps_b")
+    state = sd.initial_state_array(init)
+    kf = KalmanFilter(np.zeros(16), P0, t0=t0, history=hist, check=False)
+    kf.set_aux(state[:10].copy())
+    gb = np.zeros(3)
+    nav_h = np.empty((K + 1, 10))
+    x_h = np.zeros((K + 1, 16))
+    sig_h = np.empty((K + 1, 16))
+    gb_h = np.zeros((K + 1, 3))
+    nav_h[0] = state[:10]
+    sig_h[0] = kf.sigma
+    F_h = np.empty((K, 16, 16))
+    Qc_h = np.empty((K, 16, 16))
+    n_use = K * k_kf
+    dth_sum = imu.dtheta[:n_use].reshape(K, k_kf, 3).sum(1)
+    dv_sum = imu.dv[:n_use].reshape(K, k_kf, 3).sum(1)
+    stops = sorted(set(events) | {K})
+    max_ep = max(1, int(round(max_block / T)))
+    per = k_kf // nsub
+    H = np.zeros((2, 16))
+    used, t_used, innov = [], [], []
+    q = model.q
+    e0 = 0
+    si = 0
+    while e0 < K:
+        while stops[si] <= e0:
+            si += 1
+        e1 = min(stops[si], e0 + max_ep)
+        m = e1 - e0
+        out = np.empty((m, 10))
+        a, b = e0 * k_kf, e1 * k_kf
+        sd.step(state, imu.dtheta[a:b], imu.dv[a:b], dt, nsub, vertical="hold",
+                height=hgt[a:b + 1], gyro_bias=gb, out=out, out_every=per)
+        rows = np.vstack([nav_h[e0][None], out])                 # epochs e0..e1
+        C = quat_to_dcm(rows[:-1, :4])
+        npnt = es.NavPoint(rows[:-1, 7], rows[:-1, 9], rows[:-1, 4:7], C,
+                           dv_sum[e0:e1] / T, dth_sum[e0:e1] / T - gb)
+        F, G = model.matrices(npnt)
+        Phi, Qk = es.discretize(F, G, q, T, discretization)
+        F_h[e0:e1] = F
+        Qc_h[e0:e1] = (G * q) @ np.swapaxes(G, -1, -2)
+        for i in range(m):
+            kf.predict(Phi[i], Qk[i], T, aux=rows[i + 1].copy() if hist else None)
+            x_h[e0 + i + 1] = kf.x
+            sig_h[e0 + i + 1] = kf.sigma
+        nav_h[e0 + 1:e1 + 1] = rows[1:]
+        gb_h[e0 + 1:e1 + 1] = gb
+        fx = events.get(e1, []) if e1 == stops[si] else []
+        for j in fx:
+            if mode == "lag-aware" and e_val[j] < e1:
+                navv = kf.aux_at(t_ep[e_val[j]])
+            elif mode == "zero-lag" or e_val[j] == e1:
+                navv = state[:10]
+            else:                                       # lag-ignore: current INS output
+                navv = state[:10]
+            rm, rn = radii(navv[7], navv[9])
+            rm, rnc = float(rm), float(rn) * math.cos(navv[7])
+            dlon = (navv[8] - fixes.lon[j] + math.pi) % (2 * math.pi) - math.pi
+            z = np.array([(navv[7] - fixes.lat[j]) * rm, dlon * rnc])
+            H[0, 5], H[1, 6] = rm, rnc
+            R = np.array([fixes.sigma_ns[j] ** 2, fixes.sigma_ew[j] ** 2])
+            if mode == "lag-aware" and e_val[j] < e1:
+                ev = int(e_val[j])
+                res = kf.update_lagged(z, H, np.diag(R), t_ep[ev], method=lag_method,
+                                       F=F_h[ev], Qc=Qc_h[ev])
+            else:
+                res = kf.update(z, H, np.diag(R))
+            used.append(fixes.t_valid[j])
+            t_used.append(t_ep[e1])
+            innov.append(res.innovation)
+        if fx:
+            d = kf.feedback(FEEDBACK)
+            sd.correct(state, phi=d[0:3], dvel=[d[3], d[4], 0.0], dpos=[d[5], d[6], 0.0])
+            gb = gb + d[s_gb]
+            kf.set_aux(state[:10].copy())
+            nav_h[e1] = state[:10]
+            gb_h[e1] = gb
+            x_h[e1] = kf.x
+            sig_h[e1] = kf.sigma
+        e0 = e1
+    return Integration(t_ep, nav_h, x_h, sig_h, gb_h, np.array(used), np.array(t_used),
+                       np.array(innov).reshape(-1, 2), mode, lag_method)
+
+
+def nav_errors(nav, truth):
+    """Errors of a navigation solution at the truth's epochs (same length).
+
+    Parameters
+    ----------
+    nav : (M, 10) state rows ``[q, vel, lat, lon, h]`` (e.g. :attr:`Integration.nav`)
+    truth : NavSeries with M epochs (IMU attitude in ``att_imu`` if present)
+
+    Returns
+    -------
+    phi : (M, 3) misalignment [rad] (ENU)
+    dvel : (M, 2) east, north [m/s]
+    dpos : (M, 2) north, east [m]
+    """
+    from .attitude import euler_to_dcm, misalignment, quat_to_dcm
+
+    att = truth.att_imu if truth.att_imu is not None else truth.att
+    phi = misalignment(euler_to_dcm(att), quat_to_dcm(nav[:, :4]))
+    rm, rn = radii(truth.lat, truth.h)
+    dlon = (nav[:, 8] - truth.lon + np.pi) % (2 * np.pi) - np.pi
+    dpos = np.stack([(nav[:, 7] - truth.lat) * rm, dlon * rn * np.cos(truth.lat)], -1)
+    return phi, nav[:, 4:6] - truth.vel[:, :2], dpos

@@ -1,0 +1,455 @@
+"""double-star: paper 003 (Liu, Lin, Lai, Sun 2004) — Beidou-1 two-GEO fixes with a 1 s
+position lag fused with a SINS inside short covert windows.
+
+The aircraft trajectory (:func:`sinslab.trajectory.aircraft_mixed`: level flight, turns,
+climb/descent, acceleration) is synthesised with exact IMU increments; each Monte Carlo
+run draws the initial navigation errors, the sensor errors (gyro constant drift, gyro and
+accelerometer first-order Markov processes, gyro white noise) and the fixes (σ from the
+two-GEO error model at the true position, paper eqs 11–15) and runs three filters on
+the same data (:func:`sinslab.doublestar.integrate`):
+
+- ``lag-aware``: the paper's method (eqs 4–10): the fix of time t, received at t + ΔT, is
+  applied at t from the stored state and predicted to t + ΔT in one step
+  (:meth:`sinslab.kalman.KalmanFilter.update_lagged`, ``method="paper003"``);
+- ``lag-ignore``: the fix is applied at its arrival as if current;
+- ``zero-lag``: an ideal receiver without delay (same fixes, available at t).
+
+The covariance analysis (paper Figs 2–4) is the lag-aware filter's own covariance along
+the error-free trajectory (same schedule, same model); the Monte Carlo RMS errors are
+plotted next to it.
+
+Claims (each computed, each able to fail): the lag-aware filter beats the lag-ignoring one;
+it is within 10 % of the zero-lag filter (RMS horizontal position error over runs and
+time); the Monte Carlo RMS / σ ratio of horizontal position and of attitude lies within
+0.8–1.2; the fixes reduce the position error in every window.
+"""
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+
+from .. import units
+from ..config import ConfigError
+from .base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
+
+NAME = "double-star"
+PURPOSE = "paper 003: Beidou-1 two-GEO fixes with 1 s lag + SINS in covert windows (lag-aware filter)"
+PAPER = ("Liu Jianye, Lin Xueyuan, Lai Jizhou, Sun Yongrong: One fusion method of double-star "
+         "positioning system and SINS (2004), papers/003_453ed5ec78daf7f5.txt")
+NOTES = [
+    "Not stated by the paper, assumed here: gyro Markov correlation time 3600 s, accelerometer "
+    "Markov correlation time 1800 s; 'gyro white noise 0.1 deg/h' read as a rate white noise "
+    "of 0.1 deg/h per 1 s filter step, i.e. angle random walk 0.1 deg/h*sqrt(s) = 0.00167 deg/sqrt(h); "
+    "accelerometer white noise 0 (the paper's model has none).",
+    "Initial errors (attitude 100'', 100'', 200''; velocity 1 m/s; position 15 m) and the gyro "
+    "constant drift (0.1 deg/h) are 1-sigma values drawn per Monte Carlo run; the Markov "
+    "processes start in steady state.",
+    "Fix error model: eqs 11-15 as printed (height term with R_N/(R_N+h), h = user height) by "
+    "default; the derivation (tests) gives (R_N+h)/r_GEO instead - set fix.height_factor = "
+    "\"geometric\". Both values are reported.",
+    "Vertical channel held to the true height (the paper's barometric altimeter; the model has "
+    "no vertical channel). Fed back to the INS: attitude, velocity, position and gyro constant "
+    "drift; the Markov states are kept in the filter.",
+    "Fix schedule: inside each window the first request is at the window start, each next "
+    "request at the arrival of the previous fix; fixes that would arrive after the window "
+    "end are not requested.",
+    "Attitude errors are the misalignment angles phi (ENU, computed frame vs true).",
+]
+
+
+# ---------------------------------------------------------------- configuration -------
+class Scenario(Section):
+    latitude: Q("angle", ge="-85 deg", le="85 deg") = Field("32 deg", description="start latitude")
+    longitude: Q("angle", ge="-180 deg", le="360 deg") = Field("118 deg", description="start longitude")
+    height: Q("length", ge="-500 m", le="20 km") = Field("1000 m", description="start height")
+    speed: Q("velocity", ge="0 m/s", le="1000 m/s") = Field("300 m/s", description="start speed")
+    heading: Q("angle", ge="-360 deg", le="360 deg") = Field("0 deg", description="start heading, clockwise from north")
+    duration: Q("time", gt="0 s", le="1 d") = Field("1200 s", description="length of the flight")
+    sample_interval: Q("time", gt="0 s", le="0.5 s") = Field("0.01 s", description="IMU sampling interval")
+
+
+class Fix(Section):
+    sat_lon1: Q("angle") = Field("80 deg", description="longitude of satellite 1 (round trip / inquiry)")
+    sat_lon2: Q("angle") = Field("140 deg", description="longitude of satellite 2")
+    ranging_error: Q("length", ge="0 m") = Field("20 m", description="m0: ranging error after differential correction")
+    ephemeris_error: Q("length", ge="0 m") = Field("10 m", description="m1: equivalent ranging error of the ephemeris")
+    height_error: Q("length", ge="0 m") = Field("50 m", description="dH: height (elevation) error")
+    height_factor: Literal["paper", "geometric"] = Field(
+        "paper", description="height terms: R_N/(R_N+h) as printed, or (R_N+h)/r_GEO (derived)")
+    correlated: bool = Field(False, description="draw north/east fix errors with their correlation "
+                                                "(the filter still uses the paper's diagonal R)")
+    latency: Q("time", ge="0 s") = Field("1 s", description="delay from request to reception")
+    latency_jitter: Q("time", ge="0 s") = Field("0 s", description="latency uniform in latency ± jitter")
+    windows: list[QV("time", 2)] = Field(
+        ["[296, 305] s", "[596, 605] s", "[896, 905] s", "[1196, 1200] s"],
+        description="covert windows [start, end] in which the receiver transmits")
+
+
+class Imu(Section):
+    gyro_drift: Q("angular_rate", ge="0 deg/h") = Field("0.1 deg/h", description="gyro constant drift (1σ, random per run)")
+    gyro_markov: Q("angular_rate", ge="0 deg/h") = Field("0.1 deg/h", description="gyro first-order Markov drift (steady-state σ)")
+    gyro_markov_tau: Q("time", gt="0 s") = Field("3600 s", description="its correlation time (assumed)")
+    gyro_white: Q("angle_random_walk", ge="0 deg/sqrt(h)") = Field(
+        "0.1 deg/h*sqrt(s)", description="gyro white noise (angle random walk)")
+    accel_markov: Q("acceleration", ge="0 ug") = Field("100 ug", description="accelerometer first-order Markov bias (σ)")
+    accel_markov_tau: Q("time", gt="0 s") = Field("1800 s", description="its correlation time (assumed)")
+
+
+class Init(Section):
+    att_err: QV("angle", ge="0 arcsec") = Field("[100, 100, 200] arcsec",
+                                                description="initial misalignment σ [east, north, up]")
+    vel_err: Q("velocity", ge="0 m/s") = Field("1 m/s", description="initial horizontal velocity error σ")
+    pos_err: Q("length", ge="0 m") = Field("15 m", description="initial horizontal position error σ")
+
+
+class Filter(Section):
+    kf_dt: Q("time", gt="0 s") = Field("1 s", description="filter step (fix requests are on this grid)")
+    nsub: int = Field(2, ge=1, le=5, description="samples per strapdown update")
+    lag_method: Literal["paper003", "exact"] = Field(
+        "paper003", description="lag-aware update: the paper's one-step form or exact re-processing")
+
+
+class Config(ExperimentConfig):
+    runs: int = Field(200, ge=1, le=100000, description="Monte Carlo runs")
+    scenario: Scenario = Scenario()
+    fix: Fix = Fix()
+    imu: Imu = Imu()
+    init: Init = Init()
+    filter: Filter = Filter()
+
+
+QUICK = {"runs": 40, "scenario": {"sample_interval": "0.05 s"}}
+
+METRICS = {
+    "fix_sigma_ns_m": Metric("m", "two-GEO fix σ north-south at the start position (eqs 11-15, configured height factor)"),
+    "fix_sigma_ew_m": Metric("m", "two-GEO fix σ east-west at the start position"),
+    "fix_sigma_ns_geometric_m": Metric("m", "the same with the derived height factor (R_N+h)/r_GEO"),
+    "fix_sigma_ew_geometric_m": Metric("m", "the same with the derived height factor"),
+    "fix_sigma_ns_linearised_m": Metric("m", "exact first-order σ north-south on WGS-84 (no r_i≈r_s approximation)"),
+    "fix_sigma_ew_linearised_m": Metric("m", "exact first-order σ east-west on WGS-84"),
+    "pos_sigma_at_end_m": Metric("m", "covariance analysis: horizontal position σ at the end (lag-aware filter)"),
+    "pos_sigma_before_first_window_m": Metric("m", "covariance analysis: horizontal position σ at the first window start"),
+    "rms_pos_err_lagaware_m": Metric("m", "Monte Carlo RMS horizontal position error over runs and time, lag-aware filter"),
+    "rms_pos_err_lagignore_m": Metric("m", "the same, filter ignoring the lag"),
+    "rms_pos_err_zerolag_m": Metric("m", "the same, ideal zero-lag filter"),
+    "max_pos_err_outside_windows_m": Metric("m", "largest Monte Carlo RMS horizontal position error outside the windows (lag-aware)"),
+    "mc_rms_over_sigma_pos": Metric("-", "mean over time of MC RMS / σ, horizontal position (lag-aware)"),
+    "mc_rms_over_sigma_att": Metric("-", "mean over time of MC RMS / σ, attitude (3 axes combined, lag-aware)"),
+    "mc_rms_over_sigma_vel": Metric("-", "mean over time of MC RMS / σ, horizontal velocity (lag-aware)"),
+    "window_pos_rms_ratio": Metric("-", "per window: MC RMS horizontal position error at the window end / at its start"),
+    "fixes_per_run": Metric("-", "fixes applied per run"),
+    "runs": Metric("-", "Monte Carlo runs"),
+}
+
+_MODES = ("lag-aware", "lag-ignore", "zero-lag")
+_KEY = {"lag-aware": "lagaware", "lag-ignore": "lagignore", "zero-lag": "zerolag"}
+
+
+# ---------------------------------------------------------------- one Monte Carlo batch ---
+def _setup(cfg: Config, quick=False):
+    """Everything a run needs, as plain picklable values."""
+    from .. import doublestar as ds
+    from .. import trajectory as tr
+
+    s, f, im, ini, fl = cfg.scenario, cfg.fix, cfg.imu, cfg.init, cfg.filter
+    dt, T = float(s.sample_interval), float(s.duration)
+    kf_dt = float(fl.kf_dt)
+    k_kf = int(round(kf_dt / dt))
+    if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % fl.nsub:
+        raise ConfigError(f"config key filter.kf_dt: {fl.kf_dt.text!r} must be a multiple of "
+                          f"filter.nsub x scenario.sample_interval ({fl.nsub * dt:g} s)")
+    windows = [tuple(float(x) for x in w) for w in f.windows]
+    try:
+        ds.check_windows(windows, 0.0, T)
+    except ValueError as e:
+        raise ConfigError(f"config key fix.windows: {e}") from None
+    start = tr.Start(lat=float(s.latitude), lon=float(s.longitude), h=float(s.height),
+                     speed=float(s.speed), heading=float(s.heading))
+    gen = tr.generate(tr.aircraft_mixed(T), start, dt, duration=T)
+    model_args = dict(gyro_white=float(im.gyro_white), gyro_markov_sigma=float(im.gyro_markov),
+                      gyro_markov_tau=float(im.gyro_markov_tau),
+                      accel_markov_sigma=float(im.accel_markov), accel_markov_tau=float(im.accel_markov_tau))
+    model = ds.horizontal_model(**model_args)
+    P0 = ds.initial_covariance(model, start.lat, start.h, np.asarray(ini.att_err), float(ini.vel_err),
+                               float(ini.pos_err), float(im.gyro_drift), float(im.gyro_markov),
+                               float(im.accel_markov))
+    fix_args = dict(sat_lon1=float(f.sat_lon1), sat_lon2=float(f.sat_lon2), m0=float(f.ranging_error),
+                    m1=float(f.ephemeris_error), dH=float(f.height_error), latency=float(f.latency),
+                    latency_jitter=float(f.latency_jitter), grid=kf_dt, correlated=bool(f.correlated),
+                    height_factor=f.height_factor)
+    try:
+        ds.request_schedule(windows, float(f.latency), jitter=float(f.latency_jitter), grid=kf_dt,
+                            rng=np.random.default_rng(0))
+        ds.fix_error(start.lat, start.lon, fix_args["sat_lon1"], fix_args["sat_lon2"], 1.0, 1.0, 1.0)
+    except ValueError as e:
+        raise ConfigError(f"config key fix: {e}") from None
+    ep = np.arange(len(gen.imu) // k_kf + 1) * k_kf
+    return dict(truth=gen.truth, imu=gen.imu, ep=ep, windows=windows, model_args=model_args, P0=P0,
+                fix_args=fix_args, kf_dt=kf_dt, nsub=int(fl.nsub), lag_method=fl.lag_method,
+                gyro_drift=float(im.gyro_drift))
+
+
+def _one(rng, S, zero_errors=False):
+    """One run: draw errors, run the three filters; errors at the filter epochs."""
+    from .. import doublestar as ds
+    from .. import imu as imu_mod
+    from ..attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
+    from ..records import NavState
+
+    truth, ideal, P0 = S["truth"], S["imu"], S["P0"]
+    model = ds.horizontal_model(**S["model_args"])
+    ma = S["model_args"]
+    if zero_errors:
+        x0 = np.zeros(16)
+        meas = ideal
+    else:
+        x0 = rng.standard_normal(16) * np.sqrt(np.diag(P0))
+        err = imu_mod.ImuErrors(gyro_bias=x0[7:10], gyro_arw=ma["gyro_white"],
+                                gyro_bias_instability=ma["gyro_markov_sigma"],
+                                gyro_corr_time=ma["gyro_markov_tau"],
+                                accel_bias_instability=ma["accel_markov_sigma"],
+                                accel_corr_time=ma["accel_markov_tau"])
+        meas = imu_mod.apply(ideal, err, rng)
+    att0 = dcm_to_euler(apply_misalignment(euler_to_dcm(truth.att[0]), x0[:3]))
+    init = NavState(truth.lat[0] + x0[5], truth.lon[0] + x0[6], truth.h[0],
+                    truth.vel[0] + np.array([x0[3], x0[4], 0.0]), att0, truth.t[0])
+    fixes = ds.simulate_fixes(truth, S["windows"], rng=np.random.default_rng(0) if zero_errors else rng,
+                              **S["fix_args"])
+    if zero_errors:     # covariance analysis: exact fixes, the filter keeps the model σ in R
+        lat, lon, _ = ds._interp_truth(truth, fixes.t_valid)
+        fixes = ds.Fixes(fixes.t_valid, fixes.t_arrive, lat, lon, fixes.sigma_ns, fixes.sigma_ew)
+    tt = truth.at(S["ep"])
+    out = {}
+    for mode in _MODES:
+        r = ds.integrate(meas, init, fixes, model, P0, mode=mode, lag_method=S["lag_method"],
+                         height=truth.h, windows=S["windows"], kf_dt=S["kf_dt"], nsub=S["nsub"])
+        phi, dv, dp = ds.nav_errors(r.nav, tt)
+        k = _KEY[mode]
+        out[f"phi_{k}"] = phi
+        out[f"dv_{k}"] = dv
+        out[f"dp_{k}"] = dp
+        if mode == "lag-aware":
+            out["sigma"] = r.sigma
+            out["nfix"] = np.array(len(r.applied))
+    return out
+
+
+def _batch(seeds, S):
+    res = [_one(np.random.default_rng(ss), S) for ss in seeds]
+    return {k: np.stack([r[k] for r in res]) for k in res[0]}
+
+
+# ---------------------------------------------------------------- helpers -----------------
+def _sigmas(sigma, truth):
+    """Filter σ (M, 16) -> attitude (M, 3) rad, velocity (M, 2) m/s, position N/E (M, 2) m."""
+    from ..earth import radii
+
+    rm, rn = radii(truth.lat, truth.h)
+    return sigma[:, 0:3], sigma[:, 3:5], np.stack([sigma[:, 5] * rm, sigma[:, 6] * rn * np.cos(truth.lat)], -1)
+
+
+def _in_windows(t, windows):
+    m = np.zeros(t.shape, dtype=bool)
+    for a, b in windows:
+        m |= (t >= a - 1e-9) & (t <= b + 1e-9)
+    return m
+
+
+def fix_map(lat_deg, lon_deg, fa, h=0.0):
+    """σ N/S and E/W [m] over a latitude/longitude grid (degrees) for the fix settings ``fa``."""
+    from .. import doublestar as ds
+
+    L, Lo = np.meshgrid(np.asarray(lat_deg) * units.deg, np.asarray(lon_deg) * units.deg, indexing="ij")
+    fe = ds.fix_error(L, Lo, fa["sat_lon1"], fa["sat_lon2"], fa["m0"], fa["m1"], fa["dH"], h,
+                      height_factor=fa["height_factor"])
+    return fe.ns, fe.ew
+
+
+def _map_figure(fa, start_lat, start_lon, h):
+    from .. import plotting as P
+
+    lat = np.arange(15.0, 55.0 + 1e-9, 0.5)
+    lon = np.arange(70.0, 140.0 + 1e-9, 0.5)
+    ns, ew = fix_map(lat, lon, fa, h)
+    fig, ax = P.figure(1, 2, sharex=False, width=11.0, row_height=4.2)
+    for a, z, title in ((ax[0], ns, "north-south σ [m]"), (ax[1], ew, "east-west σ [m]")):
+        lev = np.unique(np.quantile(z, np.linspace(0, 1, 13)).round(1))
+        cs = a.contourf(lon, lat, z, levels=lev, cmap="viridis")
+        a.contour(lon, lat, z, levels=lev, colors="k", linewidths=0.4)
+        fig.colorbar(cs, ax=a, shrink=0.9)
+        for sl in (fa["sat_lon1"], fa["sat_lon2"]):
+            if 70 <= sl / units.deg <= 140:
+                a.axvline(sl / units.deg, color="w", ls="--", lw=1.0)
+        a.plot(start_lon / units.deg, start_lat / units.deg, "r*", ms=10, label="start")
+        a.set_xlabel("longitude [deg E]")
+        a.set_ylabel("latitude [deg N]")
+        a.set_title(title)
+    ax[0].legend(loc="lower left", fontsize="small")
+    return Figure("fix_sigma_map", fig,
+                  f"Two-GEO fix σ (paper eqs 11-15, height factor '{fa['height_factor']}') over "
+                  f"15-55° N, 70-140° E for satellites at {fa['sat_lon1'] / units.deg:g}° E and "
+                  f"{fa['sat_lon2'] / units.deg:g}° E (dashed), m0 = {fa['m0']:g} m, m1 = {fa['m1']:g} m, "
+                  f"ΔH = {fa['dH']:g} m, height {h:g} m"), lat, lon, ns, ew
+
+
+def _shade(ax, windows):
+    for a, b in windows:
+        ax.axvspan(a, b, color="orange", alpha=0.25, lw=0)
+
+
+# ---------------------------------------------------------------- the experiment ---------
+def run(cfg: Config, ctx) -> Result:
+    from .. import doublestar as ds
+    from .. import montecarlo as mc
+    from .. import plotting as P
+
+    S = _setup(cfg, ctx.quick)
+    truth, windows, fa = S["truth"], S["windows"], S["fix_args"]
+    tt = truth.at(S["ep"])
+    t = tt.t
+    lat0, lon0, h0 = float(truth.lat[0]), float(truth.lon[0]), float(truth.h[0])
+
+    # ---- fix error model at the start
+    fe = ds.fix_error(lat0, lon0, fa["sat_lon1"], fa["sat_lon2"], fa["m0"], fa["m1"], fa["dH"], h0,
+                      height_factor=fa["height_factor"])
+    fg = ds.fix_error(lat0, lon0, fa["sat_lon1"], fa["sat_lon2"], fa["m0"], fa["m1"], fa["dH"], h0,
+                      height_factor="geometric")
+    fl = ds.fix_error_linearised(lat0, lon0, fa["sat_lon1"], fa["sat_lon2"], fa["m0"], fa["m1"], fa["dH"], h0)
+
+    # ---- covariance analysis: the filters' own covariance along the error-free trajectory
+    ctx.log(f"{NAME}: covariance analysis")
+    cov = _one(None, S, zero_errors=True)
+    s_att, s_vel, s_pos = _sigmas(cov["sigma"], tt)
+    s_pos_h = np.hypot(*s_pos.T)
+
+    # ---- Monte Carlo
+    n = int(cfg.runs)
+    ctx.log(f"{NAME}: Monte Carlo, {n} runs")
+    res = mc.run_campaign(_batch, n, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(S=S))
+    rms = {}
+    for mode in _MODES:
+        k = _KEY[mode]
+        dp, dv, phi = res[f"dp_{k}"], res[f"dv_{k}"], res[f"phi_{k}"]
+        rms[k] = dict(pos_h=np.sqrt(np.mean((dp ** 2).sum(-1), 0)), pos=np.sqrt(np.mean(dp ** 2, 0)),
+                      vel=np.sqrt(np.mean(dv ** 2, 0)), att=np.sqrt(np.mean(phi ** 2, 0)),
+                      total=float(np.sqrt(np.mean((dp ** 2).sum(-1)))))
+    la = rms["lagaware"]
+    ratio_pos_t = la["pos_h"] / s_pos_h
+    ratio_att_t = np.sqrt((la["att"] ** 2).sum(-1) / (s_att ** 2).sum(-1))
+    ratio_vel_t = np.sqrt((la["vel"] ** 2).sum(-1) / (s_vel ** 2).sum(-1))
+    r_pos, r_att, r_vel = float(np.mean(ratio_pos_t[1:])), float(np.mean(ratio_att_t[1:])), float(np.mean(ratio_vel_t[1:]))
+    outside = ~_in_windows(t, windows)
+    max_out = float(np.max(la["pos_h"][outside]))
+    win_ratio, win_sigma_ratio = [], []
+    for a, b in windows:
+        ia = int(np.argmin(np.abs(t - a)))
+        ib = int(np.argmin(np.abs(t - b)))
+        win_ratio.append(float(la["pos_h"][ib] / la["pos_h"][ia]))
+        win_sigma_ratio.append(float(s_pos_h[ib] / s_pos_h[ia]))
+    first = int(np.argmin(np.abs(t - windows[0][0]))) if windows else 0
+
+    metrics = {
+        "fix_sigma_ns_m": float(fe.ns), "fix_sigma_ew_m": float(fe.ew),
+        "fix_sigma_ns_geometric_m": float(fg.ns), "fix_sigma_ew_geometric_m": float(fg.ew),
+        "fix_sigma_ns_linearised_m": float(fl.ns), "fix_sigma_ew_linearised_m": float(fl.ew),
+        "pos_sigma_at_end_m": float(s_pos_h[-1]),
+        "pos_sigma_before_first_window_m": float(s_pos_h[first]),
+        "rms_pos_err_lagaware_m": rms["lagaware"]["total"],
+        "rms_pos_err_lagignore_m": rms["lagignore"]["total"],
+        "rms_pos_err_zerolag_m": rms["zerolag"]["total"],
+        "max_pos_err_outside_windows_m": max_out,
+        "mc_rms_over_sigma_pos": r_pos, "mc_rms_over_sigma_att": r_att, "mc_rms_over_sigma_vel": r_vel,
+        "window_pos_rms_ratio": win_ratio,
+        "fixes_per_run": float(np.mean(res["nfix"])),
+        "runs": n,
+    }
+    la_t, li_t, zl_t = rms["lagaware"]["total"], rms["lagignore"]["total"], rms["zerolag"]["total"]
+    claims = [
+        Claim.at_most("lagaware_beats_lagignore",
+                      "RMS horizontal position error (runs x time) of the lag-aware filter / that of "
+                      "the filter applying each fix as if current", la_t / li_t, 1.0),
+        Claim.within("lagaware_near_zerolag",
+                     "RMS horizontal position error of the lag-aware filter / that of an ideal "
+                     "zero-lag filter with the same fixes", la_t / zl_t, 1.0, abs=0.10),
+        Claim.within("mc_consistent_pos", "Monte Carlo RMS / covariance-analysis σ, horizontal "
+                     "position, lag-aware filter (mean over time)", r_pos, 1.0, abs=0.2),
+        Claim.within("mc_consistent_att", "Monte Carlo RMS / covariance-analysis σ, attitude "
+                     "(3 axes), lag-aware filter (mean over time)", r_att, 1.0, abs=0.2),
+        Claim.at_most("fixes_reduce_error", "in every window the Monte Carlo RMS horizontal "
+                      "position error at the window end / at its start (per window)", win_ratio, 1.0),
+        Claim.at_most("fixes_reduce_sigma", "in every window the covariance-analysis horizontal "
+                      "position σ at the window end / at its start (per window)", win_sigma_ratio, 1.0),
+    ]
+
+    # ---- series
+    ser = {"t_s": t}
+    for i, c in enumerate("ENU"):
+        ser[f"sigma_phi{c}_arcsec"] = s_att[:, i] / units.arcsec
+        ser[f"rms_phi{c}_arcsec"] = la["att"][:, i] / units.arcsec
+    for i, c in enumerate("EN"):
+        ser[f"sigma_v{c}_mps"] = s_vel[:, i]
+        ser[f"rms_v{c}_mps"] = la["vel"][:, i]
+    for i, c in enumerate("NE"):
+        ser[f"sigma_p{c}_m"] = s_pos[:, i]
+        ser[f"rms_p{c}_m"] = la["pos"][:, i]
+    ser["sigma_pos_h_m"] = s_pos_h
+    for k in ("lagaware", "lagignore", "zerolag"):
+        ser[f"rms_pos_h_{k}_m"] = rms[k]["pos_h"]
+    mfig, mlat, mlon, mns, mew = _map_figure(fa, lat0, lon0, h0)
+    LA, LO = np.meshgrid(mlat, mlon, indexing="ij")
+    series = {"covariance_vs_mc": ser,
+              "fix_sigma_map": {"lat_deg": LA.ravel(), "lon_deg": LO.ravel(), "sigma_ns_m": mns.ravel(),
+                                "sigma_ew_m": mew.ravel()}}
+
+    # ---- figures (paper Figs 2-4 + comparison + map)
+    figs = []
+    specs = [("att", "Fig. 2: attitude error", s_att / units.arcsec, la["att"] / units.arcsec,
+              ["φE", "φN", "φU"], "arcsec"),
+             ("vel", "Fig. 3: horizontal velocity error", s_vel, la["vel"], ["δvE", "δvN"], "m/s"),
+             ("pos", "Fig. 4: horizontal position error", s_pos, la["pos"], ["north", "east"], "m")]
+    for name, title, sg, rm_, labels, unit in specs:
+        fig, ax = P.figure(len(labels), row_height=2.1, title=title)
+        for i, a in enumerate(ax):
+            _shade(a, windows)
+            a.plot(t, sg[:, i], color=P.COLORS[i], lw=1.3, label=f"{labels[i]} σ (covariance analysis)")
+            a.plot(t, rm_[:, i], color="k", lw=0.8, ls="--", label=f"Monte Carlo RMS ({n} runs)")
+            a.set_ylabel(f"{labels[i]} [{unit}]")
+            a.legend(fontsize="small", loc="upper left")
+        ax[-1].set_xlabel("time [s]")
+        figs.append(Figure(f"{name}_sigma", fig, f"{title} σ of the lag-aware filter (covariance analysis) "
+                                                 f"and Monte Carlo RMS; orange: fix windows"))
+    fig, ax = P.figure(1, row_height=3.6)
+    _shade(ax[0], windows)
+    for i, (k, lab) in enumerate((("lagaware", "lag-aware (paper eqs 4-10)"), ("lagignore", "lag ignored"),
+                                  ("zerolag", "ideal zero lag"))):
+        ax[0].plot(t, rms[k]["pos_h"], color=P.COLORS[i], lw=1.2 if i != 2 else 0.9,
+                   ls="-" if i != 2 else ":", label=f"{lab}: RMS {rms[k]['total']:.1f} m")
+    ax[0].plot(t, s_pos_h, color="0.4", lw=0.8, ls="--", label="σ (covariance analysis, lag-aware)")
+    ax[0].set_yscale("log")
+    ax[0].set_ylabel("horizontal position error [m]")
+    ax[0].set_xlabel("time [s]")
+    ax[0].legend(fontsize="small")
+    figs.append(Figure("filters_compared", fig, f"Monte Carlo RMS horizontal position error of the three "
+                                                f"filters ({n} runs); orange: fix windows"))
+    figs.append(mfig)
+
+    table = Table("filters", {
+        "filter": ["lag-aware", "lag-ignore", "zero-lag"],
+        "rms_pos_h_m": [la_t, li_t, zl_t],
+        "rms_pos_h_outside_windows_m": [float(np.sqrt(np.mean(rms[k]["pos_h"][outside] ** 2)))
+                                        for k in ("lagaware", "lagignore", "zerolag")],
+        "rms_pos_h_at_end_m": [float(rms[k]["pos_h"][-1]) for k in ("lagaware", "lagignore", "zerolag")],
+    }, "Monte Carlo RMS horizontal position error of the three filters")
+    fix_table = Table("fix_error_start", {
+        "model": ["eqs 11-15 (configured)", "eqs 11-15, height factor (R_N+h)/r_GEO", "exact first order (WGS-84)"],
+        "ns_m": [float(fe.ns), float(fg.ns), float(fl.ns)], "ew_m": [float(fe.ew), float(fg.ew), float(fl.ew)],
+        "ns_range_m": [float(fe.ns_range), float(fg.ns_range), float(fl.ns_range)],
+        "ew_range_m": [float(fe.ew_range), float(fg.ew_range), float(fl.ew_range)],
+        "ns_ephem_m": [float(fe.ns_ephem), float(fg.ns_ephem), float(fl.ns_ephem)],
+        "ew_ephem_m": [float(fe.ew_ephem), float(fg.ew_ephem), float(fl.ew_ephem)],
+        "ns_height_m": [float(fe.ns_height), float(fg.ns_height), float(fl.ns_height)],
+        "ew_height_m": [float(fe.ew_height), float(fg.ew_height), float(fl.ew_height)],
+    }, "Fix σ and its contributions at the start position")
+    return Result(metrics=metrics, claims=claims, series=series, figures=figs, tables=[table, fix_table])
