@@ -38,7 +38,7 @@ import numpy as np
 
 from . import units
 
-__all__ = ["AXES", "SINGLE_AXIS_4POS", "DUAL_AXIS_16", "SCHEMES", "RotateStop", "Swing",
+__all__ = ["AXES", "SINGLE_AXIS_4POS", "DUAL_AXIS_16", "SCHEMES", "RotateStop", "Swing", "short_number",
            "single_axis_4pos", "dual_axis_16", "mount_angles", "mount_from_dict", "Mount"]
 
 #: Mount Euler-angle components: index into ``[pitch, roll, yaw]``; "azimuth" = yaw.
@@ -165,11 +165,27 @@ class RotateStop:
         if self.name in SCHEMES and _same_moves(self.moves, SCHEMES[self.name]):
             d["scheme"] = self.name
         else:
-            d["moves"] = [[a, f"{math.degrees(x)!r} deg"] for a, x in self.moves]
-        d.update(rate=f"{math.degrees(self.rate)!r} deg/s", ramp=f"{self.ramp!r} s",
-                 dwell=f"{self.dwell!r} s",
-                 initial=[f"{math.degrees(v)!r} deg" for v in self.initial], repeat=self.repeat)
+            d["moves"] = [[a, _deg(x)] for a, x in self.moves]
+        d.update(rate=f"{short_number(self.rate, units.deg)} deg/s", ramp=f"{self.ramp!r} s",
+                 dwell=f"{self.dwell!r} s", initial=[_deg(v) for v in self.initial],
+                 repeat=self.repeat)
         return d
+
+
+def short_number(v_si: float, scale: float) -> str:
+    """``v_si / scale`` as the shortest decimal (≤ 15 digits) that parses back to exactly
+    ``v_si`` when multiplied by ``scale`` (else the full repr): ``118 deg`` not
+    ``118.00000000000001 deg``."""
+    x = v_si / scale
+    for digits in range(1, 16):
+        y = float(f"{x:.{digits}g}")
+        if y * scale == v_si:
+            return repr(y)
+    return repr(x)
+
+
+def _deg(v):
+    return f"{short_number(v, units.deg)} deg"
 
 
 def _same_moves(a, b):
@@ -209,11 +225,9 @@ class Swing:
         object.__setattr__(self, "initial", ini)
 
     def to_dict(self) -> dict:
-        return {"kind": "swing", "axis": self.axis,
-                "amplitude": f"{math.degrees(self.amplitude)!r} deg",
-                "period": f"{self.period!r} s", "phase": f"{math.degrees(self.phase)!r} deg",
-                "ramp": f"{self.ramp!r} s",
-                "initial": [f"{math.degrees(v)!r} deg" for v in self.initial]}
+        return {"kind": "swing", "axis": self.axis, "amplitude": _deg(self.amplitude),
+                "period": f"{self.period!r} s", "phase": _deg(self.phase),
+                "ramp": f"{self.ramp!r} s", "initial": [_deg(v) for v in self.initial]}
 
 
 Mount = RotateStop | Swing

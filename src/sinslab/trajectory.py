@@ -154,7 +154,7 @@ from dataclasses import MISSING as _MISSING  # noqa: E402
 
 def _fmt(v, q):
     u = _DUMP_UNITS[q]
-    return f"{v / units.unit_scale(u)!r} {u}"
+    return f"{indexing.short_number(v, units.unit_scale(u))} {u}"
 
 
 def _dump_fields(obj):

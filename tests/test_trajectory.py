@@ -1,0 +1,317 @@
+"""Oracles for sinslab.trajectory: closed forms, consistency, round trip through the
+strapdown mechanization, config/TOML handling and bad input."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sinslab import attitude as at
+from sinslab import earth, indexing
+from sinslab import trajectory as tr
+from sinslab import units as u
+from sinslab.records import NavState
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+START_003 = tr.Start(lat=32 * u.deg, lon=118 * u.deg, h=1000.0, speed=300.0, heading=0.0)
+
+
+# --- static -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("lat_deg,heading_deg,pitch_deg,roll_deg",
+                         [(34.246, 235.0, -5.0, 2.0), (-60.0, 10.0, 20.0, -40.0), (0.0, 90.0, 0.0, 0.0)])
+def test_static_increments_are_earth_rate_and_gravity(lat_deg, heading_deg, pitch_deg, roll_deg):
+    st = tr.Start(lat=lat_deg * u.deg, lon=1.0, h=400.0, heading=heading_deg * u.deg,
+                  pitch=pitch_deg * u.deg, roll=roll_deg * u.deg)
+    dt = 0.01
+    g = tr.generate(tr.static(20.0), st, dt)
+    att = g.truth.att
+    np.testing.assert_allclose(att, np.tile([pitch_deg * u.deg, roll_deg * u.deg,
+                                             at.heading_to_yaw(heading_deg * u.deg)], (len(att), 1)),
+                               atol=1e-15)
+    assert at.yaw_to_heading(att[0, 2]) == pytest.approx(heading_deg * u.deg, abs=1e-14)
+    Cnb = at.euler_to_dcm(att[0]).T
+    w = Cnb @ earth.wie_n(st.lat) * dt
+    f = Cnb @ np.array([0.0, 0.0, float(earth.gravity(st.lat, st.h))]) * dt
+    assert np.abs(g.imu.dtheta - w).max() <= 1e-15 * WIE_DT(dt)
+    assert np.abs(g.imu.dv - f).max() <= 1e-15
+    assert np.all(g.truth.lat == st.lat) and np.all(g.truth.h == st.h) and np.all(g.truth.vel == 0)
+    assert g.mount is None and g.truth.att_imu is None
+    assert len(g.imu) == 2000 and len(g.truth) == 2001
+    np.testing.assert_allclose(g.imu.t, dt * np.arange(1, 2001))
+    np.testing.assert_allclose(g.truth.t, dt * np.arange(2001))
+
+
+def WIE_DT(dt):
+    return earth.WIE * dt * 10        # a few ulps of the increment
+
+
+# --- constant-rate turn ----------------------------------------------------------------------
+def _earth_terms_np(truth, att):
+    """ω_in^b and the Earth part of f^b [(2ω_ie+ω_en)×v + (0,0,g)] in body axes, numpy."""
+    lat, h, v = truth.lat, truth.h, truth.vel
+    win = earth.wie_n(lat) + earth.wen_n(lat, h, v)
+    cor = np.cross(2 * earth.wie_n(lat) + earth.wen_n(lat, h, v), v)
+    cor[:, 2] += earth.gravity(lat, h)
+    Cnb = np.swapaxes(at.euler_to_dcm(att), -1, -2)
+    return np.einsum("kij,kj->ki", Cnb, win), np.einsum("kij,kj->ki", Cnb, cor)
+
+
+@pytest.mark.parametrize("rate_deg", [3.0, -2.0])
+def test_flat_turn_matches_closed_form(rate_deg):
+    V, dt = 20.0, 0.01
+    st = tr.Start(lat=45 * u.deg, lon=0.0, h=10.0, speed=V, heading=30 * u.deg)
+    turn = tr.Turn(60.0, rate_deg * u.deg, ramp=2.0, coordinated=False)
+    g = tr.generate([tr.Level(5.0), turn, tr.Level(5.0)], st, dt)
+    T = g.truth
+    # heading change = rate (duration - ramp), clockwise positive
+    dpsi = at.wrap_pi(T.att[-1, 2] - T.att[0, 2])
+    assert -dpsi == pytest.approx(turn.angle, abs=1e-12)
+    assert turn.angle == pytest.approx(rate_deg * u.deg * 58.0)
+    # flat part of the turn: 5+2 .. 65-2 s; Earth terms by Simpson's rule on a half-step truth
+    k = np.arange(int(7.5 / dt), int(62.5 / dt))
+    psid = -rate_deg * u.deg
+    half = tr.generate([tr.Level(5.0), turn, tr.Level(5.0)], st, dt / 2).truth
+    win_b, cor_b = _earth_terms_np(half, half.att)
+    w_mid = (win_b[2 * k] + 4 * win_b[2 * k + 1] + win_b[2 * k + 2]) / 6
+    c_mid = (cor_b[2 * k] + 4 * cor_b[2 * k + 1] + cor_b[2 * k + 2]) / 6
+    w_exp = np.array([0.0, 0.0, psid]) + w_mid
+    f_exp = np.array([-V * psid, 0.0, 0.0]) + c_mid
+    np.testing.assert_allclose(g.imu.dtheta[k] / dt, w_exp, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(g.imu.dv[k] / dt, f_exp, rtol=0, atol=1e-12)
+    assert np.all(T.att[:, :2] == 0.0)
+    np.testing.assert_allclose(np.hypot(T.vel[:, 0], T.vel[:, 1]), V, rtol=1e-14)
+
+
+def test_coordinated_turn_banks_right_wing_down_for_right_turn():
+    st = tr.Start(lat=30 * u.deg, lon=0.0, h=1000.0, speed=200.0, heading=0.0)
+    rate = 2.0 * u.deg
+    g = tr.generate([tr.Turn(40.0, rate, ramp=4.0)], st, 0.01)
+    mid = len(g.truth) // 2
+    bank = math.atan(200.0 * rate / u.g0)
+    assert g.truth.att[mid, 1] == pytest.approx(bank, abs=1e-12)
+    assert g.truth.att[0, 1] == 0.0 and abs(g.truth.att[-1, 1]) < 1e-15
+    # in the steady coordinated turn the lateral specific force nearly vanishes: what is
+    # left is V·ω·cos φ·(1 − g/g0) and the Coriolis force, ~0.01 m/s² (V·ω = 7 m/s²)
+    assert abs(g.imu.dv[mid, 0] / 0.01) < 0.03
+
+
+# --- numerical consistency --------------------------------------------------------------------
+def test_quadrature_orders_converge_and_agree():
+    segs = tr.aircraft_mixed(200.0)
+    mount = indexing.dual_axis_16(dwell=10.0)
+    ref = tr.generate(segs, START_003, 0.01, mount=mount, quadrature="gauss", nodes=6)
+    errs = {}
+    for q, n in (("gauss", 1), ("gauss", 2), ("gauss", 3), ("lobatto", 3), ("stencil", 4),
+                 ("stencil", 6), ("stencil", 8)):
+        g = tr.generate(segs, START_003, 0.01, mount=mount, quadrature=q, nodes=n)
+        errs[q, n] = max(np.abs(g.imu.dtheta - ref.imu.dtheta).max(),
+                         np.abs(g.imu.dv - ref.imu.dv).max())
+        np.testing.assert_array_equal(g.truth.att_imu, ref.truth.att_imu)
+    assert errs["gauss", 1] > 100 * errs["gauss", 2] > 100 * errs["gauss", 3]
+    assert errs["stencil", 4] > 100 * errs["stencil", 6]
+    assert errs["stencil", 8] < 1e-13 and errs["stencil", 6] < 1e-12
+    assert errs["gauss", 3] < 1e-14
+
+
+def test_truth_velocity_is_derivative_of_truth_position():
+    g = tr.generate(tr.aircraft_mixed(700.0), START_003, 0.01)
+    T = g.truth
+    rm, rn = earth.radii(T.lat, T.h)
+    dt2 = 2 * 0.01
+    vn = (T.lat[2:] - T.lat[:-2]) / dt2 * rm[1:-1]
+    ve = (T.lon[2:] - T.lon[:-2]) / dt2 * rn[1:-1] * np.cos(T.lat[1:-1])
+    vu = (T.h[2:] - T.h[:-2]) / dt2
+    err = np.abs(np.stack([ve, vn, vu], -1) - T.vel[1:-1]).max()
+    assert err < 1e-4          # central differences: dt²/6·|v̈| with |v̈| < ~20 m/s³
+
+
+def test_attitude_increments_match_truth_attitude():
+    """Δθ minus the navigation-frame rate rotates C_b^n(k) into C_b^n(k+1) (to O(dt³))."""
+    g = tr.generate(tr.aircraft_mixed(700.0), START_003, 0.01, mount=indexing.dual_axis_16(dwell=5.0))
+    T = g.truth
+    C = at.euler_to_dcm(T.att_imu)
+    win_b, _ = _earth_terms_np(T, T.att_imu)
+    rel = at.dcm_to_rotvec(np.swapaxes(C[:-1], -1, -2) @ C[1:])
+    approx = g.imu.dtheta - 0.5 * (win_b[:-1] + win_b[1:]) * 0.01
+    assert np.abs(rel - approx).max() < 1e-8
+
+
+def test_out_every_decimates_truth_only():
+    full = tr.generate(tr.aircraft_mixed(100.0), START_003, 0.01, mount=indexing.Swing())
+    dec = tr.generate(tr.aircraft_mixed(100.0), START_003, 0.01, mount=indexing.Swing(), out_every=7)
+    np.testing.assert_array_equal(dec.imu.dtheta, full.imu.dtheta)
+    np.testing.assert_array_equal(dec.mount, full.mount)
+    sel = np.arange(0, len(full.truth), 7)
+    np.testing.assert_allclose(dec.truth.t, full.truth.t[sel])
+    for name in ("lat", "lon", "h", "vel", "att", "att_imu"):
+        np.testing.assert_array_equal(getattr(dec.truth, name), getattr(full.truth, name)[sel])
+
+
+def test_duration_longer_than_segments_holds_last_state():
+    g = tr.generate([tr.Accelerate(10.0, 1.0, ramp=1.0)], tr.Start(lat=0.3, lon=0.1), 0.01,
+                    duration=20.0)
+    assert len(g.imu) == 2000
+    np.testing.assert_allclose(g.truth.vel[-1, 1], 9.0, atol=1e-12)
+    np.testing.assert_allclose(g.truth.vel[1000:, 1], 9.0, atol=1e-12)
+
+
+# --- round trip through the mechanization --------------------------------------------------
+def _roundtrip_errors(g):
+    from sinslab import strapdown as sd
+    nav = sd.navigate(g.imu, NavState.from_series(g.truth, 0), nsub=2, vertical="hold",
+                      height=g.truth.h, mount=g.mount, out_every=10, progress=False)
+    T = g.truth
+    idx = np.searchsorted(T.t, nav.t)
+    np.testing.assert_allclose(T.t[idx], nav.t)
+    rm, rn = earth.radii(T.lat[idx], T.h[idx])
+    pos = np.hypot((nav.lat - T.lat[idx]) * rm, (nav.lon - T.lon[idx]) * rn * np.cos(T.lat[idx]))
+    vel = np.abs(nav.vel[:, :2] - T.vel[idx, :2])
+    phi = at.misalignment(at.euler_to_dcm(T.att[idx]), at.euler_to_dcm(nav.att))
+    return pos.max(), vel.max(), np.abs(phi).max() / u.arcsec
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mount", [None, "dual_axis_16"])
+def test_error_free_navigation_reproduces_truth_1h(mount):
+    """The issue's exactness bar: 1 h mixed aircraft trajectory at 100 Hz, vertical held."""
+    pytest.importorskip("sinslab.strapdown")
+    m = indexing.dual_axis_16(rate=9 * u.deg, dwell=60.0) if mount else None
+    g = tr.generate(tr.aircraft_mixed(3600.0), START_003, 0.01, mount=m)
+    kinds = {s.kind for s in g.segments}
+    assert {"turn", "climb", "accelerate", "wing_rock", "level"} <= kinds
+    pos, vel, att = _roundtrip_errors(g)
+    print(f"round trip 1 h, mount={mount}: pos {pos:.3g} m, vel {vel:.3g} m/s, att {att:.3g} arcsec")
+    assert pos < 0.5 and vel < 5e-3 and att < 1.0
+
+
+@pytest.mark.slow
+def test_error_free_navigation_ship_and_swing_table():
+    pytest.importorskip("sinslab.strapdown")
+    st = tr.Start(lat=30 * u.deg, lon=120 * u.deg, h=0.0, heading=30 * u.deg)
+    g = tr.generate(tr.ship_manoeuvring(1800.0, static_time=60.0), st, 0.02)
+    hd = at.yaw_to_heading(g.truth.att[:, 2])
+    assert np.all((hd > -1e-9) & (hd < 61 * u.deg) | (hd > 359 * u.deg))
+    speed = np.linalg.norm(g.truth.vel[:, :2], axis=1)
+    assert speed.max() > 25.0 and speed.min() >= 0.0
+    pos, vel, att = _roundtrip_errors(g)
+    assert pos < 0.05 and vel < 5e-4 and att < 0.1
+    g = tr.generate(tr.static(1800.0), st, 0.02, mount=indexing.Swing(amplitude=5 * u.deg, period=40.0))
+    assert np.abs(g.mount[:, 0]).max() == pytest.approx(5 * u.deg, rel=1e-6)
+    pos, vel, att = _roundtrip_errors(g)
+    assert pos < 0.05 and vel < 5e-4 and att < 0.1
+
+
+# --- configs and TOML ------------------------------------------------------------------------------
+def test_from_dict_parses_units_and_aliases():
+    s = tr.segment_from_dict({"kind": "turn", "duration": "60 s", "rate": "3 deg/s"}, 0)
+    assert s == tr.Turn(60.0, 3 * u.deg)
+    s = tr.segment_from_dict({"kind": "turn", "duration": "1 min", "angle": "90 deg", "ramp": "2 s"})
+    assert s.angle == pytest.approx(90 * u.deg)
+    s = tr.segment_from_dict({"kind": "decelerate", "duration": "20 s", "accel": "0.5 m/s^2"})
+    assert isinstance(s, tr.Accelerate) and s.accel == -0.5
+    s = tr.segment_from_dict({"kind": "descend", "duration": "20 s", "angle": "3 deg"})
+    assert isinstance(s, tr.Climb) and s.angle == pytest.approx(-3 * u.deg)
+    s = tr.segment_from_dict({"kind": "ship", "duration": "2 h", "roll_amplitude": "10 deg",
+                              "heave_amplitude": "1 m", "speed_amplitude": "15 kn"})
+    assert s.duration == 7200.0 and s.speed_amplitude == pytest.approx(15 * u.nm / 3600)
+    st = tr.Start.from_dict({"lat": "32 deg", "lon": "118 deg", "h": "1 km", "speed": "300 m/s"})
+    assert st.h == 1000.0 and st.lat == pytest.approx(32 * u.deg)
+
+
+@pytest.mark.parametrize("d,words", [
+    ({"kind": "turn", "duration": "60 s", "rate": "3 deg/s", "bank": "30 deg"}, ["segment 2", "'bank'"]),
+    ({"kind": "turn", "duration": "60 s", "rate": 3.0}, ["segment 2", "'rate'", "no unit"]),
+    ({"kind": "turn", "duration": "60 s", "rate": "3 m/s"}, ["segment 2", "'rate'", "angular rate"]),
+    ({"kind": "static", "duration": "0 s"}, ["segment 2", "'duration'", "> 0"]),
+    ({"kind": "static", "duration": "-5 s"}, ["segment 2", "'duration'"]),
+    ({"kind": "accelerate", "duration": "10 s"}, ["segment 2", "missing", "'accel'"]),
+    ({"kind": "accelerate", "duration": "10 s", "accel": "1 m/s^2", "ramp": "6 s"}, ["segment 2", "'ramp'"]),
+    ({"kind": "turn", "duration": "60 s", "rate": "3 deg/s", "angle": "9 deg"}, ["segment 2", "'rate'", "'angle'"]),
+    ({"kind": "hover", "duration": "60 s"}, ["segment 2", "'kind'", "hover"]),
+    ({"kind": "wing_rock", "duration": "60 s", "amplitude": "10 deg", "period": "0 s"}, ["segment 2", "'period'"]),
+    ({"kind": "turn", "duration": "60 s", "rate": "3 deg/s", "coordinated": "yes"}, ["segment 2", "'coordinated'"]),
+])
+def test_bad_segment_tables_name_key_and_index(d, words):
+    with pytest.raises(ValueError) as ei:
+        tr.segments_from_list([{"kind": "static", "duration": "1 s"}, {"kind": "level", "duration": "1 s"}, d])
+    msg = str(ei.value)
+    for w in words:
+        assert w in msg, msg
+
+
+def test_motion_consistency_errors():
+    with pytest.raises(ValueError, match=r"segment 0 \(static\).*speed"):
+        tr.generate([tr.Static(10.0)], START_003, 0.01)
+    with pytest.raises(ValueError, match=r"segment 1 \(accelerate\).*'accel'"):
+        tr.generate([tr.Static(1.0), tr.Accelerate(10.0, -1.0)], tr.Start(lat=0.1, lon=0.0), 0.01)
+    with pytest.raises(ValueError, match="speed_amplitude"):
+        tr.generate([tr.Ship(100.0, speed_amplitude=5.0)], tr.Start(lat=0.1, lon=0.0, speed=2.0), 0.01)
+    with pytest.raises(ValueError, match="dt"):
+        tr.generate(tr.static(1.0), tr.Start(lat=0.1, lon=0.0), 0.0)
+    with pytest.raises(ValueError, match="latitude"):
+        tr.Start(lat=2.0, lon=0.0)
+    with pytest.raises(ValueError, match="'lat'"):
+        tr.Start.from_dict({"lat": "32", "lon": "1 deg"})
+    with pytest.raises(ValueError, match="missing key 'lon'"):
+        tr.Start.from_dict({"lat": "32 deg"})
+    with pytest.raises(ValueError, match="no segments"):
+        tr.generate([], tr.Start(lat=0.1, lon=0.0), 0.01)
+    with pytest.raises(ValueError, match="quadrature"):
+        tr.generate(tr.static(1.0), tr.Start(lat=0.1, lon=0.0), 0.01, quadrature="simpson")
+
+
+def test_toml_round_trip(tmp_path):
+    segs = (tr.aircraft_mixed(700.0) + [tr.Ship(300.0, roll_amplitude=5 * u.deg, heave_amplitude=1.0,
+                                                speed_amplitude=10.0, course_amplitude=20 * u.deg),
+                                        tr.Turn(30.0, -1 * u.deg, coordinated=False)])
+    mount = indexing.dual_axis_16(rate=6 * u.deg, dwell=120.0, ramp=2.0)
+    p = tmp_path / "motion.toml"
+    tr.dump_segments(segs, p, start=START_003, mount=mount)
+    m = tr.load_motion(p)
+    assert len(m.segments) == len(segs)
+    for a, b in zip(segs, m.segments):
+        assert type(a) is type(b)
+        assert a == b           # short decimals that parse back to the same floats
+    assert m.start.lat == pytest.approx(START_003.lat, rel=1e-15)
+    assert m.mount.name == "dual_axis_16" and m.mount.rate == pytest.approx(6 * u.deg)
+    assert tr.load_segments(p) == m.segments
+    swing = indexing.Swing(axis="roll", amplitude=3 * u.deg, period=20.0, ramp=5.0)
+    tr.dump_segments(tr.static(10.0), p, mount=swing)
+    back = tr.load_motion(p).mount
+    assert back.axis == "roll" and back.amplitude == pytest.approx(swing.amplitude)
+
+
+def test_bad_toml_files(tmp_path):
+    p = tmp_path / "m.toml"
+    p.write_text("[[segment]]\nkind = 'static'\nduration = '10 s'\n[[segment]]\nkind='turn'\nduration='5 s'\n")
+    with pytest.raises(ValueError, match=r"segment 1 \(turn\).*'rate'"):
+        tr.load_segments(p)
+    p.write_text("[start]\nlat = '1 deg'\nlon = '2 deg'\n")
+    with pytest.raises(ValueError, match="no \\[\\[segment\\]\\]"):
+        tr.load_segments(p)
+    p.write_text("[[segment]]\nkind = 'static'\nduration = '10 s'\n[extra]\na=1\n")
+    with pytest.raises(ValueError, match="unknown table 'extra'"):
+        tr.load_segments(p)
+    p.write_text("[[segment]\n")
+    with pytest.raises(ValueError, match="not valid TOML"):
+        tr.load_segments(p)
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in EXAMPLES.glob("*.toml")))
+def test_example_files_load_and_generate(name):
+    m = tr.load_motion(EXAMPLES / name)
+    assert m.start is not None
+    g = tr.generate(m.segments, m.start, 0.05, duration=min(120.0, tr.total_duration(m.segments)),
+                    mount=m.mount)
+    assert np.all(np.isfinite(g.imu.dv))
+
+
+def test_presets():
+    assert tr.total_duration(tr.aircraft_mixed(3600.0)) == pytest.approx(3600.0)
+    assert tr.total_duration(tr.aircraft_mixed(1200.0)) == pytest.approx(1200.0)
+    assert tr.total_duration(tr.ship_manoeuvring(48 * 3600.0)) == pytest.approx(48 * 3600.0)
+    assert tr.static(5.0) == [tr.Static(5.0)]
+    g = tr.generate(tr.aircraft_mixed(700.0), START_003, 0.02)
+    assert abs(g.truth.h[-1] - 1000.0) < 1e-6 and abs(g.truth.vel[-1, 2]) < 1e-9
+    assert np.linalg.norm(g.truth.vel[-1]) == pytest.approx(300.0, rel=1e-12)
+    assert at.yaw_to_heading(g.truth.att[-1, 2]) == pytest.approx(90 * u.deg, abs=1e-9)
