@@ -43,8 +43,16 @@ def test_same_seed_identical_for_1_2_4_workers():
     kw = dict(Phi=Phi, Q=Q, H=H, R=R, P0=P0, n_steps=50)
     ref = mc.run_campaign(mc.linear_batch, 24, 7, batch=5, scheduler="sync", kwargs=kw)
     for nw in (1, 2, 4):
-        out = mc.run_campaign(mc.linear_batch, 24, 7, batch=3 + nw, n_workers=nw,
-                              progress=False, kwargs=kw)
+        if nw == 2:
+            # an existing cluster reached by its address (the --scheduler ADDRESS path)
+            from distributed import LocalCluster
+            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                              dashboard_address=None, silence_logs=logging.CRITICAL) as cl:
+                out = mc.run_campaign(mc.linear_batch, 24, 7, batch=5, progress=False,
+                                      scheduler=cl.scheduler_address, kwargs=kw)
+        else:
+            out = mc.run_campaign(mc.linear_batch, 24, 7, batch=3 + nw, n_workers=nw,
+                                  progress=False, kwargs=kw)
         for k in ref:
             assert np.array_equal(out[k], ref[k]), (nw, k)
 
