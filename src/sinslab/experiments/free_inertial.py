@@ -521,8 +521,8 @@ def run(cfg: Config, ctx) -> Result:
         P.components(ax[0], tt, lin["pos"], ["east, linear model", "north, linear model"],
                      styles=[dict(ls="--", color="k", lw=0.8), dict(ls=":", color="k", lw=0.8)])
     P.components(ax[1], tt, np.maximum(hpos, 1e-3), ["horizontal"], "horizontal [m], log")
-    ax[1].set_ylim(bottom=max(1e-3 * float(hpos.max()), 1e-3))
     ax[1].semilogy(tt, env["pos"], ls="--", color="0.3", lw=1.0, label="closed-form envelope (upper bound)")
+    ax[1].set_ylim(max(1e-3 * float(hpos.max()), 1e-3), 2 * float(max(env["pos"].max(), hpos.max())))
     ax[1].legend(fontsize="small")
     ax[1].set_xlabel(tlabel)
     figs.append(Figure("pos_err", fig, "Position error of free-inertial navigation (navigation − truth); "
@@ -533,8 +533,8 @@ def run(cfg: Config, ctx) -> Result:
         P.components(ax[0], tt, lin["vel"], ["east, linear model", "north, linear model"],
                      styles=[dict(ls="--", color="k", lw=0.8), dict(ls=":", color="k", lw=0.8)])
     P.components(ax[1], tt, np.maximum(hvel, 1e-6), ["horizontal"], "horizontal [m/s], log")
-    ax[1].set_ylim(bottom=max(1e-3 * float(hvel.max()), 1e-6))
     ax[1].semilogy(tt, env["vel"], ls="--", color="0.3", lw=1.0, label="closed-form envelope (upper bound)")
+    ax[1].set_ylim(max(1e-3 * float(hvel.max()), 1e-6), 2 * float(max(env["vel"].max(), hvel.max())))
     ax[1].legend(fontsize="small")
     ax[1].set_xlabel(tlabel)
     cap = "Velocity error (navigation − truth); black: linear error model"
