@@ -31,13 +31,23 @@ from sinslab import kalman as kf  # noqa: E402
 from sinslab import units as u  # noqa: E402
 
 
-def _best(fn, repeat=3):
+_CPU = {}
+
+
+def _best(fn, repeat=3, key=None):
+    """Best wall time of ``repeat`` calls; the CPU time of that call goes to _CPU[key]
+    (the machine is shared, so CPU time is the fairer single-core figure)."""
     best = math.inf
     out = None
     for _ in range(repeat):
+        c0 = time.process_time()
         t0 = time.perf_counter()
         out = fn()
-        best = min(best, time.perf_counter() - t0)
+        el = time.perf_counter() - t0
+        if el < best:
+            best = el
+            if key is not None:
+                _CPU[key] = min(_CPU.get(key, math.inf), time.process_time() - c0)
     return best, out
 
 
@@ -85,11 +95,11 @@ def bench_covariance(K):
     t_nb = t_nbu = t_np = math.inf
     for _ in range(3):
         t_nb = min(t_nb, _best(lambda: kf.propagate_covariance(
-            P0, Phi, Q, Phi_index=idx, Q_index=idx, check=False), 1)[0])
+            P0, Phi, Q, Phi_index=idx, Q_index=idx, check=False), 1, "nb")[0])
         t_nbu = min(t_nbu, _best(lambda: kf.propagate_covariance(
             P0, Phi, Q, H, np.array([25.0, 25, 100]), mask=mask, Phi_index=idx, Q_index=idx,
             check=False), 1)[0])
-        t, P_np = _best(numpy_loop, 1)
+        t, P_np = _best(numpy_loop, 1, "np")
         t_np = min(t_np, t)
     run_short = kf.propagate_covariance(P0, Phi, Q, Phi_index=idx[:Kn], Q_index=idx[:Kn])
     agree = float(np.max(np.abs(run_short.P_final - P_np) / np.sqrt(np.outer(np.diag(P_np), np.diag(P_np)))))
@@ -98,6 +108,9 @@ def bench_covariance(K):
         "cov21_with_fixes_steps_per_s": K / t_nbu,
         "cov21_numpy_steps_per_s": Kn / t_np,
         "cov21_ratio_to_numpy": (K / t_nb) / (Kn / t_np),
+        "cov21_steps_per_cpu_s": K / _CPU["nb"],
+        "cov21_numpy_steps_per_cpu_s": Kn / _CPU["np"],
+        "cov21_ratio_to_numpy_cpu": (K / _CPU["nb"]) / (Kn / _CPU["np"]),
         "cov21_max_rel_diff_vs_numpy": agree,
         "cov21_steps": K,
     }
@@ -155,9 +168,11 @@ def bench_lc(duration):
     short = meas.slice(None, meas.t0 + 20.0)
     kf.loosely_coupled(short, init, ft[ft <= short.t[-1]], fix[ft <= short.t[-1]], sig, P0,
                        progress=False, **kw)
+    c0 = time.process_time()
     t0 = time.perf_counter()
     res = kf.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.1, progress=False, **kw)
     el = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     # accuracy at the filter epochs (truth on the IMU grid, every 20 samples)
     k = np.round((res.t - truth.t[0]) / meas.dt).astype(int)
     from sinslab.earth import radii
@@ -170,6 +185,7 @@ def bench_lc(duration):
         "lc_imu_samples": len(meas),
         "lc_fixes": int(res.fix_t.size),
         "lc_elapsed_s": el,
+        "lc_cpu_s": cpu,
         "lc_realtime_factor": duration / el,
         "lc_horiz_pos_rms_m": float(np.sqrt(np.mean(dn[late] ** 2 + de[late] ** 2))),
         "lc_horiz_sigma_rms_m": float(np.sqrt(np.mean(res.sigma[late, 6] ** 2 * rm[late] ** 2
@@ -188,13 +204,16 @@ def main(argv=None):
     print(f"21-state covariance propagation: {out['cov21_steps_per_s']:,.0f} steps/s "
           f"(target >= 50,000); with 1-in-10 fixes {out['cov21_with_fixes_steps_per_s']:,.0f} steps/s; "
           f"numpy loop {out['cov21_numpy_steps_per_s']:,.0f} steps/s -> ratio "
-          f"{out['cov21_ratio_to_numpy']:.1f}x (max rel diff {out['cov21_max_rel_diff_vs_numpy']:.1e})")
+          f"{out['cov21_ratio_to_numpy']:.1f}x (max rel diff {out['cov21_max_rel_diff_vs_numpy']:.1e}); "
+          f"per CPU second {out['cov21_steps_per_cpu_s']:,.0f} vs numpy "
+          f"{out['cov21_numpy_steps_per_cpu_s']:,.0f} -> {out['cov21_ratio_to_numpy_cpu']:.1f}x")
     out.update(bench_lc(600.0 if a.quick else 3600.0))
     if "lc_missing" in out:
         print(f"loosely coupled: skipped, missing module: {out['lc_missing']}")
     else:
         print(f"loosely coupled {out['lc_duration_s']:.0f} s of {out['lc_imu_samples']:,} IMU samples, "
               f"{out['lc_fixes']} fixes, covariance at 10 Hz: {out['lc_elapsed_s']:.2f} s "
+              f"(CPU {out['lc_cpu_s']:.2f} s) "
               f"({out['lc_realtime_factor']:.0f}x real time; target < 5 s for 1 h); "
               f"horizontal error RMS {out['lc_horiz_pos_rms_m']:.2f} m vs filter σ "
               f"{out['lc_horiz_sigma_rms_m']:.2f} m, mean NIS {out['lc_mean_nis']:.2f} (dof 3)")

@@ -383,36 +383,19 @@ def steady_state(Phi, Qk, H, R):
 # compiled kernels (scalar style, no temporaries inside the time loop)
 # ----------------------------------------------------------------------------------------
 @njit(cache=True)
-def _cov_predict(P, Phi, Q, nzc, nnz, T1, T2):
-    """P <- Phi P Phi^T + Q in place. nzc[i, :nnz[i]] = columns with Phi[i, c] != 0
-    (a superset is fine). T1, T2 are (n, n) work arrays."""
+def _cov_predict(P, Phi, Q, T1, T2):
+    """P <- Phi P Phi^T + Q in place, exactly symmetric. T1, T2 are (n, n) work arrays.
+
+    Two BLAS products called from compiled code (no Python per step): measured faster
+    than scalar loops exploiting the zeros of Phi for every n from 2 to 40."""
     n = P.shape[0]
-    # T1 = Phi @ P  (row i = sum over nonzero k of Phi[i,k] * P[k,:])
-    for i in range(n):
-        for j in range(n):
-            T1[i, j] = 0.0
-        for a in range(nnz[i]):
-            k = nzc[i, a]
-            f = Phi[i, k]
-            for j in range(n):
-                T1[i, j] += f * P[k, j]
-    # T2 = T1^T
-    for i in range(n):
-        for j in range(n):
-            T2[j, i] = T1[i, j]
-    # upper triangle of P = Phi @ T2 + Q (= Phi P Phi^T + Q), then mirrored: the result
-    # is exactly symmetric
+    np.dot(Phi, P, T1)
+    np.dot(T1, Phi.T, T2)
     for i in range(n):
         for j in range(i, n):
-            P[i, j] = 0.5 * (Q[i, j] + Q[j, i])
-        for a in range(nnz[i]):
-            k = nzc[i, a]
-            f = Phi[i, k]
-            for j in range(i, n):
-                P[i, j] += f * T2[k, j]
-    for i in range(n):
-        for j in range(i + 1, n):
-            P[j, i] = P[i, j]
+            v = 0.5 * (T2[i, j] + T2[j, i] + Q[i, j] + Q[j, i])
+            P[i, j] = v
+            P[j, i] = v
 
 
 @njit(cache=True)
@@ -531,7 +514,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, diag
         ns += 1
     for k in range(K):
         ip = phi_i[k]
-        _cov_predict(P, Phi_t[ip], Q_t[q_i[k]], nzc_t[ip], nnz_t[ip], T1, T2)
+        _cov_predict(P, Phi_t[ip], Q_t[q_i[k]], T1, T2)
         if with_x:
             _state_predict(x, Phi_t[ip], nzc_t[ip], nnz_t[ip], tmp)
         nu_tot = 0.0
@@ -604,12 +587,12 @@ def _budget_loop(Ptot, C, Phi_t, phi_i, Qparts_t, q_i, H_t, h_i, Rparts_t, r_i, 
                 for p in range(nq):
                     t += Qparts_t[p, iq, i, j]
                 Qtot[i, j] = t
-        _cov_predict(Ptot, Phi_t[ip], Qtot, nzc_t[ip], nnz_t[ip], T1, T2)
+        _cov_predict(Ptot, Phi_t[ip], Qtot, T1, T2)
         for s in range(S):
             if src_q[s] >= 0:
-                _cov_predict(C[s], Phi_t[ip], Qparts_t[src_q[s], iq], nzc_t[ip], nnz_t[ip], T1, T2)
+                _cov_predict(C[s], Phi_t[ip], Qparts_t[src_q[s], iq], T1, T2)
             else:
-                _cov_predict(C[s], Phi_t[ip], Zero, nzc_t[ip], nnz_t[ip], T1, T2)
+                _cov_predict(C[s], Phi_t[ip], Zero, T1, T2)
         Hk = H_t[h_i[k]]
         for c in range(m):
             if not mask[k, c]:
@@ -1080,7 +1063,7 @@ def _predict_many(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out):
     m = Phis.shape[0]
     n = x.shape[0]
     for i in range(m):
-        _cov_predict(P, Phis[i], Qs[i], nzc[i], nnz[i], T1, T2)
+        _cov_predict(P, Phis[i], Qs[i], T1, T2)
         _state_predict(x, Phis[i], nzc[i], nnz[i], tmp)
         _state_predict(c, Phis[i], nzc[i], nnz[i], tmp)
         for j in range(n):
@@ -1219,8 +1202,6 @@ class KalmanFilter:
         self._T1 = np.empty((n, n))
         self._T2 = np.empty((n, n))
         self._tmp = np.empty(n)
-        self._nzc = np.zeros((1, n, max(n, 1)), dtype=np.int64)
-        self._nnz = np.zeros((1, n), dtype=np.int64)
 
     # -- history -----------------------------------------------------------------------
     def _new_epoch(self, aux=None):
@@ -1297,8 +1278,7 @@ class KalmanFilter:
             if not np.all(np.isfinite(Phi)):
                 raise ValueError("Phi has NaN/inf elements")
         self._close_epoch(Phi, Q)
-        _sparsity_nb(Phi[None], self._nzc, self._nnz)
-        _cov_predict(self.P, Phi, Q, self._nzc[0], self._nnz[0], self._T1, self._T2)
+        _cov_predict(self.P, Phi, Q, self._T1, self._T2)
         self.x = Phi @ self.x
         self.c = Phi @ self.c
         self.t += float(dt)
