@@ -640,9 +640,13 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     s_gb = lay.slice("eps_b")
     state = sd.initial_state_array(init)
     kf = KalmanFilter(np.zeros(16), P0, t0=t0, history=hist, check=False)
-    kf.set_aux(state[:10].copy())
     gb = np.zeros(3)
     nav_h = np.empty((K + 1, 10))
+    # the INS output at each epoch before any feedback there: sinslab.kalman's exact lagged
+    # update takes the measurement relative to it (cumulative feedback of the epoch's prior),
+    # the paper003 form relative to the corrected output (feedback of the epoch's posterior)
+    nav_pre = np.empty((K + 1, 10))
+    nav_pre[0] = state[:10]
     x_h = np.zeros((K + 1, 16))
     sig_h = np.empty((K + 1, 16))
     gb_h = np.zeros((K + 1, 3))
@@ -679,18 +683,17 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
         F_h[e0:e1] = F
         Qc_h[e0:e1] = (G * q) @ np.swapaxes(G, -1, -2)
         for i in range(m):
-            kf.predict(Phi[i], Qk[i], T, aux=rows[i + 1].copy() if hist else None)
+            kf.predict(Phi[i], Qk[i], T)
             x_h[e0 + i + 1] = kf.x
             sig_h[e0 + i + 1] = kf.sigma
         nav_h[e0 + 1:e1 + 1] = rows[1:]
+        nav_pre[e0 + 1:e1 + 1] = rows[1:]
         gb_h[e0 + 1:e1 + 1] = gb
         fx = events.get(e1, []) if e1 == stops[si] else []
         for j in fx:
             if mode == "lag-aware" and e_val[j] < e1:
-                navv = kf.aux_at(t_ep[e_val[j]])
-            elif mode == "zero-lag" or e_val[j] == e1:
-                navv = state[:10]
-            else:                                       # lag-ignore: current INS output
+                navv = (nav_h if lag_method == "paper003" else nav_pre)[e_val[j]]
+            else:              # zero-lag, or lag-ignore: the current INS output
                 navv = state[:10]
             rm, rn = radii(navv[7], navv[9])
             rm, rnc = float(rm), float(rn) * math.cos(navv[7])
@@ -711,7 +714,6 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
             d = kf.feedback(FEEDBACK)
             sd.correct(state, phi=d[0:3], dvel=[d[3], d[4], 0.0], dpos=[d[5], d[6], 0.0])
             gb = gb + d[s_gb]
-            kf.set_aux(state[:10].copy())
             nav_h[e1] = state[:10]
             gb_h[e1] = gb
             x_h[e1] = kf.x

@@ -30,8 +30,9 @@ from typing import Literal
 
 import numpy as np
 
+from pydantic import model_validator
+
 from .. import units
-from ..config import ConfigError
 from .base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
 
 NAME = "double-star"
@@ -119,6 +120,33 @@ class Config(ExperimentConfig):
     init: Init = Init()
     filter: Filter = Filter()
 
+    @model_validator(mode="after")
+    def _consistent(self):
+        """Cross-key checks, so bad input fails before a run folder is made."""
+        from .. import doublestar as ds
+
+        s, f, fl = self.scenario, self.fix, self.filter
+        dt, kf = float(s.sample_interval), float(fl.kf_dt)
+        k = round(kf / dt)
+        if k < 1 or abs(k * dt - kf) > 1e-6 * kf or k % fl.nsub:
+            raise ValueError(f"filter.kf_dt {fl.kf_dt.text!r} must be a multiple of filter.nsub x "
+                             f"scenario.sample_interval ({fl.nsub * dt:g} s)")
+        try:
+            ds.check_windows([tuple(float(x) for x in w) for w in f.windows], 0.0, float(s.duration))
+        except ValueError as e:
+            raise ValueError(f"fix.windows: {e}") from None
+        try:
+            ds.request_schedule([tuple(float(x) for x in w) for w in f.windows], float(f.latency),
+                                jitter=float(f.latency_jitter), grid=kf, rng=np.random.default_rng(0))
+        except ValueError as e:
+            raise ValueError(f"fix.latency: {e}") from None
+        try:
+            ds.fix_error(float(s.latitude), float(s.longitude), float(f.sat_lon1), float(f.sat_lon2),
+                         1.0, 1.0, 1.0)
+        except ValueError as e:
+            raise ValueError(f"fix / scenario.latitude: {e}") from None
+        return self
+
 
 QUICK = {"runs": 40, "scenario": {"sample_interval": "0.05 s"}}
 
@@ -157,14 +185,7 @@ def _setup(cfg: Config, quick=False):
     dt, T = float(s.sample_interval), float(s.duration)
     kf_dt = float(fl.kf_dt)
     k_kf = int(round(kf_dt / dt))
-    if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % fl.nsub:
-        raise ConfigError(f"config key filter.kf_dt: {fl.kf_dt.text!r} must be a multiple of "
-                          f"filter.nsub x scenario.sample_interval ({fl.nsub * dt:g} s)")
     windows = [tuple(float(x) for x in w) for w in f.windows]
-    try:
-        ds.check_windows(windows, 0.0, T)
-    except ValueError as e:
-        raise ConfigError(f"config key fix.windows: {e}") from None
     start = tr.Start(lat=float(s.latitude), lon=float(s.longitude), h=float(s.height),
                      speed=float(s.speed), heading=float(s.heading))
     gen = tr.generate(tr.aircraft_mixed(T), start, dt, duration=T)
@@ -179,12 +200,6 @@ def _setup(cfg: Config, quick=False):
                     m1=float(f.ephemeris_error), dH=float(f.height_error), latency=float(f.latency),
                     latency_jitter=float(f.latency_jitter), grid=kf_dt, correlated=bool(f.correlated),
                     height_factor=f.height_factor)
-    try:
-        ds.request_schedule(windows, float(f.latency), jitter=float(f.latency_jitter), grid=kf_dt,
-                            rng=np.random.default_rng(0))
-        ds.fix_error(start.lat, start.lon, fix_args["sat_lon1"], fix_args["sat_lon2"], 1.0, 1.0, 1.0)
-    except ValueError as e:
-        raise ConfigError(f"config key fix: {e}") from None
     ep = np.arange(len(gen.imu) // k_kf + 1) * k_kf
     return dict(truth=gen.truth, imu=gen.imu, ep=ep, windows=windows, model_args=model_args, P0=P0,
                 fix_args=fix_args, kf_dt=kf_dt, nsub=int(fl.nsub), lag_method=fl.lag_method,
@@ -275,8 +290,10 @@ def _map_figure(fa, start_lat, start_lon, h):
     ns, ew = fix_map(lat, lon, fa, h)
     fig, ax = P.figure(1, 2, sharex=False, width=11.0, row_height=4.2)
     for a, z, title in ((ax[0], ns, "north-south σ [m]"), (ax[1], ew, "east-west σ [m]")):
-        lev = np.unique(np.quantile(z, np.linspace(0, 1, 13)).round(1))
-        cs = a.contourf(lon, lat, z, levels=lev, cmap="viridis")
+        from matplotlib.ticker import MaxNLocator
+
+        lev = MaxNLocator(14).tick_values(float(z.min()), float(z.max()))
+        cs = a.contourf(lon, lat, z, levels=lev, cmap="viridis", extend="max")
         a.contour(lon, lat, z, levels=lev, colors="k", linewidths=0.4)
         fig.colorbar(cs, ax=a, shrink=0.9)
         for sl in (fa["sat_lon1"], fa["sat_lon2"]):
@@ -416,7 +433,7 @@ def run(cfg: Config, ctx) -> Result:
             a.plot(t, sg[:, i], color=P.COLORS[i], lw=1.3, label=f"{labels[i]} σ (covariance analysis)")
             a.plot(t, rm_[:, i], color="k", lw=0.8, ls="--", label=f"Monte Carlo RMS ({n} runs)")
             a.set_ylabel(f"{labels[i]} [{unit}]")
-            a.legend(fontsize="small", loc="upper left")
+            a.legend(fontsize="x-small", loc="best", framealpha=0.6)
         ax[-1].set_xlabel("time [s]")
         figs.append(Figure(f"{name}_sigma", fig, f"{title} σ of the lag-aware filter (covariance analysis) "
                                                  f"and Monte Carlo RMS; orange: fix windows"))
@@ -440,6 +457,8 @@ def run(cfg: Config, ctx) -> Result:
         "rms_pos_h_m": [la_t, li_t, zl_t],
         "rms_pos_h_outside_windows_m": [float(np.sqrt(np.mean(rms[k]["pos_h"][outside] ** 2)))
                                         for k in ("lagaware", "lagignore", "zerolag")],
+        "rms_pos_h_in_windows_m": [float(np.sqrt(np.mean(rms[k]["pos_h"][~outside] ** 2)))
+                                   for k in ("lagaware", "lagignore", "zerolag")],
         "rms_pos_h_at_end_m": [float(rms[k]["pos_h"][-1]) for k in ("lagaware", "lagignore", "zerolag")],
     }, "Monte Carlo RMS horizontal position error of the three filters")
     fix_table = Table("fix_error_start", {

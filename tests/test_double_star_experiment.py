@@ -1,0 +1,87 @@
+"""The double-star experiment (paper 003): --quick run claims, contract metrics, bad config."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from sinslab.config import ConfigError, resolve
+from sinslab.experiments import execute, get
+
+CONTRACT = ("fix_sigma_ns_m", "fix_sigma_ew_m", "pos_sigma_at_end_m", "rms_pos_err_lagaware_m",
+            "rms_pos_err_lagignore_m", "rms_pos_err_zerolag_m", "max_pos_err_outside_windows_m",
+            "mc_rms_over_sigma_pos", "mc_rms_over_sigma_att", "runs")
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    exp = get("double-star")
+    cfg = resolve(exp.config, quick=exp.quick)
+    out = tmp_path_factory.mktemp("ds") / "run"
+    summary = execute(exp, cfg, out, quick=True)
+    return summary, out
+
+
+def test_defaults_are_the_paper_scenario():
+    cfg = get("double-star").config()
+    assert cfg.runs == 200
+    assert cfg.scenario.latitude.text == "32 deg" and cfg.scenario.longitude.text == "118 deg"
+    assert cfg.scenario.duration.text == "1200 s" and cfg.scenario.speed.text == "300 m/s"
+    assert [w.text for w in cfg.fix.windows] == ["[296, 305] s", "[596, 605] s", "[896, 905] s",
+                                                  "[1196, 1200] s"]
+    assert cfg.fix.latency.text == "1 s" and cfg.fix.height_error.text == "50 m"
+    assert float(cfg.fix.ranging_error) == 20.0 and float(cfg.fix.ephemeris_error) == 10.0
+    assert math.degrees(cfg.fix.sat_lon1) == pytest.approx(80) and math.degrees(cfg.fix.sat_lon2) == pytest.approx(140)
+
+
+def test_quick_run_claims_and_metrics(quick_run):
+    summary, out = quick_run
+    m = summary["metrics"]
+    for k in CONTRACT:
+        assert k in m and m[k] is not None, k
+    assert m["runs"] == 40
+    claims = {c["id"]: c for c in summary["claims"]}
+    for cid in ("lagaware_beats_lagignore", "lagaware_near_zerolag", "mc_consistent_pos",
+                "mc_consistent_att", "fixes_reduce_error", "fixes_reduce_sigma"):
+        assert claims[cid]["passed"], claims[cid]
+    # the numbers behind the claims, independently of the claim helpers
+    assert m["rms_pos_err_lagaware_m"] < m["rms_pos_err_lagignore_m"]
+    assert abs(m["rms_pos_err_lagaware_m"] / m["rms_pos_err_zerolag_m"] - 1) <= 0.10
+    assert 0.8 <= m["mc_rms_over_sigma_pos"] <= 1.2 and 0.8 <= m["mc_rms_over_sigma_att"] <= 1.2
+    assert len(m["window_pos_rms_ratio"]) == 4 and max(m["window_pos_rms_ratio"]) < 1.0
+    # fix model at the start position: eqs 11-15 as printed
+    assert m["fix_sigma_ns_m"] == pytest.approx(41.356, abs=0.01)
+    assert m["fix_sigma_ew_m"] == pytest.approx(31.126, abs=0.01)
+    assert m["fixes_per_run"] == 31
+    saved = json.loads((out / "summary.json").read_text())
+    assert saved["metrics"]["runs"] == 40
+    for f in ("att_sigma.png", "vel_sigma.png", "pos_sigma.png", "filters_compared.png",
+              "fix_sigma_map.png", "covariance_vs_mc.csv", "fix_sigma_map.csv", "report.html"):
+        assert (out / f).exists(), f
+
+
+def test_quick_run_series_match_the_paper_shape(quick_run):
+    import pandas as pd
+    _, out = quick_run
+    s = pd.read_csv(out / "covariance_vs_mc.csv")
+    t = s["t_s"].to_numpy()
+    sig = s["sigma_pos_h_m"].to_numpy()
+    assert t[0] == pytest.approx(0.0, abs=1e-9) and t[-1] == pytest.approx(1200.0)
+    # covert operation: σ grows in the pure-inertial stretches and drops in each window
+    for a, b in ((296, 305), (596, 605), (896, 905), (1196, 1200)):
+        ia, ib = int(np.argmin(abs(t - a))), int(np.argmin(abs(t - b)))
+        assert sig[ib] < 0.25 * sig[ia]
+        assert np.all(np.diff(sig[ib + 1:ib + 250]) > 0) if ib + 250 < t.size else True
+
+
+@pytest.mark.parametrize("sets,msg", [
+    (["fix.sat_lon2=80 deg"], "singular"),
+    (["fix.latency=5 s"], "length of the fix window"),
+    (['fix.windows=["[1190, 1300] s"]'], "outside the IMU record"),
+    (["scenario.latitude=0 deg"], "equator"),
+    (["filter.kf_dt=0.33 s"], "multiple"),
+])
+def test_bad_config_is_a_clear_error(sets, msg):
+    exp = get("double-star")
+    with pytest.raises(ConfigError, match=msg):        # before any run folder exists
+        resolve(exp.config, quick=exp.quick, sets=sets)

@@ -1,0 +1,412 @@
+"""sinslab.doublestar: two-GEO fix error model (paper 003 eqs 11-15), its derivation
+from the geometry, the fix simulator, the 16-state model and the lag-aware filter."""
+import math
+
+import numpy as np
+import pytest
+
+from sinslab import doublestar as ds
+from sinslab import errstate as es
+from sinslab import units as u
+from sinslab.earth import radii
+from sinslab.kalman import KalmanFilter, discretize as kdiscretize
+
+D = u.deg
+S1, S2 = 80 * D, 140 * D
+
+
+# ------------------------------------------------------------------ hand-computed values
+def test_mean_longitude_hand_values():
+    # user at the satellites' mean longitude (110 E), 40 N, h = 0, m0 = 20, m1 = 10, dH = 50:
+    #  l2-l = 30, l1-l = -30 deg: sin^2 30 + 5 sin^2 30 - 2 sin 30 sin 30 = 1  ->
+    #  ns0 = 20 / (2 sin40 sin60) = 17.96395; ew: 0.75 + 3.75 + 1.5 = 6 -> ew0 = 20*sqrt(6)/(2 sin60) = 20*sqrt(2)
+    #  nsH = |cot40 - (0.5 + 0.5)/(sin40 sin60)| * 50 = 30.2321; ewH = 0 (cos30 - cos(-30) = 0)
+    fe = ds.fix_error(40 * D, 110 * D, S1, S2, 20.0, 10.0, 50.0, 0.0)
+    assert fe.ns_range == pytest.approx(17.963951, rel=1e-6)
+    assert fe.ns_ephem == pytest.approx(8.981976, rel=1e-6)
+    assert fe.ew_range == pytest.approx(20 * math.sqrt(2), rel=1e-12)
+    assert fe.ew_ephem == pytest.approx(10 * math.sqrt(2), rel=1e-12)
+    assert fe.ns_height == pytest.approx(30.23208, rel=1e-5)
+    assert fe.ew_height == pytest.approx(0.0, abs=1e-9)
+    assert fe.ns == pytest.approx(math.sqrt(17.963951 ** 2 + 8.981976 ** 2 + 30.23208 ** 2), rel=1e-5)
+    assert fe.ew == pytest.approx(10 * math.sqrt(10), rel=1e-12)
+
+
+def _by_hand(L, l, l1, l2, m0, m1, dH, h, k=None):
+    """Eqs 11-15 typed independently (degrees in, metres out)."""
+    s, c = math.sin, math.cos
+    r = math.radians
+    L, l, l1, l2 = r(L), r(l), r(l1), r(l2)
+    rn = 6378137.0 / math.sqrt(1 - 6.69437999014e-3 * s(L) ** 2)
+    k = rn / (rn + h) if k is None else k
+    g_ns = math.sqrt(s(l2 - l) ** 2 + 5 * s(l1 - l) ** 2 + 2 * s(l2 - l) * s(l1 - l)) / abs(2 * s(L) * s(l2 - l1))
+    g_ew = math.sqrt(c(l2 - l) ** 2 + 5 * c(l1 - l) ** 2 + 2 * c(l2 - l) * c(l1 - l)) / abs(2 * s(l2 - l1))
+    nsH = abs(dH / math.tan(L) - k * dH * (s(l2 - l) - s(l1 - l)) / (s(L) * s(l2 - l1)))
+    ewH = k * dH * abs((c(l2 - l) - c(l1 - l)) / s(l1 - l2))
+    return (math.sqrt((m0 * g_ns) ** 2 + (m1 * g_ns) ** 2 + nsH ** 2),
+            math.sqrt((m0 * g_ew) ** 2 + (m1 * g_ew) ** 2 + ewH ** 2), m0 * g_ns, m0 * g_ew, nsH, ewH)
+
+
+@pytest.mark.parametrize("L,l,h", [(32, 118, 1000.0), (20, 75, 0.0), (50, 135, 5000.0),
+                                   (25, 140, 300.0), (-30, 100, 0.0)])
+def test_formulas_at_several_positions(L, l, h):
+    ns, ew, ns0, ew0, nsH, ewH = _by_hand(L, l, 80, 140, 20, 10, 50, h)
+    fe = ds.fix_error(L * D, l * D, S1, S2, 20.0, 10.0, 50.0, h)
+    for a, b in ((fe.ns, ns), (fe.ew, ew), (fe.ns_range, ns0), (fe.ew_range, ew0), (fe.ns_height, nsH),
+                 (fe.ew_height, ewH)):
+        assert float(a) == pytest.approx(b, rel=1e-9, abs=1e-9)
+
+
+def test_paper_start_position_numbers():
+    # 32 N, 118 E, 1000 m (the paper's start): worked by hand from eqs 11-14
+    fe = ds.fix_error(32 * D, 118 * D, S1, S2, 20.0, 10.0, 50.0, 1000.0)
+    assert float(fe.ns_range) == pytest.approx(27.340, abs=2e-3)
+    assert float(fe.ew_range) == pytest.approx(26.897, abs=2e-3)
+    assert float(fe.ns_height) == pytest.approx(27.857, abs=2e-3)   # |cot32 - 2.1579| * 50
+    assert float(fe.ew_height) == pytest.approx(8.034, abs=2e-3)
+
+
+def test_vectorised_over_a_grid_and_covariance_diagonal():
+    lat = np.linspace(15, 55, 9)[:, None] * D
+    lon = np.linspace(70, 140, 11)[None, :] * D
+    fe = ds.fix_error(lat, lon, S1, S2, 20.0, 10.0, 50.0, 1000.0)
+    assert fe.ns.shape == (9, 11) and fe.ew_height.shape == (9, 11)
+    i, j = 3, 7
+    one = ds.fix_error(lat[i, 0], lon[0, j], S1, S2, 20.0, 10.0, 50.0, 1000.0)
+    assert fe.ns[i, j] == pytest.approx(float(one.ns), rel=1e-14)
+    P = ds.fix_covariance(lat, lon, S1, S2, 20.0, 10.0, 50.0, 1000.0)
+    assert np.allclose(P[..., 0, 0], fe.ns ** 2, rtol=1e-12)
+    assert np.allclose(P[..., 1, 1], fe.ew ** 2, rtol=1e-12)
+    assert np.all(np.abs(P[..., 0, 1]) <= np.sqrt(P[..., 0, 0] * P[..., 1, 1]) + 1e-9)
+
+
+# ------------------------------------------------------------------ derivation from the geometry
+def _fd_sigma(lat, lon, h, m0, m1, dH, rs):
+    """Solve the fix by Newton from [2 r1, r1 + r2] and the height; finite-difference the
+    position (N, E) with respect to each measured path and the height; combine."""
+    rho = ds.measure_ranges(lat, lon, h, S1, S2, rs)
+    x = ds.solve_fix(rho, h, S1, S2, (lat + 0.02, lon - 0.02), sat_radius=rs)
+    assert np.allclose(x, [lat, lon], atol=1e-11)
+    rm, rn = radii(lat, h)
+    scale = np.array([float(rm), float(rn) * math.cos(lat)])
+    cols = []
+    for drho, dh in (((1.0, 0.0), 0.0), ((0.0, 1.0), 0.0), ((0.0, 0.0), 1.0)):
+        drho = np.asarray(drho)
+        xp = ds.solve_fix(rho + drho, h + dh, S1, S2, (lat, lon), sat_radius=rs)
+        xm = ds.solve_fix(rho - drho, h - dh, S1, S2, (lat, lon), sat_radius=rs)
+        cols.append((xp - xm) / 2 * scale)
+    cA, cB, cH = cols
+    ns0 = m0 * math.hypot(cA[0], cB[0])
+    ew0 = m0 * math.hypot(cA[1], cB[1])
+    return ns0, ew0, abs(cH[0]) * dH, abs(cH[1]) * dH
+
+
+@pytest.mark.parametrize("L,l", [(32, 118), (40, 110), (22, 80), (50, 135)])
+def test_linearised_model_equals_newton_finite_differences(L, l):
+    ns0, ew0, nsH, ewH = _fd_sigma(L * D, l * D, 1000.0, 20.0, 10.0, 50.0, ds.GEO_RADIUS)
+    fl = ds.fix_error_linearised(L * D, l * D, S1, S2, 20.0, 10.0, 50.0, 1000.0)
+    assert float(fl.ns_range) == pytest.approx(ns0, rel=1e-5)
+    assert float(fl.ew_range) == pytest.approx(ew0, rel=1e-5)
+    assert float(fl.ns_height) == pytest.approx(nsH, rel=1e-5, abs=1e-6)
+    assert float(fl.ew_height) == pytest.approx(ewH, rel=1e-4, abs=1e-4)
+
+
+@pytest.mark.parametrize("L,l", [(32, 118), (40, 110), (22, 80), (50, 135)])
+def test_closed_form_is_the_far_satellite_limit(L, l):
+    # the closed form assumes r_i = r_s (and a spherical Earth): it is the first-order solution
+    # when the satellites are far; what is left is the ellipsoid's flattening (~1e-4)
+    rs = 1e3 * ds.GEO_RADIUS
+    ns0, ew0, nsH, ewH = _fd_sigma(L * D, l * D, 1000.0, 20.0, 10.0, 50.0, rs)
+    fe = ds.fix_error(L * D, l * D, S1, S2, 20.0, 10.0, 50.0, 1000.0, height_factor="geometric",
+                      sat_radius=rs)
+    assert float(fe.ns_range) == pytest.approx(ns0, rel=1e-3)
+    assert float(fe.ew_range) == pytest.approx(ew0, rel=1e-3)
+    assert float(fe.ns_height) == pytest.approx(nsH, rel=2e-3)
+
+
+@pytest.mark.parametrize("L,l", [(32, 118), (40, 110), (22, 80), (50, 135), (18, 130)])
+def test_closed_form_at_geo_radius_vs_exact(L, l):
+    """What the paper's approximations cost at the real GEO radius (documented findings):
+    ranging terms: the closed form over-states σ by r_s/r_i, 3-20 %; height terms: the
+    derived factor (R_N+h)/r_GEO matches the geometry to ~1 %, the printed R_N/(R_N+h)
+    (user height) does not."""
+    args = (L * D, l * D, S1, S2, 20.0, 10.0, 50.0, 1000.0)
+    fl = ds.fix_error_linearised(*args)
+    fg = ds.fix_error(*args, height_factor="geometric")
+    fp = ds.fix_error(*args, height_factor="paper")
+    r_ns = float(fg.ns_range / fl.ns_range)
+    r_ew = float(fg.ew_range / fl.ew_range)
+    assert 1.03 < r_ns < 1.20 and 1.03 < r_ew < 1.20
+    assert float(fg.ns_height) == pytest.approx(float(fl.ns_height), rel=0.01)
+    assert float(fg.ew_height) == pytest.approx(float(fl.ew_height), rel=0.02, abs=0.05)
+    dev_ns = abs(float(fp.ns_height) / float(fl.ns_height) - 1)
+    dev_ew = abs(float(fp.ew_height) - float(fl.ew_height)) / max(float(fl.ew_height), 1.0)
+    assert max(dev_ns, dev_ew) > 0.15
+
+
+# ------------------------------------------------------------------ bad input
+def test_equal_satellite_longitudes_refused():
+    with pytest.raises(ValueError, match="satellite longitudes are equal.*singular"):
+        ds.fix_error(32 * D, 118 * D, 110 * D, 110 * D, 20, 10, 50)
+    with pytest.raises(ValueError, match="singular"):
+        ds.fix_error_linearised(32 * D, 118 * D, 110 * D, 110 * D, 20, 10, 50)
+
+
+def test_user_on_equator_refused():
+    with pytest.raises(ValueError, match="equator"):
+        ds.fix_error(0.0, 118 * D, S1, S2, 20, 10, 50)
+    with pytest.raises(ValueError, match="equator"):       # one grid point on the equator
+        ds.fix_error(np.array([-5.0, 0.0, 5.0]) * D, 118 * D, S1, S2, 20, 10, 50)
+
+
+def test_bad_sigma_and_height_factor():
+    with pytest.raises(ValueError, match="m0"):
+        ds.fix_error(32 * D, 118 * D, S1, S2, -1.0, 10, 50)
+    with pytest.raises(ValueError, match="height_factor"):
+        ds.fix_error(32 * D, 118 * D, S1, S2, 20, 10, 50, height_factor="nope")
+
+
+# ------------------------------------------------------------------ schedule and simulator
+W = [(296, 305), (596, 605), (896, 905), (1196, 1200)]
+
+
+def test_request_schedule_paper_windows():
+    req, arr = ds.request_schedule(W, 1.0)
+    assert len(req) == 9 + 9 + 9 + 4
+    assert np.allclose(req[:9], np.arange(296, 305)) and np.allclose(arr[:9], np.arange(297, 306))
+    assert np.allclose(req[-4:], np.arange(1196, 1200)) and arr[-1] == 1200
+    for a, b in W:                     # every fix of a window arrives inside it
+        m = (req >= a) & (req <= b)
+        assert np.all(arr[m] <= b)
+
+
+def test_request_schedule_random_latency():
+    rng = np.random.default_rng(3)
+    req, arr = ds.request_schedule([(0, 100)], 1.2, jitter=0.5, rng=rng)
+    d = arr - req
+    assert np.all((d >= 0.7 - 1e-12) & (d <= 1.7 + 1e-12)) and d.std() > 0.05
+    assert np.allclose(req, np.round(req))                     # requests on the 1 s grid
+    assert np.all(req[1:] >= arr[:-1] - 1e-9)                  # next request after the arrival
+    assert np.all(req[1:] - arr[:-1] < 1.0)
+
+
+def test_latency_not_shorter_than_window_refused():
+    with pytest.raises(ValueError, match="latency .* length of the fix window"):
+        ds.request_schedule(W, 4.0)                            # last window is 4 s long
+    with pytest.raises(ValueError, match="latency must be >= 0"):
+        ds.request_schedule(W, -1.0)
+
+
+def _static_truth(T=3000.0, lat=32 * D, lon=118 * D):
+    from sinslab.records import NavSeries
+    t = np.arange(0.0, T + 1)
+    n = t.size
+    return NavSeries(t, np.full(n, lat), np.full(n, lon), np.full(n, 1000.0), np.zeros((n, 3)),
+                     np.zeros((n, 3)))
+
+
+def test_simulated_fix_statistics():
+    truth = _static_truth()
+    fx = ds.simulate_fixes(truth, [(0, 3000)], sat_lon1=S1, sat_lon2=S2, m0=20, m1=10, dH=50,
+                           latency=0.5, rng=11)
+    fe = ds.fix_error(32 * D, 118 * D, S1, S2, 20, 10, 50, 1000.0)
+    assert len(fx) == 3000
+    rm, rn = radii(32 * D, 1000.0)
+    en = (fx.lat - 32 * D) * rm
+    ee = (fx.lon - 118 * D) * rn * math.cos(32 * D)
+    assert np.allclose(en, fx.err_n, atol=1e-6) and np.allclose(ee, fx.err_e, atol=1e-6)
+    assert en.std() == pytest.approx(float(fe.ns), rel=0.06)
+    assert ee.std() == pytest.approx(float(fe.ew), rel=0.06)
+    assert np.allclose(fx.t_arrive - fx.t_valid, 0.5)
+    fc = ds.simulate_fixes(truth, [(0, 3000)], sat_lon1=S1, sat_lon2=S2, m0=20, m1=10, dH=50,
+                           latency=0.5, rng=11, correlated=True)
+    P = ds.fix_covariance(32 * D, 118 * D, S1, S2, 20, 10, 50, 1000.0)
+    c = np.corrcoef(fc.err_n, fc.err_e)[0, 1]
+    assert c == pytest.approx(P[0, 1] / math.sqrt(P[0, 0] * P[1, 1]), abs=0.06)
+
+
+def test_fix_windows_outside_record_refused():
+    truth = _static_truth(100.0)
+    with pytest.raises(ValueError, match="outside the IMU record"):
+        ds.simulate_fixes(truth, [(90, 110)], sat_lon1=S1, sat_lon2=S2, m0=20, m1=10, dH=50,
+                          latency=1.0, rng=1)
+
+
+# ------------------------------------------------------------------ the 16-state model
+def _model():
+    return ds.horizontal_model(0.1 * u.dph * math.sqrt(1.0), 0.1 * u.dph, 3600.0, 1e-4 * u.g0, 1800.0)
+
+
+def test_sixteen_state_layout_matches_paper_eq1():
+    m = _model()
+    assert m.n == 16
+    assert m.layout.labels == ("phiE", "phiN", "phiU", "dvE", "dvN", "dL", "dlam",
+                               "eps_b_x", "eps_b_y", "eps_b_z", "eps_r_x", "eps_r_y", "eps_r_z",
+                               "nabla_x", "nabla_y", "nabla_z")
+    nav = es.NavPoint.static(32 * D, (0.05, -0.02, 0.7), 1000.0)
+    F, G = m.matrices(nav)
+    C = nav.Cbn
+    assert np.allclose(F[0:3, 7:10], -C) and np.allclose(F[0:3, 10:13], -C)
+    assert np.allclose(F[3:5, 13:16], C[0:2])
+    assert np.allclose(np.diag(F)[10:13], -1 / 3600.0) and np.allclose(np.diag(F)[13:16], -1 / 1800.0)
+    assert np.allclose(F[7:10], 0.0)                         # random constants
+    q = m.q
+    assert np.allclose(q[6:9], 2 * (0.1 * u.dph) ** 2 / 3600.0)
+    assert np.allclose(q[9:12], 2 * (1e-4 * u.g0) ** 2 / 1800.0)
+
+
+def _tv_tables(m, K, T=1.0, seed=0):
+    rng = np.random.default_rng(seed)
+    lat = 32 * D + 1e-4 * np.arange(K)
+    att = np.stack([0.02 * np.sin(0.1 * np.arange(K)), 0.01 * np.ones(K), 0.03 * np.arange(K)], -1)
+    nav = es.NavPoint(lat, 1000.0, np.stack([150 * np.ones(K), 260 * np.ones(K), np.zeros(K)], -1),
+                      es.euler_to_dcm(att), np.array([0.3, 1.0, 9.8]) + 0.2 * rng.standard_normal((K, 3)))
+    F, G = m.matrices(nav)
+    Phi, Q = es.discretize(F, G, m.q, T)
+    return F, (G * m.q) @ np.swapaxes(G, -1, -2), Phi, Q
+
+
+def _P0(m):
+    return ds.initial_covariance(m, 32 * D, 1000.0, np.array([100, 100, 200]) * u.arcsec, 1.0, 15.0,
+                                 0.1 * u.dph, 0.1 * u.dph, 1e-4 * u.g0)
+
+
+@pytest.mark.parametrize("feedback", [False, True])
+def test_lag_aware_equals_on_time_filter_exact(feedback):
+    """Oracle: a fix of t_m applied at t_a by the lag-aware (exact) update gives the estimate
+    and covariance of a filter that had it on time, 1e-9 relative, on the 16-state model."""
+    m = _model()
+    K, km, ka = 12, 5, 8
+    F, Qc, Phi, Q = _tv_tables(m, K)
+    P0 = _P0(m)
+    rng = np.random.default_rng(4)
+    x0 = rng.standard_normal(16) * np.sqrt(np.diag(P0)) * 0.1
+    H = np.zeros((2, 16))
+    H[0, 5], H[1, 6] = 6.36e6, 5.4e6
+    R = np.diag([41.0 ** 2, 31.0 ** 2])
+    z_early = rng.standard_normal(2) * 40.0
+    z = rng.standard_normal(2) * 40.0
+    fb = np.arange(10)
+
+    on = KalmanFilter(x0, P0)
+    lag = KalmanFilter(x0, P0, history=10)
+    for k in range(ka):
+        for f in (on, lag):
+            f.predict(Phi[k], Q[k], 1.0)
+        if k + 1 == 2:                                       # an earlier on-time fix, fed back
+            for f in (on, lag):
+                f.update(z_early, H, R)
+                if feedback:
+                    f.feedback(fb)
+        if k + 1 == km:
+            on.update(z - H @ on.c, H, R)                    # measurement of the fed-back INS
+            zm = z - H @ lag.c                               # what the lagged one will receive
+    lag.update_lagged(zm, H, R, float(km), method="exact")
+    assert np.allclose(lag.x_total, on.x_total, rtol=1e-9, atol=1e-12 * np.abs(on.x_total).max())
+    assert np.allclose(lag.P, on.P, rtol=1e-9, atol=1e-9 * np.abs(on.P).max())
+
+
+def test_lag_aware_paper003_equals_on_time_on_lti_model():
+    """The paper's one-step form (eqs 4-10) is exact when the model is time-invariant."""
+    m = _model()
+    nav = es.NavPoint(32 * D, 1000.0, [0.0, 300.0, 0.0], es.euler_to_dcm([0.01, 0.02, 0.3]),
+                      [0.1, 0.2, 9.79])
+    F, G = m.matrices(nav)
+    Qc = (G * m.q) @ G.T
+    Phi, Q = kdiscretize(F, Qc, 1.0)
+    P0 = _P0(m)
+    x0 = np.random.default_rng(2).standard_normal(16) * np.sqrt(np.diag(P0))
+    H = np.zeros((2, 16))
+    H[0, 5], H[1, 6] = 6.36e6, 5.4e6
+    R = np.diag([41.0 ** 2, 31.0 ** 2])
+    z = np.array([35.0, -12.0])
+    on = KalmanFilter(x0, P0)
+    lag = KalmanFilter(x0, P0, history=10)
+    for k in range(7):
+        on.predict(Phi, Q, 1.0)
+        lag.predict(Phi, Q, 1.0)
+        if k + 1 == 4:
+            on.update(z, H, R)
+    lag.update_lagged(z, H, R, 4.0, method="paper003", F=F, Qc=Qc)
+    assert np.allclose(lag.x, on.x, rtol=1e-9, atol=1e-9 * np.abs(on.x).max())
+    assert np.allclose(lag.P, on.P, rtol=1e-9, atol=1e-9 * np.abs(on.P).max())
+
+
+# ------------------------------------------------------------------ integration on a short flight
+@pytest.fixture(scope="module")
+def flight():
+    from sinslab import trajectory as tr
+    start = tr.Start(lat=32 * D, lon=118 * D, h=1000.0, speed=300.0, heading=0.0)
+    return tr.generate(tr.aircraft_mixed(200.0), start, 0.05, duration=200.0)
+
+
+def _init(truth, dpos=(0.0, 0.0), dv=(0.0, 0.0), phi=(0.0, 0.0, 0.0)):
+    from sinslab.attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
+    from sinslab.records import NavState
+    rm, rn = radii(truth.lat[0], truth.h[0])
+    att = dcm_to_euler(apply_misalignment(euler_to_dcm(truth.att[0]), np.asarray(phi)))
+    return NavState(truth.lat[0] + dpos[0] / rm, truth.lon[0] + dpos[1] / (rn * math.cos(truth.lat[0])),
+                    truth.h[0], truth.vel[0] + [dv[0], dv[1], 0.0], att, 0.0)
+
+
+def test_integration_modes_on_a_short_flight(flight):
+    truth, imu = flight.truth, flight.imu
+    m = _model()
+    P0 = _P0(m)
+    win = [(100, 112)]
+    fx = ds.simulate_fixes(truth, win, sat_lon1=S1, sat_lon2=S2, m0=20, m1=10, dH=50, latency=1.0, rng=5)
+    lat, lon, _ = ds._interp_truth(truth, fx.t_valid)
+    exact = ds.Fixes(fx.t_valid, fx.t_arrive, lat, lon, fx.sigma_ns, fx.sigma_ew)
+    init = _init(truth, dpos=(15.0, -15.0), dv=(1.0, -1.0), phi=np.array([100, -100, 200]) * u.arcsec)
+    ep = np.arange(201) * 20
+    tt = truth.at(ep)
+    out = {}
+    for mode in ds.MODES:
+        r = ds.integrate(imu, init, exact, m, P0, mode=mode, height=truth.h, windows=win)
+        assert r.t.shape == (201,) and r.sigma.shape == (201, 16)
+        assert len(r.applied) == 12                  # valid 100..111, arriving 101..112
+        out[mode] = np.hypot(*ds.nav_errors(r.nav, tt)[2].T)
+    # before the window all three are the same free INS (zero-lag updates at 100 already)
+    assert np.allclose(out["lag-aware"][:101], out["lag-ignore"][:101])
+    assert np.allclose(out["lag-aware"][:100], out["zero-lag"][:100])
+    e_before = out["lag-aware"][100]
+    assert e_before > 100.0
+    # at the window end the lag-aware filter has the zero-lag filter's accuracy
+    assert out["lag-aware"][112] < 0.1 * e_before
+    assert out["lag-aware"][112] == pytest.approx(out["zero-lag"][112], rel=0.1, abs=2.0)
+    # ignoring a 1 s lag at 300 m/s leaves hundreds of metres
+    assert out["lag-ignore"][112] > 100.0
+    # the exact lagged form too
+    r = ds.integrate(imu, init, exact, m, P0, mode="lag-aware", lag_method="exact", height=truth.h,
+                     windows=win)
+    e = np.hypot(*ds.nav_errors(r.nav, tt)[2].T)
+    assert e[112] == pytest.approx(out["zero-lag"][112], rel=0.1, abs=2.0)
+
+
+def test_pure_inertial_outside_windows(flight):
+    truth, imu = flight.truth, flight.imu
+    m = _model()
+    P0 = _P0(m)
+    fx = ds.simulate_fixes(truth, [(100, 112)], sat_lon1=S1, sat_lon2=S2, m0=20, m1=10, dH=50,
+                           latency=1.0, rng=5)
+    init = _init(truth, dv=(1.0, 0.0))
+    r = ds.integrate(imu, init, fx, m, P0, mode="lag-aware", height=truth.h, windows=[(150, 160)])
+    assert len(r.applied) == 0                        # fixes outside the windows are dropped
+    free = ds.integrate(imu, init, ds.Fixes([], [], [], [], [], []), m, P0, height=truth.h)
+    assert np.array_equal(r.nav, free.nav)
+    assert np.all(np.diff(r.sigma[:, 5]) > 0)         # covariance propagated throughout
+
+
+def test_integrate_bad_fix_times(flight):
+    truth, imu = flight.truth, flight.imu
+    m = _model()
+    P0 = _P0(m)
+    init = _init(truth)
+    late = ds.Fixes([199.0], [201.0], [truth.lat[0]], [truth.lon[0]], [40.0], [30.0])
+    with pytest.raises(ValueError, match="outside the IMU record"):
+        ds.integrate(imu, init, late, m, P0, height=truth.h)
+    off = ds.Fixes([50.5], [51.5], [truth.lat[0]], [truth.lon[0]], [40.0], [30.0])
+    with pytest.raises(ValueError, match="not on the filter grid"):
+        ds.integrate(imu, init, off, m, P0, height=truth.h)
+    with pytest.raises(ValueError, match="mode"):
+        ds.integrate(imu, init, off, m, P0, height=truth.h, mode="late")
