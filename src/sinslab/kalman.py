@@ -15,6 +15,9 @@ Three layers, from small to large:
    by step predict/update, feedback (correct the INS, zero the states) or feed-forward
    (open loop), and lagged measurements from a ring-buffer history (exact re-processing
    or the one-step form of paper 003).
+4. :func:`loosely_coupled`: an INS + position-fix filter running beside the compiled
+   mechanization of :mod:`sinslab.strapdown` with the error model of
+   :mod:`sinslab.errstate` (feedback or feed-forward, lagged fixes).
 
 Conventions
 -----------
@@ -37,7 +40,8 @@ from scipy import linalg as sla
 __all__ = [
     "check_covariance", "predict", "update", "UpdateResult", "discretize",
     "steady_state", "SteadyState", "run_linear", "LinearRun", "propagate_covariance",
-    "error_budget", "Budget", "KalmanFilter", "FeedbackLayout",
+    "error_budget", "Budget", "KalmanFilter", "FeedbackLayout", "loosely_coupled",
+    "LooselyCoupled", "default_lc_model",
 ]
 
 
@@ -1387,7 +1391,11 @@ class KalmanFilter:
         ----------
         z, H, R, mask, sequential
             As in :func:`update`; ``z`` must be formed from the navigation state of
-            ``t_m`` as it was then (:meth:`aux_at` returns what was stored).
+            ``t_m`` as it was then (:meth:`aux_at` returns what was stored). With
+            feedback: for ``"exact"`` that is the INS output at epoch ``t_m`` *before*
+            any feedback applied at that epoch (the payload given to :meth:`predict`);
+            for ``"paper003"`` it is the output *after* the feedback at the last stored
+            epoch at or before ``t_m`` (propagated to ``t_m``), as in the paper.
         t_m : float
             Validity time of the measurement [s].
         method : {"exact", "paper003"}

@@ -29,7 +29,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["spawn_seeds", "run_campaign", "summarize", "Summary", "chi2_bounds",
-           "linear_batch"]
+           "linear_batch", "free_inertial_batch", "free_inertial_covariance"]
 
 
 def spawn_seeds(seed, n_runs):
