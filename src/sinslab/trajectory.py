@@ -30,11 +30,14 @@ derivatives are continuous. ``ω_nb^b`` follows from the analytic Euler-angle ra
 With a mount, ``C_b^n = C_c^n C_b^c`` and ``ω_ib^b = C_c^b ω_ic^c + ω_cb^b`` (IMU at the
 navigation point, no lever arm).
 
-Numerics: the increments are integrated with Lobatto (default, 3 nodes: shared end points,
-order 4) or Gauss–Legendre quadrature over each IMU interval, split at every breakpoint of
-the piecewise profiles; position is integrated by collocation on the same nodes.
-Everything per sample runs in one numba kernel; segments are compiled into parameter
-arrays first.
+Numerics: every epoch ``t_k = t0 + k·dt`` is evaluated once (velocity, attitude, rates,
+Earth terms); the increment over ``[t_k, t_k+1]`` is the exact integral of the polynomial
+through the 8 neighbouring epochs (order 8), and position is integrated with the same
+weights. Intervals whose stencil straddles a breakpoint of the profiles (segment and ramp
+boundaries, where third derivatives jump) are split at the breakpoints and integrated
+with Gauss–Legendre quadrature of the same order, positions by collocation. Increment
+errors are ~1e-15 rad / ~1e-14 m/s (tests). Everything per sample runs in one numba
+kernel; segments are first compiled into parameter arrays (channel terms and pieces).
 
 Units: SI inside (rad, m, s). Configs/TOML give unit strings (``"3 deg/s"``); heading in
 :class:`Start` is clockwise from north, the Euler yaw in the outputs is ``−heading``.
@@ -952,6 +955,17 @@ def _earth_terms(S, i, sl, cl, h, W, F):
     F[i, 2] = vu
 
 
+@njit(cache=True)
+def _state_call(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2, S, i):
+    """_state as an ordinary call (the rarely used fallback path: less code to compile)."""
+    _state(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2, S, i)
+
+
+@njit(cache=True)
+def _earth_call(S, i, sl, cl, h, W, F):
+    _earth_terms(S, i, sl, cl, h, W, F)
+
+
 @njit(cache=True, inline="always")
 def _advance(t, j, bp):
     n = bp.shape[0]
@@ -961,10 +975,10 @@ def _advance(t, j, bp):
 
 
 @njit(cache=True, inline="always")
-def _write_truth(S, i, m, lat, lon, h, has_mount, pos, vel, att, atti):
-    pos[m, 0] = lat
-    pos[m, 1] = lon
-    pos[m, 2] = h
+def _write_truth(S, i, m, lat, lon, h, has_mount, olat, olon, oh, vel, att, atti):
+    olat[m] = lat
+    olon[m] = lon
+    oh[m] = h
     vel[m, 0] = S[i, 0]
     vel[m, 1] = S[i, 1]
     vel[m, 2] = S[i, 2]
@@ -992,7 +1006,7 @@ def _put_mount(src, si, mnt, m):
 @njit(cache=True)
 def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
            bp, base, flag, plo, phi, act, ttype, tch, tta, tpar,
-           lat, lon, h, dth, dvl, pos, vel, att, atti, mnt):
+           lat, lon, h, dth, dvl, olat, olon, oh, vel, att, atti, mnt):
     """Increments, position and truth for n IMU intervals of length dt.
 
     Every epoch t_e = e·dt is evaluated once (kinematics into a ring buffer). With a
@@ -1026,20 +1040,17 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     jn = 0          # piece of the newest fallback node
     bi = 1          # first breakpoint after the current fallback sub-interval start
     bq = 1          # first breakpoint after the stencil start
-    # epochs 0..L
-    for e in range(L + 1):
-        je = _advance(e * dt, je, bp)
-        _state(e * dt, je, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
-               val, d1, d2, RS, e & RM)
-    _write_truth(RS, 0, 0, lat, lon, h, has_mount, pos, vel, att, atti)
-    if has_mount:
-        _put_mount(RS, 0, mnt, 0)
     for k in range(n):
         e_new = k + L
-        if k > 0:
-            je = _advance(e_new * dt, je, bp)
-            _state(e_new * dt, je, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
-                   val, d1, d2, RS, e_new & RM)
+        # kinematics of the new look-ahead epoch (epochs 0..L at the first step)
+        for e in range(0 if k == 0 else e_new, e_new + 1):
+            je = _advance(e * dt, je, bp)
+            _state(e * dt, je, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
+                   val, d1, d2, RS, e & RM)
+        if k == 0:
+            _write_truth(RS, 0, 0, lat, lon, h, has_mount, olat, olon, oh, vel, att, atti)
+            if has_mount:
+                _put_mount(RS, 0, mnt, 0)
         if k & 1023 == 0:                    # exact sin/cos now and then, updated in between
             slat = math.sin(lat)
             clat = math.cos(lat)
@@ -1112,7 +1123,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 for i in range(ns):
                     tt = s0 + cn[i] * hh
                     jn = _advance(tt, jn, bp)
-                    _state(tt, jn, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
+                    _state_call(tt, jn, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
                            val, d1, d2, S, i)
                 sl0 = math.sin(lat)
                 cl0 = math.cos(lat)
@@ -1128,8 +1139,8 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                         ph += aa * S[q, 2]
                     d = hh * pl * irm           # latitude offset of the node
                     d2h = 0.5 * d * d
-                    _earth_terms(S, i, sl0 * (1.0 - d2h) + cl0 * d, cl0 * (1.0 - d2h) - sl0 * d,
-                                 h + hh * ph, W, F)
+                    _earth_call(S, i, sl0 * (1.0 - d2h) + cl0 * d, cl0 * (1.0 - d2h) - sl0 * d,
+                                h + hh * ph, W, F)
                 dl = 0.0
                 do = 0.0
                 dh = 0.0
@@ -1161,7 +1172,8 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         dvl[k, 2] = v2
         r1 = (k + 1) & RM
         if (k + 1) % out_every == 0:
-            _write_truth(RS, r1, (k + 1) // out_every, lat, lon, h, has_mount, pos, vel, att, atti)
+            _write_truth(RS, r1, (k + 1) // out_every, lat, lon, h, has_mount, olat, olon, oh,
+                         vel, att, atti)
         if has_mount:
             _put_mount(RS, r1, mnt, k + 1)
 
@@ -1279,17 +1291,19 @@ def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_ever
     m = n // out_every + 1
     dth = np.empty((n, 3))
     dvl = np.empty((n, 3))
-    pos = np.empty((m, 3))
+    olat = np.empty(m)
+    olon = np.empty(m)
+    oh = np.empty(m)
     vel = np.empty((m, 3))
     att = np.empty((m, 3))
     has_mount = mount is not None
     atti = np.empty((m, 3) if has_mount else (1, 3))
     mnt = np.empty((n + 1, 3) if has_mount else (1, 3))
     _synth(n, dt, out_every, sw, lo, c, b, A, has_mount, *tabs,
-           start.lat, start.lon, start.h, dth, dvl, pos, vel, att, atti, mnt)
+           start.lat, start.lon, start.h, dth, dvl, olat, olon, oh, vel, att, atti, mnt)
     t_imu = t0 + dt * np.arange(1, n + 1)
     t_nav = t0 + dt * out_every * np.arange(m)
-    truth = NavSeries(t_nav, pos[:, 0].copy(), pos[:, 1].copy(), pos[:, 2].copy(), vel, att,
+    truth = NavSeries(t_nav, olat, olon, oh, vel, att,
                       atti if has_mount else None)
     return Generated(truth, ImuRecord(t_imu, dth, dvl, dt), mnt if has_mount else None,
                      segments, start, mount)
