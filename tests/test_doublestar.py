@@ -410,3 +410,43 @@ def test_integrate_bad_fix_times(flight):
         ds.integrate(imu, init, off, m, P0, height=truth.h)
     with pytest.raises(ValueError, match="mode"):
         ds.integrate(imu, init, off, m, P0, height=truth.h, mode="late")
+
+
+def test_random_latency_and_fix_file(flight, tmp_path):
+    """Random ΔT (arrivals off the filter grid, processed at the next epoch) and recorded
+    fixes read from a file take the same path."""
+    truth, imu = flight.truth, flight.imu
+    m = _model()
+    P0 = _P0(m)
+    win = [(100, 130)]
+    fx = ds.simulate_fixes(truth, win, sat_lon1=S1, sat_lon2=S2, m0=20, m1=10, dH=50, latency=1.2,
+                           latency_jitter=0.6, rng=8)
+    assert np.any(np.abs(fx.t_arrive - np.round(fx.t_arrive)) > 1e-3)
+    path = tmp_path / "fixes.csv"
+    lines = ["# recorded two-GEO fixes", ",".join(ds.Fixes.COLUMNS)]
+    for j in range(len(fx)):
+        lines.append(",".join(repr(float(v)) for v in (fx.t_valid[j], fx.t_arrive[j], math.degrees(fx.lat[j]),
+                                                      math.degrees(fx.lon[j]), fx.sigma_ns[j], fx.sigma_ew[j])))
+    path.write_text("\n".join(lines) + "\n")
+    rec = ds.Fixes.load(path)
+    assert np.allclose(rec.lat, fx.lat, rtol=0, atol=1e-15) and np.array_equal(rec.t_arrive, fx.t_arrive)
+    init = _init(truth, dpos=(15.0, -15.0), dv=(1.0, -1.0), phi=np.array([100, -100, 200]) * u.arcsec)
+    tt = truth.at(np.arange(201) * 20)
+    e = {}
+    for mode in ("lag-aware", "zero-lag"):
+        r = ds.integrate(imu, init, rec, m, P0, mode=mode, height=truth.h, windows=win)
+        assert np.allclose(r.t_applied, np.ceil(rec.t_arrive - 1e-6) if mode == "lag-aware" else rec.t_valid)
+        e[mode] = np.hypot(*ds.nav_errors(r.nav, tt)[2].T)
+    assert e["lag-aware"][131] == pytest.approx(e["zero-lag"][131], rel=0.15, abs=3.0)
+    assert e["lag-aware"][131] < 0.3 * e["lag-aware"][100]
+
+
+@pytest.mark.parametrize("text,msg", [("", "empty"), ("t_valid_s,lat_deg\n1,2\n", "missing column"),
+                                      (",".join(ds.Fixes.COLUMNS) + "\n", "no fixes"),
+                                      (",".join(ds.Fixes.COLUMNS) + "\n1,2,x,4,5,6\n", "could not convert"),
+                                      (",".join(ds.Fixes.COLUMNS) + "\n2,1,30,110,40,30\n", "before")])
+def test_bad_fix_files(tmp_path, text, msg):
+    p = tmp_path / "f.csv"
+    p.write_text(text)
+    with pytest.raises(ValueError, match=msg):
+        ds.Fixes.load(p)

@@ -427,6 +427,40 @@ class Fixes:
     def __len__(self):
         return self.t_valid.size
 
+    #: Columns of a fix file (:meth:`load`); ``t_arrive_s`` is optional (default: no lag).
+    COLUMNS = ("t_valid_s", "t_arrive_s", "lat_deg", "lon_deg", "sigma_ns_m", "sigma_ew_m")
+
+    @classmethod
+    def load(cls, path) -> "Fixes":
+        """Read recorded fixes from a CSV file with a header line naming the columns
+        :attr:`COLUMNS` (any order, extra columns ignored): validity time [s] on the IMU's
+        time base, reception time [s], latitude and longitude [deg], σ north/east [m]."""
+        import csv
+
+        with open(path, newline="") as fh:
+            rows = list(csv.reader(line for line in fh if line.strip() and not line.startswith("#")))
+        if not rows:
+            raise ValueError(f"fix file {path}: empty")
+        head = [h.strip() for h in rows[0]]
+        need = [c for c in cls.COLUMNS if c != "t_arrive_s"]
+        miss = [c for c in need if c not in head]
+        if miss:
+            raise ValueError(f"fix file {path}: missing column(s) {', '.join(miss)} "
+                             f"(header: {', '.join(head)})")
+        body = rows[1:]
+        if not body:
+            raise ValueError(f"fix file {path}: no fixes after the header")
+        try:
+            data = np.array([[float(x) for x in r] for r in body])
+        except ValueError as e:
+            raise ValueError(f"fix file {path}: {e}") from None
+        if data.ndim != 2 or data.shape[1] != len(head):
+            raise ValueError(f"fix file {path}: every line needs {len(head)} values")
+        col = {h: data[:, i] for i, h in enumerate(head)}
+        tv = col["t_valid_s"]
+        return cls(tv, col.get("t_arrive_s", tv), np.radians(col["lat_deg"]), np.radians(col["lon_deg"]),
+                   col["sigma_ns_m"], col["sigma_ew_m"])
+
 
 def _interp_truth(truth, t):
     tt = truth.t

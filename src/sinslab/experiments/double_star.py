@@ -282,7 +282,7 @@ def fix_map(lat_deg, lon_deg, fa, h=0.0):
     return fe.ns, fe.ew
 
 
-def _map_figure(fa, start_lat, start_lon, h):
+def _map_figure(fa, start_lat, start_lon, h, name="fix_sigma_map"):
     from .. import plotting as P
 
     lat = np.arange(15.0, 55.0 + 1e-9, 0.5)
@@ -304,7 +304,7 @@ def _map_figure(fa, start_lat, start_lon, h):
         a.set_ylabel("latitude [deg N]")
         a.set_title(title)
     ax[0].legend(loc="lower left", fontsize="small")
-    return Figure("fix_sigma_map", fig,
+    return Figure(name, fig,
                   f"Two-GEO fix σ (paper eqs 11-15, height factor '{fa['height_factor']}') over "
                   f"15-55° N, 70-140° E for satellites at {fa['sat_lon1'] / units.deg:g}° E and "
                   f"{fa['sat_lon2'] / units.deg:g}° E (dashed), m0 = {fa['m0']:g} m, m1 = {fa['m1']:g} m, "
@@ -451,6 +451,8 @@ def run(cfg: Config, ctx) -> Result:
     figs.append(Figure("filters_compared", fig, f"Monte Carlo RMS horizontal position error of the three "
                                                 f"filters ({n} runs); orange: fix windows"))
     figs.append(mfig)
+    other = "geometric" if fa["height_factor"] == "paper" else "paper"
+    figs.append(_map_figure(dict(fa, height_factor=other), lat0, lon0, h0, f"fix_sigma_map_{other}")[0])
 
     table = Table("filters", {
         "filter": ["lag-aware", "lag-ignore", "zero-lag"],
