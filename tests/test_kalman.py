@@ -409,3 +409,23 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
     fast.feedback()
     assert np.array_equal(r2.P, P_keep) and np.array_equal(r2.x, x_keep)
     assert fast.t == pytest.approx(7.0)
+
+
+def test_feedback_layout_corrects_ins_and_compensation():
+    from sinslab import strapdown as sd
+    from sinslab.records import NavState
+    model = kf.default_lc_model(1e-5, 1e-4)
+    lay = kf.FeedbackLayout.from_model(model.layout)
+    assert lay.indices(15).tolist() == list(range(15))
+    state = sd.initial_state_array(NavState(0.5, 1.0, 100.0, np.array([10.0, 5.0, 0.0]),
+                                            np.array([0.01, 0.02, 0.3]), 0.0))
+    f = kf.KalmanFilter(np.zeros(15), np.eye(15) * 1e-6)
+    x = np.r_[[1e-4, -2e-4, 3e-4], [0.1, 0.2, -0.1], [1e-6, -1e-6, 2.0], [1e-6] * 3, [1e-3] * 3]
+    f.x = x.copy()
+    ref = state.copy()
+    sd.correct(ref, phi=x[0:3], dvel=x[3:6], dpos=x[6:9])
+    gb, ab, d = lay.apply(f, state, np.ones(3), None)
+    np.testing.assert_allclose(state[:10], ref[:10])
+    np.testing.assert_allclose(gb, 1 + x[9:12])
+    np.testing.assert_allclose(ab, x[12:15])
+    assert np.all(f.x == 0) and np.allclose(f.x_total, x)

@@ -1138,6 +1138,53 @@ class FeedbackLayout:
         return {k: np.asarray(x)[getattr(self, k)] for k in ("att", "vel", "pos", "gyro", "accel")
                 if getattr(self, k) is not None}
 
+    @classmethod
+    def from_model(cls, layout, *, att="phi", vel="dv", pos="dp", gyro="eps", accel="nabla",
+                   other=()):
+        """From a :class:`sinslab.errstate.StateLayout` (block names as in errstate's
+        builders; missing blocks become None)."""
+        names = [b.name for b in layout.blocks]
+        get = lambda b: layout.slice(b) if (b is not None and b in names) else None  # noqa: E731
+        return cls(get(att), get(vel), get(pos), get(gyro), get(accel),
+                   tuple(layout.slice(o) for o in other))
+
+    def apply(self, filt, state, gyro_bias=None, accel_bias=None):
+        """Closed-loop correction: feed the filter's estimate back into the INS.
+
+        Takes the fed-back states out of ``filt`` (:meth:`KalmanFilter.feedback`, which
+        zeroes them), corrects the strapdown state array in place with
+        :func:`sinslab.strapdown.correct` (φ [rad], δv [m/s], δp = [δL, δλ, δh]) and adds the
+        sensor-error estimates to the compensation in use.
+
+        Parameters
+        ----------
+        filt : KalmanFilter
+        state : ndarray, shape (NSTATE,) or (10,)
+            Strapdown state array (modified in place).
+        gyro_bias, accel_bias : array_like, shape (3,), optional
+            Current compensation [rad/s], [m/s²] (default zero).
+
+        Returns
+        -------
+        gyro_bias, accel_bias : ndarray, shape (3,)
+            The new compensation to pass to :func:`sinslab.strapdown.step`.
+        d : ndarray, shape (n,)
+            The fed-back amounts.
+        """
+        from . import strapdown as sd
+        d = filt.feedback(self.indices(filt.n))
+        sd.correct(state,
+                   phi=None if self.att is None else d[self.att],
+                   dvel=None if self.vel is None else d[self.vel],
+                   dpos=None if self.pos is None else d[self.pos])
+        gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=float).copy()
+        ab = np.zeros(3) if accel_bias is None else np.asarray(accel_bias, dtype=float).copy()
+        if self.gyro is not None:
+            gb = gb + d[self.gyro]
+        if self.accel is not None:
+            ab = ab + d[self.accel]
+        return gb, ab, d
+
 
 class KalmanFilter:
     """A Kalman filter stepped by the caller, for use beside a nonlinear INS.
@@ -1640,8 +1687,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     s_att, s_vel, s_pos = lay.slice("phi"), lay.slice("dv"), lay.slice("dp")
     if s_pos.stop - s_pos.start != 3 or s_vel.stop - s_vel.start != 3:
         raise ValueError("the model needs the full core (3 velocity and 3 position errors)")
-    s_gb = lay.slice("eps") if "eps" in names else None
-    s_ab = lay.slice("nabla") if "nabla" in names else None
+    fb_layout = FeedbackLayout.from_model(lay)
     dt = imu.dt
     k_kf = int(round(kf_dt / dt))
     if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % nsub:
@@ -1771,12 +1817,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
                 x_h[e1] = filt.x
                 sig_h[e1] = filt.sigma
                 if feedback:
-                    d = filt.feedback()
-                    sd.correct(state, phi=d[s_att], dvel=d[s_vel], dpos=d[s_pos])
-                    if s_gb is not None:
-                        gb = gb + d[s_gb]
-                    if s_ab is not None:
-                        ab = ab + d[s_ab]
+                    gb, ab, _ = fb_layout.apply(filt, state, gb, ab)
                     nav_h[e1] = state[:10]
                     gb_h[e1] = gb
                     ab_h[e1] = ab
