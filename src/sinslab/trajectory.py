@@ -1044,9 +1044,17 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         e_new = k + L
         # kinematics of the new look-ahead epoch (epochs 0..L at the first step)
         for e in range(0 if k == 0 else e_new, e_new + 1):
+            jprev = je
             je = _advance(e * dt, je, bp)
-            _state(e * dt, je, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
-                   val, d1, d2, RS, e & RM)
+            if e > 0 and je == jprev and plo[je] == phi[je] and flag[je] == 0:
+                # no active term: the kinematic state is constant over the piece
+                a0 = (e - 1) & RM
+                a1 = e & RM
+                for q in range(24):
+                    RS[a1, q] = RS[a0, q]
+            else:
+                _state(e * dt, je, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
+                       val, d1, d2, RS, e & RM)
         if k == 0:
             _write_truth(RS, 0, 0, lat, lon, h, has_mount, olat, olon, oh, vel, att, atti)
             if has_mount:
