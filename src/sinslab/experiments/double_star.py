@@ -25,7 +25,6 @@ time); the Monte Carlo RMS / σ ratio of horizontal position and of attitude lie
 """
 from __future__ import annotations
 
-import math
 from typing import Literal
 
 import numpy as np
