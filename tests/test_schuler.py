@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sinslab import earth, indexing, schuler, units as u
+from sinslab import compare, earth, indexing, schuler, units as u
 from sinslab import imu as imu_
 from sinslab import oscillation as osc
 from sinslab import trajectory as tj
@@ -72,7 +72,7 @@ def test_aligned_mode_real_alignments(aligned, swaying_site):
     assert np.allclose(r.align1.x, r.align2.x[:n1], rtol=0, atol=1e-12)
     # both alignments reach the bias-limited accuracy: φE = −∇N/g, φN = ∇E/g (heading 30°)
     for s in (r.sol1, r.sol2):
-        e = schuler.nav_errors(s.at(slice(0, 1)), g.truth)
+        e = compare.nav_errors(s.at(slice(0, 1)), g.truth)
         dE = math.cos(30 * u.deg) * 100 * u.ug + math.sin(30 * u.deg) * 100 * u.ug   # ∇E
         dN = -math.sin(30 * u.deg) * 100 * u.ug + math.cos(30 * u.deg) * 100 * u.ug  # ∇N
         gg = float(earth.gravity(LAT))
@@ -103,8 +103,8 @@ def test_moored_schuler_suppressed_24h_kept(aligned, swaying_site):
     Schuler oscillation started by the alignment errors."""
     g, _ = swaying_site
     r = aligned
-    e1 = schuler.nav_errors(r.sol1_from_t2, g.truth)
-    em = schuler.nav_errors(r.mean, g.truth)
+    e1 = compare.nav_errors(r.sol1_from_t2, g.truth)
+    em = compare.nav_errors(r.mean, g.truth)
     for ch in ("vE", "vN", "phiE", "phiN"):
         a1 = osc.fit_components(e1["t"], e1[ch], lat=LAT).schuler
         am = osc.fit_components(em["t"], em[ch], lat=LAT).schuler
@@ -138,8 +138,8 @@ def test_injected_mode_same_errors_at_t1_and_t2(swaying_site):
         assert s.lat - g.truth.lat[k] == pytest.approx(2.1 * u.arcsec)
         assert s.vel[0] - g.truth.vel[k, 0] == pytest.approx(0.12)
         assert s.att[2] - g.truth.att[k, 2] == pytest.approx(6.9 * u.arcmin)
-    e1 = schuler.nav_errors(r.sol1_from_t2, g.truth)
-    em = schuler.nav_errors(r.mean, g.truth)
+    e1 = compare.nav_errors(r.sol1_from_t2, g.truth)
+    em = compare.nav_errors(r.mean, g.truth)
     a1 = osc.fit_components(e1["t"], e1["vN"], lat=LAT).schuler
     am = osc.fit_components(em["t"], em["vN"], lat=LAT).schuler
     assert a1 > 0.3 and a1 / am > 5
@@ -158,7 +158,7 @@ def test_turntable_mount_outputs_carrier_attitude():
     opt = schuler.AlignmentOptions(coarse_time=120.0, gyro_arw=5e-4 * u.dpsh, accel_vrw=5 * u.ugpsHz)
     r = schuler.delayed_alignment(g.imu, LAT, LON, 0.0, 600.0, options=opt, out_every=5,
                                   mount=g.mount, progress=False)
-    e = schuler.nav_errors(r.mean, g.truth)
+    e = compare.nav_errors(r.mean, g.truth)
     assert r.mean.att_imu is not None
     # error-free IMU: only the alignment filter's residual (arcsec level)
     assert np.max(np.abs(e["phiE"])) < 5 * u.arcsec and np.max(np.abs(e["vN"])) < 0.01

@@ -63,7 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import errstate as es
+from . import compare, errstate as es
+from . import strapdown as sd
 from .earth import A, E2, radii
 
 __all__ = [
@@ -629,7 +630,6 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     -------
     Integration
     """
-    from . import strapdown as sd
     from .attitude import quat_to_dcm
     from .kalman import KalmanFilter
 
@@ -758,7 +758,7 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
 
 
 def nav_errors(nav, truth):
-    """Errors of a navigation solution at the truth's epochs (same length).
+    """Errors of state rows against the truth at the same epochs (:func:`compare.nav_errors`).
 
     Parameters
     ----------
@@ -771,11 +771,6 @@ def nav_errors(nav, truth):
     dvel : (M, 2) east, north [m/s]
     dpos : (M, 2) north, east [m]
     """
-    from .attitude import euler_to_dcm, misalignment, quat_to_dcm
-
-    att = truth.att_imu if truth.att_imu is not None else truth.att
-    phi = misalignment(euler_to_dcm(att), quat_to_dcm(nav[:, :4]))
-    rm, rn = radii(truth.lat, truth.h)
-    dlon = (nav[:, 8] - truth.lon + np.pi) % (2 * np.pi) - np.pi
-    dpos = np.stack([(nav[:, 7] - truth.lat) * rm, dlon * rn * np.cos(truth.lat)], -1)
-    return phi, nav[:, 4:6] - truth.vel[:, :2], dpos
+    e = compare.nav_errors(sd.rows_to_series(truth.t, nav), truth, imu_frame=True)
+    return (np.stack([e["phiE"], e["phiN"], e["phiU"]], -1), np.stack([e["vE"], e["vN"]], -1),
+            np.stack([e["north"], e["east"]], -1))

@@ -59,7 +59,7 @@ from .records import ImuRecord, NavSeries, NavState
 
 __all__ = ["AlignmentOptions", "InitialErrors", "DelayedResult", "half_schuler_delay",
            "delayed_alignment", "delayed_injected", "navigate_pair", "mean_solution",
-           "nav_errors", "check_delay"]
+           "check_delay"]
 
 
 def half_schuler_delay(lat, h=0.0) -> float:
@@ -226,17 +226,6 @@ def _gcd_lcm(a, b):
     return a * b // math.gcd(a, b)
 
 
-def _rows_to_series(t, rows, mount_q=None) -> NavSeries:
-    """NavSeries from state rows ``[q0..q3, vE, vN, vU, lat, lon, h]``."""
-    q = rows[:, :4] / np.linalg.norm(rows[:, :4], axis=1, keepdims=True)
-    att_imu = att_.quat_to_euler(q)
-    if mount_q is not None:
-        # C_c^n = C_b^n (C_b^c)^T
-        att = att_.quat_to_euler(att_.quat_mul(q, att_.quat_conj(mount_q)))
-        return NavSeries(t, rows[:, 7], rows[:, 8], rows[:, 9], rows[:, 4:7], att, att_imu)
-    return NavSeries(t, rows[:, 7], rows[:, 8], rows[:, 9], rows[:, 4:7], att_imu, None)
-
-
 def mean_solution(rows1, rows2):
     """Mean of two state-row arrays (same epochs): arithmetic for v, lat, lon, h; for the
     attitude the normalised sum of the quaternions (sign-aligned), which is the rotation
@@ -247,12 +236,6 @@ def mean_solution(rows1, rows2):
     q = q1 + sgn * q2
     out[:, :4] = q / np.linalg.norm(q, axis=1, keepdims=True)
     return out
-
-
-def _mount_quats(mount, epochs):
-    if mount is None:
-        return None
-    return att_.euler_to_quat(np.asarray(mount, dtype=float)[epochs])
 
 
 def navigate_pair(imu: ImuRecord, init1: NavState, e1: int, init2: NavState, e2: int, *,
@@ -343,10 +326,11 @@ def navigate_pair(imu: ImuRecord, init1: NavState, e1: int, init2: NavState, e2:
     tt = np.concatenate([[imu.t0], imu.t])
     k = (e2 - e1) // oes
     rows_mean = mean_solution(rows1[k:], rows2)
-    mq1 = _mount_quats(mount, ep1)
-    mq2 = None if mq1 is None else mq1[k:]
-    return (_rows_to_series(tt[ep1], rows1, mq1), _rows_to_series(tt[ep2], rows2, mq2),
-            _rows_to_series(tt[ep2], rows_mean, mq2))
+    m1_ = None if mount is None else np.asarray(mount, dtype=float)[ep1]
+    m2_ = None if m1_ is None else m1_[k:]
+    return (strapdown.rows_to_series(tt[ep1], rows1, m1_),
+            strapdown.rows_to_series(tt[ep2], rows2, m2_),
+            strapdown.rows_to_series(tt[ep2], rows_mean, m2_))
 
 
 class _null:
@@ -540,30 +524,3 @@ def delayed_injected(imu: ImuRecord, truth, t1, errors: InitialErrors, *, delay=
                                      progress=progress)
     return DelayedResult(sol1, sol2, mean, float(tt[e1]), float(tt[e2]), (e2 - e1) * dt, Ts,
                          init1, init2, "injected")
-
-
-def nav_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
-    """Errors (computed − true) of a solution against a truth series on the same epochs
-    (truth epochs are matched by time; the truth may be denser).
-
-    Returns ``{"t", "vE", "vN", "vU" [m/s], "phiE", "phiN", "phiU" [rad] (misalignment φ of
-    the computed attitude), "pitch", "roll", "yaw" [rad] (Euler differences), "lat",
-    "lon" [rad], "north", "east" [m]}``. ``imu_frame`` compares the IMU attitudes.
-    """
-    idx = np.searchsorted(truth.t, nav.t - 1e-6)
-    if np.any(idx >= len(truth.t)) or np.max(np.abs(truth.t[np.minimum(idx, len(truth.t) - 1)]
-                                                    - nav.t)) > 1e-6:
-        raise ValueError("the truth does not contain every epoch of the solution")
-    tr = truth.at(idx)
-    a_nav = nav.att_imu if (imu_frame and nav.att_imu is not None) else nav.att
-    a_tr = tr.att_imu if (imu_frame and tr.att_imu is not None) else tr.att
-    phi = att_.misalignment(att_.euler_to_dcm(a_tr), att_.euler_to_dcm(a_nav))
-    d_att = att_.wrap_pi(a_nav - a_tr)
-    rm, rn = earth.radii(tr.lat, tr.h)
-    dlat = nav.lat - tr.lat
-    dlon = att_.wrap_pi(nav.lon - tr.lon)
-    dv = nav.vel - tr.vel
-    return {"t": nav.t, "vE": dv[:, 0], "vN": dv[:, 1], "vU": dv[:, 2],
-            "phiE": phi[:, 0], "phiN": phi[:, 1], "phiU": phi[:, 2],
-            "pitch": d_att[:, 0], "roll": d_att[:, 1], "yaw": d_att[:, 2],
-            "lat": dlat, "lon": dlon, "north": dlat * rm, "east": dlon * rn * np.cos(tr.lat)}

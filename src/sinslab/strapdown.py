@@ -75,7 +75,7 @@ from .earth import WIE, check_latitude, gravity, gravity_s, radii, radii_s
 from .records import ImuRecord, NavSeries, NavState
 
 __all__ = [
-    "navigate", "initial_state_array", "step", "correct", "state_to_navstate",
+    "navigate", "initial_state_array", "step", "correct", "state_to_navstate", "rows_to_series",
     "VerticalDamping", "CONING_COEFFS", "NSTATE", "NAV", "VERTICAL_MODES", "step_chunk",
 ]
 
@@ -799,11 +799,36 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
     upd_idx = np.arange(1, m_out + 1) * out_every * nsub      # epoch index (0 = t0)
     ep = np.concatenate([[0], upd_idx])
     t_all = np.concatenate([[imu.t0], imu.t[upd_idx - 1]])
-    m = m_out + 1
+    return rows_to_series(t_all, rows, None if mount is None else mount[ep])
+
+
+def rows_to_series(t, rows, mount=None) -> NavSeries:
+    """A :class:`~sinslab.records.NavSeries` from state rows of :func:`step`.
+
+    Parameters
+    ----------
+    t : array_like, shape (M,)
+        Epochs of the rows [s].
+    rows : ndarray, shape (M, >= 10)
+        State rows ``[q0, q1, q2, q3, vE, vN, vU, lat, lon, h, ...]`` (q of C_b^n).
+    mount : array_like, shape (M, 3), optional
+        Euler angles ``[pitch, roll, yaw]`` of C_imu^carrier at the same epochs; then
+        ``att`` is the carrier attitude C_c^n = C_b^n (C_b^c)^T and ``att_imu`` the IMU's.
+    """
+    rows = np.ascontiguousarray(rows, dtype=float)
+    m = rows.shape[0]
+    if rows.ndim != 2 or rows.shape[1] < NAV or np.shape(t) != (m,):
+        raise ValueError(f"rows must have shape (M, >= {NAV}) matching t (M,), got "
+                         f"{rows.shape} and {np.shape(t)}")
     lat, lon, h = np.empty(m), np.empty(m), np.empty(m)
     vel, att = np.empty((m, 3)), np.empty((m, 3))
-    att_imu = np.empty((m, 3)) if mount is not None else np.empty((0, 3))
-    mq = np.zeros((0, 4)) if mount is None else _mount_quats(mount, ep)
+    if mount is None:
+        att_imu, mq = np.empty((0, 3)), np.zeros((0, 4))
+    else:
+        mount = np.ascontiguousarray(mount, dtype=float)
+        if mount.shape != (m, 3):
+            raise ValueError(f"mount must have shape ({m}, 3), got {mount.shape}")
+        att_imu, mq = np.empty((m, 3)), _mount_quats(mount, np.arange(m))
     _split_rows(rows, mq, lat, lon, h, vel, att, att_imu)
-    del rows
-    return NavSeries(t_all, lat, lon, h, vel, att, att_imu if mount is not None else None)
+    return NavSeries(np.asarray(t, dtype=float), lat, lon, h, vel, att,
+                     att_imu if mount is not None else None)

@@ -32,7 +32,7 @@ from typing import Literal
 
 import numpy as np
 
-from .. import earth, indexing, units
+from .. import compare, earth, indexing, units
 from .. import imu as imu_
 from .. import oscillation as osc
 from .. import schuler
@@ -273,9 +273,9 @@ def run(cfg: Config, ctx) -> Result:
     del meas
     truth = gen.truth
     t2 = res.t2
-    e1 = schuler.nav_errors(res.sol1, truth)
-    e2 = schuler.nav_errors(res.sol2, truth)
-    em = schuler.nav_errors(res.mean, truth)
+    e1 = compare.nav_errors(res.sol1, truth)
+    e2 = compare.nav_errors(res.sol2, truth)
+    em = compare.nav_errors(res.mean, truth)
 
     metrics = {"schuler_period_min": Ts / 60.0, "t1_s": res.t1, "t2_s": t2, "delay_s": res.delay,
                "samples": n_samples,
@@ -298,7 +298,7 @@ def run(cfg: Config, ctx) -> Result:
         notes.append(f"fit on [t2, end]: {n_}")
     # initial misalignments from the truth
     for i, (s, nm) in enumerate(((res.sol1, "init_err1_arcmin"), (res.sol2, "init_err2_arcmin"))):
-        e = schuler.nav_errors(s.at(slice(0, 1)), truth)
+        e = compare.nav_errors(s.at(slice(0, 1)), truth)
         metrics[nm] = [float(e[k][0] / units.arcmin) for k in ("phiE", "phiN", "phiU")]
     metrics["compute_s"] = compute_s
 

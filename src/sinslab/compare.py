@@ -1,0 +1,51 @@
+"""Comparing a navigation solution with the truth: errors as computed − true.
+
+One definition for every experiment and test: velocity errors in ENU [m/s], the
+misalignment φ of the computed attitude (``C_b^{n'} = exp(−φ×) C_b^n``) [rad], Euler-angle
+differences [rad], latitude/longitude errors [rad] and their north/east lengths [m].
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import attitude as att_
+from . import earth
+from .records import NavSeries
+
+__all__ = ["nav_errors", "match_epochs"]
+
+
+def match_epochs(truth: NavSeries, t, tol: float = 1e-6) -> np.ndarray:
+    """Indices of the truth epochs equal (within ``tol`` s) to the times ``t``.
+
+    Raises ValueError when the truth lacks any of them (the truth may be denser).
+    """
+    t = np.asarray(t, dtype=float)
+    idx = np.searchsorted(truth.t, t - tol)
+    if idx.size and (idx.max() >= len(truth.t) or np.max(np.abs(truth.t[idx] - t)) > tol):
+        raise ValueError("the truth does not contain every epoch of the solution")
+    return idx
+
+
+def nav_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
+    """Errors (computed − true) of a solution against a truth series on the same epochs
+    (truth epochs are matched by time; the truth may be denser).
+
+    Returns ``{"t", "vE", "vN", "vU" [m/s], "phiE", "phiN", "phiU" [rad] (misalignment φ of
+    the computed attitude), "pitch", "roll", "yaw" [rad] (Euler differences), "lat",
+    "lon" [rad], "north", "east" [m]}``. ``imu_frame`` compares the IMU attitudes.
+    """
+    idx = match_epochs(truth, nav.t)
+    tr = truth.at(idx)
+    a_nav = nav.att_imu if (imu_frame and nav.att_imu is not None) else nav.att
+    a_tr = tr.att_imu if (imu_frame and tr.att_imu is not None) else tr.att
+    phi = att_.misalignment(att_.euler_to_dcm(a_tr), att_.euler_to_dcm(a_nav))
+    d_att = att_.wrap_pi(a_nav - a_tr)
+    rm, rn = earth.radii(tr.lat, tr.h)
+    dlat = nav.lat - tr.lat
+    dlon = att_.wrap_pi(nav.lon - tr.lon)
+    dv = nav.vel - tr.vel
+    return {"t": nav.t, "vE": dv[:, 0], "vN": dv[:, 1], "vU": dv[:, 2],
+            "phiE": phi[:, 0], "phiN": phi[:, 1], "phiU": phi[:, 2],
+            "pitch": d_att[:, 0], "roll": d_att[:, 1], "yaw": d_att[:, 2],
+            "lat": dlat, "lon": dlon, "north": dlat * rm, "east": dlon * rn * np.cos(tr.lat)}
