@@ -180,7 +180,7 @@ __all__ += ["ImuData", "Fixes", "frame_matrix", "mount_matrix", "check_rotation"
             "rpy_frd_matrix", "load_imu", "read_table_imu", "read_rtklib_pos",
             "read_rtklib_tag", "read_rtklib_imu", "read_mat_imu", "read_mat_avp",
             "write_imu", "write_fixes", "read_fixes", "IMU_FORMATS", "FIX_FORMATS",
-            "uniform_increments", "RTKLIB_DRIVE", "estimate_time_offset", "shift_imu_time"]
+            "uniform_increments", "RTKLIB_DRIVE", "estimate_time_offset", "shift_imu_time", "guess_imu_format"]
 
 #: IMU formats understood by :func:`load_imu` (``--format``).
 IMU_FORMATS = ("psins", "csv", "parquet", "mat", "rtklib-imu")
@@ -760,14 +760,18 @@ def read_rtklib_tag(path) -> dict:
 
 
 def read_rtklib_imu(path, *, tag=None, delay=0.0, mount=None, frame="frd", accel_unit="g",
-                    gyro_unit="deg/s", stretch=True, max_gap=1.0, allow_gaps=False) -> ImuData:
+                    gyro_unit="deg/s", stretch=False, max_gap=1.0, allow_gaps=False) -> ImuData:
     """Read the RTKLIB-logged IMU CSV of ``rtklib-drive``: rows ``ax ay az [g], gx gy gz
     [deg/s], tick [ms]``, no header, with its ``.tag`` file (default ``path + ".tag"``).
 
-    Time: the ms ticks are counted from the first row and, with ``stretch``, scaled so
-    that they span the tag's start..end (as the source project does; the stretch is
-    +0.03 % on rtklib-drive), then ``delay`` [s] is added (the source's logging delay
-    −0.125 s). The time base is the tag's (GPST seconds, see :func:`read_rtklib_tag`).
+    Time: the ms ticks are counted from the first row from the tag's start time, then
+    ``delay`` [s] is added (the source project's logging delay is −0.125 s). With
+    ``stretch`` the ticks are scaled to span the tag's start..end as the source project
+    does (+257 ppm on rtklib-drive) — off by default: against the GNSS turn rates the IMU
+    clock runs *fast* by ~170 ppm, so the stretch doubles the drift (0.09 -> 0.22 s late
+    over the record instead of 0.06 -> 0.11 s; tests/test_io.py). Use
+    :func:`estimate_time_offset` / :func:`shift_imu_time` to synchronise. The time base is
+    the tag's (GPST seconds, see :func:`read_rtklib_tag`).
     ``mount``/``frame``: sensor → vehicle axes (:func:`mount_matrix`; the sensor axes
     need it on rtklib-drive, see :data:`RTKLIB_DRIVE`).
     """
@@ -1007,6 +1011,15 @@ def read_fixes(path, fmt=None, **kw) -> Fixes:
     raise ValueError(f"unknown fix format {fmt!r}; use one of {FIX_FORMATS}")
 
 
+def guess_imu_format(path) -> str:
+    """IMU format from the file name: ``.imu`` psins, ``.parquet`` parquet, ``.mat`` mat, a
+    file with an RTKLIB ``.tag`` next to it rtklib-imu, else csv."""
+    p = Path(path)
+    suf = p.suffix.lower()
+    return ("psins" if suf == ".imu" else "parquet" if suf in (".parquet", ".pq") else
+            "mat" if suf == ".mat" else "rtklib-imu" if Path(str(p) + ".tag").exists() else "csv")
+
+
 def load_imu(path, fmt=None, **kw) -> ImuData:
     """Read any supported IMU file into :class:`ImuData` (``fmt`` from :data:`IMU_FORMATS`,
     default from the suffix: ``.imu`` psins, ``.parquet`` parquet, ``.mat`` mat, a ``.csv``
@@ -1014,11 +1027,7 @@ def load_imu(path, fmt=None, **kw) -> ImuData:
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file")
-    if fmt is None:
-        suf = p.suffix.lower()
-        fmt = ("psins" if suf == ".imu" else "parquet" if suf in (".parquet", ".pq") else
-               "mat" if suf == ".mat" else
-               "rtklib-imu" if Path(str(p) + ".tag").exists() else "csv")
+    fmt = fmt or guess_imu_format(p)
     if fmt == "psins":
         extra = set(kw) - {"mount", "frame"}
         if extra:
