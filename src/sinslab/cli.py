@@ -244,6 +244,7 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
 #: ``register(app)`` that decorates its command functions with ``@app.command()``.
 COMMAND_MODULES = (
     "sinslab.experiments.static_alignment",          # sinslab align (paper 000)
+    "sinslab.allan",                                  # sinslab allan, sinslab navigate (recorded data)
 )
 _BROKEN_COMMANDS: dict[str, str] = {}
 
