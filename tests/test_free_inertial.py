@@ -108,7 +108,10 @@ def test_claims_fail_when_navigation_is_wrong(tmp_path, monkeypatch):
     (["scenario.duration=1 s"], "shorter than two output intervals"),
     (["imu.gyro_bias=0.01"], "imu.gyro_bias"),
     (["scenario.latitude=91 deg"], "scenario.latitude"),
-    (["runs=3"], "runs"),
+    (["runs=0"], "runs"),
+    (["runs=20", "montecarlo.transient=2 h"], "montecarlo.transient"),
+    (["runs=20", "montecarlo.output_interval=20 min", "scenario.duration=30 min"],
+     "shorter than two Monte Carlo output intervals"),
     (["nav.vertical=sideways"], "nav.vertical"),
 ])
 def test_bad_config(sets, needle):
@@ -124,3 +127,100 @@ def test_cli_quick_run(tmp_path):
     s = json.loads((tmp_path / "q" / "summary.json").read_text())
     assert s["config"]["scenario"]["duration"] == "5 min"
     assert s["metrics"]["samples"] == 15000
+
+
+# ---------------------------------------------------------------- Monte Carlo (--runs N)
+
+MC_KEYS = ["pos_e", "pos_n", "vel_e", "vel_n", "phi_e", "phi_n", "phi_u"]
+
+
+def test_mc_ratio_bounds_follow_the_chi_square_sampling_interval():
+    from scipy import stats
+    assert fi.mc_ratio_bounds(200) == (0.8, 1.2)           # chi-square 0.84-1.17 is inside
+    lo, hi = fi.mc_ratio_bounds(20)
+    assert lo == pytest.approx(np.sqrt(stats.chi2.ppf(0.0005, 20) / 20)) and lo == pytest.approx(0.52, abs=0.01)
+    assert hi == pytest.approx(np.sqrt(stats.chi2.ppf(0.9995, 20) / 20)) and hi == pytest.approx(1.54, abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def clusters():
+    """A 1-worker and a 2-worker local Dask cluster, used through their addresses (--scheduler)."""
+    import logging
+    from distributed import LocalCluster
+    cs = [LocalCluster(n_workers=k, threads_per_worker=1, processes=True, dashboard_address=":0",
+                       silence_logs=logging.ERROR) for k in (1, 2)]
+    yield [c.scheduler_address for c in cs]
+    for c in cs:
+        c.close()
+
+
+def _mc(tmp_path, name, scheduler, sets=(), runs=20):
+    exp = E.get("free-inertial")
+    cfg = resolve(exp.config, quick=exp.quick, sets=[f"runs={runs}", *sets])
+    return E.execute(exp, cfg, tmp_path / name, quick=True, scheduler=scheduler), tmp_path / name
+
+
+def test_quick_monte_carlo_matches_covariance_and_is_worker_independent(tmp_path, clusters):
+    """20 runs of 10 min: every MC RMS / σ ratio inside the chi-square interval for 20 runs;
+    the same seed gives identical Monte Carlo aggregates on a 1-worker and a 2-worker cluster."""
+    s1, d1 = _mc(tmp_path, "w1", clusters[0])
+    s2, d2 = _mc(tmp_path, "w2", clusters[1])
+    m = s1["metrics"]
+    assert m["mc_runs"] == 20
+    assert m["mc_ratio_bounds"] == pytest.approx(list(fi.mc_ratio_bounds(20)))
+    c = {c["id"]: c for c in s1["claims"]}
+    for k in MC_KEYS:
+        assert c[f"mc_rms_over_sigma_{k}"]["passed"], c[f"mc_rms_over_sigma_{k}"]
+        lo, hi = m[f"mc_rms_over_sigma_{k}"]
+        assert 0.52 <= lo <= hi <= 1.54
+    assert all(x["passed"] for x in s1["claims"]), s1["claims"]
+    for f in ("mc_rms_sigma", "mc_ratio"):
+        assert (d1 / f"{f}.png").is_file()
+    assert (d1 / "table_mc_vs_covariance.csv").is_file()
+    # identical aggregates whatever the number of workers
+    assert (d1 / "montecarlo.csv").read_bytes() == (d2 / "montecarlo.csv").read_bytes()
+    assert (d1 / "table_mc_vs_covariance.csv").read_bytes() == (d2 / "table_mc_vs_covariance.csv").read_bytes()
+    for k in MC_KEYS:
+        assert s1["metrics"][f"mc_rms_over_sigma_{k}"] == s2["metrics"][f"mc_rms_over_sigma_{k}"]
+
+
+def test_mc_batch_draws_and_navigates_like_the_covariance_model():
+    """Direct library check on a short static run (sync): the biases act as 1σ draws, so the
+    run-to-run spread of the east velocity error after 5 min matches the model's σ, and the
+    covariance analysis reproduces the closed-form static tilt from an accelerometer bias."""
+    from sinslab import montecarlo as mc
+    from sinslab import trajectory as tr
+
+    cfg = resolve(fi.Config, sets=["scenario.motion=static", "scenario.duration=5 min",
+                                   "scenario.sample_interval=0.1 s", "imu.gyro_bias=0 deg/h",
+                                   "imu.gyro_arw=0 deg/sqrt(h)", "imu.accel_vrw=0 ug/sqrt(Hz)",
+                                   "imu.accel_bias=100 ug", "runs=2"])
+    segs, start, mount = fi._motion(cfg)
+    gen = tr.generate(segs, start, 0.1, duration=300.0, mount=mount)
+    spec = fi._mc_spec(cfg, segs, start, mount)
+    cov_every, _ = fi._mc_strides(cfg)
+    t, sigma, model = fi.covariance_analysis(gen.truth, gen.imu, spec, cov_every)
+    assert model.core == "horizontal"                      # vertical held by default
+    # static, accel bias only: δv_N σ = ∇ sin(ω_s t)/ω_s (Schuler loop; Earth rate negligible over 5 min)
+    ws = 2 * np.pi / earth.schuler_period(start.lat, start.h)
+    ref = 100 * units.ug * np.sin(ws * (t - t[0])) / ws
+    assert np.allclose(sigma[:, 4], ref, rtol=0.02, atol=1e-6)
+    out = mc.run_campaign(fi.mc_batch, 400, 3, batch=100, scheduler="sync", progress=False,
+                          kwargs=dict(spec=spec))
+    rms = np.sqrt(np.mean(out["err"][:, -1, 4] ** 2))
+    assert rms / sigma[-1, 4] == pytest.approx(1.0, abs=0.12)   # 400 runs: ~3.5 % sampling σ
+
+
+def test_mc_claims_fail_on_a_units_slip(tmp_path, monkeypatch):
+    """A covariance σ three times too large (e.g. a units slip) must fail the MC claims."""
+    real = fi.covariance_analysis
+
+    def wrong(*a, **kw):
+        t, s, m = real(*a, **kw)
+        return t, 3.0 * s, m
+
+    monkeypatch.setattr(fi, "covariance_analysis", wrong)
+    s, _ = _mc(tmp_path, "bad", "sync", sets=["scenario.duration=5 min"], runs=10)
+    c = {c["id"]: c["passed"] for c in s["claims"]}
+    assert not any(c[f"mc_rms_over_sigma_{k}"] for k in MC_KEYS)
+    assert c["pos_linear_model"]                          # the single-run claims are untouched

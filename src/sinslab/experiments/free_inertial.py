@@ -18,6 +18,18 @@ Claims (each computed, each able to fail):
   at 4σ (see :func:`envelopes`). The envelope is an upper bound, not a prediction: a
   correct mechanization stays inside it; a wrong Earth rate, Coriolis term, gravity or
   sign does not.
+
+Monte Carlo (``--runs N``, N > 1; ``--scheduler ADDRESS`` honoured): besides the single
+run above, N runs through :func:`sinslab.montecarlo.run_campaign` (Dask; a local cluster by
+default). In this mode the configured biases, scale factors and initial errors are **1σ
+values**: each run draws every axis N(0, σ²) independently (:func:`mc_batch`), plus its own
+white noise, navigates the same true trajectory (regenerated deterministically once per
+worker, not shipped) and returns its errors every ``montecarlo.output_interval``. A
+covariance analysis of the matching φ-angle model (:func:`covariance_analysis`: horizontal
+core when the height is held, full core when free; none for the damped channel) gives σ
+at the same epochs. Claims ``mc_rms_over_sigma_<error>`` (position E/N, velocity E/N, φ
+E/N/U): MC RMS / σ at every epoch after ``montecarlo.transient`` within
+:func:`mc_ratio_bounds` — 0.8–1.2, widened to the chi-square sampling interval for small N.
 """
 from __future__ import annotations
 
@@ -95,12 +107,23 @@ class Nav(Section):
     output_interval: Q("time", gt="0 s") = Field("1 s", description="interval of the error series")
 
 
+class MonteCarlo(Section):
+    output_interval: Q("time", gt="0 s") = Field(
+        "10 s", description="interval of the Monte Carlo error histories and of the RMS/σ comparison")
+    cov_step: Q("time", gt="0 s") = Field(
+        "1 s", description="step of the covariance analysis (F frozen at the truth in mid-step)")
+    transient: Q("time", ge="0 s") = Field(
+        "1 min", description="start of the RMS/σ comparison (epochs before it are shown, not judged)")
+
+
 class Config(ExperimentConfig):
-    runs: int = Field(1, ge=1, le=1, description="Monte Carlo runs (free-inertial: 1 only, for now)")
+    runs: int = Field(1, ge=1, le=100000, description="Monte Carlo runs: 1 = the single simulation; "
+                      "N > 1 adds an N-run Monte Carlo campaign (Dask) and a covariance analysis")
     scenario: Scenario = Scenario()
     imu: Imu = Imu()
     init: Init = Init()
     nav: Nav = Nav()
+    montecarlo: MonteCarlo = MonteCarlo()
 
     @model_validator(mode="after")
     def _long_enough(self):
@@ -109,7 +132,25 @@ class Config(ExperimentConfig):
         if float(self.scenario.duration) < 2 * step:
             raise ValueError(f"scenario.duration {self.scenario.duration.text!r} is shorter than two "
                              f"output intervals ({2 * step:g} s)")
+        if self.runs > 1:
+            m = self.montecarlo
+            cov_every, mc_every = _mc_strides(self)
+            if float(self.scenario.duration) < 2 * mc_every * upd:
+                raise ValueError(f"scenario.duration {self.scenario.duration.text!r} is shorter than two "
+                                 f"Monte Carlo output intervals ({2 * mc_every * upd:g} s)")
+            if float(m.transient) >= float(self.scenario.duration):
+                raise ValueError(f"montecarlo.transient {m.transient.text!r} is not shorter than "
+                                 f"scenario.duration {self.scenario.duration.text!r}")
         return self
+
+
+def _mc_strides(cfg) -> tuple[int, int]:
+    """Covariance step and Monte Carlo output interval in navigation updates (the latter a
+    whole multiple of the former)."""
+    upd = cfg.nav.nsub * float(cfg.scenario.sample_interval)
+    cov_every = max(1, int(round(float(cfg.montecarlo.cov_step) / upd)))
+    k = max(1, int(round(float(cfg.montecarlo.output_interval) / (cov_every * upd))))
+    return cov_every, k * cov_every
 
 
 #: Tolerances of the linear-model claims: linearisation, the 1-step discretisation of F and
@@ -137,6 +178,22 @@ METRICS = {
     "heading_envelope_ratio": Metric("-", "max over time of heading error / closed-form envelope"),
     "distance_m": Metric("m", "distance travelled (horizontal)"),
     "samples": Metric("-", "IMU samples navigated"),
+    # Monte Carlo (--runs N > 1)
+    "mc_runs": Metric("-", "Monte Carlo runs"),
+    "mc_campaign_s": Metric("s", "wall time of the Monte Carlo campaign (Dask, incl. cluster start)"),
+    "mc_covariance_s": Metric("s", "wall time of the covariance analysis"),
+    "mc_ratio_bounds": Metric("-", "accepted interval of MC RMS / σ: chi-square sampling interval "
+                                   "(two-sided 0.999) for the number of runs, at least [0.8, 1.2]"),
+    "mc_transient_s": Metric("s", "epochs before this time are not judged"),
+    "mc_final_rms_horiz_pos_m": Metric("m", "Monte Carlo RMS horizontal position error at the end"),
+    "mc_final_sigma_horiz_pos_m": Metric("m", "covariance-analysis horizontal position σ at the end"),
+    "mc_rms_over_sigma_min": Metric("-", "smallest MC RMS / σ over all compared errors and epochs"),
+    "mc_rms_over_sigma_max": Metric("-", "largest MC RMS / σ over all compared errors and epochs"),
+    **{f"mc_rms_over_sigma_{k}": Metric("-", f"[min, max] over time of MC RMS / covariance σ, {lab}")
+       for k, lab in (("pos_e", "east position"), ("pos_n", "north position"),
+                      ("vel_e", "east velocity"), ("vel_n", "north velocity"),
+                      ("phi_e", "misalignment φE"), ("phi_n", "misalignment φN"),
+                      ("phi_u", "misalignment φU"))},
 }
 
 
@@ -307,6 +364,354 @@ def envelopes(t, *, lat, h, eps, n_g, nabla, n_a, sf_g, sf_a, phi0_h, psi0, dv0,
 
 def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+# ---------------------------------------------------------------- Monte Carlo ------------
+#: Errors compared between Monte Carlo and covariance analysis: (key, label, display unit).
+MC_ERRORS = (("pos_e", "position east", "m"), ("pos_n", "position north", "m"),
+             ("vel_e", "velocity east", "m/s"), ("vel_n", "velocity north", "m/s"),
+             ("phi_e", "misalignment φE", "arcsec"), ("phi_n", "misalignment φN", "arcsec"),
+             ("phi_u", "misalignment φU", "arcsec"))
+#: Columns of a run's error history: position E, N, U [m], velocity E, N, U [m/s], φ E, N, U [rad].
+MC_COLS = {"pos_e": 0, "pos_n": 1, "vel_e": 3, "vel_n": 4, "phi_e": 6, "phi_n": 7, "phi_u": 8}
+#: The issue's bound on Monte Carlo RMS / covariance σ, and the two-sided probability of
+#: the chi-square interval that widens it for small campaigns (see :func:`mc_ratio_bounds`).
+MC_RATIO_BOUNDS, MC_ALPHA = (0.8, 1.2), 0.001
+
+_MC_CACHE: dict = {}
+
+
+def mc_ratio_bounds(n_runs: int, alpha: float = MC_ALPHA) -> tuple[float, float]:
+    """Acceptance interval of the Monte Carlo RMS / covariance σ ratio for ``n_runs`` runs.
+
+    Where the linear model holds, every error of a run is a zero-mean Gaussian with the
+    covariance-analysis variance σ², so ``N·RMS²/σ² ~ χ²_N`` at each epoch. The interval is
+    the two-sided ``1 − alpha`` chi-square interval of ``RMS/σ`` — ``sqrt(χ²_N(α/2)/N)``,
+    ``sqrt(χ²_N(1−α/2)/N)`` — widened to at least the issue's 0.8–1.2. For N = 200 the
+    chi-square interval (0.84–1.17) lies inside 0.8–1.2, so the bound is 0.8–1.2; for
+    N = 20 it is 0.52–1.54.
+    """
+    from scipy import stats
+
+    n = int(n_runs)
+    lo, hi = np.sqrt(stats.chi2.ppf([alpha / 2, 1 - alpha / 2], n) / n)
+    return float(min(MC_RATIO_BOUNDS[0], lo)), float(max(MC_RATIO_BOUNDS[1], hi))
+
+
+def _mc_spec(cfg: Config, segments, start, mount) -> dict:
+    """Everything a Monte Carlo task needs, small enough to send to every worker: the
+    trajectory is regenerated (deterministically) on each worker, not shipped."""
+    import hashlib
+    import pickle
+
+    s, n, i, ini = cfg.scenario, cfg.nav, cfg.imu, cfg.init
+    cov_every, mc_every = _mc_strides(cfg)
+    traj = (segments, start, mount, float(s.sample_interval), float(s.duration))
+    return dict(
+        traj=traj, key=hashlib.sha1(pickle.dumps(traj)).hexdigest(),
+        nsub=n.nsub, vertical=n.vertical, out_every=mc_every,
+        att_sigma=np.abs(np.asarray(ini.att_err, float)), vel_sigma=np.abs(np.asarray(ini.vel_err, float)),
+        pos_sigma=np.abs(np.asarray(ini.pos_err, float)),
+        gyro_bias_sigma=np.abs(np.broadcast_to(np.asarray(i.gyro_bias, float), (3,))),
+        accel_bias_sigma=np.abs(np.broadcast_to(np.asarray(i.accel_bias, float), (3,))),
+        gyro_sf_sigma=np.abs(np.broadcast_to(np.asarray(i.gyro_scale_factor, float), (3,))),
+        accel_sf_sigma=np.abs(np.broadcast_to(np.asarray(i.accel_scale_factor, float), (3,))),
+        gyro_arw=np.broadcast_to(np.asarray(i.gyro_arw, float), (3,)).copy(),
+        accel_vrw=np.broadcast_to(np.asarray(i.accel_vrw, float), (3,)).copy())
+
+
+def _mc_setup(spec, gen=None):
+    """The worker's copy of the trajectory (generated once per process and cached)."""
+    from .. import trajectory
+    from ..attitude import euler_to_dcm
+    from ..records import NavState
+
+    hit = _MC_CACHE.get(spec["key"])
+    if hit is not None:
+        return hit
+    segments, start, mount, dt, T = spec["traj"]
+    if gen is None:
+        gen = trajectory.generate(segments, start, dt, duration=T, mount=mount)
+    truth = gen.truth
+    per = spec["out_every"] * spec["nsub"]
+    m_out = (len(gen.imu) // spec["nsub"]) // spec["out_every"]
+    ep = np.arange(m_out + 1) * per
+    tr = truth.at(ep)
+    rm, rn = earth.radii(tr.lat, tr.h)
+    att = tr.att_imu if tr.att_imu is not None else tr.att
+    S = dict(ideal=gen.imu, mount=gen.mount, h_full=truth.h.copy(), t=tr.t, lat=tr.lat, lon=tr.lon,
+             h=tr.h, vel=tr.vel, C=euler_to_dcm(att), rm=rm, rn=rn, init=NavState.from_series(truth, 0))
+    _MC_CACHE.clear()                                  # one trajectory per process at a time
+    _MC_CACHE[spec["key"]] = S
+    return S
+
+
+def mc_batch(seeds, spec):
+    """Monte Carlo campaign function (:func:`sinslab.montecarlo.run_campaign`).
+
+    Per run, from its own ``default_rng(seed)`` in a fixed order: 21 standard normals —
+    initial errors (pitch, roll, heading; velocity E, N, U; position E, N, U), gyro and
+    accelerometer constant biases and scale factors (body x, y, z) — each times its
+    configured 1σ; then the white noise of :func:`sinslab.imu.apply` from the same
+    generator. The run navigates the common true trajectory with
+    :func:`sinslab.strapdown.navigate` (same vertical mode, nsub and mount as the single
+    run) and returns its errors (navigation − truth) every ``spec["out_every"]`` updates.
+
+    Returns
+    -------
+    dict
+        ``err`` (B, T, 9): position E, N, U [m], velocity E, N, U [m/s], misalignment φ
+        E, N, U [rad] (``attitude.misalignment`` of the IMU frame).
+    """
+    from .. import imu as imu_mod
+    from .. import strapdown
+    from ..attitude import euler_to_dcm, misalignment
+    from ..records import NavState
+
+    S = _mc_setup(spec)
+    t0 = S["init"]
+    rm0, rn0 = earth.radii(t0.lat, t0.h)
+    height = S["h_full"] if spec["vertical"] != "free" else None
+    out = np.empty((len(seeds), S["t"].size, 9))
+    for b, seed in enumerate(seeds):
+        rng = np.random.default_rng(seed)
+        z = rng.standard_normal(21)
+        datt, dvel, dpos = (z[0:3] * spec["att_sigma"], z[3:6] * spec["vel_sigma"],
+                            z[6:9] * spec["pos_sigma"])
+        errs = imu_mod.ImuErrors(
+            gyro_bias=z[9:12] * spec["gyro_bias_sigma"], accel_bias=z[12:15] * spec["accel_bias_sigma"],
+            gyro_scale_factor=z[15:18] * spec["gyro_sf_sigma"],
+            accel_scale_factor=z[18:21] * spec["accel_sf_sigma"],
+            gyro_arw=spec["gyro_arw"], accel_vrw=spec["accel_vrw"])
+        meas = imu_mod.apply(S["ideal"], errs, rng)
+        init = NavState(lat=t0.lat + dpos[1] / rm0, lon=t0.lon + dpos[0] / (rn0 * math.cos(t0.lat)),
+                        h=t0.h + dpos[2], vel=t0.vel + dvel,
+                        att=t0.att + np.array([datt[0], datt[1], -datt[2]]), t=t0.t)
+        nav = strapdown.navigate(meas, init, nsub=spec["nsub"], vertical=spec["vertical"],
+                                 height=height, mount=S["mount"], out_every=spec["out_every"],
+                                 progress=False)
+        if nav.t.size != S["t"].size:
+            raise RuntimeError("Monte Carlo navigation and truth epochs disagree")
+        att = nav.att_imu if nav.att_imu is not None else nav.att
+        e = out[b]
+        e[:, 0] = _wrap(nav.lon - S["lon"]) * S["rn"] * np.cos(S["lat"])
+        e[:, 1] = (nav.lat - S["lat"]) * S["rm"]
+        e[:, 2] = nav.h - S["h"]
+        e[:, 3:6] = nav.vel - S["vel"]
+        e[:, 6:9] = misalignment(S["C"], euler_to_dcm(att))
+    return {"err": out}
+
+
+def _euler_to_phi_jacobian(att):
+    """d φ / d [pitch, roll, −yaw] at ``att`` (central differences): how the configured
+    initial [pitch, roll, heading] errors map to the misalignment φ of the error model."""
+    from ..attitude import euler_to_dcm, misalignment
+
+    C0 = euler_to_dcm(att)
+    J = np.empty((3, 3))
+    h = 1e-6
+    for k, sgn in enumerate((1.0, 1.0, -1.0)):
+        d = np.zeros(3)
+        d[k] = sgn * h
+        J[:, k] = (misalignment(C0, euler_to_dcm(att + d)) - misalignment(C0, euler_to_dcm(att - d))) / (2 * h)
+    return J
+
+
+def covariance_analysis(truth, ideal, spec, cov_every):
+    """Covariance analysis matching :func:`mc_batch`: σ of every error at the Monte Carlo epochs.
+
+    The ENU φ-angle model of :mod:`sinslab.errstate` — core ``"horizontal"`` when the
+    vertical channel is held (δh = δv_U = 0, as the mechanization does), ``"full"`` when it
+    is free — plus constant gyro and accelerometer bias states (and scale-factor states
+    when their σ is not zero) is evaluated along the truth in the middle of every
+    covariance step (``cov_every`` updates), discretised exactly (Van Loan,
+    :func:`sinslab.errstate.discretize`, with ARW²/VRW² as white-noise densities), and P0 =
+    diag(initial errors², bias σ², scale-factor σ²) is propagated with no measurements by
+    :func:`sinslab.kalman.propagate_covariance`.
+
+    Returns
+    -------
+    t : ndarray (T,)
+        Times of the Monte Carlo epochs.
+    sigma : ndarray (T, 9)
+        σ in the columns of :func:`mc_batch` (position E, N, U [m], velocity [m/s], φ [rad]);
+        zero for the held vertical channel.
+    model : sinslab.errstate.ErrorModel
+    """
+    from .. import errstate as es
+    from ..kalman import propagate_covariance
+
+    if spec["vertical"] == "damped":
+        raise ValueError("the error model has no vertical damping loop: covariance analysis "
+                         "needs nav.vertical = 'hold' or 'free'")
+    core = "horizontal" if spec["vertical"] == "hold" else "full"
+    sensors = [es.gyro_bias(), es.accel_bias()]
+    if np.any(spec["gyro_sf_sigma"] > 0):
+        sensors.append(es.gyro_scale())
+    if np.any(spec["accel_sf_sigma"] > 0):
+        sensors.append(es.accel_scale())
+    model = es.ErrorModel(core, sensors, gyro_noise=spec["gyro_arw"], accel_noise=spec["accel_vrw"])
+    nsub, mc_every = spec["nsub"], spec["out_every"]
+    stride = cov_every * nsub
+    m_out = (len(ideal) // nsub) // mc_every
+    K = m_out * (mc_every // cov_every)                # covariance steps up to the last MC epoch
+    mid = np.arange(K) * stride + stride // 2
+    nav = es.NavPoint.from_series(truth, ideal, mid)
+    F, G = model.matrices(nav)
+    Phi, Qk = es.discretize(F, G, model.q, stride * ideal.dt, "vanloan")
+    # P0: the configured initial errors and sensor σ
+    lay = model.layout
+    P0 = np.zeros((model.n, model.n))
+    att0 = truth.att_imu[0] if truth.att_imu is not None else truth.att[0]
+    J = _euler_to_phi_jacobian(att0)
+    P0[lay.slice("phi"), lay.slice("phi")] = J @ np.diag(spec["att_sigma"] ** 2) @ J.T
+    rm0, rn0 = earth.radii(truth.lat[0], truth.h[0])
+    nv = 3 if core == "full" else 2
+    sv = lay.slice("dv")
+    P0[sv, sv] = np.diag(spec["vel_sigma"][:nv] ** 2)
+    sp = lay.slice("dp")
+    dp_sig = [spec["pos_sigma"][1] / rm0, spec["pos_sigma"][0] / (rn0 * math.cos(truth.lat[0]))]
+    if core == "full":
+        dp_sig.append(spec["pos_sigma"][2])
+    P0[sp, sp] = np.diag(np.square(dp_sig))
+    for name, key in (("eps", "gyro_bias_sigma"), ("nabla", "accel_bias_sigma"),
+                      ("kg", "gyro_sf_sigma"), ("ka", "accel_sf_sigma")):
+        if name in lay.names:
+            sl = lay.slice(name)
+            P0[sl, sl] = np.diag(spec[key] ** 2)
+    run = propagate_covariance(P0, Phi, Qk, n_steps=K, check=False)
+    sig = run.sigma[:: mc_every // cov_every]         # the Monte Carlo epochs
+    ep = np.arange(m_out + 1) * mc_every * nsub
+    rm, rn = earth.radii(truth.lat[ep], truth.h[ep])
+    out = np.zeros((ep.size, 9))
+    lab = list(lay.labels)
+    out[:, 0] = sig[:, lab.index("dlam")] * rn * np.cos(truth.lat[ep])
+    out[:, 1] = sig[:, lab.index("dL")] * rm
+    out[:, 3] = sig[:, lab.index("dvE")]
+    out[:, 4] = sig[:, lab.index("dvN")]
+    for j, c in enumerate("ENU"):
+        out[:, 6 + j] = sig[:, lab.index(f"phi{c}")]
+    if core == "full":
+        out[:, 2] = sig[:, lab.index("dh")]
+        out[:, 5] = sig[:, lab.index("dvU")]
+    return truth.t[ep], out, model
+
+
+def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
+    """Run the campaign and the covariance analysis; metrics, claims, series, figures, tables."""
+    import time
+
+    from .. import montecarlo as mc
+    from .. import plotting as P
+    from .base import Table
+
+    n = int(cfg.runs)
+    spec = _mc_spec(cfg, segments, start, mount)
+    _mc_setup(spec, gen)                               # this process (sync / 1-worker paths)
+    cov_every, mc_every = _mc_strides(cfg)
+    upd = cfg.nav.nsub * float(cfg.scenario.sample_interval)
+    notes = [f"Monte Carlo: {n} runs; in this mode the configured biases, scale factors and "
+             "initial errors are 1σ values: every run draws each axis N(0, σ²) independently, "
+             "plus its own white noise (ARW, VRW); all runs share one true trajectory. Errors "
+             f"every {mc_every * upd:g} s; covariance analysis with {cov_every * upd:g} s steps."]
+    cov_ok = cfg.nav.vertical != "damped"
+    sigma = None
+    t_cov = time.perf_counter()
+    if cov_ok:
+        with ctx.progress("covariance analysis", None):
+            t, sigma, model = covariance_analysis(gen.truth, gen.imu, spec, cov_every)
+    t_cov = time.perf_counter() - t_cov
+    ctx.log(f"{NAME}: Monte Carlo, {n} runs")
+    t_mc = time.perf_counter()
+    res = mc.run_campaign(mc_batch, n, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(spec=spec))
+    t_mc = time.perf_counter() - t_mc
+    err = res["err"]
+    t_ep = gen.truth.t[np.arange(err.shape[1]) * mc_every * cfg.nav.nsub]
+    summ = mc.summarize(err, sigma=sigma)
+    lo, hi = mc_ratio_bounds(n)
+    tr = float(cfg.montecarlo.transient)
+    te = t_ep - t_ep[0]
+    metrics = {"mc_runs": n, "mc_campaign_s": t_mc, "mc_covariance_s": t_cov,
+               "mc_ratio_bounds": [lo, hi], "mc_transient_s": tr,
+               "mc_final_rms_horiz_pos_m": float(np.hypot(summ.rms[-1, 0], summ.rms[-1, 1]))}
+    claims = []
+    ser = {"t_s": t_ep}
+    scale = {"m": 1.0, "m/s": 1.0, "arcsec": units.arcsec}
+    rows = []
+    if cov_ok:
+        ratio = summ.rms_over_sigma()
+        metrics["mc_final_sigma_horiz_pos_m"] = float(np.hypot(sigma[-1, 0], sigma[-1, 1]))
+        all_r = []
+        for key, label, unit in MC_ERRORS:
+            c = MC_COLS[key]
+            sg = sigma[:, c]
+            judged = (te >= tr) & (sg > 1e-9 * max(float(sg.max()), 1e-300))
+            r = ratio[judged, c]
+            mm = [float(r.min()), float(r.max())] if r.size else [float("nan")] * 2
+            all_r.append(mm)
+            metrics[f"mc_rms_over_sigma_{key}"] = mm
+            claims.append(Claim(
+                f"mc_rms_over_sigma_{key}",
+                f"{label}: Monte Carlo RMS ({n} runs) / covariance-analysis σ at every epoch from "
+                f"t = {tr:g} s to the end — [min, max] over time",
+                mm, f"within [{lo:.3g}, {hi:.3g}]",
+                bool(r.size and np.all(np.isfinite(r)) and mm[0] >= lo and mm[1] <= hi)))
+            u = scale[unit]
+            rows.append({"error": label, "unit": unit, "final_mc_rms": summ.rms[-1, c] / u,
+                         "final_sigma": sg[-1] / u, "final_mc_mean": summ.mean[-1, c] / u,
+                         "ratio_min": mm[0], "ratio_max": mm[1],
+                         "ratio_mean": float(np.mean(r)) if r.size else float("nan")})
+            ser[f"sigma_{key}_{unit.replace('/', 'p')}"] = sg / u
+        a = np.asarray(all_r)
+        metrics["mc_rms_over_sigma_min"] = float(np.min(a[:, 0]))
+        metrics["mc_rms_over_sigma_max"] = float(np.max(a[:, 1]))
+    else:
+        notes.append("damped vertical channel: no covariance analysis (the error model has no "
+                     "damping loop); the Monte Carlo statistics are shown alone")
+    for key, label, unit in MC_ERRORS:
+        c = MC_COLS[key]
+        u = scale[unit]
+        ser[f"rms_{key}_{unit.replace('/', 'p')}"] = summ.rms[:, c] / u
+        ser[f"mean_{key}_{unit.replace('/', 'p')}"] = summ.mean[:, c] / u
+
+    # ---- figures
+    tt, tlabel = P.time_axis(te)
+    figs = []
+    fig, ax = P.figure(4, row_height=2.3)
+    groups = (("position [m]", ("pos_e", "pos_n")), ("velocity [m/s]", ("vel_e", "vel_n")),
+              ("φE, φN [arcsec]", ("phi_e", "phi_n")), ("φU [arcsec]", ("phi_u",)))
+    for a_, (ylab, keys) in zip(ax, groups):
+        for j, key in enumerate(keys):
+            c = MC_COLS[key]
+            unit = dict((k, u_) for k, _, u_ in MC_ERRORS)[key]
+            col = P.COLORS[j]
+            a_.plot(tt, summ.rms[:, c] / scale[unit], color=col, lw=1.3, label=f"{key}: MC RMS")
+            if cov_ok:
+                a_.plot(tt, sigma[:, c] / scale[unit], color=col, lw=1.0, ls="--", label=f"{key}: σ")
+        a_.set_ylabel(ylab)
+        a_.legend(fontsize="x-small", ncol=2, loc="upper left")
+    ax[-1].set_xlabel(tlabel)
+    figs.append(Figure("mc_rms_sigma", fig, f"Monte Carlo RMS over {n} runs (solid) and "
+                       "covariance-analysis σ (dashed) of every error versus time"))
+    if cov_ok:
+        fig, ax = P.figure(1, row_height=3.2)
+        for j, (key, label, unit) in enumerate(MC_ERRORS):
+            ax[0].plot(tt, ratio[:, MC_COLS[key]], lw=1.0, color=P.COLORS[j % len(P.COLORS)],
+                       ls="-" if j < len(P.COLORS) else ":", label=key)
+        ax[0].axhspan(lo, hi, color="0.85", zorder=0, label=f"accepted [{lo:.3g}, {hi:.3g}]")
+        if tr > 0:
+            ax[0].axvspan(0.0, tr * tt[-1] / te[-1], color="0.6", alpha=0.3, zorder=0,
+                          label="transient (not judged)")
+        ax[0].set_ylim(max(0.0, min(lo, np.nanmin(ratio[1:])) - 0.1), max(hi, np.nanmax(ratio[1:])) + 0.1)
+        ax[0].set_ylabel("MC RMS / σ")
+        ax[0].legend(fontsize="x-small", ncol=3, loc="lower right")
+        ax[0].set_xlabel(tlabel)
+        figs.append(Figure("mc_ratio", fig, f"Monte Carlo RMS / covariance σ ({n} runs); grey band: "
+                           "the accepted interval (chi-square sampling interval, at least 0.8–1.2)"))
+    tables = [Table("mc_vs_covariance", {k: [r_[k] for r_ in rows] for k in rows[0]},
+                    f"Monte Carlo ({n} runs) versus covariance analysis: values at the end, "
+                    f"ratio RMS/σ over t ≥ {tr:g} s")] if rows else []
+    return metrics, claims, {"montecarlo": ser}, figs, tables, notes
 
 
 # ---------------------------------------------------------------- the experiment --------
@@ -558,7 +963,18 @@ def run(cfg: Config, ctx) -> Result:
     ax[0].legend(fontsize="small")
     figs.append(Figure("track", fig, f"True ground track ({s.motion_file or s.motion})"))
 
+    tables = []
+    if cfg.runs > 1:
+        m_mc, c_mc, s_mc, f_mc, t_mc, n_mc = monte_carlo(cfg, ctx, gen, segments, start, mount)
+        metrics.update(m_mc)
+        claims += c_mc
+        series.update(s_mc)
+        figs += f_mc
+        tables += t_mc
+        notes += n_mc
+
     notes.append(f"Vertical channel: {n.vertical}"
                  + (" (held to the true height, a perfect barometer)" if n.vertical == "hold" else "")
                  + f"; {n.nsub} samples per update; error series every {out_every * upd:g} s.")
-    return Result(metrics=metrics, claims=claims, series=series, figures=figs, notes=notes)
+    return Result(metrics=metrics, claims=claims, series=series, figures=figs, tables=tables,
+                  notes=notes)
