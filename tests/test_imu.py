@@ -26,6 +26,31 @@ def allan_dev(y, dt, m):
     return np.sqrt(0.5 * np.mean(np.diff(means, axis=0) ** 2, axis=0))
 
 
+# --- the kernel's normal generator -----------------------------------------------------------
+def test_kernel_normals_are_standard_normal():
+    """xoshiro256++ + ziggurat: moments, equiprobable-bin chi-square, both tails (the tail
+    beyond r = 3.654 is the rejection path), no serial correlation."""
+    from scipy import stats
+    from sinslab import imu
+    n = 4_000_000
+    z = imu._standard_normals(imu._kernel_state(np.random.default_rng(5)), n)
+    se = 1 / math.sqrt(n)
+    assert abs(z.mean()) < 5 * se
+    assert abs(z.std() - 1) < 5 * se / math.sqrt(2)
+    assert abs(stats.skew(z)) < 5 * math.sqrt(6 / n)
+    assert abs(stats.kurtosis(z)) < 5 * math.sqrt(24 / n)
+    edges = stats.norm.ppf(np.linspace(0, 1, 401)[1:-1])
+    counts = np.bincount(np.searchsorted(edges, z), minlength=400)
+    assert stats.chisquare(counts).pvalue > 1e-4
+    for x in (2.0, 3.0, 3.6541528853610088, 4.0, 4.5):
+        expect = n * 2 * stats.norm.sf(x)
+        assert abs((np.abs(z) > x).sum() - expect) < 5 * math.sqrt(expect) + 1, x
+    assert abs(np.corrcoef(z[:-1], z[1:])[0, 1]) < 5 * se
+    # a state drawn from the same seed gives the same numbers
+    again = imu._standard_normals(imu._kernel_state(np.random.default_rng(5)), 1000)
+    assert again.tobytes() == z[:1000].tobytes()
+
+
 # --- white noise ------------------------------------------------------------------------------
 def test_arw_vrw_sample_sigma_and_allan():
     N = 0.05 * u.dpsh
