@@ -1040,6 +1040,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     jn = 0          # piece of the newest fallback node
     bi = 1          # first breakpoint after the current fallback sub-interval start
     bq = 1          # first breakpoint after the stencil start
+    chk = 0.0
     for k in range(n):
         e_new = k + L
         # kinematics of the new look-ahead epoch (epochs 0..L at the first step)
@@ -1178,12 +1179,14 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         dvl[k, 0] = v0
         dvl[k, 1] = v1
         dvl[k, 2] = v2
+        chk += th0 + th1 + th2 + v0 + v1 + v2     # NaN/inf stay: one check at the end
         r1 = (k + 1) & RM
         if (k + 1) % out_every == 0:
             _write_truth(RS, r1, (k + 1) // out_every, lat, lon, h, has_mount, olat, olon, oh,
                          vel, att, atti)
         if has_mount:
             _put_mount(RS, r1, mnt, k + 1)
+    return chk
 
 
 def _stencil(m: int):
@@ -1307,14 +1310,38 @@ def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_ever
     has_mount = mount is not None
     atti = np.empty((m, 3) if has_mount else (1, 3))
     mnt = np.empty((n + 1, 3) if has_mount else (1, 3))
-    _synth(n, dt, out_every, sw, lo, c, b, A, has_mount, *tabs,
+    chk = _synth(n, dt, out_every, sw, lo, c, b, A, has_mount, *tabs,
            start.lat, start.lon, start.h, dth, dvl, olat, olon, oh, vel, att, atti, mnt)
-    t_imu = t0 + dt * np.arange(1, n + 1)
-    t_nav = t0 + dt * out_every * np.arange(m)
+    if not math.isfinite(chk):
+        raise ValueError("non-finite increments (a pole crossed, or an extreme motion?)")
+    t_imu = np.arange(1, n + 1, dtype=float)          # = t0 + dt·k, in place (no temporaries)
+    t_imu *= dt
+    t_imu += t0
+    t_nav = np.arange(m, dtype=float)
+    t_nav *= dt * out_every
+    t_nav += t0
     truth = NavSeries(t_nav, olat, olon, oh, vel, att,
                       atti if has_mount else None)
-    return Generated(truth, ImuRecord(t_imu, dth, dvl, dt), mnt if has_mount else None,
+    return Generated(truth, _imu_record(t_imu, dth, dvl, dt), mnt if has_mount else None,
                      segments, start, mount)
+
+
+_RECORD_FIELDS = ("t", "dtheta", "dv", "dt", "rel_tol")
+_REL_TOL = {f.name: f.default for f in fields(ImuRecord)}.get("rel_tol")
+
+
+def _imu_record(t, dth, dv, dt):
+    """ImuRecord of arrays valid by construction (uniform increasing times, finite
+    increments, checked by the kernel), without the constructor's validation passes, which
+    cost a quarter of the synthesis. Falls back to the constructor if ImuRecord ever gains
+    fields this does not know."""
+    if tuple(f.name for f in fields(ImuRecord)) != _RECORD_FIELDS or t.size < 2:
+        return ImuRecord(t, dth, dv, dt)
+    rec = object.__new__(ImuRecord)
+    dt = (t[-1] - t[0]) / (t.size - 1)                # what the constructor derives
+    for name, v in zip(_RECORD_FIELDS, (t, dth, dv, float(dt), _REL_TOL)):
+        object.__setattr__(rec, name, v)
+    return rec
 
 
 # --- ready-made motions ------------------------------------------------------------------------
