@@ -69,7 +69,7 @@ __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices", "static_alignment_model",
-    "joint_rotation_model", "discretize", "phi_series_nb", "discretize_series_nb", "CORES",
+    "joint_rotation_model", "discretize", "van_loan", "phi_series_nb", "discretize_series_nb", "CORES",
 ]
 
 # ----------------------------------------------------------------------------- layout
@@ -854,6 +854,28 @@ def static_alignment_model(lat, g=None):
 
 
 # ------------------------------------------------------------------------ discretisation
+def van_loan(F, Qc, T):
+    """Exact ``(Φ, Q_k)`` of ``ẋ = F x + w``, ``E[w wᵀ] = Qc δ(t)``, over T (Van Loan 1978).
+
+    ``Φ = expm(F T)``, ``Q_k = ∫₀ᵀ Φ(s) Qc Φ(s)ᵀ ds`` from one block exponential
+    ``expm([[−F, Qc], [0, Fᵀ]] T)``. F ``(..., n, n)``, Qc ``(..., n, n)`` (any symmetric
+    density, correlated or not), T [s]; leading dimensions broadcast (many epochs).
+    """
+    F = np.asarray(F, dtype=float)
+    Qc = np.asarray(Qc, dtype=float)
+    n = F.shape[-1]
+    T = float(T)
+    S = np.broadcast_shapes(F.shape[:-2], Qc.shape[:-2])
+    M = np.zeros(S + (2 * n, 2 * n))
+    M[..., :n, :n] = -F * T
+    M[..., :n, n:] = Qc * T
+    M[..., n:, n:] = np.swapaxes(F, -1, -2) * T
+    E = scipy.linalg.expm(M)
+    Phi = np.swapaxes(E[..., n:, n:], -1, -2)
+    Qk = Phi @ E[..., :n, n:]
+    return Phi, 0.5 * (Qk + np.swapaxes(Qk, -1, -2))
+
+
 def discretize(F, G, q, T, method="vanloan"):
     """Discrete transition and process-noise matrices of ``ẋ = F x + G w`` over T.
 
@@ -888,14 +910,7 @@ def discretize(F, G, q, T, method="vanloan"):
     Qc = (G * q[..., None, :]) @ np.swapaxes(G, -1, -2)
     Qc = 0.5 * (Qc + np.swapaxes(Qc, -1, -2))
     if method == "vanloan":
-        S = np.broadcast_shapes(F.shape[:-2], Qc.shape[:-2])
-        M = np.zeros(S + (2 * n, 2 * n))
-        M[..., :n, :n] = -F * T
-        M[..., :n, n:] = Qc * T
-        M[..., n:, n:] = np.swapaxes(F, -1, -2) * T
-        E = scipy.linalg.expm(M)
-        Phi = np.swapaxes(E[..., n:, n:], -1, -2)
-        Qk = Phi @ E[..., :n, n:]
+        return van_loan(F, Qc, T)
     elif method == "series":
         FT = F * T
         Phi = np.eye(n) + FT + 0.5 * FT @ FT

@@ -37,6 +37,8 @@ import numpy as np
 from numba import njit
 from scipy import linalg as sla
 
+from .errstate import van_loan
+
 __all__ = [
     "check_covariance", "predict", "update", "UpdateResult", "discretize",
     "steady_state", "SteadyState", "run_linear", "LinearRun", "propagate_covariance",
@@ -323,14 +325,7 @@ def discretize(F, Qc, T, *, G=None):
     Qc = check_covariance(_as_square(Qc, n, "Qc"), "Qc")
     if not T >= 0:
         raise ValueError(f"step T must be >= 0, got {T}")
-    M = np.zeros((2 * n, 2 * n))
-    M[:n, :n] = -F
-    M[:n, n:] = Qc
-    M[n:, n:] = F.T
-    E = sla.expm(M * T)
-    Phi = E[n:, n:].T
-    Qk = Phi @ E[:n, n:]
-    return Phi, 0.5 * (Qk + Qk.T)
+    return van_loan(F, Qc, T)
 
 
 @dataclass(frozen=True)
