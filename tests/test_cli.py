@@ -70,6 +70,7 @@ class Dummy:
     QUICK = {"scenario": {"duration": "10 s", "rows": 20}}
     METRICS = {"final_x_m": Metric("m", "last x"), "bias_dph": Metric("deg/h", "bias"),
                "nothing": Metric("-", "always null")}
+    DEMO_VARIANTS = {"north": ["scenario.latitude=60 deg"]}
     run = staticmethod(_run)
 
 
@@ -172,6 +173,10 @@ def test_demo_writes_index(tmp_path):
     assert r.exit_code == 0, r.output
     idx = (out / "index.html").read_text()
     assert "dummy/report.html" in idx and (out / "dummy" / "summary.json").is_file()
+    # the declared variant runs too, with its settings, under NAME-suffix
+    assert "dummy-north/report.html" in idx
+    v = json.loads((out / "dummy-north" / "summary.json").read_text())
+    assert v["config"]["scenario"]["latitude"] == "60 deg"
 
 
 def test_strict_exit_status(tmp_path):

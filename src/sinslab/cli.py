@@ -217,23 +217,27 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
             raise CliError(f"output folder {out} exists and is a file")
         names = list(only) if only else list(registry())
         exps = [get(n) for n in names]
-        for exp in exps:                                   # check every folder first
-            RunDir(out / exp.name, exp.name).check()
-        for exp in exps:
-            cfg = resolve(exp.config, quick=exp.quick if quick else None)
-            _log(f"running {exp.name}{' (quick)' if quick else ''} ...")
+        # every experiment's default scenario, then its declared variants (NAME-suffix)
+        jobs = [(exp, exp.name, ()) for exp in exps]
+        jobs += [(exp, f"{exp.name}-{suffix}", sets) for exp in exps
+                 for suffix, sets in exp.variants.items()]
+        for exp, label, _ in jobs:                         # check every folder first
+            RunDir(out / label, exp.name).check()
+        for exp, label, sets in jobs:
+            cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=list(sets))
+            _log(f"running {label}{' (quick)' if quick else ''} ...")
             try:
-                summary = execute(exp, cfg, out / exp.name, quick=quick, log=_log)
+                summary = execute(exp, cfg, out / label, quick=quick, log=_log)
             except (KeyboardInterrupt, *USER_ERRORS):
                 raise
             except Exception as e:                          # one broken experiment: go on
                 import traceback
 
                 traceback.print_exc()
-                failed[exp.name] = f"{type(e).__name__}: {e}"
+                failed[label] = f"{type(e).__name__}: {e}"
                 continue
-            _print_summary(summary, out / exp.name)
-            done.append((exp.name, out / exp.name))
+            _print_summary(summary, out / label)
+            done.append((label, out / label))
         idx = _report.index(out, done, failed)
     typer.echo(f"index: {idx}")
     if failed:

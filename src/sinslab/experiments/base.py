@@ -228,6 +228,9 @@ class Experiment:
     paper: str = ""
     notes: tuple = ()
     module: str = ""
+    #: ``{suffix: [dotted key=value, ...]}``: further scenarios that ``sinslab demo`` runs
+    #: as ``NAME-suffix`` (e.g. the paper's laboratory variant or a Monte Carlo campaign).
+    variants: Mapping[str, tuple] = field(default_factory=dict)
 
     @classmethod
     def from_module(cls, mod) -> "Experiment":
@@ -244,4 +247,5 @@ class Experiment:
         return cls(name=mod.NAME, purpose=mod.PURPOSE, config=mod.Config, run=mod.run,
                    quick=dict(getattr(mod, "QUICK", {})), metrics=metrics,
                    paper=getattr(mod, "PAPER", ""), notes=tuple(getattr(mod, "NOTES", ())),
-                   module=mod.__name__)
+                   module=mod.__name__,
+                   variants={k: tuple(v) for k, v in getattr(mod, "DEMO_VARIANTS", {}).items()})

@@ -159,6 +159,9 @@ LIN_REL, LIN_ABS_POS, LIN_ABS_VEL, LIN_ABS_ATT = 0.01, 0.5, 0.001, 0.2
 
 QUICK = {"scenario": {"duration": "10 min", "sample_interval": "0.02 s"}}
 
+#: Further scenarios for ``sinslab demo``: Monte Carlo RMS next to covariance-analysis σ.
+DEMO_VARIANTS = {"mc200": ["runs=200"]}
+
 METRICS = {
     "max_horiz_pos_err_m": Metric("m", "largest horizontal position error over the run"),
     "final_horiz_pos_err_m": Metric("m", "horizontal position error at the end"),

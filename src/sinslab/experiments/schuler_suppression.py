@@ -146,6 +146,10 @@ class Config(ExperimentConfig):
 
 QUICK = {"ship": {"duration": "12 h"}, "turntable": {"duration": "12 h"}}
 
+#: Further scenarios for ``sinslab demo``: the paper's laboratory (swinging table) variant
+#: and the injected-error mode of its simulation.
+DEMO_VARIANTS = {"turntable": ["scenario.kind=turntable"], "injected": ["init.mode=injected"]}
+
 CHANNELS = ("vE", "vN", "phiE", "phiN", "lat", "lon")
 _UNIT = {"vE": ("m/s", 1.0), "vN": ("m/s", 1.0), "phiE": ("arcmin", units.arcmin),
          "phiN": ("arcmin", units.arcmin), "lat": ("arcsec", units.arcsec),

@@ -109,6 +109,9 @@ class Config(ExperimentConfig):
 
 QUICK = {"scenario": {"sample_interval": "0.1 s"}, "filter": {"timing_repeats": 3}}
 
+#: Further scenarios for ``sinslab demo``: the paper's εU convergence claim needs ~50 min.
+DEMO_VARIANTS = {"60min": ["scenario.duration=60 min"]}
+
 METRICS = {}
 for _m in ("full", "reduced"):
     for _n, _u in zip(_NAMES, _UNITS):
