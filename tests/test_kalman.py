@@ -298,99 +298,6 @@ def test_lagged_errors():
         kf.KalmanFilter(None, P0).update_lagged([0, 0], H, R, 0.0)
 
 
-# --- loosely coupled INS + position fixes ---------------------------------------------
-def _lc_scenario(duration=300.0, rate=100.0, seed=1):
-    from sinslab import imu as imu_mod
-    from sinslab import trajectory as tr
-    from sinslab import units as u
-    from sinslab.earth import radii
-    from sinslab.records import NavState
-    segs = [tr.Level(duration=60.0), tr.Turn(duration=60.0, rate=1.5 * u.deg),
-            tr.Accelerate(duration=30.0, accel=1.0), tr.Climb(duration=60.0, angle=3 * u.deg),
-            tr.Level(duration=90.0)]
-    start = tr.Start(lat=32 * u.deg, lon=118 * u.deg, h=1000.0, speed=150.0, heading=0.0)
-    gen = tr.generate(segs, start, 1.0 / rate, duration=duration)
-    err = imu_mod.ImuErrors.from_datasheet(gyro_bias="0.5 deg/h", gyro_arw="0.05 deg/sqrt(h)",
-                                           accel_bias="200 ug", accel_vrw="50 ug/sqrt(Hz)")
-    meas = imu_mod.apply(gen.imu, err, seed)
-    tru = gen.truth
-    rng = np.random.default_rng(seed + 1)
-    idx = np.arange(int(rate), tru.t.size, int(rate))
-    sig = np.array([3.0, 3.0, 5.0])
-    rm, rn = radii(tru.lat[idx], tru.h[idx])
-    e = rng.normal(size=(idx.size, 3)) * sig
-    fix = np.stack([tru.lat[idx] + e[:, 0] / rm, tru.lon[idx] + e[:, 1] / (rn * np.cos(tru.lat[idx])),
-                    tru.h[idx] + e[:, 2]], -1)
-    att0 = tru.att_imu[0] if tru.att_imu is not None else tru.att[0]
-    init = NavState(tru.lat[0], tru.lon[0], tru.h[0], tru.vel[0] + [0.1, -0.1, 0.05],
-                    att0 + np.array([1, 1, 5]) * u.arcmin, tru.t[0])
-    P0 = np.diag(np.r_[[(2 * u.arcmin) ** 2] * 2, (10 * u.arcmin) ** 2, [0.2 ** 2] * 3,
-                       (5 / 6.4e6) ** 2, (5 / 5.4e6) ** 2, 25.0, [(1 * u.dph) ** 2] * 3,
-                       [(500 * u.ug) ** 2] * 3])
-    kw = dict(gyro_arw=0.05 * u.dpsh, accel_vrw=50 * u.ugpsHz)
-    return meas, init, tru.t[idx], fix, sig, P0, kw, tru
-
-
-def _horiz_err(res, tru, dt):
-    from sinslab.earth import radii
-    k = np.round((res.t - tru.t[0]) / dt).astype(int)
-    rm, rn = radii(tru.lat[k], tru.h[k])
-    dn = (res.nav[:, 7] - tru.lat[k]) * rm
-    de = (res.nav[:, 8] - tru.lon[k]) * rn * np.cos(tru.lat[k])
-    sn = res.sigma[:, 6] * rm
-    se = res.sigma[:, 7] * rn * np.cos(tru.lat[k])
-    return dn, de, sn, se
-
-
-@pytest.fixture(scope="module")
-def lc_case():
-    return _lc_scenario()
-
-
-def test_loosely_coupled_is_consistent_and_beats_free_inertial(lc_case):
-    meas, init, ft, fix, sig, P0, kw, tru = lc_case
-    res = kf.loosely_coupled(meas, init, ft, fix, sig, P0, progress=False, **kw)
-    dn, de, sn, se = _horiz_err(res, tru, meas.dt)
-    late = res.t > res.t[0] + 60
-    ratio_n = np.sqrt(np.mean(dn[late] ** 2)) / np.sqrt(np.mean(sn[late] ** 2))
-    ratio_e = np.sqrt(np.mean(de[late] ** 2)) / np.sqrt(np.mean(se[late] ** 2))
-    assert 0.4 < ratio_n < 2.0 and 0.4 < ratio_e < 2.0, (ratio_n, ratio_e)
-    assert 1.0 < np.mean(res.nis) < 6.0
-    free = kf.loosely_coupled(meas, init, ft[:0], fix[:0], sig, P0, progress=False, **kw)
-    fdn, fde, _, _ = _horiz_err(free, tru, meas.dt)
-    assert np.hypot(fdn[-1], fde[-1]) > 10 * np.hypot(dn[-1], de[-1])
-    # the error model evaluated exactly on the corrected path gives nearly the same result
-    exact = kf.loosely_coupled(meas, init, ft, fix, sig, P0, model_every=0.1, progress=False, **kw)
-    edn, ede, _, _ = _horiz_err(exact, tru, meas.dt)
-    assert np.max(np.abs(edn - dn)) < 0.05 and np.max(np.abs(ede - de)) < 0.05
-
-
-def test_loosely_coupled_lagged_fixes_match_on_time(lc_case):
-    """Fixes arriving 1 s late, applied at their validity time with the stored INS state,
-    give (nearly) the on-time result; ignoring the lag is worse."""
-    meas, init, ft, fix, sig, P0, kw, tru = lc_case
-    on = kf.loosely_coupled(meas, init, ft, fix, sig, P0, progress=False, **kw)
-    lag = kf.loosely_coupled(meas, init, ft, fix, sig, P0, fix_lag=1.0, progress=False, **kw)
-    naive = kf.loosely_coupled(meas, init, ft[:-1] + 1.0, fix[:-1], sig, P0, progress=False, **kw)
-    e_on = np.hypot(*_horiz_err(on, tru, meas.dt)[:2])
-    e_lag = np.hypot(*_horiz_err(lag, tru, meas.dt)[:2])
-    e_naive = np.hypot(*_horiz_err(naive, tru, meas.dt)[:2])
-    late = on.t > on.t[0] + 60
-    rms = lambda e: np.sqrt(np.mean(e[late] ** 2))
-    assert rms(e_lag) < 1.3 * rms(e_on)
-    assert rms(e_naive) > 3 * rms(e_on)
-
-
-def test_loosely_coupled_bad_fixes(lc_case):
-    meas, init, ft, fix, sig, P0, kw, _ = lc_case
-    with pytest.raises(ValueError, match="outside the IMU data"):
-        kf.loosely_coupled(meas, init, ft + 1000.0, fix, sig, P0, progress=False, **kw)
-    with pytest.raises(ValueError, match="fix_pos"):
-        kf.loosely_coupled(meas, init, ft, fix[:, :2], sig, P0, progress=False, **kw)
-    with pytest.raises(ValueError, match="multiple"):
-        kf.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.015, progress=False, **kw)
-
-
 def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
     _, _, Phi, Q, H, R, P0, rng = _model()
     z = rng.normal(size=(5, 2))
@@ -414,7 +321,8 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
 def test_feedback_layout_corrects_ins_and_compensation():
     from sinslab import strapdown as sd
     from sinslab.records import NavState
-    model = kf.default_lc_model(1e-5, 1e-4)
+    from sinslab.integration import lc_model
+    model = lc_model(1e-5, 1e-4)
     lay = kf.FeedbackLayout.from_model(model.layout)
     assert lay.indices(15).tolist() == list(range(15))
     state = sd.initial_state_array(NavState(0.5, 1.0, 100.0, np.array([10.0, 5.0, 0.0]),
@@ -429,3 +337,30 @@ def test_feedback_layout_corrects_ins_and_compensation():
     np.testing.assert_allclose(gb, 1 + x[9:12])
     np.testing.assert_allclose(ab, x[12:15])
     assert np.all(f.x == 0) and np.allclose(f.x_total, x)
+
+
+def test_feedback_layout_horizontal_blocks_and_scale_factors():
+    """A 2-state (horizontal) velocity/position block leaves the vertical alone; scale-factor
+    blocks are fed back (zeroed) and returned for the caller's compensation."""
+    from sinslab import doublestar as ds
+    from sinslab import strapdown as sd
+    from sinslab.integration import lc_model
+    from sinslab.records import NavState
+    m = ds.horizontal_model(1e-7, 1e-7, 3600.0, 1e-4, 1800.0)
+    lay = kf.FeedbackLayout.from_model(m.layout, gyro="eps_b", accel=None)
+    assert lay.indices(16).tolist() == list(range(10))        # the Markov states stay
+    state = sd.initial_state_array(NavState(0.5, 1.0, 100.0, np.array([10.0, 5.0, 1.0]),
+                                            np.array([0.01, 0.02, 0.3]), 0.0))
+    f = kf.KalmanFilter(np.zeros(16), np.eye(16) * 1e-6)
+    x = np.r_[[1e-4, -2e-4, 3e-4], [0.1, 0.2], [1e-6, -1e-6], [1e-6] * 3, [2e-6] * 3, [1e-3] * 3]
+    f.x = x.copy()
+    ref = state.copy()
+    sd.correct(ref, phi=x[0:3], dvel=[x[3], x[4], 0.0], dpos=[x[5], x[6], 0.0])
+    gb, ab, d = lay.apply(f, state)
+    np.testing.assert_allclose(state[:10], ref[:10])
+    np.testing.assert_allclose(gb, x[7:10])
+    assert np.all(ab == 0) and np.all(f.x[:10] == 0) and np.array_equal(f.x[10:], x[10:])
+    m21 = lc_model(1e-5, 1e-4, scale_factors=True)
+    lay21 = kf.FeedbackLayout.from_model(m21.layout)
+    assert lay21.indices(21).tolist() == list(range(21))
+    assert lay21.gyro_scale == m21.layout.slice("kg") and lay21.accel_scale == m21.layout.slice("ka")

@@ -14,10 +14,12 @@ Three layers, from small to large:
 3. :class:`KalmanFilter`, a stateful filter for running beside a nonlinear INS: step
    by step predict/update, feedback (correct the INS, zero the states) or feed-forward
    (open loop), and lagged measurements from a ring-buffer history (exact re-processing
-   or the one-step form of paper 003).
-4. :func:`loosely_coupled`: an INS + position-fix filter running beside the compiled
-   mechanization of :mod:`sinslab.strapdown` with the error model of
-   :mod:`sinslab.errstate` (feedback or feed-forward, lagged fixes).
+   or the one-step form of paper 003); :class:`FeedbackLayout` routes the fed-back
+   states to the INS and its sensor compensation.
+
+The INS + fix application that runs this filter beside the mechanization (chunked
+strapdown stepping between filter epochs, lagged fixes, feedback) is
+:func:`sinslab.integration.loosely_coupled`; it is the only such driver in sinslab.
 
 Conventions
 -----------
@@ -42,8 +44,7 @@ from .errstate import van_loan
 __all__ = [
     "check_covariance", "predict", "update", "UpdateResult", "discretize",
     "steady_state", "SteadyState", "run_linear", "LinearRun", "propagate_covariance",
-    "error_budget", "Budget", "KalmanFilter", "FeedbackLayout", "loosely_coupled",
-    "LooselyCoupled", "default_lc_model",
+    "error_budget", "Budget", "KalmanFilter", "FeedbackLayout",
 ]
 
 
@@ -1108,9 +1109,11 @@ class FeedbackLayout:
 
     Each attribute is a slice or index array into the state vector, or None if the
     model has no such block. Used by :meth:`KalmanFilter.feedback` callers to route the
-    estimate: ``att`` (φ, rad, ENU), ``vel`` (δv, m/s, ENU), ``pos`` (δL, δλ [rad], δh [m]
-    — or whatever the error-state model uses), ``gyro`` (rad/s), ``accel`` (m/s²) and
-    ``other`` blocks that are zeroed on feedback (e.g. scale factors).
+    estimate: ``att`` (φ, rad, ENU), ``vel`` (δv, m/s, ENU; 2 states = east, north of a
+    horizontal model), ``pos`` (δL, δλ [rad], δh [m]; 2 states = δL, δλ), ``gyro``
+    (rad/s), ``accel`` (m/s²), ``gyro_scale``, ``accel_scale`` (scale-factor errors [-],
+    added to the scale compensation by the caller) and ``other`` blocks that are zeroed
+    on feedback.
     """
 
     att: object = None
@@ -1119,11 +1122,14 @@ class FeedbackLayout:
     gyro: object = None
     accel: object = None
     other: tuple = ()
+    gyro_scale: object = None
+    accel_scale: object = None
 
     def indices(self, n):
         """All fed-back state indices, sorted, as an int array."""
         out = []
-        for s in (self.att, self.vel, self.pos, self.gyro, self.accel, *self.other):
+        for s in (self.att, self.vel, self.pos, self.gyro, self.accel, self.gyro_scale,
+                  self.accel_scale, *self.other):
             if s is not None:
                 out.extend(np.arange(n)[s].tolist())
         return np.array(sorted(set(out)), dtype=np.int64)
@@ -1135,21 +1141,23 @@ class FeedbackLayout:
 
     @classmethod
     def from_model(cls, layout, *, att="phi", vel="dv", pos="dp", gyro="eps", accel="nabla",
-                   other=()):
+                   gyro_scale="kg", accel_scale="ka", other=()):
         """From a :class:`sinslab.errstate.StateLayout` (block names as in errstate's
-        builders; missing blocks become None)."""
+        builders; missing blocks, or a name given as None, become None)."""
         names = [b.name for b in layout.blocks]
         get = lambda b: layout.slice(b) if (b is not None and b in names) else None  # noqa: E731
         return cls(get(att), get(vel), get(pos), get(gyro), get(accel),
-                   tuple(layout.slice(o) for o in other))
+                   tuple(layout.slice(o) for o in other), get(gyro_scale), get(accel_scale))
 
     def apply(self, filt, state, gyro_bias=None, accel_bias=None):
         """Closed-loop correction: feed the filter's estimate back into the INS.
 
         Takes the fed-back states out of ``filt`` (:meth:`KalmanFilter.feedback`, which
         zeroes them), corrects the strapdown state array in place with
-        :func:`sinslab.strapdown.correct` (φ [rad], δv [m/s], δp = [δL, δλ, δh]) and adds the
-        sensor-error estimates to the compensation in use.
+        :func:`sinslab.strapdown.correct` (φ [rad], δv [m/s], δp = [δL, δλ, δh]; the
+        vertical of a 2-state horizontal block is left alone) and adds the bias estimates
+        to the compensation in use (scale factors: ``d[gyro_scale]``, ``d[accel_scale]``
+        are for the caller).
 
         Parameters
         ----------
@@ -1168,10 +1176,14 @@ class FeedbackLayout:
         """
         from . import strapdown as sd
         d = filt.feedback(self.indices(filt.n))
-        sd.correct(state,
-                   phi=None if self.att is None else d[self.att],
-                   dvel=None if self.vel is None else d[self.vel],
-                   dpos=None if self.pos is None else d[self.pos])
+
+        def three(s):
+            if s is None:
+                return None
+            v = d[s]
+            return v if v.size == 3 else np.r_[v, 0.0]
+
+        sd.correct(state, phi=three(self.att), dvel=three(self.vel), dpos=three(self.pos))
         gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=float).copy()
         ab = np.zeros(3) if accel_bias is None else np.asarray(accel_bias, dtype=float).copy()
         if self.gyro is not None:
@@ -1543,280 +1555,3 @@ class KalmanFilter:
         cur.updates = []
         buf.append(cur)
         return res
-
-
-# ----------------------------------------------------------------------------------------
-# loosely coupled INS + position fixes (the filter beside the mechanization)
-# ----------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class LooselyCoupled:
-    """Output of :func:`loosely_coupled`, at the filter epochs (every ``kf_dt``).
-
-    Attributes
-    ----------
-    t : ndarray, shape (M,)
-        Epoch times [s] (M = filter steps + 1; row 0 = start).
-    nav : ndarray, shape (M, 10)
-        Navigation state ``[q0..q3, vE, vN, vU, lat, lon, h]`` after any feedback at that
-        epoch (feedback mode) or the free INS (feed-forward mode; subtract ``x``).
-    x : ndarray, shape (M, n)
-        Error-state estimate after the updates of the epoch, before feedback.
-    sigma : ndarray, shape (M, n)
-        Filter σ of every state.
-    gyro_bias, accel_bias : ndarray, shape (M, 3)
-        Sensor compensation in use after the epoch [rad/s], [m/s²] (feedback mode).
-    fix_t : ndarray, shape (J,)
-        Validity times of the applied fixes [s].
-    innovation : ndarray, shape (J, 3)
-        Fix innovations [m] (north, east, up).
-    nis : ndarray, shape (J,)
-    layout : object
-        The error-state layout of the model (names of the states).
-    """
-
-    t: np.ndarray
-    nav: np.ndarray
-    x: np.ndarray
-    sigma: np.ndarray
-    gyro_bias: np.ndarray
-    accel_bias: np.ndarray
-    fix_t: np.ndarray
-    innovation: np.ndarray
-    nis: np.ndarray
-    layout: object
-
-
-def default_lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0):
-    """The 15-state loosely coupled model: φ, δv, δp=[δL, δλ, δh], gyro bias ε (body),
-    accelerometer bias ∇ (body), from :mod:`sinslab.errstate`.
-
-    Parameters
-    ----------
-    gyro_arw : float
-        Angle random walk [rad/√s].
-    accel_vrw : float
-        Velocity random walk [m/s/√s].
-    gyro_rrw, accel_rrw : float
-        Bias random-walk densities [rad/s/√s], [m/s²/√s] (0: random constants).
-    """
-    from . import errstate as es
-    return es.ErrorModel("full", [es.gyro_bias(rrw=gyro_rrw), es.accel_bias(arw=accel_rrw)],
-                         gyro_noise=gyro_arw, accel_noise=accel_vrw)
-
-
-def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyro_arw=None,
-                    accel_vrw=None, kf_dt=0.1, nsub=2, feedback=True, fix_lag=0.0,
-                    vertical="free", max_block=10.0, model_every=10.0, progress=True):
-    """Loosely coupled INS / position-fix integration with a closed-loop Kalman filter.
-
-    The strapdown mechanization (:func:`sinslab.strapdown.step`) runs on the IMU stream
-    in compiled blocks between fixes; the error-state model (default 15 states, see
-    :func:`default_lc_model`) is evaluated for all filter epochs of a block at once and
-    discretised with the series form; the covariance is propagated every ``kf_dt``.
-    At a fix the filter updates and (``feedback=True``) corrects the navigation state
-    with :func:`sinslab.strapdown.correct` and the gyro/accelerometer compensation, then
-    zeroes those states.
-
-    Parameters
-    ----------
-    imu : sinslab.records.ImuRecord
-        IMU increments (with errors), N samples at ``dt``.
-    init : sinslab.records.NavState
-        Initial navigation state (IMU attitude) at ``imu.t0``.
-    fix_t : array_like, shape (J,)
-        Validity times of the position fixes [s], inside the IMU record, increasing.
-    fix_pos : array_like, shape (J, 3)
-        Fix positions ``[lat, lon, h]`` [rad, rad, m].
-    fix_sigma : array_like, shape (3,) or (J, 3)
-        Fix standard deviations north, east, up [m].
-    P0 : array_like, shape (n, n)
-        Initial covariance of the error state.
-    model : sinslab.errstate.ErrorModel, optional
-        Error-state model with blocks ``phi``, ``dv``, ``dp`` and optionally ``eps``
-        (gyro bias, body) and ``nabla`` (accel bias, body). Default
-        :func:`default_lc_model` (``gyro_arw`` [rad/√s], ``accel_vrw`` [m/s/√s] needed).
-    kf_dt : float
-        Covariance propagation step [s]; a multiple of ``nsub * imu.dt``.
-    nsub : int
-        Mechanization subsamples (coning/sculling).
-    feedback : bool
-        Closed loop (default) or feed-forward (the INS runs free; ``x`` holds the
-        estimated errors).
-    fix_lag : float
-        Fixes valid at ``t`` arrive at ``t + fix_lag`` [s] and are applied with
-        :meth:`KalmanFilter.update_lagged` (exact form, INS state of ``t`` from history).
-    vertical : {"free", "hold", "damped"}
-        Only "free" is supported here (height is estimated from the fixes).
-    max_block : float
-        Longest stretch [s] the INS is run in one compiled call when no fix arrives.
-    model_every : float
-        The error model F, G (and Φ, Q_k) is evaluated for all filter epochs of the next
-        ``model_every`` seconds at once, along a look-ahead free-inertial run started from
-        the current (corrected) state; the linearisation point then differs from the
-        corrected path only by the feedback applied within that stretch (metres and
-        arc-seconds with 1 Hz fixes). Use ``kf_dt`` to evaluate it on the corrected path
-        exactly (slower).
-
-    Returns
-    -------
-    LooselyCoupled
-    """
-    from . import errstate as es
-    from . import strapdown as sd
-    from .attitude import quat_to_dcm
-    from .earth import radii
-    from .progress import progress as _progress
-
-    if vertical != "free":
-        raise ValueError("loosely_coupled supports vertical='free' only (the fixes hold height)")
-    if model is None:
-        if gyro_arw is None or accel_vrw is None:
-            raise ValueError("give a model or gyro_arw [rad/sqrt(s)] and accel_vrw [m/s/sqrt(s)]")
-        model = default_lc_model(gyro_arw, accel_vrw)
-    lay = model.layout
-    n = model.n
-    names = [b.name for b in lay.blocks]
-    for req in ("phi", "dv", "dp"):
-        if req not in names:
-            raise ValueError(f"the model needs a {req!r} block (has {names})")
-    s_att, s_vel, s_pos = lay.slice("phi"), lay.slice("dv"), lay.slice("dp")
-    if s_pos.stop - s_pos.start != 3 or s_vel.stop - s_vel.start != 3:
-        raise ValueError("the model needs the full core (3 velocity and 3 position errors)")
-    fb_layout = FeedbackLayout.from_model(lay)
-    dt = imu.dt
-    k_kf = int(round(kf_dt / dt))
-    if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % nsub:
-        raise ValueError(f"kf_dt={kf_dt} s must be a multiple of nsub*dt = {nsub * dt} s")
-    T = k_kf * dt
-    n_ep = len(imu) // k_kf
-    if n_ep < 1:
-        raise ValueError(f"the IMU record ({len(imu)} samples) is shorter than one filter step")
-    t0 = imu.t0
-    t_ep = t0 + T * np.arange(n_ep + 1)
-    fix_t = np.atleast_1d(np.asarray(fix_t, dtype=float))
-    fix_pos = np.atleast_2d(np.asarray(fix_pos, dtype=float))
-    J = fix_t.size
-    if fix_pos.shape != (J, 3):
-        raise ValueError(f"fix_pos must have shape ({J}, 3) for {J} fix times, got {fix_pos.shape}")
-    fix_sigma = np.broadcast_to(np.asarray(fix_sigma, dtype=float), (J, 3))
-    if J:
-        if not (np.all(np.isfinite(fix_t)) and np.all(np.isfinite(fix_pos))):
-            raise ValueError("fix times/positions contain NaN/inf")
-        if np.any(np.diff(fix_t) <= 0):
-            raise ValueError("fix times must be strictly increasing")
-        if fix_t[0] < t_ep[0] - 1e-9 or fix_t[-1] > t_ep[-1] + 1e-9:
-            raise ValueError(f"fix times {fix_t[0]:.6g}..{fix_t[-1]:.6g} s lie outside the IMU data "
-                             f"{t_ep[0]:.6g}..{t_ep[-1]:.6g} s")
-        if np.any(~(fix_sigma > 0)):
-            raise ValueError("fix_sigma must be > 0")
-    if fix_lag < 0:
-        raise ValueError("fix_lag must be >= 0")
-    e_valid = np.ceil((fix_t - t0) / T - 1e-9).astype(np.int64)     # epoch the fix is applied at
-    e_arr = np.ceil((fix_t + fix_lag - t0) / T - 1e-9).astype(np.int64)
-    keep = e_arr <= n_ep
-    arrivals = {}
-    for j in np.flatnonzero(keep):
-        arrivals.setdefault(int(e_arr[j]), []).append(int(j))
-    hist = int(np.max(e_arr[keep] - e_valid[keep])) + 2 if (fix_lag > 0 and keep.any()) else 0
-
-    state = sd.initial_state_array(init)
-    filt = KalmanFilter(np.zeros(n), P0, t0=t0, history=hist, check=False)
-    gb = np.zeros(3)
-    ab = np.zeros(3)
-    nav_h = np.empty((n_ep + 1, 10))
-    x_h = np.zeros((n_ep + 1, n))
-    sig_h = np.empty((n_ep + 1, n))
-    gb_h = np.zeros((n_ep + 1, 3))
-    ab_h = np.zeros((n_ep + 1, 3))
-    nav_h[0] = state[:10]
-    sig_h[0] = filt.sigma
-    filt.set_aux(state[:10].copy())
-    used_t, innov, nis = [], [], []
-    n_use = n_ep * k_kf
-    dth_sum = imu.dtheta[:n_use].reshape(n_ep, k_kf, 3).sum(1)
-    dv_sum = imu.dv[:n_use].reshape(n_ep, k_kf, 3).sum(1)
-    stops = sorted(set(arrivals) | {n_ep})
-    per = k_kf // nsub
-    max_ep = max(1, int(round(max_block / T)))
-    H = np.zeros((3, n))
-    la_ep = max(1, int(round(model_every / T)))
-    la_end = -1
-    la0 = 0
-    Phi_la = Q_la = None
-    with _progress("loosely coupled", total=n_ep, unit="steps") as bar:
-        e0 = 0
-        si = 0
-        while e0 < n_ep:
-            while stops[si] <= e0:
-                si += 1
-            e1 = min(stops[si], e0 + max_ep)
-            m = e1 - e0
-            out = np.empty((m, 10))
-            sd.step(state, imu.dtheta[e0 * k_kf:e1 * k_kf], imu.dv[e0 * k_kf:e1 * k_kf], dt, nsub,
-                    gyro_bias=gb, accel_bias=ab, out=out, out_every=per)
-            rows = np.vstack([nav_h[e0][None], out])                 # epochs e0..e1
-            if e1 > la_end:
-                # error model for the next stretch, from a look-ahead free run of the INS
-                # (the linearisation point differs from the corrected path only by the
-                # feedback applied inside the stretch)
-                la0 = e0
-                la_end = max(e1, min(n_ep, e0 + la_ep))
-                if la_end > e1:
-                    la = state.copy()                                 # at epoch e1
-                    la_out = np.empty((la_end - e1, 10))
-                    sd.step(la, imu.dtheta[e1 * k_kf:la_end * k_kf], imu.dv[e1 * k_kf:la_end * k_kf],
-                            dt, nsub, gyro_bias=gb, accel_bias=ab, out=la_out, out_every=per)
-                    la_rows = np.vstack([rows, la_out[:-1]])          # epochs e0..la_end-1
-                else:
-                    la_rows = rows[:-1]
-                C = quat_to_dcm(la_rows[:, :4])
-                npnt = es.NavPoint(la_rows[:, 7], la_rows[:, 9], la_rows[:, 4:7], C,
-                                   dv_sum[e0:la_end] / T - ab, dth_sum[e0:la_end] / T - gb)
-                F, G = model.matrices(npnt)
-                Phi_la, Q_la = es.discretize(F, G, model.q, T, "series")
-            sl = slice(e0 - la0, e1 - la0)
-            if hist:
-                for i in range(m):
-                    filt.predict(Phi_la[sl][i], Q_la[sl][i], T, aux=rows[i + 1].copy())
-                    x_h[e0 + i + 1] = filt.x
-                    sig_h[e0 + i + 1] = filt.sigma
-            else:
-                filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
-                                  x_out=x_h[e0 + 1:e1 + 1])
-            nav_h[e0 + 1:e1 + 1] = rows[1:]
-            gb_h[e0 + 1:e1 + 1] = gb
-            ab_h[e0 + 1:e1 + 1] = ab
-            fixes = arrivals.get(e1, []) if e1 == stops[si] else []
-            for j in fixes:
-                ev = int(e_valid[j])
-                navv = rows[-1] if ev == e1 else filt.aux_at(t_ep[ev])
-                rm, rn = radii(navv[7], navv[9])
-                rm, rn = float(rm), float(rn) * math.cos(navv[7])
-                dtf = t_ep[ev] - fix_t[j]                 # fix extrapolated to the epoch
-                z = np.array([(navv[7] - fix_pos[j, 0]) * rm - navv[5] * dtf,
-                              (navv[8] - fix_pos[j, 1]) * rn - navv[4] * dtf,
-                              (navv[9] - fix_pos[j, 2]) - navv[6] * dtf])
-                H[:] = 0.0
-                H[0, s_pos.start] = rm
-                H[1, s_pos.start + 1] = rn
-                H[2, s_pos.start + 2] = 1.0
-                R = fix_sigma[j] ** 2
-                if ev == e1:
-                    res = filt.update(z, H, R)
-                else:
-                    res = filt.update_lagged(z, H, R, t_ep[ev])
-                used_t.append(fix_t[j])
-                innov.append(res.innovation)
-                nis.append(res.nis)
-            if fixes:
-                x_h[e1] = filt.x
-                sig_h[e1] = filt.sigma
-                if feedback:
-                    gb, ab, _ = fb_layout.apply(filt, state, gb, ab)
-                    nav_h[e1] = state[:10]
-                    gb_h[e1] = gb
-                    ab_h[e1] = ab
-            bar.advance(m)
-            e0 = e1
-    return LooselyCoupled(t_ep, nav_h, x_h, sig_h, gb_h, ab_h, np.array(used_t),
-                          np.array(innov).reshape(-1, 3), np.array(nis), lay)
