@@ -38,7 +38,9 @@ Paper 003 (Liu, Lin, Lai, Sun 2004). Three parts, usable with any parameters and
    Markov drift 3, accelerometer first-order Markov bias 3) from
    :mod:`sinslab.errstate`, the strapdown mechanization of :mod:`sinslab.strapdown`
    (vertical channel held to an external height) and one
-   :class:`sinslab.kalman.KalmanFilter`, in three modes:
+   :class:`sinslab.kalman.KalmanFilter`, run by sinslab's one INS + fix driver
+   :func:`sinslab.integration.loosely_coupled` (2-component fixes, fixes only inside the
+   windows), in three modes:
 
    * ``"lag-aware"``: the fix valid at t arrives at t + ΔT and is applied with
      :meth:`~sinslab.kalman.KalmanFilter.update_lagged` (the paper's eqs 4–10,
@@ -630,8 +632,8 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     -------
     Integration
     """
-    from .attitude import quat_to_dcm
-    from .kalman import KalmanFilter
+    from .integration import loosely_coupled
+    from .kalman import FeedbackLayout
 
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
@@ -649,112 +651,27 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     if K < 1:
         raise ValueError("the IMU record is shorter than one filter step")
     t0 = imu.t0
-    t_ep = t0 + T * np.arange(K + 1)
-    hgt = np.asarray(height, dtype=float)
-    if hgt.ndim == 0:
-        hgt = np.full(len(imu) + 1, float(hgt))
-    if hgt.shape != (len(imu) + 1,):
-        raise ValueError(f"height must have {len(imu) + 1} values (IMU epochs), got {hgt.shape}")
+    t_end = t0 + T * K
     J = len(fixes)
-    if J and (fixes.t_valid[0] < t_ep[0] - 1e-9 or fixes.t_arrive[-1] > t_ep[-1] + 1e-9
-              or fixes.t_valid[-1] > t_ep[-1] + 1e-9):
+    if J and (fixes.t_valid[0] < t0 - 1e-9 or fixes.t_arrive[-1] > t_end + 1e-9
+              or fixes.t_valid[-1] > t_end + 1e-9):
         raise ValueError(f"fix times {fixes.t_valid[0]:g}..{fixes.t_arrive.max():g} s lie outside "
-                         f"the IMU record {t_ep[0]:g}..{t_ep[-1]:g} s")
-    e_val = _epoch_of(fixes.t_valid, t0, T, "fix validity time") if J else np.zeros(0, np.int64)
-    e_arr = np.ceil((fixes.t_arrive - t0) / T - 1e-6).astype(np.int64) if J else e_val
-    e_use = e_val if mode == "zero-lag" else e_arr
+                         f"the IMU record {t0:g}..{t_end:g} s")
+    if J:
+        _epoch_of(fixes.t_valid, t0, T, "fix validity time")
     w = None if windows is None else check_windows(windows)
-    events = {}
-    for j in range(J):
-        if w is not None and not np.any((t_ep[e_use[j]] >= w[:, 0] - 1e-9) & (t_ep[e_use[j]] <= w[:, 1] + 1e-9)):
-            continue
-        events.setdefault(int(e_use[j]), []).append(j)
-    hist = int(np.max(e_arr - e_val)) + 2 if (J and mode == "lag-aware") else 0
-
-    s_gb = lay.slice("eps_b")
-    state = sd.initial_state_array(init)
-    kf = KalmanFilter(np.zeros(16), P0, t0=t0, history=hist, check=False)
-    gb = np.zeros(3)
-    nav_h = np.empty((K + 1, 10))
-    # the INS output at each epoch before any feedback there: sinslab.kalman's exact lagged
-    # update takes the measurement relative to it (cumulative feedback of the epoch's prior),
-    # the paper003 form relative to the corrected output (feedback of the epoch's posterior)
-    nav_pre = np.empty((K + 1, 10))
-    nav_pre[0] = state[:10]
-    x_h = np.zeros((K + 1, 16))
-    sig_h = np.empty((K + 1, 16))
-    gb_h = np.zeros((K + 1, 3))
-    nav_h[0] = state[:10]
-    sig_h[0] = kf.sigma
-    F_h = np.empty((K, 16, 16))
-    Qc_h = np.empty((K, 16, 16))
-    n_use = K * k_kf
-    dth_sum = imu.dtheta[:n_use].reshape(K, k_kf, 3).sum(1)
-    dv_sum = imu.dv[:n_use].reshape(K, k_kf, 3).sum(1)
-    stops = sorted(set(events) | {K})
-    max_ep = max(1, int(round(max_block / T)))
-    per = k_kf // nsub
-    H = np.zeros((2, 16))
-    used, t_used, innov = [], [], []
-    q = model.q
-    e0 = 0
-    si = 0
-    while e0 < K:
-        while stops[si] <= e0:
-            si += 1
-        e1 = min(stops[si], e0 + max_ep)
-        m = e1 - e0
-        out = np.empty((m, 10))
-        a, b = e0 * k_kf, e1 * k_kf
-        sd.step(state, imu.dtheta[a:b], imu.dv[a:b], dt, nsub, vertical="hold",
-                height=hgt[a:b + 1], gyro_bias=gb, out=out, out_every=per)
-        rows = np.vstack([nav_h[e0][None], out])                 # epochs e0..e1
-        C = quat_to_dcm(rows[:-1, :4])
-        npnt = es.NavPoint(rows[:-1, 7], rows[:-1, 9], rows[:-1, 4:7], C,
-                           dv_sum[e0:e1] / T, dth_sum[e0:e1] / T - gb)
-        F, G = model.matrices(npnt)
-        Phi, Qk = es.discretize(F, G, q, T, discretization)
-        F_h[e0:e1] = F
-        Qc_h[e0:e1] = (G * q) @ np.swapaxes(G, -1, -2)
-        for i in range(m):
-            kf.predict(Phi[i], Qk[i], T)
-            x_h[e0 + i + 1] = kf.x
-            sig_h[e0 + i + 1] = kf.sigma
-        nav_h[e0 + 1:e1 + 1] = rows[1:]
-        nav_pre[e0 + 1:e1 + 1] = rows[1:]
-        gb_h[e0 + 1:e1 + 1] = gb
-        fx = events.get(e1, []) if e1 == stops[si] else []
-        for j in fx:
-            if mode == "lag-aware" and e_val[j] < e1:
-                navv = (nav_h if lag_method == "paper003" else nav_pre)[e_val[j]]
-            else:              # zero-lag, or lag-ignore: the current INS output
-                navv = state[:10]
-            rm, rn = radii(navv[7], navv[9])
-            rm, rnc = float(rm), float(rn) * math.cos(navv[7])
-            dlon = (navv[8] - fixes.lon[j] + math.pi) % (2 * math.pi) - math.pi
-            z = np.array([(navv[7] - fixes.lat[j]) * rm, dlon * rnc])
-            H[0, 5], H[1, 6] = rm, rnc
-            R = np.array([fixes.sigma_ns[j] ** 2, fixes.sigma_ew[j] ** 2])
-            if mode == "lag-aware" and e_val[j] < e1:
-                ev = int(e_val[j])
-                res = kf.update_lagged(z, H, np.diag(R), t_ep[ev], method=lag_method,
-                                       F=F_h[ev], Qc=Qc_h[ev])
-            else:
-                res = kf.update(z, H, np.diag(R))
-            used.append(fixes.t_valid[j])
-            t_used.append(t_ep[e1])
-            innov.append(res.innovation)
-        if fx:
-            d = kf.feedback(FEEDBACK)
-            sd.correct(state, phi=d[0:3], dvel=[d[3], d[4], 0.0], dpos=[d[5], d[6], 0.0])
-            gb = gb + d[s_gb]
-            nav_h[e1] = state[:10]
-            gb_h[e1] = gb
-            x_h[e1] = kf.x
-            sig_h[e1] = kf.sigma
-        e0 = e1
-    return Integration(t_ep, nav_h, x_h, sig_h, gb_h, np.array(used), np.array(t_used),
-                       np.array(innov).reshape(-1, 2), mode, lag_method)
+    # the one INS + fix driver: 2-component (north, east) fixes against the horizontal
+    # model, vertical channel held; φ, δv, δp and the gyro constant drift fed back (FEEDBACK)
+    r = loosely_coupled(
+        imu, init, fixes.t_valid, np.stack([fixes.lat, fixes.lon], -1),
+        np.stack([fixes.sigma_ns, fixes.sigma_ew], -1), P0, model=model,
+        fix_arrive=fixes.t_valid if mode == "zero-lag" else fixes.t_arrive,
+        lag="ignore" if mode == "lag-ignore" else "aware", lag_method=lag_method, windows=w,
+        kf_dt=kf_dt, nsub=nsub, feedback=FeedbackLayout.from_model(lay, gyro="eps_b", accel=None),
+        vertical="hold", height=height, max_block=max_block, model_every=0.0,
+        discretization=discretization, progress=False)
+    return Integration(r.t, r.nav, r.x, r.sigma, r.gyro_bias, r.fix_t, r.t_applied, r.innovation,
+                       mode, lag_method)
 
 
 def nav_errors(nav, truth):
