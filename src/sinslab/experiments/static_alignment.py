@@ -15,8 +15,9 @@ Claims (computed, each able to fail):
   carry second-order terms of the 60′ initial heading error (φE: ½φN·φU ≈ 0.09′, εN
   ≈ 0.0017 °/h; they vanish with ``filter.feedback = true``), so the criteria are
   max(0.15′, 3σ), max(2′, 3σ), max(0.003 °/h, 3σ);
-- ``epsU_1200s`` (runs ≤ 30 min): the up-drift residual has not converged (more than
-  half of its initial distance to the limit is left); ``epsU_converges`` (runs ≥ 50 min):
+- ``epsU_1200s`` (runs ≤ 30 min): the up drift has not converged — the reduced filter's
+  σ(εU) is still more than half its initial value (the residual alone is one random draw
+  and can sit near the limit by chance); ``epsU_converges`` (runs ≥ 50 min):
   the residual is within 25 % of its initial distance to the limit and the filter's σ(εU)
   has halved. (``epsU_converge_min``, the contract metric "within 10 % of the limit", is
   null in practice: 10 % of the limit is 3e-5 °/h, far below the noise.) With the gyro
@@ -302,10 +303,14 @@ def run(config: Config, ctx) -> Result:
             f"paper's size ({paper}); criterion max({crit:g} {un}, 3σ of the filter = "
             f"{3 * sig_r[i]:.3g} {un})", abs(dr[i]), lim3, un))
     if dur_min <= 30:
+        # The filter's own σ(εU) decides "not converged": the residual itself is one draw
+        # with a spread as large as its initial distance to the limit, so it can sit near
+        # the limit by chance (seen for 1 seed in 4) without the filter knowing εU.
+        s0 = fas["reduced"].sigma[0, 4]
+        s1 = fas["reduced"].sigma[-1, 4]
         claims.append(Claim.at_least(
-            "epsU_1200s", "εU has not converged yet: fraction of its initial distance to the limit "
-            "still left at the end (paper: not converged at 1200 s)",
-            abs(dr[4]) / max(d0 / units.dph, 1e-30), 0.5))
+            "epsU_1200s", "εU has not converged yet (paper: not converged at 1200 s): the reduced "
+            "filter's σ(εU) at the end / its initial value", s1 / s0, 0.5))
     if dur_min >= 50:
         s0 = fas["reduced"].sigma[0, 4]
         s1 = fas["reduced"].sigma[-1, 4]
