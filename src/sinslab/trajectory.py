@@ -1079,6 +1079,12 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                     a1 = (q + 1) & RM
                     dl += RS[a0, 1] + RS[a1, 1]
                     dhh += RS[a0, 2] + RS[a1, 2]
+                # trapezoids with the Euler-Maclaurin end correction (error O(dt^4)): the
+                # plain trapezoid's µm height error reached 1e-13 m/s in Δv via gravity
+                a0 = k & RM
+                a1 = e & RM
+                dl -= dt / 6.0 * (RS[a1, 4] - RS[a0, 4])
+                dhh -= dt / 6.0 * (RS[a1, 5] - RS[a0, 5])
                 d = 0.5 * dt * dl * irm
                 d2h = 0.5 * d * d
                 _earth_terms(RS, e & RM, sl0 * (1.0 - d2h) + cl0 * d, cl0 * (1.0 - d2h) - sl0 * d,
