@@ -78,7 +78,7 @@ def test_reader_small_and_bad_files(tmp_path):
                          "0.2,0,0,1e-6,0,0,0.98\n", "x.csv")
     imu, ps = io.read_imu(c)
     assert ps is None and len(imu) == 2 and imu.dt == pytest.approx(0.1)
-    with pytest.raises(ValueError, match="header"):
+    with pytest.raises(ValueError, match="y.csv:1: no time column"):
         io.read_imu(_write(tmp_path, "a,b\n1,2\n", "y.csv"))
 
 

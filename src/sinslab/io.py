@@ -27,7 +27,7 @@ import numpy as np
 from . import units
 from .records import ImuRecord
 
-__all__ = ["PsinsImu", "read_psins_imu", "read_csv_imu", "read_imu"]
+__all__ = ["PsinsImu", "read_psins_imu", "read_imu"]
 
 
 @dataclass(frozen=True)
@@ -125,46 +125,12 @@ def read_psins_imu(path) -> PsinsImu:
                     math.radians(lat), math.radians(lon), hgt, g, gs, as_, str(path))
 
 
-def read_csv_imu(path) -> ImuRecord:
-    """Read a CSV of increments: header ``t,dtheta_x,dtheta_y,dtheta_z,dv_x,dv_y,dv_z``
-    (s, rad, m/s; interval end times) or of rates ``t,wx,wy,wz,fx,fy,fz`` (rad/s, m/s²)."""
-    path = Path(path)
-    with open(path, "r", encoding="utf-8") as fh:
-        first = fh.readline()
-    cols = [c.strip().lower() for c in first.split(",")]
-    inc = ["t", "dtheta_x", "dtheta_y", "dtheta_z", "dv_x", "dv_y", "dv_z"]
-    rate = ["t", "wx", "wy", "wz", "fx", "fy", "fz"]
-    if cols not in (inc, rate):
-        raise ValueError(f"{path}: CSV header must be {','.join(inc)} or {','.join(rate)}, "
-                         f"got {first.strip()!r}")
-    try:
-        d = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    except ValueError as e:
-        raise ValueError(f"{path}: {e}") from None
-    if d.size == 0:
-        raise ValueError(f"{path}: no samples")
-    if d.shape[1] != 7:
-        raise ValueError(f"{path}: expected 7 columns, got {d.shape[1]}")
-    if cols == inc:
-        return ImuRecord(d[:, 0], d[:, 1:4], d[:, 4:7])
-    return ImuRecord.from_rates(d[:, 0], d[:, 1:4], d[:, 4:7])
-
-
-def read_imu(path, fmt=None):
-    """Read an IMU file: ``fmt`` "psins" (``.imu``) or "csv" (default from the suffix).
-
-    Returns ``(ImuRecord, PsinsImu | None)``.
-    """
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such file")
-    fmt = fmt or ("psins" if p.suffix.lower() == ".imu" else "csv")
-    if fmt == "psins":
-        ps = read_psins_imu(p)
-        return ps.imu, ps
-    if fmt == "csv":
-        return read_csv_imu(p), None
-    raise ValueError(f"unknown IMU format {fmt!r}; use 'psins' or 'csv'")
+def read_imu(path, fmt=None, **kw):
+    """Read an IMU file with :func:`load_imu` (any of :data:`IMU_FORMATS`; default from the
+    suffix). Returns ``(ImuRecord, PsinsImu | None)``: the PSINS header (attitude, position,
+    scale) when the file is a PSINS log, for callers that use it."""
+    d = load_imu(path, fmt, **kw)
+    return d.imu, d.meta.get("psins")
 
 
 # =========================================================================================
@@ -366,10 +332,10 @@ def _check_stamps(t, path, lines):
     d = np.diff(t)
     if (d == 0).any():
         i = int(np.argmax(d == 0)) + 1
-        raise ValueError(f"{_where(path, lines[i])}: duplicated time stamp {t[i]!r}")
+        raise ValueError(f"{_where(path, lines[i])}: duplicated time stamp {float(t[i])!r}")
     if (d < 0).any():
         i = int(np.argmax(d < 0)) + 1
-        raise ValueError(f"{_where(path, lines[i])}: time stamps not sorted ({t[i]!r} follows {t[i - 1]!r})")
+        raise ValueError(f"{_where(path, lines[i])}: time stamps not sorted ({float(t[i])!r} follows {float(t[i - 1])!r})")
 
 
 def uniform_increments(t, dth, dv, *, path="", lines=None, dt=None, max_gap=1.0, allow_gaps=False):
@@ -438,7 +404,7 @@ _COLSETS = {
     "accel_inc": [("dv_x", "dv_y", "dv_z"), ("dvx", "dvy", "dvz")],
 }
 _TIME_NAMES = ("t", "time", "timestamp", "t_s", "time_s", "tow")
-# names whose unit may be omitted (the minimal SI CSV of read_csv_imu)
+# names whose unit may be omitted (plain SI columns t,dtheta_x..,dv_x.. or t,wx..,fx..)
 _SI_NAMES = {"t", "dtheta_x", "dtheta_y", "dtheta_z", "dv_x", "dv_y", "dv_z",
              "wx", "wy", "wz", "fx", "fy", "fz"}
 _HDR = _re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:[\[(]\s*([^\])]*?)\s*[\])])?\s*$")

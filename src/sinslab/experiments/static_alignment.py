@@ -550,7 +550,7 @@ def register(app):
 
     @app.command()
     def align(imu: Path = typer.Option(..., "--imu", help="recorded IMU file (at rest)"),
-              format: Optional[str] = typer.Option(None, "--format", help="psins | csv [default: from the suffix]"),
+              format: Optional[str] = typer.Option(None, "--format", help="psins | csv | parquet | mat | rtklib-imu [default: from the suffix]"),
               lat: Optional[str] = typer.Option(None, "--lat", help='latitude, e.g. "34.246 deg" [default: PSINS header]'),
               height: Optional[str] = typer.Option(None, "--height", help='height, e.g. "380 m"'),
               window: Optional[str] = typer.Option(None, "--window", metavar="START:END", help="time window [s]"),
