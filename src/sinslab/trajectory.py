@@ -721,118 +721,88 @@ def _wrap(a):
 
 
 @njit(cache=True, inline="always")
+def _term(typ, u, p0, p1, p2, p3, p4, p5):
+    """(value, rate, acceleration) of one channel term at u = t − t_a (scalars only, so that
+    inlining it into the per-sample loop adds no array reference counting)."""
+    if typ == 0:                           # rate trapezoid: r, T, Tr
+        r = p0
+        T = p1
+        Tr = p2
+        if Tr > 0.0 and u < Tr:
+            x = u / Tr
+            return r * Tr * _s5i(x), r * _s5(x), r * _s5d(x) / Tr
+        if Tr > 0.0 and u > T - Tr:
+            x = (T - u) / Tr
+            if x < 0.0:
+                x = 0.0
+            return r * (T - Tr - Tr * _s5i(x)), r * _s5(x), -(r * _s5d(x) / Tr)
+        return r * (0.5 * Tr + (u - Tr)), r, 0.0
+    if typ == 1:                           # smooth step: d, T
+        dd = p0
+        T = p1
+        x = u / T
+        if x > 1.0:
+            x = 1.0
+        elif x < 0.0:
+            x = 0.0
+        return dd * _s5(x), dd * _s5d(x) / T, dd * _s5dd(x) / (T * T)
+    # sine: A, w, phase, T, ramp_in, ramp_out
+    A = p0
+    w = p1
+    T = p3
+    ri = p4
+    ro = p5
+    arg = w * u + p2
+    s = math.sin(arg)
+    c = math.cos(arg)
+    e = 1.0
+    ed = 0.0
+    edd = 0.0
+    if ri > 0.0 and u < ri:
+        x = u / ri
+        e = _s5(x)
+        ed = _s5d(x) / ri
+        edd = _s5dd(x) / (ri * ri)
+    elif ro > 0.0 and u > T - ro:
+        x = (T - u) / ro
+        if x < 0.0:
+            x = 0.0
+        e = _s5(x)
+        ed = -_s5d(x) / ro
+        edd = _s5dd(x) / (ro * ro)
+    return A * e * s, A * (ed * s + e * w * c), A * (edd * s + 2.0 * ed * w * c - e * w * w * s)
+
+
+@njit(cache=True)
 def _channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2):
+    """Values and first two derivatives of all channels at time t (piece j)."""
     for c in range(NCH):
         val[c] = base[j, c]
         d1[c] = 0.0
         d2[c] = 0.0
     for a in range(plo[j], phi[j]):
         k = act[a]
-        u = t - tta[k]
+        x0, x1, x2 = _term(ttype[k], t - tta[k], tpar[k, 0], tpar[k, 1], tpar[k, 2], tpar[k, 3],
+                           tpar[k, 4], tpar[k, 5])
         ch = tch[k]
-        typ = ttype[k]
-        if typ == 0:                       # rate trapezoid: r, T, Tr
-            r = tpar[k, 0]
-            T = tpar[k, 1]
-            Tr = tpar[k, 2]
-            if Tr > 0.0 and u < Tr:
-                x = u / Tr
-                val[ch] += r * Tr * _s5i(x)
-                d1[ch] += r * _s5(x)
-                d2[ch] += r * _s5d(x) / Tr
-            elif Tr > 0.0 and u > T - Tr:
-                x = (T - u) / Tr
-                if x < 0.0:
-                    x = 0.0
-                val[ch] += r * (T - Tr - Tr * _s5i(x))
-                d1[ch] += r * _s5(x)
-                d2[ch] -= r * _s5d(x) / Tr
-            else:
-                val[ch] += r * (0.5 * Tr + (u - Tr))
-                d1[ch] += r
-        elif typ == 1:                     # smooth step: d, T
-            dd = tpar[k, 0]
-            T = tpar[k, 1]
-            x = u / T
-            if x > 1.0:
-                x = 1.0
-            elif x < 0.0:
-                x = 0.0
-            val[ch] += dd * _s5(x)
-            d1[ch] += dd * _s5d(x) / T
-            d2[ch] += dd * _s5dd(x) / (T * T)
-        else:                              # sine: A, w, phase, T, ramp_in, ramp_out
-            A = tpar[k, 0]
-            w = tpar[k, 1]
-            T = tpar[k, 3]
-            ri = tpar[k, 4]
-            ro = tpar[k, 5]
-            arg = w * u + tpar[k, 2]
-            s = math.sin(arg)
-            c = math.cos(arg)
-            e = 1.0
-            ed = 0.0
-            edd = 0.0
-            if ri > 0.0 and u < ri:
-                x = u / ri
-                e = _s5(x)
-                ed = _s5d(x) / ri
-                edd = _s5dd(x) / (ri * ri)
-            elif ro > 0.0 and u > T - ro:
-                x = (T - u) / ro
-                if x < 0.0:
-                    x = 0.0
-                e = _s5(x)
-                ed = -_s5d(x) / ro
-                edd = _s5dd(x) / (ro * ro)
-            val[ch] += A * e * s
-            d1[ch] += A * (ed * s + e * w * c)
-            d2[ch] += A * (edd * s + 2.0 * ed * w * c - e * w * w * s)
+        val[ch] += x0
+        d1[ch] += x1
+        d2[ch] += x2
 
 
 @njit(cache=True, inline="always")
-def _state(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2, S, i):
-    """Kinematic state at time t into S[i]: v(3) vdot(3) C_b^n(9) w_nb^b(3) att_c(3) mount(3)."""
-    _channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2)
-    V = val[CH_V]
-    Vd = d1[CH_V]
-    psv = val[CH_PSI]
-    psd = d1[CH_PSI]
-    thv = val[CH_THETA]
-    thd = d1[CH_THETA]
-    sth = math.sin(thv)
-    cth = math.cos(thv)
-    sps = math.sin(psv)
-    cps = math.cos(psv)
-    S[i, 0] = -V * cth * sps
-    S[i, 1] = V * cth * cps
-    S[i, 2] = V * sth + d1[CH_HEAVE]
-    S[i, 3] = -Vd * cth * sps + V * sth * thd * sps - V * cth * cps * psd
-    S[i, 4] = Vd * cth * cps - V * sth * thd * cps - V * cth * sps * psd
-    S[i, 5] = Vd * sth + V * cth * thd + d2[CH_HEAVE]
-    # body attitude
-    roll = val[CH_ROLL]
-    rolld = d1[CH_ROLL]
-    if flag[j] != 0:
-        u = -V * psd / G0
-        roll += math.atan(u)
-        rolld += -(Vd * psd + V * d2[CH_PSI]) / G0 / (1.0 + u * u)
-    pitch = thv
-    pitchd = thd
-    yaw = psv
-    yawd = psd
-    if val[CH_PITCH] != 0.0 or d1[CH_PITCH] != 0.0:
-        pitch += val[CH_PITCH]
-        pitchd += d1[CH_PITCH]
-        sth = math.sin(pitch)
-        cth = math.cos(pitch)
-    if val[CH_YAW] != 0.0 or d1[CH_YAW] != 0.0:
-        yaw += val[CH_YAW]
-        yawd += d1[CH_YAW]
-        sps = math.sin(yaw)
-        cps = math.cos(yaw)
-    sg = math.sin(roll)
-    cg = math.cos(roll)
+def _kin(V, Vd, thd, sthv, cthv, spsv, cpsv, psd, hd1, hd2,
+         pitch, pitchd, sth, cth, yaw, yawd, sps, cps, roll, rolld, sg, cg,
+         has_mount, mp, mr, my, mpd, mrd, myd):
+    """Kinematic state from the channels, sines and cosines given (track path angle and yaw:
+    sthv..cpsv; body pitch, yaw, roll: sth..cg): the 24-tuple v(3) vdot(3) C_b^n(9)
+    w_nb^b(3) att_c(3) mount(3)."""
+    s0 = -V * cthv * spsv
+    s1 = V * cthv * cpsv
+    s2 = V * sthv + hd1
+    s3 = -Vd * cthv * spsv + V * sthv * thd * spsv - V * cthv * cpsv * psd
+    s4 = Vd * cthv * cpsv - V * sthv * thd * cpsv - V * cthv * spsv * psd
+    s5 = Vd * sthv + V * cthv * thd + hd2
     c00 = cps * cg - sps * sth * sg
     c01 = -sps * cth
     c02 = cps * sg + sps * sth * cg
@@ -845,128 +815,126 @@ def _state(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, va
     wx = cg * pitchd - sg * cth * yawd
     wy = rolld + sth * yawd
     wz = sg * pitchd + cg * cth * yawd
-    S[i, 18] = pitch
-    S[i, 19] = roll
-    S[i, 20] = yaw
-    if has_mount:
-        mp = val[CH_MP]
-        mr = val[CH_MR]
-        my = val[CH_MY]
-        mpd = d1[CH_MP]
-        mrd = d1[CH_MR]
-        myd = d1[CH_MY]
-        st = math.sin(mp)
-        ct = math.cos(mp)
-        sy = math.sin(my)
-        cy = math.cos(my)
-        sr = math.sin(mr)
-        cr = math.cos(mr)
-        # M = C_b^c
-        m00 = cy * cr - sy * st * sr
-        m01 = -sy * ct
-        m02 = cy * sr + sy * st * cr
-        m10 = sy * cr + cy * st * sr
-        m11 = cy * ct
-        m12 = sy * sr - cy * st * cr
-        m20 = -ct * sr
-        m21 = st
-        m22 = ct * cr
-        # w_nb^b = M^T w_nc^c + w_cb^b
-        ux = cr * mpd - sr * ct * myd
-        uy = mrd + st * myd
-        uz = sr * mpd + cr * ct * myd
-        S[i, 15] = m00 * wx + m10 * wy + m20 * wz + ux
-        S[i, 16] = m01 * wx + m11 * wy + m21 * wz + uy
-        S[i, 17] = m02 * wx + m12 * wy + m22 * wz + uz
-        # C_b^n = C_c^n M
-        S[i, 6] = c00 * m00 + c01 * m10 + c02 * m20
-        S[i, 7] = c00 * m01 + c01 * m11 + c02 * m21
-        S[i, 8] = c00 * m02 + c01 * m12 + c02 * m22
-        S[i, 9] = c10 * m00 + c11 * m10 + c12 * m20
-        S[i, 10] = c10 * m01 + c11 * m11 + c12 * m21
-        S[i, 11] = c10 * m02 + c11 * m12 + c12 * m22
-        S[i, 12] = c20 * m00 + c21 * m10 + c22 * m20
-        S[i, 13] = c20 * m01 + c21 * m11 + c22 * m21
-        S[i, 14] = c20 * m02 + c21 * m12 + c22 * m22
-        S[i, 21] = mp
-        S[i, 22] = mr
-        S[i, 23] = my
-    else:
-        S[i, 6] = c00
-        S[i, 7] = c01
-        S[i, 8] = c02
-        S[i, 9] = c10
-        S[i, 10] = c11
-        S[i, 11] = c12
-        S[i, 12] = c20
-        S[i, 13] = c21
-        S[i, 14] = c22
-        S[i, 15] = wx
-        S[i, 16] = wy
-        S[i, 17] = wz
+    if not has_mount:
+        return (s0, s1, s2, s3, s4, s5, c00, c01, c02, c10, c11, c12, c20, c21, c22,
+                wx, wy, wz, pitch, roll, yaw, 0.0, 0.0, 0.0)
+    st = math.sin(mp)
+    ct = math.cos(mp)
+    sy = math.sin(my)
+    cy = math.cos(my)
+    sr = math.sin(mr)
+    cr = math.cos(mr)
+    # M = C_b^c
+    m00 = cy * cr - sy * st * sr
+    m01 = -sy * ct
+    m02 = cy * sr + sy * st * cr
+    m10 = sy * cr + cy * st * sr
+    m11 = cy * ct
+    m12 = sy * sr - cy * st * cr
+    m20 = -ct * sr
+    m21 = st
+    m22 = ct * cr
+    # w_nb^b = M^T w_nc^c + w_cb^b
+    ux = cr * mpd - sr * ct * myd
+    uy = mrd + st * myd
+    uz = sr * mpd + cr * ct * myd
+    # C_b^n = C_c^n M
+    return (s0, s1, s2, s3, s4, s5,
+            c00 * m00 + c01 * m10 + c02 * m20, c00 * m01 + c01 * m11 + c02 * m21,
+            c00 * m02 + c01 * m12 + c02 * m22, c10 * m00 + c11 * m10 + c12 * m20,
+            c10 * m01 + c11 * m11 + c12 * m21, c10 * m02 + c11 * m12 + c12 * m22,
+            c20 * m00 + c21 * m10 + c22 * m20, c20 * m01 + c21 * m11 + c22 * m21,
+            c20 * m02 + c21 * m12 + c22 * m22,
+            m00 * wx + m10 * wy + m20 * wz + ux, m01 * wx + m11 * wy + m21 * wz + uy,
+            m02 * wx + m12 * wy + m22 * wz + uz,
+            pitch, roll, yaw, mp, mr, my)
+
+
+@njit(cache=True)
+def _state(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2, S, i):
+    """Kinematic state at time t into S[i]: v(3) vdot(3) C_b^n(9) w_nb^b(3) att_c(3) mount(3).
+    (The fallback path's evaluation; the stencil path does the same inline, with cached
+    sines and cosines.)"""
+    _channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2)
+    V = val[CH_V]
+    Vd = d1[CH_V]
+    psv = val[CH_PSI]
+    psd = d1[CH_PSI]
+    thv = val[CH_THETA]
+    thd = d1[CH_THETA]
+    roll = val[CH_ROLL]
+    rolld = d1[CH_ROLL]
+    if flag[j] != 0:
+        u = -V * psd / G0
+        roll += math.atan(u)
+        rolld += -(Vd * psd + V * d2[CH_PSI]) / G0 / (1.0 + u * u)
+    pitch = thv + val[CH_PITCH]
+    yaw = psv + val[CH_YAW]
+    out = _kin(V, Vd, thd, math.sin(thv), math.cos(thv), math.sin(psv), math.cos(psv), psd,
+               d1[CH_HEAVE], d2[CH_HEAVE], pitch, thd + d1[CH_PITCH], math.sin(pitch),
+               math.cos(pitch), yaw, psd + d1[CH_YAW], math.sin(yaw), math.cos(yaw),
+               roll, rolld, math.sin(roll), math.cos(roll), has_mount,
+               val[CH_MP], val[CH_MR], val[CH_MY], d1[CH_MP], d1[CH_MR], d1[CH_MY])
+    for q in range(24):
+        S[i, q] = out[q]
 
 
 @njit(cache=True, inline="always")
-def _earth_terms(S, i, sl, cl, h, W, F):
-    """ω_ib^b, f^b into W[i] and the position rates into F[i], at latitude (sin, cos) and
-    height h. Radii and gravity: the formulas of earth.radii_s / earth.gravity_s."""
-    sq2 = 1.0 - earth.E2 * sl * sl
-    rsq = 1.0 / math.sqrt(sq2)
-    irm = 1.0 / (earth.A * (1.0 - earth.E2) * rsq * rsq * rsq + h)
-    irn = 1.0 / (earth.A * rsq + h)
+def _earth(sl, cl, h, ve, vn, vu, a0, a1, a2, c00, c01, c02, c10, c11, c12, c20, c21, c22,
+           w0, w1, w2):
+    """ω_ib^b, f^b, the position rates and 1/R_M at latitude (sin, cos) and height h, from
+    v^n, v̇^n (a), C_b^n and ω_nb^b (w). Radii and gravity: the formulas of earth.radii_s /
+    earth.gravity_s, with the four reciprocals (1/√(1−e²sin²L), 1/R_M, 1/R_N, 1/cos L) taken
+    from one division (a few ulps)."""
+    s = math.sqrt(1.0 - earth.E2 * sl * sl)
+    s3 = s * s * s
+    P = earth.A * (1.0 - earth.E2) + h * s3          # R_M = P / s³
+    Q = earth.A + h * s                              # R_N = Q / s
+    sP = s * P
+    Qc = Q * cl
+    inv = 1.0 / (sP * Qc)
+    rsq = inv * P * Qc
+    irm = inv * s * Qc * s3
+    irn = inv * sP * cl * s
+    icl = inv * sP * Q
     g = earth.G_EQ * (1.0 + earth.K_SOM * sl * sl) * rsq - earth.DGDH * h
-    ve = S[i, 0]
-    vn = S[i, 1]
-    vu = S[i, 2]
     wiy = earth.WIE * cl
     wiz = earth.WIE * sl
     ex = -vn * irm
     ey = ve * irn
-    icl = 1.0 / cl
     ez = ey * sl * icl
     # w_in^n
     nx = ex
     ny = wiy + ey
     nz = wiz + ez
     # f^n = vdot + (2 w_ie + w_en) x v + [0, 0, g]
-    ax = ex
     ay = 2.0 * wiy + ey
     az = 2.0 * wiz + ez
-    fx = S[i, 3] + ay * vu - az * vn
-    fy = S[i, 4] + az * ve - ax * vu
-    fz = S[i, 5] + ax * vn - ay * ve + g
-    c00 = S[i, 6]
-    c01 = S[i, 7]
-    c02 = S[i, 8]
-    c10 = S[i, 9]
-    c11 = S[i, 10]
-    c12 = S[i, 11]
-    c20 = S[i, 12]
-    c21 = S[i, 13]
-    c22 = S[i, 14]
-    W[i, 0] = S[i, 15] + c00 * nx + c10 * ny + c20 * nz
-    W[i, 1] = S[i, 16] + c01 * nx + c11 * ny + c21 * nz
-    W[i, 2] = S[i, 17] + c02 * nx + c12 * ny + c22 * nz
-    W[i, 3] = c00 * fx + c10 * fy + c20 * fz
-    W[i, 4] = c01 * fx + c11 * fy + c21 * fz
-    W[i, 5] = c02 * fx + c12 * fy + c22 * fz
-    F[i, 0] = vn * irm
-    F[i, 1] = ey * icl
-    F[i, 2] = vu
-
-
-@njit(cache=True)
-def _state_call(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2, S, i):
-    """_state as an ordinary call (the rarely used fallback path: less code to compile)."""
-    _state(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2, S, i)
+    fx = a0 + ay * vu - az * vn
+    fy = a1 + az * ve - ex * vu
+    fz = a2 + ex * vn - ay * ve + g
+    return (w0 + c00 * nx + c10 * ny + c20 * nz,
+            w1 + c01 * nx + c11 * ny + c21 * nz,
+            w2 + c02 * nx + c12 * ny + c22 * nz,
+            c00 * fx + c10 * fy + c20 * fz,
+            c01 * fx + c11 * fy + c21 * fz,
+            c02 * fx + c12 * fy + c22 * fz,
+            vn * irm, ey * icl, vu, irm)
 
 
 @njit(cache=True)
 def _earth_call(S, i, sl, cl, h, W, F):
-    _earth_terms(S, i, sl, cl, h, W, F)
+    """Earth terms of S[i] into W[i] (ω_ib^b, f^b) and F[i] (position rates)."""
+    out = _earth(sl, cl, h, S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4], S[i, 5], S[i, 6],
+                 S[i, 7], S[i, 8], S[i, 9], S[i, 10], S[i, 11], S[i, 12], S[i, 13], S[i, 14],
+                 S[i, 15], S[i, 16], S[i, 17])
+    for q in range(6):
+        W[i, q] = out[q]
+    for q in range(3):
+        F[i, q] = out[6 + q]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _advance(t, j, bp):
     n = bp.shape[0]
     while j + 1 < n and t >= bp[j + 1]:
@@ -975,32 +943,12 @@ def _advance(t, j, bp):
 
 
 @njit(cache=True, inline="always")
-def _write_truth(S, i, m, lat, lon, h, has_mount, olat, olon, oh, vel, att, atti):
-    olat[m] = lat
-    olon[m] = lon
-    oh[m] = h
-    vel[m, 0] = S[i, 0]
-    vel[m, 1] = S[i, 1]
-    vel[m, 2] = S[i, 2]
-    att[m, 0] = S[i, 18]
-    att[m, 1] = _wrap(S[i, 19])
-    att[m, 2] = _wrap(S[i, 20])
-    if has_mount:
-        c21 = S[i, 13]
-        if c21 > 1.0:
-            c21 = 1.0
-        elif c21 < -1.0:
-            c21 = -1.0
-        atti[m, 0] = math.asin(c21)
-        atti[m, 1] = math.atan2(-S[i, 12], S[i, 14])
-        atti[m, 2] = math.atan2(-S[i, 7], S[i, 10])
-
-
-@njit(cache=True, inline="always")
-def _put_mount(src, si, mnt, m):
-    mnt[m, 0] = src[si, 21]
-    mnt[m, 1] = _wrap(src[si, 22])
-    mnt[m, 2] = _wrap(src[si, 23])
+def _asin1(x):
+    if x > 1.0:
+        x = 1.0
+    elif x < -1.0:
+        x = -1.0
+    return math.asin(x)
 
 
 @njit(cache=True)
@@ -1010,12 +958,17 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     """Increments, position and truth for n IMU intervals of length dt.
 
     Every epoch t_e = e·dt is evaluated once (kinematics into a ring buffer). With a
-    stencil (``sw`` of length m > 0, first point at offset ``lo_off``), the increment over
-    [t_k, t_k+1] is dt·Σ sw_j·W(t_{k+lo_off+j}) — the exact integral of the interpolating
-    polynomial through m epochs — whenever no breakpoint of the profiles lies strictly
-    inside the stencil; otherwise (and always when m = 0) the interval is split at the
-    breakpoints and integrated with the node rule (cn, wn) and collocation matrix amat.
+    stencil (``sw`` of length m > 0, symmetric, first point at offset ``lo_off``), the
+    increment over [t_k, t_k+1] is dt·Σ sw_j·W(t_{k+lo_off+j}) — the exact integral of the
+    interpolating polynomial through m epochs — whenever no breakpoint of the profiles lies
+    strictly inside the stencil; otherwise (and always when m = 0) the interval is split at
+    the breakpoints and integrated with the node rule (cn, wn) and collocation matrix amat.
     Earth terms at look-ahead epochs use a predicted position (error ~µm, immaterial).
+
+    Speed: the per-epoch code works on scalars and on arrays local to this function only
+    (inlined helpers taking arrays cost atomic reference counting per sample); sines and
+    cosines of the Euler angles and the bank angle's arctangent are reused while their
+    argument is unchanged (bit-identical).
     """
     m = sw.shape[0]
     L = m + lo_off - 1 if m > 0 else 1
@@ -1024,18 +977,39 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     slat = math.sin(lat)
     clat = math.cos(lat)
     RS = np.zeros((RB, 24))
-    RW = np.zeros((RB, 6))
-    RF = np.zeros((RB, 3))
+    RW = np.zeros((RB, 10))          # ω_ib^b, f^b, position rates, 1/R_M per epoch
     ns = cn.shape[0]
     S = np.zeros((ns, 24))
     W = np.zeros((ns, 6))
     F = np.zeros((ns, 3))
-    P = np.zeros((ns, 3))
     val = np.zeros(NCH)
     d1 = np.zeros(NCH)
     d2 = np.zeros(NCH)
+    mh = m // 2
+    swd = np.empty(mh)
+    for jj in range(mh):
+        swd[jj] = sw[jj] * dt
     nbp = bp.shape[0]
     tol = 1e-9 * dt
+    # cached (argument, sin, cos): track path angle, track yaw, body pitch, body yaw, roll;
+    # bank: (argument, arctangent)
+    a_th = math.nan
+    s_th = 0.0
+    c_th = 1.0
+    a_ps = math.nan
+    s_ps = 0.0
+    c_ps = 1.0
+    a_p = math.nan
+    s_p = 0.0
+    c_p = 1.0
+    a_y = math.nan
+    s_y = 0.0
+    c_y = 1.0
+    a_r = math.nan
+    s_r = 0.0
+    c_r = 1.0
+    a_u = math.nan
+    t_u = 0.0
     je = 0          # piece of the newest evaluated epoch
     jn = 0          # piece of the newest fallback node
     bi = 1          # first breakpoint after the current fallback sub-interval start
@@ -1045,21 +1019,98 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         e_new = k + L
         # kinematics of the new look-ahead epoch (epochs 0..L at the first step)
         for e in range(0 if k == 0 else e_new, e_new + 1):
+            te = e * dt
             jprev = je
-            je = _advance(e * dt, je, bp)
+            while je + 1 < nbp and te >= bp[je + 1]:
+                je += 1
+            r = e & RM
             if e > 0 and je == jprev and plo[je] == phi[je] and flag[je] == 0:
                 # no active term: the kinematic state is constant over the piece
-                a0 = (e - 1) & RM
-                a1 = e & RM
+                r0 = (e - 1) & RM
                 for q in range(24):
-                    RS[a1, q] = RS[a0, q]
-            else:
-                _state(e * dt, je, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
-                       val, d1, d2, RS, e & RM)
+                    RS[r, q] = RS[r0, q]
+                continue
+            for c in range(NCH):
+                val[c] = base[je, c]
+                d1[c] = 0.0
+                d2[c] = 0.0
+            for a in range(plo[je], phi[je]):
+                kk = act[a]
+                x0, x1, x2 = _term(ttype[kk], te - tta[kk], tpar[kk, 0], tpar[kk, 1],
+                                   tpar[kk, 2], tpar[kk, 3], tpar[kk, 4], tpar[kk, 5])
+                ch = tch[kk]
+                val[ch] += x0
+                d1[ch] += x1
+                d2[ch] += x2
+            V = val[CH_V]
+            Vd = d1[CH_V]
+            psv = val[CH_PSI]
+            psd = d1[CH_PSI]
+            thv = val[CH_THETA]
+            thd = d1[CH_THETA]
+            roll = val[CH_ROLL]
+            rolld = d1[CH_ROLL]
+            if flag[je] != 0:
+                u = -V * psd / G0
+                if u != a_u:
+                    a_u = u
+                    t_u = math.atan(u)
+                roll += t_u
+                rolld += -(Vd * psd + V * d2[CH_PSI]) / G0 / (1.0 + u * u)
+            if thv != a_th:
+                a_th = thv
+                s_th = math.sin(thv)
+                c_th = math.cos(thv)
+            if psv != a_ps:
+                a_ps = psv
+                s_ps = math.sin(psv)
+                c_ps = math.cos(psv)
+            pitch = thv + val[CH_PITCH]
+            if pitch != a_p:
+                a_p = pitch
+                if pitch == thv:
+                    s_p = s_th
+                    c_p = c_th
+                else:
+                    s_p = math.sin(pitch)
+                    c_p = math.cos(pitch)
+            yaw = psv + val[CH_YAW]
+            if yaw != a_y:
+                a_y = yaw
+                if yaw == psv:
+                    s_y = s_ps
+                    c_y = c_ps
+                else:
+                    s_y = math.sin(yaw)
+                    c_y = math.cos(yaw)
+            if roll != a_r:
+                a_r = roll
+                s_r = math.sin(roll)
+                c_r = math.cos(roll)
+            out = _kin(V, Vd, thd, s_th, c_th, s_ps, c_ps, psd, d1[CH_HEAVE], d2[CH_HEAVE],
+                       pitch, thd + d1[CH_PITCH], s_p, c_p, yaw, psd + d1[CH_YAW], s_y, c_y,
+                       roll, rolld, s_r, c_r, has_mount,
+                       val[CH_MP], val[CH_MR], val[CH_MY], d1[CH_MP], d1[CH_MR], d1[CH_MY])
+            for q in range(24):
+                RS[r, q] = out[q]
+        r1 = (k + 1) & RM
         if k == 0:
-            _write_truth(RS, 0, 0, lat, lon, h, has_mount, olat, olon, oh, vel, att, atti)
+            olat[0] = lat
+            olon[0] = lon
+            oh[0] = h
+            vel[0, 0] = RS[0, 0]
+            vel[0, 1] = RS[0, 1]
+            vel[0, 2] = RS[0, 2]
+            att[0, 0] = RS[0, 18]
+            att[0, 1] = _wrap(RS[0, 19])
+            att[0, 2] = _wrap(RS[0, 20])
             if has_mount:
-                _put_mount(RS, 0, mnt, 0)
+                atti[0, 0] = _asin1(RS[0, 13])
+                atti[0, 1] = math.atan2(-RS[0, 12], RS[0, 14])
+                atti[0, 2] = math.atan2(-RS[0, 7], RS[0, 10])
+                mnt[0, 0] = RS[0, 21]
+                mnt[0, 1] = _wrap(RS[0, 22])
+                mnt[0, 2] = _wrap(RS[0, 23])
         if k & 1023 == 0:                    # exact sin/cos now and then, updated in between
             slat = math.sin(lat)
             clat = math.cos(lat)
@@ -1067,11 +1118,11 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         if m > 0:
             sl0 = slat
             cl0 = clat
-            rsq = 1.0 / math.sqrt(1.0 - earth.E2 * sl0 * sl0)
-            irm = 1.0 / (earth.A * (1.0 - earth.E2) * rsq * rsq * rsq + h)
             # Earth terms of the stencil epochs not done yet (all of them at k = 0)
             e0 = e_new if k > 0 else 0
+            rk = k & RM
             for e in range(e0, e_new + 1):
+                re = e & RM
                 dl = 0.0
                 dhh = 0.0
                 for q in range(k, e):
@@ -1081,14 +1132,18 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                     dhh += RS[a0, 2] + RS[a1, 2]
                 # trapezoids with the Euler-Maclaurin end correction (error O(dt^4)): the
                 # plain trapezoid's µm height error reached 1e-13 m/s in Δv via gravity
-                a0 = k & RM
-                a1 = e & RM
-                dl -= dt / 6.0 * (RS[a1, 4] - RS[a0, 4])
-                dhh -= dt / 6.0 * (RS[a1, 5] - RS[a0, 5])
-                d = 0.5 * dt * dl * irm
+                dl -= dt / 6.0 * (RS[re, 4] - RS[rk, 4])
+                dhh -= dt / 6.0 * (RS[re, 5] - RS[rk, 5])
+                # 1/R_M of epoch k (the prediction needs it to ~1e-6 only)
+                d = 0.5 * dt * dl * RW[rk, 9] if e > k else 0.0
                 d2h = 0.5 * d * d
-                _earth_terms(RS, e & RM, sl0 * (1.0 - d2h) + cl0 * d, cl0 * (1.0 - d2h) - sl0 * d,
-                             h + 0.5 * dt * dhh, RW, RF)
+                w = _earth(sl0 * (1.0 - d2h) + cl0 * d, cl0 * (1.0 - d2h) - sl0 * d,
+                           h + 0.5 * dt * dhh, RS[re, 0], RS[re, 1], RS[re, 2], RS[re, 3],
+                           RS[re, 4], RS[re, 5], RS[re, 6], RS[re, 7], RS[re, 8], RS[re, 9],
+                           RS[re, 10], RS[re, 11], RS[re, 12], RS[re, 13], RS[re, 14],
+                           RS[re, 15], RS[re, 16], RS[re, 17])
+                for q in range(10):
+                    RW[re, q] = w[q]
             t_lo = (k + lo_off) * dt
             t_hi = (k + lo_off + m - 1) * dt
             while bq < nbp and bp[bq] <= t_lo + tol:
@@ -1106,18 +1161,19 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
             dl = 0.0
             do = 0.0
             dh = 0.0
-            for jj in range(m):
-                r = (k + lo_off + jj) & RM
-                wq = sw[jj] * dt
-                th0 += wq * RW[r, 0]
-                th1 += wq * RW[r, 1]
-                th2 += wq * RW[r, 2]
-                v0 += wq * RW[r, 3]
-                v1 += wq * RW[r, 4]
-                v2 += wq * RW[r, 5]
-                dl += wq * RF[r, 0]
-                do += wq * RF[r, 1]
-                dh += wq * RF[r, 2]
+            for jj in range(mh):                # symmetric weights: pair the epochs
+                ra = (k + lo_off + jj) & RM
+                rb = (k + lo_off + m - 1 - jj) & RM
+                wq = swd[jj]
+                th0 += wq * (RW[ra, 0] + RW[rb, 0])
+                th1 += wq * (RW[ra, 1] + RW[rb, 1])
+                th2 += wq * (RW[ra, 2] + RW[rb, 2])
+                v0 += wq * (RW[ra, 3] + RW[rb, 3])
+                v1 += wq * (RW[ra, 4] + RW[rb, 4])
+                v2 += wq * (RW[ra, 5] + RW[rb, 5])
+                dl += wq * (RW[ra, 6] + RW[rb, 6])
+                do += wq * (RW[ra, 7] + RW[rb, 7])
+                dh += wq * (RW[ra, 8] + RW[rb, 8])
             lat += dl
             lon += do
             h += dh
@@ -1138,13 +1194,12 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 for i in range(ns):
                     tt = s0 + cn[i] * hh
                     jn = _advance(tt, jn, bp)
-                    _state_call(tt, jn, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
+                    _state(tt, jn, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar,
                            val, d1, d2, S, i)
                 sl0 = math.sin(lat)
                 cl0 = math.cos(lat)
                 rsq = 1.0 / math.sqrt(1.0 - earth.E2 * sl0 * sl0)
                 irm = 1.0 / (earth.A * (1.0 - earth.E2) * rsq * rsq * rsq + h)
-                irc = 1.0 / ((earth.A * rsq + h) * cl0)
                 for i in range(ns):
                     pl = 0.0
                     ph = 0.0
@@ -1186,12 +1241,25 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         dvl[k, 1] = v1
         dvl[k, 2] = v2
         chk += th0 + th1 + th2 + v0 + v1 + v2     # NaN/inf stay: one check at the end
-        r1 = (k + 1) & RM
         if (k + 1) % out_every == 0:
-            _write_truth(RS, r1, (k + 1) // out_every, lat, lon, h, has_mount, olat, olon, oh,
-                         vel, att, atti)
+            mo = (k + 1) // out_every
+            olat[mo] = lat
+            olon[mo] = lon
+            oh[mo] = h
+            vel[mo, 0] = RS[r1, 0]
+            vel[mo, 1] = RS[r1, 1]
+            vel[mo, 2] = RS[r1, 2]
+            att[mo, 0] = RS[r1, 18]
+            att[mo, 1] = _wrap(RS[r1, 19])
+            att[mo, 2] = _wrap(RS[r1, 20])
+            if has_mount:
+                atti[mo, 0] = _asin1(RS[r1, 13])
+                atti[mo, 1] = math.atan2(-RS[r1, 12], RS[r1, 14])
+                atti[mo, 2] = math.atan2(-RS[r1, 7], RS[r1, 10])
         if has_mount:
-            _put_mount(RS, r1, mnt, k + 1)
+            mnt[k + 1, 0] = RS[r1, 21]
+            mnt[k + 1, 1] = _wrap(RS[r1, 22])
+            mnt[k + 1, 2] = _wrap(RS[r1, 23])
     return chk
 
 
