@@ -954,7 +954,7 @@ def _asin1(x):
 @njit(cache=True)
 def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
            bp, base, flag, plo, phi, act, ttype, tch, tta, tpar,
-           lat, lon, h, dth, dvl, olat, olon, oh, vel, att, atti, mnt):
+           lat, lon, h, t0, dth, dvl, t_imu, olat, olon, oh, t_nav, vel, att, atti, mnt):
     """Increments, position and truth for n IMU intervals of length dt.
 
     Every epoch t_e = e·dt is evaluated once (kinematics into a ring buffer). With a
@@ -1015,6 +1015,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     bi = 1          # first breakpoint after the current fallback sub-interval start
     bq = 1          # first breakpoint after the stencil start
     chk = 0.0
+    tstep = dt * out_every
     for k in range(n):
         e_new = k + L
         # kinematics of the new look-ahead epoch (epochs 0..L at the first step)
@@ -1095,6 +1096,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 RS[r, q] = out[q]
         r1 = (k + 1) & RM
         if k == 0:
+            t_nav[0] = t0
             olat[0] = lat
             olon[0] = lon
             oh[0] = h
@@ -1240,9 +1242,11 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         dvl[k, 0] = v0
         dvl[k, 1] = v1
         dvl[k, 2] = v2
+        t_imu[k] = (k + 1) * dt + t0
         chk += th0 + th1 + th2 + v0 + v1 + v2     # NaN/inf stay: one check at the end
         if (k + 1) % out_every == 0:
             mo = (k + 1) // out_every
+            t_nav[mo] = mo * tstep + t0
             olat[mo] = lat
             olon[mo] = lon
             oh[mo] = h
@@ -1381,19 +1385,16 @@ def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_ever
     oh = np.empty(m)
     vel = np.empty((m, 3))
     att = np.empty((m, 3))
+    t_imu = np.empty(n)                 # t0 + dt·k, k = 1..n, written by the kernel
+    t_nav = np.empty(m)                 # t0 + dt·out_every·k
     has_mount = mount is not None
     atti = np.empty((m, 3) if has_mount else (1, 3))
     mnt = np.empty((n + 1, 3) if has_mount else (1, 3))
     chk = _synth(n, dt, out_every, sw, lo, c, b, A, has_mount, *tabs,
-           start.lat, start.lon, start.h, dth, dvl, olat, olon, oh, vel, att, atti, mnt)
+           start.lat, start.lon, start.h, float(t0), dth, dvl, t_imu, olat, olon, oh, t_nav,
+           vel, att, atti, mnt)
     if not math.isfinite(chk):
         raise ValueError("non-finite increments (a pole crossed, or an extreme motion?)")
-    t_imu = np.arange(1, n + 1, dtype=float)          # = t0 + dt·k, in place (no temporaries)
-    t_imu *= dt
-    t_imu += t0
-    t_nav = np.arange(m, dtype=float)
-    t_nav *= dt * out_every
-    t_nav += t0
     truth = NavSeries(t_nav, olat, olon, oh, vel, att,
                       atti if has_mount else None)
     return Generated(truth, _imu_record(t_imu, dth, dvl, dt), mnt if has_mount else None,
