@@ -18,7 +18,7 @@ import scipy.linalg
 from scipy.integrate import solve_ivp
 
 from sinslab import errstate as es
-from sinslab.attitude import euler_to_dcm, misalignment, rotvec_to_dcm, skew
+from sinslab.attitude import euler_to_dcm, misalignment, rotvec_to_dcm
 from sinslab.earth import WIE, gravity, radii
 from sinslab.units import arcmin, dph, ppm, ug
 

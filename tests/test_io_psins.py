@@ -5,8 +5,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sinslab import alignment as al
-from sinslab import attitude as A
 from sinslab import earth as E
 from sinslab import io
 from sinslab import units as u

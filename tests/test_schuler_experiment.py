@@ -1,6 +1,5 @@
 """Experiment schuler-suppression on --quick runs: the metric contract, claims computed from
 the run (and able to fail), the injected ship scenario's suppression, config errors."""
-import json
 
 import pytest
 

@@ -144,11 +144,10 @@ def _table(res: AllanResult):
 
 def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
     """Read a recorded IMU file, compute the Allan deviations and write the run folder."""
-    import datetime as _dt
 
-    from . import __version__, io, plotting, report
+    from . import __version__, io, plotting
     from .config import dump_toml
-    from .outputs import RunDir, default_out_dir
+    from .outputs import RunDir, command_summary, default_out_dir
     from .imu import ImuErrors  # noqa: F401
 
     data = io.load_imu(path, fmt, **read_kw)
@@ -202,17 +201,10 @@ def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
         ax.legend(fontsize=8)
     fig.suptitle("Overlapping Allan deviation (dotted: fitted N/τ, B, K terms; dots: floor)")
     rd.write_figure("allan", fig, "Allan deviation of each gyro and accelerometer axis, with the fit.")
-    summary = {"experiment": "allan", "sinslab_version": __version__, "config": cfg,
-               "metrics": metrics, "claims": [],
-               "purpose": "Allan deviation and IEEE noise terms of a recorded IMU file",
-               "quick": False, "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-               "metric_info": {}, "figures": rd.figure_files, "series": rd.series_info, "tables": [],
-               "notes": ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
-                         "imu_errors.toml: paste into a simulation config ([imu] table).",
-                         toml]}
-    rd.write_json("summary.json", summary)
-    rd.write_text("report.html", report.render(rd.path))
-    rd.finish()
+    summary = rd.complete(command_summary(
+        rd, "allan", "Allan deviation and IEEE noise terms of a recorded IMU file", cfg, metrics,
+        ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
+         "imu_errors.toml: paste into a simulation config ([imu] table).", toml]))
     echo(f"  -> {out}")
     return summary, res, errs
 

@@ -54,7 +54,7 @@ gives ``F`` of shape ``S + (n, n)``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
@@ -348,7 +348,7 @@ def core_matrices(nav: NavPoint, radius_derivatives: bool = True):
         dgdL = G_EQ * (2.0 * K_SOM * sL * cL / np.sqrt(q) + (1.0 + K_SOM * sL * sL) * E2 * sL * cL / q ** 1.5)
     else:
         dRM = dRN = dgdL = np.zeros(S)
-    vE, vN, vU = v[..., 0], v[..., 1], v[..., 2]
+    vE, vN = v[..., 0], v[..., 1]
     z = np.zeros(S)
     wie = np.stack([z, WIE * cL, WIE * sL], -1)
     wen = np.stack([-vN / RMh, vE / RNh, vE * tL / RNh], -1)

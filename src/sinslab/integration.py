@@ -910,11 +910,10 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
-    import datetime as _dt
 
-    from . import __version__, io, plotting, report
+    from . import __version__, io, plotting
     from .config import dump_toml
-    from .outputs import RunDir, default_out_dir
+    from .outputs import RunDir, command_summary, default_out_dir
 
     fmt_eff = fmt or io.guess_imu_format(imu_path)
     kw = {}
@@ -1014,7 +1013,6 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     rd.prepare()
     rd.write_text("config.toml", f"# sinslab {__version__} — navigate\n" + dump_toml(cfg))
     sig = res.sigma
-    ip = lab.index("dpL") if "dpL" in lab else None
     sol = {"t_s": res.t - res.t[0], "t_abs_s": res.t, "lat_deg": np.degrees(res.nav[:, 7]),
            "lon_deg": np.degrees(res.nav[:, 8]), "h_m": res.nav[:, 9],
            "vE_mps": res.nav[:, 4], "vN_mps": res.nav[:, 5], "vU_mps": res.nav[:, 6],
@@ -1073,17 +1071,11 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     axes[2].set_ylabel("accel bias σ [ug]")
     axes[2].set_xlabel("time [s]")
     rd.write_figure("sigma", fig, "Filter standard deviations of attitude and sensor biases.")
-    summary = {"experiment": "navigate", "sinslab_version": __version__, "config": cfg,
-               "metrics": metrics, "claims": [],
-               "purpose": "loosely coupled INS + position/velocity fixes on recorded data",
-               "quick": False, "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-               "metric_info": {}, "figures": rd.figure_files, "series": rd.series_info, "tables": [],
-               "notes": ["Heading is clockwise from north.",
-                         f"Initial attitude: {res.init.get('heading_source')}; levelling over the "
-                         "initial rest." if res.init.get("rest_start") else "No rest at the start."]}
-    rd.write_json("summary.json", summary)
-    rd.write_text("report.html", report.render(rd.path))
-    rd.finish()
+    summary = rd.complete(command_summary(
+        rd, "navigate", "loosely coupled INS + position/velocity fixes on recorded data", cfg, metrics,
+        ["Heading is clockwise from north.",
+         f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
+         if res.init.get("rest_start") else "No rest at the start."]))
     echo(f"  -> {out}")
     return summary, res, fx
 

@@ -1022,7 +1022,7 @@ def error_budget(P0_parts, Phi, Q_parts, H, R_parts, *, n_steps=None, mask=None,
     Rmat = np.apply_along_axis(np.diag, -1, Rsum) if Rsum.ndim == 2 else np.diag(Rsum)
     prep = _prepare(None, P0, Phi, Qsum, H, Rmat, None, mask, windows, t, n_steps, Phi_index,
                     Q_index, H_index, R_index, False, True)
-    K, m = prep["K"], prep["m"]
+    K = prep["K"]
     q_shape = Qsum.shape
     Qp_t = np.stack([_table(q, Q_index if q_shape != (n, n) else None, K, (n, n), "Q_parts")[0]
                      for q in Q_parts])

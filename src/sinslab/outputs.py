@@ -237,3 +237,29 @@ class RunDir:
                 plt.close(fig)
         self.figure_files.append(info)
         return info
+
+    def complete(self, summary: dict) -> dict:
+        """Write ``summary.json`` and ``report.html`` and mark the run complete (the last
+        step of every run: experiments and the ``align``/``allan``/``navigate`` commands)."""
+        from . import report
+
+        self.write_json("summary.json", summary)
+        self.write_text("report.html", report.render(self.path))
+        self.finish()
+        return summary
+
+
+def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metrics: dict,
+                    notes=(), claims=(), paper: str = "") -> dict:
+    """The ``summary.json`` of a data-processing command (DESIGN §4 keys plus what the
+    report needs), for runs that are not registered experiments."""
+    import datetime as _dt
+
+    from . import __version__
+
+    return {"experiment": command, "sinslab_version": __version__, "config": config,
+            "metrics": metrics, "claims": list(claims), "purpose": purpose, "paper": paper,
+            "quick": False, "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+            "metric_info": {}, "figures": rd.figure_files, "series": rd.series_info, "tables": [],
+            "notes": list(notes)}
+

@@ -124,7 +124,6 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
     Raises :class:`sinslab.outputs.OutputDirError` before writing anything if ``out`` is
     not usable.
     """
-    from .. import report
 
     log = log or (lambda msg: None)
     rd = RunDir(out, exp.name).prepare()
@@ -170,7 +169,4 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
         "tables": tables,
         "notes": list(exp.notes) + list(res.notes),
     }
-    rd.write_json("summary.json", summary)
-    rd.write_text("report.html", report.render(rd.path))
-    rd.finish()
-    return summary
+    return rd.complete(summary)

@@ -26,7 +26,6 @@ the truth at t1 and at t2.
 """
 from __future__ import annotations
 
-import math
 import time
 from typing import Literal
 

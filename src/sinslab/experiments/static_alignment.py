@@ -434,13 +434,11 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
     alignment.csv (fine attitude and σ vs time), alignment.png/svg and report.html.
     Returns the summary dict.
     """
-    import datetime as _dt
 
     from .. import __version__, io
     from .. import plotting
     from ..config import dump_toml
-    from ..outputs import RunDir, default_out_dir
-    from .. import report
+    from ..outputs import RunDir, command_summary, default_out_dir
 
     imu, ps = io.read_imu(path, fmt)
     if lat is None:
@@ -530,16 +528,9 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Fine alignment: attitude estimate ±1σ (heading clockwise from north)")
     rd.write_figure("alignment", fig, "Fine-alignment attitude estimate (±1σ band) versus time.")
-    summary = {"experiment": "align", "sinslab_version": __version__, "config": cfg,
-               "metrics": metrics, "claims": [],
-               "purpose": "coarse and fine alignment of a recorded IMU file at rest (paper 000 methods)",
-               "paper": PAPER, "quick": False,
-               "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-               "metric_info": {}, "figures": rd.figure_files, "series": rd.series_info,
-               "tables": [], "notes": ["Heading is clockwise from north."] + r["warnings"]}
-    rd.write_json("summary.json", summary)
-    rd.write_text("report.html", report.render(rd.path))
-    rd.finish()
+    summary = rd.complete(command_summary(
+        rd, "align", "coarse and fine alignment of a recorded IMU file at rest (paper 000 methods)",
+        cfg, metrics, ["Heading is clockwise from north."] + r["warnings"], paper=PAPER))
     echo(f"  -> {out}")
     return summary
 
