@@ -54,7 +54,13 @@ NOTES = [
     "Paper 'attitude angles within 0–60°' read as heading 0–60° (course 30° ± 30°) with "
     "roll/pitch/yaw sway of 5°/2°/1°. The manoeuvres build up over scenario "
     "ship_manoeuvre_ramp after leaving the mooring: an abrupt start excites a Schuler "
-    "oscillation that is the same in both solutions, which no delay can remove.",
+    "oscillation that is the same in both solutions, which no delay can remove "
+    "(with ship.manoeuvre_ramp = \"60 s\" the suppression falls to about 1: the paper's "
+    "result needs a gradual onset).",
+    "Ship: the largest velocity-error oscillation is not the Schuler one but the response "
+    "forced at the manoeuvre periods (speed 20 min, course 30 min) through the alignment "
+    "residuals; it is common to both solutions and the mean keeps it. The spectrum figure "
+    "separates the lines: only the Schuler band (and its Foucault side lines) is reduced.",
     "Turntable IMU: 'random walk 0.005°/h' read as ARW 0.005°/√h; 'VRW < 5e-5 g' read as "
     "5e-5 g/√Hz = 50 µg/√Hz. Sensor noise after t2 drives the same Schuler oscillation in "
     "both solutions: the mean cannot remove it.",
