@@ -559,7 +559,7 @@ def test_series_minus_expm_is_third_order_and_bounded():
     assert np.all(np.array(dQ) / np.array(QQ) < 0.2 * Ts ** 2)
 
 
-def test_discretize_vectorised_and_numba_agree():
+def test_discretize_vectorised_agrees_with_per_epoch():
     m, _ = _test_F()
     t = np.linspace(0, 50, 7)
     navs = es.NavPoint(LAT0 + 1e-4 * t, H0 + t, V0 + t[:, None], euler_to_dcm(ATT0 + 0.01 * t[:, None]),
@@ -571,13 +571,6 @@ def test_discretize_vectorised_and_numba_agree():
             P1, Q1 = es.discretize(F[k], G[k], m.q, 0.5, method)
             np.testing.assert_allclose(P[k], P1, rtol=1e-13, atol=1e-16)
             np.testing.assert_allclose(Q[k], Q1, rtol=1e-12, atol=1e-20)
-    P, Q = es.discretize(F[3], G[3], m.q, 0.5, "series")
-    np.testing.assert_allclose(es.phi_series_nb(F[3], 0.5), P, rtol=1e-13, atol=1e-16)
-    Pn, Qn = np.empty_like(P), np.empty_like(P)
-    Qc = (G[3] * m.q) @ G[3].T
-    es.discretize_series_nb(F[3], Qc, 0.5, Pn, Qn)
-    np.testing.assert_allclose(Pn, P, rtol=1e-13, atol=1e-16)
-    np.testing.assert_allclose(Qn, Q, rtol=1e-12, atol=1e-22)
 
 
 # ---------------------------------------------------------------------- layout, errors

@@ -59,7 +59,6 @@ from typing import Sequence
 
 import numpy as np
 import scipy.linalg
-from numba import njit
 
 from . import units
 from .attitude import euler_to_dcm, skew
@@ -69,7 +68,7 @@ __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices", "static_alignment_model",
-    "joint_rotation_model", "discretize", "van_loan", "phi_series_nb", "discretize_series_nb", "CORES",
+    "joint_rotation_model", "discretize", "van_loan", "CORES",
 ]
 
 # ----------------------------------------------------------------------------- layout
@@ -919,55 +918,3 @@ def discretize(F, G, q, T, method="vanloan"):
         raise ValueError(f"unknown discretisation method {method!r} (vanloan|series)")
     return Phi, 0.5 * (Qk + np.swapaxes(Qk, -1, -2))
 
-
-@njit(cache=True)
-def phi_series_nb(F, T):
-    """Φ ≈ I + F T + (F T)²/2 (numba, for compiled Kalman loops); F (n, n), T [s]."""
-    n = F.shape[0]
-    Phi = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += F[i, k] * F[k, j]
-            Phi[i, j] = F[i, j] * T + 0.5 * s * T * T
-        Phi[i, i] += 1.0
-    return Phi
-
-
-@njit(cache=True)
-def discretize_series_nb(F, Qc, T, Phi, Qk):
-    """In-place series discretisation (numba): Φ ≈ I + FT + (FT)²/2, Q_k ≈ (Q̄T + ΦQ̄ΦᵀT)/2.
-
-    Parameters
-    ----------
-    F, Qc : ndarray (n, n)
-        Continuous system matrix and noise density ``G q Gᵀ``.
-    T : float
-        Step [s].
-    Phi, Qk : ndarray (n, n)
-        Outputs, overwritten.
-    """
-    n = F.shape[0]
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += F[i, k] * F[k, j]
-            Phi[i, j] = F[i, j] * T + 0.5 * s * T * T
-        Phi[i, i] += 1.0
-    tmp = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += Phi[i, k] * Qc[k, j]
-            tmp[i, j] = s
-    for i in range(n):
-        for j in range(i + 1):
-            s = 0.0
-            for k in range(n):
-                s += tmp[i, k] * Phi[j, k]
-            v = 0.5 * T * (0.5 * (Qc[i, j] + Qc[j, i]) + s)
-            Qk[i, j] = v
-            Qk[j, i] = v
