@@ -45,6 +45,8 @@ tr.fail td.verdict{background:#fde2e1;color:#a11;font-weight:bold}
 .badge.ok{background:#dff5e1;color:#11631d}.badge.bad{background:#fde2e1;color:#a11}
 figure{margin:1em 0;text-align:center}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}
+#claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:18em}
+#claims td:nth-child(2){min-width:22em}
 """
 
 _SCRIPT = """
