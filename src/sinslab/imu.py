@@ -895,6 +895,40 @@ def _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, gsig, g
             kr = 0
 
 
+@njit(cache=True)
+def _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv):
+    """:func:`_kernel` for the common model of constant bias and white noise only (no
+    Gauss-Markov, random walk, trend or recorded noise): the same draws in the same order
+    and the same arithmetic, so the same bytes, without the per-channel tests of the terms
+    that are off (a quarter of the time of :func:`apply`)."""
+    n = dth.shape[0]
+    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+    for k in range(n):
+        for s in range(2):
+            if s == 0:
+                x0, x1, x2 = dth[k, 0], dth[k, 1], dth[k, 2]
+            else:
+                x0, x1, x2 = dv[k, 0], dv[k, 1], dv[k, 2]
+            for i in range(3):
+                c = 3 * s + i
+                if use_k:
+                    y = K[s, i, 0] * x0 + K[s, i, 1] * x1 + K[s, i, 2] * x2
+                elif i == 0:
+                    y = x0
+                elif i == 1:
+                    y = x1
+                else:
+                    y = x2
+                e = bias_dt[c]
+                if wact[c]:
+                    z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+                    e += wsig[c] * z
+                if s == 0:
+                    out_dth[k, i] = y + e
+                else:
+                    out_dv[k, i] = y + e
+
+
 def _rng(seed):
     if isinstance(seed, np.random.Generator):
         return seed
@@ -969,6 +1003,9 @@ def _run(dth, dv, tend, t0, dt, errors: ImuErrors, rng, out_dth, out_dv):
         gain, rec_g, rec_a, rec_n = np.zeros(6), dummy, dummy, 1
 
     state = _kernel_state(rng) if (wact.any() or gact.any() or ract.any()) else np.ones(4, np.uint64)
+    if not (gact.any() or ract.any() or has_trend or rn is not None):
+        _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv)
+        return
     _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, bi, gphi, gdrv, gact,
             rstep, ract, has_trend, tr_ramp, tr_ea, tr_et, tr_esh, tr_sa, tr_sw, tr_ssh, tr_sp,
             rn is not None, rec_g, rec_a, gain, rec_n, out_dth, out_dv)
