@@ -1299,7 +1299,8 @@ class Generated:
         position, ENU velocity, carrier attitude ``att`` and, with a mount, the IMU
         attitude ``att_imu``.
     imu : ImuRecord
-        The ``N`` exact increments in the IMU frame.
+        The ``N`` exact increments in the IMU frame. With ``out_every = 1`` its time column
+        is a view of ``truth.t[1:]`` (same numbers, one array).
     mount : ndarray, shape (N + 1, 3) or None
         Euler angles ``[pitch, roll, yaw]`` of ``C_imu^carrier`` at every IMU epoch
         (regardless of ``out_every``), wrapped to (−π, π].
@@ -1385,8 +1386,11 @@ def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_ever
     oh = np.empty(m)
     vel = np.empty((m, 3))
     att = np.empty((m, 3))
-    t_imu = np.empty(n)                 # t0 + dt·k, k = 1..n, written by the kernel
     t_nav = np.empty(m)                 # t0 + dt·out_every·k
+    # t0 + dt·k, k = 1..n, written by the kernel; with out_every = 1 the same numbers as
+    # t_nav[1:] (tstep = dt·1 exactly), so the records share them: one array less to
+    # allocate and fault in (neither record writes to its time column)
+    t_imu = t_nav[1:] if out_every == 1 else np.empty(n)
     has_mount = mount is not None
     atti = np.empty((m, 3) if has_mount else (1, 3))
     mnt = np.empty((n + 1, 3) if has_mount else (1, 3))
