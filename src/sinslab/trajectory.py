@@ -1016,6 +1016,8 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     bq = 1          # first breakpoint after the stencil start
     chk = 0.0
     tstep = dt * out_every
+    oc = 0          # samples since the last truth epoch
+    mo = 0          # index of the last truth epoch
     for k in range(n):
         e_new = k + L
         # kinematics of the new look-ahead epoch (epochs 0..L at the first step)
@@ -1244,8 +1246,10 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         dvl[k, 2] = v2
         t_imu[k] = (k + 1) * dt + t0
         chk += th0 + th1 + th2 + v0 + v1 + v2     # NaN/inf stay: one check at the end
-        if (k + 1) % out_every == 0:
-            mo = (k + 1) // out_every
+        oc += 1
+        if oc == out_every:             # (k + 1) % out_every == 0 without a division
+            oc = 0
+            mo += 1
             t_nav[mo] = mo * tstep + t0
             olat[mo] = lat
             olon[mo] = lon
