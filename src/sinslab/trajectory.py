@@ -1016,6 +1016,10 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     bq = 1          # first breakpoint after the stencil start
     chk = 0.0
     tstep = dt * out_every
+    b_s = slat      # sin, cos of the latitude, height and index of the prediction base epoch
+    b_c = clat
+    b_h = h
+    b_k = 0
     oc = 0          # samples since the last truth epoch
     mo = 0          # index of the last truth epoch
     for k in range(n):
@@ -1120,16 +1124,19 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
             clat = math.cos(lat)
         use_stencil = False
         if m > 0:
-            sl0 = slat
-            cl0 = clat
-            # Earth terms of the stencil epochs not done yet (all of them at k = 0)
+            # Earth terms of the stencil epochs not done yet (all of them at k = 0), at a
+            # position predicted from epoch bk = k − 1 (k at the start) rather than k: then
+            # they do not wait for this step's position update, which halves the latency
+            # of the loop-carried chain position -> Earth terms -> stencil -> position
+            sl0 = b_s
+            cl0 = b_c
             e0 = e_new if k > 0 else 0
-            rk = k & RM
+            rk = b_k & RM
             for e in range(e0, e_new + 1):
                 re = e & RM
                 dl = 0.0
                 dhh = 0.0
-                for q in range(k, e):
+                for q in range(b_k, e):
                     a0 = q & RM
                     a1 = (q + 1) & RM
                     dl += RS[a0, 1] + RS[a1, 1]
@@ -1138,11 +1145,11 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 # plain trapezoid's µm height error reached 1e-13 m/s in Δv via gravity
                 dl -= dt / 6.0 * (RS[re, 4] - RS[rk, 4])
                 dhh -= dt / 6.0 * (RS[re, 5] - RS[rk, 5])
-                # 1/R_M of epoch k (the prediction needs it to ~1e-6 only)
-                d = 0.5 * dt * dl * RW[rk, 9] if e > k else 0.0
+                # 1/R_M of epoch bk (the prediction needs it to ~1e-6 only)
+                d = 0.5 * dt * dl * RW[rk, 9] if e > b_k else 0.0
                 d2h = 0.5 * d * d
                 w = _earth(sl0 * (1.0 - d2h) + cl0 * d, cl0 * (1.0 - d2h) - sl0 * d,
-                           h + 0.5 * dt * dhh, RS[re, 0], RS[re, 1], RS[re, 2], RS[re, 3],
+                           b_h + 0.5 * dt * dhh, RS[re, 0], RS[re, 1], RS[re, 2], RS[re, 3],
                            RS[re, 4], RS[re, 5], RS[re, 6], RS[re, 7], RS[re, 8], RS[re, 9],
                            RS[re, 10], RS[re, 11], RS[re, 12], RS[re, 13], RS[re, 14],
                            RS[re, 15], RS[re, 16], RS[re, 17])
@@ -1155,6 +1162,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
             # t = 0 is always a breakpoint, so stencils reaching before the start fall back
             use_stencil = k + lo_off >= 0 and not (bq < nbp and bp[bq] < t_hi - tol)
         lat_prev = lat
+        h_prev = h
         th0 = 0.0
         th1 = 0.0
         th2 = 0.0
@@ -1235,6 +1243,10 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 if s1 >= b - tol:
                     break
                 s0 = s1
+        b_s = slat                          # base of the next step's Earth-term prediction
+        b_c = clat
+        b_h = h_prev
+        b_k = k
         dlt = lat - lat_prev                # rotate (sin, cos) of the latitude by its change
         c2 = 1.0 - 0.5 * dlt * dlt
         slat, clat = slat * c2 + clat * dlt, clat * c2 - slat * dlt
