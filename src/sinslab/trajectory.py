@@ -712,12 +712,19 @@ def _s5i(x):
     return x2 * x2 * (2.5 + x * (-3.0 + x))
 
 
+_INV2PI = 1.0 / (2.0 * math.pi)
+
+
 @njit(cache=True, inline="always")
 def _wrap(a):
-    """Wrap to (−π, π]."""
+    """Wrap to (−π, π]. (Multiplying by 1/2π instead of dividing: the same result except
+    where the quotient is within an ulp of an integer, fixed by the last test.)"""
     if -math.pi < a <= math.pi:
         return a
-    return a + 2.0 * math.pi * math.floor((math.pi - a) / (2.0 * math.pi))
+    b = a + 2.0 * math.pi * math.floor((math.pi - a) * _INV2PI)
+    if b <= -math.pi:
+        b += 2.0 * math.pi
+    return b
 
 
 @njit(cache=True, inline="always")
@@ -1256,7 +1263,8 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         dvl[k, 0] = v0
         dvl[k, 1] = v1
         dvl[k, 2] = v2
-        t_imu[k] = (k + 1) * dt + t0
+        if out_every != 1:                  # else t_imu is t_nav[1:], written below
+            t_imu[k] = (k + 1) * dt + t0
         chk += th0 + th1 + th2 + v0 + v1 + v2     # NaN/inf stay: one check at the end
         oc += 1
         if oc == out_every:             # (k + 1) % out_every == 0 without a division
