@@ -433,3 +433,26 @@ def test_frozen_and_equality():
         e.gyro_bias[0] = 1.0                       # arrays are read-only
     assert e == ImuErrors.from_datasheet(gyro_bias="0.01 deg/h")
     assert e != ImuErrors.from_datasheet(gyro_bias="0.02 deg/h")
+
+
+@pytest.mark.parametrize("kw", [
+    # bias + white noise on all six channels, no scale factor: the unrolled fast path
+    dict(gyro_bias="0.01 deg/h", gyro_arw="0.001 deg/sqrt(h)", accel_bias="50 ug",
+         accel_vrw="5 ug/sqrt(Hz)"),
+    # white noise on some channels, with scale factor and misalignment: the white-only path
+    dict(gyro_arw="[0.001, 0, 0.002] deg/sqrt(h)", gyro_scale_factor="200 ppm",
+         accel_misalignment="[10, 0, 0, 5, 0, 0] arcsec", accel_bias="100 ug"),
+])
+def test_fast_paths_give_the_general_kernels_bytes(kw):
+    """apply() has shortcut kernels for bias + white noise; a zero trend forces the general
+    kernel with the same draws, so both must give identical bytes (same seed)."""
+    from sinslab.imu import Trend
+    n = 5000
+    t = 0.01 * np.arange(1, n + 1)
+    rng = np.random.default_rng(3)
+    rec = ImuRecord(t, rng.normal(0, 1e-5, (n, 3)), rng.normal(0, 1e-3, (n, 3)) + [0, 0, 0.098])
+    err = ImuErrors.from_datasheet(**kw)
+    fast = apply(rec, err, seed=11)
+    general = apply(rec, err.replace(gyro_trend=Trend()), seed=11)
+    assert fast.dtheta.tobytes() == general.dtheta.tobytes()
+    assert fast.dv.tobytes() == general.dv.tobytes()
