@@ -444,15 +444,26 @@ def test_frozen_and_equality():
          accel_misalignment="[10, 0, 0, 5, 0, 0] arcsec", accel_bias="100 ug"),
 ])
 def test_fast_paths_give_the_general_kernels_bytes(kw):
-    """apply() has shortcut kernels for bias + white noise; a zero trend forces the general
-    kernel with the same draws, so both must give identical bytes (same seed)."""
-    from sinslab.imu import Trend
+    """apply() has shortcut kernels for bias + white noise; zero recorded noise forces the
+    general kernel (it draws no normals), so both must give identical bytes (same seed)."""
+    import sinslab.imu as imu_mod
     n = 5000
     t = 0.01 * np.arange(1, n + 1)
     rng = np.random.default_rng(3)
     rec = ImuRecord(t, rng.normal(0, 1e-5, (n, 3)), rng.normal(0, 1e-3, (n, 3)) + [0, 0, 0.098])
     err = ImuErrors.from_datasheet(**kw)
+    zero = RecordedNoise(gyro=np.zeros((n, 3)), accel=np.zeros((n, 3)), kind="increment", dt=0.01)
+    used = []
+    real = imu_mod._kernel
+
+    def spy(*a):
+        used.append("general")
+        return real(*a)
+
     fast = apply(rec, err, seed=11)
-    general = apply(rec, err.replace(gyro_trend=Trend()), seed=11)
+    import unittest.mock
+    with unittest.mock.patch.object(imu_mod, "_kernel", spy):
+        general = apply(rec, err.replace(recorded_noise=zero), seed=11)
+    assert used == ["general"]                 # the comparison really is fast vs general
     assert fast.dtheta.tobytes() == general.dtheta.tobytes()
     assert fast.dv.tobytes() == general.dv.tobytes()
