@@ -209,3 +209,27 @@ def test_ned_conversions():
     r, p, y = 0.1, 0.2, 0.3
     Cned = Rz(y) @ Ry(p) @ Rx(r)
     assert np.allclose(at.dcm_from_ned(Cned), at.euler_to_dcm(at.euler_from_ned([r, p, y])), atol=1e-14)
+
+
+def test_scalar_euler_dcm_and_body_rate_kernels():
+    """euler_dcm_sc equals euler_to_dcm; euler_rates_to_body_sc is the body rate of the
+    Euler-angle motion: (ω_nb^b ×) = C^T dC/dt, checked by central differences."""
+    from sinslab.attitude import euler_dcm_sc, euler_rates_to_body_sc, euler_to_dcm
+
+    rng = np.random.default_rng(7)
+
+    def C_of(a):
+        s, c = np.sin(a), np.cos(a)
+        return np.array(euler_dcm_sc(s[0], c[0], s[1], c[1], s[2], c[2])).reshape(3, 3)
+
+    for _ in range(20):
+        att = rng.uniform([-1.4, -3.1, -3.1], [1.4, 3.1, 3.1])
+        rate = rng.normal(0, 0.5, 3)                     # [pitch, roll, yaw] rates, rad/s
+        np.testing.assert_allclose(C_of(att), euler_to_dcm(att), atol=1e-15)
+        h = 1e-6
+        Cd = (C_of(att + rate * h) - C_of(att - rate * h)) / (2 * h)
+        W = C_of(att).T @ Cd
+        w_fd = np.array([W[2, 1], W[0, 2], W[1, 0]])
+        s, c = np.sin(att), np.cos(att)
+        w = euler_rates_to_body_sc(s[0], c[0], s[1], c[1], rate[0], rate[1], rate[2])
+        np.testing.assert_allclose(w, w_fd, atol=1e-8)

@@ -279,3 +279,20 @@ def q2euler_s(q0, q1, q2, q3):
     elif c32 < -1.0:
         c32 = -1.0
     return math.asin(c32), math.atan2(-c31, c33), math.atan2(-c12, c22)
+
+
+@njit(cache=True, inline="always")
+def euler_dcm_sc(sp, cp, sr, cr, sy, cy):
+    """``C_b^n = R_z(yaw) R_x(pitch) R_y(roll)`` (9 scalars, row-major) from the sines and
+    cosines of pitch, roll and yaw: scalar form for hot loops that cache the trigonometry."""
+    return (cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr,
+            sy * cr + cy * sp * sr, cy * cp, sy * sr - cy * sp * cr,
+            -cp * sr, sp, cp * cr)
+
+
+@njit(cache=True, inline="always")
+def euler_rates_to_body_sc(sp, cp, sr, cr, pitchd, rolld, yawd):
+    """Body angular rate ω_nb^b [rad/s] from Euler-angle rates (same convention as
+    :func:`euler_dcm_sc`; sines/cosines of pitch and roll given):
+    ``ω = R_y(−γ)[θ̇, 0, 0] + [0, γ̇, 0] + R_y(−γ) R_x(−θ)[0, 0, ψ̇]``."""
+    return (cr * pitchd - sr * cp * yawd, rolld + sp * yawd, sr * pitchd + cr * cp * yawd)

@@ -54,6 +54,7 @@ import numpy as np
 from numba import njit
 
 from . import earth, indexing, units
+from .attitude import euler_dcm_sc, euler_rates_to_body_sc
 from .records import ImuRecord, NavSeries
 
 __all__ = [
@@ -810,18 +811,8 @@ def _kin(V, Vd, thd, sthv, cthv, spsv, cpsv, psd, hd1, hd2,
     s3 = -Vd * cthv * spsv + V * sthv * thd * spsv - V * cthv * cpsv * psd
     s4 = Vd * cthv * cpsv - V * sthv * thd * cpsv - V * cthv * spsv * psd
     s5 = Vd * sthv + V * cthv * thd + hd2
-    c00 = cps * cg - sps * sth * sg
-    c01 = -sps * cth
-    c02 = cps * sg + sps * sth * cg
-    c10 = sps * cg + cps * sth * sg
-    c11 = cps * cth
-    c12 = sps * sg - cps * sth * cg
-    c20 = -cth * sg
-    c21 = sth
-    c22 = cth * cg
-    wx = cg * pitchd - sg * cth * yawd
-    wy = rolld + sth * yawd
-    wz = sg * pitchd + cg * cth * yawd
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = euler_dcm_sc(sth, cth, sg, cg, sps, cps)
+    wx, wy, wz = euler_rates_to_body_sc(sth, cth, sg, cg, pitchd, rolld, yawd)
     if not has_mount:
         return (s0, s1, s2, s3, s4, s5, c00, c01, c02, c10, c11, c12, c20, c21, c22,
                 wx, wy, wz, pitch, roll, yaw, 0.0, 0.0, 0.0)
@@ -831,20 +822,9 @@ def _kin(V, Vd, thd, sthv, cthv, spsv, cpsv, psd, hd1, hd2,
     cy = math.cos(my)
     sr = math.sin(mr)
     cr = math.cos(mr)
-    # M = C_b^c
-    m00 = cy * cr - sy * st * sr
-    m01 = -sy * ct
-    m02 = cy * sr + sy * st * cr
-    m10 = sy * cr + cy * st * sr
-    m11 = cy * ct
-    m12 = sy * sr - cy * st * cr
-    m20 = -ct * sr
-    m21 = st
-    m22 = ct * cr
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = euler_dcm_sc(st, ct, sr, cr, sy, cy)  # C_b^c
     # w_nb^b = M^T w_nc^c + w_cb^b
-    ux = cr * mpd - sr * ct * myd
-    uy = mrd + st * myd
-    uz = sr * mpd + cr * ct * myd
+    ux, uy, uz = euler_rates_to_body_sc(st, ct, sr, cr, mpd, mrd, myd)
     # C_b^n = C_c^n M
     return (s0, s1, s2, s3, s4, s5,
             c00 * m00 + c01 * m10 + c02 * m20, c00 * m01 + c01 * m11 + c02 * m21,
