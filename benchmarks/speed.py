@@ -19,11 +19,14 @@ printed as a table and written to ``benchmarks/results/speed.json``.
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib.util
 import json
 import os
 import platform
+import shutil
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -35,12 +38,22 @@ TARGETS = {"mechanization_ratio": 0.5, "long_run_48h_50hz_s": 5.0, "synthesis_ra
 
 
 def load_reference():
-    """Import the reference kernel module from its file path."""
+    """Import the reference kernel module from a private copy of its file.
+
+    The copy lives in a temporary folder, so numba's cache for it (the kernel says
+    ``cache=True``) is written there: the shared folder is read-only, and a cache entry
+    left there by another process made the next run fail to load it.
+    """
     path = Path(os.environ.get("SINSLAB_REFERENCE", DEFAULT_REFERENCE)).resolve()
     if not path.is_file():
         raise SystemExit(f"reference kernel not found: {path} (set SINSLAB_REFERENCE)")
-    spec = importlib.util.spec_from_file_location("reference_strapdown", path)
+    tmp = Path(tempfile.mkdtemp(prefix="sinslab-ref-"))
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+    copy = tmp / path.name
+    shutil.copyfile(path, copy)
+    spec = importlib.util.spec_from_file_location("reference_strapdown", copy)
     mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
     spec.loader.exec_module(mod)
     return mod, path
 
