@@ -91,6 +91,54 @@ def test_coning_coefficients_derived(n):
     assert np.allclose(sd.CONING_COEFFS[n - 1, :n - 1], [float(x) for x in c], rtol=1e-14, atol=0)
 
 
+def _quadratic_rate_mismatch(n):
+    """For ω(t) = ω0 + αt + βt², the second-order rotation-vector term ½∫θ×ω over T = n·h
+    is ω0×α T³/12 + ω0×β T⁴/12 + α×β T⁵/60. With θ_i = ω0 h + α h² a_i + β h³ b_i,
+    a_i = (2i−1)/2, b_i = (3i²−3i+1)/3, the algorithm's Σ c_i θ_i×θ_N gives
+    ω0×α h³ Σc_i(a_N−a_i) + ω0×β h⁴ Σc_i(b_N−b_i) + ...; returns the two coefficient
+    mismatches (algorithm − exact), exact fractions."""
+    c = _derive_coeffs(n)
+    a = [Fraction(2 * i - 1, 2) for i in range(1, n + 1)]
+    b = [Fraction(3 * i * i - 3 * i + 1, 3) for i in range(1, n + 1)]
+    lin = sum(ci * (a[-1] - ai) for ci, ai in zip(c, a)) - Fraction(n ** 3, 12)
+    quad = sum(ci * (b[-1] - bi) for ci, bi in zip(c, b)) - Fraction(n ** 4, 12)
+    return lin, quad
+
+
+def test_coning_coefficients_under_angular_acceleration():
+    """The coning-optimised coefficients are exact for a linearly varying rate at every N,
+    and for a quadratically varying one only at N = 2: N = 3, 4, 5 leave ω0×β h⁴ times
+    27/20, 204/35, 2075/126 — why nsub ≥ 3 is less accurate than nsub = 2 through
+    manoeuvre onsets (test_manoeuvre_error_ratio_follows_quadratic_rate_term)."""
+    got = {n: _quadratic_rate_mismatch(n) for n in (2, 3, 4, 5)}
+    assert all(lin == 0 for lin, _ in got.values())
+    assert [q for _, q in got.values()] == [0, Fraction(27, 20), Fraction(204, 35),
+                                             Fraction(2075, 126)]
+
+
+def test_manoeuvre_error_ratio_follows_quadratic_rate_term():
+    """Roll-in of a coordinated turn (quintic rate profile): the attitude error made with
+    nsub = 4 and 5 relative to nsub = 3 is the ratio of the quadratic-rate mismatches per
+    unit time, (m_N/N)/(m_3/3) = 3.24 and 7.32 (the error per update ∝ m_N h⁴, updates per
+    second ∝ 1/(N h)); nsub = 2, which has no such term, is ≥ 10× better than nsub = 3."""
+    from sinslab import trajectory as tr
+    st = tr.Start(lat=np.radians(32.0), lon=np.radians(118.0), h=1000.0, speed=300.0,
+                  heading=0.0)
+    g = tr.generate([tr.Turn(12.0, np.radians(1.5), ramp=5.0)], st, 0.01, duration=3.5)
+    k = int(np.searchsorted(g.truth.t, 3.0))            # mid roll-in
+    err = {}
+    for nsub in (2, 3, 4, 5):
+        nav = sd.navigate(g.imu, NavState.from_series(g.truth, 0), nsub=nsub, vertical="hold",
+                          height=g.truth.h, progress=False)
+        j = int(np.searchsorted(nav.t, g.truth.t[k]))
+        err[nsub] = np.linalg.norm(attitude.misalignment(attitude.euler_to_dcm(g.truth.att[k]),
+                                                         attitude.euler_to_dcm(nav.att[j])))
+    per_time = {n: float(_quadratic_rate_mismatch(n)[1]) / n for n in (3, 4, 5)}
+    assert err[4] / err[3] == pytest.approx(per_time[4] / per_time[3], rel=0.1)
+    assert err[5] / err[3] == pytest.approx(per_time[5] / per_time[3], rel=0.1)
+    assert err[2] < 0.1 * err[3]
+
+
 def test_one_plus_previous_coefficient():
     # (θ_{k-1} × θ_k)_z = a² 2(1-cos x) sin x ≈ a² x³ ; exact a²/2 (x - sin x) ≈ a² x³/12
     assert sd.CONING_COEFFS[0, 0] == pytest.approx(1 / 12)

@@ -27,6 +27,16 @@ Algorithm (one *update* consumes ``nsub`` samples, update interval ``T = nsub·d
    ``tests/test_strapdown.py`` re-derives every coefficient with exact fractions. The
    ⅙ term completes the rotation compensation to third order for constant rates
    (it is the next term of ``∫exp(ωt×)f dt``).
+
+   Manoeuvres: the coefficients are optimised for coning, not for changing rates. All N
+   are exact for a linearly varying rate (``ω0×α T³/12``), but only N = 2 also for a
+   quadratically varying one: N = 3, 4, 5 leave ``m_N·h⁴·ω0×β`` per update
+   (``ω = ω0 + αt + βt²``, sample interval h; m_N = 27/20, 204/35, 2075/126). Through
+   manoeuvre onsets (roll-in of a turn, rate ramps) nsub = 3..5 are therefore *less*
+   accurate than nsub = 2: in a 1.5 °/s coordinated-turn roll-in the attitude error
+   grows 3.2× (N = 4) and 7.2× (N = 5) over N = 3, as (m_N/N)/(m_3/3) predicts, and
+   N = 2 is 30× better than N = 3 (tests/test_strapdown.py). Prefer nsub = 2 unless the
+   motion is dominated by vibration-induced coning.
 3. Mid-interval extrapolation (PSINS-like, but using this update's own specific force):
    ``v_½ = v + ½(C_b^n Δv' + g_cc,prev T)``, ``pos_½ = pos + M_pv (v + v_½)/2 · T/2``;
    the Earth model (radii, normal gravity, ω_ie, ω_en) is evaluated once, at (pos_½, v_½).
@@ -713,8 +723,9 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
     init : NavState
         State at ``imu.t0``; ``init.att`` is the attitude of the IMU body frame.
     nsub : int
-        Samples per update, 1..5 (coning/sculling order; see module docstring). If N is
-        not a multiple of ``nsub`` the trailing ``N mod nsub`` samples are not used.
+        Samples per update, 1..5 (coning/sculling order; see module docstring: 3..5 are
+        less accurate than 2 through manoeuvres). If N is not a multiple of ``nsub`` the
+        trailing ``N mod nsub`` samples are not used.
     vertical : {"free", "hold", "damped"}
         Vertical channel: pure inertial, held to ``height`` (v_U = its derivative; the
         run then starts on ``height[0]`` whatever ``init.h``), or damped towards ``height``
