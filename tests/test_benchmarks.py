@@ -1,0 +1,73 @@
+"""Smoke tests of the benchmark scripts: each runs end to end at a small size and writes
+its figures. No timing is asserted (speed figures come from the scripts themselves, as
+ratios measured in one process); this only keeps the scripts from rotting when an API
+they use moves, as benchmarks/schuler.py once did (schuler.nav_errors -> compare)."""
+import importlib.util
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+
+# A stand-in for ../shared/bench/reference_strapdown.py (same signature), used only when
+# the real one is not next to the repository, e.g. on a bare clone.
+STAND_IN = '''
+import math
+from numba import njit
+
+@njit(cache=False)
+def nav(dth, dvl, dt, q0, q1, q2, q3, ve, vn, vu, lat, lon, h):
+    for k in range(dth.shape[0]):
+        ve += dvl[k, 0]
+        vn += dvl[k, 1]
+        vu += dvl[k, 2] - 9.8 * dt
+        q1 += 0.5 * dth[k, 0]
+        q2 += 0.5 * dth[k, 1]
+        q3 += 0.5 * dth[k, 2]
+        n = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+        q0 *= n
+        q1 *= n
+        q2 *= n
+        q3 *= n
+    return q0, q1, q2, q3, ve, vn, vu, lat, lon, h
+'''
+
+
+def _load(name):
+    spec = importlib.util.spec_from_file_location(f"bench_{name}", BENCH / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_speed_script(tmp_path, monkeypatch):
+    mod = _load("speed")
+    if not Path(os.environ.get("SINSLAB_REFERENCE", mod.DEFAULT_REFERENCE)).is_file():
+        ref = tmp_path / "reference_strapdown.py"
+        ref.write_text(STAND_IN)
+        monkeypatch.setenv("SINSLAB_REFERENCE", str(ref))
+    out = tmp_path / "speed.json"
+    res = mod.main(["--quick", "--repeat", "1", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    for key in ("mechanization_ratio", "synthesis_ratio", "generate_ratio", "apply_ratio",
+                "long_run_48h_50hz_s"):
+        assert saved[key] == pytest.approx(res[key]) and saved[key] > 0
+
+
+def test_estimation_script(tmp_path):
+    out = tmp_path / "estimation.json"
+    res = _load("estimation").main(["--quick", "--json", str(out)])
+    saved = json.loads(out.read_text())
+    assert saved["cov21_steps_per_s"] > 0 and "lc_missing" not in saved
+    # the INS + fixes run is also a consistency check: its error matches the filter's σ
+    assert 0.5 < res["lc_horiz_pos_rms_m"] / res["lc_horiz_sigma_rms_m"] < 2.0
+
+
+def test_schuler_script(tmp_path):
+    out = tmp_path / "schuler.json"
+    res = _load("schuler").main(["--hours", "1.5", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    assert set(saved["stages"]) == {"synthesis", "imu_errors", "method", "analysis"}
+    assert saved["samples"] == res["samples"] > 0
