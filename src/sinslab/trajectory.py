@@ -944,6 +944,14 @@ _NROW = 35         # buffer rows: kinematics 0..23, Earth terms 24..32, predicte
 _R = tuple(np.uint64(r * _NB) for r in range(_NROW))     # row offsets in the flat buffer
 
 
+@njit(cache=True, inline="always")
+def _sincos_cached(x, a, s, c):
+    """(x, sin x, cos x), reusing (s, c) = (sin a, cos a) when x == a (bit-identical)."""
+    if x == a:
+        return a, s, c
+    return x, math.sin(x), math.cos(x)
+
+
 @njit(cache=True)
 def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype, tch, tta,
                 tpar, K, cache, je):
@@ -1014,36 +1022,19 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                 t_u = math.atan(u)
             roll += t_u
             rolld += -(Vd * psd + V * d2[CH_PSI]) / G0 / (1.0 + u * u)
-        if thv != a_th:
-            a_th = thv
-            s_th = math.sin(thv)
-            c_th = math.cos(thv)
-        if psv != a_ps:
-            a_ps = psv
-            s_ps = math.sin(psv)
-            c_ps = math.cos(psv)
+        a_th, s_th, c_th = _sincos_cached(thv, a_th, s_th, c_th)
+        a_ps, s_ps, c_ps = _sincos_cached(psv, a_ps, s_ps, c_ps)
         pitch = thv + val[CH_PITCH]
-        if pitch != a_p:
-            a_p = pitch
-            if pitch == thv:
-                s_p = s_th
-                c_p = c_th
-            else:
-                s_p = math.sin(pitch)
-                c_p = math.cos(pitch)
+        if pitch == thv:                    # no sway: the body pitch is the path angle
+            a_p, s_p, c_p = a_th, s_th, c_th
+        else:
+            a_p, s_p, c_p = _sincos_cached(pitch, a_p, s_p, c_p)
         yaw = psv + val[CH_YAW]
-        if yaw != a_y:
-            a_y = yaw
-            if yaw == psv:
-                s_y = s_ps
-                c_y = c_ps
-            else:
-                s_y = math.sin(yaw)
-                c_y = math.cos(yaw)
-        if roll != a_r:
-            a_r = roll
-            s_r = math.sin(roll)
-            c_r = math.cos(roll)
+        if yaw == psv:
+            a_y, s_y, c_y = a_ps, s_ps, c_ps
+        else:
+            a_y, s_y, c_y = _sincos_cached(yaw, a_y, s_y, c_y)
+        a_r, s_r, c_r = _sincos_cached(roll, a_r, s_r, c_r)
         out = _kin(V, Vd, thd, s_th, c_th, s_ps, c_ps, psd, d1[CH_HEAVE], d2[CH_HEAVE],
                    pitch, thd + d1[CH_PITCH], s_p, c_p, yaw, psd + d1[CH_YAW], s_y, c_y,
                    roll, rolld, s_r, c_r, has_mount,
