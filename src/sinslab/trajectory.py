@@ -840,8 +840,9 @@ def _kin(V, Vd, thd, sthv, cthv, spsv, cpsv, psd, hd1, hd2,
 @njit(cache=True)
 def _state(t, j, has_mount, flag, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2, S, i):
     """Kinematic state at time t into S[i]: v(3) vdot(3) C_b^n(9) w_nb^b(3) att_c(3) mount(3).
-    (The fallback path's evaluation; the stencil path does the same inline, with cached
-    sines and cosines.)"""
+    (The fallback path's evaluation at arbitrary node times; _kinematics does the same for
+    whole blocks of epochs, with cached sines and cosines and without the array-argument
+    call per epoch.)"""
     _channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2)
     V = val[CH_V]
     Vd = d1[CH_V]
