@@ -754,15 +754,14 @@ def _term(typ, u, p0, p1, p2, p3, p4, p5):
         elif x < 0.0:
             x = 0.0
         return dd * _s5(x), dd * _s5d(x) / T, dd * _s5dd(x) / (T * T)
-    # sine: A, w, phase, T, ramp_in, ramp_out
-    A = p0
-    w = p1
-    T = p3
-    ri = p4
-    ro = p5
-    arg = w * u + p2
-    s = math.sin(arg)
-    c = math.cos(arg)
+    arg = p1 * u + p2
+    return _sine_term(u, p0, p1, p3, p4, p5, math.sin(arg), math.cos(arg))
+
+
+@njit(cache=True, inline="always")
+def _sine_term(u, A, w, T, ri, ro, s, c):
+    """(value, rate, acceleration) of a sine term A·e(u)·sin(w·u + phase) with ramps ri, ro
+    over its duration T, given s, c = sin, cos of its argument."""
     e = 1.0
     ed = 0.0
     edd = 0.0
@@ -945,25 +944,41 @@ _NROW = 35         # buffer rows: kinematics 0..23, Earth terms 24..32, predicte
 _R = tuple(np.uint64(r * _NB) for r in range(_NROW))     # row offsets in the flat buffer
 
 
+_ROT_MAX = 0.02      # largest angle step [rad] taken by rotation instead of sin/cos
+_ROT_RUN = 64        # rotations before an exact sin/cos again (rounding grows ~1 ulp each)
+
+
 @njit(cache=True, inline="always")
-def _sincos_cached(x, a, s, c):
-    """(x, sin x, cos x), reusing (s, c) = (sin a, cos a) when x == a (bit-identical)."""
+def _sincos_step(x, a, s, c, n):
+    """(x, sin x, cos x, n') from the previous (a, sin a, cos a) and the number n of
+    rotations since they were exact: the same values if x == a; for a small step
+    d = x − a, (s, c) rotated by d (sin d, cos d by their series, exact to < 1e-18); else,
+    or after _ROT_RUN rotations, sin and cos afresh. The epochs' angles change by
+    ~1e-4..1e-2 rad per sample, and a rotation costs a third of a sin/cos pair."""
     if x == a:
-        return a, s, c
-    return x, math.sin(x), math.cos(x)
+        return a, s, c, n
+    d = x - a
+    if n < _ROT_RUN and -_ROT_MAX < d < _ROT_MAX:
+        d2 = d * d
+        sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0))))
+        cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)))
+        return x, s * cd + c * sd, c * cd - s * sd, n + 1
+    return x, math.sin(x), math.cos(x), 0
 
 
 @njit(cache=True)
 def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype, tch, tta,
-                tpar, K, cache, je):
+                tpar, K, cache, tc, je):
     """Kinematic state of epochs e0..e1−1 (t_e = e·dt) into columns i0, i0+1, ... of
     K (24, NB): v(3) v̇(3) C_b^n(9) ω_nb^b(3) carrier att(3) mount(3). Returns the piece of
     the last epoch (``je`` is that of the epoch before e0).
 
-    Scalar code (the trigonometry dominates); sines and cosines of the Euler angles and the
-    bank angle's arctangent are reused while their argument is unchanged (bit-identical),
-    the cache living in ``cache`` between calls. An epoch in a piece with no active term
-    copies the previous column.
+    Scalar code. Sines and cosines of the Euler angles and of the sine terms' arguments
+    follow their angles by small rotations (:func:`_sincos_step`; exact sin/cos at least
+    every _ROT_RUN epochs, so they stay within ~1e-15 of it), and are reused, like the bank
+    angle's arctangent, while the argument is unchanged; the caches live in ``cache`` and
+    ``tc`` (per term) between calls. An epoch in a piece with no active term copies the
+    previous column.
     """
     val = np.empty(NCH)
     d1 = np.empty(NCH)
@@ -986,6 +1001,11 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
     c_r = cache[14]
     a_u = cache[15]
     t_u = cache[16]
+    n_th = int(cache[17])
+    n_ps = int(cache[18])
+    n_p = int(cache[19])
+    n_y = int(cache[20])
+    n_r = int(cache[21])
     for e in range(e0, e1):
         i = i0 + e - e0
         te = e * dt
@@ -1002,8 +1022,19 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
             d2[c] = 0.0
         for a in range(plo[je], phi[je]):
             kk = act[a]
-            x0, x1, x2 = _term(ttype[kk], te - tta[kk], tpar[kk, 0], tpar[kk, 1],
-                               tpar[kk, 2], tpar[kk, 3], tpar[kk, 4], tpar[kk, 5])
+            u = te - tta[kk]
+            if ttype[kk] == T_SINE:
+                ag, sg, cg, ng = _sincos_step(tpar[kk, 1] * u + tpar[kk, 2], tc[kk, 0],
+                                              tc[kk, 1], tc[kk, 2], int(tc[kk, 3]))
+                tc[kk, 0] = ag
+                tc[kk, 1] = sg
+                tc[kk, 2] = cg
+                tc[kk, 3] = ng
+                x0, x1, x2 = _sine_term(u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 3], tpar[kk, 4],
+                                        tpar[kk, 5], sg, cg)
+            else:
+                x0, x1, x2 = _term(ttype[kk], u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 2],
+                                   tpar[kk, 3], tpar[kk, 4], tpar[kk, 5])
             ch = tch[kk]
             val[ch] += x0
             d1[ch] += x1
@@ -1023,19 +1054,19 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                 t_u = math.atan(u)
             roll += t_u
             rolld += -(Vd * psd + V * d2[CH_PSI]) / G0 / (1.0 + u * u)
-        a_th, s_th, c_th = _sincos_cached(thv, a_th, s_th, c_th)
-        a_ps, s_ps, c_ps = _sincos_cached(psv, a_ps, s_ps, c_ps)
+        a_th, s_th, c_th, n_th = _sincos_step(thv, a_th, s_th, c_th, n_th)
+        a_ps, s_ps, c_ps, n_ps = _sincos_step(psv, a_ps, s_ps, c_ps, n_ps)
         pitch = thv + val[CH_PITCH]
         if pitch == thv:                    # no sway: the body pitch is the path angle
-            a_p, s_p, c_p = a_th, s_th, c_th
+            a_p, s_p, c_p, n_p = a_th, s_th, c_th, n_th
         else:
-            a_p, s_p, c_p = _sincos_cached(pitch, a_p, s_p, c_p)
+            a_p, s_p, c_p, n_p = _sincos_step(pitch, a_p, s_p, c_p, n_p)
         yaw = psv + val[CH_YAW]
         if yaw == psv:
-            a_y, s_y, c_y = a_ps, s_ps, c_ps
+            a_y, s_y, c_y, n_y = a_ps, s_ps, c_ps, n_ps
         else:
-            a_y, s_y, c_y = _sincos_cached(yaw, a_y, s_y, c_y)
-        a_r, s_r, c_r = _sincos_cached(roll, a_r, s_r, c_r)
+            a_y, s_y, c_y, n_y = _sincos_step(yaw, a_y, s_y, c_y, n_y)
+        a_r, s_r, c_r, n_r = _sincos_step(roll, a_r, s_r, c_r, n_r)
         out = _kin(V, Vd, thd, s_th, c_th, s_ps, c_ps, psd, d1[CH_HEAVE], d2[CH_HEAVE],
                    pitch, thd + d1[CH_PITCH], s_p, c_p, yaw, psd + d1[CH_YAW], s_y, c_y,
                    roll, rolld, s_r, c_r, has_mount,
@@ -1059,6 +1090,11 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
     cache[14] = c_r
     cache[15] = a_u
     cache[16] = t_u
+    cache[17] = n_th
+    cache[18] = n_ps
+    cache[19] = n_p
+    cache[20] = n_y
+    cache[21] = n_r
     return je
 
 
@@ -1175,7 +1211,10 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     K = Z[:24]
     W = Z[24:33]
     S = np.zeros((9, B))
-    cache = np.full(17, math.nan)
+    cache = np.full(22, math.nan)
+    cache[17:] = 0.0
+    tc = np.zeros((ttype.shape[0], 4))     # per term: argument, sin, cos, rotations
+    tc[:, 0] = math.nan
     ns = cn.shape[0]
     SN = np.zeros((ns, 24))
     WN = np.zeros((ns, 6))
@@ -1202,7 +1241,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         nk = min(B, n - K0)
         if K0 == 0:
             je = _kinematics(0, nk + hi, ib, dt, has_mount, bp, base, flag, plo, phi, act,
-                             ttype, tch, tta, tpar, K, cache, je)
+                             ttype, tch, tta, tpar, K, cache, tc, je)
             enew = ib
         else:
             for q in range(24):             # halo: the epochs K0+lo .. K0+hi−1 shift left
@@ -1212,7 +1251,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 for c in range(hi - lo):
                     W[q, c] = W[q, B + c]
             je = _kinematics(K0 + hi, K0 + nk + hi, hi - lo, dt, has_mount, bp, base, flag,
-                             plo, phi, act, ttype, tch, tta, tpar, K, cache, je)
+                             plo, phi, act, ttype, tch, tta, tpar, K, cache, tc, je)
             enew = hi - lo
         if m > 0:
             _earth_block(enew, ib + nk + hi, ib, dt, lat, h, Zf)
