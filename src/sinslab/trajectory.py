@@ -1071,8 +1071,32 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                    pitch, thd + d1[CH_PITCH], s_p, c_p, yaw, psd + d1[CH_YAW], s_y, c_y,
                    roll, rolld, s_r, c_r, has_mount,
                    val[CH_MP], val[CH_MR], val[CH_MY], d1[CH_MP], d1[CH_MR], d1[CH_MY])
-        for q in range(24):
-            K[q, i] = out[q]
+        # one store per element: a loop over the tuple would index it at run time (through
+        # a stack copy), a third of this function's time
+        K[0, i] = out[0]
+        K[1, i] = out[1]
+        K[2, i] = out[2]
+        K[3, i] = out[3]
+        K[4, i] = out[4]
+        K[5, i] = out[5]
+        K[6, i] = out[6]
+        K[7, i] = out[7]
+        K[8, i] = out[8]
+        K[9, i] = out[9]
+        K[10, i] = out[10]
+        K[11, i] = out[11]
+        K[12, i] = out[12]
+        K[13, i] = out[13]
+        K[14, i] = out[14]
+        K[15, i] = out[15]
+        K[16, i] = out[16]
+        K[17, i] = out[17]
+        K[18, i] = out[18]
+        K[19, i] = out[19]
+        K[20, i] = out[20]
+        K[21, i] = out[21]
+        K[22, i] = out[22]
+        K[23, i] = out[23]
     cache[0] = a_th
     cache[1] = s_th
     cache[2] = c_th
