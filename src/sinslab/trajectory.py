@@ -199,6 +199,12 @@ class Segment:
     def _check(self):
         pass
 
+    def _transition_ok(self):
+        """Default ``transition`` (min(5 s, duration)) and check it fits (Climb, Level)."""
+        if self.transition is None:
+            object.__setattr__(self, "transition", min(5.0, self.duration))
+        self._ramp_ok("transition", 1)
+
     def _ramp_ok(self, key, n=2):
         r = getattr(self, key)
         if r < 0:
@@ -317,9 +323,7 @@ class Climb(Segment):
     kind: ClassVar[str] = "climb"
 
     def _check(self):
-        if self.transition is None:
-            object.__setattr__(self, "transition", min(5.0, self.duration))
-        self._ramp_ok("transition", 1)
+        self._transition_ok()
         if abs(self.angle) >= math.pi / 2:
             raise ValueError("key 'angle' must be within ±90 deg")
 
@@ -335,9 +339,7 @@ class Level(Segment):
     kind: ClassVar[str] = "level"
 
     def _check(self):
-        if self.transition is None:
-            object.__setattr__(self, "transition", min(5.0, self.duration))
-        self._ramp_ok("transition", 1)
+        self._transition_ok()
 
 
 @dataclass(frozen=True)
