@@ -419,6 +419,18 @@ def coarse_align(imu: ImuRecord, lat, h=0.0, *, gyro_bias=None, accel_bias=None,
                            "analytic", T, rest, warns)
 
 
+@njit(cache=True, inline="always")
+def _rotated_dv(a0, a1, a2, a3, tx, ty, tz, ux, uy, uz):
+    """C(a)·(Δv + ½ Δθ×Δv): one sample's velocity increment with its rotation compensation,
+    in the frame of the attitude quaternion a at the sample's start (scalars)."""
+    c = q2dcm_s(a0, a1, a2, a3)
+    vx = ux + 0.5 * (ty * uz - tz * uy)
+    vy = uy + 0.5 * (tz * ux - tx * uz)
+    vz = uz + 0.5 * (tx * uy - ty * ux)
+    return (c[0] * vx + c[1] * vy + c[2] * vz, c[3] * vx + c[4] * vy + c[5] * vz,
+            c[6] * vx + c[7] * vy + c[8] * vz)
+
+
 @njit(cache=True)
 def _inertial_integrals(dth, dv, k1):
     """Integrate f in the body frame frozen at t0: V(t_k1), V(t_end), q_b^{ib0}(t_end)."""
@@ -426,15 +438,11 @@ def _inertial_integrals(dth, dv, k1):
     V = np.zeros(3)
     V1 = np.zeros(3)
     for k in range(dth.shape[0]):
-        c = q2dcm_s(a0, a1, a2, a3)
         tx, ty, tz = dth[k, 0], dth[k, 1], dth[k, 2]
-        ux, uy, uz = dv[k, 0], dv[k, 1], dv[k, 2]
-        vx = ux + 0.5 * (ty * uz - tz * uy)
-        vy = uy + 0.5 * (tz * ux - tx * uz)
-        vz = uz + 0.5 * (tx * uy - ty * ux)
-        V[0] += c[0] * vx + c[1] * vy + c[2] * vz
-        V[1] += c[3] * vx + c[4] * vy + c[5] * vz
-        V[2] += c[6] * vx + c[7] * vy + c[8] * vz
+        nx, ny, nz = _rotated_dv(a0, a1, a2, a3, tx, ty, tz, dv[k, 0], dv[k, 1], dv[k, 2])
+        V[0] += nx
+        V[1] += ny
+        V[2] += nz
         r0, r1, r2, r3 = rv2q_s(tx, ty, tz)
         a0, a1, a2, a3 = qmul_s(a0, a1, a2, a3, r0, r1, r2, r3)
         nn = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3)
@@ -535,15 +543,8 @@ def _propagate(q, dth, dv, dt, wn, k0, nper, nsteps, q_out, f_out):
         sy = 0.0
         sz = 0.0
         for i in range(nper):
-            c = q2dcm_s(a0, a1, a2, a3)
             tx, ty, tz = dth[k, 0], dth[k, 1], dth[k, 2]
-            ux, uy, uz = dv[k, 0], dv[k, 1], dv[k, 2]
-            vx = ux + 0.5 * (ty * uz - tz * uy)
-            vy = uy + 0.5 * (tz * ux - tx * uz)
-            vz = uz + 0.5 * (tx * uy - ty * ux)
-            nx = c[0] * vx + c[1] * vy + c[2] * vz
-            ny = c[3] * vx + c[4] * vy + c[5] * vz
-            nz = c[6] * vx + c[7] * vy + c[8] * vz
+            nx, ny, nz = _rotated_dv(a0, a1, a2, a3, tx, ty, tz, dv[k, 0], dv[k, 1], dv[k, 2])
             # the n frame turns by ω_ie dt meanwhile: − ½ (ω_ie dt) × (C Δv)
             sx += nx - hx * (wy * nz - wz * ny)
             sy += ny - hx * (wz * nx - wx * nz)
