@@ -3,11 +3,11 @@
 Run: ``.venv/bin/python benchmarks/estimation.py [--quick] [--json FILE]``
 
 1. Covariance propagation of a 21-state model (φ, δv, δp, gyro/accel bias, gyro/accel
-   scale factor from :mod:`sinslab.errstate`) with the compiled loop
-   :func:`sinslab.kalman.propagate_covariance`: absolute steps/s on one core and the
+   scale factor from :mod:`sinslab.nav.errstate`) with the compiled loop
+   :func:`sinslab.estimation.kalman.propagate_covariance`: absolute steps/s on one core and the
    ratio to a plain numpy loop (``P = Φ P Φᵀ + Q``) measured in the same run. Target
    ≥ 50 000 steps/s.
-2. Loosely coupled INS + position fixes, :func:`sinslab.integration.loosely_coupled` (the
+2. Loosely coupled INS + position fixes, :func:`sinslab.fusion.integration.loosely_coupled` (the
    one INS + fix driver, also behind ``sinslab navigate`` and paper 003's integration), on
    1 h of 200 Hz IMU with 1 Hz fixes, covariance at 10 Hz. Target < 5 s.
 """
@@ -28,9 +28,9 @@ os.environ.setdefault("SINSLAB_QUIET", "1")
 
 import numpy as np  # noqa: E402
 
-from sinslab import integration as integ  # noqa: E402
-from sinslab import kalman as kf  # noqa: E402
-from sinslab import units as u  # noqa: E402
+from sinslab.fusion import integration as integ  # noqa: E402
+from sinslab.estimation import kalman as kf  # noqa: E402
+from sinslab.core import units as u  # noqa: E402
 
 
 _CPU = {}
@@ -55,14 +55,14 @@ def _best(fn, repeat=3, key=None):
 
 def model21(n_tab=200, T=0.1, seed=0):
     """A table of (Φ, Q_k) of the 21-state model along a manoeuvring path."""
-    from sinslab import errstate as es
+    from sinslab.nav import errstate as es
     rng = np.random.default_rng(seed)
     m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(), es.accel_scale()],
                       gyro_noise=0.01 * u.dpsh, accel_noise=10 * u.ugpsHz)
     assert m.n == 21, m
     k = np.arange(n_tab)
     att = np.stack([0.1 * np.sin(k / 20), 0.3 * np.sin(k / 13), k / 50.0], -1)
-    from sinslab.attitude import euler_to_dcm
+    from sinslab.core.attitude import euler_to_dcm
     C = euler_to_dcm(att)
     vel = np.stack([200 * np.cos(k / 50), 200 * np.sin(k / 50), np.zeros(n_tab)], -1)
     fb = np.einsum("kji,j->ki", C, [0, 0, 9.8]) + rng.normal(scale=0.5, size=(n_tab, 3))
@@ -121,9 +121,9 @@ def bench_covariance(K):
 def lc_scenario(duration, rate=200.0, seed=1):
     """Aircraft-like motion with turns, climb and acceleration; IMU with tactical-grade
     errors; 1 Hz position fixes with 3 m / 3 m / 5 m noise."""
-    from sinslab import imu as imu_mod
-    from sinslab import trajectory as tr
-    from sinslab.records import NavState
+    from sinslab.sim import imu as imu_mod
+    from sinslab.sim import trajectory as tr
+    from sinslab.core.records import NavState
     segs = []
     pattern = [tr.Level(duration=120.0), tr.Turn(duration=60.0, rate=1.5 * u.deg),
                tr.Accelerate(duration=30.0, accel=1.0), tr.Climb(duration=60.0, angle=3 * u.deg),
@@ -144,7 +144,7 @@ def lc_scenario(duration, rate=200.0, seed=1):
     step = int(round(rate))
     idx = np.arange(step, truth.t.size, step)
     sig = np.array([3.0, 3.0, 5.0])
-    from sinslab.earth import radii
+    from sinslab.core.earth import radii
     rm, rn = radii(truth.lat[idx], truth.h[idx])
     noise = rng.normal(size=(idx.size, 3)) * sig
     fix = np.stack([truth.lat[idx] + noise[:, 0] / rm,
@@ -177,7 +177,7 @@ def bench_lc(duration):
     cpu = time.process_time() - c0
     # accuracy at the filter epochs (truth on the IMU grid, every 20 samples)
     k = np.round((res.t - truth.t[0]) / meas.dt).astype(int)
-    from sinslab.earth import radii
+    from sinslab.core.earth import radii
     rm, rn = radii(truth.lat[k], truth.h[k])
     dn = (res.nav[:, 7] - truth.lat[k]) * rm
     de = (res.nav[:, 8] - truth.lon[k]) * rn * np.cos(truth.lat[k])

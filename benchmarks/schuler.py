@@ -37,9 +37,11 @@ def _timed(fn):
 
 
 def run(hours: float) -> dict:
-    from sinslab import compare, imu as imu_, oscillation as osc, schuler
-    from sinslab import trajectory as tj
-    from sinslab.config import resolve
+    from sinslab.nav import compare
+    from sinslab.sim import imu as imu_
+    from sinslab.methods import oscillation as osc, schuler
+    from sinslab.sim import trajectory as tj
+    from sinslab.app.config import resolve
     from sinslab.experiments import schuler_suppression as ex
 
     cfg = resolve(ex.Config, quick={"ship": {"duration": f"{hours} h"}})

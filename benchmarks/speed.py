@@ -3,10 +3,10 @@
 Everything is measured in one process, as ratios to ``reference_strapdown.nav`` run on the
 same data, because the machine is noisy:
 
-- mechanization throughput (IMU samples/s) of ``sinslab.strapdown.step`` (nsub = 2, no
+- mechanization throughput (IMU samples/s) of ``sinslab.nav.strapdown.step`` (nsub = 2, no
   output, like the reference) and of ``navigate`` (with output) / reference; target >= 0.5;
 - 48 h at 50 Hz navigated with ``navigate`` (full output and 1 Hz output); target < 5 s;
-- synthesis throughput (``sinslab.trajectory.generate`` + ``sinslab.imu.apply``) / reference
+- synthesis throughput (``sinslab.sim.trajectory.generate`` + ``sinslab.sim.imu.apply``) / reference
   on ``aircraft_mixed`` at 100 Hz with a navigation-grade error model (bias + ARW + VRW),
   and each of the two alone; target >= 0.3 for the sum (skipped with a message if those
   modules cannot be imported). All single thread.
@@ -85,8 +85,8 @@ def reference_rate(ref, dth, dvl, dt, repeat):
 
 def bench_mechanization(ref, n, repeat, dt=0.01):
     """Throughputs of reference, sinslab ``step`` and ``navigate`` on the same n samples."""
-    from sinslab import strapdown as sd
-    from sinslab.records import ImuRecord, NavState
+    from sinslab.nav import strapdown as sd
+    from sinslab.core.records import ImuRecord, NavState
 
     dth, dvl = test_data(n, dt)
     init = NavState(0.6, 2.0, 0.0, np.zeros(3), np.zeros(3))
@@ -109,8 +109,8 @@ def bench_mechanization(ref, n, repeat, dt=0.01):
 
 def bench_long_run(hours=48.0, rate_hz=50.0, repeat=1):
     """Wall time [s] of navigating ``hours`` at ``rate_hz`` (nsub = 2): full output and 1 Hz."""
-    from sinslab import strapdown as sd
-    from sinslab.records import ImuRecord, NavState
+    from sinslab.nav import strapdown as sd
+    from sinslab.core.records import ImuRecord, NavState
 
     dt = 1.0 / rate_hz
     n = int(round(hours * 3600 * rate_hz))
@@ -135,8 +135,8 @@ def synthesis_case(n, dt=0.01):
     """The realistic synthesis case: ``trajectory.aircraft_mixed`` (turns, climbs,
     accelerations, wing rock) at 100 Hz from the paper-003 start, and a navigation-grade
     ``ImuErrors`` (bias + ARW + VRW). Returns (generate(), errors)."""
-    from sinslab import imu as imu_mod
-    from sinslab import trajectory as tr
+    from sinslab.sim import imu as imu_mod
+    from sinslab.sim import trajectory as tr
 
     d = np.radians
     segs = tr.aircraft_mixed(n * dt)
@@ -149,7 +149,7 @@ def bench_synthesis(n, repeat):
     """Synthesis throughputs [samples/s] of generate alone, apply alone and both, or a
     string saying why it was skipped. Single thread: both kernels are serial numba loops."""
     try:
-        from sinslab import imu as imu_mod
+        from sinslab.sim import imu as imu_mod
         gen, errors = synthesis_case(1000)
         imu_mod.apply(gen().imu, errors, 0)                               # warm-up compile
     except (ImportError, AttributeError) as e:

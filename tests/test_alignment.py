@@ -5,13 +5,13 @@ import warnings
 import numpy as np
 import pytest
 
-from sinslab import alignment as al
-from sinslab import attitude as A
-from sinslab import earth as E
-from sinslab import kalman
-from sinslab import units as u
-from sinslab.imu import ImuErrors, apply
-from sinslab.records import ImuRecord
+from sinslab.methods import alignment as al
+from sinslab.core import attitude as A
+from sinslab.core import earth as E
+from sinslab.estimation import kalman
+from sinslab.core import units as u
+from sinslab.sim.imu import ImuErrors, apply
+from sinslab.core.records import ImuRecord
 
 LATS = [34.246, -45.0, 0.0, 60.0, -88.5, 5.0]
 
@@ -123,7 +123,7 @@ def test_reduced_filter_equals_projected_full_filter():
 # ----------------------------------------------------------------- limit formulas
 def test_limit_signs_match_coarse_alignment_errors():
     """Sign convention: the analytic coarse alignment with biases errs by exactly the
-    limits (φ of sinslab.attitude.misalignment, i.e. C' = (I − φ×) C, the paper's eq 3)."""
+    limits (φ of sinslab.core.attitude.misalignment, i.e. C' = (I − φ×) C, the paper's eq 3)."""
     for lat_deg, head in [(34.246, 235.0), (-40.0, 10.0), (70.0, 300.0), (-5.0, 90.0)]:
         lat = math.radians(lat_deg)
         att = att_of(-5.0, 2.0, head)

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from sinslab import allan as AL
-from sinslab import imu as IM
-from sinslab import io
-from sinslab import units as u
-from sinslab.records import ImuRecord
+from sinslab.sim import allan as AL
+from sinslab.sim import imu as IM
+from sinslab.data import io
+from sinslab.core import units as u
+from sinslab.core.records import ImuRecord
 
 LASER = Path(__file__).resolve().parents[2] / "shared" / "data" / "psins-lasergyro" / "lasergyro.imu"
 

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from sinslab import attitude as at
+from sinslab.core import attitude as at
 
 D = math.pi / 180
 
@@ -214,7 +214,7 @@ def test_ned_conversions():
 def test_scalar_euler_dcm_and_body_rate_kernels():
     """euler_dcm_sc equals euler_to_dcm; euler_rates_to_body_sc is the body rate of the
     Euler-angle motion: (ω_nb^b ×) = C^T dC/dt, checked by central differences."""
-    from sinslab.attitude import euler_dcm_sc, euler_rates_to_body_sc, euler_to_dcm
+    from sinslab.core.attitude import euler_dcm_sc, euler_rates_to_body_sc, euler_to_dcm
 
     rng = np.random.default_rng(7)
 

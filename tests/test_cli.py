@@ -15,8 +15,7 @@ from typer.testing import CliRunner
 import sinslab.experiments as E
 from sinslab import __version__
 from sinslab.cli import app
-from sinslab.experiments.base import (Claim, ExperimentConfig, Field, Figure, Metric, Q, QV,
-                                      Result, Section, Table)
+from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
 
 HERE = Path(__file__).resolve().parent
 
@@ -39,7 +38,7 @@ class _Config(ExperimentConfig):
 
 
 def _run(cfg, ctx):
-    from sinslab import plotting as P
+    from sinslab.app import plotting as P
 
     t = np.linspace(0.0, float(cfg.scenario.duration), cfg.scenario.rows)
     with ctx.progress("waiting", total=1) as bar:

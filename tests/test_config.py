@@ -5,9 +5,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from sinslab import units
-from sinslab.config import (ConfigError, ExperimentConfig, Field, Q, QV, Quantity, Section,
-                            config_to_toml, describe, dump_toml, load_toml, parse_set, resolve)
+from sinslab.core import units
+from sinslab.app.config import ConfigError, ExperimentConfig, Field, Q, QV, Quantity, Section, config_to_toml, describe, dump_toml, load_toml, parse_set, resolve
 
 
 class Scen(Section):

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sinslab.config import ConfigError, resolve
+from sinslab.app.config import ConfigError, resolve
 from sinslab.experiments import execute, get
 
 CONTRACT = ("fix_sigma_ns_m", "fix_sigma_ew_m", "pos_sigma_at_end_m", "rms_pos_err_lagaware_m",

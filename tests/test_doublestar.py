@@ -1,15 +1,15 @@
-"""sinslab.doublestar: two-GEO fix error model (paper 003 eqs 11-15), its derivation
+"""sinslab.methods.doublestar: two-GEO fix error model (paper 003 eqs 11-15), its derivation
 from the geometry, the fix simulator, the 16-state model and the lag-aware filter."""
 import math
 
 import numpy as np
 import pytest
 
-from sinslab import doublestar as ds
-from sinslab import errstate as es
-from sinslab import units as u
-from sinslab.earth import radii
-from sinslab.kalman import KalmanFilter, discretize as kdiscretize
+from sinslab.methods import doublestar as ds
+from sinslab.nav import errstate as es
+from sinslab.core import units as u
+from sinslab.core.earth import radii
+from sinslab.estimation.kalman import KalmanFilter, discretize as kdiscretize
 
 D = u.deg
 S1, S2 = 80 * D, 140 * D
@@ -198,7 +198,7 @@ def test_latency_not_shorter_than_window_refused():
 
 
 def _static_truth(T=3000.0, lat=32 * D, lon=118 * D):
-    from sinslab.records import NavSeries
+    from sinslab.core.records import NavSeries
     t = np.arange(0.0, T + 1)
     n = t.size
     return NavSeries(t, np.full(n, lat), np.full(n, lon), np.full(n, 1000.0), np.zeros((n, 3)),
@@ -335,14 +335,14 @@ def test_lag_aware_paper003_equals_on_time_on_lti_model():
 # ------------------------------------------------------------------ integration on a short flight
 @pytest.fixture(scope="module")
 def flight():
-    from sinslab import trajectory as tr
+    from sinslab.sim import trajectory as tr
     start = tr.Start(lat=32 * D, lon=118 * D, h=1000.0, speed=300.0, heading=0.0)
     return tr.generate(tr.aircraft_mixed(200.0), start, 0.05, duration=200.0)
 
 
 def _init(truth, dpos=(0.0, 0.0), dv=(0.0, 0.0), phi=(0.0, 0.0, 0.0)):
-    from sinslab.attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
-    from sinslab.records import NavState
+    from sinslab.core.attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
+    from sinslab.core.records import NavState
     rm, rn = radii(truth.lat[0], truth.h[0])
     att = dcm_to_euler(apply_misalignment(euler_to_dcm(truth.att[0]), np.asarray(phi)))
     return NavState(truth.lat[0] + dpos[0] / rm, truth.lon[0] + dpos[1] / (rn * math.cos(truth.lat[0])),

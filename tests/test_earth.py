@@ -1,10 +1,10 @@
-"""Independent checks of sinslab.earth against WGS-84 closed forms and published values."""
+"""Independent checks of sinslab.core.earth against WGS-84 closed forms and published values."""
 import math
 
 import numpy as np
 import pytest
 
-from sinslab import earth
+from sinslab.core import earth
 
 A, F = 6378137.0, 1 / 298.257223563
 E2 = F * (2 - F)

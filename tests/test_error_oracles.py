@@ -9,9 +9,9 @@ import pytest
 from scipy.linalg import expm
 from scipy.optimize import curve_fit
 
-from sinslab import attitude, earth
-from sinslab.records import ImuRecord, NavState
-from sinslab.strapdown import navigate
+from sinslab.core import attitude, earth
+from sinslab.core.records import ImuRecord, NavState
+from sinslab.nav.strapdown import navigate
 
 DPH = np.radians(1.0) / 3600.0
 G0 = 9.80665

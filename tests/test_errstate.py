@@ -1,7 +1,7 @@
 """Error-state models: every F against the nonlinear mechanization equations.
 
 Two independent checks, both against a compact reference INS written here (quaternion,
-ENU velocity, geodetic position; sinslab.earth's WGS-84 radii and normal gravity):
+ENU velocity, geodetic position; sinslab.core.earth's WGS-84 radii and normal gravity):
 
 1. exact: central finite differences of the nonlinear error dynamics (computed − true
    derivatives) at x = 0 reproduce F column by column (Maa, Mav, Map, Mva, Mvv, Mvp, Mpv,
@@ -17,10 +17,10 @@ import pytest
 import scipy.linalg
 from scipy.integrate import solve_ivp
 
-from sinslab import errstate as es
-from sinslab.attitude import euler_to_dcm, misalignment, rotvec_to_dcm
-from sinslab.earth import WIE, gravity, radii
-from sinslab.units import arcmin, dph, ppm, ug
+from sinslab.nav import errstate as es
+from sinslab.core.attitude import euler_to_dcm, misalignment, rotvec_to_dcm
+from sinslab.core.earth import WIE, gravity, radii
+from sinslab.core.units import arcmin, dph, ppm, ug
 
 # ------------------------------------------------------------------ reference INS ODE
 LAT0, LON0, H0 = 0.6, 2.0, 1000.0
@@ -51,7 +51,7 @@ def _q2C(q):
 
 
 def _C2q(C):
-    from sinslab.attitude import dcm_to_quat
+    from sinslab.core.attitude import dcm_to_quat
     return dcm_to_quat(C)
 
 
@@ -615,7 +615,7 @@ def test_bad_inputs_are_clear_errors():
 
 # ------------------------------------- with sinslab's own trajectory + mechanization
 def _sinslab_flight():
-    from sinslab.trajectory import Accelerate, Climb, Start, Turn, WingRock, generate
+    from sinslab.sim.trajectory import Accelerate, Climb, Start, Turn, WingRock, generate
     segs = [Accelerate(duration=10.0, accel=3.0), Turn(duration=20.0, rate=np.radians(4.0)),
             Climb(duration=12.0, angle=np.radians(8.0)), WingRock(duration=18.0, amplitude=np.radians(25.0),
                                                                   period=6.0)]
@@ -636,16 +636,16 @@ SINSLAB_GROUPS = {
 
 @pytest.fixture(scope="module")
 def sinslab_flight():
-    pytest.importorskip("sinslab.strapdown")
+    pytest.importorskip("sinslab.nav.strapdown")
     return _sinslab_flight()
 
 
 @pytest.mark.parametrize("core", ["full", "horizontal"])
 def test_linear_model_matches_sinslab_navigate_60s(sinslab_flight, core):
-    """Same 2 % criterion with sinslab.trajectory.generate (accelerate, turn, climb, wing rock;
-    100 Hz) and sinslab.strapdown.navigate; errors are perturbed − unperturbed navigation."""
-    from sinslab.records import ImuRecord, NavState
-    from sinslab.strapdown import navigate
+    """Same 2 % criterion with sinslab.sim.trajectory.generate (accelerate, turn, climb, wing rock;
+    100 Hz) and sinslab.nav.strapdown.navigate; errors are perturbed − unperturbed navigation."""
+    from sinslab.core.records import ImuRecord, NavState
+    from sinslab.nav.strapdown import navigate
     gen = sinslab_flight
     truth, imu = gen.truth, gen.imu
     hold = core == "horizontal"
@@ -663,7 +663,7 @@ def test_linear_model_matches_sinslab_navigate_60s(sinslab_flight, core):
         if hold:
             dv[2] = dp[2] = 0.0
         C0 = rotvec_to_dcm(-phi) @ euler_to_dcm(init.att)
-        from sinslab.attitude import dcm_to_euler
+        from sinslab.core.attitude import dcm_to_euler
         pinit = NavState(init.lat + dp[0], init.lon + dp[1], init.h + dp[2], init.vel + dv, dcm_to_euler(C0), init.t)
         eps, nab, kg, ka = (g.get(k, np.zeros(3)) for k in ("eps", "nabla", "kg", "ka"))
         pimu = ImuRecord(imu.t, imu.dtheta * (1 + kg) + eps * imu.dt, imu.dv * (1 + ka) + nab * imu.dt, imu.dt)

@@ -7,9 +7,9 @@ import scipy.linalg
 from typer.testing import CliRunner
 
 import sinslab.experiments as E
-from sinslab import earth, units
+from sinslab.core import earth, units
 from sinslab.cli import app
-from sinslab.config import ConfigError, resolve
+from sinslab.app.config import ConfigError, resolve
 from sinslab.experiments import free_inertial as fi
 
 CONTRACT = ["max_horiz_pos_err_m", "final_horiz_pos_err_m", "max_horiz_vel_err_mps",
@@ -84,8 +84,8 @@ def test_static_run_direct_fit_is_schuler(tmp_path):
 
 def test_claims_fail_when_navigation_is_wrong(tmp_path, monkeypatch):
     """A navigation solution with an extra 0.05 m/s north drift must fail the model claims."""
-    from sinslab import strapdown
-    from sinslab.records import NavSeries
+    from sinslab.nav import strapdown
+    from sinslab.core.records import NavSeries
 
     real = strapdown.navigate
 
@@ -188,8 +188,8 @@ def test_mc_batch_draws_and_navigates_like_the_covariance_model():
     """Direct library check on a short static run (sync): the biases act as 1σ draws, so the
     run-to-run spread of the east velocity error after 5 min matches the model's σ, and the
     covariance analysis reproduces the closed-form static tilt from an accelerometer bias."""
-    from sinslab import montecarlo as mc
-    from sinslab import trajectory as tr
+    from sinslab.estimation import montecarlo as mc
+    from sinslab.sim import trajectory as tr
 
     cfg = resolve(fi.Config, sets=["scenario.motion=static", "scenario.duration=5 min",
                                    "scenario.sample_interval=0.1 s", "imu.gyro_bias=0 deg/h",

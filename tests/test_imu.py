@@ -5,11 +5,9 @@ import tomllib
 import numpy as np
 import pytest
 
-from sinslab import units as u
-from sinslab.imu import (GM_ALLAN_PEAK, GM_ALLAN_PEAK_TAU, ImuErrors, RecordedNoise, Trend, apply,
-                         apply_batch, gm_allan_deviation, gm_sigma_from_allan_floor,
-                         noise_increments)
-from sinslab.records import ImuRecord
+from sinslab.core import units as u
+from sinslab.sim.imu import GM_ALLAN_PEAK, GM_ALLAN_PEAK_TAU, ImuErrors, RecordedNoise, Trend, apply, apply_batch, gm_allan_deviation, gm_sigma_from_allan_floor, noise_increments
+from sinslab.core.records import ImuRecord
 
 
 def record(n, dt=0.01, dtheta=None, dv=None, t0=0.0):
@@ -31,7 +29,7 @@ def test_kernel_normals_are_standard_normal():
     """xoshiro256++ + ziggurat: moments, equiprobable-bin chi-square, both tails (the tail
     beyond r = 3.654 is the rejection path), no serial correlation."""
     from scipy import stats
-    from sinslab import imu
+    from sinslab.sim import imu
     n = 4_000_000
     z = imu._standard_normals(imu._kernel_state(np.random.default_rng(5)), n)
     se = 1 / math.sqrt(n)
@@ -446,7 +444,7 @@ def test_frozen_and_equality():
 def test_fast_paths_give_the_general_kernels_bytes(kw):
     """apply() has shortcut kernels for bias + white noise; zero recorded noise forces the
     general kernel (it draws no normals), so both must give identical bytes (same seed)."""
-    import sinslab.imu as imu_mod
+    import sinslab.sim.imu as imu_mod
     n = 5000
     t = 0.01 * np.arange(1, n + 1)
     rng = np.random.default_rng(3)

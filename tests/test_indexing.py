@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from sinslab import attitude as at
-from sinslab import indexing as ix
-from sinslab import trajectory as tr
-from sinslab import units as u
+from sinslab.core import attitude as at
+from sinslab.sim import indexing as ix
+from sinslab.sim import trajectory as tr
+from sinslab.core import units as u
 
 
 def _stops(m, which):

@@ -1,4 +1,4 @@
-"""Oracles for the INS + fix driver, sinslab.integration.loosely_coupled (simulated data).
+"""Oracles for the INS + fix driver, sinslab.fusion.integration.loosely_coupled (simulated data).
 
 The recorded-data front end (levelling, heading from the fix course, rtklib-drive figures)
 is tested in test_integration_real.py; paper 003's use of the same driver in
@@ -7,15 +7,15 @@ test_doublestar.py.
 import numpy as np
 import pytest
 
-from sinslab import integration as I
+from sinslab.fusion import integration as I
 
 
 def _lc_scenario(duration=300.0, rate=100.0, seed=1):
-    from sinslab import imu as imu_mod
-    from sinslab import trajectory as tr
-    from sinslab import units as u
-    from sinslab.earth import radii
-    from sinslab.records import NavState
+    from sinslab.sim import imu as imu_mod
+    from sinslab.sim import trajectory as tr
+    from sinslab.core import units as u
+    from sinslab.core.earth import radii
+    from sinslab.core.records import NavState
     segs = [tr.Level(duration=60.0), tr.Turn(duration=60.0, rate=1.5 * u.deg),
             tr.Accelerate(duration=30.0, accel=1.0), tr.Climb(duration=60.0, angle=3 * u.deg),
             tr.Level(duration=90.0)]
@@ -43,7 +43,7 @@ def _lc_scenario(duration=300.0, rate=100.0, seed=1):
 
 
 def _horiz_err(res, tru, dt):
-    from sinslab.earth import radii
+    from sinslab.core.earth import radii
     k = np.round((res.t - tru.t[0]) / dt).astype(int)
     rm, rn = radii(tru.lat[k], tru.h[k])
     dn = (res.nav[:, 7] - tru.lat[k]) * rm
@@ -109,7 +109,7 @@ def test_feed_forward_estimates_the_free_ins_errors(lc_case):
     ff = I.loosely_coupled(meas, init, ft[:60], fix[:60], sig, P0, feedback=False, progress=False, **kw)
     free = I.loosely_coupled(meas, init, ft[:0], fix[:0], sig, P0, progress=False, **kw)
     assert np.array_equal(ff.nav, free.nav)
-    from sinslab.earth import radii
+    from sinslab.core.earth import radii
     k = np.round((ff.t - tru.t[0]) / meas.dt).astype(int)
     rm, _ = radii(tru.lat[k], tru.h[k])
     dn_free = (ff.nav[:, 7] - tru.lat[k]) * rm
@@ -122,8 +122,8 @@ def test_feed_forward_estimates_the_free_ins_errors(lc_case):
 def test_lever_arm_and_velocity_fixes(lc_case):
     """Antenna fixes 1 m off the IMU with the lever arm given: as accurate as IMU-point fixes;
     adding velocity fixes keeps it consistent (NIS ~ dof 6)."""
-    from sinslab import attitude as A
-    from sinslab.earth import radii
+    from sinslab.core import attitude as A
+    from sinslab.core.earth import radii
     meas, init, ft, fix, sig, P0, kw, tru = lc_case
     lever = np.array([0.5, 1.0, -0.3])
     k = np.round((ft - tru.t[0]) / meas.dt).astype(int)

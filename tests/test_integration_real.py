@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from sinslab import attitude as A
-from sinslab import imu as IM
-from sinslab import integration as I
-from sinslab import io
-from sinslab import trajectory as tr
-from sinslab import units as u
+from sinslab.core import attitude as A
+from sinslab.sim import imu as IM
+from sinslab.fusion import integration as I
+from sinslab.data import io
+from sinslab.sim import trajectory as tr
+from sinslab.core import units as u
 
 DRIVE = Path(__file__).resolve().parents[2] / "shared" / "data" / "rtklib-drive"
 needs_drive = pytest.mark.skipif(not (DRIVE / "imu_1934.csv").exists(), reason="rtklib-drive not available")

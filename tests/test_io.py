@@ -1,15 +1,15 @@
-"""Readers/writers of recorded data (sinslab.io) and checks of the rtklib-drive facts."""
+"""Readers/writers of recorded data (sinslab.data.io) and checks of the rtklib-drive facts."""
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from sinslab import attitude as A
-from sinslab import earth as E
-from sinslab import io
-from sinslab import units as u
-from sinslab.records import ImuRecord
+from sinslab.core import attitude as A
+from sinslab.core import earth as E
+from sinslab.data import io
+from sinslab.core import units as u
+from sinslab.core.records import ImuRecord
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 DRIVE = DATA / "rtklib-drive"

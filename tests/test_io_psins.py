@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sinslab import earth as E
-from sinslab import io
-from sinslab import units as u
+from sinslab.core import earth as E
+from sinslab.data import io
+from sinslab.core import units as u
 from sinslab.experiments import static_alignment as sa
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "psins-lasergyro" / "lasergyro.imu"

@@ -1,9 +1,9 @@
-"""Oracles for sinslab.kalman: textbook equations, on-time vs lagged filters, budgets."""
+"""Oracles for sinslab.estimation.kalman: textbook equations, on-time vs lagged filters, budgets."""
 import numpy as np
 import pytest
 from scipy import linalg as sla
 
-from sinslab import kalman as kf
+from sinslab.estimation import kalman as kf
 
 
 def _model(n=6, m=2, seed=0, dt=1.0):
@@ -319,9 +319,9 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
 
 
 def test_feedback_layout_corrects_ins_and_compensation():
-    from sinslab import strapdown as sd
-    from sinslab.records import NavState
-    from sinslab.integration import lc_model
+    from sinslab.nav import strapdown as sd
+    from sinslab.core.records import NavState
+    from sinslab.fusion.integration import lc_model
     model = lc_model(1e-5, 1e-4)
     lay = kf.FeedbackLayout.from_model(model.layout)
     assert lay.indices(15).tolist() == list(range(15))
@@ -342,10 +342,10 @@ def test_feedback_layout_corrects_ins_and_compensation():
 def test_feedback_layout_horizontal_blocks_and_scale_factors():
     """A 2-state (horizontal) velocity/position block leaves the vertical alone; scale-factor
     blocks are fed back (zeroed) and returned for the caller's compensation."""
-    from sinslab import doublestar as ds
-    from sinslab import strapdown as sd
-    from sinslab.integration import lc_model
-    from sinslab.records import NavState
+    from sinslab.methods import doublestar as ds
+    from sinslab.nav import strapdown as sd
+    from sinslab.fusion.integration import lc_model
+    from sinslab.core.records import NavState
     m = ds.horizontal_model(1e-7, 1e-7, 3600.0, 1e-4, 1800.0)
     lay = kf.FeedbackLayout.from_model(m.layout, gyro="eps_b", accel=None)
     assert lay.indices(16).tolist() == list(range(10))        # the Markov states stay

@@ -10,8 +10,8 @@ import cloudpickle
 import numpy as np
 import pytest
 
-from sinslab import kalman as kf
-from sinslab import montecarlo as mc
+from sinslab.estimation import kalman as kf
+from sinslab.estimation import montecarlo as mc
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])   # workers need not import tests/
 

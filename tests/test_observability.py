@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from sinslab import errstate as es
-from sinslab import observability as ob
-from sinslab.earth import WIE, gravity
-from sinslab.units import dph, ug
+from sinslab.nav import errstate as es
+from sinslab.estimation import observability as ob
+from sinslab.core.earth import WIE, gravity
+from sinslab.core.units import dph, ug
 
 d = np.radians
 LATS = [-60.0, -5.0, 0.0, 20.0, 34.246, 60.0, 85.0]

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from sinslab import earth
-from sinslab import oscillation as osc
+from sinslab.core import earth
+from sinslab.methods import oscillation as osc
 
 LAT = math.radians(45.75)
 W = osc.known_frequencies(LAT)
@@ -118,10 +118,10 @@ def _modal_closed_form(F, x0, t):
 
 
 def test_static_error_model_lines_match_modal_closed_form():
-    """Static-base error model of sinslab.errstate (horizontal core, 45.75°): its modes are
+    """Static-base error model of sinslab.nav.errstate (horizontal core, 45.75°): its modes are
     the 24 h line and the Schuler line split by Foucault (ω_s ± ω_ie sinL); the fitted
     amplitudes of a 72 h response match the modal closed form."""
-    from sinslab import errstate
+    from sinslab.nav import errstate
 
     g = float(earth.gravity(LAT))
     F = errstate.ErrorModel("horizontal").F(errstate.NavPoint(

@@ -5,8 +5,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sinslab import outputs
-from sinslab.outputs import MARKER, OutputDirError, RunDir, atomic_path, atomic_write
+from sinslab.app import outputs
+from sinslab.app.outputs import MARKER, OutputDirError, RunDir, atomic_path, atomic_write
 
 
 def test_atomic_write_replaces_whole_file(tmp_path):

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from sinslab.records import ImuRecord, NavSeries, NavState, check_times
+from sinslab.core.records import ImuRecord, NavSeries, NavState, check_times
 
 
 def imu(n=10, dt=0.01, t0=0.0):

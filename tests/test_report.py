@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 import sinslab.experiments as E
-from sinslab import report
-from sinslab.config import resolve
+from sinslab.app import report
+from sinslab.app.config import resolve
 
 from test_cli import Dummy
 

@@ -1,15 +1,18 @@
-"""sinslab.schuler: delayed-alignment suppression on one IMU stream — principle (antiphase
+"""sinslab.methods.schuler: delayed-alignment suppression on one IMU stream — principle (antiphase
 of T_s/2-shifted Schuler errors), both modes, real alignments, one pass, bad input."""
 import math
 
 import numpy as np
 import pytest
 
-from sinslab import compare, earth, indexing, schuler, units as u
-from sinslab import imu as imu_
-from sinslab import oscillation as osc
-from sinslab import trajectory as tj
-from sinslab.records import ImuRecord, NavState
+from sinslab.nav import compare
+from sinslab.core import earth, units as u
+from sinslab.sim import indexing
+from sinslab.methods import schuler
+from sinslab.sim import imu as imu_
+from sinslab.methods import oscillation as osc
+from sinslab.sim import trajectory as tj
+from sinslab.core.records import ImuRecord, NavState
 
 LAT, LON = 45.75 * u.deg, 126.6 * u.deg
 DT = 0.1
@@ -114,7 +117,7 @@ def test_moored_schuler_suppressed_24h_kept(aligned, swaying_site):
 def test_one_pass_equals_separate_navigation(aligned, swaying_site):
     """navigate_pair steps both solutions through one sweep: identical to running each
     with strapdown.navigate from its start."""
-    from sinslab import strapdown
+    from sinslab.nav import strapdown
 
     _, m = swaying_site
     r = aligned

@@ -3,7 +3,7 @@ the run (and able to fail), the injected ship scenario's suppression, config err
 
 import pytest
 
-from sinslab.config import ConfigError, resolve
+from sinslab.app.config import ConfigError, resolve
 from sinslab.experiments import execute, get
 
 CH = ("vE", "vN", "phiE", "phiN", "lat", "lon")

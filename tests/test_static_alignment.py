@@ -5,7 +5,7 @@ import re
 import pytest
 
 from sinslab import experiments
-from sinslab.config import ConfigError, resolve
+from sinslab.app.config import ConfigError, resolve
 from sinslab.experiments import base
 from sinslab.experiments import static_alignment as sa
 

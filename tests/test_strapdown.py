@@ -1,13 +1,13 @@
-"""Tests of sinslab.strapdown against exact (closed-form) motions."""
+"""Tests of sinslab.nav.strapdown against exact (closed-form) motions."""
 from fractions import Fraction
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from sinslab import attitude, earth
-from sinslab.records import ImuRecord, NavState
-from sinslab import strapdown as sd
+from sinslab.core import attitude, earth
+from sinslab.core.records import ImuRecord, NavState
+from sinslab.nav import strapdown as sd
 
 ARCSEC = np.pi / 180 / 3600
 LAT = np.radians(34.246)
@@ -121,7 +121,7 @@ def test_manoeuvre_error_ratio_follows_quadratic_rate_term():
     nsub = 4 and 5 relative to nsub = 3 is the ratio of the quadratic-rate mismatches per
     unit time, (m_N/N)/(m_3/3) = 3.24 and 7.32 (the error per update ∝ m_N h⁴, updates per
     second ∝ 1/(N h)); nsub = 2, which has no such term, is ≥ 10× better than nsub = 3."""
-    from sinslab import trajectory as tr
+    from sinslab.sim import trajectory as tr
     st = tr.Start(lat=np.radians(32.0), lon=np.radians(118.0), h=1000.0, speed=300.0,
                   heading=0.0)
     g = tr.generate([tr.Turn(12.0, np.radians(1.5), ramp=5.0)], st, 0.01, duration=3.5)

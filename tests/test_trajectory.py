@@ -1,4 +1,4 @@
-"""Oracles for sinslab.trajectory: closed forms, consistency, round trip through the
+"""Oracles for sinslab.sim.trajectory: closed forms, consistency, round trip through the
 strapdown mechanization, config/TOML handling and bad input."""
 import math
 from pathlib import Path
@@ -6,11 +6,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sinslab import attitude as at
-from sinslab import earth, indexing
-from sinslab import trajectory as tr
-from sinslab import units as u
-from sinslab.records import NavState
+from sinslab.core import attitude as at
+from sinslab.core import earth
+from sinslab.sim import indexing
+from sinslab.sim import trajectory as tr
+from sinslab.core import units as u
+from sinslab.core.records import NavState
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 START_003 = tr.Start(lat=32 * u.deg, lon=118 * u.deg, h=1000.0, speed=300.0, heading=0.0)
@@ -217,7 +218,7 @@ def test_duration_longer_than_segments_holds_last_state():
 
 # --- round trip through the mechanization --------------------------------------------------
 def _roundtrip_errors(g):
-    from sinslab import strapdown as sd
+    from sinslab.nav import strapdown as sd
     nav = sd.navigate(g.imu, NavState.from_series(g.truth, 0), nsub=2, vertical="hold",
                       height=g.truth.h, mount=g.mount, out_every=10, progress=False)
     T = g.truth
@@ -234,7 +235,7 @@ def _roundtrip_errors(g):
 @pytest.mark.parametrize("mount", [None, "dual_axis_16"])
 def test_error_free_navigation_reproduces_truth_1h(mount):
     """The issue's exactness bar: 1 h mixed aircraft trajectory at 100 Hz, vertical held."""
-    pytest.importorskip("sinslab.strapdown")
+    pytest.importorskip("sinslab.nav.strapdown")
     m = indexing.dual_axis_16(rate=9 * u.deg, dwell=60.0) if mount else None
     g = tr.generate(tr.aircraft_mixed(3600.0), START_003, 0.01, mount=m)
     kinds = {s.kind for s in g.segments}
@@ -246,7 +247,7 @@ def test_error_free_navigation_reproduces_truth_1h(mount):
 
 @pytest.mark.slow
 def test_error_free_navigation_ship_and_swing_table():
-    pytest.importorskip("sinslab.strapdown")
+    pytest.importorskip("sinslab.nav.strapdown")
     st = tr.Start(lat=30 * u.deg, lon=120 * u.deg, h=0.0, heading=30 * u.deg)
     g = tr.generate(tr.ship_manoeuvring(1800.0, static_time=60.0), st, 0.02)
     hd = at.yaw_to_heading(g.truth.att[:, 2])

@@ -1,10 +1,10 @@
-"""Independent checks of sinslab.units against hand-computed SI values."""
+"""Independent checks of sinslab.core.units against hand-computed SI values."""
 import math
 
 import numpy as np
 import pytest
 
-from sinslab import units as u
+from sinslab.core import units as u
 
 D = math.pi / 180
 

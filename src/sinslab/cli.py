@@ -16,7 +16,7 @@ Adding a command (``navigate``, ``allan``, ``align``, ...): in your module defin
                   out: Optional[Path] = typer.Option(None, help="output folder")):
             \"\"\"Allan deviation of recorded IMU data.\"\"\"
             from sinslab.cli import user_errors
-            from sinslab.outputs import RunDir, default_out_dir
+            from sinslab.app.outputs import RunDir, default_out_dir
             with user_errors():                  # ValueError subclasses -> exit 2
                 rd = RunDir(out or default_out_dir("allan"), "allan").prepare()
                 ...
@@ -36,11 +36,11 @@ from typing import List, Optional
 
 import typer
 
-from . import __version__
-from .config import ConfigError, config_to_toml, resolve
-from .outputs import OutputDirError, RunDir, default_out_dir  # noqa: F401  (for new commands)
-from .report import ReportError
-from .units import UnitError
+from sinslab import __version__
+from sinslab.app.config import ConfigError, config_to_toml, resolve
+from sinslab.app.outputs import OutputDirError, RunDir, default_out_dir  # noqa: F401  (for new commands)
+from sinslab.app.report import ReportError
+from sinslab.core.units import UnitError
 
 __all__ = ["app", "main", "user_errors", "CliError", "USER_ERRORS"]
 
@@ -54,7 +54,7 @@ class CliError(ValueError):
 
 
 def _unknown_experiment():
-    from .experiments import UnknownExperiment
+    from sinslab.experiments import UnknownExperiment
 
     return UnknownExperiment
 
@@ -115,7 +115,7 @@ def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress b
 
     matplotlib.use("Agg")
     if quiet:
-        from .progress import set_quiet
+        from sinslab.core.progress import set_quiet
 
         set_quiet(True)
 
@@ -123,7 +123,7 @@ def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress b
 @app.command("list")
 def list_() -> None:
     """List the experiments and their one-line purpose."""
-    from .experiments import broken, registry
+    from sinslab.experiments import broken, registry
 
     reg = registry()
     width = max((len(n) for n in reg), default=0)
@@ -136,7 +136,7 @@ def list_() -> None:
 
 
 def _resolve(name, config, sets, seed, runs, quick):
-    from .experiments import get
+    from sinslab.experiments import get
 
     exp = get(name)
     over = {}
@@ -170,7 +170,7 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
         quick: bool = typer.Option(False, "--quick", help="shortened run for tests and demos"),
         strict: bool = typer.Option(False, "--strict", help="exit status 1 if any claim fails")) -> None:
     """Run an experiment; write config.toml, summary.json, series, figures, report.html."""
-    from .experiments import execute
+    from sinslab.experiments import execute
 
     with user_errors():
         exp, cfg = _resolve(name, config, set_, seed, runs, quick)
@@ -196,7 +196,7 @@ def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment nam
 @app.command()
 def report(dir: Path = typer.Argument(..., metavar="DIR", help="run folder holding summary.json")) -> None:
     """(Re)build DIR/report.html from the run's files."""
-    from . import report as _report
+    from sinslab.app import report as _report
 
     with user_errors():
         path = _report.build(dir)
@@ -208,8 +208,8 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
          quick: bool = typer.Option(False, "--quick", help="shortened runs"),
          only: Optional[List[str]] = typer.Option(None, "--only", help="run only these experiments")) -> None:
     """Run every registered experiment (full scale) into OUT/NAME and write OUT/index.html."""
-    from . import report as _report
-    from .experiments import execute, get, registry
+    from sinslab.app import report as _report
+    from sinslab.experiments import execute, get, registry
 
     done, failed = [], {}
     with user_errors():
@@ -248,7 +248,7 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
 #: ``register(app)`` that decorates its command functions with ``@app.command()``.
 COMMAND_MODULES = (
     "sinslab.experiments.static_alignment",          # sinslab align (paper 000)
-    "sinslab.allan",                                  # sinslab allan, sinslab navigate (recorded data)
+    "sinslab.sim.allan",                                  # sinslab allan, sinslab navigate (recorded data)
 )
 _BROKEN_COMMANDS: dict[str, str] = {}
 

@@ -9,7 +9,7 @@ runs it and ``sinslab demo`` includes it.
 and so can Python code::
 
     from sinslab.experiments import get, execute
-    from sinslab.config import resolve
+    from sinslab.app.config import resolve
     exp = get("free-inertial")
     cfg = resolve(exp.config, quick=exp.quick, sets=["imu.gyro_bias=0.02 deg/h"])
     summary = execute(exp, cfg, "runs/fi-test")
@@ -24,10 +24,10 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from .. import __version__
-from ..config import ExperimentConfig, config_to_toml
-from ..outputs import RunDir
-from .base import Experiment, Result, RunContext
+from sinslab import __version__
+from sinslab.app.config import ExperimentConfig, config_to_toml
+from sinslab.app.outputs import RunDir
+from sinslab.experiments.base import Experiment, Result, RunContext
 
 __all__ = ["registry", "register", "get", "names", "execute", "UnknownExperiment", "Experiment"]
 
@@ -121,7 +121,7 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
 
     Order of writes: marker, ``config.toml`` (so an interrupted run still says what it
     was), series, tables, figures, ``summary.json``, ``report.html``, marker "complete".
-    Raises :class:`sinslab.outputs.OutputDirError` before writing anything if ``out`` is
+    Raises :class:`sinslab.app.outputs.OutputDirError` before writing anything if ``out`` is
     not usable.
     """
 

@@ -7,7 +7,7 @@ An experiment is one module in :mod:`sinslab.experiments` declaring::
     PAPER = "Yan & Qin 2006, papers/000_...txt"     # optional: source of the defaults
     NOTES = ["latitude not stated by the paper: 34.246 deg N"]   # optional, shown in report
 
-    class Config(ExperimentConfig):               # sinslab.config; defaults = paper scenario
+    class Config(ExperimentConfig):               # sinslab.app.config; defaults = paper scenario
         scenario: Scenario = Scenario()
         imu: Imu = Imu()
 
@@ -27,7 +27,7 @@ claims the output folder, writes ``config.toml`` first, calls ``run``, adds the
 ``runtime_s`` metric, then writes the series (CSV/Parquet), figures (PNG + SVG), tables,
 ``summary.json`` and ``report.html`` — each file atomically. ``run`` itself never
 writes files and never prints; it may log a line through ``ctx.log`` and show progress
-with ``ctx.progress(...)`` (see :mod:`sinslab.progress`).
+with ``ctx.progress(...)`` (see :mod:`sinslab.core.progress`).
 
 Monte Carlo: ``config.runs`` (``--runs N``) and ``ctx.scheduler`` (``--scheduler``) are
 passed through; an experiment that supports it returns its statistics as extra metrics
@@ -44,8 +44,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from .. import progress as _progress
-from ..config import ExperimentConfig, Field, Q, QV, Section  # noqa: F401  (re-exported)
+from sinslab.core import progress as _progress
+from sinslab.app.config import ExperimentConfig, Field, Q, QV, Section  # noqa: F401  (re-exported)
 
 __all__ = ["Claim", "Metric", "Figure", "Table", "Result", "RunContext", "Experiment",
            "ExperimentConfig", "Section", "Q", "QV", "Field", "METRIC_NAME"]
@@ -211,7 +211,7 @@ class RunContext:
 
     @staticmethod
     def progress(description: str, total: float | None = None, unit: str = ""):
-        """Progress bar context manager (:func:`sinslab.progress.progress`)."""
+        """Progress bar context manager (:func:`sinslab.core.progress.progress`)."""
         return _progress.progress(description, total, unit)
 
 
@@ -238,7 +238,7 @@ class Experiment:
         if missing:
             raise TypeError(f"experiment module {mod.__name__} lacks {', '.join(missing)}")
         if not (isinstance(mod.Config, type) and issubclass(mod.Config, ExperimentConfig)):
-            raise TypeError(f"{mod.__name__}.Config must subclass sinslab.config.ExperimentConfig")
+            raise TypeError(f"{mod.__name__}.Config must subclass sinslab.app.config.ExperimentConfig")
         metrics = dict(getattr(mod, "METRICS", {}))
         metrics.setdefault("runtime_s", Metric("s", "wall time of the experiment's computation"))
         bad = [m for m in metrics if not METRIC_NAME.match(m)]

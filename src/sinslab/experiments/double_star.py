@@ -1,16 +1,16 @@
 """double-star: paper 003 (Liu, Lin, Lai, Sun 2004) — Beidou-1 two-GEO fixes with a 1 s
 position lag fused with a SINS inside short covert windows.
 
-The aircraft trajectory (:func:`sinslab.trajectory.aircraft_mixed`: level flight, turns,
+The aircraft trajectory (:func:`sinslab.sim.trajectory.aircraft_mixed`: level flight, turns,
 climb/descent, acceleration) is synthesised with exact IMU increments; each Monte Carlo
 run draws the initial navigation errors, the sensor errors (gyro constant drift, gyro and
 accelerometer first-order Markov processes, gyro white noise) and the fixes (σ from the
 two-GEO error model at the true position, paper eqs 11–15) and runs three filters on
-the same data (:func:`sinslab.doublestar.integrate`):
+the same data (:func:`sinslab.methods.doublestar.integrate`):
 
 - ``lag-aware``: the paper's method (eqs 4–10): the fix of time t, received at t + ΔT, is
   applied at t from the stored state and predicted to t + ΔT in one step
-  (:meth:`sinslab.kalman.KalmanFilter.update_lagged`, ``method="paper003"``);
+  (:meth:`sinslab.estimation.kalman.KalmanFilter.update_lagged`, ``method="paper003"``);
 - ``lag-ignore``: the fix is applied at its arrival as if current;
 - ``zero-lag``: an ideal receiver without delay (same fixes, available at t).
 
@@ -31,8 +31,8 @@ import numpy as np
 
 from pydantic import model_validator
 
-from .. import units
-from .base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
+from sinslab.core import units
+from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
 
 NAME = "double-star"
 PURPOSE = "paper 003: Beidou-1 two-GEO fixes with 1 s lag + SINS in covert windows (lag-aware filter)"
@@ -122,7 +122,7 @@ class Config(ExperimentConfig):
     @model_validator(mode="after")
     def _consistent(self):
         """Cross-key checks, so bad input fails before a run folder is made."""
-        from .. import doublestar as ds
+        from sinslab.methods import doublestar as ds
 
         s, f, fl = self.scenario, self.fix, self.filter
         dt, kf = float(s.sample_interval), float(fl.kf_dt)
@@ -177,8 +177,8 @@ _KEY = {"lag-aware": "lagaware", "lag-ignore": "lagignore", "zero-lag": "zerolag
 # ---------------------------------------------------------------- one Monte Carlo batch ---
 def _setup(cfg: Config, quick=False):
     """Everything a run needs, as plain picklable values."""
-    from .. import doublestar as ds
-    from .. import trajectory as tr
+    from sinslab.methods import doublestar as ds
+    from sinslab.sim import trajectory as tr
 
     s, f, im, ini, fl = cfg.scenario, cfg.fix, cfg.imu, cfg.init, cfg.filter
     dt, T = float(s.sample_interval), float(s.duration)
@@ -207,10 +207,10 @@ def _setup(cfg: Config, quick=False):
 
 def _one(rng, S, zero_errors=False):
     """One run: draw errors, run the three filters; errors at the filter epochs."""
-    from .. import doublestar as ds
-    from .. import imu as imu_mod
-    from ..attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
-    from ..records import NavState
+    from sinslab.methods import doublestar as ds
+    from sinslab.sim import imu as imu_mod
+    from sinslab.core.attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
+    from sinslab.core.records import NavState
 
     truth, ideal, P0 = S["truth"], S["imu"], S["P0"]
     model = ds.horizontal_model(**S["model_args"])
@@ -258,7 +258,7 @@ def _batch(seeds, S):
 # ---------------------------------------------------------------- helpers -----------------
 def _sigmas(sigma, truth):
     """Filter σ (M, 16) -> attitude (M, 3) rad, velocity (M, 2) m/s, position N/E (M, 2) m."""
-    from ..earth import radii
+    from sinslab.core.earth import radii
 
     rm, rn = radii(truth.lat, truth.h)
     return sigma[:, 0:3], sigma[:, 3:5], np.stack([sigma[:, 5] * rm, sigma[:, 6] * rn * np.cos(truth.lat)], -1)
@@ -273,7 +273,7 @@ def _in_windows(t, windows):
 
 def fix_map(lat_deg, lon_deg, fa, h=0.0):
     """σ N/S and E/W [m] over a latitude/longitude grid (degrees) for the fix settings ``fa``."""
-    from .. import doublestar as ds
+    from sinslab.methods import doublestar as ds
 
     L, Lo = np.meshgrid(np.asarray(lat_deg) * units.deg, np.asarray(lon_deg) * units.deg, indexing="ij")
     fe = ds.fix_error(L, Lo, fa["sat_lon1"], fa["sat_lon2"], fa["m0"], fa["m1"], fa["dH"], h,
@@ -282,7 +282,7 @@ def fix_map(lat_deg, lon_deg, fa, h=0.0):
 
 
 def _map_figure(fa, start_lat, start_lon, h, name="fix_sigma_map"):
-    from .. import plotting as P
+    from sinslab.app import plotting as P
 
     lat = np.arange(15.0, 55.0 + 1e-9, 0.5)
     lon = np.arange(70.0, 140.0 + 1e-9, 0.5)
@@ -317,9 +317,9 @@ def _shade(ax, windows):
 
 # ---------------------------------------------------------------- the experiment ---------
 def run(cfg: Config, ctx) -> Result:
-    from .. import doublestar as ds
-    from .. import montecarlo as mc
-    from .. import plotting as P
+    from sinslab.methods import doublestar as ds
+    from sinslab.estimation import montecarlo as mc
+    from sinslab.app import plotting as P
 
     S = _setup(cfg, ctx.quick)
     truth, windows, fa = S["truth"], S["windows"], S["fix_args"]

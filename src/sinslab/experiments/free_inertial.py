@@ -1,15 +1,15 @@
 """free-inertial: pure inertial navigation of a simulated trajectory, compared with truth.
 
-The trajectory generator (:mod:`sinslab.trajectory`) produces the true motion and exact
-IMU increments; the IMU error model (:mod:`sinslab.imu`) corrupts them; the strapdown
-mechanization (:mod:`sinslab.strapdown`) navigates from the (optionally perturbed) true
+The trajectory generator (:mod:`sinslab.sim.trajectory`) produces the true motion and exact
+IMU increments; the IMU error model (:mod:`sinslab.sim.imu`) corrupts them; the strapdown
+mechanization (:mod:`sinslab.nav.strapdown`) navigates from the (optionally perturbed) true
 initial state without any aiding (the vertical channel is held to the true height by
 default, like a perfect barometer, because a free vertical channel diverges in minutes).
 
 Claims (each computed, each able to fail):
 
 - ``schuler_period``: the period fitted to the horizontal velocity error is within 1 % of
-  the Schuler period ``2π sqrt(R/g)`` (:func:`sinslab.earth.schuler_period`) at the start
+  the Schuler period ``2π sqrt(R/g)`` (:func:`sinslab.core.earth.schuler_period`) at the start
   latitude and the mean height. Only when the run lasts at least one Schuler period.
 - ``pos_envelope``, ``vel_envelope``, ``tilt_envelope``, ``heading_envelope``: the errors
   stay inside a closed-form envelope built from the static single-channel Schuler-loop
@@ -20,7 +20,7 @@ Claims (each computed, each able to fail):
   sign does not.
 
 Monte Carlo (``--runs N``, N > 1; ``--scheduler ADDRESS`` honoured): besides the single
-run above, N runs through :func:`sinslab.montecarlo.run_campaign` (Dask; a local cluster by
+run above, N runs through :func:`sinslab.estimation.montecarlo.run_campaign` (Dask; a local cluster by
 default). In this mode the configured biases, scale factors and initial errors are **1σ
 values**: each run draws every axis N(0, σ²) independently (:func:`mc_batch`), plus its own
 white noise, navigates the same true trajectory (regenerated deterministically once per
@@ -39,8 +39,8 @@ from typing import Literal
 import numpy as np
 from pydantic import field_validator, model_validator
 
-from .. import earth, units
-from .base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
+from sinslab.core import earth, units
+from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
 
 NAME = "free-inertial"
 PURPOSE = "pure inertial navigation of a simulated trajectory with IMU errors, compared with truth"
@@ -55,8 +55,8 @@ NOTES = [
 
 class Scenario(Section):
     motion: Literal["aircraft_mixed", "static", "ship_manoeuvring"] = Field(
-        "aircraft_mixed", description="ready-made motion of sinslab.trajectory")
-    motion_file: str = Field("", description="motion TOML file (sinslab.trajectory.load_motion); "
+        "aircraft_mixed", description="ready-made motion of sinslab.sim.trajectory")
+    motion_file: str = Field("", description="motion TOML file (sinslab.sim.trajectory.load_motion); "
                              "replaces `motion`, and the start when it has a [start] table")
     latitude: Q("angle", ge="-89 deg", le="89 deg") = Field("32 deg", description="start latitude")
     longitude: Q("angle", ge="-180 deg", le="360 deg") = Field("118 deg", description="start longitude")
@@ -72,7 +72,7 @@ class Scenario(Section):
     @classmethod
     def _motion_file_loads(cls, v: str) -> str:
         if v:
-            from .. import trajectory
+            from sinslab.sim import trajectory
 
             try:
                 trajectory.load_motion(v)
@@ -257,7 +257,7 @@ def _expm_batch(A):
 
 
 def linear_error_prediction(truth, ideal, meas, ep, x0, core="horizontal"):
-    """Propagate the linear φ-angle error model (:mod:`sinslab.errstate`) along the truth.
+    """Propagate the linear φ-angle error model (:mod:`sinslab.nav.errstate`) along the truth.
 
     The input is the *realised* sensor error (``meas − ideal`` increments, rotated to the
     navigation frame sample by sample and summed over each output step), so bias, noise
@@ -268,8 +268,8 @@ def linear_error_prediction(truth, ideal, meas, ep, x0, core="horizontal"):
     Returns the state history (len(ep), n): ``core="horizontal"``: φ (3), δvE, δvN, δL, δλ;
     ``core="full"``: φ (3), δv (3), δL, δλ, δh.
     """
-    from .. import errstate
-    from ..attitude import euler_to_dcm
+    from sinslab.nav import errstate
+    from sinslab.core.attitude import euler_to_dcm
 
     model = errstate.ErrorModel(core)
     n = model.n
@@ -425,9 +425,9 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
 
 def _mc_setup(spec, gen=None):
     """The worker's copy of the trajectory (generated once per process and cached)."""
-    from .. import trajectory
-    from ..attitude import euler_to_dcm
-    from ..records import NavState
+    from sinslab.sim import trajectory
+    from sinslab.core.attitude import euler_to_dcm
+    from sinslab.core.records import NavState
 
     hit = _MC_CACHE.get(spec["key"])
     if hit is not None:
@@ -450,14 +450,14 @@ def _mc_setup(spec, gen=None):
 
 
 def mc_batch(seeds, spec):
-    """Monte Carlo campaign function (:func:`sinslab.montecarlo.run_campaign`).
+    """Monte Carlo campaign function (:func:`sinslab.estimation.montecarlo.run_campaign`).
 
     Per run, from its own ``default_rng(seed)`` in a fixed order: 21 standard normals —
     initial errors (pitch, roll, heading; velocity E, N, U; position E, N, U), gyro and
     accelerometer constant biases and scale factors (body x, y, z) — each times its
-    configured 1σ; then the white noise of :func:`sinslab.imu.apply` from the same
+    configured 1σ; then the white noise of :func:`sinslab.sim.imu.apply` from the same
     generator. The run navigates the common true trajectory with
-    :func:`sinslab.strapdown.navigate` (same vertical mode, nsub and mount as the single
+    :func:`sinslab.nav.strapdown.navigate` (same vertical mode, nsub and mount as the single
     run) and returns its errors (navigation − truth) every ``spec["out_every"]`` updates.
 
     Returns
@@ -466,10 +466,10 @@ def mc_batch(seeds, spec):
         ``err`` (B, T, 9): position E, N, U [m], velocity E, N, U [m/s], misalignment φ
         E, N, U [rad] (``attitude.misalignment`` of the IMU frame).
     """
-    from .. import imu as imu_mod
-    from .. import strapdown
-    from ..attitude import euler_to_dcm, misalignment
-    from ..records import NavState
+    from sinslab.sim import imu as imu_mod
+    from sinslab.nav import strapdown
+    from sinslab.core.attitude import euler_to_dcm, misalignment
+    from sinslab.core.records import NavState
 
     S = _mc_setup(spec)
     t0 = S["init"]
@@ -508,7 +508,7 @@ def mc_batch(seeds, spec):
 def _euler_to_phi_jacobian(att):
     """d φ / d [pitch, roll, −yaw] at ``att`` (central differences): how the configured
     initial [pitch, roll, heading] errors map to the misalignment φ of the error model."""
-    from ..attitude import euler_to_dcm, misalignment
+    from sinslab.core.attitude import euler_to_dcm, misalignment
 
     C0 = euler_to_dcm(att)
     J = np.empty((3, 3))
@@ -523,14 +523,14 @@ def _euler_to_phi_jacobian(att):
 def covariance_analysis(truth, ideal, spec, cov_every):
     """Covariance analysis matching :func:`mc_batch`: σ of every error at the Monte Carlo epochs.
 
-    The ENU φ-angle model of :mod:`sinslab.errstate` — core ``"horizontal"`` when the
+    The ENU φ-angle model of :mod:`sinslab.nav.errstate` — core ``"horizontal"`` when the
     vertical channel is held (δh = δv_U = 0, as the mechanization does), ``"full"`` when it
     is free — plus constant gyro and accelerometer bias states (and scale-factor states
     when their σ is not zero) is evaluated along the truth in the middle of every
     covariance step (``cov_every`` updates), discretised exactly (Van Loan,
-    :func:`sinslab.errstate.discretize`, with ARW²/VRW² as white-noise densities), and P0 =
+    :func:`sinslab.nav.errstate.discretize`, with ARW²/VRW² as white-noise densities), and P0 =
     diag(initial errors², bias σ², scale-factor σ²) is propagated with no measurements by
-    :func:`sinslab.kalman.propagate_covariance`.
+    :func:`sinslab.estimation.kalman.propagate_covariance`.
 
     Returns
     -------
@@ -539,10 +539,10 @@ def covariance_analysis(truth, ideal, spec, cov_every):
     sigma : ndarray (T, 9)
         σ in the columns of :func:`mc_batch` (position E, N, U [m], velocity [m/s], φ [rad]);
         zero for the held vertical channel.
-    model : sinslab.errstate.ErrorModel
+    model : sinslab.nav.errstate.ErrorModel
     """
-    from .. import errstate as es
-    from ..kalman import propagate_covariance
+    from sinslab.nav import errstate as es
+    from sinslab.estimation.kalman import propagate_covariance
 
     if spec["vertical"] == "damped":
         raise ValueError("the error model has no vertical damping loop: covariance analysis "
@@ -604,9 +604,9 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
     """Run the campaign and the covariance analysis; metrics, claims, series, figures, tables."""
     import time
 
-    from .. import montecarlo as mc
-    from .. import plotting as P
-    from .base import Table
+    from sinslab.estimation import montecarlo as mc
+    from sinslab.app import plotting as P
+    from sinslab.experiments.base import Table
 
     n = int(cfg.runs)
     spec = _mc_spec(cfg, segments, start, mount)
@@ -720,7 +720,7 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
 # ---------------------------------------------------------------- the experiment --------
 
 def _motion(cfg: Config):
-    from .. import trajectory as tr
+    from sinslab.sim import trajectory as tr
 
     s = cfg.scenario
     T = float(s.duration)
@@ -738,10 +738,11 @@ def _motion(cfg: Config):
 
 
 def run(cfg: Config, ctx) -> Result:
-    from .. import imu as imu_mod
-    from .. import strapdown, trajectory
-    from ..records import NavState
-    from .. import plotting as P
+    from sinslab.sim import imu as imu_mod
+    from sinslab.nav import strapdown
+    from sinslab.sim import trajectory
+    from sinslab.core.records import NavState
+    from sinslab.app import plotting as P
 
     s, n = cfg.scenario, cfg.nav
     dt, T = float(s.sample_interval), float(s.duration)
@@ -790,7 +791,7 @@ def run(cfg: Config, ctx) -> Result:
     lat0, h_mean = float(truth.lat[0]), float(np.mean(truth.h))
 
     # ---- oracle 1: the linear error model driven by the realised sensor errors
-    from ..attitude import euler_to_dcm, misalignment
+    from sinslab.core.attitude import euler_to_dcm, misalignment
 
     att_t = truth.att_imu if truth.att_imu is not None else truth.att
     att_n = nav.att_imu if nav.att_imu is not None else nav.att

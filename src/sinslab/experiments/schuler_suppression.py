@@ -1,10 +1,10 @@
 """schuler-suppression: delayed alignment halves (or better) the Schuler oscillation (paper 004).
 
-Two strapdown solutions run on one simulated IMU stream (:mod:`sinslab.schuler`):
+Two strapdown solutions run on one simulated IMU stream (:mod:`sinslab.methods.schuler`):
 solution 1 aligns until t1 and navigates, solution 2 keeps aligning until
 t2 = t1 + T_s/2 and navigates; from t2 on the output is their mean. The Schuler, Foucault
 side-line and 24 h components of every error channel are measured by least squares on the
-known frequencies (:mod:`sinslab.oscillation`) on the common window [t2, end], for the
+known frequencies (:mod:`sinslab.methods.oscillation`) on the common window [t2, end], for the
 single solution (solution 1) and for the mean.
 
 Scenarios (``scenario.kind``):
@@ -31,12 +31,14 @@ from typing import Literal
 
 import numpy as np
 
-from .. import compare, earth, indexing, units
-from .. import imu as imu_
-from .. import oscillation as osc
-from .. import schuler
-from .. import trajectory as tj
-from .base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
+from sinslab.nav import compare
+from sinslab.core import earth, units
+from sinslab.sim import indexing
+from sinslab.sim import imu as imu_
+from sinslab.methods import oscillation as osc
+from sinslab.methods import schuler
+from sinslab.sim import trajectory as tj
+from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
 
 NAME = "schuler-suppression"
 PURPOSE = ("Schuler oscillation suppression by delayed alignment: two solutions T_s/2 apart "
@@ -364,7 +366,7 @@ def _claims(cfg, res, metrics, fits, dt, truth):
         e1 = np.asarray(metrics["init_err1_arcmin"])
         e2 = np.asarray(metrics["init_err2_arcmin"])
         k = int(np.argmin(np.abs(res.sol1.t - res.t2)))
-        from ..attitude import euler_to_dcm, misalignment
+        from sinslab.core.attitude import euler_to_dcm, misalignment
         d_sol1 = misalignment(euler_to_dcm(res.init2.att), euler_to_dcm(
             res.sol1.att_imu[k] if res.sol1.att_imu is not None else res.sol1.att[k])) / units.arcmin
         lvl_diff = float(np.max(np.abs(e1[:2] - e2[:2])))
@@ -404,7 +406,7 @@ def _series(cfg, e1, e2, em, t2):
 
 
 def _figures(cfg, e1, em, t2, lat, fits):
-    from .. import plotting as P
+    from sinslab.app import plotting as P
 
     kind = cfg.scenario.kind
     k0 = int(np.searchsorted(e1["t"], t2 - 1e-9))

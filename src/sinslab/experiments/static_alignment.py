@@ -1,11 +1,11 @@
 """static-alignment: paper 000 (Yan & Qin 2006) — stationary-base fine alignment, full
 8-state vs reduced 5-state Kalman filter, estimation residual vs the limit accuracy.
 
-A static IMU (sinslab.trajectory, exact increments) is corrupted by constant biases and
-white noise (sinslab.imu); the computed attitude starts with the initial misalignment and
-is propagated with the gyros; both filters of :mod:`sinslab.alignment` estimate φ (open
+A static IMU (sinslab.sim.trajectory, exact increments) is corrupted by constant biases and
+white noise (sinslab.sim.imu); the computed attitude starts with the initial misalignment and
+is propagated with the gyros; both filters of :mod:`sinslab.methods.alignment` estimate φ (open
 loop by default, as in the paper). Residual = true − estimated; limit = the paper's
-formulas (:func:`sinslab.alignment.limit_accuracy`).
+formulas (:func:`sinslab.methods.alignment.limit_accuracy`).
 
 Claims (computed, each able to fail):
 
@@ -37,12 +37,13 @@ from typing import Optional
 
 import numpy as np
 
-from .. import alignment as al
-from .. import attitude as A
-from .. import earth, kalman, observability, units
-from ..imu import ImuErrors, apply
-from ..records import NavState  # noqa: F401
-from .base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
+from sinslab.methods import alignment as al
+from sinslab.core import attitude as A
+from sinslab.core import earth, units
+from sinslab.estimation import kalman, observability
+from sinslab.sim.imu import ImuErrors, apply
+from sinslab.core.records import NavState  # noqa: F401
+from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
 
 NAME = "static-alignment"
 PURPOSE = "paper 000: stationary fine alignment, full 8-state vs reduced 5-state filter vs limit accuracy"
@@ -127,7 +128,7 @@ METRICS.update({
     "obs_rank_full": Metric("", "rank of the 8-state observability matrix (computed)"),
     "obs_rank_reduced": Metric("", "rank of the 5-state observability matrix (computed)"),
     "obs_degree_full": Metric("", "SVD degree of observability per full state "
-                                  "[φE φN φU εE εN εU ∇E ∇N] (sinslab.observability; states "
+                                  "[φE φN φU εE εN εU ∇E ∇N] (sinslab.estimation.observability; states "
                                   "scaled by 10′, 10′, 60′, 0.01 °/h, 100 µg; 0 = unobservable)"),
     "obs_degree_reduced": Metric("", "SVD degree of observability per reduced state"),
     "obs_singular_values_full": Metric("", "normalised singular values of the full observability matrix"),
@@ -150,7 +151,7 @@ def _step_flops(n, m):
 
 
 def _time_per_step(fas, lat, g, repeats, min_steps=20000):
-    """µs per predict+update step of sinslab.kalman's compiled loop, for each filter.
+    """µs per predict+update step of sinslab.estimation.kalman's compiled loop, for each filter.
 
     The run's own measurements are tiled to at least ``min_steps`` steps so that the
     per-call overhead is negligible; the filters are timed alternately, best of
@@ -185,13 +186,13 @@ def _converge_min(t, r, lim, tol):
 
 
 def _obs_rank_degree(F, H, scale):
-    """Rank, per-state degree and singular values (sinslab.observability, states scaled)."""
+    """Rank, per-state degree and singular values (sinslab.estimation.observability, states scaled)."""
     r = observability.analyze(F, H, scale=scale)
     return r.rank, r.degree, r.singular_values
 
 
 def _figure(t, resid, lim, title, extra=None):
-    from .. import plotting
+    from sinslab.app import plotting
 
     nplots = 5 + (0 if extra is None else len(extra))
     ncols = 2
@@ -231,7 +232,7 @@ def run(config: Config, ctx) -> Result:
     lat = al.check_alignment_latitude(float(sc.latitude))
     h = float(sc.height)
     att = np.array([float(sc.pitch), float(sc.roll), float(A.heading_to_yaw(float(sc.heading)))])
-    from .. import trajectory
+    from sinslab.sim import trajectory
 
     dt = float(sc.sample_interval)
     gen = trajectory.generate([trajectory.Static(duration=float(sc.duration))],
@@ -435,10 +436,11 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
     Returns the summary dict.
     """
 
-    from .. import __version__, io
-    from .. import plotting
-    from ..config import dump_toml
-    from ..outputs import RunDir, command_summary, default_out_dir
+    from sinslab import __version__
+    from sinslab.data import io
+    from sinslab.app import plotting
+    from sinslab.app.config import dump_toml
+    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
 
     imu, ps = io.read_imu(path, fmt)
     if lat is None:
@@ -554,7 +556,7 @@ def register(app):
               period: str = typer.Option("1 s", "--period", help="filter period"),
               open_loop: bool = typer.Option(False, "--open-loop", help="no attitude feedback")) -> None:
         """Coarse and fine alignment of a recorded IMU file at rest (pitch, roll, heading with σ)."""
-        from ..cli import CliError, user_errors
+        from sinslab.cli import CliError, user_errors
 
         with user_errors():
             try:

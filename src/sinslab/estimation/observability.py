@@ -222,7 +222,7 @@ def analyze(F, H, scale=None, rtol=DEFAULT_RTOL) -> ObservabilityResult:
     Parameters
     ----------
     F : array (n, n)
-        System matrix (SI units, e.g. from :mod:`sinslab.errstate`).
+        System matrix (SI units, e.g. from :mod:`sinslab.nav.errstate`).
     H : array (p, n)
         Measurement matrix.
     scale : array (n,), optional

@@ -54,8 +54,8 @@ loop to an external reference height, second or third order; see :class:`Vertica
 
 Public API
 ----------
-:func:`navigate` runs a whole :class:`~sinslab.records.ImuRecord` and returns a
-:class:`~sinslab.records.NavSeries`. The low-level steppable API for filters is
+:func:`navigate` runs a whole :class:`~sinslab.core.records.ImuRecord` and returns a
+:class:`~sinslab.core.records.NavSeries`. The low-level steppable API for filters is
 :func:`initial_state_array`, :func:`step` (advance a state array in place over a chunk,
 compiled, no per-sample Python), :func:`correct` (feedback correction) and
 :func:`state_to_navstate`.
@@ -80,9 +80,9 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-from .attitude import euler2q_s, q2dcm_s, q2euler_s, qmul_s, rv2q_s, euler_to_quat
-from .earth import WIE, check_latitude, gravity, gravity_s, radii, radii_s
-from .records import ImuRecord, NavSeries, NavState
+from sinslab.core.attitude import euler2q_s, q2dcm_s, q2euler_s, qmul_s, rv2q_s, euler_to_quat
+from sinslab.core.earth import WIE, check_latitude, gravity, gravity_s, radii, radii_s
+from sinslab.core.records import ImuRecord, NavSeries, NavState
 
 __all__ = [
     "navigate", "initial_state_array", "step", "correct", "state_to_navstate", "rows_to_series",
@@ -698,7 +698,7 @@ def _progress_ctx(progress, total):
             progress(done[0], total)
         return contextlib.nullcontext(adv)
     try:
-        from .progress import progress as bar
+        from sinslab.core.progress import progress as bar
     except ImportError:  # pragma: no cover - progress helper not available
         return contextlib.nullcontext(lambda n: None)
 
@@ -814,7 +814,7 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
 
 
 def rows_to_series(t, rows, mount=None) -> NavSeries:
-    """A :class:`~sinslab.records.NavSeries` from state rows of :func:`step`.
+    """A :class:`~sinslab.core.records.NavSeries` from state rows of :func:`step`.
 
     Parameters
     ----------

@@ -2,10 +2,10 @@
 
 An experiment's configuration is a pydantic model built from :class:`Section` (unknown
 keys are errors) with one nested section per concern (``scenario``, ``imu``, ``init``,
-``filter``, ...). Physical values are unit strings validated by :func:`sinslab.units.parse`
+``filter``, ...). Physical values are unit strings validated by :func:`sinslab.core.units.parse`
 for the declared kind::
 
-    from sinslab.config import ExperimentConfig, Section, Q, QV
+    from sinslab.app.config import ExperimentConfig, Section, Q, QV
     from pydantic import Field
 
     class Imu(Section):
@@ -44,7 +44,7 @@ from typing import Annotated, Any, Mapping
 from pydantic import (BaseModel, PlainValidator, ConfigDict, Field, PlainSerializer,
                       ValidationError, WithJsonSchema)
 
-from . import units
+from sinslab.core import units
 
 __all__ = ["ConfigError", "Quantity", "QuantityVec", "Q", "QV", "Section", "ExperimentConfig",
            "load_toml", "parse_set", "deep_merge", "resolve", "dump_toml", "config_to_toml",
@@ -111,7 +111,7 @@ def _check_range(shown, v, lims):
 
 def Q(kind: str, *, ge: str | None = None, gt: str | None = None, le: str | None = None,
       lt: str | None = None):
-    """Type of a scalar quantity of ``kind`` (a key of :data:`sinslab.units.KINDS`).
+    """Type of a scalar quantity of ``kind`` (a key of :data:`sinslab.core.units.KINDS`).
 
     Bounds are unit strings (``ge="0 deg/h"``); a value outside is an error.
     """

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import units
-from .records import ImuRecord
+from sinslab.core import units
+from sinslab.core.records import ImuRecord
 
 __all__ = ["PsinsImu", "read_psins_imu", "read_imu"]
 
@@ -140,7 +140,7 @@ def read_imu(path, fmt=None, **kw):
 import re as _re
 import struct as _struct
 
-from . import attitude as _att
+from sinslab.core import attitude as _att
 
 __all__ += ["ImuData", "Fixes", "frame_matrix", "mount_matrix", "check_rotation",
             "rpy_frd_matrix", "load_imu", "read_table_imu", "read_rtklib_pos",
@@ -853,8 +853,8 @@ def read_mat_imu(path, var=None, *, dt=None, frame="rfu", mount=None, max_gap=1.
 def read_mat_avp(path, var=None):
     """Read a PSINS ``avp`` solution matrix: rows ``[pitch roll yaw (rad), vE vN vU (m/s),
     lat lon (rad), h (m), t (s)]`` (10 columns; yaw counter-clockwise from north, the
-    sinslab convention). Returns :class:`sinslab.records.NavSeries`."""
-    from .records import NavSeries
+    sinslab convention). Returns :class:`sinslab.core.records.NavSeries`."""
+    from sinslab.core.records import NavSeries
     m = _loadmat(path)
     var, a = _mat_var(m, path, var, (10,), ("avp", "fogavp", "avpr"))
     t = a[:, 9]
@@ -873,7 +873,7 @@ def write_imu(path, imu: ImuRecord, fmt=None):
     """Write increments: ``csv`` (header ``t[s],dtheta_x[rad],...,dv_z[m/s]``), ``parquet``
     (same columns) or ``mat`` (variable ``imu`` = PSINS layout N×7 and ``dt``); the format
     defaults from the suffix. Atomic (temporary name + rename). Returns the path."""
-    from .outputs import atomic_path
+    from sinslab.app.outputs import atomic_path
     path = Path(path)
     fmt = fmt or {".parquet": "parquet", ".pq": "parquet", ".mat": "mat"}.get(path.suffix.lower(), "csv")
     a = np.column_stack([imu.t, imu.dtheta, imu.dv])
@@ -901,7 +901,7 @@ _FIX_VCOLS = ["ve[m/s]", "vn[m/s]", "vu[m/s]", "sd_ve[m/s]", "sd_vn[m/s]", "sd_v
 
 def write_fixes(path, fx: Fixes):
     """Write fixes as CSV (columns of :func:`read_fixes`' CSV format)."""
-    from .outputs import atomic_path
+    from sinslab.app.outputs import atomic_path
     cols = [fx.t, np.degrees(fx.lat), np.degrees(fx.lon), fx.h, *fx.sigma.T]
     names = list(_FIX_COLS)
     if fx.vel is not None:

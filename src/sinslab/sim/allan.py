@@ -15,7 +15,7 @@ noise terms are read off it:
 - **rate random walk K** — from that fit (the +½ slope line, σ(3 s) = K); reported as 0
   when the curve does not rise after its minimum (record too short to show it).
 
-The :class:`sinslab.imu.ImuErrors` block converts them for simulation: ARW/VRW = N,
+The :class:`sinslab.sim.imu.ImuErrors` block converts them for simulation: ARW/VRW = N,
 bias instability as a first-order Gauss–Markov process whose Allan peak equals the
 measured floor (σ = floor/0.6174, correlation time = τ_min/1.893), RRW = K. The data must
 be recorded at rest; the mean (bias and the Earth rate/gravity) does not affect the
@@ -30,8 +30,8 @@ from typing import Optional
 
 import numpy as np
 
-from . import units
-from .records import ImuRecord
+from sinslab.core import units
+from sinslab.core.records import ImuRecord
 
 __all__ = ["AxisFit", "AllanResult", "allan", "fit_axis", "imu_errors_from_allan", "register"]
 
@@ -117,8 +117,8 @@ def allan(imu: ImuRecord, *, max_clusters=None, progress=False) -> AllanResult:
 
 
 def imu_errors_from_allan(res: AllanResult):
-    """An :class:`sinslab.imu.ImuErrors` with the measured noise terms (see module notes)."""
-    from .imu import GM_ALLAN_PEAK, GM_ALLAN_PEAK_TAU, ImuErrors
+    """An :class:`sinslab.sim.imu.ImuErrors` with the measured noise terms (see module notes)."""
+    from sinslab.sim.imu import GM_ALLAN_PEAK, GM_ALLAN_PEAK_TAU, ImuErrors
 
     def vec(fits, attr):
         return np.array([getattr(f, attr) for f in fits])
@@ -145,10 +145,12 @@ def _table(res: AllanResult):
 def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
     """Read a recorded IMU file, compute the Allan deviations and write the run folder."""
 
-    from . import __version__, io, plotting
-    from .config import dump_toml
-    from .outputs import RunDir, command_summary, default_out_dir
-    from .imu import ImuErrors  # noqa: F401
+    from sinslab import __version__
+    from sinslab.data import io
+    from sinslab.app import plotting
+    from sinslab.app.config import dump_toml
+    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
+    from sinslab.sim.imu import ImuErrors  # noqa: F401
 
     data = io.load_imu(path, fmt, **read_kw)
     imu = data.imu
@@ -221,7 +223,7 @@ def register(app):
               accel_unit: Optional[str] = typer.Option(None, "--accel-unit", help="unit of accel columns without one"),
               out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/allan-<timestamp>]")) -> None:
         """Allan deviation of recorded IMU data: ARW/VRW, bias instability, RRW and an ImuErrors block."""
-        from .cli import CliError, user_errors
+        from sinslab.cli import CliError, user_errors
 
         kw = {}
         if gyro_unit:
@@ -234,6 +236,6 @@ def register(app):
             except (ValueError, FileNotFoundError) as e:
                 raise CliError(str(e)) from None
 
-    from . import integration
+    from sinslab.fusion import integration
     integration.register(app)
     return allan

@@ -32,7 +32,7 @@ API
 :func:`delayed_alignment` — the full method on any IMU record (simulated or recorded) at a
 known site: coarse alignment (inertial-frame by default, valid on a swaying base, or the
 analytic double-vector one) on ``[t0, t0 + coarse_time]``, then the Kalman fine alignment
-of :mod:`sinslab.alignment`, run twice on prefixes of the same stream — to t1 for solution 1
+of :mod:`sinslab.methods.alignment`, run twice on prefixes of the same stream — to t1 for solution 1
 and to t2 for solution 2 — so each solution starts from its own real alignment; then both
 navigate in one pass over the remaining data (chunks of the stream step both states).
 
@@ -52,10 +52,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import alignment as al
-from . import attitude as att_
-from . import earth, strapdown, units
-from .records import ImuRecord, NavSeries, NavState
+from sinslab.methods import alignment as al
+from sinslab.core import attitude as att_
+from sinslab.core import earth, units
+from sinslab.nav import strapdown
+from sinslab.core.records import ImuRecord, NavSeries, NavState
 
 __all__ = ["AlignmentOptions", "InitialErrors", "DelayedResult", "half_schuler_delay",
            "delayed_alignment", "delayed_injected", "navigate_pair", "mean_solution",
@@ -103,7 +104,7 @@ class AlignmentOptions:
         Fine-alignment filter period [s].
     gyro_arw, accel_vrw : float or None
         Noise densities [rad/√s], [m/s/√s] used to tune the fine filter. On a swaying
-        base give them (the data-derived defaults of :func:`sinslab.alignment.fine_align`
+        base give them (the data-derived defaults of :func:`sinslab.methods.alignment.fine_align`
         count the sway as noise).
     p0_att : tuple of 3 floats or None
         1σ initial misalignment [rad] of the fine filter (None: its default).
@@ -302,7 +303,7 @@ def navigate_pair(imu: ImuRecord, init1: NavState, e1: int, init2: NavState, e2:
             return float(height)
         return height[a:b + 1]
 
-    from .progress import progress as bar
+    from sinslab.core.progress import progress as bar
     quiet = progress is False
     h1, h2 = init1.h, init2.h
     with (bar("navigating two solutions", total=nend - e1, unit="samples") if not quiet

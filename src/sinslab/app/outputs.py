@@ -241,7 +241,7 @@ class RunDir:
     def complete(self, summary: dict) -> dict:
         """Write ``summary.json`` and ``report.html`` and mark the run complete (the last
         step of every run: experiments and the ``align``/``allan``/``navigate`` commands)."""
-        from . import report
+        from sinslab.app import report
 
         self.write_json("summary.json", summary)
         self.write_text("report.html", report.render(self.path))
@@ -255,7 +255,7 @@ def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metric
     report needs), for runs that are not registered experiments."""
     import datetime as _dt
 
-    from . import __version__
+    from sinslab import __version__
 
     return {"experiment": command, "sinslab_version": __version__, "config": config,
             "metrics": metrics, "claims": list(claims), "purpose": purpose, "paper": paper,

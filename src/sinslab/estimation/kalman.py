@@ -19,7 +19,7 @@ Three layers, from small to large:
 
 The INS + fix application that runs this filter beside the mechanization (chunked
 strapdown stepping between filter epochs, lagged fixes, feedback) is
-:func:`sinslab.integration.loosely_coupled`; it is the only such driver in sinslab.
+:func:`sinslab.fusion.integration.loosely_coupled`; it is the only such driver in sinslab.
 
 Conventions
 -----------
@@ -27,7 +27,7 @@ Conventions
 loop predicts from epoch ``k`` to epoch ``k+1`` with ``Phi_k``, ``Q_k`` and then applies
 the measurement ``z[k]`` (valid at epoch ``k+1``) where ``mask[k]`` is true. Histories
 have ``K+1`` rows: row 0 is the initial condition. Units are whatever the model uses
-(SI in sinslab: rad, m/s, m or rad for positions — see :mod:`sinslab.errstate`).
+(SI in sinslab: rad, m/s, m or rad for positions — see :mod:`sinslab.nav.errstate`).
 """
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 from scipy import linalg as sla
 
-from .errstate import van_loan
+from sinslab.nav.errstate import van_loan
 
 __all__ = [
     "check_covariance", "predict", "update", "UpdateResult", "discretize",
@@ -1142,7 +1142,7 @@ class FeedbackLayout:
     @classmethod
     def from_model(cls, layout, *, att="phi", vel="dv", pos="dp", gyro="eps", accel="nabla",
                    gyro_scale="kg", accel_scale="ka", other=()):
-        """From a :class:`sinslab.errstate.StateLayout` (block names as in errstate's
+        """From a :class:`sinslab.nav.errstate.StateLayout` (block names as in errstate's
         builders; missing blocks, or a name given as None, become None)."""
         names = [b.name for b in layout.blocks]
         get = lambda b: layout.slice(b) if (b is not None and b in names) else None  # noqa: E731
@@ -1154,7 +1154,7 @@ class FeedbackLayout:
 
         Takes the fed-back states out of ``filt`` (:meth:`KalmanFilter.feedback`, which
         zeroes them), corrects the strapdown state array in place with
-        :func:`sinslab.strapdown.correct` (φ [rad], δv [m/s], δp = [δL, δλ, δh]; the
+        :func:`sinslab.nav.strapdown.correct` (φ [rad], δv [m/s], δp = [δL, δλ, δh]; the
         vertical of a 2-state horizontal block is left alone) and adds the bias estimates
         to the compensation in use (scale factors: ``d[gyro_scale]``, ``d[accel_scale]``
         are for the caller).
@@ -1170,11 +1170,11 @@ class FeedbackLayout:
         Returns
         -------
         gyro_bias, accel_bias : ndarray, shape (3,)
-            The new compensation to pass to :func:`sinslab.strapdown.step`.
+            The new compensation to pass to :func:`sinslab.nav.strapdown.step`.
         d : ndarray, shape (n,)
             The fed-back amounts.
         """
-        from . import strapdown as sd
+        from sinslab.nav import strapdown as sd
         d = filt.feedback(self.indices(filt.n))
 
         def three(s):
@@ -1198,7 +1198,7 @@ class KalmanFilter:
 
     The filter works on an error state ``x`` (n,) with covariance ``P`` (n, n) at time
     ``t``. The caller predicts with the Φ and Q_k of each step (e.g. from
-    :mod:`sinslab.errstate`) and applies measurements as they arrive.
+    :mod:`sinslab.nav.errstate`) and applies measurements as they arrive.
 
     Feedback and feed-forward
     -------------------------

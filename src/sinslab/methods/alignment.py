@@ -8,7 +8,7 @@ paper's equations carry over without sign changes.
 
 Models (derived again here; ``tests/test_alignment.py`` checks every step)
 ----------------------------------------------------------------------------
-Full order (paper eqs 10, 11, 15, 16; :func:`sinslab.errstate.static_alignment_model`),
+Full order (paper eqs 10, 11, 15, 16; :func:`sinslab.nav.errstate.static_alignment_model`),
 ``X = [φE φN φU εE εN εU ∇E ∇N]`` with ε = C_b^n ε^b, ∇ = C_b^n ∇^b, ω_N = ω_ie cos L,
 ω_U = ω_ie sin L::
 
@@ -67,10 +67,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from . import attitude as att_
-from . import earth, errstate, kalman, units
-from .attitude import q2dcm_s, qmul_s, rv2q_s
-from .records import ImuRecord
+from sinslab.core import attitude as att_
+from sinslab.core import earth, units
+from sinslab.nav import errstate
+from sinslab.estimation import kalman
+from sinslab.core.attitude import q2dcm_s, qmul_s, rv2q_s
+from sinslab.core.records import ImuRecord
 
 __all__ = [
     "POLE_MARGIN", "REST_THRESHOLD", "FULL_STATES", "REDUCED_STATES", "LIMIT_STATES",
@@ -653,7 +655,7 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
 
     The computed attitude starts at ``att0`` and is propagated with the gyros (Earth
     rate removed, fixed position); every ``period`` the mean specific force in the
-    computed frame gives ``Z = [f_E', f_N']``; a linear Kalman filter (sinslab.kalman)
+    computed frame gives ``Z = [f_E', f_N']``; a linear Kalman filter (sinslab.estimation.kalman)
     with the full model (paper eqs 11, 16) or the reduced one (eq 24) estimates φ (and
     ε, ∇ or their observable combinations).
 

@@ -23,7 +23,7 @@ import math
 import os
 from pathlib import Path
 
-from .outputs import atomic_write
+from sinslab.app.outputs import atomic_write
 
 __all__ = ["ReportError", "render", "build", "index"]
 
@@ -226,7 +226,7 @@ def index(out: str | os.PathLike, runs: list[tuple[str, str | os.PathLike]],
     for name, err in (failed or {}).items():
         rows.append(f"<tr><td>{e(name)}</td><td>{e(err)}</td><td><span class='badge bad'>error"
                     f"</span></td><td></td></tr>")
-    from . import __version__
+    from sinslab import __version__
 
     page = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>sinslab runs</title>"
             f"<style>{_CSS}</style></head><body><h1>sinslab runs</h1>"

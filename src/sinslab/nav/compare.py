@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import attitude as att_
-from . import earth
-from .records import NavSeries
+from sinslab.core import attitude as att_
+from sinslab.core import earth
+from sinslab.core.records import NavSeries
 
 __all__ = ["nav_errors", "match_epochs"]
 

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import earth
+from sinslab.core import earth
 
 __all__ = ["Components", "fit_components", "known_frequencies", "amplitude_spectrum",
            "band_peak", "resample_uniform"]

@@ -12,15 +12,15 @@ The pipeline
    and rotated about the vertical so that the body forward axis points along the fix
    course; a car does not drive sideways). The filter starts there.
 2. **Filter** (:func:`loosely_coupled`, sinslab's one INS + fix driver, also used by
-   :func:`sinslab.doublestar.integrate` and ``benchmarks/estimation.py``). The compiled
-   mechanization (:func:`sinslab.strapdown.step`) runs in blocks between fix arrivals;
-   the error model of :mod:`sinslab.errstate` (φ, δv, δp, gyro bias ε, accelerometer
+   :func:`sinslab.methods.doublestar.integrate` and ``benchmarks/estimation.py``). The compiled
+   mechanization (:func:`sinslab.nav.strapdown.step`) runs in blocks between fix arrivals;
+   the error model of :mod:`sinslab.nav.errstate` (φ, δv, δp, gyro bias ε, accelerometer
    bias ∇, optional gyro/accel scale factors; bias random walks, :func:`lc_model`) is
    evaluated for the block's epochs (on the block's own rows, or along a look-ahead run
-   for speed) and discretised; the :class:`sinslab.kalman.KalmanFilter` predicts every
+   for speed) and discretised; the :class:`sinslab.estimation.kalman.KalmanFilter` predicts every
    ``kf_dt`` and is updated with the antenna position (and velocity, when the fix file
    has it) with the lever arm in H, then fed back (closed loop) through
-   :class:`sinslab.kalman.FeedbackLayout`. Fixes are extrapolated from their validity
+   :class:`sinslab.estimation.kalman.FeedbackLayout`. Fixes are extrapolated from their validity
    time to the filter epoch with the INS velocity (at most ``kf_dt``).
 3. **Outages and latency.** Fixes whose validity time lies in an outage are dropped
    (``windows``: fixes are processed only inside them). A fix valid at t arrives at
@@ -45,11 +45,11 @@ from typing import Optional
 
 import numpy as np
 
-from . import attitude as A
-from . import earth as E
-from . import units
-from .io import Fixes
-from .records import ImuRecord, NavState
+from sinslab.core import attitude as A
+from sinslab.core import earth as E
+from sinslab.core import units
+from sinslab.data.io import Fixes
+from sinslab.core.records import ImuRecord, NavState
 
 __all__ = ["loosely_coupled", "LooselyCoupled", "lc_model", "NavOptions", "RecordedNav",
            "navigate_recorded", "parse_outages", "periodic_outages", "fix_errors",
@@ -250,7 +250,7 @@ def _imu_pos_from_antenna(lat, lon, h, C, lever):
 def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=False):
     """The loosely coupled error model: φ, δv, δp = [δL, δλ, δh], gyro bias ε (body),
     accelerometer bias ∇ (body) (15 states), plus gyro and accelerometer scale factors
-    ``kg``, ``ka`` (21 states) with ``scale_factors=True``; from :mod:`sinslab.errstate`.
+    ``kg``, ``ka`` (21 states) with ``scale_factors=True``; from :mod:`sinslab.nav.errstate`.
 
     Parameters
     ----------
@@ -261,7 +261,7 @@ def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=
     gyro_rrw, accel_rrw : float
         Bias random-walk densities [rad/s/√s], [m/s²/√s] (0: random constants).
     """
-    from . import errstate as es
+    from sinslab.nav import errstate as es
     sensors = [es.gyro_bias(rrw=gyro_rrw), es.accel_bias(arw=accel_rrw)]
     if scale_factors:
         sensors += [es.gyro_scale(), es.accel_scale()]
@@ -331,14 +331,14 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     """INS + position(/velocity) fixes with an error-state Kalman filter: sinslab's one
     driver of the filter beside the mechanization.
 
-    The strapdown mechanization (:func:`sinslab.strapdown.step`) runs on the IMU stream
+    The strapdown mechanization (:func:`sinslab.nav.strapdown.step`) runs on the IMU stream
     in compiled blocks between the epochs at which fixes are processed; the error-state
     model is evaluated for all filter epochs of a block at once and discretised
-    (:func:`sinslab.errstate.discretize`); the covariance is propagated every ``kf_dt`` by
-    one :class:`sinslab.kalman.KalmanFilter`. At a fix the filter updates (position, with
+    (:func:`sinslab.nav.errstate.discretize`); the covariance is propagated every ``kf_dt`` by
+    one :class:`sinslab.estimation.kalman.KalmanFilter`. At a fix the filter updates (position, with
     the lever arm in H, and velocity when given) and, with ``feedback=True``, corrects the
-    navigation state (:func:`sinslab.strapdown.correct`) and the sensor compensation
-    (biases, scale factors) through :class:`sinslab.kalman.FeedbackLayout`, zeroing those
+    navigation state (:func:`sinslab.nav.strapdown.correct`) and the sensor compensation
+    (biases, scale factors) through :class:`sinslab.estimation.kalman.FeedbackLayout`, zeroing those
     states. Fixes are extrapolated from their validity time to the filter epoch with the
     INS (antenna) velocity (at most ``kf_dt``).
 
@@ -352,9 +352,9 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
 
     Parameters
     ----------
-    imu : sinslab.records.ImuRecord
+    imu : sinslab.core.records.ImuRecord
         IMU increments (with errors), N samples at ``dt``.
-    init : sinslab.records.NavState
+    init : sinslab.core.records.NavState
         Initial navigation state (IMU attitude) at the start: ``imu.t0``, or the end of
         sample ``start - 1``.
     fix_t : array_like, shape (J,)
@@ -366,7 +366,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         Fix standard deviations north, east[, up] [m].
     P0 : array_like, shape (n, n)
         Initial covariance of the error state.
-    model : sinslab.errstate.ErrorModel, optional
+    model : sinslab.nav.errstate.ErrorModel, optional
         Error-state model with blocks ``phi``, ``dv``, ``dp`` and optionally ``eps``
         (gyro bias, body), ``nabla`` (accel bias, body), ``kg``/``ka`` (scale factors),
         or the horizontal model of paper 003 (``dv``, ``dp`` of 2 states; give
@@ -386,7 +386,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         Filter step [s]; a multiple of ``nsub * imu.dt``.
     nsub : int
         Mechanization subsamples (coning/sculling).
-    feedback : bool or sinslab.kalman.FeedbackLayout
+    feedback : bool or sinslab.estimation.kalman.FeedbackLayout
         Closed loop (``True``: every block of :meth:`FeedbackLayout.from_model`; or the
         layout of the states to feed back) or feed-forward (``False``: the INS runs free;
         ``x`` holds the estimated errors).
@@ -417,10 +417,10 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     -------
     LooselyCoupled
     """
-    from . import errstate as es
-    from . import strapdown as sd
-    from .kalman import FeedbackLayout, KalmanFilter
-    from .progress import progress as _progress
+    from sinslab.nav import errstate as es
+    from sinslab.nav import strapdown as sd
+    from sinslab.estimation.kalman import FeedbackLayout, KalmanFilter
+    from sinslab.core.progress import progress as _progress
 
     # --- model and layout
     if model is None:
@@ -710,7 +710,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     Raises ValueError when the fix times do not overlap the IMU record, when there is no
     usable fix, or when the vehicle never moves and no heading is given.
     """
-    from . import strapdown as sd
+    from sinslab.nav import strapdown as sd
 
     opt = opt or NavOptions()
     opt.check()
@@ -911,9 +911,11 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     Returns ``(summary, RecordedNav, Fixes)``.
     """
 
-    from . import __version__, io, plotting
-    from .config import dump_toml
-    from .outputs import RunDir, command_summary, default_out_dir
+    from sinslab import __version__
+    from sinslab.data import io
+    from sinslab.app import plotting
+    from sinslab.app.config import dump_toml
+    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
 
     fmt_eff = fmt or io.guess_imu_format(imu_path)
     kw = {}
@@ -1081,7 +1083,7 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
 
 
 def register(app):
-    """Add ``sinslab navigate`` to the typer app (registered via sinslab.allan.register)."""
+    """Add ``sinslab navigate`` to the typer app (registered via sinslab.sim.allan.register)."""
     import typer
 
     @app.command()
@@ -1104,7 +1106,7 @@ def register(app):
                  allow_gaps: bool = typer.Option(False, "--allow-gaps", help="bridge IMU gaps of any length"),
                  out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]")) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
-        from .cli import CliError, user_errors
+        from sinslab.cli import CliError, user_errors
 
         with user_errors():
             try:

@@ -3,7 +3,7 @@
 Figures are built on :class:`matplotlib.figure.Figure` directly (no pyplot state, no GUI
 backend needed); the framework saves them as PNG and SVG. Typical use in an experiment::
 
-    from sinslab import plotting as P
+    from sinslab.app import plotting as P
 
     fig, axes = P.figure(3, sharex=True)
     tt, tlabel = P.time_axis(t)

@@ -25,7 +25,7 @@ Two kinds of mount:
   (e.g. ±5°, 40 s about pitch: the laboratory variant of paper 004).
 
 :func:`mount_angles` evaluates a mount (angles and Euler-angle rates) at given times; the
-trajectory generator (:mod:`sinslab.trajectory`) compiles the same schedule into its own
+trajectory generator (:mod:`sinslab.sim.trajectory`) compiles the same schedule into its own
 kernel and the two are tested against each other. Times are seconds since the start of
 the motion.
 """
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import units
+from sinslab.core import units
 
 __all__ = ["AXES", "SINGLE_AXIS_4POS", "DUAL_AXIS_16", "SCHEMES", "RotateStop", "Swing", "short_number",
            "single_axis_4pos", "dual_axis_16", "mount_angles", "mount_from_dict", "Mount"]

@@ -4,7 +4,7 @@ Any module with a long loop (mechanization of a long record, a Kalman time loop,
 Monte Carlo campaign) reports progress through this helper, so that the look and the
 "quiet when not a TTY" rule live in one place::
 
-    from sinslab.progress import progress
+    from sinslab.core.progress import progress
 
     with progress("navigating", total=n_samples, unit="samples") as bar:
         for lo in range(0, n_samples, chunk):

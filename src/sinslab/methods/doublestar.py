@@ -36,14 +36,14 @@ Paper 003 (Liu, Lin, Lai, Sun 2004). Three parts, usable with any parameters and
 3. **Integration filter** (:func:`horizontal_model`, :func:`integrate`): the 16-state
    horizontal error model (φ 3, δvE, δvN, δL, δλ, gyro constant drift 3, gyro first-order
    Markov drift 3, accelerometer first-order Markov bias 3) from
-   :mod:`sinslab.errstate`, the strapdown mechanization of :mod:`sinslab.strapdown`
+   :mod:`sinslab.nav.errstate`, the strapdown mechanization of :mod:`sinslab.nav.strapdown`
    (vertical channel held to an external height) and one
-   :class:`sinslab.kalman.KalmanFilter`, run by sinslab's one INS + fix driver
-   :func:`sinslab.integration.loosely_coupled` (2-component fixes, fixes only inside the
+   :class:`sinslab.estimation.kalman.KalmanFilter`, run by sinslab's one INS + fix driver
+   :func:`sinslab.fusion.integration.loosely_coupled` (2-component fixes, fixes only inside the
    windows), in three modes:
 
    * ``"lag-aware"``: the fix valid at t arrives at t + ΔT and is applied with
-     :meth:`~sinslab.kalman.KalmanFilter.update_lagged` (the paper's eqs 4–10,
+     :meth:`~sinslab.estimation.kalman.KalmanFilter.update_lagged` (the paper's eqs 4–10,
      ``method="paper003"``: update at t from the state stored at the last step, then one
      prediction ``expm(A ΔT)`` with the integrated Q; or ``method="exact"``: re-process
      the stored steps), then the correction is fed back to the INS;
@@ -54,7 +54,7 @@ Paper 003 (Liu, Lin, Lai, Sun 2004). Three parts, usable with any parameters and
    gyro compensation); the Gauss–Markov states stay in the filter (feed-forward) because
    a constant compensation of a decaying process would not follow the model.
 
-Conventions: ENU, errors computed − true (:mod:`sinslab.errstate`); the position
+Conventions: ENU, errors computed − true (:mod:`sinslab.nav.errstate`); the position
 measurement is ``z = [(L_ins − L_fix)(R_M+h), (λ_ins − λ_fix)(R_N+h) cosL]`` (north, east,
 metres) with ``H = [0₂ₓ₅, diag(R_M+h, (R_N+h)cosL), 0₂ₓ₉]`` (paper eq 2).
 """
@@ -65,9 +65,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import compare, errstate as es
-from . import strapdown as sd
-from .earth import A, E2, radii
+from sinslab.nav import compare, errstate as es
+from sinslab.nav import strapdown as sd
+from sinslab.core.earth import A, E2, radii
 
 __all__ = [
     "GEO_RADIUS", "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
@@ -486,7 +486,7 @@ def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, r
 
     Parameters
     ----------
-    truth : sinslab.records.NavSeries
+    truth : sinslab.core.records.NavSeries
     windows : sequence of (start, end) [s], inside the truth record
     rng : numpy.random.Generator or int
     """
@@ -515,7 +515,7 @@ def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, r
 # ======================================================================== the filter
 def horizontal_model(gyro_white, gyro_markov_sigma, gyro_markov_tau, accel_markov_sigma,
                      accel_markov_tau, *, radius_derivatives=True) -> es.ErrorModel:
-    """The paper's 16-state horizontal error model (eq 1) from :mod:`sinslab.errstate`.
+    """The paper's 16-state horizontal error model (eq 1) from :mod:`sinslab.nav.errstate`.
 
     States ``[φE φN φU, δvE δvN, δL δλ, ε_b (3, body), ε_r (3, body, Markov), ∇ (3, body,
     Markov)]``; noise ``[w_g (3), w_r (3), w_a (3)]``.
@@ -602,9 +602,9 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
 
     Parameters
     ----------
-    imu : sinslab.records.ImuRecord
+    imu : sinslab.core.records.ImuRecord
         Measured increments (with errors).
-    init : sinslab.records.NavState
+    init : sinslab.core.records.NavState
         Initial navigation state (IMU attitude) at ``imu.t0``.
     fixes : Fixes
         Validity times must be filter epochs (``imu.t0 + k·kf_dt``); arrivals are processed
@@ -632,8 +632,8 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     -------
     Integration
     """
-    from .integration import loosely_coupled
-    from .kalman import FeedbackLayout
+    from sinslab.fusion.integration import loosely_coupled
+    from sinslab.estimation.kalman import FeedbackLayout
 
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")

@@ -2,11 +2,11 @@
 
 A motion is a list of segments (:class:`Static`, :class:`Accelerate`, :class:`Turn`,
 :class:`Climb`, :class:`Level`, :class:`WingRock`, :class:`Ship`) flown from a
-:class:`Start`, optionally with the IMU on a moving mount (:mod:`sinslab.indexing`:
+:class:`Start`, optionally with the IMU on a moving mount (:mod:`sinslab.sim.indexing`:
 rotate-stop indexing or a swinging table). :func:`generate` returns the truth (position,
 ENU velocity, attitude of the carrier and of the IMU) and the IMU increments
 ``Δθ = ∫ω_ib^b dt``, ``Δv = ∫f^b dt`` in the IMU frame, consistent with
-:mod:`sinslab.earth` (same radii, normal gravity and Earth rate), so that error-free
+:mod:`sinslab.core.earth` (same radii, normal gravity and Earth rate), so that error-free
 strapdown navigation of the increments reproduces the truth.
 
 Model
@@ -53,9 +53,10 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from . import earth, indexing, units
-from .attitude import euler_dcm_sc, euler_rates_to_body_sc
-from .records import ImuRecord, NavSeries
+from sinslab.core import earth, units
+from sinslab.sim import indexing
+from sinslab.core.attitude import euler_dcm_sc, euler_rates_to_body_sc
+from sinslab.core.records import ImuRecord, NavSeries
 
 __all__ = [
     "Start", "Segment", "Static", "Accelerate", "Turn", "Climb", "Level", "WingRock", "Ship",

@@ -3,7 +3,7 @@
 An :class:`ImuErrors` object is a frozen set of sensor error parameters in SI units, one
 value per sensor axis (IMU body frame, RFU). Build it from a datasheet with unit strings::
 
-    >>> from sinslab.imu import ImuErrors, apply
+    >>> from sinslab.sim.imu import ImuErrors, apply
     >>> err = ImuErrors.from_datasheet(gyro_bias="0.01 deg/h", gyro_arw="0.001 deg/sqrt(h)",
     ...                                accel_bias="100 ug", accel_vrw="10 ug/sqrt(Hz)")
     >>> noisy = apply(truth_imu, err, seed=1)            # doctest: +SKIP
@@ -67,8 +67,8 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from numba import njit
 
-from . import units as U
-from .records import ImuRecord
+from sinslab.core import units as U
+from sinslab.core.records import ImuRecord
 
 __all__ = [
     "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_batch", "noise_increments",

@@ -93,7 +93,7 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     n_workers : int, optional
         Workers of the local cluster (default: number of CPUs, at least 1).
     progress : bool
-        Show a progress bar (via :mod:`sinslab.progress`: only on a terminal, silenced by
+        Show a progress bar (via :mod:`sinslab.core.progress`: only on a terminal, silenced by
         ``SINSLAB_QUIET=1``).
     args, kwargs
         Extra arguments passed to every ``fn`` call (sent to the workers once).
@@ -134,7 +134,7 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
         raise ValueError(f"batch must be >= 1, got {batch}")
     starts = list(range(0, n, batch))
     parts = {}
-    from .progress import progress as _progress
+    from sinslab.core.progress import progress as _progress
     ctx = _progress("Monte Carlo", total=n, unit="runs") if progress else contextlib.nullcontext()
     try:
         bar = ctx.__enter__()

@@ -60,9 +60,9 @@ from typing import Sequence
 import numpy as np
 import scipy.linalg
 
-from . import units
-from .attitude import euler_to_dcm, skew
-from .earth import A, DGDH, E2, G_EQ, K_SOM, WIE, gravity
+from sinslab.core import units
+from sinslab.core.attitude import euler_to_dcm, skew
+from sinslab.core.earth import A, DGDH, E2, G_EQ, K_SOM, WIE, gravity
 
 __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
@@ -285,7 +285,7 @@ class NavPoint:
 
     @classmethod
     def from_series(cls, series, imu=None, idx=None, imu_frame=True):
-        """Nav points at the epochs of a :class:`sinslab.records.NavSeries`.
+        """Nav points at the epochs of a :class:`sinslab.core.records.NavSeries`.
 
         Parameters
         ----------
@@ -300,7 +300,7 @@ class NavPoint:
         imu_frame : bool
             Use ``series.att_imu`` when present (the IMU body frame), else ``series.att``.
         """
-        from .attitude import euler_to_dcm as e2d
+        from sinslab.core.attitude import euler_to_dcm as e2d
         sel = slice(None) if idx is None else idx
         att = series.att_imu if (imu_frame and series.att_imu is not None) else series.att
         C = e2d(att[sel])
