@@ -10,7 +10,7 @@ from sinslab.data import io
 from sinslab.core import units as u
 from sinslab.experiments import static_alignment as sa
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "psins-lasergyro" / "lasergyro.imu"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "psins-lasergyro" / "lasergyro.imu"
 needs_data = pytest.mark.skipif(not DATA.exists(), reason="PSINS lasergyro.imu not available")
 
 HEADER = """% PSINS-format SIMU log file.

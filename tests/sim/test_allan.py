@@ -12,7 +12,7 @@ from sinslab.data import io
 from sinslab.core import units as u
 from sinslab.core.records import ImuRecord
 
-LASER = Path(__file__).resolve().parents[2] / "shared" / "data" / "psins-lasergyro" / "lasergyro.imu"
+LASER = Path(__file__).resolve().parents[3] / "shared" / "data" / "psins-lasergyro" / "lasergyro.imu"
 
 
 def test_fit_recovers_synthesised_noise():

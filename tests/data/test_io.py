@@ -11,7 +11,7 @@ from sinslab.data import io
 from sinslab.core import units as u
 from sinslab.core.records import ImuRecord
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 DRIVE = DATA / "rtklib-drive"
 needs_drive = pytest.mark.skipif(not (DRIVE / "imu_1934.csv").exists(), reason="rtklib-drive not available")
 needs_transfer = pytest.mark.skipif(not (DATA / "psins-transfer").exists(), reason="psins-transfer not available")

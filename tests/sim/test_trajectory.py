@@ -13,7 +13,7 @@ from sinslab.sim import trajectory as tr
 from sinslab.core import units as u
 from sinslab.core.records import NavState
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 START_003 = tr.Start(lat=32 * u.deg, lon=118 * u.deg, h=1000.0, speed=300.0, heading=0.0)
 
 

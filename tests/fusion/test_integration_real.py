@@ -14,7 +14,7 @@ from sinslab.data import io
 from sinslab.sim import trajectory as tr
 from sinslab.core import units as u
 
-DRIVE = Path(__file__).resolve().parents[2] / "shared" / "data" / "rtklib-drive"
+DRIVE = Path(__file__).resolve().parents[3] / "shared" / "data" / "rtklib-drive"
 needs_drive = pytest.mark.skipif(not (DRIVE / "imu_1934.csv").exists(), reason="rtklib-drive not available")
 MOUNT = "rpy:%g,%g,%g" % io.RTKLIB_DRIVE["mount_rpy_frd_deg"]
 LEVER = io.RTKLIB_DRIVE["lever_arm_rfu_m"]
