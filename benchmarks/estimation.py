@@ -7,7 +7,7 @@ Run: ``.venv/bin/python benchmarks/estimation.py [--quick] [--json FILE]``
    :func:`sinslab.estimation.kalman.propagate_covariance`: absolute steps/s on one core and the
    ratio to a plain numpy loop (``P = Φ P Φᵀ + Q``) measured in the same run. Target
    ≥ 50 000 steps/s.
-2. Loosely coupled INS + position fixes, :func:`sinslab.fusion.integration.loosely_coupled` (the
+2. Loosely coupled INS + position fixes, :func:`sinslab.fusion.loosely_coupled.loosely_coupled` (the
    one INS + fix driver, also behind ``sinslab navigate`` and paper 003's integration), on
    1 h of 200 Hz IMU with 1 Hz fixes, covariance at 10 Hz. Target < 5 s.
 """
@@ -28,7 +28,7 @@ os.environ.setdefault("SINSLAB_QUIET", "1")
 
 import numpy as np  # noqa: E402
 
-from sinslab.fusion import integration as integ  # noqa: E402
+from sinslab.fusion import loosely_coupled as integ  # noqa: E402
 from sinslab.estimation import kalman as kf  # noqa: E402
 from sinslab.core import units as u  # noqa: E402
 

@@ -247,8 +247,9 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
 #: Modules adding commands (``navigate``, ``allan``, ``align``, ...): each defines
 #: ``register(app)`` that decorates its command functions with ``@app.command()``.
 COMMAND_MODULES = (
-    "sinslab.experiments.static_alignment",          # sinslab align (paper 000)
-    "sinslab.sim.allan",                                  # sinslab allan, sinslab navigate (recorded data)
+    "sinslab.app.commands.navigate",
+    "sinslab.app.commands.allan",
+    "sinslab.app.commands.align",
 )
 _BROKEN_COMMANDS: dict[str, str] = {}
 

@@ -8,7 +8,7 @@ import pytest
 from sinslab.core import earth as E
 from sinslab.data import io
 from sinslab.core import units as u
-from sinslab.experiments import static_alignment as sa
+from sinslab.methods import alignment as sa
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "psins-lasergyro" / "lasergyro.imu"
 needs_data = pytest.mark.skipif(not DATA.exists(), reason="PSINS lasergyro.imu not available")

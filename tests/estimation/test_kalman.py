@@ -321,7 +321,7 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
 def test_feedback_layout_corrects_ins_and_compensation():
     from sinslab.nav import strapdown as sd
     from sinslab.core.records import NavState
-    from sinslab.fusion.integration import lc_model
+    from sinslab.fusion.loosely_coupled import lc_model
     model = lc_model(1e-5, 1e-4)
     lay = kf.FeedbackLayout.from_model(model.layout)
     assert lay.indices(15).tolist() == list(range(15))
@@ -344,7 +344,7 @@ def test_feedback_layout_horizontal_blocks_and_scale_factors():
     blocks are fed back (zeroed) and returned for the caller's compensation."""
     from sinslab.methods import doublestar as ds
     from sinslab.nav import strapdown as sd
-    from sinslab.fusion.integration import lc_model
+    from sinslab.fusion.loosely_coupled import lc_model
     from sinslab.core.records import NavState
     m = ds.horizontal_model(1e-7, 1e-7, 3600.0, 1e-4, 1800.0)
     lay = kf.FeedbackLayout.from_model(m.layout, gyro="eps_b", accel=None)

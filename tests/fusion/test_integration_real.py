@@ -9,7 +9,8 @@ from typer.testing import CliRunner
 
 from sinslab.core import attitude as A
 from sinslab.sim import imu as IM
-from sinslab.fusion import integration as I
+from sinslab.fusion import loosely_coupled as LC
+from sinslab.fusion import recorded as I
 from sinslab.data import io
 from sinslab.sim import trajectory as tr
 from sinslab.core import units as u

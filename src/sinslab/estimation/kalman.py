@@ -19,7 +19,7 @@ Three layers, from small to large:
 
 The INS + fix application that runs this filter beside the mechanization (chunked
 strapdown stepping between filter epochs, lagged fixes, feedback) is
-:func:`sinslab.fusion.integration.loosely_coupled`; it is the only such driver in sinslab.
+:func:`sinslab.fusion.loosely_coupled.loosely_coupled`; it is the only such driver in sinslab.
 
 Conventions
 -----------

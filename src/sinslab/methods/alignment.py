@@ -792,3 +792,41 @@ def residuals(fine: FineAlignment, C_true, gyro_bias_n):
     eps = np.broadcast_to(np.asarray(gyro_bias_n, dtype=float), (len(fine.t), 3))
     true = np.column_stack([phi_true, eps[:, 1], eps[:, 2]])
     return true - fine.estimates()
+
+
+def align_record(imu, lat, h=0.0, *, gyro_arw=0.01 * units.dpsh, accel_vrw=None,
+                 gyro_bias=0.01 * units.dph, accel_bias=100 * units.ug, model="reduced",
+                 period=1.0, feedback=True):
+    """Coarse (analytic and inertial-frame) and fine alignment of a record at rest.
+
+    ``gyro_bias``/``accel_bias`` are assumed 1σ sensor biases, used only for the limit
+    accuracy the result cannot beat (``limit_*``: RSS over axes of the limit formulas
+    with the body biases projected by the aligned attitude). Returns a dict of results
+    (angles in rad, see :func:`align_file` for the printed units) and the fine result.
+    """
+    import warnings as _w
+
+    with _w.catch_warnings(record=True) as caught:
+        _w.simplefilter("always")
+        co = coarse_align(imu, lat, h)
+        ci = coarse_align_inertial(imu, lat, h)
+        fa = fine_align(imu, lat, ci.att, h=h, model=model, period=period, gyro_arw=gyro_arw,
+                           accel_vrw=accel_vrw, feedback=feedback)
+    warns = sorted({str(w.message) for w in caught})
+    g = float(earth.gravity(lat, h))
+    T = len(imu) * imu.dt
+    f = imu.dv.sum(0) / T
+    w = imu.dtheta.sum(0) / T
+    # the limit formulas for independent 1σ biases on every axis: RSS of each axis' effect
+    lim2 = np.zeros(5)
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = 1.0
+        lim2 += limit_accuracy(lat, fa.att, e * gyro_bias, 0.0, g=g) ** 2
+        lim2 += limit_accuracy(lat, fa.att, 0.0, e * accel_bias, g=g) ** 2
+    lim = np.sqrt(lim2)
+    lim_att = euler_sigma(att_.euler_to_dcm(fa.att), np.diag(lim[:3] ** 2))
+    return dict(coarse=co, inertial=ci, fine=fa, warnings=warns, g=g, f_mean=f, w_mean=w,
+                f_norm=float(np.linalg.norm(f)), w_norm=float(np.linalg.norm(w)),
+                f_horizontal=float(np.linalg.norm(f[:2])),
+                limit=lim, limit_att=lim_att)

@@ -39,7 +39,7 @@ Paper 003 (Liu, Lin, Lai, Sun 2004). Three parts, usable with any parameters and
    :mod:`sinslab.nav.errstate`, the strapdown mechanization of :mod:`sinslab.nav.strapdown`
    (vertical channel held to an external height) and one
    :class:`sinslab.estimation.kalman.KalmanFilter`, run by sinslab's one INS + fix driver
-   :func:`sinslab.fusion.integration.loosely_coupled` (2-component fixes, fixes only inside the
+   :func:`sinslab.fusion.loosely_coupled.loosely_coupled` (2-component fixes, fixes only inside the
    windows), in three modes:
 
    * ``"lag-aware"``: the fix valid at t arrives at t + ΔT and is applied with
@@ -632,7 +632,7 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     -------
     Integration
     """
-    from sinslab.fusion.integration import loosely_coupled
+    from sinslab.fusion.loosely_coupled import loosely_coupled
     from sinslab.estimation.kalman import FeedbackLayout
 
     if mode not in MODES:

@@ -1,0 +1,2 @@
+"""The recorded-data commands of the CLI (``navigate``, ``allan``, ``align``); each module
+defines ``register(app)``."""

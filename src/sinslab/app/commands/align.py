@@ -1,0 +1,182 @@
+"""``sinslab align``: coarse + fine alignment of a recorded IMU file at rest into a run folder."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from sinslab.core import attitude as A
+from sinslab.core import earth, units
+from sinslab.methods import alignment as al
+from sinslab.methods.alignment import align_record
+
+#: the method this command applies (printed in its report)
+PAPER = ("Yan Gongmin, Qin Yongyuan: Initial alignment accuracy analysis and simulation of SINS "
+         "on a stationary base, Computer Simulation 23(10), 2006")
+
+__all__ = ["align_file", "register"]
+
+
+def _parse_window(window):
+    if window in (None, ""):
+        return None, None
+    if ":" not in window:
+        raise ValueError(f"--window {window!r}: expected START:END in seconds (either may be empty)")
+    a, b = window.split(":", 1)
+    try:
+        lo = float(a) if a.strip() else None
+        hi = float(b) if b.strip() else None
+    except ValueError:
+        raise ValueError(f"--window {window!r}: START and END must be numbers of seconds") from None
+    if lo is not None and hi is not None and not hi > lo:
+        raise ValueError(f"--window {window!r}: END must be after START")
+    return lo, hi
+
+
+
+def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
+               gyro_arw="0.01 deg/sqrt(h)", accel_vrw=None, gyro_bias="0.01 deg/h",
+               accel_bias="100 ug", model="reduced", period="1 s", feedback=True, echo=print):
+    """Align a recorded IMU file at rest and write the usual outputs into ``out``.
+
+    Prints (via ``echo``) pitch, roll and heading (clockwise from north) with 1σ from the
+    analytic coarse, the inertial-frame coarse and the Kalman fine alignment, and the
+    limit accuracy for the assumed biases. Writes config.toml, summary.json,
+    alignment.csv (fine attitude and σ vs time), alignment.png/svg and report.html.
+    Returns the summary dict.
+    """
+
+    from sinslab import __version__
+    from sinslab.data import io
+    from sinslab.app import plotting
+    from sinslab.app.config import dump_toml
+    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
+
+    imu, ps = io.read_imu(path, fmt)
+    if lat is None:
+        if ps is None:
+            raise ValueError("--lat is required for a CSV file (PSINS logs carry it in the header)")
+        lat_r = ps.lat
+    else:
+        lat_r = units.parse(lat, "angle")
+    h_r = (ps.h if ps is not None else 0.0) if h is None else units.parse(h, "length")
+    lo, hi = _parse_window(window)
+    if lo is not None or hi is not None:
+        imu = imu.slice(lo, hi)
+    al.check_alignment_latitude(lat_r)
+    ga = units.parse(gyro_arw, "angle_random_walk")
+    av = None if accel_vrw in (None, "", "auto") else units.parse(accel_vrw, "velocity_random_walk")
+    gb = units.parse(gyro_bias, "angular_rate")
+    ab = units.parse(accel_bias, "acceleration")
+    T = units.parse(period, "time")
+    out = Path(out) if out is not None else default_out_dir("align")
+    rd = RunDir(out, "align")
+    rd.check()
+    r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
+                     model=model, period=T, feedback=feedback)
+    co, ci, fa = r["coarse"], r["inertial"], r["fine"]
+
+    def ang(att):
+        return (math.degrees(att[0]), math.degrees(att[1]),
+                math.degrees(float(A.yaw_to_heading(att[2]))))
+
+    rows = [("coarse (analytic)", ang(co.att), co.att_sigma),
+            ("coarse (inertial frame)", ang(ci.att), None),
+            (f"fine ({model}, {'closed' if feedback else 'open'} loop)", ang(fa.att), fa.att_sigma)]
+    cfg = {"file": str(path), "format": fmt or ("psins" if ps is not None else "csv"),
+           "latitude": f"{math.degrees(lat_r):.8g} deg", "height": f"{h_r:.6g} m",
+           "window": window or ":", "gyro_arw": gyro_arw, "accel_vrw": accel_vrw or "auto",
+           "gyro_bias": gyro_bias, "accel_bias": accel_bias, "model": model, "period": period,
+           "feedback": bool(feedback)}
+    echo(f"{path}: {len(imu)} samples, {imu.t0:.3f}..{imu.t[-1]:.3f} s, dt {imu.dt * 1e3:g} ms, "
+         f"latitude {math.degrees(lat_r):.6f} deg, height {h_r:g} m")
+    echo(f"  |f| = {r['f_norm']:.6f} m/s^2 (normal gravity {r['g']:.6f}); "
+         f"|w| = {r['w_norm'] / earth.WIE:.5f} w_ie; 1-s specific-force variation "
+         f"{fa.rest.f_rms * 1e3:.3g} mm/s^2 RMS")
+    echo("  (heading clockwise from north; sigma from the filter / averaging noise)")
+    for name, (p_, r_, hd), sg in rows:
+        s = "" if sg is None else (f"  sigma {sg[0] / units.arcmin:.3g}', {sg[1] / units.arcmin:.3g}', "
+                                   f"{sg[2] / units.arcmin:.3g}'")
+        echo(f"  {name:<34s} pitch {p_:9.4f} deg  roll {r_:9.4f} deg  heading {hd:9.4f} deg{s}")
+    la = r["limit_att"] / units.arcmin
+    echo(f"  limit accuracy for 1-sigma biases {gyro_bias}, {accel_bias}: pitch {la[0]:.3g}', "
+         f"roll {la[1]:.3g}', heading {la[2]:.3g}'")
+    for w_ in r["warnings"]:
+        echo(f"  warning: {w_}")
+
+    metrics = {}
+    for key, att, sg in (("coarse", co.att, co.att_sigma), ("inertial", ci.att, None),
+                         ("fine", fa.att, fa.att_sigma)):
+        p_, r_, hd = ang(att)
+        metrics[f"{key}_pitch_deg"], metrics[f"{key}_roll_deg"], metrics[f"{key}_heading_deg"] = p_, r_, hd
+        if sg is not None:
+            metrics[f"{key}_sigma_pitch_arcmin"] = float(sg[0] / units.arcmin)
+            metrics[f"{key}_sigma_roll_arcmin"] = float(sg[1] / units.arcmin)
+            metrics[f"{key}_sigma_heading_arcmin"] = float(sg[2] / units.arcmin)
+    metrics.update(
+        f_norm_mps2=r["f_norm"], gravity_mps2=r["g"], w_norm_over_wie=r["w_norm"] / earth.WIE,
+        f_var_rms_mps2=fa.rest.f_rms, meas_noise_ug=(np.sqrt(np.diag(fa.R)) / units.ug).tolist(),
+        limit_pitch_arcmin=float(la[0]), limit_roll_arcmin=float(la[1]),
+        limit_heading_arcmin=float(la[2]), nis_mean=float(np.mean(fa.nis)),
+        duration_s=float(len(imu) * imu.dt))
+    rd.prepare()
+    rd.write_text("config.toml", f"# sinslab {__version__} — align\n" + dump_toml(cfg))
+    tm = fa.t
+    hd = np.degrees(A.yaw_to_heading(fa.att_path[:, 2]))
+    rd.write_table("alignment", {"t_s": tm, "pitch_deg": np.degrees(fa.att_path[:, 0]),
+                                 "roll_deg": np.degrees(fa.att_path[:, 1]), "heading_deg": hd,
+                                 "sigma_phiE_arcmin": fa.sigma[:, 0] / units.arcmin,
+                                 "sigma_phiN_arcmin": fa.sigma[:, 1] / units.arcmin,
+                                 "sigma_phiU_arcmin": fa.sigma[:, 2] / units.arcmin})
+    fig, axes = plotting.figure(3, 1, width=8.0)
+    for ax, y, s_, lab in zip(axes, (np.degrees(fa.att_path[:, 0]), np.degrees(fa.att_path[:, 1]), hd),
+                              (fa.sigma[:, 1], fa.sigma[:, 0], fa.sigma[:, 2]),
+                              ("pitch [deg]", "roll [deg]", "heading [deg]")):
+        ax.plot(tm - tm[0], y, "b-", lw=1)
+        k = max(1, len(tm) // 10)
+        ax.fill_between(tm[k:] - tm[0], y[k:] - np.degrees(s_[k:]), y[k:] + np.degrees(s_[k:]),
+                        color="b", alpha=0.15, lw=0)
+        ax.set_ylabel(lab)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle("Fine alignment: attitude estimate ±1σ (heading clockwise from north)")
+    rd.write_figure("alignment", fig, "Fine-alignment attitude estimate (±1σ band) versus time.")
+    summary = rd.complete(command_summary(
+        rd, "align", "coarse and fine alignment of a recorded IMU file at rest (paper 000 methods)",
+        cfg, metrics, ["Heading is clockwise from north."] + r["warnings"], paper=PAPER))
+    echo(f"  -> {out}")
+    return summary
+
+
+def register(app):
+    """Add the ``sinslab align`` command to the typer ``app`` (called from sinslab.cli)."""
+    import typer
+
+    @app.command()
+    def align(imu: Path = typer.Option(..., "--imu", help="recorded IMU file (at rest)"),
+              format: Optional[str] = typer.Option(None, "--format", help="psins | csv | parquet | mat | rtklib-imu [default: from the suffix]"),
+              lat: Optional[str] = typer.Option(None, "--lat", help='latitude, e.g. "34.246 deg" [default: PSINS header]'),
+              height: Optional[str] = typer.Option(None, "--height", help='height, e.g. "380 m"'),
+              window: Optional[str] = typer.Option(None, "--window", metavar="START:END", help="time window [s]"),
+              out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/align-<timestamp>]"),
+              gyro_arw: str = typer.Option("0.01 deg/sqrt(h)", "--gyro-arw", help="gyro angle random walk (Q)"),
+              accel_vrw: Optional[str] = typer.Option(None, "--accel-vrw", help="accel noise for R [default: from the data]"),
+              gyro_bias: str = typer.Option("0.01 deg/h", "--gyro-bias", help="assumed 1σ gyro bias (limit accuracy)"),
+              accel_bias: str = typer.Option("100 ug", "--accel-bias", help="assumed 1σ accel bias (limit accuracy)"),
+              model: str = typer.Option("reduced", "--model", help="reduced | full"),
+              period: str = typer.Option("1 s", "--period", help="filter period"),
+              open_loop: bool = typer.Option(False, "--open-loop", help="no attitude feedback")) -> None:
+        """Coarse and fine alignment of a recorded IMU file at rest (pitch, roll, heading with σ)."""
+        from sinslab.cli import CliError, user_errors
+
+        with user_errors():
+            try:
+                align_file(imu, fmt=format, lat=lat, h=height, window=window, out=out,
+                           gyro_arw=gyro_arw, accel_vrw=accel_vrw, gyro_bias=gyro_bias,
+                           accel_bias=accel_bias, model=model, period=period,
+                           feedback=not open_loop, echo=typer.echo)
+            except (ValueError, FileNotFoundError) as e:
+                raise CliError(str(e)) from None
+
+    return align

@@ -1,0 +1,123 @@
+"""``sinslab allan FILE``: Allan deviation and IEEE noise terms of a recorded IMU file into a
+run folder (table, figure, an ImuErrors block for simulation configs)."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from sinslab.core import units
+from sinslab.sim.allan import allan, imu_errors_from_allan
+
+__all__ = ["allan_file", "register"]
+
+
+def _table(res: AllanResult):
+    rows = []
+    for f in res.gyro:
+        rows.append((f.name, f.n_white / units.dpsh, "deg/sqrt(h)" + ("(<=)" if f.n_is_bound else ""), f.bias_instability / units.dph,
+                     "deg/h", f.tau_floor, f.rrw / units.dphpsh, "deg/h/sqrt(h)"))
+    for f in res.accel:
+        rows.append((f.name, f.n_white / units.ugpsHz, "ug/sqrt(Hz)" + ("(<=)" if f.n_is_bound else ""), f.bias_instability / units.ug,
+                     "ug", f.tau_floor, f.rrw / units.ug * math.sqrt(3600.0), "ug/sqrt(h)"))
+    return rows
+
+
+def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
+    """Read a recorded IMU file, compute the Allan deviations and write the run folder."""
+
+    from sinslab import __version__
+    from sinslab.data import io
+    from sinslab.app import plotting
+    from sinslab.app.config import dump_toml
+    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
+    from sinslab.sim.imu import ImuErrors  # noqa: F401
+
+    data = io.load_imu(path, fmt, **read_kw)
+    imu = data.imu
+    if window:
+        a, _, b = str(window).partition(":")
+        imu = imu.slice(float(a) if a else None, float(b) if b else None)
+    out = out if out is not None else default_out_dir("allan")
+    rd = RunDir(out, "allan")
+    rd.check()
+    res = allan(imu)
+    errs = imu_errors_from_allan(res)
+    toml = errs.to_toml("imu")
+    rows = _table(res)
+    echo(f"{path}: {len(imu)} samples at {1 / imu.dt:g} Hz, {res.duration:.1f} s")
+    echo(f"  {'axis':<8s} {'N (ARW/VRW)':>22s} {'bias instab. B':>18s} {'at tau':>9s} {'RRW K':>22s}")
+    for nm, nv, nu, bv, bu, tf, kv, ku in rows:
+        echo(f"  {nm:<8s} {nv:12.4g} {nu:<12s}{bv:10.4g} {bu:<7s} {tf:8.3g}s {kv:10.3g} {ku}")
+    echo("  ImuErrors for a simulation config (bias instability as a Gauss-Markov process "
+         "with the same Allan peak):")
+    for line in toml.splitlines():
+        echo("    " + line)
+    metrics = {}
+    for nm, nv, nu, bv, bu, tf, kv, ku in rows:
+        key = nm.replace(" ", "_")
+        s, _ = nm.split()
+        metrics[f"{key}_{'arw_dpsh' if s == 'gyro' else 'vrw_ugpsHz'}"] = nv
+        metrics[f"{key}_bias_instability_{'dph' if s == 'gyro' else 'ug'}"] = bv
+        metrics[f"{key}_tau_floor_s"] = tf
+        metrics[f"{key}_rrw_{'dphpsh' if s == 'gyro' else 'ugpsh'}"] = kv
+    cfg = {"file": str(path), "format": data.format, "window": window or ":"}
+    rd.prepare()
+    rd.write_text("config.toml", f"# sinslab {__version__} — allan\n" + dump_toml(cfg))
+    rd.write_text("imu_errors.toml", toml)
+    tab = {"tau_s": res.gyro[0].tau}
+    for f in res.gyro:
+        if f.tau.size == tab["tau_s"].size:
+            tab[f"{f.name.replace(' ', '_')}_adev_dph"] = f.adev / units.dph
+    for f in res.accel:
+        if f.tau.size == tab["tau_s"].size:
+            tab[f"{f.name.replace(' ', '_')}_adev_ug"] = f.adev / units.ug
+    rd.write_table("allan", tab, "overlapping Allan deviation per axis")
+    fig, axes = plotting.figure(1, 2, sharex=False, width=11.0, row_height=4.2)
+    for ax, fits, sc, unit in ((axes[0], res.gyro, units.dph, "deg/h"), (axes[1], res.accel, units.ug, "ug")):
+        for f, c in zip(fits, plotting.COLORS):
+            ax.loglog(f.tau, f.adev / sc, "-", color=c, lw=1.2, label=f.name)
+            ax.loglog(f.tau, f.fit / sc, ":", color=c, lw=1)
+            ax.plot([f.tau_floor], [f.floor / sc], "o", color=c, ms=4)
+        ax.set_xlabel("cluster time τ [s]")
+        ax.set_ylabel(f"Allan deviation [{unit}]")
+        ax.legend(fontsize=8)
+    fig.suptitle("Overlapping Allan deviation (dotted: fitted N/τ, B, K terms; dots: floor)")
+    rd.write_figure("allan", fig, "Allan deviation of each gyro and accelerometer axis, with the fit.")
+    summary = rd.complete(command_summary(
+        rd, "allan", "Allan deviation and IEEE noise terms of a recorded IMU file", cfg, metrics,
+        ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
+         "imu_errors.toml: paste into a simulation config ([imu] table).", toml]))
+    echo(f"  -> {out}")
+    return summary, res, errs
+
+
+def register(app):
+    """Add ``sinslab allan`` and ``sinslab navigate`` (called from sinslab.cli)."""
+    import typer
+
+    @app.command()
+    def allan(file: Path = typer.Argument(..., help="recorded IMU file (at rest)"),
+              format: Optional[str] = typer.Option(None, "--format", help="psins | csv | parquet | mat | rtklib-imu"),
+              window: Optional[str] = typer.Option(None, "--window", metavar="START:END", help="time window [s]"),
+              gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="unit of gyro columns without one"),
+              accel_unit: Optional[str] = typer.Option(None, "--accel-unit", help="unit of accel columns without one"),
+              out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/allan-<timestamp>]")) -> None:
+        """Allan deviation of recorded IMU data: ARW/VRW, bias instability, RRW and an ImuErrors block."""
+        from sinslab.cli import CliError, user_errors
+
+        kw = {}
+        if gyro_unit:
+            kw["gyro_unit"] = gyro_unit
+        if accel_unit:
+            kw["accel_unit"] = accel_unit
+        with user_errors():
+            try:
+                allan_file(file, fmt=format, out=out, window=window, echo=typer.echo, **kw)
+            except (ValueError, FileNotFoundError) as e:
+                raise CliError(str(e)) from None
+
+
+

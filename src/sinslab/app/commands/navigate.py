@@ -1,0 +1,257 @@
+"""``sinslab navigate``: recorded IMU + fix files through the loosely coupled filter into a
+run folder (solution, fix errors, figures, report)."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from sinslab.core import earth as E
+from sinslab.core import units
+from sinslab.fusion.recorded import (NavOptions, fix_errors, navigate_recorded, outage_end_errors,
+                                     parse_outages)
+
+__all__ = ["navigate_files", "register"]
+
+
+# --------------------------------------------------------------------------- the CLI ---
+def _vec3(text, kind, what):
+    try:
+        return units.parse_vector(text, kind, 3)
+    except (ValueError, TypeError) as e:
+        raise ValueError(f"{what}: {e}") from None
+
+
+def _parse_init(text):
+    """``heading=30 deg`` (clockwise from north) -> dict; empty -> {}."""
+    out = {}
+    if not text:
+        return out
+    for tok in str(text).split(","):
+        k, sep, v = tok.partition("=")
+        k = k.strip().lower()
+        if not sep or k not in ("heading",):
+            raise ValueError(f"--init {text!r}: use heading=ANGLE (e.g. heading=\"30 deg\")")
+        out["heading"] = units.parse(v.strip(), "angle")
+    return out
+
+
+def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=None, mount=None,
+                   frame=None, outages=None, fix_latency=0.0, lag="aware", init=None,
+                   time_sync="none", velocity_lag=0.0, imu_delay=0.0, scale_factors=False,
+                   max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None):
+    """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
+
+    Returns ``(summary, RecordedNav, Fixes)``.
+    """
+
+    from sinslab import __version__
+    from sinslab.data import io
+    from sinslab.app import plotting
+    from sinslab.app.config import dump_toml
+    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
+
+    fmt_eff = fmt or io.guess_imu_format(imu_path)
+    kw = {}
+    if mount is not None:
+        kw["mount"] = mount
+    if frame is not None:
+        kw["frame"] = frame
+    if fmt_eff != "psins":
+        kw.update(max_gap=max_gap, allow_gaps=allow_gaps)
+    if fmt_eff == "rtklib-imu":
+        kw["delay"] = imu_delay
+    data = io.load_imu(imu_path, fmt_eff, **kw)
+    ffmt = fix_format or ("rtklib-pos" if str(fix_path).lower().endswith(".pos") else None)
+    fx = io.read_fixes(fix_path, ffmt, **({"velocity_lag": velocity_lag} if ffmt == "rtklib-pos" else {}))
+    imu = data.imu
+    if len(data.gaps):
+        echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
+             + ", ".join(f"{g[1]:.3f} s at {g[0] - imu.t0:.2f} s" for g in data.gaps[:5])
+             + (" ..." if len(data.gaps) > 5 else ""))
+    sync = None
+    if time_sync == "auto":
+        sync = io.estimate_time_offset(imu, fx)
+        imu = io.shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
+        echo(f"  IMU time stamps corrected by {sync['offset'] * 1e3:.1f} ms (at the middle) and "
+             f"{sync['ppm']:.0f} ppm (from turn rates vs fix course rates)")
+    elif time_sync != "none":
+        raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
+    opt = options or NavOptions()
+    if lever_arm is not None:
+        opt.lever_arm = tuple(_vec3(lever_arm, "length", "--lever-arm") if isinstance(lever_arm, str)
+                              else lever_arm)
+    t_ref = float(fx.t[0])
+    opt.outages = tuple(parse_outages(outages, t_ref)) if isinstance(outages, (str, type(None))) else tuple(outages)
+    opt.fix_latency = float(fix_latency)
+    opt.lag = lag
+    opt.scale_factors = bool(scale_factors)
+    ini = _parse_init(init) if isinstance(init, (str, type(None))) else dict(init)
+    if "heading" in ini:
+        opt.heading = ini["heading"]
+    out = out if out is not None else default_out_dir("navigate")
+    rd = RunDir(out, "navigate")
+    rd.check()
+    res = navigate_recorded(imu, fx, opt)
+    t, err, idx = fix_errors(res, fx)
+    hz = np.hypot(err[:, 0], err[:, 1])
+    starts, oe = outage_end_errors(res, fx)
+    outs = res.init["outages"]
+    in_out = np.zeros(t.size, bool)
+    for s, ln in outs:
+        in_out |= (t >= s) & (t < s + ln)
+    lab = list(res.labels)
+    i_gb = [lab.index(f"eps_{a}") for a in "xyz"]
+    i_ab = [lab.index(f"nabla_{a}") for a in "xyz"]
+    att = res.att
+    metrics = {
+        "duration_s": float(res.t[-1] - res.t[0]), "n_fixes_used": int(res.fix_t.size),
+        "n_outages": len(outs), "outage_end_hz_err_median_m": float(np.median(oe)) if oe.size else None,
+        "outage_end_hz_err_max_m": float(np.max(oe)) if oe.size else None,
+        "outage_end_hz_err_m": oe.tolist(),
+        "hz_err_with_fixes_median_m": float(np.median(hz[~in_out])) if (~in_out).any() else None,
+        "hz_err_with_fixes_max_m": float(np.max(hz[~in_out])) if (~in_out).any() else None,
+        "nis_mean": float(np.mean(res.nis)) if res.nis.size else None,
+        "final_pitch_deg": float(np.degrees(att[-1, 0])), "final_roll_deg": float(np.degrees(att[-1, 1])),
+        "final_heading_deg": float(np.degrees(res.heading[-1])),
+        "final_sigma_heading_deg": float(np.degrees(res.sigma[-1, 2])),
+        "gyro_bias_final_dph": (res.gyro_bias[-1] / units.dph).tolist(),
+        "gyro_bias_sigma_final_dph": (res.sigma[-1, i_gb] / units.dph).tolist(),
+        "accel_bias_final_ug": (res.accel_bias[-1] / units.ug).tolist(),
+        "accel_bias_sigma_final_ug": (res.sigma[-1, i_ab] / units.ug).tolist(),
+        "initial_heading_deg": float(np.degrees(res.init["heading"])),
+        "imu_gaps": int(len(data.gaps)),
+    }
+    if sync is not None:
+        metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"])
+    if res.scale is not None:
+        metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
+    cfg = {"imu": str(imu_path), "fixes": str(fix_path), "format": data.format,
+           "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.lever_arm)}] m",
+           "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
+           "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
+           "init": str(init or ""), "time_sync": time_sync, "velocity_lag": f"{velocity_lag:g} s",
+           "imu_delay": f"{imu_delay:g} s", "scale_factors": bool(scale_factors)}
+    echo(f"{imu_path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_path}: {len(fx)} fixes"
+         f"{' with velocity' if fx.vel is not None else ''}")
+    echo(f"  start {res.init['t_start'] - fx.t[0]:.2f} s after the first fix; heading "
+         f"{np.degrees(res.init['heading']):.2f} deg (clockwise from north, {res.init['heading_source']})")
+    if oe.size:
+        echo(f"  {len(outs)} outages: horizontal error at their end median {np.median(oe):.2f} m, "
+             f"max {np.max(oe):.2f} m")
+    if (~in_out).any():
+        echo(f"  with fixes: horizontal error median {np.median(hz[~in_out]):.3f} m")
+    echo(f"  final attitude pitch {metrics['final_pitch_deg']:.3f} deg, roll {metrics['final_roll_deg']:.3f} deg, "
+         f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
+    echo(f"  gyro bias [deg/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [ug] "
+         f"{np.round(metrics['accel_bias_final_ug'], 0).tolist()}")
+
+    rd.prepare()
+    rd.write_text("config.toml", f"# sinslab {__version__} — navigate\n" + dump_toml(cfg))
+    sig = res.sigma
+    sol = {"t_s": res.t - res.t[0], "t_abs_s": res.t, "lat_deg": np.degrees(res.nav[:, 7]),
+           "lon_deg": np.degrees(res.nav[:, 8]), "h_m": res.nav[:, 9],
+           "vE_mps": res.nav[:, 4], "vN_mps": res.nav[:, 5], "vU_mps": res.nav[:, 6],
+           "pitch_deg": np.degrees(att[:, 0]), "roll_deg": np.degrees(att[:, 1]),
+           "heading_deg": np.degrees(res.heading)}
+    for i, (l, u_) in enumerate(zip(res.labels, res.units_)):
+        sc = {"arcmin": units.arcmin, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
+        if l.startswith("dp") and l in ("dpL", "dplat", "dL"):
+            pass
+        sol[f"sigma_{l}_{u_.replace('/', 'p')}"] = sig[:, i] / sc
+    for k, a in enumerate("xyz"):
+        sol[f"gyro_bias_{a}_dph"] = res.gyro_bias[:, k] / units.dph
+        sol[f"accel_bias_{a}_ug"] = res.accel_bias[:, k] / units.ug
+    rd.write_table("solution", sol, "navigation solution at the filter epochs with filter sigma")
+    rd.write_table("fix_errors", {"t_s": t - res.t[0], "east_m": err[:, 0], "north_m": err[:, 1],
+                                  "up_m": err[:, 2], "in_outage": in_out.astype(int)},
+                   "solution (antenna) minus fix at every fix time")
+    # figures
+    lat0, lon0 = fx.lat[0], fx.lon[0]
+    rm, rn = E.radii(lat0, fx.h[0])
+    xe = (fx.lon - lon0) * rn * math.cos(lat0)
+    yn = (fx.lat - lat0) * rm
+    se = (res.nav[:, 8] - lon0) * rn * math.cos(lat0)
+    sn = (res.nav[:, 7] - lat0) * rm
+    fig, axes = plotting.figure(1, 1, width=7.5, row_height=6.5)
+    ax = axes[0]
+    ax.plot(xe, yn, "k.", ms=1.5, label="fixes")
+    ax.plot(se, sn, "-", color=plotting.COLORS[0], lw=1, label="INS/fix solution")
+    for s, ln in outs:
+        m = (res.t >= s) & (res.t < s + ln)
+        ax.plot(se[m], sn[m], "-", color=plotting.COLORS[1], lw=2)
+    ax.plot([], [], "-", color=plotting.COLORS[1], lw=2, label="during outages")
+    ax.set_aspect("equal", "datalim")
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    ax.legend()
+    rd.write_figure("track", fig, "Track on a local ENU map (origin at the first fix); outages in red.")
+    fig, axes = plotting.figure(3, 1, width=9.0)
+    tt = t - res.t[0]
+    for ax, k, nm in zip(axes, range(3), ("east", "north", "up")):
+        ax.plot(tt, err[:, k], ".", ms=1.5, color=plotting.COLORS[k])
+        ax.set_ylabel(f"{nm} error [m]")
+        for s, ln in outs:
+            ax.axvspan(s - res.t[0], s + ln - res.t[0], color="0.85", lw=0)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle("Solution minus fixes (grey: simulated outages)")
+    rd.write_figure("errors", fig, "Position error of the solution (antenna) versus every fix.")
+    fig, axes = plotting.figure(3, 1, width=9.0)
+    ts_ = res.t - res.t[0]
+    axes[0].semilogy(ts_, np.degrees(sig[:, 0:3]) * 60, lw=1)
+    axes[0].set_ylabel("attitude σ [arcmin]")
+    axes[0].legend(["φE", "φN", "φU"], fontsize=8)
+    axes[1].semilogy(ts_, sig[:, i_gb] / units.dph, lw=1)
+    axes[1].set_ylabel("gyro bias σ [deg/h]")
+    axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
+    axes[2].set_ylabel("accel bias σ [ug]")
+    axes[2].set_xlabel("time [s]")
+    rd.write_figure("sigma", fig, "Filter standard deviations of attitude and sensor biases.")
+    summary = rd.complete(command_summary(
+        rd, "navigate", "loosely coupled INS + position/velocity fixes on recorded data", cfg, metrics,
+        ["Heading is clockwise from north.",
+         f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
+         if res.init.get("rest_start") else "No rest at the start."]))
+    echo(f"  -> {out}")
+    return summary, res, fx
+
+
+def register(app):
+    """Add ``sinslab navigate`` to the typer app (registered via sinslab.sim.allan.register)."""
+    import typer
+
+    @app.command()
+    def navigate(imu: Path = typer.Option(..., "--imu", help="recorded IMU file"),
+                 fixes: Path = typer.Option(..., "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp)"),
+                 format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
+                 fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
+                 lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
+                 mount: Optional[str] = typer.Option(None, "--mount", help="sensor -> vehicle rotation: rpy:R,P,Y or euler:P,R,Y (deg)"),
+                 frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu | frd | flu"),
+                 outages: Optional[str] = typer.Option(None, "--outages", help="START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
+                 fix_latency: float = typer.Option(0.0, "--fix-latency", help="simulated fix latency [s]"),
+                 lag: str = typer.Option("aware", "--lag", help="aware | ignore (how late fixes are applied)"),
+                 init: Optional[str] = typer.Option(None, "--init", help='heading="30 deg" (clockwise from north); default: from the fix course'),
+                 time_sync: str = typer.Option("none", "--time-sync", help="auto: estimate the IMU time offset and clock drift from turns"),
+                 velocity_lag: float = typer.Option(0.0, "--velocity-lag", help="fix velocities describe this many s before their stamp"),
+                 imu_delay: float = typer.Option(0.0, "--imu-delay", help="add to RTKLIB IMU time stamps [s]"),
+                 scale_factors: bool = typer.Option(False, "--scale-factors", help="estimate gyro/accel scale factors"),
+                 max_gap: float = typer.Option(1.0, "--max-gap", help="longest IMU gap bridged [s]"),
+                 allow_gaps: bool = typer.Option(False, "--allow-gaps", help="bridge IMU gaps of any length"),
+                 out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]")) -> None:
+        """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
+        from sinslab.cli import CliError, user_errors
+
+        with user_errors():
+            try:
+                navigate_files(imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
+                               mount=mount, frame=frame, outages=outages, fix_latency=fix_latency,
+                               lag=lag, init=init, time_sync=time_sync, velocity_lag=velocity_lag,
+                               imu_delay=imu_delay, scale_factors=scale_factors, max_gap=max_gap,
+                               allow_gaps=allow_gaps, out=out, echo=typer.echo)
+            except (ValueError, FileNotFoundError) as e:
+                raise CliError(str(e)) from None
+
+    return navigate

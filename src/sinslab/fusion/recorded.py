@@ -1,0 +1,395 @@
+"""Recorded IMU + fix data through the loosely coupled filter: initial attitude from the
+data, outages, and evaluation against the fixes.
+
+1. **Initial attitude from the data.** Levelling from the mean specific force of the
+   stationary stretch at the start of the record (fix speed below ``static_speed``);
+   the mean gyro output there (minus the Earth-rate vertical component) is the initial
+   gyro-bias estimate (MEMS biases are hundreds of °/h, 40x the Earth rate, so
+   gyrocompassing is impossible and the rest is used to calibrate instead). Heading:
+   given (``heading``), or taken from the fix velocity once the vehicle moves faster than
+   ``move_speed`` (the INS attitude is propagated from the levelled start by the gyros
+   and rotated about the vertical so that the body forward axis points along the fix
+   course; a car does not drive sideways). The filter starts there.
+2. **Filter**: :func:`sinslab.fusion.loosely_coupled.loosely_coupled` with the model and
+   P0 from :class:`NavOptions`.
+3. **Outages and latency.** Fixes whose validity time lies in an outage are dropped; a
+   fix valid at t arrives at t + latency (``lag`` as in the filter).
+
+Evaluation: :func:`fix_errors` compares the solution (antenna point) with every fix,
+used or not; :func:`outage_end_errors` takes the horizontal error at the last fix of each
+outage.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sinslab.core import attitude as A
+from sinslab.core import earth as E
+from sinslab.core import units
+from sinslab.core.records import ImuRecord, NavState
+from sinslab.data.io import Fixes
+from sinslab.fusion.loosely_coupled import _null, lc_model, loosely_coupled
+
+__all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "parse_outages", "periodic_outages",
+           "fix_errors", "outage_end_errors", "level_from_rest", "leveled_start"]
+
+
+@dataclass
+class NavOptions:
+    """Settings of :func:`navigate_recorded` (SI units)."""
+
+    lever_arm: tuple = (0.0, 0.0, 0.0)      #: IMU -> antenna, vehicle RFU axes [m]
+    outages: tuple = ()                     #: ((start, length), ...) absolute times [s]
+    fix_latency: float = 0.0                #: [s]
+    lag: str = "aware"                      #: "aware" | "ignore"
+    heading: float | None = None            #: initial heading, clockwise from north [rad]
+    use_velocity: bool = True
+    gyro_arw: float = 0.0038 * units.deg    #: [rad/sqrt(s)] (0.0038 deg/s/sqrt(Hz))
+    accel_vrw: float = 70 * units.ug        #: [m/s/sqrt(s)]
+    gyro_rrw: float = 3.8e-5 * units.deg * 2   #: gyro bias random walk [rad/s/sqrt(s)]
+    accel_rrw: float = 7 * units.ug * 4     #: accel bias random walk [m/s^2/sqrt(s)]
+    gyro_bias_sigma: float = 0.05 * units.deg   #: initial 1σ [rad/s] (after rest calibration)
+    accel_bias_sigma: float = 0.2           #: initial 1σ [m/s^2]
+    scale_factors: bool = False
+    scale_sigma: float = 0.01               #: initial 1σ of scale-factor states [-]
+    att_sigma: tuple = (1.0 * units.deg, 1.0 * units.deg, 5.0 * units.deg)  #: φE φN φU
+    pos_sigma_floor: float = 0.05           #: fix σ floor [m] (timing, antenna phase centre)
+    vel_sigma_floor: float = 0.05           #: [m/s]
+    static_speed: float = 0.05              #: [m/s] below it the vehicle is at rest
+    move_speed: float = 2.0                 #: [m/s] heading from the fix course above it
+    kf_dt: float = 0.02                     #: filter step [s]
+    nsub: int = 2
+    rest_bias: bool = True                  #: initial gyro bias from the initial rest
+    rest_noise: bool = True                 #: white noise per axis from the initial rest
+    #: (sample scatter at rest × sqrt(dt), floored at gyro_arw/accel_vrw: engine vibration
+    #: in a car is far above a datasheet's noise density)
+
+    def check(self):
+        la = np.asarray(self.lever_arm, dtype=float)
+        if la.shape != (3,) or not np.all(np.isfinite(la)):
+            raise ValueError(f"lever arm must be 3 finite numbers [m], got {self.lever_arm!r}")
+        if self.lag not in ("aware", "ignore"):
+            raise ValueError(f"lag must be 'aware' or 'ignore', got {self.lag!r}")
+        if not (self.fix_latency >= 0 and math.isfinite(self.fix_latency)):
+            raise ValueError(f"fix latency must be >= 0 s, got {self.fix_latency}")
+        for o in self.outages:
+            s, ln = (o[2], o[1]) if o[0] == "periodic" else o
+            if not (ln > 0 and math.isfinite(s)):
+                raise ValueError(f"outage {s}:{ln}: length must be > 0")
+
+
+@dataclass
+class RecordedNav:
+    """Result of :func:`navigate_recorded` at the filter epochs (every ``kf_dt``)."""
+
+    t: np.ndarray                  #: (M,) [s]
+    nav: np.ndarray                #: (M, 10) [q0..q3, vE, vN, vU, lat, lon, h] after feedback
+    sigma: np.ndarray              #: (M, n) filter σ
+    labels: tuple                  #: state labels
+    units_: tuple                  #: display units of the states
+    gyro_bias: np.ndarray          #: (M, 3) compensation in use [rad/s]
+    accel_bias: np.ndarray         #: (M, 3) [m/s^2]
+    scale: np.ndarray | None       #: (M, 6) gyro, accel scale-factor compensation [-]
+    fix_t: np.ndarray              #: (J,) validity times of the applied fixes
+    innovation: np.ndarray         #: (J, m)
+    nis: np.ndarray                #: (J,)
+    init: dict = field(default_factory=dict)
+    options: NavOptions = None
+
+    @property
+    def att(self):
+        """(M, 3) ``[pitch, roll, yaw]`` [rad] of the vehicle body (mount applied on input)."""
+        return A.quat_to_euler(self.nav[:, :4])
+
+    @property
+    def heading(self):
+        """(M,) heading clockwise from north [rad], 0..2π."""
+        return np.mod(A.yaw_to_heading(self.att[:, 2]), 2 * np.pi)
+
+    def sigma_of(self, block_prefix):
+        idx = [i for i, l in enumerate(self.labels) if l.startswith(block_prefix)]
+        return self.sigma[:, idx]
+
+
+# ------------------------------------------------------------------------- outages -----
+def parse_outages(text, t_ref=0.0):
+    """``"START:LEN,START:LEN"`` (s from ``t_ref``) or ``"LEN/PERIOD[@FIRST]"`` (periodic, first
+    outage FIRST s after ``t_ref``, default 40 s) -> list of (start, length) absolute [s]
+    (periodic ones are expanded by :func:`periodic_outages` once the end is known: returned
+    as a ('periodic', LEN, PERIOD, FIRST) tuple)."""
+    if text is None or str(text).strip() in ("", "none"):
+        return []
+    s = str(text).strip()
+    if "/" in s:
+        a, _, rest = s.partition("/")
+        per, _, first = rest.partition("@")
+        try:
+            ln, per = float(a), float(per)
+            first = float(first) if first else 40.0
+        except ValueError:
+            raise ValueError(f"cannot read the outages {text!r}; use LEN/PERIOD[@FIRST], e.g. 15/60@40") from None
+        if not (0 < ln < per):
+            raise ValueError(f"outages {text!r}: need 0 < LEN < PERIOD")
+        return [("periodic", ln, per, first)]
+    out = []
+    for tok in s.split(","):
+        a, sep, b = tok.partition(":")
+        try:
+            st, ln = float(a), float(b)
+        except ValueError:
+            raise ValueError(f"cannot read the outage {tok!r}; use START:LEN (seconds from the "
+                             "first fix), e.g. 100:15") from None
+        if not sep or not (ln > 0):
+            raise ValueError(f"outage {tok!r}: use START:LEN with LEN > 0")
+        out.append((t_ref + st, ln))
+    return out
+
+
+def periodic_outages(t_first, t_last, length, period, first=40.0, end_margin=30.0):
+    """Outages of ``length`` s every ``period`` s from ``t_first + first`` until
+    ``t_last − end_margin`` (the rtklib-drive source project: first 40 s, stop 30 s
+    before the end)."""
+    out = []
+    s = t_first + first
+    while s + length <= t_last - end_margin:
+        out.append((s, length))
+        s += period
+    return out
+
+
+def _expand_outages(outs, t0, t1):
+    res = []
+    for o in outs:
+        if isinstance(o, tuple) and len(o) == 4 and o[0] == "periodic":
+            res += periodic_outages(t0, t1, o[1], o[2], o[3])
+        else:
+            res.append((float(o[0]), float(o[1])))
+    return res
+
+
+# ---------------------------------------------------------------------- initial state --
+def level_from_rest(imu: ImuRecord, k0, k1, lat):
+    """Pitch, roll [rad] and the gyro-bias estimate [rad/s] from samples ``k0:k1`` at rest."""
+    f = imu.dv[k0:k1].sum(0) / ((k1 - k0) * imu.dt)
+    w = imu.dtheta[k0:k1].sum(0) / ((k1 - k0) * imu.dt)
+    pitch = math.atan2(f[1], math.hypot(f[0], f[2]))
+    roll = math.atan2(-f[0], f[2])
+    C = A.euler_to_dcm(np.array([pitch, roll, 0.0]))
+    up_b = C.T @ np.array([0.0, 0.0, 1.0])
+    w_bias = w - up_b * (E.WIE * math.sin(lat))       # horizontal Earth rate (<15 deg/h) kept
+    return pitch, roll, w_bias, f
+
+
+def leveled_start(imu, fixes: Fixes, opt: NavOptions):
+    """Index range of the initial rest and levelling results (see module notes)."""
+    sp = _fix_speed(fixes)
+    moving = np.flatnonzero(sp > opt.static_speed)
+    t_move = fixes.t[moving[0]] if moving.size else fixes.t[-1]
+    k1 = int(np.searchsorted(imu.t, min(t_move, imu.t[0] + 120.0)))
+    k0 = int(np.searchsorted(imu.t, max(imu.t0, fixes.t[0]) - 1e-9))
+    if k1 - k0 < int(round(1.0 / imu.dt)):
+        return None
+    return k0, k1
+
+
+def _fix_speed(fixes: Fixes):
+    if fixes.vel is not None:
+        return np.hypot(fixes.vel[:, 0], fixes.vel[:, 1])
+    rm, rn = E.radii(fixes.lat, fixes.h)
+    n = np.gradient(fixes.lat, fixes.t) * rm
+    e = np.gradient(fixes.lon, fixes.t) * rn * np.cos(fixes.lat)
+    return np.hypot(e, n)
+
+
+def _fix_vel_enu(fixes: Fixes):
+    if fixes.vel is not None:
+        return fixes.vel
+    rm, rn = E.radii(fixes.lat, fixes.h)
+    return np.stack([np.gradient(fixes.lon, fixes.t) * rn * np.cos(fixes.lat),
+                     np.gradient(fixes.lat, fixes.t) * rm, np.gradient(fixes.h, fixes.t)], -1)
+
+
+def _interp_fix(fixes, t):
+    lat = np.interp(t, fixes.t, fixes.lat)
+    lon = np.interp(t, fixes.t, fixes.lon)
+    h = np.interp(t, fixes.t, fixes.h)
+    v = _fix_vel_enu(fixes)
+    vel = np.array([np.interp(t, fixes.t, v[:, i]) for i in range(3)])
+    return lat, lon, h, vel
+
+
+def _imu_pos_from_antenna(lat, lon, h, C, lever):
+    d = C @ lever                                      # ENU offset IMU -> antenna
+    rm, rn = E.radii(lat, h)
+    return lat - d[1] / float(rm), lon - d[0] / (float(rn) * math.cos(lat)), h - d[2]
+
+
+# ------------------------------------------------------------------ the driver ---------
+
+
+# ------------------------------------------------------------------------ the filter ---
+def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = None,
+                      *, progress=False) -> RecordedNav:
+    """Loosely coupled INS + fixes on a recorded IMU stream (see the module notes).
+
+    Raises ValueError when the fix times do not overlap the IMU record, when there is no
+    usable fix, or when the vehicle never moves and no heading is given.
+    """
+    from sinslab.nav import strapdown as sd
+
+    opt = opt or NavOptions()
+    opt.check()
+    t_lo, t_hi = imu.t0, float(imu.t[-1])
+    if len(fixes) == 0 or fixes.t[-1] < t_lo or fixes.t[0] > t_hi:
+        span = "no fixes" if len(fixes) == 0 else f"{fixes.t[0]:.3f}..{fixes.t[-1]:.3f} s"
+        raise ValueError(f"fix times ({span}) do not overlap the IMU record ({t_lo:.3f}..{t_hi:.3f} s): "
+                         "different time bases? (GPST vs UTC differ by 18 s; seconds of week vs "
+                         "seconds since 1970; a logging delay)")
+    fixes = fixes.select((fixes.t >= t_lo) & (fixes.t <= t_hi))
+    if len(fixes) < 2:
+        raise ValueError("fewer than 2 fixes inside the IMU record")
+    outages = _expand_outages(opt.outages, float(fixes.t[0]), float(fixes.t[-1]))
+    lever = np.asarray(opt.lever_arm, dtype=float)
+    dt = imu.dt
+    nsub = int(opt.nsub)
+    k_kf = int(round(opt.kf_dt / dt))
+    if k_kf < nsub or k_kf % nsub or abs(k_kf * dt - opt.kf_dt) > 0.02 * dt:
+        k_kf = max(nsub, int(round(opt.kf_dt / dt / nsub)) * nsub)
+    T = k_kf * dt
+    fvel = _fix_vel_enu(fixes)
+    sp = np.hypot(fvel[:, 0], fvel[:, 1])
+    lat0 = float(fixes.lat[0])
+
+    # --- initial attitude: levelling at rest, heading given or from the fix course
+    rest = leveled_start(imu, fixes, opt)
+    init = {}
+    gb = np.zeros(3)
+    if rest is not None:
+        k0, k1 = rest
+        pitch, roll, wb, fmean = level_from_rest(imu, k0, k1, lat0)
+        if opt.rest_bias:
+            gb = wb.copy()
+        if opt.rest_noise:
+            sq = math.sqrt(dt)
+            arw = np.maximum(np.std(imu.dtheta[k0:k1], 0) / dt * sq, opt.gyro_arw)
+            vrw = np.maximum(np.std(imu.dv[k0:k1], 0) / dt * sq, opt.accel_vrw)
+            init.update(rest_gyro_arw=arw.tolist(), rest_accel_vrw=vrw.tolist())
+        init.update(rest_start=float(imu.t[k0] - dt), rest_end=float(imu.t[k1 - 1]),
+                    level_pitch=pitch, level_roll=roll, rest_gyro_mean=wb.tolist(),
+                    rest_f_norm=float(np.linalg.norm(fmean)))
+    else:
+        k0, pitch, roll = 0, 0.0, 0.0
+        init.update(rest_start=None, note="no rest at the start: pitch and roll start at 0 with the "
+                    "initial attitude σ")
+    if opt.heading is not None:
+        ks = k0
+        ts = float(imu.t[ks] - dt) if ks > 0 else imu.t0
+        att0 = np.array([pitch, roll, A.heading_to_yaw(opt.heading)])
+        init["heading_source"] = "given"
+    else:
+        mv = np.flatnonzero((sp > opt.move_speed) & (fixes.t > imu.t[k0]))
+        if mv.size == 0:
+            raise ValueError(f"the vehicle never moves faster than {opt.move_speed} m/s; give the "
+                             "initial heading (--init heading=...)")
+        t_m = float(fixes.t[mv[0]])
+        ks = int(np.searchsorted(imu.t, t_m))
+        ks -= (ks - k0) % nsub
+        pre = sd.initial_state_array(NavState(lat0, float(fixes.lon[0]), float(fixes.h[0]),
+                                              np.zeros(3), np.array([pitch, roll, 0.0])))
+        sd.step(pre, imu.dtheta[k0:ks], imu.dv[k0:ks], dt, nsub, gyro_bias=gb)
+        C = A.quat_to_dcm(pre[:4])
+        yaw_fwd = math.atan2(-C[0, 1], C[1, 1])
+        ts = float(imu.t[ks - 1]) if ks > 0 else imu.t0
+        _, _, _, v = _interp_fix(fixes, ts)
+        yaw_v = math.atan2(-v[0], v[1])
+        Rz = A.euler_to_dcm(np.array([0.0, 0.0, yaw_v - yaw_fwd]))
+        att0 = A.dcm_to_euler(Rz @ C)
+        init["heading_source"] = f"fix course at {ts - fixes.t[0]:.2f} s after the first fix"
+    lat_a, lon_a, h_a, v0 = _interp_fix(fixes, ts)
+    C0 = A.euler_to_dcm(att0)
+    lat_i, lon_i, h_i = _imu_pos_from_antenna(lat_a, lon_a, h_a, C0, lever)
+    init.update(t_start=ts, pitch=float(att0[0]), roll=float(att0[1]),
+                heading=float(np.mod(A.yaw_to_heading(att0[2]), 2 * np.pi)),
+                gyro_bias0=gb.tolist())
+
+    # --- model, initial covariance and the fixes used
+    g_noise = np.asarray(init.get("rest_gyro_arw", opt.gyro_arw))
+    a_noise = np.asarray(init.get("rest_accel_vrw", opt.accel_vrw))
+    model = lc_model(g_noise, a_noise, opt.gyro_rrw, opt.accel_rrw, scale_factors=opt.scale_factors)
+    lay = model.layout
+    n = model.n
+    rm0, rn0 = (float(x) for x in E.radii(lat_i, h_i))
+    sp0 = np.zeros(n)
+    sp0[lay.slice("phi")] = opt.att_sigma
+    jf = int(np.argmin(np.abs(fixes.t - ts)))
+    vs = fixes.sigma_vel[jf] if fixes.sigma_vel is not None else np.full(3, 0.1)
+    sp0[lay.slice("dv")] = np.maximum(vs, opt.vel_sigma_floor) * 2
+    ps = np.maximum(fixes.sigma[jf], opt.pos_sigma_floor) * 2
+    sp0[lay.slice("dp")] = [ps[0] / rm0, ps[1] / (rn0 * math.cos(lat_i)), ps[2]]
+    sp0[lay.slice("eps")] = opt.gyro_bias_sigma
+    sp0[lay.slice("nabla")] = opt.accel_bias_sigma
+    if opt.scale_factors:
+        sp0[lay.slice("kg")] = opt.scale_sigma
+        sp0[lay.slice("ka")] = opt.scale_sigma
+    n_ep = (len(imu) - ks) // k_kf
+    if n_ep < 2:
+        raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
+    sel = fixes.select((fixes.t > ts) & (fixes.t <= ts + T * n_ep))
+    use_vel = opt.use_velocity and sel.vel is not None
+
+    # --- the filter (the one INS + fix driver)
+    r = loosely_coupled(
+        imu, NavState(lat_i, lon_i, h_i, v0, att0), sel.t, np.stack([sel.lat, sel.lon, sel.h], -1),
+        np.maximum(sel.sigma, opt.pos_sigma_floor), np.diag(sp0 ** 2), model=model,
+        fix_vel=_fix_vel_enu(sel) if use_vel else None,
+        vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
+        lever_arm=lever, fix_lag=opt.fix_latency, lag=opt.lag, outages=outages, kf_dt=T,
+        nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, progress=progress, label="navigating")
+    init["outages"] = outages
+    return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
+                       r.fix_t, r.innovation, r.nis, init, opt)
+
+
+# ----------------------------------------------------------------------- evaluation ----
+def _interp_rows(res: RecordedNav, t):
+    nav = res.nav
+    lat = np.interp(t, res.t, nav[:, 7])
+    lon = np.interp(t, res.t, nav[:, 8])
+    h = np.interp(t, res.t, nav[:, 9])
+    q = np.stack([np.interp(t, res.t, nav[:, i]) for i in range(4)], -1)
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return lat, lon, h, A.quat_to_dcm(q)
+
+
+def fix_errors(res: RecordedNav, fixes: Fixes, lever_arm=None):
+    """Solution (antenna point) minus fix at every fix time inside the solution span.
+
+    Returns ``(t (K,), err (K, 3) east/north/up [m], index (K,) into fixes)``.
+    """
+    lever = np.asarray(res.options.lever_arm if lever_arm is None else lever_arm, dtype=float)
+    idx = np.flatnonzero((fixes.t >= res.t[0]) & (fixes.t <= res.t[-1]))
+    t = fixes.t[idx]
+    lat, lon, h, C = _interp_rows(res, t)
+    d = C @ lever
+    rm, rn = E.radii(lat, h)
+    e = (lon - fixes.lon[idx]) * rn * np.cos(lat) + d[:, 0]
+    nn = (lat - fixes.lat[idx]) * rm + d[:, 1]
+    u = h - fixes.h[idx] + d[:, 2]
+    return t, np.stack([e, nn, u], -1), idx
+
+
+def outage_end_errors(res: RecordedNav, fixes: Fixes, outages=None):
+    """Horizontal error [m] at the last fix inside each outage (the INS has coasted the
+    whole outage there). Returns ``(outage starts (k,), errors (k,))``."""
+    outs = res.init.get("outages", []) if outages is None else outages
+    t, err, _ = fix_errors(res, fixes)
+    starts, errs = [], []
+    for s, ln in outs:
+        m = np.flatnonzero((t >= s) & (t < s + ln))
+        if m.size:
+            starts.append(s)
+            errs.append(float(np.hypot(err[m[-1], 0], err[m[-1], 1])))
+    return np.array(starts), np.array(errs)
