@@ -6,7 +6,8 @@ import pandas as pd
 import pytest
 
 from sinslab.app import outputs
-from sinslab.app.outputs import MARKER, OutputDirError, RunDir, atomic_path, atomic_write
+from sinslab.app.outputs import MARKER, OutputDirError, RunDir
+from sinslab.core.atomic import atomic_path, atomic_write
 
 
 def test_atomic_write_replaces_whole_file(tmp_path):

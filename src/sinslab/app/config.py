@@ -45,6 +45,7 @@ from pydantic import (BaseModel, PlainValidator, ConfigDict, Field, PlainSeriali
                       ValidationError, WithJsonSchema)
 
 from sinslab.core import units
+from sinslab.core.toml import dump_toml
 
 __all__ = ["ConfigError", "Quantity", "QuantityVec", "Q", "QV", "Section", "ExperimentConfig",
            "load_toml", "parse_set", "deep_merge", "resolve", "dump_toml", "config_to_toml",
@@ -343,55 +344,6 @@ def resolve(model_cls: type[ExperimentConfig], *, quick: Mapping | None = None,
         return model_cls.model_validate(data)
     except ValidationError as err:
         raise ConfigError(_format_error(model_cls, err, origins)) from None
-
-
-# ------------------------------------------------------------------ TOML output ---------
-
-_BARE = re.compile(r"^[A-Za-z0-9_-]+$")
-
-
-def _tkey(k: str) -> str:
-    return k if _BARE.match(k) else json.dumps(k, ensure_ascii=False)
-
-
-def _tval(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_tval(x) for x in v) + "]"
-    if isinstance(v, Mapping):
-        return "{" + ", ".join(f"{_tkey(k)} = {_tval(x)}" for k, x in v.items() if x is not None) + "}"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-
-def dump_toml(data: Mapping, _prefix: str = "") -> str:
-    """Write a nested dict as TOML (scalars first, then ``[tables]``); ``None`` is omitted."""
-    lines = []
-    tables = []
-    for k, v in data.items():
-        if v is None:
-            continue
-        if isinstance(v, Mapping):
-            tables.append((k, v))
-        else:
-            lines.append(f"{_tkey(k)} = {_tval(v)}")
-    out = "\n".join(lines)
-    for k, v in tables:
-        name = f"{_prefix}{_tkey(k)}"
-        body = dump_toml(v, name + ".")
-        head = f"[{name}]"
-        out += ("\n\n" if out else "") + head + ("\n" + body if body else "")
-    return out + ("\n" if not _prefix and out else "")
 
 
 def config_to_toml(cfg: BaseModel, header: str = "") -> str:

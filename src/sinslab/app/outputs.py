@@ -32,6 +32,8 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from sinslab.core.atomic import atomic_path, atomic_write
+
 __all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "atomic_write", "atomic_path",
            "to_jsonable", "dumps_json", "RunDir", "default_out_dir", "is_run_dir"]
 
@@ -41,45 +43,6 @@ LARGE_ROWS = 100_000
 
 class OutputDirError(ValueError):
     """An output folder that cannot be used (exists and is not a previous sinslab run)."""
-
-
-# ---------------------------------------------------------------- atomic writes ---------
-
-def _tmp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.tmp-{os.getpid()}-{secrets.token_hex(4)}")
-
-
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; on success rename it to ``path``.
-
-    For writers that want a file name (``fig.savefig(tmp)``, ``df.to_parquet(tmp)``).
-    On any exception (including KeyboardInterrupt/SystemExit) the temporary file is
-    removed and ``path`` is untouched.
-    """
-    path = Path(path)
-    tmp = _tmp_name(path)
-    try:
-        yield tmp
-        if not tmp.exists():
-            raise FileNotFoundError(f"writer produced no file for {path}")
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
-
-
-def atomic_write(path: str | os.PathLike, data: str | bytes, encoding: str = "utf-8") -> Path:
-    """Write ``data`` to ``path`` atomically (temporary name + ``os.replace``)."""
-    path = Path(path)
-    raw = data.encode(encoding) if isinstance(data, str) else data
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            fh.write(raw)
-    return path
 
 
 # ---------------------------------------------------------------- JSON ------------------

@@ -23,7 +23,7 @@ import math
 import os
 from pathlib import Path
 
-from sinslab.app.outputs import atomic_write
+from sinslab.core.atomic import atomic_write
 
 __all__ = ["ReportError", "render", "build", "index"]
 

@@ -873,7 +873,7 @@ def write_imu(path, imu: ImuRecord, fmt=None):
     """Write increments: ``csv`` (header ``t[s],dtheta_x[rad],...,dv_z[m/s]``), ``parquet``
     (same columns) or ``mat`` (variable ``imu`` = PSINS layout N×7 and ``dt``); the format
     defaults from the suffix. Atomic (temporary name + rename). Returns the path."""
-    from sinslab.app.outputs import atomic_path
+    from sinslab.core.atomic import atomic_path
     path = Path(path)
     fmt = fmt or {".parquet": "parquet", ".pq": "parquet", ".mat": "mat"}.get(path.suffix.lower(), "csv")
     a = np.column_stack([imu.t, imu.dtheta, imu.dv])
@@ -901,7 +901,7 @@ _FIX_VCOLS = ["ve[m/s]", "vn[m/s]", "vu[m/s]", "sd_ve[m/s]", "sd_vn[m/s]", "sd_v
 
 def write_fixes(path, fx: Fixes):
     """Write fixes as CSV (columns of :func:`read_fixes`' CSV format)."""
-    from sinslab.app.outputs import atomic_path
+    from sinslab.core.atomic import atomic_path
     cols = [fx.t, np.degrees(fx.lat), np.degrees(fx.lon), fx.h, *fx.sigma.T]
     names = list(_FIX_COLS)
     if fx.vel is not None:

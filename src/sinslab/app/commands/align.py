@@ -51,7 +51,7 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
     from sinslab import __version__
     from sinslab.data import io
     from sinslab.app import plotting
-    from sinslab.app.config import dump_toml
+    from sinslab.core.toml import dump_toml
     from sinslab.app.outputs import RunDir, command_summary, default_out_dir
 
     imu, ps = io.read_imu(path, fmt)

@@ -31,7 +31,7 @@ def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
     from sinslab import __version__
     from sinslab.data import io
     from sinslab.app import plotting
-    from sinslab.app.config import dump_toml
+    from sinslab.core.toml import dump_toml
     from sinslab.app.outputs import RunDir, command_summary, default_out_dir
     from sinslab.sim.imu import ImuErrors  # noqa: F401
 

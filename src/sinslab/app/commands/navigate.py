@@ -50,7 +50,7 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     from sinslab import __version__
     from sinslab.data import io
     from sinslab.app import plotting
-    from sinslab.app.config import dump_toml
+    from sinslab.core.toml import dump_toml
     from sinslab.app.outputs import RunDir, command_summary, default_out_dir
 
     fmt_eff = fmt or io.guess_imu_format(imu_path)
