@@ -3,6 +3,7 @@ import math
 import warnings
 
 import numpy as np
+import support
 import pytest
 
 from sinslab.methods import alignment as al
@@ -17,14 +18,8 @@ LATS = [34.246, -45.0, 0.0, 60.0, -88.5, 5.0]
 
 
 def static_imu(lat, att, duration, dt=0.01, h=0.0):
-    """Exact increments of an IMU at rest (constant body rates)."""
-    C = A.euler_to_dcm(att)
-    g = float(E.gravity(lat, h))
-    N = int(round(duration / dt))
-    t = dt * np.arange(1, N + 1)
-    w = C.T @ E.wie_n(lat)
-    f = C.T @ np.array([0.0, 0.0, g])
-    return ImuRecord(t, np.tile(w * dt, (N, 1)), np.tile(f * dt, (N, 1)), dt), C
+    """Exact increments of an IMU at rest for ``duration`` [s], and its C_b^n."""
+    return support.static_imu(lat, att, dt, int(round(duration / dt)), h), A.euler_to_dcm(att)
 
 
 def att_of(pitch, roll, heading):

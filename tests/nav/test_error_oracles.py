@@ -12,19 +12,10 @@ from scipy.optimize import curve_fit
 from sinslab.core import attitude, earth
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.nav.strapdown import navigate
+from support import static_imu
 
 DPH = np.radians(1.0) / 3600.0
 G0 = 9.80665
-
-
-def static_imu(lat, att, dt, n, h=0.0, gyro_err=(0, 0, 0), accel_err=(0, 0, 0)):
-    """Ideal IMU at rest (Δθ = C_n^b ω_ie^n dt, Δv = C_n^b [0, 0, g] dt) plus constant
-    body-frame errors [rad/s], [m/s^2]."""
-    C = attitude.euler_to_dcm(att)
-    wb = C.T @ earth.wie_n(lat) + np.asarray(gyro_err, float)
-    fb = C.T @ np.array([0.0, 0.0, float(earth.gravity(lat, h))]) + np.asarray(accel_err, float)
-    t = dt * np.arange(1, n + 1)
-    return ImuRecord(t, np.tile(wb * dt, (n, 1)), np.tile(fb * dt, (n, 1)), dt)
 
 
 def nav_errors(nav, lat, lon, att):

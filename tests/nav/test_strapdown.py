@@ -6,6 +6,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from sinslab.core import attitude, earth
+from support import static_imu
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.nav import strapdown as sd
 
@@ -22,15 +23,6 @@ def increments(rate, t0, dt, n):
     tt = (starts[:, None] + 0.5 * dt * (GL_X + 1.0)[None, :]).ravel()
     r = rate(tt).reshape(n, GL_X.size, 3)
     return starts + dt, 0.5 * dt * np.einsum("j,njk->nk", GL_W, r)
-
-
-def static_imu(lat, att, dt, n, h=0.0):
-    """Ideal output of an IMU at rest: Δθ = C_n^b ω_ie^n dt, Δv = C_n^b [0,0,g] dt."""
-    C = attitude.euler_to_dcm(att)
-    wb = C.T @ earth.wie_n(lat)
-    fb = C.T @ np.array([0.0, 0.0, float(earth.gravity(lat, h))])
-    t = dt * np.arange(1, n + 1)
-    return ImuRecord(t, np.tile(wb * dt, (n, 1)), np.tile(fb * dt, (n, 1)), dt)
 
 
 def att_err(att_true, att_nav):

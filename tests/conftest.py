@@ -1,0 +1,1 @@
+"""Fixtures shared by the test packages; plain helper functions live in ``support.py``."""
