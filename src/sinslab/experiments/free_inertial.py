@@ -530,7 +530,7 @@ def covariance_analysis(truth, ideal, spec, cov_every):
     covariance step (``cov_every`` updates), discretised exactly (Van Loan,
     :func:`sinslab.estimation.kalman.discretize`, with ARW²/VRW² as white-noise densities), and P0 =
     diag(initial errors², bias σ², scale-factor σ²) is propagated with no measurements by
-    :func:`sinslab.estimation.kalman.propagate_covariance`.
+    :func:`sinslab.estimation.linear.propagate_covariance`.
 
     Returns
     -------
