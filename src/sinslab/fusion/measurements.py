@@ -389,6 +389,8 @@ class InsDifference(_Timed):
         IMU 1 -> IMU k in IMU 1 body axes [m].
     streams : (int, int)
         The two streams (default 0 and 1).
+    windows : sequence of (start, end) [s], optional
+        Form the difference only at epochs inside these windows.
     """
 
     def __init__(self, t, sigma, *, lever_arm=None, streams=(0, 1), windows=None):
