@@ -23,7 +23,10 @@ epochs at which some measurement arrives, the end, and at most ``max_block`` apa
 live stream runs its compiled mechanization (:func:`sinslab.nav.strapdown.step`) in one
 call, writing its row ``[q, v, L, λ, h]`` at every epoch of the block together with the
 mean compensated rate and specific force of every step. A precomputed stream (a
-navigation series computed elsewhere) just reads its rows.
+navigation series computed elsewhere) just reads its rows. The block boundaries are part
+of the arithmetic: a held vertical channel takes its vertical rate from the numerical
+derivative of each block's height slice (one-sided at the block ends), so the same stops
+give the same numbers and other stops differ at the level of that derivative.
 
 Per block ``[e0, e1]``:
 
