@@ -4,11 +4,11 @@ Run: ``.venv/bin/python benchmarks/estimation.py [--quick] [--json FILE]``
 
 1. Covariance propagation of a 21-state model (φ, δv, δp, gyro/accel bias, gyro/accel
    scale factor from :mod:`sinslab.nav.errstate`) with the compiled loop
-   :func:`sinslab.estimation.kalman.propagate_covariance`: absolute steps/s on one core and the
+   :func:`sinslab.estimation.linear.propagate_covariance`: absolute steps/s on one core and the
    ratio to a plain numpy loop (``P = Φ P Φᵀ + Q``) measured in the same run. Target
    ≥ 50 000 steps/s.
-2. Loosely coupled INS + position fixes, :func:`sinslab.fusion.loosely_coupled.loosely_coupled` (the
-   one INS + fix driver, also behind ``sinslab navigate`` and paper 003's integration), on
+2. Loosely coupled INS + position fixes, :func:`sinslab.fusion.loosely_coupled.loosely_coupled` (on
+   the fusion driver, also behind ``sinslab navigate`` and paper 003's integration), on
    1 h of 200 Hz IMU with 1 Hz fixes, covariance at 10 Hz. Target < 5 s.
 """
 from __future__ import annotations
@@ -30,6 +30,7 @@ import numpy as np  # noqa: E402
 
 from sinslab.fusion import loosely_coupled as integ  # noqa: E402
 from sinslab.estimation import kalman as kf  # noqa: E402
+from sinslab.estimation import linear as lin  # noqa: E402
 from sinslab.core import units as u  # noqa: E402
 
 
@@ -69,7 +70,7 @@ def model21(n_tab=200, T=0.1, seed=0):
     wb = rng.normal(scale=0.02, size=(n_tab, 3))
     nav = es.NavPoint(np.full(n_tab, 0.6), np.full(n_tab, 1000.0), vel, C, fb, wb)
     F, G = m.matrices(nav)
-    Phi, Q = es.discretize(F, G, m.q, T, "series")
+    Phi, Q = kf.discretize(F, m.q, T, G=G, method="series")
     return m, Phi, Q
 
 
@@ -78,7 +79,7 @@ def bench_covariance(K):
     n = 21
     P0 = np.diag(np.r_[[1e-6] * 3, [0.01] * 3, [1e-12, 1e-12, 1.0], [1e-11] * 6, [1e-8] * 6])
     idx = np.arange(K) % Phi.shape[0]
-    kf.propagate_covariance(P0, Phi, Q, Phi_index=idx[:10], Q_index=idx[:10])   # compile/load
+    lin.propagate_covariance(P0, Phi, Q, Phi_index=idx[:10], Q_index=idx[:10])   # compile/load
     # with a 3-component position fix every 10 steps (1 Hz at 10 Hz propagation)
     H = np.zeros((3, n))
     H[0, 6], H[1, 7], H[2, 8] = 6.4e6, 5e6, 1.0
@@ -96,14 +97,14 @@ def bench_covariance(K):
     # the machine is shared: interleave the contenders and keep the best of each
     t_nb = t_nbu = t_np = math.inf
     for _ in range(3):
-        t_nb = min(t_nb, _best(lambda: kf.propagate_covariance(
+        t_nb = min(t_nb, _best(lambda: lin.propagate_covariance(
             P0, Phi, Q, Phi_index=idx, Q_index=idx, check=False), 1, "nb")[0])
-        t_nbu = min(t_nbu, _best(lambda: kf.propagate_covariance(
+        t_nbu = min(t_nbu, _best(lambda: lin.propagate_covariance(
             P0, Phi, Q, H, np.array([25.0, 25, 100]), mask=mask, Phi_index=idx, Q_index=idx,
             check=False), 1)[0])
         t, P_np = _best(numpy_loop, 1, "np")
         t_np = min(t_np, t)
-    run_short = kf.propagate_covariance(P0, Phi, Q, Phi_index=idx[:Kn], Q_index=idx[:Kn])
+    run_short = lin.propagate_covariance(P0, Phi, Q, Phi_index=idx[:Kn], Q_index=idx[:Kn])
     agree = float(np.max(np.abs(run_short.P_final - P_np) / np.sqrt(np.outer(np.diag(P_np), np.diag(P_np)))))
     return {
         "cov21_steps_per_s": K / t_nb,

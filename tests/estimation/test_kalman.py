@@ -1,9 +1,12 @@
-"""Oracles for sinslab.estimation.kalman: textbook equations, on-time vs lagged filters, budgets."""
+"""Oracles for sinslab.estimation (kalman, linear, filter): textbook equations, on-time vs
+lagged filters, budgets; the estimation layer imports nothing from the INS."""
 import numpy as np
 import pytest
 from scipy import linalg as sla
 
 from sinslab.estimation import kalman as kf
+from sinslab.estimation import linear as lin
+from sinslab.estimation.filter import KalmanFilter
 
 
 def _model(n=6, m=2, seed=0, dt=1.0):
@@ -80,7 +83,7 @@ def test_bad_input_is_a_clear_error(bad):
     notpsd = np.diag([1, 1, 1, 1, 1, -1.0])
     with pytest.raises(ValueError) as ei:
         if bad == "P0":
-            kf.run_linear(x, notpsd, Phi, Q, H, R, np.zeros((3, 2)))
+            lin.run_linear(x, notpsd, Phi, Q, H, R, np.zeros((3, 2)))
         elif bad == "Q":
             kf.predict(x, P0, Phi, notpsd)
         elif bad == "R":
@@ -88,15 +91,15 @@ def test_bad_input_is_a_clear_error(bad):
         elif bad == "shape_H":
             kf.update(x, P0, z, H[:, :5], R)
         elif bad == "shape_z":
-            kf.run_linear(x, P0, Phi, Q, H, R, np.zeros((3, 3)))
+            lin.run_linear(x, P0, Phi, Q, H, R, np.zeros((3, 3)))
         elif bad == "nan_P":
             P = P0.copy()
             P[0, 1] = np.nan
-            kf.KalmanFilter(x, P)
+            KalmanFilter(x, P)
         elif bad == "asym":
             P = P0.copy()
             P[0, 1] += 0.1
-            kf.propagate_covariance(P, Phi, Q, n_steps=3)
+            lin.propagate_covariance(P, Phi, Q, n_steps=3)
     msg = str(ei.value)
     assert any(w in msg for w in ("P0", "Q", "R", "H", "z", "P")), msg
 
@@ -127,13 +130,13 @@ def test_compiled_loop_equals_python_loop(correlated):
     if correlated:
         mask[:] = mask[:, :1]
     x0 = rng.normal(size=6)
-    run = kf.run_linear(x0, P0, Phis, Q, H, R, z, mask=mask, save_at=[0, 10, -1])
+    run = lin.run_linear(x0, P0, Phis, Q, H, R, z, mask=mask, save_at=[0, 10, -1])
     xs, pd, P = _python_loop(x0, P0, Phis, Qs, H, R, z, mask)
     np.testing.assert_allclose(run.x, xs, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(run.P_diag, pd, rtol=1e-9)
     np.testing.assert_allclose(run.P_saved[-1], P, rtol=1e-9, atol=1e-13)
     np.testing.assert_allclose(run.P_saved[0], P0)
-    cov = kf.propagate_covariance(P0, Phis, Q, H, R, mask=mask)
+    cov = lin.propagate_covariance(P0, Phis, Q, H, R, mask=mask)
     np.testing.assert_allclose(cov.P_diag, run.P_diag, rtol=1e-12)
     assert np.isnan(run.innovation[~mask]).all() and np.isfinite(run.innovation[mask]).all()
 
@@ -144,12 +147,12 @@ def test_table_index_and_windows():
     t = np.arange(K + 1) * 1.0
     tab = np.array([Phi, Phi.T @ Phi * 0.5])
     idx = np.arange(K) % 2
-    a = kf.propagate_covariance(P0, tab, Q, H, R, Phi_index=idx, windows=[(5, 9), (20, 22)], t=t)
+    a = lin.propagate_covariance(P0, tab, Q, H, R, Phi_index=idx, windows=[(5, 9), (20, 22)], t=t)
     mask = ((t[1:] >= 5) & (t[1:] <= 9)) | ((t[1:] >= 20) & (t[1:] <= 22))
-    b = kf.propagate_covariance(P0, tab[idx], Q, H, R, mask=mask)
+    b = lin.propagate_covariance(P0, tab[idx], Q, H, R, mask=mask)
     np.testing.assert_allclose(a.P_diag, b.P_diag, rtol=1e-13)
     with pytest.raises(ValueError, match="outside"):
-        kf.propagate_covariance(P0, Phi, Q, H, R, n_steps=K, windows=[(100, 200)], t=t)
+        lin.propagate_covariance(P0, Phi, Q, H, R, n_steps=K, windows=[(100, 200)], t=t)
 
 
 def test_error_budget_sums_to_total_and_scales_linearly():
@@ -162,8 +165,8 @@ def test_error_budget_sums_to_total_and_scales_linearly():
     Rparts = np.array([[r[0], 0], [0, r[1]]])
     K = 200
     mask = (np.arange(K) % 5 == 0)
-    b = kf.error_budget(P0parts, Phi, Qparts, H, Rparts, n_steps=K, mask=mask, history_every=50)
-    full = kf.propagate_covariance(P0parts.sum(0), Phi, Qparts.sum(0), H, R, mask=mask)
+    b = lin.error_budget(P0parts, Phi, Qparts, H, Rparts, n_steps=K, mask=mask, history_every=50)
+    full = lin.propagate_covariance(P0parts.sum(0), Phi, Qparts.sum(0), H, R, mask=mask)
     np.testing.assert_allclose(b.total, full.P_diag[-1], rtol=1e-12)
     np.testing.assert_allclose(b.variance.sum(0), b.total, rtol=1e-10)
     assert b.history.shape == (4, 6, 6)
@@ -190,7 +193,7 @@ def test_error_budget_sums_to_total_and_scales_linearly():
 def test_steady_state_matches_long_run():
     _, _, Phi, Q, H, R, P0, _ = _model()
     ss = kf.steady_state(Phi, Q, H, R)
-    run = kf.propagate_covariance(P0, Phi, Q, H, R, n_steps=2000)
+    run = lin.propagate_covariance(P0, Phi, Q, H, R, n_steps=2000)
     np.testing.assert_allclose(run.P_final, ss.P_post, rtol=1e-8)
 
 
@@ -210,7 +213,7 @@ def test_covariance_stays_symmetric_psd_over_144h():
     R = np.array([[1e-6]])            # 1 mm
     K = 144 * 3600
     P0 = np.diag([1.0, 0.01, (1e-4) ** 2, (0.01 * np.pi / 180 / 3600) ** 2])
-    run = kf.propagate_covariance(P0, Phi, Q, H, R, n_steps=K,
+    run = lin.propagate_covariance(P0, Phi, Q, H, R, n_steps=K,
                                   save_at=np.linspace(0, K, 13).astype(int))
     assert wS > 0
     assert np.all(np.isfinite(run.P_diag)) and (run.P_diag >= 0).all()
@@ -238,7 +241,7 @@ def _lag_scenario(feedback, method="exact", seed=3):
     other = {5, 14, 16, 25} if method != "paper003" else {5, 25}  # on-time fixes
     out = []
     for lagged in (False, True):
-        f = kf.KalmanFilter(np.zeros(n), P0, history=10 if lagged else 0)
+        f = KalmanFilter(np.zeros(n), P0, history=10 if lagged else 0)
         corr = np.zeros(n)       # corrections applied to the "INS" (feedback)
         for k in range(K):
             f.predict(Phi, Q, 0.5, aux=corr.copy())
@@ -251,8 +254,11 @@ def _lag_scenario(feedback, method="exact", seed=3):
                 zm = zs[j_lag - 1] - H @ (Phi @ corr_then)
                 if method == "naive":
                     f.update(zm, H, R)
+                elif method == "paper003":
+                    from sinslab.methods.doublestar import StoredStateUpdate
+                    StoredStateUpdate().update(f, zm, H, R, j_lag * 0.5, F=F, Qc=Qc)
                 else:
-                    f.update_lagged(zm, H, R, j_lag * 0.5, method=method, F=F, Qc=Qc)
+                    f.update_lagged(zm, H, R, j_lag * 0.5)
             if feedback:
                 corr = corr + f.feedback()
         out.append((f.x + corr if feedback else f.x, f.P, f.x_total))
@@ -285,7 +291,7 @@ def test_lagged_paper003_equals_on_time_for_time_invariant_system(feedback):
 
 def test_lagged_errors():
     _, _, Phi, Q, H, R, P0, _ = _model()
-    f = kf.KalmanFilter(None, P0, history=3)
+    f = KalmanFilter(None, P0, history=3)
     for _ in range(5):
         f.predict(Phi, Q, 1.0)
     with pytest.raises(ValueError, match="older than the stored history"):
@@ -295,14 +301,14 @@ def test_lagged_errors():
     with pytest.raises(ValueError, match="not a stored epoch"):
         f.update_lagged([0, 0], H, R, 4.5)
     with pytest.raises(ValueError, match="history"):
-        kf.KalmanFilter(None, P0).update_lagged([0, 0], H, R, 0.0)
+        KalmanFilter(None, P0).update_lagged([0, 0], H, R, 0.0)
 
 
 def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
     _, _, Phi, Q, H, R, P0, rng = _model()
     z = rng.normal(size=(5, 2))
-    slow = kf.KalmanFilter(np.zeros(6), P0)                 # checked path
-    fast = kf.KalmanFilter(np.zeros(6), P0, check=False)    # compiled path
+    slow = KalmanFilter(np.zeros(6), P0)                 # checked path
+    fast = KalmanFilter(np.zeros(6), P0, check=False)    # compiled path
     for k in range(5):
         slow.predict(Phi, Q, 1.0)
         fast.predict_many(Phi[None], Q[None], 1.0)
@@ -318,49 +324,23 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
     assert fast.t == pytest.approx(7.0)
 
 
-def test_feedback_layout_corrects_ins_and_compensation():
-    from sinslab.nav import strapdown as sd
-    from sinslab.core.records import NavState
-    from sinslab.fusion.loosely_coupled import lc_model
-    model = lc_model(1e-5, 1e-4)
-    lay = kf.FeedbackLayout.from_model(model.layout)
-    assert lay.indices(15).tolist() == list(range(15))
-    state = sd.initial_state_array(NavState(0.5, 1.0, 100.0, np.array([10.0, 5.0, 0.0]),
-                                            np.array([0.01, 0.02, 0.3]), 0.0))
-    f = kf.KalmanFilter(np.zeros(15), np.eye(15) * 1e-6)
-    x = np.r_[[1e-4, -2e-4, 3e-4], [0.1, 0.2, -0.1], [1e-6, -1e-6, 2.0], [1e-6] * 3, [1e-3] * 3]
-    f.x = x.copy()
-    ref = state.copy()
-    sd.correct(ref, phi=x[0:3], dvel=x[3:6], dpos=x[6:9])
-    gb, ab, d = lay.apply(f, state, np.ones(3), None)
-    np.testing.assert_allclose(state[:10], ref[:10])
-    np.testing.assert_allclose(gb, 1 + x[9:12])
-    np.testing.assert_allclose(ab, x[12:15])
-    assert np.all(f.x == 0) and np.allclose(f.x_total, x)
+def test_estimation_imports_nothing_from_the_ins():
+    """Layering: the estimation modules know no INS (no import of sinslab.nav, fusion,
+    methods or anything above, module level or function local)."""
+    import ast
+    import pathlib
 
-
-def test_feedback_layout_horizontal_blocks_and_scale_factors():
-    """A 2-state (horizontal) velocity/position block leaves the vertical alone; scale-factor
-    blocks are fed back (zeroed) and returned for the caller's compensation."""
-    from sinslab.methods import doublestar as ds
-    from sinslab.nav import strapdown as sd
-    from sinslab.fusion.loosely_coupled import lc_model
-    from sinslab.core.records import NavState
-    m = ds.horizontal_model(1e-7, 1e-7, 3600.0, 1e-4, 1800.0)
-    lay = kf.FeedbackLayout.from_model(m.layout, gyro="eps_b", accel=None)
-    assert lay.indices(16).tolist() == list(range(10))        # the Markov states stay
-    state = sd.initial_state_array(NavState(0.5, 1.0, 100.0, np.array([10.0, 5.0, 1.0]),
-                                            np.array([0.01, 0.02, 0.3]), 0.0))
-    f = kf.KalmanFilter(np.zeros(16), np.eye(16) * 1e-6)
-    x = np.r_[[1e-4, -2e-4, 3e-4], [0.1, 0.2], [1e-6, -1e-6], [1e-6] * 3, [2e-6] * 3, [1e-3] * 3]
-    f.x = x.copy()
-    ref = state.copy()
-    sd.correct(ref, phi=x[0:3], dvel=[x[3], x[4], 0.0], dpos=[x[5], x[6], 0.0])
-    gb, ab, d = lay.apply(f, state)
-    np.testing.assert_allclose(state[:10], ref[:10])
-    np.testing.assert_allclose(gb, x[7:10])
-    assert np.all(ab == 0) and np.all(f.x[:10] == 0) and np.array_equal(f.x[10:], x[10:])
-    m21 = lc_model(1e-5, 1e-4, scale_factors=True)
-    lay21 = kf.FeedbackLayout.from_model(m21.layout)
-    assert lay21.indices(21).tolist() == list(range(21))
-    assert lay21.gyro_scale == m21.layout.slice("kg") and lay21.accel_scale == m21.layout.slice("ka")
+    import sinslab.estimation as est
+    allowed = ("sinslab.core", "sinslab.estimation")
+    for path in sorted(pathlib.Path(est.__file__).parent.glob("*.py")):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                mods = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                mods = [node.module]
+            else:
+                continue
+            for mod in mods:
+                if mod == "sinslab" or mod.startswith("sinslab."):
+                    assert mod.startswith(allowed), f"{path.name} imports {mod}"

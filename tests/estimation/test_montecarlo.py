@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from sinslab.estimation import kalman as kf
+from sinslab.estimation import linear as lin
 from sinslab.estimation import montecarlo as mc
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])   # workers need not import tests/
@@ -97,7 +98,7 @@ def test_linear_campaign_statistics_agree_with_covariance():
     mask = np.arange(K) % 3 == 0
     out = mc.run_campaign(mc.linear_batch, 400, 11, batch=100, scheduler="sync",
                           kwargs=dict(Phi=Phi, Q=Q, H=H, R=R, P0=P0, n_steps=K, mask=mask))
-    cov = kf.propagate_covariance(P0, Phi, Q, H, R, mask=mask)
+    cov = lin.propagate_covariance(P0, Phi, Q, H, R, mask=mask)
     np.testing.assert_allclose(out["sigma"][0], cov.sigma, rtol=1e-10)
     s = mc.summarize(out["err"], sigma=out["sigma"], nees=out["nees"], nis=out["nis"],
                      nis_dof=mask.astype(int))

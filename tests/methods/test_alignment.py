@@ -9,7 +9,7 @@ import pytest
 from sinslab.methods import alignment as al
 from sinslab.core import attitude as A
 from sinslab.core import earth as E
-from sinslab.estimation import kalman
+from sinslab.estimation import kalman, linear
 from sinslab.core import units as u
 from sinslab.sim.imu import ImuErrors, apply
 from sinslab.core.records import ImuRecord
@@ -108,8 +108,8 @@ def test_reduced_filter_equals_projected_full_filter():
     rng = np.random.default_rng(3)
     z = rng.standard_normal((300, 2)) * 1e-4 + np.array([0.01, -0.02])
     R = np.diag([1e-8, 2e-8])
-    rf = kalman.run_linear(np.zeros(8), P0, Phi, Qk, H, R, z, save_at=[-1])
-    rr = kalman.run_linear(np.zeros(5), T @ P0 @ T.T, Phir, Qkr, Hr, R, z, save_at=[-1])
+    rf = linear.run_linear(np.zeros(8), P0, Phi, Qk, H, R, z, save_at=[-1])
+    rr = linear.run_linear(np.zeros(5), T @ P0 @ T.T, Phir, Qkr, Hr, R, z, save_at=[-1])
     scale = np.r_[[1.0] * 3, [1e-6] * 2]
     assert np.allclose((rf.x @ T.T) / scale, rr.x / scale, atol=1e-9)
     assert np.allclose(T @ rf.P_saved[-1] @ T.T, rr.P_saved[-1], rtol=1e-6, atol=1e-24)
@@ -217,13 +217,13 @@ def test_full_filter_limit_depends_on_prior():
     for s_nab in (100 * u.ug, 1000 * u.ug):
         sig = np.r_[np.array([100.0, 100.0, 600.0]) * u.arcmin, [0.01 * u.dph] * 3, [s_nab] * 2]
         P0 = np.diag(sig ** 2)
-        run = kalman.run_linear(np.zeros(8), P0, Phi, np.zeros((8, 8)), H, R, z)
+        run = linear.run_linear(np.zeros(8), P0, Phi, np.zeros((8, 8)), H, R, z)
         resid = xs[-1] - run.x[-1]
         expect = al.full_filter_limit(lat, g, x0, P0)
         sc = np.r_[[u.arcmin] * 3, [u.dph] * 3, [u.ug] * 2]
         assert np.allclose(resid / sc, expect / sc, atol=[0.01] * 3 + [1e-4] * 3 + [2.0] * 2)
     sigr = np.r_[np.array([100.0, 100.0, 600.0]) * u.arcmin, [0.01 * u.dph] * 2]
-    run = kalman.run_linear(np.zeros(5), np.diag(sigr ** 2), Phir, np.zeros((5, 5)), Hr, R, z)
+    run = linear.run_linear(np.zeros(5), np.diag(sigr ** 2), Phir, np.zeros((5, 5)), Hr, R, z)
     resid = xs[-1][al._FULL_SUB] - run.x[-1]
     lim = al.limit_accuracy(lat, None, x0[3:6], np.r_[x0[6:8], 0.0], g=g, frame="nav")
     sc = np.r_[[u.arcmin] * 3, [u.dph] * 2]

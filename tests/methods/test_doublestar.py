@@ -9,7 +9,8 @@ from sinslab.methods import doublestar as ds
 from sinslab.nav import errstate as es
 from sinslab.core import units as u
 from sinslab.core.earth import radii
-from sinslab.estimation.kalman import KalmanFilter, discretize as kdiscretize
+from sinslab.estimation.filter import KalmanFilter
+from sinslab.estimation.kalman import discretize as kdiscretize
 
 D = u.deg
 S1, S2 = 80 * D, 140 * D
@@ -262,7 +263,7 @@ def _tv_tables(m, K, T=1.0, seed=0):
     nav = es.NavPoint(lat, 1000.0, np.stack([150 * np.ones(K), 260 * np.ones(K), np.zeros(K)], -1),
                       es.euler_to_dcm(att), np.array([0.3, 1.0, 9.8]) + 0.2 * rng.standard_normal((K, 3)))
     F, G = m.matrices(nav)
-    Phi, Q = es.discretize(F, G, m.q, T)
+    Phi, Q = kdiscretize(F, m.q, T, G=G)
     return F, (G * m.q) @ np.swapaxes(G, -1, -2), Phi, Q
 
 
@@ -301,7 +302,7 @@ def test_lag_aware_equals_on_time_filter_exact(feedback):
         if k + 1 == km:
             on.update(z - H @ on.c, H, R)                    # measurement of the fed-back INS
             zm = z - H @ lag.c                               # what the lagged one will receive
-    lag.update_lagged(zm, H, R, float(km), method="exact")
+    lag.update_lagged(zm, H, R, float(km))
     assert np.allclose(lag.x_total, on.x_total, rtol=1e-9, atol=1e-12 * np.abs(on.x_total).max())
     assert np.allclose(lag.P, on.P, rtol=1e-9, atol=1e-9 * np.abs(on.P).max())
 
@@ -327,7 +328,7 @@ def test_lag_aware_paper003_equals_on_time_on_lti_model():
         lag.predict(Phi, Q, 1.0)
         if k + 1 == 4:
             on.update(z, H, R)
-    lag.update_lagged(z, H, R, 4.0, method="paper003", F=F, Qc=Qc)
+    ds.StoredStateUpdate().update(lag, z, H, R, 4.0, F=F, Qc=Qc)
     assert np.allclose(lag.x, on.x, rtol=1e-9, atol=1e-9 * np.abs(on.x).max())
     assert np.allclose(lag.P, on.P, rtol=1e-9, atol=1e-9 * np.abs(on.P).max())
 
@@ -450,3 +451,53 @@ def test_bad_fix_files(tmp_path, text, msg):
     p.write_text(text)
     with pytest.raises(ValueError, match=msg):
         ds.Fixes.load(p)
+
+
+@pytest.mark.parametrize("tau", [0.0, 0.4])
+def test_stored_state_update_follows_paper_eqs_4_to_10(tau):
+    """The lag policy against a direct evaluation of paper 003 eqs 4–10 (Φ = expm(F τ),
+    Q = ∫ expm(Fs) Qc expm(Fs)ᵀ ds by quadrature, Joseph update, one prediction over ΔT),
+    with feedback before and after the validity epoch and a time-varying path before it."""
+    from scipy.integrate import simpson
+    from scipy.linalg import expm
+    m = _model()
+    K, j, ka = 9, 4, 7
+    Fs, Qcs, Phi, Q = _tv_tables(m, K)
+    P0 = _P0(m)
+    rng = np.random.default_rng(8)
+    x0 = rng.standard_normal(16) * np.sqrt(np.diag(P0)) * 0.1
+    H = np.zeros((2, 16))
+    H[0, 5], H[1, 6] = 6.36e6, 5.4e6
+    R = np.diag([41.0 ** 2, 31.0 ** 2])
+    z_on = rng.standard_normal(2) * 40.0
+    z = rng.standard_normal(2) * 40.0
+    f = KalmanFilter(x0, P0, history=10)
+    snap = None
+    for k in range(ka):
+        f.predict(Phi[k], Q[k], 1.0)
+        if k + 1 in (2, 6):
+            f.update(z_on, H, R)
+            f.feedback(np.arange(10))
+        if k + 1 == j:
+            snap = (f.x + f.c, f.P.copy(), f.c.copy())
+    F, Qc = Fs[j], Qcs[j]
+
+    def phi_q(T):
+        s = np.linspace(0.0, T, 801)
+        E = expm(F[None] * s[:, None, None]) if T > 0 else np.eye(16)[None]
+        return expm(F * T), (simpson(E @ Qc @ np.swapaxes(E, -1, -2), x=s, axis=0) if T > 0
+                             else np.zeros((16, 16)))
+    xff, P, c_j = snap
+    Phi1, Q1 = phi_q(tau)
+    xff, P, c_m = Phi1 @ xff, Phi1 @ P @ Phi1.T + Q1, Phi1 @ c_j
+    S = H @ P @ H.T + R
+    Kg = P @ H.T @ np.linalg.inv(S)
+    xff = xff + Kg @ (z + H @ c_m - H @ xff)
+    A_ = np.eye(16) - Kg @ H
+    P = A_ @ P @ A_.T + Kg @ R @ Kg.T
+    Phi2, Q2 = phi_q(ka - j - tau)
+    x_ref, P_ref = Phi2 @ xff, Phi2 @ P @ Phi2.T + Q2
+    ds.StoredStateUpdate().update(f, z, H, R, j + tau, F=F, Qc=Qc)
+    np.testing.assert_allclose(f.x_total, x_ref, rtol=1e-7, atol=1e-7 * np.abs(x_ref).max())
+    np.testing.assert_allclose(f.P, P_ref, rtol=1e-6, atol=1e-8 * np.abs(P_ref).max())
+    assert len(f.epochs()) == 1                           # history restarted from now

@@ -17,6 +17,7 @@ import pytest
 import scipy.linalg
 from scipy.integrate import solve_ivp
 
+from sinslab.estimation.kalman import discretize as kd
 from sinslab.nav import errstate as es
 from sinslab.core.attitude import euler_to_dcm, misalignment, rotvec_to_dcm
 from sinslab.core.earth import WIE, gravity, radii
@@ -504,6 +505,7 @@ def test_static_alignment_model_is_the_general_model_at_rest(lat_deg):
 
 
 # ------------------------------------------------------------------ discretisation
+# (sinslab.estimation.kalman.discretize on errstate's models)
 def _test_F(seed=0):
     nav = es.NavPoint(LAT0, H0, V0, euler_to_dcm(ATT0), fb_true(3.0), wb_true(3.0))
     m = es.ErrorModel("full", [es.gyro_bias(rrw=1e-7), es.accel_bias(), es.gyro_markov(30.0, 1e-5),
@@ -516,7 +518,7 @@ def test_vanloan_matches_ornstein_uhlenbeck_closed_form():
     """Scalar Gauss–Markov: Φ = e^{−T/τ}, Q_k = σ²(1 − e^{−2T/τ})."""
     tau, sigma = 7.0, 3.0
     for T in (0.01, 1.0, 20.0):
-        Phi, Q = es.discretize([[-1 / tau]], [[1.0]], [2 * sigma ** 2 / tau], T)
+        Phi, Q = kd([[-1 / tau]], [2 * sigma ** 2 / tau], T, G=[[1.0]])
         assert Phi[0, 0] == pytest.approx(np.exp(-T / tau), rel=1e-13)
         assert Q[0, 0] == pytest.approx(sigma ** 2 * (1 - np.exp(-2 * T / tau)), rel=1e-12)
 
@@ -525,7 +527,7 @@ def test_vanloan_matches_numerical_integral():
     m, nav = _test_F()
     F, G = m.matrices(nav)
     T = 5.0
-    Phi, Q = es.discretize(F, G, m.q, T)
+    Phi, Q = kd(F, m.q, T, G=G)
     np.testing.assert_allclose(Phi, scipy.linalg.expm(F * T), rtol=1e-12, atol=1e-12 * np.abs(Phi).max())
     s = np.linspace(0, T, 2001)
     Qc = (G * m.q) @ G.T
@@ -543,8 +545,8 @@ def test_series_minus_expm_is_third_order_and_bounded():
     Ts = np.array([0.01, 0.02, 0.04, 0.08, 0.16, 0.32])
     dP, dQ, QQ = [], [], []
     for T in Ts:
-        P1, Q1 = es.discretize(F, G, m.q, T, "vanloan")
-        P2, Q2 = es.discretize(F, G, m.q, T, "series")
+        P1, Q1 = kd(F, m.q, T, G=G, method="vanloan")
+        P2, Q2 = kd(F, m.q, T, G=G, method="series")
         a = np.linalg.norm(F * T, 2)
         d = np.linalg.norm(P2 - P1, 2)
         assert d <= a ** 3 / 6 * np.exp(a)
@@ -566,9 +568,9 @@ def test_discretize_vectorised_agrees_with_per_epoch():
                        fb_true(t), wb_true(t))
     F, G = m.matrices(navs)
     for method in ("vanloan", "series"):
-        P, Q = es.discretize(F, G, m.q, 0.5, method)
+        P, Q = kd(F, m.q, 0.5, G=G, method=method)
         for k in range(t.size):
-            P1, Q1 = es.discretize(F[k], G[k], m.q, 0.5, method)
+            P1, Q1 = kd(F[k], m.q, 0.5, G=G[k], method=method)
             np.testing.assert_allclose(P[k], P1, rtol=1e-13, atol=1e-16)
             np.testing.assert_allclose(Q[k], Q1, rtol=1e-12, atol=1e-20)
 
@@ -606,11 +608,11 @@ def test_bad_inputs_are_clear_errors():
     with pytest.raises(ValueError, match="non-finite"):
         es.NavPoint(np.nan, 0.0, np.zeros(3), np.eye(3), np.zeros(3))
     with pytest.raises(ValueError, match="shape"):
-        es.discretize(np.eye(3), np.eye(2), [1.0, 1.0], 1.0)
+        kd(np.eye(3), [1.0, 1.0], 1.0, G=np.eye(2))
     with pytest.raises(ValueError, match=">= 0"):
-        es.discretize(np.eye(2), np.eye(2), [1.0, -1.0], 1.0)
+        kd(np.eye(2), [1.0, -1.0], 1.0, G=np.eye(2))
     with pytest.raises(ValueError, match="method"):
-        es.discretize(np.eye(2), np.eye(2), [1.0, 1.0], 1.0, "euler")
+        kd(np.eye(2), [1.0, 1.0], 1.0, G=np.eye(2), method="euler")
 
 
 # ------------------------------------- with sinslab's own trajectory + mechanization

@@ -10,7 +10,7 @@ the same data (:func:`sinslab.methods.doublestar.integrate`):
 
 - ``lag-aware``: the paper's method (eqs 4–10): the fix of time t, received at t + ΔT, is
   applied at t from the stored state and predicted to t + ΔT in one step
-  (:meth:`sinslab.estimation.kalman.KalmanFilter.update_lagged`, ``method="paper003"``);
+  (:class:`sinslab.methods.doublestar.StoredStateUpdate`);
 - ``lag-ignore``: the fix is applied at its arrival as if current;
 - ``zero-lag``: an ideal receiver without delay (same fixes, available at t).
 

@@ -528,9 +528,9 @@ def covariance_analysis(truth, ideal, spec, cov_every):
     is free — plus constant gyro and accelerometer bias states (and scale-factor states
     when their σ is not zero) is evaluated along the truth in the middle of every
     covariance step (``cov_every`` updates), discretised exactly (Van Loan,
-    :func:`sinslab.nav.errstate.discretize`, with ARW²/VRW² as white-noise densities), and P0 =
+    :func:`sinslab.estimation.kalman.discretize`, with ARW²/VRW² as white-noise densities), and P0 =
     diag(initial errors², bias σ², scale-factor σ²) is propagated with no measurements by
-    :func:`sinslab.estimation.kalman.propagate_covariance`.
+    :func:`sinslab.estimation.linear.propagate_covariance`.
 
     Returns
     -------
@@ -542,7 +542,8 @@ def covariance_analysis(truth, ideal, spec, cov_every):
     model : sinslab.nav.errstate.ErrorModel
     """
     from sinslab.nav import errstate as es
-    from sinslab.estimation.kalman import propagate_covariance
+    from sinslab.estimation.kalman import discretize
+    from sinslab.estimation.linear import propagate_covariance
 
     if spec["vertical"] == "damped":
         raise ValueError("the error model has no vertical damping loop: covariance analysis "
@@ -561,7 +562,7 @@ def covariance_analysis(truth, ideal, spec, cov_every):
     mid = np.arange(K) * stride + stride // 2
     nav = es.NavPoint.from_series(truth, ideal, mid)
     F, G = model.matrices(nav)
-    Phi, Qk = es.discretize(F, G, model.q, stride * ideal.dt, "vanloan")
+    Phi, Qk = discretize(F, model.q, stride * ideal.dt, G=G, method="vanloan")
     # P0: the configured initial errors and sensor σ
     lay = model.layout
     P0 = np.zeros((model.n, model.n))

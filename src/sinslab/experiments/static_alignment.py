@@ -40,7 +40,7 @@ import numpy as np
 from sinslab.methods import alignment as al
 from sinslab.core import attitude as A
 from sinslab.core import earth, units
-from sinslab.estimation import kalman, observability
+from sinslab.estimation import linear, observability
 from sinslab.sim.imu import ImuErrors, apply
 from sinslab.core.records import NavState  # noqa: F401
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
@@ -151,7 +151,7 @@ def _step_flops(n, m):
 
 
 def _time_per_step(fas, lat, g, repeats, min_steps=20000):
-    """µs per predict+update step of sinslab.estimation.kalman's compiled loop, for each filter.
+    """µs per predict+update step of sinslab.estimation.linear's compiled loop, for each filter.
 
     The run's own measurements are tiled to at least ``min_steps`` steps so that the
     per-call overhead is negligible; the filters are timed alternately, best of
@@ -163,13 +163,13 @@ def _time_per_step(fas, lat, g, repeats, min_steps=20000):
         z = np.tile(fa.z, (reps, 1))
         n = fa.P0.shape[0]
         args = (np.zeros(n), fa.P0, fa.Phi, fa.Qk, H, fa.R, z)
-        kalman.run_linear(*args[:6], z[:5], check=False)                 # compile / warm up
+        linear.run_linear(*args[:6], z[:5], check=False)                 # compile / warm up
         jobs[model] = (args, z.shape[0])
     best = {m: math.inf for m in jobs}
     for _ in range(repeats):
         for m, (args, K) in jobs.items():
             t0 = time.perf_counter()
-            kalman.run_linear(*args, check=False)
+            linear.run_linear(*args, check=False)
             best[m] = min(best[m], (time.perf_counter() - t0) / K * 1e6)
     return best
 

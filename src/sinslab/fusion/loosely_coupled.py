@@ -1,25 +1,27 @@
 """Loosely coupled INS + position/velocity fixes: the error model and the composition of
 the fusion driver that runs it (:func:`loosely_coupled`).
 
-The compiled mechanization (:func:`sinslab.nav.strapdown.step`) runs in blocks between fix
-arrivals; the error model of :mod:`sinslab.nav.errstate` (φ, δv, δp, gyro bias ε,
-accelerometer bias ∇, optional gyro/accel scale factors; bias random walks,
-:func:`lc_model`) is evaluated for the block's epochs (on the block's own rows, or along a
-look-ahead run for speed) and discretised; the filter predicts every ``kf_dt`` and is
-updated with the antenna position (and velocity) with the lever arm in H, then fed back
-(closed loop). Fixes are extrapolated from their validity time to the filter epoch with
-the INS velocity (at most ``kf_dt``). A fix valid at t arrives at t + latency;
+One live INS stream (:class:`sinslab.fusion.driver.LiveStream`), the error model of
+:mod:`sinslab.nav.errstate` (φ, δv, δp, gyro bias ε, accelerometer bias ∇, optional
+gyro/accel scale factors; bias random walks, :func:`lc_model`) and one measurement, the
+antenna position (:class:`~sinslab.fusion.measurements.PositionFix`, stacked with a
+:class:`~sinslab.fusion.measurements.VelocityFix` when velocities are given), run by
+:func:`sinslab.fusion.driver.run` with feedback (closed loop) or feed-forward. Fixes are
+extrapolated from their validity time to the filter epoch with the INS velocity (at most ``kf_dt``). A fix valid at t arrives at t + latency;
 ``lag="aware"`` applies it at its validity epoch, ``lag="ignore"`` on arrival as if current.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from sinslab.core import attitude as A
-from sinslab.core import earth as E
+from sinslab.fusion import driver
+from sinslab.fusion.driver import LiveStream, _null  # noqa: F401  (_null: progress-less context)
+from sinslab.fusion.feedback import FeedbackLayout
+from sinslab.fusion.lag import ExactReprocessing, OnArrival
+from sinslab.fusion.measurements import PositionFix, Stack, VelocityFix
+from sinslab.nav import errstate as es
 
 __all__ = ["loosely_coupled", "LooselyCoupled", "lc_model"]
 
@@ -38,7 +40,6 @@ def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=
     gyro_rrw, accel_rrw : float
         Bias random-walk densities [rad/s/√s], [m/s²/√s] (0: random constants).
     """
-    from sinslab.nav import errstate as es
     sensors = [es.gyro_bias(rrw=gyro_rrw), es.accel_bias(arw=accel_rrw)]
     if scale_factors:
         sensors += [es.gyro_scale(), es.accel_scale()]
@@ -105,26 +106,26 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
                     vertical="free", height=None, gyro_bias=None, accel_bias=None, start=0,
                     t_start=None, max_block=10.0, model_every=10.0, discretization="series",
                     progress=True, label="loosely coupled") -> LooselyCoupled:
-    """INS + position(/velocity) fixes with an error-state Kalman filter: sinslab's one
-    driver of the filter beside the mechanization.
+    """INS + position(/velocity) fixes with an error-state Kalman filter, on the fusion
+    driver (:func:`sinslab.fusion.driver.run`, whose notes derive the loop).
 
     The strapdown mechanization (:func:`sinslab.nav.strapdown.step`) runs on the IMU stream
     in compiled blocks between the epochs at which fixes are processed; the error-state
     model is evaluated for all filter epochs of a block at once and discretised
-    (:func:`sinslab.nav.errstate.discretize`); the covariance is propagated every ``kf_dt`` by
-    one :class:`sinslab.estimation.kalman.KalmanFilter`. At a fix the filter updates (position, with
-    the lever arm in H, and velocity when given) and, with ``feedback=True``, corrects the
-    navigation state (:func:`sinslab.nav.strapdown.correct`) and the sensor compensation
-    (biases, scale factors) through :class:`sinslab.estimation.kalman.FeedbackLayout`, zeroing those
-    states. Fixes are extrapolated from their validity time to the filter epoch with the
+    (:func:`sinslab.estimation.kalman.discretize`); the covariance is propagated every
+    ``kf_dt`` by one :class:`sinslab.estimation.filter.KalmanFilter`. At a fix the filter
+    updates (position, with the lever arm in H, and velocity when given) and, with
+    ``feedback=True``, corrects the navigation state (:func:`sinslab.nav.strapdown.correct`)
+    and the sensor compensation (biases, scale factors) through
+    :class:`sinslab.fusion.feedback.FeedbackLayout`, zeroing those states. Fixes are extrapolated from their validity time to the filter epoch with the
     INS (antenna) velocity (at most ``kf_dt``).
 
     Latency: a fix valid at ``t`` arrives at ``fix_arrive`` (default ``t + fix_lag``) and
     is processed at the first epoch at or after it. ``lag="aware"`` applies it at its
-    validity epoch with :meth:`KalmanFilter.update_lagged` (``lag_method="exact"``:
-    re-processing, measurement from the INS output of that epoch before its feedback;
-    ``"paper003"``: the one-step form of paper 003, measurement from the corrected output
-    of that epoch); ``lag="ignore"`` applies a late fix on arrival as if it were valid
+    validity epoch with the lag policy ``lag_method`` (``"exact"``:
+    :class:`sinslab.fusion.lag.ExactReprocessing`, measurement from the INS output of that
+    epoch before its feedback; or any lag policy object, e.g. the stored-state update of
+    :mod:`sinslab.methods.doublestar`); ``lag="ignore"`` applies a late fix on arrival as if it were valid
     then (the naive filter).
 
     Parameters
@@ -154,7 +155,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     lever_arm : array_like (3,), optional
         IMU -> antenna in IMU body axes [m].
     fix_lag, fix_arrive, lag, lag_method
-        Latency, see above.
+        Latency, see above (``lag_method``: ``"exact"`` or a lag policy object).
     outages : sequence of (start, length) [s]
         Fixes valid inside are dropped.
     windows : sequence of (start, end) [s], optional
@@ -163,7 +164,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         Filter step [s]; a multiple of ``nsub * imu.dt``.
     nsub : int
         Mechanization subsamples (coning/sculling).
-    feedback : bool or sinslab.estimation.kalman.FeedbackLayout
+    feedback : bool or sinslab.fusion.feedback.FeedbackLayout
         Closed loop (``True``: every block of :meth:`FeedbackLayout.from_model`; or the
         layout of the states to feed back) or feed-forward (``False``: the INS runs free;
         ``x`` holds the estimated errors).
@@ -194,23 +195,17 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     -------
     LooselyCoupled
     """
-    from sinslab.nav import errstate as es
-    from sinslab.nav import strapdown as sd
-    from sinslab.estimation.kalman import FeedbackLayout, KalmanFilter
-    from sinslab.core.progress import progress as _progress
-
     # --- model and layout
     if model is None:
         if gyro_arw is None or accel_vrw is None:
             raise ValueError("give a model or gyro_arw [rad/sqrt(s)] and accel_vrw [m/s/sqrt(s)]")
         model = lc_model(gyro_arw, accel_vrw)
     lay = model.layout
-    n = model.n
     names = list(lay.names)
     for req in ("phi", "dv", "dp"):
         if req not in names:
             raise ValueError(f"the model needs a {req!r} block (has {names})")
-    s_att, s_vel, s_pos = lay.slice("phi"), lay.slice("dv"), lay.slice("dp")
+    s_vel, s_pos = lay.slice("dv"), lay.slice("dp")
     n_pos = s_pos.stop - s_pos.start
     if vertical not in ("free", "hold"):
         raise ValueError(f"vertical must be 'free' or 'hold', got {vertical!r}")
@@ -223,38 +218,23 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         fb = None
     else:
         fb = feedback
-    s_gb = lay.slice("eps") if "eps" in names else None
-    s_kg = fb.gyro_scale if fb is not None else None
-    s_ka = fb.accel_scale if fb is not None else None
-    scaled = s_kg is not None or s_ka is not None
+    scaled = fb is not None and (fb.gyro_scale is not None or fb.accel_scale is not None)
     if lag not in ("aware", "ignore"):
         raise ValueError(f"lag must be 'aware' or 'ignore', got {lag!r}")
-    if lag_method not in ("exact", "paper003"):
-        raise ValueError(f"lag_method must be 'exact' or 'paper003', got {lag_method!r}")
-
-    # --- filter grid
-    dt = imu.dt
-    k_kf = int(round(kf_dt / dt))
-    if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % nsub:
-        raise ValueError(f"kf_dt={kf_dt} s must be a multiple of nsub*dt = {nsub * dt} s")
-    T = k_kf * dt
-    start = int(start)
-    n_ep = (len(imu) - start) // k_kf
-    if n_ep < 1:
-        raise ValueError(f"the IMU record ({len(imu) - start} samples) is shorter than one filter step")
-    t0 = float(t_start) if t_start is not None else (float(imu.t[start - 1]) if start > 0 else imu.t0)
-    t_ep = t0 + T * np.arange(n_ep + 1)
-    t_rel = T * np.arange(n_ep + 1)              # filter clock (absolute stamps lose digits)
-    if vertical == "hold":
-        hgt = np.asarray(height, dtype=float)
-        if hgt.ndim == 0:
-            hgt = np.full(len(imu) + 1, float(hgt))
-        if hgt.shape != (len(imu) + 1,):
-            raise ValueError(f"height must have {len(imu) + 1} values (IMU epochs), got {hgt.shape}")
-        vkw = dict(vertical="hold")
+    if isinstance(lag_method, str):
+        if lag_method != "exact":
+            raise ValueError(f"lag_method must be 'exact' or a lag policy object, got {lag_method!r}")
+        policy = ExactReprocessing()
     else:
-        hgt = None
-        vkw = {}
+        policy = lag_method
+    if lag == "ignore":
+        policy = OnArrival()
+
+    # --- the INS stream on the filter grid
+    ins = LiveStream(imu, init, nsub=nsub, vertical=vertical, height=height, gyro_bias=gyro_bias,
+                     accel_bias=accel_bias, scaled=scaled, start=start, t_start=t_start)
+    T, t0, n_ep = ins.bind(kf_dt)
+    t_ep = t0 + T * np.arange(n_ep + 1)
 
     # --- fixes
     fix_t = np.atleast_1d(np.asarray(fix_t, dtype=float))
@@ -284,209 +264,16 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
             raise ValueError("fix_sigma and vel_sigma must be > 0")
         if arrive.shape != (J,) or np.any(~(arrive >= fix_t)):
             raise ValueError("fix arrival times must not precede the validity times (fix_lag >= 0)")
-    lever = None if lever_arm is None else np.asarray(lever_arm, dtype=float).reshape(3)
-    if lever is not None and not np.any(lever):
-        lever = None
-    e_valid = np.ceil((fix_t - t0) / T - 1e-6).astype(np.int64)     # epoch the fix is valid at
-    e_arr = np.ceil((arrive - t0) / T - 1e-6).astype(np.int64)      # epoch it is processed at
-    keep = e_arr <= n_ep
-    for s, ln in outages:
-        keep &= ~((fix_t >= s) & (fix_t < s + ln))
-    if windows is not None:
-        w = np.asarray(windows, dtype=float).reshape(-1, 2)
-        te = t_ep[np.minimum(e_arr, n_ep)]
-        keep &= ((te[:, None] >= w[:, 0] - 1e-9) & (te[:, None] <= w[:, 1] + 1e-9)).any(1)
-    late = arrive > fix_t
-    arrivals = {}
-    for j in np.flatnonzero(keep):
-        arrivals.setdefault(int(e_arr[j]), []).append(int(j))
-    lagged = keep & (e_arr > e_valid) & (lag == "aware")
-    hist = int(np.max(e_arr[lagged] - e_valid[lagged])) + 3 if lagged.any() else 0
-    keep_F = lag_method == "paper003" and hist > 0
+    sched = dict(t_arrive=arrive, lever_arm=lever_arm, outages=outages, windows=windows)
+    meas = PositionFix(fix_t, fix_pos, fix_sigma, **sched)
+    if use_vel:
+        meas = Stack(meas, VelocityFix(fix_t, fix_vel, vel_sigma, **sched))
 
-    # --- state, filter, histories
-    state = sd.initial_state_array(init)
-    filt = KalmanFilter(np.zeros(n), P0, t0=0.0, history=hist, check=False)
-    gb = _vec3_or(gyro_bias)
-    ab = _vec3_or(accel_bias)
-    kg = np.zeros(3)
-    ka = np.zeros(3)
-    nav_h = np.empty((n_ep + 1, 10))
-    nav_pre = np.empty((n_ep + 1, 10)) if hist else nav_h   # INS output before feedback
-    w_h = np.empty((n_ep + 1, 3)) if hist else None          # compensated rate of the step to it
-    x_h = np.zeros((n_ep + 1, n))
-    sig_h = np.empty((n_ep + 1, n))
-    gb_h = np.empty((n_ep + 1, 3))
-    ab_h = np.empty((n_ep + 1, 3))
-    sc_h = np.zeros((n_ep + 1, 6)) if scaled else None
-    F_h = np.empty((n_ep, n, n)) if keep_F else None
-    Qc_h = np.empty((n_ep, n, n)) if keep_F else None
-    nav_h[0] = state[:10]
-    nav_pre[0] = state[:10]
-    sig_h[0] = filt.sigma
-    gb_h[0], ab_h[0] = gb, ab
-    n_use = n_ep * k_kf
-    if not scaled:
-        dth_sum = imu.dtheta[start:start + n_use].reshape(n_ep, k_kf, 3).sum(1)
-        dv_sum = imu.dv[start:start + n_use].reshape(n_ep, k_kf, 3).sum(1)
-    if hist:
-        w_h[0] = imu.dtheta[start:start + k_kf].sum(0) / T - gb
-    used, t_used, innov, nis = [], [], [], []
-    stops = sorted(set(arrivals) | {n_ep})
-    per = k_kf // nsub
-    max_ep = max(1, int(round(max_block / T)))
-    la_ep = max(1, int(round(model_every / T)))
-    la_end = -1
-    la0 = 0
-    Phi_la = Q_la = None
+    r = driver.run([ins], model, P0, [meas], kf_dt=kf_dt, feedback=fb, lag=policy,
+                   max_block=max_block, model_every=model_every, discretization=discretization,
+                   progress=progress, label=label)
+    ap = r.applied
     m_z = n_z + (3 if use_vel else 0)
-    q = model.q
-
-    def increments(e_a, e_b):
-        """Compensated-scale increments of epochs e_a..e_b and their per-epoch mean rates."""
-        a, b = start + e_a * k_kf, start + e_b * k_kf
-        dth, dvb = imu.dtheta[a:b], imu.dv[a:b]
-        if scaled:
-            dth = dth * (1.0 - kg)
-            dvb = dvb * (1.0 - ka)
-            ws = dth.reshape(-1, k_kf, 3).sum(1) / T - gb
-            fs = dvb.reshape(-1, k_kf, 3).sum(1) / T - ab
-        else:
-            ws = dth_sum[e_a:e_b] / T - gb
-            fs = dv_sum[e_a:e_b] / T - ab
-        return dth, dvb, ws, fs, a, b
-
-    def run(st, e_a, e_b, dth, dvb, a, b):
-        out = np.empty((e_b - e_a, 10))
-        if hgt is not None:
-            vkw["height"] = hgt[a:b + 1]
-        sd.step(st, dth, dvb, dt, nsub, gyro_bias=gb, accel_bias=ab, out=out, out_every=per, **vkw)
-        return out
-
-    def measure(navv, wv, j, t_at):
-        """z, H, R of fix j against the INS row ``navv`` at time t_at."""
-        lat, lon, h = navv[7], navv[8], navv[9]
-        rm, rn = E.radii(lat, h)
-        rm, rnc = float(rm), float(rn) * math.cos(lat)
-        v_ant = navv[4:7]
-        z = np.empty(m_z)
-        H = np.zeros((m_z, n))
-        if lever is not None:
-            C = A.quat_to_dcm(navv[:4])
-            Cl = C @ lever
-            vlev = C @ np.cross(wv, lever)
-            v_ant = v_ant + vlev
-            H[0:3, s_att] = A.skew(Cl)[[1, 0, 2]][:n_z]
-        dtf = t_at - fix_t[j]                       # fix extrapolated to the epoch
-        dlon = (lon - fix_pos[j, 1] + math.pi) % (2 * math.pi) - math.pi
-        z[0] = (lat - fix_pos[j, 0]) * rm - v_ant[1] * dtf
-        z[1] = dlon * rnc - v_ant[0] * dtf
-        H[0, s_pos.start] = rm
-        H[1, s_pos.start + 1] = rnc
-        if n_z == 3:
-            z[2] = (h - fix_pos[j, 2]) - v_ant[2] * dtf
-            H[2, s_pos.start + 2] = 1.0
-        if lever is not None:
-            z[0:n_z] += Cl[[1, 0, 2]][:n_z]
-        R = np.empty(m_z)
-        R[:n_z] = fix_sigma[j] ** 2
-        if use_vel:
-            z[n_z:] = v_ant - fix_vel[j]
-            H[n_z:, s_vel] = np.eye(3)
-            if lever is not None:
-                H[n_z:, s_att] = A.skew(vlev)
-                if s_gb is not None:
-                    H[n_z:, s_gb] = -C @ A.skew(lever)
-            R[n_z:] = vel_sigma[j] ** 2
-        return z, H, R
-
-    nav_lag = nav_h if lag_method == "paper003" else nav_pre
-    with _progress(label, total=n_ep, unit="steps") if progress else _null() as bar:
-        e0 = 0
-        si = 0
-        while e0 < n_ep:
-            while stops[si] <= e0:
-                si += 1
-            e1 = min(stops[si], e0 + max_ep)
-            m = e1 - e0
-            dth, dvb, ws, fs, a, b = increments(e0, e1)
-            out = run(state, e0, e1, dth, dvb, a, b)
-            rows = np.vstack([nav_h[e0][None], out])                 # epochs e0..e1
-            if e1 > la_end:
-                # error model for the next stretch, from a look-ahead free run of the INS
-                la0 = e0
-                la_end = max(e1, min(n_ep, e0 + la_ep))
-                if la_end > e1:
-                    la = state.copy()                                 # at epoch e1
-                    ldth, ldv, lws, lfs, la_a, la_b = increments(e1, la_end)
-                    la_out = run(la, e1, la_end, ldth, ldv, la_a, la_b)
-                    la_rows = np.vstack([rows, la_out[:-1]])          # epochs e0..la_end-1
-                    w_la, f_la = np.vstack([ws, lws]), np.vstack([fs, lfs])
-                else:
-                    la_rows, w_la, f_la = rows[:-1], ws, fs
-                C = A.quat_to_dcm(la_rows[:, :4])
-                F, G = model.matrices(es.NavPoint(la_rows[:, 7], la_rows[:, 9], la_rows[:, 4:7],
-                                                  C, f_la, w_la))
-                Phi_la, Q_la = es.discretize(F, G, q, T, discretization)
-                if keep_F:
-                    F_h[la0:la_end] = F
-                    Qc_h[la0:la_end] = (G * q) @ np.swapaxes(G, -1, -2)
-            sl = slice(e0 - la0, e1 - la0)
-            filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
-                              x_out=x_h[e0 + 1:e1 + 1])
-            nav_h[e0 + 1:e1 + 1] = rows[1:]
-            if hist:
-                nav_pre[e0 + 1:e1 + 1] = rows[1:]
-                w_h[e0 + 1:e1 + 1] = ws
-            gb_h[e0 + 1:e1 + 1] = gb
-            ab_h[e0 + 1:e1 + 1] = ab
-            if scaled:
-                sc_h[e0 + 1:e1 + 1] = np.concatenate([kg, ka])
-            fixes_here = arrivals.get(e1, []) if e1 == stops[si] else []
-            for j in fixes_here:
-                ev = int(e_valid[j])
-                if lagged[j] and ev < e1:
-                    z, H, R = measure(nav_lag[ev], w_h[ev], j, t_ep[ev])
-                    kw = dict(F=F_h[ev], Qc=Qc_h[ev]) if keep_F else {}
-                    res = filt.update_lagged(z, H, R, t_rel[ev], method=lag_method, tol=1e-6, **kw)
-                else:
-                    # on time, or the lag ignored: a late fix taken as valid now
-                    t_at = t_ep[e1] if (lag == "aware" or not late[j]) else fix_t[j]
-                    z, H, R = measure(rows[-1], ws[-1], j, t_at)
-                    res = filt.update(z, H, R)
-                used.append(j)
-                t_used.append(t_ep[e1])
-                innov.append(res.innovation)
-                nis.append(res.nis)
-            if fixes_here:
-                if fb is not None:
-                    gb, ab, d = fb.apply(filt, state, gb, ab)
-                    if scaled:
-                        if s_kg is not None:
-                            kg = kg + d[s_kg]
-                        if s_ka is not None:
-                            ka = ka + d[s_ka]
-                        sc_h[e1] = np.concatenate([kg, ka])
-                    nav_h[e1] = state[:10]
-                    gb_h[e1] = gb
-                    ab_h[e1] = ab
-                x_h[e1] = filt.x
-                sig_h[e1] = filt.sigma
-            bar.advance(m)
-            e0 = e1
-    used = np.array(used, dtype=np.int64)
-    return LooselyCoupled(t_ep, nav_h, x_h, sig_h, gb_h, ab_h, sc_h, fix_t[used], np.array(t_used),
-                          used, np.array(innov).reshape(-1, m_z), np.array(nis), lay)
-
-
-class _NullBar:
-    def advance(self, n):
-        pass
-
-
-class _null:
-    def __enter__(self):
-        return _NullBar()
-
-    def __exit__(self, *a):
-        return False
+    return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
+                          r.scale[0] if r.scale is not None else None, fix_t[ap.item],
+                          ap.t_applied, ap.item, np.array(ap.innovation).reshape(-1, m_z), ap.nis, lay)

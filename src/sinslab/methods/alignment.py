@@ -70,7 +70,8 @@ from numba import njit
 from sinslab.core import attitude as att_
 from sinslab.core import earth, units
 from sinslab.nav import errstate
-from sinslab.estimation import kalman
+from sinslab.estimation import kalman, linear
+from sinslab.estimation.filter import KalmanFilter
 from sinslab.core.attitude import q2dcm_s, qmul_s, rv2q_s
 from sinslab.core.records import ImuRecord
 
@@ -749,11 +750,11 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
         fm = np.empty((K, 3))
         _propagate(q, imu.dtheta, imu.dv, imu.dt, wn, 0, nper, K, qs[1:], fm)
         zs = fm[:, :2].copy()
-        run = kalman.run_linear(np.zeros(n), P0, Phi, Qk, H, R, zs)
+        run = linear.run_linear(np.zeros(n), P0, Phi, Qk, H, R, zs)
         x, sig, nis = run.x, run.sigma, run.nis
         Pf = run.P_saved[-1]
     else:
-        kf = kalman.KalmanFilter(np.zeros(n), P0, t0=t[0], check=False)
+        kf = KalmanFilter(np.zeros(n), P0, t0=t[0], check=False)
         x = np.empty((K + 1, n))
         sig = np.empty((K + 1, n))
         nis = np.empty(K)

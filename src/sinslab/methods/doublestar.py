@@ -38,15 +38,15 @@ Paper 003 (Liu, Lin, Lai, Sun 2004). Three parts, usable with any parameters and
    Markov drift 3, accelerometer first-order Markov bias 3) from
    :mod:`sinslab.nav.errstate`, the strapdown mechanization of :mod:`sinslab.nav.strapdown`
    (vertical channel held to an external height) and one
-   :class:`sinslab.estimation.kalman.KalmanFilter`, run by sinslab's one INS + fix driver
-   :func:`sinslab.fusion.loosely_coupled.loosely_coupled` (2-component fixes, fixes only inside the
-   windows), in three modes:
+   :class:`sinslab.estimation.filter.KalmanFilter`, run by the fusion driver through
+   :func:`sinslab.fusion.loosely_coupled.loosely_coupled` (2-component fixes, fixes only
+   inside the windows), in three modes:
 
-   * ``"lag-aware"``: the fix valid at t arrives at t + ΔT and is applied with
-     :meth:`~sinslab.estimation.kalman.KalmanFilter.update_lagged` (the paper's eqs 4–10,
-     ``method="paper003"``: update at t from the state stored at the last step, then one
-     prediction ``expm(A ΔT)`` with the integrated Q; or ``method="exact"``: re-process
-     the stored steps), then the correction is fed back to the INS;
+   * ``"lag-aware"``: the fix valid at t arrives at t + ΔT and is applied at t with a lag
+     policy (:class:`StoredStateUpdate`, the paper's eqs 4–10: update at t from the state
+     stored at the last step, then one prediction ``expm(A ΔT)`` with the integrated Q; or
+     :class:`sinslab.fusion.lag.ExactReprocessing`: re-process the stored steps), then the
+     correction is fed back to the INS;
    * ``"lag-ignore"``: the fix is applied at its arrival as if it were current;
    * ``"zero-lag"``: an ideal receiver whose fix of time t is available at t.
 
@@ -65,14 +65,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sinslab.core.earth import A, E2, radii
+from sinslab.estimation.kalman import discretize, update
+from sinslab.fusion.feedback import FeedbackLayout
+from sinslab.fusion.loosely_coupled import loosely_coupled
 from sinslab.nav import compare, errstate as es
 from sinslab.nav import strapdown as sd
-from sinslab.core.earth import A, E2, radii
 
 __all__ = [
     "GEO_RADIUS", "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
     "ecef", "measure_ranges", "solve_fix", "request_schedule", "Fixes", "simulate_fixes",
     "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate",
+    "StoredStateUpdate",
     "MODES", "nav_errors", "check_windows",
 ]
 
@@ -585,6 +589,59 @@ class Integration:
     lag_method: str
 
 
+
+class StoredStateUpdate:
+    """Paper 003's lagged update (eqs 4–10) as a lag policy of the fusion driver.
+
+    A fix valid at ``t_m`` that arrives at ``t``: from the stored posterior at the last
+    filter epoch ``t_j <= t_m`` predict to ``t_m`` with ``Φ = expm(F τ)`` and the
+    integrated Q (τ = t_m − t_j, Van Loan), update there, then predict to the current time
+    in one step with ``expm(F ΔT)`` and the integrated Q (ΔT = t − t_m; F, Qc of the
+    validity epoch held constant, measurements in between ignored). The measurement is
+    formed from the navigation output of the validity epoch *after* its feedback, as in the
+    paper; the filter works in feed-forward coordinates ``x + c`` (c: cumulative feedback),
+    and its history restarts from now because the stored steps no longer describe the path
+    to the new estimate.
+    """
+
+    on_arrival = False
+    corrected_nav = True
+    needs_model = True
+
+    def update(self, filt, z, H, R, t_m, *, F, Qc, tol=1e-6, mask=None, sequential=None):
+        """Apply the lagged fix to ``filt`` (a :class:`sinslab.estimation.filter.KalmanFilter`
+        with history); ``F``, ``Qc`` (n, n): continuous model at ``t_m``. Returns the
+        :class:`~sinslab.estimation.kalman.UpdateResult` of the update at ``t_m``."""
+        if F is None or Qc is None:
+            raise ValueError("the stored-state update needs F and Qc (continuous model at t_m)")
+        j = filt.find_epoch(t_m, tol, exact=False)
+        e = filt.stored_epoch(j)
+        x_post, P_post, c_post = filt.posterior_at(j)
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        Hm = np.atleast_2d(np.asarray(H, dtype=float))
+        xff = x_post + c_post
+        tau = max(t_m - e.t, 0.0)
+        if tau > 0:
+            Phi1, Q1 = discretize(F, Qc, tau)
+            xff = Phi1 @ xff
+            P = Phi1 @ P_post @ Phi1.T + Q1
+        else:
+            P = P_post.copy()
+        # the measurement was formed from the navigation state at t_m, which carried the
+        # cumulative feedback of epoch j propagated to t_m
+        c_m = (discretize(F, np.zeros_like(F), tau)[0] @ c_post) if tau > 0 else c_post
+        res = update(xff, 0.5 * (P + P.T), z + Hm @ c_m, Hm, R, mask=mask, sequential=sequential)
+        dT = filt.t - t_m
+        if dT > 0:
+            Phi2, Q2 = discretize(F, Qc, dT)
+            xff = Phi2 @ res.x
+            P = Phi2 @ res.P @ Phi2.T + Q2
+        else:
+            xff, P = res.x, res.P
+        filt.restart_history(xff - filt.c, 0.5 * (P + P.T))
+        return res
+
+
 def _epoch_of(t, t0, T, what):
     e = (np.asarray(t) - t0) / T
     r = np.round(e)
@@ -614,7 +671,8 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     P0 : (16, 16)
     mode : {"lag-aware", "lag-ignore", "zero-lag"}
     lag_method : {"paper003", "exact"}
-        The lagged update of the lag-aware mode (:meth:`KalmanFilter.update_lagged`).
+        The lagged update of the lag-aware mode: :class:`StoredStateUpdate` or
+        :class:`sinslab.fusion.lag.ExactReprocessing`.
     height : array_like (N+1,) or float
         External height [m] at the IMU epochs (barometer / map); the vertical channel is
         held to it (the model has no vertical channel).
@@ -632,9 +690,6 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     -------
     Integration
     """
-    from sinslab.fusion.loosely_coupled import loosely_coupled
-    from sinslab.estimation.kalman import FeedbackLayout
-
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if lag_method not in ("paper003", "exact"):
@@ -666,7 +721,8 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
         imu, init, fixes.t_valid, np.stack([fixes.lat, fixes.lon], -1),
         np.stack([fixes.sigma_ns, fixes.sigma_ew], -1), P0, model=model,
         fix_arrive=fixes.t_valid if mode == "zero-lag" else fixes.t_arrive,
-        lag="ignore" if mode == "lag-ignore" else "aware", lag_method=lag_method, windows=w,
+        lag="ignore" if mode == "lag-ignore" else "aware",
+        lag_method=StoredStateUpdate() if lag_method == "paper003" else "exact", windows=w,
         kf_dt=kf_dt, nsub=nsub, feedback=FeedbackLayout.from_model(lay, gyro="eps_b", accel=None),
         vertical="hold", height=height, max_block=max_block, model_every=0.0,
         discretization=discretization, progress=False)

@@ -1,4 +1,4 @@
-"""Error-state models of strapdown INS (φ-angle family, ENU) and their discretisation.
+"""Error-state models of strapdown INS (φ-angle family, ENU).
 
 Conventions (binding for every model in this module)
 -----------------------------------------------------
@@ -58,7 +58,6 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
-import scipy.linalg
 
 from sinslab.core import units
 from sinslab.core.attitude import euler_to_dcm, skew
@@ -68,7 +67,7 @@ __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices", "static_alignment_model",
-    "joint_rotation_model", "discretize", "van_loan", "CORES",
+    "joint_rotation_model", "CORES",
 ]
 
 # ----------------------------------------------------------------------------- layout
@@ -718,11 +717,6 @@ class ErrorModel:
         G = self.G(nav)
         return (G * self.q) @ np.swapaxes(G, -1, -2)
 
-    def discretize(self, nav: NavPoint, T: float, method="vanloan"):
-        """``(Φ, Q_k)`` over a step T [s] with F, G frozen at ``nav``; see :func:`discretize`."""
-        F, G = self.matrices(nav)
-        return discretize(F, G, self.q, T, method)
-
 
 class DifferenceModel(ErrorModel):
     """Error model of the difference of two INS on one carrier: ``x = x_1 − x_k`` (core) +
@@ -789,10 +783,6 @@ class DifferenceModel(ErrorModel):
         G = self.G(nav1, navk)
         return (G * self.q) @ np.swapaxes(G, -1, -2)
 
-    def discretize(self, nav1, navk, T, method="vanloan"):
-        F, G = self.matrices(nav1, navk)
-        return discretize(F, G, self.q, T, method)
-
 
 def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
                          radius_derivatives=False) -> DifferenceModel:
@@ -850,71 +840,3 @@ def static_alignment_model(lat, g=None):
     H[0, 1], H[0, 6] = -g, 1.0
     H[1, 0], H[1, 7] = g, 1.0
     return F, G, H
-
-
-# ------------------------------------------------------------------------ discretisation
-def van_loan(F, Qc, T):
-    """Exact ``(Φ, Q_k)`` of ``ẋ = F x + w``, ``E[w wᵀ] = Qc δ(t)``, over T (Van Loan 1978).
-
-    ``Φ = expm(F T)``, ``Q_k = ∫₀ᵀ Φ(s) Qc Φ(s)ᵀ ds`` from one block exponential
-    ``expm([[−F, Qc], [0, Fᵀ]] T)``. F ``(..., n, n)``, Qc ``(..., n, n)`` (any symmetric
-    density, correlated or not), T [s]; leading dimensions broadcast (many epochs).
-    """
-    F = np.asarray(F, dtype=float)
-    Qc = np.asarray(Qc, dtype=float)
-    n = F.shape[-1]
-    T = float(T)
-    S = np.broadcast_shapes(F.shape[:-2], Qc.shape[:-2])
-    M = np.zeros(S + (2 * n, 2 * n))
-    M[..., :n, :n] = -F * T
-    M[..., :n, n:] = Qc * T
-    M[..., n:, n:] = np.swapaxes(F, -1, -2) * T
-    E = scipy.linalg.expm(M)
-    Phi = np.swapaxes(E[..., n:, n:], -1, -2)
-    Qk = Phi @ E[..., :n, n:]
-    return Phi, 0.5 * (Qk + np.swapaxes(Qk, -1, -2))
-
-
-def discretize(F, G, q, T, method="vanloan"):
-    """Discrete transition and process-noise matrices of ``ẋ = F x + G w`` over T.
-
-    Parameters
-    ----------
-    F : array (..., n, n)
-        Continuous system matrix (frozen over the step); leading dims = many epochs.
-    G : array (..., n, m)
-        Noise input matrix.
-    q : array (m,) or (..., m)
-        Spectral densities of w (SI, e.g. rad²/s).
-    T : float
-        Step [s].
-    method : {"vanloan", "series"}
-        ``"vanloan"``: Φ = expm(F T) and ``Q_k = ∫₀ᵀ Φ(s) G q Gᵀ Φ(s)ᵀ ds`` exactly by Van
-        Loan's block exponential. ``"series"``: Φ ≈ I + F T + (F T)²/2 and the trapezoid
-        ``Q_k ≈ (Q̄ T + Φ Q̄ Φᵀ T)/2`` with ``Q̄ = G q Gᵀ``; both err by O(T³) (tested).
-
-    Returns
-    -------
-    Phi, Qk : ndarray (..., n, n)
-    """
-    F = np.asarray(F, dtype=float)
-    G = np.asarray(G, dtype=float)
-    q = np.asarray(q, dtype=float)
-    n = F.shape[-1]
-    if F.shape[-2] != n or G.shape[-2] != n or G.shape[-1] != q.shape[-1]:
-        raise ValueError(f"shape mismatch: F {F.shape}, G {G.shape}, q {q.shape}")
-    if np.any(q < 0):
-        raise ValueError("noise spectral densities must be >= 0")
-    T = float(T)
-    Qc = (G * q[..., None, :]) @ np.swapaxes(G, -1, -2)
-    Qc = 0.5 * (Qc + np.swapaxes(Qc, -1, -2))
-    if method == "vanloan":
-        return van_loan(F, Qc, T)
-    elif method == "series":
-        FT = F * T
-        Phi = np.eye(n) + FT + 0.5 * FT @ FT
-        Qk = 0.5 * T * (Qc + Phi @ Qc @ np.swapaxes(Phi, -1, -2))
-    else:
-        raise ValueError(f"unknown discretisation method {method!r} (vanloan|series)")
-    return Phi, 0.5 * (Qk + np.swapaxes(Qk, -1, -2))
-

@@ -1,0 +1,419 @@
+"""The stepped Kalman filter that runs beside a nonlinear INS: predict, update, feedback
+and lagged measurements from a history ring buffer.
+
+:class:`KalmanFilter` works on an error state of any layout; it knows nothing about
+navigation. What the fed-back states mean to an INS (attitude, velocity, position, sensor
+compensation) is :class:`sinslab.fusion.feedback.FeedbackLayout`; the loop that runs the
+filter beside the mechanization is :mod:`sinslab.fusion.driver`.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from sinslab.estimation.kalman import (UpdateResult, _as_square, _is_diag, check_covariance,
+                                       update)
+from sinslab.estimation.linear import _cov_predict, _scalar_update, _sparsity_nb, _state_predict
+
+__all__ = ["KalmanFilter", "StoredEpoch"]
+
+
+@njit(cache=True)
+def _predict_many(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out):
+    m = Phis.shape[0]
+    n = x.shape[0]
+    for i in range(m):
+        _cov_predict(P, Phis[i], Qs[i], T1, T2)
+        _state_predict(x, Phis[i], nzc[i], nnz[i], tmp)
+        _state_predict(c, Phis[i], nzc[i], nnz[i], tmp)
+        for j in range(n):
+            sig_out[i, j] = math.sqrt(max(P[j, j], 0.0))
+            x_out[i, j] = x[j]
+
+
+@njit(cache=True)
+def _seq_update(x, P, z, H, r, innov, sdiag, tmp, B):
+    n = x.shape[0]
+    pht = np.empty(n)
+    kk = np.empty(n)
+    nis = 0.0
+    for c in range(z.shape[0]):
+        nu, s = _scalar_update(x, P, H[c], r[c], z[c], True, pht, kk, tmp, B)
+        innov[c] = nu
+        sdiag[c] = s
+        nis += nu * nu / s
+    return nis
+
+
+# ----------------------------------------------------------------------------------------
+# stateful filter: feedback / feed-forward, lagged measurements
+# ----------------------------------------------------------------------------------------
+@dataclass
+class StoredEpoch:
+    """One epoch of the filter history (feedback coordinates; ``c`` = cumulative feedback)."""
+
+    t: float
+    x_prior: np.ndarray          # feedback coordinates, before updates at this epoch
+    P_prior: np.ndarray
+    c_prior: np.ndarray          # cumulative feedback at the prior
+    updates: list = field(default_factory=list)   # (z_ff, H, R, mask, sequential)
+    aux: object = None
+    Phi: np.ndarray | None = None  # to the next epoch (set by the next predict)
+    Q: np.ndarray | None = None
+    x_post: np.ndarray | None = None
+    P_post: np.ndarray | None = None
+    c_post: np.ndarray | None = None
+
+
+class KalmanFilter:
+    """A Kalman filter stepped by the caller, for use beside a nonlinear INS.
+
+    The filter works on an error state ``x`` (n,) with covariance ``P`` (n, n) at time
+    ``t``. The caller predicts with the Φ and Q_k of each step (e.g. from
+    :mod:`sinslab.nav.errstate`) and applies measurements as they arrive.
+
+    Feedback and feed-forward
+    -------------------------
+    Feed-forward (open loop): never call :meth:`feedback`; ``x`` estimates the errors of
+    the free-running INS and the user subtracts it from the output. Feedback (closed
+    loop): after an update, ``d = kf.feedback(indices)`` returns the estimate of those
+    states and zeroes them in ``x``; the caller corrects the navigation state (e.g.
+    ``strapdown.correct``) and the sensor compensation by ``d``. The filter keeps the
+    cumulative correction ``c`` propagated by Φ, so that ``x + c`` (:attr:`x_total`)
+    is the feed-forward-equivalent estimate and lagged measurements stay exact.
+
+    Lagged measurements
+    -------------------
+    With ``history > 0`` the filter keeps a ring buffer of the last ``history`` epochs:
+    prior state and covariance, the transition to the next epoch, applied measurements,
+    the cumulative feedback, and an optional ``aux`` payload (e.g. a copy of the
+    navigation state, to form the lagged measurement from the INS output of that time).
+    :meth:`update_lagged` applies a measurement valid at an earlier epoch:
+
+    it inserts the measurement at its epoch and re-processes the stored steps and
+    measurements up to now. For a linear system the result equals that of a filter that
+    received it on time (to rounding), in feedback or feed-forward mode. Other ways of
+    treating a lagged measurement (e.g. a one-step prediction from a stored state) are
+    written against the public history accessors :meth:`find_epoch`,
+    :meth:`stored_epoch`, :meth:`posterior_at` and :meth:`restart_history`.
+
+    Parameters
+    ----------
+    x0 : array_like, shape (n,)
+        Initial error-state estimate.
+    P0 : array_like, shape (n, n)
+        Initial covariance, symmetric positive semi-definite.
+    t0 : float
+        Initial time [s].
+    history : int
+        Number of epochs kept for lagged measurements (0: none).
+    check : bool
+        Validate Q and R at every call (cheap for small n; turn off in hot loops once the
+        model is trusted).
+    """
+
+    def __init__(self, x0, P0, *, t0=0.0, history=0, check=True):
+        P0 = np.asarray(P0, dtype=float)
+        n = P0.shape[0] if P0.ndim == 2 else -1
+        self.P = check_covariance(_as_square(P0, n, "P0"), "P0").copy()
+        self.n = n
+        x0 = np.zeros(n) if x0 is None else np.asarray(x0, dtype=float).copy()
+        if x0.shape != (n,):
+            raise ValueError(f"x0 must have shape ({n},) to match P0, got {x0.shape}")
+        self.x = x0
+        self.t = float(t0)
+        self.c = np.zeros(n)
+        self.check = bool(check)
+        self.history = int(history)
+        self._buf = deque(maxlen=self.history) if self.history > 0 else None
+        self._new_epoch()
+        # numba work arrays for the fast path
+        self._T1 = np.empty((n, n))
+        self._T2 = np.empty((n, n))
+        self._tmp = np.empty(n)
+
+    # -- history -----------------------------------------------------------------------
+    def _new_epoch(self, aux=None):
+        if self._buf is not None:
+            self._buf.append(StoredEpoch(self.t, self.x.copy(), self.P.copy(), self.c.copy(), aux=aux))
+
+    def _close_epoch(self, Phi, Q):
+        if self._buf is not None and self._buf:
+            e = self._buf[-1]
+            e.Phi, e.Q = Phi.copy(), Q.copy()
+            e.x_post, e.P_post, e.c_post = self.x.copy(), self.P.copy(), self.c.copy()
+
+    def set_aux(self, aux):
+        """Attach a payload (e.g. a copy of the navigation state) to the current epoch."""
+        if self._buf is not None:
+            self._buf[-1].aux = aux
+
+    def epochs(self):
+        """Times [s] of the stored epochs, oldest first (shape (≤history,))."""
+        return np.array([e.t for e in self._buf]) if self._buf is not None else np.empty(0)
+
+    def aux_at(self, t_m, tol=1e-9):
+        """The payload stored at the epoch ``t_m`` (within ``tol`` s)."""
+        return self._buf[self._find(t_m, tol, exact=True)].aux
+
+    def _find(self, t_m, tol, exact):
+        if self._buf is None:
+            raise ValueError("no history kept: create the filter with history > 0 for lagged measurements")
+        ts = self.epochs()
+        if t_m > self.t + tol:
+            raise ValueError(f"measurement time {t_m} s is in the future (filter time {self.t} s)")
+        if t_m < ts[0] - tol:
+            raise ValueError(f"lagged measurement at {t_m} s is older than the stored history "
+                             f"({ts[0]} .. {ts[-1]} s, {len(ts)} epochs); increase history")
+        j = int(np.searchsorted(ts, t_m + tol, side="right")) - 1
+        if exact and abs(ts[j] - t_m) > tol:
+            raise ValueError(f"measurement time {t_m} s is not a stored epoch (nearest "
+                             f"{ts[j]} s); predict to the measurement epoch")
+        return j
+
+    # -- basic steps -------------------------------------------------------------------
+    @property
+    def x_total(self):
+        """Feed-forward-equivalent estimate ``x + c`` (n,): estimate of the errors of the
+        INS as if no feedback had been applied."""
+        return self.x + self.c
+
+    @property
+    def sigma(self):
+        """Standard deviations sqrt(diag P), shape (n,)."""
+        return np.sqrt(np.maximum(np.diag(self.P), 0.0))
+
+    def predict(self, Phi, Q, dt, *, aux=None):
+        """Advance by ``dt`` [s]: ``x <- Phi x``, ``P <- Phi P Phi^T + Q``.
+
+        Parameters
+        ----------
+        Phi : array_like, shape (n, n)
+        Q : array_like, shape (n, n)
+        dt : float
+            Step length [s] (> 0); the filter time advances by it.
+        aux : object, optional
+            Payload for the new epoch (see :meth:`set_aux`).
+        """
+        n = self.n
+        Phi = np.ascontiguousarray(Phi, dtype=float)
+        Q = np.ascontiguousarray(Q, dtype=float)
+        if Phi.shape != (n, n) or Q.shape != (n, n):
+            raise ValueError(f"Phi and Q must have shape ({n}, {n}), got {Phi.shape} and {Q.shape}")
+        if not dt > 0:
+            raise ValueError(f"dt must be > 0, got {dt}")
+        if self.check:
+            check_covariance(Q, "Q")
+            if not np.all(np.isfinite(Phi)):
+                raise ValueError("Phi has NaN/inf elements")
+        self._close_epoch(Phi, Q)
+        _cov_predict(self.P, Phi, Q, self._T1, self._T2)
+        self.x = Phi @ self.x
+        self.c = Phi @ self.c
+        self.t += float(dt)
+        self._new_epoch(aux)
+
+    def predict_many(self, Phis, Qs, dt, *, aux=None, sigma_out=None, x_out=None):
+        """Several :meth:`predict` steps in one compiled loop.
+
+        Parameters
+        ----------
+        Phis, Qs : ndarray, shape (m, n, n)
+            Transition and process-noise matrices of the m steps.
+        dt : float
+            Step length [s].
+        aux : sequence of length m, optional
+            Payloads of the new epochs (history only).
+        sigma_out, x_out : ndarray, shape (m, n), optional
+            Receive σ and x after each step.
+        """
+        Phis = np.ascontiguousarray(Phis, dtype=float)
+        Qs = np.ascontiguousarray(Qs, dtype=float)
+        m = Phis.shape[0]
+        if self._buf is not None or self.check:
+            for i in range(m):
+                self.predict(Phis[i], Qs[i], dt, aux=None if aux is None else aux[i])
+                if sigma_out is not None:
+                    sigma_out[i] = self.sigma
+                if x_out is not None:
+                    x_out[i] = self.x
+            return
+        n = self.n
+        if Phis.shape != (m, n, n) or Qs.shape != (m, n, n):
+            raise ValueError(f"Phis and Qs must have shape (m, {n}, {n}), got {Phis.shape}, {Qs.shape}")
+        nzc = np.zeros((m, n, max(n, 1)), dtype=np.int64)
+        nnz = np.zeros((m, n), dtype=np.int64)
+        _sparsity_nb(Phis, nzc, nnz)
+        so = np.empty((m, n)) if sigma_out is None else sigma_out
+        xo = np.empty((m, n)) if x_out is None else x_out
+        _predict_many(self.x, self.c, self.P, Phis, Qs, nzc, nnz, self._T1, self._T2, self._tmp,
+                      so, xo)
+        self.t += m * float(dt)
+
+    def update(self, z, H, R, *, mask=None, sequential=None):
+        """Apply a measurement valid now (see :func:`update`). Returns :class:`UpdateResult`."""
+        if not self.check and self._buf is None and mask is None and sequential is not False:
+            fast = self._fast_update(z, H, R)
+            if fast is not None:
+                return fast
+        res = update(self.x, self.P, z, H, R, mask=mask, sequential=sequential)
+        if self._buf is not None:
+            z = np.atleast_1d(np.asarray(z, dtype=float))
+            Hm = np.atleast_2d(np.asarray(H, dtype=float))
+            self._buf[-1].updates.append((z + Hm @ self.c, Hm, R, res.used.copy(), sequential))
+        # own copies: predict() and feedback() work in place
+        self.x, self.P = res.x.copy(), res.P.copy()
+        return res
+
+    def _fast_update(self, z, H, R):
+        """Sequential scalar Joseph updates in compiled code (diagonal R, finite z)."""
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        H = np.ascontiguousarray(np.atleast_2d(H), dtype=float)
+        R = np.asarray(R, dtype=float)
+        m = z.size
+        if R.ndim == 2:
+            if R.shape != (m, m) or not _is_diag(R):
+                return None
+            r = np.diag(R).copy()
+        else:
+            r = np.broadcast_to(R, (m,)).astype(float)
+        if H.shape != (m, self.n) or not np.all(np.isfinite(z)) or not np.all(r > 0):
+            return None
+        S = H @ self.P @ H.T + np.diag(r)
+        innov = np.empty(m)
+        sdiag = np.empty(m)
+        nis = _seq_update(self.x, self.P, z, H, r, innov, sdiag, self._tmp, self._T1)
+        return UpdateResult(self.x.copy(), self.P.copy(), innov, S, float(nis),
+                            np.ones(m, dtype=bool))
+
+    def feedback(self, indices=None):
+        """Return the estimate of the given states and zero them (closed-loop correction).
+
+        Parameters
+        ----------
+        indices : array_like of int or slice, optional
+            States to feed back (default all), e.g. ``FeedbackLayout.indices(n)``.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            The fed-back amounts (zero outside ``indices``); the caller subtracts them
+            from the navigation state / adds them to the sensor compensation.
+        """
+        d = np.zeros(self.n)
+        idx = np.arange(self.n) if indices is None else np.arange(self.n)[indices]
+        d[idx] = self.x[idx]
+        self.x[idx] = 0.0
+        self.c += d
+        return d
+
+    # -- history access for lag policies ------------------------------------------------
+    def find_epoch(self, t_m, tol=1e-9, *, exact=True):
+        """Index in the history of the stored epoch at ``t_m`` (``exact``) or of the last
+        stored epoch at or before it.
+
+        Raises
+        ------
+        ValueError
+            No history kept, ``t_m`` in the future or older than the history, or (exact)
+            not a stored epoch.
+        """
+        return self._find(t_m, tol, exact)
+
+    def stored_epoch(self, j):
+        """The :class:`StoredEpoch` record ``j`` of the history (oldest = 0, newest = -1)."""
+        if self._buf is None:
+            raise ValueError("no history kept: create the filter with history > 0")
+        return self._buf[j]
+
+    def posterior_at(self, j):
+        """``(x, P, c)`` after the updates and feedback of stored epoch ``j``; for the
+        newest epoch that is the current state of the filter."""
+        if j == len(self._buf) - 1 or j == -1:
+            return self.x, self.P, self.c
+        e = self._buf[j]
+        return e.x_post, e.P_post, e.c_post
+
+    def restart_history(self, x, P):
+        """Set the current estimate (feedback coordinates) and restart the history from
+        now: the stored epochs no longer describe the path to this estimate (used by lag
+        policies that replace re-processing with a one-step form)."""
+        self.x = np.array(x, dtype=float, copy=True)
+        self.P = np.array(P, dtype=float, order="C", copy=True)
+        buf = self._buf
+        cur = buf[-1]
+        buf.clear()
+        cur.x_prior, cur.P_prior, cur.c_prior = self.x.copy(), self.P.copy(), self.c.copy()
+        cur.updates = []
+        buf.append(cur)
+
+    # -- lagged measurements -----------------------------------------------------------
+    def update_lagged(self, z, H, R, t_m, *, mask=None, sequential=None, tol=1e-9):
+        """Apply a measurement valid at the stored epoch ``t_m`` <= now, arriving now, by
+        exact re-processing of the stored steps and measurements.
+
+        Parameters
+        ----------
+        z, H, R, mask, sequential
+            As in :func:`sinslab.estimation.kalman.update`; ``z`` must be formed from the
+            navigation state of ``t_m`` as it was then (:meth:`aux_at` returns what was
+            stored): with feedback, the INS output at epoch ``t_m`` *before* any feedback
+            applied at that epoch (the payload given to :meth:`predict`).
+        t_m : float
+            Validity time of the measurement [s], a stored epoch.
+        tol : float
+            Time tolerance [s] for matching ``t_m`` to a stored epoch.
+
+        Returns
+        -------
+        UpdateResult
+            Of the update at ``t_m`` (innovation, S, NIS there); the filter's ``x``, ``P``
+            are then those of the current time.
+
+        Raises
+        ------
+        ValueError
+            ``t_m`` older than the stored history, in the future, or not a stored epoch.
+        """
+        return self._lagged_exact(z, H, R, t_m, mask, sequential, tol)
+
+    def _lagged_exact(self, z, H, R, t_m, mask, sequential, tol):
+        j = self._find(t_m, tol, exact=True)
+        buf = self._buf
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        Hm = np.atleast_2d(np.asarray(H, dtype=float))
+        e = buf[j]
+        z_ff = z + Hm @ e.c_prior
+        # re-run in feed-forward coordinates from the prior at epoch j
+        xff = e.x_prior + e.c_prior
+        P = e.P_prior.copy()
+        first = None
+        last = len(buf) - 1
+        for i in range(j, last + 1):
+            ei = buf[i]
+            if i > j:
+                prev = buf[i - 1]
+                xff = prev.Phi @ xff
+                P = prev.Phi @ P @ prev.Phi.T + prev.Q
+                P = 0.5 * (P + P.T)
+                ei.x_prior = xff - ei.c_prior
+                ei.P_prior = P.copy()
+            ups = ei.updates
+            if i == j:
+                res = update(xff, P, z_ff, Hm, R, mask=mask, sequential=sequential)
+                first = res
+                xff, P = res.x, res.P
+            for (zf, Hs, Rs, ms, sq) in ups:
+                r2 = update(xff, P, zf, Hs, Rs, mask=ms, sequential=sq)
+                xff, P = r2.x, r2.P
+            if i < last:
+                ei.x_post = xff - ei.c_post
+                ei.P_post = P.copy()
+        buf[j].updates.insert(0, (z_ff, Hm, R, first.used.copy(), sequential))
+        self.x = xff - self.c
+        self.P = np.array(P, dtype=float, order="C", copy=True)
+        return UpdateResult(first.x - e.c_prior, first.P, first.innovation, first.S, first.nis, first.used)

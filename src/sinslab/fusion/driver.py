@@ -1,0 +1,573 @@
+"""The fusion driver: k INS streams, one error-state Kalman filter, a list of measurements.
+
+This is sinslab's one loop that runs a filter beside strapdown navigation; the loosely
+coupled filter (:mod:`sinslab.fusion.loosely_coupled`), paper 003's lag-aware integration
+and the two-INS difference filters are compositions of it.
+
+State layout
+------------
+The error state ``x`` (n,) is the layout of an error model of
+:mod:`sinslab.nav.errstate` (named blocks: ``phi`` misalignment [rad, ENU], ``dv``
+velocity error [m/s], ``dp = [δL, δλ(, δh)]`` [rad, rad(, m)], sensor blocks ``eps``,
+``nabla``, ``kg``, ``ka``, Gauss–Markov states, ...; for a
+:class:`~sinslab.nav.errstate.DifferenceModel` the core blocks are differences of two INS).
+Errors are computed minus true. The continuous model ``ẋ = F x + G w``,
+``E[w wᵀ] = diag(q) δ``, is evaluated with one :class:`~sinslab.nav.errstate.NavPoint` per
+stream: ``F, G = model.matrices(nav_1, ..., nav_k)``.
+
+Epochs
+------
+The filter runs on the grid ``t_k = t_0 + k T`` (``T = kf_dt``, a multiple of
+``nsub·dt`` of every live stream), k = 0..K. Between two consecutive *stops* — the
+epochs at which some measurement arrives, the end, and at most ``max_block`` apart — each
+live stream runs its compiled mechanization (:func:`sinslab.nav.strapdown.step`) in one
+call, writing its row ``[q, v, L, λ, h]`` at every epoch of the block together with the
+mean compensated rate and specific force of every step. A precomputed stream (a
+navigation series computed elsewhere) just reads its rows. The block boundaries are part
+of the arithmetic: a held vertical channel takes its vertical rate from the numerical
+derivative of each block's height slice (one-sided at the block ends), so the same stops
+give the same numbers and other stops differ at the level of that derivative.
+
+Per block ``[e0, e1]``:
+
+1. Streams advance to ``e1``: rows ``r_{e0+1..e1}``, step rates ``ω_{e0..e1−1}``,
+   ``f_{e0..e1−1}`` (rates of the step *after* each epoch).
+2. Model evaluation. When the block passes the end of the stretch evaluated last, F and
+   G are evaluated for all epochs ``e0..e_la−1`` of the next ``model_every`` seconds at
+   once, at epoch ``e`` with the row ``r_e`` and the rates of the step ``e -> e+1``; the
+   rows beyond ``e1`` come from a look-ahead run of the live streams from their present
+   (corrected) state. The linearisation point then differs from the corrected path only
+   by the feedback applied within that stretch; ``model_every <= kf_dt`` evaluates it on
+   the corrected path exactly. ``Φ_e, Q_e`` follow from
+   :func:`sinslab.estimation.kalman.discretize` (``"series"`` or ``"vanloan"``).
+3. Prediction of the filter through the block in one compiled loop
+   (:meth:`KalmanFilter.predict_many`); σ and x are recorded at every epoch.
+4. Measurements at ``e1``, in measurement order then item order. An item valid at
+   ``t_v`` (validity epoch ``e_v = ⌈(t_v − t_0)/T⌉``) that arrives at ``e1``:
+
+   * on time (``e_v = e1``) or with a policy that applies on arrival: compared with the
+     rows of ``e1`` (before the feedback of ``e1``) at the time ``t_e1`` (a late item
+     under the on-arrival policy at its own ``t_v``: no extrapolation), and
+     :meth:`KalmanFilter.update`;
+   * late (``e_v < e1``): compared with the rows of ``e_v`` — before the feedback of
+     ``e_v`` or after it, as the lag policy says — at ``t_ev``, and applied by the lag
+     policy (``policy.update``; default :class:`~sinslab.fusion.lag.ExactReprocessing`;
+     a policy may also need the continuous model ``F, Qc`` of ``e_v``, which the driver
+     then keeps for every epoch).
+
+5. Feedback. If a measurement arrived at ``e1`` and feedback layouts are given, each
+   (stream, :class:`~sinslab.fusion.feedback.FeedbackLayout`) pair takes its states out
+   of the filter (which zeroes them and keeps their cumulative sum ``c``), corrects the
+   stream's strapdown state and adds the sensor estimates to its compensation; the row
+   of ``e1`` is then the corrected one. Without feedback the streams run free
+   (feed-forward: ``x`` estimates their errors); precomputed streams cannot be fed back.
+
+Lag and feedback
+----------------
+The filter's history stores, per epoch, the prior ``(x, P)`` in feedback coordinates, the
+cumulative feedback ``c``, the transition to the next epoch and the updates applied. A
+lagged item is formed from the INS output of ``e_v`` *as it was* (the rows are kept for
+the length of the history), so exact re-processing works in feed-forward coordinates
+``x + c`` and its result equals that of a filter that received the item on time; the
+feedback of the epochs after ``e_v`` is already in the INS and is not repeated, the
+estimate after re-processing is fed back at ``e1`` like any other.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sinslab.core import attitude as A
+from sinslab.estimation.filter import KalmanFilter
+from sinslab.estimation.kalman import discretize
+from sinslab.fusion.lag import ExactReprocessing
+from sinslab.fusion.measurements import Epoch, Grid, NavRow
+from sinslab.nav import errstate as es
+from sinslab.nav import strapdown as sd
+
+__all__ = ["run", "DriverResult", "Applied", "LiveStream", "PrecomputedStream"]
+
+
+def _vec3_or(a):
+    return np.zeros(3) if a is None else np.asarray(a, dtype=float).reshape(3).copy()
+
+
+class LiveStream:
+    """An INS navigated by the driver: IMU increments + initial state + mechanization
+    options + the sensor compensation that feedback updates.
+
+    Parameters
+    ----------
+    imu : sinslab.core.records.ImuRecord
+        Increments (with errors), N samples at ``dt``.
+    init : sinslab.core.records.NavState
+        Initial navigation state (IMU attitude) at the end of sample ``start − 1``
+        (``imu.t0`` for ``start = 0``).
+    nsub : int
+        Mechanization subsamples (coning/sculling).
+    vertical : {"free", "hold"}
+        ``"hold"``: the vertical channel held to ``height`` (N+1,) or float [m] at the IMU
+        epochs.
+    gyro_bias, accel_bias : array_like (3,), optional
+        Initial bias compensation [rad/s], [m/s²].
+    scaled : bool
+        Keep scale-factor compensation (``kg``, ``ka`` [-]) applied as
+        ``Δθ (1 − kg)``, ``Δv (1 − ka)``.
+    start : int
+        First IMU sample used.
+    t_start : float, optional
+        Start time [s] if not the end of sample ``start − 1``.
+    """
+
+    precomputed = False
+
+    def __init__(self, imu, init, *, nsub=2, vertical="free", height=None, gyro_bias=None,
+                 accel_bias=None, scaled=False, start=0, t_start=None):
+        if vertical not in ("free", "hold"):
+            raise ValueError(f"vertical must be 'free' or 'hold', got {vertical!r}")
+        self.imu = imu
+        self.nsub = int(nsub)
+        self.start = int(start)
+        self.t0 = (float(t_start) if t_start is not None
+                   else (float(imu.t[self.start - 1]) if self.start > 0 else imu.t0))
+        if vertical == "hold":
+            hgt = np.asarray(height, dtype=float)
+            if hgt.ndim == 0:
+                hgt = np.full(len(imu) + 1, float(hgt))
+            if hgt.shape != (len(imu) + 1,):
+                raise ValueError(f"height must have {len(imu) + 1} values (IMU epochs), got {hgt.shape}")
+            self._hgt = hgt
+            self._vkw = dict(vertical="hold")
+        else:
+            self._hgt = None
+            self._vkw = {}
+        self.state = sd.initial_state_array(init)
+        self.gb = _vec3_or(gyro_bias)
+        self.ab = _vec3_or(accel_bias)
+        self.kg = np.zeros(3)
+        self.ka = np.zeros(3)
+        self.scaled = bool(scaled)
+
+    def bind(self, kf_dt):
+        """Put the stream on the filter grid; returns ``(t0, number of filter steps)``."""
+        dt = self.imu.dt
+        k_kf = int(round(kf_dt / dt))
+        if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % self.nsub:
+            raise ValueError(f"kf_dt={kf_dt} s must be a multiple of nsub*dt = {self.nsub * dt} s")
+        self.k_kf = k_kf
+        self.T = k_kf * dt
+        self.per = k_kf // self.nsub
+        n_ep = (len(self.imu) - self.start) // k_kf
+        if n_ep < 1:
+            raise ValueError(f"the IMU record ({len(self.imu) - self.start} samples) is shorter "
+                             "than one filter step")
+        self.n_ep = n_ep
+        if not self.scaled:
+            n_use = n_ep * k_kf
+            s = self.start
+            self._dth_sum = self.imu.dtheta[s:s + n_use].reshape(n_ep, k_kf, 3).sum(1)
+            self._dv_sum = self.imu.dv[s:s + n_use].reshape(n_ep, k_kf, 3).sum(1)
+        return self.T, self.t0, n_ep
+
+    def row0(self):
+        """Row of epoch 0 and the rates of its first step."""
+        s = self.start
+        w0 = self.imu.dtheta[s:s + self.k_kf].sum(0) / self.T - self.gb
+        f0 = self.imu.dv[s:s + self.k_kf].sum(0) / self.T - self.ab
+        return self.state[:10].copy(), w0, f0
+
+    def row(self):
+        """Current row (10,)."""
+        return self.state[:10]
+
+    def _increments(self, e_a, e_b):
+        k_kf, T = self.k_kf, self.T
+        a, b = self.start + e_a * k_kf, self.start + e_b * k_kf
+        dth, dvb = self.imu.dtheta[a:b], self.imu.dv[a:b]
+        if self.scaled:
+            dth = dth * (1.0 - self.kg)
+            dvb = dvb * (1.0 - self.ka)
+            ws = dth.reshape(-1, k_kf, 3).sum(1) / T - self.gb
+            fs = dvb.reshape(-1, k_kf, 3).sum(1) / T - self.ab
+        else:
+            ws = self._dth_sum[e_a:e_b] / T - self.gb
+            fs = self._dv_sum[e_a:e_b] / T - self.ab
+        return dth, dvb, ws, fs, a, b
+
+    def _run(self, st, e_a, e_b):
+        dth, dvb, ws, fs, a, b = self._increments(e_a, e_b)
+        out = np.empty((e_b - e_a, 10))
+        vkw = self._vkw
+        if self._hgt is not None:
+            vkw["height"] = self._hgt[a:b + 1]
+        sd.step(st, dth, dvb, self.imu.dt, self.nsub, gyro_bias=self.gb, accel_bias=self.ab,
+                out=out, out_every=self.per, **vkw)
+        return out, ws, fs
+
+    def advance(self, e0, e1):
+        """Navigate epochs e0 -> e1: rows of e0+1..e1 and the rates of steps e0..e1−1."""
+        return self._run(self.state, e0, e1)
+
+    def lookahead(self, e1, e2):
+        """Rows and rates of e1 -> e2 from a copy of the present state (the stream is not
+        advanced)."""
+        return self._run(self.state.copy(), e1, e2)
+
+    def feedback(self, filt, layout):
+        """Feed the filter's states of ``layout`` back into this INS."""
+        self.gb, self.ab, d = layout.apply(filt, self.state, self.gb, self.ab)
+        if layout.gyro_scale is not None:
+            self.kg = self.kg + d[layout.gyro_scale]
+        if layout.accel_scale is not None:
+            self.ka = self.ka + d[layout.accel_scale]
+        return d
+
+
+class PrecomputedStream:
+    """A navigation solution computed elsewhere, read at the filter epochs (feed-forward
+    filtering of INS outputs; no feedback possible).
+
+    Parameters
+    ----------
+    t : array_like, shape (M,)
+        Epochs [s], spaced by the filter step.
+    rows : array_like, shape (M, 10)
+        ``[q0..q3, vE, vN, vU, lat, lon, h]`` at the epochs.
+    omega_b, f_b : array_like, shape (M − 1, 3)
+        Mean compensated body rate [rad/s] and specific force [m/s²] of each step
+        ``k -> k+1``.
+    """
+
+    precomputed = True
+
+    def __init__(self, t, rows, omega_b, f_b):
+        self.t = np.asarray(t, dtype=float)
+        self.rows = np.ascontiguousarray(rows, dtype=float)
+        self.omega = np.asarray(omega_b, dtype=float)
+        self.f = np.asarray(f_b, dtype=float)
+        M = self.t.size
+        if self.rows.shape != (M, 10) or self.omega.shape != (M - 1, 3) or self.f.shape != (M - 1, 3):
+            raise ValueError(f"precomputed stream: rows must be ({M}, 10) and rates ({M - 1}, 3), got "
+                             f"{self.rows.shape}, {self.omega.shape}, {self.f.shape}")
+        self._k = 0
+
+    @classmethod
+    def from_series(cls, series, imu, *, every, start=0, gyro_bias=None, accel_bias=None):
+        """From a :class:`~sinslab.core.records.NavSeries` whose epochs are every
+        ``every`` IMU samples from the end of sample ``start − 1``; the step rates are the
+        mean IMU rates over those samples minus the given biases."""
+        att = series.att_imu if series.att_imu is not None else series.att
+        rows = np.concatenate([A.euler_to_quat(att), series.vel, series.lat[:, None],
+                               series.lon[:, None], series.h[:, None]], 1)
+        M = series.t.size
+        n = (M - 1) * every
+        T = every * imu.dt
+        w = imu.dtheta[start:start + n].reshape(M - 1, every, 3).sum(1) / T - _vec3_or(gyro_bias)
+        f = imu.dv[start:start + n].reshape(M - 1, every, 3).sum(1) / T - _vec3_or(accel_bias)
+        return cls(series.t, rows, w, f)
+
+    def bind(self, kf_dt):
+        T = float(self.t[1] - self.t[0]) if self.t.size > 1 else float(kf_dt)
+        if abs(T - kf_dt) > 1e-6 * kf_dt:
+            raise ValueError(f"precomputed stream epochs are {T} s apart, the filter step is {kf_dt} s")
+        return float(kf_dt), float(self.t[0]), self.t.size - 1
+
+    def row0(self):
+        return self.rows[0].copy(), self.omega[0], self.f[0]
+
+    def row(self):
+        return self.rows[self._k]
+
+    def advance(self, e0, e1):
+        self._k = e1
+        return self.rows[e0 + 1:e1 + 1], self.omega[e0:e1], self.f[e0:e1]
+
+    def lookahead(self, e1, e2):
+        return self.rows[e1 + 1:e2 + 1], self.omega[e1:e2], self.f[e1:e2]
+
+    def feedback(self, filt, layout):
+        raise ValueError("a precomputed navigation stream cannot be fed back")
+
+
+@dataclass(frozen=True)
+class Applied:
+    """Measurement records applied by :func:`run` (arrays of length J, in processing order).
+
+    Attributes
+    ----------
+    measurement : int array
+        Index of the measurement in the list given.
+    item : int array
+        Item of that measurement.
+    t_valid, t_applied : float arrays [s]
+        Validity time and the epoch at which it was processed.
+    innovation : list of ndarray
+        Innovations (NaN where a component was not used).
+    nis : float array
+    """
+
+    measurement: np.ndarray
+    item: np.ndarray
+    t_valid: np.ndarray
+    t_applied: np.ndarray
+    innovation: list
+    nis: np.ndarray
+
+
+@dataclass(frozen=True)
+class DriverResult:
+    """Output of :func:`run` at the filter epochs (M = K + 1 rows, row 0 = start).
+
+    Attributes
+    ----------
+    t : ndarray (M,)
+        Epoch times [s].
+    nav : tuple of ndarray (M, 10)
+        Per stream, the row after any feedback at that epoch.
+    x, sigma : ndarray (M, n)
+        Estimate after the epoch (after its updates and feedback) and filter σ.
+    gyro_bias, accel_bias : tuple of ndarray (M, 3) or None
+        Per stream, bias compensation in use after the epoch (None for precomputed).
+    scale : tuple of ndarray (M, 6) or None
+        Per stream, ``[kg, ka]`` compensation, when some feedback layout has scale blocks.
+    applied : Applied
+    layout : StateLayout
+    """
+
+    t: np.ndarray
+    nav: tuple
+    x: np.ndarray
+    sigma: np.ndarray
+    gyro_bias: tuple
+    accel_bias: tuple
+    scale: tuple | None
+    applied: Applied
+    layout: object
+
+
+def _feedback_pairs(feedback):
+    if feedback is None or feedback is False:
+        return []
+    if hasattr(feedback, "apply"):
+        return [(0, feedback)]
+    return [(int(i), fb) for i, fb in feedback]
+
+
+def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=None,
+        max_block=10.0, model_every=10.0, discretization="series", progress=False,
+        label="fusion", lag_tol=1e-6) -> DriverResult:
+    """Run the filter beside the streams and apply the measurements (see the module notes).
+
+    Parameters
+    ----------
+    streams : sequence of LiveStream / PrecomputedStream
+        k >= 1 navigation streams on one filter grid (``t0`` and step of stream 0).
+    model : sinslab.nav.errstate.ErrorModel or DifferenceModel
+        ``model.matrices(*navpoints)`` with one NavPoint per stream gives F, G; ``model.q``
+        the noise densities; ``model.layout`` the state layout.
+    P0 : array_like (n, n)
+        Initial covariance.
+    measurements : sequence of Measurement
+        See :mod:`sinslab.fusion.measurements`.
+    kf_dt : float
+        Filter step [s].
+    feedback : FeedbackLayout or sequence of (stream index, FeedbackLayout), optional
+        Closed loop for those streams after every epoch with a measurement; None: feed
+        forward.
+    lag : lag policy, optional
+        Default :class:`sinslab.fusion.lag.ExactReprocessing`.
+    x0 : array_like (n,), optional
+        Initial estimate (default zero).
+    max_block : float
+        Longest stretch [s] the streams run in one compiled call.
+    model_every : float
+        Length [s] of the stretch the model is evaluated for at once (look-ahead).
+    discretization : {"series", "vanloan"}
+    progress : bool
+        Show a progress bar on a terminal.
+    lag_tol : float
+        Tolerance [s] matching a lagged item to a stored epoch.
+
+    Returns
+    -------
+    DriverResult
+    """
+    from sinslab.core.progress import progress as _progress
+
+    streams = list(streams)
+    if not streams:
+        raise ValueError("the driver needs at least one navigation stream")
+    lag = ExactReprocessing() if lag is None else lag
+    lay = model.layout
+    n = model.n
+    fbs = _feedback_pairs(feedback)
+    for si, _ in fbs:
+        if streams[si].precomputed:
+            raise ValueError(f"stream {si} is a precomputed navigation series: it cannot be fed back")
+    scaled = any(fb.gyro_scale is not None or fb.accel_scale is not None for _, fb in fbs)
+
+    # --- filter grid (stream 0 sets t0; all share the step)
+    grids = [s.bind(kf_dt) for s in streams]
+    T, t0, _ = grids[0]
+    n_ep = min(g[2] for g in grids)
+    grid = Grid(t0, T, n_ep)
+    t_ep = grid.t
+    t_rel = T * np.arange(n_ep + 1)              # filter clock (absolute stamps lose digits)
+
+    # --- schedule of every measurement
+    arrivals = {}                                 # epoch -> [(measurement, item)]
+    hist = 0
+    e_valid = {}
+    for mi, m in enumerate(measurements):
+        for e, items in m.epochs(grid).items():
+            for j in items:
+                tv, ta = m.times(j)
+                ev = int(grid.epoch_at_or_after(tv))
+                e_valid[(mi, j)] = (ev, tv, ta > tv)
+                arrivals.setdefault(int(e), []).append((mi, j))
+                if ev < e and not lag.on_arrival:
+                    hist = max(hist, e - ev + 3)
+    keep_F = lag.needs_model and hist > 0
+
+    # --- filter and histories
+    ns = len(streams)
+    filt = KalmanFilter(np.zeros(n) if x0 is None else x0, P0, t0=0.0, history=hist, check=False)
+    nav_h = [np.empty((n_ep + 1, 10)) for _ in streams]
+    nav_pre = [np.empty((n_ep + 1, 10)) for _ in streams] if hist else nav_h
+    w_h = [np.empty((n_ep + 1, 3)) for _ in streams]
+    f_h = [np.empty((n_ep + 1, 3)) for _ in streams]
+    x_h = np.zeros((n_ep + 1, n))
+    sig_h = np.empty((n_ep + 1, n))
+    live = [not s.precomputed for s in streams]
+    gb_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
+    ab_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
+    sc_h = [np.zeros((n_ep + 1, 6)) if (lv and scaled) else None for lv in live]
+    F_h = np.empty((n_ep, n, n)) if keep_F else None
+    Qc_h = np.empty((n_ep, n, n)) if keep_F else None
+    for i, s in enumerate(streams):
+        r0, w0, f0 = s.row0()
+        nav_h[i][0] = r0
+        nav_pre[i][0] = r0
+        w_h[i][0] = w0
+        f_h[i][0] = f0
+        if live[i]:
+            gb_h[i][0], ab_h[i][0] = s.gb, s.ab
+    sig_h[0] = filt.sigma
+    a_m, a_j, a_tv, a_t, a_nu, a_nis = [], [], [], [], [], []
+    stops = sorted(set(arrivals) | {n_ep})
+    max_ep = max(1, int(round(max_block / T)))
+    la_ep = max(1, int(round(model_every / T)))
+    la_end = -1
+    la0 = 0
+    Phi_la = Q_la = None
+    q = model.q
+    nav_lag = nav_h if lag.corrected_nav else nav_pre
+
+    def epoch_rows(rows_list, w_list, f_list, k):
+        return tuple(NavRow(rows_list[i][k], w_list[i][k], f_list[i][k]) for i in range(ns))
+
+    with _progress(label, total=n_ep, unit="steps") if progress else _null() as bar:
+        e0 = 0
+        si = 0
+        while e0 < n_ep:
+            while stops[si] <= e0:
+                si += 1
+            e1 = min(stops[si], e0 + max_ep)
+            m = e1 - e0
+            blk = [s.advance(e0, e1) for s in streams]
+            rows = [np.vstack([nav_h[i][e0][None], blk[i][0]]) for i in range(ns)]   # e0..e1
+            if e1 > la_end:
+                # error model for the next stretch, from a look-ahead run of the streams
+                la0 = e0
+                la_end = max(e1, min(n_ep, e0 + la_ep))
+                pts = []
+                for i, s in enumerate(streams):
+                    out, ws, fs = blk[i]
+                    if la_end > e1:
+                        la_out, lws, lfs = s.lookahead(e1, la_end)
+                        la_rows = np.vstack([rows[i], la_out[:-1]])       # epochs e0..la_end-1
+                        w_la, f_la = np.vstack([ws, lws]), np.vstack([fs, lfs])
+                    else:
+                        la_rows, w_la, f_la = rows[i][:-1], ws, fs
+                    C = A.quat_to_dcm(la_rows[:, :4])
+                    pts.append(es.NavPoint(la_rows[:, 7], la_rows[:, 9], la_rows[:, 4:7], C, f_la, w_la))
+                F, G = model.matrices(*pts)
+                Phi_la, Q_la = discretize(F, q, T, G=G, method=discretization)
+                if keep_F:
+                    F_h[la0:la_end] = F
+                    Qc_h[la0:la_end] = (G * q) @ np.swapaxes(G, -1, -2)
+            sl = slice(e0 - la0, e1 - la0)
+            filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
+                              x_out=x_h[e0 + 1:e1 + 1])
+            for i, s in enumerate(streams):
+                _, ws, fs = blk[i]
+                nav_h[i][e0 + 1:e1 + 1] = rows[i][1:]
+                if hist:
+                    nav_pre[i][e0 + 1:e1 + 1] = rows[i][1:]
+                w_h[i][e0 + 1:e1 + 1] = ws
+                f_h[i][e0 + 1:e1 + 1] = fs
+                if live[i]:
+                    gb_h[i][e0 + 1:e1 + 1] = s.gb
+                    ab_h[i][e0 + 1:e1 + 1] = s.ab
+                    if sc_h[i] is not None:
+                        sc_h[i][e0 + 1:e1 + 1] = np.concatenate([s.kg, s.ka])
+            here = arrivals.get(e1, []) if e1 == stops[si] else []
+            now = None
+            for (mi, j) in here:
+                meas = measurements[mi]
+                ev, tv, late = e_valid[(mi, j)]
+                if ev < e1 and not lag.on_arrival:
+                    ep = Epoch(t_ep[ev], ev, epoch_rows(nav_lag, w_h, f_h, ev), lay, n, j)
+                    r = meas.matrices(ep)
+                    if r is None:
+                        continue
+                    kw = dict(F=F_h[ev], Qc=Qc_h[ev]) if keep_F else {}
+                    res = lag.update(filt, *r, t_rel[ev], tol=lag_tol, **kw)
+                else:
+                    # on time, or the lag ignored: a late item taken as valid now
+                    t_at = tv if (lag.on_arrival and late) else t_ep[e1]
+                    if now is None:
+                        now = tuple(NavRow(rows[i][-1], blk[i][1][-1], blk[i][2][-1]) for i in range(ns))
+                    r = meas.matrices(Epoch(t_at, e1, now, lay, n, j))
+                    if r is None:
+                        continue
+                    res = filt.update(*r)
+                a_m.append(mi)
+                a_j.append(j)
+                a_tv.append(tv)
+                a_t.append(t_ep[e1])
+                a_nu.append(res.innovation)
+                a_nis.append(res.nis)
+            if here:
+                if fbs:
+                    for si_, fb in fbs:
+                        s = streams[si_]
+                        s.feedback(filt, fb)
+                        if sc_h[si_] is not None:
+                            sc_h[si_][e1] = np.concatenate([s.kg, s.ka])
+                        nav_h[si_][e1] = s.row()
+                        gb_h[si_][e1] = s.gb
+                        ab_h[si_][e1] = s.ab
+                x_h[e1] = filt.x
+                sig_h[e1] = filt.sigma
+            bar.advance(m)
+            e0 = e1
+    applied = Applied(np.array(a_m, dtype=np.int64), np.array(a_j, dtype=np.int64),
+                      np.array(a_tv, dtype=float), np.array(a_t, dtype=float), a_nu,
+                      np.array(a_nis, dtype=float))
+    return DriverResult(t_ep, tuple(nav_h), x_h, sig_h, tuple(gb_h), tuple(ab_h),
+                        tuple(sc_h) if scaled else None, applied, lay)
+
+
+class _NullBar:
+    def advance(self, n):
+        pass
+
+
+class _null:
+    def __enter__(self):
+        return _NullBar()
+
+    def __exit__(self, *a):
+        return False
