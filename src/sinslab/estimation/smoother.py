@@ -134,7 +134,7 @@ def storage_bytes(n_states, n_epochs, itemsize=8):
 
 @njit(cache=True)
 def _rts_chunk(xpost, Ppost, xprior, Pprior, Phi, xs1, Ps1, xs_out, P_out, sig_out, full,
-               null_tol, dropped, M, At, T1, T2, act, s, keep, v):
+               null_tol, dropped, M, W, At, T1, T2, act, s, keep, v):
     """Steps i = m-1 .. 0 of eqs. (5)-(7) for one chunk.
 
     ``xs1``, ``Ps1`` hold the smoothed state/covariance of the epoch after the chunk
@@ -177,48 +177,62 @@ def _rts_chunk(xpost, Ppost, xprior, Pprior, Phi, xs1, Ps1, xs_out, P_out, sig_o
                     t -= M[a, k] * M[j, k]
                 M[a, j] = t / ljj
         dropped[i] = nd
-        # A^T solves P_{k+1|k} A^T = Phi P_{k|k}; row c of A is the solution for
-        # column c of Phi P = row c of P Phi^T (P symmetric)
-        np.dot(Ppost[i], Phi[i].T, T1)
-        for c in range(n):
-            # forward substitution L z = S^-1 b over the kept pivots
-            for a in range(r):
-                if keep[a]:
-                    t = T1[c, act[a]] / s[a]
-                    for k in range(a):
-                        t -= M[a, k] * v[k]
-                    v[a] = t / M[a, a]
-                else:
-                    v[a] = 0.0
-            # back substitution L^T w = z
-            for a in range(r - 1, -1, -1):
-                if keep[a]:
-                    t = v[a]
-                    for k in range(a + 1, r):
-                        t -= M[k, a] * v[k]
-                    v[a] = t / M[a, a]
-                else:
-                    v[a] = 0.0
-            for j in range(n):
-                At[c, j] = 0.0
-            for a in range(r):
-                At[c, act[a]] = v[a] / s[a]
+        # A^T solves P_{k+1|k} A^T = Phi P_{k|k} =: B. With P_{k+1|k} = S M S and
+        # M = L L^T over the kept pivots: A^T = S^-1 L^-T L^-1 S^-1 B, done as row
+        # operations on B (inner loops run along contiguous rows)
+        np.dot(Phi[i], Ppost[i], T1)
+        for j in range(n):
+            for c in range(n):
+                At[j, c] = 0.0
+        for a in range(r):
+            if not keep[a]:
+                continue
+            ja = act[a]
+            inv_s = 1.0 / s[a]
+            for c in range(n):
+                W[a, c] = T1[ja, c] * inv_s
+            for k in range(a):
+                lk = M[a, k]
+                if lk != 0.0:
+                    for c in range(n):
+                        W[a, c] -= lk * W[k, c]
+            inv_l = 1.0 / M[a, a]
+            for c in range(n):
+                W[a, c] *= inv_l
+        for a in range(r - 1, -1, -1):
+            if not keep[a]:
+                continue
+            for k in range(a + 1, r):
+                lk = M[k, a]
+                if lk != 0.0 and keep[k]:
+                    for c in range(n):
+                        W[a, c] -= lk * W[k, c]
+            inv_l = 1.0 / M[a, a]
+            for c in range(n):
+                W[a, c] *= inv_l
+        for a in range(r):
+            if keep[a]:
+                ja = act[a]
+                inv_s = 1.0 / s[a]
+                for c in range(n):
+                    At[ja, c] = W[a, c] * inv_s
         # (9): x_s = x_post + A (x_s1 - x_prior)
         for j in range(n):
             v[j] = xs1[j] - xprior[i, j]
         for c in range(n):
-            t = xpost[i, c]
-            for j in range(n):
-                t += At[c, j] * v[j]
-            xs_out[i, c] = t
+            xs_out[i, c] = xpost[i, c]
+        for j in range(n):
+            vj = v[j]
+            for c in range(n):
+                xs_out[i, c] += At[j, c] * vj
         for c in range(n):
             xs1[c] = xs_out[i, c]
         # (7): P_s = P_post + A (P_s1 - P_prior) A^T
         for a in range(n):
             for b in range(n):
                 T2[a, b] = Ps1[a, b] - Pp[a, b]
-        np.dot(At, T2, T1)
-        np.dot(T1, At.T, T2)
+        np.dot(At.T, T2, T1)
+        np.dot(T1, At, T2)
         Pq = Ppost[i]
         for a in range(n):
             for b in range(a, n):
@@ -322,7 +336,8 @@ def rts_smooth(x_post, P_post, x_prior, P_prior, Phi, *, feedback=None, covarian
         Ps[K] = Ps1
 
     M = np.zeros((n, n))
-    At = np.empty((n, n))
+    At = np.empty((n, n))     # A^T
+    W = np.empty((n, n))
     T1 = np.empty((n, n))
     T2 = np.empty((n, n))
     act = np.empty(n, dtype=np.int64)
@@ -349,7 +364,7 @@ def rts_smooth(x_post, P_post, x_prior, P_prior, Phi, *, feedback=None, covarian
             if x_prior is not None:
                 _check_prediction(xq, dq, xp, Pp, Fq, a)
         _rts_chunk(xq, Pq, xp, Pp, Fq, xs1, Ps1, xs[a:b], Ps[a:b] if full else P_dummy,
-                   sig[a:b], full, float(null_tol), dropped[a:b], M, At, T1, T2, act, s, keep, v)
+                   sig[a:b], full, float(null_tol), dropped[a:b], M, W, At, T1, T2, act, s, keep, v)
         b = a
     xc = xs if feedback is None else xs - np.asarray(feedback, dtype=float)
     return Smoothed(xs, xc, sig, Ps if full else None, dropped)
