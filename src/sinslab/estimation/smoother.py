@@ -85,8 +85,10 @@ Numerics
 
 Storage: per epoch ``2 n^2 + n^2 + 3 n`` float64 (two covariances, Phi, three vectors).
 For n = 21 states at 10 Hz for 1 h (36 001 epochs) that is 36 001 x 1 386 x 8 B =
-399 MB in float64; it is kept in float64 (float32 covariances lose the strong
-correlations of INS error states and are not offered).
+399 MB in float64. Storage stays float64 (strongly correlated INS error states give
+equilibrated pivots far below one; float32 covariances have not been shown to keep the
+result within a useful tolerance and are not offered); ``numpy.memmap`` inputs bound
+the memory instead.
 """
 from __future__ import annotations
 
