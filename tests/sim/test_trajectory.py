@@ -9,6 +9,7 @@ import pytest
 from sinslab.core import attitude as at
 from sinslab.core import earth
 from sinslab.sim import indexing
+from sinslab.sim import _synth
 from sinslab.sim import trajectory as tr
 from sinslab.core import units as u
 from sinslab.core.records import NavState
@@ -145,15 +146,15 @@ def test_sincos_rotation_stays_within_a_few_ulps():
     worst, rotated, runs = 0.0, 0, []
     for d in steps:
         x += d
-        a, s, c, n2 = tr._sincos_step(x, a, s, c, n)
-        assert a == x and n2 <= tr._ROT_RUN
+        a, s, c, n2 = _synth._sincos_step(x, a, s, c, n)
+        assert a == x and n2 <= _synth._ROT_RUN
         rotated += n2 == n + 1
         if n2 < n:
             runs.append(n)
         n = n2
         worst = max(worst, abs(s - math.sin(x)), abs(c - math.cos(x)))
     assert worst < 2e-15
-    assert rotated > 0.75 * steps.size and max(runs) == tr._ROT_RUN
+    assert rotated > 0.75 * steps.size and max(runs) == _synth._ROT_RUN
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, 63, 64, 65, 71, 72, 128, 130])
