@@ -341,6 +341,23 @@ def test_toml_round_trip(tmp_path):
     tr.dump_segments(tr.static(10.0), p, mount=swing)
     back = tr.load_motion(p).mount
     assert back.axis == "roll" and back.amplitude == pytest.approx(swing.amplitude)
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["motion.toml"]   # atomic: no temporaries left
+
+
+def test_toml_dump_failure_keeps_the_old_file(tmp_path):
+    """The segment dump goes through the atomic writer: a segment that cannot be written
+    leaves the previous file untouched and no temporary behind."""
+    p = tmp_path / "motion.toml"
+    tr.dump_segments(tr.static(10.0), p)
+    before = p.read_bytes()
+
+    class Bad(tr.Static):
+        def to_dict(self):
+            return {"kind": "static", "duration": object()}
+
+    with pytest.raises(TypeError):
+        tr.dump_segments([Bad(5.0)], p)
+    assert p.read_bytes() == before and sorted(x.name for x in tmp_path.iterdir()) == ["motion.toml"]
 
 
 def test_bad_toml_files(tmp_path):
