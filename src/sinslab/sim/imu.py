@@ -49,7 +49,7 @@ The output increment of sample k (interval ``(t_k − dt, t_k]``) is ::
 Randomness: ``apply(imu, errors, seed)`` with an int seed or a ``numpy.random.Generator``;
 the same seed gives the same bytes. The seed (through ``numpy.random.default_rng``) or the
 Generator gives four 64-bit words (``Generator.integers``; a Generator is advanced by
-that one draw), which seed a xoshiro256++ generator inside the compiled pass; normals come
+that one draw), which seed a xoshiro256++ generator inside the compiled pass (:mod:`sinslab.sim._rng`); normals come
 from its ziggurat (numpy's 256-layer layout, exact tail and wedges), drawn sample by
 sample, channel by channel (gyro x, y, z, accel x, y, z), white noise then Gauss–Markov
 then random walk, only for the active terms, after the Gauss–Markov start values. The

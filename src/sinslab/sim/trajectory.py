@@ -37,7 +37,9 @@ weights. Intervals whose stencil straddles a breakpoint of the profiles (segment
 boundaries, where third derivatives jump) are split at the breakpoints and integrated
 with Gauss–Legendre quadrature of the same order, positions by collocation. Increment
 errors are ~1e-15 rad / ~1e-14 m/s (tests). Everything per sample runs in one numba
-kernel; segments are first compiled into parameter arrays (channel terms and pieces).
+kernel (:mod:`sinslab.sim._synth`); segments are first compiled here into parameter arrays
+(channel terms and pieces). Ready-made motions live in :mod:`sinslab.sim.presets` and are
+re-exported here.
 
 Units: SI inside (rad, m, s). Configs/TOML give unit strings (``"3 deg/s"``); heading in
 :class:`Start` is clockwise from north, the Euler yaw in the outputs is ``−heading``.
