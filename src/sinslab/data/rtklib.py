@@ -171,9 +171,9 @@ def read_rtklib_imu(path, *, tag=None, delay=0.0, mount=None, frame="frd", accel
     does (+257 ppm on rtklib-drive) — off by default: against the GNSS turn rates the IMU
     clock runs *fast* by ~170 ppm, so the stretch doubles the drift (0.09 -> 0.22 s late
     over the record instead of 0.06 -> 0.11 s; tests/data/test_formats.py). Use
-    :func:`estimate_time_offset` / :func:`shift_imu_time` to synchronise. The time base is
+    :func:`sinslab.fusion.recorded.estimate_time_offset` / ``shift_imu_time`` to synchronise. The time base is
     the tag's (GPST seconds, see :func:`read_rtklib_tag`).
-    ``mount``/``frame``: sensor → vehicle axes (:func:`mount_matrix`; the sensor axes
+    ``mount``/``frame``: sensor → vehicle axes (:func:`sinslab.data.frames.mount_matrix`; the sensor axes
     need it on rtklib-drive, see :data:`RTKLIB_DRIVE`).
     """
     path = Path(path)

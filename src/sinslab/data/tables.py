@@ -79,7 +79,7 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     the options ``gyro_unit``/``accel_unit``/``time_unit``; the unit's dimension tells
     rates from increments. The plain SI names ``t, dtheta_x.., dv_x..`` and
     ``t, wx.., fx..`` may omit units (s, rad, m/s, rad/s, m/s²). ``frame``/``mount``:
-    see :func:`mount_matrix`. Raises ValueError naming the file and line of the problem.
+    see :func:`sinslab.data.frames.mount_matrix`. Raises ValueError naming the file and line of the problem.
     """
     path = Path(path)
     if not path.exists():
