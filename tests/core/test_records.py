@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from sinslab.core.records import ImuRecord, NavSeries, NavState, check_times
+from sinslab.core.records import Fixes, ImuRecord, NavSeries, NavState, check_times
 
 
 def imu(n=10, dt=0.01, t0=0.0):
@@ -140,3 +140,39 @@ def test_navstate_validation():
         NavState(0.5, 0.0, 0.0, [0, 0], [0, 0, 0])
     with pytest.raises(ValueError, match="initial att must be 3 finite numbers"):
         NavState(0.5, 0.0, 0.0, [0, 0, 0], [0, np.nan, 0])
+
+
+def _fixes(J=4, **kw):
+    t = np.arange(J, dtype=float)
+    return dict(t=t, lat=np.full(J, 0.5), lon=np.full(J, 1.0), h=np.full(J, 10.0),
+                sigma=np.full((J, 3), 2.0), **kw)
+
+
+def test_fixes_defaults_and_select():
+    """One Fixes for GNSS solutions and two-GEO fixes: arrival defaults to validity, the
+    quality flag to 0, and select keeps every optional column aligned."""
+    f = Fixes(**_fixes())
+    assert np.array_equal(f.t_arrive, f.t) and f.t_arrive is not f.t
+    assert np.array_equal(f.quality, [0, 0, 0, 0]) and f.vel is None and f.err is None
+    g = Fixes(**_fixes(vel=np.ones((4, 3)), sigma_vel=np.full((4, 3), 0.1), t_arrive=np.arange(4) + 0.5,
+                       err=np.arange(12.0).reshape(4, 3)))
+    s = g.select(np.array([False, True, False, True]))
+    assert len(s) == 2 and np.array_equal(s.t, [1.0, 3.0]) and np.array_equal(s.t_arrive, [1.5, 3.5])
+    assert np.array_equal(s.err, [[3, 4, 5], [9, 10, 11]]) and s.vel.shape == (2, 3)
+    h = Fixes(**{**_fixes(), "h": np.full(4, np.nan), "sigma": np.stack([np.full(4, 1.0)] * 2 + [np.full(4, np.nan)], -1)})
+    assert np.all(np.isnan(h.h))           # a horizontal fix: height and its σ not measured
+    assert len(Fixes([], [], [], [], np.zeros((0, 3)))) == 0
+
+
+@pytest.mark.parametrize("change,msg", [
+    ({"t_arrive": np.arange(4) - 0.5}, "arrives before"),
+    ({"t": np.array([0.0, 1.0, 1.0, 2.0])}, "strictly increasing"),
+    ({"sigma": np.zeros((4, 3))}, "sigmas must be > 0"),
+    ({"lat": np.array([0.5, np.nan, 0.5, 0.5])}, "lat has NaN"),
+    ({"sigma": np.ones((4, 2))}, r"sigma must have shape \(4, 3\)"),
+    ({"lon": np.ones(3)}, r"lon must have shape \(4,\)"),
+    ({"quality": np.zeros(3)}, "quality has 3 values"),
+])
+def test_fixes_validation(change, msg):
+    with pytest.raises(ValueError, match=msg):
+        Fixes(**{**_fixes(), **change})

@@ -130,3 +130,24 @@ def test_format_quantity_round_trip():
 def test_paper_notation(text, kind, si):
     """Units as the papers print them (√, superscript exponents)."""
     assert u.parse(text, kind) == pytest.approx(si, rel=1e-13)
+
+
+def test_vec3_forms_and_errors():
+    """The one per-axis validator: scalar, 1 or 3 values, default for None, read-only option,
+    and one clear error for each bad input."""
+    assert np.array_equal(u.vec3(2.0, "b"), [2.0, 2.0, 2.0])
+    assert np.array_equal(u.vec3([5], "b"), [5.0, 5.0, 5.0])
+    src = [1.0, -2.0, 3.0]
+    a = u.vec3(src, "b")
+    a[0] = 9.0
+    assert src[0] == 1.0                                   # a copy, never a view
+    assert np.array_equal(u.vec3(None, "lever", default=0.0), np.zeros(3))
+    assert not u.vec3(1.0, "b", readonly=True).flags.writeable
+    assert np.isinf(u.vec3(math.inf, "tau")).all()         # inf allowed unless finite=True
+    for v, kw, msg in [([1, 2], {}, r"b must be 1 or 3 values, got shape \(2,\)"),
+                       ([1, math.nan, 2], {}, "b is NaN"),
+                       ([1, -1, 2], {"nonneg": True}, r"b must be >= 0, got \[1.0, -1.0, 2.0\]"),
+                       (math.inf, {"finite": True}, "b must be finite"),
+                       (None, {}, "b is missing")]:
+        with pytest.raises(ValueError, match=msg):
+            u.vec3(v, "b", **kw)

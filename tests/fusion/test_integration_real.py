@@ -11,14 +11,15 @@ from sinslab.core import attitude as A
 from sinslab.sim import imu as IM
 from sinslab.fusion import loosely_coupled as LC
 from sinslab.fusion import recorded as I
-from sinslab.data import io
+from sinslab.core.records import Fixes
+from sinslab.data import rtklib
 from sinslab.sim import trajectory as tr
 from sinslab.core import units as u
 
 DRIVE = Path(__file__).resolve().parents[3] / "shared" / "data" / "rtklib-drive"
 needs_drive = pytest.mark.skipif(not (DRIVE / "imu_1934.csv").exists(), reason="rtklib-drive not available")
-MOUNT = "rpy:%g,%g,%g" % io.RTKLIB_DRIVE["mount_rpy_frd_deg"]
-LEVER = io.RTKLIB_DRIVE["lever_arm_rfu_m"]
+MOUNT = "rpy:%g,%g,%g" % rtklib.RTKLIB_DRIVE["mount_rpy_frd_deg"]
+LEVER = rtklib.RTKLIB_DRIVE["lever_arm_rfu_m"]
 
 
 # ------------------------------------------------------------- simulated oracle --------
@@ -37,7 +38,7 @@ def sim():
     tru = g.truth
     rng = np.random.default_rng(2)
     k = np.arange(0, len(tru.t), 25)[1:]                       # 4 Hz fixes, 1 cm / 2 cm/s noise
-    fx = io.Fixes(tru.t[k], tru.lat[k] + rng.normal(0, 0.01, k.size) / 6.37e6, tru.lon[k], tru.h[k],
+    fx = Fixes(tru.t[k], tru.lat[k] + rng.normal(0, 0.01, k.size) / 6.37e6, tru.lon[k], tru.h[k],
                   np.full((k.size, 3), 0.01), tru.vel[k] + rng.normal(0, 0.02, (k.size, 3)),
                   np.full((k.size, 3), 0.05), np.ones(k.size, int))
     return imu, fx, tru, err
@@ -67,7 +68,7 @@ def test_simulated_oracle(sim):
 
 def test_bad_inputs(sim):
     imu, fx, _, _ = sim
-    far = io.Fixes(fx.t + 18.0 + 1e4, fx.lat, fx.lon, fx.h, fx.sigma, fx.vel, fx.sigma_vel, fx.quality)
+    far = Fixes(fx.t + 18.0 + 1e4, fx.lat, fx.lon, fx.h, fx.sigma, fx.vel, fx.sigma_vel, fx.quality)
     with pytest.raises(ValueError, match="do not overlap the IMU record"):
         I.navigate_recorded(imu, far)
     with pytest.raises(ValueError, match="lever arm"):
@@ -81,10 +82,10 @@ def test_bad_inputs(sim):
 # ------------------------------------------------------------------ rtklib-drive -------
 @pytest.fixture(scope="module")
 def drive():
-    im = io.read_rtklib_imu(DRIVE / "imu_1934.csv", mount=MOUNT, frame="frd")
-    fx = io.read_rtklib_pos(DRIVE / "gnss_1934_sf.pos", velocity_lag=0.125)
-    est = io.estimate_time_offset(im.imu, fx)
-    return io.shift_imu_time(im.imu, est["offset"], est["ppm"], est["t_ref"]), fx
+    im = rtklib.read_rtklib_imu(DRIVE / "imu_1934.csv", mount=MOUNT, frame="frd")
+    fx = rtklib.read_rtklib_pos(DRIVE / "gnss_1934_sf.pos", velocity_lag=0.125)
+    est = I.estimate_time_offset(im.imu, fx)
+    return I.shift_imu_time(im.imu, est["offset"], est["ppm"], est["t_ref"]), fx
 
 
 @needs_drive

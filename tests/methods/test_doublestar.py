@@ -9,6 +9,9 @@ from sinslab.methods import doublestar as ds
 from sinslab.nav import errstate as es
 from sinslab.core import units as u
 from sinslab.core.earth import radii
+from sinslab.core.records import Fixes
+from sinslab.data import read_fixes
+from sinslab.data.tables import TWO_GEO_COLUMNS
 from sinslab.estimation.filter import KalmanFilter
 from sinslab.estimation.kalman import discretize as kdiscretize
 
@@ -215,14 +218,14 @@ def test_simulated_fix_statistics():
     rm, rn = radii(32 * D, 1000.0)
     en = (fx.lat - 32 * D) * rm
     ee = (fx.lon - 118 * D) * rn * math.cos(32 * D)
-    assert np.allclose(en, fx.err_n, atol=1e-6) and np.allclose(ee, fx.err_e, atol=1e-6)
+    assert np.allclose(en, fx.err[:, 0], atol=1e-6) and np.allclose(ee, fx.err[:, 1], atol=1e-6)
     assert en.std() == pytest.approx(float(fe.ns), rel=0.06)
     assert ee.std() == pytest.approx(float(fe.ew), rel=0.06)
-    assert np.allclose(fx.t_arrive - fx.t_valid, 0.5)
+    assert np.allclose(fx.t_arrive - fx.t, 0.5)
     fc = ds.simulate_fixes(truth, [(0, 3000)], sat_lon1=S1, sat_lon2=S2, m0=20, m1=10, dH=50,
                            latency=0.5, rng=11, correlated=True)
     P = ds.fix_covariance(32 * D, 118 * D, S1, S2, 20, 10, 50, 1000.0)
-    c = np.corrcoef(fc.err_n, fc.err_e)[0, 1]
+    c = np.corrcoef(fc.err[:, 0], fc.err[:, 1])[0, 1]
     assert c == pytest.approx(P[0, 1] / math.sqrt(P[0, 0] * P[1, 1]), abs=0.06)
 
 
@@ -356,8 +359,8 @@ def test_integration_modes_on_a_short_flight(flight):
     P0 = _P0(m)
     win = [(100, 112)]
     fx = ds.simulate_fixes(truth, win, sat_lon1=S1, sat_lon2=S2, m0=20, m1=10, dH=50, latency=1.0, rng=5)
-    lat, lon, _ = ds._interp_truth(truth, fx.t_valid)
-    exact = ds.Fixes(fx.t_valid, fx.t_arrive, lat, lon, fx.sigma_ns, fx.sigma_ew)
+    lat, lon, _ = ds._interp_truth(truth, fx.t)
+    exact = Fixes(fx.t, lat, lon, fx.h, fx.sigma, t_arrive=fx.t_arrive)
     init = _init(truth, dpos=(15.0, -15.0), dv=(1.0, -1.0), phi=np.array([100, -100, 200]) * u.arcsec)
     ep = np.arange(201) * 20
     tt = truth.at(ep)
@@ -393,7 +396,7 @@ def test_pure_inertial_outside_windows(flight):
     init = _init(truth, dv=(1.0, 0.0))
     r = ds.integrate(imu, init, fx, m, P0, mode="lag-aware", height=truth.h, windows=[(150, 160)])
     assert len(r.applied) == 0                        # fixes outside the windows are dropped
-    free = ds.integrate(imu, init, ds.Fixes([], [], [], [], [], []), m, P0, height=truth.h)
+    free = ds.integrate(imu, init, Fixes([], [], [], [], np.zeros((0, 3))), m, P0, height=truth.h)
     assert np.array_equal(r.nav, free.nav)
     assert np.all(np.diff(r.sigma[:, 5]) > 0)         # covariance propagated throughout
 
@@ -403,10 +406,10 @@ def test_integrate_bad_fix_times(flight):
     m = _model()
     P0 = _P0(m)
     init = _init(truth)
-    late = ds.Fixes([199.0], [201.0], [truth.lat[0]], [truth.lon[0]], [40.0], [30.0])
+    late = Fixes([199.0], [truth.lat[0]], [truth.lon[0]], [np.nan], [[40.0, 30.0, np.nan]], t_arrive=[201.0])
     with pytest.raises(ValueError, match="outside the IMU record"):
         ds.integrate(imu, init, late, m, P0, height=truth.h)
-    off = ds.Fixes([50.5], [51.5], [truth.lat[0]], [truth.lon[0]], [40.0], [30.0])
+    off = Fixes([50.5], [truth.lat[0]], [truth.lon[0]], [np.nan], [[40.0, 30.0, np.nan]], t_arrive=[51.5])
     with pytest.raises(ValueError, match="not on the filter grid"):
         ds.integrate(imu, init, off, m, P0, height=truth.h)
     with pytest.raises(ValueError, match="mode"):
@@ -424,33 +427,22 @@ def test_random_latency_and_fix_file(flight, tmp_path):
                            latency_jitter=0.6, rng=8)
     assert np.any(np.abs(fx.t_arrive - np.round(fx.t_arrive)) > 1e-3)
     path = tmp_path / "fixes.csv"
-    lines = ["# recorded two-GEO fixes", ",".join(ds.Fixes.COLUMNS)]
+    lines = ["# recorded two-GEO fixes", ",".join(TWO_GEO_COLUMNS)]
     for j in range(len(fx)):
-        lines.append(",".join(repr(float(v)) for v in (fx.t_valid[j], fx.t_arrive[j], math.degrees(fx.lat[j]),
-                                                      math.degrees(fx.lon[j]), fx.sigma_ns[j], fx.sigma_ew[j])))
+        lines.append(",".join(repr(float(v)) for v in (fx.t[j], fx.t_arrive[j], math.degrees(fx.lat[j]),
+                                                      math.degrees(fx.lon[j]), fx.sigma[j, 0], fx.sigma[j, 1])))
     path.write_text("\n".join(lines) + "\n")
-    rec = ds.Fixes.load(path)
+    rec = read_fixes(path, "two-geo")
     assert np.allclose(rec.lat, fx.lat, rtol=0, atol=1e-15) and np.array_equal(rec.t_arrive, fx.t_arrive)
     init = _init(truth, dpos=(15.0, -15.0), dv=(1.0, -1.0), phi=np.array([100, -100, 200]) * u.arcsec)
     tt = truth.at(np.arange(201) * 20)
     e = {}
     for mode in ("lag-aware", "zero-lag"):
         r = ds.integrate(imu, init, rec, m, P0, mode=mode, height=truth.h, windows=win)
-        assert np.allclose(r.t_applied, np.ceil(rec.t_arrive - 1e-6) if mode == "lag-aware" else rec.t_valid)
+        assert np.allclose(r.t_applied, np.ceil(rec.t_arrive - 1e-6) if mode == "lag-aware" else rec.t)
         e[mode] = np.hypot(*ds.nav_errors(r.nav, tt)[2].T)
     assert e["lag-aware"][131] == pytest.approx(e["zero-lag"][131], rel=0.15, abs=3.0)
     assert e["lag-aware"][131] < 0.3 * e["lag-aware"][100]
-
-
-@pytest.mark.parametrize("text,msg", [("", "empty"), ("t_valid_s,lat_deg\n1,2\n", "missing column"),
-                                      (",".join(ds.Fixes.COLUMNS) + "\n", "no fixes"),
-                                      (",".join(ds.Fixes.COLUMNS) + "\n1,2,x,4,5,6\n", "could not convert"),
-                                      (",".join(ds.Fixes.COLUMNS) + "\n2,1,30,110,40,30\n", "before")])
-def test_bad_fix_files(tmp_path, text, msg):
-    p = tmp_path / "f.csv"
-    p.write_text(text)
-    with pytest.raises(ValueError, match=msg):
-        ds.Fixes.load(p)
 
 
 @pytest.mark.parametrize("tau", [0.0, 0.4])

@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 
 from sinslab.sim import allan as AL
 from sinslab.sim import imu as IM
-from sinslab.data import io
+
 from sinslab.core import units as u
 from sinslab.core.records import ImuRecord
 

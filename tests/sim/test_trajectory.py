@@ -9,6 +9,7 @@ import pytest
 from sinslab.core import attitude as at
 from sinslab.core import earth
 from sinslab.sim import indexing
+from sinslab.sim import _synth
 from sinslab.sim import trajectory as tr
 from sinslab.core import units as u
 from sinslab.core.records import NavState
@@ -145,15 +146,15 @@ def test_sincos_rotation_stays_within_a_few_ulps():
     worst, rotated, runs = 0.0, 0, []
     for d in steps:
         x += d
-        a, s, c, n2 = tr._sincos_step(x, a, s, c, n)
-        assert a == x and n2 <= tr._ROT_RUN
+        a, s, c, n2 = _synth._sincos_step(x, a, s, c, n)
+        assert a == x and n2 <= _synth._ROT_RUN
         rotated += n2 == n + 1
         if n2 < n:
             runs.append(n)
         n = n2
         worst = max(worst, abs(s - math.sin(x)), abs(c - math.cos(x)))
     assert worst < 2e-15
-    assert rotated > 0.75 * steps.size and max(runs) == tr._ROT_RUN
+    assert rotated > 0.75 * steps.size and max(runs) == _synth._ROT_RUN
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, 63, 64, 65, 71, 72, 128, 130])
@@ -340,6 +341,23 @@ def test_toml_round_trip(tmp_path):
     tr.dump_segments(tr.static(10.0), p, mount=swing)
     back = tr.load_motion(p).mount
     assert back.axis == "roll" and back.amplitude == pytest.approx(swing.amplitude)
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["motion.toml"]   # atomic: no temporaries left
+
+
+def test_toml_dump_failure_keeps_the_old_file(tmp_path):
+    """The segment dump goes through the atomic writer: a segment that cannot be written
+    leaves the previous file untouched and no temporary behind."""
+    p = tmp_path / "motion.toml"
+    tr.dump_segments(tr.static(10.0), p)
+    before = p.read_bytes()
+
+    class Bad(tr.Static):
+        def to_dict(self):
+            return {"kind": "static", "duration": object()}
+
+    with pytest.raises(TypeError):
+        tr.dump_segments([Bad(5.0)], p)
+    assert p.read_bytes() == before and sorted(x.name for x in tmp_path.iterdir()) == ["motion.toml"]
 
 
 def test_bad_toml_files(tmp_path):

@@ -1,4 +1,4 @@
-"""Plain containers for time series: IMU increments, truth, navigation solutions.
+"""Plain containers for time series: IMU increments, truth, navigation solutions, fixes.
 
 They hold numpy arrays, validate them once on construction, and do nothing else; the
 functions of the other modules work on their arrays.
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-__all__ = ["ImuRecord", "NavSeries", "NavState", "check_times"]
+__all__ = ["Fixes", "ImuRecord", "NavSeries", "NavState", "check_times"]
 
 
 def check_times(t, name="time", rel_tol=1e-3, uniform=True) -> float:
@@ -231,3 +231,97 @@ class NavState:
         """Epoch ``k`` of a series; with ``imu_frame`` the IMU attitude is taken when present."""
         att = s.att_imu[k] if (imu_frame and s.att_imu is not None) else s.att[k]
         return cls(s.lat[k], s.lon[k], s.h[k], s.vel[k], att, s.t[k])
+
+
+def _column(v, J, name, shape=None, fill=None):
+    if v is None:
+        return None if fill is None else np.full((J,) + (shape or ()), fill, dtype=float)
+    a = np.array(v, dtype=float)
+    want = (J,) + (shape or ())
+    if a.shape != want:
+        a = a.reshape(-1) if shape is None and a.size == J else a
+    if a.shape != want:
+        raise ValueError(f"Fixes.{name} must have shape {want}, got {np.shape(v)}")
+    return a
+
+
+@dataclass(frozen=True)
+class Fixes:
+    """Position (and velocity) fixes: GNSS solutions, two-GEO fixes, any position aid.
+
+    Attributes
+    ----------
+    t : ndarray (J,)
+        Validity times [s] (the IMU's time base), strictly increasing.
+    lat, lon : ndarray (J,)
+        Geodetic latitude and longitude [rad].
+    h : ndarray (J,)
+        Ellipsoidal height [m]; NaN for a horizontal (2-D) fix whose height comes from
+        elsewhere (map, barometer).
+    sigma : ndarray (J, 3)
+        Position standard deviations north, east, up [m]; the up column is NaN for a 2-D
+        fix.
+    vel : ndarray (J, 3) or None
+        Velocity ENU [m/s].
+    sigma_vel : ndarray (J, 3) or None
+        Velocity standard deviations east, north, up [m/s].
+    quality : ndarray (J,) of int
+        Solution quality flag (RTKLIB Q: 1 fix, 2 float, 5 single; 0 unknown).
+    path : str
+        File the fixes were read from ("" when made in memory).
+    t_arrive : ndarray (J,)
+        Time each fix becomes available to the navigator [s] (``>= t``); defaults to
+        ``t`` (no latency).
+    err : ndarray (J, 3) or None
+        The drawn position errors north, east, up [m] of simulated fixes (NaN where not
+        drawn); ``None`` for recorded data.
+    """
+
+    t: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    sigma: np.ndarray
+    vel: np.ndarray | None = None
+    sigma_vel: np.ndarray | None = None
+    quality: np.ndarray | None = None
+    path: str = ""
+    t_arrive: np.ndarray | None = None
+    err: np.ndarray | None = None
+
+    def __post_init__(self):
+        t = np.array(self.t, dtype=float).reshape(-1)
+        J = t.size
+        cols = {"t": t}
+        for name in ("lat", "lon", "h"):
+            cols[name] = _column(getattr(self, name), J, name)
+        cols["sigma"] = _column(self.sigma, J, "sigma", (3,))
+        for name in ("vel", "sigma_vel", "err"):
+            cols[name] = _column(getattr(self, name), J, name, (3,))
+        cols["t_arrive"] = t.copy() if self.t_arrive is None else _column(self.t_arrive, J, "t_arrive")
+        q = np.zeros(J, dtype=int) if self.quality is None else np.asarray(self.quality).reshape(-1)
+        if q.size != J:
+            raise ValueError(f"Fixes.quality has {q.size} values for {J} fixes")
+        for name in ("t", "t_arrive", "lat", "lon"):
+            if not np.all(np.isfinite(cols[name])):
+                raise ValueError(f"Fixes.{name} has NaN/inf values")
+        if np.any(cols["t_arrive"] < t - 1e-9):
+            raise ValueError("a fix arrives before the time it is valid for")
+        if np.any(np.diff(t) <= 0):
+            raise ValueError("fix validity times must be strictly increasing")
+        if np.any(~(cols["sigma"][:, :2] > 0)):
+            raise ValueError("fix sigmas must be > 0")
+        for name, a in cols.items():
+            object.__setattr__(self, name, a)
+        object.__setattr__(self, "quality", q)
+        object.__setattr__(self, "path", str(self.path))
+
+    def __len__(self):
+        return self.t.size
+
+    def select(self, mask):
+        """The fixes selected by ``mask`` (boolean mask, slice or indices)."""
+        m = np.asarray(mask) if not isinstance(mask, slice) else mask
+        opt = lambda a: None if a is None else a[m]      # noqa: E731
+        return Fixes(self.t[m], self.lat[m], self.lon[m], self.h[m], self.sigma[m], opt(self.vel),
+                     opt(self.sigma_vel), self.quality[m], self.path, self.t_arrive[m], opt(self.err))

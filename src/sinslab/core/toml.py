@@ -17,6 +17,8 @@ def _tkey(k: str) -> str:
 
 
 def toml_value(v) -> str:
+    """One TOML value: bool, int, float (``nan``/``inf`` included), string, list/tuple
+    (an array) or mapping (an inline table; ``None`` entries omitted)."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):
@@ -36,21 +38,49 @@ def toml_value(v) -> str:
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
-def dump_toml(data: Mapping, _prefix: str = "") -> str:
-    """Write a nested dict as TOML (scalars first, then ``[tables]``); ``None`` is omitted."""
+def _is_table_array(v) -> bool:
+    return isinstance(v, (list, tuple)) and len(v) > 0 and all(isinstance(x, Mapping) for x in v)
+
+
+def dump_toml(data: Mapping, _prefix: str = "", *, table: str | None = None,
+              array_tables: bool = False) -> str:
+    """Write a nested dict as TOML (scalars first, then ``[tables]``); ``None`` is omitted.
+
+    Parameters
+    ----------
+    data : mapping
+        Keys are strings; values as :func:`toml_value` takes them, mappings become
+        ``[tables]``.
+    table : str, optional
+        Write ``data`` under this (dotted) table name, ``[table]`` / ``[table.sub]``.
+    array_tables : bool
+        Write a non-empty list of mappings as an array of tables (``[[name]]`` blocks, in
+        order, after the tables) instead of an inline array.
+    """
+    if table:
+        body = dump_toml(data, table + ".", array_tables=array_tables)
+        return f"[{table}]" + ("\n" + body if body else "") + "\n"
     lines = []
     tables = []
+    arrays = []
     for k, v in data.items():
         if v is None:
             continue
         if isinstance(v, Mapping):
             tables.append((k, v))
+        elif array_tables and _is_table_array(v):
+            arrays.append((k, v))
         else:
             lines.append(f"{_tkey(k)} = {toml_value(v)}")
     out = "\n".join(lines)
     for k, v in tables:
         name = f"{_prefix}{_tkey(k)}"
-        body = dump_toml(v, name + ".")
+        body = dump_toml(v, name + ".", array_tables=array_tables)
         head = f"[{name}]"
         out += ("\n\n" if out else "") + head + ("\n" + body if body else "")
+    for k, items in arrays:
+        name = f"{_prefix}{_tkey(k)}"
+        for item in items:
+            body = dump_toml(item, name + ".", array_tables=array_tables)
+            out += ("\n\n" if out else "") + f"[[{name}]]" + ("\n" + body if body else "")
     return out + ("\n" if not _prefix and out else "")

@@ -23,7 +23,7 @@ import numpy as np
 
 __all__ = [
     "deg", "arcmin", "arcsec", "dph", "dpsh", "dphpsh", "g0", "mg", "ug", "ugpsHz",
-    "ppm", "nm", "hour", "minute", "KINDS", "parse", "parse_vector", "format_quantity",
+    "ppm", "nm", "hour", "minute", "KINDS", "parse", "parse_vector", "format_quantity", "vec3",
 ]
 
 # --- constants (multiply a value in the named unit to get SI) -------------------------
@@ -277,3 +277,51 @@ def _example_unit(kind):
 def format_quantity(value_si: float, unit: str, digits: int = 6) -> str:
     """Format an SI value in ``unit``: ``format_quantity(4.85e-8, "deg/h") -> '0.01 deg/h'``."""
     return f"{value_si / unit_scale(unit):.{digits}g} {unit}"
+
+
+# --- small validators -------------------------------------------------------------------
+def vec3(value, name: str = "value", *, default=None, nonneg: bool = False, finite: bool = False,
+         readonly: bool = False) -> np.ndarray:
+    """A per-axis quantity (SI numbers, not unit strings) as a new float array of shape (3,).
+
+    Parameters
+    ----------
+    value : float, or sequence of 1 or 3 floats, or None
+        One value is used for all three axes.
+    name : str
+        What the value is, for the error message.
+    default : float or sequence, optional
+        Used when ``value`` is None (None without a default is an error).
+    nonneg, finite : bool
+        Also require every component ``>= 0`` / finite (NaN is always refused; ``inf`` is
+        allowed unless ``finite``, e.g. an infinite correlation time).
+    readonly : bool
+        Return a read-only array (for frozen dataclasses).
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``: wrong number of values, NaN, infinite (``finite``) or negative
+        (``nonneg``) components.
+    """
+    if value is None:
+        if default is None:
+            raise ValueError(f"{name} is missing")
+        value = default
+    a = np.array(value, dtype=float)
+    if a.ndim == 0:
+        a = np.full(3, float(a))
+    a = a.reshape(-1)
+    if a.shape == (1,):
+        a = np.repeat(a, 3)
+    if a.shape != (3,):
+        raise ValueError(f"{name} must be 1 or 3 values, got shape {np.shape(value)}")
+    if np.isnan(a).any():
+        raise ValueError(f"{name} is NaN")
+    if finite and not np.isfinite(a).all():
+        raise ValueError(f"{name} must be finite, got {a.tolist()}")
+    if nonneg and (a < 0).any():
+        raise ValueError(f"{name} must be >= 0, got {a.tolist()}")
+    if readonly:
+        a.setflags(write=False)
+    return a

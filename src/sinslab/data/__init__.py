@@ -1,3 +1,13 @@
-"""Reading and writing recorded data: one module per file format, frame and mount
-matrices, and the front door (``load_imu``, ``read_fixes``). Imports :mod:`sinslab.core`.
+"""Reading and writing recorded data: one module per file format (:mod:`.psins`,
+:mod:`.tables`, :mod:`.rtklib`, :mod:`.matlab`), body-frame and mount matrices
+(:mod:`.frames`), raw stamps -> uniform increments (:mod:`.increments`), and the front door
+re-exported here (:mod:`.load`): ``load_imu``, ``read_imu``, ``read_fixes``, ``write_imu``,
+``write_fixes``. Imports :mod:`sinslab.core`.
 """
+from sinslab.core.records import Fixes
+from sinslab.data.increments import ImuData
+from sinslab.data.load import (FIX_FORMATS, IMU_FORMATS, guess_imu_format, load_imu, read_fixes,
+                               read_imu, write_fixes, write_imu)
+
+__all__ = ["Fixes", "ImuData", "FIX_FORMATS", "IMU_FORMATS", "guess_imu_format", "load_imu",
+           "read_fixes", "read_imu", "write_fixes", "write_imu"]

@@ -210,7 +210,7 @@ def _one(rng, S, zero_errors=False):
     from sinslab.methods import doublestar as ds
     from sinslab.sim import imu as imu_mod
     from sinslab.core.attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
-    from sinslab.core.records import NavState
+    from sinslab.core.records import Fixes, NavState
 
     truth, ideal, P0 = S["truth"], S["imu"], S["P0"]
     model = ds.horizontal_model(**S["model_args"])
@@ -232,8 +232,8 @@ def _one(rng, S, zero_errors=False):
     fixes = ds.simulate_fixes(truth, S["windows"], rng=np.random.default_rng(0) if zero_errors else rng,
                               **S["fix_args"])
     if zero_errors:     # covariance analysis: exact fixes, the filter keeps the model σ in R
-        lat, lon, _ = ds._interp_truth(truth, fixes.t_valid)
-        fixes = ds.Fixes(fixes.t_valid, fixes.t_arrive, lat, lon, fixes.sigma_ns, fixes.sigma_ew)
+        lat, lon, _ = ds._interp_truth(truth, fixes.t)
+        fixes = Fixes(fixes.t, lat, lon, fixes.h, fixes.sigma, t_arrive=fixes.t_arrive)
     tt = truth.at(S["ep"])
     out = {}
     for mode in _MODES:

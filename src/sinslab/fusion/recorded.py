@@ -30,7 +30,7 @@ from sinslab.core import attitude as A
 from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
-from sinslab.data.io import Fixes
+from sinslab.core.records import Fixes
 from sinslab.fusion.loosely_coupled import _null, lc_model, loosely_coupled
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "parse_outages", "periodic_outages",
@@ -393,3 +393,65 @@ def outage_end_errors(res: RecordedNav, fixes: Fixes, outages=None):
             starts.append(s)
             errs.append(float(np.hypot(err[m[-1], 0], err[m[-1], 1])))
     return np.array(starts), np.array(errs)
+
+
+# ------------------------------------------------------------ IMU / fix time sync ---
+__all__ += ["estimate_time_offset", "shift_imu_time"]
+
+
+def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_speed=2.0,
+                         search=1.0, step=0.005):
+    """Estimate how late the IMU time stamps are relative to the fixes, from turns.
+
+    The IMU vertical-axis rate (body z, RFU; the vehicle is roughly level) is
+    cross-correlated with the course rate of the fix velocities (speed > ``min_speed``)
+    in windows of ``window`` s; a straight line through the per-window lags gives an
+    offset and a clock-rate error. Returns ``{"offset": lag at t_ref [s], "t_ref",
+    "ppm": drift [1e-6 s/s], "windows": [(t_mid, lag, correlation), ...]}``; the
+    corrected IMU times are ``t − (offset + ppm·1e-6·(t − t_ref))``.
+    """
+    if fixes.vel is None:
+        raise ValueError("time-offset estimation needs fix velocities")
+    sp = np.hypot(fixes.vel[:, 0], fixes.vel[:, 1])
+    crs = np.unwrap(np.arctan2(fixes.vel[:, 0], fixes.vel[:, 1]))
+    cr = -np.gradient(crs, fixes.t)                       # counter-clockwise rate
+    cr[sp < min_speed] = 0.0
+    wz = imu.dtheta[:, 2] / imu.dt
+    lo = max(fixes.t[0], imu.t[0]) + search
+    hi = min(fixes.t[-1], imu.t[-1]) - search
+    if hi - lo < window / 2:
+        raise ValueError("IMU and fixes overlap too little to estimate a time offset")
+    nwin = max(1, int((hi - lo) // window))
+    edges = np.linspace(lo, hi, nwin + 1)
+    lags = np.arange(-search, search + step / 2, step)
+    res = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        grid = np.arange(a, b, 0.02)
+        ref = np.interp(grid, fixes.t, cr)
+        if np.std(ref) < 1e-3:
+            continue
+        c = np.array([np.corrcoef(np.interp(grid + o, imu.t, wz), ref)[0, 1] for o in lags])
+        i = int(np.nanargmax(c))
+        if 0 < i < len(c) - 1:                                # parabolic refinement
+            den = c[i - 1] - 2 * c[i] + c[i + 1]
+            sh = 0.5 * (c[i - 1] - c[i + 1]) / den if den < 0 else 0.0
+        else:
+            sh = 0.0
+        res.append((0.5 * (a + b), float(lags[i] + sh * step), float(c[i])))
+    if not res:
+        raise ValueError("no turns found to estimate the IMU time offset")
+    tm = np.array([r[0] for r in res])
+    lg = np.array([r[1] for r in res])
+    t_ref = float(tm.mean())
+    if len(res) >= 2:
+        b_, a_ = np.polyfit(tm - t_ref, lg, 1)
+    else:
+        b_, a_ = 0.0, float(lg[0])
+    return {"offset": float(a_), "t_ref": t_ref, "ppm": float(b_ * 1e6), "windows": res}
+
+
+def shift_imu_time(imu: ImuRecord, offset=0.0, ppm=0.0, t_ref=0.0) -> ImuRecord:
+    """IMU record with times ``t − (offset + ppm·1e-6·(t − t_ref))`` (uniform grid kept)."""
+    t = imu.t - (offset + ppm * 1e-6 * (imu.t - t_ref))
+    dt = imu.dt * (1.0 - ppm * 1e-6)
+    return ImuRecord(t, imu.dtheta, imu.dv, dt)

@@ -71,10 +71,11 @@ from sinslab.fusion.feedback import FeedbackLayout
 from sinslab.fusion.loosely_coupled import loosely_coupled
 from sinslab.nav import compare, errstate as es
 from sinslab.nav import strapdown as sd
+from sinslab.core.records import Fixes
 
 __all__ = [
     "GEO_RADIUS", "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
-    "ecef", "measure_ranges", "solve_fix", "request_schedule", "Fixes", "simulate_fixes",
+    "ecef", "measure_ranges", "solve_fix", "request_schedule", "simulate_fixes",
     "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate",
     "StoredStateUpdate",
     "MODES", "nav_errors", "check_windows",
@@ -392,83 +393,6 @@ def request_schedule(windows, latency, *, jitter=0.0, grid=1.0, t0=0.0, rng=None
     return np.array(req), np.array(arr)
 
 
-@dataclass(frozen=True)
-class Fixes:
-    """Two-GEO fixes: position of time ``t_valid`` delivered at ``t_arrive``.
-
-    Attributes (shape (J,))
-    -----------------------
-    t_valid, t_arrive : s
-    lat, lon : rad (fix positions, with errors)
-    sigma_ns, sigma_ew : m (the model σ the filter uses, R = diag(σ_ns², σ_ew²))
-    err_n, err_e : m (the drawn errors, north/east; NaN for real data)
-    """
-
-    t_valid: np.ndarray
-    t_arrive: np.ndarray
-    lat: np.ndarray
-    lon: np.ndarray
-    sigma_ns: np.ndarray
-    sigma_ew: np.ndarray
-    err_n: np.ndarray = None
-    err_e: np.ndarray = None
-
-    def __post_init__(self):
-        J = np.asarray(self.t_valid).size
-        for name in ("t_valid", "t_arrive", "lat", "lon", "sigma_ns", "sigma_ew", "err_n", "err_e"):
-            v = getattr(self, name)
-            v = np.full(J, np.nan) if v is None else np.asarray(v, dtype=float).reshape(-1)
-            if v.size != J:
-                raise ValueError(f"Fixes.{name} has {v.size} values for {J} fixes")
-            object.__setattr__(self, name, v)
-        for name in ("t_valid", "t_arrive", "lat", "lon", "sigma_ns", "sigma_ew"):
-            if not np.all(np.isfinite(getattr(self, name))):
-                raise ValueError(f"Fixes.{name} has NaN/inf values")
-        if np.any(self.t_arrive < self.t_valid - 1e-9):
-            raise ValueError("a fix arrives before the time it is valid for")
-        if np.any(np.diff(self.t_valid) <= 0):
-            raise ValueError("fix validity times must be strictly increasing")
-        if np.any(~(self.sigma_ns > 0)) or np.any(~(self.sigma_ew > 0)):
-            raise ValueError("fix sigmas must be > 0")
-
-    def __len__(self):
-        return self.t_valid.size
-
-    #: Columns of a fix file (:meth:`load`); ``t_arrive_s`` is optional (default: no lag).
-    COLUMNS = ("t_valid_s", "t_arrive_s", "lat_deg", "lon_deg", "sigma_ns_m", "sigma_ew_m")
-
-    @classmethod
-    def load(cls, path) -> "Fixes":
-        """Read recorded fixes from a CSV file with a header line naming the columns
-        :attr:`COLUMNS` (any order, extra columns ignored): validity time [s] on the IMU's
-        time base, reception time [s], latitude and longitude [deg], σ north/east [m]."""
-        import csv
-
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(line for line in fh if line.strip() and not line.startswith("#")))
-        if not rows:
-            raise ValueError(f"fix file {path}: empty")
-        head = [h.strip() for h in rows[0]]
-        need = [c for c in cls.COLUMNS if c != "t_arrive_s"]
-        miss = [c for c in need if c not in head]
-        if miss:
-            raise ValueError(f"fix file {path}: missing column(s) {', '.join(miss)} "
-                             f"(header: {', '.join(head)})")
-        body = rows[1:]
-        if not body:
-            raise ValueError(f"fix file {path}: no fixes after the header")
-        try:
-            data = np.array([[float(x) for x in r] for r in body])
-        except ValueError as e:
-            raise ValueError(f"fix file {path}: {e}") from None
-        if data.ndim != 2 or data.shape[1] != len(head):
-            raise ValueError(f"fix file {path}: every line needs {len(head)} values")
-        col = {h: data[:, i] for i, h in enumerate(head)}
-        tv = col["t_valid_s"]
-        return cls(tv, col.get("t_arrive_s", tv), np.radians(col["lat_deg"]), np.radians(col["lon_deg"]),
-                   col["sigma_ns_m"], col["sigma_ew_m"])
-
-
 def _interp_truth(truth, t):
     tt = truth.t
     if np.any(t < tt[0] - 1e-9) or np.any(t > tt[-1] + 1e-9):
@@ -482,6 +406,11 @@ def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, r
                    latency_jitter=0.0, grid=1.0, correlated=False, height_factor="paper",
                    sat_radius=GEO_RADIUS) -> Fixes:
     """Draw two-GEO fixes along a true trajectory inside covert windows.
+
+    Returns :class:`sinslab.core.records.Fixes` with the request times as validity
+    times ``t``, the arrivals in ``t_arrive``, σ north/east in ``sigma[:, :2]`` (the model σ
+    the filter uses, R = diag(σ_ns², σ_ew²)), the drawn north/east errors in ``err`` and
+    NaN height (a horizontal fix).
 
     Request/arrival times from :func:`request_schedule` (``grid`` from ``truth.t[0]``);
     the error of each fix is normal with the σ of :func:`fix_error` at the true position
@@ -512,8 +441,12 @@ def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, r
     else:
         e = rng.standard_normal((J, 2)) * np.stack([fe.ns, fe.ew], -1)
     rm, rn = radii(lat, h)
-    return Fixes(t_req, t_arr, lat + e[:, 0] / rm, lon + e[:, 1] / (rn * np.cos(lat)),
-                 fe.ns, fe.ew, e[:, 0], e[:, 1])
+    # horizontal fixes: the height is an external input (map/barometer), so h and its σ
+    # are not part of the fix (NaN)
+    nan = np.full(J, np.nan)
+    return Fixes(t_req, lat + e[:, 0] / rm, lon + e[:, 1] / (rn * np.cos(lat)), nan,
+                 np.stack([fe.ns, fe.ew, nan], -1), t_arrive=t_arr,
+                 err=np.stack([e[:, 0], e[:, 1], nan], -1))
 
 
 # ======================================================================== the filter
@@ -663,9 +596,10 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
         Measured increments (with errors).
     init : sinslab.core.records.NavState
         Initial navigation state (IMU attitude) at ``imu.t0``.
-    fixes : Fixes
-        Validity times must be filter epochs (``imu.t0 + k·kf_dt``); arrivals are processed
-        at the first epoch at or after ``t_arrive``.
+    fixes : sinslab.core.records.Fixes
+        Horizontal fixes (``lat``, ``lon``, σ north/east in ``sigma[:, :2]``). Validity times
+        ``t`` must be filter epochs (``imu.t0 + k·kf_dt``); arrivals are processed at the
+        first epoch at or after ``t_arrive``.
     model : errstate.ErrorModel
         :func:`horizontal_model` (blocks phi, dv, dp, eps_b, eps_r, nabla).
     P0 : (16, 16)
@@ -708,19 +642,19 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     t0 = imu.t0
     t_end = t0 + T * K
     J = len(fixes)
-    if J and (fixes.t_valid[0] < t0 - 1e-9 or fixes.t_arrive[-1] > t_end + 1e-9
-              or fixes.t_valid[-1] > t_end + 1e-9):
-        raise ValueError(f"fix times {fixes.t_valid[0]:g}..{fixes.t_arrive.max():g} s lie outside "
+    if J and (fixes.t[0] < t0 - 1e-9 or fixes.t_arrive[-1] > t_end + 1e-9
+              or fixes.t[-1] > t_end + 1e-9):
+        raise ValueError(f"fix times {fixes.t[0]:g}..{fixes.t_arrive.max():g} s lie outside "
                          f"the IMU record {t0:g}..{t_end:g} s")
     if J:
-        _epoch_of(fixes.t_valid, t0, T, "fix validity time")
+        _epoch_of(fixes.t, t0, T, "fix validity time")
     w = None if windows is None else check_windows(windows)
     # the one INS + fix driver: 2-component (north, east) fixes against the horizontal
     # model, vertical channel held; φ, δv, δp and the gyro constant drift fed back (FEEDBACK)
     r = loosely_coupled(
-        imu, init, fixes.t_valid, np.stack([fixes.lat, fixes.lon], -1),
-        np.stack([fixes.sigma_ns, fixes.sigma_ew], -1), P0, model=model,
-        fix_arrive=fixes.t_valid if mode == "zero-lag" else fixes.t_arrive,
+        imu, init, fixes.t, np.stack([fixes.lat, fixes.lon], -1),
+        np.stack([fixes.sigma[:, 0], fixes.sigma[:, 1]], -1), P0, model=model,
+        fix_arrive=fixes.t if mode == "zero-lag" else fixes.t_arrive,
         lag="ignore" if mode == "lag-ignore" else "aware",
         lag_method=StoredStateUpdate() if lag_method == "paper003" else "exact", windows=w,
         kf_dt=kf_dt, nsub=nsub, feedback=FeedbackLayout.from_model(lay, gyro="eps_b", accel=None),

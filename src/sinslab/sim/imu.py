@@ -49,7 +49,7 @@ The output increment of sample k (interval ``(t_k − dt, t_k]``) is ::
 Randomness: ``apply(imu, errors, seed)`` with an int seed or a ``numpy.random.Generator``;
 the same seed gives the same bytes. The seed (through ``numpy.random.default_rng``) or the
 Generator gives four 64-bit words (``Generator.integers``; a Generator is advanced by
-that one draw), which seed a xoshiro256++ generator inside the compiled pass; normals come
+that one draw), which seed a xoshiro256++ generator inside the compiled pass (:mod:`sinslab.sim._rng`); normals come
 from its ziggurat (numpy's 256-layer layout, exact tail and wedges), drawn sample by
 sample, channel by channel (gyro x, y, z, accel x, y, z), white noise then Gauss–Markov
 then random walk, only for the active terms, after the Gauss–Markov start values. The
@@ -69,6 +69,8 @@ from numba import njit
 
 from sinslab.core import units as U
 from sinslab.core.records import ImuRecord
+from sinslab.core.toml import dump_toml
+from sinslab.sim._rng import _kernel_state, _normal, _rng
 
 __all__ = [
     "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_batch", "noise_increments",
@@ -169,23 +171,6 @@ def _unknown(key, known, where):
     raise ValueError(f"unknown {where} key {key!r}{hint}")
 
 
-def _vec3(name, v, nonneg=False):
-    a = np.array(v, dtype=float)
-    if a.ndim == 0:
-        a = np.full(3, float(a))
-    a = a.reshape(-1)
-    if a.shape == (1,):
-        a = np.repeat(a, 3)
-    if a.shape != (3,):
-        raise ValueError(f"{name} must be 1 or 3 values, got shape {np.shape(v)}")
-    if np.isnan(a).any():
-        raise ValueError(f"{name} is NaN")
-    if nonneg and (a < 0).any():
-        raise ValueError(f"{name} must be >= 0, got {a.tolist()}")
-    a.setflags(write=False)
-    return a
-
-
 def _fields_equal(a, b):
     if type(a) is not type(b):
         return NotImplemented
@@ -221,7 +206,7 @@ class Trend:
 
     def __post_init__(self):
         for f in fields(self):
-            object.__setattr__(self, f.name, _vec3(f"trend {f.name}", getattr(self, f.name)))
+            object.__setattr__(self, f.name, U.vec3(getattr(self, f.name), f"trend {f.name}", readonly=True))
         for name in ("exp_time", "sin_period"):
             if (getattr(self, name) <= 0).any():
                 raise ValueError(f"trend {name} must be > 0")
@@ -445,12 +430,12 @@ class ImuErrors:
             for k, nonneg in (("bias", False), (w, True), ("bias_instability", True),
                               ("rrw", True), ("scale_factor", False), ("noise_scale", True)):
                 name = f"{s}_{k}"
-                v = _vec3(name, getattr(self, name), nonneg)
+                v = U.vec3(getattr(self, name), name, nonneg=nonneg, readonly=True)
                 if not np.isfinite(v).all():
                     raise ValueError(f"{name} is not finite")
                 object.__setattr__(self, name, v)
             name = f"{s}_corr_time"
-            tc = _vec3(name, getattr(self, name))
+            tc = U.vec3(getattr(self, name), name, readonly=True)
             if (tc <= 0).any():
                 raise ValueError(f"{name} must be > 0, got {tc.tolist()}")
             object.__setattr__(self, name, tc)
@@ -600,21 +585,7 @@ class ImuErrors:
 
     def to_toml(self, table: str | None = "imu", full: bool = False) -> str:
         """TOML fragment of :meth:`to_dict` under ``[table]`` (top level if None)."""
-        d = self.to_dict(full)
-        lines, subs = [], []
-        if table:
-            lines.append(f"[{table}]")
-        for k, v in d.items():
-            if isinstance(v, dict):
-                subs.append((k, v))
-            else:
-                lines.append(f"{k} = {_toml_value(v)}")
-        for k, v in subs:
-            lines.append("")
-            lines.append(f"[{table + '.' if table else ''}{k}]")
-            for k2, v2 in v.items():
-                lines.append(f"{k2} = {_toml_value(v2)}")
-        return "\n".join(lines) + "\n"
+        return dump_toml(self.to_dict(full), table=table)
 
     # -- conveniences --------------------------------------------------------------------------
     def replace(self, **changes) -> "ImuErrors":
@@ -636,17 +607,6 @@ class ImuErrors:
                 if ((getattr(self, f"{s}_{k}") * beta) != 0).any():
                     return False
         return True
-
-
-def _toml_value(v):
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    s = str(v).replace("\\", "\\\\").replace('"', '\\"')
-    return f'"{s}"'
 
 
 def _parse_misalignment(key, v):
@@ -729,105 +689,9 @@ def gm_sigma_from_allan_floor(value, convention="ieee"):
     raise ValueError(f"convention must be 'ieee' or 'floor', got {convention!r}")
 
 
-# --- compiled kernel ----------------------------------------------------------------------------
-# Normals come from a generator inside the kernel: xoshiro256++ (Blackman & Vigna) for the
-# bits and the ziggurat of Marsaglia & Tsang (2000) in numpy's 64-bit layout (8 bits of
-# layer, 1 sign bit, 52 bits of abscissa; exact tail and wedge rejections). It is ~2.5x
-# faster than Generator.standard_normal and needs no buffer of normals between passes, so
-# the whole error model is one pass over the record.
-def _ziggurat_tables():
-    """Layer tables of the 256-layer normal ziggurat (r = 3.6541528853610088, v = 4.928673e-3)."""
-    m1 = 2.0 ** 52
-    dn = tn = _ZIG_R
-    vn = 4.92867323399e-3
-    ki = np.zeros(256, dtype=np.uint64)
-    wi = np.zeros(256)
-    fi = np.zeros(256)
-    q = vn / math.exp(-0.5 * dn * dn)
-    ki[0] = int(dn / q * m1)
-    wi[0] = q / m1
-    wi[255] = dn / m1
-    fi[0] = 1.0
-    fi[255] = math.exp(-0.5 * dn * dn)
-    for i in range(254, 0, -1):
-        dn = math.sqrt(-2.0 * math.log(vn / dn + math.exp(-0.5 * dn * dn)))
-        ki[i + 1] = int(dn / tn * m1)
-        tn = dn
-        fi[i] = math.exp(-0.5 * dn * dn)
-        wi[i] = dn / m1
-    return ki, wi, fi
-
-
-_ZIG_R = 3.6541528853610088
-_ZIG_KI, _ZIG_WI, _ZIG_FI = _ziggurat_tables()
-_U1 = np.uint64(1)
-_INV53 = 1.0 / 9007199254740992.0
-
-
-@njit(cache=True, inline="always")
-def _xoshiro(s0, s1, s2, s3):
-    """xoshiro256++: next 64 random bits and the new state."""
-    r = s0 + s3
-    r = ((r << np.uint64(23)) | (r >> np.uint64(41))) + s0
-    t = s1 << np.uint64(17)
-    s2 ^= s0
-    s3 ^= s1
-    s1 ^= s2
-    s0 ^= s3
-    s2 ^= t
-    s3 = (s3 << np.uint64(45)) | (s3 >> np.uint64(19))
-    return r, s0, s1, s2, s3
-
-
-@njit(cache=True)
-def _normal_reject(idx, rabs, x, s0, s1, s2, s3):
-    """The rare ziggurat cases (~1 %): the tail beyond r (layer 0) or a wedge test.
-    Returns (value, accepted, state)."""
-    if idx == 0:
-        while True:
-            r, s0, s1, s2, s3 = _xoshiro(s0, s1, s2, s3)
-            u1 = float(r >> np.uint64(11)) * _INV53
-            r, s0, s1, s2, s3 = _xoshiro(s0, s1, s2, s3)
-            u2 = float(r >> np.uint64(11)) * _INV53
-            xx = -math.log1p(-u1) / _ZIG_R
-            yy = -math.log1p(-u2)
-            if yy + yy > xx * xx:
-                y = -(_ZIG_R + xx) if (rabs >> np.uint64(8)) & _U1 else _ZIG_R + xx
-                return y, True, s0, s1, s2, s3
-    r, s0, s1, s2, s3 = _xoshiro(s0, s1, s2, s3)
-    u = float(r >> np.uint64(11)) * _INV53
-    ok = (_ZIG_FI[idx - 1] - _ZIG_FI[idx]) * u + _ZIG_FI[idx] < math.exp(-0.5 * x * x)
-    return x, ok, s0, s1, s2, s3
-
-
-@njit(cache=True, inline="always")
-def _normal(s0, s1, s2, s3):
-    """One standard normal and the new generator state."""
-    while True:
-        r, s0, s1, s2, s3 = _xoshiro(s0, s1, s2, s3)
-        idx = r & np.uint64(0xFF)
-        rabs = (r >> np.uint64(9)) & np.uint64(0x000FFFFFFFFFFFFF)
-        x = float(rabs) * _ZIG_WI[idx]
-        if (r >> np.uint64(8)) & _U1:
-            x = -x
-        if rabs < _ZIG_KI[idx]:
-            return x, s0, s1, s2, s3
-        y, ok, s0, s1, s2, s3 = _normal_reject(idx, rabs, x, s0, s1, s2, s3)
-        if ok:
-            return y, s0, s1, s2, s3
-
-
-@njit(cache=True)
-def _standard_normals(state, n):
-    """n standard normals from the kernel's generator; ``state`` (4 uint64) is advanced."""
-    out = np.empty(n)
-    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
-    for i in range(n):
-        out[i], s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
-    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
-    return out
-
-
+# --- compiled kernels ----------------------------------------------------------------------------
+# one pass over the record per error model; normals from the in-kernel generator of
+# sinslab.sim._rng
 @njit(cache=True)
 def _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, gsig, gphi, gdrv, gact,
             rstep, ract, has_trend, tr_ramp, tr_ea, tr_et, tr_esh, tr_sa, tr_sw, tr_ssh, tr_sp,
@@ -951,22 +815,6 @@ def _kernel_white_all(dth, dv, state, bias_dt, wsig, out_dth, out_dv):
         out_dv[k, 1] = dv[k, 1] + (b4 + w4 * z)
         z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
         out_dv[k, 2] = dv[k, 2] + (b5 + w5 * z)
-
-
-def _rng(seed):
-    if isinstance(seed, np.random.Generator):
-        return seed
-    if isinstance(seed, (bool, float)):
-        raise ValueError(f"seed must be an int or a numpy Generator, got {seed!r}")
-    return np.random.default_rng(seed)
-
-
-def _kernel_state(rng):
-    """The kernel generator's state (4 uint64), drawn from a numpy Generator (advancing it)."""
-    st = rng.integers(0, 2**64, size=4, dtype=np.uint64)
-    if not st.any():                       # xoshiro's one forbidden state (probability 2^-256)
-        st[0] = 0x9E3779B97F4A7C15
-    return st
 
 
 def _run(dth, dv, tend, t0, dt, errors: ImuErrors, rng, out_dth, out_dv):

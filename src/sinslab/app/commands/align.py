@@ -49,12 +49,12 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
     """
 
     from sinslab import __version__
-    from sinslab.data import io
+    from sinslab.data import read_imu
     from sinslab.app import plotting
     from sinslab.core.toml import dump_toml
     from sinslab.app.outputs import RunDir, command_summary, default_out_dir
 
-    imu, ps = io.read_imu(path, fmt)
+    imu, ps = read_imu(path, fmt)
     if lat is None:
         if ps is None:
             raise ValueError("--lat is required for a CSV file (PSINS logs carry it in the header)")

@@ -29,13 +29,13 @@ def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
     """Read a recorded IMU file, compute the Allan deviations and write the run folder."""
 
     from sinslab import __version__
-    from sinslab.data import io
+    from sinslab.data import load_imu
     from sinslab.app import plotting
     from sinslab.core.toml import dump_toml
     from sinslab.app.outputs import RunDir, command_summary, default_out_dir
     from sinslab.sim.imu import ImuErrors  # noqa: F401
 
-    data = io.load_imu(path, fmt, **read_kw)
+    data = load_imu(path, fmt, **read_kw)
     imu = data.imu
     if window:
         a, _, b = str(window).partition(":")

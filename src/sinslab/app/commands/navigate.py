@@ -10,8 +10,8 @@ import numpy as np
 
 from sinslab.core import earth as E
 from sinslab.core import units
-from sinslab.fusion.recorded import (NavOptions, fix_errors, navigate_recorded, outage_end_errors,
-                                     parse_outages)
+from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors, navigate_recorded,
+                                     outage_end_errors, parse_outages, shift_imu_time)
 
 __all__ = ["navigate_files", "register"]
 
@@ -48,12 +48,12 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     """
 
     from sinslab import __version__
-    from sinslab.data import io
+    from sinslab.data import guess_imu_format, load_imu, read_fixes
     from sinslab.app import plotting
     from sinslab.core.toml import dump_toml
     from sinslab.app.outputs import RunDir, command_summary, default_out_dir
 
-    fmt_eff = fmt or io.guess_imu_format(imu_path)
+    fmt_eff = fmt or guess_imu_format(imu_path)
     kw = {}
     if mount is not None:
         kw["mount"] = mount
@@ -63,9 +63,9 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         kw.update(max_gap=max_gap, allow_gaps=allow_gaps)
     if fmt_eff == "rtklib-imu":
         kw["delay"] = imu_delay
-    data = io.load_imu(imu_path, fmt_eff, **kw)
+    data = load_imu(imu_path, fmt_eff, **kw)
     ffmt = fix_format or ("rtklib-pos" if str(fix_path).lower().endswith(".pos") else None)
-    fx = io.read_fixes(fix_path, ffmt, **({"velocity_lag": velocity_lag} if ffmt == "rtklib-pos" else {}))
+    fx = read_fixes(fix_path, ffmt, **({"velocity_lag": velocity_lag} if ffmt == "rtklib-pos" else {}))
     imu = data.imu
     if len(data.gaps):
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
@@ -73,8 +73,8 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
              + (" ..." if len(data.gaps) > 5 else ""))
     sync = None
     if time_sync == "auto":
-        sync = io.estimate_time_offset(imu, fx)
-        imu = io.shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
+        sync = estimate_time_offset(imu, fx)
+        imu = shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
         echo(f"  IMU time stamps corrected by {sync['offset'] * 1e3:.1f} ms (at the middle) and "
              f"{sync['ppm']:.0f} ppm (from turn rates vs fix course rates)")
     elif time_sync != "none":

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from sinslab.core import earth as E
-from sinslab.data import io
+from sinslab import data
+from sinslab.data import psins
 from sinslab.core import units as u
 from sinslab.methods import alignment as sa
 
@@ -22,7 +23,7 @@ HEADER = """% PSINS-format SIMU log file.
 
 @pytest.fixture(scope="module")
 def rec():
-    return io.read_psins_imu(DATA)
+    return psins.read_psins_imu(DATA)
 
 
 @needs_data
@@ -51,33 +52,33 @@ def _write(tmp_path, text, name="x.imu"):
 
 def test_reader_small_and_bad_files(tmp_path):
     p = _write(tmp_path, HEADER + "1 2 3 4 5 80\n-1 0 0 0 0 80\n")
-    r = io.read_psins_imu(p)
+    r = psins.read_psins_imu(p)
     assert len(r.imu) == 2
     assert r.imu.dtheta[0, 1] == pytest.approx(0.2 * u.arcsec)
     assert r.imu.dv[1, 2] == pytest.approx(80 * 125e-6 * 9.780327)
     with pytest.raises(ValueError, match="no samples"):
-        io.read_psins_imu(_write(tmp_path, HEADER))
+        psins.read_psins_imu(_write(tmp_path, HEADER))
     with pytest.raises(ValueError, match="3 header lines"):
-        io.read_psins_imu(_write(tmp_path, "% only a comment\n1 2 3 4 5 6\n"))
+        psins.read_psins_imu(_write(tmp_path, "% only a comment\n1 2 3 4 5 6\n"))
     with pytest.raises(ValueError, match="6 columns"):
-        io.read_psins_imu(_write(tmp_path, HEADER + "1 2 3 4 5\n"))
+        psins.read_psins_imu(_write(tmp_path, HEADER + "1 2 3 4 5\n"))
     with pytest.raises(ValueError):
-        io.read_psins_imu(_write(tmp_path, HEADER + "1 2 3 a 5 6\n"))
+        psins.read_psins_imu(_write(tmp_path, HEADER + "1 2 3 a 5 6\n"))
     with pytest.raises(ValueError, match="non-finite"):
-        io.read_psins_imu(_write(tmp_path, HEADER + "1 2 3 nan 5 6\n"))
+        psins.read_psins_imu(_write(tmp_path, HEADER + "1 2 3 nan 5 6\n"))
     with pytest.raises(ValueError, match="header"):
-        io.read_psins_imu(_write(tmp_path, HEADER.replace("0 10 9.780327", "0 10")))
+        psins.read_psins_imu(_write(tmp_path, HEADER.replace("0 10 9.780327", "0 10")))
     with pytest.raises(FileNotFoundError):
-        io.read_imu(tmp_path / "missing.imu")
+        data.read_imu(tmp_path / "missing.imu")
     with pytest.raises(ValueError, match="unknown IMU format"):
-        io.read_imu(p, "xyz")
+        data.read_imu(p, "xyz")
     # CSV of increments
     c = _write(tmp_path, "t,dtheta_x,dtheta_y,dtheta_z,dv_x,dv_y,dv_z\n0.1,0,0,1e-6,0,0,0.98\n"
                          "0.2,0,0,1e-6,0,0,0.98\n", "x.csv")
-    imu, ps = io.read_imu(c)
+    imu, ps = data.read_imu(c)
     assert ps is None and len(imu) == 2 and imu.dt == pytest.approx(0.1)
     with pytest.raises(ValueError, match="y.csv:1: no time column"):
-        io.read_imu(_write(tmp_path, "a,b\n1,2\n", "y.csv"))
+        data.read_imu(_write(tmp_path, "a,b\n1,2\n", "y.csv"))
 
 
 @needs_data

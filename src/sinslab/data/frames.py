@@ -1,0 +1,94 @@
+"""Body-axis conventions and sensor mounts: matrices that take sensor-axis vectors to
+sinslab's RFU body frame (x right, y forward, z up), with rotation checks."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sinslab.core import attitude as _att
+
+__all__ = ["frame_matrix", "check_rotation", "rpy_frd_matrix", "mount_matrix"]
+
+_FRAMES = {
+    # rows: RFU components from the source components
+    "rfu": np.eye(3),
+    "frd": np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]),   # [y, x, -z]
+    "flu": np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),   # [-y, x, z]
+    "rbd": np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]),
+}
+
+
+def frame_matrix(frame: str) -> np.ndarray:
+    """Matrix taking vectors from a source body-axis convention to sinslab's RFU.
+
+    ``"rfu"`` (x right, y forward, z up), ``"frd"`` (x forward, y right, z down: NED-style
+    tools), ``"flu"`` (x forward, y left, z up: ROS), ``"rbd"``.
+    """
+    try:
+        return _FRAMES[str(frame).lower()].copy()
+    except KeyError:
+        raise ValueError(f"unknown body frame {frame!r}; use one of {sorted(_FRAMES)}") from None
+
+
+def check_rotation(M, what="mount rotation", tol=1e-6) -> np.ndarray:
+    """Return ``M`` as a (3, 3) array if it is a proper rotation (orthonormal, det +1)."""
+    M = np.asarray(M, dtype=float)
+    if M.shape != (3, 3) or not np.all(np.isfinite(M)):
+        raise ValueError(f"{what} must be a finite 3x3 matrix, got shape {M.shape}")
+    err = float(np.max(np.abs(M @ M.T - np.eye(3))))
+    if err > tol:
+        raise ValueError(f"{what} is not a rotation: |M Mᵀ − I| = {err:.3g} (> {tol:g})")
+    if np.linalg.det(M) < 0:
+        raise ValueError(f"{what} is not a rotation: determinant {np.linalg.det(M):.6g} "
+                         "(a reflection; check the axis signs)")
+    return M
+
+
+def rpy_frd_matrix(rpy) -> np.ndarray:
+    """``C_sensor→body`` from roll, pitch, yaw [rad] in the forward-right-down convention
+    of Groves' ``Euler_to_CTM`` (``C = R1(φ) R2(θ) R3(ψ)``, passive rotations): the
+    matrix the source of ``rtklib-drive`` multiplies the sensor vectors by."""
+    r, p, y = (float(v) for v in np.asarray(rpy, dtype=float).reshape(3))
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return np.array([[cp * cy, cp * sy, -sp],
+                     [-cr * sy + sr * sp * cy, cr * cy + sr * sp * sy, sr * cp],
+                     [sr * sy + cr * sp * cy, -sr * cy + cr * sp * sy, cr * cp]])
+
+
+def mount_matrix(mount=None, frame="rfu") -> np.ndarray:
+    """Rotation taking sensor-axis vectors to sinslab's RFU vehicle body axes.
+
+    Parameters
+    ----------
+    mount : None, (3, 3) array, or str
+        ``None``: the sensor axes are the vehicle axes of ``frame``. A matrix:
+        ``C_sensor→body`` in the ``frame`` convention (checked to be a rotation). A string
+        ``"rpy:R,P,Y"`` (degrees; Groves/NED convention, :func:`rpy_frd_matrix`) or
+        ``"euler:PITCH,ROLL,YAW"`` (degrees; sinslab convention, ``C_sensor→body =
+        euler_to_dcm``).
+    frame : str
+        Axis convention of the vehicle body frame the mount refers to (see
+        :func:`frame_matrix`); the result is converted to RFU.
+    """
+    P = frame_matrix(frame)
+    if mount is None:
+        return P
+    if isinstance(mount, str):
+        kind, _, vals = mount.partition(":")
+        try:
+            v = np.radians([float(x) for x in vals.replace(" ", "").split(",")])
+        except ValueError:
+            raise ValueError(f"cannot read the mount {mount!r}; use 'rpy:R,P,Y' or "
+                             "'euler:PITCH,ROLL,YAW' in degrees") from None
+        if v.size != 3:
+            raise ValueError(f"mount {mount!r} needs three angles")
+        if kind.strip().lower() == "rpy":
+            M = rpy_frd_matrix(v)
+        elif kind.strip().lower() == "euler":
+            M = _att.euler_to_dcm(v)
+        else:
+            raise ValueError(f"unknown mount kind {kind!r}; use 'rpy:' or 'euler:'")
+    else:
+        M = np.asarray(mount, dtype=float)
+    return P @ check_rotation(M)
