@@ -1,0 +1,435 @@
+"""Transfer alignment: velocity + attitude matching of a slave INS against a master INS.
+
+The master (body frame m) is an accurate INS taken as error-free; the slave (body frame s)
+is mounted with an installation attitude ``C_s^m`` and navigates with its own IMU. The
+filter estimates the slave's misalignment φ^n, velocity error δv^n, the installation
+misalignment and the slave's sensor errors (21 states, :func:`transfer_model`).
+
+Conventions (sinslab): n = ENU, bodies RFU, ``att = [pitch, roll, yaw]`` with
+``C_b^n = R_z(ψ) R_x(θ) R_y(γ)``; the slave's computed attitude is
+``Ĉ_s^n = exp(−φ×) C_s^n ≈ (I − φ×) C_s^n``; the true slave attitude is
+``C_s^n = C_m^n C_s^m``. The installation is written
+
+- without compensation (methods 1–3 of the paper): ``C_s^m = exp(λ×)``, λ the *whole*
+  installation attitude (small only when the slave is mounted nearly parallel);
+- with a known compensation ``Ĉ_s^m`` (method 4, and optionally any method):
+  ``C_s^m = Ĉ_s^m exp(φ_α×)`` with φ_α the small residual.
+
+Both cases are one formula with the *reference attitude* ``C_r = C_m^n Ĉ_s^m``
+(``Ĉ_s^m = I`` without compensation) and the installation state ``a`` (λ or φ_α)::
+
+    Ĉ_s^n = exp(−φ×) · C_r · exp(a×)
+
+Attitude measurements (:class:`AttitudeMatch`, Dai/Kain formulation of the paper
+"attitude matching method based on the measured misalignment"):
+
+1. ``"euler"``  z = att(Ĉ_s^n) − att(C_r) (wrapped), ordered [pitch, roll, yaw];
+2. ``"dcm"``    z = [Ĉ12 − C12, Ĉ31 − C31, Ĉ32 − C32] of ``Ĉ_s^n − C_r`` (1-based);
+3. ``"kain"``   z = φ_m, ``C_r^T Ĉ_s^n = exp(φ_m×)``, i.e. ``Ĉ_n^s C_r = I − (φ_m×)``;
+   to first order ``φ_m = a − C_r^T φ`` (paper eq 16);
+4. ``"optimal"`` method 3 right-multiplied by the compensation ``Ĉ_s^m`` (paper eqs
+   17–23): the same formula with ``C_r = C_m^n Ĉ_s^m``; ``φ_m = φ_α − C_n^s φ``.
+
+``H`` is the Jacobian of z over ``[φE φN φU, a_x a_y a_z]``: by default at ``φ = 0, a = 0``
+(the paper's linearisation; with a large uncompensated installation this is where it
+fails), or re-linearised at the current installation estimate ``â`` (EKF form,
+:meth:`AttitudeMatch.H` with ``a0``).
+
+Euler-angle row of H (derived here, sinslab convention, C = C_r, elements 1-based,
+``fθ = 1/√(1−C32²)``, ``fγ = 1/(C31²+C33²)``, ``fψ = 1/(C12²+C22²)``)::
+
+    δθ = fθ (−C22 φE + C12 φN + C33 ax − C31 az)
+    δγ = fγ [(C21C33 − C31C23) φE + (C13C31 − C11C33) φN − C31C32 ax − C32C33 az] + ay
+    δψ = fψ [C12C32 φE + C22C32 φN + (C12C23 − C13C22) ax + (C11C22 − C12C21) az] − φU
+
+The paper's printed eqs 7–8 differ: the ay term of δγ and the φU term of δψ carry the
+factor fγ / fψ (they must not), and in sinslab's yaw (counter-clockwise) the φN, ax, az
+and φU coefficients of δψ have the opposite sign; read as the clockwise heading the
+printed φN, ax, az signs are right but the φE term then has the wrong sign.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sinslab.core.attitude import dcm_to_euler, dcm_to_rotvec, rotvec_to_dcm, skew, wrap_pi
+from sinslab.nav import errstate
+
+__all__ = [
+    "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
+    "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
+    "paper_euler_H", "FLOPS",
+]
+
+KINDS = ("euler", "dcm", "kain", "optimal")
+
+# indices of C12, C31, C32 (1-based) in a row-major 3x3
+_DCM_ELEMENTS = ((0, 1), (2, 0), (2, 1))
+
+
+# ----------------------------------------------------------------- SO(3) Jacobians ----
+def jr(a):
+    """Right Jacobian of SO(3): ``exp((a+δ)×) ≈ exp(a×) exp((J_r(a) δ)×)``; (3,) -> (3, 3)."""
+    a = np.asarray(a, dtype=float)
+    t = float(np.linalg.norm(a))
+    K = skew(a)
+    if t < 1e-6:
+        return np.eye(3) - 0.5 * K + K @ K / 6.0
+    return np.eye(3) - (1.0 - math.cos(t)) / t ** 2 * K + (t - math.sin(t)) / t ** 3 * K @ K
+
+
+def jr_inv(a):
+    """Inverse right Jacobian: ``log(exp(a×) exp(δ×)) ≈ a + J_r⁻¹(a) δ``."""
+    a = np.asarray(a, dtype=float)
+    t = float(np.linalg.norm(a))
+    K = skew(a)
+    if t < 1e-6:
+        return np.eye(3) + 0.5 * K + K @ K / 12.0
+    c = 1.0 / t ** 2 - (1.0 + math.cos(t)) / (2.0 * t * math.sin(t))
+    return np.eye(3) + 0.5 * K + c * K @ K
+
+
+def jl_inv(a):
+    """Inverse left Jacobian: ``log(exp(δ×) exp(a×)) ≈ a + J_l⁻¹(a) δ`` (= J_r⁻¹(−a))."""
+    return jr_inv(-np.asarray(a, dtype=float))
+
+
+def _check_dcm(C, name):
+    C = np.asarray(C, dtype=float)
+    if C.shape != (3, 3) or not np.all(np.isfinite(C)):
+        raise ValueError(f"{name} must be a finite 3x3 DCM, got shape {C.shape}")
+    return C
+
+
+# ------------------------------------------------------------- attitude measurement ---
+class AttitudeMatch:
+    """One of the four attitude-matching measurements (z and its H).
+
+    Parameters
+    ----------
+    kind : {"euler", "dcm", "kain", "optimal"}
+        Measurement form (see the module docstring).
+    compensation : array_like (3, 3), optional
+        Known installation DCM ``Ĉ_s^m`` (slave body -> master body). With it the
+        installation state is the residual φ_α (``C_s^m = Ĉ_s^m exp(φ_α×)``); without
+        it the state is the whole installation λ (``C_s^m = exp(λ×)``). ``"optimal"`` is
+        ``"kain"`` with a compensation (identity when none is given).
+
+    Notes
+    -----
+    All arguments named ``C_m_n`` are the master ``C_m^n`` and ``C_s_n_hat`` the slave's
+    computed ``Ĉ_s^n`` (body -> ENU).
+    """
+
+    def __init__(self, kind: str, compensation=None):
+        if kind not in KINDS:
+            raise ValueError(f"unknown attitude-matching kind {kind!r}; choose from {list(KINDS)}")
+        self.kind = kind
+        self.compensation = np.eye(3) if compensation is None else _check_dcm(compensation, "compensation")
+        if abs(np.linalg.det(self.compensation) - 1.0) > 1e-6:
+            raise ValueError("compensation must be a rotation matrix (det 1)")
+        self.compensated = compensation is not None
+
+    # -- the measured quantity
+    def reference(self, C_m_n):
+        """Reference attitude ``C_r = C_m^n Ĉ_s^m`` (3, 3)."""
+        return _check_dcm(C_m_n, "C_m_n") @ self.compensation
+
+    def _g(self, C, Cr):
+        if self.kind == "euler":
+            return wrap_pi(dcm_to_euler(C) - dcm_to_euler(Cr))
+        if self.kind == "dcm":
+            D = C - Cr
+            return np.array([D[i, j] for i, j in _DCM_ELEMENTS])
+        return dcm_to_rotvec(Cr.T @ C)
+
+    def z(self, C_m_n, C_s_n_hat):
+        """Measurement [rad or -] (3,) from the master and the slave's computed DCM."""
+        return self._g(_check_dcm(C_s_n_hat, "C_s_n_hat"), self.reference(C_m_n))
+
+    def predict(self, C_m_n, phi, a):
+        """Model value ``h(φ, a)`` of z for ``Ĉ_s^n = exp(−φ×) C_r exp(a×)`` (exact)."""
+        Cr = self.reference(C_m_n)
+        C = rotvec_to_dcm(-np.asarray(phi, float)) @ Cr @ rotvec_to_dcm(np.asarray(a, float))
+        return self._g(C, Cr)
+
+    # -- its Jacobian
+    def H(self, C_m_n, C_s_n_hat=None, a0=None):
+        """Jacobian (3, 6) of z over ``[φE φN φU, a_x a_y a_z]`` at ``φ = 0``, ``a = a0``.
+
+        Parameters
+        ----------
+        C_m_n : (3, 3)
+            Master attitude.
+        C_s_n_hat : (3, 3), optional
+            Slave computed attitude; unused by the linearisation at the model point
+            (``Ĉ_s^n = C_r exp(a0×)`` there) and accepted for the common face.
+        a0 : (3,), optional
+            Installation estimate to linearise at (EKF form); default 0 (paper form).
+        """
+        Cr = self.reference(C_m_n)
+        a0 = np.zeros(3) if a0 is None else np.asarray(a0, dtype=float)
+        if self.kind in ("kain", "optimal"):
+            # z = log(exp(−(C_rᵀφ)×) exp(a×)): left perturbation −J_l⁻¹(a0) C_rᵀ, right J_r⁻¹ J_r = I
+            return np.hstack([-jl_inv(a0) @ Cr.T, np.eye(3)])
+        C0 = Cr @ rotvec_to_dcm(a0) if a0.any() else Cr
+        Jr = jr(a0) if a0.any() else np.eye(3)
+        H = np.empty((3, 6))
+        for i in range(3):
+            e = np.zeros(3)
+            e[i] = 1.0
+            H[:, i] = self._dg(C0, -skew(e) @ C0)
+            H[:, 3 + i] = self._dg(C0, C0 @ skew(Jr[:, i]))
+        return H
+
+    def _dg(self, C, dC):
+        """Differential of the measured quantity at C along dC (Euler / DCM forms)."""
+        if self.kind == "dcm":
+            return np.array([dC[i, j] for i, j in _DCM_ELEMENTS])
+        # θ = asin(C32), γ = atan2(−C31, C33), ψ = atan2(−C12, C22)
+        dth = dC[2, 1] / math.sqrt(1.0 - C[2, 1] ** 2)
+        dga = (C[2, 0] * dC[2, 2] - C[2, 2] * dC[2, 0]) / (C[2, 0] ** 2 + C[2, 2] ** 2)
+        dps = (C[0, 1] * dC[1, 1] - C[1, 1] * dC[0, 1]) / (C[0, 1] ** 2 + C[1, 1] ** 2)
+        return np.array([dth, dga, dps])
+
+    def innovation_z(self, C_m_n, C_s_n_hat, phi_hat=None, a_hat=None, relinearise=False):
+        """``(z_eff, H)`` for a linear update ``z_eff − H x̂``.
+
+        Paper form: ``z_eff = z`` and H at 0. EKF form (``relinearise=True``): H at
+        ``a_hat`` and ``z_eff = z − h(x̂) + H x̂`` so that the innovation is ``z − h(x̂)``.
+        """
+        z = self.z(C_m_n, C_s_n_hat)
+        if not relinearise:
+            return z, self.H(C_m_n)
+        phi_hat = np.zeros(3) if phi_hat is None else np.asarray(phi_hat, float)
+        a_hat = np.zeros(3) if a_hat is None else np.asarray(a_hat, float)
+        H = self.H(C_m_n, a0=a_hat)
+        x = np.concatenate([phi_hat, a_hat])
+        d = z - self.predict(C_m_n, phi_hat, a_hat)
+        if self.kind == "euler":
+            d = wrap_pi(d)
+        return d + H @ x, H
+
+
+#: Floating-point operations per measurement (z + H), counted from the formulas above
+#: (multiplications/divisions/additions; trig/sqrt counted as one each).
+FLOPS = {"euler": 27 * 2 + 3 + 1 + 6 * 2 + 3 * 9 + 6, "dcm": 3 + 0, "kain": 27 * 2 + 12, "optimal": 27 * 4 + 12}
+
+
+def paper_euler_H(C):
+    """Euler-angle H (3, 6) exactly as printed in the paper's eqs 6–8 (for comparison)."""
+    c = lambda i, j: C[i - 1, j - 1]  # noqa: E731
+    ft = 1.0 / math.sqrt(1.0 - c(3, 2) ** 2)
+    fg = 1.0 / (c(3, 1) ** 2 + c(3, 3) ** 2)
+    fp = 1.0 / (c(1, 2) ** 2 + c(2, 2) ** 2)
+    H = np.zeros((3, 6))
+    H[0] = ft * np.array([-c(2, 2), c(1, 2), 0.0, c(3, 3), 0.0, -c(3, 1)])
+    H[1] = fg * np.array([c(2, 1) * c(3, 3) - c(3, 1) * c(2, 3), c(1, 3) * c(3, 1) - c(1, 1) * c(3, 3), 0.0,
+                          -c(3, 1) * c(3, 2), 1.0, -c(3, 2) * c(3, 3)])
+    H[2] = fp * np.array([c(1, 2) * c(3, 2), -c(2, 2) * c(3, 2), 1.0, c(1, 3) * c(2, 2) - c(1, 2) * c(2, 3),
+                          0.0, c(1, 2) * c(2, 1) - c(1, 1) * c(2, 2)])
+    return H
+
+
+# ------------------------------------------------------------------ the 21-state model -
+def transfer_model(installation_name="lam"):
+    """21-state transfer-alignment model (paper eqs 29–33) from :mod:`sinslab.nav.errstate`.
+
+    States ``[φ (3, n), δv (3, n), a (3, slave body: λ or φ_α), ε (3, gyro bias, body),
+    k_g (3, gyro scale factor), ∇ (3, accel bias, body), k_a (3, accel scale factor)]``;
+    the position is taken from the master (``"attvel"`` core). All sensor and installation
+    states are random constants. Signs follow sinslab (errors measured − true, φ from
+    ``Ĉ = (I − φ×) C``): ``φ̇ = −ω_in×φ + δω_in − C_s^n(ε + diag(ω) k_g)``,
+    ``δv̇ = f^n×φ + C_s^n(∇ + diag(f) k_a) − (2ω_ie+ω_en)×δv + ...``.
+    """
+    return errstate.ErrorModel("attvel", [errstate.installation(installation_name), errstate.gyro_bias(),
+                                          errstate.gyro_scale(), errstate.accel_bias(), errstate.accel_scale()])
+
+
+class VelocityMatch:
+    """Velocity matching ``z = v_s − v_m`` [m/s] (ENU), ``H = [0 I 0]`` on the 21 states."""
+
+    def __init__(self, n=21, dv_slice=slice(3, 6)):
+        self.H = np.zeros((3, n))
+        self.H[np.arange(3), np.arange(dv_slice.start, dv_slice.stop)] = 1.0
+
+    def z(self, v_m, v_s_hat):
+        return np.asarray(v_s_hat, float) - np.asarray(v_m, float)
+
+
+# ------------------------------------------------------- driver measurement plug-ins ---
+class MasterRecord:
+    """Master INS output held by a measurement: times [s], attitudes, velocities (ENU).
+
+    ``att`` (N, 3) ``[pitch, roll, yaw]`` [rad]; ``vel`` (N, 3) [m/s]. :meth:`at` linearly
+    interpolates velocity and interpolates attitude on SO(3) between neighbouring samples.
+    """
+
+    def __init__(self, t, att, vel):
+        from sinslab.core.attitude import euler_to_dcm
+        self.t = np.asarray(t, float)
+        if self.t.ndim != 1 or self.t.size < 2 or np.any(np.diff(self.t) <= 0):
+            raise ValueError("master times must be a strictly increasing 1-D array of >= 2 samples")
+        self.C = euler_to_dcm(np.asarray(att, float))
+        self.vel = np.asarray(vel, float)
+
+    def at(self, t):
+        """``(C_m^n, v_m)`` at time t (inside the record)."""
+        if not (self.t[0] - 1e-9 <= t <= self.t[-1] + 1e-9):
+            raise ValueError(f"time {t:g} s is outside the master record [{self.t[0]:g}, {self.t[-1]:g}] s")
+        i = int(np.clip(np.searchsorted(self.t, t) - 1, 0, self.t.size - 2))
+        w = (t - self.t[i]) / (self.t[i + 1] - self.t[i])
+        C0, C1 = self.C[i], self.C[i + 1]
+        C = C0 @ rotvec_to_dcm(w * dcm_to_rotvec(C0.T @ C1))
+        return C, (1 - w) * self.vel[i] + w * self.vel[i + 1]
+
+
+class VelocityMeasurement:
+    """Driver plug-in: velocity matching against a master record (``matrices(ep)``)."""
+
+    def __init__(self, master: MasterRecord, sigma, stream=0, dv_slice=slice(3, 6)):
+        self.master, self.stream, self.dv_slice = master, stream, dv_slice
+        self.R = np.broadcast_to(np.asarray(sigma, float) ** 2, (3,)).copy()
+
+    def matrices(self, ep):
+        C, v = self.master.at(ep.t)
+        nav = ep.streams[self.stream]
+        H = np.zeros((3, ep.n))
+        H[np.arange(3), np.arange(self.dv_slice.start, self.dv_slice.stop)] = 1.0
+        return np.asarray(nav.vel) - v, H, self.R
+
+
+class AttitudeMeasurement:
+    """Driver plug-in: attitude matching of one :class:`AttitudeMatch` kind.
+
+    ``phi_slice``/``a_slice`` locate φ and the installation state in the layout. With
+    ``relinearise`` the H is taken at :attr:`a_hat` (set by the caller after each update,
+    EKF form) and z is shifted so that the innovation is ``z − h(x̂)``.
+    """
+
+    def __init__(self, match: AttitudeMatch, master: MasterRecord, sigma, stream=0,
+                 phi_slice=slice(0, 3), a_slice=slice(6, 9), relinearise=False):
+        self.match, self.master, self.stream = match, master, stream
+        self.phi_slice, self.a_slice, self.relinearise = phi_slice, a_slice, relinearise
+        self.R = np.broadcast_to(np.asarray(sigma, float) ** 2, (3,)).copy()
+        self.a_hat = np.zeros(3)
+
+    def matrices(self, ep):
+        C, _ = self.master.at(ep.t)
+        nav = ep.streams[self.stream]
+        z, h6 = self.match.innovation_z(C, np.asarray(nav.C_bn), None, self.a_hat, self.relinearise)
+        H = np.zeros((3, ep.n))
+        H[:, self.phi_slice] = h6[:, :3]
+        H[:, self.a_slice] = h6[:, 3:]
+        return z, H, self.R
+
+
+# ------------------------------------------------------- runs-vectorised Kalman filter --
+def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R_att,
+                 Qk=None, relinearise=False, phi_slice=slice(0, 3), dv_slice=slice(3, 6),
+                 a_slice=slice(6, 9), record_every=1):
+    """Kalman filter over many runs at once (common trajectory, per-run data).
+
+    Parameters
+    ----------
+    Phi : (K, n, n)
+        Transition matrices from epoch k to k+1 (common to the runs: the dynamics depend on
+        the trajectory only). Epoch 0 is updated first, then predicted.
+    Cm : (K+1, 3, 3)
+        Master attitude ``C_m^n`` at the update epochs.
+    z_vel : (R, K+1, 3)
+        Velocity measurements [m/s] of every run.
+    C_slave : (R, K+1, 3, 3)
+        Slave computed ``Ĉ_s^n`` of every run at the update epochs.
+    match : AttitudeMatch
+    x0 : (n,) ; P0 : (n, n)
+    R_vel, R_att : (3,)
+        Measurement variances.
+    Qk : (n, n), optional
+        Process noise per step.
+    relinearise : bool
+        EKF form (per-run covariance); otherwise the covariance and gain are common to all
+        runs and only the state recursion is per run.
+
+    Returns
+    -------
+    xs : (R, M, n), sig : (M, n) or (R, M, n)
+        Posterior estimates and σ at the recorded epochs (every ``record_every``-th).
+    """
+    Kp1 = Cm.shape[0]
+    R_runs = z_vel.shape[0]
+    n = P0.shape[0]
+    Qk = np.zeros((n, n)) if Qk is None else Qk
+    Rm = np.diag(np.concatenate([R_vel, R_att]))
+    Hv = np.zeros((3, n))
+    Hv[np.arange(3), np.arange(dv_slice.start, dv_slice.stop)] = 1.0
+    idx_rec = list(range(0, Kp1, record_every))
+    xs = np.empty((R_runs, len(idx_rec), n))
+    x = np.broadcast_to(np.asarray(x0, float), (R_runs, n)).copy()
+    cols = np.r_[np.arange(phi_slice.start, phi_slice.stop), np.arange(a_slice.start, a_slice.stop)]
+    r = 0
+    if not relinearise:
+        P = np.array(P0, float)
+        sig = np.empty((len(idx_rec), n))
+        for k in range(Kp1):
+            z_att = _z_batch(match, Cm[k], C_slave[:, k])
+            H6 = match.H(Cm[k])
+            Ha = np.zeros((3, n))
+            Ha[:, cols] = H6
+            H = np.vstack([Hv, Ha])
+            S = H @ P @ H.T + Rm
+            K = np.linalg.solve(S, H @ P).T
+            zz = np.concatenate([z_vel[:, k], z_att], axis=1)
+            innov = zz - x @ H.T
+            if match.kind == "euler":
+                innov[:, 3:] = wrap_pi(innov[:, 3:])
+            x = x + innov @ K.T
+            IKH = np.eye(n) - K @ H
+            P = IKH @ P @ IKH.T + K @ Rm @ K.T
+            if r < len(idx_rec) and idx_rec[r] == k:
+                xs[:, r] = x
+                sig[r] = np.sqrt(np.diag(P))
+                r += 1
+            if k < Kp1 - 1:
+                x = x @ Phi[k].T
+                P = Phi[k] @ P @ Phi[k].T + Qk
+        return xs, sig
+    P = np.broadcast_to(np.array(P0, float), (R_runs, n, n)).copy()
+    sig = np.empty((R_runs, len(idx_rec), n))
+    I = np.eye(n)
+    for k in range(Kp1):
+        H = np.zeros((R_runs, 6, n))
+        H[:, :3] = Hv
+        zz = np.empty((R_runs, 6))
+        zz[:, :3] = z_vel[:, k]
+        for j in range(R_runs):
+            z6, H6 = match.innovation_z(Cm[k], C_slave[j, k], x[j, phi_slice], x[j, a_slice], True)
+            H[j, 3:][:, cols] = H6
+            zz[j, 3:] = z6
+        PHt = P @ np.swapaxes(H, 1, 2)
+        S = H @ PHt + Rm
+        K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)
+        innov = zz - np.einsum("rij,rj->ri", H, x)
+        x = x + np.einsum("rij,rj->ri", K, innov)
+        IKH = I - K @ H
+        P = IKH @ P @ np.swapaxes(IKH, 1, 2) + K @ Rm @ np.swapaxes(K, 1, 2)
+        if r < len(idx_rec) and idx_rec[r] == k:
+            xs[:, r] = x
+            sig[:, r] = np.sqrt(np.diagonal(P, axis1=1, axis2=2))
+            r += 1
+        if k < Kp1 - 1:
+            x = x @ Phi[k].T
+            P = Phi[k] @ P @ Phi[k].T + Qk
+    return xs, sig
+
+
+def _z_batch(match, C_m_n, C_hat):
+    """z for many slave attitudes (R, 3, 3) at one master attitude (DCM / rotation-vector forms)."""
+    Cr = match.reference(C_m_n)
+    if match.kind == "dcm":
+        D = C_hat - Cr
+        return np.stack([D[:, i, j] for i, j in _DCM_ELEMENTS], -1)
+    if match.kind == "euler":
+        return wrap_pi(dcm_to_euler(C_hat) - dcm_to_euler(Cr))
+    return dcm_to_rotvec(np.einsum("ji,rjk->rik", Cr, C_hat))
