@@ -59,7 +59,7 @@ from sinslab.nav import errstate
 __all__ = [
     "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
-    "paper_euler_H", "FLOPS",
+    "paper_euler_H", "FLOPS", "align_recorded", "TransferResult",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -433,3 +433,141 @@ def _z_batch(match, C_m_n, C_hat):
     if match.kind == "euler":
         return wrap_pi(dcm_to_euler(C_hat) - dcm_to_euler(Cr))
     return dcm_to_rotvec(np.einsum("ji,rjk->rik", Cr, C_hat))
+
+
+# ------------------------------------------------------------ recorded-data alignment ---
+class TransferResult:
+    """Output of :func:`align_recorded`.
+
+    Attributes
+    ----------
+    t : (M,) update epochs [s]
+    x : (M, 21) state after each update (φ, δv reset by feedback; ε, ∇ the accumulated
+        feedback compensation, i.e. the total estimate)
+    sigma : (M, 21) filter σ
+    layout : StateLayout
+    mounting : (3,) final installation estimate [rad] (``a``: λ, or φ_α on top of the
+        compensation), ``mounting_sigma`` its σ
+    gyro_bias, accel_bias : (3,) final slave bias estimates [rad/s], [m/s²] with σ
+    """
+
+    def __init__(self, t, x, sigma, layout):
+        self.t, self.x, self.sigma, self.layout = t, x, sigma, layout
+        sl = layout.slice
+        self.mounting, self.mounting_sigma = x[-1, sl("lam")], sigma[-1, sl("lam")]
+        self.gyro_bias, self.gyro_bias_sigma = x[-1, sl("eps")], sigma[-1, sl("eps")]
+        self.accel_bias, self.accel_bias_sigma = x[-1, sl("nabla")], sigma[-1, sl("nabla")]
+
+
+def align_recorded(imu_t, dtheta, dv, master: MasterRecord, master_pos, kind="optimal", *, compensation=None,
+                   relinearise=False, t_start=None, t_end=None, vel_sigma=0.1, att_sigma=3e-4,
+                   att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2, gyro_bias_sigma0=1e-3,
+                   accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3, accel_scale_sigma0=1e-3,
+                   gyro_noise=0.0, accel_noise=0.0, nsub=2):
+    """Transfer alignment of a recorded slave IMU against a recorded master solution.
+
+    The slave INS (:mod:`sinslab.nav.strapdown`) starts from the master's position,
+    velocity and attitude times the compensation at ``t_start`` and is updated at every
+    master epoch with velocity matching and the ``kind`` attitude measurement; φ and δv
+    are fed back into the slave INS, the gyro and accelerometer biases into its sensor
+    compensation; installation and scale-factor states stay in the filter. The position
+    is taken from the master at each epoch (no lever arm).
+
+    Parameters
+    ----------
+    imu_t : (N,) end times of the slave increments [s]; dtheta, dv : (N, 3) [rad], [m/s] (RFU)
+    master : MasterRecord (attitude, velocity); master_pos : (M, 3) [lat, lon (rad), h (m)]
+        at ``master.t``
+    kind : attitude measurement form; compensation : (3, 3) known ``Ĉ_s^m`` or None
+    vel_sigma [m/s], att_sigma [rad] : measurement noise σ
+    *_sigma0 : initial σ (SI); gyro_noise [rad/√s], accel_noise [m/s/√s] : process noise
+    """
+    from sinslab.core.records import NavState
+    from sinslab.nav import strapdown as sd
+    from sinslab.nav.errstate import NavPoint
+
+    imu_t = np.asarray(imu_t, float)
+    dt = float(np.median(np.diff(imu_t)))
+    mt = master.t
+    t0 = max(mt[0], imu_t[0]) if t_start is None else float(t_start)
+    t1 = min(mt[-1], imu_t[-1]) if t_end is None else float(t_end)
+    ep = np.where((mt >= t0 - 1e-9) & (mt <= t1 + 1e-9))[0]
+    if ep.size < 3:
+        raise ValueError(f"slave and master records overlap in fewer than 3 master epochs in [{t0:g}, {t1:g}] s")
+    match = AttitudeMatch(kind, compensation)
+    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(), errstate.gyro_scale(),
+                                           errstate.accel_bias(), errstate.accel_scale()],
+                                gyro_noise=gyro_noise, accel_noise=accel_noise)
+    lay = model.layout
+    n = model.n
+    sig0 = np.concatenate([np.full(3, att_sigma0), np.full(3, vel_sigma0), np.full(3, inst_sigma0),
+                           np.full(3, gyro_bias_sigma0), np.full(3, gyro_scale_sigma0),
+                           np.full(3, accel_bias_sigma0), np.full(3, accel_scale_sigma0)])
+    P = np.diag(sig0 ** 2)
+    x = np.zeros(n)
+    Cm0, vm0 = master.at(mt[ep[0]])
+    Cs0 = Cm0 @ match.compensation
+    from sinslab.core.attitude import dcm_to_euler
+    pos = np.asarray(master_pos, float)
+    state = sd.initial_state_array(NavState(pos[ep[0], 0], pos[ep[0], 1], pos[ep[0], 2], vm0,
+                                            dcm_to_euler(Cs0), mt[ep[0]]))
+    Rm = np.concatenate([np.full(3, vel_sigma ** 2), np.full(3, att_sigma ** 2)])
+    sl_phi, sl_dv, sl_a = lay.slice("phi"), lay.slice("dv"), lay.slice("lam")
+    sl_e, sl_n = lay.slice("eps"), lay.slice("nabla")
+    ts, xs, ss = [], [], []
+    bias_g, bias_a = np.zeros(3), np.zeros(3)
+    for j, k in enumerate(ep):
+        tk = mt[k]
+        if j > 0:
+            sel = np.where((imu_t > mt[ep[j - 1]] + 1e-9) & (imu_t <= tk + 1e-9))[0]
+            if sel.size % nsub:
+                raise ValueError(f"{sel.size} slave samples between master epochs at {tk:g} s is not a "
+                                 f"multiple of nsub={nsub}")
+            T = tk - mt[ep[j - 1]]
+            sd.step(state, dtheta[sel], dv[sel], dt, nsub, vertical="free", gyro_bias=bias_g, accel_bias=bias_a)
+            C = _q2dcm(state[:4])
+            wb = dtheta[sel].sum(0) / T - bias_g
+            fb = dv[sel].sum(0) / T - bias_a
+            F, G = model.matrices(NavPoint(state[7], state[9], state[4:7], C, fb, wb))
+            Phi = np.eye(n) + F * T + 0.5 * (F * T) @ (F * T)
+            Qk = (G * model.q) @ G.T * T
+            x = Phi @ x
+            P = Phi @ P @ Phi.T + Qk
+            # position from the master (no lever arm)
+            state[7:10] = pos[k]
+            sd.correct(state)
+        Cm, vm = master.at(tk)
+        Chat = _q2dcm(state[:4])
+        z6, h6 = match.innovation_z(Cm, Chat, x[sl_phi], x[sl_a], relinearise)
+        H = np.zeros((6, n))
+        H[0:3, sl_dv] = np.eye(3)
+        H[3:6, sl_phi] = h6[:, :3]
+        H[3:6, sl_a] = h6[:, 3:]
+        z = np.concatenate([state[4:7] - vm, z6])
+        S = H @ P @ H.T + np.diag(Rm)
+        K = np.linalg.solve(S, H @ P).T
+        innov = z - H @ x
+        if kind == "euler":
+            innov[3:] = wrap_pi(innov[3:])
+        x = x + K @ innov
+        IKH = np.eye(n) - K @ H
+        P = IKH @ P @ IKH.T + K @ np.diag(Rm) @ K.T
+        # feedback: attitude, velocity into the INS; biases into the sensor compensation
+        sd.correct(state, phi=x[sl_phi], dvel=x[sl_dv])
+        bias_g = bias_g + x[sl_e]
+        bias_a = bias_a + x[sl_n]
+        x[sl_phi] = 0.0
+        x[sl_dv] = 0.0
+        x[sl_e] = 0.0
+        x[sl_n] = 0.0
+        xt = x.copy()
+        xt[sl_e], xt[sl_n] = bias_g, bias_a
+        ts.append(tk)
+        xs.append(xt)
+        ss.append(np.sqrt(np.diag(P)))
+    return TransferResult(np.array(ts), np.array(xs), np.array(ss), lay)
+
+
+def _q2dcm(q):
+    from sinslab.core.attitude import quat_to_dcm
+    return quat_to_dcm(np.asarray(q[:4], float))
