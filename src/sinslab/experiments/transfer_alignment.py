@@ -397,6 +397,15 @@ def run(cfg: Config, ctx) -> Result:
                                "diagnosis: with the installation compensation methods 1-3 converge on the large installation",
                                [metrics[f"converged_{m}_large_comp"] for m in _M[:3]], [True] * 3))
 
+    # why a convergence verdict is what it is: the worst RMS / σ ratio at the end
+    notes = []
+    for key, st in stats.items():
+        ratio = st["rms"][-1] / st["sig"][-1]
+        j = int(np.argmax(ratio))
+        notes.append(f"{key}: RMS/σ at the end {np.round(ratio, 2).tolist()} (worst axis {'xyz'[j]}: "
+                     f"RMS {st['rms'][-1, j]:.3g}′, σ {st['sig'][-1, j]:.3g}′) -> "
+                     f"{'converged' if st['conv'] else 'not converged'} at ratio {float(fl.converge_ratio):g}")
+
     # ---- figures
     figs = []
     for c in _C:
@@ -438,4 +447,4 @@ def run(cfg: Config, ctx) -> Result:
                                 **{f"sigma_{a}_arcmin": st["sig"][:, j] for j, a in enumerate("xyz")}}
     tables = [Table("misalignment_stats", pd.DataFrame(rows),
                     f"Misalignment estimation error RMS over runs and mean filter σ [arcmin] at {t[i5]:g} s and at the end")]
-    return Result(metrics=metrics, claims=claims, series=series, figures=figs, tables=tables)
+    return Result(metrics=metrics, claims=claims, series=series, figures=figs, tables=tables, notes=notes)
