@@ -195,6 +195,8 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
             if key in refs:
                 ax[i * 3 + j].axhline(refs[key][j] / sc, color="k", ls="--", lw=0.8)
     ax[0].legend(fontsize="x-small")
+    for a in ax[-3:]:
+        a.set_xlabel("time since the start of the window [s]")
     rd.write_figure("estimates", fig, "Estimates ± σ over time per method/window; dashed: the file's reference values")
     summary = rd.complete(command_summary(
         rd, "transfer-align", "transfer alignment of a recorded slave IMU against a master INS", cfg, metrics,
