@@ -103,3 +103,28 @@ def test_model_layout_and_velocity():
 def test_bad_kind():
     with pytest.raises(ValueError, match="unknown attitude-matching kind"):
         tr.AttitudeMatch("quat")
+
+
+def test_driver_plugins_match_the_library():
+    """The measurement plug-ins (``matrices(ep)``) give the library's z and H placed in the
+    21-state layout, with the master interpolated at the epoch time."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(5)
+    att = np.array([[0.01, 0.2, 0.3], [0.02, 0.25, 0.31]])
+    vel = np.array([[1.0, 2.0, 0.0], [1.2, 2.2, 0.1]])
+    master = tr.MasterRecord([0.0, 0.1], att, vel)
+    C_mid, v_mid = master.at(0.05)
+    assert np.allclose(v_mid, vel.mean(0))
+    Cc = euler_to_dcm(np.array([10, 60, 8]) * DEG)
+    Chat = rotvec_to_dcm(rng.normal(0, 1e-3, 3)) @ C_mid @ Cc
+    nav = SimpleNamespace(C_bn=Chat, vel=v_mid + 0.05)
+    ep = SimpleNamespace(t=0.05, k=0, streams=(nav,), n=21)
+    m = tr.AttitudeMatch("optimal", Cc)
+    z, H, R = tr.AttitudeMeasurement(m, master, 1e-3).matrices(ep)
+    assert np.allclose(z, m.z(C_mid, Chat)) and np.allclose(H[:, 0:3], m.H(C_mid)[:, :3])
+    assert np.allclose(H[:, 6:9], np.eye(3)) and H.shape == (3, 21) and np.allclose(R, 1e-6)
+    zv, Hv, _ = tr.VelocityMeasurement(master, 0.01).matrices(ep)
+    assert np.allclose(zv, 0.05) and np.allclose(Hv[:, 3:6], np.eye(3))
+    with pytest.raises(ValueError, match="outside the master record"):
+        master.at(0.2)

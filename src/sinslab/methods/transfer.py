@@ -212,9 +212,14 @@ class AttitudeMatch:
         return d + H @ x, H
 
 
-#: Floating-point operations per measurement (z + H), counted from the formulas above
-#: (multiplications/divisions/additions; trig/sqrt counted as one each).
-FLOPS = {"euler": 27 * 2 + 3 + 1 + 6 * 2 + 3 * 9 + 6, "dcm": 3 + 0, "kain": 27 * 2 + 12, "optimal": 27 * 4 + 12}
+#: Floating-point operations of one z + H of each form (paper linearisation, closed forms;
+#: a trigonometric function, sqrt or division counts as one):
+#: euler: z = 6 angle extractions + 3 differences; H = 31 multiplications, 7 additions,
+#: 3 divisions, 1 sqrt (fθ, fγ, fψ and the 12 non-trivial entries) -> 51;
+#: dcm: z = 3 differences, H = copies of master elements -> 3;
+#: kain: z = C_rᵀĈ (27 mul + 18 add) + small-angle extraction (6), H = −C_rᵀ (copies) -> 51;
+#: optimal: kain plus C_r = C_m^n Ĉ_s^m (45) -> 96.
+FLOPS = {"euler": 51, "dcm": 3, "kain": 51, "optimal": 96}
 
 
 def paper_euler_H(C):
