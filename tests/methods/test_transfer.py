@@ -1,5 +1,6 @@
 """Transfer-alignment measurements: every H against central finite differences of its z
-(Dai et al., attitude matching based on the measured misalignment, eqs 6–23), the
+("Attitude matching method of transfer alignment based on the measured misalignment
+angle", eqs 6–23), the
 paper's printed Euler H against the derived one, the C22 = 0 loss of the DCM form, and
 the 21-state model layout."""
 import numpy as np

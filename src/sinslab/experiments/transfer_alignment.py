@@ -36,8 +36,8 @@ from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Met
 
 NAME = "transfer-alignment"
 PURPOSE = "paper 002: transfer alignment, velocity + attitude matching, four attitude measurement forms"
-PAPER = ("Dai Hongde et al.: attitude matching method of transfer alignment based on the measured "
-         "misalignment angle (four attitude-matching methods, 21 states)")
+PAPER = ("Attitude matching method of transfer alignment based on the measured misalignment angle "
+         "(基于量测失准角的传递对准姿态匹配方法; four attitude-matching methods, 21 states)")
 NOTES = [
     "Not stated by the paper, assumed here: measurement noise 0.01 m/s (velocity) and 1 arcmin "
     "(attitude) 1-sigma; initial filter sigma 1 deg for the slave misalignment, 0.1 m/s for the "

@@ -20,8 +20,9 @@ Both cases are one formula with the *reference attitude* ``C_r = C_m^n Ĉ_s^m``
 
     Ĉ_s^n = exp(−φ×) · C_r · exp(a×)
 
-Attitude measurements (:class:`AttitudeMatch`, Dai/Kain formulation of the paper
-"attitude matching method based on the measured misalignment"):
+Attitude measurements (:class:`AttitudeMatch`; the four methods of "Attitude matching
+method of transfer alignment based on the measured misalignment angle", after Kain's
+measured misalignment):
 
 1. ``"euler"``  z = att(Ĉ_s^n) − att(C_r) (wrapped), ordered [pitch, roll, yaw];
 2. ``"dcm"``    z = [Ĉ12 − C12, Ĉ31 − C31, Ĉ32 − C32] of ``Ĉ_s^n − C_r`` (1-based);
