@@ -60,7 +60,7 @@ from sinslab.nav import errstate
 __all__ = [
     "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
-    "paper_euler_H", "FLOPS", "align_recorded", "TransferResult",
+    "paper_euler_H", "FLOPS", "align_recorded", "align_recorded_driver", "TransferResult", "TransferMeasurement",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -291,7 +291,25 @@ class MasterRecord:
         return C, (1 - w) * self.vel[i] + w * self.vel[i + 1]
 
 
-class VelocityMeasurement:
+class _MasterTimed:
+    """Schedule of a measurement whose items are the master epochs (valid = arrival)."""
+
+    def epochs(self, grid):
+        """``{filter epoch: [master items]}`` for the master epochs on the filter grid."""
+        t = self.master.t
+        e = np.ceil((t - grid.t0) / grid.T - 1e-6).astype(np.int64)
+        on = (e >= 0) & (e <= grid.n) & (np.abs(grid.t0 + e * grid.T - t) <= 1e-6 * grid.T + 1e-9)
+        out = {}
+        for j in np.flatnonzero(on):
+            out.setdefault(int(e[j]), []).append(int(j))
+        return out
+
+    def times(self, item):
+        t = float(self.master.t[item])
+        return t, t
+
+
+class VelocityMeasurement(_MasterTimed):
     """Driver plug-in: velocity matching against a master record (``matrices(ep)``)."""
 
     def __init__(self, master: MasterRecord, sigma, stream=0, dv_slice=slice(3, 6)):
@@ -306,7 +324,7 @@ class VelocityMeasurement:
         return np.asarray(nav.vel) - v, H, self.R
 
 
-class AttitudeMeasurement:
+class AttitudeMeasurement(_MasterTimed):
     """Driver plug-in: attitude matching of one :class:`AttitudeMatch` kind.
 
     ``phi_slice``/``a_slice`` locate φ and the installation state in the layout. With
@@ -329,6 +347,18 @@ class AttitudeMeasurement:
         H[:, self.phi_slice] = h6[:, :3]
         H[:, self.a_slice] = h6[:, 3:]
         return z, H, self.R
+
+
+class TransferMeasurement(_MasterTimed):
+    """Driver plug-in: velocity + attitude matching as one 6-row update at each master epoch."""
+
+    def __init__(self, velocity: VelocityMeasurement, attitude: AttitudeMeasurement):
+        self.velocity, self.attitude, self.master = velocity, attitude, velocity.master
+
+    def matrices(self, ep):
+        zv, Hv, Rv = self.velocity.matrices(ep)
+        za, Ha, Ra = self.attitude.matrices(ep)
+        return np.concatenate([zv, za]), np.vstack([Hv, Ha]), np.concatenate([Rv, Ra])
 
 
 # ------------------------------------------------------- runs-vectorised Kalman filter --
@@ -572,6 +602,48 @@ def align_recorded(imu_t, dtheta, dv, master: MasterRecord, master_pos, kind="op
         xs.append(xt)
         ss.append(np.sqrt(np.diag(P)))
     return TransferResult(np.array(ts), np.array(xs), np.array(ss), lay)
+
+
+def align_recorded_driver(imu, master: MasterRecord, master_pos, kind="optimal", *, compensation=None,
+                          vel_sigma=0.1, att_sigma=3e-4, att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2,
+                          gyro_bias_sigma0=1e-3, accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3,
+                          accel_scale_sigma0=1e-3, gyro_noise=0.0, accel_noise=0.0, nsub=2):
+    """:func:`align_recorded` through the fusion driver (:func:`sinslab.fusion.driver.run`).
+
+    One live stream (the slave, started at the master epoch equal to the IMU start), the
+    :class:`TransferMeasurement` plug-in at every master epoch, feedback of φ, δv and the
+    biases; installation and scale factors stay in the filter. Unlike
+    :func:`align_recorded` the slave position is not reset to the master's (it is free,
+    corrected only through velocity feedback). ``imu`` is an ImuRecord (RFU increments).
+    """
+    from sinslab.core.attitude import dcm_to_euler
+    from sinslab.core.records import NavState
+    from sinslab.fusion import driver as drv
+    from sinslab.fusion.feedback import FeedbackLayout
+
+    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(), errstate.gyro_scale(),
+                                           errstate.accel_bias(), errstate.accel_scale()],
+                                gyro_noise=gyro_noise, accel_noise=accel_noise)
+    lay = model.layout
+    t0 = float(imu.t0)
+    Cm0, vm0 = master.at(t0)
+    p0 = np.array([np.interp(t0, master.t, np.asarray(master_pos)[:, i]) for i in range(3)])
+    match = AttitudeMatch(kind, compensation)
+    init = NavState(p0[0], p0[1], p0[2], vm0, dcm_to_euler(Cm0 @ match.compensation), t0)
+    stream = drv.LiveStream(imu, init, nsub=nsub)
+    meas = TransferMeasurement(VelocityMeasurement(master, vel_sigma, dv_slice=lay.slice("dv")),
+                               AttitudeMeasurement(match, master, att_sigma, phi_slice=lay.slice("phi"),
+                                                   a_slice=lay.slice("lam")))
+    sig0 = np.concatenate([np.full(3, att_sigma0), np.full(3, vel_sigma0), np.full(3, inst_sigma0),
+                           np.full(3, gyro_bias_sigma0), np.full(3, gyro_scale_sigma0),
+                           np.full(3, accel_bias_sigma0), np.full(3, accel_scale_sigma0)])
+    fb = FeedbackLayout.from_model(lay, pos=None, gyro_scale=None, accel_scale=None)
+    kf_dt = float(np.median(np.diff(master.t)))
+    res = drv.run([stream], model, np.diag(sig0 ** 2), [meas], kf_dt=kf_dt, feedback=fb)
+    x = np.array(res.x, float)
+    x[:, lay.slice("eps")] = res.gyro_bias[0]
+    x[:, lay.slice("nabla")] = res.accel_bias[0]
+    return TransferResult(np.asarray(res.t), x, np.asarray(res.sigma), lay)
 
 
 def _q2dcm(q):
