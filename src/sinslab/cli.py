@@ -250,6 +250,7 @@ COMMAND_MODULES = (
     "sinslab.app.commands.navigate",
     "sinslab.app.commands.allan",
     "sinslab.app.commands.align",
+    "sinslab.app.commands.transfer_align",
 )
 _BROKEN_COMMANDS: dict[str, str] = {}
 

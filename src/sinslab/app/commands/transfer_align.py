@@ -1,0 +1,241 @@
+"""``sinslab transfer-align --slave FILE --master FILE``: transfer alignment of a recorded
+slave IMU against a recorded master INS solution (mounting angles and slave biases with
+σ) into a run folder.
+
+Inputs
+------
+- slave: increments, any format of :func:`sinslab.data.io.load_imu` (``.mat`` variable
+  ``mimu``/``imu``, CSV/Parquet with unit headers);
+- master: a PSINS ``avp`` matrix in a ``.mat`` (variable ``fogavp``/``avp``: pitch roll yaw
+  [rad], vE vN vU [m/s], lat lon [rad], h [m], t [s]) or a CSV/Parquet table with the
+  columns ``t, pitch, roll, yaw, ve, vn, vu, lat, lon, h`` each carrying its unit in the
+  header (``pitch[deg]``);
+- reference values (``mu0`` mounting angles [rad], ``eb0`` gyro bias [rad/s], ``db0``
+  accelerometer bias [m/s²]) are read from the master or slave ``.mat`` when present and
+  compared with the estimates.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from sinslab.core import units
+
+__all__ = ["transfer_align_file", "read_master", "register"]
+
+_MASTER_COLS = ("t", "pitch", "roll", "yaw", "ve", "vn", "vu", "lat", "lon", "h")
+_MASTER_KINDS = ("time", "angle", "angle", "angle", "velocity", "velocity", "velocity", "angle", "angle", "length")
+
+
+def read_master(path):
+    """Master solution ``(t, att (M,3), vel (M,3), pos (M,3) [lat, lon rad, h m])``."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    if path.suffix.lower() == ".mat":
+        from sinslab.data import io
+        s = io.read_mat_avp(path)
+        return s.t, s.att, s.vel, np.column_stack([s.lat, s.lon, s.h])
+    import pandas as pd
+    try:
+        df = pd.read_parquet(path) if path.suffix.lower() in (".parquet", ".pq") else pd.read_csv(path)
+    except Exception as e:  # noqa: BLE001
+        raise ValueError(f"{path}: cannot read the master table ({e})") from None
+    cols = {}
+    for c in df.columns:
+        name, _, rest = str(c).partition("[")
+        cols[name.strip().lower()] = (c, rest.rstrip("]").strip())
+    out = []
+    for name, kind in zip(_MASTER_COLS, _MASTER_KINDS):
+        if name not in cols:
+            raise ValueError(f"{path}: master table lacks column {name!r} (need {', '.join(_MASTER_COLS)} with units)")
+        c, unit = cols[name]
+        if not unit:
+            raise ValueError(f"{path}: column {c!r} has no unit; write it as '{name}[unit]'")
+        scale = float(units.parse(f"1 {unit}", kind))
+        out.append(df[c].to_numpy(float) * scale)
+    a = np.column_stack(out)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{path}: NaN/inf in the master table")
+    return a[:, 0], a[:, 1:4], a[:, 4:7], a[:, 7:10]
+
+
+def _refs(*paths):
+    import scipy.io
+    for p in paths:
+        if Path(p).suffix.lower() == ".mat":
+            m = scipy.io.loadmat(p)
+            r = {k: np.asarray(m[k], float).ravel() for k in ("mu0", "eb0", "db0") if k in m}
+            if r:
+                return r
+    return {}
+
+
+def _parse_mount(text):
+    if text is None:
+        return None
+    from sinslab.core.attitude import euler_to_dcm
+    try:
+        v = units.parse_vector(text, "angle", 3)
+    except ValueError as e:
+        raise ValueError(f"--mount {text!r}: {e} (give units, e.g. \"[10, 60, 8] deg\")") from None
+    return euler_to_dcm(np.asarray(v, float))
+
+
+def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, windows=(None,), out=None,
+                        vel_sigma=0.1, att_sigma_arcmin=1.0, echo=print):
+    """Run the alignment for each method and window; write the run folder; return the summary."""
+    from sinslab import __version__
+    from sinslab.app import plotting
+    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
+    from sinslab.core.toml import dump_toml
+    from sinslab.data import io
+    from sinslab.methods import transfer as tm
+
+    for m in methods:
+        if m not in tm.KINDS:
+            raise ValueError(f"--method {m!r}: choose from {', '.join(tm.KINDS)}")
+    comp = _parse_mount(mount)
+    if Path(slave).suffix.lower() == ".mat":
+        import scipy.io
+        mm = scipy.io.loadmat(slave) if Path(slave).exists() else None
+        if mm is not None and not any(k in mm for k in ("imu", "mimu", "simu")):
+            raise ValueError(f"{slave}: .mat lacks the slave IMU variable (imu, mimu or simu)")
+    if Path(master).suffix.lower() == ".mat" and Path(master).exists():
+        import scipy.io
+        mm = scipy.io.loadmat(master)
+        if not any(k in mm for k in ("avp", "fogavp", "avpr")):
+            raise ValueError(f"{master}: .mat lacks the master solution variable (avp, fogavp or avpr)")
+    data = io.load_imu(slave)
+    imu = data.imu
+    mt, att, vel, pos = read_master(master)
+    lo, hi = max(mt[0], imu.t[0]), min(mt[-1], imu.t[-1])
+    if hi - lo <= 0:
+        raise ValueError(f"slave [{imu.t[0]:g}, {imu.t[-1]:g}] s and master [{mt[0]:g}, {mt[-1]:g}] s do not overlap in time")
+    dtm = float(np.median(np.diff(mt)))
+    ratio = dtm / imu.dt
+    if abs(ratio - round(ratio)) > 1e-3 or round(ratio) < 1:
+        raise ValueError(f"master interval {dtm:g} s is not a multiple of the slave interval {imu.dt:g} s")
+    nsub = 2 if round(ratio) % 2 == 0 else 1
+    master_rec = tm.MasterRecord(mt, att, vel)
+    refs = _refs(master, slave)
+    out = out if out is not None else default_out_dir("transfer-align")
+    rd = RunDir(out, "transfer-align")
+    rd.check()
+    metrics, rows, results = {}, [], {}
+    am, dph, mg = units.arcmin, units.dph, 1e-3 * 9.80665
+    for w in windows:
+        t0, t1 = (None, None) if w is None else w
+        wkey = "all" if w is None else f"{t0:g}_{t1:g}s".replace(".", "p")
+        for m in methods:
+            r = tm.align_recorded(imu.t, imu.dtheta, imu.dv, master_rec, pos, m, compensation=comp,
+                                  t_start=t0, t_end=t1, vel_sigma=vel_sigma, att_sigma=att_sigma_arcmin * am,
+                                  gyro_noise=1.0 * units.deg / 60.0, accel_noise=1e-3, nsub=nsub)
+            results[(m, wkey)] = r
+            k = f"{m}_{wkey}"
+            metrics[f"mounting_arcmin_{k}"] = r.mounting / am
+            metrics[f"mounting_sigma_arcmin_{k}"] = r.mounting_sigma / am
+            metrics[f"gyro_bias_dph_{k}"] = r.gyro_bias / dph
+            metrics[f"gyro_bias_sigma_dph_{k}"] = r.gyro_bias_sigma / dph
+            metrics[f"accel_bias_mg_{k}"] = r.accel_bias / mg
+            metrics[f"accel_bias_sigma_mg_{k}"] = r.accel_bias_sigma / mg
+            row = dict(method=m, window=wkey, t_start=r.t[0], t_end=r.t[-1])
+            for j, a in enumerate("xyz"):
+                row[f"mount_{a}_arcmin"] = r.mounting[j] / am
+                row[f"mount_{a}_sigma_arcmin"] = r.mounting_sigma[j] / am
+            for j, a in enumerate("xyz"):
+                row[f"eb_{a}_dph"] = r.gyro_bias[j] / dph
+                row[f"eb_{a}_sigma_dph"] = r.gyro_bias_sigma[j] / dph
+            for j, a in enumerate("xyz"):
+                row[f"db_{a}_mg"] = r.accel_bias[j] / mg
+                row[f"db_{a}_sigma_mg"] = r.accel_bias_sigma[j] / mg
+            rows.append(row)
+            line = (f"{m:8s} {wkey:>10s}: mounting [{', '.join(f'{v:.2f}' for v in r.mounting / am)}] ± "
+                    f"[{', '.join(f'{v:.2f}' for v in r.mounting_sigma / am)}] arcmin; gyro bias "
+                    f"[{', '.join(f'{v:.1f}' for v in r.gyro_bias / dph)}] deg/h")
+            echo(line)
+    if refs:
+        if "mu0" in refs:
+            metrics["ref_mounting_arcmin"] = refs["mu0"] / am
+        if "eb0" in refs:
+            metrics["ref_gyro_bias_dph"] = refs["eb0"] / dph
+        if "db0" in refs:
+            metrics["ref_accel_bias_mg"] = refs["db0"] / mg
+        echo("reference (file): mounting " + (f"{np.round(refs['mu0'] / am, 2).tolist()} arcmin" if "mu0" in refs else "-")
+             + ", gyro bias " + (f"{np.round(refs['eb0'] / dph, 1).tolist()} deg/h" if "eb0" in refs else "-")
+             + ", accel bias " + (f"{np.round(refs['db0'] / mg, 2).tolist()} mg" if "db0" in refs else "-"))
+    cfg = {"slave": str(slave), "master": str(master), "methods": list(methods), "mount": mount or "none",
+           "windows": ["all" if w is None else f"{w[0]:g}:{w[1]:g}" for w in windows],
+           "vel_sigma_mps": vel_sigma, "att_sigma_arcmin": att_sigma_arcmin}
+    rd.prepare()
+    rd.write_text("config.toml", f"# sinslab {__version__} — transfer-align\n" + dump_toml(cfg))
+    import pandas as pd
+    rd.write_table("estimates", pd.DataFrame(rows), "final estimates with σ per method and window")
+    (m0, w0), r0 = next(iter(results.items()))
+    rd.write_table("history", {"t_s": r0.t, **{f"{l}": r0.x[:, i] for i, l in enumerate(r0.layout.labels)},
+                               **{f"sigma_{l}": r0.sigma[:, i] for i, l in enumerate(r0.layout.labels)}},
+                   f"state estimates and σ (SI) over time, {m0}, window {w0}")
+    fig, ax = plotting.figure(3, 3, width=11.0, row_height=2.3, title="transfer alignment on recorded data")
+    sl = r0.layout.slice
+    for (m, wkey), r in results.items():
+        tt = r.t - r.t[0]
+        for j in range(3):
+            for i, (blk, sc) in enumerate((("lam", am), ("eps", dph), ("nabla", mg))):
+                a = ax[i * 3 + j]
+                v, s = r.x[:, sl(blk)][:, j] / sc, r.sigma[:, sl(blk)][:, j] / sc
+                ln, = a.plot(tt, v, lw=0.9, label=f"{m} {wkey}")
+                a.fill_between(tt, v - s, v + s, color=ln.get_color(), alpha=0.15)
+    for j, a in enumerate("xyz"):
+        ax[j].set_title(f"mounting {a} [arcmin]", fontsize="small")
+        ax[3 + j].set_title(f"gyro bias {a} [deg/h]", fontsize="small")
+        ax[6 + j].set_title(f"accel bias {a} [mg]", fontsize="small")
+        for i, key, sc in ((0, "mu0", am), (1, "eb0", dph), (2, "db0", mg)):
+            if key in refs:
+                ax[i * 3 + j].axhline(refs[key][j] / sc, color="k", ls="--", lw=0.8)
+    ax[0].legend(fontsize="x-small")
+    for a in ax[-3:]:
+        a.set_xlabel("time since the start of the window [s]")
+    rd.write_figure("estimates", fig, "Estimates ± σ over time per method/window; dashed: the file's reference values")
+    summary = rd.complete(command_summary(
+        rd, "transfer-align", "transfer alignment of a recorded slave IMU against a master INS", cfg, metrics,
+        ["Mounting angles: the installation state a (C_s^m = exp(a×), or C_s^m = Ĉ_s^m exp(a×) with --mount), "
+         "slave axes x, y, z.",
+         "Biases: slave gyro and accelerometer biases (measured minus true), body axes.",
+         "Filter: 21 states, velocity + attitude matching at the master rate, feedback of φ, δv and biases."]))
+    echo(f"  -> {out}")
+    return summary, results, refs
+
+
+def _window(text):
+    a, sep, b = str(text).partition(":")
+    if not sep:
+        raise ValueError(f"--window {text!r}: use START:END in seconds")
+    try:
+        return float(a), float(b)
+    except ValueError:
+        raise ValueError(f"--window {text!r}: START and END must be numbers of seconds") from None
+
+
+def register(app):
+    """Add ``sinslab transfer-align`` (called from sinslab.cli)."""
+    import typer
+
+    @app.command("transfer-align")
+    def transfer_align(slave: Path = typer.Option(..., "--slave", help="slave IMU increments (.mat, CSV, Parquet)"),
+                       master: Path = typer.Option(..., "--master", help="master INS solution (.mat avp, CSV, Parquet)"),
+                       method: list[str] = typer.Option(["optimal"], "--method", help="euler | dcm | kain | optimal (repeatable)"),
+                       mount: Optional[str] = typer.Option(None, "--mount", help="known installation [pitch, roll, yaw] with units"),
+                       window: list[str] = typer.Option([], "--window", metavar="START:END", help="time window(s) [s]"),
+                       out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder")) -> None:
+        """Transfer alignment on recorded data: mounting angles and slave biases with σ."""
+        from sinslab.cli import CliError, user_errors
+
+        with user_errors():
+            try:
+                wins = [_window(w) for w in window] or [None]
+                transfer_align_file(slave, master, methods=tuple(method), mount=mount, windows=wins, out=out,
+                                    echo=typer.echo)
+            except (ValueError, FileNotFoundError) as e:
+                raise CliError(str(e)) from None

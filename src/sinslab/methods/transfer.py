@@ -1,0 +1,651 @@
+"""Transfer alignment: velocity + attitude matching of a slave INS against a master INS.
+
+The master (body frame m) is an accurate INS taken as error-free; the slave (body frame s)
+is mounted with an installation attitude ``C_s^m`` and navigates with its own IMU. The
+filter estimates the slave's misalignment φ^n, velocity error δv^n, the installation
+misalignment and the slave's sensor errors (21 states, :func:`transfer_model`).
+
+Conventions (sinslab): n = ENU, bodies RFU, ``att = [pitch, roll, yaw]`` with
+``C_b^n = R_z(ψ) R_x(θ) R_y(γ)``; the slave's computed attitude is
+``Ĉ_s^n = exp(−φ×) C_s^n ≈ (I − φ×) C_s^n``; the true slave attitude is
+``C_s^n = C_m^n C_s^m``. The installation is written
+
+- without compensation (methods 1–3 of the paper): ``C_s^m = exp(λ×)``, λ the *whole*
+  installation attitude (small only when the slave is mounted nearly parallel);
+- with a known compensation ``Ĉ_s^m`` (method 4, and optionally any method):
+  ``C_s^m = Ĉ_s^m exp(φ_α×)`` with φ_α the small residual.
+
+Both cases are one formula with the *reference attitude* ``C_r = C_m^n Ĉ_s^m``
+(``Ĉ_s^m = I`` without compensation) and the installation state ``a`` (λ or φ_α)::
+
+    Ĉ_s^n = exp(−φ×) · C_r · exp(a×)
+
+Attitude measurements (:class:`AttitudeMatch`; the four methods of "Attitude matching
+method of transfer alignment based on the measured misalignment angle", after Kain's
+measured misalignment):
+
+1. ``"euler"``  z = att(Ĉ_s^n) − att(C_r) (wrapped), ordered [pitch, roll, yaw];
+2. ``"dcm"``    z = [Ĉ12 − C12, Ĉ31 − C31, Ĉ32 − C32] of ``Ĉ_s^n − C_r`` (1-based);
+3. ``"kain"``   z = φ_m, ``C_r^T Ĉ_s^n = exp(φ_m×)``, i.e. ``Ĉ_n^s C_r = I − (φ_m×)``;
+   to first order ``φ_m = a − C_r^T φ`` (paper eq 16);
+4. ``"optimal"`` method 3 right-multiplied by the compensation ``Ĉ_s^m`` (paper eqs
+   17–23): the same formula with ``C_r = C_m^n Ĉ_s^m``; ``φ_m = φ_α − C_n^s φ``.
+
+``H`` is the Jacobian of z over ``[φE φN φU, a_x a_y a_z]``: by default at ``φ = 0, a = 0``
+(the paper's linearisation; with a large uncompensated installation this is where it
+fails), or re-linearised at the current installation estimate ``â`` (EKF form,
+:meth:`AttitudeMatch.H` with ``a0``).
+
+Euler-angle row of H (derived here, sinslab convention, C = C_r, elements 1-based,
+``fθ = 1/√(1−C32²)``, ``fγ = 1/(C31²+C33²)``, ``fψ = 1/(C12²+C22²)``)::
+
+    δθ = fθ (−C22 φE + C12 φN + C33 ax − C31 az)
+    δγ = fγ [(C21C33 − C31C23) φE + (C13C31 − C11C33) φN − C31C32 ax − C32C33 az] + ay
+    δψ = fψ [C12C32 φE + C22C32 φN + (C12C23 − C13C22) ax + (C11C22 − C12C21) az] − φU
+
+The paper's printed eqs 7–8 differ: the ay term of δγ and the φU term of δψ carry the
+factor fγ / fψ (they must not), and in sinslab's yaw (counter-clockwise) the φN, ax, az
+and φU coefficients of δψ have the opposite sign; read as the clockwise heading the
+printed φN, ax, az signs are right but the φE term then has the wrong sign.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sinslab.core.attitude import dcm_to_euler, dcm_to_rotvec, rotvec_to_dcm, skew, wrap_pi
+from sinslab.nav import errstate
+
+__all__ = [
+    "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
+    "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
+    "paper_euler_H", "FLOPS", "align_recorded", "align_recorded_driver", "TransferResult", "TransferMeasurement",
+]
+
+KINDS = ("euler", "dcm", "kain", "optimal")
+
+# indices of C12, C31, C32 (1-based) in a row-major 3x3
+_DCM_ELEMENTS = ((0, 1), (2, 0), (2, 1))
+
+
+# ----------------------------------------------------------------- SO(3) Jacobians ----
+def jr(a):
+    """Right Jacobian of SO(3): ``exp((a+δ)×) ≈ exp(a×) exp((J_r(a) δ)×)``; (3,) -> (3, 3)."""
+    a = np.asarray(a, dtype=float)
+    t = float(np.linalg.norm(a))
+    K = skew(a)
+    if t < 1e-6:
+        return np.eye(3) - 0.5 * K + K @ K / 6.0
+    return np.eye(3) - (1.0 - math.cos(t)) / t ** 2 * K + (t - math.sin(t)) / t ** 3 * K @ K
+
+
+def jr_inv(a):
+    """Inverse right Jacobian: ``log(exp(a×) exp(δ×)) ≈ a + J_r⁻¹(a) δ``."""
+    a = np.asarray(a, dtype=float)
+    t = float(np.linalg.norm(a))
+    K = skew(a)
+    if t < 1e-6:
+        return np.eye(3) + 0.5 * K + K @ K / 12.0
+    c = 1.0 / t ** 2 - (1.0 + math.cos(t)) / (2.0 * t * math.sin(t))
+    return np.eye(3) + 0.5 * K + c * K @ K
+
+
+def jl_inv(a):
+    """Inverse left Jacobian: ``log(exp(δ×) exp(a×)) ≈ a + J_l⁻¹(a) δ`` (= J_r⁻¹(−a))."""
+    return jr_inv(-np.asarray(a, dtype=float))
+
+
+def _check_dcm(C, name):
+    C = np.asarray(C, dtype=float)
+    if C.shape != (3, 3) or not np.all(np.isfinite(C)):
+        raise ValueError(f"{name} must be a finite 3x3 DCM, got shape {C.shape}")
+    return C
+
+
+# ------------------------------------------------------------- attitude measurement ---
+class AttitudeMatch:
+    """One of the four attitude-matching measurements (z and its H).
+
+    Parameters
+    ----------
+    kind : {"euler", "dcm", "kain", "optimal"}
+        Measurement form (see the module docstring).
+    compensation : array_like (3, 3), optional
+        Known installation DCM ``Ĉ_s^m`` (slave body -> master body). With it the
+        installation state is the residual φ_α (``C_s^m = Ĉ_s^m exp(φ_α×)``); without
+        it the state is the whole installation λ (``C_s^m = exp(λ×)``). ``"optimal"`` is
+        ``"kain"`` with a compensation (identity when none is given).
+
+    Notes
+    -----
+    All arguments named ``C_m_n`` are the master ``C_m^n`` and ``C_s_n_hat`` the slave's
+    computed ``Ĉ_s^n`` (body -> ENU).
+    """
+
+    def __init__(self, kind: str, compensation=None):
+        if kind not in KINDS:
+            raise ValueError(f"unknown attitude-matching kind {kind!r}; choose from {list(KINDS)}")
+        self.kind = kind
+        self.compensation = np.eye(3) if compensation is None else _check_dcm(compensation, "compensation")
+        if abs(np.linalg.det(self.compensation) - 1.0) > 1e-6:
+            raise ValueError("compensation must be a rotation matrix (det 1)")
+        self.compensated = compensation is not None
+
+    # -- the measured quantity
+    def reference(self, C_m_n):
+        """Reference attitude ``C_r = C_m^n Ĉ_s^m`` (3, 3)."""
+        return _check_dcm(C_m_n, "C_m_n") @ self.compensation
+
+    def _g(self, C, Cr):
+        if self.kind == "euler":
+            return wrap_pi(dcm_to_euler(C) - dcm_to_euler(Cr))
+        if self.kind == "dcm":
+            D = C - Cr
+            return np.array([D[i, j] for i, j in _DCM_ELEMENTS])
+        return dcm_to_rotvec(Cr.T @ C)
+
+    def z(self, C_m_n, C_s_n_hat):
+        """Measurement [rad or -] (3,) from the master and the slave's computed DCM."""
+        return self._g(_check_dcm(C_s_n_hat, "C_s_n_hat"), self.reference(C_m_n))
+
+    def predict(self, C_m_n, phi, a):
+        """Model value ``h(φ, a)`` of z for ``Ĉ_s^n = exp(−φ×) C_r exp(a×)`` (exact)."""
+        Cr = self.reference(C_m_n)
+        C = rotvec_to_dcm(-np.asarray(phi, float)) @ Cr @ rotvec_to_dcm(np.asarray(a, float))
+        return self._g(C, Cr)
+
+    # -- its Jacobian
+    def H(self, C_m_n, C_s_n_hat=None, a0=None):
+        """Jacobian (3, 6) of z over ``[φE φN φU, a_x a_y a_z]`` at ``φ = 0``, ``a = a0``.
+
+        Parameters
+        ----------
+        C_m_n : (3, 3)
+            Master attitude.
+        C_s_n_hat : (3, 3), optional
+            Slave computed attitude; unused by the linearisation at the model point
+            (``Ĉ_s^n = C_r exp(a0×)`` there) and accepted for the common face.
+        a0 : (3,), optional
+            Installation estimate to linearise at (EKF form); default 0 (paper form).
+        """
+        Cr = self.reference(C_m_n)
+        a0 = np.zeros(3) if a0 is None else np.asarray(a0, dtype=float)
+        if self.kind in ("kain", "optimal"):
+            # z = log(exp(−(C_rᵀφ)×) exp(a×)): left perturbation −J_l⁻¹(a0) C_rᵀ, right J_r⁻¹ J_r = I
+            return np.hstack([-jl_inv(a0) @ Cr.T, np.eye(3)])
+        C0 = Cr @ rotvec_to_dcm(a0) if a0.any() else Cr
+        Jr = jr(a0) if a0.any() else np.eye(3)
+        H = np.empty((3, 6))
+        for i in range(3):
+            e = np.zeros(3)
+            e[i] = 1.0
+            H[:, i] = self._dg(C0, -skew(e) @ C0)
+            H[:, 3 + i] = self._dg(C0, C0 @ skew(Jr[:, i]))
+        return H
+
+    def _dg(self, C, dC):
+        """Differential of the measured quantity at C along dC (Euler / DCM forms)."""
+        if self.kind == "dcm":
+            return np.array([dC[i, j] for i, j in _DCM_ELEMENTS])
+        # θ = asin(C32), γ = atan2(−C31, C33), ψ = atan2(−C12, C22)
+        dth = dC[2, 1] / math.sqrt(1.0 - C[2, 1] ** 2)
+        dga = (C[2, 0] * dC[2, 2] - C[2, 2] * dC[2, 0]) / (C[2, 0] ** 2 + C[2, 2] ** 2)
+        dps = (C[0, 1] * dC[1, 1] - C[1, 1] * dC[0, 1]) / (C[0, 1] ** 2 + C[1, 1] ** 2)
+        return np.array([dth, dga, dps])
+
+    def innovation_z(self, C_m_n, C_s_n_hat, phi_hat=None, a_hat=None, relinearise=False):
+        """``(z_eff, H)`` for a linear update ``z_eff − H x̂``.
+
+        Paper form: ``z_eff = z`` and H at 0. EKF form (``relinearise=True``): H at
+        ``a_hat`` and ``z_eff = z − h(x̂) + H x̂`` so that the innovation is ``z − h(x̂)``.
+        """
+        z = self.z(C_m_n, C_s_n_hat)
+        if not relinearise:
+            return z, self.H(C_m_n)
+        phi_hat = np.zeros(3) if phi_hat is None else np.asarray(phi_hat, float)
+        a_hat = np.zeros(3) if a_hat is None else np.asarray(a_hat, float)
+        H = self.H(C_m_n, a0=a_hat)
+        x = np.concatenate([phi_hat, a_hat])
+        d = z - self.predict(C_m_n, phi_hat, a_hat)
+        if self.kind == "euler":
+            d = wrap_pi(d)
+        return d + H @ x, H
+
+
+#: Floating-point operations of one z + H of each form (paper linearisation, closed forms;
+#: a trigonometric function, sqrt or division counts as one):
+#: euler: z = 6 angle extractions + 3 differences; H = 31 multiplications, 7 additions,
+#: 3 divisions, 1 sqrt (fθ, fγ, fψ and the 12 non-trivial entries) -> 51;
+#: dcm: z = 3 differences, H = copies of master elements -> 3;
+#: kain: z = C_rᵀĈ (27 mul + 18 add) + small-angle extraction (6), H = −C_rᵀ (copies) -> 51;
+#: optimal: kain plus C_r = C_m^n Ĉ_s^m (45) -> 96.
+FLOPS = {"euler": 51, "dcm": 3, "kain": 51, "optimal": 96}
+
+
+def paper_euler_H(C):
+    """Euler-angle H (3, 6) exactly as printed in the paper's eqs 6–8 (for comparison)."""
+    c = lambda i, j: C[i - 1, j - 1]  # noqa: E731
+    ft = 1.0 / math.sqrt(1.0 - c(3, 2) ** 2)
+    fg = 1.0 / (c(3, 1) ** 2 + c(3, 3) ** 2)
+    fp = 1.0 / (c(1, 2) ** 2 + c(2, 2) ** 2)
+    H = np.zeros((3, 6))
+    H[0] = ft * np.array([-c(2, 2), c(1, 2), 0.0, c(3, 3), 0.0, -c(3, 1)])
+    H[1] = fg * np.array([c(2, 1) * c(3, 3) - c(3, 1) * c(2, 3), c(1, 3) * c(3, 1) - c(1, 1) * c(3, 3), 0.0,
+                          -c(3, 1) * c(3, 2), 1.0, -c(3, 2) * c(3, 3)])
+    H[2] = fp * np.array([c(1, 2) * c(3, 2), -c(2, 2) * c(3, 2), 1.0, c(1, 3) * c(2, 2) - c(1, 2) * c(2, 3),
+                          0.0, c(1, 2) * c(2, 1) - c(1, 1) * c(2, 2)])
+    return H
+
+
+# ------------------------------------------------------------------ the 21-state model -
+def transfer_model(installation_name="lam"):
+    """21-state transfer-alignment model (paper eqs 29–33) from :mod:`sinslab.nav.errstate`.
+
+    States ``[φ (3, n), δv (3, n), a (3, slave body: λ or φ_α), ε (3, gyro bias, body),
+    k_g (3, gyro scale factor), ∇ (3, accel bias, body), k_a (3, accel scale factor)]``;
+    the position is taken from the master (``"attvel"`` core). All sensor and installation
+    states are random constants. Signs follow sinslab (errors measured − true, φ from
+    ``Ĉ = (I − φ×) C``): ``φ̇ = −ω_in×φ + δω_in − C_s^n(ε + diag(ω) k_g)``,
+    ``δv̇ = f^n×φ + C_s^n(∇ + diag(f) k_a) − (2ω_ie+ω_en)×δv + ...``.
+    """
+    return errstate.ErrorModel("attvel", [errstate.installation(installation_name), errstate.gyro_bias(),
+                                          errstate.gyro_scale(), errstate.accel_bias(), errstate.accel_scale()])
+
+
+class VelocityMatch:
+    """Velocity matching ``z = v_s − v_m`` [m/s] (ENU), ``H = [0 I 0]`` on the 21 states."""
+
+    def __init__(self, n=21, dv_slice=slice(3, 6)):
+        self.H = np.zeros((3, n))
+        self.H[np.arange(3), np.arange(dv_slice.start, dv_slice.stop)] = 1.0
+
+    def z(self, v_m, v_s_hat):
+        return np.asarray(v_s_hat, float) - np.asarray(v_m, float)
+
+
+# ------------------------------------------------------- driver measurement plug-ins ---
+class MasterRecord:
+    """Master INS output held by a measurement: times [s], attitudes, velocities (ENU).
+
+    ``att`` (N, 3) ``[pitch, roll, yaw]`` [rad]; ``vel`` (N, 3) [m/s]. :meth:`at` linearly
+    interpolates velocity and interpolates attitude on SO(3) between neighbouring samples.
+    """
+
+    def __init__(self, t, att, vel):
+        from sinslab.core.attitude import euler_to_dcm
+        self.t = np.asarray(t, float)
+        if self.t.ndim != 1 or self.t.size < 2 or np.any(np.diff(self.t) <= 0):
+            raise ValueError("master times must be a strictly increasing 1-D array of >= 2 samples")
+        self.C = euler_to_dcm(np.asarray(att, float))
+        self.vel = np.asarray(vel, float)
+
+    def at(self, t):
+        """``(C_m^n, v_m)`` at time t (inside the record)."""
+        if not (self.t[0] - 1e-9 <= t <= self.t[-1] + 1e-9):
+            raise ValueError(f"time {t:g} s is outside the master record [{self.t[0]:g}, {self.t[-1]:g}] s")
+        i = int(np.clip(np.searchsorted(self.t, t) - 1, 0, self.t.size - 2))
+        w = (t - self.t[i]) / (self.t[i + 1] - self.t[i])
+        C0, C1 = self.C[i], self.C[i + 1]
+        C = C0 @ rotvec_to_dcm(w * dcm_to_rotvec(C0.T @ C1))
+        return C, (1 - w) * self.vel[i] + w * self.vel[i + 1]
+
+
+class _MasterTimed:
+    """Schedule of a measurement whose items are the master epochs (valid = arrival)."""
+
+    def epochs(self, grid):
+        """``{filter epoch: [master items]}`` for the master epochs on the filter grid."""
+        t = self.master.t
+        e = np.ceil((t - grid.t0) / grid.T - 1e-6).astype(np.int64)
+        on = (e >= 0) & (e <= grid.n) & (np.abs(grid.t0 + e * grid.T - t) <= 1e-6 * grid.T + 1e-9)
+        out = {}
+        for j in np.flatnonzero(on):
+            out.setdefault(int(e[j]), []).append(int(j))
+        return out
+
+    def times(self, item):
+        t = float(self.master.t[item])
+        return t, t
+
+
+class VelocityMeasurement(_MasterTimed):
+    """Driver plug-in: velocity matching against a master record (``matrices(ep)``)."""
+
+    def __init__(self, master: MasterRecord, sigma, stream=0, dv_slice=slice(3, 6)):
+        self.master, self.stream, self.dv_slice = master, stream, dv_slice
+        self.R = np.broadcast_to(np.asarray(sigma, float) ** 2, (3,)).copy()
+
+    def matrices(self, ep):
+        C, v = self.master.at(ep.t)
+        nav = ep.streams[self.stream]
+        H = np.zeros((3, ep.n))
+        H[np.arange(3), np.arange(self.dv_slice.start, self.dv_slice.stop)] = 1.0
+        return np.asarray(nav.vel) - v, H, self.R
+
+
+class AttitudeMeasurement(_MasterTimed):
+    """Driver plug-in: attitude matching of one :class:`AttitudeMatch` kind.
+
+    ``phi_slice``/``a_slice`` locate φ and the installation state in the layout. With
+    ``relinearise`` the H is taken at :attr:`a_hat` (set by the caller after each update,
+    EKF form) and z is shifted so that the innovation is ``z − h(x̂)``.
+    """
+
+    def __init__(self, match: AttitudeMatch, master: MasterRecord, sigma, stream=0,
+                 phi_slice=slice(0, 3), a_slice=slice(6, 9), relinearise=False):
+        self.match, self.master, self.stream = match, master, stream
+        self.phi_slice, self.a_slice, self.relinearise = phi_slice, a_slice, relinearise
+        self.R = np.broadcast_to(np.asarray(sigma, float) ** 2, (3,)).copy()
+        self.a_hat = np.zeros(3)
+
+    def matrices(self, ep):
+        C, _ = self.master.at(ep.t)
+        nav = ep.streams[self.stream]
+        z, h6 = self.match.innovation_z(C, np.asarray(nav.C_bn), None, self.a_hat, self.relinearise)
+        H = np.zeros((3, ep.n))
+        H[:, self.phi_slice] = h6[:, :3]
+        H[:, self.a_slice] = h6[:, 3:]
+        return z, H, self.R
+
+
+class TransferMeasurement(_MasterTimed):
+    """Driver plug-in: velocity + attitude matching as one 6-row update at each master epoch."""
+
+    def __init__(self, velocity: VelocityMeasurement, attitude: AttitudeMeasurement):
+        self.velocity, self.attitude, self.master = velocity, attitude, velocity.master
+
+    def matrices(self, ep):
+        zv, Hv, Rv = self.velocity.matrices(ep)
+        za, Ha, Ra = self.attitude.matrices(ep)
+        return np.concatenate([zv, za]), np.vstack([Hv, Ha]), np.concatenate([Rv, Ra])
+
+
+# ------------------------------------------------------- runs-vectorised Kalman filter --
+def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R_att,
+                 Qk=None, relinearise=False, phi_slice=slice(0, 3), dv_slice=slice(3, 6),
+                 a_slice=slice(6, 9), record_every=1):
+    """Kalman filter over many runs at once (common trajectory, per-run data).
+
+    Parameters
+    ----------
+    Phi : (K, n, n)
+        Transition matrices from epoch k to k+1 (common to the runs: the dynamics depend on
+        the trajectory only). Epoch 0 is updated first, then predicted.
+    Cm : (K+1, 3, 3)
+        Master attitude ``C_m^n`` at the update epochs.
+    z_vel : (R, K+1, 3)
+        Velocity measurements [m/s] of every run.
+    C_slave : (R, K+1, 3, 3)
+        Slave computed ``Ĉ_s^n`` of every run at the update epochs.
+    match : AttitudeMatch
+    x0 : (n,) ; P0 : (n, n)
+    R_vel, R_att : (3,)
+        Measurement variances.
+    Qk : (n, n), optional
+        Process noise per step.
+    relinearise : bool
+        EKF form (per-run covariance); otherwise the covariance and gain are common to all
+        runs and only the state recursion is per run.
+
+    Returns
+    -------
+    xs : (R, M, n), sig : (M, n) or (R, M, n)
+        Posterior estimates and σ at the recorded epochs (every ``record_every``-th).
+    """
+    Kp1 = Cm.shape[0]
+    R_runs = z_vel.shape[0]
+    n = P0.shape[0]
+    Qk = np.zeros((n, n)) if Qk is None else Qk
+    Rm = np.diag(np.concatenate([R_vel, R_att]))
+    Hv = np.zeros((3, n))
+    Hv[np.arange(3), np.arange(dv_slice.start, dv_slice.stop)] = 1.0
+    idx_rec = list(range(0, Kp1, record_every))
+    xs = np.empty((R_runs, len(idx_rec), n))
+    x = np.broadcast_to(np.asarray(x0, float), (R_runs, n)).copy()
+    cols = np.r_[np.arange(phi_slice.start, phi_slice.stop), np.arange(a_slice.start, a_slice.stop)]
+    r = 0
+    if not relinearise:
+        P = np.array(P0, float)
+        sig = np.empty((len(idx_rec), n))
+        for k in range(Kp1):
+            z_att = _z_batch(match, Cm[k], C_slave[:, k])
+            H6 = match.H(Cm[k])
+            Ha = np.zeros((3, n))
+            Ha[:, cols] = H6
+            H = np.vstack([Hv, Ha])
+            S = H @ P @ H.T + Rm
+            K = np.linalg.solve(S, H @ P).T
+            zz = np.concatenate([z_vel[:, k], z_att], axis=1)
+            innov = zz - x @ H.T
+            if match.kind == "euler":
+                innov[:, 3:] = wrap_pi(innov[:, 3:])
+            x = x + innov @ K.T
+            IKH = np.eye(n) - K @ H
+            P = IKH @ P @ IKH.T + K @ Rm @ K.T
+            if r < len(idx_rec) and idx_rec[r] == k:
+                xs[:, r] = x
+                sig[r] = np.sqrt(np.diag(P))
+                r += 1
+            if k < Kp1 - 1:
+                x = x @ Phi[k].T
+                P = Phi[k] @ P @ Phi[k].T + Qk
+        return xs, sig
+    P = np.broadcast_to(np.array(P0, float), (R_runs, n, n)).copy()
+    sig = np.empty((R_runs, len(idx_rec), n))
+    I = np.eye(n)
+    for k in range(Kp1):
+        H = np.zeros((R_runs, 6, n))
+        H[:, :3] = Hv
+        zz = np.empty((R_runs, 6))
+        zz[:, :3] = z_vel[:, k]
+        for j in range(R_runs):
+            z6, H6 = match.innovation_z(Cm[k], C_slave[j, k], x[j, phi_slice], x[j, a_slice], True)
+            H[j, 3:][:, cols] = H6
+            zz[j, 3:] = z6
+        PHt = P @ np.swapaxes(H, 1, 2)
+        S = H @ PHt + Rm
+        K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)
+        innov = zz - np.einsum("rij,rj->ri", H, x)
+        x = x + np.einsum("rij,rj->ri", K, innov)
+        IKH = I - K @ H
+        P = IKH @ P @ np.swapaxes(IKH, 1, 2) + K @ Rm @ np.swapaxes(K, 1, 2)
+        if r < len(idx_rec) and idx_rec[r] == k:
+            xs[:, r] = x
+            sig[:, r] = np.sqrt(np.diagonal(P, axis1=1, axis2=2))
+            r += 1
+        if k < Kp1 - 1:
+            x = x @ Phi[k].T
+            P = Phi[k] @ P @ Phi[k].T + Qk
+    return xs, sig
+
+
+def _z_batch(match, C_m_n, C_hat):
+    """z for many slave attitudes (R, 3, 3) at one master attitude (DCM / rotation-vector forms)."""
+    Cr = match.reference(C_m_n)
+    if match.kind == "dcm":
+        D = C_hat - Cr
+        return np.stack([D[:, i, j] for i, j in _DCM_ELEMENTS], -1)
+    if match.kind == "euler":
+        return wrap_pi(dcm_to_euler(C_hat) - dcm_to_euler(Cr))
+    return dcm_to_rotvec(np.einsum("ji,rjk->rik", Cr, C_hat))
+
+
+# ------------------------------------------------------------ recorded-data alignment ---
+class TransferResult:
+    """Output of :func:`align_recorded`.
+
+    Attributes
+    ----------
+    t : (M,) update epochs [s]
+    x : (M, 21) state after each update (φ, δv reset by feedback; ε, ∇ the accumulated
+        feedback compensation, i.e. the total estimate)
+    sigma : (M, 21) filter σ
+    layout : StateLayout
+    mounting : (3,) final installation estimate [rad] (``a``: λ, or φ_α on top of the
+        compensation), ``mounting_sigma`` its σ
+    gyro_bias, accel_bias : (3,) final slave bias estimates [rad/s], [m/s²] with σ
+    """
+
+    def __init__(self, t, x, sigma, layout):
+        self.t, self.x, self.sigma, self.layout = t, x, sigma, layout
+        sl = layout.slice
+        self.mounting, self.mounting_sigma = x[-1, sl("lam")], sigma[-1, sl("lam")]
+        self.gyro_bias, self.gyro_bias_sigma = x[-1, sl("eps")], sigma[-1, sl("eps")]
+        self.accel_bias, self.accel_bias_sigma = x[-1, sl("nabla")], sigma[-1, sl("nabla")]
+
+
+def align_recorded(imu_t, dtheta, dv, master: MasterRecord, master_pos, kind="optimal", *, compensation=None,
+                   relinearise=False, t_start=None, t_end=None, vel_sigma=0.1, att_sigma=3e-4,
+                   att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2, gyro_bias_sigma0=1e-3,
+                   accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3, accel_scale_sigma0=1e-3,
+                   gyro_noise=0.0, accel_noise=0.0, nsub=2):
+    """Transfer alignment of a recorded slave IMU against a recorded master solution.
+
+    The slave INS (:mod:`sinslab.nav.strapdown`) starts from the master's position,
+    velocity and attitude times the compensation at ``t_start`` and is updated at every
+    master epoch with velocity matching and the ``kind`` attitude measurement; φ and δv
+    are fed back into the slave INS, the gyro and accelerometer biases into its sensor
+    compensation; installation and scale-factor states stay in the filter. The position
+    is taken from the master at each epoch (no lever arm).
+
+    Parameters
+    ----------
+    imu_t : (N,) end times of the slave increments [s]; dtheta, dv : (N, 3) [rad], [m/s] (RFU)
+    master : MasterRecord (attitude, velocity); master_pos : (M, 3) [lat, lon (rad), h (m)]
+        at ``master.t``
+    kind : attitude measurement form; compensation : (3, 3) known ``Ĉ_s^m`` or None
+    vel_sigma [m/s], att_sigma [rad] : measurement noise σ
+    *_sigma0 : initial σ (SI); gyro_noise [rad/√s], accel_noise [m/s/√s] : process noise
+    """
+    from sinslab.core.records import NavState
+    from sinslab.nav import strapdown as sd
+    from sinslab.nav.errstate import NavPoint
+
+    imu_t = np.asarray(imu_t, float)
+    dt = float(np.median(np.diff(imu_t)))
+    mt = master.t
+    t0 = max(mt[0], imu_t[0]) if t_start is None else float(t_start)
+    t1 = min(mt[-1], imu_t[-1]) if t_end is None else float(t_end)
+    ep = np.where((mt >= t0 - 1e-9) & (mt <= t1 + 1e-9))[0]
+    if ep.size < 3:
+        raise ValueError(f"slave and master records overlap in fewer than 3 master epochs in [{t0:g}, {t1:g}] s")
+    match = AttitudeMatch(kind, compensation)
+    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(), errstate.gyro_scale(),
+                                           errstate.accel_bias(), errstate.accel_scale()],
+                                gyro_noise=gyro_noise, accel_noise=accel_noise)
+    lay = model.layout
+    n = model.n
+    sig0 = np.concatenate([np.full(3, att_sigma0), np.full(3, vel_sigma0), np.full(3, inst_sigma0),
+                           np.full(3, gyro_bias_sigma0), np.full(3, gyro_scale_sigma0),
+                           np.full(3, accel_bias_sigma0), np.full(3, accel_scale_sigma0)])
+    P = np.diag(sig0 ** 2)
+    x = np.zeros(n)
+    Cm0, vm0 = master.at(mt[ep[0]])
+    Cs0 = Cm0 @ match.compensation
+    from sinslab.core.attitude import dcm_to_euler
+    pos = np.asarray(master_pos, float)
+    state = sd.initial_state_array(NavState(pos[ep[0], 0], pos[ep[0], 1], pos[ep[0], 2], vm0,
+                                            dcm_to_euler(Cs0), mt[ep[0]]))
+    Rm = np.concatenate([np.full(3, vel_sigma ** 2), np.full(3, att_sigma ** 2)])
+    sl_phi, sl_dv, sl_a = lay.slice("phi"), lay.slice("dv"), lay.slice("lam")
+    sl_e, sl_n = lay.slice("eps"), lay.slice("nabla")
+    ts, xs, ss = [], [], []
+    bias_g, bias_a = np.zeros(3), np.zeros(3)
+    for j, k in enumerate(ep):
+        tk = mt[k]
+        if j > 0:
+            sel = np.where((imu_t > mt[ep[j - 1]] + 1e-9) & (imu_t <= tk + 1e-9))[0]
+            if sel.size % nsub:
+                raise ValueError(f"{sel.size} slave samples between master epochs at {tk:g} s is not a "
+                                 f"multiple of nsub={nsub}")
+            T = tk - mt[ep[j - 1]]
+            sd.step(state, dtheta[sel], dv[sel], dt, nsub, vertical="free", gyro_bias=bias_g, accel_bias=bias_a)
+            C = _q2dcm(state[:4])
+            wb = dtheta[sel].sum(0) / T - bias_g
+            fb = dv[sel].sum(0) / T - bias_a
+            F, G = model.matrices(NavPoint(state[7], state[9], state[4:7], C, fb, wb))
+            Phi = np.eye(n) + F * T + 0.5 * (F * T) @ (F * T)
+            Qk = (G * model.q) @ G.T * T
+            x = Phi @ x
+            P = Phi @ P @ Phi.T + Qk
+            # position from the master (no lever arm)
+            state[7:10] = pos[k]
+            sd.correct(state)
+        Cm, vm = master.at(tk)
+        Chat = _q2dcm(state[:4])
+        z6, h6 = match.innovation_z(Cm, Chat, x[sl_phi], x[sl_a], relinearise)
+        H = np.zeros((6, n))
+        H[0:3, sl_dv] = np.eye(3)
+        H[3:6, sl_phi] = h6[:, :3]
+        H[3:6, sl_a] = h6[:, 3:]
+        z = np.concatenate([state[4:7] - vm, z6])
+        S = H @ P @ H.T + np.diag(Rm)
+        K = np.linalg.solve(S, H @ P).T
+        innov = z - H @ x
+        if kind == "euler":
+            innov[3:] = wrap_pi(innov[3:])
+        x = x + K @ innov
+        IKH = np.eye(n) - K @ H
+        P = IKH @ P @ IKH.T + K @ np.diag(Rm) @ K.T
+        # feedback: attitude, velocity into the INS; biases into the sensor compensation
+        sd.correct(state, phi=x[sl_phi], dvel=x[sl_dv])
+        bias_g = bias_g + x[sl_e]
+        bias_a = bias_a + x[sl_n]
+        x[sl_phi] = 0.0
+        x[sl_dv] = 0.0
+        x[sl_e] = 0.0
+        x[sl_n] = 0.0
+        xt = x.copy()
+        xt[sl_e], xt[sl_n] = bias_g, bias_a
+        ts.append(tk)
+        xs.append(xt)
+        ss.append(np.sqrt(np.diag(P)))
+    return TransferResult(np.array(ts), np.array(xs), np.array(ss), lay)
+
+
+def align_recorded_driver(imu, master: MasterRecord, master_pos, kind="optimal", *, compensation=None,
+                          vel_sigma=0.1, att_sigma=3e-4, att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2,
+                          gyro_bias_sigma0=1e-3, accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3,
+                          accel_scale_sigma0=1e-3, gyro_noise=0.0, accel_noise=0.0, nsub=2):
+    """:func:`align_recorded` through the fusion driver (:func:`sinslab.fusion.driver.run`).
+
+    One live stream (the slave, started at the master epoch equal to the IMU start), the
+    :class:`TransferMeasurement` plug-in at every master epoch, feedback of φ, δv and the
+    biases; installation and scale factors stay in the filter. Unlike
+    :func:`align_recorded` the slave position is not reset to the master's (it is free,
+    corrected only through velocity feedback). ``imu`` is an ImuRecord (RFU increments).
+    """
+    from sinslab.core.attitude import dcm_to_euler
+    from sinslab.core.records import NavState
+    from sinslab.fusion import driver as drv
+    from sinslab.fusion.feedback import FeedbackLayout
+
+    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(), errstate.gyro_scale(),
+                                           errstate.accel_bias(), errstate.accel_scale()],
+                                gyro_noise=gyro_noise, accel_noise=accel_noise)
+    lay = model.layout
+    t0 = float(imu.t0)
+    Cm0, vm0 = master.at(t0)
+    p0 = np.array([np.interp(t0, master.t, np.asarray(master_pos)[:, i]) for i in range(3)])
+    match = AttitudeMatch(kind, compensation)
+    init = NavState(p0[0], p0[1], p0[2], vm0, dcm_to_euler(Cm0 @ match.compensation), t0)
+    stream = drv.LiveStream(imu, init, nsub=nsub)
+    meas = TransferMeasurement(VelocityMeasurement(master, vel_sigma, dv_slice=lay.slice("dv")),
+                               AttitudeMeasurement(match, master, att_sigma, phi_slice=lay.slice("phi"),
+                                                   a_slice=lay.slice("lam")))
+    sig0 = np.concatenate([np.full(3, att_sigma0), np.full(3, vel_sigma0), np.full(3, inst_sigma0),
+                           np.full(3, gyro_bias_sigma0), np.full(3, gyro_scale_sigma0),
+                           np.full(3, accel_bias_sigma0), np.full(3, accel_scale_sigma0)])
+    fb = FeedbackLayout.from_model(lay, pos=None, gyro_scale=None, accel_scale=None)
+    kf_dt = float(np.median(np.diff(master.t)))
+    res = drv.run([stream], model, np.diag(sig0 ** 2), [meas], kf_dt=kf_dt, feedback=fb)
+    x = np.array(res.x, float)
+    x[:, lay.slice("eps")] = res.gyro_bias[0]
+    x[:, lay.slice("nabla")] = res.accel_bias[0]
+    return TransferResult(np.asarray(res.t), x, np.asarray(res.sigma), lay)
+
+
+def _q2dcm(q):
+    from sinslab.core.attitude import quat_to_dcm
+    return quat_to_dcm(np.asarray(q[:4], float))

@@ -1,0 +1,131 @@
+"""Transfer-alignment measurements: every H against central finite differences of its z
+("Attitude matching method of transfer alignment based on the measured misalignment
+angle", eqs 6–23), the
+paper's printed Euler H against the derived one, the C22 = 0 loss of the DCM form, and
+the 21-state model layout."""
+import numpy as np
+import pytest
+
+from sinslab.core.attitude import euler_to_dcm, rotvec_to_dcm
+from sinslab.methods import transfer as tr
+
+DEG = np.pi / 180
+
+
+def _fd(match, Cm, a0, h=1e-6):
+    J = np.zeros((3, 6))
+    for i in range(6):
+        d = np.zeros(6)
+        d[i] = h
+        zp = match.predict(Cm, d[:3], a0 + d[3:])
+        zm = match.predict(Cm, -d[:3], a0 - d[3:])
+        J[:, i] = (zp - zm) / (2 * h)
+    return J
+
+
+def _rand_att(rng):
+    return np.array([rng.uniform(-60, 60), rng.uniform(-170, 170), rng.uniform(-179, 179)]) * DEG
+
+
+@pytest.mark.parametrize("kind", tr.KINDS)
+@pytest.mark.parametrize("comp", [False, True])
+@pytest.mark.parametrize("ekf", [False, True])
+def test_H_matches_central_differences(kind, comp, ekf):
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for _ in range(20):
+        Cm = euler_to_dcm(_rand_att(rng))
+        Cc = euler_to_dcm(_rand_att(rng)) if comp else None
+        m = tr.AttitudeMatch(kind, Cc)
+        a0 = rng.normal(0, 0.5, 3) if ekf else np.zeros(3)
+        H = m.H(Cm, a0=a0)
+        J = _fd(m, Cm, a0)
+        worst = max(worst, np.max(np.abs(H - J)) / np.max(np.abs(J)))
+    assert worst < 1e-6
+
+
+def test_z_exact_and_first_order():
+    """z of the model point equals predict; kain's z = a − C_rᵀφ to first order (eq 16)."""
+    rng = np.random.default_rng(1)
+    Cm = euler_to_dcm(_rand_att(rng))
+    phi, lam = rng.normal(0, 1e-4, 3), rng.normal(0, 1e-4, 3)
+    Chat = rotvec_to_dcm(-phi) @ Cm @ rotvec_to_dcm(lam)
+    m = tr.AttitudeMatch("kain")
+    assert np.allclose(m.z(Cm, Chat), lam - Cm.T @ phi, atol=1e-7)
+    assert np.allclose(m.z(Cm, Chat), m.predict(Cm, phi, lam), atol=1e-15)
+    # the optimal form with the exact compensation sees only φ_α (eq 23)
+    Cc = euler_to_dcm(np.array([10, 60, 8]) * DEG)
+    pa = np.array([40, 30, 20]) / 60 * DEG
+    Chat = rotvec_to_dcm(-phi) @ Cm @ Cc @ rotvec_to_dcm(pa)
+    z = tr.AttitudeMatch("optimal", Cc).z(Cm, Chat)
+    assert np.allclose(z, pa - (Cm @ Cc).T @ phi, atol=2e-6)
+
+
+def test_paper_euler_H_rows():
+    """Pitch row and the DCM form agree with the paper; the printed roll/yaw rows do not."""
+    rng = np.random.default_rng(3)
+    Cm = euler_to_dcm(_rand_att(rng))
+    H = tr.AttitudeMatch("euler").H(Cm)
+    Hp = tr.paper_euler_H(Cm)
+    assert np.allclose(H[0], Hp[0], atol=1e-12)
+    same = np.isclose(H, Hp, atol=1e-9)
+    # roll row: all but the λy coefficient agree
+    assert same[1].tolist() == [True, True, True, True, False, True]
+    # yaw row: only φE agrees (φN, φU, λx, λz sign; φU factor)
+    assert same[2].tolist() == [True, False, False, False, True, False]
+    # eq 11 of the DCM form in closed form
+    C = Cm
+    Hd = tr.AttitudeMatch("dcm").H(Cm)
+    ref = np.array([[0, -C[2, 1], C[1, 1], C[0, 2], 0, -C[0, 0]],
+                    [-C[1, 0], C[0, 0], 0, 0, -C[2, 2], C[2, 1]],
+                    [-C[1, 1], C[0, 1], 0, C[2, 2], 0, -C[2, 0]]])
+    assert np.allclose(Hd, ref, atol=1e-12)
+
+
+@pytest.mark.parametrize("heading", [90.0, 270.0])
+def test_dcm_phiU_lost_when_C22_zero(heading):
+    Cm = euler_to_dcm(np.array([0.0, 5.0, -heading]) * DEG)
+    H = tr.AttitudeMatch("dcm").H(Cm)
+    assert abs(Cm[1, 1]) < 1e-12
+    assert np.linalg.norm(H[:, 2]) < 1e-12
+    keep = [0, 1, 3, 4, 5]
+    assert np.linalg.matrix_rank(H, tol=1e-9) == np.linalg.matrix_rank(H[:, keep], tol=1e-9)
+    assert np.linalg.norm(tr.AttitudeMatch("kain").H(Cm)[:, 2]) > 0.9
+
+
+def test_model_layout_and_velocity():
+    model = tr.transfer_model()
+    assert model.n == 21
+    assert model.layout.names == ("phi", "dv", "lam", "eps", "kg", "nabla", "ka")
+    vm = tr.VelocityMatch()
+    assert np.allclose(vm.H[:, 3:6], np.eye(3)) and vm.H.sum() == 3
+
+
+def test_bad_kind():
+    with pytest.raises(ValueError, match="unknown attitude-matching kind"):
+        tr.AttitudeMatch("quat")
+
+
+def test_driver_plugins_match_the_library():
+    """The measurement plug-ins (``matrices(ep)``) give the library's z and H placed in the
+    21-state layout, with the master interpolated at the epoch time."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(5)
+    att = np.array([[0.01, 0.2, 0.3], [0.02, 0.25, 0.31]])
+    vel = np.array([[1.0, 2.0, 0.0], [1.2, 2.2, 0.1]])
+    master = tr.MasterRecord([0.0, 0.1], att, vel)
+    C_mid, v_mid = master.at(0.05)
+    assert np.allclose(v_mid, vel.mean(0))
+    Cc = euler_to_dcm(np.array([10, 60, 8]) * DEG)
+    Chat = rotvec_to_dcm(rng.normal(0, 1e-3, 3)) @ C_mid @ Cc
+    nav = SimpleNamespace(C_bn=Chat, vel=v_mid + 0.05)
+    ep = SimpleNamespace(t=0.05, k=0, streams=(nav,), n=21)
+    m = tr.AttitudeMatch("optimal", Cc)
+    z, H, R = tr.AttitudeMeasurement(m, master, 1e-3).matrices(ep)
+    assert np.allclose(z, m.z(C_mid, Chat)) and np.allclose(H[:, 0:3], m.H(C_mid)[:, :3])
+    assert np.allclose(H[:, 6:9], np.eye(3)) and H.shape == (3, 21) and np.allclose(R, 1e-6)
+    zv, Hv, _ = tr.VelocityMeasurement(master, 0.01).matrices(ep)
+    assert np.allclose(zv, 0.05) and np.allclose(Hv[:, 3:6], np.eye(3))
+    with pytest.raises(ValueError, match="outside the master record"):
+        master.at(0.2)
