@@ -4,7 +4,7 @@ slave IMU against a recorded master INS solution (mounting angles and slave bias
 
 Inputs
 ------
-- slave: increments, any format of :func:`sinslab.data.io.load_imu` (``.mat`` variable
+- slave: increments, any format of :func:`sinslab.data.load_imu` (``.mat`` variable
   ``mimu``/``imu``, CSV/Parquet with unit headers);
 - master: a PSINS ``avp`` matrix in a ``.mat`` (variable ``fogavp``/``avp``: pitch roll yaw
   [rad], vE vN vU [m/s], lat lon [rad], h [m], t [s]) or a CSV/Parquet table with the
@@ -35,8 +35,8 @@ def read_master(path):
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
     if path.suffix.lower() == ".mat":
-        from sinslab.data import io
-        s = io.read_mat_avp(path)
+        from sinslab.data.matlab import read_mat_avp
+        s = read_mat_avp(path)
         return s.t, s.att, s.vel, np.column_stack([s.lat, s.lon, s.h])
     import pandas as pd
     try:
@@ -91,7 +91,7 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
     from sinslab.app import plotting
     from sinslab.app.outputs import RunDir, command_summary, default_out_dir
     from sinslab.core.toml import dump_toml
-    from sinslab.data import io
+    from sinslab.data import load_imu
     from sinslab.methods import transfer as tm
 
     for m in methods:
@@ -108,7 +108,7 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
         mm = scipy.io.loadmat(master)
         if not any(k in mm for k in ("avp", "fogavp", "avpr")):
             raise ValueError(f"{master}: .mat lacks the master solution variable (avp, fogavp or avpr)")
-    data = io.load_imu(slave)
+    data = load_imu(slave)
     imu = data.imu
     mt, att, vel, pos = read_master(master)
     lo, hi = max(mt[0], imu.t[0]), min(mt[-1], imu.t[-1])
