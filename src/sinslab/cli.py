@@ -16,7 +16,7 @@ command, and list the module in ``COMMAND_MODULES``::
         @app.command()
         def allan(file: Path = typer.Argument(..., help="recorded IMU file"),
                   out: Optional[Path] = typer.Option(None, help="output folder")):
-            """Allan deviation of recorded IMU data."""
+            \"\"\"Allan deviation of recorded IMU data.\"\"\"
             cli_call(allan_file, file, out=out, echo=typer.echo)   # user errors -> exit 2
 
 (annotations are evaluated by typer: import ``Optional``/``Path`` in that module).
