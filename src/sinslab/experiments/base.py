@@ -202,9 +202,10 @@ class RunContext:
         return np.random.default_rng([self.seed, *stream])
 
     @staticmethod
-    def progress(description: str, total: float | None = None, unit: str = ""):
+    def progress(description: str, total: float | None = None, unit: str = "", *,
+                 enabled: bool = True):
         """Progress bar context manager (:func:`sinslab.core.progress.progress`)."""
-        return _progress.progress(description, total, unit)
+        return _progress.progress(description, total, unit, enabled=enabled)
 
 
 @dataclass(frozen=True)
