@@ -7,29 +7,25 @@ unknown experiment) print one line ``sinslab: error: ...`` on stderr and exit wi
 status 2, before any output file is created. Ctrl-C or SIGTERM stops the run; files
 being written are discarded (exit 130 / 143). A bug prints its traceback (exit 1).
 
-Adding a command (``navigate``, ``allan``, ``align``, ...): in your module define
-``register(app)`` containing the command, and add the module to ``COMMAND_MODULES``::
+Adding a command (``navigate``, ``allan``, ``align``, ...): write a module in
+:mod:`sinslab.app.commands` whose compute function returns a
+:class:`sinslab.app.commands.runner.Output` and whose ``register(app)`` adds the typer
+command, and list the module in ``COMMAND_MODULES``::
 
     def register(app):
         @app.command()
         def allan(file: Path = typer.Argument(..., help="recorded IMU file"),
                   out: Optional[Path] = typer.Option(None, help="output folder")):
             \"\"\"Allan deviation of recorded IMU data.\"\"\"
-            from sinslab.cli import user_errors
-            from sinslab.app.outputs import RunDir, default_out_dir
-            with user_errors():                  # ValueError subclasses -> exit 2
-                rd = RunDir(out or default_out_dir("allan"), "allan").prepare()
-                ...
-                rd.write_table(...); rd.write_figure(...); rd.finish()
+            cli_call(allan_file, file, out=out, echo=typer.echo)   # user errors -> exit 2
 
 (annotations are evaluated by typer: import ``Optional``/``Path`` in that module).
-Raise :class:`CliError` (or any of ``USER_ERRORS``) for a one-line user error.
+:func:`sinslab.app.commands.runner.run_command` writes the run folder; raise
+:class:`sinslab.app.errors.CliError` (or any of ``USER_ERRORS``) for a one-line user error.
 """
 from __future__ import annotations
 
-import contextlib
 import os
-import signal
 import sys
 from pathlib import Path
 from typing import List, Optional
@@ -37,10 +33,9 @@ from typing import List, Optional
 import typer
 
 from sinslab import __version__
-from sinslab.app.config import ConfigError, config_to_toml, resolve
-from sinslab.app.outputs import OutputDirError, RunDir, default_out_dir  # noqa: F401  (for new commands)
-from sinslab.app.report import ReportError
-from sinslab.core.units import UnitError
+from sinslab.app.config import config_to_toml, resolve
+from sinslab.app.errors import USER_ERRORS, CliError, user_errors
+from sinslab.app.outputs import RunDir, default_out_dir
 
 __all__ = ["app", "main", "user_errors", "CliError", "USER_ERRORS"]
 
@@ -49,55 +44,12 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=N
                   help="sinslab: strapdown inertial navigation — experiments, runs and reports.")
 
 
-class CliError(ValueError):
-    """A user error: printed as one line, exit status 2."""
-
-
-def _unknown_experiment():
-    from sinslab.experiments import UnknownExperiment
-
-    return UnknownExperiment
-
-
-USER_ERRORS: tuple = (CliError, ConfigError, OutputDirError, ReportError, UnitError)
-
-
 def _err(msg: str) -> None:
     typer.echo(f"sinslab: error: {msg}", err=True)
 
 
 def _log(msg: str) -> None:
     typer.echo(f"sinslab: {msg}", err=True)
-
-
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, delivered as an exception so that temporary files are cleaned up."""
-
-
-def _on_sigterm(signum, frame):
-    raise _Terminated()
-
-
-@contextlib.contextmanager
-def user_errors():
-    """Turn user errors into one stderr line + exit 2, interrupts into exit 130/143."""
-    old = None
-    with contextlib.suppress(ValueError):          # not in the main thread: leave it
-        old = signal.signal(signal.SIGTERM, _on_sigterm)
-    try:
-        yield
-    except USER_ERRORS + (_unknown_experiment(),) as e:
-        _err(str(e).splitlines()[0] if str(e) else type(e).__name__)
-        raise typer.Exit(2) from None
-    except _Terminated:
-        _err("terminated; no partial file was left under a final name")
-        raise typer.Exit(143) from None
-    except KeyboardInterrupt:
-        _err("interrupted; no partial file was left under a final name")
-        raise typer.Exit(130) from None
-    finally:
-        if old is not None:
-            signal.signal(signal.SIGTERM, old)
 
 
 def _version(value: bool):

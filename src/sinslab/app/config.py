@@ -44,6 +44,7 @@ from typing import Annotated, Any, Mapping
 from pydantic import (BaseModel, PlainValidator, ConfigDict, Field, PlainSerializer,
                       ValidationError, WithJsonSchema)
 
+from sinslab.app.errors import UserError
 from sinslab.core import units
 from sinslab.core.toml import dump_toml
 
@@ -52,7 +53,7 @@ __all__ = ["ConfigError", "Quantity", "QuantityVec", "Q", "QV", "Section", "Expe
            "flatten", "describe", "Field"]
 
 
-class ConfigError(ValueError):
+class ConfigError(UserError):
     """A configuration problem; ``str(err)`` is one line naming the key or file."""
 
 

@@ -7,7 +7,7 @@ and renamed over the final name with ``os.replace``. A run interrupted by Ctrl-C
 hidden ``.NAME.tmp-*`` file, removed on a clean interrupt).
 
 A run folder is marked by a ``.sinslab-run`` file (JSON: experiment, status, the list
-of files the run wrote). :class:`RunDir` enforces the folder rules of DESIGN §4:
+of files the run wrote). :class:`RunDir` enforces the folder rules of every run folder:
 
 - a folder that does not exist, or exists and is empty, is used as is;
 - a folder holding a ``.sinslab-run`` marker is a previous run: the files listed in its
@@ -27,21 +27,24 @@ import json
 import math
 import os
 import secrets
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
 
 import numpy as np
 
+from sinslab.app import report
+from sinslab.app.errors import UserError
 from sinslab.core.atomic import atomic_path, atomic_write
 
 __all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "atomic_write", "atomic_path",
-           "to_jsonable", "dumps_json", "RunDir", "default_out_dir", "is_run_dir"]
+           "to_jsonable", "dumps_json", "RunDir", "Figure", "default_out_dir", "is_run_dir"]
 
 MARKER = ".sinslab-run"
 LARGE_ROWS = 100_000
 
 
-class OutputDirError(ValueError):
+class OutputDirError(UserError):
     """An output folder that cannot be used (exists and is not a previous sinslab run)."""
 
 
@@ -76,6 +79,15 @@ def dumps_json(obj: Any) -> str:
 
 
 # ---------------------------------------------------------------- run folders -----------
+
+@dataclass
+class Figure:
+    """A matplotlib figure to save as ``name.png`` + ``name.svg`` and show in the report."""
+
+    name: str
+    fig: object
+    caption: str = ""
+
 
 def default_out_dir(name: str, root: str | os.PathLike = "runs") -> Path:
     """``runs/NAME-YYYYmmdd-HHMMSS`` (local time)."""
@@ -204,25 +216,7 @@ class RunDir:
     def complete(self, summary: dict) -> dict:
         """Write ``summary.json`` and ``report.html`` and mark the run complete (the last
         step of every run: experiments and the ``align``/``allan``/``navigate`` commands)."""
-        from sinslab.app import report
-
         self.write_json("summary.json", summary)
         self.write_text("report.html", report.render(self.path))
         self.finish()
         return summary
-
-
-def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metrics: dict,
-                    notes=(), claims=(), paper: str = "") -> dict:
-    """The ``summary.json`` of a data-processing command (DESIGN §4 keys plus what the
-    report needs), for runs that are not registered experiments."""
-    import datetime as _dt
-
-    from sinslab import __version__
-
-    return {"experiment": command, "sinslab_version": __version__, "config": config,
-            "metrics": metrics, "claims": list(claims), "purpose": purpose, "paper": paper,
-            "quick": False, "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "metric_info": {}, "figures": rd.figure_files, "series": rd.series_info, "tables": [],
-            "notes": list(notes)}
-

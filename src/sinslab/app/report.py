@@ -23,12 +23,13 @@ import math
 import os
 from pathlib import Path
 
+from sinslab.app.errors import UserError
 from sinslab.core.atomic import atomic_write
 
 __all__ = ["ReportError", "render", "build", "index"]
 
 
-class ReportError(ValueError):
+class ReportError(UserError):
     """A run folder the report cannot be built from."""
 
 

@@ -15,6 +15,18 @@ Monte Carlo campaign) reports progress through this helper, so that the look and
 Compiled loops stay compiled: call them on chunks (10^5–10^6 samples) and advance the
 bar between chunks. ``track(iterable, "label")`` wraps a Python iterable.
 
+A function whose caller may switch its bar off takes a ``progress`` flag and passes it
+on as ``enabled``; a disabled bar is a no-op :class:`Bar` with the same methods, so the
+loop needs no second branch::
+
+    def navigate(..., progress=True):
+        with progress_bar("navigating", total=n, unit="samples", enabled=progress) as bar:
+            ...
+            bar.advance(hi - lo)
+
+(import it as ``from sinslab.core.progress import progress as progress_bar`` where the
+function's own flag is called ``progress``).
+
 The bars go to stderr and are shown only when stderr is a terminal. They are silenced
 for the whole process by ``SINSLAB_QUIET=1`` or :func:`set_quiet`; the CLI's ``--quiet``
 flag (if present) and test runners use that. Nested bars share one live display.
@@ -75,13 +87,14 @@ class Bar:
 
 
 @contextlib.contextmanager
-def progress(description: str, total: float | None = None, unit: str = "") -> Iterator[Bar]:
+def progress(description: str, total: float | None = None, unit: str = "", *,
+             enabled: bool = True) -> Iterator[Bar]:
     """Context manager yielding a :class:`Bar` for a loop of ``total`` steps.
 
-    ``total=None`` shows an indeterminate spinner. Quiet (no output at all) when
-    :func:`is_quiet` is true.
+    ``total=None`` shows an indeterminate spinner. The bar is a no-op (no output at all)
+    when ``enabled`` is false or :func:`is_quiet` is true.
     """
-    if is_quiet():
+    if not enabled or is_quiet():
         yield Bar()
         return
     from rich.console import Console
@@ -109,14 +122,16 @@ def progress(description: str, total: float | None = None, unit: str = "") -> It
         _state.progress = None
 
 
-def track(iterable: Iterable[T], description: str, total: float | None = None) -> Iterator[T]:
-    """Iterate ``iterable`` with a progress bar (``total`` defaults to ``len(iterable)``)."""
+def track(iterable: Iterable[T], description: str, total: float | None = None, *,
+          enabled: bool = True) -> Iterator[T]:
+    """Iterate ``iterable`` with a progress bar (``total`` defaults to ``len(iterable)``;
+    no bar when ``enabled`` is false)."""
     if total is None:
         try:
             total = len(iterable)  # type: ignore[arg-type]
         except TypeError:
             total = None
-    with progress(description, total) as bar:
+    with progress(description, total, enabled=enabled) as bar:
         for item in iterable:
             yield item
             bar.advance(1)

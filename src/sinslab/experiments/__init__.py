@@ -5,7 +5,7 @@ Every module in this package that defines ``NAME`` is an experiment (see
 module: :func:`registry` discovers it, ``sinslab list`` shows it, ``sinslab run NAME``
 runs it and ``sinslab demo`` includes it.
 
-:func:`execute` is the whole run contract of DESIGN §4 in one function; the CLI calls it
+:func:`execute` is the whole run contract (docs/cli.md, run folders) in one function; the CLI calls it
 and so can Python code::
 
     from sinslab.experiments import get, execute
@@ -26,6 +26,7 @@ from typing import Callable
 
 from sinslab import __version__
 from sinslab.app.config import ExperimentConfig, config_to_toml
+from sinslab.app.errors import UserError
 from sinslab.app.outputs import RunDir
 from sinslab.experiments.base import Experiment, Result, RunContext
 
@@ -36,7 +37,9 @@ _registry: dict[str, Experiment] | None = None
 _broken: dict[str, str] = {}
 
 
-class UnknownExperiment(KeyError):
+class UnknownExperiment(UserError, KeyError):
+    """No experiment of that name (a user error: one line, exit 2)."""
+
     def __str__(self):
         return self.args[0]
 

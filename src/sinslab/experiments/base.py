@@ -4,7 +4,7 @@ An experiment is one module in :mod:`sinslab.experiments` declaring::
 
     NAME = "static-alignment"                     # the CLI name
     PURPOSE = "one line shown by `sinslab list`"
-    PAPER = "Yan & Qin 2006, papers/000_...txt"     # optional: source of the defaults
+    PAPER = "Yan, Qin: ..., Computer Simulation 23(10), 2006"   # optional: source of the defaults
     NOTES = ["latitude not stated by the paper: 34.246 deg N"]   # optional, shown in report
 
     class Config(ExperimentConfig):               # sinslab.app.config; defaults = paper scenario
@@ -46,6 +46,7 @@ import numpy as np
 
 from sinslab.core import progress as _progress
 from sinslab.app.config import ExperimentConfig, Field, Q, QV, Section  # noqa: F401  (re-exported)
+from sinslab.app.outputs import Figure  # noqa: F401  (re-exported: what run returns)
 
 __all__ = ["Claim", "Metric", "Figure", "Table", "Result", "RunContext", "Experiment",
            "ExperimentConfig", "Section", "Q", "QV", "Field", "METRIC_NAME"]
@@ -155,15 +156,6 @@ class Metric:
 
 
 @dataclass
-class Figure:
-    """A matplotlib figure to save as ``name.png`` + ``name.svg`` and show in the report."""
-
-    name: str
-    fig: Any
-    caption: str = ""
-
-
-@dataclass
 class Table:
     """A small table (e.g. Monte Carlo statistics) shown in the report and written as CSV."""
 
@@ -210,9 +202,10 @@ class RunContext:
         return np.random.default_rng([self.seed, *stream])
 
     @staticmethod
-    def progress(description: str, total: float | None = None, unit: str = ""):
+    def progress(description: str, total: float | None = None, unit: str = "", *,
+                 enabled: bool = True):
         """Progress bar context manager (:func:`sinslab.core.progress.progress`)."""
-        return _progress.progress(description, total, unit)
+        return _progress.progress(description, total, unit, enabled=enabled)
 
 
 @dataclass(frozen=True)

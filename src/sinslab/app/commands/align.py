@@ -7,6 +7,7 @@ from typing import Optional
 
 import numpy as np
 
+from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import attitude as A
 from sinslab.core import earth, units
 from sinslab.methods import alignment as al
@@ -16,7 +17,10 @@ from sinslab.methods.alignment import align_record
 PAPER = ("Yan Gongmin, Qin Yongyuan: Initial alignment accuracy analysis and simulation of SINS "
          "on a stationary base, Computer Simulation 23(10), 2006")
 
-__all__ = ["align_file", "register"]
+__all__ = ["ALIGN", "align_file", "register"]
+
+ALIGN = Command("align", "coarse and fine alignment of a recorded IMU file at rest (paper 000 methods)",
+                paper=PAPER)
 
 
 def _parse_window(window):
@@ -47,12 +51,17 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
     alignment.csv (fine attitude and σ vs time), alignment.png/svg and report.html.
     Returns the summary dict.
     """
+    summary, _ = run_command(ALIGN, out, lambda: _compute(
+        path, fmt=fmt, lat=lat, h=h, window=window, gyro_arw=gyro_arw, accel_vrw=accel_vrw,
+        gyro_bias=gyro_bias, accel_bias=accel_bias, model=model, period=period,
+        feedback=feedback, echo=echo), echo=echo)
+    return summary
 
-    from sinslab import __version__
+
+def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model,
+             period, feedback, echo) -> Output:
+    from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.data import read_imu
-    from sinslab.app import plotting
-    from sinslab.core.toml import dump_toml
-    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
 
     imu, ps = read_imu(path, fmt)
     if lat is None:
@@ -71,9 +80,6 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
     gb = units.parse(gyro_bias, "angular_rate")
     ab = units.parse(accel_bias, "acceleration")
     T = units.parse(period, "time")
-    out = Path(out) if out is not None else default_out_dir("align")
-    rd = RunDir(out, "align")
-    rd.check()
     r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
                      model=model, period=T, feedback=feedback)
     co, ci, fa = r["coarse"], r["inertial"], r["fine"]
@@ -121,15 +127,13 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
         limit_pitch_arcmin=float(la[0]), limit_roll_arcmin=float(la[1]),
         limit_heading_arcmin=float(la[2]), nis_mean=float(np.mean(fa.nis)),
         duration_s=float(len(imu) * imu.dt))
-    rd.prepare()
-    rd.write_text("config.toml", f"# sinslab {__version__} — align\n" + dump_toml(cfg))
     tm = fa.t
     hd = np.degrees(A.yaw_to_heading(fa.att_path[:, 2]))
-    rd.write_table("alignment", {"t_s": tm, "pitch_deg": np.degrees(fa.att_path[:, 0]),
-                                 "roll_deg": np.degrees(fa.att_path[:, 1]), "heading_deg": hd,
-                                 "sigma_phiE_arcmin": fa.sigma[:, 0] / units.arcmin,
-                                 "sigma_phiN_arcmin": fa.sigma[:, 1] / units.arcmin,
-                                 "sigma_phiU_arcmin": fa.sigma[:, 2] / units.arcmin})
+    tables = [Series("alignment", {"t_s": tm, "pitch_deg": np.degrees(fa.att_path[:, 0]),
+                                   "roll_deg": np.degrees(fa.att_path[:, 1]), "heading_deg": hd,
+                                   "sigma_phiE_arcmin": fa.sigma[:, 0] / units.arcmin,
+                                   "sigma_phiN_arcmin": fa.sigma[:, 1] / units.arcmin,
+                                   "sigma_phiU_arcmin": fa.sigma[:, 2] / units.arcmin})]
     fig, axes = plotting.figure(3, 1, width=8.0)
     for ax, y, s_, lab in zip(axes, (np.degrees(fa.att_path[:, 0]), np.degrees(fa.att_path[:, 1]), hd),
                               (fa.sigma[:, 1], fa.sigma[:, 0], fa.sigma[:, 2]),
@@ -141,12 +145,9 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
         ax.set_ylabel(lab)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Fine alignment: attitude estimate ±1σ (heading clockwise from north)")
-    rd.write_figure("alignment", fig, "Fine-alignment attitude estimate (±1σ band) versus time.")
-    summary = rd.complete(command_summary(
-        rd, "align", "coarse and fine alignment of a recorded IMU file at rest (paper 000 methods)",
-        cfg, metrics, ["Heading is clockwise from north."] + r["warnings"], paper=PAPER))
-    echo(f"  -> {out}")
-    return summary
+    figures = [Figure("alignment", fig, "Fine-alignment attitude estimate (±1σ band) versus time.")]
+    return Output(config=cfg, metrics=metrics, tables=tables, figures=figures,
+                  notes=["Heading is clockwise from north."] + r["warnings"], value=r)
 
 
 def register(app):
@@ -168,15 +169,9 @@ def register(app):
               period: str = typer.Option("1 s", "--period", help="filter period"),
               open_loop: bool = typer.Option(False, "--open-loop", help="no attitude feedback")) -> None:
         """Coarse and fine alignment of a recorded IMU file at rest (pitch, roll, heading with σ)."""
-        from sinslab.cli import CliError, user_errors
-
-        with user_errors():
-            try:
-                align_file(imu, fmt=format, lat=lat, h=height, window=window, out=out,
-                           gyro_arw=gyro_arw, accel_vrw=accel_vrw, gyro_bias=gyro_bias,
-                           accel_bias=accel_bias, model=model, period=period,
-                           feedback=not open_loop, echo=typer.echo)
-            except (ValueError, FileNotFoundError) as e:
-                raise CliError(str(e)) from None
+        cli_call(align_file, imu, fmt=format, lat=lat, h=height, window=window, out=out,
+                 gyro_arw=gyro_arw, accel_vrw=accel_vrw, gyro_bias=gyro_bias,
+                 accel_bias=accel_bias, model=model, period=period, feedback=not open_loop,
+                 echo=typer.echo)
 
     return align

@@ -8,10 +8,13 @@ from typing import Optional
 
 import numpy as np
 
+from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import units
-from sinslab.sim.allan import allan, imu_errors_from_allan
+from sinslab.sim.allan import AllanResult, allan, imu_errors_from_allan
 
-__all__ = ["allan_file", "register"]
+__all__ = ["ALLAN", "allan_file", "register"]
+
+ALLAN = Command("allan", "Allan deviation and IEEE noise terms of a recorded IMU file")
 
 
 def _table(res: AllanResult):
@@ -26,23 +29,24 @@ def _table(res: AllanResult):
 
 
 def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
-    """Read a recorded IMU file, compute the Allan deviations and write the run folder."""
+    """Read a recorded IMU file, compute the Allan deviations and write the run folder.
 
-    from sinslab import __version__
+    Returns ``(summary, AllanResult, ImuErrors)``.
+    """
+    summary, res = run_command(ALLAN, out, lambda: _compute(path, fmt, window, echo, read_kw),
+                               echo=echo)
+    return (summary, *res.value)
+
+
+def _compute(path, fmt, window, echo, read_kw) -> Output:
+    from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.data import load_imu
-    from sinslab.app import plotting
-    from sinslab.core.toml import dump_toml
-    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
-    from sinslab.sim.imu import ImuErrors  # noqa: F401
 
     data = load_imu(path, fmt, **read_kw)
     imu = data.imu
     if window:
         a, _, b = str(window).partition(":")
         imu = imu.slice(float(a) if a else None, float(b) if b else None)
-    out = out if out is not None else default_out_dir("allan")
-    rd = RunDir(out, "allan")
-    rd.check()
     res = allan(imu)
     errs = imu_errors_from_allan(res)
     toml = errs.to_toml("imu")
@@ -64,9 +68,6 @@ def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
         metrics[f"{key}_tau_floor_s"] = tf
         metrics[f"{key}_rrw_{'dphpsh' if s == 'gyro' else 'ugpsh'}"] = kv
     cfg = {"file": str(path), "format": data.format, "window": window or ":"}
-    rd.prepare()
-    rd.write_text("config.toml", f"# sinslab {__version__} — allan\n" + dump_toml(cfg))
-    rd.write_text("imu_errors.toml", toml)
     tab = {"tau_s": res.gyro[0].tau}
     for f in res.gyro:
         if f.tau.size == tab["tau_s"].size:
@@ -74,7 +75,7 @@ def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
     for f in res.accel:
         if f.tau.size == tab["tau_s"].size:
             tab[f"{f.name.replace(' ', '_')}_adev_ug"] = f.adev / units.ug
-    rd.write_table("allan", tab, "overlapping Allan deviation per axis")
+    tables = [Series("allan", tab, "overlapping Allan deviation per axis")]
     fig, axes = plotting.figure(1, 2, sharex=False, width=11.0, row_height=4.2)
     for ax, fits, sc, unit in ((axes[0], res.gyro, units.dph, "deg/h"), (axes[1], res.accel, units.ug, "ug")):
         for f, c in zip(fits, plotting.COLORS):
@@ -85,17 +86,15 @@ def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
         ax.set_ylabel(f"Allan deviation [{unit}]")
         ax.legend(fontsize=8)
     fig.suptitle("Overlapping Allan deviation (dotted: fitted N/τ, B, K terms; dots: floor)")
-    rd.write_figure("allan", fig, "Allan deviation of each gyro and accelerometer axis, with the fit.")
-    summary = rd.complete(command_summary(
-        rd, "allan", "Allan deviation and IEEE noise terms of a recorded IMU file", cfg, metrics,
-        ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
-         "imu_errors.toml: paste into a simulation config ([imu] table).", toml]))
-    echo(f"  -> {out}")
-    return summary, res, errs
+    figures = [Figure("allan", fig, "Allan deviation of each gyro and accelerometer axis, with the fit.")]
+    notes = ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
+             "imu_errors.toml: paste into a simulation config ([imu] table).", toml]
+    return Output(config=cfg, metrics=metrics, tables=tables, figures=figures,
+                  files={"imu_errors.toml": toml}, notes=notes, value=(res, errs))
 
 
 def register(app):
-    """Add ``sinslab allan`` and ``sinslab navigate`` (called from sinslab.cli)."""
+    """Add the ``sinslab allan`` command to the typer ``app`` (called from sinslab.cli)."""
     import typer
 
     @app.command()
@@ -106,18 +105,11 @@ def register(app):
               accel_unit: Optional[str] = typer.Option(None, "--accel-unit", help="unit of accel columns without one"),
               out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/allan-<timestamp>]")) -> None:
         """Allan deviation of recorded IMU data: ARW/VRW, bias instability, RRW and an ImuErrors block."""
-        from sinslab.cli import CliError, user_errors
-
         kw = {}
         if gyro_unit:
             kw["gyro_unit"] = gyro_unit
         if accel_unit:
             kw["accel_unit"] = accel_unit
-        with user_errors():
-            try:
-                allan_file(file, fmt=format, out=out, window=window, echo=typer.echo, **kw)
-            except (ValueError, FileNotFoundError) as e:
-                raise CliError(str(e)) from None
+        cli_call(allan_file, file, fmt=format, out=out, window=window, echo=typer.echo, **kw)
 
-
-
+    return allan

@@ -8,12 +8,15 @@ from typing import Optional
 
 import numpy as np
 
+from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors, navigate_recorded,
                                      outage_end_errors, parse_outages, shift_imu_time)
 
-__all__ = ["navigate_files", "register"]
+__all__ = ["NAVIGATE", "navigate_files", "register"]
+
+NAVIGATE = Command("navigate", "loosely coupled INS + position/velocity fixes on recorded data")
 
 
 # --------------------------------------------------------------------------- the CLI ---
@@ -46,12 +49,20 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
+    summary, res = run_command(NAVIGATE, out, lambda: _compute(
+        imu_path, fix_path, fmt=fmt, fix_format=fix_format, lever_arm=lever_arm, mount=mount,
+        frame=frame, outages=outages, fix_latency=fix_latency, lag=lag, init=init,
+        time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
+        scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, echo=echo,
+        options=options), echo=echo)
+    return (summary, *res.value)
 
-    from sinslab import __version__
+
+def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
+             fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
+             allow_gaps, echo, options) -> Output:
+    from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.data import guess_imu_format, load_imu, read_fixes
-    from sinslab.app import plotting
-    from sinslab.core.toml import dump_toml
-    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
 
     fmt_eff = fmt or guess_imu_format(imu_path)
     kw = {}
@@ -91,9 +102,6 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     ini = _parse_init(init) if isinstance(init, (str, type(None))) else dict(init)
     if "heading" in ini:
         opt.heading = ini["heading"]
-    out = out if out is not None else default_out_dir("navigate")
-    rd = RunDir(out, "navigate")
-    rd.check()
     res = navigate_recorded(imu, fx, opt)
     t, err, idx = fix_errors(res, fx)
     hz = np.hypot(err[:, 0], err[:, 1])
@@ -148,8 +156,6 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     echo(f"  gyro bias [deg/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [ug] "
          f"{np.round(metrics['accel_bias_final_ug'], 0).tolist()}")
 
-    rd.prepare()
-    rd.write_text("config.toml", f"# sinslab {__version__} — navigate\n" + dump_toml(cfg))
     sig = res.sigma
     sol = {"t_s": res.t - res.t[0], "t_abs_s": res.t, "lat_deg": np.degrees(res.nav[:, 7]),
            "lon_deg": np.degrees(res.nav[:, 8]), "h_m": res.nav[:, 9],
@@ -158,16 +164,15 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
            "heading_deg": np.degrees(res.heading)}
     for i, (l, u_) in enumerate(zip(res.labels, res.units_)):
         sc = {"arcmin": units.arcmin, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
-        if l.startswith("dp") and l in ("dpL", "dplat", "dL"):
-            pass
         sol[f"sigma_{l}_{u_.replace('/', 'p')}"] = sig[:, i] / sc
     for k, a in enumerate("xyz"):
         sol[f"gyro_bias_{a}_dph"] = res.gyro_bias[:, k] / units.dph
         sol[f"accel_bias_{a}_ug"] = res.accel_bias[:, k] / units.ug
-    rd.write_table("solution", sol, "navigation solution at the filter epochs with filter sigma")
-    rd.write_table("fix_errors", {"t_s": t - res.t[0], "east_m": err[:, 0], "north_m": err[:, 1],
-                                  "up_m": err[:, 2], "in_outage": in_out.astype(int)},
-                   "solution (antenna) minus fix at every fix time")
+    tables = [Series("solution", sol, "navigation solution at the filter epochs with filter sigma"),
+              Series("fix_errors", {"t_s": t - res.t[0], "east_m": err[:, 0], "north_m": err[:, 1],
+                                    "up_m": err[:, 2], "in_outage": in_out.astype(int)},
+                     "solution (antenna) minus fix at every fix time")]
+    figures = []
     # figures
     lat0, lon0 = fx.lat[0], fx.lon[0]
     rm, rn = E.radii(lat0, fx.h[0])
@@ -187,7 +192,7 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     ax.set_xlabel("east [m]")
     ax.set_ylabel("north [m]")
     ax.legend()
-    rd.write_figure("track", fig, "Track on a local ENU map (origin at the first fix); outages in red.")
+    figures.append(Figure("track", fig, "Track on a local ENU map (origin at the first fix); outages in red."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     tt = t - res.t[0]
     for ax, k, nm in zip(axes, range(3), ("east", "north", "up")):
@@ -197,7 +202,7 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
             ax.axvspan(s - res.t[0], s + ln - res.t[0], color="0.85", lw=0)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Solution minus fixes (grey: simulated outages)")
-    rd.write_figure("errors", fig, "Position error of the solution (antenna) versus every fix.")
+    figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     ts_ = res.t - res.t[0]
     axes[0].semilogy(ts_, np.degrees(sig[:, 0:3]) * 60, lw=1)
@@ -208,18 +213,16 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
     axes[2].set_ylabel("accel bias σ [ug]")
     axes[2].set_xlabel("time [s]")
-    rd.write_figure("sigma", fig, "Filter standard deviations of attitude and sensor biases.")
-    summary = rd.complete(command_summary(
-        rd, "navigate", "loosely coupled INS + position/velocity fixes on recorded data", cfg, metrics,
-        ["Heading is clockwise from north.",
-         f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
-         if res.init.get("rest_start") else "No rest at the start."]))
-    echo(f"  -> {out}")
-    return summary, res, fx
+    figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
+    notes = ["Heading is clockwise from north.",
+             f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
+             if res.init.get("rest_start") else "No rest at the start."]
+    return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
+                  value=(res, fx))
 
 
 def register(app):
-    """Add ``sinslab navigate`` to the typer app (registered via sinslab.sim.allan.register)."""
+    """Add ``sinslab navigate`` to the typer ``app`` (called from sinslab.cli)."""
     import typer
 
     @app.command()
@@ -242,16 +245,10 @@ def register(app):
                  allow_gaps: bool = typer.Option(False, "--allow-gaps", help="bridge IMU gaps of any length"),
                  out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]")) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
-        from sinslab.cli import CliError, user_errors
-
-        with user_errors():
-            try:
-                navigate_files(imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
-                               mount=mount, frame=frame, outages=outages, fix_latency=fix_latency,
-                               lag=lag, init=init, time_sync=time_sync, velocity_lag=velocity_lag,
-                               imu_delay=imu_delay, scale_factors=scale_factors, max_gap=max_gap,
-                               allow_gaps=allow_gaps, out=out, echo=typer.echo)
-            except (ValueError, FileNotFoundError) as e:
-                raise CliError(str(e)) from None
+        cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
+                 mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
+                 init=init, time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
+                 scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, out=out,
+                 echo=typer.echo)
 
     return navigate

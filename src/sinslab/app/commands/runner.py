@@ -1,0 +1,156 @@
+"""The run contract of the recorded-data commands (``navigate``, ``allan``, ``align``).
+
+The commands' counterpart of :func:`sinslab.experiments.execute`. A command is a
+:class:`Command` (name, purpose, the method it applies) and a compute function that reads
+the input files, runs the method, prints its lines and returns an :class:`Output`
+(configuration, metrics, tables, figures, extra text files, notes) — it never writes a
+file. :func:`run_command` does the rest, always in the same order:
+
+1. check the output folder (``--out``, default ``runs/NAME-<timestamp>``) before any
+   work, so an unusable folder fails in a second (:class:`~sinslab.app.outputs.OutputDirError`);
+2. call the compute function;
+3. claim the folder, write ``config.toml``, the extra text files, the tables (CSV, or
+   Parquet + thinned CSV), the figures (PNG + SVG), ``summary.json``
+   (:func:`command_summary`) and ``report.html``, each atomically, then mark the run
+   complete.
+
+:func:`cli_call` is the typer side: it runs a command inside
+:func:`sinslab.app.errors.user_errors`, with a bad value or a missing file becoming the
+one line ``sinslab: error: ...`` and exit status 2::
+
+    ALLAN = Command("allan", "Allan deviation of a recorded IMU file")
+
+    def allan_file(path, *, out=None, echo=print):
+        def compute():
+            ...
+            return Output(config={...}, metrics={...}, tables=[Series(...)], figures=[...])
+        summary, _ = run_command(ALLAN, out, compute, echo=echo)
+        return summary
+
+    @app.command()
+    def allan(file: Path, out: Optional[Path] = None):
+        cli_call(allan_file, file, out=out, echo=typer.echo)
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from sinslab import __version__
+from sinslab.app.errors import CliError, user_errors
+from sinslab.app.outputs import Figure, RunDir, default_out_dir
+from sinslab.core.toml import dump_toml
+
+__all__ = ["Command", "Output", "Series", "Figure", "run_command", "command_summary", "cli_call"]
+
+
+@dataclass(frozen=True)
+class Command:
+    """A recorded-data command: its CLI name, one-line purpose, and the method it applies
+    (bibliographic reference, printed in the report; empty when none)."""
+
+    name: str
+    purpose: str
+    paper: str = ""
+
+
+@dataclass
+class Series:
+    """A table to write as ``name.csv`` (Parquet + every k-th row as CSV when large).
+
+    ``data`` is a pandas DataFrame or a dict of equal-length 1-D arrays.
+    """
+
+    name: str
+    data: Any
+    description: str = ""
+
+
+@dataclass
+class Output:
+    """What a command's compute function returns; :func:`run_command` writes it.
+
+    config : the command's inputs as a flat TOML-able dict (``config.toml``, and the
+        ``config`` of ``summary.json``).
+    metrics : ``{name: number | list | None}`` for ``summary.json``.
+    tables : :class:`Series` to write, in order.
+    figures : :class:`~sinslab.app.outputs.Figure` to write, in order.
+    files : ``{file name: text}`` extra text files (e.g. an ``imu_errors.toml`` block).
+    notes : lines for the report.
+    value : anything the Python function returns besides the summary (the estimates).
+    """
+
+    config: dict
+    metrics: dict
+    tables: list = field(default_factory=list)
+    figures: list = field(default_factory=list)
+    files: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+    value: Any = None
+
+
+def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metrics: dict,
+                    notes=(), claims=(), paper: str = "") -> dict:
+    """The ``summary.json`` of a command: the keys of every run folder (``experiment``,
+    ``sinslab_version``, ``config``, ``metrics``, ``claims``) plus what the report needs."""
+    return {"experiment": command, "sinslab_version": __version__, "config": config,
+            "metrics": metrics, "claims": list(claims), "purpose": purpose, "paper": paper,
+            "quick": False, "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+            "metric_info": {}, "figures": rd.figure_files, "series": rd.series_info, "tables": [],
+            "notes": list(notes)}
+
+
+def _close(figures) -> None:
+    import matplotlib.pyplot as plt
+
+    for f in figures:
+        if getattr(f.fig.canvas, "manager", None) is not None:
+            plt.close(f.fig)
+
+
+def run_command(command: Command, out: str | os.PathLike | None, compute: Callable[[], Output],
+                *, echo: Callable[[str], None] = print) -> tuple[dict, Output]:
+    """Check ``out``, run ``compute()``, write the run folder; return ``(summary, output)``.
+
+    ``out=None`` writes into ``runs/NAME-<timestamp>``. Raises
+    :class:`~sinslab.app.outputs.OutputDirError` before computing anything if the folder
+    may not be used; whatever ``compute`` raises propagates with nothing written.
+    """
+    out = Path(out) if out is not None else default_out_dir(command.name)
+    rd = RunDir(out, command.name)
+    rd.check()
+    res = compute()
+    if not isinstance(res, Output):
+        raise TypeError(f"the compute function of {command.name!r} must return an Output, "
+                        f"got {type(res).__name__}")
+    written = 0
+    try:
+        rd.prepare()
+        rd.write_text("config.toml", f"# sinslab {__version__} — {command.name}\n"
+                      + dump_toml(res.config))
+        for name, text in res.files.items():
+            rd.write_text(name, text)
+        for t in res.tables:
+            rd.write_table(t.name, t.data, t.description)
+        for f in res.figures:
+            written += 1
+            rd.write_figure(f.name, f.fig, f.caption)
+    finally:
+        _close(res.figures[written:])
+    summary = rd.complete(command_summary(rd, command.name, command.purpose, res.config,
+                                          res.metrics, res.notes, paper=command.paper))
+    echo(f"  -> {out}")
+    return summary, res
+
+
+def cli_call(fn: Callable[..., Any], *args, **kwargs) -> Any:
+    """Call a command function for the CLI: user errors, bad values (``ValueError``) and
+    missing files become one line and exit 2; Ctrl-C / SIGTERM exit 130 / 143."""
+    with user_errors():
+        try:
+            return fn(*args, **kwargs)
+        except (ValueError, FileNotFoundError) as e:
+            raise CliError(str(e)) from None

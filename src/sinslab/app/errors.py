@@ -1,0 +1,90 @@
+"""User errors and interrupts of the command line, in one place below the CLI.
+
+An error the user can fix (an unknown config key, a bad unit, an unreadable file, an
+output folder that may not be used, an unknown experiment) is a :class:`UserError` — a
+``ValueError`` — or one of :data:`USER_ERRORS`. Inside :func:`user_errors` it becomes one
+line ``sinslab: error: ...`` on stderr and exit status 2. Ctrl-C becomes exit 130 and
+SIGTERM exit 143; both unwind the stack, so the atomic writers
+(:mod:`sinslab.core.atomic`) delete their temporary files and no half-written file is
+left under a final name. Anything else is a bug and keeps its traceback (exit 1).
+
+Every command body (``sinslab run``, ``navigate``, ...) runs inside ``user_errors()``::
+
+    from sinslab.app.errors import CliError, user_errors
+
+    with user_errors():
+        if not path.exists():
+            raise CliError(f"{path}: no such file")
+        ...
+"""
+from __future__ import annotations
+
+import contextlib
+import signal
+
+import typer
+
+from sinslab.core.units import UnitError
+
+__all__ = ["UserError", "CliError", "USER_ERRORS", "user_errors", "error_line", "Terminated"]
+
+
+class UserError(ValueError):
+    """Base of the errors a user can fix; printed as one line, exit status 2.
+
+    The configuration, output-folder and report errors of :mod:`sinslab.app` and the
+    unknown-experiment error derive from it.
+    """
+
+
+class CliError(UserError):
+    """A user error raised by a command itself (bad option value, missing file)."""
+
+
+#: Exceptions :func:`user_errors` turns into one line and exit 2: every :class:`UserError`
+#: and the unit-parsing error of :mod:`sinslab.core.units` (a ``ValueError`` of the core).
+USER_ERRORS: tuple = (UserError, UnitError)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, delivered as an exception so that temporary files are cleaned up."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+def error_line(exc: BaseException) -> str:
+    """The one line printed for a user error: the first line of its message (or its type)."""
+    text = str(exc)
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _err(msg: str) -> None:
+    typer.echo(f"sinslab: error: {msg}", err=True)
+
+
+@contextlib.contextmanager
+def user_errors():
+    """Turn user errors into one stderr line + exit 2, interrupts into exit 130/143.
+
+    Installs a SIGTERM handler for the duration of the block (main thread only) and
+    restores the previous one afterwards.
+    """
+    old = None
+    with contextlib.suppress(ValueError):          # not in the main thread: leave it
+        old = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        yield
+    except USER_ERRORS as e:
+        _err(error_line(e))
+        raise typer.Exit(2) from None
+    except Terminated:
+        _err("terminated; no partial file was left under a final name")
+        raise typer.Exit(143) from None
+    except KeyboardInterrupt:
+        _err("interrupted; no partial file was left under a final name")
+        raise typer.Exit(130) from None
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
