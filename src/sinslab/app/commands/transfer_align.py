@@ -89,7 +89,8 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
     """Run the alignment for each method and window; write the run folder; return the summary."""
     from sinslab import __version__
     from sinslab.app import plotting
-    from sinslab.app.outputs import RunDir, command_summary, default_out_dir
+    from sinslab.app.commands.runner import command_summary
+    from sinslab.app.outputs import RunDir, default_out_dir
     from sinslab.core.toml import dump_toml
     from sinslab.data import load_imu
     from sinslab.methods import transfer as tm
@@ -230,7 +231,7 @@ def register(app):
                        window: list[str] = typer.Option([], "--window", metavar="START:END", help="time window(s) [s]"),
                        out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder")) -> None:
         """Transfer alignment on recorded data: mounting angles and slave biases with σ."""
-        from sinslab.cli import CliError, user_errors
+        from sinslab.app.errors import CliError, user_errors
 
         with user_errors():
             try:
