@@ -84,6 +84,8 @@ def test_real_data_mounting_and_biases(tmp_path):
     full = [res[(m, "all")].mounting for m in KINDS]
     assert np.max(np.ptp(full, axis=0)) < 0.1 * units.arcmin          # forms agree (small mounting)
     win = res[("optimal", "0_60s")]
+    assert win.t[0] == pytest.approx(0.1) and win.t[-1] == pytest.approx(60.0)   # master epochs in the window
+    assert res[("optimal", "all")].t[-1] == pytest.approx(100.0)
     assert np.all(np.abs(win.mounting - res[("optimal", "all")].mounting) <= 2 * win.mounting_sigma)
     assert (tmp_path / "run" / "summary.json").exists()
 
