@@ -71,3 +71,13 @@ def test_schuler_script(tmp_path):
     saved = json.loads(out.read_text())
     assert set(saved["stages"]) == {"synthesis", "imu_errors", "method", "analysis"}
     assert saved["samples"] == res["samples"] > 0
+
+
+def test_transfer_script(tmp_path):
+    out = tmp_path / "transfer.json"
+    res = _load("transfer").main(["--runs", "8", "--single", "1", "--scheduler", "sync", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    assert saved["runs"] == res["runs"] == 8 and saved["steps"] > 0
+    assert saved["campaign_runs_per_s"] > 0 and saved["single_runs_per_s"] > 0
+    # the optimal form on the large installation (40′, 30′, 20′ error) converges to a few arcmin
+    assert len(saved["rms_end_arcmin"]) == 3 and max(saved["rms_end_arcmin"]) < 5.0

@@ -60,7 +60,7 @@ from sinslab.nav import errstate
 __all__ = [
     "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
-    "paper_euler_H", "FLOPS", "align_recorded", "align_recorded_driver", "TransferResult", "TransferMeasurement",
+    "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -290,6 +290,15 @@ class MasterRecord:
         C = C0 @ rotvec_to_dcm(w * dcm_to_rotvec(C0.T @ C1))
         return C, (1 - w) * self.vel[i] + w * self.vel[i + 1]
 
+    def take(self, idx):
+        """The record at the samples ``idx`` (increasing integer indices), values unchanged."""
+        idx = np.asarray(idx, dtype=np.int64)
+        out = object.__new__(MasterRecord)
+        out.t, out.C, out.vel = self.t[idx], self.C[idx], self.vel[idx]
+        if out.t.size < 2 or np.any(np.diff(out.t) <= 0):
+            raise ValueError("a master record needs >= 2 samples at increasing times")
+        return out
+
 
 class _MasterTimed:
     """Schedule of a measurement whose items are the master epochs (valid = arrival)."""
@@ -495,157 +504,93 @@ class TransferResult:
         self.accel_bias, self.accel_bias_sigma = x[-1, sl("nabla")], sigma[-1, sl("nabla")]
 
 
-def align_recorded(imu_t, dtheta, dv, master: MasterRecord, master_pos, kind="optimal", *, compensation=None,
-                   relinearise=False, t_start=None, t_end=None, vel_sigma=0.1, att_sigma=3e-4,
-                   att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2, gyro_bias_sigma0=1e-3,
-                   accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3, accel_scale_sigma0=1e-3,
+def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, compensation=None, t_start=None,
+                   t_end=None, vel_sigma=0.1, att_sigma=3e-4, att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2,
+                   gyro_bias_sigma0=1e-3, accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3, accel_scale_sigma0=1e-3,
                    gyro_noise=0.0, accel_noise=0.0, nsub=2):
     """Transfer alignment of a recorded slave IMU against a recorded master solution.
 
-    The slave INS (:mod:`sinslab.nav.strapdown`) starts from the master's position,
-    velocity and attitude times the compensation at ``t_start`` and is updated at every
-    master epoch with velocity matching and the ``kind`` attitude measurement; φ and δv
-    are fed back into the slave INS, the gyro and accelerometer biases into its sensor
-    compensation; installation and scale-factor states stay in the filter. The position
-    is taken from the master at each epoch (no lever arm).
+    Runs through the fusion driver (:func:`sinslab.fusion.driver.run`): one live stream
+    (the slave INS), the :class:`TransferMeasurement` plug-in (velocity + ``kind``
+    attitude matching) at every master epoch, feedback of φ and δv into the slave INS and
+    of the gyro and accelerometer biases into its sensor compensation; the installation
+    and scale-factor states stay in the filter.
+
+    The time window ``[t_start, t_end]`` selects the master epochs inside it; the slave
+    IMU record is sliced to the increments after the first of them, and the slave INS
+    starts there from the master's position, velocity and attitude times the
+    compensation. The first master epoch is the initial condition; the updates start
+    at the second.
+
+    Position: the 21-state model takes no position error (``"attvel"`` core) and the slave
+    position is *not* reset to the master's: it is navigated freely by the slave INS, kept
+    close to the master's only through the velocity feedback (the horizontal position
+    error grows as the integral of the residual velocity error, with the vertical channel
+    free). It enters the filter only through the Earth-rate and transport-rate terms of
+    the error model and the slave's gravity, where metres of error are negligible. No
+    lever arm between master and slave is modelled.
 
     Parameters
     ----------
-    imu_t : (N,) end times of the slave increments [s]; dtheta, dv : (N, 3) [rad], [m/s] (RFU)
-    master : MasterRecord (attitude, velocity); master_pos : (M, 3) [lat, lon (rad), h (m)]
-        at ``master.t``
-    kind : attitude measurement form; compensation : (3, 3) known ``Ĉ_s^m`` or None
+    imu : sinslab.core.records.ImuRecord
+        Slave increments [rad], [m/s] (RFU body axes), end times ``imu.t`` [s].
+    master : MasterRecord
+        Master attitude and velocity (ENU).
+    master_pos : (M, 3)
+        Master ``[lat, lon (rad), h (m)]`` at ``master.t``.
+    kind : {"euler", "dcm", "kain", "optimal"}
+        Attitude measurement form.
+    compensation : (3, 3), optional
+        Known installation ``Ĉ_s^m``; the installation state is then the residual φ_α.
+    t_start, t_end : float, optional
+        Window [s]; default the overlap of the two records.
     vel_sigma [m/s], att_sigma [rad] : measurement noise σ
     *_sigma0 : initial σ (SI); gyro_noise [rad/√s], accel_noise [m/s/√s] : process noise
-    """
-    from sinslab.core.records import NavState
-    from sinslab.nav import strapdown as sd
-    from sinslab.nav.errstate import NavPoint
+    nsub : int
+        Mechanization subsamples; the master interval must be a multiple of ``nsub·imu.dt``.
 
-    imu_t = np.asarray(imu_t, float)
-    dt = float(np.median(np.diff(imu_t)))
-    mt = master.t
-    t0 = max(mt[0], imu_t[0]) if t_start is None else float(t_start)
-    t1 = min(mt[-1], imu_t[-1]) if t_end is None else float(t_end)
-    ep = np.where((mt >= t0 - 1e-9) & (mt <= t1 + 1e-9))[0]
-    if ep.size < 3:
-        raise ValueError(f"slave and master records overlap in fewer than 3 master epochs in [{t0:g}, {t1:g}] s")
-    match = AttitudeMatch(kind, compensation)
-    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(), errstate.gyro_scale(),
-                                           errstate.accel_bias(), errstate.accel_scale()],
-                                gyro_noise=gyro_noise, accel_noise=accel_noise)
-    lay = model.layout
-    n = model.n
-    sig0 = np.concatenate([np.full(3, att_sigma0), np.full(3, vel_sigma0), np.full(3, inst_sigma0),
-                           np.full(3, gyro_bias_sigma0), np.full(3, gyro_scale_sigma0),
-                           np.full(3, accel_bias_sigma0), np.full(3, accel_scale_sigma0)])
-    P = np.diag(sig0 ** 2)
-    x = np.zeros(n)
-    Cm0, vm0 = master.at(mt[ep[0]])
-    Cs0 = Cm0 @ match.compensation
-    from sinslab.core.attitude import dcm_to_euler
-    pos = np.asarray(master_pos, float)
-    state = sd.initial_state_array(NavState(pos[ep[0], 0], pos[ep[0], 1], pos[ep[0], 2], vm0,
-                                            dcm_to_euler(Cs0), mt[ep[0]]))
-    Rm = np.concatenate([np.full(3, vel_sigma ** 2), np.full(3, att_sigma ** 2)])
-    sl_phi, sl_dv, sl_a = lay.slice("phi"), lay.slice("dv"), lay.slice("lam")
-    sl_e, sl_n = lay.slice("eps"), lay.slice("nabla")
-    ts, xs, ss = [], [], []
-    bias_g, bias_a = np.zeros(3), np.zeros(3)
-    for j, k in enumerate(ep):
-        tk = mt[k]
-        if j > 0:
-            sel = np.where((imu_t > mt[ep[j - 1]] + 1e-9) & (imu_t <= tk + 1e-9))[0]
-            if sel.size % nsub:
-                raise ValueError(f"{sel.size} slave samples between master epochs at {tk:g} s is not a "
-                                 f"multiple of nsub={nsub}")
-            T = tk - mt[ep[j - 1]]
-            sd.step(state, dtheta[sel], dv[sel], dt, nsub, vertical="free", gyro_bias=bias_g, accel_bias=bias_a)
-            C = _q2dcm(state[:4])
-            wb = dtheta[sel].sum(0) / T - bias_g
-            fb = dv[sel].sum(0) / T - bias_a
-            F, G = model.matrices(NavPoint(state[7], state[9], state[4:7], C, fb, wb))
-            Phi = np.eye(n) + F * T + 0.5 * (F * T) @ (F * T)
-            Qk = (G * model.q) @ G.T * T
-            x = Phi @ x
-            P = Phi @ P @ Phi.T + Qk
-            # position from the master (no lever arm)
-            state[7:10] = pos[k]
-            sd.correct(state)
-        Cm, vm = master.at(tk)
-        Chat = _q2dcm(state[:4])
-        z6, h6 = match.innovation_z(Cm, Chat, x[sl_phi], x[sl_a], relinearise)
-        H = np.zeros((6, n))
-        H[0:3, sl_dv] = np.eye(3)
-        H[3:6, sl_phi] = h6[:, :3]
-        H[3:6, sl_a] = h6[:, 3:]
-        z = np.concatenate([state[4:7] - vm, z6])
-        S = H @ P @ H.T + np.diag(Rm)
-        K = np.linalg.solve(S, H @ P).T
-        innov = z - H @ x
-        if kind == "euler":
-            innov[3:] = wrap_pi(innov[3:])
-        x = x + K @ innov
-        IKH = np.eye(n) - K @ H
-        P = IKH @ P @ IKH.T + K @ np.diag(Rm) @ K.T
-        # feedback: attitude, velocity into the INS; biases into the sensor compensation
-        sd.correct(state, phi=x[sl_phi], dvel=x[sl_dv])
-        bias_g = bias_g + x[sl_e]
-        bias_a = bias_a + x[sl_n]
-        x[sl_phi] = 0.0
-        x[sl_dv] = 0.0
-        x[sl_e] = 0.0
-        x[sl_n] = 0.0
-        xt = x.copy()
-        xt[sl_e], xt[sl_n] = bias_g, bias_a
-        ts.append(tk)
-        xs.append(xt)
-        ss.append(np.sqrt(np.diag(P)))
-    return TransferResult(np.array(ts), np.array(xs), np.array(ss), lay)
-
-
-def align_recorded_driver(imu, master: MasterRecord, master_pos, kind="optimal", *, compensation=None,
-                          vel_sigma=0.1, att_sigma=3e-4, att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2,
-                          gyro_bias_sigma0=1e-3, accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3,
-                          accel_scale_sigma0=1e-3, gyro_noise=0.0, accel_noise=0.0, nsub=2):
-    """:func:`align_recorded` through the fusion driver (:func:`sinslab.fusion.driver.run`).
-
-    One live stream (the slave, started at the master epoch equal to the IMU start), the
-    :class:`TransferMeasurement` plug-in at every master epoch, feedback of φ, δv and the
-    biases; installation and scale factors stay in the filter. Unlike
-    :func:`align_recorded` the slave position is not reset to the master's (it is free,
-    corrected only through velocity feedback). ``imu`` is an ImuRecord (RFU increments).
+    Returns
+    -------
+    TransferResult
+        At the filter epochs (the master epochs of the window).
     """
     from sinslab.core.attitude import dcm_to_euler
     from sinslab.core.records import NavState
     from sinslab.fusion import driver as drv
     from sinslab.fusion.feedback import FeedbackLayout
 
+    mt = master.t
+    lo = max(mt[0], imu.t0) if t_start is None else max(float(t_start), mt[0], imu.t0)
+    hi = min(mt[-1], imu.t[-1]) if t_end is None else min(float(t_end), mt[-1], imu.t[-1])
+    ep = np.flatnonzero((mt >= lo - 1e-9) & (mt <= hi + 1e-9))
+    if ep.size < 3:
+        raise ValueError(f"slave and master records overlap in fewer than 3 master epochs in [{lo:g}, {hi:g}] s")
+    t0, t1 = float(mt[ep[0]]), float(mt[ep[-1]])
+    # the window: master epochs t0..t1, slave increments ending in (t0, t1]
+    win = master.take(ep)
+    pos = np.asarray(master_pos, float)[ep]
+    imu_w = imu.slice(t0 + 0.5 * imu.dt, t1 + 0.5 * imu.dt)
+    if abs(imu_w.t0 - t0) > 1e-6 * imu.dt + 1e-9:
+        raise ValueError(f"the slave IMU samples do not start at the master epoch {t0:g} s "
+                         f"(first interval starts at {imu_w.t0:g} s)")
     model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(), errstate.gyro_scale(),
                                            errstate.accel_bias(), errstate.accel_scale()],
                                 gyro_noise=gyro_noise, accel_noise=accel_noise)
     lay = model.layout
-    t0 = float(imu.t0)
-    Cm0, vm0 = master.at(t0)
-    p0 = np.array([np.interp(t0, master.t, np.asarray(master_pos)[:, i]) for i in range(3)])
     match = AttitudeMatch(kind, compensation)
-    init = NavState(p0[0], p0[1], p0[2], vm0, dcm_to_euler(Cm0 @ match.compensation), t0)
-    stream = drv.LiveStream(imu, init, nsub=nsub)
-    meas = TransferMeasurement(VelocityMeasurement(master, vel_sigma, dv_slice=lay.slice("dv")),
-                               AttitudeMeasurement(match, master, att_sigma, phi_slice=lay.slice("phi"),
+    Cm0, vm0 = win.at(t0)
+    init = NavState(pos[0, 0], pos[0, 1], pos[0, 2], vm0, dcm_to_euler(Cm0 @ match.compensation), imu_w.t0)
+    stream = drv.LiveStream(imu_w, init, nsub=nsub)
+    meas = TransferMeasurement(VelocityMeasurement(win, vel_sigma, dv_slice=lay.slice("dv")),
+                               AttitudeMeasurement(match, win, att_sigma, phi_slice=lay.slice("phi"),
                                                    a_slice=lay.slice("lam")))
     sig0 = np.concatenate([np.full(3, att_sigma0), np.full(3, vel_sigma0), np.full(3, inst_sigma0),
                            np.full(3, gyro_bias_sigma0), np.full(3, gyro_scale_sigma0),
                            np.full(3, accel_bias_sigma0), np.full(3, accel_scale_sigma0)])
     fb = FeedbackLayout.from_model(lay, pos=None, gyro_scale=None, accel_scale=None)
-    kf_dt = float(np.median(np.diff(master.t)))
+    kf_dt = float(np.median(np.diff(win.t)))
     res = drv.run([stream], model, np.diag(sig0 ** 2), [meas], kf_dt=kf_dt, feedback=fb)
     x = np.array(res.x, float)
     x[:, lay.slice("eps")] = res.gyro_bias[0]
     x[:, lay.slice("nabla")] = res.accel_bias[0]
     return TransferResult(np.asarray(res.t), x, np.asarray(res.sigma), lay)
-
-
-def _q2dcm(q):
-    from sinslab.core.attitude import quat_to_dcm
-    return quat_to_dcm(np.asarray(q[:4], float))

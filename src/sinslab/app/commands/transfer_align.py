@@ -131,7 +131,7 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
         t0, t1 = (None, None) if w is None else w
         wkey = "all" if w is None else f"{t0:g}_{t1:g}s".replace(".", "p")
         for m in methods:
-            r = tm.align_recorded(imu.t, imu.dtheta, imu.dv, master_rec, pos, m, compensation=comp,
+            r = tm.align_recorded(imu, master_rec, pos, m, compensation=comp,
                                   t_start=t0, t_end=t1, vel_sigma=vel_sigma, att_sigma=att_sigma_arcmin * am,
                                   gyro_noise=1.0 * units.deg / 60.0, accel_noise=1e-3, nsub=nsub)
             results[(m, wkey)] = r
@@ -204,7 +204,8 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
         ["Mounting angles: the installation state a (C_s^m = exp(a×), or C_s^m = Ĉ_s^m exp(a×) with --mount), "
          "slave axes x, y, z.",
          "Biases: slave gyro and accelerometer biases (measured minus true), body axes.",
-         "Filter: 21 states, velocity + attitude matching at the master rate, feedback of φ, δv and biases."]))
+         "Filter: 21 states through the fusion driver, velocity + attitude matching at the master rate, "
+         "feedback of φ, δv and biases; the slave position is navigated freely (not reset to the master's)."]))
     echo(f"  -> {out}")
     return summary, results, refs
 
