@@ -67,7 +67,7 @@ __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices", "static_alignment_model",
-    "joint_rotation_model", "CORES",
+    "joint_rotation_model", "CORES", "lever_arm", "odometer_scale",
 ]
 
 # ----------------------------------------------------------------------------- layout
@@ -862,3 +862,20 @@ def static_alignment_model(lat, g=None):
     H[0, 1], H[0, 6] = -g, 1.0
     H[1, 0], H[1, 7] = g, 1.0
     return F, G, H
+
+
+# ------------------------------------------------------------- aiding-sensor blocks
+def lever_arm(name="lev"):
+    """Lever arm of an aiding sensor (e.g. a GNSS antenna) [m], body axes, random constant.
+
+    The states are the error of the lever arm the measurement uses, computed minus true
+    (``δl = l_used − l_true``); they have no dynamics, feed nothing back to the INS and are
+    read by the lever-arm measurements of :mod:`sinslab.fusion.measurements`.
+    """
+    return SensorBlock(name, None, "constant", "xyz", "body", None, None, "m")
+
+
+def odometer_scale(name="kod"):
+    """Odometer scale-factor error [-], random constant: the wheel speed reads
+    ``s̃ = (1 + k) v_fwd`` (one state on the forward body axis y)."""
+    return SensorBlock(name, None, "constant", "y", "body", None, None, "ppm")
