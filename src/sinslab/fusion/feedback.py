@@ -15,7 +15,25 @@ import numpy as np
 
 from sinslab.nav import strapdown as sd
 
-__all__ = ["FeedbackLayout"]
+__all__ = ["FeedbackLayout", "AUTO"]
+
+#: Default of :meth:`FeedbackLayout.from_model`: pick the blocks by what they feed.
+AUTO = "auto"
+
+
+def _states(s, n):
+    """State indices of a layout entry (slice, index array, or (k, 3) padded rows)."""
+    if isinstance(s, np.ndarray) and s.ndim == 2:
+        v = s.ravel()
+        return v[v < n].tolist()
+    return np.arange(n)[s].tolist()
+
+
+def _sum3(d, s):
+    """Compensation change (3,) of an entry: its states, or the padded rows summed."""
+    if isinstance(s, np.ndarray) and s.ndim == 2:
+        return np.r_[d, 0.0][s].sum(0)
+    return d[s]
 
 
 @dataclass(frozen=True)
@@ -23,7 +41,9 @@ class FeedbackLayout:
     """Where the feedback-able blocks sit in an error-state vector.
 
     Each attribute is a slice or index array into the state vector, or None if the
-    model has no such block. Used by callers of
+    model has no such block; ``gyro`` and ``accel`` may also be an int array (k, 3) of
+    k blocks whose column a holds the state of body axis a (n: the block has no such
+    axis), their estimates adding up. Used by callers of
     :meth:`sinslab.estimation.filter.KalmanFilter.feedback` to route the
     estimate: ``att`` (φ, rad, ENU), ``vel`` (δv, m/s, ENU; 2 states = east, north of a
     horizontal model), ``pos`` (δL, δλ [rad], δh [m]; 2 states = δL, δλ), ``gyro``
@@ -47,23 +67,58 @@ class FeedbackLayout:
         for s in (self.att, self.vel, self.pos, self.gyro, self.accel, self.gyro_scale,
                   self.accel_scale, *self.other):
             if s is not None:
-                out.extend(np.arange(n)[s].tolist())
+                out.extend(_states(s, n))
         return np.array(sorted(set(out)), dtype=np.int64)
 
     def split(self, x):
         """Dict of the blocks of ``x`` (absent blocks omitted)."""
-        return {k: np.asarray(x)[getattr(self, k)] for k in ("att", "vel", "pos", "gyro", "accel")
-                if getattr(self, k) is not None}
+        x = np.asarray(x)
+        return {k: (_sum3(x, getattr(self, k)) if k in ("gyro", "accel") else x[getattr(self, k)])
+                for k in ("att", "vel", "pos", "gyro", "accel") if getattr(self, k) is not None}
 
     @classmethod
-    def from_model(cls, layout, *, att="phi", vel="dv", pos="dp", gyro="eps", accel="nabla",
-                   gyro_scale="kg", accel_scale="ka", other=()):
-        """From a :class:`sinslab.nav.errstate.StateLayout` (block names as in errstate's
-        builders; missing blocks, or a name given as None, become None)."""
+    def from_model(cls, layout, *, att="phi", vel="dv", pos="dp", gyro=AUTO, accel=AUTO,
+                   gyro_scale=AUTO, accel_scale=AUTO, other=()):
+        """From a :class:`sinslab.nav.errstate.StateLayout`.
+
+        The sensor targets follow what a block *is* (its :attr:`Block.feeds`), not its
+        name: by default (``AUTO``) every body-axis gyro bias or Gauss–Markov block feeds
+        the gyro bias compensation (several blocks add up, an axis subset feeds only its
+        axes), likewise accelerometer biases and the scale-factor blocks. A block name
+        (str) picks that one block instead (missing: none), None feeds nothing.
+
+        Raises
+        ------
+        ValueError
+            For scale-factor feedback from several blocks or from an axis subset (the
+            scale compensation of the streams takes one 3-axis block).
+        """
         names = [b.name for b in layout.blocks]
         get = lambda b: layout.slice(b) if (b is not None and b in names) else None  # noqa: E731
-        return cls(get(att), get(vel), get(pos), get(gyro), get(accel),
-                   tuple(layout.slice(o) for o in other), get(gyro_scale), get(accel_scale))
+
+        def kind(target, arg, scale):
+            if arg is not AUTO:
+                return get(arg)
+            blocks = [b for b in layout.blocks if getattr(b, "feeds", None) == target]
+            if not blocks:
+                return None
+            if len(blocks) == 1 and blocks[0].axes == "xyz":
+                return layout.slice(blocks[0].name)
+            if scale:
+                raise ValueError(f"{target} feedback needs one 3-axis block, the layout has "
+                                 f"{[(b.name, b.axes) for b in blocks]}")
+            # rows: one per block; column a holds the state of axis a, or n (a zero pad)
+            idx = np.full((len(blocks), 3), layout.n, dtype=np.int64)
+            for r, b in enumerate(blocks):
+                sl = layout.slice(b.name)
+                for i, a in enumerate(b.axes):
+                    idx[r, "xyz".index(a)] = sl.start + i
+            return idx
+
+        return cls(get(att), get(vel), get(pos), kind("gyro_bias", gyro, False),
+                   kind("accel_bias", accel, False),
+                   tuple(layout.slice(o) for o in other),
+                   kind("gyro_scale", gyro_scale, True), kind("accel_scale", accel_scale, True))
 
     def apply(self, filt, state, gyro_bias=None, accel_bias=None):
         """Closed-loop correction: feed the filter's estimate back into the INS.
@@ -102,7 +157,7 @@ class FeedbackLayout:
         gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=float).copy()
         ab = np.zeros(3) if accel_bias is None else np.asarray(accel_bias, dtype=float).copy()
         if self.gyro is not None:
-            gb = gb + d[self.gyro]
+            gb = gb + _sum3(d, self.gyro)
         if self.accel is not None:
-            ab = ab + d[self.accel]
+            ab = ab + _sum3(d, self.accel)
         return gb, ab, d

@@ -26,7 +26,8 @@ from sinslab.core import attitude as A
 from sinslab.core import earth as E
 
 __all__ = ["Measurement", "NavRow", "Epoch", "Grid", "PositionFix", "VelocityFix", "Stack",
-           "InsDifference", "arrival_epochs"]
+           "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
+           "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "mount_matrix"]
 
 
 @dataclass(frozen=True)
@@ -432,3 +433,371 @@ class InsDifference(_Timed):
         H[2, sv.start] = 1.0
         H[3, sv.start + 1] = 1.0
         return z, H, self.sigma[j] ** 2
+
+
+# ------------------------------------------------------------------ aiding measurements
+def mount_matrix(mount):
+    """``C_b^v`` (3, 3): IMU body axes -> vehicle axes (both RFU: x right, y forward, z up).
+
+    ``mount`` is None (aligned), a (3, 3) rotation matrix ``C_b^v`` or Euler angles
+    ``[pitch, roll, yaw]`` [rad] of the IMU body frame in the vehicle frame (the
+    :func:`sinslab.core.attitude.euler_to_dcm` convention with v in place of n).
+    """
+    if mount is None:
+        return np.eye(3)
+    m = np.asarray(mount, dtype=float)
+    if m.shape == (3,):
+        return A.euler_to_dcm(m)
+    if m.shape == (3, 3):
+        if not np.allclose(m @ m.T, np.eye(3), atol=1e-9) or np.linalg.det(m) < 0:
+            raise ValueError("mount matrix C_b^v must be a proper rotation")
+        return m
+    raise ValueError(f"mount must be 3 Euler angles or a 3x3 matrix, got shape {m.shape}")
+
+
+def _add_rate_H(H, lay, M, omega_b):
+    """Add ``M ∂δω_ib^b/∂x`` to ``H`` for every block that feeds the gyro compensation
+    (:attr:`sinslab.nav.errstate.Block.feeds`): a bias or Gauss–Markov block enters the
+    compensated rate as ``δω = x``, a scale block as ``δω = diag(ω) x``."""
+    for b in lay.blocks:
+        feeds = getattr(b, "feeds", None)
+        if feeds not in ("gyro_bias", "gyro_scale"):
+            continue
+        sl = lay.slice(b.name)
+        for i, a in enumerate(b.axes):
+            ax = "xyz".index(a)
+            H[:, sl.start + i] += M[:, ax] * (omega_b[ax] if feeds == "gyro_scale" else 1.0)
+
+
+def _intervals(intervals):
+    if intervals is None:
+        return None
+    w = np.asarray(intervals, dtype=float).reshape(-1, 2)
+    if not np.all(np.isfinite(w)) or np.any(w[:, 1] < w[:, 0]):
+        raise ValueError("intervals must be finite (start, end) pairs [s] with end >= start")
+    return w
+
+
+class _OnEpochs:
+    """Items are filter epochs (the item is the epoch index), optionally restricted to
+    time intervals and thinned to every ``every``-th epoch; available at once."""
+
+    def _init_sched(self, intervals, every, stream):
+        self.intervals = _intervals(intervals)
+        self.every = int(every)
+        if self.every < 1:
+            raise ValueError(f"every must be >= 1, got {every}")
+        self.stream = int(stream)
+        self._t = None
+
+    def _keep(self, t):
+        keep = np.ones(t.size, dtype=bool)
+        keep[0] = False                                   # no step rate before epoch 0
+        if self.intervals is not None:
+            w = self.intervals
+            keep &= ((t[:, None] >= w[:, 0] - 1e-9) & (t[:, None] <= w[:, 1] + 1e-9)).any(1)
+        return keep
+
+    def epochs(self, grid):
+        t = grid.t
+        self._t = t
+        idx = np.flatnonzero(self._keep(t))[::self.every]
+        return {int(k): [int(k)] for k in idx}
+
+    def times(self, item):
+        t = float(self._t[item])
+        return t, t
+
+
+def _sigma(sigma, m, what):
+    s = np.broadcast_to(np.asarray(sigma, dtype=float), (m,)).copy()
+    if not np.all(s > 0) or not np.all(np.isfinite(s)):
+        raise ValueError(f"{what} sigma must be finite and > 0, got {sigma}")
+    return s
+
+
+class ZeroVelocity(_OnEpochs):
+    """Zero-velocity update (ZUPT): the carrier is at rest on the Earth.
+
+    ``z = ṽ^n`` (ENU [m/s]; east, north for a 2-state velocity block), ``H = I`` on δv.
+
+    Parameters
+    ----------
+    intervals : sequence of (start, end) [s]
+        Stationary intervals (e.g. :func:`sinslab.fusion.stationarity.detect`).
+    sigma : float or array_like (3,)
+        [m/s].
+    every : int
+        Apply at every ``every``-th filter epoch inside the intervals.
+    stream : int
+    """
+
+    def __init__(self, intervals, sigma=0.01, *, every=1, stream=0):
+        self._init_sched(intervals, every, stream)
+        self.sigma = _sigma(sigma, 3, "ZUPT")
+
+    def matrices(self, ep: Epoch):
+        lay = ep.layout
+        sv = lay.slice("dv")
+        k = sv.stop - sv.start
+        H = np.zeros((k, ep.n))
+        H[:, sv] = np.eye(k)
+        return ep.streams[self.stream].vel[:k].copy(), H, self.sigma[:k] ** 2
+
+
+class ZeroRate(_OnEpochs):
+    """Zero angular-rate update (ZARU): at rest the body turns with the Earth only.
+
+    ``z = ω̃_ib^b − C̃_n^b ω_ie^n(L̃)`` [rad/s] with the compensated rate of the last
+    filter step. With ``C̃_b^n = (I − φ×) C_b^n`` and ``ω̃ = ω + δω``:
+    ``z = δω + C_n^b (ω_ie^n×) φ − C_n^b (∂ω_ie^n/∂L) δL``; ``δω`` is expressed through
+    every block feeding the gyro compensation (bias, Gauss–Markov: ``x``; scale:
+    ``diag(ω) x``), so the heading error is observable through the gyro bias only as far
+    as ``ω_ie`` allows, and the bias itself (hence the heading drift) is held.
+
+    Parameters
+    ----------
+    intervals : sequence of (start, end) [s]
+    sigma : float or array_like (3,)
+        [rad/s] (of the mean rate over one filter step: ARW / √T plus vibration).
+    every, stream
+        As in :class:`ZeroVelocity`.
+    """
+
+    def __init__(self, intervals, sigma, *, every=1, stream=0):
+        self._init_sched(intervals, every, stream)
+        self.sigma = _sigma(sigma, 3, "ZARU")
+
+    def matrices(self, ep: Epoch):
+        lay = ep.layout
+        nr = ep.streams[self.stream]
+        Cnb = nr.C_bn.T
+        lat = nr.lat
+        wie = np.array([0.0, E.WIE * math.cos(lat), E.WIE * math.sin(lat)])
+        dwie = np.array([0.0, -E.WIE * math.sin(lat), E.WIE * math.cos(lat)])
+        z = nr.omega_b - Cnb @ wie
+        H = np.zeros((3, ep.n))
+        H[:, lay.slice("phi")] = Cnb @ A.skew(wie)
+        H[:, lay.slice("dp").start] = -Cnb @ dwie
+        _add_rate_H(H, lay, np.eye(3), nr.omega_b)
+        return z, H, self.sigma ** 2
+
+
+def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None):
+    """Velocity of a vehicle point in vehicle axes and its Jacobian.
+
+    ``v^v = C_b^v (C̃_n^b ṽ^n + ω̃_ib^b × l)`` [m/s] (l: IMU -> point, body axes [m]);
+    ``∂/∂φ = −C_b^v C_n^b (v^n×)``, ``∂/∂δv = C_b^v C_n^b``, ``∂/∂δω = −C_b^v (l×)``,
+    ``∂/∂δl = C_b^v (ω×)`` (lever error state, computed − true, when ``lever_block``).
+    """
+    Cnb = nr.C_bn.T
+    w = nr.omega_b
+    vb = Cnb @ nr.vel + np.cross(w, lever)
+    H = np.zeros((3, n))
+    sv = lay.slice("dv")
+    k = sv.stop - sv.start
+    H[:, sv] = (Cvb @ Cnb)[:, :k]
+    H[:, lay.slice("phi")] = -Cvb @ Cnb @ A.skew(nr.vel)
+    _add_rate_H(H, lay, -Cvb @ A.skew(lever), w)
+    if lever_block is not None:
+        H[:, lay.slice(lever_block)] = Cvb @ A.skew(w)
+    return Cvb @ vb, H
+
+
+def _lever(lever_arm):
+    return np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float).reshape(3)
+
+
+class NonHolonomic(_OnEpochs):
+    """Non-holonomic constraint of a wheeled vehicle: no lateral and no vertical velocity
+    of the wheel contact point in vehicle axes (RFU: x right, z up).
+
+    ``z = [v^v_x, v^v_z]`` of :func:`_vehicle_velocity` [m/s].
+
+    Parameters
+    ----------
+    sigma : float or array_like (2,)
+        Lateral, vertical [m/s] (the constraint is violated by skid and suspension).
+    mount : see :func:`mount_matrix`
+        IMU body -> vehicle axes.
+    lever_arm : array_like (3,), optional
+        IMU -> constraint point (e.g. rear-axle centre), body axes [m].
+    intervals : sequence of (start, end) [s], optional
+        Where the constraint holds (default: every epoch).
+    lever_block : str, optional
+        Name of a :func:`sinslab.nav.errstate.lever_arm` block estimating the lever error.
+    every, stream
+        As in :class:`ZeroVelocity`.
+    """
+
+    rows = (0, 2)
+
+    def __init__(self, sigma=0.1, *, mount=None, lever_arm=None, intervals=None, lever_block=None,
+                 every=1, stream=0):
+        self._init_sched(intervals, every, stream)
+        self.sigma = _sigma(sigma, 2, "NHC")
+        self.Cvb = mount_matrix(mount)
+        self.lever = _lever(lever_arm)
+        self.lever_block = lever_block
+
+    def matrices(self, ep: Epoch):
+        vv, H = _vehicle_velocity(ep.streams[self.stream], ep.layout, ep.n, self.Cvb, self.lever,
+                                  self.lever_block)
+        r = list(self.rows)
+        return vv[r], H[r], self.sigma ** 2
+
+
+class BodyVelocity(_Timed):
+    """A measured 3-D velocity of a vehicle point in vehicle axes (e.g. a Doppler
+    velocity log, or wheel speed with the non-holonomic zeros).
+
+    ``z = v^v(computed) − v_meas`` [m/s], linearised by :func:`_vehicle_velocity`.
+
+    Parameters
+    ----------
+    t : array_like (J,)
+        Validity times [s].
+    vel : array_like (J, 3)
+        Vehicle-axis velocity [m/s].
+    sigma : array_like (3,) or (J, 3)
+        [m/s].
+    mount, lever_arm, lever_block, stream
+        As in :class:`NonHolonomic`.
+    t_arrive, outages, windows
+        As in :class:`PositionFix`.
+    """
+
+    def __init__(self, t, vel, sigma, *, mount=None, lever_arm=None, lever_block=None,
+                 t_arrive=None, outages=(), windows=None, stream=0):
+        self._init_times(t, t_arrive, outages, windows)
+        J = self.t_valid.size
+        self.vel = np.asarray(vel, dtype=float).reshape(J, 3)
+        if not np.all(np.isfinite(self.vel)):
+            raise ValueError("body velocities contain NaN/inf")
+        self.sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (J, 3))
+        if not np.all(self.sigma > 0):
+            raise ValueError("body velocity sigma must be > 0")
+        self.Cvb = mount_matrix(mount)
+        self.lever = _lever(lever_arm)
+        self.lever_block = lever_block
+        self.stream = int(stream)
+
+    def matrices(self, ep: Epoch):
+        vv, H = _vehicle_velocity(ep.streams[self.stream], ep.layout, ep.n, self.Cvb, self.lever,
+                                  self.lever_block)
+        return vv - self.vel[ep.item], H, self.sigma[ep.item] ** 2
+
+
+class Odometer(_OnEpochs):
+    """Wheel speed: the forward velocity ``v^v_y`` of the wheel point, from a time series
+    with its own time stamps, linearly interpolated to the filter epochs it spans.
+
+    The odometer reads ``s̃ = (1 + k) v^v_y`` with the scale-factor error ``k`` (state of
+    an :func:`sinslab.nav.errstate.odometer_scale` block, when ``scale_block`` names
+    one): ``z = v^v_y(computed) − s̃``, ``∂z/∂k = −s̃`` (to first order in k). With
+    ``nhc_sigma`` the non-holonomic zeros ``v^v_x, v^v_z`` are stacked as rows 2, 3.
+
+    Parameters
+    ----------
+    t : array_like (J,)
+        Odometer time stamps [s], strictly increasing.
+    speed : array_like (J,)
+        Forward speed [m/s], finite and >= 0.
+    sigma : float
+        Speed noise [m/s] at one filter epoch (include quantisation: step/√12).
+    mount, lever_arm, lever_block, intervals, every, stream
+        As in :class:`NonHolonomic` (``lever_arm``: IMU -> wheel point).
+    scale_block : str or None
+        Name of the odometer scale-factor block (None: no scale state).
+    nhc_sigma : float or array_like (2,), optional
+        Also constrain lateral and vertical velocity [m/s].
+    """
+
+    def __init__(self, t, speed, sigma, *, mount=None, lever_arm=None, lever_block=None,
+                 scale_block="kod", nhc_sigma=None, intervals=None, every=1, stream=0):
+        self._init_sched(intervals, every, stream)
+        self.t_odo = np.asarray(t, dtype=float).ravel()
+        self.speed = np.asarray(speed, dtype=float).ravel()
+        if self.t_odo.size < 2 or self.speed.shape != self.t_odo.shape:
+            raise ValueError(f"odometer: {self.t_odo.size} times and {self.speed.size} speeds "
+                             "(need >= 2 of each, equal numbers)")
+        if not (np.all(np.isfinite(self.t_odo)) and np.all(np.diff(self.t_odo) > 0)):
+            raise ValueError("odometer times must be finite and strictly increasing")
+        if not np.all(np.isfinite(self.speed)) or np.any(self.speed < 0):
+            raise ValueError("odometer speeds must be finite and >= 0")
+        self.sigma = _sigma(sigma, 1, "odometer")
+        self.nhc_sigma = None if nhc_sigma is None else _sigma(nhc_sigma, 2, "NHC")
+        self.Cvb = mount_matrix(mount)
+        self.lever = _lever(lever_arm)
+        self.lever_block = lever_block
+        self.scale_block = scale_block
+
+    def _keep(self, t):
+        keep = super()._keep(t)
+        keep &= (t >= self.t_odo[0] - 1e-9) & (t <= self.t_odo[-1] + 1e-9)
+        return keep
+
+    def epochs(self, grid):
+        t = grid.t
+        if self.t_odo[-1] < t[0] or self.t_odo[0] > t[-1]:
+            raise ValueError(f"odometer times {self.t_odo[0]:.3f}..{self.t_odo[-1]:.3f} s do not "
+                             f"overlap the filter epochs {t[0]:.3f}..{t[-1]:.3f} s")
+        return super().epochs(grid)
+
+    def reading(self, t):
+        """Wheel speed [m/s] interpolated at ``t`` [s]."""
+        return float(np.interp(t, self.t_odo, self.speed))
+
+    def matrices(self, ep: Epoch):
+        vv, H = _vehicle_velocity(ep.streams[self.stream], ep.layout, ep.n, self.Cvb, self.lever,
+                                  self.lever_block)
+        s = self.reading(ep.t)
+        rows = [1] if self.nhc_sigma is None else [1, 0, 2]
+        z = vv[rows]
+        z[0] -= s
+        H = H[rows]
+        if self.scale_block is not None:
+            H[0, ep.layout.slice(self.scale_block)] = -s
+        R = self.sigma ** 2 if self.nhc_sigma is None else np.r_[self.sigma, self.nhc_sigma] ** 2
+        return z, H, R
+
+
+class LeverPositionFix(PositionFix):
+    """:class:`PositionFix` with the antenna lever arm estimated: the block ``lever_block``
+    (:func:`sinslab.nav.errstate.lever_arm`) holds ``δl = l_used − l_true`` and
+    ``∂z/∂δl = C_b^n`` (rows north, east, up) ``− C_b^n (ω×) Δt`` (extrapolation).
+    ``lever_arm`` is the lever used (default zero, an unknown antenna offset)."""
+
+    def __init__(self, t_valid, pos, sigma, *, lever_block="lev", lever_arm=None, **kw):
+        super().__init__(t_valid, pos, sigma, lever_arm=lever_arm, **kw)
+        self.lever_block = lever_block
+
+    def matrices(self, ep: Epoch):
+        z, H, R = super().matrices(ep)
+        nr = ep.streams[self.stream]
+        C = nr.C_bn
+        dtf = ep.t - self.t_valid[ep.item]
+        n_z = z.size
+        H[:, ep.layout.slice(self.lever_block)] = (C - dtf * C @ A.skew(nr.omega_b))[[1, 0, 2]][:n_z]
+        return z, H, R
+
+
+class LeverVelocityFix(VelocityFix):
+    """:class:`VelocityFix` with the antenna lever arm estimated (``∂z/∂δl = C_b^n (ω×)``)
+    and the lever term ``−C_b^n (l×)`` on every block feeding the gyro compensation."""
+
+    def __init__(self, t_valid, vel, sigma, *, lever_block="lev", lever_arm=None, **kw):
+        super().__init__(t_valid, vel, sigma, lever_arm=lever_arm, **kw)
+        self.lever_block = lever_block
+
+    def matrices(self, ep: Epoch):
+        z, H, R = super().matrices(ep)
+        nr = ep.streams[self.stream]
+        C = nr.C_bn
+        lay = ep.layout
+        for b in lay.blocks:                        # rebuilt below for every gyro block
+            if getattr(b, "feeds", None) in ("gyro_bias", "gyro_scale"):
+                H[:, lay.slice(b.name)] = 0.0
+        _add_rate_H(H, lay, -C @ A.skew(_lever(self.lever)), nr.omega_b)
+        H[:, lay.slice(self.lever_block)] = C @ A.skew(nr.omega_b)
+        return z, H, R

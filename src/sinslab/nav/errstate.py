@@ -67,7 +67,7 @@ __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices", "static_alignment_model",
-    "joint_rotation_model", "CORES",
+    "joint_rotation_model", "CORES", "lever_arm", "odometer_scale",
 ]
 
 # ----------------------------------------------------------------------------- layout
@@ -90,11 +90,19 @@ class Block:
     units : tuple of str
         Display unit per state (``"arcmin"``, ``"m/s"``, ``"deg/h"``, ``"ug"``, ``"ppm"``,
         ``"arcsec"``, ``"m"``); states are SI inside, the unit is for printing only.
+    feeds : {"gyro_bias", "accel_bias", "gyro_scale", "accel_scale", None}
+        Which INS compensation a closed loop feeds the block's estimate into (body-axis
+        sensor blocks); None: not a sensor compensation (core blocks, installation,
+        lever arms, nav-frame biases).
+    axes : str
+        Body axes of the states for a block with ``feeds`` (subset of ``"xyz"``).
     """
 
     name: str
     labels: tuple
     units: tuple
+    feeds: str | None = None
+    axes: str = ""
 
     def __post_init__(self):
         if len(self.labels) != len(self.units):
@@ -471,7 +479,21 @@ class SensorBlock:
 
     def block(self, suffix="") -> Block:
         ax = self.axes if self.frame == "body" else "".join("ENU"[_AXES[a]] for a in self.axes)
-        return Block(self.name + suffix, tuple(f"{self.name}_{a}{suffix}" for a in ax), (self.unit,) * self.size)
+        return Block(self.name + suffix, tuple(f"{self.name}_{a}{suffix}" for a in ax), (self.unit,) * self.size,
+                     self.feeds, self.axes)
+
+    @property
+    def feeds(self):
+        """The INS compensation the states correct (see :attr:`Block.feeds`): a body-axis
+        gyro/accelerometer ``bias`` or ``markov`` block feeds the bias compensation, a
+        ``scale`` block the scale-factor compensation; anything else feeds nothing."""
+        if self.sensor not in ("gyro", "accel") or self.frame != "body":
+            return None
+        if self.kind in ("bias", "markov"):
+            return self.sensor + "_bias"
+        if self.kind == "scale":
+            return self.sensor + "_scale"
+        return None
 
     def coupling(self, nav: NavPoint) -> np.ndarray:
         """Map ``S + (3, k)`` from the block's states to ``δω_ib^b`` or ``δf^b``."""
@@ -840,3 +862,20 @@ def static_alignment_model(lat, g=None):
     H[0, 1], H[0, 6] = -g, 1.0
     H[1, 0], H[1, 7] = g, 1.0
     return F, G, H
+
+
+# ------------------------------------------------------------- aiding-sensor blocks
+def lever_arm(name="lev"):
+    """Lever arm of an aiding sensor (e.g. a GNSS antenna) [m], body axes, random constant.
+
+    The states are the error of the lever arm the measurement uses, computed minus true
+    (``δl = l_used − l_true``); they have no dynamics, feed nothing back to the INS and are
+    read by the lever-arm measurements of :mod:`sinslab.fusion.measurements`.
+    """
+    return SensorBlock(name, None, "constant", "xyz", "body", None, None, "m")
+
+
+def odometer_scale(name="kod"):
+    """Odometer scale-factor error [-], random constant: the wheel speed reads
+    ``s̃ = (1 + k) v_fwd`` (one state on the forward body axis y)."""
+    return SensorBlock(name, None, "constant", "y", "body", None, None, "ppm")
