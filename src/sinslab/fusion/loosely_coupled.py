@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sinslab.fusion import driver
-from sinslab.fusion.driver import LiveStream, _null  # noqa: F401  (_null: progress-less context)
+from sinslab.fusion.driver import LiveStream
 from sinslab.fusion.feedback import FeedbackLayout
 from sinslab.fusion.lag import ExactReprocessing, OnArrival
 from sinslab.fusion.measurements import PositionFix, Stack, VelocityFix
@@ -93,10 +93,6 @@ class LooselyCoupled:
     innovation: np.ndarray
     nis: np.ndarray
     layout: object
-
-
-def _vec3_or(a):
-    return np.zeros(3) if a is None else np.asarray(a, dtype=float).reshape(3).copy()
 
 
 def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyro_arw=None,

@@ -31,7 +31,7 @@ from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
-from sinslab.fusion.loosely_coupled import _null, lc_model, loosely_coupled
+from sinslab.fusion.loosely_coupled import lc_model, loosely_coupled
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "parse_outages", "periodic_outages",
            "fix_errors", "outage_end_errors", "level_from_rest", "leveled_start"]

@@ -304,10 +304,9 @@ def navigate_pair(imu: ImuRecord, init1: NavState, e1: int, init2: NavState, e2:
         return height[a:b + 1]
 
     from sinslab.core.progress import progress as bar
-    quiet = progress is False
     h1, h2 = init1.h, init2.h
-    with (bar("navigating two solutions", total=nend - e1, unit="samples") if not quiet
-          else _null()) as pb:
+    with bar("navigating two solutions", total=nend - e1, unit="samples",
+             enabled=progress is not False) as pb:
         for a, b in zip(bounds[:-1], bounds[1:]):
             kw = dict(vertical=vertical, out_every=int(out_every))
             u = strapdown.step(s1, imu.dtheta[a:b], imu.dv[a:b], dt, nsub, height=hslice(h1, a, b),
@@ -320,8 +319,7 @@ def navigate_pair(imu: ImuRecord, init1: NavState, e1: int, init2: NavState, e2:
                 r2 += u2 // out_every
             if not (np.all(np.isfinite(s1[:10])) and np.all(np.isfinite(s2[:10]))):
                 raise ValueError(f"navigation became non-finite by t = {imu.t[b - 1]:.6g} s")
-            if pb is not None:
-                pb.advance(b - a)
+            pb.advance(b - a)
     ep1 = e1 + oes * np.arange(m1 + 1)
     ep2 = e2 + oes * np.arange(m2 + 1)
     tt = np.concatenate([[imu.t0], imu.t])
@@ -332,14 +330,6 @@ def navigate_pair(imu: ImuRecord, init1: NavState, e1: int, init2: NavState, e2:
     return (strapdown.rows_to_series(tt[ep1], rows1, m1_),
             strapdown.rows_to_series(tt[ep2], rows2, m2_),
             strapdown.rows_to_series(tt[ep2], rows_mean, m2_))
-
-
-class _null:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *a):
-        return False
 
 
 def _grid(imu, t1, delay, step_align, oes, what):
