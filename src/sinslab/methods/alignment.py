@@ -290,13 +290,6 @@ def euler_sigma(C, P_phi, delta=1e-6):
     return np.sqrt(np.maximum(np.diag(cov), 0.0))
 
 
-def _vec3(x, name):
-    a = np.broadcast_to(np.asarray(x, dtype=float), (3,)).copy()
-    if not np.all(np.isfinite(a)) or np.any(a < 0):
-        raise ValueError(f"{name} must be finite and >= 0, got {x!r}")
-    return a
-
-
 # ------------------------------------------------------------------- coarse alignment
 @dataclass(frozen=True)
 class CoarseAlignment:
@@ -405,8 +398,8 @@ def coarse_align(imu: ImuRecord, lat, h=0.0, *, gyro_bias=None, accel_bias=None,
         phi_bias = limit_accuracy(lat, att, gb, ab, g=g)[:3]
     phi_sigma = None
     if gyro_arw is not None or accel_vrw is not None:
-        sw = C @ np.diag(_vec3(0.0 if gyro_arw is None else gyro_arw, "gyro_arw") ** 2) @ C.T / T
-        sf = C @ np.diag(_vec3(0.0 if accel_vrw is None else accel_vrw, "accel_vrw") ** 2) @ C.T / T
+        sw = C @ np.diag(units.vec3(gyro_arw, "gyro_arw", default=0.0, nonneg=True, finite=True) ** 2) @ C.T / T
+        sf = C @ np.diag(units.vec3(accel_vrw, "accel_vrw", default=0.0, nonneg=True, finite=True) ** 2) @ C.T / T
         phi_sigma = _phi_noise_sigma(lat, g, np.sqrt(np.diag(sf)), np.sqrt(np.diag(sw)))
     phi_sigma_data = None
     nper = max(1, int(round(1.0 / imu.dt)))
@@ -715,7 +708,7 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
     wn = earth.wie_n(lat)
     if gyro_arw is None:
         gyro_arw = noise_from_data(imu, T)[0]
-    gyro_arw = _vec3(gyro_arw, "gyro_arw")
+    gyro_arw = units.vec3(gyro_arw, "gyro_arw", nonneg=True, finite=True)
     if accel_vrw is None:
         # measurement noise as the filter sees it: Allan deviation at τ = T of the
         # horizontal specific force in the (open-loop) computed frame
@@ -726,7 +719,7 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
         R = np.diag(np.maximum(adev, 1e-12) ** 2)
         accel_vrw = np.r_[adev, adev.mean()] * math.sqrt(T)
     else:
-        accel_vrw = _vec3(accel_vrw, "accel_vrw")
+        accel_vrw = units.vec3(accel_vrw, "accel_vrw", nonneg=True, finite=True)
         R = (C0 @ np.diag(accel_vrw ** 2) @ C0.T)[:2, :2] / T
         if abs(R[0, 1]) <= 1e-9 * math.sqrt(R[0, 0] * R[1, 1]):
             R = np.diag(np.diag(R))          # isotropic noise: exactly diagonal (scalar updates)
