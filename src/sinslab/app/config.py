@@ -24,7 +24,7 @@ A validated value is a :class:`Quantity` — a ``float`` holding the SI value th
 remembers the text it came from (``q.text``), so that the resolved ``config.toml`` shows
 ``"2 h"`` and not ``7200.0``. Vectors (:func:`QV`) are :class:`QuantityVec`, a tuple of
 SI floats (``np.asarray(cfg.imu.gyro_bias)``). A bare number is refused unless the key
-names its unit (``duration_s: float``), as DESIGN §2 asks.
+names its unit (``duration_s: float``), as docs/architecture.md's conventions ask.
 
 Resolution order (:func:`resolve`): model defaults (the paper's scenario) → the
 experiment's ``quick`` overrides (with ``--quick``) → the TOML file (``--config``) →

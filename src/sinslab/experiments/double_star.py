@@ -37,7 +37,7 @@ from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Met
 NAME = "double-star"
 PURPOSE = "paper 003: Beidou-1 two-GEO fixes with 1 s lag + SINS in covert windows (lag-aware filter)"
 PAPER = ("Liu Jianye, Lin Xueyuan, Lai Jizhou, Sun Yongrong: One fusion method of double-star "
-         "positioning system and SINS (2004), papers/003_453ed5ec78daf7f5.txt")
+         "positioning system and SINS, 2004")
 NOTES = [
     "Not stated by the paper, assumed here: gyro Markov correlation time 3600 s, accelerometer "
     "Markov correlation time 1800 s; 'gyro white noise 0.1 deg/h' read as a rate white noise "

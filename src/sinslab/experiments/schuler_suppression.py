@@ -43,7 +43,8 @@ from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Met
 NAME = "schuler-suppression"
 PURPOSE = ("Schuler oscillation suppression by delayed alignment: two solutions T_s/2 apart "
            "and their mean (ship 48 h / swinging table 24 h)")
-PAPER = "Zhao, Li, Cheng, Jia, Wang 2016, papers/004_e13799442e2fb1aa.txt"
+PAPER = ("Zhao Lin, Li Jiushun, Cheng Jianhua, Jia Chun, Wang Qiufan: Schuler oscillation "
+         "suppression of marine SINS based on delayed alignment, 2016")
 NOTES = [
     "Single = solution 1 (aligned until t1); mean = (solution 1 + solution 2)/2; both compared "
     "on [t2, end]. Amplitudes: least squares on the known frequencies ω_s, ω_s ± ω_ie·sinL, "

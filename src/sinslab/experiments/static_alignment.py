@@ -48,7 +48,7 @@ from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Met
 NAME = "static-alignment"
 PURPOSE = "paper 000: stationary fine alignment, full 8-state vs reduced 5-state filter vs limit accuracy"
 PAPER = ("Yan Gongmin, Qin Yongyuan: Initial alignment accuracy analysis and simulation of SINS "
-         "on a stationary base, Computer Simulation 23(10), 2006 (papers/000_2d9aa5c00fde07cd.txt)")
+         "on a stationary base, Computer Simulation 23(10), 2006")
 NOTES = [
     "Latitude is not stated by the paper: 34.246 deg N (Xi'an, NWPU) is assumed.",
     "Heading is clockwise from north (sinslab yaw = −heading).",

@@ -6,7 +6,7 @@ Conventions (binding for every model in this module)
 - Every error is **computed minus true**:
 
   * attitude: the misalignment φ (rad, n frame) of the computed frame n',
-    ``C_b^{n'} = (I − φ×) C_b^n`` (DESIGN.md), i.e. ``φ = attitude.misalignment(C_true, C_comp)``;
+    ``C_b^{n'} = (I − φ×) C_b^n`` (the convention of :mod:`sinslab.core.attitude`), i.e. ``φ = attitude.misalignment(C_true, C_comp)``;
   * velocity: ``δv^n = ṽ^n − v^n`` [m/s];
   * position: ``δp = [δL, δλ, δh] = p̃ − p`` [rad, rad, m];
   * sensors: ``ω̃_ib^b = ω_ib^b + δω_ib^b``, ``f̃^b = f^b + δf^b`` (measured minus true), so a

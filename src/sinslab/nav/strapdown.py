@@ -1,6 +1,6 @@
 """Strapdown mechanization in the ENU frame (compiled hot loop).
 
-Frames and conventions (see DESIGN.md): navigation frame n = ENU, body frame b = RFU,
+Frames and conventions (docs/architecture.md): navigation frame n = ENU, body frame b = RFU,
 attitude quaternion ``q`` = scalar-first Hamilton quaternion of ``C_b^n``. SI units:
 rad, m, s. IMU input is body-frame increments Δθ [rad] and Δv [m/s] per sample.
 
