@@ -369,7 +369,7 @@ def test_integration_modes_on_a_short_flight(flight):
         r = ds.integrate(imu, init, exact, m, P0, mode=mode, height=truth.h, windows=win)
         assert r.t.shape == (201,) and r.sigma.shape == (201, 16)
         assert len(r.applied) == 12                  # valid 100..111, arriving 101..112
-        out[mode] = np.hypot(*ds.nav_errors(r.nav, tt)[2].T)
+        out[mode] = np.hypot(*ds.horizontal_errors(r.nav, tt)[2].T)
     # before the window all three are the same free INS (zero-lag updates at 100 already)
     assert np.allclose(out["lag-aware"][:101], out["lag-ignore"][:101])
     assert np.allclose(out["lag-aware"][:100], out["zero-lag"][:100])
@@ -383,7 +383,7 @@ def test_integration_modes_on_a_short_flight(flight):
     # the exact lagged form too
     r = ds.integrate(imu, init, exact, m, P0, mode="lag-aware", lag_method="exact", height=truth.h,
                      windows=win)
-    e = np.hypot(*ds.nav_errors(r.nav, tt)[2].T)
+    e = np.hypot(*ds.horizontal_errors(r.nav, tt)[2].T)
     assert e[112] == pytest.approx(out["zero-lag"][112], rel=0.1, abs=2.0)
 
 
@@ -440,7 +440,7 @@ def test_random_latency_and_fix_file(flight, tmp_path):
     for mode in ("lag-aware", "zero-lag"):
         r = ds.integrate(imu, init, rec, m, P0, mode=mode, height=truth.h, windows=win)
         assert np.allclose(r.t_applied, np.ceil(rec.t_arrive - 1e-6) if mode == "lag-aware" else rec.t)
-        e[mode] = np.hypot(*ds.nav_errors(r.nav, tt)[2].T)
+        e[mode] = np.hypot(*ds.horizontal_errors(r.nav, tt)[2].T)
     assert e["lag-aware"][131] == pytest.approx(e["zero-lag"][131], rel=0.15, abs=3.0)
     assert e["lag-aware"][131] < 0.3 * e["lag-aware"][100]
 

@@ -239,7 +239,7 @@ def _one(rng, S, zero_errors=False):
     for mode in _MODES:
         r = ds.integrate(meas, init, fixes, model, P0, mode=mode, lag_method=S["lag_method"],
                          height=truth.h, windows=S["windows"], kf_dt=S["kf_dt"], nsub=S["nsub"])
-        phi, dv, dp = ds.nav_errors(r.nav, tt)
+        phi, dv, dp = ds.horizontal_errors(r.nav, tt)
         k = _KEY[mode]
         out[f"phi_{k}"] = phi
         out[f"dv_{k}"] = dv

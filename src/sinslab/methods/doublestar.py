@@ -78,7 +78,7 @@ __all__ = [
     "ecef", "measure_ranges", "solve_fix", "request_schedule", "simulate_fixes",
     "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate",
     "StoredStateUpdate",
-    "MODES", "nav_errors", "check_windows",
+    "MODES", "horizontal_errors", "check_windows",
 ]
 
 #: Geocentric radius of the geostationary orbit [m].
@@ -664,8 +664,9 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
                        mode, lag_method)
 
 
-def nav_errors(nav, truth):
-    """Errors of state rows against the truth at the same epochs (:func:`compare.nav_errors`).
+def horizontal_errors(nav, truth):
+    """Horizontal errors of state rows against the truth at the same epochs, from the one
+    error definition :func:`sinslab.nav.compare.nav_errors`.
 
     Parameters
     ----------
