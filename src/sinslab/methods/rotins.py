@@ -13,9 +13,11 @@ frames, errors computed minus true, SI inside).
 """
 from __future__ import annotations
 
+import numpy as np
+
 from sinslab.nav.errstate import DifferenceModel, accel_bias, gyro_bias
 
-__all__ = ["joint_rotation_model"]
+__all__ = ["joint_rotation_model", "windowed_std"]
 
 
 def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
@@ -55,3 +57,67 @@ def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, acc
         gyro_noise1, gyro_noisek, accel_noise1, accel_noisek, accel_noise_axes="xy",
         order=["dp", "dv", "phi", "eps_1", "eps_k", "nabla_1", "nabla_k"],
         radius_derivatives=radius_derivatives)
+
+
+def windowed_std(t, x, start, window):
+    """Online evaluation index: standard deviation of an estimate over consecutive windows
+    (Wang, Wu et al. 2018, eq 21).
+
+    Window j covers ``start + j·window ≤ t < start + (j+1)·window``; only windows that end
+    at or before ``t[-1]`` are evaluated. Inside a window of N samples the index is the
+    population deviation ``sqrt(1/N Σ (x_i − μ)²)`` (1/N as in eq 21).
+
+    Parameters
+    ----------
+    t : array (M,)
+        Sample times [s], strictly increasing.
+    x : array (M,) or (M, k)
+        The estimate (e.g. ε_z1 [rad/s]) at ``t``; columns are evaluated separately.
+    start : float
+        Start of the first window [s] (same time origin as ``t``); before ``t[-1]``.
+    window : float
+        Window length [s], > 0 and at most ``t[-1] − max(start, t[0])``.
+
+    Returns
+    -------
+    t_end : ndarray (J,)
+        End time of each window [s].
+    std : ndarray (J,) or (J, k)
+        Deviation per window, in the units of ``x``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the problem (bad window, start, span, shapes or empty window).
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    if t.ndim != 1 or t.size < 2:
+        raise ValueError(f"windowed_std: t must be 1-D with at least 2 samples, got shape {t.shape}")
+    if x.shape[:1] != t.shape:
+        raise ValueError(f"windowed_std: x must have {t.size} rows like t, got shape {x.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
+        raise ValueError("windowed_std: t must be finite and strictly increasing")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("windowed_std: x has non-finite values")
+    start, window = float(start), float(window)
+    if not (np.isfinite(window) and window > 0):
+        raise ValueError(f"windowed_std: window must be > 0 s, got {window}")
+    if not (np.isfinite(start) and start < t[-1]):
+        raise ValueError(f"windowed_std: start {start} s is not before the last sample {t[-1]} s")
+    span = t[-1] - max(start, t[0])
+    if window > span:
+        raise ValueError(f"windowed_std: window {window} s is longer than the {span} s from start to the end")
+    first = max(start, t[0])
+    # windows are counted from ``start`` even when it precedes the record
+    j0 = int(np.floor((first - start) / window + 1e-12))
+    J = int(np.floor((t[-1] - start) / window + 1e-12)) - j0
+    edges = start + window * np.arange(j0, j0 + J + 1)
+    idx = np.searchsorted(t, edges, side="left")
+    out = []
+    for a, b in zip(idx[:-1], idx[1:]):
+        if b == a:
+            raise ValueError(f"windowed_std: a {window} s window holds no sample; the sampling is too sparse")
+        seg = x[a:b]
+        out.append(np.sqrt(np.mean((seg - seg.mean(axis=0)) ** 2, axis=0)))
+    return edges[1:], np.array(out)
