@@ -13,11 +13,15 @@ frames, errors computed minus true, SI inside).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from sinslab.nav.errstate import DifferenceModel, accel_bias, gyro_bias
+from sinslab.estimation import observability as obs
+from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bias
 
-__all__ = ["joint_rotation_model", "windowed_std"]
+__all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleObservability",
+           "schedule_observability"]
 
 
 def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
@@ -121,3 +125,141 @@ def windowed_std(t, x, start, window):
         seg = x[a:b]
         out.append(np.sqrt(np.mean((seg - seg.mean(axis=0)) ** 2, axis=0)))
     return edges[1:], np.array(out)
+
+
+# ----------------------------------------------------------------------- observability
+def _measured_blocks(model):
+    lay = model.layout
+    x1 = np.concatenate([np.arange(lay.slice(b).start, lay.slice(b).stop) for b in ("dp", "dv")])
+    x2 = np.setdiff1d(np.arange(lay.n), x1)
+    return x1, x2
+
+
+def joint_subsystem(model: DifferenceModel, C1n, Ckn, lat, h=0.0):
+    """The unmeasured subsystem ``(A, C) = (F22, F12)`` of the joint model at one stop.
+
+    The measurement gives the difference states x1 = [δL δλ δvE δvN]_1k directly, so
+    (F, H) is observable exactly when ``ẋ2 = F22 x2``, ``y = F12 x2`` is (Wang, Wu et al.
+    2018, eqs 11–13); x2 = [φ_1k, ε_1, ε_k, ∇_1, ∇_k] (13 states).
+
+    Parameters
+    ----------
+    model : DifferenceModel
+        Must have core blocks ``dp`` and ``dv`` (e.g. :func:`joint_rotation_model`).
+    C1n, Ckn : array (3, 3)
+        ``C_b^n`` of IMU 1 and IMU k during the stop.
+    lat : float
+        Latitude [rad] of the stationary carrier.
+    h : float
+        Height [m].
+
+    Returns
+    -------
+    A : ndarray (n2, n2)
+    C : ndarray (n1, n2)
+    """
+    x1, x2 = _measured_blocks(model)
+    F = model.F(NavPoint.static(lat, np.asarray(C1n, float), h), NavPoint.static(lat, np.asarray(Ckn, float), h))
+    return F[np.ix_(x2, x2)], F[np.ix_(x1, x2)]
+
+
+@dataclass(frozen=True)
+class ScheduleObservability:
+    """Observability of the joint model along a sequence of stops.
+
+    Attributes
+    ----------
+    labels : tuple of str
+        The x2 states, in order.
+    rank_static : int
+        Rank of the first stop alone.
+    segment_ranks : list of int
+        Rank of each stop alone.
+    ranks : list of int
+        Rank of the stacked matrix after stops 1, 2, …, m (time order).
+    degree : ndarray (n2,)
+        Per-state SVD degree of observability of all m stops
+        (:class:`sinslab.estimation.observability.ObservabilityResult`).
+    result : ObservabilityResult
+        Full analysis of the m stops (singular values, null space, scale).
+    method : str
+        ``"som"`` or ``"tom"``.
+    """
+
+    labels: tuple
+    rank_static: int
+    segment_ranks: list
+    ranks: list
+    degree: np.ndarray
+    result: obs.ObservabilityResult
+    method: str
+
+    @property
+    def n(self):
+        return len(self.labels)
+
+    @property
+    def observable(self) -> bool:
+        return self.ranks[-1] == self.n
+
+
+def schedule_observability(model: DifferenceModel, C1c, Ckc, lat, h=0.0, Ccn=None, durations=None,
+                           method="som", scale=None, rtol=obs.DEFAULT_RTOL) -> ScheduleObservability:
+    """Rank and degree of observability of the joint model along a rotate-stop schedule.
+
+    The carrier is stationary; during stop j the IMUs sit at ``C_b1^c[j]`` and
+    ``C_bk^c[j]`` in the carrier frame, so ``C_bi^n = C_c^n C_bi^c[j]``. Each stop is one
+    time-invariant segment of the piecewise-constant system (Wang, Wu et al. 2018,
+    eq 15: the stacked ``[Ō_1; …; Ō_m]``); the rotations between stops are not segments.
+
+    Parameters
+    ----------
+    model : DifferenceModel
+        E.g. :func:`joint_rotation_model`.
+    C1c, Ckc : array (m, 3, 3)
+        IMU-to-carrier DCMs of INS 1 and INS k per stop, in time order.
+    lat : float
+        Latitude [rad].
+    h : float
+        Height [m].
+    Ccn : array (3, 3), optional
+        Carrier attitude ``C_c^n`` (default identity: carrier axes = ENU).
+    durations : array (m,), optional
+        Stop durations [s]; needed by ``method="tom"``.
+    method : {"som", "tom"}
+        Stripped (paper eq 15) or total observability matrix.
+    scale : array (n2,), optional
+        State magnitudes for the numerical rank and the degrees (default automatic).
+    rtol : float
+        Relative singular-value tolerance of the ranks.
+
+    Returns
+    -------
+    ScheduleObservability
+    """
+    C1c = np.asarray(C1c, dtype=float)
+    Ckc = np.asarray(Ckc, dtype=float)
+    if C1c.ndim != 3 or C1c.shape[1:] != (3, 3) or C1c.shape != Ckc.shape or C1c.shape[0] == 0:
+        raise ValueError(f"schedule_observability: C1c and Ckc must both have shape (m, 3, 3), m >= 1, "
+                         f"got {C1c.shape} and {Ckc.shape}")
+    m = C1c.shape[0]
+    Ccn = np.eye(3) if Ccn is None else np.asarray(Ccn, dtype=float)
+    if Ccn.shape != (3, 3):
+        raise ValueError(f"schedule_observability: Ccn must be (3, 3), got {Ccn.shape}")
+    if durations is None:
+        if method == "tom":
+            raise ValueError("schedule_observability: method='tom' needs the stop durations")
+        T = [None] * m
+    else:
+        T = np.asarray(durations, dtype=float)
+        if T.shape != (m,) or not np.all(np.isfinite(T) & (T > 0)):
+            raise ValueError(f"schedule_observability: durations must be {m} positive numbers")
+    segs = []
+    for j in range(m):
+        A, C = joint_subsystem(model, Ccn @ C1c[j], Ccn @ Ckc[j], lat, h)
+        segs.append((A, C) if T[j] is None else (A, C, T[j]))
+    pw = obs.piecewise(segs, method, scale, rtol)
+    own = [obs.rank(s[0], s[1], scale, rtol) for s in segs]
+    _, x2 = _measured_blocks(model)
+    labels = tuple(model.layout.labels[i] for i in x2)
+    return ScheduleObservability(labels, own[0], own, pw.ranks, pw.result.degree, pw.result, method)
