@@ -63,6 +63,13 @@ def test_windowed_std_matches_direct_evaluation():
     np.testing.assert_allclose(s1, s[:, 0], rtol=1e-13)
 
 
+def test_windowed_std_start_before_the_record_skips_the_partial_window():
+    t = np.arange(101.0)
+    te, s = rotins.windowed_std(t, t, -50.0, 60.0)
+    assert te.tolist() == [70.0]                           # [10, 70): 60 samples of a unit ramp
+    np.testing.assert_allclose(s, np.sqrt((60 ** 2 - 1) / 12), rtol=1e-12)
+
+
 def test_windowed_std_linear_ramp_closed_form():
     """Ramp x = a t: std over N samples spaced dt is a·dt·sqrt((N²−1)/12) → a·window/√12."""
     dt, a = 1.0, 3e-9
@@ -79,6 +86,7 @@ def test_windowed_std_linear_ramp_closed_form():
     (0.0, 0.0, "window must be > 0"), (0.0, -1.0, "window must be > 0"),
     (100.0, 10.0, "start 100.0 s is not before"), (120.0, 10.0, "not before"),
     (50.0, 60.0, "longer than the 50.0 s"), (-100.0, 101.0, "longer than"),
+    (-50.0, 90.0, "no full 90.0 s window"),
 ])
 def test_windowed_std_bad_input(start, window, msg):
     t = np.arange(101.0)

@@ -67,8 +67,8 @@ def windowed_std(t, x, start, window):
     """Online evaluation index: standard deviation of an estimate over consecutive windows
     (Wang, Wu et al. 2018, eq 21).
 
-    Window j covers ``start + j·window ≤ t < start + (j+1)·window``; only windows that end
-    at or before ``t[-1]`` are evaluated. Inside a window of N samples the index is the
+    Window j covers ``start + j·window ≤ t < start + (j+1)·window``; only windows inside
+    ``[t[0], t[-1]]`` are evaluated. Inside a window of N samples the index is the
     population deviation ``sqrt(1/N Σ (x_i − μ)²)`` (1/N as in eq 21).
 
     Parameters
@@ -113,9 +113,12 @@ def windowed_std(t, x, start, window):
     if window > span:
         raise ValueError(f"windowed_std: window {window} s is longer than the {span} s from start to the end")
     first = max(start, t[0])
-    # windows are counted from ``start`` even when it precedes the record
-    j0 = int(np.floor((first - start) / window + 1e-12))
+    # windows are counted from ``start``; one that would begin before the record is skipped
+    j0 = int(np.ceil((first - start) / window - 1e-12))
     J = int(np.floor((t[-1] - start) / window + 1e-12)) - j0
+    if J < 1:
+        raise ValueError(f"windowed_std: no full {window} s window counted from {start} s lies inside "
+                         f"[{t[0]}, {t[-1]}] s")
     edges = start + window * np.arange(j0, j0 + J + 1)
     idx = np.searchsorted(t, edges, side="left")
     out = []
