@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
+from sinslab.methods.rotins import joint_rotation_model
 from sinslab.nav import errstate as es
 from sinslab.estimation import observability as ob
 from sinslab.core.earth import WIE, gravity
@@ -142,7 +143,7 @@ def test_paper001_static_segment_rank_5_and_three_segments_rank_13():
     """Per static segment rank 5 (paper eq 14); relative attitude changed about azimuth
     (INS k azimuth flip) and about a horizontal axis (INS 1 indexed 90°, INS k roll flip):
     ranks 5 → 9 → 13 (paper: m ≥ 3 segments)."""
-    model = es.joint_rotation_model()
+    model = joint_rotation_model()
     for az1, key in itertools.product([0, 90, 180, 270], DUAL):
         A, C, _ = _joint_segment(model, d(az1), DUAL[key])
         assert ob.rank(A, C) == 5
@@ -155,7 +156,7 @@ def test_paper001_static_segment_rank_5_and_three_segments_rank_13():
 def test_paper001_azimuth_only_relative_motion_is_not_enough():
     """Condition (3) of paper 001: without a relative change about a horizontal axis the
     joint state stays unobservable, whatever the azimuth schedule."""
-    model = es.joint_rotation_model()
+    model = joint_rotation_model()
     segs = [_joint_segment(model, d(a1), DUAL[k]) for a1 in (0, 90, 180, 270) for k in ("0", "az180")]
     assert ob.piecewise(segs, "som").ranks[-1] < 13
 
@@ -163,7 +164,7 @@ def test_paper001_azimuth_only_relative_motion_is_not_enough():
 def test_paper001_full_schedule_reaches_13():
     """The 4-position single-axis × 16-step dual-axis stops (azimuth/roll 0°/180°) make the
     13-state subsystem fully observable (rank after each of 16 stops reported)."""
-    model = es.joint_rotation_model()
+    model = joint_rotation_model()
     segs = [_joint_segment(model, d(a1), DUAL[k]) for a1, k in itertools.product((0, 90, 180, 270), DUAL)]
     for meth in ("som", "tom"):
         ranks = ob.piecewise(segs, meth).ranks

@@ -24,6 +24,7 @@ from sinslab.fusion.feedback import FeedbackLayout
 from sinslab.fusion.loosely_coupled import lc_model
 from sinslab.fusion.measurements import (Epoch, Grid, InsDifference, NavRow, PositionFix, Stack,
                                          VelocityFix, arrival_epochs)
+from sinslab.methods.rotins import joint_rotation_model
 from sinslab.nav import errstate as es
 
 
@@ -133,7 +134,7 @@ def test_ins_difference_selects_the_difference_states(lever):
     """z = [L1 − Lk, λ1 − λk, vE1 − vEk, vN1 − vNk] on paper 001's joint model: H picks
     [δL δλ δvE δvN]_1k; with a lever arm between the IMUs its φ column is the Jacobian of
     the lever removal (stream 1 perturbed, stream k exact)."""
-    m = es.joint_rotation_model()
+    m = joint_rotation_model()
     lay = m.layout
     row1 = _row()
     w = np.array([0.003, 0.001, 0.04])
@@ -209,7 +210,7 @@ def test_two_stream_difference_filter_estimates_the_output_difference():
     h = np.full(len(meas) + 1, init.h)
     s1 = driver.LiveStream(meas, init, vertical="hold", height=h)
     s2 = driver.LiveStream(meas, init2, vertical="hold", height=h)
-    m = es.joint_rotation_model(1e-6, 1e-6, 1e-5, 1e-5)
+    m = joint_rotation_model(1e-6, 1e-6, 1e-5, 1e-5)
     lay = m.layout
     sd = np.r_[[1e-5] * 2, [1.0] * 2, [10 * u.arcmin] * 3, [1 * u.dph] * 6, [300 * u.ug] * 4]
     P0 = np.diag(sd ** 2)

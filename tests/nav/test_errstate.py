@@ -18,6 +18,7 @@ import scipy.linalg
 from scipy.integrate import solve_ivp
 
 from sinslab.estimation.kalman import discretize as kd
+from sinslab.methods.rotins import joint_rotation_model
 from sinslab.nav import errstate as es
 from sinslab.core.attitude import euler_to_dcm, misalignment, rotvec_to_dcm
 from sinslab.core.earth import WIE, gravity, radii
@@ -413,7 +414,7 @@ def test_difference_model_matches_two_nonlinear_ins_60s():
     navk = nav_points(Ym[:, 2], MID, wbk, fbk)
     # the truth of INS k is the carrier truth seen through the mount
     assert np.allclose(navk.Cbn, nav1.Cbn @ _mount(MID), atol=1e-9)
-    model = es.joint_rotation_model()
+    model = joint_rotation_model()
     lay = model.layout
     Fs = model.F(nav1, navk)
     x0 = np.zeros(17)
@@ -441,7 +442,7 @@ def test_joint_model_is_paper_001_equations_3_to_8():
     fn = np.array([0.3, -0.2, 9.79])
     nav1 = es.NavPoint(L, h, [vE, vN, 0.0], C1, C1.T @ fn)
     nav2 = nav1.with_attitude(C2)
-    model = es.joint_rotation_model(1.0, 2.0, 3.0, 4.0)
+    model = joint_rotation_model(1.0, 2.0, 3.0, 4.0)
     F, G = model.matrices(nav1, nav2)
     RNm, REm = radii(L, h)                      # paper: R_N meridian, R_E prime vertical
     w = WIE

@@ -46,7 +46,7 @@ core                      states
 Sensor blocks (:func:`gyro_bias`, :func:`accel_bias`, :func:`gyro_markov`,
 :func:`accel_markov`, :func:`gyro_scale`, :func:`accel_scale`, :func:`installation`) add
 states with their own dynamics and a linear map into ``δω_ib^b`` or ``δf^b``. The
-:class:`DifferenceModel` models ``INS 1 − INS k`` for two INS on one carrier (paper 001).
+:class:`DifferenceModel` models ``INS 1 − INS k`` for two INS on one carrier.
 
 All builders are vectorised: a :class:`NavPoint` whose fields have a leading shape ``S``
 gives ``F`` of shape ``S + (n, n)``.
@@ -67,7 +67,7 @@ __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices", "static_alignment_model",
-    "joint_rotation_model", "CORES", "lever_arm", "odometer_scale",
+    "CORES", "lever_arm", "odometer_scale",
 ]
 
 # ----------------------------------------------------------------------------- layout
@@ -440,7 +440,7 @@ class SensorBlock:
         ``δf = diag(f^b) x``; ``constant``: no coupling.
     axes : str
         Sensor axes carried, a subset of ``"xyz"`` in order (``"xy"``: horizontal
-        accelerometers only, paper 001).
+        accelerometers only).
     frame : {"body", "nav"}
         ``nav``: the states are already in n (paper 000's ε^n, ∇^n): coupling without C_b^n.
     tau : float or None
@@ -748,12 +748,13 @@ class DifferenceModel(ErrorModel):
     velocity and ``f^n``) are common and the core states are the differences
     ``δp_1 − δp_k``, ``δv_1 − δv_k``, ``φ_1 − φ_k``. Each INS's sensor errors enter through
     its own ``C_b^n`` (different under indexing/rotation mechanisms), INS 1 with ``+`` and
-    INS k with ``−`` (paper 001 eqs 3–8: ``F10 = [−C_b1^n, C_b2^n]``, ``F6 = [C̄_b1^n, −C̄_b2^n]``).
+    INS k with ``−``: the attitude rows get ``[−C_b1^n, +C_bk^n]`` on the gyro states and
+    the velocity rows ``[+C_b1^n, −C_bk^n]`` on the accelerometer states.
 
     Parameters
     ----------
     core : str
-        As in :class:`ErrorModel` (paper 001: ``"horizontal"``).
+        As in :class:`ErrorModel`.
     sensors1, sensorsk : sequences of SensorBlock
         Sensor states of INS 1 and INS k (block names get the suffixes).
     gyro_noise1, gyro_noisek, accel_noise1, accel_noisek : float or array
@@ -804,29 +805,6 @@ class DifferenceModel(ErrorModel):
     def Qc(self, nav1, navk=None):
         G = self.G(nav1, navk)
         return (G * self.q) @ np.swapaxes(G, -1, -2)
-
-
-def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
-                         radius_derivatives=False) -> DifferenceModel:
-    """Paper 001's 17-state joint error model of INS 1 (single-axis) and INS k (dual-axis).
-
-    State order (paper eq 1)::
-
-        x1 = [δL δλ δvE δvN]_1k                      (differences, 1 − k)
-        x2 = [φE φN φU]_1k, ε_1 (x y z, body 1), ε_k (x y z, body k),
-             ∇_1 (x y, body 1), ∇_k (x y, body k)
-
-    Horizontal core (vertical channel damped by a depth gauge), random-constant drifts
-    and biases; the noise vector is ``[w_g1 (3), w_a1 (x,y), w_gk (3), w_ak (x,y)]``
-    (paper eq 7 orders gyros first; only the column order differs). With
-    ``radius_derivatives=False`` F equals the paper's eqs 3–6 (tested).
-    """
-    return DifferenceModel(
-        "horizontal", [gyro_bias(name="eps"), accel_bias("xy", name="nabla")],
-        [gyro_bias(name="eps"), accel_bias("xy", name="nabla")],
-        gyro_noise1, gyro_noisek, accel_noise1, accel_noisek, accel_noise_axes="xy",
-        order=["dp", "dv", "phi", "eps_1", "eps_k", "nabla_1", "nabla_k"],
-        radius_derivatives=radius_derivatives)
 
 
 def static_alignment_model(lat, g=None):
