@@ -79,6 +79,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sinslab.core import attitude as A
+from sinslab.core import units
 from sinslab.estimation.filter import KalmanFilter
 from sinslab.estimation.kalman import discretize
 from sinslab.fusion.lag import ExactReprocessing
@@ -87,10 +88,6 @@ from sinslab.nav import errstate as es
 from sinslab.nav import strapdown as sd
 
 __all__ = ["run", "DriverResult", "Applied", "LiveStream", "PrecomputedStream"]
-
-
-def _vec3_or(a):
-    return np.zeros(3) if a is None else np.asarray(a, dtype=float).reshape(3).copy()
 
 
 class LiveStream:
@@ -143,8 +140,8 @@ class LiveStream:
             self._hgt = None
             self._vkw = {}
         self.state = sd.initial_state_array(init)
-        self.gb = _vec3_or(gyro_bias)
-        self.ab = _vec3_or(accel_bias)
+        self.gb = units.vec3(gyro_bias, "gyro_bias", default=0.0)
+        self.ab = units.vec3(accel_bias, "accel_bias", default=0.0)
         self.kg = np.zeros(3)
         self.ka = np.zeros(3)
         self.scaled = bool(scaled)
@@ -263,8 +260,10 @@ class PrecomputedStream:
         M = series.t.size
         n = (M - 1) * every
         T = every * imu.dt
-        w = imu.dtheta[start:start + n].reshape(M - 1, every, 3).sum(1) / T - _vec3_or(gyro_bias)
-        f = imu.dv[start:start + n].reshape(M - 1, every, 3).sum(1) / T - _vec3_or(accel_bias)
+        gb = units.vec3(gyro_bias, "gyro_bias", default=0.0)
+        ab = units.vec3(accel_bias, "accel_bias", default=0.0)
+        w = imu.dtheta[start:start + n].reshape(M - 1, every, 3).sum(1) / T - gb
+        f = imu.dv[start:start + n].reshape(M - 1, every, 3).sum(1) / T - ab
         return cls(series.t, rows, w, f)
 
     def bind(self, kf_dt):
@@ -467,7 +466,7 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
     def epoch_rows(rows_list, w_list, f_list, k):
         return tuple(NavRow(rows_list[i][k], w_list[i][k], f_list[i][k]) for i in range(ns))
 
-    with _progress(label, total=n_ep, unit="steps") if progress else _null() as bar:
+    with _progress(label, total=n_ep, unit="steps", enabled=bool(progress)) as bar:
         e0 = 0
         si = 0
         while e0 < n_ep:
@@ -558,16 +557,3 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                       np.array(a_nis, dtype=float))
     return DriverResult(t_ep, tuple(nav_h), x_h, sig_h, tuple(gb_h), tuple(ab_h),
                         tuple(sc_h) if scaled else None, applied, lay)
-
-
-class _NullBar:
-    def advance(self, n):
-        pass
-
-
-class _null:
-    def __enter__(self):
-        return _NullBar()
-
-    def __exit__(self, *a):
-        return False
