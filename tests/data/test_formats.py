@@ -323,3 +323,10 @@ def test_drive_bad_inputs(tmp_path):
         rtklib.read_rtklib_imu(_w(tmp_path, "\n".join(lines) + "\n", "other.csv"))
     with pytest.raises(ValueError, match="not a rotation"):
         rtklib.read_rtklib_imu(p, mount=np.ones((3, 3)))
+
+
+@pytest.mark.parametrize("reader", ["load_imu", "read_fixes"])
+def test_a_directory_is_refused_with_one_clear_error(tmp_path, reader):
+    import sinslab.data as D
+    with pytest.raises(ValueError, match="is a directory, not a file"):
+        getattr(D, reader)(tmp_path)

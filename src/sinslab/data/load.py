@@ -40,14 +40,22 @@ def guess_imu_format(path) -> str:
             "mat" if suf == ".mat" else "rtklib-imu" if Path(str(p) + ".tag").exists() else "csv")
 
 
+def _existing_file(path) -> Path:
+    """``path`` as a Path, or one clear error when it is missing or not a regular file."""
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such file")
+    if not p.is_file():
+        raise ValueError(f"{p}: is a directory, not a file" if p.is_dir() else f"{p}: not a regular file")
+    return p
+
+
 def load_imu(path, fmt=None, **kw) -> ImuData:
     """Read any supported IMU file into :class:`~sinslab.data.increments.ImuData` (``fmt``
     from :data:`IMU_FORMATS`, default from the suffix: ``.imu`` psins, ``.parquet``
     parquet, ``.mat`` mat, a ``.csv`` with a ``.tag`` next to it rtklib-imu, else csv).
     Keywords go to the reader."""
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such file")
+    p = _existing_file(path)
     fmt = fmt or guess_imu_format(p)
     if fmt == "psins":
         return psins.load_psins(p, **kw)
@@ -74,9 +82,7 @@ def read_fixes(path, fmt=None, **kw) -> Fixes:
     vu``, ``sd_ve ..``), ``mat-avp`` (a PSINS avp matrix: positions and velocities, σ from
     ``sigma``/``sigma_vel`` keywords, default 1 m / 0.1 m/s) or ``two-geo`` (a recorded
     double-star fix list, :func:`sinslab.data.tables.read_two_geo_csv`)."""
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such file")
+    p = _existing_file(path)
     fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp"}.get(p.suffix.lower(), "csv")
     if fmt == "rtklib-pos":
         return rtklib.read_rtklib_pos(p, **kw)
