@@ -330,3 +330,22 @@ def test_a_directory_is_refused_with_one_clear_error(tmp_path, reader):
     import sinslab.data as D
     with pytest.raises(ValueError, match="is a directory, not a file"):
         getattr(D, reader)(tmp_path)
+
+
+def test_velocity_lag_applies_to_every_fix_format(tmp_path):
+    """A velocity lag re-times CSV fix velocities exactly as it does RTKLIB ones:
+    vel(t) = recorded vel(t + lag) by linear interpolation; invalid lags are refused."""
+    t = np.arange(0.0, 10.0, 1.0)
+    vel = np.column_stack([t ** 2, -t, 0.5 * t])
+    fx = Fixes(t, np.full(t.size, 0.5), np.full(t.size, 2.0), np.zeros(t.size), np.ones((t.size, 3)),
+               vel, np.full((t.size, 3), 0.1))
+    p = data.write_fixes(tmp_path / "f.csv", fx)
+    got = data.read_fixes(p, velocity_lag=0.25)
+    want = np.column_stack([np.interp(t + 0.25, t, vel[:, i]) for i in range(3)])
+    np.testing.assert_allclose(got.vel, want, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(data.read_fixes(p).vel, data.read_fixes(p, velocity_lag=0).vel)
+    with pytest.raises(ValueError, match=">= 0"):
+        data.read_fixes(p, velocity_lag=-5)
+    no_vel = data.write_fixes(tmp_path / "g.csv", Fixes(t, fx.lat, fx.lon, fx.h, fx.sigma))
+    with pytest.raises(ValueError, match="no velocities"):
+        data.read_fixes(no_vel, velocity_lag=0.1)

@@ -9,7 +9,10 @@ navigation series sampled on the same grid has N + 1 epochs ``t0, t[0], ..., t[N
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field, fields
+
+import math
 
 import numpy as np
 
@@ -318,6 +321,28 @@ class Fixes:
 
     def __len__(self):
         return self.t.size
+
+    def with_velocity_lag(self, lag):
+        """The same fixes with velocities that describe the motion ``lag`` [s] *before* their
+        stamps re-timed to the stamps: ``vel(t) := vel_recorded(t + lag)`` by linear
+        interpolation over the record (receivers that report a Doppler velocity averaged
+        over the last epoch do this). ``lag = 0`` returns the fixes unchanged.
+
+        Raises ValueError for a negative or non-finite lag, a lag not shorter than the
+        record, or a lag on fixes without velocities.
+        """
+        lag = float(lag)
+        if not math.isfinite(lag) or lag < 0:
+            raise ValueError(f"velocity lag must be a finite number of seconds >= 0, got {lag:g}")
+        if lag == 0:
+            return self
+        if self.vel is None:
+            raise ValueError(f"{self.path or 'the fixes'}: a velocity lag was given but the fixes have no velocities")
+        span = float(self.t[-1] - self.t[0]) if len(self) else 0.0
+        if not lag < span:
+            raise ValueError(f"velocity lag {lag:g} s is not shorter than the fix record ({span:g} s)")
+        vel = np.stack([np.interp(self.t + lag, self.t, self.vel[:, i]) for i in range(3)], -1)
+        return dataclasses.replace(self, vel=vel)
 
     def select(self, mask):
         """The fixes selected by ``mask`` (boolean mask, slice or indices)."""

@@ -81,18 +81,23 @@ def read_fixes(path, fmt=None, **kw) -> Fixes:
     lat[deg], lon[deg]`` + optional ``h[m]``, ``t_arrive[s]``, ``sd_n sd_e sd_u``, ``ve vn
     vu``, ``sd_ve ..``), ``mat-avp`` (a PSINS avp matrix: positions and velocities, σ from
     ``sigma``/``sigma_vel`` keywords, default 1 m / 0.1 m/s) or ``two-geo`` (a recorded
-    double-star fix list, :func:`sinslab.data.tables.read_two_geo_csv`)."""
+    double-star fix list, :func:`sinslab.data.tables.read_two_geo_csv`). ``velocity_lag`` [s]
+    (any format): the velocities describe the motion that long before their stamps
+    (:meth:`sinslab.core.records.Fixes.with_velocity_lag`)."""
     p = _existing_file(path)
     fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp"}.get(p.suffix.lower(), "csv")
+    lag = kw.pop("velocity_lag", 0.0)
     if fmt == "rtklib-pos":
-        return rtklib.read_rtklib_pos(p, **kw)
+        return rtklib.read_rtklib_pos(p, velocity_lag=lag, **kw)
     if fmt == "csv":
-        return tables.read_fix_csv(p)
-    if fmt == "mat-avp":
-        return matlab.read_mat_fixes(p, kw.get("var"), kw.get("sigma", 1.0), kw.get("sigma_vel", 0.1))
-    if fmt == "two-geo":
-        return tables.read_two_geo_csv(p)
-    raise ValueError(f"unknown fix format {fmt!r}; use one of {FIX_FORMATS}")
+        fx = tables.read_fix_csv(p)
+    elif fmt == "mat-avp":
+        fx = matlab.read_mat_fixes(p, kw.get("var"), kw.get("sigma", 1.0), kw.get("sigma_vel", 0.1))
+    elif fmt == "two-geo":
+        fx = tables.read_two_geo_csv(p)
+    else:
+        raise ValueError(f"unknown fix format {fmt!r}; use one of {FIX_FORMATS}")
+    return fx.with_velocity_lag(lag)
 
 
 def write_imu(path, imu: ImuRecord, fmt=None):

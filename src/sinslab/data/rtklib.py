@@ -116,8 +116,6 @@ def read_rtklib_pos(path, *, min_quality=None, velocity_lag=0.0) -> Fixes:
     vel = svel = None
     if ncol >= 16:
         vel = np.stack([v[:, 14], v[:, 13], v[:, 15]], -1)       # vn ve vu -> ENU
-        if velocity_lag:
-            vel = np.stack([np.interp(t + float(velocity_lag), t, vel[:, i]) for i in range(3)], -1)
         if ncol >= 19:
             svel = np.stack([v[:, 17], v[:, 16], v[:, 18]], -1)
             svel[svel <= 0] = 0.05
@@ -125,6 +123,8 @@ def read_rtklib_pos(path, *, min_quality=None, velocity_lag=0.0) -> Fixes:
             svel = np.full_like(vel, 0.05)
     fx = Fixes(t, np.radians(v[:, 0]), np.radians(v[:, 1]), v[:, 2], sig, vel, svel,
                v[:, 3].astype(int), str(path))
+    if velocity_lag:
+        fx = fx.with_velocity_lag(velocity_lag)        # over the whole record, before selection
     if min_quality is not None:
         fx = fx.select((fx.quality >= 1) & (fx.quality <= min_quality))
         if len(fx) == 0:

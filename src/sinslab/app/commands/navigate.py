@@ -76,7 +76,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         kw["delay"] = imu_delay
     data = load_imu(imu_path, fmt_eff, **kw)
     ffmt = fix_format or ("rtklib-pos" if str(fix_path).lower().endswith(".pos") else None)
-    fx = read_fixes(fix_path, ffmt, **({"velocity_lag": velocity_lag} if ffmt == "rtklib-pos" else {}))
+    fx = read_fixes(fix_path, ffmt, velocity_lag=velocity_lag)
     imu = data.imu
     if len(data.gaps):
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
