@@ -275,6 +275,17 @@ def _P0(m):
                                  0.1 * u.dph, 0.1 * u.dph, 1e-4 * u.g0)
 
 
+def _position_fix_case(P0, seed):
+    """A start state drawn at 0.1 σ of P0, the horizontal position-fix H and R of the
+    16-state model (m per rad of δL, δλ), and two fix innovations of ~40 m."""
+    rng = np.random.default_rng(seed)
+    x0 = rng.standard_normal(16) * np.sqrt(np.diag(P0)) * 0.1
+    H = np.zeros((2, 16))
+    H[0, 5], H[1, 6] = 6.36e6, 5.4e6
+    R = np.diag([41.0 ** 2, 31.0 ** 2])
+    return x0, H, R, rng.standard_normal(2) * 40.0, rng.standard_normal(2) * 40.0
+
+
 @pytest.mark.parametrize("feedback", [False, True])
 def test_lag_aware_equals_on_time_filter_exact(feedback):
     """Oracle: a fix of t_m applied at t_a by the lag-aware (exact) update gives the estimate
@@ -283,13 +294,7 @@ def test_lag_aware_equals_on_time_filter_exact(feedback):
     K, km, ka = 12, 5, 8
     F, Qc, Phi, Q = _tv_tables(m, K)
     P0 = _P0(m)
-    rng = np.random.default_rng(4)
-    x0 = rng.standard_normal(16) * np.sqrt(np.diag(P0)) * 0.1
-    H = np.zeros((2, 16))
-    H[0, 5], H[1, 6] = 6.36e6, 5.4e6
-    R = np.diag([41.0 ** 2, 31.0 ** 2])
-    z_early = rng.standard_normal(2) * 40.0
-    z = rng.standard_normal(2) * 40.0
+    x0, H, R, z_early, z = _position_fix_case(P0, seed=4)
     fb = np.arange(10)
 
     on = KalmanFilter(x0, P0)
@@ -456,13 +461,7 @@ def test_stored_state_update_follows_paper_eqs_4_to_10(tau):
     K, j, ka = 9, 4, 7
     Fs, Qcs, Phi, Q = _tv_tables(m, K)
     P0 = _P0(m)
-    rng = np.random.default_rng(8)
-    x0 = rng.standard_normal(16) * np.sqrt(np.diag(P0)) * 0.1
-    H = np.zeros((2, 16))
-    H[0, 5], H[1, 6] = 6.36e6, 5.4e6
-    R = np.diag([41.0 ** 2, 31.0 ** 2])
-    z_on = rng.standard_normal(2) * 40.0
-    z = rng.standard_normal(2) * 40.0
+    x0, H, R, z_on, z = _position_fix_case(P0, seed=8)
     f = KalmanFilter(x0, P0, history=10)
     snap = None
     for k in range(ka):
