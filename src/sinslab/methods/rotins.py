@@ -17,11 +17,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sinslab.core import attitude as A
+from sinslab.core import earth
 from sinslab.estimation import observability as obs
+from sinslab.estimation.kalman import discretize
+from sinslab.estimation.linear import error_budget
 from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bias
 
 __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleObservability",
-           "schedule_observability"]
+           "schedule_observability", "difference_sigma", "joint_P0", "joint_filter",
+           "joint_transitions", "noise_share", "settle_time"]
 
 
 def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
@@ -266,3 +271,252 @@ def schedule_observability(model: DifferenceModel, C1c, Ckc, lat, h=0.0, Ccn=Non
     _, x2 = _measured_blocks(model)
     labels = tuple(model.layout.labels[i] for i in x2)
     return ScheduleObservability(labels, own[0], own, pw.ranks, pw.result.degree, pw.result, method)
+
+
+# ----------------------------------------------------------------------- the joint filter
+def difference_sigma(lat, pos=1e-3, vel=1e-5, h=0.0):
+    """Measurement σ of :class:`sinslab.fusion.measurements.InsDifference` for the nearly
+    noise-free difference of two INS on one carrier (paper: R = 0).
+
+    The difference of two navigation outputs carries no measurement noise of its own;
+    R = 0 would make the update singular (S = H P Hᵀ → 0 once the differences are known).
+    A floor far below the INS errors changes nothing the filter estimates and keeps every
+    update well conditioned; the updates are sequential scalar Joseph updates (symmetrised),
+    so P stays symmetric positive definite.
+
+    Parameters
+    ----------
+    lat : float
+        Latitude [rad] (converts the position floor to radians).
+    pos : float
+        Position floor [m] (default 1 mm).
+    vel : float
+        Velocity floor [m/s] (default 1e-5 m/s).
+    h : float
+        Height [m].
+
+    Returns
+    -------
+    ndarray (4,)
+        ``[σ_L, σ_λ, σ_vE, σ_vN]`` [rad, rad, m/s, m/s].
+    """
+    pos, vel = float(pos), float(vel)
+    if not (pos > 0 and vel > 0 and np.isfinite(pos) and np.isfinite(vel)):
+        raise ValueError(f"difference_sigma: the floors must be > 0, got pos={pos}, vel={vel}")
+    rm, rn = earth.radii(float(lat), float(h))
+    return np.array([pos / float(rm), pos / (float(rn) * np.cos(lat)), vel, vel])
+
+
+def joint_P0(model: DifferenceModel, lat, *, pos=0.0, vel=0.0, att=(0.0, 0.0, 0.0), gyro1=0.0,
+             gyrok=0.0, accel1=0.0, accelk=0.0, h=0.0):
+    """Diagonal initial covariance of the joint model (σ per block, SI).
+
+    Parameters
+    ----------
+    model : DifferenceModel
+        :func:`joint_rotation_model`.
+    lat : float
+        Latitude [rad].
+    pos, vel : float
+        σ of the initial position [m] and velocity [m/s] difference (0: the INS start
+        from one position fix; a tiny floor is kept so P0 stays definite).
+    att : (3,)
+        σ of the initial attitude difference φ_1k [rad] (E, N, U).
+    gyro1, gyrok : float or (3,)
+        σ of the gyro drifts of INS 1 / INS k [rad/s].
+    accel1, accelk : float or (2,)
+        σ of the horizontal accelerometer biases [m/s²].
+
+    Returns
+    -------
+    ndarray (n, n)
+    """
+    lay = model.layout
+    rm, rn = earth.radii(float(lat), float(h))
+    pos = max(float(pos), 1e-4)
+    vel = max(float(vel), 1e-6)
+    sd = np.zeros(lay.n)
+    sp, sv = lay.slice("dp"), lay.slice("dv")
+    sd[sp.start] = pos / float(rm)
+    sd[sp.start + 1] = pos / (float(rn) * np.cos(lat))
+    sd[sv] = vel
+    sd[lay.slice("phi")] = np.broadcast_to(np.asarray(att, float), (3,))
+    sd[lay.slice("eps_1")] = gyro1
+    sd[lay.slice("eps_k")] = gyrok
+    sd[lay.slice("nabla_1")] = accel1
+    sd[lay.slice("nabla_k")] = accelk
+    if not np.all(np.isfinite(sd)) or np.any(sd <= 0):
+        raise ValueError("joint_P0: every σ must be finite and > 0")
+    return np.diag(sd ** 2)
+
+
+def joint_filter(stream1, streamk, model: DifferenceModel, P0, *, kf_dt, sigma=None,
+                 lever_arm=None, model_every=None, discretization="series", progress=False,
+                 label="joint filter"):
+    """Joint error filter of INS 1 and INS k run by the fusion driver on their outputs.
+
+    Both INS navigate on their own; their outputs at the filter epochs come in as
+    :class:`sinslab.fusion.driver.PrecomputedStream` (feed-forward: the filter estimates
+    the joint error state and corrects neither INS, so one navigation of INS 1 serves the
+    filters of every INS k). At every epoch after the first the measurement is
+    :class:`sinslab.fusion.measurements.InsDifference`
+    ``z = [L1−Lk, λ1−λk, vE1−vEk, vN1−vNk]`` with the lever arm (IMU 1 → IMU k, IMU-1
+    body axes) removed.
+
+    Parameters
+    ----------
+    stream1, streamk : PrecomputedStream or LiveStream
+        INS 1 (single-axis) and INS k on one filter grid.
+    model : DifferenceModel
+        :func:`joint_rotation_model` with the nominal noise densities.
+    P0 : array (n, n)
+        Initial covariance (e.g. :func:`joint_P0`).
+    kf_dt : float
+        Filter step [s].
+    sigma : array (4,) or (J, 4), optional
+        Measurement σ [rad, rad, m/s, m/s]; default :func:`difference_sigma` at the
+        latitude of stream 1 (the R ≈ 0 floor).
+    lever_arm : array (3,), optional
+        IMU 1 → IMU k in IMU-1 body axes [m] (None: co-located).
+    model_every : float, optional
+        Length [s] of the model stretches evaluated at once (vectorised). For precomputed
+        streams the look-ahead rows are the streams' own rows, so any length gives the
+        same matrices as an evaluation epoch by epoch; default 1 h.
+    discretization : {"series", "vanloan"}
+
+    Returns
+    -------
+    sinslab.fusion.driver.DriverResult
+        ``x`` and ``sigma`` per epoch; ε_z1 is column ``model.layout.index(["eps_z_1"])``.
+    """
+    from sinslab.fusion import driver
+    from sinslab.fusion.measurements import InsDifference
+
+    T, t0, n_ep = streamk.bind(kf_dt)
+    T1, t01, n1 = stream1.bind(kf_dt)
+    if abs(t0 - t01) > 1e-6 * T or n1 != n_ep:
+        raise ValueError(f"joint_filter: the two streams must share the filter grid (t0 {t01} vs {t0} s, "
+                         f"{n1} vs {n_ep} epochs)")
+    t = t0 + T * np.arange(1, n_ep + 1)
+    if sigma is None:
+        sigma = difference_sigma(stream1.row0()[0][7])
+    meas = InsDifference(t, sigma, lever_arm=lever_arm, streams=(0, 1))
+    every = 3600.0 if model_every is None else float(model_every)
+    return driver.run([stream1, streamk], model, P0, [meas], kf_dt=kf_dt, model_every=every,
+                      max_block=kf_dt, discretization=discretization, progress=progress, label=label)
+
+
+def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, noise_groups=None,
+                      method="series"):
+    """Transition matrices and discrete process noise of the joint model along two
+    navigation outputs, the noise split by source (for covariance analyses).
+
+    Parameters
+    ----------
+    model : DifferenceModel
+    T : float
+        Step [s].
+    rows1, rowsk : array (K, 10)
+        ``[q, v, L, λ, h]`` of INS 1 / INS k at the epochs 0..K−1 (the step k → k+1 uses
+        row k, as the fusion driver does).
+    rates1, ratesk : tuple (omega_b, f_b), arrays (K, 3)
+        Mean compensated rate [rad/s] and specific force [m/s²] of each step.
+    noise_groups : dict {name: list of noise-column indices}, optional
+        Columns of G (``[w_g1 (3), w_a1 (2), w_gk (3), w_ak (2)]``) per source; default one
+        group ``"all"``.
+    method : {"series", "vanloan"}
+
+    Returns
+    -------
+    Phi : ndarray (K, n, n)
+    Q : dict {name: ndarray (K, n, n)}
+    """
+    def pt(rows, rates):
+        rows = np.asarray(rows, float)
+        return NavPoint(rows[:, 7], rows[:, 9], rows[:, 4:7], A.quat_to_dcm(rows[:, :4]),
+                        np.asarray(rates[1], float), np.asarray(rates[0], float))
+
+    F, G = model.matrices(pt(rows1, rates1), pt(rowsk, ratesk))
+    q = np.asarray(model.q, float)
+    groups = {"all": list(range(q.size))} if noise_groups is None else dict(noise_groups)
+    Phi = None
+    Q = {}
+    for name, cols in groups.items():
+        qq = np.zeros_like(q)
+        qq[list(cols)] = q[list(cols)]
+        P, Qk = discretize(F, qq, T, G=G, method=method)
+        Phi = P if Phi is None else Phi
+        Q[name] = Qk
+    return Phi, Q
+
+
+def noise_share(model: DifferenceModel, P0, Phi, Q_parts, sigma, *, history_every=0):
+    """Split the covariance of the joint filter into noise sources with the filter's own
+    gains (the covariance side of paper eqs 16–20).
+
+    With the gains of the nominal filter fixed, the error covariance is linear in the
+    process noise: if the true noise of source j is ``(1 + α_j) Q_j`` instead of ``Q_j``,
+    the actual error variance is ``P + Σ_j α_j P_j`` where ``P_j`` is the variance
+    propagated from ``Q_j`` alone. Paper eq 20 (ΔP = α P) is the special case where every
+    source is scaled alike.
+
+    Parameters
+    ----------
+    model : DifferenceModel
+    P0 : array (n, n)
+    Phi : array (K, n, n)
+    Q_parts : dict {name: array (K, n, n)}
+    sigma : array (4,)
+        Measurement σ [rad, rad, m/s, m/s].
+    history_every : int
+        Also return the per-source variances every that many steps.
+
+    Returns
+    -------
+    sinslab.estimation.linear.Budget
+        Sources ``"P0"``, the names of ``Q_parts``, ``"R"``.
+    """
+    lay = model.layout
+    n = lay.n
+    sp, sv = lay.slice("dp"), lay.slice("dv")
+    sigma = np.asarray(sigma, float)
+    # positions in metres (state and measurement alike): R then spans (1 mm)² to
+    # (1e-5 m/s)² instead of 1e-20 rad² to 1e-10 (m/s)², and the variances of the
+    # other states are unchanged by the similarity transform
+    d = np.ones(n)
+    d[sp.start] = 1.0 / sigma[0] * 1e-3
+    d[sp.start + 1] = 1.0 / sigma[1] * 1e-3
+    H = np.zeros((4, n))
+    H[0, sp.start] = H[1, sp.start + 1] = 1.0
+    H[2, sv.start] = H[3, sv.start + 1] = 1.0
+    r = (sigma * np.r_[d[sp.start], d[sp.start + 1], 1.0, 1.0]) ** 2
+    D = d[:, None] * d[None, :]
+    Phi_s = np.asarray(Phi, float) * (d[:, None] / d[None, :])
+    names = list(Q_parts)
+    Qp = np.stack([np.asarray(Q_parts[k], float) * D for k in names])
+    return error_budget((np.asarray(P0, float) * D)[None], Phi_s, Qp, H, r[None],
+                        names=["P0", *names, "R"], history_every=history_every)
+
+
+def settle_time(t, x, sigma_final, *, hold_to_end=True):
+    """First time after which an estimate stays within ± ``sigma_final`` of its final value.
+
+    Parameters
+    ----------
+    t, x : array (M,)
+        Times [s] and the estimate.
+    sigma_final : float
+        Band half-width (e.g. the filter's final 1σ of that state), same unit as ``x``.
+
+    Returns
+    -------
+    float
+        Time [s]; ``t[-1]`` if only the last sample is inside.
+    """
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    out = np.abs(x - x[-1]) > float(sigma_final)
+    if not out.any():
+        return float(t[0])
+    last = int(np.flatnonzero(out)[-1])
+    return float(t[min(last + 1, t.size - 1)])
