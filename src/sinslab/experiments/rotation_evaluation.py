@@ -359,33 +359,34 @@ def _errors(sec, gyro_scale=1.0, white=True):
 
 
 def load_recorded_gyro(path, n_needed, dt, what):
-    """Gyro noise [rad/s] of a recorded static noise file (mean removed), checked for the run."""
+    """Gyro noise [rad/s] of a recorded static noise file (any reader of
+    :func:`sinslab.data.load.load_imu`, unit headers honoured; mean removed), checked for
+    the run: one line naming the file and the problem otherwise."""
     from sinslab.data import load as dload
 
     try:
-        rec = dload.read_imu(path)
+        d = dload.load_imu(path)
     except (OSError, ValueError) as e:
         raise ValueError(f"{what} {path}: {e}") from None
-    t = np.asarray(rec.t, float)
-    d = np.diff(t)
-    if d.size == 0:
-        raise ValueError(f"{what} {path}: fewer than two samples")
-    step = float(np.median(d))
-    if np.any(np.abs(d - step) > 0.5 * step):
-        k = int(np.flatnonzero(np.abs(d - step) > 0.5 * step)[0])
-        raise ValueError(f"{what} {path}: gap in the time column after t = {t[k]:g} s")
+    if np.asarray(d.gaps).size:
+        g0 = np.asarray(d.gaps)[0]
+        raise ValueError(f"{what} {path}: gap of {g0[1]:g} s at t = {g0[0]:g} s in the time stamps")
+    rec = d.imu
+    step = float(rec.dt)
     if abs(step - dt) > 1e-6 * dt:
         raise ValueError(f"{what} {path}: sampled every {step:g} s, the run uses {dt:g} s")
     g = np.asarray(rec.dtheta, float) / step
     if not np.all(np.isfinite(g)):
-        raise ValueError(f"{what} {path}: NaN or infinite values")
+        k = int(np.flatnonzero(~np.all(np.isfinite(g), 1))[0])
+        raise ValueError(f"{what} {path}: NaN or infinite value at sample {k}")
     if g.shape[0] < n_needed:
         raise ValueError(f"{what} {path}: {g.shape[0]} samples ({g.shape[0] * step / 3600:.3g} h), "
                          f"the run needs {n_needed} ({n_needed * dt / 3600:.3g} h)")
-    g = g - g.mean(0)
-    if np.max(np.std(g, 0)) > 1.0:
-        raise ValueError(f"{what} {path}: gyro noise std {np.max(np.std(g, 0)):.3g} rad/s is not a static "
-                         "noise record (wrong units?)")
+    g = g[:n_needed] - g[:n_needed].mean(0)
+    s = float(np.max(np.std(g, 0)))
+    if s > 0.01:
+        raise ValueError(f"{what} {path}: gyro noise std {s:.3g} rad/s is far above any static "
+                         "navigation-grade record (wrong units in the header?)")
     return g
 
 
