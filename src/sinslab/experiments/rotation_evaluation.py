@@ -220,6 +220,8 @@ METRICS = {
     "eq20_sigma_ratio_paper": Metric("-", "the same from eq 20 taken literally (ΔP = αP: ratio β)"),
     "eq20_sigma_ratio_simulated": Metric("-", "mean windowed std at β = 1.1 over β = 1 (simulation)"),
     "eq20_noise_share_gyro_k": Metric("-", "share of INS k's gyro noise in the final variance of ε_z1"),
+    "mc_windowed_std_mean_dph": Metric("deg/h", "linear-domain Monte Carlo: mean over seeds of the mean windowed std per β"),
+    "mc_windowed_std_sd_dph": Metric("deg/h", "its spread (std over seeds) per β"),
     "rotation_cycle_s": Metric("s", "cycle of the single-axis and of the dual-axis schedule"),
     "imu_samples_per_ins": Metric("-", "IMU samples navigated by each INS"),
     "navigations": Metric("-", "INS navigated at the full IMU rate"),
@@ -541,10 +543,10 @@ def run(cfg: Config, ctx) -> Result:
     # --- Monte Carlo fractions
     t0 = time.perf_counter()
     runs = int(cfg.runs)
-    if runs > 1 and not _HAVE_CAMPAIGN:
-        raise ValueError("runs > 1: the seed campaign of rotation-evaluation is not available in this version")
+    mc_stats = None
     if runs > 1:
-        mc = linear_campaign(cfg, ctx, runs, model, P0, sig_meas, outs, t_ep)
+        mc = linear_campaign(cfg, ctx, runs, model, P0, sig_meas)
+        mc_stats = mc
         p_mono, p_d11, p_sep = mc["p_monotone"], mc["p_distinguish"], mc["p_separate"]
         notes.append(f"Fractions over {runs} seeds from the linear-domain simulation of the joint error state.")
     else:
@@ -586,12 +588,191 @@ def run(cfg: Config, ctx) -> Result:
               "position_error": {"t_h": t_ep / 3600.0,
                                  **{f"{k}_nmi": outs[k].pos_err_m / NMI for k in outs}}}
     figures = _figures(cfg, t_ep, betas, one, te, ws_one, outs, est, two_keys, ws_two, true_drift, so, pos_keys)
+    tables = []
+    if mc_stats is not None:
+        w = mc_stats["wstd"] / DPH
+        ws = mc_stats["wstd_sep"] / DPH
+        tables.append(Table("montecarlo_windowed_std", {
+            "beta": betas + ["separate A", "separate B"],
+            "mean_dph": [float(v) for v in w.mean(0)] + [float(v) for v in ws.mean(0)],
+            "std_over_seeds_dph": [float(v) for v in w.std(0)] + [float(v) for v in ws.std(0)],
+            "nonlinear_run_dph": [float(v / DPH) for v in mean_one] + [v / DPH for v in mean_sep]},
+            f"Mean windowed std of ε_z1 over {runs} seeds (linear domain) next to this nonlinear run"))
+        metrics["mc_windowed_std_mean_dph"] = [float(v) for v in w.mean(0)]
+        metrics["mc_windowed_std_sd_dph"] = [float(v) for v in w.std(0)]
     metrics["runtime_s"] = time.perf_counter() - t_start
-    return Result(metrics=metrics, claims=claims, series=series, figures=figures, notes=notes)
+    return Result(metrics=metrics, claims=claims, series=series, figures=figures, tables=tables, notes=notes)
 
 
 # ---------------------------------------------------------------- Monte Carlo -------------
-_HAVE_CAMPAIGN = False
+#: noise columns of the joint model: [w_g1 (3), w_a1 (2), w_gk (3), w_ak (2)]
+_COLS_1 = slice(0, 5)
+_COLS_GK = slice(5, 8)
+_COLS_AK = slice(8, 10)
+_LIN_CACHE: dict = {}
+
+
+def campaign_spec(cfg: Config, model, P0, sig_meas):
+    """What a worker of the linear campaign needs (small: the schedules are re-evaluated
+    on the worker)."""
+    sc, fl, ev = cfg.scenario, cfg.filter, cfg.evaluation
+    kf_dt = float(fl.kf_dt)
+    return dict(lat=float(sc.latitude), lon=float(sc.longitude), kf_dt=kf_dt,
+                n_steps=int(float(sc.duration) // kf_dt), rotation=cfg.rotation.model_dump(),
+                q=np.asarray(model.q, float).copy(), P0=np.asarray(P0, float), sig=np.asarray(sig_meas, float),
+                betas=[float(b) for b in ev.beta_grid], sep=float(ev.separate_ratio),
+                start=float(ev.start), window=float(ev.window))
+
+
+def _truth_rows(mount, t, lat, lon):
+    """Error-free INS output of a moored ship at the epochs: rows, step rates (carrier = ENU)."""
+    ang, _ = ix.mount_angles(mount, t)
+    C = A.euler_to_dcm(ang)
+    rows = np.zeros((t.size, 10))
+    rows[:, :4] = A.euler_to_quat(ang)
+    rows[:, 7] = lat
+    rows[:, 8] = lon
+    wie = earth.WIE * np.array([0.0, math.cos(lat), math.sin(lat)])
+    g = float(earth.gravity(lat, 0.0))
+    w = np.einsum("kji,j->ki", C, wie)[:-1]
+    f = np.einsum("kji,j->ki", C, np.array([0.0, 0.0, g]))[:-1]
+    return rows, w, f
+
+
+def _linear_setup(spec):
+    """Per worker (cached): transitions, noise inputs and the nominal filter's gains of the
+    joint model along the true schedule, positions in metres."""
+    import hashlib
+    import pickle
+
+    key = hashlib.sha1(pickle.dumps({k: spec[k] for k in ("lat", "lon", "kf_dt", "n_steps", "rotation")})
+                       + spec["q"].tobytes() + spec["P0"].tobytes() + spec["sig"].tobytes()).hexdigest()
+    hit = _LIN_CACHE.get(key)
+    if hit is not None:
+        return hit
+    from sinslab.estimation.kalman import discretize
+    from sinslab.nav.errstate import NavPoint
+
+    lat, T, K = spec["lat"], spec["kf_dt"], spec["n_steps"]
+    r = Rotation(**spec["rotation"])
+    m1 = ix.single_axis_4pos(rate=float(r.rate), dwell=float(r.dwell_single), ramp=float(r.ramp))
+    mk = ix.RotateStop(tuple((a, math.radians(x)) for a, x in _DUAL_SCHEMES[r.dual_scheme]),
+                       float(r.rate), float(r.ramp), float(r.dwell_dual), (0.0, 0.0, 0.0), True, r.dual_scheme)
+    t = T * np.arange(K + 1)
+    model = rotins.joint_rotation_model()
+    pts = []
+    for m in (m1, mk):
+        rows, w, f = _truth_rows(m, t, lat, spec["lon"])
+        pts.append(NavPoint(rows[:-1, 7], rows[:-1, 9], rows[:-1, 4:7], A.quat_to_dcm(rows[:-1, :4]), f, w))
+    F, G = model.matrices(*pts)
+    q = spec["q"]
+    Phi, Q = discretize(F, q, T, G=G, method="series")
+    n = model.n
+    sig = spec["sig"]
+    d = np.ones(n)
+    d[0], d[1] = 1e-3 / sig[0], 1e-3 / sig[1]            # positions in metres
+    Phi = Phi * (d[:, None] / d[None, :])
+    Q = Q * (d[:, None] * d[None, :])
+    Gs = G * d[None, :, None] * np.sqrt(q * T)[None, None, :]          # w_k = Gs ξ, ξ ~ N(0, I)
+    P = spec["P0"] * (d[:, None] * d[None, :])
+    Rv = (sig * np.r_[d[0], d[1], 1.0, 1.0]) ** 2
+    H = np.zeros((4, n))
+    H[[0, 1, 2, 3], [0, 1, 2, 3]] = 1.0
+    gains = np.empty((K, n, 4))
+    sig_z = np.empty(K + 1)
+    iz = model.layout.index(["eps_z_1"])[0]
+    sig_z[0] = math.sqrt(P[iz, iz])
+    for k in range(K):
+        P = Phi[k] @ P @ Phi[k].T + Q[k]
+        S = P[:4, :4] + np.diag(Rv)
+        Kk = np.linalg.solve(S, P[:4, :]).T
+        IKH = np.eye(n)
+        IKH[:, :4] -= Kk
+        P = IKH @ P @ IKH.T + (Kk * Rv) @ Kk.T
+        P = 0.5 * (P + P.T)
+        gains[k] = Kk
+        sig_z[k + 1] = math.sqrt(P[iz, iz])
+    S = dict(Phi=np.ascontiguousarray(Phi), Gs=np.ascontiguousarray(Gs), gains=gains, Rv=Rv, d=d, iz=iz,
+             P0=spec["P0"] * (d[:, None] * d[None, :]), t=t, sig_z=sig_z)
+    _LIN_CACHE.clear()
+    _LIN_CACHE[key] = S
+    return S
+
+
+def linear_batch(seeds, spec):
+    """Linear-domain runs of analysis one (campaign function of
+    :func:`sinslab.estimation.montecarlo.run_campaign`).
+
+    Per seed, the true joint error state and the nominal filter's estimate are propagated
+    in five parts that the filters share or not: INS 1's noise and the initial state,
+    INS 2's accelerometer noise, INS 2's gyro noise (one record, scaled by β afterwards:
+    the filter is linear with fixed gains, so ε̂_z1(β) = ε̂(rest) + β ε̂(gyro 2)), and the
+    accelerometer and gyro noise of a separate INS B. Vectorised over seeds and parts.
+
+    Returns
+    -------
+    dict
+        ``wstd`` (B, len(betas)) mean windowed std of ε̂_z1 per β [rad/s]; ``wstd_sep``
+        (B, 2): INS A (β = 1), INS B (ratio ``sep``); ``final`` (B,) ε̂_z1 − ε_z1 at the end.
+    """
+    S = _linear_setup(spec)
+    Phi, Gs, gains, iz = S["Phi"], S["Gs"], S["gains"], S["iz"]
+    K, n, p = Gs.shape
+    B = len(seeds)
+    L0 = np.linalg.cholesky(S["P0"])
+    rngs = [np.random.default_rng(s) for s in seeds]
+    X = np.zeros((B, 5, n))
+    for b, g in enumerate(rngs):
+        X[b, 0] = L0 @ g.standard_normal(n)
+    Xh = np.zeros((B, 5, n))
+    cols = [np.r_[0:5], np.r_[8:10], np.r_[5:8], np.r_[8:10], np.r_[5:8]]
+    mask = np.zeros((5, p))
+    for j, c in enumerate(cols):
+        mask[j, c] = 1.0
+    sv = np.sqrt(S["Rv"])
+    ez = np.empty((B, 5, K + 1))
+    ez[:, :, 0] = 0.0
+    for k in range(K):
+        xi = np.stack([g.standard_normal((5, p)) for g in rngs]) * mask
+        X = X @ Phi[k].T + xi @ Gs[k].T
+        Xh = Xh @ Phi[k].T
+        v = np.zeros((B, 5, 4))
+        v[:, 0] = np.stack([g.standard_normal(4) for g in rngs]) * sv
+        nu = X[:, :, :4] + v - Xh[:, :, :4]
+        Xh = Xh + nu @ gains[k].T
+        ez[:, :, k + 1] = Xh[:, :, iz]
+    t = S["t"]
+    betas = spec["betas"]
+    out = np.empty((B, len(betas)))
+    sep = np.empty((B, 2))
+    for b in range(B):
+        base = ez[b, 0] + ez[b, 1]
+        for i, be in enumerate(betas):
+            out[b, i] = rotins.windowed_std(t, base + be * ez[b, 2], spec["start"], spec["window"])[1].mean()
+        sep[b, 0] = out[b, betas.index(1.0)]
+        sep[b, 1] = rotins.windowed_std(t, ez[b, 0] + ez[b, 3] + spec["sep"] * ez[b, 4],
+                                        spec["start"], spec["window"])[1].mean()
+    return {"wstd": out, "wstd_sep": sep, "final": ez[:, 0, -1] + ez[:, 1, -1] + ez[:, 2, -1] - X[:, 0, iz]}
+
+
+def fractions(wstd, wstd_sep, betas, sep_ratio):
+    """Fractions of seeds: std monotone in β; β = 1.1 above β = 1.0; separate INS ordered."""
+    order = np.argsort(betas)
+    mono = np.all(np.diff(wstd[:, order], axis=1) > 0, axis=1)
+    d11 = wstd[:, betas.index(1.1)] > wstd[:, betas.index(1.0)]
+    dsep = (wstd_sep[:, 1] > wstd_sep[:, 0]) if sep_ratio > 1 else (wstd_sep[:, 1] < wstd_sep[:, 0])
+    return float(mono.mean()), float(d11.mean()), float(dsep.mean())
+
+
+def linear_campaign(cfg, ctx, runs, model, P0, sig_meas):
+    """Analysis one over ``runs`` seeds in the linear domain, on Dask."""
+    from sinslab.estimation import montecarlo as mc
+
+    spec = campaign_spec(cfg, model, P0, sig_meas)
+    out = mc.run_campaign(linear_batch, runs, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(spec=spec))
+    betas = spec["betas"]
+    pm, pd, ps = fractions(out["wstd"], out["wstd_sep"], betas, spec["sep"])
+    return dict(p_monotone=pm, p_distinguish=pd, p_separate=ps, wstd=out["wstd"], wstd_sep=out["wstd_sep"])
 
 
 # ---------------------------------------------------------------- claims ----------------
