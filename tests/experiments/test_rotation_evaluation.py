@@ -99,6 +99,18 @@ def test_recorded_constant_record_is_a_gyro_bias(tmp_path):
     np.testing.assert_allclose(a.omega, b.omega, rtol=0, atol=1e-15)
 
 
+@pytest.mark.parametrize("scheme, rank", [("dual_axis_16", 13), ("roll_flip", 12), ("azimuth_flip", 12)])
+def test_schedule_rank_and_warning(scheme, rank):
+    """The paper's schedule reaches rank 13; INS k flipping about one axis only stays at 12
+    and the run carries the warning (the evaluation is then not meaningful)."""
+    cfg = resolve(get("rotation-evaluation").config, sets=[f"rotation.dual_scheme={scheme}"])
+    so, warning = R.observability(cfg, R.rotins.joint_rotation_model())
+    assert so.rank_static == 5 and so.ranks[-1] == rank
+    assert (warning is None) == (rank == 13)
+    if warning:
+        assert warning.startswith("WARNING") and scheme in warning and "12 < 13" in warning
+
+
 def _csv(path, n, dt=0.1, gyro=None, t=None):
     t = dt * np.arange(n) if t is None else t
     g = np.full((n, 3), 1e-6) if gyro is None else gyro
