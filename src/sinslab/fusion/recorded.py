@@ -479,7 +479,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         ks, C, h_sig, how = found
         ts = float(imu.t[ks - 1]) if ks > 0 else imu.t0
         att0 = A.dcm_to_euler(C)
-        init["heading_source"] = f"{how}, ending {ts - fixes.t[0]:.2f} s after the first fix"
+        init["heading_source"] = how
         init["heading_sigma"] = h_sig
     lat_a, lon_a, h_a, v0 = _interp_fix(fixes, ts)
     C0 = A.euler_to_dcm(att0)
@@ -546,10 +546,22 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         aiding.append(NonHolonomic(opt.nhc_sigma, lever_arm=np.asarray(opt.nhc_lever_arm, float),
                                    every=every))
 
+    P0 = np.diag(sp0 ** 2)
+    if opt.estimate_lever:
+        # the start position is the antenna's minus C l_used: its error is −C δl, so the
+        # position and lever-arm errors start correlated (else the fixes pin a wrong start)
+        D = np.array([[0.0, 1.0 / rm0, 0.0], [1.0 / (rn0 * math.cos(lat_i)), 0.0, 0.0], [0.0, 0.0, 1.0]])
+        J = -D @ C0
+        spp, slv = lay.slice("dp"), lay.slice("lev")
+        Sl = np.eye(3) * opt.lever_sigma ** 2
+        P0[spp, spp] += J @ Sl @ J.T
+        P0[spp, slv] = J @ Sl
+        P0[slv, spp] = (J @ Sl).T
+
     # --- the filter (the one INS + fix driver)
     r = loosely_coupled(
         imu, NavState(lat_i, lon_i, h_i, v0, att0), sel.t, np.stack([sel.lat, sel.lon, sel.h], -1),
-        np.maximum(sel.sigma, opt.pos_sigma_floor), np.diag(sp0 ** 2), model=model,
+        np.maximum(sel.sigma, opt.pos_sigma_floor), P0, model=model,
         fix_vel=_fix_vel_enu(sel) if use_vel else None,
         vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
         lever_arm=lever, fix_lag=opt.fix_latency, lag=opt.lag, outages=outages, kf_dt=T,
@@ -609,31 +621,46 @@ def outage_end_errors(res: RecordedNav, fixes: Fixes, outages=None):
 
 
 # ------------------------------------------------------------ IMU / fix time sync ---
-__all__ += ["estimate_time_offset", "shift_imu_time"]
+__all__ += ["estimate_time_offset", "significant_time_offset", "shift_imu_time"]
 
 
 def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_speed=2.0,
-                         search=1.0, step=0.005):
+                         search=1.0, step=0.005, lever_arm=None, gyro_bias=None):
     """Estimate how late the IMU time stamps are relative to the fixes, from turns.
 
     The IMU vertical-axis rate (body z, RFU; the vehicle is roughly level) is
-    cross-correlated with the course rate of the fix velocities (speed > ``min_speed``)
-    in windows of ``window`` s; a straight line through the per-window lags gives an
-    offset and a clock-rate error. Returns ``{"offset": lag at t_ref [s], "t_ref",
-    "ppm": drift [1e-6 s/s], "windows": [(t_mid, lag, correlation), ...]}``; the
-    corrected IMU times are ``t − (offset + ppm·1e-6·(t − t_ref))``.
+    (each sample the mean over its interval) is cross-correlated with the course rate of
+    the fix velocities (speed > ``min_speed``) in windows of ``window`` s (shortened so the
+    overlap holds at least four; windows without a clear turn, peak correlation < 0.5,
+    are skipped). The fix
+    velocities are first moved from the antenna to the IMU point
+    (``v − C (ω × l)`` with ``lever_arm`` l, vehicle RFU [m]): in a turn the antenna's course
+    leads or lags the body's by ``l_y ω̇ / v``, which reads as a time offset of ``l_y / v``
+    (0.1 s for 1 m at 10 m/s). A straight line through the per-window lags gives an offset
+    and a clock-rate error, with standard errors from the scatter about the line.
+
+    Returns ``{"offset": lag at t_ref [s], "offset_sigma", "t_ref", "ppm": drift
+    [1e-6 s/s], "ppm_sigma", "windows": [(t_mid, lag, correlation), ...]}`` (σ = inf when
+    too few windows to judge); the corrected IMU times are
+    ``t − (offset + ppm·1e-6·(t − t_ref))``. :func:`significant_time_offset` keeps only
+    what is significant.
     """
     if fixes.vel is None:
         raise ValueError("time-offset estimation needs fix velocities")
-    sp = np.hypot(fixes.vel[:, 0], fixes.vel[:, 1])
-    crs = np.unwrap(np.arctan2(fixes.vel[:, 0], fixes.vel[:, 1]))
+    lever = np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float)
+    gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=float)
+    crs, sp = _imu_point_course(fixes, imu, lever, gb)
+    crs = np.unwrap(crs)
+    slow = sp < min_speed
     cr = -np.gradient(crs, fixes.t)                       # counter-clockwise rate
-    cr[sp < min_speed] = 0.0
+    cr[slow] = 0.0
     wz = imu.dtheta[:, 2] / imu.dt
+    tw = imu.t - 0.5 * imu.dt                             # a rate is the mean over its interval
     lo = max(fixes.t[0], imu.t[0]) + search
     hi = min(fixes.t[-1], imu.t[-1]) - search
-    if hi - lo < window / 2:
+    if hi - lo < 20.0:
         raise ValueError("IMU and fixes overlap too little to estimate a time offset")
+    window = min(window, (hi - lo) / 4)
     nwin = max(1, int((hi - lo) // window))
     edges = np.linspace(lo, hi, nwin + 1)
     lags = np.arange(-search, search + step / 2, step)
@@ -643,8 +670,10 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_spee
         ref = np.interp(grid, fixes.t, cr)
         if np.std(ref) < 1e-3:
             continue
-        c = np.array([np.corrcoef(np.interp(grid + o, imu.t, wz), ref)[0, 1] for o in lags])
+        c = np.array([np.corrcoef(np.interp(grid + o, tw, wz), ref)[0, 1] for o in lags])
         i = int(np.nanargmax(c))
+        if c[i] < 0.5:                                        # no clear turn in this window
+            continue
         if 0 < i < len(c) - 1:                                # parabolic refinement
             den = c[i - 1] - 2 * c[i] + c[i + 1]
             sh = 0.5 * (c[i - 1] - c[i + 1]) / den if den < 0 else 0.0
@@ -656,11 +685,35 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_spee
     tm = np.array([r[0] for r in res])
     lg = np.array([r[1] for r in res])
     t_ref = float(tm.mean())
-    if len(res) >= 2:
-        b_, a_ = np.polyfit(tm - t_ref, lg, 1)
+    n = len(res)
+    x = tm - t_ref
+    if n >= 3:
+        b_, a_ = np.polyfit(x, lg, 1)
+        s2 = float(np.sum((lg - a_ - b_ * x) ** 2)) / (n - 2)
+        sa, sb = math.sqrt(s2 / n), math.sqrt(s2 / float(np.sum(x ** 2)))
     else:
-        b_, a_ = 0.0, float(lg[0])
-    return {"offset": float(a_), "t_ref": t_ref, "ppm": float(b_ * 1e6), "windows": res}
+        b_, a_ = 0.0, float(lg.mean())
+        sa = float(np.std(lg, ddof=1)) / math.sqrt(n) if n == 2 else math.inf
+        sb = math.inf
+    return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6),
+            "ppm_sigma": sb * 1e6, "windows": res, "step": float(step)}
+
+
+def significant_time_offset(est: dict, k: float = 3.0) -> dict:
+    """The part of :func:`estimate_time_offset` to apply: the clock drift only when it
+    exceeds ``k`` σ (else the offset is re-estimated as the mean lag), the offset only when
+    it exceeds ``k`` σ and the lag resolution (the search step). Returns ``{"offset", "ppm", "t_ref", "offset_applied",
+    "ppm_applied", "offset_sigma"}``."""
+    ppm_ok = math.isfinite(est["ppm_sigma"]) and abs(est["ppm"]) > k * est["ppm_sigma"]
+    off, s_off = est["offset"], est["offset_sigma"]
+    if not ppm_ok:
+        lg = np.array([w[1] for w in est["windows"]])
+        off = float(lg.mean())
+        s_off = float(np.std(lg, ddof=1)) / math.sqrt(lg.size) if lg.size >= 2 else math.inf
+    off_ok = math.isfinite(s_off) and abs(off) > max(k * s_off, est.get("step", 0.0))
+    return {"offset": off if off_ok else 0.0, "ppm": est["ppm"] if ppm_ok else 0.0,
+            "t_ref": est["t_ref"], "offset_applied": bool(off_ok), "ppm_applied": bool(ppm_ok),
+            "offset_sigma": s_off, "offset_estimate": off}
 
 
 def shift_imu_time(imu: ImuRecord, offset=0.0, ppm=0.0, t_ref=0.0) -> ImuRecord:
