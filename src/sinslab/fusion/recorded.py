@@ -86,7 +86,7 @@ class NavOptions:
     rest_min: float = 2.0                   #: shortest rest interval used [s]
     nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
     nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
-    aiding_dt: float = 0.1                  #: ZUPT/ZARU/NHC applied every this [s]
+    aiding_dt: float = 0.1                  #: ZUPT/NHC applied every this [s] (ZARU: every epoch)
     estimate_lever: bool = False            #: estimate the antenna lever arm (3 states)
     lever_sigma: float = 1.0                #: its initial σ per axis [m]
     heading_window: float = 1.0             #: [s] of motion above move_speed for the heading
@@ -541,7 +541,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                 zs = opt.zaru_sigma if opt.zaru_sigma is not None else \
                     2.0 * float(np.max(g_noise)) / math.sqrt(T)
                 init["zaru_sigma"] = zs
-                aiding.append(ZeroRate(iv, zs, every=every))
+                # every epoch: each holds the rate of its own step, thinning discards them
+                aiding.append(ZeroRate(iv, zs, every=1))
     if opt.nhc_sigma is not None:
         aiding.append(NonHolonomic(opt.nhc_sigma, lever_arm=np.asarray(opt.nhc_lever_arm, float),
                                    every=every))
