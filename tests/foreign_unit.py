@@ -31,10 +31,13 @@ def write_foreign_log(path, imu, flags=None, week_seconds=345600.0):
     dv = imu.dv @ R
     n = len(imu)
     flags = np.zeros(n, bool) if flags is None else np.asarray(flags, bool)
+    import pandas as pd
+    cols = HEADER.split(";")
+    df = pd.DataFrame({cols[0]: imu.t + week_seconds, **{c: dth[:, i] for i, c in enumerate(cols[1:4])},
+                       **{c: dv[:, i] for i, c in enumerate(cols[4:7])},
+                       cols[7]: np.round(21.5 + 0.01 * np.arange(n), 2),
+                       cols[8]: np.where(flags, "STILL", "NAV"), cols[9]: flags.astype(int)})
     with open(path, "w") as fh:
         fh.write("% ACME NAV-200 export v3.1\n% serial 0042, firmware 7.2\n")
-        fh.write(HEADER + "\n")
-        for k in range(n):
-            fh.write(";".join(f"{v:.17g}" for v in (imu.t[k] + week_seconds, *dth[k], *dv[k]))
-                     + f";{21.5 + 0.01 * k:.2f};{'STILL' if flags[k] else 'NAV'};{int(flags[k])}\n")
+        df.to_csv(fh, sep=";", index=False, float_format="%.17g")
     return path

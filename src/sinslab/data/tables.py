@@ -459,8 +459,9 @@ def write_fix_csv(path, fx: Fixes):
         cols += [*fx.vel.T, *fx.sigma_vel.T]
         names += _FIX_VCOLS
     with atomic_path(Path(path)) as tmp:
+        # 15 digits: 12 would quantise a latitude in degrees to ~1 cm
         np.savetxt(tmp, np.column_stack(cols), delimiter=",", header=",".join(names), comments="",
-                   fmt="%.12g")
+                   fmt="%.15g")
     return Path(path)
 
 
