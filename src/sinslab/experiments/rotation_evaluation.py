@@ -366,24 +366,39 @@ class InsOutput:
     pos_err_m: np.ndarray       # (M,) horizontal position error [m]
 
 
-def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps=360):
+def _tile(a, i0, L):
+    """Rows ``i0 .. i0+L−1`` of the periodic repetition of ``a`` (slices, no index array)."""
+    N = a.shape[0]
+    j = i0 % N
+    if j + L <= N:
+        return a[j:j + L]
+    parts = [a[j:]]
+    left = L - (N - j)
+    while left > 0:
+        parts.append(a[:min(N, left)])
+        left -= N
+    return np.concatenate(parts)
+
+
+def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps=360,
+                     rates=True):
     """Navigate one INS at the full IMU rate in chunks; keep its output at the filter epochs.
 
     The true increments of the chunk are taken from the tiled cycle; the sensor errors are
     added with the INS's own random stream (continued from chunk to chunk); a trend is
-    integrated over each sample from the start of the run.
+    integrated over each sample from the start of the run. ``rates=False`` skips the mean
+    rates per output step (only the fusion driver needs them).
     """
     rng = np.random.default_rng([int(seed), *spec.stream])
     phi0 = rng.standard_normal(3) * np.asarray(att_sigma, float)
     C0 = A.euler_to_dcm(spec.cycle.att0)
     att = A.dcm_to_euler(A.apply_misalignment(C0, phi0))
     state = sd.initial_state_array(NavState(lat, lon, 0.0, np.zeros(3), att, 0.0))
-    Nc = spec.cycle.dth.shape[0]
     M = n_steps + 1
     rows = np.empty((M, 10))
     rows[0] = state[:10]
-    omega = np.empty((n_steps, 3))
-    f = np.empty((n_steps, 3))
+    omega = np.empty((n_steps, 3)) if rates else None
+    f = np.empty((n_steps, 3)) if rates else None
     T = k_kf * dt
     per = k_kf // nsub
     done = 0
@@ -391,9 +406,8 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
         m = min(chunk_steps, n_steps - done)
         L = m * k_kf
         i0 = done * k_kf
-        idx = (i0 + np.arange(L)) % Nc
         t = (i0 + 1 + np.arange(L)) * dt
-        rec = ImuRecord(t, spec.cycle.dth[idx], spec.cycle.dv[idx], dt)
+        rec = ImuRecord(t, _tile(spec.cycle.dth, i0, L), _tile(spec.cycle.dv, i0, L), dt)
         meas = imu_.apply(rec, spec.errors, rng)
         dth, dv = meas.dtheta, meas.dv
         if spec.trend is not None or spec.recorded is not None:
@@ -402,11 +416,12 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
             dth += spec.trend.evaluate(t - 0.5 * dt) * dt
         if spec.recorded is not None:
             g, off = spec.recorded
-            dth += g[(off + i0 + np.arange(L)) % g.shape[0]] * (spec.gyro_scale * dt)
+            dth += _tile(g, off + i0, L) * (spec.gyro_scale * dt)
         sd.step(state, dth, dv, dt, nsub, vertical="hold", height=np.zeros(L + 1),
                 out=rows[done + 1:done + 1 + m], out_every=per)
-        omega[done:done + m] = dth.reshape(m, k_kf, 3).sum(1) / T
-        f[done:done + m] = dv.reshape(m, k_kf, 3).sum(1) / T
+        if rates:
+            omega[done:done + m] = dth.reshape(m, k_kf, 3).sum(1) / T
+            f[done:done + m] = dv.reshape(m, k_kf, 3).sum(1) / T
         done += m
     rm, rn = earth.radii(lat, 0.0)
     dn = (rows[:, 7] - lat) * float(rm)
@@ -525,7 +540,7 @@ def run(cfg: Config, ctx) -> Result:
     with ctx.progress("navigating", total=len(specs), unit="INS") as bar:
         for key, spec in specs.items():
             outs[key] = navigate_chunked(spec, cfg.seed, lat, lon, dt, n_out, k_out, cfg.filter.nsub, att_sigma,
-                                         chunk_steps=max(1, int(3600.0 // (k_out * dt))))
+                                         chunk_steps=max(1, int(3600.0 // (k_out * dt))), rates=drv)
             bar.advance(1)
     stages["navigation"] = time.perf_counter() - t0
 
