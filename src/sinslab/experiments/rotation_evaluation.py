@@ -11,8 +11,11 @@ Long runs are generated and navigated in chunks: with the carrier at rest the tr
 increments repeat exactly with the mechanism's cycle, so one cycle is synthesised per
 scheme and tiled; each INS adds its own errors chunk by chunk (one random stream per INS,
 so a rescaled noise record is the same record) and keeps its output at the filter rate
-only. The joint filters (:func:`sinslab.methods.rotins.joint_filter`) run on the fusion
-driver on those outputs (feed-forward).
+only. The joint filters are feed-forward on those outputs, with the model chained from
+``filter.model_dt`` sub-steps per measurement: by default (``filter.engine = "schedule"``)
+linearised along the known schedule, one transition table shared by every filter, in a
+compiled loop (:func:`sinslab.methods.rotins.joint_filter_linear`); with ``"driver"`` the
+fusion driver linearises on each pair's outputs (:func:`sinslab.methods.rotins.joint_filter`).
 
 Analyses:
 
@@ -61,7 +64,7 @@ PAPER = ("Wang, Wu et al.: online relative performance evaluation of joint rotat
          "RLG marine INS, 2018")
 NOTES = [
     "Vertical channel held at the true (sea-level) height; horizontal joint model (17 states).",
-    "Joint filters are feed-forward on the INS outputs at the filter step; measurement "
+    "Joint filters are feed-forward on the INS outputs; measurement "
     "z = [L1−Lk, λ1−λk, vE1−vEk, vN1−vNk], R ≈ 0 realised as a floor of filter.meas_floor_pos / "
     "filter.meas_floor_vel with sequential scalar Joseph updates.",
     "Noise synthesised: white (ARW/VRW) per INS; the paper's recorded 120 h noise can be given "
