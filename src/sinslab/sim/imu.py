@@ -692,7 +692,7 @@ def gm_sigma_from_allan_floor(value, convention="ieee"):
 # --- compiled kernels ----------------------------------------------------------------------------
 # one pass over the record per error model; normals from the in-kernel generator of
 # sinslab.sim._rng
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, gsig, gphi, gdrv, gact,
             rstep, ract, has_trend, tr_ramp, tr_ea, tr_et, tr_esh, tr_sa, tr_sw, tr_ssh, tr_sp,
             has_rec, rec_g, rec_a, rec_gain, rec_n, out_dth, out_dv):
@@ -759,7 +759,7 @@ def _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, gsig, g
             kr = 0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv):
     """:func:`_kernel` for the common model of constant bias and white noise only (no
     Gauss-Markov, random walk, trend or recorded noise): the same draws in the same order
@@ -793,7 +793,7 @@ def _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv
                     out_dv[k, i] = y + e
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kernel_white_all(dth, dv, state, bias_dt, wsig, out_dth, out_dv):
     """:func:`_kernel_white` with white noise on all six channels and no scale factor or
     misalignment, unrolled over the channels with the parameters in scalars: same draws,
