@@ -55,7 +55,7 @@ def navigation_modes(hours, n_ins, workers=2):
     from sinslab.experiments import get
     from sinslab.experiments import rotation_evaluation as R
 
-    cfg = resolve(get("rotation-evaluation").config, sets=[f"scenario.duration={hours} h"])
+    cfg = resolve(get("rotation-evaluation").config, sets=[])
     lat, lon, dt = float(cfg.scenario.latitude), float(cfg.scenario.longitude), float(cfg.scenario.sample_interval)
     m1, mk = R.mounts(cfg)
     cyc = [R.one_cycle(m1, lat, lon, dt), R.one_cycle(mk, lat, lon, dt)]

@@ -49,7 +49,7 @@ from pydantic import field_validator, model_validator
 from sinslab.app.errors import UserError
 from sinslab.core import attitude as A
 from sinslab.core import earth, units
-from sinslab.core.records import ImuRecord, NavState
+from sinslab.core.records import NavState
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
 from sinslab.methods import rotins
 from sinslab.nav import strapdown as sd
@@ -426,11 +426,11 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
         L = m * k_kf
         i0 = done * k_kf
         t = (i0 + 1 + np.arange(L)) * dt
-        rec = ImuRecord(t, _tile(spec.cycle.dth, i0, L), _tile(spec.cycle.dv, i0, L), dt)
-        meas = imu_.apply(rec, spec.errors, rng)
-        dth, dv = meas.dtheta, meas.dv
-        if spec.trend is not None or spec.recorded is not None:
-            dth = dth.copy()
+        # the interval an ImuRecord of the chunk would take from its time column, so the
+        # draws are scaled exactly as imu.apply on that record would scale them
+        dt_rec = float((t[-1] - t[0]) / (L - 1)) if L > 1 else dt
+        dth, dv = imu_.apply_arrays(_tile(spec.cycle.dth, i0, L), _tile(spec.cycle.dv, i0, L), t, dt_rec,
+                                    spec.errors, rng)
         if spec.trend is not None:
             dth += spec.trend.evaluate(t - 0.5 * dt) * dt
         if spec.recorded is not None:

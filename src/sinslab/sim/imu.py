@@ -73,7 +73,7 @@ from sinslab.core.toml import dump_toml
 from sinslab.sim._rng import _kernel_state, _normal, _rng
 
 __all__ = [
-    "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_batch", "noise_increments",
+    "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_arrays", "apply_batch", "noise_increments",
     "gm_allan_deviation", "gm_sigma_from_allan_floor", "GM_ALLAN_PEAK", "GM_ALLAN_PEAK_TAU",
 ]
 
@@ -929,6 +929,37 @@ def apply(imu: ImuRecord, errors: ImuErrors, seed) -> ImuRecord:
     if not (np.isfinite(out_dth[-1]).all() and np.isfinite(out_dv[-1]).all()):
         raise ValueError("IMU errors produced non-finite increments (check the parameters)")
     return _new_record(imu, out_dth, out_dv)
+
+
+def apply_arrays(dtheta, dv, t, dt, errors: ImuErrors, seed):
+    """:func:`apply` on bare arrays: the same draws and arithmetic, hence the same bytes,
+    without building (and re-checking the time column of) an :class:`ImuRecord` — for
+    loops that feed long records chunk by chunk on a regular grid they made themselves.
+
+    Parameters
+    ----------
+    dtheta, dv : array (n, 3)
+        True increments [rad], [m/s] (IMU body frame).
+    t : array (n,)
+        End time of each interval [s], regular with step ``dt`` (not checked).
+    dt : float
+        Sampling interval [s].
+    errors : ImuErrors
+    seed : int or numpy.random.Generator
+
+    Returns
+    -------
+    dtheta, dv : ndarray (n, 3)
+        New arrays with the errors applied.
+    """
+    dtheta = np.ascontiguousarray(dtheta, dtype=float)
+    dv = np.ascontiguousarray(dv, dtype=float)
+    t = np.asarray(t, dtype=float)
+    n = dtheta.shape[0]
+    out_dth = np.empty((n, 3))
+    out_dv = np.empty((n, 3))
+    _run(dtheta, dv, t, float(t[0] - dt), float(dt), errors, _rng(seed), out_dth, out_dv)
+    return out_dth, out_dv
 
 
 def apply_batch(imu: ImuRecord, errors: ImuErrors, seeds) -> list[ImuRecord]:
