@@ -1,11 +1,14 @@
 """Speed of paper 001's pipeline (rotation-evaluation).
 
-Run: ``.venv/bin/python benchmarks/rotins.py [--quick] [--runs N] [--filter-hours H] [--json FILE]``
+Run: ``.venv/bin/python benchmarks/rotins.py [--quick] [--runs N] [--filter-hours H]
+[--nav-hours H] [--nav-ins N] [--only-navigation] [--compare-serial] [--json FILE]``
 
 1. Stage times of one run of the experiment (full default: 144 h, eleven INS at 100 Hz,
-   ten joint filters; ``--quick``: the experiment's --quick), from its ``stage_s`` metric:
-   synthesis + navigation, joint filters, eq-20 covariance, Monte Carlo. Targets: full
-   default < 60 s, --quick < 60 s on a quiet 2-core machine.
+   ten joint filters; ``--quick``: the experiment's --quick), from its ``stage_s`` metric
+   (wall) and ``stage_cpu_s`` (CPU of the process, all threads): synthesis + navigation,
+   joint filters, eq-20 covariance, Monte Carlo; with ``--compare-serial`` also with the
+   INS navigated one after another. Targets: full default < 60 s, --quick < 60 s on a
+   quiet 2-core machine.
 2. One joint filter over ``--filter-hours`` hours (1 s model steps, a measurement every
    10 s) two ways in the same run: the fusion driver on the two outputs and the compiled
    loop on the schedule's transition table (:func:`sinslab.methods.rotins.joint_filter_linear`);
@@ -31,7 +34,7 @@ os.environ.setdefault("SINSLAB_QUIET", "1")
 import numpy as np  # noqa: E402
 
 
-def stage_times(quick, runs=1, scheduler=None):
+def stage_times(quick, runs=1, scheduler=None, sets=()):
     from pathlib import Path
 
     from sinslab.app.config import resolve
@@ -39,13 +42,14 @@ def stage_times(quick, runs=1, scheduler=None):
     from sinslab.experiments.base import RunContext
 
     exp = get("rotation-evaluation")
-    cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=[f"runs={runs}"])
+    cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=[f"runs={runs}", *sets])
     ctx = RunContext("bench", Path("."), seed=0, runs=runs, quick=quick, scheduler=scheduler)
     t0 = time.perf_counter()
     res = exp.run(cfg, ctx)
     wall = time.perf_counter() - t0
     st = res.metrics["stage_s"]
     return dict(wall_s=wall, navigation_s=st[0], filters_s=st[1], covariance_s=st[2], montecarlo_s=st[3],
+                stage_cpu_s=res.metrics["stage_cpu_s"], load_avg=os.getloadavg(),
                 navigations=res.metrics["navigations"], imu_samples_per_ins=res.metrics["imu_samples_per_ins"])
 
 
@@ -126,6 +130,8 @@ def main(argv=None):
     ap.add_argument("--nav-hours", type=float, default=6.0)
     ap.add_argument("--nav-ins", type=int, default=4)
     ap.add_argument("--only-navigation", action="store_true", help="part 3 only")
+    ap.add_argument("--compare-serial", action="store_true",
+                    help="part 1 also with compute.navigation=serial (the INS one after another)")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     out = {"navigation": navigation_modes(a.nav_hours, a.nav_ins)}
@@ -136,6 +142,9 @@ def main(argv=None):
     print("joint filter:", json.dumps(out["filter"], indent=1))
     out["run"] = stage_times(a.quick)
     print("experiment run:", json.dumps(out["run"], indent=1))
+    if a.compare_serial:
+        out["run_serial"] = stage_times(a.quick, sets=["compute.navigation=serial"])
+        print("experiment run, INS navigated one after another:", json.dumps(out["run_serial"], indent=1))
     if a.runs > 1:
         t0 = time.perf_counter()
         st = stage_times(a.quick, runs=a.runs)
