@@ -11,7 +11,9 @@ Long runs are generated and navigated in chunks: with the carrier at rest the tr
 increments repeat exactly with the mechanism's cycle, so one cycle is synthesised per
 scheme and tiled; each INS adds its own errors chunk by chunk (one random stream per INS,
 so a rescaled noise record is the same record) and keeps its output at the filter rate
-only. The joint filters are feed-forward on those outputs, with the model chained from
+only. The INS are independent and navigated concurrently (``compute.navigation``: Dask
+threads by default — the compiled kernels release the GIL — or a Dask cluster of
+processes); the outputs do not depend on the mode. The joint filters are feed-forward on those outputs, with the model chained from
 ``filter.model_dt`` sub-steps per measurement: by default (``filter.engine = "schedule"``)
 linearised along the known schedule, one transition table shared by every filter, in a
 compiled loop (:func:`sinslab.methods.rotins.joint_filter_linear`); with ``"driver"`` the
@@ -25,7 +27,8 @@ Analyses:
   dual-axis INS with its own record and noise ``evaluation.separate_ratio`` × INS #2's;
 - two: a slow trend on INS #1's azimuth drift and INS #2..#4 with noise scales
   ``analysis_two.noise_scales``: ε_z1 tracks the trend (Fig 5), the windowed stds rank the
-  INS (Fig 6) as their position errors do (Fig 7);
+  INS (Fig 6) as their position errors do (Fig 7); with ``analysis_two.drift_rw`` > 0 the
+  three filters run again with a random walk on INS #1's drifts (not the paper's model);
 - eq 20 checked by a covariance computation with the filter's gains
   (:func:`sinslab.methods.rotins.noise_share`) against the simulated ratio for β = 1.1;
 - observability of the joint model along the actual stops (rank per stop, cumulative).
