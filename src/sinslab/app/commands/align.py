@@ -8,10 +8,7 @@ from typing import Optional
 import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
-from sinslab.core import attitude as A
-from sinslab.core import earth, units
-from sinslab.methods import alignment as al
-from sinslab.methods.alignment import align_record
+from sinslab.core import units
 
 #: the method this command applies (printed in its report)
 PAPER = ("Yan Gongmin, Qin Yongyuan: Initial alignment accuracy analysis and simulation of SINS "
@@ -61,7 +58,11 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
 def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model,
              period, feedback, echo) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
+    from sinslab.core import attitude as A      # numba and scipy: only when it runs
+    from sinslab.core import earth
     from sinslab.data import read_imu
+    from sinslab.methods import alignment as al
+    from sinslab.methods.alignment import align_record
 
     imu, ps = read_imu(path, fmt)
     if lat is None:

@@ -9,10 +9,7 @@ from typing import Optional
 import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
-from sinslab.core import earth as E
 from sinslab.core import units
-from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors, navigate_recorded,
-                                     outage_end_errors, parse_outages, shift_imu_time)
 
 __all__ = ["NAVIGATE", "navigate_files", "register"]
 
@@ -62,7 +59,11 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
+    from sinslab.core import earth as E         # numba and scipy: only when it runs
     from sinslab.data import guess_imu_format, load_imu, read_fixes
+    from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
+                                         navigate_recorded, outage_end_errors, parse_outages,
+                                         shift_imu_time)
 
     fmt_eff = fmt or guess_imu_format(imu_path)
     kw = {}
