@@ -212,3 +212,66 @@ def check_memory(cfg, available: int | None = None) -> None:
             raise ConfigError(f"config key {prefix}sample_interval: {dt_txt} over {dur_txt} is "
                               f"{n:.3g} samples, at least {_size(need)} of arrays, but "
                               f"{_size(avail)} of memory is available")
+
+
+# ------------------------------------------------------------------ option forms -------
+def option_choice(option: str, value, choices) -> str:
+    """``value`` if it is one of ``choices``, else a one-line error listing them."""
+    if value not in choices:
+        raise CliError(f"{option} {value!r}: choose one of {', '.join(choices)}")
+    return value
+
+
+def option_window(option: str, text) -> tuple[float | None, float | None]:
+    """``START:END`` in seconds (either may be empty) -> ``(start, end)``; finite, END > START."""
+    if text in (None, ""):
+        return None, None
+    a, sep, b = str(text).partition(":")
+    if not sep:
+        raise CliError(f"{option} {text!r}: expected START:END in seconds (either may be empty)")
+    try:
+        lo = float(a) if a.strip() else None
+        hi = float(b) if b.strip() else None
+    except ValueError:
+        raise CliError(f"{option} {text!r}: START and END must be numbers of seconds") from None
+    if any(v is not None and not math.isfinite(v) for v in (lo, hi)):
+        raise CliError(f"{option} {text!r}: START and END must be finite")
+    if lo is not None and hi is not None and not hi > lo:
+        raise CliError(f"{option} {text!r}: END must be after START")
+    return lo, hi
+
+
+def check_window(option: str, text, t_first: float, t_last: float) -> None:
+    """Refuse a window that does not overlap the record ``[t_first, t_last]`` [s]."""
+    lo, hi = option_window(option, text)
+    if (lo is not None and lo >= t_last) or (hi is not None and hi <= t_first):
+        raise CliError(f"{option} {text!r}: outside the record, which spans "
+                       f"{t_first:.6g} to {t_last:.6g} s")
+
+
+def check_navigate_options(*, fix_latency=0.0, velocity_lag=0.0, imu_delay=0.0, max_gap=1.0,
+                           lag="aware", time_sync="none") -> None:
+    """The numeric and choice options of ``sinslab navigate``, before any file is read."""
+    option_number("--fix-latency", fix_latency, ge=0.0, unit="s")
+    option_number("--velocity-lag", velocity_lag, ge=0.0, unit="s")
+    option_number("--imu-delay", imu_delay, unit="s")
+    option_number("--max-gap", max_gap, gt=0.0, unit="s")
+    option_choice("--lag", lag, ("aware", "ignore"))
+    option_choice("--time-sync", time_sync, ("auto", "none"))
+
+
+def check_outages(option: str, text, outages, t_ref: float, t_end: float) -> None:
+    """Every outage (``[(start, length)]`` absolute [s], or a periodic spec) must start
+    within the navigated span ``[t_ref, t_end)``; otherwise nothing would be measured."""
+    span = t_end - t_ref
+    for o in outages:
+        if o and o[0] == "periodic":
+            _, ln, per, first = o
+            if not (0.0 <= first < span):
+                raise CliError(f"{option} {text!r}: the first outage at {first:g} s is outside "
+                               f"the record (0 to {span:.1f} s from the first fix)")
+            continue
+        st, ln = o
+        if not (t_ref <= st and st + ln <= t_end):
+            raise CliError(f"{option} {text!r}: outage {st - t_ref:g}:{ln:g} is outside the "
+                           f"record (0 to {span:.1f} s from the first fix)")

@@ -29,12 +29,15 @@ def _parse_init(text):
     out = {}
     if not text:
         return out
+    from sinslab.app.validate import option_quantity
+
     for tok in str(text).split(","):
         k, sep, v = tok.partition("=")
         k = k.strip().lower()
         if not sep or k not in ("heading",):
             raise ValueError(f"--init {text!r}: use heading=ANGLE (e.g. heading=\"30 deg\")")
-        out["heading"] = units.parse(v.strip(), "angle")
+        out["heading"] = option_quantity(f"--init {k}", v.strip(), "angle", ge="-180 deg",
+                                         le="360 deg")
     return out
 
 
@@ -46,6 +49,12 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
+    from sinslab.app.validate import check_navigate_options
+
+    check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag, imu_delay=imu_delay,
+                           max_gap=max_gap, lag=lag, time_sync=time_sync)
+    if isinstance(init, (str, type(None))):
+        _parse_init(init)
     summary, res = run_command(NAVIGATE, out, lambda: _compute(
         imu_path, fix_path, fmt=fmt, fix_format=fix_format, lever_arm=lever_arm, mount=mount,
         frame=frame, outages=outages, fix_latency=fix_latency, lag=lag, init=init,
@@ -97,6 +106,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                               else lever_arm)
     t_ref = float(fx.t[0])
     opt.outages = tuple(parse_outages(outages, t_ref)) if isinstance(outages, (str, type(None))) else tuple(outages)
+    if isinstance(outages, str):
+        from sinslab.app.validate import check_outages
+
+        check_outages("--outages", outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
     opt.fix_latency = float(fix_latency)
     opt.lag = lag
     opt.scale_factors = bool(scale_factors)
