@@ -44,7 +44,8 @@ except ImportError:                     # pragma: no cover
     from click import exceptions as _cx
 
 from sinslab import __version__
-from sinslab.app.errors import USER_ERRORS, CliError, user_errors
+from sinslab.app.errors import USER_ERRORS, CliError, error_line, user_errors
+from sinslab.core.errors import InputError
 
 __all__ = ["app", "main", "user_errors", "CliError", "USER_ERRORS"]
 
@@ -180,7 +181,12 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
             out = default_out_dir(exp.name)
         else:
             RunDir(out, exp.name, command="run", force=force).check()
-        summary = execute(exp, cfg, out, quick=quick, scheduler=scheduler, log=_log, force=force)
+        try:
+            summary = execute(exp, cfg, out, quick=quick, scheduler=scheduler, log=_log, force=force)
+        except InputError as e:                 # absurd values found while computing
+            given = [f"--set {x}" for x in (set_ or [])] + ([f"--config {config}"] if config else [])
+            raise CliError(f"{exp.name}: {error_line(e)}"
+                           + (f"; check the values given ({', '.join(given)})" if given else "")) from None
     _print_summary(summary, Path(out))
     if strict and not all(c["passed"] for c in summary["claims"]):
         raise typer.Exit(1)

@@ -310,9 +310,11 @@ class RunDir:
                      if not (x.name.startswith(".") and ".tmp-" in x.name)]
             if names and MARKER not in names:
                 if not self.force:
+                    first = sorted(names)[0]
+                    more = f" and {len(names) - 1} more" if len(names) > 1 else ""
                     raise OutputDirError(
-                        f"output folder {p} exists and is not a previous sinslab run "
-                        f"(no {MARKER} marker); choose another --out, empty it, or add --force")
+                        f"output folder {p} holds {first!r}{more} and is not a previous sinslab "
+                        f"run (no {MARKER} marker); choose another --out, empty it, or add --force")
             elif names:
                 m = _read_marker(p)
                 mine = {"command": self.command, "experiment": self.experiment}
