@@ -253,7 +253,7 @@ def _pause(point: str, count: int = 0) -> None:
         import sys
         import time
 
-        print(f"sinslab: paused at {point}", file=sys.stderr, flush=True)
+        print(f"sinslab: paused at {want}", file=sys.stderr, flush=True)
         while True:
             time.sleep(0.05)
 
