@@ -203,11 +203,12 @@ def register(app):
               accel_bias: str = typer.Option("100 ug", "--accel-bias", help="assumed 1σ accel bias (limit accuracy)"),
               model: str = typer.Option("reduced", "--model", help="reduced | full"),
               period: str = typer.Option("1 s", "--period", help="filter period"),
-              open_loop: bool = typer.Option(False, "--open-loop", help="no attitude feedback")) -> None:
+              open_loop: bool = typer.Option(False, "--open-loop", help="no attitude feedback"),
+              force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Coarse and fine alignment of a recorded IMU file at rest (pitch, roll, heading with σ)."""
         cli_call(align_file, imu, fmt=format, lat=lat, h=height, window=window, out=out,
                  gyro_arw=gyro_arw, accel_vrw=accel_vrw, gyro_bias=gyro_bias,
                  accel_bias=accel_bias, model=model, period=period, feedback=not open_loop,
-                 echo=typer.echo)
+                 echo=typer.echo, force=force)
 
     return align

@@ -149,13 +149,14 @@ def register(app):
               window: Optional[str] = typer.Option(None, "--window", metavar="START:END", help="time window [s]"),
               gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="unit of gyro columns without one"),
               accel_unit: Optional[str] = typer.Option(None, "--accel-unit", help="unit of accel columns without one"),
-              out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/allan-<timestamp>]")) -> None:
+              out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/allan-<timestamp>]"),
+              force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Allan deviation of recorded IMU data: ARW/VRW, bias instability, RRW and an ImuErrors block."""
         kw = {}
         if gyro_unit:
             kw["gyro_unit"] = gyro_unit
         if accel_unit:
             kw["accel_unit"] = accel_unit
-        cli_call(allan_file, file, fmt=format, out=out, window=window, echo=typer.echo, **kw)
+        cli_call(allan_file, file, fmt=format, out=out, window=window, echo=typer.echo, force=force, **kw)
 
     return allan

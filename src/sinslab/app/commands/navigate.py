@@ -257,12 +257,13 @@ def register(app):
                  scale_factors: bool = typer.Option(False, "--scale-factors", help="estimate gyro/accel scale factors"),
                  max_gap: float = typer.Option(1.0, "--max-gap", help="longest IMU gap bridged [s]"),
                  allow_gaps: bool = typer.Option(False, "--allow-gaps", help="bridge IMU gaps of any length"),
-                 out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]")) -> None:
+                 out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]"),
+                 force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
                  init=init, time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
                  scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, out=out,
-                 echo=typer.echo)
+                 echo=typer.echo, force=force)
 
     return navigate

@@ -230,11 +230,13 @@ def register(app):
                        method: list[str] = typer.Option(["optimal"], "--method", help="euler | dcm | kain | optimal (repeatable)"),
                        mount: Optional[str] = typer.Option(None, "--mount", help="known installation [pitch, roll, yaw] with units"),
                        window: list[str] = typer.Option([], "--window", metavar="START:END", help="time window(s) [s]"),
-                       out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder")) -> None:
+                       out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder"),
+                       force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Transfer alignment on recorded data: mounting angles and slave biases with σ."""
         from sinslab.app.errors import CliError, user_errors
+        from sinslab.app.outputs import forcing
 
-        with user_errors():
+        with user_errors(), forcing(force):
             try:
                 wins = [_window(w) for w in window] or [None]
                 transfer_align_file(slave, master, methods=tuple(method), mount=mount, windows=wins, out=out,
