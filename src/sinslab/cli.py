@@ -93,7 +93,13 @@ def _err(msg: str) -> None:
     typer.echo(f"sinslab: error: {msg}", err=True)
 
 
+_QUIET = False
+
+
 def _log(msg: str) -> None:
+    """A progress line on stderr (not with ``--quiet``, except warnings)."""
+    if _QUIET and not msg.startswith("warning"):
+        return
     typer.echo(f"sinslab: {msg}", err=True)
 
 
@@ -104,11 +110,13 @@ def _version(value: bool):
 
 
 @app.callback()
-def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars"),
+def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars or progress lines"),
           version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
                                        help="print the version and exit")):
     """sinslab: strapdown inertial navigation — experiments, runs and reports."""
     os.environ.setdefault("MPLBACKEND", "Agg")         # matplotlib is imported only when drawing
+    global _QUIET
+    _QUIET = bool(quiet)
     if quiet:
         from sinslab.core.progress import set_quiet
 
