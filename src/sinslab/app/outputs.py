@@ -105,6 +105,9 @@ class Figure:
 
 
 _STAGING = ".sinslab-staging-"
+#: commands whose runs carry their own name as experiment, for markers written before the
+#: marker recorded the command
+_OLD_COMMANDS = frozenset({"navigate", "allan", "align", "transfer-align"})
 _FORCE = contextvars.ContextVar("sinslab_force", default=False)
 
 
@@ -318,8 +321,9 @@ class RunDir:
             elif names:
                 m = _read_marker(p)
                 mine = {"command": self.command, "experiment": self.experiment}
-                theirs = {"command": m.get("command", "run" if self.command == "run" else
-                                           m.get("experiment")), "experiment": m.get("experiment")}
+                exp = m.get("experiment")
+                cmd = m.get("command") or (exp if exp in _OLD_COMMANDS else "run")
+                theirs = {"command": cmd, "experiment": exp}
                 if theirs != mine and not self.force:
                     raise OutputDirError(
                         f"output folder {p} holds a run of {self._describe(theirs)}, not "
