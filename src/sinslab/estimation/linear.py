@@ -724,3 +724,217 @@ def sparsity(Phi_t):
         Number of non-zeros per row.
     """
     return _sparsity(np.ascontiguousarray(Phi_t, dtype=float))
+
+
+# ----------------------------------------------------------------------------------------
+# series discretisation of many epochs (the "series" method of kalman.discretize, compiled)
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def series_structure(fnz, gnz, q):
+    """Index lists of the zeros :func:`series_step` skips, from the possible non-zeros.
+
+    Parameters
+    ----------
+    fnz : bool ndarray (n, n)
+        Entries of F that may be non-zero.
+    gnz : bool ndarray (n, p)
+        Entries of G that may be non-zero.
+    q : ndarray (p,)
+        Noise densities (columns with q = 0 are skipped).
+
+    Returns
+    -------
+    fcol, fcnt : (n, n), (n,) int
+        Non-zero columns of each row of F.
+    grow, gcnt : (p, n), (p,) int
+        Non-zero rows of each column of G.
+    R, pos : (n,), (n,) int
+        The states reached by Q̄ (first ``nr`` entries of R); ``pos[i]`` the place of
+        state i in R or −1.
+    nr : int
+    phic, phin : (n, n), (n,) int
+        Non-zero columns of each row of Φ = I + FT + (FT)²/2.
+    qr, nq : (n,) int, int
+        The rows of Φ that reach R (first ``nq`` entries): Q_k is zero elsewhere.
+    """
+    n, m = gnz.shape
+    fcol = np.zeros((n, n), dtype=np.int64)
+    fcnt = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        for j in range(n):
+            if fnz[i, j]:
+                fcol[i, fcnt[i]] = j
+                fcnt[i] += 1
+    grow = np.zeros((m, n), dtype=np.int64)
+    gcnt = np.zeros(m, dtype=np.int64)
+    pos = np.full(n, -1, dtype=np.int64)
+    for c in range(m):
+        if q[c] == 0.0:
+            continue
+        for i in range(n):
+            if gnz[i, c]:
+                grow[c, gcnt[c]] = i
+                gcnt[c] += 1
+                pos[i] = 0
+    R = np.zeros(n, dtype=np.int64)
+    nr = 0
+    for i in range(n):
+        if pos[i] == 0:
+            R[nr] = i
+            pos[i] = nr
+            nr += 1
+    pnz = np.zeros((n, n), dtype=np.bool_)
+    for i in range(n):
+        pnz[i, i] = True
+        for a in range(fcnt[i]):
+            k = fcol[i, a]
+            pnz[i, k] = True
+            for b in range(fcnt[k]):
+                pnz[i, fcol[k, b]] = True
+    phic = np.zeros((n, n), dtype=np.int64)
+    phin = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        for j in range(n):
+            if pnz[i, j]:
+                phic[i, phin[i]] = j
+                phin[i] += 1
+    qr = np.zeros(n, dtype=np.int64)
+    nq = 0
+    for i in range(n):
+        for a in range(nr):
+            if pnz[i, R[a]]:
+                qr[nq] = i
+                nq += 1
+                break
+    return fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq
+
+
+@njit(cache=True)
+def series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe):
+    """One epoch of the series discretisation into ``Pe`` (Φ) and ``Qe`` (Q_k), skipping
+    the zeros listed by :func:`series_structure`; ``Qb``, ``PR``, ``W`` are work arrays
+    (max(nr, 1) columns)."""
+    n, m = Fe.shape[0], Ge.shape[1]
+    # Φ = I + FT + (FT)²/2
+    for i in range(n):
+        for j in range(n):
+            Pe[i, j] = 0.0
+        Pe[i, i] = 1.0
+        for a in range(fcnt[i]):
+            k = fcol[i, a]
+            fik = Fe[i, k] * T
+            Pe[i, k] += fik
+            h = 0.5 * fik
+            for b in range(fcnt[k]):
+                j = fcol[k, b]
+                Pe[i, j] += h * (Fe[k, j] * T)
+    # Q̄ = G diag(q) Gᵀ on the reached states, exactly symmetric
+    for a in range(nr):
+        for b in range(nr):
+            Qb[a, b] = 0.0
+    for c in range(m):
+        qc = q[c]
+        for a in range(gcnt[c]):
+            i = grow[c, a]
+            gi = Ge[i, c] * qc
+            pa = pos[i]
+            for b in range(gcnt[c]):
+                Qb[pa, pos[grow[c, b]]] += gi * Ge[grow[c, b], c]
+    for a in range(nr):
+        for b in range(a + 1, nr):
+            v = 0.5 * (Qb[a, b] + Qb[b, a])
+            Qb[a, b] = v
+            Qb[b, a] = v
+    # Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2 with Φ Q̄ Φᵀ = (Φ[:, R] Q̄) Φ[:, R]ᵀ
+    for i in range(n):
+        for j in range(n):
+            Qe[i, j] = 0.0
+    for u in range(nq):
+        i = qr[u]
+        for a in range(nr):
+            PR[u, a] = Pe[i, R[a]]
+    for u in range(nq):
+        for b in range(nr):
+            s = 0.0
+            for a in range(nr):
+                s += PR[u, a] * Qb[a, b]
+            W[u, b] = s
+    for u in range(nq):
+        i = qr[u]
+        pi = pos[i]
+        for t in range(u, nq):
+            l = qr[t]
+            s = 0.0
+            for b in range(nr):
+                s += W[u, b] * PR[t, b]
+            pl = pos[l]
+            if pi >= 0 and pl >= 0:
+                s += Qb[pi, pl]
+            v = 0.5 * T * s
+            Qe[i, l] = v
+            Qe[l, i] = v
+
+
+@njit(cache=True)
+def _series_many(F, G, q, T, Phi, Q):
+    S, n, m = F.shape[0], F.shape[1], G.shape[2]
+    # possible non-zeros: those of any epoch
+    fnz = np.zeros((n, n), dtype=np.bool_)
+    gnz = np.zeros((n, m), dtype=np.bool_)
+    for e in range(S):
+        for i in range(n):
+            for j in range(n):
+                if F[e, i, j] != 0.0:
+                    fnz[i, j] = True
+            for c in range(m):
+                if G[e, i, c] != 0.0:
+                    gnz[i, c] = True
+    fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq = series_structure(fnz, gnz, q)
+    nr1 = max(nr, 1)
+    Qb = np.zeros((nr1, nr1))
+    PR = np.zeros((n, nr1))
+    W = np.zeros((n, nr1))
+    for e in range(S):
+        series_step(F[e], G[e], q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W,
+                    Phi[e], Q[e])
+
+
+def discretize_series_many(F, G, q, T, Phi=None, Q=None):
+    """The ``"series"`` discretisation of :func:`sinslab.estimation.kalman.discretize`
+    for many epochs, compiled and using the zeros of F and G.
+
+    Parameters
+    ----------
+    F : ndarray, shape (S, n, n)
+        Continuous system matrices, one per epoch.
+    G : ndarray, shape (S, n, p)
+        Noise input matrices.
+    q : ndarray, shape (p,)
+        Spectral densities of the independent noises (>= 0).
+    T : float
+        Step [s].
+    Phi, Q : ndarray, shape (≥S, n, n), optional
+        Output buffers.
+
+    Returns
+    -------
+    Phi, Qk : ndarray, shape (S, n, n)
+        ``Φ = I + F T + (F T)²/2``, ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` with ``Q̄ = G diag(q) Gᵀ``
+        (exactly symmetric); equal to ``discretize(F, q, T, G=G, method="series")`` to
+        rounding.
+    """
+    F = np.ascontiguousarray(F, dtype=float)
+    G = np.ascontiguousarray(G, dtype=float)
+    q = np.ascontiguousarray(q, dtype=float)
+    S, n = F.shape[0], F.shape[-1]
+    if F.ndim != 3 or F.shape[1] != n or G.ndim != 3 or G.shape[:2] != (S, n) or q.shape != G.shape[2:]:
+        raise ValueError(f"shape mismatch: F {F.shape}, G {G.shape}, q {q.shape}")
+    if np.any(q < 0):
+        raise ValueError("noise spectral densities must be >= 0")
+    if not T >= 0:
+        raise ValueError(f"step T must be >= 0, got {T}")
+    Phi = np.empty((S, n, n)) if Phi is None or Phi.shape[0] < S else Phi
+    Q = np.empty((S, n, n)) if Q is None or Q.shape[0] < S else Q
+    Phi, Q = Phi[:S], Q[:S]
+    _series_many(F, G, q, float(T), Phi, Q)
+    return Phi, Q
