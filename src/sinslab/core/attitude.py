@@ -26,6 +26,10 @@ import numpy as np
 from numba import njit
 from scipy.spatial.transform import Rotation
 
+from sinslab.core.jitnotice import install as _compile_notice
+
+_compile_notice()   # a status line while the kernels below compile (first run)
+
 __all__ = [
     "skew", "euler_to_dcm", "dcm_to_euler", "euler_to_quat", "quat_to_euler", "quat_to_dcm",
     "dcm_to_quat", "rotvec_to_dcm", "dcm_to_rotvec", "rotvec_to_quat", "quat_to_rotvec",

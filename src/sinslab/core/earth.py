@@ -17,6 +17,10 @@ import math
 import numpy as np
 from numba import njit
 
+from sinslab.core.jitnotice import install as _compile_notice
+
+_compile_notice()   # a status line while the kernels below compile (first run)
+
 __all__ = [
     "A", "F", "E2", "B", "WIE", "GM", "radii", "gravity", "gravity_vector", "wie_n",
     "wen_n", "win_n", "schuler_frequency", "schuler_period", "foucault_frequency",

@@ -18,12 +18,17 @@ row 0 is the initial condition.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from sinslab.estimation.kalman import _as_square, _is_diag, check_covariance
+
+from sinslab.core.jitnotice import install as _compile_notice
+
+_compile_notice()   # a status line while the kernels below compile (first run)
 
 __all__ = ["run_linear", "LinearRun", "propagate_covariance", "error_budget", "Budget",
            "sparsity"]
@@ -110,7 +115,10 @@ def _scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
 
 @njit(cache=True)
 def _vector_update(x, P, H, R, z, used, with_x):
-    """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis)."""
+    """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis).
+
+    Scalar loops with a Cholesky factor of S (no LAPACK/BLAS bindings: they and their
+    error formatting cost seconds of compilation on a first run)."""
     n = P.shape[0]
     mu = used.shape[0]
     Hu = np.empty((mu, n))
@@ -120,24 +128,115 @@ def _vector_update(x, P, H, R, z, used, with_x):
             Hu[a, j] = H[used[a], j]
         for b in range(mu):
             Ru[a, b] = R[used[a], used[b]]
-    PHt = P @ Hu.T
-    S = Hu @ PHt + Ru
-    np.linalg.cholesky(S)            # raises if S is not positive definite
-    Sinv = np.linalg.inv(S)
-    K = PHt @ Sinv
+    PHt = np.zeros((n, mu))                  # P Huᵀ
+    for i in range(n):
+        for a in range(mu):
+            s = 0.0
+            for j in range(n):
+                s += P[i, j] * Hu[a, j]
+            PHt[i, a] = s
+    S = np.empty((mu, mu))
+    for a in range(mu):
+        for b in range(mu):
+            s = Ru[a, b]
+            for j in range(n):
+                s += Hu[a, j] * PHt[j, b]
+            S[a, b] = s
+    # S = L Lᵀ, then Sinv = L⁻ᵀ L⁻¹
+    L = np.zeros((mu, mu))
+    for a in range(mu):
+        for b in range(a + 1):
+            s = 0.5 * (S[a, b] + S[b, a])
+            for c in range(b):
+                s -= L[a, c] * L[b, c]
+            if a == b:
+                if not s > 0.0:
+                    raise ValueError("innovation covariance is not positive definite")
+                L[a, a] = math.sqrt(s)
+            else:
+                L[a, b] = s / L[b, b]
+    Li = np.zeros((mu, mu))                  # L⁻¹
+    for a in range(mu):
+        Li[a, a] = 1.0 / L[a, a]
+        for b in range(a):
+            s = 0.0
+            for c in range(b, a):
+                s -= L[a, c] * Li[c, b]
+            Li[a, b] = s / L[a, a]
+    Sinv = np.zeros((mu, mu))
+    for a in range(mu):
+        for b in range(mu):
+            s = 0.0
+            for c in range(max(a, b), mu):
+                s += Li[c, a] * Li[c, b]
+            Sinv[a, b] = s
+    K = np.zeros((n, mu))
+    for i in range(n):
+        for b in range(mu):
+            s = 0.0
+            for a in range(mu):
+                s += PHt[i, a] * Sinv[a, b]
+            K[i, b] = s
     nu = np.zeros(mu)
     nis = 0.0
     if with_x:
         for a in range(mu):
-            nu[a] = z[used[a]] - Hu[a] @ x
-        x += K @ nu
-        nis = nu @ (Sinv @ nu)
-    A = np.eye(n) - K @ Hu
-    Pn = A @ P @ A.T + K @ Ru @ K.T
+            s = z[used[a]]
+            for j in range(n):
+                s -= Hu[a, j] * x[j]
+            nu[a] = s
+        for i in range(n):
+            s = 0.0
+            for a in range(mu):
+                s += K[i, a] * nu[a]
+            x[i] += s
+        for a in range(mu):
+            for b in range(mu):
+                nis += nu[a] * Sinv[a, b] * nu[b]
+    # P <- (I − K H) P (I − K H)ᵀ + K R Kᵀ
+    Am = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 1.0 if i == j else 0.0
+            for a in range(mu):
+                s -= K[i, a] * Hu[a, j]
+            Am[i, j] = s
+    AP = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += Am[i, k] * P[k, j]
+            AP[i, j] = s
+    KR = np.empty((n, mu))
+    for i in range(n):
+        for b in range(mu):
+            s = 0.0
+            for a in range(mu):
+                s += K[i, a] * Ru[a, b]
+            KR[i, b] = s
+    Pn = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += AP[i, k] * Am[j, k]
+            for a in range(mu):
+                s += KR[i, a] * K[j, a]
+            Pn[i, j] = s
     for i in range(n):
         for j in range(n):
             P[i, j] = 0.5 * (Pn[i, j] + Pn[j, i])
     return nu, S, nis
+
+
+@njit(cache=True)
+def _copy2(dst, src):
+    """dst[:, :] = src by elements (a slice assignment from an array compiles numba's
+    shape-error message formatting: seconds on a first run)."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[i, j] = src[i, j]
 
 
 @njit(cache=True)
@@ -160,7 +259,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, diag
     for j in range(n):
         pd_hist[0, j] = P[j, j]
     if save_flag[0]:
-        P_save[ns] = P
+        _copy2(P_save[ns], P)
         ns += 1
     for k in range(K):
         ip = phi_i[k]
@@ -199,7 +298,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, diag
         for j in range(n):
             pd_hist[k + 1, j] = P[j, j]
         if save_flag[k + 1]:
-            P_save[ns] = P
+            _copy2(P_save[ns], P)
             ns += 1
         if not (P[0, 0] == P[0, 0]):
             return k + 1
