@@ -39,7 +39,11 @@ Per block ``[e0, e1]``:
    (corrected) state. The linearisation point then differs from the corrected path only
    by the feedback applied within that stretch; ``model_every <= kf_dt`` evaluates it on
    the corrected path exactly. ``Φ_e, Q_e`` follow from
-   :func:`sinslab.estimation.kalman.discretize` (``"series"`` or ``"vanloan"``).
+   :func:`sinslab.estimation.kalman.discretize` (``"series"`` or ``"vanloan"``). That
+   numpy path is the reference (``model_eval="numpy"``); by default compiled kernels
+   equal to it to rounding evaluate F, G and the series (:mod:`sinslab.nav.errstate_kernels`),
+   and when the filter keeps no history the model, Φ, Q_k and step 3 of each epoch run
+   in one compiled loop per block (:mod:`sinslab.fusion.propagate`).
 3. Prediction of the filter through the block in one compiled loop
    (:meth:`KalmanFilter.predict_many`); σ and x are recorded at every epoch.
 4. Measurements at ``e1``, in measurement order then item order. An item valid at
