@@ -291,7 +291,7 @@ def main(argv=None):
               f"({out['lc_realtime_factor']:.0f}x real time; target < 5 s for 1 h); "
               f"horizontal error RMS {out['lc_horiz_pos_rms_m']:.2f} m vs filter σ "
               f"{out['lc_horiz_sigma_rms_m']:.2f} m, mean NIS {out['lc_mean_nis']:.2f} (dof 3)")
-    out.update(bench_model_eval(300.0 if a.quick else 1800.0))
+    out.update(bench_model_eval(120.0 if a.quick else 1800.0))
     for key, what in (("full_rate21", "21 states, P every 200 Hz epoch"),
                       ("default15", "15 states, P at 10 Hz (default)")):
         print(f"driver model evaluation, {what}, {out['model_eval_duration_s']:.0f} s: compiled "
