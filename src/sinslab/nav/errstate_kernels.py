@@ -87,8 +87,9 @@ def program(model) -> ModelProgram | None:
     Parameters
     ----------
     model : ErrorModel or DifferenceModel
-        A model of :mod:`sinslab.nav.errstate` whose ``matrices`` is the one defined
-        there; anything else returns None (the caller keeps the numpy path).
+        A model of :mod:`sinslab.nav.errstate` whose ``matrices`` (and the assembly
+        behind it) is the one defined there; anything else returns None (the caller
+        keeps the numpy path).
 
     Returns
     -------
@@ -96,7 +97,7 @@ def program(model) -> ModelProgram | None:
     """
     cls = type(model)
     if cls.matrices not in (es.ErrorModel.matrices, es.DifferenceModel.matrices) or \
-            cls._assemble is not es.ErrorModel._assemble:
+            cls._assemble is not es.ErrorModel._assemble or cls._rows is not es.ErrorModel._rows:
         return None
     n, m = model.n, len(model.q)
     rows = model._rows()
