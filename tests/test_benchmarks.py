@@ -63,6 +63,8 @@ def test_estimation_script(tmp_path):
     assert saved["cov21_steps_per_s"] > 0 and "lc_missing" not in saved
     # the INS + fixes run is also a consistency check: its error matches the filter's σ
     assert 0.5 < res["lc_horiz_pos_rms_m"] / res["lc_horiz_sigma_rms_m"] < 2.0
+    # the compiled model evaluation reproduces the numpy reference run in the same script
+    assert res["full_rate21_max_rel_diff"] < 1e-9 and res["default15_max_rel_diff"] < 1e-9
 
 
 def test_schuler_script(tmp_path):
@@ -88,3 +90,11 @@ def test_readers_script(tmp_path):
     res = _load("readers").main(["--rows", "5000", "--repeat", "1", "--out", str(out)])
     saved = json.loads(out.read_text())
     assert saved["rows"] == 5000 and saved["same_samples"] and res["csv_s"] > 0 and res["parquet_s"] > 0
+
+
+def test_rotins_script_filter_part():
+    """benchmarks/rotins.py: the driver-vs-compiled joint filter part on 1 h (the experiment
+    stage times need a full run and are the script's job)."""
+    res = _load("rotins").filter_ratio(1.0)
+    assert res["steps"] == 360 and 0 < res["distinct_steps"] <= res["steps"]
+    assert res["driver_s"] > 0 and res["compiled_s"] > 0
