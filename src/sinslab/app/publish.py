@@ -8,9 +8,13 @@ stage times in ``summary["timing"]`` and completes the run folder.
 """
 from __future__ import annotations
 
+import os
 import time
 
-__all__ = ["render_figure", "write_figures", "complete_timed"]
+#: At most this many worker processes draw figures at once.
+MAX_FIGURE_PROCESSES = 4
+
+__all__ = ["render_figure", "write_figures", "complete_timed", "describe_series"]
 
 
 def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
@@ -37,25 +41,58 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
     return png.getvalue(), svg.getvalue()
 
 
+#: Figures waiting to be rendered by forked workers (read by :func:`_render_one` in the
+#: child, which inherits this module's state at fork time).
+_PENDING: list = []
+
+
+def _render_one(args):
+    i, dpi = args
+    return render_figure(_PENDING[i].fig, dpi)
+
+
+def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
+    """PNG and SVG bytes of every figure, in order; in forked worker processes when there
+    are several figures and cores (drawing is pure Python and holds the GIL, so threads
+    would not help), serially otherwise or if the workers cannot be used."""
+    global _PENDING
+    import multiprocessing as mp
+
+    n = min(len(figures), os.cpu_count() or 1, MAX_FIGURE_PROCESSES)
+    if n >= 2 and "fork" in mp.get_all_start_methods():
+        _PENDING = list(figures)
+        try:
+            with mp.get_context("fork").Pool(n) as pool:
+                return pool.map(_render_one, [(i, dpi) for i in range(len(figures))], chunksize=1)
+        except (OSError, mp.ProcessError, RuntimeError):
+            pass                                     # no processes here: draw in this one
+        finally:
+            _PENDING = []
+    return [render_figure(f.fig, dpi) for f in figures]
+
+
 def write_figures(rd, figures, dpi: int = 110) -> list[dict]:
     """Save ``figures`` (:class:`sinslab.app.outputs.Figure`) into the run folder ``rd`` as
     ``NAME.png`` and ``NAME.svg``, in order; return their summary entries.
 
-    Lines are thinned to the figure's pixel columns first (see the module notes).
+    Lines are thinned to the figure's pixel columns first (see the module notes); the
+    figures are drawn concurrently when there are several (:func:`_render_all`).
     """
     if not figures:
         return []
     from sinslab.app.plotting import thin_lines
 
-    out = []
-    for f in figures:
-        try:
+    try:
+        for f in figures:
             thin_lines(f.fig, dpi)
-            png, svg = render_figure(f.fig, dpi)
-        finally:
+        images = _render_all(figures, dpi)
+    finally:
+        for f in figures:
             if getattr(f.fig.canvas, "manager", None) is not None:
                 import matplotlib.pyplot as plt
                 plt.close(f.fig)
+    out = []
+    for f, (png, svg) in zip(figures, images):
         info = {"name": f.name, "caption": f.caption, "png": f"{f.name}.png", "svg": f"{f.name}.svg"}
         rd.write_bytes(info["png"], png)
         rd.write_bytes(info["svg"], svg)
@@ -73,3 +110,26 @@ def complete_timed(rd, summary: dict) -> dict:
     report.render(rd.path, summary=summary)
     summary.setdefault("timing", {})["report_s"] = time.perf_counter() - t0
     return rd.complete(summary)
+
+
+#: Column-name suffix -> what it says about the unit (the series' naming convention).
+_SUFFIX_UNITS = (("_arcmin", "arcmin"), ("_arcsec", "arcsec"), ("_mps", "m/s"), ("_dph", "deg/h"),
+                 ("_deg", "deg"), ("_ug", "µg"), ("_m", "m"), ("_s", "s"))
+
+
+def describe_series(name: str, table) -> str:
+    """A one-line description of a time-series table from its columns (name suffixes carry
+    the units): "8 columns against t_s [s]: phiE_arcmin, ... (units: arcmin, deg/h)"."""
+    cols = [str(c) for c in (table.columns if hasattr(table, "columns") else table.keys())]
+    time_cols = [c for c in cols if c in ("t_s", "t", "time_s", "t_abs_s")]
+    data = [c for c in cols if c not in time_cols]
+    units = []
+    for c in data:
+        for suf, u in _SUFFIX_UNITS:
+            if c.endswith(suf) and u not in units:
+                units.append(u)
+                break
+    against = f" against {time_cols[0]} [s]" if time_cols else ""
+    shown = ", ".join(data[:6]) + (", …" if len(data) > 6 else "")
+    return (f"{name.replace('_', ' ')}: {len(data)} column(s){against} — {shown}"
+            + (f" (units in the column suffixes: {', '.join(units)})" if units else ""))

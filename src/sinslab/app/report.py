@@ -6,12 +6,17 @@ linked to their SVG files), so the page can be mailed or archived alone. ``build
 writes it atomically to ``DIR/report.html`` (``sinslab report DIR``). ``index(...)``
 writes the page linking several reports (``sinslab demo``).
 
-Sections: header (experiment, purpose, version, date, quick or full), claims table
-(``id="claims"``, one row per claim, pass/fail), metrics table (value, unit,
-description), figures, tables (Monte Carlo statistics etc.), notes, time-series files,
-configuration. After the page has loaded, a small script writes the number of figures
+Sections: header (run name — a demo variant's own name, with the ``--set`` lines that
+make it —, purpose, version, date, quick or full for experiments, computation and
+writing time), claims table (``id="claims"``, one row per claim, measured and expected
+values labelled with their units, pass/fail; no section when the run checked no claim),
+metrics table (value, unit, description), figures, tables (Monte Carlo statistics etc.),
+notes, time-series files (each described), configuration with the command line that
+re-runs the run. Wide tables scroll inside their box, never the page. After the page has loaded, a small script writes the number of figures
 and of figures actually decoded (``naturalWidth > 0``) into ``data-figures-total`` and
-``data-figures-loaded`` on ``<body>`` — the browser test reads them.
+``data-figures-loaded`` on ``<body>``, and the page's laid-out and visible widths into
+``data-page-width`` and ``data-view-width`` (a wider page scrolls sideways) — the browser
+test reads them.
 """
 from __future__ import annotations
 
@@ -59,6 +64,8 @@ window.addEventListener('load', function () {
   for (var i = 0; i < imgs.length; i++) { if (imgs[i].complete && imgs[i].naturalWidth > 0) ok++; }
   document.body.setAttribute('data-figures-total', String(imgs.length));
   document.body.setAttribute('data-figures-loaded', String(ok));
+  document.body.setAttribute('data-page-width', String(document.documentElement.scrollWidth));
+  document.body.setAttribute('data-view-width', String(document.documentElement.clientWidth));
 });
 """
 
@@ -82,6 +89,9 @@ def _fmt(v, digits=6) -> str:
 #: Units written against the number ("0.10′", "2.3×"); every other unit after a space.
 _TIGHT = {"′", "″", "°", "×", "%", "°/h", "°/√h"}
 _UNIT_SIGN = {"arcmin": "′", "arcsec": "″", "deg": "°", "deg/h": "°/h", "x": "×"}
+
+
+_SUP = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
 def num(v, sig: int = 3) -> str:
@@ -108,7 +118,7 @@ def num(v, sig: int = 3) -> str:
     else:
         m, ex = f"{v:.{sig - 1}e}".split("e")
         m = m.rstrip("0").rstrip(".") if "." in m else m
-        t = f"{m}×10^{int(ex)}"
+        t = f"{m}×10" + str(int(ex)).translate(_SUP)
     return t.replace("-", "−")
 
 
@@ -175,6 +185,9 @@ def criterion(exp: dict, names=None, n: int | None = None) -> str:
                               for i, p in enumerate(parts))
         u = unit if isinstance(unit, str) else ""
         return f"{with_unit(val, u)} ± {pm or with_unit(tol, u)}"
+    if rel == "between" and isinstance(val, list) and len(val) == 2:
+        u = unit if isinstance(unit, str) else ""
+        return f"between {with_unit(val[0], u)} and {with_unit(val[1], u)}"
     op = _REL.get(rel, rel)
     if isinstance(val, list):
         parts = [f"{op} {_values(v, _unit_at(unit, i) if isinstance(unit, list) else unit)}"
@@ -222,7 +235,7 @@ def _load_summary(d: Path) -> dict:
     return s
 
 
-def _figure_html(d: Path, fig: dict) -> str:
+def _figure_html(d: Path, fig: dict, k: int = 0) -> str:
     png = d / fig.get("png", f"{fig['name']}.png")
     if not png.is_file():
         raise ReportError(f"{png}: figure file missing")
@@ -231,7 +244,8 @@ def _figure_html(d: Path, fig: dict) -> str:
     link = f' <a href="{e(svg)}">SVG</a>' if svg and (d / svg).is_file() else ""
     return (f'<figure id="fig-{e(fig["name"])}"><img class="figure" alt="{e(fig["name"])}" '
             f'src="data:image/png;base64,{b64}">'
-            f'<figcaption><b>{e(fig["name"])}</b> — {e(fig.get("caption", ""))}{link}</figcaption></figure>')
+            f'<figcaption><b>Figure {k}: {e(fig["name"])}</b> — {e(fig.get("caption", ""))}{link}'
+            f'</figcaption></figure>')
 
 
 def _table_html(d: Path, t: dict) -> str:
@@ -315,7 +329,7 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     figs = s.get("figures", [])
     if figs:
         parts.append("<h2>Figures</h2>")
-        parts.extend(_figure_html(d, f) for f in figs)
+        parts.extend(_figure_html(d, f, k) for k, f in enumerate(figs, 1))
     tables = s.get("tables", [])
     if tables:
         parts.append("<h2>Tables</h2>")

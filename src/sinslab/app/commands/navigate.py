@@ -62,6 +62,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
+    from sinslab.app.described import navigate_claims
     from sinslab.data import guess_imu_format, load_imu, read_fixes
 
     fmt_eff = fmt or guess_imu_format(imu_path)
@@ -132,6 +133,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         "initial_heading_deg": float(np.degrees(res.init["heading"])),
         "imu_gaps": int(len(data.gaps)),
     }
+    claims, extra = navigate_claims(
+        res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
+        np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T))
+    metrics.update(extra)
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"])
     if res.scale is not None:
@@ -210,15 +215,17 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
     axes[1].semilogy(ts_, sig[:, i_gb] / units.dph, lw=1)
     axes[1].set_ylabel("gyro bias σ [deg/h]")
+    axes[1].legend(["x", "y", "z"], fontsize=8)
     axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
     axes[2].set_ylabel("accel bias σ [ug]")
+    axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
     figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
     notes = ["Heading is clockwise from north.",
              f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
              if res.init.get("rest_start") else "No rest at the start."]
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  value=(res, fx))
+                  value=(res, fx), claims=claims)
 
 
 def register(app):
