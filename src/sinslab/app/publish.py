@@ -46,6 +46,14 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
 _PENDING: list = []
 
 
+def _worker_signals():
+    """A drawing worker leaves Ctrl-C to the run and ends quietly when told to."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _render_one(args):
     i, dpi = args
     return render_figure(_PENDING[i].fig, dpi)
@@ -61,13 +69,20 @@ def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
     n = min(len(figures), os.cpu_count() or 1, MAX_FIGURE_PROCESSES)
     if n >= 2 and "fork" in mp.get_all_start_methods():
         _PENDING = list(figures)
+        pool = None
         try:
-            with mp.get_context("fork").Pool(n) as pool:
-                return pool.map(_render_one, [(i, dpi) for i in range(len(figures))], chunksize=1)
+            pool = mp.get_context("fork").Pool(n, initializer=_worker_signals)
+            images = pool.map(_render_one, [(i, dpi) for i in range(len(figures))], chunksize=1)
+            pool.close()                             # let the workers end on their own
+            pool.join()
+            pool = None
+            return images
         except (OSError, mp.ProcessError, RuntimeError):
             pass                                     # no processes here: draw in this one
         finally:
             _PENDING = []
+            if pool is not None:                      # interrupted or failed: stop them
+                pool.terminate()
     return [render_figure(f.fig, dpi) for f in figures]
 
 

@@ -54,7 +54,7 @@ figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overfl
 #claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}
 #claims td:nth-child(2){min-width:16em}.scroll{max-width:100%;overflow-x:auto}
 td.cols{overflow-wrap:anywhere;max-width:28em}.variant{background:#f4f7fb;padding:.4em .8em;border-left:3px solid #4a7bd0}
-code{overflow-wrap:anywhere}
+code.id{white-space:nowrap}span.q{white-space:nowrap}#rerun{overflow-wrap:anywhere}
 """
 
 _SCRIPT = """
@@ -320,7 +320,7 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     rows = []
     for name, v in s["metrics"].items():
         mi = info.get(name, {})
-        rows.append(f"<tr data-metric='{e(name)}'><td><code>{e(name)}</code></td>"
+        rows.append(f"<tr data-metric='{e(name)}'><td><code>{_breakable(name)}</code></td>"
                     f"<td class='num'>{e(_metric_text(v, mi.get('unit', '')))}</td>"
                     f"<td class='unit'>{e(mi.get('unit', ''))}</td><td>{e(mi.get('description', ''))}</td></tr>")
     parts.append(_wide("<table id='metrics'><tr><th>metric</th><th>value</th><th>unit</th>"
@@ -358,12 +358,24 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     return "".join(parts)
 
 
+def _parts(text: str) -> str:
+    """HTML of a "a · b · c" value list: each short item kept on one line, breaks between
+    items."""
+    return " · ".join(f"<span class='q'>{e(p)}</span>" if len(p) <= 32 else e(p)
+                      for p in text.split(" · "))
+
+
+def _breakable(name: str) -> str:
+    """A snake_case name that may wrap after its underscores (and nowhere else)."""
+    return "_<wbr>".join(e(p) for p in name.split("_"))
+
+
 def _claim_row(c: dict) -> str:
     ok = bool(c.get("passed"))
     measured, expected = _claim_cells(c)
     return (f"<tr class='{'pass' if ok else 'fail'}' data-claim='{e(str(c.get('id')))}'>"
-            f"<td><code>{e(str(c.get('id')))}</code></td><td>{e(str(c.get('statement', '')))}</td>"
-            f"<td class='num'>{e(measured)}</td><td class='num'>{e(expected)}</td>"
+            f"<td><code class='id'>{e(str(c.get('id')))}</code></td><td>{e(str(c.get('statement', '')))}</td>"
+            f"<td class='num'>{_parts(measured)}</td><td class='num'>{_parts(expected)}</td>"
             f"<td class='verdict'>{'pass' if ok else 'FAIL'}</td></tr>")
 
 

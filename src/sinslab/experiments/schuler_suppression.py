@@ -400,7 +400,7 @@ def _claims(cfg, res, metrics, fits, dt, truth):
             "The two alignment errors agree — the method's premise: a converged alignment leaves "
             "the same error whenever it stops",
             {"init_err1_arcmin": e1.tolist(), "init_err2_arcmin": e2.tolist()},
-            "[φE, φN] within 25 % (+0.02′), φU within 25 % (+0.2′)", bool(agree),
+            "φE and φN within 25 % (+0.02′), φU within 25 % (+0.2′)", bool(agree),
             names=["alignment 1 error (φE, φN, φU)", "alignment 2 error (φE, φN, φU)"],
             unit=["′", "′"]))
     return cl
