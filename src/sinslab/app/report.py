@@ -255,7 +255,7 @@ def _table_html(d: Path, t: dict) -> str:
     if not path.is_file():
         return f"<p>missing table file {e(t['csv'])}</p>"
     df = pd.read_csv(path)
-    head = "".join(f"<th>{e(str(c))}</th>" for c in df.columns)
+    head = "".join(f"<th>{_breakable(str(c))}</th>" for c in df.columns)
     rows = "".join("<tr>" + "".join(f'<td class="num">{e(num(v.item() if hasattr(v, "item") else v, 4))}</td>'
                                     for v in row) + "</tr>" for row in df.itertuples(index=False))
     return (f'<h3>{e(t["name"])}</h3><p>{e(t.get("caption", ""))}</p>'

@@ -222,6 +222,7 @@ def _figure(t, resid, lim, title, extra=None):
     axes[0].legend(loc="best", fontsize=8)
     for ax in axes[max(0, nplots - 2):nplots]:
         ax.set_xlabel("time [min]")
+        ax.xaxis.set_tick_params(labelbottom=True)   # the panel below it is hidden
     fig.suptitle(title)
     return fig
 
