@@ -26,6 +26,7 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
     """
     import io
 
+    import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.backends.backend_svg import FigureCanvasSVG
 
@@ -37,7 +38,9 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
     FigureCanvasAgg(fig).print_png(png, pil_kwargs={"compress_level": 3})
     if fig.get_layout_engine() is not None:
         fig.set_layout_engine("none")
-    FigureCanvasSVG(fig).print_svg(svg)
+    # text as <text> elements rather than glyph outlines: less to write, searchable labels
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        FigureCanvasSVG(fig).print_svg(svg)
     return png.getvalue(), svg.getvalue()
 
 
@@ -86,12 +89,28 @@ def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
     return [render_figure(f.fig, dpi) for f in figures]
 
 
+def _ensure_title(f) -> None:
+    """Give a figure without a title (suptitle) one, from its caption's first sentence, so
+    every figure of a report carries its title the same way."""
+    fig = f.fig
+    if getattr(fig, "_suptitle", None) is not None and fig._suptitle.get_text():
+        return
+    text = (f.caption or f.name).strip()
+    for sep in (". ", "; ", ": "):
+        text = text.split(sep)[0]
+    text = text.rstrip(".")
+    if len(text) > 90:
+        text = text[:90].rsplit(" ", 1)[0] + " …"
+    fig.suptitle(text)
+
+
 def write_figures(rd, figures, dpi: int = 110) -> list[dict]:
     """Save ``figures`` (:class:`sinslab.app.outputs.Figure`) into the run folder ``rd`` as
     ``NAME.png`` and ``NAME.svg``, in order; return their summary entries.
 
-    Lines are thinned to the figure's pixel columns first (see the module notes); the
-    figures are drawn concurrently when there are several (:func:`_render_all`).
+    A figure without a title gets one from its caption; lines are thinned to the figure's
+    pixel columns (see the module notes); the figures are drawn concurrently when there
+    are several (:func:`_render_all`).
     """
     if not figures:
         return []
@@ -99,6 +118,7 @@ def write_figures(rd, figures, dpi: int = 110) -> list[dict]:
 
     try:
         for f in figures:
+            _ensure_title(f)
             thin_lines(f.fig, dpi)
         images = _render_all(figures, dpi)
     finally:
