@@ -169,10 +169,9 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
             raise CliError(f"output folder {out} exists and is a file")
         names = list(only) if only else list(registry())
         exps = [get(n) for n in names]
-        # every experiment's default scenario, then its declared variants (NAME-suffix)
-        jobs = [(exp, exp.name, ()) for exp in exps]
-        jobs += [(exp, f"{exp.name}-{suffix}", sets) for exp in exps
-                 for suffix, sets in exp.variants.items()]
+        # every experiment's default scenario followed by its declared variants (NAME-suffix)
+        jobs = [job for exp in exps for job in [(exp, exp.name, ())] + [
+            (exp, f"{exp.name}-{suffix}", sets) for suffix, sets in exp.variants.items()]]
         for exp, label, _ in jobs:                         # check every folder first
             RunDir(out / label, exp.name).check()
         for exp, label, sets in jobs:

@@ -54,7 +54,7 @@ figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overfl
 #claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}
 #claims td:nth-child(2){min-width:16em}.scroll{max-width:100%;overflow-x:auto}
 td.cols{overflow-wrap:anywhere;max-width:28em}.variant{background:#f4f7fb;padding:.4em .8em;border-left:3px solid #4a7bd0}
-code.id{white-space:nowrap}span.q{white-space:nowrap}#rerun{overflow-wrap:anywhere}
+code.id,#runs td:first-child{white-space:nowrap}span.q{white-space:nowrap}#rerun{overflow-wrap:anywhere}
 """
 
 _SCRIPT = """
