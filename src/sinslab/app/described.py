@@ -31,7 +31,7 @@ UNIT_SUFFIX = (
     ("_deg_per_h", "deg/h"), ("_dphpsh", "deg/h/sqrt(h)"), ("_ugpsHz", "ug/sqrt(Hz)"),
     ("_ugpsh", "ug/sqrt(h)"), ("_dpsh", "deg/sqrt(h)"), ("_arcmin", "arcmin"),
     ("_arcsec", "arcsec"), ("_dph", "deg/h"), ("_mps", "m/s"), ("_ppm", "ppm"), ("_deg", "deg"),
-    ("_mps2", "m/s²"), ("_ug", "ug"), ("_m", "m"), ("_s", "s"), ("_hz", "Hz"),
+    ("_mps2", "m/s²"), ("_ug", "ug"), ("_mg", "mg"), ("_m", "m"), ("_s", "s"), ("_hz", "Hz"),
 )
 
 _AX = r"(gyro|accel)_([xyz])"
@@ -55,6 +55,17 @@ DESCRIPTIONS = {
         (r"^meas_noise_ug$", "measurement noise σ of the fine alignment's level specific-force measurement"),
         (r"^nis_mean$", "mean normalised innovation squared of the fine alignment (expected: the measurement dimension)"),
         (r"^duration_s$", "length of the aligned window"),
+    ],
+    "transfer-align": [
+        (r"^mounting_arcmin_(\w+)$", "estimated mounting x, y, z (slave relative to master), {0}"),
+        (r"^mounting_sigma_arcmin_(\w+)$", "1σ of the mounting estimate, {0}"),
+        (r"^gyro_bias_dph_(\w+)$", "estimated slave gyro biases x, y, z, {0}"),
+        (r"^gyro_bias_sigma_dph_(\w+)$", "1σ of the slave gyro bias estimate, {0}"),
+        (r"^accel_bias_mg_(\w+)$", "estimated slave accelerometer biases x, y, z, {0}"),
+        (r"^accel_bias_sigma_mg_(\w+)$", "1σ of the slave accelerometer bias estimate, {0}"),
+        (r"^ref_mounting_arcmin$", "the file's reference mounting x, y, z"),
+        (r"^ref_gyro_bias_dph$", "the file's reference slave gyro biases x, y, z"),
+        (r"^ref_accel_bias_mg$", "the file's reference slave accelerometer biases x, y, z"),
     ],
     "navigate": [
         (r"^duration_s$", "navigated time span"),
@@ -86,6 +97,9 @@ DESCRIPTIONS = {
 def _unit(name: str) -> str:
     for suf, unit in UNIT_SUFFIX:
         if name.endswith(suf):
+            return unit
+    for suf, unit in UNIT_SUFFIX:                     # unit inside: mounting_arcmin_kain
+        if f"{suf}_" in name:
             return unit
     return ""
 
