@@ -91,3 +91,10 @@ def test_run_folder_script(tmp_path):
     r = saved[0]
     assert r["figures"] == 2 and r["compute_s"] > 0 and r["figures_reference_s"] > 0 and r["figures_s"] > 0
     assert r["writing_s"] == r["series_s"] + r["figures_s"] + r["report_s"]
+
+
+def test_readers_script(tmp_path):
+    out = tmp_path / "readers.json"
+    res = _load("readers").main(["--rows", "5000", "--repeat", "1", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    assert saved["rows"] == 5000 and saved["same_samples"] and res["csv_s"] > 0 and res["parquet_s"] > 0

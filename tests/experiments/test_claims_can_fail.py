@@ -42,7 +42,9 @@ WRONG = {
 
 
 def test_every_experiment_has_a_wrong_input():
-    assert set(E.registry()) <= set(WRONG), f"add a wrong input for {set(E.registry()) - set(WRONG)}"
+    # the package's experiments (tests may register stand-ins of their own)
+    ours = {n for n, e in E.registry().items() if e.module.startswith("sinslab.experiments.")}
+    assert ours <= set(WRONG), f"add a wrong input for {ours - set(WRONG)}"
 
 
 @pytest.mark.parametrize("name", sorted(WRONG))

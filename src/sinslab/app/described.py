@@ -28,7 +28,7 @@ __all__ = ["UNIT_SUFFIX", "DESCRIPTIONS", "metric_info", "navigate_claims", "inv
 
 #: Metric-name suffix -> unit printed in the report (longest suffix first).
 UNIT_SUFFIX = (
-    ("_deg_per_h", "deg/h"), ("_dphpsh", "deg/h/sqrt(h)"), ("_ugpsHz", "ug/sqrt(Hz)"),
+    ("_deg_per_h", "deg/h"), ("_deg_sqrth", "deg/sqrt(h)"), ("_ug_sqrthz", "ug/sqrt(Hz)"), ("_dphpsh", "deg/h/sqrt(h)"), ("_ugpsHz", "ug/sqrt(Hz)"),
     ("_ugpsh", "ug/sqrt(h)"), ("_dpsh", "deg/sqrt(h)"), ("_arcmin", "arcmin"),
     ("_arcsec", "arcsec"), ("_dph", "deg/h"), ("_mps", "m/s"), ("_ppm", "ppm"), ("_deg", "deg"),
     ("_mps2", "m/s²"), ("_ug", "ug"), ("_mg", "mg"), ("_m", "m"), ("_s", "s"), ("_hz", "Hz"),
@@ -87,8 +87,22 @@ DESCRIPTIONS = {
         (r"^accel_bias_sigma_final_ug$", "filter 1σ of the accelerometer biases x, y, z at the end"),
         (r"^initial_heading_deg$", "heading the filter started from (clockwise from north)"),
         (r"^imu_gaps$", "gaps in the IMU record bridged with the mean rate"),
-        (r"^time_sync_offset_s$", "IMU time-stamp offset estimated from turns"),
-        (r"^time_sync_ppm$", "IMU clock drift estimated from turns"),
+        (r"^time_sync_offset_s$", "IMU time-stamp offset applied (estimated from turns)"),
+        (r"^time_sync_ppm$", "IMU clock drift applied (estimated from turns)"),
+        (r"^time_sync_offset_estimate_s$", "IMU time-stamp offset estimated from turns"),
+        (r"^time_sync_offset_sigma_s$", "1σ of the time-stamp offset estimate"),
+        (r"^time_sync_ppm_estimate$", "IMU clock drift estimated from turns [ppm]"),
+        (r"^time_sync_ppm_sigma$", "1σ of the clock drift estimate [ppm]"),
+        (r"^time_sync_offset_applied$", "whether the offset was applied (significant at 3σ)"),
+        (r"^time_sync_ppm_applied$", "whether the clock drift was applied"),
+        (r"^initial_heading_sigma_deg$", "1σ of the initial heading (from the fix course window)"),
+        (r"^fixes_after_grid$", "fixes after the last whole filter step, not used"),
+        (r"^filter_gyro_arw_deg_sqrth$", "gyro angle random walk x, y, z the filter assumed"),
+        (r"^filter_accel_vrw_ug_sqrthz$", "accelerometer velocity random walk x, y, z the filter assumed"),
+        (r"^lever_arm_estimate_m$", "estimated antenna lever arm (vehicle right, forward, up)"),
+        (r"^lever_arm_sigma_m$", "1σ of the lever-arm estimate"),
+        (r"^rest_intervals$", "rest intervals used for zero-velocity updates"),
+        (r"^rest_total_s$", "total time at rest used for zero-velocity updates"),
         (r"^scale_factor_final_ppm$", "estimated gyro x, y, z and accelerometer x, y, z scale factors at the end"),
     ],
 }
