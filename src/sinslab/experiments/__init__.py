@@ -28,7 +28,7 @@ from sinslab import __version__
 from sinslab.app.config import ExperimentConfig, config_to_toml
 from sinslab.app.errors import UserError
 from sinslab.app.outputs import RunDir
-from sinslab.app.publish import complete_timed, describe_series, write_figures
+from sinslab.app.publish import complete_timed, describe_series, write_figures, write_series
 from sinslab.experiments.base import Experiment, Result, RunContext
 
 __all__ = ["registry", "register", "get", "names", "execute", "UnknownExperiment", "Experiment"]
@@ -150,7 +150,7 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
 
     t1 = time.perf_counter()
     for name, table in res.series.items():
-        rd.write_table(name, table, describe_series(name, table))
+        write_series(rd, name, table, describe_series(name, table))
     tables = []
     for t in res.tables:
         info = rd.write_table(f"table_{t.name}", t.data, t.caption)
