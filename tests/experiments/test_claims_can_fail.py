@@ -33,6 +33,13 @@ WRONG = {
     "double-star": (["init.att_err=[10, 10, 20] deg", "runs=4", "scenario.duration=400 s",
                      'fix.windows=["[296, 305] s"]'],
                     {"mc_consistent_pos", "mc_consistent_att"}),
+    # gyro white noise 100x the paper's (0.1 instead of 0.001 deg/sqrt(h)) on both INS: the
+    # windowed std of the ε_z1 estimate scales with it, far above the paper's 0.00005 deg/h
+    "rotation-evaluation": (["imu1.gyro_arw=0.1 deg/sqrt(h)", "imuk.gyro_arw=0.1 deg/sqrt(h)",
+                             "scenario.duration=16 h", "scenario.sample_interval=0.2 s",
+                             "filter.model_dt=2 s", "filter.kf_dt=30 s", "evaluation.start=8 h",
+                             "evaluation.window=2 h", "runs=1"],
+                            {"eps_z1_stability"}),
     # a 1 deg "large" installation is small: the uncompensated forms 1-3 converge, so the
     # paper's claim that they fail on a large installation must fail
     "transfer-alignment": (["installation.large=[1, 1, 1] deg", "runs=2", "filter.ekf_runs=2",
