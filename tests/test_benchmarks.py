@@ -63,6 +63,8 @@ def test_estimation_script(tmp_path):
     assert saved["cov21_steps_per_s"] > 0 and "lc_missing" not in saved
     # the INS + fixes run is also a consistency check: its error matches the filter's σ
     assert 0.5 < res["lc_horiz_pos_rms_m"] / res["lc_horiz_sigma_rms_m"] < 2.0
+    # the compiled model evaluation reproduces the numpy reference run in the same script
+    assert res["full_rate21_max_rel_diff"] < 1e-9 and res["default15_max_rel_diff"] < 1e-9
 
 
 def test_schuler_script(tmp_path):
