@@ -85,6 +85,16 @@ def test_transfer_script(tmp_path):
     assert len(saved["rms_end_arcmin"]) == 3 and max(saved["rms_end_arcmin"]) < 5.0
 
 
+def test_run_folder_script(tmp_path):
+    out = tmp_path / "run_folder.json"
+    rows = _load("run_folder").main(["static-alignment", "--json", str(out)])
+    saved = json.loads(out.read_text())
+    assert [r["experiment"] for r in saved] == [r["experiment"] for r in rows] == ["static-alignment"]
+    r = saved[0]
+    assert r["figures"] == 2 and r["compute_s"] > 0 and r["figures_reference_s"] > 0 and r["figures_s"] > 0
+    assert r["writing_s"] == r["series_s"] + r["figures_s"] + r["report_s"]
+
+
 def test_readers_script(tmp_path):
     out = tmp_path / "readers.json"
     res = _load("readers").main(["--rows", "5000", "--repeat", "1", "--out", str(out)])
