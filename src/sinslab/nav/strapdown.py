@@ -83,6 +83,7 @@ from numba import njit
 from sinslab.core.attitude import euler2q_s, q2dcm_s, q2euler_s, qmul_s, rv2q_s, euler_to_quat
 from sinslab.core.earth import WIE, check_latitude, gravity, gravity_s, radii, radii_s
 from sinslab.core.records import ImuRecord, NavSeries, NavState
+from sinslab.core.errors import InputError
 
 __all__ = [
     "navigate", "initial_state_array", "step", "correct", "state_to_navstate", "rows_to_series",
@@ -494,6 +495,9 @@ def _check_nsub(nsub) -> int:
 def _bias3(b, name) -> np.ndarray:
     if b is None:
         return np.zeros(3)
+    if type(b) is np.ndarray and b.shape == (3,) and b.dtype == np.float64 and \
+            math.isfinite(b[0]) and math.isfinite(b[1]) and math.isfinite(b[2]):
+        return b
     a = np.asarray(b, dtype=float).reshape(-1)
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be 3 finite numbers (body frame), got {b!r}")
@@ -650,7 +654,7 @@ def step(state: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float, nsub:
     if dth.ndim != 2 or dth.shape[1] != 3 or dvl.shape != dth.shape:
         raise ValueError(f"dtheta and dv must both have shape (n, 3), got {dth.shape} and {dvl.shape}")
     dt = float(dt)
-    if not (np.isfinite(dt) and dt > 0):
+    if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite number > 0 s, got {dt!r}")
     n = dth.shape[0]
     nupd = n // nsub
@@ -803,7 +807,7 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
                     gb[0], gb[1], gb[2], ab[0], ab[1], ab[2], CONING_COEFFS, rows[r:], out_every)
             r += cu // out_every
             if not np.all(np.isfinite(s[:NAV])):
-                raise ValueError(f"navigation became non-finite by t = {imu.t[hi - 1]:.6g} s "
+                raise InputError(f"navigation became non-finite by t = {imu.t[hi - 1]:.6g} s "
                                  "(a pole crossed, or diverging input)")
             lo = hi
             advance(cu * nsub)

@@ -9,11 +9,7 @@ from typing import Optional
 import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
-from sinslab.core import earth as E
 from sinslab.core import units
-from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors, navigate_recorded,
-                                     outage_end_errors, parse_outages, shift_imu_time,
-                                     significant_time_offset)
 
 __all__ = ["NAVIGATE", "navigate_files", "register"]
 
@@ -33,12 +29,15 @@ def _parse_init(text):
     out = {}
     if not text:
         return out
+    from sinslab.app.validate import option_quantity
+
     for tok in str(text).split(","):
         k, sep, v = tok.partition("=")
         k = k.strip().lower()
         if not sep or k not in ("heading",):
             raise ValueError(f"--init {text!r}: use heading=ANGLE (e.g. heading=\"30 deg\")")
-        out["heading"] = units.parse(v.strip(), "angle")
+        out["heading"] = option_quantity(f"--init {k}", v.strip(), "angle", ge="-180 deg",
+                                         le="360 deg")
     return out
 
 
@@ -75,6 +74,12 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
+    from sinslab.app.validate import check_navigate_options
+
+    check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag, imu_delay=imu_delay,
+                           max_gap=max_gap, lag=lag, time_sync=time_sync)
+    if isinstance(init, (str, type(None))):
+        _parse_init(init)
     summary, res = run_command(NAVIGATE, out, lambda: _compute(
         imu_path, fix_path, fmt=fmt, fix_format=fix_format, lever_arm=lever_arm, mount=mount,
         frame=frame, outages=outages, fix_latency=fix_latency, lag=lag, init=init,
@@ -90,7 +95,12 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
              csv_rate=1.0) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
+    from sinslab.app.described import navigate_claims
+    from sinslab.core import earth as E         # numba and scipy: only when it runs
     from sinslab.data import guess_imu_format, load_imu, read_fixes
+    from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
+                                         navigate_recorded, outage_end_errors, parse_outages,
+                                         shift_imu_time, significant_time_offset)
 
     fmt_eff = fmt or guess_imu_format(imu_path)
     kw = {}
@@ -160,6 +170,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     opt.estimate_lever = "lever" in aids
     t_ref = float(fx.t[0])
     opt.outages = tuple(parse_outages(outages, t_ref)) if isinstance(outages, (str, type(None))) else tuple(outages)
+    if isinstance(outages, str):
+        from sinslab.app.validate import check_outages
+
+        check_outages("--outages", outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
     opt.fix_latency = float(fix_latency)
     opt.lag = lag
     opt.scale_factors = bool(scale_factors) or opt.scale_factors
@@ -201,6 +215,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     metrics["fixes_after_grid"] = int(res.init.get("fixes_after_grid", 0))
     metrics["filter_gyro_arw_deg_sqrth"] = (np.asarray(res.init["filter_gyro_arw"]) / (units.deg / 60)).tolist()
     metrics["filter_accel_vrw_ug_sqrthz"] = (np.asarray(res.init["filter_accel_vrw"]) / units.ug).tolist()
+    claims, extra = navigate_claims(
+        res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
+        np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T))
+    metrics.update(extra)
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
                        time_sync_offset_estimate_s=sync["offset_estimate"],
@@ -298,8 +316,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
     axes[1].semilogy(ts_, sig[:, i_gb] / units.dph, lw=1)
     axes[1].set_ylabel("gyro bias σ [deg/h]")
+    axes[1].legend(["x", "y", "z"], fontsize=8)
     axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
     axes[2].set_ylabel("accel bias σ [ug]")
+    axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
     figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
     notes = ["Heading is clockwise from north.",
@@ -328,7 +348,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
                                     "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  value=(res, fx))
+                  value=(res, fx), claims=claims)
 
 
 def register(app):
@@ -358,13 +378,14 @@ def register(app):
                  aid: Optional[str] = typer.Option(None, "--aid", help="aiding beyond the fixes: comma list of zupt, zaru, nhc, lever"),
                  rest: Optional[str] = typer.Option(None, "--rest", help="rest for ZUPT/ZARU: auto (IMU detector) | flags (the log's column)"),
                  csv_rate: float = typer.Option(1.0, "--csv-rate", help="rate of solution.csv [Hz] (solution.parquet: every filter epoch)"),
-                 out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]")) -> None:
+                 out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]"),
+                 force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
                  init=init, time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
                  scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, out=out,
                  echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
-                 csv_rate=csv_rate)
+                 csv_rate=csv_rate, force=force)
 
     return navigate
