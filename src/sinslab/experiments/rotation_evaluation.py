@@ -506,7 +506,9 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
         client = Client(cluster)
         own = (client, cluster)
     try:
-        futs = {client.submit(navigate_chunked, specs[k], pure=False, **nav_kw): k for k in keys}
+        # the cycles are tens of MB: send each spec once rather than inside the task graph
+        sent = client.scatter([specs[k] for k in keys], hash=False)
+        futs = {client.submit(navigate_chunked, f, pure=False, **nav_kw): k for k, f in zip(keys, sent)}
         outs = {}
         for fut in as_completed(futs):
             outs[futs[fut]] = fut.result()
