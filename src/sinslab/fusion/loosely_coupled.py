@@ -78,6 +78,8 @@ class LooselyCoupled:
     nis : ndarray, shape (J,)
     layout : object
         The error-state layout of the model (names of the states).
+    history : sinslab.fusion.smoothing.History or None
+        The recorded forward pass (``history=``), for :func:`sinslab.fusion.smoothing.smooth`.
     """
 
     t: np.ndarray
@@ -93,6 +95,7 @@ class LooselyCoupled:
     innovation: np.ndarray
     nis: np.ndarray
     layout: object
+    history: object = None
 
 
 def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyro_arw=None,
@@ -101,7 +104,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
                     outages=(), windows=None, kf_dt=0.1, nsub=2, feedback=True,
                     vertical="free", height=None, gyro_bias=None, accel_bias=None, start=0,
                     t_start=None, max_block=10.0, model_every=10.0, discretization="series",
-                    progress=True, label="loosely coupled") -> LooselyCoupled:
+                    progress=True, label="loosely coupled", aiding=(), history=None) -> LooselyCoupled:
     """INS + position(/velocity) fixes with an error-state Kalman filter, on the fusion
     driver (:func:`sinslab.fusion.driver.run`, whose notes derive the loop).
 
@@ -186,6 +189,11 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         Φ, Q_k of each step from F, G frozen at the epoch.
     progress : bool
         Show a progress bar (on a terminal).
+    aiding : sequence of Measurement
+        Further measurements of :mod:`sinslab.fusion.measurements` (odometer, NHC, ...)
+        processed after the fixes of an epoch; their states must be in ``model``.
+    history : sinslab.fusion.smoothing.History, optional
+        Record the forward pass for smoothing.
 
     Returns
     -------
@@ -265,11 +273,14 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     if use_vel:
         meas = Stack(meas, VelocityFix(fix_t, fix_vel, vel_sigma, **sched))
 
-    r = driver.run([ins], model, P0, [meas], kf_dt=kf_dt, feedback=fb, lag=policy,
+    r = driver.run([ins], model, P0, [meas, *aiding], kf_dt=kf_dt, feedback=fb, lag=policy,
                    max_block=max_block, model_every=model_every, discretization=discretization,
-                   progress=progress, label=label)
+                   progress=progress, label=label, history=history)
     ap = r.applied
+    fx_ = ap.measurement == 0                    # the fixes (aiding items follow)
     m_z = n_z + (3 if use_vel else 0)
     return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
-                          r.scale[0] if r.scale is not None else None, fix_t[ap.item],
-                          ap.t_applied, ap.item, np.array(ap.innovation).reshape(-1, m_z), ap.nis, lay)
+                          r.scale[0] if r.scale is not None else None, fix_t[ap.item[fx_]],
+                          ap.t_applied[fx_], ap.item[fx_],
+                          np.array([ap.innovation[i] for i in np.flatnonzero(fx_)]).reshape(-1, m_z),
+                          ap.nis[fx_], lay, r.history)
