@@ -1,0 +1,141 @@
+"""Oracles for smoothing fusion-driver runs (sinslab.fusion.smoothing).
+
+* Recording the history does not change the forward pass (bit-identical).
+* Storing the covariance only every 0.1 s (5 filter steps) gives the smoothed values of
+  the every-step history at the stored epochs: the stored epochs form a Gauss–Markov chain
+  with the composed transitions (Rauch, Tung & Striebel 1965 applied to the marginal
+  chain), so the two differ by rounding only.
+* Fixes delivered late and re-processed exactly give the smoothed solution of fixes
+  delivered on time (the forward filter is the same in feed-forward coordinates).
+* Monte Carlo on a simulated car drive: smoothed RMS error / smoothed σ inside the χ²
+  band for every state at epochs with fixes, mid-outage, outage end and late; the
+  forward errors are outside it (the check has power); the smoothed horizontal error in
+  the middle of a 60 s outage is several times smaller than the forward one at its end.
+* A wheel odometer (scale error, noise, quantisation) bounds the outage.
+The scenario is that of benchmarks/smoother.py, which runs it with 100 runs.
+"""
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sinslab.core import attitude as A
+from sinslab.fusion.feedback import FeedbackLayout
+from sinslab.fusion.smoothing import History, correct_rows, interpolate_rows, smooth
+from sinslab.nav import errstate as es
+from sinslab.nav import strapdown as sd
+
+BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "smoother.py"
+
+
+@pytest.fixture(scope="module")
+def B():
+    spec = importlib.util.spec_from_file_location("bench_smoother", BENCH)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_history_leaves_forward_unchanged_and_strided_storage_is_exact(B):
+    d = B.drive_inputs(7)
+    r0 = B.drive_forward(d)
+    r1 = B.drive_forward(d, History(B.KF_DT))           # every filter epoch
+    r5 = B.drive_forward(d, History(0.1))               # every 5th and every fix epoch
+    for r in (r1, r5):
+        assert np.array_equal(r.nav[0], r0.nav[0]) and np.array_equal(r.sigma, r0.sigma)
+        assert np.array_equal(r.x, r0.x)
+    assert r1.history.epochs.size == r0.t.size
+    assert r5.history.epochs.size < 0.25 * r0.t.size
+    assert r5.history.nbytes() < 0.5 * r1.history.nbytes()
+    s1, s5 = smooth(r1), smooth(r5)
+    k = s5.stored
+    sig = s1.sigma_stored[k]
+    assert np.max(np.abs(s5.x_stored - s1.x_stored[k]) / sig) < 1e-6
+    assert np.max(np.abs(s5.sigma_stored / sig - 1)) < 1e-6
+    # between stored epochs the interpolated correction stays close to the exact one
+    pos = r0.layout.slice("dp")
+    assert np.max(np.abs(s5.x[:, pos] - s1.x[:, pos]) / s1.sigma[:, pos]) < 0.05
+    with pytest.raises(ValueError, match="stored no history"):
+        smooth(r0)
+    with pytest.raises(ValueError, match="one run"):
+        B.drive_forward(d, r5.history)
+
+
+def test_lagged_fixes_reprocessed_smooth_like_on_time(B):
+    on = B.drive_inputs(11)
+    late = B.drive_inputs(11, latency=0.5)
+    r_on = B.drive_forward(on, History(0.1))
+    r_late = B.drive_forward(late, History(0.1))
+    s_on, s_late = smooth(r_on), smooth(r_late)
+    tru_on = B.drive_truth(on, r_on, s_on)["smo"]
+    tru_late = B.drive_truth(late, r_late, s_late)["smo"]
+    ip = r_on.layout.slice("dp")
+    # the forward solutions differ (feedback half a second later) ...
+    assert np.max(np.abs(r_late.nav[0][:, 7] - r_on.nav[0][:, 7])) * 6.4e6 > 0.05
+    # ... the smoothed ones agree far inside their σ (linearisation points differ slightly)
+    dz = np.abs(tru_late[:, ip] - tru_on[:, ip]) / s_on.sigma[:, ip]
+    assert np.max(dz) < 0.05, np.max(dz)
+
+
+def test_monte_carlo_smoothed_sigma_and_outage(B):
+    mc = B.monte_carlo(16)
+    lo, hi = mc["band"]
+    ratios = np.array(mc["smoothed_rms_over_sigma"])
+    assert mc["inside_band"], (lo, hi, ratios.min(), ratios.max())
+    assert mc["forward_over_smoothed_sigma_max"] > hi          # power: forward errors fail
+    assert mc["smoothed_sigma_le_forward"]
+    assert mc["outage_ratio"] < 0.2, mc["outage_ratio"]
+
+
+def test_odometer_bounds_the_outage_forward_and_smoothed(B):
+    o = B.odometer_outage(2)
+    assert o["odometer_outage_end_forward_hz_rms_m"] < 0.3 * o["gnss_only_outage_end_forward_hz_rms_m"], o
+    r, sm, tr_ = B.drive_run(301, odometer=True)
+    kod = r.layout.slice("kod")
+    # the odometer scale factor: smoothed estimate within 4 σ over the whole record
+    assert np.all(np.abs(tr_["smo"][:, kod]) < 4 * sm.sigma[:, kod] + 1e-4)
+
+
+def test_correct_rows_is_the_feedback_correction():
+    lay = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias()]).layout
+    route = FeedbackLayout.from_model(lay)
+    rng = np.random.default_rng(3)
+    rows = np.empty((5, 10))
+    rows[:, :4] = A.euler_to_quat(rng.uniform(-1, 1, (5, 3)))
+    rows[:, 4:7] = rng.normal(0, 10, (5, 3))
+    rows[:, 7:10] = np.c_[rng.uniform(-1, 1, 5), rng.uniform(-3, 3, 5), rng.normal(0, 100, 5)]
+    x = rng.normal(0, 1e-3, (5, lay.n))
+    got = correct_rows(rows, x, route)
+    for i in range(5):
+        st = rows[i].copy()
+        sd.correct(st, phi=x[i, lay.slice("phi")], dvel=x[i, lay.slice("dv")], dpos=x[i, lay.slice("dp")])
+        assert np.allclose(got[i], st, rtol=0, atol=1e-14)
+
+
+def test_imu_rate_solution(B):
+    r, sm, _ = B.drive_run(5)
+    # at the filter epochs the IMU-rate query returns the epoch rows
+    assert np.allclose(sm.at(r.t[::7]), sm.nav[::7], rtol=0, atol=1e-12)
+    tru = B._trajectory().truth
+    t = tru.t[(tru.t > r.t[0]) & (tru.t < r.t[-1])][::3]
+    rows = sm.at(t)
+    i = np.rint((t - tru.t[0]) / 0.01).astype(int)
+    phi = A.misalignment(A.euler_to_dcm(tru.att[i]), A.quat_to_dcm(rows[:, :4]))
+    k = np.rint((t - r.t[0]) / B.KF_DT).astype(int)
+    # the error between the filter epochs is as small as at them (3 σ of the epoch)
+    ip = r.layout.slice("phi")
+    assert np.all(np.abs(phi) < 4 * sm.sigma[k][:, ip] + 1e-5)
+    hz = np.hypot(*(np.stack([rows[:, 7] - tru.lat[i], rows[:, 8] - tru.lon[i]]) * [[6.38e6], [5.4e6]]))
+    assert np.sqrt(np.mean(hz ** 2)) < 1.0
+    mid = interpolate_rows(r.t, sm.nav, 0.5 * (r.t[:-1] + r.t[1:]))
+    assert np.allclose(np.linalg.norm(mid[:, :4], axis=1), 1.0)
+    with pytest.raises(ValueError, match="outside the run"):
+        sm.at([r.t[-1] + 1.0])
+
+
+def test_speed_script_runs(B, tmp_path):
+    res = B.speed(40.0)
+    assert res["backward_s"] > 0 and res["history_stored_epochs"] == res["speed_filter_epochs"]
+    (tmp_path / "s.json").write_text(json.dumps(res))
