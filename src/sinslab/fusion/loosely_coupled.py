@@ -26,7 +26,7 @@ from sinslab.nav import errstate as es
 __all__ = ["loosely_coupled", "LooselyCoupled", "lc_model"]
 
 
-def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=False):
+def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=False, extra=()):
     """The loosely coupled error model: φ, δv, δp = [δL, δλ, δh], gyro bias ε (body),
     accelerometer bias ∇ (body) (15 states), plus gyro and accelerometer scale factors
     ``kg``, ``ka`` (21 states) with ``scale_factors=True``; from :mod:`sinslab.nav.errstate`.
@@ -39,10 +39,13 @@ def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=
         Velocity random walk [m/s/√s].
     gyro_rrw, accel_rrw : float
         Bias random-walk densities [rad/s/√s], [m/s²/√s] (0: random constants).
+    extra : sequence of sensor blocks
+        Appended after them (e.g. :func:`sinslab.nav.errstate.odometer_scale`).
     """
     sensors = [es.gyro_bias(rrw=gyro_rrw), es.accel_bias(arw=accel_rrw)]
     if scale_factors:
         sensors += [es.gyro_scale(), es.accel_scale()]
+    sensors += list(extra)
     return es.ErrorModel("full", sensors, gyro_noise=gyro_arw, accel_noise=accel_vrw)
 
 

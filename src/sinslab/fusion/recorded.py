@@ -32,6 +32,8 @@ from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
 from sinslab.fusion.loosely_coupled import lc_model, loosely_coupled
+from sinslab.fusion.smoothing import History, smooth
+from sinslab.nav import errstate as es
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "parse_outages", "periodic_outages",
            "fix_errors", "outage_end_errors", "level_from_rest", "leveled_start"]
@@ -66,6 +68,12 @@ class NavOptions:
     rest_noise: bool = True                 #: white noise per axis from the initial rest
     #: (sample scatter at rest × sqrt(dt), floored at gyro_arw/accel_vrw: engine vibration
     #: in a car is far above a datasheet's noise density)
+    smooth: bool = False                    #: record the forward pass and smooth it (RTS)
+    odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
+    odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
+    odometer_lever: tuple = (0.0, 0.0, 0.0)  #: IMU -> wheel point, vehicle RFU [m]
+    odometer_scale_sigma: float = 0.02      #: initial 1σ of the odometer scale factor [-]
+    odometer_rate: float = 10.0             #: odometer updates per second [Hz]
 
     def check(self):
         la = np.asarray(self.lever_arm, dtype=float)
@@ -98,6 +106,7 @@ class RecordedNav:
     nis: np.ndarray                #: (J,)
     init: dict = field(default_factory=dict)
     options: NavOptions = None
+    smoothed: object = None        #: sinslab.fusion.smoothing.SmoothedRun (``smooth=True``)
 
     @property
     def att(self):
@@ -318,7 +327,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     # --- model, initial covariance and the fixes used
     g_noise = np.asarray(init.get("rest_gyro_arw", opt.gyro_arw))
     a_noise = np.asarray(init.get("rest_accel_vrw", opt.accel_vrw))
-    model = lc_model(g_noise, a_noise, opt.gyro_rrw, opt.accel_rrw, scale_factors=opt.scale_factors)
+    odo = opt.odometer
+    model = lc_model(g_noise, a_noise, opt.gyro_rrw, opt.accel_rrw, scale_factors=opt.scale_factors,
+                     extra=[es.odometer_scale()] if odo is not None else ())
     lay = model.layout
     n = model.n
     rm0, rn0 = (float(x) for x in E.radii(lat_i, h_i))
@@ -334,6 +345,10 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     if opt.scale_factors:
         sp0[lay.slice("kg")] = opt.scale_sigma
         sp0[lay.slice("ka")] = opt.scale_sigma
+    aiding = []
+    if odo is not None:
+        sp0[lay.slice("kod")] = opt.odometer_scale_sigma
+        aiding.append(_odometer(odo, opt, T, t_lo, t_hi))
     n_ep = (len(imu) - ks) // k_kf
     if n_ep < 2:
         raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
@@ -347,10 +362,28 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         fix_vel=_fix_vel_enu(sel) if use_vel else None,
         vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
         lever_arm=lever, fix_lag=opt.fix_latency, lag=opt.lag, outages=outages, kf_dt=T,
-        nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, progress=progress, label="navigating")
+        nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, progress=progress, label="navigating",
+        aiding=aiding, history=History(0.1) if opt.smooth else None)
     init["outages"] = outages
     return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
-                       r.fix_t, r.innovation, r.nis, init, opt)
+                       r.fix_t, r.innovation, r.nis, init, opt,
+                       smoothed=smooth(r) if opt.smooth else None)
+
+
+def _odometer(odo, opt, T, t_lo, t_hi):
+    """The wheel-speed measurement of the options (vehicle axes: the mount is applied to
+    the IMU on input), updated about ``odometer_rate`` times a second."""
+    from sinslab.fusion.measurements import Odometer
+    if odo.t[-1] < t_lo or odo.t[0] > t_hi:
+        raise ValueError(f"odometer times ({odo.source}: {odo.t[0]:.3f}..{odo.t[-1]:.3f} s) do not "
+                         f"overlap the IMU record ({t_lo:.3f}..{t_hi:.3f} s): different time bases?")
+    lever = np.asarray(opt.odometer_lever, dtype=float)
+    if lever.shape != (3,) or not np.all(np.isfinite(lever)):
+        raise ValueError(f"odometer lever arm must be 3 finite numbers [m], got {opt.odometer_lever!r}")
+    if not (opt.odometer_sigma > 0 and opt.odometer_rate > 0):
+        raise ValueError("odometer sigma and rate must be > 0")
+    every = max(1, int(round(1.0 / (opt.odometer_rate * T))))
+    return Odometer(odo.t, odo.speed, opt.odometer_sigma, lever_arm=lever, every=every)
 
 
 # ----------------------------------------------------------------------- evaluation ----
