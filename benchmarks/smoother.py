@@ -255,6 +255,22 @@ def odometer_outage(runs, seed0=300):
     return out
 
 
+def storage(seed=7):
+    """Smoothed results with the history in float32 and memory-mapped on disk against the
+    in-memory float64 history: largest difference in smoothed σ units (x) and relative (σ)."""
+    import tempfile
+    d = drive_inputs(seed)
+    ref = smooth(drive_forward(d, History(0.1)))
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, h in (("float32", History(0.1, dtype=np.float32)), ("spill", History(0.1, spill=tmp))):
+            s = smooth(drive_forward(d, h))
+            out[f"{name}_max_dx_over_sigma"] = float(np.max(np.abs(s.x_stored - ref.x_stored) / ref.sigma_stored))
+            out[f"{name}_max_rel_dsigma"] = float(np.max(np.abs(s.sigma_stored / ref.sigma_stored - 1)))
+            out[f"{name}_MB"] = h.nbytes() / 1e6
+    return out
+
+
 def speed(duration):
     """1 h (or ``duration`` s) of 200 Hz IMU, LC filter with P at 10 Hz: forward without and
     with the history, backward pass + corrected solution."""
@@ -311,6 +327,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     out["monte_carlo"] = monte_carlo(runs)
     out["odometer"] = odometer_outage(max(2, runs // 5))
+    out["storage"] = storage()
     out["speed"] = speed(120.0 if a.quick else 3600.0)
     out["elapsed_s"] = time.perf_counter() - t0
     txt = json.dumps(out, indent=1)

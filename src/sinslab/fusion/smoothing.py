@@ -398,7 +398,10 @@ def smooth(run, *, stream=0, check=True, chunk=4096) -> SmoothedRun:
     if h is None or h.epochs is None:
         raise ValueError("the run stored no history: run the filter with history=History() "
                          "to smooth it")
-    s = rts_smooth(h.x_post, _PostView(h), h.x_prior, h.P_prior, h.Phi, feedback=h.feedback,
+    # float32 storage rounds Φ and x: the stored prediction no longer passes the 1e-6 σ
+    # consistency check of eq. (3), so it is recomputed from the stored x and Φ
+    x_prior = h.x_prior if h.dtype == np.float64 else None
+    s = rts_smooth(h.x_post, _PostView(h), x_prior, h.P_prior, h.Phi, feedback=h.feedback,
                    covariance="diag", check=check, chunk=chunk)
     t = np.asarray(run.t, dtype=float)
     stored = h.epochs
