@@ -22,7 +22,7 @@ Per stored epoch r (n states): the updated state before the feedback of that epo
 ``P_{r|r−1}`` (n²), ``Φ_{r−1→r}`` (n²), and ``P_{r|r}`` (n²) only at the epochs where a
 measurement was applied (elsewhere it equals ``P_{r|r−1}``). For 1 h of 200 Hz IMU with
 the covariance stored at 10 Hz (36 001 epochs), 15 states and 1 Hz fixes:
-36 001 × (2·225 + 3·15) × 8 B + 3 601 × 225 × 8 B = 149 MB (21 states: 282 MB); see
+36 001 × (2·225 + 3·15) × 8 B + 3 601 × 225 × 8 B = 149 MB (21 states: 285 MB); see
 :meth:`History.nbytes`. ``spill=DIR`` keeps the arrays in memory-mapped ``.npy`` files
 in ``DIR`` instead of memory (the backward pass reads them in chunks).
 
