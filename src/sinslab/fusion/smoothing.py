@@ -256,7 +256,7 @@ class SmoothedRun:
         Smoothed σ (interpolated between stored epochs).
     nav : ndarray (M, 10) or None
         Smoothed ``[q0..q3, vE, vN, vU, lat, lon, h]`` of the stream (None when the
-        model has no φ/δv/δp blocks to route).
+        model has no φ/δv/δp blocks to route, or the run has several streams).
     gyro_bias, accel_bias : ndarray (M, 3) or None
         Smoothed sensor compensation [rad/s], [m/s²] of a live stream.
     forward_nav : ndarray (M, 10)
@@ -411,7 +411,9 @@ def smooth(run, *, stream=0, check=True, chunk=4096) -> SmoothedRun:
     sig = _interp_between(k.astype(float), stored, s.sigma, s.sigma, k.astype(float))
     nav_all = run.nav
     rows = np.asarray(nav_all[stream] if isinstance(nav_all, tuple) else nav_all, dtype=float)
-    route = _route(run.layout)
+    # with several streams the core blocks are differences of two INS (DifferenceModel):
+    # x and σ are smoothed, no single solution is corrected
+    route = _route(run.layout) if not (isinstance(nav_all, tuple) and len(nav_all) > 1) else None
     fwd = rows
     if route is not None and not np.any(h.feedback):
         # feed-forward run: the forward solution is the free INS minus the filter estimate
