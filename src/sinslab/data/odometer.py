@@ -116,7 +116,12 @@ def read_odometer(spec, imu_path=None, *, speed_unit=None, time_unit=None) -> Od
         if imu_path is None or Path(str(spec)).suffix.lower() in (".csv", ".txt", ".dat"):
             raise ValueError(f"{spec}: no such odometer file")
         path, col = Path(imu_path), str(spec).strip().lower()
-    body, hline, delim, cols = _table(path)
+    try:
+        body, hline, delim, cols = _table(path)
+    except ValueError as e:
+        if col is None:
+            raise
+        raise ValueError(f"{spec}: neither an odometer file nor a column of the IMU table ({e})") from None
     names = [c[0] for c in cols]
     if col is None:
         js = [names.index(n) for n in _SPEED if n in names]
