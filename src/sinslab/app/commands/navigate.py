@@ -9,7 +9,6 @@ from typing import Optional
 import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
-from sinslab.core import attitude as A
 from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors, navigate_recorded,
@@ -262,6 +261,7 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo):
     import dataclasses
 
     from sinslab.app import plotting
+    from sinslab.core import attitude as A
     sm = res.smoothed
     t, err_f, _ = fix_errors(res, fx)
     _, err_s, _ = fix_errors(dataclasses.replace(res, nav=sm.nav), fx)
