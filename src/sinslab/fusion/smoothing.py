@@ -51,10 +51,52 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from numba import njit
+
 from sinslab.core import attitude as A
+from sinslab.estimation.linear import _cov_predict, _sparsity_nb, _state_predict
 from sinslab.estimation.smoother import rts_smooth
 
 __all__ = ["History", "SmoothedRun", "smooth", "correct_rows", "interpolate_rows"]
+
+
+@njit(cache=True)
+def _compose(acc, nacc, Phi, W):
+    """acc <- Phi acc (acc <- Phi for the first step since a stored epoch)."""
+    if nacc == 0:
+        acc[:, :] = Phi
+    else:
+        np.dot(Phi, acc, W)
+        acc[:, :] = W
+
+
+@njit(cache=True)
+def _predict_record(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out, stop, acc, nacc, W,
+                    Phi_o, Pp_o, xp_o):
+    """The filter's compiled prediction (the arithmetic of ``KalmanFilter.predict_many``:
+    covariance, state, cumulative feedback, in that order) with the recording of the
+    stored epochs: after step i with ``stop[i]``, the composed transition, P and x go to
+    the next row of ``Phi_o``, ``Pp_o``, ``xp_o``. Returns (rows written, steps composed
+    since the last stored epoch)."""
+    m = Phis.shape[0]
+    n = x.shape[0]
+    j = 0
+    for i in range(m):
+        _cov_predict(P, Phis[i], Qs[i], T1, T2)
+        _state_predict(x, Phis[i], nzc[i], nnz[i], tmp)
+        _state_predict(c, Phis[i], nzc[i], nnz[i], tmp)
+        for a in range(n):
+            sig_out[i, a] = math.sqrt(max(P[a, a], 0.0))
+            x_out[i, a] = x[a]
+        _compose(acc, nacc, Phis[i], W)
+        nacc += 1
+        if stop[i]:
+            Phi_o[j] = acc
+            Pp_o[j] = P
+            xp_o[j] = x
+            j += 1
+            nacc = 0
+    return j, nacc
 
 
 class _PostView:
@@ -149,8 +191,9 @@ class History:
         self.x_post[0] = filt.x
         self.P_upd[0] = filt.P
         self._next = 1                 # row of the next stored epoch to reach
-        self._acc = np.eye(n)          # transition accumulated since the last stored epoch
-        self._eye = np.eye(n)
+        self._acc = np.eye(n)          # transition composed since the last stored epoch
+        self._nacc = 0                 # steps composed in it
+        self._W = np.empty((n, n))
 
     def _alloc(self, name, shape):
         if self.spill is None:
@@ -160,31 +203,55 @@ class History:
                                          mode="w+", dtype=self.dtype, shape=shape)
 
     def predict(self, filt, Phis, Qs, T, e0, sigma_out, x_out):
-        """The driver's prediction ``e0 -> e0 + m``: run by the filter in pieces that end
-        at the stored epochs, recording each (same arithmetic as one call)."""
+        """The driver's prediction ``e0 -> e0 + m``, recording the stored epochs reached.
+
+        A filter without a history of its own and without checks (the driver's) is
+        stepped by one compiled loop with the arithmetic of its ``predict_many``; else
+        by ``predict_many`` in pieces that end at the stored epochs. Either way the
+        numbers are those of one ``predict_many`` call."""
+        Phis = np.ascontiguousarray(Phis, dtype=float)
+        Qs = np.ascontiguousarray(Qs, dtype=float)
         m = Phis.shape[0]
         ep = self.epochs
-        i = 0
-        while i < m:
-            nxt = int(ep[self._next])
-            j = min(m, nxt - e0)
-            filt.predict_many(Phis[i:j], Qs[i:j], T, sigma_out=sigma_out[i:j], x_out=x_out[i:j])
-            acc = self._acc
-            for k in range(i, j):
-                acc = Phis[k] @ acc
-            self._acc = acc
-            if e0 + j == nxt:
-                r = self._next
-                self.Phi[r - 1] = acc
-                self.P_prior[r - 1] = filt.P
-                self.x_prior[r - 1] = filt.x
-                self.x_post[r] = filt.x
-                s = self._slot[r]
-                if s >= 0:
-                    self.P_upd[s] = filt.P
-                self._acc = self._eye
-                self._next += 1
-            i = j
+        r0 = self._next
+        r1 = int(np.searchsorted(ep, e0 + m, side="right"))     # rows r0..r1-1 reached
+        stop = np.zeros(m, dtype=np.bool_)
+        stop[ep[r0:r1] - e0 - 1] = True
+        k = r1 - r0
+        Phi_o = np.empty((k, self.n, self.n))
+        Pp_o = np.empty((k, self.n, self.n))
+        xp_o = np.empty((k, self.n))
+        if filt._buf is None and not filt.check:
+            nzc = np.zeros((m, self.n, max(self.n, 1)), dtype=np.int64)
+            nnz = np.zeros((m, self.n), dtype=np.int64)
+            _sparsity_nb(Phis, nzc, nnz)
+            _, self._nacc = _predict_record(filt.x, filt.c, filt.P, Phis, Qs, nzc, nnz, filt._T1,
+                                            filt._T2, filt._tmp, sigma_out, x_out, stop, self._acc,
+                                            self._nacc, self._W, Phi_o, Pp_o, xp_o)
+            filt.t += m * float(T)
+        else:
+            i = 0
+            for jj, b in enumerate(list(np.flatnonzero(stop) + 1) + ([m] if not stop[-1] else [])):
+                filt.predict_many(Phis[i:b], Qs[i:b], T, sigma_out=sigma_out[i:b], x_out=x_out[i:b])
+                for q in range(i, b):
+                    _compose(self._acc, self._nacc, Phis[q], self._W)
+                    self._nacc += 1
+                if jj < k:
+                    Phi_o[jj] = self._acc
+                    Pp_o[jj] = filt.P
+                    xp_o[jj] = filt.x
+                    self._nacc = 0
+                i = b
+        if k:
+            self.Phi[r0 - 1:r1 - 1] = Phi_o
+            self.P_prior[r0 - 1:r1 - 1] = Pp_o
+            self.x_prior[r0 - 1:r1 - 1] = xp_o
+            self.x_post[r0:r1] = xp_o
+            sl = self._slot[r0:r1]
+            has = sl >= 0
+            if has.any():
+                self.P_upd[sl[has]] = Pp_o[has]
+            self._next = r1
 
     def _row(self, e):
         r = int(np.searchsorted(self.epochs, e))
