@@ -182,3 +182,20 @@ def test_float32_and_spilled_history(B):
     assert s["spill_max_dx_over_sigma"] == 0.0 and s["spill_max_rel_dsigma"] == 0.0
     assert s["float32_max_dx_over_sigma"] < 1e-2 and s["float32_max_rel_dsigma"] < 1e-2
     assert s["float32_MB"] == 0.5 * s["spill_MB"]
+
+
+def test_history_refuses_a_lag_policy_it_cannot_follow(B):
+    from sinslab.fusion import driver
+
+    class OneStep:                       # a policy that replaces the stored epochs
+        on_arrival = False
+        corrected_nav = False
+        needs_model = False
+
+        def update(self, filt, z, H, R, t_m, *, F=None, Qc=None, tol=1e-6):
+            raise AssertionError("not reached")
+
+    d = B.drive_inputs(3, latency=0.5)
+    with pytest.raises(ValueError, match="exact re-processing"):
+        driver.run([driver.LiveStream(d["imu"], d["init"], nsub=2)], d["model"], np.diag(d["sd"] ** 2),
+                   d["measurements"], kf_dt=B.KF_DT, lag=OneStep(), history=History(0.1))
