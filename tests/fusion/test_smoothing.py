@@ -123,9 +123,15 @@ def test_monte_carlo_smoothed_sigma_and_outage(B):
 
 
 def test_odometer_bounds_the_outage_forward_and_smoothed(B):
-    o = B.odometer_outage(2)
-    assert o["odometer_outage_end_forward_hz_rms_m"] < 0.3 * o["gnss_only_outage_end_forward_hz_rms_m"], o
-    r, sm, tr_ = B.drive_run(301, odometer=True)
+    """The same drive (seed) with and without the wheel odometer + NHC."""
+    tru = B._trajectory().truth
+    err = {}
+    for odo in (False, True):
+        r, sm, tr_ = B.drive_run(301, odometer=odo)
+        k = int(np.argmin(np.abs(r.t - r.t[0] - (B.OUTAGE[1] - 0.1))))
+        i = np.rint((r.t[[k]] - tru.t[0]) / 0.01).astype(int)
+        err[odo] = B.hz_error(r.nav[0], [k], i)[0]
+    assert err[True] < 0.3 * err[False], err
     kod = r.layout.slice("kod")
     # the odometer scale factor: smoothed estimate within 4 σ over the whole record
     assert np.all(np.abs(tr_["smo"][:, kod]) < 4 * sm.sigma[:, kod] + 1e-4)
