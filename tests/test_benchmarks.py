@@ -81,3 +81,10 @@ def test_transfer_script(tmp_path):
     assert saved["campaign_runs_per_s"] > 0 and saved["single_runs_per_s"] > 0
     # the optimal form on the large installation (40′, 30′, 20′ error) converges to a few arcmin
     assert len(saved["rms_end_arcmin"]) == 3 and max(saved["rms_end_arcmin"]) < 5.0
+
+
+def test_readers_script(tmp_path):
+    out = tmp_path / "readers.json"
+    res = _load("readers").main(["--rows", "5000", "--repeat", "1", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    assert saved["rows"] == 5000 and saved["same_samples"] and res["csv_s"] > 0 and res["parquet_s"] > 0

@@ -95,7 +95,7 @@ def test_loosely_coupled_lagged_fixes_match_on_time(lc_case):
 
 def test_loosely_coupled_bad_fixes(lc_case):
     meas, init, ft, fix, sig, P0, kw, _ = lc_case
-    with pytest.raises(ValueError, match="outside the IMU data"):
+    with pytest.raises(ValueError, match="outside the filter grid"):
         LC.loosely_coupled(meas, init, ft + 1000.0, fix, sig, P0, progress=False, **kw)
     with pytest.raises(ValueError, match="fix_pos"):
         LC.loosely_coupled(meas, init, ft, fix[:, :2], sig, P0, progress=False, **kw)

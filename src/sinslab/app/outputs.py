@@ -174,11 +174,12 @@ class RunDir:
         return self.write_text(name, dumps_json(obj))
 
     def write_table(self, name: str, table, description: str = "",
-                    large_rows: int = LARGE_ROWS) -> dict:
+                    large_rows: int = LARGE_ROWS, csv_every: int | None = None) -> dict:
         """Write a table (DataFrame or dict of 1-D arrays) as CSV, or Parquet + thinned CSV.
 
-        Returns (and records) ``{"name", "description", "rows", "columns", "csv",
-        "parquet", "csv_every"}``.
+        ``csv_every``: always Parquet (full) + every ``csv_every``-th row as CSV, whatever
+        the length. Returns (and records) ``{"name", "description", "rows", "columns",
+        "csv", "parquet", "csv_every"}``.
         """
         import pandas as pd
 
@@ -186,8 +187,8 @@ class RunDir:
         info = {"name": name, "description": description, "rows": int(len(df)),
                 "columns": [str(c) for c in df.columns], "csv": f"{name}.csv",
                 "parquet": None, "csv_every": 1}
-        if len(df) > large_rows:
-            every = int(math.ceil(len(df) / large_rows))
+        if len(df) > large_rows or csv_every is not None:
+            every = int(math.ceil(len(df) / large_rows)) if csv_every is None else max(1, int(csv_every))
             with atomic_path(self._record(f"{name}.parquet")) as tmp:
                 df.to_parquet(tmp, index=False)
             info["parquet"] = f"{name}.parquet"

@@ -1,5 +1,5 @@
 """Reading and writing recorded data: one module per file format (:mod:`.psins`,
-:mod:`.tables`, :mod:`.rtklib`, :mod:`.matlab`), body-frame and mount matrices
+:mod:`.tables`, :mod:`.rtklib`, :mod:`.matlab`), column maps (:mod:`.columns`), body-frame and mount matrices
 (:mod:`.frames`), raw stamps -> uniform increments (:mod:`.increments`), and the front door
 re-exported here (:mod:`.load`): ``load_imu``, ``read_imu``, ``read_fixes``, ``write_imu``,
 ``write_fixes``. Imports :mod:`sinslab.core`.

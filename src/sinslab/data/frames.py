@@ -8,7 +8,7 @@ import numpy as np
 
 from sinslab.core import attitude as _att
 
-__all__ = ["frame_matrix", "check_rotation", "rpy_frd_matrix", "mount_matrix"]
+__all__ = ["frame_matrix", "check_rotation", "rpy_frd_matrix", "mount_matrix", "quat_mount"]
 
 _FRAMES = {
     # rows: RFU components from the source components
@@ -61,12 +61,14 @@ def mount_matrix(mount=None, frame="rfu") -> np.ndarray:
 
     Parameters
     ----------
-    mount : None, (3, 3) array, or str
+    mount : None, (3, 3) array, (4,) quaternion, or str
         ``None``: the sensor axes are the vehicle axes of ``frame``. A matrix:
-        ``C_sensor→body`` in the ``frame`` convention (checked to be a rotation). A string
-        ``"rpy:R,P,Y"`` (degrees; Groves/NED convention, :func:`rpy_frd_matrix`) or
+        ``C_sensor→body`` in the ``frame`` convention (checked to be a rotation); a
+        scalar-first unit quaternion of it (:func:`quat_mount`). A string
+        ``"rpy:R,P,Y"`` (degrees; Groves/NED convention, :func:`rpy_frd_matrix`),
         ``"euler:PITCH,ROLL,YAW"`` (degrees; sinslab convention, ``C_sensor→body =
-        euler_to_dcm``).
+        euler_to_dcm``), ``"quat:W,X,Y,Z"`` or ``"matrix:M11,M12,...,M33"`` (row by row,
+        brackets and semicolons allowed: ``"matrix:[[0,1,0],[-1,0,0],[0,0,1]]"``).
     frame : str
         Axis convention of the vehicle body frame the mount refers to (see
         :func:`frame_matrix`); the result is converted to RFU.
@@ -75,20 +77,51 @@ def mount_matrix(mount=None, frame="rfu") -> np.ndarray:
     if mount is None:
         return P
     if isinstance(mount, str):
-        kind, _, vals = mount.partition(":")
-        try:
-            v = np.radians([float(x) for x in vals.replace(" ", "").split(",")])
-        except ValueError:
-            raise ValueError(f"cannot read the mount {mount!r}; use 'rpy:R,P,Y' or "
-                             "'euler:PITCH,ROLL,YAW' in degrees") from None
-        if v.size != 3:
-            raise ValueError(f"mount {mount!r} needs three angles")
-        if kind.strip().lower() == "rpy":
-            M = rpy_frd_matrix(v)
-        elif kind.strip().lower() == "euler":
-            M = _att.euler_to_dcm(v)
-        else:
-            raise ValueError(f"unknown mount kind {kind!r}; use 'rpy:' or 'euler:'")
+        M = _mount_from_text(mount)
     else:
         M = np.asarray(mount, dtype=float)
+        if M.shape == (4,):
+            M = quat_mount(M, str(mount))
     return P @ check_rotation(M)
+
+
+_MOUNT_HELP = ("use 'rpy:R,P,Y' or 'euler:PITCH,ROLL,YAW' (degrees), 'quat:W,X,Y,Z' or "
+               "'matrix:M11,M12,...,M33' (row by row; brackets allowed)")
+
+
+def quat_mount(q, text="", tol=1e-3) -> np.ndarray:
+    """``C_sensor→body`` from a scalar-first unit quaternion ``[w, x, y, z]`` (sinslab's
+    convention, :func:`sinslab.core.attitude.quat_to_dcm`: the quaternion rotates sensor
+    vectors into body axes). A norm off 1 by more than ``tol`` is refused (a quaternion
+    given in another order or as a vector part only)."""
+    q = np.asarray(q, dtype=float).reshape(-1)
+    if q.size != 4 or not np.all(np.isfinite(q)):
+        raise ValueError(f"mount {text!r}: a quaternion needs 4 finite numbers W,X,Y,Z")
+    nq = float(np.linalg.norm(q))
+    if abs(nq - 1.0) > tol:
+        raise ValueError(f"mount {text!r}: quaternion norm {nq:.6g} is not 1 (scalar first: W,X,Y,Z)")
+    return _att.quat_to_dcm(q / nq)
+
+
+def _mount_from_text(mount: str) -> np.ndarray:
+    kind, sep, vals = mount.partition(":")
+    kind = kind.strip().lower()
+    if not sep:
+        raise ValueError(f"cannot read the mount {mount!r}; {_MOUNT_HELP}")
+    try:
+        v = np.array([float(x) for x in vals.replace("[", " ").replace("]", " ").replace(";", ",")
+                      .replace(",", " ").split()])
+    except ValueError:
+        raise ValueError(f"cannot read the mount {mount!r}; {_MOUNT_HELP}") from None
+    if kind in ("rpy", "euler"):
+        if v.size != 3:
+            raise ValueError(f"mount {mount!r} needs three angles")
+        v = np.radians(v)
+        return rpy_frd_matrix(v) if kind == "rpy" else _att.euler_to_dcm(v)
+    if kind in ("quat", "q"):
+        return quat_mount(v, mount)
+    if kind in ("matrix", "dcm"):
+        if v.size != 9:
+            raise ValueError(f"mount {mount!r}: a matrix needs 9 numbers (row by row), got {v.size}")
+        return check_rotation(v.reshape(3, 3), f"mount {mount!r}")
+    raise ValueError(f"unknown mount kind {kind!r}; {_MOUNT_HELP}")

@@ -4,7 +4,6 @@ the two-GEO fix list of recorded double-star receivers, and the writers of both 
 from __future__ import annotations
 
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +11,7 @@ import numpy as np
 from sinslab.core import units
 from sinslab.core.atomic import atomic_path
 from sinslab.core.records import Fixes, ImuRecord
+from sinslab.data import columns as _columns
 from sinslab.data.frames import mount_matrix
 from sinslab.data.increments import ImuData, check_stamps, rates_to_increments, uniform_increments, where
 
@@ -68,86 +68,42 @@ def _unit_kind(unit, sensor, path, line, name):
 
 
 def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kind=None,
-                   frame="rfu", mount=None, max_gap=1.0, allow_gaps=False) -> ImuData:
-    """Read a CSV or Parquet table of IMU samples.
+                   frame="rfu", mount=None, max_gap=1.0, allow_gaps=False, columns=None) -> ImuData:
+    """Read a CSV (or other delimited text) or Parquet table of IMU samples.
 
-    Columns (names case-insensitive, any order, extra columns ignored): a time column
-    ``t``/``time``/``timestamp`` (interval end times for increments, sample times for
-    rates) and either rates ``gx gy gz`` (or ``wx..``, ``gyro_x..``) with ``ax ay az`` (or
-    ``fx..``, ``acc_x..``), or increments ``dtheta_x..`` with ``dv_x..``. Units are
-    declared in the header, ``gx[deg/s]``, ``ax[g]``, ``dtheta_x[rad]``, ``t[ms]``, or by
-    the options ``gyro_unit``/``accel_unit``/``time_unit``; the unit's dimension tells
-    rates from increments. The plain SI names ``t, dtheta_x.., dv_x..`` and
-    ``t, wx.., fx..`` may omit units (s, rad, m/s, rad/s, m/s²). ``frame``/``mount``:
-    see :func:`sinslab.data.frames.mount_matrix`. Raises ValueError naming the file and line of the problem.
+    Columns (names case-insensitive, any order, extra columns ignored whatever they hold):
+    a time column ``t``/``time``/``timestamp`` (interval end times for increments, sample
+    times for rates) and either rates ``gx gy gz`` (or ``wx..``, ``gyro_x..``) with ``ax
+    ay az`` (or ``fx..``, ``acc_x..``), or increments ``dtheta_x..`` with ``dv_x..``.
+    Units are declared in the header, ``gx[deg/s]``, ``ax[g]``, ``dtheta_x[rad]``,
+    ``t[ms]``, or by the options ``gyro_unit``/``accel_unit``/``time_unit``; the unit's
+    dimension tells rates from increments. The plain SI names ``t, dtheta_x.., dv_x..``
+    and ``t, wx.., fx..`` may omit units (s, rad, m/s, rad/s, m/s²). Indexed names such as
+    ``DeltaTheta[0]`` are names; ``DeltaTheta[0][rad]`` carries the unit.
+
+    ``columns``: a column map (:func:`sinslab.data.columns.parse_column_map`: a string
+    ``"t=Time[s],dtheta_x=DeltaTheta[0][rad],..."``, a dict or a TOML file) naming the
+    file's columns for sinslab's quantities, with units; a unit in the map overrides the
+    header's. The key ``stationary`` names a 0/1 rest-flag column, returned in
+    ``meta["stationary"] = (t (N,), flags (N,) bool)``. A file without a header needs a
+    map of 1-based column positions.
+
+    ``frame``/``mount``: see :func:`sinslab.data.frames.mount_matrix`. Text is parsed by
+    pyarrow's CSV engine (comma, semicolon or tab delimited; whitespace-delimited text
+    by numpy); any malformed table raises ValueError naming the file, the line and the
+    cause (binary data, a short line, a non-number in a used column, ...).
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
+    cmap = _columns.parse_column_map(columns)
     is_parquet = path.suffix.lower() in (".parquet", ".pq")
-    if is_parquet:
-        import pandas as pd
-        try:
-            df = pd.read_parquet(path)
-        except Exception as e:   # noqa: BLE001 - pyarrow raises many kinds
-            raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
-        header = [str(c) for c in df.columns]
-        hline = None
-        if len(df) == 0:
-            raise ValueError(f"{path}: no samples")
-        try:
-            data = df.to_numpy(dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"{path}: non-numeric values in the table") from None
-        lines = [f"row {i + 1}" for i in range(len(df))]
-        where_line = lambda i: lines[i]      # noqa: E731
-    else:
-        with open(path, "r", encoding="utf-8", errors="replace") as fh:
-            text = fh.read().splitlines()
-        body = [(i + 1, s) for i, s in enumerate(text) if s.strip() and not s.lstrip().startswith(("#", "%"))]
-        if not body:
-            raise ValueError(f"{path}: empty file (no header, no samples)")
-        hline, hdr = body[0]
-        delim = "," if "," in hdr else None
-        header = [c.strip() for c in (hdr.split(delim) if delim else hdr.split())]
-        rows = body[1:]
-        if not rows:
-            raise ValueError(f"{where(path, hline)}: header only, no samples")
-        ncol = len(header)
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                data = np.loadtxt([s for _, s in rows], delimiter=delim, ndmin=2)
-            if data.shape[1] != ncol:
-                raise ValueError("column count")
-        except ValueError:
-            for ln, s in rows:
-                parts = [p.strip() for p in (s.split(delim) if delim else s.split())]
-                if len(parts) != ncol:
-                    raise ValueError(f"{path}:{ln}: {len(parts)} columns, the header has {ncol}") from None
-                for p in parts:
-                    try:
-                        float(p)
-                    except ValueError:
-                        raise ValueError(f"{path}:{ln}: not a number: {p!r}") from None
-            raise
-        lines = [ln for ln, _ in rows]
-        where_line = lambda i: lines[i]      # noqa: E731
-    cols = _parse_header(header, path, hline)
-    names = [c[0] for c in cols]
-    if len(set(names)) != len(names):
-        raise ValueError(f"{where(path, hline)}: duplicated column names {names}")
-    ti = next((names.index(n) for n in _TIME_NAMES if n in names), None)
-    if ti is None:
-        raise ValueError(f"{where(path, hline)}: no time column (t, time or timestamp) in {header}")
-    g_rate, a_rate = _find_cols(names, "gyro_rate"), _find_cols(names, "accel_rate")
-    g_inc, a_inc = _find_cols(names, "gyro_inc"), _find_cols(names, "accel_inc")
-    gi = g_inc or g_rate
-    ai = a_inc or a_rate
-    if gi is None or ai is None:
-        raise ValueError(f"{where(path, hline)}: wrong columns {header}: need a time column and gyro "
-                         "(gx gy gz | dtheta_x dtheta_y dtheta_z) and accelerometer (ax ay az | "
-                         "dv_x dv_y dv_z) columns")
+    src = _ParquetSource(path) if is_parquet else _TextSource(path, headerless=_positional(cmap))
+    cols, hline = src.cols, src.hline
+    pick = _select(cols, cmap, path, hline, src.raw)
+    ti, gi, ai, si = pick["t"], pick["gyro"], pick["accel"], pick.get("stationary")
+    data = src.fetch([ti] + gi + ai + ([si] if si is not None else []))
+    lines = src.lines
 
     def col_scale(idx, sensor, opt):
         scales, kinds, us = [], [], []
@@ -162,8 +118,8 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
                         else nm[0]]
                 else:
                     raise ValueError(f"{where(path, hline)}: column {nm!r} has no unit; declare it "
-                                     f"in the header ({nm}[deg/s], {nm}[g], ...) or give the "
-                                     f"{sensor} unit as an option")
+                                     f"in the header ({nm}[deg/s], {nm}[g], ...), in the column map "
+                                     f"or give the {sensor} unit as an option")
             s, k = _unit_kind(un, sensor, path, hline, nm)
             scales.append(s)
             kinds.append(k)
@@ -184,32 +140,276 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
         raise ValueError(f"{path}: kind={kind!r} but the declared units are "
                          f"{'rates' if gk == 'rate' else 'increments'}")
     tu = cols[ti][1] or time_unit or "s"
-    ts = units.unit_scale(tu, "time")
-    bad = ~np.isfinite(data[:, [ti] + gi + ai])
+    try:
+        ts = units.unit_scale(tu, "time")
+    except (ValueError, KeyError):
+        raise ValueError(f"{where(path, hline)}: time column {cols[ti][0]!r} has unit {tu!r}, "
+                         "not a time unit (s, ms, us, ns, min, h)") from None
+    bad = ~np.isfinite(data[:, :7])
     if bad.any():
-        r = int(np.argwhere(bad)[0, 0])
-        raise ValueError(f"{where(path, where_line(r))}: NaN/inf value in the samples")
-    t = data[:, ti] * ts
+        r, c = (int(x) for x in np.argwhere(bad)[0])
+        raise ValueError(f"{where(path, lines[r])}: NaN/inf or empty value in column "
+                         f"{cols[([ti] + gi + ai)[c]][0]!r}")
+    t = data[:, 0] * ts
     R = mount_matrix(mount, frame)
-    g = data[:, gi] * gs @ R.T
-    a = data[:, ai] * as_ @ R.T
+    g = data[:, 1:4] * gs @ R.T
+    a = data[:, 4:7] * as_ @ R.T
     check_stamps(t, path, lines)
+    meta = {"units": {"gyro": gu, "accel": au, "time": tu}}
+    if si is not None:
+        f = data[:, 7]
+        if not np.all(np.isin(f, (0.0, 1.0))):
+            r = int(np.flatnonzero(~np.isin(f, (0.0, 1.0)))[0])
+            raise ValueError(f"{where(path, lines[r])}: rest flag column {cols[si][0]!r} holds "
+                             f"{f[r]!r}; use 0 (moving) or 1 (at rest)")
+        meta["stationary"] = (t.copy(), f.astype(bool))
+    if cmap:
+        meta["columns"] = {k: f"{cols[i][0]}[{cols[i][1]}]" if cols[i][1] else cols[i][0]
+                           for k, i in pick["map"].items()}
+    fmt = "parquet" if is_parquet else "csv"
     if gk == "rate":
-        dt_nom = float(np.median(np.diff(t))) if t.size > 1 else float("nan")
         if t.size < 2:
             raise ValueError(f"{path}: needs at least 2 samples for rates")
+        dt_nom = float(np.median(np.diff(t)))
         d = np.diff(t)
         if np.all(np.abs(d - dt_nom) <= 1e-4 * dt_nom):
             imu = ImuRecord.from_rates(t, g, a)
-            return ImuData(imu, np.zeros((0, 2)), str(path), "parquet" if is_parquet else "csv",
-                           t.size, 0.0, {"units": {"gyro": gu, "accel": au, "time": tu}})
+            return ImuData(imu, np.zeros((0, 2)), str(path), fmt, t.size, 0.0, meta)
         dth, dvv = rates_to_increments(t, g, a, dt_nom)
     else:
         dth, dvv = g, a
     imu, gaps, jit = uniform_increments(t, dth, dvv, path=path, lines=lines,
                                         max_gap=max_gap, allow_gaps=allow_gaps)
-    return ImuData(imu, gaps, str(path), "parquet" if is_parquet else "csv", t.size, jit,
-                   {"units": {"gyro": gu, "accel": au, "time": tu}})
+    return ImuData(imu, gaps, str(path), fmt, t.size, jit, meta)
+
+
+# ----------------------------------------------------------------- table sources ---
+def _positional(cmap):
+    return bool(cmap) and all(isinstance(v[0], int) for v in cmap.values())
+
+
+class _LazyLines:
+    """File line of sample i, found only when an error message needs it (the fast path
+    assumes nothing; blank or comment lines between samples shift the numbering)."""
+
+    def __init__(self, path, first_body_line):
+        self.path, self.first, self._map = path, first_body_line, None
+
+    def __getitem__(self, i):
+        if self._map is None:
+            with open(self.path, "r", encoding="utf-8", errors="replace") as fh:
+                self._map = [n for n, s in enumerate(fh, 1)
+                             if n >= self.first and s.strip() and not s.lstrip().startswith(("#", "%"))]
+        return self._map[i] if i < len(self._map) else f"row {i + 1}"
+
+
+class _ParquetSource:
+    def __init__(self, path):
+        import pyarrow.parquet as pq
+        self.path, self.hline = path, None
+        try:
+            self._schema = pq.read_schema(path)
+        except Exception as e:   # noqa: BLE001 - pyarrow raises many kinds
+            raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
+        self.raw = list(self._schema.names)
+        self.cols = [_columns.parse_header_cell(c)[:2] for c in self.raw]
+
+    def fetch(self, idx):
+        import pyarrow.parquet as pq
+        names = [self.raw[i] for i in idx]
+        try:
+            tab = pq.read_table(self.path, columns=list(dict.fromkeys(names)))
+        except Exception as e:   # noqa: BLE001
+            raise ValueError(f"{self.path}: cannot read as Parquet ({e})") from None
+        if tab.num_rows == 0:
+            raise ValueError(f"{self.path}: no samples")
+        out = np.empty((tab.num_rows, len(names)))
+        for j, n in enumerate(names):
+            try:
+                out[:, j] = tab.column(n).to_numpy(zero_copy_only=False).astype(float)
+            except (TypeError, ValueError):
+                raise ValueError(f"{self.path}: column {n!r} is not numeric") from None
+        self.lines = [f"row {i + 1}" for i in range(tab.num_rows)]
+        return out
+
+
+_DELIMS = (",", ";", "\t")
+
+
+class _TextSource:
+    """A delimited text table: header found, binary data refused, columns read by pyarrow
+    (or numpy for whitespace-delimited text), every failure diagnosed line by line."""
+
+    def __init__(self, path, headerless=False):
+        self.path = path
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16)
+        nul = head.find(b"\x00")
+        try:
+            text = head.decode("utf-8")
+        except UnicodeDecodeError as e:
+            if e.start < len(head) - 4:              # not just a character cut at the end
+                nul = e.start if nul < 0 else min(nul, e.start)
+            text = head[:e.start].decode("utf-8")
+        if nul >= 0:
+            raise ValueError(f"{path}: not a text table (binary data at byte {nul}); a Parquet, MAT "
+                             "or raw binary log? give its format (--format)")
+        lines = text.splitlines()
+        hline = next((i + 1 for i, s in enumerate(lines)
+                      if s.strip() and not s.lstrip().startswith(("#", "%"))), None)
+        if hline is None:
+            raise ValueError(f"{path}: empty file (no header, no samples)")
+        first = lines[hline - 1]
+        self.delim = next((d for d in _DELIMS if d in first), None)
+        cells = [c.strip() for c in (first.split(self.delim) if self.delim else first.split())]
+        numeric = all(_is_number(c) for c in cells)
+        if headerless or numeric:
+            if not headerless:
+                raise ValueError(f"{where(path, hline)}: no header line (the first line holds "
+                                 f"{len(cells)} numbers); add a header such as "
+                                 "t[s],gx[deg/s],...,az[g] or give a column map of positions "
+                                 "(--columns \"t=1[s],gx=2[deg/s],...\")")
+            self.raw = [f"#{i + 1}" for i in range(len(cells))]
+            self.cols = [(r, None) for r in self.raw]
+            self.hline, self.skip = None, hline - 1
+        else:
+            self.raw = cells
+            self.cols = [_columns.parse_header_cell(c)[:2] for c in cells]
+            self.hline, self.skip = hline, hline
+        self.ncol = len(cells)
+        self.lines = _LazyLines(path, self.skip + 1)
+
+    def fetch(self, idx):
+        uniq = list(dict.fromkeys(idx))
+        try:
+            arr = self._fast(uniq)
+        except Exception:        # noqa: BLE001 - any parse failure: find the line and say why
+            self._diagnose(uniq)
+            arr = self._slow(uniq)
+        if arr.shape[0] == 0:
+            raise ValueError(f"{where(self.path, self.hline)}: header only, no samples")
+        pos = {c: j for j, c in enumerate(uniq)}
+        return arr[:, [pos[i] for i in idx]]
+
+    def _fast(self, uniq):
+        if self.delim is None:
+            raise ValueError("whitespace-delimited")
+        from pyarrow import csv as pcsv
+        import pyarrow as pa
+        names = [f"c{i}" for i in range(self.ncol)]
+        tab = pcsv.read_csv(
+            self.path,
+            read_options=pcsv.ReadOptions(skip_rows=self.skip, column_names=names,
+                                          block_size=1 << 22),
+            parse_options=pcsv.ParseOptions(delimiter=self.delim),
+            convert_options=pcsv.ConvertOptions(include_columns=[names[i] for i in uniq],
+                                                column_types={names[i]: pa.float64() for i in uniq},
+                                                strings_can_be_null=False))
+        out = np.empty((tab.num_rows, len(uniq)))
+        for j, i in enumerate(uniq):
+            c = tab.column(names[i])
+            if c.null_count:
+                raise ValueError("empty cell")
+            out[:, j] = c.to_numpy()
+        return out
+
+    def _rows(self):
+        with open(self.path, "r", encoding="utf-8", errors="replace") as fh:
+            for n, s in enumerate(fh, 1):
+                if n <= self.skip or not s.strip() or s.lstrip().startswith(("#", "%")):
+                    continue
+                yield n, [p.strip() for p in (s.split(self.delim) if self.delim else s.split())]
+
+    def _diagnose(self, uniq):
+        used = set(uniq)
+        for n, parts in self._rows():
+            if len(parts) != self.ncol:
+                raise ValueError(f"{self.path}:{n}: {len(parts)} columns, the header has {self.ncol}"
+                                 if self.hline else f"{self.path}:{n}: {len(parts)} columns, the first "
+                                 f"line has {self.ncol}")
+            for i in used:
+                if not _is_number(parts[i]):
+                    what = "empty value" if parts[i] == "" else f"not a number: {parts[i]!r}"
+                    raise ValueError(f"{self.path}:{n}: {what} in column "
+                                     f"{self.raw[i]!r}")
+
+    def _slow(self, uniq):
+        rows, lines = [], []
+        for n, parts in self._rows():
+            rows.append([float(parts[i]) for i in uniq])
+            lines.append(n)
+        self.lines = lines
+        return np.array(rows, dtype=float).reshape(len(rows), len(uniq))
+
+
+def _is_number(s):
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def _select(cols, cmap, path, hline, raw):
+    """Column indices of the time, gyro and accelerometer triples (and the rest flag),
+    from the column map where it names them, else by the usual names; the unit in a map
+    entry replaces the header's (``cols`` is updated in place)."""
+    names = [c[0] for c in cols]
+    raw_l = [str(r).strip().lower() for r in raw]
+    picked = {}
+    for key, (src, unit) in cmap.items():
+        if isinstance(src, int):
+            if src > len(cols):
+                raise ValueError(f"{where(path, hline)}: column map {key}={src}: the file has only "
+                                 f"{len(cols)} columns")
+            i = src - 1
+        else:
+            hits = [i for i, (n, r) in enumerate(zip(names, raw_l)) if src in (n, r)]
+            if not hits:
+                raise ValueError(f"{where(path, hline)}: column map {key}={src!r}: no such column "
+                                 f"(the header has {', '.join(map(str, raw))})")
+            if len(hits) > 1:
+                raise ValueError(f"{where(path, hline)}: column map {key}={src!r}: {len(hits)} "
+                                 "columns have that name")
+            i = hits[0]
+        if unit is not None:
+            cols[i] = (cols[i][0], unit)
+        picked[key] = i
+    out = {"map": picked}
+
+    def unique(i):
+        if names.count(names[i]) > 1:
+            raise ValueError(f"{where(path, hline)}: {names.count(names[i])} columns are named "
+                             f"{names[i]!r}; name the ones to use with a column map (--columns)")
+        return i
+
+    if "t" in picked:
+        out["t"] = picked["t"]
+    else:
+        ti = next((names.index(n) for n in _TIME_NAMES if n in names), None)
+        if ti is None:
+            raise ValueError(f"{where(path, hline)}: no time column (t, time or timestamp) in "
+                             f"{', '.join(map(str, raw))}; name it with a column map (--columns t=NAME[s])")
+        out["t"] = unique(ti)
+    if any(k in picked for k in _columns.RATE_KEYS):
+        out["gyro"] = [picked[k] for k in _columns.RATE_KEYS[:3]]
+        out["accel"] = [picked[k] for k in _columns.RATE_KEYS[3:]]
+    elif any(k in picked for k in _columns.INC_KEYS):
+        out["gyro"] = [picked[k] for k in _columns.INC_KEYS[:3]]
+        out["accel"] = [picked[k] for k in _columns.INC_KEYS[3:]]
+    else:
+        g_rate, a_rate = _find_cols(names, "gyro_rate"), _find_cols(names, "accel_rate")
+        g_inc, a_inc = _find_cols(names, "gyro_inc"), _find_cols(names, "accel_inc")
+        gi, ai = g_inc or g_rate, a_inc or a_rate
+        if gi is None or ai is None:
+            raise ValueError(f"{where(path, hline)}: wrong columns {', '.join(map(str, raw))}: need a "
+                             "time column and gyro (gx gy gz | dtheta_x dtheta_y dtheta_z) and "
+                             "accelerometer (ax ay az | dv_x dv_y dv_z) columns, or a column map "
+                             "(--columns \"t=...,dtheta_x=NAME[rad],...\")")
+        out["gyro"], out["accel"] = [unique(i) for i in gi], [unique(i) for i in ai]
+    if "stationary" in picked:
+        out["stationary"] = picked["stationary"]
+    return out
 
 
 # ---------------------------------------------------------------------------- writers ---
@@ -259,8 +459,9 @@ def write_fix_csv(path, fx: Fixes):
         cols += [*fx.vel.T, *fx.sigma_vel.T]
         names += _FIX_VCOLS
     with atomic_path(Path(path)) as tmp:
+        # 15 digits: 12 would quantise a latitude in degrees to ~1 cm
         np.savetxt(tmp, np.column_stack(cols), delimiter=",", header=",".join(names), comments="",
-                   fmt="%.12g")
+                   fmt="%.15g")
     return Path(path)
 
 

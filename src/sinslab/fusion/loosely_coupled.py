@@ -20,13 +20,14 @@ from sinslab.fusion import driver
 from sinslab.fusion.driver import LiveStream
 from sinslab.fusion.feedback import FeedbackLayout
 from sinslab.fusion.lag import ExactReprocessing, OnArrival
-from sinslab.fusion.measurements import PositionFix, Stack, VelocityFix
+from sinslab.fusion.measurements import (LeverPositionFix, LeverVelocityFix, PositionFix, Stack,
+                                         VelocityFix)
 from sinslab.nav import errstate as es
 
 __all__ = ["loosely_coupled", "LooselyCoupled", "lc_model"]
 
 
-def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=False, extra=()):
+def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=False):
     """The loosely coupled error model: φ, δv, δp = [δL, δλ, δh], gyro bias ε (body),
     accelerometer bias ∇ (body) (15 states), plus gyro and accelerometer scale factors
     ``kg``, ``ka`` (21 states) with ``scale_factors=True``; from :mod:`sinslab.nav.errstate`.
@@ -39,13 +40,10 @@ def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=
         Velocity random walk [m/s/√s].
     gyro_rrw, accel_rrw : float
         Bias random-walk densities [rad/s/√s], [m/s²/√s] (0: random constants).
-    extra : sequence of sensor blocks
-        Appended after them (e.g. :func:`sinslab.nav.errstate.odometer_scale`).
     """
     sensors = [es.gyro_bias(rrw=gyro_rrw), es.accel_bias(arw=accel_rrw)]
     if scale_factors:
         sensors += [es.gyro_scale(), es.accel_scale()]
-    sensors += list(extra)
     return es.ErrorModel("full", sensors, gyro_noise=gyro_arw, accel_noise=accel_vrw)
 
 
@@ -107,7 +105,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
                     outages=(), windows=None, kf_dt=0.1, nsub=2, feedback=True,
                     vertical="free", height=None, gyro_bias=None, accel_bias=None, start=0,
                     t_start=None, max_block=10.0, model_every=10.0, discretization="series",
-                    progress=True, label="loosely coupled", aiding=(), history=None) -> LooselyCoupled:
+                    aiding=(), progress=True, label="loosely coupled", history=None) -> LooselyCoupled:
     """INS + position(/velocity) fixes with an error-state Kalman filter, on the fusion
     driver (:func:`sinslab.fusion.driver.run`, whose notes derive the loop).
 
@@ -190,11 +188,15 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         (slower).
     discretization : {"series", "vanloan"}
         Φ, Q_k of each step from F, G frozen at the epoch.
+    aiding : sequence of measurement objects
+        Further measurements of :mod:`sinslab.fusion.measurements` run beside the fixes
+        (zero velocity / angular rate, non-holonomic constraints, odometer ...). A model
+        with a lever-arm block ``lev`` (:func:`sinslab.nav.errstate.lever_arm`) estimates the
+        antenna lever arm: the fixes then use
+        :class:`~sinslab.fusion.measurements.LeverPositionFix`/``LeverVelocityFix`` and
+        ``x[:, lev]`` holds ``l_used − l_true`` [m].
     progress : bool
         Show a progress bar (on a terminal).
-    aiding : sequence of Measurement
-        Further measurements of :mod:`sinslab.fusion.measurements` (odometer, NHC, ...)
-        processed after the fixes of an epoch; their states must be in ``model``.
     history : sinslab.fusion.smoothing.History, optional
         Record the forward pass for smoothing.
 
@@ -265,25 +267,33 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         if np.any(np.diff(fix_t) <= 0):
             raise ValueError("fix times must be strictly increasing")
         if fix_t[0] < t_ep[0] - 1e-9 or fix_t[-1] > t_ep[-1] + 1e-9:
-            raise ValueError(f"fix times {fix_t[0]:.6g}..{fix_t[-1]:.6g} s lie outside the IMU data "
-                             f"{t_ep[0]:.6g}..{t_ep[-1]:.6g} s")
+            tail = (f"; the grid is whole kf_dt = {T:g} s steps from the start, the IMU data end at "
+                    f"{imu.t[-1]:.3f} s: drop the {int(np.sum(fix_t > t_ep[-1] + 1e-9))} fixes after "
+                    "the last step" if t_ep[0] - 1e-9 <= fix_t[0] <= t_ep[-1] else "")
+            raise ValueError(f"fix times {fix_t[0]:.3f}..{fix_t[-1]:.3f} s lie outside the filter grid "
+                             f"{t_ep[0]:.3f}..{t_ep[-1]:.3f} s{tail}")
         if np.any(~(fix_sigma > 0)) or (use_vel and np.any(~(vel_sigma > 0))):
             raise ValueError("fix_sigma and vel_sigma must be > 0")
         if arrive.shape != (J,) or np.any(~(arrive >= fix_t)):
             raise ValueError("fix arrival times must not precede the validity times (fix_lag >= 0)")
     sched = dict(t_arrive=arrive, lever_arm=lever_arm, outages=outages, windows=windows)
-    meas = PositionFix(fix_t, fix_pos, fix_sigma, **sched)
-    if use_vel:
-        meas = Stack(meas, VelocityFix(fix_t, fix_vel, vel_sigma, **sched))
+    if "lev" in names:
+        lev = dict(sched, lever_arm=np.zeros(3) if lever_arm is None else lever_arm)
+        meas = LeverPositionFix(fix_t, fix_pos, fix_sigma, **lev)
+        if use_vel:
+            meas = Stack(meas, LeverVelocityFix(fix_t, fix_vel, vel_sigma, **lev))
+    else:
+        meas = PositionFix(fix_t, fix_pos, fix_sigma, **sched)
+        if use_vel:
+            meas = Stack(meas, VelocityFix(fix_t, fix_vel, vel_sigma, **sched))
 
     r = driver.run([ins], model, P0, [meas, *aiding], kf_dt=kf_dt, feedback=fb, lag=policy,
                    max_block=max_block, model_every=model_every, discretization=discretization,
                    progress=progress, label=label, history=history)
     ap = r.applied
-    fx_ = ap.measurement == 0                    # the fixes (aiding items follow)
+    k = np.flatnonzero(ap.measurement == 0)            # the fixes (aiding records left out)
     m_z = n_z + (3 if use_vel else 0)
+    inn = np.array([ap.innovation[i] for i in k]).reshape(-1, m_z)
     return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
-                          r.scale[0] if r.scale is not None else None, fix_t[ap.item[fx_]],
-                          ap.t_applied[fx_], ap.item[fx_],
-                          np.array([ap.innovation[i] for i in np.flatnonzero(fx_)]).reshape(-1, m_z),
-                          ap.nis[fx_], lay, r.history)
+                          r.scale[0] if r.scale is not None else None, fix_t[ap.item[k]],
+                          ap.t_applied[k], ap.item[k], inn, ap.nis[k], lay, r.history)

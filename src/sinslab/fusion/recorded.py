@@ -21,6 +21,7 @@ outage.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -31,12 +32,12 @@ from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
-from sinslab.fusion.loosely_coupled import lc_model, loosely_coupled
+from sinslab.fusion.loosely_coupled import loosely_coupled
 from sinslab.fusion.smoothing import History, smooth
-from sinslab.nav import errstate as es
 
-__all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "parse_outages", "periodic_outages",
-           "fix_errors", "outage_end_errors", "level_from_rest", "leveled_start"]
+__all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
+           "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
+           "leveled_start"]
 
 
 @dataclass
@@ -67,7 +68,31 @@ class NavOptions:
     rest_bias: bool = True                  #: initial gyro bias from the initial rest
     rest_noise: bool = True                 #: white noise per axis from the initial rest
     #: (sample scatter at rest × sqrt(dt), floored at gyro_arw/accel_vrw: engine vibration
-    #: in a car is far above a datasheet's noise density)
+    #: in a car is far above a datasheet's noise density); False: gyro_arw/accel_vrw as given
+    # -- the rest of the error model (defaults: none of these states)
+    gyro_markov: tuple | None = None        #: (σ [rad/s], τ [s]) Gauss–Markov gyro bias block
+    accel_markov: tuple | None = None       #: (σ [m/s²], τ [s]) Gauss–Markov accelerometer bias
+    gyro_scale_sigma: float | None = None   #: initial σ of gyro scale factors [-] (default scale_sigma)
+    accel_scale_sigma: float | None = None  #: likewise for the accelerometers
+    scale_rw: tuple = (0.0, 0.0)            #: gyro, accel scale-factor random walk [1/√s]
+    scale_tau: tuple = (None, None)         #: gyro, accel scale-factor Gauss–Markov τ [s] (σ: the scale σ)
+    fix_sigma: tuple | None = None          #: replaces every fix's σ north, east, up [m]
+    fix_vel_sigma: tuple | None = None      #: replaces every fix velocity σ east, north, up [m/s]
+    # -- aiding beyond the fixes
+    zupt: str | None = None                 #: None | "auto" (IMU detector) | "flags" (rest_flags)
+    zupt_sigma: float = 0.02                #: [m/s]
+    zaru: bool = False                      #: zero angular rate on the same intervals
+    zaru_sigma: float | None = None         #: [rad/s]; default 2 × gyro white noise / √kf_dt
+    rest_flags: tuple | None = None         #: (t (N,), flags (N,) bool) of a log's rest column
+    rest_min: float = 2.0                   #: shortest rest interval used [s]
+    nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
+    nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
+    aiding_dt: float = 0.1                  #: ZUPT/NHC applied every this [s] (ZARU: every epoch)
+    estimate_lever: bool = False            #: estimate the antenna lever arm (3 states)
+    lever_sigma: float = 1.0                #: its initial σ per axis [m]
+    heading_window: float = 1.0             #: [s] of motion above move_speed for the heading
+    heading_straight: float = 2.0 * units.deg   #: largest spread of course − gyro heading in it [rad]
+    heading_sigma_floor: float = 1.0 * units.deg  #: added (in quadrature) to the σ of that heading
     smooth: bool = False                    #: record the forward pass and smooth it (RTS)
     odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
     odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
@@ -87,6 +112,22 @@ class NavOptions:
             s, ln = (o[2], o[1]) if o[0] == "periodic" else o
             if not (ln > 0 and math.isfinite(s)):
                 raise ValueError(f"outage {s}:{ln}: length must be > 0")
+        if self.zupt not in (None, "auto", "flags"):
+            raise ValueError(f"zupt must be None, 'auto' or 'flags', got {self.zupt!r}")
+        if self.zupt == "flags" and self.rest_flags is None:
+            raise ValueError("zupt='flags' needs a rest-flag column (column map key 'stationary')")
+        if self.zaru and self.zupt is None:
+            raise ValueError("ZARU runs on the rest intervals of ZUPT: choose zupt='auto' or 'flags'")
+        for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight"):
+            v = getattr(self, nm)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{nm} must be > 0, got {v}")
+        for nm, n in (("fix_sigma", 3), ("fix_vel_sigma", 3), ("nhc_sigma", 2)):
+            v = getattr(self, nm)
+            if v is not None:
+                a = np.broadcast_to(np.asarray(v, dtype=float), (n,))
+                if not np.all(np.isfinite(a) & (a > 0)):
+                    raise ValueError(f"{nm} must be {n} finite values > 0, got {v!r}")
 
 
 @dataclass
@@ -236,7 +277,140 @@ def _imu_pos_from_antenna(lat, lon, h, C, lever):
     return lat - d[1] / float(rm), lon - d[0] / (float(rn) * math.cos(lat)), h - d[2]
 
 
-# ------------------------------------------------------------------ the driver ---------
+def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
+    """The error model of :func:`navigate_recorded`: the loosely coupled core (φ, δv, δp)
+    with gyro and accelerometer bias states (random constant, or random walk with
+    ``gyro_rrw``/``accel_rrw``), Gauss–Markov bias blocks (``gyro_markov``/``accel_markov``),
+    scale-factor states (``scale_factors``; random constant, walk or Gauss–Markov) and the
+    antenna lever arm (``estimate_lever``), from :mod:`sinslab.nav.errstate`."""
+    from sinslab.nav import errstate as es
+    sensors = [es.gyro_bias(rrw=opt.gyro_rrw), es.accel_bias(arw=opt.accel_rrw)]
+    if opt.gyro_markov is not None:
+        sensors.append(es.gyro_markov(opt.gyro_markov[1], opt.gyro_markov[0]))
+    if opt.accel_markov is not None:
+        sensors.append(es.accel_markov(opt.accel_markov[1], opt.accel_markov[0]))
+    if opt.scale_factors:
+        gs, as_ = _scale_sigmas(opt)
+        tg, ta = opt.scale_tau
+        sensors += [es.gyro_scale(rw=0.0 if tg else opt.scale_rw[0], tau=tg, sigma=gs if tg else None),
+                    es.accel_scale(rw=0.0 if ta else opt.scale_rw[1], tau=ta, sigma=as_ if ta else None)]
+    if opt.estimate_lever:
+        sensors.append(es.lever_arm())
+    if opt.odometer is not None:
+        sensors.append(es.odometer_scale())
+    return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
+
+
+def _scale_sigmas(opt):
+    return (opt.scale_sigma if opt.gyro_scale_sigma is None else opt.gyro_scale_sigma,
+            opt.scale_sigma if opt.accel_scale_sigma is None else opt.accel_scale_sigma)
+
+
+def _imu_point_course(fixes: Fixes, imu, lever, gb):
+    """Course [rad, clockwise from north] and speed of the IMU point at the fix times: the
+    antenna velocity minus ``C (ω × l)``, with ω the vertical gyro (bias ``gb`` removed) and
+    C's horizontal axes from the course itself (a car does not drive sideways)."""
+    v = _fix_vel_enu(fixes)
+    wz = np.interp(fixes.t, imu.t - 0.5 * imu.dt, imu.dtheta[:, 2] / imu.dt - gb[2])
+    crs = np.arctan2(v[:, 0], v[:, 1])
+    vi = v[:, :2]
+    for _ in range(2):                      # the lever correction needs the course it corrects
+        f = np.stack([np.sin(crs), np.cos(crs)], -1)            # forward (E, N)
+        r = np.stack([f[:, 1], -f[:, 0]], -1)                   # right
+        d = (-wz * lever[1])[:, None] * r + (wz * lever[0])[:, None] * f
+        vi = v[:, :2] - d
+        crs = np.arctan2(vi[:, 0], vi[:, 1])
+    return crs, np.hypot(vi[:, 0], vi[:, 1])
+
+
+def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever, gb):
+    """Heading from the first ``heading_window`` seconds of motion faster than
+    ``move_speed`` in which the course of the IMU-point velocity and the heading carried by
+    the gyros from the levelled rest (started at yaw 0) differ by a constant within
+    ``heading_straight`` (no skid, no noisy course): that constant is the initial yaw
+    offset, averaged over the window. Works through turns, since the gyros carry them.
+
+    Returns ``(ks, C_b^n at the end of sample ks − 1, heading σ [rad], description)`` or None.
+    """
+    from sinslab.nav import strapdown as sd
+    crs, spi = _imu_point_course(fixes, imu, lever, gb)
+    fast = spi > opt.move_speed
+    t_rest = float(imu.t[k0])
+    cand = np.flatnonzero(fast & (fixes.t > t_rest))
+    dt = imu.dt
+    tried = set()
+    for j in cand:
+        w = np.flatnonzero((fixes.t >= fixes.t[j]) & (fixes.t <= fixes.t[j] + opt.heading_window + 1e-9))
+        if fixes.t[w[-1]] - fixes.t[j] < opt.heading_window - 1e-9 or not fast[w].all():
+            continue
+        if j in tried:
+            continue
+        tried.add(j)
+        st = pre0.copy()
+        k = k0
+        az, kk = [], []
+        for i in w:                          # INS heading of the forward axis at each fix
+            ke = int(np.searchsorted(imu.t, fixes.t[i] - 1e-9))
+            ke = max(k, ke - (ke - k0) % nsub)
+            if ke > k:
+                sd.step(st, imu.dtheta[k:ke], imu.dv[k:ke], dt, nsub, gyro_bias=gb)
+                k = ke
+            C = A.quat_to_dcm(st[:4])
+            az.append(math.atan2(C[0, 1], C[1, 1]))             # forward axis, clockwise from north
+            kk.append(k)
+        off = np.unwrap(crs[w] - np.array(az))
+        if np.ptp(off) > opt.heading_straight:
+            continue
+        mean = float(np.mean(off))
+        if fixes.vel is not None:
+            sv = fixes.sigma_vel[w] if fixes.sigma_vel is not None else np.full((w.size, 3), 0.1)
+            s_meas = np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2) / spi[w]
+            sig = math.sqrt(float(np.mean(s_meas ** 2) + np.var(off)) / w.size)
+        else:
+            sig = math.sqrt(float(np.var(off)) / w.size + float(np.mean(np.hypot(
+                fixes.sigma[w, 0], fixes.sigma[w, 1]) / spi[w] / fixes_dt(fixes))) ** 2 / w.size)
+        C = A.quat_to_dcm(st[:4])
+        Rz = A.euler_to_dcm(np.array([0.0, 0.0, -mean]))        # heading +mean = yaw −mean
+        how = (f"course of the IMU-point velocity minus the gyro heading over "
+               f"{fixes.t[w[-1]] - fixes.t[j]:.1f} s of motion")
+        return kk[-1], Rz @ C, sig, how
+    return None
+
+
+def fixes_dt(fixes):
+    """Median interval of the fixes [s]."""
+    return float(np.median(np.diff(fixes.t))) if len(fixes) > 1 else 1.0
+
+
+def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=None):
+    """Stationary intervals for ZUPT/ZARU [s], shape (K, 2): from the log's rest flags
+    (``zupt="flags"``) or the IMU detector (:func:`sinslab.fusion.stationarity.detect`)
+    with thresholds calibrated on the initial rest ``rest = (k0, k1)`` (the scatter of the
+    engine-on car at rest, ×1.5; the gyro bias measured there removed), trimmed by 0.5 s
+    at both ends and at least ``rest_min`` long."""
+    from sinslab.fusion import stationarity as st
+    if opt.zupt == "flags":
+        t, fl = opt.rest_flags
+        iv = st.from_flags(t, fl, min_duration=opt.rest_min)
+    else:
+        gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, float)
+        im = ImuRecord(imu.t, imu.dtheta - gb * imu.dt, imu.dv, imu.dt)
+        kw = {}
+        if rest is not None:
+            k0, k1 = rest
+            k = max(1, int(round(1.0 / imu.dt)))
+            m = (k1 - k0) // k
+            if m >= 1:
+                f = (imu.dv[k0:k0 + m * k] / imu.dt).reshape(m, k, 3)
+                w = (im.dtheta[k0:k0 + m * k] / imu.dt).reshape(m, k, 3)
+                g = float(E.gravity(lat, 0.0))
+                kw = dict(f_std=max(1.5 * float(np.linalg.norm(f.std(1), axis=1).max()), 0.02),
+                          f_tol=max(1.5 * float(np.abs(np.linalg.norm(f.mean(1), axis=1) - g).max()), 0.05),
+                          w_max=max(1.5 * float(np.linalg.norm(w.mean(1), axis=1).max()), 0.002))
+        iv = st.detect(im, lat, min_duration=opt.rest_min, **kw)
+    iv = np.asarray(iv, dtype=float).reshape(-1, 2)
+    iv = np.stack([iv[:, 0] + 0.5, iv[:, 1] - 0.5], -1) if iv.size else iv
+    return iv[(iv[:, 1] - iv[:, 0]) >= max(opt.rest_min - 1.0, 0.1)] if iv.size else iv
 
 
 # ------------------------------------------------------------------------ the filter ---
@@ -245,8 +419,10 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     """Loosely coupled INS + fixes on a recorded IMU stream (see the module notes).
 
     Raises ValueError when the fix times do not overlap the IMU record, when there is no
-    usable fix, or when the vehicle never moves and no heading is given.
+    usable fix, or when the vehicle never moves and no heading is given. Fixes after the
+    last whole filter step are dropped (``init["fixes_after_grid"]`` counts them).
     """
+    from sinslab.fusion.measurements import NonHolonomic, ZeroRate, ZeroVelocity
     from sinslab.nav import strapdown as sd
 
     opt = opt or NavOptions()
@@ -260,6 +436,12 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     fixes = fixes.select((fixes.t >= t_lo) & (fixes.t <= t_hi))
     if len(fixes) < 2:
         raise ValueError("fewer than 2 fixes inside the IMU record")
+    if opt.fix_sigma is not None:
+        sg = np.broadcast_to(np.asarray(opt.fix_sigma, float), (3,))
+        fixes = dataclasses.replace(fixes, sigma=np.tile(sg, (len(fixes), 1)))
+    if opt.fix_vel_sigma is not None and fixes.vel is not None:
+        sg = np.broadcast_to(np.asarray(opt.fix_vel_sigma, float), (3,))
+        fixes = dataclasses.replace(fixes, sigma_vel=np.tile(sg, (len(fixes), 1)))
     outages = _expand_outages(opt.outages, float(fixes.t[0]), float(fixes.t[-1]))
     lever = np.asarray(opt.lever_arm, dtype=float)
     dt = imu.dt
@@ -268,11 +450,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     if k_kf < nsub or k_kf % nsub or abs(k_kf * dt - opt.kf_dt) > 0.02 * dt:
         k_kf = max(nsub, int(round(opt.kf_dt / dt / nsub)) * nsub)
     T = k_kf * dt
-    fvel = _fix_vel_enu(fixes)
-    sp = np.hypot(fvel[:, 0], fvel[:, 1])
     lat0 = float(fixes.lat[0])
 
-    # --- initial attitude: levelling at rest, heading given or from the fix course
+    # --- initial attitude: levelling at rest, heading given or from straight motion
     rest = leveled_start(imu, fixes, opt)
     init = {}
     gb = np.zeros(3)
@@ -298,25 +478,19 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         ts = float(imu.t[ks] - dt) if ks > 0 else imu.t0
         att0 = np.array([pitch, roll, A.heading_to_yaw(opt.heading)])
         init["heading_source"] = "given"
+        init["heading_sigma"] = None
     else:
-        mv = np.flatnonzero((sp > opt.move_speed) & (fixes.t > imu.t[k0]))
-        if mv.size == 0:
-            raise ValueError(f"the vehicle never moves faster than {opt.move_speed} m/s; give the "
-                             "initial heading (--init heading=...)")
-        t_m = float(fixes.t[mv[0]])
-        ks = int(np.searchsorted(imu.t, t_m))
-        ks -= (ks - k0) % nsub
         pre = sd.initial_state_array(NavState(lat0, float(fixes.lon[0]), float(fixes.h[0]),
                                               np.zeros(3), np.array([pitch, roll, 0.0])))
-        sd.step(pre, imu.dtheta[k0:ks], imu.dv[k0:ks], dt, nsub, gyro_bias=gb)
-        C = A.quat_to_dcm(pre[:4])
-        yaw_fwd = math.atan2(-C[0, 1], C[1, 1])
+        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt, lever, gb)
+        if found is None:
+            raise ValueError(f"no {opt.heading_window:g} s of motion faster than {opt.move_speed} m/s "
+                             "with a consistent course; give the initial heading (--init heading=...)")
+        ks, C, h_sig, how = found
         ts = float(imu.t[ks - 1]) if ks > 0 else imu.t0
-        _, _, _, v = _interp_fix(fixes, ts)
-        yaw_v = math.atan2(-v[0], v[1])
-        Rz = A.euler_to_dcm(np.array([0.0, 0.0, yaw_v - yaw_fwd]))
-        att0 = A.dcm_to_euler(Rz @ C)
-        init["heading_source"] = f"fix course at {ts - fixes.t[0]:.2f} s after the first fix"
+        att0 = A.dcm_to_euler(C)
+        init["heading_source"] = how
+        init["heading_sigma"] = h_sig
     lat_a, lon_a, h_a, v0 = _interp_fix(fixes, ts)
     C0 = A.euler_to_dcm(att0)
     lat_i, lon_i, h_i = _imu_pos_from_antenna(lat_a, lon_a, h_a, C0, lever)
@@ -327,14 +501,19 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     # --- model, initial covariance and the fixes used
     g_noise = np.asarray(init.get("rest_gyro_arw", opt.gyro_arw))
     a_noise = np.asarray(init.get("rest_accel_vrw", opt.accel_vrw))
-    odo = opt.odometer
-    model = lc_model(g_noise, a_noise, opt.gyro_rrw, opt.accel_rrw, scale_factors=opt.scale_factors,
-                     extra=[es.odometer_scale()] if odo is not None else ())
+    init.update(filter_gyro_arw=np.broadcast_to(g_noise, (3,)).tolist(),
+                filter_accel_vrw=np.broadcast_to(a_noise, (3,)).tolist())
+    model = recorded_model(opt, g_noise, a_noise)
     lay = model.layout
     n = model.n
     rm0, rn0 = (float(x) for x in E.radii(lat_i, h_i))
     sp0 = np.zeros(n)
     sp0[lay.slice("phi")] = opt.att_sigma
+    if init.get("heading_sigma") is not None:
+        # the heading found in motion, its σ widened by what the window cannot see (a
+        # slip angle, a mount yaw error of a few tenths of a degree), never above the prior
+        sp0[lay.slice("phi").start + 2] = min(opt.att_sigma[2], math.hypot(
+            init["heading_sigma"], opt.heading_sigma_floor))
     jf = int(np.argmin(np.abs(fixes.t - ts)))
     vs = fixes.sigma_vel[jf] if fixes.sigma_vel is not None else np.full(3, 0.1)
     sp0[lay.slice("dv")] = np.maximum(vs, opt.vel_sigma_floor) * 2
@@ -342,29 +521,73 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     sp0[lay.slice("dp")] = [ps[0] / rm0, ps[1] / (rn0 * math.cos(lat_i)), ps[2]]
     sp0[lay.slice("eps")] = opt.gyro_bias_sigma
     sp0[lay.slice("nabla")] = opt.accel_bias_sigma
+    if opt.gyro_markov is not None:
+        sp0[lay.slice("eps_m")] = opt.gyro_markov[0]
+    if opt.accel_markov is not None:
+        sp0[lay.slice("nabla_m")] = opt.accel_markov[0]
     if opt.scale_factors:
-        sp0[lay.slice("kg")] = opt.scale_sigma
-        sp0[lay.slice("ka")] = opt.scale_sigma
-    aiding = []
-    if odo is not None:
+        sp0[lay.slice("kg")], sp0[lay.slice("ka")] = _scale_sigmas(opt)
+    if opt.estimate_lever:
+        sp0[lay.slice("lev")] = opt.lever_sigma
+    if opt.odometer is not None:
         sp0[lay.slice("kod")] = opt.odometer_scale_sigma
-        aiding.append(_odometer(odo, opt, T, t_lo, t_hi))
     n_ep = (len(imu) - ks) // k_kf
     if n_ep < 2:
         raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
-    sel = fixes.select((fixes.t > ts) & (fixes.t <= ts + T * n_ep))
+    t_end = ts + T * n_ep
+    init["fixes_after_grid"] = int(np.sum(fixes.t > t_end + 1e-9))
+    init["grid_end"] = t_end
+    sel = fixes.select((fixes.t > ts) & (fixes.t <= t_end + 1e-9))
     use_vel = opt.use_velocity and sel.vel is not None
+
+    # --- aiding
+    aiding = []
+    every = max(1, int(round(opt.aiding_dt / T)))
+    if opt.zupt is not None:
+        iv = rest_intervals(imu, opt, lat0, rest, gb)
+        iv = iv[iv[:, 1] > ts] if iv.size else iv
+        init["rest_intervals"] = iv.tolist()
+        if len(iv):
+            aiding.append(ZeroVelocity(iv, opt.zupt_sigma, every=every))
+            if opt.zaru:
+                zs = opt.zaru_sigma if opt.zaru_sigma is not None else \
+                    2.0 * float(np.max(g_noise)) / math.sqrt(T)
+                init["zaru_sigma"] = zs
+                # every epoch: each holds the rate of its own step, thinning discards them
+                aiding.append(ZeroRate(iv, zs, every=1))
+    if opt.nhc_sigma is not None:
+        aiding.append(NonHolonomic(opt.nhc_sigma, lever_arm=np.asarray(opt.nhc_lever_arm, float),
+                                   every=every))
+    if opt.odometer is not None:
+        aiding.append(_odometer(opt.odometer, opt, T, t_lo, t_hi))
+
+    P0 = np.diag(sp0 ** 2)
+    if opt.estimate_lever:
+        # the start position is the antenna's minus C l_used: its error is −C δl, so the
+        # position and lever-arm errors start correlated (else the fixes pin a wrong start)
+        D = np.array([[0.0, 1.0 / rm0, 0.0], [1.0 / (rn0 * math.cos(lat_i)), 0.0, 0.0], [0.0, 0.0, 1.0]])
+        J = -D @ C0
+        spp, slv = lay.slice("dp"), lay.slice("lev")
+        Sl = np.eye(3) * opt.lever_sigma ** 2
+        P0[spp, spp] += J @ Sl @ J.T
+        P0[spp, slv] = J @ Sl
+        P0[slv, spp] = (J @ Sl).T
 
     # --- the filter (the one INS + fix driver)
     r = loosely_coupled(
         imu, NavState(lat_i, lon_i, h_i, v0, att0), sel.t, np.stack([sel.lat, sel.lon, sel.h], -1),
-        np.maximum(sel.sigma, opt.pos_sigma_floor), np.diag(sp0 ** 2), model=model,
+        np.maximum(sel.sigma, opt.pos_sigma_floor), P0, model=model,
         fix_vel=_fix_vel_enu(sel) if use_vel else None,
         vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
         lever_arm=lever, fix_lag=opt.fix_latency, lag=opt.lag, outages=outages, kf_dt=T,
-        nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, progress=progress, label="navigating",
-        aiding=aiding, history=History(0.1) if opt.smooth else None)
+        nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, aiding=aiding,
+        history=History(0.1) if opt.smooth else None,
+        progress=progress, label="navigating")
     init["outages"] = outages
+    if opt.estimate_lever:
+        sl = lay.slice("lev")
+        init["lever_arm_estimate"] = (lever - r.x[-1, sl]).tolist()     # δl = l_used − l_true
+        init["lever_arm_sigma"] = r.sigma[-1, sl].tolist()
     return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
                        r.fix_t, r.innovation, r.nis, init, opt,
                        smoothed=smooth(r) if opt.smooth else None)
@@ -402,7 +625,9 @@ def fix_errors(res: RecordedNav, fixes: Fixes, lever_arm=None):
 
     Returns ``(t (K,), err (K, 3) east/north/up [m], index (K,) into fixes)``.
     """
-    lever = np.asarray(res.options.lever_arm if lever_arm is None else lever_arm, dtype=float)
+    if lever_arm is None:
+        lever_arm = res.init.get("lever_arm_estimate", res.options.lever_arm)
+    lever = np.asarray(lever_arm, dtype=float)
     idx = np.flatnonzero((fixes.t >= res.t[0]) & (fixes.t <= res.t[-1]))
     t = fixes.t[idx]
     lat, lon, h, C = _interp_rows(res, t)
@@ -429,31 +654,46 @@ def outage_end_errors(res: RecordedNav, fixes: Fixes, outages=None):
 
 
 # ------------------------------------------------------------ IMU / fix time sync ---
-__all__ += ["estimate_time_offset", "shift_imu_time"]
+__all__ += ["estimate_time_offset", "significant_time_offset", "shift_imu_time"]
 
 
 def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_speed=2.0,
-                         search=1.0, step=0.005):
+                         search=1.0, step=0.005, lever_arm=None, gyro_bias=None):
     """Estimate how late the IMU time stamps are relative to the fixes, from turns.
 
     The IMU vertical-axis rate (body z, RFU; the vehicle is roughly level) is
-    cross-correlated with the course rate of the fix velocities (speed > ``min_speed``)
-    in windows of ``window`` s; a straight line through the per-window lags gives an
-    offset and a clock-rate error. Returns ``{"offset": lag at t_ref [s], "t_ref",
-    "ppm": drift [1e-6 s/s], "windows": [(t_mid, lag, correlation), ...]}``; the
-    corrected IMU times are ``t − (offset + ppm·1e-6·(t − t_ref))``.
+    (each sample the mean over its interval) is cross-correlated with the course rate of
+    the fix velocities (speed > ``min_speed``) in windows of ``window`` s (shortened so the
+    overlap holds at least four; windows without a clear turn, peak correlation < 0.5,
+    are skipped). The fix
+    velocities are first moved from the antenna to the IMU point
+    (``v − C (ω × l)`` with ``lever_arm`` l, vehicle RFU [m]): in a turn the antenna's course
+    leads or lags the body's by ``l_y ω̇ / v``, which reads as a time offset of ``l_y / v``
+    (0.1 s for 1 m at 10 m/s). A straight line through the per-window lags gives an offset
+    and a clock-rate error, with standard errors from the scatter about the line.
+
+    Returns ``{"offset": lag at t_ref [s], "offset_sigma", "t_ref", "ppm": drift
+    [1e-6 s/s], "ppm_sigma", "windows": [(t_mid, lag, correlation), ...]}`` (σ = inf when
+    too few windows to judge); the corrected IMU times are
+    ``t − (offset + ppm·1e-6·(t − t_ref))``. :func:`significant_time_offset` keeps only
+    what is significant.
     """
     if fixes.vel is None:
         raise ValueError("time-offset estimation needs fix velocities")
-    sp = np.hypot(fixes.vel[:, 0], fixes.vel[:, 1])
-    crs = np.unwrap(np.arctan2(fixes.vel[:, 0], fixes.vel[:, 1]))
+    lever = np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float)
+    gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=float)
+    crs, sp = _imu_point_course(fixes, imu, lever, gb)
+    crs = np.unwrap(crs)
+    slow = sp < min_speed
     cr = -np.gradient(crs, fixes.t)                       # counter-clockwise rate
-    cr[sp < min_speed] = 0.0
+    cr[slow] = 0.0
     wz = imu.dtheta[:, 2] / imu.dt
+    tw = imu.t - 0.5 * imu.dt                             # a rate is the mean over its interval
     lo = max(fixes.t[0], imu.t[0]) + search
     hi = min(fixes.t[-1], imu.t[-1]) - search
-    if hi - lo < window / 2:
+    if hi - lo < 20.0:
         raise ValueError("IMU and fixes overlap too little to estimate a time offset")
+    window = min(window, (hi - lo) / 4)
     nwin = max(1, int((hi - lo) // window))
     edges = np.linspace(lo, hi, nwin + 1)
     lags = np.arange(-search, search + step / 2, step)
@@ -463,8 +703,10 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_spee
         ref = np.interp(grid, fixes.t, cr)
         if np.std(ref) < 1e-3:
             continue
-        c = np.array([np.corrcoef(np.interp(grid + o, imu.t, wz), ref)[0, 1] for o in lags])
+        c = np.array([np.corrcoef(np.interp(grid + o, tw, wz), ref)[0, 1] for o in lags])
         i = int(np.nanargmax(c))
+        if c[i] < 0.5:                                        # no clear turn in this window
+            continue
         if 0 < i < len(c) - 1:                                # parabolic refinement
             den = c[i - 1] - 2 * c[i] + c[i + 1]
             sh = 0.5 * (c[i - 1] - c[i + 1]) / den if den < 0 else 0.0
@@ -476,11 +718,35 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_spee
     tm = np.array([r[0] for r in res])
     lg = np.array([r[1] for r in res])
     t_ref = float(tm.mean())
-    if len(res) >= 2:
-        b_, a_ = np.polyfit(tm - t_ref, lg, 1)
+    n = len(res)
+    x = tm - t_ref
+    if n >= 3:
+        b_, a_ = np.polyfit(x, lg, 1)
+        s2 = float(np.sum((lg - a_ - b_ * x) ** 2)) / (n - 2)
+        sa, sb = math.sqrt(s2 / n), math.sqrt(s2 / float(np.sum(x ** 2)))
     else:
-        b_, a_ = 0.0, float(lg[0])
-    return {"offset": float(a_), "t_ref": t_ref, "ppm": float(b_ * 1e6), "windows": res}
+        b_, a_ = 0.0, float(lg.mean())
+        sa = float(np.std(lg, ddof=1)) / math.sqrt(n) if n == 2 else math.inf
+        sb = math.inf
+    return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6),
+            "ppm_sigma": sb * 1e6, "windows": res, "step": float(step)}
+
+
+def significant_time_offset(est: dict, k: float = 3.0) -> dict:
+    """The part of :func:`estimate_time_offset` to apply: the clock drift only when it
+    exceeds ``k`` σ (else the offset is re-estimated as the mean lag), the offset only when
+    it exceeds ``k`` σ and the lag resolution (the search step). Returns ``{"offset", "ppm", "t_ref", "offset_applied",
+    "ppm_applied", "offset_sigma"}``."""
+    ppm_ok = math.isfinite(est["ppm_sigma"]) and abs(est["ppm"]) > k * est["ppm_sigma"]
+    off, s_off = est["offset"], est["offset_sigma"]
+    if not ppm_ok:
+        lg = np.array([w[1] for w in est["windows"]])
+        off = float(lg.mean())
+        s_off = float(np.std(lg, ddof=1)) / math.sqrt(lg.size) if lg.size >= 2 else math.inf
+    off_ok = math.isfinite(s_off) and abs(off) > max(k * s_off, est.get("step", 0.0))
+    return {"offset": off if off_ok else 0.0, "ppm": est["ppm"] if ppm_ok else 0.0,
+            "t_ref": est["t_ref"], "offset_applied": bool(off_ok), "ppm_applied": bool(ppm_ok),
+            "offset_sigma": s_off, "offset_estimate": off}
 
 
 def shift_imu_time(imu: ImuRecord, offset=0.0, ppm=0.0, t_ref=0.0) -> ImuRecord:

@@ -437,7 +437,8 @@ class SensorBlock:
     kind : {"bias", "markov", "scale", "constant"}
         ``bias``: the states are added to the sensor output (``δω = x``); ``markov``: same
         coupling, dynamics ``ẋ = −x/τ + w``; ``scale``: ``δω = diag(ω^b) x`` /
-        ``δf = diag(f^b) x``; ``constant``: no coupling.
+        ``δf = diag(f^b) x`` (dynamics ``ẋ = −x/τ + w`` when ``tau`` is set, else a random
+        constant or walk); ``constant``: no coupling.
     axes : str
         Sensor axes carried, a subset of ``"xyz"`` in order (``"xy"``: horizontal
         accelerometers only).
@@ -509,7 +510,7 @@ class SensorBlock:
 
     def dynamics(self) -> np.ndarray:
         """Diagonal of the block's own dynamics matrix, shape (k,)."""
-        if self.kind == "markov":
+        if self.kind == "markov" or (self.kind == "scale" and self.tau):
             return np.full(self.size, -1.0 / self.tau)
         return np.zeros(self.size)
 
@@ -548,14 +549,32 @@ def accel_markov(tau, sigma, axes="xyz", frame="body", name="nabla_m"):
                        2.0 * np.asarray(sigma, float) ** 2 / float(tau), "ug")
 
 
-def gyro_scale(axes="xyz", name="kg"):
-    """Gyro scale-factor errors (diagonal) [-]: ``δω_ib^b = diag(ω_ib^b) k_g``, random constant."""
-    return SensorBlock(name, "gyro", "scale", axes, "body", None, None, "ppm")
+def _scale_noise(rw, tau, sigma, name):
+    """(τ or None, q) of a scale-factor block: random constant, random walk (``rw``
+    [1/√s]) or first-order Gauss–Markov (``tau`` [s], steady-state ``sigma`` [-])."""
+    if tau is None:
+        if sigma is not None:
+            raise ValueError(f"block {name!r}: a Gauss-Markov sigma needs its correlation time tau")
+        return None, np.asarray(rw, float) ** 2
+    if np.any(np.asarray(rw, float) != 0):
+        raise ValueError(f"block {name!r}: give a random walk or a Gauss-Markov process, not both")
+    tau = _check_tau(tau, name)
+    return tau, 2.0 * np.asarray(0.0 if sigma is None else sigma, float) ** 2 / tau
 
 
-def accel_scale(axes="xyz", name="ka"):
-    """Accelerometer scale-factor errors (diagonal) [-]: ``δf^b = diag(f^b) k_a``, random constant."""
-    return SensorBlock(name, "accel", "scale", axes, "body", None, None, "ppm")
+def gyro_scale(axes="xyz", name="kg", rw=0.0, tau=None, sigma=None):
+    """Gyro scale-factor errors (diagonal) [-]: ``δω_ib^b = diag(ω_ib^b) k_g``; a random
+    constant, a random walk (``rw`` [1/√s]) or a Gauss–Markov process (``tau`` [s],
+    steady-state ``sigma`` [-], ``k̇ = −k/τ + w``, q = 2σ²/τ)."""
+    tau, q = _scale_noise(rw, tau, sigma, name)
+    return SensorBlock(name, "gyro", "scale", axes, "body", tau, q, "ppm")
+
+
+def accel_scale(axes="xyz", name="ka", rw=0.0, tau=None, sigma=None):
+    """Accelerometer scale-factor errors (diagonal) [-]: ``δf^b = diag(f^b) k_a``; random
+    constant, random walk or Gauss–Markov as :func:`gyro_scale`."""
+    tau, q = _scale_noise(rw, tau, sigma, name)
+    return SensorBlock(name, "accel", "scale", axes, "body", tau, q, "ppm")
 
 
 def installation(name="lam", axes="xyz"):

@@ -12,7 +12,8 @@ from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_cal
 from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors, navigate_recorded,
-                                     outage_end_errors, parse_outages, shift_imu_time)
+                                     outage_end_errors, parse_outages, shift_imu_time,
+                                     significant_time_offset)
 
 __all__ = ["NAVIGATE", "navigate_files", "register"]
 
@@ -41,12 +42,37 @@ def _parse_init(text):
     return out
 
 
+_AIDS = ("zupt", "zaru", "nhc", "lever")
+
+
+def _parse_aid(text):
+    """``"zupt,zaru,nhc,lever"`` -> set; None/"none" -> empty."""
+    if text is None:
+        return set()
+    toks = [t.strip().lower() for t in (text if isinstance(text, (list, tuple, set)) else str(text).split(","))]
+    toks = [t for t in toks if t and t != "none"]
+    bad = [t for t in toks if t not in _AIDS]
+    if bad:
+        raise ValueError(f"--aid {text!r}: unknown {', '.join(bad)}; use a comma list of {', '.join(_AIDS)}")
+    return set(toks)
+
+
 def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=None, mount=None,
                    frame=None, outages=None, fix_latency=0.0, lag="aware", init=None,
                    time_sync="none", velocity_lag=0.0, imu_delay=0.0, scale_factors=False,
-                   max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None, smooth=False,
+                   max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None,
+                   columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
                    odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
+
+    Recorded-unit options: ``columns`` a column map of the IMU table
+    (:func:`sinslab.data.columns.parse_column_map`); ``imu_errors`` the filter's error
+    model, a TOML file or grade name (:mod:`sinslab.app.error_model`); ``aid`` aiding
+    beyond the fixes, a comma list of ``zupt``, ``zaru``, ``nhc``, ``lever`` (antenna
+    lever-arm estimation); ``rest`` where ZUPT/ZARU find rest, ``auto`` (IMU detector) or
+    ``flags`` (the log's rest column, default when the column map names one);
+    ``csv_rate`` [Hz] the rate of ``solution.csv`` (``solution.parquet`` holds every filter
+    epoch).
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
@@ -55,14 +81,16 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         frame=frame, outages=outages, fix_latency=fix_latency, lag=lag, init=init,
         time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
         scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, echo=echo,
-        options=options, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
-                                  lever=odometer_lever, sigma=odometer_sigma)), echo=echo)
+        options=options, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
+        csv_rate=csv_rate, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
+                                    lever=odometer_lever, sigma=odometer_sigma)), echo=echo)
     return (summary, *res.value)
 
 
 def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
-             allow_gaps, echo, options, smo=None) -> Output:
+             allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
+             csv_rate=1.0, smo=None) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.data import guess_imu_format, load_imu, read_fixes
 
@@ -76,6 +104,17 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         kw.update(max_gap=max_gap, allow_gaps=allow_gaps)
     if fmt_eff == "rtklib-imu":
         kw["delay"] = imu_delay
+    if columns is not None:
+        if fmt_eff not in ("csv", "parquet"):
+            raise ValueError(f"--columns applies to csv and parquet tables, not {fmt_eff!r}")
+        kw["columns"] = columns
+    aids = _parse_aid(aid)
+    if not (isinstance(csv_rate, (int, float)) and math.isfinite(csv_rate) and csv_rate > 0):
+        raise ValueError(f"--csv-rate must be a positive number of Hz, got {csv_rate!r}")
+    em = None
+    if imu_errors is not None:
+        from sinslab.app.error_model import load_error_model
+        em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
     ffmt = fix_format or ("rtklib-pos" if str(fix_path).lower().endswith(".pos") else None)
     fx = read_fixes(fix_path, ffmt, velocity_lag=velocity_lag)
@@ -84,25 +123,49 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
              + ", ".join(f"{g[1]:.3f} s at {g[0] - imu.t0:.2f} s" for g in data.gaps[:5])
              + (" ..." if len(data.gaps) > 5 else ""))
-    sync = None
-    if time_sync == "auto":
-        sync = estimate_time_offset(imu, fx)
-        imu = shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
-        echo(f"  IMU time stamps corrected by {sync['offset'] * 1e3:.1f} ms (at the middle) and "
-             f"{sync['ppm']:.0f} ppm (from turn rates vs fix course rates)")
-    elif time_sync != "none":
-        raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
     opt = options or NavOptions()
-    smo = smo or {}
-    odo_cfg = _smooth_odometer_options(opt, smo, imu_path, sync)
     if lever_arm is not None:
         opt.lever_arm = tuple(_vec3(lever_arm, "length", "--lever-arm") if isinstance(lever_arm, str)
                               else lever_arm)
+    sync = None
+    if time_sync == "auto":
+        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm)
+        sync = significant_time_offset(est)
+        sync.update(ppm_estimate=est["ppm"], ppm_sigma=est["ppm_sigma"], windows=len(est["windows"]))
+        imu = shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
+        echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
+             f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
+             f"{est['ppm']:.0f} ± {est['ppm_sigma']:.0f} ppm "
+             f"({'applied' if sync['ppm_applied'] else 'not significant, not applied'}); from turn "
+             f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows")
+    elif time_sync != "none":
+        raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
+    odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_path, sync)
+    em_cfg = {}
+    if em is not None:
+        from sinslab.app.error_model import apply_error_model
+        apply_error_model(opt, em[0], em[1])
+        em_cfg = em[2]
+    nhc_cfg = opt.nhc_sigma
+    opt.nhc_sigma = (nhc_cfg or (0.1, 0.1)) if "nhc" in aids else None
+    if "zupt" in aids or "zaru" in aids:
+        has_flags = data.meta and "stationary" in data.meta
+        src_rest = rest or ("flags" if has_flags else "auto")
+        if src_rest not in ("auto", "flags"):
+            raise ValueError(f"--rest must be 'auto' or 'flags', got {rest!r}")
+        if src_rest == "flags":
+            if not has_flags:
+                raise ValueError("--rest flags: the IMU table has no rest-flag column (name it in "
+                                 "--columns as stationary=COLUMN)")
+            opt.rest_flags = data.meta["stationary"]
+        opt.zupt = src_rest
+        opt.zaru = "zaru" in aids
+    opt.estimate_lever = "lever" in aids
     t_ref = float(fx.t[0])
     opt.outages = tuple(parse_outages(outages, t_ref)) if isinstance(outages, (str, type(None))) else tuple(outages)
     opt.fix_latency = float(fix_latency)
     opt.lag = lag
-    opt.scale_factors = bool(scale_factors)
+    opt.scale_factors = bool(scale_factors) or opt.scale_factors
     ini = _parse_init(init) if isinstance(init, (str, type(None))) else dict(init)
     if "heading" in ini:
         opt.heading = ini["heading"]
@@ -136,8 +199,24 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         "initial_heading_deg": float(np.degrees(res.init["heading"])),
         "imu_gaps": int(len(data.gaps)),
     }
+    hs = res.init.get("heading_sigma")
+    metrics["initial_heading_sigma_deg"] = float(np.degrees(hs)) if hs is not None else None
+    metrics["fixes_after_grid"] = int(res.init.get("fixes_after_grid", 0))
+    metrics["filter_gyro_arw_deg_sqrth"] = (np.asarray(res.init["filter_gyro_arw"]) / (units.deg / 60)).tolist()
+    metrics["filter_accel_vrw_ug_sqrthz"] = (np.asarray(res.init["filter_accel_vrw"]) / units.ug).tolist()
     if sync is not None:
-        metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"])
+        metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
+                       time_sync_offset_estimate_s=sync["offset_estimate"],
+                       time_sync_offset_sigma_s=sync["offset_sigma"],
+                       time_sync_ppm_estimate=sync["ppm_estimate"], time_sync_ppm_sigma=sync["ppm_sigma"],
+                       time_sync_offset_applied=sync["offset_applied"],
+                       time_sync_ppm_applied=sync["ppm_applied"])
+    if "lever_arm_estimate" in res.init:
+        metrics["lever_arm_estimate_m"] = res.init["lever_arm_estimate"]
+        metrics["lever_arm_sigma_m"] = res.init["lever_arm_sigma"]
+    if opt.zupt is not None:
+        metrics["rest_intervals"] = len(res.init.get("rest_intervals", []))
+        metrics["rest_total_s"] = float(sum(b - a for a, b in res.init.get("rest_intervals", [])))
     if res.scale is not None:
         metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
     cfg = {"imu": str(imu_path), "fixes": str(fix_path), "format": data.format,
@@ -145,7 +224,12 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
            "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
            "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
            "init": str(init or ""), "time_sync": time_sync, "velocity_lag": f"{velocity_lag:g} s",
-           "imu_delay": f"{imu_delay:g} s", "scale_factors": bool(scale_factors)}
+           "imu_delay": f"{imu_delay:g} s", "scale_factors": bool(opt.scale_factors),
+           "columns": str(columns) if columns is not None else "auto",
+           "aid": ",".join(sorted(aids)) or "none", "rest": opt.zupt or "none",
+           "csv_rate": f"{csv_rate:g} Hz", "heading_window": f"{opt.heading_window:g} s",
+           "imu_errors": {**({"source": "built-in defaults (white noise measured at the initial "
+                                        "rest, floored at the defaults)"} if not em_cfg else em_cfg)}}
     echo(f"{imu_path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_path}: {len(fx)} fixes"
          f"{' with velocity' if fx.vel is not None else ''}")
     echo(f"  start {res.init['t_start'] - fx.t[0]:.2f} s after the first fix; heading "
@@ -172,7 +256,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     for k, a in enumerate("xyz"):
         sol[f"gyro_bias_{a}_dph"] = res.gyro_bias[:, k] / units.dph
         sol[f"accel_bias_{a}_ug"] = res.accel_bias[:, k] / units.ug
-    tables = [Series("solution", sol, "navigation solution at the filter epochs with filter sigma"),
+    every = max(1, int(round(1.0 / (csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
+    tables = [Series("solution", sol, f"navigation solution at every filter epoch with filter sigma "
+                     f"(Parquet; the CSV every {every}-th epoch, {1 / (every * (res.t[1] - res.t[0])):.4g} Hz)"
+                     if res.t.size > 1 else "navigation solution", csv_every=every),
               Series("fix_errors", {"t_s": t - res.t[0], "east_m": err[:, 0], "north_m": err[:, 1],
                                     "up_m": err[:, 2], "in_outage": in_out.astype(int)},
                      "solution (antenna) minus fix at every fix time")]
@@ -219,11 +306,33 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     axes[2].set_xlabel("time [s]")
     figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
     if res.smoothed is not None:
-        _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo)
+        _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, every)
     cfg.update(odo_cfg)
     notes = ["Heading is clockwise from north.",
              f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
              if res.init.get("rest_start") else "No rest at the start."]
+    if hs is not None:
+        notes.append(f"Initial heading {np.degrees(res.init['heading']):.2f} deg ± "
+                     f"{np.degrees(hs):.2f} deg (1σ of the course window).")
+    if metrics["fixes_after_grid"]:
+        notes.append(f"{metrics['fixes_after_grid']} fix(es) after the last whole filter step "
+                     f"({res.init['grid_end'] - fx.t[0]:.3f} s after the first fix) were not used.")
+        echo(f"  {metrics['fixes_after_grid']} fix(es) after the last whole filter step dropped")
+    if sync is not None:
+        notes.append(f"Time sync: offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
+                     f"({'applied' if sync['offset_applied'] else 'not applied: not significant at 3σ'}), "
+                     f"clock {sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
+                     f"({'applied' if sync['ppm_applied'] else 'not applied'}).")
+    if "lever_arm_estimate" in res.init:
+        le, ls = res.init["lever_arm_estimate"], res.init["lever_arm_sigma"]
+        notes.append("Antenna lever arm estimated (vehicle right, forward, up): "
+                     + ", ".join(f"{a:.3f} ± {b:.3f}" for a, b in zip(le, ls)) + " m.")
+        echo("  lever arm estimate [m] " + ", ".join(f"{a:.3f} ± {b:.3f}" for a, b in zip(le, ls)))
+    if opt.zupt is not None:
+        notes.append(f"ZUPT{'/ZARU' if opt.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
+                     f"{metrics['rest_total_s']:.0f} s in all ({opt.zupt} detection).")
+    notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
+                                    "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx))
 
@@ -255,7 +364,7 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
     return cfg
 
 
-def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo):
+def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1):
     """Forward and smoothed solutions side by side, their errors against the fixes that
     were not used (inside outages; all fixes without outages), figures."""
     import dataclasses
@@ -305,8 +414,9 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo):
         sc = {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
         cols[f"fwd_sigma_{l}_{u_.replace('/', 'p')}"] = res.sigma[:, i] / sc
         cols[f"smo_sigma_{l}_{u_.replace('/', 'p')}"] = sm.sigma[:, i] / sc
-    tables.append(Series("smoothed", cols, "forward (fwd_) and smoothed (smo_) solutions and σ at the "
-                         "filter epochs"))
+    tables.append(Series("smoothed", cols, "forward (fwd_) and smoothed (smo_) solutions and σ at every "
+                         f"filter epoch (Parquet; the CSV every {csv_every}-th epoch, like the solution)",
+                         csv_every=csv_every))
     fig, axes = plotting.figure(2, 1, width=9.0)
     tt = t - res.t[0]
     axes[0].plot(tt, hz_f, ".", ms=1.5, color=plotting.COLORS[0], label="forward")
@@ -341,7 +451,7 @@ def register(app):
                  format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
                  lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
-                 mount: Optional[str] = typer.Option(None, "--mount", help="sensor -> vehicle rotation: rpy:R,P,Y or euler:P,R,Y (deg)"),
+                 mount: Optional[str] = typer.Option(None, "--mount", help="sensor -> vehicle rotation: rpy:R,P,Y | euler:P,R,Y (deg) | quat:W,X,Y,Z | matrix:M11,...,M33"),
                  frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu | frd | flu"),
                  outages: Optional[str] = typer.Option(None, "--outages", help="START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
                  fix_latency: float = typer.Option(0.0, "--fix-latency", help="simulated fix latency [s]"),
@@ -353,6 +463,11 @@ def register(app):
                  scale_factors: bool = typer.Option(False, "--scale-factors", help="estimate gyro/accel scale factors"),
                  max_gap: float = typer.Option(1.0, "--max-gap", help="longest IMU gap bridged [s]"),
                  allow_gaps: bool = typer.Option(False, "--allow-gaps", help="bridge IMU gaps of any length"),
+                 columns: Optional[str] = typer.Option(None, "--columns", help='IMU column map "t=Time[s],dtheta_x=DeltaTheta[0][rad],..." or a TOML file'),
+                 imu_errors: Optional[str] = typer.Option(None, "--imu-errors", help="filter error model: a TOML file (ImuErrors keys) or a grade: consumer | industrial | tactical | navigation"),
+                 aid: Optional[str] = typer.Option(None, "--aid", help="aiding beyond the fixes: comma list of zupt, zaru, nhc, lever"),
+                 rest: Optional[str] = typer.Option(None, "--rest", help="rest for ZUPT/ZARU: auto (IMU detector) | flags (the log's column)"),
+                 csv_rate: float = typer.Option(1.0, "--csv-rate", help="rate of solution.csv [Hz] (solution.parquet: every filter epoch)"),
                  out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]"),
                  # smoothing and wheel odometer
                  smooth: bool = typer.Option(False, "--smooth", help="also write the RTS-smoothed solution (forward + backward pass)"),
@@ -365,7 +480,8 @@ def register(app):
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
                  init=init, time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
                  scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, out=out,
-                 echo=typer.echo, smooth=smooth, odometer=odometer, odometer_units=odometer_units,
+                 echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
+                 csv_rate=csv_rate, smooth=smooth, odometer=odometer, odometer_units=odometer_units,
                  odometer_lever=odometer_lever, odometer_sigma=odometer_sigma)
 
     return navigate

@@ -61,12 +61,15 @@ class Command:
 class Series:
     """A table to write as ``name.csv`` (Parquet + every k-th row as CSV when large).
 
-    ``data`` is a pandas DataFrame or a dict of equal-length 1-D arrays.
+    ``data`` is a pandas DataFrame or a dict of equal-length 1-D arrays. ``csv_every``:
+    always write the full table as Parquet and every ``csv_every``-th row as CSV (the
+    same files whatever the length).
     """
 
     name: str
     data: Any
     description: str = ""
+    csv_every: int | None = None
 
 
 @dataclass
@@ -134,7 +137,10 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
         for name, text in res.files.items():
             rd.write_text(name, text)
         for t in res.tables:
-            rd.write_table(t.name, t.data, t.description)
+            if t.csv_every is None:
+                rd.write_table(t.name, t.data, t.description)
+            else:
+                rd.write_table(t.name, t.data, t.description, csv_every=t.csv_every)
         for f in res.figures:
             written += 1
             rd.write_figure(f.name, f.fig, f.caption)

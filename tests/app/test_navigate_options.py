@@ -1,0 +1,36 @@
+"""Bad recorded-unit options of ``sinslab navigate`` are one line and exit status 2,
+before anything is computed or written."""
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from sinslab.cli import app
+
+
+@pytest.fixture
+def files(tmp_path):
+    imu = tmp_path / "imu.csv"
+    imu.write_text("t[s],gx[deg/s],gy[deg/s],gz[deg/s],ax[g],ay[g],az[g],flag\n"
+                   + "".join(f"{0.01 * k:.2f},0,0,0,0,0,1,1\n" for k in range(1, 301)))
+    fx = tmp_path / "fx.csv"
+    fx.write_text("t[s],lat[deg],lon[deg],h[m]\n" + "".join(f"{k}.0,30,110,10\n" for k in range(1, 3)))
+    return imu, fx, tmp_path
+
+
+@pytest.mark.parametrize("args, msg", [
+    (["--aid", "zupt,odo"], "unknown odo"),
+    (["--csv-rate", "0"], "--csv-rate"),
+    (["--aid", "zupt", "--rest", "flags"], "no rest-flag column"),
+    (["--aid", "zupt", "--rest", "sometimes"], "--rest must be"),
+    (["--imu-errors", "platinum"], "neither a file nor a grade"),
+    (["--columns", "t=time[s],speed=v"], "unknown column key 'speed'"),
+    (["--mount", "quat:1,1,0,0"], "norm"),
+])
+def test_bad_options(files, args, msg):
+    imu, fx, tmp = files
+    out = tmp / "run"
+    res = CliRunner().invoke(app, ["navigate", "--imu", str(imu), "--fixes", str(fx), "--out", str(out), *args])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert any("sinslab: error:" in ln and msg in ln for ln in lines), res.output
+    assert not (out / "summary.json").exists()
