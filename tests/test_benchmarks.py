@@ -88,3 +88,11 @@ def test_readers_script(tmp_path):
     res = _load("readers").main(["--rows", "5000", "--repeat", "1", "--out", str(out)])
     saved = json.loads(out.read_text())
     assert saved["rows"] == 5000 and saved["same_samples"] and res["csv_s"] > 0 and res["parquet_s"] > 0
+
+
+def test_rotins_script_filter_part():
+    """benchmarks/rotins.py: the driver-vs-compiled joint filter part on 1 h (the experiment
+    stage times need a full run and are the script's job)."""
+    res = _load("rotins").filter_ratio(1.0)
+    assert res["steps"] == 360 and 0 < res["distinct_steps"] <= res["steps"]
+    assert res["driver_s"] > 0 and res["compiled_s"] > 0

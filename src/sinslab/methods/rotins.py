@@ -17,11 +17,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sinslab.core import attitude as A
+from sinslab.core import earth
 from sinslab.estimation import observability as obs
+from sinslab.estimation.kalman import discretize
+from sinslab.estimation.linear import error_budget
 from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bias
 
 __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleObservability",
-           "schedule_observability"]
+           "schedule_observability", "difference_sigma", "joint_P0", "joint_filter",
+           "joint_transitions", "joint_filter_linear", "difference_measurements", "noise_share", "settle_time"]
 
 
 def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
@@ -266,3 +271,364 @@ def schedule_observability(model: DifferenceModel, C1c, Ckc, lat, h=0.0, Ccn=Non
     _, x2 = _measured_blocks(model)
     labels = tuple(model.layout.labels[i] for i in x2)
     return ScheduleObservability(labels, own[0], own, pw.ranks, pw.result.degree, pw.result, method)
+
+
+# ----------------------------------------------------------------------- the joint filter
+def difference_sigma(lat, pos=1e-3, vel=1e-5, h=0.0):
+    """Measurement σ of :class:`sinslab.fusion.measurements.InsDifference` for the nearly
+    noise-free difference of two INS on one carrier (paper: R = 0).
+
+    The difference of two navigation outputs carries no measurement noise of its own;
+    R = 0 would make the update singular (S = H P Hᵀ → 0 once the differences are known).
+    A floor far below the INS errors changes nothing the filter estimates and keeps every
+    update well conditioned; the updates are sequential scalar Joseph updates (symmetrised),
+    so P stays symmetric positive definite.
+
+    Parameters
+    ----------
+    lat : float
+        Latitude [rad] (converts the position floor to radians).
+    pos : float
+        Position floor [m] (default 1 mm).
+    vel : float
+        Velocity floor [m/s] (default 1e-5 m/s).
+    h : float
+        Height [m].
+
+    Returns
+    -------
+    ndarray (4,)
+        ``[σ_L, σ_λ, σ_vE, σ_vN]`` [rad, rad, m/s, m/s].
+    """
+    pos, vel = float(pos), float(vel)
+    if not (pos > 0 and vel > 0 and np.isfinite(pos) and np.isfinite(vel)):
+        raise ValueError(f"difference_sigma: the floors must be > 0, got pos={pos}, vel={vel}")
+    rm, rn = earth.radii(float(lat), float(h))
+    return np.array([pos / float(rm), pos / (float(rn) * np.cos(lat)), vel, vel])
+
+
+def joint_P0(model: DifferenceModel, lat, *, pos=0.0, vel=0.0, att=(0.0, 0.0, 0.0), gyro1=0.0,
+             gyrok=0.0, accel1=0.0, accelk=0.0, h=0.0):
+    """Diagonal initial covariance of the joint model (σ per block, SI).
+
+    Parameters
+    ----------
+    model : DifferenceModel
+        :func:`joint_rotation_model`.
+    lat : float
+        Latitude [rad].
+    pos, vel : float
+        σ of the initial position [m] and velocity [m/s] difference (0: the INS start
+        from one position fix; a tiny floor is kept so P0 stays definite).
+    att : (3,)
+        σ of the initial attitude difference φ_1k [rad] (E, N, U).
+    gyro1, gyrok : float or (3,)
+        σ of the gyro drifts of INS 1 / INS k [rad/s].
+    accel1, accelk : float or (2,)
+        σ of the horizontal accelerometer biases [m/s²].
+
+    Returns
+    -------
+    ndarray (n, n)
+    """
+    lay = model.layout
+    rm, rn = earth.radii(float(lat), float(h))
+    pos = max(float(pos), 1e-4)
+    vel = max(float(vel), 1e-6)
+    sd = np.zeros(lay.n)
+    sp, sv = lay.slice("dp"), lay.slice("dv")
+    sd[sp.start] = pos / float(rm)
+    sd[sp.start + 1] = pos / (float(rn) * np.cos(lat))
+    sd[sv] = vel
+    sd[lay.slice("phi")] = np.broadcast_to(np.asarray(att, float), (3,))
+    sd[lay.slice("eps_1")] = gyro1
+    sd[lay.slice("eps_k")] = gyrok
+    sd[lay.slice("nabla_1")] = accel1
+    sd[lay.slice("nabla_k")] = accelk
+    if not np.all(np.isfinite(sd)) or np.any(sd <= 0):
+        raise ValueError("joint_P0: every σ must be finite and > 0")
+    return np.diag(sd ** 2)
+
+
+def joint_filter(stream1, streamk, model: DifferenceModel, P0, *, kf_dt, meas_every=1, sigma=None,
+                 lever_arm=None, model_every=None, discretization="series", progress=False,
+                 label="joint filter"):
+    """Joint error filter of INS 1 and INS k run by the fusion driver on their outputs.
+
+    Both INS navigate on their own; their outputs at the filter epochs come in as
+    :class:`sinslab.fusion.driver.PrecomputedStream` (feed-forward: the filter estimates
+    the joint error state and corrects neither INS, so one navigation of INS 1 serves the
+    filters of every INS k). At every epoch after the first the measurement is
+    :class:`sinslab.fusion.measurements.InsDifference`
+    ``z = [L1−Lk, λ1−λk, vE1−vEk, vN1−vNk]`` with the lever arm (IMU 1 → IMU k, IMU-1
+    body axes) removed.
+
+    Parameters
+    ----------
+    stream1, streamk : PrecomputedStream or LiveStream
+        INS 1 (single-axis) and INS k on one filter grid.
+    model : DifferenceModel
+        :func:`joint_rotation_model` with the nominal noise densities.
+    P0 : array (n, n)
+        Initial covariance (e.g. :func:`joint_P0`).
+    kf_dt : float
+        Step of the streams and of the model [s] (the mechanisms turn by up to 180° in a
+        few seconds: keep it short against the moves, e.g. 1 s).
+    meas_every : int
+        One measurement every that many steps (the epochs in between are predictions,
+        compiled, so the cost is per measurement).
+    sigma : array (4,) or (J, 4), optional
+        Measurement σ [rad, rad, m/s, m/s]; default :func:`difference_sigma` at the
+        latitude of stream 1 (the R ≈ 0 floor).
+    lever_arm : array (3,), optional
+        IMU 1 → IMU k in IMU-1 body axes [m] (None: co-located).
+    model_every : float, optional
+        Length [s] of the model stretches evaluated at once (vectorised). For precomputed
+        streams the look-ahead rows are the streams' own rows, so any length gives the
+        same matrices as an evaluation epoch by epoch; default 1 h.
+    discretization : {"series", "vanloan"}
+
+    Returns
+    -------
+    sinslab.fusion.driver.DriverResult
+        ``x`` and ``sigma`` per epoch; ε_z1 is column ``model.layout.index(["eps_z_1"])``.
+    """
+    from sinslab.fusion import driver
+    from sinslab.fusion.measurements import InsDifference
+
+    T, t0, n_ep = streamk.bind(kf_dt)
+    T1, t01, n1 = stream1.bind(kf_dt)
+    if abs(t0 - t01) > 1e-6 * T or n1 != n_ep:
+        raise ValueError(f"joint_filter: the two streams must share the filter grid (t0 {t01} vs {t0} s, "
+                         f"{n1} vs {n_ep} epochs)")
+    me = int(meas_every)
+    if me < 1:
+        raise ValueError(f"joint_filter: meas_every must be >= 1, got {meas_every}")
+    t = t0 + T * np.arange(me, n_ep + 1, me)
+    if sigma is None:
+        sigma = difference_sigma(stream1.row0()[0][7])
+    meas = InsDifference(t, sigma, lever_arm=lever_arm, streams=(0, 1))
+    every = 3600.0 if model_every is None else float(model_every)
+    return driver.run([stream1, streamk], model, P0, [meas], kf_dt=kf_dt, model_every=every,
+                      max_block=max(kf_dt * me, kf_dt), discretization=discretization, progress=progress,
+                      label=label)
+
+
+def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, noise_groups=None,
+                      method="series", substeps=1, chunk=2048):
+    """Transition matrices and discrete process noise of the joint model along two
+    navigation outputs, the noise split by source.
+
+    The model is evaluated on the grid of the rows (step ``T``); with ``substeps = m``
+    those transitions are chained into steps of ``m·T``: ``Φ = Φ_m ⋯ Φ_1``,
+    ``Q ← Φ_j Q Φ_jᵀ + Q_j``. Rotations of the indexing mechanisms last seconds, so a
+    filter step of several seconds needs its transition chained from short sub-steps: the
+    sensor states enter through ``C_b^n``, which turns by up to 180° within such a step.
+
+    Parameters
+    ----------
+    model : DifferenceModel
+    T : float
+        Step of the rows [s].
+    rows1, rowsk : array (K·m, 10)
+        ``[q, v, L, λ, h]`` of INS 1 / INS k at the sub-epochs 0..K·m−1 (the step
+        i → i+1 uses row i, as the fusion driver does).
+    rates1, ratesk : tuple (omega_b, f_b), arrays (K·m, 3)
+        Mean compensated rate [rad/s] and specific force [m/s²] of each sub-step.
+    noise_groups : dict {name: list of noise-column indices}, optional
+        Columns of G (``[w_g1 (3), w_a1 (2), w_gk (3), w_ak (2)]``) per source; default one
+        group ``"all"``.
+    method : {"series", "vanloan"}
+    substeps : int
+        Sub-steps m per returned step.
+    chunk : int
+        Returned steps evaluated at once (memory).
+
+    Returns
+    -------
+    Phi : ndarray (K, n, n)
+    Q : dict {name: ndarray (K, n, n)}
+    """
+    m = int(substeps)
+    rows1 = np.asarray(rows1, float)
+    rowsk = np.asarray(rowsk, float)
+    if m < 1 or rows1.shape[0] % m or rows1.shape != rowsk.shape:
+        raise ValueError(f"joint_transitions: rows must be K·substeps long and alike, got {rows1.shape}, "
+                         f"{rowsk.shape}, substeps={substeps}")
+    K = rows1.shape[0] // m
+    q = np.asarray(model.q, float)
+    groups = {"all": list(range(q.size))} if noise_groups is None else {k: list(v) for k, v in noise_groups.items()}
+    n = model.n
+    Phi = np.empty((K, n, n))
+    Q = {g: np.empty((K, n, n)) for g in groups}
+
+    def pt(rows, rates, a, b):
+        return NavPoint(rows[a:b, 7], rows[a:b, 9], rows[a:b, 4:7], A.quat_to_dcm(rows[a:b, :4]),
+                        np.asarray(rates[1][a:b], float), np.asarray(rates[0][a:b], float))
+
+    for k0 in range(0, K, int(chunk)):
+        k1 = min(K, k0 + int(chunk))
+        a, b = k0 * m, k1 * m
+        F, G = model.matrices(pt(rows1, rates1, a, b), pt(rowsk, ratesk, a, b))
+        parts = {}
+        Ps = None
+        for name, cols in groups.items():
+            qq = np.zeros_like(q)
+            qq[cols] = q[cols]
+            P_, Q_ = discretize(F, qq, T, G=G, method=method)
+            Ps = P_ if Ps is None else Ps
+            parts[name] = Q_.reshape(k1 - k0, m, n, n)
+        Ps = Ps.reshape(k1 - k0, m, n, n)
+        acc = Ps[:, 0].copy()
+        qacc = {g: parts[g][:, 0].copy() for g in groups}
+        for j in range(1, m):
+            Pj = Ps[:, j]
+            acc = Pj @ acc
+            for g in groups:
+                qacc[g] = Pj @ qacc[g] @ np.swapaxes(Pj, -1, -2) + parts[g][:, j]
+        Phi[k0:k1] = acc
+        for g in groups:
+            Q[g][k0:k1] = 0.5 * (qacc[g] + np.swapaxes(qacc[g], -1, -2))
+    return Phi, Q
+
+
+def _metre_scale(model, sigma):
+    """State scale d putting the two position differences in metres (other states as
+    they are) and the position measurement with them; R then spans (1 mm)² to
+    (1e-5 m/s)² instead of 1e-20 rad² to 1e-10 (m/s)²."""
+    sp = model.layout.slice("dp")
+    sigma = np.asarray(sigma, float)
+    d = np.ones(model.n)
+    d[sp.start] = 1e-3 / sigma[0]
+    d[sp.start + 1] = 1e-3 / sigma[1]
+    return d
+
+
+def _difference_H(model):
+    lay = model.layout
+    sp, sv = lay.slice("dp"), lay.slice("dv")
+    H = np.zeros((4, lay.n))
+    H[0, sp.start] = H[1, sp.start + 1] = 1.0
+    H[2, sv.start] = H[3, sv.start + 1] = 1.0
+    return H
+
+
+def joint_filter_linear(z, Phi, Q, model: DifferenceModel, P0, *, sigma, index=None):
+    """The joint filter linearised along a known schedule, in one compiled loop
+    (:func:`sinslab.estimation.linear.run_linear`).
+
+    When both IMUs follow known indexing schedules on a moored carrier, the model matrices
+    along the true schedule equal those along the navigation outputs up to the INS errors
+    (µrad): one table of step transitions (:func:`joint_transitions`, typically with
+    sub-steps and only the distinct steps of the schedule) then serves every filter of
+    every INS k and every seed. Same measurement, floor and Joseph updates as
+    :func:`joint_filter` (cross-checked against it in the tests).
+
+    Parameters
+    ----------
+    z : array (K, 4)
+        ``[L1−Lk, λ1−λk, vE1−vEk, vN1−vNk]`` at the filter epochs 1..K [rad, rad, m/s, m/s].
+    Phi, Q : array (L, n, n)
+        Step transitions and process noise (per step, or a table with ``index``).
+    model : DifferenceModel
+    P0 : array (n, n)
+    sigma : array (4,)
+        Measurement σ (:func:`difference_sigma`).
+    index : int array (K,), optional
+        Table entry of each step.
+
+    Returns
+    -------
+    x, sigma : ndarray (K + 1, n)
+        Estimate and σ at the filter epochs (SI; positions in rad).
+    """
+    from sinslab.estimation.linear import run_linear
+
+    sigma = np.asarray(sigma, float)
+    d = _metre_scale(model, sigma)
+    sp = model.layout.slice("dp")
+    zs = np.array(z, dtype=float)
+    zs[:, 0] *= d[sp.start]
+    zs[:, 1] *= d[sp.start + 1]
+    rs = sigma * np.r_[d[sp.start], d[sp.start + 1], 1.0, 1.0]
+    Ds = d[:, None] * d[None, :]
+    res = run_linear(np.zeros(model.n), np.asarray(P0, float) * Ds, np.asarray(Phi, float) * (d[:, None] / d[None, :]),
+                     np.asarray(Q, float) * Ds, _difference_H(model), np.diag(rs ** 2), zs,
+                     Phi_index=index, Q_index=index, check=False)
+    return res.x / d, res.sigma / d
+
+
+def difference_measurements(rows1, rowsk):
+    """``z = [L1−Lk, λ1−λk, vE1−vEk, vN1−vNk]`` of two navigation outputs (K, 10), co-located
+    IMUs (longitude difference wrapped to ±π)."""
+    r1 = np.asarray(rows1, float)
+    rk = np.asarray(rowsk, float)
+    return np.stack([r1[:, 7] - rk[:, 7], (r1[:, 8] - rk[:, 8] + np.pi) % (2 * np.pi) - np.pi,
+                     r1[:, 4] - rk[:, 4], r1[:, 5] - rk[:, 5]], -1)
+
+
+def noise_share(model: DifferenceModel, P0, Phi, Q_parts, sigma, *, index=None, history_every=0):
+    """Split the covariance of the joint filter into noise sources with the filter's own
+    gains (the covariance side of paper eqs 16–20).
+
+    With the gains of the nominal filter fixed, the error covariance is linear in the
+    process noise: if the true noise of source j is ``(1 + α_j) Q_j`` instead of ``Q_j``,
+    the actual error variance is ``P + Σ_j α_j P_j`` where ``P_j`` is the variance
+    propagated from ``Q_j`` alone. Paper eq 20 (ΔP = α P) is the special case where every
+    source is scaled alike.
+
+    Parameters
+    ----------
+    model : DifferenceModel
+    P0 : array (n, n)
+    Phi : array (K, n, n)
+    Q_parts : dict {name: array (K, n, n)}
+        (or tables (L, n, n) with ``index``).
+    sigma : array (4,)
+        Measurement σ [rad, rad, m/s, m/s].
+    index : int array (K,), optional
+        Table entry of each step.
+    history_every : int
+        Also return the per-source variances every that many steps.
+
+    Returns
+    -------
+    sinslab.estimation.linear.Budget
+        Sources ``"P0"``, the names of ``Q_parts``, ``"R"``.
+    """
+    sp = model.layout.slice("dp")
+    sigma = np.asarray(sigma, float)
+    d = _metre_scale(model, sigma)
+    H = _difference_H(model)
+    r = (sigma * np.r_[d[sp.start], d[sp.start + 1], 1.0, 1.0]) ** 2
+    D = d[:, None] * d[None, :]
+    Phi_s = np.asarray(Phi, float) * (d[:, None] / d[None, :])
+    names = list(Q_parts)
+    Qp = np.stack([np.asarray(Q_parts[k], float) * D for k in names])
+    n_steps = None if index is None else len(index)
+    return error_budget((np.asarray(P0, float) * D)[None], Phi_s, Qp, H, r[None], Phi_index=index,
+                        Q_index=index, n_steps=n_steps, names=["P0", *names, "R"], history_every=history_every)
+
+
+def settle_time(t, x, sigma_final, *, hold_to_end=True):
+    """First time after which an estimate stays within ± ``sigma_final`` of its final value.
+
+    Parameters
+    ----------
+    t, x : array (M,)
+        Times [s] and the estimate.
+    sigma_final : float
+        Band half-width (e.g. the filter's final 1σ of that state), same unit as ``x``.
+
+    Returns
+    -------
+    float
+        Time [s]; ``t[-1]`` if only the last sample is inside.
+    """
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    out = np.abs(x - x[-1]) > float(sigma_final)
+    if not out.any():
+        return float(t[0])
+    last = int(np.flatnonzero(out)[-1])
+    return float(t[min(last + 1, t.size - 1)])
