@@ -10,6 +10,16 @@ Run: ``.venv/bin/python benchmarks/estimation.py [--quick] [--json FILE]``
 2. Loosely coupled INS + position fixes, :func:`sinslab.fusion.loosely_coupled.loosely_coupled` (on
    the fusion driver, also behind ``sinslab navigate`` and paper 003's integration), on
    1 h of 200 Hz IMU with 1 Hz fixes, covariance at 10 Hz. Target < 5 s.
+3. The fusion driver's model evaluation, compiled (default) against the numpy reference
+   (``model_eval="numpy"``: ``model.matrices`` on NavPoints + ``kalman.discretize``) in
+   the same run, same data:
+
+   * 21 states (φ, δv, δp, gyro/accel bias and scale factor), P propagated at every
+     epoch of the 200 Hz IMU (nsub = 1), 1 Hz fixes, closed loop: epochs per CPU second
+     (target >= 100 000) and the speed ratio;
+   * the default configuration of item 2 (15 states, P at 10 Hz): ratio (target >= 2);
+   * agreement of the two: largest difference of the navigation rows, σ and x relative
+     to the largest magnitude of each column (target <= 1e-9).
 """
 from __future__ import annotations
 
@@ -197,6 +207,67 @@ def bench_lc(duration):
     }
 
 
+def _lc_pair(duration, kf_dt, nsub, states):
+    """CPU time of loosely_coupled with the compiled and the numpy model evaluation."""
+    import functools
+    from sinslab.fusion import driver
+    from sinslab.nav import errstate as es
+    meas, init, ft, fix, sig, P0, kw, truth = lc_scenario(duration)
+    kwm = {}
+    if states == 21:
+        model = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(),
+                                       es.accel_scale()],
+                              gyro_noise=kw["gyro_arw"], accel_noise=kw["accel_vrw"])
+        P = np.zeros((21, 21))
+        P[:15, :15] = P0
+        P[15:, 15:] = np.eye(6) * (100 * u.ppm) ** 2
+        kwm = dict(model=model)
+    else:
+        P = P0
+        kwm = kw
+    orig = driver.run
+
+    def go(mode, imu):
+        driver.run = functools.partial(orig, model_eval=mode)
+        try:
+            sel = ft <= imu.t[-1]
+            return integ.loosely_coupled(imu, init, ft[sel], fix[sel], sig, P, kf_dt=kf_dt, nsub=nsub,
+                                         progress=False, **kwm)
+        finally:
+            driver.run = orig
+
+    short = meas.slice(None, meas.t0 + 20.0)
+    go("compiled", short)
+    go("numpy", short)
+    best = {}
+    res = {}
+    for _ in range(2):                      # interleaved, best CPU time of each
+        for mode in ("compiled", "numpy"):
+            c0 = time.process_time()
+            res[mode] = go(mode, meas)
+            best[mode] = min(best.get(mode, math.inf), time.process_time() - c0)
+    a, b = res["compiled"], res["numpy"]
+
+    def rel(x, y):
+        scale = np.maximum(np.max(np.abs(y), 0), 1e-300)
+        return float(np.max(np.abs(x - y) / scale))
+
+    return {"epochs": int(a.t.size - 1), "cpu_compiled_s": best["compiled"],
+            "cpu_numpy_s": best["numpy"], "ratio": best["numpy"] / best["compiled"],
+            "epochs_per_cpu_s": (a.t.size - 1) / best["compiled"],
+            "numpy_epochs_per_cpu_s": (a.t.size - 1) / best["numpy"],
+            "max_rel_diff": max(rel(a.nav, b.nav), rel(a.sigma, b.sigma), rel(a.x, b.x))}
+
+
+def bench_model_eval(duration):
+    out = {}
+    for key, kf_dt, nsub, states in (("full_rate21", 0.005, 1, 21), ("default15", 0.1, 2, 15)):
+        r = _lc_pair(duration, kf_dt, nsub, states)
+        out.update({f"{key}_{k}": v for k, v in r.items()})
+    out["model_eval_duration_s"] = duration
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="shorter runs")
@@ -220,6 +291,13 @@ def main(argv=None):
               f"({out['lc_realtime_factor']:.0f}x real time; target < 5 s for 1 h); "
               f"horizontal error RMS {out['lc_horiz_pos_rms_m']:.2f} m vs filter σ "
               f"{out['lc_horiz_sigma_rms_m']:.2f} m, mean NIS {out['lc_mean_nis']:.2f} (dof 3)")
+    out.update(bench_model_eval(120.0 if a.quick else 1800.0))
+    for key, what in (("full_rate21", "21 states, P every 200 Hz epoch"),
+                      ("default15", "15 states, P at 10 Hz (default)")):
+        print(f"driver model evaluation, {what}, {out['model_eval_duration_s']:.0f} s: compiled "
+              f"{out[key + '_cpu_compiled_s']:.2f} s CPU ({out[key + '_epochs_per_cpu_s']:,.0f} epochs/s), "
+              f"numpy {out[key + '_cpu_numpy_s']:.2f} s ({out[key + '_numpy_epochs_per_cpu_s']:,.0f} epochs/s) "
+              f"-> {out[key + '_ratio']:.2f}x; max rel diff {out[key + '_max_rel_diff']:.1e}")
     if a.json:
         with open(a.json, "w") as f:
             json.dump(out, f, indent=2)

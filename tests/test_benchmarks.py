@@ -63,6 +63,8 @@ def test_estimation_script(tmp_path):
     assert saved["cov21_steps_per_s"] > 0 and "lc_missing" not in saved
     # the INS + fixes run is also a consistency check: its error matches the filter's σ
     assert 0.5 < res["lc_horiz_pos_rms_m"] / res["lc_horiz_sigma_rms_m"] < 2.0
+    # the compiled model evaluation reproduces the numpy reference run in the same script
+    assert res["full_rate21_max_rel_diff"] < 1e-9 and res["default15_max_rel_diff"] < 1e-9
 
 
 def test_schuler_script(tmp_path):
@@ -81,6 +83,16 @@ def test_transfer_script(tmp_path):
     assert saved["campaign_runs_per_s"] > 0 and saved["single_runs_per_s"] > 0
     # the optimal form on the large installation (40′, 30′, 20′ error) converges to a few arcmin
     assert len(saved["rms_end_arcmin"]) == 3 and max(saved["rms_end_arcmin"]) < 5.0
+
+
+def test_run_folder_script(tmp_path):
+    out = tmp_path / "run_folder.json"
+    rows = _load("run_folder").main(["static-alignment", "--json", str(out)])
+    saved = json.loads(out.read_text())
+    assert [r["experiment"] for r in saved] == [r["experiment"] for r in rows] == ["static-alignment"]
+    r = saved[0]
+    assert r["figures"] == 2 and r["compute_s"] > 0 and r["figures_reference_s"] > 0 and r["figures_s"] > 0
+    assert r["writing_s"] == r["series_s"] + r["figures_s"] + r["report_s"]
 
 
 def test_readers_script(tmp_path):

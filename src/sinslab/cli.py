@@ -106,7 +106,7 @@ def _print_summary(summary: dict, out: Path) -> None:
     n = sum(c["passed"] for c in claims)
     for c in claims:
         typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {c['statement']}")
-    typer.echo(f"{summary['experiment']}: {n}/{len(claims)} claims passed, "
+    typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed, "
                f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s -> {out / 'report.html'}")
 
 
@@ -169,17 +169,18 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
             raise CliError(f"output folder {out} exists and is a file")
         names = list(only) if only else list(registry())
         exps = [get(n) for n in names]
-        # every experiment's default scenario, then its declared variants (NAME-suffix)
-        jobs = [(exp, exp.name, ()) for exp in exps]
-        jobs += [(exp, f"{exp.name}-{suffix}", sets) for exp in exps
-                 for suffix, sets in exp.variants.items()]
+        # every experiment's default scenario followed by its declared variants (NAME-suffix)
+        jobs = [job for exp in exps for job in [(exp, exp.name, ())] + [
+            (exp, f"{exp.name}-{suffix}", sets) for suffix, sets in exp.variants.items()]]
         for exp, label, _ in jobs:                         # check every folder first
             RunDir(out / label, exp.name).check()
         for exp, label, sets in jobs:
             cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=list(sets))
-            _log(f"running {label}{' (quick)' if quick else ''} ...")
+            what = f": {exp.name} with {', '.join(sets)}" if sets else ""
+            _log(f"running {label}{' (quick)' if quick else ''}{what} ...")
             try:
-                summary = execute(exp, cfg, out / label, quick=quick, log=_log)
+                summary = execute(exp, cfg, out / label, quick=quick, log=_log,
+                                  variant=(label, list(sets)) if sets else None)
             except (KeyboardInterrupt, *USER_ERRORS):
                 raise
             except Exception as e:                          # one broken experiment: go on

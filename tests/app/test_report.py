@@ -35,7 +35,7 @@ def test_report_is_self_contained(run_dir):
     for c in s["claims"]:
         assert f"data-claim='{c['id']}'" in html
     for m in s["metrics"]:
-        assert f"<code>{m}</code>" in html
+        assert f"data-metric='{m}'" in html
     assert "id='config'" in html and "[scenario]" in html
     assert "a note" in html and "stats" in html
 

@@ -6,12 +6,17 @@ linked to their SVG files), so the page can be mailed or archived alone. ``build
 writes it atomically to ``DIR/report.html`` (``sinslab report DIR``). ``index(...)``
 writes the page linking several reports (``sinslab demo``).
 
-Sections: header (experiment, purpose, version, date, quick or full), claims table
-(``id="claims"``, one row per claim, pass/fail), metrics table (value, unit,
-description), figures, tables (Monte Carlo statistics etc.), notes, time-series files,
-configuration. After the page has loaded, a small script writes the number of figures
+Sections: header (run name — a demo variant's own name, with the ``--set`` lines that
+make it —, purpose, version, date, quick or full for experiments, computation and
+writing time), claims table (``id="claims"``, one row per claim, measured and expected
+values labelled with their units, pass/fail; no section when the run checked no claim),
+metrics table (value, unit, description), figures, tables (Monte Carlo statistics etc.),
+notes, time-series files (each described), configuration with the command line that
+re-runs the run. Wide tables scroll inside their box, never the page. After the page has loaded, a small script writes the number of figures
 and of figures actually decoded (``naturalWidth > 0``) into ``data-figures-total`` and
-``data-figures-loaded`` on ``<body>`` — the browser test reads them.
+``data-figures-loaded`` on ``<body>``, and the page's laid-out and visible widths into
+``data-page-width`` and ``data-view-width`` (a wider page scrolls sideways) — the browser
+test reads them.
 """
 from __future__ import annotations
 
@@ -46,8 +51,10 @@ tr.fail td.verdict{background:#fde2e1;color:#a11;font-weight:bold}
 .badge.ok{background:#dff5e1;color:#11631d}.badge.bad{background:#fde2e1;color:#a11}
 figure{margin:1em 0;text-align:center}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}
-#claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:18em}
-#claims td:nth-child(2){min-width:22em}
+#claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}
+#claims td:nth-child(2){min-width:16em}.scroll{max-width:100%;overflow-x:auto}
+td.cols{overflow-wrap:anywhere;max-width:28em}.variant{background:#f4f7fb;padding:.4em .8em;border-left:3px solid #4a7bd0}
+code.id,#runs td:first-child{white-space:nowrap}span.q{white-space:nowrap}#rerun{overflow-wrap:anywhere}
 """
 
 _SCRIPT = """
@@ -57,6 +64,8 @@ window.addEventListener('load', function () {
   for (var i = 0; i < imgs.length; i++) { if (imgs[i].complete && imgs[i].naturalWidth > 0) ok++; }
   document.body.setAttribute('data-figures-total', String(imgs.length));
   document.body.setAttribute('data-figures-loaded', String(ok));
+  document.body.setAttribute('data-page-width', String(document.documentElement.scrollWidth));
+  document.body.setAttribute('data-view-width', String(document.documentElement.clientWidth));
 });
 """
 
@@ -77,6 +86,139 @@ def _fmt(v, digits=6) -> str:
     return str(v)
 
 
+#: Units written against the number ("0.10′", "2.3×"); every other unit after a space.
+_TIGHT = {"′", "″", "°", "×", "%", "°/h", "°/√h"}
+_UNIT_SIGN = {"arcmin": "′", "arcsec": "″", "deg": "°", "deg/h": "°/h", "x": "×"}
+
+
+_SUP = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def num(v, sig: int = 3) -> str:
+    """A number as a person reads it: ``sig`` significant digits, no exponent between
+    1e-3 and 1e7, integers in full, a true minus sign; ``n/a`` for None/NaN."""
+    if v is None:
+        return "n/a"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return str(v).replace("-", "−")
+    if not isinstance(v, float):
+        return str(v)
+    if not math.isfinite(v):
+        return "n/a" if math.isnan(v) else ("∞" if v > 0 else "−∞")
+    a = abs(v)
+    if a == 0:
+        t = "0"
+    elif 1e-3 <= a < 1e7:
+        digits = max(sig - 1 - int(math.floor(math.log10(a))), 0)
+        t = f"{v:.{digits}f}"
+        if "." in t:
+            t = t.rstrip("0").rstrip(".")
+    else:
+        m, ex = f"{v:.{sig - 1}e}".split("e")
+        m = m.rstrip("0").rstrip(".") if "." in m else m
+        t = f"{m}×10" + str(int(ex)).translate(_SUP)
+    return t.replace("-", "−")
+
+
+def with_unit(v, unit: str = "", sig: int = 3) -> str:
+    """``num(v)`` followed by its unit ("0.1′", "3.2 m"); no unit for n/a."""
+    t = num(v, sig)
+    unit = _UNIT_SIGN.get(unit, unit or "")
+    if not unit or t == "n/a" or isinstance(v, bool):
+        return t
+    return t + unit if unit in _TIGHT else f"{t} {unit}"
+
+
+def _unit_at(unit, i: int) -> str:
+    if isinstance(unit, (list, tuple)):
+        return unit[i] if i < len(unit) else ""
+    return unit or ""
+
+
+def _values(v, unit, i0: int = 0) -> str:
+    """A value or list of values with unit(s), components joined by ", "."""
+    if isinstance(v, (list, tuple)):
+        return ", ".join(with_unit(x, _unit_at(unit, i0 + j) if isinstance(unit, (list, tuple))
+                                   else unit) for j, x in enumerate(v))
+    return with_unit(v, _unit_at(unit, i0) if isinstance(unit, (list, tuple)) else unit)
+
+
+def quantity(value, names=None, unit="") -> str:
+    """A measured value as text: "φE 0.1′ · φN −0.47′" (names), "1.2 m · 3.4 m" (list),
+    "alignment ends 3600 s, 6134 s · ..." (dict of named values)."""
+    if isinstance(value, dict):
+        keys = list(value)
+        labels = names if names and len(names) == len(keys) else keys
+        return " · ".join(f"{lab} {_values(value[k], _unit_at(unit, i) if isinstance(unit, (list, tuple)) else unit)}"
+                          for i, (k, lab) in enumerate(zip(keys, labels)))
+    if isinstance(value, (list, tuple)):
+        parts = []
+        for i, x in enumerate(value):
+            u = _unit_at(unit, i) if isinstance(unit, (list, tuple)) else unit
+            t = _values(x, u)
+            parts.append(f"{names[i]} {t}" if names and i < len(names) else t)
+        return " · ".join(parts)
+    return with_unit(value, unit if isinstance(unit, str) else _unit_at(unit, 0))
+
+
+_REL = {"<=": "≤", ">=": "≥", "==": "="}
+
+
+def criterion(exp: dict, names=None, n: int | None = None) -> str:
+    """The expectation of a claim (its ``expected`` entry in summary.json) as text."""
+    rel = exp.get("relation", "text")
+    unit = exp.get("unit", "")
+    val = exp.get("value")
+    if rel == "text" or (val is None and rel != "within"):
+        return str(exp.get("text", ""))
+    if rel == "within":
+        tol, rtol = exp.get("tolerance"), exp.get("rel_tolerance")
+        pm = f"{num(rtol * 100)} %" if rtol is not None and tol is None else None
+        if isinstance(val, list):
+            tols = tol if isinstance(tol, list) else [tol] * len(val)
+            parts = [f"{with_unit(v, _unit_at(unit, i) if isinstance(unit, list) else unit)} ± "
+                     f"{pm or with_unit(tols[i], _unit_at(unit, i) if isinstance(unit, list) else unit)}"
+                     for i, v in enumerate(val)]
+            return " · ".join(f"{names[i]} {p}" if names and i < len(names) else p
+                              for i, p in enumerate(parts))
+        u = unit if isinstance(unit, str) else ""
+        return f"{with_unit(val, u)} ± {pm or with_unit(tol, u)}"
+    if rel == "between" and isinstance(val, list) and len(val) == 2:
+        u = unit if isinstance(unit, str) else ""
+        return f"between {with_unit(val[0], u)} and {with_unit(val[1], u)}"
+    op = _REL.get(rel, rel)
+    if isinstance(val, list):
+        parts = [f"{op} {_values(v, _unit_at(unit, i) if isinstance(unit, list) else unit)}"
+                 for i, v in enumerate(val)]
+        if names and len(names) == len(val):
+            return " · ".join(f"{nm} {p}" for nm, p in zip(names, parts))
+        if len(set(parts)) == 1:
+            return parts[0] + " each"
+        return " · ".join(parts)
+    t = f"{op} {with_unit(val, unit if isinstance(unit, str) else '')}"
+    return t + (" each" if n and n > 1 else "")
+
+
+def _claim_cells(c: dict) -> tuple[str, str]:
+    """(measured, expected) texts of one claim of summary.json (old flat layouts too)."""
+    m, x = c.get("measured"), c.get("expected")
+    if isinstance(m, dict) and "value" in m and isinstance(x, dict) and "relation" in x:
+        names, unit, val = m.get("names"), m.get("unit", ""), m.get("value")
+        n = len(val) if isinstance(val, list) else None
+        return quantity(val, names, unit), criterion(x, names, n)
+    return quantity(m), (x if isinstance(x, str) else quantity(x))
+
+
+def _metric_text(v, unit: str) -> str:
+    if isinstance(v, list):
+        return " · ".join(_metric_text(x, unit) for x in v)
+    if isinstance(v, dict):
+        return " · ".join(f"{k} {_metric_text(x, unit)}" for k, x in v.items())
+    return num(v, 4)
+
+
 def _load_summary(d: Path) -> dict:
     f = d / "summary.json"
     if not d.is_dir():
@@ -93,7 +235,7 @@ def _load_summary(d: Path) -> dict:
     return s
 
 
-def _figure_html(d: Path, fig: dict) -> str:
+def _figure_html(d: Path, fig: dict, k: int = 0) -> str:
     png = d / fig.get("png", f"{fig['name']}.png")
     if not png.is_file():
         raise ReportError(f"{png}: figure file missing")
@@ -102,7 +244,8 @@ def _figure_html(d: Path, fig: dict) -> str:
     link = f' <a href="{e(svg)}">SVG</a>' if svg and (d / svg).is_file() else ""
     return (f'<figure id="fig-{e(fig["name"])}"><img class="figure" alt="{e(fig["name"])}" '
             f'src="data:image/png;base64,{b64}">'
-            f'<figcaption><b>{e(fig["name"])}</b> — {e(fig.get("caption", ""))}{link}</figcaption></figure>')
+            f'<figcaption><b>Figure {k}: {e(fig["name"])}</b> — {e(fig.get("caption", ""))}{link}'
+            f'</figcaption></figure>')
 
 
 def _table_html(d: Path, t: dict) -> str:
@@ -112,17 +255,24 @@ def _table_html(d: Path, t: dict) -> str:
     if not path.is_file():
         return f"<p>missing table file {e(t['csv'])}</p>"
     df = pd.read_csv(path)
-    head = "".join(f"<th>{e(str(c))}</th>" for c in df.columns)
-    rows = "".join("<tr>" + "".join(f'<td class="num">{e(_fmt(v.item() if hasattr(v, "item") else v))}</td>'
+    head = "".join(f"<th>{_breakable(str(c))}</th>" for c in df.columns)
+    rows = "".join("<tr>" + "".join(f'<td class="num">{e(num(v.item() if hasattr(v, "item") else v, 4))}</td>'
                                     for v in row) + "</tr>" for row in df.itertuples(index=False))
     return (f'<h3>{e(t["name"])}</h3><p>{e(t.get("caption", ""))}</p>'
-            f'<table class="data"><tr>{head}</tr>{rows}</table>')
+            f'<div class="scroll"><table class="data"><tr>{head}</tr>{rows}</table></div>')
 
 
-def render(run_dir: str | os.PathLike) -> str:
-    """The report page of a run folder as HTML text (raises :class:`ReportError`)."""
+def _wide(table_html: str) -> str:
+    """A table inside a horizontally scrolling box, so a wide table never widens the page."""
+    return f"<div class='scroll'>{table_html}</div>"
+
+
+def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
+    """The report page of a run folder as HTML text (raises :class:`ReportError`).
+
+    ``summary`` is the run's summary when it is not yet written to ``summary.json``."""
     d = Path(run_dir)
-    s = _load_summary(d)
+    s = summary if summary is not None else _load_summary(d)
     cfg_file = d / "config.toml"
     cfg_text = cfg_file.read_text(encoding="utf-8") if cfg_file.is_file() else json.dumps(
         s.get("config", {}), indent=2)
@@ -130,48 +280,56 @@ def render(run_dir: str | os.PathLike) -> str:
     n_pass = sum(bool(c.get("passed")) for c in claims)
     all_ok = n_pass == len(claims)
     info = s.get("metric_info", {})
+    is_command = s.get("kind") == "command"
+    title = s.get("name") or s["experiment"]
+    variant = s.get("variant") or {}
 
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
              f"<meta name='viewport' content='width=device-width, initial-scale=1'>"
-             f"<title>sinslab — {e(s['experiment'])}</title><style>{_CSS}</style></head><body>"]
-    parts.append(f"<h1>{e(s['experiment'])}</h1>")
+             f"<title>sinslab — {e(title)}</title><style>{_CSS}</style></head><body>"]
+    parts.append(f"<h1>{e(title)}</h1>")
     parts.append(f"<p class='sub'>{e(s.get('purpose', ''))}</p>")
+    if variant.get("sets"):
+        parts.append(f"<p class='variant'>Variant of <b>{e(s['experiment'])}</b>, changed by "
+                     + ", ".join(f"<code>--set {e(x)}</code>" for x in variant["sets"]) + "</p>")
     meta = [f"sinslab {e(str(s.get('sinslab_version', '?')))}",
-            f"run {e(s.get('started', '?'))}",
-            "quick run (--quick)" if s.get("quick") else "full scale"]
+            f"run {e(s.get('started', '?'))}"]
+    if not is_command:
+        meta.append("quick run (--quick)" if s.get("quick") else "full scale")
     if s.get("paper"):
         meta.append(f"after {e(s['paper'])}")
-    rt = s["metrics"].get("runtime_s")
+    timing = s.get("timing") or {}
+    rt = timing.get("compute_s", s["metrics"].get("runtime_s"))
     if isinstance(rt, (int, float)):
-        meta.append(f"computation {rt:.3g} s")
+        meta.append(f"computation {with_unit(float(rt), 's')}")
+    out_s = sum(v for k, v in timing.items() if k != "compute_s" and isinstance(v, (int, float)))
+    if out_s:
+        meta.append(f"writing the run folder {with_unit(float(out_s), 's')}")
     parts.append("<p class='sub'>" + " · ".join(meta) + "</p>")
-    badge = "ok" if all_ok else "bad"
-    parts.append(f"<p><span class='badge {badge}' id='verdict'>{n_pass} of {len(claims)} claims passed"
-                 f"</span></p>")
 
-    parts.append("<h2>Claims</h2><table id='claims'><tr><th>id</th><th>statement</th>"
-                 "<th>measured</th><th>expected</th><th>result</th></tr>")
-    for c in claims:
-        ok = bool(c.get("passed"))
-        parts.append(f"<tr class='{'pass' if ok else 'fail'}' data-claim='{e(str(c.get('id')))}'>"
-                     f"<td>{e(str(c.get('id')))}</td><td>{e(str(c.get('statement', '')))}</td>"
-                     f"<td class='num'>{e(_fmt(c.get('measured')))}</td>"
-                     f"<td class='num'>{e(_fmt(c.get('expected')))}</td>"
-                     f"<td class='verdict'>{'pass' if ok else 'FAIL'}</td></tr>")
-    parts.append("</table>")
+    if claims:
+        badge = "ok" if all_ok else "bad"
+        parts.append(f"<p><span class='badge {badge}' id='verdict'>{n_pass} of {len(claims)} claims "
+                     f"passed</span></p>")
+        parts.append("<h2>Claims</h2>" + _wide(
+            "<table id='claims'><tr><th>id</th><th>statement</th>"
+            "<th>measured</th><th>expected</th><th>result</th></tr>" + "".join(
+                _claim_row(c) for c in claims) + "</table>"))
 
-    parts.append("<h2>Metrics</h2><table id='metrics'><tr><th>metric</th><th>value</th>"
-                 "<th>unit</th><th>description</th></tr>")
+    parts.append("<h2>Metrics</h2>")
+    rows = []
     for name, v in s["metrics"].items():
         mi = info.get(name, {})
-        parts.append(f"<tr><td><code>{e(name)}</code></td><td class='num'>{e(_fmt(v))}</td>"
-                     f"<td>{e(mi.get('unit', ''))}</td><td>{e(mi.get('description', ''))}</td></tr>")
-    parts.append("</table>")
+        rows.append(f"<tr data-metric='{e(name)}'><td><code>{_breakable(name)}</code></td>"
+                    f"<td class='num'>{e(_metric_text(v, mi.get('unit', '')))}</td>"
+                    f"<td class='unit'>{e(mi.get('unit', ''))}</td><td>{e(mi.get('description', ''))}</td></tr>")
+    parts.append(_wide("<table id='metrics'><tr><th>metric</th><th>value</th><th>unit</th>"
+                       "<th>description</th></tr>" + "".join(rows) + "</table>"))
 
     figs = s.get("figures", [])
     if figs:
         parts.append("<h2>Figures</h2>")
-        parts.extend(_figure_html(d, f) for f in figs)
+        parts.extend(_figure_html(d, f, k) for k, f in enumerate(figs, 1))
     tables = s.get("tables", [])
     if tables:
         parts.append("<h2>Tables</h2>")
@@ -181,20 +339,51 @@ def render(run_dir: str | os.PathLike) -> str:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{e(n)}</li>" for n in notes) + "</ul>")
     series = s.get("series", [])
     if series:
-        parts.append("<h2>Time series files</h2><table><tr><th>file</th><th>rows</th>"
-                     "<th>columns</th><th>description</th></tr>")
+        rows = []
         for t in series:
             files = [f"<a href='{e(t['csv'])}'>{e(t['csv'])}</a>"]
             if t.get("parquet"):
-                files.insert(0, f"<a href='{e(t['parquet'])}'>{e(t['parquet'])}</a>")
+                files.insert(0, f"<a href='{e(t['parquet'])}'>{e(t['parquet'])}</a> (every row)")
                 files[-1] += f" (every {t['csv_every']}th row)"
-            parts.append(f"<tr><td>{'<br>'.join(files)}</td><td class='num'>{t['rows']}</td>"
-                         f"<td>{e(', '.join(t['columns']))}</td><td>{e(t.get('description', ''))}</td></tr>")
-        parts.append("</table>")
-    parts.append(f"<h2>Configuration</h2><p>Re-run with <code>sinslab run {e(s['experiment'])} "
-                 f"--config config.toml</code>.</p><pre id='config'>{e(cfg_text)}</pre>")
+            desc = t.get("description") or _series_description(t)
+            rows.append(f"<tr><td>{'<br>'.join(files)}</td><td class='num'>{t['rows']}</td>"
+                        f"<td class='cols'>{e(', '.join(t['columns']))}</td><td>{e(desc)}</td></tr>")
+        parts.append("<h2>Time series files</h2>" + _wide(
+            "<table id='series'><tr><th>file</th><th>rows</th><th>columns</th><th>description</th></tr>"
+            + "".join(rows) + "</table>"))
+    rerun = s.get("rerun") or f"sinslab run {s['experiment']} --config config.toml"
+    parts.append(f"<h2>Configuration</h2><p>Re-run from this folder with <code id='rerun'>{e(rerun)}</code>.</p>"
+                 f"<pre id='config'>{e(cfg_text)}</pre>")
     parts.append(f"<script>{_SCRIPT}</script></body></html>\n")
     return "".join(parts)
+
+
+def _parts(text: str) -> str:
+    """HTML of a "a · b · c" value list: each short item kept on one line, breaks between
+    items."""
+    return " · ".join(f"<span class='q'>{e(p)}</span>" if len(p) <= 32 else e(p)
+                      for p in text.split(" · "))
+
+
+def _breakable(name: str) -> str:
+    """A snake_case name that may wrap after its underscores (and nowhere else)."""
+    return "_<wbr>".join(e(p) for p in name.split("_"))
+
+
+def _claim_row(c: dict) -> str:
+    ok = bool(c.get("passed"))
+    measured, expected = _claim_cells(c)
+    return (f"<tr class='{'pass' if ok else 'fail'}' data-claim='{e(str(c.get('id')))}'>"
+            f"<td><code class='id'>{e(str(c.get('id')))}</code></td><td>{e(str(c.get('statement', '')))}</td>"
+            f"<td class='num'>{_parts(measured)}</td><td class='num'>{_parts(expected)}</td>"
+            f"<td class='verdict'>{'pass' if ok else 'FAIL'}</td></tr>")
+
+
+def _series_description(t: dict) -> str:
+    """A description for a time-series file that declared none: what its columns hold."""
+    cols = [c for c in t.get("columns", []) if c not in ("t_s", "t", "time_s")]
+    return (f"{t.get('name', 'table')}: {len(cols)} column(s) against time t_s; units in the "
+            "column names' suffixes (_m, _mps, _arcmin, _arcsec, _deg, _dph)")
 
 
 def build(run_dir: str | os.PathLike) -> Path:
@@ -219,7 +408,10 @@ def index(out: str | os.PathLike, runs: list[tuple[str, str | os.PathLike]],
             verdict = f"{n}/{len(claims)}"
             cls = "ok" if n == len(claims) else "bad"
             purpose = s.get("purpose", "")
-            rt = _fmt(s["metrics"].get("runtime_s"), 3)
+            sets = (s.get("variant") or {}).get("sets")
+            if sets:
+                purpose = f"{s['experiment']} with {', '.join(sets)} — {purpose}"
+            rt = num((s.get("timing") or {}).get("compute_s", s["metrics"].get("runtime_s")))
         except ReportError as err:
             verdict, cls, purpose, rt = "no summary", "bad", str(err), "n/a"
         rows.append(f"<tr><td><a href='{e(rel)}'>{e(name)}</a></td><td>{e(purpose)}</td>"
@@ -232,7 +424,7 @@ def index(out: str | os.PathLike, runs: list[tuple[str, str | os.PathLike]],
     page = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>sinslab runs</title>"
             f"<style>{_CSS}</style></head><body><h1>sinslab runs</h1>"
             f"<p class='sub'>sinslab {e(__version__)} · {_dt.datetime.now().isoformat(timespec='seconds')}</p>"
-            f"<table id='runs'><tr><th>experiment</th><th>purpose</th><th>claims passed</th>"
-            f"<th>computation [s]</th></tr>{''.join(rows)}</table></body></html>\n")
+            f"<div class='scroll'><table id='runs'><tr><th>run</th><th>what it runs</th><th>claims passed</th>"
+            f"<th>computation [s]</th></tr>{''.join(rows)}</table></div></body></html>\n")
     out.mkdir(parents=True, exist_ok=True)
     return atomic_write(out / "index.html", page)

@@ -26,6 +26,10 @@ import numpy as np
 from numba import njit
 from scipy.spatial.transform import Rotation
 
+from sinslab.core.jitnotice import install as _compile_notice
+
+_compile_notice()   # a status line while the kernels below compile (first run)
+
 __all__ = [
     "skew", "euler_to_dcm", "dcm_to_euler", "euler_to_quat", "quat_to_euler", "quat_to_dcm",
     "dcm_to_quat", "rotvec_to_dcm", "dcm_to_rotvec", "rotvec_to_quat", "quat_to_rotvec",
@@ -41,10 +45,14 @@ M_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 def skew(v):
     """Cross-product matrix ``(v×)`` with ``skew(a) @ b == cross(a, b)``; shape ``(..., 3, 3)``."""
     v = np.asarray(v, dtype=float)
-    z = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                     np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+    out = np.zeros(v.shape[:-1] + (3, 3))      # filled in place: called per epoch in loops
+    out[..., 0, 1] = -v[..., 2]
+    out[..., 0, 2] = v[..., 1]
+    out[..., 1, 0] = v[..., 2]
+    out[..., 1, 2] = -v[..., 0]
+    out[..., 2, 0] = -v[..., 1]
+    out[..., 2, 1] = v[..., 0]
+    return out
 
 
 def _rot_from_euler(att):

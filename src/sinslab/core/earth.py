@@ -17,6 +17,10 @@ import math
 import numpy as np
 from numba import njit
 
+from sinslab.core.jitnotice import install as _compile_notice
+
+_compile_notice()   # a status line while the kernels below compile (first run)
+
 __all__ = [
     "A", "F", "E2", "B", "WIE", "GM", "radii", "gravity", "gravity_vector", "wie_n",
     "wen_n", "win_n", "schuler_frequency", "schuler_period", "foucault_frequency",
@@ -54,6 +58,12 @@ def gravity_s(lat, h):
 
 def check_latitude(lat) -> None:
     """Raise ValueError if any latitude [rad] is beyond ±90° or not finite."""
+    if isinstance(lat, (float, np.floating)):        # the per-call check of compiled loops
+        if not math.isfinite(lat):
+            raise ValueError("latitude is not finite")
+        if abs(lat) > math.pi / 2:
+            raise ValueError(f"latitude {math.degrees(lat):.6g} deg is beyond ±90 deg")
+        return
     lat = np.asarray(lat, dtype=float)
     if not np.all(np.isfinite(lat)):
         raise ValueError("latitude is not finite")

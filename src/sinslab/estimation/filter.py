@@ -279,11 +279,14 @@ class KalmanFilter:
             if R.shape != (m, m) or not _is_diag(R):
                 return None
             r = np.diag(R).copy()
+        elif R.shape == (m,):
+            r = R
         else:
             r = np.broadcast_to(R, (m,)).astype(float)
-        if H.shape != (m, self.n) or not np.all(np.isfinite(z)) or not np.all(r > 0):
+        if H.shape != (m, self.n) or not np.isfinite(z).all() or not (r > 0).all():
             return None
-        S = H @ self.P @ H.T + np.diag(r)
+        S = H @ self.P @ H.T
+        S.flat[::m + 1] += r
         innov = np.empty(m)
         sdiag = np.empty(m)
         nis = _seq_update(self.x, self.P, z, H, r, innov, sdiag, self._tmp, self._T1)

@@ -18,12 +18,17 @@ row 0 is the initial condition.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from sinslab.estimation.kalman import _as_square, _is_diag, check_covariance
+
+from sinslab.core.jitnotice import install as _compile_notice
+
+_compile_notice()   # a status line while the kernels below compile (first run)
 
 __all__ = ["run_linear", "LinearRun", "propagate_covariance", "error_budget", "Budget",
            "sparsity"]
@@ -110,7 +115,10 @@ def _scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
 
 @njit(cache=True)
 def _vector_update(x, P, H, R, z, used, with_x):
-    """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis)."""
+    """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis).
+
+    Scalar loops with a Cholesky factor of S (no LAPACK/BLAS bindings: they and their
+    error formatting cost seconds of compilation on a first run)."""
     n = P.shape[0]
     mu = used.shape[0]
     Hu = np.empty((mu, n))
@@ -120,24 +128,115 @@ def _vector_update(x, P, H, R, z, used, with_x):
             Hu[a, j] = H[used[a], j]
         for b in range(mu):
             Ru[a, b] = R[used[a], used[b]]
-    PHt = P @ Hu.T
-    S = Hu @ PHt + Ru
-    np.linalg.cholesky(S)            # raises if S is not positive definite
-    Sinv = np.linalg.inv(S)
-    K = PHt @ Sinv
+    PHt = np.zeros((n, mu))                  # P Huᵀ
+    for i in range(n):
+        for a in range(mu):
+            s = 0.0
+            for j in range(n):
+                s += P[i, j] * Hu[a, j]
+            PHt[i, a] = s
+    S = np.empty((mu, mu))
+    for a in range(mu):
+        for b in range(mu):
+            s = Ru[a, b]
+            for j in range(n):
+                s += Hu[a, j] * PHt[j, b]
+            S[a, b] = s
+    # S = L Lᵀ, then Sinv = L⁻ᵀ L⁻¹
+    L = np.zeros((mu, mu))
+    for a in range(mu):
+        for b in range(a + 1):
+            s = 0.5 * (S[a, b] + S[b, a])
+            for c in range(b):
+                s -= L[a, c] * L[b, c]
+            if a == b:
+                if not s > 0.0:
+                    raise ValueError("innovation covariance is not positive definite")
+                L[a, a] = math.sqrt(s)
+            else:
+                L[a, b] = s / L[b, b]
+    Li = np.zeros((mu, mu))                  # L⁻¹
+    for a in range(mu):
+        Li[a, a] = 1.0 / L[a, a]
+        for b in range(a):
+            s = 0.0
+            for c in range(b, a):
+                s -= L[a, c] * Li[c, b]
+            Li[a, b] = s / L[a, a]
+    Sinv = np.zeros((mu, mu))
+    for a in range(mu):
+        for b in range(mu):
+            s = 0.0
+            for c in range(max(a, b), mu):
+                s += Li[c, a] * Li[c, b]
+            Sinv[a, b] = s
+    K = np.zeros((n, mu))
+    for i in range(n):
+        for b in range(mu):
+            s = 0.0
+            for a in range(mu):
+                s += PHt[i, a] * Sinv[a, b]
+            K[i, b] = s
     nu = np.zeros(mu)
     nis = 0.0
     if with_x:
         for a in range(mu):
-            nu[a] = z[used[a]] - Hu[a] @ x
-        x += K @ nu
-        nis = nu @ (Sinv @ nu)
-    A = np.eye(n) - K @ Hu
-    Pn = A @ P @ A.T + K @ Ru @ K.T
+            s = z[used[a]]
+            for j in range(n):
+                s -= Hu[a, j] * x[j]
+            nu[a] = s
+        for i in range(n):
+            s = 0.0
+            for a in range(mu):
+                s += K[i, a] * nu[a]
+            x[i] += s
+        for a in range(mu):
+            for b in range(mu):
+                nis += nu[a] * Sinv[a, b] * nu[b]
+    # P <- (I − K H) P (I − K H)ᵀ + K R Kᵀ
+    Am = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 1.0 if i == j else 0.0
+            for a in range(mu):
+                s -= K[i, a] * Hu[a, j]
+            Am[i, j] = s
+    AP = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += Am[i, k] * P[k, j]
+            AP[i, j] = s
+    KR = np.empty((n, mu))
+    for i in range(n):
+        for b in range(mu):
+            s = 0.0
+            for a in range(mu):
+                s += K[i, a] * Ru[a, b]
+            KR[i, b] = s
+    Pn = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += AP[i, k] * Am[j, k]
+            for a in range(mu):
+                s += KR[i, a] * K[j, a]
+            Pn[i, j] = s
     for i in range(n):
         for j in range(n):
             P[i, j] = 0.5 * (Pn[i, j] + Pn[j, i])
     return nu, S, nis
+
+
+@njit(cache=True)
+def _copy2(dst, src):
+    """dst[:, :] = src by elements (a slice assignment from an array compiles numba's
+    shape-error message formatting: seconds on a first run)."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[i, j] = src[i, j]
 
 
 @njit(cache=True)
@@ -160,7 +259,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, diag
     for j in range(n):
         pd_hist[0, j] = P[j, j]
     if save_flag[0]:
-        P_save[ns] = P
+        _copy2(P_save[ns], P)
         ns += 1
     for k in range(K):
         ip = phi_i[k]
@@ -199,7 +298,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, diag
         for j in range(n):
             pd_hist[k + 1, j] = P[j, j]
         if save_flag[k + 1]:
-            P_save[ns] = P
+            _copy2(P_save[ns], P)
             ns += 1
         if not (P[0, 0] == P[0, 0]):
             return k + 1
@@ -724,3 +823,217 @@ def sparsity(Phi_t):
         Number of non-zeros per row.
     """
     return _sparsity(np.ascontiguousarray(Phi_t, dtype=float))
+
+
+# ----------------------------------------------------------------------------------------
+# series discretisation of many epochs (the "series" method of kalman.discretize, compiled)
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def series_structure(fnz, gnz, q):
+    """Index lists of the zeros :func:`series_step` skips, from the possible non-zeros.
+
+    Parameters
+    ----------
+    fnz : bool ndarray (n, n)
+        Entries of F that may be non-zero.
+    gnz : bool ndarray (n, p)
+        Entries of G that may be non-zero.
+    q : ndarray (p,)
+        Noise densities (columns with q = 0 are skipped).
+
+    Returns
+    -------
+    fcol, fcnt : (n, n), (n,) int
+        Non-zero columns of each row of F.
+    grow, gcnt : (p, n), (p,) int
+        Non-zero rows of each column of G.
+    R, pos : (n,), (n,) int
+        The states reached by Q̄ (first ``nr`` entries of R); ``pos[i]`` the place of
+        state i in R or −1.
+    nr : int
+    phic, phin : (n, n), (n,) int
+        Non-zero columns of each row of Φ = I + FT + (FT)²/2.
+    qr, nq : (n,) int, int
+        The rows of Φ that reach R (first ``nq`` entries): Q_k is zero elsewhere.
+    """
+    n, m = gnz.shape
+    fcol = np.zeros((n, n), dtype=np.int64)
+    fcnt = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        for j in range(n):
+            if fnz[i, j]:
+                fcol[i, fcnt[i]] = j
+                fcnt[i] += 1
+    grow = np.zeros((m, n), dtype=np.int64)
+    gcnt = np.zeros(m, dtype=np.int64)
+    pos = np.full(n, -1, dtype=np.int64)
+    for c in range(m):
+        if q[c] == 0.0:
+            continue
+        for i in range(n):
+            if gnz[i, c]:
+                grow[c, gcnt[c]] = i
+                gcnt[c] += 1
+                pos[i] = 0
+    R = np.zeros(n, dtype=np.int64)
+    nr = 0
+    for i in range(n):
+        if pos[i] == 0:
+            R[nr] = i
+            pos[i] = nr
+            nr += 1
+    pnz = np.zeros((n, n), dtype=np.bool_)
+    for i in range(n):
+        pnz[i, i] = True
+        for a in range(fcnt[i]):
+            k = fcol[i, a]
+            pnz[i, k] = True
+            for b in range(fcnt[k]):
+                pnz[i, fcol[k, b]] = True
+    phic = np.zeros((n, n), dtype=np.int64)
+    phin = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        for j in range(n):
+            if pnz[i, j]:
+                phic[i, phin[i]] = j
+                phin[i] += 1
+    qr = np.zeros(n, dtype=np.int64)
+    nq = 0
+    for i in range(n):
+        for a in range(nr):
+            if pnz[i, R[a]]:
+                qr[nq] = i
+                nq += 1
+                break
+    return fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq
+
+
+@njit(cache=True)
+def series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe):
+    """One epoch of the series discretisation into ``Pe`` (Φ) and ``Qe`` (Q_k), skipping
+    the zeros listed by :func:`series_structure`; ``Qb``, ``PR``, ``W`` are work arrays
+    (max(nr, 1) columns)."""
+    n, m = Fe.shape[0], Ge.shape[1]
+    # Φ = I + FT + (FT)²/2
+    for i in range(n):
+        for j in range(n):
+            Pe[i, j] = 0.0
+        Pe[i, i] = 1.0
+        for a in range(fcnt[i]):
+            k = fcol[i, a]
+            fik = Fe[i, k] * T
+            Pe[i, k] += fik
+            h = 0.5 * fik
+            for b in range(fcnt[k]):
+                j = fcol[k, b]
+                Pe[i, j] += h * (Fe[k, j] * T)
+    # Q̄ = G diag(q) Gᵀ on the reached states, exactly symmetric
+    for a in range(nr):
+        for b in range(nr):
+            Qb[a, b] = 0.0
+    for c in range(m):
+        qc = q[c]
+        for a in range(gcnt[c]):
+            i = grow[c, a]
+            gi = Ge[i, c] * qc
+            pa = pos[i]
+            for b in range(gcnt[c]):
+                Qb[pa, pos[grow[c, b]]] += gi * Ge[grow[c, b], c]
+    for a in range(nr):
+        for b in range(a + 1, nr):
+            v = 0.5 * (Qb[a, b] + Qb[b, a])
+            Qb[a, b] = v
+            Qb[b, a] = v
+    # Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2 with Φ Q̄ Φᵀ = (Φ[:, R] Q̄) Φ[:, R]ᵀ
+    for i in range(n):
+        for j in range(n):
+            Qe[i, j] = 0.0
+    for u in range(nq):
+        i = qr[u]
+        for a in range(nr):
+            PR[u, a] = Pe[i, R[a]]
+    for u in range(nq):
+        for b in range(nr):
+            s = 0.0
+            for a in range(nr):
+                s += PR[u, a] * Qb[a, b]
+            W[u, b] = s
+    for u in range(nq):
+        i = qr[u]
+        pi = pos[i]
+        for t in range(u, nq):
+            l = qr[t]
+            s = 0.0
+            for b in range(nr):
+                s += W[u, b] * PR[t, b]
+            pl = pos[l]
+            if pi >= 0 and pl >= 0:
+                s += Qb[pi, pl]
+            v = 0.5 * T * s
+            Qe[i, l] = v
+            Qe[l, i] = v
+
+
+@njit(cache=True)
+def _series_many(F, G, q, T, Phi, Q):
+    S, n, m = F.shape[0], F.shape[1], G.shape[2]
+    # possible non-zeros: those of any epoch
+    fnz = np.zeros((n, n), dtype=np.bool_)
+    gnz = np.zeros((n, m), dtype=np.bool_)
+    for e in range(S):
+        for i in range(n):
+            for j in range(n):
+                if F[e, i, j] != 0.0:
+                    fnz[i, j] = True
+            for c in range(m):
+                if G[e, i, c] != 0.0:
+                    gnz[i, c] = True
+    fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq = series_structure(fnz, gnz, q)
+    nr1 = max(nr, 1)
+    Qb = np.zeros((nr1, nr1))
+    PR = np.zeros((n, nr1))
+    W = np.zeros((n, nr1))
+    for e in range(S):
+        series_step(F[e], G[e], q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W,
+                    Phi[e], Q[e])
+
+
+def discretize_series_many(F, G, q, T, Phi=None, Q=None):
+    """The ``"series"`` discretisation of :func:`sinslab.estimation.kalman.discretize`
+    for many epochs, compiled and using the zeros of F and G.
+
+    Parameters
+    ----------
+    F : ndarray, shape (S, n, n)
+        Continuous system matrices, one per epoch.
+    G : ndarray, shape (S, n, p)
+        Noise input matrices.
+    q : ndarray, shape (p,)
+        Spectral densities of the independent noises (>= 0).
+    T : float
+        Step [s].
+    Phi, Q : ndarray, shape (≥S, n, n), optional
+        Output buffers.
+
+    Returns
+    -------
+    Phi, Qk : ndarray, shape (S, n, n)
+        ``Φ = I + F T + (F T)²/2``, ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` with ``Q̄ = G diag(q) Gᵀ``
+        (exactly symmetric); equal to ``discretize(F, q, T, G=G, method="series")`` to
+        rounding.
+    """
+    F = np.ascontiguousarray(F, dtype=float)
+    G = np.ascontiguousarray(G, dtype=float)
+    q = np.ascontiguousarray(q, dtype=float)
+    S, n = F.shape[0], F.shape[-1]
+    if F.ndim != 3 or F.shape[1] != n or G.ndim != 3 or G.shape[:2] != (S, n) or q.shape != G.shape[2:]:
+        raise ValueError(f"shape mismatch: F {F.shape}, G {G.shape}, q {q.shape}")
+    if np.any(q < 0):
+        raise ValueError("noise spectral densities must be >= 0")
+    if not T >= 0:
+        raise ValueError(f"step T must be >= 0, got {T}")
+    Phi = np.empty((S, n, n)) if Phi is None or Phi.shape[0] < S else Phi
+    Q = np.empty((S, n, n)) if Q is None or Q.shape[0] < S else Q
+    Phi, Q = Phi[:S], Q[:S]
+    _series_many(F, G, q, float(T), Phi, Q)
+    return Phi, Q

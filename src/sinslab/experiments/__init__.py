@@ -28,6 +28,7 @@ from sinslab import __version__
 from sinslab.app.config import ExperimentConfig, config_to_toml
 from sinslab.app.errors import UserError
 from sinslab.app.outputs import RunDir
+from sinslab.app.publish import complete_timed, describe_series, write_figures, write_series
 from sinslab.experiments.base import Experiment, Result, RunContext
 
 __all__ = ["registry", "register", "get", "names", "execute", "UnknownExperiment", "Experiment"]
@@ -119,13 +120,16 @@ def _check_result(exp: Experiment, res: Result, log) -> None:
 
 
 def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: bool = False,
-            scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
+            scheduler: str | None = None, log: Callable[[str], None] | None = None,
+            variant: tuple[str, list[str]] | None = None) -> dict:
     """Run ``exp`` with the resolved ``cfg`` into folder ``out``; return the summary dict.
 
     Order of writes: marker, ``config.toml`` (so an interrupted run still says what it
     was), series, tables, figures, ``summary.json``, ``report.html``, marker "complete".
     Raises :class:`sinslab.app.outputs.OutputDirError` before writing anything if ``out`` is
-    not usable.
+    not usable. ``variant=(name, sets)`` names a demo variant (its report carries that
+    name and the ``--set`` lines that make it). ``summary["timing"]`` holds the seconds
+    spent computing and writing series, figures and the report.
     """
 
     log = log or (lambda msg: None)
@@ -144,14 +148,17 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
     metrics = dict(res.metrics)
     metrics.setdefault("runtime_s", runtime)
 
+    t1 = time.perf_counter()
     for name, table in res.series.items():
-        rd.write_table(name, table)
+        write_series(rd, name, table, describe_series(name, table))
     tables = []
     for t in res.tables:
         info = rd.write_table(f"table_{t.name}", t.data, t.caption)
         tables.append({**info, "caption": t.caption})
-    for f in res.figures:
-        rd.write_figure(f.name, f.fig, f.caption)
+    t2 = time.perf_counter()
+    write_figures(rd, res.figures)
+    t3 = time.perf_counter()
+    timing = {"compute_s": runtime, "series_s": t2 - t1, "figures_s": t3 - t2, "report_s": None}
 
     summary = {
         "experiment": exp.name,
@@ -171,5 +178,10 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
         "series": [s for s in rd.series_info if not s["name"].startswith("table_")],
         "tables": tables,
         "notes": list(exp.notes) + list(res.notes),
+        "timing": timing,
     }
-    return rd.complete(summary)
+    if variant:
+        summary["name"] = variant[0]
+        summary["variant"] = {"name": variant[0], "sets": list(variant[1])}
+        summary["rerun"] = f"sinslab run {exp.name} --config config.toml"
+    return complete_timed(rd, summary)

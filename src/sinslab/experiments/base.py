@@ -36,7 +36,6 @@ shown in the report and written as CSV) and extra figures. Nothing else changes.
 """
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,104 +46,13 @@ import numpy as np
 from sinslab.core import progress as _progress
 from sinslab.app.config import ExperimentConfig, Field, Q, QV, Section  # noqa: F401  (re-exported)
 from sinslab.app.outputs import Figure  # noqa: F401  (re-exported: what run returns)
+from sinslab.app.claims import Claim  # noqa: F401  (re-exported: what run returns)
 
 __all__ = ["Claim", "Metric", "Figure", "Table", "Result", "RunContext", "Experiment",
            "ExperimentConfig", "Section", "Q", "QV", "Field", "METRIC_NAME"]
 
 #: Metric names: stable snake_case; SI unless the name carries its unit (``_arcmin``).
 METRIC_NAME = re.compile(r"^[a-z][a-zA-Z0-9]*(_[a-zA-Z0-9]+)*$")
-
-
-def _num(x):
-    """Plain Python number (or list) for JSON; NaN stays NaN here (None in JSON)."""
-    if isinstance(x, np.ndarray) and x.ndim == 0:
-        x = x.item()
-    if isinstance(x, (list, tuple, np.ndarray)):
-        return [_num(v) for v in np.asarray(x).tolist()]
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (int, np.integer)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return float(x)
-    return x
-
-
-def _fmt(x, digits=4):
-    if isinstance(x, np.ndarray) and x.ndim == 0:
-        x = x.item()
-    if isinstance(x, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(_fmt(v, digits) for v in x) + "]"
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "n/a"
-    if isinstance(x, (int, np.integer)):
-        return str(int(x))
-    if isinstance(x, (float, np.floating)):
-        return f"{float(x):.{digits}g}"
-    return str(x)
-
-
-@dataclass
-class Claim:
-    """A checked statement of an experiment (one row of the report's claims table).
-
-    ``measured`` is what the run produced (number, list or text); ``expected`` says what
-    would make the claim true (text with unit and criterion, or a number); ``passed`` is
-    the verdict. A claim must be able to fail: compute ``passed`` from the run, never
-    assert it. The helpers build the common shapes and keep the criterion and the verdict
-    consistent; a measurement that is NaN/None never passes.
-    """
-
-    id: str
-    statement: str
-    measured: Any
-    expected: Any
-    passed: bool
-
-    def __post_init__(self):
-        self.measured = _num(self.measured)
-        self.expected = _num(self.expected)
-        self.passed = bool(self.passed)
-
-    def as_dict(self) -> dict:
-        return {"id": self.id, "statement": self.statement, "measured": self.measured,
-                "expected": self.expected, "passed": self.passed}
-
-    @staticmethod
-    def _ok(v) -> bool:
-        return v is not None and np.all(np.isfinite(np.asarray(v, dtype=float)))
-
-    @classmethod
-    def within(cls, id: str, statement: str, measured, target, *, rel: float | None = None,
-               abs: float | None = None, unit: str = "") -> "Claim":
-        """``|measured − target| <= abs`` or ``<= rel·|target|`` (every component)."""
-        if rel is None and abs is None:
-            raise ValueError("Claim.within needs rel or abs")
-        tol = np.asarray(abs if abs is not None else 0.0, float)
-        if rel is not None:
-            tol = np.maximum(tol, rel * np.abs(np.asarray(target, float)))
-        ok = cls._ok(measured) and bool(np.all(
-            np.abs(np.asarray(measured, float) - np.asarray(target, float)) <= tol))
-        crit = f"{_fmt(target, 6)} {unit}".strip() + " ± " + (
-            f"{rel * 100:g} %" if rel is not None and abs is None else f"{_fmt(tol)} {unit}".strip())
-        return cls(id, statement, measured, crit, ok)
-
-    @classmethod
-    def at_most(cls, id: str, statement: str, measured, limit, unit: str = "") -> "Claim":
-        """``measured <= limit`` (every component)."""
-        ok = cls._ok(measured) and bool(np.all(np.asarray(measured, float) <= np.asarray(limit, float)))
-        return cls(id, statement, measured, f"<= {_fmt(limit, 6)} {unit}".strip(), ok)
-
-    @classmethod
-    def at_least(cls, id: str, statement: str, measured, limit, unit: str = "") -> "Claim":
-        """``measured >= limit`` (every component)."""
-        ok = cls._ok(measured) and bool(np.all(np.asarray(measured, float) >= np.asarray(limit, float)))
-        return cls(id, statement, measured, f">= {_fmt(limit, 6)} {unit}".strip(), ok)
-
-    @classmethod
-    def equals(cls, id: str, statement: str, measured, expected) -> "Claim":
-        """Exact equality (ranks, counts, orderings)."""
-        return cls(id, statement, measured, expected, _num(measured) == _num(expected))
 
 
 @dataclass(frozen=True)

@@ -155,6 +155,12 @@ def _mc_strides(cfg) -> tuple[int, int]:
     return cov_every, k * cov_every
 
 
+#: Lower end of error / envelope: the envelope is a loose upper bound (0.06-0.4 of it is
+#: reached on the default flight), but the same configured sensor errors drive the error,
+#: so it cannot stay three orders of magnitude below the envelope unless the run does not
+#: have those errors or they left the linear regime (a tumbling attitude caps the position
+#: error at the size of the Earth: 2.5e-8 of the envelope with a 1e9 deg/h gyro bias).
+ENVELOPE_MIN_RATIO = 1e-3
 #: Tolerances of the linear-model claims: linearisation, the 1-step discretisation of F and
 #: the mid-step specific force leave residuals of about a percent of the error itself.
 LIN_REL, LIN_ABS_POS, LIN_ABS_VEL, LIN_ABS_ATT = 0.01, 0.5, 0.001, 0.2
@@ -399,8 +405,9 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
                 f"mc_rms_over_sigma_{key}",
                 f"{label}: Monte Carlo RMS ({n} runs) / covariance-analysis σ at every epoch from "
                 f"t = {tr:g} s to the end — [min, max] over time",
-                mm, f"within [{lo:.3g}, {hi:.3g}]",
-                bool(r.size and np.all(np.isfinite(r)) and mm[0] >= lo and mm[1] <= hi)))
+                mm, [lo, hi],
+                bool(r.size and np.all(np.isfinite(r)) and mm[0] >= lo and mm[1] <= hi),
+                names=["min", "max"], relation="between"))
             u = scale[unit]
             rows.append({"error": label, "unit": unit, "final_mc_rms": summ.rms[-1, c] / u,
                          "final_sigma": sg[-1] / u, "final_mc_mean": summ.mean[-1, c] / u,
@@ -640,9 +647,12 @@ def run(cfg: Config, ctx) -> Result:
                      "(the model has no damping loop)")
     for key, what in (("pos", "horizontal position error"), ("vel", "horizontal velocity error"),
                       ("tilt", "pitch and roll errors"), ("heading", "heading error")):
-        claims.append(Claim.at_most(
+        r = ratios[key]
+        claims.append(Claim(
             f"{key}_envelope", f"{what}: max over time of error / closed-form static-error-model "
-            "envelope (a loose upper bound on a manoeuvring trajectory)", ratios[key], 1.0))
+            "envelope (a loose upper bound on a manoeuvring trajectory, reached at least in part "
+            "by errors that the same sensor errors drive)", r, [ENVELOPE_MIN_RATIO, 1.0],
+            bool(np.isfinite(r) and ENVELOPE_MIN_RATIO <= r <= 1.0), relation="between"))
 
     # ---- series and figures
     series = {

@@ -914,7 +914,8 @@ def _claims(cfg, m, so, ws_one, warn_rank, runs):
                            "position errors do (paper Figs 6, 7)" + why, m["ranking_matches_position_error"], True))
     cl.append(Claim.at_least("tracks_trend", "Analysis two: the ε_z1 estimates of filters 2, 3, 4 follow the "
                              "trend of the true drift (correlation after evaluation.start; the filter models the "
-                             "drift as a constant, so it follows with a lag)", m["trend_track_corr"], 0.7))
+                             "drift as a constant, so it follows with a lag)", m["trend_track_corr"], 0.7,
+                             names=["filter 2", "filter 3", "filter 4"]))
     cl.append(Claim.within("eq20_ratio", "σ(ε_z1) ratio β = 1.1 / β = 1: covariance computation (gains fixed) "
                            "vs simulation (mean windowed std) within 10 %",
                            m["eq20_sigma_ratio_simulated"], m["eq20_sigma_ratio_predicted"], rel=0.1))

@@ -54,20 +54,28 @@ NOTES = [
     "errors arcsec. Attitude figures: pitch, roll, heading errors (heading clockwise from "
     "north, error = navigation − truth).",
     "Site not stated by the paper: Harbin (45.75° N, 126.6° E), the authors' institution.",
-    "Paper 'attitude angles within 0–60°' read as heading 0–60° (course 30° ± 30°) with "
-    "roll/pitch/yaw sway of 5°/2°/1°. The manoeuvres build up over scenario "
-    "ship_manoeuvre_ramp after leaving the mooring: an abrupt start excites a Schuler "
-    "oscillation that is the same in both solutions, which no delay can remove "
-    "(with ship.manoeuvre_ramp = \"60 s\" the suppression falls to about 1: the paper's "
-    "result needs a gradual onset).",
-    "Ship: the largest velocity-error oscillation is not the Schuler one but the response "
-    "forced at the manoeuvre periods (speed 20 min, course 30 min) through the alignment "
-    "residuals; it is common to both solutions and the mean keeps it. The spectrum figure "
-    "separates the lines: only the Schuler band (and its Foucault side lines) is reduced.",
-    "Turntable IMU: 'random walk 0.005°/h' read as ARW 0.005°/√h; 'VRW < 5e-5 g' read as "
-    "5e-5 g/√Hz = 50 µg/√Hz. Sensor noise after t2 drives the same Schuler oscillation in "
-    "both solutions: the mean cannot remove it.",
 ]
+
+#: Notes that apply to one scenario kind only (added to the report of that kind).
+_KIND_NOTES = {
+    "ship": [
+        "Paper 'attitude angles within 0–60°' read as heading 0–60° (course 30° ± 30°) with "
+        "roll/pitch/yaw sway of 5°/2°/1°. The manoeuvres build up over scenario "
+        "ship_manoeuvre_ramp after leaving the mooring: an abrupt start excites a Schuler "
+        "oscillation that is the same in both solutions, which no delay can remove "
+        "(with ship.manoeuvre_ramp = \"60 s\" the suppression falls to about 1: the paper's "
+        "result needs a gradual onset).",
+        "Ship: the largest velocity-error oscillation is not the Schuler one but the response "
+        "forced at the manoeuvre periods (speed 20 min, course 30 min) through the alignment "
+        "residuals; it is common to both solutions and the mean keeps it. The spectrum figure "
+        "separates the lines: only the Schuler band (and its Foucault side lines) is reduced.",
+    ],
+    "turntable": [
+        "Turntable IMU: 'random walk 0.005°/h' read as ARW 0.005°/√h; 'VRW < 5e-5 g' read as "
+        "5e-5 g/√Hz = 50 µg/√Hz. Sensor noise after t2 drives the same Schuler oscillation in "
+        "both solutions: the mean cannot remove it.",
+    ],
+}
 
 
 # ----------------------------------------------------------------- configuration ----------
@@ -159,6 +167,7 @@ QUICK = {"ship": {"duration": "12 h"}, "turntable": {"duration": "12 h"}}
 DEMO_VARIANTS = {"turntable": ["scenario.kind=turntable"], "injected": ["init.mode=injected"]}
 
 CHANNELS = ("vE", "vN", "phiE", "phiN", "lat", "lon")
+_LABEL = {"vE": "vE", "vN": "vN", "phiE": "φE", "phiN": "φN", "lat": "lat", "lon": "lon"}
 _UNIT = {"vE": ("m/s", 1.0), "vN": ("m/s", 1.0), "phiE": ("arcmin", units.arcmin),
          "phiN": ("arcmin", units.arcmin), "lat": ("arcsec", units.arcsec),
          "lon": ("arcsec", units.arcsec)}
@@ -294,7 +303,7 @@ def run(cfg: Config, ctx) -> Result:
                "nav_samples_sol1": int(round((res.sol1.t[-1] - res.t1) / dt)),
                "nav_samples_sol2": int(round((res.sol2.t[-1] - t2) / dt))}
     fits = {}
-    notes = []
+    notes = list(_KIND_NOTES[cfg.scenario.kind])
     for ch in CHANNELS:
         f1, f2, fm = _fit(e1, ch, lat, t2), _fit(e2, ch, lat, t2), _fit(em, ch, lat, t2)
         fits[ch] = (f1, fm)
@@ -330,22 +339,23 @@ def _claims(cfg, res, metrics, fits, dt, truth):
     c = Claim.at_least("suppression_velocity",
                        f"Schuler amplitude of the velocity errors [vE, vN] reduced by at least half "
                        f"by the mean ({kind}, {cfg.init.mode})." + (why if min(sv) < 2 else ""),
-                       sv, 2.0, "×")
+                       sv, 2.0, "×", names=["vE", "vN"])
     cl.append(c)
     sa = [metrics["suppression_phiE"], metrics["suppression_phiN"]]
     cl.append(Claim.at_least("suppression_level_attitude",
                              f"Schuler amplitude of the level attitude errors [φE, φN] reduced by at "
                              f"least half ({kind}, {cfg.init.mode})." + (why if min(sa) < 2 else ""),
-                             sa, 2.0, "×"))
-    fr = []
+                             sa, 2.0, "×", names=["φE", "φN"]))
+    fr, fr_names = [], []
     for ch in ("vE", "vN", "phiE", "phiN"):
         f1, fm = fits[ch]
         if f1.foucault_fitted:
             fr.append(f1.foucault / fm.foucault if fm.foucault > 0 else float("inf"))
+            fr_names.append(_LABEL[ch])
     if fr:
         cl.append(Claim.at_least("foucault_suppressed",
                                  "Foucault side lines ω_s ± ω_ie·sinL of [vE, vN, φE, φN] reduced with "
-                                 "the Schuler line (single / mean)", fr, 2.0, "×"))
+                                 "the Schuler line (single / mean)", fr, 2.0, "×", names=fr_names))
     er = []
     for ch in CHANNELS:
         a, b = metrics[f"earth_amp_{ch}_single"], metrics[f"earth_amp_{ch}_mean"]
@@ -353,11 +363,12 @@ def _claims(cfg, res, metrics, fits, dt, truth):
     if all(r is not None for r in er):
         cl.append(Claim.at_most("earth_period_kept",
                                 "The 24 h component is not suppressed: single / mean < 1.5 for "
-                                "[vE, vN, φE, φN, lat, lon]", er, 1.5, "×"))
+                                "[vE, vN, φE, φN, lat, lon]", er, 1.5, "×",
+                                names=[_LABEL[ch] for ch in CHANNELS]))
     else:
         cl.append(Claim("earth_period_kept", "The 24 h component is not suppressed (single / mean < 1.5)",
                         "not measurable: the record is too short to fit the 24 h line",
-                        "< 1.5 for every channel", False))
+                        "< 1.5× for every channel", False))
     if cfg.init.mode == "aligned":
         a1, a2 = res.align1, res.align2
         ends_ok = (abs(a1.t[-1] - res.t1) < 0.5 * dt and abs(a2.t[-1] - res.t2) < 0.5 * dt
@@ -380,14 +391,18 @@ def _claims(cfg, res, metrics, fits, dt, truth):
             "t1 and at t2 (solution 2 is not solution 1 carried on or shifted in time)",
             {"align_end_s": [float(a1.t[-1]), float(a2.t[-1])],
              "sol2_start_vs_sol1_at_t2_arcmin": d_sol1.tolist()},
-            "alignment ends at t1 and t2; solution 2's start differs from solution 1 at t2",
-            bool(ends_ok and distinct)))
+            f"alignment ends at t1 = {res.t1:g} s and t2 = {res.t2:g} s; solution 2's start "
+            "differs from solution 1 at t2", bool(ends_ok and distinct),
+            names=["alignment ends", "solution 2 start − solution 1 at t2 (φE, φN, φU)"],
+            unit=["s", "′"]))
         cl.append(Claim(
             "alignment_errors_agree",
             "The two alignment errors agree — the method's premise: a converged alignment leaves "
             "the same error whenever it stops",
             {"init_err1_arcmin": e1.tolist(), "init_err2_arcmin": e2.tolist()},
-            "[φE, φN] within 25 % (+0.02′), φU within 25 % (+0.2′)", bool(agree)))
+            "φE and φN within 25 % (+0.02′), φU within 25 % (+0.2′)", bool(agree),
+            names=["alignment 1 error (φE, φN, φU)", "alignment 2 error (φE, φN, φU)"],
+            unit=["′", "′"]))
     return cl
 
 

@@ -50,7 +50,6 @@ PURPOSE = "paper 000: stationary fine alignment, full 8-state vs reduced 5-state
 PAPER = ("Yan Gongmin, Qin Yongyuan: Initial alignment accuracy analysis and simulation of SINS "
          "on a stationary base, Computer Simulation 23(10), 2006")
 NOTES = [
-    "Latitude is not stated by the paper: 34.246 deg N (Xi'an, NWPU) is assumed.",
     "Heading is clockwise from north (sinslab yaw = −heading).",
     "Residual = true − estimated (the paper's limit formulas use this sign); φ is the "
     "misalignment of the computed frame, C_b^n' = (I − φ×) C_b^n.",
@@ -223,6 +222,7 @@ def _figure(t, resid, lim, title, extra=None):
     axes[0].legend(loc="best", fontsize=8)
     for ax in axes[max(0, nplots - 2):nplots]:
         ax.set_xlabel("time [min]")
+        ax.xaxis.set_tick_params(labelbottom=True)   # the panel below it is hidden
     fig.suptitle(title)
     return fig
 
@@ -319,21 +319,24 @@ def run(config: Config, ctx) -> Result:
         claims.append(Claim(
             "epsU_converges", "εU has converged by the end (paper: after about 50 min): residual "
             "within 25 % of its initial distance to the limit, and the filter's σ(εU) at most half "
-            "its initial value [fraction left, σ ratio]", [frac, s1 / s0], "<= [0.25, 0.5]",
-            bool(frac <= 0.25 and s1 / s0 <= 0.5)))
+            "its initial value [fraction left, σ ratio]", [frac, s1 / s0], [0.25, 0.5],
+            bool(frac <= 0.25 and s1 / s0 <= 0.5), names=["fraction left", "σ ratio"],
+            relation="<="))
     dfr = np.abs(res["full"][-1] - res["reduced"][-1]) / _SC
     claims.append(Claim.at_most(
         "full_vs_reduced", "full and reduced filters reach the same accuracy: |Δ final residual| "
-        "per state [φE φN φU (′), εN εU (°/h)]", dfr.tolist(), [0.07, 0.07, 1.0, 0.002, 0.002]))
+        "per state [φE φN φU (′), εN εU (°/h)]", dfr.tolist(), [0.07, 0.07, 1.0, 0.002, 0.002],
+        unit=["′", "′", "′", "°/h", "°/h"], names=["φE", "φN", "φU", "εN", "εU"]))
     cheaper = (metrics["time_per_step_us_reduced"] < metrics["time_per_step_us_full"]
                and metrics["flops_per_step_reduced"] < metrics["flops_per_step_full"])
     claims.append(Claim(
         "reduced_cheaper", "the reduced filter is cheaper (time per step µs, flops; reduced vs full)",
         [metrics["time_per_step_us_reduced"], metrics["time_per_step_us_full"],
          metrics["flops_per_step_reduced"], metrics["flops_per_step_full"]],
-        "reduced < full in both", cheaper))
+        "reduced < full in both", cheaper,
+        names=["reduced", "full", "reduced", "full"], unit=["µs", "µs", "flops", "flops"]))
     claims.append(Claim.equals("obs_rank", "observability rank (full 8-state, reduced 5-state), computed",
-                               [rk, rkr], [5, 5]))
+                               [rk, rkr], [5, 5], names=["full", "reduced"]))
 
     # ----- series and figures
     for model in ("full", "reduced"):

@@ -383,11 +383,12 @@ def run(cfg: Config, ctx) -> Result:
     big = {m: metrics[f"converged_{m}_large"] for m in _M}
     claims.append(Claim.equals("large_methods_1_3_fail",
                                "large installation: methods 1-3 (euler, dcm, kain) do not converge to the true misalignment",
-                               [big["euler"], big["dcm"], big["kain"]], [False, False, False]))
+                               [big["euler"], big["dcm"], big["kain"]], [False, False, False],
+                               names=["euler", "dcm", "kain"]))
     claims.append(Claim.equals("large_method_4_converges", "large installation: method 4 (optimal) converges",
                                big["optimal"], True))
     claims.append(Claim.equals("small_all_converge", "small installation: all four methods converge",
-                               [metrics[f"converged_{m}_small"] for m in _M], [True] * 4))
+                               [metrics[f"converged_{m}_small"] for m in _M], [True] * 4, names=list(_M)))
     claims.append(Claim.at_most("c22_phiU_column_zero", "DCM form at heading 90° (C22 = 0): φU column of H vanishes",
                                 metrics["dcm_phiU_H_norm_c22zero"], 1e-3))
     claims.append(Claim.at_least("c22_heading_worse", "DCM form at C22 = 0: heading error RMS at the end ≥ 2 × Kain's",
@@ -395,7 +396,8 @@ def run(cfg: Config, ctx) -> Result:
     claims.append(Claim.at_most("h_fd", "every H matches central differences of its z", fd, 1e-6))
     claims.append(Claim.equals("compensation_fixes_1_3",
                                "diagnosis: with the installation compensation methods 1-3 converge on the large installation",
-                               [metrics[f"converged_{m}_large_comp"] for m in _M[:3]], [True] * 3))
+                               [metrics[f"converged_{m}_large_comp"] for m in _M[:3]], [True] * 3,
+                               names=list(_M[:3])))
 
     # why a convergence verdict is what it is: the worst RMS / σ ratio at the end
     notes = []

@@ -39,7 +39,11 @@ Per block ``[e0, e1]``:
    (corrected) state. The linearisation point then differs from the corrected path only
    by the feedback applied within that stretch; ``model_every <= kf_dt`` evaluates it on
    the corrected path exactly. ``Φ_e, Q_e`` follow from
-   :func:`sinslab.estimation.kalman.discretize` (``"series"`` or ``"vanloan"``).
+   :func:`sinslab.estimation.kalman.discretize` (``"series"`` or ``"vanloan"``). That
+   numpy path is the reference (``model_eval="numpy"``); by default compiled kernels
+   equal to it to rounding evaluate F, G and the series (:mod:`sinslab.nav.errstate_kernels`),
+   and when the filter keeps no history the model, Φ, Q_k and step 3 of each epoch run
+   in one compiled loop per block (:mod:`sinslab.fusion.propagate`).
 3. Prediction of the filter through the block in one compiled loop
    (:meth:`KalmanFilter.predict_many`); σ and x are recorded at every epoch.
 4. Measurements at ``e1``, in measurement order then item order. An item valid at
@@ -82,9 +86,12 @@ from sinslab.core import attitude as A
 from sinslab.core import units
 from sinslab.estimation.filter import KalmanFilter
 from sinslab.estimation.kalman import discretize
+from sinslab.estimation.linear import discretize_series_many
 from sinslab.fusion.lag import ExactReprocessing
 from sinslab.fusion.measurements import Epoch, Grid, NavRow
+from sinslab.fusion.propagate import CompiledPropagation
 from sinslab.nav import errstate as es
+from sinslab.nav import errstate_kernels as ek
 from sinslab.nav import strapdown as sd
 
 __all__ = ["run", "DriverResult", "Applied", "LiveStream", "PrecomputedStream"]
@@ -348,6 +355,24 @@ class DriverResult:
     history: object = None
 
 
+def _model_stretch(model, prog, pts, q, T, discretization):
+    """F, G, Φ, Q_k of a stretch of epochs; ``pts`` holds per stream the rows (S, 10)
+    and the step rates ω, f (S, 3) at those epochs. ``prog`` (a compiled program of the
+    model) or None (numpy reference)."""
+    if prog is None:
+        navs = [es.NavPoint(r[:, 7], r[:, 9], r[:, 4:7], A.quat_to_dcm(r[:, :4]), f, w)
+                for r, w, f in pts]
+        F, G = model.matrices(*navs)
+    else:
+        F, G = ek.matrices_rows(prog, np.stack([p[0] for p in pts]),
+                                np.stack([p[1] for p in pts]), np.stack([p[2] for p in pts]))
+    if prog is not None and discretization == "series":
+        Phi, Qk = discretize_series_many(F, G, q, T)
+    else:
+        Phi, Qk = discretize(F, q, T, G=G, method=discretization)
+    return F, G, Phi, Qk
+
+
 def _feedback_pairs(feedback):
     if feedback is None or feedback is False:
         return []
@@ -358,7 +383,7 @@ def _feedback_pairs(feedback):
 
 def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=None,
         max_block=10.0, model_every=10.0, discretization="series", progress=False,
-        label="fusion", lag_tol=1e-6, history=None) -> DriverResult:
+        label="fusion", lag_tol=1e-6, model_eval="compiled", history=None) -> DriverResult:
     """Run the filter beside the streams and apply the measurements (see the module notes).
 
     Parameters
@@ -390,6 +415,13 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
         Show a progress bar on a terminal.
     lag_tol : float
         Tolerance [s] matching a lagged item to a stored epoch.
+    model_eval : {"compiled", "numpy"}
+        ``"compiled"``: F, G (and the series Φ, Q_k) from the compiled kernels of
+        :mod:`sinslab.nav.errstate_kernels` and
+        :func:`sinslab.estimation.linear.discretize_series_many` (models of
+        :mod:`sinslab.nav.errstate`; other models use numpy); ``"numpy"``: the readable
+        reference, ``model.matrices`` on :class:`~sinslab.nav.errstate.NavPoint` and
+        :func:`~sinslab.estimation.kalman.discretize`. Equal to rounding.
     history : sinslab.fusion.smoothing.History, optional
         Record the forward pass for :func:`sinslab.fusion.smoothing.smooth` (it is
         called after each prediction, after the measurements of an epoch and after
@@ -405,6 +437,8 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
     streams = list(streams)
     if not streams:
         raise ValueError("the driver needs at least one navigation stream")
+    if model_eval not in ("compiled", "numpy"):
+        raise ValueError(f"model_eval must be 'compiled' or 'numpy', got {model_eval!r}")
     lag = ExactReprocessing() if lag is None else lag
     lay = model.layout
     n = model.n
@@ -475,6 +509,13 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
     Phi_la = Q_la = None
     q = model.q
     nav_lag = nav_h if lag.corrected_nav else nav_pre
+    cprop = CompiledPropagation.of(model) if model_eval == "compiled" else None
+    prog = cprop.prog if cprop is not None else None
+    # one compiled loop per block (model, Φ, Q_k, prediction) unless Φ, Q_k or F must be kept
+    # (a history for smoothing records every Φ)
+    fused = (cprop is not None and discretization == "series" and filt._buf is None
+             and not filt.check and not keep_F and history is None)
+    stretch = None
 
     def epoch_rows(rows_list, w_list, f_list, k):
         return tuple(NavRow(rows_list[i][k], w_list[i][k], f_list[i][k]) for i in range(ns))
@@ -502,20 +543,26 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                         w_la, f_la = np.vstack([ws, lws]), np.vstack([fs, lfs])
                     else:
                         la_rows, w_la, f_la = rows[i][:-1], ws, fs
-                    C = A.quat_to_dcm(la_rows[:, :4])
-                    pts.append(es.NavPoint(la_rows[:, 7], la_rows[:, 9], la_rows[:, 4:7], C, f_la, w_la))
-                F, G = model.matrices(*pts)
-                Phi_la, Q_la = discretize(F, q, T, G=G, method=discretization)
+                    pts.append((la_rows, w_la, f_la))
+                if fused:
+                    stretch = tuple(np.ascontiguousarray(np.stack([p[c] for p in pts]))
+                                    for c in range(3))
+                else:
+                    F, G, Phi_la, Q_la = _model_stretch(model, prog, pts, q, T, discretization)
                 if keep_F:
                     F_h[la0:la_end] = F
                     Qc_h[la0:la_end] = (G * q) @ np.swapaxes(G, -1, -2)
-            sl = slice(e0 - la0, e1 - la0)
-            if history is None:
-                filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
-                                  x_out=x_h[e0 + 1:e1 + 1])
+            if fused:
+                cprop.predict(filt, stretch, e0 - la0, e1 - la0, T, sig_h[e0 + 1:e1 + 1],
+                              x_h[e0 + 1:e1 + 1])
             else:
-                history.predict(filt, Phi_la[sl], Q_la[sl], T, e0, sig_h[e0 + 1:e1 + 1],
-                                x_h[e0 + 1:e1 + 1])
+                sl = slice(e0 - la0, e1 - la0)
+                if history is None:
+                    filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
+                                      x_out=x_h[e0 + 1:e1 + 1])
+                else:
+                    history.predict(filt, Phi_la[sl], Q_la[sl], T, e0, sig_h[e0 + 1:e1 + 1],
+                                    x_h[e0 + 1:e1 + 1])
             for i, s in enumerate(streams):
                 _, ws, fs = blk[i]
                 nav_h[i][e0 + 1:e1 + 1] = rows[i][1:]

@@ -62,13 +62,18 @@ class FeedbackLayout:
     accel_scale: object = None
 
     def indices(self, n):
-        """All fed-back state indices, sorted, as an int array."""
-        out = []
-        for s in (self.att, self.vel, self.pos, self.gyro, self.accel, self.gyro_scale,
-                  self.accel_scale, *self.other):
-            if s is not None:
-                out.extend(_states(s, n))
-        return np.array(sorted(set(out)), dtype=np.int64)
+        """All fed-back state indices, sorted, as a read-only int array."""
+        cache = self.__dict__.setdefault("_indices", {})   # asked at every feedback
+        if n not in cache:
+            out = []
+            for s in (self.att, self.vel, self.pos, self.gyro, self.accel, self.gyro_scale,
+                      self.accel_scale, *self.other):
+                if s is not None:
+                    out.extend(_states(s, n))
+            idx = np.array(sorted(set(out)), dtype=np.int64)
+            idx.setflags(write=False)
+            cache[n] = idx
+        return cache[n]
 
     def split(self, x):
         """Dict of the blocks of ``x`` (absent blocks omitted)."""

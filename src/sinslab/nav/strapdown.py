@@ -494,6 +494,9 @@ def _check_nsub(nsub) -> int:
 def _bias3(b, name) -> np.ndarray:
     if b is None:
         return np.zeros(3)
+    if type(b) is np.ndarray and b.shape == (3,) and b.dtype == np.float64 and \
+            math.isfinite(b[0]) and math.isfinite(b[1]) and math.isfinite(b[2]):
+        return b
     a = np.asarray(b, dtype=float).reshape(-1)
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be 3 finite numbers (body frame), got {b!r}")
@@ -650,7 +653,7 @@ def step(state: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float, nsub:
     if dth.ndim != 2 or dth.shape[1] != 3 or dvl.shape != dth.shape:
         raise ValueError(f"dtheta and dv must both have shape (n, 3), got {dth.shape} and {dvl.shape}")
     dt = float(dt)
-    if not (np.isfinite(dt) and dt > 0):
+    if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite number > 0 s, got {dt!r}")
     n = dth.shape[0]
     nupd = n // nsub

@@ -14,6 +14,10 @@ import math
 import numpy as np
 from numba import njit
 
+from sinslab.core.jitnotice import install as _compile_notice
+
+_compile_notice()   # a status line while the kernels below compile (first run)
+
 
 def _ziggurat_tables():
     """Layer tables of the 256-layer normal ziggurat (r = 3.6541528853610088, v = 4.928673e-3)."""

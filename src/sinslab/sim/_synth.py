@@ -614,8 +614,8 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         swd[jj] = sw[jj] * dt
     nbp = bp.shape[0]
     tol = 1e-9 * dt
-    je = 0          # piece of the newest evaluated epoch
-    jn = 0          # piece of the newest fallback node
+    je = np.int64(0)  # piece of the newest evaluated epoch (typed, not a literal: one compiled _kinematics)
+    jn = np.int64(0)  # piece of the newest fallback node
     bi = 1          # first breakpoint after the current fallback sub-interval start
     bq = 1          # first breakpoint after the stencil start
     chk = 0.0
@@ -626,7 +626,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     for K0 in range(0, n, B):
         nk = min(B, n - K0)
         if K0 == 0:
-            je = _kinematics(0, nk + hi, ib, dt, has_mount, bp, base, flag, plo, phi, act,
+            je = _kinematics(K0, nk + hi, ib, dt, has_mount, bp, base, flag, plo, phi, act,
                              ttype, tch, tta, tpar, K, cache, tc, je)
             enew = ib
         else:

@@ -76,17 +76,31 @@ def _compute(path, fmt, window, echo, read_kw) -> Output:
         if f.tau.size == tab["tau_s"].size:
             tab[f"{f.name.replace(' ', '_')}_adev_ug"] = f.adev / units.ug
     tables = [Series("allan", tab, "overlapping Allan deviation per axis")]
-    fig, axes = plotting.figure(1, 2, sharex=False, width=11.0, row_height=4.2)
+    fig, axes = plotting.figure(1, 2, sharex=False, width=11.0, row_height=4.6)
     for ax, fits, sc, unit in ((axes[0], res.gyro, units.dph, "deg/h"), (axes[1], res.accel, units.ug, "ug")):
         for f, c in zip(fits, plotting.COLORS):
             ax.loglog(f.tau, f.adev / sc, "-", color=c, lw=1.2, label=f.name)
-            ax.loglog(f.tau, f.fit / sc, ":", color=c, lw=1)
+            # the reported terms, not an overall fit: N/√τ (σ(1 s) = N) and K·√(τ/3)
+            ax.loglog(f.tau, f.n_white / np.sqrt(f.tau) / sc, "--" if not f.n_is_bound else ":",
+                      color=c, lw=1)
+            if f.rrw > 0:
+                ax.loglog(f.tau, f.rrw * np.sqrt(f.tau / 3.0) / sc, "-.", color=c, lw=0.8)
             ax.plot([f.tau_floor], [f.floor / sc], "o", color=c, ms=4)
+        ax.plot([], [], "k--", lw=1, label="N/√τ (white noise)")
+        ax.plot([], [], "k:", lw=1, label="N/√τ, N an upper bound")
+        ax.plot([], [], "k-.", lw=0.8, label="K·√(τ/3) (rate random walk)")
+        ax.plot([], [], "ko", ms=4, label="floor = 0.664·B")
         ax.set_xlabel("cluster time τ [s]")
         ax.set_ylabel(f"Allan deviation [{unit}]")
-        ax.legend(fontsize=8)
-    fig.suptitle("Overlapping Allan deviation (dotted: fitted N/τ, B, K terms; dots: floor)")
-    figures = [Figure("allan", fig, "Allan deviation of each gyro and accelerometer axis, with the fit.")]
+        # below the axes: the curves fill every corner of the log-log panel
+        ax.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.14))
+    fig.suptitle("Overlapping Allan deviation and the reported noise terms")
+    figures = [Figure("allan", fig, "Allan deviation of each gyro and accelerometer axis with the "
+                      "terms the report gives: the N/√τ line, the floor (bias instability B) and "
+                      "the K·√(τ/3) line. Where base motion or dither adds a hump the noise "
+                      "model has no term for (the horizontal axes of a vehicle that sways), N "
+                      "is the upper bound min σ·√τ: its dotted line touches the curve once and "
+                      "lies below it elsewhere, by construction.")]
     notes = ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
              "imu_errors.toml: paste into a simulation config ([imu] table).", toml]
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures,

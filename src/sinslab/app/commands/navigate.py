@@ -92,6 +92,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
              csv_rate=1.0, smo=None) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
+    from sinslab.app.described import navigate_claims
     from sinslab.data import guess_imu_format, load_imu, read_fixes
 
     fmt_eff = fmt or guess_imu_format(imu_path)
@@ -204,6 +205,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     metrics["fixes_after_grid"] = int(res.init.get("fixes_after_grid", 0))
     metrics["filter_gyro_arw_deg_sqrth"] = (np.asarray(res.init["filter_gyro_arw"]) / (units.deg / 60)).tolist()
     metrics["filter_accel_vrw_ug_sqrthz"] = (np.asarray(res.init["filter_accel_vrw"]) / units.ug).tolist()
+    claims, extra = navigate_claims(
+        res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
+        np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T))
+    metrics.update(extra)
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
                        time_sync_offset_estimate_s=sync["offset_estimate"],
@@ -301,8 +306,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
     axes[1].semilogy(ts_, sig[:, i_gb] / units.dph, lw=1)
     axes[1].set_ylabel("gyro bias σ [deg/h]")
+    axes[1].legend(["x", "y", "z"], fontsize=8)
     axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
     axes[2].set_ylabel("accel bias σ [ug]")
+    axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
     figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
     if res.smoothed is not None:
@@ -334,7 +341,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
                                     "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  value=(res, fx))
+                  value=(res, fx), claims=claims)
 
 
 # ------------------------------------------------------- smoothing and odometer ---

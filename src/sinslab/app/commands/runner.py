@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import os
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -42,6 +43,7 @@ from typing import Any, Callable
 from sinslab import __version__
 from sinslab.app.errors import CliError, user_errors
 from sinslab.app.outputs import Figure, RunDir, default_out_dir
+from sinslab.app.publish import complete_timed, write_figures
 from sinslab.core.toml import dump_toml
 
 __all__ = ["Command", "Output", "Series", "Figure", "run_command", "command_summary", "cli_call"]
@@ -93,17 +95,25 @@ class Output:
     files: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     value: Any = None
+    #: :class:`sinslab.experiments.base.Claim` s the command checked (none: no claims section)
+    claims: list = field(default_factory=list)
 
 
 def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metrics: dict,
-                    notes=(), claims=(), paper: str = "") -> dict:
+                    notes=(), claims=(), paper: str = "", timing: dict | None = None) -> dict:
     """The ``summary.json`` of a command: the keys of every run folder (``experiment``,
-    ``sinslab_version``, ``config``, ``metrics``, ``claims``) plus what the report needs."""
-    return {"experiment": command, "sinslab_version": __version__, "config": config,
-            "metrics": metrics, "claims": list(claims), "purpose": purpose, "paper": paper,
+    ``sinslab_version``, ``config``, ``metrics``, ``claims``) plus what the report needs
+    (units and descriptions of the metrics, the command line that re-runs it)."""
+    from sinslab.app.described import invocation, metric_info
+
+    return {"experiment": command, "kind": "command", "sinslab_version": __version__,
+            "config": config, "metrics": metrics,
+            "claims": [c.as_dict() if hasattr(c, "as_dict") else c for c in claims],
+            "purpose": purpose, "paper": paper,
             "quick": False, "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "metric_info": {}, "figures": rd.figure_files, "series": rd.series_info, "tables": [],
-            "notes": list(notes)}
+            "metric_info": metric_info(command, metrics), "figures": rd.figure_files,
+            "series": rd.series_info, "tables": [], "notes": list(notes),
+            "rerun": invocation(), "timing": timing or {}}
 
 
 def _close(figures) -> None:
@@ -125,7 +135,9 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
     out = Path(out) if out is not None else default_out_dir(command.name)
     rd = RunDir(out, command.name)
     rd.check()
+    t0 = time.perf_counter()
     res = compute()
+    timing = {"compute_s": time.perf_counter() - t0}
     if not isinstance(res, Output):
         raise TypeError(f"the compute function of {command.name!r} must return an Output, "
                         f"got {type(res).__name__}")
@@ -136,18 +148,21 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
                       + dump_toml(res.config))
         for name, text in res.files.items():
             rd.write_text(name, text)
+        t1 = time.perf_counter()
         for t in res.tables:
             if t.csv_every is None:
                 rd.write_table(t.name, t.data, t.description)
             else:
                 rd.write_table(t.name, t.data, t.description, csv_every=t.csv_every)
-        for f in res.figures:
-            written += 1
-            rd.write_figure(f.name, f.fig, f.caption)
+        t2 = time.perf_counter()
+        write_figures(rd, res.figures)
+        written = len(res.figures)
+        timing.update(series_s=t2 - t1, figures_s=time.perf_counter() - t2)
     finally:
         _close(res.figures[written:])
-    summary = rd.complete(command_summary(rd, command.name, command.purpose, res.config,
-                                          res.metrics, res.notes, paper=command.paper))
+    summary = complete_timed(rd, command_summary(rd, command.name, command.purpose, res.config,
+                                                 res.metrics, res.notes, res.claims,
+                                                 paper=command.paper, timing=timing))
     echo(f"  -> {out}")
     return summary, res
 

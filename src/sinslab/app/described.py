@@ -1,0 +1,239 @@
+"""What the recorded-data commands' metrics mean, the claims ``navigate`` checks, and the
+command line that re-runs a command.
+
+The commands (``navigate``, ``allan``, ``align``) name their metrics with a unit suffix
+(``_m``, ``_deg``, ``_dph``, ...). :func:`metric_info` turns the suffix into the unit
+printed by the report and picks a one-line description from :data:`DESCRIPTIONS`
+(regular expressions over the metric name, first match wins).
+
+:func:`navigate_claims` checks a recorded-data navigation against what a consistent
+filter must show: the normalised innovation squared (NIS) averages the measurement
+dimension, and the solution stays within a few fix σ of the fixes it used.
+
+:func:`invocation` rebuilds the command line of the running CLI command from its parsed
+parameters (paths made absolute), so the report can print a line that re-runs it from
+any folder.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import shlex
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["UNIT_SUFFIX", "DESCRIPTIONS", "metric_info", "navigate_claims", "invocation"]
+
+#: Metric-name suffix -> unit printed in the report (longest suffix first).
+UNIT_SUFFIX = (
+    ("_deg_per_h", "deg/h"), ("_deg_sqrth", "deg/sqrt(h)"), ("_ug_sqrthz", "ug/sqrt(Hz)"), ("_dphpsh", "deg/h/sqrt(h)"), ("_ugpsHz", "ug/sqrt(Hz)"),
+    ("_ugpsh", "ug/sqrt(h)"), ("_dpsh", "deg/sqrt(h)"), ("_arcmin", "arcmin"),
+    ("_arcsec", "arcsec"), ("_dph", "deg/h"), ("_mps", "m/s"), ("_ppm", "ppm"), ("_deg", "deg"),
+    ("_mps2", "m/s²"), ("_ug", "ug"), ("_mg", "mg"), ("_m", "m"), ("_s", "s"), ("_hz", "Hz"),
+)
+
+_AX = r"(gyro|accel)_([xyz])"
+#: ``{command: [(regex, description), ...]}``; ``{0}``, ``{1}`` are the regex groups.
+DESCRIPTIONS = {
+    "allan": [
+        (rf"^{_AX}_arw_dpsh$", "{0} {1}: angle random walk N (Allan deviation at τ = 1 s of the fitted −1/2 slope)"),
+        (rf"^{_AX}_vrw_ugpsHz$", "{0} {1}: velocity random walk N (Allan deviation at τ = 1 s of the fitted −1/2 slope)"),
+        (rf"^{_AX}_bias_instability_(dph|ug)$", "{0} {1}: bias instability B = Allan floor / 0.664 (IEEE 952)"),
+        (rf"^{_AX}_tau_floor_s$", "{0} {1}: cluster time τ of the Allan floor"),
+        (rf"^{_AX}_rrw_(dphpsh|ugpsh)$", "{0} {1}: rate random walk K (fitted +1/2 slope at τ = 3 s)"),
+    ],
+    "align": [
+        (r"^(\w+?)_(pitch|roll|heading)_deg$", "{0} alignment: {1} (heading clockwise from north)"),
+        (r"^(\w+?)_sigma_(pitch|roll|heading)_arcmin$", "{0} alignment: 1σ of {1}"),
+        (r"^limit_(pitch|roll|heading)_arcmin$", "limit accuracy of the {0} alignment for the assumed sensor biases"),
+        (r"^f_norm_mps2$", "mean specific force magnitude over the window"),
+        (r"^gravity_mps2$", "normal gravity at the stated latitude and height"),
+        (r"^w_norm_over_wie$", "mean angular rate magnitude / Earth rate (≈1 at rest)"),
+        (r"^f_var_rms_mps2$", "RMS of the specific-force variation over the window (vibration)"),
+        (r"^meas_noise_ug$", "measurement noise σ of the fine alignment's level specific-force measurement"),
+        (r"^nis_mean$", "mean normalised innovation squared of the fine alignment (expected: the measurement dimension)"),
+        (r"^duration_s$", "length of the aligned window"),
+    ],
+    "transfer-align": [
+        (r"^mounting_arcmin_(\w+)$", "estimated mounting x, y, z (slave relative to master), {0}"),
+        (r"^mounting_sigma_arcmin_(\w+)$", "1σ of the mounting estimate, {0}"),
+        (r"^gyro_bias_dph_(\w+)$", "estimated slave gyro biases x, y, z, {0}"),
+        (r"^gyro_bias_sigma_dph_(\w+)$", "1σ of the slave gyro bias estimate, {0}"),
+        (r"^accel_bias_mg_(\w+)$", "estimated slave accelerometer biases x, y, z, {0}"),
+        (r"^accel_bias_sigma_mg_(\w+)$", "1σ of the slave accelerometer bias estimate, {0}"),
+        (r"^ref_mounting_arcmin$", "the file's reference mounting x, y, z"),
+        (r"^ref_gyro_bias_dph$", "the file's reference slave gyro biases x, y, z"),
+        (r"^ref_accel_bias_mg$", "the file's reference slave accelerometer biases x, y, z"),
+    ],
+    "navigate": [
+        (r"^duration_s$", "navigated time span"),
+        (r"^n_fixes_used$", "fixes applied by the filter"),
+        (r"^n_outages$", "simulated fix outages"),
+        (r"^outage_end_hz_err_median_m$", "horizontal error at the end of the outages, median"),
+        (r"^outage_end_hz_err_max_m$", "horizontal error at the end of the outages, largest"),
+        (r"^outage_end_hz_err_m$", "horizontal error at the end of each outage"),
+        (r"^hz_err_with_fixes_median_m$", "horizontal solution − fix difference outside outages, median"),
+        (r"^hz_err_with_fixes_max_m$", "horizontal solution − fix difference outside outages, largest"),
+        (r"^hz_err_with_fixes_median_over_sigma$", "median of horizontal solution − fix over the fixes' stated horizontal σ"),
+        (r"^nis_mean$", "mean normalised innovation squared of the applied fixes (expected: measurement dimension)"),
+        (r"^nis_dof$", "measurement dimension of a fix (3 position, 6 position + velocity)"),
+        (r"^final_(pitch|roll|heading)_deg$", "{0} at the end (heading clockwise from north)"),
+        (r"^final_sigma_heading_deg$", "filter 1σ of the heading at the end"),
+        (r"^gyro_bias_final_dph$", "estimated gyro biases x, y, z at the end"),
+        (r"^gyro_bias_sigma_final_dph$", "filter 1σ of the gyro biases x, y, z at the end"),
+        (r"^accel_bias_final_ug$", "estimated accelerometer biases x, y, z at the end"),
+        (r"^accel_bias_sigma_final_ug$", "filter 1σ of the accelerometer biases x, y, z at the end"),
+        (r"^initial_heading_deg$", "heading the filter started from (clockwise from north)"),
+        (r"^imu_gaps$", "gaps in the IMU record bridged with the mean rate"),
+        (r"^time_sync_offset_s$", "IMU time-stamp offset applied (estimated from turns)"),
+        (r"^time_sync_ppm$", "IMU clock drift applied (estimated from turns)"),
+        (r"^time_sync_offset_estimate_s$", "IMU time-stamp offset estimated from turns"),
+        (r"^time_sync_offset_sigma_s$", "1σ of the time-stamp offset estimate"),
+        (r"^time_sync_ppm_estimate$", "IMU clock drift estimated from turns [ppm]"),
+        (r"^time_sync_ppm_sigma$", "1σ of the clock drift estimate [ppm]"),
+        (r"^time_sync_offset_applied$", "whether the offset was applied (significant at 3σ)"),
+        (r"^time_sync_ppm_applied$", "whether the clock drift was applied"),
+        (r"^initial_heading_sigma_deg$", "1σ of the initial heading (from the fix course window)"),
+        (r"^fixes_after_grid$", "fixes after the last whole filter step, not used"),
+        (r"^filter_gyro_arw_deg_sqrth$", "gyro angle random walk x, y, z the filter assumed"),
+        (r"^filter_accel_vrw_ug_sqrthz$", "accelerometer velocity random walk x, y, z the filter assumed"),
+        (r"^lever_arm_estimate_m$", "estimated antenna lever arm (vehicle right, forward, up)"),
+        (r"^lever_arm_sigma_m$", "1σ of the lever-arm estimate"),
+        (r"^rest_intervals$", "rest intervals used for zero-velocity updates"),
+        (r"^rest_total_s$", "total time at rest used for zero-velocity updates"),
+        (r"^scale_factor_final_ppm$", "estimated gyro x, y, z and accelerometer x, y, z scale factors at the end"),
+    ],
+}
+
+
+def _unit(name: str) -> str:
+    for suf, unit in UNIT_SUFFIX:
+        if name.endswith(suf):
+            return unit
+    for suf, unit in UNIT_SUFFIX:                     # unit inside: mounting_arcmin_kain
+        if f"{suf}_" in name:
+            return unit
+    return ""
+
+
+def metric_info(command: str, metrics: dict) -> dict:
+    """``{name: {"unit", "description"}}`` for the metrics of ``command``."""
+    rules = DESCRIPTIONS.get(command, [])
+    out = {}
+    for name in metrics:
+        desc = ""
+        for rx, text in rules:
+            m = re.match(rx, name)
+            if m:
+                desc = text.format(*m.groups())
+                break
+        unit = _unit(name)
+        if name.endswith("_ppm"):
+            unit = "ppm"
+        out[name] = {"unit": unit, "description": desc}
+    if "runtime_s" in metrics:
+        out["runtime_s"] = {"unit": "s", "description": "wall time of the computation"}
+    return out
+
+
+# ------------------------------------------------------------------------- navigate ------
+#: Band for the mean NIS around the measurement dimension m: a factor of 2 either way is
+#: a fix noise model off by √2 in σ, the point where a filter on recorded data is
+#: mistuned (a consistent filter gives m within a few percent over hundreds of fixes).
+NIS_FACTOR = 2.0
+#: Solution − fix allowed, in units of the consistent value: after an update the residual's
+#: variance is R − HPHᵀ <= R, so the median of |horizontal residual| / σ_h is at most
+#: √(ln 2) (Rayleigh median); three times that leaves room for σ stated somewhat too small.
+#: The median, not the RMS: the first fixes after an outage carry the coasted error.
+FIX_RESIDUAL_SIGMAS = 3.0
+
+
+def navigate_claims(nis, dof: int, hz_err_with_fixes, fix_sigma_h) -> tuple[list, dict]:
+    """Claims of a recorded-data navigation; returns ``(claims, extra metrics)``.
+
+    Parameters
+    ----------
+    nis : array (J,)
+        Normalised innovation squared of each applied fix.
+    dof : int
+        Measurement dimension of one fix (3 position, 6 position + velocity).
+    hz_err_with_fixes : array (K,) [m]
+        Horizontal solution − fix difference at the fix times outside outages (the first
+        fixes after an outage included: the median is not moved by them).
+    fix_sigma_h : array (K,) [m]
+        The same fixes' stated horizontal σ (root sum of squares of east and north σ).
+    """
+    from sinslab.app.claims import Claim
+
+    nis = np.asarray(nis, float)
+    nis = nis[np.isfinite(nis)]
+    mean_nis = float(np.mean(nis)) if nis.size else float("nan")
+    claims = [Claim(
+        "nis_consistent",
+        f"the filter's fix noise model is consistent: mean NIS of the {nis.size} applied fixes "
+        f"equals the measurement dimension {dof} within a factor {NIS_FACTOR:g}",
+        mean_nis, [dof / NIS_FACTOR, dof * NIS_FACTOR],
+        bool(nis.size and dof / NIS_FACTOR <= mean_nis <= dof * NIS_FACTOR), relation="between")]
+    e = np.asarray(hz_err_with_fixes, float)
+    s = np.asarray(fix_sigma_h, float)
+    ok = np.isfinite(e) & np.isfinite(s) & (s > 0)
+    ratio = float(np.median(e[ok] / s[ok])) if ok.any() else float("nan")
+    limit = FIX_RESIDUAL_SIGMAS * math.sqrt(math.log(2.0))
+    claims.append(Claim.at_most(
+        "fix_residual",
+        "the solution follows the fixes it uses: median of horizontal solution − fix (outside "
+        "outages) in units of the fixes' stated horizontal σ; a consistent filter gives at most "
+        f"√(ln 2) = 0.83 (Rayleigh median), allowed {FIX_RESIDUAL_SIGMAS:g}× that", ratio, limit, "σ"))
+    return claims, {"nis_dof": int(dof), "hz_err_with_fixes_median_over_sigma": ratio}
+
+
+# ------------------------------------------------------------------------- invocation ----
+def invocation() -> str | None:
+    """The CLI line of the running click/typer command, paths absolute; None outside the CLI.
+
+    Rebuilt from the parsed parameters (not ``sys.argv``), so it is the same whether the
+    command was started from a shell or a test runner; options left at their default are
+    omitted.
+    """
+    import importlib
+
+    ctx = None
+    for pkg in ("typer._click", "click"):            # typer >= 0.2x vendors its own click
+        try:
+            glob = importlib.import_module(f"{pkg}.globals")
+        except ImportError:
+            continue
+        ctx = glob.get_current_context(silent=True)
+        if ctx is not None:
+            break
+    if ctx is None:
+        return None
+    words = ["sinslab", ctx.info_name] if ctx.parent is not None else ["sinslab"]
+    for p in ctx.command.params:
+        if p.name not in ctx.params:
+            continue
+        v = ctx.params[p.name]
+        if getattr(p, "param_type_name", "") == "argument":
+            words += [_word(x) for x in (v if isinstance(v, (list, tuple)) else [v]) if x is not None]
+            continue
+        if v is None or v == p.default or p.name in ("help", "install_completion", "show_completion"):
+            continue
+        opt = max(p.opts, key=len)
+        if getattr(p, "is_flag", False):
+            if isinstance(v, bool):
+                if v:
+                    words.append(opt)
+                elif p.secondary_opts:
+                    words.append(p.secondary_opts[0])
+            continue
+        for x in (v if getattr(p, "multiple", False) else [v]):
+            words += [opt, _word(x)]
+    return shlex.join(str(w) for w in words)
+
+
+def _word(v) -> str:
+    if isinstance(v, os.PathLike):
+        return str(Path(v).absolute())
+    return str(v)

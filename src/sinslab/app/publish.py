@@ -1,0 +1,204 @@
+"""Writing a run's figures and report, timed: the run folder must cost less than the run.
+
+:func:`write_figures` thins every long line of a figure to what its pixels can show
+(:func:`sinslab.app.plotting.thin_lines`, min/max per pixel column, so the drawn envelope
+is the full data's) before saving it as PNG and SVG; the full-rate data stay in the
+series files. :func:`complete_timed` renders the report once to time it, records the
+stage times in ``summary["timing"]`` and completes the run folder.
+"""
+from __future__ import annotations
+
+import os
+import time
+
+#: At most this many worker processes draw figures at once.
+MAX_FIGURE_PROCESSES = 4
+
+__all__ = ["render_figure", "write_figures", "complete_timed", "describe_series", "write_series"]
+
+
+def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
+    """``(png, svg)`` bytes of a matplotlib figure, laid out once.
+
+    The figure's layout engine (constrained layout) runs for the PNG and is then frozen,
+    so the SVG reuses the same axes positions instead of laying the figure out again; no
+    ``bbox_inches="tight"`` pass (it draws the whole figure once more only to measure it).
+    """
+    import io
+
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.backends.backend_svg import FigureCanvasSVG
+
+    # The canvases' print methods draw exactly once each; ``savefig`` would add a
+    # layout-only draw before every format.
+    png, svg = io.BytesIO(), io.BytesIO()
+    fig.set_dpi(dpi)
+    # zlib level 3: faster to encode than the default 6, files about 10 % larger
+    FigureCanvasAgg(fig).print_png(png, pil_kwargs={"compress_level": 3})
+    if fig.get_layout_engine() is not None:
+        fig.set_layout_engine("none")
+    # text as <text> elements rather than glyph outlines: less to write, searchable labels
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        FigureCanvasSVG(fig).print_svg(svg)
+    return png.getvalue(), svg.getvalue()
+
+
+#: Figures waiting to be rendered by forked workers (read by :func:`_render_one` in the
+#: child, which inherits this module's state at fork time).
+_PENDING: list = []
+
+
+def _worker_signals():
+    """A drawing worker leaves Ctrl-C to the run and ends quietly when told to."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _render_one(args):
+    i, dpi = args
+    return render_figure(_PENDING[i].fig, dpi)
+
+
+def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
+    """PNG and SVG bytes of every figure, in order; in forked worker processes when there
+    are several figures and cores (drawing is pure Python and holds the GIL, so threads
+    would not help), serially otherwise or if the workers cannot be used."""
+    global _PENDING
+    import multiprocessing as mp
+
+    n = min(len(figures), os.cpu_count() or 1, MAX_FIGURE_PROCESSES)
+    if n >= 2 and "fork" in mp.get_all_start_methods():
+        _PENDING = list(figures)
+        pool = None
+        try:
+            pool = mp.get_context("fork").Pool(n, initializer=_worker_signals)
+            images = pool.map(_render_one, [(i, dpi) for i in range(len(figures))], chunksize=1)
+            pool.close()                             # let the workers end on their own
+            pool.join()
+            pool = None
+            return images
+        except (OSError, mp.ProcessError, RuntimeError):
+            pass                                     # no processes here: draw in this one
+        finally:
+            _PENDING = []
+            if pool is not None:                      # interrupted or failed: stop them
+                pool.terminate()
+    return [render_figure(f.fig, dpi) for f in figures]
+
+
+def _ensure_title(f) -> None:
+    """Give a figure without a title (suptitle) one, from its caption's first sentence, so
+    every figure of a report carries its title the same way."""
+    fig = f.fig
+    if getattr(fig, "_suptitle", None) is not None and fig._suptitle.get_text():
+        return
+    text = (f.caption or f.name).strip()
+    for sep in (". ", "; ", ": "):
+        text = text.split(sep)[0]
+    text = text.rstrip(".")
+    if len(text) > 90:
+        text = text[:90].rsplit(" ", 1)[0] + " …"
+    fig.suptitle(text)
+
+
+def write_figures(rd, figures, dpi: int = 110) -> list[dict]:
+    """Save ``figures`` (:class:`sinslab.app.outputs.Figure`) into the run folder ``rd`` as
+    ``NAME.png`` and ``NAME.svg``, in order; return their summary entries.
+
+    A figure without a title gets one from its caption; lines are thinned to the figure's
+    pixel columns (see the module notes); the figures are drawn concurrently when there
+    are several (:func:`_render_all`).
+    """
+    if not figures:
+        return []
+    from sinslab.app.plotting import thin_lines
+
+    try:
+        for f in figures:
+            _ensure_title(f)
+            thin_lines(f.fig, dpi)
+        images = _render_all(figures, dpi)
+    finally:
+        for f in figures:
+            if getattr(f.fig.canvas, "manager", None) is not None:
+                import matplotlib.pyplot as plt
+                plt.close(f.fig)
+    out = []
+    for f, (png, svg) in zip(figures, images):
+        info = {"name": f.name, "caption": f.caption, "png": f"{f.name}.png", "svg": f"{f.name}.svg"}
+        rd.write_bytes(info["png"], png)
+        rd.write_bytes(info["svg"], svg)
+        rd.figure_files.append(info)
+        out.append(info)
+    return out
+
+
+def complete_timed(rd, summary: dict) -> dict:
+    """Time the report of ``summary``, record it in ``summary["timing"]["report_s"]``, then
+    write ``summary.json`` and ``report.html`` and mark the run complete."""
+    from sinslab.app import report
+
+    t0 = time.perf_counter()
+    report.render(rd.path, summary=summary)
+    summary.setdefault("timing", {})["report_s"] = time.perf_counter() - t0
+    return rd.complete(summary)
+
+
+#: Column-name suffix -> what it says about the unit (the series' naming convention).
+_SUFFIX_UNITS = (("_arcmin", "arcmin"), ("_arcsec", "arcsec"), ("_mps", "m/s"), ("_dph", "deg/h"),
+                 ("_deg", "deg"), ("_ug", "µg"), ("_m", "m"), ("_s", "s"))
+
+
+def describe_series(name: str, table) -> str:
+    """A one-line description of a time-series table from its columns (name suffixes carry
+    the units): "8 columns against t_s [s]: phiE_arcmin, ... (units: arcmin, deg/h)"."""
+    cols = [str(c) for c in (table.columns if hasattr(table, "columns") else table.keys())]
+    time_cols = [c for c in cols if c in ("t_s", "t", "time_s", "t_abs_s")]
+    data = [c for c in cols if c not in time_cols]
+    units = []
+    for c in data:
+        for suf, u in _SUFFIX_UNITS:
+            if c.endswith(suf) and u not in units:
+                units.append(u)
+                break
+    against = f" against {time_cols[0]} [s]" if time_cols else ""
+    shown = ", ".join(data[:6]) + (", …" if len(data) > 6 else "")
+    return (f"{name.replace('_', ' ')}: {len(data)} column(s){against} — {shown}"
+            + (f" (units in the column suffixes: {', '.join(units)})" if units else ""))
+
+
+def write_series(rd, name: str, table, description: str = "") -> dict:
+    """Write a time-series table into the run folder ``rd``; return its summary entry.
+
+    A dict of float columns that fits one CSV is formatted here with numpy, byte for byte
+    as ``pandas.DataFrame.to_csv(float_format="%.10g")`` writes it (NaN as an empty field),
+    so a run need not import pandas (half a second or more) only to write a small CSV;
+    anything else — integer or text columns, large tables (Parquet) — goes through
+    :meth:`sinslab.app.outputs.RunDir.write_table`.
+    """
+    import numpy as np
+
+    from sinslab.app.outputs import LARGE_ROWS
+
+    cols = None
+    if isinstance(table, dict) and table:
+        cols = {str(k): np.asarray(v) for k, v in table.items()}
+        n = {c.shape for c in cols.values()}
+        if (len(n) != 1 or len(next(iter(n))) != 1 or next(iter(n))[0] > LARGE_ROWS
+                or any(c.dtype.kind != "f" for c in cols.values())
+                or any(ch in k for k in cols for ch in ',"\n\r')):
+            cols = None
+    if cols is None:
+        return rd.write_table(name, table, description)
+    arr = np.column_stack([c.astype(float) for c in cols.values()])
+    text = np.char.mod("%.10g", arr)
+    text[np.isnan(arr)] = ""
+    body = "\n".join(",".join(row) for row in text.tolist())
+    rd.write_text(f"{name}.csv", ",".join(cols) + "\n" + (body + "\n" if len(arr) else ""))
+    info = {"name": name, "description": description, "rows": int(len(arr)),
+            "columns": list(cols), "csv": f"{name}.csv", "parquet": None, "csv_every": 1}
+    rd.series_info.append(info)
+    return info
