@@ -182,22 +182,22 @@ class History:
         self._slot[np.searchsorted(ep, special)] = np.arange(len(special))
         alloc = self._alloc
         self.x_post = alloc("x_post", (R1, n))
-        self.feedback = alloc("feedback", (R1, n))
-        self.feedback[:] = 0.0
+        self.feedback = alloc("feedback", (R1, n), zero=True)
         self.x_prior = alloc("x_prior", (R1 - 1, n))
         self.P_prior = alloc("P_prior", (R1 - 1, n, n))
         self.Phi = alloc("Phi", (R1 - 1, n, n))
         self.P_upd = alloc("P_upd", (len(special), n, n))
         self.x_post[0] = filt.x
         self.P_upd[0] = filt.P
+        self._direct = self.spill is None and self.dtype == np.float64
         self._next = 1                 # row of the next stored epoch to reach
         self._acc = np.eye(n)          # transition composed since the last stored epoch
         self._nacc = 0                 # steps composed in it
         self._W = np.empty((n, n))
 
-    def _alloc(self, name, shape):
+    def _alloc(self, name, shape, zero=False):
         if self.spill is None:
-            return np.empty(shape, dtype=self.dtype)
+            return (np.zeros if zero else np.empty)(shape, dtype=self.dtype)
         os.makedirs(self.spill, exist_ok=True)
         return np.lib.format.open_memmap(os.path.join(os.fspath(self.spill), name + ".npy"),
                                          mode="w+", dtype=self.dtype, shape=shape)
@@ -218,9 +218,13 @@ class History:
         stop = np.zeros(m, dtype=np.bool_)
         stop[ep[r0:r1] - e0 - 1] = True
         k = r1 - r0
-        Phi_o = np.empty((k, self.n, self.n))
-        Pp_o = np.empty((k, self.n, self.n))
-        xp_o = np.empty((k, self.n))
+        direct = self._direct
+        if direct:                     # in-memory float64: the kernel writes the rows in place
+            Phi_o, Pp_o, xp_o = self.Phi[r0 - 1:r1 - 1], self.P_prior[r0 - 1:r1 - 1], self.x_prior[r0 - 1:r1 - 1]
+        else:
+            Phi_o = np.empty((k, self.n, self.n))
+            Pp_o = np.empty((k, self.n, self.n))
+            xp_o = np.empty((k, self.n))
         if filt._buf is None and not filt.check:
             nzc = np.zeros((m, self.n, max(self.n, 1)), dtype=np.int64)
             nnz = np.zeros((m, self.n), dtype=np.int64)
@@ -243,9 +247,10 @@ class History:
                     self._nacc = 0
                 i = b
         if k:
-            self.Phi[r0 - 1:r1 - 1] = Phi_o
-            self.P_prior[r0 - 1:r1 - 1] = Pp_o
-            self.x_prior[r0 - 1:r1 - 1] = xp_o
+            if not direct:
+                self.Phi[r0 - 1:r1 - 1] = Phi_o
+                self.P_prior[r0 - 1:r1 - 1] = Pp_o
+                self.x_prior[r0 - 1:r1 - 1] = xp_o
             self.x_post[r0:r1] = xp_o
             sl = self._slot[r0:r1]
             has = sl >= 0
