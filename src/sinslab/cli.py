@@ -4,8 +4,13 @@ Commands: ``list``, ``run NAME``, ``config NAME``, ``report DIR``, ``demo --out 
 
 Errors a user can fix (bad config key or unit, unreadable file, unusable output folder,
 unknown experiment) print one line ``sinslab: error: ...`` on stderr and exit with
-status 2, before any output file is created. Ctrl-C or SIGTERM stops the run; files
-being written are discarded (exit 130 / 143). A bug prints its traceback (exit 1).
+status 2, before any output file is created. Ctrl-C or SIGTERM stops the run; the
+unfinished run is discarded and the output folder keeps what it held (exit 130 / 143).
+A bug prints its traceback (exit 1).
+
+Start-up is kept short: this module imports typer and nothing numerical; the command
+modules import numba, scipy, matplotlib, pandas and dask inside the functions that use
+them, and ``sinslab list`` reads the experiments' names without importing them.
 
 Adding a command (``navigate``, ``allan``, ``align``, ...): write a module in
 :mod:`sinslab.app.commands` whose compute function returns a
@@ -31,15 +36,55 @@ from pathlib import Path
 from typing import List, Optional
 
 import typer
+from typer.core import TyperGroup
+
+try:                                    # typer >= 0.20 carries its own copy of click
+    from typer._click import exceptions as _cx
+except ImportError:                     # pragma: no cover
+    from click import exceptions as _cx
 
 from sinslab import __version__
-from sinslab.app.config import config_to_toml, resolve
-from sinslab.app.errors import USER_ERRORS, CliError, user_errors
-from sinslab.app.outputs import RunDir, default_out_dir
+from sinslab.app.errors import USER_ERRORS, CliError, error_line, user_errors
+from sinslab.core.errors import InputError
 
 __all__ = ["app", "main", "user_errors", "CliError", "USER_ERRORS"]
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+class _OneLineUsageError(_cx.ClickException):
+    """A command-line usage error (bad option value, missing option) shown as one line."""
+
+    exit_code = 2
+
+    def show(self, file=None) -> None:
+        typer.echo(f"sinslab: error: {self.format_message()}", err=True)
+
+
+def _one_line(e: _cx.UsageError) -> _cx.ClickException:
+    if type(e).__name__ == "NoArgsIsHelpError":        # `sinslab` alone: the help page
+        return e
+    msg = e.format_message()
+    if e.ctx is not None and e.ctx.info_name and e.ctx.parent is not None:
+        msg = f"{e.ctx.info_name}: {msg}"
+    return _OneLineUsageError(msg)
+
+
+class _Group(TyperGroup):
+    """Usage errors of the command line as one line ``sinslab: error: ...`` (exit 2),
+    like every other bad input, instead of click's usage block."""
+
+    def make_context(self, *args, **kwargs):
+        try:
+            return super().make_context(*args, **kwargs)
+        except _cx.UsageError as e:
+            raise _one_line(e) from None
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except _cx.UsageError as e:
+            raise _one_line(e) from None
+
+
+app = typer.Typer(cls=_Group, add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   pretty_exceptions_enable=False,
                   help="sinslab: strapdown inertial navigation — experiments, runs and reports.")
 
@@ -48,7 +93,13 @@ def _err(msg: str) -> None:
     typer.echo(f"sinslab: error: {msg}", err=True)
 
 
+_QUIET = False
+
+
 def _log(msg: str) -> None:
+    """A progress line on stderr (not with ``--quiet``, except warnings)."""
+    if _QUIET and not msg.startswith("warning"):
+        return
     typer.echo(f"sinslab: {msg}", err=True)
 
 
@@ -59,13 +110,13 @@ def _version(value: bool):
 
 
 @app.callback()
-def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars"),
+def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars or progress lines"),
           version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
                                        help="print the version and exit")):
     """sinslab: strapdown inertial navigation — experiments, runs and reports."""
-    import matplotlib
-
-    matplotlib.use("Agg")
+    os.environ.setdefault("MPLBACKEND", "Agg")         # matplotlib is imported only when drawing
+    global _QUIET
+    _QUIET = bool(quiet)
     if quiet:
         from sinslab.core.progress import set_quiet
 
@@ -75,19 +126,20 @@ def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress b
 @app.command("list")
 def list_() -> None:
     """List the experiments and their one-line purpose."""
-    from sinslab.experiments import broken, registry
+    from sinslab.experiments import broken, catalog
 
-    reg = registry()
-    width = max((len(n) for n in reg), default=0)
-    for name, exp in reg.items():
-        typer.echo(f"{name.ljust(width)}  {exp.purpose}")
-    for mod, err in broken().items():
+    cat = catalog()
+    width = max((len(n) for n in cat), default=0)
+    for name, purpose in cat.items():
+        typer.echo(f"{name.ljust(width)}  {purpose}")
+    for mod, err in broken(load=False).items():
         _log(f"warning: experiment module {mod} failed to import ({err})")
     for mod, err in _BROKEN_COMMANDS.items():
         _log(f"warning: commands of {mod} failed to load ({err})")
 
 
 def _resolve(name, config, sets, seed, runs, quick):
+    from sinslab.app.config import resolve
     from sinslab.experiments import get
 
     exp = get(name)
@@ -120,15 +172,29 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
         runs: Optional[int] = typer.Option(None, "--runs", min=1, help="Monte Carlo runs (overrides config runs)"),
         scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address for Monte Carlo campaigns"),
         quick: bool = typer.Option(False, "--quick", help="shortened run for tests and demos"),
-        strict: bool = typer.Option(False, "--strict", help="exit status 1 if any claim fails")) -> None:
+        strict: bool = typer.Option(False, "--strict", help="exit status 1 if any claim fails"),
+        force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
     """Run an experiment; write config.toml, summary.json, series, figures, report.html."""
+    from sinslab.app.outputs import RunDir, default_out_dir
     from sinslab.experiments import execute
 
     with user_errors():
         exp, cfg = _resolve(name, config, set_, seed, runs, quick)
-        out = out if out is not None else default_out_dir(exp.name)
-        RunDir(out, exp.name).check()
-        summary = execute(exp, cfg, out, quick=quick, scheduler=scheduler, log=_log)
+        from sinslab.app.validate import check_memory, check_scheduler
+
+        check_memory(cfg)
+        if scheduler is not None:
+            check_scheduler(scheduler, exp, cfg)
+        if out is None:
+            out = default_out_dir(exp.name)
+        else:
+            RunDir(out, exp.name, command="run", force=force).check()
+        try:
+            summary = execute(exp, cfg, out, quick=quick, scheduler=scheduler, log=_log, force=force)
+        except InputError as e:                 # absurd values found while computing
+            given = [f"--set {x}" for x in (set_ or [])] + ([f"--config {config}"] if config else [])
+            raise CliError(f"{exp.name}: {error_line(e)}"
+                           + (f"; check the values given ({', '.join(given)})" if given else "")) from None
     _print_summary(summary, Path(out))
     if strict and not all(c["passed"] for c in summary["claims"]):
         raise typer.Exit(1)
@@ -140,6 +206,8 @@ def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment nam
             set_: Optional[List[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE"),
             quick: bool = typer.Option(False, "--quick", help="show the --quick configuration")) -> None:
     """Print the resolved configuration of an experiment as TOML (a starting point for --config)."""
+    from sinslab.app.config import config_to_toml
+
     with user_errors():
         exp, cfg = _resolve(name, config, set_, None, None, quick)
     typer.echo(config_to_toml(cfg, f"sinslab {__version__} — {exp.name}: {exp.purpose}"), nl=False)
@@ -161,19 +229,25 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
          only: Optional[List[str]] = typer.Option(None, "--only", help="run only these experiments")) -> None:
     """Run every registered experiment (full scale) into OUT/NAME and write OUT/index.html."""
     from sinslab.app import report as _report
+    from sinslab.app.config import resolve
+    from sinslab.app.outputs import RunDir, abort_all
     from sinslab.experiments import execute, get, registry
 
     done, failed = [], {}
     with user_errors():
         if out.exists() and not out.is_dir():
             raise CliError(f"output folder {out} exists and is a file")
+        idx_file = out / "index.html"
+        if idx_file.exists() and not _is_sinslab_index(idx_file):
+            raise CliError(f"{idx_file} exists and was not written by sinslab demo; "
+                           f"choose another --out (it is never overwritten)")
         names = list(only) if only else list(registry())
         exps = [get(n) for n in names]
         # every experiment's default scenario followed by its declared variants (NAME-suffix)
         jobs = [job for exp in exps for job in [(exp, exp.name, ())] + [
             (exp, f"{exp.name}-{suffix}", sets) for suffix, sets in exp.variants.items()]]
         for exp, label, _ in jobs:                         # check every folder first
-            RunDir(out / label, exp.name).check()
+            RunDir(out / label, exp.name, command="run").check()
         for exp, label, sets in jobs:
             cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=list(sets))
             what = f": {exp.name} with {', '.join(sets)}" if sets else ""
@@ -186,6 +260,7 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
             except Exception as e:                          # one broken experiment: go on
                 import traceback
 
+                abort_all()                                  # its folder keeps the previous run
                 traceback.print_exc()
                 failed[label] = f"{type(e).__name__}: {e}"
                 continue
@@ -195,6 +270,15 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
     typer.echo(f"index: {idx}")
     if failed:
         raise typer.Exit(1)
+
+
+def _is_sinslab_index(path: Path) -> bool:
+    """True if ``path`` is an index page written by ``sinslab demo``."""
+    try:
+        head = path.read_bytes()[:4096]
+    except OSError:
+        return False
+    return b"<title>sinslab runs</title>" in head
 
 
 #: Modules adding commands (``navigate``, ``allan``, ``align``, ...): each defines

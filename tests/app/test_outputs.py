@@ -1,5 +1,6 @@
 """Atomic writes and run-folder rules."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -49,11 +50,13 @@ def test_run_dir_rules(tmp_path):
     (tmp_path / "empty").mkdir()
     rd = RunDir(tmp_path / "empty", "x").prepare()
     assert (rd.path / MARKER).is_file()
+    rd.finish()
+    assert (tmp_path / "empty" / MARKER).is_file()
     # a foreign non-empty folder is refused, without writing anything
     foreign = tmp_path / "foreign"
     foreign.mkdir()
     (foreign / "thesis.tex").write_text("mine")
-    with pytest.raises(OutputDirError, match="not a previous sinslab run"):
+    with pytest.raises(OutputDirError, match="not a previous sinslab run.*--force"):
         RunDir(foreign, "x").prepare()
     assert [x.name for x in foreign.iterdir()] == ["thesis.tex"]
     # a file is refused
@@ -63,22 +66,69 @@ def test_run_dir_rules(tmp_path):
         RunDir(f, "x").check()
 
 
-def test_previous_run_is_overwritten_but_user_files_kept(tmp_path):
+def test_run_replaces_previous_run_only_when_finished(tmp_path):
     d = tmp_path / "run"
     rd = RunDir(d, "x").prepare()
+    assert not d.exists()                        # written in a staging folder next to it
     rd.write_text("old_only.txt", "stale")
     rd.write_json("summary.json", {"a": 1})
     rd.finish()
-    (d / "notes_by_user.txt").write_text("keep me")
-    (d / ".summary.json.tmp-1-abc").write_text("left by a killed run")
     marker = json.loads((d / MARKER).read_text())
-    assert marker["status"] == "complete" and "old_only.txt" in marker["files"]
+    assert marker["status"] == "complete" and marker["experiment"] == "x"
+    assert "old_only.txt" in marker["files"]
+    (d / ".summary.json.tmp-1-abc").write_text("left by a killed writer")
+    before = {p.name: p.read_bytes() for p in d.iterdir()}
     rd2 = RunDir(d, "x").prepare()
-    names = sorted(x.name for x in d.iterdir())
-    assert names == sorted([MARKER, "notes_by_user.txt"])
-    assert json.loads((d / MARKER).read_text())["status"] == "running"
     rd2.write_text("summary.json", "{}")
+    assert {p.name: p.read_bytes() for p in d.iterdir()} == before    # untouched until finish
     rd2.finish()
+    assert sorted(p.name for p in d.iterdir()) == [MARKER, "summary.json"]
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]
+
+
+def test_run_dir_refuses_other_runs_and_foreign_files(tmp_path):
+    d = tmp_path / "run"
+    rd = RunDir(d, "x").prepare()
+    rd.write_text("a.txt", "a")
+    rd.finish()
+    with pytest.raises(OutputDirError, match="holds a run of `x`, not `y`"):
+        RunDir(d, "y").check()
+    with pytest.raises(OutputDirError, match="holds a run of `run x`, not `navigate`"):
+        RunDir(_remark(d, "run"), "navigate", command="navigate").check()
+    (d / "thesis.tex").write_text("mine")
+    with pytest.raises(OutputDirError, match="'thesis.tex', not written by sinslab"):
+        RunDir(d, "x", command="run").check()
+    rd = RunDir(d, "x", force=True).prepare()
+    rd.write_text("b.txt", "b")
+    rd.finish()
+    assert sorted(p.name for p in d.iterdir()) == [MARKER, "b.txt"]
+    with pytest.raises(OutputDirError, match="never replaces"):
+        RunDir(Path.cwd(), "x", force=True).check()
+
+
+def _remark(d, command):
+    m = json.loads((d / MARKER).read_text())
+    m["command"] = command
+    (d / MARKER).write_text(json.dumps(m))
+    return d
+
+
+def test_default_out_dir_unique_within_a_second(tmp_path):
+    from sinslab.app.outputs import default_out_dir
+
+    made = {default_out_dir("x", tmp_path) for _ in range(5)}
+    assert len(made) == 5 and all(p.is_dir() for p in made)
+
+
+def test_aborted_run_leaves_nothing(tmp_path):
+    from sinslab.app.outputs import abort_all
+
+    abort_all()                                  # runs other tests left open
+    d = tmp_path / "a" / "b" / "run"
+    rd = RunDir(d, "x").prepare()
+    rd.write_text("a.txt", "a")
+    assert abort_all() == [f"nothing was written to {d}"]
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_tables_csv_and_parquet(tmp_path):

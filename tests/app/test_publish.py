@@ -19,14 +19,14 @@ def test_numpy_csv_equals_pandas_bytes(tmp_path):
     b = RunDir(tmp_path / "b", "x").prepare()
     ia = publish.write_series(a, "s", table, "d")
     ib = b.write_table("s", table, "d")                     # the pandas writer
-    assert (tmp_path / "a" / "s.csv").read_bytes() == (tmp_path / "b" / "s.csv").read_bytes()
+    assert (a.path / "s.csv").read_bytes() == (b.path / "s.csv").read_bytes()     # staged files
     assert ia == ib
 
 
 def test_other_tables_go_through_pandas(tmp_path):
     rd = RunDir(tmp_path / "r", "x").prepare()
     info = publish.write_series(rd, "s", {"n": np.arange(3), "v": [0.5, 1.5, 2.5]})
-    assert info["rows"] == 3 and (tmp_path / "r" / "s.csv").read_text().splitlines()[1] == "0,0.5"
+    assert info["rows"] == 3 and (rd.path / "s.csv").read_text().splitlines()[1] == "0,0.5"
 
 
 def test_minmax_decimation_keeps_the_envelope():

@@ -4,9 +4,9 @@ An error the user can fix (an unknown config key, a bad unit, an unreadable file
 output folder that may not be used, an unknown experiment) is a :class:`UserError` — a
 ``ValueError`` — or one of :data:`USER_ERRORS`. Inside :func:`user_errors` it becomes one
 line ``sinslab: error: ...`` on stderr and exit status 2. Ctrl-C becomes exit 130 and
-SIGTERM exit 143; both unwind the stack, so the atomic writers
-(:mod:`sinslab.core.atomic`) delete their temporary files and no half-written file is
-left under a final name. Anything else is a bug and keeps its traceback (exit 1).
+SIGTERM exit 143; both unwind the stack, the unfinished run is discarded (its staging
+folder removed, see :mod:`sinslab.app.outputs`) and the message says what the output
+folder holds: the previous run, unchanged, or nothing. Anything else is a bug and keeps its traceback (exit 1).
 
 Every command body (``sinslab run``, ``navigate``, ...) runs inside ``user_errors()``::
 
@@ -24,6 +24,7 @@ import signal
 
 import typer
 
+from sinslab.core.errors import InputError
 from sinslab.core.units import UnitError
 
 __all__ = ["UserError", "CliError", "USER_ERRORS", "user_errors", "error_line", "Terminated"]
@@ -41,9 +42,10 @@ class CliError(UserError):
     """A user error raised by a command itself (bad option value, missing file)."""
 
 
-#: Exceptions :func:`user_errors` turns into one line and exit 2: every :class:`UserError`
-#: and the unit-parsing error of :mod:`sinslab.core.units` (a ``ValueError`` of the core).
-USER_ERRORS: tuple = (UserError, UnitError)
+#: Exceptions :func:`user_errors` turns into one line and exit 2: every :class:`UserError`,
+#: the unit-parsing error of :mod:`sinslab.core.units` and the bad-input error of the
+#: lower layers (:class:`sinslab.core.errors.InputError`), all ``ValueError``.
+USER_ERRORS: tuple = (UserError, UnitError, InputError)
 
 
 class Terminated(KeyboardInterrupt):
@@ -64,6 +66,14 @@ def _err(msg: str) -> None:
     typer.echo(f"sinslab: error: {msg}", err=True)
 
 
+def _abort() -> str:
+    """Discard the unfinished run folders of this process; say what they hold now."""
+    from sinslab.app.outputs import abort_all      # outputs imports this module
+
+    said = abort_all()
+    return "; ".join(said) if said else "nothing was written"
+
+
 @contextlib.contextmanager
 def user_errors():
     """Turn user errors into one stderr line + exit 2, interrupts into exit 130/143.
@@ -77,14 +87,18 @@ def user_errors():
     try:
         yield
     except USER_ERRORS as e:
+        _abort()
         _err(error_line(e))
         raise typer.Exit(2) from None
     except Terminated:
-        _err("terminated; no partial file was left under a final name")
+        _err(f"terminated; {_abort()}")
         raise typer.Exit(143) from None
     except KeyboardInterrupt:
-        _err("interrupted; no partial file was left under a final name")
+        _err(f"interrupted; {_abort()}")
         raise typer.Exit(130) from None
+    except BaseException:
+        _abort()
+        raise
     finally:
         if old is not None:
             signal.signal(signal.SIGTERM, old)

@@ -1,19 +1,31 @@
-"""Run folders and atomic file output.
+"""Run folders as transactions, and atomic file output.
 
-Every file sinslab writes goes through :func:`atomic_write` (or :func:`atomic_path`):
-the content is written to a hidden temporary name in the same folder, flushed, fsynced
-and renamed over the final name with ``os.replace``. A run interrupted by Ctrl-C or
-``kill`` therefore never leaves a half-written file under its final name (at worst a
-hidden ``.NAME.tmp-*`` file, removed on a clean interrupt).
+A run never writes into its output folder directly. :meth:`RunDir.prepare` creates a
+hidden staging folder next to it (``.NAME.sinslab-staging-PID-XXXXXX``), every file of
+the run is written there (each one atomically, through :func:`atomic_write` /
+:func:`atomic_path`), and :meth:`RunDir.finish` replaces the folder's previous contents
+in one step: ``renameat2(RENAME_EXCHANGE)`` swaps the complete new folder with the old
+one (two renames where the platform lacks it), then the old contents are deleted. So a
+run that fails, is interrupted (SIGINT/SIGTERM) or killed (SIGKILL) at any moment leaves
+the previous run in its folder complete and byte-for-byte unchanged, and nothing of its
+own under a final name. Staging folders of killed processes are removed by the next run
+next to them; those of failed or interrupted runs at once (:func:`abort_all`, called by
+:func:`sinslab.app.errors.user_errors` and at interpreter exit).
 
-A run folder is marked by a ``.sinslab-run`` file (JSON: experiment, status, the list
-of files the run wrote). :class:`RunDir` enforces the folder rules of every run folder:
+A run folder is marked by a ``.sinslab-run`` file (JSON: command, experiment, status, the
+files the run wrote). :meth:`RunDir.check` enforces the folder rules, before any work:
 
-- a folder that does not exist, or exists and is empty, is used as is;
-- a folder holding a ``.sinslab-run`` marker is a previous run: the files listed in its
-  marker are deleted and the new run is written in their place (files the user added
-  are left alone);
-- any other existing path is refused with :class:`OutputDirError`.
+- a folder that does not exist, or exists and is empty, is used;
+- a folder holding a previous run of the same command and experiment, and nothing else,
+  is replaced when the new run completes;
+- a folder holding another command's or experiment's run, files the run did not write,
+  or no marker at all is refused (:class:`OutputDirError`) unless ``force=True``
+  (``--force``), which replaces whatever it holds — except the current directory, one
+  of its parents, the home folder or a git work tree, never replaced;
+- a path under a file, or where a folder cannot be created, is refused.
+
+The default output folder ``runs/NAME-YYYYmmdd-HHMMSS`` is created atomically by
+:func:`default_out_dir` (``-2``, ``-3``, ... appended when runs start in the same second).
 
 Time series: tables of up to ``LARGE_ROWS`` rows are written as CSV; larger ones as
 Parquet (full resolution) plus a CSV of every k-th row (the summary records ``k``).
@@ -22,10 +34,12 @@ Figures are written as PNG and SVG.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import datetime as _dt
 import json
 import math
 import os
+import atexit
 import secrets
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,7 +52,8 @@ from sinslab.app.errors import UserError
 from sinslab.core.atomic import atomic_path, atomic_write
 
 __all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "atomic_write", "atomic_path",
-           "to_jsonable", "dumps_json", "RunDir", "Figure", "default_out_dir", "is_run_dir"]
+           "to_jsonable", "dumps_json", "RunDir", "Figure", "default_out_dir", "is_run_dir",
+           "abort_all", "forcing"]
 
 MARKER = ".sinslab-run"
 LARGE_ROWS = 100_000
@@ -89,10 +104,51 @@ class Figure:
     caption: str = ""
 
 
+_STAGING = ".sinslab-staging-"
+#: commands whose runs carry their own name as experiment, for markers written before the
+#: marker recorded the command
+_OLD_COMMANDS = frozenset({"navigate", "allan", "align", "transfer-align"})
+_FORCE = contextvars.ContextVar("sinslab_force", default=False)
+
+
+@contextlib.contextmanager
+def forcing(force: bool = True) -> Iterator[None]:
+    """Within the block, :class:`RunDir` objects created without ``force`` take this value
+    (how the CLI's ``--force`` reaches the command functions)."""
+    tok = _FORCE.set(bool(force))
+    try:
+        yield
+    finally:
+        _FORCE.reset(tok)
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
 def default_out_dir(name: str, root: str | os.PathLike = "runs") -> Path:
-    """``runs/NAME-YYYYmmdd-HHMMSS`` (local time)."""
+    """Create and return ``runs/NAME-YYYYmmdd-HHMMSS`` (local time), unique.
+
+    The folder is created with an exclusive ``mkdir``: a run started in the same second
+    gets ``...-2``, ``...-3``; two processes can never share one. A run that then fails
+    removes it again if it is still empty.
+    """
     stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    return Path(root) / f"{name}-{stamp}"
+    root = Path(root)
+    _check_parent(root / f"{name}-{stamp}")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OutputDirError(f"output folder {root}: cannot create it ({e.strerror or e})") from None
+    for i in range(1, 10_000):
+        p = root / (f"{name}-{stamp}" if i == 1 else f"{name}-{stamp}-{i}")
+        try:
+            p.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as e:
+            raise OutputDirError(f"output folder {p}: cannot create it ({e.strerror or e})") from None
+        _CREATED.add(p.absolute())
+        return p
+    raise OutputDirError(f"output folder {root}: no free name {name}-{stamp}-N")
 
 
 def is_run_dir(path: str | os.PathLike) -> bool:
@@ -102,65 +158,293 @@ def is_run_dir(path: str | os.PathLike) -> bool:
 
 def _read_marker(path: Path) -> dict:
     try:
-        return json.loads((path / MARKER).read_text(encoding="utf-8"))
+        m = json.loads((path / MARKER).read_text(encoding="utf-8"))
+        return m if isinstance(m, dict) else {}
     except (OSError, ValueError):
         return {}
 
 
-class RunDir:
-    """The output folder of one run; all writes are atomic and recorded in the marker.
+def _check_parent(p: Path) -> None:
+    """Refuse a folder path under a file or in a place where it cannot be created."""
+    anc = p.parent
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        raise OutputDirError(f"output folder {p}: {anc} is a file, not a folder")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise OutputDirError(f"output folder {p}: cannot write in {anc} (permission denied)")
 
-    ``RunDir(path, experiment).prepare()`` checks and claims the folder; then
-    ``write_text``/``write_json``/``write_table``/``write_figure`` add files, and
-    ``finish()`` marks the run complete.
+
+def _pid_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _remove_tree(p: Path) -> None:
+    import shutil
+
+    shutil.rmtree(p, ignore_errors=True)
+
+
+def _clean_stale(target: Path) -> None:
+    """Remove staging folders next to ``target`` left by processes that no longer run."""
+    parent = target.parent
+    if not parent.is_dir():
+        return
+    for st in parent.glob(f".{target.name}{_STAGING}*"):
+        pid = st.name[len(f".{target.name}{_STAGING}"):].split("-", 1)[0]
+        if pid.isdigit() and not _pid_alive(int(pid)) and st.is_dir():
+            _remove_tree(st)
+
+
+_libc = None
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths atomically (Linux ``renameat2(RENAME_EXCHANGE)``); False if unsupported."""
+    global _libc
+    import ctypes
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return False
+    if _libc is None:
+        _libc = ctypes.CDLL(None, use_errno=True)
+    fn = getattr(_libc, "renameat2", None)
+    if fn is None:
+        return False
+    r = fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)
+    if r == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (22, 38, 95):                     # EINVAL, ENOSYS, EOPNOTSUPP: fall back
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
+#: default folders created by :func:`default_out_dir` (removed again if a run leaves them empty)
+_CREATED: set[Path] = set()
+#: run folders checked or being written in this process, in order
+_ACTIVE: list["RunDir"] = []
+
+
+def abort_all() -> list[str]:
+    """Discard every unfinished run of this process; return one phrase per run folder
+    saying what it holds now (for the interrupt/error message)."""
+    said: list[str] = []
+    while _ACTIVE:
+        s = _ACTIVE.pop(0).abort()
+        if s and s not in said:
+            said.append(s)
+    return said
+
+
+def _pause(point: str, count: int = 0) -> None:
+    """Test hook: ``SINSLAB_PAUSE_AT=point`` stops the process there, announced on stderr,
+    until a signal arrives, so that interrupt tests hit that exact moment. Points:
+    ``checked`` (folder checked, nothing staged), ``write:N`` (N files staged), ``swap``
+    (run complete in staging, before the swap)."""
+    want = os.environ.get("SINSLAB_PAUSE_AT")
+    if want and want in (point, f"{point}:{count}"):
+        import sys
+        import time
+
+        print(f"sinslab: paused at {want}", file=sys.stderr, flush=True)
+        while True:
+            time.sleep(0.05)
+
+class RunDir:
+    """The output folder of one run, written as a transaction.
+
+    ``RunDir(path, experiment).prepare()`` checks the folder and opens a staging folder;
+    ``write_text``/``write_json``/``write_table``/``write_figure`` add files to it
+    (``rd.path`` is the staging folder while the run is open), and ``finish()`` (or
+    ``complete(summary)``) marks the run complete and swaps it into place.
+
+    Parameters
+    ----------
+    path : path-like
+        The output folder (``--out``).
+    experiment : str
+        Experiment or command name recorded in the marker.
+    command : str, optional
+        The CLI command that writes the run (``run`` for experiments); default: ``experiment``.
+    force : bool, optional
+        Replace whatever the folder holds (``--force``); default: the value set by
+        :func:`forcing` (False).
     """
 
-    def __init__(self, path: str | os.PathLike, experiment: str):
-        self.path = Path(path)
+    def __init__(self, path: str | os.PathLike, experiment: str, command: str | None = None,
+                 force: bool | None = None):
+        self.target = Path(path)
+        self.path = self.target
         self.experiment = experiment
+        self.command = command or experiment
+        self.force = _FORCE.get() if force is None else bool(force)
         self.files: list[str] = []
         self.series_info: list[dict] = []
         self.figure_files: list[dict] = []
+        self._staging: Path | None = None
+        self._had_run = False
+        self._done = False
+        self._made: list[Path] = []
 
     # -- folder rules
+    def _describe(self, m: dict) -> str:
+        cmd, exp = m.get("command", "run"), m.get("experiment", "?")
+        return f"`{cmd}`" if cmd == exp else f"`{cmd} {exp}`"
+
     def check(self) -> None:
         """Raise :class:`OutputDirError` if the folder may not be used (writes nothing)."""
-        p = self.path
+        p = self.target
         if p.exists() and not p.is_dir():
             raise OutputDirError(f"output folder {p} exists and is a file, not a folder")
-        if p.is_dir() and not is_run_dir(p) and any(p.iterdir()):
-            raise OutputDirError(
-                f"output folder {p} exists and is not a previous sinslab run "
-                f"(no {MARKER} marker); choose another --out or empty it")
+        _check_parent(p)
+        self._had_run = False
+        if p.is_dir():
+            names = [x.name for x in p.iterdir()
+                     if not (x.name.startswith(".") and ".tmp-" in x.name)]
+            if names and MARKER not in names:
+                if not self.force:
+                    first = sorted(names)[0]
+                    more = f" and {len(names) - 1} more" if len(names) > 1 else ""
+                    raise OutputDirError(
+                        f"output folder {p} holds {first!r}{more} and is not a previous sinslab "
+                        f"run (no {MARKER} marker); choose another --out, empty it, or add --force")
+            elif names:
+                m = _read_marker(p)
+                mine = {"command": self.command, "experiment": self.experiment}
+                exp = m.get("experiment")
+                cmd = m.get("command") or (exp if exp in _OLD_COMMANDS else "run")
+                theirs = {"command": cmd, "experiment": exp}
+                if theirs != mine and not self.force:
+                    raise OutputDirError(
+                        f"output folder {p} holds a run of {self._describe(theirs)}, not "
+                        f"{self._describe(mine)}; choose another --out or add --force to replace it")
+                listed = set(m.get("files", [])) | {MARKER}
+                foreign = sorted(set(names) - listed)
+                if foreign and not self.force:
+                    more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
+                    raise OutputDirError(
+                        f"output folder {p} holds {foreign[0]!r}{more}, not written by sinslab; "
+                        f"choose another --out, move it away, or add --force to replace it")
+                self._had_run = True
+            if self.force and names:
+                self._check_force_target(p)
+                self._had_run = True
+        if self not in _ACTIVE:
+            _ACTIVE.append(self)
+        _pause("checked")
+
+    @staticmethod
+    def _check_force_target(p: Path) -> None:
+        rp = p.resolve()
+        cwd = Path.cwd().resolve()
+        if rp == cwd or rp in cwd.parents or rp == Path.home().resolve() or rp == rp.parent \
+                or (rp / ".git").exists():
+            raise OutputDirError(f"output folder {p} is the current folder, one of its parents, "
+                                 f"the home folder or a git work tree; --force never replaces it")
 
     def prepare(self) -> "RunDir":
-        """Check the folder, delete a previous run's files, write the marker (status running)."""
+        """Check the folder and open the staging folder the run is written into."""
         self.check()
-        self.path.mkdir(parents=True, exist_ok=True)
-        old = _read_marker(self.path) if is_run_dir(self.path) else {}
-        for name in old.get("files", []):
-            f = self.path / name
-            if f.parent == self.path and f.is_file() and name != MARKER:
-                f.unlink()
-        for stale in self.path.glob(".*.tmp-*"):       # left by a killed run
-            with contextlib.suppress(OSError):
-                stale.unlink()
+        _clean_stale(self.target)
+        name = f".{self.target.name}{_STAGING}{os.getpid()}-{secrets.token_hex(3)}"
+        st = self.target.parent / name
+        anc = self.target.parent
+        while not anc.exists() and anc != anc.parent:
+            self._made.append(anc)
+            anc = anc.parent
+        try:
+            st.mkdir(parents=True)
+        except OSError as e:
+            raise OutputDirError(f"output folder {self.target}: cannot create it "
+                                 f"({e.strerror or e})") from None
+        self._staging = st
+        self.path = st
         self._write_marker("running")
         return self
 
     def _write_marker(self, status: str) -> None:
-        marker = {"sinslab_run": 1, "experiment": self.experiment, "status": status,
-                  "updated": _dt.datetime.now().isoformat(timespec="seconds"),
+        marker = {"sinslab_run": 2, "command": self.command, "experiment": self.experiment,
+                  "status": status, "updated": _dt.datetime.now().isoformat(timespec="seconds"),
                   "files": sorted(set(self.files))}
         atomic_write(self.path / MARKER, json.dumps(marker, indent=2) + "\n")
 
     def finish(self) -> None:
+        """Mark the run complete and put it in place of the folder's previous contents."""
         self._write_marker("complete")
+        self._commit()
+
+    def _commit(self) -> None:
+        import signal
+
+        st, target = self._staging, self.target
+        if st is None:
+            raise RuntimeError("RunDir.finish() before prepare()")
+        _pause("swap")
+        blocked = {signal.SIGINT, signal.SIGTERM}
+        try:
+            old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, blocked)
+        except (AttributeError, ValueError):
+            old_mask = None
+        try:
+            old = None
+            if target.is_dir() and not target.is_symlink():
+                if _exchange(st, target):
+                    old = st                           # the staging name now holds the old run
+                else:
+                    old = st.with_name(st.name.replace(_STAGING, _STAGING + "old-"))
+                    os.rename(target, old)
+                    os.rename(st, target)
+            else:
+                os.rename(st, target)
+            self._done = True
+            self.path = target
+            self._staging = None
+            _ACTIVE[:] = [r for r in _ACTIVE if r.target.absolute() != target.absolute()]
+        finally:
+            if old_mask is not None:
+                signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        if old is not None:
+            _remove_tree(old)
+
+    def abort(self) -> str:
+        """Discard the unfinished run (staging folder, an empty default folder); return
+        what the output folder holds now."""
+        if self in _ACTIVE:
+            _ACTIVE.remove(self)
+        if self._done:
+            return f"{self.target} holds the completed run"
+        if self._staging is not None:
+            _remove_tree(self._staging)
+            self._staging = None
+            self.path = self.target
+        created = self.target.absolute() in _CREATED
+        if created:
+            with contextlib.suppress(OSError):
+                self.target.rmdir()                    # only if still empty
+        for d in self._made:
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        if self._had_run:
+            return f"{self.target} still holds the previous run, unchanged"
+        if created and not self.target.exists():
+            return f"nothing was written (no {self.target} created)"
+        return f"nothing was written to {self.target}"
 
     # -- writers
     def _record(self, name: str) -> Path:
         if "/" in name or name.startswith("."):
             raise ValueError(f"bad output file name {name!r}")
+        _pause("write", len(self.files))
         self.files.append(name)
         return self.path / name
 
@@ -221,3 +505,6 @@ class RunDir:
         self.write_text("report.html", report.render(self.path))
         self.finish()
         return summary
+
+
+atexit.register(abort_all)

@@ -63,15 +63,57 @@ class PsinsImu:
     path: str
 
 
+def _shown(line: str, limit: int = 60) -> str:
+    """A line as quoted in a message: at most ``limit`` characters."""
+    s = line.strip()
+    return repr(s if len(s) <= limit else s[:limit] + "...")
+
+
+def _is_binary(text: str) -> bool:
+    """True for bytes that are not text (NUL, undecodable or many control characters)."""
+    if "\x00" in text or "\ufffd" in text:
+        return True
+    ctrl = sum(1 for c in text if ord(c) < 32 and c not in "\t\r\n")
+    return ctrl > 0.05 * max(1, len(text))
+
+
 def _header_line(line, n, what, path, lineno):
+    if _is_binary(line):
+        raise ValueError(f"{path}: not a PSINS .imu log (binary data, not text)")
     try:
         vals = [float(x) for x in line.replace(",", " ").split()]
     except ValueError:
-        raise ValueError(f"{path}:{lineno}: cannot read the {what} header line {line.strip()!r}") from None
+        raise ValueError(f"{path}:{lineno}: not a PSINS .imu log: cannot read the {what} header "
+                         f"line {_shown(line)}") from None
     if len(vals) != n or not all(math.isfinite(v) for v in vals):
         raise ValueError(f"{path}:{lineno}: the {what} header line needs {n} finite numbers, "
-                         f"got {line.strip()!r}")
+                         f"got {_shown(line)}")
     return vals
+
+
+def _bad_sample_line(path, first_lineno):
+    """(line number, message) of the first sample line that is not six numbers."""
+    with open(path, "r", encoding="utf-8", errors="replace") as fh:
+        lines = fh.readlines()
+    last = max((i for i, ln in enumerate(lines) if ln.strip()), default=-1)
+    for i in range(first_lineno, len(lines)):
+        s = lines[i].strip()
+        if not s or s.startswith("%"):
+            continue
+        toks = s.split("%", 1)[0].replace(",", " ").split()
+        try:
+            [float(t) for t in toks]
+            ok = len(toks) == 6
+        except ValueError:
+            ok = False
+        if not ok:
+            if _is_binary(s):
+                return i + 1, "binary data, not sample text"
+            why = f"expected 6 numbers (gyro x y z, accel x y z), got {_shown(s, 40)}"
+            if i == last:
+                why += "; the file looks truncated"
+            return i + 1, why
+    return None, "unreadable sample lines"
 
 
 def read_psins_imu(path) -> PsinsImu:
@@ -97,8 +139,9 @@ def read_psins_imu(path) -> PsinsImu:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)     # "input contained no data"
                 data = np.loadtxt(fh, comments="%", ndmin=2)
-        except ValueError as e:
-            raise ValueError(f"{path}: bad sample line after line {lineno}: {e}") from None
+        except ValueError:
+            bad, why = _bad_sample_line(path, lineno)
+            raise ValueError(f"{path}:{bad}: {why}" if bad else f"{path}: {why}") from None
     if data.size == 0:
         raise ValueError(f"{path}: no samples after the header")
     if data.shape[1] != 6:

@@ -22,6 +22,8 @@ import numpy as np
 import scipy.linalg
 from scipy import linalg as sla
 
+from sinslab.core.errors import InputError
+
 __all__ = [
     "check_covariance", "predict", "update", "UpdateResult", "discretize", "van_loan",
     "steady_state", "SteadyState",
@@ -252,7 +254,12 @@ def update(x, P, z, H, R, *, mask=None, sequential=None):
             pht = P @ h
             s = float(h @ pht + r)
             if not s > 0:
-                raise ValueError(f"innovation variance of component {idx[i]} is {s:.3g} (not > 0)")
+                # Non-finite or negative: the covariance has lost its meaning, which in
+                # practice comes from initial errors or noise levels far outside what
+                # the linearised model can carry.
+                raise InputError(f"innovation variance of component {idx[i]} is {s:.3g} "
+                                 "(not > 0): the filter covariance diverged; check the "
+                                 "initial errors and noise levels")
             nu_i = zu[i] - h @ x
             k = pht / s
             x = x + k * nu_i

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from sinslab.core.errors import InputError
+
 __all__ = ["spawn_seeds", "run_campaign", "summarize", "Summary", "chi2_bounds",
            "linear_batch"]
 
@@ -117,12 +119,13 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
         from distributed import Client, LocalCluster
         if scheduler is None:
             nw = int(n_workers or os.cpu_count() or 1)
-            cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
-            client = Client(cluster)
+            with _interrupts_to_this_process():
+                cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=logging.ERROR)
+                client = Client(cluster)
             own = (client, cluster)
         elif isinstance(scheduler, str):
-            client = Client(scheduler)
+            client = _connect(scheduler)
             own = (client, None)
         else:
             client = scheduler
@@ -136,6 +139,7 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     parts = {}
     from sinslab.core.progress import progress as _progress
     ctx = _progress("Monte Carlo", total=n, unit="runs") if progress else contextlib.nullcontext()
+    failed = False
     try:
         bar = ctx.__enter__()
         if client is None:
@@ -153,17 +157,62 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                 parts[s] = out
                 if bar is not None:
                     bar.advance(len(seeds[s:s + batch]))
+    except BaseException:
+        failed = True
+        raise
     finally:
         ctx.__exit__(None, None, None)
         if own is not None:
-            own[0].close()
-            if own[1] is not None:
-                own[1].close()
+            log = logging.getLogger("distributed")
+            level = log.level
+            if failed:                      # interrupted or failed: shut down quietly
+                log.setLevel(logging.CRITICAL)
+            try:
+                own[0].close()
+                if own[1] is not None:
+                    own[1].close()
+            finally:
+                log.setLevel(level)
     ordered = [parts[s] for s in starts]
     if isinstance(ordered[0], dict):
         keys = ordered[0].keys()
         return {k: np.concatenate([o[k] for o in ordered], axis=0) for k in keys}
     return np.concatenate(ordered, axis=0)
+
+
+#: seconds to wait for a Dask scheduler given by address
+CONNECT_TIMEOUT_S = 10.0
+
+
+def _connect(address: str):
+    """A ``distributed.Client`` of the scheduler at ``address``; InputError (one line)
+    if it cannot be reached within :data:`CONNECT_TIMEOUT_S` or the address is malformed."""
+    from distributed import Client
+
+    try:
+        return Client(address, timeout=f"{CONNECT_TIMEOUT_S:g}s")
+    except (OSError, TimeoutError, ValueError) as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise InputError(f"Dask scheduler {address!r}: cannot connect ({msg})") from None
+
+
+@contextlib.contextmanager
+def _interrupts_to_this_process():
+    """Ignore SIGINT while worker processes are started, so that they inherit the ignored
+    disposition (kept across ``exec``): Ctrl-C, which the terminal sends to the whole
+    process group, then stops only this process, which shuts the cluster down without
+    worker tracebacks. A Ctrl-C during the start-up itself is ignored."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 # ----------------------------------------------------------------------------------------

@@ -19,6 +19,7 @@ from __future__ import annotations
 import datetime as _dt
 import importlib
 import pkgutil
+import re
 import sys
 import time
 from pathlib import Path
@@ -31,7 +32,7 @@ from sinslab.app.outputs import RunDir
 from sinslab.app.publish import complete_timed, describe_series, write_figures, write_series
 from sinslab.experiments.base import Experiment, Result, RunContext
 
-__all__ = ["registry", "register", "get", "names", "execute", "UnknownExperiment", "Experiment"]
+__all__ = ["registry", "register", "get", "names", "catalog", "execute", "UnknownExperiment", "Experiment"]
 
 _SKIP = {"base"}
 _registry: dict[str, Experiment] | None = None
@@ -85,10 +86,61 @@ def register(exp_or_module) -> Experiment:
     return exp
 
 
-def broken() -> dict[str, str]:
-    """Experiment modules that failed to import: ``{module: error}``."""
-    registry()
+def broken(load: bool = True) -> dict[str, str]:
+    """Experiment modules that failed to import (or, after :func:`catalog` alone, whose
+    source could not be read): ``{module: error}``. ``load=False``: do not import the
+    modules to find out."""
+    if load:
+        registry()
     return dict(_broken)
+
+
+def catalog() -> dict[str, str]:
+    """``{name: purpose}`` of every experiment, sorted by name, without importing the
+    experiment modules when the registry is not built yet: ``NAME`` and ``PURPOSE`` are
+    read from each module's source (so ``sinslab list`` starts at once). A module whose
+    source cannot be parsed is reported by :func:`broken`; one whose ``PURPOSE`` is not a
+    plain string is imported.
+    """
+    if _registry is not None:
+        return {n: e.purpose for n, e in _registry.items()}
+    found: dict[str, str] = {}
+    for info in pkgutil.iter_modules(__path__):
+        if info.name.startswith("_") or info.name in _SKIP:
+            continue
+        modname = f"{__name__}.{info.name}"
+        path = Path(__path__[0]) / f"{info.name}.py"
+        try:
+            lines = path.read_text(encoding="utf-8").splitlines()
+        except (OSError, ValueError) as e:
+            _broken[modname] = f"{type(e).__name__}: {e}"
+            continue
+        consts = {k: _constant(lines, k) for k in ("NAME", "PURPOSE")}
+        if consts["NAME"] is None and not any(ln.startswith("NAME") for ln in lines):
+            continue
+        if not all(isinstance(v, str) for v in consts.values()):
+            return {n: e.purpose for n, e in registry().items()}
+        found[consts["NAME"]] = consts["PURPOSE"]
+    return dict(sorted(found.items()))
+
+
+def _constant(lines: list[str], name: str):
+    """The string assigned to ``name`` at module level (``NAME = "..."``, possibly over a
+    few lines), read without importing the module; None if absent or not a literal."""
+    import ast
+
+    pat = re.compile(rf"^{name}\s*(:\s*str\s*)?=")
+    for i, line in enumerate(lines):
+        if pat.match(line):
+            for j in range(i + 1, min(i + 20, len(lines)) + 1):
+                try:
+                    node = ast.parse("\n".join(lines[i:j])).body[0]
+                except SyntaxError:
+                    continue
+                v = getattr(node, "value", None)
+                return v.value if isinstance(v, ast.Constant) else None
+            return None
+    return None
 
 
 def names() -> list[str]:
@@ -121,19 +173,21 @@ def _check_result(exp: Experiment, res: Result, log) -> None:
 
 def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: bool = False,
             scheduler: str | None = None, log: Callable[[str], None] | None = None,
-            variant: tuple[str, list[str]] | None = None) -> dict:
+            variant: tuple[str, list[str]] | None = None, force: bool | None = None) -> dict:
     """Run ``exp`` with the resolved ``cfg`` into folder ``out``; return the summary dict.
 
-    Order of writes: marker, ``config.toml`` (so an interrupted run still says what it
-    was), series, tables, figures, ``summary.json``, ``report.html``, marker "complete".
-    Raises :class:`sinslab.app.outputs.OutputDirError` before writing anything if ``out`` is
-    not usable. ``variant=(name, sets)`` names a demo variant (its report carries that
-    name and the ``--set`` lines that make it). ``summary["timing"]`` holds the seconds
-    spent computing and writing series, figures and the report.
+    Everything is written into a staging folder that replaces ``out``'s previous contents
+    only when the run is complete (see :mod:`sinslab.app.outputs`): marker,
+    ``config.toml``, series, tables, figures, ``summary.json``, ``report.html``, marker
+    "complete", swap. Raises :class:`sinslab.app.outputs.OutputDirError` before writing
+    anything if ``out`` is not usable (``force=True``: replace whatever it holds).
+    ``variant=(name, sets)`` names a demo variant (its report carries that name and the
+    ``--set`` lines that make it). ``summary["timing"]`` holds the seconds spent
+    computing and writing series, figures and the report.
     """
 
     log = log or (lambda msg: None)
-    rd = RunDir(out, exp.name).prepare()
+    rd = RunDir(out, exp.name, command="run", force=force).prepare()
     started = _dt.datetime.now().astimezone()
     header = (f"sinslab {__version__} — experiment {exp.name}{' (--quick)' if quick else ''}\n"
               f"resolved configuration, {started.isoformat(timespec='seconds')}\n"

@@ -57,6 +57,7 @@ from sinslab.core import attitude as att_
 from sinslab.core import earth, units
 from sinslab.nav import strapdown
 from sinslab.core.records import ImuRecord, NavSeries, NavState
+from sinslab.core.errors import InputError
 
 __all__ = ["AlignmentOptions", "InitialErrors", "DelayedResult", "half_schuler_delay",
            "delayed_alignment", "delayed_injected", "navigate_pair", "mean_solution",
@@ -318,7 +319,7 @@ def navigate_pair(imu: ImuRecord, init1: NavState, e1: int, init2: NavState, e2:
                                     out=rows2[r2:], **kw)
                 r2 += u2 // out_every
             if not (np.all(np.isfinite(s1[:10])) and np.all(np.isfinite(s2[:10]))):
-                raise ValueError(f"navigation became non-finite by t = {imu.t[b - 1]:.6g} s")
+                raise InputError(f"navigation became non-finite by t = {imu.t[b - 1]:.6g} s")
             pb.advance(b - a)
     ep1 = e1 + oes * np.arange(m1 + 1)
     ep2 = e2 + oes * np.arange(m2 + 1)

@@ -83,6 +83,7 @@ from numba import njit
 from sinslab.core.attitude import euler2q_s, q2dcm_s, q2euler_s, qmul_s, rv2q_s, euler_to_quat
 from sinslab.core.earth import WIE, check_latitude, gravity, gravity_s, radii, radii_s
 from sinslab.core.records import ImuRecord, NavSeries, NavState
+from sinslab.core.errors import InputError
 
 __all__ = [
     "navigate", "initial_state_array", "step", "correct", "state_to_navstate", "rows_to_series",
@@ -806,7 +807,7 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
                     gb[0], gb[1], gb[2], ab[0], ab[1], ab[2], CONING_COEFFS, rows[r:], out_every)
             r += cu // out_every
             if not np.all(np.isfinite(s[:NAV])):
-                raise ValueError(f"navigation became non-finite by t = {imu.t[hi - 1]:.6g} s "
+                raise InputError(f"navigation became non-finite by t = {imu.t[hi - 1]:.6g} s "
                                  "(a pole crossed, or diverging input)")
             lo = hi
             advance(cu * nsub)

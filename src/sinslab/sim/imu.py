@@ -71,6 +71,7 @@ from sinslab.core import units as U
 from sinslab.core.records import ImuRecord
 from sinslab.core.toml import dump_toml
 from sinslab.sim._rng import _kernel_state, _normal, _rng
+from sinslab.core.errors import InputError
 
 __all__ = [
     "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_batch", "noise_increments",
@@ -927,7 +928,7 @@ def apply(imu: ImuRecord, errors: ImuErrors, seed) -> ImuRecord:
     out_dv = np.empty((n, 3))
     _run(imu.dtheta, imu.dv, imu.t, imu.t0, imu.dt, errors, rng, out_dth, out_dv)
     if not (np.isfinite(out_dth[-1]).all() and np.isfinite(out_dv[-1]).all()):
-        raise ValueError("IMU errors produced non-finite increments (check the parameters)")
+        raise InputError("IMU errors produced non-finite increments (check the parameters)")
     return _new_record(imu, out_dth, out_dv)
 
 

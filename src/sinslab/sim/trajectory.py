@@ -55,6 +55,7 @@ from typing import ClassVar
 import numpy as np
 
 from sinslab.core import units
+from sinslab.core.errors import InputError
 from sinslab.core.atomic import atomic_write
 from sinslab.core.toml import dump_toml
 from sinslab.sim import indexing
@@ -754,7 +755,7 @@ def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_ever
            start.lat, start.lon, start.h, float(t0), dth, dvl, t_imu, olat, olon, oh, t_nav,
            vel, att, atti, mnt)
     if not math.isfinite(chk):
-        raise ValueError("non-finite increments (a pole crossed, or an extreme motion?)")
+        raise InputError("non-finite increments (a pole crossed, or an extreme motion?)")
     truth = NavSeries(t_nav, olat, olon, oh, vel, att,
                       atti if has_mount else None)
     return Generated(truth, _imu_record(t_imu, dth, dvl, dt), mnt if has_mount else None,

@@ -8,10 +8,7 @@ from typing import Optional
 import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
-from sinslab.core import attitude as A
-from sinslab.core import earth, units
-from sinslab.methods import alignment as al
-from sinslab.methods.alignment import align_record
+from sinslab.core import units
 
 #: the method this command applies (printed in its report)
 PAPER = ("Yan Gongmin, Qin Yongyuan: Initial alignment accuracy analysis and simulation of SINS "
@@ -24,20 +21,48 @@ ALIGN = Command("align", "coarse and fine alignment of a recorded IMU file at re
 
 
 def _parse_window(window):
-    if window in (None, ""):
-        return None, None
-    if ":" not in window:
-        raise ValueError(f"--window {window!r}: expected START:END in seconds (either may be empty)")
-    a, b = window.split(":", 1)
-    try:
-        lo = float(a) if a.strip() else None
-        hi = float(b) if b.strip() else None
-    except ValueError:
-        raise ValueError(f"--window {window!r}: START and END must be numbers of seconds") from None
-    if lo is not None and hi is not None and not hi > lo:
-        raise ValueError(f"--window {window!r}: END must be after START")
-    return lo, hi
+    from sinslab.app.validate import option_window
 
+    return option_window("--window", window)
+
+
+def _check_options(lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model, period):
+    """Every option of ``sinslab align`` checked before the file is read (one-line errors
+    naming the option)."""
+    from sinslab.app.validate import option_choice, option_quantity
+
+    if lat is not None:
+        option_quantity("--lat", lat, "angle", ge="-90 deg", le="90 deg")
+    if h is not None:
+        option_quantity("--height", h, "length", ge="-12 km", le="100 km")
+    _parse_window(window)
+    option_quantity("--gyro-arw", gyro_arw, "angle_random_walk", ge="0 deg/sqrt(h)")
+    if accel_vrw not in (None, "", "auto"):
+        option_quantity("--accel-vrw", accel_vrw, "velocity_random_walk", ge="0 ug/sqrt(Hz)")
+    option_quantity("--gyro-bias", gyro_bias, "angular_rate", ge="0 deg/h")
+    option_quantity("--accel-bias", accel_bias, "acceleration", ge="0 ug")
+    option_choice("--model", model, ("reduced", "full"))
+    option_quantity("--period", period, "time", gt="0 s")
+
+
+def _heading_check(r, duration, heading_sigma):
+    """A warning (with the σ) when the window cannot support the heading it gives: too
+    short for the record's own scatter to be measured, or fine and analytic headings more
+    than 3σ apart."""
+    co, fa = r["coarse"], r["fine"]
+    s_f = math.degrees(float(heading_sigma))
+    if co.phi_sigma_data is None:
+        return (f"the {duration:g} s window is too short to check the heading: the fine "
+                f"heading σ {s_f:.3g} deg only reflects the assumed --gyro-arw; gyrocompassing "
+                f"needs the earth rate measured above the sensor noise (use at least tens of seconds)")
+    s_c = math.degrees(float(co.att_sigma[2])) if co.att_sigma is not None else 0.0
+    d = (math.degrees(float(fa.att[2] - co.att[2])) + 180.0) % 360.0 - 180.0
+    s = math.hypot(s_f, s_c)
+    if abs(d) > 3.0 * s:
+        return (f"fine and analytic-coarse headings differ by {abs(d):.3g} deg, more than 3σ "
+                f"(σ {s_f:.3g} deg fine, {s_c:.3g} deg coarse): the {duration:g} s window does not "
+                f"determine the heading")
+    return None
 
 
 def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
@@ -51,6 +76,7 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
     alignment.csv (fine attitude and σ vs time), alignment.png/svg and report.html.
     Returns the summary dict.
     """
+    _check_options(lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model, period)
     summary, _ = run_command(ALIGN, out, lambda: _compute(
         path, fmt=fmt, lat=lat, h=h, window=window, gyro_arw=gyro_arw, accel_vrw=accel_vrw,
         gyro_bias=gyro_bias, accel_bias=accel_bias, model=model, period=period,
@@ -61,7 +87,11 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
 def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model,
              period, feedback, echo) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
+    from sinslab.core import attitude as A      # numba and scipy: only when it runs
+    from sinslab.core import earth
     from sinslab.data import read_imu
+    from sinslab.methods import alignment as al
+    from sinslab.methods.alignment import align_record
 
     imu, ps = read_imu(path, fmt)
     if lat is None:
@@ -73,6 +103,9 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     h_r = (ps.h if ps is not None else 0.0) if h is None else units.parse(h, "length")
     lo, hi = _parse_window(window)
     if lo is not None or hi is not None:
+        from sinslab.app.validate import check_window
+
+        check_window("--window", window, float(imu.t[0]) - imu.dt, float(imu.t[-1]))
         imu = imu.slice(lo, hi)
     al.check_alignment_latitude(lat_r)
     ga = units.parse(gyro_arw, "angle_random_walk")
@@ -83,6 +116,9 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
                      model=model, period=T, feedback=feedback)
     co, ci, fa = r["coarse"], r["inertial"], r["fine"]
+    hw = _heading_check(r, len(imu) * imu.dt, fa.att_sigma[2])
+    if hw:
+        r["warnings"] = list(r["warnings"]) + [hw]
 
     def ang(att):
         return (math.degrees(att[0]), math.degrees(att[1]),
@@ -167,11 +203,12 @@ def register(app):
               accel_bias: str = typer.Option("100 ug", "--accel-bias", help="assumed 1σ accel bias (limit accuracy)"),
               model: str = typer.Option("reduced", "--model", help="reduced | full"),
               period: str = typer.Option("1 s", "--period", help="filter period"),
-              open_loop: bool = typer.Option(False, "--open-loop", help="no attitude feedback")) -> None:
+              open_loop: bool = typer.Option(False, "--open-loop", help="no attitude feedback"),
+              force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Coarse and fine alignment of a recorded IMU file at rest (pitch, roll, heading with σ)."""
         cli_call(align_file, imu, fmt=format, lat=lat, h=height, window=window, out=out,
                  gyro_arw=gyro_arw, accel_vrw=accel_vrw, gyro_bias=gyro_bias,
                  accel_bias=accel_bias, model=model, period=period, feedback=not open_loop,
-                 echo=typer.echo)
+                 echo=typer.echo, force=force)
 
     return align

@@ -28,11 +28,55 @@ def _table(res: AllanResult):
     return rows
 
 
+def _check_units(path, read_kw) -> None:
+    """Refuse ``--gyro-unit``/``--accel-unit`` for a file whose header states its units
+    (they would be ignored), and a unit of the wrong kind."""
+    for opt, key, kind in (("--gyro-unit", "gyro_unit", ("angular_rate", "angle")),
+                           ("--accel-unit", "accel_unit", ("acceleration", "velocity"))):
+        unit = read_kw.get(key)
+        if not unit:
+            continue
+        from sinslab.core import units
+
+        try:
+            units.unit_scale(unit)
+        except ValueError as e:
+            raise ValueError(f"{opt} {unit!r}: {e}") from None
+        if not any(_is_kind(unit, k) for k in kind):
+            raise ValueError(f"{opt} {unit!r}: not a unit of {' or '.join(k.replace('_', ' ') for k in kind)}")
+        p = Path(path)
+        if p.suffix.lower() == ".imu":
+            raise ValueError(f"{opt} {unit!r}: {p} is a PSINS log whose header states its scale "
+                             f"factors; the option applies to CSV columns without a unit")
+        try:
+            with open(p, "r", encoding="utf-8", errors="replace") as fh:
+                head = next((ln for ln in fh if ln.strip() and not ln.startswith("#")), "")
+        except OSError:
+            return                                   # the reader reports the file itself
+        if "[" in head and "]" in head:
+            raise ValueError(f"{opt} {unit!r}: the header of {p} states the column units "
+                             f"({head.strip()[:80]}); the option applies to columns without one")
+
+
+def _is_kind(unit, kind) -> bool:
+    from sinslab.core import units
+
+    try:
+        units.unit_scale(unit, kind)
+        return True
+    except ValueError:
+        return False
+
+
 def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
     """Read a recorded IMU file, compute the Allan deviations and write the run folder.
 
     Returns ``(summary, AllanResult, ImuErrors)``.
     """
+    from sinslab.app.validate import option_window
+
+    option_window("--window", window)
+    _check_units(path, read_kw)
     summary, res = run_command(ALLAN, out, lambda: _compute(path, fmt, window, echo, read_kw),
                                echo=echo)
     return (summary, *res.value)
@@ -45,8 +89,10 @@ def _compute(path, fmt, window, echo, read_kw) -> Output:
     data = load_imu(path, fmt, **read_kw)
     imu = data.imu
     if window:
-        a, _, b = str(window).partition(":")
-        imu = imu.slice(float(a) if a else None, float(b) if b else None)
+        from sinslab.app.validate import check_window, option_window
+
+        check_window("--window", window, float(imu.t[0]) - imu.dt, float(imu.t[-1]))
+        imu = imu.slice(*option_window("--window", window))
     res = allan(imu)
     errs = imu_errors_from_allan(res)
     toml = errs.to_toml("imu")
@@ -117,13 +163,14 @@ def register(app):
               window: Optional[str] = typer.Option(None, "--window", metavar="START:END", help="time window [s]"),
               gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="unit of gyro columns without one"),
               accel_unit: Optional[str] = typer.Option(None, "--accel-unit", help="unit of accel columns without one"),
-              out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/allan-<timestamp>]")) -> None:
+              out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/allan-<timestamp>]"),
+              force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Allan deviation of recorded IMU data: ARW/VRW, bias instability, RRW and an ImuErrors block."""
         kw = {}
         if gyro_unit:
             kw["gyro_unit"] = gyro_unit
         if accel_unit:
             kw["accel_unit"] = accel_unit
-        cli_call(allan_file, file, fmt=format, out=out, window=window, echo=typer.echo, **kw)
+        cli_call(allan_file, file, fmt=format, out=out, window=window, echo=typer.echo, force=force, **kw)
 
     return allan

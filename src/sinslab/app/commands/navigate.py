@@ -9,11 +9,7 @@ from typing import Optional
 import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
-from sinslab.core import earth as E
 from sinslab.core import units
-from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors, navigate_recorded,
-                                     outage_end_errors, parse_outages, shift_imu_time,
-                                     significant_time_offset)
 
 __all__ = ["NAVIGATE", "navigate_files", "register"]
 
@@ -33,12 +29,15 @@ def _parse_init(text):
     out = {}
     if not text:
         return out
+    from sinslab.app.validate import option_quantity
+
     for tok in str(text).split(","):
         k, sep, v = tok.partition("=")
         k = k.strip().lower()
         if not sep or k not in ("heading",):
             raise ValueError(f"--init {text!r}: use heading=ANGLE (e.g. heading=\"30 deg\")")
-        out["heading"] = units.parse(v.strip(), "angle")
+        out["heading"] = option_quantity(f"--init {k}", v.strip(), "angle", ge="-180 deg",
+                                         le="360 deg")
     return out
 
 
@@ -76,6 +75,12 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
+    from sinslab.app.validate import check_navigate_options
+
+    check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag, imu_delay=imu_delay,
+                           max_gap=max_gap, lag=lag, time_sync=time_sync)
+    if isinstance(init, (str, type(None))):
+        _parse_init(init)
     summary, res = run_command(NAVIGATE, out, lambda: _compute(
         imu_path, fix_path, fmt=fmt, fix_format=fix_format, lever_arm=lever_arm, mount=mount,
         frame=frame, outages=outages, fix_latency=fix_latency, lag=lag, init=init,
@@ -93,7 +98,11 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              csv_rate=1.0, smo=None) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
+    from sinslab.core import earth as E         # numba and scipy: only when it runs
     from sinslab.data import guess_imu_format, load_imu, read_fixes
+    from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
+                                         navigate_recorded, outage_end_errors, parse_outages,
+                                         shift_imu_time, significant_time_offset)
 
     fmt_eff = fmt or guess_imu_format(imu_path)
     kw = {}
@@ -164,6 +173,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     opt.estimate_lever = "lever" in aids
     t_ref = float(fx.t[0])
     opt.outages = tuple(parse_outages(outages, t_ref)) if isinstance(outages, (str, type(None))) else tuple(outages)
+    if isinstance(outages, str):
+        from sinslab.app.validate import check_outages
+
+        check_outages("--outages", outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
     opt.fix_latency = float(fix_latency)
     opt.lag = lag
     opt.scale_factors = bool(scale_factors) or opt.scale_factors
@@ -378,6 +391,8 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
 
     from sinslab.app import plotting
     from sinslab.core import attitude as A
+    from sinslab.core import earth as E
+    from sinslab.fusion.recorded import fix_errors
     sm = res.smoothed
     t, err_f, _ = fix_errors(res, fx)
     _, err_s, _ = fix_errors(dataclasses.replace(res, nav=sm.nav), fx)
@@ -476,6 +491,7 @@ def register(app):
                  rest: Optional[str] = typer.Option(None, "--rest", help="rest for ZUPT/ZARU: auto (IMU detector) | flags (the log's column)"),
                  csv_rate: float = typer.Option(1.0, "--csv-rate", help="rate of solution.csv [Hz] (solution.parquet: every filter epoch)"),
                  out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]"),
+                 force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)"),
                  # smoothing and wheel odometer
                  smooth: bool = typer.Option(False, "--smooth", help="also write the RTS-smoothed solution (forward + backward pass)"),
                  odometer: Optional[str] = typer.Option(None, "--odometer", help="wheel speeds: FILE (t, speed columns) or a COLUMN of the IMU table"),
@@ -488,7 +504,8 @@ def register(app):
                  init=init, time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
                  scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, out=out,
                  echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
-                 csv_rate=csv_rate, smooth=smooth, odometer=odometer, odometer_units=odometer_units,
-                 odometer_lever=odometer_lever, odometer_sigma=odometer_sigma)
+                 csv_rate=csv_rate, force=force, smooth=smooth, odometer=odometer,
+                 odometer_units=odometer_units, odometer_lever=odometer_lever,
+                 odometer_sigma=odometer_sigma)
 
     return navigate

@@ -42,7 +42,7 @@ from typing import Any, Callable
 
 from sinslab import __version__
 from sinslab.app.errors import CliError, user_errors
-from sinslab.app.outputs import Figure, RunDir, default_out_dir
+from sinslab.app.outputs import Figure, RunDir, default_out_dir, forcing
 from sinslab.app.publish import complete_timed, write_figures
 from sinslab.core.toml import dump_toml
 
@@ -167,10 +167,11 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
     return summary, res
 
 
-def cli_call(fn: Callable[..., Any], *args, **kwargs) -> Any:
+def cli_call(fn: Callable[..., Any], *args, force: bool = False, **kwargs) -> Any:
     """Call a command function for the CLI: user errors, bad values (``ValueError``) and
-    missing files become one line and exit 2; Ctrl-C / SIGTERM exit 130 / 143."""
-    with user_errors():
+    missing files become one line and exit 2; Ctrl-C / SIGTERM exit 130 / 143.
+    ``force``: the output folder may replace what it holds (``--force``)."""
+    with user_errors(), forcing(force):
         try:
             return fn(*args, **kwargs)
         except (ValueError, FileNotFoundError) as e:

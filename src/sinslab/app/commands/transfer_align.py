@@ -62,11 +62,20 @@ def read_master(path):
     return a[:, 0], a[:, 1:4], a[:, 4:7], a[:, 7:10]
 
 
-def _refs(*paths):
+def _loadmat(path):
+    """``scipy.io.loadmat`` with a one-line error naming the file."""
     import scipy.io
+
+    try:
+        return scipy.io.loadmat(path)
+    except (ValueError, TypeError, OSError, NotImplementedError) as e:
+        raise ValueError(f"{path}: not a readable MATLAB .mat file ({e})") from None
+
+
+def _refs(*paths):
     for p in paths:
         if Path(p).suffix.lower() == ".mat":
-            m = scipy.io.loadmat(p)
+            m = _loadmat(p)
             r = {k: np.asarray(m[k], float).ravel() for k in ("mu0", "eb0", "db0") if k in m}
             if r:
                 return r
@@ -100,13 +109,11 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
             raise ValueError(f"--method {m!r}: choose from {', '.join(tm.KINDS)}")
     comp = _parse_mount(mount)
     if Path(slave).suffix.lower() == ".mat":
-        import scipy.io
-        mm = scipy.io.loadmat(slave) if Path(slave).exists() else None
+        mm = _loadmat(slave) if Path(slave).is_file() else None
         if mm is not None and not any(k in mm for k in ("imu", "mimu", "simu")):
             raise ValueError(f"{slave}: .mat lacks the slave IMU variable (imu, mimu or simu)")
-    if Path(master).suffix.lower() == ".mat" and Path(master).exists():
-        import scipy.io
-        mm = scipy.io.loadmat(master)
+    if Path(master).suffix.lower() == ".mat" and Path(master).is_file():
+        mm = _loadmat(master)
         if not any(k in mm for k in ("avp", "fogavp", "avpr")):
             raise ValueError(f"{master}: .mat lacks the master solution variable (avp, fogavp or avpr)")
     data = load_imu(slave)
@@ -211,13 +218,12 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
 
 
 def _window(text):
-    a, sep, b = str(text).partition(":")
-    if not sep:
-        raise ValueError(f"--window {text!r}: use START:END in seconds")
-    try:
-        return float(a), float(b)
-    except ValueError:
-        raise ValueError(f"--window {text!r}: START and END must be numbers of seconds") from None
+    from sinslab.app.validate import option_window
+
+    lo, hi = option_window("--window", text)
+    if lo is None or hi is None:
+        raise ValueError(f"--window {text!r}: use START:END in seconds (both given)")
+    return lo, hi
 
 
 def register(app):
@@ -230,11 +236,13 @@ def register(app):
                        method: list[str] = typer.Option(["optimal"], "--method", help="euler | dcm | kain | optimal (repeatable)"),
                        mount: Optional[str] = typer.Option(None, "--mount", help="known installation [pitch, roll, yaw] with units"),
                        window: list[str] = typer.Option([], "--window", metavar="START:END", help="time window(s) [s]"),
-                       out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder")) -> None:
+                       out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder"),
+                       force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Transfer alignment on recorded data: mounting angles and slave biases with σ."""
         from sinslab.app.errors import CliError, user_errors
+        from sinslab.app.outputs import forcing
 
-        with user_errors():
+        with user_errors(), forcing(force):
             try:
                 wins = [_window(w) for w in window] or [None]
                 transfer_align_file(slave, master, methods=tuple(method), mount=mount, windows=wins, out=out,

@@ -1,0 +1,277 @@
+"""Shared validators of command-line input: option values, Dask scheduler addresses,
+the memory a configuration needs.
+
+Every function raises :class:`~sinslab.app.errors.CliError` (or
+:class:`~sinslab.app.config.ConfigError`) whose one-line message names the option or
+config key and the problem, before any work starts::
+
+    lat = option_quantity("--lat", text, "angle", ge="-90 deg", le="90 deg")
+    check_scheduler("tcp://10.0.0.5:8786", exp, cfg)      # reachable within seconds
+    check_memory(cfg)                                      # arrays that fit in memory
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import socket
+import threading
+
+from sinslab.app.errors import CliError
+
+__all__ = ["option_quantity", "option_number", "check_scheduler", "check_memory",
+           "available_memory", "CONNECT_TIMEOUT_S"]
+
+#: longest wait for a scheduler's host name to resolve and its port to answer [s]
+CONNECT_TIMEOUT_S = 3.0
+
+
+def _bound(text, kind):
+    from sinslab.core import units
+
+    return units.parse(text, kind)
+
+
+def option_quantity(option: str, text, kind: str, *, ge: str | None = None,
+                    gt: str | None = None, le: str | None = None, lt: str | None = None) -> float:
+    """The SI value of the option's ``"<number> <unit>"`` text, of quantity ``kind``.
+
+    Bounds are unit strings (``ge="0 s"``). Raises :class:`CliError` naming ``option``.
+    """
+    from sinslab.core import units
+
+    try:
+        v = units.parse(str(text).strip(), kind)
+    except (ValueError, TypeError) as e:
+        raise CliError(f"{option} {text!r}: {e}") from None
+    if not math.isfinite(v):
+        raise CliError(f"{option} {text!r}: not a finite value")
+    for b, ok, word in ((ge, lambda x, y: x >= y, ">="), (gt, lambda x, y: x > y, ">"),
+                        (le, lambda x, y: x <= y, "<="), (lt, lambda x, y: x < y, "<")):
+        if b is not None and not ok(v, _bound(b, kind)):
+            raise CliError(f"{option} {text!r}: out of range, must be {word} {b}")
+    return v
+
+
+def option_number(option: str, value, *, ge: float | None = None, gt: float | None = None,
+                  le: float | None = None, unit: str = "") -> float:
+    """A finite number given to ``option`` (text or number), within the bounds."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise CliError(f"{option} {value!r}: not a number{' of ' + unit if unit else ''}") from None
+    u = f" {unit}" if unit else ""
+    if not math.isfinite(v):
+        raise CliError(f"{option} {value!r}: not a finite number")
+    if ge is not None and not v >= ge:
+        raise CliError(f"{option} {value!r}: must be >= {ge:g}{u}")
+    if gt is not None and not v > gt:
+        raise CliError(f"{option} {value!r}: must be > {gt:g}{u}")
+    if le is not None and not v <= le:
+        raise CliError(f"{option} {value!r}: must be <= {le:g}{u}")
+    return v
+
+
+# ------------------------------------------------------------------ Dask scheduler -----
+_ADDR = re.compile(r"^(?:(?P<proto>tcp|tls)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)"
+                   r":(?P<port>\d{1,5})/?$")
+
+
+def _uses_scheduler(exp) -> bool:
+    """True if the experiment's code hands ``ctx.scheduler`` to a Monte Carlo campaign."""
+    import inspect
+
+    try:
+        mod = inspect.getmodule(exp.run)
+        src = inspect.getsource(mod) if mod is not None else ""
+    except (OSError, TypeError):
+        return True                                 # cannot tell: let it through
+    return "ctx.scheduler" in src
+
+
+def _resolve_host(host: str, port: int, timeout: float):
+    box: dict = {}
+
+    def work():
+        try:
+            box["r"] = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+        except OSError as e:
+            box["e"] = e
+
+    th = threading.Thread(target=work, daemon=True)
+    th.start()
+    th.join(timeout)
+    if th.is_alive():
+        raise TimeoutError
+    if "e" in box:
+        raise box["e"]
+    return box["r"]
+
+
+def check_scheduler(address: str, exp=None, cfg=None, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Refuse, in at most about ``2 * timeout`` seconds, a ``--scheduler`` that cannot work.
+
+    ``"sync"`` (serial, no Dask) is accepted. Otherwise the address must read
+    ``[tcp://|tls://]HOST:PORT``, the host must resolve and the port accept a TCP
+    connection. With ``exp`` given, an experiment that runs no Monte Carlo campaign is
+    refused too: the option would be ignored.
+    """
+    text = str(address).strip()
+    if exp is not None and not _uses_scheduler(exp):
+        raise CliError(f"--scheduler: experiment {exp.name!r} runs no Monte Carlo campaign, "
+                       f"so a scheduler would not be used")
+    if text == "sync":
+        return
+    m = _ADDR.match(text)
+    if not m:
+        raise CliError(f"--scheduler {address!r}: not a Dask scheduler address "
+                       f"(expected tcp://HOST:PORT, e.g. tcp://10.0.0.5:8786)")
+    host, port = m["host"].strip("[]"), int(m["port"])
+    if not 0 < port < 65536:
+        raise CliError(f"--scheduler {address!r}: port {port} is out of range")
+    try:
+        infos = _resolve_host(host, port, timeout)
+    except TimeoutError:
+        raise CliError(f"--scheduler {address!r}: host {host!r} did not resolve within "
+                       f"{timeout:g} s") from None
+    except OSError as e:
+        raise CliError(f"--scheduler {address!r}: cannot resolve host {host!r} "
+                       f"({e.strerror or e})") from None
+    last = None
+    for fam, typ, proto, _, sa in infos:
+        try:
+            with socket.socket(fam, typ, proto) as s:
+                s.settimeout(timeout)
+                s.connect(sa)
+                return
+        except OSError as e:
+            last = e
+    why = "timed out" if isinstance(last, socket.timeout) else (
+        getattr(last, "strerror", None) or str(last))
+    raise CliError(f"--scheduler {address!r}: no scheduler answers at {host}:{port} ({why})")
+
+
+# ------------------------------------------------------------------ memory -------------
+#: bytes per simulated sample kept in arrays by an experiment (truth, IMU increments,
+#: navigation solution, errors: ~40 float64 columns) — a lower bound of what runs need
+BYTES_PER_SAMPLE = 40 * 8
+
+
+def available_memory() -> int:
+    """Bytes of memory available to a new allocation (MemAvailable, else physical size)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 1 << 62
+
+
+def _size(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"):
+        if n < 1024 or unit == "EiB":
+            return f"{n:.3g} {unit}"
+        n /= 1024
+    return f"{n:.3g} EiB"
+
+
+def check_memory(cfg, available: int | None = None) -> None:
+    """Refuse a configuration whose sampled arrays cannot fit in memory, before allocating.
+
+    Every section holding a ``duration`` and a ``sample_interval`` (time quantities)
+    gives ``duration / sample_interval`` samples of :data:`BYTES_PER_SAMPLE` bytes; the
+    total must stay below the available memory. The message names the key and the size.
+    """
+    from sinslab.app.config import ConfigError
+
+    avail = available_memory() if available is None else int(available)
+
+    def walk(sec, prefix):
+        fields = getattr(type(sec), "model_fields", {})
+        for k in fields:
+            v = getattr(sec, k)
+            if hasattr(type(v), "model_fields"):
+                yield from walk(v, f"{prefix}{k}.")
+        if "duration" in fields and "sample_interval" in fields:
+            yield prefix, sec.duration, sec.sample_interval
+
+    for prefix, dur, dt in walk(cfg, ""):
+        try:
+            n = float(dur) / float(dt)
+        except (TypeError, ValueError, ZeroDivisionError):
+            continue
+        need = n * BYTES_PER_SAMPLE
+        if need > avail:
+            dt_txt = getattr(dt, "text", f"{float(dt):g} s")
+            dur_txt = getattr(dur, "text", f"{float(dur):g} s")
+            raise ConfigError(f"config key {prefix}sample_interval: {dt_txt} over {dur_txt} is "
+                              f"{n:.3g} samples, at least {_size(need)} of arrays, but "
+                              f"{_size(avail)} of memory is available")
+
+
+# ------------------------------------------------------------------ option forms -------
+def option_choice(option: str, value, choices) -> str:
+    """``value`` if it is one of ``choices``, else a one-line error listing them."""
+    if value not in choices:
+        raise CliError(f"{option} {value!r}: choose one of {', '.join(choices)}")
+    return value
+
+
+def option_window(option: str, text) -> tuple[float | None, float | None]:
+    """``START:END`` in seconds (either may be empty) -> ``(start, end)``; finite, END > START."""
+    if text in (None, ""):
+        return None, None
+    a, sep, b = str(text).partition(":")
+    if not sep:
+        raise CliError(f"{option} {text!r}: expected START:END in seconds (either may be empty)")
+    try:
+        lo = float(a) if a.strip() else None
+        hi = float(b) if b.strip() else None
+    except ValueError:
+        raise CliError(f"{option} {text!r}: START and END must be numbers of seconds") from None
+    if any(v is not None and not math.isfinite(v) for v in (lo, hi)):
+        raise CliError(f"{option} {text!r}: START and END must be finite")
+    if lo is not None and hi is not None and not hi > lo:
+        raise CliError(f"{option} {text!r}: END must be after START")
+    return lo, hi
+
+
+def check_window(option: str, text, t_first: float, t_last: float) -> None:
+    """Refuse a window that does not overlap the record ``[t_first, t_last]`` [s]."""
+    lo, hi = option_window(option, text)
+    if (lo is not None and lo >= t_last) or (hi is not None and hi <= t_first):
+        raise CliError(f"{option} {text!r}: outside the record, which spans "
+                       f"{t_first:.6g} to {t_last:.6g} s")
+
+
+def check_navigate_options(*, fix_latency=0.0, velocity_lag=0.0, imu_delay=0.0, max_gap=1.0,
+                           lag="aware", time_sync="none") -> None:
+    """The numeric and choice options of ``sinslab navigate``, before any file is read."""
+    option_number("--fix-latency", fix_latency, ge=0.0, unit="s")
+    option_number("--velocity-lag", velocity_lag, ge=0.0, unit="s")
+    option_number("--imu-delay", imu_delay, unit="s")
+    option_number("--max-gap", max_gap, gt=0.0, unit="s")
+    option_choice("--lag", lag, ("aware", "ignore"))
+    option_choice("--time-sync", time_sync, ("auto", "none"))
+
+
+def check_outages(option: str, text, outages, t_ref: float, t_end: float) -> None:
+    """Every outage (``[(start, length)]`` absolute [s], or a periodic spec) must start
+    within the navigated span ``[t_ref, t_end)``; otherwise nothing would be measured."""
+    span = t_end - t_ref
+    for o in outages:
+        if o and o[0] == "periodic":
+            _, ln, per, first = o
+            if not (0.0 <= first < span):
+                raise CliError(f"{option} {text!r}: the first outage at {first:g} s is outside "
+                               f"the record (0 to {span:.1f} s from the first fix)")
+            continue
+        st, ln = o
+        if not (t_ref <= st and st + ln <= t_end):
+            raise CliError(f"{option} {text!r}: outage {st - t_ref:g}:{ln:g} is outside the "
+                           f"record (0 to {span:.1f} s from the first fix)")
