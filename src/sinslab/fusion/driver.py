@@ -339,6 +339,8 @@ class DriverResult:
         Per stream, ``[kg, ka]`` compensation, when some feedback layout has scale blocks.
     applied : Applied
     layout : StateLayout
+    history : sinslab.fusion.smoothing.History or None
+        The forward pass recorded for smoothing (``history=`` of :func:`run`).
     """
 
     t: np.ndarray
@@ -350,6 +352,7 @@ class DriverResult:
     scale: tuple | None
     applied: Applied
     layout: object
+    history: object = None
 
 
 def _model_stretch(model, prog, pts, q, T, discretization):
@@ -380,7 +383,7 @@ def _feedback_pairs(feedback):
 
 def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=None,
         max_block=10.0, model_every=10.0, discretization="series", progress=False,
-        label="fusion", lag_tol=1e-6, model_eval="compiled") -> DriverResult:
+        label="fusion", lag_tol=1e-6, model_eval="compiled", history=None) -> DriverResult:
     """Run the filter beside the streams and apply the measurements (see the module notes).
 
     Parameters
@@ -419,6 +422,11 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
         :mod:`sinslab.nav.errstate`; other models use numpy); ``"numpy"``: the readable
         reference, ``model.matrices`` on :class:`~sinslab.nav.errstate.NavPoint` and
         :func:`~sinslab.estimation.kalman.discretize`. Equal to rounding.
+    history : sinslab.fusion.smoothing.History, optional
+        Record the forward pass for :func:`sinslab.fusion.smoothing.smooth` (it is
+        called after each prediction, after the measurements of an epoch and after
+        its feedback; lagged items need :class:`~sinslab.fusion.lag.ExactReprocessing`
+        or :class:`~sinslab.fusion.lag.OnArrival`).
 
     Returns
     -------
@@ -462,6 +470,9 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                 if ev < e and not lag.on_arrival:
                     hist = max(hist, e - ev + 3)
     keep_F = lag.needs_model and hist > 0
+    if history is not None and hist > 0 and not isinstance(lag, ExactReprocessing):
+        raise ValueError(f"smoothing a run with lagged measurements needs exact re-processing or "
+                         f"on-arrival updates, not {type(lag).__name__}")
 
     # --- filter and histories
     ns = len(streams)
@@ -487,6 +498,8 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
         if live[i]:
             gb_h[i][0], ab_h[i][0] = s.gb, s.ab
     sig_h[0] = filt.sigma
+    if history is not None:
+        history.begin(filt, n_ep, T, set(arrivals) | {v[0] for v in e_valid.values()})
     a_m, a_j, a_tv, a_t, a_nu, a_nis = [], [], [], [], [], []
     stops = sorted(set(arrivals) | {n_ep})
     max_ep = max(1, int(round(max_block / T)))
@@ -499,8 +512,9 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
     cprop = CompiledPropagation.of(model) if model_eval == "compiled" else None
     prog = cprop.prog if cprop is not None else None
     # one compiled loop per block (model, Φ, Q_k, prediction) unless Φ, Q_k or F must be kept
+    # (a history for smoothing records every Φ)
     fused = (cprop is not None and discretization == "series" and filt._buf is None
-             and not filt.check and not keep_F)
+             and not filt.check and not keep_F and history is None)
     stretch = None
 
     def epoch_rows(rows_list, w_list, f_list, k):
@@ -543,8 +557,12 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                               x_h[e0 + 1:e1 + 1])
             else:
                 sl = slice(e0 - la0, e1 - la0)
-                filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
-                                  x_out=x_h[e0 + 1:e1 + 1])
+                if history is None:
+                    filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
+                                      x_out=x_h[e0 + 1:e1 + 1])
+                else:
+                    history.predict(filt, Phi_la[sl], Q_la[sl], T, e0, sig_h[e0 + 1:e1 + 1],
+                                    x_h[e0 + 1:e1 + 1])
             for i, s in enumerate(streams):
                 _, ws, fs = blk[i]
                 nav_h[i][e0 + 1:e1 + 1] = rows[i][1:]
@@ -559,6 +577,7 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                         sc_h[i][e0 + 1:e1 + 1] = np.concatenate([s.kg, s.ka])
             here = arrivals.get(e1, []) if e1 == stops[si] else []
             now = None
+            ev_min = None
             for (mi, j) in here:
                 meas = measurements[mi]
                 ev, tv, late = e_valid[(mi, j)]
@@ -569,6 +588,7 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                         continue
                     kw = dict(F=F_h[ev], Qc=Qc_h[ev]) if keep_F else {}
                     res = lag.update(filt, *r, t_rel[ev], tol=lag_tol, **kw)
+                    ev_min = ev if ev_min is None else min(ev_min, ev)
                 else:
                     # on time, or the lag ignored: a late item taken as valid now
                     t_at = tv if (lag.on_arrival and late) else t_ep[e1]
@@ -585,10 +605,14 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                 a_nu.append(res.innovation)
                 a_nis.append(res.nis)
             if here:
+                if history is not None:
+                    history.updated(e1, filt, ev_min)
                 if fbs:
                     for si_, fb in fbs:
                         s = streams[si_]
-                        s.feedback(filt, fb)
+                        d = s.feedback(filt, fb)
+                        if history is not None:
+                            history.fed_back(e1, d)
                         if sc_h[si_] is not None:
                             sc_h[si_][e1] = np.concatenate([s.kg, s.ka])
                         nav_h[si_][e1] = s.row()
@@ -602,4 +626,4 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                       np.array(a_tv, dtype=float), np.array(a_t, dtype=float), a_nu,
                       np.array(a_nis, dtype=float))
     return DriverResult(t_ep, tuple(nav_h), x_h, sig_h, tuple(gb_h), tuple(ab_h),
-                        tuple(sc_h) if scaled else None, applied, lay)
+                        tuple(sc_h) if scaled else None, applied, lay, history)

@@ -79,6 +79,8 @@ class LooselyCoupled:
     nis : ndarray, shape (J,)
     layout : object
         The error-state layout of the model (names of the states).
+    history : sinslab.fusion.smoothing.History or None
+        The recorded forward pass (``history=``), for :func:`sinslab.fusion.smoothing.smooth`.
     """
 
     t: np.ndarray
@@ -94,6 +96,7 @@ class LooselyCoupled:
     innovation: np.ndarray
     nis: np.ndarray
     layout: object
+    history: object = None
 
 
 def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyro_arw=None,
@@ -102,7 +105,7 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
                     outages=(), windows=None, kf_dt=0.1, nsub=2, feedback=True,
                     vertical="free", height=None, gyro_bias=None, accel_bias=None, start=0,
                     t_start=None, max_block=10.0, model_every=10.0, discretization="series",
-                    aiding=(), progress=True, label="loosely coupled") -> LooselyCoupled:
+                    aiding=(), progress=True, label="loosely coupled", history=None) -> LooselyCoupled:
     """INS + position(/velocity) fixes with an error-state Kalman filter, on the fusion
     driver (:func:`sinslab.fusion.driver.run`, whose notes derive the loop).
 
@@ -194,6 +197,8 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         ``x[:, lev]`` holds ``l_used − l_true`` [m].
     progress : bool
         Show a progress bar (on a terminal).
+    history : sinslab.fusion.smoothing.History, optional
+        Record the forward pass for smoothing.
 
     Returns
     -------
@@ -284,11 +289,11 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
 
     r = driver.run([ins], model, P0, [meas, *aiding], kf_dt=kf_dt, feedback=fb, lag=policy,
                    max_block=max_block, model_every=model_every, discretization=discretization,
-                   progress=progress, label=label)
+                   progress=progress, label=label, history=history)
     ap = r.applied
     k = np.flatnonzero(ap.measurement == 0)            # the fixes (aiding records left out)
     m_z = n_z + (3 if use_vel else 0)
     inn = np.array([ap.innovation[i] for i in k]).reshape(-1, m_z)
     return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
                           r.scale[0] if r.scale is not None else None, fix_t[ap.item[k]],
-                          ap.t_applied[k], ap.item[k], inn, ap.nis[k], lay)
+                          ap.t_applied[k], ap.item[k], inn, ap.nis[k], lay, r.history)

@@ -33,6 +33,7 @@ from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
 from sinslab.fusion.loosely_coupled import loosely_coupled
+from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
            "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
@@ -92,6 +93,12 @@ class NavOptions:
     heading_window: float = 1.0             #: [s] of motion above move_speed for the heading
     heading_straight: float = 2.0 * units.deg   #: largest spread of course − gyro heading in it [rad]
     heading_sigma_floor: float = 1.0 * units.deg  #: added (in quadrature) to the σ of that heading
+    smooth: bool = False                    #: record the forward pass and smooth it (RTS)
+    odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
+    odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
+    odometer_lever: tuple = (0.0, 0.0, 0.0)  #: IMU -> wheel point, vehicle RFU [m]
+    odometer_scale_sigma: float = 0.02      #: initial 1σ of the odometer scale factor [-]
+    odometer_rate: float = 10.0             #: odometer updates per second [Hz]
 
     def check(self):
         la = np.asarray(self.lever_arm, dtype=float)
@@ -140,6 +147,7 @@ class RecordedNav:
     nis: np.ndarray                #: (J,)
     init: dict = field(default_factory=dict)
     options: NavOptions = None
+    smoothed: object = None        #: sinslab.fusion.smoothing.SmoothedRun (``smooth=True``)
 
     @property
     def att(self):
@@ -288,6 +296,8 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
                     es.accel_scale(rw=0.0 if ta else opt.scale_rw[1], tau=ta, sigma=as_ if ta else None)]
     if opt.estimate_lever:
         sensors.append(es.lever_arm())
+    if opt.odometer is not None:
+        sensors.append(es.odometer_scale())
     return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
 
 
@@ -519,6 +529,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         sp0[lay.slice("kg")], sp0[lay.slice("ka")] = _scale_sigmas(opt)
     if opt.estimate_lever:
         sp0[lay.slice("lev")] = opt.lever_sigma
+    if opt.odometer is not None:
+        sp0[lay.slice("kod")] = opt.odometer_scale_sigma
     n_ep = (len(imu) - ks) // k_kf
     if n_ep < 2:
         raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
@@ -546,6 +558,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     if opt.nhc_sigma is not None:
         aiding.append(NonHolonomic(opt.nhc_sigma, lever_arm=np.asarray(opt.nhc_lever_arm, float),
                                    every=every))
+    if opt.odometer is not None:
+        aiding.append(_odometer(opt.odometer, opt, T, t_lo, t_hi))
 
     P0 = np.diag(sp0 ** 2)
     if opt.estimate_lever:
@@ -567,6 +581,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
         lever_arm=lever, fix_lag=opt.fix_latency, lag=opt.lag, outages=outages, kf_dt=T,
         nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, aiding=aiding,
+        history=History(0.1) if opt.smooth else None,
         progress=progress, label="navigating")
     init["outages"] = outages
     if opt.estimate_lever:
@@ -574,7 +589,24 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         init["lever_arm_estimate"] = (lever - r.x[-1, sl]).tolist()     # δl = l_used − l_true
         init["lever_arm_sigma"] = r.sigma[-1, sl].tolist()
     return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
-                       r.fix_t, r.innovation, r.nis, init, opt)
+                       r.fix_t, r.innovation, r.nis, init, opt,
+                       smoothed=smooth(r) if opt.smooth else None)
+
+
+def _odometer(odo, opt, T, t_lo, t_hi):
+    """The wheel-speed measurement of the options (vehicle axes: the mount is applied to
+    the IMU on input), updated about ``odometer_rate`` times a second."""
+    from sinslab.fusion.measurements import Odometer
+    if odo.t[-1] < t_lo or odo.t[0] > t_hi:
+        raise ValueError(f"odometer times ({odo.source}: {odo.t[0]:.3f}..{odo.t[-1]:.3f} s) do not "
+                         f"overlap the IMU record ({t_lo:.3f}..{t_hi:.3f} s): different time bases?")
+    lever = np.asarray(opt.odometer_lever, dtype=float)
+    if lever.shape != (3,) or not np.all(np.isfinite(lever)):
+        raise ValueError(f"odometer lever arm must be 3 finite numbers [m], got {opt.odometer_lever!r}")
+    if not (opt.odometer_sigma > 0 and opt.odometer_rate > 0):
+        raise ValueError("odometer sigma and rate must be > 0")
+    every = max(1, int(round(1.0 / (opt.odometer_rate * T))))
+    return Odometer(odo.t, odo.speed, opt.odometer_sigma, lever_arm=lever, every=every)
 
 
 # ----------------------------------------------------------------------- evaluation ----

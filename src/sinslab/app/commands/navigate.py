@@ -60,7 +60,8 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                    frame=None, outages=None, fix_latency=0.0, lag="aware", init=None,
                    time_sync="none", velocity_lag=0.0, imu_delay=0.0, scale_factors=False,
                    max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None,
-                   columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0):
+                   columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
+                   odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
 
     Recorded-unit options: ``columns`` a column map of the IMU table
@@ -86,14 +87,15 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
         scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, echo=echo,
         options=options, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
-        csv_rate=csv_rate), echo=echo)
+        csv_rate=csv_rate, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
+                                    lever=odometer_lever, sigma=odometer_sigma)), echo=echo)
     return (summary, *res.value)
 
 
 def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
-             csv_rate=1.0) -> Output:
+             csv_rate=1.0, smo=None) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import earth as E         # numba and scipy: only when it runs
@@ -148,6 +150,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows")
     elif time_sync != "none":
         raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
+    odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_path, sync)
     em_cfg = {}
     if em is not None:
         from sinslab.app.error_model import apply_error_model
@@ -266,7 +269,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
            "pitch_deg": np.degrees(att[:, 0]), "roll_deg": np.degrees(att[:, 1]),
            "heading_deg": np.degrees(res.heading)}
     for i, (l, u_) in enumerate(zip(res.labels, res.units_)):
-        sc = {"arcmin": units.arcmin, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
+        sc = {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
         sol[f"sigma_{l}_{u_.replace('/', 'p')}"] = sig[:, i] / sc
     for k, a in enumerate("xyz"):
         sol[f"gyro_bias_{a}_dph"] = res.gyro_bias[:, k] / units.dph
@@ -322,6 +325,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
     figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
+    if res.smoothed is not None:
+        _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, every)
+    cfg.update(odo_cfg)
     notes = ["Heading is clockwise from north.",
              f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
              if res.init.get("rest_start") else "No rest at the start."]
@@ -349,6 +355,112 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                                     "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims)
+
+
+# ------------------------------------------------------- smoothing and odometer ---
+def _smooth_odometer_options(opt, smo, imu_path, sync):
+    """Put ``--smooth`` and ``--odometer*`` into the options; returns their config entries."""
+    from sinslab.data.odometer import read_odometer
+    opt.smooth = bool(smo.get("smooth"))
+    cfg = {"smooth": opt.smooth}
+    spec = smo.get("odometer")
+    if spec is None:
+        for k in ("units", "lever", "sigma"):
+            if smo.get(k) is not None:
+                raise ValueError(f"--odometer-{k} needs --odometer FILE|COLUMN")
+        return cfg
+    odo = read_odometer(spec, imu_path, speed_unit=smo.get("units"))
+    if sync is not None:
+        odo = odo.shifted(sync["offset"], sync["ppm"], sync["t_ref"])
+    opt.odometer = odo
+    if smo.get("lever") is not None:
+        opt.odometer_lever = tuple(_vec3(smo["lever"], "length", "--odometer-lever"))
+    if smo.get("sigma") is not None:
+        opt.odometer_sigma = units.parse(smo["sigma"], "velocity")
+        if not (opt.odometer_sigma > 0 and math.isfinite(opt.odometer_sigma)):
+            raise ValueError(f"--odometer-sigma must be > 0, got {smo['sigma']!r}")
+    cfg.update(odometer=odo.source, odometer_lever=f"[{', '.join(f'{x:g}' for x in opt.odometer_lever)}] m",
+               odometer_sigma=f"{opt.odometer_sigma:g} m/s")
+    return cfg
+
+
+def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1):
+    """Forward and smoothed solutions side by side, their errors against the fixes that
+    were not used (inside outages; all fixes without outages), figures."""
+    import dataclasses
+
+    from sinslab.app import plotting
+    from sinslab.core import attitude as A
+    from sinslab.core import earth as E
+    from sinslab.fusion.recorded import fix_errors
+    sm = res.smoothed
+    t, err_f, _ = fix_errors(res, fx)
+    _, err_s, _ = fix_errors(dataclasses.replace(res, nav=sm.nav), fx)
+    hz_f, hz_s = np.hypot(err_f[:, 0], err_f[:, 1]), np.hypot(err_s[:, 0], err_s[:, 1])
+    in_out = np.zeros(t.size, bool)
+    mids = []
+    for s0, ln in outs:
+        m = (t >= s0) & (t < s0 + ln)
+        in_out |= m
+        if m.any():
+            mids.append(int(np.flatnonzero(m)[np.argmin(np.abs(t[m] - (s0 + 0.5 * ln)))]))
+    sel = in_out if in_out.any() else np.ones(t.size, bool)
+    rms = lambda v: float(np.sqrt(np.mean(v ** 2))) if v.size else None  # noqa: E731
+    metrics.update(
+        smoothed_hz_err_rms_m=rms(hz_s[sel]), forward_hz_err_rms_m=rms(hz_f[sel]),
+        smoothed_err_reference="fixes inside the outages (not used)" if in_out.any() else "all fixes (used)",
+        outage_mid_hz_err_forward_m=hz_f[mids].tolist(), outage_mid_hz_err_smoothed_m=hz_s[mids].tolist(),
+        outage_mid_hz_err_smoothed_median_m=float(np.median(hz_s[mids])) if mids else None,
+        smoothed_stored_epochs=int(sm.stored.size))
+    if res.options.odometer is not None:
+        i = [j for j, l in enumerate(res.labels) if l.startswith("kod")][0]
+        metrics.update(odometer_scale_final_ppm=float(sm.x[-1, i] * 1e6),
+                       odometer_scale_sigma_ppm=float(sm.sigma[-1, i] * 1e6))
+    echo(f"  smoothed: horizontal error RMS {metrics['smoothed_hz_err_rms_m']:.3f} m "
+         f"(forward {metrics['forward_hz_err_rms_m']:.3f} m) at {metrics['smoothed_err_reference']}")
+    att_f, att_s = A.quat_to_euler(sm.forward_nav[:, :4]), A.quat_to_euler(sm.nav[:, :4])
+    cols = {"t_s": res.t - res.t[0], "t_abs_s": res.t}
+    for nm, a, b, sc in (("lat_deg", sm.forward_nav[:, 7], sm.nav[:, 7], 180 / math.pi),
+                         ("lon_deg", sm.forward_nav[:, 8], sm.nav[:, 8], 180 / math.pi),
+                         ("h_m", sm.forward_nav[:, 9], sm.nav[:, 9], 1.0),
+                         ("vE_mps", sm.forward_nav[:, 4], sm.nav[:, 4], 1.0),
+                         ("vN_mps", sm.forward_nav[:, 5], sm.nav[:, 5], 1.0),
+                         ("vU_mps", sm.forward_nav[:, 6], sm.nav[:, 6], 1.0),
+                         ("pitch_deg", att_f[:, 0], att_s[:, 0], 180 / math.pi),
+                         ("roll_deg", att_f[:, 1], att_s[:, 1], 180 / math.pi),
+                         ("heading_deg", np.mod(A.yaw_to_heading(att_f[:, 2]), 2 * np.pi),
+                          np.mod(A.yaw_to_heading(att_s[:, 2]), 2 * np.pi), 180 / math.pi)):
+        cols[f"fwd_{nm}"] = a * sc
+        cols[f"smo_{nm}"] = b * sc
+    for i, (l, u_) in enumerate(zip(res.labels, res.units_)):
+        sc = {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
+        cols[f"fwd_sigma_{l}_{u_.replace('/', 'p')}"] = res.sigma[:, i] / sc
+        cols[f"smo_sigma_{l}_{u_.replace('/', 'p')}"] = sm.sigma[:, i] / sc
+    tables.append(Series("smoothed", cols, "forward (fwd_) and smoothed (smo_) solutions and σ at every "
+                         f"filter epoch (Parquet; the CSV every {csv_every}-th epoch, like the solution)",
+                         csv_every=csv_every))
+    fig, axes = plotting.figure(2, 1, width=9.0)
+    tt = t - res.t[0]
+    axes[0].plot(tt, hz_f, ".", ms=1.5, color=plotting.COLORS[0], label="forward")
+    axes[0].plot(tt, hz_s, ".", ms=1.5, color=plotting.COLORS[1], label="smoothed")
+    axes[0].set_ylabel("horizontal error [m]")
+    axes[0].legend()
+    lat = res.nav[:, 7]
+    rm, rn = E.radii(lat, res.nav[:, 9])
+    ip = list(res.labels).index("dL")
+    sh_f = np.hypot(res.sigma[:, ip] * rm, res.sigma[:, ip + 1] * rn * np.cos(lat))
+    sh_s = np.hypot(sm.sigma[:, ip] * rm, sm.sigma[:, ip + 1] * rn * np.cos(lat))
+    ts_ = res.t - res.t[0]
+    axes[1].semilogy(ts_, sh_f, lw=1, color=plotting.COLORS[0], label="forward")
+    axes[1].semilogy(ts_, sh_s, lw=1, color=plotting.COLORS[1], label="smoothed")
+    axes[1].set_ylabel("horizontal σ [m]")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        for s0, ln in outs:
+            ax.axvspan(s0 - res.t[0], s0 + ln - res.t[0], color="0.85", lw=0)
+    fig.suptitle("Forward filter and smoother (grey: outages)")
+    figures.append(Figure("smoothed", fig, "Horizontal error against the fixes and horizontal σ, "
+                          "forward filter and RTS smoother."))
 
 
 def register(app):
@@ -379,13 +491,21 @@ def register(app):
                  rest: Optional[str] = typer.Option(None, "--rest", help="rest for ZUPT/ZARU: auto (IMU detector) | flags (the log's column)"),
                  csv_rate: float = typer.Option(1.0, "--csv-rate", help="rate of solution.csv [Hz] (solution.parquet: every filter epoch)"),
                  out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]"),
-                 force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
+                 force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)"),
+                 # smoothing and wheel odometer
+                 smooth: bool = typer.Option(False, "--smooth", help="also write the RTS-smoothed solution (forward + backward pass)"),
+                 odometer: Optional[str] = typer.Option(None, "--odometer", help="wheel speeds: FILE (t, speed columns) or a COLUMN of the IMU table"),
+                 odometer_units: Optional[str] = typer.Option(None, "--odometer-units", help="speed unit if the header has none, e.g. km/h"),
+                 odometer_lever: Optional[str] = typer.Option(None, "--odometer-lever", help='IMU -> wheel point, vehicle right-forward-up, e.g. "[0, -1.2, -0.3] m"'),
+                 odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]')) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
                  init=init, time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
                  scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, out=out,
                  echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
-                 csv_rate=csv_rate, force=force)
+                 csv_rate=csv_rate, force=force, smooth=smooth, odometer=odometer,
+                 odometer_units=odometer_units, odometer_lever=odometer_lever,
+                 odometer_sigma=odometer_sigma)
 
     return navigate
