@@ -1,16 +1,23 @@
 """Speed of paper 001's pipeline (rotation-evaluation).
 
-Run: ``.venv/bin/python benchmarks/rotins.py [--quick] [--runs N] [--filter-hours H] [--json FILE]``
+Run: ``.venv/bin/python benchmarks/rotins.py [--quick] [--runs N] [--filter-hours H]
+[--nav-hours H] [--nav-ins N] [--only-navigation] [--compare-serial] [--json FILE]``
 
 1. Stage times of one run of the experiment (full default: 144 h, eleven INS at 100 Hz,
-   ten joint filters; ``--quick``: the experiment's --quick), from its ``stage_s`` metric:
-   synthesis + navigation, joint filters, eq-20 covariance, Monte Carlo. Targets: full
-   default < 60 s, --quick < 60 s on a quiet 2-core machine.
+   ten joint filters; ``--quick``: the experiment's --quick), from its ``stage_s`` metric
+   (wall) and ``stage_cpu_s`` (CPU of the process, all threads): synthesis + navigation,
+   joint filters, eq-20 covariance, Monte Carlo; with ``--compare-serial`` also with the
+   INS navigated one after another. Targets: full default < 60 s, --quick < 60 s on a
+   quiet 2-core machine.
 2. One joint filter over ``--filter-hours`` hours (1 s model steps, a measurement every
    10 s) two ways in the same run: the fusion driver on the two outputs and the compiled
    loop on the schedule's transition table (:func:`sinslab.methods.rotins.joint_filter_linear`);
    their ratio.
-3. With ``--runs N`` (> 1): the linear-domain seed campaign of analysis one (Dask, local
+3. Navigation of ``--nav-ins`` independent INS over ``--nav-hours`` hours at 100 Hz three
+   ways in the same run (``compute.navigation``): one after another, Dask threads (the
+   compiled kernels release the GIL), a Dask local cluster of two processes; wall and CPU
+   times, the ratios to serial, and a check that the outputs are identical.
+4. With ``--runs N`` (> 1): the linear-domain seed campaign of analysis one (Dask, local
    cluster) on the configuration of part 1. Target: 20 seeds at full scale < 10 min.
 """
 from __future__ import annotations
@@ -27,7 +34,7 @@ os.environ.setdefault("SINSLAB_QUIET", "1")
 import numpy as np  # noqa: E402
 
 
-def stage_times(quick, runs=1, scheduler=None):
+def stage_times(quick, runs=1, scheduler=None, sets=()):
     from pathlib import Path
 
     from sinslab.app.config import resolve
@@ -35,14 +42,47 @@ def stage_times(quick, runs=1, scheduler=None):
     from sinslab.experiments.base import RunContext
 
     exp = get("rotation-evaluation")
-    cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=[f"runs={runs}"])
+    cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=[f"runs={runs}", *sets])
     ctx = RunContext("bench", Path("."), seed=0, runs=runs, quick=quick, scheduler=scheduler)
     t0 = time.perf_counter()
     res = exp.run(cfg, ctx)
     wall = time.perf_counter() - t0
     st = res.metrics["stage_s"]
     return dict(wall_s=wall, navigation_s=st[0], filters_s=st[1], covariance_s=st[2], montecarlo_s=st[3],
+                stage_cpu_s=res.metrics["stage_cpu_s"], load_avg=os.getloadavg(),
                 navigations=res.metrics["navigations"], imu_samples_per_ins=res.metrics["imu_samples_per_ins"])
+
+
+def navigation_modes(hours, n_ins, workers=2):
+    from sinslab.app.config import resolve
+    from sinslab.core import units as u
+    from sinslab.experiments import get
+    from sinslab.experiments import rotation_evaluation as R
+
+    cfg = resolve(get("rotation-evaluation").config, sets=[])
+    lat, lon, dt = float(cfg.scenario.latitude), float(cfg.scenario.longitude), float(cfg.scenario.sample_interval)
+    m1, mk = R.mounts(cfg)
+    cyc = [R.one_cycle(m1, lat, lon, dt), R.one_cycle(mk, lat, lon, dt)]
+    specs = {f"ins{i}": R.InsSpec(f"INS {i}", cyc[i % 2], R._errors(cfg.imuk, gyro_scale=1.0 + 0.1 * i), (i,))
+             for i in range(n_ins)}
+    k_out = 1000
+    n_out = int(hours * 3600 / (k_out * dt))
+    kw = dict(seed=0, lat=lat, lon=lon, dt=dt, n_steps=n_out, k_kf=k_out, nsub=2,
+              att_sigma=np.array([5, 5, 30]) * u.arcsec, chunk_steps=360, rates=False)
+    R.navigate_many({"warm": specs["ins0"]}, dict(kw, n_steps=2), "serial")      # compile / load caches
+    out, ref = {}, None
+    for mode in ("serial", "threads", "processes"):
+        c0, t0 = time.process_time(), time.perf_counter()
+        res = R.navigate_many(specs, kw, mode, workers)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        rows = np.stack([res[k].rows for k in specs])
+        same = True if ref is None else bool(np.array_equal(rows, ref))
+        ref = rows if ref is None else ref
+        out[mode] = dict(wall_s=wall, cpu_main_s=cpu, identical_to_serial=same)
+    for mode in ("threads", "processes"):
+        out[mode]["speedup_vs_serial"] = out["serial"]["wall_s"] / out[mode]["wall_s"]
+    out.update(hours=hours, n_ins=n_ins, workers=workers, load_avg=os.getloadavg())
+    return out
 
 
 def filter_ratio(hours):
@@ -87,12 +127,24 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--runs", type=int, default=1)
     ap.add_argument("--filter-hours", type=float, default=24.0)
+    ap.add_argument("--nav-hours", type=float, default=6.0)
+    ap.add_argument("--nav-ins", type=int, default=4)
+    ap.add_argument("--only-navigation", action="store_true", help="part 3 only")
+    ap.add_argument("--compare-serial", action="store_true",
+                    help="part 1 also with compute.navigation=serial (the INS one after another)")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
-    out = {"filter": filter_ratio(a.filter_hours)}
+    out = {"navigation": navigation_modes(a.nav_hours, a.nav_ins)}
+    print("navigation modes:", json.dumps(out["navigation"], indent=1))
+    if a.only_navigation:
+        return 0
+    out["filter"] = filter_ratio(a.filter_hours)
     print("joint filter:", json.dumps(out["filter"], indent=1))
     out["run"] = stage_times(a.quick)
     print("experiment run:", json.dumps(out["run"], indent=1))
+    if a.compare_serial:
+        out["run_serial"] = stage_times(a.quick, sets=["compute.navigation=serial"])
+        print("experiment run, INS navigated one after another:", json.dumps(out["run_serial"], indent=1))
     if a.runs > 1:
         t0 = time.perf_counter()
         st = stage_times(a.quick, runs=a.runs)

@@ -59,6 +59,24 @@ def test_contract_and_claims(small):
     assert claims["eq20_literal"]["passed"] == (abs(m["eq20_sigma_ratio_predicted"] - 1.1) <= 0.022)
 
 
+def test_drift_random_walk_leaves_the_paper_model_alone(small, tmp_path):
+    """analysis_two.drift_rw (trend tracking, not the paper's model): the paper-model
+    metrics are those of the run without it (same seed), the extra filters report their
+    own metrics, and a drift allowed to wander keeps a gain on ε_z1, so its estimate
+    scatters more within each window than the random constant's."""
+    exp = get("rotation-evaluation")
+    rw = 0.0005 * math.sqrt(2 * math.pi / 48.0)          # A·sqrt(2π/P) in °/h/√h
+    cfg = resolve(exp.config, sets=SMALL + [f"analysis_two.drift_rw={rw} deg/h/sqrt(h)"])
+    m = execute(exp, cfg, tmp_path / "rw", quick=True, scheduler="sync")["metrics"]
+    m0 = small["metrics"]
+    for k in ("trend_track_corr", "trend_track_rms_dph", "windowed_std_two_dph", "pos_err_rms_nmi",
+              "windowed_std_eps_z1_dph", "eps_z1_final_dph"):
+        assert m[k] == m0[k], k
+    assert "trend_track_corr_rw" not in m0 and len(m["trend_track_corr_rw"]) == 3
+    assert all(np.isfinite(m["trend_track_rms_rw_dph"]))
+    assert np.all(np.array(m["windowed_std_two_rw_dph"]) > np.array(m["windowed_std_two_dph"]))
+
+
 def test_linear_campaign_matches_nonlinear_pipeline(small):
     """The linear-domain simulation is the nonlinear pipeline's filter: the same σ of ε_z1
     (covariance pass along the true schedule vs the driver on the navigated outputs), and

@@ -186,8 +186,8 @@ def _static_streams(T=60.0, hours=144.0):
     return t, out
 
 
-def _joint_setup():
-    model = rotins.joint_rotation_model(0.001 * u.deg / 60, 0.001 * u.deg / 60, 1e-4, 1e-4)
+def _joint_setup(drift_rw1=0.0):
+    model = rotins.joint_rotation_model(0.001 * u.deg / 60, 0.001 * u.deg / 60, 1e-4, 1e-4, drift_rw1=drift_rw1)
     P0 = rotins.joint_P0(model, LAT, att=np.array([5, 5, 30]) * u.arcsec * math.sqrt(2),
                          gyro1=0.01 * u.dph, gyrok=0.01 * u.dph, accel1=20 * u.ug, accelk=20 * u.ug)
     return model, P0
@@ -276,11 +276,17 @@ def test_difference_sigma_and_settle_time():
     assert rotins.settle_time(t, x, 0.1) == 6.0
 
 
-def test_driver_and_compiled_joint_filters_agree():
+#: a drift random walk of the size used against a 0.0005 °/h, 48 h trend (A·sqrt(2π/P))
+RW = 0.0005 * u.dph * math.sqrt(2 * math.pi / (48 * 3600.0))
+
+
+@pytest.mark.parametrize("drift_rw1", [0.0, RW], ids=["constant_drifts", "drift_random_walk"])
+def test_driver_and_compiled_joint_filters_agree(drift_rw1):
     """Two implementations of one joint filter: the fusion driver on the two outputs every
     1 s with a measurement every 10 s, and the compiled loop on the transitions chained from
     the same 1 s steps (:func:`rotins.joint_transitions` with sub-steps) — same estimate
-    and σ on synthetic INS differences."""
+    and σ on synthetic INS differences; with the paper's random-constant drifts and with a
+    random walk on INS 1's drifts."""
     from sinslab.fusion.driver import PrecomputedStream
 
     Ts, m = 1.0, 10
@@ -290,7 +296,7 @@ def test_driver_and_compiled_joint_filters_agree():
     rk[:, 4:6] += np.cumsum(rng.standard_normal((t.size, 2)) * 1e-4, 0)
     rk[:, 7] += np.cumsum(rng.standard_normal(t.size) * 1e-10)
     rk[:, 8] += np.cumsum(rng.standard_normal(t.size) * 1e-10)
-    model, P0 = _joint_setup()
+    model, P0 = _joint_setup(drift_rw1)
     sig = rotins.difference_sigma(LAT)
     res = rotins.joint_filter(PrecomputedStream(t, r1, w1, f1), PrecomputedStream(t, rk, wk, fk), model, P0,
                               kf_dt=Ts, meas_every=m, sigma=sig)
@@ -300,3 +306,32 @@ def test_driver_and_compiled_joint_filters_agree():
     xd, sd_ = res.x[::m], res.sigma[::m]
     np.testing.assert_allclose(s[:, 4:], sd_[:, 4:], rtol=1e-9)
     assert np.max(np.abs(x - xd) / sd_) < 1e-8
+
+
+def test_drift_random_walk_enters_only_as_q_times_t_on_the_drift_block():
+    """Random-walk drifts (ε̇_1 = w, density q): the drift rows of F are zero, so over a step
+    T the discrete process noise of the ε_1 block grows by exactly q·T·I against the paper's
+    random-constant model, and F, the noise of every other block's own diagonal at the
+    first order, and the default model (no extra noise columns) are unchanged."""
+    from sinslab.nav.errstate import NavPoint
+
+    C1, Ck = euler_to_dcm(np.radians([0.0, 0.0, 90.0])), euler_to_dcm(np.radians([180.0, 0.0, 0.0]))
+    m0 = rotins.joint_rotation_model(1e-6, 1e-6, 1e-4, 1e-4)
+    m1 = rotins.joint_rotation_model(1e-6, 1e-6, 1e-4, 1e-4, drift_rw1=RW)
+    assert m0.q.size == 10 and m1.q.size == 13
+    p1, pk = NavPoint.static(LAT, C1), NavPoint.static(LAT, Ck)
+    np.testing.assert_array_equal(m0.F(p1, pk), m1.F(p1, pk))
+    T = 10.0
+    rows = np.zeros((1, 10))
+    rows[0, :4] = [1.0, 0.0, 0.0, 0.0]
+    rows[0, 7] = LAT
+    w = np.zeros((1, 3))
+    f = np.array([[0.0, 0.0, 9.79]])
+    Q0 = rotins.joint_transitions(m0, T, rows, rows, (w, f), (w, f))[1]["all"][0]
+    Q1 = rotins.joint_transitions(m1, T, rows, rows, (w, f), (w, f))[1]["all"][0]
+    e1 = m1.layout.slice("eps_1")
+    np.testing.assert_allclose((Q1 - Q0)[e1, e1], RW ** 2 * T * np.eye(3), rtol=1e-12, atol=0)
+    ek = m1.layout.slice("eps_k")
+    np.testing.assert_array_equal((Q1 - Q0)[ek, ek], 0.0)
+    with pytest.raises(ValueError, match="drift_rw1"):
+        rotins.joint_rotation_model(drift_rw1=-1.0)

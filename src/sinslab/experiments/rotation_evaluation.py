@@ -11,7 +11,9 @@ Long runs are generated and navigated in chunks: with the carrier at rest the tr
 increments repeat exactly with the mechanism's cycle, so one cycle is synthesised per
 scheme and tiled; each INS adds its own errors chunk by chunk (one random stream per INS,
 so a rescaled noise record is the same record) and keeps its output at the filter rate
-only. The joint filters are feed-forward on those outputs, with the model chained from
+only. The INS are independent and navigated concurrently (``compute.navigation``: Dask
+threads by default — the compiled kernels release the GIL — or a Dask cluster of
+processes); the outputs do not depend on the mode. The joint filters are feed-forward on those outputs, with the model chained from
 ``filter.model_dt`` sub-steps per measurement: by default (``filter.engine = "schedule"``)
 linearised along the known schedule, one transition table shared by every filter, in a
 compiled loop (:func:`sinslab.methods.rotins.joint_filter_linear`); with ``"driver"`` the
@@ -25,7 +27,8 @@ Analyses:
   dual-axis INS with its own record and noise ``evaluation.separate_ratio`` × INS #2's;
 - two: a slow trend on INS #1's azimuth drift and INS #2..#4 with noise scales
   ``analysis_two.noise_scales``: ε_z1 tracks the trend (Fig 5), the windowed stds rank the
-  INS (Fig 6) as their position errors do (Fig 7);
+  INS (Fig 6) as their position errors do (Fig 7); with ``analysis_two.drift_rw`` > 0 the
+  three filters run again with a random walk on INS #1's drifts (not the paper's model);
 - eq 20 checked by a covariance computation with the filter's gains
   (:func:`sinslab.methods.rotins.noise_share`) against the simulated ratio for β = 1.1;
 - observability of the joint model along the actual stops (rank per stop, cumulative).
@@ -49,7 +52,7 @@ from pydantic import field_validator, model_validator
 from sinslab.app.errors import UserError
 from sinslab.core import attitude as A
 from sinslab.core import earth, units
-from sinslab.core.records import ImuRecord, NavState
+from sinslab.core.records import NavState
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
 from sinslab.methods import rotins
 from sinslab.nav import strapdown as sd
@@ -163,6 +166,10 @@ class AnalysisTwo(Section):
     trend_amplitude: Q("angular_rate") = Field("0.0005 deg/h", description="INS #1 azimuth drift trend: sine amplitude")
     trend_period: Q("time", gt="0 s") = Field("48 h", description="its period")
     trend_ramp: Q("angular_rate") = Field("0.0003 deg/h", description="plus a linear rise over the whole run")
+    drift_rw: Q("rate_random_walk", ge="0 deg/h/sqrt(h)") = Field(
+        "0 deg/h/sqrt(h)", description="if > 0: the trend filters are run a second time with this random walk "
+        "on INS #1's gyro drifts (the paper's model has none); a level matched to the trend is "
+        "trend_amplitude·sqrt(2π/trend_period)")
 
     @field_validator("noise_scales")
     @classmethod
@@ -170,6 +177,13 @@ class AnalysisTwo(Section):
         if len(v) != 3 or any((not math.isfinite(b)) or b <= 0 for b in v):
             raise ValueError(f"noise_scales: three values > 0 (INS #2, #3, #4), got {v}")
         return v
+
+
+class Compute(Section):
+    navigation: Literal["threads", "processes", "serial"] = Field(
+        "threads", description="how the independent INS navigations share the CPUs: Dask threads (compiled "
+        "kernels release the GIL), a Dask local cluster of processes (or --scheduler), or one after another")
+    workers: int = Field(2, ge=1, le=256, description="threads or worker processes of the navigation")
 
 
 class Config(ExperimentConfig):
@@ -183,6 +197,7 @@ class Config(ExperimentConfig):
     filter: Filter = Filter()
     evaluation: Evaluation = Evaluation()
     analysis_two: AnalysisTwo = AnalysisTwo()
+    compute: Compute = Compute()
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -236,6 +251,10 @@ METRICS = {
     "pos_err_rms_nmi": Metric("nmi", "RMS horizontal position error over the run, INS #1 (trend), #2, #3, #4"),
     "trend_track_rms_dph": Metric("deg/h", "analysis two: RMS of ε_z1 estimate − true drift after evaluation.start, per filter"),
     "trend_track_corr": Metric("-", "analysis two: correlation of the ε_z1 estimate with the true drift after evaluation.start, per filter"),
+    "trend_track_corr_rw": Metric("-", "the same with analysis_two.drift_rw on INS #1's drifts (only when > 0)"),
+    "trend_track_rms_rw_dph": Metric("deg/h", "RMS tracking error with analysis_two.drift_rw (only when > 0)"),
+    "windowed_std_two_rw_dph": Metric("deg/h", "mean windowed std of filters 2, 3, 4 with analysis_two.drift_rw (only when > 0)"),
+    "ranking_matches_position_error_rw": Metric("-", "std ranking equals the position-error ranking with analysis_two.drift_rw (only when > 0)"),
     "eq20_sigma_ratio_predicted": Metric("-", "σ(ε_z1) at β = 1.1 over β = 1 from the covariance computation (gains fixed)"),
     "eq20_sigma_ratio_paper": Metric("-", "the same from eq 20 taken literally (ΔP = αP: ratio β)"),
     "eq20_sigma_ratio_simulated": Metric("-", "mean windowed std at β = 1.1 over β = 1 (simulation)"),
@@ -246,6 +265,7 @@ METRICS = {
     "imu_samples_per_ins": Metric("-", "IMU samples navigated by each INS"),
     "navigations": Metric("-", "INS navigated at the full IMU rate"),
     "stage_s": Metric("s", "wall time per stage: synthesis+navigation, filters, covariance, Monte Carlo"),
+    "stage_cpu_s": Metric("s", "CPU time of this process per stage (all its threads; Dask worker processes not included)"),
 }
 
 
@@ -410,11 +430,11 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
         L = m * k_kf
         i0 = done * k_kf
         t = (i0 + 1 + np.arange(L)) * dt
-        rec = ImuRecord(t, _tile(spec.cycle.dth, i0, L), _tile(spec.cycle.dv, i0, L), dt)
-        meas = imu_.apply(rec, spec.errors, rng)
-        dth, dv = meas.dtheta, meas.dv
-        if spec.trend is not None or spec.recorded is not None:
-            dth = dth.copy()
+        # the interval an ImuRecord of the chunk would take from its time column, so the
+        # draws are scaled exactly as imu.apply on that record would scale them
+        dt_rec = float((t[-1] - t[0]) / (L - 1)) if L > 1 else dt
+        dth, dv = imu_.apply_arrays(_tile(spec.cycle.dth, i0, L), _tile(spec.cycle.dv, i0, L), t, dt_rec,
+                                    spec.errors, rng)
         if spec.trend is not None:
             dth += spec.trend.evaluate(t - 0.5 * dt) * dt
         if spec.recorded is not None:
@@ -430,6 +450,75 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
     dn = (rows[:, 7] - lat) * float(rm)
     de = (rows[:, 8] - lon) * float(rn) * math.cos(lat)
     return InsOutput(rows, omega, f, np.hypot(dn, de))
+
+
+def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=None):
+    """Navigate independent INS (:func:`navigate_chunked`) concurrently on Dask.
+
+    Every INS draws from its own random stream (``seed`` and its ``stream``), so the
+    outputs do not depend on the order, the number of workers or the mode.
+
+    Parameters
+    ----------
+    specs : dict {key: InsSpec}
+    nav_kw : dict
+        The other arguments of :func:`navigate_chunked` (``seed``, ``lat``, ``lon``, ``dt``,
+        ``n_steps``, ``k_kf``, ``nsub``, ``att_sigma``, ``chunk_steps``, ``rates``).
+    mode : {"threads", "processes", "serial"}
+        Dask's threaded scheduler in this process (the compiled kernels release the GIL),
+        a local cluster of worker processes (or ``scheduler``, an address), or one by one.
+    workers : int
+        Threads or local worker processes.
+    scheduler : str, optional
+        Dask scheduler address for ``mode="processes"``.
+    bar : progress bar, optional
+        Advanced by one per INS.
+
+    Returns
+    -------
+    dict {key: InsOutput}
+    """
+    keys = list(specs)
+
+    def one(key):
+        out = navigate_chunked(specs[key], **nav_kw)
+        if bar is not None:
+            bar.advance(1)
+        return out
+
+    if mode == "serial" or len(keys) == 1:
+        return {k: one(k) for k in keys}
+    if mode == "threads":
+        import dask
+
+        res = dask.compute(*[dask.delayed(one, pure=False)(k) for k in keys], scheduler="threads",
+                           num_workers=int(workers))
+        return dict(zip(keys, res))
+    from distributed import Client, LocalCluster, as_completed
+
+    own = None
+    if scheduler:
+        client = Client(scheduler)
+        own = (client, None)
+    else:
+        cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=40)
+        client = Client(cluster)
+        own = (client, cluster)
+    try:
+        # the cycles are tens of MB: send each spec once rather than inside the task graph
+        sent = client.scatter([specs[k] for k in keys], hash=False)
+        futs = {client.submit(navigate_chunked, f, pure=False, **nav_kw): k for k, f in zip(keys, sent)}
+        outs = {}
+        for fut in as_completed(futs):
+            outs[futs[fut]] = fut.result()
+            if bar is not None:
+                bar.advance(1)
+    finally:
+        own[0].close()
+        if own[1] is not None:
+            own[1].close()
+    return {k: outs[k] for k in keys}
 
 
 def _errors(sec, gyro_scale=1.0, white=True):
@@ -485,7 +574,7 @@ def run(cfg: Config, ctx) -> Result:
     n_kf = int(float(sc.duration) // kf_dt)
     n_steps = n_kf * me
     n_samples = n_steps * k_md
-    stages = {}
+    stages, cpu = {}, {}
     notes = []
 
     # recorded noise first: a bad file is reported before any work
@@ -505,7 +594,7 @@ def run(cfg: Config, ctx) -> Result:
         notes.append(warning)
 
     # --- the INS
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     cyc1 = one_cycle(m1, lat, lon, dt)
     cyck = one_cycle(mk, lat, lon, dt)
     e1 = _errors(cfg.imu1, white=not cfg.imu1.recorded_noise)
@@ -535,22 +624,21 @@ def run(cfg: Config, ctx) -> Result:
     two_2 = f"ins2_b{s2:g}"
     if two_2 not in specs:
         specs[two_2] = kspec(f"INS #2 β={s2:g}", (2,), s2)
-    outs = {}
     drv = fl.engine == "driver"
     # the driver linearises on the outputs at every model step; the schedule engine needs
     # the outputs at the measurement epochs only
     n_out, k_out = (n_steps, k_md) if drv else (n_kf, k_md * me)
+    nav_kw = dict(seed=cfg.seed, lat=lat, lon=lon, dt=dt, n_steps=n_out, k_kf=k_out, nsub=cfg.filter.nsub,
+                  att_sigma=att_sigma, chunk_steps=max(1, int(3600.0 // (k_out * dt))), rates=drv)
     with ctx.progress("navigating", total=len(specs), unit="INS") as bar:
-        for key, spec in specs.items():
-            outs[key] = navigate_chunked(spec, cfg.seed, lat, lon, dt, n_out, k_out, cfg.filter.nsub, att_sigma,
-                                         chunk_steps=max(1, int(3600.0 // (k_out * dt))), rates=drv)
-            bar.advance(1)
+        outs = navigate_many(specs, nav_kw, cfg.compute.navigation, cfg.compute.workers, ctx.scheduler, bar)
     stages["navigation"] = time.perf_counter() - t0
+    cpu["navigation"] = time.process_time() - c0
 
     # --- joint filters
     from sinslab.fusion.driver import PrecomputedStream
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     t_md = model_dt * np.arange(n_steps + 1)
     t_ep = t_md[::me]
     sig_meas = rotins.difference_sigma(lat, float(fl.meas_floor_pos), float(fl.meas_floor_vel))
@@ -582,6 +670,7 @@ def run(cfg: Config, ctx) -> Result:
             est[(a, b)] = jf(a, b)
             bar.advance(1)
     stages["filters"] = time.perf_counter() - t0
+    cpu["filters"] = time.process_time() - c0
 
     st, win = float(ev.start), float(ev.window)
 
@@ -627,8 +716,42 @@ def run(cfg: Config, ctx) -> Result:
     track = [float(np.sqrt(np.mean((est[k][0][after] - true_drift[after]) ** 2)) / DPH) for k in two_keys]
     track_corr = [float(np.corrcoef(est[k][0][after], true_drift[after])[0, 1]) for k in two_keys]
 
+    # analysis two again with a random walk on INS #1's drifts (not the paper's model)
+    rw = float(a2.drift_rw)
+    two_rw = None
+    if rw > 0:
+        t0, c0 = time.perf_counter(), time.process_time()
+        model_rw = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
+                                               float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw), drift_rw1=rw)
+        if drv:
+            def jf_rw(a, b):
+                r = rotins.joint_filter(stream(outs[a]), stream(outs[b]), model_rw, P0, kf_dt=model_dt,
+                                        meas_every=me, sigma=sig_meas)
+                return r.x[::me, iz].copy(), r.sigma[::me, iz].copy()
+        else:
+            Phi_rw, Q_rw, idx_rw = schedule_transitions(m1, mk, lat, lon, model_rw, model_dt, me, n_kf,
+                                                        {"all": range(model_rw.q.size)})
+
+            def jf_rw(a, b):
+                z = rotins.difference_measurements(outs[a].rows[1:], outs[b].rows[1:])
+                x, sg = rotins.joint_filter_linear(z, Phi_rw, Q_rw["all"], model_rw, P0, sigma=sig_meas,
+                                                   index=idx_rw)
+                return x[:, iz], sg[:, iz]
+        est_rw = [jf_rw(a, b) for a, b in two_keys]
+        ws_rw = [wstd(x)[1] for x, _ in est_rw]
+        mean_rw = [float(w.mean()) for w in ws_rw]
+        two_rw = dict(
+            est=est_rw,
+            corr=[float(np.corrcoef(x[after], true_drift[after])[0, 1]) for x, _ in est_rw],
+            rms=[float(np.sqrt(np.mean((x[after] - true_drift[after]) ** 2)) / DPH) for x, _ in est_rw],
+            wstd=[v / DPH for v in mean_rw], ranking=bool(list(np.argsort(mean_rw)) == rank_pos))
+        stages["filters"] += time.perf_counter() - t0
+        cpu["filters"] += time.process_time() - c0
+        notes.append(f"Analysis two also run with a rate random walk of {rw / units.unit_scale('deg/h/sqrt(h)'):.3g} "
+                     "°/h/√h on INS #1's gyro drifts (not the paper's model): the *_rw metrics.")
+
     # --- eq 20: covariance computation with the nominal gains
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     bud = rotins.noise_share(model, P0, Phi_u, Q_u, sig_meas, index=idx)
     var = bud.variance[:, iz]
     share_gk = float(var[bud.names.index("gyro_k")] / bud.total[iz])
@@ -636,9 +759,10 @@ def run(cfg: Config, ctx) -> Result:
     ratio_pred = math.sqrt(1.0 + alpha11 * share_gk)
     ratio_sim = float(mean_one[i11] / mean_one[i10])
     stages["covariance"] = time.perf_counter() - t0
+    cpu["covariance"] = time.process_time() - c0
 
     # --- Monte Carlo fractions
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     runs = int(cfg.runs)
     mc_stats = None
     if runs > 1:
@@ -650,6 +774,7 @@ def run(cfg: Config, ctx) -> Result:
         p_mono, p_d11, p_sep = float(monotone), float(dist11), float(dist_sep)
         notes.append("Fractions from this single nonlinear run (0 or 1); use --runs N for seed statistics.")
     stages["montecarlo"] = time.perf_counter() - t0
+    cpu["montecarlo"] = time.process_time() - c0
 
     metrics = {
         "obs_rank_static": so.rank_static, "obs_rank_schedule": so.ranks[-1],
@@ -670,16 +795,22 @@ def run(cfg: Config, ctx) -> Result:
         "eps_z1_windows_below_limit": below,
         "pos_err_end_nmi": pos_end, "pos_err_rms_nmi": pos_rms,
         "trend_track_rms_dph": track, "trend_track_corr": track_corr,
+        **({} if two_rw is None else {
+            "trend_track_corr_rw": two_rw["corr"], "trend_track_rms_rw_dph": two_rw["rms"],
+            "windowed_std_two_rw_dph": two_rw["wstd"], "ranking_matches_position_error_rw": two_rw["ranking"]}),
         "eq20_sigma_ratio_predicted": ratio_pred, "eq20_sigma_ratio_paper": 1.1,
         "eq20_sigma_ratio_simulated": ratio_sim, "eq20_noise_share_gyro_k": share_gk,
         "rotation_cycle_s": [m1.cycle_time, mk.cycle_time],
         "imu_samples_per_ins": n_samples, "navigations": len(specs),
         "stage_s": [stages["navigation"], stages["filters"], stages["covariance"], stages["montecarlo"]],
+        "stage_cpu_s": [cpu["navigation"], cpu["filters"], cpu["covariance"], cpu["montecarlo"]],
     }
     claims = _claims(cfg, metrics, so, ws_one, warn_rank, runs)
     series = {"eps_z1": {"t_h": t_ep / 3600.0, **{f"beta_{b:g}_dph": x / DPH for b, (x, _) in zip(betas, one)},
                          "sigma_beta_1_dph": s10 / DPH, "separate_B_dph": sep_b[0] / DPH,
                          **{f"two_filter{j}_dph": est[k][0] / DPH for j, k in zip((2, 3, 4), two_keys)},
+                         **({} if two_rw is None else {f"two_filter{j}_rw_dph": x / DPH
+                                                       for j, (x, _) in zip((2, 3, 4), two_rw["est"])}),
                          "true_trend_dph": true_drift / DPH},
               "windowed_std": {"t_end_h": te / 3600.0,
                                **{f"beta_{b:g}_dph": w / DPH for b, w in zip(betas, ws_one)},
@@ -687,7 +818,8 @@ def run(cfg: Config, ctx) -> Result:
                                **{f"two_filter{j}_dph": w / DPH for j, w in zip((2, 3, 4), ws_two)}},
               "position_error": {"t_h": t_ep / 3600.0,
                                  **{f"{k}_nmi": outs[k].pos_err_m / NMI for k in outs}}}
-    figures = _figures(cfg, t_ep, betas, one, te, ws_one, outs, est, two_keys, ws_two, true_drift, so, pos_keys)
+    figures = _figures(cfg, t_ep, betas, one, te, ws_one, outs, est, two_keys, ws_two, true_drift, so, pos_keys,
+                       None if two_rw is None else two_rw["est"])
     tables = []
     if mc_stats is not None:
         w = mc_stats["wstd"] / DPH
@@ -926,7 +1058,7 @@ def _claims(cfg, m, so, ws_one, warn_rank, runs):
 
 
 # ---------------------------------------------------------------- figures ---------------
-def _figures(cfg, t_ep, betas, one, te, ws_one, outs, est, two_keys, ws_two, true_drift, so, pos_keys):
+def _figures(cfg, t_ep, betas, one, te, ws_one, outs, est, two_keys, ws_two, true_drift, so, pos_keys, est_rw=None):
     from sinslab.app import plotting as P
 
     th = t_ep / 3600.0
@@ -956,6 +1088,8 @@ def _figures(cfg, t_ep, betas, one, te, ws_one, outs, est, two_keys, ws_two, tru
     fig, (ax,) = P.figure(1, row_height=3.2, title="ε_z1 with a trend (analysis two)")
     for j, k in zip((2, 3, 4), two_keys):
         ax.plot(th, est[k][0] / DPH, lw=0.8, label=f"filter {j}")
+    for j, (x, _) in zip((2, 3, 4), est_rw or ()):
+        ax.plot(th, x / DPH, lw=0.8, ls=":", label=f"filter {j}, drift random walk")
     ax.plot(th, true_drift / DPH, color="k", ls="--", lw=0.9, label="true drift")
     ax.set_ylabel("ε_z1 [°/h]")
     ax.set_xlabel("time [h]")

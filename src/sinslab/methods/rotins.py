@@ -30,7 +30,7 @@ __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleO
 
 
 def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
-                         radius_derivatives=False) -> DifferenceModel:
+                         radius_derivatives=False, drift_rw1=0.0, drift_rwk=0.0) -> DifferenceModel:
     """The 17-state joint error model of INS 1 (single-axis) and INS k (dual-axis)
     (Wang, Wu et al. 2018, eqs 1–8).
 
@@ -45,6 +45,13 @@ def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, acc
     (paper eq 7 orders gyros first; only the column order differs). With
     ``radius_derivatives=False`` F equals the paper's eqs 3–6 (tested).
 
+    Optionally the gyro drifts are random walks instead of random constants
+    (``drift_rw1``, ``drift_rwk``): a drift that wanders (temperature) can then be
+    followed, at the price of a noisier estimate. The paper's model has none (default);
+    with a non-zero density the three driving noises of that INS's drift block are
+    appended to the noise vector (``w_eps_x_1 … w_eps_z_1``, then ``w_eps_x_k …``), and
+    F is unchanged.
+
     Parameters
     ----------
     gyro_noise1, gyro_noisek : float or (3,)
@@ -53,6 +60,9 @@ def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, acc
         Horizontal accelerometer white noise (VRW) of INS 1 / INS k [m/s/√s].
     radius_derivatives : bool
         Keep the dR/dL and ∂g/∂L terms (exact Jacobian) instead of the paper's F.
+    drift_rw1, drift_rwk : float or (3,)
+        Rate random walk of the gyro drifts of INS 1 / INS k [rad/s/√s] (0: random
+        constant, the paper's model).
 
     Returns
     -------
@@ -60,9 +70,14 @@ def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, acc
         ``F(nav1, navk)`` of shape ``S + (17, 17)``; block names ``dp dv phi eps_1 eps_k
         nabla_1 nabla_k``.
     """
+    for v, nm in ((drift_rw1, "drift_rw1"), (drift_rwk, "drift_rwk")):
+        a = np.asarray(v, float)
+        if a.shape not in ((), (3,)) or not np.all(np.isfinite(a)) or np.any(a < 0):
+            raise ValueError(f"joint_rotation_model: {nm} must be a finite value >= 0 or three of them [rad/s/√s], "
+                             f"got {v!r}")
     return DifferenceModel(
-        "horizontal", [gyro_bias(name="eps"), accel_bias("xy", name="nabla")],
-        [gyro_bias(name="eps"), accel_bias("xy", name="nabla")],
+        "horizontal", [gyro_bias(rrw=drift_rw1, name="eps"), accel_bias("xy", name="nabla")],
+        [gyro_bias(rrw=drift_rwk, name="eps"), accel_bias("xy", name="nabla")],
         gyro_noise1, gyro_noisek, accel_noise1, accel_noisek, accel_noise_axes="xy",
         order=["dp", "dv", "phi", "eps_1", "eps_k", "nabla_1", "nabla_k"],
         radius_derivatives=radius_derivatives)
@@ -436,8 +451,9 @@ def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, n
     rates1, ratesk : tuple (omega_b, f_b), arrays (K·m, 3)
         Mean compensated rate [rad/s] and specific force [m/s²] of each sub-step.
     noise_groups : dict {name: list of noise-column indices}, optional
-        Columns of G (``[w_g1 (3), w_a1 (2), w_gk (3), w_ak (2)]``) per source; default one
-        group ``"all"``.
+        Columns of G (``[w_g1 (3), w_a1 (2), w_gk (3), w_ak (2)]``, then the drift random
+        walks if the model has them, ``model.noise_labels``) per source; default one group
+        ``"all"``.
     method : {"series", "vanloan"}
     substeps : int
         Sub-steps m per returned step.

@@ -235,7 +235,7 @@ def _correct_s(s, px, py, pz, dve, dvn, dvu, dlat, dlon, dh):
     s[9] -= dh
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kernel(s, dth, dvl, dt, nsub, nupd, vmode, href, vref, k1, k2, k3,
             gbx, gby, gbz, abx, aby, abz, cs, out, out_every):
     """Advance state ``s`` (length NSTATE) by ``nupd`` updates of ``nsub`` samples.

@@ -74,7 +74,7 @@ from sinslab.sim._rng import _kernel_state, _normal, _rng
 from sinslab.core.errors import InputError
 
 __all__ = [
-    "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_batch", "noise_increments",
+    "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_arrays", "apply_batch", "noise_increments",
     "gm_allan_deviation", "gm_sigma_from_allan_floor", "GM_ALLAN_PEAK", "GM_ALLAN_PEAK_TAU",
 ]
 
@@ -693,7 +693,7 @@ def gm_sigma_from_allan_floor(value, convention="ieee"):
 # --- compiled kernels ----------------------------------------------------------------------------
 # one pass over the record per error model; normals from the in-kernel generator of
 # sinslab.sim._rng
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, gsig, gphi, gdrv, gact,
             rstep, ract, has_trend, tr_ramp, tr_ea, tr_et, tr_esh, tr_sa, tr_sw, tr_ssh, tr_sp,
             has_rec, rec_g, rec_a, rec_gain, rec_n, out_dth, out_dv):
@@ -760,7 +760,7 @@ def _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, gsig, g
             kr = 0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv):
     """:func:`_kernel` for the common model of constant bias and white noise only (no
     Gauss-Markov, random walk, trend or recorded noise): the same draws in the same order
@@ -794,7 +794,7 @@ def _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv
                     out_dv[k, i] = y + e
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kernel_white_all(dth, dv, state, bias_dt, wsig, out_dth, out_dv):
     """:func:`_kernel_white` with white noise on all six channels and no scale factor or
     misalignment, unrolled over the channels with the parameters in scalars: same draws,
@@ -930,6 +930,37 @@ def apply(imu: ImuRecord, errors: ImuErrors, seed) -> ImuRecord:
     if not (np.isfinite(out_dth[-1]).all() and np.isfinite(out_dv[-1]).all()):
         raise InputError("IMU errors produced non-finite increments (check the parameters)")
     return _new_record(imu, out_dth, out_dv)
+
+
+def apply_arrays(dtheta, dv, t, dt, errors: ImuErrors, seed):
+    """:func:`apply` on bare arrays: the same draws and arithmetic, hence the same bytes,
+    without building (and re-checking the time column of) an :class:`ImuRecord` — for
+    loops that feed long records chunk by chunk on a regular grid they made themselves.
+
+    Parameters
+    ----------
+    dtheta, dv : array (n, 3)
+        True increments [rad], [m/s] (IMU body frame).
+    t : array (n,)
+        End time of each interval [s], regular with step ``dt`` (not checked).
+    dt : float
+        Sampling interval [s].
+    errors : ImuErrors
+    seed : int or numpy.random.Generator
+
+    Returns
+    -------
+    dtheta, dv : ndarray (n, 3)
+        New arrays with the errors applied.
+    """
+    dtheta = np.ascontiguousarray(dtheta, dtype=float)
+    dv = np.ascontiguousarray(dv, dtype=float)
+    t = np.asarray(t, dtype=float)
+    n = dtheta.shape[0]
+    out_dth = np.empty((n, 3))
+    out_dv = np.empty((n, 3))
+    _run(dtheta, dv, t, float(t[0] - dt), float(dt), errors, _rng(seed), out_dth, out_dv)
+    return out_dth, out_dv
 
 
 def apply_batch(imu: ImuRecord, errors: ImuErrors, seeds) -> list[ImuRecord]:
