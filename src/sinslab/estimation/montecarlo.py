@@ -30,7 +30,7 @@ from scipy import stats
 
 from sinslab.core.errors import InputError
 
-__all__ = ["spawn_seeds", "run_campaign", "summarize", "Summary", "chi2_bounds",
+__all__ = ["spawn_seeds", "run_campaign", "dask_client", "summarize", "Summary", "chi2_bounds",
            "linear_batch"]
 
 
@@ -111,57 +111,83 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     kwargs = dict(kwargs or {})
     seeds = spawn_seeds(seed, n_runs)
     n = len(seeds)
-    own = None
-    client = None
+    with dask_client(scheduler, n_workers) as client:
+        nw = 1 if client is None else max(1, len(client.scheduler_info().get("workers", {})) or 1)
+        if batch is None:
+            batch = int(min(64, max(1, -(-n // (4 * nw)))))
+        batch = int(batch)
+        if batch < 1:
+            raise ValueError(f"batch must be >= 1, got {batch}")
+        starts = list(range(0, n, batch))
+        parts = {}
+        from sinslab.core.progress import progress as _progress
+        ctx = _progress("Monte Carlo", total=n, unit="runs") if progress else contextlib.nullcontext()
+        with ctx as bar:
+            if client is None:
+                for s in starts:
+                    parts[s] = _run_batch(fn, s, seeds[s:s + batch], args, kwargs)[1]
+                    if bar is not None:
+                        bar.advance(len(seeds[s:s + batch]))
+            else:
+                from distributed import as_completed
+                a_f = client.scatter([args, kwargs], broadcast=True, hash=False)
+                futs = [client.submit(_run_batch, fn, s, seeds[s:s + batch], a_f[0], a_f[1],
+                                      pure=False, retries=retries) for s in starts]
+                for fut in as_completed(futs):
+                    s, out = fut.result()
+                    parts[s] = out
+                    if bar is not None:
+                        bar.advance(len(seeds[s:s + batch]))
+    ordered = [parts[s] for s in starts]
+    if isinstance(ordered[0], dict):
+        keys = ordered[0].keys()
+        return {k: np.concatenate([o[k] for o in ordered], axis=0) for k in keys}
+    return np.concatenate(ordered, axis=0)
+
+
+@contextlib.contextmanager
+def dask_client(scheduler=None, n_workers=None):
+    """The Dask client of a campaign, closed (quietly if the work failed) on exit.
+
+    Parameters
+    ----------
+    scheduler : None, str or distributed.Client
+        None: a ``LocalCluster`` of ``n_workers`` processes (one thread each, no
+        dashboard) started for the ``with`` block; an address string: connect to that
+        scheduler (one-line :class:`InputError` if it cannot be reached); a Client: used
+        as it is and left open; ``"sync"``: no Dask, yields None.
+    n_workers : int, optional
+        Workers of the local cluster (default: number of CPUs).
+
+    Yields
+    ------
+    distributed.Client or None
+    """
     if scheduler == "sync":
-        nw = 1
+        yield None
+        return
+    from distributed import Client, LocalCluster
+
+    own = None
+    if scheduler is None:
+        nw = int(n_workers or os.cpu_count() or 1)
+        with _interrupts_to_this_process():
+            cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+            client = Client(cluster)
+        own = (client, cluster)
+    elif isinstance(scheduler, str):
+        client = _connect(scheduler)
+        own = (client, None)
     else:
-        from distributed import Client, LocalCluster
-        if scheduler is None:
-            nw = int(n_workers or os.cpu_count() or 1)
-            with _interrupts_to_this_process():
-                cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.ERROR)
-                client = Client(cluster)
-            own = (client, cluster)
-        elif isinstance(scheduler, str):
-            client = _connect(scheduler)
-            own = (client, None)
-        else:
-            client = scheduler
-        nw = max(1, len(client.scheduler_info().get("workers", {})) or 1)
-    if batch is None:
-        batch = int(min(64, max(1, -(-n // (4 * nw)))))
-    batch = int(batch)
-    if batch < 1:
-        raise ValueError(f"batch must be >= 1, got {batch}")
-    starts = list(range(0, n, batch))
-    parts = {}
-    from sinslab.core.progress import progress as _progress
-    ctx = _progress("Monte Carlo", total=n, unit="runs") if progress else contextlib.nullcontext()
+        client = scheduler
     failed = False
     try:
-        bar = ctx.__enter__()
-        if client is None:
-            for s in starts:
-                parts[s] = _run_batch(fn, s, seeds[s:s + batch], args, kwargs)[1]
-                if bar is not None:
-                    bar.advance(len(seeds[s:s + batch]))
-        else:
-            from distributed import as_completed
-            a_f = client.scatter([args, kwargs], broadcast=True, hash=False)
-            futs = [client.submit(_run_batch, fn, s, seeds[s:s + batch], a_f[0], a_f[1],
-                                  pure=False, retries=retries) for s in starts]
-            for fut in as_completed(futs):
-                s, out = fut.result()
-                parts[s] = out
-                if bar is not None:
-                    bar.advance(len(seeds[s:s + batch]))
+        yield client
     except BaseException:
         failed = True
         raise
     finally:
-        ctx.__exit__(None, None, None)
         if own is not None:
             log = logging.getLogger("distributed")
             level = log.level
@@ -173,11 +199,6 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                     own[1].close()
             finally:
                 log.setLevel(level)
-    ordered = [parts[s] for s in starts]
-    if isinstance(ordered[0], dict):
-        keys = ordered[0].keys()
-        return {k: np.concatenate([o[k] for o in ordered], axis=0) for k in keys}
-    return np.concatenate(ordered, axis=0)
 
 
 #: seconds to wait for a Dask scheduler given by address

@@ -494,18 +494,11 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
         res = dask.compute(*[dask.delayed(one, pure=False)(k) for k in keys], scheduler="threads",
                            num_workers=int(workers))
         return dict(zip(keys, res))
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import as_completed
 
-    own = None
-    if scheduler:
-        client = Client(scheduler)
-        own = (client, None)
-    else:
-        cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=40)
-        client = Client(cluster)
-        own = (client, cluster)
-    try:
+    from sinslab.estimation.montecarlo import dask_client
+
+    with dask_client(scheduler or None, int(workers)) as client:
         # the cycles are tens of MB: send each spec once rather than inside the task graph
         sent = client.scatter([specs[k] for k in keys], hash=False)
         futs = {client.submit(navigate_chunked, f, pure=False, **nav_kw): k for k, f in zip(keys, sent)}
@@ -514,10 +507,6 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
             outs[futs[fut]] = fut.result()
             if bar is not None:
                 bar.advance(1)
-    finally:
-        own[0].close()
-        if own[1] is not None:
-            own[1].close()
     return {k: outs[k] for k in keys}
 
 
