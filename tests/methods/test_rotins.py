@@ -24,24 +24,6 @@ from sinslab.sim import indexing as ix
 LAT = math.radians(28.222)
 
 
-def _stops(m1, mk, t_end, dt=0.5):
-    """Stops where both mounts are still, in time order: (C_b1^c, C_bk^c, durations)."""
-    t = np.arange(0.0, t_end, dt)
-    a1, r1 = ix.mount_angles(m1, t)
-    ak, rk = ix.mount_angles(mk, t)
-    still = np.all(r1 == 0, -1) & np.all(rk == 0, -1)
-    key = np.round(np.hstack([a1, ak]), 9)
-    segs = []
-    for i in np.flatnonzero(still):
-        if segs and segs[-1][2] == i - 1 and np.array_equal(segs[-1][0], key[i]):
-            segs[-1][1] += dt
-            segs[-1][2] = i
-        else:
-            segs.append([key[i], dt, i])
-    ang = np.array([s[0] for s in segs])
-    return euler_to_dcm(ang[:, :3]), euler_to_dcm(ang[:, 3:]), np.array([s[1] for s in segs])
-
-
 #: one cycle of the dual-axis schedule (16 × (300 s dwell + 21 s move))
 CYCLE = 16 * (300.0 + 21.0)
 
@@ -100,7 +82,7 @@ def model():
 
 
 def test_paper_schedules_rank_5_per_stop_13_stacked(model):
-    C1, Ck, T = _stops(ix.single_axis_4pos(), ix.dual_axis_16(), CYCLE)
+    C1, Ck, T = ix.common_stops(ix.single_axis_4pos(), ix.dual_axis_16(), CYCLE)
     assert C1.shape[0] >= 16
     res = {m: rotins.schedule_observability(model, C1, Ck, LAT, durations=T, method=m) for m in ("som", "tom")}
     r = res["som"]
@@ -127,7 +109,7 @@ def test_one_stop_alone_rank_5(model):
 def test_ins_k_flipping_about_azimuth_only_leaves_rank_12(model):
     """Both azimuth gyros stay on the up axis: ε_z1 = ε_zk is the unobservable direction."""
     mk = ix.RotateStop((("yaw", math.pi), ("yaw", -math.pi)))
-    C1, Ck, T = _stops(ix.single_axis_4pos(), mk, CYCLE)
+    C1, Ck, T = ix.common_stops(ix.single_axis_4pos(), mk, CYCLE)
     r = rotins.schedule_observability(model, C1, Ck, LAT)
     assert r.ranks[-1] == 12 and set(r.segment_ranks) == {5}
     N = r.result.null_space[:, 0]
@@ -144,7 +126,7 @@ def test_ins_k_flipping_about_roll_only_leaves_rank_12(model):
     rank is 12: one direction mixing φE, ε_z1, ε_yk, ∇_yk stays unobservable (INS k's roll
     axis stays north)."""
     mk = ix.RotateStop((("roll", math.pi), ("roll", -math.pi)))
-    C1, Ck, T = _stops(ix.single_axis_4pos(), mk, CYCLE)
+    C1, Ck, T = ix.common_stops(ix.single_axis_4pos(), mk, CYCLE)
     r = rotins.schedule_observability(model, C1, Ck, LAT, durations=T, method="tom")
     assert r.ranks[-1] == 12
     zero = {l for l, d in zip(r.labels, r.degree) if d == 0.0}

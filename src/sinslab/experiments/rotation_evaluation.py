@@ -307,24 +307,6 @@ def one_cycle(mount, lat, lon, dt):
                  np.asarray(gen.truth.att_imu[0], float), Tc)
 
 
-def schedule_stops(m1, mk, t_end, dt=0.5):
-    """Stops where both mounts are still, in time order: (C_b1^c, C_bk^c, durations)."""
-    t = np.arange(0.0, t_end, dt)
-    a1, r1 = ix.mount_angles(m1, t)
-    ak, rk = ix.mount_angles(mk, t)
-    still = np.all(r1 == 0, -1) & np.all(rk == 0, -1)
-    key = np.round(np.hstack([a1, ak]), 9)
-    segs = []
-    for i in np.flatnonzero(still):
-        if segs and segs[-1][2] == i - 1 and np.array_equal(segs[-1][0], key[i]):
-            segs[-1][1] += dt
-            segs[-1][2] = i
-        else:
-            segs.append([key[i], dt, i])
-    ang = np.array([s[0] for s in segs])
-    return A.euler_to_dcm(ang[:, :3]), A.euler_to_dcm(ang[:, 3:]), np.array([s[1] for s in segs])
-
-
 def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups):
     """Step transitions of the joint model along the true schedule of both mounts (carrier
     at rest, axes ENU): ``me`` sub-steps of ``model_dt`` chained per filter step, computed
@@ -359,7 +341,7 @@ def observability(cfg: Config, model):
     stays below the number of states (None otherwise)."""
     m1, mk = mounts(cfg)
     t_obs = max(m1.cycle_time, mk.cycle_time) * (2 if cfg.rotation.dual_scheme != "dual_axis_16" else 1)
-    C1c, Ckc, _ = schedule_stops(m1, mk, t_obs)
+    C1c, Ckc, _ = ix.common_stops(m1, mk, t_obs)
     so = rotins.schedule_observability(model, C1c, Ckc, float(cfg.scenario.latitude))
     if so.ranks[-1] >= so.n:
         return so, None

@@ -37,8 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from sinslab.core import units
+from sinslab.core.attitude import euler_to_dcm
 
-__all__ = ["AXES", "SINGLE_AXIS_4POS", "DUAL_AXIS_16", "SCHEMES", "RotateStop", "Swing", "short_number",
+__all__ = ["common_stops", "AXES", "SINGLE_AXIS_4POS", "DUAL_AXIS_16", "SCHEMES", "RotateStop", "Swing", "short_number",
            "single_axis_4pos", "dual_axis_16", "mount_angles", "mount_from_dict", "Mount"]
 
 #: Mount Euler-angle components: index into ``[pitch, roll, yaw]``; "azimuth" = yaw.
@@ -381,3 +382,42 @@ def mount_from_dict(d: dict, where: str = "mount") -> Mount:
     except ValueError as e:
         msg = str(e)
         raise ValueError(msg if msg.startswith(where) else f"{where} ({kind}): {msg}") from None
+
+
+def common_stops(m1: Mount | None, mk: Mount | None, t_end: float, dt: float = 0.5):
+    """The intervals in which two indexing mechanisms both stand still, in time order.
+
+    Both mounts are sampled every ``dt`` seconds over ``[0, t_end)``; consecutive samples
+    with zero rates and the same pair of mount angles form one stop. This is the piecewise
+    constant segmentation of the relative attitude of two rotating IMUs on one carrier.
+
+    Parameters
+    ----------
+    m1, mk : Mount or None
+        The two mechanisms (None: fixed mount).
+    t_end : float
+        End of the examined span [s].
+    dt : float
+        Sampling step [s]; a stop is resolved to this step.
+
+    Returns
+    -------
+    C1c, Ckc : ndarray (m, 3, 3)
+        IMU-to-carrier DCMs ``C_b1^c``, ``C_bk^c`` of the m stops.
+    durations : ndarray (m,)
+        Length of each stop [s] (a multiple of ``dt``).
+    """
+    t = np.arange(0.0, t_end, dt)
+    a1, r1 = mount_angles(m1, t)
+    ak, rk = mount_angles(mk, t)
+    still = np.all(r1 == 0, -1) & np.all(rk == 0, -1)
+    key = np.round(np.hstack([a1, ak]), 9)
+    segs = []
+    for i in np.flatnonzero(still):
+        if segs and segs[-1][2] == i - 1 and np.array_equal(segs[-1][0], key[i]):
+            segs[-1][1] += dt
+            segs[-1][2] = i
+        else:
+            segs.append([key[i], dt, i])
+    ang = np.array([s[0] for s in segs])
+    return euler_to_dcm(ang[:, :3]), euler_to_dcm(ang[:, 3:]), np.array([s[1] for s in segs])
