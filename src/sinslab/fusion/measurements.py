@@ -692,9 +692,11 @@ class Odometer(_OnEpochs):
     """Wheel speed: the forward velocity ``v^v_y`` of the wheel point, from a time series
     with its own time stamps, linearly interpolated to the filter epochs it spans.
 
-    The odometer reads ``s̃ = (1 + k) v^v_y`` with the scale-factor error ``k`` (state of
-    an :func:`sinslab.nav.errstate.odometer_scale` block, when ``scale_block`` names
-    one): ``z = v^v_y(computed) − s̃``, ``∂z/∂k = −s̃`` (to first order in k). With
+    The scale-factor state ``k`` (an :func:`sinslab.nav.errstate.odometer_scale` block,
+    when ``scale_block`` names one) is defined by ``v^v_y = (1 − k) s̃`` for the reading
+    ``s̃``: then ``z = v^v_y(computed) − s̃ = δv^v_y − k s̃`` holds exactly, ``∂z/∂k = −s̃``.
+    A reading ``s̃ = (1 + k_s) v^v_y`` corresponds to ``k = k_s / (1 + k_s)`` (equal to
+    first order; compare estimates with that, not with ``k_s``). With
     ``nhc_sigma`` the non-holonomic zeros ``v^v_x, v^v_z`` are stacked as rows 2, 3.
 
     Parameters
