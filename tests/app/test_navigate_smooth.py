@@ -65,7 +65,11 @@ def test_smooth_and_odometer_cli(files, tmp_path):
     for name, extra in (("plain", ["--smooth"]), ("file", ["--smooth", "--odometer", str(files / "odo.csv")])):
         res = _nav(files, tmp_path / name, *extra)
         assert res.exit_code == 0, res.output
-        runs[name] = json.loads((tmp_path / name / "summary.json").read_text())["metrics"]
+        summary = json.loads((tmp_path / name / "summary.json").read_text())
+        runs[name] = summary["metrics"]
+        # the report describes every metric the run wrote, smoothing and odometer ones too
+        info = summary["metric_info"]
+        assert [m for m in runs[name] if not (info.get(m) or {}).get("description")] == []
     p = runs["plain"]
     assert p["n_outages"] == 2 and len(p["outage_mid_hz_err_smoothed_m"]) == 2
     assert p["smoothed_hz_err_rms_m"] < 0.25 * p["forward_hz_err_rms_m"], p

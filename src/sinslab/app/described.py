@@ -104,6 +104,15 @@ DESCRIPTIONS = {
         (r"^rest_intervals$", "rest intervals used for zero-velocity updates"),
         (r"^rest_total_s$", "total time at rest used for zero-velocity updates"),
         (r"^scale_factor_final_ppm$", "estimated gyro x, y, z and accelerometer x, y, z scale factors at the end"),
+        (r"^smoothed_hz_err_rms_m$", "RMS horizontal error of the RTS-smoothed solution at the reference fixes"),
+        (r"^forward_hz_err_rms_m$", "RMS horizontal error of the forward filter at the same fixes"),
+        (r"^smoothed_err_reference$", "which fixes the two RMS errors above are measured at"),
+        (r"^outage_mid_hz_err_forward_m$", "forward horizontal error at the middle of each outage"),
+        (r"^outage_mid_hz_err_smoothed_m$", "smoothed horizontal error at the middle of each outage"),
+        (r"^outage_mid_hz_err_smoothed_median_m$", "smoothed horizontal error at the middle of the outages, median"),
+        (r"^smoothed_stored_epochs$", "filter epochs stored for the backward pass"),
+        (r"^odometer_scale_final_ppm$", "smoothed odometer scale-factor state at the end (k of v = (1 − k)·reading)"),
+        (r"^odometer_scale_sigma_ppm$", "smoothed 1σ of the odometer scale factor at the end"),
     ],
 }
 
