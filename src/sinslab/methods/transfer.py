@@ -96,6 +96,26 @@ def jl_inv(a):
     return jr_inv(-np.asarray(a, dtype=float))
 
 
+def _jr_many(a):
+    """:func:`jr` of many vectors, (R, 3) -> (R, 3, 3), the same operations row by row."""
+    t = np.linalg.norm(a, axis=-1)[:, None, None]
+    K = skew(a)
+    small = t < 1e-6
+    ts = np.where(small, 1.0, t)
+    big = np.eye(3) - (1.0 - np.cos(ts)) / ts ** 2 * K + (ts - np.sin(ts)) / ts ** 3 * K @ K
+    return np.where(small, np.eye(3) - 0.5 * K + K @ K / 6.0, big)
+
+
+def _jl_inv_many(a):
+    """:func:`jl_inv` of many vectors, (R, 3) -> (R, 3, 3)."""
+    K = skew(-a)
+    t = np.linalg.norm(a, axis=-1)[:, None, None]
+    small = t < 1e-6
+    ts = np.where(small, 1.0, t)
+    c = 1.0 / ts ** 2 - (1.0 + np.cos(ts)) / (2.0 * ts * np.sin(ts))
+    return np.where(small, np.eye(3) + 0.5 * K + K @ K / 12.0, np.eye(3) + 0.5 * K + c * K @ K)
+
+
 def _check_dcm(C, name):
     C = np.asarray(C, dtype=float)
     if C.shape != (3, 3) or not np.all(np.isfinite(C)):
@@ -211,6 +231,67 @@ class AttitudeMatch:
         if self.kind == "euler":
             d = wrap_pi(d)
         return d + H @ x, H
+
+    def innovation_many(self, C_m_n, C_s_n_hat, phi_hat, a_hat):
+        """EKF-form :meth:`innovation_z` of many runs at one master epoch.
+
+        Parameters
+        ----------
+        C_m_n : (3, 3)
+            Master attitude (common to the runs).
+        C_s_n_hat : (R, 3, 3)
+            Slave computed attitudes of the runs.
+        phi_hat, a_hat : (R, 3)
+            Current estimates of φ [rad] and of the installation state [rad].
+
+        Returns
+        -------
+        z_eff : (R, 3) ; H : (R, 3, 6)
+            Per run, what :meth:`innovation_z` with ``relinearise=True`` returns (the same
+            formulas, evaluated on stacked arrays instead of one run at a time).
+        """
+        Cr = self.reference(C_m_n)
+        phi_hat = np.asarray(phi_hat, float)
+        a_hat = np.asarray(a_hat, float)
+        nr = a_hat.shape[0]
+        H = np.empty((nr, 3, 6))
+        if self.kind in ("kain", "optimal"):
+            H[:, :, :3] = -_jl_inv_many(a_hat) @ Cr.T
+            H[:, :, 3:] = np.eye(3)
+        else:
+            nz = a_hat.any(axis=1)[:, None, None]
+            C0 = np.where(nz, Cr @ rotvec_to_dcm(a_hat), Cr)
+            Jr = np.where(nz, _jr_many(a_hat), np.eye(3))
+            for i in range(3):
+                e = np.zeros(3)
+                e[i] = 1.0
+                H[:, :, i] = self._dg_many(C0, -skew(e) @ C0)
+                H[:, :, 3 + i] = self._dg_many(C0, C0 @ skew(Jr[:, :, i]))
+        z = self._g_many(np.asarray(C_s_n_hat, float), Cr)
+        pred = self._g_many(rotvec_to_dcm(-phi_hat) @ Cr @ rotvec_to_dcm(a_hat), Cr)
+        d = z - pred
+        if self.kind == "euler":
+            d = wrap_pi(d)
+        x = np.concatenate([phi_hat, a_hat], axis=1)
+        return d + np.einsum("rij,rj->ri", H, x), H
+
+    def _g_many(self, C, Cr):
+        """:meth:`_g` of many attitudes C (R, 3, 3) against one reference."""
+        if self.kind == "euler":
+            return wrap_pi(dcm_to_euler(C) - dcm_to_euler(Cr))
+        if self.kind == "dcm":
+            D = C - Cr
+            return np.stack([D[:, i, j] for i, j in _DCM_ELEMENTS], -1)
+        return dcm_to_rotvec(Cr.T @ C)
+
+    def _dg_many(self, C, dC):
+        """:meth:`_dg` of many (C, dC) pairs, (R, 3, 3) each -> (R, 3)."""
+        if self.kind == "dcm":
+            return np.stack([dC[:, i, j] for i, j in _DCM_ELEMENTS], -1)
+        dth = dC[:, 2, 1] / np.sqrt(1.0 - C[:, 2, 1] ** 2)
+        dga = (C[:, 2, 0] * dC[:, 2, 2] - C[:, 2, 2] * dC[:, 2, 0]) / (C[:, 2, 0] ** 2 + C[:, 2, 2] ** 2)
+        dps = (C[:, 0, 1] * dC[:, 1, 1] - C[:, 1, 1] * dC[:, 0, 1]) / (C[:, 0, 1] ** 2 + C[:, 1, 1] ** 2)
+        return np.stack([dth, dga, dps], -1)
 
 
 #: Floating-point operations of one z + H of each form (paper linearisation, closed forms;
@@ -448,10 +529,9 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
         H[:, :3] = Hv
         zz = np.empty((R_runs, 6))
         zz[:, :3] = z_vel[:, k]
-        for j in range(R_runs):
-            z6, H6 = match.innovation_z(Cm[k], C_slave[j, k], x[j, phi_slice], x[j, a_slice], True)
-            H[j, 3:][:, cols] = H6
-            zz[j, 3:] = z6
+        z6, H6 = match.innovation_many(Cm[k], C_slave[:, k], x[:, phi_slice], x[:, a_slice])
+        H[:, 3:, cols] = H6
+        zz[:, 3:] = z6
         PHt = P @ np.swapaxes(H, 1, 2)
         S = H @ PHt + Rm
         K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)
