@@ -1,4 +1,4 @@
-"""Speed of the estimation core (issue 4, Speed section).
+"""Speed of the estimation core: covariance propagation, loosely coupled filtering, model evaluation.
 
 Run: ``.venv/bin/python benchmarks/estimation.py [--quick] [--json FILE]``
 

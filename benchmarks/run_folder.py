@@ -1,4 +1,4 @@
-"""Cost of writing a run folder against the computation (issue 17 item 3).
+"""Cost of writing a run folder against the computation (target: at most 1 s + 20 % of it).
 
 Run: ``.venv/bin/python benchmarks/run_folder.py [NAME ...] [--full] [--json FILE]``
 

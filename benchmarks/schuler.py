@@ -1,6 +1,6 @@
 """Speed benchmark of the paper-004 run: 48 h ship at 50 Hz, two solutions + alignment.
 
-Target (issue 6): the full 48 h ship run — two strapdown solutions of ~8.6 M samples each
+Target: the full 48 h ship run — two strapdown solutions of ~8.6 M samples each
 plus the coarse and fine alignments — in under 30 s on the 2-core development machine.
 
 Stages timed separately (wall clock and this process's CPU time: the machine is shared

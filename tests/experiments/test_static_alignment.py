@@ -21,7 +21,7 @@ def exp():
     try:
         return experiments.get("static-alignment")
     except experiments.UnknownExperiment:
-        # the contract names (epsU_converge_min) start with a mixed-case word,
+        # the contract names (epsU_converge_min) start with a mixed-case word,
         # which base.METRIC_NAME refused when this was written: load the module directly
         mp = pytest.MonkeyPatch()
         mp.setattr(base, "METRIC_NAME", re.compile(r"^[a-z][a-zA-Z0-9]*(_[a-zA-Z0-9]+)*$"))

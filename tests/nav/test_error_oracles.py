@@ -1,4 +1,4 @@
-"""Error-behaviour oracles of the mechanization (issue 2, item 6).
+"""Error-behaviour oracles of the mechanization.
 
 The nonlinear navigation of ideal static IMU data with an injected sensor error must show
 the textbook error dynamics: the Schuler oscillation of an accelerometer bias and the

@@ -235,7 +235,7 @@ def _roundtrip_errors(g):
 @pytest.mark.slow
 @pytest.mark.parametrize("mount", [None, "dual_axis_16"])
 def test_error_free_navigation_reproduces_truth_1h(mount):
-    """The issue's exactness bar: 1 h mixed aircraft trajectory at 100 Hz, vertical held."""
+    """The exactness bar: 1 h mixed aircraft trajectory at 100 Hz, vertical held."""
     pytest.importorskip("sinslab.nav.strapdown")
     m = indexing.dual_axis_16(rate=9 * u.deg, dwell=60.0) if mount else None
     g = tr.generate(tr.aircraft_mixed(3600.0), START_003, 0.01, mount=m)

@@ -220,7 +220,7 @@ MC_ERRORS = (("pos_e", "position east", "m"), ("pos_n", "position north", "m"),
              ("phi_u", "misalignment φU", "arcsec"))
 #: Columns of a run's error history: position E, N, U [m], velocity E, N, U [m/s], φ E, N, U [rad].
 MC_COLS = {"pos_e": 0, "pos_n": 1, "vel_e": 3, "vel_n": 4, "phi_e": 6, "phi_n": 7, "phi_u": 8}
-#: The issue's bound on Monte Carlo RMS / covariance σ, and the two-sided probability of
+#: The required bound on Monte Carlo RMS / covariance σ, and the two-sided probability of
 #: the chi-square interval that widens it for small campaigns (see :func:`mc_ratio_bounds`).
 MC_RATIO_BOUNDS, MC_ALPHA = (0.8, 1.2), 0.001
 
@@ -233,7 +233,7 @@ def mc_ratio_bounds(n_runs: int, alpha: float = MC_ALPHA) -> tuple[float, float]
     Where the linear model holds, every error of a run is a zero-mean Gaussian with the
     covariance-analysis variance σ², so ``N·RMS²/σ² ~ χ²_N`` at each epoch. The interval is
     the two-sided ``1 − alpha`` chi-square interval of ``RMS/σ`` — ``sqrt(χ²_N(α/2)/N)``,
-    ``sqrt(χ²_N(1−α/2)/N)`` — widened to at least the issue's 0.8–1.2. For N = 200 the
+    ``sqrt(χ²_N(1−α/2)/N)`` — widened to at least 0.8–1.2. For N = 200 the
     chi-square interval (0.84–1.17) lies inside 0.8–1.2, so the bound is 0.8–1.2; for
     N = 20 it is 0.52–1.54.
     """
