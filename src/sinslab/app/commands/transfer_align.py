@@ -21,6 +21,7 @@ from typing import Optional
 
 import numpy as np
 
+from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import units
 
 __all__ = ["transfer_align_file", "read_master", "register"]
@@ -93,15 +94,16 @@ def _parse_mount(text):
     return euler_to_dcm(np.asarray(v, float))
 
 
+TRANSFER_ALIGN = Command("transfer-align", "transfer alignment of a recorded slave IMU against a master INS")
+
+
 def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, windows=(None,), out=None,
                         vel_sigma=0.1, att_sigma_arcmin=1.0, echo=print):
-    """Run the alignment for each method and window; write the run folder; return the summary."""
-    from sinslab import __version__
-    from sinslab.app import plotting
-    from sinslab.app.commands.runner import command_summary
-    from sinslab.app.outputs import RunDir, default_out_dir
-    from sinslab.core.toml import dump_toml
-    from sinslab.data import load_imu
+    """Run the alignment for each method and window; write the run folder.
+
+    Returns ``(summary, results, refs)``: ``results`` maps ``(method, window key)`` to a
+    :class:`sinslab.methods.transfer.TransferResult`, ``refs`` the file's reference values.
+    """
     from sinslab.methods import transfer as tm
 
     for m in methods:
@@ -116,6 +118,17 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
         mm = _loadmat(master)
         if not any(k in mm for k in ("avp", "fogavp", "avpr")):
             raise ValueError(f"{master}: .mat lacks the master solution variable (avp, fogavp or avpr)")
+    summary, res = run_command(TRANSFER_ALIGN, out, lambda: _compute(slave, master, methods, comp, mount, windows,
+                                                                  vel_sigma, att_sigma_arcmin, echo), echo=echo)
+    results, refs = res.value
+    return summary, results, refs
+
+
+def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_arcmin, echo):
+    from sinslab.app import plotting
+    from sinslab.data import load_imu
+    from sinslab.methods import transfer as tm
+
     data = load_imu(slave)
     imu = data.imu
     mt, att, vel, pos = read_master(master)
@@ -129,9 +142,6 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
     nsub = 2 if round(ratio) % 2 == 0 else 1
     master_rec = tm.MasterRecord(mt, att, vel)
     refs = _refs(master, slave)
-    out = out if out is not None else default_out_dir("transfer-align")
-    rd = RunDir(out, "transfer-align")
-    rd.check()
     metrics, rows, results = {}, [], {}
     am, dph, mg = units.arcmin, units.dph, 1e-3 * 9.80665
     for w in windows:
@@ -177,14 +187,12 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
     cfg = {"slave": str(slave), "master": str(master), "methods": list(methods), "mount": mount or "none",
            "windows": ["all" if w is None else f"{w[0]:g}:{w[1]:g}" for w in windows],
            "vel_sigma_mps": vel_sigma, "att_sigma_arcmin": att_sigma_arcmin}
-    rd.prepare()
-    rd.write_text("config.toml", f"# sinslab {__version__} — transfer-align\n" + dump_toml(cfg))
     import pandas as pd
-    rd.write_table("estimates", pd.DataFrame(rows), "final estimates with σ per method and window")
     (m0, w0), r0 = next(iter(results.items()))
-    rd.write_table("history", {"t_s": r0.t, **{f"{l}": r0.x[:, i] for i, l in enumerate(r0.layout.labels)},
-                               **{f"sigma_{l}": r0.sigma[:, i] for i, l in enumerate(r0.layout.labels)}},
-                   f"state estimates and σ (SI) over time, {m0}, window {w0}")
+    tables = [Series("estimates", pd.DataFrame(rows), "final estimates with σ per method and window"),
+              Series("history", {"t_s": r0.t, **{f"{l}": r0.x[:, i] for i, l in enumerate(r0.layout.labels)},
+                                 **{f"sigma_{l}": r0.sigma[:, i] for i, l in enumerate(r0.layout.labels)}},
+                     f"state estimates and σ (SI) over time, {m0}, window {w0}")]
     fig, ax = plotting.figure(3, 3, width=11.0, row_height=2.3, title="transfer alignment on recorded data")
     sl = r0.layout.slice
     for (m, wkey), r in results.items():
@@ -205,16 +213,14 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
     ax[0].legend(fontsize="x-small")
     for a in ax[-3:]:
         a.set_xlabel("time since the start of the window [s]")
-    rd.write_figure("estimates", fig, "Estimates ± σ over time per method/window; dashed: the file's reference values")
-    summary = rd.complete(command_summary(
-        rd, "transfer-align", "transfer alignment of a recorded slave IMU against a master INS", cfg, metrics,
-        ["Mounting angles: the installation state a (C_s^m = exp(a×), or C_s^m = Ĉ_s^m exp(a×) with --mount), "
-         "slave axes x, y, z.",
-         "Biases: slave gyro and accelerometer biases (measured minus true), body axes.",
-         "Filter: 21 states through the fusion driver, velocity + attitude matching at the master rate, "
-         "feedback of φ, δv and biases; the slave position is navigated freely (not reset to the master's)."]))
-    echo(f"  -> {out}")
-    return summary, results, refs
+    figures = [Figure("estimates", fig, "Estimates ± σ over time per method/window; dashed: the file's reference values")]
+    notes = ["Mounting angles: the installation state a (C_s^m = exp(a×), or C_s^m = Ĉ_s^m exp(a×) with --mount), "
+             "slave axes x, y, z.",
+             "Biases: slave gyro and accelerometer biases (measured minus true), body axes.",
+             "Filter: 21 states through the fusion driver, velocity + attitude matching at the master rate, "
+             "feedback of φ, δv and biases; the slave position is navigated freely (not reset to the master's)."]
+    return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
+                  value=(results, refs))
 
 
 def _window(text):
@@ -239,13 +245,9 @@ def register(app):
                        out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder"),
                        force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Transfer alignment on recorded data: mounting angles and slave biases with σ."""
-        from sinslab.app.errors import CliError, user_errors
-        from sinslab.app.outputs import forcing
+        def go():
+            wins = [_window(w) for w in window] or [None]
+            return transfer_align_file(slave, master, methods=tuple(method), mount=mount, windows=wins, out=out,
+                                       echo=typer.echo)
 
-        with user_errors(), forcing(force):
-            try:
-                wins = [_window(w) for w in window] or [None]
-                transfer_align_file(slave, master, methods=tuple(method), mount=mount, windows=wins, out=out,
-                                    echo=typer.echo)
-            except (ValueError, FileNotFoundError) as e:
-                raise CliError(str(e)) from None
+        cli_call(go, force=force)
