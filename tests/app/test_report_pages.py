@@ -20,9 +20,11 @@ from sinslab.cli import app
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 LASER = DATA / "psins-lasergyro" / "lasergyro.imu"
 DRIVE = DATA / "rtklib-drive"
+TRANSFER = DATA / "psins-transfer" / "transfer_align_fog_mems.mat"
 
 needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed")
-needs_data = pytest.mark.skipif(not (LASER.exists() and DRIVE.exists()), reason="shared data missing")
+needs_data = pytest.mark.skipif(not (LASER.exists() and DRIVE.exists() and TRANSFER.exists()),
+                                reason="shared data missing")
 
 
 def _invoke(args):
@@ -49,6 +51,7 @@ def commands(tmp_path_factory):
     _invoke(["-q", "navigate", "--imu", DRIVE / "imu_1934.csv", "--fixes", DRIVE / "gnss_1934_sf.pos",
              "--mount", mount, "--frame", "frd", "--lever-arm", "[-0.05, 0, 0] m",
              "--outages", "15/60@40", "--velocity-lag", "0.125", "--out", d / "navigate"])
+    _invoke(["-q", "transfer-align", "--slave", TRANSFER, "--master", TRANSFER, "--out", d / "transfer-align"])
     return d
 
 
@@ -75,10 +78,11 @@ def test_summary_claims_are_structured(demo):
 
 @needs_data
 def test_command_reports_are_true(commands):
-    for name in ("allan", "align", "navigate"):
+    for name in ("allan", "align", "navigate", "transfer-align"):
         s = json.loads((commands / name / "summary.json").read_text())
         html = (commands / name / "report.html").read_text()
         assert "full scale" not in html
+        assert set(s["timing"]) == {"compute_s", "series_s", "figures_s", "report_s"}, name
         assert s["rerun"].startswith(f"sinslab {name} ")
         described = [m for m, i in s["metric_info"].items() if i["description"]]
         assert set(described) >= set(s["metrics"]) - {"runtime_s"}, name
@@ -92,7 +96,7 @@ def test_command_reports_are_true(commands):
 
 @needs_data
 def test_rerun_lines_run(commands):
-    for name in ("allan", "align"):
+    for name in ("allan", "align", "transfer-align"):
         s = json.loads((commands / name / "summary.json").read_text())
         words = shlex.split(s["rerun"])
         assert words[0] == "sinslab"
@@ -112,5 +116,5 @@ def test_demo_reports_in_a_browser(demo, tmp_path):
 @needs_chromium
 @needs_data
 def test_command_reports_in_a_browser(commands, tmp_path):
-    for d in ("allan", "align", "navigate"):
+    for d in ("allan", "align", "navigate", "transfer-align"):
         assert problems(commands / d, tmp_path) == [], d
