@@ -324,6 +324,40 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
     assert fast.t == pytest.approx(7.0)
 
 
+@pytest.mark.parametrize("m", [1, 3, 4, 9])
+def test_predict_many_with_history_is_predict_step_by_step(m):
+    """A filter with a lag history stepped by predict_many keeps exactly what m single
+    predict calls keep (x, P, c, time, σ out, and every stored epoch bit for bit), also
+    when most of the stretch leaves the history before the call returns."""
+    _, _, Phi, Q, H, R, P0, rng = _model()
+    hist = 4
+    Phis = np.array([Phi + 1e-3 * rng.normal(size=Phi.shape) for _ in range(m)])
+    Qs = np.array([Q * (1 + k) for k in range(m)])
+    one = KalmanFilter(rng.normal(size=6), P0, history=hist, check=False)
+    many = KalmanFilter(one.x.copy(), P0, history=hist, check=False)
+    for f in (one, many):                                 # a stored epoch with an update
+        f.predict(Phi, Q, 1.0)
+        f.update(np.full(2, 0.1), H, R)
+    sig_one = np.empty((m, 6))
+    for k in range(m):
+        one.predict(Phis[k], Qs[k], 1.0)
+        sig_one[k] = one.sigma
+    sig_many = np.empty((m, 6))
+    many.predict_many(Phis, Qs, 1.0, sigma_out=sig_many)
+    assert np.array_equal(one.x, many.x) and np.array_equal(one.P, many.P) and np.array_equal(one.c, many.c)
+    assert one.t == many.t and np.array_equal(sig_one, sig_many)
+    assert len(one._buf) == len(many._buf)
+    for a, b in zip(one._buf, many._buf):
+        assert a.t == b.t
+        for name in ("x", "P", "c", "Phi", "Q", "x_post", "P_post", "c_post"):
+            va, vb = getattr(a, name, None), getattr(b, name, None)
+            assert (va is None and vb is None) or np.array_equal(va, vb), name
+    z = rng.normal(size=2)                                # a lagged update sees the same past
+    ra = one.update_lagged(z, H, R, one.t - 2.0)
+    rb = many.update_lagged(z, H, R, many.t - 2.0)
+    assert np.array_equal(ra.x, rb.x) and np.array_equal(ra.P, rb.P)
+
+
 def test_estimation_imports_nothing_from_the_ins():
     """Layering: the estimation modules know no INS (no import of sinslab.nav, fusion,
     methods or anything above, module level or function local)."""

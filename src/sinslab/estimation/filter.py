@@ -235,7 +235,29 @@ class KalmanFilter:
         Qs = np.ascontiguousarray(Qs, dtype=float)
         m = Phis.shape[0]
         if self._buf is not None or self.check:
-            for i in range(m):
+            i0 = 0
+            if self._buf is not None and not self.check and aux is None and m >= self.history:
+                # of the epochs reached by the first m − history + 1 steps only the last
+                # stays in the history once the call returns: step them with predict's
+                # arithmetic and store just that one
+                n = self.n
+                if Phis.shape != (m, n, n) or Qs.shape != (m, n, n):
+                    raise ValueError(f"Phis and Qs must have shape (m, {n}, {n}), got {Phis.shape}, {Qs.shape}")
+                if not dt > 0:
+                    raise ValueError(f"dt must be > 0, got {dt}")
+                i0 = m - self.history + 1
+                for i in range(i0):
+                    _cov_predict(self.P, Phis[i], Qs[i], self._T1, self._T2)
+                    self.x = Phis[i] @ self.x
+                    self.c = Phis[i] @ self.c
+                    self.t += float(dt)
+                    if sigma_out is not None:
+                        sigma_out[i] = self.sigma
+                    if x_out is not None:
+                        x_out[i] = self.x
+                self._buf.clear()
+                self._new_epoch()
+            for i in range(i0, m):
                 self.predict(Phis[i], Qs[i], dt, aux=None if aux is None else aux[i])
                 if sigma_out is not None:
                     sigma_out[i] = self.sigma

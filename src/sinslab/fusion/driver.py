@@ -97,6 +97,19 @@ from sinslab.nav import strapdown as sd
 __all__ = ["run", "DriverResult", "Applied", "LiveStream", "PrecomputedStream"]
 
 
+def _step_sums(x, n_ep, k):
+    """Sums of ``k`` consecutive rows of ``x`` (n_ep·k, 3) -> (n_ep, 3), added in row order.
+
+    The same additions in the same order as ``x.reshape(n_ep, k, 3).sum(1)`` (numpy adds
+    along a non-contiguous axis one slice after another), without its 3-element inner loop.
+    """
+    a = x.reshape(n_ep, k, 3)
+    acc = a[:, 0].copy()
+    for j in range(1, k):
+        acc += a[:, j]
+    return acc
+
+
 class LiveStream:
     """An INS navigated by the driver: IMU increments + initial state + mechanization
     options + the sensor compensation that feedback updates.
@@ -170,8 +183,8 @@ class LiveStream:
         if not self.scaled:
             n_use = n_ep * k_kf
             s = self.start
-            self._dth_sum = self.imu.dtheta[s:s + n_use].reshape(n_ep, k_kf, 3).sum(1)
-            self._dv_sum = self.imu.dv[s:s + n_use].reshape(n_ep, k_kf, 3).sum(1)
+            self._dth_sum = _step_sums(self.imu.dtheta[s:s + n_use], n_ep, k_kf)
+            self._dv_sum = _step_sums(self.imu.dv[s:s + n_use], n_ep, k_kf)
         return self.T, self.t0, n_ep
 
     def row0(self):
