@@ -108,3 +108,16 @@ def test_rotins_script_filter_part():
     res = _load("rotins").filter_ratio(1.0)
     assert res["steps"] == 360 and 0 < res["distinct_steps"] <= res["steps"]
     assert res["driver_s"] > 0 and res["compiled_s"] > 0
+
+
+def test_startup_script(tmp_path):
+    out = tmp_path / "startup.json"
+    res = _load("startup").main(["--repeat", "1", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    cmds = saved["commands"]
+    assert set(cmds) == set(res["commands"])
+    assert {"python -c pass", "import sinslab.cli", "list", "--help", "config static-alignment"} <= set(cmds)
+    ref = saved["reference_median_s"]
+    for r in cmds.values():
+        assert r["min_s"] <= r["median_s"] <= r["max_s"]
+        assert r["above_reference_s"] == pytest.approx(r["median_s"] - ref)

@@ -10,7 +10,9 @@ A bug prints its traceback (exit 1).
 
 Start-up is kept short: this module imports typer and nothing numerical; the command
 modules import numba, scipy, matplotlib, pandas and dask inside the functions that use
-them, and ``sinslab list`` reads the experiments' names without importing them.
+them, ``sinslab list`` reads the experiments' names without importing them, and
+``sinslab config NAME`` imports NAME's module alone (whose top level imports no
+numerical package).
 
 Adding a command (``navigate``, ``allan``, ``align``, ...): write a module in
 :mod:`sinslab.app.commands` whose compute function returns a

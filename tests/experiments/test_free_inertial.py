@@ -10,6 +10,7 @@ from sinslab.core import earth, units
 from sinslab.cli import app
 from sinslab.app.config import ConfigError, resolve
 from sinslab.experiments import free_inertial as fi
+from sinslab.methods import free_inertial as fim
 
 CONTRACT = ["max_horiz_pos_err_m", "final_horiz_pos_err_m", "max_horiz_vel_err_mps",
             "final_att_err_arcsec", "schuler_period_min", "samples", "runtime_s"]
@@ -180,7 +181,7 @@ def test_mc_batch_draws_and_navigates_like_the_covariance_model():
     gen = tr.generate(segs, start, 0.1, duration=300.0, mount=mount)
     spec = fi._mc_spec(cfg, segs, start, mount)
     cov_every, _ = fi._mc_strides(cfg)
-    t, sigma, model = fi.covariance_analysis(gen.truth, gen.imu, spec, cov_every)
+    t, sigma, model = fim.covariance_analysis(gen.truth, gen.imu, spec, cov_every)
     assert model.core == "horizontal"                      # vertical held by default
     # static, accel bias only: δv_N σ = ∇ sin(ω_s t)/ω_s (Schuler loop; Earth rate negligible over 5 min)
     ws = 2 * np.pi / earth.schuler_period(start.lat, start.h)
@@ -194,13 +195,13 @@ def test_mc_batch_draws_and_navigates_like_the_covariance_model():
 
 def test_mc_claims_fail_on_a_units_slip(tmp_path, monkeypatch):
     """A covariance σ three times too large (e.g. a units slip) must fail the MC claims."""
-    real = fi.covariance_analysis
+    real = fim.covariance_analysis
 
     def wrong(*a, **kw):
         t, s, m = real(*a, **kw)
         return t, 3.0 * s, m
 
-    monkeypatch.setattr(fi, "covariance_analysis", wrong)
+    monkeypatch.setattr(fim, "covariance_analysis", wrong)
     s, _ = _mc(tmp_path, "bad", "sync", sets=["scenario.duration=5 min"], runs=10)
     c = {c["id"]: c["passed"] for c in s["claims"]}
     assert not any(c[f"mc_rms_over_sigma_{k}"] for k in MC_KEYS)

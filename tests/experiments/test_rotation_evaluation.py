@@ -14,6 +14,8 @@ import pytest
 from sinslab.app.config import ConfigError, resolve
 from sinslab.experiments import execute, get
 from sinslab.experiments import rotation_evaluation as R
+from sinslab.methods import rotins
+from sinslab.sim import imu as imu_
 
 #: 24 h at 10 Hz, model step 2 s, filter step 30 s, std windows of 2 h from 12 h on: small enough for the suite
 SMALL = ["scenario.duration=24 h", "scenario.sample_interval=0.1 s", "filter.model_dt=2 s", "filter.kf_dt=30 s",
@@ -85,12 +87,12 @@ def test_linear_campaign_matches_nonlinear_pipeline(small):
     exp = get("rotation-evaluation")
     cfg = resolve(exp.config, sets=SMALL)
     lat = float(cfg.scenario.latitude)
-    model = R.rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
-                                          float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
-    P0 = R.rotins.joint_P0(model, lat, att=np.asarray(cfg.init.att_err, float) * math.sqrt(2),
-                           gyro1=float(cfg.filter.gyro_sigma0), gyrok=float(cfg.filter.gyro_sigma0),
-                           accel1=float(cfg.filter.accel_sigma0), accelk=float(cfg.filter.accel_sigma0))
-    sig = R.rotins.difference_sigma(lat, float(cfg.filter.meas_floor_pos), float(cfg.filter.meas_floor_vel))
+    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
+                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
+    P0 = rotins.joint_P0(model, lat, att=np.asarray(cfg.init.att_err, float) * math.sqrt(2),
+                         gyro1=float(cfg.filter.gyro_sigma0), gyrok=float(cfg.filter.gyro_sigma0),
+                         accel1=float(cfg.filter.accel_sigma0), accelk=float(cfg.filter.accel_sigma0))
+    sig = rotins.difference_sigma(lat, float(cfg.filter.meas_floor_pos), float(cfg.filter.meas_floor_vel))
     S = R._linear_setup(R.campaign_spec(cfg, model, P0, sig))
     assert S["sig_z"][-1] / R.DPH == pytest.approx(m["eps_z1_sigma_final_dph"], rel=1e-3)
     mc_mean = np.array(m["mc_windowed_std_mean_dph"])
@@ -106,7 +108,7 @@ def test_recorded_constant_record_is_a_gyro_bias(tmp_path):
     _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
     cyc = R.one_cycle(mk, lat, lon, dt)
     c = np.array([1e-8, -2e-8, 3e-8])
-    base = R.imu_.ImuErrors()
+    base = imu_.ImuErrors()
     n_steps, k_kf = 30, 600
     rec = np.tile(c, (n_steps * k_kf, 1))
     a = R.navigate_chunked(R.InsSpec("a", cyc, base, (1,), None, (rec, 0)), 0, lat, lon, dt, n_steps, k_kf, 2,
@@ -122,7 +124,7 @@ def test_schedule_rank_and_warning(scheme, rank):
     """The paper's schedule reaches rank 13; INS k flipping about one axis only stays at 12
     and the run carries the warning (the evaluation is then not meaningful)."""
     cfg = resolve(get("rotation-evaluation").config, sets=[f"rotation.dual_scheme={scheme}"])
-    so, warning = R.observability(cfg, R.rotins.joint_rotation_model())
+    so, warning = R.observability(cfg, rotins.joint_rotation_model())
     assert so.rank_static == 5 and so.ranks[-1] == rank
     assert (warning is None) == (rank == 13)
     if warning:

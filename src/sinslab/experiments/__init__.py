@@ -5,6 +5,11 @@ Every module in this package that defines ``NAME`` is an experiment (see
 module: :func:`registry` discovers it, ``sinslab list`` shows it, ``sinslab run NAME``
 runs it and ``sinslab demo`` includes it.
 
+``sinslab list`` and ``sinslab config NAME`` start at once: :func:`catalog` reads the
+names from the modules' sources without importing them, and :func:`get` imports only the
+module whose source declares ``NAME`` (an experiment module imports its numerical
+packages inside the functions that compute).
+
 :func:`execute` is the whole run contract (docs/cli.md, run folders) in one function; the CLI calls it
 and so can Python code::
 
@@ -37,6 +42,8 @@ __all__ = ["registry", "register", "get", "names", "catalog", "execute", "Unknow
 _SKIP = {"base"}
 _registry: dict[str, Experiment] | None = None
 _broken: dict[str, str] = {}
+#: ``{module: Experiment}`` imported one at a time by :func:`get` before the registry is built
+_loaded: dict[str, Experiment] = {}
 
 
 class UnknownExperiment(UserError, KeyError):
@@ -54,15 +61,12 @@ def registry() -> dict[str, Experiment]:
     global _registry
     if _registry is None:
         found: dict[str, Experiment] = {}
-        for info in pkgutil.iter_modules(__path__):
-            if info.name.startswith("_") or info.name in _SKIP:
-                continue
-            modname = f"{__name__}.{info.name}"
+        for modname in _candidates():
             try:
                 mod = importlib.import_module(modname)
                 if not hasattr(mod, "NAME"):
                     continue
-                exp = Experiment.from_module(mod)
+                exp = _loaded.get(modname) or Experiment.from_module(mod)
             except Exception as e:  # a half-written module must not hide the others
                 _broken[modname] = f"{type(e).__name__}: {e}"
                 continue
@@ -105,13 +109,9 @@ def catalog() -> dict[str, str]:
     if _registry is not None:
         return {n: e.purpose for n, e in _registry.items()}
     found: dict[str, str] = {}
-    for info in pkgutil.iter_modules(__path__):
-        if info.name.startswith("_") or info.name in _SKIP:
-            continue
-        modname = f"{__name__}.{info.name}"
-        path = Path(__path__[0]) / f"{info.name}.py"
+    for modname in _candidates():
         try:
-            lines = path.read_text(encoding="utf-8").splitlines()
+            lines = _source_lines(modname)
         except (OSError, ValueError) as e:
             _broken[modname] = f"{type(e).__name__}: {e}"
             continue
@@ -122,6 +122,57 @@ def catalog() -> dict[str, str]:
             return {n: e.purpose for n, e in registry().items()}
         found[consts["NAME"]] = consts["PURPOSE"]
     return dict(sorted(found.items()))
+
+
+def _candidates() -> list[str]:
+    """Dotted names of the modules of this package that may be experiments."""
+    return [f"{__name__}.{info.name}" for info in pkgutil.iter_modules(__path__)
+            if not (info.name.startswith("_") or info.name in _SKIP)]
+
+
+def _source_lines(modname: str) -> list[str]:
+    path = Path(__path__[0]) / f"{modname.rpartition('.')[2]}.py"
+    return path.read_text(encoding="utf-8").splitlines()
+
+
+def _declared_modules() -> dict[str, list[str]] | None:
+    """``{NAME: [module, ...]}`` as the modules' sources declare it, without importing
+    them; None when a source cannot be read or declares ``NAME`` other than as a plain
+    string (only importing the modules tells then). A module without ``NAME`` is not an
+    experiment and is left out; a name with two modules is an error :func:`registry`
+    reports."""
+    found: dict[str, list[str]] = {}
+    for modname in _candidates():
+        try:
+            lines = _source_lines(modname)
+        except (OSError, ValueError):
+            return None
+        name = _constant(lines, "NAME")
+        if name is None and not any(ln.startswith("NAME") for ln in lines):
+            continue
+        if not isinstance(name, str):
+            return None
+        found.setdefault(name, []).append(modname)
+    return found
+
+
+def _import_one(name: str) -> Experiment | None:
+    """The experiment ``name`` from its module alone (found by :func:`_declared_modules`);
+    None when the sources do not settle it (unknown, declared twice, unreadable) or the
+    module fails to import: then :func:`registry` decides and reports."""
+    mods = (_declared_modules() or {}).get(name, [])
+    if len(mods) != 1:
+        return None
+    modname = mods[0]
+    if modname not in _loaded:
+        try:
+            exp = Experiment.from_module(importlib.import_module(modname))
+        except Exception:
+            return None
+        if exp.name != name:
+            return None
+        _loaded[modname] = exp
+    return _loaded[modname]
 
 
 def _constant(lines: list[str], name: str):
@@ -148,7 +199,13 @@ def names() -> list[str]:
 
 
 def get(name: str) -> Experiment:
-    """The experiment called ``name``; UnknownExperiment (with the known names) otherwise."""
+    """The experiment called ``name``; UnknownExperiment (with the known names) otherwise.
+
+    Before the registry is built, only the module that declares ``name`` is imported."""
+    if _registry is None:
+        exp = _import_one(name)
+        if exp is not None:
+            return exp
     reg = registry()
     if name not in reg:
         import difflib

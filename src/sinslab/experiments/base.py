@@ -18,9 +18,17 @@ An experiment is one module in :mod:`sinslab.experiments` declaring::
     }
 
     def run(config: Config, ctx: RunContext) -> Result:
+        from sinslab.sim import trajectory        # numerical modules: imported here
         ...
         return Result(metrics={...}, claims=[Claim.within(...)], series={...},
                       figures=[Figure("att_err", fig, "caption")])
+
+The module's top level imports what ``Config`` needs (pydantic, numpy,
+:mod:`sinslab.core.units`, this module) and nothing that pulls in numba, scipy,
+matplotlib, pandas or dask: ``sinslab config NAME`` imports the module alone and builds
+the default ``Config``, validators included (``tests/app/test_startup.py``). A validator
+that needs a method module imports it inside the validator and calls only functions that
+need none of those packages.
 
 The framework (:func:`sinslab.experiments.execute`) resolves and validates the config,
 claims the output folder, writes ``config.toml`` first, calls ``run``, adds the

@@ -140,8 +140,7 @@ class Config(ExperimentConfig):
         except ValueError as e:
             raise ValueError(f"fix.latency: {e}") from None
         try:
-            ds.fix_error(float(s.latitude), float(s.longitude), float(f.sat_lon1), float(f.sat_lon2),
-                         1.0, 1.0, 1.0)
+            ds.check_geometry(float(s.latitude), float(f.sat_lon1), float(f.sat_lon2))
         except ValueError as e:
             raise ValueError(f"fix / scenario.latitude: {e}") from None
         return self

@@ -39,9 +39,7 @@ from typing import Literal
 import numpy as np
 from pydantic import field_validator, model_validator
 
-from sinslab.core import earth, units
-from sinslab.methods.free_inertial import (covariance_analysis, envelopes, fit_schuler_period,
-                                          linear_error_prediction)
+from sinslab.core import units
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
 
 NAME = "free-inertial"
@@ -269,6 +267,7 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
 def _mc_setup(spec, gen=None):
     """The worker's copy of the trajectory (generated once per process and cached)."""
     from sinslab.sim import trajectory
+    from sinslab.core import earth
     from sinslab.core.attitude import euler_to_dcm
     from sinslab.core.records import NavState
 
@@ -311,6 +310,7 @@ def mc_batch(seeds, spec):
     """
     from sinslab.sim import imu as imu_mod
     from sinslab.nav import strapdown
+    from sinslab.core import earth
     from sinslab.core.attitude import euler_to_dcm, misalignment
     from sinslab.core.records import NavState
 
@@ -353,6 +353,7 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
     import time
 
     from sinslab.estimation import montecarlo as mc
+    from sinslab.methods.free_inertial import covariance_analysis
     from sinslab.app import plotting as P
     from sinslab.experiments.base import Table
 
@@ -490,7 +491,10 @@ def run(cfg: Config, ctx) -> Result:
     from sinslab.sim import imu as imu_mod
     from sinslab.nav import strapdown
     from sinslab.sim import trajectory
+    from sinslab.core import earth
     from sinslab.core.records import NavState
+    from sinslab.methods.free_inertial import (envelopes, fit_schuler_period,
+                                              linear_error_prediction)
     from sinslab.app import plotting as P
 
     s, n = cfg.scenario, cfg.nav

@@ -50,15 +50,9 @@ import numpy as np
 from pydantic import field_validator, model_validator
 
 from sinslab.app.errors import UserError
-from sinslab.core import attitude as A
-from sinslab.core import earth, units
-from sinslab.core.records import NavState
+from sinslab.core import units
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
-from sinslab.methods import rotins
-from sinslab.nav import strapdown as sd
-from sinslab.sim import imu as imu_
 from sinslab.sim import indexing as ix
-from sinslab.sim import trajectory as tj
 
 NAME = "rotation-evaluation"
 PURPOSE = ("online evaluation of dual-axis rotating INS by joint error filters with a "
@@ -296,6 +290,8 @@ class Cycle:
 
 def one_cycle(mount, lat, lon, dt):
     """Exact increments over one mount cycle (they repeat: the carrier is at rest)."""
+    from sinslab.sim import trajectory as tj
+
     Tc = float(mount.cycle_time)
     n = int(round(Tc / dt))
     if abs(n * dt - Tc) > 1e-6:
@@ -319,6 +315,8 @@ def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups)
     index : int ndarray (K,)
         Table entry of each of the K filter steps.
     """
+    from sinslab.methods import rotins
+
     ts = model_dt * np.arange(K * me)
     a1, _ = ix.mount_angles(m1, ts)
     ak, _ = ix.mount_angles(mk, ts)
@@ -339,6 +337,8 @@ def observability(cfg: Config, model):
     """Observability of the joint model along the stops of both schedules (one cycle of the
     longer one, two for the one-axis flips) and the warning line when the stacked rank
     stays below the number of states (None otherwise)."""
+    from sinslab.methods import rotins
+
     m1, mk = mounts(cfg)
     t_obs = max(m1.cycle_time, mk.cycle_time) * (2 if cfg.rotation.dual_scheme != "dual_axis_16" else 1)
     C1c, Ckc, _ = ix.common_stops(m1, mk, t_obs)
@@ -394,6 +394,12 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
     integrated over each sample from the start of the run. ``rates=False`` skips the mean
     rates per output step (only the fusion driver needs them).
     """
+    from sinslab.core import attitude as A
+    from sinslab.core import earth
+    from sinslab.core.records import NavState
+    from sinslab.nav import strapdown as sd
+    from sinslab.sim import imu as imu_
+
     rng = np.random.default_rng([int(seed), *spec.stream])
     phi0 = rng.standard_normal(3) * np.asarray(att_sigma, float)
     C0 = A.euler_to_dcm(spec.cycle.att0)
@@ -493,6 +499,8 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
 
 
 def _errors(sec, gyro_scale=1.0, white=True):
+    from sinslab.sim import imu as imu_
+
     return imu_.ImuErrors(gyro_bias=np.broadcast_to(np.asarray(sec.gyro_bias, float), (3,)).copy(),
                           accel_bias=np.broadcast_to(np.asarray(sec.accel_bias, float), (3,)).copy(),
                           gyro_arw=np.full(3, float(sec.gyro_arw) if white else 0.0),
@@ -534,6 +542,9 @@ def load_recorded_gyro(path, n_needed, dt, what):
 
 # ---------------------------------------------------------------- run -------------------
 def run(cfg: Config, ctx) -> Result:
+    from sinslab.methods import rotins
+    from sinslab.sim import imu as imu_
+
     t_start = time.perf_counter()
     sc, ev, fl = cfg.scenario, cfg.evaluation, cfg.filter
     lat, lon = float(sc.latitude), float(sc.longitude)
@@ -829,6 +840,9 @@ def campaign_spec(cfg: Config, model, P0, sig_meas):
 
 def _truth_rows(mount, t, lat, lon):
     """Error-free INS output of a moored ship at the epochs: rows, step rates (carrier = ENU)."""
+    from sinslab.core import attitude as A
+    from sinslab.core import earth
+
     ang, _ = ix.mount_angles(mount, t)
     C = A.euler_to_dcm(ang)
     rows = np.zeros((t.size, 10))
@@ -847,6 +861,8 @@ def _linear_setup(spec):
     joint model along the true schedule, positions in metres."""
     import hashlib
     import pickle
+
+    from sinslab.methods import rotins
 
     key = hashlib.sha1(pickle.dumps({k: spec[k] for k in ("lat", "lon", "kf_dt", "model_dt", "n_steps", "rotation")})
                        + spec["q"].tobytes() + spec["P0"].tobytes() + spec["sig"].tobytes()).hexdigest()
@@ -916,6 +932,8 @@ def linear_batch(seeds, spec):
         ``wstd`` (B, len(betas)) mean windowed std of ε̂_z1 per β [rad/s]; ``wstd_sep``
         (B, 2): INS A (β = 1), INS B (ratio ``sep``); ``final`` (B,) ε̂_z1 − ε_z1 at the end.
     """
+    from sinslab.methods import rotins
+
     S = _linear_setup(spec)
     Phi, index, roots, gains, iz = S["Phi"], S["index"], S["roots"], S["gains"], S["iz"]
     K, n = gains.shape[:2]

@@ -31,13 +31,7 @@ from typing import Literal
 
 import numpy as np
 
-from sinslab.nav import compare
-from sinslab.core import earth, units
-from sinslab.sim import indexing
-from sinslab.sim import imu as imu_
-from sinslab.methods import oscillation as osc
-from sinslab.methods import schuler
-from sinslab.sim import trajectory as tj
+from sinslab.core import units
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
 
 NAME = "schuler-suppression"
@@ -216,6 +210,10 @@ def _sway(sh: Ship):
 
 def build(cfg: Config, t2_rel: float):
     """Segments, start, mount, IMU errors and total duration of the scenario."""
+    from sinslab.sim import imu as imu_
+    from sinslab.sim import indexing
+    from sinslab.sim import trajectory as tj
+
     sc = cfg.scenario
     lat, lon = float(sc.latitude), float(sc.longitude)
     if sc.kind == "ship":
@@ -250,12 +248,20 @@ def build(cfg: Config, t2_rel: float):
 
 
 def _fit(e, ch, lat, t_lo):
+    from sinslab.methods import oscillation as osc
+
     m = e["t"] >= t_lo - 1e-9
     return osc.fit_components(e["t"][m], e[ch][m] / _UNIT[ch][1], lat=lat)
 
 
 # ----------------------------------------------------------------- run --------------------
 def run(cfg: Config, ctx) -> Result:
+    from sinslab.core import earth
+    from sinslab.methods import schuler
+    from sinslab.nav import compare
+    from sinslab.sim import imu as imu_
+    from sinslab.sim import trajectory as tj
+
     t_start = time.perf_counter()
     sc = cfg.scenario
     lat, lon = float(sc.latitude), float(sc.longitude)
@@ -423,6 +429,7 @@ def _series(cfg, e1, e2, em, t2):
 
 def _figures(cfg, e1, em, t2, lat, fits):
     from sinslab.app import plotting as P
+    from sinslab.methods import oscillation as osc
 
     kind = cfg.scenario.kind
     k0 = int(np.searchsorted(e1["t"], t2 - 1e-9))

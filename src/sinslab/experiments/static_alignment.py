@@ -37,11 +37,7 @@ from typing import Optional
 
 import numpy as np
 
-from sinslab.methods import alignment as al
-from sinslab.core import attitude as A
-from sinslab.core import earth, units
-from sinslab.estimation import linear, observability
-from sinslab.sim.imu import ImuErrors, apply
+from sinslab.core import units
 from sinslab.core.records import NavState  # noqa: F401
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
 
@@ -155,6 +151,9 @@ def _time_per_step(fas, lat, g, repeats, min_steps=20000):
     The run's own measurements are tiled to at least ``min_steps`` steps so that the
     per-call overhead is negligible; the filters are timed alternately, best of
     ``repeats``."""
+    from sinslab.estimation import linear
+    from sinslab.methods import alignment as al
+
     jobs = {}
     for model, fa in fas.items():
         H = (al.full_model if model == "full" else al.reduced_model)(lat, g)[2]
@@ -186,6 +185,8 @@ def _converge_min(t, r, lim, tol):
 
 def _obs_rank_degree(F, H, scale):
     """Rank, per-state degree and singular values (sinslab.estimation.observability, states scaled)."""
+    from sinslab.estimation import observability
+
     r = observability.analyze(F, H, scale=scale)
     return r.rank, r.degree, r.singular_values
 
@@ -228,6 +229,11 @@ def _figure(t, resid, lim, title, extra=None):
 
 
 def run(config: Config, ctx) -> Result:
+    from sinslab.core import attitude as A
+    from sinslab.core import earth
+    from sinslab.methods import alignment as al
+    from sinslab.sim.imu import ImuErrors, apply
+
     sc, im, fc = config.scenario, config.imu, config.filter
     lat = al.check_alignment_latitude(float(sc.latitude))
     h = float(sc.height)

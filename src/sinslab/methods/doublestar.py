@@ -65,12 +65,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sinslab.core.earth import A, E2, radii
-from sinslab.estimation.kalman import discretize, update
-from sinslab.fusion.feedback import FeedbackLayout
-from sinslab.fusion.loosely_coupled import loosely_coupled
-from sinslab.nav import compare, errstate as es
-from sinslab.nav import strapdown as sd
 from sinslab.core.records import Fixes
 
 __all__ = [
@@ -78,7 +72,7 @@ __all__ = [
     "ecef", "measure_ranges", "solve_fix", "request_schedule", "simulate_fixes",
     "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate",
     "StoredStateUpdate",
-    "MODES", "horizontal_errors", "check_windows",
+    "MODES", "horizontal_errors", "check_windows", "check_geometry",
 ]
 
 #: Geocentric radius of the geostationary orbit [m].
@@ -107,7 +101,10 @@ class FixError:
     ew_height: np.ndarray
 
 
-def _check_geometry(lat, sat_lon1, sat_lon2):
+def check_geometry(lat, sat_lon1, sat_lon2):
+    """The geometry checks of :func:`fix_error`: user latitude and satellite longitudes
+    [rad] as float arrays, or ValueError where the two-GEO fix has no solution (non-finite
+    values, satellites at equal or opposite longitudes, |latitude| >= 90 deg, the equator)."""
     lat = np.asarray(lat, dtype=float)
     l1 = np.asarray(sat_lon1, dtype=float)
     l2 = np.asarray(sat_lon2, dtype=float)
@@ -125,6 +122,8 @@ def _check_geometry(lat, sat_lon1, sat_lon2):
 
 
 def _height_k(lat, h, height_factor, sat_radius):
+    from sinslab.core.earth import radii
+
     _, rn = radii(lat, 0.0)
     if height_factor == "paper":
         return rn / (rn + h)
@@ -139,7 +138,7 @@ def _coefficients(lat, lon, h, sat_lon1, sat_lon2, height_factor, sat_radius):
     e_a: error of the round trip through satellite 1 (ρa = 2 r1), e_b: of the path through
     both (ρb = r1 + r2), ΔH: height error. Returns cN (S+(3,)), cE (S+(3,)).
     """
-    lat, l1, l2 = _check_geometry(lat, sat_lon1, sat_lon2)
+    lat, l1, l2 = check_geometry(lat, sat_lon1, sat_lon2)
     lon = np.asarray(lon, dtype=float)
     h = np.asarray(h, dtype=float)
     a1 = lon - l1
@@ -222,6 +221,8 @@ def fix_covariance(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *, height_fa
 # ------------------------------------------------------------------ exact geometry
 def ecef(lat, lon, h):
     """WGS-84 geodetic → ECEF [m], shape S + (3,)."""
+    from sinslab.core.earth import A, E2
+
     lat, lon, h = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (lat, lon, h)))
     sL = np.sin(lat)
     rn = A / np.sqrt(1.0 - E2 * sL * sL)
@@ -287,7 +288,7 @@ def fix_error_linearised(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *,
     σ = m0 and m1 each, height error ΔH), linearised exactly in ECEF: the reference the
     closed form is compared with.
     """
-    lat, l1, l2 = _check_geometry(lat, sat_lon1, sat_lon2)
+    lat, l1, l2 = check_geometry(lat, sat_lon1, sat_lon2)
     lat, lon, h = np.broadcast_arrays(lat, np.asarray(lon, float), np.asarray(h, float))
     u = ecef(lat, lon, h)
     sL, cL, sl, cl = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
@@ -423,6 +424,8 @@ def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, r
     windows : sequence of (start, end) [s], inside the truth record
     rng : numpy.random.Generator or int
     """
+    from sinslab.core.earth import radii
+
     rng = np.random.default_rng(rng)
     check_windows(windows, truth.t[0], truth.t[-1])
     t_req, t_arr = request_schedule(windows, latency, jitter=latency_jitter, grid=grid,
@@ -464,6 +467,8 @@ def horizontal_model(gyro_white, gyro_markov_sigma, gyro_markov_tau, accel_marko
     gyro_markov_sigma, gyro_markov_tau : steady-state σ [rad/s], correlation time [s]
     accel_markov_sigma, accel_markov_tau : steady-state σ [m/s²], correlation time [s]
     """
+    from sinslab.nav import errstate as es
+
     return es.ErrorModel("horizontal",
                          [es.gyro_bias(name="eps_b"),
                           es.gyro_markov(gyro_markov_tau, gyro_markov_sigma, name="eps_r"),
@@ -478,6 +483,8 @@ def initial_covariance(model, lat, h, att, vel, pos, gyro_bias, gyro_markov, acc
     ``att`` (3,) [rad], ``vel`` (2,) or scalar [m/s], ``pos`` (2,) or scalar [m] (north,
     east), sensor σ per axis (SI).
     """
+    from sinslab.core.earth import radii
+
     rm, rn = radii(lat, h)
     pos = np.broadcast_to(np.asarray(pos, float), (2,))
     d = np.concatenate([np.broadcast_to(att, (3,)), np.broadcast_to(vel, (2,)),
@@ -545,6 +552,8 @@ class StoredStateUpdate:
         """Apply the lagged fix to ``filt`` (a :class:`sinslab.estimation.filter.KalmanFilter`
         with history); ``F``, ``Qc`` (n, n): continuous model at ``t_m``. Returns the
         :class:`~sinslab.estimation.kalman.UpdateResult` of the update at ``t_m``."""
+        from sinslab.estimation.kalman import discretize, update
+
         if F is None or Qc is None:
             raise ValueError("the stored-state update needs F and Qc (continuous model at t_m)")
         j = filt.find_epoch(t_m, tol, exact=False)
@@ -624,6 +633,9 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     -------
     Integration
     """
+    from sinslab.fusion.feedback import FeedbackLayout
+    from sinslab.fusion.loosely_coupled import loosely_coupled
+
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if lag_method not in ("paper003", "exact"):
@@ -679,6 +691,9 @@ def horizontal_errors(nav, truth):
     dvel : (M, 2) east, north [m/s]
     dpos : (M, 2) north, east [m]
     """
+    from sinslab.nav import compare
+    from sinslab.nav import strapdown as sd
+
     e = compare.nav_errors(sd.rows_to_series(truth.t, nav), truth, imu_frame=True)
     return (np.stack([e["phiE"], e["phiN"], e["phiU"]], -1), np.stack([e["vE"], e["vN"]], -1),
             np.stack([e["north"], e["east"]], -1))

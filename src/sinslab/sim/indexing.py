@@ -37,7 +37,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from sinslab.core import units
-from sinslab.core.attitude import euler_to_dcm
 
 __all__ = ["common_stops", "AXES", "SINGLE_AXIS_4POS", "DUAL_AXIS_16", "SCHEMES", "RotateStop", "Swing", "short_number",
            "single_axis_4pos", "dual_axis_16", "mount_angles", "mount_from_dict", "Mount"]
@@ -407,6 +406,9 @@ def common_stops(m1: Mount | None, mk: Mount | None, t_end: float, dt: float = 0
     durations : ndarray (m,)
         Length of each stop [s] (a multiple of ``dt``).
     """
+    # here, not at the top: the mount definitions (an experiment's configuration) need no numba or scipy
+    from sinslab.core.attitude import euler_to_dcm
+
     t = np.arange(0.0, t_end, dt)
     a1, r1 = mount_angles(m1, t)
     ak, rk = mount_angles(mk, t)
