@@ -121,3 +121,12 @@ def test_startup_script(tmp_path):
     for r in cmds.values():
         assert r["min_s"] <= r["median_s"] <= r["max_s"]
         assert r["above_reference_s"] == pytest.approx(r["median_s"] - ref)
+
+
+def test_against_script(tmp_path):
+    """The two-tree comparison runs end to end (against HEAD itself: the rows must agree)."""
+    out = tmp_path / "against.json"
+    res = _load("against").main(["--rev", "HEAD", "--duration", "60", "--rounds", "1", "--repeat", "1",
+                                 "--states", "15", "--out", str(out)])
+    assert json.loads(out.read_text()) == res
+    assert res["states15"]["cpu_this_s"] > 0 and res["states15"]["last_row_max_rel_diff"] < 1e-12

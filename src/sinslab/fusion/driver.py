@@ -81,6 +81,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from sinslab.core import attitude as A
 from sinslab.core import units
@@ -95,6 +96,36 @@ from sinslab.nav import errstate_kernels as ek
 from sinslab.nav import strapdown as sd
 
 __all__ = ["run", "DriverResult", "Applied", "LiveStream", "PrecomputedStream"]
+
+
+@njit(cache=True)
+def _scaled_increments(dth, dv, kg, ka, gb, ab, k, T, dth_s, dv_s, ws, fs):
+    """Scale-corrected increments and the mean rates of each filter step of a block.
+
+    ``dth_s = dth (1 − kg)``, ``dv_s = dv (1 − ka)`` per axis (rows of one block, k per
+    filter step); ``ws``, ``fs`` (m, 3) the per-step sums of those divided by the step
+    T [s] minus the biases. Element by element the operations of the numpy expressions
+    ``(dth * (1 − kg)).reshape(m, k, 3).sum(1) / T − gb``, in the same order.
+    """
+    m = ws.shape[0]
+    for c in range(3):
+        sg = 1.0 - kg[c]
+        sa = 1.0 - ka[c]
+        for e in range(m):
+            i = e * k
+            a = dth[i, c] * sg
+            b = dv[i, c] * sa
+            dth_s[i, c] = a
+            dv_s[i, c] = b
+            for j in range(1, k):
+                u = dth[i + j, c] * sg
+                v = dv[i + j, c] * sa
+                dth_s[i + j, c] = u
+                dv_s[i + j, c] = v
+                a += u
+                b += v
+            ws[e, c] = a / T - gb[c]
+            fs[e, c] = b / T - ab[c]
 
 
 def _step_sums(x, n_ep, k):
@@ -203,10 +234,11 @@ class LiveStream:
         a, b = self.start + e_a * k_kf, self.start + e_b * k_kf
         dth, dvb = self.imu.dtheta[a:b], self.imu.dv[a:b]
         if self.scaled:
-            dth = dth * (1.0 - self.kg)
-            dvb = dvb * (1.0 - self.ka)
-            ws = dth.reshape(-1, k_kf, 3).sum(1) / T - self.gb
-            fs = dvb.reshape(-1, k_kf, 3).sum(1) / T - self.ab
+            m = e_b - e_a
+            dth_s, dv_s = np.empty((b - a, 3)), np.empty((b - a, 3))
+            ws, fs = np.empty((m, 3)), np.empty((m, 3))
+            _scaled_increments(dth, dvb, self.kg, self.ka, self.gb, self.ab, k_kf, T, dth_s, dv_s, ws, fs)
+            dth, dvb = dth_s, dv_s
         else:
             ws = self._dth_sum[e_a:e_b] / T - self.gb
             fs = self._dv_sum[e_a:e_b] / T - self.ab
