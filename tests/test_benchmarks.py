@@ -130,3 +130,11 @@ def test_against_script(tmp_path):
                                  "--states", "15", "--out", str(out)])
     assert json.loads(out.read_text()) == res
     assert res["states15"]["cpu_this_s"] > 0 and res["states15"]["last_row_max_rel_diff"] < 1e-12
+
+
+def test_campaigns_script(tmp_path):
+    out = tmp_path / "campaigns.json"
+    res = _load("campaigns").main(["--runs", "1", "--only", "free-inertial", "--out", str(out)])
+    r = res["free-inertial"]
+    assert json.loads(out.read_text()) == res
+    assert 0.0 < r["compiled_share"] < 1.0 and r["cpu_per_run_s"] > 0

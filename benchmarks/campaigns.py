@@ -1,0 +1,128 @@
+"""Where the time of one Monte Carlo run goes, per campaign: compiled kernels or Python.
+
+A Dask task of a campaign runs its batch of runs one after another. Stacking the runs of a
+task into arrays ("vectorising across runs") can only remove per-run work done by the
+Python interpreter; the compiled kernels (numba dispatchers: mechanization, IMU error
+synthesis, the fused covariance prediction, ...) do the same arithmetic per run either
+way. This script runs a batch of each campaign's task function serially under
+:mod:`cProfile` and splits the time into the compiled kernels' own time and the rest
+(interpreter and numpy calls: an upper bound of what stacking could save, as numpy work
+stays), and times the same batch without the profiler (CPU per run, the honest figure).
+
+Campaigns: ``double-star`` (three filters per run on 1200 s of 100 Hz IMU) and
+``free-inertial`` (7200 s of 100 Hz IMU navigated per run). (The transfer-alignment
+campaign already stacks its runs in arrays: ``benchmarks/transfer.py``.)
+
+Run: ``.venv/bin/python benchmarks/campaigns.py [--runs 8]``; results printed and written
+to ``benchmarks/results/campaigns.json``.
+"""
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import os
+import pstats
+import time
+from pathlib import Path
+
+os.environ.setdefault("SINSLAB_QUIET", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+
+
+def _double_star():
+    from sinslab.app.config import resolve
+    from sinslab.experiments import double_star as dsx
+
+    S = dsx._setup(resolve(dsx.Config))
+    return lambda seeds: dsx._batch(seeds, S)
+
+
+def _free_inertial():
+    from sinslab.app.config import resolve
+    from sinslab.experiments import free_inertial as fi
+    from sinslab.sim import trajectory
+
+    cfg = resolve(fi.Config)
+    segments, start, mount = fi._motion(cfg)
+    spec = fi._mc_spec(cfg, segments, start, mount)
+    fi._mc_setup(spec, trajectory.generate(segments, start, float(cfg.scenario.sample_interval),
+                                           duration=float(cfg.scenario.duration), mount=mount))
+    return lambda seeds: fi.mc_batch(seeds, spec)
+
+
+CAMPAIGNS = {"double-star": _double_star, "free-inertial": _free_inertial}
+
+
+def _compiled_share(stats: pstats.Stats) -> float:
+    """Own time of numba-compiled functions (their frames show the Python source file of
+    the kernel but no Python-level callees) over the total."""
+    from numba.core.registry import CPUDispatcher  # noqa: F401  (numba must be importable)
+
+    total = 0.0
+    compiled = 0.0
+    kernels = _kernel_sites()
+    for (fname, line, func), (_, _, tt, _, _) in stats.stats.items():
+        total += tt
+        if (fname, line) in kernels:
+            compiled += tt
+    return compiled / total if total else float("nan")
+
+
+def _kernel_sites():
+    """(file, first line) of every numba dispatcher loaded from sinslab."""
+    import sys
+
+    from numba.core.dispatcher import Dispatcher
+
+    sites = set()
+    for name, mod in list(sys.modules.items()):
+        if not name.startswith("sinslab") or mod is None:
+            continue
+        for obj in vars(mod).values():
+            if isinstance(obj, Dispatcher):
+                code = obj.py_func.__code__
+                sites.add((code.co_filename, code.co_firstlineno))
+    return sites
+
+
+def measure(name: str, runs: int) -> dict:
+    fn = CAMPAIGNS[name]()
+    seeds = np.random.SeedSequence(7).spawn(runs + 1)
+    fn(seeds[:1])                                          # compile / warm caches
+    t0, c0 = time.perf_counter(), time.process_time()
+    fn(seeds[1:])
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    prof = cProfile.Profile()
+    prof.enable()
+    fn(seeds[1:])
+    prof.disable()
+    share = _compiled_share(pstats.Stats(prof))
+    return {"runs": runs, "cpu_per_run_s": cpu / runs, "runs_per_cpu_s": runs / cpu, "wall_s": wall,
+            "compiled_share": share, "other_per_run_s": (1.0 - share) * cpu / runs}
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=8)
+    ap.add_argument("--only", default=",".join(CAMPAIGNS), help="comma-separated campaigns")
+    ap.add_argument("--out", type=Path, default=HERE / "results" / "campaigns.json")
+    a = ap.parse_args(argv)
+    out = {}
+    for name in a.only.split(","):
+        r = measure(name, a.runs)
+        out[name] = r
+        print(f"{name:>18s}: {r['cpu_per_run_s'] * 1e3:7.1f} ms CPU per run; compiled kernels "
+              f"{r['compiled_share'] * 100:4.1f} % of the profiled time; the rest (interpreter and numpy "
+              f"calls, the most stacking runs could remove) {r['other_per_run_s'] * 1e3:.1f} ms per run")
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    a.out.write_text(json.dumps(out, indent=2))
+    return out
+
+
+if __name__ == "__main__":
+    main()
