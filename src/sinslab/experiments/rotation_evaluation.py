@@ -949,15 +949,25 @@ def linear_batch(seeds, spec):
     sv = np.sqrt(S["Rv"])
     ez = np.empty((B, 5, K + 1))
     ez[:, :, 0] = 0.0
+    # A seed's generator gives per step 5·n process and then 4 measurement normals; drawn
+    # for a block of steps at once they are the same numbers in the same order.
+    per = 5 * n + 4
+    chunk = 2048
+    v = np.zeros((B, 5, 4))
     for k in range(K):
-        xi = np.stack([g.standard_normal((5, n)) for g in rngs])
+        c = k % chunk
+        if c == 0:
+            m = min(chunk, K - k)
+            draws = np.stack([g.standard_normal((m, per)) for g in rngs])
+            xis = draws[:, :, :5 * n].reshape(B, m, 5, n)
+            vs = draws[:, :, 5 * n:]
+        xi = xis[:, c]
         u = index[k]
         X = X @ Phi[u].T
         for j, g in enumerate(src):
             X[:, j] += xi[:, j] @ roots[g][u].T
         Xh = Xh @ Phi[u].T
-        v = np.zeros((B, 5, 4))
-        v[:, 0] = np.stack([g.standard_normal(4) for g in rngs]) * sv
+        v[:, 0] = vs[:, c] * sv
         nu = X[:, :, :4] + v - Xh[:, :, :4]
         Xh = Xh + nu @ gains[k].T
         ez[:, :, k + 1] = Xh[:, :, iz]
