@@ -128,6 +128,9 @@ def _scaled_increments(dth, dv, kg, ka, gb, ab, k, T, dth_s, dv_s, ws, fs):
             fs[e, c] = b / T - ab[c]
 
 
+_NONE = np.zeros(1)      # the height arguments of a free vertical channel (unused)
+
+
 def _step_sums(x, n_ep, k):
     """Sums of ``k`` consecutive rows of ``x`` (n_ep·k, 3) -> (n_ep, 3), added in row order.
 
@@ -185,11 +188,14 @@ class LiveStream:
                 hgt = np.full(len(imu) + 1, float(hgt))
             if hgt.shape != (len(imu) + 1,):
                 raise ValueError(f"height must have {len(imu) + 1} values (IMU epochs), got {hgt.shape}")
-            self._hgt = hgt
-            self._vkw = dict(vertical="hold")
+            if not np.all(np.isfinite(hgt)):
+                raise ValueError(f"held height has a NaN/inf value at epoch {int(np.argmax(~np.isfinite(hgt)))}")
+            self._hgt = np.ascontiguousarray(hgt)
         else:
             self._hgt = None
-            self._vkw = {}
+        if not 1 <= self.nsub <= 5:
+            raise ValueError(f"nsub (samples per update) must be an integer in 1..5, got {nsub!r}")
+        self.dt = float(imu.dt)
         self.state = sd.initial_state_array(init)
         self.gb = units.vec3(gyro_bias, "gyro_bias", default=0.0)
         self.ab = units.vec3(accel_bias, "accel_bias", default=0.0)
@@ -247,11 +253,14 @@ class LiveStream:
     def _run(self, st, e_a, e_b):
         dth, dvb, ws, fs, a, b = self._increments(e_a, e_b)
         out = np.empty((e_b - e_a, 10))
-        vkw = self._vkw
-        if self._hgt is not None:
-            vkw["height"] = self._hgt[a:b + 1]
-        sd.step(st, dth, dvb, self.imu.dt, self.nsub, gyro_bias=self.gb, accel_bias=self.ab,
-                out=out, out_every=self.per, **vkw)
+        # inputs were checked when the stream was made: the compiled loop directly
+        if self._hgt is None:
+            mode, href, vref = 0, _NONE, _NONE
+        else:
+            href = self._hgt[a:b + 1]
+            mode, vref = 1, sd.held_vup(href, self.dt)
+        sd.advance(st, dth, dvb, self.dt, self.nsub, mode, href, vref, (0.0, 0.0, 0.0), self.gb, self.ab,
+                   out, self.per)
         return out, ws, fs
 
     def advance(self, e0, e1):

@@ -582,6 +582,37 @@ def _height_series(height, n_epochs, what):
     return np.ascontiguousarray(a)
 
 
+def held_vup(href, dt):
+    """Vertical velocity [m/s] of a held height series ``href`` [m] at interval ``dt`` [s]:
+    second-order finite differences (one-sided at the ends), contiguous."""
+    n_epochs = href.shape[0]
+    if n_epochs >= 3:
+        vref = np.gradient(href, dt, edge_order=2)
+    elif n_epochs == 2:
+        vref = np.full(2, (href[1] - href[0]) / dt)
+    else:
+        vref = np.zeros(1)
+    return np.ascontiguousarray(vref)
+
+
+def advance(full, dth, dvl, dt, nsub, mode, href, vref, gains, gb, ab, out, out_every):
+    """The compiled update loop on inputs already checked (what :func:`step` runs after
+    its checks; the fusion driver's streams call it per block with inputs checked once).
+
+    ``full`` the state array of length :data:`NSTATE` (in place); ``dth``, ``dvl``
+    contiguous float64 (n, 3); ``mode`` 0/1/2 (free/hold/damped) with ``href``, ``vref``
+    (n + 1,) and the damping ``gains`` (k1, k2, k3); ``gb``, ``ab`` float64 (3,) biases;
+    ``out`` float64 (>= updates // out_every, >= 10) or a (1, 10) dummy with
+    ``out_every = 0``. Returns the number of updates.
+    """
+    nupd = dth.shape[0] // nsub
+    if nupd > 0:
+        k1, k2, k3 = gains
+        _kernel(full, dth, dvl, dt, nsub, nupd, mode, href, vref, k1, k2, k3,
+                gb[0], gb[1], gb[2], ab[0], ab[1], ab[2], CONING_COEFFS, out, out_every)
+    return nupd
+
+
 def _vertical(vertical, height, damping, n_epochs, dt, lat, h):
     if vertical not in _VMODE:
         raise ValueError(f"vertical must be one of {VERTICAL_MODES}, got {vertical!r}")
@@ -595,13 +626,7 @@ def _vertical(vertical, height, damping, n_epochs, dt, lat, h):
         raise ValueError(f"vertical={vertical!r} needs a height series (samples + 1 epochs)")
     href = _height_series(height, n_epochs, "reference" if mode == 2 else "held")
     if mode == 1:
-        if n_epochs >= 3:
-            vref = np.gradient(href, dt, edge_order=2)
-        elif n_epochs == 2:
-            vref = np.full(2, (href[1] - href[0]) / dt)
-        else:
-            vref = np.zeros(1)
-        return mode, href, np.ascontiguousarray(vref), (0.0, 0.0, 0.0)
+        return mode, href, held_vup(href, dt), (0.0, 0.0, 0.0)
     gains = VerticalDamping.coerce(damping).gains(lat, h)
     return mode, href, empty, gains
 
@@ -676,9 +701,7 @@ def step(state: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float, nsub:
     gb = _bias3(gyro_bias, "gyro_bias")
     ab = _bias3(accel_bias, "accel_bias")
     full = s if s.size == NSTATE else np.concatenate([s, np.zeros(NSTATE - NAV)])
-    if nupd > 0:
-        _kernel(full, dth, dvl, dt, nsub, nupd, mode, href, vref, k1, k2, k3,
-                gb[0], gb[1], gb[2], ab[0], ab[1], ab[2], CONING_COEFFS, o, oe)
+    advance(full, dth, dvl, dt, nsub, mode, href, vref, (k1, k2, k3), gb, ab, o, oe)
     if full is not s:
         s[:] = full[:NAV]
     return nupd
