@@ -240,8 +240,12 @@ def _copy2(dst, src):
 
 
 @njit(cache=True)
-def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, diagR, with_x,
+def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_corr, with_x,
                  nzc_t, nnz_t, save_flag, x_hist, pd_hist, P_save, innov, sdiag, nis):
+    """The time loop of :func:`_run`. ``R_corr`` is None when every R of the table is
+    diagonal (scalar updates), else the table itself (vector updates with the full R): a
+    None argument prunes the vector branch at compile time, so a run with diagonal R
+    does not compile :func:`_vector_update` (a second of a first run)."""
     n = P.shape[0]
     K = phi_i.shape[0]
     m = mask.shape[1]
@@ -274,8 +278,8 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, diag
                 nm += 1
         if nm > 0:
             Hk = H_t[h_i[k]]
-            Rk = R_t[r_i[k]]
-            if diagR:
+            if R_corr is None:
+                Rk = R_t[r_i[k]]
                 for a in range(nm):
                     c = used[a]
                     zc = 0.0
@@ -286,7 +290,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, diag
                     sdiag[k, c] = s
                     nu_tot += nu * nu / s
             else:
-                nuv, S, nisv = _vector_update(x, P, Hk, Rk, z[k], used[:nm], with_x)
+                nuv, S, nisv = _vector_update(x, P, Hk, R_corr[r_i[k]], z[k], used[:nm], with_x)
                 for a in range(nm):
                     innov[k, used[a]] = nuv[a]
                     sdiag[k, used[a]] = S[a, a]
@@ -618,8 +622,8 @@ def _run(prep, with_x, save_at):
     nzc, nnz = _sparsity(prep["Phi_t"])
     bad = _linear_loop(x, P, prep["Phi_t"], prep["phi_i"], prep["Q_t"], prep["q_i"],
                        prep["H_t"], prep["h_i"], prep["R_t"], prep["r_i"], prep["z"],
-                       prep["mask"], prep["diagR"], with_x, nzc, nnz, save_flag, x_hist, pd,
-                       P_save, innov, sdiag, nis)
+                       prep["mask"], None if prep["diagR"] else prep["R_t"], with_x, nzc, nnz,
+                       save_flag, x_hist, pd, P_save, innov, sdiag, nis)
     if bad >= 0:
         raise ValueError(f"covariance became NaN at step {bad}: check Phi, Q, R for extreme values")
     return LinearRun(x_hist if with_x else None, pd, P_save, save_at, innov, sdiag, nis,

@@ -84,7 +84,7 @@ def _normal_reject(idx, rabs, x, s0, s1, s2, s3):
     return x, ok, s0, s1, s2, s3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _normal(s0, s1, s2, s3):
     """One standard normal and the new generator state."""
     while True:

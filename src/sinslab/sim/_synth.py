@@ -53,23 +53,29 @@ def _rule(quadrature: str, n: int):
 
 
 # --- numba kernel --------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+# inline="always" inlines at numba-IR level: every copy is typed and lowered again, so
+# nested helpers called from several places multiply the compile time of a first run.
+# The small helpers are plain functions (LLVM inlines them: same code, same speed); only
+# _term, _sine_term and _kin, which LLVM would leave as calls in the per-epoch loop
+# (synthesis ~10 % slower), and _earth (compiles faster inlined) are inlined by numba,
+# and _term leaves sine terms to its callers so that a kernel holds one _sine_term.
+@njit(cache=True)
 def _s5(x):
     return x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _s5d(x):
     y = x * (1.0 - x)
     return 30.0 * y * y
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _s5dd(x):
     return 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _s5i(x):
     x2 = x * x
     return x2 * x2 * (2.5 + x * (-3.0 + x))
@@ -78,7 +84,7 @@ def _s5i(x):
 _INV2PI = 1.0 / (2.0 * math.pi)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _wrap(a):
     """Wrap to (−π, π]. (Multiplying by 1/2π instead of dividing: the same result except
     where the quotient is within an ulp of an integer, fixed by the last test.)"""
@@ -91,8 +97,9 @@ def _wrap(a):
 
 
 @njit(cache=True, inline="always")
-def _term(typ, u, p0, p1, p2, p3, p4, p5):
-    """(value, rate, acceleration) of one channel term at u = t − t_a (scalars only, so that
+def _term(typ, u, p0, p1, p2):
+    """(value, rate, acceleration) at u = t − t_a of a rate-trapezoid (typ 0) or smooth-step
+    (typ 1) channel term; sine terms go to :func:`_sine_term` (scalars only, so that
     inlining it into the per-sample loop adds no array reference counting)."""
     if typ == 0:                           # rate trapezoid: r, T, Tr
         r = p0
@@ -107,17 +114,14 @@ def _term(typ, u, p0, p1, p2, p3, p4, p5):
                 x = 0.0
             return r * (T - Tr - Tr * _s5i(x)), r * _s5(x), -(r * _s5d(x) / Tr)
         return r * (0.5 * Tr + (u - Tr)), r, 0.0
-    if typ == 1:                           # smooth step: d, T
-        dd = p0
-        T = p1
-        x = u / T
-        if x > 1.0:
-            x = 1.0
-        elif x < 0.0:
-            x = 0.0
-        return dd * _s5(x), dd * _s5d(x) / T, dd * _s5dd(x) / (T * T)
-    arg = p1 * u + p2
-    return _sine_term(u, p0, p1, p3, p4, p5, math.sin(arg), math.cos(arg))
+    dd = p0                                # smooth step: d, T
+    T = p1
+    x = u / T
+    if x > 1.0:
+        x = 1.0
+    elif x < 0.0:
+        x = 0.0
+    return dd * _s5(x), dd * _s5d(x) / T, dd * _s5dd(x) / (T * T)
 
 
 @njit(cache=True, inline="always")
@@ -151,8 +155,13 @@ def _channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2):
         d2[c] = 0.0
     for a in range(plo[j], phi[j]):
         k = act[a]
-        x0, x1, x2 = _term(ttype[k], t - tta[k], tpar[k, 0], tpar[k, 1], tpar[k, 2], tpar[k, 3],
-                           tpar[k, 4], tpar[k, 5])
+        u = t - tta[k]
+        if ttype[k] == T_SINE:
+            arg = tpar[k, 1] * u + tpar[k, 2]
+            x0, x1, x2 = _sine_term(u, tpar[k, 0], tpar[k, 1], tpar[k, 3], tpar[k, 4], tpar[k, 5],
+                                    math.sin(arg), math.cos(arg))
+        else:
+            x0, x1, x2 = _term(ttype[k], u, tpar[k, 0], tpar[k, 1], tpar[k, 2])
         ch = tch[k]
         val[ch] += x0
         d1[ch] += x1
@@ -291,7 +300,7 @@ def _advance(t, j, bp):
     return j
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _asin1(x):
     if x > 1.0:
         x = 1.0
@@ -310,7 +319,7 @@ _ROT_MAX = 0.02      # largest angle step [rad] taken by rotation instead of sin
 _ROT_RUN = 64        # rotations before an exact sin/cos again (rounding grows ~1 ulp each)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sincos_step(x, a, s, c, n):
     """(x, sin x, cos x, n') from the previous (a, sin a, cos a) and the number n of
     rotations since they were exact: the same values if x == a; for a small step
@@ -395,8 +404,7 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                 x0, x1, x2 = _sine_term(u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 3], tpar[kk, 4],
                                         tpar[kk, 5], sg, cg)
             else:
-                x0, x1, x2 = _term(ttype[kk], u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 2],
-                                   tpar[kk, 3], tpar[kk, 4], tpar[kk, 5])
+                x0, x1, x2 = _term(ttype[kk], u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 2])
             ch = tch[kk]
             val[ch] += x0
             d1[ch] += x1
