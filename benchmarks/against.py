@@ -41,21 +41,10 @@ import json, sys, time
 sys.path.insert(0, sys.argv[1])
 import numpy as np
 import estimation as B
-from sinslab.core import units as u
 from sinslab.fusion import loosely_coupled as integ
-from sinslab.nav import errstate as es
 
 dur, states, repeat = float(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
-meas, init, ft, fix, sig, P0, kw, truth = B.lc_scenario(dur)
-if states == 21:
-    model = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(), es.accel_scale()],
-                          gyro_noise=kw["gyro_arw"], accel_noise=kw["accel_vrw"])
-    P = np.zeros((21, 21))
-    P[:15, :15] = P0
-    P[15:, 15:] = np.eye(6) * (100 * u.ppm) ** 2
-    extra = dict(model=model)
-else:
-    P, extra = P0, kw
+meas, init, ft, fix, sig, P, extra, truth = B.lc_states(dur, states)
 go = lambda: integ.loosely_coupled(meas, init, ft, fix, sig, P, kf_dt=0.1, nsub=2, progress=False, **extra)
 go()
 best = float("inf")

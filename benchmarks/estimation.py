@@ -207,24 +207,30 @@ def bench_lc(duration):
     }
 
 
+def lc_states(duration, states):
+    """:func:`lc_scenario` with the filter of ``states`` states: 15 (φ, δv, δp, gyro and
+    accelerometer bias: the default model) or 21 (plus gyro and accelerometer scale
+    factors, 100 ppm initial σ). Returns ``(imu, init, fix times, fixes, fix σ, P0,
+    loosely_coupled keyword arguments, truth)``."""
+    from sinslab.nav import errstate as es
+    meas, init, ft, fix, sig, P0, kw, truth = lc_scenario(duration)
+    if states == 15:
+        return meas, init, ft, fix, sig, P0, kw, truth
+    if states != 21:
+        raise ValueError(f"states must be 15 or 21, got {states}")
+    model = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(), es.accel_scale()],
+                          gyro_noise=kw["gyro_arw"], accel_noise=kw["accel_vrw"])
+    P = np.zeros((21, 21))
+    P[:15, :15] = P0
+    P[15:, 15:] = np.eye(6) * (100 * u.ppm) ** 2
+    return meas, init, ft, fix, sig, P, dict(model=model), truth
+
+
 def _lc_pair(duration, kf_dt, nsub, states):
     """CPU time of loosely_coupled with the compiled and the numpy model evaluation."""
     import functools
     from sinslab.fusion import driver
-    from sinslab.nav import errstate as es
-    meas, init, ft, fix, sig, P0, kw, truth = lc_scenario(duration)
-    kwm = {}
-    if states == 21:
-        model = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(),
-                                       es.accel_scale()],
-                              gyro_noise=kw["gyro_arw"], accel_noise=kw["accel_vrw"])
-        P = np.zeros((21, 21))
-        P[:15, :15] = P0
-        P[15:, 15:] = np.eye(6) * (100 * u.ppm) ** 2
-        kwm = dict(model=model)
-    else:
-        P = P0
-        kwm = kw
+    meas, init, ft, fix, sig, P, kwm, truth = lc_states(duration, states)
     orig = driver.run
 
     def go(mode, imu):
