@@ -131,16 +131,26 @@ def _scaled_increments(dth, dv, kg, ka, gb, ab, k, T, dth_s, dv_s, ws, fs):
 _NONE = np.zeros(1)      # the height arguments of a free vertical channel (unused)
 
 
+@njit(cache=True)
+def _step_sums_kernel(x, k, acc):
+    for e in range(acc.shape[0]):
+        i = e * k
+        for c in range(3):
+            a = x[i, c]
+            for j in range(1, k):
+                a += x[i + j, c]
+            acc[e, c] = a
+
+
 def _step_sums(x, n_ep, k):
     """Sums of ``k`` consecutive rows of ``x`` (n_ep·k, 3) -> (n_ep, 3), added in row order.
 
     The same additions in the same order as ``x.reshape(n_ep, k, 3).sum(1)`` (numpy adds
-    along a non-contiguous axis one slice after another), without its 3-element inner loop.
+    along a non-contiguous axis one slice after another), compiled: numpy's version runs a
+    3-element inner loop.
     """
-    a = x.reshape(n_ep, k, 3)
-    acc = a[:, 0].copy()
-    for j in range(1, k):
-        acc += a[:, j]
+    acc = np.empty((n_ep, 3))
+    _step_sums_kernel(np.ascontiguousarray(x), k, acc)
     return acc
 
 
