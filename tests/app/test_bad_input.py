@@ -125,6 +125,7 @@ CASES = [
      "run:free-inertial", "'no-such-host.invalid'"),
     ("scheduler-without-monte-carlo", ["run", "dummy", "--scheduler", "tcp://127.0.0.1:8786"], "run",
      "runs no Monte Carlo"),
+    ("scheduler-one-run", FI + ["--runs", "1", "--scheduler", "sync"], "run:free-inertial", "runs >= 2 (runs = 1)"),
     # -- output folders
     ("out-under-a-file", ["run", "dummy", "--out", "{afile}/run"], None, "is a file"),
     ("out-is-a-file", ["run", "dummy", "--out", "{afile}"], None, "is a file"),

@@ -120,6 +120,15 @@ def check_scheduler(address: str, exp=None, cfg=None, timeout: float = CONNECT_T
     if exp is not None and not _uses_scheduler(exp):
         raise CliError(f"--scheduler: experiment {exp.name!r} runs no Monte Carlo campaign, "
                        f"so a scheduler would not be used")
+    if exp is not None and cfg is not None:
+        import sys
+
+        least = getattr(sys.modules.get(exp.module), "CAMPAIGN_MIN_RUNS", 1)
+        runs = getattr(cfg, "runs", None)
+        if runs is not None and runs < least:
+            raise CliError(f"--scheduler: experiment {exp.name!r} runs its Monte Carlo campaign only with "
+                           f"runs >= {least} (runs = {runs}), so a scheduler would not be used; "
+                           f"give --runs N")
     if text == "sync":
         return
     m = _ADDR.match(text)

@@ -40,7 +40,9 @@ with ``ctx.progress(...)`` (see :mod:`sinslab.core.progress`).
 Monte Carlo: ``config.runs`` (``--runs N``) and ``ctx.scheduler`` (``--scheduler``) are
 passed through; an experiment that supports it returns its statistics as extra metrics
 (e.g. ``final_err_phiE_arcmin_rms``), a :class:`Table` (per-run or per-state statistics,
-shown in the report and written as CSV) and extra figures. Nothing else changes.
+shown in the report and written as CSV) and extra figures. Nothing else changes. A module
+whose campaign starts only from some number of runs declares it as ``CAMPAIGN_MIN_RUNS``
+(default 1), so that ``--scheduler`` with fewer runs is refused instead of ignored.
 """
 from __future__ import annotations
 

@@ -43,6 +43,8 @@ from sinslab.core import units
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
 
 NAME = "free-inertial"
+#: The Monte Carlo campaign (and so --scheduler) needs runs >= 2; one run is the single run.
+CAMPAIGN_MIN_RUNS = 2
 PURPOSE = "pure inertial navigation of a simulated trajectory with IMU errors, compared with truth"
 NOTES = [
     "Attitude errors are Euler-angle differences (navigation − truth): pitch, roll and "

@@ -55,6 +55,8 @@ from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Met
 from sinslab.sim import indexing as ix
 
 NAME = "rotation-evaluation"
+#: The Monte Carlo campaign (and so --scheduler) needs runs >= 2; one run is the single run.
+CAMPAIGN_MIN_RUNS = 2
 PURPOSE = ("online evaluation of dual-axis rotating INS by joint error filters with a "
            "single-axis INS (moored ship, 144 h, ε_z1 index)")
 PAPER = ("Wang, Wu et al.: online relative performance evaluation of joint rotation-modulated "
