@@ -20,8 +20,10 @@ __all__ = ["render_figure", "write_figures", "complete_timed", "describe_series"
 def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
     """``(png, svg)`` bytes of a matplotlib figure, laid out once.
 
-    The figure's layout engine (constrained layout) runs for the PNG and is then frozen,
-    so the SVG reuses the same axes positions instead of laying the figure out again; no
+    A plain grid of axes is placed by :func:`sinslab.app.layout.lay_out` (the positions
+    constrained layout gives it, from one measurement of the decorations), any other
+    figure by its layout engine during the PNG draw; the positions are then frozen, so
+    the SVG reuses them instead of laying the figure out again; no
     ``bbox_inches="tight"`` pass (it draws the whole figure once more only to measure it).
     """
     import io
@@ -30,12 +32,17 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.backends.backend_svg import FigureCanvasSVG
 
+    from sinslab.app.layout import lay_out
+
     # The canvases' print methods draw exactly once each; ``savefig`` would add a
     # layout-only draw before every format.
     png, svg = io.BytesIO(), io.BytesIO()
     fig.set_dpi(dpi)
+    canvas = FigureCanvasAgg(fig)
+    if lay_out(fig, canvas.get_renderer()):
+        fig.set_layout_engine("none")
     # zlib level 3: faster to encode than the default 6, files about 10 % larger
-    FigureCanvasAgg(fig).print_png(png, pil_kwargs={"compress_level": 3})
+    canvas.print_png(png, pil_kwargs={"compress_level": 3})
     if fig.get_layout_engine() is not None:
         fig.set_layout_engine("none")
     # text as <text> elements rather than glyph outlines: less to write, searchable labels
