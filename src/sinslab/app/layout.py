@@ -12,9 +12,12 @@ The decorations are measured at provisional positions close to the final ones. T
 does not depend on where the axes sit as long as each axis shows the same ticks (same
 view interval, locations, labels and offset), so after placing the axes the ticks are
 computed again (locator and formatter only, no measuring) and the figure is measured
-once more only if they changed — or if an axes has a legend or text outside its area,
-whose offset is a fraction of the axes' size. As in constrained layout, the margins of a
-later pass never shrink below an earlier one's.
+once more only if they changed — or while an axes has a legend or text outside its area
+that has not settled (it is placed at a fraction of the axes' size, which the layout
+changes). As in constrained layout, a margin re-measured because ticks changed never
+shrinks below the earlier measurement, so that labels that come and go cannot make the
+passes oscillate. A figure that has not settled after :data:`MAX_PASSES` passes is left
+to constrained layout.
 
 Figures this does not cover (colorbars, twinned or inset axes, cells spanning rows or
 columns, nested grids, figure legends, sub-figures, supx/ylabels, another layout engine)
@@ -24,8 +27,8 @@ from __future__ import annotations
 
 __all__ = ["lay_out"]
 
-#: Measuring passes at most; more than two only when a pass changed the ticks.
-MAX_PASSES = 3
+#: Measuring passes at most (usually one; a legend below an axes takes three or four).
+MAX_PASSES = 5
 
 
 def _plain_grid(fig):
@@ -168,8 +171,8 @@ def lay_out(fig, renderer) -> bool:
     layout would, from one measurement of their decorations where that suffices.
 
     Returns True when done (the caller then switches the figure's layout engine off so
-    drawing keeps these positions), False when the figure is not a plain grid of axes
-    (see the module notes) and nothing was changed.
+    drawing keeps these positions), False when the figure is not a plain grid of axes or
+    did not settle (see the module notes): its layout engine then places the axes anew.
     """
     grid = _plain_grid(fig)
     if grid is None:
@@ -227,27 +230,39 @@ def lay_out(fig, renderer) -> bool:
     left, right, top, bottom = _guess(fig, shown, nrows, ncols)
     if not place(left, right, top, bottom):
         return False
-    margins = ([0.0] * ncols, [0.0] * ncols, [0.0] * nrows, [0.0] * nrows)
-    ticks = {}
+    # per axes (left, right, bottom, top) [px]; a column/row takes the largest
+    need, ticks, anchored = {}, {}, set()
     todo = shown
     for _ in range(MAX_PASSES):
-        left, right, top, bottom = margins
-        anchored = set()
-        for (r, c), ax in todo.items():
-            ticks[(r, c)] = _ticks(ax)
+        for cell, ax in todo.items():
+            ticks[cell] = _ticks(ax)
             pos = ax.get_position(original=True).transformed(fig.transFigure)
             bb = _decorations(ax, renderer)
-            left[c] = max(left[c], pos.x0 - bb.x0)
-            right[c] = max(right[c], bb.x1 - pos.x1)
-            bottom[r] = max(bottom[r], pos.y0 - bb.y0)
-            top[r] = max(top[r], bb.y1 - pos.y1)
+            m = (pos.x0 - bb.x0, bb.x1 - pos.x1, pos.y0 - bb.y0, bb.y1 - pos.y1)
+            old = need.get(cell)
             if _outside(ax, renderer):
-                anchored.add((r, c))
+                # a legend below the axes sits a fraction of the axes' height below it:
+                # its margin follows the size, so the latest measurement counts
+                settled = old is not None and max(abs(a - b) for a, b in zip(m, old)) < 0.5
+                if settled:
+                    anchored.discard(cell)
+                else:
+                    anchored.add(cell)
+            elif old is not None:
+                # ticks changed with the size: never below an earlier measurement (as in
+                # constrained layout), so that labels that come and go cannot oscillate
+                m = tuple(max(a, b) for a, b in zip(m, old))
+            need[cell] = m
+        left, right = [0.0] * ncols, [0.0] * ncols
+        top, bottom = [0.0] * nrows, [0.0] * nrows
+        for (r, c), m in need.items():
+            left[c], right[c] = max(left[c], m[0]), max(right[c], m[1])
+            bottom[r], top[r] = max(bottom[r], m[2]), max(top[r], m[3])
         if not place(left, right, top, bottom):
             return False
-        # measure again what the new sizes may have changed: axes whose ticks changed,
-        # and those with a legend or text outside (placed in fractions of the axes)
+        # measure again what the new sizes may have changed: axes whose ticks changed, and
+        # those whose legend or text outside has not settled yet
         todo = {cell: ax for cell, ax in shown.items() if cell in anchored or _ticks(ax) != ticks[cell]}
         if not todo:
-            break
-    return True
+            return True
+    return False
