@@ -49,6 +49,7 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
         # text as <text> elements rather than glyph outlines: less to write, searchable labels
         with matplotlib.rc_context({"svg.fonttype": "none"}):
             FigureCanvasSVG(fig).print_svg(buf)
+        fig.set_dpi(dpi)                           # print_svg leaves it at 72
         svg = buf.getvalue()
     return png, svg
 

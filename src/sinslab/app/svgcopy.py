@@ -10,10 +10,11 @@ SVG renderer, which writes them as it would have (``svg.fonttype`` none: text as
 ``<text>`` elements, anchored where matplotlib anchors them).
 
 The SVG therefore shows the PNG's figure: where text sizes enter a position (a label
-beside tick labels, a legend frame around its entries) it is the raster renderer's text
-metrics (hinted at the figure's dpi) that placed it, where matplotlib's own SVG draw would
-use unhinted metrics at 72 dpi — positions differ by about a point at most; everything
-else (data, ticks, grid, axes) is identical up to rounding.
+beside tick labels, a legend frame around its entries, an arrow leaving an annotation's
+text) it is the raster renderer's text metrics (hinted at the figure's dpi) that placed
+it, where matplotlib's own SVG draw would use unhinted metrics at 72 dpi — text moves by
+up to about a point, legend frames by up to about 3 pt; everything else (data, ticks,
+grid, axes, patches) is written with the same numbers.
 
 Figures whose draw hands over anything else (images, meshes, Gouraud shading, TeX text,
 Agg filters, sketched paths, rasterized artists) are not copied: :func:`write_svg`
