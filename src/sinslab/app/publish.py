@@ -30,6 +30,7 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
     import io
 
     import matplotlib
+    from matplotlib.backend_bases import FigureCanvasBase
     from matplotlib.backends.backend_svg import FigureCanvasSVG
 
     from sinslab.app.layout import lay_out
@@ -51,6 +52,7 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
             FigureCanvasSVG(fig).print_svg(buf)
         fig.set_dpi(dpi)                           # print_svg leaves it at 72
         svg = buf.getvalue()
+    FigureCanvasBase(fig)                          # let the raster buffer and the record go
     return png, svg
 
 
@@ -79,9 +81,12 @@ def _png(canvas, dpi: int) -> bytes:
     return out.getvalue()
 
 
-#: Figures waiting to be rendered by forked workers (read by :func:`_render_one` in the
-#: child, which inherits this module's state at fork time).
+#: Figures waiting to be rendered, the order to take them in and the shared count of
+#: those taken (read by :func:`_take_and_render` in the run's process and in the forked
+#: workers, which inherit this module's state at fork time).
 _PENDING: list = []
+_ORDER: list = []
+_TAKEN = None
 
 
 def _worker_init():
@@ -96,9 +101,18 @@ def _worker_init():
     gc.disable()
 
 
-def _render_one(args):
-    i, dpi = args
-    return render_figure(_PENDING[i].fig, dpi)
+def _take_and_render(dpi: int) -> list[tuple[int, tuple[bytes, bytes]]]:
+    """Take the next figure not yet taken by any process and draw it, until none is left;
+    ``[(index, (png, svg))]`` of those drawn here."""
+    done = []
+    while True:
+        with _TAKEN.get_lock():
+            k = _TAKEN.value
+            _TAKEN.value = k + 1
+        if k >= len(_ORDER):
+            return done
+        i = _ORDER[k]
+        done.append((i, render_figure(_PENDING[i].fig, dpi)))
 
 
 def _drawing_cost(fig) -> int:
@@ -109,40 +123,51 @@ def _drawing_cost(fig) -> int:
 
 
 def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
-    """PNG and SVG bytes of every figure, in order; in forked worker processes when there
-    are several figures and cores (drawing is pure Python and holds the GIL, so threads
-    would not help), serially otherwise or if the workers cannot be used. The workers
-    take the costliest figures first, so that a cheap one ends the last worker's turn."""
-    global _PENDING
+    """PNG and SVG bytes of every figure, in order; drawn by this process and forked
+    workers, one per further core, when there are several figures and cores (drawing is
+    pure Python and holds the GIL, so threads would not help), serially otherwise or if
+    the workers cannot be used. Each process takes the costliest figure left, so that
+    cheap ones end the last turns."""
+    global _PENDING, _ORDER, _TAKEN
     import gc
     import multiprocessing as mp
 
     n = min(len(figures), os.cpu_count() or 1, MAX_FIGURE_PROCESSES)
     if n >= 2 and "fork" in mp.get_all_start_methods():
-        _PENDING = list(figures)
+        ctx = mp.get_context("fork")
         pool = None
+        collecting, frozen = gc.isenabled(), gc.get_freeze_count()
         # Objects of the run's computation, inherited by the workers, would otherwise be
         # traversed by a worker's first full garbage collection (~0.1 s for a few 1e5
         # objects, each page touched copied): frozen, the collector skips them.
         gc.freeze()
         try:
-            pool = mp.get_context("fork").Pool(n, initializer=_worker_init)
-            order = sorted(range(len(figures)), key=lambda i: -_drawing_cost(figures[i].fig))
-            drawn = pool.map(_render_one, [(i, dpi) for i in order], chunksize=1)
-            images = [None] * len(figures)
-            for i, image in zip(order, drawn):
-                images[i] = image
+            _PENDING = list(figures)
+            _ORDER = sorted(range(len(figures)), key=lambda i: -_drawing_cost(figures[i].fig))
+            _TAKEN = ctx.Value("i", 0)
+            pool = ctx.Pool(n - 1, initializer=_worker_init)
+            theirs = [pool.apply_async(_take_and_render, (dpi,)) for _ in range(n - 1)]
+            gc.disable()                             # as in the workers, while drawing
+            drawn = _take_and_render(dpi)
+            for r in theirs:
+                drawn += r.get()
             pool.close()                             # let the workers end on their own
             pool.join()
             pool = None
+            images = [None] * len(figures)
+            for i, image in drawn:
+                images[i] = image
             return images
         except (OSError, mp.ProcessError, RuntimeError):
             pass                                     # no processes here: draw in this one
         finally:
-            _PENDING = []
+            _PENDING, _ORDER, _TAKEN = [], [], None
             if pool is not None:                      # interrupted or failed: stop them
                 pool.terminate()
-            gc.unfreeze()
+            if collecting:
+                gc.enable()
+            if not frozen:
+                gc.unfreeze()
     return [render_figure(f.fig, dpi) for f in figures]
 
 

@@ -27,6 +27,7 @@ import io
 import numpy as np
 from matplotlib.backend_bases import GraphicsContextBase
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
+from matplotlib.backends.backend_svg import RendererSVG
 from matplotlib.transforms import Affine2D, Bbox, TransformedPath
 
 __all__ = ["RecordingCanvas", "RecordingRenderer", "write_svg"]
@@ -194,26 +195,22 @@ class RecordingCanvas(FigureCanvasAgg):
         return self.renderer
 
 
-def _svg_renderer(*args, **kwargs):
-    from matplotlib.backends.backend_svg import RendererSVG
-
-    class Renderer(RendererSVG):
-        def draw_markers(self, gc, marker_path, marker_trans, path, trans, rgbFace=None):
-            # matplotlib's writer builds the same style string once per marker; build it
-            # once per call (thousands of fix markers otherwise dominate the SVG's time)
-            style = RendererSVG._get_style(self, gc, rgbFace)
-            self._get_style = lambda *_: style
-            try:
-                super().draw_markers(gc, marker_path, marker_trans, path, trans, rgbFace)
-            finally:
-                del self._get_style
-
-    return Renderer(*args, **kwargs)
+class _SVGRenderer(RendererSVG):
+    def draw_markers(self, gc, marker_path, marker_trans, path, trans, rgbFace=None):
+        # matplotlib's writer builds the same style string once per marker; build it once
+        # per call (thousands of fix markers otherwise dominate the SVG's time)
+        style = RendererSVG._get_style(self, gc, rgbFace)
+        self._get_style = lambda *_: style
+        try:
+            super().draw_markers(gc, marker_path, marker_trans, path, trans, rgbFace)
+        finally:
+            del self._get_style
 
 
 def write_svg(canvas: RecordingCanvas, metadata=None) -> bytes | None:
     """SVG bytes of the figure last drawn on ``canvas`` from its recorded primitives, or
-    None when that draw cannot be replayed (see the module notes)."""
+    None when that draw cannot be replayed (see the module notes) or its record was
+    written already (the record is let go once written)."""
     import matplotlib as mpl
 
     renderer = canvas.renderer
@@ -226,7 +223,7 @@ def write_svg(canvas: RecordingCanvas, metadata=None) -> bytes | None:
     width, height = fig.get_size_inches()
     out = io.StringIO()
     with mpl.rc_context({"svg.fonttype": "none"}):
-        svg = _svg_renderer(width * 72, height * 72, out, image_dpi=dpi, metadata=metadata)
+        svg = _SVGRenderer(width * 72, height * 72, out, image_dpi=dpi, metadata=metadata)
         for call in renderer.calls:
             kind = call[0]
             if kind == "path":
@@ -250,4 +247,5 @@ def write_svg(canvas: RecordingCanvas, metadata=None) -> bytes | None:
             elif kind == "close":
                 svg.close_group(call[1])
         svg.finalize()
+    renderer.calls, renderer.complete = [], False    # consumed: drawn again before any reuse
     return out.getvalue().encode("utf-8")
