@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 import time
 
-#: At most this many worker processes draw figures at once.
+#: At most this many processes (the run's own and forked workers) draw figures at once.
 MAX_FIGURE_PROCESSES = 4
 
 __all__ = ["render_figure", "write_figures", "complete_timed", "describe_series", "write_series"]
