@@ -8,7 +8,8 @@ figures are then written twice in the same process, from identical copies:
 * reference — the previous writer: ``savefig(..., bbox_inches="tight")`` for PNG and for
   SVG, full-rate lines (every format lays the figure out and draws it twice);
 * current — :func:`sinslab.app.publish.write_figures`: lines thinned to the pixel columns
-  (min/max), the layout run once, one draw per format.
+  (min/max), the axes laid out from one measurement, one draw (the SVG written from the
+  PNG draw's primitives), the figures drawn by forked workers.
 
 Printed per experiment: computation, series, figures (reference and current, ratio),
 report, and whether writing stays within the budget of 1 s + 20 % of the computation.
