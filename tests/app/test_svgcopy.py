@@ -164,3 +164,17 @@ def test_png_holds_the_pixels_of_an_agg_draw():
     clear.patch.set_alpha(0.0)                           # see-through: the alpha channel stays
     img = Image.open(io.BytesIO(render_figure(clear)[0]))
     assert img.mode == "RGBA" and np.asarray(img)[..., 3].min() == 0
+
+
+def test_a_failing_copy_falls_back_to_matplotlibs_svg(monkeypatch):
+    """If the recorded copy breaks (e.g. a matplotlib release changes the renderer
+    internals it relies on), the figure still gets matplotlib's own SVG."""
+    def broken(canvas, metadata=None):
+        raise AttributeError("renderer internals changed")
+
+    monkeypatch.setattr(svgcopy, "write_svg", broken)
+    fig, ax = P.figure(1, 1, title="fallback")
+    ax[0].plot(np.arange(10.0), np.arange(10.0) ** 2, label="y")
+    ax[0].legend()
+    png, svg = render_figure(fig)
+    assert png.startswith(b"\x89PNG") and b"<svg" in svg and b"fallback" in svg

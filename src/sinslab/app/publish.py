@@ -44,7 +44,10 @@ def render_figure(fig, dpi: int = 110) -> tuple[bytes, bytes]:
     if fig.get_layout_engine() is not None:
         fig.set_layout_engine("none")
     png = _png(canvas, dpi)
-    svg = write_svg(canvas)
+    try:
+        svg = write_svg(canvas)
+    except Exception:          # the copy leans on matplotlib's renderer internals: if a
+        svg = None             # release changes them, the SVG is drawn the usual way
     if svg is None:
         buf = io.BytesIO()
         # text as <text> elements rather than glyph outlines: less to write, searchable labels
