@@ -69,6 +69,16 @@ def test_config_imports_its_experiment_alone_and_no_heavy_package(name, modules)
     assert experiments == sorted(modules + ["sinslab.experiments.base"]), experiments
 
 
+def test_unknown_experiment_named_without_importing_any():
+    """A misspelt name gets its one-line error with the suggestion from the names the
+    sources declare, importing no experiment module and no heavy package."""
+    r, heavy, experiments = _probe(["config", "static-alignmnt"])
+    assert "unknown experiment 'static-alignmnt'; did you mean 'static-alignment'?" in r.stderr
+    assert heavy == [] and set(experiments) <= {"sinslab.experiments.base"}, (heavy, experiments)
+    r, heavy, experiments = _probe(["config", "zzz"])
+    assert "known: double-star, free-inertial" in r.stderr and heavy == []
+
+
 def test_declared_modules_agree_with_the_registry():
     """The name -> module map read from the sources (what ``get`` imports before the
     registry exists) is the registry's, and ``get`` through it returns the same experiment."""

@@ -206,15 +206,22 @@ def get(name: str) -> Experiment:
         exp = _import_one(name)
         if exp is not None:
             return exp
+        declared = _declared_modules()
+        if declared is not None and name not in declared:
+            _unknown(name, sorted(declared))        # no module declares it: none imported
     reg = registry()
     if name not in reg:
-        import difflib
-
-        hint = difflib.get_close_matches(name, reg, n=1)
-        msg = f"unknown experiment {name!r}"
-        msg += f"; did you mean {hint[0]!r}?" if hint else f"; known: {', '.join(reg) or 'none'}"
-        raise UnknownExperiment(msg)
+        _unknown(name, list(reg))
     return reg[name]
+
+
+def _unknown(name: str, known: list[str]):
+    import difflib
+
+    hint = difflib.get_close_matches(name, known, n=1)
+    msg = f"unknown experiment {name!r}"
+    msg += f"; did you mean {hint[0]!r}?" if hint else f"; known: {', '.join(known) or 'none'}"
+    raise UnknownExperiment(msg)
 
 
 def _check_result(exp: Experiment, res: Result, log) -> None:
