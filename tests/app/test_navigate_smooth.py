@@ -7,7 +7,6 @@ outage-end error; an odometer given as a column of the IMU table and as a separa
 with the same samples reads the same series. Bad input: one line, exit 2, nothing written.
 """
 import json
-import math
 
 import numpy as np
 import pytest
@@ -15,10 +14,9 @@ from typer.testing import CliRunner
 
 from sinslab.core import attitude as A
 from sinslab.core import units as u
-from sinslab.core.records import Fixes
 from sinslab.data import write_fixes
-from sinslab.sim import imu as IM
 from sinslab.sim import trajectory as tr
+from support import simulated_car_drive
 
 
 @pytest.fixture(scope="module")
@@ -28,18 +26,7 @@ def files(tmp_path_factory):
             tr.Turn(duration=10.0, rate=9 * u.deg, coordinated=False), tr.Level(duration=20.0),
             tr.Turn(duration=20.0, rate=-9 * u.deg, coordinated=False), tr.Level(duration=30.0),
             tr.Turn(duration=10.0, rate=9 * u.deg, coordinated=False), tr.Level(duration=40.0)]
-    g = tr.generate(segs, tr.Start(lat=math.radians(40.1), lon=math.radians(-105.1), h=1600.0,
-                                   heading=math.radians(30)), 0.01)
-    err = IM.ImuErrors.from_datasheet(gyro_bias=["0.1 deg/s", "-0.05 deg/s", "0.15 deg/s"],
-                                      accel_bias=["0.05 m/s^2", "-0.03 m/s^2", "0.1 m/s^2"],
-                                      gyro_arw="0.0038 deg/sqrt(s)", accel_vrw="70 ug/sqrt(Hz)")
-    imu = IM.apply(g.imu, err, 1)
-    tru = g.truth
-    rng = np.random.default_rng(2)
-    k = np.arange(0, len(tru.t), 25)[1:]
-    fx = Fixes(tru.t[k], tru.lat[k] + rng.normal(0, 0.01, k.size) / 6.37e6, tru.lon[k], tru.h[k],
-               np.full((k.size, 3), 0.01), tru.vel[k] + rng.normal(0, 0.02, (k.size, 3)),
-               np.full((k.size, 3), 0.05), np.ones(k.size, int))
+    imu, fx, tru, _, rng = simulated_car_drive(segs)
     write_fixes(d / "fixes.csv", fx)
     # wheel speed of the IMU point at the IMU samples: +2 %, noise, 2 cm/s steps
     C = A.euler_to_dcm(tru.att[1:])

@@ -1,6 +1,5 @@
 """Loosely coupled INS + fixes on recorded data: a simulated oracle and the rtklib-drive figures."""
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -8,13 +7,13 @@ import pytest
 from typer.testing import CliRunner
 
 from sinslab.core import attitude as A
-from sinslab.sim import imu as IM
 from sinslab.fusion import loosely_coupled as LC
 from sinslab.fusion import recorded as I
 from sinslab.core.records import Fixes
 from sinslab.data import rtklib
 from sinslab.sim import trajectory as tr
 from sinslab.core import units as u
+from support import simulated_car_drive
 
 DRIVE = Path(__file__).resolve().parents[3] / "shared" / "data" / "rtklib-drive"
 needs_drive = pytest.mark.skipif(not (DRIVE / "imu_1934.csv").exists(), reason="rtklib-drive not available")
@@ -29,18 +28,7 @@ def sim():
             tr.Turn(duration=10.0, rate=9 * u.deg), tr.Level(duration=20.0), tr.Turn(duration=20.0, rate=-9 * u.deg),
             tr.Accelerate(duration=4.0, accel=-1.0), tr.Level(duration=30.0), tr.Turn(duration=10.0, rate=18 * u.deg),
             tr.Level(duration=60.0)]
-    g = tr.generate(segs, tr.Start(lat=math.radians(40.1), lon=math.radians(-105.1), h=1600.0,
-                                   heading=math.radians(30)), 0.01)
-    err = IM.ImuErrors.from_datasheet(gyro_bias=["0.1 deg/s", "-0.05 deg/s", "0.15 deg/s"],
-                                      accel_bias=["0.05 m/s^2", "-0.03 m/s^2", "0.1 m/s^2"],
-                                      gyro_arw="0.0038 deg/sqrt(s)", accel_vrw="70 ug/sqrt(Hz)")
-    imu = IM.apply(g.imu, err, 1)
-    tru = g.truth
-    rng = np.random.default_rng(2)
-    k = np.arange(0, len(tru.t), 25)[1:]                       # 4 Hz fixes, 1 cm / 2 cm/s noise
-    fx = Fixes(tru.t[k], tru.lat[k] + rng.normal(0, 0.01, k.size) / 6.37e6, tru.lon[k], tru.h[k],
-                  np.full((k.size, 3), 0.01), tru.vel[k] + rng.normal(0, 0.02, (k.size, 3)),
-                  np.full((k.size, 3), 0.05), np.ones(k.size, int))
+    imu, fx, tru, err, _ = simulated_car_drive(segs)                # 4 Hz fixes, 1 cm / 2 cm/s noise
     return imu, fx, tru, err
 
 
