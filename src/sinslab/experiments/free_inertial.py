@@ -254,7 +254,7 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
     cov_every, mc_every = _mc_strides(cfg)
     traj = (segments, start, mount, float(s.sample_interval), float(s.duration))
     return dict(
-        traj=traj, key=hashlib.sha1(pickle.dumps(traj)).hexdigest(),
+        traj=traj, key=hashlib.sha1(pickle.dumps((traj, n.vertical))).hexdigest(),
         nsub=n.nsub, vertical=n.vertical, out_every=mc_every,
         att_sigma=np.abs(np.asarray(ini.att_err, float)), vel_sigma=np.abs(np.asarray(ini.vel_err, float)),
         pos_sigma=np.abs(np.asarray(ini.pos_err, float)),
@@ -267,11 +267,13 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
 
 
 def _mc_setup(spec, gen=None):
-    """The worker's copy of the trajectory (generated once per process and cached)."""
+    """The worker's copy of the trajectory and of what every run shares (truth at the output
+    epochs, the held vertical rate): made once per process and cached."""
     from sinslab.sim import trajectory
     from sinslab.core import earth
     from sinslab.core.attitude import euler_to_dcm
     from sinslab.core.records import NavState
+    from sinslab.nav import strapdown
 
     hit = _MC_CACHE.get(spec["key"])
     if hit is not None:
@@ -286,7 +288,10 @@ def _mc_setup(spec, gen=None):
     tr = truth.at(ep)
     rm, rn = earth.radii(tr.lat, tr.h)
     att = tr.att_imu if tr.att_imu is not None else tr.att
-    S = dict(ideal=gen.imu, mount=gen.mount, h_full=truth.h.copy(), t=tr.t, lat=tr.lat, lon=tr.lon,
+    h_full = truth.h.copy()
+    # every run holds to the same true height: its vertical rate is computed once here
+    vup = strapdown.held_vup(h_full, gen.imu.dt) if spec["vertical"] == "hold" else None
+    S = dict(ideal=gen.imu, mount=gen.mount, h_full=h_full, vup=vup, t=tr.t, lat=tr.lat, lon=tr.lon,
              h=tr.h, vel=tr.vel, C=euler_to_dcm(att), rm=rm, rn=rn, init=NavState.from_series(truth, 0))
     _MC_CACHE.clear()                                  # one trajectory per process at a time
     _MC_CACHE[spec["key"]] = S
@@ -304,6 +309,10 @@ def mc_batch(seeds, spec):
     :func:`sinslab.nav.strapdown.navigate` (same vertical mode, nsub and mount as the single
     run) and returns its errors (navigation − truth) every ``spec["out_every"]`` updates.
 
+    The runs of one call are stacked: each run's sensor errors and navigation are compiled
+    loops over its own record, the held vertical rate is shared, and the errors of all runs
+    are formed in one pass over (runs × epochs) — the same numbers as one call per run.
+
     Returns
     -------
     dict
@@ -319,8 +328,9 @@ def mc_batch(seeds, spec):
     S = _mc_setup(spec)
     t0 = S["init"]
     rm0, rn0 = earth.radii(t0.lat, t0.h)
-    height = S["h_full"] if spec["vertical"] != "free" else None
-    out = np.empty((len(seeds), S["t"].size, 9))
+    held = spec["vertical"] != "free"
+    B, M = len(seeds), S["t"].size
+    navs = np.empty((B, M, 9))               # lon, lat, h, velocity, attitude (IMU frame)
     for b, seed in enumerate(seeds):
         rng = np.random.default_rng(seed)
         z = rng.standard_normal(21)
@@ -336,17 +346,19 @@ def mc_batch(seeds, spec):
                         h=t0.h + dpos[2], vel=t0.vel + dvel,
                         att=t0.att + np.array([datt[0], datt[1], -datt[2]]), t=t0.t)
         nav = strapdown.navigate(meas, init, nsub=spec["nsub"], vertical=spec["vertical"],
-                                 height=height, mount=S["mount"], out_every=spec["out_every"],
-                                 progress=False)
-        if nav.t.size != S["t"].size:
+                                 height=S["h_full"] if held else None, vup=S["vup"], mount=S["mount"],
+                                 out_every=spec["out_every"], progress=False)
+        if nav.t.size != M:
             raise RuntimeError("Monte Carlo navigation and truth epochs disagree")
-        att = nav.att_imu if nav.att_imu is not None else nav.att
-        e = out[b]
-        e[:, 0] = _wrap(nav.lon - S["lon"]) * S["rn"] * np.cos(S["lat"])
-        e[:, 1] = (nav.lat - S["lat"]) * S["rm"]
-        e[:, 2] = nav.h - S["h"]
-        e[:, 3:6] = nav.vel - S["vel"]
-        e[:, 6:9] = misalignment(S["C"], euler_to_dcm(att))
+        r = navs[b]
+        r[:, 0], r[:, 1], r[:, 2], r[:, 3:6] = nav.lon, nav.lat, nav.h, nav.vel
+        r[:, 6:9] = nav.att_imu if nav.att_imu is not None else nav.att
+    out = np.empty((B, M, 9))
+    out[..., 0] = _wrap(navs[..., 0] - S["lon"]) * S["rn"] * np.cos(S["lat"])
+    out[..., 1] = (navs[..., 1] - S["lat"]) * S["rm"]
+    out[..., 2] = navs[..., 2] - S["h"]
+    out[..., 3:6] = navs[..., 3:6] - S["vel"]
+    out[..., 6:9] = misalignment(S["C"], euler_to_dcm(navs[..., 6:9]))
     return {"err": out}
 
 

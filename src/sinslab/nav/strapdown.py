@@ -613,11 +613,13 @@ def advance(full, dth, dvl, dt, nsub, mode, href, vref, gains, gb, ab, out, out_
     return nupd
 
 
-def _vertical(vertical, height, damping, n_epochs, dt, lat, h):
+def _vertical(vertical, height, damping, n_epochs, dt, lat, h, vup=None):
     if vertical not in _VMODE:
         raise ValueError(f"vertical must be one of {VERTICAL_MODES}, got {vertical!r}")
     mode = _VMODE[vertical]
     empty = np.zeros(1)
+    if mode != 1 and vup is not None:
+        raise ValueError("a held vertical velocity (vup) is only used with vertical='hold'")
     if mode == 0:
         if height is not None:
             raise ValueError("a height series is only used with vertical='hold' or 'damped'")
@@ -626,7 +628,8 @@ def _vertical(vertical, height, damping, n_epochs, dt, lat, h):
         raise ValueError(f"vertical={vertical!r} needs a height series (samples + 1 epochs)")
     href = _height_series(height, n_epochs, "reference" if mode == 2 else "held")
     if mode == 1:
-        return mode, href, held_vup(href, dt), (0.0, 0.0, 0.0)
+        vref = held_vup(href, dt) if vup is None else _height_series(vup, n_epochs, "held vertical-velocity")
+        return mode, href, vref, (0.0, 0.0, 0.0)
     gains = VerticalDamping.coerce(damping).gains(lat, h)
     return mode, href, empty, gains
 
@@ -685,9 +688,7 @@ def step(state: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float, nsub:
     nupd = n // nsub
     if not isinstance(out_every, (int, np.integer)) or out_every < 1:
         raise ValueError(f"out_every must be a positive integer, got {out_every!r}")
-    mode, href, vref, (k1, k2, k3) = _vertical(vertical, height, damping, n + 1, dt, s[7], s[9])
-    if mode == 1 and vup is not None:
-        vref = _height_series(vup, n + 1, "held vertical-velocity")
+    mode, href, vref, (k1, k2, k3) = _vertical(vertical, height, damping, n + 1, dt, s[7], s[9], vup)
     if out is None:
         o = np.zeros((1, NAV))
         oe = 0
@@ -737,7 +738,7 @@ def _progress_ctx(progress, total):
 
 
 def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "free",
-             height=None, damping=None, mount=None, out_every: int = 1, gyro_bias=None,
+             height=None, vup=None, damping=None, mount=None, out_every: int = 1, gyro_bias=None,
              accel_bias=None, progress: bool | Callable | None = None,
              chunk: int = 1 << 20) -> NavSeries:
     """Strapdown navigation of an IMU record (ENU frame, compiled loop).
@@ -760,6 +761,10 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
     height : array_like (N + 1,), float, or NavSeries, optional
         Height [m] at the N + 1 epochs ``t0, t[0], ..., t[N−1]`` (a scalar means constant;
         a NavSeries gives its ``h``). Required for "hold" and "damped".
+    vup : array_like (N + 1,), optional
+        Held vertical velocity [m/s] at the same epochs ("hold"); default
+        :func:`held_vup` of ``height``. Runs that hold to one height series pass it once
+        computed.
     damping : VerticalDamping or dict, optional
         Damping-loop gains (default third order, τ = 100 s).
     mount : array_like (N + 1, 3), optional
@@ -797,7 +802,7 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
     nupd = n_all // nsub
     n = nupd * nsub
     dt = imu.dt
-    mode, href, vref, gains = _vertical(vertical, height, damping, n_all + 1, dt, init.lat, init.h)
+    mode, href, vref, gains = _vertical(vertical, height, damping, n_all + 1, dt, init.lat, init.h, vup)
     if mount is not None:
         mount = np.ascontiguousarray(mount, dtype=float)
         if mount.shape != (n_all + 1, 3):
