@@ -492,3 +492,21 @@ def test_stored_state_update_follows_paper_eqs_4_to_10(tau):
     np.testing.assert_allclose(f.x_total, x_ref, rtol=1e-7, atol=1e-7 * np.abs(x_ref).max())
     np.testing.assert_allclose(f.P, P_ref, rtol=1e-6, atol=1e-8 * np.abs(P_ref).max())
     assert len(f.epochs()) == 1                           # history restarted from now
+
+
+def test_a_fix_plan_drawn_equals_simulated_fixes():
+    """``plan_fixes(...).draw(rng)`` is ``simulate_fixes`` with one generator (constant
+    latency: the plan uses no random number; random latency: the schedule is drawn first)."""
+    from sinslab.sim import trajectory as tr
+
+    gen = tr.generate(tr.aircraft_mixed(320.0), tr.Start(lat=np.radians(32), lon=np.radians(118), h=1000.0,
+                                                         speed=300.0), 0.1, duration=320.0)
+    fa = dict(sat_lon1=np.radians(80), sat_lon2=np.radians(140), m0=20.0, m1=10.0, dH=50.0, latency=1.0)
+    for extra in ({}, {"latency_jitter": 0.5, "correlated": True}):
+        sim = ds.simulate_fixes(gen.truth, [(296.0, 305.0)], rng=3, **fa, **extra)
+        rng = np.random.default_rng(3)
+        plan = ds.plan_fixes(gen.truth, [(296.0, 305.0)], rng=rng, **fa, **extra)
+        got = plan.draw(rng)
+        for f in ("t", "t_arrive", "lat", "lon", "sigma", "err"):
+            assert np.array_equal(getattr(got, f), getattr(sim, f), equal_nan=True), (extra, f)
+        assert np.isnan(got.h).all() and got.t.size > 0

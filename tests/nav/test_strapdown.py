@@ -389,6 +389,31 @@ def test_vertical_damped_and_hold():
     assert np.allclose(hold.vel[1:, 2], (2.0 / 60 * np.cos(hold.t / 60))[1:], atol=1e-6)
 
 
+def test_held_vertical_rate_given_once_or_computed_per_slice():
+    """A held channel given its vertical rate (``vup``) navigates to the bytes of one that
+    differentiates the height itself; a shared :class:`HeldHeight` returns for each slice
+    exactly ``held_vup`` of that slice (cos-shaped height: 2nd-order differences ≈ the
+    derivative), computed once; a rate for a channel that is not held is refused."""
+    att = np.zeros(3)
+    imu = static_imu(LAT, att, 0.05, 6000, h=100.0)
+    init = NavState(LAT, 0.0, 100.0, np.zeros(3), att)
+    hh = 100.0 + 2.0 * np.sin(np.arange(len(imu) + 1) * 0.05 / 60)
+    a = sd.navigate(imu, init, vertical="hold", height=hh, out_every=20, progress=False)
+    b = sd.navigate(imu, init, vertical="hold", height=hh, vup=sd.held_vup(hh, imu.dt), out_every=20,
+                    progress=False)
+    assert np.array_equal(a.h, b.h) and np.array_equal(a.vel, b.vel) and np.array_equal(a.lat, b.lat)
+    held = sd.HeldHeight(hh, 0.05)
+    h1, v1 = held.slice(100, 400)
+    assert np.array_equal(h1, hh[100:401]) and np.array_equal(v1, sd.held_vup(hh[100:401], 0.05))
+    assert held.slice(100, 400)[1] is v1                          # computed once
+    t = np.arange(100, 401) * 0.05
+    assert np.allclose(v1, 2.0 / 60 * np.cos(t / 60), atol=1e-8)
+    with pytest.raises(ValueError, match="only used with vertical='hold'"):
+        sd.navigate(imu, init, vertical="damped", height=hh, vup=b.vel[:, 2], progress=False)
+    with pytest.raises(ValueError, match="NaN"):
+        sd.HeldHeight(np.r_[hh[:-1], np.nan], 0.05)
+
+
 def test_gains():
     k1, k2, k3 = sd.VerticalDamping(order=3, tau=100.0).gains(LAT)
     ws2 = earth.schuler_frequency(LAT) ** 2

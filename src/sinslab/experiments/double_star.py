@@ -204,16 +204,17 @@ def _setup(cfg: Config, quick=False):
                 gyro_drift=float(im.gyro_drift))
 
 
-def _one(rng, S, zero_errors=False):
-    """One run: draw errors, run the three filters; errors at the filter epochs."""
+def _inputs(rng, S, plan=None, zero_errors=False):
+    """One run's IMU record, initial state and fixes, drawn from ``rng`` in a fixed order:
+    16 normals (initial errors and gyro constant drift, each times its σ), the IMU noise,
+    the fix errors (and, with a random latency, the fix schedule first). ``plan``: the
+    run-independent :class:`~sinslab.methods.doublestar.FixPlan` of a constant latency."""
     from sinslab.methods import doublestar as ds
     from sinslab.sim import imu as imu_mod
     from sinslab.core.attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
     from sinslab.core.records import Fixes, NavState
 
-    truth, ideal, P0 = S["truth"], S["imu"], S["P0"]
-    model = ds.horizontal_model(**S["model_args"])
-    ma = S["model_args"]
+    truth, ideal, P0, ma = S["truth"], S["imu"], S["P0"], S["model_args"]
     if zero_errors:
         x0 = np.zeros(16)
         meas = ideal
@@ -228,30 +229,77 @@ def _one(rng, S, zero_errors=False):
     att0 = dcm_to_euler(apply_misalignment(euler_to_dcm(truth.att[0]), x0[:3]))
     init = NavState(truth.lat[0] + x0[5], truth.lon[0] + x0[6], truth.h[0],
                     truth.vel[0] + np.array([x0[3], x0[4], 0.0]), att0, truth.t[0])
-    fixes = ds.simulate_fixes(truth, S["windows"], rng=np.random.default_rng(0) if zero_errors else rng,
-                              **S["fix_args"])
     if zero_errors:     # covariance analysis: exact fixes, the filter keeps the model σ in R
+        fixes = ds.simulate_fixes(truth, S["windows"], rng=np.random.default_rng(0), **S["fix_args"])
         lat, lon, _ = ds._interp_truth(truth, fixes.t)
         fixes = Fixes(fixes.t, lat, lon, fixes.h, fixes.sigma, t_arrive=fixes.t_arrive)
-    tt = truth.at(S["ep"])
+    elif plan is not None:
+        fixes = plan.draw(rng)
+    else:
+        fixes = ds.simulate_fixes(truth, S["windows"], rng=rng, **S["fix_args"])
+    return meas, init, fixes
+
+
+def _filters(meas, init, fixes, S, model, height):
+    """The three filters of one run on the same data: {mode: Integration}."""
+    from sinslab.methods import doublestar as ds
+
+    return {mode: ds.integrate(meas, init, fixes, model, S["P0"], mode=mode, lag_method=S["lag_method"],
+                               height=height, windows=S["windows"], kf_dt=S["kf_dt"], nsub=S["nsub"])
+            for mode in _MODES}
+
+
+def _one(rng, S, zero_errors=False):
+    """One run: draw errors, run the three filters; errors at the filter epochs."""
+    from sinslab.methods import doublestar as ds
+
+    model = ds.horizontal_model(**S["model_args"])
+    res = _filters(*_inputs(rng, S, zero_errors=zero_errors), S, model, S["truth"].h)
+    tt = S["truth"].at(S["ep"])
     out = {}
-    for mode in _MODES:
-        r = ds.integrate(meas, init, fixes, model, P0, mode=mode, lag_method=S["lag_method"],
-                         height=truth.h, windows=S["windows"], kf_dt=S["kf_dt"], nsub=S["nsub"])
-        phi, dv, dp = ds.horizontal_errors(r.nav, tt)
+    for mode, r in res.items():
         k = _KEY[mode]
-        out[f"phi_{k}"] = phi
-        out[f"dv_{k}"] = dv
-        out[f"dp_{k}"] = dp
-        if mode == "lag-aware":
-            out["sigma"] = r.sigma
-            out["nfix"] = np.array(len(r.applied))
+        out[f"phi_{k}"], out[f"dv_{k}"], out[f"dp_{k}"] = ds.horizontal_errors(r.nav, tt)
+    out["sigma"] = res["lag-aware"].sigma
+    out["nfix"] = np.array(len(res["lag-aware"].applied))
     return out
 
 
 def _batch(seeds, S):
-    res = [_one(np.random.default_rng(ss), S) for ss in seeds]
-    return {k: np.stack([r[k] for r in res]) for k in res[0]}
+    """A Monte Carlo task: the runs of ``seeds`` stacked.
+
+    What the runs share is made once — the error model, the fix plan of a constant
+    latency (schedule, truth and σ at the requests), the held height with its vertical
+    rate per block — and the errors of all runs and filters against the truth are formed
+    in one pass over (filters × runs × epochs); each run draws its inputs from its own
+    generator and its three filters run the fusion driver. The same numbers as
+    :func:`_one` per seed.
+    """
+    from sinslab.methods import doublestar as ds
+    from sinslab.nav import strapdown as sd
+
+    truth = S["truth"]
+    model = ds.horizontal_model(**S["model_args"])
+    held = sd.HeldHeight(truth.h, S["imu"].dt)
+    fa = S["fix_args"]
+    plan = (ds.plan_fixes(truth, S["windows"], **fa) if fa["latency_jitter"] == 0 else None)
+    B, M = len(seeds), S["ep"].size
+    nav = np.empty((len(_MODES), B, M, 10))
+    sigma = np.empty((B, M, 16))
+    nfix = np.empty(B, dtype=np.int64)
+    for b, seed in enumerate(seeds):
+        res = _filters(*_inputs(np.random.default_rng(seed), S, plan), S, model, held)
+        for i, mode in enumerate(_MODES):
+            nav[i, b] = res[mode].nav
+        sigma[b] = res["lag-aware"].sigma
+        nfix[b] = len(res["lag-aware"].applied)
+    phi, dv, dp = ds.horizontal_errors(nav, truth.at(S["ep"]))
+    out = {}
+    for i, mode in enumerate(_MODES):
+        k = _KEY[mode]
+        out[f"phi_{k}"], out[f"dv_{k}"], out[f"dp_{k}"] = phi[i], dv[i], dp[i]
+    out["sigma"], out["nfix"] = sigma, nfix
+    return out
 
 
 # ---------------------------------------------------------------- helpers -----------------

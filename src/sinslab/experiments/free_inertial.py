@@ -298,58 +298,85 @@ def _mc_setup(spec, gen=None):
     return S
 
 
-def mc_batch(seeds, spec):
-    """Monte Carlo campaign function (:func:`sinslab.estimation.montecarlo.run_campaign`).
-
-    Per run, from its own ``default_rng(seed)`` in a fixed order: 21 standard normals —
+def _mc_inputs(rng, spec, S):
+    """One run's IMU record and initial state from its generator: 21 standard normals —
     initial errors (pitch, roll, heading; velocity E, N, U; position E, N, U), gyro and
-    accelerometer constant biases and scale factors (body x, y, z) — each times its
-    configured 1σ; then the white noise of :func:`sinslab.sim.imu.apply` from the same
-    generator. The run navigates the common true trajectory with
-    :func:`sinslab.nav.strapdown.navigate` (same vertical mode, nsub and mount as the single
-    run) and returns its errors (navigation − truth) every ``spec["out_every"]`` updates.
+    accelerometer constant biases and scale factors (body x, y, z), each times its 1σ —
+    then the white noise of :func:`sinslab.sim.imu.apply`."""
+    from sinslab.sim import imu as imu_mod
+    from sinslab.core import earth
+    from sinslab.core.records import NavState
 
-    The runs of one call are stacked: each run's sensor errors and navigation are compiled
-    loops over its own record, the held vertical rate is shared, and the errors of all runs
-    are formed in one pass over (runs × epochs) — the same numbers as one call per run.
+    t0 = S["init"]
+    rm0, rn0 = earth.radii(t0.lat, t0.h)
+    z = rng.standard_normal(21)
+    datt, dvel, dpos = (z[0:3] * spec["att_sigma"], z[3:6] * spec["vel_sigma"],
+                        z[6:9] * spec["pos_sigma"])
+    errs = imu_mod.ImuErrors(
+        gyro_bias=z[9:12] * spec["gyro_bias_sigma"], accel_bias=z[12:15] * spec["accel_bias_sigma"],
+        gyro_scale_factor=z[15:18] * spec["gyro_sf_sigma"],
+        accel_scale_factor=z[18:21] * spec["accel_sf_sigma"],
+        gyro_arw=spec["gyro_arw"], accel_vrw=spec["accel_vrw"])
+    meas = imu_mod.apply(S["ideal"], errs, rng)
+    init = NavState(lat=t0.lat + dpos[1] / rm0, lon=t0.lon + dpos[0] / (rn0 * math.cos(t0.lat)),
+                    h=t0.h + dpos[2], vel=t0.vel + dvel,
+                    att=t0.att + np.array([datt[0], datt[1], -datt[2]]), t=t0.t)
+    return meas, init
+
+
+def _mc_navigate(meas, init, spec, S, vup):
+    from sinslab.nav import strapdown
+
+    nav = strapdown.navigate(meas, init, nsub=spec["nsub"], vertical=spec["vertical"],
+                             height=S["h_full"] if spec["vertical"] != "free" else None, vup=vup,
+                             mount=S["mount"], out_every=spec["out_every"], progress=False)
+    if nav.t.size != S["t"].size:
+        raise RuntimeError("Monte Carlo navigation and truth epochs disagree")
+    return nav
+
+
+def mc_run(seed, spec):
+    """One Monte Carlo run on its own: the definition :func:`mc_batch` stacks.
+
+    From ``default_rng(seed)`` the inputs of :func:`_mc_inputs`; the run navigates the
+    common true trajectory with :func:`sinslab.nav.strapdown.navigate` (same vertical mode,
+    nsub and mount as the single run) and returns its errors (navigation − truth) every
+    ``spec["out_every"]`` updates, (T, 9): position E, N, U [m], velocity E, N, U [m/s],
+    misalignment φ E, N, U [rad] (``attitude.misalignment`` of the IMU frame).
+    """
+    from sinslab.core.attitude import euler_to_dcm, misalignment
+
+    S = _mc_setup(spec)
+    nav = _mc_navigate(*_mc_inputs(np.random.default_rng(seed), spec, S), spec, S, None)
+    e = np.empty((S["t"].size, 9))
+    e[:, 0] = _wrap(nav.lon - S["lon"]) * S["rn"] * np.cos(S["lat"])
+    e[:, 1] = (nav.lat - S["lat"]) * S["rm"]
+    e[:, 2] = nav.h - S["h"]
+    e[:, 3:6] = nav.vel - S["vel"]
+    e[:, 6:9] = misalignment(S["C"], euler_to_dcm(nav.att_imu if nav.att_imu is not None else nav.att))
+    return e
+
+
+def mc_batch(seeds, spec):
+    """Monte Carlo campaign function (:func:`sinslab.estimation.montecarlo.run_campaign`):
+    the runs of :func:`mc_run` for ``seeds``, stacked.
+
+    Each run's sensor errors and navigation are compiled loops over its own record; the
+    held vertical rate is computed once for all runs, and the errors of all runs are formed
+    in one pass over (runs × epochs) — the same numbers as :func:`mc_run` per seed.
 
     Returns
     -------
     dict
-        ``err`` (B, T, 9): position E, N, U [m], velocity E, N, U [m/s], misalignment φ
-        E, N, U [rad] (``attitude.misalignment`` of the IMU frame).
+        ``err`` (B, T, 9): the errors of :func:`mc_run`.
     """
-    from sinslab.sim import imu as imu_mod
-    from sinslab.nav import strapdown
-    from sinslab.core import earth
     from sinslab.core.attitude import euler_to_dcm, misalignment
-    from sinslab.core.records import NavState
 
     S = _mc_setup(spec)
-    t0 = S["init"]
-    rm0, rn0 = earth.radii(t0.lat, t0.h)
-    held = spec["vertical"] != "free"
     B, M = len(seeds), S["t"].size
     navs = np.empty((B, M, 9))               # lon, lat, h, velocity, attitude (IMU frame)
     for b, seed in enumerate(seeds):
-        rng = np.random.default_rng(seed)
-        z = rng.standard_normal(21)
-        datt, dvel, dpos = (z[0:3] * spec["att_sigma"], z[3:6] * spec["vel_sigma"],
-                            z[6:9] * spec["pos_sigma"])
-        errs = imu_mod.ImuErrors(
-            gyro_bias=z[9:12] * spec["gyro_bias_sigma"], accel_bias=z[12:15] * spec["accel_bias_sigma"],
-            gyro_scale_factor=z[15:18] * spec["gyro_sf_sigma"],
-            accel_scale_factor=z[18:21] * spec["accel_sf_sigma"],
-            gyro_arw=spec["gyro_arw"], accel_vrw=spec["accel_vrw"])
-        meas = imu_mod.apply(S["ideal"], errs, rng)
-        init = NavState(lat=t0.lat + dpos[1] / rm0, lon=t0.lon + dpos[0] / (rn0 * math.cos(t0.lat)),
-                        h=t0.h + dpos[2], vel=t0.vel + dvel,
-                        att=t0.att + np.array([datt[0], datt[1], -datt[2]]), t=t0.t)
-        nav = strapdown.navigate(meas, init, nsub=spec["nsub"], vertical=spec["vertical"],
-                                 height=S["h_full"] if held else None, vup=S["vup"], mount=S["mount"],
-                                 out_every=spec["out_every"], progress=False)
-        if nav.t.size != M:
-            raise RuntimeError("Monte Carlo navigation and truth epochs disagree")
+        nav = _mc_navigate(*_mc_inputs(np.random.default_rng(seed), spec, S), spec, S, S["vup"])
         r = navs[b]
         r[:, 0], r[:, 1], r[:, 2], r[:, 3:6] = nav.lon, nav.lat, nav.h, nav.vel
         r[:, 6:9] = nav.att_imu if nav.att_imu is not None else nav.att

@@ -169,7 +169,8 @@ class LiveStream:
         Mechanization subsamples (coning/sculling).
     vertical : {"free", "hold"}
         ``"hold"``: the vertical channel held to ``height`` (N+1,) or float [m] at the IMU
-        epochs.
+        epochs, or to a :class:`sinslab.nav.strapdown.HeldHeight` shared with other streams
+        (its vertical rate per block computed once for all of them).
     gyro_bias, accel_bias : array_like (3,), optional
         Initial bias compensation [rad/s], [m/s²].
     scaled : bool
@@ -192,7 +193,12 @@ class LiveStream:
         self.start = int(start)
         self.t0 = (float(t_start) if t_start is not None
                    else (float(imu.t[self.start - 1]) if self.start > 0 else imu.t0))
-        if vertical == "hold":
+        if vertical == "hold" and isinstance(height, sd.HeldHeight):
+            if len(height) != len(imu) + 1 or abs(height.dt - imu.dt) > 1e-9 * imu.dt:
+                raise ValueError(f"the shared held height has {len(height)} epochs at {height.dt} s, "
+                                 f"the IMU record {len(imu) + 1} at {imu.dt} s")
+            self._held = height
+        elif vertical == "hold":
             hgt = np.asarray(height, dtype=float)
             if hgt.ndim == 0:
                 hgt = np.full(len(imu) + 1, float(hgt))
@@ -200,9 +206,9 @@ class LiveStream:
                 raise ValueError(f"height must have {len(imu) + 1} values (IMU epochs), got {hgt.shape}")
             if not np.all(np.isfinite(hgt)):
                 raise ValueError(f"held height has a NaN/inf value at epoch {int(np.argmax(~np.isfinite(hgt)))}")
-            self._hgt = np.ascontiguousarray(hgt)
+            self._held = np.ascontiguousarray(hgt)
         else:
-            self._hgt = None
+            self._held = None
         if not 1 <= self.nsub <= 5:
             raise ValueError(f"nsub (samples per update) must be an integer in 1..5, got {nsub!r}")
         self.dt = float(imu.dt)
@@ -264,10 +270,12 @@ class LiveStream:
         dth, dvb, ws, fs, a, b = self._increments(e_a, e_b)
         out = np.empty((e_b - e_a, 10))
         # inputs were checked when the stream was made: the compiled loop directly
-        if self._hgt is None:
+        if self._held is None:
             mode, href, vref = 0, _NONE, _NONE
+        elif isinstance(self._held, sd.HeldHeight):
+            mode, (href, vref) = 1, self._held.slice(a, b)
         else:
-            href = self._hgt[a:b + 1]
+            href = self._held[a:b + 1]
             mode, vref = 1, sd.held_vup(href, self.dt)
         sd.advance(st, dth, dvb, self.dt, self.nsub, mode, href, vref, (0.0, 0.0, 0.0), self.gb, self.ab,
                    out, self.per)

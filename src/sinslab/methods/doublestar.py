@@ -69,7 +69,8 @@ from sinslab.core.records import Fixes
 
 __all__ = [
     "GEO_RADIUS", "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
-    "ecef", "measure_ranges", "solve_fix", "request_schedule", "simulate_fixes",
+    "ecef", "measure_ranges", "solve_fix", "request_schedule", "FixPlan", "plan_fixes",
+    "simulate_fixes",
     "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate",
     "StoredStateUpdate",
     "MODES", "horizontal_errors", "check_windows", "check_geometry",
@@ -403,6 +404,71 @@ def _interp_truth(truth, t):
     return np.interp(t, tt, truth.lat), np.interp(t, tt, lon), np.interp(t, tt, truth.h)
 
 
+@dataclass(frozen=True)
+class FixPlan:
+    """A fix schedule and what every draw on it shares: the true positions at the request
+    times and the model σ there (:func:`plan_fixes`; :meth:`draw` adds the errors).
+
+    Attributes
+    ----------
+    t, t_arrive : (J,) request (validity) and arrival times [s]
+    lat, lon, h : (J,) true position at the requests [rad, rad, m]
+    sigma : (J, 2) model σ north, east [m] (:func:`fix_error`)
+    chol : (J, 2, 2) or None
+        Cholesky factors of the full north/east covariance (``correlated=True``).
+    """
+
+    t: np.ndarray
+    t_arrive: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    sigma: np.ndarray
+    chol: np.ndarray | None = None
+
+    def draw(self, rng) -> Fixes:
+        """Fixes with errors drawn from ``rng`` (normal, the plan's σ or full covariance)."""
+        from sinslab.core.earth import radii
+
+        J = self.t.size
+        if self.chol is not None:
+            e = np.einsum("jab,jb->ja", self.chol, rng.standard_normal((J, 2)))
+        else:
+            e = rng.standard_normal((J, 2)) * self.sigma
+        rm, rn = radii(self.lat, self.h)
+        # horizontal fixes: the height is an external input (map/barometer), so h and its σ
+        # are not part of the fix (NaN)
+        nan = np.full(J, np.nan)
+        return Fixes(self.t, self.lat + e[:, 0] / rm, self.lon + e[:, 1] / (rn * np.cos(self.lat)), nan,
+                     np.stack([self.sigma[:, 0], self.sigma[:, 1], nan], -1), t_arrive=self.t_arrive,
+                     err=np.stack([e[:, 0], e[:, 1], nan], -1))
+
+
+def plan_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, rng=None,
+               latency_jitter=0.0, grid=1.0, correlated=False, height_factor="paper",
+               sat_radius=GEO_RADIUS) -> FixPlan:
+    """The schedule of :func:`simulate_fixes` and the truth and σ at its requests.
+
+    A constant latency (``latency_jitter = 0``) gives the same plan for every draw, so Monte
+    Carlo runs make it once; a random latency draws the schedule from ``rng``. Parameters
+    as :func:`simulate_fixes`.
+    """
+    check_windows(windows, truth.t[0], truth.t[-1])
+    t_req, t_arr = request_schedule(windows, latency, jitter=latency_jitter, grid=grid,
+                                    t0=float(truth.t[0]), rng=rng)
+    if t_arr.size and t_arr.max() > truth.t[-1] + 1e-9:
+        raise ValueError(f"a fix arrives at {t_arr.max():g} s, after the end of the record")
+    lat, lon, h = _interp_truth(truth, t_req)
+    fe = fix_error(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h, height_factor=height_factor,
+                   sat_radius=sat_radius)
+    chol = None
+    if correlated:
+        P = fix_covariance(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h,
+                           height_factor=height_factor, sat_radius=sat_radius)
+        chol = np.linalg.cholesky(P + 1e-12 * np.eye(2))
+    return FixPlan(t_req, t_arr, lat, lon, h, np.stack([fe.ns, fe.ew], -1), chol)
+
+
 def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, rng,
                    latency_jitter=0.0, grid=1.0, correlated=False, height_factor="paper",
                    sat_radius=GEO_RADIUS) -> Fixes:
@@ -416,7 +482,8 @@ def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, r
     Request/arrival times from :func:`request_schedule` (``grid`` from ``truth.t[0]``);
     the error of each fix is normal with the σ of :func:`fix_error` at the true position
     (independent north and east errors as the paper's filter assumes, or with
-    ``correlated=True`` the full covariance of :func:`fix_covariance`).
+    ``correlated=True`` the full covariance of :func:`fix_covariance`). The same as
+    ``plan_fixes(...).draw(rng)`` with one generator.
 
     Parameters
     ----------
@@ -424,32 +491,11 @@ def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, r
     windows : sequence of (start, end) [s], inside the truth record
     rng : numpy.random.Generator or int
     """
-    from sinslab.core.earth import radii
-
     rng = np.random.default_rng(rng)
-    check_windows(windows, truth.t[0], truth.t[-1])
-    t_req, t_arr = request_schedule(windows, latency, jitter=latency_jitter, grid=grid,
-                                    t0=float(truth.t[0]), rng=rng)
-    if t_arr.size and t_arr.max() > truth.t[-1] + 1e-9:
-        raise ValueError(f"a fix arrives at {t_arr.max():g} s, after the end of the record")
-    lat, lon, h = _interp_truth(truth, t_req)
-    fe = fix_error(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h, height_factor=height_factor,
-                   sat_radius=sat_radius)
-    J = t_req.size
-    if correlated:
-        P = fix_covariance(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h,
-                           height_factor=height_factor, sat_radius=sat_radius)
-        Lc = np.linalg.cholesky(P + 1e-12 * np.eye(2))
-        e = np.einsum("jab,jb->ja", Lc, rng.standard_normal((J, 2)))
-    else:
-        e = rng.standard_normal((J, 2)) * np.stack([fe.ns, fe.ew], -1)
-    rm, rn = radii(lat, h)
-    # horizontal fixes: the height is an external input (map/barometer), so h and its σ
-    # are not part of the fix (NaN)
-    nan = np.full(J, np.nan)
-    return Fixes(t_req, lat + e[:, 0] / rm, lon + e[:, 1] / (rn * np.cos(lat)), nan,
-                 np.stack([fe.ns, fe.ew, nan], -1), t_arrive=t_arr,
-                 err=np.stack([e[:, 0], e[:, 1], nan], -1))
+    return plan_fixes(truth, windows, sat_lon1=sat_lon1, sat_lon2=sat_lon2, m0=m0, m1=m1, dH=dH,
+                      latency=latency, rng=rng, latency_jitter=latency_jitter, grid=grid,
+                      correlated=correlated, height_factor=height_factor,
+                      sat_radius=sat_radius).draw(rng)
 
 
 # ======================================================================== the filter
@@ -616,9 +662,10 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     lag_method : {"paper003", "exact"}
         The lagged update of the lag-aware mode: :class:`StoredStateUpdate` or
         :class:`sinslab.fusion.lag.ExactReprocessing`.
-    height : array_like (N+1,) or float
+    height : array_like (N+1,), float or sinslab.nav.strapdown.HeldHeight
         External height [m] at the IMU epochs (barometer / map); the vertical channel is
-        held to it (the model has no vertical channel).
+        held to it (the model has no vertical channel). A ``HeldHeight`` shared by the
+        runs of a campaign computes its vertical rate per block once for all of them.
     windows : sequence of (start, end) [s], optional
         Fixes processed outside these windows are dropped (receiver silent); the
         covariance is propagated throughout, the INS runs free between updates.
@@ -682,18 +729,29 @@ def horizontal_errors(nav, truth):
 
     Parameters
     ----------
-    nav : (M, 10) state rows ``[q, vel, lat, lon, h]`` (e.g. :attr:`Integration.nav`)
+    nav : (..., M, 10) state rows ``[q, vel, lat, lon, h]`` (e.g. :attr:`Integration.nav`),
+        or several runs' rows stacked in front
     truth : NavSeries with M epochs (IMU attitude in ``att_imu`` if present)
 
     Returns
     -------
-    phi : (M, 3) misalignment [rad] (ENU)
-    dvel : (M, 2) east, north [m/s]
-    dpos : (M, 2) north, east [m]
+    phi : (..., M, 3) misalignment [rad] (ENU)
+    dvel : (..., M, 2) east, north [m/s]
+    dpos : (..., M, 2) north, east [m]
     """
     from sinslab.nav import compare
     from sinslab.nav import strapdown as sd
 
-    e = compare.nav_errors(sd.rows_to_series(truth.t, nav), truth, imu_frame=True)
-    return (np.stack([e["phiE"], e["phiN"], e["phiU"]], -1), np.stack([e["vE"], e["vN"]], -1),
-            np.stack([e["north"], e["east"]], -1))
+    nav = np.asarray(nav, dtype=float)
+    M = truth.t.size
+    if nav.ndim < 2 or nav.shape[-2] != M:
+        raise ValueError(f"nav rows {nav.shape} do not match the {M} truth epochs")
+    lead = nav.shape[:-2]
+    rows = nav.reshape(-1, nav.shape[-1])
+    reps = rows.shape[0] // M
+    tr = truth.at(np.tile(np.arange(M), reps))          # the runs share the truth's epochs
+    e = compare.row_errors(sd.rows_to_series(tr.t, rows), tr, imu_frame=True)
+    shape = lead + (M,)
+    return (np.stack([e["phiE"], e["phiN"], e["phiU"]], -1).reshape(shape + (3,)),
+            np.stack([e["vE"], e["vN"]], -1).reshape(shape + (2,)),
+            np.stack([e["north"], e["east"]], -1).reshape(shape + (2,)))

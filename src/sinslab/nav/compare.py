@@ -12,7 +12,7 @@ from sinslab.core import attitude as att_
 from sinslab.core import earth
 from sinslab.core.records import NavSeries
 
-__all__ = ["nav_errors", "match_epochs"]
+__all__ = ["nav_errors", "row_errors", "match_epochs"]
 
 
 def match_epochs(truth: NavSeries, t, tol: float = 1e-6) -> np.ndarray:
@@ -35,8 +35,16 @@ def nav_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
     the computed attitude), "pitch", "roll", "yaw" [rad] (Euler differences), "lat",
     "lon" [rad], "north", "east" [m]}``. ``imu_frame`` compares the IMU attitudes.
     """
-    idx = match_epochs(truth, nav.t)
-    tr = truth.at(idx)
+    return row_errors(nav, truth.at(match_epochs(truth, nav.t)), imu_frame)
+
+
+def row_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
+    """:func:`nav_errors` against truth rows given row for row (same length, no matching
+    by time): for solutions of several runs stacked along the rows against the truth
+    repeated, in one pass."""
+    if len(truth) != len(nav):
+        raise ValueError(f"{len(nav)} solution rows against {len(truth)} truth rows")
+    tr = truth
     a_nav = nav.att_imu if (imu_frame and nav.att_imu is not None) else nav.att
     a_tr = tr.att_imu if (imu_frame and tr.att_imu is not None) else tr.att
     phi = att_.misalignment(att_.euler_to_dcm(a_tr), att_.euler_to_dcm(a_nav))

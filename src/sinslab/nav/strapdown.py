@@ -87,7 +87,7 @@ from sinslab.core.errors import InputError
 
 __all__ = [
     "navigate", "initial_state_array", "step", "correct", "state_to_navstate", "rows_to_series",
-    "VerticalDamping", "CONING_COEFFS", "NSTATE", "NAV", "VERTICAL_MODES", "step_chunk",
+    "VerticalDamping", "HeldHeight", "CONING_COEFFS", "NSTATE", "NAV", "VERTICAL_MODES", "step_chunk",
 ]
 
 #: Length of the full state array.
@@ -593,6 +593,41 @@ def held_vup(href, dt):
     else:
         vref = np.zeros(1)
     return np.ascontiguousarray(vref)
+
+
+class HeldHeight:
+    """A height series that several INS hold their vertical channel to, with the vertical
+    rate of every slice they ask for computed once for all of them.
+
+    The rate of a slice is :func:`held_vup` of that slice (one-sided differences at its
+    ends), so a stream that runs in blocks gets exactly the numbers it would compute
+    itself; Monte Carlo runs and filter variants on one trajectory ask for the same blocks.
+
+    Parameters
+    ----------
+    height : array_like (N + 1,)
+        Height [m] at the IMU epochs (finite).
+    dt : float
+        IMU sampling interval [s].
+    """
+
+    def __init__(self, height, dt):
+        h = np.asarray(height, dtype=float)
+        if h.ndim != 1 or h.size < 2:
+            raise ValueError(f"held height must be a series of >= 2 epochs, got shape {h.shape}")
+        self.h = _height_series(h, h.size, "held")
+        self.dt = float(dt)
+        self._vup = {}
+
+    def __len__(self):
+        return self.h.size
+
+    def slice(self, a, b):
+        """Heights and vertical rates [m/s] of epochs ``a..b`` (inclusive), contiguous."""
+        v = self._vup.get((a, b))
+        if v is None:
+            v = self._vup[(a, b)] = held_vup(self.h[a:b + 1], self.dt)
+        return self.h[a:b + 1], v
 
 
 def advance(full, dth, dvl, dt, nsub, mode, href, vref, gains, gb, ab, out, out_every):
