@@ -317,6 +317,19 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
         np.testing.assert_allclose(r2.x, r1.x, rtol=1e-10, atol=1e-14)
         np.testing.assert_allclose(r2.P, r1.P, rtol=1e-10, atol=1e-14)
         assert r2.nis == pytest.approx(r1.nis, rel=1e-10)
+    # a missing component or an R entry <= 0 leaves the compiled path untouched: the general
+    # update drops the NaN component, and refuses the non-positive R
+    zn = np.array([np.nan, z[0, 1]])
+    x_b, P_b = fast.x.copy(), fast.P.copy()
+    r3, r4 = fast.update(zn, H, R), slow.update(zn, H, R)
+    assert np.isnan(r3.innovation[0]) and r3.used.tolist() == [False, True]
+    np.testing.assert_allclose(r3.x, r4.x, rtol=1e-10, atol=1e-14)
+    assert not np.array_equal(r3.P, P_b) and not np.array_equal(r3.x, x_b)
+    x_b, P_b = fast.x.copy(), fast.P.copy()
+    with pytest.raises(ValueError, match="R"):
+        fast.update(z[0], H, np.array([R[0, 0], -1.0]))
+    assert np.array_equal(fast.x, x_b) and np.array_equal(fast.P, P_b)
+    r2 = fast.update(z[2], H, R)
     P_keep, x_keep = r2.P.copy(), r2.x.copy()
     fast.predict_many(np.array([Phi, Phi]), np.array([Q, Q]), 1.0)
     fast.feedback()

@@ -37,6 +37,11 @@ def _predict_many(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out):
 
 @njit(cache=True)
 def _seq_update(x, P, z, H, r, innov, sdiag, tmp, B):
+    """Sequential scalar updates in place; NIS. Returns −1 and leaves x, P alone when some
+    z is not finite or some r not > 0 (the caller takes the general path)."""
+    for c in range(z.shape[0]):
+        if not (math.isfinite(z[c]) and r[c] > 0.0):
+            return -1.0
     n = x.shape[0]
     pht = np.empty(n)
     kk = np.empty(n)
@@ -185,7 +190,7 @@ class KalmanFilter:
     @property
     def sigma(self):
         """Standard deviations sqrt(diag P), shape (n,)."""
-        return np.sqrt(np.maximum(np.diag(self.P), 0.0))
+        return np.sqrt(np.maximum(self.P.diagonal(), 0.0))
 
     def predict(self, Phi, Q, dt, *, aux=None):
         """Advance by ``dt`` [s]: ``x <- Phi x``, ``P <- Phi P Phi^T + Q``.
@@ -293,8 +298,10 @@ class KalmanFilter:
 
     def _fast_update(self, z, H, R):
         """Sequential scalar Joseph updates in compiled code (diagonal R, finite z)."""
-        z = np.atleast_1d(np.asarray(z, dtype=float))
-        H = np.ascontiguousarray(np.atleast_2d(H), dtype=float)
+        if not (type(z) is np.ndarray and z.ndim == 1 and z.dtype == np.float64):
+            z = np.atleast_1d(np.asarray(z, dtype=float))
+        if not (type(H) is np.ndarray and H.ndim == 2 and H.dtype == np.float64 and H.flags.c_contiguous):
+            H = np.ascontiguousarray(np.atleast_2d(H), dtype=float)
         R = np.asarray(R, dtype=float)
         m = z.size
         if R.ndim == 2:
@@ -305,13 +312,16 @@ class KalmanFilter:
             r = R
         else:
             r = np.broadcast_to(R, (m,)).astype(float)
-        if H.shape != (m, self.n) or not np.isfinite(z).all() or not (r > 0).all():
+        if H.shape != (m, self.n):
             return None
         S = H @ self.P @ H.T
         S.flat[::m + 1] += r
         innov = np.empty(m)
         sdiag = np.empty(m)
-        nis = _seq_update(self.x, self.P, z, H, r, innov, sdiag, self._tmp, self._T1)
+        nis = _seq_update(self.x, self.P, z, H, np.ascontiguousarray(r, dtype=float), innov, sdiag,
+                          self._tmp, self._T1)
+        if nis < 0.0:                   # a non-finite z or an r <= 0: nothing was changed
+            return None
         return UpdateResult(self.x.copy(), self.P.copy(), innov, S, float(nis),
                             np.ones(m, dtype=bool))
 
@@ -330,7 +340,12 @@ class KalmanFilter:
             from the navigation state / adds them to the sensor compensation.
         """
         d = np.zeros(self.n)
-        idx = np.arange(self.n) if indices is None else np.arange(self.n)[indices]
+        if indices is None:
+            idx = np.arange(self.n)
+        elif type(indices) is np.ndarray and indices.dtype == np.int64:
+            idx = indices                   # what np.arange(n)[indices] would return
+        else:
+            idx = np.arange(self.n)[indices]
         d[idx] = self.x[idx]
         self.x[idx] = 0.0
         self.c += d

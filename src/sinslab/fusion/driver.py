@@ -601,7 +601,12 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
             e1 = min(stops[si], e0 + max_ep)
             m = e1 - e0
             blk = [s.advance(e0, e1) for s in streams]
-            rows = [np.vstack([nav_h[i][e0][None], blk[i][0]]) for i in range(ns)]   # e0..e1
+            rows = []                                                    # e0..e1
+            for i in range(ns):
+                r = np.empty((m + 1, 10))
+                r[0] = nav_h[i][e0]
+                r[1:] = blk[i][0]
+                rows.append(r)
             if e1 > la_end:
                 # error model for the next stretch, from a look-ahead run of the streams
                 la0 = e0
