@@ -139,3 +139,4 @@ def test_campaigns_script(tmp_path):
     r = res["free-inertial"]
     assert json.loads(out.read_text()) == res
     assert 0.0 < r["compiled_share"] < 1.0 and r["cpu_per_run_s"] > 0
+    assert r["speedup"] == pytest.approx(r["cpu_per_run_one_at_a_time_s"] / r["cpu_per_run_s"])
