@@ -230,9 +230,13 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
          quick: bool = typer.Option(False, "--quick", help="shortened runs"),
          only: Optional[List[str]] = typer.Option(None, "--only", help="run only these experiments")) -> None:
     """Run every registered experiment (full scale) into OUT/NAME and write OUT/index.html."""
+    import contextlib
+
     from sinslab.app import report as _report
     from sinslab.app.config import resolve
     from sinslab.app.outputs import RunDir, abort_all
+    from sinslab.app.validate import starts_campaign
+    from sinslab.estimation.montecarlo import dask_client
     from sinslab.experiments import execute, get, registry
 
     done, failed = [], {}
@@ -250,24 +254,32 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
             (exp, f"{exp.name}-{suffix}", sets) for suffix, sets in exp.variants.items()]]
         for exp, label, _ in jobs:                         # check every folder first
             RunDir(out / label, exp.name, command="run").check()
-        for exp, label, sets in jobs:
-            cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=list(sets))
-            what = f": {exp.name} with {', '.join(sets)}" if sets else ""
-            _log(f"running {label}{' (quick)' if quick else ''}{what} ...")
-            try:
-                summary = execute(exp, cfg, out / label, quick=quick, log=_log,
-                                  variant=(label, list(sets)) if sets else None)
-            except (KeyboardInterrupt, *USER_ERRORS):
-                raise
-            except Exception as e:                          # one broken experiment: go on
-                import traceback
+        with contextlib.ExitStack() as stack:
+            shared = None
+            for exp, label, sets in jobs:
+                cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=list(sets))
+                what = f": {exp.name} with {', '.join(sets)}" if sets else ""
+                _log(f"running {label}{' (quick)' if quick else ''}{what} ...")
+                campaign = starts_campaign(exp, cfg)
+                if campaign and shared is None:
+                    # one local cluster for every campaign of the demo: started once, its
+                    # workers keep their imports and loaded kernels from one run to the next
+                    shared = stack.enter_context(dask_client(None))
+                try:
+                    summary = execute(exp, cfg, out / label, quick=quick, log=_log,
+                                      scheduler=shared if campaign else None,
+                                      variant=(label, list(sets)) if sets else None)
+                except (KeyboardInterrupt, *USER_ERRORS):
+                    raise
+                except Exception as e:                      # one broken experiment: go on
+                    import traceback
 
-                abort_all()                                  # its folder keeps the previous run
-                traceback.print_exc()
-                failed[label] = f"{type(e).__name__}: {e}"
-                continue
-            _print_summary(summary, out / label)
-            done.append((label, out / label))
+                    abort_all()                              # its folder keeps the previous run
+                    traceback.print_exc()
+                    failed[label] = f"{type(e).__name__}: {e}"
+                    continue
+                _print_summary(summary, out / label)
+                done.append((label, out / label))
         idx = _report.index(out, done, failed)
     typer.echo(f"index: {idx}")
     if failed:

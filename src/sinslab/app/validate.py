@@ -19,7 +19,7 @@ import threading
 
 from sinslab.app.errors import CliError
 
-__all__ = ["option_quantity", "option_number", "check_scheduler", "check_memory",
+__all__ = ["option_quantity", "option_number", "check_scheduler", "starts_campaign", "check_memory",
            "available_memory", "CONNECT_TIMEOUT_S"]
 
 #: longest wait for a scheduler's host name to resolve and its port to answer [s]
@@ -108,6 +108,18 @@ def _resolve_host(host: str, port: int, timeout: float):
     return box["r"]
 
 
+def starts_campaign(exp, cfg) -> bool:
+    """True if running ``exp`` with ``cfg`` hands ``ctx.scheduler`` to a Monte Carlo
+    campaign (the module uses it and ``cfg.runs`` reaches its ``CAMPAIGN_MIN_RUNS``)."""
+    import sys
+
+    if not _uses_scheduler(exp):
+        return False
+    least = getattr(sys.modules.get(exp.module), "CAMPAIGN_MIN_RUNS", 1)
+    runs = getattr(cfg, "runs", None)
+    return runs is None or runs >= least
+
+
 def check_scheduler(address: str, exp=None, cfg=None, timeout: float = CONNECT_TIMEOUT_S) -> None:
     """Refuse, in at most about ``2 * timeout`` seconds, a ``--scheduler`` that cannot work.
 
@@ -120,15 +132,13 @@ def check_scheduler(address: str, exp=None, cfg=None, timeout: float = CONNECT_T
     if exp is not None and not _uses_scheduler(exp):
         raise CliError(f"--scheduler: experiment {exp.name!r} runs no Monte Carlo campaign, "
                        f"so a scheduler would not be used")
-    if exp is not None and cfg is not None:
+    if exp is not None and cfg is not None and not starts_campaign(exp, cfg):
         import sys
 
         least = getattr(sys.modules.get(exp.module), "CAMPAIGN_MIN_RUNS", 1)
-        runs = getattr(cfg, "runs", None)
-        if runs is not None and runs < least:
-            raise CliError(f"--scheduler: experiment {exp.name!r} runs its Monte Carlo campaign only with "
-                           f"runs >= {least} (runs = {runs}), so a scheduler would not be used; "
-                           f"give --runs N")
+        raise CliError(f"--scheduler: experiment {exp.name!r} runs its Monte Carlo campaign only with "
+                       f"runs >= {least} (runs = {cfg.runs}), so a scheduler would not be used; "
+                       f"give --runs N")
     if text == "sync":
         return
     m = _ADDR.match(text)

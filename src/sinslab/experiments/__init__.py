@@ -236,7 +236,7 @@ def _check_result(exp: Experiment, res: Result, log) -> None:
 
 
 def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: bool = False,
-            scheduler: str | None = None, log: Callable[[str], None] | None = None,
+            scheduler: object = None, log: Callable[[str], None] | None = None,
             variant: tuple[str, list[str]] | None = None, force: bool | None = None) -> dict:
     """Run ``exp`` with the resolved ``cfg`` into folder ``out``; return the summary dict.
 

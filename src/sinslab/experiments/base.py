@@ -37,8 +37,9 @@ claims the output folder, writes ``config.toml`` first, calls ``run``, adds the
 writes files and never prints; it may log a line through ``ctx.log`` and show progress
 with ``ctx.progress(...)`` (see :mod:`sinslab.core.progress`).
 
-Monte Carlo: ``config.runs`` (``--runs N``) and ``ctx.scheduler`` (``--scheduler``) are
-passed through; an experiment that supports it returns its statistics as extra metrics
+Monte Carlo: ``config.runs`` (``--runs N``) and ``ctx.scheduler`` (``--scheduler``: an
+address or ``"sync"``; ``sinslab demo`` passes one ``distributed.Client`` that all its
+campaigns share; None starts a local cluster per campaign) are passed through; an experiment that supports it returns its statistics as extra metrics
 (e.g. ``final_err_phiE_arcmin_rms``), a :class:`Table` (per-run or per-state statistics,
 shown in the report and written as CSV) and extra figures. Nothing else changes. A module
 whose campaign starts only from some number of runs declares it as ``CAMPAIGN_MIN_RUNS``
@@ -112,7 +113,7 @@ class RunContext:
     seed: int = 0
     runs: int = 1
     quick: bool = False
-    scheduler: str | None = None
+    scheduler: object = None          # address, "sync", a distributed.Client, or None
     log: Callable[[str], None] = lambda msg: None
 
     def rng(self, *stream: int) -> np.random.Generator:
