@@ -39,6 +39,22 @@ def test_seeds_belong_to_runs_whatever_the_batching():
     assert np.array_equal(a, b) and np.array_equal(a, c)
 
 
+def test_tasks_per_worker_sets_the_default_batch():
+    """Without ``batch``: about ``tasks_per_worker`` tasks per worker (here one worker), the
+    same runs in the same order either way."""
+    sizes = []
+
+    def counted(seeds):
+        sizes.append(len(seeds))
+        return slow_batch(seeds, 0)
+
+    a = mc.run_campaign(counted, 10, 42, scheduler="sync", progress=False)
+    assert sizes == [3, 3, 3, 1]
+    sizes.clear()
+    b = mc.run_campaign(counted, 10, 42, scheduler="sync", progress=False, tasks_per_worker=1)
+    assert sizes == [10] and np.array_equal(a, b)
+
+
 def test_same_seed_identical_for_1_2_4_workers():
     Phi, Q, H, R, P0 = _model()
     kw = dict(Phi=Phi, Q=Q, H=H, R=R, P0=P0, n_steps=50)

@@ -73,7 +73,7 @@ def _run_batch(fn, first, seeds, args, kwargs):
 
 
 def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None,
-                 progress=True, args=(), kwargs=None, retries=0):
+                 progress=True, args=(), kwargs=None, retries=0, tasks_per_worker=4):
     """Run ``n_runs`` independent runs of ``fn`` in batches on Dask.
 
     Parameters
@@ -87,7 +87,8 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     seed : int or SeedSequence
         Campaign seed; run ``i`` uses ``spawn_seeds(seed, n_runs)[i]``.
     batch : int, optional
-        Runs per task (default: about 4 tasks per worker, at most 64 runs).
+        Runs per task (default: about ``tasks_per_worker`` tasks per worker, at most 64
+        runs).
     scheduler : None, str or distributed.Client
         None: start a LocalCluster of ``n_workers`` processes (1 thread each) for this
         campaign and close it after; an address string (``"tcp://host:8786"``): connect to
@@ -102,6 +103,9 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     retries : int
         Re-run a task this many times if *it* raises (worker loss is handled by the
         scheduler regardless, since tasks are pure).
+    tasks_per_worker : int
+        Tasks per worker when ``batch`` is not given: several balance the load; 1 suits a
+        task function whose cost hardly depends on the number of runs it stacks.
 
     Returns
     -------
@@ -114,7 +118,7 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     with dask_client(scheduler, n_workers) as client:
         nw = 1 if client is None else max(1, len(client.scheduler_info().get("workers", {})) or 1)
         if batch is None:
-            batch = int(min(64, max(1, -(-n // (4 * nw)))))
+            batch = int(min(64, max(1, -(-n // (max(1, int(tasks_per_worker)) * nw)))))
         batch = int(batch)
         if batch < 1:
             raise ValueError(f"batch must be >= 1, got {batch}")

@@ -1001,7 +1001,10 @@ def linear_campaign(cfg, ctx, runs, model, P0, sig_meas):
     from sinslab.estimation import montecarlo as mc
 
     spec = campaign_spec(cfg, model, P0, sig_meas)
-    out = mc.run_campaign(linear_batch, runs, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(spec=spec))
+    # a task runs the whole step recursion once, vectorised over its seeds: its cost hardly
+    # depends on how many it stacks, so one task per worker
+    out = mc.run_campaign(linear_batch, runs, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(spec=spec),
+                          tasks_per_worker=1)
     betas = spec["betas"]
     pm, pd, ps = fractions(out["wstd"], out["wstd_sep"], betas, spec["sep"])
     return dict(p_monotone=pm, p_distinguish=pd, p_separate=ps, wstd=out["wstd"], wstd_sep=out["wstd_sep"])
