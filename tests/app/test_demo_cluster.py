@@ -43,11 +43,25 @@ def _registered_only_here():
     E.registry().pop("campaign-dummy", None)
 
 
+def _demo(tmp_path, monkeypatch, client, **declared):
+    """``sinslab demo --quick`` of the campaign dummy with ``montecarlo.dask_client``
+    replaced by ``client``; returns the exit code."""
+    from sinslab.estimation import montecarlo as mc
+
+    mod = _module()
+    for k, v in declared.items():
+        setattr(mod, k, v)
+    monkeypatch.setitem(sys.modules, mod.__name__, mod)
+    monkeypatch.setattr(mc, "dask_client", client)
+    E.register(mod)
+    SEEN.clear()
+    r = CliRunner().invoke(app, ["demo", "--quick", "--only", "campaign-dummy", "--out", str(tmp_path / "runs")])
+    assert r.exit_code == 0, r.output
+
+
 def test_demo_shares_one_cluster_among_its_campaigns(tmp_path, monkeypatch):
     """The cluster is started once, when the first run with a campaign comes, and every
     campaign of the demo gets that same client; a run below CAMPAIGN_MIN_RUNS gets none."""
-    from sinslab.estimation import montecarlo as mc
-
     starts = []
 
     @contextlib.contextmanager
@@ -58,31 +72,15 @@ def test_demo_shares_one_cluster_among_its_campaigns(tmp_path, monkeypatch):
         else:
             yield scheduler
 
-    mod = _module()
-    monkeypatch.setitem(sys.modules, mod.__name__, mod)
-    monkeypatch.setattr(mc, "dask_client", fake_client)
-    E.register(mod)
-    SEEN.clear()
-    r = CliRunner().invoke(app, ["demo", "--quick", "--only", "campaign-dummy", "--out", str(tmp_path / "runs")])
-    assert r.exit_code == 0, r.output
+    _demo(tmp_path, monkeypatch, fake_client)
     assert starts == [None]
     assert SEEN == [(3, "the shared client"), (1, None), (4, "the shared client")]
     assert (tmp_path / "runs" / "campaign-dummy-more" / "summary.json").is_file()
 
 
 def test_demo_without_campaigns_starts_no_cluster(tmp_path, monkeypatch):
-    from sinslab.estimation import montecarlo as mc
-
     def no_cluster(*a, **k):
         raise AssertionError("a cluster was started")
 
-    mod = _module()
-    mod.DEMO_VARIANTS = {}
-    mod.QUICK = {"runs": 1}
-    monkeypatch.setitem(sys.modules, mod.__name__, mod)
-    monkeypatch.setattr(mc, "dask_client", no_cluster)
-    E.register(mod)
-    SEEN.clear()
-    r = CliRunner().invoke(app, ["demo", "--quick", "--only", "campaign-dummy", "--out", str(tmp_path / "runs")])
-    assert r.exit_code == 0, r.output
+    _demo(tmp_path, monkeypatch, no_cluster, DEMO_VARIANTS={}, QUICK={"runs": 1})
     assert SEEN == [(1, None)]
