@@ -206,7 +206,7 @@ class LiveStream:
                 raise ValueError(f"height must have {len(imu) + 1} values (IMU epochs), got {hgt.shape}")
             if not np.all(np.isfinite(hgt)):
                 raise ValueError(f"held height has a NaN/inf value at epoch {int(np.argmax(~np.isfinite(hgt)))}")
-            self._held = np.ascontiguousarray(hgt)
+            self._held = sd.HeldHeight(hgt, float(imu.dt), shared=False)
         else:
             self._held = None
         if not 1 <= self.nsub <= 5:
@@ -272,11 +272,8 @@ class LiveStream:
         # inputs were checked when the stream was made: the compiled loop directly
         if self._held is None:
             mode, href, vref = 0, _NONE, _NONE
-        elif isinstance(self._held, sd.HeldHeight):
-            mode, (href, vref) = 1, self._held.slice(a, b)
         else:
-            href = self._held[a:b + 1]
-            mode, vref = 1, sd.held_vup(href, self.dt)
+            mode, (href, vref) = 1, self._held.slice(a, b)
         sd.advance(st, dth, dvb, self.dt, self.nsub, mode, href, vref, (0.0, 0.0, 0.0), self.gb, self.ab,
                    out, self.per)
         return out, ws, fs

@@ -609,21 +609,26 @@ class HeldHeight:
         Height [m] at the IMU epochs (finite).
     dt : float
         IMU sampling interval [s].
+    shared : bool
+        Keep each slice's rate for the next stream that asks; False: compute it on every
+        call and keep nothing (the height of one stream).
     """
 
-    def __init__(self, height, dt):
+    def __init__(self, height, dt, *, shared=True):
         h = np.asarray(height, dtype=float)
         if h.ndim != 1 or h.size < 2:
             raise ValueError(f"held height must be a series of >= 2 epochs, got shape {h.shape}")
         self.h = _height_series(h, h.size, "held")
         self.dt = float(dt)
-        self._vup = {}
+        self._vup = {} if shared else None
 
     def __len__(self):
         return self.h.size
 
     def slice(self, a, b):
         """Heights and vertical rates [m/s] of epochs ``a..b`` (inclusive), contiguous."""
+        if self._vup is None:
+            return self.h[a:b + 1], held_vup(self.h[a:b + 1], self.dt)
         v = self._vup.get((a, b))
         if v is None:
             v = self._vup[(a, b)] = held_vup(self.h[a:b + 1], self.dt)
