@@ -2,8 +2,11 @@
 
 A campaign is ``n_runs`` independent runs. Run ``i`` always gets the ``i``-th child of
 ``numpy.random.SeedSequence(seed).spawn(n_runs)``, whatever the partition into batches
-and whatever the number of workers, so the same seed gives the same bytes with 1, 2 or
-4 workers and after a worker is lost and its tasks re-run.
+and whatever the number of workers, so the same seed gives the same runs with 1, 2 or 4
+workers and after a worker is lost and its tasks re-run. The bytes are the same too when
+the batches are (``batch=``), or when ``fn``'s arithmetic per run does not depend on how
+many runs it stacks (the default batch size follows the number of workers; stacked
+matrix products may round differently for one run than for several, ~1e-13 relative).
 
 The user supplies ``fn(seeds, *args, **kwargs)``: given a list of ``SeedSequence``
 (one per run of the batch) it returns either an array whose first axis is the run, or a
