@@ -132,3 +132,32 @@ def test_gyro_drift_matches_linear_static_model_24h(lat_deg, att_deg):
     f_s = 1 / float(earth.schuler_period(lat))
     near = lambda f0: spec[np.argmin(np.abs(f - f0))]
     assert near(f_s) > 5 * np.median(spec)
+
+
+def test_row_errors_of_stacked_runs_are_each_runs_nav_errors():
+    """Three solutions stacked along the rows against the truth once: every error of every
+    run is, byte for byte, what nav_errors gives for that run alone; rows that are not
+    whole runs are refused."""
+    import pytest
+
+    from sinslab.core.records import NavSeries
+    from sinslab.nav import compare
+
+    rng = np.random.default_rng(4)
+    M = 7
+    t = np.arange(M) * 1.0
+    att = rng.normal(size=(M, 3)) * [0.1, 0.1, 2.0]
+    truth = NavSeries(t, 0.6 + 1e-4 * rng.normal(size=M), 2.0 + 1e-4 * rng.normal(size=M),
+                      100 + rng.normal(size=M), rng.normal(size=(M, 3)), att)
+    runs = [NavSeries(t, truth.lat + 1e-6 * rng.normal(size=M), truth.lon + 1e-6 * rng.normal(size=M),
+                      truth.h + rng.normal(size=M), truth.vel + 0.1 * rng.normal(size=(M, 3)),
+                      att + 1e-3 * rng.normal(size=(M, 3))) for _ in range(3)]
+    cat = lambda f: np.concatenate([getattr(r, f) for r in runs])  # noqa: E731
+    stacked = NavSeries(np.tile(t, 3), cat("lat"), cat("lon"), cat("h"), cat("vel"), cat("att"))
+    e = compare.row_errors(stacked, truth)
+    for k, r in enumerate(runs):
+        one = compare.nav_errors(r, truth)
+        for name in ("vE", "vN", "vU", "phiE", "phiN", "phiU", "pitch", "roll", "yaw", "north", "east"):
+            assert np.array_equal(e[name][k * M:(k + 1) * M], one[name]), name
+    with pytest.raises(ValueError, match="whole runs"):
+        compare.row_errors(stacked, truth.at(slice(0, 5)))

@@ -748,9 +748,8 @@ def horizontal_errors(nav, truth):
         raise ValueError(f"nav rows {nav.shape} do not match the {M} truth epochs")
     lead = nav.shape[:-2]
     rows = nav.reshape(-1, nav.shape[-1])
-    reps = rows.shape[0] // M
-    tr = truth.at(np.tile(np.arange(M), reps))          # the runs share the truth's epochs
-    e = compare.row_errors(sd.rows_to_series(tr.t, rows), tr, imu_frame=True)
+    t = np.tile(truth.t, rows.shape[0] // M)            # the runs share the truth's epochs
+    e = compare.row_errors(sd.rows_to_series(t, rows), truth, imu_frame=True)
     shape = lead + (M,)
     return (np.stack([e["phiE"], e["phiN"], e["phiU"]], -1).reshape(shape + (3,)),
             np.stack([e["vE"], e["vN"]], -1).reshape(shape + (2,)),

@@ -39,21 +39,30 @@ def nav_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
 
 
 def row_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
-    """:func:`nav_errors` against truth rows given row for row (same length, no matching
-    by time): for solutions of several runs stacked along the rows against the truth
-    repeated, in one pass."""
-    if len(truth) != len(nav):
-        raise ValueError(f"{len(nav)} solution rows against {len(truth)} truth rows")
+    """:func:`nav_errors` against truth rows given row for row (no matching by time).
+
+    ``nav`` may hold several runs stacked along the rows, each on the epochs of ``truth``
+    (``len(nav)`` a multiple of ``len(truth)``): the truth's attitude matrices and radii
+    are computed once and repeated, in one pass over all runs."""
+    m = len(truth)
+    if m == 0 or len(nav) % m:
+        raise ValueError(f"{len(nav)} solution rows are not whole runs of the {m} truth rows")
+    reps = len(nav) // m
+
+    def rep(a):
+        return a if reps == 1 else np.tile(a, (reps,) + (1,) * (a.ndim - 1))
+
     tr = truth
     a_nav = nav.att_imu if (imu_frame and nav.att_imu is not None) else nav.att
     a_tr = tr.att_imu if (imu_frame and tr.att_imu is not None) else tr.att
-    phi = att_.misalignment(att_.euler_to_dcm(a_tr), att_.euler_to_dcm(a_nav))
-    d_att = att_.wrap_pi(a_nav - a_tr)
+    phi = att_.misalignment(rep(att_.euler_to_dcm(a_tr)), att_.euler_to_dcm(a_nav))
+    d_att = att_.wrap_pi(a_nav - rep(a_tr))
     rm, rn = earth.radii(tr.lat, tr.h)
-    dlat = nav.lat - tr.lat
-    dlon = att_.wrap_pi(nav.lon - tr.lon)
-    dv = nav.vel - tr.vel
+    lat = rep(tr.lat)
+    dlat = nav.lat - lat
+    dlon = att_.wrap_pi(nav.lon - rep(tr.lon))
+    dv = nav.vel - rep(tr.vel)
     return {"t": nav.t, "vE": dv[:, 0], "vN": dv[:, 1], "vU": dv[:, 2],
             "phiE": phi[:, 0], "phiN": phi[:, 1], "phiU": phi[:, 2],
             "pitch": d_att[:, 0], "roll": d_att[:, 1], "yaw": d_att[:, 2],
-            "lat": dlat, "lon": dlon, "north": dlat * rm, "east": dlon * rn * np.cos(tr.lat)}
+            "lat": dlat, "lon": dlon, "north": dlat * rep(rm), "east": dlon * rep(rn) * np.cos(lat)}
