@@ -348,17 +348,19 @@ def test_predict_many_with_history_is_predict_step_by_step(m):
     Qs = np.array([Q * (1 + k) for k in range(m)])
     one = KalmanFilter(rng.normal(size=6), P0, history=hist, check=False)
     many = KalmanFilter(one.x.copy(), P0, history=hist, check=False)
-    for f in (one, many):                                 # a stored epoch with an update
+    for f in (one, many):          # a stored epoch with an update and a feedback (c ≠ 0)
         f.predict(Phi, Q, 1.0)
         f.update(np.full(2, 0.1), H, R)
-    sig_one = np.empty((m, 6))
+        f.feedback([0, 1])
+    sig_one, x_one = np.empty((m, 6)), np.empty((m, 6))
     for k in range(m):
         one.predict(Phis[k], Qs[k], 1.0)
-        sig_one[k] = one.sigma
-    sig_many = np.empty((m, 6))
-    many.predict_many(Phis, Qs, 1.0, sigma_out=sig_many)
+        sig_one[k], x_one[k] = one.sigma, one.x
+    sig_many, x_many = np.empty((m, 6)), np.empty((m, 6))
+    many.predict_many(Phis, Qs, 1.0, sigma_out=sig_many, x_out=x_many)
     assert np.array_equal(one.x, many.x) and np.array_equal(one.P, many.P) and np.array_equal(one.c, many.c)
-    assert one.t == many.t and np.array_equal(sig_one, sig_many)
+    assert np.any(many.c != 0)
+    assert one.t == many.t and np.array_equal(sig_one, sig_many) and np.array_equal(x_one, x_many)
     assert len(one._buf) == len(many._buf)
     for a, b in zip(one._buf, many._buf):
         assert a.t == b.t

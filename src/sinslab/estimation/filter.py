@@ -36,6 +36,21 @@ def _predict_many(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out):
 
 
 @njit(cache=True)
+def _predict_dense(x, c, P, Phis, Qs, m, T1, T2, sig_out, x_out):
+    """The first ``m`` steps of :meth:`KalmanFilter.predict`'s arithmetic in one compiled
+    loop: ``P`` by :func:`_cov_predict`, ``x`` and ``c`` by the BLAS product ``Φ @ x``
+    that numpy uses (same bits); σ and x after each step into ``sig_out``, ``x_out``."""
+    n = x.shape[0]
+    for i in range(m):
+        _cov_predict(P, Phis[i], Qs[i], T1, T2)
+        x[:] = Phis[i] @ x
+        c[:] = Phis[i] @ c
+        for j in range(n):
+            sig_out[i, j] = math.sqrt(max(P[j, j], 0.0))
+            x_out[i, j] = x[j]
+
+
+@njit(cache=True)
 def _seq_update(x, P, z, H, r, innov, sdiag, tmp, B):
     """Sequential scalar updates in place; NIS. Returns −1 and leaves x, P alone when some
     z is not finite or some r not > 0 (the caller takes the general path)."""
@@ -251,15 +266,13 @@ class KalmanFilter:
                 if not dt > 0:
                     raise ValueError(f"dt must be > 0, got {dt}")
                 i0 = m - self.history + 1
-                for i in range(i0):
-                    _cov_predict(self.P, Phis[i], Qs[i], self._T1, self._T2)
-                    self.x = Phis[i] @ self.x
-                    self.c = Phis[i] @ self.c
+                so = np.empty((i0, n)) if sigma_out is None else sigma_out
+                xo = np.empty((i0, n)) if x_out is None else x_out
+                # own arrays: x, c may be views held elsewhere (a stored posterior)
+                self.x, self.c = self.x.copy(), self.c.copy()
+                _predict_dense(self.x, self.c, self.P, Phis, Qs, i0, self._T1, self._T2, so, xo)
+                for _ in range(i0):             # the clock as predict advances it
                     self.t += float(dt)
-                    if sigma_out is not None:
-                        sigma_out[i] = self.sigma
-                    if x_out is not None:
-                        x_out[i] = self.x
                 self._buf.clear()
                 self._new_epoch()
             for i in range(i0, m):

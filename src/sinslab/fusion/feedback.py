@@ -156,7 +156,11 @@ class FeedbackLayout:
             if s is None:
                 return None
             v = d[s]
-            return v if v.size == 3 else np.r_[v, 0.0]
+            if v.size == 3:
+                return v
+            w = np.zeros(3)             # a horizontal block: the vertical left alone
+            w[:v.size] = v
+            return w
 
         sd.correct(state, phi=three(self.att), dvel=three(self.vel), dpos=three(self.pos))
         gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=float).copy()
