@@ -104,6 +104,34 @@ def test_bad_input_is_a_clear_error(bad):
     assert any(w in msg for w in ("P0", "Q", "R", "H", "z", "P")), msg
 
 
+@pytest.mark.parametrize("d", [[1.0, 2.0], [1.0, 0.0], [1.0, -1e-12], [1.0, -1.0], [4.0, 1e-12, 3.0],
+                               [0.0, 0.0], [2.0, -1e-10, 1.0]])
+@pytest.mark.parametrize("definite", [False, True])
+def test_check_covariance_of_a_diagonal_decides_as_its_eigenvalues(d, definite):
+    """A diagonal matrix is checked from its diagonal (its eigenvalues) without LAPACK:
+    the same accept/refuse decision as for the same matrix in a rotated basis, whose
+    eigenvalues come from eigvalsh, and the same returned matrix."""
+    from sinslab.estimation.kalman import check_covariance
+
+    D = np.diag(d)
+    th = 0.3
+    U = np.eye(len(d))
+    U[:2, :2] = [[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]]
+    M = U @ D @ U.T
+    M = 0.5 * (M + M.T)
+
+    def decision(A):
+        try:
+            return check_covariance(A, definite=definite)
+        except ValueError:
+            return None
+
+    a, b = decision(D), decision(M)
+    assert (a is None) == (b is None)
+    if a is not None:
+        assert np.array_equal(a, D)
+
+
 # --- compiled loops -------------------------------------------------------------------
 def _python_loop(x0, P0, Phis, Qs, H, R, z, mask):
     x, P = x0.copy(), P0.copy()

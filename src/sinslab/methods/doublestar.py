@@ -598,10 +598,13 @@ class StoredStateUpdate:
         """Apply the lagged fix to ``filt`` (a :class:`sinslab.estimation.filter.KalmanFilter`
         with history); ``F``, ``Qc`` (n, n): continuous model at ``t_m``. Returns the
         :class:`~sinslab.estimation.kalman.UpdateResult` of the update at ``t_m``."""
-        from sinslab.estimation.kalman import discretize, update
+        from sinslab.estimation.kalman import update, van_loan
 
         if F is None or Qc is None:
             raise ValueError("the stored-state update needs F and Qc (continuous model at t_m)")
+        F = np.asarray(F, dtype=float)
+        # the driver's own model: symmetrised as discretize would, without its validation
+        Qc = 0.5 * (np.asarray(Qc, dtype=float) + np.asarray(Qc, dtype=float).T)
         j = filt.find_epoch(t_m, tol, exact=False)
         e = filt.stored_epoch(j)
         x_post, P_post, c_post = filt.posterior_at(j)
@@ -610,18 +613,18 @@ class StoredStateUpdate:
         xff = x_post + c_post
         tau = max(t_m - e.t, 0.0)
         if tau > 0:
-            Phi1, Q1 = discretize(F, Qc, tau)
+            Phi1, Q1 = van_loan(F, Qc, tau)
             xff = Phi1 @ xff
             P = Phi1 @ P_post @ Phi1.T + Q1
         else:
             P = P_post.copy()
         # the measurement was formed from the navigation state at t_m, which carried the
         # cumulative feedback of epoch j propagated to t_m
-        c_m = (discretize(F, np.zeros_like(F), tau)[0] @ c_post) if tau > 0 else c_post
+        c_m = (van_loan(F, np.zeros_like(F), tau)[0] @ c_post) if tau > 0 else c_post
         res = update(xff, 0.5 * (P + P.T), z + Hm @ c_m, Hm, R, mask=mask, sequential=sequential)
         dT = filt.t - t_m
         if dT > 0:
-            Phi2, Q2 = discretize(F, Qc, dT)
+            Phi2, Q2 = van_loan(F, Qc, dT)
             xff = Phi2 @ res.x
             P = Phi2 @ res.P @ Phi2.T + Q2
         else:
