@@ -557,7 +557,7 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
     ab_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
     sc_h = [np.zeros((n_ep + 1, 6)) if (lv and scaled) else None for lv in live]
     F_h = np.empty((n_ep, n, n)) if keep_F else None
-    Qc_h = np.empty((n_ep, n, n)) if keep_F else None
+    G_h = np.empty((n_ep, n, model.q.size)) if keep_F else None
     for i, s in enumerate(streams):
         r0, w0, f0 = s.row0()
         nav_h[i][0] = r0
@@ -625,7 +625,7 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                     F, G, Phi_la, Q_la = _model_stretch(model, prog, pts, q, T, discretization)
                 if keep_F:
                     F_h[la0:la_end] = F
-                    Qc_h[la0:la_end] = (G * q) @ np.swapaxes(G, -1, -2)
+                    G_h[la0:la_end] = G
             if fused:
                 cprop.predict(filt, stretch, e0 - la0, e1 - la0, T, sig_h[e0 + 1:e1 + 1],
                               x_h[e0 + 1:e1 + 1])
@@ -660,7 +660,13 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                     r = meas.matrices(ep)
                     if r is None:
                         continue
-                    kw = dict(F=F_h[ev], Qc=Qc_h[ev]) if keep_F else {}
+                    if keep_F:
+                        # Qc = G diag(q) Gᵀ of the validity epoch only (a one-matrix stack:
+                        # the arithmetic of forming it for the whole stretch)
+                        g = G_h[ev:ev + 1]
+                        kw = dict(F=F_h[ev], Qc=((g * q) @ np.swapaxes(g, -1, -2))[0])
+                    else:
+                        kw = {}
                     res = lag.update(filt, *r, t_rel[ev], tol=lag_tol, **kw)
                     ev_min = ev if ev_min is None else min(ev_min, ev)
                 else:
