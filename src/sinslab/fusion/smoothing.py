@@ -54,7 +54,7 @@ import numpy as np
 from numba import njit
 
 from sinslab.core import attitude as A
-from sinslab.estimation.linear import _cov_predict, _sparsity_nb, _state_predict
+from sinslab.estimation.linear import _copy2, _cov_predict, _sparsity_nb, _state_predict
 from sinslab.estimation.smoother import rts_smooth
 
 __all__ = ["History", "SmoothedRun", "smooth", "correct_rows", "interpolate_rows"]
@@ -64,10 +64,10 @@ __all__ = ["History", "SmoothedRun", "smooth", "correct_rows", "interpolate_rows
 def _compose(acc, nacc, Phi, W):
     """acc <- Phi acc (acc <- Phi for the first step since a stored epoch)."""
     if nacc == 0:
-        acc[:, :] = Phi
+        _copy2(acc, Phi)
     else:
         np.dot(Phi, acc, W)
-        acc[:, :] = W
+        _copy2(acc, W)
 
 
 @njit(cache=True)
