@@ -619,7 +619,9 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
                         la_rows, w_la, f_la = rows[i][:-1], ws, fs
                     pts.append((la_rows, w_la, f_la))
                 if fused:
-                    stretch = tuple(np.ascontiguousarray(np.stack([p[c] for p in pts]))
+                    # (k, S, ·) per quantity; one stream: a view, no copy
+                    stretch = tuple(np.ascontiguousarray(pts[0][c][None] if ns == 1
+                                                         else np.stack([p[c] for p in pts]))
                                     for c in range(3))
                 else:
                     F, G, Phi_la, Q_la = _model_stretch(model, prog, pts, q, T, discretization)
