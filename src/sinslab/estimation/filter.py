@@ -274,7 +274,8 @@ class KalmanFilter:
                 i0 = m - self.history + 1
                 so = np.empty((i0, n)) if sigma_out is None else sigma_out
                 xo = np.empty((i0, n)) if x_out is None else x_out
-                # own arrays: x, c may be views held elsewhere (a stored posterior)
+                # stepped in place: new arrays first, as predict makes, since the old
+                # ones may still be referenced (posterior_at returns them)
                 self.x, self.c = self.x.copy(), self.c.copy()
                 _predict_dense(self.x, self.c, self.P, Phis, Qs, i0, self._T1, self._T2, so, xo)
                 for _ in range(i0):             # the clock as predict advances it

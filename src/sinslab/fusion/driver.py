@@ -56,8 +56,8 @@ Per block ``[e0, e1]``:
    * late (``e_v < e1``): compared with the rows of ``e_v`` — before the feedback of
      ``e_v`` or after it, as the lag policy says — at ``t_ev``, and applied by the lag
      policy (``policy.update``; default :class:`~sinslab.fusion.lag.ExactReprocessing`;
-     a policy may also need the continuous model ``F, Qc`` of ``e_v``, which the driver
-     then keeps for every epoch).
+     a policy may also need the continuous model ``F, Qc`` of ``e_v``: the driver then
+     keeps ``F`` and ``G`` of every epoch and forms ``Qc = G diag(q) Gᵀ`` at ``e_v``).
 
 5. Feedback. If a measurement arrived at ``e1`` and feedback layouts are given, each
    (stream, :class:`~sinslab.fusion.feedback.FeedbackLayout`) pair takes its states out
