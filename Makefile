@@ -9,11 +9,9 @@ $(BIN)/python:
 	@command -v $(PY) >/dev/null 2>&1 || { echo "need $(PY) on PATH (or: make PY=python3)"; exit 2; }
 	$(PY) -m venv $(VENV)
 
-# --no-compile: Python writes the bytecode of the modules it imports on first use;
-# byte-compiling every installed package up front took ~30 s of a ~45 s install
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q --no-compile -e ".[dev]"
+	$(BIN)/python -m pip install -q -e ".[dev]"
 	@touch $(STAMP)
 
 demo: $(STAMP)
