@@ -82,10 +82,8 @@ def check_covariance(M, name="P", *, definite=False, rtol=1e-9):
     Ms = 0.5 * (M + M.T)
     if M.size == 0:
         return Ms
-    off = Ms.copy()
-    np.fill_diagonal(off, 0.0)
     # a diagonal matrix (a typical R or Q) has its diagonal as eigenvalues: no LAPACK call
-    w = np.sort(Ms.diagonal()) if not off.any() else np.linalg.eigvalsh(Ms)
+    w = np.sort(Ms.diagonal()) if _is_diag(Ms) else np.linalg.eigvalsh(Ms)
     wmax = max(float(np.max(np.abs(w))), 1e-300)
     if definite:
         if w[0] <= rtol * wmax or scale == 0.0:

@@ -344,17 +344,31 @@ def mc_run(seed, spec):
     ``spec["out_every"]`` updates, (T, 9): position E, N, U [m], velocity E, N, U [m/s],
     misalignment φ E, N, U [rad] (``attitude.misalignment`` of the IMU frame).
     """
-    from sinslab.core.attitude import euler_to_dcm, misalignment
-
     S = _mc_setup(spec)
     nav = _mc_navigate(*_mc_inputs(np.random.default_rng(seed), spec, S), spec, S, None)
-    e = np.empty((S["t"].size, 9))
-    e[:, 0] = _wrap(nav.lon - S["lon"]) * S["rn"] * np.cos(S["lat"])
-    e[:, 1] = (nav.lat - S["lat"]) * S["rm"]
-    e[:, 2] = nav.h - S["h"]
-    e[:, 3:6] = nav.vel - S["vel"]
-    e[:, 6:9] = misalignment(S["C"], euler_to_dcm(nav.att_imu if nav.att_imu is not None else nav.att))
-    return e
+    return _mc_errors(_mc_rows(nav), S)
+
+
+def _mc_rows(nav):
+    """A run's output as rows (M, 9): lon, lat, h, velocity, attitude (IMU frame)."""
+    r = np.empty((nav.t.size, 9))
+    r[:, 0], r[:, 1], r[:, 2], r[:, 3:6] = nav.lon, nav.lat, nav.h, nav.vel
+    r[:, 6:9] = nav.att_imu if nav.att_imu is not None else nav.att
+    return r
+
+
+def _mc_errors(rows, S):
+    """Errors (..., M, 9) of :func:`mc_run` from rows (..., M, 9) of :func:`_mc_rows`
+    (one run or several stacked in front), element by element against the truth."""
+    from sinslab.core.attitude import euler_to_dcm, misalignment
+
+    out = np.empty(rows.shape)
+    out[..., 0] = _wrap(rows[..., 0] - S["lon"]) * S["rn"] * np.cos(S["lat"])
+    out[..., 1] = (rows[..., 1] - S["lat"]) * S["rm"]
+    out[..., 2] = rows[..., 2] - S["h"]
+    out[..., 3:6] = rows[..., 3:6] - S["vel"]
+    out[..., 6:9] = misalignment(S["C"], euler_to_dcm(rows[..., 6:9]))
+    return out
 
 
 def mc_batch(seeds, spec):
@@ -370,23 +384,11 @@ def mc_batch(seeds, spec):
     dict
         ``err`` (B, T, 9): the errors of :func:`mc_run`.
     """
-    from sinslab.core.attitude import euler_to_dcm, misalignment
-
     S = _mc_setup(spec)
-    B, M = len(seeds), S["t"].size
-    navs = np.empty((B, M, 9))               # lon, lat, h, velocity, attitude (IMU frame)
-    for b, seed in enumerate(seeds):
-        nav = _mc_navigate(*_mc_inputs(np.random.default_rng(seed), spec, S), spec, S, S["vup"])
-        r = navs[b]
-        r[:, 0], r[:, 1], r[:, 2], r[:, 3:6] = nav.lon, nav.lat, nav.h, nav.vel
-        r[:, 6:9] = nav.att_imu if nav.att_imu is not None else nav.att
-    out = np.empty((B, M, 9))
-    out[..., 0] = _wrap(navs[..., 0] - S["lon"]) * S["rn"] * np.cos(S["lat"])
-    out[..., 1] = (navs[..., 1] - S["lat"]) * S["rm"]
-    out[..., 2] = navs[..., 2] - S["h"]
-    out[..., 3:6] = navs[..., 3:6] - S["vel"]
-    out[..., 6:9] = misalignment(S["C"], euler_to_dcm(navs[..., 6:9]))
-    return {"err": out}
+    rows = np.stack([_mc_rows(_mc_navigate(*_mc_inputs(np.random.default_rng(seed), spec, S), spec, S,
+                                           S["vup"]))
+                     for seed in seeds])
+    return {"err": _mc_errors(rows, S)}
 
 
 def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):

@@ -603,8 +603,9 @@ class StoredStateUpdate:
         if F is None or Qc is None:
             raise ValueError("the stored-state update needs F and Qc (continuous model at t_m)")
         F = np.asarray(F, dtype=float)
+        Qc = np.asarray(Qc, dtype=float)
         # the driver's own model: symmetrised as discretize would, without its validation
-        Qc = 0.5 * (np.asarray(Qc, dtype=float) + np.asarray(Qc, dtype=float).T)
+        Qc = 0.5 * (Qc + Qc.T)
         j = filt.find_epoch(t_m, tol, exact=False)
         e = filt.stored_epoch(j)
         x_post, P_post, c_post = filt.posterior_at(j)

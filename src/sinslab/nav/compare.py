@@ -52,16 +52,15 @@ def row_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
     def rep(a):
         return a if reps == 1 else np.tile(a, (reps,) + (1,) * (a.ndim - 1))
 
-    tr = truth
     a_nav = nav.att_imu if (imu_frame and nav.att_imu is not None) else nav.att
-    a_tr = tr.att_imu if (imu_frame and tr.att_imu is not None) else tr.att
+    a_tr = truth.att_imu if (imu_frame and truth.att_imu is not None) else truth.att
     phi = att_.misalignment(rep(att_.euler_to_dcm(a_tr)), att_.euler_to_dcm(a_nav))
     d_att = att_.wrap_pi(a_nav - rep(a_tr))
-    rm, rn = earth.radii(tr.lat, tr.h)
-    lat = rep(tr.lat)
+    rm, rn = earth.radii(truth.lat, truth.h)
+    lat = rep(truth.lat)
     dlat = nav.lat - lat
-    dlon = att_.wrap_pi(nav.lon - rep(tr.lon))
-    dv = nav.vel - rep(tr.vel)
+    dlon = att_.wrap_pi(nav.lon - rep(truth.lon))
+    dv = nav.vel - rep(truth.vel)
     return {"t": nav.t, "vE": dv[:, 0], "vN": dv[:, 1], "vU": dv[:, 2],
             "phiE": phi[:, 0], "phiN": phi[:, 1], "phiU": phi[:, 2],
             "pitch": d_att[:, 0], "roll": d_att[:, 1], "yaw": d_att[:, 2],
