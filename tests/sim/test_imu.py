@@ -467,6 +467,79 @@ def test_fast_paths_give_the_general_kernels_bytes(kw):
     assert fast.dv.tobytes() == general.dv.tobytes()
 
 
+@pytest.mark.parametrize("kind", ["white", "mixed"])
+def test_apply_arrays_shared_gives_each_model_its_bytes(kind):
+    """Several error models on one random stream: model j gets exactly what
+    ``apply_arrays`` gives it from the same generator state, and the generator ends where
+    one such call leaves it. "white": bias + white noise at several β (one draw shared by
+    all, the shared kernel); "mixed": a Gauss-Markov model and, last, one without random
+    terms among them (applied one after another from the same state)."""
+    import unittest.mock
+
+    from sinslab.sim import imu as imu_mod
+    from sinslab.sim.imu import apply_arrays, apply_arrays_shared
+
+    base = ImuErrors(gyro_bias=np.full(3, 1e-7), accel_bias=np.full(3, 1e-4), gyro_arw=np.full(3, 1e-6),
+                     accel_vrw=np.full(3, 1e-4))
+    models = [base.with_noise_scale(gyro=b) for b in (0.8, 1.0, 1.5)] + [base.replace(gyro_bias=np.full(3, -2e-7))]
+    if kind == "mixed":
+        models.append(base.replace(gyro_bias_instability=np.full(3, 1e-7), gyro_corr_time=np.full(3, 50.0)))
+        models.append(base.with_noise_scale(gyro=0.0, accel=0.0))      # no random term (last)
+    rng = np.random.default_rng(3)
+    dth = rng.standard_normal((1500, 3)) * 1e-4
+    dv = rng.standard_normal((1500, 3)) * 1e-2
+    dt = 0.01
+    t = 2.0 + dt * np.arange(1, 1501)
+    used = []
+    real = imu_mod._kernel_white_all_shared
+
+    def spy(*a):
+        used.append(True)
+        return real(*a)
+
+    g = np.random.default_rng(9)
+    with unittest.mock.patch.object(imu_mod, "_kernel_white_all_shared", spy):
+        out = (np.empty((len(models), 1500, 3)), np.empty((len(models), 1500, 3)))
+        got = apply_arrays_shared(dth, dv, t, dt, models, g, out=out)
+    assert bool(used) == (kind == "white")
+    assert got[0] is out[0] and got[1] is out[1]
+    for j, e in enumerate(models):
+        ref = apply_arrays(dth, dv, t, dt, e, np.random.default_rng(9))
+        assert got[0][j].tobytes() == ref[0].tobytes() and got[1][j].tobytes() == ref[1].tobytes()
+    one = np.random.default_rng(9)
+    apply_arrays(dth, dv, t, dt, models[0], one)
+    assert g.integers(0, 2**63, 4).tolist() == one.integers(0, 2**63, 4).tolist()
+    with pytest.raises(ValueError, match="out must be"):
+        apply_arrays_shared(dth, dv, t, dt, models, 1, out=(out[0][:, :10], out[1]))
+    with pytest.raises(ValueError, match="at least one"):
+        apply_arrays_shared(dth, dv, t, dt, [], 1)
+
+
+def test_trend_skips_axes_without_terms_to_the_bit():
+    """Trend.evaluate against the three-axis formula ramp·s + A_e(1 − e^(−s/τ)) +
+    A_s sin(2πs/P + φ) evaluated on every axis: equal bytes for random trends with axes
+    off (including signed zeros, phases on silent axes, s ≤ 0)."""
+    def every_axis(tr, s):
+        s = np.asarray(s, dtype=float)[..., None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            e = np.where(tr.exp_amplitude != 0, tr.exp_amplitude * -np.expm1(-s / tr.exp_time), 0.0)
+            w = np.where(tr.sin_amplitude != 0, 2 * np.pi / tr.sin_period, 0.0)
+        return tr.ramp * s + e + tr.sin_amplitude * np.sin(w * s + tr.sin_phase)
+
+    rng = np.random.default_rng(1)
+    s = np.r_[-5.0, -0.0, 0.0, rng.uniform(-10, 1e5, 400)]
+    for _ in range(200):
+        on = rng.random((3, 3)) < 0.4
+        tr = Trend(ramp=np.where(on[0], rng.standard_normal(3) * 1e-9, rng.choice([0.0, -0.0], 3)),
+                   exp_amplitude=np.where(on[1], rng.standard_normal(3) * 1e-7, 0.0),
+                   exp_time=np.where(on[1], rng.uniform(10, 1e4, 3), rng.choice([math.inf, 100.0], 3)),
+                   sin_amplitude=np.where(on[2], rng.standard_normal(3) * 1e-7, 0.0),
+                   sin_period=np.where(on[2], rng.uniform(10, 1e5, 3), rng.choice([math.inf, 50.0], 3)),
+                   sin_phase=rng.choice([0.0, -0.0, 1.0, -2.5], 3))
+        assert tr.evaluate(s).tobytes() == every_axis(tr, s).tobytes()
+    assert Trend().evaluate(s).shape == (s.size, 3) and not Trend().evaluate(s).any()
+
+
 @pytest.mark.parametrize("kind", ["white", "full"])
 def test_apply_arrays_gives_the_bytes_of_apply(kind):
     """Two entry points of one error model: ``apply_arrays`` on bare arrays equals

@@ -74,7 +74,8 @@ from sinslab.sim._rng import _kernel_state, _normal, _rng
 from sinslab.core.errors import InputError
 
 __all__ = [
-    "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_arrays", "apply_batch", "noise_increments",
+    "ImuErrors", "Trend", "RecordedNoise", "apply", "apply_arrays", "apply_arrays_shared", "apply_batch",
+    "noise_increments",
     "gm_allan_deviation", "gm_sigma_from_allan_floor", "GM_ALLAN_PEAK", "GM_ALLAN_PEAK_TAU",
 ]
 
@@ -228,13 +229,22 @@ class Trend:
                     or (self.sin_amplitude != 0).any())
 
     def evaluate(self, s):
-        """Bias drift at times ``s`` [s since record start], shape ``(..., 3)``."""
+        """Bias drift at times ``s`` [s since record start], shape ``(..., 3)``.
+
+        ``ramp·s + exp_amplitude·(1 − exp(−s/exp_time)) + sin_amplitude·sin(2π s/sin_period
+        + sin_phase)`` per axis. An axis with no term is exactly +0 and is not evaluated
+        (a trend on one gyro costs a third of three)."""
         s = np.asarray(s, dtype=float)[..., None]
+        out = np.zeros(s.shape[:-1] + (3,))
+        ax = (self.ramp != 0) | (self.exp_amplitude != 0) | (self.sin_amplitude != 0)
+        if not ax.any():
+            return out
+        ea, sa = self.exp_amplitude[ax], self.sin_amplitude[ax]
         with np.errstate(invalid="ignore", divide="ignore"):
-            e = np.where(self.exp_amplitude != 0,
-                         self.exp_amplitude * -np.expm1(-s / self.exp_time), 0.0)
-            w = np.where(self.sin_amplitude != 0, 2 * np.pi / self.sin_period, 0.0)
-        return self.ramp * s + e + self.sin_amplitude * np.sin(w * s + self.sin_phase)
+            e = np.where(ea != 0, ea * -np.expm1(-s / self.exp_time[ax]), 0.0)
+            w = np.where(sa != 0, 2 * np.pi / self.sin_period[ax], 0.0)
+        out[..., ax] = self.ramp[ax] * s + e + sa * np.sin(w * s + self.sin_phase[ax])
+        return out
 
     @classmethod
     def from_dict(cls, d, sensor="gyro", prefix=None):
@@ -818,10 +828,37 @@ def _kernel_white_all(dth, dv, state, bias_dt, wsig, out_dth, out_dv):
         out_dv[k, 2] = dv[k, 2] + (b5 + w5 * z)
 
 
-def _run(dth, dv, tend, t0, dt, errors: ImuErrors, rng, out_dth, out_dv):
+@njit(cache=True, nogil=True)
+def _kernel_white_all_shared(dth, dv, state, bias_dt, wsig, out_dth, out_dv):
+    """:func:`_kernel_white_all` for V error models on one random stream: ``bias_dt``,
+    ``wsig`` (V, 6), ``out_dth``, ``out_dv`` (V, n, 3). Each normal is drawn once and used
+    by every model with the single kernel's arithmetic ``x + (b + σ·z)``, so model j gets
+    the bytes :func:`_kernel_white_all` gives it from the same state."""
+    n = dth.shape[0]
+    V = bias_dt.shape[0]
+    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+    for k in range(n):
+        for c in range(6):
+            z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+            if c < 3:
+                x = dth[k, c]
+                for j in range(V):
+                    out_dth[j, k, c] = x + (bias_dt[j, c] + wsig[j, c] * z)
+            else:
+                x = dv[k, c - 3]
+                for j in range(V):
+                    out_dv[j, k, c - 3] = x + (bias_dt[j, c] + wsig[j, c] * z)
+
+
+def _prepare(errors: ImuErrors, dt, n):
+    """The kernel that applies ``errors`` at interval ``dt`` [s] to n samples and its
+    parameters: ``(path, params, random)``. ``path`` is ``"white_all"``
+    (:func:`_kernel_white_all`), ``"white"`` (:func:`_kernel_white`) or ``"general"``
+    (:func:`_kernel`); ``params`` the arguments between the generator state and the
+    outputs (after ``tend, t0, dt`` for the general kernel); ``random``: some random term
+    is active, so the kernel's generator state is drawn."""
     if not isinstance(errors, ImuErrors):
         raise ValueError(f"errors must be an ImuErrors, got {type(errors).__name__}")
-    n = dth.shape[0]
     e = errors
     K = np.empty((2, 3, 3))
     for s_i, s in enumerate(_SENSORS):
@@ -875,16 +912,25 @@ def _run(dth, dv, tend, t0, dt, errors: ImuErrors, rng, out_dth, out_dv):
     else:
         gain, rec_g, rec_a, rec_n = np.zeros(6), dummy, dummy, 1
 
-    state = _kernel_state(rng) if (wact.any() or gact.any() or ract.any()) else np.ones(4, np.uint64)
+    random = bool(wact.any() or gact.any() or ract.any())
     if not (gact.any() or ract.any() or has_trend or rn is not None):
         if not use_k and wact.all():
-            _kernel_white_all(dth, dv, state, bias_dt, wsig, out_dth, out_dv)
-            return
-        _kernel_white(dth, dv, state, K, use_k, bias_dt, wsig, wact, out_dth, out_dv)
-        return
-    _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, bi, gphi, gdrv, gact,
-            rstep, ract, has_trend, tr_ramp, tr_ea, tr_et, tr_esh, tr_sa, tr_sw, tr_ssh, tr_sp,
-            rn is not None, rec_g, rec_a, gain, rec_n, out_dth, out_dv)
+            return "white_all", (bias_dt, wsig), random
+        return "white", (K, use_k, bias_dt, wsig, wact), random
+    return "general", (K, use_k, bias_dt, wsig, wact, bi, gphi, gdrv, gact, rstep, ract, has_trend,
+                       tr_ramp, tr_ea, tr_et, tr_esh, tr_sa, tr_sw, tr_ssh, tr_sp, rn is not None,
+                       rec_g, rec_a, gain, rec_n), random
+
+
+def _run(dth, dv, tend, t0, dt, errors: ImuErrors, rng, out_dth, out_dv):
+    path, params, random = _prepare(errors, dt, dth.shape[0])
+    state = _kernel_state(rng) if random else np.ones(4, np.uint64)
+    if path == "white_all":
+        _kernel_white_all(dth, dv, state, *params, out_dth, out_dv)
+    elif path == "white":
+        _kernel_white(dth, dv, state, *params, out_dth, out_dv)
+    else:
+        _kernel(dth, dv, tend, t0, dt, state, *params, out_dth, out_dv)
 
 
 _RECORD_FIELDS = ("t", "dtheta", "dv", "dt", "rel_tol")
@@ -960,6 +1006,70 @@ def apply_arrays(dtheta, dv, t, dt, errors: ImuErrors, seed):
     out_dth = np.empty((n, 3))
     out_dv = np.empty((n, 3))
     _run(dtheta, dv, t, float(t[0] - dt), float(dt), errors, _rng(seed), out_dth, out_dv)
+    return out_dth, out_dv
+
+
+def apply_arrays_shared(dtheta, dv, t, dt, errors, seed, *, out=None):
+    """:func:`apply_arrays` for several error models driven by one random stream — the
+    same noise realisation at several noise scales β or biases (paper 001's INS #2 at
+    each β), or with and without a term that draws nothing (a trend).
+
+    Model j gets the bytes of ``apply_arrays(dtheta, dv, t, dt, errors[j], g)`` with ``g``
+    in the state ``seed`` has now, and the generator is left as such a call leaves it
+    (models with a random term all advance it alike; a model without one leaves it).
+    Models of constant bias and white noise on all six channels (no scale factor or
+    misalignment) share each normal draw, which is most of the cost; other models are
+    applied one after another from the same generator state.
+
+    Parameters
+    ----------
+    dtheta, dv : array (n, 3)
+        True increments [rad], [m/s] (IMU body frame).
+    t : array (n,)
+        End time of each interval [s], regular with step ``dt`` (not checked).
+    dt : float
+        Sampling interval [s].
+    errors : sequence of ImuErrors
+        V >= 1 models.
+    seed : int or numpy.random.Generator
+    out : (ndarray, ndarray), optional
+        Two C-contiguous float arrays (V, n, 3) to write the result into (a caller going
+        through a long record chunk by chunk reuses them instead of new pages per chunk).
+
+    Returns
+    -------
+    dtheta, dv : ndarray (V, n, 3)
+    """
+    errors = list(errors)
+    if not errors:
+        raise ValueError("apply_arrays_shared needs at least one error model")
+    dtheta = np.ascontiguousarray(dtheta, dtype=float)
+    dv = np.ascontiguousarray(dv, dtype=float)
+    t = np.asarray(t, dtype=float)
+    n = dtheta.shape[0]
+    rng = _rng(seed)
+    if out is None:
+        out_dth, out_dv = np.empty((len(errors), n, 3)), np.empty((len(errors), n, 3))
+    else:
+        out_dth, out_dv = out
+        for a in out:
+            if (not isinstance(a, np.ndarray) or a.shape != (len(errors), n, 3) or a.dtype != np.float64
+                    or not a.flags.c_contiguous):
+                raise ValueError(f"out must be two C-contiguous float64 arrays of shape {(len(errors), n, 3)}")
+    prep = [_prepare(e, float(dt), n) for e in errors]
+    if all(path == "white_all" for path, _, _ in prep):
+        bias_dt = np.stack([p[0] for _, p, _ in prep])
+        wsig = np.stack([p[1] for _, p, _ in prep])
+        _kernel_white_all_shared(dtheta, dv, _kernel_state(rng), bias_dt, wsig, out_dth, out_dv)
+        return out_dth, out_dv
+    start = rng.bit_generator.state
+    end = start
+    for j, ((_, _, random), e) in enumerate(zip(prep, errors)):
+        rng.bit_generator.state = start
+        _run(dtheta, dv, t, float(t[0] - dt), float(dt), e, rng, out_dth[j], out_dv[j])
+        if random:                  # every model with a random term draws the same four words
+            end = rng.bit_generator.state
+    rng.bit_generator.state = end
     return out_dth, out_dv
 
 
