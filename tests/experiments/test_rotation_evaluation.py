@@ -119,6 +119,38 @@ def test_recorded_constant_record_is_a_gyro_bias(tmp_path):
     np.testing.assert_allclose(a.omega, b.omega, rtol=0, atol=1e-15)
 
 
+@pytest.mark.parametrize("mode", ["serial", "threads", "processes"])
+def test_grouped_navigation_equals_one_ins_at_a_time(mode):
+    """INS sharing a cycle and a random stream (INS #2 at several β, INS #1 with and without
+    the trend, one on recorded noise) are navigated as groups that draw the noise once and
+    tile the cycle once per chunk; every INS gets the bytes it gets navigated alone, also
+    across a short last chunk, in this process or on worker processes (where a group's INS
+    must still share their cycle)."""
+    lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
+    m1, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
+    c1, ck = R.one_cycle(m1, lat, lon, dt), R.one_cycle(mk, lat, lon, dt)
+    n_steps, k_kf = 23, 600
+    white = imu_.ImuErrors(gyro_bias=np.full(3, 1e-8), accel_bias=np.full(3, 2e-4), gyro_arw=np.full(3, 3e-7),
+                           accel_vrw=np.full(3, 5e-5))
+    trend = imu_.Trend(ramp=np.array([0.0, 0.0, 1e-12]), sin_amplitude=np.array([0.0, 0.0, 2e-9]),
+                       sin_period=np.array([math.inf, math.inf, 3000.0]))
+    rec = np.random.default_rng(5).standard_normal((4000, 3)) * 1e-7
+    specs = {"one": R.InsSpec("1", c1, white, (1,)),
+             "one_trend": R.InsSpec("1t", c1, white, (1,), trend),
+             **{f"b{b:g}": R.InsSpec("2", ck, white.with_noise_scale(gyro=b), (2,)) for b in (0.8, 1.0, 1.5)},
+             "b0": R.InsSpec("2z", ck, white.with_noise_scale(gyro=0.0), (2,)),
+             "rec": R.InsSpec("r", ck, white.replace(gyro_arw=np.zeros(3)), (3,), None, (rec, 17), 1.2),
+             "rec2": R.InsSpec("r2", ck, white.replace(gyro_arw=np.zeros(3)), (3,), None, (rec, 17), 0.7)}
+    kw = dict(seed=4, lat=lat, lon=lon, dt=dt, n_steps=n_steps, k_kf=k_kf, nsub=2, att_sigma=np.full(3, 1e-4),
+              chunk_steps=5, rates=True)
+    assert sorted(map(len, R._groups(specs)), reverse=True) == [4, 2, 2]
+    got = R.navigate_many(specs, kw, mode, 2)
+    for k, spec in specs.items():
+        alone = R.navigate_chunked(spec, **kw)
+        for name in ("rows", "omega", "f", "pos_err_m"):
+            assert getattr(got[k], name).tobytes() == getattr(alone, name).tobytes(), (k, name)
+
+
 @pytest.mark.parametrize("scheme, rank", [("dual_axis_16", 13), ("roll_flip", 12), ("azimuth_flip", 12)])
 def test_schedule_rank_and_warning(scheme, rank):
     """The paper's schedule reaches rank 13; INS k flipping about one axis only stays at 12

@@ -11,9 +11,12 @@ Long runs are generated and navigated in chunks: with the carrier at rest the tr
 increments repeat exactly with the mechanism's cycle, so one cycle is synthesised per
 scheme and tiled; each INS adds its own errors chunk by chunk (one random stream per INS,
 so a rescaled noise record is the same record) and keeps its output at the filter rate
-only. The INS are independent and navigated concurrently (``compute.navigation``: Dask
-threads by default — the compiled kernels release the GIL — or a Dask cluster of
-processes); the outputs do not depend on the mode. The joint filters are feed-forward on those outputs, with the model chained from
+only. INS on the same stream (INS #2 at every β, INS #1 with and without its trend) are
+navigated as one group whose noise is drawn once per chunk for all of them
+(:func:`sinslab.sim.imu.apply_arrays_shared`); the groups are independent and navigated
+concurrently (``compute.navigation``: Dask threads by default — the compiled kernels
+release the GIL — or a Dask cluster of processes); the outputs do not depend on the
+grouping or the mode. The joint filters are feed-forward on those outputs, with the model chained from
 ``filter.model_dt`` sub-steps per measurement: by default (``filter.engine = "schedule"``)
 linearised along the known schedule, one transition table shared by every filter, in a
 compiled loop (:func:`sinslab.methods.rotins.joint_filter_linear`); with ``"driver"`` the
@@ -373,18 +376,21 @@ class InsOutput:
     pos_err_m: np.ndarray       # (M,) horizontal position error [m]
 
 
-def _tile(a, i0, L):
-    """Rows ``i0 .. i0+L−1`` of the periodic repetition of ``a`` (slices, no index array)."""
+def _tile(a, i0, L, out=None):
+    """Rows ``i0 .. i0+L−1`` of the periodic repetition of ``a`` (slices, no index array):
+    a view when they do not wrap, else copied into ``out`` (rows ≥ L) or a new array."""
     N = a.shape[0]
     j = i0 % N
     if j + L <= N:
         return a[j:j + L]
-    parts = [a[j:]]
-    left = L - (N - j)
-    while left > 0:
-        parts.append(a[:min(N, left)])
-        left -= N
-    return np.concatenate(parts)
+    res = np.empty((L,) + a.shape[1:], a.dtype) if out is None else out[:L]
+    k = min(L, N - j)
+    res[:k] = a[j:j + k]
+    while k < L:
+        m = min(N, L - k)
+        res[k:k + m] = a[:m]
+        k += m
+    return res
 
 
 def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps=360,
@@ -396,57 +402,111 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
     integrated over each sample from the start of the run. ``rates=False`` skips the mean
     rates per output step (only the fusion driver needs them).
     """
+    return navigate_group([spec], seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps, rates)[0]
+
+
+def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps=360, rates=True):
+    """:func:`navigate_chunked` for INS that share their cycle and their random stream
+    (INS #2 at every β; INS #1 with and without the trend): the cycle is tiled once per
+    chunk and the noise drawn once for all of them
+    (:func:`sinslab.sim.imu.apply_arrays_shared`); each INS keeps its own errors, extras
+    and navigation state. Output ``[InsOutput]`` in the order of ``specs``, each with the
+    bytes :func:`navigate_chunked` gives it alone.
+    """
     from sinslab.core import attitude as A
     from sinslab.core import earth
     from sinslab.core.records import NavState
     from sinslab.nav import strapdown as sd
     from sinslab.sim import imu as imu_
 
-    rng = np.random.default_rng([int(seed), *spec.stream])
+    specs = list(specs)
+    cyc, stream = specs[0].cycle, tuple(specs[0].stream)
+    if any(s.cycle is not cyc or tuple(s.stream) != stream for s in specs):
+        raise ValueError("navigate_group: the INS of a group must share their cycle and random stream")
+    rng = np.random.default_rng([int(seed), *stream])
     phi0 = rng.standard_normal(3) * np.asarray(att_sigma, float)
-    C0 = A.euler_to_dcm(spec.cycle.att0)
+    C0 = A.euler_to_dcm(cyc.att0)
     att = A.dcm_to_euler(A.apply_misalignment(C0, phi0))
-    state = sd.initial_state_array(NavState(lat, lon, 0.0, np.zeros(3), att, 0.0))
+    init = sd.initial_state_array(NavState(lat, lon, 0.0, np.zeros(3), att, 0.0))
+    V = len(specs)
     M = n_steps + 1
-    rows = np.empty((M, 10))
-    rows[0] = state[:10]
-    omega = np.empty((n_steps, 3)) if rates else None
-    f = np.empty((n_steps, 3)) if rates else None
+    states = [init.copy() for _ in specs]
+    rows = [np.empty((M, 10)) for _ in specs]
+    for r in rows:
+        r[0] = init[:10]
+    omega = [np.empty((n_steps, 3)) if rates else None for _ in specs]
+    f = [np.empty((n_steps, 3)) if rates else None for _ in specs]
+    errors = [s.errors for s in specs]
     T = k_kf * dt
     per = k_kf // nsub
+    # chunk buffers, reused: fresh pages for every chunk cost as much as the noise itself
+    Lmax = min(chunk_steps, n_steps) * k_kf
+    count = np.arange(Lmax)
+    tile_th, tile_v = np.empty((Lmax, 3)), np.empty((Lmax, 3))
+    noisy = (np.empty((V, Lmax, 3)), np.empty((V, Lmax, 3)))
+    height = np.zeros(Lmax + 1)
+    rec_buf = np.empty((Lmax, 3)) if any(s.recorded is not None for s in specs) else None
     done = 0
     while done < n_steps:
         m = min(chunk_steps, n_steps - done)
         L = m * k_kf
         i0 = done * k_kf
-        t = (i0 + 1 + np.arange(L)) * dt
+        t = (i0 + 1 + count[:L]) * dt
         # the interval an ImuRecord of the chunk would take from its time column, so the
         # draws are scaled exactly as imu.apply on that record would scale them
         dt_rec = float((t[-1] - t[0]) / (L - 1)) if L > 1 else dt
-        dth, dv = imu_.apply_arrays(_tile(spec.cycle.dth, i0, L), _tile(spec.cycle.dv, i0, L), t, dt_rec,
-                                    spec.errors, rng)
-        if spec.trend is not None:
-            dth += spec.trend.evaluate(t - 0.5 * dt) * dt
-        if spec.recorded is not None:
-            g, off = spec.recorded
-            dth += _tile(g, off + i0, L) * (spec.gyro_scale * dt)
-        sd.step(state, dth, dv, dt, nsub, vertical="hold", height=np.zeros(L + 1),
-                out=rows[done + 1:done + 1 + m], out_every=per)
-        if rates:
-            omega[done:done + m] = dth.reshape(m, k_kf, 3).sum(1) / T
-            f[done:done + m] = dv.reshape(m, k_kf, 3).sum(1) / T
+        out = noisy if L == Lmax else None
+        dth_all, dv_all = imu_.apply_arrays_shared(_tile(cyc.dth, i0, L, tile_th), _tile(cyc.dv, i0, L, tile_v),
+                                                   t, dt_rec, errors, rng, out=out)
+        for j, spec in enumerate(specs):
+            dth, dv = dth_all[j], dv_all[j]
+            if spec.trend is not None:
+                dth += spec.trend.evaluate(t - 0.5 * dt) * dt
+            if spec.recorded is not None:
+                g, off = spec.recorded
+                dth += _tile(g, off + i0, L, rec_buf) * (spec.gyro_scale * dt)
+            sd.step(states[j], dth, dv, dt, nsub, vertical="hold", height=height[:L + 1],
+                    out=rows[j][done + 1:done + 1 + m], out_every=per)
+            if rates:
+                omega[j][done:done + m] = dth.reshape(m, k_kf, 3).sum(1) / T
+                f[j][done:done + m] = dv.reshape(m, k_kf, 3).sum(1) / T
         done += m
     rm, rn = earth.radii(lat, 0.0)
-    dn = (rows[:, 7] - lat) * float(rm)
-    de = (rows[:, 8] - lon) * float(rn) * math.cos(lat)
-    return InsOutput(rows, omega, f, np.hypot(dn, de))
+    out = []
+    for j in range(V):
+        dn = (rows[j][:, 7] - lat) * float(rm)
+        de = (rows[j][:, 8] - lon) * float(rn) * math.cos(lat)
+        out.append(InsOutput(rows[j], omega[j], f[j], np.hypot(dn, de)))
+    return out
+
+
+@dataclass
+class _Group:
+    """The INS of one :func:`navigate_group` call, shipped to a worker as one object."""
+
+    specs: list
+
+
+def _navigate_sent(group, **nav_kw):
+    return navigate_group(group.specs, **nav_kw)
+
+
+def _groups(specs):
+    """Keys of ``specs`` grouped by (cycle, random stream), largest group first (the
+    order in which they are handed to the workers, so the long ones start first)."""
+    groups = {}
+    for k, s in specs.items():
+        groups.setdefault((id(s.cycle), tuple(s.stream)), []).append(k)
+    return sorted(groups.values(), key=len, reverse=True)
 
 
 def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=None):
-    """Navigate independent INS (:func:`navigate_chunked`) concurrently on Dask.
+    """Navigate independent INS concurrently on Dask, those sharing a cycle and a random
+    stream together (:func:`navigate_group`).
 
-    Every INS draws from its own random stream (``seed`` and its ``stream``), so the
-    outputs do not depend on the order, the number of workers or the mode.
+    Every INS draws from its own random stream (``seed`` and its ``stream``; INS with the
+    same stream share the record), so the outputs do not depend on the grouping, the
+    order, the number of workers or the mode.
 
     Parameters
     ----------
@@ -468,36 +528,40 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
     -------
     dict {key: InsOutput}
     """
-    keys = list(specs)
+    groups = _groups(specs)
 
-    def one(key):
-        out = navigate_chunked(specs[key], **nav_kw)
+    def one(keys):
+        outs = navigate_group([specs[k] for k in keys], **nav_kw)
         if bar is not None:
-            bar.advance(1)
-        return out
+            bar.advance(len(keys))
+        return dict(zip(keys, outs))
 
-    if mode == "serial" or len(keys) == 1:
-        return {k: one(k) for k in keys}
-    if mode == "threads":
+    outs = {}
+    if mode == "serial" or len(groups) == 1:
+        for g in groups:
+            outs.update(one(g))
+    elif mode == "threads":
         import dask
 
-        res = dask.compute(*[dask.delayed(one, pure=False)(k) for k in keys], scheduler="threads",
-                           num_workers=int(workers))
-        return dict(zip(keys, res))
-    from distributed import as_completed
+        for res in dask.compute(*[dask.delayed(one, pure=False)(g) for g in groups], scheduler="threads",
+                                num_workers=int(workers)):
+            outs.update(res)
+    else:
+        from distributed import as_completed
 
-    from sinslab.estimation.montecarlo import dask_client
+        from sinslab.estimation.montecarlo import dask_client
 
-    with dask_client(scheduler or None, int(workers)) as client:
-        # the cycles are tens of MB: send each spec once rather than inside the task graph
-        sent = client.scatter([specs[k] for k in keys], hash=False)
-        futs = {client.submit(navigate_chunked, f, pure=False, **nav_kw): k for k, f in zip(keys, sent)}
-        outs = {}
-        for fut in as_completed(futs):
-            outs[futs[fut]] = fut.result()
-            if bar is not None:
-                bar.advance(1)
-    return {k: outs[k] for k in keys}
+        with dask_client(scheduler or None, int(workers)) as client:
+            # the cycles are tens of MB: send each group once rather than inside the task graph,
+            # as one object so that its INS still share one cycle on the worker
+            sent = client.scatter([_Group([specs[k] for k in g]) for g in groups], hash=False)
+            futs = {client.submit(_navigate_sent, f, pure=False, **nav_kw): g for g, f in zip(groups, sent)}
+            for fut in as_completed(futs):
+                g = futs[fut]
+                outs.update(zip(g, fut.result()))
+                if bar is not None:
+                    bar.advance(len(g))
+    return {k: outs[k] for k in specs}
 
 
 def _errors(sec, gyro_scale=1.0, white=True):
