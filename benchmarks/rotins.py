@@ -1,7 +1,8 @@
 """Speed of paper 001's pipeline (rotation-evaluation).
 
 Run: ``.venv/bin/python benchmarks/rotins.py [--quick] [--runs N] [--filter-hours H]
-[--nav-hours H] [--nav-ins N] [--only-navigation] [--compare-serial] [--json FILE]``
+[--nav-hours H] [--nav-ins N] [--grouping-hours H] [--only-navigation] [--compare-serial]
+[--json FILE]``
 
 1. Stage times of one run of the experiment (full default: 144 h, eleven INS at 100 Hz,
    ten joint filters; ``--quick``: the experiment's --quick), from its ``stage_s`` metric
@@ -17,7 +18,12 @@ Run: ``.venv/bin/python benchmarks/rotins.py [--quick] [--runs N] [--filter-hour
    ways in the same run (``compute.navigation``): one after another, Dask threads (the
    compiled kernels release the GIL), a Dask local cluster of two processes; wall and CPU
    times, the ratios to serial, and a check that the outputs are identical.
-4. With ``--runs N`` (> 1): the linear-domain seed campaign of analysis one (Dask, local
+4. The experiment's eleven INS over ``--grouping-hours`` hours (its own configuration,
+   one thread): grouped as the experiment navigates them — INS on one random stream (INS #2
+   at every β, INS #1 with and without its trend) share the tiled cycle and the noise
+   draws — against one INS at a time; CPU seconds of each (best of two, alternated), the
+   ratio, and a check that every output is identical.
+5. With ``--runs N`` (> 1): the linear-domain seed campaign of analysis one (Dask, local
    cluster) on the configuration of part 1. Target: 20 seeds at full scale < 10 min.
 """
 from __future__ import annotations
@@ -85,6 +91,33 @@ def navigation_modes(hours, n_ins, workers=2):
     return out
 
 
+def grouping(hours, repeats=2):
+    from sinslab.app.config import resolve
+    from sinslab.experiments import get
+    from sinslab.experiments import rotation_evaluation as R
+
+    # the run's length only (the std windows moved inside it; they are not computed here)
+    cfg = resolve(get("rotation-evaluation").config, sets=[f"scenario.duration={hours} h", "evaluation.start=0 h",
+                                                           f"evaluation.window={hours / 2} h"])
+    specs, kw, _, _ = R.ins_plan(cfg)
+    R.navigate_many(specs, dict(kw, n_steps=2), "serial")                    # compile / load caches
+    best = {"grouped": np.inf, "one_at_a_time": np.inf}
+    outs = {}
+    for _ in range(repeats):
+        for way in best:
+            c0 = time.process_time()
+            if way == "grouped":
+                res = R.navigate_many(specs, kw, "serial")
+            else:
+                res = {k: R.navigate_chunked(sp, **kw) for k, sp in specs.items()}
+            best[way] = min(best[way], time.process_time() - c0)
+            outs[way] = res
+    same = all(outs["grouped"][k].rows.tobytes() == outs["one_at_a_time"][k].rows.tobytes() for k in specs)
+    return dict(hours=hours, n_ins=len(specs), groups=[len(g) for g in R._groups(specs)],
+                grouped_cpu_s=best["grouped"], one_at_a_time_cpu_s=best["one_at_a_time"],
+                ratio=best["one_at_a_time"] / best["grouped"], identical=same, load_avg=os.getloadavg())
+
+
 def filter_ratio(hours):
     from sinslab.core import units as u
     from sinslab.experiments import rotation_evaluation as R
@@ -129,13 +162,16 @@ def main(argv=None):
     ap.add_argument("--filter-hours", type=float, default=24.0)
     ap.add_argument("--nav-hours", type=float, default=6.0)
     ap.add_argument("--nav-ins", type=int, default=4)
-    ap.add_argument("--only-navigation", action="store_true", help="part 3 only")
+    ap.add_argument("--grouping-hours", type=float, default=24.0)
+    ap.add_argument("--only-navigation", action="store_true", help="parts 3 and 4 only")
     ap.add_argument("--compare-serial", action="store_true",
                     help="part 1 also with compute.navigation=serial (the INS one after another)")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     out = {"navigation": navigation_modes(a.nav_hours, a.nav_ins)}
     print("navigation modes:", json.dumps(out["navigation"], indent=1))
+    out["grouping"] = grouping(a.grouping_hours)
+    print("INS grouped by random stream:", json.dumps(out["grouping"], indent=1))
     if a.only_navigation:
         return 0
     out["filter"] = filter_ratio(a.filter_hours)

@@ -110,6 +110,15 @@ def test_rotins_script_filter_part():
     assert res["driver_s"] > 0 and res["compiled_s"] > 0
 
 
+def test_rotins_script_grouping_part():
+    """benchmarks/rotins.py: the experiment's INS grouped by random stream against one at a
+    time, on 2 h: the grouping the experiment uses (INS #2's six β, INS #1 and its trend
+    version, three alone) and identical outputs."""
+    res = _load("rotins").grouping(2.0, repeats=1)
+    assert res["n_ins"] == 11 and res["groups"] == [6, 2, 1, 1, 1] and res["identical"]
+    assert res["grouped_cpu_s"] > 0 and res["one_at_a_time_cpu_s"] > 0
+
+
 def test_startup_script(tmp_path):
     out = tmp_path / "startup.json"
     res = _load("startup").main(["--repeat", "1", "--out", str(out)])

@@ -606,43 +606,26 @@ def load_recorded_gyro(path, n_needed, dt, what):
     return g
 
 
-# ---------------------------------------------------------------- run -------------------
-def run(cfg: Config, ctx) -> Result:
-    from sinslab.methods import rotins
+def ins_plan(cfg: Config, rec1=None, reck=None):
+    """The INS of a run and how they are navigated: ``(specs, nav_kw, two_2, trend)``.
+
+    ``specs`` {key: InsSpec}: INS #1 with and without the trend of analysis two, INS #2 at
+    every β of analysis one, the separate INS B, INS #3 and #4 of analysis two; ``nav_kw``
+    the other arguments of :func:`navigate_many`; ``two_2`` the key of analysis two's INS
+    #2 (analysis one's at that scale when it is on the β grid); ``trend`` INS #1's drift
+    trend. ``rec1``, ``reck``: recorded gyro noise (rad/s at the IMU rate) of INS #1 and of
+    INS #2..#4, or None.
+    """
     from sinslab.sim import imu as imu_
 
-    t_start = time.perf_counter()
     sc, ev, fl = cfg.scenario, cfg.evaluation, cfg.filter
     lat, lon = float(sc.latitude), float(sc.longitude)
     dt = float(sc.sample_interval)
-    kf_dt = float(fl.kf_dt)
-    model_dt = float(fl.model_dt)
-    k_md = int(round(model_dt / dt))                 # IMU samples per model step
-    me = int(round(kf_dt / model_dt))                # model steps per measurement
-    n_kf = int(float(sc.duration) // kf_dt)
+    k_md = int(round(float(fl.model_dt) / dt))
+    me = int(round(float(fl.kf_dt) / float(fl.model_dt)))
+    n_kf = int(float(sc.duration) // float(fl.kf_dt))
     n_steps = n_kf * me
-    n_samples = n_steps * k_md
-    stages, cpu = {}, {}
-    notes = []
-
-    # recorded noise first: a bad file is reported before any work
-    rec1 = reck = None
-    if cfg.imu1.recorded_noise:
-        rec1 = load_recorded_gyro(cfg.imu1.recorded_noise, n_samples, dt, "imu1.recorded_noise")
-    if cfg.imuk.recorded_noise:
-        reck = load_recorded_gyro(cfg.imuk.recorded_noise, n_samples, dt, "imuk.recorded_noise")
-
-    # --- observability along the actual schedule
     m1, mk = mounts(cfg)
-    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
-                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
-    so, warning = observability(cfg, model)
-    warn_rank = warning is not None
-    if warn_rank:
-        notes.append(warning)
-
-    # --- the INS
-    t0, c0 = time.perf_counter(), time.process_time()
     cyc1 = one_cycle(m1, lat, lon, dt)
     cyck = one_cycle(mk, lat, lon, dt)
     e1 = _errors(cfg.imu1, white=not cfg.imu1.recorded_noise)
@@ -678,6 +661,50 @@ def run(cfg: Config, ctx) -> Result:
     n_out, k_out = (n_steps, k_md) if drv else (n_kf, k_md * me)
     nav_kw = dict(seed=cfg.seed, lat=lat, lon=lon, dt=dt, n_steps=n_out, k_kf=k_out, nsub=cfg.filter.nsub,
                   att_sigma=att_sigma, chunk_steps=max(1, int(3600.0 // (k_out * dt))), rates=drv)
+    return specs, nav_kw, two_2, trend
+
+
+# ---------------------------------------------------------------- run -------------------
+def run(cfg: Config, ctx) -> Result:
+    from sinslab.methods import rotins
+
+    t_start = time.perf_counter()
+    sc, ev, fl = cfg.scenario, cfg.evaluation, cfg.filter
+    lat, lon = float(sc.latitude), float(sc.longitude)
+    dt = float(sc.sample_interval)
+    kf_dt = float(fl.kf_dt)
+    model_dt = float(fl.model_dt)
+    k_md = int(round(model_dt / dt))                 # IMU samples per model step
+    me = int(round(kf_dt / model_dt))                # model steps per measurement
+    n_kf = int(float(sc.duration) // kf_dt)
+    n_steps = n_kf * me
+    n_samples = n_steps * k_md
+    stages, cpu = {}, {}
+    notes = []
+
+    # recorded noise first: a bad file is reported before any work
+    rec1 = reck = None
+    if cfg.imu1.recorded_noise:
+        rec1 = load_recorded_gyro(cfg.imu1.recorded_noise, n_samples, dt, "imu1.recorded_noise")
+    if cfg.imuk.recorded_noise:
+        reck = load_recorded_gyro(cfg.imuk.recorded_noise, n_samples, dt, "imuk.recorded_noise")
+
+    # --- observability along the actual schedule
+    m1, mk = mounts(cfg)
+    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
+                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
+    so, warning = observability(cfg, model)
+    warn_rank = warning is not None
+    if warn_rank:
+        notes.append(warning)
+
+    # --- the INS
+    t0, c0 = time.perf_counter(), time.process_time()
+    specs, nav_kw, two_2, trend = ins_plan(cfg, rec1, reck)
+    a2 = cfg.analysis_two
+    att_sigma = np.asarray(cfg.init.att_err, float)
+    betas = [float(b) for b in ev.beta_grid]
+    drv = fl.engine == "driver"
     with ctx.progress("navigating", total=len(specs), unit="INS") as bar:
         outs = navigate_many(specs, nav_kw, cfg.compute.navigation, cfg.compute.workers, ctx.scheduler, bar)
     stages["navigation"] = time.perf_counter() - t0
