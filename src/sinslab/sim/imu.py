@@ -923,7 +923,11 @@ def _prepare(errors: ImuErrors, dt, n):
 
 
 def _run(dth, dv, tend, t0, dt, errors: ImuErrors, rng, out_dth, out_dv):
-    path, params, random = _prepare(errors, dt, dth.shape[0])
+    _run_prepared(dth, dv, tend, t0, dt, _prepare(errors, dt, dth.shape[0]), rng, out_dth, out_dv)
+
+
+def _run_prepared(dth, dv, tend, t0, dt, prepared, rng, out_dth, out_dv):
+    path, params, random = prepared
     state = _kernel_state(rng) if random else np.ones(4, np.uint64)
     if path == "white_all":
         _kernel_white_all(dth, dv, state, *params, out_dth, out_dv)
@@ -1064,10 +1068,10 @@ def apply_arrays_shared(dtheta, dv, t, dt, errors, seed, *, out=None):
         return out_dth, out_dv
     start = rng.bit_generator.state
     end = start
-    for j, ((_, _, random), e) in enumerate(zip(prep, errors)):
+    for j, pj in enumerate(prep):
         rng.bit_generator.state = start
-        _run(dtheta, dv, t, float(t[0] - dt), float(dt), e, rng, out_dth[j], out_dv[j])
-        if random:                  # every model with a random term draws the same four words
+        _run_prepared(dtheta, dv, t, float(t[0] - dt), float(dt), pj, rng, out_dth[j], out_dv[j])
+        if pj[2]:                   # every model with a random term draws the same four words
             end = rng.bit_generator.state
     rng.bit_generator.state = end
     return out_dth, out_dv
