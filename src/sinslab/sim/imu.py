@@ -1027,15 +1027,10 @@ def apply_arrays_shared(dtheta, dv, t, dt, errors, seed, *, out=None):
 
     Parameters
     ----------
-    dtheta, dv : array (n, 3)
-        True increments [rad], [m/s] (IMU body frame).
-    t : array (n,)
-        End time of each interval [s], regular with step ``dt`` (not checked).
-    dt : float
-        Sampling interval [s].
+    dtheta, dv, t, dt, seed
+        As for :func:`apply_arrays`.
     errors : sequence of ImuErrors
         V >= 1 models.
-    seed : int or numpy.random.Generator
     out : (ndarray, ndarray), optional
         Two C-contiguous float arrays (V, n, 3) to write the result into (a caller going
         through a long record chunk by chunk reuses them instead of new pages per chunk).
