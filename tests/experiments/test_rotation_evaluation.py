@@ -151,6 +151,28 @@ def test_grouped_navigation_equals_one_ins_at_a_time(mode):
             assert getattr(got[k], name).tobytes() == getattr(alone, name).tobytes(), (k, name)
 
 
+def test_group_navigation_gives_up_when_told():
+    """A set stop event ends a group before its next chunk (how worker threads follow an
+    interrupt), and a group that fails makes navigate_many raise its error in threads mode
+    (the other groups are told to stop)."""
+    import threading
+
+    lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
+    _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
+    ck = R.one_cycle(mk, lat, lon, dt)
+    e = imu_.ImuErrors(gyro_arw=np.full(3, 3e-7), accel_vrw=np.full(3, 5e-5))
+    kw = dict(seed=1, lat=lat, lon=lon, dt=dt, n_steps=40, k_kf=60, nsub=2, att_sigma=np.zeros(3),
+              chunk_steps=1, rates=False)
+    stop = threading.Event()
+    stop.set()
+    with pytest.raises(R._Stopped):
+        R.navigate_group([R.InsSpec("a", ck, e, (1,))], **kw, stop=stop)
+    specs = {f"b{b}": R.InsSpec("b", ck, e.with_noise_scale(gyro=b), (1,)) for b in (1.0, 1.2, 1.4)}
+    specs["bad"] = R.InsSpec("bad", ck, e, (2,), None, (np.zeros((50, 2)), 0))     # 2 columns: fails
+    with pytest.raises(ValueError):
+        R.navigate_many(specs, kw, "threads", 2)
+
+
 @pytest.mark.parametrize("scheme, rank", [("dual_axis_16", 13), ("roll_flip", 12), ("azimuth_flip", 12)])
 def test_schedule_rank_and_warning(scheme, rank):
     """The paper's schedule reaches rank 13; INS k flipping about one axis only stays at 12

@@ -14,8 +14,8 @@ so a rescaled noise record is the same record) and keeps its output at the filte
 only. INS on the same stream (INS #2 at every β, INS #1 with and without its trend) are
 navigated as one group whose noise is drawn once per chunk for all of them
 (:func:`sinslab.sim.imu.apply_arrays_shared`); the groups are independent and navigated
-concurrently (``compute.navigation``: Dask threads by default — the compiled kernels
-release the GIL — or a Dask cluster of processes); the outputs do not depend on the
+concurrently (``compute.navigation``: threads by default — the compiled kernels release
+the GIL — or a Dask cluster of processes); the outputs do not depend on the
 grouping or the mode. The joint filters are feed-forward on those outputs, with the model chained from
 ``filter.model_dt`` sub-steps per measurement: by default (``filter.engine = "schedule"``)
 linearised along the known schedule, one transition table shared by every filter, in a
@@ -180,7 +180,7 @@ class AnalysisTwo(Section):
 
 class Compute(Section):
     navigation: Literal["threads", "processes", "serial"] = Field(
-        "threads", description="how the independent INS navigations share the CPUs: Dask threads (compiled "
+        "threads", description="how the independent INS navigations share the CPUs: threads (compiled "
         "kernels release the GIL), a Dask local cluster of processes (or --scheduler), or one after another")
     workers: int = Field(2, ge=1, le=256, description="threads or worker processes of the navigation")
 
@@ -405,13 +405,20 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
     return navigate_group([spec], seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps, rates)[0]
 
 
-def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps=360, rates=True):
+class _Stopped(Exception):
+    """A group navigation given up between two chunks (the run was interrupted)."""
+
+
+def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps=360, rates=True,
+                   stop=None):
     """:func:`navigate_chunked` for INS that share their cycle and their random stream
     (INS #2 at every β; INS #1 with and without the trend): the cycle is tiled once per
     chunk and the noise drawn once for all of them
     (:func:`sinslab.sim.imu.apply_arrays_shared`); each INS keeps its own errors, extras
     and navigation state. Output ``[InsOutput]`` in the order of ``specs``, each with the
-    bytes :func:`navigate_chunked` gives it alone.
+    bytes :func:`navigate_chunked` gives it alone. ``stop``: a :class:`threading.Event`
+    checked before every chunk (set: give up), so that a worker thread follows an
+    interrupt of the main thread within a chunk.
     """
     from sinslab.core import attitude as A
     from sinslab.core import earth
@@ -448,6 +455,8 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
     rec_buf = np.empty((Lmax, 3)) if any(s.recorded is not None for s in specs) else None
     done = 0
     while done < n_steps:
+        if stop is not None and stop.is_set():
+            raise _Stopped()
         m = min(chunk_steps, n_steps - done)
         L = m * k_kf
         i0 = done * k_kf
@@ -501,8 +510,8 @@ def _groups(specs):
 
 
 def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=None):
-    """Navigate independent INS concurrently on Dask, those sharing a cycle and a random
-    stream together (:func:`navigate_group`).
+    """Navigate independent INS concurrently, those sharing a cycle and a random stream
+    together (:func:`navigate_group`).
 
     Every INS draws from its own random stream (``seed`` and its ``stream``; INS with the
     same stream share the record), so the outputs do not depend on the grouping, the
@@ -515,8 +524,8 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
         The other arguments of :func:`navigate_chunked` (``seed``, ``lat``, ``lon``, ``dt``,
         ``n_steps``, ``k_kf``, ``nsub``, ``att_sigma``, ``chunk_steps``, ``rates``).
     mode : {"threads", "processes", "serial"}
-        Dask's threaded scheduler in this process (the compiled kernels release the GIL),
-        a local cluster of worker processes (or ``scheduler``, an address), or one by one.
+        A pool of threads in this process (the compiled kernels release the GIL), a Dask
+        local cluster of worker processes (or ``scheduler``, an address), or one by one.
     workers : int
         Threads or local worker processes.
     scheduler : str, optional
@@ -528,10 +537,13 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
     -------
     dict {key: InsOutput}
     """
+    import threading
+
     groups = _groups(specs)
+    stop = threading.Event()
 
     def one(keys):
-        outs = navigate_group([specs[k] for k in keys], **nav_kw)
+        outs = navigate_group([specs[k] for k in keys], **nav_kw, stop=stop)
         if bar is not None:
             bar.advance(len(keys))
         return dict(zip(keys, outs))
@@ -541,11 +553,21 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
         for g in groups:
             outs.update(one(g))
     elif mode == "threads":
-        import dask
+        from concurrent.futures import ThreadPoolExecutor, as_completed
 
-        for res in dask.compute(*[dask.delayed(one, pure=False)(g) for g in groups], scheduler="threads",
-                                num_workers=int(workers)):
-            outs.update(res)
+        # handed out in order, largest group first, each to the next free thread: the
+        # six-INS group of INS #2 runs beside the others instead of after them
+        pool = ThreadPoolExecutor(max_workers=int(workers))
+        try:
+            for fut in as_completed([pool.submit(one, g) for g in groups]):
+                outs.update(fut.result())
+        except BaseException:
+            # an interrupt reaches the main thread only, a failed group only its future:
+            # either way the other groups end at their next chunk
+            stop.set()
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
     else:
         from distributed import as_completed
 
