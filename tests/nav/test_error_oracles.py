@@ -137,7 +137,8 @@ def test_gyro_drift_matches_linear_static_model_24h(lat_deg, att_deg):
 def test_row_errors_of_stacked_runs_are_each_runs_nav_errors():
     """Three solutions stacked along the rows against the truth once: every error of every
     run is, byte for byte, what nav_errors gives for that run alone; rows that are not
-    whole runs are refused."""
+    whole runs are refused. nav_errors_many (one matching, one truth conversion) gives each
+    solution its nav_errors bytes, also when one solution has other epochs."""
     import pytest
 
     from sinslab.core.records import NavSeries
@@ -161,3 +162,13 @@ def test_row_errors_of_stacked_runs_are_each_runs_nav_errors():
             assert np.array_equal(e[name][k * M:(k + 1) * M], one[name]), name
     with pytest.raises(ValueError, match="whole runs"):
         compare.row_errors(stacked, truth.at(slice(0, 5)))
+    # several solutions against one denser truth, matched once: each one's nav_errors bytes
+    dense = NavSeries(np.arange(2 * M) * 0.5, np.repeat(truth.lat, 2), np.repeat(truth.lon, 2),
+                      np.repeat(truth.h, 2), np.repeat(truth.vel, 2, 0), np.repeat(att, 2, 0))
+    other = NavSeries(t[:4] + 0.5, runs[0].lat[:4], runs[0].lon[:4], runs[0].h[:4], runs[0].vel[:4],
+                      runs[0].att[:4])
+    for navs in (runs, runs[:2] + [other]):
+        many = compare.nav_errors_many(navs, dense)
+        for r, got in zip(navs, many):
+            one = compare.nav_errors(r, dense)
+            assert all(got[k].tobytes() == one[k].tobytes() for k in one)

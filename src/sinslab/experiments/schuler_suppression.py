@@ -300,9 +300,7 @@ def run(cfg: Config, ctx) -> Result:
     del meas
     truth = gen.truth
     t2 = res.t2
-    e1 = compare.nav_errors(res.sol1, truth)
-    e2 = compare.nav_errors(res.sol2, truth)
-    em = compare.nav_errors(res.mean, truth)
+    e1, e2, em = compare.nav_errors_many([res.sol1, res.sol2, res.mean], truth)
 
     metrics = {"schuler_period_min": Ts / 60.0, "t1_s": res.t1, "t2_s": t2, "delay_s": res.delay,
                "samples": n_samples,

@@ -12,7 +12,7 @@ from sinslab.core import attitude as att_
 from sinslab.core import earth
 from sinslab.core.records import NavSeries
 
-__all__ = ["nav_errors", "row_errors", "match_epochs"]
+__all__ = ["nav_errors", "nav_errors_many", "row_errors", "match_epochs"]
 
 
 def match_epochs(truth: NavSeries, t, tol: float = 1e-6) -> np.ndarray:
@@ -44,6 +44,30 @@ def row_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
     ``nav`` may hold several runs stacked along the rows, each on the epochs of ``truth``
     (``len(nav)`` a multiple of ``len(truth)``): the truth's attitude matrices and radii
     are computed once and repeated, in one pass over all runs."""
+    return _errors(nav, _truth_terms(truth, imu_frame), imu_frame)
+
+
+def nav_errors_many(navs, truth: NavSeries, imu_frame=False) -> list:
+    """:func:`nav_errors` of several solutions on the same epochs against one truth: the
+    epochs are matched and the truth's attitude matrices and radii computed once (the same
+    numbers as one call per solution). Solutions on different epochs are compared one by one."""
+    navs = list(navs)
+    if not navs or any(len(n.t) != len(navs[0].t) or not np.array_equal(n.t, navs[0].t) for n in navs[1:]):
+        return [nav_errors(n, truth, imu_frame) for n in navs]
+    terms = _truth_terms(truth.at(match_epochs(truth, navs[0].t)), imu_frame)
+    return [_errors(n, terms, imu_frame) for n in navs]
+
+
+def _truth_terms(truth: NavSeries, imu_frame):
+    """What the errors need of the truth rows: the rows, their attitude (Euler and DCM) and
+    the radii of curvature."""
+    a_tr = truth.att_imu if (imu_frame and truth.att_imu is not None) else truth.att
+    rm, rn = earth.radii(truth.lat, truth.h)
+    return truth, a_tr, att_.euler_to_dcm(a_tr), rm, rn
+
+
+def _errors(nav: NavSeries, terms, imu_frame) -> dict:
+    truth, a_tr, C_tr, rm, rn = terms
     m = len(truth)
     if m == 0 or len(nav) % m:
         raise ValueError(f"{len(nav)} solution rows are not whole runs of the {m} truth rows")
@@ -53,10 +77,8 @@ def row_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
         return a if reps == 1 else np.tile(a, (reps,) + (1,) * (a.ndim - 1))
 
     a_nav = nav.att_imu if (imu_frame and nav.att_imu is not None) else nav.att
-    a_tr = truth.att_imu if (imu_frame and truth.att_imu is not None) else truth.att
-    phi = att_.misalignment(rep(att_.euler_to_dcm(a_tr)), att_.euler_to_dcm(a_nav))
+    phi = att_.misalignment(rep(C_tr), att_.euler_to_dcm(a_nav))
     d_att = att_.wrap_pi(a_nav - rep(a_tr))
-    rm, rn = earth.radii(truth.lat, truth.h)
     lat = rep(truth.lat)
     dlat = nav.lat - lat
     dlon = att_.wrap_pi(nav.lon - rep(truth.lon))
