@@ -628,6 +628,17 @@ def load_recorded_gyro(path, n_needed, dt, what):
     return g
 
 
+def _grid(cfg: Config):
+    """The run's time grid: IMU interval dt [s], IMU samples per model step, model steps
+    per measurement, measurements, model steps."""
+    sc, fl = cfg.scenario, cfg.filter
+    dt = float(sc.sample_interval)
+    k_md = int(round(float(fl.model_dt) / dt))
+    me = int(round(float(fl.kf_dt) / float(fl.model_dt)))
+    n_kf = int(float(sc.duration) // float(fl.kf_dt))
+    return dt, k_md, me, n_kf, n_kf * me
+
+
 def ins_plan(cfg: Config, rec1=None, reck=None):
     """The INS of a run and how they are navigated: ``(specs, nav_kw, two_2, trend)``.
 
@@ -642,11 +653,7 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
 
     sc, ev, fl = cfg.scenario, cfg.evaluation, cfg.filter
     lat, lon = float(sc.latitude), float(sc.longitude)
-    dt = float(sc.sample_interval)
-    k_md = int(round(float(fl.model_dt) / dt))
-    me = int(round(float(fl.kf_dt) / float(fl.model_dt)))
-    n_kf = int(float(sc.duration) // float(fl.kf_dt))
-    n_steps = n_kf * me
+    dt, k_md, me, n_kf, n_steps = _grid(cfg)
     m1, mk = mounts(cfg)
     cyc1 = one_cycle(m1, lat, lon, dt)
     cyck = one_cycle(mk, lat, lon, dt)
@@ -693,13 +700,9 @@ def run(cfg: Config, ctx) -> Result:
     t_start = time.perf_counter()
     sc, ev, fl = cfg.scenario, cfg.evaluation, cfg.filter
     lat, lon = float(sc.latitude), float(sc.longitude)
-    dt = float(sc.sample_interval)
     kf_dt = float(fl.kf_dt)
     model_dt = float(fl.model_dt)
-    k_md = int(round(model_dt / dt))                 # IMU samples per model step
-    me = int(round(kf_dt / model_dt))                # model steps per measurement
-    n_kf = int(float(sc.duration) // kf_dt)
-    n_steps = n_kf * me
+    dt, k_md, me, n_kf, n_steps = _grid(cfg)
     n_samples = n_steps * k_md
     stages, cpu = {}, {}
     notes = []
