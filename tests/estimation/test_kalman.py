@@ -344,6 +344,7 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
         r2 = fast.update(z[k], H, R)
         np.testing.assert_allclose(r2.x, r1.x, rtol=1e-10, atol=1e-14)
         np.testing.assert_allclose(r2.P, r1.P, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(r2.innovation, r1.innovation, rtol=1e-12, atol=1e-14)
         assert r2.nis == pytest.approx(r1.nis, rel=1e-10)
     # a missing component or an R entry <= 0 leaves the compiled path untouched: the general
     # update drops the NaN component, and refuses the non-positive R
@@ -363,6 +364,35 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
     fast.feedback()
     assert np.array_equal(r2.P, P_keep) and np.array_equal(r2.x, x_keep)
     assert fast.t == pytest.approx(7.0)
+
+
+def test_compiled_update_of_given_arrays_equals_the_numpy_update():
+    """compiled_update (sequential scalar Joseph updates, compiled) against kalman.update for
+    R given as a matrix, a vector and a scalar; where it does not apply (correlated R, a
+    NaN in z, r <= 0) it returns None and leaves x, P as they were."""
+    from sinslab.estimation.filter import compiled_update
+
+    _, _, _, _, H, R, P0, rng = _model()
+    x0 = rng.normal(size=6)
+    z = rng.normal(size=2)
+    ref = kf.update(x0, P0, z, H, R)
+    for r in (R, np.diag(R).copy()):
+        x, P = x0.copy(), P0.copy()
+        res = compiled_update(x, P, z, H, r)
+        np.testing.assert_allclose(res.x, ref.x, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(res.P, ref.P, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(res.innovation, ref.innovation, rtol=1e-12)
+        np.testing.assert_allclose(res.S, ref.S, rtol=1e-12)
+        assert res.nis == pytest.approx(ref.nis, rel=1e-10)
+        assert np.array_equal(x, res.x) and x is not res.x          # in place, result a copy
+    ref1 = kf.update(x0, P0, z, H, 0.3)
+    res1 = compiled_update(x0.copy(), P0.copy(), z, H, 0.3)
+    np.testing.assert_allclose(res1.P, ref1.P, rtol=1e-10, atol=1e-14)
+    for zz, rr in ((z, R + 0.01 * np.ones((2, 2))), (np.array([np.nan, 1.0]), R),
+                   (z, np.array([R[0, 0], 0.0]))):
+        x, P = x0.copy(), P0.copy()
+        assert compiled_update(x, P, zz, H, rr) is None
+        assert np.array_equal(x, x0) and np.array_equal(P, P0)
 
 
 @pytest.mark.parametrize("m", [1, 3, 4, 9])

@@ -19,7 +19,7 @@ from sinslab.estimation.kalman import (UpdateResult, _as_square, _is_diag, check
                                        update)
 from sinslab.estimation.linear import _cov_predict, _scalar_update, _sparsity_nb, _state_predict
 
-__all__ = ["KalmanFilter", "StoredEpoch"]
+__all__ = ["KalmanFilter", "StoredEpoch", "compiled_update"]
 
 
 @njit(cache=True)
@@ -73,6 +73,48 @@ def _seq_update(x, P, z, H, r, innov, sdiag, tmp, B):
         sdiag[c] = s
         nis += nu * nu / s
     return nis
+
+
+def compiled_update(x, P, z, H, R, tmp=None, B=None):
+    """The Kalman update of :func:`sinslab.estimation.kalman.update` as sequential scalar
+    Joseph updates in compiled code, in place on ``x`` (n,) and ``P`` (n, n) (both float64,
+    C-contiguous).
+
+    Applies when R is diagonal (a matrix, a vector of variances or a scalar) and every
+    component of ``z`` is finite with ``r > 0``; the numbers equal the numpy sequential
+    update to rounding. Returns the :class:`~sinslab.estimation.kalman.UpdateResult` (with
+    copies of the new ``x``, ``P``), or None when it does not apply — then ``x`` and ``P``
+    are unchanged and the caller takes :func:`~sinslab.estimation.kalman.update`.
+    ``tmp`` (n,), ``B`` (n, n): optional work arrays.
+    """
+    if not (type(z) is np.ndarray and z.ndim == 1 and z.dtype == np.float64):
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+    if not (type(H) is np.ndarray and H.ndim == 2 and H.dtype == np.float64 and H.flags.c_contiguous):
+        H = np.ascontiguousarray(np.atleast_2d(H), dtype=float)
+    R = np.asarray(R, dtype=float)
+    m, n = z.size, x.shape[0]
+    if R.ndim == 2:
+        if R.shape != (m, m) or not _is_diag(R):
+            return None
+        r = np.diag(R).copy()
+    elif R.shape == (m,):
+        r = R
+    else:
+        r = np.broadcast_to(R, (m,)).astype(float)
+    if H.shape != (m, n):
+        return None
+    S = H @ P @ H.T
+    S.flat[::m + 1] += r
+    # the innovation reported is the prior z − H x of all components, as the vector update
+    # gives; the kernel's are those of each scalar step, after the earlier components
+    innov = z - H @ x
+    seq = np.empty(m)
+    sdiag = np.empty(m)
+    nis = _seq_update(x, P, z, H, np.ascontiguousarray(r, dtype=float), seq, sdiag,
+                      np.empty(n) if tmp is None else tmp, np.empty((n, n)) if B is None else B)
+    if nis < 0.0:                   # a non-finite z or an r <= 0: nothing was changed
+        return None
+    return UpdateResult(x.copy(), P.copy(), innov, S, float(nis), np.ones(m, dtype=bool))
 
 
 # ----------------------------------------------------------------------------------------
@@ -318,32 +360,7 @@ class KalmanFilter:
 
     def _fast_update(self, z, H, R):
         """Sequential scalar Joseph updates in compiled code (diagonal R, finite z)."""
-        if not (type(z) is np.ndarray and z.ndim == 1 and z.dtype == np.float64):
-            z = np.atleast_1d(np.asarray(z, dtype=float))
-        if not (type(H) is np.ndarray and H.ndim == 2 and H.dtype == np.float64 and H.flags.c_contiguous):
-            H = np.ascontiguousarray(np.atleast_2d(H), dtype=float)
-        R = np.asarray(R, dtype=float)
-        m = z.size
-        if R.ndim == 2:
-            if R.shape != (m, m) or not _is_diag(R):
-                return None
-            r = np.diag(R).copy()
-        elif R.shape == (m,):
-            r = R
-        else:
-            r = np.broadcast_to(R, (m,)).astype(float)
-        if H.shape != (m, self.n):
-            return None
-        S = H @ self.P @ H.T
-        S.flat[::m + 1] += r
-        innov = np.empty(m)
-        sdiag = np.empty(m)
-        nis = _seq_update(self.x, self.P, z, H, np.ascontiguousarray(r, dtype=float), innov, sdiag,
-                          self._tmp, self._T1)
-        if nis < 0.0:                   # a non-finite z or an r <= 0: nothing was changed
-            return None
-        return UpdateResult(self.x.copy(), self.P.copy(), innov, S, float(nis),
-                            np.ones(m, dtype=bool))
+        return compiled_update(self.x, self.P, z, H, R, self._tmp, self._T1)
 
     def feedback(self, indices=None):
         """Return the estimate of the given states and zero them (closed-loop correction).
