@@ -598,6 +598,7 @@ class StoredStateUpdate:
         """Apply the lagged fix to ``filt`` (a :class:`sinslab.estimation.filter.KalmanFilter`
         with history); ``F``, ``Qc`` (n, n): continuous model at ``t_m``. Returns the
         :class:`~sinslab.estimation.kalman.UpdateResult` of the update at ``t_m``."""
+        from sinslab.estimation.filter import compiled_update
         from sinslab.estimation.kalman import update, van_loan
 
         if F is None or Qc is None:
@@ -622,7 +623,12 @@ class StoredStateUpdate:
         # the measurement was formed from the navigation state at t_m, which carried the
         # cumulative feedback of epoch j propagated to t_m
         c_m = (van_loan(F, np.zeros_like(F), tau)[0] @ c_post) if tau > 0 else c_post
-        res = update(xff, 0.5 * (P + P.T), z + Hm @ c_m, Hm, R, mask=mask, sequential=sequential)
+        P = 0.5 * (P + P.T)
+        zc = z + Hm @ c_m
+        res = (compiled_update(xff, P, zc, Hm, R) if mask is None and sequential is not False
+               else None)
+        if res is None:
+            res = update(xff, P, zc, Hm, R, mask=mask, sequential=sequential)
         dT = filt.t - t_m
         if dT > 0:
             Phi2, Q2 = van_loan(F, Qc, dT)
