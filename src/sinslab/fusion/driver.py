@@ -95,7 +95,7 @@ from sinslab.nav import errstate as es
 from sinslab.nav import errstate_kernels as ek
 from sinslab.nav import strapdown as sd
 
-__all__ = ["run", "DriverResult", "Applied", "LiveStream", "PrecomputedStream"]
+__all__ = ["run", "run_many", "Lane", "DriverResult", "Applied", "LiveStream", "PrecomputedStream"]
 
 
 @njit(cache=True)
@@ -442,12 +442,243 @@ def _model_stretch(model, prog, pts, q, T, discretization):
     return F, G, Phi, Qk
 
 
+def _model_lanes(model, prog, pts_lanes, q, T, discretization):
+    """:func:`_model_stretch` of several lanes' stretches of equal length: with the compiled
+    program and the series, all lanes' points go through one call (the kernels work point
+    by point; the series skips only zeros of the model's structure, whose terms add exact
+    zeros); otherwise lane by lane."""
+    if prog is None or discretization != "series" or len(pts_lanes) == 1:
+        return [_model_stretch(model, prog, p, q, T, discretization) for p in pts_lanes]
+    ns = len(pts_lanes[0])
+    cat = [tuple(np.concatenate([p[i][c] for p in pts_lanes]) for c in range(3)) for i in range(ns)]
+    F, G, Phi, Qk = _model_stretch(model, prog, cat, q, T, discretization)
+    S = pts_lanes[0][0][0].shape[0]
+    return [(F[a:a + S], G[a:a + S], Phi[a:a + S], Qk[a:a + S])
+            for a in range(0, S * len(pts_lanes), S)]
+
+
 def _feedback_pairs(feedback):
     if feedback is None or feedback is False:
         return []
     if hasattr(feedback, "apply"):
         return [(0, feedback)]
     return [(int(i), fb) for i, fb in feedback]
+
+
+@dataclass(frozen=True)
+class Lane:
+    """One run of :func:`run_many`: its navigation streams, its measurements and its
+    initial estimate (the model, ``P0`` and the options are shared by all lanes).
+
+    Attributes
+    ----------
+    streams : sequence of LiveStream / PrecomputedStream
+    measurements : sequence of Measurement
+    x0 : array_like (n,), optional
+        Initial estimate (default zero).
+    """
+
+    streams: tuple
+    measurements: tuple
+    x0: object = None
+
+
+class _LaneRun:
+    """The state of one lane while the loop of :func:`run_many` runs: its streams, filter,
+    measurement schedule and the histories it returns."""
+
+    def __init__(self, lane, model, P0, lag, fbs, kf_dt, history):
+        streams = list(lane.streams)
+        if not streams:
+            raise ValueError("the driver needs at least one navigation stream")
+        for si, _ in fbs:
+            if streams[si].precomputed:
+                raise ValueError(f"stream {si} is a precomputed navigation series: it cannot be fed back")
+        self.streams = streams
+        self.measurements = list(lane.measurements)
+        self.history = history
+        n = model.n
+        # --- filter grid (stream 0 sets t0; all share the step)
+        grids = [s.bind(kf_dt) for s in streams]
+        T, t0, _ = grids[0]
+        n_ep = min(g[2] for g in grids)
+        self.grid = Grid(t0, T, n_ep)
+        # --- schedule of every measurement
+        arrivals = {}                                 # epoch -> [(measurement, item)]
+        hist = 0
+        e_valid = {}
+        for mi, m in enumerate(self.measurements):
+            for e, items in m.epochs(self.grid).items():
+                for j in items:
+                    tv, ta = m.times(j)
+                    ev = int(self.grid.epoch_at_or_after(tv))
+                    e_valid[(mi, j)] = (ev, tv, ta > tv)
+                    arrivals.setdefault(int(e), []).append((mi, j))
+                    if ev < e and not lag.on_arrival:
+                        hist = max(hist, e - ev + 3)
+        self.arrivals, self.e_valid, self.hist = arrivals, e_valid, hist
+        self.keep_F = lag.needs_model and hist > 0
+        if history is not None and hist > 0 and not isinstance(lag, ExactReprocessing):
+            raise ValueError(f"smoothing a run with lagged measurements needs exact re-processing or "
+                             f"on-arrival updates, not {type(lag).__name__}")
+        # --- filter and histories
+        self.ns = ns = len(streams)
+        self.filt = filt = KalmanFilter(np.zeros(n) if lane.x0 is None else lane.x0, P0, t0=0.0,
+                                        history=hist, check=False)
+        self.nav_h = [np.empty((n_ep + 1, 10)) for _ in streams]
+        self.nav_pre = [np.empty((n_ep + 1, 10)) for _ in streams] if hist else self.nav_h
+        self.w_h = [np.empty((n_ep + 1, 3)) for _ in streams]
+        self.f_h = [np.empty((n_ep + 1, 3)) for _ in streams]
+        self.x_h = np.zeros((n_ep + 1, n))
+        self.sig_h = np.empty((n_ep + 1, n))
+        self.live = live = [not s.precomputed for s in streams]
+        self.scaled = scaled = any(fb.gyro_scale is not None or fb.accel_scale is not None for _, fb in fbs)
+        self.gb_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
+        self.ab_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
+        self.sc_h = [np.zeros((n_ep + 1, 6)) if (lv and scaled) else None for lv in live]
+        self.F_h = np.empty((n_ep, n, n)) if self.keep_F else None
+        self.G_h = np.empty((n_ep, n, model.q.size)) if self.keep_F else None
+        for i, s in enumerate(streams):
+            r0, w0, f0 = s.row0()
+            self.nav_h[i][0] = r0
+            self.nav_pre[i][0] = r0
+            self.w_h[i][0] = w0
+            self.f_h[i][0] = f0
+            if live[i]:
+                self.gb_h[i][0], self.ab_h[i][0] = s.gb, s.ab
+        self.sig_h[0] = filt.sigma
+        if history is not None:
+            history.begin(filt, n_ep, T, set(arrivals) | {v[0] for v in e_valid.values()})
+        self.a_m, self.a_j, self.a_tv, self.a_t, self.a_nu, self.a_nis = [], [], [], [], [], []
+        self.nav_lag = self.nav_h if lag.corrected_nav else self.nav_pre
+        self.Phi_la = self.Q_la = self.stretch = None
+        self.blk = self.rows = None
+
+    def fusable(self, cprop, discretization):
+        """Model, Φ, Q_k and prediction in the one compiled loop, unless Φ, Q_k or F must
+        be kept (a history for lagged items or smoothing records every Φ)."""
+        f = self.filt
+        return (cprop is not None and discretization == "series" and f._buf is None
+                and not f.check and not self.keep_F and self.history is None)
+
+    def advance(self, e0, e1):
+        """Streams to ``e1``: rows of ``e0..e1`` and the step rates of the block."""
+        m = e1 - e0
+        self.blk = [s.advance(e0, e1) for s in self.streams]
+        self.rows = []
+        for i in range(self.ns):
+            r = np.empty((m + 1, 10))
+            r[0] = self.nav_h[i][e0]
+            r[1:] = self.blk[i][0]
+            self.rows.append(r)
+
+    def points(self, e1, la_end):
+        """Per stream the linearisation points of the stretch from the block start to
+        ``la_end``: the block's rows, then a look-ahead run of the streams."""
+        pts = []
+        for i, s in enumerate(self.streams):
+            out, ws, fs = self.blk[i]
+            if la_end > e1:
+                la_out, lws, lfs = s.lookahead(e1, la_end)
+                la_rows = np.vstack([self.rows[i], la_out[:-1]])       # epochs e0..la_end-1
+                w_la, f_la = np.vstack([ws, lws]), np.vstack([fs, lfs])
+            else:
+                la_rows, w_la, f_la = self.rows[i][:-1], ws, fs
+            pts.append((la_rows, w_la, f_la))
+        return pts
+
+    def predict(self, e0, e1, la0, T):
+        """Prediction through the block from the kept Φ, Q_k of the stretch."""
+        sl = slice(e0 - la0, e1 - la0)
+        if self.history is None:
+            self.filt.predict_many(self.Phi_la[sl], self.Q_la[sl], T, sigma_out=self.sig_h[e0 + 1:e1 + 1],
+                                   x_out=self.x_h[e0 + 1:e1 + 1])
+        else:
+            self.history.predict(self.filt, self.Phi_la[sl], self.Q_la[sl], T, e0, self.sig_h[e0 + 1:e1 + 1],
+                                 self.x_h[e0 + 1:e1 + 1])
+
+    def record(self, e0, e1):
+        """The block's rows, rates and compensation into the histories."""
+        for i, s in enumerate(self.streams):
+            _, ws, fs = self.blk[i]
+            self.nav_h[i][e0 + 1:e1 + 1] = self.rows[i][1:]
+            if self.hist:
+                self.nav_pre[i][e0 + 1:e1 + 1] = self.rows[i][1:]
+            self.w_h[i][e0 + 1:e1 + 1] = ws
+            self.f_h[i][e0 + 1:e1 + 1] = fs
+            if self.live[i]:
+                self.gb_h[i][e0 + 1:e1 + 1] = s.gb
+                self.ab_h[i][e0 + 1:e1 + 1] = s.ab
+                if self.sc_h[i] is not None:
+                    self.sc_h[i][e0 + 1:e1 + 1] = np.concatenate([s.kg, s.ka])
+
+    def _epoch_rows(self, rows_list, k):
+        return tuple(NavRow(rows_list[i][k], self.w_h[i][k], self.f_h[i][k]) for i in range(self.ns))
+
+    def measure(self, e1, here, lag, lay, n, q, lag_tol, t_ep, t_rel, fbs):
+        """The measurements arriving at ``e1`` (see the module notes, step 4), then the
+        feedback (step 5)."""
+        filt = self.filt
+        now = None
+        ev_min = None
+        for (mi, j) in here:
+            meas = self.measurements[mi]
+            ev, tv, late = self.e_valid[(mi, j)]
+            if ev < e1 and not lag.on_arrival:
+                ep = Epoch(t_ep[ev], ev, self._epoch_rows(self.nav_lag, ev), lay, n, j)
+                r = meas.matrices(ep)
+                if r is None:
+                    continue
+                if self.keep_F:
+                    # Qc = G diag(q) Gᵀ of the validity epoch only (a one-matrix stack:
+                    # the arithmetic of forming it for the whole stretch)
+                    g = self.G_h[ev:ev + 1]
+                    kw = dict(F=self.F_h[ev], Qc=((g * q) @ np.swapaxes(g, -1, -2))[0])
+                else:
+                    kw = {}
+                res = lag.update(filt, *r, t_rel[ev], tol=lag_tol, **kw)
+                ev_min = ev if ev_min is None else min(ev_min, ev)
+            else:
+                # on time, or the lag ignored: a late item taken as valid now
+                t_at = tv if (lag.on_arrival and late) else t_ep[e1]
+                if now is None:
+                    now = tuple(NavRow(self.rows[i][-1], self.blk[i][1][-1], self.blk[i][2][-1])
+                                for i in range(self.ns))
+                r = meas.matrices(Epoch(t_at, e1, now, lay, n, j))
+                if r is None:
+                    continue
+                res = filt.update(*r)
+            self.a_m.append(mi)
+            self.a_j.append(j)
+            self.a_tv.append(tv)
+            self.a_t.append(t_ep[e1])
+            self.a_nu.append(res.innovation)
+            self.a_nis.append(res.nis)
+        if not here:
+            return
+        history = self.history
+        if history is not None:
+            history.updated(e1, filt, ev_min)
+        for si_, fb in fbs:
+            s = self.streams[si_]
+            d = s.feedback(filt, fb)
+            if history is not None:
+                history.fed_back(e1, d)
+            if self.sc_h[si_] is not None:
+                self.sc_h[si_][e1] = np.concatenate([s.kg, s.ka])
+            self.nav_h[si_][e1] = s.row()
+            self.gb_h[si_][e1] = s.gb
+            self.ab_h[si_][e1] = s.ab
+        self.x_h[e1] = filt.x
+        self.sig_h[e1] = filt.sigma
+
+    def result(self, t_ep, lay):
+        applied = Applied(np.array(self.a_m, dtype=np.int64), np.array(self.a_j, dtype=np.int64),
+                          np.array(self.a_tv, dtype=float), np.array(self.a_t, dtype=float), self.a_nu,
+                          np.array(self.a_nis, dtype=float))
+        return DriverResult(t_ep, tuple(self.nav_h), self.x_h, self.sig_h, tuple(self.gb_h),
+                            tuple(self.ab_h), tuple(self.sc_h) if self.scaled else None, applied, lay,
+                            self.history)
 
 
 def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=None,
@@ -501,93 +732,90 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
     -------
     DriverResult
     """
+    return _run_lanes([Lane(tuple(streams), tuple(measurements), x0)], [history], model, P0,
+                      kf_dt=kf_dt, feedback=feedback, lag=lag, max_block=max_block,
+                      model_every=model_every, discretization=discretization, progress=progress,
+                      label=label, lag_tol=lag_tol, model_eval=model_eval)[0]
+
+
+def run_many(lanes, model, P0, *, kf_dt, feedback=None, lag=None, max_block=10.0,
+             model_every=10.0, discretization="series", progress=False, label="fusion",
+             lag_tol=1e-6, model_eval="compiled") -> list:
+    """The runs of a Monte Carlo campaign in lockstep: :func:`run` for every lane, on a run
+    axis.
+
+    All lanes step through the same blocks: per block every lane's streams advance, the
+    error model of all lanes is evaluated and their filters predicted in one compiled call
+    (the fused loop of :mod:`sinslab.fusion.propagate` over the lanes; with a history, the
+    model and its discretisation for all lanes at once), then each lane applies its own
+    measurements, lag policy and feedback. Each lane's numbers are those of :func:`run` on
+    that lane alone, bit for bit.
+
+    Parameters
+    ----------
+    lanes : sequence of Lane
+        The runs: their own streams (own IMU records and initial states), measurements
+        (own data) and initial estimates. They must share the filter grid and the epochs
+        at which measurements arrive (for instance fixes requested on one plan), because
+        the block boundaries are part of the arithmetic.
+    model, P0, kf_dt, feedback, lag, max_block, model_every, discretization, progress,
+    label, lag_tol, model_eval
+        As in :func:`run`, shared by all lanes (lag policies and feedback layouts hold no
+        run state).
+
+    Returns
+    -------
+    list of DriverResult
+        One per lane, in order.
+
+    Raises
+    ------
+    ValueError
+        No lanes, or lanes on different filter grids or measurement schedules.
+    """
+    lanes = list(lanes)
+    if not lanes:
+        raise ValueError("run_many needs at least one lane")
+    return _run_lanes(lanes, [None] * len(lanes), model, P0, kf_dt=kf_dt, feedback=feedback, lag=lag,
+                      max_block=max_block, model_every=model_every, discretization=discretization,
+                      progress=progress, label=label, lag_tol=lag_tol, model_eval=model_eval)
+
+
+def _run_lanes(lanes, histories, model, P0, *, kf_dt, feedback, lag, max_block, model_every,
+               discretization, progress, label, lag_tol, model_eval):
+    """The loop of :func:`run` and :func:`run_many` (see the module notes)."""
     from sinslab.core.progress import progress as _progress
 
-    streams = list(streams)
-    if not streams:
-        raise ValueError("the driver needs at least one navigation stream")
     if model_eval not in ("compiled", "numpy"):
         raise ValueError(f"model_eval must be 'compiled' or 'numpy', got {model_eval!r}")
     lag = ExactReprocessing() if lag is None else lag
     lay = model.layout
     n = model.n
     fbs = _feedback_pairs(feedback)
-    for si, _ in fbs:
-        if streams[si].precomputed:
-            raise ValueError(f"stream {si} is a precomputed navigation series: it cannot be fed back")
-    scaled = any(fb.gyro_scale is not None or fb.accel_scale is not None for _, fb in fbs)
-
-    # --- filter grid (stream 0 sets t0; all share the step)
-    grids = [s.bind(kf_dt) for s in streams]
-    T, t0, _ = grids[0]
-    n_ep = min(g[2] for g in grids)
-    grid = Grid(t0, T, n_ep)
+    runs = [_LaneRun(ln, model, P0, lag, fbs, kf_dt, h) for ln, h in zip(lanes, histories)]
+    grid = runs[0].grid
+    stops = sorted(set(runs[0].arrivals) | {grid.n})
+    for k, r in enumerate(runs[1:], 1):
+        g = r.grid
+        if (g.t0, g.T, g.n) != (grid.t0, grid.T, grid.n):
+            raise ValueError(f"lane {k} is on the filter grid t0={g.t0} s, step {g.T} s, {g.n} steps; "
+                             f"lane 0 on t0={grid.t0} s, step {grid.T} s, {grid.n} steps")
+        if sorted(set(r.arrivals) | {g.n}) != stops:
+            raise ValueError(f"lane {k} receives measurements at other epochs than lane 0: lanes "
+                             "in lockstep need one measurement schedule")
+    T, n_ep = grid.T, grid.n
     t_ep = grid.t
     t_rel = T * np.arange(n_ep + 1)              # filter clock (absolute stamps lose digits)
-
-    # --- schedule of every measurement
-    arrivals = {}                                 # epoch -> [(measurement, item)]
-    hist = 0
-    e_valid = {}
-    for mi, m in enumerate(measurements):
-        for e, items in m.epochs(grid).items():
-            for j in items:
-                tv, ta = m.times(j)
-                ev = int(grid.epoch_at_or_after(tv))
-                e_valid[(mi, j)] = (ev, tv, ta > tv)
-                arrivals.setdefault(int(e), []).append((mi, j))
-                if ev < e and not lag.on_arrival:
-                    hist = max(hist, e - ev + 3)
-    keep_F = lag.needs_model and hist > 0
-    if history is not None and hist > 0 and not isinstance(lag, ExactReprocessing):
-        raise ValueError(f"smoothing a run with lagged measurements needs exact re-processing or "
-                         f"on-arrival updates, not {type(lag).__name__}")
-
-    # --- filter and histories
-    ns = len(streams)
-    filt = KalmanFilter(np.zeros(n) if x0 is None else x0, P0, t0=0.0, history=hist, check=False)
-    nav_h = [np.empty((n_ep + 1, 10)) for _ in streams]
-    nav_pre = [np.empty((n_ep + 1, 10)) for _ in streams] if hist else nav_h
-    w_h = [np.empty((n_ep + 1, 3)) for _ in streams]
-    f_h = [np.empty((n_ep + 1, 3)) for _ in streams]
-    x_h = np.zeros((n_ep + 1, n))
-    sig_h = np.empty((n_ep + 1, n))
-    live = [not s.precomputed for s in streams]
-    gb_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
-    ab_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
-    sc_h = [np.zeros((n_ep + 1, 6)) if (lv and scaled) else None for lv in live]
-    F_h = np.empty((n_ep, n, n)) if keep_F else None
-    G_h = np.empty((n_ep, n, model.q.size)) if keep_F else None
-    for i, s in enumerate(streams):
-        r0, w0, f0 = s.row0()
-        nav_h[i][0] = r0
-        nav_pre[i][0] = r0
-        w_h[i][0] = w0
-        f_h[i][0] = f0
-        if live[i]:
-            gb_h[i][0], ab_h[i][0] = s.gb, s.ab
-    sig_h[0] = filt.sigma
-    if history is not None:
-        history.begin(filt, n_ep, T, set(arrivals) | {v[0] for v in e_valid.values()})
-    a_m, a_j, a_tv, a_t, a_nu, a_nis = [], [], [], [], [], []
-    stops = sorted(set(arrivals) | {n_ep})
     max_ep = max(1, int(round(max_block / T)))
     la_ep = max(1, int(round(model_every / T)))
     la_end = -1
     la0 = 0
-    Phi_la = Q_la = None
     q = model.q
-    nav_lag = nav_h if lag.corrected_nav else nav_pre
     cprop = CompiledPropagation.of(model) if model_eval == "compiled" else None
     prog = cprop.prog if cprop is not None else None
-    # one compiled loop per block (model, Φ, Q_k, prediction) unless Φ, Q_k or F must be kept
-    # (a history for smoothing records every Φ)
-    fused = (cprop is not None and discretization == "series" and filt._buf is None
-             and not filt.check and not keep_F and history is None)
+    fused = [r for r in runs if r.fusable(cprop, discretization)]
+    kept = [r for r in runs if not r.fusable(cprop, discretization)]
     stretch = None
-
-    def epoch_rows(rows_list, w_list, f_list, k):
-        return tuple(NavRow(rows_list[i][k], w_list[i][k], f_list[i][k]) for i in range(ns))
 
     with _progress(label, total=n_ep, unit="steps", enabled=bool(progress)) as bar:
         e0 = 0
@@ -596,116 +824,39 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
             while stops[si] <= e0:
                 si += 1
             e1 = min(stops[si], e0 + max_ep)
-            m = e1 - e0
-            blk = [s.advance(e0, e1) for s in streams]
-            rows = []                                                    # e0..e1
-            for i in range(ns):
-                r = np.empty((m + 1, 10))
-                r[0] = nav_h[i][e0]
-                r[1:] = blk[i][0]
-                rows.append(r)
+            for r in runs:
+                r.advance(e0, e1)
             if e1 > la_end:
                 # error model for the next stretch, from a look-ahead run of the streams
                 la0 = e0
                 la_end = max(e1, min(n_ep, e0 + la_ep))
-                pts = []
-                for i, s in enumerate(streams):
-                    out, ws, fs = blk[i]
-                    if la_end > e1:
-                        la_out, lws, lfs = s.lookahead(e1, la_end)
-                        la_rows = np.vstack([rows[i], la_out[:-1]])       # epochs e0..la_end-1
-                        w_la, f_la = np.vstack([ws, lws]), np.vstack([fs, lfs])
-                    else:
-                        la_rows, w_la, f_la = rows[i][:-1], ws, fs
-                    pts.append((la_rows, w_la, f_la))
+                pts = {id(r): r.points(e1, la_end) for r in runs}
                 if fused:
-                    # (k, S, ·) per quantity; one stream: a view, no copy
-                    stretch = tuple(np.ascontiguousarray(pts[0][c][None] if ns == 1
-                                                         else np.stack([p[c] for p in pts]))
-                                    for c in range(3))
-                else:
-                    F, G, Phi_la, Q_la = _model_stretch(model, prog, pts, q, T, discretization)
-                if keep_F:
-                    F_h[la0:la_end] = F
-                    G_h[la0:la_end] = G
-            if fused:
-                cprop.predict(filt, stretch, e0 - la0, e1 - la0, T, sig_h[e0 + 1:e1 + 1],
-                              x_h[e0 + 1:e1 + 1])
-            else:
-                sl = slice(e0 - la0, e1 - la0)
-                if history is None:
-                    filt.predict_many(Phi_la[sl], Q_la[sl], T, sigma_out=sig_h[e0 + 1:e1 + 1],
-                                      x_out=x_h[e0 + 1:e1 + 1])
-                else:
-                    history.predict(filt, Phi_la[sl], Q_la[sl], T, e0, sig_h[e0 + 1:e1 + 1],
-                                    x_h[e0 + 1:e1 + 1])
-            for i, s in enumerate(streams):
-                _, ws, fs = blk[i]
-                nav_h[i][e0 + 1:e1 + 1] = rows[i][1:]
-                if hist:
-                    nav_pre[i][e0 + 1:e1 + 1] = rows[i][1:]
-                w_h[i][e0 + 1:e1 + 1] = ws
-                f_h[i][e0 + 1:e1 + 1] = fs
-                if live[i]:
-                    gb_h[i][e0 + 1:e1 + 1] = s.gb
-                    ab_h[i][e0 + 1:e1 + 1] = s.ab
-                    if sc_h[i] is not None:
-                        sc_h[i][e0 + 1:e1 + 1] = np.concatenate([s.kg, s.ka])
-            here = arrivals.get(e1, []) if e1 == stops[si] else []
-            now = None
-            ev_min = None
-            for (mi, j) in here:
-                meas = measurements[mi]
-                ev, tv, late = e_valid[(mi, j)]
-                if ev < e1 and not lag.on_arrival:
-                    ep = Epoch(t_ep[ev], ev, epoch_rows(nav_lag, w_h, f_h, ev), lay, n, j)
-                    r = meas.matrices(ep)
-                    if r is None:
-                        continue
-                    if keep_F:
-                        # Qc = G diag(q) Gᵀ of the validity epoch only (a one-matrix stack:
-                        # the arithmetic of forming it for the whole stretch)
-                        g = G_h[ev:ev + 1]
-                        kw = dict(F=F_h[ev], Qc=((g * q) @ np.swapaxes(g, -1, -2))[0])
+                    # (L, k, S, ·) per quantity; one lane with one stream: a view, no copy
+                    ns = fused[0].ns
+                    if len(fused) == 1 and ns == 1:
+                        p = pts[id(fused[0])][0]
+                        stretch = tuple(np.ascontiguousarray(p[c][None, None]) for c in range(3))
                     else:
-                        kw = {}
-                    res = lag.update(filt, *r, t_rel[ev], tol=lag_tol, **kw)
-                    ev_min = ev if ev_min is None else min(ev_min, ev)
-                else:
-                    # on time, or the lag ignored: a late item taken as valid now
-                    t_at = tv if (lag.on_arrival and late) else t_ep[e1]
-                    if now is None:
-                        now = tuple(NavRow(rows[i][-1], blk[i][1][-1], blk[i][2][-1]) for i in range(ns))
-                    r = meas.matrices(Epoch(t_at, e1, now, lay, n, j))
-                    if r is None:
-                        continue
-                    res = filt.update(*r)
-                a_m.append(mi)
-                a_j.append(j)
-                a_tv.append(tv)
-                a_t.append(t_ep[e1])
-                a_nu.append(res.innovation)
-                a_nis.append(res.nis)
-            if here:
-                if history is not None:
-                    history.updated(e1, filt, ev_min)
-                if fbs:
-                    for si_, fb in fbs:
-                        s = streams[si_]
-                        d = s.feedback(filt, fb)
-                        if history is not None:
-                            history.fed_back(e1, d)
-                        if sc_h[si_] is not None:
-                            sc_h[si_][e1] = np.concatenate([s.kg, s.ka])
-                        nav_h[si_][e1] = s.row()
-                        gb_h[si_][e1] = s.gb
-                        ab_h[si_][e1] = s.ab
-                x_h[e1] = filt.x
-                sig_h[e1] = filt.sigma
-            bar.advance(m)
+                        stretch = tuple(np.ascontiguousarray(np.stack([np.stack([p[c] for p in pts[id(r)]])
+                                                                       for r in fused]))
+                                        for c in range(3))
+                if kept:
+                    for r, (F, G, r.Phi_la, r.Q_la) in zip(kept, _model_lanes(
+                            model, prog, [pts[id(r)] for r in kept], q, T, discretization)):
+                        if r.keep_F:
+                            r.F_h[la0:la_end] = F
+                            r.G_h[la0:la_end] = G
+            if fused:
+                cprop.predict([r.filt for r in fused], stretch, e0 - la0, e1 - la0, T,
+                              [r.sig_h[e0 + 1:e1 + 1] for r in fused], [r.x_h[e0 + 1:e1 + 1] for r in fused])
+            for r in kept:
+                r.predict(e0, e1, la0, T)
+            at_stop = e1 == stops[si]
+            for r in runs:
+                r.record(e0, e1)
+                r.measure(e1, r.arrivals.get(e1, []) if at_stop else [], lag, lay, n, q, lag_tol,
+                          t_ep, t_rel, fbs)
+            bar.advance(e1 - e0)
             e0 = e1
-    applied = Applied(np.array(a_m, dtype=np.int64), np.array(a_j, dtype=np.int64),
-                      np.array(a_tv, dtype=float), np.array(a_t, dtype=float), a_nu,
-                      np.array(a_nis, dtype=float))
-    return DriverResult(t_ep, tuple(nav_h), x_h, sig_h, tuple(gb_h), tuple(ab_h),
-                        tuple(sc_h) if scaled else None, applied, lay, history)
+    return [r.result(t_ep, lay) for r in runs]

@@ -24,7 +24,7 @@ from sinslab.fusion.measurements import (LeverPositionFix, LeverVelocityFix, Pos
                                          VelocityFix)
 from sinslab.nav import errstate as es
 
-__all__ = ["loosely_coupled", "LooselyCoupled", "lc_model"]
+__all__ = ["loosely_coupled", "loosely_coupled_many", "LooselyCoupled", "lc_model"]
 
 
 def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=False):
@@ -204,6 +204,103 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     -------
     LooselyCoupled
     """
+    c = _compose(imu, init, fix_t, fix_pos, fix_sigma, model=model, gyro_arw=gyro_arw,
+                 accel_vrw=accel_vrw, fix_vel=fix_vel, vel_sigma=vel_sigma, lever_arm=lever_arm,
+                 fix_lag=fix_lag, fix_arrive=fix_arrive, lag=lag, lag_method=lag_method,
+                 outages=outages, windows=windows, kf_dt=kf_dt, nsub=nsub, feedback=feedback,
+                 vertical=vertical, height=height, gyro_bias=gyro_bias, accel_bias=accel_bias,
+                 start=start, t_start=t_start)
+    r = driver.run([c.ins], c.model, P0, [c.meas, *aiding], kf_dt=kf_dt, feedback=c.feedback,
+                   lag=c.policy, max_block=max_block, model_every=model_every,
+                   discretization=discretization, progress=progress, label=label, history=history)
+    return c.result(r)
+
+
+#: The arguments of :func:`loosely_coupled` that differ between the runs of
+#: :func:`loosely_coupled_many` (the data of each run); all others are shared.
+PER_RUN = ("imu", "init", "fix_t", "fix_pos", "fix_sigma", "fix_vel", "vel_sigma", "fix_arrive",
+           "gyro_bias", "accel_bias")
+
+
+def loosely_coupled_many(runs, P0, *, kf_dt=0.1, max_block=10.0, model_every=10.0,
+                         discretization="series", progress=False, label="loosely coupled",
+                         **shared) -> list:
+    """:func:`loosely_coupled` for the runs of a Monte Carlo campaign, in lockstep on the
+    run axis of the fusion driver (:func:`sinslab.fusion.driver.run_many`).
+
+    Parameters
+    ----------
+    runs : sequence of dict
+        Per run the arguments of :data:`PER_RUN` (``imu``, ``init``, ``fix_t``,
+        ``fix_pos``, ``fix_sigma`` required; ``fix_vel``, ``vel_sigma``, ``fix_arrive``,
+        ``gyro_bias``, ``accel_bias`` optional). The runs must share the filter grid and
+        the epochs at which fixes arrive (fixes requested on one plan).
+    P0, kf_dt, max_block, model_every, discretization, progress, label
+        As in :func:`loosely_coupled`.
+    **shared
+        The other keyword arguments of :func:`loosely_coupled` (``model``, ``lag``,
+        ``lag_method``, ``windows``, ``feedback``, ``vertical``, ``height``, ...), the
+        same for every run; ``aiding`` and ``history`` are not available here.
+
+    Returns
+    -------
+    list of LooselyCoupled
+        One per run, each equal to :func:`loosely_coupled` on that run alone.
+    """
+    bad = sorted(set(shared) & (set(PER_RUN) | {"aiding", "history"}))
+    if bad:
+        raise ValueError(f"loosely_coupled_many: {', '.join(bad)} belong in the runs "
+                         "(or are not available for a campaign)")
+    comp = []
+    for k, run in enumerate(runs):
+        extra = sorted(set(run) - set(PER_RUN))
+        if extra:
+            raise ValueError(f"run {k}: unknown per-run argument(s) {', '.join(extra)}; "
+                             f"a run gives {', '.join(PER_RUN)}")
+        args = dict(run)
+        comp.append(_compose(args.pop("imu"), args.pop("init"), args.pop("fix_t"), args.pop("fix_pos"),
+                             args.pop("fix_sigma"), kf_dt=kf_dt, **shared, **args))
+    if not comp:
+        raise ValueError("loosely_coupled_many needs at least one run")
+    c0 = comp[0]
+    rs = driver.run_many([driver.Lane((c.ins,), (c.meas,)) for c in comp], c0.model, P0, kf_dt=kf_dt,
+                         feedback=c0.feedback, lag=c0.policy, max_block=max_block,
+                         model_every=model_every, discretization=discretization, progress=progress,
+                         label=label)
+    return [c.result(r) for c, r in zip(comp, rs)]
+
+
+@dataclass(frozen=True)
+class _Composed:
+    """One run made ready for the driver: the model, the INS stream, the fix measurement,
+    the feedback layout and lag policy, and what :meth:`result` needs to unpack its output."""
+
+    model: object
+    ins: LiveStream
+    meas: object
+    feedback: object
+    policy: object
+    fix_t: np.ndarray
+    n_z: int
+    use_vel: bool
+
+    def result(self, r) -> LooselyCoupled:
+        ap = r.applied
+        k = np.flatnonzero(ap.measurement == 0)            # the fixes (aiding records left out)
+        m_z = self.n_z + (3 if self.use_vel else 0)
+        inn = np.array([ap.innovation[i] for i in k]).reshape(-1, m_z)
+        return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
+                              r.scale[0] if r.scale is not None else None, self.fix_t[ap.item[k]],
+                              ap.t_applied[k], ap.item[k], inn, ap.nis[k], r.layout, r.history)
+
+
+def _compose(imu, init, fix_t, fix_pos, fix_sigma, *, model=None, gyro_arw=None, accel_vrw=None,
+             fix_vel=None, vel_sigma=None, lever_arm=None, fix_lag=0.0, fix_arrive=None,
+             lag="aware", lag_method="exact", outages=(), windows=None, kf_dt=0.1, nsub=2,
+             feedback=True, vertical="free", height=None, gyro_bias=None, accel_bias=None,
+             start=0, t_start=None) -> _Composed:
+    """Check the arguments of :func:`loosely_coupled` and make the stream, the fix
+    measurement, the feedback layout and the lag policy of one run."""
     # --- model and layout
     if model is None:
         if gyro_arw is None or accel_vrw is None:
@@ -287,13 +384,4 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         if use_vel:
             meas = Stack(meas, VelocityFix(fix_t, fix_vel, vel_sigma, **sched))
 
-    r = driver.run([ins], model, P0, [meas, *aiding], kf_dt=kf_dt, feedback=fb, lag=policy,
-                   max_block=max_block, model_every=model_every, discretization=discretization,
-                   progress=progress, label=label, history=history)
-    ap = r.applied
-    k = np.flatnonzero(ap.measurement == 0)            # the fixes (aiding records left out)
-    m_z = n_z + (3 if use_vel else 0)
-    inn = np.array([ap.innovation[i] for i in k]).reshape(-1, m_z)
-    return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
-                          r.scale[0] if r.scale is not None else None, fix_t[ap.item[k]],
-                          ap.t_applied[k], ap.item[k], inn, ap.nis[k], lay, r.history)
+    return _Composed(model, ins, meas, fb, policy, fix_t, n_z, use_vel)

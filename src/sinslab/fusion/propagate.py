@@ -28,8 +28,12 @@ __all__ = ["CompiledPropagation"]
 def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k,
                    f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, q, T, fcol, fcnt,
                    grow, gcnt, R, pos, nr, qr, nq, phic, phin, x, c, P, sig_out, x_out):
+    """Epochs ``e_a..e_b−1`` of L lanes, one lane after the other with the same work arrays:
+    ``rows`` (L, k, S, 10), ``w``, ``f`` (L, k, S, 3); ``x``, ``c`` (L, n), ``P`` (L, n, n)
+    stepped in place; ``sig_out``, ``x_out`` (L, e_b − e_a, n). Returns ``(lane, epoch)``
+    of the first invalid navigation point, or ``(−1, −1)``."""
     n, m = F0.shape[0], G0.shape[1]
-    C = np.empty((rows.shape[0], 3, 3))
+    C = np.empty((rows.shape[1], 3, 3))
     Fc = np.empty((9, 9))
     Fe = np.empty((n, n))
     Ge = np.empty((n, m))
@@ -42,20 +46,23 @@ def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_co
     T1 = np.empty((n, n))
     T2 = np.empty((n, n))
     tmp = np.empty(n)
-    for e in range(e_a, e_b):
-        if not ek.fill_one(rows, w, f, e, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k,
-                           f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc,
-                           Fe, Ge):
-            return e
-        series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe)
-        _cov_predict(P, Pe, Qe, T1, T2)
-        _state_predict(x, Pe, phic, phin, tmp)
-        _state_predict(c, Pe, phic, phin, tmp)
-        i = e - e_a
-        for j in range(n):
-            sig_out[i, j] = math.sqrt(max(P[j, j], 0.0))
-            x_out[i, j] = x[j]
-    return -1
+    for ln in range(rows.shape[0]):
+        rl, wl, fl = rows[ln], w[ln], f[ln]
+        xl, cl, Pl = x[ln], c[ln], P[ln]
+        for e in range(e_a, e_b):
+            if not ek.fill_one(rl, wl, fl, e, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k,
+                               f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc,
+                               Fe, Ge):
+                return ln, e
+            series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe)
+            _cov_predict(Pl, Pe, Qe, T1, T2)
+            _state_predict(xl, Pe, phic, phin, tmp)
+            _state_predict(cl, Pe, phic, phin, tmp)
+            i = e - e_a
+            for j in range(n):
+                sig_out[ln, i, j] = math.sqrt(max(Pl[j, j], 0.0))
+                x_out[ln, i, j] = xl[j]
+    return -1, -1
 
 
 class CompiledPropagation:
@@ -82,30 +89,50 @@ class CompiledPropagation:
         prog = ek.program(model)
         return None if prog is None else cls(model, prog)
 
-    def predict(self, filt, stretch, a, b, T, sigma_out, x_out):
-        """Predict ``filt`` through epochs ``a..b−1`` of a stretch.
+    def predict(self, filts, stretch, a, b, T, sigma_out, x_out):
+        """Predict the filters of L lanes through epochs ``a..b−1`` of a stretch, in one
+        compiled call (each lane's arithmetic is that of a call for it alone).
 
         Parameters
         ----------
-        filt : KalmanFilter
-            Without history and checks (its fast path); x, c, P are updated in place and
-            its time advances by ``(b − a) T``.
+        filts : sequence of KalmanFilter
+            One per lane, without history and checks (their fast path); x, c, P are
+            updated in place and their time advances by ``(b − a) T``.
         stretch : tuple of ndarray
-            ``rows`` (k, S, 10), ``w``, ``f`` (k, S, 3), contiguous: the linearisation
-            points of the stretch (see :func:`sinslab.nav.errstate_kernels.matrices_rows`).
+            ``rows`` (L, k, S, 10), ``w``, ``f`` (L, k, S, 3), contiguous: per lane the
+            linearisation points of the stretch (see
+            :func:`sinslab.nav.errstate_kernels.matrices_rows`).
         a, b : int
             Epochs of the stretch to step from (``a <= b <= S``).
         T : float
             Step [s].
-        sigma_out, x_out : ndarray, shape (b − a, n)
-            Receive σ and x after each step.
+        sigma_out, x_out : sequence of ndarray, shape (b − a, n)
+            Per lane, receive σ and x after each step.
         """
         rows, w, f = stretch
         fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq = self.structure
-        bad = _predict_model(rows, w, f, a, b, *self._tables, self.q, float(T), fcol, fcnt, grow,
-                             gcnt, R, pos, nr, qr, nq, phic, phin, filt.x, filt.c, filt.P,
-                             sigma_out, x_out)
+        L = len(filts)
+        if L == 1:
+            # views: the one filter's arrays are stepped where they are
+            f0 = filts[0]
+            x, c, P = f0.x[None], f0.c[None], f0.P[None]
+            so, xo = sigma_out[0][None], x_out[0][None]
+        else:
+            x = np.stack([k.x for k in filts])
+            c = np.stack([k.c for k in filts])
+            P = np.stack([k.P for k in filts])
+            n = x.shape[1]
+            so, xo = np.empty((L, b - a, n)), np.empty((L, b - a, n))
+        bad, e = _predict_model(rows, w, f, a, b, *self._tables, self.q, float(T), fcol, fcnt, grow,
+                                gcnt, R, pos, nr, qr, nq, phic, phin, x, c, P, so, xo)
         if bad >= 0:
-            ek.matrices_rows(self.prog, rows[:, bad:bad + 1], w[:, bad:bad + 1], f[:, bad:bad + 1])
-            raise ValueError(f"navigation point {bad} of the stretch is invalid")  # not reached
-        filt.t += (b - a) * float(T)
+            ek.matrices_rows(self.prog, rows[bad][:, e:e + 1], w[bad][:, e:e + 1], f[bad][:, e:e + 1])
+            raise ValueError(f"navigation point {e} of the stretch is invalid")  # not reached
+        if L > 1:
+            for ln, k in enumerate(filts):
+                # in place, as the one-lane call steps them
+                k.x[:], k.c[:], k.P[:] = x[ln], c[ln], P[ln]
+                sigma_out[ln][:] = so[ln]
+                x_out[ln][:] = xo[ln]
+        for k in filts:
+            k.t += (b - a) * float(T)
