@@ -71,7 +71,7 @@ __all__ = [
     "GEO_RADIUS", "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
     "ecef", "measure_ranges", "solve_fix", "request_schedule", "FixPlan", "plan_fixes",
     "simulate_fixes",
-    "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate",
+    "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate", "integrate_many",
     "StoredStateUpdate",
     "MODES", "horizontal_errors", "check_windows", "check_geometry",
 ]
@@ -690,8 +690,33 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     -------
     Integration
     """
+    return integrate_many([(imu, init, fixes)], model, P0, mode=mode, lag_method=lag_method,
+                          height=height, windows=windows, kf_dt=kf_dt, nsub=nsub, max_block=max_block,
+                          discretization=discretization)[0]
+
+
+def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag_method="paper003",
+                   height, windows=None, kf_dt=1.0, nsub=2, max_block=60.0,
+                   discretization="series") -> list:
+    """:func:`integrate` for the runs of a Monte Carlo campaign, in lockstep on the run axis
+    of the fusion driver (:func:`sinslab.fusion.loosely_coupled.loosely_coupled_many`).
+
+    Parameters
+    ----------
+    runs : sequence of (ImuRecord, NavState, Fixes)
+        Each run's measured increments, initial state and fixes. The runs share the IMU
+        grid and the fix schedule (the request plan of a constant latency,
+        :func:`plan_fixes`); their errors and fix values are their own.
+    model, P0, mode, lag_method, height, windows, kf_dt, nsub, max_block, discretization
+        As in :func:`integrate`, shared by the runs.
+
+    Returns
+    -------
+    list of Integration
+        One per run, each equal to :func:`integrate` on that run alone.
+    """
     from sinslab.fusion.feedback import FeedbackLayout
-    from sinslab.fusion.loosely_coupled import loosely_coupled
+    from sinslab.fusion.loosely_coupled import loosely_coupled_many
 
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
@@ -700,37 +725,40 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     lay = model.layout
     if lay.n != 16 or lay.names[:3] != ("phi", "dv", "dp"):
         raise ValueError(f"integrate needs the 16-state horizontal model, got {lay!r}")
-    dt = imu.dt
-    k_kf = int(round(kf_dt / dt))
-    if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % nsub:
-        raise ValueError(f"kf_dt={kf_dt} s must be a multiple of nsub*dt = {nsub * dt} s")
-    T = k_kf * dt
-    K = len(imu) // k_kf
-    if K < 1:
-        raise ValueError("the IMU record is shorter than one filter step")
-    t0 = imu.t0
-    t_end = t0 + T * K
-    J = len(fixes)
-    if J and (fixes.t[0] < t0 - 1e-9 or fixes.t_arrive[-1] > t_end + 1e-9
-              or fixes.t[-1] > t_end + 1e-9):
-        raise ValueError(f"fix times {fixes.t[0]:g}..{fixes.t_arrive.max():g} s lie outside "
-                         f"the IMU record {t0:g}..{t_end:g} s")
-    if J:
-        _epoch_of(fixes.t, t0, T, "fix validity time")
     w = None if windows is None else check_windows(windows)
-    # the one INS + fix driver: 2-component (north, east) fixes against the horizontal
-    # model, vertical channel held; φ, δv, δp and the gyro constant drift fed back (FEEDBACK)
-    r = loosely_coupled(
-        imu, init, fixes.t, np.stack([fixes.lat, fixes.lon], -1),
-        np.stack([fixes.sigma[:, 0], fixes.sigma[:, 1]], -1), P0, model=model,
-        fix_arrive=fixes.t if mode == "zero-lag" else fixes.t_arrive,
-        lag="ignore" if mode == "lag-ignore" else "aware",
+    lanes = []
+    for imu, init, fixes in runs:
+        dt = imu.dt
+        k_kf = int(round(kf_dt / dt))
+        if k_kf < 1 or abs(k_kf * dt - kf_dt) > 1e-6 * kf_dt or k_kf % nsub:
+            raise ValueError(f"kf_dt={kf_dt} s must be a multiple of nsub*dt = {nsub * dt} s")
+        T = k_kf * dt
+        K = len(imu) // k_kf
+        if K < 1:
+            raise ValueError("the IMU record is shorter than one filter step")
+        t0 = imu.t0
+        t_end = t0 + T * K
+        J = len(fixes)
+        if J and (fixes.t[0] < t0 - 1e-9 or fixes.t_arrive[-1] > t_end + 1e-9
+                  or fixes.t[-1] > t_end + 1e-9):
+            raise ValueError(f"fix times {fixes.t[0]:g}..{fixes.t_arrive.max():g} s lie outside "
+                             f"the IMU record {t0:g}..{t_end:g} s")
+        if J:
+            _epoch_of(fixes.t, t0, T, "fix validity time")
+        # 2-component (north, east) fixes against the horizontal model
+        lanes.append(dict(imu=imu, init=init, fix_t=fixes.t, fix_pos=np.stack([fixes.lat, fixes.lon], -1),
+                          fix_sigma=np.stack([fixes.sigma[:, 0], fixes.sigma[:, 1]], -1),
+                          fix_arrive=fixes.t if mode == "zero-lag" else fixes.t_arrive))
+    # the one INS + fix driver: vertical channel held; φ, δv, δp and the gyro constant drift
+    # fed back (FEEDBACK)
+    rs = loosely_coupled_many(
+        lanes, P0, model=model, lag="ignore" if mode == "lag-ignore" else "aware",
         lag_method=StoredStateUpdate() if lag_method == "paper003" else "exact", windows=w,
         kf_dt=kf_dt, nsub=nsub, feedback=FeedbackLayout.from_model(lay, gyro="eps_b", accel=None),
         vertical="hold", height=height, max_block=max_block, model_every=0.0,
         discretization=discretization, progress=False)
-    return Integration(r.t, r.nav, r.x, r.sigma, r.gyro_bias, r.fix_t, r.t_applied, r.innovation,
-                       mode, lag_method)
+    return [Integration(r.t, r.nav, r.x, r.sigma, r.gyro_bias, r.fix_t, r.t_applied, r.innovation,
+                        mode, lag_method) for r in rs]
 
 
 def horizontal_errors(nav, truth):
