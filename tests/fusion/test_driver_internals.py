@@ -34,3 +34,33 @@ def test_scaled_increments_are_the_numpy_expressions_bit_for_bit(k):
     ref = [dth_s, dv_s, dth_s.reshape(m, k, 3).sum(1) / T - gb, dv_s.reshape(m, k, 3).sum(1) / T - ab]
     for got, want in zip(out, ref):
         assert np.array_equal(got, want)
+
+
+def test_streams_on_one_imu_record_share_its_step_sums_while_it_lives():
+    """Filters on one IMU record (a run's competing filters) bind to the sums made once:
+    numpy's sums of that record from the stream's first sample, read-only; another record,
+    another start or another step gets its own, and the entry leaves with its record."""
+    import gc
+
+    from sinslab.core.records import ImuRecord
+    from sinslab.fusion import driver
+
+    rng = np.random.default_rng(3)
+    N, dt = 1000, 0.01
+    imu = ImuRecord(dt * np.arange(1, N + 1), rng.standard_normal((N, 3)) * 1e-4,
+                    rng.standard_normal((N, 3)) * 1e-2, dt)
+    a = driver._imu_step_sums(imu, 0, 49, 20)
+    b = driver._imu_step_sums(imu, 0, 49, 20)
+    assert a[0] is b[0] and a[1] is b[1]
+    assert np.array_equal(a[0], imu.dtheta[:980].reshape(49, 20, 3).sum(1))
+    assert np.array_equal(a[1], imu.dv[:980].reshape(49, 20, 3).sum(1))
+    assert not a[0].flags.writeable
+    c = driver._imu_step_sums(imu, 10, 49, 20)
+    assert np.array_equal(c[0], imu.dtheta[10:990].reshape(49, 20, 3).sum(1))
+    other = ImuRecord(imu.t, imu.dtheta * 2.0, imu.dv, dt)
+    assert np.array_equal(driver._imu_step_sums(other, 0, 49, 20)[0], 2.0 * a[0])
+    keys = [k for k in driver._IMU_SUMS if k[0] in (id(imu), id(other))]
+    assert len(keys) == 3
+    del imu, other, a, b, c
+    gc.collect()
+    assert not any(k in driver._IMU_SUMS for k in keys)

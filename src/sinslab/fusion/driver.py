@@ -78,6 +78,7 @@ estimate after re-processing is fed back at ``e1`` like any other.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,6 +153,31 @@ def _step_sums(x, n_ep, k):
     acc = np.empty((n_ep, 3))
     _step_sums_kernel(np.ascontiguousarray(x), k, acc)
     return acc
+
+
+#: Step sums of the IMU records in use, by (id of the record, first sample, steps, samples
+#: per step); an entry leaves with its record.
+_IMU_SUMS = {}
+
+
+def _imu_step_sums(imu, start, n_ep, k):
+    """``(Σ Δθ, Σ Δv)`` (n_ep, 3) each of the filter steps of ``imu`` from sample ``start``.
+
+    Several filters on one IMU record (a Monte Carlo run's competing filters) bind to the
+    same steps; the sums are made once per record. Records are values — their arrays are
+    not edited in place — so sums made once stay right for the record's life.
+    """
+    key = (id(imu), int(start), int(n_ep), int(k))
+    sums = _IMU_SUMS.get(key)
+    if sums is None:
+        n_use = n_ep * k
+        sums = (_step_sums(imu.dtheta[start:start + n_use], n_ep, k),
+                _step_sums(imu.dv[start:start + n_use], n_ep, k))
+        for a in sums:
+            a.flags.writeable = False
+        _IMU_SUMS[key] = sums
+        weakref.finalize(imu, _IMU_SUMS.pop, key, None)
+    return sums
 
 
 class LiveStream:
@@ -234,10 +260,7 @@ class LiveStream:
                              "than one filter step")
         self.n_ep = n_ep
         if not self.scaled:
-            n_use = n_ep * k_kf
-            s = self.start
-            self._dth_sum = _step_sums(self.imu.dtheta[s:s + n_use], n_ep, k_kf)
-            self._dv_sum = _step_sums(self.imu.dv[s:s + n_use], n_ep, k_kf)
+            self._dth_sum, self._dv_sum = _imu_step_sums(self.imu, self.start, n_ep, k_kf)
         return self.T, self.t0, n_ep
 
     def row0(self):
