@@ -11,7 +11,9 @@ profiled call) and the rest (interpreter and numpy calls: the unprofiled time mi
 which bounds what any further stacking of the runs could remove.
 
 Campaigns: ``double-star`` (three filters per run on 1200 s of 100 Hz IMU) and
-``free-inertial`` (7200 s of 100 Hz IMU navigated per run). (The transfer-alignment
+``free-inertial`` (7200 s of 100 Hz IMU navigated per run). For double-star it also times
+the task with its filters stepped over several runs at once on the fusion driver's run
+axis against the same task with one run per driver call. (The transfer-alignment
 campaign stacks its runs in arrays throughout: ``benchmarks/transfer.py``.)
 
 Run: ``.venv/bin/python benchmarks/campaigns.py [--runs 8]``; results printed and written
@@ -124,6 +126,32 @@ def measure(name: str, runs: int, rounds: int = 3) -> dict:
             "compiled_share": compiled / (compiled + other)}
 
 
+def lockstep(runs: int, rounds: int = 3) -> dict:
+    """Double-star's task with its filters stepped over up to ``LANES`` runs at once on the
+    fusion driver's run axis, against the same task with one run per driver call
+    (``LANES = 1``): alternated, best of each."""
+    from sinslab.app.config import resolve
+    from sinslab.experiments import double_star as dsx
+
+    S = dsx._setup(resolve(dsx.Config))
+    seeds = np.random.SeedSequence(7).spawn(runs + 1)
+    lanes = dsx.LANES
+    times = {lanes: [], 1: []}
+    try:
+        for width in (lanes, 1):                               # compile / warm caches
+            dsx.LANES = width
+            dsx._batch(seeds[:2], S)
+        for _ in range(rounds):
+            for width in (lanes, 1):
+                dsx.LANES = width
+                times[width].append(_cpu(lambda: dsx._batch(seeds[1:], S)))
+    finally:
+        dsx.LANES = lanes
+    a, b = min(times[lanes]), min(times[1])
+    return {"runs": runs, "lanes": lanes, "cpu_per_run_lockstep_s": a / runs,
+            "cpu_per_run_one_per_call_s": b / runs, "speedup": b / a}
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=8)
@@ -138,6 +166,11 @@ def main(argv=None) -> dict:
               f"time {r['cpu_per_run_one_at_a_time_s'] * 1e3:6.1f} ms -> {r['speedup']:.2f}x; compiled "
               f"kernels {r['compiled_share'] * 100:4.1f} % of the stacked task, the rest (interpreter "
               f"and numpy) {r['other_per_run_s'] * 1e3:.1f} ms per run")
+    if "double-star" in a.only.split(","):
+        r = out["double-star lockstep"] = lockstep(a.runs)
+        print(f"{'double-star':>14s}: filters over {r['lanes']} runs in lockstep "
+              f"{r['cpu_per_run_lockstep_s'] * 1e3:6.1f} ms CPU per run, one run per driver call "
+              f"{r['cpu_per_run_one_per_call_s'] * 1e3:6.1f} ms -> {r['speedup']:.2f}x")
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(out, indent=2))
     return out
