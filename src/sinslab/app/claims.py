@@ -57,9 +57,11 @@ class Claim:
 
     ``names`` labels the components of a list ``measured`` (``["φE", "φN", "φU"]``) and
     ``unit`` gives their unit (one string, or one per component) so the report prints
-    "φE 0.10′ · φN −0.47′". In ``summary.json`` a claim is::
+    "φE 0.10′ · φN −0.47′". ``origin`` says whose sentence the claim tests: ``"paper"``
+    (a statement the paper makes) or ``"check"`` (a test the project adds: consistency,
+    covariance against Monte Carlo, ...). In ``summary.json`` a claim is::
 
-        {"id", "statement", "passed",
+        {"id", "statement", "passed", "origin": "paper" | "check" | null,
          "measured": {"value": <number | list | dict>, "names": [...] | null, "unit": str | [...]},
          "expected": {"relation": "<=" | ">=" | "==" | "within" | "between" | "text",
                       "value": <number | list | null>, "tolerance": <number | list | null>,
@@ -76,8 +78,12 @@ class Claim:
     relation: str = ""
     tolerance: Any = None
     rel_tolerance: float | None = None
+    origin: str | None = None
 
     def __post_init__(self):
+        if self.origin not in (None, "paper", "check"):
+            raise ValueError(f"claim {self.id!r}: origin must be 'paper' or 'check', "
+                             f"got {self.origin!r}")
         if isinstance(self.measured, dict):
             self.measured = {str(k): _num(v) for k, v in self.measured.items()}
         else:
@@ -114,7 +120,7 @@ class Claim:
                              "value": None if self.relation == "text" else self.expected,
                              "tolerance": self.tolerance, "rel_tolerance": self.rel_tolerance,
                              "unit": self.unit, "text": self.criterion()},
-                "passed": self.passed}
+                "passed": self.passed, "origin": self.origin}
 
     @staticmethod
     def _ok(v) -> bool:
@@ -122,7 +128,7 @@ class Claim:
 
     @classmethod
     def within(cls, id: str, statement: str, measured, target, *, rel: float | None = None,
-               abs: float | None = None, unit="", names=None) -> "Claim":
+               abs: float | None = None, unit="", names=None, origin=None) -> "Claim":
         """``|measured − target| <= abs`` or ``<= rel·|target|`` (every component)."""
         if rel is None and abs is None:
             raise ValueError("Claim.within needs rel or abs")
@@ -132,22 +138,27 @@ class Claim:
         ok = cls._ok(measured) and bool(np.all(
             np.abs(np.asarray(measured, float) - np.asarray(target, float)) <= tol))
         return cls(id, statement, measured, target, ok, names=names, unit=unit, relation="within",
-                   tolerance=abs, rel_tolerance=rel)
+                   tolerance=abs, rel_tolerance=rel, origin=origin)
 
     @classmethod
-    def at_most(cls, id: str, statement: str, measured, limit, unit="", names=None) -> "Claim":
+    def at_most(cls, id: str, statement: str, measured, limit, unit="", names=None,
+                origin=None) -> "Claim":
         """``measured <= limit`` (every component)."""
         ok = cls._ok(measured) and bool(np.all(np.asarray(measured, float) <= np.asarray(limit, float)))
-        return cls(id, statement, measured, limit, ok, names=names, unit=unit, relation="<=")
+        return cls(id, statement, measured, limit, ok, names=names, unit=unit, relation="<=",
+                   origin=origin)
 
     @classmethod
-    def at_least(cls, id: str, statement: str, measured, limit, unit="", names=None) -> "Claim":
+    def at_least(cls, id: str, statement: str, measured, limit, unit="", names=None,
+                 origin=None) -> "Claim":
         """``measured >= limit`` (every component)."""
         ok = cls._ok(measured) and bool(np.all(np.asarray(measured, float) >= np.asarray(limit, float)))
-        return cls(id, statement, measured, limit, ok, names=names, unit=unit, relation=">=")
+        return cls(id, statement, measured, limit, ok, names=names, unit=unit, relation=">=",
+                   origin=origin)
 
     @classmethod
-    def equals(cls, id: str, statement: str, measured, expected, names=None, unit="") -> "Claim":
+    def equals(cls, id: str, statement: str, measured, expected, names=None, unit="",
+               origin=None) -> "Claim":
         """Exact equality (ranks, counts, orderings)."""
         return cls(id, statement, measured, expected, _num(measured) == _num(expected),
-                   names=names, unit=unit, relation="==")
+                   names=names, unit=unit, relation="==", origin=origin)
