@@ -181,10 +181,6 @@ def arrival_epochs(t_valid, t_arrive, grid, *, outages=(), windows=None):
     return out
 
 
-def _names(layout):
-    return [b.name for b in layout.blocks]
-
-
 class _Timed:
     """Time stamps and schedule shared by the fix measurements."""
 
@@ -292,8 +288,8 @@ class VelocityFix(_Timed):
     """Velocity fixes of an antenna (ENU, 3 components) against one stream.
 
     ``z = v + C_b^n (ω_ib^b × l) − v_fix`` [m/s]; ``H`` has ``I`` on δv and, with a lever
-    arm, ``(C_b^n (ω×l))×`` on φ and ``−C_b^n l×`` on the gyro bias block ``eps`` (when the
-    layout has one).
+    arm, ``(C_b^n (ω×l))×`` on φ and ``−C_b^n (l×) ∂δω/∂x`` on every block feeding the
+    gyro compensation (bias, Gauss–Markov, scale factors: :func:`_add_rate_H`).
 
     Parameters
     ----------
@@ -328,8 +324,7 @@ class VelocityFix(_Timed):
             vlev = C @ np.cross(nr.omega_b, self.lever)
             v_ant = v_ant + vlev
             H[:, lay.slice("phi")] = A.skew(vlev)
-            if "eps" in _names(lay):
-                H[:, lay.slice("eps")] = -C @ A.skew(self.lever)
+            _add_rate_H(H, lay, -C @ A.skew(self.lever), nr.omega_b)
         return v_ant - self.vel[j], H, self.sigma[j] ** 2
 
 
@@ -785,8 +780,7 @@ class LeverPositionFix(PositionFix):
 
 
 class LeverVelocityFix(VelocityFix):
-    """:class:`VelocityFix` with the antenna lever arm estimated (``∂z/∂δl = C_b^n (ω×)``)
-    and the lever term ``−C_b^n (l×)`` on every block feeding the gyro compensation."""
+    """:class:`VelocityFix` with the antenna lever arm estimated (``∂z/∂δl = C_b^n (ω×)``)."""
 
     def __init__(self, t_valid, vel, sigma, *, lever_block="lev", lever_arm=None, **kw):
         super().__init__(t_valid, vel, sigma, lever_arm=lever_arm, **kw)
@@ -795,11 +789,5 @@ class LeverVelocityFix(VelocityFix):
     def matrices(self, ep: Epoch):
         z, H, R = super().matrices(ep)
         nr = ep.streams[self.stream]
-        C = nr.C_bn
-        lay = ep.layout
-        for b in lay.blocks:                        # rebuilt below for every gyro block
-            if getattr(b, "feeds", None) in ("gyro_bias", "gyro_scale"):
-                H[:, lay.slice(b.name)] = 0.0
-        _add_rate_H(H, lay, -C @ A.skew(_lever(self.lever)), nr.omega_b)
-        H[:, lay.slice(self.lever_block)] = C @ A.skew(nr.omega_b)
+        H[:, ep.layout.slice(self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
         return z, H, R
