@@ -52,8 +52,9 @@ def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
     """What an INS carrying the error state ``x`` (computed − true) shows, given the true
     navigation row ``[q0..q3, vE, vN, vU, lat, lon, h]`` and true body rate / specific force.
 
-    The conventions of :mod:`sinslab.nav.errstate`: ``C_b^{n'} = (I − φ×) C_b^n``, ``v' = v
-    + δv``, ``[lat, lon, h]' = [lat, lon, h] + δp`` (2-state blocks: east, north / δL, δλ);
+    The conventions of :mod:`sinslab.nav.errstate` (:func:`sinslab.nav.strapdown.with_errors`:
+    ``C_b^{n'} = exp(−φ×) C_b^n``, ``v' = v + δv``, ``[lat, lon, h]' = [lat, lon, h] + δp``;
+    2-state blocks: east, north / δL, δλ);
     the compensated rate ``ω + δω`` with ``δω = x`` for every block feeding the gyro bias
     compensation (bias, Gauss–Markov) and ``δω = diag(ω) x`` for a gyro scale block, the
     specific force likewise for the accelerometer blocks (:attr:`Block.feeds`, per axis);
@@ -61,15 +62,9 @@ def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
 
     Returns ``(row', omega', f')``.
     """
-    r = np.array(row, dtype=float, copy=True)
-    C = attitude.quat_to_dcm(r[:4])
-    names = layout.names
-    if "phi" in names:
-        r[:4] = attitude.dcm_to_quat(attitude.apply_misalignment(C, x[layout.slice("phi")]))
-    for name, col in (("dv", 4), ("dp", 7)):
-        if name in names:
-            s = layout.slice(name)
-            r[col:col + s.stop - s.start] += x[s]
+    from sinslab.nav.strapdown import with_errors
+
+    r = with_errors(row, *(x[layout.slice(b)] if b in layout.names else None for b in ("phi", "dv", "dp")))
     w = np.array(omega_b, dtype=float, copy=True)
     f = np.array(f_b, dtype=float, copy=True)
     for b in layout.blocks:
