@@ -271,7 +271,7 @@ class PositionFix(_Timed):
         if Cl is not None:
             H[0:3, lay.slice("phi")] = A.skew(Cl)[[1, 0, 2]][:n_z]
         dtf = ep.t - self.t_valid[j]                 # fix extrapolated to the epoch
-        dlon = (lon - self.pos[j, 1] + math.pi) % (2 * math.pi) - math.pi
+        dlon = float(A.wrap_pi(lon - self.pos[j, 1]))
         z[0] = (lat - self.pos[j, 0]) * rm - v_ant[1] * dtf
         z[1] = dlon * rnc - v_ant[0] * dtf
         H[0, s_pos.start] = rm
@@ -420,7 +420,7 @@ class InsDifference(_Timed):
             H[1, lay.slice("phi")] = A.skew(d)[0] / rnc
             H[2:4, lay.slice("phi")] = A.skew(vlev)[0:2]
         z[0] = a.lat - lat_k
-        z[1] = (a.lon - lon_k + math.pi) % (2 * math.pi) - math.pi
+        z[1] = A.wrap_pi(a.lon - lon_k)
         z[2:4] = a.vel[:2] - vk
         sp, sv = lay.slice("dp"), lay.slice("dv")
         H[0, sp.start] = 1.0
