@@ -17,7 +17,7 @@ from sinslab.core.records import ImuRecord
 from sinslab.fusion import stationarity as st
 from sinslab.fusion.measurements import (BodyVelocity, Epoch, Grid, LeverPositionFix,
                                          LeverVelocityFix, NavRow, NonHolonomic, Odometer,
-                                         ZeroRate, ZeroVelocity, mount_matrix)
+                                         ZeroRate, ZeroVelocity, vehicle_from_body)
 from sinslab.nav import errstate as es
 
 W = np.array([0.01, -0.02, 0.3])
@@ -66,7 +66,7 @@ def test_nhc_is_the_vehicle_axis_velocity(mount):
     lev = np.array([0.3, -1.2, -0.4])
     z, H, R = _at(NonHolonomic((0.1, 0.05), mount=mount, lever_arm=lev, lever_block="lev"), lay, row)
     vb = A.quat_to_dcm(row[:4]).T @ row[4:7] + np.cross(W, lev)
-    np.testing.assert_allclose(z, (mount_matrix(mount) @ vb)[[0, 2]], rtol=1e-12)
+    np.testing.assert_allclose(z, (vehicle_from_body(mount) @ vb)[[0, 2]], rtol=1e-12)
     assert np.allclose(R, [0.01, 0.0025])
 
 

@@ -27,7 +27,7 @@ from sinslab.core import earth as E
 
 __all__ = ["Measurement", "NavRow", "Epoch", "Grid", "PositionFix", "VelocityFix", "Stack",
            "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
-           "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "mount_matrix"]
+           "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body"]
 
 
 @dataclass(frozen=True)
@@ -431,8 +431,10 @@ class InsDifference(_Timed):
 
 
 # ------------------------------------------------------------------ aiding measurements
-def mount_matrix(mount):
-    """``C_b^v`` (3, 3): IMU body axes -> vehicle axes (both RFU: x right, y forward, z up).
+def vehicle_from_body(mount):
+    """The vehicle-from-body mount ``C_b^v`` (3, 3): IMU body axes -> vehicle axes (both
+    RFU: x right, y forward, z up) of the wheel constraints (the sensor-to-body mount of
+    recorded data is :func:`sinslab.data.frames.sensor_to_body`).
 
     ``mount`` is None (aligned), a (3, 3) rotation matrix ``C_b^v`` or Euler angles
     ``[pitch, roll, yaw]`` [rad] of the IMU body frame in the vehicle frame (the
@@ -613,7 +615,7 @@ class NonHolonomic(_OnEpochs):
     ----------
     sigma : float or array_like (2,)
         Lateral, vertical [m/s] (the constraint is violated by skid and suspension).
-    mount : see :func:`mount_matrix`
+    mount : see :func:`vehicle_from_body`
         IMU body -> vehicle axes.
     lever_arm : array_like (3,), optional
         IMU -> constraint point (e.g. rear-axle centre), body axes [m].
@@ -631,7 +633,7 @@ class NonHolonomic(_OnEpochs):
                  every=1, stream=0):
         self._init_sched(intervals, every, stream)
         self.sigma = _sigma(sigma, 2, "NHC")
-        self.Cvb = mount_matrix(mount)
+        self.Cvb = vehicle_from_body(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
 
@@ -672,7 +674,7 @@ class BodyVelocity(_Timed):
         self.sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (J, 3))
         if not np.all(self.sigma > 0):
             raise ValueError("body velocity sigma must be > 0")
-        self.Cvb = mount_matrix(mount)
+        self.Cvb = vehicle_from_body(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
         self.stream = int(stream)
@@ -724,7 +726,7 @@ class Odometer(_OnEpochs):
             raise ValueError("odometer speeds must be finite and >= 0")
         self.sigma = _sigma(sigma, 1, "odometer")
         self.nhc_sigma = None if nhc_sigma is None else _sigma(nhc_sigma, 2, "NHC")
-        self.Cvb = mount_matrix(mount)
+        self.Cvb = vehicle_from_body(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
         self.scale_block = scale_block
