@@ -509,6 +509,7 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
 # ---------------------------------------------------------------- the experiment --------
 
 def _motion(cfg: Config):
+    from sinslab.sim import presets
     from sinslab.sim import trajectory as tr
 
     s = cfg.scenario
@@ -519,11 +520,11 @@ def _motion(cfg: Config):
         m = tr.load_motion(s.motion_file)            # validated with the config
         return m.segments, (m.start or start), m.mount
     if s.motion == "static":
-        return tr.static(T), tr.Start(lat=start.lat, lon=start.lon, h=start.h, heading=start.heading), None
+        return presets.static(T), tr.Start(lat=start.lat, lon=start.lon, h=start.h, heading=start.heading), None
     if s.motion == "ship_manoeuvring":
-        return (tr.ship_manoeuvring(T), tr.Start(lat=start.lat, lon=start.lon, h=start.h,
-                                                   heading=start.heading), None)
-    return tr.aircraft_mixed(T), start, None
+        return (presets.ship_manoeuvring(T), tr.Start(lat=start.lat, lon=start.lon, h=start.h,
+                                                        heading=start.heading), None)
+    return presets.aircraft_mixed(T), start, None
 
 
 def run(cfg: Config, ctx) -> Result:
