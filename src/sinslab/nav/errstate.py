@@ -837,6 +837,9 @@ def lever_arm(name="lev"):
 
 
 def odometer_scale(name="kod"):
-    """Odometer scale-factor error [-], random constant: the wheel speed reads
-    ``s̃ = (1 + k) v_fwd`` (one state on the forward body axis y)."""
+    """Odometer scale-factor error k [-], random constant, one state on the forward body
+    axis y, defined by ``v_fwd = (1 − k) s̃`` for the wheel-speed reading ``s̃`` (so that
+    the odometer measurement is exactly linear in k, see
+    :class:`sinslab.fusion.measurements.Odometer`); a reading ``s̃ = (1 + k_s) v_fwd`` has
+    ``k = k_s / (1 + k_s)``, equal to first order."""
     return SensorBlock(name, None, "constant", "y", "body", None, None, "ppm")
