@@ -132,14 +132,15 @@ NAV_GRADE = dict(gyro_bias="0.01 deg/h", gyro_arw="0.001 deg/sqrt(h)",
 
 
 def synthesis_case(n, dt=0.01):
-    """The realistic synthesis case: ``trajectory.aircraft_mixed`` (turns, climbs,
+    """The realistic synthesis case: ``presets.aircraft_mixed`` (turns, climbs,
     accelerations, wing rock) at 100 Hz from the paper-003 start, and a navigation-grade
     ``ImuErrors`` (bias + ARW + VRW). Returns (generate(), errors)."""
     from sinslab.sim import imu as imu_mod
+    from sinslab.sim import presets
     from sinslab.sim import trajectory as tr
 
     d = np.radians
-    segs = tr.aircraft_mixed(n * dt)
+    segs = presets.aircraft_mixed(n * dt)
     start = tr.Start(lat=d(32.0), lon=d(118.0), h=1000.0, speed=300.0, heading=0.0)
     errors = imu_mod.ImuErrors.from_datasheet(**NAV_GRADE)
     return (lambda: tr.generate(segs, start, dt, duration=n * dt)), errors
@@ -194,7 +195,7 @@ def main(argv=None):
         res["synthesis_ratio"] = None
         res["synthesis_note"] = syn
     else:
-        res["synthesis_case"] = {"motion": "trajectory.aircraft_mixed, 100 Hz", "errors": NAV_GRADE}
+        res["synthesis_case"] = {"motion": "presets.aircraft_mixed, 100 Hz", "errors": NAV_GRADE}
         res["synthesis_samples_per_s"] = syn["both"]
         res["synthesis_ratio"] = syn["both"] / ref_rate
         res["generate_samples_per_s"] = syn["generate"]

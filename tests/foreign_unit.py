@@ -26,7 +26,7 @@ def write_foreign_log(path, imu, flags=None, week_seconds=345600.0):
     """Write ``imu`` (increments in sinslab's RFU body axes) as the vendor's log: rotated
     into the sensor axes of :data:`MOUNT` in the :data:`FRAME` vehicle frame, times shifted
     to GPS seconds of week. ``flags`` (N,) bool: the zero-velocity column."""
-    R = frames.mount_matrix(MOUNT, FRAME)            # sensor -> RFU
+    R = frames.sensor_to_body(MOUNT, FRAME)            # sensor -> RFU
     dth = imu.dtheta @ R                              # RFU -> sensor (R orthogonal)
     dv = imu.dv @ R
     n = len(imu)

@@ -45,3 +45,111 @@ def simulated_car_drive(segments):
                np.full((k.size, 3), 0.01), tru.vel[k] + rng.normal(0, 0.02, (k.size, 3)),
                np.full((k.size, 3), 0.05), np.ones(k.size, int))
     return imu, fx, tru, err, rng
+
+
+# ------------------------------------------------------------------ measurement contract
+def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
+    """What an INS carrying the error state ``x`` (computed − true) shows, given the true
+    navigation row ``[q0..q3, vE, vN, vU, lat, lon, h]`` and true body rate / specific force.
+
+    The conventions of :mod:`sinslab.nav.errstate` (:func:`sinslab.nav.strapdown.with_errors`:
+    ``C_b^{n'} = exp(−φ×) C_b^n``, ``v' = v + δv``, ``[lat, lon, h]' = [lat, lon, h] + δp``;
+    2-state blocks: east, north / δL, δλ);
+    the compensated rate ``ω + δω`` with ``δω = x`` for every block feeding the gyro bias
+    compensation (bias, Gauss–Markov) and ``δω = diag(ω) x`` for a gyro scale block, the
+    specific force likewise for the accelerometer blocks (:attr:`Block.feeds`, per axis);
+    ``sensor_errors=False`` leaves rate and specific force exact.
+
+    Returns ``(row', omega', f')``.
+    """
+    from sinslab.nav.strapdown import with_errors
+
+    r = with_errors(row, *(x[layout.slice(b)] if b in layout.names else None for b in ("phi", "dv", "dp")))
+    w = np.array(omega_b, dtype=float, copy=True)
+    f = np.array(f_b, dtype=float, copy=True)
+    for b in layout.blocks:
+        if b.feeds is None or not sensor_errors:
+            continue
+        sensor, kind = b.feeds.split("_")
+        out, true = (w, omega_b) if sensor == "gyro" else (f, f_b)
+        s = layout.slice(b.name)
+        for i, a in enumerate(b.axes):
+            ax = "xyz".index(a)
+            out[ax] += x[s.start + i] * (true[ax] if kind == "scale" else 1.0)
+    return r, w, f
+
+
+def fd_steps(layout):
+    """Finite-difference step per state: 1e-6 for angles and sensor errors, 1e-4 m/s of
+    velocity, 1e-8 rad / 1e-3 m of position, 1e-4 for the states a measurement owns
+    (lever arms [m], odometer scale [-])."""
+    s = np.full(layout.n, 1e-6)
+    for b in layout.blocks:
+        sl = layout.slice(b.name)
+        if b.name == "dv":
+            s[sl] = 1e-4
+        elif b.name == "dp":
+            s[sl.start:sl.start + 2] = 1e-8
+            s[sl.start + 2:sl.stop] = 1e-3
+        elif b.name != "phi" and b.feeds is None:
+            s[sl] = 1e-4
+    return s
+
+
+def assert_H_is_jacobian(make, layout, rows, omegas, *, t=0.0, k=1, item=0, stream=0, tol=1e-6,
+                         sensor_errors=True):
+    """The finite-difference contract of a measurement of :mod:`sinslab.fusion.measurements`:
+    its ``H`` is the Jacobian of its own nonlinear ``z`` with respect to the error state.
+
+    ``z(x)`` is ``make(x).matrices(epoch)`` on the navigation of stream ``stream`` carrying
+    ``x`` (:func:`nav_with_errors`; the other streams exact; ``sensor_errors=False`` for a
+    layout whose sensor blocks belong to several streams, as a difference model's, since
+    the layout does not say which stream a block feeds); ``make(x)`` builds the
+    measurement, so a state the measurement owns (a lever arm, an odometer scale) enters
+    through its parameters (``make`` ignores ``x`` when there is none). Central differences
+    with :func:`fd_steps`; the error of each element, as the change of ``z`` it makes at
+    one step of its state, must stay below ``tol`` of the largest change one step of any
+    state makes to that row of ``z``.
+
+    Parameters
+    ----------
+    make : callable ``x (n,) -> measurement``
+    layout : sinslab.nav.errstate.StateLayout
+    rows : sequence of ndarray (10,)
+        True navigation row of each stream.
+    omegas : sequence of ndarray (3,)
+        True body rate of each stream [rad/s] (the specific force is taken as gravity).
+
+    Returns
+    -------
+    z, H, R
+        The measurement at ``x = 0``.
+    """
+    from sinslab.fusion.measurements import Epoch, NavRow
+
+    n = layout.n
+    steps = fd_steps(layout)
+    f_true = np.array([0.3, -0.2, 9.8])
+
+    def matrices(x):
+        navs = []
+        for i, (r, w) in enumerate(zip(rows, omegas)):
+            if i == stream:
+                navs.append(NavRow(*nav_with_errors(r, w, f_true, layout, x, sensor_errors)))
+            else:
+                navs.append(NavRow(np.asarray(r, float), np.asarray(w, float), f_true))
+        return make(x).matrices(Epoch(t, k, tuple(navs), layout, n, item))
+
+    z0, H, R = matrices(np.zeros(n))
+    J = np.empty_like(H)
+    for i in range(n):
+        e = np.zeros(n)
+        e[i] = steps[i]
+        J[:, i] = (matrices(e)[0] - matrices(-e)[0]) / (2 * steps[i])
+    effect = np.abs(H) * steps
+    scale = effect.max(1, keepdims=True)
+    err = np.abs(H - J) * steps / np.where(scale > 0, scale, 1.0)
+    i, j = np.unravel_index(np.argmax(err), err.shape)
+    assert err[i, j] < tol, (f"H[{i}, {j}] ({layout.labels[j]}) = {H[i, j]:.6g}, finite "
+                             f"differences {J[i, j]:.6g} (relative {err[i, j]:.2e})")
+    return z0, H, R

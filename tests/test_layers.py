@@ -1,5 +1,6 @@
 """The package layers: every import of every module (function-local ones too, relative
-imports resolved) follows the allowed edges of docs/architecture.md."""
+imports resolved) follows the allowed edges of docs/architecture.md, and no modules import
+each other around a loop."""
 import ast
 import sys
 from pathlib import Path
@@ -89,6 +90,57 @@ def offences():
 def test_imports_follow_the_layers():
     bad = offences()
     assert not bad, "imports against the layers (file:line module -> module):\n" + "\n".join(bad)
+
+
+def _module_graph():
+    """{module: sinslab modules it imports}; ``from package import name`` points at the
+    submodule ``name`` when there is one, an imported attribute at its module."""
+    mods = {_module_name(p): p for p in SRC.rglob("*.py")}
+    graph = {}
+    for mod, path in mods.items():
+        pkg = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = pkg.split(".")
+                    base = ".".join(up[:len(up) - node.level + 1] + ([node.module] if node.module else []))
+                targets = [f"{base}.{a.name}" for a in node.names]
+            else:
+                continue
+            for t in targets:
+                while t and t not in mods:
+                    t = t.rpartition(".")[0]
+                if t and t != mod:
+                    deps.add(t)
+        graph[mod] = deps
+    return graph
+
+
+def test_no_import_circles():
+    """No two modules import each other, directly or around a loop (function-local imports
+    included): values and calls travel one way."""
+    graph = _module_graph()
+    state, stack, circles = {}, [], []
+
+    def visit(m):
+        state[m] = "open"
+        stack.append(m)
+        for d in sorted(graph.get(m, ())):
+            if state.get(d) == "open":
+                circles.append(" -> ".join(stack[stack.index(d):] + [d]))
+            elif d not in state:
+                visit(d)
+        stack.pop()
+        state[m] = "done"
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)
+    assert not circles, "import circles:\n" + "\n".join(circles)
 
 
 if __name__ == "__main__":

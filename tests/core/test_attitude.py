@@ -189,6 +189,17 @@ def test_heading_yaw():
     assert np.allclose(at.wrap_pi([3 * math.pi, -math.pi, math.pi + 0.1]), [math.pi, math.pi, -math.pi + 0.1])
 
 
+def test_wrap_pi_scalar_form_agrees_and_is_exact_inside():
+    """wrap_pi_s (compiled) equals wrap_pi to rounding, lands in (−π, π], and leaves an
+    angle inside the interval untouched."""
+    a = np.r_[RNG.uniform(-40, 40, 2000), [math.pi, -math.pi, 3 * math.pi, -3 * math.pi, 0.0, 1e-300]]
+    s = np.array([at.wrap_pi_s(v) for v in a])
+    assert np.all((s > -math.pi) & (s <= math.pi))
+    assert np.allclose(s, at.wrap_pi(a), rtol=0, atol=4 * np.spacing(40.0))
+    inside = (a > -math.pi) & (a <= math.pi)
+    assert np.array_equal(s[inside], a[inside])
+
+
 def test_ned_conversions():
     assert np.allclose(at.M_ENU_NED @ at.M_ENU_NED, np.eye(3))
     v = RNG.normal(size=(5, 3))

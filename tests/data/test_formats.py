@@ -177,7 +177,7 @@ def test_frames_and_mounts():
     # roll 180 + yaw 180 (Groves, FRD): sensor x back, y right, z up
     M = frames.rpy_frd_matrix(np.radians([180, 0, 180]))
     assert M == pytest.approx(np.diag([-1.0, 1.0, -1.0]), abs=1e-12)
-    R = frames.mount_matrix("rpy:180,0,180", "frd")
+    R = frames.sensor_to_body("rpy:180,0,180", "frd")
     assert R @ [0, 0, 1] == pytest.approx([0, 0, 1], abs=1e-12)                # sensor up -> up
     assert R @ [-1, 0, 0] == pytest.approx([0, 1, 0], abs=1e-12)               # sensor -x -> forward
     # Groves' formula is the passive R1 R2 R3 product
@@ -186,9 +186,9 @@ def test_frames_and_mounts():
         __import__("scipy.spatial.transform", fromlist=["Rotation"]).Rotation.from_euler(
             "ZYX", r[::-1]).as_matrix().T), abs=1e-12)
     with pytest.raises(ValueError, match="not a rotation"):
-        frames.mount_matrix(np.diag([1.0, 1.0, 2.0]))
+        frames.sensor_to_body(np.diag([1.0, 1.0, 2.0]))
     with pytest.raises(ValueError, match="reflection"):
-        frames.mount_matrix(np.diag([1.0, 1.0, -1.0]))
+        frames.sensor_to_body(np.diag([1.0, 1.0, -1.0]))
     with pytest.raises(ValueError, match="unknown body frame"):
         frames.frame_matrix("xyz")
 

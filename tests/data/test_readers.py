@@ -114,20 +114,20 @@ def test_foreign_unit_log_round_trip(tmp_path):
 def test_mount_quaternion_matrix_and_angles_agree():
     C = A.euler_to_dcm(np.radians([3.0, -20.0, 75.0]))
     q = A.dcm_to_quat(C)
-    M_e = frames.mount_matrix("euler:3,-20,75")
-    M_q = frames.mount_matrix("quat:" + ",".join(map(repr, q.tolist())))
-    M_m = frames.mount_matrix("matrix:" + str(C.tolist()))
-    M_a = frames.mount_matrix(q)
+    M_e = frames.sensor_to_body("euler:3,-20,75")
+    M_q = frames.sensor_to_body("quat:" + ",".join(map(repr, q.tolist())))
+    M_m = frames.sensor_to_body("matrix:" + str(C.tolist()))
+    M_a = frames.sensor_to_body(q)
     for M in (M_q, M_m, M_a):
         np.testing.assert_allclose(M, M_e, atol=1e-12)
     with pytest.raises(ValueError, match="norm"):
-        frames.mount_matrix("quat:1,0.1,0,0")
+        frames.sensor_to_body("quat:1,0.1,0,0")
     with pytest.raises(ValueError, match="9 numbers"):
-        frames.mount_matrix("matrix:1,0,0,0,1,0")
+        frames.sensor_to_body("matrix:1,0,0,0,1,0")
     with pytest.raises(ValueError, match="reflection"):
-        frames.mount_matrix("matrix:[[1,0,0],[0,1,0],[0,0,-1]]")
+        frames.sensor_to_body("matrix:[[1,0,0],[0,1,0],[0,0,-1]]")
     with pytest.raises(ValueError, match="quat:W,X,Y,Z"):
-        frames.mount_matrix("1,2,3")
+        frames.sensor_to_body("1,2,3")
 
 
 @pytest.mark.parametrize("content, msg", [

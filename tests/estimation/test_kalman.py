@@ -366,6 +366,37 @@ def test_stateful_filter_fast_paths_agree_and_results_are_not_aliased():
     assert fast.t == pytest.approx(7.0)
 
 
+def test_a_callers_propagation_steps_the_fast_filter_and_its_lanes():
+    """KalmanFilter.propagate / propagate_lanes: a caller's kernel steps x, c, P in place
+    (one filter where it is, several stacked) and the filters' time advances as by
+    predict; a filter with a history or checks is refused (its steps would go unrecorded)."""
+    from sinslab.estimation.filter import propagate_lanes
+    _, _, Phi, Q, H, R, P0, rng = _model()
+    x0 = rng.normal(size=6)
+
+    def step(x, c, P, *work):                  # two steps of x <- Φx, P <- ΦPΦ' + Q
+        for _ in range(2):
+            x[...] = x @ Phi.T
+            c[...] = c @ Phi.T
+            P[...] = Phi @ P @ Phi.T + Q
+
+    ref = KalmanFilter(x0, P0)
+    for _ in range(2):
+        ref.predict(Phi, Q, 0.5)
+    one = KalmanFilter(x0, P0, check=False)
+    one.propagate(step, 2, 0.5)
+    lanes = [KalmanFilter(x0, P0, check=False) for _ in range(3)]
+    propagate_lanes(lanes, step, 2, 0.5)
+    for k in [one] + lanes:
+        np.testing.assert_allclose(k.x, ref.x, rtol=1e-12)
+        np.testing.assert_allclose(k.P, ref.P, rtol=1e-12)
+        assert k.t == ref.t == 1.0
+    with pytest.raises(ValueError, match="without history and checks"):
+        KalmanFilter(x0, P0, history=3, check=False).propagate(step, 2, 0.5)
+    with pytest.raises(ValueError, match="without history and checks"):
+        propagate_lanes([KalmanFilter(x0, P0)], step, 2, 0.5)
+
+
 def test_compiled_update_of_given_arrays_equals_the_numpy_update():
     """compiled_update (sequential scalar Joseph updates, compiled) against kalman.update for
     R given as a matrix, a vector and a scalar; where it does not apply (correlated R, a

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
+from sinslab.methods.alignment import full_model
 from sinslab.methods.rotins import joint_rotation_model
 from sinslab.nav import errstate as es
 from sinslab.estimation import observability as ob
@@ -37,7 +38,7 @@ def test_static_alignment_rank_5_and_null_space_is_the_three_pairs(lat_deg, scal
     """Paper 000: rank 5 of 8; the unobservable subspace is spanned by exactly the
     (φN, ∇E), (φE, ∇N), (φU, εE) combinations (computed, at several latitudes)."""
     lat = d(lat_deg)
-    F, G, H = es.static_alignment_model(lat)
+    F, G, H = full_model(lat)
     r = ob.analyze(F, H, scale=P000_SCALE if scaled else None)
     assert r.rank == 5
     assert r.null_space.shape == (8, 3)
@@ -61,20 +62,20 @@ def test_static_alignment_observable_fraction_splits_each_pair():
     """With automatic scaling each pair member is half observable (fraction 1/√2) while εN
     and εU are fully observable directions at mid-latitude; strict degrees are 0 there
     because every state touches one of the null vectors (εN → ∇N ω sinL / g, paper 000)."""
-    F, G, H = es.static_alignment_model(d(34.246))
+    F, G, H = full_model(d(34.246))
     r = ob.analyze(F, H)
     np.testing.assert_allclose(r.observable_fraction[[0, 1, 2, 3, 6, 7]], np.sqrt(0.5), atol=1e-6)
     np.testing.assert_allclose(r.observable_fraction[[4, 5]], 1.0, atol=1e-6)
     assert np.all(r.degree == 0.0)
     # at the equator ω_U = 0: εN no longer mixes with the (φE, ∇N) null vector
-    r0 = ob.analyze(*es.static_alignment_model(0.0)[::2])
+    r0 = ob.analyze(*full_model(0.0)[::2])
     assert r0.degree[4] > 0.1 and np.sum(r0.degree > 0) == 1
 
 
 def test_rank_insensitive_to_state_scaling():
     """Rescaling states by factors 1e-8..1e8 (unit changes) leaves rank and null space."""
     rng = np.random.default_rng(3)
-    F, G, H = es.static_alignment_model(d(34.246))
+    F, G, H = full_model(d(34.246))
     for _ in range(5):
         s = 10.0 ** rng.uniform(-8, 8, 8)
         Fs = F * s[None, :] / s[:, None]           # x = S x'

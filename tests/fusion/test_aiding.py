@@ -1,11 +1,10 @@
 """Oracles for the aiding measurements (ZUPT, ZARU, NHC, body velocity, odometer, lever-arm
 fixes) and the stationarity detector.
 
-Every H is checked against central finite differences of the class's own nonlinear z
-with respect to the error state (computed − true, sinslab.nav.errstate conventions:
-C_b^n' = (I − φ×) C_b^n, δv, δp, compensated rate ω + δω with δω = x of each
-gyro bias / Gauss–Markov block and diag(ω) x of a scale block; a lever-arm state is the
-error of the lever used, an odometer scale error k makes the reading (1 + k) v).
+Their H are finite-difference Jacobians of their own z on every error model
+(tests/fusion/test_measurements.py, the measurement contract); here: the values of z at
+known truth (rest, the true reading, the body-axis velocity of the point), R, schedules
+and bad input.
 """
 import math
 
@@ -18,8 +17,10 @@ from sinslab.core.records import ImuRecord
 from sinslab.fusion import stationarity as st
 from sinslab.fusion.measurements import (BodyVelocity, Epoch, Grid, LeverPositionFix,
                                          LeverVelocityFix, NavRow, NonHolonomic, Odometer,
-                                         ZeroRate, ZeroVelocity, mount_matrix)
+                                         ZeroRate, ZeroVelocity, vehicle_from_body)
 from sinslab.nav import errstate as es
+
+W = np.array([0.01, -0.02, 0.3])
 
 
 def _row(lat=0.55, lon=2.0, h=800.0, vel=(12.0, -4.0, 0.3), att=(0.05, -0.1, 0.7)):
@@ -31,120 +32,64 @@ def _model(*extra):
                                   es.gyro_scale(), es.accel_bias(), *extra])
 
 
-def _perturb(row, omega, lay, x):
-    r = row.copy()
-    C = A.quat_to_dcm(row[:4])
-    r[:4] = A.dcm_to_quat(A.apply_misalignment(C, x[lay.slice("phi")]))
-    r[4:7] += x[lay.slice("dv")]
-    r[7:10] += x[lay.slice("dp")]
-    w = omega.copy()
-    for b in lay.blocks:
-        sl = lay.slice(b.name)
-        for i, a in enumerate(b.axes):
-            ax = "xyz".index(a)
-            if b.feeds == "gyro_bias":
-                w[ax] += x[sl.start + i]
-            elif b.feeds == "gyro_scale":
-                w[ax] += omega[ax] * x[sl.start + i]
-    return r, w
+def _at(meas, lay, row, w=W, t=0.0):
+    """``(z, H, R)`` of ``meas`` on one stream at row ``row``, rate ``w``."""
+    return meas.matrices(Epoch(t, 1, (NavRow(row, w, np.zeros(3)),), lay, lay.n, 0))
 
 
-def _steps(lay):
-    s = np.full(lay.n, 1e-6)
-    s[lay.slice("dv")] = 1e-4
-    sp = lay.slice("dp")
-    s[sp.start:sp.start + 2] = 1e-8
-    s[sp.start + 2] = 1e-3
-    for name in ("lev", "kod"):
-        if name in lay.names:
-            s[lay.slice(name)] = 1e-4
-    return s
-
-
-def _check(make, lay, row, w, t=0.0, item=0):
-    """FD Jacobian of z(x) = make(x).matrices(rows perturbed by x) against the H at x = 0."""
-    n = lay.n
-    steps = _steps(lay)
-
-    def z(x):
-        r, ww = _perturb(row, w, lay, x)
-        return make(x).matrices(Epoch(t, 1, (NavRow(r, ww, np.zeros(3)),), lay, n, item))[0]
-
-    J = np.empty((z(np.zeros(n)).size, n))
-    for i in range(n):
-        e = np.zeros(n)
-        e[i] = steps[i]
-        J[:, i] = (z(e) - z(-e)) / (2 * steps[i])
-    z0, H, R = make(np.zeros(n)).matrices(Epoch(t, 1, (NavRow(row, w, np.zeros(3)),), lay, n, item))
-    err = np.abs(H - J).max() / np.abs(H).max()
-    assert err < 1e-6, f"relative error {err:.2e}\nH={H}\nJ={J}"
-    return z0, H, R
-
-
-def test_zupt_H_and_value():
+def test_zupt_value():
     lay = _model().layout
     row = _row()
-    z, H, R = _check(lambda x: ZeroVelocity([(0, 10)], 0.02), lay, row, np.array([0.01, 0.0, 0.02]))
+    z, H, R = _at(ZeroVelocity([(0, 10)], 0.02), lay, row)
     np.testing.assert_array_equal(z, row[4:7])
     assert np.allclose(R, 4e-4)
 
 
-def test_zaru_H_is_the_jacobian_and_zero_at_rest():
+def test_zaru_is_zero_at_rest_and_sees_every_gyro_block():
     lay = _model().layout
     row = _row(vel=(0.0, 0.0, 0.0))
     C = A.quat_to_dcm(row[:4])
     lat = row[7]
     w_true = C.T @ np.array([0.0, WIE * math.cos(lat), WIE * math.sin(lat)])
-    z, H, R = _check(lambda x: ZeroRate([(0, 10)], 1e-4), lay, row, w_true + [0.01, -0.02, 0.03])
-    z0 = ZeroRate([(0, 10)], 1e-4).matrices(
-        Epoch(0.0, 1, (NavRow(row, w_true, np.zeros(3)),), lay, lay.n, 0))[0]
+    z0 = _at(ZeroRate([(0, 10)], 1e-4), lay, row, w_true)[0]
     assert np.abs(z0).max() < 1e-18                       # the Earth rate is removed exactly
+    H = _at(ZeroRate([(0, 10)], 1e-4), lay, row, w_true + [0.01, -0.02, 0.03])[1]
     assert np.any(H[:, lay.slice("eps_m")] != 0) and np.any(H[:, lay.slice("kg")] != 0)
 
 
 @pytest.mark.parametrize("mount", [None, (0.02, -0.01, 0.05), "matrix"])
-def test_nhc_H(mount):
+def test_nhc_is_the_vehicle_axis_velocity(mount):
     if mount == "matrix":
         mount = A.euler_to_dcm(np.array([0.1, 0.0, -0.2]))
     lay = _model(es.lever_arm()).layout
     row = _row()
-    make = lambda x: NonHolonomic((0.1, 0.05), mount=mount, lever_arm=np.array([0.3, -1.2, -0.4])  # noqa: E731
-                                  + x[lay.slice("lev")], lever_block="lev")
-    z, H, R = _check(make, lay, row, np.array([0.01, -0.02, 0.3]))
-    Cvb = mount_matrix(mount)
-    vb = A.quat_to_dcm(row[:4]).T @ row[4:7] + np.cross([0.01, -0.02, 0.3], [0.3, -1.2, -0.4])
-    np.testing.assert_allclose(z, (Cvb @ vb)[[0, 2]], rtol=1e-12)
+    lev = np.array([0.3, -1.2, -0.4])
+    z, H, R = _at(NonHolonomic((0.1, 0.05), mount=mount, lever_arm=lev, lever_block="lev"), lay, row)
+    vb = A.quat_to_dcm(row[:4]).T @ row[4:7] + np.cross(W, lev)
+    np.testing.assert_allclose(z, (vehicle_from_body(mount) @ vb)[[0, 2]], rtol=1e-12)
+    assert np.allclose(R, [0.01, 0.0025])
 
 
-def test_body_velocity_H():
+def test_body_velocity_shape_and_R():
     lay = _model(es.lever_arm()).layout
-    row = _row()
-    make = lambda x: BodyVelocity([0.0], [[0.1, 12.0, 0.0]], 0.1, mount=(0.0, 0.0, 0.03),  # noqa: E731
-                                  lever_arm=np.array([0.0, 1.0, -0.5]) + x[lay.slice("lev")],
-                                  lever_block="lev")
-    z, H, R = _check(make, lay, row, np.array([0.01, -0.02, 0.3]))
-    assert z.shape == (3,) and np.allclose(R, 0.01)
+    z, H, R = _at(BodyVelocity([0.0], [[0.1, 12.0, 0.0]], 0.1, mount=(0.0, 0.0, 0.03),
+                               lever_arm=[0.0, 1.0, -0.5], lever_block="lev"), lay, _row())
+    assert z.shape == (3,) and H.shape == (3, lay.n) and np.allclose(R, 0.01)
 
 
 @pytest.mark.parametrize("nhc", [None, (0.1, 0.1)])
-def test_odometer_H_with_scale_and_lever(nhc):
+def test_odometer_of_the_true_reading_is_zero(nhc):
     lay = _model(es.lever_arm(), es.odometer_scale()).layout
     row = _row()
     C = A.quat_to_dcm(row[:4])
     row[4:7] = C @ np.array([0.3, 12.0, 0.1])             # driving forward
-    w = np.array([0.01, -0.02, 0.3])
     lev = np.array([0.7, -1.0, -0.3])
-    v_true = (C.T @ row[4:7] + np.cross(w, lev))[1]
-    t_odo = np.array([-1.0, 0.0, 1.0])
-
-    def make(x):
-        k = x[lay.slice("kod")][0]
-        return Odometer(t_odo, np.full(3, (1 + k) * v_true), 0.05, lever_arm=lev + x[lay.slice("lev")],
-                        lever_block="lev", nhc_sigma=nhc)
-
-    z, H, R = _check(make, lay, row, w)
-    assert abs(z[0]) < 1e-12                               # the true reading
+    v_true = (C.T @ row[4:7] + np.cross(W, lev))[1]
+    z, H, R = _at(Odometer([-1.0, 0.0, 1.0], np.full(3, v_true), 0.05, lever_arm=lev,
+                           lever_block="lev", nhc_sigma=nhc), lay, row)
+    assert abs(z[0]) < 1e-12
     assert z.size == (1 if nhc is None else 3)
+    assert H[0, lay.slice("kod")][0] == -v_true             # ∂z/∂k = −s̃
 
 
 def test_odometer_interpolates_and_refuses_bad_input():
@@ -160,25 +105,21 @@ def test_odometer_interpolates_and_refuses_bad_input():
         Odometer([0.0, 1.0], [1.0, np.nan], 0.1)
 
 
-@pytest.mark.parametrize("t_epoch", [0.0, 0.3])
-def test_lever_position_fix_H(t_epoch):
+def test_lever_position_fix_of_the_true_antenna_is_zero():
     lay = _model(es.lever_arm()).layout
     row = _row()
     d = A.quat_to_dcm(row[:4]) @ np.array([0.5, 1.0, 1.5])      # the true antenna
     rm, rn = radii(row[7], row[9])
     fix = np.array([[row[7] + d[1] / rm, row[8] + d[0] / (rn * math.cos(row[7])), row[9] + d[2]]])
-    make = lambda x: LeverPositionFix([0.0], fix, [3.0, 3.0, 5.0],  # noqa: E731
-                                      lever_arm=np.array([0.5, 1.0, 1.5]) + x[lay.slice("lev")])
-    _check(make, lay, row, np.array([0.01, -0.02, 0.3]), t=t_epoch)
+    z, H, R = _at(LeverPositionFix([0.0], fix, [3.0, 3.0, 5.0], lever_arm=[0.5, 1.0, 1.5]), lay, row)
+    assert np.allclose(z, 0.0, atol=1e-6)
 
 
-def test_lever_velocity_fix_H():
+def test_lever_velocity_fix_couples_every_gyro_block():
     lay = _model(es.lever_arm()).layout
     row = _row()
-    make = lambda x: LeverVelocityFix([0.0], [row[4:7]], 0.1,  # noqa: E731
-                                      lever_arm=np.array([0.5, 1.0, 1.5]) + x[lay.slice("lev")])
-    z, H, R = _check(make, lay, row, np.array([0.01, -0.02, 0.3]))
-    assert np.any(H[:, lay.slice("eps_m")] != 0)
+    z, H, R = _at(LeverVelocityFix([0.0], [row[4:7]], 0.1, lever_arm=[0.5, 1.0, 1.5]), lay, row)
+    assert all(np.any(H[:, lay.slice(b)] != 0) for b in ("eps", "eps_m", "kg", "lev"))
 
 
 def test_stationarity_detector_finds_a_stop():

@@ -1,10 +1,9 @@
 """Oracles for the fusion driver (sinslab.fusion.driver), its measurement objects
 (sinslab.fusion.measurements) and the feedback layout (sinslab.fusion.feedback).
 
-- every measurement's H is the finite-difference Jacobian of its nonlinear z with respect
-  to the error state, perturbing the navigation rows by the conventions of
-  sinslab.nav.errstate (C_b^n' = (I − φ×) C_b^n, δv, δp = [δL, δλ, δh], residual gyro
-  bias on the compensated rate);
+- a 2-D position fix on a horizontal model, its extrapolation to the epoch, and Stack
+  (the H of every measurement is the finite-difference Jacobian of its z: the measurement
+  contract, tests/fusion/test_measurements.py);
 - the INS-difference measurement on two streams selects the difference states of a
   DifferenceModel, and a two-stream filter on it estimates the output difference;
 - feed-forward filtering of a precomputed navigation series equals that of the live
@@ -26,75 +25,11 @@ from sinslab.fusion.measurements import (Epoch, Grid, InsDifference, NavRow, Pos
                                          VelocityFix, arrival_epochs)
 from sinslab.methods.rotins import joint_rotation_model
 from sinslab.nav import errstate as es
+from support import assert_H_is_jacobian
 
 
 def _row(lat=0.55, lon=2.0, h=800.0, vel=(120.0, -40.0, 2.0), att=(0.05, -0.1, 0.7)):
     return np.r_[A.euler_to_quat(np.asarray(att)), vel, lat, lon, h]
-
-
-def _perturb(row, omega, layout, x):
-    """Navigation row and compensated rate carrying the error state x (computed − true)."""
-    names = layout.names
-    r = row.copy()
-    C = A.quat_to_dcm(row[:4])
-    if "phi" in names:
-        r[:4] = A.dcm_to_quat(A.apply_misalignment(C, x[layout.slice("phi")]))
-    sv = layout.slice("dv")
-    r[4:4 + sv.stop - sv.start] += x[sv]
-    sp = layout.slice("dp")
-    r[7:7 + sp.stop - sp.start] += x[sp]
-    w = omega.copy()
-    if "eps" in names:
-        w = w + x[layout.slice("eps")]
-    return r, w
-
-
-def _fd_H(meas, layout, rows, omegas, item=0, t=0.0, steps=None, perturb_stream=0):
-    n = layout.n
-    steps = np.full(n, 1e-6) if steps is None else steps
-
-    def z(x):
-        rs = []
-        for i, (r, w) in enumerate(zip(rows, omegas)):
-            if i == perturb_stream:
-                r, w = _perturb(r, w, layout, x)
-            rs.append(NavRow(r, w, np.zeros(3)))
-        return meas.matrices(Epoch(t, 0, tuple(rs), layout, n, item))[0]
-
-    J = np.empty((z(np.zeros(n)).size, n))
-    for i in range(n):
-        e = np.zeros(n)
-        e[i] = steps[i]
-        J[:, i] = (z(e) - z(-e)) / (2 * steps[i])
-    rs = tuple(NavRow(r, w, np.zeros(3)) for r, w in zip(rows, omegas))
-    return J, meas.matrices(Epoch(t, 0, rs, layout, n, item))
-
-
-def _steps(layout):
-    """FD steps per state: 1e-6 rad for angles, 1e-4 m/s, 1e-8 rad / 1e-3 m for position."""
-    s = np.full(layout.n, 1e-6)
-    s[layout.slice("dv")] = 1e-4
-    sp = layout.slice("dp")
-    s[sp.start:sp.start + 2] = 1e-8
-    if sp.stop - sp.start == 3:
-        s[sp.start + 2] = 1e-3
-    return s
-
-
-@pytest.mark.parametrize("lever", [None, (0.4, 1.5, -0.7)])
-def test_position_fix_H_is_the_jacobian_of_z(lever):
-    lay = lc_model(1e-5, 1e-4).layout
-    row = _row()
-    w = np.array([0.01, -0.02, 0.05])
-    C = A.quat_to_dcm(row[:4])
-    d = np.zeros(3) if lever is None else C @ np.asarray(lever)
-    rm, rn = radii(row[7], row[9])
-    fix = np.array([[row[7] + d[1] / rm, row[8] + d[0] / (rn * math.cos(row[7])), row[9] + d[2]]])
-    m = PositionFix([0.0], fix, [3.0, 3.0, 5.0], lever_arm=lever)
-    J, (z, H, R) = _fd_H(m, lay, [row], [w], steps=_steps(lay))
-    assert np.allclose(z, 0.0, atol=1e-6)                # fix of the true antenna
-    np.testing.assert_allclose(H, J, rtol=1e-6, atol=1e-6 * np.abs(H).max())
-    assert np.allclose(R, [9.0, 9.0, 25.0])
 
 
 def test_position_fix_2d_on_a_horizontal_model_and_extrapolation():
@@ -103,30 +38,26 @@ def test_position_fix_2d_on_a_horizontal_model_and_extrapolation():
     row = _row()
     fix = np.array([[row[7], row[8]]])
     m = PositionFix([10.0], fix, [2.0, 2.0], lever_arm=(0.3, 0.2, 0.1))
-    J, (z, H, R) = _fd_H(m, lay, [row], [np.array([0.0, 0.0, 0.02])], t=10.0, steps=_steps(lay))
-    np.testing.assert_allclose(H, J, rtol=1e-6, atol=1e-6 * np.abs(H).max())
-    assert z.shape == (2,) and H.shape == (2, lay.n)
+    z, H, R = m.matrices(Epoch(10.0, 0, (NavRow(row, np.zeros(3), np.zeros(3)),), lay, lay.n, 0))
+    assert z.shape == (2,) and H.shape == (2, lay.n) and R.shape == (2,)
     # a fix valid 0.1 s before the epoch is moved along the (antenna) velocity
     m0 = PositionFix([9.9], fix, [2.0, 2.0])
     rs = (NavRow(row, np.zeros(3), np.zeros(3)),)
     z0 = m0.matrices(Epoch(10.0, 0, rs, lay, lay.n, 0))[0]
-    rm, rn = radii(row[7], row[9])
     assert z0 == pytest.approx([-row[5] * 0.1, -row[4] * 0.1], rel=1e-12)
 
 
-@pytest.mark.parametrize("lever", [None, (0.4, 1.5, -0.7)])
-def test_velocity_fix_H_is_the_jacobian_of_z(lever):
+def test_stack_concatenates_its_parts():
     lay = lc_model(1e-5, 1e-4).layout
     row = _row()
     w = np.array([0.01, -0.02, 0.05])
-    m = VelocityFix([0.0], [row[4:7]], 0.1, lever_arm=lever)
-    J, (z, H, R) = _fd_H(m, lay, [row], [w], steps=_steps(lay))
-    np.testing.assert_allclose(H, J, rtol=1e-6, atol=1e-7 * np.abs(H).max())
-    if lever is not None:
-        assert np.any(H[:, lay.slice("eps")] != 0) and np.any(H[:, lay.slice("phi")] != 0)
+    ep = Epoch(0.0, 0, (NavRow(row, w, np.zeros(3)),), lay, lay.n, 0)
+    m = VelocityFix([0.0], [row[4:7]], 0.1, lever_arm=(0.4, 1.5, -0.7))
+    z, H, R = m.matrices(ep)
     st = Stack(PositionFix([0.0], [row[7:10]], [3.0, 3.0, 5.0]), m)
-    z2, H2, R2 = st.matrices(Epoch(0.0, 0, (NavRow(row, w, np.zeros(3)),), lay, lay.n, 0))
-    assert z2.shape == (6,) and np.array_equal(H2[3:], H) and np.allclose(R2[3:], 0.01)
+    z2, H2, R2 = st.matrices(ep)
+    assert z2.shape == (6,) and np.array_equal(z2[3:], z) and np.array_equal(H2[3:], H)
+    assert np.allclose(R2, [9.0, 9.0, 25.0, 0.01, 0.01, 0.01])
 
 
 @pytest.mark.parametrize("lever", [None, (0.5, 2.0, 0.3)])
@@ -147,13 +78,12 @@ def test_ins_difference_selects_the_difference_states(lever):
         rowk[8] += d[0] / (rn * math.cos(row1[7]))
         rowk[4:7] += C @ np.cross(w, lever)
     meas = InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01], lever_arm=lever)
-    J, (z, H, R) = _fd_H(meas, lay, [row1, rowk], [w, w], steps=_steps(lay))
+    z, H, R = assert_H_is_jacobian(lambda x: meas, lay, [row1, rowk], [w, w], k=0, sensor_errors=False)
     assert np.allclose(z, 0.0, atol=1e-9)
     sel = lay.selector(["dL_1k", "dlam_1k", "dvE_1k", "dvN_1k"])
     rest = np.ones(lay.n, bool)
     rest[lay.slice("phi")] = False
     assert np.array_equal(H[:, rest], sel[:, rest])
-    np.testing.assert_allclose(H, J, rtol=1e-6, atol=1e-6 * np.abs(H).max())
 
 
 def _short_flight(duration=120.0, rate=50.0, seed=3):

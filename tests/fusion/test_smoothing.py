@@ -22,10 +22,7 @@ import numpy as np
 import pytest
 
 from sinslab.core import attitude as A
-from sinslab.fusion.feedback import FeedbackLayout
-from sinslab.fusion.smoothing import History, correct_rows, interpolate_rows, smooth
-from sinslab.nav import errstate as es
-from sinslab.nav import strapdown as sd
+from sinslab.fusion.smoothing import History, interpolate_rows, smooth
 
 BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "smoother.py"
 
@@ -135,22 +132,6 @@ def test_odometer_bounds_the_outage_forward_and_smoothed(B):
     kod = r.layout.slice("kod")
     # the odometer scale factor: smoothed estimate within 4 σ over the whole record
     assert np.all(np.abs(tr_["smo"][:, kod]) < 4 * sm.sigma[:, kod] + 1e-4)
-
-
-def test_correct_rows_is_the_feedback_correction():
-    lay = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias()]).layout
-    route = FeedbackLayout.from_model(lay)
-    rng = np.random.default_rng(3)
-    rows = np.empty((5, 10))
-    rows[:, :4] = A.euler_to_quat(rng.uniform(-1, 1, (5, 3)))
-    rows[:, 4:7] = rng.normal(0, 10, (5, 3))
-    rows[:, 7:10] = np.c_[rng.uniform(-1, 1, 5), rng.uniform(-3, 3, 5), rng.normal(0, 100, 5)]
-    x = rng.normal(0, 1e-3, (5, lay.n))
-    got = correct_rows(rows, x, route)
-    for i in range(5):
-        st = rows[i].copy()
-        sd.correct(st, phi=x[i, lay.slice("phi")], dvel=x[i, lay.slice("dv")], dpos=x[i, lay.slice("dp")])
-        assert np.allclose(got[i], st, rtol=0, atol=1e-14)
 
 
 def test_imu_rate_solution(B):

@@ -7,6 +7,7 @@ import support
 import pytest
 
 from sinslab.methods import alignment as al
+from sinslab.nav import errstate as es
 from sinslab.core import attitude as A
 from sinslab.core import earth as E
 from sinslab.estimation import kalman, linear
@@ -300,3 +301,31 @@ def test_not_at_rest_warning_in_fine_alignment():
     fa = al.fine_align(imu, lat, A.dcm_to_euler(C), gyro_arw=1e-4 * u.dpsh,
                        accel_vrw=10 * u.ugpsHz)
     assert fa.rest.at_rest and not fa.warnings
+
+
+@pytest.mark.parametrize("lat_deg", [-60.0, 0.0, 34.246, 80.0])
+def test_full_model_is_the_general_error_model_at_rest(lat_deg):
+    """Paper 000: φ̇ = φ×ω_ie − ε (ε, ∇ in n), f_E = −gφN + ∇E, f_N = gφE + ∇N.
+
+    F is the general model's φ/bias rows at rest with n-frame bias blocks; H is the
+    finite-difference derivative of the horizontal specific force in the computed frame."""
+    lat = np.radians(lat_deg)
+    F8, G8, H8 = al.full_model(lat)
+    nav = es.NavPoint.static(lat, [-5 * np.pi / 180, 2 * np.pi / 180, -235 * np.pi / 180])
+    gen = es.ErrorModel("attvel", [es.gyro_bias(frame="nav"), es.accel_bias("xy", frame="nav")],
+                        gyro_noise=1.0)
+    F = gen.F(nav)
+    idx = gen.layout.index(["phiE", "phiN", "phiU", "eps_E", "eps_N", "eps_U", "nabla_E", "nabla_N"])
+    np.testing.assert_allclose(F8, F[np.ix_(idx, idx)], atol=1e-20)
+    # velocity rows of the general model: δv̇ = f^n×φ + ∇ -> the measurement of paper 000
+    vel = gen.layout.index(["dvE", "dvN"])
+    np.testing.assert_allclose(H8, F[np.ix_(vel, idx)], rtol=1e-12, atol=1e-15)
+    # H by finite differences of the computed-frame specific force
+    g = float(E.gravity(lat))
+    fn = np.array([0.0, 0.0, g])
+    def z(x):
+        Cc = A.rotvec_to_dcm(-x[:3])            # C_n^{n'} = exp(-φ×)
+        return (Cc @ fn)[:2] + x[6:8]
+    J = np.array([(z(e) - z(-e)) / 2e-6 for e in np.eye(8) * 1e-6]).T
+    np.testing.assert_allclose(H8, J, rtol=1e-8, atol=1e-9)
+    assert np.allclose(G8[:3], -np.eye(3)) and np.all(G8[3:] == 0)

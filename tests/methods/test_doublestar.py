@@ -344,9 +344,10 @@ def test_lag_aware_paper003_equals_on_time_on_lti_model():
 # ------------------------------------------------------------------ integration on a short flight
 @pytest.fixture(scope="module")
 def flight():
+    from sinslab.sim import presets
     from sinslab.sim import trajectory as tr
     start = tr.Start(lat=32 * D, lon=118 * D, h=1000.0, speed=300.0, heading=0.0)
-    return tr.generate(tr.aircraft_mixed(200.0), start, 0.05, duration=200.0)
+    return tr.generate(presets.aircraft_mixed(200.0), start, 0.05, duration=200.0)
 
 
 def _init(truth, dpos=(0.0, 0.0), dv=(0.0, 0.0), phi=(0.0, 0.0, 0.0)):
@@ -497,9 +498,10 @@ def test_stored_state_update_follows_paper_eqs_4_to_10(tau):
 def test_a_fix_plan_drawn_equals_simulated_fixes():
     """``plan_fixes(...).draw(rng)`` is ``simulate_fixes`` with one generator (constant
     latency: the plan uses no random number; random latency: the schedule is drawn first)."""
+    from sinslab.sim import presets
     from sinslab.sim import trajectory as tr
 
-    gen = tr.generate(tr.aircraft_mixed(320.0), tr.Start(lat=np.radians(32), lon=np.radians(118), h=1000.0,
+    gen = tr.generate(presets.aircraft_mixed(320.0), tr.Start(lat=np.radians(32), lon=np.radians(118), h=1000.0,
                                                          speed=300.0), 0.1, duration=320.0)
     fa = dict(sat_lon1=np.radians(80), sat_lon2=np.radians(140), m0=20.0, m1=10.0, dH=50.0, latency=1.0)
     for extra in ({}, {"latency_jitter": 0.5, "correlated": True}):

@@ -302,17 +302,36 @@ def test_correct_round_trip():
     dpos = np.array([1e-6, -2e-6, 15.0])
     # perturbed (computed) state: C' = exp(-φ×) C, v' = v + δv, pos' = pos + δpos
     sp = s.copy()
+    sp[:10] = sd.with_errors(s[:10], phi, dvel, dpos)
     C = attitude.quat_to_dcm(s[:4])
-    sp[:4] = attitude.dcm_to_quat(attitude.apply_misalignment(C, phi))
-    sp[4:7] += dvel
-    sp[7:10] += dpos
     assert np.allclose(attitude.misalignment(C, attitude.quat_to_dcm(sp[:4])), phi, atol=1e-14)
+    assert np.allclose(sp[:4], attitude.dcm_to_quat(attitude.apply_misalignment(C, phi)), atol=1e-15)
+    assert np.array_equal(sp[4:10], s[4:10] + np.r_[dvel, dpos])
+    np.testing.assert_allclose(sd.correct_rows(sp[:10], phi, dvel, dpos), s[:10], rtol=0, atol=1e-12)
     sd.correct(sp, phi, dvel, dpos)
     q = sp[:4] * np.sign(sp[0])
     assert np.allclose(q, s[:4], atol=1e-14)
     assert np.allclose(sp[4:10], s[4:10], rtol=0, atol=1e-12)
     nav = sd.state_to_navstate(sp, 3.0)
     assert np.allclose(nav.att, init.att, atol=1e-13) and nav.t == 3.0
+
+
+def test_correct_is_the_compiled_correct_rows():
+    """The in-place feedback correction of one state and the row form agree to rounding,
+    on rows and on a horizontal (2-component) velocity and position error."""
+    rng = np.random.default_rng(3)
+    rows = np.empty((5, 10))
+    rows[:, :4] = attitude.euler_to_quat(rng.uniform(-1, 1, (5, 3)))
+    rows[:, 4:7] = rng.normal(0, 10, (5, 3))
+    rows[:, 7:10] = np.c_[rng.uniform(-1, 1, 5), rng.uniform(-3, 3, 5), rng.normal(0, 100, 5)]
+    phi, dv, dp = rng.normal(0, 1e-3, (5, 3)), rng.normal(0, 1e-1, (5, 2)), rng.normal(0, 1e-6, (5, 2))
+    got = sd.correct_rows(rows, phi, dv, dp)
+    assert np.array_equal(got[:, [6, 9]], rows[:, [6, 9]])          # the vertical left alone
+    for i in range(5):
+        st = rows[i].copy()
+        sd.correct(st, phi[i], dv[i], dp[i])
+        np.testing.assert_allclose(got[i], st, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(sd.with_errors(got, phi, dv, dp), rows, rtol=0, atol=1e-12)
 
 
 def test_step_chunks_equal_navigate():

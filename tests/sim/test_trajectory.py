@@ -8,7 +8,7 @@ import pytest
 
 from sinslab.core import attitude as at
 from sinslab.core import earth
-from sinslab.sim import indexing
+from sinslab.sim import indexing, presets
 from sinslab.sim import _synth
 from sinslab.sim import trajectory as tr
 from sinslab.core import units as u
@@ -25,7 +25,7 @@ def test_static_increments_are_earth_rate_and_gravity(lat_deg, heading_deg, pitc
     st = tr.Start(lat=lat_deg * u.deg, lon=1.0, h=400.0, heading=heading_deg * u.deg,
                   pitch=pitch_deg * u.deg, roll=roll_deg * u.deg)
     dt = 0.01
-    g = tr.generate(tr.static(20.0), st, dt)
+    g = tr.generate(presets.static(20.0), st, dt)
     att = g.truth.att
     np.testing.assert_allclose(att, np.tile([pitch_deg * u.deg, roll_deg * u.deg,
                                              at.heading_to_yaw(heading_deg * u.deg)], (len(att), 1)),
@@ -99,7 +99,7 @@ def test_coordinated_turn_banks_right_wing_down_for_right_turn():
 
 # --- numerical consistency --------------------------------------------------------------------
 def test_quadrature_orders_converge_and_agree():
-    segs = tr.aircraft_mixed(200.0)
+    segs = presets.aircraft_mixed(200.0)
     mount = indexing.dual_axis_16(dwell=10.0)
     ref = tr.generate(segs, START_003, 0.01, mount=mount, quadrature="gauss", nodes=6)
     errs = {}
@@ -122,7 +122,7 @@ def test_stencil_agrees_with_gauss_at_other_rates(dt):
     interval: both must give the same increments and positions. Bars: the 8-point stencil's
     own truncation error (~2e-9 m/s at 10 Hz) and a few ulps elsewhere; leaving out the
     latitude term of R_M in the prediction gave 3.4e-14 m/s at 50 Hz."""
-    segs = tr.aircraft_mixed(700.0)
+    segs = presets.aircraft_mixed(700.0)
     ref = tr.generate(segs, START_003, dt, quadrature="gauss", nodes=6)
     g = tr.generate(segs, START_003, dt)
     err = max(np.abs(g.imu.dtheta - ref.imu.dtheta).max(), np.abs(g.imu.dv - ref.imu.dv).max())
@@ -176,7 +176,7 @@ def test_run_length_does_not_change_the_samples(n):
 
 
 def test_truth_velocity_is_derivative_of_truth_position():
-    g = tr.generate(tr.aircraft_mixed(700.0), START_003, 0.01)
+    g = tr.generate(presets.aircraft_mixed(700.0), START_003, 0.01)
     T = g.truth
     rm, rn = earth.radii(T.lat, T.h)
     dt2 = 2 * 0.01
@@ -189,7 +189,7 @@ def test_truth_velocity_is_derivative_of_truth_position():
 
 def test_attitude_increments_match_truth_attitude():
     """Δθ minus the navigation-frame rate rotates C_b^n(k) into C_b^n(k+1) (to O(dt³))."""
-    g = tr.generate(tr.aircraft_mixed(700.0), START_003, 0.01, mount=indexing.dual_axis_16(dwell=5.0))
+    g = tr.generate(presets.aircraft_mixed(700.0), START_003, 0.01, mount=indexing.dual_axis_16(dwell=5.0))
     T = g.truth
     C = at.euler_to_dcm(T.att_imu)
     win_b, _ = _earth_terms_np(T, T.att_imu)
@@ -199,8 +199,8 @@ def test_attitude_increments_match_truth_attitude():
 
 
 def test_out_every_decimates_truth_only():
-    full = tr.generate(tr.aircraft_mixed(100.0), START_003, 0.01, mount=indexing.Swing())
-    dec = tr.generate(tr.aircraft_mixed(100.0), START_003, 0.01, mount=indexing.Swing(), out_every=7)
+    full = tr.generate(presets.aircraft_mixed(100.0), START_003, 0.01, mount=indexing.Swing())
+    dec = tr.generate(presets.aircraft_mixed(100.0), START_003, 0.01, mount=indexing.Swing(), out_every=7)
     np.testing.assert_array_equal(dec.imu.dtheta, full.imu.dtheta)
     np.testing.assert_array_equal(dec.mount, full.mount)
     sel = np.arange(0, len(full.truth), 7)
@@ -238,7 +238,7 @@ def test_error_free_navigation_reproduces_truth_1h(mount):
     """The exactness bar: 1 h mixed aircraft trajectory at 100 Hz, vertical held."""
     pytest.importorskip("sinslab.nav.strapdown")
     m = indexing.dual_axis_16(rate=9 * u.deg, dwell=60.0) if mount else None
-    g = tr.generate(tr.aircraft_mixed(3600.0), START_003, 0.01, mount=m)
+    g = tr.generate(presets.aircraft_mixed(3600.0), START_003, 0.01, mount=m)
     kinds = {s.kind for s in g.segments}
     assert {"turn", "climb", "accelerate", "wing_rock", "level"} <= kinds
     pos, vel, att = _roundtrip_errors(g)
@@ -250,14 +250,14 @@ def test_error_free_navigation_reproduces_truth_1h(mount):
 def test_error_free_navigation_ship_and_swing_table():
     pytest.importorskip("sinslab.nav.strapdown")
     st = tr.Start(lat=30 * u.deg, lon=120 * u.deg, h=0.0, heading=30 * u.deg)
-    g = tr.generate(tr.ship_manoeuvring(1800.0, static_time=60.0), st, 0.02)
+    g = tr.generate(presets.ship_manoeuvring(1800.0, static_time=60.0), st, 0.02)
     hd = at.yaw_to_heading(g.truth.att[:, 2])
     assert np.all((hd > -1e-9) & (hd < 61 * u.deg) | (hd > 359 * u.deg))
     speed = np.linalg.norm(g.truth.vel[:, :2], axis=1)
     assert speed.max() > 25.0 and speed.min() >= 0.0
     pos, vel, att = _roundtrip_errors(g)
     assert pos < 0.05 and vel < 5e-4 and att < 0.1
-    g = tr.generate(tr.static(1800.0), st, 0.02, mount=indexing.Swing(amplitude=5 * u.deg, period=40.0))
+    g = tr.generate(presets.static(1800.0), st, 0.02, mount=indexing.Swing(amplitude=5 * u.deg, period=40.0))
     assert np.abs(g.mount[:, 0]).max() == pytest.approx(5 * u.deg, rel=1e-6)
     pos, vel, att = _roundtrip_errors(g)
     assert pos < 0.05 and vel < 5e-4 and att < 0.1
@@ -309,7 +309,7 @@ def test_motion_consistency_errors():
     with pytest.raises(ValueError, match="speed_amplitude"):
         tr.generate([tr.Ship(100.0, speed_amplitude=5.0)], tr.Start(lat=0.1, lon=0.0, speed=2.0), 0.01)
     with pytest.raises(ValueError, match="dt"):
-        tr.generate(tr.static(1.0), tr.Start(lat=0.1, lon=0.0), 0.0)
+        tr.generate(presets.static(1.0), tr.Start(lat=0.1, lon=0.0), 0.0)
     with pytest.raises(ValueError, match="latitude"):
         tr.Start(lat=2.0, lon=0.0)
     with pytest.raises(ValueError, match="'lat'"):
@@ -319,11 +319,11 @@ def test_motion_consistency_errors():
     with pytest.raises(ValueError, match="no segments"):
         tr.generate([], tr.Start(lat=0.1, lon=0.0), 0.01)
     with pytest.raises(ValueError, match="quadrature"):
-        tr.generate(tr.static(1.0), tr.Start(lat=0.1, lon=0.0), 0.01, quadrature="simpson")
+        tr.generate(presets.static(1.0), tr.Start(lat=0.1, lon=0.0), 0.01, quadrature="simpson")
 
 
 def test_toml_round_trip(tmp_path):
-    segs = (tr.aircraft_mixed(700.0) + [tr.Ship(300.0, roll_amplitude=5 * u.deg, heave_amplitude=1.0,
+    segs = (presets.aircraft_mixed(700.0) + [tr.Ship(300.0, roll_amplitude=5 * u.deg, heave_amplitude=1.0,
                                                 speed_amplitude=10.0, course_amplitude=20 * u.deg),
                                         tr.Turn(30.0, -1 * u.deg, coordinated=False)])
     mount = indexing.dual_axis_16(rate=6 * u.deg, dwell=120.0, ramp=2.0)
@@ -338,7 +338,7 @@ def test_toml_round_trip(tmp_path):
     assert m.mount.name == "dual_axis_16" and m.mount.rate == pytest.approx(6 * u.deg)
     assert tr.load_segments(p) == m.segments
     swing = indexing.Swing(axis="roll", amplitude=3 * u.deg, period=20.0, ramp=5.0)
-    tr.dump_segments(tr.static(10.0), p, mount=swing)
+    tr.dump_segments(presets.static(10.0), p, mount=swing)
     back = tr.load_motion(p).mount
     assert back.axis == "roll" and back.amplitude == pytest.approx(swing.amplitude)
     assert sorted(x.name for x in tmp_path.iterdir()) == ["motion.toml"]   # atomic: no temporaries left
@@ -348,7 +348,7 @@ def test_toml_dump_failure_keeps_the_old_file(tmp_path):
     """The segment dump goes through the atomic writer: a segment that cannot be written
     leaves the previous file untouched and no temporary behind."""
     p = tmp_path / "motion.toml"
-    tr.dump_segments(tr.static(10.0), p)
+    tr.dump_segments(presets.static(10.0), p)
     before = p.read_bytes()
 
     class Bad(tr.Static):
@@ -386,11 +386,11 @@ def test_example_files_load_and_generate(name):
 
 
 def test_presets():
-    assert tr.total_duration(tr.aircraft_mixed(3600.0)) == pytest.approx(3600.0)
-    assert tr.total_duration(tr.aircraft_mixed(1200.0)) == pytest.approx(1200.0)
-    assert tr.total_duration(tr.ship_manoeuvring(48 * 3600.0)) == pytest.approx(48 * 3600.0)
-    assert tr.static(5.0) == [tr.Static(5.0)]
-    g = tr.generate(tr.aircraft_mixed(700.0), START_003, 0.02)
+    assert tr.total_duration(presets.aircraft_mixed(3600.0)) == pytest.approx(3600.0)
+    assert tr.total_duration(presets.aircraft_mixed(1200.0)) == pytest.approx(1200.0)
+    assert tr.total_duration(presets.ship_manoeuvring(48 * 3600.0)) == pytest.approx(48 * 3600.0)
+    assert presets.static(5.0) == [tr.Static(5.0)]
+    g = tr.generate(presets.aircraft_mixed(700.0), START_003, 0.02)
     assert abs(g.truth.h[-1] - 1000.0) < 1e-6 and abs(g.truth.vel[-1, 2]) < 1e-9
     assert np.linalg.norm(g.truth.vel[-1]) == pytest.approx(300.0, rel=1e-12)
     assert at.yaw_to_heading(g.truth.att[-1, 2]) == pytest.approx(90 * u.deg, abs=1e-9)

@@ -27,7 +27,21 @@ import typer
 from sinslab.core.errors import InputError
 from sinslab.core.units import UnitError
 
-__all__ = ["UserError", "CliError", "USER_ERRORS", "user_errors", "error_line", "Terminated"]
+__all__ = ["UserError", "CliError", "USER_ERRORS", "user_errors", "error_line", "Terminated",
+           "on_abort"]
+
+#: What :func:`user_errors` calls when a command fails or is interrupted, each returning
+#: one phrase per output folder saying what it holds now (:func:`on_abort`).
+_ABORTS: list = []
+
+
+def on_abort(discard):
+    """Register ``discard() -> list[str]``, called when a command body fails or is
+    interrupted: it discards that module's unfinished work (the run folders of
+    :mod:`sinslab.app.outputs`, which registers itself on import) and says what remains."""
+    if discard not in _ABORTS:
+        _ABORTS.append(discard)
+    return discard
 
 
 class UserError(ValueError):
@@ -68,9 +82,9 @@ def _err(msg: str) -> None:
 
 def _abort() -> str:
     """Discard the unfinished run folders of this process; say what they hold now."""
-    from sinslab.app.outputs import abort_all      # outputs imports this module
-
-    said = abort_all()
+    said = []
+    for discard in _ABORTS:
+        said += [s for s in discard() if s not in said]
     return "; ".join(said) if said else "nothing was written"
 
 

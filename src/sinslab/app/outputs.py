@@ -48,7 +48,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from sinslab.app import report
-from sinslab.app.errors import UserError
+from sinslab.app.errors import UserError, on_abort
 from sinslab.core.atomic import atomic_path, atomic_write
 
 __all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "atomic_write", "atomic_path",
@@ -235,6 +235,7 @@ _CREATED: set[Path] = set()
 _ACTIVE: list["RunDir"] = []
 
 
+@on_abort
 def abort_all() -> list[str]:
     """Discard every unfinished run of this process; return one phrase per run folder
     saying what it holds now (for the interrupt/error message)."""

@@ -35,7 +35,7 @@ __all__ = [
     "dcm_to_quat", "rotvec_to_dcm", "dcm_to_rotvec", "rotvec_to_quat", "quat_to_rotvec",
     "quat_mul", "quat_conj", "yaw_to_heading", "heading_to_yaw", "misalignment",
     "apply_misalignment", "M_ENU_NED", "dcm_from_ned", "dcm_to_ned", "euler_from_ned",
-    "euler_to_ned", "vec_ned_to_enu", "vec_enu_to_ned", "wrap_pi",
+    "euler_to_ned", "vec_ned_to_enu", "vec_enu_to_ned", "wrap_pi", "wrap_pi_s",
 ]
 
 #: Maps NED to ENU and FRD to RFU (and back: it is symmetric and its own inverse).
@@ -163,7 +163,7 @@ def quat_conj(q):
 
 
 def wrap_pi(a):
-    """Wrap angles [rad] to (−π, π]."""
+    """Wrap angles [rad] to (−π, π]. :func:`wrap_pi_s` is the compiled scalar form."""
     a = np.asarray(a, dtype=float)
     return np.pi - np.mod(np.pi - a, 2 * np.pi)
 
@@ -253,6 +253,23 @@ def rv2q_s(x, y, z):
         s = math.sin(0.5 * n) / n
         c = math.cos(0.5 * n)
     return c, x * s, y * s, z * s
+
+
+_INV2PI = 1.0 / (2.0 * math.pi)
+
+
+@njit(cache=True)
+def wrap_pi_s(a):
+    """Wrap an angle [rad] to (−π, π], scalar form: unchanged inside the interval (where
+    :func:`wrap_pi` may round it by an ulp of π). (Multiplying by 1/2π instead of
+    dividing: the same result except where the quotient is within an ulp of an integer,
+    fixed by the last test.)"""
+    if -math.pi < a <= math.pi:
+        return a
+    b = a + 2.0 * math.pi * math.floor((math.pi - a) * _INV2PI)
+    if b <= -math.pi:
+        b += 2.0 * math.pi
+    return b
 
 
 @njit(cache=True, inline="always")

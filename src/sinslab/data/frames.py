@@ -8,7 +8,7 @@ import numpy as np
 
 from sinslab.core import attitude as _att
 
-__all__ = ["frame_matrix", "check_rotation", "rpy_frd_matrix", "mount_matrix", "quat_mount"]
+__all__ = ["frame_matrix", "check_rotation", "rpy_frd_matrix", "sensor_to_body", "quat_mount"]
 
 _FRAMES = {
     # rows: RFU components from the source components
@@ -56,8 +56,10 @@ def rpy_frd_matrix(rpy) -> np.ndarray:
                      [sr * sy + cr * sp * cy, -sr * cy + cr * sp * sy, cr * cp]])
 
 
-def mount_matrix(mount=None, frame="rfu") -> np.ndarray:
-    """Rotation taking sensor-axis vectors to sinslab's RFU vehicle body axes.
+def sensor_to_body(mount=None, frame="rfu") -> np.ndarray:
+    """The sensor-to-body mount ``C_sensor→body``: the rotation taking sensor-axis vectors
+    to sinslab's RFU body axes (the other mount, IMU body to the vehicle axes of wheel
+    constraints, is :func:`sinslab.fusion.measurements.vehicle_from_body`).
 
     Parameters
     ----------

@@ -9,7 +9,7 @@ import numpy as np
 
 from sinslab.core.atomic import atomic_path
 from sinslab.core.records import Fixes, ImuRecord, NavSeries
-from sinslab.data.frames import mount_matrix
+from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, uniform_increments
 
 __all__ = ["read_mat_imu", "read_mat_avp", "read_mat_fixes", "write_mat_imu"]
@@ -64,7 +64,7 @@ def read_mat_imu(path, var=None, *, dt=None, frame="rfu", mount=None, max_gap=1.
         t = float(dt) * np.arange(1, a.shape[0] + 1)
     else:
         t = a[:, 6]
-    R = mount_matrix(mount, frame)
+    R = sensor_to_body(mount, frame)
     imu, gaps, jit = uniform_increments(t, a[:, 0:3] @ R.T, a[:, 3:6] @ R.T, path=path,
                                         lines=[f"row {i + 1}" for i in range(a.shape[0])],
                                         max_gap=max_gap, allow_gaps=allow_gaps)

@@ -24,7 +24,7 @@ import numpy as np
 
 from sinslab.core import units
 from sinslab.core.records import ImuRecord
-from sinslab.data.frames import mount_matrix
+from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData
 
 __all__ = ["PsinsImu", "read_psins_imu", "load_psins"]
@@ -170,12 +170,12 @@ def read_psins_imu(path) -> PsinsImu:
 
 def load_psins(path, mount=None, frame="rfu", **extra) -> ImuData:
     """A PSINS ``.imu`` log as :class:`ImuData` (``mount``/``frame``: see
-    :func:`~sinslab.data.frames.mount_matrix`; the header is in ``meta["psins"]``)."""
+    :func:`~sinslab.data.frames.sensor_to_body`; the header is in ``meta["psins"]``)."""
     if extra:
         raise ValueError(f"options {sorted(extra)} do not apply to PSINS files")
     ps = read_psins_imu(path)
     imu = ps.imu
     if mount is not None or frame != "rfu":
-        R = mount_matrix(mount, frame)
+        R = sensor_to_body(mount, frame)
         imu = ImuRecord(imu.t, imu.dtheta @ R.T, imu.dv @ R.T, imu.dt)
     return ImuData(imu, np.zeros((0, 2)), str(path), "psins", len(imu), 0.0, {"psins": ps})

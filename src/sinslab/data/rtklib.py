@@ -11,7 +11,7 @@ import numpy as np
 
 from sinslab.core import units
 from sinslab.core.records import Fixes
-from sinslab.data.frames import mount_matrix
+from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, rates_to_increments, uniform_increments
 
 __all__ = ["RTKLIB_DRIVE", "read_rtklib_pos", "read_rtklib_tag", "read_rtklib_imu"]
@@ -173,7 +173,7 @@ def read_rtklib_imu(path, *, tag=None, delay=0.0, mount=None, frame="frd", accel
     over the record instead of 0.06 -> 0.11 s; tests/data/test_formats.py). Use
     :func:`sinslab.fusion.recorded.estimate_time_offset` / ``shift_imu_time`` to synchronise. The time base is
     the tag's (GPST seconds, see :func:`read_rtklib_tag`).
-    ``mount``/``frame``: sensor → vehicle axes (:func:`sinslab.data.frames.mount_matrix`; the sensor axes
+    ``mount``/``frame``: sensor → vehicle axes (:func:`sinslab.data.frames.sensor_to_body`; the sensor axes
     need it on rtklib-drive, see :data:`RTKLIB_DRIVE`).
     """
     path = Path(path)
@@ -216,7 +216,7 @@ def read_rtklib_imu(path, *, tag=None, delay=0.0, mount=None, frame="frd", accel
     span = tg["end"] - tg["start"]
     scale = span / sec[-1] if (stretch and sec[-1] > 0 and span > 0) else 1.0
     t = tg["start"] + sec * scale + float(delay)
-    R = mount_matrix(mount, frame)
+    R = sensor_to_body(mount, frame)
     w = d[:, 3:6] * units.unit_scale(gyro_unit, "angular_rate") @ R.T
     f = d[:, 0:3] * units.unit_scale(accel_unit, "acceleration") @ R.T
     dt_nom = float(np.median(np.diff(t)))

@@ -12,7 +12,7 @@ from sinslab.core import units
 from sinslab.core.atomic import atomic_path
 from sinslab.core.records import Fixes, ImuRecord
 from sinslab.data import columns as _columns
-from sinslab.data.frames import mount_matrix
+from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, rates_to_increments, uniform_increments, where
 
 __all__ = ["read_table_imu", "write_table_imu", "read_fix_csv", "write_fix_csv",
@@ -88,7 +88,7 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     ``meta["stationary"] = (t (N,), flags (N,) bool)``. A file without a header needs a
     map of 1-based column positions.
 
-    ``frame``/``mount``: see :func:`sinslab.data.frames.mount_matrix`. Text is parsed by
+    ``frame``/``mount``: see :func:`sinslab.data.frames.sensor_to_body`. Text is parsed by
     pyarrow's CSV engine (comma, semicolon or tab delimited; whitespace-delimited text
     by numpy); any malformed table raises ValueError naming the file, the line and the
     cause (binary data, a short line, a non-number in a used column, ...).
@@ -151,7 +151,7 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
         raise ValueError(f"{where(path, lines[r])}: NaN/inf or empty value in column "
                          f"{cols[([ti] + gi + ai)[c]][0]!r}")
     t = data[:, 0] * ts
-    R = mount_matrix(mount, frame)
+    R = sensor_to_body(mount, frame)
     g = data[:, 1:4] * gs @ R.T
     a = data[:, 4:7] * as_ @ R.T
     check_stamps(t, path, lines)

@@ -19,7 +19,7 @@ from sinslab.estimation.kalman import (UpdateResult, _as_square, _is_diag, check
                                        update)
 from sinslab.estimation.linear import _cov_predict, _scalar_update, _sparsity_nb, _state_predict
 
-__all__ = ["KalmanFilter", "StoredEpoch", "compiled_update"]
+__all__ = ["KalmanFilter", "StoredEpoch", "compiled_update", "propagate_lanes"]
 
 
 @njit(cache=True)
@@ -494,3 +494,51 @@ class KalmanFilter:
         self.x = xff - self.c
         self.P = np.array(P, dtype=float, order="C", copy=True)
         return UpdateResult(first.x - e.c_prior, first.P, first.innovation, first.S, first.nis, first.used)
+
+    # -- propagation by a caller's compiled kernel ---------------------------------------
+    @property
+    def fast(self):
+        """True when the filter keeps no history and checks nothing: then its steps may be
+        taken by a caller's compiled propagation (:meth:`propagate`, :func:`propagate_lanes`)."""
+        return self._buf is None and not self.check
+
+    def propagate(self, step, m, dt):
+        """Advance by ``m`` steps of ``dt`` [s] with a caller's compiled propagation.
+
+        ``step(x, c, P, T1, T2, tmp)`` steps the estimate ``x`` (n,), the cumulative
+        feedback ``c`` (n,) and ``P`` (n, n) in place with the arithmetic of
+        :meth:`predict_many` (e.g. a fused model, Φ, Q_k and prediction that also records
+        what a smoother needs); ``T1``, ``T2`` (n, n) and ``tmp`` (n,) are work arrays.
+        Returns what ``step`` returns. Only for a :attr:`fast` filter: a history could not
+        record the steps.
+        """
+        if not self.fast:
+            raise ValueError("a compiled propagation steps only a filter without history and checks")
+        out = step(self.x, self.c, self.P, self._T1, self._T2, self._tmp)
+        self.t += m * float(dt)
+        return out
+
+
+def propagate_lanes(filts, step, m, dt):
+    """Advance the :attr:`~KalmanFilter.fast` filters of several lanes (the runs of a Monte
+    Carlo task) by ``m`` steps of ``dt`` [s] with one compiled call.
+
+    ``step(x, c, P)`` steps ``x``, ``c`` (L, n) and ``P`` (L, n, n) of the L filters in
+    place; one filter is stepped where it is (views), several are stacked and written back.
+    Returns what ``step`` returns.
+    """
+    if not all(k.fast for k in filts):
+        raise ValueError("a compiled propagation steps only filters without history and checks")
+    if len(filts) == 1:
+        f0 = filts[0]
+        out = step(f0.x[None], f0.c[None], f0.P[None])
+    else:
+        x = np.stack([k.x for k in filts])
+        c = np.stack([k.c for k in filts])
+        P = np.stack([k.P for k in filts])
+        out = step(x, c, P)
+        for ln, k in enumerate(filts):
+            k.x[:], k.c[:], k.P[:] = x[ln], c[ln], P[ln]
+    for k in filts:
+        k.t += m * float(dt)
+    return out

@@ -1,7 +1,7 @@
 """double-star: paper 003 (Liu, Lin, Lai, Sun 2004) — Beidou-1 two-GEO fixes with a 1 s
 position lag fused with a SINS inside short covert windows.
 
-The aircraft trajectory (:func:`sinslab.sim.trajectory.aircraft_mixed`: level flight, turns,
+The aircraft trajectory (:func:`sinslab.sim.presets.aircraft_mixed`: level flight, turns,
 climb/descent, acceleration) is synthesised with exact IMU increments; each Monte Carlo
 run draws the initial navigation errors, the sensor errors (gyro constant drift, gyro and
 accelerometer first-order Markov processes, gyro white noise) and the fixes (σ from the
@@ -177,6 +177,7 @@ _KEY = {"lag-aware": "lagaware", "lag-ignore": "lagignore", "zero-lag": "zerolag
 def _setup(cfg: Config, quick=False):
     """Everything a run needs, as plain picklable values."""
     from sinslab.methods import doublestar as ds
+    from sinslab.sim import presets
     from sinslab.sim import trajectory as tr
 
     s, f, im, ini, fl = cfg.scenario, cfg.fix, cfg.imu, cfg.init, cfg.filter
@@ -186,7 +187,7 @@ def _setup(cfg: Config, quick=False):
     windows = [tuple(float(x) for x in w) for w in f.windows]
     start = tr.Start(lat=float(s.latitude), lon=float(s.longitude), h=float(s.height),
                      speed=float(s.speed), heading=float(s.heading))
-    gen = tr.generate(tr.aircraft_mixed(T), start, dt, duration=T)
+    gen = tr.generate(presets.aircraft_mixed(T), start, dt, duration=T)
     model_args = dict(gyro_white=float(im.gyro_white), gyro_markov_sigma=float(im.gyro_markov),
                       gyro_markov_tau=float(im.gyro_markov_tau),
                       accel_markov_sigma=float(im.accel_markov), accel_markov_tau=float(im.accel_markov_tau))

@@ -208,10 +208,6 @@ METRICS = {
 }
 
 
-def _wrap(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
 # ---------------------------------------------------------------- Monte Carlo ------------
 #: Errors compared between Monte Carlo and covariance analysis: (key, label, display unit).
 MC_ERRORS = (("pos_e", "position east", "m"), ("pos_n", "position north", "m"),
@@ -360,10 +356,10 @@ def _mc_rows(nav):
 def _mc_errors(rows, S):
     """Errors (..., M, 9) of :func:`mc_run` from rows (..., M, 9) of :func:`_mc_rows`
     (one run or several stacked in front), element by element against the truth."""
-    from sinslab.core.attitude import euler_to_dcm, misalignment
+    from sinslab.core.attitude import euler_to_dcm, misalignment, wrap_pi
 
     out = np.empty(rows.shape)
-    out[..., 0] = _wrap(rows[..., 0] - S["lon"]) * S["rn"] * np.cos(S["lat"])
+    out[..., 0] = wrap_pi(rows[..., 0] - S["lon"]) * S["rn"] * np.cos(S["lat"])
     out[..., 1] = (rows[..., 1] - S["lat"]) * S["rm"]
     out[..., 2] = rows[..., 2] - S["h"]
     out[..., 3:6] = rows[..., 3:6] - S["vel"]
@@ -513,6 +509,7 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
 # ---------------------------------------------------------------- the experiment --------
 
 def _motion(cfg: Config):
+    from sinslab.sim import presets
     from sinslab.sim import trajectory as tr
 
     s = cfg.scenario
@@ -523,11 +520,11 @@ def _motion(cfg: Config):
         m = tr.load_motion(s.motion_file)            # validated with the config
         return m.segments, (m.start or start), m.mount
     if s.motion == "static":
-        return tr.static(T), tr.Start(lat=start.lat, lon=start.lon, h=start.h, heading=start.heading), None
+        return presets.static(T), tr.Start(lat=start.lat, lon=start.lon, h=start.h, heading=start.heading), None
     if s.motion == "ship_manoeuvring":
-        return (tr.ship_manoeuvring(T), tr.Start(lat=start.lat, lon=start.lon, h=start.h,
-                                                   heading=start.heading), None)
-    return tr.aircraft_mixed(T), start, None
+        return (presets.ship_manoeuvring(T), tr.Start(lat=start.lat, lon=start.lon, h=start.h,
+                                                        heading=start.heading), None)
+    return presets.aircraft_mixed(T), start, None
 
 
 def run(cfg: Config, ctx) -> Result:
@@ -535,6 +532,7 @@ def run(cfg: Config, ctx) -> Result:
     from sinslab.nav import strapdown
     from sinslab.sim import trajectory
     from sinslab.core import earth
+    from sinslab.core.attitude import wrap_pi, yaw_to_heading
     from sinslab.core.records import NavState
     from sinslab.methods.free_inertial import (envelopes, fit_schuler_period,
                                               linear_error_prediction)
@@ -576,12 +574,12 @@ def run(cfg: Config, ctx) -> Result:
         raise RuntimeError("navigation and truth epochs disagree")
     t = nav.t - nav.t[0]
     rm_t, rn_t = earth.radii(truth.lat, truth.h)
-    pos_err = np.column_stack([_wrap(nav.lon - truth.lon) * rn_t * np.cos(truth.lat),
+    pos_err = np.column_stack([wrap_pi(nav.lon - truth.lon) * rn_t * np.cos(truth.lat),
                                (nav.lat - truth.lat) * rm_t, nav.h - truth.h])
     vel_err = nav.vel - truth.vel
-    att_err = np.column_stack([_wrap(nav.att[:, 0] - truth.att[:, 0]),
-                               _wrap(nav.att[:, 1] - truth.att[:, 1]),
-                               -_wrap(nav.att[:, 2] - truth.att[:, 2])])
+    att_err = np.column_stack([wrap_pi(nav.att[:, 0] - truth.att[:, 0]),
+                               wrap_pi(nav.att[:, 1] - truth.att[:, 1]),
+                               -wrap_pi(nav.att[:, 2] - truth.att[:, 2])])
     hpos = np.hypot(pos_err[:, 0], pos_err[:, 1])
     hvel = np.hypot(vel_err[:, 0], vel_err[:, 1])
     lat0, h_mean = float(truth.lat[0]), float(np.mean(truth.h))
@@ -718,7 +716,7 @@ def run(cfg: Config, ctx) -> Result:
             "h_m": truth.h, "vel_e_mps": truth.vel[:, 0], "vel_n_mps": truth.vel[:, 1],
             "vel_u_mps": truth.vel[:, 2], "pitch_deg": truth.att[:, 0] / units.deg,
             "roll_deg": truth.att[:, 1] / units.deg,
-            "heading_deg": np.mod(-truth.att[:, 2], 2 * np.pi) / units.deg,
+            "heading_deg": yaw_to_heading(truth.att[:, 2]) / units.deg,
         },
     }
     tt, tlabel = P.time_axis(t)
@@ -756,7 +754,7 @@ def run(cfg: Config, ctx) -> Result:
     ax[1].set_xlabel(tlabel)
     figs.append(Figure("att_err", fig, "Attitude error: pitch, roll, heading (heading clockwise from north)"))
     fig, ax = P.figure(1, row_height=4.0, width=6.0)
-    e_km = _wrap(truth.lon - truth.lon[0]) * rn_t * np.cos(truth.lat) / 1e3
+    e_km = wrap_pi(truth.lon - truth.lon[0]) * rn_t * np.cos(truth.lat) / 1e3
     n_km = (truth.lat - truth.lat[0]) * rm_t / 1e3
     ax[0].plot(e_km, n_km, color=P.COLORS[0], lw=1.2)
     ax[0].plot(e_km[0], n_km[0], "o", color=P.COLORS[2], label="start")

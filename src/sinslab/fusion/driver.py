@@ -581,8 +581,8 @@ class _LaneRun:
         """Model, Φ, Q_k and prediction in the one compiled loop, unless Φ, Q_k or F must
         be kept (a history for lagged items or smoothing records every Φ)."""
         f = self.filt
-        return (cprop is not None and discretization == "series" and f._buf is None
-                and not f.check and not self.keep_F and self.history is None)
+        return (cprop is not None and discretization == "series" and f.fast
+                and not self.keep_F and self.history is None)
 
     def advance(self, e0, e1):
         """Streams to ``e1``: rows of ``e0..e1`` and the step rates of the block."""

@@ -75,6 +75,14 @@ class FeedbackLayout:
             cache[n] = idx
         return cache[n]
 
+    def nav_errors(self, x):
+        """``(φ, δv, δp)`` of an error state ``x`` (..., n): the blocks that correct the
+        navigation state (2-state horizontal blocks as they are, None where the layout has
+        none), the arguments of :func:`sinslab.nav.strapdown.correct` and
+        :func:`~sinslab.nav.strapdown.correct_rows`."""
+        x = np.asarray(x)
+        return tuple(None if s is None else x[..., s] for s in (self.att, self.vel, self.pos))
+
     def split(self, x):
         """Dict of the blocks of ``x`` (absent blocks omitted)."""
         x = np.asarray(x)
@@ -151,18 +159,7 @@ class FeedbackLayout:
             The fed-back amounts.
         """
         d = filt.feedback(self.indices(filt.n))
-
-        def three(s):
-            if s is None:
-                return None
-            v = d[s]
-            if v.size == 3:
-                return v
-            w = np.zeros(3)             # a horizontal block: the vertical left alone
-            w[:v.size] = v
-            return w
-
-        sd.correct(state, phi=three(self.att), dvel=three(self.vel), dpos=three(self.pos))
+        sd.correct(state, *self.nav_errors(d))
         gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=float).copy()
         ab = np.zeros(3) if accel_bias is None else np.asarray(accel_bias, dtype=float).copy()
         if self.gyro is not None:

@@ -27,7 +27,7 @@ from sinslab.core import earth as E
 
 __all__ = ["Measurement", "NavRow", "Epoch", "Grid", "PositionFix", "VelocityFix", "Stack",
            "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
-           "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "mount_matrix"]
+           "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body"]
 
 
 @dataclass(frozen=True)
@@ -181,10 +181,6 @@ def arrival_epochs(t_valid, t_arrive, grid, *, outages=(), windows=None):
     return out
 
 
-def _names(layout):
-    return [b.name for b in layout.blocks]
-
-
 class _Timed:
     """Time stamps and schedule shared by the fix measurements."""
 
@@ -275,7 +271,7 @@ class PositionFix(_Timed):
         if Cl is not None:
             H[0:3, lay.slice("phi")] = A.skew(Cl)[[1, 0, 2]][:n_z]
         dtf = ep.t - self.t_valid[j]                 # fix extrapolated to the epoch
-        dlon = (lon - self.pos[j, 1] + math.pi) % (2 * math.pi) - math.pi
+        dlon = float(A.wrap_pi(lon - self.pos[j, 1]))
         z[0] = (lat - self.pos[j, 0]) * rm - v_ant[1] * dtf
         z[1] = dlon * rnc - v_ant[0] * dtf
         H[0, s_pos.start] = rm
@@ -292,8 +288,8 @@ class VelocityFix(_Timed):
     """Velocity fixes of an antenna (ENU, 3 components) against one stream.
 
     ``z = v + C_b^n (ω_ib^b × l) − v_fix`` [m/s]; ``H`` has ``I`` on δv and, with a lever
-    arm, ``(C_b^n (ω×l))×`` on φ and ``−C_b^n l×`` on the gyro bias block ``eps`` (when the
-    layout has one).
+    arm, ``(C_b^n (ω×l))×`` on φ and ``−C_b^n (l×) ∂δω/∂x`` on every block feeding the
+    gyro compensation (bias, Gauss–Markov, scale factors: :func:`_add_rate_H`).
 
     Parameters
     ----------
@@ -328,8 +324,7 @@ class VelocityFix(_Timed):
             vlev = C @ np.cross(nr.omega_b, self.lever)
             v_ant = v_ant + vlev
             H[:, lay.slice("phi")] = A.skew(vlev)
-            if "eps" in _names(lay):
-                H[:, lay.slice("eps")] = -C @ A.skew(self.lever)
+            _add_rate_H(H, lay, -C @ A.skew(self.lever), nr.omega_b)
         return v_ant - self.vel[j], H, self.sigma[j] ** 2
 
 
@@ -425,7 +420,7 @@ class InsDifference(_Timed):
             H[1, lay.slice("phi")] = A.skew(d)[0] / rnc
             H[2:4, lay.slice("phi")] = A.skew(vlev)[0:2]
         z[0] = a.lat - lat_k
-        z[1] = (a.lon - lon_k + math.pi) % (2 * math.pi) - math.pi
+        z[1] = A.wrap_pi(a.lon - lon_k)
         z[2:4] = a.vel[:2] - vk
         sp, sv = lay.slice("dp"), lay.slice("dv")
         H[0, sp.start] = 1.0
@@ -436,8 +431,10 @@ class InsDifference(_Timed):
 
 
 # ------------------------------------------------------------------ aiding measurements
-def mount_matrix(mount):
-    """``C_b^v`` (3, 3): IMU body axes -> vehicle axes (both RFU: x right, y forward, z up).
+def vehicle_from_body(mount):
+    """The vehicle-from-body mount ``C_b^v`` (3, 3): IMU body axes -> vehicle axes (both
+    RFU: x right, y forward, z up) of the wheel constraints (the sensor-to-body mount of
+    recorded data is :func:`sinslab.data.frames.sensor_to_body`).
 
     ``mount`` is None (aligned), a (3, 3) rotation matrix ``C_b^v`` or Euler angles
     ``[pitch, roll, yaw]`` [rad] of the IMU body frame in the vehicle frame (the
@@ -618,7 +615,7 @@ class NonHolonomic(_OnEpochs):
     ----------
     sigma : float or array_like (2,)
         Lateral, vertical [m/s] (the constraint is violated by skid and suspension).
-    mount : see :func:`mount_matrix`
+    mount : see :func:`vehicle_from_body`
         IMU body -> vehicle axes.
     lever_arm : array_like (3,), optional
         IMU -> constraint point (e.g. rear-axle centre), body axes [m].
@@ -636,7 +633,7 @@ class NonHolonomic(_OnEpochs):
                  every=1, stream=0):
         self._init_sched(intervals, every, stream)
         self.sigma = _sigma(sigma, 2, "NHC")
-        self.Cvb = mount_matrix(mount)
+        self.Cvb = vehicle_from_body(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
 
@@ -677,7 +674,7 @@ class BodyVelocity(_Timed):
         self.sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (J, 3))
         if not np.all(self.sigma > 0):
             raise ValueError("body velocity sigma must be > 0")
-        self.Cvb = mount_matrix(mount)
+        self.Cvb = vehicle_from_body(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
         self.stream = int(stream)
@@ -729,7 +726,7 @@ class Odometer(_OnEpochs):
             raise ValueError("odometer speeds must be finite and >= 0")
         self.sigma = _sigma(sigma, 1, "odometer")
         self.nhc_sigma = None if nhc_sigma is None else _sigma(nhc_sigma, 2, "NHC")
-        self.Cvb = mount_matrix(mount)
+        self.Cvb = vehicle_from_body(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
         self.scale_block = scale_block
@@ -785,8 +782,7 @@ class LeverPositionFix(PositionFix):
 
 
 class LeverVelocityFix(VelocityFix):
-    """:class:`VelocityFix` with the antenna lever arm estimated (``∂z/∂δl = C_b^n (ω×)``)
-    and the lever term ``−C_b^n (l×)`` on every block feeding the gyro compensation."""
+    """:class:`VelocityFix` with the antenna lever arm estimated (``∂z/∂δl = C_b^n (ω×)``)."""
 
     def __init__(self, t_valid, vel, sigma, *, lever_block="lev", lever_arm=None, **kw):
         super().__init__(t_valid, vel, sigma, lever_arm=lever_arm, **kw)
@@ -795,11 +791,5 @@ class LeverVelocityFix(VelocityFix):
     def matrices(self, ep: Epoch):
         z, H, R = super().matrices(ep)
         nr = ep.streams[self.stream]
-        C = nr.C_bn
-        lay = ep.layout
-        for b in lay.blocks:                        # rebuilt below for every gyro block
-            if getattr(b, "feeds", None) in ("gyro_bias", "gyro_scale"):
-                H[:, lay.slice(b.name)] = 0.0
-        _add_rate_H(H, lay, -C @ A.skew(_lever(self.lever)), nr.omega_b)
-        H[:, lay.slice(self.lever_block)] = C @ A.skew(nr.omega_b)
+        H[:, ep.layout.slice(self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
         return z, H, R

@@ -18,6 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
+from sinslab.estimation.filter import propagate_lanes
 from sinslab.estimation.linear import _cov_predict, _state_predict, series_step, series_structure
 from sinslab.nav import errstate_kernels as ek
 
@@ -113,26 +114,20 @@ class CompiledPropagation:
         fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq = self.structure
         L = len(filts)
         if L == 1:
-            # views: the one filter's arrays are stepped where they are
-            f0 = filts[0]
-            x, c, P = f0.x[None], f0.c[None], f0.P[None]
             so, xo = sigma_out[0][None], x_out[0][None]
         else:
-            x = np.stack([k.x for k in filts])
-            c = np.stack([k.c for k in filts])
-            P = np.stack([k.P for k in filts])
-            n = x.shape[1]
+            n = filts[0].n
             so, xo = np.empty((L, b - a, n)), np.empty((L, b - a, n))
-        bad, e = _predict_model(rows, w, f, a, b, *self._tables, self.q, float(T), fcol, fcnt, grow,
-                                gcnt, R, pos, nr, qr, nq, phic, phin, x, c, P, so, xo)
+
+        def step(x, c, P):
+            return _predict_model(rows, w, f, a, b, *self._tables, self.q, float(T), fcol, fcnt, grow,
+                                  gcnt, R, pos, nr, qr, nq, phic, phin, x, c, P, so, xo)
+
+        bad, e = propagate_lanes(filts, step, b - a, T)
         if bad >= 0:
             ek.matrices_rows(self.prog, rows[bad][:, e:e + 1], w[bad][:, e:e + 1], f[bad][:, e:e + 1])
             raise ValueError(f"navigation point {e} of the stretch is invalid")  # not reached
         if L > 1:
-            for ln, k in enumerate(filts):
-                # in place, as the one-lane call steps them
-                k.x[:], k.c[:], k.P[:] = x[ln], c[ln], P[ln]
+            for ln in range(L):
                 sigma_out[ln][:] = so[ln]
                 x_out[ln][:] = xo[ln]
-        for k in filts:
-            k.t += (b - a) * float(T)

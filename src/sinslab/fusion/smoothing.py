@@ -40,7 +40,8 @@ At stored epoch r the smoothed error of the recorded (post-feedback) solution is
 correction at the filter epochs in between, and at any time (IMU rate), is interpolated
 linearly between those two, never across a feedback jump; the forward solution between
 filter epochs is interpolated linearly (quaternions: normalised linear interpolation).
-The smoothed solution is the forward one corrected like a feedback: ``q ← q(φ) ⊗ q``,
+The smoothed solution is the forward one corrected like a feedback
+(:func:`sinslab.nav.strapdown.correct_rows`): ``q ← q(φ) ⊗ q``,
 ``v ← v − δv``, ``p ← p − δp``, sensor compensation ``+ δε``, ``+ δ∇``.
 """
 from __future__ import annotations
@@ -53,11 +54,11 @@ import numpy as np
 
 from numba import njit
 
-from sinslab.core import attitude as A
 from sinslab.estimation.linear import _copy2, _cov_predict, _sparsity_nb, _state_predict
 from sinslab.estimation.smoother import rts_smooth
+from sinslab.nav import strapdown as sd
 
-__all__ = ["History", "SmoothedRun", "smooth", "correct_rows", "interpolate_rows"]
+__all__ = ["History", "SmoothedRun", "smooth", "interpolate_rows"]
 
 
 @njit(cache=True)
@@ -225,14 +226,16 @@ class History:
             Phi_o = np.empty((k, self.n, self.n))
             Pp_o = np.empty((k, self.n, self.n))
             xp_o = np.empty((k, self.n))
-        if filt._buf is None and not filt.check:
+        if filt.fast:
             nzc = np.zeros((m, self.n, max(self.n, 1)), dtype=np.int64)
             nnz = np.zeros((m, self.n), dtype=np.int64)
             _sparsity_nb(Phis, nzc, nnz)
-            _, self._nacc = _predict_record(filt.x, filt.c, filt.P, Phis, Qs, nzc, nnz, filt._T1,
-                                            filt._T2, filt._tmp, sigma_out, x_out, stop, self._acc,
-                                            self._nacc, self._W, Phi_o, Pp_o, xp_o)
-            filt.t += m * float(T)
+
+            def step(x, c, P, T1, T2, tmp):
+                return _predict_record(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sigma_out, x_out, stop,
+                                       self._acc, self._nacc, self._W, Phi_o, Pp_o, xp_o)
+
+            _, self._nacc = filt.propagate(step, m, T)
         else:
             i = 0
             for jj, b in enumerate(list(np.flatnonzero(stop) + 1) + ([m] if not stop[-1] else [])):
@@ -370,7 +373,7 @@ class SmoothedRun:
                              f"{self.t[0]:.3f}..{self.t[-1]:.3f} s")
         rows = interpolate_rows(self.t, self.forward_nav, t)
         x = _interp_between(self.t, self.stored, self.x_stored, self.x_before, t)
-        return correct_rows(rows, x, self._route)
+        return sd.correct_rows(rows, *self._route.nav_errors(x))
 
 
 def interpolate_rows(t_ep, rows, t):
@@ -385,27 +388,6 @@ def interpolate_rows(t_ep, rows, t):
     out = a + w * (b - a)
     q = a[:, :4] + w * (qb - a[:, :4])
     out[:, :4] = q / np.linalg.norm(q, axis=1, keepdims=True)
-    return out
-
-
-def correct_rows(rows, x, route):
-    """Rows (M, 10) corrected by the errors ``x`` (M, n) like a feedback
-    (:func:`sinslab.nav.strapdown.correct`): ``q ← q(φ) ⊗ q``, ``v ← v − δv``,
-    ``[lat, lon, h] ← [lat, lon, h] − δp``. ``route``: a
-    :class:`~sinslab.fusion.feedback.FeedbackLayout` (its att, vel, pos entries)."""
-    out = np.array(rows, dtype=float, copy=True)
-
-    def three(s):
-        v = x[:, s]
-        return v if v.shape[1] == 3 else np.concatenate([v, np.zeros((v.shape[0], 3 - v.shape[1]))], 1)
-
-    if route.att is not None:
-        q = A.quat_mul(A.rotvec_to_quat(three(route.att)), out[:, :4])
-        out[:, :4] = q / np.linalg.norm(q, axis=1, keepdims=True)
-    if route.vel is not None:
-        out[:, 4:7] -= three(route.vel)
-    if route.pos is not None:
-        out[:, 7:10] -= three(route.pos)
     return out
 
 
@@ -489,8 +471,8 @@ def smooth(run, *, stream=0, check=True, chunk=4096) -> SmoothedRun:
     fwd = rows
     if route is not None and not np.any(h.feedback):
         # feed-forward run: the forward solution is the free INS minus the filter estimate
-        fwd = correct_rows(rows, np.asarray(run.x, dtype=float), route)
-    nav = correct_rows(rows, x, route) if route is not None else None
+        fwd = sd.correct_rows(rows, *route.nav_errors(np.asarray(run.x, dtype=float)))
+    nav = sd.correct_rows(rows, *route.nav_errors(x)) if route is not None else None
     gb = ab = None
     g_all, a_all = run.gyro_bias, run.accel_bias
     g = g_all[stream] if isinstance(g_all, tuple) else g_all

@@ -8,7 +8,7 @@ paper's equations carry over without sign changes.
 
 Models (derived again here; ``tests/test_alignment.py`` checks every step)
 ----------------------------------------------------------------------------
-Full order (paper eqs 10, 11, 15, 16; :func:`sinslab.nav.errstate.static_alignment_model`),
+Full order (paper eqs 10, 11, 15, 16; :func:`full_model`),
 ``X = [φE φN φU εE εN εU ∇E ∇N]`` with ε = C_b^n ε^b, ∇ = C_b^n ∇^b, ω_N = ω_ie cos L,
 ω_U = ω_ie sin L::
 
@@ -69,7 +69,6 @@ from numba import njit
 
 from sinslab.core import attitude as att_
 from sinslab.core import earth, units
-from sinslab.nav import errstate
 from sinslab.estimation import kalman, linear
 from sinslab.estimation.filter import KalmanFilter
 from sinslab.core.attitude import q2dcm_s, qmul_s, rv2q_s
@@ -111,9 +110,40 @@ def _rates(lat):
     return earth.WIE * math.cos(lat), earth.WIE * math.sin(lat)
 
 
-def full_model(lat, g):
-    """Paper eqs 11, 16: ``(F (8,8), G (8,3), H (2,8))`` — :func:`errstate.static_alignment_model`."""
-    return errstate.static_alignment_model(float(lat), float(g))
+def full_model(lat, g=None):
+    """Paper 000's 8-state stationary fine-alignment model (ENU), eqs 11, 16.
+
+    States ``X = [φE φN φU εE εN εU ∇E ∇N]`` (ε, ∇ in n, random constants)::
+
+        φ̇ = φ×ω_ie^n − ε − w_g        (= −ω_ie×φ − ε − w_g)
+        Z = [f̃_E, f̃_N] = [−g φN + ∇E, g φE + ∇N] + v
+
+    Parameters
+    ----------
+    lat : float
+        Latitude [rad].
+    g : float, optional
+        Gravity [m/s²]; default normal gravity at ``lat``, h = 0.
+
+    Returns
+    -------
+    F : ndarray (8, 8)
+    G : ndarray (8, 3)
+        Gyro white noise (n frame) input: ``[−I₃; 0]``.
+    H : ndarray (2, 8)
+    """
+    lat = float(lat)
+    g = float(earth.gravity(lat, 0.0)) if g is None else float(g)
+    wN, wU = _rates(lat)
+    F = np.zeros((8, 8))
+    F[0:3, 0:3] = -att_.skew(np.array([0.0, wN, wU]))
+    F[0:3, 3:6] = -np.eye(3)
+    G = np.zeros((8, 3))
+    G[0:3, :] = -np.eye(3)
+    H = np.zeros((2, 8))
+    H[0, 1], H[0, 6] = -g, 1.0
+    H[1, 0], H[1, 7] = g, 1.0
+    return F, G, H
 
 
 def reduced_model(lat, g):

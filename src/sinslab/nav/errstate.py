@@ -53,7 +53,6 @@ gives ``F`` of shape ``S + (n, n)``.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -66,7 +65,7 @@ from sinslab.core.earth import A, DGDH, E2, G_EQ, K_SOM, WIE, gravity
 __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
-    "ErrorModel", "DifferenceModel", "core_matrices", "static_alignment_model",
+    "ErrorModel", "DifferenceModel", "core_matrices",
     "CORES", "lever_arm", "odometer_scale",
 ]
 
@@ -826,41 +825,6 @@ class DifferenceModel(ErrorModel):
         return (G * self.q) @ np.swapaxes(G, -1, -2)
 
 
-def static_alignment_model(lat, g=None):
-    """Paper 000's 8-state stationary fine-alignment model (ENU).
-
-    States ``X = [φE φN φU εE εN εU ∇E ∇N]`` (ε, ∇ in n, random constants)::
-
-        φ̇ = φ×ω_ie^n − ε − w_g        (= −ω_ie×φ − ε − w_g)
-        Z = [f̃_E, f̃_N] = [−g φN + ∇E, g φE + ∇N] + v
-
-    Parameters
-    ----------
-    lat : float
-        Latitude [rad].
-    g : float, optional
-        Gravity [m/s²]; default normal gravity at ``lat``, h = 0.
-
-    Returns
-    -------
-    F : ndarray (8, 8)
-    G : ndarray (8, 3)
-        Gyro white noise (n frame) input: ``[−I₃; 0]``.
-    H : ndarray (2, 8)
-    """
-    g = float(gravity(lat, 0.0)) if g is None else float(g)
-    wN, wU = WIE * math.cos(lat), WIE * math.sin(lat)
-    F = np.zeros((8, 8))
-    F[0:3, 0:3] = -skew(np.array([0.0, wN, wU]))
-    F[0:3, 3:6] = -np.eye(3)
-    G = np.zeros((8, 3))
-    G[0:3, :] = -np.eye(3)
-    H = np.zeros((2, 8))
-    H[0, 1], H[0, 6] = -g, 1.0
-    H[1, 0], H[1, 7] = g, 1.0
-    return F, G, H
-
-
 # ------------------------------------------------------------- aiding-sensor blocks
 def lever_arm(name="lev"):
     """Lever arm of an aiding sensor (e.g. a GNSS antenna) [m], body axes, random constant.
@@ -873,6 +837,9 @@ def lever_arm(name="lev"):
 
 
 def odometer_scale(name="kod"):
-    """Odometer scale-factor error [-], random constant: the wheel speed reads
-    ``s̃ = (1 + k) v_fwd`` (one state on the forward body axis y)."""
+    """Odometer scale-factor error k [-], random constant, one state on the forward body
+    axis y, defined by ``v_fwd = (1 − k) s̃`` for the wheel-speed reading ``s̃`` (so that
+    the odometer measurement is exactly linear in k, see
+    :class:`sinslab.fusion.measurements.Odometer`); a reading ``s̃ = (1 + k_s) v_fwd`` has
+    ``k = k_s / (1 + k_s)``, equal to first order."""
     return SensorBlock(name, None, "constant", "y", "body", None, None, "ppm")

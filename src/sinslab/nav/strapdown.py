@@ -80,13 +80,15 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-from sinslab.core.attitude import euler2q_s, q2dcm_s, q2euler_s, qmul_s, rv2q_s, euler_to_quat
+from sinslab.core.attitude import (euler2q_s, euler_to_quat, q2dcm_s, q2euler_s, qmul_s, quat_mul, rotvec_to_quat,
+                                   rv2q_s)
 from sinslab.core.earth import WIE, check_latitude, gravity, gravity_s, radii, radii_s
 from sinslab.core.records import ImuRecord, NavSeries, NavState
 from sinslab.core.errors import InputError
 
 __all__ = [
-    "navigate", "initial_state_array", "step", "correct", "state_to_navstate", "rows_to_series",
+    "navigate", "initial_state_array", "step", "correct", "correct_rows", "with_errors",
+    "state_to_navstate", "rows_to_series",
     "VerticalDamping", "HeldHeight", "CONING_COEFFS", "NSTATE", "NAV", "VERTICAL_MODES", "step_chunk",
 ]
 
@@ -535,27 +537,29 @@ def state_to_navstate(state: np.ndarray, t: float = 0.0) -> NavState:
 
 
 def correct(state: np.ndarray, phi=None, dvel=None, dpos=None) -> np.ndarray:
-    """Apply a feedback correction to a state array in place (and return it).
+    """Apply a feedback correction to a state array in place (and return it): the compiled
+    form of :func:`correct_rows` on one state (equal to rounding).
 
     Parameters
     ----------
     state : ndarray, shape (NSTATE,) or (10,)
         State array (modified in place).
-    phi : array_like, shape (3,), optional
+    phi : array_like, shape (k,), k <= 3, optional
         Estimated misalignment [rad] in n (ENU) with the convention
         ``C_b^{n'} = (I − φ×) C_b^n``; the corrected attitude is ``exp(φ×) C_b^{n'}``
         (≈ ``(I + φ×) C'``), i.e. ``q <- q(φ) ⊗ q``.
-    dvel : array_like, shape (3,), optional
+    dvel : array_like, shape (k,), k <= 3, optional
         Estimated velocity error ``v' − v`` [m/s] (ENU); subtracted.
-    dpos : array_like, shape (3,), optional
+    dpos : array_like, shape (k,), k <= 3, optional
         Estimated position error ``[δlat, δlon, δh]`` [rad, rad, m]; subtracted.
+        Fewer than 3 components (a horizontal block) leave the rest alone.
     """
     s = np.asarray(state)
     if s.dtype != np.float64 or s.ndim != 1 or s.size < NAV:
         raise ValueError(f"state must be a float64 array of length >= {NAV}, got {s.dtype} {s.shape}")
-    p = _bias3(phi, "phi")
-    v = _bias3(dvel, "dvel")
-    d = _bias3(dpos, "dpos")
+    p = _bias3(_pad3(phi), "phi")
+    v = _bias3(_pad3(dvel), "dvel")
+    d = _bias3(_pad3(dpos), "dpos")
     _correct_s(s, p[0], p[1], p[2], v[0], v[1], v[2], d[0], d[1], d[2])
     if abs(s[7]) > math.pi / 2:
         raise ValueError(f"corrected latitude {math.degrees(s[7]):.6g} deg is beyond ±90 deg")
@@ -565,6 +569,67 @@ def correct(state: np.ndarray, phi=None, dvel=None, dpos=None) -> np.ndarray:
         s[_I_IRM] = 1.0 / float(rm)
         s[_I_IRN] = 1.0 / (float(rn) * math.cos(s[7]))
     return s
+
+
+def _pad3(e):
+    """Errors (..., k), k <= 3, padded with zeros to (..., 3) (a horizontal block leaves the
+    vertical alone), or None."""
+    if e is None:
+        return None
+    e = np.asarray(e, dtype=float)
+    if e.shape[-1] == 3:
+        return e
+    return np.concatenate([e, np.zeros(e.shape[:-1] + (3 - e.shape[-1],))], -1)
+
+
+def correct_rows(rows, phi=None, dvel=None, dpos=None):
+    """Navigation rows corrected by an error state, as a feedback corrects the INS.
+
+    The definition of the correction (the errors are computed minus true, the conventions
+    of :mod:`sinslab.nav.errstate`): ``q ← q(φ) ⊗ q`` (normalised), ``v ← v − δv``,
+    ``[lat, lon, h] ← [lat, lon, h] − δp``. :func:`correct` is its compiled in-place form
+    on one state array (the feedback of a running INS); :func:`with_errors` its inverse.
+
+    Parameters
+    ----------
+    rows : array_like, shape (M, 10) or (10,)
+        ``[q0..q3, vE, vN, vU, lat, lon, h]``.
+    phi, dvel, dpos : array_like, shape (M, k) or (k,), k <= 3, optional
+        Misalignment [rad] (ENU), velocity error [m/s] (ENU), position error
+        ``[δlat, δlon, δh]`` [rad, rad, m]; fewer than 3 columns leave the rest alone (a
+        horizontal block); None leaves that part alone.
+
+    Returns
+    -------
+    ndarray, the shape of ``rows``
+        A new array.
+    """
+    out = np.array(rows, dtype=float, copy=True)
+    phi, dvel, dpos = _pad3(phi), _pad3(dvel), _pad3(dpos)
+    if phi is not None:
+        q = quat_mul(rotvec_to_quat(phi), out[..., :4])
+        out[..., :4] = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    if dvel is not None:
+        out[..., 4:7] -= dvel
+    if dpos is not None:
+        out[..., 7:10] -= dpos
+    return out
+
+
+def with_errors(rows, phi=None, dvel=None, dpos=None):
+    """Navigation rows an INS carrying an error state shows: the inverse of
+    :func:`correct_rows` (``q ← q(−φ) ⊗ q``, ``v ← v + δv``, ``p ← p + δp``; to first
+    order ``C_b^{n'} = (I − φ×) C_b^n``). Arguments and result as in :func:`correct_rows`."""
+    out = np.array(rows, dtype=float, copy=True)
+    phi, dvel, dpos = _pad3(phi), _pad3(dvel), _pad3(dpos)
+    if phi is not None:
+        q = quat_mul(rotvec_to_quat(-phi), out[..., :4])
+        out[..., :4] = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    if dvel is not None:
+        out[..., 4:7] += dvel
+    if dpos is not None:
+        out[..., 7:10] += dpos
+    return out
 
 
 def _height_series(height, n_epochs, what):

@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from sinslab.core import earth, units
-from sinslab.core.attitude import euler_dcm_sc, euler_rates_to_body_sc
+from sinslab.core.attitude import euler_dcm_sc, euler_rates_to_body_sc, wrap_pi_s
 
 G0 = units.g0          # gravity used for the coordinated-turn bank angle (a body attitude only)
 
@@ -79,21 +79,6 @@ def _s5dd(x):
 def _s5i(x):
     x2 = x * x
     return x2 * x2 * (2.5 + x * (-3.0 + x))
-
-
-_INV2PI = 1.0 / (2.0 * math.pi)
-
-
-@njit(cache=True)
-def _wrap(a):
-    """Wrap to (−π, π]. (Multiplying by 1/2π instead of dividing: the same result except
-    where the quotient is within an ulp of an integer, fixed by the last test.)"""
-    if -math.pi < a <= math.pi:
-        return a
-    b = a + 2.0 * math.pi * math.floor((math.pi - a) * _INV2PI)
-    if b <= -math.pi:
-        b += 2.0 * math.pi
-    return b
 
 
 @njit(cache=True, inline="always")
@@ -659,15 +644,15 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
             vel[0, 1] = K[1, ib]
             vel[0, 2] = K[2, ib]
             att[0, 0] = K[18, ib]
-            att[0, 1] = _wrap(K[19, ib])
-            att[0, 2] = _wrap(K[20, ib])
+            att[0, 1] = wrap_pi_s(K[19, ib])
+            att[0, 2] = wrap_pi_s(K[20, ib])
             if has_mount:
                 atti[0, 0] = _asin1(K[13, ib])
                 atti[0, 1] = math.atan2(-K[12, ib], K[14, ib])
                 atti[0, 2] = math.atan2(-K[7, ib], K[10, ib])
                 mnt[0, 0] = K[21, ib]
-                mnt[0, 1] = _wrap(K[22, ib])
-                mnt[0, 2] = _wrap(K[23, ib])
+                mnt[0, 1] = wrap_pi_s(K[22, ib])
+                mnt[0, 2] = wrap_pi_s(K[23, ib])
         for ik in range(nk):
             k = K0 + ik
             c1 = ib + ik + 1                # column of epoch k + 1
@@ -770,16 +755,16 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 vel[mo, 1] = K[1, c1]
                 vel[mo, 2] = K[2, c1]
                 att[mo, 0] = K[18, c1]
-                att[mo, 1] = _wrap(K[19, c1])
-                att[mo, 2] = _wrap(K[20, c1])
+                att[mo, 1] = wrap_pi_s(K[19, c1])
+                att[mo, 2] = wrap_pi_s(K[20, c1])
                 if has_mount:
                     atti[mo, 0] = _asin1(K[13, c1])
                     atti[mo, 1] = math.atan2(-K[12, c1], K[14, c1])
                     atti[mo, 2] = math.atan2(-K[7, c1], K[10, c1])
             if has_mount:
                 mnt[k + 1, 0] = K[21, c1]
-                mnt[k + 1, 1] = _wrap(K[22, c1])
-                mnt[k + 1, 2] = _wrap(K[23, c1])
+                mnt[k + 1, 1] = wrap_pi_s(K[22, c1])
+                mnt[k + 1, 2] = wrap_pi_s(K[23, c1])
     return chk
 
 

@@ -1,11 +1,12 @@
 """Ready-made motions (SI arguments): a carrier at rest, mixed aircraft manoeuvres and a
-continuously manoeuvring ship, as segment lists for :func:`sinslab.sim.trajectory.generate`
-(re-exported there)."""
+continuously manoeuvring ship, as segment lists of :mod:`sinslab.sim.trajectory` for its
+:func:`~sinslab.sim.trajectory.generate`."""
 from __future__ import annotations
 
 import math
 
 from sinslab.core import units
+from sinslab.sim.trajectory import Accelerate, Climb, Level, Segment, Ship, Static, Turn, WingRock
 
 __all__ = ["static", "aircraft_mixed", "ship_manoeuvring"]
 
@@ -92,9 +93,3 @@ def ship_manoeuvring(duration: float = 48 * 3600.0, *, static_time: float = 0.0,
                      speed_amplitude, speed_period, course_amplitude, course_period,
                      ramp=min(60.0, rest / 2)))
     return segs
-
-
-# The segment classes are bound last: trajectory re-exports these presets from its own
-# last line, so whichever of the two modules is imported first, each finds the other's
-# names already defined.
-from sinslab.sim.trajectory import Accelerate, Climb, Level, Segment, Ship, Static, Turn, WingRock  # noqa: E402

@@ -38,8 +38,8 @@ boundaries, where third derivatives jump) are split at the breakpoints and integ
 with Gauss–Legendre quadrature of the same order, positions by collocation. Increment
 errors are ~1e-15 rad / ~1e-14 m/s (tests). Everything per sample runs in one numba
 kernel (:mod:`sinslab.sim._synth`); segments are first compiled here into parameter arrays
-(channel terms and pieces). Ready-made motions live in :mod:`sinslab.sim.presets` and are
-re-exported here.
+(channel terms and pieces). Ready-made motions built of these segments live in
+:mod:`sinslab.sim.presets`.
 
 Units: SI inside (rad, m, s). Configs/TOML give unit strings (``"3 deg/s"``); heading in
 :class:`Start` is clockwise from north, the Euler yaw in the outputs is ``−heading``.
@@ -66,8 +66,7 @@ from sinslab.core.records import ImuRecord, NavSeries
 __all__ = [
     "Start", "Segment", "Static", "Accelerate", "Turn", "Climb", "Level", "WingRock", "Ship",
     "SEGMENT_KINDS", "segment_from_dict", "segments_from_list", "load_segments", "load_motion",
-    "dump_segments", "Motion", "Generated", "generate", "static", "aircraft_mixed",
-    "ship_manoeuvring", "total_duration",
+    "dump_segments", "Motion", "Generated", "generate", "total_duration",
 ]
 
 _DUMP_UNITS = {"time": "s", "angle": "deg", "angular_rate": "deg/s", "velocity": "m/s",
@@ -778,8 +777,3 @@ def _imu_record(t, dth, dv, dt):
     for name, v in zip(_RECORD_FIELDS, (t, dth, dv, float(dt), _REL_TOL)):
         object.__setattr__(rec, name, v)
     return rec
-
-
-# --- ready-made motions (sinslab.sim.presets), re-exported: they build segments of this
-# module, so the import comes after the segment classes are defined
-from sinslab.sim.presets import aircraft_mixed, ship_manoeuvring, static  # noqa: E402
