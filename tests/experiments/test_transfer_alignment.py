@@ -145,3 +145,32 @@ def test_bad_input_exit_2(tmp_path):
     assert r.exit_code == 2 and "lacks the master solution" in r.output
     r = _cli(["transfer-align", "--slave", str(m4), "--master", str(DATA), "--out", str(tmp_path / "o5")])
     assert r.exit_code == 2 and "lacks the slave IMU" in r.output
+
+
+@needs_data
+def test_unrelated_pair_refused_and_process_noise_exposed(tmp_path):
+    """A master record shifted by 30 s against the slave (the same vehicle on another
+    clock: no common motion) is refused in one line with exit 2; the process-noise options
+    reach the filter (other values, other σ) and the run's config."""
+    import json
+    import scipy.io
+    d = scipy.io.loadmat(DATA)
+    m = tmp_path / "master_shifted.mat"
+    sh = d["fogavp"].copy()
+    sh[:, 9] -= 30.0
+    scipy.io.savemat(m, {"fogavp": sh})
+    r = _cli(["transfer-align", "--slave", str(DATA), "--master", str(m), "--out", str(tmp_path / "o1")])
+    assert r.exit_code == 2 and "no common motion" in r.output and len(r.output.strip().splitlines()) == 1
+    outs = {}
+    for name, arw in (("a", "1 deg/sqrt(h)"), ("b", "10 deg/sqrt(h)")):
+        r = _cli(["transfer-align", "--slave", str(DATA), "--master", str(DATA), "--window", "0:30",
+                  "--gyro-arw", arw, "--out", str(tmp_path / name)])
+        assert r.exit_code == 0, r.output
+        assert "±" in r.output and "accel bias" in r.output
+        outs[name] = json.loads((tmp_path / name / "summary.json").read_text())
+    assert outs["b"]["config"]["gyro_arw"] == "10 deg/sqrt(h)"
+    k = "mounting_sigma_arcmin_optimal_0_30s"
+    assert np.all(np.array(outs["b"]["metrics"][k]) > np.array(outs["a"]["metrics"][k]))
+    r = _cli(["transfer-align", "--slave", str(DATA), "--master", str(DATA), "--accel-vrw", "1 deg",
+              "--out", str(tmp_path / "o2")])
+    assert r.exit_code == 2 and "--accel-vrw" in r.output

@@ -61,7 +61,7 @@ __all__ = [
     "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
     "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
-    "align_lanes", "LaneAlignment", "PARAMETERISATION", "installation_parameters",
+    "align_lanes", "LaneAlignment", "PARAMETERISATION", "installation_parameters", "rate_correlation",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -727,6 +727,46 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
     return LaneAlignment(a_out, sig, bank.comp.copy(), att_out, diverged, diverged_at, np.array(rec))
 
 
+def rate_correlation(imu, master: MasterRecord, t_start=None, t_end=None):
+    """Whether a slave IMU and a master solution share their motion.
+
+    The norm of the rotation rate does not depend on the mounting, so for a slave rigidly
+    mounted on the master's vehicle (and on the same clock) ``|ω_s|`` from the slave's
+    increments and ``|ω_m|`` from the master's attitude change follow each other.
+
+    Parameters
+    ----------
+    imu : ImuRecord ; master : MasterRecord
+    t_start, t_end : float, optional
+        Window [s] (default: the overlap).
+
+    Returns
+    -------
+    corr : float
+        Correlation coefficient of ``|ω_s|`` and ``|ω_m|`` over the master intervals in the
+        window (NaN when fewer than 10 intervals or when neither moves).
+    motion : float
+        Standard deviation of ``|ω_m|`` [rad/s] (how much the master's rate varies).
+    """
+    mt = master.t
+    lo = max(mt[0], imu.t0) if t_start is None else max(float(t_start), mt[0], imu.t0)
+    hi = min(mt[-1], imu.t[-1]) if t_end is None else min(float(t_end), mt[-1], imu.t[-1])
+    sel = np.flatnonzero((mt >= lo - 1e-9) & (mt <= hi + 1e-9))
+    if sel.size < 11:
+        return float("nan"), 0.0
+    t = mt[sel]
+    C = master.C[sel]
+    w_m = np.linalg.norm(dcm_to_rotvec(np.swapaxes(C[:-1], 1, 2) @ C[1:]), axis=1) / np.diff(t)
+    th = np.vstack([np.zeros(3), np.cumsum(imu.dtheta, axis=0)])
+    te = np.concatenate([[imu.t0], imu.t])
+    i = np.clip(np.searchsorted(te, t - 0.5 * imu.dt), 0, te.size - 1)
+    w_s = np.linalg.norm(np.diff(th[i], axis=0), axis=1) / np.diff(t)
+    motion = float(np.std(w_m))
+    if motion == 0.0 or np.std(w_s) == 0.0:
+        return float("nan"), motion
+    return float(np.corrcoef(w_m, w_s)[0, 1]), motion
+
+
 # -------------------------------------------------- what each form's estimate means ---
 #: The parameterisation in which each attitude form's installation estimate is scored.
 #: The Kain forms measure ``log(C_rᵀ Ĉ_s^n)``, exactly the rotation vector of the
@@ -775,7 +815,7 @@ class TransferResult:
 def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, compensation=None, t_start=None,
                    t_end=None, vel_sigma=0.1, att_sigma=3e-4, att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2,
                    gyro_bias_sigma0=1e-3, accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3, accel_scale_sigma0=1e-3,
-                   gyro_noise=0.0, accel_noise=0.0, nsub=2):
+                   gyro_noise=0.0, accel_noise=0.0, gyro_bias_rw=0.0, accel_bias_rw=0.0, nsub=2):
     """Transfer alignment of a recorded slave IMU against a recorded master solution.
 
     Runs through the fusion driver (:func:`sinslab.fusion.driver.run`): one live stream
@@ -814,6 +854,8 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
         Window [s]; default the overlap of the two records.
     vel_sigma [m/s], att_sigma [rad] : measurement noise σ
     *_sigma0 : initial σ (SI); gyro_noise [rad/√s], accel_noise [m/s/√s] : process noise
+    gyro_bias_rw [rad/s/√s], accel_bias_rw [m/s²/√s] : random walk of the bias states
+        (the bias instability as the filter models it; 0: random constants)
     nsub : int
         Mechanization subsamples; the master interval must be a multiple of ``nsub·imu.dt``.
 
@@ -841,8 +883,9 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
     if abs(imu_w.t0 - t0) > 1e-6 * imu.dt + 1e-9:
         raise ValueError(f"the slave IMU samples do not start at the master epoch {t0:g} s "
                          f"(first interval starts at {imu_w.t0:g} s)")
-    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(), errstate.gyro_scale(),
-                                           errstate.accel_bias(), errstate.accel_scale()],
+    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(rrw=gyro_bias_rw),
+                                           errstate.gyro_scale(), errstate.accel_bias(arw=accel_bias_rw),
+                                           errstate.accel_scale()],
                                 gyro_noise=gyro_noise, accel_noise=accel_noise)
     lay = model.layout
     match = AttitudeMatch(kind, compensation)
