@@ -61,7 +61,8 @@ __all__ = [
     "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
     "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
-    "align_lanes", "LaneAlignment", "PARAMETERISATION", "installation_parameters", "rate_correlation",
+    "align_lanes", "LaneAlignment", "PARAMETERISATION", "parameterisation", "installation_parameters",
+    "rate_correlation",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -590,7 +591,7 @@ class LaneAlignment:
 
 
 def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_C, master_v, lane_master,
-                *, C_lin=None, Qk=None, relinearise=False, meas_noise=None, layout=None, phi_bound=math.radians(5.0),
+                *, C_lin=None, Qk=None, relinearise=False, meas_noise=None, layout=None, phi_bound=math.radians(30.0),
                 record_every=1):
     """Closed-loop transfer alignment of L slave INS at once (velocity + attitude matching).
 
@@ -632,9 +633,10 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
     layout : StateLayout, optional
         Default ``transfer_model().layout``.
     phi_bound : float
-        A lane whose update asks for a correction |φ̂| above this [rad], or whose state
-        turns non-finite, or whose INS leaves the valid latitudes, is stopped and counted
-        as diverged; the others go on.
+        A lane whose update asks for a correction |φ̂| above this [rad] (beyond which the
+        small-angle error model does not hold), or whose state turns non-finite, or whose
+        INS leaves the valid latitudes, is stopped and counted as diverged; the others go
+        on.
     record_every : int
         Record the epochs 0, record_every, 2·record_every, ...
 
@@ -774,6 +776,15 @@ def rate_correlation(imu, master: MasterRecord, t_start=None, t_end=None):
 #: Euler angles / DCM elements whose second-order terms follow the Euler-angle triple of the
 #: installation [pitch, roll, yaw] about slave x, y, z (the paper's λ, small angles).
 PARAMETERISATION = {"euler": "euler", "dcm": "euler", "kain": "rotvec", "optimal": "rotvec"}
+
+
+def parameterisation(kind, relinearise=False):
+    """What the installation estimate of a filter is: :data:`PARAMETERISATION` of its form
+    with the paper's linearisation at a = 0; a rotation vector for every form when H is
+    re-linearised at the estimate (the EKF form models ``C_r exp(a×)`` exactly)."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown attitude-matching kind {kind!r}; choose from {list(KINDS)}")
+    return "rotvec" if relinearise else PARAMETERISATION[kind]
 
 
 def installation_parameters(C, parameterisation):
