@@ -494,7 +494,7 @@ def _sweep(cfg, ctx, p, cases, record_every, field, grid):
     """Verdicts and worst-axis RMS/σ of the four forms × two cases at each grid value."""
     ratio = float(cfg.filter.converge_ratio)
     var = _variants(full=False)
-    rows = {key: ([], []) for key, *_ in var}
+    rows = {key: ([], [], []) for key, *_ in var}
     for v in grid:
         q = dict(p, compare_linear=False, **{field: float(v)})
         res = _campaign(q, {c: cases[c] for c in _C}, int(cfg.sweep.runs), cfg.seed, ctx, record_every, 0, var)
@@ -502,6 +502,7 @@ def _sweep(cfg, ctx, p, cases, record_every, field, grid):
         for key in rows:
             rows[key][0].append(st[key]["conv"])
             rows[key][1].append(st[key]["worst"])
+            rows[key][2].append(st[key]["n_div"])
     return rows
 
 
@@ -602,7 +603,7 @@ def run(cfg: Config, ctx) -> Result:
         sweeps["noise"] = _sweep(cfg, ctx, p, cases, record_every, "att_noise", grid_n)
         sweeps["master_error"] = _sweep(cfg, ctx, p, cases, record_every, "master_att", grid_m)
         for what, sv in sweeps.items():
-            for key, (conv, worst) in sv.items():
+            for key, (conv, worst, _) in sv.items():
                 metrics[f"converged_{key}_by_{what}"] = conv
                 metrics[f"rms_over_sigma_{key}_by_{what}"] = worst
 
@@ -618,34 +619,52 @@ def run(cfg: Config, ctx) -> Result:
                     "Installation estimation error at the end, RMS over the runs that did not diverge and mean filter "
                     "σ [arcmin]; ratio = RMS/σ in the form's own parameterisation ('estimates'), ratio_rotvec with the "
                     f"estimate read as a rotation vector; margin = {ratio:g} − worst ratio")]
-    if sweeps:
+    for what, grid, label in (("noise", grid_n, "attitude measurement noise (drawn = assumed)"),
+                              ("master_error", grid_m, "master attitude error (1σ per axis)")):
+        if what not in sweeps:
+            continue
         srows = []
-        for what, grid in (("noise", grid_n), ("master_error", grid_m)):
-            for key, (conv, worst) in sweeps[what].items():
-                r = {"sweep": "attitude noise" if what == "noise" else "master attitude error", "filter": key}
-                for v, cv, w in zip(grid * am, conv, worst):
-                    r[f"{v:g}′"] = f"{'yes' if cv else 'no'} ({w:.2f})"
-                srows.append(r)
-        tables.append(Table("verdict_sweep", pd.DataFrame(srows),
-                            f"Converged? (worst-axis RMS/σ at the end) per grid point, {sw.runs} runs a point; the "
-                            "attitude noise is drawn with the σ the filter assumes"))
+        for key, (conv, worst, ndiv) in sweeps[what].items():
+            r = {"filter": key}
+            for v, cv, w, nd in zip(grid * am, conv, worst, ndiv):
+                d = f"; {nd} diverged" if nd else ""
+                r[f"{v:g}′"] = f"{'yes' if cv else 'no'} ({w:.2f}{d})" if np.isfinite(w) else f"no ({nd} diverged)"
+            srows.append(r)
+        tables.append(Table(f"verdict_sweep_{what}", pd.DataFrame(srows),
+                            f"Converged? (worst-axis RMS/σ at the end) against the {label}, {sw.runs} runs a point; "
+                            "runs that diverged are counted and left out of the RMS"))
     return Result(metrics=metrics, claims=claims, series=series, figures=figs, tables=tables, notes=notes)
 
 
+def _label(form, st):
+    """A verdict's name with its numbers: RMS/σ per axis and the margin, or the divergences."""
+    if st["n_div"] and st["n_div"] == st["a"].shape[0]:
+        return f"{form} (all {st['n_div']} runs diverged)"
+    r = ", ".join(f"{v:.2f}" for v in st["ratio"])
+    div = f"; {st['n_div']} runs diverged" if st["n_div"] else ""
+    return f"{form} (RMS/σ {r}; margin {st['margin']:+.2f}{div})"
+
+
 def _claims(cfg, metrics, stats, rmsU, fd):
+    """The paper's statements and the project's checks; every convergence verdict carries
+    its RMS/σ per axis and margin in its name, and says which assumed figures it rests on."""
     fl = cfg.filter
     assumed = (f"(at the assumed {float(fl.att_noise) / units.arcmin:g}′ attitude and {float(fl.vel_noise):g} m/s "
-               f"velocity noise, master error {float(cfg.master.att_error) / units.arcmin:g}′; see the sweep)")
+               f"velocity noise, master error {float(cfg.master.att_error) / units.arcmin:g}′ 1σ; the verdict_sweep "
+               "table shows where it flips)")
     conv = lambda k: metrics[f"converged_{k}"]  # noqa: E731
+    lab = lambda keys, forms: [_label(f, stats[k]) for k, f in zip(keys, forms)]  # noqa: E731
+    big = ["euler_large", "dcm_large", "kain_large"]
+    small = [f"{m}_small" for m in _M]
+    comp = [f"{m}_comp_large" for m in _M[:3]]
     claims = [
         Claim.equals("large_methods_1_3_fail",
                      f"large installation: methods 1-3 (euler, dcm, kain) do not converge to the true misalignment {assumed}",
-                     [conv("euler_large"), conv("dcm_large"), conv("kain_large")], [False, False, False],
-                     names=["euler", "dcm", "kain"], origin="paper"),
+                     [conv(k) for k in big], [False, False, False], names=lab(big, _M[:3]), origin="paper"),
         Claim.equals("large_method_4_converges", f"large installation: method 4 (optimal) converges {assumed}",
-                     conv("optimal_large"), True, origin="paper"),
+                     [conv("optimal_large")], [True], names=lab(["optimal_large"], ["optimal"]), origin="paper"),
         Claim.equals("small_all_converge", f"small installation: all four methods converge {assumed}",
-                     [conv(f"{m}_small") for m in _M], [True] * 4, names=list(_M), origin="paper"),
+                     [conv(k) for k in small], [True] * 4, names=lab(small, _M), origin="paper"),
         Claim.at_most("c22_phiU_column_zero", "DCM form at heading 90° (C22 = 0): φU column of H vanishes",
                       metrics["dcm_phiU_H_norm_c22zero"], 1e-3, origin="paper"),
         Claim.at_least("c22_heading_worse",
@@ -654,7 +673,7 @@ def _claims(cfg, metrics, stats, rmsU, fd):
         Claim.at_most("h_fd", "every H matches central differences of its z", fd, 1e-6, origin="check"),
         Claim.equals("compensation_fixes_1_3",
                      f"with the installation compensation methods 1-3 converge on the large installation {assumed}",
-                     [conv(f"{m}_comp_large") for m in _M[:3]], [True] * 3, names=list(_M[:3]), origin="check"),
+                     [conv(k) for k in comp], [True] * 3, names=lab(comp, _M[:3]), origin="check"),
     ]
     return claims
 
@@ -712,7 +731,8 @@ def _figures(P, cfg, stats, t, n, pU, res, c22, cases, Hn, Hn_nom, sweeps, grid_
                                         "the heading error is estimated only through velocity matching"))
     if sweeps:
         ratio = float(cfg.filter.converge_ratio)
-        fig, ax = P.figure(2, 2, width=11.0, row_height=3.0, title="where the verdicts flip: worst-axis RMS/σ at the end")
+        fig, ax = P.figure(2, 2, sharex=False, width=11.0, row_height=3.0,
+                           title="where the verdicts flip: worst-axis RMS/σ at the end")
         for i, (what, grid, label) in enumerate((("noise", grid_n, "attitude measurement noise 1σ [arcmin]"),
                                                  ("master_error", grid_m, "master attitude error 1σ [arcmin]"))):
             for j, c in enumerate(_C):
@@ -722,6 +742,8 @@ def _figures(P, cfg, stats, t, n, pU, res, c22, cases, Hn, Hn_nom, sweeps, grid_
                     a.plot(grid * am, np.minimum(w, 100.0), "o-", label=m)
                 a.axhline(ratio, color="k", ls="--", lw=0.8)
                 a.set_yscale("log")
+                if what == "noise":
+                    a.set_xscale("log")
                 a.set_xlabel(label)
                 a.set_title(f"{c} installation", fontsize="small")
                 a.set_ylabel("RMS/σ (capped at 100; diverged = 100)")
