@@ -15,7 +15,7 @@ step for all lanes) is also timed against one :func:`sinslab.nav.strapdown.step`
 lane and filter step, and against one call per lane over the whole record (the compiled
 speed with no call overhead; a closed loop cannot do that).
 
-Run: ``.venv/bin/python benchmarks/transfer.py [--runs 200] [--wide 1000] [--quick] [--out FILE]``;
+Run: ``.venv/bin/python benchmarks/transfer.py [--runs 200] [--wide 1000] [--lanes 200] [--quick] [--out FILE]``;
 results printed and written to ``benchmarks/results/transfer.json``.
 """
 from __future__ import annotations
@@ -79,6 +79,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--runs", type=int, default=200, help="runs of the 4 forms × 2 installations campaign")
     ap.add_argument("--wide", type=int, default=1000, help="runs of the one-form campaign on the local cluster")
     ap.add_argument("--method", default="optimal", choices=ta._M)
+    ap.add_argument("--lanes", type=int, default=200, help="lanes of the mechanization timing")
     ap.add_argument("--quick", action="store_true", help="40 runs, 100 wide")
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address (default: local cluster)")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "transfer.json")
@@ -103,7 +104,7 @@ def main(argv=None) -> dict:
     mc.run_campaign(ta._batch, wide, 0, scheduler=a.scheduler, tasks_per_worker=1, progress=False,
                     kwargs=dict(kw1, p=dict(p, compare_linear=False)))
     wide_s = time.perf_counter() - t0
-    bank_sps, step_sps, whole_sps = _mechanization(cases["large"])
+    bank_sps, step_sps, whole_sps = _mechanization(cases["large"], a.lanes)
     out = dict(runs=runs, forms=4, installations=2, slave_ins=runs * len(var),
                steps=int(cases["large"]["Phi"].shape[0]), setup_cpu_s=setup_cpu,
                strapdown_cpu_s=cpu_sd, strapdown_wall_s=wall_sd, linear_cpu_s=cpu_li, linear_wall_s=wall_li,
