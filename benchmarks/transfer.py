@@ -101,15 +101,23 @@ def main(argv=None) -> dict:
     one = [v for v in var if v[0] == f"{a.method}_large"]
     kw1 = dict(kw, variants=one, cases={"large": cases["large"]})
     t0 = time.perf_counter()
-    mc.run_campaign(ta._batch, wide, 0, scheduler=a.scheduler, tasks_per_worker=1, progress=False,
-                    kwargs=dict(kw1, p=dict(p, compare_linear=False)))
+    with mc.dask_client(a.scheduler) as client:
+        up_s = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        mc.run_campaign(ta._batch, wide, 0, scheduler=client if client is not None else "sync", tasks_per_worker=1,
+                        progress=False, kwargs=dict(kw1, p=dict(p, compare_linear=False)))
+        wide_campaign_s = time.perf_counter() - t1
     wide_s = time.perf_counter() - t0
+    _, wide_one_cpu, _ = _cpu(lambda: ta._batch(list(np.random.SeedSequence(5).spawn(100)),
+                                                **dict(kw1, p=dict(p, compare_linear=False))))
     bank_sps, step_sps, whole_sps = _mechanization(cases["large"], a.lanes)
     out = dict(runs=runs, forms=4, installations=2, slave_ins=runs * len(var),
                steps=int(cases["large"]["Phi"].shape[0]), setup_cpu_s=setup_cpu,
                strapdown_cpu_s=cpu_sd, strapdown_wall_s=wall_sd, linear_cpu_s=cpu_li, linear_wall_s=wall_li,
                strapdown_over_linear=cpu_sd / cpu_li, target_cpu_s=TARGET_S, meets_cpu_target=cpu_sd < TARGET_S,
                wide_method=a.method, wide_runs=wide, wide_wall_s=wide_s, meets_wide_target=wide_s < TARGET_S,
+               wide_cluster_start_s=up_s, wide_campaign_wall_s=wide_campaign_s,
+               wide_cpu_per_100_runs_s=wide_one_cpu,
                lanes_samples_per_s=bank_sps, step_per_lane_and_epoch_samples_per_s=step_sps,
                lanes_speedup=bank_sps / step_sps, whole_record_per_lane_samples_per_s=whole_sps,
                converged={k: s["conv"] for k, s in st.items()},
