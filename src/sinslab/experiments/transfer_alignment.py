@@ -7,8 +7,9 @@ carrier flies a wing rock (synthesised with exact increments). The master is an 
 aircraft INS: its solution is the truth with a constant attitude error and a constant
 velocity error per run (``master.*``). The slave is rigidly mounted with the installation
 ``C_s^m = Ĉ_s^m exp(φ_α×)`` (nominal ``Ĉ_s^m`` from the installation attitude, unknown
-residual φ_α); its IMU reads the master's true increments rotated into the slave axes (no
-lever arm, no flexure) with its own errors drawn per run (gyro bias and scale factor,
+residual φ_α); its IMU reads the master's true increments rotated into the slave axes (with the
+rigid lever arm ``installation.lever_arm``, default none, compensated in the velocity match;
+no flexure) with its own errors drawn per run (gyro bias and scale factor,
 accelerometer bias and scale factor, 1σ from the paper). Each slave INS is mechanised
 (:mod:`sinslab.nav.strapdown`, the lanes of :class:`sinslab.nav.lanes.LaneBank`), starts
 from the master's solution times the nominal mounting, and is aligned closed loop
@@ -84,6 +85,9 @@ class Installation(Section):
     large: QV("angle") = Field("[10, 60, 8] deg", description="large installation attitude [pitch, roll, yaw]")
     small: QV("angle") = Field("[1, 1, 1] deg", description="small installation attitude [pitch, roll, yaw]")
     error: QV("angle") = Field("[40, 30, 20] arcmin", description="unknown installation error phi_alpha [x, y, z]")
+    lever_arm: QV("length", le="100 m", ge="-100 m") = Field(
+        "[0, 0, 0] m", description="slave IMU position from the master's in master body axes (x right, y forward, "
+                                   "z up); rigid, known, compensated in the velocity match")
 
 
 class Imu(Section):
@@ -198,9 +202,37 @@ del _f, _c, _k, _m, _form
 
 
 # ----------------------------------------------------------------- scenario set-up ----
+def _lever(imu, truth, Cm, r):
+    """Slave increments' velocity part and the slave's velocity with a lever arm.
+
+    The slave IMU sits at ``r`` [m] (master body axes) from the master's navigation point,
+    rigidly: its specific force is ``f_m + ω̇ × r + ω × (ω × r)`` (ω = ω_im^m, the gravity
+    difference over r neglected), its velocity ``v_m + C_m^n (ω_nm^m × r)``. Returns the
+    master-axis velocity increments at the slave (N, 3) and the slave velocity at the
+    IMU epochs (N+1, 3) [m/s]. The rate at the sample boundaries is interpolated between
+    the neighbouring samples' mean rates, so ∫ω̇ dt telescopes exactly.
+    """
+    from sinslab.core import earth
+
+    dt = imu.dt
+    w = imu.dtheta / dt
+    wb = np.empty((w.shape[0] + 1, 3))
+    wb[1:-1] = 0.5 * (w[:-1] + w[1:])
+    wb[0] = 1.5 * w[0] - 0.5 * w[1]
+    wb[-1] = 1.5 * w[-1] - 0.5 * w[-2]
+    dv = imu.dv + np.cross(wb[1:] - wb[:-1], r) + dt * np.cross(w, np.cross(w, r))
+    rm, rn = earth.radii(truth.lat, truth.h)
+    ve, vn = truth.vel[:, 0], truth.vel[:, 1]
+    w_in = earth.wie_n(truth.lat) + np.stack([-vn / (rm + truth.h), ve / (rn + truth.h),
+                                              ve * np.tan(truth.lat) / (rn + truth.h)], -1)
+    w_nm = wb - np.einsum("kji,kj->ki", Cm, w_in)              # C_n^m ω_in^n
+    return dv, truth.vel + np.einsum("kij,kj->ki", Cm, np.cross(w_nm, r))
+
+
 def _case(cfg: Config, inst_att, heading):
     """Trajectory-dependent arrays of one case: Φ per filter step, the truth at the filter
-    epochs and the slave's true increments."""
+    epochs (``vel``: the velocity at the slave's place, the master's plus the lever-arm
+    term) and the slave's true increments."""
     from sinslab.core.attitude import euler_to_dcm, rotvec_to_dcm
     from sinslab.methods import transfer as tm
     from sinslab.nav.errstate import NavPoint
@@ -220,8 +252,10 @@ def _case(cfg: Config, inst_att, heading):
     Csm = Csm_nom @ rotvec_to_dcm(np.asarray(cfg.installation.error, float))
     Cs = Cm @ Csm
     N = len(imu)
+    r = np.asarray(cfg.installation.lever_arm, float)
+    dv_m, vel = _lever(imu, truth, Cm, r) if np.any(r) else (imu.dv, truth.vel)
     wb_m = np.vstack([imu.dtheta[:1], imu.dtheta]) / dt   # epoch k uses sample k-1
-    fb_m = np.vstack([imu.dv[:1], imu.dv]) / dt
+    fb_m = np.vstack([dv_m[:1], dv_m]) / dt
     wb_s = wb_m @ Csm                                     # C_m^s ω = Csmᵀ ω -> row form ω Csm
     fb_s = fb_m @ Csm
     model = tm.transfer_model()
@@ -236,10 +270,10 @@ def _case(cfg: Config, inst_att, heading):
     for j in range(k_kf):
         Phi = Phis[:, j] @ Phi
     ep = np.arange(K + 1) * k_kf
-    return dict(Phi=Phi, Cm=Cm[ep], Cs=Cs[ep], t=truth.t[ep], vel=truth.vel[ep], Csm=Csm, Csm_nom=Csm_nom, n=n,
+    return dict(Phi=Phi, Cm=Cm[ep], Cs=Cs[ep], t=truth.t[ep], vel=vel[ep], Csm=Csm, Csm_nom=Csm_nom, n=n,
                 layout=model.layout, k_kf=k_kf, dt=dt,
                 dth_s=np.ascontiguousarray(imu.dtheta[:K * k_kf] @ Csm),
-                dv_s=np.ascontiguousarray(imu.dv[:K * k_kf] @ Csm),
+                dv_s=np.ascontiguousarray(dv_m[:K * k_kf] @ Csm),
                 pos0=np.array([truth.lat[0], truth.lon[0], truth.h[0]]))
 
 
