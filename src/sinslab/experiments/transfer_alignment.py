@@ -751,7 +751,8 @@ def _figures(P, cfg, stats, t, n, pU, res, c22, cases, Hn, Hn_nom, sweeps, grid_
                     axx.set_yscale("log")
                     axx.set_title(f"{m}: slave |φ| [deg], runs {j * 3}-{j * 3 + 2} (all {st['n_div']} diverged)",
                                   fontsize="small")
-                    axx.legend(fontsize="x-small")
+                    if axx.get_lines()[:-1]:
+                        axx.legend(fontsize="x-small")
                 continue
             for j, a in enumerate("xyz"):
                 axx = ax[i * 3 + j]
