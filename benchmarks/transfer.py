@@ -1,15 +1,21 @@
 """Speed benchmark of the transfer-alignment Monte Carlo (paper 002).
 
-Target: a 1000-run campaign of one method (60 s of wing rock, 100 Hz slave IMU, 10 Hz
-filter, 21 states) in under 60 s on the 2-core development machine. The campaign runs
-vectorised across the runs of each Dask task (:func:`sinslab.methods.transfer.batch_filter`)
-on a local Dask cluster; the reference, measured in the same process, is the same code run
-one run at a time (a batch of one run, serially) — the ratio shows what the vectorisation
-and distribution buy. The EKF form (per-run covariance and H) is measured the same way: the
-runs of one task stacked against one run at a time, serially, with the largest difference
-of their estimation errors.
+Targets (2-core development machine):
 
-Run: ``.venv/bin/python benchmarks/transfer.py [--runs 1000] [--quick] [--out FILE]``;
+1. 200 runs × 4 attitude forms × 2 installations with the mechanised slave INS aligned
+   closed loop (``montecarlo.slave = "strapdown"``: 1600 slave INS of 60 s at 100 Hz, a
+   21-state filter at 10 Hz with feedback after every update) in under 60 s of CPU,
+   measured in this process with the serial scheduler (``time.process_time``); the
+   reference in the same run is the linear-model Monte Carlo of the same runs (no
+   mechanization, no feedback), so the ratio shows what the paper's set-up costs.
+2. 1000 runs of one form under 60 s wall on the local Dask cluster.
+
+The lane-stacked mechanization (:class:`sinslab.nav.lanes.LaneBank`, one call per filter
+step for all lanes) is also timed against one :func:`sinslab.nav.strapdown.step` call per
+lane and filter step, and against one call per lane over the whole record (the compiled
+speed with no call overhead; a closed loop cannot do that).
+
+Run: ``.venv/bin/python benchmarks/transfer.py [--runs 200] [--wide 1000] [--lanes 200] [--quick] [--out FILE]``;
 results printed and written to ``benchmarks/results/transfer.json``.
 """
 from __future__ import annotations
@@ -26,63 +32,99 @@ HERE = Path(__file__).resolve().parent
 TARGET_S = 60.0
 
 
+def _cpu(fn):
+    c0, w0 = time.process_time(), time.perf_counter()
+    out = fn()
+    return out, time.process_time() - c0, time.perf_counter() - w0
+
+
+def _mechanization(case, lanes=200):
+    """Samples per second of the closed loop's navigation: all lanes in one LaneBank call
+    per filter step, against one strapdown.step call per lane and filter step (what a loop
+    over runs would do) and one call per lane over the whole record (no feedback possible:
+    the compiled speed without any call overhead)."""
+    from sinslab.core.records import NavState
+    from sinslab.nav import strapdown as sd
+    from sinslab.nav.lanes import LaneBank
+
+    s0 = sd.initial_state_array(NavState(*case["pos0"], case["vel"][0], np.zeros(3), 0.0))
+    dth, dv = case["dth_s"][None], case["dv_s"][None]
+    n = dth.shape[1]
+    bank = LaneBank(np.tile(s0, (lanes, 1)), dth, dv, np.zeros(lanes, int), case["dt"])
+    _, c_bank, _ = _cpu(lambda: [bank.advance(case["k_kf"]) for _ in range(n // case["k_kf"])])
+    k = case["k_kf"]
+    states = np.tile(s0, (lanes, 1))
+    row = np.empty((1, 10))
+
+    def per_step():
+        for a in range(0, n, k):
+            for lane in range(lanes):
+                sd.step(states[lane], dth[0, a:a + k], dv[0, a:a + k], case["dt"], 2, out=row, out_every=k // 2)
+    _, c_step, _ = _cpu(per_step)
+    states = np.tile(s0, (lanes, 1))
+
+    def whole():
+        for lane in range(lanes):
+            sd.step(states[lane], dth[0], dv[0], case["dt"], 2, out=row, out_every=n // 2)
+    _, c_whole, _ = _cpu(whole)
+    return lanes * n / c_bank, lanes * n / c_step, lanes * n / c_whole
+
+
 def main(argv=None) -> dict:
     from sinslab.app.config import resolve
     from sinslab.estimation import montecarlo as mc
     from sinslab.experiments import transfer_alignment as ta
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=1000)
+    ap.add_argument("--runs", type=int, default=200, help="runs of the 4 forms × 2 installations campaign")
+    ap.add_argument("--wide", type=int, default=1000, help="runs of the one-form campaign on the local cluster")
     ap.add_argument("--method", default="optimal", choices=ta._M)
-    ap.add_argument("--single", type=int, default=10, help="runs of the one-at-a-time reference")
-    ap.add_argument("--quick", action="store_true", help="100 runs, 3 reference runs")
+    ap.add_argument("--lanes", type=int, default=200, help="lanes of the mechanization timing")
+    ap.add_argument("--quick", action="store_true", help="40 runs, 100 wide")
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address (default: local cluster)")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "transfer.json")
     a = ap.parse_args(argv)
-    runs, single = (100, 3) if a.quick else (a.runs, a.single)
+    runs, wide = (40, 100) if a.quick else (a.runs, a.wide)
     cfg = resolve(ta.Config)
+    cases, setup_cpu, _ = _cpu(lambda: {c: ta._case(cfg, getattr(cfg.installation, c), cfg.scenario.heading)
+                                        for c in ta._C})
+    var = ta._variants(full=False)                      # 4 forms × 2 installations
+    p = ta._params(cfg)
+    kw = dict(cases=cases, record_every=5, ekf_runs=0, variants=var)
+    ta._batch(list(np.random.SeedSequence(1).spawn(2)), dict(p, compare_linear=False), **kw)   # compile, warm
+    camp = lambda q, n, sched="sync": mc.run_campaign(ta._batch, n, 0, scheduler=sched, tasks_per_worker=1,  # noqa: E731
+                                                      progress=False, kwargs=dict(kw, p=q))
+    res_sd, cpu_sd, wall_sd = _cpu(lambda: camp(dict(p, compare_linear=False), runs))
+    res_li, cpu_li, wall_li = _cpu(lambda: camp(dict(p, slave="linear"), runs))
+    st = ta._variant_stats(res_sd, cases, var, float(cfg.filter.converge_ratio))
+    # one form, many runs, on the local cluster (wall clock)
+    one = [v for v in var if v[0] == f"{a.method}_large"]
+    kw1 = dict(kw, variants=one, cases={"large": cases["large"]})
     t0 = time.perf_counter()
-    case = ta._case(cfg, cfg.installation.large, cfg.scenario.heading)
-    setup_s = time.perf_counter() - t0
-    var = [(f"{a.method}_large", "large", a.method, a.method == "optimal", False)]
-    kw = dict(p=ta._params(cfg), cases={"large": case}, record_every=5, ekf_runs=0, variants=var)
-    ta._batch(list(np.random.SeedSequence(1).spawn(2)), **kw)            # warm-up
-    seeds = np.random.SeedSequence(2).spawn(single)
-    t0 = time.perf_counter()
-    for s in seeds:
-        ta._batch([s], **kw)
-    single_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    res = mc.run_campaign(ta._batch, runs, 0, batch=max(1, runs // 8), scheduler=a.scheduler, kwargs=kw,
-                          progress=False)
-    campaign_s = time.perf_counter() - t0
-    err = res[f"err_{a.method}_large"]
-    # EKF form (per-run covariance, H re-linearised at each run's installation estimate): the
-    # runs of one task stacked vs the same filter one run at a time
-    ekf_runs = 10 if a.quick else 50
-    kind = "kain" if a.method == "optimal" else a.method
-    kw_e = dict(kw, ekf_runs=ekf_runs, variants=[(f"{kind}_large_ekf", "large", kind, False, True)])
-    seeds = np.random.SeedSequence(3).spawn(ekf_runs)
-    t0 = time.perf_counter()
-    stacked = ta._batch(seeds, **kw_e)[f"err_{kind}_large_ekf"]
-    ekf_stacked_s = time.perf_counter() - t0
-    n_one = min(ekf_runs, 3 if a.quick else 10)
-    t0 = time.perf_counter()
-    one = [ta._batch([s], **kw_e)[f"err_{kind}_large_ekf"] for s in seeds[:n_one]]
-    ekf_one_s = time.perf_counter() - t0
-    ekf_same = float(np.max(np.abs(np.concatenate(one) - stacked[:n_one])))
-    out = dict(method=a.method, runs=runs, steps=int(case["Phi"].shape[0]), setup_s=setup_s,
-               campaign_s=campaign_s, campaign_runs_per_s=runs / campaign_s,
-               single_runs_per_s=single / single_s, speedup=(runs / campaign_s) / (single / single_s),
-               target_s=TARGET_S, meets_target=campaign_s < TARGET_S,
-               ekf_kind=kind, ekf_runs=ekf_runs, ekf_stacked_runs_per_s=ekf_runs / ekf_stacked_s,
-               ekf_one_at_a_time_runs_per_s=n_one / ekf_one_s,
-               ekf_speedup=(ekf_runs / ekf_stacked_s) / (n_one / ekf_one_s),
-               ekf_max_abs_diff_rad=ekf_same,
-               rms_end_arcmin=(np.sqrt(np.mean(err[:, -1] ** 2, 0)) / (np.pi / 180 / 60)).tolist(),
+    with mc.dask_client(a.scheduler) as client:
+        up_s = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        mc.run_campaign(ta._batch, wide, 0, scheduler=client if client is not None else "sync", tasks_per_worker=1,
+                        progress=False, kwargs=dict(kw1, p=dict(p, compare_linear=False)))
+        wide_campaign_s = time.perf_counter() - t1
+    wide_s = time.perf_counter() - t0
+    _, wide_one_cpu, _ = _cpu(lambda: ta._batch(list(np.random.SeedSequence(5).spawn(100)),
+                                                **dict(kw1, p=dict(p, compare_linear=False))))
+    bank_sps, step_sps, whole_sps = _mechanization(cases["large"], a.lanes)
+    out = dict(runs=runs, forms=4, installations=2, slave_ins=runs * len(var),
+               steps=int(cases["large"]["Phi"].shape[0]), setup_cpu_s=setup_cpu,
+               strapdown_cpu_s=cpu_sd, strapdown_wall_s=wall_sd, linear_cpu_s=cpu_li, linear_wall_s=wall_li,
+               strapdown_over_linear=cpu_sd / cpu_li, target_cpu_s=TARGET_S, meets_cpu_target=cpu_sd < TARGET_S,
+               wide_method=a.method, wide_runs=wide, wide_wall_s=wide_s, meets_wide_target=wide_s < TARGET_S,
+               wide_cluster_start_s=up_s, wide_campaign_wall_s=wide_campaign_s,
+               wide_cpu_per_100_runs_s=wide_one_cpu,
+               lanes_samples_per_s=bank_sps, step_per_lane_and_epoch_samples_per_s=step_sps,
+               lanes_speedup=bank_sps / step_sps, whole_record_per_lane_samples_per_s=whole_sps,
+               converged={k: s["conv"] for k, s in st.items()},
+               diverged={k: s["n_div"] for k, s in st.items()},
                machine=platform.platform(), python=platform.python_version())
     for k, v in out.items():
-        print(f"{k:>22s}: {v}")
+        print(f"{k:>34s}: {v}")
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(out, indent=2))
     return out

@@ -192,3 +192,74 @@ def test_align_recorded_on_a_parked_carrier(kind):
         assert r.mounting_sigma[2] > 0.5 * 1e-2 * abs(u[2])
     with pytest.raises(ValueError, match="fewer than 3 master epochs"):
         tr.align_recorded(imu, master, pos, kind, t_start=10.0, t_end=10.15)
+
+
+def test_each_form_measures_its_parameterisation_exactly_at_a_level_north_master():
+    """Level master heading north (C_m^n = I), slave exact (φ = 0): the Euler form's z is
+    the installation's Euler triple and Kain's z its rotation vector, to rounding — what
+    PARAMETERISATION states and installation_parameters converts to (the two differ at
+    second order, ≈ 1′ at a 1° installation)."""
+    C = euler_to_dcm(np.array([1.0, 1.0, 1.0]) * DEG)
+    for kind in tr.KINDS:
+        z = tr.AttitudeMatch(kind).z(np.eye(3), C)
+        if kind == "dcm":
+            continue                           # elements, not angles: scored as Euler angles too
+        np.testing.assert_allclose(z, tr.installation_parameters(C, tr.PARAMETERISATION[kind]), rtol=0, atol=1e-15)
+    d = tr.installation_parameters(C, "euler") - tr.installation_parameters(C, "rotvec")
+    assert 0.5 < np.max(np.abs(d)) / (DEG / 60) < 2.0
+    with pytest.raises(ValueError, match="parameterisation"):
+        tr.installation_parameters(C, "quaternion")
+
+
+@pytest.mark.parametrize("kind", tr.KINDS)
+def test_z_many_with_one_master_per_run(kind):
+    rng = np.random.default_rng(5)
+    m = tr.AttitudeMatch(kind, euler_to_dcm(_rand_att(rng)) if kind == "optimal" else None)
+    Cm = euler_to_dcm(np.stack([_rand_att(rng) for _ in range(6)]))
+    Cs = rotvec_to_dcm(rng.normal(0, 0.01, (6, 3))) @ Cm @ m.compensation
+    z = m.z_many(Cm, Cs)
+    for j in range(6):
+        np.testing.assert_allclose(z[j], m.z(Cm[j], Cs[j]), rtol=0, atol=1e-15)
+
+
+def _parked_lanes(kind, lam, att_m, lanes=3, lat=0.6, h=50.0):
+    """align_lanes on the parked carrier of _stationary: error-free slaves started from the
+    master's attitude, transition from the 21-state model at the parked point."""
+    from scipy.linalg import expm
+    from sinslab.core import earth
+    from sinslab.core.records import NavState
+    from sinslab.nav import strapdown as sd
+    from sinslab.nav.errstate import NavPoint
+    from sinslab.nav.lanes import LaneBank
+
+    imu, master, pos = _stationary(lam, att_m, lat=lat, h=h)
+    Cmn = euler_to_dcm(att_m)
+    Csn = Cmn @ rotvec_to_dcm(lam)
+    model = tr.transfer_model()
+    F = model.F(NavPoint(lat, h, np.zeros(3), Csn, Csn.T @ -earth.gravity_vector(lat, h), Csn.T @ earth.wie_n(lat)))
+    K = 300
+    Phi = np.broadcast_to(expm(F * 0.1), (K, 21, 21))
+    s0 = sd.initial_state_array(NavState(lat, 0.2, h, np.zeros(3), att_m, 0.0))
+    bank = LaneBank(np.tile(s0, (lanes, 1)), imu.dtheta[None, :K * 10], imu.dv[None, :K * 10], np.zeros(lanes, int), 0.01)
+    sig0 = np.array([DEG / 60] * 3 + [0.1] * 3 + [1e-2] * 3 + [1e-7] * 3 + [1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3)
+    mC = np.broadcast_to(Cmn, (1, K + 1, 3, 3))
+    mv = np.zeros((1, K + 1, 3))
+    return tr.align_lanes(bank, 10, Phi, tr.AttitudeMatch(kind), np.diag(sig0 ** 2), np.full(3, 0.01 ** 2),
+                          np.full(3, (DEG / 60) ** 2), mC, mv, np.zeros(lanes, int), C_lin=mC[0],
+                          Qk=np.diag([1e-12] * 3 + [1e-8] * 3 + [0.0] * 15), record_every=10), Cmn
+
+
+@pytest.mark.parametrize("kind", ["kain", "euler"])
+def test_align_lanes_on_a_parked_carrier(kind):
+    """The closed loop of align_lanes on the parked carrier of test_align_recorded_on_a_
+    parked_carrier: the installation across the unobservable direction u = C_rᵀ e_U is
+    found to < 0.3′ (the rotation about the vertical is not seen while parked), the lanes
+    on the same data give the same numbers, and no lane diverges."""
+    lam = np.array([20.0, -15.0, 30.0]) * DEG / 60
+    att_m = np.array([1.0, -2.0, 30.0]) * DEG
+    r, Cmn = _parked_lanes(kind, lam, att_m)
+    u = Cmn.T @ np.array([0.0, 0.0, 1.0])
+    e = r.a[0, -1] - tr.installation_parameters(rotvec_to_dcm(lam), tr.PARAMETERISATION[kind])
+    assert np.linalg.norm(e - (e @ u) * u) < 0.3 * DEG / 60
+    assert not r.diverged.any() and r.sigma.ndim == 2 and r.epochs[-1] == 300
+    np.testing.assert_array_equal(r.a[0], r.a[2])

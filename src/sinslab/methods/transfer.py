@@ -61,6 +61,8 @@ __all__ = [
     "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
     "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
+    "align_lanes", "LaneAlignment", "PARAMETERISATION", "parameterisation", "installation_parameters",
+    "rate_correlation",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -233,12 +235,12 @@ class AttitudeMatch:
         return d + H @ x, H
 
     def innovation_many(self, C_m_n, C_s_n_hat, phi_hat, a_hat):
-        """EKF-form :meth:`innovation_z` of many runs at one master epoch.
+        """EKF-form :meth:`innovation_z` of many runs.
 
         Parameters
         ----------
-        C_m_n : (3, 3)
-            Master attitude (common to the runs).
+        C_m_n : (3, 3) or (R, 3, 3)
+            Master attitude, common to the runs or one per run.
         C_s_n_hat : (R, 3, 3)
             Slave computed attitudes of the runs.
         phi_hat, a_hat : (R, 3)
@@ -250,13 +252,13 @@ class AttitudeMatch:
             Per run, what :meth:`innovation_z` with ``relinearise=True`` returns (the same
             formulas, evaluated on stacked arrays instead of one run at a time).
         """
-        Cr = self.reference(C_m_n)
+        Cr = self.reference_many(C_m_n)
         phi_hat = np.asarray(phi_hat, float)
         a_hat = np.asarray(a_hat, float)
         nr = a_hat.shape[0]
         H = np.empty((nr, 3, 6))
         if self.kind in ("kain", "optimal"):
-            H[:, :, :3] = -_jl_inv_many(a_hat) @ Cr.T
+            H[:, :, :3] = -_jl_inv_many(a_hat) @ np.swapaxes(Cr, -1, -2)
             H[:, :, 3:] = np.eye(3)
         else:
             nz = a_hat.any(axis=1)[:, None, None]
@@ -275,14 +277,26 @@ class AttitudeMatch:
         x = np.concatenate([phi_hat, a_hat], axis=1)
         return d + np.einsum("rij,rj->ri", H, x), H
 
+    def reference_many(self, C_m_n):
+        """:meth:`reference` of one (3, 3) or many (R, 3, 3) master attitudes."""
+        C = np.asarray(C_m_n, dtype=float)
+        if C.shape[-2:] != (3, 3) or C.ndim not in (2, 3):
+            raise ValueError(f"C_m_n must be (3, 3) or (R, 3, 3), got {C.shape}")
+        return C @ self.compensation
+
+    def z_many(self, C_m_n, C_s_n_hat):
+        """:meth:`z` of many slave attitudes (R, 3, 3) against one (3, 3) or R master
+        attitudes; (R, 3)."""
+        return self._g_many(np.asarray(C_s_n_hat, float), self.reference_many(C_m_n))
+
     def _g_many(self, C, Cr):
-        """:meth:`_g` of many attitudes C (R, 3, 3) against one reference."""
+        """:meth:`_g` of many attitudes C (R, 3, 3) against one reference or one per attitude."""
         if self.kind == "euler":
             return wrap_pi(dcm_to_euler(C) - dcm_to_euler(Cr))
         if self.kind == "dcm":
             D = C - Cr
-            return np.stack([D[:, i, j] for i, j in _DCM_ELEMENTS], -1)
-        return dcm_to_rotvec(Cr.T @ C)
+            return np.stack([D[..., i, j] for i, j in _DCM_ELEMENTS], -1)
+        return dcm_to_rotvec(np.swapaxes(Cr, -1, -2) @ C)
 
     def _dg_many(self, C, dC):
         """:meth:`_dg` of many (C, dC) pairs, (R, 3, 3) each -> (R, 3)."""
@@ -454,8 +468,8 @@ class TransferMeasurement(_MasterTimed):
 # ------------------------------------------------------- runs-vectorised Kalman filter --
 def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R_att,
                  Qk=None, relinearise=False, phi_slice=slice(0, 3), dv_slice=slice(3, 6),
-                 a_slice=slice(6, 9), record_every=1):
-    """Kalman filter over many runs at once (common trajectory, per-run data).
+                 a_slice=slice(6, 9), record_every=1, att_noise=None):
+    """Kalman filter over many runs at once (common trajectory, per-run data), feed-forward.
 
     Parameters
     ----------
@@ -474,6 +488,9 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
         Measurement variances.
     Qk : (n, n), optional
         Process noise per step.
+    att_noise : (R, K+1, 3), optional
+        Noise added to the attitude measurement z of each run [units of z], drawn by the
+        caller with the variances ``R_att`` the filter assumes.
     relinearise : bool
         EKF form (per-run covariance); otherwise the covariance and gain are common to all
         runs and only the state recursion is per run.
@@ -499,7 +516,9 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
         P = np.array(P0, float)
         sig = np.empty((len(idx_rec), n))
         for k in range(Kp1):
-            z_att = _z_batch(match, Cm[k], C_slave[:, k])
+            z_att = match.z_many(Cm[k], C_slave[:, k])
+            if att_noise is not None:
+                z_att = z_att + att_noise[:, k]
             H6 = match.H(Cm[k])
             Ha = np.zeros((3, n))
             Ha[:, cols] = H6
@@ -521,6 +540,7 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
                 x = x @ Phi[k].T
                 P = Phi[k] @ P @ Phi[k].T + Qk
         return xs, sig
+    nr = R_runs
     P = np.broadcast_to(np.array(P0, float), (R_runs, n, n)).copy()
     sig = np.empty((R_runs, len(idx_rec), n))
     I = np.eye(n)
@@ -531,7 +551,7 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
         zz[:, :3] = z_vel[:, k]
         z6, H6 = match.innovation_many(Cm[k], C_slave[:, k], x[:, phi_slice], x[:, a_slice])
         H[:, 3:, cols] = H6
-        zz[:, 3:] = z6
+        zz[:, 3:] = z6 if att_noise is None else z6 + att_noise[:nr, k]
         PHt = P @ np.swapaxes(H, 1, 2)
         S = H @ PHt + Rm
         K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)
@@ -549,15 +569,234 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
     return xs, sig
 
 
-def _z_batch(match, C_m_n, C_hat):
-    """z for many slave attitudes (R, 3, 3) at one master attitude (DCM / rotation-vector forms)."""
-    Cr = match.reference(C_m_n)
-    if match.kind == "dcm":
-        D = C_hat - Cr
-        return np.stack([D[:, i, j] for i, j in _DCM_ELEMENTS], -1)
-    if match.kind == "euler":
-        return wrap_pi(dcm_to_euler(C_hat) - dcm_to_euler(Cr))
-    return dcm_to_rotvec(np.einsum("ji,rjk->rik", Cr, C_hat))
+# ---------------------------------------------------- closed loop over many slave INS ---
+class LaneAlignment:
+    """Output of :func:`align_lanes` (L lanes, M recorded epochs).
+
+    Attributes
+    ----------
+    a : (L, M, 3) installation estimate after each recorded update [rad] (NaN once the
+        lane has diverged)
+    sigma : (M, n) or (L, M, n) filter σ (common to the lanes unless re-linearised)
+    sensors : (L, 12) final sensor compensation fed back [ε rad/s, ∇ m/s², k_g, k_a]
+    attitude : (L, M, 3, 3) slave computed ``Ĉ_s^n`` after each recorded update (after
+        its feedback)
+    diverged : (L,) bool ; diverged_at : (L,) first filter epoch found diverged (−1: never)
+    epochs : (M,) filter epochs recorded
+    """
+
+    def __init__(self, a, sigma, sensors, attitude, diverged, diverged_at, epochs):
+        self.a, self.sigma, self.sensors, self.attitude = a, sigma, sensors, attitude
+        self.diverged, self.diverged_at, self.epochs = diverged, diverged_at, epochs
+
+
+def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_C, master_v, lane_master,
+                *, C_lin=None, Qk=None, relinearise=False, meas_noise=None, layout=None, phi_bound=math.radians(30.0),
+                record_every=1):
+    """Closed-loop transfer alignment of L slave INS at once (velocity + attitude matching).
+
+    Every lane is a slave INS in ``bank`` (:class:`sinslab.nav.lanes.LaneBank`) with its
+    own filter state. At each filter epoch k (every ``k_kf`` IMU samples; epoch 0 is the
+    start) the lanes are compared with their master, updated, and the estimates of φ, δv
+    and of the slave's gyro and accelerometer biases and scale factors are fed back (the
+    INS corrected, the sensor compensation increased, those states zeroed), as the
+    filter of paper 002 does; the installation state stays in the filter. Then the lanes
+    navigate to the next epoch and the filter predicts.
+
+    Covariance: with the paper's linearisation (``relinearise=False``) H depends only on
+    the reference attitude, taken from ``C_lin`` — the attitude the filter linearises at,
+    common to the lanes — so P and the gain are common and only the states are per lane.
+    With ``relinearise`` (EKF form, H at each lane's installation estimate and master
+    attitude) every lane carries its own P.
+
+    Parameters
+    ----------
+    bank : LaneBank
+        L slave INS at the start epoch (their raw IMU records and compensation).
+    k_kf : int
+        IMU samples per filter step.
+    Phi : (K, n, n)
+        Transition from epoch k to k+1 (common); K filter steps follow epoch 0.
+    match : AttitudeMatch
+    P0 : (n, n) ; R_vel, R_att : (3,) measurement variances
+    master_C : (nm, K+1, 3, 3) ; master_v : (nm, K+1, 3)
+        Master solutions ``C_m^n`` and velocity [m/s] at the filter epochs.
+    lane_master : (L,) int
+        Master (and noise row) of each lane.
+    C_lin : (K+1, 3, 3), optional
+        Master attitude at which the common H is formed (default: master 0).
+    Qk : (n, n), optional
+        Process noise per step.
+    meas_noise : (nm, K+1, 6), optional
+        Noise added to ``[z_vel, z_att]`` (units of z; the caller draws it with the
+        variances ``R_vel``, ``R_att``).
+    layout : StateLayout, optional
+        Default ``transfer_model().layout``.
+    phi_bound : float
+        A lane whose update asks for a correction |φ̂| above this [rad] (beyond which the
+        small-angle error model does not hold), or whose state turns non-finite, or whose
+        INS leaves the valid latitudes, is stopped and counted as diverged; the others go
+        on.
+    record_every : int
+        Record the epochs 0, record_every, 2·record_every, ...
+
+    Returns
+    -------
+    LaneAlignment
+    """
+    lay = transfer_model().layout if layout is None else layout
+    sl = lay.slice
+    n = lay.n
+    K = Phi.shape[0]
+    L = bank.lanes
+    lane_master = np.asarray(lane_master, dtype=np.int64)
+    C_lin = master_C[0] if C_lin is None else C_lin
+    i_phi, i_dv, i_a = sl("phi"), sl("dv"), sl("lam")
+    fed = np.r_[np.arange(n)[i_phi], np.arange(n)[i_dv], np.arange(n)[sl("eps")], np.arange(n)[sl("nabla")],
+                np.arange(n)[sl("kg")], np.arange(n)[sl("ka")]]
+    cols = np.r_[np.arange(n)[i_phi], np.arange(n)[i_a]]
+    Rm = np.diag(np.concatenate([R_vel, R_att]))
+    Hv = np.zeros((3, n))
+    Hv[np.arange(3), np.arange(n)[i_dv]] = 1.0
+    Qk = np.zeros((n, n)) if Qk is None else np.asarray(Qk, float)
+    rec = list(range(0, K + 1, record_every))
+    M = len(rec)
+    a_out = np.full((L, M, 3), np.nan)
+    att_out = np.full((L, M, 3, 3), np.nan)
+    x = np.zeros((L, n))
+    per_lane = bool(relinearise)
+    P = np.broadcast_to(np.array(P0, float), (L, n, n)).copy() if per_lane else np.array(P0, float)
+    sig = np.empty((L, M, n) if per_lane else (M, n))
+    diverged_at = np.full(L, -1, dtype=np.int64)
+    I = np.eye(n)
+    r = 0
+    for k in range(K + 1):
+        if k > 0:
+            bank.advance(k_kf)
+            x = x @ Phi[k - 1].T
+            P = Phi[k - 1] @ P @ Phi[k - 1].T + Qk
+        Cs, vs = bank.attitude(), bank.velocity()
+        Cm, vm = master_C[lane_master, k], master_v[lane_master, k]
+        z = np.empty((L, 6))
+        z[:, :3] = vs - vm
+        if per_lane:
+            H = np.zeros((L, 6, n))
+            H[:, :3] = Hv
+            z[:, 3:], H6 = match.innovation_many(Cm, Cs, x[:, i_phi], x[:, i_a])
+            H[:, 3:, cols] = H6
+        else:
+            H = np.zeros((6, n))
+            H[:3] = Hv
+            H[3:, cols] = match.H(C_lin[k])
+            z[:, 3:] = match.z_many(Cm, Cs)
+        if meas_noise is not None:
+            z += meas_noise[lane_master, k]
+        if per_lane:
+            PHt = P @ np.swapaxes(H, 1, 2)
+            Kg = np.swapaxes(np.linalg.solve(H @ PHt + Rm, np.swapaxes(PHt, 1, 2)), 1, 2)
+            innov = z - np.einsum("lij,lj->li", H, x)
+        else:
+            PHt = P @ H.T
+            Kg = np.linalg.solve(H @ PHt + Rm, PHt.T).T
+            innov = z - x @ H.T
+        if match.kind == "euler":
+            innov[:, 3:] = wrap_pi(innov[:, 3:])
+        if per_lane:
+            x = x + np.einsum("lij,lj->li", Kg, innov)
+            IKH = I - Kg @ H
+            P = IKH @ P @ np.swapaxes(IKH, 1, 2) + Kg @ Rm @ np.swapaxes(Kg, 1, 2)
+        else:
+            x = x + innov @ Kg.T
+            IKH = I - Kg @ H
+            P = IKH @ P @ IKH.T + Kg @ Rm @ Kg.T
+        # divergence guard before the correction reaches the INS
+        bad = bank.active & ~(np.all(np.isfinite(x), axis=1)
+                              & (np.linalg.norm(x[:, i_phi], axis=1) <= phi_bound))
+        bank.stop(bad)
+        on = bank.active
+        diverged_at[~on & (diverged_at < 0)] = k
+        x[~on] = np.nan
+        bank.correct(np.where(on[:, None], x[:, i_phi], 0.0), np.where(on[:, None], x[:, i_dv], 0.0))
+        bank.compensate(gyro_bias=x[:, sl("eps")], accel_bias=x[:, sl("nabla")], gyro_scale=x[:, sl("kg")],
+                        accel_scale=x[:, sl("ka")])
+        x[np.ix_(on, fed)] = 0.0
+        if r < M and rec[r] == k:
+            a_out[on, r] = x[on][:, i_a]
+            att_out[on, r] = bank.attitude()[on]
+            sig[..., r, :] = np.sqrt(np.diagonal(P, axis1=-2, axis2=-1))
+            r += 1
+    diverged = diverged_at >= 0
+    return LaneAlignment(a_out, sig, bank.comp.copy(), att_out, diverged, diverged_at, np.array(rec))
+
+
+def rate_correlation(imu, master: MasterRecord, t_start=None, t_end=None):
+    """Whether a slave IMU and a master solution share their motion.
+
+    The norm of the rotation rate does not depend on the mounting, so for a slave rigidly
+    mounted on the master's vehicle (and on the same clock) ``|ω_s|`` from the slave's
+    increments and ``|ω_m|`` from the master's attitude change follow each other.
+
+    Parameters
+    ----------
+    imu : ImuRecord ; master : MasterRecord
+    t_start, t_end : float, optional
+        Window [s] (default: the overlap).
+
+    Returns
+    -------
+    corr : float
+        Correlation coefficient of ``|ω_s|`` and ``|ω_m|`` over the master intervals in the
+        window (NaN when fewer than 10 intervals or when neither moves).
+    motion : float
+        Standard deviation of ``|ω_m|`` [rad/s] (how much the master's rate varies).
+    """
+    mt = master.t
+    lo = max(mt[0], imu.t0) if t_start is None else max(float(t_start), mt[0], imu.t0)
+    hi = min(mt[-1], imu.t[-1]) if t_end is None else min(float(t_end), mt[-1], imu.t[-1])
+    sel = np.flatnonzero((mt >= lo - 1e-9) & (mt <= hi + 1e-9))
+    if sel.size < 11:
+        return float("nan"), 0.0
+    t = mt[sel]
+    C = master.C[sel]
+    w_m = np.linalg.norm(dcm_to_rotvec(np.swapaxes(C[:-1], 1, 2) @ C[1:]), axis=1) / np.diff(t)
+    th = np.vstack([np.zeros(3), np.cumsum(imu.dtheta, axis=0)])
+    te = np.concatenate([[imu.t0], imu.t])
+    i = np.clip(np.searchsorted(te, t - 0.5 * imu.dt), 0, te.size - 1)
+    w_s = np.linalg.norm(np.diff(th[i], axis=0), axis=1) / np.diff(t)
+    motion = float(np.std(w_m))
+    if motion == 0.0 or np.std(w_s) == 0.0:
+        return float("nan"), motion
+    return float(np.corrcoef(w_m, w_s)[0, 1]), motion
+
+
+# -------------------------------------------------- what each form's estimate means ---
+#: The parameterisation in which each attitude form's installation estimate is scored.
+#: The Kain forms measure ``log(C_rᵀ Ĉ_s^n)``, exactly the rotation vector of the
+#: installation when φ = 0; the Euler-angle and DCM-element forms measure differences of
+#: Euler angles / DCM elements whose second-order terms follow the Euler-angle triple of the
+#: installation [pitch, roll, yaw] about slave x, y, z (the paper's λ, small angles).
+PARAMETERISATION = {"euler": "euler", "dcm": "euler", "kain": "rotvec", "optimal": "rotvec"}
+
+
+def parameterisation(kind, relinearise=False):
+    """What the installation estimate of a filter is: :data:`PARAMETERISATION` of its form
+    with the paper's linearisation at a = 0; a rotation vector for every form when H is
+    re-linearised at the estimate (the EKF form models ``C_r exp(a×)`` exactly)."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown attitude-matching kind {kind!r}; choose from {list(KINDS)}")
+    return "rotvec" if relinearise else PARAMETERISATION[kind]
+
+
+def installation_parameters(C, parameterisation):
+    """The installation rotation ``C`` (..., 3, 3) (slave -> master body, or the residual
+    ``Ĉ_s^mᵀ C_s^m``) as the three numbers a form estimates [rad]: ``"rotvec"``
+    (rotation vector, slave x y z) or ``"euler"`` ([pitch, roll, yaw] with
+    ``C = R_z(yaw) R_x(pitch) R_y(roll)``, about slave x, y, z)."""
+    if parameterisation == "rotvec":
+        return dcm_to_rotvec(C)
+    if parameterisation == "euler":
+        return dcm_to_euler(C)
+    raise ValueError(f"unknown parameterisation {parameterisation!r}; use 'rotvec' or 'euler'")
 
 
 # ------------------------------------------------------------ recorded-data alignment ---
@@ -587,7 +826,7 @@ class TransferResult:
 def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, compensation=None, t_start=None,
                    t_end=None, vel_sigma=0.1, att_sigma=3e-4, att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2,
                    gyro_bias_sigma0=1e-3, accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3, accel_scale_sigma0=1e-3,
-                   gyro_noise=0.0, accel_noise=0.0, nsub=2):
+                   gyro_noise=0.0, accel_noise=0.0, gyro_bias_rw=0.0, accel_bias_rw=0.0, nsub=2):
     """Transfer alignment of a recorded slave IMU against a recorded master solution.
 
     Runs through the fusion driver (:func:`sinslab.fusion.driver.run`): one live stream
@@ -626,6 +865,8 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
         Window [s]; default the overlap of the two records.
     vel_sigma [m/s], att_sigma [rad] : measurement noise σ
     *_sigma0 : initial σ (SI); gyro_noise [rad/√s], accel_noise [m/s/√s] : process noise
+    gyro_bias_rw [rad/s/√s], accel_bias_rw [m/s²/√s] : random walk of the bias states
+        (the bias instability as the filter models it; 0: random constants)
     nsub : int
         Mechanization subsamples; the master interval must be a multiple of ``nsub·imu.dt``.
 
@@ -653,8 +894,9 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
     if abs(imu_w.t0 - t0) > 1e-6 * imu.dt + 1e-9:
         raise ValueError(f"the slave IMU samples do not start at the master epoch {t0:g} s "
                          f"(first interval starts at {imu_w.t0:g} s)")
-    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(), errstate.gyro_scale(),
-                                           errstate.accel_bias(), errstate.accel_scale()],
+    model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(rrw=gyro_bias_rw),
+                                           errstate.gyro_scale(), errstate.accel_bias(arw=accel_bias_rw),
+                                           errstate.accel_scale()],
                                 gyro_noise=gyro_noise, accel_noise=accel_noise)
     lay = model.layout
     match = AttitudeMatch(kind, compensation)

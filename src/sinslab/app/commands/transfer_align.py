@@ -13,6 +13,14 @@ Inputs
 - reference values (``mu0`` mounting angles [rad], ``eb0`` gyro bias [rad/s], ``db0``
   accelerometer bias [m/s²]) are read from the master or slave ``.mat`` when present and
   compared with the estimates.
+
+The filter's process noise is an input (``--gyro-arw``, ``--accel-vrw``,
+``--gyro-bias-instability``, ``--accel-bias-instability``; the bias instabilities are
+modelled as random walks of the bias states): the estimates and their σ depend on it.
+
+A slave and a master that do not share their motion (the norms of their rotation rates do
+not follow each other, e.g. records of two vehicles or shifted clocks) are refused: the
+filter would otherwise return a mounting with a small σ that means nothing.
 """
 from __future__ import annotations
 
@@ -97,9 +105,40 @@ def _parse_mount(text):
 TRANSFER_ALIGN = Command("transfer-align", "transfer alignment of a recorded slave IMU against a master INS")
 
 
+#: Process noise used when none is given (SI): gyro ARW 1 deg/sqrt(h), accelerometer VRW
+#: 1 mm/s/sqrt(s), bias states random constants.
+PROCESS_NOISE = {"gyro_arw": "1 deg/sqrt(h)", "accel_vrw": "1 mm/s/sqrt(s)",
+                 "gyro_bias_instability": "0 deg/h/sqrt(h)", "accel_bias_instability": "0 ug/sqrt(s)"}
+_NOISE_KINDS = {"gyro_arw": "angle_random_walk", "accel_vrw": "velocity_random_walk",
+                "gyro_bias_instability": "rate_random_walk", "accel_bias_instability": "accel_random_walk"}
+#: Rotation rates of slave and master that correlate less than this (when the master moves)
+#: mean an unrelated pair.
+MIN_RATE_CORRELATION = 0.5
+#: Below this spread of the master's rotation rate [rad/s] the check cannot tell.
+MIN_MOTION = 0.002
+
+
+def _process_noise(noise):
+    """SI values of the process-noise texts (defaults for the ones not given)."""
+    from sinslab.app.validate import option_quantity
+
+    out = {}
+    for k, default in PROCESS_NOISE.items():
+        text = (noise or {}).get(k) or default
+        out[k] = (option_quantity("--" + k.replace("_", "-"), text, _NOISE_KINDS[k], ge="0 " + default.split(" ", 1)[1]),
+                  text)
+    unknown = set(noise or {}) - set(PROCESS_NOISE)
+    if unknown:
+        raise ValueError(f"unknown process-noise setting(s) {sorted(unknown)}; known: {sorted(PROCESS_NOISE)}")
+    return out
+
+
 def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, windows=(None,), out=None,
-                        vel_sigma=0.1, att_sigma_arcmin=1.0, echo=print):
+                        vel_sigma=0.1, att_sigma_arcmin=1.0, noise=None, echo=print):
     """Run the alignment for each method and window; write the run folder.
+
+    ``noise`` maps the keys of :data:`PROCESS_NOISE` to unit strings (defaults for the
+    ones not given).
 
     Returns ``(summary, results, refs)``: ``results`` maps ``(method, window key)`` to a
     :class:`sinslab.methods.transfer.TransferResult`, ``refs`` the file's reference values.
@@ -110,6 +149,7 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
         if m not in tm.KINDS:
             raise ValueError(f"--method {m!r}: choose from {', '.join(tm.KINDS)}")
     comp = _parse_mount(mount)
+    pn = _process_noise(noise)
     if Path(slave).suffix.lower() == ".mat":
         mm = _loadmat(slave) if Path(slave).is_file() else None
         if mm is not None and not any(k in mm for k in ("imu", "mimu", "simu")):
@@ -119,12 +159,12 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
         if not any(k in mm for k in ("avp", "fogavp", "avpr")):
             raise ValueError(f"{master}: .mat lacks the master solution variable (avp, fogavp or avpr)")
     summary, res = run_command(TRANSFER_ALIGN, out, lambda: _compute(slave, master, methods, comp, mount, windows,
-                                                                  vel_sigma, att_sigma_arcmin, echo), echo=echo)
+                                                                  vel_sigma, att_sigma_arcmin, pn, echo), echo=echo)
     results, refs = res.value
     return summary, results, refs
 
 
-def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_arcmin, echo):
+def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_arcmin, pn, echo):
     from sinslab.app import plotting
     from sinslab.data import load_imu
     from sinslab.methods import transfer as tm
@@ -141,6 +181,13 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
         raise ValueError(f"master interval {dtm:g} s is not a multiple of the slave interval {imu.dt:g} s")
     nsub = 2 if round(ratio) % 2 == 0 else 1
     master_rec = tm.MasterRecord(mt, att, vel)
+    for w in windows:
+        corr, motion = tm.rate_correlation(imu, master_rec, *(w or (None, None)))
+        if motion >= MIN_MOTION and not corr >= MIN_RATE_CORRELATION:
+            where = "" if w is None else f" in the window {w[0]:g}:{w[1]:g} s"
+            raise ValueError(f"slave {slave} and master {master} show no common motion{where}: their rotation rates "
+                             f"correlate at {corr:.2f} (need >= {MIN_RATE_CORRELATION:g}); not the same vehicle, "
+                             "or the clocks differ")
     refs = _refs(master, slave)
     metrics, rows, results = {}, [], {}
     am, dph, mg = units.arcmin, units.dph, 1e-3 * 9.80665
@@ -150,7 +197,9 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
         for m in methods:
             r = tm.align_recorded(imu, master_rec, pos, m, compensation=comp,
                                   t_start=t0, t_end=t1, vel_sigma=vel_sigma, att_sigma=att_sigma_arcmin * am,
-                                  gyro_noise=1.0 * units.deg / 60.0, accel_noise=1e-3, nsub=nsub)
+                                  gyro_noise=pn["gyro_arw"][0], accel_noise=pn["accel_vrw"][0],
+                                  gyro_bias_rw=pn["gyro_bias_instability"][0],
+                                  accel_bias_rw=pn["accel_bias_instability"][0], nsub=nsub)
             results[(m, wkey)] = r
             k = f"{m}_{wkey}"
             metrics[f"mounting_arcmin_{k}"] = r.mounting / am
@@ -170,10 +219,10 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
                 row[f"db_{a}_mg"] = r.accel_bias[j] / mg
                 row[f"db_{a}_sigma_mg"] = r.accel_bias_sigma[j] / mg
             rows.append(row)
-            line = (f"{m:8s} {wkey:>10s}: mounting [{', '.join(f'{v:.2f}' for v in r.mounting / am)}] ± "
-                    f"[{', '.join(f'{v:.2f}' for v in r.mounting_sigma / am)}] arcmin; gyro bias "
-                    f"[{', '.join(f'{v:.1f}' for v in r.gyro_bias / dph)}] deg/h")
-            echo(line)
+            pm = lambda v, s, f: ", ".join(f"{a:{f}} ± {b:{f}}" for a, b in zip(v, s))  # noqa: E731
+            echo(f"{m:8s} {wkey:>10s}: mounting [{pm(r.mounting / am, r.mounting_sigma / am, '.2f')}] arcmin; "
+                 f"gyro bias [{pm(r.gyro_bias / dph, r.gyro_bias_sigma / dph, '.1f')}] deg/h; "
+                 f"accel bias [{pm(r.accel_bias / mg, r.accel_bias_sigma / mg, '.2f')}] mg")
     if refs:
         if "mu0" in refs:
             metrics["ref_mounting_arcmin"] = refs["mu0"] / am
@@ -186,7 +235,8 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
              + ", accel bias " + (f"{np.round(refs['db0'] / mg, 2).tolist()} mg" if "db0" in refs else "-"))
     cfg = {"slave": str(slave), "master": str(master), "methods": list(methods), "mount": mount or "none",
            "windows": ["all" if w is None else f"{w[0]:g}:{w[1]:g}" for w in windows],
-           "vel_sigma_mps": vel_sigma, "att_sigma_arcmin": att_sigma_arcmin}
+           "vel_sigma_mps": vel_sigma, "att_sigma_arcmin": att_sigma_arcmin,
+           **{k: text for k, (_, text) in pn.items()}}
     import pandas as pd
     (m0, w0), r0 = next(iter(results.items()))
     tables = [Series("estimates", pd.DataFrame(rows), "final estimates with σ per method and window"),
@@ -242,12 +292,20 @@ def register(app):
                        method: list[str] = typer.Option(["optimal"], "--method", help="euler | dcm | kain | optimal (repeatable)"),
                        mount: Optional[str] = typer.Option(None, "--mount", help="known installation [pitch, roll, yaw] with units"),
                        window: list[str] = typer.Option([], "--window", metavar="START:END", help="time window(s) [s]"),
+                       gyro_arw: str = typer.Option(PROCESS_NOISE["gyro_arw"], "--gyro-arw", help="filter process noise: gyro angle random walk"),
+                       accel_vrw: str = typer.Option(PROCESS_NOISE["accel_vrw"], "--accel-vrw", help="filter process noise: accelerometer velocity random walk"),
+                       gyro_bias_instability: str = typer.Option(PROCESS_NOISE["gyro_bias_instability"], "--gyro-bias-instability",
+                                                                 help="random walk of the gyro bias states"),
+                       accel_bias_instability: str = typer.Option(PROCESS_NOISE["accel_bias_instability"], "--accel-bias-instability",
+                                                                  help="random walk of the accelerometer bias states"),
                        out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder"),
                        force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Transfer alignment on recorded data: mounting angles and slave biases with σ."""
         def go():
             wins = [_window(w) for w in window] or [None]
+            noise = dict(gyro_arw=gyro_arw, accel_vrw=accel_vrw, gyro_bias_instability=gyro_bias_instability,
+                         accel_bias_instability=accel_bias_instability)
             return transfer_align_file(slave, master, methods=tuple(method), mount=mount, windows=wins, out=out,
-                                       echo=typer.echo)
+                                       noise=noise, echo=typer.echo)
 
         cli_call(go, force=force)
