@@ -32,6 +32,7 @@ from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
+from sinslab.core.stamps import whole_intervals
 from sinslab.fusion.loosely_coupled import loosely_coupled
 from sinslab.fusion.smoothing import History, smooth
 
@@ -338,14 +339,13 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
     t_rest = float(imu.t[k0])
     cand = np.flatnonzero(fast & (fixes.t > t_rest))
     dt = imu.dt
-    tried = set()
+    # the window is a whole number of the stream's own intervals, its length tested with
+    # the stamps' own jitter (a receiver stamps "1 s" fixes 1.000019 s apart)
+    n_iv, f_dt, f_tol = whole_intervals(fixes.t, opt.heading_window)
     for j in cand:
-        w = np.flatnonzero((fixes.t >= fixes.t[j]) & (fixes.t <= fixes.t[j] + opt.heading_window + 1e-9))
-        if fixes.t[w[-1]] - fixes.t[j] < opt.heading_window - 1e-9 or not fast[w].all():
+        w = np.flatnonzero((fixes.t >= fixes.t[j]) & (fixes.t <= fixes.t[j] + n_iv * (f_dt + f_tol)))
+        if fixes.t[w[-1]] - fixes.t[j] < n_iv * (f_dt - f_tol) or not fast[w].all():
             continue
-        if j in tried:
-            continue
-        tried.add(j)
         st = pre0.copy()
         k = k0
         az, kk = [], []
