@@ -32,13 +32,13 @@ from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
-from sinslab.core.stamps import whole_intervals
+from sinslab.core.stamps import stamp_step, whole_intervals
 from sinslab.fusion.loosely_coupled import loosely_coupled
 from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
            "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
-           "leveled_start"]
+           "leveled_start", "moving_spans", "subtract_spans"]
 
 
 @dataclass
@@ -89,6 +89,8 @@ class NavOptions:
     nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
     nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
     aiding_dt: float = 0.1                  #: ZUPT/NHC applied every this [s] (ZARU: every epoch)
+    aid_gate: float | None = 1e-6           #: false-rejection probability of the innovation gate of
+    #: every ZUPT/ZARU/NHC/odometer update (:class:`~sinslab.fusion.measurements.InnovationGate`); None: no gate
     estimate_lever: bool = False            #: estimate the antenna lever arm (3 states)
     lever_sigma: float = 1.0                #: its initial σ per axis [m]
     heading_window: float = 1.0             #: [s] of motion above move_speed for the heading
@@ -119,6 +121,8 @@ class NavOptions:
             raise ValueError("zupt='flags' needs a rest-flag column (column map key 'stationary')")
         if self.zaru and self.zupt is None:
             raise ValueError("ZARU runs on the rest intervals of ZUPT: choose zupt='auto' or 'flags'")
+        if self.aid_gate is not None and not (0 < self.aid_gate < 1):
+            raise ValueError(f"aid_gate must be a probability in (0, 1) or None, got {self.aid_gate}")
         for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight"):
             v = getattr(self, nm)
             if not (math.isfinite(v) and v > 0):
@@ -382,12 +386,57 @@ def fixes_dt(fixes):
     return float(np.median(np.diff(fixes.t))) if len(fixes) > 1 else 1.0
 
 
-def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=None):
+def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=None, fixes=None):
     """Stationary intervals for ZUPT/ZARU [s], shape (K, 2): from the log's rest flags
     (``zupt="flags"``) or the IMU detector (:func:`sinslab.fusion.stationarity.detect`)
-    with thresholds calibrated on the initial rest ``rest = (k0, k1)`` (the scatter of the
-    engine-on car at rest, ×1.5; the gyro bias measured there removed), trimmed by 0.5 s
-    at both ends and at least ``rest_min`` long."""
+    with thresholds calibrated on the initial rest ``rest = (k0, k1)`` (the scatter of
+    specific force and rate and the mean rate of the engine-on car at rest, ×1.5; the gyro
+    bias measured there removed), trimmed by 0.5 s at both ends and at least ``rest_min``
+    long; then cut wherever one of ``fixes`` (those the filter uses) says the vehicle
+    moves (:func:`moving_spans`): a detector cannot tell rest from steady driving on a
+    smooth road, a fix can."""
+    iv = _rest_candidates(imu, opt, lat, rest, gyro_bias)
+    if fixes is not None and len(fixes) > 1 and iv.size:
+        iv = subtract_spans(iv, moving_spans(fixes, opt))
+    return iv[(iv[:, 1] - iv[:, 0]) >= max(opt.rest_min - 1.0, 0.1)] if iv.size else iv
+
+
+def moving_spans(fixes: Fixes, opt: NavOptions):
+    """Time spans [s] (K, 2) in which fixes say the vehicle moves: one fix interval either
+    side of every fix whose horizontal speed exceeds three times its own noise (the
+    velocity σ, or for position-only fixes the σ of a position difference over one
+    interval), and at least ``static_speed``."""
+    fdt, _ = stamp_step(fixes.t)
+    sp = _fix_speed(fixes)
+    if fixes.vel is not None:
+        sv = fixes.sigma_vel if fixes.sigma_vel is not None else np.full((len(fixes), 3), 0.1)
+        s_sp = np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2)
+    else:
+        s_sp = np.hypot(fixes.sigma[:, 0], fixes.sigma[:, 1]) / fdt
+    mv = sp > np.maximum(3.0 * s_sp, opt.static_speed)
+    return np.stack([fixes.t[mv] - fdt, fixes.t[mv] + fdt], -1)
+
+
+def subtract_spans(iv, spans):
+    """Intervals ``iv`` (K, 2) minus the union of ``spans`` (L, 2), both [s]."""
+    out = []
+    spans = np.asarray(spans, dtype=float).reshape(-1, 2)
+    spans = spans[np.argsort(spans[:, 0])] if spans.size else spans
+    for a, b in np.asarray(iv, dtype=float).reshape(-1, 2):
+        hit = spans[(spans[:, 1] > a) & (spans[:, 0] < b)]
+        cur = a
+        for sa, sb in hit:
+            if sa > cur:
+                out.append((cur, min(sa, b)))
+            cur = max(cur, sb)
+            if cur >= b:
+                break
+        if cur < b:
+            out.append((cur, b))
+    return np.array(out, dtype=float).reshape(-1, 2)
+
+
+def _rest_candidates(imu, opt, lat, rest, gyro_bias):
     from sinslab.fusion import stationarity as st
     if opt.zupt == "flags":
         t, fl = opt.rest_flags
@@ -406,11 +455,11 @@ def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=No
                 g = float(E.gravity(lat, 0.0))
                 kw = dict(f_std=max(1.5 * float(np.linalg.norm(f.std(1), axis=1).max()), 0.02),
                           f_tol=max(1.5 * float(np.abs(np.linalg.norm(f.mean(1), axis=1) - g).max()), 0.05),
-                          w_max=max(1.5 * float(np.linalg.norm(w.mean(1), axis=1).max()), 0.002))
+                          w_max=max(1.5 * float(np.linalg.norm(w.mean(1), axis=1).max()), 0.002),
+                          w_std=max(1.5 * float(np.linalg.norm(w.std(1), axis=1).max()), 1e-4))
         iv = st.detect(im, lat, min_duration=opt.rest_min, **kw)
     iv = np.asarray(iv, dtype=float).reshape(-1, 2)
-    iv = np.stack([iv[:, 0] + 0.5, iv[:, 1] - 0.5], -1) if iv.size else iv
-    return iv[(iv[:, 1] - iv[:, 0]) >= max(opt.rest_min - 1.0, 0.1)] if iv.size else iv
+    return np.stack([iv[:, 0] + 0.5, iv[:, 1] - 0.5], -1) if iv.size else iv
 
 
 # ------------------------------------------------------------------------ the filter ---
@@ -541,25 +590,28 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     use_vel = opt.use_velocity and sel.vel is not None
 
     # --- aiding
-    aiding = []
     every = max(1, int(round(opt.aiding_dt / T)))
+    gate = opt.aid_gate
+    named = []
     if opt.zupt is not None:
-        iv = rest_intervals(imu, opt, lat0, rest, gb)
+        used = sel.select(~_in_outages(sel.t, outages))
+        iv = rest_intervals(imu, opt, lat0, rest, gb, fixes=used)
         iv = iv[iv[:, 1] > ts] if iv.size else iv
         init["rest_intervals"] = iv.tolist()
         if len(iv):
-            aiding.append(ZeroVelocity(iv, opt.zupt_sigma, every=every))
+            named.append(("zupt", ZeroVelocity(iv, opt.zupt_sigma, every=every, gate=gate)))
             if opt.zaru:
                 zs = opt.zaru_sigma if opt.zaru_sigma is not None else \
                     2.0 * float(np.max(g_noise)) / math.sqrt(T)
                 init["zaru_sigma"] = zs
                 # every epoch: each holds the rate of its own step, thinning discards them
-                aiding.append(ZeroRate(iv, zs, every=1))
+                named.append(("zaru", ZeroRate(iv, zs, every=1, gate=gate)))
     if opt.nhc_sigma is not None:
-        aiding.append(NonHolonomic(opt.nhc_sigma, lever_arm=np.asarray(opt.nhc_lever_arm, float),
-                                   every=every))
+        named.append(("nhc", NonHolonomic(opt.nhc_sigma, lever_arm=np.asarray(opt.nhc_lever_arm, float),
+                                          every=every, gate=gate)))
     if opt.odometer is not None:
-        aiding.append(_odometer(opt.odometer, opt, T, t_lo, t_hi))
+        named.append(("odometer", _odometer(opt.odometer, opt, T, t_lo, t_hi)))
+    aiding = [m for _, m in named]
 
     P0 = np.diag(sp0 ** 2)
     if opt.estimate_lever:
@@ -584,6 +636,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         history=History(0.1) if opt.smooth else None,
         progress=progress, label="navigating")
     init["outages"] = outages
+    init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),
+                                "rejected_spans": _spans(m.gate.rejected, 2.5 * T * m.every)}
+                           for nm, m in named if getattr(m, "gate", None) is not None}
     if opt.estimate_lever:
         sl = lay.slice("lev")
         init["lever_arm_estimate"] = (lever - r.x[-1, sl]).tolist()     # δl = l_used − l_true
@@ -591,6 +646,23 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
                        r.fix_t, r.innovation, r.nis, init, opt,
                        smoothed=smooth(r) if opt.smooth else None)
+
+
+def _spans(times, gap):
+    """Sorted times [s] merged into ``[start, end]`` spans where consecutive ones are less
+    than ``gap`` apart."""
+    t = np.asarray(times, dtype=float)
+    if t.size == 0:
+        return []
+    br = np.flatnonzero(np.diff(t) >= gap)
+    return [[float(t[a]), float(t[b])] for a, b in zip(np.r_[0, br + 1], np.r_[br, t.size - 1])]
+
+
+def _in_outages(t, outages):
+    m = np.zeros(np.shape(t), bool)
+    for s0, ln in outages:
+        m |= (t >= s0) & (t < s0 + ln)
+    return m
 
 
 def _odometer(odo, opt, T, t_lo, t_hi):
@@ -606,7 +678,7 @@ def _odometer(odo, opt, T, t_lo, t_hi):
     if not (opt.odometer_sigma > 0 and opt.odometer_rate > 0):
         raise ValueError("odometer sigma and rate must be > 0")
     every = max(1, int(round(1.0 / (opt.odometer_rate * T))))
-    return Odometer(odo.t, odo.speed, opt.odometer_sigma, lever_arm=lever, every=every)
+    return Odometer(odo.t, odo.speed, opt.odometer_sigma, lever_arm=lever, every=every, gate=opt.aid_gate)
 
 
 # ----------------------------------------------------------------------- evaluation ----

@@ -235,6 +235,15 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if opt.zupt is not None:
         metrics["rest_intervals"] = len(res.init.get("rest_intervals", []))
         metrics["rest_total_s"] = float(sum(b - a for a, b in res.init.get("rest_intervals", [])))
+    for nm, g in res.init.get("aiding_gate", {}).items():
+        metrics[f"{nm}_updates_applied"] = g["applied"]
+        metrics[f"{nm}_updates_rejected"] = g["rejected"]
+        if g["rejected"]:
+            sp_ = g["rejected_spans"]
+            echo(f"  {nm.upper()}: {g['rejected']} of {g['applied'] + g['rejected']} updates rejected by the "
+                 f"innovation gate (the filter's own velocity/rate contradicts them), in {len(sp_)} span(s) from "
+                 + ", ".join(f"{a - fx.t[0]:.1f}-{b - fx.t[0]:.1f} s" for a, b in sp_[:4])
+                 + (" ..." if len(sp_) > 4 else ""))
     if res.scale is not None:
         metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
     cfg = {"imu": str(imu_path), "fixes": str(fix_path), "format": data.format,
@@ -304,13 +313,21 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     figures.append(Figure("track", fig, "Track on a local ENU map (origin at the first fix); outages in red."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     tt = t - res.t[0]
+    rest_iv = res.init.get("rest_intervals", [])
+    gated = [sp_ for g in res.init.get("aiding_gate", {}).values() for sp_ in g["rejected_spans"]]
     for ax, k, nm in zip(axes, range(3), ("east", "north", "up")):
         ax.plot(tt, err[:, k], ".", ms=1.5, color=plotting.COLORS[k])
         ax.set_ylabel(f"{nm} error [m]")
         for s, ln in outs:
             ax.axvspan(s - res.t[0], s + ln - res.t[0], color="0.85", lw=0)
+        for a, b in rest_iv:
+            ax.axvspan(a - res.t[0], b - res.t[0], color=plotting.COLORS[2], alpha=0.15, lw=0)
+        for a, b in gated:
+            ax.axvspan(a - res.t[0], b - res.t[0], ymin=0.9, ymax=1.0, color=plotting.COLORS[3], lw=0)
     axes[-1].set_xlabel("time [s]")
-    fig.suptitle("Solution minus fixes (grey: simulated outages)")
+    fig.suptitle("Solution minus fixes (grey: outages"
+                 + ("; green: rest (ZUPT/ZARU)" if rest_iv else "")
+                 + ("; top bar: aiding rejected by the gate" if gated else "") + ")")
     figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     ts_ = res.t - res.t[0]
