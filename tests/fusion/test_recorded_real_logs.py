@@ -81,3 +81,68 @@ def test_innovation_gate_threshold():
     assert gate.passes(np.zeros(3), P, np.full(3, 3.0), np.eye(3), np.ones(3), 1.0)   # NIS 13.5
     assert not gate.passes(np.zeros(3), P, np.full(3, 5.0), np.eye(3), np.ones(3), 2.0)  # NIS 37.5
     assert gate.rejected == [2.0] and gate.passed == 1
+
+
+# ------------------------------------------------------------ fix files as shipped ---
+@pytest.mark.parametrize("compress", [None, "gz", "zip"])
+def test_fix_file_as_a_unit_ships_it(drive, tmp_path, compress):
+    """The unit's export: dotted names, ``time``, NED velocity, a mode column, the 1 Hz
+    fixes held in every row of a 50 Hz log, plain, gzip or zip: read through a column map
+    with units, collapsed to the receiver's epochs, velocity turned to ENU, rows of an
+    unwanted mode dropped by the quality filter."""
+    from sinslab.data import load_fixes
+    _, _, fx1, _, _ = drive
+    mode = np.where(np.arange(len(fx1)) % 10 == 3, 1, 4)            # every 10th epoch single-point
+    rows_t = np.arange(0.0, fx1.t[-1] + 0.5, 0.02)
+    suffix = {None: ".csv", "gz": ".csv.gz", "zip": ".zip"}[compress]
+    p = fu.write_foreign_fixes(tmp_path / f"gnss{suffix}", fx1, rows_t, mode, compress)
+    got, meta = load_fixes(p, columns=fu.FIX_COLUMNS)
+    assert meta["held"][1] == len(fx1) and meta["held"][0] > 45 * len(fx1)
+    assert meta["velocity_frame"] == "NED" and set(meta["quality_counts"]) == {1, 4}
+    # the first row of each epoch is the first 50 Hz row at or after the fix
+    assert np.all(got.t - fx1.t >= -1e-9) and np.all(got.t - fx1.t < 0.02 + 1e-9)
+    np.testing.assert_allclose(got.vel, fx1.vel, atol=1e-9)
+    np.testing.assert_allclose(np.degrees(got.lat), np.degrees(fx1.lat), atol=1e-11)
+    assert got.path == str(p)
+    kept, m2 = load_fixes(p, columns=fu.FIX_COLUMNS, quality="4")
+    assert len(kept) == int(np.sum(mode == 4)) and np.all(kept.quality == 4)
+
+
+def test_fix_file_messages(tmp_path):
+    from sinslab.data import load_fixes
+    p = tmp_path / "f.csv"
+    p.write_text("time,GnssPosition.Latitude,GnssPosition.Longitude\n1,40,-105\n2,40,-105.00001\n")
+    fx, meta = load_fixes(p)                                   # found by the dotted names' last part
+    assert len(fx) == 2 and np.all(np.isnan(fx.h)) and meta["columns"]["lat"] == "GnssPosition.Latitude"
+    with pytest.raises(ValueError, match="--fix-columns lat='nope': no such column"):
+        load_fixes(p, columns="t=time[s], lat=nope[deg]")
+    with pytest.raises(ValueError, match="no quality/mode column"):
+        load_fixes(p, quality="4")
+    with pytest.raises(ValueError, match="unknown column key 'gx'"):
+        load_fixes(p, columns="gx=time")
+    (tmp_path / "g.csv").write_text("time,lat,lon\n1,40,-105\n1,40,-105.00001\n")
+    with pytest.raises(ValueError, match=r"g.csv:3: duplicated time stamp"):
+        load_fixes(tmp_path / "g.csv")
+
+
+def test_navigate_cli_on_the_units_fix_export(drive, tmp_path):
+    """``navigate`` on the unit's zipped 50 Hz fix export (no heading given): the terminal
+    says the rows were collapsed to the receiver's epochs and the solution is the one of
+    the 1 Hz fixes themselves (the held rows are not 50 independent fixes each)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sinslab.cli import app
+    from sinslab.data import write_imu
+    imu, _, fx1, _, _ = drive
+    p = fu.write_foreign_fixes(tmp_path / "gnss.zip", fx1, np.arange(0.0, fx1.t[-1] + 0.5, 0.02),
+                               compress="zip")
+    ip = write_imu(tmp_path / "imu.csv", imu)
+    res = CliRunner().invoke(app, ["navigate", "--imu", str(ip), "--fixes", str(p), "--fix-columns",
+                                   fu.FIX_COLUMNS, "--fix-quality", "4", "--out", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    assert f"hold {len(fx1)} receiver epochs" in res.output and "collapsed" in res.output
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert s["metrics"]["n_fixes_used"] <= len(fx1)
+    assert s["config"]["fix_quality"] == "4"

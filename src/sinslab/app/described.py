@@ -103,6 +103,9 @@ DESCRIPTIONS = {
         (r"^lever_arm_sigma_m$", "1σ of the lever-arm estimate"),
         (r"^rest_intervals$", "rest intervals used for zero-velocity updates"),
         (r"^rest_total_s$", "total time at rest used for zero-velocity updates"),
+        (r"^(zupt|zaru|nhc|odometer)_updates_applied$", "{0} updates inside the innovation gate, applied"),
+        (r"^(zupt|zaru|nhc|odometer)_updates_rejected$", "{0} updates the innovation gate rejected (the "
+         "filter's own state contradicts the assumption, e.g. rest while moving)"),
         (r"^scale_factor_final_ppm$", "estimated gyro x, y, z and accelerometer x, y, z scale factors at the end"),
         (r"^smoothed_hz_err_rms_m$", "RMS horizontal error of the RTS-smoothed solution at the reference fixes"),
         (r"^forward_hz_err_rms_m$", "RMS horizontal error of the forward filter at the same fixes"),

@@ -32,7 +32,7 @@ from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
-from sinslab.core.stamps import stamp_step, whole_intervals
+from sinslab.core.stamps import held_runs, stamp_step, whole_intervals
 from sinslab.fusion.loosely_coupled import loosely_coupled
 from sinslab.fusion.smoothing import History, smooth
 
@@ -483,6 +483,13 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                          "different time bases? (GPST vs UTC differ by 18 s; seconds of week vs "
                          "seconds since 1970; a logging delay)")
     fixes = fixes.select((fixes.t >= t_lo) & (fixes.t <= t_hi))
+    init = {}
+    runs = held_runs(np.column_stack([fixes.lat, fixes.lon, fixes.h, fixes.sigma]
+                                     + ([fixes.vel] if fixes.vel is not None else [])))
+    if runs is not None:
+        # a receiver's fixes repeated in every row of a faster log: one update per epoch
+        init["held_fixes"] = (len(fixes), int(runs.size))
+        fixes = fixes.select(runs)
     if len(fixes) < 2:
         raise ValueError("fewer than 2 fixes inside the IMU record")
     if opt.fix_sigma is not None:
@@ -503,7 +510,6 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
 
     # --- initial attitude: levelling at rest, heading given or from straight motion
     rest = leveled_start(imu, fixes, opt)
-    init = {}
     gb = np.zeros(3)
     if rest is not None:
         k0, k1 = rest

@@ -61,7 +61,8 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                    time_sync="none", velocity_lag=0.0, imu_delay=0.0, scale_factors=False,
                    max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None,
                    columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
-                   odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None):
+                   odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None,
+                   fix_columns=None, fix_quality=None):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
 
     Recorded-unit options: ``columns`` a column map of the IMU table
@@ -71,7 +72,9 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     lever-arm estimation); ``rest`` where ZUPT/ZARU find rest, ``auto`` (IMU detector) or
     ``flags`` (the log's rest column, default when the column map names one);
     ``csv_rate`` [Hz] the rate of ``solution.csv`` (``solution.parquet`` holds every filter
-    epoch).
+    epoch); ``fix_columns`` a column map of the fix table (the syntax of ``columns``, keys
+    :data:`sinslab.data.columns.FIX_KEYS`); ``fix_quality`` the accepted values of its
+    quality/mode column (``"4,5"``).
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
@@ -88,18 +91,19 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, echo=echo,
         options=options, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
         csv_rate=csv_rate, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
-                                    lever=odometer_lever, sigma=odometer_sigma)), echo=echo)
+                                    lever=odometer_lever, sigma=odometer_sigma),
+        fix_columns=fix_columns, fix_quality=fix_quality), echo=echo)
     return (summary, *res.value)
 
 
 def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
-             csv_rate=1.0, smo=None) -> Output:
+             csv_rate=1.0, smo=None, fix_columns=None, fix_quality=None) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import earth as E         # numba and scipy: only when it runs
-    from sinslab.data import guess_imu_format, load_imu, read_fixes
+    from sinslab.data import guess_imu_format, load_fixes, load_imu
     from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
                                          navigate_recorded, outage_end_errors, parse_outages,
                                          shift_imu_time, significant_time_offset)
@@ -127,7 +131,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
     ffmt = fix_format or ("rtklib-pos" if str(fix_path).lower().endswith(".pos") else None)
-    fx = read_fixes(fix_path, ffmt, velocity_lag=velocity_lag)
+    fx, fmeta = load_fixes(fix_path, ffmt, velocity_lag=velocity_lag, columns=fix_columns,
+                           quality=fix_quality)
+    _say_fix_reading(fmeta, fix_path, echo)
     imu = data.imu
     if len(data.gaps):
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
@@ -253,6 +259,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
            "init": str(init or ""), "time_sync": time_sync, "velocity_lag": f"{velocity_lag:g} s",
            "imu_delay": f"{imu_delay:g} s", "scale_factors": bool(opt.scale_factors),
            "columns": str(columns) if columns is not None else "auto",
+           "fix_columns": str(fix_columns) if fix_columns is not None else "auto",
+           "fix_quality": str(fix_quality) if fix_quality is not None else "all",
            "aid": ",".join(sorted(aids)) or "none", "rest": opt.zupt or "none",
            "csv_rate": f"{csv_rate:g} Hz", "heading_window": f"{opt.heading_window:g} s",
            "imu_errors": {**({"source": "built-in defaults (white noise measured at the initial "
@@ -372,6 +380,23 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                                     "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims)
+
+
+def _say_fix_reading(meta, path, echo):
+    """What the fix reader did to the table, on the terminal (a user must not find out
+    from the results that 30 000 rows were 600 fixes)."""
+    if meta.get("compressed"):
+        echo(f"  {path}: read from a {meta['compressed']} file")
+    if meta.get("held"):
+        rows, ep = meta["held"]
+        echo(f"  {path}: {rows} rows hold {ep} receiver epochs (each fix repeated ~{rows / ep:.0f}x by "
+             "the logger): collapsed to the first row of each epoch")
+    if meta.get("no_position"):
+        echo(f"  {path}: {meta['no_position']} rows without a position dropped")
+    if meta.get("quality_counts") is not None:
+        echo(f"  {path}: quality/mode values {meta['quality_counts']} (rows); kept: {meta['quality_kept']}")
+    if meta.get("velocity_frame") == "NED":
+        echo(f"  {path}: velocity north, east, down (turned to east, north, up)")
 
 
 # ------------------------------------------------------- smoothing and odometer ---
@@ -514,7 +539,9 @@ def register(app):
                  odometer: Optional[str] = typer.Option(None, "--odometer", help="wheel speeds: FILE (t, speed columns) or a COLUMN of the IMU table"),
                  odometer_units: Optional[str] = typer.Option(None, "--odometer-units", help="speed unit if the header has none, e.g. km/h"),
                  odometer_lever: Optional[str] = typer.Option(None, "--odometer-lever", help='IMU -> wheel point, vehicle right-forward-up, e.g. "[0, -1.2, -0.3] m"'),
-                 odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]')) -> None:
+                 odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]'),
+                 fix_columns: Optional[str] = typer.Option(None, "--fix-columns", help='fix column map "t=time[s],lat=Pos.Latitude[deg],vd=Vel.Down[m/s],quality=Mode,..." or a TOML file'),
+                 fix_quality: Optional[str] = typer.Option(None, "--fix-quality", help="accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2")) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
@@ -523,6 +550,6 @@ def register(app):
                  echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
                  csv_rate=csv_rate, force=force, smooth=smooth, odometer=odometer,
                  odometer_units=odometer_units, odometer_lever=odometer_lever,
-                 odometer_sigma=odometer_sigma)
+                 odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality)
 
     return navigate
