@@ -146,3 +146,37 @@ def test_navigate_cli_on_the_units_fix_export(drive, tmp_path):
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["metrics"]["n_fixes_used"] <= len(fx1)
     assert s["config"]["fix_quality"] == "4"
+
+
+def test_imu_from_two_files_and_an_archive(drive, tmp_path):
+    """Accelerometers and gyros in two files on one (jittered) time column, one of them
+    zipped, a few rows of each without a partner: joined on time, the same record as one
+    file with the same rows."""
+    import zipfile
+
+    from sinslab.data import load_imu
+    imu = drive[0]
+    rng = np.random.default_rng(3)
+    t = imu.t + rng.uniform(-2e-4, 2e-4, len(imu))
+    w, f = imu.dtheta / imu.dt, imu.dv / imu.dt
+    acc = np.column_stack([t, f / 9.80665])
+    gyr = np.column_stack([t, np.degrees(w)])
+    np.savetxt(tmp_path / "acc.csv", np.delete(acc, [5, 7000], 0), delimiter=",", header="time,ax[g],ay[g],az[g]",
+               comments="", fmt="%.12g")
+    np.savetxt(tmp_path / "gyro.csv", np.delete(gyr, [9000], 0), delimiter=",", header="time,gx[deg/s],gy[deg/s],gz[deg/s]",
+               comments="", fmt="%.12g")
+    with zipfile.ZipFile(tmp_path / "gyro.zip", "w") as z:
+        z.write(tmp_path / "gyro.csv", "gyro.csv")
+    both = np.column_stack([t, f / 9.80665, np.degrees(w)])
+    np.savetxt(tmp_path / "one.csv", np.delete(both, [5, 7000, 9000], 0), delimiter=",",
+               header="time,ax[g],ay[g],az[g],gx[deg/s],gy[deg/s],gz[deg/s]", comments="", fmt="%.12g")
+    j = load_imu([tmp_path / "acc.csv", tmp_path / "gyro.zip"])
+    one = load_imu(tmp_path / "one.csv")
+    assert j.meta["joined"]["unmatched"] == [1, 2]
+    np.testing.assert_array_equal(j.imu.dtheta, one.imu.dtheta)
+    np.testing.assert_array_equal(j.imu.dv, one.imu.dv)
+    assert "gyro.zip" in j.path
+    np.savetxt(tmp_path / "late.csv", gyr + [0.005, 0, 0, 0], delimiter=",", header="time,gx[deg/s],gy[deg/s],gz[deg/s]",
+               comments="", fmt="%.12g")
+    with pytest.raises(ValueError, match="not on one time column"):
+        load_imu([tmp_path / "acc.csv", tmp_path / "late.csv"])

@@ -57,18 +57,32 @@ def load_imu(path, fmt=None, **kw) -> ImuData:
     """Read any supported IMU file into :class:`~sinslab.data.increments.ImuData` (``fmt``
     from :data:`IMU_FORMATS`, default from the suffix: ``.imu`` psins, ``.parquet``
     parquet, ``.mat`` mat, a ``.csv`` with a ``.tag`` next to it rtklib-imu, else csv).
-    Keywords go to the reader."""
-    p = _existing_file(path)
-    fmt = fmt or guess_imu_format(p)
-    if fmt == "psins":
-        return psins.load_psins(p, **kw)
-    if fmt in ("csv", "parquet"):
-        return tables.read_table_imu(p, **kw)
-    if fmt == "mat":
-        return matlab.read_mat_imu(p, **kw)
-    if fmt == "rtklib-imu":
-        return rtklib.read_rtklib_imu(p, **kw)
-    raise ValueError(f"unknown IMU format {fmt!r}; use one of {IMU_FORMATS}")
+    Keywords go to the reader. A text log may come as ``.gz`` or in a ``.zip``
+    (:mod:`sinslab.data.archive`); ``path`` may be a pair of csv/parquet tables on one time
+    column (accelerometers in one, gyros in the other), joined on their stamps."""
+    import contextlib
+
+    from sinslab.data.archive import compression, plain_file
+    paths = list(path) if isinstance(path, (list, tuple)) else [path]
+    ps = [_existing_file(p) for p in paths]
+    with contextlib.ExitStack() as stack:
+        qs = [stack.enter_context(plain_file(p)) for p in ps]
+        fmt = fmt or guess_imu_format(ps[0] if compression(ps[0]) is None else qs[0])
+        if len(qs) > 1 and fmt not in ("csv", "parquet"):
+            raise ValueError(f"IMU channels from two files: csv or parquet tables only, not {fmt!r}")
+        if fmt == "psins":
+            d = psins.load_psins(qs[0], **kw)
+        elif fmt in ("csv", "parquet"):
+            d = tables.read_table_imu(qs if len(qs) > 1 else qs[0], **kw)
+        elif fmt == "mat":
+            d = matlab.read_mat_imu(qs[0], **kw)
+        elif fmt == "rtklib-imu":
+            d = rtklib.read_rtklib_imu(qs[0], **kw)
+        else:
+            raise ValueError(f"unknown IMU format {fmt!r}; use one of {IMU_FORMATS}")
+    if any(q != p for q, p in zip(qs, ps)):          # read from an unpacked copy: the archive's name
+        d = dataclasses.replace(d, path=" + ".join(map(str, ps)))
+    return d
 
 
 def read_imu(path, fmt=None, **kw):

@@ -79,12 +79,18 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     by numpy); any malformed table raises ValueError naming the file, the line and the
     cause (binary data, a short line, a non-number in a used column, ...).
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file")
     cmap = _columns.parse_column_map(columns)
-    is_parquet = path.suffix.lower() in (".parquet", ".pq")
-    src = _ParquetSource(path) if is_parquet else _TextSource(path, headerless=_positional(cmap))
+    if isinstance(path, (list, tuple)) and len(path) == 1:
+        path = path[0]
+    if isinstance(path, (list, tuple)):
+        src = _JoinedSource([Path(p) for p in path], cmap)
+        path, is_parquet = src.path, False
+    else:
+        path = Path(path)
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: no such file")
+        is_parquet = path.suffix.lower() in (".parquet", ".pq")
+        src = _source(path, cmap)
     cols, hline = src.cols, src.hline
     pick = _select(cols, cmap, path, hline, src.raw)
     ti, gi, ai, si = pick["t"], pick["gyro"], pick["accel"], pick.get("stationary")
@@ -142,6 +148,8 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     a = data[:, 4:7] * as_ @ R.T
     check_stamps(t, path, lines)
     meta = {"units": {"gyro": gu, "accel": au, "time": tu}}
+    if isinstance(src, _JoinedSource):
+        meta["joined"] = src.report()
     if si is not None:
         f = data[:, 7]
         if not np.all(np.isin(f, (0.0, 1.0))):
@@ -172,6 +180,87 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
 # ----------------------------------------------------------------- table sources ---
 def _positional(cmap):
     return bool(cmap) and all(isinstance(v[0], int) for v in cmap.values())
+
+
+def _source(path, cmap):
+    return _ParquetSource(path) if path.suffix.lower() in (".parquet", ".pq") else \
+        _TextSource(path, headerless=_positional(cmap))
+
+
+class _JoinedSource:
+    """Two tables on one time column read as one (a unit that logs its accelerometers and
+    gyros to separate files): the columns of both side by side, the second file's time
+    column left out; the rows matched by time stamp within the first file's own stamp
+    tolerance (:func:`sinslab.core.stamps.stamp_step`). Rows without a partner are dropped
+    and counted; fewer than half matched is an error (not one time base)."""
+
+    def __init__(self, paths, cmap):
+        if len(paths) != 2:
+            raise ValueError(f"IMU channels come from one file or two, got {len(paths)} files")
+        for p in paths:
+            if not p.exists():
+                raise FileNotFoundError(f"{p}: no such file")
+        self.paths = paths
+        self.path = f"{paths[0]} + {paths[1]}"
+        self.srcs = [_source(p, cmap) for p in paths]
+        tname = cmap.get("t", (None,))[0]
+        self.ti = [self._time_index(s, tname, p) for s, p in zip(self.srcs, paths)]
+        a, b = self.srcs
+        self.where = [(0, i) for i in range(len(a.cols))] + \
+            [(1, i) for i in range(len(b.cols)) if i != self.ti[1]]
+        self.cols = [self.srcs[k].cols[i] for k, i in self.where]
+        self.raw = [self.srcs[k].raw[i] for k, i in self.where]
+        self.hline = a.hline
+        self.unmatched = (0, 0)
+
+    @staticmethod
+    def _time_index(src, tname, path):
+        names = [c[0] for c in src.cols]
+        raw_l = [str(r).strip().lower() for r in src.raw]
+        if isinstance(tname, int):
+            return tname - 1
+        cand = [tname] if tname is not None else list(_TIME_NAMES)
+        for n in cand:
+            hits = [i for i, (a, r) in enumerate(zip(names, raw_l)) if n in (a, r)]
+            if len(hits) == 1:
+                return hits[0]
+        raise ValueError(f"{where(path, src.hline)}: no time column "
+                         f"({tname or ', '.join(_TIME_NAMES)}) to join the two IMU files on")
+
+    def fetch(self, idx):
+        from sinslab.core.stamps import stamp_step
+        per = [[self.ti[0]], [self.ti[1]]]
+        for i in idx:
+            k, j = self.where[i]
+            per[k].append(j)
+        A_, B_ = (s.fetch(list(dict.fromkeys(c))) for s, c in zip(self.srcs, per))
+        pos = [{c: n for n, c in enumerate(dict.fromkeys(cc))} for cc in per]
+        ta, tb = A_[:, 0], B_[:, 0]
+        check_stamps(ta, self.paths[0], self.srcs[0].lines)
+        check_stamps(tb, self.paths[1], self.srcs[1].lines)
+        _, tol = stamp_step(ta) if ta.size > 1 else (0.0, 0.0)
+        j = np.clip(np.searchsorted(tb, ta), 1, max(tb.size - 1, 1))
+        jn = np.where(np.abs(tb[j - 1] - ta) <= np.abs(tb[np.minimum(j, tb.size - 1)] - ta), j - 1,
+                      np.minimum(j, tb.size - 1))
+        ok = np.abs(tb[jn] - ta) <= tol
+        n_ok = int(ok.sum())
+        if n_ok < 0.5 * min(ta.size, tb.size):
+            raise ValueError(f"{self.path}: only {n_ok} of {ta.size} time stamps of {self.paths[0].name} "
+                             f"match one of {self.paths[1].name} within {tol * 1e3:.3g} ms: the two files "
+                             "are not on one time column")
+        self.unmatched = (int(ta.size - n_ok), int(tb.size - n_ok))
+        keep = np.flatnonzero(ok)
+        self.lines = _LineView(self.srcs[0].lines, keep)
+        out = np.empty((keep.size, len(idx)))
+        for c, i in enumerate(idx):
+            k, jj = self.where[i]
+            out[:, c] = A_[keep, pos[0][jj]] if k == 0 else B_[jn[keep], pos[1][jj]]
+        return out
+
+    def report(self):
+        """``{"files", "unmatched"}``: the two files and the rows of each left without a
+        partner."""
+        return {"files": [str(p) for p in self.paths], "unmatched": list(self.unmatched)}
 
 
 class _LazyLines:

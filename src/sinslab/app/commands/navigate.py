@@ -108,7 +108,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                                          navigate_recorded, outage_end_errors, parse_outages,
                                          shift_imu_time, significant_time_offset)
 
-    fmt_eff = fmt or guess_imu_format(imu_path)
+    if isinstance(imu_path, (list, tuple)):
+        imu_path = imu_path[0] if len(imu_path) == 1 else list(imu_path)
+    imu_one = imu_path[0] if isinstance(imu_path, list) else imu_path     # the table odometer columns come from
+    fmt_eff = fmt or guess_imu_format(imu_one)
     kw = {}
     if mount is not None:
         kw["mount"] = mount
@@ -135,6 +138,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                            quality=fix_quality)
     _say_fix_reading(fmeta, fix_path, echo)
     imu = data.imu
+    if data.meta and "joined" in data.meta:
+        un = data.meta["joined"]["unmatched"]
+        echo(f"  IMU channels from two files joined on time; rows without a partner dropped: {un[0]} "
+             f"of the first, {un[1]} of the second")
     if len(data.gaps):
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
              + ", ".join(f"{g[1]:.3f} s at {g[0] - imu.t0:.2f} s" for g in data.gaps[:5])
@@ -156,7 +163,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows")
     elif time_sync != "none":
         raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
-    odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_path, sync)
+    odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_one, sync)
     em_cfg = {}
     if em is not None:
         from sinslab.app.error_model import apply_error_model
@@ -252,7 +259,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                  + (" ..." if len(sp_) > 4 else ""))
     if res.scale is not None:
         metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
-    cfg = {"imu": str(imu_path), "fixes": str(fix_path), "format": data.format,
+    cfg = {"imu": data.path, "fixes": str(fix_path), "format": data.format,
            "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.lever_arm)}] m",
            "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
            "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
@@ -265,7 +272,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
            "csv_rate": f"{csv_rate:g} Hz", "heading_window": f"{opt.heading_window:g} s",
            "imu_errors": {**({"source": "built-in defaults (white noise measured at the initial "
                                         "rest, floored at the defaults)"} if not em_cfg else em_cfg)}}
-    echo(f"{imu_path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_path}: {len(fx)} fixes"
+    echo(f"{data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_path}: {len(fx)} fixes"
          f"{' with velocity' if fx.vel is not None else ''}")
     echo(f"  start {res.init['t_start'] - fx.t[0]:.2f} s after the first fix; heading "
          f"{np.degrees(res.init['heading']):.2f} deg (clockwise from north, {res.init['heading_source']})")
@@ -510,7 +517,7 @@ def register(app):
     import typer
 
     @app.command()
-    def navigate(imu: Path = typer.Option(..., "--imu", help="recorded IMU file"),
+    def navigate(imu: list[Path] = typer.Option(..., "--imu", help="recorded IMU file; twice for accelerometers and gyros in two tables on one time column"),
                  fixes: Path = typer.Option(..., "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp)"),
                  format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
