@@ -65,14 +65,22 @@ def jittered_stamps(t0, t1, step=1.000019, jitter=0.0, rng=None):
     return t
 
 
-def fixes_at(truth, t, rng, pos_sigma=0.02, vel_sigma=0.02):
+def fixes_at(truth, t, rng, pos_sigma=0.02, vel_sigma=0.02, lever=None, imu=None):
     """Fixes of the truth at any times ``t`` (linear interpolation between its samples),
-    with white noise of ``pos_sigma`` [m] and ``vel_sigma`` [m/s]."""
+    with white noise of ``pos_sigma`` [m] and ``vel_sigma`` [m/s]; with ``lever`` (IMU ->
+    antenna, body RFU [m]) and the ``imu`` record (for the body rate) those of the antenna."""
     from sinslab.core.earth import radii
     from sinslab.core.records import Fixes
     lat, lon, h = (np.interp(t, truth.t, x) for x in (truth.lat, truth.lon, truth.h))
     vel = np.stack([np.interp(t, truth.t, truth.vel[:, i]) for i in range(3)], -1)
     rm, rn = radii(lat, h)
+    if lever is not None:
+        i = np.clip(np.rint((t - truth.t[0]) / (truth.t[1] - truth.t[0])).astype(int), 0, truth.t.size - 1)
+        C = A.euler_to_dcm(truth.att[i])
+        d = C @ np.asarray(lever, float)
+        w = np.stack([np.interp(t, imu.t - imu.dt / 2, imu.dtheta[:, k] / imu.dt) for k in range(3)], -1)
+        vel = vel + np.einsum("kij,kj->ki", C, np.cross(w, lever))
+        lat, lon, h = lat + d[:, 1] / rm, lon + d[:, 0] / (rn * np.cos(lat)), h + d[:, 2]
     e = rng.normal(0, pos_sigma, (t.size, 3))
     return Fixes(t, lat + e[:, 0] / rm, lon + e[:, 1] / (rn * np.cos(lat)), h + e[:, 2],
                  np.full((t.size, 3), pos_sigma), vel + rng.normal(0, vel_sigma, (t.size, 3)),

@@ -180,3 +180,38 @@ def test_imu_from_two_files_and_an_archive(drive, tmp_path):
                comments="", fmt="%.12g")
     with pytest.raises(ValueError, match="not on one time column"):
         load_imu([tmp_path / "acc.csv", tmp_path / "late.csv"])
+
+
+# ------------------------------------------------------------------ one clock -----------
+@pytest.fixture(scope="module")
+def one_clock():
+    """A drive of turns at 5, 10, 15 and 20 m/s, IMU and fixes on one clock, the antenna
+    1.5 m ahead of and 0.3 m above the IMU."""
+    segs = [tr.Static(duration=10.0)]
+    for v in (5, 10, 15, 20):
+        segs.append(tr.Accelerate(duration=6.0, accel=1.0))
+        for k in range(4):
+            segs += [tr.Turn(duration=8.0, rate=(1 if k % 2 else -1) * 60 / v * u.deg, coordinated=False),
+                     tr.Level(duration=3.0)]
+    segs += [tr.Accelerate(duration=11.0, accel=-2.0), tr.Static(duration=5.0)]
+    imu, _, tru, _, rng = simulated_car_drive(segs)
+    lever = [0.0, 1.5, 0.3]
+    return imu, fu.fixes_at(tru, np.arange(0.25, tru.t[-1] - 0.3, 0.25), rng, lever=lever, imu=imu), lever
+
+
+def test_time_sync_on_one_clock_applies_nothing(one_clock):
+    """One clock: the antenna's course lags the body's by l / v in every turn; with the
+    lever arm unknown the old test read that as a +0.16 s offset and a −1200 ppm clock
+    and applied both. Fitted as τ + l / v too, nothing is significant in both fits: 0
+    applied; with the lever arm given, 0 applied; an 80 ms delay injected into the IMU
+    stamps is found and applied (lever given)."""
+    imu, fx, lever = one_clock
+    for lv in (None, lever):
+        sync = R.significant_time_offset(R.estimate_time_offset(imu, fx, lever_arm=lv))
+        assert not sync["offset_applied"] and not sync["ppm_applied"], sync
+        assert sync["offset"] == 0.0 and sync["ppm"] == 0.0
+    sync = R.significant_time_offset(R.estimate_time_offset(imu, fx))
+    assert sync["speed_lag_m"] == pytest.approx(1.5, abs=3 * sync["speed_lag_sigma_m"] + 0.2), sync
+    late = R.shift_imu_time(imu, -0.08)
+    s2 = R.significant_time_offset(R.estimate_time_offset(late, fx, lever_arm=lever))
+    assert s2["offset_applied"] and s2["offset"] == pytest.approx(0.08, abs=0.01), s2

@@ -152,15 +152,19 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                               else lever_arm)
     sync = None
     if time_sync == "auto":
-        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm)
+        # without a lever arm a clock offset cannot be told from the antenna's lag in turns
+        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if lever_arm is not None else None)
         sync = significant_time_offset(est)
-        sync.update(ppm_estimate=est["ppm"], ppm_sigma=est["ppm_sigma"], windows=len(est["windows"]))
+        sync.update(windows=len(est["windows"]))
         imu = shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
         echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
              f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
-             f"{est['ppm']:.0f} ± {est['ppm_sigma']:.0f} ppm "
+             f"{sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
              f"({'applied' if sync['ppm_applied'] else 'not significant, not applied'}); from turn "
-             f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows")
+             f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows "
+             f"(significant: > {sync['threshold_sigmas']:.1f} σ)"
+             + (f"; no lever arm given: a lag of {sync['speed_lag_m']:.2f} ± {sync['speed_lag_sigma_m']:.2f} m "
+                "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else ""))
     elif time_sync != "none":
         raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
     odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_one, sync)
