@@ -103,6 +103,11 @@ DESCRIPTIONS = {
         (r"^lever_arm_sigma_m$", "1σ of the lever-arm estimate"),
         (r"^rest_intervals$", "rest intervals used for zero-velocity updates"),
         (r"^rest_total_s$", "total time at rest used for zero-velocity updates"),
+        (r"^vehicle_mount_estimate_deg$", "estimated IMU mount in the vehicle frame: pitch, roll (not estimated), yaw"),
+        (r"^vehicle_mount_sigma_deg$", "1σ of the vehicle-mount estimate (pitch, -, yaw)"),
+        (r"^nhc_lever_estimate_m$", "estimated IMU -> NHC point (rear-axle centre) lever, vehicle right, forward, up"),
+        (r"^nhc_lever_sigma_m$", "1σ of the NHC lever estimate"),
+        (r"^platform$", "platform kind (given, or inferred from the fixes' speed and climb rate)"),
         (r"^(zupt|zaru|nhc|odometer)_updates_applied$", "{0} updates inside the innovation gate, applied"),
         (r"^(zupt|zaru|nhc|odometer)_updates_rejected$", "{0} updates the innovation gate rejected (the "
          "filter's own state contradicts the assumption, e.g. rest while moving)"),

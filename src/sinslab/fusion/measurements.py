@@ -643,12 +643,14 @@ class ZeroRate(_OnEpochs):
         return z, H, self.sigma ** 2
 
 
-def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None):
+def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None, mount_block=None):
     """Velocity of a vehicle point in vehicle axes and its Jacobian.
 
     ``v^v = C_b^v (C̃_n^b ṽ^n + ω̃_ib^b × l)`` [m/s] (l: IMU -> point, body axes [m]);
     ``∂/∂φ = −C_b^v C_n^b (v^n×)``, ``∂/∂δv = C_b^v C_n^b``, ``∂/∂δω = −C_b^v (l×)``,
-    ``∂/∂δl = C_b^v (ω×)`` (lever error state, computed − true, when ``lever_block``).
+    ``∂/∂δl = C_b^v (ω×)`` (lever error state, computed − true, when ``lever_block``),
+    ``∂/∂ψ = (v^v×)`` (``mount_block``: small angles ψ [rad] of the mount in use, vehicle
+    axes, ``C̃_b^v = (I − ψ×) C_b^v``; the true mount is ``(I + ψ×) C̃_b^v``).
     """
     Cnb = nr.C_bn.T
     w = nr.omega_b
@@ -661,7 +663,11 @@ def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None):
     _add_rate_H(H, lay, -Cvb @ A.skew(lever), w)
     if lever_block is not None:
         H[:, lay.slice(lever_block)] = Cvb @ A.skew(w)
-    return Cvb @ vb, H
+    vv = Cvb @ vb
+    if mount_block is not None:
+        b = next(x for x in lay.blocks if x.name == mount_block)
+        H[:, lay.slice(mount_block)] = A.skew(vv)[:, ["xyz".index(a) for a in b.axes]]
+    return vv, H
 
 
 def _lever(lever_arm):
@@ -686,6 +692,9 @@ class NonHolonomic(_OnEpochs):
         Where the constraint holds (default: every epoch).
     lever_block : str, optional
         Name of a :func:`sinslab.nav.errstate.lever_arm` block estimating the lever error.
+    mount_block : str, optional
+        Name of a :func:`sinslab.nav.errstate.installation` block (axes ``"xz"``: pitch and
+        yaw; roll is unobservable) estimating the mount's small-angle error.
     every, stream, gate
         As in :class:`ZeroVelocity`.
     """
@@ -693,16 +702,17 @@ class NonHolonomic(_OnEpochs):
     rows = (0, 2)
 
     def __init__(self, sigma=0.1, *, mount=None, lever_arm=None, intervals=None, lever_block=None,
-                 every=1, stream=0, gate=None):
+                 every=1, stream=0, gate=None, mount_block=None):
         self._init_sched(intervals, every, stream, gate)
         self.sigma = _sigma(sigma, 2, "NHC")
         self.Cvb = mount_matrix(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
+        self.mount_block = mount_block
 
     def matrices(self, ep: Epoch):
         vv, H = _vehicle_velocity(ep.streams[self.stream], ep.layout, ep.n, self.Cvb, self.lever,
-                                  self.lever_block)
+                                  self.lever_block, self.mount_block)
         r = list(self.rows)
         return vv[r], H[r], self.sigma ** 2
 

@@ -38,7 +38,11 @@ from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
            "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
-           "leveled_start", "moving_spans", "subtract_spans"]
+           "leveled_start", "moving_spans", "subtract_spans", "platform_kind", "PLATFORMS"]
+
+
+#: platform kinds of :attr:`NavOptions.platform`
+PLATFORMS = ("auto", "land", "aircraft", "marine")
 
 
 @dataclass
@@ -88,6 +92,13 @@ class NavOptions:
     rest_min: float = 2.0                   #: shortest rest interval used [s]
     nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
     nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
+    vehicle_mount: tuple | None = None      #: IMU body in the vehicle frame [pitch, roll, yaw] [rad]
+    #: (what is left after the reader's mount: a case bolted 1-2° off the car's axes)
+    estimate_vehicle: bool = False          #: states for the mount's pitch and yaw and the NHC lever
+    vehicle_mount_sigma: float = 2.0 * units.deg   #: their initial σ [rad]
+    nhc_lever_sigma: float = 0.5            #: [m] per axis
+    platform: str = "auto"                  #: "auto" | "land" | "aircraft" | "marine": NHC and the
+    #: odometer assume a wheeled land vehicle and are refused otherwise ("auto": from the fixes)
     aiding_dt: float = 0.1                  #: ZUPT/NHC applied every this [s] (ZARU: every epoch)
     aid_gate: float | None = 1e-6           #: false-rejection probability of the innovation gate of
     #: every ZUPT/ZARU/NHC/odometer update (:class:`~sinslab.fusion.measurements.InnovationGate`); None: no gate
@@ -121,6 +132,10 @@ class NavOptions:
             raise ValueError("zupt='flags' needs a rest-flag column (column map key 'stationary')")
         if self.zaru and self.zupt is None:
             raise ValueError("ZARU runs on the rest intervals of ZUPT: choose zupt='auto' or 'flags'")
+        if self.platform not in PLATFORMS:
+            raise ValueError(f"platform must be one of {', '.join(PLATFORMS)}, got {self.platform!r}")
+        if self.estimate_vehicle and self.nhc_sigma is None:
+            raise ValueError("the vehicle mount and NHC lever states need the NHC (nhc_sigma)")
         if self.aid_gate is not None and not (0 < self.aid_gate < 1):
             raise ValueError(f"aid_gate must be a probability in (0, 1) or None, got {self.aid_gate}")
         for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight"):
@@ -303,6 +318,8 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
         sensors.append(es.lever_arm())
     if opt.odometer is not None:
         sensors.append(es.odometer_scale())
+    if opt.estimate_vehicle:
+        sensors += [es.installation("vm", "xz"), es.lever_arm("nlev")]
     return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
 
 
@@ -379,6 +396,23 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
                f"{fixes.t[w[-1]] - fixes.t[j]:.1f} s of motion")
         return kk[-1], Rz @ C, sig, how
     return None
+
+
+def platform_kind(fixes: Fixes, platform="auto"):
+    """``(kind, reason)``: the platform as given, or with ``"auto"`` from the fixes: an
+    aircraft when the horizontal speed exceeds 70 m/s or the climb rate exceeds 5 m/s at
+    more than 1 % of the fixes (a car on a 15 % grade at 30 m/s climbs 4.5 m/s); else land
+    (a ship is not told from a car by its fixes)."""
+    if platform != "auto":
+        return platform, "given"
+    v = _fix_vel_enu(fixes)
+    sp = np.hypot(v[:, 0], v[:, 1])
+    vu = np.abs(v[:, 2]) if np.all(np.isfinite(v[:, 2])) else np.zeros(len(fixes))
+    if sp.max() > 70.0:
+        return "aircraft", f"horizontal speed up to {sp.max():.0f} m/s"
+    if np.mean(vu > 5.0) > 0.01:
+        return "aircraft", f"climbing or descending faster than 5 m/s at {100 * np.mean(vu > 5.0):.0f} % of the fixes"
+    return "land", "from the fixes: speed and climb rate of a land vehicle"
 
 
 def fixes_dt(fixes):
@@ -492,6 +526,12 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         fixes = fixes.select(runs)
     if len(fixes) < 2:
         raise ValueError("fewer than 2 fixes inside the IMU record")
+    init["platform"] = platform_kind(fixes, opt.platform)
+    kind, why = init["platform"]
+    if kind in ("aircraft", "marine") and (opt.nhc_sigma is not None or opt.odometer is not None):
+        raise ValueError(f"the non-holonomic constraint and the odometer assume a wheeled land vehicle; "
+                         f"this is {'an' if kind == 'aircraft' else 'a'} {kind} ({why}): drop nhc/odometer"
+                         + (" (or give the platform as land if it is a car)" if opt.platform == "auto" else ""))
     if opt.fix_sigma is not None:
         sg = np.broadcast_to(np.asarray(opt.fix_sigma, float), (3,))
         fixes = dataclasses.replace(fixes, sigma=np.tile(sg, (len(fixes), 1)))
@@ -586,6 +626,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         sp0[lay.slice("lev")] = opt.lever_sigma
     if opt.odometer is not None:
         sp0[lay.slice("kod")] = opt.odometer_scale_sigma
+    if opt.estimate_vehicle:
+        sp0[lay.slice("vm")] = opt.vehicle_mount_sigma
+        sp0[lay.slice("nlev")] = opt.nhc_lever_sigma
     n_ep = (len(imu) - ks) // k_kf
     if n_ep < 2:
         raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
@@ -612,9 +655,12 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                 init["zaru_sigma"] = zs
                 # every epoch: each holds the rate of its own step, thinning discards them
                 named.append(("zaru", ZeroRate(iv, zs, every=1, gate=gate)))
+    Cvb = A.euler_to_dcm(np.asarray(opt.vehicle_mount, float)) if opt.vehicle_mount is not None else np.eye(3)
     if opt.nhc_sigma is not None:
-        named.append(("nhc", NonHolonomic(opt.nhc_sigma, lever_arm=np.asarray(opt.nhc_lever_arm, float),
-                                          every=every, gate=gate)))
+        named.append(("nhc", NonHolonomic(
+            opt.nhc_sigma, mount=Cvb, lever_arm=Cvb.T @ np.asarray(opt.nhc_lever_arm, float), every=every,
+            gate=gate, mount_block="vm" if opt.estimate_vehicle else None,
+            lever_block="nlev" if opt.estimate_vehicle else None)))
     if opt.odometer is not None:
         named.append(("odometer", _odometer(opt.odometer, opt, T, t_lo, t_hi)))
     aiding = [m for _, m in named]
@@ -649,6 +695,15 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         sl = lay.slice("lev")
         init["lever_arm_estimate"] = (lever - r.x[-1, sl]).tolist()     # δl = l_used − l_true
         init["lever_arm_sigma"] = r.sigma[-1, sl].tolist()
+    if opt.estimate_vehicle:
+        # the true mount is (I + ψ×) C_used: small angles added to pitch (x) and yaw (z)
+        psi, s_psi = r.x[-1, lay.slice("vm")], r.sigma[-1, lay.slice("vm")]
+        m0 = np.zeros(3) if opt.vehicle_mount is None else np.asarray(opt.vehicle_mount, float)
+        init["vehicle_mount_estimate"] = [float(m0[0] + psi[0]), float(m0[1]), float(m0[2] + psi[1])]
+        init["vehicle_mount_sigma"] = [float(s_psi[0]), None, float(s_psi[1])]
+        sl = lay.slice("nlev")
+        init["nhc_lever_estimate"] = (np.asarray(opt.nhc_lever_arm, float) - Cvb @ r.x[-1, sl]).tolist()
+        init["nhc_lever_sigma"] = np.sqrt(np.diag(Cvb @ np.diag(r.sigma[-1, sl] ** 2) @ Cvb.T)).tolist()
     return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
                        r.fix_t, r.innovation, r.nis, init, opt,
                        smoothed=smooth(r) if opt.smooth else None)

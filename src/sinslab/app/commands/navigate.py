@@ -62,7 +62,8 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                    max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None,
                    columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
                    odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None,
-                   fix_columns=None, fix_quality=None):
+                   fix_columns=None, fix_quality=None, vehicle_mount=None, nhc_lever=None,
+                   platform="auto"):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
 
     Recorded-unit options: ``columns`` a column map of the IMU table
@@ -74,7 +75,11 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     ``csv_rate`` [Hz] the rate of ``solution.csv`` (``solution.parquet`` holds every filter
     epoch); ``fix_columns`` a column map of the fix table (the syntax of ``columns``, keys
     :data:`sinslab.data.columns.FIX_KEYS`); ``fix_quality`` the accepted values of its
-    quality/mode column (``"4,5"``).
+    quality/mode column (``"4,5"``); ``vehicle_mount`` the IMU body (after ``mount``) in the
+    vehicle frame, a mount string (``"euler:P,R,Y"`` degrees) — with ``nhc`` its pitch and
+    yaw are also estimated, as is the NHC lever ``nhc_lever`` (IMU -> rear-axle centre,
+    vehicle RFU) — and ``platform`` auto | land | aircraft | marine (NHC and the odometer
+    are refused off land).
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
@@ -92,14 +97,15 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         options=options, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
         csv_rate=csv_rate, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
                                     lever=odometer_lever, sigma=odometer_sigma),
-        fix_columns=fix_columns, fix_quality=fix_quality), echo=echo)
+        fix_columns=fix_columns, fix_quality=fix_quality,
+        vehicle=dict(mount=vehicle_mount, lever=nhc_lever, platform=platform)), echo=echo)
     return (summary, *res.value)
 
 
 def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
-             csv_rate=1.0, smo=None, fix_columns=None, fix_quality=None) -> Output:
+             csv_rate=1.0, smo=None, fix_columns=None, fix_quality=None, vehicle=None) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import earth as E         # numba and scipy: only when it runs
@@ -188,6 +194,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         opt.zupt = src_rest
         opt.zaru = "zaru" in aids
     opt.estimate_lever = "lever" in aids
+    veh_cfg = _vehicle_options(opt, vehicle or {}, "nhc" in aids)
     t_ref = float(fx.t[0])
     opt.outages = tuple(parse_outages(outages, t_ref)) if isinstance(outages, (str, type(None))) else tuple(outages)
     if isinstance(outages, str):
@@ -249,6 +256,16 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if "lever_arm_estimate" in res.init:
         metrics["lever_arm_estimate_m"] = res.init["lever_arm_estimate"]
         metrics["lever_arm_sigma_m"] = res.init["lever_arm_sigma"]
+    if "vehicle_mount_estimate" in res.init:
+        ve, vs = res.init["vehicle_mount_estimate"], res.init["vehicle_mount_sigma"]
+        metrics["vehicle_mount_estimate_deg"] = np.degrees(ve).tolist()
+        metrics["vehicle_mount_sigma_deg"] = [None if x is None else float(np.degrees(x)) for x in vs]
+        metrics["nhc_lever_estimate_m"] = res.init["nhc_lever_estimate"]
+        metrics["nhc_lever_sigma_m"] = res.init["nhc_lever_sigma"]
+        echo(f"  vehicle mount (IMU in the vehicle) pitch {np.degrees(ve[0]):.2f} ± {np.degrees(vs[0]):.2f} deg, "
+             f"yaw {np.degrees(ve[2]):.2f} ± {np.degrees(vs[2]):.2f} deg; NHC lever [m] "
+             + ", ".join(f"{a:.2f} ± {b:.2f}" for a, b in zip(res.init["nhc_lever_estimate"], res.init["nhc_lever_sigma"])))
+    metrics["platform"] = res.init["platform"][0]
     if opt.zupt is not None:
         metrics["rest_intervals"] = len(res.init.get("rest_intervals", []))
         metrics["rest_total_s"] = float(sum(b - a for a, b in res.init.get("rest_intervals", [])))
@@ -364,6 +381,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if res.smoothed is not None:
         _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, every)
     cfg.update(odo_cfg)
+    cfg.update(veh_cfg)
     notes = ["Heading is clockwise from north.",
              f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
              if res.init.get("rest_start") else "No rest at the start."]
@@ -408,6 +426,32 @@ def _say_fix_reading(meta, path, echo):
         echo(f"  {path}: quality/mode values {meta['quality_counts']} (rows); kept: {meta['quality_kept']}")
     if meta.get("velocity_frame") == "NED":
         echo(f"  {path}: velocity north, east, down (turned to east, north, up)")
+
+
+def _vehicle_options(opt, veh, nhc):
+    """``--vehicle-mount``, ``--nhc-lever``, ``--platform`` into the options (with NHC the
+    mount's pitch and yaw and the NHC lever are estimated from the values given);
+    returns their config entries."""
+    from sinslab.core import attitude as A
+    from sinslab.data.frames import mount_matrix
+    from sinslab.fusion.recorded import PLATFORMS
+    plat = veh.get("platform") or "auto"
+    if plat not in PLATFORMS:
+        raise ValueError(f"--platform must be one of {', '.join(PLATFORMS)}, got {plat!r}")
+    opt.platform = plat
+    cfg = {"platform": plat}
+    if veh.get("mount") is not None:
+        try:
+            opt.vehicle_mount = tuple(A.dcm_to_euler(mount_matrix(str(veh["mount"]), "rfu")))
+        except ValueError as e:
+            raise ValueError(f"--vehicle-mount: {e}") from None
+        cfg["vehicle_mount"] = str(veh["mount"])
+    if veh.get("lever") is not None:
+        opt.nhc_lever_arm = tuple(_vec3(veh["lever"], "length", "--nhc-lever"))
+        cfg["nhc_lever"] = f"[{', '.join(f'{x:g}' for x in opt.nhc_lever_arm)}] m"
+    opt.estimate_vehicle = bool(nhc)
+    cfg["vehicle_states"] = bool(nhc)
+    return cfg
 
 
 # ------------------------------------------------------- smoothing and odometer ---
@@ -552,7 +596,10 @@ def register(app):
                  odometer_lever: Optional[str] = typer.Option(None, "--odometer-lever", help='IMU -> wheel point, vehicle right-forward-up, e.g. "[0, -1.2, -0.3] m"'),
                  odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]'),
                  fix_columns: Optional[str] = typer.Option(None, "--fix-columns", help='fix column map "t=time[s],lat=Pos.Latitude[deg],vd=Vel.Down[m/s],quality=Mode,..." or a TOML file'),
-                 fix_quality: Optional[str] = typer.Option(None, "--fix-quality", help="accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2")) -> None:
+                 fix_quality: Optional[str] = typer.Option(None, "--fix-quality", help="accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2"),
+                 vehicle_mount: Optional[str] = typer.Option(None, "--vehicle-mount", help='IMU body (after --mount) in the vehicle frame, e.g. "euler:1.2,0,-1.5" (pitch, roll, yaw deg); with --aid nhc pitch and yaw are estimated from it'),
+                 nhc_lever: Optional[str] = typer.Option(None, "--nhc-lever", help='IMU -> rear-axle centre, vehicle right-forward-up, e.g. "[0, -1.4, -0.5] m" (estimated from it with --aid nhc)'),
+                 platform: str = typer.Option("auto", "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)")) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
@@ -561,6 +608,7 @@ def register(app):
                  echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
                  csv_rate=csv_rate, force=force, smooth=smooth, odometer=odometer,
                  odometer_units=odometer_units, odometer_lever=odometer_lever,
-                 odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality)
+                 odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality,
+                 vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform)
 
     return navigate
