@@ -297,3 +297,28 @@ def test_nhc_refused_for_an_aircraft():
         R.navigate_recorded(imu, fx, _opt(nhc_sigma=(0.1, 0.1), heading=0.5))
     with pytest.raises(ValueError, match="this is a marine"):
         R.navigate_recorded(imu, fx, _opt(nhc_sigma=(0.1, 0.1), heading=0.5, platform="marine"))
+
+
+# ------------------------------------------------------------------------ claims -------
+def test_navigate_claims_catch_a_ruined_stretch_and_name_a_low_nis():
+    """5 % of the fixes 100 σ off (a ruined stretch): the median claim passes, the 99th
+    percentile claim fails; the same stretch just after an outage (not settled) does not
+    count. A mean NIS of a quarter of the dimension passes as a pessimistic noise model;
+    three times the dimension fails as overconfident. Rayleigh residuals pass."""
+    from sinslab.app.described import navigate_claims
+    rng = np.random.default_rng(1)
+    e = np.hypot(*rng.normal(0, 0.01 / math.sqrt(2), (2, 2000)))         # σ_h = 1 cm
+    s = np.full(e.size, 0.01)
+    ok = {c.id: c.passed for c in navigate_claims(rng.chisquare(6, 500), 6, e, s)[0]}
+    assert ok == {"nis_not_overconfident": True, "fix_residual": True, "fix_residual_p99": True}
+    bad = e.copy()
+    bad[1000:1100] = 1.0
+    claims, extra = navigate_claims(np.full(500, 1.5), 6, bad, s)
+    ok = {c.id: c.passed for c in claims}
+    assert ok == {"nis_not_overconfident": True, "fix_residual": True, "fix_residual_p99": False}
+    assert extra["nis_verdict"] == "pessimistic noise model"
+    settled = np.ones(e.size, bool)
+    settled[1000:1100] = False
+    assert all(c.passed for c in navigate_claims(np.full(500, 6.0), 6, bad, s, settled)[0])
+    claims, extra = navigate_claims(np.full(500, 18.0), 6, e, s)
+    assert not claims[0].passed and extra["nis_verdict"] == "overconfident noise model"

@@ -242,10 +242,16 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     metrics["fixes_after_grid"] = int(res.init.get("fixes_after_grid", 0))
     metrics["filter_gyro_arw_deg_sqrth"] = (np.asarray(res.init["filter_gyro_arw"]) / (units.deg / 60)).tolist()
     metrics["filter_accel_vrw_ug_sqrthz"] = (np.asarray(res.init["filter_accel_vrw"]) / units.ug).tolist()
+    from sinslab.app.described import SETTLE_S
+    settling = np.zeros(t.size, bool)
+    for s0, ln in outs:
+        settling |= (t >= s0 + ln) & (t < s0 + ln + SETTLE_S)
     claims, extra = navigate_claims(
         res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
-        np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T))
+        np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T), ~settling[~in_out])
     metrics.update(extra)
+    if res.nis.size and extra["nis_verdict"] != "consistent":
+        echo(f"  mean NIS {metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: {extra['nis_verdict']}")
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
                        time_sync_offset_estimate_s=sync["offset_estimate"],
@@ -301,7 +307,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         echo(f"  {len(outs)} outages: horizontal error at their end median {np.median(oe):.2f} m, "
              f"max {np.max(oe):.2f} m")
     if (~in_out).any():
-        echo(f"  with fixes: horizontal error median {np.median(hz[~in_out]):.3f} m")
+        echo(f"  with fixes: horizontal error median {np.median(hz[~in_out]):.3f} m, 99th percentile "
+             f"{np.percentile(hz[~in_out], 99):.3f} m, max {np.max(hz[~in_out]):.3f} m")
     echo(f"  final attitude pitch {metrics['final_pitch_deg']:.3f} deg, roll {metrics['final_roll_deg']:.3f} deg, "
          f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
     echo(f"  gyro bias [deg/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [ug] "
