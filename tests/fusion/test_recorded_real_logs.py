@@ -322,3 +322,28 @@ def test_navigate_claims_catch_a_ruined_stretch_and_name_a_low_nis():
     assert all(c.passed for c in navigate_claims(np.full(500, 6.0), 6, bad, s, settled)[0])
     claims, extra = navigate_claims(np.full(500, 18.0), 6, e, s)
     assert not claims[0].passed and extra["nis_verdict"] == "overconfident noise model"
+
+
+# ---------------------------------------------------------------- no standstill -------
+def test_in_motion_alignment_of_a_flight_without_rest():
+    """A flight logged from the air (45 m/s, climbing at 9° then 12°, a banked turn): no
+    rest to level on. Pitch and roll from the fix acceleration against the specific force
+    (Wahba), heading from the course: the filter starts within 1° in pitch and roll and
+    2° in heading (it used to start at pitch 0: 7.5° off), and it is said how."""
+    from sinslab.sim import imu as IM
+    g = tr.generate([tr.Level(duration=20.0), tr.Climb(duration=30.0, angle=12 * u.deg),
+                     tr.Turn(duration=30.0, rate=3 * u.deg), tr.Level(duration=20.0)],
+                    tr.Start(lat=math.radians(40.1), lon=math.radians(-105.1), h=1600.0, speed=45.0,
+                             heading=math.radians(120), pitch=math.radians(9.0)), 0.01)
+    err = IM.ImuErrors.from_datasheet(gyro_bias=["0.01 deg/s", "-0.01 deg/s", "0.02 deg/s"],
+                                      accel_bias=["0.02 m/s^2", "-0.03 m/s^2", "0.05 m/s^2"],
+                                      gyro_arw="0.0038 deg/sqrt(s)", accel_vrw="70 ug/sqrt(Hz)")
+    imu, tru = IM.apply(g.imu, err, 1), g.truth
+    fx = fu.fixes_at(tru, np.arange(0.25, tru.t[-1] - 0.3, 0.25), np.random.default_rng(2), pos_sigma=0.5,
+                     vel_sigma=0.05)
+    r = R.navigate_recorded(imu, fx, _opt(kf_dt=0.1))
+    assert r.init["level_source"].startswith("in motion")
+    i = int(round((r.init["t_start"] - tru.t[0]) / 0.01))
+    d = np.degrees(np.abs(A.wrap_pi(np.array([r.init["pitch"], r.init["roll"]]) - tru.att[i, :2])))
+    assert np.all(d < 1.0), d
+    assert _heading_err(r, tru) < math.radians(2.0)

@@ -9,7 +9,10 @@ data, outages, and evaluation against the fixes.
    given (``heading``), or taken from the fix velocity once the vehicle moves faster than
    ``move_speed`` (the INS attitude is propagated from the levelled start by the gyros
    and rotated about the vertical so that the body forward axis points along the fix
-   course; a car does not drive sideways). The filter starts there.
+   course; a car does not drive sideways). The filter starts there. Without a rest at
+   the start (a flight, a log begun on the move) pitch and roll come from the fix
+   acceleration against the specific force over the first seconds
+   (:func:`level_in_motion`), the heading from the course as above.
 2. **Filter**: :func:`sinslab.fusion.loosely_coupled.loosely_coupled` with the model and
    P0 from :class:`NavOptions`.
 3. **Outages and latency.** Fixes whose validity time lies in an outage are dropped; a
@@ -38,7 +41,7 @@ from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
            "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
-           "leveled_start", "moving_spans", "subtract_spans", "platform_kind", "PLATFORMS"]
+           "leveled_start", "level_in_motion", "moving_spans", "subtract_spans", "platform_kind", "PLATFORMS"]
 
 
 #: platform kinds of :attr:`NavOptions.platform`
@@ -107,6 +110,7 @@ class NavOptions:
     heading_window: float = 1.0             #: [s] of motion above move_speed for the heading
     heading_straight: float = 2.0 * units.deg   #: largest spread of course − gyro heading in it [rad]
     heading_sigma_floor: float = 1.0 * units.deg  #: added (in quadrature) to the σ of that heading
+    level_window: float = 10.0              #: [s] of fixes for levelling in motion (no initial rest)
     smooth: bool = False                    #: record the forward pass and smooth it (RTS)
     odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
     odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
@@ -251,6 +255,53 @@ def level_from_rest(imu: ImuRecord, k0, k1, lat):
     up_b = C.T @ np.array([0.0, 0.0, 1.0])
     w_bias = w - up_b * (E.WIE * math.sin(lat))       # horizontal Earth rate (<15 deg/h) kept
     return pitch, roll, w_bias, f
+
+
+def level_in_motion(imu: ImuRecord, fixes: Fixes, k0, lat, window=10.0):
+    """Pitch and roll [rad] of the body at the start of IMU sample ``k0`` from motion.
+
+    Over the fix intervals ``[t_j, t_j+1]`` in the first ``window`` s, the specific force
+    integrated in the navigation frame is ``Δv^n + g Δt + 2 ω_ie × v Δt`` (fix velocities,
+    ENU, gravity up) and in the start body frame ``Σ C_b^{b0} Δv_b`` (the IMU increments,
+    the body rotation carried by the gyros from ``k0``). The rotation that best maps the
+    second onto the first (Wahba's problem, by SVD) is the start attitude; gravity
+    dominates, so its pitch and roll are sound whatever the accelerations, its heading only
+    with strong horizontal ones (heading is taken from the course instead).
+
+    Returns ``(pitch, roll, intervals used, RMS residual [m/s] per interval)`` or None when
+    fewer than 3 fix intervals fall in the window.
+    """
+    dt = imu.dt
+    t0 = float(imu.t[k0] - dt)
+    j = np.flatnonzero((fixes.t >= t0) & (fixes.t <= t0 + window))
+    if j.size < 4 or k0 >= len(imu):
+        return None
+    v = _fix_vel_enu(fixes)
+    g = float(E.gravity(lat, float(np.nanmean(fixes.h[j])) if np.any(np.isfinite(fixes.h[j])) else 0.0))
+    wie = np.array([0.0, E.WIE * math.cos(lat), E.WIE * math.sin(lat)])
+    k_end = int(np.searchsorted(imu.t, fixes.t[j[-1]] + 1e-9))
+    # the body rotation from the start and each sample's Δv in the start body frame
+    ub_cum = np.zeros((k_end - k0 + 1, 3))
+    C = np.eye(3)
+    for i, k in enumerate(range(k0, k_end)):
+        dv = imu.dv[k] + 0.5 * np.cross(imu.dtheta[k], imu.dv[k])
+        ub_cum[i + 1] = ub_cum[i] + C @ dv
+        C = C @ A.rotvec_to_dcm(imu.dtheta[k])
+    tk = np.r_[t0, imu.t[k0:k_end]]
+    ub_at = np.stack([np.interp(fixes.t[j], tk, ub_cum[:, a]) for a in range(3)], -1)
+    un, ub = [], []
+    for a, b in zip(range(j.size - 1), range(1, j.size)):
+        ia, ib = j[a], j[b]
+        T = float(fixes.t[ib] - fixes.t[ia])
+        vm = 0.5 * (v[ia] + v[ib])
+        un.append(v[ib] - v[ia] + np.array([0.0, 0.0, g * T]) + 2.0 * np.cross(wie, vm) * T)
+        ub.append(ub_at[b] - ub_at[a])
+    un, ub = np.array(un), np.array(ub)
+    U, _, Vt = np.linalg.svd(un.T @ ub)
+    Cbn = U @ np.diag([1.0, 1.0, np.linalg.det(U) * np.linalg.det(Vt)]) @ Vt
+    att = A.dcm_to_euler(Cbn)
+    resid = float(np.sqrt(np.mean(np.sum((un - ub @ Cbn.T) ** 2, axis=1))))
+    return float(att[0]), float(att[1]), int(un.shape[0]), resid
 
 
 def leveled_start(imu, fixes: Fixes, opt: NavOptions):
@@ -565,9 +616,19 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                     level_pitch=pitch, level_roll=roll, rest_gyro_mean=wb.tolist(),
                     rest_f_norm=float(np.linalg.norm(fmean)))
     else:
-        k0, pitch, roll = 0, 0.0, 0.0
-        init.update(rest_start=None, note="no rest at the start: pitch and roll start at 0 with the "
-                    "initial attitude σ")
+        # no standstill (an aircraft, a log started on the move): level in motion from the
+        # GNSS acceleration against the specific force, from the first fix on
+        k0 = int(np.searchsorted(imu.t, max(imu.t0, float(fixes.t[0])) + dt - 1e-9))
+        lv = level_in_motion(imu, fixes, k0, lat0, opt.level_window)
+        if lv is None:
+            pitch, roll = 0.0, 0.0
+            init.update(rest_start=None, level_source="none: no rest and too few fixes in motion; pitch "
+                        "and roll start at 0 with the initial attitude σ")
+        else:
+            pitch, roll, n_used, resid = lv
+            init.update(rest_start=None, level_pitch=pitch, level_roll=roll, level_residual=resid,
+                        level_source=f"in motion: fix acceleration against specific force over {n_used} fix "
+                        f"intervals (no rest at the start)")
     if opt.heading is not None:
         ks = k0
         ts = float(imu.t[ks] - dt) if ks > 0 else imu.t0

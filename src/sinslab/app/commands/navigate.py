@@ -301,6 +301,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                                         "rest, floored at the defaults)"} if not em_cfg else em_cfg)}}
     echo(f"{data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_path}: {len(fx)} fixes"
          f"{' with velocity' if fx.vel is not None else ''}")
+    if not res.init.get("rest_start"):
+        echo(f"  no rest at the start: pitch {np.degrees(res.init['pitch']):.2f} deg, roll "
+             f"{np.degrees(res.init['roll']):.2f} deg {res.init.get('level_source')}")
     echo(f"  start {res.init['t_start'] - fx.t[0]:.2f} s after the first fix; heading "
          f"{np.degrees(res.init['heading']):.2f} deg (clockwise from north, {res.init['heading_source']})")
     if oe.size:
@@ -391,7 +394,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     cfg.update(veh_cfg)
     notes = ["Heading is clockwise from north.",
              f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
-             if res.init.get("rest_start") else "No rest at the start."]
+             if res.init.get("rest_start") else
+             f"No rest at the start: pitch and roll {res.init.get('level_source')}; heading "
+             f"{res.init.get('heading_source')}."]
     if hs is not None:
         notes.append(f"Initial heading {np.degrees(res.init['heading']):.2f} deg ± "
                      f"{np.degrees(hs):.2f} deg (1σ of the course window).")
