@@ -347,3 +347,29 @@ def test_in_motion_alignment_of_a_flight_without_rest():
     d = np.degrees(np.abs(A.wrap_pi(np.array([r.init["pitch"], r.init["roll"]]) - tru.att[i, :2])))
     assert np.all(d < 1.0), d
     assert _heading_err(r, tru) < math.radians(2.0)
+
+
+def test_noise_model_against_the_measured_rest_noise(drive, tmp_path):
+    """The drive's IMU has 0.23 °/√h and 70 µg/√Hz: with the navigation grade (0.002 °/√h,
+    10 µg/√Hz) the measured densities are in the summary and a warning says the measured
+    noise is ~100x the filter's; with the built-in model (the rest measurement floored at
+    the datasheet) nothing is said."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sinslab.cli import app
+    from sinslab.data import write_fixes, write_imu
+    imu, fx4, _, _, _ = drive
+    ip, fp = write_imu(tmp_path / "imu.csv", imu), write_fixes(tmp_path / "fx.csv", fx4)
+    out = {}
+    for nm, extra in (("nav", ["--imu-errors", "navigation"]), ("default", [])):
+        res = CliRunner().invoke(app, ["navigate", "--imu", str(ip), "--fixes", str(fp), "--out",
+                                       str(tmp_path / nm), *extra])
+        assert res.exit_code == 0, res.output
+        out[nm] = (res.output, json.loads((tmp_path / nm / "summary.json").read_text())["metrics"])
+    text, m = out["nav"]
+    assert "Warning: the white noise measured at the initial rest" in text
+    assert min(m["rest_over_filter_noise_gyro"]) > 50
+    assert m["rest_gyro_noise_deg_sqrth"] == pytest.approx([0.228] * 3, rel=0.15)
+    assert "Warning: the white noise" not in out["default"][0]

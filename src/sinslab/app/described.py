@@ -107,6 +107,10 @@ DESCRIPTIONS = {
         (r"^lever_arm_sigma_m$", "1σ of the lever-arm estimate"),
         (r"^rest_intervals$", "rest intervals used for zero-velocity updates"),
         (r"^rest_total_s$", "total time at rest used for zero-velocity updates"),
+        (r"^rest_gyro_noise_deg_sqrth$", "gyro white noise x, y, z measured at the initial rest (vibration included)"),
+        (r"^rest_accel_noise_ug_sqrthz$", "accelerometer white noise x, y, z measured at the initial rest"),
+        (r"^rest_over_filter_noise_(gyro|accel)$", "{0} noise measured at rest over the filter's, per axis "
+         "(a warning beyond 3 or below 1/3)"),
         (r"^vehicle_mount_estimate_deg$", "estimated IMU mount in the vehicle frame: pitch, roll (not estimated), yaw"),
         (r"^vehicle_mount_sigma_deg$", "1σ of the vehicle-mount estimate (pitch, -, yaw)"),
         (r"^nhc_lever_estimate_m$", "estimated IMU -> NHC point (rear-axle centre) lever, vehicle right, forward, up"),

@@ -607,10 +607,14 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         pitch, roll, wb, fmean = level_from_rest(imu, k0, k1, lat0)
         if opt.rest_bias:
             gb = wb.copy()
+        # white-noise densities of the unit as it stands (engine vibration included)
+        sq = math.sqrt(dt)
+        g_meas = np.std(imu.dtheta[k0:k1], 0) / dt * sq
+        a_meas = np.std(imu.dv[k0:k1], 0) / dt * sq
+        init.update(rest_gyro_noise=g_meas.tolist(), rest_accel_noise=a_meas.tolist())
         if opt.rest_noise:
-            sq = math.sqrt(dt)
-            arw = np.maximum(np.std(imu.dtheta[k0:k1], 0) / dt * sq, opt.gyro_arw)
-            vrw = np.maximum(np.std(imu.dv[k0:k1], 0) / dt * sq, opt.accel_vrw)
+            arw = np.maximum(g_meas, opt.gyro_arw)
+            vrw = np.maximum(a_meas, opt.accel_vrw)
             init.update(rest_gyro_arw=arw.tolist(), rest_accel_vrw=vrw.tolist())
         init.update(rest_start=float(imu.t[k0] - dt), rest_end=float(imu.t[k1 - 1]),
                     level_pitch=pitch, level_roll=roll, rest_gyro_mean=wb.tolist(),

@@ -242,6 +242,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     metrics["fixes_after_grid"] = int(res.init.get("fixes_after_grid", 0))
     metrics["filter_gyro_arw_deg_sqrth"] = (np.asarray(res.init["filter_gyro_arw"]) / (units.deg / 60)).tolist()
     metrics["filter_accel_vrw_ug_sqrthz"] = (np.asarray(res.init["filter_accel_vrw"]) / units.ug).tolist()
+    noise_warn = _noise_check(res.init, metrics, echo)
     from sinslab.app.described import SETTLE_S
     settling = np.zeros(t.size, bool)
     for s0, ln in outs:
@@ -417,6 +418,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if opt.zupt is not None:
         notes.append(f"ZUPT{'/ZARU' if opt.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
                      f"{metrics['rest_total_s']:.0f} s in all ({opt.zupt} detection).")
+    if noise_warn:
+        notes.append(noise_warn)
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
                                     "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
@@ -438,6 +441,38 @@ def _say_fix_reading(meta, path, echo):
         echo(f"  {path}: quality/mode values {meta['quality_counts']} (rows); kept: {meta['quality_kept']}")
     if meta.get("velocity_frame") == "NED":
         echo(f"  {path}: velocity north, east, down (turned to east, north, up)")
+
+
+#: measured rest noise and the filter's white noise may differ by this factor unwarned
+NOISE_FACTOR = 3.0
+
+
+def _noise_check(init, metrics, echo):
+    """The unit's white noise measured at the initial rest against the filter's: the
+    densities into the metrics and, when an axis differs by more than ``NOISE_FACTOR``,
+    a warning on the terminal; returns the warning (or "")."""
+    if "rest_gyro_noise" not in init:
+        return ""
+    gm = np.asarray(init["rest_gyro_noise"]) / (units.deg / 60)
+    am = np.asarray(init["rest_accel_noise"]) / units.ug
+    gf = np.asarray(metrics["filter_gyro_arw_deg_sqrth"])
+    af = np.asarray(metrics["filter_accel_vrw_ug_sqrthz"])
+    metrics["rest_gyro_noise_deg_sqrth"] = gm.tolist()
+    metrics["rest_accel_noise_ug_sqrthz"] = am.tolist()
+    rg, ra = gm / gf, am / af
+    metrics["rest_over_filter_noise_gyro"] = rg.tolist()
+    metrics["rest_over_filter_noise_accel"] = ra.tolist()
+    off = [f"{nm} {a} {r:.2g}x" for nm, rr in (("gyro", rg), ("accel", ra)) for a, r in zip("xyz", rr)
+           if r > NOISE_FACTOR or r < 1 / NOISE_FACTOR]
+    if not off:
+        return ""
+    msg = (f"Warning: the white noise measured at the initial rest (gyro {np.round(gm, 3).tolist()} deg/sqrt(h), "
+           f"accel {np.round(am, 0).tolist()} ug/sqrt(Hz)) differs from the filter's (gyro "
+           f"{np.round(gf, 3).tolist()} deg/sqrt(h), accel {np.round(af, 0).tolist()} ug/sqrt(Hz)) by more than "
+           f"{NOISE_FACTOR:g}x ({', '.join(off)}: measured / filter): vibration above the datasheet noise makes "
+           "the filter overconfident, a noise model far above it pessimistic")
+    echo("  " + msg)
+    return msg
 
 
 def _vehicle_options(opt, veh, nhc):
