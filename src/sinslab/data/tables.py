@@ -428,31 +428,40 @@ def _is_number(s):
         return False
 
 
-def _select(cols, cmap, path, hline, raw):
-    """Column indices of the time, gyro and accelerometer triples (and the rest flag),
-    from the column map where it names them, else by the usual names; the unit in a map
-    entry replaces the header's (``cols`` is updated in place)."""
+def _resolve_map(cols, raw, cmap, path, hline, label):
+    """``{key: column index}`` of the entries of a column map (a name, raw or parsed, or a
+    1-based position); the unit of an entry replaces the header's (``cols`` is updated in
+    place). ``label`` names the map in messages."""
     names = [c[0] for c in cols]
     raw_l = [str(r).strip().lower() for r in raw]
     picked = {}
     for key, (src, unit) in cmap.items():
         if isinstance(src, int):
             if src > len(cols):
-                raise ValueError(f"{where(path, hline)}: column map {key}={src}: the file has only "
+                raise ValueError(f"{where(path, hline)}: {label} {key}={src}: the file has only "
                                  f"{len(cols)} columns")
             i = src - 1
         else:
             hits = [i for i, (n, r) in enumerate(zip(names, raw_l)) if src in (n, r)]
             if not hits:
-                raise ValueError(f"{where(path, hline)}: column map {key}={src!r}: no such column "
+                raise ValueError(f"{where(path, hline)}: {label} {key}={src!r}: no such column "
                                  f"(the header has {', '.join(map(str, raw))})")
             if len(hits) > 1:
-                raise ValueError(f"{where(path, hline)}: column map {key}={src!r}: {len(hits)} "
+                raise ValueError(f"{where(path, hline)}: {label} {key}={src!r}: {len(hits)} "
                                  "columns have that name")
             i = hits[0]
         if unit is not None:
             cols[i] = (cols[i][0], unit)
         picked[key] = i
+    return picked
+
+
+def _select(cols, cmap, path, hline, raw):
+    """Column indices of the time, gyro and accelerometer triples (and the rest flag),
+    from the column map where it names them, else by the usual names; the unit in a map
+    entry replaces the header's (``cols`` is updated in place)."""
+    names = [c[0] for c in cols]
+    picked = _resolve_map(cols, raw, cmap, path, hline, "column map")
     out = {"map": picked}
 
     def unique(i):
@@ -587,24 +596,7 @@ def parse_quality_filter(spec):
 def _fix_select(cols, raw, cmap, path, hline):
     """Column index of every fix quantity the table has: from the map, else by name."""
     names = [c[0] for c in cols]
-    raw_l = [str(r).strip().lower() for r in raw]
-    out = {}
-    for key, (src, unit) in cmap.items():
-        if isinstance(src, int):
-            if src > len(cols):
-                raise ValueError(f"{where(path, hline)}: --fix-columns {key}={src}: the file has only "
-                                 f"{len(cols)} columns")
-            i = src - 1
-        else:
-            hits = [i for i, (n, r) in enumerate(zip(names, raw_l)) if src in (n, r)]
-            if len(hits) != 1:
-                raise ValueError(f"{where(path, hline)}: --fix-columns {key}={src!r}: "
-                                 + ("no such column" if not hits else f"{len(hits)} columns have that name")
-                                 + f" (the header has {', '.join(map(str, raw))})")
-            i = hits[0]
-        if unit is not None:
-            cols[i] = (cols[i][0], unit)
-        out[key] = i
+    out = _resolve_map(cols, raw, cmap, path, hline, "--fix-columns")
     taken = set(out.values())
     for key, aliases in _FIX_NAMES.items():
         if key in out or (key == "vd" and "vu" in out) or (key == "vu" and "vd" in out):
