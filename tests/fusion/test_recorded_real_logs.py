@@ -414,3 +414,42 @@ def test_real_drive_aiding_only_helps():
     assert len(runs["zupt"].init["rest_intervals"]) == 3
     np.testing.assert_allclose(e["zupt"], e["fixes"], rtol=0.05, atol=0.05)
     assert np.sum(e["nhc"] < e["fixes"]) >= 6 and np.median(e["nhc"]) < 0.5 * np.median(e["fixes"]), e
+
+
+def test_held_fixes_given_in_memory_are_collapsed(drive):
+    """Fixes held at 50 Hz handed to the API directly: one update per receiver epoch, the
+    same solution as the 1 Hz fixes stamped at the first row of each epoch."""
+    from sinslab.core.records import Fixes
+    imu, _, fx1, _, _ = drive
+    rows = np.arange(0.0, fx1.t[-1] + 0.5, 0.02)
+    j = np.searchsorted(fx1.t, rows + 1e-12, side="right") - 1
+    rows, j = rows[j >= 0], j[j >= 0]
+    held = Fixes(rows, fx1.lat[j], fx1.lon[j], fx1.h[j], fx1.sigma[j], fx1.vel[j], fx1.sigma_vel[j], fx1.quality[j])
+    r = R.navigate_recorded(imu, held, _opt(kf_dt=0.1))
+    rows_in, epochs = r.init["held_fixes"]
+    assert epochs == len(fx1) and rows_in > 45 * epochs
+    assert r.fix_t.size <= len(fx1)
+
+
+@pytest.mark.parametrize("args, msg", [
+    (["--platform", "boat"], "--platform must be one of"),
+    (["--vehicle-mount", "euler:1,2"], "--vehicle-mount"),
+    (["--nhc-lever", "[1, 2] m"], "--nhc-lever"),
+    (["--fix-columns", "t=time[s], lat=nope"], "--fix-columns lat='nope': no such column"),
+    (["--fix-quality", "x"], "--fix-quality 'x'"),
+    (["--aid", "nhc", "--platform", "aircraft"], "wheeled land vehicle, not --platform aircraft"),
+])
+def test_navigate_bad_vehicle_and_fix_options(drive, tmp_path, args, msg):
+    """One line naming the option, exit status 2, nothing written."""
+    from typer.testing import CliRunner
+
+    from sinslab.cli import app
+    from sinslab.data import write_imu
+    imu, _, fx1, _, _ = drive
+    ip = write_imu(tmp_path / "imu.csv", imu)
+    fp = fu.write_foreign_fixes(tmp_path / "gnss.csv", fx1)
+    res = CliRunner().invoke(app, ["navigate", "--imu", str(ip), "--fixes", str(fp), "--fix-columns", fu.FIX_COLUMNS,
+                                   "--out", str(tmp_path / "run"), *args])
+    assert res.exit_code == 2, res.output
+    assert msg in res.output and len(res.output.strip().splitlines()) == 1, res.output
+    assert not (tmp_path / "run").exists()

@@ -132,6 +132,15 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
             raise ValueError(f"--columns applies to csv and parquet tables, not {fmt_eff!r}")
         kw["columns"] = columns
     aids = _parse_aid(aid)
+    # option values checked before any file is read
+    from sinslab.data.columns import FIX_KEYS, parse_column_map
+    from sinslab.data.tables import parse_quality_filter
+    _vehicle_options(NavOptions(), vehicle or {}, False)
+    parse_quality_filter(fix_quality)
+    parse_column_map(fix_columns, keys=FIX_KEYS, option="--fix-columns")
+    if (vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
+        raise ValueError(f"--aid nhc: the non-holonomic constraint assumes a wheeled land vehicle, "
+                         f"not --platform {vehicle['platform']}")
     if not (isinstance(csv_rate, (int, float)) and math.isfinite(csv_rate) and csv_rate > 0):
         raise ValueError(f"--csv-rate must be a positive number of Hz, got {csv_rate!r}")
     em = None
