@@ -191,6 +191,16 @@ def test_imu_from_two_files_and_an_archive(drive, tmp_path):
                comments="", fmt="%.12g")
     with pytest.raises(ValueError, match="not on one time column"):
         load_imu([tmp_path / "acc.csv", tmp_path / "late.csv"])
+    # the same through navigate: --imu twice
+    from typer.testing import CliRunner
+
+    from sinslab.cli import app
+    from sinslab.data import write_fixes
+    fp = write_fixes(tmp_path / "fx.csv", drive[1])
+    res = CliRunner().invoke(app, ["navigate", "--imu", str(tmp_path / "acc.csv"), "--imu", str(tmp_path / "gyro.zip"),
+                                   "--fixes", str(fp), "--out", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    assert "joined on time; rows without a partner dropped: 1 of the first, 2 of the second" in res.output
 
 
 # ------------------------------------------------------------------ one clock -----------
