@@ -508,3 +508,31 @@ def test_n380_car_drive_as_shipped():
     e0, e1 = R.outage_end_errors(r0, fx)[1], R.outage_end_errors(r1, fx)[1]
     assert e0.size >= 4 and np.all(e1 < e0), (e0, e1)
     assert 1.0 < abs(math.degrees(r1.init["vehicle_mount_estimate"][2])) < 4.0
+
+
+def test_fix_positions_and_velocities_in_two_files(drive, tmp_path):
+    """Positions in one zipped table, NED velocities in another, both held at 50 Hz on one
+    time column (a small aircraft's logger): joined on time, collapsed to the receiver's
+    epochs, the same fixes as one table."""
+    import zipfile
+
+    from sinslab.data import load_fixes
+    _, _, fx1, _, _ = drive
+    rows = np.arange(0.0, fx1.t[-1] + 0.5, 0.02)
+    j = np.searchsorted(fx1.t, rows + 1e-12, side="right") - 1
+    rows, j = rows[j >= 0], j[j >= 0]
+    pos = np.column_stack([rows, np.degrees(fx1.lat[j]), np.degrees(fx1.lon[j]), fx1.h[j]])
+    vel = np.column_stack([rows, fx1.vel[j, 1], fx1.vel[j, 0], -fx1.vel[j, 2]])
+    np.savetxt(tmp_path / "gps_traj.txt", pos, delimiter=",", header="time,gps_lat,gps_lon,gps_alt", comments="",
+               fmt="%.10f")
+    np.savetxt(tmp_path / "gps_velocity.txt", vel, delimiter=",", header="time,gps_vn,gps_ve,gps_vd", comments="",
+               fmt="%.10f")
+    for nm in ("gps_traj", "gps_velocity"):
+        with zipfile.ZipFile(tmp_path / f"{nm}.zip", "w") as z:
+            z.write(tmp_path / f"{nm}.txt", f"{nm}.txt")
+    fx, meta = load_fixes([tmp_path / "gps_traj.zip", tmp_path / "gps_velocity.zip"],
+                          columns="t=time[s], lat=gps_lat[deg], lon=gps_lon[deg], h=gps_alt[m], vn=gps_vn[m/s], "
+                                  "ve=gps_ve[m/s], vd=gps_vd[m/s]")
+    assert meta["held"][1] == len(fx1) and "gps_velocity.zip" in fx.path
+    np.testing.assert_allclose(fx.vel, fx1.vel, atol=1e-9)
+    np.testing.assert_allclose(np.degrees(fx.lat), np.degrees(fx1.lat), atol=1e-9)

@@ -115,11 +115,19 @@ def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, 
     ``compressed`` ("gz" | "zip" | None) and, for a csv table, the rows read, held
     fixes collapsed, rows without a position and the quality counts.
     """
+    import contextlib
+
     from sinslab.data.archive import compression, plain_file
-    p = _existing_file(path)
-    comp = compression(p)
-    with plain_file(p) as q:
+    paths = list(path) if isinstance(path, (list, tuple)) else [path]
+    ps = [_existing_file(x) for x in paths]
+    p = ps[0] if len(ps) == 1 else " + ".join(map(str, ps))
+    comp = compression(ps[0])
+    with contextlib.ExitStack() as stack:
+        qs = [stack.enter_context(plain_file(x)) for x in ps]
+        q = qs[0]
         fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp"}.get(q.suffix.lower(), "csv")
+        if len(qs) > 1 and fmt != "csv":
+            raise ValueError(f"fixes from two files: csv tables only, not {fmt!r}")
         if columns is not None and fmt != "csv":
             raise ValueError(f"--fix-columns applies to csv fix tables, not {fmt!r}")
         meta = {"format": fmt, "compressed": comp}
@@ -132,7 +140,7 @@ def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, 
                     raise ValueError(f"{p}: no epoch with Q in {sorted(keep_q)}")
             return _named(fx, p, comp), meta
         if fmt == "csv":
-            fx, m = tables.read_fix_table(q, columns=columns, quality=keep_q)
+            fx, m = tables.read_fix_table(qs if len(qs) > 1 else q, columns=columns, quality=keep_q)
             meta.update(m)
         elif keep_q is not None:
             raise ValueError(f"--fix-quality applies to csv and rtklib-pos fixes, not {fmt!r}")
@@ -146,8 +154,8 @@ def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, 
 
 
 def _named(fx, p, comp):
-    """Fixes read from an unpacked copy carry the archive's name."""
-    return dataclasses.replace(fx, path=str(p)) if comp else fx
+    """Fixes read from an unpacked copy (or two files) carry the given name(s)."""
+    return dataclasses.replace(fx, path=str(p)) if (comp or not isinstance(p, Path)) else fx
 
 
 def write_imu(path, imu: ImuRecord, fmt=None):

@@ -189,14 +189,14 @@ def _source(path, cmap):
 
 class _JoinedSource:
     """Two tables on one time column read as one (a unit that logs its accelerometers and
-    gyros to separate files): the columns of both side by side, the second file's time
+    gyros, or its fix positions and velocities, to separate files): the columns of both side by side, the second file's time
     column left out; the rows matched by time stamp within the first file's own stamp
     tolerance (:func:`sinslab.core.stamps.stamp_step`). Rows without a partner are dropped
     and counted; fewer than half matched is an error (not one time base)."""
 
     def __init__(self, paths, cmap):
         if len(paths) != 2:
-            raise ValueError(f"IMU channels come from one file or two, got {len(paths)} files")
+            raise ValueError(f"a table comes from one file or two joined on time, got {len(paths)} files")
         for p in paths:
             if not p.exists():
                 raise FileNotFoundError(f"{p}: no such file")
@@ -225,15 +225,16 @@ class _JoinedSource:
             if len(hits) == 1:
                 return hits[0]
         raise ValueError(f"{where(path, src.hline)}: no time column "
-                         f"({tname or ', '.join(_TIME_NAMES)}) to join the two IMU files on")
+                         f"({tname or ', '.join(_TIME_NAMES)}) to join the two files on")
 
-    def fetch(self, idx):
+    def fetch(self, idx, allow_empty=False):
         from sinslab.core.stamps import stamp_step
         per = [[self.ti[0]], [self.ti[1]]]
         for i in idx:
             k, j = self.where[i]
             per[k].append(j)
-        A_, B_ = (s.fetch(list(dict.fromkeys(c))) for s, c in zip(self.srcs, per))
+        A_, B_ = (s.fetch(list(dict.fromkeys(c)), allow_empty=True) if allow_empty and isinstance(s, _TextSource)
+                  else s.fetch(list(dict.fromkeys(c))) for s, c in zip(self.srcs, per))
         pos = [{c: n for n, c in enumerate(dict.fromkeys(cc))} for cc in per]
         ta, tb = A_[:, 0], B_[:, 0]
         check_stamps(ta, self.paths[0], self.srcs[0].lines)
@@ -645,13 +646,19 @@ def read_fix_table(path, *, columns=None, quality=None) -> tuple:
     ``columns`` (the column of each quantity) and ``velocity_frame`` ("ENU" | "NED" | None).
     """
     from sinslab.core.stamps import held_runs
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file")
     cmap = _columns.parse_column_map(columns, keys=_columns.FIX_KEYS, option="--fix-columns")
     keep_q = parse_quality_filter(quality)
-    is_parquet = path.suffix.lower() in (".parquet", ".pq")
-    src = _ParquetSource(path) if is_parquet else _TextSource(path, headerless=_positional(cmap))
+    if isinstance(path, (list, tuple)) and len(path) == 1:
+        path = path[0]
+    if isinstance(path, (list, tuple)):
+        # positions and velocities in two tables on one time column
+        src = _JoinedSource([Path(p) for p in path], cmap)
+        path = src.path
+    else:
+        path = Path(path)
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: no such file")
+        src = _source(path, cmap)
     cols, hline = src.cols, src.hline
     pick = _fix_select(cols, src.raw, cmap, path, hline)
     keys = list(pick)
@@ -741,7 +748,7 @@ class _LineView:
 def _fetch_allow_nan(src, idx):
     """The columns ``idx`` of a table source, empty cells as NaN (a receiver log leaves the
     position empty when it has no fix)."""
-    if isinstance(src, _TextSource):
+    if isinstance(src, (_TextSource, _JoinedSource)):
         return src.fetch(idx, allow_empty=True)
     return src.fetch(idx)
 

@@ -41,11 +41,17 @@ from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
            "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
-           "leveled_start", "level_in_motion", "moving_spans", "subtract_spans", "platform_kind", "PLATFORMS"]
+           "leveled_start", "level_in_motion", "moving_spans", "moving_speed_threshold", "subtract_spans", "platform_kind", "PLATFORMS"]
 
 
 #: platform kinds of :attr:`NavOptions.platform`
 PLATFORMS = ("auto", "land", "aircraft", "marine")
+#: an aircraft's heading is taken from its course only above this speed [m/s] (flying) and
+#: with the wings within this roll [rad] of level (a banked turn slips and crabs)
+AIRCRAFT_MOVE_SPEED = 10.0
+AIRCRAFT_MAX_ROLL = 10.0 * units.deg
+#: 1σ of an aircraft's crab angle (course minus heading in wind) [rad]
+AIRCRAFT_CRAB_SIGMA = 10.0 * units.deg
 
 
 @dataclass
@@ -305,15 +311,31 @@ def level_in_motion(imu: ImuRecord, fixes: Fixes, k0, lat, window=10.0):
 
 
 def leveled_start(imu, fixes: Fixes, opt: NavOptions):
-    """Index range of the initial rest and levelling results (see module notes)."""
+    """Index range ``(k0, k1)`` of the initial rest (see module notes) or None: until the
+    first fix faster than ``static_speed``; when that leaves less than 1 s (a receiver
+    whose speed noise exceeds ``static_speed``), until the first fix faster than three
+    times its own speed noise (:func:`moving_speed_threshold`)."""
     sp = _fix_speed(fixes)
-    moving = np.flatnonzero(sp > opt.static_speed)
-    t_move = fixes.t[moving[0]] if moving.size else fixes.t[-1]
-    k1 = int(np.searchsorted(imu.t, min(t_move, imu.t[0] + 120.0)))
     k0 = int(np.searchsorted(imu.t, max(imu.t0, fixes.t[0]) - 1e-9))
-    if k1 - k0 < int(round(1.0 / imu.dt)):
-        return None
-    return k0, k1
+    for thr in (opt.static_speed, moving_speed_threshold(fixes, opt)):
+        moving = np.flatnonzero(sp > thr)
+        t_move = fixes.t[moving[0]] if moving.size else fixes.t[-1]
+        k1 = int(np.searchsorted(imu.t, min(t_move, imu.t[0] + 120.0)))
+        if k1 - k0 >= int(round(1.0 / imu.dt)):
+            return k0, k1
+    return None
+
+
+def moving_speed_threshold(fixes: Fixes, opt: NavOptions):
+    """Per fix, the horizontal speed [m/s] above which the fix says the vehicle moves:
+    three times the speed's own noise (the velocity σ, or for position-only fixes the σ
+    of a position difference over one interval), at least ``static_speed``."""
+    if fixes.vel is not None:
+        sv = fixes.sigma_vel if fixes.sigma_vel is not None else np.full((len(fixes), 3), 0.1)
+        s_sp = np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2)
+    else:
+        s_sp = np.hypot(fixes.sigma[:, 0], fixes.sigma[:, 1]) / stamp_step(fixes.t)[0]
+    return np.maximum(3.0 * s_sp, opt.static_speed)
 
 
 def _fix_speed(fixes: Fixes):
@@ -396,7 +418,8 @@ def _imu_point_course(fixes: Fixes, imu, lever, gb):
     return crs, np.hypot(vi[:, 0], vi[:, 1])
 
 
-def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever, gb):
+def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever, gb, move_speed=None,
+                       max_roll=math.inf):
     """Heading from the first ``heading_window`` seconds of motion faster than
     ``move_speed`` in which the course of the IMU-point velocity and the heading carried by
     the gyros from the levelled rest (started at yaw 0) differ by a constant within
@@ -407,7 +430,7 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
     """
     from sinslab.nav import strapdown as sd
     crs, spi = _imu_point_course(fixes, imu, lever, gb)
-    fast = spi > opt.move_speed
+    fast = spi > (opt.move_speed if move_speed is None else move_speed)
     t_rest = float(imu.t[k0])
     cand = np.flatnonzero(fast & (fixes.t > t_rest))
     dt = imu.dt
@@ -420,7 +443,7 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
             continue
         st = pre0.copy()
         k = k0
-        az, kk = [], []
+        az, kk, roll = [], [], []
         for i in w:                          # INS heading of the forward axis at each fix
             ke = int(np.searchsorted(imu.t, fixes.t[i] - 1e-9))
             ke = max(k, ke - (ke - k0) % nsub)
@@ -430,6 +453,9 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
             C = A.quat_to_dcm(st[:4])
             az.append(math.atan2(C[0, 1], C[1, 1]))             # forward axis, clockwise from north
             kk.append(k)
+            roll.append(abs(A.dcm_to_euler(C)[1]))
+        if max(roll) > max_roll:                # banked: an aircraft's course leaves its heading
+            continue
         off = np.unwrap(crs[w] - np.array(az))
         if np.ptp(off) > opt.heading_straight:
             continue
@@ -451,9 +477,10 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
 
 def platform_kind(fixes: Fixes, platform="auto"):
     """``(kind, reason)``: the platform as given, or with ``"auto"`` from the fixes: an
-    aircraft when the horizontal speed exceeds 70 m/s or the climb rate exceeds 5 m/s at
-    more than 1 % of the fixes (a car on a 15 % grade at 30 m/s climbs 4.5 m/s); else land
-    (a ship is not told from a car by its fixes)."""
+    aircraft when the horizontal speed exceeds 70 m/s or the climb rate exceeds 3 m/s at
+    more than 2 % of the fixes (a car would need a 10 % grade at 30 m/s; car drives on
+    hills stay below 1 m/s, a small UAV exceeds 3 m/s at 7 % of its fixes); else land (a
+    ship is not told from a car by its fixes)."""
     if platform != "auto":
         return platform, "given"
     v = _fix_vel_enu(fixes)
@@ -461,8 +488,8 @@ def platform_kind(fixes: Fixes, platform="auto"):
     vu = np.abs(v[:, 2]) if np.all(np.isfinite(v[:, 2])) else np.zeros(len(fixes))
     if sp.max() > 70.0:
         return "aircraft", f"horizontal speed up to {sp.max():.0f} m/s"
-    if np.mean(vu > 5.0) > 0.01:
-        return "aircraft", f"climbing or descending faster than 5 m/s at {100 * np.mean(vu > 5.0):.0f} % of the fixes"
+    if np.mean(vu > 3.0) > 0.02:
+        return "aircraft", f"climbing or descending faster than 3 m/s at {100 * np.mean(vu > 3.0):.0f} % of the fixes"
     return "land", "from the fixes: speed and climb rate of a land vehicle"
 
 
@@ -488,17 +515,9 @@ def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=No
 
 def moving_spans(fixes: Fixes, opt: NavOptions):
     """Time spans [s] (K, 2) in which fixes say the vehicle moves: one fix interval either
-    side of every fix whose horizontal speed exceeds three times its own noise (the
-    velocity σ, or for position-only fixes the σ of a position difference over one
-    interval), and at least ``static_speed``."""
+    side of every fix faster than :func:`moving_speed_threshold`."""
     fdt, _ = stamp_step(fixes.t)
-    sp = _fix_speed(fixes)
-    if fixes.vel is not None:
-        sv = fixes.sigma_vel if fixes.sigma_vel is not None else np.full((len(fixes), 3), 0.1)
-        s_sp = np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2)
-    else:
-        s_sp = np.hypot(fixes.sigma[:, 0], fixes.sigma[:, 1]) / fdt
-    mv = sp > np.maximum(3.0 * s_sp, opt.static_speed)
+    mv = _fix_speed(fixes) > moving_speed_threshold(fixes, opt)
     return np.stack([fixes.t[mv] - fdt, fixes.t[mv] + fdt], -1)
 
 
@@ -642,9 +661,13 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     else:
         pre = sd.initial_state_array(NavState(lat0, float(fixes.lon[0]), float(fixes.h[0]),
                                               np.zeros(3), np.array([pitch, roll, 0.0])))
-        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt, lever, gb)
+        # an aircraft is carried, taxied and launched before its course shows its heading
+        air = init["platform"][0] == "aircraft"
+        move = max(opt.move_speed, AIRCRAFT_MOVE_SPEED) if air else opt.move_speed
+        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt, lever, gb, move,
+                                   AIRCRAFT_MAX_ROLL if air else math.inf)
         if found is None:
-            raise ValueError(f"no {opt.heading_window:g} s of motion faster than {opt.move_speed} m/s "
+            raise ValueError(f"no {opt.heading_window:g} s of motion faster than {move} m/s "
                              "with a consistent course; give the initial heading (--init heading=...)")
         ks, C, h_sig, how = found
         ts = float(imu.t[ks - 1]) if ks > 0 else imu.t0
@@ -674,6 +697,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         # slip angle, a mount yaw error of a few tenths of a degree), never above the prior
         sp0[lay.slice("phi").start + 2] = min(opt.att_sigma[2], math.hypot(
             init["heading_sigma"], opt.heading_sigma_floor))
+        if init["platform"][0] == "aircraft":
+            # an aircraft crabs into the wind: its course is its heading only to ~10°
+            sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], AIRCRAFT_CRAB_SIGMA)
     jf = int(np.argmin(np.abs(fixes.t - ts)))
     vs = fixes.sigma_vel[jf] if fixes.sigma_vel is not None else np.full(3, 0.1)
     sp0[lay.slice("dv")] = np.maximum(vs, opt.vel_sigma_floor) * 2

@@ -148,10 +148,13 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.error_model import load_error_model
         em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
-    ffmt = fix_format or ("rtklib-pos" if str(fix_path).lower().endswith(".pos") else None)
+    if isinstance(fix_path, (list, tuple)):        # positions and velocities in two tables
+        fix_path = fix_path[0] if len(fix_path) == 1 else list(fix_path)
+    fix_name = " + ".join(map(str, fix_path)) if isinstance(fix_path, list) else str(fix_path)
+    ffmt = fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
     fx, fmeta = load_fixes(fix_path, ffmt, velocity_lag=velocity_lag, columns=fix_columns,
                            quality=fix_quality)
-    _say_fix_reading(fmeta, fix_path, echo)
+    _say_fix_reading(fmeta, fix_name, echo)
     imu = data.imu
     if data.meta and "joined" in data.meta:
         un = data.meta["joined"]["unmatched"]
@@ -296,7 +299,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                  + (" ..." if len(sp_) > 4 else ""))
     if res.scale is not None:
         metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
-    cfg = {"imu": data.path, "fixes": str(fix_path), "format": data.format,
+    cfg = {"imu": data.path, "fixes": fix_name, "format": data.format,
            "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.lever_arm)}] m",
            "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
            "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
@@ -309,7 +312,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
            "csv_rate": f"{csv_rate:g} Hz", "heading_window": f"{opt.heading_window:g} s",
            "imu_errors": {**({"source": "built-in defaults (white noise measured at the initial "
                                         "rest, floored at the defaults)"} if not em_cfg else em_cfg)}}
-    echo(f"{data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_path}: {len(fx)} fixes"
+    echo(f"{data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_name}: {len(fx)} fixes"
          f"{' with velocity' if fx.vel is not None else ''}")
     if not res.init.get("rest_start"):
         echo(f"  no rest at the start: pitch {np.degrees(res.init['pitch']):.2f} deg, roll "
@@ -622,7 +625,7 @@ def register(app):
 
     @app.command()
     def navigate(imu: list[Path] = typer.Option(..., "--imu", help="recorded IMU file; twice for accelerometers and gyros in two tables on one time column"),
-                 fixes: Path = typer.Option(..., "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp)"),
+                 fixes: list[Path] = typer.Option(..., "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp); twice for positions and velocities in two tables on one time column"),
                  format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
                  lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
