@@ -90,7 +90,7 @@ def test_command_reports_are_true(commands):
             assert "claims passed" not in html and "id='claims'" not in html
     s = json.loads((commands / "navigate" / "summary.json").read_text())
     ids = {c["id"] for c in s["claims"]}
-    assert ids == {"nis_consistent", "fix_residual"}
+    assert ids == {"nis_not_overconfident", "fix_residual", "fix_residual_p99"}
     assert s["metrics"]["nis_dof"] in (3, 6)
 
 

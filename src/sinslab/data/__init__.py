@@ -6,8 +6,8 @@ re-exported here (:mod:`.load`): ``load_imu``, ``read_imu``, ``read_fixes``, ``w
 """
 from sinslab.core.records import Fixes
 from sinslab.data.increments import ImuData
-from sinslab.data.load import (FIX_FORMATS, IMU_FORMATS, guess_imu_format, load_imu, read_fixes,
-                               read_imu, write_fixes, write_imu)
+from sinslab.data.load import (FIX_FORMATS, IMU_FORMATS, guess_imu_format, load_fixes, load_imu,
+                               read_fixes, read_imu, write_fixes, write_imu)
 
 __all__ = ["Fixes", "ImuData", "FIX_FORMATS", "IMU_FORMATS", "guess_imu_format", "load_imu",
-           "read_fixes", "read_imu", "write_fixes", "write_imu"]
+           "load_fixes", "read_fixes", "read_imu", "write_fixes", "write_imu"]

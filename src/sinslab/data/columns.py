@@ -17,12 +17,17 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-__all__ = ["parse_header_cell", "parse_column_map", "CANONICAL", "RATE_KEYS", "INC_KEYS"]
+__all__ = ["parse_header_cell", "parse_column_map", "CANONICAL", "RATE_KEYS", "INC_KEYS", "FIX_KEYS"]
 
 #: the quantities a map may name: time, rates or increments, and a rest flag
 RATE_KEYS = ("gx", "gy", "gz", "ax", "ay", "az")
 INC_KEYS = ("dtheta_x", "dtheta_y", "dtheta_z", "dv_x", "dv_y", "dv_z")
 CANONICAL = ("t",) + RATE_KEYS + INC_KEYS + ("stationary",)
+#: the quantities a map of a fix table may name (``--fix-columns``): validity time, arrival
+#: time, position, its σ north/east/up, velocity east/north/up or north/east/down (``vd``)
+#: with σ, and a solution quality/mode column
+FIX_KEYS = ("t", "t_arrive", "lat", "lon", "h", "sd_n", "sd_e", "sd_u", "ve", "vn", "vu", "vd",
+            "sd_ve", "sd_vn", "sd_vu", "sd_vd", "quality")
 
 _NAME = r"[A-Za-z_][A-Za-z0-9_.\-]*(?:\[\s*\d+\s*\])*"
 _CELL = re.compile(rf"^\s*({_NAME})\s*(?:[\[(]\s*([^\])]*?)\s*[\])])?\s*$")
@@ -92,17 +97,18 @@ def _entry(key, val, src):
     return name, unit
 
 
-def parse_column_map(spec) -> dict:
+def parse_column_map(spec, *, keys=CANONICAL, option="--columns") -> dict:
     """A column map from a string ``"key=NAME[unit],..."``, a dict, or a TOML file path.
 
-    Returns ``{key: (name or 1-based position, unit or None)}`` with keys from
-    :data:`CANONICAL`. Raises ValueError naming the offending entry: an unknown key, a
-    key given twice, an entry that is not ``key=value``, a map mixing rates and
-    increments, or one without the time column.
+    Returns ``{key: (name or 1-based position, unit or None)}`` with keys from ``keys``
+    (:data:`CANONICAL` for IMU tables, :data:`FIX_KEYS` for fix tables; ``option`` names
+    the command-line option in messages). Raises ValueError naming the offending entry: an
+    unknown key, a key given twice, an entry that is not ``key=value``, an IMU map mixing
+    rates and increments, or one without the time column.
     """
     if spec is None:
         return {}
-    src = "--columns"
+    src = option
     if isinstance(spec, (str, Path)) and str(spec).strip().lower().endswith(".toml") \
             and "=" not in str(spec):
         import tomllib
@@ -128,11 +134,13 @@ def parse_column_map(spec) -> dict:
     out = {}
     for k, v in items:
         key = str(k).strip().lower()
-        if key not in CANONICAL:
-            raise ValueError(f"{src}: unknown column key {key!r}; use {', '.join(CANONICAL)}")
+        if key not in keys:
+            raise ValueError(f"{src}: unknown column key {key!r}; use {', '.join(keys)}")
         if key in out:
             raise ValueError(f"{src}: column key {key!r} given twice")
         out[key] = _entry(key, v, src)
+    if keys is not CANONICAL:
+        return out
     has_rate = any(k in out for k in RATE_KEYS)
     has_inc = any(k in out for k in INC_KEYS)
     if has_rate and has_inc:

@@ -16,14 +16,17 @@ fixes ``two-geo``       :func:`sinslab.data.tables.read_two_geo_csv` --
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+
+import numpy as np
 
 from sinslab.core.records import Fixes, ImuRecord
 from sinslab.data import matlab, psins, rtklib, tables
 from sinslab.data.increments import ImuData
 
 __all__ = ["IMU_FORMATS", "FIX_FORMATS", "guess_imu_format", "load_imu", "read_imu",
-           "read_fixes", "write_imu", "write_fixes"]
+           "read_fixes", "load_fixes", "write_imu", "write_fixes"]
 
 #: IMU formats understood by :func:`load_imu` (``--format``).
 IMU_FORMATS = ("psins", "csv", "parquet", "mat", "rtklib-imu")
@@ -54,18 +57,32 @@ def load_imu(path, fmt=None, **kw) -> ImuData:
     """Read any supported IMU file into :class:`~sinslab.data.increments.ImuData` (``fmt``
     from :data:`IMU_FORMATS`, default from the suffix: ``.imu`` psins, ``.parquet``
     parquet, ``.mat`` mat, a ``.csv`` with a ``.tag`` next to it rtklib-imu, else csv).
-    Keywords go to the reader."""
-    p = _existing_file(path)
-    fmt = fmt or guess_imu_format(p)
-    if fmt == "psins":
-        return psins.load_psins(p, **kw)
-    if fmt in ("csv", "parquet"):
-        return tables.read_table_imu(p, **kw)
-    if fmt == "mat":
-        return matlab.read_mat_imu(p, **kw)
-    if fmt == "rtklib-imu":
-        return rtklib.read_rtklib_imu(p, **kw)
-    raise ValueError(f"unknown IMU format {fmt!r}; use one of {IMU_FORMATS}")
+    Keywords go to the reader. A text log may come as ``.gz`` or in a ``.zip``
+    (:mod:`sinslab.data.archive`); ``path`` may be a pair of csv/parquet tables on one time
+    column (accelerometers in one, gyros in the other), joined on their stamps."""
+    import contextlib
+
+    from sinslab.data.archive import compression, plain_file
+    paths = list(path) if isinstance(path, (list, tuple)) else [path]
+    ps = [_existing_file(p) for p in paths]
+    with contextlib.ExitStack() as stack:
+        qs = [stack.enter_context(plain_file(p)) for p in ps]
+        fmt = fmt or guess_imu_format(ps[0] if compression(ps[0]) is None else qs[0])
+        if len(qs) > 1 and fmt not in ("csv", "parquet"):
+            raise ValueError(f"IMU channels from two files: csv or parquet tables only, not {fmt!r}")
+        if fmt == "psins":
+            d = psins.load_psins(qs[0], **kw)
+        elif fmt in ("csv", "parquet"):
+            d = tables.read_table_imu(qs if len(qs) > 1 else qs[0], **kw)
+        elif fmt == "mat":
+            d = matlab.read_mat_imu(qs[0], **kw)
+        elif fmt == "rtklib-imu":
+            d = rtklib.read_rtklib_imu(qs[0], **kw)
+        else:
+            raise ValueError(f"unknown IMU format {fmt!r}; use one of {IMU_FORMATS}")
+    if any(q != p for q, p in zip(qs, ps)):          # read from an unpacked copy: the archive's name
+        d = dataclasses.replace(d, path=" + ".join(map(str, ps)))
+    return d
 
 
 def read_imu(path, fmt=None, **kw):
@@ -77,27 +94,68 @@ def read_imu(path, fmt=None, **kw):
 
 
 def read_fixes(path, fmt=None, **kw) -> Fixes:
-    """Read position(/velocity) fixes: ``rtklib-pos`` (``.pos``), ``csv`` (columns ``t[s],
-    lat[deg], lon[deg]`` + optional ``h[m]``, ``t_arrive[s]``, ``sd_n sd_e sd_u``, ``ve vn
-    vu``, ``sd_ve ..``), ``mat-avp`` (a PSINS avp matrix: positions and velocities, σ from
-    ``sigma``/``sigma_vel`` keywords, default 1 m / 0.1 m/s) or ``two-geo`` (a recorded
-    double-star fix list, :func:`sinslab.data.tables.read_two_geo_csv`). ``velocity_lag`` [s]
-    (any format): the velocities describe the motion that long before their stamps
-    (:meth:`sinslab.core.records.Fixes.with_velocity_lag`)."""
-    p = _existing_file(path)
-    fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp"}.get(p.suffix.lower(), "csv")
-    lag = kw.pop("velocity_lag", 0.0)
-    if fmt == "rtklib-pos":
-        return rtklib.read_rtklib_pos(p, velocity_lag=lag, **kw)
-    if fmt == "csv":
-        fx = tables.read_fix_csv(p)
-    elif fmt == "mat-avp":
-        fx = matlab.read_mat_fixes(p, kw.get("var"), kw.get("sigma", 1.0), kw.get("sigma_vel", 0.1))
-    elif fmt == "two-geo":
-        fx = tables.read_two_geo_csv(p)
-    else:
-        raise ValueError(f"unknown fix format {fmt!r}; use one of {FIX_FORMATS}")
-    return fx.with_velocity_lag(lag)
+    """Read position(/velocity) fixes: ``rtklib-pos`` (``.pos``), ``csv`` (a table read by
+    :func:`sinslab.data.tables.read_fix_table`: columns by name or a column map, NED or
+    ENU velocity, a quality column, held fixes collapsed), ``mat-avp`` (a PSINS avp
+    matrix: positions and velocities, σ from ``sigma``/``sigma_vel`` keywords, default 1 m
+    / 0.1 m/s) or ``two-geo`` (a recorded double-star fix list,
+    :func:`sinslab.data.tables.read_two_geo_csv`); text formats may come as ``.gz`` or in a
+    ``.zip``. ``velocity_lag`` [s] (any format): the velocities describe the motion that
+    long before their stamps (:meth:`sinslab.core.records.Fixes.with_velocity_lag`).
+    See :func:`load_fixes` for the keywords and what was done to the table."""
+    return load_fixes(path, fmt, **kw)[0]
+
+
+def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, **kw):
+    """:func:`read_fixes` with what the reader did: returns ``(Fixes, meta)``.
+
+    ``columns``: a fix column map (``--fix-columns``, csv tables only); ``quality``: the
+    accepted quality/mode values (``"4,5"``; csv: its quality column, rtklib-pos: Q).
+    ``meta`` (csv: see :func:`sinslab.data.tables.read_fix_table`) holds ``format``,
+    ``compressed`` ("gz" | "zip" | None) and, for a csv table, the rows read, held
+    fixes collapsed, rows without a position and the quality counts.
+    """
+    import contextlib
+
+    from sinslab.data.archive import compression, plain_file
+    paths = list(path) if isinstance(path, (list, tuple)) else [path]
+    ps = [_existing_file(x) for x in paths]
+    p = ps[0] if len(ps) == 1 else " + ".join(map(str, ps))
+    comp = compression(ps[0])
+    with contextlib.ExitStack() as stack:
+        qs = [stack.enter_context(plain_file(x)) for x in ps]
+        q = qs[0]
+        fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp"}.get(q.suffix.lower(), "csv")
+        if len(qs) > 1 and fmt != "csv":
+            raise ValueError(f"fixes from two files: csv tables only, not {fmt!r}")
+        if columns is not None and fmt != "csv":
+            raise ValueError(f"--fix-columns applies to csv fix tables, not {fmt!r}")
+        meta = {"format": fmt, "compressed": comp}
+        keep_q = tables.parse_quality_filter(quality)
+        if fmt == "rtklib-pos":
+            fx = rtklib.read_rtklib_pos(q, velocity_lag=velocity_lag, **kw)
+            if keep_q is not None:
+                fx = fx.select(np.isin(fx.quality, sorted(keep_q)))
+                if len(fx) == 0:
+                    raise ValueError(f"{p}: no epoch with Q in {sorted(keep_q)}")
+            return _named(fx, p, comp), meta
+        if fmt == "csv":
+            fx, m = tables.read_fix_table(qs if len(qs) > 1 else q, columns=columns, quality=keep_q)
+            meta.update(m)
+        elif keep_q is not None:
+            raise ValueError(f"--fix-quality applies to csv and rtklib-pos fixes, not {fmt!r}")
+        elif fmt == "mat-avp":
+            fx = matlab.read_mat_fixes(q, kw.get("var"), kw.get("sigma", 1.0), kw.get("sigma_vel", 0.1))
+        elif fmt == "two-geo":
+            fx = tables.read_two_geo_csv(q)
+        else:
+            raise ValueError(f"unknown fix format {fmt!r}; use one of {FIX_FORMATS}")
+    return _named(fx.with_velocity_lag(velocity_lag), p, comp), meta
+
+
+def _named(fx, p, comp):
+    """Fixes read from an unpacked copy (or two files) carry the given name(s)."""
+    return dataclasses.replace(fx, path=str(p)) if (comp or not isinstance(p, Path)) else fx
 
 
 def write_imu(path, imu: ImuRecord, fmt=None):

@@ -3,7 +3,7 @@ in the column header, ``gx[deg/s]``), fixes in CSV (``t[s], lat[deg], lon[deg], 
 the two-GEO fix list of recorded double-star receivers, and the writers of both tables."""
 from __future__ import annotations
 
-import re
+import math
 from pathlib import Path
 
 import numpy as np
@@ -15,8 +15,8 @@ from sinslab.data import columns as _columns
 from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, rates_to_increments, uniform_increments, where
 
-__all__ = ["read_table_imu", "write_table_imu", "read_fix_csv", "write_fix_csv",
-           "read_two_geo_csv", "TWO_GEO_COLUMNS"]
+__all__ = ["read_table_imu", "write_table_imu", "read_fix_csv", "read_fix_table", "write_fix_csv",
+           "read_two_geo_csv", "TWO_GEO_COLUMNS", "parse_quality_filter"]
 
 
 _COLSETS = {
@@ -31,20 +31,6 @@ _TIME_NAMES = ("t", "time", "timestamp", "t_s", "time_s", "tow")
 # names whose unit may be omitted (plain SI columns t,dtheta_x..,dv_x.. or t,wx..,fx..)
 _SI_NAMES = {"t", "dtheta_x", "dtheta_y", "dtheta_z", "dv_x", "dv_y", "dv_z",
              "wx", "wy", "wz", "fx", "fy", "fz"}
-_HDR = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:[\[(]\s*([^\])]*?)\s*[\])])?\s*$")
-
-
-def _parse_header(cols, path, line):
-    out = []
-    for c in cols:
-        m = _HDR.match(str(c))
-        if not m:
-            raise ValueError(f"{where(path, line)}: cannot read the column name {str(c)!r} "
-                             "(expected NAME or NAME[unit], e.g. gx[deg/s])")
-        out.append((m.group(1).lower(), (m.group(2) or "").strip() or None))
-    return out
-
-
 def _find_cols(names, which):
     for triple in _COLSETS[which]:
         if all(x in names for x in triple):
@@ -93,12 +79,18 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     by numpy); any malformed table raises ValueError naming the file, the line and the
     cause (binary data, a short line, a non-number in a used column, ...).
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file")
     cmap = _columns.parse_column_map(columns)
-    is_parquet = path.suffix.lower() in (".parquet", ".pq")
-    src = _ParquetSource(path) if is_parquet else _TextSource(path, headerless=_positional(cmap))
+    if isinstance(path, (list, tuple)) and len(path) == 1:
+        path = path[0]
+    if isinstance(path, (list, tuple)):
+        src = _JoinedSource([Path(p) for p in path], cmap)
+        path, is_parquet = src.path, False
+    else:
+        path = Path(path)
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: no such file")
+        is_parquet = path.suffix.lower() in (".parquet", ".pq")
+        src = _source(path, cmap)
     cols, hline = src.cols, src.hline
     pick = _select(cols, cmap, path, hline, src.raw)
     ti, gi, ai, si = pick["t"], pick["gyro"], pick["accel"], pick.get("stationary")
@@ -156,6 +148,8 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     a = data[:, 4:7] * as_ @ R.T
     check_stamps(t, path, lines)
     meta = {"units": {"gyro": gu, "accel": au, "time": tu}}
+    if isinstance(src, _JoinedSource):
+        meta["joined"] = src.report()
     if si is not None:
         f = data[:, 7]
         if not np.all(np.isin(f, (0.0, 1.0))):
@@ -186,6 +180,88 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
 # ----------------------------------------------------------------- table sources ---
 def _positional(cmap):
     return bool(cmap) and all(isinstance(v[0], int) for v in cmap.values())
+
+
+def _source(path, cmap):
+    return _ParquetSource(path) if path.suffix.lower() in (".parquet", ".pq") else \
+        _TextSource(path, headerless=_positional(cmap))
+
+
+class _JoinedSource:
+    """Two tables on one time column read as one (a unit that logs its accelerometers and
+    gyros, or its fix positions and velocities, to separate files): the columns of both side by side, the second file's time
+    column left out; the rows matched by time stamp within the first file's own stamp
+    tolerance (:func:`sinslab.core.stamps.stamp_step`). Rows without a partner are dropped
+    and counted; fewer than half matched is an error (not one time base)."""
+
+    def __init__(self, paths, cmap):
+        if len(paths) != 2:
+            raise ValueError(f"a table comes from one file or two joined on time, got {len(paths)} files")
+        for p in paths:
+            if not p.exists():
+                raise FileNotFoundError(f"{p}: no such file")
+        self.paths = paths
+        self.path = f"{paths[0]} + {paths[1]}"
+        self.srcs = [_source(p, cmap) for p in paths]
+        tname = cmap.get("t", (None,))[0]
+        self.ti = [self._time_index(s, tname, p) for s, p in zip(self.srcs, paths)]
+        a, b = self.srcs
+        self.where = [(0, i) for i in range(len(a.cols))] + \
+            [(1, i) for i in range(len(b.cols)) if i != self.ti[1]]
+        self.cols = [self.srcs[k].cols[i] for k, i in self.where]
+        self.raw = [self.srcs[k].raw[i] for k, i in self.where]
+        self.hline = a.hline
+        self.unmatched = (0, 0)
+
+    @staticmethod
+    def _time_index(src, tname, path):
+        names = [c[0] for c in src.cols]
+        raw_l = [str(r).strip().lower() for r in src.raw]
+        if isinstance(tname, int):
+            return tname - 1
+        cand = [tname] if tname is not None else list(_TIME_NAMES)
+        for n in cand:
+            hits = [i for i, (a, r) in enumerate(zip(names, raw_l)) if n in (a, r)]
+            if len(hits) == 1:
+                return hits[0]
+        raise ValueError(f"{where(path, src.hline)}: no time column "
+                         f"({tname or ', '.join(_TIME_NAMES)}) to join the two files on")
+
+    def fetch(self, idx, allow_empty=False):
+        from sinslab.core.stamps import stamp_step
+        per = [[self.ti[0]], [self.ti[1]]]
+        for i in idx:
+            k, j = self.where[i]
+            per[k].append(j)
+        A_, B_ = (s.fetch(list(dict.fromkeys(c)), allow_empty=True) if allow_empty and isinstance(s, _TextSource)
+                  else s.fetch(list(dict.fromkeys(c))) for s, c in zip(self.srcs, per))
+        pos = [{c: n for n, c in enumerate(dict.fromkeys(cc))} for cc in per]
+        ta, tb = A_[:, 0], B_[:, 0]
+        check_stamps(ta, self.paths[0], self.srcs[0].lines)
+        check_stamps(tb, self.paths[1], self.srcs[1].lines)
+        _, tol = stamp_step(ta) if ta.size > 1 else (0.0, 0.0)
+        j = np.clip(np.searchsorted(tb, ta), 1, max(tb.size - 1, 1))
+        jn = np.where(np.abs(tb[j - 1] - ta) <= np.abs(tb[np.minimum(j, tb.size - 1)] - ta), j - 1,
+                      np.minimum(j, tb.size - 1))
+        ok = np.abs(tb[jn] - ta) <= tol
+        n_ok = int(ok.sum())
+        if n_ok < 0.5 * min(ta.size, tb.size):
+            raise ValueError(f"{self.path}: only {n_ok} of {ta.size} time stamps of {self.paths[0].name} "
+                             f"match one of {self.paths[1].name} within {tol * 1e3:.3g} ms: the two files "
+                             "are not on one time column")
+        self.unmatched = (int(ta.size - n_ok), int(tb.size - n_ok))
+        keep = np.flatnonzero(ok)
+        self.lines = _LineView(self.srcs[0].lines, keep)
+        out = np.empty((keep.size, len(idx)))
+        for c, i in enumerate(idx):
+            k, jj = self.where[i]
+            out[:, c] = A_[keep, pos[0][jj]] if k == 0 else B_[jn[keep], pos[1][jj]]
+        return out
+
+    def report(self):
+        """``{"files", "unmatched"}``: the two files and the rows of each left without a
+        partner."""
+        return {"files": [str(p) for p in self.paths], "unmatched": list(self.unmatched)}
 
 
 class _LazyLines:
@@ -279,8 +355,11 @@ class _TextSource:
         self.ncol = len(cells)
         self.lines = _LazyLines(path, self.skip + 1)
 
-    def fetch(self, idx):
+    def fetch(self, idx, allow_empty=False):
+        """The columns ``idx`` as floats (N, len(idx)); ``allow_empty``: empty cells are NaN
+        instead of an error."""
         uniq = list(dict.fromkeys(idx))
+        self.allow_empty = allow_empty
         try:
             arr = self._fast(uniq)
         except Exception:        # noqa: BLE001 - any parse failure: find the line and say why
@@ -308,9 +387,9 @@ class _TextSource:
         out = np.empty((tab.num_rows, len(uniq)))
         for j, i in enumerate(uniq):
             c = tab.column(names[i])
-            if c.null_count:
+            if c.null_count and not self.allow_empty:
                 raise ValueError("empty cell")
-            out[:, j] = c.to_numpy()
+            out[:, j] = c.to_numpy(zero_copy_only=False)
         return out
 
     def _rows(self):
@@ -328,7 +407,7 @@ class _TextSource:
                                  if self.hline else f"{self.path}:{n}: {len(parts)} columns, the first "
                                  f"line has {self.ncol}")
             for i in used:
-                if not _is_number(parts[i]):
+                if not _is_number(parts[i]) and not (self.allow_empty and parts[i] == ""):
                     what = "empty value" if parts[i] == "" else f"not a number: {parts[i]!r}"
                     raise ValueError(f"{self.path}:{n}: {what} in column "
                                      f"{self.raw[i]!r}")
@@ -336,7 +415,7 @@ class _TextSource:
     def _slow(self, uniq):
         rows, lines = [], []
         for n, parts in self._rows():
-            rows.append([float(parts[i]) for i in uniq])
+            rows.append([float(parts[i]) if parts[i] != "" else math.nan for i in uniq])
             lines.append(n)
         self.lines = lines
         return np.array(rows, dtype=float).reshape(len(rows), len(uniq))
@@ -350,31 +429,40 @@ def _is_number(s):
         return False
 
 
-def _select(cols, cmap, path, hline, raw):
-    """Column indices of the time, gyro and accelerometer triples (and the rest flag),
-    from the column map where it names them, else by the usual names; the unit in a map
-    entry replaces the header's (``cols`` is updated in place)."""
+def _resolve_map(cols, raw, cmap, path, hline, label):
+    """``{key: column index}`` of the entries of a column map (a name, raw or parsed, or a
+    1-based position); the unit of an entry replaces the header's (``cols`` is updated in
+    place). ``label`` names the map in messages."""
     names = [c[0] for c in cols]
     raw_l = [str(r).strip().lower() for r in raw]
     picked = {}
     for key, (src, unit) in cmap.items():
         if isinstance(src, int):
             if src > len(cols):
-                raise ValueError(f"{where(path, hline)}: column map {key}={src}: the file has only "
+                raise ValueError(f"{where(path, hline)}: {label} {key}={src}: the file has only "
                                  f"{len(cols)} columns")
             i = src - 1
         else:
             hits = [i for i, (n, r) in enumerate(zip(names, raw_l)) if src in (n, r)]
             if not hits:
-                raise ValueError(f"{where(path, hline)}: column map {key}={src!r}: no such column "
+                raise ValueError(f"{where(path, hline)}: {label} {key}={src!r}: no such column "
                                  f"(the header has {', '.join(map(str, raw))})")
             if len(hits) > 1:
-                raise ValueError(f"{where(path, hline)}: column map {key}={src!r}: {len(hits)} "
+                raise ValueError(f"{where(path, hline)}: {label} {key}={src!r}: {len(hits)} "
                                  "columns have that name")
             i = hits[0]
         if unit is not None:
             cols[i] = (cols[i][0], unit)
         picked[key] = i
+    return picked
+
+
+def _select(cols, cmap, path, hline, raw):
+    """Column indices of the time, gyro and accelerometer triples (and the rest flag),
+    from the column map where it names them, else by the usual names; the unit in a map
+    entry replaces the header's (``cols`` is updated in place)."""
+    names = [c[0] for c in cols]
+    picked = _resolve_map(cols, raw, cmap, path, hline, "column map")
     out = {"map": picked}
 
     def unique(i):
@@ -465,54 +553,204 @@ def write_fix_csv(path, fx: Fixes):
     return Path(path)
 
 
-def read_fix_csv(path) -> Fixes:
-    """Read fixes from CSV: columns ``t[s], lat[deg], lon[deg]`` and optional ``h[m]``
-    (without it: horizontal fixes, NaN height), ``t_arrive[s]``, ``sd_n sd_e sd_u`` [m]
-    (default 1 m), ``ve vn vu`` [m/s] with ``sd_ve sd_vn sd_vu`` (default 0.1 m/s); units
-    may be given in the header."""
-    import pandas as pd
-    path = Path(path)
+def read_fix_csv(path, **kw) -> Fixes:
+    """Read fixes from a CSV table (:func:`read_fix_table`; keywords go to it)."""
+    return read_fix_table(path, **kw)[0]
+
+
+#: names a fix table's columns are found by (lower case; a dotted vendor name such as
+#: ``GnssPosition.Latitude`` is matched by its last part); more through a column map
+_FIX_NAMES = {
+    "t": _TIME_NAMES + ("gpstime", "gps_time", "utc_time"), "t_arrive": ("t_arrive",),
+    "lat": ("lat", "latitude"), "lon": ("lon", "lng", "long", "longitude"),
+    "h": ("h", "height", "alt", "altitude", "altitudehae", "hae"),
+    "sd_n": ("sd_n", "sdn", "std_n", "stddevn", "sigma_n"),
+    "sd_e": ("sd_e", "sde", "std_e", "stddeve", "sigma_e"),
+    "sd_u": ("sd_u", "sdu", "std_u", "stddevu", "sigma_u"),
+    "ve": ("ve", "vel_e", "v_e", "veast", "east_velocity"), "vn": ("vn", "vel_n", "v_n", "vnorth", "north_velocity"),
+    "vu": ("vu", "vel_u", "v_u", "vup", "up_velocity"), "vd": ("vd", "vel_d", "v_d", "vdown", "down_velocity"),
+    "sd_ve": ("sd_ve", "sdve", "std_ve"), "sd_vn": ("sd_vn", "sdvn", "std_vn"),
+    "sd_vu": ("sd_vu", "sdvu", "std_vu"), "sd_vd": ("sd_vd", "sdvd", "std_vd"),
+    "quality": ("quality", "q", "mode", "fix_type", "fixtype", "solution_mode", "solmode", "status"),
+}
+#: (unit kind, unit assumed when neither header nor map gives one)
+_FIX_UNITS = {"t": ("time", "s"), "t_arrive": ("time", "s"), "lat": ("angle", "deg"), "lon": ("angle", "deg"),
+              "h": ("length", "m"), **{k: ("length", "m") for k in ("sd_n", "sd_e", "sd_u")},
+              **{k: ("velocity", "m/s") for k in ("ve", "vn", "vu", "vd", "sd_ve", "sd_vn", "sd_vu", "sd_vd")}}
+
+
+def parse_quality_filter(spec):
+    """``"4,5"`` / ``[4, 5]`` / None -> a set of accepted quality values (None: all)."""
+    if spec is None or (isinstance(spec, str) and spec.strip().lower() in ("", "all")):
+        return None
+    toks = spec.split(",") if isinstance(spec, str) else list(spec)
     try:
-        df = pd.read_csv(path, comment="#")
-    except Exception as e:  # noqa: BLE001
-        raise ValueError(f"{path}: cannot read as CSV ({e})") from None
-    if len(df) == 0:
-        raise ValueError(f"{path}: no fixes")
-    cols = _parse_header(df.columns, path, 1)
+        out = {int(str(x).strip()) for x in toks if str(x).strip()}
+    except ValueError:
+        raise ValueError(f"--fix-quality {spec!r}: give the accepted quality/mode values as "
+                         "integers, e.g. 4,5") from None
+    if not out:
+        raise ValueError(f"--fix-quality {spec!r}: no value given")
+    return out
+
+
+def _fix_select(cols, raw, cmap, path, hline):
+    """Column index of every fix quantity the table has: from the map, else by name."""
     names = [c[0] for c in cols]
-    need = ["t", "lat", "lon"]
-    for n in need:
-        if n not in names:
-            raise ValueError(f"{path}:1: no column {n!r} (need t, lat[deg], lon[deg]; optional "
-                             "h[m], t_arrive[s], sd_n sd_e sd_u [m], ve vn vu [m/s], sd_ve sd_vn sd_vu)")
-    try:
-        a = df.to_numpy(dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{path}: non-numeric values") from None
-    bad = ~np.isfinite(a)
+    out = _resolve_map(cols, raw, cmap, path, hline, "--fix-columns")
+    taken = set(out.values())
+    for key, aliases in _FIX_NAMES.items():
+        if key in out or (key == "vd" and "vu" in out) or (key == "vu" and "vd" in out):
+            continue
+        hits = [i for i, n in enumerate(names) if i not in taken and (n in aliases or n.rsplit(".", 1)[-1] in aliases)]
+        if len(hits) > 1:
+            exact = [i for i in hits if names[i] in aliases]
+            if len(exact) != 1:
+                raise ValueError(f"{where(path, hline)}: {len(hits)} columns could be {key!r} "
+                                 f"({', '.join(str(raw[i]) for i in hits)}); name the one to use with "
+                                 f"--fix-columns {key}=NAME")
+            hits = exact
+        if hits:
+            out[key] = hits[0]
+            taken.add(hits[0])
+    miss = [k for k in ("t", "lat", "lon") if k not in out]
+    if miss:
+        raise ValueError(f"{where(path, hline)}: no {', '.join(miss)} column among "
+                         f"{', '.join(map(str, raw))}; name them with --fix-columns "
+                         "\"t=NAME[s], lat=NAME[deg], lon=NAME[deg], ...\"")
+    return out
+
+
+def read_fix_table(path, *, columns=None, quality=None) -> tuple:
+    """Read position(/velocity) fixes from a CSV (or other delimited text) or Parquet table,
+    as units export them.
+
+    Columns are found by name (case-insensitive; ``t``/``time``/``timestamp``..., ``lat``/
+    ``latitude``, ``lon``/``longitude``, ``h``/``height``/``altitude``, ``sd_n sd_e sd_u``,
+    ``ve vn vu`` or ``vn ve vd`` (NED: down), ``sd_ve``..., a quality/mode column; a dotted
+    vendor name ``GnssPosition.Latitude`` by its last part) or through ``columns``, a map
+    with units in the syntax of the IMU's (:func:`sinslab.data.columns.parse_column_map`
+    with :data:`sinslab.data.columns.FIX_KEYS`, ``--fix-columns``:
+    ``"t=time[s], lat=GnssPosition.Latitude[deg], vd=GnssVelocity.Down[m/s], quality=GnssSolution.Mode"``).
+    Units from the map, else the header (``lat[rad]``), else t s, lat/lon deg, h m, σ m,
+    velocities m/s. Without ``h``: horizontal fixes (NaN height); default σ 1 m and 0.1 m/s.
+
+    ``quality``: the accepted values of the quality/mode column (a set, or ``"4,5"``);
+    other rows are dropped. Rows without a position (empty or NaN latitude/longitude: a
+    receiver without a fix) are dropped and counted. A *held* stream — a receiver's
+    fixes repeated in every row of a faster log (:func:`sinslab.core.stamps.held_runs`)
+    — is collapsed to the first row of each receiver epoch.
+
+    Returns ``(Fixes, meta)``; ``meta`` holds ``rows``, ``held`` (rows, epochs) or None,
+    ``no_position`` (rows dropped), ``quality_counts`` ({value: rows}), ``quality_kept``,
+    ``columns`` (the column of each quantity) and ``velocity_frame`` ("ENU" | "NED" | None).
+    """
+    from sinslab.core.stamps import held_runs
+    cmap = _columns.parse_column_map(columns, keys=_columns.FIX_KEYS, option="--fix-columns")
+    keep_q = parse_quality_filter(quality)
+    if isinstance(path, (list, tuple)) and len(path) == 1:
+        path = path[0]
+    if isinstance(path, (list, tuple)):
+        # positions and velocities in two tables on one time column
+        src = _JoinedSource([Path(p) for p in path], cmap)
+        path = src.path
+    else:
+        path = Path(path)
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: no such file")
+        src = _source(path, cmap)
+    cols, hline = src.cols, src.hline
+    pick = _fix_select(cols, src.raw, cmap, path, hline)
+    keys = list(pick)
+    a = _fetch_allow_nan(src, [pick[k] for k in keys])
+    lines = src.lines
+    col = {}
+    for j, k in enumerate(keys):
+        if k == "quality":
+            col[k] = a[:, j]
+            continue
+        kind, default = _FIX_UNITS[k]
+        un = cols[pick[k]][1] or default
+        try:
+            col[k] = a[:, j] * units.unit_scale(un, kind)
+        except (ValueError, KeyError):
+            raise ValueError(f"{where(path, hline)}: column {cols[pick[k]][0]!r} ({k}) has unit {un!r}, "
+                             f"not a {kind} unit") from None
+    n_rows = a.shape[0]
+    meta = {"rows": n_rows, "columns": {k: str(src.raw[i]) for k, i in pick.items()},
+            "velocity_frame": "NED" if "vd" in pick else "ENU" if "vu" in pick else None}
+    t = col["t"]
+    bad = ~np.isfinite(t)
     if bad.any():
-        raise ValueError(f"{path}:{int(np.argwhere(bad)[0, 0]) + 2}: NaN/inf value")
-
-    def col(n, kind, default_unit):
-        i = names.index(n)
-        u = cols[i][1] or default_unit
-        return a[:, i] * units.unit_scale(u, kind)
-
-    t = col("t", "time", "s")
-    check_stamps(t, path, list(range(2, len(t) + 2)))
-    lat, lon = col("lat", "angle", "deg"), col("lon", "angle", "deg")
-    two_d = "h" not in names
-    h = np.full(t.size, np.nan) if two_d else col("h", "length", "m")
-    sig = np.stack([col(n, "length", "m") if n in names else
-                    np.full(t.size, np.nan if (two_d and n == "sd_u") else 1.0)
-                    for n in ("sd_n", "sd_e", "sd_u")], -1)
-    t_arr = col("t_arrive", "time", "s") if "t_arrive" in names else None
+        raise ValueError(f"{where(path, lines[int(np.argmax(bad))])}: time stamp is not a finite number")
+    keep = np.ones(n_rows, bool)
+    if "quality" in col:
+        q = col["quality"]
+        qi = np.where(np.isfinite(q), q, -1).astype(int)
+        vals, cnt = np.unique(qi, return_counts=True)
+        meta["quality_counts"] = {int(v): int(c) for v, c in zip(vals, cnt)}
+        if keep_q is not None:
+            keep &= np.isin(qi, sorted(keep_q))
+        meta["quality_kept"] = sorted(keep_q) if keep_q is not None else "all"
+    elif keep_q is not None:
+        raise ValueError(f"{where(path, hline)}: --fix-quality given but the table has no quality/mode "
+                         "column; name it with --fix-columns quality=NAME")
+    nopos = ~(np.isfinite(col["lat"]) & np.isfinite(col["lon"]))
+    meta["no_position"] = int(np.sum(nopos & keep))
+    keep &= ~nopos
+    for k in ("h", "ve", "vn", "vu", "vd"):
+        if k in col:
+            b = keep & ~np.isfinite(col[k])
+            if b.any():
+                raise ValueError(f"{where(path, lines[int(np.argmax(b))])}: NaN/inf or empty value in "
+                                 f"column {src.raw[pick[k]]!r} of a row with a position")
+    idx = np.flatnonzero(keep)
+    if idx.size == 0:
+        raise ValueError(f"{path}: no fixes" + (f" with quality in {sorted(keep_q)} (the table has "
+                                                 f"{meta.get('quality_counts')})" if keep_q else ""))
+    check_stamps(t[idx], path, _LineView(lines, idx))
+    J = idx.size
+    two_d = "h" not in col
     vel = svel = None
-    if all(n in names for n in ("ve", "vn", "vu")):
-        vel = np.stack([col(n, "velocity", "m/s") for n in ("ve", "vn", "vu")], -1)
-        svel = np.stack([col(n, "velocity", "m/s") if n in names else np.full(t.size, 0.1)
-                         for n in ("sd_ve", "sd_vn", "sd_vu")], -1)
-    return Fixes(t, lat, lon, h, sig, vel, svel, np.zeros(t.size, int), str(path), t_arr)
+    if "vu" in col or "vd" in col:
+        if not ("ve" in col and "vn" in col):
+            raise ValueError(f"{where(path, hline)}: a vertical velocity without ve and vn columns")
+        vu = col["vu"] if "vu" in col else -col["vd"]
+        vel = np.stack([col["ve"], col["vn"], vu], -1)
+        su = "sd_vu" if "sd_vu" in col else "sd_vd"
+        svel = np.stack([col[k] if k in col else np.full(n_rows, 0.1) for k in ("sd_ve", "sd_vn", su)], -1)
+    sig = np.stack([col[k] if k in col else np.full(n_rows, np.nan if (two_d and k == "sd_u") else 1.0)
+                    for k in ("sd_n", "sd_e", "sd_u")], -1)
+    h = np.full(n_rows, np.nan) if two_d else col["h"]
+    changing = [col["lat"], col["lon"], h] + ([] if vel is None else list(vel.T)) + list(sig.T)
+    runs = held_runs(np.stack(changing, -1)[idx])
+    meta["held"] = None
+    if runs is not None:
+        meta["held"] = (int(J), int(runs.size))
+        idx = idx[runs]
+    sel = (lambda x: None if x is None else x[idx])
+    q_out = col["quality"][idx].astype(int) if "quality" in col else np.zeros(idx.size, int)
+    fx = Fixes(t[idx], col["lat"][idx], col["lon"][idx], h[idx], sig[idx], sel(vel), sel(svel), q_out,
+               str(path), col["t_arrive"][idx] if "t_arrive" in col else None)
+    return fx, meta
+
+
+class _LineView:
+    """Lines of the kept rows ``idx`` of a table (``lines[idx[i]]``), looked up lazily."""
+
+    def __init__(self, lines, idx):
+        self.lines, self.idx = lines, idx
+
+    def __getitem__(self, i):
+        return self.lines[int(self.idx[i])]
+
+
+def _fetch_allow_nan(src, idx):
+    """The columns ``idx`` of a table source, empty cells as NaN (a receiver log leaves the
+    position empty when it has no fix)."""
+    if isinstance(src, (_TextSource, _JoinedSource)):
+        return src.fetch(idx, allow_empty=True)
+    return src.fetch(idx)
 
 
 #: Columns of a recorded two-GEO fix list (:func:`read_two_geo_csv`); ``t_arrive_s`` is

@@ -670,6 +670,9 @@ class _LaneRun:
                 r = meas.matrices(Epoch(t_at, e1, now, lay, n, j))
                 if r is None:
                     continue
+                gate = getattr(meas, "gate", None)
+                if gate is not None and not gate.passes(filt.x, filt.P, *r, t_at):
+                    continue
                 res = filt.update(*r)
             self.a_m.append(mi)
             self.a_j.append(j)

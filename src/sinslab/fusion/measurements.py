@@ -27,7 +27,8 @@ from sinslab.core import earth as E
 
 __all__ = ["Measurement", "NavRow", "Epoch", "Grid", "PositionFix", "VelocityFix", "Stack",
            "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
-           "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body"]
+           "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body",
+           "InnovationGate"]
 
 
 @dataclass(frozen=True)
@@ -475,17 +476,73 @@ def _intervals(intervals):
     return w
 
 
+class InnovationGate:
+    """Reject an update whose innovation the filter's own covariance cannot explain.
+
+    An aiding measurement is an assumption (the vehicle is at rest, does not slide
+    sideways); where it is false its innovation ``ν = z − H x`` is far outside
+    ``S = H P Hᵀ + R``. The update is applied only when ``νᵀ S⁻¹ ν`` is at most the
+    ``1 − p`` quantile of χ² with ``m`` degrees of freedom (``m`` = rows of ``z``);
+    a consistent measurement is rejected with probability ``p``.
+
+    Attributes
+    ----------
+    p : float
+        False-rejection probability per update.
+    rejected : list of float
+        Times [s] of the rejected updates.
+    passed : int
+        Number of updates let through.
+    """
+
+    def __init__(self, p=1e-6):
+        if not (0 < p < 1):
+            raise ValueError(f"gate probability must be in (0, 1), got {p}")
+        self.p = float(p)
+        self.rejected = []
+        self.passed = 0
+        self._limit = {}
+
+    def limit(self, m):
+        """χ² threshold for ``m`` rows."""
+        if m not in self._limit:
+            from scipy.stats import chi2
+            self._limit[m] = float(chi2.isf(self.p, m))
+        return self._limit[m]
+
+    def passes(self, x, P, z, H, R, t):
+        """True when the update ``(z, H, R)`` against the prior ``x, P`` lies inside the
+        gate; a rejection is recorded at ``t``."""
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        H = np.atleast_2d(H)
+        R = np.asarray(R, dtype=float)
+        nu = z - H @ x
+        S = H @ P @ H.T + (np.diag(np.broadcast_to(R, z.shape)) if R.ndim < 2 else R)
+        try:
+            nis = float(nu @ np.linalg.solve(S, nu))
+        except np.linalg.LinAlgError:
+            nis = math.inf
+        if nis <= self.limit(z.size):
+            self.passed += 1
+            return True
+        self.rejected.append(float(t))
+        return False
+
+
 class _OnEpochs:
     """Items are filter epochs (the item is the epoch index), optionally restricted to
-    time intervals and thinned to every ``every``-th epoch; available at once."""
+    time intervals and thinned to every ``every``-th epoch; available at once. ``gate``:
+    an :class:`InnovationGate` (or its false-rejection probability) the driver applies
+    before each update (None: every update applied)."""
 
-    def _init_sched(self, intervals, every, stream):
+    def _init_sched(self, intervals, every, stream, gate=None):
         self.intervals = _intervals(intervals)
         self.every = int(every)
         if self.every < 1:
             raise ValueError(f"every must be >= 1, got {every}")
         self.stream = int(stream)
         self._t = None
+        self.gate = gate if (gate is None or isinstance(gate, InnovationGate)) else InnovationGate(gate)
 
     def _keep(self, t):
         keep = np.ones(t.size, dtype=bool)
@@ -527,10 +584,13 @@ class ZeroVelocity(_OnEpochs):
     every : int
         Apply at every ``every``-th filter epoch inside the intervals.
     stream : int
+    gate : InnovationGate or float, optional
+        Innovation gate (or its false-rejection probability): an update the filter's
+        covariance cannot explain (a "rest" in motion) is skipped.
     """
 
-    def __init__(self, intervals, sigma=0.01, *, every=1, stream=0):
-        self._init_sched(intervals, every, stream)
+    def __init__(self, intervals, sigma=0.01, *, every=1, stream=0, gate=None):
+        self._init_sched(intervals, every, stream, gate)
         self.sigma = _sigma(sigma, 3, "ZUPT")
 
     def matrices(self, ep: Epoch):
@@ -557,12 +617,12 @@ class ZeroRate(_OnEpochs):
     intervals : sequence of (start, end) [s]
     sigma : float or array_like (3,)
         [rad/s] (of the mean rate over one filter step: ARW / √T plus vibration).
-    every, stream
+    every, stream, gate
         As in :class:`ZeroVelocity`.
     """
 
-    def __init__(self, intervals, sigma, *, every=1, stream=0):
-        self._init_sched(intervals, every, stream)
+    def __init__(self, intervals, sigma, *, every=1, stream=0, gate=None):
+        self._init_sched(intervals, every, stream, gate)
         self.sigma = _sigma(sigma, 3, "ZARU")
 
     def matrices(self, ep: Epoch):
@@ -580,12 +640,14 @@ class ZeroRate(_OnEpochs):
         return z, H, self.sigma ** 2
 
 
-def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None):
+def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None, mount_block=None):
     """Velocity of a vehicle point in vehicle axes and its Jacobian.
 
     ``v^v = C_b^v (C̃_n^b ṽ^n + ω̃_ib^b × l)`` [m/s] (l: IMU -> point, body axes [m]);
     ``∂/∂φ = −C_b^v C_n^b (v^n×)``, ``∂/∂δv = C_b^v C_n^b``, ``∂/∂δω = −C_b^v (l×)``,
-    ``∂/∂δl = C_b^v (ω×)`` (lever error state, computed − true, when ``lever_block``).
+    ``∂/∂δl = C_b^v (ω×)`` (lever error state, computed − true, when ``lever_block``),
+    ``∂/∂ψ = (v^v×)`` (``mount_block``: small angles ψ [rad] of the mount in use, vehicle
+    axes, ``C̃_b^v = (I − ψ×) C_b^v``; the true mount is ``(I + ψ×) C̃_b^v``).
     """
     Cnb = nr.C_bn.T
     w = nr.omega_b
@@ -598,7 +660,11 @@ def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None):
     _add_rate_H(H, lay, -Cvb @ A.skew(lever), w)
     if lever_block is not None:
         H[:, lay.slice(lever_block)] = Cvb @ A.skew(w)
-    return Cvb @ vb, H
+    vv = Cvb @ vb
+    if mount_block is not None:
+        b = next(x for x in lay.blocks if x.name == mount_block)
+        H[:, lay.slice(mount_block)] = A.skew(vv)[:, ["xyz".index(a) for a in b.axes]]
+    return vv, H
 
 
 def _lever(lever_arm):
@@ -623,23 +689,27 @@ class NonHolonomic(_OnEpochs):
         Where the constraint holds (default: every epoch).
     lever_block : str, optional
         Name of a :func:`sinslab.nav.errstate.lever_arm` block estimating the lever error.
-    every, stream
+    mount_block : str, optional
+        Name of a :func:`sinslab.nav.errstate.installation` block (axes ``"xz"``: pitch and
+        yaw; roll is unobservable) estimating the mount's small-angle error.
+    every, stream, gate
         As in :class:`ZeroVelocity`.
     """
 
     rows = (0, 2)
 
     def __init__(self, sigma=0.1, *, mount=None, lever_arm=None, intervals=None, lever_block=None,
-                 every=1, stream=0):
-        self._init_sched(intervals, every, stream)
+                 every=1, stream=0, gate=None, mount_block=None):
+        self._init_sched(intervals, every, stream, gate)
         self.sigma = _sigma(sigma, 2, "NHC")
         self.Cvb = vehicle_from_body(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
+        self.mount_block = mount_block
 
     def matrices(self, ep: Epoch):
         vv, H = _vehicle_velocity(ep.streams[self.stream], ep.layout, ep.n, self.Cvb, self.lever,
-                                  self.lever_block)
+                                  self.lever_block, self.mount_block)
         r = list(self.rows)
         return vv[r], H[r], self.sigma ** 2
 
@@ -704,7 +774,7 @@ class Odometer(_OnEpochs):
         Forward speed [m/s], finite and >= 0.
     sigma : float
         Speed noise [m/s] at one filter epoch (include quantisation: step/√12).
-    mount, lever_arm, lever_block, intervals, every, stream
+    mount, lever_arm, lever_block, intervals, every, stream, gate
         As in :class:`NonHolonomic` (``lever_arm``: IMU -> wheel point).
     scale_block : str or None
         Name of the odometer scale-factor block (None: no scale state).
@@ -713,8 +783,8 @@ class Odometer(_OnEpochs):
     """
 
     def __init__(self, t, speed, sigma, *, mount=None, lever_arm=None, lever_block=None,
-                 scale_block="kod", nhc_sigma=None, intervals=None, every=1, stream=0):
-        self._init_sched(intervals, every, stream)
+                 scale_block="kod", nhc_sigma=None, intervals=None, every=1, stream=0, gate=None):
+        self._init_sched(intervals, every, stream, gate)
         self.t_odo = np.asarray(t, dtype=float).ravel()
         self.speed = np.asarray(speed, dtype=float).ravel()
         if self.t_odo.size < 2 or self.speed.shape != self.t_odo.shape:

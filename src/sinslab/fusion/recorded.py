@@ -9,7 +9,10 @@ data, outages, and evaluation against the fixes.
    given (``heading``), or taken from the fix velocity once the vehicle moves faster than
    ``move_speed`` (the INS attitude is propagated from the levelled start by the gyros
    and rotated about the vertical so that the body forward axis points along the fix
-   course; a car does not drive sideways). The filter starts there.
+   course; a car does not drive sideways). The filter starts there. Without a rest at
+   the start (a flight, a log begun on the move) pitch and roll come from the fix
+   acceleration against the specific force over the first seconds
+   (:func:`level_in_motion`), the heading from the course as above.
 2. **Filter**: :func:`sinslab.fusion.loosely_coupled.loosely_coupled` with the model and
    P0 from :class:`NavOptions`.
 3. **Outages and latency.** Fixes whose validity time lies in an outage are dropped; a
@@ -32,12 +35,23 @@ from sinslab.core import earth as E
 from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
+from sinslab.core.stamps import held_runs, stamp_step, whole_intervals
 from sinslab.fusion.loosely_coupled import loosely_coupled
 from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
            "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
-           "leveled_start"]
+           "leveled_start", "level_in_motion", "moving_spans", "moving_speed_threshold", "subtract_spans", "platform_kind", "PLATFORMS"]
+
+
+#: platform kinds of :attr:`NavOptions.platform`
+PLATFORMS = ("auto", "land", "aircraft", "marine")
+#: an aircraft's heading is taken from its course only above this speed [m/s] (flying) and
+#: with the wings within this roll [rad] of level (a banked turn slips and crabs)
+AIRCRAFT_MOVE_SPEED = 10.0
+AIRCRAFT_MAX_ROLL = 10.0 * units.deg
+#: 1σ of an aircraft's crab angle (course minus heading in wind) [rad]
+AIRCRAFT_CRAB_SIGMA = 10.0 * units.deg
 
 
 @dataclass
@@ -87,12 +101,22 @@ class NavOptions:
     rest_min: float = 2.0                   #: shortest rest interval used [s]
     nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
     nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
+    vehicle_mount: tuple | None = None      #: IMU body in the vehicle frame [pitch, roll, yaw] [rad]
+    #: (what is left after the reader's mount: a case bolted 1-2° off the car's axes)
+    estimate_vehicle: bool = False          #: states for the mount's pitch and yaw and the NHC lever
+    vehicle_mount_sigma: float = 2.0 * units.deg   #: their initial σ [rad]
+    nhc_lever_sigma: float = 0.5            #: [m] per axis
+    platform: str = "auto"                  #: "auto" | "land" | "aircraft" | "marine": NHC and the
+    #: odometer assume a wheeled land vehicle and are refused otherwise ("auto": from the fixes)
     aiding_dt: float = 0.1                  #: ZUPT/NHC applied every this [s] (ZARU: every epoch)
+    aid_gate: float | None = 1e-6           #: false-rejection probability of the innovation gate of
+    #: every ZUPT/ZARU/NHC/odometer update (:class:`~sinslab.fusion.measurements.InnovationGate`); None: no gate
     estimate_lever: bool = False            #: estimate the antenna lever arm (3 states)
     lever_sigma: float = 1.0                #: its initial σ per axis [m]
     heading_window: float = 1.0             #: [s] of motion above move_speed for the heading
     heading_straight: float = 2.0 * units.deg   #: largest spread of course − gyro heading in it [rad]
     heading_sigma_floor: float = 1.0 * units.deg  #: added (in quadrature) to the σ of that heading
+    level_window: float = 10.0              #: [s] of fixes for levelling in motion (no initial rest)
     smooth: bool = False                    #: record the forward pass and smooth it (RTS)
     odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
     odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
@@ -118,6 +142,12 @@ class NavOptions:
             raise ValueError("zupt='flags' needs a rest-flag column (column map key 'stationary')")
         if self.zaru and self.zupt is None:
             raise ValueError("ZARU runs on the rest intervals of ZUPT: choose zupt='auto' or 'flags'")
+        if self.platform not in PLATFORMS:
+            raise ValueError(f"platform must be one of {', '.join(PLATFORMS)}, got {self.platform!r}")
+        if self.estimate_vehicle and self.nhc_sigma is None:
+            raise ValueError("the vehicle mount and NHC lever states need the NHC (nhc_sigma)")
+        if self.aid_gate is not None and not (0 < self.aid_gate < 1):
+            raise ValueError(f"aid_gate must be a probability in (0, 1) or None, got {self.aid_gate}")
         for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight"):
             v = getattr(self, nm)
             if not (math.isfinite(v) and v > 0):
@@ -233,16 +263,79 @@ def level_from_rest(imu: ImuRecord, k0, k1, lat):
     return pitch, roll, w_bias, f
 
 
-def leveled_start(imu, fixes: Fixes, opt: NavOptions):
-    """Index range of the initial rest and levelling results (see module notes)."""
-    sp = _fix_speed(fixes)
-    moving = np.flatnonzero(sp > opt.static_speed)
-    t_move = fixes.t[moving[0]] if moving.size else fixes.t[-1]
-    k1 = int(np.searchsorted(imu.t, min(t_move, imu.t[0] + 120.0)))
-    k0 = int(np.searchsorted(imu.t, max(imu.t0, fixes.t[0]) - 1e-9))
-    if k1 - k0 < int(round(1.0 / imu.dt)):
+def level_in_motion(imu: ImuRecord, fixes: Fixes, k0, lat, window=10.0):
+    """Pitch and roll [rad] of the body at the start of IMU sample ``k0`` from motion.
+
+    Over the fix intervals ``[t_j, t_j+1]`` in the first ``window`` s, the specific force
+    integrated in the navigation frame is ``Δv^n + g Δt + 2 ω_ie × v Δt`` (fix velocities,
+    ENU, gravity up) and in the start body frame ``Σ C_b^{b0} Δv_b`` (the IMU increments,
+    the body rotation carried by the gyros from ``k0``). The rotation that best maps the
+    second onto the first (Wahba's problem, by SVD) is the start attitude; gravity
+    dominates, so its pitch and roll are sound whatever the accelerations, its heading only
+    with strong horizontal ones (heading is taken from the course instead).
+
+    Returns ``(pitch, roll, intervals used, RMS residual [m/s] per interval)`` or None when
+    fewer than 3 fix intervals fall in the window.
+    """
+    dt = imu.dt
+    t0 = float(imu.t[k0] - dt)
+    j = np.flatnonzero((fixes.t >= t0) & (fixes.t <= t0 + window))
+    if j.size < 4 or k0 >= len(imu):
         return None
-    return k0, k1
+    v = _fix_vel_enu(fixes)
+    g = float(E.gravity(lat, float(np.nanmean(fixes.h[j])) if np.any(np.isfinite(fixes.h[j])) else 0.0))
+    wie = np.array([0.0, E.WIE * math.cos(lat), E.WIE * math.sin(lat)])
+    k_end = int(np.searchsorted(imu.t, fixes.t[j[-1]] + 1e-9))
+    # the body rotation from the start and each sample's Δv in the start body frame
+    ub_cum = np.zeros((k_end - k0 + 1, 3))
+    C = np.eye(3)
+    for i, k in enumerate(range(k0, k_end)):
+        dv = imu.dv[k] + 0.5 * np.cross(imu.dtheta[k], imu.dv[k])
+        ub_cum[i + 1] = ub_cum[i] + C @ dv
+        C = C @ A.rotvec_to_dcm(imu.dtheta[k])
+    tk = np.r_[t0, imu.t[k0:k_end]]
+    ub_at = np.stack([np.interp(fixes.t[j], tk, ub_cum[:, a]) for a in range(3)], -1)
+    un, ub = [], []
+    for a, b in zip(range(j.size - 1), range(1, j.size)):
+        ia, ib = j[a], j[b]
+        T = float(fixes.t[ib] - fixes.t[ia])
+        vm = 0.5 * (v[ia] + v[ib])
+        un.append(v[ib] - v[ia] + np.array([0.0, 0.0, g * T]) + 2.0 * np.cross(wie, vm) * T)
+        ub.append(ub_at[b] - ub_at[a])
+    un, ub = np.array(un), np.array(ub)
+    U, _, Vt = np.linalg.svd(un.T @ ub)
+    Cbn = U @ np.diag([1.0, 1.0, np.linalg.det(U) * np.linalg.det(Vt)]) @ Vt
+    att = A.dcm_to_euler(Cbn)
+    resid = float(np.sqrt(np.mean(np.sum((un - ub @ Cbn.T) ** 2, axis=1))))
+    return float(att[0]), float(att[1]), int(un.shape[0]), resid
+
+
+def leveled_start(imu, fixes: Fixes, opt: NavOptions):
+    """Index range ``(k0, k1)`` of the initial rest (see module notes) or None: until the
+    first fix faster than ``static_speed``; when that leaves less than 1 s (a receiver
+    whose speed noise exceeds ``static_speed``), until the first fix faster than three
+    times its own speed noise (:func:`moving_speed_threshold`)."""
+    sp = _fix_speed(fixes)
+    k0 = int(np.searchsorted(imu.t, max(imu.t0, fixes.t[0]) - 1e-9))
+    for thr in (opt.static_speed, moving_speed_threshold(fixes, opt)):
+        moving = np.flatnonzero(sp > thr)
+        t_move = fixes.t[moving[0]] if moving.size else fixes.t[-1]
+        k1 = int(np.searchsorted(imu.t, min(t_move, imu.t[0] + 120.0)))
+        if k1 - k0 >= int(round(1.0 / imu.dt)):
+            return k0, k1
+    return None
+
+
+def moving_speed_threshold(fixes: Fixes, opt: NavOptions):
+    """Per fix, the horizontal speed [m/s] above which the fix says the vehicle moves:
+    three times the speed's own noise (the velocity σ, or for position-only fixes the σ
+    of a position difference over one interval), at least ``static_speed``."""
+    if fixes.vel is not None:
+        sv = fixes.sigma_vel if fixes.sigma_vel is not None else np.full((len(fixes), 3), 0.1)
+        s_sp = np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2)
+    else:
+        s_sp = np.hypot(fixes.sigma[:, 0], fixes.sigma[:, 1]) / stamp_step(fixes.t)[0]
+    return np.maximum(3.0 * s_sp, opt.static_speed)
 
 
 def _fix_speed(fixes: Fixes):
@@ -298,6 +391,8 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
         sensors.append(es.lever_arm())
     if opt.odometer is not None:
         sensors.append(es.odometer_scale())
+    if opt.estimate_vehicle:
+        sensors += [es.installation("vm", "xz"), es.lever_arm("nlev")]
     return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
 
 
@@ -323,7 +418,8 @@ def _imu_point_course(fixes: Fixes, imu, lever, gb):
     return crs, np.hypot(vi[:, 0], vi[:, 1])
 
 
-def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever, gb):
+def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever, gb, move_speed=None,
+                       max_roll=math.inf):
     """Heading from the first ``heading_window`` seconds of motion faster than
     ``move_speed`` in which the course of the IMU-point velocity and the heading carried by
     the gyros from the levelled rest (started at yaw 0) differ by a constant within
@@ -334,21 +430,20 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
     """
     from sinslab.nav import strapdown as sd
     crs, spi = _imu_point_course(fixes, imu, lever, gb)
-    fast = spi > opt.move_speed
+    fast = spi > (opt.move_speed if move_speed is None else move_speed)
     t_rest = float(imu.t[k0])
     cand = np.flatnonzero(fast & (fixes.t > t_rest))
     dt = imu.dt
-    tried = set()
+    # the window is a whole number of the stream's own intervals, its length tested with
+    # the stamps' own jitter (a receiver stamps "1 s" fixes 1.000019 s apart)
+    n_iv, f_dt, f_tol = whole_intervals(fixes.t, opt.heading_window)
     for j in cand:
-        w = np.flatnonzero((fixes.t >= fixes.t[j]) & (fixes.t <= fixes.t[j] + opt.heading_window + 1e-9))
-        if fixes.t[w[-1]] - fixes.t[j] < opt.heading_window - 1e-9 or not fast[w].all():
+        w = np.flatnonzero((fixes.t >= fixes.t[j]) & (fixes.t <= fixes.t[j] + n_iv * (f_dt + f_tol)))
+        if fixes.t[w[-1]] - fixes.t[j] < n_iv * (f_dt - f_tol) or not fast[w].all():
             continue
-        if j in tried:
-            continue
-        tried.add(j)
         st = pre0.copy()
         k = k0
-        az, kk = [], []
+        az, kk, roll = [], [], []
         for i in w:                          # INS heading of the forward axis at each fix
             ke = int(np.searchsorted(imu.t, fixes.t[i] - 1e-9))
             ke = max(k, ke - (ke - k0) % nsub)
@@ -358,6 +453,9 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
             C = A.quat_to_dcm(st[:4])
             az.append(math.atan2(C[0, 1], C[1, 1]))             # forward axis, clockwise from north
             kk.append(k)
+            roll.append(abs(A.dcm_to_euler(C)[1]))
+        if max(roll) > max_roll:                # banked: an aircraft's course leaves its heading
+            continue
         off = np.unwrap(crs[w] - np.array(az))
         if np.ptp(off) > opt.heading_straight:
             continue
@@ -377,17 +475,72 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
     return None
 
 
+def platform_kind(fixes: Fixes, platform="auto"):
+    """``(kind, reason)``: the platform as given, or with ``"auto"`` from the fixes: an
+    aircraft when the horizontal speed exceeds 70 m/s or the climb rate exceeds 3 m/s at
+    more than 2 % of the fixes (a car would need a 10 % grade at 30 m/s; car drives on
+    hills stay below 1 m/s, a small UAV exceeds 3 m/s at 7 % of its fixes); else land (a
+    ship is not told from a car by its fixes)."""
+    if platform != "auto":
+        return platform, "given"
+    v = _fix_vel_enu(fixes)
+    sp = np.hypot(v[:, 0], v[:, 1])
+    vu = np.abs(v[:, 2]) if np.all(np.isfinite(v[:, 2])) else np.zeros(len(fixes))
+    if sp.max() > 70.0:
+        return "aircraft", f"horizontal speed up to {sp.max():.0f} m/s"
+    if np.mean(vu > 3.0) > 0.02:
+        return "aircraft", f"climbing or descending faster than 3 m/s at {100 * np.mean(vu > 3.0):.0f} % of the fixes"
+    return "land", "from the fixes: speed and climb rate of a land vehicle"
+
+
 def fixes_dt(fixes):
     """Median interval of the fixes [s]."""
     return float(np.median(np.diff(fixes.t))) if len(fixes) > 1 else 1.0
 
 
-def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=None):
+def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=None, fixes=None):
     """Stationary intervals for ZUPT/ZARU [s], shape (K, 2): from the log's rest flags
     (``zupt="flags"``) or the IMU detector (:func:`sinslab.fusion.stationarity.detect`)
-    with thresholds calibrated on the initial rest ``rest = (k0, k1)`` (the scatter of the
-    engine-on car at rest, ×1.5; the gyro bias measured there removed), trimmed by 0.5 s
-    at both ends and at least ``rest_min`` long."""
+    with thresholds calibrated on the initial rest ``rest = (k0, k1)`` (the scatter of
+    specific force and rate and the mean rate of the engine-on car at rest, ×1.5; the gyro
+    bias measured there removed), trimmed by 0.5 s at both ends and at least ``rest_min``
+    long; then cut wherever one of ``fixes`` (those the filter uses) says the vehicle
+    moves (:func:`moving_spans`): a detector cannot tell rest from steady driving on a
+    smooth road, a fix can."""
+    iv = _rest_candidates(imu, opt, lat, rest, gyro_bias)
+    if fixes is not None and len(fixes) > 1 and iv.size:
+        iv = subtract_spans(iv, moving_spans(fixes, opt))
+    return iv[(iv[:, 1] - iv[:, 0]) >= max(opt.rest_min - 1.0, 0.1)] if iv.size else iv
+
+
+def moving_spans(fixes: Fixes, opt: NavOptions):
+    """Time spans [s] (K, 2) in which fixes say the vehicle moves: one fix interval either
+    side of every fix faster than :func:`moving_speed_threshold`."""
+    fdt, _ = stamp_step(fixes.t)
+    mv = _fix_speed(fixes) > moving_speed_threshold(fixes, opt)
+    return np.stack([fixes.t[mv] - fdt, fixes.t[mv] + fdt], -1)
+
+
+def subtract_spans(iv, spans):
+    """Intervals ``iv`` (K, 2) minus the union of ``spans`` (L, 2), both [s]."""
+    out = []
+    spans = np.asarray(spans, dtype=float).reshape(-1, 2)
+    spans = spans[np.argsort(spans[:, 0])] if spans.size else spans
+    for a, b in np.asarray(iv, dtype=float).reshape(-1, 2):
+        hit = spans[(spans[:, 1] > a) & (spans[:, 0] < b)]
+        cur = a
+        for sa, sb in hit:
+            if sa > cur:
+                out.append((cur, min(sa, b)))
+            cur = max(cur, sb)
+            if cur >= b:
+                break
+        if cur < b:
+            out.append((cur, b))
+    return np.array(out, dtype=float).reshape(-1, 2)
+
+
+def _rest_candidates(imu, opt, lat, rest, gyro_bias):
     from sinslab.fusion import stationarity as st
     if opt.zupt == "flags":
         t, fl = opt.rest_flags
@@ -406,11 +559,11 @@ def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=No
                 g = float(E.gravity(lat, 0.0))
                 kw = dict(f_std=max(1.5 * float(np.linalg.norm(f.std(1), axis=1).max()), 0.02),
                           f_tol=max(1.5 * float(np.abs(np.linalg.norm(f.mean(1), axis=1) - g).max()), 0.05),
-                          w_max=max(1.5 * float(np.linalg.norm(w.mean(1), axis=1).max()), 0.002))
+                          w_max=max(1.5 * float(np.linalg.norm(w.mean(1), axis=1).max()), 0.002),
+                          w_std=max(1.5 * float(np.linalg.norm(w.std(1), axis=1).max()), 1e-4))
         iv = st.detect(im, lat, min_duration=opt.rest_min, **kw)
     iv = np.asarray(iv, dtype=float).reshape(-1, 2)
-    iv = np.stack([iv[:, 0] + 0.5, iv[:, 1] - 0.5], -1) if iv.size else iv
-    return iv[(iv[:, 1] - iv[:, 0]) >= max(opt.rest_min - 1.0, 0.1)] if iv.size else iv
+    return np.stack([iv[:, 0] + 0.5, iv[:, 1] - 0.5], -1) if iv.size else iv
 
 
 # ------------------------------------------------------------------------ the filter ---
@@ -434,8 +587,21 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                          "different time bases? (GPST vs UTC differ by 18 s; seconds of week vs "
                          "seconds since 1970; a logging delay)")
     fixes = fixes.select((fixes.t >= t_lo) & (fixes.t <= t_hi))
+    init = {}
+    runs = held_runs(np.column_stack([fixes.lat, fixes.lon, fixes.h, fixes.sigma]
+                                     + ([fixes.vel] if fixes.vel is not None else [])))
+    if runs is not None:
+        # a receiver's fixes repeated in every row of a faster log: one update per epoch
+        init["held_fixes"] = (len(fixes), int(runs.size))
+        fixes = fixes.select(runs)
     if len(fixes) < 2:
         raise ValueError("fewer than 2 fixes inside the IMU record")
+    init["platform"] = platform_kind(fixes, opt.platform)
+    kind, why = init["platform"]
+    if kind in ("aircraft", "marine") and (opt.nhc_sigma is not None or opt.odometer is not None):
+        raise ValueError(f"the non-holonomic constraint and the odometer assume a wheeled land vehicle; "
+                         f"this is {'an' if kind == 'aircraft' else 'a'} {kind} ({why}): drop nhc/odometer"
+                         + (" (or give the platform as land if it is a car)" if opt.platform == "auto" else ""))
     if opt.fix_sigma is not None:
         sg = np.broadcast_to(np.asarray(opt.fix_sigma, float), (3,))
         fixes = dataclasses.replace(fixes, sigma=np.tile(sg, (len(fixes), 1)))
@@ -454,25 +620,38 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
 
     # --- initial attitude: levelling at rest, heading given or from straight motion
     rest = leveled_start(imu, fixes, opt)
-    init = {}
     gb = np.zeros(3)
     if rest is not None:
         k0, k1 = rest
         pitch, roll, wb, fmean = level_from_rest(imu, k0, k1, lat0)
         if opt.rest_bias:
             gb = wb.copy()
+        # white-noise densities of the unit as it stands (engine vibration included)
+        sq = math.sqrt(dt)
+        g_meas = np.std(imu.dtheta[k0:k1], 0) / dt * sq
+        a_meas = np.std(imu.dv[k0:k1], 0) / dt * sq
+        init.update(rest_gyro_noise=g_meas.tolist(), rest_accel_noise=a_meas.tolist())
         if opt.rest_noise:
-            sq = math.sqrt(dt)
-            arw = np.maximum(np.std(imu.dtheta[k0:k1], 0) / dt * sq, opt.gyro_arw)
-            vrw = np.maximum(np.std(imu.dv[k0:k1], 0) / dt * sq, opt.accel_vrw)
+            arw = np.maximum(g_meas, opt.gyro_arw)
+            vrw = np.maximum(a_meas, opt.accel_vrw)
             init.update(rest_gyro_arw=arw.tolist(), rest_accel_vrw=vrw.tolist())
         init.update(rest_start=float(imu.t[k0] - dt), rest_end=float(imu.t[k1 - 1]),
                     level_pitch=pitch, level_roll=roll, rest_gyro_mean=wb.tolist(),
                     rest_f_norm=float(np.linalg.norm(fmean)))
     else:
-        k0, pitch, roll = 0, 0.0, 0.0
-        init.update(rest_start=None, note="no rest at the start: pitch and roll start at 0 with the "
-                    "initial attitude σ")
+        # no standstill (an aircraft, a log started on the move): level in motion from the
+        # GNSS acceleration against the specific force, from the first fix on
+        k0 = int(np.searchsorted(imu.t, max(imu.t0, float(fixes.t[0])) + dt - 1e-9))
+        lv = level_in_motion(imu, fixes, k0, lat0, opt.level_window)
+        if lv is None:
+            pitch, roll = 0.0, 0.0
+            init.update(rest_start=None, level_source="none: no rest and too few fixes in motion; pitch "
+                        "and roll start at 0 with the initial attitude σ")
+        else:
+            pitch, roll, n_used, resid = lv
+            init.update(rest_start=None, level_pitch=pitch, level_roll=roll, level_residual=resid,
+                        level_source=f"in motion: fix acceleration against specific force over {n_used} fix "
+                        f"intervals (no rest at the start)")
     if opt.heading is not None:
         ks = k0
         ts = float(imu.t[ks] - dt) if ks > 0 else imu.t0
@@ -482,9 +661,13 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     else:
         pre = sd.initial_state_array(NavState(lat0, float(fixes.lon[0]), float(fixes.h[0]),
                                               np.zeros(3), np.array([pitch, roll, 0.0])))
-        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt, lever, gb)
+        # an aircraft is carried, taxied and launched before its course shows its heading
+        air = init["platform"][0] == "aircraft"
+        move = max(opt.move_speed, AIRCRAFT_MOVE_SPEED) if air else opt.move_speed
+        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt, lever, gb, move,
+                                   AIRCRAFT_MAX_ROLL if air else math.inf)
         if found is None:
-            raise ValueError(f"no {opt.heading_window:g} s of motion faster than {opt.move_speed} m/s "
+            raise ValueError(f"no {opt.heading_window:g} s of motion faster than {move} m/s "
                              "with a consistent course; give the initial heading (--init heading=...)")
         ks, C, h_sig, how = found
         ts = float(imu.t[ks - 1]) if ks > 0 else imu.t0
@@ -514,6 +697,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         # slip angle, a mount yaw error of a few tenths of a degree), never above the prior
         sp0[lay.slice("phi").start + 2] = min(opt.att_sigma[2], math.hypot(
             init["heading_sigma"], opt.heading_sigma_floor))
+        if init["platform"][0] == "aircraft":
+            # an aircraft crabs into the wind: its course is its heading only to ~10°
+            sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], AIRCRAFT_CRAB_SIGMA)
     jf = int(np.argmin(np.abs(fixes.t - ts)))
     vs = fixes.sigma_vel[jf] if fixes.sigma_vel is not None else np.full(3, 0.1)
     sp0[lay.slice("dv")] = np.maximum(vs, opt.vel_sigma_floor) * 2
@@ -531,6 +717,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         sp0[lay.slice("lev")] = opt.lever_sigma
     if opt.odometer is not None:
         sp0[lay.slice("kod")] = opt.odometer_scale_sigma
+    if opt.estimate_vehicle:
+        sp0[lay.slice("vm")] = opt.vehicle_mount_sigma
+        sp0[lay.slice("nlev")] = opt.nhc_lever_sigma
     n_ep = (len(imu) - ks) // k_kf
     if n_ep < 2:
         raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
@@ -541,25 +730,31 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     use_vel = opt.use_velocity and sel.vel is not None
 
     # --- aiding
-    aiding = []
     every = max(1, int(round(opt.aiding_dt / T)))
+    gate = opt.aid_gate
+    named = []
     if opt.zupt is not None:
-        iv = rest_intervals(imu, opt, lat0, rest, gb)
+        used = sel.select(~_in_outages(sel.t, outages))
+        iv = rest_intervals(imu, opt, lat0, rest, gb, fixes=used)
         iv = iv[iv[:, 1] > ts] if iv.size else iv
         init["rest_intervals"] = iv.tolist()
         if len(iv):
-            aiding.append(ZeroVelocity(iv, opt.zupt_sigma, every=every))
+            named.append(("zupt", ZeroVelocity(iv, opt.zupt_sigma, every=every, gate=gate)))
             if opt.zaru:
                 zs = opt.zaru_sigma if opt.zaru_sigma is not None else \
                     2.0 * float(np.max(g_noise)) / math.sqrt(T)
                 init["zaru_sigma"] = zs
                 # every epoch: each holds the rate of its own step, thinning discards them
-                aiding.append(ZeroRate(iv, zs, every=1))
+                named.append(("zaru", ZeroRate(iv, zs, every=1, gate=gate)))
+    Cvb = A.euler_to_dcm(np.asarray(opt.vehicle_mount, float)) if opt.vehicle_mount is not None else np.eye(3)
     if opt.nhc_sigma is not None:
-        aiding.append(NonHolonomic(opt.nhc_sigma, lever_arm=np.asarray(opt.nhc_lever_arm, float),
-                                   every=every))
+        named.append(("nhc", NonHolonomic(
+            opt.nhc_sigma, mount=Cvb, lever_arm=Cvb.T @ np.asarray(opt.nhc_lever_arm, float), every=every,
+            gate=gate, mount_block="vm" if opt.estimate_vehicle else None,
+            lever_block="nlev" if opt.estimate_vehicle else None)))
     if opt.odometer is not None:
-        aiding.append(_odometer(opt.odometer, opt, T, t_lo, t_hi))
+        named.append(("odometer", _odometer(opt.odometer, opt, T, t_lo, t_hi)))
+    aiding = [m for _, m in named]
 
     P0 = np.diag(sp0 ** 2)
     if opt.estimate_lever:
@@ -584,13 +779,42 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         history=History(0.1) if opt.smooth else None,
         progress=progress, label="navigating")
     init["outages"] = outages
+    init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),
+                                "rejected_spans": _spans(m.gate.rejected, 2.5 * T * m.every)}
+                           for nm, m in named if getattr(m, "gate", None) is not None}
     if opt.estimate_lever:
         sl = lay.slice("lev")
         init["lever_arm_estimate"] = (lever - r.x[-1, sl]).tolist()     # δl = l_used − l_true
         init["lever_arm_sigma"] = r.sigma[-1, sl].tolist()
+    if opt.estimate_vehicle:
+        # the true mount is (I + ψ×) C_used: small angles added to pitch (x) and yaw (z)
+        psi, s_psi = r.x[-1, lay.slice("vm")], r.sigma[-1, lay.slice("vm")]
+        m0 = np.zeros(3) if opt.vehicle_mount is None else np.asarray(opt.vehicle_mount, float)
+        init["vehicle_mount_estimate"] = [float(m0[0] + psi[0]), float(m0[1]), float(m0[2] + psi[1])]
+        init["vehicle_mount_sigma"] = [float(s_psi[0]), None, float(s_psi[1])]
+        sl = lay.slice("nlev")
+        init["nhc_lever_estimate"] = (np.asarray(opt.nhc_lever_arm, float) - Cvb @ r.x[-1, sl]).tolist()
+        init["nhc_lever_sigma"] = np.sqrt(np.diag(Cvb @ np.diag(r.sigma[-1, sl] ** 2) @ Cvb.T)).tolist()
     return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
                        r.fix_t, r.innovation, r.nis, init, opt,
                        smoothed=smooth(r) if opt.smooth else None)
+
+
+def _spans(times, gap):
+    """Sorted times [s] merged into ``[start, end]`` spans where consecutive ones are less
+    than ``gap`` apart."""
+    t = np.asarray(times, dtype=float)
+    if t.size == 0:
+        return []
+    br = np.flatnonzero(np.diff(t) >= gap)
+    return [[float(t[a]), float(t[b])] for a, b in zip(np.r_[0, br + 1], np.r_[br, t.size - 1])]
+
+
+def _in_outages(t, outages):
+    m = np.zeros(np.shape(t), bool)
+    for s0, ln in outages:
+        m |= (t >= s0) & (t < s0 + ln)
+    return m
 
 
 def _odometer(odo, opt, T, t_lo, t_hi):
@@ -606,7 +830,7 @@ def _odometer(odo, opt, T, t_lo, t_hi):
     if not (opt.odometer_sigma > 0 and opt.odometer_rate > 0):
         raise ValueError("odometer sigma and rate must be > 0")
     every = max(1, int(round(1.0 / (opt.odometer_rate * T))))
-    return Odometer(odo.t, odo.speed, opt.odometer_sigma, lever_arm=lever, every=every)
+    return Odometer(odo.t, odo.speed, opt.odometer_sigma, lever_arm=lever, every=every, gate=opt.aid_gate)
 
 
 # ----------------------------------------------------------------------- evaluation ----
@@ -657,7 +881,7 @@ def outage_end_errors(res: RecordedNav, fixes: Fixes, outages=None):
 __all__ += ["estimate_time_offset", "significant_time_offset", "shift_imu_time"]
 
 
-def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_speed=2.0,
+def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed=2.0,
                          search=1.0, step=0.005, lever_arm=None, gyro_bias=None):
     """Estimate how late the IMU time stamps are relative to the fixes, from turns.
 
@@ -673,10 +897,11 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_spee
     and a clock-rate error, with standard errors from the scatter about the line.
 
     Returns ``{"offset": lag at t_ref [s], "offset_sigma", "t_ref", "ppm": drift
-    [1e-6 s/s], "ppm_sigma", "windows": [(t_mid, lag, correlation), ...]}`` (σ = inf when
-    too few windows to judge); the corrected IMU times are
-    ``t − (offset + ppm·1e-6·(t − t_ref))``. :func:`significant_time_offset` keeps only
-    what is significant.
+    [1e-6 s/s], "ppm_sigma", "windows": [(t_mid, lag, correlation), ...],
+    "window_inv_speed": [mean 1/speed in each window's turns [s/m], ...], "lever_given"}``
+    (σ = inf when too few windows to judge); the
+    corrected IMU times are ``t − (offset + ppm·1e-6·(t − t_ref))``.
+    :func:`significant_time_offset` keeps only what is significant.
     """
     if fixes.vel is None:
         raise ValueError("time-offset estimation needs fix velocities")
@@ -697,7 +922,7 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_spee
     nwin = max(1, int((hi - lo) // window))
     edges = np.linspace(lo, hi, nwin + 1)
     lags = np.arange(-search, search + step / 2, step)
-    res = []
+    res, inv_speed = [], []
     for a, b in zip(edges[:-1], edges[1:]):
         grid = np.arange(a, b, 0.02)
         ref = np.interp(grid, fixes.t, cr)
@@ -712,7 +937,10 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_spee
             sh = 0.5 * (c[i - 1] - c[i + 1]) / den if den < 0 else 0.0
         else:
             sh = 0.0
+        turning = np.abs(ref) > 0.3 * np.max(np.abs(ref))
+        inv_v = float(np.mean(1.0 / np.maximum(np.interp(grid[turning], fixes.t, sp), min_speed)))
         res.append((0.5 * (a + b), float(lags[i] + sh * step), float(c[i])))
+        inv_speed.append(inv_v)
     if not res:
         raise ValueError("no turns found to estimate the IMU time offset")
     tm = np.array([r[0] for r in res])
@@ -729,24 +957,80 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=120.0, min_spee
         sa = float(np.std(lg, ddof=1)) / math.sqrt(n) if n == 2 else math.inf
         sb = math.inf
     return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6),
-            "ppm_sigma": sb * 1e6, "windows": res, "step": float(step)}
+            "ppm_sigma": sb * 1e6, "windows": res, "step": float(step),
+            "window_inv_speed": inv_speed, "lever_given": lever_arm is not None, "imu_dt": float(imu.dt)}
+
+
+def _lsq(X, y, k, p=0.01):
+    """Least squares ``y ≈ X c``: coefficients, their standard errors from the scatter about
+    the fit (inf without a degree of freedom left or for a singular X) and the multiple of
+    the standard error that is significant: ``k``, or Student's t of the two-sided level
+    ``p`` at the fit's degrees of freedom when larger (a σ from three windows is itself
+    uncertain)."""
+    from scipy import stats
+    n, m = X.shape
+    c = np.linalg.lstsq(X, y, rcond=None)[0]
+    if n <= m or np.linalg.matrix_rank(X) < m:
+        return c, np.full(m, math.inf), math.inf
+    s2 = float(np.sum((y - X @ c) ** 2)) / (n - m)
+    kt = max(k, float(stats.t.isf(p / 2, n - X.shape[1])))
+    return c, np.sqrt(np.maximum(np.diag(np.linalg.inv(X.T @ X)) * s2, 0.0)), kt
 
 
 def significant_time_offset(est: dict, k: float = 3.0) -> dict:
-    """The part of :func:`estimate_time_offset` to apply: the clock drift only when it
-    exceeds ``k`` σ (else the offset is re-estimated as the mean lag), the offset only when
-    it exceeds ``k`` σ and the lag resolution (the search step). Returns ``{"offset", "ppm", "t_ref", "offset_applied",
-    "ppm_applied", "offset_sigma"}``."""
-    ppm_ok = math.isfinite(est["ppm_sigma"]) and abs(est["ppm"]) > k * est["ppm_sigma"]
-    off, s_off = est["offset"], est["offset_sigma"]
-    if not ppm_ok:
-        lg = np.array([w[1] for w in est["windows"]])
-        off = float(lg.mean())
-        s_off = float(np.std(lg, ddof=1)) / math.sqrt(lg.size) if lg.size >= 2 else math.inf
-    off_ok = math.isfinite(s_off) and abs(off) > max(k * s_off, est.get("step", 0.0))
-    return {"offset": off if off_ok else 0.0, "ppm": est["ppm"] if ppm_ok else 0.0,
-            "t_ref": est["t_ref"], "offset_applied": bool(off_ok), "ppm_applied": bool(ppm_ok),
-            "offset_sigma": s_off, "offset_estimate": off}
+    """The part of :func:`estimate_time_offset` to apply: only what the windows support
+    beyond doubt.
+
+    - The lags are fitted with a line (offset at ``t_ref`` and clock drift); the drift is
+      applied only when significant (else the offset is re-estimated without it), the
+      offset only when significant and larger than the lag resolution (the search step)
+      and one IMU sample interval (the stamps resolve no less). Significant: beyond ``k``
+      σ and beyond Student's t at the 1 % two-sided level for the fit's degrees of freedom
+      (``threshold_sigmas``: 9.9σ with two degrees of freedom, 3.4σ with eight), σ from
+      the scatter of the windows about the fit.
+    - Without a lever arm (``est["lever_given"]`` False) a clock offset is confounded with
+      the antenna's position: an antenna ``l`` ahead of the IMU lags the body's course by
+      ``l / v``, a different lag at every speed (on one clock that lag is all there is:
+      ignored, it read as a +0.24 s offset and a −1200 ppm clock). The lags are then fitted
+      as ``τ + l / v_k`` too (``v_k`` the speed in window k's turns; ``speed_lag_m`` = l),
+      and an offset (drift) is applied only when it is significant in both fits and the
+      two agree within their σ; turns all at one speed cannot separate τ from l (σ of τ
+      infinite: nothing applied).
+
+    Returns ``{"offset", "ppm", "t_ref", "offset_applied", "ppm_applied", "offset_sigma",
+    "offset_estimate", "ppm_estimate", "ppm_sigma", "speed_lag_m", "speed_lag_sigma_m",
+    "threshold_sigmas"}``.
+    """
+    w = est["windows"]
+    lg = np.array([x[1] for x in w])
+    xs = np.array([x[0] for x in w]) - est["t_ref"]
+    floor = max(est.get("step", 0.0), est.get("imu_dt", 0.0))
+
+    def fit(cols):
+        """Offset (σ, applied?) and drift (σ, applied?) of the lags on ``cols`` + a line."""
+        c, sc, kt = _lsq(np.column_stack([np.ones(lg.size), *cols, xs]), lg, k)
+        ppm, s_ppm = float(c[-1] * 1e6), float(sc[-1] * 1e6)
+        ppm_ok = math.isfinite(s_ppm) and abs(ppm) > kt * s_ppm
+        if not ppm_ok:
+            c, sc, kt = _lsq(np.column_stack([np.ones(lg.size), *cols]), lg, k)
+        off_ok = math.isfinite(sc[0]) and abs(c[0]) > max(kt * sc[0], floor)
+        return dict(off=float(c[0]), s_off=float(sc[0]), off_ok=bool(off_ok), ppm=ppm, s_ppm=s_ppm,
+                    ppm_ok=bool(ppm_ok), kt=kt, c=c, sc=sc)
+
+    r = fit([])
+    out = {"t_ref": est["t_ref"], "speed_lag_m": None, "speed_lag_sigma_m": None}
+    if not est.get("lever_given", True):
+        j = fit([np.asarray(est["window_inv_speed"], float)])
+        out.update(speed_lag_m=float(j["c"][1]), speed_lag_sigma_m=float(j["sc"][1]))
+        # beyond doubt: significant with and without the lever term, and the same
+        for a_, s_, ok_ in (("off", "s_off", "off_ok"), ("ppm", "s_ppm", "ppm_ok")):
+            agree = abs(r[a_] - j[a_]) <= j["kt"] * math.hypot(r[s_], j[s_])
+            j[ok_] = bool(j[ok_] and r[ok_] and agree)
+        r = j
+    out.update(offset=r["off"] if r["off_ok"] else 0.0, ppm=r["ppm"] if r["ppm_ok"] else 0.0,
+               offset_applied=r["off_ok"], ppm_applied=r["ppm_ok"], offset_sigma=r["s_off"],
+               offset_estimate=r["off"], ppm_estimate=r["ppm"], ppm_sigma=r["s_ppm"], threshold_sigmas=r["kt"])
+    return out
 
 
 def shift_imu_time(imu: ImuRecord, offset=0.0, ppm=0.0, t_ref=0.0) -> ImuRecord:

@@ -65,13 +65,15 @@ def from_flags(t, flags, min_duration=0.0):
 
 
 def detect(imu, lat, *, h=0.0, window=1.0, f_tol=0.05, f_std=0.05, w_max=0.005,
-           min_duration=2.0):
+           min_duration=2.0, w_std=None):
     """Stationary intervals of an IMU record.
 
     A window of ``window`` seconds (non-overlapping) is at rest when all hold:
     ``| |f̄| − g(L, h) | < f_tol`` [m/s²], the per-axis standard deviation of the
     specific force has norm ``< f_std`` [m/s²], and ``|ω̄| < w_max`` [rad/s] (Earth rate is
-    7.3e-5 rad/s, so MEMS biases set the floor of ``w_max``).
+    7.3e-5 rad/s, so MEMS biases set the floor of ``w_max``); with ``w_std`` [rad/s] also
+    the norm of the per-axis standard deviation of the rate (road vibration turns the
+    body even when its mean rate is zero).
 
     Parameters
     ----------
@@ -81,7 +83,7 @@ def detect(imu, lat, *, h=0.0, window=1.0, f_tol=0.05, f_std=0.05, w_max=0.005,
         Latitude [rad] for gravity.
     h : float
         Height [m].
-    window, f_tol, f_std, w_max, min_duration
+    window, f_tol, f_std, w_max, min_duration, w_std
         See above; ``min_duration`` [s] drops shorter intervals.
 
     Returns
@@ -89,8 +91,8 @@ def detect(imu, lat, *, h=0.0, window=1.0, f_tol=0.05, f_std=0.05, w_max=0.005,
     ndarray, shape (K, 2)
         ``(start, end)`` [s] of the stationary intervals.
     """
-    if not (window > 0 and f_tol > 0 and f_std > 0 and w_max > 0):
-        raise ValueError("window, f_tol, f_std and w_max must be > 0")
+    if not (window > 0 and f_tol > 0 and f_std > 0 and w_max > 0 and (w_std is None or w_std > 0)):
+        raise ValueError("window, f_tol, f_std, w_max and w_std must be > 0")
     dt = float(imu.dt)
     k = max(1, int(round(window / dt)))
     N = (len(imu) // k) * k
@@ -103,5 +105,7 @@ def detect(imu, lat, *, h=0.0, window=1.0, f_tol=0.05, f_std=0.05, w_max=0.005,
     rest = np.abs(np.linalg.norm(fm, axis=1) - g) < f_tol
     rest &= np.linalg.norm(f.std(1), axis=1) < f_std
     rest &= np.linalg.norm(w.mean(1), axis=1) < w_max
+    if w_std is not None:
+        rest &= np.linalg.norm(w.std(1), axis=1) < w_std
     t = np.asarray(imu.t[:N], dtype=float).reshape(-1, k)
     return intervals_from_mask(t[:, 0] - dt, t[:, -1], rest, min_duration)

@@ -61,7 +61,9 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                    time_sync="none", velocity_lag=0.0, imu_delay=0.0, scale_factors=False,
                    max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None,
                    columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
-                   odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None):
+                   odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None,
+                   fix_columns=None, fix_quality=None, vehicle_mount=None, nhc_lever=None,
+                   platform="auto"):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
 
     Recorded-unit options: ``columns`` a column map of the IMU table
@@ -71,7 +73,13 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     lever-arm estimation); ``rest`` where ZUPT/ZARU find rest, ``auto`` (IMU detector) or
     ``flags`` (the log's rest column, default when the column map names one);
     ``csv_rate`` [Hz] the rate of ``solution.csv`` (``solution.parquet`` holds every filter
-    epoch).
+    epoch); ``fix_columns`` a column map of the fix table (the syntax of ``columns``, keys
+    :data:`sinslab.data.columns.FIX_KEYS`); ``fix_quality`` the accepted values of its
+    quality/mode column (``"4,5"``); ``vehicle_mount`` the IMU body (after ``mount``) in the
+    vehicle frame, a mount string (``"euler:P,R,Y"`` degrees) — with ``nhc`` its pitch and
+    yaw are also estimated, as is the NHC lever ``nhc_lever`` (IMU -> rear-axle centre,
+    vehicle RFU) — and ``platform`` auto | land | aircraft | marine (NHC and the odometer
+    are refused off land).
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
@@ -88,23 +96,28 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, echo=echo,
         options=options, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
         csv_rate=csv_rate, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
-                                    lever=odometer_lever, sigma=odometer_sigma)), echo=echo)
+                                    lever=odometer_lever, sigma=odometer_sigma),
+        fix_columns=fix_columns, fix_quality=fix_quality,
+        vehicle=dict(mount=vehicle_mount, lever=nhc_lever, platform=platform)), echo=echo)
     return (summary, *res.value)
 
 
 def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
-             csv_rate=1.0, smo=None) -> Output:
+             csv_rate=1.0, smo=None, fix_columns=None, fix_quality=None, vehicle=None) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import earth as E         # numba and scipy: only when it runs
-    from sinslab.data import guess_imu_format, load_imu, read_fixes
+    from sinslab.data import guess_imu_format, load_fixes, load_imu
     from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
                                          navigate_recorded, outage_end_errors, parse_outages,
                                          shift_imu_time, significant_time_offset)
 
-    fmt_eff = fmt or guess_imu_format(imu_path)
+    if isinstance(imu_path, (list, tuple)):
+        imu_path = imu_path[0] if len(imu_path) == 1 else list(imu_path)
+    imu_one = imu_path[0] if isinstance(imu_path, list) else imu_path     # the table odometer columns come from
+    fmt_eff = fmt or guess_imu_format(imu_one)
     kw = {}
     if mount is not None:
         kw["mount"] = mount
@@ -119,6 +132,15 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
             raise ValueError(f"--columns applies to csv and parquet tables, not {fmt_eff!r}")
         kw["columns"] = columns
     aids = _parse_aid(aid)
+    # option values checked before any file is read
+    from sinslab.data.columns import FIX_KEYS, parse_column_map
+    from sinslab.data.tables import parse_quality_filter
+    _vehicle_options(NavOptions(), vehicle or {}, False)
+    parse_quality_filter(fix_quality)
+    parse_column_map(fix_columns, keys=FIX_KEYS, option="--fix-columns")
+    if (vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
+        raise ValueError(f"--aid nhc: the non-holonomic constraint assumes a wheeled land vehicle, "
+                         f"not --platform {vehicle['platform']}")
     if not (isinstance(csv_rate, (int, float)) and math.isfinite(csv_rate) and csv_rate > 0):
         raise ValueError(f"--csv-rate must be a positive number of Hz, got {csv_rate!r}")
     em = None
@@ -126,9 +148,18 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.error_model import load_error_model
         em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
-    ffmt = fix_format or ("rtklib-pos" if str(fix_path).lower().endswith(".pos") else None)
-    fx = read_fixes(fix_path, ffmt, velocity_lag=velocity_lag)
+    if isinstance(fix_path, (list, tuple)):        # positions and velocities in two tables
+        fix_path = fix_path[0] if len(fix_path) == 1 else list(fix_path)
+    fix_name = " + ".join(map(str, fix_path)) if isinstance(fix_path, list) else str(fix_path)
+    ffmt = fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
+    fx, fmeta = load_fixes(fix_path, ffmt, velocity_lag=velocity_lag, columns=fix_columns,
+                           quality=fix_quality)
+    _say_fix_reading(fmeta, fix_name, echo)
     imu = data.imu
+    if data.meta and "joined" in data.meta:
+        un = data.meta["joined"]["unmatched"]
+        echo(f"  IMU channels from two files joined on time; rows without a partner dropped: {un[0]} "
+             f"of the first, {un[1]} of the second")
     if len(data.gaps):
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
              + ", ".join(f"{g[1]:.3f} s at {g[0] - imu.t0:.2f} s" for g in data.gaps[:5])
@@ -139,18 +170,22 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                               else lever_arm)
     sync = None
     if time_sync == "auto":
-        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm)
+        # without a lever arm a clock offset cannot be told from the antenna's lag in turns
+        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if lever_arm is not None else None)
         sync = significant_time_offset(est)
-        sync.update(ppm_estimate=est["ppm"], ppm_sigma=est["ppm_sigma"], windows=len(est["windows"]))
+        sync.update(windows=len(est["windows"]))
         imu = shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
         echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
              f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
-             f"{est['ppm']:.0f} ± {est['ppm_sigma']:.0f} ppm "
+             f"{sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
              f"({'applied' if sync['ppm_applied'] else 'not significant, not applied'}); from turn "
-             f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows")
+             f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows "
+             f"(significant: > {sync['threshold_sigmas']:.1f} σ)"
+             + (f"; no lever arm given: a lag of {sync['speed_lag_m']:.2f} ± {sync['speed_lag_sigma_m']:.2f} m "
+                "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else ""))
     elif time_sync != "none":
         raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
-    odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_path, sync)
+    odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_one, sync)
     em_cfg = {}
     if em is not None:
         from sinslab.app.error_model import apply_error_model
@@ -171,6 +206,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         opt.zupt = src_rest
         opt.zaru = "zaru" in aids
     opt.estimate_lever = "lever" in aids
+    veh_cfg = _vehicle_options(opt, vehicle or {}, "nhc" in aids)
     t_ref = float(fx.t[0])
     opt.outages = tuple(parse_outages(outages, t_ref)) if isinstance(outages, (str, type(None))) else tuple(outages)
     if isinstance(outages, str):
@@ -218,10 +254,17 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     metrics["fixes_after_grid"] = int(res.init.get("fixes_after_grid", 0))
     metrics["filter_gyro_arw_deg_sqrth"] = (np.asarray(res.init["filter_gyro_arw"]) / (units.deg / 60)).tolist()
     metrics["filter_accel_vrw_ug_sqrthz"] = (np.asarray(res.init["filter_accel_vrw"]) / units.ug).tolist()
+    noise_warn = _noise_check(res.init, metrics, echo)
+    from sinslab.app.described import SETTLE_S
+    settling = np.zeros(t.size, bool)
+    for s0, ln in outs:
+        settling |= (t >= s0 + ln) & (t < s0 + ln + SETTLE_S)
     claims, extra = navigate_claims(
         res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
-        np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T))
+        np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T), ~settling[~in_out])
     metrics.update(extra)
+    if res.nis.size and extra["nis_verdict"] != "consistent":
+        echo(f"  mean NIS {metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: {extra['nis_verdict']}")
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
                        time_sync_offset_estimate_s=sync["offset_estimate"],
@@ -232,31 +275,56 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if "lever_arm_estimate" in res.init:
         metrics["lever_arm_estimate_m"] = res.init["lever_arm_estimate"]
         metrics["lever_arm_sigma_m"] = res.init["lever_arm_sigma"]
+    if "vehicle_mount_estimate" in res.init:
+        ve, vs = res.init["vehicle_mount_estimate"], res.init["vehicle_mount_sigma"]
+        metrics["vehicle_mount_estimate_deg"] = np.degrees(ve).tolist()
+        metrics["vehicle_mount_sigma_deg"] = [None if x is None else float(np.degrees(x)) for x in vs]
+        metrics["nhc_lever_estimate_m"] = res.init["nhc_lever_estimate"]
+        metrics["nhc_lever_sigma_m"] = res.init["nhc_lever_sigma"]
+        echo(f"  vehicle mount (IMU in the vehicle) pitch {np.degrees(ve[0]):.2f} ± {np.degrees(vs[0]):.2f} deg, "
+             f"yaw {np.degrees(ve[2]):.2f} ± {np.degrees(vs[2]):.2f} deg; NHC lever [m] "
+             + ", ".join(f"{a:.2f} ± {b:.2f}" for a, b in zip(res.init["nhc_lever_estimate"], res.init["nhc_lever_sigma"])))
+    metrics["platform"] = res.init["platform"][0]
     if opt.zupt is not None:
         metrics["rest_intervals"] = len(res.init.get("rest_intervals", []))
         metrics["rest_total_s"] = float(sum(b - a for a, b in res.init.get("rest_intervals", [])))
+    for nm, g in res.init.get("aiding_gate", {}).items():
+        metrics[f"{nm}_updates_applied"] = g["applied"]
+        metrics[f"{nm}_updates_rejected"] = g["rejected"]
+        if g["rejected"]:
+            sp_ = g["rejected_spans"]
+            echo(f"  {nm.upper()}: {g['rejected']} of {g['applied'] + g['rejected']} updates rejected by the "
+                 f"innovation gate (the filter's own velocity/rate contradicts them), in {len(sp_)} span(s) from "
+                 + ", ".join(f"{a - fx.t[0]:.1f}-{b - fx.t[0]:.1f} s" for a, b in sp_[:4])
+                 + (" ..." if len(sp_) > 4 else ""))
     if res.scale is not None:
         metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
-    cfg = {"imu": str(imu_path), "fixes": str(fix_path), "format": data.format,
+    cfg = {"imu": data.path, "fixes": fix_name, "format": data.format,
            "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.lever_arm)}] m",
            "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
            "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
            "init": str(init or ""), "time_sync": time_sync, "velocity_lag": f"{velocity_lag:g} s",
            "imu_delay": f"{imu_delay:g} s", "scale_factors": bool(opt.scale_factors),
            "columns": str(columns) if columns is not None else "auto",
+           "fix_columns": str(fix_columns) if fix_columns is not None else "auto",
+           "fix_quality": str(fix_quality) if fix_quality is not None else "all",
            "aid": ",".join(sorted(aids)) or "none", "rest": opt.zupt or "none",
            "csv_rate": f"{csv_rate:g} Hz", "heading_window": f"{opt.heading_window:g} s",
            "imu_errors": {**({"source": "built-in defaults (white noise measured at the initial "
                                         "rest, floored at the defaults)"} if not em_cfg else em_cfg)}}
-    echo(f"{imu_path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_path}: {len(fx)} fixes"
+    echo(f"{data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_name}: {len(fx)} fixes"
          f"{' with velocity' if fx.vel is not None else ''}")
+    if not res.init.get("rest_start"):
+        echo(f"  no rest at the start: pitch {np.degrees(res.init['pitch']):.2f} deg, roll "
+             f"{np.degrees(res.init['roll']):.2f} deg {res.init.get('level_source')}")
     echo(f"  start {res.init['t_start'] - fx.t[0]:.2f} s after the first fix; heading "
          f"{np.degrees(res.init['heading']):.2f} deg (clockwise from north, {res.init['heading_source']})")
     if oe.size:
         echo(f"  {len(outs)} outages: horizontal error at their end median {np.median(oe):.2f} m, "
              f"max {np.max(oe):.2f} m")
     if (~in_out).any():
-        echo(f"  with fixes: horizontal error median {np.median(hz[~in_out]):.3f} m")
+        echo(f"  with fixes: horizontal error median {np.median(hz[~in_out]):.3f} m, 99th percentile "
+             f"{np.percentile(hz[~in_out], 99):.3f} m, max {np.max(hz[~in_out]):.3f} m")
     echo(f"  final attitude pitch {metrics['final_pitch_deg']:.3f} deg, roll {metrics['final_roll_deg']:.3f} deg, "
          f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
     echo(f"  gyro bias [deg/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [ug] "
@@ -304,13 +372,21 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     figures.append(Figure("track", fig, "Track on a local ENU map (origin at the first fix); outages in red."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     tt = t - res.t[0]
+    rest_iv = res.init.get("rest_intervals", [])
+    gated = [sp_ for g in res.init.get("aiding_gate", {}).values() for sp_ in g["rejected_spans"]]
     for ax, k, nm in zip(axes, range(3), ("east", "north", "up")):
         ax.plot(tt, err[:, k], ".", ms=1.5, color=plotting.COLORS[k])
         ax.set_ylabel(f"{nm} error [m]")
         for s, ln in outs:
             ax.axvspan(s - res.t[0], s + ln - res.t[0], color="0.85", lw=0)
+        for a, b in rest_iv:
+            ax.axvspan(a - res.t[0], b - res.t[0], color=plotting.COLORS[2], alpha=0.15, lw=0)
+        for a, b in gated:
+            ax.axvspan(a - res.t[0], b - res.t[0], ymin=0.9, ymax=1.0, color=plotting.COLORS[3], lw=0)
     axes[-1].set_xlabel("time [s]")
-    fig.suptitle("Solution minus fixes (grey: simulated outages)")
+    fig.suptitle("Solution minus fixes (grey: outages"
+                 + ("; green: rest (ZUPT/ZARU)" if rest_iv else "")
+                 + ("; top bar: aiding rejected by the gate" if gated else "") + ")")
     figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     ts_ = res.t - res.t[0]
@@ -328,9 +404,12 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if res.smoothed is not None:
         _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, every)
     cfg.update(odo_cfg)
+    cfg.update(veh_cfg)
     notes = ["Heading is clockwise from north.",
              f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
-             if res.init.get("rest_start") else "No rest at the start."]
+             if res.init.get("rest_start") else
+             f"No rest at the start: pitch and roll {res.init.get('level_source')}; heading "
+             f"{res.init.get('heading_source')}."]
     if hs is not None:
         notes.append(f"Initial heading {np.degrees(res.init['heading']):.2f} deg ± "
                      f"{np.degrees(hs):.2f} deg (1σ of the course window).")
@@ -351,10 +430,87 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if opt.zupt is not None:
         notes.append(f"ZUPT{'/ZARU' if opt.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
                      f"{metrics['rest_total_s']:.0f} s in all ({opt.zupt} detection).")
+    if noise_warn:
+        notes.append(noise_warn)
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
                                     "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims)
+
+
+def _say_fix_reading(meta, path, echo):
+    """What the fix reader did to the table, on the terminal (a user must not find out
+    from the results that 30 000 rows were 600 fixes)."""
+    if meta.get("compressed"):
+        echo(f"  {path}: read from a {meta['compressed']} file")
+    if meta.get("held"):
+        rows, ep = meta["held"]
+        echo(f"  {path}: {rows} rows hold {ep} receiver epochs (each fix repeated ~{rows / ep:.0f}x by "
+             "the logger): collapsed to the first row of each epoch")
+    if meta.get("no_position"):
+        echo(f"  {path}: {meta['no_position']} rows without a position dropped")
+    if meta.get("quality_counts") is not None:
+        echo(f"  {path}: quality/mode values {meta['quality_counts']} (rows); kept: {meta['quality_kept']}")
+    if meta.get("velocity_frame") == "NED":
+        echo(f"  {path}: velocity north, east, down (turned to east, north, up)")
+
+
+#: measured rest noise and the filter's white noise may differ by this factor unwarned
+NOISE_FACTOR = 3.0
+
+
+def _noise_check(init, metrics, echo):
+    """The unit's white noise measured at the initial rest against the filter's: the
+    densities into the metrics and, when an axis differs by more than ``NOISE_FACTOR``,
+    a warning on the terminal; returns the warning (or "")."""
+    if "rest_gyro_noise" not in init:
+        return ""
+    gm = np.asarray(init["rest_gyro_noise"]) / (units.deg / 60)
+    am = np.asarray(init["rest_accel_noise"]) / units.ug
+    gf = np.asarray(metrics["filter_gyro_arw_deg_sqrth"])
+    af = np.asarray(metrics["filter_accel_vrw_ug_sqrthz"])
+    metrics["rest_gyro_noise_deg_sqrth"] = gm.tolist()
+    metrics["rest_accel_noise_ug_sqrthz"] = am.tolist()
+    rg, ra = gm / gf, am / af
+    metrics["rest_over_filter_noise_gyro"] = rg.tolist()
+    metrics["rest_over_filter_noise_accel"] = ra.tolist()
+    off = [f"{nm} {a} {r:.2g}x" for nm, rr in (("gyro", rg), ("accel", ra)) for a, r in zip("xyz", rr)
+           if r > NOISE_FACTOR or r < 1 / NOISE_FACTOR]
+    if not off:
+        return ""
+    msg = (f"Warning: the white noise measured at the initial rest (gyro {np.round(gm, 3).tolist()} deg/sqrt(h), "
+           f"accel {np.round(am, 0).tolist()} ug/sqrt(Hz)) differs from the filter's (gyro "
+           f"{np.round(gf, 3).tolist()} deg/sqrt(h), accel {np.round(af, 0).tolist()} ug/sqrt(Hz)) by more than "
+           f"{NOISE_FACTOR:g}x ({', '.join(off)}: measured / filter): vibration above the datasheet noise makes "
+           "the filter overconfident, a noise model far above it pessimistic")
+    echo("  " + msg)
+    return msg
+
+
+def _vehicle_options(opt, veh, nhc):
+    """``--vehicle-mount``, ``--nhc-lever``, ``--platform`` into the options (with NHC the
+    mount's pitch and yaw and the NHC lever are estimated from the values given);
+    returns their config entries."""
+    from sinslab.core import attitude as A
+    from sinslab.data.frames import sensor_to_body
+    from sinslab.fusion.recorded import PLATFORMS
+    plat = veh.get("platform") or "auto"
+    if plat not in PLATFORMS:
+        raise ValueError(f"--platform must be one of {', '.join(PLATFORMS)}, got {plat!r}")
+    opt.platform = plat
+    cfg = {"platform": plat}
+    if veh.get("mount") is not None:
+        try:
+            opt.vehicle_mount = tuple(A.dcm_to_euler(sensor_to_body(str(veh["mount"]), "rfu")))
+        except ValueError as e:
+            raise ValueError(f"--vehicle-mount: {e}") from None
+        cfg["vehicle_mount"] = str(veh["mount"])
+    if veh.get("lever") is not None:
+        opt.nhc_lever_arm = tuple(_vec3(veh["lever"], "length", "--nhc-lever"))
+        cfg["nhc_lever"] = f"[{', '.join(f'{x:g}' for x in opt.nhc_lever_arm)}] m"
+    opt.estimate_vehicle = bool(nhc)
+    cfg["vehicle_states"] = bool(nhc)
+    return cfg
 
 
 # ------------------------------------------------------- smoothing and odometer ---
@@ -468,8 +624,8 @@ def register(app):
     import typer
 
     @app.command()
-    def navigate(imu: Path = typer.Option(..., "--imu", help="recorded IMU file"),
-                 fixes: Path = typer.Option(..., "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp)"),
+    def navigate(imu: list[Path] = typer.Option(..., "--imu", help="recorded IMU file; twice for accelerometers and gyros in two tables on one time column"),
+                 fixes: list[Path] = typer.Option(..., "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp); twice for positions and velocities in two tables on one time column"),
                  format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
                  lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
@@ -497,7 +653,12 @@ def register(app):
                  odometer: Optional[str] = typer.Option(None, "--odometer", help="wheel speeds: FILE (t, speed columns) or a COLUMN of the IMU table"),
                  odometer_units: Optional[str] = typer.Option(None, "--odometer-units", help="speed unit if the header has none, e.g. km/h"),
                  odometer_lever: Optional[str] = typer.Option(None, "--odometer-lever", help='IMU -> wheel point, vehicle right-forward-up, e.g. "[0, -1.2, -0.3] m"'),
-                 odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]')) -> None:
+                 odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]'),
+                 fix_columns: Optional[str] = typer.Option(None, "--fix-columns", help='fix column map "t=time[s],lat=Pos.Latitude[deg],vd=Vel.Down[m/s],quality=Mode,..." or a TOML file'),
+                 fix_quality: Optional[str] = typer.Option(None, "--fix-quality", help="accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2"),
+                 vehicle_mount: Optional[str] = typer.Option(None, "--vehicle-mount", help='IMU body (after --mount) in the vehicle frame, e.g. "euler:1.2,0,-1.5" (pitch, roll, yaw deg); with --aid nhc pitch and yaw are estimated from it'),
+                 nhc_lever: Optional[str] = typer.Option(None, "--nhc-lever", help='IMU -> rear-axle centre, vehicle right-forward-up, e.g. "[0, -1.4, -0.5] m" (estimated from it with --aid nhc)'),
+                 platform: str = typer.Option("auto", "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)")) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
@@ -506,6 +667,7 @@ def register(app):
                  echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
                  csv_rate=csv_rate, force=force, smooth=smooth, odometer=odometer,
                  odometer_units=odometer_units, odometer_lever=odometer_lever,
-                 odometer_sigma=odometer_sigma)
+                 odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality,
+                 vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform)
 
     return navigate
