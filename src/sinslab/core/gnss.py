@@ -399,7 +399,7 @@ def saastamoinen(lat, h, el, humidity=0.7):
     [rad]; 0 at or below the horizon and outside −100 m..10 km."""
     h = np.asarray(h, dtype=float)
     el = np.asarray(el, dtype=float)
-    hgt = np.maximum(h, 0.0)
+    hgt = np.clip(h, 0.0, 1e4)
     pres = 1013.25 * (1.0 - 2.2557e-5 * hgt) ** 5.2568
     temp = 15.0 - 6.5e-3 * hgt + 273.16
     e = 6.108 * humidity * np.exp((17.15 * temp - 4684.0) / (temp - 38.45))
