@@ -30,7 +30,7 @@ from sinslab.core.records import Fixes
 __all__ = ["GnssObservations", "read_gnss_raw", "read_ubx_pvt", "rinex_version"]
 
 _SYS = {1: "G", 4: "R", 8: "E", 32: "C", 16: "J", 2: "S", 64: "I"}
-_SNR_UNIT = 0.001           # RTKLIB demo5 keeps C/N0 in 0.001 dB-Hz
+_SNR_UNIT = 1.0             # the demo5 binding gives C/N0 in dB-Hz (RTKLIB 2.4.3: 0.001 dB-Hz)
 _WEEK = 604800
 
 

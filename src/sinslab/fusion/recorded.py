@@ -99,6 +99,9 @@ class NavOptions:
     odometer_lever: tuple = (0.0, 0.0, 0.0)  #: IMU -> wheel point, vehicle RFU [m]
     odometer_scale_sigma: float = 0.02      #: initial 1σ of the odometer scale factor [-]
     odometer_rate: float = 10.0             #: odometer updates per second [Hz]
+    #: raw GNSS (sinslab.fusion.tightly_coupled.RawGnss): its pseudoranges and range rates
+    #: replace the fixes in the filter (tightly coupled); the fixes then only start it
+    gnss_raw: object = None
 
     def check(self):
         la = np.asarray(self.lever_arm, dtype=float)
@@ -298,6 +301,8 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
         sensors.append(es.lever_arm())
     if opt.odometer is not None:
         sensors.append(es.odometer_scale())
+    if opt.gnss_raw is not None:
+        sensors.append(opt.gnss_raw.clock_block())
     return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
 
 
@@ -531,6 +536,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         sp0[lay.slice("lev")] = opt.lever_sigma
     if opt.odometer is not None:
         sp0[lay.slice("kod")] = opt.odometer_scale_sigma
+    if opt.gnss_raw is not None:
+        sp0[lay.slice("clk")] = opt.gnss_raw.clock_sigmas()
     n_ep = (len(imu) - ks) // k_kf
     if n_ep < 2:
         raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
@@ -561,6 +568,11 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     if opt.odometer is not None:
         aiding.append(_odometer(opt.odometer, opt, T, t_lo, t_hi))
 
+    if opt.gnss_raw is not None:
+        # tightly coupled: the satellites' own measurements in place of the fixes
+        aiding += list(opt.gnss_raw.make(lever_arm=lever, outages=outages, t_start=ts))
+        sel = sel.select(np.zeros(len(sel), bool))
+        use_vel = False
     P0 = np.diag(sp0 ** 2)
     if opt.estimate_lever:
         # the start position is the antenna's minus C l_used: its error is −C δl, so the
