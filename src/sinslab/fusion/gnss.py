@@ -177,6 +177,7 @@ class SatelliteLog:
     cn0: list
     innovation: list
     sigma: list
+    nis: list
     used: list
     rejected: list
     below_mask: list
@@ -185,7 +186,7 @@ class SatelliteLog:
 
     @classmethod
     def new(cls):
-        return cls(*([] for _ in range(12)))
+        return cls(*([] for _ in range(13)))
 
     def counts(self):
         """Totals: used, rejected by the gate, below the mask, over the limit, no ephemeris."""
@@ -331,12 +332,15 @@ class SatelliteMeasurement:
         return keep, below, over, no_eph
 
     def _gate(self, ep, z, H, R):
-        if self.gate is None or ep.prior is None or z.size == 0:
-            return np.zeros(z.size, bool), np.full(z.size, np.nan)
+        if ep.prior is None or z.size == 0:
+            return np.zeros(z.size, bool), np.full(z.size, np.nan), np.full(z.size, np.nan)
         x, P = ep.prior
         nu = z - H @ x
         S = np.einsum("ij,jk,ik->i", H, P, H) + R
-        rej = nu * nu > self.gate ** 2 * S
+        nis = nu * nu / S
+        if self.gate is None:
+            return np.zeros(z.size, bool), nu, nis
+        rej = nis > self.gate ** 2
         if np.all(rej):
             self._all_rejected += 1
             if self._all_rejected > self.gate_reset:
@@ -344,7 +348,7 @@ class SatelliteMeasurement:
                 rej[:] = False
         else:
             self._all_rejected = 0
-        return rej, nu
+        return rej, nu, nis
 
     def _weights(self, rows, el):
         c = np.maximum(self.cn0_ref - self.sv.cn0[rows], 0.0)
@@ -359,7 +363,7 @@ class SatelliteMeasurement:
         k = rows[keep]
         z, H = self._model(ep, k, r, Jr, v, Jv, el[keep], az[keep], (lat, lon, h), dt)
         R = self._weights(k, el[keep])
-        rej, nu = self._gate(ep, z, H, R)
+        rej, nu, nis = self._gate(ep, z, H, R)
         log = self.log
         log.t.append(float(sv.t_epoch[ep.item]))
         log.sat.append(sv.sat[rows])
@@ -372,6 +376,9 @@ class SatelliteMeasurement:
         sg = np.full(rows.size, np.nan)
         sg[keep] = np.sqrt(R)
         log.sigma.append(sg)
+        full_nis = np.full(rows.size, np.nan)
+        full_nis[keep] = nis
+        log.nis.append(full_nis)
         used = np.zeros(rows.size, bool)
         used[np.flatnonzero(keep)[~rej]] = True
         rejected = np.zeros(rows.size, bool)

@@ -596,6 +596,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         history=History(0.1) if opt.smooth else None,
         progress=progress, label="navigating")
     init["outages"] = outages
+    if opt.gnss_raw is not None:
+        init["gnss_clock"] = opt.gnss_raw.clock_estimate(r.t, r.x, lay)
     if opt.estimate_lever:
         sl = lay.slice("lev")
         init["lever_arm_estimate"] = (lever - r.x[-1, sl]).tolist()     # δl = l_used − l_true

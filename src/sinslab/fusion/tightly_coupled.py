@@ -55,8 +55,8 @@ class RawGnss:
     """
 
     sv: SatelliteObservations
-    pseudorange_sigma: float = 3.0
-    doppler_sigma: float = 0.1
+    pseudorange_sigma: float = 1.0
+    doppler_sigma: float = 0.05
     use_doppler: bool = True
     mask: float = math.radians(10.0)
     cn0_ref: float = 45.0
