@@ -28,7 +28,7 @@ __all__ = ["IMU_FORMATS", "FIX_FORMATS", "guess_imu_format", "load_imu", "read_i
 #: IMU formats understood by :func:`load_imu` (``--format``).
 IMU_FORMATS = ("psins", "csv", "parquet", "mat", "rtklib-imu")
 #: Fix/solution formats understood by :func:`read_fixes`.
-FIX_FORMATS = ("rtklib-pos", "csv", "mat-avp", "two-geo")
+FIX_FORMATS = ("rtklib-pos", "csv", "mat-avp", "two-geo", "ubx")
 
 
 def guess_imu_format(path) -> str:
@@ -81,11 +81,13 @@ def read_fixes(path, fmt=None, **kw) -> Fixes:
     lat[deg], lon[deg]`` + optional ``h[m]``, ``t_arrive[s]``, ``sd_n sd_e sd_u``, ``ve vn
     vu``, ``sd_ve ..``), ``mat-avp`` (a PSINS avp matrix: positions and velocities, σ from
     ``sigma``/``sigma_vel`` keywords, default 1 m / 0.1 m/s) or ``two-geo`` (a recorded
-    double-star fix list, :func:`sinslab.data.tables.read_two_geo_csv`). ``velocity_lag`` [s]
+    double-star fix list, :func:`sinslab.data.tables.read_two_geo_csv`) or ``ubx`` (the
+    receiver's NAV-PVT solutions in a u-blox log, :func:`sinslab.data.gnss.read_ubx_pvt`;
+    ``.ubx``). ``velocity_lag`` [s]
     (any format): the velocities describe the motion that long before their stamps
     (:meth:`sinslab.core.records.Fixes.with_velocity_lag`)."""
     p = _existing_file(path)
-    fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp"}.get(p.suffix.lower(), "csv")
+    fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp", ".ubx": "ubx"}.get(p.suffix.lower(), "csv")
     lag = kw.pop("velocity_lag", 0.0)
     if fmt == "rtklib-pos":
         return rtklib.read_rtklib_pos(p, velocity_lag=lag, **kw)
@@ -95,6 +97,9 @@ def read_fixes(path, fmt=None, **kw) -> Fixes:
         fx = matlab.read_mat_fixes(p, kw.get("var"), kw.get("sigma", 1.0), kw.get("sigma_vel", 0.1))
     elif fmt == "two-geo":
         fx = tables.read_two_geo_csv(p)
+    elif fmt == "ubx":
+        from sinslab.data.gnss import read_ubx_pvt
+        fx = read_ubx_pvt(p)
     else:
         raise ValueError(f"unknown fix format {fmt!r}; use one of {FIX_FORMATS}")
     return fx.with_velocity_lag(lag)

@@ -147,8 +147,21 @@ class SimulatedGnss:
     outlier: np.ndarray
 
 
+def _sats(orbits):
+    if isinstance(orbits, (list, tuple)):
+        return np.concatenate([_sats(o) for o in orbits])
+    return orbits.sats if isinstance(orbits, Walker) else np.unique(orbits.sat)
+
+
 def _states(orbits, sats, t):
     """Positions and velocities (M, 3) of ``sats`` at times ``t`` (M,)."""
+    if isinstance(orbits, (list, tuple)):      # several constellations, in order
+        out, i = [], 0
+        for o in orbits:
+            n = _sats(o).size
+            out.append(_states(o, sats[i:i + n], t[i:i + n]))
+            i += n
+        return np.concatenate([a for a, _ in out]), np.concatenate([b for _, b in out])
     if isinstance(orbits, Walker):         # every satellite, in the constellation's order
         h = 1e-3
         return orbits.positions(t), (orbits.positions(t + h) - orbits.positions(t - h)) / (2 * h)
@@ -170,9 +183,10 @@ def simulate_observations(t, lat, lon, h, vel, orbits, errors: GnssErrors = Gnss
         True antenna position [rad, rad, m].
     vel : array (E, 3)
         True antenna velocity ENU [m/s].
-    orbits : Walker or sinslab.core.gnss.Ephemerides
-        A Walker constellation (its time is ``t``) or real ephemerides (their time is
-        ``t − t[0] + t_orbit``, GPS seconds relative to ``orbits.t_ref``).
+    orbits : Walker, sinslab.core.gnss.Ephemerides, or a list of them
+        Walker constellations (their time is ``t``) or real ephemerides (their time is
+        ``t − t[0] + t_orbit``, GPS seconds relative to ``orbits.t_ref``); a list for
+        several systems seen by one receiver (one clock).
     errors : GnssErrors
     seed : int or numpy.random.Generator
     t_orbit : float
@@ -185,8 +199,8 @@ def simulate_observations(t, lat, lon, h, vel, orbits, errors: GnssErrors = Gnss
     rng = np.random.default_rng(seed)
     t = np.asarray(t, float)
     n_ep = t.size
-    walker = isinstance(orbits, Walker)
-    sats = orbits.sats if walker else np.unique(orbits.sat)
+    walker = all(isinstance(o, Walker) for o in (orbits if isinstance(orbits, (list, tuple)) else [orbits]))
+    sats = _sats(orbits)
     systems = np.array([s[0] for s in sats])
     ns = sats.size
     r_rx = E.geodetic_to_ecef(lat, lon, h)
