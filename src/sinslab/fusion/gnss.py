@@ -245,13 +245,16 @@ class SatelliteMeasurement:
     outages : sequence of (start, length) [s]
         Epochs inside are not used.
     stream : int
+    shared : dict, optional
+        A cache of the epoch's antenna geometry shared by the measurements of one
+        receiver (pseudoranges and range rates of the same observations).
     """
 
     kind = ""
 
     def __init__(self, sv: SatelliteObservations, sigma, *, lever_arm=None, mask=math.radians(10.0),
                  cn0_ref=45.0, gate=5.0, gate_reset=10, max_satellites=(), clock="clk",
-                 clock_nominal=(0.0, 0.0, 0.0), outages=(), stream=0):
+                 clock_nominal=(0.0, 0.0, 0.0), outages=(), stream=0, shared=None):
         self.sv = sv
         self.sigma = float(sigma)
         if not (self.sigma > 0 and math.isfinite(self.sigma)):
@@ -270,6 +273,7 @@ class SatelliteMeasurement:
         self.outages = tuple(outages)
         self.stream = int(stream)
         self.log = SatelliteLog.new()
+        self.shared = {} if shared is None else shared
         self._all_rejected = 0
 
     # -- schedule
@@ -283,13 +287,29 @@ class SatelliteMeasurement:
     # -- antenna
     def antenna(self, ep: Epoch):
         """Antenna ECEF position and velocity at the observation time, with their
-        Jacobians (3, n) with respect to the error state."""
+        Jacobians (3, n) with respect to the error state; the geometry of the epoch
+        (with the satellites' elevation and azimuth) is shared with the other measurement
+        made by the same :class:`RawGnss`-like owner (``shared``), which asks for the same
+        rows at the same epoch."""
         nr = ep.streams[self.stream]
+        key = (ep.item, ep.t, nr.row.tobytes(), nr.omega_b.tobytes(), self.lever.tobytes(), ep.layout)
+        if self.shared.get("key") == key:
+            return self.shared["antenna"]
+        out = self._antenna(ep, nr)
+        rows = self.sv.rows(ep.item)
+        lat, lon, h = out[4]
+        el, az = E.elevation_azimuth(self.sv.sat_pos[rows], lat, lon, h)
+        self.shared.clear()
+        self.shared.update(key=key, antenna=(*out, el, az))
+        return self.shared["antenna"]
+
+    def _antenna(self, ep, nr):
         lay, n = ep.layout, ep.n
         lat, lon, h = float(nr.lat), float(nr.lon), float(nr.h)
         C = nr.C_bn
         Cl = C @ self.lever
-        wl = np.cross(nr.omega_b, self.lever)
+        w, l_ = nr.omega_b, self.lever
+        wl = np.array([w[1] * l_[2] - w[2] * l_[1], w[2] * l_[0] - w[0] * l_[2], w[0] * l_[1] - w[1] * l_[0]])
         v_ant = nr.vel + C @ wl                     # ENU
         Jv = np.zeros((3, n))
         Jv[:, lay.slice("dv")] = np.eye(3)
@@ -298,9 +318,11 @@ class SatelliteMeasurement:
             Jv[:, lay.slice("eps")] = -C @ Att.skew(self.lever)
         dt = ep.t - float(self.sv.t_epoch[ep.item])
         Cne, dCL, dCl = _enu_derivatives(lat, lon)
-        rm, rn = (float(x) for x in E.radii(lat, h))
+        rm, rn = E.radii_s(lat, h)
         off = Cl - v_ant * dt
-        r = E.geodetic_to_ecef(lat, lon, h) + Cne @ off
+        cL = math.cos(lat)
+        r = np.array([rn * cL * math.cos(lon), rn * cL * math.sin(lon),
+                      (rn - h) * (1.0 - E.E2) * math.sin(lat) + h * math.sin(lat)]) + Cne @ off
         sp = lay.slice("dp")
         Jr = -dt * Cne @ Jv
         Jr[:, lay.slice("phi")] += Cne @ Att.skew(Cl)
@@ -357,8 +379,7 @@ class SatelliteMeasurement:
     def matrices(self, ep: Epoch):
         sv = self.sv
         rows = sv.rows(ep.item)
-        r, Jr, v, Jv, (lat, lon, h), dt = self.antenna(ep)
-        el, az = E.elevation_azimuth(sv.sat_pos[rows], lat, lon, h)
+        r, Jr, v, Jv, (lat, lon, h), dt, el, az = self.antenna(ep)
         keep, below, over, no_eph = self._select(ep, rows, el)
         k = rows[keep]
         z, H = self._model(ep, k, r, Jr, v, Jv, el[keep], az[keep], (lat, lon, h), dt)

@@ -123,7 +123,7 @@ class RawGnss:
         the nominal clock from the first single-point solution at or after ``t_start``."""
         kw = dict(lever_arm=lever_arm, mask=self.mask, cn0_ref=self.cn0_ref, gate=self.gate,
                   max_satellites=self.max_satellites, clock_nominal=self.clock_nominal(t_start),
-                  outages=tuple(self.outages) if outages is None else tuple(outages))
+                  outages=tuple(self.outages) if outages is None else tuple(outages), shared={})
         ms = [Pseudoranges(self.sv, self.pseudorange_sigma, **kw)]
         if self.use_doppler:
             ms.append(RangeRates(self.sv, self.doppler_sigma, **kw))

@@ -149,23 +149,39 @@ def raw_outputs(res, raw, metrics, tables, figures, notes, echo=print):
                              "biases against the first system) and σ at every filter epoch"))
     # figures
     sats = cols["sat"]
-    from matplotlib.figure import Figure as MplFigure
-    fig = MplFigure(figsize=(6.5, 6.8), layout="constrained")
-    ax = fig.add_subplot(projection="polar")
-    ax.set_theta_zero_location("N")
-    ax.set_theta_direction(-1)
-    for i, s in enumerate(sorted(set(sats.tolist()))):
-        m = sats == s
-        col = {"G": 0, "E": 1, "C": 2, "R": 3, "J": 4}.get(s[0], 5)
-        ax.plot(np.radians(cols["azimuth_deg"][m]), 90 - cols["elevation_deg"][m], ".", ms=2,
-                color=plotting.COLORS[col % len(plotting.COLORS)])
-        j = np.flatnonzero(m)[-1]
-        ax.text(np.radians(cols["azimuth_deg"][j]), 90 - cols["elevation_deg"][j], s, fontsize=7)
-    ax.set_rmax(90)
-    ax.set_rticks([0, 30, 60, 90])
-    ax.set_yticklabels(["90°", "60°", "30°", "0°"])
-    ax.set_title("Sky plot (elevation, azimuth clockwise from north; G blue, E orange, C green)")
-    figures.append(Figure("skyplot", fig, "Satellite tracks over the run, seen from the INS antenna."))
+    # sky plot on plain axes: radius 90° − elevation, azimuth clockwise from north
+    fig, axes = plotting.figure(1, 1, width=6.5, row_height=6.5, sharex=False)
+    ax = axes[0]
+    ax.grid(False)
+    circ = np.linspace(0, 2 * np.pi, 181)
+    for r_ in (30, 60, 90):
+        ax.plot(r_ * np.sin(circ), r_ * np.cos(circ), "-", color="0.75", lw=0.8)
+        ax.text(2, r_ - 6, f"{90 - r_}°", fontsize=7, color="0.4")
+    for a_ in range(0, 360, 45):
+        ax.plot([0, 90 * np.sin(np.radians(a_))], [0, 90 * np.cos(np.radians(a_))], "-", color="0.85", lw=0.6)
+    names = sorted(set(sats.tolist()))
+    colour = {}
+    for s_ in names:
+        colour.setdefault(s_[0], plotting.COLORS[len(colour) % len(plotting.COLORS)])
+    for s_ in names:
+        m = sats == s_
+        rr_ = 90 - cols["elevation_deg"][m]
+        az_ = np.radians(cols["azimuth_deg"][m])
+        ax.plot(rr_ * np.sin(az_), rr_ * np.cos(az_), ".", ms=2, color=colour[s_[0]])
+        ax.text(rr_[-1] * np.sin(az_[-1]) + 2, rr_[-1] * np.cos(az_[-1]) + 2, s_, fontsize=7)
+    for sys_, c_ in colour.items():
+        ax.plot([], [], ".", color=c_, label={"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS",
+                                              "J": "QZSS"}.get(sys_, sys_))
+    ax.set_xlim(-95, 95)
+    ax.set_ylim(-95, 95)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.set_xlabel("west ← → east   (rings: elevation 0°, 30°, 60°)")
+    ax.set_ylabel("south ← → north")
+    ax.legend(fontsize=8, loc="lower right")
+    figures.append(Figure("skyplot", fig, "Sky plot: satellite tracks over the run seen from the INS "
+                          "antenna (centre: zenith; azimuth clockwise from north; label at the last epoch)."))
     fig, axes = plotting.figure(2, 1, width=9.0)
     tt = np.array(pr.log.t) - t0
     axes[0].step(tt, n_used, where="post", label="used", color=plotting.COLORS[0])
