@@ -428,11 +428,12 @@ class SatelliteMeasurement:
 class Pseudoranges(SatelliteMeasurement):
     """Pseudorange per satellite (see the module notes); rows ``ρ̂ − P`` [m].
 
-    ``sigma`` defaults to 3 m (code noise and multipath of a consumer receiver)."""
+    ``sigma`` (σ₀) defaults to 1 m (code noise and multipath of a current consumer receiver
+    under open sky)."""
 
     kind = "pseudorange"
 
-    def __init__(self, sv, sigma=3.0, **kw):
+    def __init__(self, sv, sigma=1.0, **kw):
         super().__init__(sv, sigma, **kw)
 
     def _observable(self, rows):
@@ -470,11 +471,11 @@ class Pseudoranges(SatelliteMeasurement):
 class RangeRates(SatelliteMeasurement):
     """Range rate from Doppler per satellite (see the module notes); rows ``ρ̇̂ − ρ̇`` [m/s].
 
-    ``sigma`` defaults to 0.1 m/s."""
+    ``sigma`` (σ₀) defaults to 0.05 m/s."""
 
     kind = "Doppler"
 
-    def __init__(self, sv, sigma=0.1, **kw):
+    def __init__(self, sv, sigma=0.05, **kw):
         super().__init__(sv, sigma, **kw)
 
     def _observable(self, rows):

@@ -15,12 +15,12 @@ recorded data.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from sinslab.fusion.gnss import Pseudoranges, RangeRates, SatelliteObservations, single_point
-from sinslab.fusion.loosely_coupled import loosely_coupled
+from sinslab.fusion.loosely_coupled import LooselyCoupled, loosely_coupled
 from sinslab.nav import errstate as es
 
 __all__ = ["RawGnss", "tightly_coupled", "TightlyCoupled", "tc_model"]
@@ -180,29 +180,18 @@ def tc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, systems=("G",)
 
 
 @dataclass(frozen=True)
-class TightlyCoupled:
-    """Output of :func:`tightly_coupled` at the filter epochs (every ``kf_dt``).
-
-    ``t``, ``nav``, ``x``, ``sigma``, ``gyro_bias``, ``accel_bias``, ``scale``, ``layout``
-    and ``history`` as in :class:`sinslab.fusion.loosely_coupled.LooselyCoupled`;
+class TightlyCoupled(LooselyCoupled):
+    """Output of :func:`tightly_coupled` at the filter epochs (every ``kf_dt``): the fields
+    of :class:`sinslab.fusion.loosely_coupled.LooselyCoupled` (its fix records empty) and
     ``clock`` (M, k) the receiver clock estimate (bias [m], drift [m/s], inter-system
     biases [m]); ``pseudoranges`` and ``range_rates`` the measurement objects, whose
     ``log`` holds per epoch the satellites, their elevation, azimuth, C/N0, innovation,
-    σ and whether they were used or rejected.
+    σ, ν²/S and whether they were used or rejected.
     """
 
-    t: np.ndarray
-    nav: np.ndarray
-    x: np.ndarray
-    sigma: np.ndarray
-    gyro_bias: np.ndarray
-    accel_bias: np.ndarray
-    scale: np.ndarray | None
-    clock: np.ndarray
-    pseudoranges: object
-    range_rates: object
-    layout: object
-    history: object = None
+    clock: np.ndarray = None
+    pseudoranges: object = None
+    range_rates: object = None
 
 
 def tightly_coupled(imu, init, raw: RawGnss, P0, *, model=None, gyro_arw=None, accel_vrw=None,
@@ -254,6 +243,6 @@ def tightly_coupled(imu, init, raw: RawGnss, P0, *, model=None, gyro_arw=None, a
                         accel_bias=accel_bias, start=start, t_start=t_start, max_block=max_block,
                         model_every=model_every, aiding=(*ms, *aiding), progress=progress,
                         label=label, history=history)
-    clock = raw.clock_estimate(r.t, r.x, lay)
-    return TightlyCoupled(r.t, r.nav, r.x, r.sigma, r.gyro_bias, r.accel_bias, r.scale, clock, ms[0],
-                          ms[1] if len(ms) > 1 else None, lay, r.history)
+    base = {f.name: getattr(r, f.name) for f in fields(LooselyCoupled)}
+    return TightlyCoupled(**base, clock=raw.clock_estimate(r.t, r.x, lay), pseudoranges=ms[0],
+                          range_rates=ms[1] if len(ms) > 1 else None)
