@@ -1,7 +1,7 @@
 """Tightly coupled INS/GNSS on the rtklib-walk log, beside loosely coupled filters and the
 GNSS-only single-point solution, against the RTK-fixed epochs of the reference solution.
 
-    python examples/raw_gnss_walk.py DATA_DIR
+    python examples/raw_gnss_walk.py DATA_DIR [FIGURE.png]
 
 DATA_DIR holds imu_1730.csv(.tag), gnss_1730.ubx and gnss_1730_sf.pos (the shared
 rtklib-walk data). Prints the tables of docs/raw-gnss.md. The options are those of the
@@ -24,7 +24,7 @@ from sinslab.fusion.recorded import NavOptions, fix_errors, navigate_recorded
 from sinslab.fusion.tightly_coupled import RawGnss
 
 
-def main(data):
+def main(data, figure=None):
     data = Path(data)
     imu = load_imu(data / "imu_1730.csv", "rtklib-imu", mount="rpy:180,0,-90", frame="frd").imu
     ref = read_fixes(data / "gnss_1730_sf.pos")
@@ -76,6 +76,7 @@ def main(data):
         print(f"| {name} | {off[0]:.2f}, {off[1]:.2f}, {off[2]:.2f} | {np.sqrt(np.mean(hz ** 2)):.3f} / "
               f"{hz.max():.3f} | {np.sqrt(np.mean(d[:, 2] ** 2)):.3f} / {np.abs(d[:, 2]).max():.3f} |")
 
+    curves = [(name, t - t0, np.hypot(*(e - offsets[name])[:, :2].T)) for name, t, e in rows]
     # a window with at most K satellites: no fix for the loosely coupled filter
     print("\n| window | solution | horizontal RMS / max in the window [m] | at its end [m] |")
     print("| --- | --- | --- | --- |")
@@ -93,6 +94,29 @@ def main(data):
             hz = np.hypot(d[m, 0], d[m, 1])
             print(f"| {ws:g}..{ws + wd:g} s, ≤ {k} sat | {name} | {np.sqrt(np.mean(hz ** 2)):.2f} / "
                   f"{hz.max():.2f} | {hz[-1]:.2f} |")
+            if k == 3:
+                window = (ws, wd)
+                curves.append((f"{name} (window)", t - t0, np.hypot(d[:, 0], d[:, 1])))
+    if figure is not None:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, layout="constrained")
+        for name, t, hz in curves[:4]:
+            axes[0].plot(t, hz, lw=1, label=name)
+        axes[0].set_ylabel("horizontal error [m]")
+        axes[0].set_yscale("log")
+        axes[0].legend(fontsize=8)
+        axes[0].set_title("against the RTK-fixed epochs (each solution's mean offset removed)")
+        for name, t, hz in curves[4:]:
+            axes[1].plot(t, hz, lw=1, label=name)
+        axes[1].axvspan(window[0], window[0] + window[1], color="0.9", lw=0)
+        axes[1].set_yscale("log")
+        axes[1].set_ylabel("horizontal error [m]")
+        axes[1].set_xlabel("time after the first GNSS epoch [s]")
+        axes[1].legend(fontsize=8)
+        axes[1].set_title("at most 3 satellites from 60 to 80 s (grey): no fix for the loosely coupled filter")
+        fig.savefig(figure, dpi=110)
     c = raw.measurements[0].log.counts()
     print(f"\npseudoranges used {c['used']}, rejected by the gate {c['rejected']}, observations "
           f"without ephemeris {c['no_ephemeris']}; clock drift {res_tc.init['gnss_clock'][0, 1]:.1f} -> "
@@ -100,6 +124,6 @@ def main(data):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        sys.exit("usage: python examples/raw_gnss_walk.py DATA_DIR")
-    main(sys.argv[1])
+    if len(sys.argv) not in (2, 3):
+        sys.exit("usage: python examples/raw_gnss_walk.py DATA_DIR [FIGURE.png]")
+    main(*sys.argv[1:])
