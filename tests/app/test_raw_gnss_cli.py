@@ -66,3 +66,19 @@ def test_bad_input(tc_run, tmp_path, args, msg):
     lines = [ln for ln in r.output.splitlines() if "error" in ln]
     assert len(lines) == 1 and lines[0].startswith("sinslab: error:") and msg in lines[0], r.output
     assert {p.name: p.read_bytes() for p in tc_run.iterdir() if p.is_file()} == before
+
+
+def test_satellites_below_the_mask_only(monkeypatch):
+    """Every satellite below the elevation mask (here an 89.9° mask) is one line naming the
+    file, not a filter without measurements."""
+    import functools
+    import math
+
+    from sinslab.app.commands.raw_gnss import load_raw
+    from sinslab.core.errors import InputError
+    from sinslab.data import load_imu
+    from sinslab.fusion import tightly_coupled as T
+    monkeypatch.setattr(T, "RawGnss", functools.partial(T.RawGnss, mask=math.radians(89.9)))
+    imu = load_imu(WALK / "imu_1730.csv", "rtklib-imu").imu
+    with pytest.raises(InputError, match="gnss_1730.ubx: every satellite is below the 89.9 deg"):
+        load_raw(WALK / "gnss_1730.ubx", None, None, imu, echo=lambda *a: None)
