@@ -83,7 +83,7 @@ def raw_claims(raw):
             f"the filter's {m.kind} noise model is consistent: mean ν²/(H P Hᵀ + R) of the {nis.size} "
             f"rows used equals 1 within a factor {NIS_FACTOR:g}",
             mean, [1 / NIS_FACTOR, NIS_FACTOR], bool(nis.size and 1 / NIS_FACTOR <= mean <= NIS_FACTOR),
-            relation="between"))
+            relation="between", origin="check"))
     return claims, extra
 
 
