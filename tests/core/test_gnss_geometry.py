@@ -190,3 +190,29 @@ def test_sagnac_and_elevation():
     assert abs(rho - np.linalg.norm(rsi - rr)) < 1e-4
     el, az = E.elevation_azimuth(E.geodetic_to_ecef(0.7, 0.3, 2e7), 0.7, 0.3, 100.0)
     assert abs(el - math.pi / 2) < 1e-6
+
+
+def test_elevation_azimuth_and_geodetic_match_rtklib():
+    """Elevation/azimuth (satazel) and ECEF -> geodetic (ecef2pos) against RTKLIB."""
+    rtk = pytest.importorskip("pyrtklib5")
+    rng = np.random.default_rng(5)
+    for _ in range(30):
+        lat, lon, h = rng.uniform(-1.4, 1.4), rng.uniform(-3.1, 3.1), rng.uniform(-100, 5000)
+        rs = E.geodetic_to_ecef(rng.uniform(-1.2, 1.2), rng.uniform(-3.1, 3.1), 2.0e7)
+        pos, e, azel = rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(2)
+        pos[0], pos[1], pos[2] = lat, lon, h
+        rr = E.geodetic_to_ecef(lat, lon, h)
+        d = (rs - rr) / np.linalg.norm(rs - rr)
+        for j in range(3):
+            e[j] = d[j]
+        rtk.satazel(pos, e, azel)
+        el, az = E.elevation_azimuth(rs, lat, lon, h)
+        assert abs(el - azel[1]) < 1e-12
+        if el > 0:
+            assert abs(np.angle(np.exp(1j * (az - azel[0])))) < 1e-12
+        r3, p3 = rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(3)
+        for j in range(3):
+            r3[j] = rr[j]
+        rtk.ecef2pos(r3, p3)
+        la, lo, hh = E.ecef_to_geodetic(rr)
+        assert abs(la - p3[0]) < 1e-12 and abs(lo - p3[1]) < 1e-12 and abs(hh - p3[2]) < 1e-4
