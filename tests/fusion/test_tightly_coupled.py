@@ -99,3 +99,25 @@ def test_keeps_navigating_with_two_satellites(drive):
     assert np.all(n_used[(tl >= 40) & (tl < 60)] == 2)
     m = (r.t >= 40) & (r.t < 60)
     assert np.all(np.abs(e[m]) < 5 * s[m])
+
+
+def test_real_ephemeris_orbits():
+    """Observations simulated on the broadcast orbits of the walk log (GPS, Galileo,
+    BeiDou) without noise give the single-point solution the true antenna and clock."""
+    from pathlib import Path
+    walk = Path(__file__).resolve().parents[3] / "shared" / "data" / "rtklib-walk" / "gnss_1730.ubx"
+    if not walk.exists():
+        pytest.skip("rtklib-walk not available")
+    from sinslab.data.gnss import read_gnss_raw
+    g = read_gnss_raw(walk)
+    t = np.arange(5.0)
+    lat, lon, h = np.full(5, math.radians(40.0967)), np.full(5, math.radians(-105.1471)), np.full(5, 1580.0)
+    err = SG.GnssErrors(pseudorange_sigma=0.0, doppler_sigma=0.0, cn0=(35.0, 15.0, 0.0), clock_noise=(0.0, 0.0),
+                        isb={"E": 5.0, "C": -3.0})
+    sim = SG.simulate_observations(t, lat, lon, h, np.zeros((5, 3)), g.eph, err, seed=1,
+                                   t_orbit=float(g.epoch_t[0]))
+    sv = SatelliteObservations(**sim.fields)
+    assert set(sv.systems) == {"G", "E", "C"} and np.bincount(sv.epoch).min() >= 10
+    sp = single_point(sv)
+    assert np.max(np.abs(sp.lat - lat)) * 6.4e6 < 1e-3 and np.max(np.abs(sp.h - h)) < 1e-3
+    assert np.max(np.abs(sp.clock - sim.clock[:, 0])) < 1e-3

@@ -215,7 +215,10 @@ def simulate_observations(t, lat, lon, h, vel, orbits, errors: GnssErrors = Gnss
         # the exact discrete covariance of (ḃ = d + w_b, ḋ = w_d) over dt
         Q = np.array([[qb ** 2 * dt + qd ** 2 * dt ** 3 / 3, qd ** 2 * dt ** 2 / 2],
                       [qd ** 2 * dt ** 2 / 2, qd ** 2 * dt]])
-        wb, wd = np.linalg.cholesky(Q) @ rng.normal(size=2)
+        l11 = math.sqrt(Q[0, 0])
+        l21 = Q[1, 0] / l11 if l11 > 0 else 0.0
+        n1, n2 = rng.normal(size=2)
+        wb, wd = l11 * n1, l21 * n1 + math.sqrt(max(Q[1, 1] - l21 * l21, 0.0)) * n2
         b[k] = b[k - 1] + d[k - 1] * dt + wb
         d[k] = d[k - 1] + wd
     isb = errors.isb or {}
