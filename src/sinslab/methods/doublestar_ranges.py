@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sinslab.methods.doublestar import MODES, Integration, StoredStateUpdate, check_windows
+from sinslab.methods.doublestar import Integration, StoredStateUpdate, check_integration, check_windows
 
 __all__ = ["integrate_ranges"]
 
@@ -50,13 +50,7 @@ def integrate_ranges(imu, init, t, paths, model, P0, *, sat_lon1, sat_lon2, rang
     from sinslab.fusion.lag import ExactReprocessing, OnArrival
     from sinslab.fusion.rdss import TwoGeoRanges
 
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-    if lag_method not in ("paper003", "exact"):
-        raise ValueError(f"lag_method must be 'paper003' or 'exact', got {lag_method!r}")
-    lay = model.layout
-    if lay.n != 16 or lay.names[:3] != ("phi", "dv", "dp"):
-        raise ValueError(f"integrate_ranges needs the 16-state horizontal model, got {lay!r}")
+    lay = check_integration(mode, lag_method, model, "integrate_ranges")
     t = np.asarray(t, dtype=float)
     arrive = t if (t_arrive is None or mode == "zero-lag") else np.asarray(t_arrive, dtype=float)
     meas = TwoGeoRanges(t, paths, sat_lon1, sat_lon2, range_sigma, height_sigma, t_arrive=arrive,
