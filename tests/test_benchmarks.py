@@ -156,3 +156,12 @@ def test_campaigns_script(tmp_path):
     # free-inertial is mostly compiled navigation and noise synthesis
     assert r["compiled_share"] > 0.5
     assert r["speedup"] == pytest.approx(r["cpu_per_run_one_at_a_time_s"] / r["cpu_per_run_s"])
+
+
+def test_tightly_coupled_script(tmp_path):
+    out = tmp_path / "tc.json"
+    res = _load("tightly_coupled").main(["--quick", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    assert saved["tc_cpu_s"] > 0 and saved["lc_cpu_s"] > 0 and saved["satellites_min"] >= 4
+    # raw observations of 12+ satellites at 1 Hz do at least as well as 3 m fixes
+    assert res["tc_hz_err_rms_m"] < res["lc_hz_err_rms_m"]

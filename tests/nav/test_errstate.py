@@ -660,3 +660,29 @@ def test_linear_model_matches_sinslab_navigate_60s(sinslab_flight, core):
             rel = np.linalg.norm(a - lin) / np.linalg.norm(a)
             print(f"{core:10s} {name:38s} {b:3s} {100 * rel:.3f} %")
             assert rel < 0.02, f"{core} {name}: block {b} differs by {100 * rel:.2f} %"
+
+
+def test_receiver_clock_block_dynamics():
+    """The clock block: bias integrates drift (Φ = [[1, T], [0, 1]] exactly, the two-state
+    clock model), inter-system biases are random walks, nothing couples to the INS."""
+    from sinslab.estimation.kalman import discretize
+    m = es.ErrorModel("full", [es.gyro_bias(), es.receiver_clock(("G", "E"), bias_noise=0.3,
+                                                                    drift_noise=0.2, isb_noise=0.01)],
+                      gyro_noise=1e-4, accel_noise=1e-3)
+    lay = m.layout
+    sl = lay.slice("clk")
+    assert lay.labels[sl] == ("clk_bias", "clk_drift", "clk_isb_E")
+    nav = es.NavPoint.static(0.6)
+    F, G = m.matrices(nav)
+    assert F[sl.start, sl.start + 1] == 1.0 and np.count_nonzero(F[sl, :]) == 1
+    assert np.count_nonzero(F[:, sl][:sl.start]) == 0
+    T = 2.0
+    Phi, Q = discretize(F, (G * m.q) @ G.T, T, method="vanloan")
+    assert np.allclose(Phi[sl, sl], [[1, T, 0], [0, 1, 0], [0, 0, 1]], atol=1e-12)
+    # Q of the two-state clock: [[qb T + qd T³/3, qd T²/2], [qd T²/2, qd T]]
+    qb, qd = 0.3 ** 2, 0.2 ** 2
+    assert np.allclose(Q[sl, sl][:2, :2], [[qb * T + qd * T ** 3 / 3, qd * T ** 2 / 2],
+                                           [qd * T ** 2 / 2, qd * T]], rtol=1e-9)
+    from sinslab.fusion.feedback import FeedbackLayout
+    fb = FeedbackLayout.from_model(lay)
+    assert not set(range(sl.start, sl.stop)) & set(fb.indices(lay.n).tolist())

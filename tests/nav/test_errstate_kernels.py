@@ -40,6 +40,9 @@ MODELS = {
     "scale-markov-lever": lambda: es.ErrorModel(
         "full", [es.gyro_bias(), es.gyro_scale(tau=300.0, sigma=1e-4), es.accel_scale(rw=1e-6),
                  es.lever_arm()], gyro_noise=1e-4, accel_noise=1e-3),
+    "gnss-clock": lambda: es.ErrorModel(
+        "full", [es.gyro_bias(), es.accel_bias(), es.receiver_clock(("G", "E", "C"))],
+        gyro_noise=1e-4, accel_noise=1e-3),
     "attitude": lambda: es.ErrorModel("attitude", [es.gyro_bias(), es.accel_bias()], gyro_noise=1e-4),
     "ordered": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias()], gyro_noise=1e-4,
                                      order=["eps", "dv", "phi", "nabla", "dp"]),

@@ -24,7 +24,8 @@ _compile_notice()   # a status line while the kernels below compile (first run)
 __all__ = [
     "A", "F", "E2", "B", "WIE", "GM", "radii", "gravity", "gravity_vector", "wie_n",
     "wen_n", "win_n", "schuler_frequency", "schuler_period", "foucault_frequency",
-    "check_latitude", "radii_s", "gravity_s", "metres_per_rad",
+    "check_latitude", "radii_s", "gravity_s", "metres_per_rad", "geodetic_to_ecef",
+    "ecef_to_geodetic", "enu_to_ecef_matrix", "ecef_to_enu", "elevation_azimuth",
 ]
 
 A = 6378137.0                     #: WGS-84 semi-major axis [m]
@@ -154,3 +155,67 @@ def schuler_period(lat=0.0, h=0.0):
 def foucault_frequency(lat):
     """Foucault frequency ω_ie sin L [rad/s] (sign follows the hemisphere)."""
     return WIE * np.sin(np.asarray(lat, dtype=float))
+
+
+# ------------------------------------------------------------------ ECEF <-> geodetic
+def geodetic_to_ecef(lat, lon, h):
+    """Earth-centred Earth-fixed coordinates [m] of geodetic ``lat``, ``lon`` [rad] and
+    ellipsoidal height ``h`` [m] on WGS-84; arrays broadcast, result shape ``S + (3,)``."""
+    lat, lon, h = (np.asarray(v, dtype=float) for v in (lat, lon, h))
+    sl, cl = np.sin(lat), np.cos(lat)
+    rn = A / np.sqrt(1.0 - E2 * sl * sl)
+    return np.stack([(rn + h) * cl * np.cos(lon), (rn + h) * cl * np.sin(lon),
+                     (rn * (1.0 - E2) + h) * sl], axis=-1)
+
+
+def ecef_to_geodetic(r):
+    """Geodetic ``(lat, lon, h)`` [rad, rad, m] of ECEF points ``r`` (..., 3) [m] on WGS-84.
+
+    Fixed-point iteration on the latitude (the prime-vertical radius from the latest
+    estimate) until it moves less than 1e-14 rad: millimetre-exact anywhere near the
+    Earth's surface and up to GNSS orbits."""
+    r = np.asarray(r, dtype=float)
+    x, y, z = r[..., 0], r[..., 1], r[..., 2]
+    p = np.hypot(x, y)
+    lat = np.arctan2(z, p * (1.0 - E2))
+    for _ in range(20):
+        sl = np.sin(lat)
+        rn = A / np.sqrt(1.0 - E2 * sl * sl)
+        new = np.arctan2(z + rn * E2 * sl, p)
+        done = np.all(np.abs(new - lat) < 1e-14)
+        lat = new
+        if done:
+            break
+    sl, cl = np.sin(lat), np.cos(lat)
+    rn = A / np.sqrt(1.0 - E2 * sl * sl)
+    # height along the normal, well conditioned at every latitude
+    h = p * cl + z * sl - rn * (1.0 - E2 * sl * sl)
+    return lat, np.arctan2(y, x), h
+
+
+def enu_to_ecef_matrix(lat, lon):
+    """``C_n^e`` (..., 3, 3): columns are the east, north and up unit vectors in ECEF."""
+    lat, lon = np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
+    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    z = np.zeros_like(sl * so)
+    e = np.stack([-so + z, co + z, z], -1)
+    n = np.stack([-sl * co, -sl * so, cl + z], -1)
+    u = np.stack([cl * co, cl * so, sl + z], -1)
+    return np.stack([e, n, u], axis=-1)
+
+
+def ecef_to_enu(d, lat, lon):
+    """ECEF vectors ``d`` (..., 3) in the local east-north-up axes at ``lat``, ``lon`` [rad]."""
+    C = enu_to_ecef_matrix(lat, lon)
+    return np.einsum("...ji,...j->...i", C, np.asarray(d, dtype=float))
+
+
+def elevation_azimuth(r_sat, lat, lon, h):
+    """Elevation and azimuth [rad] of ECEF points ``r_sat`` (..., 3) [m] seen from the
+    geodetic point ``lat``, ``lon``, ``h``: elevation above the ellipsoid's tangent plane,
+    azimuth clockwise from north in [0, 2π)."""
+    d = np.asarray(r_sat, dtype=float) - geodetic_to_ecef(lat, lon, h)
+    u = ecef_to_enu(d / np.linalg.norm(d, axis=-1, keepdims=True), lat, lon)
+    el = np.arcsin(np.clip(u[..., 2], -1.0, 1.0))
+    az = np.mod(np.arctan2(u[..., 0], u[..., 1]), 2.0 * np.pi)
+    return el, az

@@ -31,7 +31,7 @@ __all__ = ["IMU_FORMATS", "FIX_FORMATS", "guess_imu_format", "load_imu", "read_i
 #: IMU formats understood by :func:`load_imu` (``--format``).
 IMU_FORMATS = ("psins", "csv", "parquet", "mat", "rtklib-imu")
 #: Fix/solution formats understood by :func:`read_fixes`.
-FIX_FORMATS = ("rtklib-pos", "csv", "mat-avp", "two-geo")
+FIX_FORMATS = ("rtklib-pos", "csv", "mat-avp", "two-geo", "ubx")
 
 
 def guess_imu_format(path) -> str:
@@ -98,8 +98,9 @@ def read_fixes(path, fmt=None, **kw) -> Fixes:
     :func:`sinslab.data.tables.read_fix_table`: columns by name or a column map, NED or
     ENU velocity, a quality column, held fixes collapsed), ``mat-avp`` (a PSINS avp
     matrix: positions and velocities, σ from ``sigma``/``sigma_vel`` keywords, default 1 m
-    / 0.1 m/s) or ``two-geo`` (a recorded double-star fix list,
-    :func:`sinslab.data.tables.read_two_geo_csv`); text formats may come as ``.gz`` or in a
+    / 0.1 m/s), ``two-geo`` (a recorded double-star fix list,
+    :func:`sinslab.data.tables.read_two_geo_csv`) or ``ubx`` (the receiver's NAV-PVT
+    solutions in a u-blox log, :func:`sinslab.data.gnss.read_ubx_pvt`); text formats may come as ``.gz`` or in a
     ``.zip``. ``velocity_lag`` [s] (any format): the velocities describe the motion that
     long before their stamps (:meth:`sinslab.core.records.Fixes.with_velocity_lag`).
     See :func:`load_fixes` for the keywords and what was done to the table."""
@@ -125,7 +126,7 @@ def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, 
     with contextlib.ExitStack() as stack:
         qs = [stack.enter_context(plain_file(x)) for x in ps]
         q = qs[0]
-        fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp"}.get(q.suffix.lower(), "csv")
+        fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp", ".ubx": "ubx"}.get(q.suffix.lower(), "csv")
         if len(qs) > 1 and fmt != "csv":
             raise ValueError(f"fixes from two files: csv tables only, not {fmt!r}")
         if columns is not None and fmt != "csv":
@@ -148,6 +149,9 @@ def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, 
             fx = matlab.read_mat_fixes(q, kw.get("var"), kw.get("sigma", 1.0), kw.get("sigma_vel", 0.1))
         elif fmt == "two-geo":
             fx = tables.read_two_geo_csv(q)
+        elif fmt == "ubx":
+            from sinslab.data.gnss import read_ubx_pvt
+            fx = read_ubx_pvt(q)
         else:
             raise ValueError(f"unknown fix format {fmt!r}; use one of {FIX_FORMATS}")
     return _named(fx.with_velocity_lag(velocity_lag), p, comp), meta

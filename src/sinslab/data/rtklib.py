@@ -188,6 +188,10 @@ def read_rtklib_imu(path, *, tag=None, delay=0.0, mount=None, frame="frd", accel
     rows = [(i + 1, s) for i, s in enumerate(text) if s.strip()]
     if not rows:
         raise ValueError(f"{path}: empty file")
+    # a record cut by the start or the end of logging (fewer fields) is dropped and
+    # counted; anywhere else a short record is an error below
+    cut = [rows[k][0] for k in sorted({0, len(rows) - 1}) if len(rows[k][1].split(",")) < 7]
+    rows = [r for r in rows if r[0] not in cut]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -225,4 +229,4 @@ def read_rtklib_imu(path, *, tag=None, delay=0.0, mount=None, frame="frd", accel
                                         max_gap=max_gap, allow_gaps=allow_gaps)
     return ImuData(imu, gaps, str(path), "rtklib-imu", t.size, jit,
                    {"tag_start": tg["start"], "tag_end": tg["end"], "tick_scale": scale,
-                    "delay": float(delay), "mount": R})
+                    "delay": float(delay), "mount": R, "truncated_lines": cut})

@@ -667,7 +667,7 @@ class _LaneRun:
                 if now is None:
                     now = tuple(NavRow(self.rows[i][-1], self.blk[i][1][-1], self.blk[i][2][-1])
                                 for i in range(self.ns))
-                r = meas.matrices(Epoch(t_at, e1, now, lay, n, j))
+                r = meas.matrices(Epoch(t_at, e1, now, lay, n, j, (filt.x, filt.P)))
                 if r is None:
                     continue
                 gate = getattr(meas, "gate", None)

@@ -131,6 +131,9 @@ class Epoch:
         Number of states.
     item : int
         The measurement record to apply (one of those :meth:`Measurement.epochs` returned).
+    prior : (x (n,), P (n, n)) or None
+        The filter's estimate before this update, for measurements that gate their rows
+        on the innovation (given for items applied on arrival; None for lagged items).
     """
 
     t: float
@@ -139,6 +142,7 @@ class Epoch:
     layout: object
     n: int
     item: int = 0
+    prior: tuple | None = None
 
 
 class Measurement(Protocol):

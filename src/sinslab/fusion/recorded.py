@@ -123,6 +123,9 @@ class NavOptions:
     odometer_lever: tuple = (0.0, 0.0, 0.0)  #: IMU -> wheel point, vehicle RFU [m]
     odometer_scale_sigma: float = 0.02      #: initial 1σ of the odometer scale factor [-]
     odometer_rate: float = 10.0             #: odometer updates per second [Hz]
+    #: raw GNSS (sinslab.fusion.tightly_coupled.RawGnss): its pseudoranges and range rates
+    #: replace the fixes in the filter (tightly coupled); the fixes then only start it
+    gnss_raw: object = None
 
     def check(self):
         la = np.asarray(self.lever_arm, dtype=float)
@@ -393,6 +396,8 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
         sensors.append(es.odometer_scale())
     if opt.estimate_vehicle:
         sensors += [es.installation("vm", "xz"), es.lever_arm("nlev")]
+    if opt.gnss_raw is not None:
+        sensors.append(opt.gnss_raw.clock_block())
     return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
 
 
@@ -720,6 +725,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     if opt.estimate_vehicle:
         sp0[lay.slice("vm")] = opt.vehicle_mount_sigma
         sp0[lay.slice("nlev")] = opt.nhc_lever_sigma
+    if opt.gnss_raw is not None:
+        sp0[lay.slice("clk")] = opt.gnss_raw.clock_sigmas()
     n_ep = (len(imu) - ks) // k_kf
     if n_ep < 2:
         raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
@@ -756,6 +763,11 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         named.append(("odometer", _odometer(opt.odometer, opt, T, t_lo, t_hi)))
     aiding = [m for _, m in named]
 
+    if opt.gnss_raw is not None:
+        # tightly coupled: the satellites' own measurements in place of the fixes
+        aiding += list(opt.gnss_raw.make(lever_arm=lever, outages=outages, t_start=ts))
+        sel = sel.select(np.zeros(len(sel), bool))
+        use_vel = False
     P0 = np.diag(sp0 ** 2)
     if opt.estimate_lever:
         # the start position is the antenna's minus C l_used: its error is −C δl, so the
@@ -782,6 +794,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),
                                 "rejected_spans": _spans(m.gate.rejected, 2.5 * T * m.every)}
                            for nm, m in named if getattr(m, "gate", None) is not None}
+    if opt.gnss_raw is not None:
+        init["gnss_clock"] = opt.gnss_raw.clock_estimate(r.t, r.x, lay)
     if opt.estimate_lever:
         sl = lay.slice("lev")
         init["lever_arm_estimate"] = (lever - r.x[-1, sl]).tolist()     # δl = l_used − l_true

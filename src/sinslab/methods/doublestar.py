@@ -73,7 +73,7 @@ __all__ = [
     "simulate_fixes",
     "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate", "integrate_many",
     "StoredStateUpdate",
-    "MODES", "horizontal_errors", "check_windows", "check_geometry",
+    "MODES", "horizontal_errors", "check_windows", "check_geometry", "check_integration",
 ]
 
 #: Geocentric radius of the geostationary orbit [m].
@@ -695,6 +695,19 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
                           discretization=discretization)[0]
 
 
+def check_integration(mode, lag_method, model, what):
+    """The arguments an integration shares: returns the model's layout, or ValueError
+    naming the bad one."""
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if lag_method not in ("paper003", "exact"):
+        raise ValueError(f"lag_method must be 'paper003' or 'exact', got {lag_method!r}")
+    lay = model.layout
+    if lay.n != 16 or lay.names[:3] != ("phi", "dv", "dp"):
+        raise ValueError(f"{what} needs the 16-state horizontal model, got {lay!r}")
+    return lay
+
+
 def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag_method="paper003",
                    height, windows=None, kf_dt=1.0, nsub=2, max_block=60.0,
                    discretization="series") -> list:
@@ -718,13 +731,7 @@ def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag_meth
     from sinslab.fusion.feedback import FeedbackLayout
     from sinslab.fusion.loosely_coupled import loosely_coupled_many
 
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-    if lag_method not in ("paper003", "exact"):
-        raise ValueError(f"lag_method must be 'paper003' or 'exact', got {lag_method!r}")
-    lay = model.layout
-    if lay.n != 16 or lay.names[:3] != ("phi", "dv", "dp"):
-        raise ValueError(f"integrate needs the 16-state horizontal model, got {lay!r}")
+    lay = check_integration(mode, lag_method, model, "integrate")
     w = None if windows is None else check_windows(windows)
     lanes = []
     for imu, init, fixes in runs:

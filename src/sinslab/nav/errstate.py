@@ -66,7 +66,7 @@ __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices",
-    "CORES", "lever_arm", "odometer_scale",
+    "CORES", "lever_arm", "odometer_scale", "ClockBlock", "receiver_clock",
 ]
 
 # ----------------------------------------------------------------------------- layout
@@ -734,7 +734,10 @@ class ErrorModel:
             for s in ins["sensors"]:
                 sl = self.layout.slice(s.name + ins["suffix"])
                 d = s.dynamics()
-                F[..., np.arange(sl.start, sl.stop), np.arange(sl.start, sl.stop)] = d
+                if d.ndim == 2:           # a block with coupled states (receiver clock)
+                    F[..., sl, sl] = d
+                else:
+                    F[..., np.arange(sl.start, sl.stop), np.arange(sl.start, sl.stop)] = d
                 if np.any(s.q > 0):
                     G[..., np.arange(sl.start, sl.stop), col + np.arange(s.size)] = 1.0
                     col += s.size
@@ -843,3 +846,67 @@ def odometer_scale(name="kod"):
     :class:`sinslab.fusion.measurements.Odometer`); a reading ``s̃ = (1 + k_s) v_fwd`` has
     ``k = k_s / (1 + k_s)``, equal to first order."""
     return SensorBlock(name, None, "constant", "y", "body", None, None, "ppm")
+
+
+@dataclass(frozen=True)
+class ClockBlock:
+    """GNSS receiver clock states in range units: bias ``b = c·δt_r`` [m], drift
+    ``d = c·δṫ_r`` [m/s] and one inter-system bias [m] per further system.
+
+    Dynamics ``ḃ = d + w_b``, ``ḋ = w_d``, inter-system biases ``ḃ_s = w_s``; the
+    pseudorange of a satellite of system s reads ``b + b_s`` (``b`` alone for the first
+    system), its range rate ``d``. The states are the receiver's, not the INS's: they
+    feed nothing back (use them through the GNSS measurements of
+    :mod:`sinslab.fusion.gnss`). Build with :func:`receiver_clock`.
+
+    Attributes
+    ----------
+    name : str
+    systems : tuple of str
+        System letters; the first is the reference of the bias, each further one has an
+        inter-system bias state ``<name>_isb_<letter>``.
+    q : ndarray (k,)
+        White-noise densities: bias [m²/s], drift [m²/s³], inter-system biases [m²/s].
+    """
+
+    name: str
+    systems: tuple
+    q: np.ndarray
+    sensor = None
+    kind = "clock"
+    frame = "body"
+    tau = None
+    axes = ""
+    feeds = None
+
+    @property
+    def size(self):
+        return 1 + len(self.systems)
+
+    def block(self, suffix="") -> Block:
+        labels = (f"{self.name}_bias", f"{self.name}_drift") + tuple(
+            f"{self.name}_isb_{s}" for s in self.systems[1:])
+        return Block(self.name + suffix, tuple(l + suffix for l in labels),
+                     ("m", "m/s") + ("m",) * (len(self.systems) - 1))
+
+    def dynamics(self) -> np.ndarray:
+        """The block's own dynamics matrix (k, k): the bias integrates the drift."""
+        d = np.zeros((self.size, self.size))
+        d[0, 1] = 1.0
+        return d
+
+
+def receiver_clock(systems=("G",), *, bias_noise=0.1, drift_noise=0.1, isb_noise=1e-4, name="clk"):
+    """A :class:`ClockBlock` for the satellites of ``systems`` (letters, first = reference).
+
+    ``bias_noise`` [m/√s] (white frequency noise, √(h0/2)·c), ``drift_noise`` [m/s/√s]
+    (random-walk frequency noise, √(2π² h₋₂)·c), ``isb_noise`` [m/√s] (slow wander of the
+    inter-system biases). The defaults suit a temperature-compensated crystal of a
+    consumer receiver (h0 ≈ 2e-19, h₋₂ ≈ 2e-20 give 0.1 m/√s and 0.19 m/s/√s at most)."""
+    systems = tuple(systems)
+    if not systems or len(set(systems)) != len(systems):
+        raise ValueError(f"receiver_clock: systems must be distinct letters, got {systems!r}")
+    q = np.array([bias_noise, drift_noise] + [isb_noise] * (len(systems) - 1), float) ** 2
+    if not np.all(np.isfinite(q)):
+        raise ValueError("receiver clock noise densities must be finite")
+    return ClockBlock(name, systems, q)

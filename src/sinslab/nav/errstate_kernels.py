@@ -157,7 +157,10 @@ def program(model) -> ModelProgram | None:
         for s in ins["sensors"]:
             sl = model.layout.slice(s.name + ins["suffix"])
             d = s.dynamics()
-            F0[np.arange(sl.start, sl.stop), np.arange(sl.start, sl.stop)] = d
+            if d.ndim == 2:
+                F0[sl, sl] = d
+            else:
+                F0[np.arange(sl.start, sl.stop), np.arange(sl.start, sl.stop)] = d
             if np.any(s.q > 0):
                 G0[np.arange(sl.start, sl.stop), col + np.arange(s.size)] = 1.0
                 col += s.size

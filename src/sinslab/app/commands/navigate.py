@@ -34,10 +34,15 @@ def _parse_init(text):
     for tok in str(text).split(","):
         k, sep, v = tok.partition("=")
         k = k.strip().lower()
-        if not sep or k not in ("heading",):
-            raise ValueError(f"--init {text!r}: use heading=ANGLE (e.g. heading=\"30 deg\")")
-        out["heading"] = option_quantity(f"--init {k}", v.strip(), "angle", ge="-180 deg",
-                                         le="360 deg")
+        if not sep or k not in ("heading", "course_speed", "course_spread"):
+            raise ValueError(f"--init {text!r}: use heading=ANGLE (e.g. heading=\"30 deg\"), "
+                             "course_speed=SPEED, course_spread=ANGLE")
+        if k == "course_speed":
+            out[k] = option_quantity(f"--init {k}", v.strip(), "velocity", gt="0 m/s", le="100 m/s")
+        elif k == "course_spread":
+            out[k] = option_quantity(f"--init {k}", v.strip(), "angle", gt="0 deg", le="90 deg")
+        else:
+            out[k] = option_quantity(f"--init {k}", v.strip(), "angle", ge="-180 deg", le="360 deg")
     return out
 
 
@@ -63,8 +68,13 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                    columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
                    odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None,
                    fix_columns=None, fix_quality=None, vehicle_mount=None, nhc_lever=None,
-                   platform="auto"):
+                   platform="auto", gnss_raw=None, gnss_nav=None, max_satellites=None):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
+
+    Raw GNSS: ``gnss_raw`` a u-blox log or RINEX observation file (``gnss_nav`` a RINEX
+    navigation file) replaces the fix file: pseudoranges and Doppler per satellite in the
+    filter (tightly coupled, :mod:`sinslab.app.commands.raw_gnss`); ``max_satellites``
+    limits like ``["3@60:20"]``.
 
     Recorded-unit options: ``columns`` a column map of the IMU table
     (:func:`sinslab.data.columns.parse_column_map`); ``imu_errors`` the filter's error
@@ -98,14 +108,16 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         csv_rate=csv_rate, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
                                     lever=odometer_lever, sigma=odometer_sigma),
         fix_columns=fix_columns, fix_quality=fix_quality,
-        vehicle=dict(mount=vehicle_mount, lever=nhc_lever, platform=platform)), echo=echo)
+        vehicle=dict(mount=vehicle_mount, lever=nhc_lever, platform=platform),
+        raw=dict(path=gnss_raw, nav=gnss_nav, max_satellites=max_satellites)), echo=echo)
     return (summary, *res.value)
 
 
 def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
-             csv_rate=1.0, smo=None, fix_columns=None, fix_quality=None, vehicle=None) -> Output:
+             csv_rate=1.0, smo=None, fix_columns=None, fix_quality=None, vehicle=None,
+             raw=None) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import earth as E         # numba and scipy: only when it runs
@@ -148,13 +160,24 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.error_model import load_error_model
         em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
+    raw_gnss = None
     if isinstance(fix_path, (list, tuple)):        # positions and velocities in two tables
-        fix_path = fix_path[0] if len(fix_path) == 1 else list(fix_path)
-    fix_name = " + ".join(map(str, fix_path)) if isinstance(fix_path, list) else str(fix_path)
-    ffmt = fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
-    fx, fmeta = load_fixes(fix_path, ffmt, velocity_lag=velocity_lag, columns=fix_columns,
-                           quality=fix_quality)
-    _say_fix_reading(fmeta, fix_name, echo)
+        fix_path = (None if not fix_path else fix_path[0] if len(fix_path) == 1
+                    else list(fix_path))
+    if raw and raw.get("path") is not None:
+        from sinslab.app.commands.raw_gnss import load_raw
+        if fix_path is not None:
+            raise ValueError("give either --gnss (fixes) or --gnss-raw (raw observations), not both")
+        raw_gnss, fx = load_raw(raw["path"], raw.get("nav"), raw.get("max_satellites"), data.imu, echo)
+        fix_name = f"{raw['path']} (single-point solution)"
+    elif fix_path is None:
+        raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
+    else:
+        fix_name = " + ".join(map(str, fix_path)) if isinstance(fix_path, list) else str(fix_path)
+        ffmt = fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
+        fx, fmeta = load_fixes(fix_path, ffmt, velocity_lag=velocity_lag, columns=fix_columns,
+                               quality=fix_quality)
+        _say_fix_reading(fmeta, fix_name, echo)
     imu = data.imu
     if data.meta and "joined" in data.meta:
         un = data.meta["joined"]["unmatched"]
@@ -219,6 +242,11 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     ini = _parse_init(init) if isinstance(init, (str, type(None))) else dict(init)
     if "heading" in ini:
         opt.heading = ini["heading"]
+    if "course_speed" in ini:
+        opt.move_speed = ini["course_speed"]
+    if "course_spread" in ini:
+        opt.heading_straight = ini["course_spread"]
+    opt.gnss_raw = raw_gnss
     res = navigate_recorded(imu, fx, opt)
     t, err, idx = fix_errors(res, fx)
     hz = np.hypot(err[:, 0], err[:, 1])
@@ -259,9 +287,14 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     settling = np.zeros(t.size, bool)
     for s0, ln in outs:
         settling |= (t >= s0 + ln) & (t < s0 + ln + SETTLE_S)
-    claims, extra = navigate_claims(
-        res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
-        np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T), ~settling[~in_out])
+    if raw_gnss is None:
+        claims, extra = navigate_claims(
+            res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
+            np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T),
+            ~settling[~in_out])
+    else:
+        from sinslab.app.commands.raw_gnss import raw_claims
+        claims, extra = raw_claims(raw_gnss)
     metrics.update(extra)
     if res.nis.size and extra["nis_verdict"] != "consistent":
         echo(f"  mean NIS {metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: {extra['nis_verdict']}")
@@ -434,6 +467,11 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         notes.append(noise_warn)
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
                                     "built-in defaults (white noise measured at the initial rest)."))
+    if raw_gnss is not None:
+        from sinslab.app.commands.raw_gnss import raw_outputs
+        raw_outputs(res, raw_gnss, metrics, tables, figures, notes, echo)
+        cfg.update(gnss_raw=str(raw["path"]), gnss_nav=str(raw.get("nav") or "none"),
+                   max_satellites=",".join(raw.get("max_satellites") or ()) or "none")
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims)
 
@@ -625,7 +663,10 @@ def register(app):
 
     @app.command()
     def navigate(imu: list[Path] = typer.Option(..., "--imu", help="recorded IMU file; twice for accelerometers and gyros in two tables on one time column"),
-                 fixes: list[Path] = typer.Option(..., "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp); twice for positions and velocities in two tables on one time column"),
+                 fixes: Optional[list[Path]] = typer.Option(None, "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp, .ubx NAV-PVT); twice for positions and velocities in two tables on one time column"),
+                 gnss_raw: Optional[Path] = typer.Option(None, "--gnss-raw", help="raw GNSS instead of fixes (tightly coupled): u-blox log (RAWX/SFRBX) or RINEX 2/3 observations"),
+                 gnss_nav: Optional[Path] = typer.Option(None, "--gnss-nav", help="RINEX 2/3 navigation file (ephemerides) for --gnss-raw"),
+                 max_satellites: Optional[list[str]] = typer.Option(None, "--max-satellites", help="K@START:DURATION: at most K satellites (highest first) from START s after the first GNSS epoch (repeatable)"),
                  format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
                  lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
@@ -634,7 +675,7 @@ def register(app):
                  outages: Optional[str] = typer.Option(None, "--outages", help="START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
                  fix_latency: float = typer.Option(0.0, "--fix-latency", help="simulated fix latency [s]"),
                  lag: str = typer.Option("aware", "--lag", help="aware | ignore (how late fixes are applied)"),
-                 init: Optional[str] = typer.Option(None, "--init", help='heading="30 deg" (clockwise from north); default: from the fix course'),
+                 init: Optional[str] = typer.Option(None, "--init", help='heading="30 deg" (clockwise from north); default: from the fix course above course_speed (2 m/s) with course − gyro heading within course_spread (2 deg)'),
                  time_sync: str = typer.Option("none", "--time-sync", help="auto: estimate the IMU time offset and clock drift from turns"),
                  velocity_lag: float = typer.Option(0.0, "--velocity-lag", help="fix velocities describe this many s before their stamp"),
                  imu_delay: float = typer.Option(0.0, "--imu-delay", help="add to RTKLIB IMU time stamps [s]"),
@@ -659,7 +700,7 @@ def register(app):
                  vehicle_mount: Optional[str] = typer.Option(None, "--vehicle-mount", help='IMU body (after --mount) in the vehicle frame, e.g. "euler:1.2,0,-1.5" (pitch, roll, yaw deg); with --aid nhc pitch and yaw are estimated from it'),
                  nhc_lever: Optional[str] = typer.Option(None, "--nhc-lever", help='IMU -> rear-axle centre, vehicle right-forward-up, e.g. "[0, -1.4, -0.5] m" (estimated from it with --aid nhc)'),
                  platform: str = typer.Option("auto", "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)")) -> None:
-        """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
+        """INS + position/velocity fixes (loosely coupled) or raw GNSS pseudoranges/Doppler (tightly coupled) on recorded data."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
                  init=init, time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
@@ -668,6 +709,7 @@ def register(app):
                  csv_rate=csv_rate, force=force, smooth=smooth, odometer=odometer,
                  odometer_units=odometer_units, odometer_lever=odometer_lever,
                  odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality,
-                 vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform)
+                 vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform,
+                 gnss_raw=gnss_raw, gnss_nav=gnss_nav, max_satellites=max_satellites)
 
     return navigate

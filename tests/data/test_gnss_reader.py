@@ -1,0 +1,129 @@
+"""Raw GNSS reading (sinslab.data.gnss) on the rtklib-walk u-blox log: what the log holds,
+Doppler against the pseudorange rate (sign and units), the RINEX path as a round trip
+through RTKLIB's own converter, the receiver's NAV-PVT against the RTK reference, and the
+one-line errors of bad files."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sinslab.core.errors import InputError
+
+WALK = Path(__file__).resolve().parents[3] / "shared" / "data" / "rtklib-walk"
+UBX = WALK / "gnss_1730.ubx"
+needs_walk = pytest.mark.skipif(not UBX.exists(), reason="rtklib-walk not available")
+
+
+@pytest.fixture(scope="module")
+def walk():
+    from sinslab.data.gnss import read_gnss_raw
+    return read_gnss_raw(UBX)
+
+
+@needs_walk
+def test_walk_log_contents(walk):
+    g = walk
+    assert g.epoch_t.size == 536 and np.allclose(np.diff(g.epoch_t), 0.25, atol=1e-6)
+    assert g.systems == ["C", "E", "G", "S"]
+    assert {s[0] for s in g.eph.sat} == {"G", "E", "C"} and len(g.eph) >= 20
+    # C/N0 in dB-Hz (a unit slip of 1000 once made every satellite look 45 dB weak)
+    assert 15 < np.percentile(g.cn0, 1) and np.percentile(g.cn0, 99) < 60
+    # t_ref is a GPS week start: the times of day of the log are 17:30..17:33 GPST
+    tod = np.mod(g.t_abs, 86400.0)
+    assert 17.5 * 3600 < tod[0] < tod[-1] < 17.6 * 3600
+
+
+@needs_walk
+def test_doppler_is_minus_the_pseudorange_rate(walk):
+    """−λ D equals the pseudorange rate (differences over 0.25 s), per satellite: the
+    range rate plus the clock drift, both in it (median over the log, 0.2 m/s)."""
+    from sinslab.core.gnss import C_LIGHT
+    g = walk
+    for s in ("G10", "E07", "C21"):
+        m = (g.sat == s) & np.isfinite(g.doppler)
+        e, P, D, f = g.epoch[m], g.pseudorange[m], g.doppler[m], g.freq[m]
+        ok = np.diff(e) == 1
+        rate = np.diff(P)[ok] / 0.25
+        dop = (-(C_LIGHT / f) * D)[:-1][ok]
+        assert abs(np.median(rate - 0.5 * (dop + (-(C_LIGHT / f) * D)[1:][ok]))) < 0.2, s
+
+
+@needs_walk
+def test_rinex_round_trip(tmp_path, walk):
+    """The log converted to RINEX 3.04 observations + navigation by RTKLIB's convrnx and
+    read back: the same epochs, pseudoranges to the file's 1 mm, the same satellite
+    positions from the navigation file's ephemerides."""
+    rtk = pytest.importorskip("pyrtklib5")
+    from sinslab.core.gnss import transmit_states
+    from sinslab.data.gnss import read_gnss_raw
+    opt = rtk.rnxopt_t()
+    opt.rnxver = 304
+    opt.navsys = rtk.SYS_GPS | rtk.SYS_GAL | rtk.SYS_CMP
+    opt.obstype = 1 | 4 | 8
+    opt.freqtype = 1 | 2 | 4
+    opt.ttol = 0.005
+    obs, nav = tmp_path / "w.obs", tmp_path / "w.nav"
+    assert rtk.convrnx(rtk.STRFMT_UBX, opt, str(UBX), [str(obs), str(nav)] + [""] * 7) == 1
+    r = read_gnss_raw(obs, nav)
+    g = walk
+    assert np.allclose(r.epoch_t, g.epoch_t, atol=1e-6)
+    keys_g = {(e, s): p for e, s, p in zip(g.epoch, g.sat, g.pseudorange) if s[0] in "GEC"}
+    keys_r = {(e, s): p for e, s, p in zip(r.epoch, r.sat, r.pseudorange)}
+    common = set(keys_g) & set(keys_r)
+    assert len(common) > 0.9 * len(keys_g)
+    assert max(abs(keys_g[k] - keys_r[k]) for k in common) < 1e-3
+    m = g.sat == "G10"
+    pg = transmit_states(g.eph, None, g.sat[m][-1:], g.epoch_t[g.epoch[m][-1:]], g.pseudorange[m][-1:])[0]
+    mr = r.sat == "G10"
+    pr = transmit_states(r.eph, None, r.sat[mr][-1:], r.epoch_t[r.epoch[mr][-1:]], r.pseudorange[mr][-1:])[0]
+    assert np.max(np.abs(pg - pr)) < 0.01
+
+
+@needs_walk
+def test_nav_pvt_is_the_receivers_rtk(walk):
+    """The receiver's NAV-PVT fixes coincide horizontally with the RTK reference (the
+    receiver ran RTK itself); 536 of them at the RAWX epochs."""
+    from sinslab.core import earth as E
+    from sinslab.data import read_fixes
+    pvt = read_fixes(UBX)
+    ref = read_fixes(WALK / "gnss_1730_sf.pos")
+    assert len(pvt) == 536
+    j = np.searchsorted(ref.t, pvt.t - 0.01)
+    ok = (j < len(ref)) & (np.abs(ref.t[np.minimum(j, len(ref) - 1)] - pvt.t) < 0.01)
+    rm, rn = E.radii(ref.lat[0], ref.h[0])
+    dn = (pvt.lat[ok] - ref.lat[j[ok]]) * rm
+    de = (pvt.lon[ok] - ref.lon[j[ok]]) * rn * math.cos(ref.lat[0])
+    assert ok.sum() > 500 and np.max(np.hypot(dn, de)) < 0.02
+
+
+def test_bad_files(tmp_path):
+    from sinslab.data.gnss import read_gnss_raw
+    empty = tmp_path / "empty.ubx"
+    empty.write_bytes(b"")
+    with pytest.raises(InputError, match="empty.ubx: empty file"):
+        read_gnss_raw(empty)
+    junk = tmp_path / "junk.ubx"
+    junk.write_bytes(bytes(range(256)) * 40)
+    with pytest.raises(InputError, match="junk.ubx: no raw measurements"):
+        read_gnss_raw(junk)
+    r4 = tmp_path / "v4.obs"
+    r4.write_text("     4.01           OBSERVATION DATA    M                   RINEX VERSION / TYPE\n")
+    with pytest.raises(InputError, match="v4.obs: RINEX version 4.01"):
+        read_gnss_raw(r4)
+    with pytest.raises(InputError, match="nothere.ubx: no such file"):
+        read_gnss_raw(tmp_path / "nothere.ubx")
+
+
+@needs_walk
+def test_log_without_raw_measurements(tmp_path):
+    """A u-blox log with NAV-PVT only (the raw messages filtered out by pyubx2)."""
+    from pyubx2 import UBXReader
+    from sinslab.data.gnss import read_gnss_raw
+    out = tmp_path / "pvt_only.ubx"
+    with open(UBX, "rb") as fh, open(out, "wb") as w:
+        for raw, msg in UBXReader(fh, protfilter=2, quitonerror=0):
+            if msg is not None and msg.identity == "NAV-PVT":
+                w.write(raw)
+    with pytest.raises(InputError, match="pvt_only.ubx: no raw measurements"):
+        read_gnss_raw(out)
