@@ -234,7 +234,7 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
 
     from sinslab.app import report as _report
     from sinslab.app.config import resolve
-    from sinslab.app.outputs import RunDir, abort_all
+    from sinslab.app.outputs import RunDir, abort_all, is_run_dir
     from sinslab.app.validate import starts_campaign
     from sinslab.estimation.montecarlo import dask_client
     from sinslab.experiments import execute, get, registry
@@ -243,6 +243,9 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
     with user_errors():
         if out.exists() and not out.is_dir():
             raise CliError(f"output folder {out} exists and is a file")
+        if is_run_dir(out):
+            raise CliError(f"--out {out} is a run folder; demo writes one run folder per "
+                           f"experiment under --out, never inside another run: choose another --out")
         idx_file = out / "index.html"
         if idx_file.exists() and not _is_sinslab_index(idx_file):
             raise CliError(f"{idx_file} exists and was not written by sinslab demo; "

@@ -49,6 +49,7 @@ tr.pass td.verdict{background:#dff5e1;color:#11631d;font-weight:bold}
 tr.fail td.verdict{background:#fde2e1;color:#a11;font-weight:bold}
 .badge{display:inline-block;padding:.15em .6em;border-radius:1em;font-weight:bold}
 .badge.ok{background:#dff5e1;color:#11631d}.badge.bad{background:#fde2e1;color:#a11}
+ul.warn li{background:#fff4d6;color:#6b4b00;padding:.2em .5em;margin:.2em 0;list-style:none}
 figure{margin:1em 0;text-align:center}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}
 #claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}
@@ -307,6 +308,10 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
         meta.append(f"writing the run folder {with_unit(float(out_s), 's')}")
     parts.append("<p class='sub'>" + " · ".join(meta) + "</p>")
 
+    warns = s.get("warnings") or []
+    if warns:                                  # plausibility checks of the data and the run
+        parts.append("<h2>Warnings</h2><ul class='warn' id='warnings'>"
+                     + "".join(f"<li>⚠ {e(w)}</li>" for w in warns) + "</ul>")
     if claims:
         badge = "ok" if all_ok else "bad"
         parts.append(f"<p><span class='badge {badge}' id='verdict'>{n_pass} of {len(claims)} claims "
@@ -336,7 +341,9 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
         parts.extend(_table_html(d, t) for t in tables)
     notes = s.get("notes", [])
     if notes:
-        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{e(n)}</li>" for n in notes) + "</ul>")
+        parts.append("<h2>Notes</h2><ul>" + "".join(
+            f"<li><pre>{e(n)}</pre></li>" if "\n" in n.strip() else f"<li>{e(n)}</li>"
+            for n in notes) + "</ul>")
     series = s.get("series", [])
     if series:
         rows = []
