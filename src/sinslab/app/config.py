@@ -225,7 +225,7 @@ def load_toml(path: str | Path) -> dict:
     except OSError as e:
         raise ConfigError(f"config file {p}: cannot read ({e.strerror or e})") from None
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")          # a byte-order mark (some editors) is not TOML
     except UnicodeDecodeError:
         raise ConfigError(f"config file {p}: not UTF-8 text") from None
     if not text.strip():

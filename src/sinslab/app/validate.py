@@ -313,6 +313,22 @@ def check_navigate_options(*, fix_latency=0.0, velocity_lag=0.0, imu_delay=0.0, 
                            f"must be within ±{MAX_LEVER_M:g} m (IMU -> antenna)")
 
 
+def check_mount(mount, frame) -> None:
+    """``--frame`` and ``--mount`` of the recorded-data commands, before any file is read."""
+    from sinslab.data.frames import frame_matrix, mount_matrix
+
+    if frame is not None:
+        try:
+            frame_matrix(frame)
+        except ValueError as e:
+            raise CliError(f"--frame {frame!r}: {e}") from None
+    if mount is not None:
+        try:
+            mount_matrix(mount, frame or "rfu")
+        except ValueError as e:
+            raise CliError(f"--mount: {e}") from None
+
+
 def check_outages(option: str, text, outages, t_ref: float, t_end: float) -> None:
     """Every outage (``[(start, length)]`` absolute [s], or a periodic spec) must start
     within the navigated span ``[t_ref, t_end)``; otherwise nothing would be measured."""

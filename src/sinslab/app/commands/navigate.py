@@ -61,7 +61,8 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                    time_sync="none", velocity_lag=0.0, imu_delay=0.0, scale_factors=False,
                    max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None,
                    columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
-                   odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None):
+                   odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None,
+                   strict=False):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
 
     Recorded-unit options: ``columns`` a column map of the IMU table
@@ -73,12 +74,18 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     ``csv_rate`` [Hz] the rate of ``solution.csv`` (``solution.parquet`` holds every filter
     epoch).
 
+    Plausibility (:mod:`sinslab.app.plausibility`): the IMU record (length, dead channels,
+    ranges, |f| against gravity, gaps) and the run (long stretches where the NIS leaves its
+    band) are checked; a warning is printed and listed in the report, ``strict`` refuses.
+
     Returns ``(summary, RecordedNav, Fixes)``.
     """
-    from sinslab.app.validate import check_navigate_options
+    from sinslab.app.validate import check_mount, check_navigate_options
 
     check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag, imu_delay=imu_delay,
-                           max_gap=max_gap, lag=lag, time_sync=time_sync)
+                           max_gap=max_gap, lag=lag, time_sync=time_sync, rest=rest, aid=aid,
+                           lever_arm=lever_arm)
+    check_mount(mount, frame)
     if isinstance(init, (str, type(None))):
         _parse_init(init)
     summary, res = run_command(NAVIGATE, out, lambda: _compute(
@@ -88,14 +95,15 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, echo=echo,
         options=options, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
         csv_rate=csv_rate, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
-                                    lever=odometer_lever, sigma=odometer_sigma)), echo=echo)
+                                    lever=odometer_lever, sigma=odometer_sigma),
+        strict=strict), echo=echo)
     return (summary, *res.value)
 
 
 def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
-             csv_rate=1.0, smo=None) -> Output:
+             csv_rate=1.0, smo=None, strict=False) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import earth as E         # numba and scipy: only when it runs
@@ -126,13 +134,21 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.error_model import load_error_model
         em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
+    from sinslab.app.plausibility import Finding, imu_findings, nis_findings, settle
+
+    found = imu_findings(data.imu, str(imu_path), gaps=data.gaps)
+    settle([fd for fd in found if fd.refuse])
     ffmt = fix_format or ("rtklib-pos" if str(fix_path).lower().endswith(".pos") else None)
-    fx = read_fixes(fix_path, ffmt, velocity_lag=velocity_lag)
+    fx = _read_fixes(read_fixes, fix_path, ffmt, velocity_lag)
     imu = data.imu
     if len(data.gaps):
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
              + ", ".join(f"{g[1]:.3f} s at {g[0] - imu.t0:.2f} s" for g in data.gaps[:5])
              + (" ..." if len(data.gaps) > 5 else ""))
+    span = min(float(fx.t[-1]), float(imu.t[-1])) - max(float(fx.t[0]), float(imu.t[0]))
+    if span > 0 and fix_latency >= span:
+        raise ValueError(f"--fix-latency {fix_latency:g}: at least the {span:.1f} s the fixes and the "
+                         f"IMU record share, so no fix would arrive before the record ends")
     opt = options or NavOptions()
     if lever_arm is not None:
         opt.lever_arm = tuple(_vec3(lever_arm, "length", "--lever-arm") if isinstance(lever_arm, str)
@@ -184,6 +200,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if "heading" in ini:
         opt.heading = ini["heading"]
     res = navigate_recorded(imu, fx, opt)
+    if res.fix_t.size == 0:
+        raise ValueError(f"{fix_path}: no fix was applied (outages, latency or the record's end "
+                         f"removed all {len(fx)}); the solution would be free inertial")
     t, err, idx = fix_errors(res, fx)
     hz = np.hypot(err[:, 0], err[:, 1])
     starts, oe = outage_end_errors(res, fx)
@@ -222,6 +241,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
         np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T))
     metrics.update(extra)
+    found += nis_findings(res.fix_t, res.nis, metrics["nis_dof"])
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
                        time_sync_offset_estimate_s=sync["offset_estimate"],
@@ -261,6 +281,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
          f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
     echo(f"  gyro bias [deg/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [ug] "
          f"{np.round(metrics['accel_bias_final_ug'], 0).tolist()}")
+    warnings = settle(found, strict=strict, echo=echo)
 
     sig = res.sigma
     sol = {"t_s": res.t - res.t[0], "t_abs_s": res.t, "lat_deg": np.degrees(res.nav[:, 7]),
@@ -354,7 +375,21 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
                                     "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  value=(res, fx), claims=claims)
+                  value=(res, fx), claims=claims, warnings=warnings)
+
+
+def _read_fixes(read_fixes, path, fmt, velocity_lag):
+    """The fix file, any reader error naming it: a file in another format makes a reader
+    fail anywhere (an IndexError on a short line), which is the file's fault, not a bug."""
+    try:
+        return read_fixes(path, fmt, velocity_lag=velocity_lag)
+    except (IndexError, KeyError, UnicodeDecodeError, ValueError) as e:
+        msg = str(e) or type(e).__name__
+        if str(path) in msg:
+            raise ValueError(msg) from None
+        what = f"not readable as {fmt}" if fmt else "not readable"
+        raise ValueError(f"--fixes {path}: {what} ({type(e).__name__ + ': ' if not isinstance(e, ValueError) else ''}"
+                         f"{msg}); give --fix-format rtklib-pos | csv | mat-avp") from None
 
 
 # ------------------------------------------------------- smoothing and odometer ---
@@ -474,7 +509,7 @@ def register(app):
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
                  lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
                  mount: Optional[str] = typer.Option(None, "--mount", help="sensor -> vehicle rotation: rpy:R,P,Y | euler:P,R,Y (deg) | quat:W,X,Y,Z | matrix:M11,...,M33"),
-                 frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu | frd | flu"),
+                 frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu (right-forward-up, default) | frd (forward-right-down) | flu (forward-left-up) | rbd (right-back-down)"),
                  outages: Optional[str] = typer.Option(None, "--outages", help="START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
                  fix_latency: float = typer.Option(0.0, "--fix-latency", help="simulated fix latency [s]"),
                  lag: str = typer.Option("aware", "--lag", help="aware | ignore (how late fixes are applied)"),
@@ -497,7 +532,8 @@ def register(app):
                  odometer: Optional[str] = typer.Option(None, "--odometer", help="wheel speeds: FILE (t, speed columns) or a COLUMN of the IMU table"),
                  odometer_units: Optional[str] = typer.Option(None, "--odometer-units", help="speed unit if the header has none, e.g. km/h"),
                  odometer_lever: Optional[str] = typer.Option(None, "--odometer-lever", help='IMU -> wheel point, vehicle right-forward-up, e.g. "[0, -1.2, -0.3] m"'),
-                 odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]')) -> None:
+                 odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]'),
+                 strict: bool = typer.Option(False, "--strict", help="refuse (exit 2, nothing written) instead of warning about the data or the run")) -> None:
         """Loosely coupled INS + position/velocity fixes on recorded data (outages, latency, lever arm)."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
@@ -506,6 +542,6 @@ def register(app):
                  echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
                  csv_rate=csv_rate, force=force, smooth=smooth, odometer=odometer,
                  odometer_units=odometer_units, odometer_lever=odometer_lever,
-                 odometer_sigma=odometer_sigma)
+                 odometer_sigma=odometer_sigma, strict=strict)
 
     return navigate
