@@ -202,6 +202,11 @@ def criterion(exp: dict, names=None, n: int | None = None) -> str:
     return t + (" each" if n and n > 1 else "")
 
 
+def claim_texts(c: dict) -> tuple[str, str]:
+    """(measured, expected) of one claim of summary.json as plain text (the terminal summary)."""
+    return _claim_cells(c)
+
+
 def _claim_cells(c: dict) -> tuple[str, str]:
     """(measured, expected) texts of one claim of summary.json (old flat layouts too)."""
     m, x = c.get("measured"), c.get("expected")

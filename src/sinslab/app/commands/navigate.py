@@ -393,6 +393,10 @@ def _read_fixes(read_fixes, path, fmt, velocity_lag):
 
 
 # ------------------------------------------------------- smoothing and odometer ---
+#: fastest wheel speed accepted [m/s] (above any car's or train's; 720 km/h)
+MAX_WHEEL_SPEED = 200.0
+
+
 def _smooth_odometer_options(opt, smo, imu_path, sync):
     """Put ``--smooth`` and ``--odometer*`` into the options; returns their config entries."""
     from sinslab.data.odometer import read_odometer
@@ -405,6 +409,11 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
                 raise ValueError(f"--odometer-{k} needs --odometer FILE|COLUMN")
         return cfg
     odo = read_odometer(spec, imu_path, speed_unit=smo.get("units"))
+    if odo.speed.size and not np.max(odo.speed) <= MAX_WHEEL_SPEED:
+        i = int(np.argmax(odo.speed))
+        raise ValueError(f"--odometer {odo.source}: speed {odo.speed[i]:.4g} m/s at t = {odo.t[i]:.6g} s "
+                         f"is beyond any wheeled vehicle (<= {MAX_WHEEL_SPEED:g} m/s); a wrong unit "
+                         f"(--odometer-units) or column?")
     if sync is not None:
         odo = odo.shifted(sync["offset"], sync["ppm"], sync["t_ref"])
     opt.odometer = odo
