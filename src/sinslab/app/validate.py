@@ -61,6 +61,8 @@ def option_number(option: str, value, *, ge: float | None = None, gt: float | No
     except (TypeError, ValueError):
         raise CliError(f"{option} {value!r}: not a number{' of ' + unit if unit else ''}") from None
     u = f" {unit}" if unit else ""
+    if isinstance(value, float):            # as the user would have typed it: 1e9, not 1000000000.0
+        value = _Shown(f"{value:g}")
     if not math.isfinite(v):
         raise CliError(f"{option} {value!r}: not a finite number")
     if ge is not None and not v >= ge:
@@ -70,6 +72,13 @@ def option_number(option: str, value, *, ge: float | None = None, gt: float | No
     if le is not None and not v <= le:
         raise CliError(f"{option} {value!r}: out of range, must be <= {le:g}{u}")
     return v
+
+
+class _Shown(str):
+    """A number's text shown without quotes in a message."""
+
+    def __repr__(self):
+        return str(self)
 
 
 # ------------------------------------------------------------------ Dask scheduler -----

@@ -126,7 +126,14 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
     src = f"{path}" + (f" (window {window})" if window else "")
     found = imu_findings(imu, src, gaps=data.gaps)
     settle([fd for fd in found if fd.refuse])
+    if strict:
+        settle(found, strict=True)
     _check_clusters(imu, src)
+    dead = [f"{s} {a}" for arr, s in ((imu.dtheta, "gyro"), (imu.dv, "accel"))
+            for k, a in enumerate("xyz") if np.ptp(arr[:, k]) == 0]
+    if dead:
+        raise ValueError(f"{src}: {', '.join(dead)} constant over all {len(imu)} samples: no Allan "
+                         f"deviation to fit (a dead or unconnected channel?)")
     res = allan(imu)
     short = [f.name for f in res.gyro + res.accel if _at_longest(f)]
     if short:
