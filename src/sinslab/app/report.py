@@ -26,6 +26,7 @@ import html
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 from sinslab.app.errors import UserError
@@ -89,7 +90,16 @@ def _fmt(v, digits=6) -> str:
 
 #: Units written against the number ("0.10′", "2.3×"); every other unit after a space.
 _TIGHT = {"′", "″", "°", "×", "%", "°/h", "°/√h"}
-_UNIT_SIGN = {"arcmin": "′", "arcsec": "″", "deg": "°", "deg/h": "°/h", "x": "×"}
+#: One spelling of each unit on a page: the signs a reader knows (°/h, µg), whatever ASCII
+#: spelling a metric or claim was declared with.
+_UNIT_SIGN = {"arcmin": "′", "arcsec": "″", "deg": "°", "deg/h": "°/h", "dph": "°/h", "x": "×",
+              "deg/s": "°/s", "deg/sqrt(h)": "°/√h", "dpsh": "°/√h", "deg/h/sqrt(h)": "°/h/√h",
+              "ug": "µg", "ug/sqrt(Hz)": "µg/√Hz", "ug/sqrt(h)": "µg/√h", "deg/sqrt(s)": "°/√s"}
+
+
+def unit_sign(unit: str) -> str:
+    """The one spelling of ``unit`` shown on a page (``deg/h`` -> ``°/h``, ``ug`` -> ``µg``)."""
+    return _UNIT_SIGN.get(unit, unit) if isinstance(unit, str) else unit
 
 
 _SUP = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
@@ -250,8 +260,15 @@ def _figure_html(d: Path, fig: dict, k: int = 0) -> str:
     link = f' <a href="{e(svg)}">SVG</a>' if svg and (d / svg).is_file() else ""
     return (f'<figure id="fig-{e(fig["name"])}"><img class="figure" alt="{e(fig["name"])}" '
             f'src="data:image/png;base64,{b64}">'
-            f'<figcaption><b>Figure {k}: {e(fig["name"])}</b> — {e(fig.get("caption", ""))}{link}'
-            f'</figcaption></figure>')
+            f'<figcaption><b>Figure {k}: {e(_figure_label(fig["name"]))}</b> — '
+            f'{e(fig.get("caption", ""))}{link}</figcaption></figure>')
+
+
+def _figure_label(name: str) -> str:
+    """A figure's title next to the page's own numbering: ``fig2_reduced`` (a file named
+    after the paper's figure) reads ``reduced (the paper's Fig. 2)``, not a second number."""
+    m = re.match(r"fig(\d+)_(.+)$", name)
+    return f"{m[2].replace('_', ' ')} (the paper's Fig. {m[1]})" if m else name
 
 
 def _table_html(d: Path, t: dict) -> str:
@@ -332,7 +349,7 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
         mi = info.get(name, {})
         rows.append(f"<tr data-metric='{e(name)}'><td><code>{_breakable(name)}</code></td>"
                     f"<td class='num'>{e(_metric_text(v, mi.get('unit', '')))}</td>"
-                    f"<td class='unit'>{e(mi.get('unit', ''))}</td><td>{e(mi.get('description', ''))}</td></tr>")
+                    f"<td class='unit'>{e(unit_sign(mi.get('unit', '')))}</td><td>{e(mi.get('description', ''))}</td></tr>")
     parts.append(_wide("<table id='metrics'><tr><th>metric</th><th>value</th><th>unit</th>"
                        "<th>description</th></tr>" + "".join(rows) + "</table>"))
 

@@ -142,7 +142,7 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     rows = [("coarse (analytic)", ang(co.att), co.att_sigma),
             ("coarse (inertial frame)", ang(ci.att), None),
             (f"fine ({model}, {'closed' if feedback else 'open'} loop)", ang(fa.att), fa.att_sigma)]
-    cfg = {"file": str(path), "format": fmt or ("psins" if ps is not None else "csv"),
+    cfg = {"file": str(Path(path).absolute()), "format": fmt or ("psins" if ps is not None else "csv"),
            "latitude": f"{math.degrees(lat_r):.8g} deg", "height": f"{h_r:.6g} m",
            "window": window or ":", "gyro_arw": gyro_arw, "accel_vrw": accel_vrw or "auto",
            "gyro_bias": gyro_bias, "accel_bias": accel_bias, "model": model, "period": period,
@@ -187,7 +187,7 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     fig, axes = plotting.figure(3, 1, width=8.0)
     for ax, y, s_, lab in zip(axes, (np.degrees(fa.att_path[:, 0]), np.degrees(fa.att_path[:, 1]), hd),
                               (fa.sigma[:, 1], fa.sigma[:, 0], fa.sigma[:, 2]),
-                              ("pitch [deg]", "roll [deg]", "heading [deg]")):
+                              ("pitch [°]", "roll [°]", "heading [°]")):
         ax.plot(tm - tm[0], y, "b-", lw=1)
         k = max(1, len(tm) // 10)
         ax.fill_between(tm[k:] - tm[0], y[k:] - np.degrees(s_[k:]), y[k:] + np.degrees(s_[k:]),

@@ -168,7 +168,7 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
         metrics[f"{key}_rrw_{'dphpsh' if s == 'gyro' else 'ugpsh'}"] = kv
     metrics["upper_bounds"] = [f"{r[0].replace(' ', '_')}_{t}" for r in rows for t, u in
                                (("white_noise", r[2]), ("bias_instability", r[4])) if u.startswith("<= ")]
-    cfg = {"file": str(path), "format": data.format, "window": window or ":"}
+    cfg = {"file": str(Path(path).absolute()), "format": data.format, "window": window or ":"}
     tab = {"tau_s": res.gyro[0].tau}
     for f in res.gyro:
         if f.tau.size == tab["tau_s"].size:
@@ -178,7 +178,7 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
             tab[f"{f.name.replace(' ', '_')}_adev_ug"] = f.adev / units.ug
     tables = [Series("allan", tab, "overlapping Allan deviation per axis")]
     fig, axes = plotting.figure(1, 2, sharex=False, width=11.0, row_height=4.6)
-    for ax, fits, sc, unit in ((axes[0], res.gyro, units.dph, "deg/h"), (axes[1], res.accel, units.ug, "ug")):
+    for ax, fits, sc, unit in ((axes[0], res.gyro, units.dph, "°/h"), (axes[1], res.accel, units.ug, "µg")):
         for f, c in zip(fits, plotting.COLORS):
             ax.loglog(f.tau, f.adev / sc, "-", color=c, lw=1.2, label=f.name)
             # the reported terms, not an overall fit: N/√τ (σ(1 s) = N) and K·√(τ/3)

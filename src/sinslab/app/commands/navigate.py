@@ -257,7 +257,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         metrics["rest_total_s"] = float(sum(b - a for a, b in res.init.get("rest_intervals", [])))
     if res.scale is not None:
         metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
-    cfg = {"imu": str(imu_path), "fixes": str(fix_path), "format": data.format,
+    cfg = {"imu": _abs(imu_path), "fixes": _abs(fix_path), "format": data.format,
            "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.lever_arm)}] m",
            "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
            "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
@@ -279,7 +279,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         echo(f"  with fixes: horizontal error median {np.median(hz[~in_out]):.3f} m")
     echo(f"  final attitude pitch {metrics['final_pitch_deg']:.3f} deg, roll {metrics['final_roll_deg']:.3f} deg, "
          f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
-    echo(f"  gyro bias [deg/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [ug] "
+    echo(f"  gyro bias [°/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [µg] "
          f"{np.round(metrics['accel_bias_final_ug'], 0).tolist()}")
     warnings = settle(found, strict=strict, echo=echo)
 
@@ -339,10 +339,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     axes[0].set_ylabel("attitude σ [arcmin]")
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
     axes[1].semilogy(ts_, sig[:, i_gb] / units.dph, lw=1)
-    axes[1].set_ylabel("gyro bias σ [deg/h]")
+    axes[1].set_ylabel("gyro bias σ [°/h]")
     axes[1].legend(["x", "y", "z"], fontsize=8)
     axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
-    axes[2].set_ylabel("accel bias σ [ug]")
+    axes[2].set_ylabel("accel bias σ [µg]")
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
     figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
@@ -376,6 +376,11 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                                     "built-in defaults (white noise measured at the initial rest)."))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims, warnings=warnings)
+
+
+def _abs(path) -> str:
+    """A path as the report's re-run line gives it (absolute), for config.toml."""
+    return str(Path(path).absolute())
 
 
 def _read_fixes(read_fixes, path, fmt, velocity_lag):
