@@ -342,6 +342,9 @@ def check_outages(option: str, text, outages, t_ref: float, t_end: float) -> Non
     """Every outage (``[(start, length)]`` absolute [s], or a periodic spec) must start
     within the navigated span ``[t_ref, t_end)``; otherwise nothing would be measured."""
     span = t_end - t_ref
+    if span <= 0:
+        raise CliError(f"{option} {text!r}: the IMU record ends {-span:.1f} s before the first fix, "
+                       f"so no outage can lie in it")
     for o in outages:
         if o and o[0] == "periodic":
             _, ln, per, first = o

@@ -425,9 +425,10 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
     if smo.get("lever") is not None:
         opt.odometer_lever = tuple(_vec3(smo["lever"], "length", "--odometer-lever"))
     if smo.get("sigma") is not None:
-        opt.odometer_sigma = units.parse(smo["sigma"], "velocity")
-        if not (opt.odometer_sigma > 0 and math.isfinite(opt.odometer_sigma)):
-            raise ValueError(f"--odometer-sigma must be > 0, got {smo['sigma']!r}")
+        from sinslab.app.validate import option_quantity
+
+        opt.odometer_sigma = option_quantity("--odometer-sigma", smo["sigma"], "velocity",
+                                             gt="0 m/s", le="100 m/s")
     cfg.update(odometer=odo.source, odometer_lever=f"[{', '.join(f'{x:g}' for x in opt.odometer_lever)}] m",
                odometer_sigma=f"{opt.odometer_sigma:g} m/s")
     return cfg
