@@ -153,8 +153,10 @@ CASES = [
     ("runs-zero", ["run", "dummy", "--runs", "0"], "run", "'--runs'"),
     ("memory", FI + ["--set", "scenario.sample_interval=1e-9 s"], "run:free-inertial",
      "scenario.sample_interval: 1e-9 s over"),
-    ("diverging-navigation", FI + ["--set", "scenario.duration=1 min", "--set", "init.vel_err=1e9 m/s"],
-     "run:free-inertial", "init.vel_err=1e9 m/s"),
+    ("diverging-navigation", FI + ["--set", "scenario.duration=1 min", "--set", "init.pos_err=[0, 9000, 0] km"],
+     "run:free-inertial", "latitude 113.151 deg is beyond ±90 deg; check the values given"),
+    ("config-velocity-beyond-physical", FI + ["--set", "init.vel_err=1e9 m/s"], "run:free-inertial",
+     "init.vel_err=1e9 m/s): '1e9 m/s' (component 0) is beyond any physical velocity"),
     # -- run: Dask scheduler (each refused within seconds, no Dask traceback)
     ("scheduler-malformed", FI + ["--runs", "4", "--scheduler", "not an address"], "run:free-inertial",
      "--scheduler 'not an address'"),
