@@ -434,3 +434,43 @@ def test_config_overriding_quick_says_so(tmp_path, dummy):
     r = invoke("-q", "run", "dummy", "--quick", "--config", cfg, "--out", tmp_path / "r")
     assert r.exit_code == 0, r.stderr
     assert "note: --config" in r.stderr and "scenario.duration (10 s -> 30 s)" in r.stderr
+
+
+# ------------------------------------------------------------------ the checks themselves ---
+def _rest_record(n=6000, dt=0.01, tilt_step_deg=0.0, f_scale=1.0, seed=5):
+    """An ImuRecord at rest, level, g = 9.78 m/s² (equator), white noise of 0.01 m/s² and
+    0.001 rad/s per sample; the second half pitched up by ``tilt_step_deg``."""
+    from sinslab.core.records import ImuRecord
+
+    rng = np.random.default_rng(seed)
+    g = 9.780325 * f_scale
+    f = np.tile([0.0, 0.0, g], (n, 1))
+    th = math.radians(tilt_step_deg)
+    f[n // 2:] = [0.0, g * math.sin(th), g * math.cos(th)]     # RFU: pitch up tilts +y
+    f += 0.01 * rng.standard_normal((n, 3))
+    w = 1e-3 * rng.standard_normal((n, 3))
+    return ImuRecord(dt * np.arange(1, n + 1), w * dt, f * dt, dt)
+
+
+PLAUSIBLE = [  # (id, record keywords, refuse?, text of the one finding or None)
+    ("at-rest", {}, False, None),
+    ("tilt-step-0.1deg", {"tilt_step_deg": 0.1}, False, "pitch from the mean specific force changes by 0.1"),
+    ("scale-10pct", {"f_scale": 1.1}, False, "1.1 × local gravity"),
+    ("g-read-as-m/s2", {"f_scale": 1 / 9.80665}, True, "wrong accelerometer unit"),
+]
+
+
+@pytest.mark.parametrize("cid, kw, refuse, text", PLAUSIBLE, ids=[c[0] for c in PLAUSIBLE])
+def test_rest_and_record_checks(cid, kw, refuse, text):
+    """Oracles: a level record at rest with white noise raises nothing; a 0.1° pitch step
+    (the motion the README's laser-gyro window holds) is far above the noise of a 30-s mean
+    (0.01 m/s² / √3000 / g ≈ 0.001°); |f| = 1.1 g is a 10 % scale error; 0.1 g a unit slip."""
+    from sinslab.app.plausibility import imu_findings, rest_findings
+
+    imu = _rest_record(**kw)
+    found = imu_findings(imu, "rec") + rest_findings(imu, "rec")
+    if text is None:
+        assert found == []
+        return
+    assert any(text in fd.text for fd in found), found
+    assert any(fd.refuse for fd in found) == refuse
