@@ -132,9 +132,10 @@ def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress b
     os.environ.setdefault("MPLBACKEND", "Agg")         # matplotlib is imported only when drawing
     global _QUIET
     _QUIET = bool(quiet)
-    if quiet:
-        from sinslab.core.progress import set_quiet
+    from sinslab.core.progress import set_lines, set_quiet
 
+    set_lines(not quiet)                    # off a terminal: a line per stage, with its time
+    if quiet:
         set_quiet(True)
 
 

@@ -417,6 +417,11 @@ def test_stage_lines_with_elapsed_time_off_a_terminal(capsys):
     import sinslab.core.progress as P
 
     P.set_quiet(None)
+    P.set_lines(False)                          # a library caller: nothing
+    with P.progress("crunching", total=10) as bar:
+        bar.advance(10)
+    assert capsys.readouterr().err == ""
+    P.set_lines(True)                           # the command line
     with P.progress("crunching", total=10, unit="steps") as bar:
         bar.advance(10)
     err = capsys.readouterr().err.splitlines()
@@ -426,6 +431,7 @@ def test_stage_lines_with_elapsed_time_off_a_terminal(capsys):
         bar.advance(10)
     assert capsys.readouterr().err == ""
     P.set_quiet(None)
+    P.set_lines(False)
 
 
 def test_config_overriding_quick_says_so(tmp_path, dummy):

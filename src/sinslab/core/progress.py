@@ -28,11 +28,13 @@ loop needs no second branch::
 function's own flag is called ``progress``).
 
 The bars go to stderr and are shown only when stderr is a terminal. Off a terminal (a
-log file, CI, a pipe) each bar becomes lines instead: one when the stage starts, one every
-:data:`HEARTBEAT_S` seconds of a long stage (as it advances) and one at its end, each with
-the elapsed time, so that long work is visible in a log. Both are silenced for the whole
-process by ``SINSLAB_QUIET=1`` or :func:`set_quiet`; the CLI's ``--quiet`` flag (if
-present) and test runners use that. Nested bars share one live display.
+log file, CI, a pipe) the command line (:func:`set_lines`) turns each bar into lines: one
+when the stage starts, one every :data:`HEARTBEAT_S` seconds of a long stage (as it
+advances) and one at its end, each with the elapsed time, so that long work is visible in
+a log; a library caller off a terminal (a notebook, a Dask worker, a loop over records)
+gets neither. Both are silenced for the whole process by ``SINSLAB_QUIET=1`` or
+:func:`set_quiet`; the CLI's ``--quiet`` flag and test runners use that. Nested bars share
+one live display.
 """
 from __future__ import annotations
 
@@ -42,7 +44,7 @@ import sys
 import threading
 from typing import Iterable, Iterator, TypeVar
 
-__all__ = ["progress", "track", "set_quiet", "is_quiet", "Bar", "HEARTBEAT_S"]
+__all__ = ["progress", "track", "set_quiet", "set_lines", "is_quiet", "Bar", "HEARTBEAT_S"]
 
 #: seconds between the progress lines of a long stage off a terminal
 HEARTBEAT_S = 30.0
@@ -51,6 +53,7 @@ T = TypeVar("T")
 
 _state = threading.local()
 _quiet_override: bool | None = None
+_lines = False
 
 
 def set_quiet(quiet: bool | None) -> None:
@@ -92,9 +95,16 @@ class Bar:
             self._p.update(self._t, **kw)
 
 
+def set_lines(on: bool = True) -> None:
+    """Off a terminal, print a line per stage (start, every HEARTBEAT_S, end) instead of
+    nothing; the command line turns this on."""
+    global _lines
+    _lines = bool(on)
+
+
 def _lines_wanted() -> bool:
-    """True off a terminal when not silenced: stages print lines instead of bars."""
-    if _quiet_override is True or os.environ.get("SINSLAB_QUIET", "") not in ("", "0"):
+    """True off a terminal when lines are on and not silenced: stages print lines."""
+    if not _lines or _quiet_override is True or os.environ.get("SINSLAB_QUIET", "") not in ("", "0"):
         return False
     try:
         return not sys.stderr.isatty()
