@@ -480,3 +480,18 @@ def test_rest_and_record_checks(cid, kw, refuse, text):
         return
     assert any(text in fd.text for fd in found), found
     assert any(fd.refuse for fd in found) == refuse
+
+
+def test_a_header_wider_than_the_first_read_is_read_whole(tmp_path):
+    """A valid table with 12 007 columns (a 180 kB header line): it was refused with
+    'the header has N' where N was the columns within the first 64 KiB."""
+    from sinslab.data import load_imu
+
+    extra = [f"vendor_status_word_{i:05d}" for i in range(12000)]
+    head = "t[s],gx[deg/s],gy[deg/s],gz[deg/s],ax[g],ay[g],az[g]," + ",".join(extra) + "\n"
+    tail = "," + ",".join("0" * len(extra)) + "\n"
+    p = tmp_path / "wide.csv"
+    p.write_text(head + "".join(f"{0.01 * k:.2f},0,0,0.001,0,0,1{tail}" for k in range(1, 201)))
+    assert len(head) > 1 << 17
+    d = load_imu(p)
+    assert len(d.imu) == 200 and np.allclose(d.imu.dv[:, 2] / d.imu.dt, 9.80665)
