@@ -169,6 +169,12 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
                                                  res.metrics, res.notes, res.claims,
                                                  paper=command.paper, timing=timing,
                                                  warnings=res.warnings))
+    if summary.get("claims"):
+        from sinslab.app.report import claim_texts
+
+        for c in summary["claims"]:
+            measured, expected = claim_texts(c)
+            echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {measured} (expected {expected})")
     echo(f"  -> {out}")
     return summary, res
 
