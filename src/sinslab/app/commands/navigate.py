@@ -134,7 +134,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.error_model import load_error_model
         em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
-    from sinslab.app.plausibility import Finding, imu_findings, nis_findings, settle
+    from sinslab.app.plausibility import imu_findings, nis_findings, settle
 
     found = imu_findings(data.imu, str(imu_path), gaps=data.gaps)
     settle([fd for fd in found if fd.refuse])
