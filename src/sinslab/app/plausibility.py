@@ -27,7 +27,8 @@ import numpy as np
 
 from sinslab.app.errors import CliError
 
-__all__ = ["Finding", "imu_findings", "rest_findings", "gap_findings", "nis_findings", "settle",
+__all__ = ["Finding", "imu_findings", "rest_findings", "rest_gravity_findings", "gap_findings",
+           "nis_findings", "settle",
            "MIN_SAMPLES", "MAX_RATE_DPS", "MAX_ACCEL_G"]
 
 #: fewest samples any command can use (a levelling, an alignment, a first filter step)
@@ -127,19 +128,26 @@ def imu_findings(imu, source: str, *, lat=None, h=0.0, gaps=None) -> list[Findin
     return out
 
 
+def rest_gravity_findings(imu, source: str, *, lat=None, h=0.0) -> list[Finding]:
+    """|mean f| of a record at rest against local gravity (within :data:`F_WARN`)."""
+    g = _g(lat, h)
+    fm = float(np.linalg.norm((imu.dv / imu.dt).mean(axis=0))) if len(imu) else 0.0
+    if fm > 0 and abs(fm / g - 1.0) > F_WARN:
+        return [Finding(f"{source}: mean specific force at rest {fm:.5g} m/s^2 = {fm / g:.4f} × "
+                        f"local gravity {g:.5f} m/s^2 (expected within ±{F_WARN:.0%}): not at "
+                        f"rest, or an accelerometer scale or unit error", abs(fm / g - 1.0) > F_REFUSE)]
+    return []
+
+
 def rest_findings(imu, source: str, *, lat=None, h=0.0, pieces: int = 10) -> list[Finding]:
     """Checks of a record that should be at rest (an alignment window): |f| against local
-    gravity, and the attitude of ``pieces`` equal parts from their mean specific force —
-    pitch or roll steps between parts larger than the noise allows mean motion."""
-    out = []
+    gravity (:func:`rest_gravity_findings`), and the attitude of ``pieces`` equal parts from
+    their mean specific force — pitch or roll steps between parts larger than the noise
+    allows mean motion."""
+    out = rest_gravity_findings(imu, source, lat=lat, h=h)
     n = len(imu)
     f = imu.dv / imu.dt
     g = _g(lat, h)
-    fm = np.linalg.norm(f.mean(axis=0))
-    if fm > 0 and abs(fm / g - 1.0) > F_WARN:
-        out.append(Finding(f"{source}: mean specific force at rest {fm:.5g} m/s^2 = {fm / g:.4f} × "
-                           f"local gravity {g:.5f} m/s^2 (expected within ±{F_WARN:.0%}): not at "
-                           f"rest, or an accelerometer scale or unit error", abs(fm / g - 1.0) > F_REFUSE))
     m = n // pieces
     if m < 2:
         return out

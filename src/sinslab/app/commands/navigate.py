@@ -242,6 +242,12 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T))
     metrics.update(extra)
     found += nis_findings(res.fix_t, res.nis, metrics["nis_dof"])
+    if res.init.get("rest_start") is not None:        # |f| at the initial rest against gravity
+        from sinslab.app.plausibility import rest_gravity_findings
+
+        rest = imu.slice(res.init["rest_start"], res.init["rest_end"])
+        found += rest_gravity_findings(rest, f"{imu_path} (initial rest)", lat=float(fx.lat[0]),
+                                       h=float(fx.h[0]))
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
                        time_sync_offset_estimate_s=sync["offset_estimate"],
