@@ -23,6 +23,8 @@ the test within a minute or two of CPU (the documented commands run at full scal
 Files named in a command that exist nowhere are an error, unless listed in
 :data:`ILLUSTRATIONS` (a made-up vendor log the text explains).
 
+The example at the end of every command's ``--help`` (``sinslab.cli.EXAMPLES``) runs too.
+
 Numbers quoted in the docs from these runs are checked against the run's ``summary.json``
 with a stated tolerance (:data:`QUOTED`): a run that moves them fails here until the
 document is updated.
@@ -188,6 +190,17 @@ def test_every_command_in_the_docs_runs(doc, tmp_path, monkeypatch):
     if not DATA.is_dir():
         pytest.skip("shared data folder not available")
     _run_doc(doc, tmp_path, monkeypatch)
+
+
+def test_every_help_example_runs(tmp_path, monkeypatch):
+    """The example at the end of each command's ``--help`` (``sinslab.cli.EXAMPLES``) runs."""
+    if not DATA.is_dir():
+        pytest.skip("shared data folder not available")
+    from sinslab.cli import EXAMPLES
+
+    assert list(EXAMPLES).index("run") < list(EXAMPLES).index("report")   # report reads runs/fi
+    _run_doc(ROOT / "src" / "sinslab" / "cli.py", tmp_path, monkeypatch,
+             commands=[(c, None) for c in EXAMPLES.values()])
 
 
 @pytest.mark.parametrize("name, quoted, run, keys, tol", QUOTED, ids=[f"{q[0]}:{q[1][:24]}" for q in QUOTED])
