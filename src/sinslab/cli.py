@@ -60,9 +60,22 @@ class _OneLineUsageError(_cx.ClickException):
         typer.echo(f"sinslab: error: {self.format_message()}", err=True)
 
 
+class _HelpAndExit(_cx.ClickException):
+    """``sinslab`` alone: the help page on stdout, exit status 0 (asking for help is no error)."""
+
+    exit_code = 0
+
+    def __init__(self, ctx):
+        super().__init__("")
+        self.ctx = ctx
+
+    def show(self, file=None) -> None:
+        typer.echo(self.ctx.get_help())
+
+
 def _one_line(e: _cx.UsageError) -> _cx.ClickException:
     if type(e).__name__ == "NoArgsIsHelpError":        # `sinslab` alone: the help page
-        return e
+        return _HelpAndExit(e.ctx) if e.ctx is not None and e.ctx.parent is None else e
     msg = e.format_message()
     if e.ctx is not None and e.ctx.info_name and e.ctx.parent is not None:
         msg = f"{e.ctx.info_name}: {msg}"
@@ -100,7 +113,7 @@ _QUIET = False
 
 def _log(msg: str) -> None:
     """A progress line on stderr (not with ``--quiet``, except warnings)."""
-    if _QUIET and not msg.startswith("warning"):
+    if _QUIET and not msg.startswith(("warning", "note")):
         return
     typer.echo(f"sinslab: {msg}", err=True)
 
@@ -119,9 +132,10 @@ def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress b
     os.environ.setdefault("MPLBACKEND", "Agg")         # matplotlib is imported only when drawing
     global _QUIET
     _QUIET = bool(quiet)
-    if quiet:
-        from sinslab.core.progress import set_quiet
+    from sinslab.core.progress import set_lines, set_quiet
 
+    set_lines(not quiet)                    # off a terminal: a line per stage, with its time
+    if quiet:
         set_quiet(True)
 
 
@@ -141,10 +155,17 @@ def list_() -> None:
 
 
 def _resolve(name, config, sets, seed, runs, quick):
-    from sinslab.app.config import resolve
+    from sinslab.app.config import flatten, load_toml, resolve
     from sinslab.experiments import get
 
     exp = get(name)
+    if quick and config is not None and exp.quick:
+        # the file comes after --quick: say which of --quick's settings it replaces
+        mine = flatten(load_toml(config))
+        over = sorted(k for k, v in flatten(exp.quick).items() if k in mine and mine[k] != v)
+        if over:
+            _log(f"note: --config {config} overrides --quick for "
+                 + ", ".join(f"{k} ({flatten(exp.quick)[k]} -> {mine[k]})" for k in over))
     over = {}
     if seed is not None:
         over["seed"] = seed
@@ -156,10 +177,14 @@ def _resolve(name, config, sets, seed, runs, quick):
 
 
 def _print_summary(summary: dict, out: Path) -> None:
+    from sinslab.app.report import claim_texts
+
     claims = summary["claims"]
     n = sum(c["passed"] for c in claims)
     for c in claims:
-        typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {c['statement']}")
+        measured, expected = claim_texts(c)
+        typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {measured} (expected "
+                   f"{expected}) — {c['statement']}")
     typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed, "
                f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s -> {out / 'report.html'}")
 
@@ -234,7 +259,7 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
 
     from sinslab.app import report as _report
     from sinslab.app.config import resolve
-    from sinslab.app.outputs import RunDir, abort_all
+    from sinslab.app.outputs import RunDir, abort_all, is_run_dir
     from sinslab.app.validate import starts_campaign
     from sinslab.estimation.montecarlo import dask_client
     from sinslab.experiments import execute, get, registry
@@ -243,6 +268,9 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
     with user_errors():
         if out.exists() and not out.is_dir():
             raise CliError(f"output folder {out} exists and is a file")
+        if is_run_dir(out):
+            raise CliError(f"--out {out} is a run folder; demo writes one run folder per "
+                           f"experiment under --out, never inside another run: choose another --out")
         idx_file = out / "index.html"
         if idx_file.exists() and not _is_sinslab_index(idx_file):
             raise CliError(f"{idx_file} exists and was not written by sinslab demo; "
@@ -305,6 +333,31 @@ COMMAND_MODULES = (
 )
 _BROKEN_COMMANDS: dict[str, str] = {}
 
+#: one example per command, shown at the end of its ``--help`` (paths of the repository's
+#: shared data folder; ``tests/test_docs_commands.py`` runs every one of them)
+EXAMPLES = {
+    "list": "sinslab list",
+    "run": 'sinslab run free-inertial --quick --set imu.gyro_bias="0.02 deg/h" --out runs/fi',
+    "config": "sinslab config static-alignment --quick > sa.toml",
+    "report": "sinslab report runs/fi",
+    "demo": "sinslab demo --quick --only static-alignment --out runs/demo",
+    "navigate": ('sinslab navigate --imu rtklib-drive/imu_1934.csv --fixes rtklib-drive/gnss_1934_sf.pos '
+                 '--mount "rpy:180,-6.79,185.35" --frame frd --lever-arm "[-0.05, 0, 0] m" '
+                 '--time-sync auto --velocity-lag 0.125 --outages 15/60@40 --out runs/drive'),
+    "allan": "sinslab allan psins-lasergyro/lasergyro.imu --window 0:600 --out runs/allan",
+    "align": "sinslab align --imu psins-lasergyro/lasergyro.imu --window 600:1200 --out runs/align",
+    "transfer-align": ("sinslab transfer-align --slave psins-transfer/transfer_align_fog_mems.mat "
+                       "--master psins-transfer/transfer_align_fog_mems.mat --method kain --window 0:60"),
+}
+
+
+def _add_examples() -> None:
+    """Put each command's example at the end of its ``--help``."""
+    for info in app.registered_commands:
+        name = info.name or (info.callback.__name__.replace("_", "-").rstrip("-") if info.callback else "")
+        if name in EXAMPLES and not info.epilog:
+            info.epilog = f"\b\nExample:\n  {EXAMPLES[name]}"
+
 
 def _load_commands() -> None:
     """Register the commands of COMMAND_MODULES; a broken one is skipped, not fatal.
@@ -327,6 +380,7 @@ def _load_commands() -> None:
 
 
 _load_commands()
+_add_examples()
 
 
 def main() -> None:

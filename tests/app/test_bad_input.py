@@ -57,6 +57,25 @@ def _psins_text(n, dt_ms=10.0, lat_deg=34.0):
     return head + "\n".join(" ".join(str(int(v)) for v in r) for r in rows) + "\n"
 
 
+_HEAD = "t[s],gx[deg/s],gy[deg/s],gz[deg/s],ax[g],ay[g],az[g]\n"
+
+
+def _table_text(n=3000, dt=0.01, gyro=(0.0, 0.0, 0.0), accel=(0.0, 0.0, 1.0), noise=(1e-3, 1e-4),
+                gap=None, head=_HEAD, seed=3, spike=None):
+    """A CSV IMU table of rates at rest (deg/s, g) with white noise; ``gap=(t, length)``
+    drops the samples in that interval; ``spike=(i, rate)`` puts gyro x = rate at row i."""
+    rng = np.random.default_rng(seed)
+    t = dt * np.arange(1, n + 1)
+    if gap is not None:
+        t = t[(t <= gap[0]) | (t > gap[0] + gap[1])]
+    w = np.asarray(gyro) + noise[0] * rng.standard_normal((t.size, 3))
+    if spike is not None:
+        w[spike[0], 0] = spike[1]
+    f = np.asarray(accel) + noise[1] * rng.standard_normal((t.size, 3))
+    return head + "".join(f"{a:.3f}," + ",".join(f"{x:.7g}" for x in (*b, *c)) + "\n"
+                          for a, b, c in zip(t, w, f))
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("inputs")
@@ -73,6 +92,26 @@ def files(tmp_path_factory):
     f["units_csv"].write_text("t[s],gx[deg/s],gy[deg/s],gz[deg/s],ax[g],ay[g],az[g]\n"
                               + "".join(f"{0.01 * (k + 1):.2f},0,0,0,0,0,1\n" for k in range(500)))
     f["afile"].write_text("a file\n")
+    # garbage that reads well: each one a confident answer before the plausibility checks
+    for name, text in {
+        "zeros": _HEAD + "".join(f"{0.01 * (k + 1):.2f},0,0,0,0,0,0\n" for k in range(3000)),
+        "two": _HEAD + "0.01,0,0,0.001,0,0,1\n0.02,0,0,0.001,0,0,1\n",
+        "no_accel": _table_text(accel=(0, 0, 0), noise=(1e-3, 0.0)),
+        "spike": _table_text(spike=(300, 9e4)),
+        "mps2_as_g": _table_text(accel=(0, 0, 9.81 / 9.81 / 9.81)),        # m/s² values under [g]
+        "scale_10pct": _table_text(accel=(0, 0, 1.1)),                     # warning: 1.1 g
+        "dead_gyro": _table_text(noise=(0.0, 1e-4)),                       # warning: constant gyros
+        "gap": _table_text(n=6000, gyro=(0, 0, 20.0), gap=(30.0, 0.5)),    # warning: turning across it
+        "bom": "\ufeff" + _table_text(),
+        "wide": ",".join([f"extra_column_with_a_long_name_{i}" for i in range(3000)]) + "\n1,2\n",
+        "binary_toml": None,
+        "fixes_csv": "t[s],lat[deg],lon[deg],h[m]\n" + "".join(f"{k}.0,30,110,10\n" for k in range(1, 20)),
+    }.items():
+        f[name] = d / (name + (".toml" if "toml" in name else ".csv"))
+        if text is None:
+            f[name].write_bytes(bytes(range(256)) * 8)
+        else:
+            f[name].write_text(text, encoding="utf-8")
     return {k: str(v) for k, v in f.items()}
 
 
@@ -114,8 +153,10 @@ CASES = [
     ("runs-zero", ["run", "dummy", "--runs", "0"], "run", "'--runs'"),
     ("memory", FI + ["--set", "scenario.sample_interval=1e-9 s"], "run:free-inertial",
      "scenario.sample_interval: 1e-9 s over"),
-    ("diverging-navigation", FI + ["--set", "scenario.duration=1 min", "--set", "init.vel_err=1e9 m/s"],
-     "run:free-inertial", "init.vel_err=1e9 m/s"),
+    ("diverging-navigation", FI + ["--set", "scenario.duration=1 min", "--set", "init.pos_err=[0, 9000, 0] km"],
+     "run:free-inertial", "latitude 113.151 deg is beyond ±90 deg; check the values given"),
+    ("config-velocity-beyond-physical", FI + ["--set", "init.vel_err=1e9 m/s"], "run:free-inertial",
+     "init.vel_err=1e9 m/s): '1e9 m/s' (component 0) is beyond any physical velocity"),
     # -- run: Dask scheduler (each refused within seconds, no Dask traceback)
     ("scheduler-malformed", FI + ["--runs", "4", "--scheduler", "not an address"], "run:free-inertial",
      "--scheduler 'not an address'"),
@@ -168,6 +209,43 @@ CASES = [
     ("allan-random-bytes", ["allan", "{random}"], "allan", "random.imu"),
     ("allan-folder", ["allan", "{dir}"], "allan", "folder"),
     ("allan-out-foreign", ["allan", "{rest}"], "foreign", "'thesis.tex'"),
+    # -- garbage in: data that cannot be an IMU on the Earth, refused before an answer
+    ("align-all-zero", ["align", "--imu", "{zeros}", "--lat", "30 deg"], "align", "every gyro and accelerometer sample is zero"),
+    ("allan-all-zero", ["allan", "{zeros}"], "allan", "every gyro and accelerometer sample is zero"),
+    ("nav-all-zero", ["navigate", "--imu", "{zeros}", "--fixes", "{rest}"], "navigate", "zeros.csv: every gyro"),
+    ("align-two-samples", ["align", "--imu", "{two}", "--lat", "30 deg"], "align", "two.csv: only 2 samples"),
+    ("nav-two-samples", ["navigate", "--imu", "{two}", "--fixes", "{rest}"], "navigate", "two.csv: only 2 samples"),
+    ("align-no-accel", ["align", "--imu", "{no_accel}", "--lat", "30 deg"], "align", "every accelerometer sample is zero"),
+    ("align-beyond-range", ["align", "--imu", "{spike}", "--lat", "30 deg"], "align", "beyond any IMU's range"),
+    ("align-wrong-accel-unit", ["align", "--imu", "{mps2_as_g}", "--lat", "30 deg"], "align",
+     "wrong accelerometer unit"),
+    ("align-window-beyond-end", ALIGN + ["--window", "10:100"], "align", "END 100 s is outside the record"),
+    ("allan-window-beyond-end", ["allan", "{rest}", "--window", "0:1000"], "allan", "END 1000 s is outside the record"),
+    ("allan-too-few-clusters", ["allan", "{rest}", "--window", "0:1"], "allan", "too short for an Allan fit"),
+    ("align-accel-bias-huge", ALIGN + ["--accel-bias", "1e30 ug"], "align", "--accel-bias '1e30 ug': out of range"),
+    ("config-gyro-bias-huge", ["run", "dummy", "--set", "imu.gyro_bias=1e300 deg/h"], "run",
+     "imu.gyro_bias=1e300 deg/h): '1e300 deg/h' (component 0) is beyond any physical angular rate"),
+    ("config-latitude-pole", ["run", "static-alignment", "--quick", "--set", "scenario.latitude=90 deg"],
+     "run:static-alignment", "within 1 deg of a pole"),
+    # -- --strict: every warning refused
+    ("align-strict-scale", ["align", "--imu", "{scale_10pct}", "--lat", "30 deg", "--strict"], "align",
+     "refused because of --strict"),
+    ("allan-strict-dead", ["allan", "{dead_gyro}", "--strict"], "allan", "constant over all"),
+    # -- messages that name their cause and source
+    ("nav-lever-arm-huge", NAV + ["--lever-arm", "[1e9, 0, 0] m"], "navigate", "--lever-arm '[1e9, 0, 0] m': component 1e+09 m out of range"),
+    ("nav-mount-overflow", NAV + ["--mount", "rpy:1e400,0,0"], "navigate", "--mount: mount 'rpy:1e400,0,0': angle inf deg"),
+    ("nav-mount-nan", NAV + ["--mount", "matrix:nan,0,0,0,1,0,0,0,1"], "navigate", "element (1, 1) is nan"),
+    ("nav-frame-unknown", NAV + ["--frame", "ned"], "navigate", "--frame 'ned': unknown body frame"),
+    ("nav-imu-errors-binary", NAV + ["--imu-errors", "{binary_toml}"], "navigate", "--imu-errors"),
+    ("nav-fix-format-wrong", ["navigate", "--imu", "{bom}", "--fixes", "{fixes_csv}", "--fix-format", "rtklib-pos"],
+     "navigate", "fixes_csv.csv:1: cannot read the time stamp"),
+    ("nav-rest-unknown", NAV + ["--aid", "zupt", "--rest", "bogus"], "navigate", "--rest 'bogus': choose one of auto, flags"),
+    ("nav-rest-without-zupt", NAV + ["--rest", "auto"], "navigate", "add --aid zupt"),
+    ("nav-fix-latency-huge", NAV + ["--fix-latency", "1e9"], "navigate", "--fix-latency 1e+09: out of range, must be <= 60 s"),
+    ("align-long-header", ["align", "--imu", "{wide}", "--lat", "30 deg"], "align", "characters cut"),
+    # -- no run inside another run's folder
+    ("run-out-inside-a-run", ["run", "dummy", "--out", "{out}/sub"], "run", "inside the run folder"),
+    ("demo-out-is-a-run", ["demo", "--quick", "--only", "dummy"], "run", "is a run folder"),
     # -- transfer-align
     ("transfer-method", ["transfer-align", "--slave", "{rest}", "--master", "{rest}", "--method", "magic"],
      "transfer-align", "--method 'magic'"),
@@ -205,6 +283,7 @@ def test_bad_input_is_one_line_exit_2_and_loses_nothing(tmp_path, files, dummy, 
     if cid != "diverging-navigation":           # found while computing: after progress lines
         assert len(lines) == 1, lines
     assert needle in errors[0], errors[0]
+    assert len(errors[0]) < 600, len(errors[0])   # long values are cut
     assert snapshot(out) == old                 # the previous run (or the user's files) intact
     assert sorted(p.name for p in tmp_path.iterdir()) == sib     # no staging folder left
 
@@ -241,3 +320,178 @@ def test_demo_rewrites_its_own_index(tmp_path, dummy):
     new = (tmp_path / "index.html").read_text()
     assert new != old and "dummy" in new
     assert json.loads((tmp_path / "dummy" / MARKER).read_text())["status"] == "complete"
+
+
+# ------------------------------------------------ accepted, with a warning (and --strict) ---
+# (id, command line, text the warning line must contain); each run completes (exit 0) with
+# the warning on stdout, in summary.json and flagged in the report; with --strict the same
+# command is refused with exit 2 and writes nothing.
+WARNED = [
+    ("align-accel-scale", ["align", "--imu", "{scale_10pct}", "--lat", "30 deg"], "1.1 × local gravity"),
+    ("align-dead-gyros", ["align", "--imu", "{dead_gyro}", "--lat", "30 deg"], "constant over all 3000 samples: gyro x"),
+    ("allan-gap", ["allan", "{gap}"], "turn rates up to 20 deg/s, so up to 10.2 deg of rotation"),
+    ("allan-short-record", ["allan", "{rest}"], "bias instability there is an upper bound"),
+    ("align-bom-header", ["align", "--imu", "{bom}", "--lat", "30 deg", "--window", "0:2"], "2 s window"),
+]
+
+
+@pytest.mark.parametrize("cid, argv, needle", WARNED, ids=[c[0] for c in WARNED])
+def test_warned_then_refused_with_strict(tmp_path, files, cid, argv, needle):
+    args = [a.format(**files) for a in argv]
+    r = invoke("-q", *args, "--out", tmp_path / "a")
+    assert r.exit_code == 0, r.stderr
+    warn = [ln for ln in r.stdout.splitlines() if ln.strip().startswith("warning:") and needle in ln]
+    assert warn, r.stdout
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert any(needle in w for w in s["warnings"])
+    assert "id='warnings'" in (tmp_path / "a" / "report.html").read_text()
+    r = invoke("-q", *args, "--strict", "--out", tmp_path / "b")
+    assert r.exit_code == 2 and "refused because of --strict" in r.stderr, r.stderr
+    assert not (tmp_path / "b").exists()
+
+
+def test_nis_monitor_finds_long_inconsistent_stretches():
+    """Oracle: NIS of a consistent filter is χ²(m)-distributed with mean m; scaled by 4 over
+    200 s of 1 Hz fixes it is overconfident there, and only there."""
+    from sinslab.app.plausibility import nis_findings
+
+    rng = np.random.default_rng(0)
+    t = np.arange(600.0)
+    nis = rng.chisquare(6, t.size)
+    assert nis_findings(t, nis, 6) == []
+    bad = nis.copy()
+    bad[200:400] *= 4.0
+    (fd,) = nis_findings(t, bad, 6)
+    assert "overconfident" in fd.text and "expected 6" in fd.text and "band 3–12" in fd.text
+    assert "for 2" in fd.text                   # a stretch of about 200 s (window edges blur it)
+    (fd,) = nis_findings(t, nis / 4.0, 6)       # the whole run underconfident
+    assert "underconfident" in fd.text and "100% of the fixes" in fd.text
+
+
+@pytest.mark.parametrize("argv", [["align", "--imu", "{two}", "--lat", "30 deg"], ["allan", "{zeros}"],
+                                  ["navigate", "--imu", "{zeros}", "--fixes", "{rest}"]],
+                         ids=["align", "allan", "navigate"])
+def test_refused_without_out_writes_no_runs_folder(tmp_path, files, monkeypatch, argv):
+    monkeypatch.chdir(tmp_path)
+    r = invoke("-q", *[a.format(**files) for a in argv])
+    assert r.exit_code == 2, r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------ the command line itself ---
+def test_bare_sinslab_is_help_with_status_0():
+    r = invoke()
+    assert r.exit_code == 0 and "Usage:" in r.stdout and "navigate" in r.stdout
+
+
+@pytest.mark.parametrize("cmd", ["list", "run", "config", "report", "demo", "navigate", "allan",
+                                 "align", "transfer-align"])
+def test_every_help_has_an_example(cmd):
+    r = invoke(cmd, "--help")
+    assert r.exit_code == 0 and "Example:" in r.stdout and f"sinslab {cmd}" in r.stdout
+
+
+def test_frame_help_lists_every_frame():
+    from sinslab.data.frames import _FRAMES
+
+    text = " ".join(invoke("navigate", "--help").stdout.split())
+    assert all(f in text for f in _FRAMES)
+
+
+def test_summary_shows_measured_against_expected_and_stages_off_a_terminal(tmp_path, dummy):
+    """Off a terminal (the runner's stderr is no TTY) each stage prints its start and end with
+    the elapsed time; each claim line shows the measured value and the expectation."""
+    import sinslab.core.progress as P
+
+    P.set_quiet(None)
+    try:
+        r = invoke("run", "dummy", "--quick", "--out", tmp_path / "r")
+    finally:
+        P.set_quiet(None)
+    assert r.exit_code == 0, r.stderr
+    claims = [ln for ln in r.stdout.splitlines() if ln.lstrip().startswith("[")]
+    assert claims and all("(expected " in ln for ln in claims), claims
+
+
+def test_stage_lines_with_elapsed_time_off_a_terminal(capsys):
+    import sinslab.core.progress as P
+
+    P.set_quiet(None)
+    P.set_lines(False)                          # a library caller: nothing
+    with P.progress("crunching", total=10) as bar:
+        bar.advance(10)
+    assert capsys.readouterr().err == ""
+    P.set_lines(True)                           # the command line
+    with P.progress("crunching", total=10, unit="steps") as bar:
+        bar.advance(10)
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "sinslab: crunching: started" and err[-1].startswith("sinslab: crunching: done in ")
+    P.set_quiet(True)
+    with P.progress("crunching", total=10) as bar:
+        bar.advance(10)
+    assert capsys.readouterr().err == ""
+    P.set_quiet(None)
+    P.set_lines(False)
+
+
+def test_config_overriding_quick_says_so(tmp_path, dummy):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[scenario]\nduration = "30 s"\n')
+    r = invoke("-q", "run", "dummy", "--quick", "--config", cfg, "--out", tmp_path / "r")
+    assert r.exit_code == 0, r.stderr
+    assert "note: --config" in r.stderr and "scenario.duration (10 s -> 30 s)" in r.stderr
+
+
+# ------------------------------------------------------------------ the checks themselves ---
+def _rest_record(n=6000, dt=0.01, tilt_step_deg=0.0, f_scale=1.0, seed=5):
+    """An ImuRecord at rest, level, g = 9.78 m/s² (equator), white noise of 0.01 m/s² and
+    0.001 rad/s per sample; the second half pitched up by ``tilt_step_deg``."""
+    from sinslab.core.records import ImuRecord
+
+    rng = np.random.default_rng(seed)
+    g = 9.780325 * f_scale
+    f = np.tile([0.0, 0.0, g], (n, 1))
+    th = math.radians(tilt_step_deg)
+    f[n // 2:] = [0.0, g * math.sin(th), g * math.cos(th)]     # RFU: pitch up tilts +y
+    f += 0.01 * rng.standard_normal((n, 3))
+    w = 1e-3 * rng.standard_normal((n, 3))
+    return ImuRecord(dt * np.arange(1, n + 1), w * dt, f * dt, dt)
+
+
+PLAUSIBLE = [  # (id, record keywords, refuse?, text of the one finding or None)
+    ("at-rest", {}, False, None),
+    ("tilt-step-0.1deg", {"tilt_step_deg": 0.1}, False, "pitch from the mean specific force changes by 0.1"),
+    ("scale-10pct", {"f_scale": 1.1}, False, "1.1 × local gravity"),
+    ("g-read-as-m/s2", {"f_scale": 1 / 9.80665}, True, "wrong accelerometer unit"),
+]
+
+
+@pytest.mark.parametrize("cid, kw, refuse, text", PLAUSIBLE, ids=[c[0] for c in PLAUSIBLE])
+def test_rest_and_record_checks(cid, kw, refuse, text):
+    """Oracles: a level record at rest with white noise raises nothing; a 0.1° pitch step
+    (the motion the README's laser-gyro window holds) is far above the noise of a 30-s mean
+    (0.01 m/s² / √3000 / g ≈ 0.001°); |f| = 1.1 g is a 10 % scale error; 0.1 g a unit slip."""
+    from sinslab.app.plausibility import imu_findings, rest_findings
+
+    imu = _rest_record(**kw)
+    found = imu_findings(imu, "rec") + rest_findings(imu, "rec")
+    if text is None:
+        assert found == []
+        return
+    assert any(text in fd.text for fd in found), found
+    assert any(fd.refuse for fd in found) == refuse
+
+
+def test_a_header_wider_than_the_first_read_is_read_whole(tmp_path):
+    """A valid table with 12 007 columns (a 180 kB header line): it was refused with
+    'the header has N' where N was the columns within the first 64 KiB."""
+    from sinslab.data import load_imu
+
+    extra = [f"vendor_status_word_{i:05d}" for i in range(12000)]
+    head = "t[s],gx[deg/s],gy[deg/s],gz[deg/s],ax[g],ay[g],az[g]," + ",".join(extra) + "\n"
+    tail = "," + ",".join("0" * len(extra)) + "\n"
+    p = tmp_path / "wide.csv"
+    p.write_text(head + "".join(f"{0.01 * k:.2f},0,0,0.001,0,0,1{tail}" for k in range(1, 201)))
+    assert len(head) > 1 << 17
+    d = load_imu(p)
+    assert len(d.imu) == 200 and np.allclose(d.imu.dv[:, 2] / d.imu.dt, 9.80665)

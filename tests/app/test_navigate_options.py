@@ -21,7 +21,7 @@ def files(tmp_path):
     (["--aid", "zupt,odo"], "unknown odo"),
     (["--csv-rate", "0"], "--csv-rate"),
     (["--aid", "zupt", "--rest", "flags"], "no rest-flag column"),
-    (["--aid", "zupt", "--rest", "sometimes"], "--rest must be"),
+    (["--aid", "zupt", "--rest", "sometimes"], "--rest 'sometimes': choose one of auto, flags"),
     (["--imu-errors", "platinum"], "neither a file nor a grade"),
     (["--columns", "t=time[s],speed=v"], "unknown column key 'speed'"),
     (["--mount", "quat:1,1,0,0"], "norm"),

@@ -111,11 +111,29 @@ def _check_range(shown, v, lims):
         raise ValueError(f"{shown} is out of range: must be < {lt[1]}")
 
 
+#: Magnitudes no vehicle, IMU or error budget reaches, by quantity kind: a value beyond is
+#: a typo or a unit slip (``"1e300 deg/h"``, a misalignment of 1e6′) and would only give a
+#: confident answer to nonsense (or non-finite numbers deep inside), so a quantity without
+#: an upper bound of its own is refused above it.
+PLAUSIBLE = {"angle": "360 deg", "angular_rate": "10000 deg/s", "acceleration": "1000 g",
+             "velocity": "30 km/s", "length": "10000 km", "angle_random_walk": "100 deg/sqrt(s)",
+             "velocity_random_walk": "10 g/sqrt(Hz)", "rate_random_walk": "1000 deg/s/sqrt(s)"}
+
+
+def _check_plausible(shown, v, kind, lims):
+    if kind in PLAUSIBLE and lims[2] is None and lims[3] is None:
+        cap = units.parse(PLAUSIBLE[kind], kind)
+        if not abs(v) <= cap:
+            raise ValueError(f"{shown} is beyond any physical {kind.replace('_', ' ')} a run can "
+                             f"use: |value| must be <= {PLAUSIBLE[kind]}")
+
+
 def Q(kind: str, *, ge: str | None = None, gt: str | None = None, le: str | None = None,
       lt: str | None = None):
     """Type of a scalar quantity of ``kind`` (a key of :data:`sinslab.core.units.KINDS`).
 
-    Bounds are unit strings (``ge="0 deg/h"``); a value outside is an error.
+    Bounds are unit strings (``ge="0 deg/h"``); a value outside is an error. Without an
+    upper bound, a magnitude beyond :data:`PLAUSIBLE` is an error too.
     """
     if kind not in units.KINDS:
         raise ValueError(f"unknown quantity kind {kind!r}")
@@ -136,6 +154,7 @@ def Q(kind: str, *, ge: str | None = None, gt: str | None = None, le: str | None
         except units.UnitError as e:
             raise ValueError(str(e)) from None
         _check_range(repr(text), si, lims)
+        _check_plausible(repr(text), si, kind, lims)
         return Quantity(si, text, kind)
 
     return Annotated[Quantity, PlainValidator(validate),
@@ -169,6 +188,7 @@ def QV(kind: str, n: int = 3, *, ge: str | None = None, gt: str | None = None,
             raise ValueError(str(e)) from None
         for i, x in enumerate(si):
             _check_range(f"{text!r} (component {i})" if n > 1 else repr(text), x, lims)
+            _check_plausible(f"{text!r} (component {i})" if n > 1 else repr(text), x, kind, lims)
         return QuantityVec(si, text, kind)
 
     return Annotated[QuantityVec, PlainValidator(validate),
@@ -205,7 +225,7 @@ def load_toml(path: str | Path) -> dict:
     except OSError as e:
         raise ConfigError(f"config file {p}: cannot read ({e.strerror or e})") from None
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")          # a byte-order mark (some editors) is not TOML
     except UnicodeDecodeError:
         raise ConfigError(f"config file {p}: not UTF-8 text") from None
     if not text.strip():

@@ -43,6 +43,9 @@ DESCRIPTIONS = {
         (rf"^{_AX}_bias_instability_(dph|ug)$", "{0} {1}: bias instability B = Allan floor / 0.664 (IEEE 952)"),
         (rf"^{_AX}_tau_floor_s$", "{0} {1}: cluster time τ of the Allan floor"),
         (rf"^{_AX}_rrw_(dphpsh|ugpsh)$", "{0} {1}: rate random walk K (fitted +1/2 slope at τ = 3 s)"),
+        (r"^upper_bounds$", "terms that are upper bounds only (≤ in the printed table): white noise "
+                            "without a clean −1/2 slope, bias instability with no floor before the "
+                            "longest cluster time"),
     ],
     "align": [
         (r"^(\w+?)_(pitch|roll|heading)_deg$", "{0} alignment: {1} (heading clockwise from north)"),

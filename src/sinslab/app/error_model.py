@@ -90,9 +90,16 @@ def _read(spec):
         raise ValueError(f"--imu-errors {s!r}: neither a file nor a grade ({', '.join(sorted(GRADES))})")
     import tomllib
     try:
-        return tomllib.loads(p.read_text()), str(p)
+        text = p.read_bytes().decode("utf-8-sig")          # a byte-order mark is not TOML
+    except UnicodeDecodeError as e:
+        raise ValueError(f"--imu-errors {p}: not UTF-8 text (byte {e.start}); a binary file? "
+                         f"give a TOML file or a grade ({', '.join(sorted(GRADES))})") from None
+    except OSError as e:
+        raise ValueError(f"--imu-errors {p}: cannot read ({e.strerror or e})") from None
+    try:
+        return tomllib.loads(text), str(p)
     except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"{p}: not valid TOML ({e})") from None
+        raise ValueError(f"--imu-errors {p}: not valid TOML ({e})") from None
 
 
 def load_error_model(spec):

@@ -27,8 +27,8 @@ import typer
 from sinslab.core.errors import InputError
 from sinslab.core.units import UnitError
 
-__all__ = ["UserError", "CliError", "USER_ERRORS", "user_errors", "error_line", "Terminated",
-           "on_abort"]
+__all__ = ["UserError", "CliError", "USER_ERRORS", "user_errors", "error_line", "cut",
+           "Terminated", "on_abort"]
 
 #: What :func:`user_errors` calls when a command fails or is interrupted, each returning
 #: one phrase per output folder saying what it holds now (:func:`on_abort`).
@@ -70,10 +70,34 @@ def _on_sigterm(signum, frame):
     raise Terminated()
 
 
+#: longest error line printed [characters]; a longer one keeps its head and its tail (the
+#: file and line at the start, the hint at the end) and says how much was cut
+MAX_LINE = 400
+#: longest single word (a value, a header cell) kept whole in an error line
+MAX_WORD = 80
+
+
+def cut(text: str, max_line: int = MAX_LINE, max_word: int = MAX_WORD) -> str:
+    """``text`` shortened for one terminal line: words longer than ``max_word`` and lines
+    longer than ``max_line`` lose their middle, replaced by ``…(N characters)…``."""
+    import re
+
+    def word(m):
+        w = m.group(0)
+        return f"{w[:max_word // 2]}…({len(w)} characters)…{w[-max_word // 4:]}"
+
+    text = re.sub(r"\S{%d,}" % (max_word + 1), word, text)
+    if len(text) > max_line:
+        head, tail = text[: max_line * 2 // 3], text[-max_line // 4:]
+        text = f"{head} …({len(text) - len(head) - len(tail)} characters cut)… {tail}"
+    return text
+
+
 def error_line(exc: BaseException) -> str:
-    """The one line printed for a user error: the first line of its message (or its type)."""
+    """The one line printed for a user error: the first line of its message (or its type),
+    cut to :data:`MAX_LINE` characters (a long value is shown by its ends and its length)."""
     text = str(exc)
-    return text.splitlines()[0] if text else type(exc).__name__
+    return cut(text.splitlines()[0]) if text.strip() else type(exc).__name__
 
 
 def _err(msg: str) -> None:

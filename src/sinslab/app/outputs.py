@@ -134,6 +134,8 @@ def default_out_dir(name: str, root: str | os.PathLike = "runs") -> Path:
     stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     root = Path(root)
     _check_parent(root / f"{name}-{stamp}")
+    _check_not_in_run(root / f"{name}-{stamp}")
+    made = [a for a in (root, *root.parents) if not a.exists()]
     try:
         root.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -146,7 +148,7 @@ def default_out_dir(name: str, root: str | os.PathLike = "runs") -> Path:
             continue
         except OSError as e:
             raise OutputDirError(f"output folder {p}: cannot create it ({e.strerror or e})") from None
-        _CREATED.add(p.absolute())
+        _CREATED[p.absolute()] = made          # a failed run removes them again if still empty
         return p
     raise OutputDirError(f"output folder {root}: no free name {name}-{stamp}-N")
 
@@ -173,6 +175,15 @@ def _check_parent(p: Path) -> None:
         raise OutputDirError(f"output folder {p}: {anc} is a file, not a folder")
     if not os.access(anc, os.W_OK | os.X_OK):
         raise OutputDirError(f"output folder {p}: cannot write in {anc} (permission denied)")
+
+
+def _check_not_in_run(p: Path) -> None:
+    """Refuse a folder inside another run's folder: the later run's files would sit among
+    the first run's, and replacing either would take the other with it."""
+    for anc in Path(os.path.abspath(p)).parents:
+        if is_run_dir(anc):
+            raise OutputDirError(f"output folder {p} is inside the run folder {anc} "
+                                 f"(it holds a {MARKER} marker); choose an --out outside it")
 
 
 def _pid_alive(pid: int) -> bool:
@@ -229,8 +240,9 @@ def _exchange(a: Path, b: Path) -> bool:
     raise OSError(err, os.strerror(err), str(b))
 
 
-#: default folders created by :func:`default_out_dir` (removed again if a run leaves them empty)
-_CREATED: set[Path] = set()
+#: default folders created by :func:`default_out_dir`, with the parents it created for them
+#: (all removed again if a run leaves them empty)
+_CREATED: dict[Path, list[Path]] = {}
 #: run folders checked or being written in this process, in order
 _ACTIVE: list["RunDir"] = []
 
@@ -308,6 +320,7 @@ class RunDir:
         if p.exists() and not p.is_dir():
             raise OutputDirError(f"output folder {p} exists and is a file, not a folder")
         _check_parent(p)
+        _check_not_in_run(p)
         self._had_run = False
         if p.is_dir():
             names = [x.name for x in p.iterdir()
@@ -432,7 +445,7 @@ class RunDir:
         if created:
             with contextlib.suppress(OSError):
                 self.target.rmdir()                    # only if still empty
-        for d in self._made:
+        for d in self._made + (_CREATED.get(self.target.absolute(), []) if created else []):
             with contextlib.suppress(OSError):
                 d.rmdir()
         if self._had_run:

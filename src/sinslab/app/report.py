@@ -26,6 +26,7 @@ import html
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 from sinslab.app.errors import UserError
@@ -49,6 +50,7 @@ tr.pass td.verdict{background:#dff5e1;color:#11631d;font-weight:bold}
 tr.fail td.verdict{background:#fde2e1;color:#a11;font-weight:bold}
 .badge{display:inline-block;padding:.15em .6em;border-radius:1em;font-weight:bold}
 .badge.ok{background:#dff5e1;color:#11631d}.badge.bad{background:#fde2e1;color:#a11}
+ul.warn li{background:#fff4d6;color:#6b4b00;padding:.2em .5em;margin:.2em 0;list-style:none}
 figure{margin:1em 0;text-align:center}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}
 #claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}
@@ -88,7 +90,16 @@ def _fmt(v, digits=6) -> str:
 
 #: Units written against the number ("0.10′", "2.3×"); every other unit after a space.
 _TIGHT = {"′", "″", "°", "×", "%", "°/h", "°/√h"}
-_UNIT_SIGN = {"arcmin": "′", "arcsec": "″", "deg": "°", "deg/h": "°/h", "x": "×"}
+#: One spelling of each unit on a page: the signs a reader knows (°/h, µg), whatever ASCII
+#: spelling a metric or claim was declared with.
+_UNIT_SIGN = {"arcmin": "′", "arcsec": "″", "deg": "°", "deg/h": "°/h", "dph": "°/h", "x": "×",
+              "deg/s": "°/s", "deg/sqrt(h)": "°/√h", "dpsh": "°/√h", "deg/h/sqrt(h)": "°/h/√h",
+              "ug": "µg", "ug/sqrt(Hz)": "µg/√Hz", "ug/sqrt(h)": "µg/√h", "deg/sqrt(s)": "°/√s"}
+
+
+def unit_sign(unit: str) -> str:
+    """The one spelling of ``unit`` shown on a page (``deg/h`` -> ``°/h``, ``ug`` -> ``µg``)."""
+    return _UNIT_SIGN.get(unit, unit) if isinstance(unit, str) else unit
 
 
 _SUP = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
@@ -201,6 +212,11 @@ def criterion(exp: dict, names=None, n: int | None = None) -> str:
     return t + (" each" if n and n > 1 else "")
 
 
+def claim_texts(c: dict) -> tuple[str, str]:
+    """(measured, expected) of one claim of summary.json as plain text (the terminal summary)."""
+    return _claim_cells(c)
+
+
 def _claim_cells(c: dict) -> tuple[str, str]:
     """(measured, expected) texts of one claim of summary.json (old flat layouts too)."""
     m, x = c.get("measured"), c.get("expected")
@@ -244,8 +260,15 @@ def _figure_html(d: Path, fig: dict, k: int = 0) -> str:
     link = f' <a href="{e(svg)}">SVG</a>' if svg and (d / svg).is_file() else ""
     return (f'<figure id="fig-{e(fig["name"])}"><img class="figure" alt="{e(fig["name"])}" '
             f'src="data:image/png;base64,{b64}">'
-            f'<figcaption><b>Figure {k}: {e(fig["name"])}</b> — {e(fig.get("caption", ""))}{link}'
-            f'</figcaption></figure>')
+            f'<figcaption><b>Figure {k}: {e(_figure_label(fig["name"]))}</b> — '
+            f'{e(fig.get("caption", ""))}{link}</figcaption></figure>')
+
+
+def _figure_label(name: str) -> str:
+    """A figure's title next to the page's own numbering: ``fig2_reduced`` (a file named
+    after the paper's figure) reads ``reduced (the paper's Fig. 2)``, not a second number."""
+    m = re.match(r"fig(\d+)_(.+)$", name)
+    return f"{m[2].replace('_', ' ')} (the paper's Fig. {m[1]})" if m else name
 
 
 def _table_html(d: Path, t: dict) -> str:
@@ -307,6 +330,10 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
         meta.append(f"writing the run folder {with_unit(float(out_s), 's')}")
     parts.append("<p class='sub'>" + " · ".join(meta) + "</p>")
 
+    warns = s.get("warnings") or []
+    if warns:                                  # plausibility checks of the data and the run
+        parts.append("<h2>Warnings</h2><ul class='warn' id='warnings'>"
+                     + "".join(f"<li>⚠ {e(w)}</li>" for w in warns) + "</ul>")
     if claims:
         badge = "ok" if all_ok else "bad"
         parts.append(f"<p><span class='badge {badge}' id='verdict'>{n_pass} of {len(claims)} claims "
@@ -322,7 +349,7 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
         mi = info.get(name, {})
         rows.append(f"<tr data-metric='{e(name)}'><td><code>{_breakable(name)}</code></td>"
                     f"<td class='num'>{e(_metric_text(v, mi.get('unit', '')))}</td>"
-                    f"<td class='unit'>{e(mi.get('unit', ''))}</td><td>{e(mi.get('description', ''))}</td></tr>")
+                    f"<td class='unit'>{e(unit_sign(mi.get('unit', '')))}</td><td>{e(mi.get('description', ''))}</td></tr>")
     parts.append(_wide("<table id='metrics'><tr><th>metric</th><th>value</th><th>unit</th>"
                        "<th>description</th></tr>" + "".join(rows) + "</table>"))
 
@@ -336,7 +363,9 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
         parts.extend(_table_html(d, t) for t in tables)
     notes = s.get("notes", [])
     if notes:
-        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{e(n)}</li>" for n in notes) + "</ul>")
+        parts.append("<h2>Notes</h2><ul>" + "".join(
+            f"<li><pre>{e(n)}</pre></li>" if "\n" in n.strip() else f"<li>{e(n)}</li>"
+            for n in notes) + "</ul>")
     series = s.get("series", [])
     if series:
         rows = []

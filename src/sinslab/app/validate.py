@@ -61,15 +61,24 @@ def option_number(option: str, value, *, ge: float | None = None, gt: float | No
     except (TypeError, ValueError):
         raise CliError(f"{option} {value!r}: not a number{' of ' + unit if unit else ''}") from None
     u = f" {unit}" if unit else ""
+    if isinstance(value, float):            # as the user would have typed it: 1e9, not 1000000000.0
+        value = _Shown(f"{value:g}")
     if not math.isfinite(v):
         raise CliError(f"{option} {value!r}: not a finite number")
     if ge is not None and not v >= ge:
-        raise CliError(f"{option} {value!r}: must be >= {ge:g}{u}")
+        raise CliError(f"{option} {value!r}: out of range, must be >= {ge:g}{u}")
     if gt is not None and not v > gt:
-        raise CliError(f"{option} {value!r}: must be > {gt:g}{u}")
+        raise CliError(f"{option} {value!r}: out of range, must be > {gt:g}{u}")
     if le is not None and not v <= le:
-        raise CliError(f"{option} {value!r}: must be <= {le:g}{u}")
+        raise CliError(f"{option} {value!r}: out of range, must be <= {le:g}{u}")
     return v
+
+
+class _Shown(str):
+    """A number's text shown without quotes in a message."""
+
+    def __repr__(self):
+        return str(self)
 
 
 # ------------------------------------------------------------------ Dask scheduler -----
@@ -260,29 +269,82 @@ def option_window(option: str, text) -> tuple[float | None, float | None]:
     return lo, hi
 
 
-def check_window(option: str, text, t_first: float, t_last: float) -> None:
-    """Refuse a window that does not overlap the record ``[t_first, t_last]`` [s]."""
+def check_window(option: str, text, t_first: float, t_last: float, tol: float = 0.0) -> None:
+    """Refuse a window that reaches outside the record ``[t_first, t_last]`` [s] (by more
+    than ``tol``, e.g. one sample interval): a clipped window would silently analyse less
+    than asked for."""
     lo, hi = option_window(option, text)
+    span = f"the record spans {t_first:.6g} to {t_last:.6g} s"
     if (lo is not None and lo >= t_last) or (hi is not None and hi <= t_first):
-        raise CliError(f"{option} {text!r}: outside the record, which spans "
-                       f"{t_first:.6g} to {t_last:.6g} s")
+        raise CliError(f"{option} {text!r}: outside the record; {span}")
+    if lo is not None and lo < t_first - tol:
+        raise CliError(f"{option} {text!r}: START {lo:.6g} s is outside the record (before its "
+                       f"start); {span}")
+    if hi is not None and hi > t_last + tol:
+        raise CliError(f"{option} {text!r}: END {hi:.6g} s is outside the record (after its "
+                       f"end); {span}")
+
+
+#: bounds of the time options of ``sinslab navigate`` [s]: a fix a minute late, a velocity
+#: a minute old or an IMU clock an hour off is no latency but a wrong file or time base
+MAX_LATENCY_S = 60.0
+MAX_IMU_DELAY_S = 3600.0
+#: longest lever arm accepted [m] (a large ship's antenna mast)
+MAX_LEVER_M = 200.0
 
 
 def check_navigate_options(*, fix_latency=0.0, velocity_lag=0.0, imu_delay=0.0, max_gap=1.0,
-                           lag="aware", time_sync="none") -> None:
+                           lag="aware", time_sync="none", rest=None, aid=None,
+                           lever_arm=None) -> None:
     """The numeric and choice options of ``sinslab navigate``, before any file is read."""
-    option_number("--fix-latency", fix_latency, ge=0.0, unit="s")
-    option_number("--velocity-lag", velocity_lag, ge=0.0, unit="s")
-    option_number("--imu-delay", imu_delay, unit="s")
+    option_number("--fix-latency", fix_latency, ge=0.0, le=MAX_LATENCY_S, unit="s")
+    option_number("--velocity-lag", velocity_lag, ge=0.0, le=MAX_LATENCY_S, unit="s")
+    option_number("--imu-delay", imu_delay, ge=-MAX_IMU_DELAY_S, le=MAX_IMU_DELAY_S, unit="s")
     option_number("--max-gap", max_gap, gt=0.0, unit="s")
     option_choice("--lag", lag, ("aware", "ignore"))
     option_choice("--time-sync", time_sync, ("auto", "none"))
+    if rest is not None:
+        option_choice("--rest", rest, ("auto", "flags"))
+        aids = {a.strip().lower() for a in str(aid or "").split(",")}
+        if not aids & {"zupt", "zaru"}:
+            raise CliError(f"--rest {rest!r}: rest intervals are used by ZUPT/ZARU only; "
+                           f"add --aid zupt (or zaru), or drop --rest")
+    if isinstance(lever_arm, str):
+        from sinslab.core import units
+
+        try:
+            v = units.parse_vector(lever_arm, "length", 3)
+        except (ValueError, TypeError) as e:
+            raise CliError(f"--lever-arm {lever_arm!r}: {e}") from None
+        bad = [f"{x:g} m" for x in v if not (math.isfinite(x) and abs(x) <= MAX_LEVER_M)]
+        if bad:
+            raise CliError(f"--lever-arm {lever_arm!r}: component {bad[0]} out of range, each "
+                           f"must be within ±{MAX_LEVER_M:g} m (IMU -> antenna)")
+
+
+def check_mount(mount, frame) -> None:
+    """``--frame`` and ``--mount`` of the recorded-data commands, before any file is read."""
+    from sinslab.data.frames import frame_matrix, mount_matrix
+
+    if frame is not None:
+        try:
+            frame_matrix(frame)
+        except ValueError as e:
+            raise CliError(f"--frame {frame!r}: {e}") from None
+    if mount is not None:
+        try:
+            mount_matrix(mount, frame or "rfu")
+        except ValueError as e:
+            raise CliError(f"--mount: {e}") from None
 
 
 def check_outages(option: str, text, outages, t_ref: float, t_end: float) -> None:
     """Every outage (``[(start, length)]`` absolute [s], or a periodic spec) must start
     within the navigated span ``[t_ref, t_end)``; otherwise nothing would be measured."""
     span = t_end - t_ref
+    if span <= 0:
+        raise CliError(f"{option} {text!r}: the IMU record ends {-span:.1f} s before the first fix, "
+                       f"so no outage can lie in it")
     for o in outages:
         if o and o[0] == "periodic":
             _, ln, per, first = o

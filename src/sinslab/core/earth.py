@@ -17,6 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
+from sinslab.core.errors import InputError
 from sinslab.core.jitnotice import install as _compile_notice
 
 _compile_notice()   # a status line while the kernels below compile (first run)
@@ -58,19 +59,20 @@ def gravity_s(lat, h):
 
 
 def check_latitude(lat) -> None:
-    """Raise ValueError if any latitude [rad] is beyond ±90° or not finite."""
+    """Raise :class:`~sinslab.core.errors.InputError` (a ValueError) if any latitude [rad]
+    is beyond ±90° or not finite: a bad input, or errors that carried a solution over a pole."""
     if isinstance(lat, (float, np.floating)):        # the per-call check of compiled loops
         if not math.isfinite(lat):
-            raise ValueError("latitude is not finite")
+            raise InputError("latitude is not finite")
         if abs(lat) > math.pi / 2:
-            raise ValueError(f"latitude {math.degrees(lat):.6g} deg is beyond ±90 deg")
+            raise InputError(f"latitude {math.degrees(lat):.6g} deg is beyond ±90 deg")
         return
     lat = np.asarray(lat, dtype=float)
     if not np.all(np.isfinite(lat)):
-        raise ValueError("latitude is not finite")
+        raise InputError("latitude is not finite")
     if np.any(np.abs(lat) > math.pi / 2):
         bad = float(np.degrees(lat.flat[np.argmax(np.abs(lat))]))
-        raise ValueError(f"latitude {bad:.6g} deg is beyond ±90 deg")
+        raise InputError(f"latitude {bad:.6g} deg is beyond ±90 deg")
 
 
 def radii(lat, h=0.0):

@@ -27,9 +27,14 @@ loop needs no second branch::
 (import it as ``from sinslab.core.progress import progress as progress_bar`` where the
 function's own flag is called ``progress``).
 
-The bars go to stderr and are shown only when stderr is a terminal. They are silenced
-for the whole process by ``SINSLAB_QUIET=1`` or :func:`set_quiet`; the CLI's ``--quiet``
-flag (if present) and test runners use that. Nested bars share one live display.
+The bars go to stderr and are shown only when stderr is a terminal. Off a terminal (a
+log file, CI, a pipe) the command line (:func:`set_lines`) turns each bar into lines: one
+when the stage starts, one every :data:`HEARTBEAT_S` seconds of a long stage (as it
+advances) and one at its end, each with the elapsed time, so that long work is visible in
+a log; a library caller off a terminal (a notebook, a Dask worker, a loop over records)
+gets neither. Both are silenced for the whole process by ``SINSLAB_QUIET=1`` or
+:func:`set_quiet`; the CLI's ``--quiet`` flag and test runners use that. Nested bars share
+one live display.
 """
 from __future__ import annotations
 
@@ -39,12 +44,16 @@ import sys
 import threading
 from typing import Iterable, Iterator, TypeVar
 
-__all__ = ["progress", "track", "set_quiet", "is_quiet", "Bar"]
+__all__ = ["progress", "track", "set_quiet", "set_lines", "is_quiet", "Bar", "HEARTBEAT_S"]
+
+#: seconds between the progress lines of a long stage off a terminal
+HEARTBEAT_S = 30.0
 
 T = TypeVar("T")
 
 _state = threading.local()
 _quiet_override: bool | None = None
+_lines = False
 
 
 def set_quiet(quiet: bool | None) -> None:
@@ -86,15 +95,81 @@ class Bar:
             self._p.update(self._t, **kw)
 
 
+def set_lines(on: bool = True) -> None:
+    """Off a terminal, print a line per stage (start, every HEARTBEAT_S, end) instead of
+    nothing; the command line turns this on."""
+    global _lines
+    _lines = bool(on)
+
+
+def _lines_wanted() -> bool:
+    """True off a terminal when lines are on and not silenced: stages print lines."""
+    if not _lines or _quiet_override is True or os.environ.get("SINSLAB_QUIET", "") not in ("", "0"):
+        return False
+    try:
+        return not sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+class _LineBar(Bar):
+    """A bar off a terminal: a line at the start, every HEARTBEAT_S as it advances, at the end."""
+
+    def __init__(self, description: str, total, unit: str):
+        import time
+
+        super().__init__()
+        self.description, self.total, self.unit = description, total, unit
+        self.done = 0.0
+        self.t0 = self.last = time.monotonic()
+        self._say("started")
+
+    def _say(self, what: str) -> None:
+        print(f"sinslab: {self.description}: {what}", file=sys.stderr, flush=True)
+
+    def _beat(self) -> None:
+        import time
+
+        now = time.monotonic()
+        if now - self.last >= HEARTBEAT_S:
+            self.last = now
+            part = (f"{100.0 * self.done / self.total:.0f} % of {self.total:g}{' ' + self.unit if self.unit else ''}"
+                    if self.total else f"{self.done:g}{' ' + self.unit if self.unit else ''}")
+            self._say(f"{part} after {now - self.t0:.0f} s")
+
+    def advance(self, n: float = 1) -> None:
+        self.done += n
+        self._beat()
+
+    def update(self, *, completed: float | None = None, total: float | None = None,
+               description: str | None = None) -> None:
+        if completed is not None:
+            self.done = completed
+        if total is not None:
+            self.total = total
+        self._beat()
+
+    def end(self) -> None:
+        import time
+
+        self._say(f"done in {time.monotonic() - self.t0:.1f} s")
+
+
 @contextlib.contextmanager
 def progress(description: str, total: float | None = None, unit: str = "", *,
              enabled: bool = True) -> Iterator[Bar]:
     """Context manager yielding a :class:`Bar` for a loop of ``total`` steps.
 
     ``total=None`` shows an indeterminate spinner. The bar is a no-op (no output at all)
-    when ``enabled`` is false or :func:`is_quiet` is true.
+    when ``enabled`` is false or :func:`set_quiet` / ``SINSLAB_QUIET`` silence it; off a
+    terminal it prints lines with the elapsed time instead (module notes).
     """
     if not enabled or is_quiet():
+        if enabled and _lines_wanted():
+            bar = _LineBar(description, total, unit)
+            yield bar
+            bar.end()
+            return
         yield Bar()
         return
     from rich.console import Console

@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from sinslab.core.errors import InputError
+
 __all__ = ["Fixes", "ImuRecord", "NavSeries", "NavState", "check_times"]
 
 
@@ -219,10 +221,10 @@ class NavState:
         for name in ("lat", "lon", "h", "t"):
             v = float(getattr(self, name))
             if not np.isfinite(v):
-                raise ValueError(f"initial {name} is not finite")
+                raise InputError(f"initial {name} is not finite")
             object.__setattr__(self, name, v)
-        if abs(self.lat) > np.pi / 2:
-            raise ValueError(f"latitude {np.degrees(self.lat):.6g} deg is beyond ±90 deg")
+        if abs(self.lat) > np.pi / 2:           # an input (or initial errors) over a pole
+            raise InputError(f"latitude {np.degrees(self.lat):.6g} deg is beyond ±90 deg")
         for name in ("vel", "att"):
             a = np.array(getattr(self, name), dtype=float).reshape(-1)
             if a.shape != (3,) or not np.all(np.isfinite(a)):

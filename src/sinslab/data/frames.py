@@ -34,8 +34,12 @@ def frame_matrix(frame: str) -> np.ndarray:
 def check_rotation(M, what="mount rotation", tol=1e-6) -> np.ndarray:
     """Return ``M`` as a (3, 3) array if it is a proper rotation (orthonormal, det +1)."""
     M = np.asarray(M, dtype=float)
-    if M.shape != (3, 3) or not np.all(np.isfinite(M)):
-        raise ValueError(f"{what} must be a finite 3x3 matrix, got shape {M.shape}")
+    if M.shape != (3, 3):
+        raise ValueError(f"{what} must be a 3x3 matrix, got shape {M.shape}")
+    if not np.all(np.isfinite(M)):
+        i, j = (int(x) for x in np.argwhere(~np.isfinite(M))[0])
+        raise ValueError(f"{what}: element ({i + 1}, {j + 1}) is {M[i, j]}; a rotation matrix "
+                         f"needs finite numbers")
     err = float(np.max(np.abs(M @ M.T - np.eye(3))))
     if err > tol:
         raise ValueError(f"{what} is not a rotation: |M Mᵀ − I| = {err:.3g} (> {tol:g})")
@@ -118,6 +122,10 @@ def _mount_from_text(mount: str) -> np.ndarray:
     if kind in ("rpy", "euler"):
         if v.size != 3:
             raise ValueError(f"mount {mount!r} needs three angles")
+        if not np.all(np.isfinite(v) & (np.abs(v) <= 360.0)):
+            bad = v[~(np.isfinite(v) & (np.abs(v) <= 360.0))][0]
+            raise ValueError(f"mount {mount!r}: angle {bad:g} deg out of range; each angle must be "
+                             f"a finite number of degrees within ±360")
         v = np.radians(v)
         return rpy_frd_matrix(v) if kind == "rpy" else _att.euler_to_dcm(v)
     if kind in ("quat", "q"):

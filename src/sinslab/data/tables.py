@@ -320,6 +320,14 @@ class _TextSource:
         self.path = path
         with open(path, "rb") as fh:
             head = fh.read(1 << 16)
+            # a header wider than the first read (tens of thousands of columns): read on to its end
+            while len(head) < 1 << 28 and not _header_complete(head):
+                more = fh.read(1 << 20)
+                if not more:
+                    break
+                head += more
+        if head.startswith(b"\xef\xbb\xbf"):          # UTF-8 byte-order mark (Excel, Notepad)
+            head = head[3:]
         nul = head.find(b"\x00")
         try:
             text = head.decode("utf-8")
@@ -393,7 +401,7 @@ class _TextSource:
         return out
 
     def _rows(self):
-        with open(self.path, "r", encoding="utf-8", errors="replace") as fh:
+        with open(self.path, "r", encoding="utf-8-sig", errors="replace") as fh:
             for n, s in enumerate(fh, 1):
                 if n <= self.skip or not s.strip() or s.lstrip().startswith(("#", "%")):
                     continue
@@ -419,6 +427,15 @@ class _TextSource:
             lines.append(n)
         self.lines = lines
         return np.array(rows, dtype=float).reshape(len(rows), len(uniq))
+
+
+def _header_complete(head: bytes) -> bool:
+    """True if ``head`` holds a whole line that is neither blank nor a comment (the header)."""
+    for ln in head.split(b"\n")[:-1]:
+        t = ln.strip().lstrip(b"\xef\xbb\xbf")
+        if t and not t.startswith((b"#", b"%")):
+            return True
+    return False
 
 
 def _is_number(s):

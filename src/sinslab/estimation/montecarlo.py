@@ -179,8 +179,11 @@ def dask_client(scheduler=None, n_workers=None):
     if scheduler is None:
         nw = int(n_workers or os.cpu_count() or 1)
         with _interrupts_to_this_process():
+            # no dashboard; the scheduler's own HTTP routes on a free local port, not on the
+            # dashboard's 8787 (taken by another cluster: a warning on every start)
             cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+                                   dashboard_address=None, silence_logs=logging.ERROR,
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             client = Client(cluster)
         own = (client, cluster)
     elif isinstance(scheduler, str):

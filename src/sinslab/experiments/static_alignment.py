@@ -124,7 +124,14 @@ METRICS.update({
     "obs_rank_reduced": Metric("", "rank of the 5-state observability matrix (computed)"),
     "obs_degree_full": Metric("", "SVD degree of observability per full state "
                                   "[φE φN φU εE εN εU ∇E ∇N] (sinslab.estimation.observability; states "
-                                  "scaled by 10′, 10′, 60′, 0.01 °/h, 100 µg; 0 = unobservable)"),
+                                  "scaled by 10′, 10′, 60′, 0.01 °/h, 100 µg; 0 = the state has a "
+                                  "component in the unobservable subspace). All 8 are 0 with rank 5: "
+                                  "every full state mixes with the 3 unobservable directions (εE with "
+                                  "φN, ∇E, ∇N with the tilts); obs_fraction_full says how much of "
+                                  "each is observable"),
+    "obs_fraction_full": Metric("", "share of each full state [φE φN φU εE εN εU ∇E ∇N] lying in "
+                                    "the observable subspace (1 = fully observable, 0 = not at all; "
+                                    "same scaling)"),
     "obs_degree_reduced": Metric("", "SVD degree of observability per reduced state"),
     "obs_singular_values_full": Metric("", "normalised singular values of the full observability matrix"),
     "obs_singular_values_reduced": Metric("", "the same for the reduced model"),
@@ -184,11 +191,12 @@ def _converge_min(t, r, lim, tol):
 
 
 def _obs_rank_degree(F, H, scale):
-    """Rank, per-state degree and singular values (sinslab.estimation.observability, states scaled)."""
+    """Rank, per-state degree, singular values and observable fraction
+    (sinslab.estimation.observability, states scaled)."""
     from sinslab.estimation import observability
 
     r = observability.analyze(F, H, scale=scale)
-    return r.rank, r.degree, r.singular_values
+    return r.rank, r.degree, r.singular_values, r.observable_fraction
 
 
 def _figure(t, resid, lim, title, extra=None):
@@ -280,9 +288,10 @@ def run(config: Config, ctx) -> Result:
     Fr, _, Hr = al.reduced_model(lat, g)
     # states scaled by the paper's P0 magnitudes (10′, 10′, 60′, 0.01 °/h, 100 µg)
     scale_f = np.r_[np.array([10.0, 10.0, 60.0]) * units.arcmin, [0.01 * units.dph] * 3, [100 * units.ug] * 2]
-    rk, deg, sv = _obs_rank_degree(F, H, scale_f)
-    rkr, degr, svr = _obs_rank_degree(Fr, Hr, scale_f[al._FULL_SUB])
+    rk, deg, sv, frac = _obs_rank_degree(F, H, scale_f)
+    rkr, degr, svr, _ = _obs_rank_degree(Fr, Hr, scale_f[al._FULL_SUB])
     metrics.update(obs_rank_full=rk, obs_rank_reduced=rkr, obs_degree_full=deg.tolist(),
+                   obs_fraction_full=frac.tolist(),
                    obs_degree_reduced=degr.tolist(), obs_singular_values_full=sv.tolist(),
                    obs_singular_values_reduced=svr.tolist())
     tol_u = 0.1 * abs(lim[4])
@@ -299,7 +308,8 @@ def run(config: Config, ctx) -> Result:
     # ----- claims
     claims = []
     dr = (res["reduced"][-1] - lim) / _SC
-    margins = {"phiE": (0, 0.1, "′", "≈0.07′; open loop adds the second-order ½φN·φU ≈ 0.09′", 0.15),
+    margins = {"phiE": (0, 0.1, "′", "≈0.07′; open loop adds the second-order ½φN·φU ≈ 0.09′"
+                        if not fc.feedback else "≈0.07′; closed loop, no second-order term", 0.15),
                "phiU": (2, 2.0, "′", "1–2′", 2.0), "epsN": (3, 0.002, "°/h", "≈0.002°/h", 0.003)}
     dur_min = float(sc.duration) / 60.0
     sig_r = fas["reduced"].sigma[-1] / _SC

@@ -72,6 +72,7 @@ from sinslab.core import earth, units
 from sinslab.estimation import kalman, linear
 from sinslab.estimation.filter import KalmanFilter
 from sinslab.core.attitude import q2dcm_s, qmul_s, rv2q_s
+from sinslab.core.errors import InputError
 from sinslab.core.records import ImuRecord
 
 __all__ = [
@@ -96,11 +97,12 @@ class NotAtRestWarning(UserWarning):
 
 # ------------------------------------------------------------------------------ models
 def check_alignment_latitude(lat) -> float:
-    """Return ``lat`` [rad] as float; ValueError beyond ±90° or within 1° of a pole."""
+    """Return ``lat`` [rad] as float; ValueError beyond ±90°, InputError (a ValueError)
+    within 1° of a pole."""
     lat = float(lat)
     earth.check_latitude(lat)
     if abs(lat) > math.pi / 2 - POLE_MARGIN:
-        raise ValueError(f"latitude {math.degrees(lat):.4f} deg is within "
+        raise InputError(f"latitude {math.degrees(lat):.4f} deg is within "
                          f"{math.degrees(POLE_MARGIN):g} deg of a pole: the horizontal Earth rate "
                          f"ω_ie cos L vanishes there and heading is unobservable")
     return lat

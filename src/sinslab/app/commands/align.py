@@ -36,11 +36,15 @@ def _check_options(lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, m
     if h is not None:
         option_quantity("--height", h, "length", ge="-12 km", le="100 km")
     _parse_window(window)
-    option_quantity("--gyro-arw", gyro_arw, "angle_random_walk", ge="0 deg/sqrt(h)")
+    # upper bounds: beyond them no IMU is meant, and the small-angle limit-accuracy
+    # formulas (φ = ∇/g, φU = ε/(ω_ie cos L)) would print meaningless angles
+    option_quantity("--gyro-arw", gyro_arw, "angle_random_walk", ge="0 deg/sqrt(h)",
+                    le="100 deg/sqrt(h)")
     if accel_vrw not in (None, "", "auto"):
-        option_quantity("--accel-vrw", accel_vrw, "velocity_random_walk", ge="0 ug/sqrt(Hz)")
-    option_quantity("--gyro-bias", gyro_bias, "angular_rate", ge="0 deg/h")
-    option_quantity("--accel-bias", accel_bias, "acceleration", ge="0 ug")
+        option_quantity("--accel-vrw", accel_vrw, "velocity_random_walk", ge="0 ug/sqrt(Hz)",
+                        le="100000 ug/sqrt(Hz)")
+    option_quantity("--gyro-bias", gyro_bias, "angular_rate", ge="0 deg/h", le="1000 deg/h")
+    option_quantity("--accel-bias", accel_bias, "acceleration", ge="0 ug", le="100 mg")
     option_choice("--model", model, ("reduced", "full"))
     option_quantity("--period", period, "time", gt="0 s")
 
@@ -67,25 +71,28 @@ def _heading_check(r, duration, heading_sigma):
 
 def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
                gyro_arw="0.01 deg/sqrt(h)", accel_vrw=None, gyro_bias="0.01 deg/h",
-               accel_bias="100 ug", model="reduced", period="1 s", feedback=True, echo=print):
+               accel_bias="100 ug", model="reduced", period="1 s", feedback=True, strict=False,
+               echo=print):
     """Align a recorded IMU file at rest and write the usual outputs into ``out``.
 
     Prints (via ``echo``) pitch, roll and heading (clockwise from north) with 1σ from the
     analytic coarse, the inertial-frame coarse and the Kalman fine alignment, and the
     limit accuracy for the assumed biases. Writes config.toml, summary.json,
     alignment.csv (fine attitude and σ vs time), alignment.png/svg and report.html.
-    Returns the summary dict.
+    Returns the summary dict. Plausibility warnings (:mod:`sinslab.app.plausibility`: |f|
+    against gravity, dead channels, motion inside the window, a window too short for
+    heading) are printed and listed in the report; ``strict`` refuses instead.
     """
     _check_options(lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model, period)
     summary, _ = run_command(ALIGN, out, lambda: _compute(
         path, fmt=fmt, lat=lat, h=h, window=window, gyro_arw=gyro_arw, accel_vrw=accel_vrw,
         gyro_bias=gyro_bias, accel_bias=accel_bias, model=model, period=period,
-        feedback=feedback, echo=echo), echo=echo)
+        feedback=feedback, strict=strict, echo=echo), echo=echo)
     return summary
 
 
 def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model,
-             period, feedback, echo) -> Output:
+             period, feedback, echo, strict=False) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.core import attitude as A      # numba and scipy: only when it runs
     from sinslab.core import earth
@@ -105,8 +112,15 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     if lo is not None or hi is not None:
         from sinslab.app.validate import check_window
 
-        check_window("--window", window, float(imu.t[0]) - imu.dt, float(imu.t[-1]))
+        check_window("--window", window, float(imu.t[0]) - imu.dt, float(imu.t[-1]), imu.dt)
         imu = imu.slice(lo, hi)
+    from sinslab.app.plausibility import Finding, imu_findings, rest_findings, settle
+
+    src = f"{path}" + (f" (window {window})" if window else "")
+    found = imu_findings(imu, src, lat=lat_r, h=h_r)
+    if not any(fd.refuse for fd in found):
+        found += rest_findings(imu, src, lat=lat_r, h=h_r)
+    settle([fd for fd in found if fd.refuse])
     al.check_alignment_latitude(lat_r)
     ga = units.parse(gyro_arw, "angle_random_walk")
     av = None if accel_vrw in (None, "", "auto") else units.parse(accel_vrw, "velocity_random_walk")
@@ -119,6 +133,7 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     hw = _heading_check(r, len(imu) * imu.dt, fa.att_sigma[2])
     if hw:
         r["warnings"] = list(r["warnings"]) + [hw]
+    found += [Finding(w_) for w_ in r["warnings"]]
 
     def ang(att):
         return (math.degrees(att[0]), math.degrees(att[1]),
@@ -127,7 +142,7 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     rows = [("coarse (analytic)", ang(co.att), co.att_sigma),
             ("coarse (inertial frame)", ang(ci.att), None),
             (f"fine ({model}, {'closed' if feedback else 'open'} loop)", ang(fa.att), fa.att_sigma)]
-    cfg = {"file": str(path), "format": fmt or ("psins" if ps is not None else "csv"),
+    cfg = {"file": str(Path(path).absolute()), "format": fmt or ("psins" if ps is not None else "csv"),
            "latitude": f"{math.degrees(lat_r):.8g} deg", "height": f"{h_r:.6g} m",
            "window": window or ":", "gyro_arw": gyro_arw, "accel_vrw": accel_vrw or "auto",
            "gyro_bias": gyro_bias, "accel_bias": accel_bias, "model": model, "period": period,
@@ -145,8 +160,7 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     la = r["limit_att"] / units.arcmin
     echo(f"  limit accuracy for 1-sigma biases {gyro_bias}, {accel_bias}: pitch {la[0]:.3g}', "
          f"roll {la[1]:.3g}', heading {la[2]:.3g}'")
-    for w_ in r["warnings"]:
-        echo(f"  warning: {w_}")
+    warnings = settle(found, strict=strict, echo=echo)
 
     metrics = {}
     for key, att, sg in (("coarse", co.att, co.att_sigma), ("inertial", ci.att, None),
@@ -173,7 +187,7 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     fig, axes = plotting.figure(3, 1, width=8.0)
     for ax, y, s_, lab in zip(axes, (np.degrees(fa.att_path[:, 0]), np.degrees(fa.att_path[:, 1]), hd),
                               (fa.sigma[:, 1], fa.sigma[:, 0], fa.sigma[:, 2]),
-                              ("pitch [deg]", "roll [deg]", "heading [deg]")):
+                              ("pitch [°]", "roll [°]", "heading [°]")):
         ax.plot(tm - tm[0], y, "b-", lw=1)
         k = max(1, len(tm) // 10)
         ax.fill_between(tm[k:] - tm[0], y[k:] - np.degrees(s_[k:]), y[k:] + np.degrees(s_[k:]),
@@ -183,7 +197,7 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     fig.suptitle("Fine alignment: attitude estimate ±1σ (heading clockwise from north)")
     figures = [Figure("alignment", fig, "Fine-alignment attitude estimate (±1σ band) versus time.")]
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures,
-                  notes=["Heading is clockwise from north."] + r["warnings"], value=r)
+                  notes=["Heading is clockwise from north."], value=r, warnings=warnings)
 
 
 def register(app):
@@ -204,11 +218,12 @@ def register(app):
               model: str = typer.Option("reduced", "--model", help="reduced | full"),
               period: str = typer.Option("1 s", "--period", help="filter period"),
               open_loop: bool = typer.Option(False, "--open-loop", help="no attitude feedback"),
+              strict: bool = typer.Option(False, "--strict", help="refuse (exit 2, nothing written) instead of warning about the data"),
               force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Coarse and fine alignment of a recorded IMU file at rest (pitch, roll, heading with σ)."""
         cli_call(align_file, imu, fmt=format, lat=lat, h=height, window=window, out=out,
                  gyro_arw=gyro_arw, accel_vrw=accel_vrw, gyro_bias=gyro_bias,
                  accel_bias=accel_bias, model=model, period=period, feedback=not open_loop,
-                 echo=typer.echo, force=force)
+                 strict=strict, echo=typer.echo, force=force)
 
     return align

@@ -17,15 +17,41 @@ __all__ = ["ALLAN", "allan_file", "register"]
 ALLAN = Command("allan", "Allan deviation and IEEE noise terms of a recorded IMU file")
 
 
+#: fewest clusters at τ = 1 s: the white-noise term N is σ(1 s) of the −½ line, and with
+#: K clusters σ is known to about 1/√(2(K−1)) (9 clusters: ±25 %); allantools stops at
+#: N/9 samples per cluster for the same reason
+MIN_CLUSTERS = 9
+
+
+def _at_longest(f) -> bool:
+    """True if the curve's minimum is its longest cluster time: the floor is not reached,
+    so the bias instability is an upper bound (the record is too short to show it)."""
+    return f.tau_floor >= f.tau[-1] * (1 - 1e-9)
+
+
 def _table(res: AllanResult):
+    """Rows (name, N, N unit, B, B unit, τ_floor, K, K unit); an upper bound is marked
+    ``<=`` in front of its unit (N without a clean −½ line, B at the longest τ)."""
     rows = []
+    ub = lambda flag: "<= " if flag else ""  # noqa: E731
     for f in res.gyro:
-        rows.append((f.name, f.n_white / units.dpsh, "deg/sqrt(h)" + ("(<=)" if f.n_is_bound else ""), f.bias_instability / units.dph,
-                     "deg/h", f.tau_floor, f.rrw / units.dphpsh, "deg/h/sqrt(h)"))
+        rows.append((f.name, f.n_white / units.dpsh, ub(f.n_is_bound) + "°/√h", f.bias_instability / units.dph,
+                     ub(_at_longest(f)) + "°/h", f.tau_floor, f.rrw / units.dphpsh, "°/h/√h"))
     for f in res.accel:
-        rows.append((f.name, f.n_white / units.ugpsHz, "ug/sqrt(Hz)" + ("(<=)" if f.n_is_bound else ""), f.bias_instability / units.ug,
-                     "ug", f.tau_floor, f.rrw / units.ug * math.sqrt(3600.0), "ug/sqrt(h)"))
+        rows.append((f.name, f.n_white / units.ugpsHz, ub(f.n_is_bound) + "µg/√Hz", f.bias_instability / units.ug,
+                     ub(_at_longest(f)) + "µg", f.tau_floor, f.rrw / units.ug * math.sqrt(3600.0), "µg/√h"))
     return rows
+
+
+def _check_clusters(imu, source) -> None:
+    """Refuse a record too short for an Allan fit: fewer than :data:`MIN_CLUSTERS` clusters
+    of 1 s (the cluster time at which the white-noise term is read)."""
+    dur = len(imu) * imu.dt
+    if dur < MIN_CLUSTERS * 1.0:
+        raise ValueError(f"{source}: {dur:.3g} s of data ({len(imu)} samples) is too short for an "
+                         f"Allan fit: the noise terms are read at cluster times of 1 s and longer, "
+                         f"which need at least {MIN_CLUSTERS} clusters ({MIN_CLUSTERS} s); the bias "
+                         f"instability needs minutes to hours")
 
 
 def _check_units(path, read_kw) -> None:
@@ -68,22 +94,26 @@ def _is_kind(unit, kind) -> bool:
         return False
 
 
-def allan_file(path, *, fmt=None, out=None, window=None, echo=print, **read_kw):
+def allan_file(path, *, fmt=None, out=None, window=None, strict=False, echo=print, **read_kw):
     """Read a recorded IMU file, compute the Allan deviations and write the run folder.
 
+    A record (window) shorter than :data:`MIN_CLUSTERS` s is refused; plausibility
+    warnings (:mod:`sinslab.app.plausibility`) and terms that are only upper bounds are
+    printed and listed in the report; ``strict`` refuses instead.
     Returns ``(summary, AllanResult, ImuErrors)``.
     """
     from sinslab.app.validate import option_window
 
     option_window("--window", window)
     _check_units(path, read_kw)
-    summary, res = run_command(ALLAN, out, lambda: _compute(path, fmt, window, echo, read_kw),
+    summary, res = run_command(ALLAN, out, lambda: _compute(path, fmt, window, echo, read_kw, strict),
                                echo=echo)
     return (summary, *res.value)
 
 
-def _compute(path, fmt, window, echo, read_kw) -> Output:
+def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
+    from sinslab.app.plausibility import Finding, imu_findings, settle
     from sinslab.data import load_imu
 
     data = load_imu(path, fmt, **read_kw)
@@ -91,20 +121,43 @@ def _compute(path, fmt, window, echo, read_kw) -> Output:
     if window:
         from sinslab.app.validate import check_window, option_window
 
-        check_window("--window", window, float(imu.t[0]) - imu.dt, float(imu.t[-1]))
+        check_window("--window", window, float(imu.t[0]) - imu.dt, float(imu.t[-1]), imu.dt)
         imu = imu.slice(*option_window("--window", window))
+    src = f"{path}" + (f" (window {window})" if window else "")
+    found = imu_findings(imu, src, gaps=data.gaps)
+    settle([fd for fd in found if fd.refuse])
+    if strict:
+        settle(found, strict=True)
+    _check_clusters(imu, src)
+    dead = [f"{s} {a}" for arr, s in ((imu.dtheta, "gyro"), (imu.dv, "accel"))
+            for k, a in enumerate("xyz") if np.ptp(arr[:, k]) == 0]
+    if dead:
+        raise ValueError(f"{src}: {', '.join(dead)} constant over all {len(imu)} samples: no Allan "
+                         f"deviation to fit (a dead or unconnected channel?)")
     res = allan(imu)
+    short = [f.name for f in res.gyro + res.accel if _at_longest(f)]
+    if short:
+        found.append(Finding(f"{src}: the Allan curve of {', '.join(short)} still falls at the longest "
+                             f"cluster time ({res.gyro[0].tau[-1]:.3g} s): the bias instability there "
+                             f"is an upper bound; a longer record shows the floor"))
+
     errs = imu_errors_from_allan(res)
     toml = errs.to_toml("imu")
     rows = _table(res)
     echo(f"{path}: {len(imu)} samples at {1 / imu.dt:g} Hz, {res.duration:.1f} s")
     echo(f"  {'axis':<8s} {'N (ARW/VRW)':>22s} {'bias instab. B':>18s} {'at tau':>9s} {'RRW K':>22s}")
     for nm, nv, nu, bv, bu, tf, kv, ku in rows:
-        echo(f"  {nm:<8s} {nv:12.4g} {nu:<12s}{bv:10.4g} {bu:<7s} {tf:8.3g}s {kv:10.3g} {ku}")
+        mn, mb = ("≤" if u.startswith("<= ") else "" for u in (nu, bu))
+        echo(f"  {nm:<8s} {mn + format(nv, '.4g'):>12s} {nu.removeprefix('<= '):<12s}"
+             f"{mb + format(bv, '.4g'):>10s} {bu.removeprefix('<= '):<7s} {tf:8.3g}s {kv:10.3g} {ku}")
     echo("  ImuErrors for a simulation config (bias instability as a Gauss-Markov process "
          "with the same Allan peak):")
     for line in toml.splitlines():
         echo("    " + line)
+    if any(r[2].startswith("<= ") or r[4].startswith("<= ") for r in rows):
+        echo("  (≤: an upper bound — no clean −½ slope for N, or no floor before the longest "
+             "cluster time for B)")
+    warnings = settle(found, strict=strict, echo=echo)
     metrics = {}
     for nm, nv, nu, bv, bu, tf, kv, ku in rows:
         key = nm.replace(" ", "_")
@@ -113,7 +166,9 @@ def _compute(path, fmt, window, echo, read_kw) -> Output:
         metrics[f"{key}_bias_instability_{'dph' if s == 'gyro' else 'ug'}"] = bv
         metrics[f"{key}_tau_floor_s"] = tf
         metrics[f"{key}_rrw_{'dphpsh' if s == 'gyro' else 'ugpsh'}"] = kv
-    cfg = {"file": str(path), "format": data.format, "window": window or ":"}
+    metrics["upper_bounds"] = [f"{r[0].replace(' ', '_')}_{t}" for r in rows for t, u in
+                               (("white_noise", r[2]), ("bias_instability", r[4])) if u.startswith("<= ")]
+    cfg = {"file": str(Path(path).absolute()), "format": data.format, "window": window or ":"}
     tab = {"tau_s": res.gyro[0].tau}
     for f in res.gyro:
         if f.tau.size == tab["tau_s"].size:
@@ -123,7 +178,7 @@ def _compute(path, fmt, window, echo, read_kw) -> Output:
             tab[f"{f.name.replace(' ', '_')}_adev_ug"] = f.adev / units.ug
     tables = [Series("allan", tab, "overlapping Allan deviation per axis")]
     fig, axes = plotting.figure(1, 2, sharex=False, width=11.0, row_height=4.6)
-    for ax, fits, sc, unit in ((axes[0], res.gyro, units.dph, "deg/h"), (axes[1], res.accel, units.ug, "ug")):
+    for ax, fits, sc, unit in ((axes[0], res.gyro, units.dph, "°/h"), (axes[1], res.accel, units.ug, "µg")):
         for f, c in zip(fits, plotting.COLORS):
             ax.loglog(f.tau, f.adev / sc, "-", color=c, lw=1.2, label=f.name)
             # the reported terms, not an overall fit: N/√τ (σ(1 s) = N) and K·√(τ/3)
@@ -150,7 +205,8 @@ def _compute(path, fmt, window, echo, read_kw) -> Output:
     notes = ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
              "imu_errors.toml: paste into a simulation config ([imu] table).", toml]
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures,
-                  files={"imu_errors.toml": toml}, notes=notes, value=(res, errs))
+                  files={"imu_errors.toml": toml}, notes=notes, value=(res, errs),
+                  warnings=warnings)
 
 
 def register(app):
@@ -164,6 +220,7 @@ def register(app):
               gyro_unit: Optional[str] = typer.Option(None, "--gyro-unit", help="unit of gyro columns without one"),
               accel_unit: Optional[str] = typer.Option(None, "--accel-unit", help="unit of accel columns without one"),
               out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/allan-<timestamp>]"),
+              strict: bool = typer.Option(False, "--strict", help="refuse (exit 2, nothing written) instead of warning about the data"),
               force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Allan deviation of recorded IMU data: ARW/VRW, bias instability, RRW and an ImuErrors block."""
         kw = {}
@@ -171,6 +228,7 @@ def register(app):
             kw["gyro_unit"] = gyro_unit
         if accel_unit:
             kw["accel_unit"] = accel_unit
-        cli_call(allan_file, file, fmt=format, out=out, window=window, echo=typer.echo, force=force, **kw)
+        cli_call(allan_file, file, fmt=format, out=out, window=window, strict=strict, echo=typer.echo,
+                 force=force, **kw)
 
     return allan

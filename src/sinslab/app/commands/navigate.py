@@ -68,7 +68,7 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                    columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
                    odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None,
                    fix_columns=None, fix_quality=None, vehicle_mount=None, nhc_lever=None,
-                   platform="auto", gnss_raw=None, gnss_nav=None, max_satellites=None):
+                   platform="auto", gnss_raw=None, gnss_nav=None, max_satellites=None, strict=False):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
 
     Raw GNSS: ``gnss_raw`` a u-blox log or RINEX observation file (``gnss_nav`` a RINEX
@@ -91,12 +91,18 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     vehicle RFU) — and ``platform`` auto | land | aircraft | marine (NHC and the odometer
     are refused off land).
 
+    Plausibility (:mod:`sinslab.app.plausibility`): the IMU record (length, dead channels,
+    ranges, |f| against gravity, gaps) and the run (long stretches where the NIS leaves its
+    band) are checked; a warning is printed and listed in the report, ``strict`` refuses.
+
     Returns ``(summary, RecordedNav, Fixes)``.
     """
-    from sinslab.app.validate import check_navigate_options
+    from sinslab.app.validate import check_mount, check_navigate_options
 
     check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag, imu_delay=imu_delay,
-                           max_gap=max_gap, lag=lag, time_sync=time_sync)
+                           max_gap=max_gap, lag=lag, time_sync=time_sync, rest=rest, aid=aid,
+                           lever_arm=lever_arm)
+    check_mount(mount, frame)
     if isinstance(init, (str, type(None))):
         _parse_init(init)
     summary, res = run_command(NAVIGATE, out, lambda: _compute(
@@ -109,7 +115,8 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                                     lever=odometer_lever, sigma=odometer_sigma),
         fix_columns=fix_columns, fix_quality=fix_quality,
         vehicle=dict(mount=vehicle_mount, lever=nhc_lever, platform=platform),
-        raw=dict(path=gnss_raw, nav=gnss_nav, max_satellites=max_satellites)), echo=echo)
+        raw=dict(path=gnss_raw, nav=gnss_nav, max_satellites=max_satellites),
+        strict=strict), echo=echo)
     return (summary, *res.value)
 
 
@@ -117,7 +124,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
              allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
              csv_rate=1.0, smo=None, fix_columns=None, fix_quality=None, vehicle=None,
-             raw=None) -> Output:
+             raw=None, strict=False) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import earth as E         # numba and scipy: only when it runs
@@ -160,6 +167,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.error_model import load_error_model
         em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
+    from sinslab.app.plausibility import imu_findings, nis_findings, settle
+
+    found = imu_findings(data.imu, str(imu_path), gaps=data.gaps)
+    settle([fd for fd in found if fd.refuse])
     raw_gnss = None
     if isinstance(fix_path, (list, tuple)):        # positions and velocities in two tables
         fix_path = (None if not fix_path else fix_path[0] if len(fix_path) == 1
@@ -175,8 +186,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     else:
         fix_name = " + ".join(map(str, fix_path)) if isinstance(fix_path, list) else str(fix_path)
         ffmt = fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
-        fx, fmeta = load_fixes(fix_path, ffmt, velocity_lag=velocity_lag, columns=fix_columns,
-                               quality=fix_quality)
+        fx, fmeta = _read_fixes(lambda: load_fixes(fix_path, ffmt, velocity_lag=velocity_lag,
+                                                   columns=fix_columns, quality=fix_quality),
+                                fix_name, ffmt)
         _say_fix_reading(fmeta, fix_name, echo)
     imu = data.imu
     if data.meta and "joined" in data.meta:
@@ -187,6 +199,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
              + ", ".join(f"{g[1]:.3f} s at {g[0] - imu.t0:.2f} s" for g in data.gaps[:5])
              + (" ..." if len(data.gaps) > 5 else ""))
+    span = min(float(fx.t[-1]), float(imu.t[-1])) - max(float(fx.t[0]), float(imu.t[0]))
+    if span > 0 and fix_latency >= span:
+        raise ValueError(f"--fix-latency {fix_latency:g}: at least the {span:.1f} s the fixes and the "
+                         f"IMU record share, so no fix would arrive before the record ends")
     opt = options or NavOptions()
     if lever_arm is not None:
         opt.lever_arm = tuple(_vec3(lever_arm, "length", "--lever-arm") if isinstance(lever_arm, str)
@@ -248,6 +264,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         opt.heading_straight = ini["course_spread"]
     opt.gnss_raw = raw_gnss
     res = navigate_recorded(imu, fx, opt)
+    if res.fix_t.size == 0:
+        raise ValueError(f"{fix_path}: no fix was applied (outages, latency or the record's end "
+                         f"removed all {len(fx)}); the solution would be free inertial")
     t, err, idx = fix_errors(res, fx)
     hz = np.hypot(err[:, 0], err[:, 1])
     starts, oe = outage_end_errors(res, fx)
@@ -296,8 +315,17 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.commands.raw_gnss import raw_claims
         claims, extra = raw_claims(raw_gnss)
     metrics.update(extra)
-    if res.nis.size and extra["nis_verdict"] != "consistent":
-        echo(f"  mean NIS {metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: {extra['nis_verdict']}")
+    if raw_gnss is None:            # the fix NIS (a raw run's per-row NIS is in its own claims)
+        if res.nis.size and extra["nis_verdict"] != "consistent":
+            echo(f"  mean NIS {metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: "
+                 f"{extra['nis_verdict']}")
+        found += nis_findings(res.fix_t, res.nis, metrics["nis_dof"])
+    if res.init.get("rest_start") is not None:        # |f| at the initial rest against gravity
+        from sinslab.app.plausibility import rest_gravity_findings
+
+        rest = imu.slice(res.init["rest_start"], res.init["rest_end"])
+        found += rest_gravity_findings(rest, f"{imu_path} (initial rest)", lat=float(fx.lat[0]),
+                                       h=float(fx.h[0]))
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
                        time_sync_offset_estimate_s=sync["offset_estimate"],
@@ -332,7 +360,11 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                  + (" ..." if len(sp_) > 4 else ""))
     if res.scale is not None:
         metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
-    cfg = {"imu": data.path, "fixes": fix_name, "format": data.format,
+    cfg = {"imu": (" + ".join(map(_abs, imu_path)) if isinstance(imu_path, (list, tuple))
+                   else _abs(imu_path)),
+           "fixes": (fix_name if fix_path is None else " + ".join(map(_abs, fix_path))
+                     if isinstance(fix_path, list) else _abs(fix_path)),
+           "format": data.format,
            "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.lever_arm)}] m",
            "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
            "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
@@ -360,8 +392,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              f"{np.percentile(hz[~in_out], 99):.3f} m, max {np.max(hz[~in_out]):.3f} m")
     echo(f"  final attitude pitch {metrics['final_pitch_deg']:.3f} deg, roll {metrics['final_roll_deg']:.3f} deg, "
          f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
-    echo(f"  gyro bias [deg/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [ug] "
+    echo(f"  gyro bias [°/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [µg] "
          f"{np.round(metrics['accel_bias_final_ug'], 0).tolist()}")
+    warnings = settle(found, strict=strict, echo=echo)
 
     sig = res.sigma
     sol = {"t_s": res.t - res.t[0], "t_abs_s": res.t, "lat_deg": np.degrees(res.nav[:, 7]),
@@ -427,10 +460,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     axes[0].set_ylabel("attitude σ [arcmin]")
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
     axes[1].semilogy(ts_, sig[:, i_gb] / units.dph, lw=1)
-    axes[1].set_ylabel("gyro bias σ [deg/h]")
+    axes[1].set_ylabel("gyro bias σ [°/h]")
     axes[1].legend(["x", "y", "z"], fontsize=8)
     axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
-    axes[2].set_ylabel("accel bias σ [ug]")
+    axes[2].set_ylabel("accel bias σ [µg]")
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
     figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
@@ -473,7 +506,27 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         cfg.update(gnss_raw=str(raw["path"]), gnss_nav=str(raw.get("nav") or "none"),
                    max_satellites=",".join(raw.get("max_satellites") or ()) or "none")
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  value=(res, fx), claims=claims)
+                  value=(res, fx), claims=claims, warnings=warnings)
+
+
+def _abs(path) -> str:
+    """A path as the report's re-run line gives it (absolute), for config.toml."""
+    return str(Path(path).absolute())
+
+
+def _read_fixes(read, path, fmt):
+    """``read()`` of the fix file, any reader error naming it: a file in another format makes
+    a reader fail anywhere (an IndexError on a short line), which is the file's fault, not a
+    bug."""
+    try:
+        return read()
+    except (IndexError, KeyError, UnicodeDecodeError, ValueError) as e:
+        msg = str(e) or type(e).__name__
+        if str(path) in msg:
+            raise ValueError(msg) from None
+        what = f"not readable as {fmt}" if fmt else "not readable"
+        raise ValueError(f"--fixes {path}: {what} ({type(e).__name__ + ': ' if not isinstance(e, ValueError) else ''}"
+                         f"{msg}); give --fix-format rtklib-pos | csv | mat-avp") from None
 
 
 def _say_fix_reading(meta, path, echo):
@@ -552,6 +605,10 @@ def _vehicle_options(opt, veh, nhc):
 
 
 # ------------------------------------------------------- smoothing and odometer ---
+#: fastest wheel speed accepted [m/s] (above any car's or train's; 720 km/h)
+MAX_WHEEL_SPEED = 200.0
+
+
 def _smooth_odometer_options(opt, smo, imu_path, sync):
     """Put ``--smooth`` and ``--odometer*`` into the options; returns their config entries."""
     from sinslab.data.odometer import read_odometer
@@ -564,15 +621,21 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
                 raise ValueError(f"--odometer-{k} needs --odometer FILE|COLUMN")
         return cfg
     odo = read_odometer(spec, imu_path, speed_unit=smo.get("units"))
+    if odo.speed.size and not np.max(odo.speed) <= MAX_WHEEL_SPEED:
+        i = int(np.argmax(odo.speed))
+        raise ValueError(f"--odometer {odo.source}: speed {odo.speed[i]:.4g} m/s at t = {odo.t[i]:.6g} s "
+                         f"is beyond any wheeled vehicle (<= {MAX_WHEEL_SPEED:g} m/s); a wrong unit "
+                         f"(--odometer-units) or column?")
     if sync is not None:
         odo = odo.shifted(sync["offset"], sync["ppm"], sync["t_ref"])
     opt.odometer = odo
     if smo.get("lever") is not None:
         opt.odometer_lever = tuple(_vec3(smo["lever"], "length", "--odometer-lever"))
     if smo.get("sigma") is not None:
-        opt.odometer_sigma = units.parse(smo["sigma"], "velocity")
-        if not (opt.odometer_sigma > 0 and math.isfinite(opt.odometer_sigma)):
-            raise ValueError(f"--odometer-sigma must be > 0, got {smo['sigma']!r}")
+        from sinslab.app.validate import option_quantity
+
+        opt.odometer_sigma = option_quantity("--odometer-sigma", smo["sigma"], "velocity",
+                                             gt="0 m/s", le="100 m/s")
     cfg.update(odometer=odo.source, odometer_lever=f"[{', '.join(f'{x:g}' for x in opt.odometer_lever)}] m",
                odometer_sigma=f"{opt.odometer_sigma:g} m/s")
     return cfg
@@ -671,7 +734,7 @@ def register(app):
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
                  lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
                  mount: Optional[str] = typer.Option(None, "--mount", help="sensor -> vehicle rotation: rpy:R,P,Y | euler:P,R,Y (deg) | quat:W,X,Y,Z | matrix:M11,...,M33"),
-                 frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu | frd | flu"),
+                 frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu (right-forward-up, default) | frd (forward-right-down) | flu (forward-left-up) | rbd (right-back-down)"),
                  outages: Optional[str] = typer.Option(None, "--outages", help="START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
                  fix_latency: float = typer.Option(0.0, "--fix-latency", help="simulated fix latency [s]"),
                  lag: str = typer.Option("aware", "--lag", help="aware | ignore (how late fixes are applied)"),
@@ -699,7 +762,8 @@ def register(app):
                  fix_quality: Optional[str] = typer.Option(None, "--fix-quality", help="accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2"),
                  vehicle_mount: Optional[str] = typer.Option(None, "--vehicle-mount", help='IMU body (after --mount) in the vehicle frame, e.g. "euler:1.2,0,-1.5" (pitch, roll, yaw deg); with --aid nhc pitch and yaw are estimated from it'),
                  nhc_lever: Optional[str] = typer.Option(None, "--nhc-lever", help='IMU -> rear-axle centre, vehicle right-forward-up, e.g. "[0, -1.4, -0.5] m" (estimated from it with --aid nhc)'),
-                 platform: str = typer.Option("auto", "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)")) -> None:
+                 platform: str = typer.Option("auto", "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)"),
+                 strict: bool = typer.Option(False, "--strict", help="refuse (exit 2, nothing written) instead of warning about the data or the run")) -> None:
         """INS + position/velocity fixes (loosely coupled) or raw GNSS pseudoranges/Doppler (tightly coupled) on recorded data."""
         cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
                  mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
@@ -710,6 +774,7 @@ def register(app):
                  odometer_units=odometer_units, odometer_lever=odometer_lever,
                  odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality,
                  vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform,
-                 gnss_raw=gnss_raw, gnss_nav=gnss_nav, max_satellites=max_satellites)
+                 gnss_raw=gnss_raw, gnss_nav=gnss_nav, max_satellites=max_satellites,
+                 strict=strict)
 
     return navigate

@@ -97,10 +97,14 @@ class Output:
     value: Any = None
     #: :class:`sinslab.experiments.base.Claim` s the command checked (none: no claims section)
     claims: list = field(default_factory=list)
+    #: plausibility warnings about the data or the run (:mod:`sinslab.app.plausibility`),
+    #: already printed; ``summary.json`` ``warnings`` and a flagged list in the report
+    warnings: list = field(default_factory=list)
 
 
 def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metrics: dict,
-                    notes=(), claims=(), paper: str = "", timing: dict | None = None) -> dict:
+                    notes=(), claims=(), paper: str = "", timing: dict | None = None,
+                    warnings=()) -> dict:
     """The ``summary.json`` of a command: the keys of every run folder (``experiment``,
     ``sinslab_version``, ``config``, ``metrics``, ``claims``) plus what the report needs
     (units and descriptions of the metrics, the command line that re-runs it)."""
@@ -113,6 +117,7 @@ def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metric
             "quick": False, "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
             "metric_info": metric_info(command, metrics), "figures": rd.figure_files,
             "series": rd.series_info, "tables": [], "notes": list(notes),
+            "warnings": list(warnings),
             "rerun": invocation(), "timing": timing or {}}
 
 
@@ -162,7 +167,14 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
         _close(res.figures[written:])
     summary = complete_timed(rd, command_summary(rd, command.name, command.purpose, res.config,
                                                  res.metrics, res.notes, res.claims,
-                                                 paper=command.paper, timing=timing))
+                                                 paper=command.paper, timing=timing,
+                                                 warnings=res.warnings))
+    if summary.get("claims"):
+        from sinslab.app.report import claim_texts
+
+        for c in summary["claims"]:
+            measured, expected = claim_texts(c)
+            echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {measured} (expected {expected})")
     echo(f"  -> {out}")
     return summary, res
 

@@ -1,0 +1,247 @@
+"""Plausibility checks of recorded data and of a filter run: garbage in is caught.
+
+A reader accepts any well-formed file; these checks ask whether its numbers can be an
+IMU on the Earth, and whether a navigation filter stayed consistent with its data. Each
+finding is one line naming the file (or the run), the value and what was expected. A
+:class:`Finding` with ``refuse=True`` is one where no answer can mean anything (every
+sample zero, magnitudes beyond any IMU's range, a record too short): the command stops
+with exit status 2 and writes nothing. The others are warnings: printed as
+``warning: ...`` and listed in the report; ``--strict`` turns every warning into a refusal.
+
+Usage in a command's compute function::
+
+    from sinslab.app.plausibility import imu_findings, settle
+
+    found = imu_findings(data.imu, str(path), lat=lat, gaps=data.gaps)
+    warnings = settle(found, strict=strict, echo=echo)    # raises CliError on a refusal
+    return Output(..., warnings=warnings)
+
+Thresholds are module constants (no tuning per file): see each one's comment.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sinslab.app.errors import CliError
+
+__all__ = ["Finding", "imu_findings", "rest_findings", "rest_gravity_findings", "gap_findings",
+           "nis_findings", "settle",
+           "MIN_SAMPLES", "MAX_RATE_DPS", "MAX_ACCEL_G"]
+
+#: fewest samples any command can use (a levelling, an alignment, a first filter step)
+MIN_SAMPLES = 10
+#: the largest range of any IMU on sale is about ±4000 °/s and ±400 g (shock and
+#: projectile units); beyond these a sample is a unit slip or a corrupt record
+MAX_RATE_DPS = 5000.0
+MAX_ACCEL_G = 500.0
+#: |f| on the Earth, at rest or averaged over a ride, is gravity: a median beyond ±50 %
+#: is a wrong accelerometer unit (g read as m/s² gives 0.1 g; m/s² read as g, 9.8 g) or
+#: column; beyond ±5 % an uncalibrated scale or a wrong unit of a close size
+F_REFUSE = 0.5
+F_WARN = 0.05
+#: a gap is worth a warning when the rotation it hides may exceed this [deg] or the gap
+#: itself is this long [s] (a car turning at 10 °/s through a 0.1 s gap: 1°)
+GAP_WARN_DEG = 0.5
+GAP_WARN_S = 1.0
+#: NIS monitor: window [s] of the moving mean, and the stretch [s] (and share of the
+#: fixes) an inconsistent window must last to be reported
+NIS_WINDOW_S = 30.0
+NIS_STRETCH_S = 60.0
+NIS_STRETCH_SHARE = 0.1
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One line about the data or the run; ``refuse``: no answer from it can mean anything."""
+
+    text: str
+    refuse: bool = False
+
+
+def _g(lat, h=0.0) -> float:
+    from sinslab.core import earth
+
+    return float(earth.gravity(0.0 if lat is None else float(lat), float(h)))
+
+
+def imu_findings(imu, source: str, *, lat=None, h=0.0, gaps=None) -> list[Finding]:
+    """Checks of a whole IMU record: length, dead channels, ranges, |f| against gravity, gaps.
+
+    Parameters
+    ----------
+    imu : sinslab.core.records.ImuRecord
+        Increments in the body frame.
+    source : str
+        The file (and window) named in every line.
+    lat, h : float, optional
+        Latitude [rad] and height [m] for the local gravity (default: equator, 0 m —
+        the normal gravity varies by 0.5 % between equator and poles, inside F_WARN).
+    gaps : array (k, 2), optional
+        ``[start, length]`` [s] of the bridged gaps (:class:`sinslab.data.increments.ImuData`).
+    """
+    n = len(imu)
+    if n < MIN_SAMPLES:
+        return [Finding(f"{source}: only {n} sample{'s' if n != 1 else ''} "
+                        f"({n * imu.dt:.3g} s); a run needs at least {MIN_SAMPLES}", True)]
+    out: list[Finding] = []
+    w = imu.dtheta / imu.dt
+    f = imu.dv / imu.dt
+    if not np.any(w) and not np.any(f):
+        return [Finding(f"{source}: every gyro and accelerometer sample is zero: the file "
+                        f"holds no measurement", True)]
+    dead = []
+    for arr, sensor, unit, sc in ((w, "gyro", "deg/s", math.degrees(1.0)), (f, "accel", "m/s^2", 1.0)):
+        for k, ax in enumerate("xyz"):
+            col = arr[:, k]
+            if col.min() == col.max():
+                dead.append(f"{sensor} {ax} = {col[0] * sc:.6g} {unit}")
+    if dead:
+        out.append(Finding(f"{source}: constant over all {n} samples: {', '.join(dead)} "
+                           f"(a dead, unconnected or saturated channel?)"))
+    wn = np.sqrt(np.sum(w * w, axis=1))
+    fn = np.sqrt(np.sum(f * f, axis=1))
+    g = _g(lat, h)
+    for mag, lim, unit, sc, sensor in ((wn, MAX_RATE_DPS, "deg/s", math.degrees(1.0), "angular rate"),
+                                       (fn, MAX_ACCEL_G, "g", 1.0 / 9.80665, "specific force")):
+        i = int(np.argmax(mag))
+        if mag[i] * sc > lim:
+            out.insert(0, Finding(
+                f"{source}: {sensor} of {mag[i] * sc:.4g} {unit} at t = {imu.t[i]:.6g} s is beyond "
+                f"any IMU's range (±{lim:g} {unit}): a wrong unit or a corrupt record", True))
+    if not np.any(f):
+        out.insert(0, Finding(f"{source}: every accelerometer sample is zero; an IMU on the Earth "
+                              f"measures about 1 g: no accelerometer data (wrong columns?)", True))
+    else:
+        med = float(np.median(fn))
+        r = med / g
+        if abs(r - 1.0) > F_WARN:
+            hint = ("a wrong accelerometer unit or column" if abs(r - 1.0) > F_REFUSE else
+                    "an accelerometer scale error, or a record that is not on the Earth's surface")
+            out.append(Finding(f"{source}: median specific force |f| = {med:.4g} m/s^2 = {r:.3g} × "
+                               f"local gravity {g:.4f} m/s^2 (expected within ±{F_WARN:.0%}): {hint}",
+                               abs(r - 1.0) > F_REFUSE))
+    if gaps is not None and len(gaps):
+        out += gap_findings(imu, gaps, source)
+    return out
+
+
+def rest_gravity_findings(imu, source: str, *, lat=None, h=0.0) -> list[Finding]:
+    """|mean f| of a record at rest against local gravity (within :data:`F_WARN`)."""
+    g = _g(lat, h)
+    fm = float(np.linalg.norm((imu.dv / imu.dt).mean(axis=0))) if len(imu) else 0.0
+    if fm > 0 and abs(fm / g - 1.0) > F_WARN:
+        return [Finding(f"{source}: mean specific force at rest {fm:.5g} m/s^2 = {fm / g:.4f} × "
+                        f"local gravity {g:.5f} m/s^2 (expected within ±{F_WARN:.0%}): not at "
+                        f"rest, or an accelerometer scale or unit error", abs(fm / g - 1.0) > F_REFUSE)]
+    return []
+
+
+def rest_findings(imu, source: str, *, lat=None, h=0.0, pieces: int = 10) -> list[Finding]:
+    """Checks of a record that should be at rest (an alignment window): |f| against local
+    gravity (:func:`rest_gravity_findings`), and the attitude of ``pieces`` equal parts from
+    their mean specific force — pitch or roll steps between parts larger than the noise
+    allows mean motion."""
+    out = rest_gravity_findings(imu, source, lat=lat, h=h)
+    n = len(imu)
+    f = imu.dv / imu.dt
+    g = _g(lat, h)
+    m = n // pieces
+    if m < 2:
+        return out
+    parts = f[: m * pieces].reshape(pieces, m, 3)
+    mean = parts.mean(axis=1)
+    # levelling of each part (RFU: pitch from y, roll from x against z)
+    pitch = np.degrees(np.arctan2(mean[:, 1], np.hypot(mean[:, 0], mean[:, 2])))
+    roll = np.degrees(np.arctan2(-mean[:, 0], mean[:, 2]))
+    # what white noise alone gives: the σ of a part's mean tilt from the sample scatter
+    noise = np.degrees(np.sqrt(np.mean(parts.var(axis=1)[:, :2], axis=0) / m) / max(g, 1e-9))
+    tol = np.maximum(6.0 * noise, 0.005)          # 6σ of the difference of two parts, ≥ 0.3′
+    for name, a, s in (("pitch", pitch, tol[1]), ("roll", roll, tol[0])):
+        step = float(np.ptp(a))
+        if step > s:
+            i, j = int(np.argmin(a)), int(np.argmax(a))
+            t = imu.t[: m * pieces].reshape(pieces, m)
+            out.append(Finding(
+                f"{source}: {name} from the mean specific force changes by {step:.3g} deg between "
+                f"{t[i, 0]:.0f}–{t[i, -1]:.0f} s and {t[j, 0]:.0f}–{t[j, -1]:.0f} s (noise allows "
+                f"{s:.2g} deg): the window holds motion; choose a window at rest"))
+    return out
+
+
+def gap_findings(imu, gaps, source: str) -> list[Finding]:
+    """A warning for the gaps whose bridging may hide a rotation: the rate next to each gap
+    times its length bounds the rotation the mean-rate bridge may have missed."""
+    gaps = np.asarray(gaps, float).reshape(-1, 2)
+    w = np.degrees(np.sqrt(np.sum((imu.dtheta / imu.dt) ** 2, axis=1)))
+    k = max(1, int(round(1.0 / imu.dt)))                  # 1 s of samples on each side
+    worst = []
+    for t0, ln in gaps:
+        i = int(np.searchsorted(imu.t, t0))
+        near = w[max(0, i - k): i + k + int(ln / imu.dt)]
+        rate = float(near.max()) if near.size else 0.0
+        worst.append((rate * ln, ln, t0, rate))
+    rot, ln, t0, rate = max(worst)
+    longest = max(g[1] for g in gaps)
+    if rot < GAP_WARN_DEG and longest < GAP_WARN_S:
+        return []
+    return [Finding(f"{source}: {len(gaps)} gap(s) bridged with the mean rate, longest "
+                    f"{longest:.3g} s; the gap of {ln:.3g} s at {t0 - imu.t[0] + imu.dt:.2f} s lies "
+                    f"next to turn rates up to {rate:.3g} deg/s, so up to {rot:.3g} deg of rotation "
+                    f"(and the velocity change across it) is interpolated, not measured")]
+
+
+def nis_findings(t, nis, dof: int, *, factor: float = 2.0) -> list[Finding]:
+    """A warning for each long stretch where the filter is inconsistent with its fixes.
+
+    The moving mean of the NIS over :data:`NIS_WINDOW_S` is compared with the expected
+    value, the measurement dimension ``dof``, within ``factor`` either way (the band of the
+    ``nis_consistent`` claim); a stretch outside lasting :data:`NIS_STRETCH_S` and
+    :data:`NIS_STRETCH_SHARE` of the fixes is reported with its times and mean NIS.
+    """
+    t = np.asarray(t, float)
+    nis = np.asarray(nis, float)
+    ok = np.isfinite(nis) & np.isfinite(t)
+    t, nis = t[ok], nis[ok]
+    if nis.size < 10:
+        return []
+    c = np.concatenate([[0.0], np.cumsum(nis)])
+    lo = np.searchsorted(t, t - NIS_WINDOW_S / 2)
+    hi = np.searchsorted(t, t + NIS_WINDOW_S / 2, side="right")
+    mean = (c[hi] - c[lo]) / np.maximum(hi - lo, 1)
+    out = []
+    for sign, bad, what in ((1, mean > dof * factor, "overconfident: errors larger than its σ say "
+                             "(noise model, lever arm, time offset or mount off)"),
+                            (-1, mean < dof / factor, "underconfident: its σ larger than the errors "
+                             "(noise model too pessimistic)")):
+        if not bad.any():
+            continue
+        edges = np.flatnonzero(np.diff(np.r_[0, bad.astype(int), 0]))
+        runs = [(t[b - 1] - t[a], a, b) for a, b in zip(edges[::2], edges[1::2])]
+        dur, a, b = max(runs)
+        share = float(bad.mean())
+        if dur >= NIS_STRETCH_S and share >= NIS_STRETCH_SHARE:
+            out.append(Finding(
+                f"the filter is inconsistent with its fixes for {dur:.0f} s ({t[a] - t[0]:.0f}–"
+                f"{t[b - 1] - t[0]:.0f} s after the first applied fix; {share:.0%} of the fixes in "
+                f"such stretches): {NIS_WINDOW_S:g}-s mean NIS {float(np.mean(nis[a:b])):.3g} against "
+                f"the expected {dof} (the measurement dimension; band {dof / factor:g}–{dof * factor:g}), "
+                f"{what}"))
+    return out
+
+
+def settle(findings, *, strict: bool = False, echo=print) -> list[str]:
+    """Refuse on the first refusing finding (any finding with ``strict``): raise
+    :class:`CliError` with its line (and, with ``strict``, that ``--strict`` refused it).
+    Otherwise print each as ``warning: ...`` and return their texts for the report."""
+    for fd in findings:
+        if fd.refuse:
+            raise CliError(fd.text)
+    if strict and findings:
+        more = f" (and {len(findings) - 1} more warning(s))" if len(findings) > 1 else ""
+        raise CliError(f"{findings[0].text}{more}; refused because of --strict")
+    for fd in findings:
+        echo(f"  warning: {fd.text}")
+    return [fd.text for fd in findings]
