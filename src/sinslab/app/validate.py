@@ -324,7 +324,7 @@ def check_navigate_options(*, fix_latency=0.0, velocity_lag=0.0, imu_delay=0.0, 
 
 def check_mount(mount, frame) -> None:
     """``--frame`` and ``--mount`` of the recorded-data commands, before any file is read."""
-    from sinslab.data.frames import frame_matrix, mount_matrix
+    from sinslab.data.frames import frame_matrix, sensor_to_body
 
     if frame is not None:
         try:
@@ -333,7 +333,7 @@ def check_mount(mount, frame) -> None:
             raise CliError(f"--frame {frame!r}: {e}") from None
     if mount is not None:
         try:
-            mount_matrix(mount, frame or "rfu")
+            sensor_to_body(mount, frame or "rfu")
         except ValueError as e:
             raise CliError(f"--mount: {e}") from None
 
