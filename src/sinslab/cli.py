@@ -159,8 +159,12 @@ def _print_summary(summary: dict, out: Path) -> None:
     claims = summary["claims"]
     n = sum(c["passed"] for c in claims)
     for c in claims:
-        typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {c['statement']}")
-    typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed, "
+        o = f" ({c['origin']})" if c.get("origin") else ""
+        typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}{o}: {c['statement']}")
+    from sinslab.app.claims import tally
+
+    typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed"
+               + (f" ({tally(claims)})" if claims else "") + ", "
                f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s -> {out / 'report.html'}")
 
 

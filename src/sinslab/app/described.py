@@ -184,7 +184,8 @@ def navigate_claims(nis, dof: int, hz_err_with_fixes, fix_sigma_h) -> tuple[list
         f"the filter's fix noise model is consistent: mean NIS of the {nis.size} applied fixes "
         f"equals the measurement dimension {dof} within a factor {NIS_FACTOR:g}",
         mean_nis, [dof / NIS_FACTOR, dof * NIS_FACTOR],
-        bool(nis.size and dof / NIS_FACTOR <= mean_nis <= dof * NIS_FACTOR), relation="between")]
+        bool(nis.size and dof / NIS_FACTOR <= mean_nis <= dof * NIS_FACTOR), relation="between",
+        origin="check")]
     e = np.asarray(hz_err_with_fixes, float)
     s = np.asarray(fix_sigma_h, float)
     ok = np.isfinite(e) & np.isfinite(s) & (s > 0)
@@ -194,7 +195,8 @@ def navigate_claims(nis, dof: int, hz_err_with_fixes, fix_sigma_h) -> tuple[list
         "fix_residual",
         "the solution follows the fixes it uses: median of horizontal solution − fix (outside "
         "outages) in units of the fixes' stated horizontal σ; a consistent filter gives at most "
-        f"√(ln 2) = 0.83 (Rayleigh median), allowed {FIX_RESIDUAL_SIGMAS:g}× that", ratio, limit, "σ"))
+        f"√(ln 2) = 0.83 (Rayleigh median), allowed {FIX_RESIDUAL_SIGMAS:g}× that", ratio, limit, "σ",
+        origin="check"))
     return claims, {"nis_dof": int(dof), "hz_err_with_fixes_median_over_sigma": ratio}
 
 
