@@ -299,3 +299,16 @@ def test_cli_bad_recorded_noise_is_one_line(tmp_path):
     assert p.returncode == 2, p.stderr
     lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("sinslab: error:") and "short.csv" in lines[0], p.stderr
+
+
+def test_campaign_benchmark_script_runs():
+    """benchmarks/rotins_campaign.py (what a campaign worker no longer rebuilds) end to end on
+    2 h and 2 seeds; no timing asserted."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "rotins_campaign.py"
+    spec = importlib.util.spec_from_file_location("bench_rotins_campaign", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    res = mod.measure(2.0, 2)
+    assert res["table_entries"] > 0 and res["rebuild_s"] > 0 and res["ship_s"] > 0 and res["batch_s"] > 0
