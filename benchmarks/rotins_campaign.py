@@ -36,7 +36,10 @@ def measure(hours=144.0, seeds=10):
     from sinslab.experiments import rotation_evaluation as R
     from sinslab.methods import rotins
 
-    cfg = resolve(get("rotation-evaluation").config, sets=[f"scenario.duration={hours} h"])
+    sets = [f"scenario.duration={hours} h"]
+    if hours < 24:
+        sets += [f"evaluation.start={hours / 4} h", f"evaluation.window={hours / 4} h"]
+    cfg = resolve(get("rotation-evaluation").config, sets=sets)
     lat, lon = float(cfg.scenario.latitude), float(cfg.scenario.longitude)
     model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
                                         float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
