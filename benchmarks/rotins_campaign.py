@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import pickle
 import sys
@@ -34,19 +33,13 @@ def measure(hours=144.0, seeds=10):
     from sinslab.app.config import resolve
     from sinslab.experiments import get
     from sinslab.experiments import rotation_evaluation as R
-    from sinslab.methods import rotins
 
     sets = [f"scenario.duration={hours} h"]
     if hours < 24:
         sets += [f"evaluation.start={hours / 4} h", f"evaluation.window={hours / 4} h"]
     cfg = resolve(get("rotation-evaluation").config, sets=sets)
     lat, lon = float(cfg.scenario.latitude), float(cfg.scenario.longitude)
-    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
-                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
-    P0 = rotins.joint_P0(model, lat, att=np.asarray(cfg.init.att_err, float) * math.sqrt(2),
-                         gyro1=float(cfg.filter.gyro_sigma0), gyrok=float(cfg.filter.gyro_sigma0),
-                         accel1=float(cfg.filter.accel_sigma0), accelk=float(cfg.filter.accel_sigma0))
-    sig = rotins.difference_sigma(lat, float(cfg.filter.meas_floor_pos), float(cfg.filter.meas_floor_vel))
+    model, P0, sig = R.joint_filter_setup(cfg)
     m1, mk = R.mounts(cfg)
     _, _, me, n_kf, _ = R._grid(cfg)
     t0 = time.perf_counter()

@@ -45,3 +45,21 @@ def simulated_car_drive(segments):
                np.full((k.size, 3), 0.01), tru.vel[k] + rng.normal(0, 0.02, (k.size, 3)),
                np.full((k.size, 3), 0.05), np.ones(k.size, int))
     return imu, fx, tru, err, rng
+
+
+def run_experiment(name, sets=(), quick=True):
+    """The :class:`sinslab.experiments.base.Result` of one experiment run in this process
+    (``--quick`` configuration unless ``quick=False``, ``--set`` lines ``sets``, Monte Carlo
+    serial), without a run folder."""
+    import tempfile
+    from pathlib import Path
+
+    import sinslab.experiments as E
+    from sinslab.app.config import resolve
+    from sinslab.experiments.base import RunContext
+
+    exp = E.get(name)
+    cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=list(sets))
+    with tempfile.TemporaryDirectory() as d:
+        return exp.run(cfg, RunContext(name=name, out=Path(d), seed=cfg.seed, runs=cfg.runs, quick=quick,
+                                       scheduler="sync"))

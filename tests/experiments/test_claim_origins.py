@@ -2,26 +2,18 @@
 sentence of the paper) or ``"check"`` (a test the project adds), so that reports count the
 paper's reproduced statements apart from the checks. Generic over the registered
 experiments: a new experiment, or a new claim, without an origin fails here."""
-import tempfile
-from pathlib import Path
-
 import pytest
+from support import run_experiment
 
 import sinslab.experiments as E
 from sinslab.app.claims import Claim, tally
-from sinslab.app.config import resolve
-from sinslab.experiments.base import RunContext
 
 OURS = sorted(n for n, e in E.registry().items() if e.module.startswith("sinslab.experiments."))
 
 
 @pytest.mark.parametrize("name", OURS)
 def test_every_claim_of_a_quick_run_has_an_origin(name):
-    exp = E.get(name)
-    cfg = resolve(exp.config, quick=exp.quick)
-    with tempfile.TemporaryDirectory() as d:
-        res = exp.run(cfg, RunContext(name=name, out=Path(d), seed=cfg.seed, runs=cfg.runs, quick=True,
-                                      scheduler="sync"))
+    res = run_experiment(name)
     assert res.claims, f"{name}: no claims"
     missing = [c.id for c in res.claims if c.origin not in ("paper", "check")]
     assert not missing, f"{name}: claims without an origin ('paper' or 'check'): {missing}"

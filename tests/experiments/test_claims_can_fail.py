@@ -7,14 +7,11 @@ experiment's ``run`` (no run folder), and the claims that must catch it are chec
 fail. Every registered experiment needs an entry here.
 """
 import functools
-import tempfile
-from pathlib import Path
 
 import pytest
+from support import run_experiment
 
 import sinslab.experiments as E
-from sinslab.app.config import resolve
-from sinslab.experiments.base import RunContext
 
 #: experiment -> (--set lines, claim ids that must fail, why they must)
 WRONG = {
@@ -83,12 +80,7 @@ RIVALS = [
 
 @functools.lru_cache(maxsize=None)
 def _claims_of(name, sets):
-    exp = E.get(name)
-    cfg = resolve(exp.config, quick=exp.quick, sets=list(sets))
-    with tempfile.TemporaryDirectory() as d:
-        res = exp.run(cfg, RunContext(name=name, out=Path(d), seed=cfg.seed, runs=cfg.runs,
-                                      quick=True, scheduler="sync"))
-    return {c.id: c for c in res.claims}
+    return {c.id: c for c in run_experiment(name, sets).claims}
 
 
 @pytest.mark.parametrize("name, base, rival, ids, why", RIVALS, ids=[r[4] for r in RIVALS])
@@ -113,12 +105,7 @@ def test_wrong_input_fails_its_claims(name):
     if name not in E.registry():
         pytest.fail(f"{name} is not a registered experiment")
     sets, must_fail, = WRONG[name]
-    exp = E.get(name)
-    cfg = resolve(exp.config, quick=exp.quick, sets=sets)
-    with tempfile.TemporaryDirectory() as d:
-        res = exp.run(cfg, RunContext(name=name, out=Path(d), seed=cfg.seed, runs=cfg.runs,
-                                      quick=True, scheduler="sync"))
-    verdict = {c.id: c.passed for c in res.claims}
+    verdict = {c.id: c.passed for c in run_experiment(name, sets).claims}
     missing = must_fail - set(verdict)
     assert not missing, f"claims {missing} not evaluated"
     passed = sorted(k for k in must_fail if verdict[k])

@@ -7,15 +7,14 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from support import run_experiment
 
 from sinslab.app.config import ConfigError, resolve
 from sinslab.experiments import execute, get
-from sinslab.experiments.base import RunContext
 from sinslab.experiments import rotation_evaluation as R
 from sinslab.methods import rotins
 from sinslab.sim import imu as imu_
@@ -107,12 +106,7 @@ def test_linear_campaign_matches_nonlinear_pipeline(small):
     exp = get("rotation-evaluation")
     cfg = resolve(exp.config, sets=SMALL)
     lat = float(cfg.scenario.latitude)
-    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
-                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
-    P0 = rotins.joint_P0(model, lat, att=np.asarray(cfg.init.att_err, float) * math.sqrt(2),
-                         gyro1=float(cfg.filter.gyro_sigma0), gyrok=float(cfg.filter.gyro_sigma0),
-                         accel1=float(cfg.filter.accel_sigma0), accelk=float(cfg.filter.accel_sigma0))
-    sig = rotins.difference_sigma(lat, float(cfg.filter.meas_floor_pos), float(cfg.filter.meas_floor_vel))
+    model, P0, sig = R.joint_filter_setup(cfg)
     m1, mk = R.mounts(cfg)
     dt, k_md, me, n_kf, _ = R._grid(cfg)
     tables = R.schedule_transitions(m1, mk, lat, float(cfg.scenario.longitude), model, float(cfg.filter.model_dt), me,
@@ -134,14 +128,8 @@ def test_settling_does_not_depend_on_the_run_length():
     """Both readings of "stable after 16 h" (paper §6.1.1) are causal: a 48 h and a 144 h run
     of one seed give them within 10 % (the old "within the final 1σ" grew with the run's
     length: 28, 36, 57 h for 32, 48, 144 h)."""
-    exp = get("rotation-evaluation")
-    out = {}
-    for hours in (48, 144):
-        cfg = resolve(exp.config, sets=COARSE + [f"scenario.duration={hours} h"])
-        with tempfile.TemporaryDirectory() as d:
-            res = exp.run(cfg, RunContext(name=exp.name, out=Path(d), seed=cfg.seed, runs=1, quick=True,
-                                          scheduler="sync"))
-        out[hours] = res.metrics
+    out = {h: run_experiment("rotation-evaluation", COARSE + [f"scenario.duration={h} h"], quick=False).metrics
+           for h in (48, 144)}
     for k in ("settle_sigma_h", "settle_band_h"):
         a, b = out[48][k], out[144][k]
         assert math.isfinite(a) and math.isfinite(b), k

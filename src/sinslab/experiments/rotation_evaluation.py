@@ -702,6 +702,21 @@ def load_recorded_gyro(path, n_needed, dt, what):
     return g
 
 
+def joint_filter_setup(cfg: Config):
+    """The nominal joint filter of every pair: ``(model, P0, sigma)`` — the 17-state model
+    with the configured noise densities, the initial covariance (each INS's attitude error
+    drawn on its own, so the difference has √2 × its σ) and the R ≈ 0 floor."""
+    from sinslab.methods import rotins
+
+    lat, fl = float(cfg.scenario.latitude), cfg.filter
+    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
+                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
+    P0 = rotins.joint_P0(model, lat, att=np.asarray(cfg.init.att_err, float) * math.sqrt(2),
+                         gyro1=float(fl.gyro_sigma0), gyrok=float(fl.gyro_sigma0), accel1=float(fl.accel_sigma0),
+                         accelk=float(fl.accel_sigma0))
+    return model, P0, rotins.difference_sigma(lat, float(fl.meas_floor_pos), float(fl.meas_floor_vel))
+
+
 def drift_trend(cfg: Config):
     """INS #1's azimuth drift trend of analysis two (:class:`sinslab.sim.imu.Trend`, time
     from the start of the run): a warm-up ``A (1 − exp(−t/τ))`` or a sine ``A sin(2πt/P)``,
@@ -739,8 +754,6 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
     trend. ``rec1``, ``reck``: recorded gyro noise (rad/s at the IMU rate) of INS #1 and of
     INS #2..#4, or None.
     """
-    from sinslab.sim import imu as imu_
-
     sc, ev, fl = cfg.scenario, cfg.evaluation, cfg.filter
     lat, lon = float(sc.latitude), float(sc.longitude)
     dt, k_md, me, n_kf, n_steps = _grid(cfg)
@@ -814,8 +827,7 @@ def run(cfg: Config, ctx) -> Result:
 
     # --- observability along the actual schedule
     m1, mk = mounts(cfg)
-    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
-                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
+    model, P0, sig_meas = joint_filter_setup(cfg)
     so, warning = observability(cfg, model)
     warn_rank = warning is not None
     if warn_rank:
@@ -825,7 +837,6 @@ def run(cfg: Config, ctx) -> Result:
     t0, c0 = time.perf_counter(), time.process_time()
     specs, nav_kw, two_2, trend = ins_plan(cfg, rec1, reck)
     a2 = cfg.analysis_two
-    att_sigma = np.asarray(cfg.init.att_err, float)
     betas = [float(b) for b in ev.beta_grid]
     drv = fl.engine == "driver"
     with ctx.progress("navigating", total=len(specs), unit="INS") as bar:
@@ -839,10 +850,6 @@ def run(cfg: Config, ctx) -> Result:
     t0, c0 = time.perf_counter(), time.process_time()
     t_md = model_dt * np.arange(n_steps + 1)
     t_ep = t_md[::me]
-    sig_meas = rotins.difference_sigma(lat, float(fl.meas_floor_pos), float(fl.meas_floor_vel))
-    P0 = rotins.joint_P0(model, lat, att=att_sigma * math.sqrt(2), gyro1=float(fl.gyro_sigma0),
-                         gyrok=float(fl.gyro_sigma0), accel1=float(fl.accel_sigma0),
-                         accelk=float(fl.accel_sigma0))
     iz = model.layout.index(["eps_z_1"])[0]
 
     def stream(o):
