@@ -93,7 +93,7 @@ def test_drift_random_walk_leaves_the_paper_model_alone(small, tmp_path):
     for k in ("trend_correlation", "trend_track_rms_dph", "windowed_std_two_dph", "pos_err_rms_nmi",
               "windowed_std_eps_z1_dph", "eps_z1_final_dph"):
         assert m[k] == m0[k], k
-    assert "trend_track_corr_rw" not in m0 and len(m["trend_track_corr_rw"]) == 3
+    assert "trend_correlation_rw" not in m0 and len(m["trend_correlation_rw"]) == 3
     assert all(np.isfinite(m["trend_track_rms_rw_dph"]))
     assert np.all(np.array(m["windowed_std_two_rw_dph"]) > np.array(m["windowed_std_two_dph"]))
 

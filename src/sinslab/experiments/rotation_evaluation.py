@@ -25,22 +25,28 @@ fusion driver linearises on each pair's outputs (:func:`sinslab.methods.rotins.j
 Analyses:
 
 - one: INS #2's gyro noise scaled by β (``evaluation.beta_grid``, α = β² − 1), the record
-  rescaled, INS #1's noise shared: ε_z1 estimate per β (Fig 2), its windowed std
-  (eq 21, Fig 3), INS #2's position error (Fig 4); the separate-INS case: a second
-  dual-axis INS with its own record and noise ``evaluation.separate_ratio`` × INS #2's;
-- two: a slow trend on INS #1's azimuth drift and INS #2..#4 with noise scales
-  ``analysis_two.noise_scales``: ε_z1 tracks the trend (Fig 5), the windowed stds rank the
-  INS (Fig 6) as their position errors do (Fig 7); with ``analysis_two.drift_rw`` > 0 the
-  three filters run again with a random walk on INS #1's drifts (not the paper's model);
-- eq 20 checked by a covariance computation with the filter's gains
-  (:func:`sinslab.methods.rotins.noise_share`) against the simulated ratio for β = 1.1;
+  rescaled, INS #1's noise shared and, as in the paper, without its means over 5-minute
+  blocks (``imu1.noise_block``): ε_z1 estimate per β (Fig 2), when it settles (two causal
+  readings: σ falls to the drift, the error stays in a band), its windowed std (eq 21,
+  Fig 3), INS #2's position error (Fig 4); the separate-INS case: a second dual-axis INS
+  with its own record and noise ``evaluation.separate_ratio`` × INS #2's;
+- two: a slow trend on INS #1's azimuth drift (``analysis_two.trend``: a warm-up by
+  default, a sine as the variant) and INS #2..#4 with noise scales
+  ``analysis_two.noise_scales`` (the project's choice): ε_z1 tracks the trend (Fig 5), the
+  windowed stds rank the INS (Fig 6) as their noise levels and position errors (Fig 7);
+  with ``analysis_two.drift_rw`` > 0 the three filters run again with a random walk on
+  INS #1's drifts (not the paper's model);
+- eq 20: a covariance computation with the filter's gains
+  (:func:`sinslab.methods.rotins.noise_share`) and the simulated ratio for β = 1.1;
 - observability of the joint model along the actual stops (rank per stop, cumulative).
 
-Monte Carlo (``--runs N``): the fractions of seeds on which the windowed std is monotone
-in β and on which β = 1.1 is told from β = 1.0 come from a linear-domain simulation of the
-joint error state (:func:`linear_campaign`, vectorised over β, on Dask) — validated
-against the nonlinear pipeline (see ``docs/methods/001.md``); with ``--runs 1`` they are the
-0/1 outcome of the nonlinear run.
+Monte Carlo (``--runs N``): a linear-domain simulation of the joint error state of
+analyses one and two (:func:`linear_campaign`, vectorised over seeds and noise parts, on
+Dask; validated against the nonlinear pipeline, see ``docs/methods/001.md``) gives the
+fractions of seeds (std monotone in β, β = 1.1 told from 1.0, separate INS told apart),
+eq 20's ratio with its 95 % interval, the probability of the right ranking with its
+interval, and the trend correlation over seeds; with ``--runs 1`` the fractions are the 0/1
+outcome of the nonlinear run and the intervals are undefined (those claims fail).
 """
 from __future__ import annotations
 
@@ -189,8 +195,8 @@ class AnalysisTwo(Section):
     trend_ramp: Q("angular_rate") = Field("0.0003 deg/h", description="plus a linear rise over the whole run")
     drift_rw: Q("rate_random_walk", ge="0 deg/h/sqrt(h)") = Field(
         "0 deg/h/sqrt(h)", description="if > 0: the trend filters are run a second time with this random walk "
-        "on INS #1's gyro drifts (the paper's model has none); a level matched to the trend is "
-        "trend_amplitude·sqrt(2π/trend_period)")
+        "on INS #1's gyro drifts (the paper's model has none); a level matched to the sine variant is "
+        "trend_amplitude·sqrt(2π/trend_period), to the warm-up trend_amplitude/sqrt(trend_time)")
 
     @field_validator("noise_scales")
     @classmethod
@@ -287,7 +293,7 @@ METRICS = {
     "trend_track_rms_dph": Metric("deg/h", "analysis two: RMS of ε_z1 estimate − true drift after evaluation.start, per filter"),
     "trend_correlation": Metric("-", "analysis two: correlation of the ε_z1 estimate with the true drift after "
                                 "evaluation.start, per filter (INS #2, #3, #4)"),
-    "trend_track_corr_rw": Metric("-", "the same with analysis_two.drift_rw on INS #1's drifts (only when > 0)"),
+    "trend_correlation_rw": Metric("-", "the same with analysis_two.drift_rw on INS #1's drifts (only when > 0)"),
     "trend_track_rms_rw_dph": Metric("deg/h", "RMS tracking error with analysis_two.drift_rw (only when > 0)"),
     "windowed_std_two_rw_dph": Metric("deg/h", "mean windowed std of filters 2, 3, 4 with analysis_two.drift_rw (only when > 0)"),
     "ranking_matches_position_error_rw": Metric("-", "std ranking equals the position-error ranking with analysis_two.drift_rw (only when > 0)"),
@@ -1020,7 +1026,7 @@ def run(cfg: Config, ctx) -> Result:
         "pos_err_end_nmi": pos_end, "pos_err_rms_nmi": pos_rms,
         "trend_track_rms_dph": track, "trend_correlation": track_corr,
         **({} if two_rw is None else {
-            "trend_track_corr_rw": two_rw["corr"], "trend_track_rms_rw_dph": two_rw["rms"],
+            "trend_correlation_rw": two_rw["corr"], "trend_track_rms_rw_dph": two_rw["rms"],
             "windowed_std_two_rw_dph": two_rw["wstd"], "ranking_matches_position_error_rw": two_rw["ranking"]}),
         "eq20_sigma_ratio_predicted": ratio_pred, "eq20_sigma_ratio_predicted_blocks": ratio_pred_blocks,
         "eq20_sigma_ratio_paper": 1.1,
