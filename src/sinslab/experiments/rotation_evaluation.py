@@ -1208,8 +1208,10 @@ def linear_batch(seeds, spec, setup):
         X[b, 0] = L0 @ g.standard_normal(n)
     x0z = X[:, 0, iz].copy()
     Xh = np.zeros((B, P_, n))
-    groups = {g: [j for j, s in enumerate(_PARTS) if s == g] for g in ("ins1", "accel_k", "gyro_k")}
-    noisy = [j for j, s in enumerate(_PARTS) if s in groups]
+    noisy = [j for j, s in enumerate(_PARTS) if s in ("ins1", "accel_k", "gyro_k")]
+    # per source: its parts and their columns among the noisy parts' draws
+    groups = [(g, np.array([j for j, s in enumerate(_PARTS) if s == g]),
+               np.array([noisy.index(j) for j, s in enumerate(_PARTS) if s == g])) for g in ("ins1", "accel_k", "gyro_k")]
     j_tr, j_bl = _PARTS.index(None), _PARTS.index("blocks")
     tr = spec["trend_steps"] * S["d"][iz]
     sv = np.sqrt(S["Rv"])
@@ -1237,8 +1239,8 @@ def linear_batch(seeds, spec, setup):
         X[:, j_tr, iz] += tr[k]
         X = X @ Phi[u].T
         xi = xis[:, c]
-        for gname, js in groups.items():
-            X[:, js] += xi[:, [noisy.index(j) for j in js]] @ roots[gname][u].T
+        for gname, js, cols in groups:
+            X[:, js] += xi[:, cols] @ roots[gname][u].T
         X[:, 0] += us[:, c] @ G1[u].T
         X[:, j_bl] += ubar[:, c] @ G1[u].T
         Xh = Xh @ Phi[u].T
