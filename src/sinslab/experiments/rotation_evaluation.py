@@ -542,8 +542,12 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
                                                    t, dt_rec, errors, rng, out=out)
         for j, spec in enumerate(specs):
             dth, dv = dth_all[j], dv_all[j]
+            if spec.recorded is not None:
+                g, off = spec.recorded
+                dth += _tile(g, off + i0, L, rec_buf) * (spec.gyro_scale * dt)
             if spec.demean:
-                # the chunks hold whole blocks, so the blocks are counted from the start of the run
+                # the noise, synthesised or recorded, loses its block means; the chunks hold
+                # whole blocks, so the blocks are counted from the start of the run
                 e = spec.errors
                 for inc, true, bias in ((dth, _tile(cyc.dth, i0, L, tile_th), e.gyro_bias),
                                         (dv, _tile(cyc.dv, i0, L, tile_v), e.accel_bias)):
@@ -551,9 +555,6 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
                     np.add(true, err, out=inc)
             if spec.trend is not None:
                 dth += spec.trend.evaluate(t - 0.5 * dt) * dt
-            if spec.recorded is not None:
-                g, off = spec.recorded
-                dth += _tile(g, off + i0, L, rec_buf) * (spec.gyro_scale * dt)
             sd.step(states[j], dth, dv, dt, nsub, vertical="hold", height=height[:L + 1],
                     out=rows[j][done + 1:done + 1 + m], out_every=per)
             if rates:
@@ -770,9 +771,8 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
     a2 = cfg.analysis_two
     trend = drift_trend(cfg)
     # analysis one: INS #1's noise without its 5-minute means (the paper's "ideal" record
-    # free of trends); analysis two keeps the whole record, trend included
+    # free of trends), removed while navigating; analysis two keeps the whole record
     nb = int(round(float(cfg.imu1.noise_block) / dt))
-    rec1_blocks = None if rec1 is None or not nb else remove_block_means(rec1.copy(), nb)
     att_sigma = np.asarray(cfg.init.att_err, float)
     betas = [float(b) for b in ev.beta_grid]
 
@@ -782,8 +782,7 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
             return InsSpec(name, cyck, _errors(cfg.imuk, white=False), stream, None, (reck, off), scale)
         return InsSpec(name, cyck, _errors(cfg.imuk, gyro_scale=scale), stream)
 
-    specs = {"ins1": InsSpec("INS #1", cyc1, e1, (1,), None,
-                             None if rec1 is None else ((rec1_blocks if nb else rec1), 0), demean=nb)}
+    specs = {"ins1": InsSpec("INS #1", cyc1, e1, (1,), None, None if rec1 is None else (rec1, 0), demean=nb)}
     for b in betas:
         specs[f"ins2_b{b:g}"] = kspec(f"INS #2 β={b:g}", (2,), b)
     specs["sepB"] = kspec("separate INS B", (5,), float(ev.separate_ratio))
