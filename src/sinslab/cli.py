@@ -164,7 +164,7 @@ def _print_summary(summary: dict, out: Path) -> None:
     from sinslab.app.claims import tally
 
     typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed"
-               + (f" ({tally(claims)})" if claims else "") + ", "
+               + (f" ({tally(claims)})" if any(c.get("origin") for c in claims) else "") + ", "
                f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s -> {out / 'report.html'}")
 
 

@@ -311,7 +311,8 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     if claims:
         badge = "ok" if all_ok else "bad"
         parts.append(f"<p><span class='badge {badge}' id='verdict'>{n_pass} of {len(claims)} claims "
-                     f"passed</span> <span class='sub' id='origins'>{e(tally(claims))}</span></p>")
+                     f"passed</span>" + (f" <span class='sub' id='origins'>{e(tally(claims))}</span>"
+                                          if any(c.get("origin") for c in claims) else "") + "</p>")
         parts.append("<h2>Claims</h2>" + _wide(
             "<table id='claims'><tr><th>id</th><th>origin</th><th>statement</th>"
             "<th>measured</th><th>expected</th><th>result</th></tr>" + "".join(
