@@ -153,3 +153,21 @@ def assert_H_is_jacobian(make, layout, rows, omegas, *, t=0.0, k=1, item=0, stre
     assert err[i, j] < tol, (f"H[{i}, {j}] ({layout.labels[j]}) = {H[i, j]:.6g}, finite "
                              f"differences {J[i, j]:.6g} (relative {err[i, j]:.2e})")
     return z0, H, R
+
+
+def run_experiment(name, sets=(), quick=True):
+    """The :class:`sinslab.experiments.base.Result` of one experiment run in this process
+    (``--quick`` configuration unless ``quick=False``, ``--set`` lines ``sets``, Monte Carlo
+    serial), without a run folder."""
+    import tempfile
+    from pathlib import Path
+
+    import sinslab.experiments as E
+    from sinslab.app.config import resolve
+    from sinslab.experiments.base import RunContext
+
+    exp = E.get(name)
+    cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=list(sets))
+    with tempfile.TemporaryDirectory() as d:
+        return exp.run(cfg, RunContext(name=name, out=Path(d), seed=cfg.seed, runs=cfg.runs, quick=quick,
+                                       scheduler="sync"))

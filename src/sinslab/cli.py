@@ -183,9 +183,13 @@ def _print_summary(summary: dict, out: Path) -> None:
     n = sum(c["passed"] for c in claims)
     for c in claims:
         measured, expected = claim_texts(c)
-        typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {measured} (expected "
+        o = f" ({c['origin']})" if c.get("origin") else ""
+        typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}{o}: {measured} (expected "
                    f"{expected}) — {c['statement']}")
-    typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed, "
+    from sinslab.app.claims import tally
+
+    typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed"
+               + (f" ({tally(claims)})" if any(c.get("origin") for c in claims) else "") + ", "
                f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s -> {out / 'report.html'}")
 
 

@@ -50,8 +50,8 @@ def _run(cfg, ctx):
         metrics={"final_x_m": float(x[-1]), "bias_dph": np.asarray(cfg.imu.gyro_bias) / (np.pi / 180 / 3600),
                  "nothing": None},
         claims=[Claim.within("lat", "latitude is 34 deg", float(cfg.scenario.latitude) * 180 / np.pi, 34.0,
-                             abs=1e-9, unit="deg"),
-                Claim.at_most("small", "|x| stays below 2 m", float(np.abs(x).max()), 2.0, "m")],
+                             abs=1e-9, unit="deg", origin="paper"),
+                Claim.at_most("small", "|x| stays below 2 m", float(np.abs(x).max()), 2.0, "m", origin="check")],
         series={"wave": {"t_s": t, "x_m": x}},
         figures=figs,
         tables=[Table("stats", {"stat": ["mean", "max"], "value": [float(x.mean()), float(x.max())]}, "stats")],
@@ -107,7 +107,8 @@ def test_run_writes_the_contract(tmp_path):
     assert not [n for n in names if ".tmp-" in n]
     s = json.loads((out / "summary.json").read_text())
     assert s["experiment"] == "dummy" and s["sinslab_version"] == __version__
-    assert set(s["claims"][0]) == {"id", "statement", "measured", "expected", "passed"}
+    assert set(s["claims"][0]) == {"id", "statement", "measured", "expected", "passed", "origin"}
+    assert [c["origin"] for c in s["claims"]] == ["paper", "check"]
     assert [c["passed"] for c in s["claims"]] == [True, True]
     assert s["metrics"]["bias_dph"] == pytest.approx([0.02] * 3)
     assert s["metrics"]["nothing"] is None and s["metrics"]["runtime_s"] > 0
@@ -115,7 +116,10 @@ def test_run_writes_the_contract(tmp_path):
     cfg = tomllib.loads((out / "config.toml").read_text())
     assert cfg["seed"] == 3 and cfg["imu"]["gyro_bias"] == "0.02 deg/h"
     assert json.loads((out / ".sinslab-run").read_text())["status"] == "complete"
-    assert "2/2 claims passed" in r.stdout
+    assert "2/2 claims passed (paper: 1 of 1 reproduced · checks: 1 of 1)" in r.stdout
+    assert "[pass] lat (paper):" in r.stdout
+    html = (out / "report.html").read_text()
+    assert "paper: 1 of 1 reproduced · checks: 1 of 1" in html
 
 
 def test_config_toml_reproduces_the_run(tmp_path):

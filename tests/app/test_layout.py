@@ -9,7 +9,6 @@ check is shown to fail when the layout's margins are too small. Cross-check: a p
 is placed where matplotlib's constrained layout places it.
 """
 import pickle
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -103,16 +102,9 @@ def problems(fig):
 
 
 def _quick_figures(name):
-    import sinslab.experiments as E
-    from sinslab.app.config import resolve
-    from sinslab.experiments.base import RunContext
+    from support import run_experiment
 
-    exp = E.get(name)
-    cfg = resolve(exp.config, quick=exp.quick)
-    with tempfile.TemporaryDirectory() as d:
-        res = exp.run(cfg, RunContext(name=name, out=Path(d), seed=cfg.seed, runs=cfg.runs, quick=True,
-                                      scheduler="sync"))
-    return res.figures
+    return run_experiment(name).figures
 
 
 def _grid_figure():

@@ -7,9 +7,11 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+from support import run_experiment
 
 from sinslab.app.config import ConfigError, resolve
 from sinslab.experiments import execute, get
@@ -22,10 +24,12 @@ SMALL = ["scenario.duration=24 h", "scenario.sample_interval=0.1 s", "filter.mod
          "evaluation.start=12 h", "evaluation.window=2 h", "runs=6"]
 
 CONTRACT = ("obs_rank_static", "obs_rank_schedule", "obs_rank_by_segment", "obs_degree", "eps_z1_true_dph",
-            "eps_z1_final_dph", "eps_z1_sigma_final_dph", "eps_z1_settle_h", "windowed_std_eps_z1_dph",
+            "eps_z1_final_dph", "eps_z1_sigma_final_dph", "settle_sigma_h", "settle_band_h",
+            "windowed_std_eps_z1_dph",
             "beta_grid", "p_monotone_paper_setup", "p_distinguish_1p1_paper_setup",
             "p_distinguish_1p1_separate_ins", "runs", "ranking_matches_position_error", "pos_err_end_nmi",
-            "eq20_sigma_ratio_predicted", "eq20_sigma_ratio_simulated")
+            "eq20_sigma_ratio_predicted", "eq20_sigma_ratio_simulated", "eq20_ratio_mean", "eq20_ratio_ci95",
+            "ranking_probability", "ranking_probability_ci95", "trend_correlation", "eps_z1_windows_failing_h")
 
 
 @pytest.fixture(scope="module")
@@ -57,8 +61,23 @@ def test_contract_and_claims(small):
     ws = np.array(m["windowed_std_eps_z1_dph"])
     assert ws[m["beta_grid"].index(1.1)] > ws[m["beta_grid"].index(1.0)]
     # eq 20 with gains fixed: only INS k's gyro share is scaled, so 1 < ratio < β
-    assert 1.0 < m["eq20_sigma_ratio_predicted"] < 1.1
-    assert claims["eq20_literal"]["passed"] == (abs(m["eq20_sigma_ratio_predicted"] - 1.1) <= 0.022)
+    assert 1.0 < m["eq20_sigma_ratio_predicted"] < m["eq20_sigma_ratio_predicted_blocks"] < 1.1
+    lo, hi = m["eq20_ratio_ci95"]
+    assert lo < m["eq20_ratio_mean"] < hi
+    assert claims["eq20_ratio"]["passed"] == (1.0 < lo and hi < 1.1)
+    assert claims["eq20_literal"]["passed"] == (lo <= 1.1 <= hi)
+    lo, hi = m["ranking_probability_ci95"]
+    assert 0 <= lo <= m["ranking_probability"] <= hi <= 1
+    assert claims["ranking_two"]["passed"] == (lo > 1 / 6)
+    # the stability claim names the windows above the limit, per β
+    fail = m["eps_z1_windows_failing_h"]
+    assert set(fail) == {f"β={b:g}" for b in m["beta_grid"]}
+    assert claims["eps_z1_stability"]["passed"] == (not any(fail.values()))
+    assert all(claims["eps_z1_stability"]["measured"]["value"][f"{k} windows above from"] == v
+               for k, v in fail.items() if v)
+    settle = np.array([m["settle_sigma_h"], m["settle_band_h"]], float)      # NaN: not settled
+    assert claims["eps_z1_settles"]["passed"] == bool(np.all(settle <= 16 + 2))
+    assert {c["origin"] for c in small["claims"]} == {"paper", "check"}
 
 
 def test_drift_random_walk_leaves_the_paper_model_alone(small, tmp_path):
@@ -71,10 +90,10 @@ def test_drift_random_walk_leaves_the_paper_model_alone(small, tmp_path):
     cfg = resolve(exp.config, sets=SMALL + [f"analysis_two.drift_rw={rw} deg/h/sqrt(h)"])
     m = execute(exp, cfg, tmp_path / "rw", quick=True, scheduler="sync")["metrics"]
     m0 = small["metrics"]
-    for k in ("trend_track_corr", "trend_track_rms_dph", "windowed_std_two_dph", "pos_err_rms_nmi",
+    for k in ("trend_correlation", "trend_track_rms_dph", "windowed_std_two_dph", "pos_err_rms_nmi",
               "windowed_std_eps_z1_dph", "eps_z1_final_dph"):
         assert m[k] == m0[k], k
-    assert "trend_track_corr_rw" not in m0 and len(m["trend_track_corr_rw"]) == 3
+    assert "trend_correlation_rw" not in m0 and len(m["trend_correlation_rw"]) == 3
     assert all(np.isfinite(m["trend_track_rms_rw_dph"]))
     assert np.all(np.array(m["windowed_std_two_rw_dph"]) > np.array(m["windowed_std_two_dph"]))
 
@@ -87,18 +106,47 @@ def test_linear_campaign_matches_nonlinear_pipeline(small):
     exp = get("rotation-evaluation")
     cfg = resolve(exp.config, sets=SMALL)
     lat = float(cfg.scenario.latitude)
-    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
-                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
-    P0 = rotins.joint_P0(model, lat, att=np.asarray(cfg.init.att_err, float) * math.sqrt(2),
-                         gyro1=float(cfg.filter.gyro_sigma0), gyrok=float(cfg.filter.gyro_sigma0),
-                         accel1=float(cfg.filter.accel_sigma0), accelk=float(cfg.filter.accel_sigma0))
-    sig = rotins.difference_sigma(lat, float(cfg.filter.meas_floor_pos), float(cfg.filter.meas_floor_vel))
-    S = R._linear_setup(R.campaign_spec(cfg, model, P0, sig))
+    model, P0, sig = R.joint_filter_setup(cfg)
+    m1, mk = R.mounts(cfg)
+    dt, k_md, me, n_kf, _ = R._grid(cfg)
+    tables = R.schedule_transitions(m1, mk, lat, float(cfg.scenario.longitude), model, float(cfg.filter.model_dt), me,
+                                    n_kf, R._GROUPS, inputs=True)
+    S = R._linear_setup(R.campaign_spec(cfg, model, P0, sig, tables))
     assert S["sig_z"][-1] / R.DPH == pytest.approx(m["eps_z1_sigma_final_dph"], rel=1e-3)
     mc_mean = np.array(m["mc_windowed_std_mean_dph"])
     mc_sd = np.array(m["mc_windowed_std_sd_dph"])
     nl = np.array(m["windowed_std_eps_z1_dph"])
     assert np.all(np.abs(nl - mc_mean) < 3 * mc_sd + 0.1 * mc_mean)
+
+
+#: the paper's rotation and drifts on a coarser grid (5 Hz IMU, 2 s model steps, a measurement
+#: every 30 s): the settling of ε̂_z1 takes many hours, the grid changes it by minutes
+COARSE = ["scenario.sample_interval=0.2 s", "filter.model_dt=2 s", "filter.kf_dt=30 s", "runs=1"]
+
+
+def test_settling_does_not_depend_on_the_run_length():
+    """Both readings of "stable after 16 h" (paper §6.1.1) are causal: a 48 h and a 144 h run
+    of one seed give them within 10 % (the old "within the final 1σ" grew with the run's
+    length: 28, 36, 57 h for 32, 48, 144 h)."""
+    out = {h: run_experiment("rotation-evaluation", COARSE + [f"scenario.duration={h} h"], quick=False).metrics
+           for h in (48, 144)}
+    for k in ("settle_sigma_h", "settle_band_h"):
+        a, b = out[48][k], out[144][k]
+        assert math.isfinite(a) and math.isfinite(b), k
+        assert abs(a - b) <= 0.1 * max(a, b), (k, a, b)
+        assert 8 < a < 48, (k, a)
+
+
+def test_block_means_removed():
+    """INS #1's noise as the paper prepares it: the mean over every block is gone, the bias
+    (kept) stays, a last short block has its own mean removed."""
+    rng = np.random.default_rng(3)
+    bias = np.array([1.0, -2.0, 3.0])
+    x = bias + rng.standard_normal((25, 3))
+    y = R.remove_block_means(x.copy(), 10, bias)
+    for a, b in ((0, 10), (10, 20), (20, 25)):
+        np.testing.assert_allclose(y[a:b].mean(0), bias, atol=1e-12)
+        np.testing.assert_allclose(y[a:b] - y[a:b].mean(0), x[a:b] - x[a:b].mean(0), atol=1e-12)
 
 
 def test_recorded_constant_record_is_a_gyro_bias(tmp_path):
@@ -239,3 +287,36 @@ def test_cli_bad_recorded_noise_is_one_line(tmp_path):
     assert p.returncode == 2, p.stderr
     lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("sinslab: error:") and "short.csv" in lines[0], p.stderr
+
+
+def test_campaign_benchmark_script_runs():
+    """benchmarks/rotins_campaign.py (what a campaign worker no longer rebuilds) end to end on
+    2 h and 2 seeds; no timing asserted."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "rotins_campaign.py"
+    spec = importlib.util.spec_from_file_location("bench_rotins_campaign", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    res = mod.measure(2.0, 2)
+    assert res["table_entries"] > 0 and res["rebuild_s"] > 0 and res["ship_s"] > 0 and res["batch_s"] > 0
+
+
+def test_block_means_removed_while_navigating():
+    """A constant recorded record on an INS whose noise loses its block means is no noise
+    at all: it navigates like the same INS without the record (its bias kept)."""
+    lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
+    _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
+    cyc = R.one_cycle(mk, lat, lon, dt)
+    errs = imu_.ImuErrors(gyro_bias=np.array([1e-8, 2e-8, -1e-8]), accel_bias=np.array([1e-4, 0.0, 0.0]))
+    n_steps, k_kf = 30, 600
+    rec = np.tile(np.array([1e-8, -2e-8, 3e-8]), (n_steps * k_kf, 1))
+    a = R.navigate_chunked(R.InsSpec("a", cyc, errs, (1,), None, (rec, 0), demean=3000), 0, lat, lon, dt,
+                           n_steps, k_kf, 2, np.zeros(3), chunk_steps=10)
+    b = R.navigate_chunked(R.InsSpec("b", cyc, errs, (1,)), 0, lat, lon, dt, n_steps, k_kf, 2, np.zeros(3),
+                           chunk_steps=10)
+    # the same increments up to the rounding of removing and re-adding the true ones
+    np.testing.assert_allclose(a.rows, b.rows, rtol=0, atol=1e-10)
+    with pytest.raises(ValueError, match="noise blocks"):
+        R.navigate_chunked(R.InsSpec("c", cyc, errs, (1,), demean=3000), 0, lat, lon, dt, n_steps, k_kf, 2,
+                           np.zeros(3), chunk_steps=7)

@@ -248,14 +248,22 @@ def test_noise_share_equals_suboptimal_filter_covariance():
     assert 0 < bud.variance[j, iz] < bud.total[iz]
 
 
-def test_difference_sigma_and_settle_time():
+def test_difference_sigma_and_settle_times():
     s = rotins.difference_sigma(LAT, 1e-3, 1e-5)
     assert s.shape == (4,) and s[2] == 1e-5 and 1e-10 < s[0] < 2e-10
     with pytest.raises(ValueError, match="floors"):
         rotins.difference_sigma(LAT, 0.0, 1e-5)
     t = np.arange(10.0)
     x = np.array([5, 4, 3, 2, 1.5, 1.2, 1.05, 1.0, 1.02, 1.0])
-    assert rotins.settle_time(t, x, 0.1) == 6.0
+    # the σ reading: first sample at or below the level
+    assert rotins.sigma_settle_time(t, x, 1.5) == 4.0 and math.isnan(rotins.sigma_settle_time(t, x, 0.5))
+    # the band reading: first sample of the final stay within ± band of the truth
+    assert rotins.band_settle_time(t, x, 1.0, 0.1) == 6.0
+    assert rotins.band_settle_time(t, x, 1.0, 10.0) == 0.0
+    assert math.isnan(rotins.band_settle_time(t, x, 2.0, 0.1))
+    # a longer record that stays inside does not move it (a band around the final value would)
+    x2 = np.r_[x, np.full(10, 1.01)]
+    assert rotins.band_settle_time(np.arange(20.0), x2, 1.0, 0.1) == 6.0
 
 
 #: a drift random walk of the size used against a 0.0005 °/h, 48 h trend (A·sqrt(2π/P))

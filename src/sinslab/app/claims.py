@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Claim"]
+__all__ = ["Claim", "tally"]
 
 
 def _num(x):
@@ -162,3 +162,25 @@ class Claim:
         """Exact equality (ranks, counts, orderings)."""
         return cls(id, statement, measured, expected, _num(measured) == _num(expected),
                    names=names, unit=unit, relation="==", origin=origin)
+
+
+def tally(claims) -> str:
+    """The verdicts of a run's claims counted by origin, as one line:
+    ``"paper: 5 of 9 reproduced · checks: 3 of 3"``.
+
+    ``claims`` are :class:`Claim` s or their ``summary.json`` dicts; claims without an origin
+    (summaries written before claims had one) are counted as ``"claims: k of n passed"``.
+    Empty when there are no claims."""
+    counts = {}
+    for c in claims:
+        d = c.as_dict() if isinstance(c, Claim) else c
+        o = d.get("origin")
+        k, n = counts.get(o, (0, 0))
+        counts[o] = (k + bool(d.get("passed")), n + 1)
+    parts = []
+    for o, label, verb in (("paper", "paper", "reproduced"), ("check", "checks", "passed"),
+                           (None, "claims", "passed")):
+        if o in counts:
+            k, n = counts[o]
+            parts.append(f"{label}: {k} of {n}" + (f" {verb}" if o != "check" else ""))
+    return " · ".join(parts)

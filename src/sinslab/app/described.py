@@ -217,7 +217,8 @@ def navigate_claims(nis, dof: int, hz_err_with_fixes, fix_sigma_h, settled=None)
         "nis_not_overconfident",
         f"the filter is not overconfident about the fixes: mean NIS of the {nis.size} applied fixes at most "
         f"{NIS_FACTOR:g}× the measurement dimension {dof} (a mean below {dof / NIS_FACTOR:g} is a pessimistic "
-        f"noise model, not a failure: here {verdict})", mean_nis if nis.size else float("nan"), hi, "")]
+        f"noise model, not a failure: here {verdict})", mean_nis if nis.size else float("nan"), hi, "",
+        origin="check")]
     e = np.asarray(hz_err_with_fixes, float)
     s = np.asarray(fix_sigma_h, float)
     ok = np.isfinite(e) & np.isfinite(s) & (s > 0)
@@ -227,7 +228,8 @@ def navigate_claims(nis, dof: int, hz_err_with_fixes, fix_sigma_h, settled=None)
         "fix_residual",
         "the solution follows the fixes it uses: median of horizontal solution − fix (outside "
         "outages) in units of the fixes' stated horizontal σ; a consistent filter gives at most "
-        f"√(ln 2) = 0.83 (Rayleigh median), allowed {FIX_RESIDUAL_SIGMAS:g}× that", ratio, limit, "σ"))
+        f"√(ln 2) = 0.83 (Rayleigh median), allowed {FIX_RESIDUAL_SIGMAS:g}× that", ratio, limit, "σ",
+        origin="check"))
     st = ok if settled is None else ok & np.asarray(settled, bool)
     p99 = float(np.percentile(e[st] / s[st], 99)) if st.any() else float("nan")
     claims.append(Claim.at_most(
@@ -235,7 +237,7 @@ def navigate_claims(nis, dof: int, hz_err_with_fixes, fix_sigma_h, settled=None)
         f"no stretch of the solution leaves the fixes: 99th percentile of horizontal solution − fix "
         f"over the fixes' σ, outside outages and more than {SETTLE_S:g} s after one; a consistent "
         f"filter gives at most √(2 ln 100) = 3.03 (Rayleigh), allowed {FIX_RESIDUAL_SIGMAS:g}× that",
-        p99, FIX_RESIDUAL_SIGMAS * math.sqrt(2 * math.log(100.0)), "σ"))
+        p99, FIX_RESIDUAL_SIGMAS * math.sqrt(2 * math.log(100.0)), "σ", origin="check"))
     return claims, {"nis_dof": int(dof), "hz_err_with_fixes_median_over_sigma": ratio,
                     "hz_err_settled_p99_over_sigma": p99, "nis_verdict": verdict}
 

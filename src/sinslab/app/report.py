@@ -29,6 +29,7 @@ import os
 import re
 from pathlib import Path
 
+from sinslab.app.claims import tally
 from sinslab.app.errors import UserError
 from sinslab.core.atomic import atomic_write
 
@@ -54,7 +55,7 @@ ul.warn li{background:#fff4d6;color:#6b4b00;padding:.2em .5em;margin:.2em 0;list
 figure{margin:1em 0;text-align:center}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}
 #claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}
-#claims td:nth-child(2){min-width:16em}.scroll{max-width:100%;overflow-x:auto}
+#claims td:nth-child(3){min-width:16em}.scroll{max-width:100%;overflow-x:auto}
 td.cols{overflow-wrap:anywhere;max-width:28em}.variant{background:#f4f7fb;padding:.4em .8em;border-left:3px solid #4a7bd0}
 code.id,#runs td:first-child{white-space:nowrap}span.q{white-space:nowrap}#rerun{overflow-wrap:anywhere}
 """
@@ -337,9 +338,10 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     if claims:
         badge = "ok" if all_ok else "bad"
         parts.append(f"<p><span class='badge {badge}' id='verdict'>{n_pass} of {len(claims)} claims "
-                     f"passed</span></p>")
+                     f"passed</span>" + (f" <span class='sub' id='origins'>{e(tally(claims))}</span>"
+                                          if any(c.get("origin") for c in claims) else "") + "</p>")
         parts.append("<h2>Claims</h2>" + _wide(
-            "<table id='claims'><tr><th>id</th><th>statement</th>"
+            "<table id='claims'><tr><th>id</th><th>origin</th><th>statement</th>"
             "<th>measured</th><th>expected</th><th>result</th></tr>" + "".join(
                 _claim_row(c) for c in claims) + "</table>"))
 
@@ -403,7 +405,8 @@ def _claim_row(c: dict) -> str:
     ok = bool(c.get("passed"))
     measured, expected = _claim_cells(c)
     return (f"<tr class='{'pass' if ok else 'fail'}' data-claim='{e(str(c.get('id')))}'>"
-            f"<td><code class='id'>{e(str(c.get('id')))}</code></td><td>{e(str(c.get('statement', '')))}</td>"
+            f"<td><code class='id'>{e(str(c.get('id')))}</code></td><td>{e(c.get('origin') or '')}</td>"
+            f"<td>{e(str(c.get('statement', '')))}</td>"
             f"<td class='num'>{_parts(measured)}</td><td class='num'>{_parts(expected)}</td>"
             f"<td class='verdict'>{'pass' if ok else 'FAIL'}</td></tr>")
 
@@ -434,7 +437,7 @@ def index(out: str | os.PathLike, runs: list[tuple[str, str | os.PathLike]],
             s = _load_summary(rd)
             claims = s.get("claims", [])
             n = sum(bool(c.get("passed")) for c in claims)
-            verdict = f"{n}/{len(claims)}"
+            verdict = f"{n}/{len(claims)}" + (f" ({tally(claims)})" if any(c.get("origin") for c in claims) else "")
             cls = "ok" if n == len(claims) else "bad"
             purpose = s.get("purpose", "")
             sets = (s.get("variant") or {}).get("sets")

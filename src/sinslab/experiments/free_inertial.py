@@ -447,7 +447,7 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
                 f"t = {tr:g} s to the end — [min, max] over time",
                 mm, [lo, hi],
                 bool(r.size and np.all(np.isfinite(r)) and mm[0] >= lo and mm[1] <= hi),
-                names=["min", "max"], relation="between"))
+                names=["min", "max"], relation="between", origin="check"))
             u = scale[unit]
             rows.append({"error": label, "unit": unit, "final_mc_rms": summ.rms[-1, c] / u,
                          "final_sigma": sg[-1] / u, "final_mc_mean": summ.mean[-1, c] / u,
@@ -666,7 +666,7 @@ def run(cfg: Config, ctx) -> Result:
             "schuler_period", "period of the velocity-error response to a 1 m/s initial north "
             "velocity error (two solutions on the same IMU data, Foucault split removed) equals "
             "the Schuler period 2π·sqrt(R/g) at the start latitude and mean height [min]",
-            schuler / 60.0, ts_theory / 60.0, rel=0.01, unit="min"))
+            schuler / 60.0, ts_theory / 60.0, rel=0.01, unit="min", origin="check"))
     else:
         notes.append(f"run shorter than one Schuler period ({ts_theory / 60:.1f} min): "
                      "no period fitted, claim schuler_period not evaluated")
@@ -678,14 +678,15 @@ def run(cfg: Config, ctx) -> Result:
             Claim.at_most("pos_linear_model", "horizontal position error = linear error model "
                           "driven by the realised sensor errors: max residual [m] within "
                           f"{LIN_REL:.0%} of the model's peak + {LIN_ABS_POS:g} m",
-                          lin["res_pos"], LIN_REL * scale_p + LIN_ABS_POS, "m"),
+                          lin["res_pos"], LIN_REL * scale_p + LIN_ABS_POS, "m", origin="check"),
             Claim.at_most("vel_linear_model", "horizontal velocity error = linear error model: "
                           f"max residual [m/s] within {LIN_REL:.0%} of the model's peak + "
-                          f"{LIN_ABS_VEL:g} m/s", lin["res_vel"], LIN_REL * scale_v + LIN_ABS_VEL, "m/s"),
+                          f"{LIN_ABS_VEL:g} m/s", lin["res_vel"], LIN_REL * scale_v + LIN_ABS_VEL, "m/s",
+                          origin="check"),
             Claim.at_most("att_linear_model", "misalignment φ = linear error model: max residual "
                           f"[arcsec] within {LIN_REL:.0%} of the model's peak + {LIN_ABS_ATT:g} arcsec",
                           lin["res_phi"] / units.arcsec,
-                          (LIN_REL * scale_a) / units.arcsec + LIN_ABS_ATT, "arcsec"),
+                          (LIN_REL * scale_a) / units.arcsec + LIN_ABS_ATT, "arcsec", origin="check"),
         ]
     else:
         notes.append("damped vertical channel: the linear-model claims are not evaluated "
@@ -698,7 +699,7 @@ def run(cfg: Config, ctx) -> Result:
             "max over time of error / closed-form static-error-model envelope (a loose upper "
             "bound on a manoeuvring trajectory, reached at least in part by errors that the same "
             "sensor errors drive)", r, [ENVELOPE_MIN_RATIO, 1.0],
-            bool(np.isfinite(r) and ENVELOPE_MIN_RATIO <= r <= 1.0), relation="between"))
+            bool(np.isfinite(r) and ENVELOPE_MIN_RATIO <= r <= 1.0), relation="between", origin="check"))
 
     # ---- series and figures
     series = {

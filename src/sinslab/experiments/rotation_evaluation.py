@@ -25,22 +25,28 @@ fusion driver linearises on each pair's outputs (:func:`sinslab.methods.rotins.j
 Analyses:
 
 - one: INS #2's gyro noise scaled by β (``evaluation.beta_grid``, α = β² − 1), the record
-  rescaled, INS #1's noise shared: ε_z1 estimate per β (Fig 2), its windowed std
-  (eq 21, Fig 3), INS #2's position error (Fig 4); the separate-INS case: a second
-  dual-axis INS with its own record and noise ``evaluation.separate_ratio`` × INS #2's;
-- two: a slow trend on INS #1's azimuth drift and INS #2..#4 with noise scales
-  ``analysis_two.noise_scales``: ε_z1 tracks the trend (Fig 5), the windowed stds rank the
-  INS (Fig 6) as their position errors do (Fig 7); with ``analysis_two.drift_rw`` > 0 the
-  three filters run again with a random walk on INS #1's drifts (not the paper's model);
-- eq 20 checked by a covariance computation with the filter's gains
-  (:func:`sinslab.methods.rotins.noise_share`) against the simulated ratio for β = 1.1;
+  rescaled, INS #1's noise shared and, as in the paper, without its means over 5-minute
+  blocks (``imu1.noise_block``): ε_z1 estimate per β (Fig 2), when it settles (two causal
+  readings: σ falls to the drift, the error stays in a band), its windowed std (eq 21,
+  Fig 3), INS #2's position error (Fig 4); the separate-INS case: a second dual-axis INS
+  with its own record and noise ``evaluation.separate_ratio`` × INS #2's;
+- two: a slow trend on INS #1's azimuth drift (``analysis_two.trend``: a warm-up by
+  default, a sine as the variant) and INS #2..#4 with noise scales
+  ``analysis_two.noise_scales`` (the project's choice): ε_z1 tracks the trend (Fig 5), the
+  windowed stds rank the INS (Fig 6) as their noise levels and position errors (Fig 7);
+  with ``analysis_two.drift_rw`` > 0 the three filters run again with a random walk on
+  INS #1's drifts (not the paper's model);
+- eq 20: a covariance computation with the filter's gains
+  (:func:`sinslab.methods.rotins.noise_share`) and the simulated ratio for β = 1.1;
 - observability of the joint model along the actual stops (rank per stop, cumulative).
 
-Monte Carlo (``--runs N``): the fractions of seeds on which the windowed std is monotone
-in β and on which β = 1.1 is told from β = 1.0 come from a linear-domain simulation of the
-joint error state (:func:`linear_campaign`, vectorised over β, on Dask) — validated
-against the nonlinear pipeline (see ``docs/methods/001.md``); with ``--runs 1`` they are the
-0/1 outcome of the nonlinear run.
+Monte Carlo (``--runs N``): a linear-domain simulation of the joint error state of
+analyses one and two (:func:`linear_campaign`, vectorised over seeds and noise parts, on
+Dask; validated against the nonlinear pipeline, see ``docs/methods/001.md``) gives the
+fractions of seeds (std monotone in β, β = 1.1 told from 1.0, separate INS told apart),
+eq 20's ratio with its 95 % interval, the probability of the right ranking with its
+interval, and the trend correlation over seeds; with ``--runs 1`` the fractions are the 0/1
+outcome of the nonlinear run and the intervals are undefined (those claims fail).
 """
 from __future__ import annotations
 
@@ -70,7 +76,12 @@ NOTES = [
     "z = [L1−Lk, λ1−λk, vE1−vEk, vN1−vNk], R ≈ 0 realised as a floor of filter.meas_floor_pos / "
     "filter.meas_floor_vel with sequential scalar Joseph updates.",
     "Noise synthesised: white (ARW/VRW) per INS; the paper's recorded 120 h noise can be given "
-    "with imu1.recorded_noise / imuk.recorded_noise.",
+    "with imu1.recorded_noise / imuk.recorded_noise. As in the paper, INS #1's noise in analysis one "
+    "has its means over imu1.noise_block (5 min) removed, in analysis two only the whole record's mean.",
+    "Settling: two readings of the paper's 'relatively stable after 16 h', both causal (the same for "
+    "any run length): σ reading — the first time the filter σ of ε_z1 falls to evaluation.settle_sigma "
+    "(default |ε_z1|); band reading — the time from which |ε̂_z1 − ε_z1| stays within "
+    "evaluation.settle_band.",
     "Windowed std: eq 21 (1/N form), consecutive windows from evaluation.start every "
     "evaluation.window; 'mean windowed std' = mean over those windows.",
 ]
@@ -113,6 +124,10 @@ class Imu1(Section):
     gyro_arw: Q("angle_random_walk", ge="0 deg/sqrt(h)") = Field("0.001 deg/sqrt(h)", description="gyro angle random walk")
     accel_vrw: Q("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field("10 ug/sqrt(Hz)", description="accelerometer white noise")
     recorded_noise: str = Field("", description="recorded static noise file (CSV/Parquet with unit headers) used instead of white noise")
+    noise_block: Q("time", ge="0 s") = Field(
+        "5 min", description="analysis one: INS #1's noise (synthesised or recorded, gyros and accelerometers) "
+        "has its mean over consecutive blocks of this length removed, as the paper prepares INS #1's record "
+        "(0: white, only the whole record's mean removed); analysis two keeps the whole record")
 
 
 class ImuK(Section):
@@ -147,6 +162,11 @@ class Evaluation(Section):
     beta_grid: list[float] = Field([0.8, 0.9, 1.0, 1.1, 1.3, 1.5], description="noise scale β of INS #2 (α = β² − 1)")
     separate_ratio: float = Field(1.1, gt=0, description="noise ratio of the two separate dual-axis INS")
     stability_limit: Q("angular_rate", gt="0 deg/h") = Field("0.00005 deg/h", description="paper: ε_z1 estimate stability")
+    settle_sigma: Q("angular_rate", ge="0 deg/h") = Field(
+        "0 deg/h", description="settling, σ reading: when the filter σ of ε_z1 (β = 1) first falls to this level "
+        "(0: the magnitude of INS #1's azimuth drift, imu1.gyro_bias z)")
+    settle_band: Q("angular_rate", gt="0 deg/h") = Field(
+        "0.0005 deg/h", description="settling, band reading: when |ε̂_z1 − ε_z1| (β = 1) enters this band for good")
 
     @field_validator("beta_grid")
     @classmethod
@@ -161,14 +181,22 @@ class Evaluation(Section):
 
 
 class AnalysisTwo(Section):
-    noise_scales: list[float] = Field([1.0, 1.15, 1.5], description="gyro noise scale of INS #2, #3, #4")
-    trend_amplitude: Q("angular_rate") = Field("0.0005 deg/h", description="INS #1 azimuth drift trend: sine amplitude")
-    trend_period: Q("time", gt="0 s") = Field("48 h", description="its period")
+    noise_scales: list[float] = Field(
+        [1.0, 1.15, 1.5], description="gyro noise scale of INS #2, #3, #4 (the project's choice: the paper uses "
+        "three recorded INS and does not give their noise levels)")
+    trend: Literal["warmup", "sine"] = Field(
+        "warmup", description="INS #1's azimuth drift trend: 'warmup' (a slow exponential approach plus a ramp, "
+        "the temperature trend of the paper's Fig 5) or 'sine' (a periodic wander, a variant that shows where "
+        "the paper's constant-drift model stops following)")
+    trend_amplitude: Q("angular_rate") = Field("0.0005 deg/h", description="trend amplitude: the warm-up's total "
+                                               "change, or the sine's amplitude")
+    trend_time: Q("time", gt="0 s") = Field("24 h", description="warm-up time constant (trend = 'warmup')")
+    trend_period: Q("time", gt="0 s") = Field("48 h", description="sine period (trend = 'sine')")
     trend_ramp: Q("angular_rate") = Field("0.0003 deg/h", description="plus a linear rise over the whole run")
     drift_rw: Q("rate_random_walk", ge="0 deg/h/sqrt(h)") = Field(
         "0 deg/h/sqrt(h)", description="if > 0: the trend filters are run a second time with this random walk "
-        "on INS #1's gyro drifts (the paper's model has none); a level matched to the trend is "
-        "trend_amplitude·sqrt(2π/trend_period)")
+        "on INS #1's gyro drifts (the paper's model has none); a level matched to the sine variant is "
+        "trend_amplitude·sqrt(2π/trend_period), to the warm-up trend_amplitude/sqrt(trend_time)")
 
     @field_validator("noise_scales")
     @classmethod
@@ -219,6 +247,9 @@ class Config(ExperimentConfig):
             raise ValueError(f"filter.kf_dt ({kf:g} s) must be a multiple of filter.model_dt ({md:g} s)")
         if kf > w / 4:
             raise ValueError(f"filter.kf_dt ({kf:g} s) leaves fewer than 4 samples per std window")
+        nb = float(self.imu1.noise_block)
+        if nb > 0 and abs(round(nb / kf) * kf - nb) > 1e-6 * kf:
+            raise ValueError(f"imu1.noise_block ({nb:g} s) must be a multiple of filter.kf_dt ({kf:g} s)")
         return self
 
 
@@ -233,7 +264,16 @@ METRICS = {
     "eps_z1_true_dph": Metric("deg/h", "INS #1 azimuth gyro drift (truth, analysis one)"),
     "eps_z1_final_dph": Metric("deg/h", "final ε_z1 estimate per filter, analysis one in β order"),
     "eps_z1_sigma_final_dph": Metric("deg/h", "filter σ of ε_z1 at the end (β = 1)"),
-    "eps_z1_settle_h": Metric("h", "when the ε_z1 estimate (β = 1) first stays within its final 1σ"),
+    "settle_sigma_h": Metric("h", "settling, σ reading: when the filter σ of ε_z1 (β = 1) first falls to "
+                             "settle_sigma_level_dph (NaN: never)"),
+    "settle_band_h": Metric("h", "settling, band reading: from when |ε̂_z1 − ε_z1| (β = 1) stays within "
+                            "settle_band_dph to the end (NaN: not at the end)"),
+    "settle_sigma_level_dph": Metric("deg/h", "level of the σ reading (evaluation.settle_sigma; default |ε_z1|)"),
+    "settle_band_dph": Metric("deg/h", "half-width of the band reading (evaluation.settle_band)"),
+    "mc_trend_correlation_mean": Metric("-", "linear-domain Monte Carlo: mean over seeds of the trend correlation, "
+                                        "filters 2, 3, 4"),
+    "mc_settle_band_median_h": Metric("h", "linear-domain Monte Carlo: median over seeds of the band reading"),
+    "mc_settle_band_p_by_paper": Metric("-", "fraction of seeds whose band reading is at most 16 h + one window"),
     "windowed_std_eps_z1_dph": Metric("deg/h", "mean windowed std of the ε_z1 estimate per β (grid order)"),
     "windowed_std_separate_dph": Metric("deg/h", "mean windowed std, separate-INS case [INS A, INS B]"),
     "beta_grid": Metric("-", "noise scales β of INS #2"),
@@ -246,17 +286,27 @@ METRICS = {
     "ranking_matches_noise_level": Metric("-", "analysis two: std ranking equals the ranking of the noise scales"),
     "position_error_ranking_matches_noise_level": Metric("-", "analysis two: RMS position errors rank as the noise scales"),
     "eps_z1_windows_below_limit": Metric("-", "fraction of the std windows (all β) below evaluation.stability_limit"),
+    "eps_z1_windows_failing_h": Metric("h", "per β: start of each std window above evaluation.stability_limit"),
+    "eps_z1_windows_worst_dph": Metric("deg/h", "per β: largest windowed std"),
     "pos_err_end_nmi": Metric("nmi", "horizontal position error at the end, INS #1 (trend), #2, #3, #4"),
     "pos_err_rms_nmi": Metric("nmi", "RMS horizontal position error over the run, INS #1 (trend), #2, #3, #4"),
     "trend_track_rms_dph": Metric("deg/h", "analysis two: RMS of ε_z1 estimate − true drift after evaluation.start, per filter"),
-    "trend_track_corr": Metric("-", "analysis two: correlation of the ε_z1 estimate with the true drift after evaluation.start, per filter"),
-    "trend_track_corr_rw": Metric("-", "the same with analysis_two.drift_rw on INS #1's drifts (only when > 0)"),
+    "trend_correlation": Metric("-", "analysis two: correlation of the ε_z1 estimate with the true drift after "
+                                "evaluation.start, per filter (INS #2, #3, #4)"),
+    "trend_correlation_rw": Metric("-", "the same with analysis_two.drift_rw on INS #1's drifts (only when > 0)"),
     "trend_track_rms_rw_dph": Metric("deg/h", "RMS tracking error with analysis_two.drift_rw (only when > 0)"),
     "windowed_std_two_rw_dph": Metric("deg/h", "mean windowed std of filters 2, 3, 4 with analysis_two.drift_rw (only when > 0)"),
     "ranking_matches_position_error_rw": Metric("-", "std ranking equals the position-error ranking with analysis_two.drift_rw (only when > 0)"),
     "eq20_sigma_ratio_predicted": Metric("-", "σ(ε_z1) at β = 1.1 over β = 1 from the covariance computation (gains fixed)"),
     "eq20_sigma_ratio_paper": Metric("-", "the same from eq 20 taken literally (ΔP = αP: ratio β)"),
-    "eq20_sigma_ratio_simulated": Metric("-", "mean windowed std at β = 1.1 over β = 1 (simulation)"),
+    "eq20_sigma_ratio_simulated": Metric("-", "mean windowed std at β = 1.1 over β = 1 (this nonlinear run)"),
+    "eq20_sigma_ratio_predicted_blocks": Metric("-", "the covariance computation with INS #1's noise share left "
+                                                "out (its block means removed, it hardly reaches ε̂_z1)"),
+    "eq20_ratio_mean": Metric("-", "σ ratio β = 1.1 / β = 1 (mean windowed std), mean over the seeds"),
+    "eq20_ratio_ci95": Metric("-", "its 95 % confidence interval (Student t; NaN with one run)"),
+    "ranking_probability": Metric("-", "analysis two: fraction of seeds on which the windowed stds rank INS "
+                                  "#2..#4 as their noise scales"),
+    "ranking_probability_ci95": Metric("-", "its 95 % Wilson interval (NaN with one run)"),
     "eq20_noise_share_gyro_k": Metric("-", "share of INS k's gyro noise in the final variance of ε_z1"),
     "mc_windowed_std_mean_dph": Metric("deg/h", "linear-domain Monte Carlo: mean over seeds of the mean windowed std per β"),
     "mc_windowed_std_sd_dph": Metric("deg/h", "its spread (std over seeds) per β"),
@@ -308,7 +358,7 @@ def one_cycle(mount, lat, lon, dt):
                  np.asarray(gen.truth.att_imu[0], float), Tc)
 
 
-def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups):
+def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups, inputs=False):
     """Step transitions of the joint model along the true schedule of both mounts (carrier
     at rest, axes ENU): ``me`` sub-steps of ``model_dt`` chained per filter step, computed
     once per distinct step (the mounts dwell most of the time, so few steps differ).
@@ -319,6 +369,9 @@ def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups)
     Q : dict {group: ndarray (U, n, n)}
     index : int ndarray (K,)
         Table entry of each of the K filter steps.
+    Gam : dict {group: ndarray (U, n, p)}
+        Only with ``inputs=True``: the input matrices of
+        :func:`sinslab.methods.rotins.joint_transitions`.
     """
     from sinslab.methods import rotins
 
@@ -330,9 +383,9 @@ def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups)
     sub = (first[:, None] * me + np.arange(me)[None, :]).ravel()
     r1, w1, f1 = _truth_rows(m1, np.r_[ts[sub], 0.0], lat, lon)
     rk, wk, fk = _truth_rows(mk, np.r_[ts[sub], 0.0], lat, lon)
-    Phi, Q = rotins.joint_transitions(model, model_dt, r1[:-1], rk[:-1], (w1, f1), (wk, fk),
-                                      noise_groups=noise_groups, substeps=me)
-    return Phi, Q, np.asarray(index, dtype=np.int64).reshape(K)
+    out = rotins.joint_transitions(model, model_dt, r1[:-1], rk[:-1], (w1, f1), (wk, fk),
+                                   noise_groups=noise_groups, substeps=me, inputs=inputs)
+    return (*out[:2], np.asarray(index, dtype=np.int64).reshape(K), *out[2:])
 
 
 _GROUPS = {"ins1": range(0, 5), "gyro_k": range(5, 8), "accel_k": range(8, 10)}
@@ -366,6 +419,22 @@ class InsSpec:
     trend: object = None        # sim.imu.Trend on the gyros, time from the run start
     recorded: object = None     # (gyro (K,3) rad/s, offset) or None
     gyro_scale: float = 1.0     # scale of the recorded gyro noise
+    demean: int = 0             # remove the noise's mean over blocks of this many samples (0: off)
+
+
+def remove_block_means(x, nb, keep=0.0):
+    """Remove from ``x`` (L, 3), in place, its mean over consecutive blocks of ``nb`` rows
+    (a last, shorter block over its own rows) and add ``keep`` (3,) back: with ``x`` the
+    error of the increments, bias·dt + noise, and ``keep`` = bias·dt, the noise loses its
+    block means and the bias stays."""
+    L = x.shape[0]
+    full = (L // nb) * nb
+    if full:
+        v = x[:full].reshape(-1, nb, x.shape[1])
+        v -= v.mean(1, keepdims=True) - keep
+    if full < L:
+        x[full:] -= x[full:].mean(0) - keep
+    return x
 
 
 @dataclass
@@ -430,6 +499,10 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
     cyc, stream = specs[0].cycle, tuple(specs[0].stream)
     if any(s.cycle is not cyc or tuple(s.stream) != stream for s in specs):
         raise ValueError("navigate_group: the INS of a group must share their cycle and random stream")
+    for s in specs:
+        if s.demean and ((min(chunk_steps, n_steps) * k_kf) % s.demean):
+            raise ValueError(f"navigate_group: {s.name}: a chunk of {min(chunk_steps, n_steps) * k_kf} samples is "
+                             f"not a whole number of {s.demean}-sample noise blocks")
     rng = np.random.default_rng([int(seed), *stream])
     phi0 = rng.standard_normal(3) * np.asarray(att_sigma, float)
     C0 = A.euler_to_dcm(cyc.att0)
@@ -469,11 +542,19 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
                                                    t, dt_rec, errors, rng, out=out)
         for j, spec in enumerate(specs):
             dth, dv = dth_all[j], dv_all[j]
-            if spec.trend is not None:
-                dth += spec.trend.evaluate(t - 0.5 * dt) * dt
             if spec.recorded is not None:
                 g, off = spec.recorded
                 dth += _tile(g, off + i0, L, rec_buf) * (spec.gyro_scale * dt)
+            if spec.demean:
+                # the noise, synthesised or recorded, loses its block means; the chunks hold
+                # whole blocks, so the blocks are counted from the start of the run
+                e = spec.errors
+                for inc, true, bias in ((dth, _tile(cyc.dth, i0, L, tile_th), e.gyro_bias),
+                                        (dv, _tile(cyc.dv, i0, L, tile_v), e.accel_bias)):
+                    err = remove_block_means(inc - true, spec.demean, np.asarray(bias, float) * dt)
+                    np.add(true, err, out=inc)
+            if spec.trend is not None:
+                dth += spec.trend.evaluate(t - 0.5 * dt) * dt
             sd.step(states[j], dth, dv, dt, nsub, vertical="hold", height=height[:L + 1],
                     out=rows[j][done + 1:done + 1 + m], out_every=per)
             if rates:
@@ -628,6 +709,37 @@ def load_recorded_gyro(path, n_needed, dt, what):
     return g
 
 
+def joint_filter_setup(cfg: Config):
+    """The nominal joint filter of every pair: ``(model, P0, sigma)`` — the 17-state model
+    with the configured noise densities, the initial covariance (each INS's attitude error
+    drawn on its own, so the difference has √2 × its σ) and the R ≈ 0 floor."""
+    from sinslab.methods import rotins
+
+    lat, fl = float(cfg.scenario.latitude), cfg.filter
+    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
+                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
+    P0 = rotins.joint_P0(model, lat, att=np.asarray(cfg.init.att_err, float) * math.sqrt(2),
+                         gyro1=float(fl.gyro_sigma0), gyrok=float(fl.gyro_sigma0), accel1=float(fl.accel_sigma0),
+                         accelk=float(fl.accel_sigma0))
+    return model, P0, rotins.difference_sigma(lat, float(fl.meas_floor_pos), float(fl.meas_floor_vel))
+
+
+def drift_trend(cfg: Config):
+    """INS #1's azimuth drift trend of analysis two (:class:`sinslab.sim.imu.Trend`, time
+    from the start of the run): a warm-up ``A (1 − exp(−t/τ))`` or a sine ``A sin(2πt/P)``,
+    plus a ramp of ``trend_ramp`` over the run."""
+    from sinslab.sim import imu as imu_
+
+    a2, T = cfg.analysis_two, float(cfg.scenario.duration)
+    z = np.array([0.0, 0.0, 1.0])
+    ramp = z * float(a2.trend_ramp) / T
+    if a2.trend == "sine":
+        return imu_.Trend(ramp=ramp, sin_amplitude=z * float(a2.trend_amplitude),
+                          sin_period=np.where(z > 0, float(a2.trend_period), math.inf))
+    return imu_.Trend(ramp=ramp, exp_amplitude=z * float(a2.trend_amplitude),
+                      exp_time=np.where(z > 0, float(a2.trend_time), math.inf))
+
+
 def _grid(cfg: Config):
     """The run's time grid: IMU interval dt [s], IMU samples per model step, model steps
     per measurement, measurements, model steps."""
@@ -649,8 +761,6 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
     trend. ``rec1``, ``reck``: recorded gyro noise (rad/s at the IMU rate) of INS #1 and of
     INS #2..#4, or None.
     """
-    from sinslab.sim import imu as imu_
-
     sc, ev, fl = cfg.scenario, cfg.evaluation, cfg.filter
     lat, lon = float(sc.latitude), float(sc.longitude)
     dt, k_md, me, n_kf, n_steps = _grid(cfg)
@@ -659,9 +769,10 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
     cyck = one_cycle(mk, lat, lon, dt)
     e1 = _errors(cfg.imu1, white=not cfg.imu1.recorded_noise)
     a2 = cfg.analysis_two
-    trend = imu_.Trend(ramp=np.array([0.0, 0.0, float(a2.trend_ramp) / float(sc.duration)]),
-                       sin_amplitude=np.array([0.0, 0.0, float(a2.trend_amplitude)]),
-                       sin_period=np.array([math.inf, math.inf, float(a2.trend_period)]))
+    trend = drift_trend(cfg)
+    # analysis one: INS #1's noise without its 5-minute means (the paper's "ideal" record
+    # free of trends), removed while navigating; analysis two keeps the whole record
+    nb = int(round(float(cfg.imu1.noise_block) / dt))
     att_sigma = np.asarray(cfg.init.att_err, float)
     betas = [float(b) for b in ev.beta_grid]
 
@@ -671,7 +782,7 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
             return InsSpec(name, cyck, _errors(cfg.imuk, white=False), stream, None, (reck, off), scale)
         return InsSpec(name, cyck, _errors(cfg.imuk, gyro_scale=scale), stream)
 
-    specs = {"ins1": InsSpec("INS #1", cyc1, e1, (1,), None, (rec1, 0) if rec1 is not None else None)}
+    specs = {"ins1": InsSpec("INS #1", cyc1, e1, (1,), None, None if rec1 is None else (rec1, 0), demean=nb)}
     for b in betas:
         specs[f"ins2_b{b:g}"] = kspec(f"INS #2 β={b:g}", (2,), b)
     specs["sepB"] = kspec("separate INS B", (5,), float(ev.separate_ratio))
@@ -688,8 +799,13 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
     # the driver linearises on the outputs at every model step; the schedule engine needs
     # the outputs at the measurement epochs only
     n_out, k_out = (n_steps, k_md) if drv else (n_kf, k_md * me)
+    # chunks of about an hour holding whole noise blocks of INS #1
+    per_chunk = max(1, int(3600.0 // (k_out * dt)))
+    if nb:
+        blk = nb // k_out if nb % k_out == 0 else nb
+        per_chunk = max(blk, per_chunk // blk * blk)
     nav_kw = dict(seed=cfg.seed, lat=lat, lon=lon, dt=dt, n_steps=n_out, k_kf=k_out, nsub=cfg.filter.nsub,
-                  att_sigma=att_sigma, chunk_steps=max(1, int(3600.0 // (k_out * dt))), rates=drv)
+                  att_sigma=att_sigma, chunk_steps=per_chunk, rates=drv)
     return specs, nav_kw, two_2, trend
 
 
@@ -716,8 +832,7 @@ def run(cfg: Config, ctx) -> Result:
 
     # --- observability along the actual schedule
     m1, mk = mounts(cfg)
-    model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
-                                        float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
+    model, P0, sig_meas = joint_filter_setup(cfg)
     so, warning = observability(cfg, model)
     warn_rank = warning is not None
     if warn_rank:
@@ -727,7 +842,6 @@ def run(cfg: Config, ctx) -> Result:
     t0, c0 = time.perf_counter(), time.process_time()
     specs, nav_kw, two_2, trend = ins_plan(cfg, rec1, reck)
     a2 = cfg.analysis_two
-    att_sigma = np.asarray(cfg.init.att_err, float)
     betas = [float(b) for b in ev.beta_grid]
     drv = fl.engine == "driver"
     with ctx.progress("navigating", total=len(specs), unit="INS") as bar:
@@ -741,16 +855,13 @@ def run(cfg: Config, ctx) -> Result:
     t0, c0 = time.perf_counter(), time.process_time()
     t_md = model_dt * np.arange(n_steps + 1)
     t_ep = t_md[::me]
-    sig_meas = rotins.difference_sigma(lat, float(fl.meas_floor_pos), float(fl.meas_floor_vel))
-    P0 = rotins.joint_P0(model, lat, att=att_sigma * math.sqrt(2), gyro1=float(fl.gyro_sigma0),
-                         gyrok=float(fl.gyro_sigma0), accel1=float(fl.accel_sigma0),
-                         accelk=float(fl.accel_sigma0))
     iz = model.layout.index(["eps_z_1"])[0]
 
     def stream(o):
         return PrecomputedStream(t_md, o.rows, o.omega, o.f)
 
-    Phi_u, Q_u, idx = schedule_transitions(m1, mk, lat, lon, model, model_dt, me, n_kf, _GROUPS)
+    Phi_u, Q_u, idx, Gam_u = schedule_transitions(m1, mk, lat, lon, model, model_dt, me, n_kf, _GROUPS,
+                                                  inputs=True)
     Q_all = Q_u["ins1"] + Q_u["gyro_k"] + Q_u["accel_k"]
 
     def jf(a, b):
@@ -793,7 +904,9 @@ def run(cfg: Config, ctx) -> Result:
     dist_sep = mean_sep[1] > mean_sep[0] if ev.separate_ratio > 1 else mean_sep[1] < mean_sep[0]
     eps_true = float(np.asarray(cfg.imu1.gyro_bias, float).reshape(-1)[-1])
     x10, s10 = one[i10]
-    settle = rotins.settle_time(t_ep, x10, s10[-1])
+    level = float(ev.settle_sigma) or abs(eps_true)
+    settle_sigma = rotins.sigma_settle_time(t_ep, s10, level)
+    settle_band = rotins.band_settle_time(t_ep, x10, eps_true, float(ev.settle_band))
 
     # analysis two
     two_keys = [("ins1_trend", two_2), ("ins1_trend", "ins3"), ("ins1_trend", "ins4")]
@@ -811,6 +924,8 @@ def run(cfg: Config, ctx) -> Result:
     ranking_ok = rank_std == rank_pos
     lim = float(ev.stability_limit)
     below = float(np.mean(np.concatenate(ws_one) <= lim))
+    failing = {f"β={b:g}": [float((e - win) / 3600.0) for e, w in zip(te, ws) if w > lim]
+               for b, ws in zip(betas, ws_one)}
     true_drift = eps_true + trend.evaluate(t_ep)[:, 2]
     after = t_ep >= st
     track = [float(np.sqrt(np.mean((est[k][0][after] - true_drift[after]) ** 2)) / DPH) for k in two_keys]
@@ -858,6 +973,10 @@ def run(cfg: Config, ctx) -> Result:
     alpha11 = 1.1 ** 2 - 1.0
     ratio_pred = math.sqrt(1.0 + alpha11 * share_gk)
     ratio_sim = float(mean_one[i11] / mean_one[i10])
+    # INS #1's noise without its block means hardly reaches ε̂_z1 (its slow part is gone):
+    # the same computation with INS #1's share left out
+    share_gk_blocks = float(var[bud.names.index("gyro_k")] / (bud.total[iz] - var[bud.names.index("ins1")]))
+    ratio_pred_blocks = math.sqrt(1.0 + alpha11 * share_gk_blocks)
     stages["covariance"] = time.perf_counter() - t0
     cpu["covariance"] = time.process_time() - c0
 
@@ -865,14 +984,22 @@ def run(cfg: Config, ctx) -> Result:
     t0, c0 = time.perf_counter(), time.process_time()
     runs = int(cfg.runs)
     mc_stats = None
+    nan2 = [float("nan"), float("nan")]
     if runs > 1:
-        mc = linear_campaign(cfg, ctx, runs, model, P0, sig_meas)
+        mc = linear_campaign(cfg, ctx, runs, model, P0, sig_meas, (Phi_u, Q_u, idx, Gam_u))
         mc_stats = mc
         p_mono, p_d11, p_sep = mc["p_monotone"], mc["p_distinguish"], mc["p_separate"]
-        notes.append(f"Fractions over {runs} seeds from the linear-domain simulation of the joint error state.")
+        eq20_mean, eq20_ci = mc["eq20_ratio_mean"], mc["eq20_ratio_ci95"]
+        p_rank, p_rank_ci = mc["ranking_probability"], mc["ranking_probability_ci95"]
+        notes.append(f"Fractions, eq 20's ratio and the ranking probability over {runs} seeds from the "
+                     "linear-domain simulation of the joint error state (95 % intervals: Student t for the "
+                     "mean ratio, Wilson for the probability).")
     else:
         p_mono, p_d11, p_sep = float(monotone), float(dist11), float(dist_sep)
-        notes.append("Fractions from this single nonlinear run (0 or 1); use --runs N for seed statistics.")
+        eq20_mean, eq20_ci = ratio_sim, nan2
+        p_rank, p_rank_ci = float(rank_std == rank_noise), nan2
+        notes.append("Fractions from this single nonlinear run (0 or 1) and no confidence intervals: the "
+                     "claims on eq 20 and on the ranking need --runs N (N >= 2) and fail without.")
     stages["montecarlo"] = time.perf_counter() - t0
     cpu["montecarlo"] = time.process_time() - c0
 
@@ -882,7 +1009,8 @@ def run(cfg: Config, ctx) -> Result:
         "eps_z1_true_dph": eps_true / DPH,
         "eps_z1_final_dph": [float(x[-1] / DPH) for x, _ in one],
         "eps_z1_sigma_final_dph": float(s10[-1] / DPH),
-        "eps_z1_settle_h": settle / 3600.0,
+        "settle_sigma_h": settle_sigma / 3600.0, "settle_band_h": settle_band / 3600.0,
+        "settle_sigma_level_dph": level / DPH, "settle_band_dph": float(ev.settle_band) / DPH,
         "windowed_std_eps_z1_dph": [float(v / DPH) for v in mean_one],
         "windowed_std_separate_dph": [v / DPH for v in mean_sep],
         "beta_grid": betas,
@@ -892,20 +1020,23 @@ def run(cfg: Config, ctx) -> Result:
         "ranking_matches_position_error": bool(ranking_ok),
         "ranking_matches_noise_level": bool(rank_std == rank_noise),
         "position_error_ranking_matches_noise_level": bool(rank_pos == rank_noise),
-        "eps_z1_windows_below_limit": below,
+        "eps_z1_windows_below_limit": below, "eps_z1_windows_failing_h": failing,
+        "eps_z1_windows_worst_dph": [float(np.max(w) / DPH) for w in ws_one],
         "pos_err_end_nmi": pos_end, "pos_err_rms_nmi": pos_rms,
-        "trend_track_rms_dph": track, "trend_track_corr": track_corr,
+        "trend_track_rms_dph": track, "trend_correlation": track_corr,
         **({} if two_rw is None else {
-            "trend_track_corr_rw": two_rw["corr"], "trend_track_rms_rw_dph": two_rw["rms"],
+            "trend_correlation_rw": two_rw["corr"], "trend_track_rms_rw_dph": two_rw["rms"],
             "windowed_std_two_rw_dph": two_rw["wstd"], "ranking_matches_position_error_rw": two_rw["ranking"]}),
-        "eq20_sigma_ratio_predicted": ratio_pred, "eq20_sigma_ratio_paper": 1.1,
+        "eq20_sigma_ratio_predicted": ratio_pred, "eq20_sigma_ratio_predicted_blocks": ratio_pred_blocks,
+        "eq20_sigma_ratio_paper": 1.1,
         "eq20_sigma_ratio_simulated": ratio_sim, "eq20_noise_share_gyro_k": share_gk,
+        "eq20_ratio_mean": eq20_mean, "eq20_ratio_ci95": eq20_ci,
+        "ranking_probability": p_rank, "ranking_probability_ci95": p_rank_ci,
         "rotation_cycle_s": [m1.cycle_time, mk.cycle_time],
         "imu_samples_per_ins": n_samples, "navigations": len(specs),
         "stage_s": [stages["navigation"], stages["filters"], stages["covariance"], stages["montecarlo"]],
         "stage_cpu_s": [cpu["navigation"], cpu["filters"], cpu["covariance"], cpu["montecarlo"]],
     }
-    claims = _claims(cfg, metrics, so, ws_one, warn_rank, runs)
     series = {"eps_z1": {"t_h": t_ep / 3600.0, **{f"beta_{b:g}_dph": x / DPH for b, (x, _) in zip(betas, one)},
                          "sigma_beta_1_dph": s10 / DPH, "separate_B_dph": sep_b[0] / DPH,
                          **{f"two_filter{j}_dph": est[k][0] / DPH for j, k in zip((2, 3, 4), two_keys)},
@@ -932,28 +1063,43 @@ def run(cfg: Config, ctx) -> Result:
             f"Mean windowed std of ε_z1 over {runs} seeds (linear domain) next to this nonlinear run"))
         metrics["mc_windowed_std_mean_dph"] = [float(v) for v in w.mean(0)]
         metrics["mc_windowed_std_sd_dph"] = [float(v) for v in w.std(0)]
+        sb = mc_stats["settle_band"] / 3600.0
+        metrics["mc_settle_band_median_h"] = float(np.median(sb))
+        metrics["mc_settle_band_p_by_paper"] = float(np.mean(sb <= PAPER_SETTLE_H + win / 3600.0))
+        metrics["mc_trend_correlation_mean"] = [float(v) for v in mc_stats["trend_corr"].mean(0)]
+    claims = _claims(cfg, metrics, so, warn_rank, runs)
     metrics["runtime_s"] = time.perf_counter() - t_start
     return Result(metrics=metrics, claims=claims, series=series, figures=figures, tables=tables, notes=notes)
 
 
 # ---------------------------------------------------------------- Monte Carlo -------------
-#: noise columns of the joint model: [w_g1 (3), w_a1 (2), w_gk (3), w_ak (2)]
-_COLS_1 = slice(0, 5)
-_COLS_GK = slice(5, 8)
-_COLS_AK = slice(8, 10)
-_LIN_CACHE: dict = {}
+#: parts of the linear-domain run: which noise drives each (None: no noise) —
+#: INS 1 + initial state, INS 2 accel, INS 2 gyro, INS B accel, INS B gyro, INS 3 accel,
+#: INS 3 gyro, INS 4 accel, INS 4 gyro, INS 1's drift trend, INS 1's noise block means
+_PARTS = ("ins1", "accel_k", "gyro_k", "accel_k", "gyro_k", "accel_k", "gyro_k", "accel_k", "gyro_k",
+          None, "blocks")
 
 
-def campaign_spec(cfg: Config, model, P0, sig_meas):
-    """What a worker of the linear campaign needs (small: the schedules are re-evaluated
-    on the worker)."""
+def campaign_spec(cfg: Config, model, P0, sig_meas, tables):
+    """What a worker of the linear campaign needs: the scenario numbers and the main
+    process's transition table ``(Phi, Q, index, Gam)`` of :func:`schedule_transitions`
+    (with ``inputs=True``), so that no worker builds it again."""
     sc, fl, ev = cfg.scenario, cfg.filter, cfg.evaluation
     kf_dt = float(fl.kf_dt)
-    return dict(lat=float(sc.latitude), lon=float(sc.longitude), kf_dt=kf_dt, model_dt=float(fl.model_dt),
-                n_steps=int(float(sc.duration) // kf_dt), rotation=cfg.rotation.model_dump(),
-                q=np.asarray(model.q, float).copy(), P0=np.asarray(P0, float), sig=np.asarray(sig_meas, float),
-                betas=[float(b) for b in ev.beta_grid], sep=float(ev.separate_ratio),
-                start=float(ev.start), window=float(ev.window))
+    Phi, Q, index, Gam = tables
+    K = int(float(sc.duration) // kf_dt)
+    t = kf_dt * np.arange(K + 1)
+    eps_true = float(np.asarray(cfg.imu1.gyro_bias, float).reshape(-1)[-1])
+    # trend of the true drift held over each step at its mid-step value (the steps are short
+    # against the trend)
+    tr = drift_trend(cfg).evaluate(t[:-1] + 0.5 * kf_dt)[:, 2]
+    return dict(lat=float(sc.latitude), kf_dt=kf_dt, n_steps=K, q=np.asarray(model.q, float).copy(),
+                P0=np.asarray(P0, float), sig=np.asarray(sig_meas, float), Phi=Phi, Q=Q, Gam=Gam,
+                index=np.asarray(index), betas=[float(b) for b in ev.beta_grid], sep=float(ev.separate_ratio),
+                scales=[float(b) for b in cfg.analysis_two.noise_scales], start=float(ev.start),
+                window=float(ev.window), trend_steps=np.diff(np.r_[0.0, tr]),
+                block_steps=int(round(float(cfg.imu1.noise_block) / kf_dt)), eps_true=eps_true,
+                band=float(ev.settle_band))
 
 
 def _truth_rows(mount, t, lat, lon):
@@ -975,41 +1121,33 @@ def _truth_rows(mount, t, lat, lon):
 
 
 def _linear_setup(spec):
-    """Per worker (cached): transitions, noise inputs and the nominal filter's gains of the
-    joint model along the true schedule, positions in metres."""
-    import hashlib
-    import pickle
+    """The campaign's fixed part, made once in the main process from its transition table:
+    transitions, noise square roots and the nominal filter's gains, positions in metres.
 
+    INS 1's step noise is split into its step mean ``u ~ N(0, q/T)`` acting through ``Γ``
+    (:func:`sinslab.methods.rotins.joint_transitions` with ``inputs=True``) and the rest,
+    independent of ``u``: removing the block means of ``u`` is then removing those of INS 1's
+    noise, and the white case is the same numbers with nothing removed."""
     from sinslab.methods import rotins
 
-    key = hashlib.sha1(pickle.dumps({k: spec[k] for k in ("lat", "lon", "kf_dt", "model_dt", "n_steps", "rotation")})
-                       + spec["q"].tobytes() + spec["P0"].tobytes() + spec["sig"].tobytes()).hexdigest()
-    hit = _LIN_CACHE.get(key)
-    if hit is not None:
-        return hit
-    lat, T, K = spec["lat"], spec["kf_dt"], spec["n_steps"]
-    md = spec["model_dt"]
-    me = int(round(T / md))
-    r = Rotation(**spec["rotation"])
-    m1 = ix.single_axis_4pos(rate=float(r.rate), dwell=float(r.dwell_single), ramp=float(r.ramp))
-    mk = ix.RotateStop(tuple((a, math.radians(x)) for a, x in _DUAL_SCHEMES[r.dual_scheme]),
-                       float(r.rate), float(r.ramp), float(r.dwell_dual), (0.0, 0.0, 0.0), True, r.dual_scheme)
-    t = T * np.arange(K + 1)
     model = rotins.joint_rotation_model()
     model.q[:] = spec["q"]
-    groups = {"c1": range(0, 5), "ak": range(8, 10), "gk": range(5, 8)}
-    Phi, Qg, index = schedule_transitions(m1, mk, lat, spec["lon"], model, md, me, K, groups)
+    K, T = spec["n_steps"], spec["kf_dt"]
+    Phi, Qg, Gam, index = spec["Phi"].copy(), {g: v.copy() for g, v in spec["Q"].items()}, spec["Gam"], spec["index"]
     n = model.n
     sig = spec["sig"]
     d = rotins._metre_scale(model, sig)
     Phi *= d[:, None] / d[None, :]
-    # square roots of the step noise per source: w = S ξ, ξ ~ N(0, I)
+    q1 = spec["q"][list(_GROUPS["ins1"])]
+    G1 = Gam["ins1"] * d[None, :, None] * np.sqrt(q1 / T)[None, None, :]
     roots = {}
     for g, Qk in Qg.items():
         Qk *= d[:, None] * d[None, :]
+        if g == "ins1":
+            Qk = Qk - G1 @ np.swapaxes(G1, -1, -2)
         w, V = np.linalg.eigh(Qk)
         roots[g] = V * np.sqrt(np.maximum(w, 0.0))[:, None, :]
-    Q = Qg["c1"] + Qg["ak"] + Qg["gk"]
+    Q = sum(Qg.values())
     P = spec["P0"] * (d[:, None] * d[None, :])
     Rv = (sig * np.r_[d[0], d[1], 1.0, 1.0]) ** 2
     gains = np.empty((K, n, 4))
@@ -1027,80 +1165,140 @@ def _linear_setup(spec):
         P = 0.5 * (P + P.T)
         gains[k] = Kk
         sig_z[k + 1] = math.sqrt(P[iz, iz])
-    S = dict(Phi=np.ascontiguousarray(Phi), index=index, roots=roots, gains=gains, Rv=Rv, d=d, iz=iz,
-             P0=spec["P0"] * (d[:, None] * d[None, :]), t=t, sig_z=sig_z)
-    _LIN_CACHE.clear()
-    _LIN_CACHE[key] = S
-    return S
+    return dict(Phi=np.ascontiguousarray(Phi), index=index, roots=roots, G1=np.ascontiguousarray(G1),
+                gains=gains, Rv=Rv, d=d, iz=iz, P0=spec["P0"] * (d[:, None] * d[None, :]),
+                t=T * np.arange(K + 1), sig_z=sig_z)
 
 
-def linear_batch(seeds, spec):
-    """Linear-domain runs of analysis one (campaign function of
+def linear_batch(seeds, spec, setup):
+    """Linear-domain runs of analyses one and two (campaign function of
     :func:`sinslab.estimation.montecarlo.run_campaign`).
 
     Per seed, the true joint error state and the nominal filter's estimate are propagated
-    in five parts that the filters share or not: INS 1's noise and the initial state,
-    INS 2's accelerometer noise, INS 2's gyro noise (one record, scaled by β afterwards:
-    the filter is linear with fixed gains, so ε̂_z1(β) = ε̂(rest) + β ε̂(gyro 2)), and the
-    accelerometer and gyro noise of a separate INS B. Vectorised over seeds and parts.
+    in parts (``_PARTS``) that the filters share or not: the filter is linear with fixed
+    gains, so each filter's ε̂_z1 is a sum of parts, a rescaled noise record a scaled part
+    (ε̂_z1(β) = ε̂(rest) + β ε̂(gyro 2)), INS 1's noise without its block means the INS 1 part
+    minus the block-mean part, and the drift trend a part of its own. Vectorised over seeds
+    and parts. INS B, #3 and #4 share INS #2's initial state (its effect is gone long before
+    the first window).
 
     Returns
     -------
     dict
         ``wstd`` (B, len(betas)) mean windowed std of ε̂_z1 per β [rad/s]; ``wstd_sep``
-        (B, 2): INS A (β = 1), INS B (ratio ``sep``); ``final`` (B,) ε̂_z1 − ε_z1 at the end.
+        (B, 2): INS A (β = 1), INS B (ratio ``sep``); ``wstd_two`` (B, 3): filters 2, 3, 4
+        of analysis two; ``final`` (B,) ε̂_z1 − ε_z1 at the end (β = 1); ``settle_band``
+        (B,) the band reading of the settling time [s] (β = 1); ``trend_corr`` (B, 3): the
+        correlation of filters 2, 3, 4's ε̂_z1 with the drift's trend after ``start``.
     """
     from sinslab.methods import rotins
 
-    S = _linear_setup(spec)
-    Phi, index, roots, gains, iz = S["Phi"], S["index"], S["roots"], S["gains"], S["iz"]
+    S = setup
+    Phi, index, roots, gains, iz, G1 = S["Phi"], S["index"], S["roots"], S["gains"], S["iz"], S["G1"]
     K, n = gains.shape[:2]
     B = len(seeds)
+    P_ = len(_PARTS)
+    p1 = G1.shape[-1]
+    nb = spec["block_steps"]
     L0 = np.linalg.cholesky(S["P0"])
     rngs = [np.random.default_rng(s) for s in seeds]
-    X = np.zeros((B, 5, n))
+    X = np.zeros((B, P_, n))
     for b, g in enumerate(rngs):
         X[b, 0] = L0 @ g.standard_normal(n)
-    Xh = np.zeros((B, 5, n))
-    # parts: INS 1 + initial state, INS 2 accel, INS 2 gyro, INS B accel, INS B gyro
-    src = ["c1", "ak", "gk", "ak", "gk"]
+    x0z = X[:, 0, iz].copy()
+    Xh = np.zeros((B, P_, n))
+    noisy = [j for j, s in enumerate(_PARTS) if s in ("ins1", "accel_k", "gyro_k")]
+    # per source: its parts and their columns among the noisy parts' draws
+    groups = [(g, np.array([j for j, s in enumerate(_PARTS) if s == g]),
+               np.array([noisy.index(j) for j, s in enumerate(_PARTS) if s == g])) for g in ("ins1", "accel_k", "gyro_k")]
+    j_tr, j_bl = _PARTS.index(None), _PARTS.index("blocks")
+    tr = spec["trend_steps"] * S["d"][iz]
     sv = np.sqrt(S["Rv"])
-    ez = np.empty((B, 5, K + 1))
+    ez = np.empty((B, P_, K + 1))
     ez[:, :, 0] = 0.0
-    # A seed's generator gives per step 5·n process and then 4 measurement normals; drawn
-    # for a block of steps at once they are the same numbers in the same order.
-    per = 5 * n + 4
-    chunk = 2048
-    v = np.zeros((B, 5, 4))
+    # A seed's generator gives per step, in this order, the process normals of the noisy
+    # parts, INS 1's step means and the measurement normals; drawn for a block of steps at
+    # once they are the same numbers in the same order. The blocks hold whole noise blocks.
+    per = len(noisy) * n + p1 + 4
+    chunk = 2048 if nb < 1 else nb * max(1, 2048 // nb)
+    v = np.zeros((B, P_, 4))
     for k in range(K):
         c = k % chunk
         if c == 0:
             m = min(chunk, K - k)
             draws = np.stack([g.standard_normal((m, per)) for g in rngs])
-            xis = draws[:, :, :5 * n].reshape(B, m, 5, n)
-            vs = draws[:, :, 5 * n:]
-        xi = xis[:, c]
+            xis = draws[:, :, :len(noisy) * n].reshape(B, m, len(noisy), n)
+            us = draws[:, :, len(noisy) * n:len(noisy) * n + p1]
+            vs = draws[:, :, len(noisy) * n + p1:]
+            ubar = np.zeros_like(us)
+            if nb >= 1:
+                for a in range(0, m, nb):
+                    ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
         u = index[k]
+        X[:, j_tr, iz] += tr[k]
         X = X @ Phi[u].T
-        for j, g in enumerate(src):
-            X[:, j] += xi[:, j] @ roots[g][u].T
+        xi = xis[:, c]
+        for gname, js, cols in groups:
+            X[:, js] += xi[:, cols] @ roots[gname][u].T
+        X[:, 0] += us[:, c] @ G1[u].T
+        X[:, j_bl] += ubar[:, c] @ G1[u].T
         Xh = Xh @ Phi[u].T
         v[:, 0] = vs[:, c] * sv
         nu = X[:, :, :4] + v - Xh[:, :, :4]
         Xh = Xh + nu @ gains[k].T
         ez[:, :, k + 1] = Xh[:, :, iz]
     t = S["t"]
-    betas = spec["betas"]
+    betas, scales = spec["betas"], spec["scales"]
+    st, win = spec["start"], spec["window"]
+
+    def ws(x):
+        return rotins.windowed_std(t, x, st, win)[1].mean()
+
     out = np.empty((B, len(betas)))
     sep = np.empty((B, 2))
+    two = np.empty((B, 3))
+    corr = np.empty((B, 3))
+    settle = np.empty(B)
+    # the true drift's trend at the epochs (the seed's constant drift does not change a correlation)
+    trend = np.r_[0.0, np.cumsum(spec["trend_steps"])]
+    after = t >= st
     for b in range(B):
-        base = ez[b, 0] + ez[b, 1]
+        e = ez[b]
+        one1 = e[0] - e[j_bl] if nb >= 1 else e[0]
+        base = one1 + e[1]
         for i, be in enumerate(betas):
-            out[b, i] = rotins.windowed_std(t, base + be * ez[b, 2], spec["start"], spec["window"])[1].mean()
+            out[b, i] = ws(base + be * e[2])
         sep[b, 0] = out[b, betas.index(1.0)]
-        sep[b, 1] = rotins.windowed_std(t, ez[b, 0] + ez[b, 3] + spec["sep"] * ez[b, 4],
-                                        spec["start"], spec["window"])[1].mean()
-    return {"wstd": out, "wstd_sep": sep, "final": ez[:, 0, -1] + ez[:, 1, -1] + ez[:, 2, -1] - X[:, 0, iz]}
+        sep[b, 1] = ws(one1 + e[3] + spec["sep"] * e[4])
+        white = e[0] + e[j_tr]
+        ests = (white + e[1] + scales[0] * e[2], white + e[5] + scales[1] * e[6], white + e[7] + scales[2] * e[8])
+        two[b] = [ws(x) for x in ests]
+        corr[b] = [np.corrcoef(x[after], trend[after])[0, 1] for x in ests]
+        settle[b] = rotins.band_settle_time(t, base + e[2], x0z[b], spec["band"])
+    final = (ez[:, 0, -1] - (ez[:, j_bl, -1] if nb >= 1 else 0.0) + ez[:, 1, -1] + ez[:, 2, -1]) - x0z
+    return {"wstd": out, "wstd_sep": sep, "wstd_two": two, "final": final, "settle_band": settle,
+            "trend_corr": corr}
+
+
+def mean_ci95(x):
+    """Mean of ``x`` over seeds and its 95 % confidence interval (Student t)."""
+    from scipy import stats
+
+    x = np.asarray(x, float)
+    m = float(x.mean())
+    if x.size < 2:
+        return m, [float("nan"), float("nan")]
+    h = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
+    return m, [m - h, m + h]
+
+
+def wilson_ci95(k, n):
+    """95 % Wilson score interval of a probability from ``k`` successes in ``n`` trials."""
+    z = 1.959963984540054
+    p = k / n
+    c = (p + z * z / (2 * n)) / (1 + z * z / n)
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return [max(0.0, c - h), min(1.0, c + h)]
 
 
 def fractions(wstd, wstd_sep, betas, sep_ratio):
@@ -1112,68 +1310,116 @@ def fractions(wstd, wstd_sep, betas, sep_ratio):
     return float(mono.mean()), float(d11.mean()), float(dsep.mean())
 
 
-def linear_campaign(cfg, ctx, runs, model, P0, sig_meas):
-    """Analysis one over ``runs`` seeds in the linear domain, on Dask."""
+def seed_statistics(out, betas, sep_ratio, scales):
+    """The campaign's statistics: the fractions, eq 20's σ ratio at β = 1.1 (mean over seeds,
+    95 % interval) and the probability that the windowed stds of analysis two rank INS
+    #2..#4 as their noise scales (with its 95 % Wilson interval)."""
+    pm, pd, ps = fractions(out["wstd"], out["wstd_sep"], betas, sep_ratio)
+    ratio = out["wstd"][:, betas.index(1.1)] / out["wstd"][:, betas.index(1.0)]
+    rm, rci = mean_ci95(ratio)
+    right = np.all(np.argsort(out["wstd_two"], axis=1) == np.argsort(np.asarray(scales, float)), axis=1)
+    B = right.size
+    return dict(p_monotone=pm, p_distinguish=pd, p_separate=ps, eq20_ratio_mean=rm, eq20_ratio_ci95=rci,
+                ranking_probability=float(right.mean()), ranking_probability_ci95=wilson_ci95(int(right.sum()), B))
+
+
+def linear_campaign(cfg, ctx, runs, model, P0, sig_meas, tables):
+    """Analyses one and two over ``runs`` seeds in the linear domain, on Dask: the fixed
+    part (:func:`_linear_setup`) is made here once and sent to every worker once."""
     from sinslab.estimation import montecarlo as mc
 
-    spec = campaign_spec(cfg, model, P0, sig_meas)
+    spec = campaign_spec(cfg, model, P0, sig_meas, tables)
+    setup = _linear_setup(spec)
+    spec = {k: v for k, v in spec.items() if k not in ("Phi", "Q", "Gam", "P0")}
     # a task runs the whole step recursion once, vectorised over its seeds: its cost hardly
     # depends on how many it stacks, so one task per worker
-    out = mc.run_campaign(linear_batch, runs, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(spec=spec),
-                          tasks_per_worker=1)
-    betas = spec["betas"]
-    pm, pd, ps = fractions(out["wstd"], out["wstd_sep"], betas, spec["sep"])
-    return dict(p_monotone=pm, p_distinguish=pd, p_separate=ps, wstd=out["wstd"], wstd_sep=out["wstd_sep"])
+    out = mc.run_campaign(linear_batch, runs, cfg.seed, scheduler=ctx.scheduler,
+                          kwargs=dict(spec=spec, setup=setup), tasks_per_worker=1)
+    stats = seed_statistics(out, spec["betas"], spec["sep"], spec["scales"])
+    return dict(stats, wstd=out["wstd"], wstd_sep=out["wstd_sep"], wstd_two=out["wstd_two"],
+                settle_band=out["settle_band"], trend_corr=out["trend_corr"])
 
 
 # ---------------------------------------------------------------- claims ----------------
-def _claims(cfg, m, so, ws_one, warn_rank, runs):
+#: "经过 16 h（半个地球周期以上）滤波器的估计值才能相对稳定" (paper §6.1.1)
+PAPER_SETTLE_H = 16.0
+#: probability of the right ranking of three INS by chance
+CHANCE_RANKING = 1.0 / 6.0
+
+
+def _interval(v):
+    return [float(x) for x in v]
+
+
+def _claims(cfg, m, so, warn_rank, runs):
+    ev = cfg.evaluation
     cl = []
     cl.append(Claim.equals("obs_rank_static", "Rank of the 13-state subsystem at one stop (paper eq 14)",
-                           m["obs_rank_static"], 5))
+                           m["obs_rank_static"], 5, origin="paper"))
     cl.append(Claim.equals("obs_rank_schedule", "Rank stacked over the stops of the schedule (paper eq 15)"
                            + (" — below 13: the evaluation is not meaningful" if warn_rank else ""),
-                           m["obs_rank_schedule"], 13))
-    lim = float(cfg.evaluation.stability_limit) / DPH
-    worst = max(float(np.max(w)) for w in ws_one) / DPH
-    cl.append(Claim.at_most("eps_z1_stability",
-                            "ε_z1 estimate stable to better than 0.00005 °/h in every std window after "
-                            "evaluation.start (largest windowed std over the β grid; "
-                            f"{m['eps_z1_windows_below_limit'] * 100:.0f} % of the windows are below)",
-                            worst, lim, "deg/h"))
-    cl.append(Claim.at_most("eps_z1_settles", "ε_z1 estimate (β = 1) settles within its final 1σ by "
-                            "evaluation.start (paper: ~16 h)", m["eps_z1_settle_h"],
-                            float(cfg.evaluation.start) / 3600.0, "h"))
-    err = abs(m["eps_z1_final_dph"][cfg.evaluation.beta_grid.index(1.0)] - m["eps_z1_true_dph"])
+                           m["obs_rank_schedule"], 13, origin="paper"))
+    lim = float(ev.stability_limit) / DPH
+    failing = {k: v for k, v in m["eps_z1_windows_failing_h"].items() if v}
+    worst = max(m["eps_z1_windows_worst_dph"])
+    where = "; ".join(f"{k}: {', '.join(f'{a:g}' for a in v)}" for k, v in failing.items())
+    cl.append(Claim("eps_z1_stability",
+                    f"ε_z1 estimate stable to better than {lim:g} °/h in every std window after evaluation.start "
+                    f"(paper Fig 2; {m['eps_z1_windows_below_limit'] * 100:.0f} % of the windows over the β grid are "
+                    "below" + (f"; windows above, by their start [h] — {where}" if failing else "") + ")",
+                    {"largest windowed std": worst, **{f"{k} windows above from": v for k, v in failing.items()}},
+                    f"every window ≤ {lim:g} °/h", not failing and worst <= lim,
+                    unit=["deg/h"] + ["h"] * len(failing), relation="text", origin="paper"))
+    w_h = float(ev.window) / 3600.0
+    cl.append(Claim.at_most(
+        "eps_z1_settles", f"ε_z1 estimate (β = 1) relatively stable after about {PAPER_SETTLE_H:g} h (paper §6.1.1), "
+        f"to within one std window ({w_h:g} h): σ reading — the filter σ of ε_z1 first falls to "
+        f"{m['settle_sigma_level_dph']:.3g} °/h; band reading — |ε̂_z1 − ε_z1| stays within "
+        f"{m['settle_band_dph']:.3g} °/h from then on (both causal: they do not depend on the run's length)",
+        [m["settle_sigma_h"], m["settle_band_h"]], PAPER_SETTLE_H + w_h, "h",
+        names=["σ reading", "band reading"], origin="paper"))
+    err = abs(m["eps_z1_final_dph"][ev.beta_grid.index(1.0)] - m["eps_z1_true_dph"])
     cl.append(Claim.at_most("eps_z1_accuracy", "Final ε_z1 estimate (β = 1) within 3σ of the truth",
-                            err, 3 * m["eps_z1_sigma_final_dph"], "deg/h"))
+                            err, 3 * m["eps_z1_sigma_final_dph"], "deg/h", origin="check"))
     by = f" (fraction of {runs} seed{'s' if runs > 1 else ''})"
     cl.append(Claim.at_least("monotone_in_beta", "Windowed std of ε_z1 grows monotonically with β (paper Fig 3)"
-                             + by, m["p_monotone_paper_setup"], 0.9))
+                             + by, m["p_monotone_paper_setup"], 0.9, origin="paper"))
     cl.append(Claim.at_least("distinguish_1p1", "β = 1.1 told from β = 1.0 by the windowed std (paper: 10 % "
-                             "discrimination, one record rescaled)" + by, m["p_distinguish_1p1_paper_setup"], 0.9))
+                             "discrimination, one record rescaled)" + by, m["p_distinguish_1p1_paper_setup"], 0.9,
+                             origin="paper"))
     cl.append(Claim.at_least("distinguish_separate",
-                             f"Two separate dual-axis INS with {cfg.evaluation.separate_ratio:g}× noise told "
+                             f"Two separate dual-axis INS with {ev.separate_ratio:g}× noise told "
                              "apart (practical case, not in the paper)" + by,
-                             m["p_distinguish_1p1_separate_ins"], 0.9))
-    why = ""
-    if not m["ranking_matches_position_error"]:
-        why = (" — the stds rank as the noise levels do" if m["ranking_matches_noise_level"] else
-               " — the stds do not rank as the noise levels either")
-        if not m["position_error_ranking_matches_noise_level"]:
-            why += "; the position errors of this one realisation do not rank as the noise levels"
-    cl.append(Claim.equals("ranking_two", "Analysis two: the windowed stds rank INS #2..#4 as their RMS "
-                           "position errors do (paper Figs 6, 7)" + why, m["ranking_matches_position_error"], True))
-    cl.append(Claim.at_least("tracks_trend", "Analysis two: the ε_z1 estimates of filters 2, 3, 4 follow the "
-                             "trend of the true drift (correlation after evaluation.start; the filter models the "
-                             "drift as a constant, so it follows with a lag)", m["trend_track_corr"], 0.7,
-                             names=["filter 2", "filter 3", "filter 4"]))
-    cl.append(Claim.within("eq20_ratio", "σ(ε_z1) ratio β = 1.1 / β = 1: covariance computation (gains fixed) "
-                           "vs simulation (mean windowed std) within 10 %",
-                           m["eq20_sigma_ratio_simulated"], m["eq20_sigma_ratio_predicted"], rel=0.1))
-    cl.append(Claim.within("eq20_literal", "Eq 20 taken literally (ΔP = αP → σ ratio β = 1.1) vs the "
-                           "covariance computation, which scales only INS k's gyro noise",
-                           m["eq20_sigma_ratio_predicted"], 1.1, rel=0.02))
+                             m["p_distinguish_1p1_separate_ins"], 0.9, origin="check"))
+    p, ci = m["ranking_probability"], _interval(m["ranking_probability_ci95"])
+    scales = ", ".join(f"{v:g}" for v in cfg.analysis_two.noise_scales)
+    cl.append(Claim("ranking_two",
+                    "Analysis two: the windowed stds rank INS #2..#4 as their noise levels — and so their "
+                    f"position errors — more often than chance (paper Figs 6, 7); noise scales {scales} (the "
+                    f"project's choice), probability over {runs} seed{'s' if runs > 1 else ''} with its 95 % interval",
+                    {"probability": p, "95 % interval": ci}, f"interval above {CHANCE_RANKING:.3g} (chance)",
+                    Claim._ok(ci) and ci[0] > CHANCE_RANKING, relation="text", origin="paper"))
+    kind = ("a warm-up" if cfg.analysis_two.trend == "warmup" else "a sine") + " plus a ramp"
+    mc = "mc_trend_correlation_mean" in m
+    cl.append(Claim.at_least("tracks_trend", f"Analysis two: the ε_z1 estimates of filters 2, 3, 4 follow the "
+                             f"trend of the true drift ({kind}; correlation after evaluation.start, "
+                             + (f"mean over {runs} seeds" if mc else "this run") + "; the filter models "
+                             "the drift as a constant, so it follows with a lag) (paper Fig 5)",
+                             m["mc_trend_correlation_mean" if mc else "trend_correlation"], 0.7,
+                             names=["filter 2", "filter 3", "filter 4"], origin="paper"))
+    rm, rci = m["eq20_ratio_mean"], _interval(m["eq20_ratio_ci95"])
+    cl.append(Claim("eq20_ratio",
+                    "σ(ε_z1) ratio β = 1.1 / β = 1 (mean windowed std) over the seeds: its 95 % interval excludes "
+                    "1.0 (the 10 % noise change is seen) and 1.1 (eq 20 taken literally); the covariance "
+                    f"computation with the filter's gains gives {m['eq20_sigma_ratio_predicted']:.4g} (INS #1 white) "
+                    f"and {m['eq20_sigma_ratio_predicted_blocks']:.4g} (INS #1's share left out)",
+                    {"mean": rm, "95 % interval": rci}, "interval inside (1.0, 1.1)",
+                    Claim._ok(rci) and rci[0] > 1.0 and rci[1] < 1.1, relation="text", origin="check"))
+    cl.append(Claim("eq20_literal",
+                    "Eq 20 taken literally (ΔP = αP → σ ratio β = 1.1 at β = 1.1): 1.1 inside the 95 % interval "
+                    "of the simulated ratio (the experiment scales only INS k's gyro noise, not the whole Q)",
+                    {"mean": rm, "95 % interval": rci}, "1.1 inside the interval",
+                    Claim._ok(rci) and rci[0] <= 1.1 <= rci[1], relation="text", origin="paper"))
     return cl
 
 

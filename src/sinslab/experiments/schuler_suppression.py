@@ -343,13 +343,13 @@ def _claims(cfg, res, metrics, fits, dt, truth):
     c = Claim.at_least("suppression_velocity",
                        f"Schuler amplitude of the velocity errors [vE, vN] reduced by at least half "
                        f"by the mean ({kind}, {cfg.init.mode})." + (why if min(sv) < 2 else ""),
-                       sv, 2.0, "×", names=["vE", "vN"])
+                       sv, 2.0, "×", names=["vE", "vN"], origin="paper")
     cl.append(c)
     sa = [metrics["suppression_phiE"], metrics["suppression_phiN"]]
     cl.append(Claim.at_least("suppression_level_attitude",
                              f"Schuler amplitude of the level attitude errors [φE, φN] reduced by at "
                              f"least half ({kind}, {cfg.init.mode})." + (why if min(sa) < 2 else ""),
-                             sa, 2.0, "×", names=["φE", "φN"]))
+                             sa, 2.0, "×", names=["φE", "φN"], origin="paper"))
     fr, fr_names = [], []
     for ch in ("vE", "vN", "phiE", "phiN"):
         f1, fm = fits[ch]
@@ -359,7 +359,8 @@ def _claims(cfg, res, metrics, fits, dt, truth):
     if fr:
         cl.append(Claim.at_least("foucault_suppressed",
                                  "Foucault side lines ω_s ± ω_ie·sinL of [vE, vN, φE, φN] reduced with "
-                                 "the Schuler line (single / mean)", fr, 2.0, "×", names=fr_names))
+                                 "the Schuler line (single / mean)", fr, 2.0, "×", names=fr_names,
+                                 origin="paper"))
     er = []
     for ch in CHANNELS:
         a, b = metrics[f"earth_amp_{ch}_single"], metrics[f"earth_amp_{ch}_mean"]
@@ -368,11 +369,11 @@ def _claims(cfg, res, metrics, fits, dt, truth):
         cl.append(Claim.at_most("earth_period_kept",
                                 "The 24 h component is not suppressed: single / mean < 1.5 for "
                                 "[vE, vN, φE, φN, lat, lon]", er, 1.5, "×",
-                                names=[_LABEL[ch] for ch in CHANNELS]))
+                                names=[_LABEL[ch] for ch in CHANNELS], origin="paper"))
     else:
         cl.append(Claim("earth_period_kept", "The 24 h component is not suppressed (single / mean < 1.5)",
                         "not measurable: the record is too short to fit the 24 h line",
-                        "< 1.5× for every channel", False))
+                        "< 1.5× for every channel", False, origin="paper"))
     if cfg.init.mode == "aligned":
         a1, a2 = res.align1, res.align2
         ends_ok = (abs(a1.t[-1] - res.t1) < 0.5 * dt and abs(a2.t[-1] - res.t2) < 0.5 * dt
@@ -398,7 +399,7 @@ def _claims(cfg, res, metrics, fits, dt, truth):
             f"alignment ends at t1 = {res.t1:g} s and t2 = {res.t2:g} s; solution 2's start "
             "differs from solution 1 at t2", bool(ends_ok and distinct),
             names=["alignment ends", "solution 2 start − solution 1 at t2 (φE, φN, φU)"],
-            unit=["s", "′"]))
+            unit=["s", "′"], origin="check"))
         cl.append(Claim(
             "alignment_errors_agree",
             "The two alignment errors agree — the method's premise: a converged alignment leaves "
@@ -406,7 +407,7 @@ def _claims(cfg, res, metrics, fits, dt, truth):
             {"init_err1_arcmin": e1.tolist(), "init_err2_arcmin": e2.tolist()},
             "φE and φN within 25 % (+0.02′), φU within 25 % (+0.2′)", bool(agree),
             names=["alignment 1 error (φE, φN, φU)", "alignment 2 error (φE, φN, φU)"],
-            unit=["′", "′"]))
+            unit=["′", "′"], origin="paper"))
     return cl
 
 

@@ -318,7 +318,7 @@ def run(config: Config, ctx) -> Result:
         claims.append(Claim.at_most(
             f"margin_{key}", f"reduced filter: |{key} residual − limit| at {dur_min:g} min is of the "
             f"paper's size ({paper}); criterion max({crit:g} {un}, 3σ of the filter = "
-            f"{3 * sig_r[i]:.3g} {un})", abs(dr[i]), lim3, un))
+            f"{3 * sig_r[i]:.3g} {un})", abs(dr[i]), lim3, un, origin="paper"))
     if dur_min <= 30:
         # The filter's own σ(εU) decides "not converged": the residual itself is one draw
         # with a spread as large as its initial distance to the limit, so it can sit near
@@ -327,7 +327,7 @@ def run(config: Config, ctx) -> Result:
         s1 = fas["reduced"].sigma[-1, 4]
         claims.append(Claim.at_least(
             "epsU_1200s", "εU has not converged yet (paper: not converged at 1200 s): the reduced "
-            "filter's σ(εU) at the end / its initial value", s1 / s0, 0.5))
+            "filter's σ(εU) at the end / its initial value", s1 / s0, 0.5, origin="paper"))
     if dur_min >= 50:
         s0 = fas["reduced"].sigma[0, 4]
         s1 = fas["reduced"].sigma[-1, 4]
@@ -337,12 +337,12 @@ def run(config: Config, ctx) -> Result:
             "within 25 % of its initial distance to the limit, and the filter's σ(εU) at most half "
             "its initial value [fraction left, σ ratio]", [frac, s1 / s0], [0.25, 0.5],
             bool(frac <= 0.25 and s1 / s0 <= 0.5), names=["fraction left", "σ ratio"],
-            relation="<="))
+            relation="<=", origin="paper"))
     dfr = np.abs(res["full"][-1] - res["reduced"][-1]) / _SC
     claims.append(Claim.at_most(
         "full_vs_reduced", "full and reduced filters reach the same accuracy: |Δ final residual| "
         "per state [φE φN φU (′), εN εU (°/h)]", dfr.tolist(), [0.07, 0.07, 1.0, 0.002, 0.002],
-        unit=["′", "′", "′", "°/h", "°/h"], names=["φE", "φN", "φU", "εN", "εU"]))
+        unit=["′", "′", "′", "°/h", "°/h"], names=["φE", "φN", "φU", "εN", "εU"], origin="paper"))
     cheaper = (metrics["time_per_step_us_reduced"] < metrics["time_per_step_us_full"]
                and metrics["flops_per_step_reduced"] < metrics["flops_per_step_full"])
     claims.append(Claim(
@@ -350,9 +350,9 @@ def run(config: Config, ctx) -> Result:
         [metrics["time_per_step_us_reduced"], metrics["time_per_step_us_full"],
          metrics["flops_per_step_reduced"], metrics["flops_per_step_full"]],
         "reduced < full in both", cheaper,
-        names=["reduced", "full", "reduced", "full"], unit=["µs", "µs", "flops", "flops"]))
+        names=["reduced", "full", "reduced", "full"], unit=["µs", "µs", "flops", "flops"], origin="paper"))
     claims.append(Claim.equals("obs_rank", "observability rank (full 8-state, reduced 5-state), computed",
-                               [rk, rkr], [5, 5], names=["full", "reduced"]))
+                               [rk, rkr], [5, 5], names=["full", "reduced"], origin="paper"))
 
     # ----- series and figures
     for model in ("full", "reduced"):

@@ -26,7 +26,8 @@ from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bia
 
 __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleObservability",
            "schedule_observability", "difference_sigma", "joint_P0", "joint_filter",
-           "joint_transitions", "joint_filter_linear", "difference_measurements", "noise_share", "settle_time"]
+           "joint_transitions", "joint_filter_linear", "difference_measurements", "noise_share",
+           "sigma_settle_time", "band_settle_time"]
 
 
 def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
@@ -430,7 +431,7 @@ def joint_filter(stream1, streamk, model: DifferenceModel, P0, *, kf_dt, meas_ev
 
 
 def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, noise_groups=None,
-                      method="series", substeps=1, chunk=2048):
+                      method="series", substeps=1, chunk=2048, inputs=False):
     """Transition matrices and discrete process noise of the joint model along two
     navigation outputs, the noise split by source.
 
@@ -459,11 +460,21 @@ def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, n
         Sub-steps m per returned step.
     chunk : int
         Returned steps evaluated at once (memory).
+    inputs : bool
+        Also return the input matrices ``Γ`` of each group: the state increment over a step
+        caused by a noise held constant over that step is ``Γ u`` (``u`` in the noise's own
+        units: rad/s, m/s²). Chained like Φ (``Γ ← Φ_j Γ + Γ_j``, with ``Γ_j = ∫Φ(s)G ds``
+        by the same rule as ``Q``), so that ``Q − Γ (q / (m·T)) Γᵀ`` — the part of the
+        step's noise not explained by its step mean ``u ~ N(0, q/(m·T))`` — is a covariance.
+        That split lets a simulation change the slow part of a white noise (e.g. remove its
+        mean over blocks of steps) and keep the rest exact.
 
     Returns
     -------
     Phi : ndarray (K, n, n)
     Q : dict {name: ndarray (K, n, n)}
+    Gam : dict {name: ndarray (K, n, p_name)}
+        Only with ``inputs=True``; columns in the order of the group's noise columns.
     """
     m = int(substeps)
     rows1 = np.asarray(rows1, float)
@@ -477,6 +488,9 @@ def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, n
     n = model.n
     Phi = np.empty((K, n, n))
     Q = {g: np.empty((K, n, n)) for g in groups}
+    Gam = {g: np.empty((K, n, len(c))) for g, c in groups.items()} if inputs else None
+    if inputs and method not in ("series", "vanloan"):
+        raise ValueError(f"joint_transitions: unknown method {method!r}")
 
     def pt(rows, rates, a, b):
         return NavPoint(rows[a:b, 7], rows[a:b, 9], rows[a:b, 4:7], A.quat_to_dcm(rows[a:b, :4]),
@@ -495,16 +509,39 @@ def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, n
             Ps = P_ if Ps is None else Ps
             parts[name] = Q_.reshape(k1 - k0, m, n, n)
         Ps = Ps.reshape(k1 - k0, m, n, n)
+        gin = {}
+        if inputs:
+            for name, cols in groups.items():
+                Gc = G[..., list(cols)]
+                if method == "series":
+                    # the trapezoid of ∫Φ(s)G ds, as Q's trapezoid of ∫Φ(s)Q̄Φ(s)ᵀ ds
+                    Gj = 0.5 * T * (Gc + Ps.reshape(-1, n, n) @ Gc)
+                else:
+                    from scipy.linalg import expm
+
+                    p = Gc.shape[-1]
+                    aug = np.zeros(Gc.shape[:-2] + (n + p, n + p))
+                    aug[..., :n, :n] = F * T
+                    aug[..., :n, n:] = Gc * T
+                    Gj = expm(aug)[..., :n, n:]
+                gin[name] = Gj.reshape(k1 - k0, m, n, Gc.shape[-1])
         acc = Ps[:, 0].copy()
         qacc = {g: parts[g][:, 0].copy() for g in groups}
+        gacc = {g: gin[g][:, 0].copy() for g in gin}
         for j in range(1, m):
             Pj = Ps[:, j]
             acc = Pj @ acc
             for g in groups:
                 qacc[g] = Pj @ qacc[g] @ np.swapaxes(Pj, -1, -2) + parts[g][:, j]
+            for g in gin:
+                gacc[g] = Pj @ gacc[g] + gin[g][:, j]
         Phi[k0:k1] = acc
         for g in groups:
             Q[g][k0:k1] = 0.5 * (qacc[g] + np.swapaxes(qacc[g], -1, -2))
+        for g in gin:
+            Gam[g][k0:k1] = gacc[g]
+    if inputs:
+        return Phi, Q, Gam
     return Phi, Q
 
 
@@ -626,25 +663,56 @@ def noise_share(model: DifferenceModel, P0, Phi, Q_parts, sigma, *, index=None, 
                         Q_index=index, n_steps=n_steps, names=["P0", *names, "R"], history_every=history_every)
 
 
-def settle_time(t, x, sigma_final, *, hold_to_end=True):
-    """First time after which an estimate stays within ± ``sigma_final`` of its final value.
+def sigma_settle_time(t, sigma, level):
+    """First time the filter σ of a state falls to ``level`` — one reading of "the estimate
+    is stable after ..." that does not depend on how long the record goes on (the σ at a
+    time is causal).
+
+    Parameters
+    ----------
+    t : array (M,)
+        Times [s].
+    sigma : array (M,)
+        Filter σ of the state at ``t``.
+    level : float
+        Level, same unit as ``sigma`` (e.g. the magnitude of the drift being estimated:
+        from then on the estimate tells the drift from zero at 1σ).
+
+    Returns
+    -------
+    float
+        Time [s]; NaN if σ never reaches ``level``.
+    """
+    t = np.asarray(t, float)
+    s = np.asarray(sigma, float)
+    hit = np.flatnonzero(s <= float(level))
+    return float(t[hit[0]]) if hit.size else float("nan")
+
+
+def band_settle_time(t, x, truth, band):
+    """Time after which an estimate stays within ± ``band`` of the true value to the end of
+    the record — the second reading of "stable after ...": unlike a band around the final
+    value or the final σ, the band is fixed, so a longer record can only move the time by an
+    excursion that really happens later.
 
     Parameters
     ----------
     t, x : array (M,)
         Times [s] and the estimate.
-    sigma_final : float
-        Band half-width (e.g. the filter's final 1σ of that state), same unit as ``x``.
+    truth : float or array (M,)
+        True value at ``t`` (same unit as ``x``).
+    band : float
+        Half-width of the band, > 0.
 
     Returns
     -------
     float
-        Time [s]; ``t[-1]`` if only the last sample is inside.
+        Time [s] of the first sample of the final run inside the band (``t[0]`` if every
+        sample is inside); NaN if the last sample is outside.
     """
     t = np.asarray(t, float)
-    x = np.asarray(x, float)
-    out = np.abs(x - x[-1]) > float(sigma_final)
+    out = np.abs(np.asarray(x, float) - np.asarray(truth, float)) > float(band)
     if not out.any():
         return float(t[0])
     last = int(np.flatnonzero(out)[-1])
-    return float(t[min(last + 1, t.size - 1)])
+    return float(t[last + 1]) if last + 1 < t.size else float("nan")
