@@ -264,8 +264,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         opt.heading_straight = ini["course_spread"]
     opt.gnss_raw = raw_gnss
     res = navigate_recorded(imu, fx, opt)
-    if res.fix_t.size == 0:
-        raise ValueError(f"{fix_path}: no fix was applied (outages, latency or the record's end "
+    if res.fix_t.size == 0 and raw_gnss is None:
+        raise ValueError(f"{fix_name}: no fix was applied (outages, latency or the record's end "
                          f"removed all {len(fx)}); the solution would be free inertial")
     t, err, idx = fix_errors(res, fx)
     hz = np.hypot(err[:, 0], err[:, 1])
