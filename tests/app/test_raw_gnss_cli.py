@@ -48,7 +48,7 @@ def test_run_folder(tc_run):
     (["--gnss-raw", "EMPTY"], "empty.ubx: empty file"),
     (["--gnss-raw", "JUNK"], "junk.ubx: no raw measurements"),
     (["--gnss-raw", "RNX4"], "RINEX version 4"),
-    (["--gnss-raw", WALK / "gnss_1730.ubx", "--imu-delay", "5000"], "lie outside the IMU record"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--imu-delay", "3000"], "lie outside the IMU record"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "three@60:20"], "--max-satellites"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--gnss", WALK / "gnss_1730_sf.pos"], "not both"),
 ])
