@@ -27,7 +27,8 @@ __all__ = ["CompiledPropagation"]
 @njit(cache=True)
 def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k,
                    f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, q, T, fcol, fcnt,
-                   grow, gcnt, R, pos, nr, qr, nq, phic, phin, x, c, P, sig_out, x_out):
+                   grow, gcnt, R, pos, nr, qr, nq, phic, phin, qbr, qbn, prc, prn, x, c, P,
+                   sig_out, x_out):
     """Epochs ``e_a..e_b−1`` of L lanes, one lane after the other with the same work arrays:
     ``rows`` (L, k, S, 10), ``w``, ``f`` (L, k, S, 3); ``x``, ``c`` (L, n), ``P`` (L, n, n)
     stepped in place; ``sig_out``, ``x_out`` (L, e_b − e_a, n). Returns ``(lane, epoch)``
@@ -40,7 +41,7 @@ def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_co
     Pe = np.empty((n, n))
     Qe = np.empty((n, n))
     nr1 = max(nr, 1)
-    Qb = np.empty((nr1, nr1))
+    Qb = np.zeros((nr1, nr1))
     PR = np.empty((n, nr1))
     W = np.empty((n, nr1))
     T1 = np.empty((n, n))
@@ -54,7 +55,8 @@ def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_co
                                f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc,
                                Fe, Ge):
                 return ln, e
-            series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe)
+            series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe,
+                        qbr, qbn, prc, prn)
             _cov_predict(Pl, Pe, Qe, T1, T2)
             _state_predict(xl, Pe, phic, phin, tmp)
             _state_predict(cl, Pe, phic, phin, tmp)
@@ -110,7 +112,7 @@ class CompiledPropagation:
             Per lane, receive σ and x after each step.
         """
         rows, w, f = stretch
-        fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq = self.structure
+        fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn = self.structure
         L = len(filts)
         if L == 1:
             # views: the one filter's arrays are stepped where they are
@@ -124,7 +126,8 @@ class CompiledPropagation:
             n = x.shape[1]
             so, xo = np.empty((L, b - a, n)), np.empty((L, b - a, n))
         bad, e = _predict_model(rows, w, f, a, b, *self._tables, self.q, float(T), fcol, fcnt, grow,
-                                gcnt, R, pos, nr, qr, nq, phic, phin, x, c, P, so, xo)
+                                gcnt, R, pos, nr, qr, nq, phic, phin, qbr, qbn, prc, prn, x, c,
+                                P, so, xo)
         if bad >= 0:
             ek.matrices_rows(self.prog, rows[bad][:, e:e + 1], w[bad][:, e:e + 1], f[bad][:, e:e + 1])
             raise ValueError(f"navigation point {e} of the stretch is invalid")  # not reached
