@@ -288,30 +288,15 @@ class _TextSource:
             arr = self._slow(uniq)
         if arr.shape[0] == 0:
             raise ValueError(f"{where(self.path, self.hline)}: header only, no samples")
+        if uniq == list(idx):
+            return arr
         pos = {c: j for j, c in enumerate(uniq)}
         return arr[:, [pos[i] for i in idx]]
 
     def _fast(self, uniq):
         if self.delim is None:
             raise ValueError("whitespace-delimited")
-        from pyarrow import csv as pcsv
-        import pyarrow as pa
-        names = [f"c{i}" for i in range(self.ncol)]
-        tab = pcsv.read_csv(
-            self.path,
-            read_options=pcsv.ReadOptions(skip_rows=self.skip, column_names=names,
-                                          block_size=1 << 22),
-            parse_options=pcsv.ParseOptions(delimiter=self.delim),
-            convert_options=pcsv.ConvertOptions(include_columns=[names[i] for i in uniq],
-                                                column_types={names[i]: pa.float64() for i in uniq},
-                                                strings_can_be_null=False))
-        out = np.empty((tab.num_rows, len(uniq)))
-        for j, i in enumerate(uniq):
-            c = tab.column(names[i])
-            if c.null_count:
-                raise ValueError("empty cell")
-            out[:, j] = c.to_numpy()
-        return out
+        return read_csv_columns(self.path, self.skip, self.ncol, uniq, self.delim)
 
     def _rows(self):
         with open(self.path, "r", encoding="utf-8", errors="replace") as fh:
@@ -340,6 +325,72 @@ class _TextSource:
             lines.append(n)
         self.lines = lines
         return np.array(rows, dtype=float).reshape(len(rows), len(uniq))
+
+
+def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20):
+    """Float columns ``cols`` (indices) of a delimited table, read in batches.
+
+    The table is parsed by pyarrow's streaming CSV reader one block (``block_size``
+    bytes) at a time and each batch copied into a float64 array sized from the file's
+    length (grown if the estimate falls short), so the memory in use is the result plus
+    one block, whatever the length of the file (the whole-table reader holds the parsed
+    table and its buffers beside the result).
+
+    Parameters
+    ----------
+    path : path-like
+    skip : int
+        Lines before the first sample (header included).
+    ncol : int
+        Columns of a line.
+    cols : sequence of int
+        Columns to read, in this order.
+    delim : str
+        Delimiter.
+
+    Returns
+    -------
+    ndarray, shape (rows, len(cols))
+
+    Raises
+    ------
+    ValueError
+        An empty cell in a read column; pyarrow's own errors for any other malformed
+        line (the caller diagnoses them line by line).
+    """
+    import pyarrow as pa
+    from pyarrow import csv as pcsv
+
+    names = [f"c{i}" for i in range(ncol)]
+    use = [names[i] for i in cols]
+    reader = pcsv.open_csv(
+        path,
+        read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=block_size,
+                                      use_threads=False),
+        parse_options=pcsv.ParseOptions(delimiter=delim),
+        convert_options=pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
+                                            strings_can_be_null=False),
+        memory_pool=pa.system_memory_pool())
+    first = None
+    n = 0
+    out = np.empty((0, len(use)))
+    for batch in reader:
+        m = batch.num_rows
+        if first is None and m:
+            # the first batch is about one block: rows of the file from its bytes, a margin
+            first = m + int(1.02 * Path(path).stat().st_size * m / block_size)
+            out = np.empty((first, len(use)))
+        if n + m > out.shape[0]:
+            grown = np.empty((max(n + m, out.shape[0] + out.shape[0] // 4 + 1024), len(use)))
+            grown[:n] = out[:n]
+            out = grown
+        for j, c in enumerate(use):
+            col = batch.column(c)
+            if col.null_count:
+                raise ValueError("empty cell")
+            out[n:n + m, j] = col.to_numpy()
+        n += m
+    return out[:n] if n < out.shape[0] else out
 
 
 def _is_number(s):
