@@ -152,6 +152,15 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     return np.concatenate(ordered, axis=0)
 
 
+#: Allocator settings of the local cluster's worker processes, beside Dask's own
+#: ``MALLOC_TRIM_THRESHOLD_`` (set before each worker starts, when glibc reads them). That
+#: one alone switches off glibc's dynamic mmap threshold, leaving it at 128 KiB, so each
+#: numpy temporary above it is mapped and unmapped afresh (page faults on every
+#: allocation); fixing the threshold at glibc's own dynamic maximum (32 MiB) keeps them on
+#: the heap. Same bytes; ``benchmarks/workers.py`` measures the worker CPU with and without.
+WORKER_ENVIRON = {"MALLOC_MMAP_THRESHOLD_": 32 * 2 ** 20}
+
+
 @contextlib.contextmanager
 def dask_client(scheduler=None, n_workers=None):
     """The Dask client of a campaign, closed (quietly if the work failed) on exit.
@@ -178,7 +187,10 @@ def dask_client(scheduler=None, n_workers=None):
     own = None
     if scheduler is None:
         nw = int(n_workers or os.cpu_count() or 1)
-        with _interrupts_to_this_process():
+        import dask
+
+        env = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **WORKER_ENVIRON}
+        with _interrupts_to_this_process(), dask.config.set({"distributed.nanny.pre-spawn-environ": env}):
             cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
             client = Client(cluster)
