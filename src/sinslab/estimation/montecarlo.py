@@ -137,14 +137,23 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                         bar.advance(len(seeds[s:s + batch]))
             else:
                 from distributed import as_completed
-                a_f = client.scatter([args, kwargs], broadcast=True, hash=False)
-                futs = [client.submit(_run_batch, fn, s, seeds[s:s + batch], a_f[0], a_f[1],
+                # the shared inputs as the result of a task, not scattered data: a worker
+                # that leaves with its copy costs a recomputation, not the campaign
+                a_f = client.submit(_inputs, args, kwargs, pure=False)
+                futs = [client.submit(_run_packed, fn, s, seeds[s:s + batch], a_f,
                                       pure=False, retries=retries) for s in starts]
-                for fut in as_completed(futs):
-                    s, out = fut.result()
-                    parts[s] = out
-                    if bar is not None:
-                        bar.advance(len(seeds[s:s + batch]))
+                try:
+                    for fut in as_completed(futs):
+                        s, out = fut.result()
+                        parts[s] = out
+                        if bar is not None:
+                            bar.advance(len(seeds[s:s + batch]))
+                except Exception as e:                       # noqa: BLE001 - sorted below
+                    if not _lost_cluster(e):
+                        raise
+                    done = sum(len(seeds[s:s + batch]) for s in parts)
+                    raise InputError(f"Monte Carlo: the Dask cluster lost its workers "
+                                     f"({type(e).__name__}); {done} of {n} runs had finished") from None
     ordered = [parts[s] for s in starts]
     if isinstance(ordered[0], dict):
         keys = ordered[0].keys()
@@ -159,6 +168,26 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
 #: allocation); fixing the threshold at glibc's own dynamic maximum (32 MiB) keeps them on
 #: the heap. Same bytes; ``benchmarks/workers.py`` measures the worker CPU with and without.
 WORKER_ENVIRON = {"MALLOC_MMAP_THRESHOLD_": 32 * 2 ** 20}
+
+
+def _inputs(args, kwargs):
+    return args, kwargs
+
+
+def _run_packed(fn, first, seeds, packed):
+    return _run_batch(fn, first, seeds, packed[0], packed[1])
+
+
+def _lost_cluster(e) -> bool:
+    """True for the errors of a cluster that lost its workers or its scheduler (not of the
+    task function, whose own exceptions Dask re-raises as they are)."""
+    try:
+        from distributed import KilledWorker
+        from distributed.comm.core import CommClosedError
+    except ImportError:          # pragma: no cover
+        return False
+    import asyncio
+    return isinstance(e, (KilledWorker, CommClosedError, asyncio.CancelledError, TimeoutError))
 
 
 @contextlib.contextmanager
@@ -192,7 +221,7 @@ def dask_client(scheduler=None, n_workers=None):
         env = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **WORKER_ENVIRON}
         with _interrupts_to_this_process(), dask.config.set({"distributed.nanny.pre-spawn-environ": env}):
             cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+                                   dashboard_address=None, silence_logs=logging.CRITICAL)
             client = Client(cluster)
         own = (client, cluster)
     elif isinstance(scheduler, str):
