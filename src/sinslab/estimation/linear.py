@@ -833,6 +833,21 @@ def sparsity(Phi_t):
 # series discretisation of many epochs (the "series" method of kalman.discretize, compiled)
 # ----------------------------------------------------------------------------------------
 @njit(cache=True)
+def _row_lists(mask, width):
+    """Per row of ``mask`` (r, c) the columns of its True entries, ascending (r, width),
+    and their counts (r,)."""
+    r, c = mask.shape
+    idx = np.zeros((r, width), dtype=np.int64)
+    cnt = np.zeros(r, dtype=np.int64)
+    for i in range(r):
+        for j in range(c):
+            if mask[i, j]:
+                idx[i, cnt[i]] = j
+                cnt[i] += 1
+    return idx, cnt
+
+
+@njit(cache=True)
 def series_structure(fnz, gnz, q):
     """Index lists of the zeros :func:`series_step` skips, from the possible non-zeros.
 
@@ -867,13 +882,7 @@ def series_structure(fnz, gnz, q):
         non-zero.
     """
     n, m = gnz.shape
-    fcol = np.zeros((n, n), dtype=np.int64)
-    fcnt = np.zeros(n, dtype=np.int64)
-    for i in range(n):
-        for j in range(n):
-            if fnz[i, j]:
-                fcol[i, fcnt[i]] = j
-                fcnt[i] += 1
+    fcol, fcnt = _row_lists(fnz, n)
     grow = np.zeros((m, n), dtype=np.int64)
     gcnt = np.zeros(m, dtype=np.int64)
     pos = np.full(n, -1, dtype=np.int64)
@@ -900,13 +909,7 @@ def series_structure(fnz, gnz, q):
             pnz[i, k] = True
             for b in range(fcnt[k]):
                 pnz[i, fcol[k, b]] = True
-    phic = np.zeros((n, n), dtype=np.int64)
-    phin = np.zeros(n, dtype=np.int64)
-    for i in range(n):
-        for j in range(n):
-            if pnz[i, j]:
-                phic[i, phin[i]] = j
-                phin[i] += 1
+    phic, phin = _row_lists(pnz, n)
     qr = np.zeros(n, dtype=np.int64)
     nq = 0
     for i in range(n):
@@ -916,25 +919,18 @@ def series_structure(fnz, gnz, q):
                 nq += 1
                 break
     nr1 = max(nr, 1)
+    # Q̄'s pattern is symmetric: the rows of column b are the columns of row b
     qnz = np.zeros((nr1, nr1), dtype=np.bool_)
     for c in range(m):
         for a in range(gcnt[c]):
             for b in range(gcnt[c]):
                 qnz[pos[grow[c, a]], pos[grow[c, b]]] = True
-    qbr = np.zeros((nr1, nr1), dtype=np.int64)
-    qbn = np.zeros(nr1, dtype=np.int64)
-    for b in range(nr):
-        for a in range(nr):
-            if qnz[a, b]:
-                qbr[b, qbn[b]] = a
-                qbn[b] += 1
-    prc = np.zeros((n, nr1), dtype=np.int64)
-    prn = np.zeros(n, dtype=np.int64)
+    qbr, qbn = _row_lists(qnz, nr1)
+    prz = np.zeros((n, nr1), dtype=np.bool_)
     for u in range(nq):
         for b in range(nr):
-            if pnz[qr[u], R[b]]:
-                prc[u, prn[u]] = b
-                prn[u] += 1
+            prz[u, b] = pnz[qr[u], R[b]]
+    prc, prn = _row_lists(prz, nr1)
     return fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn
 
 
