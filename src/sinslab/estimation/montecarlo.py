@@ -26,6 +26,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import sys
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,7 +78,8 @@ def _run_batch(fn, first, seeds, args, kwargs):
 
 
 def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None,
-                 progress=True, args=(), kwargs=None, retries=0, tasks_per_worker=4):
+                 progress=True, args=(), kwargs=None, retries=0, tasks_per_worker=4,
+                 auto_serial=True):
     """Run ``n_runs`` independent runs of ``fn`` in batches on Dask.
 
     Parameters
@@ -109,6 +112,12 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     tasks_per_worker : int
         Tasks per worker when ``batch`` is not given: several balance the load; 1 suits a
         task function whose cost hardly depends on the number of runs it stacks.
+    auto_serial : bool
+        With ``scheduler=None``: run the first batch in this process, timed, and run the
+        rest serially too when that is expected to take no longer than starting a local
+        cluster (:data:`CLUSTER_START_S`) and sharing the rest among its workers; the
+        decision is printed (stderr, not under ``SINSLAB_QUIET``). The batches are those
+        the cluster would get, so the bytes are the same either way.
 
     Returns
     -------
@@ -118,30 +127,52 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     kwargs = dict(kwargs or {})
     seeds = spawn_seeds(seed, n_runs)
     n = len(seeds)
-    with dask_client(scheduler, n_workers) as client:
+    parts = {}
+    if scheduler is None and auto_serial:
+        # a cluster of our own: the batches it would get, and whether it pays for its
+        # start-up, judged from the first batch run here (the same batches either way)
+        nw = int(n_workers or os.cpu_count() or 1)
+        batch = _default_batch(n, nw, tasks_per_worker) if batch is None else batch
+        _check_batch(batch)
+        b0 = min(int(batch), n)
+        t0 = time.perf_counter()
+        parts[0] = _run_batch(fn, 0, seeds[:b0], args, kwargs)[1]
+        per_run = (time.perf_counter() - t0) / b0
+        rest = n - b0
+        serial_s, cluster_s = rest * per_run, CLUSTER_START_S + rest * per_run / nw
+        if rest and serial_s <= cluster_s:
+            scheduler = "sync"
+        if rest:
+            _say(f"Monte Carlo: {n} runs at {per_run * 1e3:.3g} ms each: "
+                 + (f"serial in this process (~{serial_s:.3g} s; a {nw}-worker local cluster "
+                    f"~{cluster_s:.3g} s with its start-up)" if scheduler == "sync" else
+                    f"on a {nw}-worker local cluster (~{cluster_s:.3g} s with its start-up; serial "
+                    f"~{serial_s:.3g} s)"))
+    with dask_client(scheduler if (scheduler is not None or len(parts) < n) else "sync", n_workers) as client:
         nw = 1 if client is None else max(1, len(client.scheduler_info().get("workers", {})) or 1)
         if batch is None:
-            batch = int(min(64, max(1, -(-n // (max(1, int(tasks_per_worker)) * nw)))))
+            batch = _default_batch(n, nw, tasks_per_worker)
+        _check_batch(batch)
         batch = int(batch)
-        if batch < 1:
-            raise ValueError(f"batch must be >= 1, got {batch}")
         starts = list(range(0, n, batch))
-        parts = {}
         from sinslab.core.progress import progress as _progress
         ctx = _progress("Monte Carlo", total=n, unit="runs") if progress else contextlib.nullcontext()
         with ctx as bar:
+            if bar is not None and 0 in parts:
+                bar.advance(min(batch, n))
             if client is None:
                 for s in starts:
-                    parts[s] = _run_batch(fn, s, seeds[s:s + batch], args, kwargs)[1]
-                    if bar is not None:
-                        bar.advance(len(seeds[s:s + batch]))
+                    if s not in parts:
+                        parts[s] = _run_batch(fn, s, seeds[s:s + batch], args, kwargs)[1]
+                        if bar is not None:
+                            bar.advance(len(seeds[s:s + batch]))
             else:
                 from distributed import as_completed
                 # the shared inputs as the result of a task, not scattered data: a worker
                 # that leaves with its copy costs a recomputation, not the campaign
                 a_f = client.submit(_inputs, args, kwargs, pure=False)
                 futs = [client.submit(_run_packed, fn, s, seeds[s:s + batch], a_f,
-                                      pure=False, retries=retries) for s in starts]
+                                      pure=False, retries=retries) for s in starts if s not in parts]
                 try:
                     for fut in as_completed(futs):
                         s, out = fut.result()
@@ -168,6 +199,27 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
 #: allocation); fixing the threshold at glibc's own dynamic maximum (32 MiB) keeps them on
 #: the heap. Same bytes; ``benchmarks/workers.py`` measures the worker CPU with and without.
 WORKER_ENVIRON = {"MALLOC_MMAP_THRESHOLD_": 32 * 2 ** 20}
+
+
+#: Seconds a local Dask cluster takes to start and load its workers' imports and kernels
+#: on the 2-core development machine (a campaign's first task on fresh workers included):
+#: :func:`run_campaign` runs a campaign serially when that outweighs what the workers save.
+CLUSTER_START_S = 10.0
+
+
+def _default_batch(n, nw, tasks_per_worker):
+    return int(min(64, max(1, -(-n // (max(1, int(tasks_per_worker)) * nw)))))
+
+
+def _check_batch(batch):
+    if int(batch) < 1:
+        raise ValueError(f"batch must be >= 1, got {batch}")
+
+
+def _say(text):
+    """A status line on stderr (not under ``SINSLAB_QUIET``)."""
+    if os.environ.get("SINSLAB_QUIET", "") in ("", "0"):
+        print(f"sinslab: {text}", file=sys.stderr, flush=True)
 
 
 def _inputs(args, kwargs):
