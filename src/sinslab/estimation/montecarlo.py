@@ -217,8 +217,10 @@ def _check_batch(batch):
 
 
 def _say(text):
-    """A status line on stderr (not under ``SINSLAB_QUIET``)."""
-    if os.environ.get("SINSLAB_QUIET", "") in ("", "0"):
+    """A status line on stderr (not under ``SINSLAB_QUIET`` or the command line's --quiet)."""
+    from sinslab.core import progress
+
+    if os.environ.get("SINSLAB_QUIET", "") in ("", "0") and not getattr(progress, "_quiet_override", False):
         print(f"sinslab: {text}", file=sys.stderr, flush=True)
 
 
