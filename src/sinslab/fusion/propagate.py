@@ -47,13 +47,16 @@ def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_co
     T1 = np.empty((n, n))
     T2 = np.empty((n, n))
     tmp = np.empty(n)
+    # the constant entries once; each epoch writes the varying ones over the same places
+    Fe[:, :] = F0
+    Ge[:, :] = G0
     for ln in range(rows.shape[0]):
         rl, wl, fl = rows[ln], w[ln], f[ln]
         xl, cl, Pl = x[ln], c[ln], P[ln]
         for e in range(e_a, e_b):
-            if not ek.fill_one(rl, wl, fl, e, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k,
-                               f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc,
-                               Fe, Ge):
+            if not ek.fill_varying(rl, wl, fl, e, rd, core_k, core_r, f_row, f_col, f_ins, f_k,
+                                   f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C,
+                                   Fc, Fe, Ge):
                 return ln, e
             series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe,
                         qbr, qbn, prc, prn)
@@ -79,6 +82,11 @@ class CompiledPropagation:
     """
 
     def __init__(self, model, prog):
+        cr = prog.core_r
+        if (prog.F0[np.ix_(cr, cr)].any() or prog.F0[prog.f_row, prog.f_col].any()
+                or prog.G0[prog.g_row, prog.g_col].any()):
+            # the loop copies the constant entries once and writes the varying ones over them
+            raise AssertionError("constant and navigation-dependent entries of the model overlap")
         self.prog = prog
         self.q = np.ascontiguousarray(model.q, dtype=float)
         fnz, gnz = ek.pattern(prog)
