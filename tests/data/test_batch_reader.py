@@ -29,3 +29,29 @@ def test_empty_cell(tmp_path):
     p.write_text("a,b\n1,2\n3,\n")
     with pytest.raises(ValueError, match="empty cell"):
         read_csv_columns(p, 1, 2, [0, 1], ",")
+
+
+@pytest.mark.parametrize("rows", [1 << 16, 700, 1])
+def test_parquet_same_numbers_any_batch(table, tmp_path, rows):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from sinslab.data.tables import read_parquet_columns
+
+    _, a = table
+    p = tmp_path / "t.parquet"
+    pq.write_table(pa.table({k: a[:, i] for i, k in enumerate("abcde")}), p, row_group_size=1000)
+    got = read_parquet_columns(p, ["d", "a", "e"], batch_rows=rows if rows > 1 else 3)
+    np.testing.assert_array_equal(got, a[:, [3, 0, 4]])
+
+
+def test_parquet_not_numeric(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from sinslab.data.tables import read_parquet_columns
+
+    p = tmp_path / "s.parquet"
+    pq.write_table(pa.table({"a": [1.0, 2.0], "b": ["x", "y"]}), p)
+    with pytest.raises(ValueError, match="column 'b' is not numeric"):
+        read_parquet_columns(p, ["a", "b"])

@@ -215,21 +215,9 @@ class _ParquetSource:
         self.cols = [_columns.parse_header_cell(c)[:2] for c in self.raw]
 
     def fetch(self, idx):
-        import pyarrow.parquet as pq
         names = [self.raw[i] for i in idx]
-        try:
-            tab = pq.read_table(self.path, columns=list(dict.fromkeys(names)))
-        except Exception as e:   # noqa: BLE001
-            raise ValueError(f"{self.path}: cannot read as Parquet ({e})") from None
-        if tab.num_rows == 0:
-            raise ValueError(f"{self.path}: no samples")
-        out = np.empty((tab.num_rows, len(names)))
-        for j, n in enumerate(names):
-            try:
-                out[:, j] = tab.column(n).to_numpy(zero_copy_only=False).astype(float)
-            except (TypeError, ValueError):
-                raise ValueError(f"{self.path}: column {n!r} is not numeric") from None
-        self.lines = [f"row {i + 1}" for i in range(tab.num_rows)]
+        out = read_parquet_columns(self.path, names)
+        self.lines = [f"row {i + 1}" for i in range(out.shape[0])]
         return out
 
 
@@ -391,6 +379,47 @@ def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20):
             out[n:n + m, j] = col.to_numpy()
         n += m
     return out[:n] if n < out.shape[0] else out
+
+
+def read_parquet_columns(path, names, *, batch_rows=1 << 16):
+    """Columns ``names`` of a Parquet file as float64 (rows, len(names)), read one batch
+    of ``batch_rows`` rows at a time into an array sized from the file's row count, so
+    the memory in use is the result plus one batch.
+
+    Raises
+    ------
+    ValueError
+        The file cannot be read as Parquet, holds no rows, or a column is not numeric.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        pf = pq.ParquetFile(path)
+        nrows = pf.metadata.num_rows
+        batches = pf.iter_batches(batch_size=batch_rows, columns=list(dict.fromkeys(names)),
+                                  use_threads=False)
+    except Exception as e:   # noqa: BLE001 - pyarrow raises many kinds
+        raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
+    if nrows == 0:
+        raise ValueError(f"{path}: no samples")
+    out = np.empty((nrows, len(names)))
+    n = 0
+    try:
+        for batch in batches:
+            m = batch.num_rows
+            for j, c in enumerate(names):
+                col = batch.column(batch.schema.get_field_index(c))
+                try:
+                    out[n:n + m, j] = col.to_numpy(zero_copy_only=False).astype(float)
+                except (TypeError, ValueError, pa.ArrowInvalid):
+                    raise ValueError(f"{path}: column {c!r} is not numeric") from None
+            n += m
+    except ValueError:
+        raise
+    except Exception as e:   # noqa: BLE001
+        raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
+    return out
 
 
 def _is_number(s):
