@@ -47,6 +47,7 @@ os.environ.setdefault("SINSLAB_QUIET", "1")
 import numpy as np  # noqa: E402
 from numba import njit  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import estimation as E  # noqa: E402
 from sinslab.core import units as u  # noqa: E402
 from sinslab.estimation.linear import _cov_predict, _state_predict  # noqa: E402
@@ -293,13 +294,15 @@ def bench_kfgins(binary, sc, res, sinslab_cpu, rounds=3):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a 10 min drive instead of 1 h")
+    ap.add_argument("--duration", type=float, help="drive length [s] (default 3600, 600 with --quick)")
+    ap.add_argument("--rounds", type=int, default=3, help="filter runs, best CPU time kept")
     ap.add_argument("--json", help="write the figures to this file")
     ap.add_argument("--save", help="write this run's outputs to FILE (npz)")
     ap.add_argument("--compare", help="largest relative difference to the outputs saved in FILE")
     ap.add_argument("--kfgins", help="a KF-GINS binary to run side by side")
     a = ap.parse_args(argv)
-    duration = 600.0 if a.quick else 3600.0
-    sc, res, out = bench_filter(duration, 60.0 if a.quick else 300.0)
+    duration = a.duration or (600.0 if a.quick else 3600.0)
+    sc, res, out = bench_filter(duration, min(duration, 60.0 if a.quick else 300.0), a.rounds)
     print(f"full-rate filter, KF-GINS' model (21 states, 18 noises), P every 200 Hz epoch, 1 Hz fixes, "
           f"{duration:.0f} s: {out['cpu_s']:.2f} s CPU, {out['epochs_per_cpu_s']:,.0f} epochs per CPU s "
           f"(target >= 120,000); numpy model evaluation over {out['numpy_duration_s']:.0f} s: "

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import json
 import resource
 import sys
 import time
@@ -65,6 +66,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=400)
     ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--json", help="write the figures to this file")
     a = ap.parse_args(argv)
     cfg = resolve(ta.Config)
     case = ta._case(cfg, cfg.installation.large, cfg.scenario.heading)
@@ -83,8 +85,13 @@ def main(argv=None):
         print(f"{name:16s} {a.runs} runs: wall {w:.2f} s, worker CPU {c:.2f} s, outputs {h[:12]}")
     (w0, c0, h0), (w1, c1, h1) = best.values()
     print(f"worker CPU {c0 / c1:.2f}x, wall {w0 / w1:.2f}x; same bytes: {h0 == h1}")
-    return 0 if h0 == h1 else 1
+    out = {"runs": a.runs, "default_wall_s": w0, "default_worker_cpu_s": c0, "sinslab_wall_s": w1,
+           "sinslab_worker_cpu_s": c1, "same_bytes": h0 == h1}
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+    return out
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(0 if main()["same_bytes"] else 1)

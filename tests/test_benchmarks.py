@@ -153,3 +153,29 @@ def test_campaigns_script(tmp_path):
     # free-inertial is mostly compiled navigation and noise synthesis
     assert r["compiled_share"] > 0.5
     assert r["speedup"] == pytest.approx(r["cpu_per_run_one_at_a_time_s"] / r["cpu_per_run_s"])
+
+
+def test_full_rate_script(tmp_path):
+    """benchmarks/full_rate.py on a 30 s drive: KF-GINS' model (21 states, 18 noises), its
+    compiled path equal to the numpy reference, a profile of every stage, the saved-output
+    comparison of a run against itself."""
+    mod = _load("full_rate")
+    saved = tmp_path / "out.npz"
+    res = mod.main(["--duration", "30", "--rounds", "1", "--save", str(saved), "--compare", str(saved),
+                    "--json", str(tmp_path / "full_rate.json")])
+    assert res["epochs"] == 6000 and res["epochs_per_cpu_s"] > 0
+    assert res["max_rel_diff_vs_numpy"] < 1e-9 and res["max_rel_diff_vs_saved"] == 0.0
+    assert all(v > 0 for v in res["profile_us"].values())
+
+
+def test_navigate_cost_script(tmp_path):
+    res = _load("navigate_cost").main(["--minutes", "1.5", "--rounds", "1", "--json", str(tmp_path / "n.json")])
+    r = res["1.5min"]
+    assert r["samples"] == 18000 and r["maxrss_mb"] > 0
+    assert r["total"] == pytest.approx(r["startup"] + r["reading"] + r["compute"] + r["rest"])
+
+
+def test_workers_script():
+    """benchmarks/workers.py: Dask's default worker environment and sinslab's give the same bytes."""
+    res = _load("workers").main(["--runs", "8", "--rounds", "1"])
+    assert res["same_bytes"] and res["sinslab_worker_cpu_s"] > 0
