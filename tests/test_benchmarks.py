@@ -165,3 +165,29 @@ def test_tightly_coupled_script(tmp_path):
     assert saved["tc_cpu_s"] > 0 and saved["lc_cpu_s"] > 0 and saved["satellites_min"] >= 4
     # raw observations of 12+ satellites at 1 Hz do at least as well as 3 m fixes
     assert res["tc_hz_err_rms_m"] < res["lc_hz_err_rms_m"]
+
+
+def test_full_rate_script(tmp_path):
+    """benchmarks/full_rate.py on a 30 s drive: KF-GINS' model (21 states, 18 noises), its
+    compiled path equal to the numpy reference, a profile of every stage, the saved-output
+    comparison of a run against itself."""
+    mod = _load("full_rate")
+    saved = tmp_path / "out.npz"
+    res = mod.main(["--duration", "30", "--rounds", "1", "--save", str(saved), "--compare", str(saved),
+                    "--json", str(tmp_path / "full_rate.json")])
+    assert res["epochs"] == 6000 and res["epochs_per_cpu_s"] > 0
+    assert res["max_rel_diff_vs_numpy"] < 1e-9 and res["max_rel_diff_vs_saved"] == 0.0
+    assert all(v > 0 for v in res["profile_us"].values())
+
+
+def test_navigate_cost_script(tmp_path):
+    res = _load("navigate_cost").main(["--minutes", "1.5", "--rounds", "1", "--json", str(tmp_path / "n.json")])
+    r = res["1.5min"]
+    assert r["samples"] == 18000 and r["maxrss_mb"] > 0
+    assert r["total"] == pytest.approx(r["startup"] + r["reading"] + r["compute"] + r["rest"])
+
+
+def test_workers_script():
+    """benchmarks/workers.py: Dask's default worker environment and sinslab's give the same bytes."""
+    res = _load("workers").main(["--runs", "8", "--rounds", "1"])
+    assert res["same_bytes"] and res["sinslab_worker_cpu_s"] > 0

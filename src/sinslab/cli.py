@@ -202,10 +202,13 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
         seed: Optional[int] = typer.Option(None, "--seed", min=0, help="random seed (overrides config seed)"),
         runs: Optional[int] = typer.Option(None, "--runs", min=1, help="Monte Carlo runs (overrides config runs)"),
         scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address for Monte Carlo campaigns"),
+        workers: Optional[int] = typer.Option(None, "--workers", min=0, help="worker processes of the local Dask cluster for Monte Carlo campaigns (0: run them in this process)"),
         quick: bool = typer.Option(False, "--quick", help="shortened run for tests and demos"),
         strict: bool = typer.Option(False, "--strict", help="exit status 1 if any claim fails"),
         force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
     """Run an experiment; write config.toml, summary.json, series, figures, report.html."""
+    import contextlib
+
     from sinslab.app.outputs import RunDir, default_out_dir
     from sinslab.experiments import execute
 
@@ -214,14 +217,30 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
         from sinslab.app.validate import check_memory, check_scheduler
 
         check_memory(cfg)
+        if workers is not None and scheduler is not None:
+            raise CliError("--workers sizes the local cluster; --scheduler names another one: give one of them")
         if scheduler is not None:
             check_scheduler(scheduler, exp, cfg)
+        cluster = contextlib.nullcontext(scheduler)
+        if workers is not None:
+            from sinslab.app.validate import starts_campaign
+
+            if not starts_campaign(exp, cfg):
+                raise CliError(f"--workers: experiment {exp.name!r} runs no Monte Carlo campaign with these "
+                               "settings, so no workers would be used")
+            if workers == 0:
+                cluster = contextlib.nullcontext("sync")
+            else:
+                from sinslab.estimation.montecarlo import dask_client
+
+                cluster = dask_client(None, n_workers=workers)
         if out is None:
             out = default_out_dir(exp.name)
         else:
             RunDir(out, exp.name, command="run", force=force).check()
         try:
-            summary = execute(exp, cfg, out, quick=quick, scheduler=scheduler, log=_log, force=force)
+            with cluster as sched:
+                summary = execute(exp, cfg, out, quick=quick, scheduler=sched, log=_log, force=force)
         except InputError as e:                 # absurd values found while computing
             given = [f"--set {x}" for x in (set_ or [])] + ([f"--config {config}"] if config else [])
             raise CliError(f"{exp.name}: {error_line(e)}"

@@ -69,7 +69,7 @@ def test_same_seed_identical_for_1_2_4_workers():
                                       scheduler=cl.scheduler_address, kwargs=kw)
         else:
             out = mc.run_campaign(mc.linear_batch, 24, 7, batch=3 + nw, n_workers=nw,
-                                  progress=False, kwargs=kw)
+                                  progress=False, kwargs=kw, auto_serial=False)
         for k in ref:
             assert np.array_equal(out[k], ref[k]), (nw, k)
 

@@ -291,21 +291,9 @@ class _ParquetSource:
         self.cols = [_columns.parse_header_cell(c)[:2] for c in self.raw]
 
     def fetch(self, idx):
-        import pyarrow.parquet as pq
         names = [self.raw[i] for i in idx]
-        try:
-            tab = pq.read_table(self.path, columns=list(dict.fromkeys(names)))
-        except Exception as e:   # noqa: BLE001
-            raise ValueError(f"{self.path}: cannot read as Parquet ({e})") from None
-        if tab.num_rows == 0:
-            raise ValueError(f"{self.path}: no samples")
-        out = np.empty((tab.num_rows, len(names)))
-        for j, n in enumerate(names):
-            try:
-                out[:, j] = tab.column(n).to_numpy(zero_copy_only=False).astype(float)
-            except (TypeError, ValueError):
-                raise ValueError(f"{self.path}: column {n!r} is not numeric") from None
-        self.lines = [f"row {i + 1}" for i in range(tab.num_rows)]
+        out = read_parquet_columns(self.path, names)
+        self.lines = [f"row {i + 1}" for i in range(out.shape[0])]
         return out
 
 
@@ -375,30 +363,16 @@ class _TextSource:
             arr = self._slow(uniq)
         if arr.shape[0] == 0:
             raise ValueError(f"{where(self.path, self.hline)}: header only, no samples")
+        if uniq == list(idx):
+            return arr
         pos = {c: j for j, c in enumerate(uniq)}
         return arr[:, [pos[i] for i in idx]]
 
     def _fast(self, uniq):
         if self.delim is None:
             raise ValueError("whitespace-delimited")
-        from pyarrow import csv as pcsv
-        import pyarrow as pa
-        names = [f"c{i}" for i in range(self.ncol)]
-        tab = pcsv.read_csv(
-            self.path,
-            read_options=pcsv.ReadOptions(skip_rows=self.skip, column_names=names,
-                                          block_size=1 << 22),
-            parse_options=pcsv.ParseOptions(delimiter=self.delim),
-            convert_options=pcsv.ConvertOptions(include_columns=[names[i] for i in uniq],
-                                                column_types={names[i]: pa.float64() for i in uniq},
-                                                strings_can_be_null=False))
-        out = np.empty((tab.num_rows, len(uniq)))
-        for j, i in enumerate(uniq):
-            c = tab.column(names[i])
-            if c.null_count and not self.allow_empty:
-                raise ValueError("empty cell")
-            out[:, j] = c.to_numpy(zero_copy_only=False)
-        return out
+        return read_csv_columns(self.path, self.skip, self.ncol, uniq, self.delim,
+                                allow_empty=self.allow_empty)
 
     def _rows(self):
         with open(self.path, "r", encoding="utf-8-sig", errors="replace") as fh:
@@ -436,6 +410,115 @@ def _header_complete(head: bytes) -> bool:
         if t and not t.startswith((b"#", b"%")):
             return True
     return False
+
+
+def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):
+    """Float columns ``cols`` (indices) of a delimited table, read in batches.
+
+    The table is parsed by pyarrow's streaming CSV reader one block (``block_size``
+    bytes) at a time and each batch copied into a float64 array sized from the file's
+    length (grown if the estimate falls short), so the memory in use is the result plus
+    one block, whatever the length of the file (the whole-table reader holds the parsed
+    table and its buffers beside the result).
+
+    Parameters
+    ----------
+    path : path-like
+    skip : int
+        Lines before the first sample (header included).
+    ncol : int
+        Columns of a line.
+    cols : sequence of int
+        Columns to read, in this order.
+    delim : str
+        Delimiter.
+    allow_empty : bool
+        Empty cells read as NaN instead of raising.
+
+    Returns
+    -------
+    ndarray, shape (rows, len(cols))
+
+    Raises
+    ------
+    ValueError
+        An empty cell in a read column (unless ``allow_empty``); pyarrow's own errors for any other malformed
+        line (the caller diagnoses them line by line).
+    """
+    import pyarrow as pa
+    from pyarrow import csv as pcsv
+
+    names = [f"c{i}" for i in range(ncol)]
+    use = [names[i] for i in cols]
+    reader = pcsv.open_csv(
+        path,
+        read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=block_size,
+                                      use_threads=False),
+        parse_options=pcsv.ParseOptions(delimiter=delim),
+        convert_options=pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
+                                            strings_can_be_null=False),
+        memory_pool=pa.system_memory_pool())
+    first = None
+    n = 0
+    out = np.empty((0, len(use)))
+    for batch in reader:
+        m = batch.num_rows
+        if first is None and m:
+            # the first batch is about one block: rows of the file from its bytes, a margin
+            first = m + int(1.02 * Path(path).stat().st_size * m / block_size)
+            out = np.empty((first, len(use)))
+        if n + m > out.shape[0]:
+            grown = np.empty((max(n + m, out.shape[0] + out.shape[0] // 4 + 1024), len(use)))
+            grown[:n] = out[:n]
+            out = grown
+        for j, c in enumerate(use):
+            col = batch.column(c)
+            if col.null_count and not allow_empty:
+                raise ValueError("empty cell")
+            out[n:n + m, j] = col.to_numpy(zero_copy_only=False)
+        n += m
+    return out[:n] if n < out.shape[0] else out
+
+
+def read_parquet_columns(path, names, *, batch_rows=1 << 16):
+    """Columns ``names`` of a Parquet file as float64 (rows, len(names)), read one batch
+    of ``batch_rows`` rows at a time into an array sized from the file's row count, so
+    the memory in use is the result plus one batch.
+
+    Raises
+    ------
+    ValueError
+        The file cannot be read as Parquet, holds no rows, or a column is not numeric.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        pf = pq.ParquetFile(path)
+        nrows = pf.metadata.num_rows
+        batches = pf.iter_batches(batch_size=batch_rows, columns=list(dict.fromkeys(names)),
+                                  use_threads=False)
+    except Exception as e:   # noqa: BLE001 - pyarrow raises many kinds
+        raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
+    if nrows == 0:
+        raise ValueError(f"{path}: no samples")
+    out = np.empty((nrows, len(names)))
+    n = 0
+    try:
+        for batch in batches:
+            m = batch.num_rows
+            for j, c in enumerate(names):
+                col = batch.column(batch.schema.get_field_index(c))
+                try:
+                    out[n:n + m, j] = col.to_numpy(zero_copy_only=False).astype(float)
+                except (TypeError, ValueError, pa.ArrowInvalid):
+                    raise ValueError(f"{path}: column {c!r} is not numeric") from None
+            n += m
+    except ValueError:
+        raise
+    except Exception as e:   # noqa: BLE001
+        raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
+    return out
 
 
 def _is_number(s):

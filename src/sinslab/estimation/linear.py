@@ -833,6 +833,21 @@ def sparsity(Phi_t):
 # series discretisation of many epochs (the "series" method of kalman.discretize, compiled)
 # ----------------------------------------------------------------------------------------
 @njit(cache=True)
+def _row_lists(mask, width):
+    """Per row of ``mask`` (r, c) the columns of its True entries, ascending (r, width),
+    and their counts (r,)."""
+    r, c = mask.shape
+    idx = np.zeros((r, width), dtype=np.int64)
+    cnt = np.zeros(r, dtype=np.int64)
+    for i in range(r):
+        for j in range(c):
+            if mask[i, j]:
+                idx[i, cnt[i]] = j
+                cnt[i] += 1
+    return idx, cnt
+
+
+@njit(cache=True)
 def series_structure(fnz, gnz, q):
     """Index lists of the zeros :func:`series_step` skips, from the possible non-zeros.
 
@@ -859,15 +874,15 @@ def series_structure(fnz, gnz, q):
         Non-zero columns of each row of Φ = I + FT + (FT)²/2.
     qr, nq : (n,) int, int
         The rows of Φ that reach R (first ``nq`` entries): Q_k is zero elsewhere.
+    qbr, qbn : (max(nr, 1), max(nr, 1)), (max(nr, 1),) int
+        Per column b of Q̄ (places in R) the rows a where it can be non-zero: the pairs of
+        states that share a noise column.
+    prc, prn : (n, max(nr, 1)), (n,) int
+        Per row u of ``Φ[qr, R]`` (in ``qr`` order) the places b in R where it can be
+        non-zero.
     """
     n, m = gnz.shape
-    fcol = np.zeros((n, n), dtype=np.int64)
-    fcnt = np.zeros(n, dtype=np.int64)
-    for i in range(n):
-        for j in range(n):
-            if fnz[i, j]:
-                fcol[i, fcnt[i]] = j
-                fcnt[i] += 1
+    fcol, fcnt = _row_lists(fnz, n)
     grow = np.zeros((m, n), dtype=np.int64)
     gcnt = np.zeros(m, dtype=np.int64)
     pos = np.full(n, -1, dtype=np.int64)
@@ -894,13 +909,7 @@ def series_structure(fnz, gnz, q):
             pnz[i, k] = True
             for b in range(fcnt[k]):
                 pnz[i, fcol[k, b]] = True
-    phic = np.zeros((n, n), dtype=np.int64)
-    phin = np.zeros(n, dtype=np.int64)
-    for i in range(n):
-        for j in range(n):
-            if pnz[i, j]:
-                phic[i, phin[i]] = j
-                phin[i] += 1
+    phic, phin = _row_lists(pnz, n)
     qr = np.zeros(n, dtype=np.int64)
     nq = 0
     for i in range(n):
@@ -909,14 +918,32 @@ def series_structure(fnz, gnz, q):
                 qr[nq] = i
                 nq += 1
                 break
-    return fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq
+    nr1 = max(nr, 1)
+    # Q̄'s pattern is symmetric: the rows of column b are the columns of row b
+    qnz = np.zeros((nr1, nr1), dtype=np.bool_)
+    for c in range(m):
+        for a in range(gcnt[c]):
+            for b in range(gcnt[c]):
+                qnz[pos[grow[c, a]], pos[grow[c, b]]] = True
+    qbr, qbn = _row_lists(qnz, nr1)
+    prz = np.zeros((n, nr1), dtype=np.bool_)
+    for u in range(nq):
+        for b in range(nr):
+            prz[u, b] = pnz[qr[u], R[b]]
+    prc, prn = _row_lists(prz, nr1)
+    return fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn
 
 
 @njit(cache=True)
-def series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe):
+def series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe,
+                qbr, qbn, prc, prn):
     """One epoch of the series discretisation into ``Pe`` (Φ) and ``Qe`` (Q_k), skipping
     the zeros listed by :func:`series_structure`; ``Qb``, ``PR``, ``W`` are work arrays
-    (max(nr, 1) columns)."""
+    (max(nr, 1) columns), ``Qb`` holding zeros on the first call (``np.zeros``).
+
+    Only exact zeros are skipped, in an order that keeps every sum's other terms in place:
+    a product with a structural zero adds ±0, which leaves a finite sum unchanged, so the
+    result equals the dense loops bit for bit."""
     n, m = Fe.shape[0], Ge.shape[1]
     # Φ = I + FT + (FT)²/2
     for i in range(n):
@@ -931,10 +958,11 @@ def series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR
             for b in range(fcnt[k]):
                 j = fcol[k, b]
                 Pe[i, j] += h * (Fe[k, j] * T)
-    # Q̄ = G diag(q) Gᵀ on the reached states, exactly symmetric
-    for a in range(nr):
-        for b in range(nr):
-            Qb[a, b] = 0.0
+    # Q̄ = G diag(q) Gᵀ on the reached states, exactly symmetric (entries outside the
+    # pattern stay zero from the caller's allocation)
+    for b in range(nr):
+        for a_ in range(qbn[b]):
+            Qb[qbr[b, a_], b] = 0.0
     for c in range(m):
         qc = q[c]
         for a in range(gcnt[c]):
@@ -943,32 +971,42 @@ def series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR
             pa = pos[i]
             for b in range(gcnt[c]):
                 Qb[pa, pos[grow[c, b]]] += gi * Ge[grow[c, b], c]
-    for a in range(nr):
-        for b in range(a + 1, nr):
-            v = 0.5 * (Qb[a, b] + Qb[b, a])
-            Qb[a, b] = v
-            Qb[b, a] = v
-    # Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2 with Φ Q̄ Φᵀ = (Φ[:, R] Q̄) Φ[:, R]ᵀ
-    for i in range(n):
-        for j in range(n):
-            Qe[i, j] = 0.0
+    for b in range(nr):
+        for a_ in range(qbn[b]):
+            a = qbr[b, a_]
+            if a < b:
+                v = 0.5 * (Qb[a, b] + Qb[b, a])
+                Qb[a, b] = v
+                Qb[b, a] = v
+    # Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2 with Φ Q̄ Φᵀ = (Φ[:, R] Q̄) Φ[:, R]ᵀ; when every row of Φ
+    # reaches R the loop below writes all of Q_k
+    if nq < n:
+        for i in range(n):
+            for j in range(n):
+                Qe[i, j] = 0.0
     for u in range(nq):
         i = qr[u]
         for a in range(nr):
             PR[u, a] = Pe[i, R[a]]
+    # W = Φ[:, R] Q̄, row by row over the non-zeros of both (each W[u, b] sums its terms
+    # in the order of a)
     for u in range(nq):
         for b in range(nr):
-            s = 0.0
-            for a in range(nr):
-                s += PR[u, a] * Qb[a, b]
-            W[u, b] = s
+            W[u, b] = 0.0
+        for a_ in range(prn[u]):
+            a = prc[u, a_]
+            pa = PR[u, a]
+            for b_ in range(qbn[a]):
+                b = qbr[a, b_]
+                W[u, b] += pa * Qb[a, b]
     for u in range(nq):
         i = qr[u]
         pi = pos[i]
         for t in range(u, nq):
             l = qr[t]
             s = 0.0
-            for b in range(nr):
+            for b_ in range(prn[t]):
+                b = prc[t, b_]
                 s += W[u, b] * PR[t, b]
             pl = pos[l]
             if pi >= 0 and pl >= 0:
@@ -992,14 +1030,15 @@ def _series_many(F, G, q, T, Phi, Q):
             for c in range(m):
                 if G[e, i, c] != 0.0:
                     gnz[i, c] = True
-    fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq = series_structure(fnz, gnz, q)
+    fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn = \
+        series_structure(fnz, gnz, q)
     nr1 = max(nr, 1)
     Qb = np.zeros((nr1, nr1))
     PR = np.zeros((n, nr1))
     W = np.zeros((n, nr1))
     for e in range(S):
         series_step(F[e], G[e], q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W,
-                    Phi[e], Q[e])
+                    Phi[e], Q[e], qbr, qbn, prc, prn)
 
 
 def discretize_series_many(F, G, q, T, Phi=None, Q=None):

@@ -26,6 +26,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import sys
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,7 +78,8 @@ def _run_batch(fn, first, seeds, args, kwargs):
 
 
 def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None,
-                 progress=True, args=(), kwargs=None, retries=0, tasks_per_worker=4):
+                 progress=True, args=(), kwargs=None, retries=0, tasks_per_worker=4,
+                 auto_serial=True):
     """Run ``n_runs`` independent runs of ``fn`` in batches on Dask.
 
     Parameters
@@ -109,6 +112,12 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     tasks_per_worker : int
         Tasks per worker when ``batch`` is not given: several balance the load; 1 suits a
         task function whose cost hardly depends on the number of runs it stacks.
+    auto_serial : bool
+        With ``scheduler=None``: run the first batch in this process, timed, and run the
+        rest serially too when that is expected to take no longer than starting a local
+        cluster (:data:`CLUSTER_START_S`) and sharing the rest among its workers; the
+        decision is printed (stderr, not under ``SINSLAB_QUIET``). The batches are those
+        the cluster would get, so the bytes are the same either way.
 
     Returns
     -------
@@ -118,38 +127,121 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     kwargs = dict(kwargs or {})
     seeds = spawn_seeds(seed, n_runs)
     n = len(seeds)
-    with dask_client(scheduler, n_workers) as client:
+    parts = {}
+    if scheduler is None and auto_serial:
+        # a cluster of our own: the batches it would get, and whether it pays for its
+        # start-up, judged from the first batch run here (the same batches either way)
+        nw = int(n_workers or os.cpu_count() or 1)
+        batch = _default_batch(n, nw, tasks_per_worker) if batch is None else batch
+        _check_batch(batch)
+        b0 = min(int(batch), n)
+        t0 = time.perf_counter()
+        parts[0] = _run_batch(fn, 0, seeds[:b0], args, kwargs)[1]
+        per_run = (time.perf_counter() - t0) / b0
+        rest = n - b0
+        serial_s, cluster_s = rest * per_run, CLUSTER_START_S + rest * per_run / nw
+        if rest and serial_s <= cluster_s:
+            scheduler = "sync"
+        if rest:
+            _say(f"Monte Carlo: {n} runs at {per_run * 1e3:.3g} ms each: "
+                 + (f"serial in this process (~{serial_s:.3g} s; a {nw}-worker local cluster "
+                    f"~{cluster_s:.3g} s with its start-up)" if scheduler == "sync" else
+                    f"on a {nw}-worker local cluster (~{cluster_s:.3g} s with its start-up; serial "
+                    f"~{serial_s:.3g} s)"))
+    with dask_client(scheduler if (scheduler is not None or len(parts) < n) else "sync", n_workers) as client:
         nw = 1 if client is None else max(1, len(client.scheduler_info().get("workers", {})) or 1)
         if batch is None:
-            batch = int(min(64, max(1, -(-n // (max(1, int(tasks_per_worker)) * nw)))))
+            batch = _default_batch(n, nw, tasks_per_worker)
+        _check_batch(batch)
         batch = int(batch)
-        if batch < 1:
-            raise ValueError(f"batch must be >= 1, got {batch}")
         starts = list(range(0, n, batch))
-        parts = {}
         from sinslab.core.progress import progress as _progress
         ctx = _progress("Monte Carlo", total=n, unit="runs") if progress else contextlib.nullcontext()
         with ctx as bar:
+            if bar is not None and 0 in parts:
+                bar.advance(min(batch, n))
             if client is None:
                 for s in starts:
-                    parts[s] = _run_batch(fn, s, seeds[s:s + batch], args, kwargs)[1]
-                    if bar is not None:
-                        bar.advance(len(seeds[s:s + batch]))
+                    if s not in parts:
+                        parts[s] = _run_batch(fn, s, seeds[s:s + batch], args, kwargs)[1]
+                        if bar is not None:
+                            bar.advance(len(seeds[s:s + batch]))
             else:
                 from distributed import as_completed
-                a_f = client.scatter([args, kwargs], broadcast=True, hash=False)
-                futs = [client.submit(_run_batch, fn, s, seeds[s:s + batch], a_f[0], a_f[1],
-                                      pure=False, retries=retries) for s in starts]
-                for fut in as_completed(futs):
-                    s, out = fut.result()
-                    parts[s] = out
-                    if bar is not None:
-                        bar.advance(len(seeds[s:s + batch]))
+                # the shared inputs as the result of a task, not scattered data: a worker
+                # that leaves with its copy costs a recomputation, not the campaign
+                a_f = client.submit(_inputs, args, kwargs, pure=False)
+                futs = [client.submit(_run_packed, fn, s, seeds[s:s + batch], a_f,
+                                      pure=False, retries=retries) for s in starts if s not in parts]
+                try:
+                    for fut in as_completed(futs):
+                        s, out = fut.result()
+                        parts[s] = out
+                        if bar is not None:
+                            bar.advance(len(seeds[s:s + batch]))
+                except Exception as e:                       # noqa: BLE001 - sorted below
+                    if not _lost_cluster(e):
+                        raise
+                    done = sum(len(seeds[s:s + batch]) for s in parts)
+                    raise InputError(f"Monte Carlo: the Dask cluster lost its workers "
+                                     f"({type(e).__name__}); {done} of {n} runs had finished") from None
     ordered = [parts[s] for s in starts]
     if isinstance(ordered[0], dict):
         keys = ordered[0].keys()
         return {k: np.concatenate([o[k] for o in ordered], axis=0) for k in keys}
     return np.concatenate(ordered, axis=0)
+
+
+#: Allocator settings of the local cluster's worker processes, beside Dask's own
+#: ``MALLOC_TRIM_THRESHOLD_`` (set before each worker starts, when glibc reads them). That
+#: one alone switches off glibc's dynamic mmap threshold, leaving it at 128 KiB, so each
+#: numpy temporary above it is mapped and unmapped afresh (page faults on every
+#: allocation); fixing the threshold at glibc's own dynamic maximum (32 MiB) keeps them on
+#: the heap. Same bytes; ``benchmarks/workers.py`` measures the worker CPU with and without.
+WORKER_ENVIRON = {"MALLOC_MMAP_THRESHOLD_": 32 * 2 ** 20}
+
+
+#: Seconds a local Dask cluster takes to start and load its workers' imports and kernels
+#: on the 2-core development machine (a campaign's first task on fresh workers included):
+#: :func:`run_campaign` runs a campaign serially when that outweighs what the workers save.
+CLUSTER_START_S = 10.0
+
+
+def _default_batch(n, nw, tasks_per_worker):
+    return int(min(64, max(1, -(-n // (max(1, int(tasks_per_worker)) * nw)))))
+
+
+def _check_batch(batch):
+    if int(batch) < 1:
+        raise ValueError(f"batch must be >= 1, got {batch}")
+
+
+def _say(text):
+    """A status line on stderr (not under ``SINSLAB_QUIET`` or the command line's --quiet)."""
+    from sinslab.core import progress
+
+    if os.environ.get("SINSLAB_QUIET", "") in ("", "0") and not getattr(progress, "_quiet_override", False):
+        print(f"sinslab: {text}", file=sys.stderr, flush=True)
+
+
+def _inputs(args, kwargs):
+    return args, kwargs
+
+
+def _run_packed(fn, first, seeds, packed):
+    return _run_batch(fn, first, seeds, packed[0], packed[1])
+
+
+def _lost_cluster(e) -> bool:
+    """True for the errors of a cluster that lost its workers or its scheduler (not of the
+    task function, whose own exceptions Dask re-raises as they are)."""
+    try:
+        from distributed import KilledWorker
+        from distributed.comm.core import CommClosedError
+    except ImportError:          # pragma: no cover
+        return False
+    import asyncio
+    return isinstance(e, (KilledWorker, CommClosedError, asyncio.CancelledError, TimeoutError))
 
 
 @contextlib.contextmanager
@@ -178,11 +270,14 @@ def dask_client(scheduler=None, n_workers=None):
     own = None
     if scheduler is None:
         nw = int(n_workers or os.cpu_count() or 1)
-        with _interrupts_to_this_process():
+        import dask
+
+        env = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **WORKER_ENVIRON}
+        with _interrupts_to_this_process(), dask.config.set({"distributed.nanny.pre-spawn-environ": env}):
             # no dashboard; the scheduler's own HTTP routes on a free local port, not on the
             # dashboard's 8787 (taken by another cluster: a warning on every start)
             cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR,
+                                   dashboard_address=None, silence_logs=logging.CRITICAL,
                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             client = Client(cluster)
         own = (client, cluster)

@@ -28,7 +28,8 @@ __all__ = ["CompiledPropagation"]
 @njit(cache=True)
 def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k,
                    f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, q, T, fcol, fcnt,
-                   grow, gcnt, R, pos, nr, qr, nq, phic, phin, x, c, P, sig_out, x_out):
+                   grow, gcnt, R, pos, nr, qr, nq, phic, phin, qbr, qbn, prc, prn, x, c, P,
+                   sig_out, x_out):
     """Epochs ``e_a..e_b−1`` of L lanes, one lane after the other with the same work arrays:
     ``rows`` (L, k, S, 10), ``w``, ``f`` (L, k, S, 3); ``x``, ``c`` (L, n), ``P`` (L, n, n)
     stepped in place; ``sig_out``, ``x_out`` (L, e_b − e_a, n). Returns ``(lane, epoch)``
@@ -41,21 +42,25 @@ def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_co
     Pe = np.empty((n, n))
     Qe = np.empty((n, n))
     nr1 = max(nr, 1)
-    Qb = np.empty((nr1, nr1))
+    Qb = np.zeros((nr1, nr1))
     PR = np.empty((n, nr1))
     W = np.empty((n, nr1))
     T1 = np.empty((n, n))
     T2 = np.empty((n, n))
     tmp = np.empty(n)
+    # the constant entries once; each epoch writes the varying ones over the same places
+    Fe[:, :] = F0
+    Ge[:, :] = G0
     for ln in range(rows.shape[0]):
         rl, wl, fl = rows[ln], w[ln], f[ln]
         xl, cl, Pl = x[ln], c[ln], P[ln]
         for e in range(e_a, e_b):
-            if not ek.fill_one(rl, wl, fl, e, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k,
-                               f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc,
-                               Fe, Ge):
+            if not ek.fill_varying(rl, wl, fl, e, rd, core_k, core_r, f_row, f_col, f_ins, f_k,
+                                   f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C,
+                                   Fc, Fe, Ge):
                 return ln, e
-            series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe)
+            series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe,
+                        qbr, qbn, prc, prn)
             _cov_predict(Pl, Pe, Qe, T1, T2)
             _state_predict(xl, Pe, phic, phin, tmp)
             _state_predict(cl, Pe, phic, phin, tmp)
@@ -78,6 +83,11 @@ class CompiledPropagation:
     """
 
     def __init__(self, model, prog):
+        cr = prog.core_r
+        if (prog.F0[np.ix_(cr, cr)].any() or prog.F0[prog.f_row, prog.f_col].any()
+                or prog.G0[prog.g_row, prog.g_col].any()):
+            # the loop copies the constant entries once and writes the varying ones over them
+            raise AssertionError("constant and navigation-dependent entries of the model overlap")
         self.prog = prog
         self.q = np.ascontiguousarray(model.q, dtype=float)
         fnz, gnz = ek.pattern(prog)
@@ -111,7 +121,7 @@ class CompiledPropagation:
             Per lane, receive σ and x after each step.
         """
         rows, w, f = stretch
-        fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq = self.structure
+        fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn = self.structure
         L = len(filts)
         if L == 1:
             so, xo = sigma_out[0][None], x_out[0][None]
@@ -121,7 +131,8 @@ class CompiledPropagation:
 
         def step(x, c, P):
             return _predict_model(rows, w, f, a, b, *self._tables, self.q, float(T), fcol, fcnt, grow,
-                                  gcnt, R, pos, nr, qr, nq, phic, phin, x, c, P, so, xo)
+                                  gcnt, R, pos, nr, qr, nq, phic, phin, qbr, qbn, prc, prn, x, c, P,
+                                  so, xo)
 
         bad, e = propagate_lanes(filts, step, b - a, T)
         if bad >= 0:

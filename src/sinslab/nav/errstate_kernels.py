@@ -267,8 +267,24 @@ def fill_one(rows, w, f, e, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k
              f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc, Fe, Ge):
     """F and G of epoch ``e`` into ``Fe`` (n, n), ``Ge`` (n, m); ``C`` (k, 3, 3) and
     ``Fc`` (9, 9) are work arrays. Returns False for a non-finite input or |lat| >= 90°."""
-    n_ins = rows.shape[0]
     n, m = F0.shape[0], G0.shape[1]
+    for i in range(n):
+        for j in range(n):
+            Fe[i, j] = F0[i, j]
+        for j in range(m):
+            Ge[i, j] = G0[i, j]
+    return fill_varying(rows, w, f, e, rd, core_k, core_r, f_row, f_col, f_ins, f_k, f_j, f_src,
+                        f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc, Fe, Ge)
+
+
+@njit(cache=True)
+def fill_varying(rows, w, f, e, rd, core_k, core_r, f_row, f_col, f_ins, f_k, f_j, f_src,
+                 f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc, Fe, Ge):
+    """The entries of F and G that vary with the navigation point (those :func:`fill_one`
+    writes after the constant ``F0``, ``G0``; the two sets do not overlap), for a caller
+    that keeps ``Fe``, ``Ge`` from one epoch to the next and copied the constants once.
+    Returns False for a non-finite input or |lat| >= 90°."""
+    n_ins = rows.shape[0]
     for i in range(n_ins):
         for c in range(10):
             if not math.isfinite(rows[i, e, c]):
@@ -285,11 +301,6 @@ def fill_one(rows, w, f, e, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k
     fN = C[0, 1, 0] * f0 + C[0, 1, 1] * f1 + C[0, 1, 2] * f2
     fU = C[0, 2, 0] * f0 + C[0, 2, 1] * f1 + C[0, 2, 2] * f2
     _core(L, rows[0, e, 9], rows[0, e, 4], rows[0, e, 5], rows[0, e, 6], fE, fN, fU, rd, Fc)
-    for i in range(n):
-        for j in range(n):
-            Fe[i, j] = F0[i, j]
-        for j in range(m):
-            Ge[i, j] = G0[i, j]
     nk = core_k.shape[0]
     for a in range(nk):
         ra, ka = core_r[a], core_k[a]

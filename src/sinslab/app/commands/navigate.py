@@ -160,6 +160,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if (vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
         raise ValueError(f"--aid nhc: the non-holonomic constraint assumes a wheeled land vehicle, "
                          f"not --platform {vehicle['platform']}")
+    check_memory(imu_path, fmt_eff, bool((smo or {}).get("smooth")))
     if not (isinstance(csv_rate, (int, float)) and math.isfinite(csv_rate) and csv_rate > 0):
         raise ValueError(f"--csv-rate must be a positive number of Hz, got {csv_rate!r}")
     em = None
@@ -602,6 +603,78 @@ def _vehicle_options(opt, veh, nhc):
     opt.estimate_vehicle = bool(nhc)
     cfg["vehicle_states"] = bool(nhc)
     return cfg
+
+
+# ------------------------------------------------------------- memory estimate ---
+#: Peak resident memory of one navigate process: a fixed part (interpreter, numpy, numba
+#: and its loaded kernels, scipy, pyarrow, matplotlib) and a part per IMU sample (the
+#: record and its reading, the filter's outputs, tables and figures; with ``--smooth`` the
+#: forward pass' history and the smoothed solution too), from
+#: ``benchmarks/navigate_cost.py`` (peak RSS of 10 and 60 min logs at 200 Hz: the
+#: intercept and the slope, rounded up).
+MEMORY_FIXED = 340 * 2 ** 20
+MEMORY_PER_SAMPLE = {False: 420, True: 720}
+
+
+def estimate_samples(path, fmt):
+    """Number of IMU samples in ``path`` estimated without reading it: the row count of a
+    Parquet file, or a text table's size over the mean length of its first lines; None
+    for other formats and compressed files. Of channels in two tables joined on time
+    (``path`` a list) the first table is counted."""
+    import os
+
+    if isinstance(path, (list, tuple)):
+        path = path[0]
+    if str(path).lower().endswith((".gz", ".zip")):
+        return None
+
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
+        try:
+            return int(pq.ParquetFile(path).metadata.num_rows)
+        except Exception:        # noqa: BLE001 - the reader names what is wrong
+            return None
+    if fmt != "csv":
+        return None
+    try:
+        size = os.path.getsize(path)
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError:
+        return None
+    lines = head.split(b"\n")
+    body = [ln for ln in lines[1:-1] if ln.strip()]        # after the header; complete lines
+    if not body:
+        return None
+    per_line = (sum(len(ln) for ln in body) + len(body)) / len(body)
+    return int((size - len(lines[0]) - 1) / per_line)
+
+
+def check_memory(imu_path, fmt, smooth, available=None):
+    """Refuse, before reading, an IMU log whose navigation cannot fit in memory.
+
+    The need is :data:`MEMORY_FIXED` plus :data:`MEMORY_PER_SAMPLE` per estimated sample
+    (:func:`estimate_samples`); ``available`` defaults to the memory the system can give
+    a new allocation. Returns the estimate [bytes] or None (no estimate for the format).
+
+    Raises
+    ------
+    ValueError
+        One line naming the file, its estimated samples, the need and what is available.
+    """
+    from sinslab.app.validate import _size, available_memory
+
+    n = estimate_samples(imu_path, fmt)
+    if n is None:
+        return None
+    need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[bool(smooth)]
+    avail = available_memory() if available is None else int(available)
+    if need > avail:
+        name = " + ".join(map(str, imu_path)) if isinstance(imu_path, (list, tuple)) else imu_path
+        raise ValueError(f"{name}: about {n:,} IMU samples; navigate{' --smooth' if smooth else ''} "
+                         f"needs about {_size(need)} of memory, {_size(avail)} is available "
+                         "(split the log, or run where more memory is free)")
+    return need
 
 
 # ------------------------------------------------------- smoothing and odometer ---

@@ -1,0 +1,339 @@
+"""Speed of the full-rate filter with KF-GINS' error model, and where its time goes.
+
+Run: ``.venv/bin/python benchmarks/full_rate.py [--quick] [--json FILE] [--save FILE]
+[--compare FILE] [--kfgins BINARY]``
+
+The model is that of KF-GINS (i2Nav-WHU): 21 states — φ, δv, δp, first-order
+Gauss–Markov gyro and accelerometer biases, Gauss–Markov gyro and accelerometer scale
+factors — driven by 18 white noises (ARW, VRW and the six Gauss–Markov processes). The
+covariance is propagated at every epoch of the 200 Hz IMU (``kf_dt = dt``, one sample per
+step), 1 Hz position fixes, closed loop, on the aircraft drive of
+``benchmarks/estimation.py`` (:func:`estimation.lc_scenario`; that script keeps its lighter
+model with constant biases and 6 noise inputs).
+
+1. Filter epochs per CPU second of :func:`sinslab.fusion.loosely_coupled.loosely_coupled`
+   in one warm process (target >= 120 000 on the 2-core development machine), and the
+   ratio to the numpy model evaluation (``model_eval="numpy"``) in the same run, with
+   their largest relative difference (target <= 1e-9).
+2. Where the time of an epoch goes: the compiled kernels of one epoch timed alone on the
+   run's own linearisation points (F and G, the series Φ and Q_k, ``P ← Φ P Φᵀ + Q_k``,
+   ``x ← Φ x``), the rest (mechanization, the 1 Hz updates and feedback, Python per
+   block) as the difference to the measured total.
+3. ``--save FILE`` writes the run's outputs (npz); ``--compare FILE`` reports the largest
+   relative difference of this run's outputs to a saved one (a change meant not to move
+   the numbers: save before, compare after).
+4. ``--kfgins BINARY``: the same IMU record and fixes written in KF-GINS' text formats,
+   its configuration with the same noise model, and its process CPU time (best of three,
+   alternated with this process' filter), as epochs per CPU second and the ratio.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+os.environ.setdefault("SINSLAB_QUIET", "1")
+
+import numpy as np  # noqa: E402
+from numba import njit  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import estimation as E  # noqa: E402
+from sinslab.core import units as u  # noqa: E402
+from sinslab.estimation.linear import _cov_predict, _state_predict  # noqa: E402
+from sinslab.fusion import loosely_coupled as integ  # noqa: E402
+from sinslab.nav import errstate_kernels as ek  # noqa: E402
+
+#: Gauss–Markov processes of the model: steady-state σ and correlation time [s]
+GYRO_BIAS, ACCEL_BIAS = (1.0 * u.dph, 3600.0), (500 * u.ug, 3600.0)
+GYRO_SCALE, ACCEL_SCALE = (300 * u.ppm, 3600.0), (300 * u.ppm, 3600.0)
+ARW, VRW = 0.05 * u.dpsh, 50 * u.ugpsHz
+
+
+def gm_model():
+    """KF-GINS' error model as a :class:`sinslab.nav.errstate.ErrorModel` (21 states, 18
+    noise inputs)."""
+    from sinslab.nav import errstate as es
+    m = es.ErrorModel("full", [es.gyro_markov(GYRO_BIAS[1], GYRO_BIAS[0]),
+                               es.accel_markov(ACCEL_BIAS[1], ACCEL_BIAS[0]),
+                               es.gyro_scale(tau=GYRO_SCALE[1], sigma=GYRO_SCALE[0]),
+                               es.accel_scale(tau=ACCEL_SCALE[1], sigma=ACCEL_SCALE[0])],
+                      gyro_noise=ARW, accel_noise=VRW)
+    assert (m.n, len(m.q)) == (21, 18), (m.n, len(m.q))
+    return m
+
+
+def scenario(duration):
+    """``(imu, init, fix times, fixes, fix σ, P0, model, truth)`` of the drive."""
+    meas, init, ft, fix, sig, P15, _, truth = E.lc_scenario(duration)
+    P0 = np.zeros((21, 21))
+    P0[:9, :9] = P15[:9, :9]
+    P0[9:15, 9:15] = np.diag(np.r_[[GYRO_BIAS[0] ** 2] * 3, [ACCEL_BIAS[0] ** 2] * 3])
+    P0[15:, 15:] = np.diag(np.r_[[GYRO_SCALE[0] ** 2] * 3, [ACCEL_SCALE[0] ** 2] * 3])
+    return meas, init, ft, fix, sig, P0, gm_model(), truth
+
+
+def _filter(sc, imu, model_eval="compiled"):
+    import functools
+    from sinslab.fusion import driver
+    meas, init, ft, fix, sig, P0, model, truth = sc
+    sel = ft <= imu.t[-1]
+    orig = driver.run
+    driver.run = functools.partial(orig, model_eval=model_eval)
+    try:
+        return integ.loosely_coupled(imu, init, ft[sel], fix[sel], sig, P0, model=model, kf_dt=imu.dt,
+                                     nsub=1, progress=False)
+    finally:
+        driver.run = orig
+
+
+def _outputs(res):
+    return {"nav": res.nav, "x": res.x, "sigma": res.sigma, "gyro_bias": res.gyro_bias,
+            "accel_bias": res.accel_bias, "scale": res.scale, "innovation": np.asarray(res.innovation),
+            "nis": res.nis}
+
+
+def _rel(a, b):
+    """Largest difference of each column relative to the largest magnitude of the column."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    a2, b2 = a.reshape(a.shape[0], -1), b.reshape(b.shape[0], -1)
+    scale = np.maximum(np.max(np.abs(b2), 0), 1e-300)
+    return float(np.max(np.abs(a2 - b2) / scale))
+
+
+def _cpu(fn):
+    c0 = time.process_time()
+    out = fn()
+    return time.process_time() - c0, out
+
+
+def bench_filter(duration, numpy_duration, rounds=3):
+    sc = scenario(duration)
+    imu = sc[0]
+    short = imu.slice(None, imu.t0 + 20.0)
+    _filter(sc, short)                                    # compile / load the kernels
+    _filter(sc, short, "numpy")
+    best, res = math.inf, None
+    for _ in range(rounds):
+        c, res = _cpu(lambda: _filter(sc, imu))
+        best = min(best, c)
+    epochs = res.t.size - 1
+    # the numpy reference on a shorter stretch (it is slow), both in the same run
+    part = imu.slice(None, imu.t0 + numpy_duration)
+    c_np, ref = _cpu(lambda: _filter(sc, part, "numpy"))
+    c_cp, cmp = _cpu(lambda: _filter(sc, part))
+    agree = max(_rel(getattr(cmp, k), getattr(ref, k)) for k in ("nav", "x", "sigma"))
+    return sc, res, {"duration_s": duration, "epochs": int(epochs), "cpu_s": best,
+                     "epochs_per_cpu_s": epochs / best, "numpy_duration_s": numpy_duration,
+                     "ratio_to_numpy": c_np / c_cp, "max_rel_diff_vs_numpy": agree}
+
+
+# --------------------------------------------------------------------------- profile
+@njit(cache=True)
+def _k_fill(rows, w, f, n_ep, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k, f_j, f_src,
+            f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, Fs, Gs):
+    C = np.empty((1, 3, 3))
+    Fc = np.empty((9, 9))
+    for e in range(n_ep):
+        ek.fill_one(rows, w, f, e, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k, f_j, f_src,
+                    f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc, Fs[e], Gs[e])
+
+
+@njit(cache=True)
+def _k_cov(P, Phi, Q):
+    n = P.shape[0]
+    T1, T2 = np.empty((n, n)), np.empty((n, n))
+    for e in range(Phi.shape[0]):
+        _cov_predict(P, Phi[e], Q[e], T1, T2)
+
+
+@njit(cache=True)
+def _k_state(x, Phi, phic, phin):
+    tmp = np.empty(x.shape[0])
+    for e in range(Phi.shape[0]):
+        _state_predict(x, Phi[e], phic, phin, tmp)
+
+
+def profile(sc, res, n_ep=20000):
+    """CPU per epoch [µs] of each compiled stage alone, on the run's own points, and of
+    the fused loop that runs them all."""
+    from sinslab.estimation import linear as lin
+    from sinslab.estimation.filter import KalmanFilter
+    from sinslab.fusion.propagate import CompiledPropagation
+    model, P0 = sc[6], sc[5]
+    cp = CompiledPropagation.of(model)
+    n_ep = min(n_ep, res.t.size - 1)
+    imu = sc[0]
+    rows = np.ascontiguousarray(res.nav[None, :n_ep])
+    w = np.ascontiguousarray((imu.dtheta[:n_ep] / imu.dt - res.gyro_bias[:n_ep])[None])
+    f = np.ascontiguousarray((imu.dv[:n_ep] / imu.dt - res.accel_bias[:n_ep])[None])
+    n, m = model.n, len(model.q)
+    Fs, Gs = np.empty((n_ep, n, n)), np.empty((n_ep, n, m))
+    tab = ek.tables(cp.prog)
+    T = float(imu.dt)
+    Phi, Q = np.empty((n_ep, n, n)), np.empty((n_ep, n, n))
+    structure = cp.structure
+    stages = {
+        "F, G (fill_one)": lambda k: _k_fill(rows, w, f, k, *tab, Fs, Gs),
+        "Φ, Q_k (series_step)": lambda k: lin.discretize_series_many(Fs[:k], Gs[:k], cp.q, T, Phi, Q),
+        "P ← Φ P Φᵀ + Q_k": lambda k: _k_cov(P0.copy(), Phi[:k], Q[:k]),
+        "x ← Φ x (twice: x and c)": lambda k: (_k_state(np.ones(n), Phi[:k], structure[7], structure[8]),
+                                               _k_state(np.ones(n), Phi[:k], structure[7], structure[8])),
+    }
+    out = {}
+    for name, fn in stages.items():
+        fn(10)
+        out[name] = min(_cpu(lambda: fn(n_ep))[0] for _ in range(3))
+    kf = KalmanFilter(np.zeros(n), P0, check=False)
+    stretch = (rows[None], w[None], f[None])
+    so, xo = np.empty((n_ep, n)), np.empty((n_ep, n))
+
+    def fused(k):
+        kf.P[:] = P0
+        kf.x[:] = 0.0
+        cp.predict([kf], stretch, 0, k, T, [so[:k]], [xo[:k]])
+    fused(10)
+    out["fused loop (all of the above)"] = min(_cpu(lambda: fused(n_ep))[0] for _ in range(3))
+    return {k: 1e6 * v / n_ep for k, v in out.items()}
+
+
+# --------------------------------------------------------------------------- KF-GINS
+def _kfgins_inputs(sc, folder):
+    """The IMU record, fixes and a configuration in KF-GINS' formats (its yaml keys and
+    units: deg/√h, m/s/√h, deg/h, mGal, ppm, h)."""
+    from sinslab.core.earth import radii
+    meas, init, ft, fix, sig, P0, model, truth = sc
+    t = meas.t
+    # KF-GINS: body axes front-right-down, navigation frame NED; sinslab: right-front-up, ENU
+    M = np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, -1]])
+    imu = np.column_stack([t, meas.dtheta @ M.T, meas.dv @ M.T])
+    np.savetxt(os.path.join(folder, "imu.txt"), imu, fmt="%.9f %.12e %.12e %.12e %.12e %.12e %.12e")
+    gnss = np.column_stack([ft, np.degrees(fix[:, 0]), np.degrees(fix[:, 1]), fix[:, 2],
+                            np.broadcast_to(sig, (ft.size, 3))])
+    np.savetxt(os.path.join(folder, "gnss.txt"), gnss, fmt="%.6f %.10f %.10f %.4f %.3f %.3f %.3f")
+    # attitude: C_b^n (ENU, right-front-up) -> C (NED, front-right-down) -> roll, pitch, yaw (ZYX)
+    from sinslab.core.attitude import euler_to_dcm
+    C = M @ euler_to_dcm(np.asarray(init.att, float)) @ M.T
+    rpy = np.degrees([math.atan2(C[2, 1], C[2, 2]), -math.asin(C[2, 0]), math.atan2(C[1, 0], C[0, 0])])
+    v = np.asarray(init.vel, float)
+    deg = 180.0 / math.pi
+    sd = np.sqrt(np.diag(P0))
+
+    def vec(x):
+        return "[ " + ", ".join(f"{float(a):.12g}" for a in np.broadcast_to(x, (3,))) + " ]"
+    cfg = f"""imupath: "{folder}/imu.txt"
+gnsspath: "{folder}/gnss.txt"
+outputpath: "{folder}"
+imudatalen: 7
+imudatarate: {round(1.0 / meas.dt)}
+starttime: {t[0]:.9f}
+endtime: -1
+initpos: [ {init.lat * deg:.12f}, {init.lon * deg:.12f}, {init.h:.4f} ]
+initvel: {vec([v[1], v[0], -v[2]])}
+initatt: {vec(rpy)}
+initgyrbias: [ 0, 0, 0 ]
+initaccbias: [ 0, 0, 0 ]
+initgyrscale: [ 0, 0, 0 ]
+initaccscale: [ 0, 0, 0 ]
+initposstd: {vec([sd[6] * 6.4e6, sd[7] * 5.4e6, sd[8]])}
+initvelstd: {vec(sd[[4, 3, 5]])}
+initattstd: {vec(np.degrees(sd[[1, 0, 2]]))}
+imunoise:
+  arw: {vec(ARW / (u.deg / 60.0))}
+  vrw: {vec(VRW * 60.0)}
+  gbstd: {vec(GYRO_BIAS[0] / u.dph)}
+  abstd: {vec(ACCEL_BIAS[0] / 1e-5)}
+  gsstd: {vec(GYRO_SCALE[0] / u.ppm)}
+  asstd: {vec(ACCEL_SCALE[0] / u.ppm)}
+  corrtime: {GYRO_BIAS[1] / 3600.0:.9f}
+antlever: [ 0, 0, 0 ]
+"""
+    path = os.path.join(folder, "kf-gins.yaml")
+    with open(path, "w") as fh:
+        fh.write(cfg)
+    return path
+
+
+def bench_kfgins(binary, sc, res, sinslab_cpu, rounds=3):
+    """KF-GINS' process CPU on the same data, alternated with this process' filter."""
+    with tempfile.TemporaryDirectory() as d:
+        cfg = _kfgins_inputs(sc, d)
+        imu = sc[0]
+        best_k, best_s = math.inf, sinslab_cpu
+        for _ in range(rounds):
+            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            subprocess.run([binary, cfg], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            best_k = min(best_k, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime))
+            best_s = min(best_s, _cpu(lambda: _filter(sc, imu))[0])
+        nav = np.loadtxt(os.path.join(d, "KF_GINS_Navresult.nav"), usecols=(1, 2, 3, 4))
+    epochs = res.t.size - 1
+    # final position against the truth of both (a check that the two ran the same problem)
+    truth = sc[7]
+    from sinslab.core.earth import radii
+    rm, rn = radii(truth.lat[-1], truth.h[-1])
+    k_err = np.hypot((np.radians(nav[-1, 1]) - truth.lat[-1]) * rm,
+                     (np.radians(nav[-1, 2]) - truth.lon[-1]) * rn * math.cos(truth.lat[-1]))
+    s_err = np.hypot((res.nav[-1, 7] - truth.lat[-1]) * rm,
+                     (res.nav[-1, 8] - truth.lon[-1]) * rn * math.cos(truth.lat[-1]))
+    return {"kfgins_cpu_s": best_k, "kfgins_epochs_per_cpu_s": epochs / best_k,
+            "sinslab_cpu_s_alternated": best_s, "ratio_to_kfgins": best_k / best_s,
+            "kfgins_final_horiz_err_m": float(k_err), "sinslab_final_horiz_err_m": float(s_err)}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a 10 min drive instead of 1 h")
+    ap.add_argument("--duration", type=float, help="drive length [s] (default 3600, 600 with --quick)")
+    ap.add_argument("--rounds", type=int, default=3, help="filter runs, best CPU time kept")
+    ap.add_argument("--json", help="write the figures to this file")
+    ap.add_argument("--save", help="write this run's outputs to FILE (npz)")
+    ap.add_argument("--compare", help="largest relative difference to the outputs saved in FILE")
+    ap.add_argument("--kfgins", help="a KF-GINS binary to run side by side")
+    a = ap.parse_args(argv)
+    duration = a.duration or (600.0 if a.quick else 3600.0)
+    sc, res, out = bench_filter(duration, min(duration, 60.0 if a.quick else 300.0), a.rounds)
+    print(f"full-rate filter, KF-GINS' model (21 states, 18 noises), P every 200 Hz epoch, 1 Hz fixes, "
+          f"{duration:.0f} s: {out['cpu_s']:.2f} s CPU, {out['epochs_per_cpu_s']:,.0f} epochs per CPU s "
+          f"(target >= 120,000); numpy model evaluation over {out['numpy_duration_s']:.0f} s: "
+          f"{out['ratio_to_numpy']:.2f}x slower, max rel diff {out['max_rel_diff_vs_numpy']:.1e}")
+    prof = profile(sc, res)
+    total = 1e6 * out["cpu_s"] / out["epochs"]
+    print(f"per epoch: {total:.2f} µs in all")
+    for k, v in prof.items():
+        print(f"  {k:32s} {v:6.2f} µs")
+    print(f"  {'rest (mechanization, updates, Python)':32s} {total - prof['fused loop (all of the above)']:6.2f} µs")
+    out["profile_us"] = prof
+    outs = _outputs(res)
+    if a.save:
+        np.savez(a.save, **{k: v for k, v in outs.items() if v is not None})
+    if a.compare:
+        ref = np.load(a.compare)
+        diff = {k: _rel(outs[k], ref[k]) for k in ref.files}
+        out["max_rel_diff_vs_saved"] = max(diff.values())
+        worst = max(diff, key=diff.get)
+        print(f"against {a.compare}: largest relative difference {out['max_rel_diff_vs_saved']:.1e} ({worst})")
+    if a.kfgins:
+        out.update(bench_kfgins(a.kfgins, sc, res, out["cpu_s"]))
+        print(f"KF-GINS on the same data: {out['kfgins_cpu_s']:.2f} s CPU ({out['kfgins_epochs_per_cpu_s']:,.0f} "
+              f"epochs per CPU s); sinslab's filter {out['sinslab_cpu_s_alternated']:.2f} s -> "
+              f"{out['ratio_to_kfgins']:.2f}x; final horizontal error {out['kfgins_final_horiz_err_m']:.2f} m vs "
+              f"{out['sinslab_final_horiz_err_m']:.2f} m")
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+    return out
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)

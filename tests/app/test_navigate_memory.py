@@ -1,0 +1,53 @@
+"""`sinslab navigate` estimates its memory before reading the IMU log: the sample count
+estimate against the true count (text: within 2 %; Parquet: exact), and a log that cannot
+fit refused with one line, exit status 2 and nothing written."""
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from sinslab.app.commands import navigate as nav
+from sinslab.core.records import ImuRecord
+from sinslab.data import write_imu
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("mem")
+    rng = np.random.default_rng(0)
+    n = 5000
+    imu = ImuRecord(0.005 * np.arange(1, n + 1), rng.normal(scale=1e-5, size=(n, 3)),
+                    rng.normal(scale=1e-3, size=(n, 3)) + [0, 0, 0.049])
+    write_imu(d / "imu.csv", imu, "csv")
+    write_imu(d / "imu.parquet", imu, "parquet")
+    (d / "fx.csv").write_text("t[s],lat[deg],lon[deg],h[m]\n1.0,30,110,10\n2.0,30,110,10\n")
+    return d, n
+
+
+def test_sample_estimate(logs):
+    d, n = logs
+    assert abs(nav.estimate_samples(d / "imu.csv", "csv") - n) <= 0.02 * n
+    assert nav.estimate_samples(d / "imu.parquet", "parquet") == n
+    assert nav.estimate_samples(d / "imu.csv", "mat") is None
+
+
+def test_need_grows_with_samples_and_smoothing(logs):
+    d, n = logs
+    plain = nav.check_memory(d / "imu.parquet", "parquet", False, available=1 << 40)
+    smooth = nav.check_memory(d / "imu.parquet", "parquet", True, available=1 << 40)
+    assert plain == nav.MEMORY_FIXED + n * nav.MEMORY_PER_SAMPLE[False]
+    assert smooth - plain == n * (nav.MEMORY_PER_SAMPLE[True] - nav.MEMORY_PER_SAMPLE[False])
+
+
+def test_refused_in_one_line(logs, tmp_path, monkeypatch):
+    from sinslab.app import validate
+    from sinslab.cli import app
+
+    d, _ = logs
+    monkeypatch.setattr(validate, "available_memory", lambda: 100 * 2 ** 20)
+    out = tmp_path / "run"
+    res = CliRunner().invoke(app, ["-q", "navigate", "--imu", str(d / "imu.csv"), "--fixes", str(d / "fx.csv"),
+                                   "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "IMU samples" in lines[0] and "100 MiB is available" in lines[0], res.output
+    assert not out.exists()
