@@ -20,9 +20,9 @@ import numpy as np
 
 from dataclasses import dataclass
 
+from sinslab.core.earth import GEO_RADIUS
 from sinslab.core.records import Fixes
-from sinslab.methods.doublestar import (GEO_RADIUS, Integration, StoredStateUpdate, check_integration,
-                                        check_windows)
+from sinslab.methods.doublestar import Integration, StoredStateUpdate, check_integration, check_windows
 
 __all__ = ["integrate_ranges", "PathPlan", "plan_paths"]
 
