@@ -263,7 +263,9 @@ class SatelliteMeasurement:
         self.lever = lever
         self.mask = float(mask)
         self.cn0_ref = float(cn0_ref)
-        self.gate = None if gate is None else float(gate)
+        # not ``gate``: the driver takes a measurement's ``gate`` for a whole-update
+        # InnovationGate; this one rejects single rows inside the update
+        self.row_gate = None if gate is None else float(gate)
         self.gate_reset = int(gate_reset)
         self.limits = _limits(max_satellites)
         self.clock = clock
@@ -360,9 +362,9 @@ class SatelliteMeasurement:
         nu = z - H @ x
         S = np.einsum("ij,jk,ik->i", H, P, H) + R
         nis = nu * nu / S
-        if self.gate is None:
+        if self.row_gate is None:
             return np.zeros(z.size, bool), nu, nis
-        rej = nis > self.gate ** 2
+        rej = nis > self.row_gate ** 2
         if np.all(rej):
             self._all_rejected += 1
             if self._all_rejected > self.gate_reset:
