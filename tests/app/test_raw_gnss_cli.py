@@ -4,6 +4,7 @@ bad input as one line and exit status 2 with the previous run left unchanged."""
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from typer.testing import CliRunner
@@ -82,3 +83,40 @@ def test_satellites_below_the_mask_only(monkeypatch):
     imu = load_imu(WALK / "imu_1730.csv", "rtklib-imu").imu
     with pytest.raises(InputError, match="gnss_1730.ubx: every satellite is below the 89.9 deg"):
         load_raw(WALK / "gnss_1730.ubx", None, None, imu, echo=lambda *a: None)
+
+
+def test_raw_claims_share_the_nis_rule_of_the_loosely_coupled_runs():
+    """raw_claims: every claim is the project's check; a mean ν²/S well below 1 is a
+    pessimistic noise model (passes, named in the verdict), well above 1 fails
+    (overconfident), 1 ± chi-square noise is consistent — the verdicts of
+    described.nis_claim, the rule of the loosely coupled navigate claims."""
+    from types import SimpleNamespace
+
+    from sinslab.app.commands.raw_gnss import raw_claims
+    from sinslab.app.described import NIS_FACTOR, nis_claim
+
+    rng = np.random.default_rng(1)
+
+    def raw(pr_nis, dp_nis):
+        def meas(kind, nis):
+            nis = np.asarray(nis, float).reshape(-1, 4)       # epochs of 4 rows, the last row unused
+            used = np.ones(nis.shape, bool)
+            used[:, -1] = False
+            return SimpleNamespace(kind=kind, log=SimpleNamespace(nis=list(nis), used=list(used)))
+        return SimpleNamespace(measurements=[meas("pseudorange", pr_nis), meas("doppler", dp_nis)])
+
+    # ν²/S of a consistent row is chi-square with 1 dof (mean 1)
+    cases = [(0.2 * rng.chisquare(1, 400), True, "pessimistic noise model"),
+             (rng.chisquare(1, 400), True, "consistent"),
+             (5.0 * rng.chisquare(1, 400), False, "overconfident noise model")]
+    for nis, passed, verdict in cases:
+        claims, extra = raw_claims(raw(nis, nis))
+        assert [c.id for c in claims] == ["pseudorange_nis_not_overconfident", "doppler_nis_not_overconfident"]
+        assert all(c.origin == "check" for c in claims)
+        assert all(c.passed is passed for c in claims), (verdict, [c.measured for c in claims])
+        assert extra["pseudorange_nis_verdict"] == extra["doppler_nis_verdict"] == verdict
+        used = nis.reshape(-1, 4)[:, :3].ravel()                # only the rows used count
+        assert extra["pseudorange_nis_mean"] == pytest.approx(float(np.mean(used)))
+        assert claims[0].expected == NIS_FACTOR and verdict in claims[0].statement
+        # the same verdict as the loosely coupled rule for a 1-dof measurement
+        assert nis_claim("x", "the fixes", used, 1)[2] == verdict

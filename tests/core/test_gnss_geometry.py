@@ -216,3 +216,14 @@ def test_elevation_azimuth_and_geodetic_match_rtklib():
         rtk.ecef2pos(r3, p3)
         la, lo, hh = E.ecef_to_geodetic(rr)
         assert abs(la - p3[0]) < 1e-12 and abs(lo - p3[1]) < 1e-12 and abs(hh - p3[2]) < 1e-4
+
+
+def test_geodetic_to_ecef_broadcasts_mixed_shapes():
+    """A scalar latitude against an array of longitudes (and the reverse): the same as the
+    point-by-point conversion."""
+    lon = np.linspace(-3.0, 3.0, 7)
+    grid = E.geodetic_to_ecef(0.5, lon, 1000.0)
+    assert grid.shape == (7, 3)
+    for i, lo in enumerate(lon):
+        assert np.array_equal(grid[i], E.geodetic_to_ecef(0.5, lo, 1000.0))
+    assert E.geodetic_to_ecef(lon[:, None] / 3, 0.2, np.array([0.0, 10.0])).shape == (7, 2, 3)

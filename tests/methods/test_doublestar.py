@@ -512,3 +512,16 @@ def test_a_fix_plan_drawn_equals_simulated_fixes():
         for f in ("t", "t_arrive", "lat", "lon", "sigma", "err"):
             assert np.array_equal(getattr(got, f), getattr(sim, f), equal_nan=True), (extra, f)
         assert np.isnan(got.h).all() and got.t.size > 0
+
+
+def test_one_earth_model_for_the_two_geo_paths():
+    """The fix solver's paths (measure_ranges) and the path measurement's (fusion.rdss)
+    come from the one WGS-84 conversion and the one orbit radius: the same bits. The radius
+    is the geostationary one: Kepler's third law with the Earth rate, (GM/ω²)^(1/3), within 3 m."""
+    from sinslab.core import earth
+    from sinslab.fusion.rdss import geo_paths
+
+    assert ds.GEO_RADIUS is earth.GEO_RADIUS
+    assert abs((earth.GM / earth.WIE ** 2) ** (1 / 3) - earth.GEO_RADIUS) < 3.0
+    lat, lon = np.radians(np.linspace(20, 50, 9)), np.radians(np.linspace(75, 135, 9))
+    assert np.array_equal(ds.measure_ranges(lat, lon, 800.0, S1, S2), geo_paths(lat, lon, 800.0, S1, S2)[0])

@@ -105,3 +105,30 @@ def test_monte_carlo_against_the_fix_filter():
     # same paths, same height errors: no worse than the fix filter beyond Monte Carlo noise
     # (48 runs: 11.5 m against 12.1 m)
     assert np.hypot(*rms_r) <= 1.5 * np.hypot(*rms_f), (rms_r, rms_f)
+
+
+def test_path_draw_gives_the_newton_fix_of_the_same_paths():
+    """plan_paths/PathPlan.draw: the fix it returns is the fix the Newton solver
+    (doublestar.solve_fix) finds from the measured paths at the erroneous height, and the
+    paths it returns are those of that fix at the true height (both to first order: within 1 cm; the Newton fix lies 2 mm from it for a 200 m error)."""
+    from sinslab.core.earth import radii as _radii
+    from sinslab.methods.doublestar_ranges import plan_paths
+
+    g = tr.generate([tr.Level(duration=60.0)], tr.Start(lat=math.radians(32), lon=math.radians(118), h=1000.0,
+                                                         speed=300.0, heading=0.0), 0.05)
+    plan = plan_paths(g.truth, [(10.0, 20.0)], sat_lon1=S1, sat_lon2=S2, m0=M0, m1=M1, dH=DH, latency=1.0)
+    assert plan.t.size == 10 and np.allclose(plan.t_arrive - plan.t, 1.0)
+    rng = np.random.default_rng(3)
+    paths, fixes = plan.draw(rng)
+    rng = np.random.default_rng(3)
+    e = rng.standard_normal((plan.t.size, 2)) * math.hypot(M0, M1)
+    dh = rng.standard_normal(plan.t.size) * DH
+    rm, rn = _radii(plan.lat, plan.h)
+    for j in range(plan.t.size):
+        lat, lon = ds.solve_fix(plan.clean[j] + e[j], plan.h[j] + dh[j], S1, S2, (plan.lat[j], plan.lon[j]))
+        assert abs(lat - fixes.lat[j]) * rm[j] < 1e-2 and abs(lon - fixes.lon[j]) * rn[j] < 1e-2
+        assert np.allclose(ds.measure_ranges(lat, lon, plan.h[j], S1, S2), paths[j], atol=1e-2, rtol=0)
+    # the fix filter is given the paper's σ; the drawn errors are those of the fix
+    fe = ds.fix_error(plan.lat, plan.lon, S1, S2, M0, M1, DH, plan.h)
+    assert np.array_equal(fixes.sigma[:, 0], fe.ns) and np.array_equal(fixes.sigma[:, 1], fe.ew)
+    assert np.allclose(fixes.err[:, 0], (fixes.lat - plan.lat) * rm)

@@ -86,6 +86,9 @@ DESCRIPTIONS = {
          "σ stated too large) or overconfident (NIS too high)"),
         (r"^nis_mean$", "mean normalised innovation squared of the applied fixes (expected: measurement dimension)"),
         (r"^nis_dof$", "measurement dimension of a fix (3 position, 6 position + velocity)"),
+        (r"^(pseudorange|doppler)_nis_mean$", "mean ν²/(H P Hᵀ + R) of the {0} rows used, one at a time (expected: 1)"),
+        (r"^(pseudorange|doppler)_nis_verdict$", "the {0} noise model judged by its mean NIS: consistent, pessimistic "
+         "(NIS too low: σ stated too large) or overconfident (NIS too high)"),
         (r"^final_(pitch|roll|heading)_deg$", "{0} at the end (heading clockwise from north)"),
         (r"^final_sigma_heading_deg$", "filter 1σ of the heading at the end"),
         (r"^gyro_bias_final_dph$", "estimated gyro biases x, y, z at the end"),
@@ -178,6 +181,46 @@ NIS_FACTOR = 2.0
 FIX_RESIDUAL_SIGMAS = 3.0
 
 
+def nis_claim(cid: str, about: str, nis, dof: int, *, rows="applied fixes", empty="no fixes applied",
+              origin=None):
+    """The one NIS rule of recorded-data runs: ``(claim, mean NIS, verdict)``.
+
+    The claim ``cid`` holds when the mean NIS of the finite values is at most
+    ``NIS_FACTOR × dof`` (not overconfident). A mean below ``dof / NIS_FACTOR`` passes too:
+    the noise is stated larger than it is (the solution is sound, its σ too wide), and the
+    verdict says "pessimistic noise model"; above the band it is "overconfident noise
+    model", inside it "consistent", with no value ``empty``.
+
+    Parameters
+    ----------
+    cid : str
+        Claim id.
+    about : str
+        What the filter is not overconfident about ("the fixes", "the pseudoranges").
+    nis : array (J,)
+        Normalised innovation squared of each applied measurement (NaN ignored).
+    dof : int
+        Dimension of one measurement.
+    rows : str
+        What the J values are, for the statement ("applied fixes").
+    """
+    from sinslab.app.claims import Claim
+
+    nis = np.asarray(nis, float)
+    nis = nis[np.isfinite(nis)]
+    mean_nis = float(np.mean(nis)) if nis.size else float("nan")
+    hi = dof * NIS_FACTOR
+    verdict = (empty if not nis.size else "overconfident noise model" if mean_nis > hi else
+               "pessimistic noise model" if mean_nis < dof / NIS_FACTOR else "consistent")
+    claim = Claim.at_most(
+        cid,
+        f"the filter is not overconfident about {about}: mean NIS of the {nis.size} {rows} at most "
+        f"{NIS_FACTOR:g}× the measurement dimension {dof} (a mean below {dof / NIS_FACTOR:g} is a pessimistic "
+        f"noise model, not a failure: here {verdict})", mean_nis if nis.size else float("nan"), hi, "",
+        origin=origin)
+    return claim, mean_nis, verdict
+
+
 def navigate_claims(nis, dof: int, hz_err_with_fixes, fix_sigma_h, settled=None) -> tuple[list, dict]:
     """Claims of a recorded-data navigation; returns ``(claims, extra metrics)``.
 
@@ -207,18 +250,8 @@ def navigate_claims(nis, dof: int, hz_err_with_fixes, fix_sigma_h, settled=None)
     """
     from sinslab.app.claims import Claim
 
-    nis = np.asarray(nis, float)
-    nis = nis[np.isfinite(nis)]
-    mean_nis = float(np.mean(nis)) if nis.size else float("nan")
-    hi = dof * NIS_FACTOR
-    verdict = ("no fixes applied" if not nis.size else "overconfident noise model" if mean_nis > hi else
-               "pessimistic noise model" if mean_nis < dof / NIS_FACTOR else "consistent")
-    claims = [Claim.at_most(
-        "nis_not_overconfident",
-        f"the filter is not overconfident about the fixes: mean NIS of the {nis.size} applied fixes at most "
-        f"{NIS_FACTOR:g}× the measurement dimension {dof} (a mean below {dof / NIS_FACTOR:g} is a pessimistic "
-        f"noise model, not a failure: here {verdict})", mean_nis if nis.size else float("nan"), hi, "",
-        origin="check")]
+    claim, _, verdict = nis_claim("nis_not_overconfident", "the fixes", nis, dof, origin="check")
+    claims = [claim]
     e = np.asarray(hz_err_with_fixes, float)
     s = np.asarray(fix_sigma_h, float)
     ok = np.isfinite(e) & np.isfinite(s) & (s > 0)

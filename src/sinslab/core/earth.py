@@ -23,7 +23,7 @@ from sinslab.core.jitnotice import install as _compile_notice
 _compile_notice()   # a status line while the kernels below compile (first run)
 
 __all__ = [
-    "A", "F", "E2", "B", "WIE", "GM", "radii", "gravity", "gravity_vector", "wie_n",
+    "A", "F", "E2", "B", "WIE", "GM", "GEO_RADIUS", "radii", "gravity", "gravity_vector", "wie_n",
     "wen_n", "win_n", "schuler_frequency", "schuler_period", "foucault_frequency",
     "check_latitude", "radii_s", "gravity_s", "metres_per_rad", "geodetic_to_ecef",
     "ecef_to_geodetic", "enu_to_ecef_matrix", "ecef_to_enu", "elevation_azimuth",
@@ -35,6 +35,9 @@ E2 = F * (2.0 - F)                #: first eccentricity squared [-] (0.006694379
 B = A * (1.0 - F)                 #: semi-minor axis [m]
 WIE = 7.2921151467e-5             #: Earth rotation rate [rad/s]
 GM = 3.986004418e14               #: gravitational constant [m^3/s^2]
+#: Geocentric radius of the geostationary orbit [m], the nominal value (two-GEO RDSS);
+#: (GM / WIE²)^(1/3) gives 2.8 m more.
+GEO_RADIUS = 42164.1696e3
 
 # Normal gravity, Somigliana's closed form with a linear free-air height term.
 G_EQ = 9.7803267714               #: normal gravity at the equator [m/s^2]
@@ -163,7 +166,7 @@ def foucault_frequency(lat):
 def geodetic_to_ecef(lat, lon, h):
     """Earth-centred Earth-fixed coordinates [m] of geodetic ``lat``, ``lon`` [rad] and
     ellipsoidal height ``h`` [m] on WGS-84; arrays broadcast, result shape ``S + (3,)``."""
-    lat, lon, h = (np.asarray(v, dtype=float) for v in (lat, lon, h))
+    lat, lon, h = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (lat, lon, h)))
     sl, cl = np.sin(lat), np.cos(lat)
     rn = A / np.sqrt(1.0 - E2 * sl * sl)
     return np.stack([(rn + h) * cl * np.cos(lon), (rn + h) * cl * np.sin(lon),

@@ -263,8 +263,8 @@ class SatelliteMeasurement:
         self.lever = lever
         self.mask = float(mask)
         self.cn0_ref = float(cn0_ref)
-        # not ``gate``: the driver applies a measurement's ``gate`` attribute, a whole-update
-        # χ² test (InnovationGate), while this one rejects single rows inside ``matrices``
+        # not ``gate``: the driver takes a measurement's ``gate`` for a whole-update
+        # InnovationGate; this one rejects single rows inside the update
         self.row_gate = None if gate is None else float(gate)
         self.gate_reset = int(gate_reset)
         self.limits = _limits(max_satellites)

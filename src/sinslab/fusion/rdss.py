@@ -22,13 +22,10 @@ import numpy as np
 from sinslab.core import earth as E
 from sinslab.fusion.measurements import Epoch, arrival_epochs
 
-__all__ = ["TwoGeoRanges", "geo_paths", "GEO_RADIUS"]
-
-#: Geocentric radius of the geostationary orbit [m].
-GEO_RADIUS = 42164.1696e3
+__all__ = ["TwoGeoRanges", "geo_paths"]
 
 
-def geo_paths(lat, lon, h, sat_lon1, sat_lon2, sat_radius=GEO_RADIUS):
+def geo_paths(lat, lon, h, sat_lon1, sat_lon2, sat_radius=E.GEO_RADIUS):
     """``[ρa, ρb] = [2 r1, r1 + r2]`` [m] of a user at ``lat, lon, h`` (shape S + (2,)),
     with the lines of sight (S + (2, 3)) to the two satellites on the equator."""
     r = E.geodetic_to_ecef(lat, lon, h)
@@ -62,7 +59,7 @@ class TwoGeoRanges:
     """
 
     def __init__(self, t_valid, paths, sat_lon1, sat_lon2, range_sigma, height_sigma, *, t_arrive=None,
-                 windows=None, sat_radius=GEO_RADIUS, stream=0):
+                 windows=None, sat_radius=E.GEO_RADIUS, stream=0):
         self.t_valid = np.atleast_1d(np.asarray(t_valid, dtype=float))
         self.t_arrive = self.t_valid.copy() if t_arrive is None else np.asarray(t_arrive, dtype=float)
         self.paths = np.asarray(paths, dtype=float).reshape(self.t_valid.size, 2)

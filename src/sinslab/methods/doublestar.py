@@ -65,19 +65,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sinslab.core.earth import GEO_RADIUS, geodetic_to_ecef
 from sinslab.core.records import Fixes
 
 __all__ = [
-    "GEO_RADIUS", "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
-    "ecef", "measure_ranges", "solve_fix", "request_schedule", "FixPlan", "plan_fixes",
+    "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
+    "measure_ranges", "solve_fix", "request_schedule", "FixPlan", "plan_fixes",
     "simulate_fixes",
     "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate", "integrate_many",
     "StoredStateUpdate",
     "MODES", "horizontal_errors", "check_windows", "check_geometry", "check_integration",
 ]
 
-#: Geocentric radius of the geostationary orbit [m].
-GEO_RADIUS = 42164.1696e3
 _SMALL = 1e-9
 MODES = ("lag-aware", "lag-ignore", "zero-lag")
 
@@ -220,17 +219,6 @@ def fix_covariance(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *, height_fa
 
 
 # ------------------------------------------------------------------ exact geometry
-def ecef(lat, lon, h):
-    """WGS-84 geodetic → ECEF [m], shape S + (3,)."""
-    from sinslab.core.earth import A, E2
-
-    lat, lon, h = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (lat, lon, h)))
-    sL = np.sin(lat)
-    rn = A / np.sqrt(1.0 - E2 * sL * sL)
-    return np.stack([(rn + h) * np.cos(lat) * np.cos(lon), (rn + h) * np.cos(lat) * np.sin(lon),
-                     (rn * (1.0 - E2) + h) * sL], -1)
-
-
 def _sat(lon_s, sat_radius):
     lon_s = np.asarray(lon_s, dtype=float)
     return np.stack(np.broadcast_arrays(sat_radius * np.cos(lon_s), sat_radius * np.sin(lon_s),
@@ -239,7 +227,7 @@ def _sat(lon_s, sat_radius):
 
 def measure_ranges(lat, lon, h, sat_lon1, sat_lon2, sat_radius=GEO_RADIUS):
     """The two measured paths ``ρa = 2 r1`` and ``ρb = r1 + r2`` [m] (shape S + (2,))."""
-    u = ecef(lat, lon, h)
+    u = geodetic_to_ecef(lat, lon, h)
     r1 = np.linalg.norm(u - _sat(sat_lon1, sat_radius), axis=-1)
     r2 = np.linalg.norm(u - _sat(sat_lon2, sat_radius), axis=-1)
     return np.stack([2.0 * r1, r1 + r2], -1)
@@ -291,7 +279,7 @@ def fix_error_linearised(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *,
     """
     lat, l1, l2 = check_geometry(lat, sat_lon1, sat_lon2)
     lat, lon, h = np.broadcast_arrays(lat, np.asarray(lon, float), np.asarray(h, float))
-    u = ecef(lat, lon, h)
+    u = geodetic_to_ecef(lat, lon, h)
     sL, cL, sl, cl = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
     eN = np.stack([-sL * cl, -sL * sl, cL], -1)
     eE = np.stack([-sl, cl, 0.0 * sl], -1)
