@@ -239,11 +239,16 @@ class LiveStream:
             raise ValueError(f"nsub (samples per update) must be an integer in 1..5, got {nsub!r}")
         self.dt = float(imu.dt)
         self.state = sd.initial_state_array(init)
-        self.gb = units.vec3(gyro_bias, "gyro_bias", default=0.0)
-        self.ab = units.vec3(accel_bias, "accel_bias", default=0.0)
-        self.kg = np.zeros(3)
-        self.ka = np.zeros(3)
+        # what feedback may correct, keyed by what a block feeds (es.COMPENSATIONS)
+        self.compensation = dict(zip(es.COMPENSATIONS, (
+            units.vec3(gyro_bias, "gyro_bias", default=0.0), units.vec3(accel_bias, "accel_bias", default=0.0),
+            np.zeros(3), np.zeros(3))))
         self.scaled = bool(scaled)
+
+    gb = property(lambda self: self.compensation["gyro_bias"], doc="Gyro bias compensation [rad/s] (3,).")
+    ab = property(lambda self: self.compensation["accel_bias"], doc="Accelerometer bias compensation [m/s²].")
+    kg = property(lambda self: self.compensation["gyro_scale"], doc="Gyro scale compensation [-] (3,).")
+    ka = property(lambda self: self.compensation["accel_scale"], doc="Accelerometer scale compensation [-].")
 
     def bind(self, kf_dt):
         """Put the stream on the filter grid; returns ``(t0, number of filter steps)``."""
@@ -312,11 +317,7 @@ class LiveStream:
 
     def feedback(self, filt, layout):
         """Feed the filter's states of ``layout`` back into this INS."""
-        self.gb, self.ab, d = layout.apply(filt, self.state, self.gb, self.ab)
-        if layout.gyro_scale is not None:
-            self.kg = self.kg + d[layout.gyro_scale]
-        if layout.accel_scale is not None:
-            self.ka = self.ka + d[layout.accel_scale]
+        self.compensation, d = layout.apply(filt, self.state, self.compensation)
         return d
 
 

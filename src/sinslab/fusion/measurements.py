@@ -25,10 +25,10 @@ import numpy as np
 from sinslab.core import attitude as A
 from sinslab.core import earth as E
 
-__all__ = ["Measurement", "NavRow", "Epoch", "Grid", "PositionFix", "VelocityFix", "Stack",
+__all__ = ["Measurement", "NavRow", "Epoch", "Grid", "Timed", "PositionFix", "VelocityFix", "Stack",
            "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
            "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body",
-           "InnovationGate"]
+           "InnovationGate", "add_rate_H"]
 
 
 @dataclass(frozen=True)
@@ -186,8 +186,10 @@ def arrival_epochs(t_valid, t_arrive, grid, *, outages=(), windows=None):
     return out
 
 
-class _Timed:
-    """Time stamps and schedule shared by the fix measurements."""
+class Timed:
+    """Time stamps and schedule shared by the fix measurements (``t_valid``, ``t_arrive``,
+    outages and windows: :func:`arrival_epochs`); a measurement of time-stamped records
+    subclasses it and calls ``_init_times``."""
 
     def _init_times(self, t_valid, t_arrive, outages, windows):
         self.t_valid = np.atleast_1d(np.asarray(t_valid, dtype=float))
@@ -209,7 +211,7 @@ class _Timed:
         return float(self.t_valid[item]), float(self.t_arrive[item])
 
 
-class PositionFix(_Timed):
+class PositionFix(Timed):
     """Position fixes of an antenna (2-D or 3-D) against one stream.
 
     ``z = [(L − L_fix)(R_M+h), (λ − λ_fix)(R_N+h)cosL, h − h_fix] − v_ant·Δt``
@@ -289,12 +291,12 @@ class PositionFix(_Timed):
         return z, H, self.sigma[j, :n_z] ** 2
 
 
-class VelocityFix(_Timed):
+class VelocityFix(Timed):
     """Velocity fixes of an antenna (ENU, 3 components) against one stream.
 
     ``z = v + C_b^n (ω_ib^b × l) − v_fix`` [m/s]; ``H`` has ``I`` on δv and, with a lever
     arm, ``(C_b^n (ω×l))×`` on φ and ``−C_b^n (l×) ∂δω/∂x`` on every block feeding the
-    gyro compensation (bias, Gauss–Markov, scale factors: :func:`_add_rate_H`).
+    gyro compensation (bias, Gauss–Markov, scale factors: :func:`add_rate_H`).
 
     Parameters
     ----------
@@ -329,7 +331,7 @@ class VelocityFix(_Timed):
             vlev = C @ np.cross(nr.omega_b, self.lever)
             v_ant = v_ant + vlev
             H[:, lay.slice("phi")] = A.skew(vlev)
-            _add_rate_H(H, lay, -C @ A.skew(self.lever), nr.omega_b)
+            add_rate_H(H, lay, -C @ A.skew(self.lever), nr.omega_b)
         return v_ant - self.vel[j], H, self.sigma[j] ** 2
 
 
@@ -366,7 +368,7 @@ class Stack:
         return np.concatenate(zs), np.vstack(Hs), np.concatenate(Rs)
 
 
-class InsDifference(_Timed):
+class InsDifference(Timed):
     """The difference of two INS streams on one carrier (stream 0 minus stream 1).
 
     ``z = [L1 − Lk, λ1 − λk, vE1 − vEk, vN1 − vNk]`` [rad, rad, m/s, m/s] against a
@@ -457,7 +459,7 @@ def vehicle_from_body(mount):
     raise ValueError(f"mount must be 3 Euler angles or a 3x3 matrix, got shape {m.shape}")
 
 
-def _add_rate_H(H, lay, M, omega_b):
+def add_rate_H(H, lay, M, omega_b):
     """Add ``M ∂δω_ib^b/∂x`` to ``H`` for every block that feeds the gyro compensation
     (:attr:`sinslab.nav.errstate.Block.feeds`): a bias or Gauss–Markov block enters the
     compensated rate as ``δω = x``, a scale block as ``δω = diag(ω) x``."""
@@ -640,7 +642,7 @@ class ZeroRate(_OnEpochs):
         H = np.zeros((3, ep.n))
         H[:, lay.slice("phi")] = Cnb @ A.skew(wie)
         H[:, lay.slice("dp").start] = -Cnb @ dwie
-        _add_rate_H(H, lay, np.eye(3), nr.omega_b)
+        add_rate_H(H, lay, np.eye(3), nr.omega_b)
         return z, H, self.sigma ** 2
 
 
@@ -661,7 +663,7 @@ def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None, mount_block=None
     k = sv.stop - sv.start
     H[:, sv] = (Cvb @ Cnb)[:, :k]
     H[:, lay.slice("phi")] = -Cvb @ Cnb @ A.skew(nr.vel)
-    _add_rate_H(H, lay, -Cvb @ A.skew(lever), w)
+    add_rate_H(H, lay, -Cvb @ A.skew(lever), w)
     if lever_block is not None:
         H[:, lay.slice(lever_block)] = Cvb @ A.skew(w)
     vv = Cvb @ vb
@@ -718,7 +720,7 @@ class NonHolonomic(_OnEpochs):
         return vv[r], H[r], self.sigma ** 2
 
 
-class BodyVelocity(_Timed):
+class BodyVelocity(Timed):
     """A measured 3-D velocity of a vehicle point in vehicle axes (e.g. a Doppler
     velocity log, or wheel speed with the non-holonomic zeros).
 
