@@ -95,9 +95,9 @@ class Block:
         Display unit per state (``"arcmin"``, ``"m/s"``, ``"deg/h"``, ``"ug"``, ``"ppm"``,
         ``"arcsec"``, ``"m"``); states are SI inside, the unit is for printing only.
     feeds : {"gyro_bias", "accel_bias", "gyro_scale", "accel_scale", None}
-        Which INS compensation a closed loop feeds the block's estimate into (body-axis
-        sensor blocks); None: not a sensor compensation (core blocks, installation,
-        lever arms, nav-frame biases).
+        Which INS compensation (:data:`COMPENSATIONS`) a closed loop feeds the block's
+        estimate into (body-axis sensor blocks); None: not a sensor compensation (core
+        blocks, installation, lever arms, nav-frame biases, measurement-only states).
     axes : str
         Body axes of the states for a block with ``feeds`` (subset of ``"xyz"``).
     quantity : str or None
