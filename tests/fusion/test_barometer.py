@@ -51,8 +51,9 @@ def _P0(lay):
     return np.diag(d)
 
 
-def _run(seed, baro=True):
-    """One run: ``(t, height error, estimated − true bias, σ_h, σ_b)`` at the filter epochs."""
+def _run(seed, baro=True, history=None):
+    """One run: ``(t, height error, estimated − true bias, σ_h, σ_b)`` at the filter epochs
+    (and the driver's result, the true bias at the readings)."""
     rng = np.random.default_rng(seed)
     n = int(round(T_END / DT))
     imu = static_imu(LAT, np.zeros(3), DT, n, h=H0, gyro_err=rng.normal(0, GYRO_BIAS, 3),
@@ -78,10 +79,10 @@ def _run(seed, baro=True):
     model = _model(baro)
     lay = model.layout
     r = driver.run([driver.LiveStream(imu, init, nsub=2)], model, _P0(lay), meas, kf_dt=KF_DT,
-                   feedback=FeedbackLayout.from_model(lay))
+                   feedback=FeedbackLayout.from_model(lay), history=history)
     dh = r.nav[0][:, 9] - H0
     sp = lay.slice("dp").start + 2
-    out = dict(t=r.t, dh=dh, sigma_h=r.sigma[:, sp])
+    out = dict(t=r.t, dh=dh, sigma_h=r.sigma[:, sp], result=r, bias=b)
     sb = lay.find("baro_bias")
     if sb is not None:
         # the bias state is b_used − b_true with b_used = 0; b_true at the readings
@@ -124,3 +125,20 @@ def test_the_bias_converges_under_fixes_and_the_barometer_holds_the_height(runs)
     rms = math.sqrt(np.mean([r["dh"][-1] ** 2 for r in runs]))
     free = math.sqrt(np.mean([_run(s, baro=False)["dh"][-1] ** 2 for s in range(4)]))
     assert rms < 3.0 and free > 10 * rms, (rms, free)
+
+
+def test_the_smoother_follows_the_model():
+    """The RTS smoother of the same run, with no edit for the new block: the smoothed bias
+    σ is at most the forward one and smaller inside the barometer-only stretch, and the
+    smoothed bias errors at the readings stay within 4σ."""
+    from sinslab.fusion.smoothing import History, smooth
+    out = _run(100, history=History(1.0))
+    r = out["result"]
+    s = smooth(r)
+    sb = r.layout.find("baro_bias").start
+    assert np.all(s.sigma[:, sb] <= r.sigma[:, sb] * (1 + 1e-9))
+    mid = np.abs(r.t - 0.5 * (T_FIX + T_END)) < 1e-9
+    assert s.sigma[mid, sb][0] < 0.9 * r.sigma[mid, sb][0]
+    k = np.flatnonzero(np.abs(r.t - np.rint(r.t)) < 1e-9)[1:]
+    err = (0.0 - s.x[k, sb]) - out["bias"][np.rint(r.t[k]).astype(int) - 1]
+    assert np.all(np.abs(err) < 4 * s.sigma[k, sb])
