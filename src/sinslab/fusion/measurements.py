@@ -665,11 +665,11 @@ def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None, mount_block=None
     H[:, lay.slice("phi")] = -Cvb @ Cnb @ A.skew(nr.vel)
     add_rate_H(H, lay, -Cvb @ A.skew(lever), w)
     if lever_block is not None:
-        H[:, lay.slice(lever_block)] = Cvb @ A.skew(w)
+        H[:, lay.find("lever_arm", lever_block)] = Cvb @ A.skew(w)
     vv = Cvb @ vb
     if mount_block is not None:
-        b = next(x for x in lay.blocks if x.name == mount_block)
-        H[:, lay.slice(mount_block)] = A.skew(vv)[:, ["xyz".index(a) for a in b.axes]]
+        sl = lay.find("installation", mount_block)
+        H[:, sl] = A.skew(vv)[:, ["xyz".index(a) for a in lay.blocks[lay.names.index(mount_block)].axes]]
     return vv, H
 
 
@@ -832,7 +832,7 @@ class Odometer(_OnEpochs):
         z[0] -= s
         H = H[rows]
         if self.scale_block is not None:
-            H[0, ep.layout.slice(self.scale_block)] = -s
+            H[0, ep.layout.find("odometer_scale", self.scale_block)] = -s
         R = self.sigma ** 2 if self.nhc_sigma is None else np.r_[self.sigma, self.nhc_sigma] ** 2
         return z, H, R
 
@@ -853,7 +853,7 @@ class LeverPositionFix(PositionFix):
         C = nr.C_bn
         dtf = ep.t - self.t_valid[ep.item]
         n_z = z.size
-        H[:, ep.layout.slice(self.lever_block)] = (C - dtf * C @ A.skew(nr.omega_b))[[1, 0, 2]][:n_z]
+        H[:, ep.layout.find("lever_arm", self.lever_block)] = (C - dtf * C @ A.skew(nr.omega_b))[[1, 0, 2]][:n_z]
         return z, H, R
 
 
@@ -867,5 +867,5 @@ class LeverVelocityFix(VelocityFix):
     def matrices(self, ep: Epoch):
         z, H, R = super().matrices(ep)
         nr = ep.streams[self.stream]
-        H[:, ep.layout.slice(self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
+        H[:, ep.layout.find("lever_arm", self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
         return z, H, R

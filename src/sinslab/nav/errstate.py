@@ -103,7 +103,7 @@ class Block:
     quantity : str or None
         What the states of a block that feeds nothing are, for the measurements that read
         them (:meth:`StateLayout.find`): ``"lever_arm"``, ``"odometer_scale"``,
-        ``"receiver_clock"``, ``"baro_bias"``; None for the others.
+        ``"installation"``, ``"receiver_clock"``, ``"baro_bias"``; None for the others.
     """
 
     name: str
@@ -614,7 +614,7 @@ def installation(name="lam", axes="xyz"):
     They have no dynamics and no effect on the INS error propagation; measurement models
     (attitude matching, paper 002: ``φ_m = λ − C φ``) read them.
     """
-    return SensorBlock(name, None, "constant", axes, "body", None, None, "arcmin")
+    return SensorBlock(name, None, "constant", axes, "body", None, None, "arcmin", "installation")
 
 
 # ------------------------------------------------------------------------------ models
