@@ -178,10 +178,12 @@ def test_feedback_layout_corrects_ins_and_compensation():
     f.x = x.copy()
     ref = state.copy()
     sd.correct(ref, phi=x[0:3], dvel=x[3:6], dpos=x[6:9])
-    gb, ab, d = lay.apply(f, state, np.ones(3), None)
+    comp = {"gyro_bias": np.ones(3), "accel_bias": np.zeros(3)}
+    out, d = lay.apply(f, state, comp)
     np.testing.assert_allclose(state[:10], ref[:10])
-    np.testing.assert_allclose(gb, 1 + x[9:12])
-    np.testing.assert_allclose(ab, x[12:15])
+    np.testing.assert_allclose(out["gyro_bias"], 1 + x[9:12])
+    np.testing.assert_allclose(out["accel_bias"], x[12:15])
+    assert np.all(comp["gyro_bias"] == 1.0)                     # the INS's arrays are not changed
     assert np.all(f.x == 0) and np.allclose(f.x_total, x)
 
 
@@ -202,10 +204,10 @@ def test_feedback_layout_horizontal_blocks_and_scale_factors():
     f.x = x.copy()
     ref = state.copy()
     sd.correct(ref, phi=x[0:3], dvel=[x[3], x[4], 0.0], dpos=[x[5], x[6], 0.0])
-    gb, ab, d = lay.apply(f, state)
+    out, d = lay.apply(f, state, {"gyro_bias": np.zeros(3), "accel_bias": np.zeros(3)})
     np.testing.assert_allclose(state[:10], ref[:10])
-    np.testing.assert_allclose(gb, x[7:10])
-    assert np.all(ab == 0) and np.all(f.x[:10] == 0) and np.array_equal(f.x[10:], x[10:])
+    np.testing.assert_allclose(out["gyro_bias"], x[7:10])
+    assert np.all(out["accel_bias"] == 0) and np.all(f.x[:10] == 0) and np.array_equal(f.x[10:], x[10:])
     m21 = lc_model(1e-5, 1e-4, scale_factors=True)
     lay21 = FeedbackLayout.from_model(m21.layout)
     assert lay21.indices(21).tolist() == list(range(21))

@@ -36,17 +36,13 @@ def test_every_sensor_kind_reaches_the_ins(kind):
     x[sl] = est
     filt = _filter(model, x)
     state = _state()
-    gb, ab, d = fb.apply(filt, state, np.ones(3), 2 * np.ones(3))
+    base = {k: (i + 1.0) * np.ones(3) for i, k in enumerate(es.COMPENSATIONS)}
+    comp, d = fb.apply(filt, state, base)
     assert np.all(filt.x[sl] == 0.0)                    # the block is zeroed
     np.testing.assert_array_equal(d[sl], est)
-    comp = {"gyro_bias": gb - 1, "accel_bias": ab - 2}
-    if block.feeds in comp:
-        np.testing.assert_allclose(comp[block.feeds], est, rtol=1e-9)
-        other = "accel_bias" if block.feeds == "gyro_bias" else "gyro_bias"
-        np.testing.assert_array_equal(comp[other], 0.0)
-    else:                                                  # scale: the stream adds d[slice]
-        assert getattr(fb, block.feeds) == sl
-        np.testing.assert_array_equal(d[getattr(fb, block.feeds)], est)
+    assert [k for k, _ in fb.compensation] == [block.feeds]
+    for k, v in comp.items():                             # its compensation alone moves
+        np.testing.assert_allclose(v - base[k], est if k == block.feeds else 0.0, rtol=1e-9)
 
 
 def test_bias_and_markov_add_and_axis_subsets():
@@ -61,7 +57,8 @@ def test_bias_and_markov_add_and_axis_subsets():
     x[lay.slice("nabla_m")] = [0.1, 0.2, 0.3]
     filt = KalmanFilter(x.copy() * 1e-6, np.eye(model.n))
     state = _state()
-    gb, ab, d = fb.apply(filt, state)
+    comp, d = fb.apply(filt, state, {"gyro_bias": np.zeros(3), "accel_bias": np.zeros(3)})
+    gb, ab = comp["gyro_bias"], comp["accel_bias"]
     np.testing.assert_allclose(gb, np.array([1.0, 2.0, 13.0]) * 1e-6, rtol=0, atol=1e-20)
     np.testing.assert_allclose(ab, np.array([4.1, 5.2, 0.3]) * 1e-6, rtol=0, atol=1e-20)
     assert not np.any(filt.x[9:])
@@ -83,6 +80,16 @@ def test_nav_frame_and_installation_do_not_feed():
     assert fb.gyro is None and fb.accel is None
 
 
-def test_partial_scale_refused():
-    with pytest.raises(ValueError, match="gyro_scale"):
-        FeedbackLayout.from_model(es.ErrorModel("full", [es.gyro_scale("z")]).layout)
+def test_scale_blocks_add_up_per_axis():
+    """Two gyro scale blocks on axis subsets feed the one scale compensation, each its axes."""
+    model = es.ErrorModel("full", [es.gyro_scale("z", name="kz"), es.gyro_scale("xy", name="kxy")])
+    fb = FeedbackLayout.from_model(model.layout)
+    filt = KalmanFilter(np.r_[np.zeros(9), 3e-6, 1e-6, 2e-6], np.eye(12))   # kz, then kxy
+    comp, _ = fb.apply(filt, _state(), {"gyro_scale": np.zeros(3)})
+    np.testing.assert_array_equal(comp["gyro_scale"], [1e-6, 2e-6, 3e-6])
+
+
+def test_a_compensation_the_ins_lacks_is_refused():
+    fb = FeedbackLayout.from_model(es.ErrorModel("full", [es.gyro_scale()]).layout)
+    with pytest.raises(ValueError, match="no gyro_scale compensation"):
+        fb.apply(KalmanFilter(np.zeros(12), np.eye(12)), _state(), {"gyro_bias": np.zeros(3)})

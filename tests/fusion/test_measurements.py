@@ -20,6 +20,7 @@ import pytest
 
 from sinslab.core import attitude as A
 from sinslab.core.earth import radii
+from sinslab.fusion import barometer as B
 from sinslab.fusion import measurements as M
 from sinslab.fusion.loosely_coupled import lc_model
 from sinslab.nav import errstate as es
@@ -36,13 +37,17 @@ MODELS = {
     # no block named "eps": the gyro errors are a Markov and a two-axis scale block only
     "lever-states": lambda: es.ErrorModel("full", [es.gyro_markov(100.0, 1e-5), es.gyro_scale(axes="xy"),
                                                    es.accel_bias(), es.lever_arm(), es.odometer_scale()]),
+    # a barometer bias of its own (Gauss–Markov)
+    "barometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(),
+                                                es.barometer_bias(tau=600.0, sigma=2.0)]),
     "horizontal": lambda: es.ErrorModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")]),
     "difference": lambda: es.DifferenceModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")],
                                              [es.gyro_bias(), es.accel_bias(axes="xy")]),
 }
-SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "horizontal")
+SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "horizontal")
 FULL = SINGLE[:-1]                           # measurements that need three velocity errors
 OWN = ("lever-states",)                      # models with the states a measurement owns
+BARO_BIAS = 5.0                              # true barometer bias [m]
 
 
 def _row():
@@ -112,7 +117,18 @@ CASES = {
         ("lever", lambda lay, row: lambda x: M.LeverVelocityFix([0.0], [row[4:7]], 0.1,
                                                                 lever_arm=LEVER + x[lay.slice("lev")]), {}),
     ]),
+    "Barometer": (FULL, [
+        ("own-bias", lambda lay, row: _barometer(lay, row), {}),
+    ]),
 }
+
+
+def _barometer(lay, row):
+    """A barometer reading the true height plus its bias, removing ``BARO_BIAS + δb``
+    (``δb = b_used − b_true``: the bias state, when the model has it)."""
+    sb = lay.find("baro_bias")
+    return lambda x: B.Barometer([0.0], [row[9] + BARO_BIAS], 0.5,
+                                 bias=BARO_BIAS + (x[sb][0] if sb is not None else 0.0))
 
 
 def _odometer(lay, row, nhc):
@@ -147,8 +163,8 @@ def test_H_is_the_jacobian_of_z(cls, build, kw, model):
 
 
 def test_every_measurement_class_is_under_the_contract():
-    classes = {name for name, c in inspect.getmembers(M, inspect.isclass)
-               if c.__module__ == M.__name__ and hasattr(c, "matrices") and c is not M.Measurement
+    classes = {name for mod in (M, B) for name, c in inspect.getmembers(mod, inspect.isclass)
+               if c.__module__ == mod.__name__ and hasattr(c, "matrices") and c is not M.Measurement
                and not name.startswith("_")}
     assert classes == set(CASES), f"not under the contract: {sorted(classes - set(CASES))}"
 

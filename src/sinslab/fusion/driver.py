@@ -239,11 +239,16 @@ class LiveStream:
             raise ValueError(f"nsub (samples per update) must be an integer in 1..5, got {nsub!r}")
         self.dt = float(imu.dt)
         self.state = sd.initial_state_array(init)
-        self.gb = units.vec3(gyro_bias, "gyro_bias", default=0.0)
-        self.ab = units.vec3(accel_bias, "accel_bias", default=0.0)
-        self.kg = np.zeros(3)
-        self.ka = np.zeros(3)
+        # what feedback may correct, keyed by what a block feeds (es.COMPENSATIONS)
+        self.compensation = dict(zip(es.COMPENSATIONS, (
+            units.vec3(gyro_bias, "gyro_bias", default=0.0), units.vec3(accel_bias, "accel_bias", default=0.0),
+            np.zeros(3), np.zeros(3))))
         self.scaled = bool(scaled)
+
+    gb = property(lambda self: self.compensation["gyro_bias"], doc="Gyro bias compensation [rad/s] (3,).")
+    ab = property(lambda self: self.compensation["accel_bias"], doc="Accelerometer bias compensation [m/s²].")
+    kg = property(lambda self: self.compensation["gyro_scale"], doc="Gyro scale compensation [-] (3,).")
+    ka = property(lambda self: self.compensation["accel_scale"], doc="Accelerometer scale compensation [-].")
 
     def bind(self, kf_dt):
         """Put the stream on the filter grid; returns ``(t0, number of filter steps)``."""
@@ -312,11 +317,7 @@ class LiveStream:
 
     def feedback(self, filt, layout):
         """Feed the filter's states of ``layout`` back into this INS."""
-        self.gb, self.ab, d = layout.apply(filt, self.state, self.gb, self.ab)
-        if layout.gyro_scale is not None:
-            self.kg = self.kg + d[layout.gyro_scale]
-        if layout.accel_scale is not None:
-            self.ka = self.ka + d[layout.accel_scale]
+        self.compensation, d = layout.apply(filt, self.state, self.compensation)
         return d
 
 
@@ -425,10 +426,12 @@ class DriverResult:
         Per stream, the row after any feedback at that epoch.
     x, sigma : ndarray (M, n)
         Estimate after the epoch (after its updates and feedback) and filter σ.
-    gyro_bias, accel_bias : tuple of ndarray (M, 3) or None
-        Per stream, bias compensation in use after the epoch (None for precomputed).
-    scale : tuple of ndarray (M, 6) or None
-        Per stream, ``[kg, ka]`` compensation, when some feedback layout has scale blocks.
+    compensation : tuple of dict or None
+        Per stream, the compensation in use after each epoch keyed as the stream keeps it
+        (:data:`sinslab.nav.errstate.COMPENSATIONS`), ``{key: ndarray (M, 3)}``: the
+        biases, and the scale factors when some feedback layout has scale blocks (None for
+        a precomputed stream). Viewed as ``gyro_bias``, ``accel_bias`` and ``scale``
+        (``[kg, ka]`` (M, 6) or None), tuples over the streams.
     applied : Applied
     layout : StateLayout
     history : sinslab.fusion.smoothing.History or None
@@ -439,12 +442,23 @@ class DriverResult:
     nav: tuple
     x: np.ndarray
     sigma: np.ndarray
-    gyro_bias: tuple
-    accel_bias: tuple
-    scale: tuple | None
+    compensation: tuple
     applied: Applied
     layout: object
     history: object = None
+
+    def _key(self, key):
+        return tuple(None if c is None else c[key] for c in self.compensation)
+
+    gyro_bias = property(lambda self: self._key("gyro_bias"))
+    accel_bias = property(lambda self: self._key("accel_bias"))
+
+    @property
+    def scale(self):
+        if not any(c is not None and "gyro_scale" in c for c in self.compensation):
+            return None
+        return tuple(None if c is None else np.concatenate([c["gyro_scale"], c["accel_scale"]], 1)
+                     for c in self.compensation)
 
 
 def _model_stretch(model, prog, pts, q, T, discretization):
@@ -556,9 +570,8 @@ class _LaneRun:
         self.sig_h = np.empty((n_ep + 1, n))
         self.live = live = [not s.precomputed for s in streams]
         self.scaled = scaled = any(fb.gyro_scale is not None or fb.accel_scale is not None for _, fb in fbs)
-        self.gb_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
-        self.ab_h = [np.empty((n_ep + 1, 3)) if lv else None for lv in live]
-        self.sc_h = [np.zeros((n_ep + 1, 6)) if (lv and scaled) else None for lv in live]
+        keys = es.COMPENSATIONS if scaled else es.COMPENSATIONS[:2]      # the biases always
+        self.comp_h = [{k: np.empty((n_ep + 1, 3)) for k in keys} if lv else None for lv in live]
         self.F_h = np.empty((n_ep, n, n)) if self.keep_F else None
         self.G_h = np.empty((n_ep, n, model.q.size)) if self.keep_F else None
         for i, s in enumerate(streams):
@@ -568,7 +581,7 @@ class _LaneRun:
             self.w_h[i][0] = w0
             self.f_h[i][0] = f0
             if live[i]:
-                self.gb_h[i][0], self.ab_h[i][0] = s.gb, s.ab
+                self._comp(i, slice(0, 1))
         self.sig_h[0] = filt.sigma
         if history is not None:
             history.begin(filt, n_ep, T, set(arrivals) | {v[0] for v in e_valid.values()})
@@ -630,10 +643,13 @@ class _LaneRun:
             self.w_h[i][e0 + 1:e1 + 1] = ws
             self.f_h[i][e0 + 1:e1 + 1] = fs
             if self.live[i]:
-                self.gb_h[i][e0 + 1:e1 + 1] = s.gb
-                self.ab_h[i][e0 + 1:e1 + 1] = s.ab
-                if self.sc_h[i] is not None:
-                    self.sc_h[i][e0 + 1:e1 + 1] = np.concatenate([s.kg, s.ka])
+                self._comp(i, slice(e0 + 1, e1 + 1))
+
+    def _comp(self, i, rows):
+        """Stream i's compensation into its history at ``rows``."""
+        c = self.streams[i].compensation
+        for k, h in self.comp_h[i].items():
+            h[rows] = c[k]
 
     def _epoch_rows(self, rows_list, k):
         return tuple(NavRow(rows_list[i][k], self.w_h[i][k], self.f_h[i][k]) for i in range(self.ns))
@@ -690,11 +706,8 @@ class _LaneRun:
             d = s.feedback(filt, fb)
             if history is not None:
                 history.fed_back(e1, d)
-            if self.sc_h[si_] is not None:
-                self.sc_h[si_][e1] = np.concatenate([s.kg, s.ka])
             self.nav_h[si_][e1] = s.row()
-            self.gb_h[si_][e1] = s.gb
-            self.ab_h[si_][e1] = s.ab
+            self._comp(si_, e1)
         self.x_h[e1] = filt.x
         self.sig_h[e1] = filt.sigma
 
@@ -702,8 +715,7 @@ class _LaneRun:
         applied = Applied(np.array(self.a_m, dtype=np.int64), np.array(self.a_j, dtype=np.int64),
                           np.array(self.a_tv, dtype=float), np.array(self.a_t, dtype=float), self.a_nu,
                           np.array(self.a_nis, dtype=float))
-        return DriverResult(t_ep, tuple(self.nav_h), self.x_h, self.sig_h, tuple(self.gb_h),
-                            tuple(self.ab_h), tuple(self.sc_h) if self.scaled else None, applied, lay,
+        return DriverResult(t_ep, tuple(self.nav_h), self.x_h, self.sig_h, tuple(self.comp_h), applied, lay,
                             self.history)
 
 

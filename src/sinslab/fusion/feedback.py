@@ -3,9 +3,10 @@ and how they correct the strapdown state and the sensor compensation.
 
 :class:`FeedbackLayout` routes the fed-back blocks of an error state (named as in
 :mod:`sinslab.nav.errstate`) to the navigation state (:func:`sinslab.nav.strapdown.correct`)
-and to the gyro/accelerometer bias and scale-factor compensation. The filter itself
-(:class:`sinslab.estimation.filter.KalmanFilter`) only zeroes the fed-back states and
-keeps their cumulative sum.
+and to the INS compensation each sensor block declares it feeds (gyro/accelerometer
+bias and scale factors); blocks that feed nothing stay with their measurements. The
+filter itself (:class:`sinslab.estimation.filter.KalmanFilter`) only zeroes the fed-back
+states and keeps their cumulative sum.
 """
 from __future__ import annotations
 
@@ -36,38 +37,51 @@ def _sum3(d, s):
     return d[s]
 
 
+#: ``from_model`` keywords naming a compensation (:data:`sinslab.nav.errstate.COMPENSATIONS`)
+_KEYWORDS = {"gyro": "gyro_bias", "accel": "accel_bias", "gyro_scale": "gyro_scale",
+             "accel_scale": "accel_scale"}
+
+
 @dataclass(frozen=True)
 class FeedbackLayout:
     """Where the feedback-able blocks sit in an error-state vector.
 
-    Each attribute is a slice or index array into the state vector, or None if the
-    model has no such block; ``gyro`` and ``accel`` may also be an int array (k, 3) of
-    k blocks whose column a holds the state of body axis a (n: the block has no such
-    axis), their estimates adding up. Used by callers of
-    :meth:`sinslab.estimation.filter.KalmanFilter.feedback` to route the
-    estimate: ``att`` (φ, rad, ENU), ``vel`` (δv, m/s, ENU; 2 states = east, north of a
-    horizontal model), ``pos`` (δL, δλ [rad], δh [m]; 2 states = δL, δλ), ``gyro``
-    (rad/s), ``accel`` (m/s²), ``gyro_scale``, ``accel_scale`` (scale-factor errors [-],
-    added to the scale compensation by the caller) and ``other`` blocks that are zeroed
-    on feedback.
+    ``att``, ``vel``, ``pos`` are slices into the state vector, or None if the model has
+    no such block: ``att`` (φ, rad, ENU), ``vel`` (δv, m/s, ENU; 2 states = east, north of
+    a horizontal model), ``pos`` (δL, δλ [rad], δh [m]; 2 states = δL, δλ).
+    ``compensation`` holds ``(key, entry)`` pairs, one per INS compensation some block
+    feeds (its :attr:`sinslab.nav.errstate.Block.feeds`, e.g. ``"gyro_bias"`` [rad/s],
+    ``"accel_bias"`` [m/s²], ``"gyro_scale"``, ``"accel_scale"`` [-]); an entry is a
+    slice of one 3-axis block or an int array (k, 3) of k blocks whose column a holds the
+    state of body axis a (n: the block has no such axis), their estimates adding up.
+    ``other`` blocks are zeroed on feedback. Blocks that feed nothing (a receiver clock,
+    a barometer bias, a lever arm) stay in the filter, read by their measurements.
+    Used by callers of :meth:`sinslab.estimation.filter.KalmanFilter.feedback` to route
+    the estimate.
     """
 
     att: object = None
     vel: object = None
     pos: object = None
-    gyro: object = None
-    accel: object = None
+    compensation: tuple = ()
     other: tuple = ()
-    gyro_scale: object = None
-    accel_scale: object = None
+
+    def target(self, key):
+        """The entry of compensation ``key`` (None: no block feeds it)."""
+        return dict(self.compensation).get(key)
+
+    # the four compensations of a strapdown INS, by their short names
+    gyro = property(lambda self: self.target("gyro_bias"))
+    accel = property(lambda self: self.target("accel_bias"))
+    gyro_scale = property(lambda self: self.target("gyro_scale"))
+    accel_scale = property(lambda self: self.target("accel_scale"))
 
     def indices(self, n):
         """All fed-back state indices, sorted, as a read-only int array."""
         cache = self.__dict__.setdefault("_indices", {})   # asked at every feedback
         if n not in cache:
             out = []
-            for s in (self.att, self.vel, self.pos, self.gyro, self.accel, self.gyro_scale,
-                      self.accel_scale, *self.other):
+            for s in (self.att, self.vel, self.pos, *(e for _, e in self.compensation), *self.other):
                 if s is not None:
                     out.extend(_states(s, n))
             idx = np.array(sorted(set(out)), dtype=np.int64)
@@ -83,87 +97,88 @@ class FeedbackLayout:
         x = np.asarray(x)
         return tuple(None if s is None else x[..., s] for s in (self.att, self.vel, self.pos))
 
-    def split(self, x):
-        """Dict of the blocks of ``x`` (absent blocks omitted)."""
-        x = np.asarray(x)
-        return {k: (_sum3(x, getattr(self, k)) if k in ("gyro", "accel") else x[getattr(self, k)])
-                for k in ("att", "vel", "pos", "gyro", "accel") if getattr(self, k) is not None}
-
     @classmethod
     def from_model(cls, layout, *, att="phi", vel="dv", pos="dp", gyro=AUTO, accel=AUTO,
                    gyro_scale=AUTO, accel_scale=AUTO, other=()):
-        """From a :class:`sinslab.nav.errstate.StateLayout`.
+        """From a :class:`sinslab.nav.errstate.StateLayout`: the layout follows the model.
 
-        The sensor targets follow what a block *is* (its :attr:`Block.feeds`), not its
-        name: by default (``AUTO``) every body-axis gyro bias or Gauss–Markov block feeds
-        the gyro bias compensation (several blocks add up, an axis subset feeds only its
-        axes), likewise accelerometer biases and the scale-factor blocks. A block name
-        (str) picks that one block instead (missing: none), None feeds nothing.
-
-        Raises
-        ------
-        ValueError
-            For scale-factor feedback from several blocks or from an axis subset (the
-            scale compensation of the streams takes one 3-axis block).
+        Every compensation some block feeds gets an entry, found by what the blocks *are*
+        (their :attr:`Block.feeds`), not by name: every body-axis gyro bias or Gauss–Markov
+        block feeds the gyro bias compensation (several blocks add up, an axis subset
+        feeds only its axes), likewise accelerometer biases and the scale-factor blocks.
+        ``gyro``, ``accel``, ``gyro_scale``, ``accel_scale``: ``AUTO`` (that default), a
+        block name (str) to feed from that one block instead (missing: none), or None to
+        feed nothing.
         """
         names = [b.name for b in layout.blocks]
         get = lambda b: layout.slice(b) if (b is not None and b in names) else None  # noqa: E731
+        choice = {_KEYWORDS[k]: v for k, v in (("gyro", gyro), ("accel", accel),
+                                               ("gyro_scale", gyro_scale), ("accel_scale", accel_scale))}
+        comp = []
+        keys = [b.feeds for b in layout.blocks if getattr(b, "feeds", None)]
+        keys += [k for k, v in choice.items() if isinstance(v, str)]      # a block named outright
+        for key in dict.fromkeys(keys):
+            arg = choice.get(key, AUTO)
+            entry = get(arg) if arg is not AUTO else _entry(layout, [b for b in layout.blocks
+                                                                     if b.feeds == key])
+            if entry is not None:
+                comp.append((key, entry))
+        return cls(get(att), get(vel), get(pos), tuple(comp), tuple(layout.slice(o) for o in other))
 
-        def kind(target, arg, scale):
-            if arg is not AUTO:
-                return get(arg)
-            blocks = [b for b in layout.blocks if getattr(b, "feeds", None) == target]
-            if not blocks:
-                return None
-            if len(blocks) == 1 and blocks[0].axes == "xyz":
-                return layout.slice(blocks[0].name)
-            if scale:
-                raise ValueError(f"{target} feedback needs one 3-axis block, the layout has "
-                                 f"{[(b.name, b.axes) for b in blocks]}")
-            # rows: one per block; column a holds the state of axis a, or n (a zero pad)
-            idx = np.full((len(blocks), 3), layout.n, dtype=np.int64)
-            for r, b in enumerate(blocks):
-                sl = layout.slice(b.name)
-                for i, a in enumerate(b.axes):
-                    idx[r, "xyz".index(a)] = sl.start + i
-            return idx
-
-        return cls(get(att), get(vel), get(pos), kind("gyro_bias", gyro, False),
-                   kind("accel_bias", accel, False),
-                   tuple(layout.slice(o) for o in other),
-                   kind("gyro_scale", gyro_scale, True), kind("accel_scale", accel_scale, True))
-
-    def apply(self, filt, state, gyro_bias=None, accel_bias=None):
+    def apply(self, filt, state, compensation):
         """Closed-loop correction: feed the filter's estimate back into the INS.
 
         Takes the fed-back states out of ``filt`` (:meth:`KalmanFilter.feedback`, which
         zeroes them), corrects the strapdown state array in place with
         :func:`sinslab.nav.strapdown.correct` (φ [rad], δv [m/s], δp = [δL, δλ, δh]; the
-        vertical of a 2-state horizontal block is left alone) and adds the bias estimates
-        to the compensation in use (scale factors: ``d[gyro_scale]``, ``d[accel_scale]``
-        are for the caller).
+        vertical of a 2-state horizontal block is left alone) and adds each compensation
+        estimate to the INS's compensation of that key.
 
         Parameters
         ----------
         filt : sinslab.estimation.filter.KalmanFilter
         state : ndarray, shape (NSTATE,) or (10,)
             Strapdown state array (modified in place).
-        gyro_bias, accel_bias : array_like, shape (3,), optional
-            Current compensation [rad/s], [m/s²] (default zero).
+        compensation : dict
+            The INS's compensation in use, ``{key: ndarray (3,)}`` (bias [rad/s], [m/s²],
+            scale factors [-]); it must hold every key of the layout.
 
         Returns
         -------
-        gyro_bias, accel_bias : ndarray, shape (3,)
-            The new compensation to pass to :func:`sinslab.nav.strapdown.step`.
+        compensation : dict
+            The new compensation (a new dict of new arrays; keys the layout does not feed
+            are passed on as they are).
         d : ndarray, shape (n,)
             The fed-back amounts.
+
+        Raises
+        ------
+        ValueError
+            The INS has no compensation a block of the layout feeds.
         """
+        missing = [k for k, _ in self.compensation if k not in compensation]
+        if missing:
+            raise ValueError(f"the INS has no {missing[0]} compensation for the blocks that feed it "
+                             f"(it has {sorted(compensation)})")
         d = filt.feedback(self.indices(filt.n))
         sd.correct(state, *self.nav_errors(d))
-        gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, dtype=float).copy()
-        ab = np.zeros(3) if accel_bias is None else np.asarray(accel_bias, dtype=float).copy()
-        if self.gyro is not None:
-            gb = gb + _sum3(d, self.gyro)
-        if self.accel is not None:
-            ab = ab + _sum3(d, self.accel)
-        return gb, ab, d
+        out = dict(compensation)
+        for key, entry in self.compensation:
+            out[key] = np.asarray(compensation[key], dtype=float) + _sum3(d, entry)
+        return out, d
+
+
+def _entry(layout, blocks):
+    """The compensation entry of the blocks feeding one compensation: the slice of a lone
+    3-axis block (plain arithmetic), else padded rows (one per block; column a holds the
+    state of axis a, or n, a zero pad)."""
+    if not blocks:
+        return None
+    if len(blocks) == 1 and blocks[0].axes == "xyz":
+        return layout.slice(blocks[0].name)
+    idx = np.full((len(blocks), 3), layout.n, dtype=np.int64)
+    for r, b in enumerate(blocks):
+        sl = layout.slice(b.name)
+        for i, a in enumerate(b.axes):
+            idx[r, "xyz".index(a)] = sl.start + i
+    return idx

@@ -38,7 +38,7 @@ import numpy as np
 from sinslab.core import attitude as Att
 from sinslab.core import earth as E
 from sinslab.core import gnss as G
-from sinslab.fusion.measurements import Epoch, arrival_epochs
+from sinslab.fusion.measurements import Epoch, add_rate_H, arrival_epochs
 
 __all__ = ["SatelliteObservations", "prepare", "Pseudoranges", "RangeRates", "single_point",
            "SinglePoint", "F_L1", "SatelliteLog"]
@@ -238,8 +238,9 @@ class SatelliteMeasurement:
     max_satellites : sequence of (K, start, duration)
         Inside ``[start, start + duration)`` [s, IMU time axis] at most K satellites,
         highest elevation first.
-    clock : str
-        Name of the receiver-clock block in the layout.
+    clock : str, optional
+        Name of the receiver-clock block, when a layout has several; by default the
+        layout's one block of that quantity (:meth:`~sinslab.nav.errstate.StateLayout.find`).
     clock_nominal : (b0 [m], d0 [m/s], t0 [s]) or (b0, d0, t0, {system: isb [m]})
         Nominal clock the clock states are errors of (and nominal inter-system biases).
     outages : sequence of (start, length) [s]
@@ -253,7 +254,7 @@ class SatelliteMeasurement:
     kind = ""
 
     def __init__(self, sv: SatelliteObservations, sigma, *, lever_arm=None, mask=math.radians(10.0),
-                 cn0_ref=45.0, gate=5.0, gate_reset=10, max_satellites=(), clock="clk",
+                 cn0_ref=45.0, gate=5.0, gate_reset=10, max_satellites=(), clock=None,
                  clock_nominal=(0.0, 0.0, 0.0), outages=(), stream=0, shared=None):
         self.sv = sv
         self.sigma = float(sigma)
@@ -316,8 +317,7 @@ class SatelliteMeasurement:
         Jv = np.zeros((3, n))
         Jv[:, lay.slice("dv")] = np.eye(3)
         Jv[:, lay.slice("phi")] = Att.skew(C @ wl)
-        if "eps" in lay.names:
-            Jv[:, lay.slice("eps")] = -C @ Att.skew(self.lever)
+        add_rate_H(Jv, lay, -C @ Att.skew(self.lever), w)   # every block feeding the gyro
         dt = ep.t - float(self.sv.t_epoch[ep.item])
         Cne, dCL, dCl = _enu_derivatives(lat, lon)
         rm, rn = E.radii_s(lat, h)
@@ -417,10 +417,9 @@ class SatelliteMeasurement:
 
     def _clock_columns(self, lay, systems):
         """Columns of the clock bias, drift and of each row's inter-system bias (−1: none)."""
-        blk = [b for b in lay.blocks if b.name == self.clock]
-        if not blk:
-            raise ValueError(f"the layout has no receiver-clock block {self.clock!r}")
-        sl = lay.slice(self.clock)
+        sl = lay.find("receiver_clock", self.clock)
+        if sl is None:
+            raise ValueError(f"the layout has no receiver-clock block (blocks {list(lay.names)})")
         labels = lay.labels[sl]
         isb = {lab.rsplit("_", 1)[1]: sl.start + i for i, lab in enumerate(labels) if "_isb_" in lab}
         cols = np.array([isb.get(s, -1) for s in systems], dtype=np.int64)

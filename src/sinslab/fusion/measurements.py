@@ -25,10 +25,10 @@ import numpy as np
 from sinslab.core import attitude as A
 from sinslab.core import earth as E
 
-__all__ = ["Measurement", "NavRow", "Epoch", "Grid", "PositionFix", "VelocityFix", "Stack",
+__all__ = ["Measurement", "NavRow", "Epoch", "Grid", "Timed", "PositionFix", "VelocityFix", "Stack",
            "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
            "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body",
-           "InnovationGate"]
+           "InnovationGate", "add_rate_H"]
 
 
 @dataclass(frozen=True)
@@ -186,8 +186,10 @@ def arrival_epochs(t_valid, t_arrive, grid, *, outages=(), windows=None):
     return out
 
 
-class _Timed:
-    """Time stamps and schedule shared by the fix measurements."""
+class Timed:
+    """Time stamps and schedule shared by the fix measurements (``t_valid``, ``t_arrive``,
+    outages and windows: :func:`arrival_epochs`); a measurement of time-stamped records
+    subclasses it and calls ``_init_times``."""
 
     def _init_times(self, t_valid, t_arrive, outages, windows):
         self.t_valid = np.atleast_1d(np.asarray(t_valid, dtype=float))
@@ -209,7 +211,7 @@ class _Timed:
         return float(self.t_valid[item]), float(self.t_arrive[item])
 
 
-class PositionFix(_Timed):
+class PositionFix(Timed):
     """Position fixes of an antenna (2-D or 3-D) against one stream.
 
     ``z = [(L − L_fix)(R_M+h), (λ − λ_fix)(R_N+h)cosL, h − h_fix] − v_ant·Δt``
@@ -289,12 +291,12 @@ class PositionFix(_Timed):
         return z, H, self.sigma[j, :n_z] ** 2
 
 
-class VelocityFix(_Timed):
+class VelocityFix(Timed):
     """Velocity fixes of an antenna (ENU, 3 components) against one stream.
 
     ``z = v + C_b^n (ω_ib^b × l) − v_fix`` [m/s]; ``H`` has ``I`` on δv and, with a lever
     arm, ``(C_b^n (ω×l))×`` on φ and ``−C_b^n (l×) ∂δω/∂x`` on every block feeding the
-    gyro compensation (bias, Gauss–Markov, scale factors: :func:`_add_rate_H`).
+    gyro compensation (bias, Gauss–Markov, scale factors: :func:`add_rate_H`).
 
     Parameters
     ----------
@@ -329,7 +331,7 @@ class VelocityFix(_Timed):
             vlev = C @ np.cross(nr.omega_b, self.lever)
             v_ant = v_ant + vlev
             H[:, lay.slice("phi")] = A.skew(vlev)
-            _add_rate_H(H, lay, -C @ A.skew(self.lever), nr.omega_b)
+            add_rate_H(H, lay, -C @ A.skew(self.lever), nr.omega_b)
         return v_ant - self.vel[j], H, self.sigma[j] ** 2
 
 
@@ -366,7 +368,7 @@ class Stack:
         return np.concatenate(zs), np.vstack(Hs), np.concatenate(Rs)
 
 
-class InsDifference(_Timed):
+class InsDifference(Timed):
     """The difference of two INS streams on one carrier (stream 0 minus stream 1).
 
     ``z = [L1 − Lk, λ1 − λk, vE1 − vEk, vN1 − vNk]`` [rad, rad, m/s, m/s] against a
@@ -457,7 +459,7 @@ def vehicle_from_body(mount):
     raise ValueError(f"mount must be 3 Euler angles or a 3x3 matrix, got shape {m.shape}")
 
 
-def _add_rate_H(H, lay, M, omega_b):
+def add_rate_H(H, lay, M, omega_b):
     """Add ``M ∂δω_ib^b/∂x`` to ``H`` for every block that feeds the gyro compensation
     (:attr:`sinslab.nav.errstate.Block.feeds`): a bias or Gauss–Markov block enters the
     compensated rate as ``δω = x``, a scale block as ``δω = diag(ω) x``."""
@@ -640,7 +642,7 @@ class ZeroRate(_OnEpochs):
         H = np.zeros((3, ep.n))
         H[:, lay.slice("phi")] = Cnb @ A.skew(wie)
         H[:, lay.slice("dp").start] = -Cnb @ dwie
-        _add_rate_H(H, lay, np.eye(3), nr.omega_b)
+        add_rate_H(H, lay, np.eye(3), nr.omega_b)
         return z, H, self.sigma ** 2
 
 
@@ -661,13 +663,13 @@ def _vehicle_velocity(nr, lay, n, Cvb, lever, lever_block=None, mount_block=None
     k = sv.stop - sv.start
     H[:, sv] = (Cvb @ Cnb)[:, :k]
     H[:, lay.slice("phi")] = -Cvb @ Cnb @ A.skew(nr.vel)
-    _add_rate_H(H, lay, -Cvb @ A.skew(lever), w)
+    add_rate_H(H, lay, -Cvb @ A.skew(lever), w)
     if lever_block is not None:
-        H[:, lay.slice(lever_block)] = Cvb @ A.skew(w)
+        H[:, lay.find("lever_arm", lever_block)] = Cvb @ A.skew(w)
     vv = Cvb @ vb
     if mount_block is not None:
-        b = next(x for x in lay.blocks if x.name == mount_block)
-        H[:, lay.slice(mount_block)] = A.skew(vv)[:, ["xyz".index(a) for a in b.axes]]
+        sl = lay.find("installation", mount_block)
+        H[:, sl] = A.skew(vv)[:, ["xyz".index(a) for a in lay.blocks[lay.names.index(mount_block)].axes]]
     return vv, H
 
 
@@ -718,7 +720,7 @@ class NonHolonomic(_OnEpochs):
         return vv[r], H[r], self.sigma ** 2
 
 
-class BodyVelocity(_Timed):
+class BodyVelocity(Timed):
     """A measured 3-D velocity of a vehicle point in vehicle axes (e.g. a Doppler
     velocity log, or wheel speed with the non-holonomic zeros).
 
@@ -830,7 +832,7 @@ class Odometer(_OnEpochs):
         z[0] -= s
         H = H[rows]
         if self.scale_block is not None:
-            H[0, ep.layout.slice(self.scale_block)] = -s
+            H[0, ep.layout.find("odometer_scale", self.scale_block)] = -s
         R = self.sigma ** 2 if self.nhc_sigma is None else np.r_[self.sigma, self.nhc_sigma] ** 2
         return z, H, R
 
@@ -851,7 +853,7 @@ class LeverPositionFix(PositionFix):
         C = nr.C_bn
         dtf = ep.t - self.t_valid[ep.item]
         n_z = z.size
-        H[:, ep.layout.slice(self.lever_block)] = (C - dtf * C @ A.skew(nr.omega_b))[[1, 0, 2]][:n_z]
+        H[:, ep.layout.find("lever_arm", self.lever_block)] = (C - dtf * C @ A.skew(nr.omega_b))[[1, 0, 2]][:n_z]
         return z, H, R
 
 
@@ -865,5 +867,5 @@ class LeverVelocityFix(VelocityFix):
     def matrices(self, ep: Epoch):
         z, H, R = super().matrices(ep)
         nr = ep.streams[self.stream]
-        H[:, ep.layout.slice(self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
+        H[:, ep.layout.find("lever_arm", self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
         return z, H, R

@@ -134,7 +134,7 @@ class RawGnss:
         """Receiver clock bias [m], drift [m/s] and inter-system biases [m] (M, k) at the
         epochs ``t`` from the filter's clock states ``x`` (M, n): nominal minus error."""
         b0, d0, t0, isb = self.clock_nominal()
-        sl = layout.slice("clk")
+        sl = layout.find("receiver_clock")
         xc = x[:, sl]
         out = np.empty_like(xc)
         out[:, 0] = b0 + d0 * (t - t0) - xc[:, 0]
@@ -230,10 +230,10 @@ def tightly_coupled(imu, init, raw: RawGnss, P0, *, model=None, gyro_arw=None, a
             raise ValueError("give a model or gyro_arw [rad/sqrt(s)] and accel_vrw [m/s/sqrt(s)]")
         model = tc_model(gyro_arw, accel_vrw, systems=raw.systems, clock_noise=raw.clock_noise)
     lay = model.layout
-    if "clk" not in lay.names:
-        raise ValueError(f"the model needs a receiver-clock block 'clk' (has {list(lay.names)})")
+    sl = lay.find("receiver_clock")
+    if sl is None:
+        raise ValueError(f"the model needs a receiver-clock block (has {list(lay.names)})")
     P0 = np.array(P0, dtype=float)
-    sl = lay.slice("clk")
     if not np.any(P0[sl, sl]):
         P0[sl, sl] = np.diag(raw.clock_sigmas() ** 2)
     ms = raw.make(lever_arm=lever_arm, t_start=t_start if t_start is not None else (

@@ -66,8 +66,13 @@ __all__ = [
     "Block", "StateLayout", "NavPoint", "SensorBlock", "gyro_bias", "accel_bias",
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices",
-    "CORES", "lever_arm", "odometer_scale", "ClockBlock", "receiver_clock",
+    "CORES", "lever_arm", "odometer_scale", "ClockBlock", "receiver_clock", "COMPENSATIONS",
+    "barometer_bias",
 ]
+
+#: The compensations of a strapdown INS a sensor block can feed (:attr:`Block.feeds`):
+#: gyro and accelerometer bias [rad/s], [m/s²] and scale factors [-], body axes.
+COMPENSATIONS = ("gyro_bias", "accel_bias", "gyro_scale", "accel_scale")
 
 # ----------------------------------------------------------------------------- layout
 _DISPLAY = {  # unit name -> SI value of one display unit
@@ -90,11 +95,15 @@ class Block:
         Display unit per state (``"arcmin"``, ``"m/s"``, ``"deg/h"``, ``"ug"``, ``"ppm"``,
         ``"arcsec"``, ``"m"``); states are SI inside, the unit is for printing only.
     feeds : {"gyro_bias", "accel_bias", "gyro_scale", "accel_scale", None}
-        Which INS compensation a closed loop feeds the block's estimate into (body-axis
-        sensor blocks); None: not a sensor compensation (core blocks, installation,
-        lever arms, nav-frame biases).
+        Which INS compensation (:data:`COMPENSATIONS`) a closed loop feeds the block's
+        estimate into (body-axis sensor blocks); None: not a sensor compensation (core
+        blocks, installation, lever arms, nav-frame biases, measurement-only states).
     axes : str
         Body axes of the states for a block with ``feeds`` (subset of ``"xyz"``).
+    quantity : str or None
+        What the states of a block that feeds nothing are, for the measurements that read
+        them (:meth:`StateLayout.find`): ``"lever_arm"``, ``"odometer_scale"``,
+        ``"installation"``, ``"receiver_clock"``, ``"baro_bias"``; None for the others.
     """
 
     name: str
@@ -102,6 +111,7 @@ class Block:
     units: tuple
     feeds: str | None = None
     axes: str = ""
+    quantity: str | None = None
 
     def __post_init__(self):
         if len(self.labels) != len(self.units):
@@ -154,6 +164,24 @@ class StateLayout:
             return self._slices[name]
         except KeyError:
             raise KeyError(f"no block {name!r}; blocks are {self.names}") from None
+
+    def find(self, quantity, name=None):
+        """Slice of the block of ``quantity`` (:attr:`Block.quantity`), or None when the
+        layout has none; ``name`` picks one of several such blocks (two lever arms).
+
+        Raises
+        ------
+        ValueError
+            Several blocks of ``quantity`` and no ``name``, or block ``name`` is not one.
+        """
+        blocks = [b.name for b in self.blocks if b.quantity == quantity]
+        if name is not None:
+            if name not in blocks:
+                raise ValueError(f"the layout has no {quantity} block {name!r} (has {blocks})")
+            return self.slice(name)
+        if len(blocks) > 1:
+            raise ValueError(f"the layout has several {quantity} blocks {blocks}: name the one to use")
+        return self.slice(blocks[0]) if blocks else None
 
     def index(self, label):
         """Index of a state label, or array of indices for a list of labels."""
@@ -449,6 +477,8 @@ class SensorBlock:
         Spectral density of each state's driving noise (0 = random constant).
     unit : str
         Display unit.
+    quantity : str or None
+        See :attr:`Block.quantity` (blocks with no coupling that measurements read).
     """
 
     name: str
@@ -459,6 +489,7 @@ class SensorBlock:
     tau: float | None = None
     q: np.ndarray = field(default=None)
     unit: str = "-"
+    quantity: str | None = None
 
     def __post_init__(self):
         if not self.axes or any(a not in _AXES for a in self.axes) or len(set(self.axes)) != len(self.axes):
@@ -480,7 +511,7 @@ class SensorBlock:
     def block(self, suffix="") -> Block:
         ax = self.axes if self.frame == "body" else "".join("ENU"[_AXES[a]] for a in self.axes)
         return Block(self.name + suffix, tuple(f"{self.name}_{a}{suffix}" for a in ax), (self.unit,) * self.size,
-                     self.feeds, self.axes)
+                     self.feeds, self.axes, self.quantity)
 
     @property
     def feeds(self):
@@ -549,8 +580,9 @@ def accel_markov(tau, sigma, axes="xyz", frame="body", name="nabla_m"):
 
 
 def _scale_noise(rw, tau, sigma, name):
-    """(τ or None, q) of a scale-factor block: random constant, random walk (``rw``
-    [1/√s]) or first-order Gauss–Markov (``tau`` [s], steady-state ``sigma`` [-])."""
+    """(τ or None, q) of a scale-factor or barometer-bias block: random constant, random
+    walk (``rw`` [unit/√s]) or first-order Gauss–Markov (``tau`` [s], steady-state
+    ``sigma`` [unit])."""
     if tau is None:
         if sigma is not None:
             raise ValueError(f"block {name!r}: a Gauss-Markov sigma needs its correlation time tau")
@@ -582,7 +614,7 @@ def installation(name="lam", axes="xyz"):
     They have no dynamics and no effect on the INS error propagation; measurement models
     (attitude matching, paper 002: ``φ_m = λ − C φ``) read them.
     """
-    return SensorBlock(name, None, "constant", axes, "body", None, None, "arcmin")
+    return SensorBlock(name, None, "constant", axes, "body", None, None, "arcmin", "installation")
 
 
 # ------------------------------------------------------------------------------ models
@@ -836,7 +868,7 @@ def lever_arm(name="lev"):
     (``δl = l_used − l_true``); they have no dynamics, feed nothing back to the INS and are
     read by the lever-arm measurements of :mod:`sinslab.fusion.measurements`.
     """
-    return SensorBlock(name, None, "constant", "xyz", "body", None, None, "m")
+    return SensorBlock(name, None, "constant", "xyz", "body", None, None, "m", "lever_arm")
 
 
 def odometer_scale(name="kod"):
@@ -845,7 +877,20 @@ def odometer_scale(name="kod"):
     the odometer measurement is exactly linear in k, see
     :class:`sinslab.fusion.measurements.Odometer`); a reading ``s̃ = (1 + k_s) v_fwd`` has
     ``k = k_s / (1 + k_s)``, equal to first order."""
-    return SensorBlock(name, None, "constant", "y", "body", None, None, "ppm")
+    return SensorBlock(name, None, "constant", "y", "body", None, None, "ppm", "odometer_scale")
+
+
+def barometer_bias(*, tau=None, sigma=None, rw=0.0, name="baro"):
+    """Bias of a barometric altimeter [m]: the error of the bias the measurement removes,
+    computed minus true (``δb = b_used − b_true``), one state (label ``<name>_U``).
+
+    A random constant, a random walk (``rw`` [m/√s]) or a first-order Gauss–Markov
+    process (``tau`` [s], steady-state ``sigma`` [m], ``ḃ = −b/τ + w``, q = 2σ²/τ), the
+    slow drift of the pressure-height relation with weather and temperature. The state
+    feeds nothing back to the INS; :class:`sinslab.fusion.barometer.Barometer` reads it.
+    """
+    tau, q = _scale_noise(rw, tau, sigma, name)
+    return SensorBlock(name, None, "markov" if tau else "constant", "z", "nav", tau, q, "m", "baro_bias")
 
 
 @dataclass(frozen=True)
@@ -887,7 +932,7 @@ class ClockBlock:
         labels = (f"{self.name}_bias", f"{self.name}_drift") + tuple(
             f"{self.name}_isb_{s}" for s in self.systems[1:])
         return Block(self.name + suffix, tuple(l + suffix for l in labels),
-                     ("m", "m/s") + ("m",) * (len(self.systems) - 1))
+                     ("m", "m/s") + ("m",) * (len(self.systems) - 1), quantity="receiver_clock")
 
     def dynamics(self) -> np.ndarray:
         """The block's own dynamics matrix (k, k): the bias integrates the drift."""
