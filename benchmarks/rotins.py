@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -100,7 +101,9 @@ def grouping(hours, repeats=2):
     cfg = resolve(get("rotation-evaluation").config, sets=[f"scenario.duration={hours} h", "evaluation.start=0 h",
                                                            f"evaluation.window={hours / 2} h"])
     specs, kw, _, _ = R.ins_plan(cfg)
-    R.navigate_many(specs, dict(kw, n_steps=2), "serial")                    # compile / load caches
+    # compile / load caches on a few steps: a whole number of INS #1's de-meaning noise blocks
+    warm = math.lcm(kw["k_kf"], *(s.demean for s in specs.values() if s.demean)) // kw["k_kf"]
+    R.navigate_many(specs, dict(kw, n_steps=max(2, warm)), "serial")
     best = {"grouped": np.inf, "one_at_a_time": np.inf}
     outs = {}
     for _ in range(repeats):

@@ -8,7 +8,7 @@ import pytest
 from sinslab.methods import doublestar as ds
 from sinslab.nav import errstate as es
 from sinslab.core import units as u
-from sinslab.core.earth import radii
+from sinslab.core.earth import GEO_RADIUS, radii
 from sinslab.core.records import Fixes
 from sinslab.data import read_fixes
 from sinslab.data.tables import TWO_GEO_COLUMNS
@@ -107,7 +107,7 @@ def _fd_sigma(lat, lon, h, m0, m1, dH, rs):
 
 @pytest.mark.parametrize("L,l", [(32, 118), (40, 110), (22, 80), (50, 135)])
 def test_linearised_model_equals_newton_finite_differences(L, l):
-    ns0, ew0, nsH, ewH = _fd_sigma(L * D, l * D, 1000.0, 20.0, 10.0, 50.0, ds.GEO_RADIUS)
+    ns0, ew0, nsH, ewH = _fd_sigma(L * D, l * D, 1000.0, 20.0, 10.0, 50.0, GEO_RADIUS)
     fl = ds.fix_error_linearised(L * D, l * D, S1, S2, 20.0, 10.0, 50.0, 1000.0)
     assert float(fl.ns_range) == pytest.approx(ns0, rel=1e-5)
     assert float(fl.ew_range) == pytest.approx(ew0, rel=1e-5)
@@ -119,7 +119,7 @@ def test_linearised_model_equals_newton_finite_differences(L, l):
 def test_closed_form_is_the_far_satellite_limit(L, l):
     # the closed form assumes r_i = r_s (and a spherical Earth): it is the first-order solution
     # when the satellites are far; what is left is the ellipsoid's flattening (~1e-4)
-    rs = 1e3 * ds.GEO_RADIUS
+    rs = 1e3 * GEO_RADIUS
     ns0, ew0, nsH, ewH = _fd_sigma(L * D, l * D, 1000.0, 20.0, 10.0, 50.0, rs)
     fe = ds.fix_error(L * D, l * D, S1, S2, 20.0, 10.0, 50.0, 1000.0, height_factor="geometric",
                       sat_radius=rs)
@@ -521,7 +521,6 @@ def test_one_earth_model_for_the_two_geo_paths():
     from sinslab.core import earth
     from sinslab.fusion.rdss import geo_paths
 
-    assert ds.GEO_RADIUS is earth.GEO_RADIUS
     assert abs((earth.GM / earth.WIE ** 2) ** (1 / 3) - earth.GEO_RADIUS) < 3.0
     lat, lon = np.radians(np.linspace(20, 50, 9)), np.radians(np.linspace(75, 135, 9))
     assert np.array_equal(ds.measure_ranges(lat, lon, 800.0, S1, S2), geo_paths(lat, lon, 800.0, S1, S2)[0])

@@ -65,7 +65,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sinslab.core.earth import GEO_RADIUS, geodetic_to_ecef
 from sinslab.core.records import Fixes
 
 __all__ = [
@@ -122,6 +121,7 @@ def check_geometry(lat, sat_lon1, sat_lon2):
 
 
 def _height_k(lat, h, height_factor, sat_radius):
+    sat_radius = _geo_radius(sat_radius)
     from sinslab.core.earth import radii
 
     _, rn = radii(lat, 0.0)
@@ -155,7 +155,7 @@ def _coefficients(lat, lon, h, sat_lon1, sat_lon2, height_factor, sat_radius):
 
 
 def fix_error(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *, height_factor="paper",
-              sat_radius=GEO_RADIUS) -> FixError:
+              sat_radius=None) -> FixError:
     """Two-GEO fix standard deviations, paper eqs 11–15 (vectorised).
 
     Parameters
@@ -202,7 +202,7 @@ def fix_error(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *, height_factor=
 
 
 def fix_covariance(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *, height_factor="paper",
-                   sat_radius=GEO_RADIUS):
+                   sat_radius=None):
     """Full 2×2 covariance [m²] of the (north, east) fix error, shape S + (2, 2).
 
     Its diagonal is ``fix_error(...).ns**2`` and ``.ew**2``; the off-diagonal is the
@@ -219,21 +219,33 @@ def fix_covariance(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *, height_fa
 
 
 # ------------------------------------------------------------------ exact geometry
+def _geo_radius(sat_radius):
+    """``sat_radius`` [m], None for the geostationary radius of :mod:`sinslab.core.earth`
+    (imported here, not with the module: a config validator imports this module and must
+    not load the compiled Earth kernels)."""
+    if sat_radius is None:
+        from sinslab.core.earth import GEO_RADIUS
+        return GEO_RADIUS
+    return sat_radius
+
+
 def _sat(lon_s, sat_radius):
+    sat_radius = _geo_radius(sat_radius)
     lon_s = np.asarray(lon_s, dtype=float)
     return np.stack(np.broadcast_arrays(sat_radius * np.cos(lon_s), sat_radius * np.sin(lon_s),
                                         0.0 * lon_s), -1)
 
 
-def measure_ranges(lat, lon, h, sat_lon1, sat_lon2, sat_radius=GEO_RADIUS):
+def measure_ranges(lat, lon, h, sat_lon1, sat_lon2, sat_radius=None):
     """The two measured paths ``ρa = 2 r1`` and ``ρb = r1 + r2`` [m] (shape S + (2,))."""
+    from sinslab.core.earth import geodetic_to_ecef
     u = geodetic_to_ecef(lat, lon, h)
     r1 = np.linalg.norm(u - _sat(sat_lon1, sat_radius), axis=-1)
     r2 = np.linalg.norm(u - _sat(sat_lon2, sat_radius), axis=-1)
     return np.stack([2.0 * r1, r1 + r2], -1)
 
 
-def solve_fix(rho, h, sat_lon1, sat_lon2, guess, *, sat_radius=GEO_RADIUS, tol=1e-7, max_iter=20):
+def solve_fix(rho, h, sat_lon1, sat_lon2, guess, *, sat_radius=None, tol=1e-7, max_iter=20):
     """Position (lat, lon) [rad] from the two measured paths and the height (Newton).
 
     Parameters
@@ -270,7 +282,7 @@ def solve_fix(rho, h, sat_lon1, sat_lon2, guess, *, sat_radius=GEO_RADIUS, tol=1
 
 
 def fix_error_linearised(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *,
-                         sat_radius=GEO_RADIUS) -> FixError:
+                         sat_radius=None) -> FixError:
     """Exact first-order fix σ on the WGS-84 ellipsoid (no r_i ≈ r_s approximation).
 
     Same measurements and error sources as :func:`fix_error` (ρa = 2 r1, ρb = r1 + r2,
@@ -279,6 +291,7 @@ def fix_error_linearised(lat, lon, sat_lon1, sat_lon2, m0, m1, dH, h=0.0, *,
     """
     lat, l1, l2 = check_geometry(lat, sat_lon1, sat_lon2)
     lat, lon, h = np.broadcast_arrays(lat, np.asarray(lon, float), np.asarray(h, float))
+    from sinslab.core.earth import geodetic_to_ecef
     u = geodetic_to_ecef(lat, lon, h)
     sL, cL, sl, cl = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
     eN = np.stack([-sL * cl, -sL * sl, cL], -1)
@@ -434,7 +447,7 @@ class FixPlan:
 
 def plan_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, rng=None,
                latency_jitter=0.0, grid=1.0, correlated=False, height_factor="paper",
-               sat_radius=GEO_RADIUS) -> FixPlan:
+               sat_radius=None) -> FixPlan:
     """The schedule of :func:`simulate_fixes` and the truth and σ at its requests.
 
     A constant latency (``latency_jitter = 0``) gives the same plan for every draw, so Monte
@@ -459,7 +472,7 @@ def plan_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, rng=N
 
 def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, rng,
                    latency_jitter=0.0, grid=1.0, correlated=False, height_factor="paper",
-                   sat_radius=GEO_RADIUS) -> Fixes:
+                   sat_radius=None) -> Fixes:
     """Draw two-GEO fixes along a true trajectory inside covert windows.
 
     Returns :class:`sinslab.core.records.Fixes` with the request times as validity
