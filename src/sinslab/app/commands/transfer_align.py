@@ -176,6 +176,10 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
     if hi - lo <= 0:
         raise ValueError(f"slave [{imu.t[0]:g}, {imu.t[-1]:g}] s and master [{mt[0]:g}, {mt[-1]:g}] s do not overlap in time")
     dtm = float(np.median(np.diff(mt)))
+    from sinslab.app.validate import check_window
+    for w in windows:           # a clipped window would align over less than asked for
+        if w is not None:       # (within one master interval: the first epoch may start it)
+            check_window("--window", f"{w[0]:g}:{w[1]:g}", float(lo), float(hi), max(dtm, imu.dt))
     ratio = dtm / imu.dt
     if abs(ratio - round(ratio)) > 1e-3 or round(ratio) < 1:
         raise ValueError(f"master interval {dtm:g} s is not a multiple of the slave interval {imu.dt:g} s")
