@@ -29,18 +29,21 @@ def parse_max_satellites(items, t_first):
     return tuple(out)
 
 
-def load_raw(path, nav, max_satellites, imu, echo=print):
+def load_raw(path, nav, max_satellites, imu, echo=print, mask_deg=10.0):
     """Read and check the raw GNSS of ``navigate``; returns ``(RawGnss, fixes)`` with the
     single-point fixes that start the filter.
 
     One-line errors (the file and the cause): no raw measurements, no ephemeris for any
-    satellite, observations outside the IMU record, satellites below the mask only;
-    satellites without ephemeris are skipped and counted."""
+    satellite, observations outside the IMU record, satellites below the mask only (the
+    elevation mask ``mask_deg`` [deg], 0..90); satellites without ephemeris are skipped and
+    counted."""
     from sinslab.core.errors import InputError
     from sinslab.data.gnss import read_gnss_raw
     from sinslab.fusion.gnss import prepare
     from sinslab.fusion.tightly_coupled import RawGnss
 
+    if not (math.isfinite(mask_deg) and 0.0 <= mask_deg < 90.0):
+        raise ValueError(f"--elevation-mask {mask_deg:g}: give an elevation in degrees, 0 to below 90")
     obs = read_gnss_raw(path, nav)
     sv = prepare(obs)
     t0, t1 = float(imu.t0), float(imu.t[-1])
@@ -51,7 +54,8 @@ def load_raw(path, nav, max_satellites, imu, echo=print):
     if not sv.usable.any():
         raise InputError(f"{path}: no satellite has an ephemeris"
                          + ("" if nav is not None else " (give a navigation file with --gnss-nav)"))
-    raw = RawGnss(sv, max_satellites=parse_max_satellites(max_satellites, float(sv.t_epoch[0])))
+    raw = RawGnss(sv, max_satellites=parse_max_satellites(max_satellites, float(sv.t_epoch[0])),
+                  mask=math.radians(mask_deg))
     sp = raw.single_point()
     if not np.isfinite(sp.lat).any():
         from sinslab.fusion.gnss import single_point
