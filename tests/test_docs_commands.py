@@ -128,7 +128,15 @@ def test_the_docs_show_commands():
 DRIVE = ("navigate --imu rtklib-drive/imu_1934.csv --fixes rtklib-drive/gnss_1934_sf.pos "
          "--mount rpy:180,-6.79,185.35 --frame frd --lever-arm '[-0.05, 0, 0] m' --time-sync auto "
          "--velocity-lag 0.125 --outages 15/60@40 --out runs/drive")
+WALK = ('navigate --imu imu_1730.csv --format rtklib-imu --mount "rpy:180,0,-90" --frame frd '
+        '--gnss-raw gnss_1730.ubx --init "course_speed=1 m/s,course_spread=10 deg" --out runs/walk-tc')
 QUOTED = [
+    ("raw-gnss.md", "461 of 461 epochs used, median 16 satellites, 7376 pseudoranges used and 0 rejected "
+     "by the gate, 7373 range rates used and 3 rejected; 3439 observations without ephemeris", WALK,
+     ["gnss_epochs_used", "gnss_epochs", "satellites_used_median", "pseudoranges_used",
+      "pseudoranges_rejected", "doppler_used", "doppler_rejected", "observations_without_ephemeris"], 0.0),
+    ("raw-gnss.md", "the means are 0.21 for the 7376 pseudoranges and 0.45 for the 7373 range rates", WALK,
+     ["pseudorange_nis_mean", "pseudoranges_used", "doppler_nis_mean", "doppler_used"], 0.0),
     ("recorded-data.md", "pitch 0.15°, roll −0.28°, heading 61.70° (σ 0.23°)", DRIVE,
      ["final_pitch_deg", "final_roll_deg", "final_heading_deg", "final_sigma_heading_deg"], 0.0),
     ("recorded-data.md", "accelerometer bias [2152, 7695, 13470] µg", DRIVE, ["accel_bias_final_ug"], 0.0),

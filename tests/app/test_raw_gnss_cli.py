@@ -49,6 +49,10 @@ def test_run_folder(tc_run):
     (["--gnss-raw", "EMPTY"], "empty.ubx: empty file"),
     (["--gnss-raw", "JUNK"], "junk.ubx: no raw measurements"),
     (["--gnss-raw", "RNX4"], "RINEX version 4"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--gnss-nav", "NAV4"], "v4.nav: RINEX version 4"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--elevation-mask", "89.9"],
+     "gnss_1730.ubx: every satellite is below the 89.9 deg elevation mask"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--elevation-mask", "90"], "--elevation-mask 90"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--imu-delay", "3000"], "lie outside the IMU record"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "three@60:20"], "--max-satellites"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--gnss", WALK / "gnss_1730_sf.pos"], "not both"),
@@ -60,7 +64,9 @@ def test_bad_input(tc_run, tmp_path, args, msg):
     junk.write_bytes(bytes(range(256)) * 40)
     rnx = tmp_path / "v4.obs"
     rnx.write_text("     4.01           OBSERVATION DATA    M                   RINEX VERSION / TYPE\n")
-    sub = {"EMPTY": empty, "JUNK": junk, "RNX4": rnx}
+    nav4 = tmp_path / "v4.nav"
+    nav4.write_text("     4.01           N: GNSS NAV DATA    M                   RINEX VERSION / TYPE\n")
+    sub = {"EMPTY": empty, "JUNK": junk, "RNX4": rnx, "NAV4": nav4}
     before = {p.name: p.read_bytes() for p in tc_run.iterdir() if p.is_file()}
     r = invoke(*BASE, *[sub.get(str(a), a) for a in args], "--out", tc_run, "--force")
     assert r.exit_code == 2, r.output
@@ -69,20 +75,15 @@ def test_bad_input(tc_run, tmp_path, args, msg):
     assert {p.name: p.read_bytes() for p in tc_run.iterdir() if p.is_file()} == before
 
 
-def test_satellites_below_the_mask_only(monkeypatch):
+def test_satellites_below_the_mask_only():
     """Every satellite below the elevation mask (here an 89.9° mask) is one line naming the
-    file, not a filter without measurements."""
-    import functools
-    import math
-
+    file, not a filter without measurements (the CLI case is in test_bad_input)."""
     from sinslab.app.commands.raw_gnss import load_raw
     from sinslab.core.errors import InputError
     from sinslab.data import load_imu
-    from sinslab.fusion import tightly_coupled as T
-    monkeypatch.setattr(T, "RawGnss", functools.partial(T.RawGnss, mask=math.radians(89.9)))
     imu = load_imu(WALK / "imu_1730.csv", "rtklib-imu").imu
     with pytest.raises(InputError, match="gnss_1730.ubx: every satellite is below the 89.9 deg"):
-        load_raw(WALK / "gnss_1730.ubx", None, None, imu, echo=lambda *a: None)
+        load_raw(WALK / "gnss_1730.ubx", None, None, imu, echo=lambda *a: None, mask_deg=89.9)
 
 
 def test_raw_claims_share_the_nis_rule_of_the_loosely_coupled_runs():

@@ -68,13 +68,14 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                    columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
                    odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None,
                    fix_columns=None, fix_quality=None, vehicle_mount=None, nhc_lever=None,
-                   platform="auto", gnss_raw=None, gnss_nav=None, max_satellites=None, strict=False):
+                   platform="auto", gnss_raw=None, gnss_nav=None, max_satellites=None, elevation_mask=10.0,
+                   strict=False):
     """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
 
     Raw GNSS: ``gnss_raw`` a u-blox log or RINEX observation file (``gnss_nav`` a RINEX
     navigation file) replaces the fix file: pseudoranges and Doppler per satellite in the
     filter (tightly coupled, :mod:`sinslab.app.commands.raw_gnss`); ``max_satellites``
-    limits like ``["3@60:20"]``.
+    limits like ``["3@60:20"]``; ``elevation_mask`` [deg] the satellites' elevation mask.
 
     Recorded-unit options: ``columns`` a column map of the IMU table
     (:func:`sinslab.data.columns.parse_column_map`); ``imu_errors`` the filter's error
@@ -115,7 +116,7 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
                                     lever=odometer_lever, sigma=odometer_sigma),
         fix_columns=fix_columns, fix_quality=fix_quality,
         vehicle=dict(mount=vehicle_mount, lever=nhc_lever, platform=platform),
-        raw=dict(path=gnss_raw, nav=gnss_nav, max_satellites=max_satellites),
+        raw=dict(path=gnss_raw, nav=gnss_nav, max_satellites=max_satellites, mask_deg=elevation_mask),
         strict=strict), echo=echo)
     return (summary, *res.value)
 
@@ -180,7 +181,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.commands.raw_gnss import load_raw
         if fix_path is not None:
             raise ValueError("give either --gnss (fixes) or --gnss-raw (raw observations), not both")
-        raw_gnss, fx = load_raw(raw["path"], raw.get("nav"), raw.get("max_satellites"), data.imu, echo)
+        raw_gnss, fx = load_raw(raw["path"], raw.get("nav"), raw.get("max_satellites"), data.imu, echo,
+                                mask_deg=raw.get("mask_deg", 10.0))
         fix_name = f"{raw['path']} (single-point solution)"
     elif fix_path is None:
         raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
@@ -505,7 +507,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.commands.raw_gnss import raw_outputs
         raw_outputs(res, raw_gnss, metrics, tables, figures, notes, echo)
         cfg.update(gnss_raw=str(raw["path"]), gnss_nav=str(raw.get("nav") or "none"),
-                   max_satellites=",".join(raw.get("max_satellites") or ()) or "none")
+                   max_satellites=",".join(raw.get("max_satellites") or ()) or "none",
+                   elevation_mask_deg=float(raw.get("mask_deg", 10.0)))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims, warnings=warnings)
 
@@ -803,6 +806,7 @@ def register(app):
                  gnss_raw: Optional[Path] = typer.Option(None, "--gnss-raw", help="raw GNSS instead of fixes (tightly coupled): u-blox log (RAWX/SFRBX) or RINEX 2/3 observations"),
                  gnss_nav: Optional[Path] = typer.Option(None, "--gnss-nav", help="RINEX 2/3 navigation file (ephemerides) for --gnss-raw"),
                  max_satellites: Optional[list[str]] = typer.Option(None, "--max-satellites", help="K@START:DURATION: at most K satellites (highest first) from START s after the first GNSS epoch (repeatable)"),
+                 elevation_mask: float = typer.Option(10.0, "--elevation-mask", help="satellites below this elevation [deg] are not used (--gnss-raw)"),
                  format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
                  lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
@@ -848,6 +852,6 @@ def register(app):
                  odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality,
                  vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform,
                  gnss_raw=gnss_raw, gnss_nav=gnss_nav, max_satellites=max_satellites,
-                 strict=strict)
+                 elevation_mask=elevation_mask, strict=strict)
 
     return navigate

@@ -29,18 +29,21 @@ def parse_max_satellites(items, t_first):
     return tuple(out)
 
 
-def load_raw(path, nav, max_satellites, imu, echo=print):
+def load_raw(path, nav, max_satellites, imu, echo=print, mask_deg=10.0):
     """Read and check the raw GNSS of ``navigate``; returns ``(RawGnss, fixes)`` with the
     single-point fixes that start the filter.
 
     One-line errors (the file and the cause): no raw measurements, no ephemeris for any
-    satellite, observations outside the IMU record, satellites below the mask only;
-    satellites without ephemeris are skipped and counted."""
+    satellite, observations outside the IMU record, satellites below the mask only (the
+    elevation mask ``mask_deg`` [deg], 0..90); satellites without ephemeris are skipped and
+    counted."""
     from sinslab.core.errors import InputError
     from sinslab.data.gnss import read_gnss_raw
     from sinslab.fusion.gnss import prepare
     from sinslab.fusion.tightly_coupled import RawGnss
 
+    if not (math.isfinite(mask_deg) and 0.0 <= mask_deg < 90.0):
+        raise ValueError(f"--elevation-mask {mask_deg:g}: give an elevation in degrees, 0 to below 90")
     obs = read_gnss_raw(path, nav)
     sv = prepare(obs)
     t0, t1 = float(imu.t0), float(imu.t[-1])
@@ -51,7 +54,8 @@ def load_raw(path, nav, max_satellites, imu, echo=print):
     if not sv.usable.any():
         raise InputError(f"{path}: no satellite has an ephemeris"
                          + ("" if nav is not None else " (give a navigation file with --gnss-nav)"))
-    raw = RawGnss(sv, max_satellites=parse_max_satellites(max_satellites, float(sv.t_epoch[0])))
+    raw = RawGnss(sv, max_satellites=parse_max_satellites(max_satellites, float(sv.t_epoch[0])),
+                  mask=math.radians(mask_deg))
     sp = raw.single_point()
     if not np.isfinite(sp.lat).any():
         from sinslab.fusion.gnss import single_point
@@ -63,6 +67,9 @@ def load_raw(path, nav, max_satellites, imu, echo=print):
     if no_eph:
         echo(f"  {len(no_eph)} satellite(s) without ephemeris skipped: {', '.join(no_eph)}")
     return raw, raw.fixes()
+
+
+_SYSTEM_NAMES = {"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS", "J": "QZSS"}
 
 
 def raw_claims(raw):
@@ -159,6 +166,9 @@ def raw_outputs(res, raw, metrics, tables, figures, notes, echo=print):
         ax.text(2, r_ - 6, f"{90 - r_}°", fontsize=7, color="0.4")
     for a_ in range(0, 360, 45):
         ax.plot([0, 90 * np.sin(np.radians(a_))], [0, 90 * np.cos(np.radians(a_))], "-", color="0.85", lw=0.6)
+    r_mask = 90 - math.degrees(raw.mask)
+    ax.plot(r_mask * np.sin(circ), r_mask * np.cos(circ), "--", color="0.5", lw=0.8,
+            label=f"elevation mask {math.degrees(raw.mask):g}°")
     names = sorted(set(sats.tolist()))
     colour = {}
     for s_ in names:
@@ -170,8 +180,7 @@ def raw_outputs(res, raw, metrics, tables, figures, notes, echo=print):
         ax.plot(rr_ * np.sin(az_), rr_ * np.cos(az_), ".", ms=2, color=colour[s_[0]])
         ax.text(rr_[-1] * np.sin(az_[-1]) + 2, rr_[-1] * np.cos(az_[-1]) + 2, s_, fontsize=7)
     for sys_, c_ in colour.items():
-        ax.plot([], [], ".", color=c_, label={"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS",
-                                              "J": "QZSS"}.get(sys_, sys_))
+        ax.plot([], [], ".", color=c_, label=_SYSTEM_NAMES.get(sys_, sys_))
     ax.set_xlim(-95, 95)
     ax.set_ylim(-95, 95)
     ax.set_aspect("equal")
@@ -182,32 +191,90 @@ def raw_outputs(res, raw, metrics, tables, figures, notes, echo=print):
     ax.legend(fontsize=8, loc="lower right")
     figures.append(Figure("skyplot", fig, "Sky plot: satellite tracks over the run seen from the INS "
                           "antenna (centre: zenith; azimuth clockwise from north; label at the last epoch)."))
-    fig, axes = plotting.figure(2, 1, width=9.0)
+    t_label = "time since the filter start [s]"
+    sys_colour = {k: plotting.COLORS[j % len(plotting.COLORS)] for j, k in enumerate(colour)}
+    fig, axes = plotting.figure(3, 1, width=9.0, sharex=False)
     tt = np.array(pr.log.t) - t0
-    axes[0].step(tt, n_used, where="post", label="used", color=plotting.COLORS[0])
-    axes[0].step(tt, [int(r.sum()) for r in pr.log.rejected], where="post", label="rejected by the gate",
-                 color=plotting.COLORS[1])
-    axes[0].step(tt, [int(np.isfinite(i).sum()) for i in pr.log.innovation], where="post", lw=0.8,
-                 label="candidates (ephemeris, mask, limit)", color="0.5")
-    axes[0].set_ylabel("satellites")
-    axes[0].legend(fontsize=8)
-    for s in sorted(set(sats.tolist())):
+    axes[0].step(tt, [int(np.isfinite(i).sum()) for i in pr.log.innovation], where="post", lw=2.5,
+                 label="candidates (with ephemeris, above the mask, within the limit)", color="0.75")
+    axes[0].step(tt, n_used, where="post", lw=1, label="pseudoranges used", color=plotting.COLORS[0])
+    axes[0].step(tt, [int(r.sum()) for r in pr.log.rejected], where="post", lw=1,
+                 label="pseudoranges rejected by the gate", color=plotting.COLORS[1])
+    if dp is not None:
+        axes[0].step(np.array(dp.log.t) - t0, [int(r.sum()) for r in dp.log.rejected], where="post",
+                     lw=1, ls="--", label="range rates rejected by the gate", color=plotting.COLORS[4])
+    axes[0].set_ylim(bottom=-0.5)
+    axes[0].set_ylabel("satellites per epoch")
+    axes[0].set_xlabel(t_label)
+    axes[0].legend(fontsize=7, loc="center right")
+    used_sats = sorted({s for s in sats[cols["pr_used"] == 1].tolist()})
+    for s in used_sats:
         m = (sats == s) & (cols["pr_used"] == 1)
-        axes[1].plot(cols["t_s"][m], cols["pr_innovation_m"][m], ".", ms=1.5, label=s)
-    axes[1].set_ylabel("pseudorange innovation [m]")
-    axes[1].set_xlabel("time [s]")
-    axes[1].legend(fontsize=6, ncol=6, markerscale=4)
-    figures.append(Figure("satellites", fig, "Satellites used and rejected per epoch; pseudorange "
-                          "innovation of each satellite used (predicted minus measured, before the update)."))
+        axes[1].plot(cols["t_s"][m], cols["pr_innovation_m"][m], ".", ms=1.5, color=sys_colour[s[0]])
+    rj = cols["pr_rejected"] == 1
+    if rj.any():
+        axes[1].plot(cols["t_s"][rj], cols["pr_innovation_m"][rj], "x", ms=4, color="k",
+                     label="rejected by the gate")
+    for sys_, c_ in sys_colour.items():
+        axes[1].plot([], [], ".", color=c_, label=_SYSTEM_NAMES.get(sys_, sys_))
+    axes[1].set_ylabel("pseudorange\ninnovation z − Hx⁻ [m]")
+    axes[1].set_xlabel(t_label)
+    axes[1].legend(fontsize=7, ncol=4, markerscale=3, loc="lower left")
+    # per satellite: spread of the innovations of the rows used, in σ of their own R
+    data_, labels_ = [], []
+    for s in used_sats:
+        m = (sats == s) & (cols["pr_used"] == 1)
+        data_.append(cols["pr_innovation_m"][m])
+        labels_.append(f"{s}\n{int(m.sum())}")
+    if data_:
+        bp = axes[2].boxplot(data_, whis=(5, 95), showfliers=False, patch_artist=True)
+        for patch, s in zip(bp["boxes"], used_sats):
+            patch.set_facecolor(sys_colour[s[0]])
+            patch.set_alpha(0.6)
+        axes[2].set_xticks(range(1, len(labels_) + 1), labels_, fontsize=6)
+    axes[2].axhline(0, color="0.5", lw=0.6)
+    axes[2].set_ylabel("pseudorange\ninnovation [m]")
+    axes[2].set_xlabel("satellite (rows used); box: quartiles, whiskers: 5th and 95th percentiles")
+    skipped = sorted(set(sats.tolist()) - set(used_sats))
+    if skipped:
+        axes[2].set_title(f"never used (no ephemeris, below the mask or over the limit): {', '.join(skipped)}",
+                          fontsize=7)
+    figures.append(Figure("satellites", fig, "Satellites used and rejected per epoch, pseudorange "
+                          "innovations per satellite. Candidates, rows used and rows refused by the "
+                          "innovation gate at each epoch; the innovation z − Hx⁻ (before the update, "
+                          "coloured by system) of every pseudorange used, and its spread per satellite."))
     if clock is not None:
-        fig, axes = plotting.figure(2, 1, width=9.0)
+        n_isb = clock.shape[1] - 2
+        fig, axes = plotting.figure(3 if n_isb else 2, 1, width=9.0)
         ts_ = res.t - t0
-        axes[0].plot(ts_, clock[:, 0] - clock[0, 0], lw=1)
-        axes[0].set_ylabel(f"clock bias − {clock[0, 0]:.0f} m [m]")
-        axes[1].plot(ts_, clock[:, 1], lw=1)
+        sg = res.sigma[:, sl]
+        b_ref = round(float(clock[0, 0]))
+        axes[0].plot(ts_, clock[:, 0] - b_ref, lw=1)
+        ref_txt = f"{'+' if b_ref < 0 else '−'} {abs(b_ref):,d} m".replace(",", " ")
+        axes[0].set_ylabel(f"clock bias [m]\n({ref_txt})")
+        axes[1].plot(ts_, clock[:, 1], lw=1, label="estimate")
+        axes[1].fill_between(ts_, clock[:, 1] - sg[:, 1], clock[:, 1] + sg[:, 1], color="0.85", lw=0,
+                             label="± 1σ")
         axes[1].set_ylabel("clock drift [m/s]")
-        axes[1].set_xlabel("time [s]")
-        figures.append(Figure("clock", fig, "Receiver clock bias and drift estimated by the filter."))
+        axes[1].legend(fontsize=7)
+        for j, s in enumerate(raw.systems[1:]):
+            c_ = sys_colour.get(s, None)
+            axes[2].plot(ts_, clock[:, 2 + j], lw=1, color=c_,
+                         label=f"{_SYSTEM_NAMES.get(s, s)} − {_SYSTEM_NAMES.get(raw.systems[0], raw.systems[0])}")
+            axes[2].fill_between(ts_, clock[:, 2 + j] - sg[:, 2 + j], clock[:, 2 + j] + sg[:, 2 + j],
+                                 color=c_, alpha=0.15, lw=0)
+        if n_isb:
+            # the first epochs' σ (tens of metres) would flatten the estimates
+            settled = ts_ >= min(5.0, float(ts_[-1]) / 2)
+            lo_, hi_ = clock[settled, 2:].min(), clock[settled, 2:].max()
+            pad = max(1.0, 3 * float(np.median(sg[settled, 2:])), 0.2 * (hi_ - lo_))
+            axes[2].set_ylim(lo_ - pad, hi_ + pad)
+            axes[2].set_ylabel("inter-system bias [m]\n(± 1σ shaded)")
+            axes[2].legend(fontsize=7)
+        axes[-1].set_xlabel(t_label)
+        figures.append(Figure("clock", fig, "Receiver clock bias and drift estimated by the filter. Bias (1 m = 3.34 ns), "
+                              "drift (1 m/s = 3.34 ns/s) and inter-system biases against the first "
+                              "system, with ± 1σ."))
     notes.append(f"Tightly coupled: pseudoranges{' and Doppler' if dp else ''} of {metrics['gnss_systems']} "
                  f"satellites above {metrics['elevation_mask_deg']:g} deg; the filter starts from the "
                  "single-point solution (GNSS-only least squares) and the fix tables compare with it. "
