@@ -101,6 +101,11 @@ class NavOptions:
     rest_min: float = 2.0                   #: shortest rest interval used [s]
     nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
     nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
+    #: body pitch on the suspension per longitudinal acceleration [rad per m/s²]: the vertical
+    #: NHC row's σ grows with it (0.30°/(m/s²): measured on a car against its RTK fixes,
+    #: docs/recorded-data.md); 0: the fixed σ alone
+    nhc_pitch_gradient: float = 0.3 * units.deg
+    nhc_correlation_time: float = 1.0       #: [s] that suspension pitch lasts (a manoeuvre)
     vehicle_mount: tuple | None = None      #: IMU body in the vehicle frame [pitch, roll, yaw] [rad]
     #: (what is left after the reader's mount: a case bolted 1-2° off the car's axes)
     estimate_vehicle: bool = False          #: states for the mount's pitch and yaw and the NHC lever
@@ -151,7 +156,10 @@ class NavOptions:
             raise ValueError("the vehicle mount and NHC lever states need the NHC (nhc_sigma)")
         if self.aid_gate is not None and not (0 < self.aid_gate < 1):
             raise ValueError(f"aid_gate must be a probability in (0, 1) or None, got {self.aid_gate}")
-        for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight"):
+        if not (math.isfinite(self.nhc_pitch_gradient) and self.nhc_pitch_gradient >= 0):
+            raise ValueError(f"nhc_pitch_gradient must be >= 0, got {self.nhc_pitch_gradient}")
+        for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight",
+                   "nhc_correlation_time"):
             v = getattr(self, nm)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{nm} must be > 0, got {v}")
@@ -758,7 +766,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         named.append(("nhc", NonHolonomic(
             opt.nhc_sigma, mount=Cvb, lever_arm=Cvb.T @ np.asarray(opt.nhc_lever_arm, float), every=every,
             gate=gate, mount_block="vm" if opt.estimate_vehicle else None,
-            lever_block="nlev" if opt.estimate_vehicle else None)))
+            lever_block="nlev" if opt.estimate_vehicle else None, pitch_gradient=opt.nhc_pitch_gradient,
+            correlation_time=opt.nhc_correlation_time, dt=T)))
     if opt.odometer is not None:
         named.append(("odometer", _odometer(opt.odometer, opt, T, t_lo, t_hi)))
     aiding = [m for _, m in named]
