@@ -713,6 +713,15 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         if init["platform"][0] == "aircraft":
             # an aircraft crabs into the wind: its course is its heading only to ~10°
             sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], AIRCRAFT_CRAB_SIGMA)
+    if init.get("rest_end") is not None and ts > init["rest_end"]:
+        # pitch and roll were levelled at the rest and carried by the gyros to the start (a
+        # taxi and a launch, a slow first stretch): the residual gyro bias (its prior σ) and
+        # the white noise tilt them on the way, so their σ at the start grows with the time
+        carried = float(ts - init["rest_end"])
+        tilt = math.hypot(float(np.max(opt.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
+        st = lay.slice("phi").start
+        sp0[st:st + 2] = np.hypot(sp0[st:st + 2], tilt)
+        init.update(tilt_carried_s=carried, initial_tilt_sigma=float(np.max(sp0[st:st + 2])))
     jf = int(np.argmin(np.abs(fixes.t - ts)))
     vs = fixes.sigma_vel[jf] if fixes.sigma_vel is not None else np.full(3, 0.1)
     sp0[lay.slice("dv")] = np.maximum(vs, opt.vel_sigma_floor) * 2
