@@ -139,7 +139,7 @@ QUOTED = [
      ["pseudorange_nis_mean", "pseudoranges_used", "doppler_nis_mean", "doppler_used"], 0.0),
     ("recorded-data.md", "pitch 0.15°, roll −0.28°, heading 61.70° (σ 0.23°)", DRIVE,
      ["final_pitch_deg", "final_roll_deg", "final_heading_deg", "final_sigma_heading_deg"], 0.0),
-    ("recorded-data.md", "accelerometer bias [2152, 7695, 13470] µg", DRIVE, ["accel_bias_final_ug"], 0.0),
+    ("recorded-data.md", "accelerometer bias [2153, 7695, 13470] µg", DRIVE, ["accel_bias_final_ug"], 0.0),
     ("recorded-data.md", "gyro bias [−251, 96, 591] °/h", DRIVE, ["gyro_bias_final_dph"], 0.0),
     ("recorded-data.md", "NIS 1.78 of 6", DRIVE, ["nis_mean", "nis_dof"], 0.0),
     ("README.md", "residual − limit φE 0.10′, φU 0.13′, εN 0.002 °/h", "run static-alignment",

@@ -106,6 +106,7 @@ DESCRIPTIONS = {
         (r"^time_sync_offset_applied$", "whether the offset was applied (significant at 3σ)"),
         (r"^time_sync_ppm_applied$", "whether the clock drift was applied"),
         (r"^initial_heading_sigma_deg$", "1σ of the initial heading (from the fix course window)"),
+        (r"^initial_attitude_sigma_deg$", "filter 1σ of the attitude error φE, φN, φU at its first epoch"),
         (r"^fixes_after_grid$", "fixes after the last whole filter step, not used"),
         (r"^filter_gyro_arw_deg_sqrth$", "gyro angle random walk x, y, z the filter assumed"),
         (r"^filter_accel_vrw_ug_sqrthz$", "accelerometer velocity random walk x, y, z the filter assumed"),

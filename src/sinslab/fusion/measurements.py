@@ -700,24 +700,50 @@ class NonHolonomic(_OnEpochs):
         yaw; roll is unobservable) estimating the mount's small-angle error.
     every, stream, gate
         As in :class:`ZeroVelocity`.
+    pitch_gradient : float, optional
+        Pitch of the body on its suspension per longitudinal acceleration [rad per m/s²]
+        (a car dips its nose when braking). The vertical velocity it gives the constraint
+        point, ``e = v_y k a_y`` (vehicle axes, ``a = C_b^n f^b + g^n``), is not modelled
+        but systematic over a manoeuvre: its variance is added to the vertical row's,
+        multiplied by the number of updates in ``correlation_time`` (it does not average
+        out like white noise over them). 0: the fixed σ alone.
+    correlation_time : float, optional
+        [s] over which that error stays the same (a braking or accelerating manoeuvre).
+    dt : float, optional
+        Filter epoch [s]; the updates come every ``every * dt``.
     """
 
     rows = (0, 2)
 
     def __init__(self, sigma=0.1, *, mount=None, lever_arm=None, intervals=None, lever_block=None,
-                 every=1, stream=0, gate=None, mount_block=None):
+                 every=1, stream=0, gate=None, mount_block=None, pitch_gradient=0.0,
+                 correlation_time=1.0, dt=None):
         self._init_sched(intervals, every, stream, gate)
         self.sigma = _sigma(sigma, 2, "NHC")
         self.Cvb = vehicle_from_body(mount)
         self.lever = _lever(lever_arm)
         self.lever_block = lever_block
         self.mount_block = mount_block
+        self.pitch_gradient = float(pitch_gradient)
+        if not (math.isfinite(self.pitch_gradient) and self.pitch_gradient >= 0):
+            raise ValueError(f"NHC pitch gradient must be finite and >= 0, got {pitch_gradient}")
+        if self.pitch_gradient > 0 and not (dt is not None and dt > 0 and correlation_time > 0):
+            raise ValueError("an NHC pitch gradient needs the filter epoch dt > 0 and a correlation time > 0")
+        self.n_corr = max(1.0, correlation_time / (self.every * dt)) if self.pitch_gradient > 0 else 1.0
 
     def matrices(self, ep: Epoch):
-        vv, H = _vehicle_velocity(ep.streams[self.stream], ep.layout, ep.n, self.Cvb, self.lever,
+        nr = ep.streams[self.stream]
+        vv, H = _vehicle_velocity(nr, ep.layout, ep.n, self.Cvb, self.lever,
                                   self.lever_block, self.mount_block)
         r = list(self.rows)
-        return vv[r], H[r], self.sigma ** 2
+        R = self.sigma ** 2
+        if self.pitch_gradient > 0:
+            Cbn = nr.C_bn
+            acc = Cbn @ nr.f_b + E.gravity_vector(nr.lat, nr.h)
+            av = self.Cvb @ (Cbn.T @ acc)                   # vehicle axes: y forward
+            e = self.pitch_gradient * (vv[1] * av[1])
+            R = R + np.array([0.0, self.n_corr * e * e])
+        return vv[r], H[r], R
 
 
 class BodyVelocity(Timed):

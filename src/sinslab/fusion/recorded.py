@@ -101,6 +101,11 @@ class NavOptions:
     rest_min: float = 2.0                   #: shortest rest interval used [s]
     nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
     nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
+    #: body pitch on the suspension per longitudinal acceleration [rad per m/s²]: the vertical
+    #: NHC row's σ grows with it (0.30°/(m/s²): measured on a car against its RTK fixes,
+    #: docs/recorded-data.md); 0: the fixed σ alone
+    nhc_pitch_gradient: float = 0.3 * units.deg
+    nhc_correlation_time: float = 1.0       #: [s] that suspension pitch lasts (a manoeuvre)
     vehicle_mount: tuple | None = None      #: IMU body in the vehicle frame [pitch, roll, yaw] [rad]
     #: (what is left after the reader's mount: a case bolted 1-2° off the car's axes)
     estimate_vehicle: bool = False          #: states for the mount's pitch and yaw and the NHC lever
@@ -151,7 +156,10 @@ class NavOptions:
             raise ValueError("the vehicle mount and NHC lever states need the NHC (nhc_sigma)")
         if self.aid_gate is not None and not (0 < self.aid_gate < 1):
             raise ValueError(f"aid_gate must be a probability in (0, 1) or None, got {self.aid_gate}")
-        for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight"):
+        if not (math.isfinite(self.nhc_pitch_gradient) and self.nhc_pitch_gradient >= 0):
+            raise ValueError(f"nhc_pitch_gradient must be >= 0, got {self.nhc_pitch_gradient}")
+        for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight",
+                   "nhc_correlation_time"):
             v = getattr(self, nm)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{nm} must be > 0, got {v}")
@@ -705,6 +713,15 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         if init["platform"][0] == "aircraft":
             # an aircraft crabs into the wind: its course is its heading only to ~10°
             sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], AIRCRAFT_CRAB_SIGMA)
+    if init.get("rest_end") is not None and ts > init["rest_end"]:
+        # pitch and roll were levelled at the rest and carried by the gyros to the start (a
+        # taxi and a launch, a slow first stretch): the residual gyro bias (its prior σ) and
+        # the white noise tilt them on the way, so their σ at the start grows with the time
+        carried = float(ts - init["rest_end"])
+        tilt = math.hypot(float(np.max(opt.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
+        st = lay.slice("phi").start
+        sp0[st:st + 2] = np.hypot(sp0[st:st + 2], tilt)
+        init.update(tilt_carried_s=carried, initial_tilt_sigma=float(np.max(sp0[st:st + 2])))
     jf = int(np.argmin(np.abs(fixes.t - ts)))
     vs = fixes.sigma_vel[jf] if fixes.sigma_vel is not None else np.full(3, 0.1)
     sp0[lay.slice("dv")] = np.maximum(vs, opt.vel_sigma_floor) * 2
@@ -758,7 +775,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         named.append(("nhc", NonHolonomic(
             opt.nhc_sigma, mount=Cvb, lever_arm=Cvb.T @ np.asarray(opt.nhc_lever_arm, float), every=every,
             gate=gate, mount_block="vm" if opt.estimate_vehicle else None,
-            lever_block="nlev" if opt.estimate_vehicle else None)))
+            lever_block="nlev" if opt.estimate_vehicle else None, pitch_gradient=opt.nhc_pitch_gradient,
+            correlation_time=opt.nhc_correlation_time, dt=T)))
     if opt.odometer is not None:
         named.append(("odometer", _odometer(opt.odometer, opt, T, t_lo, t_hi)))
     aiding = [m for _, m in named]

@@ -301,6 +301,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     }
     hs = res.init.get("heading_sigma")
     metrics["initial_heading_sigma_deg"] = float(np.degrees(hs)) if hs is not None else None
+    metrics["initial_attitude_sigma_deg"] = np.degrees(res.sigma[0, :3]).tolist()
     metrics["fixes_after_grid"] = int(res.init.get("fixes_after_grid", 0))
     metrics["filter_gyro_arw_deg_sqrth"] = (np.asarray(res.init["filter_gyro_arw"]) / (units.deg / 60)).tolist()
     metrics["filter_accel_vrw_ug_sqrthz"] = (np.asarray(res.init["filter_accel_vrw"]) / units.ug).tolist()
@@ -387,6 +388,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              f"{np.degrees(res.init['roll']):.2f} deg {res.init.get('level_source')}")
     echo(f"  start {res.init['t_start'] - fx.t[0]:.2f} s after the first fix; heading "
          f"{np.degrees(res.init['heading']):.2f} deg (clockwise from north, {res.init['heading_source']})")
+    if res.init.get("tilt_carried_s", 0.0) > 1.0:
+        echo(f"  pitch and roll carried by the gyros {res.init['tilt_carried_s']:.1f} s from the rest: filter σ at "
+             f"the start pitch/roll {metrics['initial_attitude_sigma_deg'][0]:.1f}, "
+             f"{metrics['initial_attitude_sigma_deg'][1]:.1f} deg, heading {metrics['initial_attitude_sigma_deg'][2]:.1f} deg")
     if oe.size:
         echo(f"  {len(outs)} outages: horizontal error at their end median {np.median(oe):.2f} m, "
              f"max {np.max(oe):.2f} m")
