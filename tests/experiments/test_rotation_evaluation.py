@@ -14,6 +14,7 @@ import pytest
 from support import run_experiment
 
 from sinslab.app.config import ConfigError, resolve
+from sinslab.data.noise import load_recorded_gyro
 from sinslab.experiments import execute, get
 from sinslab.experiments import rotation_evaluation as R
 from sinslab.methods import rotins
@@ -247,23 +248,23 @@ def _csv(path, n, dt=0.1, gyro=None, t=None):
 
 def test_recorded_noise_bad_files(tmp_path):
     ok = _csv(tmp_path / "ok.csv", 200)
-    g = R.load_recorded_gyro(ok, 150, 0.1, "imu1.recorded_noise")
+    g = load_recorded_gyro(ok, 150, 0.1, "imu1.recorded_noise")
     assert g.shape == (150, 3) and np.allclose(g.mean(0), 0.0, atol=1e-15)
     with pytest.raises(ValueError, match=r"short\.csv: 200 samples .* needs 300"):
-        R.load_recorded_gyro(_csv(tmp_path / "short.csv", 200), 300, 0.1, "imu1.recorded_noise")
+        load_recorded_gyro(_csv(tmp_path / "short.csv", 200), 300, 0.1, "imu1.recorded_noise")
     t = 0.1 * np.arange(200)
     t[100:] += 5.0
     with pytest.raises(ValueError, match=r"recorded_noise: .*gap\.csv.*gap"):
-        R.load_recorded_gyro(_csv(tmp_path / "gap.csv", 200, t=t), 150, 0.1, "imu1.recorded_noise")
+        load_recorded_gyro(_csv(tmp_path / "gap.csv", 200, t=t), 150, 0.1, "imu1.recorded_noise")
     gn = np.full((200, 3), 1e-6)
     gn[50, 1] = np.nan
     with pytest.raises(ValueError, match=r"recorded_noise: .*nan\.csv.*NaN"):
-        R.load_recorded_gyro(_csv(tmp_path / "nan.csv", 200, gyro=gn), 150, 0.1, "imu1.recorded_noise")
+        load_recorded_gyro(_csv(tmp_path / "nan.csv", 200, gyro=gn), 150, 0.1, "imu1.recorded_noise")
     big = np.random.default_rng(1).standard_normal((200, 3)) * 5.0     # deg/s values labelled rad/s
     with pytest.raises(ValueError, match=r"units\.csv: .*wrong units"):
-        R.load_recorded_gyro(_csv(tmp_path / "units.csv", 200, gyro=big), 150, 0.1, "imu1.recorded_noise")
+        load_recorded_gyro(_csv(tmp_path / "units.csv", 200, gyro=big), 150, 0.1, "imu1.recorded_noise")
     with pytest.raises(ValueError, match=r"ok\.csv: sampled every 0\.1 s, the run uses 0\.01 s"):
-        R.load_recorded_gyro(ok, 150, 0.01, "imu1.recorded_noise")
+        load_recorded_gyro(ok, 150, 0.01, "imu1.recorded_noise")
 
 
 @pytest.mark.parametrize("sets, pattern", [

@@ -676,39 +676,6 @@ def _errors(sec, gyro_scale=1.0, white=True):
                           accel_vrw=np.full(3, float(sec.accel_vrw))).with_noise_scale(gyro=gyro_scale)
 
 
-def load_recorded_gyro(path, n_needed, dt, what):
-    """Gyro noise [rad/s] of a recorded static noise file (any reader of
-    :func:`sinslab.data.load.load_imu`, unit headers honoured; mean removed), checked for
-    the run: one line naming the file and the problem otherwise."""
-    from sinslab.data import load as dload
-
-    try:
-        d = dload.load_imu(path)
-    except (OSError, ValueError) as e:
-        msg = str(e)
-        raise UserError(f"{what}: {msg}" if str(path) in msg else f"{what} {path}: {msg}") from None
-    if np.asarray(d.gaps).size:
-        g0 = np.asarray(d.gaps)[0]
-        raise UserError(f"{what} {path}: gap of {g0[1]:g} s at t = {g0[0]:g} s in the time stamps")
-    rec = d.imu
-    step = float(rec.dt)
-    if abs(step - dt) > 1e-6 * dt:
-        raise UserError(f"{what} {path}: sampled every {step:g} s, the run uses {dt:g} s")
-    g = np.asarray(rec.dtheta, float) / step
-    if not np.all(np.isfinite(g)):
-        k = int(np.flatnonzero(~np.all(np.isfinite(g), 1))[0])
-        raise UserError(f"{what} {path}: NaN or infinite value at sample {k}")
-    if g.shape[0] < n_needed:
-        raise UserError(f"{what} {path}: {g.shape[0]} samples ({g.shape[0] * step / 3600:.3g} h), "
-                         f"the run needs {n_needed} ({n_needed * dt / 3600:.3g} h)")
-    g = g[:n_needed] - g[:n_needed].mean(0)
-    s = float(np.max(np.std(g, 0)))
-    if s > 0.01:
-        raise UserError(f"{what} {path}: gyro noise std {s:.3g} rad/s is far above any static "
-                         "navigation-grade record (wrong units in the header?)")
-    return g
-
-
 def joint_filter_setup(cfg: Config):
     """The nominal joint filter of every pair: ``(model, P0, sigma)`` — the 17-state model
     with the configured noise densities, the initial covariance (each INS's attitude error
@@ -824,6 +791,8 @@ def run(cfg: Config, ctx) -> Result:
     notes = []
 
     # recorded noise first: a bad file is reported before any work
+    from sinslab.data.noise import load_recorded_gyro
+
     rec1 = reck = None
     if cfg.imu1.recorded_noise:
         rec1 = load_recorded_gyro(cfg.imu1.recorded_noise, n_samples, dt, "imu1.recorded_noise")
