@@ -19,6 +19,7 @@ from sinslab.experiments import execute, get
 from sinslab.experiments import rotation_evaluation as R
 from sinslab.methods import rotins
 from sinslab.sim import imu as imu_
+from sinslab.sim import moored
 
 #: 24 h at 10 Hz, model step 2 s, filter step 30 s, std windows of 2 h from 12 h on: small enough for the suite
 SMALL = ["scenario.duration=24 h", "scenario.sample_interval=0.1 s", "filter.model_dt=2 s", "filter.kf_dt=30 s",
@@ -144,7 +145,7 @@ def test_block_means_removed():
     rng = np.random.default_rng(3)
     bias = np.array([1.0, -2.0, 3.0])
     x = bias + rng.standard_normal((25, 3))
-    y = R.remove_block_means(x.copy(), 10, bias)
+    y = moored.remove_block_means(x.copy(), 10, bias)
     for a, b in ((0, 10), (10, 20), (20, 25)):
         np.testing.assert_allclose(y[a:b].mean(0), bias, atol=1e-12)
         np.testing.assert_allclose(y[a:b] - y[a:b].mean(0), x[a:b] - x[a:b].mean(0), atol=1e-12)
@@ -155,7 +156,7 @@ def test_recorded_constant_record_is_a_gyro_bias(tmp_path):
     navigates exactly like a gyro bias c given to the error model."""
     lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
     _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
-    cyc = R.one_cycle(mk, lat, lon, dt)
+    cyc = moored.one_cycle(mk, lat, lon, dt)
     c = np.array([1e-8, -2e-8, 3e-8])
     base = imu_.ImuErrors()
     n_steps, k_kf = 30, 600
@@ -177,7 +178,7 @@ def test_grouped_navigation_equals_one_ins_at_a_time(mode):
     must still share their cycle)."""
     lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
     m1, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
-    c1, ck = R.one_cycle(m1, lat, lon, dt), R.one_cycle(mk, lat, lon, dt)
+    c1, ck = moored.one_cycle(m1, lat, lon, dt), moored.one_cycle(mk, lat, lon, dt)
     n_steps, k_kf = 23, 600
     white = imu_.ImuErrors(gyro_bias=np.full(3, 1e-8), accel_bias=np.full(3, 2e-4), gyro_arw=np.full(3, 3e-7),
                            accel_vrw=np.full(3, 5e-5))
@@ -208,7 +209,7 @@ def test_group_navigation_gives_up_when_told():
 
     lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
     _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
-    ck = R.one_cycle(mk, lat, lon, dt)
+    ck = moored.one_cycle(mk, lat, lon, dt)
     e = imu_.ImuErrors(gyro_arw=np.full(3, 3e-7), accel_vrw=np.full(3, 5e-5))
     kw = dict(seed=1, lat=lat, lon=lon, dt=dt, n_steps=40, k_kf=60, nsub=2, att_sigma=np.zeros(3),
               chunk_steps=1, rates=False)
@@ -308,7 +309,7 @@ def test_block_means_removed_while_navigating():
     at all: it navigates like the same INS without the record (its bias kept)."""
     lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
     _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
-    cyc = R.one_cycle(mk, lat, lon, dt)
+    cyc = moored.one_cycle(mk, lat, lon, dt)
     errs = imu_.ImuErrors(gyro_bias=np.array([1e-8, 2e-8, -1e-8]), accel_bias=np.array([1e-4, 0.0, 0.0]))
     n_steps, k_kf = 30, 600
     rec = np.tile(np.array([1e-8, -2e-8, 3e-8]), (n_steps * k_kf, 1))

@@ -58,10 +58,10 @@ from typing import Literal
 import numpy as np
 from pydantic import field_validator, model_validator
 
-from sinslab.app.errors import UserError
 from sinslab.core import units
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
 from sinslab.sim import indexing as ix
+from sinslab.sim import moored
 
 NAME = "rotation-evaluation"
 #: The Monte Carlo campaign (and so --scheduler) needs runs >= 2; one run is the single run.
@@ -88,13 +88,10 @@ NOTES = [
 
 
 # ---------------------------------------------------------------- configuration -------
-#: Move lists (axis, degrees) of the INS k mechanism: the paper's 16-step dual-axis scheme and
-#: two one-axis flips (to check the paper's observability conditions on other schedules).
-_DUAL_SCHEMES = {
-    "dual_axis_16": ix.DUAL_AXIS_16,
-    "azimuth_flip": (("yaw", 180.0), ("yaw", -180.0)),
-    "roll_flip": (("roll", 180.0), ("roll", -180.0)),
-}
+#: Schemes of the INS k mechanism (:data:`sinslab.sim.indexing.SCHEMES`): the paper's 16-step
+#: dual-axis scheme and two one-axis flips (to check the paper's observability conditions on
+#: other schedules).
+_DUAL_SCHEMES = ("dual_axis_16", "azimuth_flip", "roll_flip")
 
 class Scenario(Section):
     latitude: Q("angle", ge="-80 deg", le="80 deg") = Field("28.222 deg", description="mooring latitude")
@@ -327,35 +324,8 @@ def mounts(cfg: Config):
     """The two indexing mounts (INS #1, INS #k)."""
     r = cfg.rotation
     m1 = ix.single_axis_4pos(rate=float(r.rate), dwell=float(r.dwell_single), ramp=float(r.ramp))
-    mk = ix.RotateStop(tuple((a, math.radians(x)) for a, x in _DUAL_SCHEMES[r.dual_scheme]),
-                       float(r.rate), float(r.ramp), float(r.dwell_dual), (0.0, 0.0, 0.0), True,
-                       r.dual_scheme)
+    mk = ix.scheme(r.dual_scheme, rate=float(r.rate), dwell=float(r.dwell_dual), ramp=float(r.ramp))
     return m1, mk
-
-
-@dataclass
-class Cycle:
-    """One cycle of exact increments of a static carrier with an indexing mount."""
-
-    dth: np.ndarray
-    dv: np.ndarray
-    att0: np.ndarray       # IMU attitude at t = 0 (Euler)
-    period: float
-
-
-def one_cycle(mount, lat, lon, dt):
-    """Exact increments over one mount cycle (they repeat: the carrier is at rest)."""
-    from sinslab.sim import trajectory as tj
-
-    Tc = float(mount.cycle_time)
-    n = int(round(Tc / dt))
-    if abs(n * dt - Tc) > 1e-6:
-        raise UserError(f"rotation: the cycle of {mount.name} ({Tc:g} s) is not a whole number of IMU samples "
-                        f"of {dt:g} s; choose rate, ramp and dwell so that it is")
-    gen = tj.generate([tj.Static(Tc)], tj.Start(lat=lat, lon=lon, h=0.0), dt, duration=Tc, mount=mount,
-                      out_every=n)
-    return Cycle(np.ascontiguousarray(gen.imu.dtheta), np.ascontiguousarray(gen.imu.dv),
-                 np.asarray(gen.truth.att_imu[0], float), Tc)
 
 
 def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups, inputs=False):
@@ -381,8 +351,8 @@ def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups,
     key = np.round(np.concatenate([a1, ak], -1).reshape(K, me * 6), 9)
     uniq, first, index = np.unique(key, axis=0, return_index=True, return_inverse=True)
     sub = (first[:, None] * me + np.arange(me)[None, :]).ravel()
-    r1, w1, f1 = _truth_rows(m1, np.r_[ts[sub], 0.0], lat, lon)
-    rk, wk, fk = _truth_rows(mk, np.r_[ts[sub], 0.0], lat, lon)
+    r1, w1, f1 = moored.truth_rows(m1, np.r_[ts[sub], 0.0], lat, lon)
+    rk, wk, fk = moored.truth_rows(mk, np.r_[ts[sub], 0.0], lat, lon)
     out = rotins.joint_transitions(model, model_dt, r1[:-1], rk[:-1], (w1, f1), (wk, fk),
                                    noise_groups=noise_groups, substeps=me, inputs=inputs)
     return (*out[:2], np.asarray(index, dtype=np.int64).reshape(K), *out[2:])
@@ -413,7 +383,7 @@ class InsSpec:
     """One INS to navigate: its cycle, error model, random stream and extras."""
 
     name: str
-    cycle: Cycle
+    cycle: moored.Cycle
     errors: imu_.ImuErrors
     stream: tuple               # seed stream id (same id = same noise record)
     trend: object = None        # sim.imu.Trend on the gyros, time from the run start
@@ -422,44 +392,12 @@ class InsSpec:
     demean: int = 0             # remove the noise's mean over blocks of this many samples (0: off)
 
 
-def remove_block_means(x, nb, keep=0.0):
-    """Remove from ``x`` (L, 3), in place, its mean over consecutive blocks of ``nb`` rows
-    (a last, shorter block over its own rows) and add ``keep`` (3,) back: with ``x`` the
-    error of the increments, bias·dt + noise, and ``keep`` = bias·dt, the noise loses its
-    block means and the bias stays."""
-    L = x.shape[0]
-    full = (L // nb) * nb
-    if full:
-        v = x[:full].reshape(-1, nb, x.shape[1])
-        v -= v.mean(1, keepdims=True) - keep
-    if full < L:
-        x[full:] -= x[full:].mean(0) - keep
-    return x
-
-
 @dataclass
 class InsOutput:
     rows: np.ndarray            # (M, 10) at the filter epochs
     omega: np.ndarray           # (M-1, 3) mean measured rate per step [rad/s]
     f: np.ndarray               # (M-1, 3) mean specific force per step [m/s²]
     pos_err_m: np.ndarray       # (M,) horizontal position error [m]
-
-
-def _tile(a, i0, L, out=None):
-    """Rows ``i0 .. i0+L−1`` of the periodic repetition of ``a`` (slices, no index array):
-    a view when they do not wrap, else copied into ``out`` (rows ≥ L) or a new array."""
-    N = a.shape[0]
-    j = i0 % N
-    if j + L <= N:
-        return a[j:j + L]
-    res = np.empty((L,) + a.shape[1:], a.dtype) if out is None else out[:L]
-    k = min(L, N - j)
-    res[:k] = a[j:j + k]
-    while k < L:
-        m = min(N, L - k)
-        res[k:k + m] = a[:m]
-        k += m
-    return res
 
 
 def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps=360,
@@ -538,20 +476,21 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
         # draws are scaled exactly as imu.apply on that record would scale them
         dt_rec = float((t[-1] - t[0]) / (L - 1)) if L > 1 else dt
         out = noisy if L == Lmax else None
-        dth_all, dv_all = imu_.apply_arrays_shared(_tile(cyc.dth, i0, L, tile_th), _tile(cyc.dv, i0, L, tile_v),
-                                                   t, dt_rec, errors, rng, out=out)
+        dth_all, dv_all = imu_.apply_arrays_shared(moored.tile(cyc.dth, i0, L, tile_th),
+                                                   moored.tile(cyc.dv, i0, L, tile_v), t, dt_rec, errors, rng,
+                                                   out=out)
         for j, spec in enumerate(specs):
             dth, dv = dth_all[j], dv_all[j]
             if spec.recorded is not None:
                 g, off = spec.recorded
-                dth += _tile(g, off + i0, L, rec_buf) * (spec.gyro_scale * dt)
+                dth += moored.tile(g, off + i0, L, rec_buf) * (spec.gyro_scale * dt)
             if spec.demean:
                 # the noise, synthesised or recorded, loses its block means; the chunks hold
                 # whole blocks, so the blocks are counted from the start of the run
                 e = spec.errors
-                for inc, true, bias in ((dth, _tile(cyc.dth, i0, L, tile_th), e.gyro_bias),
-                                        (dv, _tile(cyc.dv, i0, L, tile_v), e.accel_bias)):
-                    err = remove_block_means(inc - true, spec.demean, np.asarray(bias, float) * dt)
+                for inc, true, bias in ((dth, moored.tile(cyc.dth, i0, L, tile_th), e.gyro_bias),
+                                        (dv, moored.tile(cyc.dv, i0, L, tile_v), e.accel_bias)):
+                    err = moored.remove_block_means(inc - true, spec.demean, np.asarray(bias, float) * dt)
                     np.add(true, err, out=inc)
             if spec.trend is not None:
                 dth += spec.trend.evaluate(t - 0.5 * dt) * dt
@@ -732,8 +671,8 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
     lat, lon = float(sc.latitude), float(sc.longitude)
     dt, k_md, me, n_kf, n_steps = _grid(cfg)
     m1, mk = mounts(cfg)
-    cyc1 = one_cycle(m1, lat, lon, dt)
-    cyck = one_cycle(mk, lat, lon, dt)
+    cyc1 = moored.one_cycle(m1, lat, lon, dt)
+    cyck = moored.one_cycle(mk, lat, lon, dt)
     e1 = _errors(cfg.imu1, white=not cfg.imu1.recorded_noise)
     a2 = cfg.analysis_two
     trend = drift_trend(cfg)
@@ -1069,24 +1008,6 @@ def campaign_spec(cfg: Config, model, P0, sig_meas, tables):
                 window=float(ev.window), trend_steps=np.diff(np.r_[0.0, tr]),
                 block_steps=int(round(float(cfg.imu1.noise_block) / kf_dt)), eps_true=eps_true,
                 band=float(ev.settle_band))
-
-
-def _truth_rows(mount, t, lat, lon):
-    """Error-free INS output of a moored ship at the epochs: rows, step rates (carrier = ENU)."""
-    from sinslab.core import attitude as A
-    from sinslab.core import earth
-
-    ang, _ = ix.mount_angles(mount, t)
-    C = A.euler_to_dcm(ang)
-    rows = np.zeros((t.size, 10))
-    rows[:, :4] = A.euler_to_quat(ang)
-    rows[:, 7] = lat
-    rows[:, 8] = lon
-    wie = earth.WIE * np.array([0.0, math.cos(lat), math.sin(lat)])
-    g = float(earth.gravity(lat, 0.0))
-    w = np.einsum("kji,j->ki", C, wie)[:-1]
-    f = np.einsum("kji,j->ki", C, np.array([0.0, 0.0, g]))[:-1]
-    return rows, w, f
 
 
 def _linear_setup(spec):
