@@ -509,17 +509,6 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
     return out
 
 
-@dataclass
-class _Group:
-    """The INS of one :func:`navigate_group` call, shipped to a worker as one object."""
-
-    specs: list
-
-
-def _navigate_sent(group, **nav_kw):
-    return navigate_group(group.specs, **nav_kw)
-
-
 def _groups(specs):
     """Keys of ``specs`` grouped by (cycle, random stream), largest group first (the
     order in which they are handed to the workers, so the long ones start first)."""
@@ -557,52 +546,19 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
     -------
     dict {key: InsOutput}
     """
-    import threading
+    from sinslab.estimation.montecarlo import map_tasks
 
     groups = _groups(specs)
-    stop = threading.Event()
 
-    def one(keys):
-        outs = navigate_group([specs[k] for k in keys], **nav_kw, stop=stop)
+    def done(i, outs):
         if bar is not None:
-            bar.advance(len(keys))
-        return dict(zip(keys, outs))
+            bar.advance(len(outs))
 
-    outs = {}
-    if mode == "serial" or len(groups) == 1:
-        for g in groups:
-            outs.update(one(g))
-    elif mode == "threads":
-        from concurrent.futures import ThreadPoolExecutor, as_completed
-
-        # handed out in order, largest group first, each to the next free thread: the
-        # six-INS group of INS #2 runs beside the others instead of after them
-        pool = ThreadPoolExecutor(max_workers=int(workers))
-        try:
-            for fut in as_completed([pool.submit(one, g) for g in groups]):
-                outs.update(fut.result())
-        except BaseException:
-            # an interrupt reaches the main thread only, a failed group only its future:
-            # either way the other groups end at their next chunk
-            stop.set()
-            raise
-        finally:
-            pool.shutdown(wait=True, cancel_futures=True)
-    else:
-        from distributed import as_completed
-
-        from sinslab.estimation.montecarlo import dask_client
-
-        with dask_client(scheduler or None, int(workers)) as client:
-            # the cycles are tens of MB: send each group once rather than inside the task graph,
-            # as one object so that its INS still share one cycle on the worker
-            sent = client.scatter([_Group([specs[k] for k in g]) for g in groups], hash=False)
-            futs = {client.submit(_navigate_sent, f, pure=False, **nav_kw): g for g, f in zip(groups, sent)}
-            for fut in as_completed(futs):
-                g = futs[fut]
-                outs.update(zip(g, fut.result()))
-                if bar is not None:
-                    bar.advance(len(g))
+    # handed out in order, largest group first, each to the next free worker: the six-INS
+    # group of INS #2 runs beside the others instead of after them
+    res = map_tasks(navigate_group, [[specs[k] for k in g] for g in groups], mode=mode, workers=workers,
+                    scheduler=scheduler, kwargs=nav_kw, on_done=done)
+    outs = {k: o for g, r in zip(groups, res) for k, o in zip(g, r)}
     return {k: outs[k] for k in specs}
 
 
