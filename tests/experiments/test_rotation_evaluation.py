@@ -112,8 +112,8 @@ def test_linear_campaign_matches_nonlinear_pipeline(small):
     m1, mk = R.mounts(cfg)
     dt, k_md, me, n_kf, _ = R._grid(cfg)
     tables = R.schedule_transitions(m1, mk, lat, float(cfg.scenario.longitude), model, float(cfg.filter.model_dt), me,
-                                    n_kf, R._GROUPS, inputs=True)
-    S = R._linear_setup(R.campaign_spec(cfg, model, P0, sig, tables))
+                                    n_kf, rotins.NOISE_GROUPS, inputs=True)
+    S = rotins.campaign_setup(R.campaign_spec(cfg, model, P0, sig, tables))
     assert S["sig_z"][-1] / R.DPH == pytest.approx(m["eps_z1_sigma_final_dph"], rel=1e-3)
     mc_mean = np.array(m["mc_windowed_std_mean_dph"])
     mc_sd = np.array(m["mc_windowed_std_sd_dph"])

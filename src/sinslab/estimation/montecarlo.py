@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import sys
 import time
@@ -36,7 +37,7 @@ from scipy import stats
 from sinslab.core.errors import InputError
 
 __all__ = ["spawn_seeds", "run_campaign", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
-           "linear_batch"]
+           "mean_ci95", "wilson_ci95", "linear_batch"]
 
 
 def spawn_seeds(seed, n_runs):
@@ -442,6 +443,25 @@ def map_tasks(fn, items, *, mode="threads", workers=2, scheduler=None, kwargs=No
 # ----------------------------------------------------------------------------------------
 # statistics
 # ----------------------------------------------------------------------------------------
+def mean_ci95(x):
+    """Mean of ``x`` over seeds and its 95 % confidence interval (Student t)."""
+    x = np.asarray(x, float)
+    m = float(x.mean())
+    if x.size < 2:
+        return m, [float("nan"), float("nan")]
+    h = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
+    return m, [m - h, m + h]
+
+
+def wilson_ci95(k, n):
+    """95 % Wilson score interval of a probability from ``k`` successes in ``n`` trials."""
+    z = 1.959963984540054
+    p = k / n
+    c = (p + z * z / (2 * n)) / (1 + z * z / n)
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return [max(0.0, c - h), min(1.0, c + h)]
+
+
 def chi2_bounds(dof, n_runs, alpha=0.05):
     """Two-sided acceptance bounds of the run-averaged NEES or NIS.
 

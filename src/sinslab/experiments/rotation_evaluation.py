@@ -358,9 +358,6 @@ def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups,
     return (*out[:2], np.asarray(index, dtype=np.int64).reshape(K), *out[2:])
 
 
-_GROUPS = {"ins1": range(0, 5), "gyro_k": range(5, 8), "accel_k": range(8, 10)}
-
-
 def observability(cfg: Config, model):
     """Observability of the joint model along the stops of both schedules (one cycle of the
     longer one, two for the one-axis flips) and the warning line when the stacked rank
@@ -724,8 +721,8 @@ def run(cfg: Config, ctx) -> Result:
     def stream(o):
         return PrecomputedStream(t_md, o.rows, o.omega, o.f)
 
-    Phi_u, Q_u, idx, Gam_u = schedule_transitions(m1, mk, lat, lon, model, model_dt, me, n_kf, _GROUPS,
-                                                  inputs=True)
+    Phi_u, Q_u, idx, Gam_u = schedule_transitions(m1, mk, lat, lon, model, model_dt, me, n_kf,
+                                                  rotins.NOISE_GROUPS, inputs=True)
     Q_all = Q_u["ins1"] + Q_u["gyro_k"] + Q_u["accel_k"]
 
     def jf(a, b):
@@ -937,13 +934,6 @@ def run(cfg: Config, ctx) -> Result:
 
 
 # ---------------------------------------------------------------- Monte Carlo -------------
-#: parts of the linear-domain run: which noise drives each (None: no noise) —
-#: INS 1 + initial state, INS 2 accel, INS 2 gyro, INS B accel, INS B gyro, INS 3 accel,
-#: INS 3 gyro, INS 4 accel, INS 4 gyro, INS 1's drift trend, INS 1's noise block means
-_PARTS = ("ins1", "accel_k", "gyro_k", "accel_k", "gyro_k", "accel_k", "gyro_k", "accel_k", "gyro_k",
-          None, "blocks")
-
-
 def campaign_spec(cfg: Config, model, P0, sig_meas, tables):
     """What a worker of the linear campaign needs: the scenario numbers and the main
     process's transition table ``(Phi, Q, index, Gam)`` of :func:`schedule_transitions`
@@ -966,222 +956,21 @@ def campaign_spec(cfg: Config, model, P0, sig_meas, tables):
                 band=float(ev.settle_band))
 
 
-def _linear_setup(spec):
-    """The campaign's fixed part, made once in the main process from its transition table:
-    transitions, noise square roots and the nominal filter's gains, positions in metres.
-
-    INS 1's step noise is split into its step mean ``u ~ N(0, q/T)`` acting through ``Γ``
-    (:func:`sinslab.methods.rotins.joint_transitions` with ``inputs=True``) and the rest,
-    independent of ``u``: removing the block means of ``u`` is then removing those of INS 1's
-    noise, and the white case is the same numbers with nothing removed."""
-    from sinslab.methods import rotins
-
-    model = rotins.joint_rotation_model()
-    model.q[:] = spec["q"]
-    K, T = spec["n_steps"], spec["kf_dt"]
-    Phi, Qg, Gam, index = spec["Phi"].copy(), {g: v.copy() for g, v in spec["Q"].items()}, spec["Gam"], spec["index"]
-    n = model.n
-    sig = spec["sig"]
-    d = rotins._metre_scale(model, sig)
-    Phi *= d[:, None] / d[None, :]
-    q1 = spec["q"][list(_GROUPS["ins1"])]
-    G1 = Gam["ins1"] * d[None, :, None] * np.sqrt(q1 / T)[None, None, :]
-    roots = {}
-    for g, Qk in Qg.items():
-        Qk *= d[:, None] * d[None, :]
-        if g == "ins1":
-            Qk = Qk - G1 @ np.swapaxes(G1, -1, -2)
-        w, V = np.linalg.eigh(Qk)
-        roots[g] = V * np.sqrt(np.maximum(w, 0.0))[:, None, :]
-    Q = sum(Qg.values())
-    P = spec["P0"] * (d[:, None] * d[None, :])
-    Rv = (sig * np.r_[d[0], d[1], 1.0, 1.0]) ** 2
-    gains = np.empty((K, n, 4))
-    sig_z = np.empty(K + 1)
-    iz = model.layout.index(["eps_z_1"])[0]
-    sig_z[0] = math.sqrt(P[iz, iz])
-    for k in range(K):
-        u = index[k]
-        P = Phi[u] @ P @ Phi[u].T + Q[u]
-        S = P[:4, :4] + np.diag(Rv)
-        Kk = np.linalg.solve(S, P[:4, :]).T
-        IKH = np.eye(n)
-        IKH[:, :4] -= Kk
-        P = IKH @ P @ IKH.T + (Kk * Rv) @ Kk.T
-        P = 0.5 * (P + P.T)
-        gains[k] = Kk
-        sig_z[k + 1] = math.sqrt(P[iz, iz])
-    return dict(Phi=np.ascontiguousarray(Phi), index=index, roots=roots, G1=np.ascontiguousarray(G1),
-                gains=gains, Rv=Rv, d=d, iz=iz, P0=spec["P0"] * (d[:, None] * d[None, :]),
-                t=T * np.arange(K + 1), sig_z=sig_z)
-
-
-def linear_batch(seeds, spec, setup):
-    """Linear-domain runs of analyses one and two (campaign function of
-    :func:`sinslab.estimation.montecarlo.run_campaign`).
-
-    Per seed, the true joint error state and the nominal filter's estimate are propagated
-    in parts (``_PARTS``) that the filters share or not: the filter is linear with fixed
-    gains, so each filter's ε̂_z1 is a sum of parts, a rescaled noise record a scaled part
-    (ε̂_z1(β) = ε̂(rest) + β ε̂(gyro 2)), INS 1's noise without its block means the INS 1 part
-    minus the block-mean part, and the drift trend a part of its own. Vectorised over seeds
-    and parts. INS B, #3 and #4 share INS #2's initial state (its effect is gone long before
-    the first window).
-
-    Returns
-    -------
-    dict
-        ``wstd`` (B, len(betas)) mean windowed std of ε̂_z1 per β [rad/s]; ``wstd_sep``
-        (B, 2): INS A (β = 1), INS B (ratio ``sep``); ``wstd_two`` (B, 3): filters 2, 3, 4
-        of analysis two; ``final`` (B,) ε̂_z1 − ε_z1 at the end (β = 1); ``settle_band``
-        (B,) the band reading of the settling time [s] (β = 1); ``trend_corr`` (B, 3): the
-        correlation of filters 2, 3, 4's ε̂_z1 with the drift's trend after ``start``.
-    """
-    from sinslab.methods import rotins
-
-    S = setup
-    Phi, index, roots, gains, iz, G1 = S["Phi"], S["index"], S["roots"], S["gains"], S["iz"], S["G1"]
-    K, n = gains.shape[:2]
-    B = len(seeds)
-    P_ = len(_PARTS)
-    p1 = G1.shape[-1]
-    nb = spec["block_steps"]
-    L0 = np.linalg.cholesky(S["P0"])
-    rngs = [np.random.default_rng(s) for s in seeds]
-    X = np.zeros((B, P_, n))
-    for b, g in enumerate(rngs):
-        X[b, 0] = L0 @ g.standard_normal(n)
-    x0z = X[:, 0, iz].copy()
-    Xh = np.zeros((B, P_, n))
-    noisy = [j for j, s in enumerate(_PARTS) if s in ("ins1", "accel_k", "gyro_k")]
-    # per source: its parts and their columns among the noisy parts' draws
-    groups = [(g, np.array([j for j, s in enumerate(_PARTS) if s == g]),
-               np.array([noisy.index(j) for j, s in enumerate(_PARTS) if s == g])) for g in ("ins1", "accel_k", "gyro_k")]
-    j_tr, j_bl = _PARTS.index(None), _PARTS.index("blocks")
-    tr = spec["trend_steps"] * S["d"][iz]
-    sv = np.sqrt(S["Rv"])
-    ez = np.empty((B, P_, K + 1))
-    ez[:, :, 0] = 0.0
-    # A seed's generator gives per step, in this order, the process normals of the noisy
-    # parts, INS 1's step means and the measurement normals; drawn for a block of steps at
-    # once they are the same numbers in the same order. The blocks hold whole noise blocks.
-    per = len(noisy) * n + p1 + 4
-    chunk = 2048 if nb < 1 else nb * max(1, 2048 // nb)
-    v = np.zeros((B, P_, 4))
-    for k in range(K):
-        c = k % chunk
-        if c == 0:
-            m = min(chunk, K - k)
-            draws = np.stack([g.standard_normal((m, per)) for g in rngs])
-            xis = draws[:, :, :len(noisy) * n].reshape(B, m, len(noisy), n)
-            us = draws[:, :, len(noisy) * n:len(noisy) * n + p1]
-            vs = draws[:, :, len(noisy) * n + p1:]
-            ubar = np.zeros_like(us)
-            if nb >= 1:
-                for a in range(0, m, nb):
-                    ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
-        u = index[k]
-        X[:, j_tr, iz] += tr[k]
-        X = X @ Phi[u].T
-        xi = xis[:, c]
-        for gname, js, cols in groups:
-            X[:, js] += xi[:, cols] @ roots[gname][u].T
-        X[:, 0] += us[:, c] @ G1[u].T
-        X[:, j_bl] += ubar[:, c] @ G1[u].T
-        Xh = Xh @ Phi[u].T
-        v[:, 0] = vs[:, c] * sv
-        nu = X[:, :, :4] + v - Xh[:, :, :4]
-        Xh = Xh + nu @ gains[k].T
-        ez[:, :, k + 1] = Xh[:, :, iz]
-    t = S["t"]
-    betas, scales = spec["betas"], spec["scales"]
-    st, win = spec["start"], spec["window"]
-
-    def ws(x):
-        return rotins.windowed_std(t, x, st, win)[1].mean()
-
-    out = np.empty((B, len(betas)))
-    sep = np.empty((B, 2))
-    two = np.empty((B, 3))
-    corr = np.empty((B, 3))
-    settle = np.empty(B)
-    # the true drift's trend at the epochs (the seed's constant drift does not change a correlation)
-    trend = np.r_[0.0, np.cumsum(spec["trend_steps"])]
-    after = t >= st
-    for b in range(B):
-        e = ez[b]
-        one1 = e[0] - e[j_bl] if nb >= 1 else e[0]
-        base = one1 + e[1]
-        for i, be in enumerate(betas):
-            out[b, i] = ws(base + be * e[2])
-        sep[b, 0] = out[b, betas.index(1.0)]
-        sep[b, 1] = ws(one1 + e[3] + spec["sep"] * e[4])
-        white = e[0] + e[j_tr]
-        ests = (white + e[1] + scales[0] * e[2], white + e[5] + scales[1] * e[6], white + e[7] + scales[2] * e[8])
-        two[b] = [ws(x) for x in ests]
-        corr[b] = [np.corrcoef(x[after], trend[after])[0, 1] for x in ests]
-        settle[b] = rotins.band_settle_time(t, base + e[2], x0z[b], spec["band"])
-    final = (ez[:, 0, -1] - (ez[:, j_bl, -1] if nb >= 1 else 0.0) + ez[:, 1, -1] + ez[:, 2, -1]) - x0z
-    return {"wstd": out, "wstd_sep": sep, "wstd_two": two, "final": final, "settle_band": settle,
-            "trend_corr": corr}
-
-
-def mean_ci95(x):
-    """Mean of ``x`` over seeds and its 95 % confidence interval (Student t)."""
-    from scipy import stats
-
-    x = np.asarray(x, float)
-    m = float(x.mean())
-    if x.size < 2:
-        return m, [float("nan"), float("nan")]
-    h = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
-    return m, [m - h, m + h]
-
-
-def wilson_ci95(k, n):
-    """95 % Wilson score interval of a probability from ``k`` successes in ``n`` trials."""
-    z = 1.959963984540054
-    p = k / n
-    c = (p + z * z / (2 * n)) / (1 + z * z / n)
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return [max(0.0, c - h), min(1.0, c + h)]
-
-
-def fractions(wstd, wstd_sep, betas, sep_ratio):
-    """Fractions of seeds: std monotone in β; β = 1.1 above β = 1.0; separate INS ordered."""
-    order = np.argsort(betas)
-    mono = np.all(np.diff(wstd[:, order], axis=1) > 0, axis=1)
-    d11 = wstd[:, betas.index(1.1)] > wstd[:, betas.index(1.0)]
-    dsep = (wstd_sep[:, 1] > wstd_sep[:, 0]) if sep_ratio > 1 else (wstd_sep[:, 1] < wstd_sep[:, 0])
-    return float(mono.mean()), float(d11.mean()), float(dsep.mean())
-
-
-def seed_statistics(out, betas, sep_ratio, scales):
-    """The campaign's statistics: the fractions, eq 20's σ ratio at β = 1.1 (mean over seeds,
-    95 % interval) and the probability that the windowed stds of analysis two rank INS
-    #2..#4 as their noise scales (with its 95 % Wilson interval)."""
-    pm, pd, ps = fractions(out["wstd"], out["wstd_sep"], betas, sep_ratio)
-    ratio = out["wstd"][:, betas.index(1.1)] / out["wstd"][:, betas.index(1.0)]
-    rm, rci = mean_ci95(ratio)
-    right = np.all(np.argsort(out["wstd_two"], axis=1) == np.argsort(np.asarray(scales, float)), axis=1)
-    B = right.size
-    return dict(p_monotone=pm, p_distinguish=pd, p_separate=ps, eq20_ratio_mean=rm, eq20_ratio_ci95=rci,
-                ranking_probability=float(right.mean()), ranking_probability_ci95=wilson_ci95(int(right.sum()), B))
-
-
 def linear_campaign(cfg, ctx, runs, model, P0, sig_meas, tables):
     """Analyses one and two over ``runs`` seeds in the linear domain, on Dask: the fixed
-    part (:func:`_linear_setup`) is made here once and sent to every worker once."""
+    part (:func:`sinslab.methods.rotins.campaign_setup`) is made here once and sent to every
+    worker once."""
     from sinslab.estimation import montecarlo as mc
+    from sinslab.methods import rotins
 
     spec = campaign_spec(cfg, model, P0, sig_meas, tables)
-    setup = _linear_setup(spec)
+    setup = rotins.campaign_setup(spec)
     spec = {k: v for k, v in spec.items() if k not in ("Phi", "Q", "Gam", "P0")}
     # a task runs the whole step recursion once, vectorised over its seeds: its cost hardly
     # depends on how many it stacks, so one task per worker
-    out = mc.run_campaign(linear_batch, runs, cfg.seed, scheduler=ctx.scheduler,
+    out = mc.run_campaign(rotins.campaign_batch, runs, cfg.seed, scheduler=ctx.scheduler,
                           kwargs=dict(spec=spec, setup=setup), tasks_per_worker=1)
-    stats = seed_statistics(out, spec["betas"], spec["sep"], spec["scales"])
+    stats = rotins.campaign_statistics(out, spec["betas"], spec["sep"], spec["scales"])
     return dict(stats, wstd=out["wstd"], wstd_sep=out["wstd_sep"], wstd_two=out["wstd_two"],
                 settle_band=out["settle_band"], trend_corr=out["trend_corr"])
 
