@@ -329,33 +329,22 @@ def mounts(cfg: Config):
 
 
 def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups, inputs=False):
-    """Step transitions of the joint model along the true schedule of both mounts (carrier
-    at rest, axes ENU): ``me`` sub-steps of ``model_dt`` chained per filter step, computed
-    once per distinct step (the mounts dwell most of the time, so few steps differ).
-
-    Returns
-    -------
-    Phi : ndarray (U, n, n)
-    Q : dict {group: ndarray (U, n, n)}
-    index : int ndarray (K,)
-        Table entry of each of the K filter steps.
-    Gam : dict {group: ndarray (U, n, p)}
-        Only with ``inputs=True``: the input matrices of
-        :func:`sinslab.methods.rotins.joint_transitions`.
-    """
+    """:func:`sinslab.methods.rotins.schedule_transitions` along the true schedule of both
+    mounts (carrier at rest, axes ENU): ``me`` sub-steps of ``model_dt`` per filter step,
+    ``K`` filter steps; returns ``(Phi, Q, index[, Gam])``."""
     from sinslab.methods import rotins
 
     ts = model_dt * np.arange(K * me)
     a1, _ = ix.mount_angles(m1, ts)
     ak, _ = ix.mount_angles(mk, ts)
-    key = np.round(np.concatenate([a1, ak], -1).reshape(K, me * 6), 9)
-    uniq, first, index = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    sub = (first[:, None] * me + np.arange(me)[None, :]).ravel()
-    r1, w1, f1 = moored.truth_rows(m1, np.r_[ts[sub], 0.0], lat, lon)
-    rk, wk, fk = moored.truth_rows(mk, np.r_[ts[sub], 0.0], lat, lon)
-    out = rotins.joint_transitions(model, model_dt, r1[:-1], rk[:-1], (w1, f1), (wk, fk),
-                                   noise_groups=noise_groups, substeps=me, inputs=inputs)
-    return (*out[:2], np.asarray(index, dtype=np.int64).reshape(K), *out[2:])
+
+    def truth(t):
+        r1, w1, f1 = moored.truth_rows(m1, t, lat, lon)
+        rk, wk, fk = moored.truth_rows(mk, t, lat, lon)
+        return r1, (w1, f1), rk, (wk, fk)
+
+    return rotins.schedule_transitions(model, model_dt, ts, np.concatenate([a1, ak], -1), truth, me,
+                                       noise_groups=noise_groups, inputs=inputs)
 
 
 def observability(cfg: Config, model):

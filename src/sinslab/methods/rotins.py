@@ -27,8 +27,8 @@ from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bia
 
 __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleObservability",
            "schedule_observability", "difference_sigma", "joint_P0", "joint_filter",
-           "joint_transitions", "joint_filter_linear", "difference_measurements", "noise_share",
-           "sigma_settle_time", "band_settle_time", "NOISE_GROUPS", "CAMPAIGN_PARTS", "campaign_setup",
+           "joint_transitions", "schedule_transitions", "joint_filter_linear", "difference_measurements",
+           "noise_share", "sigma_settle_time", "band_settle_time", "NOISE_GROUPS", "CAMPAIGN_PARTS", "campaign_setup",
            "campaign_batch", "fractions", "campaign_statistics"]
 
 #: Noise sources of the joint model's noise vector (:func:`joint_rotation_model`): INS 1's
@@ -549,6 +549,51 @@ def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, n
     if inputs:
         return Phi, Q, Gam
     return Phi, Q
+
+
+def schedule_transitions(model: DifferenceModel, T, t, key, truth, substeps, noise_groups=None,
+                         inputs=False):
+    """Step transitions of the joint model along a known schedule, computed once per
+    distinct filter step (mounts that dwell most of the time give few distinct steps).
+
+    Parameters
+    ----------
+    model : DifferenceModel
+    T : float
+        Model step [s]; ``substeps`` of them are chained per filter step.
+    t : array (K·substeps,)
+        Start time of every model step [s].
+    key : array (K·substeps, m)
+        What makes a step differ (the mount angles of both INS at ``t`` [rad]); filter
+        steps whose keys agree to 1e-9 share a table entry.
+    truth : callable
+        ``truth(epochs) -> (rows1, rates1, rowsk, ratesk)``: the error-free outputs of both
+        INS at ``epochs`` (S,) and their rates over the S − 1 steps, as
+        :func:`joint_transitions` takes them.
+    substeps : int
+    noise_groups, inputs
+        As in :func:`joint_transitions`.
+
+    Returns
+    -------
+    Phi : ndarray (U, n, n)
+    Q : dict {group: ndarray (U, n, n)}
+    index : int ndarray (K,)
+        Table entry of each of the K filter steps.
+    Gam : dict {group: ndarray (U, n, p)}
+        Only with ``inputs=True``: the input matrices of :func:`joint_transitions`.
+    """
+    me = int(substeps)
+    t = np.asarray(t, float)
+    key = np.asarray(key, float)
+    K = t.size // me
+    key = np.round(key.reshape(K, me * key.shape[-1]), 9)
+    _, first, index = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    sub = (first[:, None] * me + np.arange(me)[None, :]).ravel()
+    r1, rates1, rk, ratesk = truth(np.r_[t[sub], 0.0])
+    out = joint_transitions(model, T, r1[:-1], rk[:-1], rates1, ratesk, noise_groups=noise_groups,
+                            substeps=me, inputs=inputs)
+    return (*out[:2], np.asarray(index, dtype=np.int64).reshape(K), *out[2:])
 
 
 def _metre_scale(model, sigma):
