@@ -139,18 +139,6 @@ def test_settling_does_not_depend_on_the_run_length():
         assert 8 < a < 48, (k, a)
 
 
-def test_block_means_removed():
-    """INS #1's noise as the paper prepares it: the mean over every block is gone, the bias
-    (kept) stays, a last short block has its own mean removed."""
-    rng = np.random.default_rng(3)
-    bias = np.array([1.0, -2.0, 3.0])
-    x = bias + rng.standard_normal((25, 3))
-    y = moored.remove_block_means(x.copy(), 10, bias)
-    for a, b in ((0, 10), (10, 20), (20, 25)):
-        np.testing.assert_allclose(y[a:b].mean(0), bias, atol=1e-12)
-        np.testing.assert_allclose(y[a:b] - y[a:b].mean(0), x[a:b] - x[a:b].mean(0), atol=1e-12)
-
-
 def test_recorded_constant_record_is_a_gyro_bias(tmp_path):
     """The recorded-noise route adds the record sample by sample: a constant record c
     navigates exactly like a gyro bias c given to the error model."""
