@@ -65,11 +65,12 @@ def navigation_modes(hours, n_ins, workers=2):
     from sinslab.core import units as u
     from sinslab.experiments import get
     from sinslab.experiments import rotation_evaluation as R
+    from sinslab.sim import moored
 
     cfg = resolve(get("rotation-evaluation").config, sets=[])
     lat, lon, dt = float(cfg.scenario.latitude), float(cfg.scenario.longitude), float(cfg.scenario.sample_interval)
     m1, mk = R.mounts(cfg)
-    cyc = [R.one_cycle(m1, lat, lon, dt), R.one_cycle(mk, lat, lon, dt)]
+    cyc = [moored.one_cycle(m1, lat, lon, dt), moored.one_cycle(mk, lat, lon, dt)]
     specs = {f"ins{i}": R.InsSpec(f"INS {i}", cyc[i % 2], R._errors(cfg.imuk, gyro_scale=1.0 + 0.1 * i), (i,))
              for i in range(n_ins)}
     k_out = 1000
@@ -128,6 +129,7 @@ def filter_ratio(hours):
     from sinslab.experiments import get
     from sinslab.fusion.driver import PrecomputedStream
     from sinslab.methods import rotins
+    from sinslab.sim import moored
 
     cfg = resolve(get("rotation-evaluation").config, sets=[])
     lat, lon = float(cfg.scenario.latitude), float(cfg.scenario.longitude)
@@ -135,7 +137,7 @@ def filter_ratio(hours):
     md, me = 1.0, 10
     K = int(hours * 3600 / (md * me))
     ts = md * np.arange(K * me + 1)
-    (r1, w1, f1), (rk, wk, fk) = (R._truth_rows(m, ts, lat, lon) for m in (m1, mk))
+    (r1, w1, f1), (rk, wk, fk) = (moored.truth_rows(m, ts, lat, lon) for m in (m1, mk))
     rng = np.random.default_rng(0)
     rk = rk.copy()
     rk[:, 4:6] += np.cumsum(rng.standard_normal((ts.size, 2)) * 1e-4, 0)

@@ -4,7 +4,7 @@ Run: ``.venv/bin/python benchmarks/rotins_campaign.py [--hours H] [--seeds B]``
 
 The campaign's fixed part — the schedule's transition table with the noise split by source
 and INS #1's input matrices (:func:`schedule_transitions`), the noise square roots and the
-nominal filter's gains (:func:`_linear_setup`) — is made once in the main process, which
+nominal filter's gains (:func:`sinslab.methods.rotins.campaign_setup`) — is made once in the main process, which
 has the table anyway for the joint filters, and sent to every worker once. Before, every
 worker rebuilt the table and the gains from the scenario. In one process, the same run:
 
@@ -33,6 +33,7 @@ def measure(hours=144.0, seeds=10):
     from sinslab.app.config import resolve
     from sinslab.experiments import get
     from sinslab.experiments import rotation_evaluation as R
+    from sinslab.methods import rotins
 
     sets = [f"scenario.duration={hours} h"]
     if hours < 24:
@@ -43,10 +44,10 @@ def measure(hours=144.0, seeds=10):
     m1, mk = R.mounts(cfg)
     _, _, me, n_kf, _ = R._grid(cfg)
     t0 = time.perf_counter()
-    tables = R.schedule_transitions(m1, mk, lat, lon, model, float(cfg.filter.model_dt), me, n_kf, R._GROUPS,
-                                    inputs=True)
+    tables = R.schedule_transitions(m1, mk, lat, lon, model, float(cfg.filter.model_dt), me, n_kf,
+                                    rotins.NOISE_GROUPS, inputs=True)
     spec = R.campaign_spec(cfg, model, P0, sig, tables)
-    setup = R._linear_setup(spec)
+    setup = rotins.campaign_setup(spec)
     rebuild = time.perf_counter() - t0
     t0 = time.perf_counter()
     blob = pickle.dumps(setup, protocol=pickle.HIGHEST_PROTOCOL)
@@ -54,7 +55,7 @@ def measure(hours=144.0, seeds=10):
     ship = time.perf_counter() - t0
     spec = {k: v for k, v in spec.items() if k not in ("Phi", "Q", "Gam", "P0")}
     t0 = time.perf_counter()
-    R.linear_batch(list(np.random.SeedSequence(0).spawn(seeds)), spec, setup)
+    rotins.campaign_batch(list(np.random.SeedSequence(0).spawn(seeds)), spec, setup)
     batch = time.perf_counter() - t0
     return dict(hours=hours, seeds=seeds, table_entries=int(tables[0].shape[0]), setup_mb=len(blob) / 1e6,
                 rebuild_s=rebuild, ship_s=ship, batch_s=batch, rebuild_over_ship=rebuild / ship,

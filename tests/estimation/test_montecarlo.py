@@ -136,3 +136,36 @@ def test_bad_campaign_output_is_an_error():
         mc.run_campaign(lambda seeds: np.zeros(3), 2, 0, batch=2, scheduler="sync")
     with pytest.raises(ValueError, match="n_runs"):
         mc.spawn_seeds(0, 0)
+
+
+def _square_or_fail(x, stop=None, fail_on=None, seen=None):
+    if x == fail_on:
+        raise RuntimeError(f"task {x} failed")
+    if stop is not None and seen is not None:
+        # a long task checks ``stop`` between its steps: wait for the failure to be seen
+        for _ in range(200):
+            if stop.is_set():
+                seen.append(x)
+                return None
+            time.sleep(0.01)
+    return x * x
+
+
+@pytest.mark.parametrize("mode", ["serial", "threads"])
+def test_map_tasks_keeps_item_order(mode):
+    """map_tasks: results in the order of the items whatever the completion order, and
+    on_done sees every task once."""
+    done = []
+    got = mc.map_tasks(_square_or_fail, [5, 1, 4, 2, 3], mode=mode, workers=3,
+                       on_done=lambda i, r: done.append((i, r)))
+    assert got == [25, 1, 16, 4, 9]
+    assert sorted(done) == [(0, 25), (1, 1), (2, 16), (3, 4), (4, 9)]
+
+
+def test_map_tasks_failure_stops_the_others():
+    """threads: a failing task's error reaches the caller and the tasks still running see
+    ``stop`` set (they give up at their next check)."""
+    seen = []
+    with pytest.raises(RuntimeError, match="task 0 failed"):
+        mc.map_tasks(_square_or_fail, [1, 0], mode="threads", workers=2, kwargs=dict(fail_on=0, seen=seen))
+    assert seen == [1]

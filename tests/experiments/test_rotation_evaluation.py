@@ -14,10 +14,12 @@ import pytest
 from support import run_experiment
 
 from sinslab.app.config import ConfigError, resolve
+from sinslab.data.noise import load_recorded_gyro
 from sinslab.experiments import execute, get
 from sinslab.experiments import rotation_evaluation as R
 from sinslab.methods import rotins
 from sinslab.sim import imu as imu_
+from sinslab.sim import moored
 
 #: 24 h at 10 Hz, model step 2 s, filter step 30 s, std windows of 2 h from 12 h on: small enough for the suite
 SMALL = ["scenario.duration=24 h", "scenario.sample_interval=0.1 s", "filter.model_dt=2 s", "filter.kf_dt=30 s",
@@ -110,8 +112,8 @@ def test_linear_campaign_matches_nonlinear_pipeline(small):
     m1, mk = R.mounts(cfg)
     dt, k_md, me, n_kf, _ = R._grid(cfg)
     tables = R.schedule_transitions(m1, mk, lat, float(cfg.scenario.longitude), model, float(cfg.filter.model_dt), me,
-                                    n_kf, R._GROUPS, inputs=True)
-    S = R._linear_setup(R.campaign_spec(cfg, model, P0, sig, tables))
+                                    n_kf, rotins.NOISE_GROUPS, inputs=True)
+    S = rotins.campaign_setup(R.campaign_spec(cfg, model, P0, sig, tables))
     assert S["sig_z"][-1] / R.DPH == pytest.approx(m["eps_z1_sigma_final_dph"], rel=1e-3)
     mc_mean = np.array(m["mc_windowed_std_mean_dph"])
     mc_sd = np.array(m["mc_windowed_std_sd_dph"])
@@ -137,24 +139,12 @@ def test_settling_does_not_depend_on_the_run_length():
         assert 8 < a < 48, (k, a)
 
 
-def test_block_means_removed():
-    """INS #1's noise as the paper prepares it: the mean over every block is gone, the bias
-    (kept) stays, a last short block has its own mean removed."""
-    rng = np.random.default_rng(3)
-    bias = np.array([1.0, -2.0, 3.0])
-    x = bias + rng.standard_normal((25, 3))
-    y = R.remove_block_means(x.copy(), 10, bias)
-    for a, b in ((0, 10), (10, 20), (20, 25)):
-        np.testing.assert_allclose(y[a:b].mean(0), bias, atol=1e-12)
-        np.testing.assert_allclose(y[a:b] - y[a:b].mean(0), x[a:b] - x[a:b].mean(0), atol=1e-12)
-
-
 def test_recorded_constant_record_is_a_gyro_bias(tmp_path):
     """The recorded-noise route adds the record sample by sample: a constant record c
     navigates exactly like a gyro bias c given to the error model."""
     lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
     _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
-    cyc = R.one_cycle(mk, lat, lon, dt)
+    cyc = moored.one_cycle(mk, lat, lon, dt)
     c = np.array([1e-8, -2e-8, 3e-8])
     base = imu_.ImuErrors()
     n_steps, k_kf = 30, 600
@@ -176,7 +166,7 @@ def test_grouped_navigation_equals_one_ins_at_a_time(mode):
     must still share their cycle)."""
     lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
     m1, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
-    c1, ck = R.one_cycle(m1, lat, lon, dt), R.one_cycle(mk, lat, lon, dt)
+    c1, ck = moored.one_cycle(m1, lat, lon, dt), moored.one_cycle(mk, lat, lon, dt)
     n_steps, k_kf = 23, 600
     white = imu_.ImuErrors(gyro_bias=np.full(3, 1e-8), accel_bias=np.full(3, 2e-4), gyro_arw=np.full(3, 3e-7),
                            accel_vrw=np.full(3, 5e-5))
@@ -207,7 +197,7 @@ def test_group_navigation_gives_up_when_told():
 
     lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
     _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
-    ck = R.one_cycle(mk, lat, lon, dt)
+    ck = moored.one_cycle(mk, lat, lon, dt)
     e = imu_.ImuErrors(gyro_arw=np.full(3, 3e-7), accel_vrw=np.full(3, 5e-5))
     kw = dict(seed=1, lat=lat, lon=lon, dt=dt, n_steps=40, k_kf=60, nsub=2, att_sigma=np.zeros(3),
               chunk_steps=1, rates=False)
@@ -247,23 +237,23 @@ def _csv(path, n, dt=0.1, gyro=None, t=None):
 
 def test_recorded_noise_bad_files(tmp_path):
     ok = _csv(tmp_path / "ok.csv", 200)
-    g = R.load_recorded_gyro(ok, 150, 0.1, "imu1.recorded_noise")
+    g = load_recorded_gyro(ok, 150, 0.1, "imu1.recorded_noise")
     assert g.shape == (150, 3) and np.allclose(g.mean(0), 0.0, atol=1e-15)
     with pytest.raises(ValueError, match=r"short\.csv: 200 samples .* needs 300"):
-        R.load_recorded_gyro(_csv(tmp_path / "short.csv", 200), 300, 0.1, "imu1.recorded_noise")
+        load_recorded_gyro(_csv(tmp_path / "short.csv", 200), 300, 0.1, "imu1.recorded_noise")
     t = 0.1 * np.arange(200)
     t[100:] += 5.0
     with pytest.raises(ValueError, match=r"recorded_noise: .*gap\.csv.*gap"):
-        R.load_recorded_gyro(_csv(tmp_path / "gap.csv", 200, t=t), 150, 0.1, "imu1.recorded_noise")
+        load_recorded_gyro(_csv(tmp_path / "gap.csv", 200, t=t), 150, 0.1, "imu1.recorded_noise")
     gn = np.full((200, 3), 1e-6)
     gn[50, 1] = np.nan
     with pytest.raises(ValueError, match=r"recorded_noise: .*nan\.csv.*NaN"):
-        R.load_recorded_gyro(_csv(tmp_path / "nan.csv", 200, gyro=gn), 150, 0.1, "imu1.recorded_noise")
+        load_recorded_gyro(_csv(tmp_path / "nan.csv", 200, gyro=gn), 150, 0.1, "imu1.recorded_noise")
     big = np.random.default_rng(1).standard_normal((200, 3)) * 5.0     # deg/s values labelled rad/s
     with pytest.raises(ValueError, match=r"units\.csv: .*wrong units"):
-        R.load_recorded_gyro(_csv(tmp_path / "units.csv", 200, gyro=big), 150, 0.1, "imu1.recorded_noise")
+        load_recorded_gyro(_csv(tmp_path / "units.csv", 200, gyro=big), 150, 0.1, "imu1.recorded_noise")
     with pytest.raises(ValueError, match=r"ok\.csv: sampled every 0\.1 s, the run uses 0\.01 s"):
-        R.load_recorded_gyro(ok, 150, 0.01, "imu1.recorded_noise")
+        load_recorded_gyro(ok, 150, 0.01, "imu1.recorded_noise")
 
 
 @pytest.mark.parametrize("sets, pattern", [
@@ -307,7 +297,7 @@ def test_block_means_removed_while_navigating():
     at all: it navigates like the same INS without the record (its bias kept)."""
     lat, lon, dt = math.radians(28.222), math.radians(112.993), 0.1
     _, mk = R.mounts(resolve(get("rotation-evaluation").config, sets=[]))
-    cyc = R.one_cycle(mk, lat, lon, dt)
+    cyc = moored.one_cycle(mk, lat, lon, dt)
     errs = imu_.ImuErrors(gyro_bias=np.array([1e-8, 2e-8, -1e-8]), accel_bias=np.array([1e-4, 0.0, 0.0]))
     n_steps, k_kf = 30, 600
     rec = np.tile(np.array([1e-8, -2e-8, 3e-8]), (n_steps * k_kf, 1))

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import sys
 import time
@@ -35,8 +36,8 @@ from scipy import stats
 
 from sinslab.core.errors import InputError
 
-__all__ = ["spawn_seeds", "run_campaign", "dask_client", "summarize", "Summary", "chi2_bounds",
-           "linear_batch"]
+__all__ = ["spawn_seeds", "run_campaign", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
+           "mean_ci95", "wilson_ci95", "linear_batch"]
 
 
 def spawn_seeds(seed, n_runs):
@@ -342,8 +343,125 @@ def _interrupts_to_this_process():
 
 
 # ----------------------------------------------------------------------------------------
+# independent tasks of unequal size
+# ----------------------------------------------------------------------------------------
+@dataclass
+class _Sent:
+    """One task's input shipped to a worker as one object (its parts keep sharing the
+    arrays they share here)."""
+
+    item: object
+
+
+def _call_sent(fn, sent, **kwargs):
+    return fn(sent.item, **kwargs)
+
+
+def map_tasks(fn, items, *, mode="threads", workers=2, scheduler=None, kwargs=None, on_done=None):
+    """``fn(item, **kwargs)`` for independent items, concurrently; results in item order.
+
+    Unlike :func:`run_campaign` (many equal runs from seeds), the tasks here are few and
+    of unequal size: they are handed out in the order of ``items`` (put the long ones
+    first), each to the next free worker. ``fn``'s result must not depend on where or
+    beside which other tasks it runs, so the results do not depend on the mode or the
+    number of workers.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(item, stop=None, **kwargs)``; in this process (``"threads"``, ``"serial"``)
+        it is given ``stop``, a :class:`threading.Event` set when another task has failed
+        or the main thread was interrupted, so that a long task can give up between two
+        of its steps. Module level (picklable) for ``"processes"``.
+    items : sequence
+        One input per task.
+    mode : {"threads", "processes", "serial"}
+        A pool of threads in this process (for compiled kernels that release the GIL), a
+        Dask local cluster of worker processes (or ``scheduler``), or one after another.
+        With a single item every mode runs it in this process.
+    workers : int
+        Threads or local worker processes.
+    scheduler : str, optional
+        Dask scheduler address for ``mode="processes"``.
+    kwargs : dict, optional
+        Further keyword arguments of every call (sent once per task to a process).
+    on_done : callable, optional
+        ``on_done(i, result)`` as task ``i`` completes (in any order; in the main thread
+        except in ``"serial"`` and ``"threads"`` mode, where it runs beside the task).
+
+    Returns
+    -------
+    list
+        ``fn``'s results in the order of ``items``.
+    """
+    import threading
+
+    items = list(items)
+    kwargs = dict(kwargs or {})
+    stop = threading.Event()
+    results = [None] * len(items)
+
+    def one(i):
+        r = fn(items[i], stop=stop, **kwargs)
+        if on_done is not None:
+            on_done(i, r)
+        return i, r
+
+    if mode == "serial" or len(items) == 1:
+        for i in range(len(items)):
+            results[i] = one(i)[1]
+    elif mode == "threads":
+        from concurrent.futures import ThreadPoolExecutor, as_completed
+
+        pool = ThreadPoolExecutor(max_workers=int(workers))
+        try:
+            for fut in as_completed([pool.submit(one, i) for i in range(len(items))]):
+                i, r = fut.result()
+                results[i] = r
+        except BaseException:
+            # an interrupt reaches the main thread only, a failed task only its future:
+            # either way the other tasks end at their next check of ``stop``
+            stop.set()
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+    else:
+        from distributed import as_completed
+
+        with dask_client(scheduler or None, int(workers)) as client:
+            # large inputs are sent once rather than inside the task graph, each as one object
+            sent = client.scatter([_Sent(x) for x in items], hash=False)
+            futs = {client.submit(_call_sent, fn, f, pure=False, **kwargs): i for i, f in enumerate(sent)}
+            for fut in as_completed(futs):
+                i = futs[fut]
+                results[i] = fut.result()
+                if on_done is not None:
+                    on_done(i, results[i])
+    return results
+
+
+# ----------------------------------------------------------------------------------------
 # statistics
 # ----------------------------------------------------------------------------------------
+def mean_ci95(x):
+    """Mean of ``x`` over seeds and its 95 % confidence interval (Student t)."""
+    x = np.asarray(x, float)
+    m = float(x.mean())
+    if x.size < 2:
+        return m, [float("nan"), float("nan")]
+    h = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
+    return m, [m - h, m + h]
+
+
+def wilson_ci95(k, n):
+    """95 % Wilson score interval of a probability from ``k`` successes in ``n`` trials."""
+    z = 1.959963984540054
+    p = k / n
+    c = (p + z * z / (2 * n)) / (1 + z * z / n)
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return [max(0.0, c - h), min(1.0, c + h)]
+
+
 def chi2_bounds(dof, n_runs, alpha=0.05):
     """Two-sided acceptance bounds of the run-averaged NEES or NIS.
 

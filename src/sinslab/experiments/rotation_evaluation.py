@@ -58,10 +58,10 @@ from typing import Literal
 import numpy as np
 from pydantic import field_validator, model_validator
 
-from sinslab.app.errors import UserError
 from sinslab.core import units
 from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
 from sinslab.sim import indexing as ix
+from sinslab.sim import moored
 
 NAME = "rotation-evaluation"
 #: The Monte Carlo campaign (and so --scheduler) needs runs >= 2; one run is the single run.
@@ -88,13 +88,10 @@ NOTES = [
 
 
 # ---------------------------------------------------------------- configuration -------
-#: Move lists (axis, degrees) of the INS k mechanism: the paper's 16-step dual-axis scheme and
-#: two one-axis flips (to check the paper's observability conditions on other schedules).
-_DUAL_SCHEMES = {
-    "dual_axis_16": ix.DUAL_AXIS_16,
-    "azimuth_flip": (("yaw", 180.0), ("yaw", -180.0)),
-    "roll_flip": (("roll", 180.0), ("roll", -180.0)),
-}
+#: Schemes of the INS k mechanism (:data:`sinslab.sim.indexing.SCHEMES`): the paper's 16-step
+#: dual-axis scheme and two one-axis flips (to check the paper's observability conditions on
+#: other schedules).
+_DUAL_SCHEMES = ("dual_axis_16", "azimuth_flip", "roll_flip")
 
 class Scenario(Section):
     latitude: Q("angle", ge="-80 deg", le="80 deg") = Field("28.222 deg", description="mooring latitude")
@@ -327,68 +324,27 @@ def mounts(cfg: Config):
     """The two indexing mounts (INS #1, INS #k)."""
     r = cfg.rotation
     m1 = ix.single_axis_4pos(rate=float(r.rate), dwell=float(r.dwell_single), ramp=float(r.ramp))
-    mk = ix.RotateStop(tuple((a, math.radians(x)) for a, x in _DUAL_SCHEMES[r.dual_scheme]),
-                       float(r.rate), float(r.ramp), float(r.dwell_dual), (0.0, 0.0, 0.0), True,
-                       r.dual_scheme)
+    mk = ix.scheme(r.dual_scheme, rate=float(r.rate), dwell=float(r.dwell_dual), ramp=float(r.ramp))
     return m1, mk
 
 
-@dataclass
-class Cycle:
-    """One cycle of exact increments of a static carrier with an indexing mount."""
-
-    dth: np.ndarray
-    dv: np.ndarray
-    att0: np.ndarray       # IMU attitude at t = 0 (Euler)
-    period: float
-
-
-def one_cycle(mount, lat, lon, dt):
-    """Exact increments over one mount cycle (they repeat: the carrier is at rest)."""
-    from sinslab.sim import trajectory as tj
-
-    Tc = float(mount.cycle_time)
-    n = int(round(Tc / dt))
-    if abs(n * dt - Tc) > 1e-6:
-        raise UserError(f"rotation: the cycle of {mount.name} ({Tc:g} s) is not a whole number of IMU samples "
-                        f"of {dt:g} s; choose rate, ramp and dwell so that it is")
-    gen = tj.generate([tj.Static(Tc)], tj.Start(lat=lat, lon=lon, h=0.0), dt, duration=Tc, mount=mount,
-                      out_every=n)
-    return Cycle(np.ascontiguousarray(gen.imu.dtheta), np.ascontiguousarray(gen.imu.dv),
-                 np.asarray(gen.truth.att_imu[0], float), Tc)
-
-
 def schedule_transitions(m1, mk, lat, lon, model, model_dt, me, K, noise_groups, inputs=False):
-    """Step transitions of the joint model along the true schedule of both mounts (carrier
-    at rest, axes ENU): ``me`` sub-steps of ``model_dt`` chained per filter step, computed
-    once per distinct step (the mounts dwell most of the time, so few steps differ).
-
-    Returns
-    -------
-    Phi : ndarray (U, n, n)
-    Q : dict {group: ndarray (U, n, n)}
-    index : int ndarray (K,)
-        Table entry of each of the K filter steps.
-    Gam : dict {group: ndarray (U, n, p)}
-        Only with ``inputs=True``: the input matrices of
-        :func:`sinslab.methods.rotins.joint_transitions`.
-    """
+    """:func:`sinslab.methods.rotins.schedule_transitions` along the true schedule of both
+    mounts (carrier at rest, axes ENU): ``me`` sub-steps of ``model_dt`` per filter step,
+    ``K`` filter steps; returns ``(Phi, Q, index[, Gam])``."""
     from sinslab.methods import rotins
 
     ts = model_dt * np.arange(K * me)
     a1, _ = ix.mount_angles(m1, ts)
     ak, _ = ix.mount_angles(mk, ts)
-    key = np.round(np.concatenate([a1, ak], -1).reshape(K, me * 6), 9)
-    uniq, first, index = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    sub = (first[:, None] * me + np.arange(me)[None, :]).ravel()
-    r1, w1, f1 = _truth_rows(m1, np.r_[ts[sub], 0.0], lat, lon)
-    rk, wk, fk = _truth_rows(mk, np.r_[ts[sub], 0.0], lat, lon)
-    out = rotins.joint_transitions(model, model_dt, r1[:-1], rk[:-1], (w1, f1), (wk, fk),
-                                   noise_groups=noise_groups, substeps=me, inputs=inputs)
-    return (*out[:2], np.asarray(index, dtype=np.int64).reshape(K), *out[2:])
 
+    def truth(t):
+        r1, w1, f1 = moored.truth_rows(m1, t, lat, lon)
+        rk, wk, fk = moored.truth_rows(mk, t, lat, lon)
+        return r1, (w1, f1), rk, (wk, fk)
 
-_GROUPS = {"ins1": range(0, 5), "gyro_k": range(5, 8), "accel_k": range(8, 10)}
+    return rotins.schedule_transitions(model, model_dt, ts, np.concatenate([a1, ak], -1), truth, me,
+                                       noise_groups=noise_groups, inputs=inputs)
 
 
 def observability(cfg: Config, model):
@@ -413,7 +369,7 @@ class InsSpec:
     """One INS to navigate: its cycle, error model, random stream and extras."""
 
     name: str
-    cycle: Cycle
+    cycle: moored.Cycle
     errors: imu_.ImuErrors
     stream: tuple               # seed stream id (same id = same noise record)
     trend: object = None        # sim.imu.Trend on the gyros, time from the run start
@@ -422,44 +378,12 @@ class InsSpec:
     demean: int = 0             # remove the noise's mean over blocks of this many samples (0: off)
 
 
-def remove_block_means(x, nb, keep=0.0):
-    """Remove from ``x`` (L, 3), in place, its mean over consecutive blocks of ``nb`` rows
-    (a last, shorter block over its own rows) and add ``keep`` (3,) back: with ``x`` the
-    error of the increments, bias·dt + noise, and ``keep`` = bias·dt, the noise loses its
-    block means and the bias stays."""
-    L = x.shape[0]
-    full = (L // nb) * nb
-    if full:
-        v = x[:full].reshape(-1, nb, x.shape[1])
-        v -= v.mean(1, keepdims=True) - keep
-    if full < L:
-        x[full:] -= x[full:].mean(0) - keep
-    return x
-
-
 @dataclass
 class InsOutput:
     rows: np.ndarray            # (M, 10) at the filter epochs
     omega: np.ndarray           # (M-1, 3) mean measured rate per step [rad/s]
     f: np.ndarray               # (M-1, 3) mean specific force per step [m/s²]
     pos_err_m: np.ndarray       # (M,) horizontal position error [m]
-
-
-def _tile(a, i0, L, out=None):
-    """Rows ``i0 .. i0+L−1`` of the periodic repetition of ``a`` (slices, no index array):
-    a view when they do not wrap, else copied into ``out`` (rows ≥ L) or a new array."""
-    N = a.shape[0]
-    j = i0 % N
-    if j + L <= N:
-        return a[j:j + L]
-    res = np.empty((L,) + a.shape[1:], a.dtype) if out is None else out[:L]
-    k = min(L, N - j)
-    res[:k] = a[j:j + k]
-    while k < L:
-        m = min(N, L - k)
-        res[k:k + m] = a[:m]
-        k += m
-    return res
 
 
 def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps=360,
@@ -538,20 +462,21 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
         # draws are scaled exactly as imu.apply on that record would scale them
         dt_rec = float((t[-1] - t[0]) / (L - 1)) if L > 1 else dt
         out = noisy if L == Lmax else None
-        dth_all, dv_all = imu_.apply_arrays_shared(_tile(cyc.dth, i0, L, tile_th), _tile(cyc.dv, i0, L, tile_v),
-                                                   t, dt_rec, errors, rng, out=out)
+        dth_all, dv_all = imu_.apply_arrays_shared(moored.tile(cyc.dth, i0, L, tile_th),
+                                                   moored.tile(cyc.dv, i0, L, tile_v), t, dt_rec, errors, rng,
+                                                   out=out)
         for j, spec in enumerate(specs):
             dth, dv = dth_all[j], dv_all[j]
             if spec.recorded is not None:
                 g, off = spec.recorded
-                dth += _tile(g, off + i0, L, rec_buf) * (spec.gyro_scale * dt)
+                dth += moored.tile(g, off + i0, L, rec_buf) * (spec.gyro_scale * dt)
             if spec.demean:
                 # the noise, synthesised or recorded, loses its block means; the chunks hold
                 # whole blocks, so the blocks are counted from the start of the run
                 e = spec.errors
-                for inc, true, bias in ((dth, _tile(cyc.dth, i0, L, tile_th), e.gyro_bias),
-                                        (dv, _tile(cyc.dv, i0, L, tile_v), e.accel_bias)):
-                    err = remove_block_means(inc - true, spec.demean, np.asarray(bias, float) * dt)
+                for inc, true, bias in ((dth, moored.tile(cyc.dth, i0, L, tile_th), e.gyro_bias),
+                                        (dv, moored.tile(cyc.dv, i0, L, tile_v), e.accel_bias)):
+                    err = moored.remove_block_means(inc - true, spec.demean, np.asarray(bias, float) * dt)
                     np.add(true, err, out=inc)
             if spec.trend is not None:
                 dth += spec.trend.evaluate(t - 0.5 * dt) * dt
@@ -568,17 +493,6 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
         de = (rows[j][:, 8] - lon) * float(rn) * math.cos(lat)
         out.append(InsOutput(rows[j], omega[j], f[j], np.hypot(dn, de)))
     return out
-
-
-@dataclass
-class _Group:
-    """The INS of one :func:`navigate_group` call, shipped to a worker as one object."""
-
-    specs: list
-
-
-def _navigate_sent(group, **nav_kw):
-    return navigate_group(group.specs, **nav_kw)
 
 
 def _groups(specs):
@@ -618,52 +532,19 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
     -------
     dict {key: InsOutput}
     """
-    import threading
+    from sinslab.estimation.montecarlo import map_tasks
 
     groups = _groups(specs)
-    stop = threading.Event()
 
-    def one(keys):
-        outs = navigate_group([specs[k] for k in keys], **nav_kw, stop=stop)
+    def done(i, outs):
         if bar is not None:
-            bar.advance(len(keys))
-        return dict(zip(keys, outs))
+            bar.advance(len(outs))
 
-    outs = {}
-    if mode == "serial" or len(groups) == 1:
-        for g in groups:
-            outs.update(one(g))
-    elif mode == "threads":
-        from concurrent.futures import ThreadPoolExecutor, as_completed
-
-        # handed out in order, largest group first, each to the next free thread: the
-        # six-INS group of INS #2 runs beside the others instead of after them
-        pool = ThreadPoolExecutor(max_workers=int(workers))
-        try:
-            for fut in as_completed([pool.submit(one, g) for g in groups]):
-                outs.update(fut.result())
-        except BaseException:
-            # an interrupt reaches the main thread only, a failed group only its future:
-            # either way the other groups end at their next chunk
-            stop.set()
-            raise
-        finally:
-            pool.shutdown(wait=True, cancel_futures=True)
-    else:
-        from distributed import as_completed
-
-        from sinslab.estimation.montecarlo import dask_client
-
-        with dask_client(scheduler or None, int(workers)) as client:
-            # the cycles are tens of MB: send each group once rather than inside the task graph,
-            # as one object so that its INS still share one cycle on the worker
-            sent = client.scatter([_Group([specs[k] for k in g]) for g in groups], hash=False)
-            futs = {client.submit(_navigate_sent, f, pure=False, **nav_kw): g for g, f in zip(groups, sent)}
-            for fut in as_completed(futs):
-                g = futs[fut]
-                outs.update(zip(g, fut.result()))
-                if bar is not None:
-                    bar.advance(len(g))
+    # handed out in order, largest group first, each to the next free worker: the six-INS
+    # group of INS #2 runs beside the others instead of after them
+    res = map_tasks(navigate_group, [[specs[k] for k in g] for g in groups], mode=mode, workers=workers,
+                    scheduler=scheduler, kwargs=nav_kw, on_done=done)
+    outs = {k: o for g, r in zip(groups, res) for k, o in zip(g, r)}
     return {k: outs[k] for k in specs}
 
 
@@ -674,39 +555,6 @@ def _errors(sec, gyro_scale=1.0, white=True):
                           accel_bias=np.broadcast_to(np.asarray(sec.accel_bias, float), (3,)).copy(),
                           gyro_arw=np.full(3, float(sec.gyro_arw) if white else 0.0),
                           accel_vrw=np.full(3, float(sec.accel_vrw))).with_noise_scale(gyro=gyro_scale)
-
-
-def load_recorded_gyro(path, n_needed, dt, what):
-    """Gyro noise [rad/s] of a recorded static noise file (any reader of
-    :func:`sinslab.data.load.load_imu`, unit headers honoured; mean removed), checked for
-    the run: one line naming the file and the problem otherwise."""
-    from sinslab.data import load as dload
-
-    try:
-        d = dload.load_imu(path)
-    except (OSError, ValueError) as e:
-        msg = str(e)
-        raise UserError(f"{what}: {msg}" if str(path) in msg else f"{what} {path}: {msg}") from None
-    if np.asarray(d.gaps).size:
-        g0 = np.asarray(d.gaps)[0]
-        raise UserError(f"{what} {path}: gap of {g0[1]:g} s at t = {g0[0]:g} s in the time stamps")
-    rec = d.imu
-    step = float(rec.dt)
-    if abs(step - dt) > 1e-6 * dt:
-        raise UserError(f"{what} {path}: sampled every {step:g} s, the run uses {dt:g} s")
-    g = np.asarray(rec.dtheta, float) / step
-    if not np.all(np.isfinite(g)):
-        k = int(np.flatnonzero(~np.all(np.isfinite(g), 1))[0])
-        raise UserError(f"{what} {path}: NaN or infinite value at sample {k}")
-    if g.shape[0] < n_needed:
-        raise UserError(f"{what} {path}: {g.shape[0]} samples ({g.shape[0] * step / 3600:.3g} h), "
-                         f"the run needs {n_needed} ({n_needed * dt / 3600:.3g} h)")
-    g = g[:n_needed] - g[:n_needed].mean(0)
-    s = float(np.max(np.std(g, 0)))
-    if s > 0.01:
-        raise UserError(f"{what} {path}: gyro noise std {s:.3g} rad/s is far above any static "
-                         "navigation-grade record (wrong units in the header?)")
-    return g
 
 
 def joint_filter_setup(cfg: Config):
@@ -765,8 +613,8 @@ def ins_plan(cfg: Config, rec1=None, reck=None):
     lat, lon = float(sc.latitude), float(sc.longitude)
     dt, k_md, me, n_kf, n_steps = _grid(cfg)
     m1, mk = mounts(cfg)
-    cyc1 = one_cycle(m1, lat, lon, dt)
-    cyck = one_cycle(mk, lat, lon, dt)
+    cyc1 = moored.one_cycle(m1, lat, lon, dt)
+    cyck = moored.one_cycle(mk, lat, lon, dt)
     e1 = _errors(cfg.imu1, white=not cfg.imu1.recorded_noise)
     a2 = cfg.analysis_two
     trend = drift_trend(cfg)
@@ -824,6 +672,8 @@ def run(cfg: Config, ctx) -> Result:
     notes = []
 
     # recorded noise first: a bad file is reported before any work
+    from sinslab.data.noise import load_recorded_gyro
+
     rec1 = reck = None
     if cfg.imu1.recorded_noise:
         rec1 = load_recorded_gyro(cfg.imu1.recorded_noise, n_samples, dt, "imu1.recorded_noise")
@@ -860,8 +710,8 @@ def run(cfg: Config, ctx) -> Result:
     def stream(o):
         return PrecomputedStream(t_md, o.rows, o.omega, o.f)
 
-    Phi_u, Q_u, idx, Gam_u = schedule_transitions(m1, mk, lat, lon, model, model_dt, me, n_kf, _GROUPS,
-                                                  inputs=True)
+    Phi_u, Q_u, idx, Gam_u = schedule_transitions(m1, mk, lat, lon, model, model_dt, me, n_kf,
+                                                  rotins.NOISE_GROUPS, inputs=True)
     Q_all = Q_u["ins1"] + Q_u["gyro_k"] + Q_u["accel_k"]
 
     def jf(a, b):
@@ -1073,13 +923,6 @@ def run(cfg: Config, ctx) -> Result:
 
 
 # ---------------------------------------------------------------- Monte Carlo -------------
-#: parts of the linear-domain run: which noise drives each (None: no noise) —
-#: INS 1 + initial state, INS 2 accel, INS 2 gyro, INS B accel, INS B gyro, INS 3 accel,
-#: INS 3 gyro, INS 4 accel, INS 4 gyro, INS 1's drift trend, INS 1's noise block means
-_PARTS = ("ins1", "accel_k", "gyro_k", "accel_k", "gyro_k", "accel_k", "gyro_k", "accel_k", "gyro_k",
-          None, "blocks")
-
-
 def campaign_spec(cfg: Config, model, P0, sig_meas, tables):
     """What a worker of the linear campaign needs: the scenario numbers and the main
     process's transition table ``(Phi, Q, index, Gam)`` of :func:`schedule_transitions`
@@ -1102,240 +945,21 @@ def campaign_spec(cfg: Config, model, P0, sig_meas, tables):
                 band=float(ev.settle_band))
 
 
-def _truth_rows(mount, t, lat, lon):
-    """Error-free INS output of a moored ship at the epochs: rows, step rates (carrier = ENU)."""
-    from sinslab.core import attitude as A
-    from sinslab.core import earth
-
-    ang, _ = ix.mount_angles(mount, t)
-    C = A.euler_to_dcm(ang)
-    rows = np.zeros((t.size, 10))
-    rows[:, :4] = A.euler_to_quat(ang)
-    rows[:, 7] = lat
-    rows[:, 8] = lon
-    wie = earth.WIE * np.array([0.0, math.cos(lat), math.sin(lat)])
-    g = float(earth.gravity(lat, 0.0))
-    w = np.einsum("kji,j->ki", C, wie)[:-1]
-    f = np.einsum("kji,j->ki", C, np.array([0.0, 0.0, g]))[:-1]
-    return rows, w, f
-
-
-def _linear_setup(spec):
-    """The campaign's fixed part, made once in the main process from its transition table:
-    transitions, noise square roots and the nominal filter's gains, positions in metres.
-
-    INS 1's step noise is split into its step mean ``u ~ N(0, q/T)`` acting through ``Γ``
-    (:func:`sinslab.methods.rotins.joint_transitions` with ``inputs=True``) and the rest,
-    independent of ``u``: removing the block means of ``u`` is then removing those of INS 1's
-    noise, and the white case is the same numbers with nothing removed."""
-    from sinslab.methods import rotins
-
-    model = rotins.joint_rotation_model()
-    model.q[:] = spec["q"]
-    K, T = spec["n_steps"], spec["kf_dt"]
-    Phi, Qg, Gam, index = spec["Phi"].copy(), {g: v.copy() for g, v in spec["Q"].items()}, spec["Gam"], spec["index"]
-    n = model.n
-    sig = spec["sig"]
-    d = rotins._metre_scale(model, sig)
-    Phi *= d[:, None] / d[None, :]
-    q1 = spec["q"][list(_GROUPS["ins1"])]
-    G1 = Gam["ins1"] * d[None, :, None] * np.sqrt(q1 / T)[None, None, :]
-    roots = {}
-    for g, Qk in Qg.items():
-        Qk *= d[:, None] * d[None, :]
-        if g == "ins1":
-            Qk = Qk - G1 @ np.swapaxes(G1, -1, -2)
-        w, V = np.linalg.eigh(Qk)
-        roots[g] = V * np.sqrt(np.maximum(w, 0.0))[:, None, :]
-    Q = sum(Qg.values())
-    P = spec["P0"] * (d[:, None] * d[None, :])
-    Rv = (sig * np.r_[d[0], d[1], 1.0, 1.0]) ** 2
-    gains = np.empty((K, n, 4))
-    sig_z = np.empty(K + 1)
-    iz = model.layout.index(["eps_z_1"])[0]
-    sig_z[0] = math.sqrt(P[iz, iz])
-    for k in range(K):
-        u = index[k]
-        P = Phi[u] @ P @ Phi[u].T + Q[u]
-        S = P[:4, :4] + np.diag(Rv)
-        Kk = np.linalg.solve(S, P[:4, :]).T
-        IKH = np.eye(n)
-        IKH[:, :4] -= Kk
-        P = IKH @ P @ IKH.T + (Kk * Rv) @ Kk.T
-        P = 0.5 * (P + P.T)
-        gains[k] = Kk
-        sig_z[k + 1] = math.sqrt(P[iz, iz])
-    return dict(Phi=np.ascontiguousarray(Phi), index=index, roots=roots, G1=np.ascontiguousarray(G1),
-                gains=gains, Rv=Rv, d=d, iz=iz, P0=spec["P0"] * (d[:, None] * d[None, :]),
-                t=T * np.arange(K + 1), sig_z=sig_z)
-
-
-def linear_batch(seeds, spec, setup):
-    """Linear-domain runs of analyses one and two (campaign function of
-    :func:`sinslab.estimation.montecarlo.run_campaign`).
-
-    Per seed, the true joint error state and the nominal filter's estimate are propagated
-    in parts (``_PARTS``) that the filters share or not: the filter is linear with fixed
-    gains, so each filter's ε̂_z1 is a sum of parts, a rescaled noise record a scaled part
-    (ε̂_z1(β) = ε̂(rest) + β ε̂(gyro 2)), INS 1's noise without its block means the INS 1 part
-    minus the block-mean part, and the drift trend a part of its own. Vectorised over seeds
-    and parts. INS B, #3 and #4 share INS #2's initial state (its effect is gone long before
-    the first window).
-
-    Returns
-    -------
-    dict
-        ``wstd`` (B, len(betas)) mean windowed std of ε̂_z1 per β [rad/s]; ``wstd_sep``
-        (B, 2): INS A (β = 1), INS B (ratio ``sep``); ``wstd_two`` (B, 3): filters 2, 3, 4
-        of analysis two; ``final`` (B,) ε̂_z1 − ε_z1 at the end (β = 1); ``settle_band``
-        (B,) the band reading of the settling time [s] (β = 1); ``trend_corr`` (B, 3): the
-        correlation of filters 2, 3, 4's ε̂_z1 with the drift's trend after ``start``.
-    """
-    from sinslab.methods import rotins
-
-    S = setup
-    Phi, index, roots, gains, iz, G1 = S["Phi"], S["index"], S["roots"], S["gains"], S["iz"], S["G1"]
-    K, n = gains.shape[:2]
-    B = len(seeds)
-    P_ = len(_PARTS)
-    p1 = G1.shape[-1]
-    nb = spec["block_steps"]
-    L0 = np.linalg.cholesky(S["P0"])
-    rngs = [np.random.default_rng(s) for s in seeds]
-    X = np.zeros((B, P_, n))
-    for b, g in enumerate(rngs):
-        X[b, 0] = L0 @ g.standard_normal(n)
-    x0z = X[:, 0, iz].copy()
-    Xh = np.zeros((B, P_, n))
-    noisy = [j for j, s in enumerate(_PARTS) if s in ("ins1", "accel_k", "gyro_k")]
-    # per source: its parts and their columns among the noisy parts' draws
-    groups = [(g, np.array([j for j, s in enumerate(_PARTS) if s == g]),
-               np.array([noisy.index(j) for j, s in enumerate(_PARTS) if s == g])) for g in ("ins1", "accel_k", "gyro_k")]
-    j_tr, j_bl = _PARTS.index(None), _PARTS.index("blocks")
-    tr = spec["trend_steps"] * S["d"][iz]
-    sv = np.sqrt(S["Rv"])
-    ez = np.empty((B, P_, K + 1))
-    ez[:, :, 0] = 0.0
-    # A seed's generator gives per step, in this order, the process normals of the noisy
-    # parts, INS 1's step means and the measurement normals; drawn for a block of steps at
-    # once they are the same numbers in the same order. The blocks hold whole noise blocks.
-    per = len(noisy) * n + p1 + 4
-    chunk = 2048 if nb < 1 else nb * max(1, 2048 // nb)
-    v = np.zeros((B, P_, 4))
-    for k in range(K):
-        c = k % chunk
-        if c == 0:
-            m = min(chunk, K - k)
-            draws = np.stack([g.standard_normal((m, per)) for g in rngs])
-            xis = draws[:, :, :len(noisy) * n].reshape(B, m, len(noisy), n)
-            us = draws[:, :, len(noisy) * n:len(noisy) * n + p1]
-            vs = draws[:, :, len(noisy) * n + p1:]
-            ubar = np.zeros_like(us)
-            if nb >= 1:
-                for a in range(0, m, nb):
-                    ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
-        u = index[k]
-        X[:, j_tr, iz] += tr[k]
-        X = X @ Phi[u].T
-        xi = xis[:, c]
-        for gname, js, cols in groups:
-            X[:, js] += xi[:, cols] @ roots[gname][u].T
-        X[:, 0] += us[:, c] @ G1[u].T
-        X[:, j_bl] += ubar[:, c] @ G1[u].T
-        Xh = Xh @ Phi[u].T
-        v[:, 0] = vs[:, c] * sv
-        nu = X[:, :, :4] + v - Xh[:, :, :4]
-        Xh = Xh + nu @ gains[k].T
-        ez[:, :, k + 1] = Xh[:, :, iz]
-    t = S["t"]
-    betas, scales = spec["betas"], spec["scales"]
-    st, win = spec["start"], spec["window"]
-
-    def ws(x):
-        return rotins.windowed_std(t, x, st, win)[1].mean()
-
-    out = np.empty((B, len(betas)))
-    sep = np.empty((B, 2))
-    two = np.empty((B, 3))
-    corr = np.empty((B, 3))
-    settle = np.empty(B)
-    # the true drift's trend at the epochs (the seed's constant drift does not change a correlation)
-    trend = np.r_[0.0, np.cumsum(spec["trend_steps"])]
-    after = t >= st
-    for b in range(B):
-        e = ez[b]
-        one1 = e[0] - e[j_bl] if nb >= 1 else e[0]
-        base = one1 + e[1]
-        for i, be in enumerate(betas):
-            out[b, i] = ws(base + be * e[2])
-        sep[b, 0] = out[b, betas.index(1.0)]
-        sep[b, 1] = ws(one1 + e[3] + spec["sep"] * e[4])
-        white = e[0] + e[j_tr]
-        ests = (white + e[1] + scales[0] * e[2], white + e[5] + scales[1] * e[6], white + e[7] + scales[2] * e[8])
-        two[b] = [ws(x) for x in ests]
-        corr[b] = [np.corrcoef(x[after], trend[after])[0, 1] for x in ests]
-        settle[b] = rotins.band_settle_time(t, base + e[2], x0z[b], spec["band"])
-    final = (ez[:, 0, -1] - (ez[:, j_bl, -1] if nb >= 1 else 0.0) + ez[:, 1, -1] + ez[:, 2, -1]) - x0z
-    return {"wstd": out, "wstd_sep": sep, "wstd_two": two, "final": final, "settle_band": settle,
-            "trend_corr": corr}
-
-
-def mean_ci95(x):
-    """Mean of ``x`` over seeds and its 95 % confidence interval (Student t)."""
-    from scipy import stats
-
-    x = np.asarray(x, float)
-    m = float(x.mean())
-    if x.size < 2:
-        return m, [float("nan"), float("nan")]
-    h = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
-    return m, [m - h, m + h]
-
-
-def wilson_ci95(k, n):
-    """95 % Wilson score interval of a probability from ``k`` successes in ``n`` trials."""
-    z = 1.959963984540054
-    p = k / n
-    c = (p + z * z / (2 * n)) / (1 + z * z / n)
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return [max(0.0, c - h), min(1.0, c + h)]
-
-
-def fractions(wstd, wstd_sep, betas, sep_ratio):
-    """Fractions of seeds: std monotone in β; β = 1.1 above β = 1.0; separate INS ordered."""
-    order = np.argsort(betas)
-    mono = np.all(np.diff(wstd[:, order], axis=1) > 0, axis=1)
-    d11 = wstd[:, betas.index(1.1)] > wstd[:, betas.index(1.0)]
-    dsep = (wstd_sep[:, 1] > wstd_sep[:, 0]) if sep_ratio > 1 else (wstd_sep[:, 1] < wstd_sep[:, 0])
-    return float(mono.mean()), float(d11.mean()), float(dsep.mean())
-
-
-def seed_statistics(out, betas, sep_ratio, scales):
-    """The campaign's statistics: the fractions, eq 20's σ ratio at β = 1.1 (mean over seeds,
-    95 % interval) and the probability that the windowed stds of analysis two rank INS
-    #2..#4 as their noise scales (with its 95 % Wilson interval)."""
-    pm, pd, ps = fractions(out["wstd"], out["wstd_sep"], betas, sep_ratio)
-    ratio = out["wstd"][:, betas.index(1.1)] / out["wstd"][:, betas.index(1.0)]
-    rm, rci = mean_ci95(ratio)
-    right = np.all(np.argsort(out["wstd_two"], axis=1) == np.argsort(np.asarray(scales, float)), axis=1)
-    B = right.size
-    return dict(p_monotone=pm, p_distinguish=pd, p_separate=ps, eq20_ratio_mean=rm, eq20_ratio_ci95=rci,
-                ranking_probability=float(right.mean()), ranking_probability_ci95=wilson_ci95(int(right.sum()), B))
-
-
 def linear_campaign(cfg, ctx, runs, model, P0, sig_meas, tables):
     """Analyses one and two over ``runs`` seeds in the linear domain, on Dask: the fixed
-    part (:func:`_linear_setup`) is made here once and sent to every worker once."""
+    part (:func:`sinslab.methods.rotins.campaign_setup`) is made here once and sent to every
+    worker once."""
     from sinslab.estimation import montecarlo as mc
+    from sinslab.methods import rotins
 
     spec = campaign_spec(cfg, model, P0, sig_meas, tables)
-    setup = _linear_setup(spec)
+    setup = rotins.campaign_setup(spec)
     spec = {k: v for k, v in spec.items() if k not in ("Phi", "Q", "Gam", "P0")}
     # a task runs the whole step recursion once, vectorised over its seeds: its cost hardly
     # depends on how many it stacks, so one task per worker
-    out = mc.run_campaign(linear_batch, runs, cfg.seed, scheduler=ctx.scheduler,
+    out = mc.run_campaign(rotins.campaign_batch, runs, cfg.seed, scheduler=ctx.scheduler,
                           kwargs=dict(spec=spec, setup=setup), tasks_per_worker=1)
-    stats = seed_statistics(out, spec["betas"], spec["sep"], spec["scales"])
+    stats = rotins.campaign_statistics(out, spec["betas"], spec["sep"], spec["scales"])
     return dict(stats, wstd=out["wstd"], wstd_sep=out["wstd_sep"], wstd_two=out["wstd_two"],
                 settle_band=out["settle_band"], trend_corr=out["trend_corr"])
 

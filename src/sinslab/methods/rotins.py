@@ -13,6 +13,7 @@ frames, errors computed minus true, SI inside).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,8 +27,13 @@ from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bia
 
 __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleObservability",
            "schedule_observability", "difference_sigma", "joint_P0", "joint_filter",
-           "joint_transitions", "joint_filter_linear", "difference_measurements", "noise_share",
-           "sigma_settle_time", "band_settle_time"]
+           "joint_transitions", "schedule_transitions", "joint_filter_linear", "difference_measurements",
+           "noise_share", "sigma_settle_time", "band_settle_time", "NOISE_GROUPS", "CAMPAIGN_PARTS", "campaign_setup",
+           "campaign_batch", "fractions", "campaign_statistics"]
+
+#: Noise sources of the joint model's noise vector (:func:`joint_rotation_model`): INS 1's
+#: gyros and accelerometers, INS k's gyros, INS k's accelerometers.
+NOISE_GROUPS = {"ins1": range(0, 5), "gyro_k": range(5, 8), "accel_k": range(8, 10)}
 
 
 def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
@@ -545,6 +551,51 @@ def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, n
     return Phi, Q
 
 
+def schedule_transitions(model: DifferenceModel, T, t, key, truth, substeps, noise_groups=None,
+                         inputs=False):
+    """Step transitions of the joint model along a known schedule, computed once per
+    distinct filter step (mounts that dwell most of the time give few distinct steps).
+
+    Parameters
+    ----------
+    model : DifferenceModel
+    T : float
+        Model step [s]; ``substeps`` of them are chained per filter step.
+    t : array (K·substeps,)
+        Start time of every model step [s].
+    key : array (K·substeps, m)
+        What makes a step differ (the mount angles of both INS at ``t`` [rad]); filter
+        steps whose keys agree to 1e-9 share a table entry.
+    truth : callable
+        ``truth(epochs) -> (rows1, rates1, rowsk, ratesk)``: the error-free outputs of both
+        INS at ``epochs`` (S,) and their rates over the S − 1 steps, as
+        :func:`joint_transitions` takes them.
+    substeps : int
+    noise_groups, inputs
+        As in :func:`joint_transitions`.
+
+    Returns
+    -------
+    Phi : ndarray (U, n, n)
+    Q : dict {group: ndarray (U, n, n)}
+    index : int ndarray (K,)
+        Table entry of each of the K filter steps.
+    Gam : dict {group: ndarray (U, n, p)}
+        Only with ``inputs=True``: the input matrices of :func:`joint_transitions`.
+    """
+    me = int(substeps)
+    t = np.asarray(t, float)
+    key = np.asarray(key, float)
+    K = t.size // me
+    key = np.round(key.reshape(K, me * key.shape[-1]), 9)
+    _, first, index = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    sub = (first[:, None] * me + np.arange(me)[None, :]).ravel()
+    r1, rates1, rk, ratesk = truth(np.r_[t[sub], 0.0])
+    out = joint_transitions(model, T, r1[:-1], rk[:-1], rates1, ratesk, noise_groups=noise_groups,
+                            substeps=me, inputs=inputs)
+    return (*out[:2], np.asarray(index, dtype=np.int64).reshape(K), *out[2:])
+
+
 def _metre_scale(model, sigma):
     """State scale d putting the two position differences in metres (other states as
     they are) and the position measurement with them; R then spans (1 mm)² to
@@ -716,3 +767,192 @@ def band_settle_time(t, x, truth, band):
         return float(t[0])
     last = int(np.flatnonzero(out)[-1])
     return float(t[last + 1]) if last + 1 < t.size else float("nan")
+
+
+# ---------------------------------------------------------------- linear-domain campaign -------
+#: parts of the linear-domain run: which noise drives each (None: no noise) —
+#: INS 1 + initial state, INS 2 accel, INS 2 gyro, INS B accel, INS B gyro, INS 3 accel,
+#: INS 3 gyro, INS 4 accel, INS 4 gyro, INS 1's drift trend, INS 1's noise block means
+CAMPAIGN_PARTS = ("ins1", "accel_k", "gyro_k", "accel_k", "gyro_k", "accel_k", "gyro_k", "accel_k", "gyro_k",
+          None, "blocks")
+
+
+def campaign_setup(spec):
+    """The campaign's fixed part, made once in the main process from its transition table:
+    transitions, noise square roots and the nominal filter's gains, positions in metres.
+
+    INS 1's step noise is split into its step mean ``u ~ N(0, q/T)`` acting through ``Γ``
+    (:func:`sinslab.methods.rotins.joint_transitions` with ``inputs=True``) and the rest,
+    independent of ``u``: removing the block means of ``u`` is then removing those of INS 1's
+    noise, and the white case is the same numbers with nothing removed."""
+    model = joint_rotation_model()
+    model.q[:] = spec["q"]
+    K, T = spec["n_steps"], spec["kf_dt"]
+    Phi, Qg, Gam, index = spec["Phi"].copy(), {g: v.copy() for g, v in spec["Q"].items()}, spec["Gam"], spec["index"]
+    n = model.n
+    sig = spec["sig"]
+    d = _metre_scale(model, sig)
+    Phi *= d[:, None] / d[None, :]
+    q1 = spec["q"][list(NOISE_GROUPS["ins1"])]
+    G1 = Gam["ins1"] * d[None, :, None] * np.sqrt(q1 / T)[None, None, :]
+    roots = {}
+    for g, Qk in Qg.items():
+        Qk *= d[:, None] * d[None, :]
+        if g == "ins1":
+            Qk = Qk - G1 @ np.swapaxes(G1, -1, -2)
+        w, V = np.linalg.eigh(Qk)
+        roots[g] = V * np.sqrt(np.maximum(w, 0.0))[:, None, :]
+    Q = sum(Qg.values())
+    P = spec["P0"] * (d[:, None] * d[None, :])
+    Rv = (sig * np.r_[d[0], d[1], 1.0, 1.0]) ** 2
+    gains = np.empty((K, n, 4))
+    sig_z = np.empty(K + 1)
+    iz = model.layout.index(["eps_z_1"])[0]
+    sig_z[0] = math.sqrt(P[iz, iz])
+    for k in range(K):
+        u = index[k]
+        P = Phi[u] @ P @ Phi[u].T + Q[u]
+        S = P[:4, :4] + np.diag(Rv)
+        Kk = np.linalg.solve(S, P[:4, :]).T
+        IKH = np.eye(n)
+        IKH[:, :4] -= Kk
+        P = IKH @ P @ IKH.T + (Kk * Rv) @ Kk.T
+        P = 0.5 * (P + P.T)
+        gains[k] = Kk
+        sig_z[k + 1] = math.sqrt(P[iz, iz])
+    return dict(Phi=np.ascontiguousarray(Phi), index=index, roots=roots, G1=np.ascontiguousarray(G1),
+                gains=gains, Rv=Rv, d=d, iz=iz, P0=spec["P0"] * (d[:, None] * d[None, :]),
+                t=T * np.arange(K + 1), sig_z=sig_z)
+
+
+def campaign_batch(seeds, spec, setup):
+    """Linear-domain runs of analyses one and two (campaign function of
+    :func:`sinslab.estimation.montecarlo.run_campaign`).
+
+    Per seed, the true joint error state and the nominal filter's estimate are propagated
+    in parts (``CAMPAIGN_PARTS``) that the filters share or not: the filter is linear with fixed
+    gains, so each filter's ε̂_z1 is a sum of parts, a rescaled noise record a scaled part
+    (ε̂_z1(β) = ε̂(rest) + β ε̂(gyro 2)), INS 1's noise without its block means the INS 1 part
+    minus the block-mean part, and the drift trend a part of its own. Vectorised over seeds
+    and parts. INS B, #3 and #4 share INS #2's initial state (its effect is gone long before
+    the first window).
+
+    Returns
+    -------
+    dict
+        ``wstd`` (B, len(betas)) mean windowed std of ε̂_z1 per β [rad/s]; ``wstd_sep``
+        (B, 2): INS A (β = 1), INS B (ratio ``sep``); ``wstd_two`` (B, 3): filters 2, 3, 4
+        of analysis two; ``final`` (B,) ε̂_z1 − ε_z1 at the end (β = 1); ``settle_band``
+        (B,) the band reading of the settling time [s] (β = 1); ``trend_corr`` (B, 3): the
+        correlation of filters 2, 3, 4's ε̂_z1 with the drift's trend after ``start``.
+    """
+    S = setup
+    Phi, index, roots, gains, iz, G1 = S["Phi"], S["index"], S["roots"], S["gains"], S["iz"], S["G1"]
+    K, n = gains.shape[:2]
+    B = len(seeds)
+    P_ = len(CAMPAIGN_PARTS)
+    p1 = G1.shape[-1]
+    nb = spec["block_steps"]
+    L0 = np.linalg.cholesky(S["P0"])
+    rngs = [np.random.default_rng(s) for s in seeds]
+    X = np.zeros((B, P_, n))
+    for b, g in enumerate(rngs):
+        X[b, 0] = L0 @ g.standard_normal(n)
+    x0z = X[:, 0, iz].copy()
+    Xh = np.zeros((B, P_, n))
+    noisy = [j for j, s in enumerate(CAMPAIGN_PARTS) if s in ("ins1", "accel_k", "gyro_k")]
+    # per source: its parts and their columns among the noisy parts' draws
+    groups = [(g, np.array([j for j, s in enumerate(CAMPAIGN_PARTS) if s == g]),
+               np.array([noisy.index(j) for j, s in enumerate(CAMPAIGN_PARTS) if s == g]))
+              for g in ("ins1", "accel_k", "gyro_k")]
+    j_tr, j_bl = CAMPAIGN_PARTS.index(None), CAMPAIGN_PARTS.index("blocks")
+    tr = spec["trend_steps"] * S["d"][iz]
+    sv = np.sqrt(S["Rv"])
+    ez = np.empty((B, P_, K + 1))
+    ez[:, :, 0] = 0.0
+    # A seed's generator gives per step, in this order, the process normals of the noisy
+    # parts, INS 1's step means and the measurement normals; drawn for a block of steps at
+    # once they are the same numbers in the same order. The blocks hold whole noise blocks.
+    per = len(noisy) * n + p1 + 4
+    chunk = 2048 if nb < 1 else nb * max(1, 2048 // nb)
+    v = np.zeros((B, P_, 4))
+    for k in range(K):
+        c = k % chunk
+        if c == 0:
+            m = min(chunk, K - k)
+            draws = np.stack([g.standard_normal((m, per)) for g in rngs])
+            xis = draws[:, :, :len(noisy) * n].reshape(B, m, len(noisy), n)
+            us = draws[:, :, len(noisy) * n:len(noisy) * n + p1]
+            vs = draws[:, :, len(noisy) * n + p1:]
+            ubar = np.zeros_like(us)
+            if nb >= 1:
+                for a in range(0, m, nb):
+                    ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
+        u = index[k]
+        X[:, j_tr, iz] += tr[k]
+        X = X @ Phi[u].T
+        xi = xis[:, c]
+        for gname, js, cols in groups:
+            X[:, js] += xi[:, cols] @ roots[gname][u].T
+        X[:, 0] += us[:, c] @ G1[u].T
+        X[:, j_bl] += ubar[:, c] @ G1[u].T
+        Xh = Xh @ Phi[u].T
+        v[:, 0] = vs[:, c] * sv
+        nu = X[:, :, :4] + v - Xh[:, :, :4]
+        Xh = Xh + nu @ gains[k].T
+        ez[:, :, k + 1] = Xh[:, :, iz]
+    t = S["t"]
+    betas, scales = spec["betas"], spec["scales"]
+    st, win = spec["start"], spec["window"]
+
+    def ws(x):
+        return windowed_std(t, x, st, win)[1].mean()
+
+    out = np.empty((B, len(betas)))
+    sep = np.empty((B, 2))
+    two = np.empty((B, 3))
+    corr = np.empty((B, 3))
+    settle = np.empty(B)
+    # the true drift's trend at the epochs (the seed's constant drift does not change a correlation)
+    trend = np.r_[0.0, np.cumsum(spec["trend_steps"])]
+    after = t >= st
+    for b in range(B):
+        e = ez[b]
+        one1 = e[0] - e[j_bl] if nb >= 1 else e[0]
+        base = one1 + e[1]
+        for i, be in enumerate(betas):
+            out[b, i] = ws(base + be * e[2])
+        sep[b, 0] = out[b, betas.index(1.0)]
+        sep[b, 1] = ws(one1 + e[3] + spec["sep"] * e[4])
+        white = e[0] + e[j_tr]
+        ests = (white + e[1] + scales[0] * e[2], white + e[5] + scales[1] * e[6], white + e[7] + scales[2] * e[8])
+        two[b] = [ws(x) for x in ests]
+        corr[b] = [np.corrcoef(x[after], trend[after])[0, 1] for x in ests]
+        settle[b] = band_settle_time(t, base + e[2], x0z[b], spec["band"])
+    final = (ez[:, 0, -1] - (ez[:, j_bl, -1] if nb >= 1 else 0.0) + ez[:, 1, -1] + ez[:, 2, -1]) - x0z
+    return {"wstd": out, "wstd_sep": sep, "wstd_two": two, "final": final, "settle_band": settle,
+            "trend_corr": corr}
+
+
+def fractions(wstd, wstd_sep, betas, sep_ratio):
+    """Fractions of seeds: std monotone in β; β = 1.1 above β = 1.0; separate INS ordered."""
+    order = np.argsort(betas)
+    mono = np.all(np.diff(wstd[:, order], axis=1) > 0, axis=1)
+    d11 = wstd[:, betas.index(1.1)] > wstd[:, betas.index(1.0)]
+    dsep = (wstd_sep[:, 1] > wstd_sep[:, 0]) if sep_ratio > 1 else (wstd_sep[:, 1] < wstd_sep[:, 0])
+    return float(mono.mean()), float(d11.mean()), float(dsep.mean())
+
+
+def campaign_statistics(out, betas, sep_ratio, scales):
+    """The campaign's statistics: the fractions, eq 20's σ ratio at β = 1.1 (mean over seeds,
+    95 % interval) and the probability that the windowed stds of analysis two rank INS
+    #2..#4 as their noise scales (with its 95 % Wilson interval)."""
+    from sinslab.estimation.montecarlo import mean_ci95, wilson_ci95
+
+    pm, pd, ps = fractions(out["wstd"], out["wstd_sep"], betas, sep_ratio)
+    ratio = out["wstd"][:, betas.index(1.1)] / out["wstd"][:, betas.index(1.0)]
+    rm, rci = mean_ci95(ratio)
+    right = np.all(np.argsort(out["wstd_two"], axis=1) == np.argsort(np.asarray(scales, float)), axis=1)
+    B = right.size
+    return dict(p_monotone=pm, p_distinguish=pd, p_separate=ps, eq20_ratio_mean=rm, eq20_ratio_ci95=rci,
+                ranking_probability=float(right.mean()), ranking_probability_ci95=wilson_ci95(int(right.sum()), B))

@@ -20,6 +20,9 @@ Two kinds of mount:
     axes (after Yuan, Liao, Han 2012, ref. [5] of paper 001): each group of four moves is
     mirrored in order and sign by the following ones so that, over a cycle, every move is
     cancelled by an opposite one.
+  * ``azimuth_flip``, ``roll_flip`` — stops at 0° and 180° about one axis only.
+
+  :func:`scheme` builds the mount of any of them by name.
 
 - :class:`Swing` — a swinging table: sinusoidal swing about one Euler axis
   (e.g. ±5°, 40 s about pitch: the laboratory variant of paper 004).
@@ -38,8 +41,9 @@ import numpy as np
 
 from sinslab.core import units
 
-__all__ = ["common_stops", "AXES", "SINGLE_AXIS_4POS", "DUAL_AXIS_16", "SCHEMES", "RotateStop", "Swing", "short_number",
-           "single_axis_4pos", "dual_axis_16", "mount_angles", "mount_from_dict", "Mount"]
+__all__ = ["common_stops", "AXES", "SINGLE_AXIS_4POS", "DUAL_AXIS_16", "AZIMUTH_FLIP", "ROLL_FLIP", "SCHEMES",
+           "RotateStop", "Swing", "short_number", "single_axis_4pos", "dual_axis_16", "scheme", "mount_angles",
+           "mount_from_dict", "Mount"]
 
 #: Mount Euler-angle components: index into ``[pitch, roll, yaw]``; "azimuth" = yaw.
 AXES = {"pitch": 0, "roll": 1, "yaw": 2, "azimuth": 2}
@@ -55,8 +59,14 @@ DUAL_AXIS_16: tuple[tuple[str, float], ...] = (
     ("yaw", -180.0), ("roll", -180.0), ("yaw", 180.0), ("roll", 180.0),
     ("roll", 180.0), ("yaw", 180.0), ("roll", -180.0), ("yaw", -180.0))
 
+#: One-axis flips (axis, angle in degrees): stops at 0° and 180° about the azimuth or the roll
+#: axis only, schedules on which to check what a dual-axis scheme adds.
+AZIMUTH_FLIP: tuple[tuple[str, float], ...] = (("yaw", 180.0), ("yaw", -180.0))
+ROLL_FLIP: tuple[tuple[str, float], ...] = (("roll", 180.0), ("roll", -180.0))
+
 #: Named schemes: move lists in degrees.
-SCHEMES = {"single_axis_4pos": SINGLE_AXIS_4POS, "dual_axis_16": DUAL_AXIS_16}
+SCHEMES = {"single_axis_4pos": SINGLE_AXIS_4POS, "dual_axis_16": DUAL_AXIS_16, "azimuth_flip": AZIMUTH_FLIP,
+           "roll_flip": ROLL_FLIP}
 
 
 # --- smooth step (quintic) and its derivatives, numpy ------------------------------------
@@ -245,6 +255,13 @@ def dual_axis_16(rate=9.0 * units.deg, dwell=300.0, ramp=1.0, initial=(0.0, 0.0,
     """Dual-axis (azimuth + roll) 16-step rotate-stop, stops at 0°/180° (SI arguments)."""
     return RotateStop(tuple((a, math.radians(x)) for a, x in DUAL_AXIS_16), rate, ramp, dwell,
                       initial, repeat, "dual_axis_16")
+
+
+def scheme(name, rate=9.0 * units.deg, dwell=300.0, ramp=1.0, initial=(0.0, 0.0, 0.0),
+           repeat=True) -> RotateStop:
+    """The rotate-stop mount of a named scheme of :data:`SCHEMES` (SI arguments)."""
+    return RotateStop(tuple((a, math.radians(x)) for a, x in SCHEMES[name]), rate, ramp, dwell, initial, repeat,
+                      name)
 
 
 def mount_angles(mount: Mount | None, t):
