@@ -139,7 +139,9 @@ def bench_filter(duration, numpy_duration, rounds=3):
 
 
 # --------------------------------------------------------------------------- profile
-@njit(cache=True)
+# Not cached: this file runs as __main__ and as a module of another name (the tests), and
+# numba's cache of one cannot rebuild the environment of the other.
+@njit
 def _k_fill(rows, w, f, n_ep, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k, f_j, f_src,
             f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, Fs, Gs):
     C = np.empty((1, 3, 3))
@@ -149,7 +151,7 @@ def _k_fill(rows, w, f, n_ep, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f
                     f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc, Fs[e], Gs[e])
 
 
-@njit(cache=True)
+@njit
 def _k_cov(P, Phi, Q):
     n = P.shape[0]
     T1, T2 = np.empty((n, n)), np.empty((n, n))
@@ -157,7 +159,7 @@ def _k_cov(P, Phi, Q):
         _cov_predict(P, Phi[e], Q[e], T1, T2)
 
 
-@njit(cache=True)
+@njit
 def _k_state(x, Phi, phic, phin):
     tmp = np.empty(x.shape[0])
     for e in range(Phi.shape[0]):
