@@ -27,8 +27,13 @@ The example at the end of every command's ``--help`` (``sinslab.cli.EXAMPLES``) 
 
 Numbers quoted in the docs from these runs are checked against the run's ``summary.json``
 with a stated tolerance (:data:`QUOTED`): a run that moves them fails here until the
-document is updated.
+document is updated. Numbers quoted from the full ``sinslab demo`` runs (minutes, not run
+here) are checked the same way against :data:`RECORD`, the stored record of those runs that
+``tools/quoted_runs.py`` writes from a demo folder; the record is checked to be of the
+experiments' current default configs, so a changed default fails here until the demo is
+re-run and the record refreshed.
 """
+import hashlib
 import json
 import re
 import shlex
@@ -130,6 +135,10 @@ DRIVE = ("navigate --imu rtklib-drive/imu_1934.csv --fixes rtklib-drive/gnss_193
          "--velocity-lag 0.125 --outages 15/60@40 --out runs/drive")
 WALK = ('navigate --imu imu_1730.csv --format rtklib-imu --mount "rpy:180,0,-90" --frame frd '
         '--gnss-raw gnss_1730.ubx --init "course_speed=1 m/s,course_spread=10 deg" --out runs/walk-tc')
+#: the stored record of the full demo runs the docs quote (``run`` ``"demo LABEL"`` in QUOTED)
+RECORD = ROOT / "docs" / "runs.json"
+REFRESH = ("re-run the demo (`make demo`, or `sinslab demo --only NAME`) and refresh the record: "
+           "`.venv/bin/python tools/quoted_runs.py runs`, then update the numbers the docs quote")
 QUOTED = [
     ("raw-gnss.md", "461 of 461 epochs used, median 16 satellites, 7376 pseudoranges used and 0 rejected "
      "by the gate, 7373 range rates used and 3 rejected; 3439 observations without ephemeris", WALK,
@@ -148,16 +157,148 @@ QUOTED = [
      ["flops_per_step_reduced", "flops_per_step_full"], 0.0),
     ("README.md", "initial-velocity response 84.35 min (theory 84.47)", "run free-inertial",
      ["schuler_period_min", "schuler_period_theory_min"], 0.0),
+    # the README's results table, from the full demo runs (RECORD)
+    ("README.md", "`static-alignment` (000, 1200 s) | 7/7 |", "demo static-alignment",
+     ["=0", "=1200", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "`static-alignment-60min` | 6/7 |", "demo static-alignment-60min",
+     ["=60", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "(σ(εU) still 85 % of its initial value)", "demo static-alignment-60min",
+     ["100*epsU_sigma_ratio"], 0.0),
+    ("README.md", "`double-star` (003, 200 runs) | 6/6 |", "demo double-star",
+     ["=3", "runs", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "fix σ 41 m N/S, 31 m E/W at the start", "demo double-star",
+     ["fix_sigma_ns_m", "fix_sigma_ew_m"], 0.0),
+    ("README.md", '`fix.height_factor="geometric"` gives 71/30 m', "demo double-star",
+     ["fix_sigma_ns_geometric_m", "fix_sigma_ew_geometric_m"], 0.0),
+    ("README.md", "lag-aware 207 m RMS vs lag-ignoring 587 m vs zero-lag 206 m", "demo double-star",
+     ["rms_pos_err_lagaware_m", "rms_pos_err_lagignore_m", "rms_pos_err_zerolag_m"], 0.0),
+    ("README.md", "Monte Carlo RMS / σ 0.99 (position), 0.97 (attitude)", "demo double-star",
+     ["mc_rms_over_sigma_pos", "mc_rms_over_sigma_att"], 0.0),
+    ("README.md", "`double-star-ranges` (beyond 003, 100 runs) | 4/4 |", "demo double-star-ranges",
+     ["=3", "runs", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "207.5 vs 208.4 m RMS (ratio 0.995), 33.0 vs 33.8 m at the last window end",
+     "demo double-star-ranges", ["rms_pos_err_ranges_m", "rms_pos_err_fix_m", "claim:ranges_beat_fix",
+                                 "window_end_pos_rms_ranges_m[-1]", "window_end_pos_rms_fix_m[-1]"], 0.0),
+    ("README.md", "path filter consistent (RMS / σ 0.99, normalised errors at every window end 0.84–1.24",
+     "demo double-star-ranges", ["mc_rms_over_sigma_pos_ranges",
+                                 "min(nees_window_end_north_ranges,nees_window_end_east_ranges)",
+                                 "max(nees_window_end_north_ranges,nees_window_end_east_ranges)"], 0.0),
+    ("README.md", "the paper's filter is over-confident (RMS / σ 1.08", "demo double-star-ranges",
+     ["mc_rms_over_sigma_pos_fix"], 0.0),
+    ("README.md", "eqs 11–15 give 41 m N/S where the paths' first-order fix error is 69 m", "demo double-star",
+     ["=11", "=15", "fix_sigma_ns_m", "fix_sigma_ns_linearised_m"], 0.0),
+    ("README.md", "`transfer-alignment` (002, 200 runs) | 7/7 |", "demo transfer-alignment",
+     ["=2", "runs", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "the optimal form (4) converges (RMS/σ 1.15, 1.19, 0.98), Kain (3) and DCM (2) diverge in "
+     "all 200 runs, the Euler form (1) ends 10σ off", "demo transfer-alignment",
+     ["=4", "rms_over_sigma_optimal_large", "=3", "=2", "diverged_runs_kain_large", "=1",
+      "rms_over_sigma_euler_large[0]"], 0.0),
+    ("README.md", "all four converge (RMS/σ ≤ 1.44)", "demo transfer-alignment",
+     ["max(rms_over_sigma_euler_small,rms_over_sigma_dcm_small,rms_over_sigma_kain_small,"
+      "rms_over_sigma_optimal_small)"], 0.0),
+    ("README.md", "DCM form at C22 = 0: heading RMS 34.4′ vs Kain 0.53′", "demo transfer-alignment",
+     ["=22", "=0", "dcm_heading_rms_c22zero_arcmin", "kain_heading_rms_c22zero_arcmin"], 0.0),
+    ("README.md", "`schuler-suppression` (004, ship 48 h) | 6/6 | Schuler band reduced 3.7–4.3× in vE, vN, "
+     "φE, φN (2.5× in longitude), 24 h line kept (ratio 1.02–1.03)", "demo schuler-suppression",
+     ["=4", "=48", "claims:passed", "claims:total",
+      "min(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)",
+      "max(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)", "suppression_lon", "=24",
+      "min(claim:earth_period_kept)", "max(claim:earth_period_kept)"], 0.0),
+    ("README.md", "`schuler-suppression-turntable` | 3/6 |", "demo schuler-suppression-turntable",
+     ["claims:passed", "claims:total"], 0.0),
+    ("README.md", "common to both solutions; suppression 1.06–1.13", "demo schuler-suppression-turntable",
+     ["min(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)",
+      "max(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)"], 0.0),
+    ("README.md", "`schuler-suppression-injected` | 3/4 | Schuler band reduced 16–21×; the φN 24 h ratio "
+     "(1.66) fails on a 0.017′ line", "demo schuler-suppression-injected",
+     ["claims:passed", "claims:total",
+      "min(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)",
+      "max(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)", "=24",
+      "claim:earth_period_kept[3]", "earth_amp_phiN_single"], 0.0),
+    ("README.md", "`rotation-evaluation` (001, 144 h, 20 seeds) | 8/12", "demo rotation-evaluation",
+     ["=1", "=144", "runs", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "observability rank 5 per stop, 13 stacked", "demo rotation-evaluation",
+     ["obs_rank_static", "obs_rank_schedule"], 0.0),
+    ("README.md", "reaches the drift at 16.0 h", "demo rotation-evaluation", ["settle_sigma_h"], 0.0),
+    ("README.md", "from 15.4 h, median over seeds 15.0 h", "demo rotation-evaluation",
+     ["settle_band_h", "mc_settle_band_median_h"], 0.0),
+    ("README.md", "(mean 2.0e-5 °/h at β = 1,", "demo rotation-evaluation",
+     ["mc_windowed_std_mean_dph[2]", "=1"], 0.0),
+    ("README.md", "over seeds 1.072, 95 % interval [1.069, 1.075]", "demo rotation-evaluation",
+     ["eq20_ratio_mean", "=95", "eq20_ratio_ci95"], 0.0),
+    ("README.md", "with probability 0.60 [0.39, 0.78]", "demo rotation-evaluation",
+     ["ranking_probability", "ranking_probability_ci95"], 0.0),
+    ("README.md", "told on 70 % of seeds only", "demo rotation-evaluation",
+     ["100*p_distinguish_1p1_separate_ins"], 0.0),
+    ("README.md", "(mean correlation 0.67, 0.58, 0.50", "demo rotation-evaluation",
+     ["mc_trend_correlation_mean"], 0.0),
+    ("README.md", "`free-inertial-mc200` | 15/15 | Monte Carlo RMS / covariance σ in 0.86–1.13",
+     "demo free-inertial-mc200",
+     ["=200", "claims:passed", "claims:total", "mc_rms_over_sigma_min", "mc_rms_over_sigma_max"], 0.0),
+    ("README.md", "(chi-square band for 200 runs: 0.8–1.2)", "demo free-inertial-mc200",
+     ["mc_runs", "mc_ratio_bounds"], 0.0),
 ]
 
 
 def _numbers(text: str) -> list[tuple[float, float]]:
     """The numbers of a quoted text with half a unit of their last digit (their rounding)."""
     out = []
-    for x in re.findall(r"[−-]?\d+(?:\.\d+)?", text):
+    for x, exp in re.findall(r"((?:(?<!\w)[−-])?\d+(?:\.\d+)?)(?:e([−-]?\d+))?", text):
         dec = len(x.split(".")[1]) if "." in x else 0
-        out.append((float(x.replace("−", "-")), 0.5 * 10.0 ** -dec))
+        scale = 10.0 ** int(exp.replace("−", "-")) if exp else 1.0
+        out.append((float(x.replace("−", "-")) * scale, 0.5 * 10.0 ** -dec * scale))
     return out
+
+
+def summary_value(summary: dict, key: str):
+    """A run's value by name: ``claims:passed`` / ``claims:total`` (claims that hold, all
+    claims), ``claim:ID`` (a claim's measured value; a dict's values in order), or a metric."""
+    if key in ("claims:passed", "claims:total"):
+        return sum(bool(c["passed"]) for c in summary["claims"]) if key == "claims:passed" else len(
+            summary["claims"])
+    if key.startswith("claim:"):
+        v = next(c for c in summary["claims"] if c["id"] == key[6:])["measured"]["value"]
+        return list(v.values()) if isinstance(v, dict) else v
+    return summary["metrics"][key]
+
+
+#: one key of QUOTED: ``=X`` (a number the text shows that is not a result, such as a
+#: confidence level), ``min(K,...)``/``max(K,...)``, ``100*K`` (a percentage), ``K[i]`` (one
+#: element), else a name :func:`summary_value` knows
+_KEY = re.compile(r"(?P<lit>=.+)|(?P<fn>min|max)\((?P<args>.+)\)|100\*(?P<pct>.+)|(?P<el>.+)\[(?P<i>-?\d+)\]")
+
+
+def quoted_value(key: str, raw) -> list[float]:
+    """The numbers a QUOTED key stands for, given ``raw(name)``: a run's value by name."""
+    m = _KEY.fullmatch(key)
+    if m is None:
+        v = raw(key)
+        v = [x for e in v for x in (e if isinstance(e, list) else [e])] if isinstance(v, list) else [v]
+        return [float(x) for x in v]
+    if m["lit"]:
+        return [float(m["lit"][1:])]
+    if m["fn"]:
+        vals = [x for k in m["args"].split(",") for x in quoted_value(k.strip(), raw)]
+        return [min(vals) if m["fn"] == "min" else max(vals)]
+    if m["pct"]:
+        return [100.0 * x for x in quoted_value(m["pct"], raw)]
+    return [quoted_value(m["el"], raw)[int(m["i"])]]
+
+
+def quoted_names(key: str) -> list[str]:
+    """The run's value names a QUOTED key reads (what the stored record must hold)."""
+    m = _KEY.fullmatch(key)
+    if m is None:
+        return [key]
+    if m["lit"]:
+        return []
+    inner = [k.strip() for k in m["args"].split(",")] if m["fn"] else [m["pct"] or m["el"]]
+    return [n for k in inner for n in quoted_names(k)]
+
+
+def config_digest(config: dict) -> str:
+    """SHA-256 of a resolved config (``cfg.model_dump(mode="json")``, as summary.json stores it)."""
+    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()
 
 
 def _run_doc(doc: Path, tmp_path, monkeypatch, commands=None):
@@ -218,22 +359,50 @@ def test_every_help_example_runs(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("name, quoted, run, keys, tol", QUOTED, ids=[f"{q[0]}:{q[1][:24]}" for q in QUOTED])
 def test_numbers_quoted_from_runs(name, quoted, run, keys, tol, tmp_path, monkeypatch):
-    """A number a document quotes from a run equals that run's summary.json."""
+    """A number a document quotes from a run equals that run's summary.json (or, for the full
+    demo runs, the stored record of them)."""
     doc = next(p for p in DOCS if p.name == name)
     text = " ".join(doc.read_text(encoding="utf-8").split())
     assert " ".join(quoted.split()) in text, f"{name} no longer quotes {quoted!r}: update QUOTED"
-    key = " ".join(_substitute(shlex.split(run)))
-    if key not in _SUMMARIES:                   # not run by the test above (run alone)
-        if not DATA.is_dir():
-            pytest.skip("shared data folder not available")
-        _run_doc(doc, tmp_path, monkeypatch, commands=[("sinslab " + run, None)])
-    s = _SUMMARIES[key]
-    got = []
-    for k in keys:                              # a metric, or claim:ID (its measured value)
-        v = (next(c for c in s["claims"] if c["id"] == k[6:])["measured"]["value"]
-             if k.startswith("claim:") else s["metrics"][k])
-        got += v if isinstance(v, list) else [v]
+    if run.startswith("demo "):
+        label = run.split()[1]
+        record = json.loads(RECORD.read_text(encoding="utf-8"))["runs"]
+        assert label in record, f"{RECORD.name} has no run {label}: {REFRESH}"
+        values = record[label]["values"]
+        missing = [n for k in keys for n in quoted_names(k) if n not in values]
+        assert not missing, f"{RECORD.name}: run {label} lacks {missing}: {REFRESH}"
+        raw = values.__getitem__
+    else:
+        key = " ".join(_substitute(shlex.split(run)))
+        if key not in _SUMMARIES:               # not run by the test above (run alone)
+            if not DATA.is_dir():
+                pytest.skip("shared data folder not available")
+            _run_doc(doc, tmp_path, monkeypatch, commands=[("sinslab " + run, None)])
+        s = _SUMMARIES[key]
+
+        def raw(k):
+            return summary_value(s, k)
+    got = [x for k in keys for x in quoted_value(k, raw)]
     want = _numbers(quoted)
     assert len(want) == len(got), (quoted, got)
     bad = [(w, g) for (w, r), g in zip(want, got) if abs(w - g) > tol + r + 1e-12]
     assert not bad, f"{name}: {quoted!r} against the run: {got} (tolerance {tol})"
+
+
+def test_the_record_of_the_demo_is_of_todays_defaults():
+    """docs/runs.json holds the full demo runs of the experiments' current default configs
+    (with each variant's ``--set`` items): a changed default makes the quoted numbers stale."""
+    from sinslab.app.config import resolve
+    from sinslab.experiments import get
+
+    record = json.loads(RECORD.read_text(encoding="utf-8"))["runs"]
+    assert {q[2].split()[1] for q in QUOTED if q[2].startswith("demo ")} <= set(record), REFRESH
+    for label, run in record.items():
+        exp = get(run["experiment"])
+        want = f"{exp.name}-" + next((sfx for sfx, sets in exp.variants.items() if list(sets) == run["sets"]),
+                                     "?") if run["sets"] else exp.name
+        assert label == want, f"{RECORD.name}: run {label} is no demo run of {exp.name} today: {REFRESH}"
+        digest = config_digest(resolve(exp.config, sets=run["sets"]).model_dump(mode="json"))
+        assert run["config_sha256"] == digest, (
+            f"{RECORD.name}: run {label} was made with another config than today's default of "
+            f"{exp.name}{' with ' + ', '.join(run['sets']) if run['sets'] else ''}: {REFRESH}")
