@@ -300,6 +300,25 @@ QUOTED = [
     ("002.md", "the DCM form's heading error at the end 34.4′ RMS (its σ 53.7′) against 0.53′ for Kain's",
      "demo transfer-alignment", ["dcm_heading_rms_c22zero_arcmin", "dcm_heading_sigma_c22zero_arcmin",
                                  "kain_heading_rms_c22zero_arcmin"], 0.0),
+    # docs/methods/002.md, the sweeps (worst-axis RMS/σ at the end)
+    ("002.md", "no (11.7) | no (10.2) | no (5.3) | no (4.7) |", "demo transfer-alignment",
+     [f"rms_over_sigma_euler_large_by_noise[{i}]" for i in range(1, 5)], 0.0),
+    ("002.md", "| optimal, large | yes (1.18) | yes (1.17) | yes (1.16) | yes (1.14) | yes (1.09) |",
+     "demo transfer-alignment", ["rms_over_sigma_optimal_large_by_noise"], 0.0),
+    ("002.md", "| euler / kain / optimal, small | yes (1.46–1.48) | yes (1.46–1.48) | yes (1.45–1.47) | "
+     "yes (1.43–1.45) | yes (1.28–1.31) |", "demo transfer-alignment",
+     [f"{fn}({','.join(f'rms_over_sigma_{f}_small_by_noise[{i}]' for f in ('euler', 'kain', 'optimal'))})"
+      for i in range(5) for fn in ("min", "max")], 0.0),
+    ("002.md", "| dcm, small | yes (**2.98**) | yes (1.51) | yes (1.51) | yes (1.49) | yes (1.36) |",
+     "demo transfer-alignment", ["rms_over_sigma_dcm_small_by_noise"], 0.0),
+    ("002.md", "| euler, large | no (10.2) | no (10.2) | no (10.3) | no (10.3) | no (10.3) |",
+     "demo transfer-alignment", ["rms_over_sigma_euler_large_by_master_error"], 0.0),
+    ("002.md", "| optimal, large | yes (1.04) | yes (1.07) | yes (1.65) | yes (2.82) | **no (4.05)** |",
+     "demo transfer-alignment", ["rms_over_sigma_optimal_large_by_master_error"], 0.0),
+    ("002.md", "| every form, small | yes (1.08–1.12) | yes (1.26–1.31) | yes (2.08–2.14) | **no (3.56–3.62)** | "
+     "**no (5.11–5.18)** |", "demo transfer-alignment",
+     [f"{fn}({','.join(f'rms_over_sigma_{f}_small_by_master_error[{i}]' for f in ('euler', 'dcm', 'kain', 'optimal'))})"
+      for i in range(5) for fn in ("min", "max")], 0.0),
     # docs/methods/003.md and 004.md, their claim tables
     ("003.md", "`lagaware_beats_lagignore` — RMS horizontal position error, lag-aware / lag-ignore | "
      "0.354 (207.5 m / 586.9 m)", "demo double-star",
