@@ -254,7 +254,9 @@ QUOTED = [
      ["time_per_step_us_reduced", "time_per_step_us_full"], 0.3),      # a time: the machine's load
     ("000.md", "σ(εU) is still 0.0085 °/h after 60 min", "demo static-alignment-60min",
      ["final_sigma_epsU_dph_reduced", "=60"], 0.0),
-    # docs/methods/001.md, its results table and the eq 20 note
+    # docs/methods/001.md, the degree of observability, its results table and the eq 20 note
+    ("001.md", "| auto scale | 0.51 | 0.51 | 0.83 | 0.83 | 0.84 | 0.98 | 0.82 | 0.87 | 0.98 | 0.51 | 0.51 | 0.51 | 0.51 |",
+     "demo rotation-evaluation", ["obs_degree"], 0.0),
     ("001.md", "mean windowed std 2.0e-5 °/h at β = 1;", "demo rotation-evaluation",
      ["mc_windowed_std_mean_dph[2]", "=1"], 0.0),
     ("001.md", "the worst 1.1e-4 °/h", "demo rotation-evaluation", ["max(eps_z1_windows_worst_dph)"], 0.0),
