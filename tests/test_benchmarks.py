@@ -188,6 +188,8 @@ def test_navigate_cost_script(tmp_path):
 
 
 def test_workers_script():
-    """benchmarks/workers.py: Dask's default worker environment and sinslab's give the same bytes."""
+    """benchmarks/workers.py: Dask's default worker environment and sinslab's give the same
+    results (to the last bits: an allocator setting can move an array's alignment and with
+    it BLAS's kernel path)."""
     res = _load("workers").main(["--runs", "8", "--rounds", "1"])
-    assert res["same_bytes"] and res["sinslab_worker_cpu_s"] > 0
+    assert res["max_rel_diff"] < 1e-9 and res["sinslab_worker_cpu_s"] > 0
