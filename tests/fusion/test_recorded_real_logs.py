@@ -556,14 +556,14 @@ N380_FIX = ("t=SystemTov[s], lat=GnssLatitude[rad], lon=GnssLongitude[rad], h=Gn
 N380_MOUNT = "matrix:0,0,-1,0,1,0,1,0,0"          # the package's IMU -> case (forward-right-down)
 
 
-def _n380_drive():
+def _n380_drive(name="2021-04-27C-car-hill-drive"):
     import importlib.util
-    spec = importlib.util.find_spec("onavdata")
+    spec = importlib.util.find_spec("onavdata")       # a dev dependency (pyproject.toml)
     if spec is None or spec.origin is None:
         pytest.skip("onavdata not installed (pip install onavdata)")
-    d = Path(spec.origin).parent / "data" / "HGuide n380" / "2021-04-27C-car-hill-drive"
+    d = Path(spec.origin).parent / "data" / "HGuide n380" / name
     if not (d / "n380-imu-nav.csv.zip").exists():
-        pytest.skip("onavdata without the n380 hill drive")
+        pytest.skip(f"onavdata without the n380 drive {name}")
     return d
 
 
@@ -587,6 +587,23 @@ def test_n380_car_drive_as_shipped():
     e0, e1 = R.outage_end_errors(r0, fx)[1], R.outage_end_errors(r1, fx)[1]
     assert e0.size >= 4 and np.all(e1 < e0), (e0, e1)
     assert 1.0 < abs(math.degrees(r1.init["vehicle_mount_estimate"][2])) < 4.0
+
+
+def test_n380_stop_and_go_drive_nhc_helps():
+    """The package's stop-and-go drive (one 30 s outage, 60 s after the first fix): its
+    rest ends 2 s before the start, so the rest levelling is kept (no in-motion alignment);
+    NHC with the vehicle states ends the outage better than fixes only (measured 4.79 m
+    against 7.40 m; the test asks for at least 20 % better)."""
+    from sinslab.data import load_fixes, load_imu
+    d = _n380_drive("2021-03-29-automotive-stoplight-to-stoplight")
+    imu = load_imu(d / "n380-imu-nav.csv.zip", columns=N380_IMU, mount=N380_MOUNT, frame="frd").imu
+    fx, _ = load_fixes(d / "n380-gnss-pvt.csv.zip", columns=N380_FIX)
+    outs = [("periodic", 30.0, 120.0, 60.0)]
+    r0 = R.navigate_recorded(imu, fx, _opt(outages=outs))
+    r1 = R.navigate_recorded(imu, fx, _opt(outages=outs, nhc_sigma=(0.1, 0.1), estimate_vehicle=True))
+    assert "motion_alignment" not in r0.init and r0.init["tilt_carried_s"] < 5.0
+    e0, e1 = R.outage_end_errors(r0, fx)[1], R.outage_end_errors(r1, fx)[1]
+    assert e0.size == 1 and e1[0] < 0.8 * e0[0], (e0, e1)
 
 
 def test_fix_positions_and_velocities_in_two_files(drive, tmp_path):
