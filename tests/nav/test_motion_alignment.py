@@ -96,6 +96,15 @@ def test_alignment_sigma_covers_noisy_velocity(flight):
 
 
 def test_too_few_fixes_give_none(flight):
+    """Fewer than four usable fixes in the span (a fix without a vertical velocity is not
+    usable): no alignment."""
     imu, tru = flight
     tf = np.array([1.0, 2.0])
     assert M.align_in_motion(imu, tf, np.zeros((2, 3)), np.full(2, 0.7), np.zeros(2), 100, 200) is None
+    tf = np.arange(1.0, 6.01, 1.0)
+    vel = np.stack([np.interp(tf, tru.t, tru.vel[:, i]) for i in range(3)], -1)
+    lat, h = np.interp(tf, tru.t, tru.lat), np.interp(tf, tru.t, tru.h)
+    k0, k1 = int(np.searchsorted(imu.t, 1.0)), int(np.searchsorted(imu.t, 6.0 - 1e-9)) + 1
+    assert M.align_in_motion(imu, tf, vel, lat, h, k0, k1).n_vectors == 6
+    vel[1:4, 2] = np.nan
+    assert M.align_in_motion(imu, tf, vel, lat, h, k0, k1) is None

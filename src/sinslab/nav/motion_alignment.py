@@ -177,11 +177,13 @@ def align_in_motion(imu: ImuRecord, t_fix, vel, lat, h, k0: int, k1: int, gyro_b
     The pairs (α, β) of the module notes are formed from the first fix in the span; the
     fitted ``C_{b0}^{n0}`` (the attitude at the first boundary, ``C_bn_start``) is carried to the end, ``C_b^n = (C_{n}^{n0})ᵀ C_{b0}^{n0}
     C_{b}^{b0}``. Returns a :class:`MotionAlignment`, or None when fewer than four fixes
-    fall inside the span.
+    with finite velocity, latitude and height fall inside the span.
     """
     tau, beta_cum, C_bb0 = body_integrals(imu, k0, k1, gyro_bias)
     t_fix = np.asarray(t_fix, dtype=float)
-    j = np.flatnonzero((t_fix >= tau[0]) & (t_fix <= tau[-1]))
+    ok = np.all(np.isfinite(np.asarray(vel, float)), axis=1) & np.isfinite(np.asarray(lat, float)) & \
+        np.isfinite(np.asarray(h, float))
+    j = np.flatnonzero((t_fix >= tau[0]) & (t_fix <= tau[-1]) & ok)
     if j.size < 4:
         return None
     tj = t_fix[j]

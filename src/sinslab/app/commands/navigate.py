@@ -491,6 +491,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              if res.init.get("rest_start") else
              f"No rest at the start: pitch and roll {res.init.get('level_source')}; heading "
              f"{res.init.get('heading_source')}."]
+    if res.init.get("motion_alignment"):
+        notes.append(f"Initial attitude from an in-motion alignment over {res.init['motion_alignment']['window_s']:.1f} s "
+                     f"of fixes before the start, not the rest's levelling carried "
+                     f"{res.init['motion_alignment']['carried_s']:.1f} s by the gyros.")
     if hs is not None:
         notes.append(f"Initial heading {np.degrees(res.init['heading']):.2f} deg ± "
                      f"{np.degrees(hs):.2f} deg (1σ of the course window).")
