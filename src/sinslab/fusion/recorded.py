@@ -11,8 +11,11 @@ data, outages, and evaluation against the fixes.
    and rotated about the vertical so that the body forward axis points along the fix
    course; a car does not drive sideways). The filter starts there. Without a rest at
    the start (a flight, a log begun on the move) pitch and roll come from the fix
-   acceleration against the specific force over the first seconds
-   (:func:`level_in_motion`), the heading from the course as above.
+   velocity against the integrated specific force over the first seconds
+   (:func:`level_in_motion`), the heading from the course as above. Where the gyros would
+   carry that levelling to the start too long (a taxi and a launch; ``CARRY_LIMIT``), the
+   whole attitude comes instead from an in-motion alignment over the fixes just before the
+   start (:mod:`sinslab.nav.motion_alignment`; its heading where its σ beats the course's).
 2. **Filter**: :func:`sinslab.fusion.loosely_coupled.loosely_coupled` with the model and
    P0 from :class:`NavOptions`.
 3. **Outages and latency.** Fixes whose validity time lies in an outage are dropped; a
@@ -293,11 +296,12 @@ def level_in_motion(imu: ImuRecord, fixes: Fixes, k0, lat, window=10.0):
     fewer than 4 fixes fall in the window.
     """
     from sinslab.nav.motion_alignment import align_in_motion
+    if k0 >= len(imu):
+        return None
     t0 = float(imu.t[k0] - imu.dt)
-    n_in = int(np.sum((fixes.t >= t0) & (fixes.t <= t0 + window)))
     k1 = int(np.searchsorted(imu.t, t0 + window + 1e-9))
     m = align_in_motion(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, k0, min(k1, len(imu)))
-    if m is None or n_in < 4 or k0 >= len(imu):
+    if m is None:
         return None
     att = A.dcm_to_euler(m.C_bn_start)
     return float(att[0]), float(att[1]), m.n_vectors, m.sigma_v
