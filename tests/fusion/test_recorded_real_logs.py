@@ -681,3 +681,27 @@ def test_uav_flight_starts_within_a_few_degrees_of_the_units_solution():
     assert dh < 6.0 and dh < 3 * sig_h, (dh, sig_h)
     assert abs(math.degrees(r.init["pitch"] - pitch)) < 5.0
     assert abs(math.degrees(r.init["roll"] - roll)) < 2.0
+
+
+def test_uav_flight_navigate_states_the_in_motion_alignment(tmp_path):
+    """The command of docs/recorded-data.md on THOR flight 75: the terminal and the report's
+    notes say that the start's attitude came from the in-motion alignment and over how
+    much of the flight the gyros would have carried the levelling instead; the summary
+    holds the σ given to the filter (pitch/roll 1.2°, heading 2.7° measured)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from sinslab.cli import app
+    d = _uav_flight()
+    res = CliRunner().invoke(app, [
+        "navigate", "--imu", str(d / "accel_data.txt.zip"), "--imu", str(d / "gyro_data.txt.zip"), "--frame", "frd",
+        "--columns", UAV_IMU, "--fixes", str(d / "gps_traj_data.txt.zip"), "--fixes",
+        str(d / "gps_velocity_data.txt.zip"), "--fix-columns", UAV_FIX, "--out", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    assert "attitude from an in-motion alignment over 9.0 s of fixes before the start" in res.output
+    assert "carried the levelling 61.0 s" in res.output
+    assert "Initial attitude from an in-motion alignment" in (tmp_path / "run" / "report.html").read_text()
+    m = json.loads((tmp_path / "run" / "summary.json").read_text())["metrics"]
+    s = m["initial_attitude_sigma_deg"]
+    assert 1.0 < s[0] < 1.5 and 2.0 < s[2] < 3.5, s
