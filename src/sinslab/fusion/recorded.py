@@ -11,8 +11,11 @@ data, outages, and evaluation against the fixes.
    and rotated about the vertical so that the body forward axis points along the fix
    course; a car does not drive sideways). The filter starts there. Without a rest at
    the start (a flight, a log begun on the move) pitch and roll come from the fix
-   acceleration against the specific force over the first seconds
-   (:func:`level_in_motion`), the heading from the course as above.
+   velocity against the integrated specific force over the first seconds
+   (:func:`level_in_motion`), the heading from the course as above. Where the gyros would
+   carry that levelling to the start too long (a taxi and a launch; ``CARRY_LIMIT``), the
+   whole attitude comes instead from an in-motion alignment over the fixes just before the
+   start (:mod:`sinslab.nav.motion_alignment`; its heading where its σ beats the course's).
 2. **Filter**: :func:`sinslab.fusion.loosely_coupled.loosely_coupled` with the model and
    P0 from :class:`NavOptions`.
 3. **Outages and latency.** Fixes whose validity time lies in an outage are dropped; a
@@ -52,6 +55,11 @@ AIRCRAFT_MOVE_SPEED = 10.0
 AIRCRAFT_MAX_ROLL = 10.0 * units.deg
 #: 1σ of an aircraft's crab angle (course minus heading in wind) [rad]
 AIRCRAFT_CRAB_SIGMA = 10.0 * units.deg
+#: pitch and roll carried by the gyros from their levelling to the filter start are
+#: replaced by an in-motion alignment when the tilt the carry may add (gyro-bias prior ×
+#: time, white noise × √time) exceeds this many times the levelling σ: the carry then
+#: dominates (a car's slow first stretch, 26 s: 1.3 times; a taxi and launch, 61 s: 3 times)
+CARRY_LIMIT = 2.0
 
 
 @dataclass
@@ -122,6 +130,9 @@ class NavOptions:
     heading_straight: float = 2.0 * units.deg   #: largest spread of course − gyro heading in it [rad]
     heading_sigma_floor: float = 1.0 * units.deg  #: added (in quadrature) to the σ of that heading
     level_window: float = 10.0              #: [s] of fixes for levelling in motion (no initial rest)
+    #: in-motion alignment over ``level_window`` s before the start where the gyros would
+    #: carry the levelling there too long (``CARRY_LIMIT``); False: always carried
+    motion_alignment: bool = True
     smooth: bool = False                    #: record the forward pass and smooth it (RTS)
     odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
     odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
@@ -275,50 +286,34 @@ def level_from_rest(imu: ImuRecord, k0, k1, lat):
 
 
 def level_in_motion(imu: ImuRecord, fixes: Fixes, k0, lat, window=10.0):
-    """Pitch and roll [rad] of the body at the start of IMU sample ``k0`` from motion.
+    """Pitch and roll [rad] of the body at the start of IMU sample ``k0`` from motion: the
+    in-motion alignment of :func:`sinslab.nav.motion_alignment.align_in_motion` over the
+    fixes in the first ``window`` s (gravity dominates the fit, so its pitch and roll are
+    sound whatever the accelerations; its heading only with strong horizontal ones, so the
+    heading is taken from the course instead).
 
-    Over the fix intervals ``[t_j, t_j+1]`` in the first ``window`` s, the specific force
-    integrated in the navigation frame is ``Δv^n + g Δt + 2 ω_ie × v Δt`` (fix velocities,
-    ENU, gravity up) and in the start body frame ``Σ C_b^{b0} Δv_b`` (the IMU increments,
-    the body rotation carried by the gyros from ``k0``). The rotation that best maps the
-    second onto the first (Wahba's problem, by SVD) is the start attitude; gravity
-    dominates, so its pitch and roll are sound whatever the accelerations, its heading only
-    with strong horizontal ones (heading is taken from the course instead).
-
-    Returns ``(pitch, roll, intervals used, RMS residual [m/s] per interval)`` or None when
-    fewer than 3 fix intervals fall in the window.
+    Returns ``(pitch, roll, fix times used, a-posteriori σ of the fit [m/s])`` or None when
+    fewer than 4 fixes fall in the window.
     """
-    dt = imu.dt
-    t0 = float(imu.t[k0] - dt)
-    j = np.flatnonzero((fixes.t >= t0) & (fixes.t <= t0 + window))
-    if j.size < 4 or k0 >= len(imu):
+    from sinslab.nav.motion_alignment import align_in_motion
+    if k0 >= len(imu):
         return None
-    v = _fix_vel_enu(fixes)
-    g = float(E.gravity(lat, float(np.nanmean(fixes.h[j])) if np.any(np.isfinite(fixes.h[j])) else 0.0))
-    wie = np.array([0.0, E.WIE * math.cos(lat), E.WIE * math.sin(lat)])
-    k_end = int(np.searchsorted(imu.t, fixes.t[j[-1]] + 1e-9))
-    # the body rotation from the start and each sample's Δv in the start body frame
-    ub_cum = np.zeros((k_end - k0 + 1, 3))
-    C = np.eye(3)
-    for i, k in enumerate(range(k0, k_end)):
-        dv = imu.dv[k] + 0.5 * np.cross(imu.dtheta[k], imu.dv[k])
-        ub_cum[i + 1] = ub_cum[i] + C @ dv
-        C = C @ A.rotvec_to_dcm(imu.dtheta[k])
-    tk = np.r_[t0, imu.t[k0:k_end]]
-    ub_at = np.stack([np.interp(fixes.t[j], tk, ub_cum[:, a]) for a in range(3)], -1)
-    un, ub = [], []
-    for a, b in zip(range(j.size - 1), range(1, j.size)):
-        ia, ib = j[a], j[b]
-        T = float(fixes.t[ib] - fixes.t[ia])
-        vm = 0.5 * (v[ia] + v[ib])
-        un.append(v[ib] - v[ia] + np.array([0.0, 0.0, g * T]) + 2.0 * np.cross(wie, vm) * T)
-        ub.append(ub_at[b] - ub_at[a])
-    un, ub = np.array(un), np.array(ub)
-    U, _, Vt = np.linalg.svd(un.T @ ub)
-    Cbn = U @ np.diag([1.0, 1.0, np.linalg.det(U) * np.linalg.det(Vt)]) @ Vt
-    att = A.dcm_to_euler(Cbn)
-    resid = float(np.sqrt(np.mean(np.sum((un - ub @ Cbn.T) ** 2, axis=1))))
-    return float(att[0]), float(att[1]), int(un.shape[0]), resid
+    t0 = float(imu.t[k0] - imu.dt)
+    k1 = int(np.searchsorted(imu.t, t0 + window + 1e-9))
+    m = align_in_motion(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, k0, min(k1, len(imu)))
+    if m is None:
+        return None
+    att = A.dcm_to_euler(m.C_bn_start)
+    return float(att[0]), float(att[1]), m.n_vectors, m.sigma_v
+
+
+def _align_at_start(imu, fixes, ks, gb, window):
+    """The in-motion alignment over the ``window`` s of fixes before the filter start (the
+    boundary before IMU sample ``ks``), or None."""
+    from sinslab.nav.motion_alignment import align_in_motion
+    ts = float(imu.t[ks - 1])
+    k0 = int(np.searchsorted(imu.t, ts - window))
+    return align_in_motion(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, k0, ks, gb)
 
 
 def leveled_start(imu, fixes: Fixes, opt: NavOptions):
@@ -663,8 +658,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         else:
             pitch, roll, n_used, resid = lv
             init.update(rest_start=None, level_pitch=pitch, level_roll=roll, level_residual=resid,
-                        level_source=f"in motion: fix acceleration against specific force over {n_used} fix "
-                        f"intervals (no rest at the start)")
+                        level_source=f"in motion: fix velocity against the integrated specific force at "
+                        f"{n_used} fixes (no rest at the start)")
     if opt.heading is not None:
         ks = k0
         ts = float(imu.t[ks] - dt) if ks > 0 else imu.t0
@@ -687,6 +682,30 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         att0 = A.dcm_to_euler(C)
         init["heading_source"] = how
         init["heading_sigma"] = h_sig
+    g_noise = np.asarray(init.get("rest_gyro_arw", opt.gyro_arw))
+    # pitch and roll levelled (at the rest or in motion) and carried by the gyros to the
+    # start: when the tilt the residual gyro bias (its prior σ) and the white noise may add
+    # on the way dominates the levelling's own σ (CARRY_LIMIT times it), the attitude comes
+    # instead from the motion just before the start (nav.motion_alignment), if its fit says
+    # it is better; a rest just before the motion keeps its levelling
+    t_lev = init["rest_end"] if init.get("rest_end") is not None else float(imu.t[k0] - dt)
+    carried = max(float(ts - t_lev), 0.0)
+    tilt = math.hypot(float(np.max(opt.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
+    long_carry = opt.motion_alignment and tilt > CARRY_LIMIT * max(opt.att_sigma[:2])
+    fit = _align_at_start(imu, fixes, ks, gb, opt.level_window) if long_carry else None
+    if fit is not None and float(np.max(fit.sigma[:2])) < tilt:
+        h_fit = math.hypot(float(fit.sigma[2]), opt.heading_sigma_floor)
+        course = math.inf if opt.heading is not None else math.hypot(init["heading_sigma"], (
+            AIRCRAFT_CRAB_SIGMA if init["platform"][0] == "aircraft" else opt.heading_sigma_floor))
+        use_h = h_fit < course
+        att0 = np.r_[fit.att[:2], fit.att[2] if use_h else att0[2]]
+        init.update(motion_alignment={"window_s": fit.span, "fixes": fit.n_vectors, "sigma_v": fit.sigma_v,
+                                      "sigma": fit.sigma.tolist(), "heading": bool(use_h), "carried_s": carried})
+        if use_h:
+            init.update(heading_source=f"in-motion alignment over {fit.span:.1f} s of fixes before the start "
+                        f"(fix velocity against the integrated specific force)", heading_sigma=float(fit.sigma[2]))
+    else:
+        fit = None
     lat_a, lon_a, h_a, v0 = _interp_fix(fixes, ts)
     C0 = A.euler_to_dcm(att0)
     lat_i, lon_i, h_i = _imu_pos_from_antenna(lat_a, lon_a, h_a, C0, lever)
@@ -695,7 +714,6 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                 gyro_bias0=gb.tolist())
 
     # --- model, initial covariance and the fixes used
-    g_noise = np.asarray(init.get("rest_gyro_arw", opt.gyro_arw))
     a_noise = np.asarray(init.get("rest_accel_vrw", opt.accel_vrw))
     init.update(filter_gyro_arw=np.broadcast_to(g_noise, (3,)).tolist(),
                 filter_accel_vrw=np.broadcast_to(a_noise, (3,)).tolist())
@@ -710,16 +728,20 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         # slip angle, a mount yaw error of a few tenths of a degree), never above the prior
         sp0[lay.slice("phi").start + 2] = min(opt.att_sigma[2], math.hypot(
             init["heading_sigma"], opt.heading_sigma_floor))
-        if init["platform"][0] == "aircraft":
+        if fit is not None and init["motion_alignment"]["heading"]:
+            # the fit's heading (specific force against the fix velocity: no crab, no slip)
+            sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], opt.heading_sigma_floor)
+        elif init["platform"][0] == "aircraft":
             # an aircraft crabs into the wind: its course is its heading only to ~10°
             sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], AIRCRAFT_CRAB_SIGMA)
-    if init.get("rest_end") is not None and ts > init["rest_end"]:
-        # pitch and roll were levelled at the rest and carried by the gyros to the start (a
-        # taxi and a launch, a slow first stretch): the residual gyro bias (its prior σ) and
-        # the white noise tilt them on the way, so their σ at the start grows with the time
-        carried = float(ts - init["rest_end"])
-        tilt = math.hypot(float(np.max(opt.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
-        st = lay.slice("phi").start
+    st = lay.slice("phi").start
+    if fit is not None:
+        # the levelling σ (an accelerometer bias tilts a fit as it tilts a rest) and the fit's own
+        sp0[st:st + 2] = np.hypot(sp0[st:st + 2], fit.sigma[:2])
+        init.update(initial_tilt_sigma=float(np.max(sp0[st:st + 2])))
+    elif init.get("rest_end") is not None and ts > init["rest_end"]:
+        # levelled at the rest and carried by the gyros to the start (a taxi and a launch, a
+        # slow first stretch): the σ at the start grows with the tilt they may add on the way
         sp0[st:st + 2] = np.hypot(sp0[st:st + 2], tilt)
         init.update(tilt_carried_s=carried, initial_tilt_sigma=float(np.max(sp0[st:st + 2])))
     jf = int(np.argmin(np.abs(fixes.t - ts)))

@@ -388,6 +388,13 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              f"{np.degrees(res.init['roll']):.2f} deg {res.init.get('level_source')}")
     echo(f"  start {res.init['t_start'] - fx.t[0]:.2f} s after the first fix; heading "
          f"{np.degrees(res.init['heading']):.2f} deg (clockwise from north, {res.init['heading_source']})")
+    if res.init.get("motion_alignment"):
+        ma = res.init["motion_alignment"]
+        echo(f"  attitude from an in-motion alignment over {ma['window_s']:.1f} s of fixes before the start (the gyros "
+             f"would have carried the levelling {ma['carried_s']:.1f} s): filter σ at the start pitch/roll "
+             f"{metrics['initial_attitude_sigma_deg'][0]:.1f}, {metrics['initial_attitude_sigma_deg'][1]:.1f} deg, "
+             f"heading {metrics['initial_attitude_sigma_deg'][2]:.1f} deg"
+             f"{'' if ma['heading'] else ' (heading from the course)'}")
     if res.init.get("tilt_carried_s", 0.0) > 1.0:
         echo(f"  pitch and roll carried by the gyros {res.init['tilt_carried_s']:.1f} s from the rest: filter σ at "
              f"the start pitch/roll {metrics['initial_attitude_sigma_deg'][0]:.1f}, "
@@ -484,6 +491,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              if res.init.get("rest_start") else
              f"No rest at the start: pitch and roll {res.init.get('level_source')}; heading "
              f"{res.init.get('heading_source')}."]
+    if res.init.get("motion_alignment"):
+        notes.append(f"Initial attitude from an in-motion alignment over {res.init['motion_alignment']['window_s']:.1f} s "
+                     f"of fixes before the start, not the rest's levelling carried "
+                     f"{res.init['motion_alignment']['carried_s']:.1f} s by the gyros.")
     if hs is not None:
         notes.append(f"Initial heading {np.degrees(res.init['heading']):.2f} deg ± "
                      f"{np.degrees(hs):.2f} deg (1σ of the course window).")
