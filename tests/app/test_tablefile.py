@@ -1,0 +1,59 @@
+"""Tables written a chunk at a time (sinslab.app.tablefile): the CSV equals pandas' bytes
+(every k-th row counted over the whole table, whatever the chunks), the Parquet file holds
+every row exactly, and a writer that fails leaves nothing under a final name."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from sinslab.app.outputs import RunDir
+from sinslab.app.tablefile import TableWriter
+
+
+def _table(n, seed=3):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, 3)) * 10.0 ** rng.integers(-12, 12, size=(n, 3))
+    x[5, 1] = np.nan
+    x[8, 2] = -np.inf
+    x[13, 0] = -0.0
+    return {"t_s": np.arange(n) * 0.02, "a_m": x[:, 0], "b_deg": x[:, 1], "c": x[:, 2]}
+
+
+@pytest.mark.parametrize("every,chunks", [(1, [1000]), (7, [3, 64, 500, 1, 432]), (50, [333, 667])])
+def test_chunks_give_pandas_bytes_and_every_row(tmp_path, every, chunks):
+    tab = _table(sum(chunks))
+    with TableWriter(tmp_path, "s", list(tab), csv_every=every, parquet=True) as w:
+        a = 0
+        for m in chunks:
+            w.write({k: v[a:a + m] for k, v in tab.items()})
+            a += m
+    pd.DataFrame(tab).iloc[::every].to_csv(tmp_path / "ref.csv", index=False, float_format="%.10g")
+    assert (tmp_path / "s.csv").read_bytes() == (tmp_path / "ref.csv").read_bytes()
+    back = pd.read_parquet(tmp_path / "s.parquet")
+    assert list(back.columns) == list(tab) and w.rows == len(back) == sum(chunks)
+    for k, v in tab.items():                             # every row, bit for bit
+        assert np.array_equal(back[k].to_numpy(), v, equal_nan=True)
+
+
+def test_a_failing_writer_leaves_nothing(tmp_path):
+    tab = _table(100)
+    with pytest.raises(ValueError, match="columns"):
+        with TableWriter(tmp_path, "s", list(tab), csv_every=2, parquet=True) as w:
+            w.write(tab)
+            w.write({"t_s": tab["t_s"]})                 # a chunk without the other columns
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(KeyboardInterrupt):
+        with TableWriter(tmp_path, "s", list(tab), parquet=True) as w:
+            w.write(tab)
+            raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_run_folder_table_writer_records_like_write_table(tmp_path):
+    tab = _table(2500)
+    a = RunDir(tmp_path / "a", "x").prepare()
+    b = RunDir(tmp_path / "b", "x").prepare()
+    ia = a.write_table("s", tab, "d", large_rows=1000)            # chunked float path
+    ib = b.write_table("s", pd.DataFrame(tab), "d", large_rows=1000)    # pandas
+    assert ia == ib and ia["csv_every"] == 3 and ia["parquet"] == "s.parquet"
+    assert (a.path / "s.csv").read_bytes() == (b.path / "s.csv").read_bytes()
+    assert a.files == b.files == ["s.parquet", "s.csv"]
