@@ -386,6 +386,12 @@ class RunDir:
         self._write_marker("running")
         return self
 
+    def scratch_path(self) -> Path:
+        """A folder name next to the run folder for a run's temporary files (a record
+        spilled to disk while it computes); not created here. Named like a staging
+        folder, so the next run next to it removes it if this process is killed."""
+        return self.target.parent / f".{self.target.name}{_STAGING}{os.getpid()}-scratch-{secrets.token_hex(3)}"
+
     def _write_marker(self, status: str) -> None:
         marker = {"sinslab_run": 2, "command": self.command, "experiment": self.experiment,
                   "status": status, "updated": _dt.datetime.now().isoformat(timespec="seconds"),

@@ -228,6 +228,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     elif time_sync != "none":
         raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
     odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_one, sync)
+    _spill_smoother(opt, imu, fx)
     em_cfg = {}
     if em is not None:
         from sinslab.app.error_model import apply_error_model
@@ -720,6 +721,27 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
     cfg.update(odometer=odo.source, odometer_lever=f"[{', '.join(f'{x:g}' for x in opt.odometer_lever)}] m",
                odometer_sigma=f"{opt.odometer_sigma:g} m/s")
     return cfg
+
+
+#: the smoother's record of the forward pass goes to disk (the run's scratch folder) when
+#: it would hold more than this in memory (estimated for 21 states)
+SMOOTH_SPILL_ABOVE = 64 * 2 ** 20
+
+
+def _spill_smoother(opt, imu, fx):
+    """With ``--smooth`` on a long log, record the forward pass on disk: the history's
+    rows are written to memory-mapped files as the filter runs and read back a chunk at a
+    time by the backward pass (:class:`sinslab.fusion.smoothing.History`), so it does not
+    hold memory in proportion to the log. The numbers are the same either way."""
+    from sinslab.app.commands.runner import scratch_dir
+    from sinslab.fusion.smoothing import History
+
+    where = scratch_dir()
+    if not opt.smooth or where is None:
+        return
+    duration = float(imu.t[-1] - imu.t0)
+    if History.estimate_bytes(21, duration, 0.1, len(fx)) > SMOOTH_SPILL_ABOVE:
+        opt.smooth_spill = str(where / "smoother")
 
 
 def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1):
