@@ -57,3 +57,24 @@ def test_run_folder_table_writer_records_like_write_table(tmp_path):
     assert ia == ib and ia["csv_every"] == 3 and ia["parquet"] == "s.parquet"
     assert (a.path / "s.csv").read_bytes() == (b.path / "s.csv").read_bytes()
     assert a.files == b.files == ["s.parquet", "s.csv"]
+
+
+def test_chunked_table_writes_the_files_of_its_whole_table(tmp_path):
+    """A table made a chunk of rows at a time gives the files of the same table given whole."""
+    from sinslab.app.tablefile import ChunkedTable
+
+    tab = _table(1000)
+    calls = []
+
+    def rows(a, b):
+        calls.append((a, b))
+        return {k: v[a:b] for k, v in tab.items()}
+
+    a = RunDir(tmp_path / "a", "x").prepare()
+    b = RunDir(tmp_path / "b", "x").prepare()
+    ia = a.write_table("s", ChunkedTable.of(rows, 1000, chunk_rows=300), "d", csv_every=7)
+    ib = b.write_table("s", tab, "d", csv_every=7)
+    assert ia == ib and calls[1:] == [(0, 300), (300, 600), (600, 900), (900, 1000)]
+    assert (a.path / "s.csv").read_bytes() == (b.path / "s.csv").read_bytes()
+    pa_, pb = pd.read_parquet(a.path / "s.parquet"), pd.read_parquet(b.path / "s.parquet")
+    assert pa_.equals(pb)                       # the same rows (in row groups of other sizes)

@@ -479,7 +479,8 @@ class RunDir:
 
     def write_table(self, name: str, table, description: str = "",
                     large_rows: int = LARGE_ROWS, csv_every: int | None = None) -> dict:
-        """Write a table (DataFrame or dict of 1-D arrays) as CSV, or Parquet + thinned CSV.
+        """Write a table (DataFrame, dict of 1-D arrays or
+        :class:`~sinslab.app.tablefile.ChunkedTable`) as CSV, or Parquet + thinned CSV.
 
         ``csv_every``: always Parquet (full) + every ``csv_every``-th row as CSV, whatever
         the length. Returns (and records) ``{"name", "description", "rows", "columns",
@@ -487,8 +488,14 @@ class RunDir:
         rows at a time (:class:`sinslab.app.tablefile.TableWriter`, the same CSV bytes as
         pandas writes, no DataFrame); anything else through pandas.
         """
-        from sinslab.app.tablefile import float_columns
+        from sinslab.app.tablefile import ChunkedTable, float_columns
 
+        if isinstance(table, ChunkedTable):
+            with self.table_writer(name, table.columns, rows=table.n_rows, large_rows=large_rows,
+                                   csv_every=csv_every) as w:
+                for chunk in table.chunks():
+                    w.write(chunk)
+            return self.series_written(w, description)
         cols = float_columns(table)
         if cols is not None:
             return self.write_columns(name, cols, description, large_rows, csv_every)

@@ -18,13 +18,15 @@ writes for float columns (:func:`csv_rows`).
 from __future__ import annotations
 
 import contextlib
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from sinslab.core.atomic import atomic_path
 
-__all__ = ["TableWriter", "csv_rows", "float_columns"]
+__all__ = ["TableWriter", "ChunkedTable", "csv_rows", "float_columns"]
 
 
 def float_columns(table) -> dict | None:
@@ -40,6 +42,30 @@ def float_columns(table) -> dict | None:
             or any(ch in k for k in cols for ch in ',"\n\r')):
         return None
     return cols
+
+
+@dataclass(frozen=True)
+class ChunkedTable:
+    """A float table made a chunk of rows at a time as it is written: ``rows(a, b)`` gives
+    ``{column: 1-D float array}`` of rows ``a..b−1`` (every chunk the same columns), so a
+    table computed from a run's arrays never exists whole beside them.
+
+    ``chunk_rows`` rows per call; :meth:`of` reads the column names from the first row.
+    """
+
+    columns: tuple
+    n_rows: int
+    rows: Callable[[int, int], dict]
+    chunk_rows: int = 1 << 15
+
+    @classmethod
+    def of(cls, rows, n_rows, chunk_rows=1 << 15):
+        return cls(tuple(rows(0, min(1, n_rows))), int(n_rows), rows, int(chunk_rows))
+
+    def chunks(self):
+        """The table's chunks, in order."""
+        for a in range(0, self.n_rows, self.chunk_rows):
+            yield self.rows(a, min(a + self.chunk_rows, self.n_rows))
 
 
 def csv_rows(cols) -> str:
@@ -119,7 +145,10 @@ class TableWriter:
         if self._pq is not None:
             import pyarrow as pa
 
-            self._pq.write_table(pa.Table.from_arrays([pa.array(c) for c in cols], schema=self._schema))
+            # from the arrays' buffers (no copy; pa.array of a numpy array would import pandas)
+            arrs = [pa.Array.from_buffers(pa.float64(), m, [None, pa.py_buffer(np.ascontiguousarray(c))])
+                    for c in cols]
+            self._pq.write_table(pa.Table.from_arrays(arrs, schema=self._schema))
         first = (-self.rows) % self.every               # the chunk's first row kept in the CSV
         if first < m:
             sel = slice(first, m, self.every)

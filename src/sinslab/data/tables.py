@@ -475,9 +475,25 @@ def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow
             col = batch.column(c)
             if col.null_count and not allow_empty:
                 raise ValueError("empty cell")
-            out[n:n + m, j] = col.to_numpy(zero_copy_only=False)
+            out[n:n + m, j] = _float_values(col)
         n += m
     return out[:n] if n < out.shape[0] else out
+
+
+def _float_values(col):
+    """A pyarrow array as float64 numpy values (nulls as NaN). A float64 array is read from
+    its buffers (no copy): pyarrow's own ``to_numpy`` imports pandas, half a second and
+    tens of MB a run that has no other use for it; other types go through it."""
+    import pyarrow as pa
+
+    if col.type != pa.float64():
+        return col.to_numpy(zero_copy_only=False).astype(float)
+    validity, data = col.buffers()[:2]
+    vals = np.frombuffer(data, dtype=np.float64, count=col.offset + len(col))[col.offset:]
+    if col.null_count:
+        bits = np.unpackbits(np.frombuffer(validity, dtype=np.uint8), bitorder="little")
+        vals = np.where(bits[col.offset:col.offset + len(col)].astype(bool), vals, np.nan)
+    return vals
 
 
 def read_parquet_columns(path, names, *, batch_rows=1 << 16):
@@ -510,7 +526,7 @@ def read_parquet_columns(path, names, *, batch_rows=1 << 16):
             for j, c in enumerate(names):
                 col = batch.column(batch.schema.get_field_index(c))
                 try:
-                    out[n:n + m, j] = col.to_numpy(zero_copy_only=False).astype(float)
+                    out[n:n + m, j] = _float_values(col)
                 except (TypeError, ValueError, pa.ArrowInvalid):
                     raise ValueError(f"{path}: column {c!r} is not numeric") from None
             n += m

@@ -128,6 +128,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              raw=None, strict=False) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
+    from sinslab.core import attitude as A
     from sinslab.core import earth as E         # numba and scipy: only when it runs
     from sinslab.data import guess_imu_format, load_fixes, load_imu
     from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
@@ -281,7 +282,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     lab = list(res.labels)
     i_gb = [lab.index(f"eps_{a}") for a in "xyz"]
     i_ab = [lab.index(f"nabla_{a}") for a in "xyz"]
-    att = res.att
+    att = A.quat_to_euler(res.nav[-1:, :4])[0]      # the last epoch's (the tables make the rest)
     metrics = {
         "duration_s": float(res.t[-1] - res.t[0]), "n_fixes_used": int(res.fix_t.size),
         "n_outages": len(outs), "outage_end_hz_err_median_m": float(np.median(oe)) if oe.size else None,
@@ -290,8 +291,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         "hz_err_with_fixes_median_m": float(np.median(hz[~in_out])) if (~in_out).any() else None,
         "hz_err_with_fixes_max_m": float(np.max(hz[~in_out])) if (~in_out).any() else None,
         "nis_mean": float(np.mean(res.nis)) if res.nis.size else None,
-        "final_pitch_deg": float(np.degrees(att[-1, 0])), "final_roll_deg": float(np.degrees(att[-1, 1])),
-        "final_heading_deg": float(np.degrees(res.heading[-1])),
+        "final_pitch_deg": float(np.degrees(att[0])), "final_roll_deg": float(np.degrees(att[1])),
+        "final_heading_deg": float(np.degrees(np.mod(A.yaw_to_heading(att[2]), 2 * np.pi))),
         "final_sigma_heading_deg": float(np.degrees(res.sigma[-1, 2])),
         "gyro_bias_final_dph": (res.gyro_bias[-1] / units.dph).tolist(),
         "gyro_bias_sigma_final_dph": (res.sigma[-1, i_gb] / units.dph).tolist(),
@@ -406,23 +407,12 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     warnings = settle(found, strict=strict, echo=echo)
 
     sig = res.sigma
-    sol = {"t_s": res.t - res.t[0], "t_abs_s": res.t, "lat_deg": np.degrees(res.nav[:, 7]),
-           "lon_deg": np.degrees(res.nav[:, 8]), "h_m": res.nav[:, 9],
-           "vE_mps": res.nav[:, 4], "vN_mps": res.nav[:, 5], "vU_mps": res.nav[:, 6],
-           "pitch_deg": np.degrees(att[:, 0]), "roll_deg": np.degrees(att[:, 1]),
-           "heading_deg": np.degrees(res.heading)}
-    for i, (l, u_) in enumerate(zip(res.labels, res.units_)):
-        sc = {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
-        sol[f"sigma_{l}_{u_.replace('/', 'p')}"] = sig[:, i] / sc
-    for k, a in enumerate("xyz"):
-        sol[f"gyro_bias_{a}_dph"] = res.gyro_bias[:, k] / units.dph
-        sol[f"accel_bias_{a}_ug"] = res.accel_bias[:, k] / units.ug
     every = max(1, int(round(1.0 / (csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
-    tables = [Series("solution", sol, f"navigation solution at every filter epoch with filter sigma "
+    tables = [Series("solution", _solution_table(res), f"navigation solution at every filter epoch with filter sigma "
                      f"(Parquet; the CSV every {every}-th epoch, {1 / (every * (res.t[1] - res.t[0])):.4g} Hz)"
                      if res.t.size > 1 else "navigation solution", csv_every=every),
               Series("fix_errors", {"t_s": t - res.t[0], "east_m": err[:, 0], "north_m": err[:, 1],
-                                    "up_m": err[:, 2], "in_outage": in_out.astype(int)},
+                                    "up_m": err[:, 2], "in_outage": in_out.astype(float)},
                      "solution (antenna) minus fix at every fix time")]
     figures = []
     # figures
@@ -517,6 +507,75 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                    elevation_mask_deg=float(raw.get("mask_deg", 10.0)))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims, warnings=warnings)
+
+
+def _scale_of(unit):
+    """Display unit of a state -> its SI scale."""
+    return {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug,
+            "ppm": units.ppm}.get(unit, 1.0)
+
+
+def _solution_table(res):
+    """``solution``: navigation, filter σ and sensor compensation at every filter epoch,
+    made a chunk of epochs at a time as it is written (no second copy of the run)."""
+    from sinslab.app.tablefile import ChunkedTable
+    from sinslab.core import attitude as A
+
+    t0 = res.t[0]
+    states = [(i, f"sigma_{l}_{u_.replace('/', 'p')}", _scale_of(u_))
+              for i, (l, u_) in enumerate(zip(res.labels, res.units_))]
+
+    def rows(a, b):
+        nav = res.nav[a:b]
+        att = A.quat_to_euler(nav[:, :4])
+        sol = {"t_s": res.t[a:b] - t0, "t_abs_s": res.t[a:b], "lat_deg": np.degrees(nav[:, 7]),
+               "lon_deg": np.degrees(nav[:, 8]), "h_m": nav[:, 9],
+               "vE_mps": nav[:, 4], "vN_mps": nav[:, 5], "vU_mps": nav[:, 6],
+               "pitch_deg": np.degrees(att[:, 0]), "roll_deg": np.degrees(att[:, 1]),
+               "heading_deg": np.degrees(np.mod(A.yaw_to_heading(att[:, 2]), 2 * np.pi))}
+        for i, name, sc in states:
+            sol[name] = res.sigma[a:b, i] / sc
+        for k, ax in enumerate("xyz"):
+            sol[f"gyro_bias_{ax}_dph"] = res.gyro_bias[a:b, k] / units.dph
+            sol[f"accel_bias_{ax}_ug"] = res.accel_bias[a:b, k] / units.ug
+        return sol
+
+    return ChunkedTable.of(rows, res.t.size)
+
+
+def _smoothed_table(res):
+    """``smoothed``: forward (``fwd_``) and smoothed (``smo_``) solutions and σ at every
+    filter epoch, made a chunk of epochs at a time as it is written."""
+    from sinslab.app.tablefile import ChunkedTable
+    from sinslab.core import attitude as A
+
+    sm = res.smoothed
+    t0 = res.t[0]
+    states = [(i, f"sigma_{l}_{u_.replace('/', 'p')}", _scale_of(u_))
+              for i, (l, u_) in enumerate(zip(res.labels, res.units_))]
+
+    def rows(a, b):
+        fw, sn = sm.forward_nav[a:b], sm.nav[a:b]
+        att_f, att_s = A.quat_to_euler(fw[:, :4]), A.quat_to_euler(sn[:, :4])
+        cols = {"t_s": res.t[a:b] - t0, "t_abs_s": res.t[a:b]}
+        for nm, f, g, sc in (("lat_deg", fw[:, 7], sn[:, 7], 180 / math.pi),
+                             ("lon_deg", fw[:, 8], sn[:, 8], 180 / math.pi),
+                             ("h_m", fw[:, 9], sn[:, 9], 1.0),
+                             ("vE_mps", fw[:, 4], sn[:, 4], 1.0),
+                             ("vN_mps", fw[:, 5], sn[:, 5], 1.0),
+                             ("vU_mps", fw[:, 6], sn[:, 6], 1.0),
+                             ("pitch_deg", att_f[:, 0], att_s[:, 0], 180 / math.pi),
+                             ("roll_deg", att_f[:, 1], att_s[:, 1], 180 / math.pi),
+                             ("heading_deg", np.mod(A.yaw_to_heading(att_f[:, 2]), 2 * np.pi),
+                              np.mod(A.yaw_to_heading(att_s[:, 2]), 2 * np.pi), 180 / math.pi)):
+            cols[f"fwd_{nm}"] = f * sc
+            cols[f"smo_{nm}"] = g * sc
+        for i, name, sc in states:
+            cols[f"fwd_{name}"] = res.sigma[a:b, i] / sc
+            cols[f"smo_{name}"] = sm.sigma[a:b, i] / sc
+        return cols
+
+    return ChunkedTable.of(rows, res.t.size)
 
 
 def _abs(path) -> str:
@@ -750,7 +809,6 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
     import dataclasses
 
     from sinslab.app import plotting
-    from sinslab.core import attitude as A
     from sinslab.core import earth as E
     from sinslab.fusion.recorded import fix_errors
     sm = res.smoothed
@@ -778,25 +836,7 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
                        odometer_scale_sigma_ppm=float(sm.sigma[-1, i] * 1e6))
     echo(f"  smoothed: horizontal error RMS {metrics['smoothed_hz_err_rms_m']:.3f} m "
          f"(forward {metrics['forward_hz_err_rms_m']:.3f} m) at {metrics['smoothed_err_reference']}")
-    att_f, att_s = A.quat_to_euler(sm.forward_nav[:, :4]), A.quat_to_euler(sm.nav[:, :4])
-    cols = {"t_s": res.t - res.t[0], "t_abs_s": res.t}
-    for nm, a, b, sc in (("lat_deg", sm.forward_nav[:, 7], sm.nav[:, 7], 180 / math.pi),
-                         ("lon_deg", sm.forward_nav[:, 8], sm.nav[:, 8], 180 / math.pi),
-                         ("h_m", sm.forward_nav[:, 9], sm.nav[:, 9], 1.0),
-                         ("vE_mps", sm.forward_nav[:, 4], sm.nav[:, 4], 1.0),
-                         ("vN_mps", sm.forward_nav[:, 5], sm.nav[:, 5], 1.0),
-                         ("vU_mps", sm.forward_nav[:, 6], sm.nav[:, 6], 1.0),
-                         ("pitch_deg", att_f[:, 0], att_s[:, 0], 180 / math.pi),
-                         ("roll_deg", att_f[:, 1], att_s[:, 1], 180 / math.pi),
-                         ("heading_deg", np.mod(A.yaw_to_heading(att_f[:, 2]), 2 * np.pi),
-                          np.mod(A.yaw_to_heading(att_s[:, 2]), 2 * np.pi), 180 / math.pi)):
-        cols[f"fwd_{nm}"] = a * sc
-        cols[f"smo_{nm}"] = b * sc
-    for i, (l, u_) in enumerate(zip(res.labels, res.units_)):
-        sc = {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
-        cols[f"fwd_sigma_{l}_{u_.replace('/', 'p')}"] = res.sigma[:, i] / sc
-        cols[f"smo_sigma_{l}_{u_.replace('/', 'p')}"] = sm.sigma[:, i] / sc
-    tables.append(Series("smoothed", cols, "forward (fwd_) and smoothed (smo_) solutions and σ at every "
+    tables.append(Series("smoothed", _smoothed_table(res), "forward (fwd_) and smoothed (smo_) solutions and σ at every "
                          f"filter epoch (Parquet; the CSV every {csv_every}-th epoch, like the solution)",
                          csv_every=csv_every))
     fig, axes = plotting.figure(2, 1, width=9.0)
