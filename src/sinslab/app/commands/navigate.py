@@ -676,12 +676,13 @@ def _vehicle_options(opt, veh, nhc):
 # ------------------------------------------------------------- memory estimate ---
 #: Peak resident memory of one navigate process: a fixed part (interpreter, numpy, numba
 #: and its loaded kernels, scipy, pyarrow, matplotlib) and a part per IMU sample (the
-#: record and its reading, the filter's outputs, tables and figures; with ``--smooth`` the
-#: forward pass' history and the smoothed solution too), from
+#: record and its reading, the filter's outputs, metrics and figures; the tables are
+#: written a chunk at a time; with ``--smooth`` the smoothed solution too, and the
+#: forward pass' record in memory up to ``SMOOTH_SPILL_ABOVE``, on disk beyond), from
 #: ``benchmarks/navigate_cost.py`` (peak RSS of 10 and 60 min logs at 200 Hz: the
 #: intercept and the slope, rounded up).
 MEMORY_FIXED = 340 * 2 ** 20
-MEMORY_PER_SAMPLE = {False: 420, True: 720}
+MEMORY_PER_SAMPLE = {False: 220, True: 360}
 
 
 def estimate_samples(path, fmt):
@@ -722,8 +723,9 @@ def check_memory(imu_path, fmt, smooth, available=None):
     """Refuse, before reading, an IMU log whose navigation cannot fit in memory.
 
     The need is :data:`MEMORY_FIXED` plus :data:`MEMORY_PER_SAMPLE` per estimated sample
-    (:func:`estimate_samples`); ``available`` defaults to the memory the system can give
-    a new allocation. Returns the estimate [bytes] or None (no estimate for the format).
+    (:func:`estimate_samples`), with ``smooth`` plus the most of the smoother's record held
+    in memory (:data:`SMOOTH_SPILL_ABOVE`; a larger one goes to disk); ``available``
+    defaults to the memory the system can give a new allocation. Returns the estimate [bytes] or None (no estimate for the format).
 
     Raises
     ------
@@ -735,7 +737,7 @@ def check_memory(imu_path, fmt, smooth, available=None):
     n = estimate_samples(imu_path, fmt)
     if n is None:
         return None
-    need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[bool(smooth)]
+    need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[bool(smooth)] + (SMOOTH_SPILL_ABOVE if smooth else 0)
     avail = available_memory() if available is None else int(available)
     if need > avail:
         name = " + ".join(map(str, imu_path)) if isinstance(imu_path, (list, tuple)) else imu_path
