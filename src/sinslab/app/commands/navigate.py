@@ -455,13 +455,13 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     ts_ = res.t - res.t[0]
-    axes[0].semilogy(ts_, np.degrees(sig[:, 0:3]) * 60, lw=1)
+    _semilogy(axes[0], ts_, np.degrees(sig[:, 0:3]) * 60, lw=1)
     axes[0].set_ylabel("attitude σ [arcmin]")
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
-    axes[1].semilogy(ts_, sig[:, i_gb] / units.dph, lw=1)
+    _semilogy(axes[1], ts_, sig[:, i_gb] / units.dph, lw=1)
     axes[1].set_ylabel("gyro bias σ [°/h]")
     axes[1].legend(["x", "y", "z"], fontsize=8)
-    axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
+    _semilogy(axes[2], ts_, sig[:, i_ab] / units.ug, lw=1)
     axes[2].set_ylabel("accel bias σ [µg]")
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
@@ -507,6 +507,22 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                    elevation_mask_deg=float(raw.get("mask_deg", 10.0)))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims, warnings=warnings)
+
+
+#: pixel columns a filter-epoch series is thinned to before it is plotted (more than any
+#: figure's width: the writer thins it again to the axes' own, keeping the envelope)
+PLOT_COLUMNS = 2000
+
+
+def _semilogy(ax, t, y, **kw):
+    """``ax.semilogy`` of the columns of ``y`` against ``t``, each thinned to its envelope
+    over :data:`PLOT_COLUMNS` columns first (:func:`sinslab.app.plotting.minmax_decimate`),
+    so a long run's figure does not hold a copy of every epoch until it is drawn."""
+    from sinslab.app.plotting import minmax_decimate
+
+    y = np.asarray(y)
+    for col in (y.T if y.ndim == 2 else [y]):
+        ax.semilogy(*minmax_decimate(t, col, PLOT_COLUMNS), **kw)
 
 
 def _scale_of(unit):
@@ -853,8 +869,8 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
     sh_f = np.hypot(res.sigma[:, ip] * rm, res.sigma[:, ip + 1] * rn * np.cos(lat))
     sh_s = np.hypot(sm.sigma[:, ip] * rm, sm.sigma[:, ip + 1] * rn * np.cos(lat))
     ts_ = res.t - res.t[0]
-    axes[1].semilogy(ts_, sh_f, lw=1, color=plotting.COLORS[0], label="forward")
-    axes[1].semilogy(ts_, sh_s, lw=1, color=plotting.COLORS[1], label="smoothed")
+    _semilogy(axes[1], ts_, sh_f, lw=1, color=plotting.COLORS[0], label="forward")
+    _semilogy(axes[1], ts_, sh_s, lw=1, color=plotting.COLORS[1], label="smoothed")
     axes[1].set_ylabel("horizontal σ [m]")
     axes[1].set_xlabel("time [s]")
     for ax in axes:
