@@ -1,7 +1,12 @@
 """Fixed cost and peak memory of one ``sinslab navigate`` process, by stage.
 
 Run: ``.venv/bin/python benchmarks/navigate_cost.py [--minutes 10 60] [--format csv]
-[--smooth] [--json FILE]``
+[--smooth] [--json FILE] [--reference PYTHON]``
+
+``--reference PYTHON``: the interpreter of another sinslab install (another clone's
+``.venv/bin/python``, the code before a change) runs ``navigate`` on the same logs, its
+processes alternated with this install's, and each figure is printed beside its
+reference (the machine's load moves both alike). The load average is printed with them.
 
 A simulated car drive (30 s at rest, then turns, straights, accelerations; 200 Hz IMU with
 consumer-MEMS errors, 1 Hz position fixes) of each length is written as an IMU table
@@ -93,11 +98,12 @@ def make_log(folder, minutes, fmt="csv", rate=200.0, seed=1):
     return ip, fp, len(imu)
 
 
-def run_navigate(ip, fp, out, extra=()):
-    """One navigate process; returns its stage times [s CPU] and peak RSS [MB]."""
+def run_navigate(ip, fp, out, extra=(), python=None):
+    """One navigate process (of ``python``, default this interpreter); returns its stage
+    times [s CPU] and peak RSS [MB]."""
     env = dict(os.environ, SINSLAB_QUIET="1", MPLBACKEND="Agg", OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1", NUMBA_NUM_THREADS="1")
-    p = subprocess.run([sys.executable, "-c", _CHILD, "-q", "navigate", "--imu", ip, "--fixes", fp,
+    p = subprocess.run([python or sys.executable, "-c", _CHILD, "-q", "navigate", "--imu", ip, "--fixes", fp,
                         "--out", out, "--force", *extra], capture_output=True, text=True, env=env)
     line = [ln for ln in p.stdout.splitlines() if ln.startswith("STAGES ")]
     if p.returncode != 0 or not line:
@@ -110,28 +116,43 @@ def run_navigate(ip, fp, out, extra=()):
     return s
 
 
+def _line(best, n):
+    return (f"total {best['total']:.2f} s CPU = start-up {best['startup']:.2f} + reading "
+            f"{best['reading']:.2f} + compute {best['compute']:.2f} + rest (metrics, figures, "
+            f"writing) {best['rest']:.2f}; fixed (all but compute) {best['fixed']:.2f} s; "
+            f"peak RSS {best['maxrss_mb']:.0f} MB ({1e6 * best['maxrss_mb'] / n:.0f} B per sample)")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, nargs="+", default=[10.0, 60.0])
     ap.add_argument("--format", default="csv", choices=("csv", "parquet"))
     ap.add_argument("--smooth", action="store_true")
     ap.add_argument("--rounds", type=int, default=2, help="processes per log (best CPU of each stage)")
+    ap.add_argument("--reference", help="interpreter of another sinslab install, run alternately on the same logs")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     out = {}
+    who = [("this", None)] + ([("reference", a.reference)] if a.reference else [])
+    print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     with tempfile.TemporaryDirectory() as d:
         for mins in a.minutes:
             ip, fp, n = make_log(d, mins, a.format)
-            runs = [run_navigate(ip, fp, os.path.join(d, "run"), ["--smooth"] if a.smooth else [])
-                    for _ in range(a.rounds)]
-            best = {k: min(r[k] for r in runs) for k in runs[0]}
-            out[f"{mins:g}min"] = dict(best, samples=n)
-            print(f"{mins:g} min, {n:,} samples ({a.format}{', --smooth' if a.smooth else ''}): "
-                  f"total {best['total']:.2f} s CPU = start-up {best['startup']:.2f} + reading "
-                  f"{best['reading']:.2f} + compute {best['compute']:.2f} + rest (metrics, figures, "
-                  f"writing) {best['rest']:.2f}; fixed (all but compute) {best['fixed']:.2f} s "
-                  f"(target < 2 s on 10 min); peak RSS {best['maxrss_mb']:.0f} MB "
-                  f"({1e6 * best['maxrss_mb'] / n:.0f} B per sample)")
+            extra = ["--smooth"] if a.smooth else []
+            runs = {w: [] for w, _ in who}
+            for _ in range(a.rounds):
+                for w, py in who:
+                    runs[w].append(run_navigate(ip, fp, os.path.join(d, "run"), extra, python=py))
+            print(f"{mins:g} min, {n:,} samples ({a.format}{', --smooth' if a.smooth else ''}), "
+                  f"load {os.getloadavg()[0]:.2f} (targets: fixed < 2 s on 10 min, peak < 300 MB on 60 min):")
+            for w, _ in who:
+                best = {k: min(r[k] for r in runs[w]) for k in runs[w][0]}
+                out.setdefault(w, {})[f"{mins:g}min"] = dict(best, samples=n)
+                print(f"  {w:>9}: {_line(best, n)}")
+            if a.reference:
+                t, r = out["this"][f"{mins:g}min"], out["reference"][f"{mins:g}min"]
+                print(f"  this / reference: fixed {t['fixed'] / r['fixed']:.2f}, compute "
+                      f"{t['compute'] / r['compute']:.2f}, peak RSS {t['maxrss_mb'] / r['maxrss_mb']:.2f}")
             os.remove(ip)
     if a.json:
         with open(a.json, "w") as fh:

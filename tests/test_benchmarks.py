@@ -182,7 +182,7 @@ def test_full_rate_script(tmp_path):
 
 def test_navigate_cost_script(tmp_path):
     res = _load("navigate_cost").main(["--minutes", "1.5", "--rounds", "1", "--json", str(tmp_path / "n.json")])
-    r = res["1.5min"]
+    r = res["this"]["1.5min"]
     assert r["samples"] == 18000 and r["maxrss_mb"] > 0
     assert r["total"] == pytest.approx(r["startup"] + r["reading"] + r["compute"] + r["rest"])
 

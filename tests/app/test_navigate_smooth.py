@@ -115,3 +115,26 @@ def test_odometer_bad_input(files, tmp_path, case, args, text):
     err = [ln for ln in lines if "error" in ln]
     assert len(err) == 1 and text in err[0], res.output
     assert not out.exists()
+
+
+def test_spilled_smoother_record_gives_the_same_files(files, tmp_path, monkeypatch):
+    """With the smoother's record on disk (any size spills when the threshold is 0) the
+    solution and smoothed tables are the same bytes, and the scratch folder is gone."""
+    from sinslab.app.commands import navigate as nav
+
+    assert _nav(files, tmp_path / "mem", "--smooth").exit_code == 0
+    spilled = []
+    orig = nav._spill_smoother
+
+    def spy(opt, imu, fx):
+        orig(opt, imu, fx)
+        spilled.append(opt.smooth_spill)
+
+    monkeypatch.setattr(nav, "SMOOTH_SPILL_ABOVE", 0)
+    monkeypatch.setattr(nav, "_spill_smoother", spy)
+    res = _nav(files, tmp_path / "disk", "--smooth")
+    assert res.exit_code == 0, res.output
+    assert spilled and spilled[0] is not None and str(tmp_path) in spilled[0]
+    for f in ("solution.csv", "smoothed.csv", "fix_errors.csv"):
+        assert (tmp_path / "mem" / f).read_bytes() == (tmp_path / "disk" / f).read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["disk", "mem"]      # no scratch left

@@ -1,4 +1,4 @@
-"""Run-folder writers: the numpy CSV path equals pandas' bytes; min/max thinning keeps the
+"""Run-folder writers: the chunked CSV writer equals pandas' bytes; min/max thinning keeps the
 envelope; figures drawn in worker processes equal those drawn in the run's process."""
 import numpy as np
 import pytest
@@ -17,10 +17,13 @@ def test_numpy_csv_equals_pandas_bytes(tmp_path):
     table = {"t_s": np.arange(500) * 0.1, "a_m": x[:, 0], "b_arcsec": x[:, 1], "c": x[:, 2], "d": x[:, 3]}
     a = RunDir(tmp_path / "a", "x").prepare()
     b = RunDir(tmp_path / "b", "x").prepare()
+    import pandas as pd
+
     ia = publish.write_series(a, "s", table, "d")
-    ib = b.write_table("s", table, "d")                     # the pandas writer
-    assert (a.path / "s.csv").read_bytes() == (b.path / "s.csv").read_bytes()     # staged files
-    assert ia == ib
+    pd.DataFrame(table).to_csv(tmp_path / "pandas.csv", index=False, float_format="%.10g")
+    assert (a.path / "s.csv").read_bytes() == (tmp_path / "pandas.csv").read_bytes()     # staged file
+    ib = b.write_table("s", table, "d")
+    assert ia == ib and ia["rows"] == 500 and ia["parquet"] is None
 
 
 def test_other_tables_go_through_pandas(tmp_path):

@@ -8,13 +8,15 @@
 * Monte Carlo: smoothed RMS / smoothed σ inside the chi-square band;
 * closed-loop (feedback) form equal to the open-loop form on a linear system.
 """
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import linalg as sla
 from scipy import stats
 
 from sinslab.estimation import kalman as kf
-from sinslab.estimation.smoother import rts_smooth, storage_bytes
+from sinslab.estimation.smoother import release_pages, rts_smooth, storage_bytes
 
 
 # ----------------------------------------------------------------------------------------
@@ -337,3 +339,66 @@ def test_bad_input_one_clear_error():
 def test_storage_size_of_one_hour():
     # 21 states, 10 Hz for 1 h: 36 001 epochs of 3 n^2 + 3 n float64
     assert storage_bytes(21, 36001) == 36001 * (3 * 441 + 63) * 8
+
+
+
+def _mapped_kb(folder):
+    """Resident pages [kB] of this process' mappings of files in ``folder``."""
+    kb, ours = 0, False
+    with open("/proc/self/smaps") as fh:
+        for ln in fh:
+            head = ln.split()
+            if head and "-" in head[0] and len(head) >= 5:           # a mapping's first line
+                ours = len(head) >= 6 and head[5].startswith(str(folder))
+            elif ours and ln.startswith("Rss:"):
+                kb += int(head[1])
+    return kb
+
+
+class _Watched:
+    """An array-like over a memory map that notes the resident pages of the record each
+    time the smoother reads a chunk (their peak over the backward pass)."""
+
+    def __init__(self, a, peak, folder):
+        self.a, self.peak, self.folder, self.shape = a, peak, folder, a.shape
+
+    def __getitem__(self, key):
+        out = self.a[key]
+        self.peak[0] = max(self.peak[0], _mapped_kb(self.folder))
+        return out
+
+    def release_pages(self):
+        release_pages(self.a)
+
+
+@pytest.mark.skipif(not Path("/proc/self/smaps").exists(), reason="reads /proc/self/smaps")
+def test_spilled_record_holds_one_chunk_whatever_its_length(tmp_path):
+    """A record memory-mapped on disk is walked backwards a chunk at a time and each chunk's
+    pages are let go: the record's resident memory at its peak is the same for a record 8
+    times longer (without the release it is the whole record: all of it is read)."""
+    n, chunk = 15, 256
+    chunk_kb = chunk * 3 * n * n * 8 / 1024
+    peaks = []
+    for K in (1000, 8000):
+        folder = tmp_path / str(K)
+        folder.mkdir()
+        arrs = {}
+        for name, shape in (("xpo", (K + 1, n)), ("Ppo", (K + 1, n, n)), ("Ppr", (K, n, n)),
+                            ("Phi", (K, n, n))):
+            arrs[name] = np.lib.format.open_memmap(folder / f"{name}.npy", mode="w+",
+                                                   dtype=float, shape=shape)
+        arrs["xpo"][:] = 0.0
+        arrs["Ppo"][:] = np.eye(n)
+        arrs["Ppr"][:] = 2.0 * np.eye(n)
+        arrs["Phi"][:] = np.eye(n)
+        release_pages(*arrs.values())            # written by the forward pass, let go
+        peak = [0]
+        s = rts_smooth(arrs["xpo"], _Watched(arrs["Ppo"], peak, folder), None,
+                       _Watched(arrs["Ppr"], peak, folder), _Watched(arrs["Phi"], peak, folder),
+                       covariance="diag", check=False, chunk=chunk)
+        # Φ = I, P_post = I, P_prior = 2 I: gain I/2, P_s = I + (P_s' − 2 I)/4 -> 2/3 I far from the end
+        assert np.allclose(s.sigma[0], np.sqrt(2 / 3)) and np.allclose(s.sigma[-1], 1.0)
+        peaks.append(peak[0])
+        del arrs
+    assert peaks[1] < 3 * chunk_kb                       # a chunk or two, not the record
+    assert peaks[1] - peaks[0] < chunk_kb                # the same for a record 8 times longer

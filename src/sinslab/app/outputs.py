@@ -386,6 +386,12 @@ class RunDir:
         self._write_marker("running")
         return self
 
+    def scratch_path(self) -> Path:
+        """A folder name next to the run folder for a run's temporary files (a record
+        spilled to disk while it computes); not created here. Named like a staging
+        folder, so the next run next to it removes it if this process is killed."""
+        return self.target.parent / f".{self.target.name}{_STAGING}{os.getpid()}-scratch-{secrets.token_hex(3)}"
+
     def _write_marker(self, status: str) -> None:
         marker = {"sinslab_run": 2, "command": self.command, "experiment": self.experiment,
                   "status": status, "updated": _dt.datetime.now().isoformat(timespec="seconds"),
@@ -473,12 +479,26 @@ class RunDir:
 
     def write_table(self, name: str, table, description: str = "",
                     large_rows: int = LARGE_ROWS, csv_every: int | None = None) -> dict:
-        """Write a table (DataFrame or dict of 1-D arrays) as CSV, or Parquet + thinned CSV.
+        """Write a table (DataFrame, dict of 1-D arrays or
+        :class:`~sinslab.app.tablefile.ChunkedTable`) as CSV, or Parquet + thinned CSV.
 
         ``csv_every``: always Parquet (full) + every ``csv_every``-th row as CSV, whatever
         the length. Returns (and records) ``{"name", "description", "rows", "columns",
-        "csv", "parquet", "csv_every"}``.
+        "csv", "parquet", "csv_every"}``. A dict of float columns is written a chunk of
+        rows at a time (:class:`sinslab.app.tablefile.TableWriter`, the same CSV bytes as
+        pandas writes, no DataFrame); anything else through pandas.
         """
+        from sinslab.app.tablefile import ChunkedTable, float_columns
+
+        if isinstance(table, ChunkedTable):
+            with self.table_writer(name, table.columns, rows=table.n_rows, large_rows=large_rows,
+                                   csv_every=csv_every) as w:
+                for chunk in table.chunks():
+                    w.write(chunk)
+            return self.series_written(w, description)
+        cols = float_columns(table)
+        if cols is not None:
+            return self.write_columns(name, cols, description, large_rows, csv_every)
         import pandas as pd
 
         df = table if isinstance(table, pd.DataFrame) else pd.DataFrame(dict(table))
@@ -496,6 +516,41 @@ class RunDir:
             df.to_csv(tmp, index=False, float_format="%.10g")
         self.series_info.append(info)
         return info
+
+    def table_writer(self, name: str, columns, *, rows: int | None = None,
+                     large_rows: int = LARGE_ROWS, csv_every: int | None = None):
+        """A :class:`sinslab.app.tablefile.TableWriter` of ``name`` in this run folder: CSV
+        only, or Parquet + every k-th row as CSV when ``csv_every`` is given or ``rows``
+        (the expected length) exceeds ``large_rows`` — the files :meth:`write_table` writes."""
+        from sinslab.app.tablefile import TableWriter
+
+        large = csv_every is not None or (rows is not None and rows > large_rows)
+        every = (1 if not large else max(1, int(csv_every)) if csv_every is not None
+                 else int(math.ceil(rows / large_rows)))
+        w = TableWriter(self.path, name, columns, csv_every=every, parquet=large)
+        for f in reversed(w.files):
+            self._record(f)
+        return w
+
+    def series_written(self, writer, description: str = "") -> dict:
+        """Record a closed :meth:`table_writer` table in the summary's series list."""
+        info = {"name": writer.name, "description": description, "rows": int(writer.rows),
+                "columns": list(writer.columns), "csv": f"{writer.name}.csv",
+                "parquet": f"{writer.name}.parquet" if len(writer.files) > 1 else None,
+                "csv_every": writer.every}
+        self.series_info.append(info)
+        return info
+
+    def write_columns(self, name: str, cols: dict, description: str = "",
+                      large_rows: int = LARGE_ROWS, csv_every: int | None = None,
+                      chunk_rows: int = 1 << 16) -> dict:
+        """:meth:`write_table` of a dict of equal-length float arrays, ``chunk_rows`` rows
+        at a time."""
+        n = len(next(iter(cols.values())))
+        with self.table_writer(name, cols, rows=n, large_rows=large_rows, csv_every=csv_every) as w:
+            for a in range(0, n, chunk_rows):
+                w.write({k: v[a:a + chunk_rows] for k, v in cols.items()})
+        return self.series_written(w, description)
 
     def write_figure(self, name: str, fig, caption: str = "", dpi: int = 110) -> dict:
         """Save a matplotlib figure as ``name.png`` and ``name.svg`` (and close it if pyplot owns it)."""

@@ -258,32 +258,10 @@ def describe_series(name: str, table) -> str:
 def write_series(rd, name: str, table, description: str = "") -> dict:
     """Write a time-series table into the run folder ``rd``; return its summary entry.
 
-    A dict of float columns that fits one CSV is formatted here with numpy, byte for byte
-    as ``pandas.DataFrame.to_csv(float_format="%.10g")`` writes it (NaN as an empty field),
-    so a run need not import pandas (half a second or more) only to write a small CSV;
-    anything else — integer or text columns, large tables (Parquet) — goes through
-    :meth:`sinslab.app.outputs.RunDir.write_table`.
+    A dict of float columns is written a chunk at a time by
+    :class:`sinslab.app.tablefile.TableWriter`, byte for byte as
+    ``pandas.DataFrame.to_csv(float_format="%.10g")`` writes it (NaN as an empty field),
+    so a run need not import pandas (half a second or more) only to write a table;
+    anything else goes through pandas (:meth:`sinslab.app.outputs.RunDir.write_table`).
     """
-    import numpy as np
-
-    from sinslab.app.outputs import LARGE_ROWS
-
-    cols = None
-    if isinstance(table, dict) and table:
-        cols = {str(k): np.asarray(v) for k, v in table.items()}
-        n = {c.shape for c in cols.values()}
-        if (len(n) != 1 or len(next(iter(n))) != 1 or next(iter(n))[0] > LARGE_ROWS
-                or any(c.dtype.kind != "f" for c in cols.values())
-                or any(ch in k for k in cols for ch in ',"\n\r')):
-            cols = None
-    if cols is None:
-        return rd.write_table(name, table, description)
-    arr = np.column_stack([c.astype(float) for c in cols.values()])
-    text = np.char.mod("%.10g", arr)
-    text[np.isnan(arr)] = ""
-    body = "\n".join(",".join(row) for row in text.tolist())
-    rd.write_text(f"{name}.csv", ",".join(cols) + "\n" + (body + "\n" if len(arr) else ""))
-    info = {"name": name, "description": description, "rows": int(len(arr)),
-            "columns": list(cols), "csv": f"{name}.csv", "parquet": None, "csv_every": 1}
-    rd.series_info.append(info)
-    return info
+    return rd.write_table(name, table, description)

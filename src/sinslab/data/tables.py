@@ -16,6 +16,7 @@ from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, rates_to_increments, uniform_increments, where
 
 __all__ = ["read_table_imu", "write_table_imu", "read_fix_csv", "read_fix_table", "write_fix_csv",
+           "read_csv_columns", "iter_csv_columns", "read_parquet_columns", "iter_parquet_columns",
            "read_two_geo_csv", "TWO_GEO_COLUMNS", "parse_quality_filter"]
 
 
@@ -412,14 +413,46 @@ def _header_complete(head: bytes) -> bool:
     return False
 
 
+def iter_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):
+    """Float columns ``cols`` (indices) of a delimited table, one block at a time.
+
+    The table is parsed by pyarrow's streaming CSV reader one block (``block_size``
+    bytes) at a time; each block's rows are yielded as a float64 array
+    ``(rows, len(cols))``, so a caller that consumes the blocks as they come holds one
+    block, whatever the length of the file. Parameters and errors as in
+    :func:`read_csv_columns`.
+    """
+    import pyarrow as pa
+    from pyarrow import csv as pcsv
+
+    names = [f"c{i}" for i in range(ncol)]
+    use = [names[i] for i in cols]
+    reader = pcsv.open_csv(
+        path,
+        read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=block_size,
+                                      use_threads=False),
+        parse_options=pcsv.ParseOptions(delimiter=delim),
+        convert_options=pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
+                                            strings_can_be_null=False),
+        memory_pool=pa.system_memory_pool())
+    for batch in reader:
+        m = batch.num_rows
+        out = np.empty((m, len(use)))
+        for j, c in enumerate(use):
+            col = batch.column(c)
+            if col.null_count and not allow_empty:
+                raise ValueError("empty cell")
+            out[:, j] = _float_values(col)
+        yield out
+
+
 def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):
     """Float columns ``cols`` (indices) of a delimited table, read in batches.
 
-    The table is parsed by pyarrow's streaming CSV reader one block (``block_size``
-    bytes) at a time and each batch copied into a float64 array sized from the file's
-    length (grown if the estimate falls short), so the memory in use is the result plus
-    one block, whatever the length of the file (the whole-table reader holds the parsed
-    table and its buffers beside the result).
+    The blocks of :func:`iter_csv_columns` are copied into a float64 array sized from the
+    file's length (grown if the estimate falls short), so the memory in use is the result
+    plus one block, whatever the length of the file (the whole-table reader holds the
+    parsed table and its buffers beside the result).
 
     Parameters
     ----------
@@ -445,45 +478,44 @@ def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow
         An empty cell in a read column (unless ``allow_empty``); pyarrow's own errors for any other malformed
         line (the caller diagnoses them line by line).
     """
-    import pyarrow as pa
-    from pyarrow import csv as pcsv
-
-    names = [f"c{i}" for i in range(ncol)]
-    use = [names[i] for i in cols]
-    reader = pcsv.open_csv(
-        path,
-        read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=block_size,
-                                      use_threads=False),
-        parse_options=pcsv.ParseOptions(delimiter=delim),
-        convert_options=pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
-                                            strings_can_be_null=False),
-        memory_pool=pa.system_memory_pool())
     first = None
     n = 0
-    out = np.empty((0, len(use)))
-    for batch in reader:
-        m = batch.num_rows
+    out = np.empty((0, len(cols)))
+    for blk in iter_csv_columns(path, skip, ncol, cols, delim, block_size=block_size,
+                                allow_empty=allow_empty):
+        m = blk.shape[0]
         if first is None and m:
             # the first batch is about one block: rows of the file from its bytes, a margin
             first = m + int(1.02 * Path(path).stat().st_size * m / block_size)
-            out = np.empty((first, len(use)))
+            out = np.empty((first, len(cols)))
         if n + m > out.shape[0]:
-            grown = np.empty((max(n + m, out.shape[0] + out.shape[0] // 4 + 1024), len(use)))
+            grown = np.empty((max(n + m, out.shape[0] + out.shape[0] // 4 + 1024), len(cols)))
             grown[:n] = out[:n]
             out = grown
-        for j, c in enumerate(use):
-            col = batch.column(c)
-            if col.null_count and not allow_empty:
-                raise ValueError("empty cell")
-            out[n:n + m, j] = col.to_numpy(zero_copy_only=False)
+        out[n:n + m] = blk
         n += m
     return out[:n] if n < out.shape[0] else out
 
 
-def read_parquet_columns(path, names, *, batch_rows=1 << 16):
-    """Columns ``names`` of a Parquet file as float64 (rows, len(names)), read one batch
-    of ``batch_rows`` rows at a time into an array sized from the file's row count, so
-    the memory in use is the result plus one batch.
+def _float_values(col):
+    """A pyarrow array as float64 numpy values (nulls as NaN). A float64 array is read from
+    its buffers (no copy): pyarrow's own ``to_numpy`` imports pandas, half a second and
+    tens of MB a run that has no other use for it; other types go through it."""
+    import pyarrow as pa
+
+    if col.type != pa.float64():
+        return col.to_numpy(zero_copy_only=False).astype(float)
+    validity, data = col.buffers()[:2]
+    vals = np.frombuffer(data, dtype=np.float64, count=col.offset + len(col))[col.offset:]
+    if col.null_count:
+        bits = np.unpackbits(np.frombuffer(validity, dtype=np.uint8), bitorder="little")
+        vals = np.where(bits[col.offset:col.offset + len(col)].astype(bool), vals, np.nan)
+    return vals
+
+
+def iter_parquet_columns(path, names, *, batch_rows=1 << 16):
+    """Columns ``names`` of a Parquet file as float64 arrays ``(rows, len(names))``, one
+    batch of ``batch_rows`` rows at a time (a caller consuming them holds one batch).
 
     Raises
     ------
@@ -502,22 +534,47 @@ def read_parquet_columns(path, names, *, batch_rows=1 << 16):
         raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
     if nrows == 0:
         raise ValueError(f"{path}: no samples")
-    out = np.empty((nrows, len(names)))
-    n = 0
     try:
         for batch in batches:
-            m = batch.num_rows
+            out = np.empty((batch.num_rows, len(names)))
             for j, c in enumerate(names):
                 col = batch.column(batch.schema.get_field_index(c))
                 try:
-                    out[n:n + m, j] = col.to_numpy(zero_copy_only=False).astype(float)
+                    out[:, j] = _float_values(col)
                 except (TypeError, ValueError, pa.ArrowInvalid):
                     raise ValueError(f"{path}: column {c!r} is not numeric") from None
-            n += m
+            yield out
     except ValueError:
         raise
     except Exception as e:   # noqa: BLE001
         raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
+
+
+def parquet_rows(path) -> int:
+    """Row count of a Parquet file from its footer (ValueError if it is not Parquet)."""
+    import pyarrow.parquet as pq
+
+    try:
+        return int(pq.ParquetFile(path).metadata.num_rows)
+    except Exception as e:   # noqa: BLE001 - pyarrow raises many kinds
+        raise ValueError(f"{path}: cannot read as Parquet ({e})") from None
+
+
+def read_parquet_columns(path, names, *, batch_rows=1 << 16):
+    """Columns ``names`` of a Parquet file as float64 (rows, len(names)), read one batch
+    of ``batch_rows`` rows at a time (:func:`iter_parquet_columns`) into an array sized
+    from the file's row count, so the memory in use is the result plus one batch.
+
+    Raises
+    ------
+    ValueError
+        The file cannot be read as Parquet, holds no rows, or a column is not numeric.
+    """
+    out = np.empty((parquet_rows(path), len(names)))
+    n = 0
+    for blk in iter_parquet_columns(path, names, batch_rows=batch_rows):
+        out[n:n + blk.shape[0]] = blk
+        n += blk.shape[0]
     return out
 
 

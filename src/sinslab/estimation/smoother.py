@@ -81,7 +81,8 @@ Numerics
 * (7) is symmetrised at every step.
 * The loop is one compiled kernel (scalar Cholesky and triangular solves, BLAS
   products); the record is processed backwards in chunks, so the inputs may be
-  ``numpy.memmap`` arrays on disk and only a chunk is held in memory.
+  ``numpy.memmap`` arrays on disk and only a chunk is held in memory (the pages of a
+  chunk are let go once it is processed, :func:`release_pages`).
 
 Storage: per epoch ``2 n^2 + n^2 + 3 n`` float64 (two covariances, Phi, three vectors).
 For n = 21 states at 10 Hz for 1 h (36 001 epochs) that is 36 001 x 1 386 x 8 B =
@@ -98,7 +99,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["rts_smooth", "Smoothed", "storage_bytes"]
+__all__ = ["rts_smooth", "Smoothed", "storage_bytes", "release_pages"]
 
 
 @dataclass(frozen=True)
@@ -249,6 +250,31 @@ def _rts_chunk(xpost, Ppost, xprior, Pprior, Phi, xs1, Ps1, xs_out, P_out, sig_o
                     P_out[i, a, b] = Ps1[a, b]
 
 
+def release_pages(*arrays) -> None:
+    """Let the pages of memory-mapped arrays go from this process' resident memory.
+
+    For each ``numpy.memmap`` (or view of one) the file mapping is told it is not needed
+    (``MADV_DONTNEED``): a shared file mapping keeps its data in the file and the page
+    cache, and a later read maps it back in from there. So a record spilled to disk and
+    walked a chunk at a time holds one chunk in the process, not every chunk it has
+    touched. An object with a ``release_pages()`` method (a view over several arrays) is
+    asked to release its own; anything else is left alone.
+    """
+    import mmap
+
+    for a in arrays:
+        if hasattr(a, "release_pages"):
+            a.release_pages()
+            continue
+        if not isinstance(a, np.memmap):
+            continue
+        b = a
+        while b is not None and not isinstance(b, mmap.mmap):
+            b = getattr(b, "base", None)
+        if b is not None and hasattr(mmap, "MADV_DONTNEED"):
+            b.madvise(mmap.MADV_DONTNEED)
+
+
 def _shape_error(name, got, want):
     raise ValueError(f"{name} must have shape {want}, got {got}")
 
@@ -367,6 +393,7 @@ def rts_smooth(x_post, P_post, x_prior, P_prior, Phi, *, feedback=None, covarian
                 _check_prediction(xq, dq, xp, Pp, Fq, a)
         _rts_chunk(xq, Pq, xp, Pp, Fq, xs1, Ps1, xs[a:b], Ps[a:b] if full else P_dummy,
                    sig[a:b], full, float(null_tol), dropped[a:b], M, W, At, T1, T2, act, s, keep, v)
+        release_pages(x_post, P_post, x_prior, P_prior, Phi, feedback)
         b = a
     xc = xs if feedback is None else xs - np.asarray(feedback, dtype=float)
     return Smoothed(xs, xc, sig, Ps if full else None, dropped)

@@ -134,6 +134,7 @@ class NavOptions:
     #: carry the levelling there too long (``CARRY_LIMIT``); False: always carried
     motion_alignment: bool = True
     smooth: bool = False                    #: record the forward pass and smooth it (RTS)
+    smooth_spill: str | None = None         #: folder for the smoother's record on disk (None: memory)
     odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
     odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
     odometer_lever: tuple = (0.0, 0.0, 0.0)  #: IMU -> wheel point, vehicle RFU [m]
@@ -828,7 +829,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
         lever_arm=lever, fix_lag=opt.fix_latency, lag=opt.lag, outages=outages, kf_dt=T,
         nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, aiding=aiding,
-        history=History(0.1) if opt.smooth else None,
+        history=History(0.1, spill=opt.smooth_spill) if opt.smooth else None,
         progress=progress, label="navigating")
     init["outages"] = outages
     init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),

@@ -55,7 +55,7 @@ import numpy as np
 from numba import njit
 
 from sinslab.estimation.linear import _copy2, _cov_predict, _sparsity_nb, _state_predict
-from sinslab.estimation.smoother import rts_smooth
+from sinslab.estimation.smoother import release_pages, rts_smooth
 from sinslab.nav import strapdown as sd
 
 __all__ = ["History", "SmoothedRun", "smooth", "interpolate_rows"]
@@ -109,6 +109,9 @@ class _PostView:
         R1 = h.epochs.size
         self.shape = (R1, h.n, h.n)
 
+    def release_pages(self):
+        release_pages(self._h.P_upd, self._h.P_prior)
+
     def __getitem__(self, key):
         h = self._h
         if isinstance(key, (int, np.integer)):
@@ -125,6 +128,10 @@ class _PostView:
         return out
 
 
+#: Rows a spilled history writes between two releases of its pages.
+SPILL_ROWS = 2048
+
+
 class History:
     """Recorder of the forward pass for :func:`smooth` (give it to
     :func:`sinslab.fusion.driver.run` as ``history=``). One recorder per run.
@@ -139,7 +146,11 @@ class History:
         Storage type (float64 default; float32 halves the memory, see the notes of
         :mod:`sinslab.estimation.smoother` for its effect).
     spill : str or path-like, optional
-        Directory for memory-mapped ``.npy`` arrays instead of memory.
+        Directory for memory-mapped ``.npy`` arrays instead of memory: the recorded rows
+        go to the files as the forward pass runs (the process lets their pages go every
+        ``SPILL_ROWS`` rows, :func:`sinslab.estimation.smoother.release_pages`), and the
+        backward pass reads them back a chunk at a time, so the memory a spilled history
+        holds does not grow with the length of the run.
 
     Attributes (after the run)
     --------------------------
@@ -192,6 +203,7 @@ class History:
         self.P_upd[0] = filt.P
         self._direct = self.spill is None and self.dtype == np.float64
         self._next = 1                 # row of the next stored epoch to reach
+        self._released = 0             # row up to which a spilled record's pages were let go
         self._acc = np.eye(n)          # transition composed since the last stored epoch
         self._nacc = 0                 # steps composed in it
         self._W = np.empty((n, n))
@@ -260,6 +272,13 @@ class History:
             if has.any():
                 self.P_upd[sl[has]] = Pp_o[has]
             self._next = r1
+            if self.spill is not None and r1 - self._released >= SPILL_ROWS:
+                self.release_pages()
+                self._released = r1
+
+    def release_pages(self):
+        """Let the resident pages of a spilled record go (they stay in its files)."""
+        release_pages(self.x_post, self.feedback, self.x_prior, self.P_prior, self.Phi, self.P_upd)
 
     def _row(self, e):
         r = int(np.searchsorted(self.epochs, e))

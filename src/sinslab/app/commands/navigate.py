@@ -128,6 +128,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              raw=None, strict=False) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
+    from sinslab.core import attitude as A
     from sinslab.core import earth as E         # numba and scipy: only when it runs
     from sinslab.data import guess_imu_format, load_fixes, load_imu
     from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
@@ -228,6 +229,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     elif time_sync != "none":
         raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
     odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_one, sync)
+    _spill_smoother(opt, imu, fx)
     em_cfg = {}
     if em is not None:
         from sinslab.app.error_model import apply_error_model
@@ -280,7 +282,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     lab = list(res.labels)
     i_gb = [lab.index(f"eps_{a}") for a in "xyz"]
     i_ab = [lab.index(f"nabla_{a}") for a in "xyz"]
-    att = res.att
+    att = A.quat_to_euler(res.nav[-1:, :4])[0]      # the last epoch's (the tables make the rest)
     metrics = {
         "duration_s": float(res.t[-1] - res.t[0]), "n_fixes_used": int(res.fix_t.size),
         "n_outages": len(outs), "outage_end_hz_err_median_m": float(np.median(oe)) if oe.size else None,
@@ -289,8 +291,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         "hz_err_with_fixes_median_m": float(np.median(hz[~in_out])) if (~in_out).any() else None,
         "hz_err_with_fixes_max_m": float(np.max(hz[~in_out])) if (~in_out).any() else None,
         "nis_mean": float(np.mean(res.nis)) if res.nis.size else None,
-        "final_pitch_deg": float(np.degrees(att[-1, 0])), "final_roll_deg": float(np.degrees(att[-1, 1])),
-        "final_heading_deg": float(np.degrees(res.heading[-1])),
+        "final_pitch_deg": float(np.degrees(att[0])), "final_roll_deg": float(np.degrees(att[1])),
+        "final_heading_deg": float(np.degrees(np.mod(A.yaw_to_heading(att[2]), 2 * np.pi))),
         "final_sigma_heading_deg": float(np.degrees(res.sigma[-1, 2])),
         "gyro_bias_final_dph": (res.gyro_bias[-1] / units.dph).tolist(),
         "gyro_bias_sigma_final_dph": (res.sigma[-1, i_gb] / units.dph).tolist(),
@@ -412,23 +414,12 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     warnings = settle(found, strict=strict, echo=echo)
 
     sig = res.sigma
-    sol = {"t_s": res.t - res.t[0], "t_abs_s": res.t, "lat_deg": np.degrees(res.nav[:, 7]),
-           "lon_deg": np.degrees(res.nav[:, 8]), "h_m": res.nav[:, 9],
-           "vE_mps": res.nav[:, 4], "vN_mps": res.nav[:, 5], "vU_mps": res.nav[:, 6],
-           "pitch_deg": np.degrees(att[:, 0]), "roll_deg": np.degrees(att[:, 1]),
-           "heading_deg": np.degrees(res.heading)}
-    for i, (l, u_) in enumerate(zip(res.labels, res.units_)):
-        sc = {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
-        sol[f"sigma_{l}_{u_.replace('/', 'p')}"] = sig[:, i] / sc
-    for k, a in enumerate("xyz"):
-        sol[f"gyro_bias_{a}_dph"] = res.gyro_bias[:, k] / units.dph
-        sol[f"accel_bias_{a}_ug"] = res.accel_bias[:, k] / units.ug
     every = max(1, int(round(1.0 / (csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
-    tables = [Series("solution", sol, f"navigation solution at every filter epoch with filter sigma "
+    tables = [Series("solution", _solution_table(res), f"navigation solution at every filter epoch with filter sigma "
                      f"(Parquet; the CSV every {every}-th epoch, {1 / (every * (res.t[1] - res.t[0])):.4g} Hz)"
                      if res.t.size > 1 else "navigation solution", csv_every=every),
               Series("fix_errors", {"t_s": t - res.t[0], "east_m": err[:, 0], "north_m": err[:, 1],
-                                    "up_m": err[:, 2], "in_outage": in_out.astype(int)},
+                                    "up_m": err[:, 2], "in_outage": in_out.astype(float)},
                      "solution (antenna) minus fix at every fix time")]
     figures = []
     # figures
@@ -471,13 +462,13 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     ts_ = res.t - res.t[0]
-    axes[0].semilogy(ts_, np.degrees(sig[:, 0:3]) * 60, lw=1)
+    _semilogy(axes[0], ts_, np.degrees(sig[:, 0:3]) * 60, lw=1)
     axes[0].set_ylabel("attitude σ [arcmin]")
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
-    axes[1].semilogy(ts_, sig[:, i_gb] / units.dph, lw=1)
+    _semilogy(axes[1], ts_, sig[:, i_gb] / units.dph, lw=1)
     axes[1].set_ylabel("gyro bias σ [°/h]")
     axes[1].legend(["x", "y", "z"], fontsize=8)
-    axes[2].semilogy(ts_, sig[:, i_ab] / units.ug, lw=1)
+    _semilogy(axes[2], ts_, sig[:, i_ab] / units.ug, lw=1)
     axes[2].set_ylabel("accel bias σ [µg]")
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
@@ -527,6 +518,91 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                    elevation_mask_deg=float(raw.get("mask_deg", 10.0)))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims, warnings=warnings)
+
+
+#: pixel columns a filter-epoch series is thinned to before it is plotted (more than any
+#: figure's width: the writer thins it again to the axes' own, keeping the envelope)
+PLOT_COLUMNS = 2000
+
+
+def _semilogy(ax, t, y, **kw):
+    """``ax.semilogy`` of the columns of ``y`` against ``t``, each thinned to its envelope
+    over :data:`PLOT_COLUMNS` columns first (:func:`sinslab.app.plotting.minmax_decimate`),
+    so a long run's figure does not hold a copy of every epoch until it is drawn."""
+    from sinslab.app.plotting import minmax_decimate
+
+    y = np.asarray(y)
+    for col in (y.T if y.ndim == 2 else [y]):
+        ax.semilogy(*minmax_decimate(t, col, PLOT_COLUMNS), **kw)
+
+
+def _scale_of(unit):
+    """Display unit of a state -> its SI scale."""
+    return {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug,
+            "ppm": units.ppm}.get(unit, 1.0)
+
+
+def _solution_table(res):
+    """``solution``: navigation, filter σ and sensor compensation at every filter epoch,
+    made a chunk of epochs at a time as it is written (no second copy of the run)."""
+    from sinslab.app.tablefile import ChunkedTable
+    from sinslab.core import attitude as A
+
+    t0 = res.t[0]
+    states = [(i, f"sigma_{l}_{u_.replace('/', 'p')}", _scale_of(u_))
+              for i, (l, u_) in enumerate(zip(res.labels, res.units_))]
+
+    def rows(a, b):
+        nav = res.nav[a:b]
+        att = A.quat_to_euler(nav[:, :4])
+        sol = {"t_s": res.t[a:b] - t0, "t_abs_s": res.t[a:b], "lat_deg": np.degrees(nav[:, 7]),
+               "lon_deg": np.degrees(nav[:, 8]), "h_m": nav[:, 9],
+               "vE_mps": nav[:, 4], "vN_mps": nav[:, 5], "vU_mps": nav[:, 6],
+               "pitch_deg": np.degrees(att[:, 0]), "roll_deg": np.degrees(att[:, 1]),
+               "heading_deg": np.degrees(np.mod(A.yaw_to_heading(att[:, 2]), 2 * np.pi))}
+        for i, name, sc in states:
+            sol[name] = res.sigma[a:b, i] / sc
+        for k, ax in enumerate("xyz"):
+            sol[f"gyro_bias_{ax}_dph"] = res.gyro_bias[a:b, k] / units.dph
+            sol[f"accel_bias_{ax}_ug"] = res.accel_bias[a:b, k] / units.ug
+        return sol
+
+    return ChunkedTable.of(rows, res.t.size)
+
+
+def _smoothed_table(res):
+    """``smoothed``: forward (``fwd_``) and smoothed (``smo_``) solutions and σ at every
+    filter epoch, made a chunk of epochs at a time as it is written."""
+    from sinslab.app.tablefile import ChunkedTable
+    from sinslab.core import attitude as A
+
+    sm = res.smoothed
+    t0 = res.t[0]
+    states = [(i, f"sigma_{l}_{u_.replace('/', 'p')}", _scale_of(u_))
+              for i, (l, u_) in enumerate(zip(res.labels, res.units_))]
+
+    def rows(a, b):
+        fw, sn = sm.forward_nav[a:b], sm.nav[a:b]
+        att_f, att_s = A.quat_to_euler(fw[:, :4]), A.quat_to_euler(sn[:, :4])
+        cols = {"t_s": res.t[a:b] - t0, "t_abs_s": res.t[a:b]}
+        for nm, f, g, sc in (("lat_deg", fw[:, 7], sn[:, 7], 180 / math.pi),
+                             ("lon_deg", fw[:, 8], sn[:, 8], 180 / math.pi),
+                             ("h_m", fw[:, 9], sn[:, 9], 1.0),
+                             ("vE_mps", fw[:, 4], sn[:, 4], 1.0),
+                             ("vN_mps", fw[:, 5], sn[:, 5], 1.0),
+                             ("vU_mps", fw[:, 6], sn[:, 6], 1.0),
+                             ("pitch_deg", att_f[:, 0], att_s[:, 0], 180 / math.pi),
+                             ("roll_deg", att_f[:, 1], att_s[:, 1], 180 / math.pi),
+                             ("heading_deg", np.mod(A.yaw_to_heading(att_f[:, 2]), 2 * np.pi),
+                              np.mod(A.yaw_to_heading(att_s[:, 2]), 2 * np.pi), 180 / math.pi)):
+            cols[f"fwd_{nm}"] = f * sc
+            cols[f"smo_{nm}"] = g * sc
+        for i, name, sc in states:
+            cols[f"fwd_{name}"] = res.sigma[a:b, i] / sc
+            cols[f"smo_{name}"] = sm.sigma[a:b, i] / sc
+        return cols
+
+    return ChunkedTable.of(rows, res.t.size)
 
 
 def _abs(path) -> str:
@@ -627,12 +703,13 @@ def _vehicle_options(opt, veh, nhc):
 # ------------------------------------------------------------- memory estimate ---
 #: Peak resident memory of one navigate process: a fixed part (interpreter, numpy, numba
 #: and its loaded kernels, scipy, pyarrow, matplotlib) and a part per IMU sample (the
-#: record and its reading, the filter's outputs, tables and figures; with ``--smooth`` the
-#: forward pass' history and the smoothed solution too), from
+#: record and its reading, the filter's outputs, metrics and figures; the tables are
+#: written a chunk at a time; with ``--smooth`` the smoothed solution too, and the
+#: forward pass' record in memory up to ``SMOOTH_SPILL_ABOVE``, on disk beyond), from
 #: ``benchmarks/navigate_cost.py`` (peak RSS of 10 and 60 min logs at 200 Hz: the
 #: intercept and the slope, rounded up).
 MEMORY_FIXED = 340 * 2 ** 20
-MEMORY_PER_SAMPLE = {False: 420, True: 720}
+MEMORY_PER_SAMPLE = {False: 220, True: 360}
 
 
 def estimate_samples(path, fmt):
@@ -673,8 +750,9 @@ def check_memory(imu_path, fmt, smooth, available=None):
     """Refuse, before reading, an IMU log whose navigation cannot fit in memory.
 
     The need is :data:`MEMORY_FIXED` plus :data:`MEMORY_PER_SAMPLE` per estimated sample
-    (:func:`estimate_samples`); ``available`` defaults to the memory the system can give
-    a new allocation. Returns the estimate [bytes] or None (no estimate for the format).
+    (:func:`estimate_samples`), with ``smooth`` plus the most of the smoother's record held
+    in memory (:data:`SMOOTH_SPILL_ABOVE`; a larger one goes to disk); ``available``
+    defaults to the memory the system can give a new allocation. Returns the estimate [bytes] or None (no estimate for the format).
 
     Raises
     ------
@@ -686,7 +764,7 @@ def check_memory(imu_path, fmt, smooth, available=None):
     n = estimate_samples(imu_path, fmt)
     if n is None:
         return None
-    need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[bool(smooth)]
+    need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[bool(smooth)] + (SMOOTH_SPILL_ABOVE if smooth else 0)
     avail = available_memory() if available is None else int(available)
     if need > avail:
         name = " + ".join(map(str, imu_path)) if isinstance(imu_path, (list, tuple)) else imu_path
@@ -733,13 +811,33 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
     return cfg
 
 
+#: the smoother's record of the forward pass goes to disk (the run's scratch folder) when
+#: it would hold more than this in memory (estimated for 21 states)
+SMOOTH_SPILL_ABOVE = 64 * 2 ** 20
+
+
+def _spill_smoother(opt, imu, fx):
+    """With ``--smooth`` on a long log, record the forward pass on disk: the history's
+    rows are written to memory-mapped files as the filter runs and read back a chunk at a
+    time by the backward pass (:class:`sinslab.fusion.smoothing.History`), so it does not
+    hold memory in proportion to the log. The numbers are the same either way."""
+    from sinslab.app.commands.runner import scratch_dir
+    from sinslab.fusion.smoothing import History
+
+    where = scratch_dir()
+    if not opt.smooth or where is None:
+        return
+    duration = float(imu.t[-1] - imu.t0)
+    if History.estimate_bytes(21, duration, 0.1, len(fx)) > SMOOTH_SPILL_ABOVE:
+        opt.smooth_spill = str(where / "smoother")
+
+
 def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1):
     """Forward and smoothed solutions side by side, their errors against the fixes that
     were not used (inside outages; all fixes without outages), figures."""
     import dataclasses
 
     from sinslab.app import plotting
-    from sinslab.core import attitude as A
     from sinslab.core import earth as E
     from sinslab.fusion.recorded import fix_errors
     sm = res.smoothed
@@ -767,25 +865,7 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
                        odometer_scale_sigma_ppm=float(sm.sigma[-1, i] * 1e6))
     echo(f"  smoothed: horizontal error RMS {metrics['smoothed_hz_err_rms_m']:.3f} m "
          f"(forward {metrics['forward_hz_err_rms_m']:.3f} m) at {metrics['smoothed_err_reference']}")
-    att_f, att_s = A.quat_to_euler(sm.forward_nav[:, :4]), A.quat_to_euler(sm.nav[:, :4])
-    cols = {"t_s": res.t - res.t[0], "t_abs_s": res.t}
-    for nm, a, b, sc in (("lat_deg", sm.forward_nav[:, 7], sm.nav[:, 7], 180 / math.pi),
-                         ("lon_deg", sm.forward_nav[:, 8], sm.nav[:, 8], 180 / math.pi),
-                         ("h_m", sm.forward_nav[:, 9], sm.nav[:, 9], 1.0),
-                         ("vE_mps", sm.forward_nav[:, 4], sm.nav[:, 4], 1.0),
-                         ("vN_mps", sm.forward_nav[:, 5], sm.nav[:, 5], 1.0),
-                         ("vU_mps", sm.forward_nav[:, 6], sm.nav[:, 6], 1.0),
-                         ("pitch_deg", att_f[:, 0], att_s[:, 0], 180 / math.pi),
-                         ("roll_deg", att_f[:, 1], att_s[:, 1], 180 / math.pi),
-                         ("heading_deg", np.mod(A.yaw_to_heading(att_f[:, 2]), 2 * np.pi),
-                          np.mod(A.yaw_to_heading(att_s[:, 2]), 2 * np.pi), 180 / math.pi)):
-        cols[f"fwd_{nm}"] = a * sc
-        cols[f"smo_{nm}"] = b * sc
-    for i, (l, u_) in enumerate(zip(res.labels, res.units_)):
-        sc = {"arcmin": units.arcmin, "arcsec": units.arcsec, "deg/h": units.dph, "ug": units.ug, "ppm": units.ppm}.get(u_, 1.0)
-        cols[f"fwd_sigma_{l}_{u_.replace('/', 'p')}"] = res.sigma[:, i] / sc
-        cols[f"smo_sigma_{l}_{u_.replace('/', 'p')}"] = sm.sigma[:, i] / sc
-    tables.append(Series("smoothed", cols, "forward (fwd_) and smoothed (smo_) solutions and σ at every "
+    tables.append(Series("smoothed", _smoothed_table(res), "forward (fwd_) and smoothed (smo_) solutions and σ at every "
                          f"filter epoch (Parquet; the CSV every {csv_every}-th epoch, like the solution)",
                          csv_every=csv_every))
     fig, axes = plotting.figure(2, 1, width=9.0)
@@ -800,8 +880,8 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
     sh_f = np.hypot(res.sigma[:, ip] * rm, res.sigma[:, ip + 1] * rn * np.cos(lat))
     sh_s = np.hypot(sm.sigma[:, ip] * rm, sm.sigma[:, ip + 1] * rn * np.cos(lat))
     ts_ = res.t - res.t[0]
-    axes[1].semilogy(ts_, sh_f, lw=1, color=plotting.COLORS[0], label="forward")
-    axes[1].semilogy(ts_, sh_s, lw=1, color=plotting.COLORS[1], label="smoothed")
+    _semilogy(axes[1], ts_, sh_f, lw=1, color=plotting.COLORS[0], label="forward")
+    _semilogy(axes[1], ts_, sh_s, lw=1, color=plotting.COLORS[1], label="smoothed")
     axes[1].set_ylabel("horizontal σ [m]")
     axes[1].set_xlabel("time [s]")
     for ax in axes:

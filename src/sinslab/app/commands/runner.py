@@ -33,6 +33,7 @@ one line ``sinslab: error: ...`` and exit status 2::
 """
 from __future__ import annotations
 
+import contextvars
 import datetime as _dt
 import os
 import time
@@ -46,7 +47,8 @@ from sinslab.app.outputs import Figure, RunDir, default_out_dir, forcing
 from sinslab.app.publish import complete_timed, write_figures
 from sinslab.core.toml import dump_toml
 
-__all__ = ["Command", "Output", "Series", "Figure", "run_command", "command_summary", "cli_call"]
+__all__ = ["Command", "Output", "Series", "Figure", "run_command", "command_summary", "cli_call",
+           "scratch_dir"]
 
 
 @dataclass(frozen=True)
@@ -141,7 +143,12 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
     rd = RunDir(out, command.name)
     rd.check()
     t0 = time.perf_counter()
-    res = compute()
+    token = _SCRATCH.set(rd.scratch_path())
+    try:
+        res = compute()
+    finally:
+        _remove_scratch(_SCRATCH.get())
+        _SCRATCH.reset(token)
     timing = {"compute_s": time.perf_counter() - t0}
     if not isinstance(res, Output):
         raise TypeError(f"the compute function of {command.name!r} must return an Output, "
@@ -177,6 +184,25 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
             echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}: {measured} (expected {expected})")
     echo(f"  -> {out}")
     return summary, res
+
+
+#: the scratch folder of the command computing in this context (:func:`scratch_dir`)
+_SCRATCH: contextvars.ContextVar = contextvars.ContextVar("sinslab_scratch", default=None)
+
+
+def scratch_dir() -> Path | None:
+    """Where the command computing now may put temporary files (a record spilled to disk):
+    a folder next to its run folder, on the disk the run is written to (not a RAM-backed
+    ``/tmp``), created by whoever uses it first and removed, with whatever it holds, when
+    the compute function returns or fails. None outside :func:`run_command`."""
+    return _SCRATCH.get()
+
+
+def _remove_scratch(path) -> None:
+    import shutil
+
+    if path is not None and os.path.isdir(path):
+        shutil.rmtree(path, ignore_errors=True)
 
 
 def cli_call(fn: Callable[..., Any], *args, force: bool = False, **kwargs) -> Any:
