@@ -23,7 +23,9 @@ model with constant biases and 6 noise inputs).
    difference to the measured total.
 3. ``--save FILE`` writes the run's outputs (npz); ``--compare FILE`` reports the largest
    relative difference of this run's outputs to a saved one (a change meant not to move
-   the numbers: save before, compare after).
+   the numbers: save before, compare after), beside the difference that one ulp more in
+   P0 makes to this run (the problem's sensitivity to rounding: the weakly observable
+   bias and scale-factor estimates of a 1 h run move by ~1e-9 of their largest value).
 4. ``--kfgins BINARY``: the same IMU record and fixes written in KF-GINS' text formats,
    its configuration with the same noise model, and its process CPU time (best of three,
    alternated with this process' filter), as epochs per CPU second and the ratio.
@@ -302,8 +304,17 @@ def main(argv=None):
         ref = np.load(a.compare)
         diff = {k: _rel(outs[k], ref[k]) for k in ref.files}
         out["max_rel_diff_vs_saved"] = max(diff.values())
+        out["rel_diff_vs_saved"] = diff
         worst = max(diff, key=diff.get)
-        print(f"against {a.compare}: largest relative difference {out['max_rel_diff_vs_saved']:.1e} ({worst})")
+        print(f"against {a.compare}: largest relative difference {out['max_rel_diff_vs_saved']:.1e} ({worst}); "
+              + ", ".join(f"{k} {v:.1e}" for k, v in diff.items()))
+        # the problem's own sensitivity to rounding: this run against one whose P0 is one
+        # ulp larger (the weakly observable bias and scale estimates move most)
+        sc_ulp = sc[:5] + (sc[5] * (1 + 2.0 ** -52),) + sc[6:]
+        outs_ulp = _outputs(_filter(sc_ulp, sc[0]))
+        floor = {k: _rel(outs_ulp[k], outs[k]) for k in ref.files}
+        out["rel_diff_p0_one_ulp"] = floor
+        print("one ulp more in P0 moves this run's outputs by " + ", ".join(f"{k} {v:.1e}" for k, v in floor.items()))
     if a.kfgins:
         out.update(bench_kfgins(a.kfgins, sc, res, out["cpu_s"]))
         print(f"KF-GINS on the same data: {out['kfgins_cpu_s']:.2f} s CPU ({out['kfgins_epochs_per_cpu_s']:,.0f} "
