@@ -203,15 +203,21 @@ def copy2(dst, src):
 # update
 # ----------------------------------------------------------------------------------------
 @njit(cache=True)
+def _times_h(A, h, out):
+    """out <- A h over the non-zeros of the row h (its zeros skipped, sums in column order)."""
+    for i in range(A.shape[0]):
+        t = 0.0
+        for k in range(A.shape[1]):
+            if h[k] != 0.0:
+                t += A[i, k] * h[k]
+        out[i] = t
+
+
+@njit(cache=True)
 def scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
     """Joseph-form scalar update in place. Returns (innovation, s)."""
     n = P.shape[0]
-    for i in range(n):
-        s = 0.0
-        for k in range(n):
-            if h[k] != 0.0:
-                s += P[i, k] * h[k]
-        pht[i] = s
+    _times_h(P, h, pht)
     s = r
     for k in range(n):
         s += h[k] * pht[k]
@@ -230,13 +236,7 @@ def scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
     for i in range(n):
         for j in range(n):
             B[i, j] = P[i, j] - kk[i] * pht[j]
-    # bh = B h
-    for i in range(n):
-        t = 0.0
-        for k in range(n):
-            if h[k] != 0.0:
-                t += B[i, k] * h[k]
-        bh[i] = t
+    _times_h(B, h, bh)
     # P = B (I - k h)^T + r k k^T = B - bh k^T + r k k^T
     for i in range(n):
         for j in range(n):
@@ -269,6 +269,17 @@ def sequential_update(x, P, z, H, r, innov, sdiag, tmp, B):
 
 
 @njit(cache=True)
+def _matmul(A, B, C):
+    """C <- A B by scalar loops, each sum in the order of the inner index."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[k, j]
+            C[i, j] = s
+
+
+@njit(cache=True)
 def vector_update(x, P, H, R, z, used, with_x):
     """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis).
 
@@ -283,13 +294,8 @@ def vector_update(x, P, H, R, z, used, with_x):
             Hu[a, j] = H[used[a], j]
         for b in range(mu):
             Ru[a, b] = R[used[a], used[b]]
-    PHt = np.zeros((n, mu))                  # P Huᵀ
-    for i in range(n):
-        for a in range(mu):
-            s = 0.0
-            for j in range(n):
-                s += P[i, j] * Hu[a, j]
-            PHt[i, a] = s
+    PHt = np.empty((n, mu))                  # P Huᵀ
+    _matmul(P, Hu.T, PHt)
     S = np.empty((mu, mu))
     for a in range(mu):
         for b in range(mu):
@@ -325,13 +331,8 @@ def vector_update(x, P, H, R, z, used, with_x):
             for c in range(max(a, b), mu):
                 s += Li[c, a] * Li[c, b]
             Sinv[a, b] = s
-    K = np.zeros((n, mu))
-    for i in range(n):
-        for b in range(mu):
-            s = 0.0
-            for a in range(mu):
-                s += PHt[i, a] * Sinv[a, b]
-            K[i, b] = s
+    K = np.empty((n, mu))
+    _matmul(PHt, Sinv, K)
     nu = np.zeros(mu)
     nis = 0.0
     if with_x:
@@ -357,19 +358,9 @@ def vector_update(x, P, H, R, z, used, with_x):
                 s -= K[i, a] * Hu[a, j]
             Am[i, j] = s
     AP = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += Am[i, k] * P[k, j]
-            AP[i, j] = s
+    _matmul(Am, P, AP)
     KR = np.empty((n, mu))
-    for i in range(n):
-        for b in range(mu):
-            s = 0.0
-            for a in range(mu):
-                s += K[i, a] * Ru[a, b]
-            KR[i, b] = s
+    _matmul(K, Ru, KR)
     Pn = np.empty((n, n))
     for i in range(n):
         for j in range(n):
