@@ -370,7 +370,7 @@ def test_a_callers_propagation_steps_the_fast_filter_and_its_lanes():
     """KalmanFilter.propagate / propagate_lanes: a caller's kernel steps x, c, P in place
     (one filter where it is, several stacked) and the filters' time advances as by
     predict; a filter with a history or checks is refused (its steps would go unrecorded)."""
-    from sinslab.estimation.filter import propagate_lanes
+    propagate_lanes = KalmanFilter.propagate_lanes
     _, _, Phi, Q, H, R, P0, rng = _model()
     x0 = rng.normal(size=6)
 

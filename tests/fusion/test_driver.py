@@ -173,9 +173,8 @@ def test_feedback_layout_corrects_ins_and_compensation():
     assert lay.indices(15).tolist() == list(range(15))
     state = sd.initial_state_array(NavState(0.5, 1.0, 100.0, np.array([10.0, 5.0, 0.0]),
                                             np.array([0.01, 0.02, 0.3]), 0.0))
-    f = KalmanFilter(np.zeros(15), np.eye(15) * 1e-6)
     x = np.r_[[1e-4, -2e-4, 3e-4], [0.1, 0.2, -0.1], [1e-6, -1e-6, 2.0], [1e-6] * 3, [1e-3] * 3]
-    f.x = x.copy()
+    f = KalmanFilter(x, np.eye(15) * 1e-6)
     ref = state.copy()
     sd.correct(ref, phi=x[0:3], dvel=x[3:6], dpos=x[6:9])
     comp = {"gyro_bias": np.ones(3), "accel_bias": np.zeros(3)}
@@ -199,9 +198,8 @@ def test_feedback_layout_horizontal_blocks_and_scale_factors():
     assert lay.indices(16).tolist() == list(range(10))        # the Markov states stay
     state = sd.initial_state_array(NavState(0.5, 1.0, 100.0, np.array([10.0, 5.0, 1.0]),
                                             np.array([0.01, 0.02, 0.3]), 0.0))
-    f = KalmanFilter(np.zeros(16), np.eye(16) * 1e-6)
     x = np.r_[[1e-4, -2e-4, 3e-4], [0.1, 0.2], [1e-6, -1e-6], [1e-6] * 3, [2e-6] * 3, [1e-3] * 3]
-    f.x = x.copy()
+    f = KalmanFilter(x, np.eye(16) * 1e-6)
     ref = state.copy()
     sd.correct(ref, phi=x[0:3], dvel=[x[3], x[4], 0.0], dpos=[x[5], x[6], 0.0])
     out, d = lay.apply(f, state, {"gyro_bias": np.zeros(3), "accel_bias": np.zeros(3)})

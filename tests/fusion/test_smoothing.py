@@ -1,6 +1,8 @@
 """Oracles for smoothing fusion-driver runs (sinslab.fusion.smoothing).
 
-* Recording the history does not change the forward pass (bit-identical).
+* Recording the history does not change the forward pass beyond rounding (it predicts from
+  the Φ and Q_k it stores, where the run without a history forms P ← Φ (P + T Q̄/2) Φᵀ +
+  T Q̄/2 in the fused propagation; equal to 1e-11 of each column's largest value).
 * Storing the covariance only every 0.1 s (5 filter steps) gives the smoothed values of
   the every-step history at the stored epochs: the stored epochs form a Gauss–Markov chain
   with the composed transitions (Rauch, Tung & Striebel 1965 applied to the marginal
@@ -41,8 +43,8 @@ def test_history_leaves_forward_unchanged_and_strided_storage_is_exact(B):
     r1 = B.drive_forward(d, History(B.KF_DT))           # every filter epoch
     r5 = B.drive_forward(d, History(0.1))               # every 5th and every fix epoch
     for r in (r1, r5):
-        assert np.array_equal(r.nav[0], r0.nav[0]) and np.array_equal(r.sigma, r0.sigma)
-        assert np.array_equal(r.x, r0.x)
+        for a, b in ((r.nav[0], r0.nav[0]), (r.sigma, r0.sigma), (r.x, r0.x)):
+            assert np.all(np.abs(a - b) <= 1e-11 * np.abs(b).max(axis=0))
     assert r1.history.epochs.size == r0.t.size
     assert r5.history.epochs.size < 0.25 * r0.t.size
     assert r5.history.nbytes() < 0.5 * r1.history.nbytes()

@@ -8,71 +8,17 @@ filter beside the mechanization is :mod:`sinslab.fusion.driver`.
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from sinslab.estimation.kalman import (UpdateResult, _as_square, _is_diag, check_covariance,
                                        update)
-from sinslab.estimation.linear import _cov_predict, _scalar_update, _sparsity_nb, _state_predict
+from sinslab.estimation.kernels import (cov_predict, predict_steps, predict_steps_dense, row_nonzeros,
+                                         sequential_update)
 
-__all__ = ["KalmanFilter", "StoredEpoch", "compiled_update", "propagate_lanes"]
-
-
-@njit(cache=True)
-def _predict_many(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out):
-    m = Phis.shape[0]
-    n = x.shape[0]
-    for i in range(m):
-        _cov_predict(P, Phis[i], Qs[i], T1, T2)
-        _state_predict(x, Phis[i], nzc[i], nnz[i], tmp)
-        _state_predict(c, Phis[i], nzc[i], nnz[i], tmp)
-        for j in range(n):
-            sig_out[i, j] = math.sqrt(max(P[j, j], 0.0))
-            x_out[i, j] = x[j]
-
-
-@njit(cache=True)
-def _predict_dense(x, c, P, Phis, Qs, m, T1, T2, sig_out, x_out):
-    """The first ``m`` steps of :meth:`KalmanFilter.predict`'s arithmetic in one compiled
-    loop: ``P`` by :func:`_cov_predict`, ``x`` and ``c`` by the BLAS product ``Φ @ x``
-    that numpy uses (same bits); σ and x after each step into ``sig_out``, ``x_out``."""
-    n = x.shape[0]
-    for i in range(m):
-        _cov_predict(P, Phis[i], Qs[i], T1, T2)
-        # element loops rather than x[:] = ...: the slice assignment alone costs numba
-        # ~2.5 s more to compile
-        y = Phis[i] @ x
-        for j in range(n):
-            x[j] = y[j]
-        y = Phis[i] @ c
-        for j in range(n):
-            c[j] = y[j]
-        for j in range(n):
-            sig_out[i, j] = math.sqrt(max(P[j, j], 0.0))
-            x_out[i, j] = x[j]
-
-
-@njit(cache=True)
-def _seq_update(x, P, z, H, r, innov, sdiag, tmp, B):
-    """Sequential scalar updates in place; NIS. Returns −1 and leaves x, P alone when some
-    z is not finite or some r not > 0 (the caller takes the general path)."""
-    for c in range(z.shape[0]):
-        if not (math.isfinite(z[c]) and r[c] > 0.0):
-            return -1.0
-    n = x.shape[0]
-    pht = np.empty(n)
-    kk = np.empty(n)
-    nis = 0.0
-    for c in range(z.shape[0]):
-        nu, s = _scalar_update(x, P, H[c], r[c], z[c], True, pht, kk, tmp, B)
-        innov[c] = nu
-        sdiag[c] = s
-        nis += nu * nu / s
-    return nis
+__all__ = ["KalmanFilter", "StoredEpoch", "compiled_update"]
 
 
 def compiled_update(x, P, z, H, R, tmp=None, B=None):
@@ -110,11 +56,17 @@ def compiled_update(x, P, z, H, R, tmp=None, B=None):
     innov = z - H @ x
     seq = np.empty(m)
     sdiag = np.empty(m)
-    nis = _seq_update(x, P, z, H, np.ascontiguousarray(r, dtype=float), seq, sdiag,
+    nis = sequential_update(x, P, z, H, np.ascontiguousarray(r, dtype=float), seq, sdiag,
                       np.empty(n) if tmp is None else tmp, np.empty((n, n)) if B is None else B)
     if nis < 0.0:                   # a non-finite z or an r <= 0: nothing was changed
         return None
     return UpdateResult(x.copy(), P.copy(), innov, S, float(nis), np.ones(m, dtype=bool))
+
+
+def _readonly(a):
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 # ----------------------------------------------------------------------------------------
@@ -187,14 +139,14 @@ class KalmanFilter:
     def __init__(self, x0, P0, *, t0=0.0, history=0, check=True):
         P0 = np.asarray(P0, dtype=float)
         n = P0.shape[0] if P0.ndim == 2 else -1
-        self.P = check_covariance(_as_square(P0, n, "P0"), "P0").copy()
+        self._P = check_covariance(_as_square(P0, n, "P0"), "P0").copy()
         self.n = n
         x0 = np.zeros(n) if x0 is None else np.asarray(x0, dtype=float).copy()
         if x0.shape != (n,):
             raise ValueError(f"x0 must have shape ({n},) to match P0, got {x0.shape}")
-        self.x = x0
-        self.t = float(t0)
-        self.c = np.zeros(n)
+        self._x = x0
+        self._t = float(t0)
+        self._c = np.zeros(n)
         self.check = bool(check)
         self.history = int(history)
         self._buf = deque(maxlen=self.history) if self.history > 0 else None
@@ -207,13 +159,13 @@ class KalmanFilter:
     # -- history -----------------------------------------------------------------------
     def _new_epoch(self, aux=None):
         if self._buf is not None:
-            self._buf.append(StoredEpoch(self.t, self.x.copy(), self.P.copy(), self.c.copy(), aux=aux))
+            self._buf.append(StoredEpoch(self._t, self._x.copy(), self._P.copy(), self._c.copy(), aux=aux))
 
     def _close_epoch(self, Phi, Q):
         if self._buf is not None and self._buf:
             e = self._buf[-1]
             e.Phi, e.Q = Phi.copy(), Q.copy()
-            e.x_post, e.P_post, e.c_post = self.x.copy(), self.P.copy(), self.c.copy()
+            e.x_post, e.P_post, e.c_post = self._x.copy(), self._P.copy(), self._c.copy()
 
     def set_aux(self, aux):
         """Attach a payload (e.g. a copy of the navigation state) to the current epoch."""
@@ -232,8 +184,8 @@ class KalmanFilter:
         if self._buf is None:
             raise ValueError("no history kept: create the filter with history > 0 for lagged measurements")
         ts = self.epochs()
-        if t_m > self.t + tol:
-            raise ValueError(f"measurement time {t_m} s is in the future (filter time {self.t} s)")
+        if t_m > self._t + tol:
+            raise ValueError(f"measurement time {t_m} s is in the future (filter time {self._t} s)")
         if t_m < ts[0] - tol:
             raise ValueError(f"lagged measurement at {t_m} s is older than the stored history "
                              f"({ts[0]} .. {ts[-1]} s, {len(ts)} epochs); increase history")
@@ -243,17 +195,38 @@ class KalmanFilter:
                              f"{ts[j]} s); predict to the measurement epoch")
         return j
 
+    # -- state (read-only views: the filter's own methods change it) --------------------
+    @property
+    def x(self):
+        """Error-state estimate (n,), read-only (feedback coordinates)."""
+        return _readonly(self._x)
+
+    @property
+    def P(self):
+        """Covariance (n, n), read-only."""
+        return _readonly(self._P)
+
+    @property
+    def c(self):
+        """Cumulative feedback (n,) propagated by Φ, read-only."""
+        return _readonly(self._c)
+
+    @property
+    def t(self):
+        """Filter time [s]."""
+        return self._t
+
     # -- basic steps -------------------------------------------------------------------
     @property
     def x_total(self):
         """Feed-forward-equivalent estimate ``x + c`` (n,): estimate of the errors of the
         INS as if no feedback had been applied."""
-        return self.x + self.c
+        return self._x + self._c
 
     @property
     def sigma(self):
         """Standard deviations sqrt(diag P), shape (n,)."""
-        return np.sqrt(np.maximum(self.P.diagonal(), 0.0))
+        return np.sqrt(np.maximum(self._P.diagonal(), 0.0))
 
     def predict(self, Phi, Q, dt, *, aux=None):
         """Advance by ``dt`` [s]: ``x <- Phi x``, ``P <- Phi P Phi^T + Q``.
@@ -279,10 +252,10 @@ class KalmanFilter:
             if not np.all(np.isfinite(Phi)):
                 raise ValueError("Phi has NaN/inf elements")
         self._close_epoch(Phi, Q)
-        _cov_predict(self.P, Phi, Q, self._T1, self._T2)
-        self.x = Phi @ self.x
-        self.c = Phi @ self.c
-        self.t += float(dt)
+        cov_predict(self._P, Phi, Q, n, self._T1, self._T2)
+        self._x = Phi @ self._x
+        self._c = Phi @ self._c
+        self._t += float(dt)
         self._new_epoch(aux)
 
     def predict_many(self, Phis, Qs, dt, *, aux=None, sigma_out=None, x_out=None):
@@ -318,10 +291,10 @@ class KalmanFilter:
                 xo = np.empty((i0, n)) if x_out is None else x_out
                 # stepped in place: new arrays first, as predict makes, since the old
                 # ones may still be referenced (posterior_at returns them)
-                self.x, self.c = self.x.copy(), self.c.copy()
-                _predict_dense(self.x, self.c, self.P, Phis, Qs, i0, self._T1, self._T2, so, xo)
+                self._x, self._c = self._x.copy(), self._c.copy()
+                predict_steps_dense(self._x, self._c, self._P, Phis, Qs, i0, self._T1, self._T2, so, xo)
                 for _ in range(i0):             # the clock as predict advances it
-                    self.t += float(dt)
+                    self._t += float(dt)
                 self._buf.clear()
                 self._new_epoch()
             for i in range(i0, m):
@@ -329,19 +302,19 @@ class KalmanFilter:
                 if sigma_out is not None:
                     sigma_out[i] = self.sigma
                 if x_out is not None:
-                    x_out[i] = self.x
+                    x_out[i] = self._x
             return
         n = self.n
         if Phis.shape != (m, n, n) or Qs.shape != (m, n, n):
             raise ValueError(f"Phis and Qs must have shape (m, {n}, {n}), got {Phis.shape}, {Qs.shape}")
         nzc = np.zeros((m, n, max(n, 1)), dtype=np.int64)
         nnz = np.zeros((m, n), dtype=np.int64)
-        _sparsity_nb(Phis, nzc, nnz)
+        row_nonzeros(Phis, nzc, nnz)
         so = np.empty((m, n)) if sigma_out is None else sigma_out
         xo = np.empty((m, n)) if x_out is None else x_out
-        _predict_many(self.x, self.c, self.P, Phis, Qs, nzc, nnz, self._T1, self._T2, self._tmp,
+        predict_steps(self._x, self._c, self._P, Phis, Qs, nzc, nnz, self._T1, self._T2, self._tmp,
                       so, xo)
-        self.t += m * float(dt)
+        self._t += m * float(dt)
 
     def update(self, z, H, R, *, mask=None, sequential=None):
         """Apply a measurement valid now (see :func:`update`). Returns :class:`UpdateResult`."""
@@ -349,18 +322,18 @@ class KalmanFilter:
             fast = self._fast_update(z, H, R)
             if fast is not None:
                 return fast
-        res = update(self.x, self.P, z, H, R, mask=mask, sequential=sequential)
+        res = update(self._x, self._P, z, H, R, mask=mask, sequential=sequential)
         if self._buf is not None:
             z = np.atleast_1d(np.asarray(z, dtype=float))
             Hm = np.atleast_2d(np.asarray(H, dtype=float))
-            self._buf[-1].updates.append((z + Hm @ self.c, Hm, R, res.used.copy(), sequential))
+            self._buf[-1].updates.append((z + Hm @ self._c, Hm, R, res.used.copy(), sequential))
         # own copies: predict() and feedback() work in place
-        self.x, self.P = res.x.copy(), res.P.copy()
+        self._x, self._P = res.x.copy(), res.P.copy()
         return res
 
     def _fast_update(self, z, H, R):
         """Sequential scalar Joseph updates in compiled code (diagonal R, finite z)."""
-        return compiled_update(self.x, self.P, z, H, R, self._tmp, self._T1)
+        return compiled_update(self._x, self._P, z, H, R, self._tmp, self._T1)
 
     def feedback(self, indices=None):
         """Return the estimate of the given states and zero them (closed-loop correction).
@@ -383,9 +356,9 @@ class KalmanFilter:
             idx = indices                   # what np.arange(n)[indices] would return
         else:
             idx = np.arange(self.n)[indices]
-        d[idx] = self.x[idx]
-        self.x[idx] = 0.0
-        self.c += d
+        d[idx] = self._x[idx]
+        self._x[idx] = 0.0
+        self._c += d
         return d
 
     # -- history access for lag policies ------------------------------------------------
@@ -419,12 +392,12 @@ class KalmanFilter:
         """Set the current estimate (feedback coordinates) and restart the history from
         now: the stored epochs no longer describe the path to this estimate (used by lag
         policies that replace re-processing with a one-step form)."""
-        self.x = np.array(x, dtype=float, copy=True)
-        self.P = np.array(P, dtype=float, order="C", copy=True)
+        self._x = np.array(x, dtype=float, copy=True)
+        self._P = np.array(P, dtype=float, order="C", copy=True)
         buf = self._buf
         cur = buf[-1]
         buf.clear()
-        cur.x_prior, cur.P_prior, cur.c_prior = self.x.copy(), self.P.copy(), self.c.copy()
+        cur.x_prior, cur.P_prior, cur.c_prior = self._x.copy(), self._P.copy(), self._c.copy()
         cur.updates = []
         buf.append(cur)
 
@@ -491,15 +464,15 @@ class KalmanFilter:
                 ei.x_post = xff - ei.c_post
                 ei.P_post = P.copy()
         buf[j].updates.insert(0, (z_ff, Hm, R, first.used.copy(), sequential))
-        self.x = xff - self.c
-        self.P = np.array(P, dtype=float, order="C", copy=True)
+        self._x = xff - self._c
+        self._P = np.array(P, dtype=float, order="C", copy=True)
         return UpdateResult(first.x - e.c_prior, first.P, first.innovation, first.S, first.nis, first.used)
 
     # -- propagation by a caller's compiled kernel ---------------------------------------
     @property
     def fast(self):
         """True when the filter keeps no history and checks nothing: then its steps may be
-        taken by a caller's compiled propagation (:meth:`propagate`, :func:`propagate_lanes`)."""
+        taken by a caller's compiled propagation (:meth:`propagate`, :meth:`propagate_lanes`)."""
         return self._buf is None and not self.check
 
     def propagate(self, step, m, dt):
@@ -514,31 +487,31 @@ class KalmanFilter:
         """
         if not self.fast:
             raise ValueError("a compiled propagation steps only a filter without history and checks")
-        out = step(self.x, self.c, self.P, self._T1, self._T2, self._tmp)
-        self.t += m * float(dt)
+        out = step(self._x, self._c, self._P, self._T1, self._T2, self._tmp)
+        self._t += m * float(dt)
         return out
 
+    @staticmethod
+    def propagate_lanes(filts, step, m, dt):
+        """Advance the :attr:`fast` filters of several lanes (the runs of a Monte
+        Carlo task) by ``m`` steps of ``dt`` [s] with one compiled call.
 
-def propagate_lanes(filts, step, m, dt):
-    """Advance the :attr:`~KalmanFilter.fast` filters of several lanes (the runs of a Monte
-    Carlo task) by ``m`` steps of ``dt`` [s] with one compiled call.
-
-    ``step(x, c, P)`` steps ``x``, ``c`` (L, n) and ``P`` (L, n, n) of the L filters in
-    place; one filter is stepped where it is (views), several are stacked and written back.
-    Returns what ``step`` returns.
-    """
-    if not all(k.fast for k in filts):
-        raise ValueError("a compiled propagation steps only filters without history and checks")
-    if len(filts) == 1:
-        f0 = filts[0]
-        out = step(f0.x[None], f0.c[None], f0.P[None])
-    else:
-        x = np.stack([k.x for k in filts])
-        c = np.stack([k.c for k in filts])
-        P = np.stack([k.P for k in filts])
-        out = step(x, c, P)
-        for ln, k in enumerate(filts):
-            k.x[:], k.c[:], k.P[:] = x[ln], c[ln], P[ln]
-    for k in filts:
-        k.t += m * float(dt)
-    return out
+        ``step(x, c, P)`` steps ``x``, ``c`` (L, n) and ``P`` (L, n, n) of the L filters in
+        place; one filter is stepped where it is (views), several are stacked and written back.
+        Returns what ``step`` returns.
+        """
+        if not all(k.fast for k in filts):
+            raise ValueError("a compiled propagation steps only filters without history and checks")
+        if len(filts) == 1:
+            f0 = filts[0]
+            out = step(f0._x[None], f0._c[None], f0._P[None])
+        else:
+            x = np.stack([k._x for k in filts])
+            c = np.stack([k._c for k in filts])
+            P = np.stack([k._P for k in filts])
+            out = step(x, c, P)
+            for ln, k in enumerate(filts):
+                k._x[:], k._c[:], k._P[:] = x[ln], c[ln], P[ln]
+        for k in filts:
+            k._t += m * float(dt)
+        return out

@@ -5,9 +5,9 @@ error budgets.
 data: covariance analysis) and :func:`error_budget`, which splits the variance into the
 contributions of P0, each process-noise source and each measurement-noise source.
 Time-varying systems are given as *tables* of matrices plus per-step *index* arrays, so
-a piecewise-constant or periodically varying system costs no memory per step. The
-scalar kernels here (covariance prediction, sparse state prediction, Joseph scalar
-update) are also the inner steps of :class:`sinslab.estimation.filter.KalmanFilter`.
+a piecewise-constant or periodically varying system costs no memory per step. Their
+steps are the kernels of :mod:`sinslab.estimation.kernels` (covariance prediction, sparse
+state prediction, Joseph scalar and vector updates), those of every compiled filter loop.
 
 Conventions
 -----------
@@ -25,6 +25,8 @@ import numpy as np
 from numba import njit
 
 from sinslab.estimation.kalman import _as_square, _is_diag, check_covariance
+from sinslab.estimation.kernels import (copy2, cov_predict, row_nonzeros, scalar_update, series_step,
+                                         series_structure, state_predict, vector_update)
 
 from sinslab.core.jitnotice import install as _compile_notice
 
@@ -35,217 +37,15 @@ __all__ = ["run_linear", "LinearRun", "propagate_covariance", "error_budget", "B
 
 
 # ----------------------------------------------------------------------------------------
-# compiled kernels (scalar style, no temporaries inside the time loop)
+# compiled time loops (scalar style, no temporaries inside the loop)
 # ----------------------------------------------------------------------------------------
-@njit(cache=True)
-def _cov_predict(P, Phi, Q, T1, T2):
-    """P <- Phi P Phi^T + Q in place, exactly symmetric. T1, T2 are (n, n) work arrays.
-
-    Two BLAS products called from compiled code (no Python per step): measured faster
-    than scalar loops exploiting the zeros of Phi for every n from 2 to 40."""
-    n = P.shape[0]
-    np.dot(Phi, P, T1)
-    np.dot(T1, Phi.T, T2)
-    for i in range(n):
-        for j in range(i, n):
-            v = 0.5 * (T2[i, j] + T2[j, i] + Q[i, j] + Q[j, i])
-            P[i, j] = v
-            P[j, i] = v
-
-
-@njit(cache=True)
-def _state_predict(x, Phi, nzc, nnz, tmp):
-    n = x.shape[0]
-    for i in range(n):
-        s = 0.0
-        for a in range(nnz[i]):
-            k = nzc[i, a]
-            s += Phi[i, k] * x[k]
-        tmp[i] = s
-    for i in range(n):
-        x[i] = tmp[i]
-
-
-@njit(cache=True)
-def _scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
-    """Joseph-form scalar update in place. Returns (innovation, s)."""
-    n = P.shape[0]
-    for i in range(n):
-        s = 0.0
-        for k in range(n):
-            if h[k] != 0.0:
-                s += P[i, k] * h[k]
-        pht[i] = s
-    s = r
-    for k in range(n):
-        s += h[k] * pht[k]
-    nu = 0.0
-    if with_x:
-        hx = 0.0
-        for k in range(n):
-            hx += h[k] * x[k]
-        nu = zi - hx
-    for i in range(n):
-        kk[i] = pht[i] / s
-    if with_x:
-        for i in range(n):
-            x[i] += kk[i] * nu
-    # B = (I - k h) P = P - k pht^T
-    for i in range(n):
-        for j in range(n):
-            B[i, j] = P[i, j] - kk[i] * pht[j]
-    # bh = B h
-    for i in range(n):
-        t = 0.0
-        for k in range(n):
-            if h[k] != 0.0:
-                t += B[i, k] * h[k]
-        bh[i] = t
-    # P = B (I - k h)^T + r k k^T = B - bh k^T + r k k^T
-    for i in range(n):
-        for j in range(n):
-            P[i, j] = B[i, j] - bh[i] * kk[j] + r * kk[i] * kk[j]
-    for i in range(n):
-        for j in range(i + 1, n):
-            t = 0.5 * (P[i, j] + P[j, i])
-            P[i, j] = t
-            P[j, i] = t
-    return nu, s
-
-
-@njit(cache=True)
-def _vector_update(x, P, H, R, z, used, with_x):
-    """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis).
-
-    Scalar loops with a Cholesky factor of S (no LAPACK/BLAS bindings: they and their
-    error formatting cost seconds of compilation on a first run)."""
-    n = P.shape[0]
-    mu = used.shape[0]
-    Hu = np.empty((mu, n))
-    Ru = np.empty((mu, mu))
-    for a in range(mu):
-        for j in range(n):
-            Hu[a, j] = H[used[a], j]
-        for b in range(mu):
-            Ru[a, b] = R[used[a], used[b]]
-    PHt = np.zeros((n, mu))                  # P Huᵀ
-    for i in range(n):
-        for a in range(mu):
-            s = 0.0
-            for j in range(n):
-                s += P[i, j] * Hu[a, j]
-            PHt[i, a] = s
-    S = np.empty((mu, mu))
-    for a in range(mu):
-        for b in range(mu):
-            s = Ru[a, b]
-            for j in range(n):
-                s += Hu[a, j] * PHt[j, b]
-            S[a, b] = s
-    # S = L Lᵀ, then Sinv = L⁻ᵀ L⁻¹
-    L = np.zeros((mu, mu))
-    for a in range(mu):
-        for b in range(a + 1):
-            s = 0.5 * (S[a, b] + S[b, a])
-            for c in range(b):
-                s -= L[a, c] * L[b, c]
-            if a == b:
-                if not s > 0.0:
-                    raise ValueError("innovation covariance is not positive definite")
-                L[a, a] = math.sqrt(s)
-            else:
-                L[a, b] = s / L[b, b]
-    Li = np.zeros((mu, mu))                  # L⁻¹
-    for a in range(mu):
-        Li[a, a] = 1.0 / L[a, a]
-        for b in range(a):
-            s = 0.0
-            for c in range(b, a):
-                s -= L[a, c] * Li[c, b]
-            Li[a, b] = s / L[a, a]
-    Sinv = np.zeros((mu, mu))
-    for a in range(mu):
-        for b in range(mu):
-            s = 0.0
-            for c in range(max(a, b), mu):
-                s += Li[c, a] * Li[c, b]
-            Sinv[a, b] = s
-    K = np.zeros((n, mu))
-    for i in range(n):
-        for b in range(mu):
-            s = 0.0
-            for a in range(mu):
-                s += PHt[i, a] * Sinv[a, b]
-            K[i, b] = s
-    nu = np.zeros(mu)
-    nis = 0.0
-    if with_x:
-        for a in range(mu):
-            s = z[used[a]]
-            for j in range(n):
-                s -= Hu[a, j] * x[j]
-            nu[a] = s
-        for i in range(n):
-            s = 0.0
-            for a in range(mu):
-                s += K[i, a] * nu[a]
-            x[i] += s
-        for a in range(mu):
-            for b in range(mu):
-                nis += nu[a] * Sinv[a, b] * nu[b]
-    # P <- (I − K H) P (I − K H)ᵀ + K R Kᵀ
-    Am = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s = 1.0 if i == j else 0.0
-            for a in range(mu):
-                s -= K[i, a] * Hu[a, j]
-            Am[i, j] = s
-    AP = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += Am[i, k] * P[k, j]
-            AP[i, j] = s
-    KR = np.empty((n, mu))
-    for i in range(n):
-        for b in range(mu):
-            s = 0.0
-            for a in range(mu):
-                s += K[i, a] * Ru[a, b]
-            KR[i, b] = s
-    Pn = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += AP[i, k] * Am[j, k]
-            for a in range(mu):
-                s += KR[i, a] * K[j, a]
-            Pn[i, j] = s
-    for i in range(n):
-        for j in range(n):
-            P[i, j] = 0.5 * (Pn[i, j] + Pn[j, i])
-    return nu, S, nis
-
-
-@njit(cache=True)
-def _copy2(dst, src):
-    """dst[:, :] = src by elements (a slice assignment from an array compiles numba's
-    shape-error message formatting: seconds on a first run)."""
-    for i in range(src.shape[0]):
-        for j in range(src.shape[1]):
-            dst[i, j] = src[i, j]
-
-
 @njit(cache=True)
 def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_corr, with_x,
                  nzc_t, nnz_t, save_flag, x_hist, pd_hist, P_save, innov, sdiag, nis):
     """The time loop of :func:`_run`. ``R_corr`` is None when every R of the table is
     diagonal (scalar updates), else the table itself (vector updates with the full R): a
     None argument prunes the vector branch at compile time, so a run with diagonal R
-    does not compile :func:`_vector_update` (a second of a first run)."""
+    does not compile :func:`vector_update` (a second of a first run)."""
     n = P.shape[0]
     K = phi_i.shape[0]
     m = mask.shape[1]
@@ -263,13 +63,13 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
     for j in range(n):
         pd_hist[0, j] = P[j, j]
     if save_flag[0]:
-        _copy2(P_save[ns], P)
+        copy2(P_save[ns], P)
         ns += 1
     for k in range(K):
         ip = phi_i[k]
-        _cov_predict(P, Phi_t[ip], Q_t[q_i[k]], T1, T2)
+        cov_predict(P, Phi_t[ip], Q_t[q_i[k]], n, T1, T2)
         if with_x:
-            _state_predict(x, Phi_t[ip], nzc_t[ip], nnz_t[ip], tmp)
+            state_predict(x, Phi_t[ip], nzc_t[ip], nnz_t[ip], tmp)
         nu_tot = 0.0
         nm = 0
         for c in range(m):
@@ -285,12 +85,12 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
                     zc = 0.0
                     if with_x:
                         zc = z[k, c]
-                    nu, s = _scalar_update(x, P, Hk[c], Rk[c, c], zc, with_x, pht, kk, bh, T1)
+                    nu, s = scalar_update(x, P, Hk[c], Rk[c, c], zc, with_x, pht, kk, bh, T1)
                     innov[k, c] = nu
                     sdiag[k, c] = s
                     nu_tot += nu * nu / s
             else:
-                nuv, S, nisv = _vector_update(x, P, Hk, R_corr[r_i[k]], z[k], used[:nm], with_x)
+                nuv, S, nisv = vector_update(x, P, Hk, R_corr[r_i[k]], z[k], used[:nm], with_x)
                 for a in range(nm):
                     innov[k, used[a]] = nuv[a]
                     sdiag[k, used[a]] = S[a, a]
@@ -302,7 +102,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
         for j in range(n):
             pd_hist[k + 1, j] = P[j, j]
         if save_flag[k + 1]:
-            _copy2(P_save[ns], P)
+            copy2(P_save[ns], P)
             ns += 1
         if not (P[0, 0] == P[0, 0]):
             return k + 1
@@ -340,12 +140,12 @@ def _budget_loop(Ptot, C, Phi_t, phi_i, Qparts_t, q_i, H_t, h_i, Rparts_t, r_i, 
                 for p in range(nq):
                     t += Qparts_t[p, iq, i, j]
                 Qtot[i, j] = t
-        _cov_predict(Ptot, Phi_t[ip], Qtot, T1, T2)
+        cov_predict(Ptot, Phi_t[ip], Qtot, n, T1, T2)
         for s in range(S):
             if src_q[s] >= 0:
-                _cov_predict(C[s], Phi_t[ip], Qparts_t[src_q[s], iq], T1, T2)
+                cov_predict(C[s], Phi_t[ip], Qparts_t[src_q[s], iq], n, T1, T2)
             else:
-                _cov_predict(C[s], Phi_t[ip], Zero, T1, T2)
+                cov_predict(C[s], Phi_t[ip], Zero, n, T1, T2)
         Hk = H_t[h_i[k]]
         for c in range(m):
             if not mask[k, c]:
@@ -383,7 +183,7 @@ def _budget_loop(Ptot, C, Phi_t, phi_i, Qparts_t, q_i, H_t, h_i, Rparts_t, r_i, 
                     for j in range(n):
                         Cs[i, j] += (-kk[i] * ch[j] - ch[i] * kk[j]
                                      + (hch + rs) * kk[i] * kk[j])
-            _scalar_update(dummy, Ptot, h, r, 0.0, False, pht, kk, bh, T1)
+            scalar_update(dummy, Ptot, h, r, 0.0, False, pht, kk, bh, T1)
         if hist_every > 0 and (k + 1) % hist_every == 0:
             for s in range(S):
                 for i in range(n):
@@ -423,25 +223,12 @@ def _table(A, idx, K, shape, name):
     return np.ascontiguousarray(A), idx
 
 
-@njit(cache=True)
-def _sparsity_nb(Phi_t, nzc, nnz):
-    L, n, _ = Phi_t.shape
-    for l in range(L):
-        for i in range(n):
-            c = 0
-            for k in range(n):
-                if Phi_t[l, i, k] != 0.0:
-                    nzc[l, i, c] = k
-                    c += 1
-            nnz[l, i] = c
-
-
 def _sparsity(Phi_t):
     """Per row, the columns where Phi is non-zero (zero entries are skipped in products)."""
     L, n, _ = Phi_t.shape
     nnz = np.zeros((L, n), dtype=np.int64)
     nzc = np.zeros((L, n, max(1, n)), dtype=np.int64)
-    _sparsity_nb(Phi_t, nzc, nnz)
+    row_nonzeros(Phi_t, nzc, nnz)
     return nzc, nnz
 
 
@@ -832,190 +619,6 @@ def sparsity(Phi_t):
 # ----------------------------------------------------------------------------------------
 # series discretisation of many epochs (the "series" method of kalman.discretize, compiled)
 # ----------------------------------------------------------------------------------------
-@njit(cache=True)
-def _row_lists(mask, width):
-    """Per row of ``mask`` (r, c) the columns of its True entries, ascending (r, width),
-    and their counts (r,)."""
-    r, c = mask.shape
-    idx = np.zeros((r, width), dtype=np.int64)
-    cnt = np.zeros(r, dtype=np.int64)
-    for i in range(r):
-        for j in range(c):
-            if mask[i, j]:
-                idx[i, cnt[i]] = j
-                cnt[i] += 1
-    return idx, cnt
-
-
-@njit(cache=True)
-def series_structure(fnz, gnz, q):
-    """Index lists of the zeros :func:`series_step` skips, from the possible non-zeros.
-
-    Parameters
-    ----------
-    fnz : bool ndarray (n, n)
-        Entries of F that may be non-zero.
-    gnz : bool ndarray (n, p)
-        Entries of G that may be non-zero.
-    q : ndarray (p,)
-        Noise densities (columns with q = 0 are skipped).
-
-    Returns
-    -------
-    fcol, fcnt : (n, n), (n,) int
-        Non-zero columns of each row of F.
-    grow, gcnt : (p, n), (p,) int
-        Non-zero rows of each column of G.
-    R, pos : (n,), (n,) int
-        The states reached by Q̄ (first ``nr`` entries of R); ``pos[i]`` the place of
-        state i in R or −1.
-    nr : int
-    phic, phin : (n, n), (n,) int
-        Non-zero columns of each row of Φ = I + FT + (FT)²/2.
-    qr, nq : (n,) int, int
-        The rows of Φ that reach R (first ``nq`` entries): Q_k is zero elsewhere.
-    qbr, qbn : (max(nr, 1), max(nr, 1)), (max(nr, 1),) int
-        Per column b of Q̄ (places in R) the rows a where it can be non-zero: the pairs of
-        states that share a noise column.
-    prc, prn : (n, max(nr, 1)), (n,) int
-        Per row u of ``Φ[qr, R]`` (in ``qr`` order) the places b in R where it can be
-        non-zero.
-    """
-    n, m = gnz.shape
-    fcol, fcnt = _row_lists(fnz, n)
-    grow = np.zeros((m, n), dtype=np.int64)
-    gcnt = np.zeros(m, dtype=np.int64)
-    pos = np.full(n, -1, dtype=np.int64)
-    for c in range(m):
-        if q[c] == 0.0:
-            continue
-        for i in range(n):
-            if gnz[i, c]:
-                grow[c, gcnt[c]] = i
-                gcnt[c] += 1
-                pos[i] = 0
-    R = np.zeros(n, dtype=np.int64)
-    nr = 0
-    for i in range(n):
-        if pos[i] == 0:
-            R[nr] = i
-            pos[i] = nr
-            nr += 1
-    pnz = np.zeros((n, n), dtype=np.bool_)
-    for i in range(n):
-        pnz[i, i] = True
-        for a in range(fcnt[i]):
-            k = fcol[i, a]
-            pnz[i, k] = True
-            for b in range(fcnt[k]):
-                pnz[i, fcol[k, b]] = True
-    phic, phin = _row_lists(pnz, n)
-    qr = np.zeros(n, dtype=np.int64)
-    nq = 0
-    for i in range(n):
-        for a in range(nr):
-            if pnz[i, R[a]]:
-                qr[nq] = i
-                nq += 1
-                break
-    nr1 = max(nr, 1)
-    # Q̄'s pattern is symmetric: the rows of column b are the columns of row b
-    qnz = np.zeros((nr1, nr1), dtype=np.bool_)
-    for c in range(m):
-        for a in range(gcnt[c]):
-            for b in range(gcnt[c]):
-                qnz[pos[grow[c, a]], pos[grow[c, b]]] = True
-    qbr, qbn = _row_lists(qnz, nr1)
-    prz = np.zeros((n, nr1), dtype=np.bool_)
-    for u in range(nq):
-        for b in range(nr):
-            prz[u, b] = pnz[qr[u], R[b]]
-    prc, prn = _row_lists(prz, nr1)
-    return fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn
-
-
-@njit(cache=True)
-def series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe,
-                qbr, qbn, prc, prn):
-    """One epoch of the series discretisation into ``Pe`` (Φ) and ``Qe`` (Q_k), skipping
-    the zeros listed by :func:`series_structure`; ``Qb``, ``PR``, ``W`` are work arrays
-    (max(nr, 1) columns), ``Qb`` holding zeros on the first call (``np.zeros``).
-
-    Only exact zeros are skipped, in an order that keeps every sum's other terms in place:
-    a product with a structural zero adds ±0, which leaves a finite sum unchanged, so the
-    result equals the dense loops bit for bit."""
-    n, m = Fe.shape[0], Ge.shape[1]
-    # Φ = I + FT + (FT)²/2
-    for i in range(n):
-        for j in range(n):
-            Pe[i, j] = 0.0
-        Pe[i, i] = 1.0
-        for a in range(fcnt[i]):
-            k = fcol[i, a]
-            fik = Fe[i, k] * T
-            Pe[i, k] += fik
-            h = 0.5 * fik
-            for b in range(fcnt[k]):
-                j = fcol[k, b]
-                Pe[i, j] += h * (Fe[k, j] * T)
-    # Q̄ = G diag(q) Gᵀ on the reached states, exactly symmetric (entries outside the
-    # pattern stay zero from the caller's allocation)
-    for b in range(nr):
-        for a_ in range(qbn[b]):
-            Qb[qbr[b, a_], b] = 0.0
-    for c in range(m):
-        qc = q[c]
-        for a in range(gcnt[c]):
-            i = grow[c, a]
-            gi = Ge[i, c] * qc
-            pa = pos[i]
-            for b in range(gcnt[c]):
-                Qb[pa, pos[grow[c, b]]] += gi * Ge[grow[c, b], c]
-    for b in range(nr):
-        for a_ in range(qbn[b]):
-            a = qbr[b, a_]
-            if a < b:
-                v = 0.5 * (Qb[a, b] + Qb[b, a])
-                Qb[a, b] = v
-                Qb[b, a] = v
-    # Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2 with Φ Q̄ Φᵀ = (Φ[:, R] Q̄) Φ[:, R]ᵀ; when every row of Φ
-    # reaches R the loop below writes all of Q_k
-    if nq < n:
-        for i in range(n):
-            for j in range(n):
-                Qe[i, j] = 0.0
-    for u in range(nq):
-        i = qr[u]
-        for a in range(nr):
-            PR[u, a] = Pe[i, R[a]]
-    # W = Φ[:, R] Q̄, row by row over the non-zeros of both (each W[u, b] sums its terms
-    # in the order of a)
-    for u in range(nq):
-        for b in range(nr):
-            W[u, b] = 0.0
-        for a_ in range(prn[u]):
-            a = prc[u, a_]
-            pa = PR[u, a]
-            for b_ in range(qbn[a]):
-                b = qbr[a, b_]
-                W[u, b] += pa * Qb[a, b]
-    for u in range(nq):
-        i = qr[u]
-        pi = pos[i]
-        for t in range(u, nq):
-            l = qr[t]
-            s = 0.0
-            for b_ in range(prn[t]):
-                b = prc[t, b_]
-                s += W[u, b] * PR[t, b]
-            pl = pos[l]
-            if pi >= 0 and pl >= 0:
-                s += Qb[pi, pl]
-            v = 0.5 * T * s
-            Qe[i, l] = v
-            Qe[l, i] = v
-
-
 @njit(cache=True)
 def _series_many(F, G, q, T, Phi, Q):
     S, n, m = F.shape[0], F.shape[1], G.shape[2]

@@ -42,10 +42,12 @@ Per block ``[e0, e1]``:
    :func:`sinslab.estimation.kalman.discretize` (``"series"`` or ``"vanloan"``). That
    numpy path is the reference (``model_eval="numpy"``); by default compiled kernels
    equal to it to rounding evaluate F, G and the series (:mod:`sinslab.nav.errstate_kernels`),
-   and when the filter keeps no history the model, Φ, Q_k and step 3 of each epoch run
-   in one compiled loop per block (:mod:`sinslab.fusion.propagate`).
+   and when the filter keeps no history the model, Φ, Q̄ and step 3 of each epoch run
+   in one compiled loop per block (:mod:`sinslab.fusion.propagate`, which the filter
+   steps itself with: :meth:`KalmanFilter.propagate_lanes`).
 3. Prediction of the filter through the block in one compiled loop
-   (:meth:`KalmanFilter.predict_many`); σ and x are recorded at every epoch.
+   (:meth:`KalmanFilter.predict_many`; both paths step with
+   :func:`sinslab.estimation.kernels.predict_step`); σ and x are recorded at every epoch.
 4. Measurements at ``e1``, in measurement order then item order. An item valid at
    ``t_v`` (validity epoch ``e_v = ⌈(t_v − t_0)/T⌉``) that arrives at ``e1``:
 

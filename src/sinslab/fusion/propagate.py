@@ -1,25 +1,30 @@
 """Filter prediction with the error model evaluated inside one compiled loop.
 
-Per epoch: ``F``, ``G`` from the navigation rows (:func:`sinslab.nav.errstate_kernels.fill_one`),
-the series ``Φ``, ``Q_k`` (:func:`sinslab.estimation.linear.series_step`), then the
-filter's own prediction steps (``P ← Φ P Φᵀ + Q_k``, ``x ← Φ x``, ``c ← Φ c``: the kernels
-of :meth:`sinslab.estimation.filter.KalmanFilter.predict_many`). The matrices live in
-small work arrays that stay in cache, instead of stretches of ``(S, n, n)`` arrays
-written and read back. The arithmetic of each step is that of the unfused path: the
-zeros skipped are those of the model's structure, whose terms add exact zeros.
+Per epoch: ``F``, ``G`` from the navigation rows (:func:`sinslab.nav.errstate_kernels.fill_varying`),
+the series ``Φ = I + F T + (F T)²/2`` and ``Q̄ = G diag(q) Gᵀ``
+(:func:`sinslab.estimation.kernels.series_phi`, :func:`~sinslab.estimation.kernels.series_qbar`),
+then the filter's own prediction step (:func:`sinslab.estimation.kernels.predict_step`:
+``P``, ``x ← Φ x``, ``c ← Φ c``). The series ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` is never formed:
+``P ← Φ P Φᵀ + Q_k = Φ (P + T Q̄/2) Φᵀ + T Q̄/2``
+(:func:`~sinslab.estimation.kernels.add_half_qbar`), and ``Φ P Φᵀ`` uses the diagonal rows
+of the sensor states (the module notes of :mod:`sinslab.estimation.kernels`). The
+matrices live in small work arrays that stay in cache, instead of stretches of
+``(S, n, n)`` arrays written and read back. The numbers equal those of the unfused path
+(Φ and Q_k formed, then ``KalmanFilter.predict_many``) to rounding.
 
 Used by :func:`sinslab.fusion.driver.run` when the filter keeps no history (no lagged
-measurements) and the discretisation is the series.
+measurements) and the discretisation is the series; the filter steps itself with the
+loop (:meth:`sinslab.estimation.filter.KalmanFilter.propagate_lanes`).
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 from numba import njit
 
-from sinslab.estimation.filter import propagate_lanes
-from sinslab.estimation.linear import _cov_predict, _state_predict, series_step, series_structure
+from sinslab.estimation.filter import KalmanFilter
+from sinslab.estimation.kernels import (add_half_qbar, diagonal_tail, predict_step, series_phi, series_qbar,
+                                         series_structure)
 from sinslab.nav import errstate_kernels as ek
 
 __all__ = ["CompiledPropagation"]
@@ -28,26 +33,24 @@ __all__ = ["CompiledPropagation"]
 @njit(cache=True)
 def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k,
                    f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, q, T, fcol, fcnt,
-                   grow, gcnt, R, pos, nr, qr, nq, phic, phin, qbr, qbn, prc, prn, x, c, P,
-                   sig_out, x_out):
+                   grow, gcnt, R, pos, nr, qbr, qbn, phic, phin, r, x, c, P, sig_out, x_out):
     """Epochs ``e_a..e_b−1`` of L lanes, one lane after the other with the same work arrays:
     ``rows`` (L, k, S, 10), ``w``, ``f`` (L, k, S, 3); ``x``, ``c`` (L, n), ``P`` (L, n, n)
-    stepped in place; ``sig_out``, ``x_out`` (L, e_b − e_a, n). Returns ``(lane, epoch)``
-    of the first invalid navigation point, or ``(−1, −1)``."""
-    n, m = F0.shape[0], G0.shape[1]
+    stepped in place; ``sig_out``, ``x_out`` (L, e_b − e_a, n); rows ``r..n−1`` of Φ
+    diagonal. Returns ``(lane, epoch)`` of the first invalid navigation point, or
+    ``(−1, −1)``."""
+    n = F0.shape[0]
     C = np.empty((rows.shape[1], 3, 3))
     Fc = np.empty((9, 9))
     Fe = np.empty((n, n))
-    Ge = np.empty((n, m))
+    Ge = np.empty((n, G0.shape[1]))
     Pe = np.empty((n, n))
-    Qe = np.empty((n, n))
-    nr1 = max(nr, 1)
-    Qb = np.zeros((nr1, nr1))
-    PR = np.empty((n, nr1))
-    W = np.empty((n, nr1))
+    Qh = np.zeros((n, n))
+    Qb = np.zeros((max(nr, 1), max(nr, 1)))
     T1 = np.empty((n, n))
-    T2 = np.empty((n, n))
+    W = np.empty((r, r))
     tmp = np.empty(n)
+    h = 0.5 * T
     # the constant entries once; each epoch writes the varying ones over the same places
     Fe[:, :] = F0
     Ge[:, :] = G0
@@ -59,15 +62,11 @@ def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_co
                                    f_j, f_src, f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C,
                                    Fc, Fe, Ge):
                 return ln, e
-            series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe,
-                        qbr, qbn, prc, prn)
-            _cov_predict(Pl, Pe, Qe, T1, T2)
-            _state_predict(xl, Pe, phic, phin, tmp)
-            _state_predict(cl, Pe, phic, phin, tmp)
+            series_phi(Fe, T, fcol, fcnt, Pe)
+            series_qbar(Ge, q, grow, gcnt, pos, nr, qbr, qbn, Qb)
+            add_half_qbar(Pl, Qb, h, R, nr, qbr, qbn, Qh)
             i = e - e_a
-            for j in range(n):
-                sig_out[ln, i, j] = math.sqrt(max(Pl[j, j], 0.0))
-                x_out[ln, i, j] = xl[j]
+            predict_step(xl, cl, Pl, Pe, Qh, r, phic, phin, T1, W, tmp, sig_out[ln, i], x_out[ln, i])
     return -1, -1
 
 
@@ -92,6 +91,8 @@ class CompiledPropagation:
         self.q = np.ascontiguousarray(model.q, dtype=float)
         fnz, gnz = ek.pattern(prog)
         self.structure = series_structure(fnz, gnz, self.q)
+        #: rows r..n−1 of Φ hold only their diagonal (the sensor states' own dynamics)
+        self.r = int(diagonal_tail(self.structure[7], self.structure[8]))
         self._tables = ek.tables(prog)
 
     @classmethod
@@ -122,6 +123,7 @@ class CompiledPropagation:
         """
         rows, w, f = stretch
         fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn = self.structure
+        r = self.r
         L = len(filts)
         if L == 1:
             so, xo = sigma_out[0][None], x_out[0][None]
@@ -131,10 +133,9 @@ class CompiledPropagation:
 
         def step(x, c, P):
             return _predict_model(rows, w, f, a, b, *self._tables, self.q, float(T), fcol, fcnt, grow,
-                                  gcnt, R, pos, nr, qr, nq, phic, phin, qbr, qbn, prc, prn, x, c, P,
-                                  so, xo)
+                                  gcnt, R, pos, nr, qbr, qbn, phic, phin, r, x, c, P, so, xo)
 
-        bad, e = propagate_lanes(filts, step, b - a, T)
+        bad, e = KalmanFilter.propagate_lanes(filts, step, b - a, T)
         if bad >= 0:
             ek.matrices_rows(self.prog, rows[bad][:, e:e + 1], w[bad][:, e:e + 1], f[bad][:, e:e + 1])
             raise ValueError(f"navigation point {e} of the stretch is invalid")  # not reached

@@ -54,7 +54,7 @@ import numpy as np
 
 from numba import njit
 
-from sinslab.estimation.linear import _copy2, _cov_predict, _sparsity_nb, _state_predict
+from sinslab.estimation.kernels import copy2, predict_step, row_nonzeros
 from sinslab.estimation.smoother import release_pages, rts_smooth
 from sinslab.nav import strapdown as sd
 
@@ -65,17 +65,17 @@ __all__ = ["History", "SmoothedRun", "smooth", "interpolate_rows"]
 def _compose(acc, nacc, Phi, W):
     """acc <- Phi acc (acc <- Phi for the first step since a stored epoch)."""
     if nacc == 0:
-        _copy2(acc, Phi)
+        copy2(acc, Phi)
     else:
         np.dot(Phi, acc, W)
-        _copy2(acc, W)
+        copy2(acc, W)
 
 
 @njit(cache=True)
 def _predict_record(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out, stop, acc, nacc, W,
                     Phi_o, Pp_o, xp_o):
-    """The filter's compiled prediction (the arithmetic of ``KalmanFilter.predict_many``:
-    covariance, state, cumulative feedback, in that order) with the recording of the
+    """The filter's compiled prediction (:func:`sinslab.estimation.kernels.predict_step`,
+    the arithmetic of ``KalmanFilter.predict_many``) with the recording of the
     stored epochs: after step i with ``stop[i]``, the composed transition, P and x go to
     the next row of ``Phi_o``, ``Pp_o``, ``xp_o``. Returns (rows written, steps composed
     since the last stored epoch)."""
@@ -83,12 +83,7 @@ def _predict_record(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out, st
     n = x.shape[0]
     j = 0
     for i in range(m):
-        _cov_predict(P, Phis[i], Qs[i], T1, T2)
-        _state_predict(x, Phis[i], nzc[i], nnz[i], tmp)
-        _state_predict(c, Phis[i], nzc[i], nnz[i], tmp)
-        for a in range(n):
-            sig_out[i, a] = math.sqrt(max(P[a, a], 0.0))
-            x_out[i, a] = x[a]
+        predict_step(x, c, P, Phis[i], Qs[i], n, nzc[i], nnz[i], T1, T2, tmp, sig_out[i], x_out[i])
         _compose(acc, nacc, Phis[i], W)
         nacc += 1
         if stop[i]:
@@ -241,7 +236,7 @@ class History:
         if filt.fast:
             nzc = np.zeros((m, self.n, max(self.n, 1)), dtype=np.int64)
             nnz = np.zeros((m, self.n), dtype=np.int64)
-            _sparsity_nb(Phis, nzc, nnz)
+            row_nonzeros(Phis, nzc, nnz)
 
             def step(x, c, P, T1, T2, tmp):
                 return _predict_record(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sigma_out, x_out, stop,

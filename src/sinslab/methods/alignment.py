@@ -71,6 +71,7 @@ from sinslab.core import attitude as att_
 from sinslab.core import earth, units
 from sinslab.estimation import kalman, linear
 from sinslab.estimation.filter import KalmanFilter
+from sinslab.nav import strapdown as sd
 from sinslab.core.attitude import q2dcm_s, qmul_s, rv2q_s
 from sinslab.core.errors import InputError
 from sinslab.core.records import ImuRecord
@@ -795,9 +796,8 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
             res = kf.update(zs[j], H, R)
             x[j + 1], sig[j + 1], nis[j] = kf.x, kf.sigma, res.nis
             d = kf.feedback(slice(0, 3))
-            # C_true ≈ exp(φ̂×) C_comp: rotate the computed attitude by +φ̂
-            q[:] = att_.quat_mul(att_.rotvec_to_quat(d[:3]), q)
-            q /= np.linalg.norm(q)
+            # C_true ≈ exp(φ̂×) C_comp: the attitude part of the feedback correction
+            q[:] = sd.correct_rows(np.r_[q, np.zeros(6)], phi=d[:3])[:4]
         Pf = kf.P
     Cq = att_.quat_to_dcm(qs)
     Cc = att_.apply_misalignment(Cq, -x[:, :3])

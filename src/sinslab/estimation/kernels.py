@@ -1,0 +1,584 @@
+"""The compiled Kalman kernels: covariance and state prediction, the series
+discretisation of an error model, scalar and vector Joseph updates.
+
+Every compiled filter loop of the package steps with these kernels — the stepped
+:class:`sinslab.estimation.filter.KalmanFilter` (:func:`predict_steps`), the linear
+time loops of :mod:`sinslab.estimation.linear`, the fused model + discretisation +
+prediction of :mod:`sinslab.fusion.propagate` and the recording prediction of
+:mod:`sinslab.fusion.smoothing` (:func:`predict_step`) — so one epoch of prediction has one
+arithmetic wherever it runs. Scalar style, no array temporaries inside a time loop; the
+work arrays are the caller's.
+
+Shapes: ``n`` states, ``P`` (n, n) C-contiguous float64, stepped in place; ``Φ`` (n, n);
+row lists ``nzc`` (n, ≥1) int with counts ``nnz`` (n,) name the non-zero columns of each
+row of Φ (:func:`row_nonzeros`).
+
+Block-diagonal tail
+-------------------
+In the error models of an INS the sensor states come last and, without navigation
+coupling among themselves, evolve each by its own scalar: a random constant (Φ_ii = 1)
+or a first-order Gauss–Markov process (Φ_ii = 1 − T/τ + ...). With the rows ``r..n−1``
+of Φ diagonal, ``Φ P Φᵀ`` splits into ``Φ[:r] P Φ[:r]ᵀ`` (the one dense part, r × r),
+``(Φ[:r] P)[i, j] Φ_jj`` (i < r <= j) and ``Φ_ii P_ij Φ_jj`` (i, j >= r): for KF-GINS'
+21-state model r = 9 and the products cost 5.7 k multiply-adds instead of 18.5 k.
+:func:`diagonal_tail` finds r from a pattern; r = n is the general case.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sinslab.core.jitnotice import install as _compile_notice
+
+_compile_notice()   # a status line while the kernels below compile (first run)
+
+__all__ = ["cov_predict", "state_predict", "predict_step", "predict_steps", "predict_steps_dense",
+           "scalar_update", "sequential_update", "vector_update", "row_nonzeros", "copy2",
+           "diagonal_tail", "series_structure", "series_phi", "series_qbar", "series_qk",
+           "series_step", "add_half_qbar"]
+
+
+# ----------------------------------------------------------------------------------------
+# prediction
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def cov_predict(P, Phi, Q, r, T1, W):
+    """``P <- Φ P Φᵀ + Q`` in place, exactly symmetric, for a Φ whose rows ``r..n−1`` are
+    diagonal (``r = n``: any Φ; see the module notes).
+
+    Parameters
+    ----------
+    P : ndarray (n, n)
+        Covariance, stepped in place.
+    Phi, Q : ndarray (n, n)
+        Transition and process noise (Q symmetric to rounding; its two halves averaged).
+    r : int
+        Rows ``r..n−1`` of Φ hold only their diagonal entry.
+    T1 : ndarray (n, n)
+        Work array.
+    W : ndarray (r, r)
+        Work array.
+
+    Two BLAS products on the dense rows, called from compiled code (no Python per step):
+    measured faster than scalar loops over the zeros of Φ for every n from 2 to 40, and
+    with r = n the arithmetic of a dense ``Φ P Φᵀ``."""
+    n = P.shape[0]
+    if r > 0:
+        A = Phi[:r]
+        T1r = T1[:r]
+        np.dot(A, P, T1r)
+        np.dot(T1r, A.T, W)
+    for i in range(r):
+        for j in range(i, r):
+            v = 0.5 * (W[i, j] + W[j, i] + Q[i, j] + Q[j, i])
+            P[i, j] = v
+            P[j, i] = v
+        for j in range(r, n):
+            v = T1[i, j] * Phi[j, j] + 0.5 * (Q[i, j] + Q[j, i])
+            P[i, j] = v
+            P[j, i] = v
+    for i in range(r, n):
+        di = Phi[i, i]
+        for j in range(i, n):
+            v = di * P[i, j] * Phi[j, j] + 0.5 * (Q[i, j] + Q[j, i])
+            P[i, j] = v
+            P[j, i] = v
+
+
+@njit(cache=True)
+def state_predict(x, Phi, nzc, nnz, tmp):
+    """x <- Φ x in place over the non-zero columns ``nzc[i, :nnz[i]]`` of each row;
+    ``tmp`` (n,) work array."""
+    n = x.shape[0]
+    for i in range(n):
+        s = 0.0
+        for a in range(nnz[i]):
+            k = nzc[i, a]
+            s += Phi[i, k] * x[k]
+        tmp[i] = s
+    for i in range(n):
+        x[i] = tmp[i]
+
+
+@njit(cache=True)
+def predict_step(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp, sig, xo):
+    """One filter prediction: ``P`` by :func:`cov_predict`, then the estimate ``x`` and the
+    cumulative feedback ``c`` (n,) by :func:`state_predict`, in that order; σ = sqrt(diag P)
+    and x after the step into the rows ``sig``, ``xo`` (n,)."""
+    n = x.shape[0]
+    cov_predict(P, Phi, Q, r, T1, W)
+    state_predict(x, Phi, nzc, nnz, tmp)
+    state_predict(c, Phi, nzc, nnz, tmp)
+    for j in range(n):
+        sig[j] = math.sqrt(max(P[j, j], 0.0))
+        xo[j] = x[j]
+
+
+@njit(cache=True)
+def predict_steps(x, c, P, Phis, Qs, nzc, nnz, T1, T2, tmp, sig_out, x_out):
+    """``m`` :func:`predict_step` steps with ``Phis``, ``Qs`` (m, n, n) and their row lists
+    ``nzc`` (m, n, n), ``nnz`` (m, n); σ and x after step i into row i of ``sig_out``,
+    ``x_out`` (m, n)."""
+    n = x.shape[0]
+    for i in range(Phis.shape[0]):
+        predict_step(x, c, P, Phis[i], Qs[i], n, nzc[i], nnz[i], T1, T2, tmp, sig_out[i], x_out[i])
+
+
+@njit(cache=True)
+def predict_steps_dense(x, c, P, Phis, Qs, m, T1, T2, sig_out, x_out):
+    """The first ``m`` steps of :meth:`~sinslab.estimation.filter.KalmanFilter.predict`'s arithmetic in one compiled
+    loop: ``P`` by :func:`cov_predict`, ``x`` and ``c`` by the BLAS product ``Φ @ x``
+    that numpy uses (same bits); σ and x after each step into ``sig_out``, ``x_out``."""
+    n = x.shape[0]
+    for i in range(m):
+        cov_predict(P, Phis[i], Qs[i], n, T1, T2)
+        # element loops rather than x[:] = ...: the slice assignment alone costs numba
+        # ~2.5 s more to compile
+        y = Phis[i] @ x
+        for j in range(n):
+            x[j] = y[j]
+        y = Phis[i] @ c
+        for j in range(n):
+            c[j] = y[j]
+        for j in range(n):
+            sig_out[i, j] = math.sqrt(max(P[j, j], 0.0))
+            x_out[i, j] = x[j]
+
+
+@njit(cache=True)
+def add_half_qbar(P, Qb, h, R, nr, qbr, qbn, Qh):
+    """``Qh[R[a], R[b]] = h Q̄[a, b]`` over the pattern of Q̄ (``Qb`` in the places of
+    :func:`series_structure`; ``Qh`` (n, n) zero elsewhere) and ``P += Qh``.
+
+    With ``h = T/2``, then :func:`predict_step` with ``Q = Qh`` steps
+    ``P <- Φ (P + h Q̄) Φᵀ + h Q̄``: the series ``Φ P Φᵀ + Q_k`` with ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2``
+    (:func:`series_qk`) without forming ``Φ Q̄ Φᵀ`` (equal to rounding)."""
+    for b in range(nr):
+        rb = R[b]
+        for a_ in range(qbn[b]):
+            a = qbr[b, a_]
+            v = h * Qb[a, b]
+            Qh[R[a], rb] = v
+            P[R[a], rb] += v
+
+
+@njit(cache=True)
+def diagonal_tail(nzc, nnz):
+    """The smallest r such that every row ``i >= r`` of a pattern (row lists ``nzc`` (n, ·),
+    counts ``nnz`` (n,)) holds at most its diagonal entry (n when the last row does not)."""
+    n = nnz.shape[0]
+    r = n
+    while r > 0 and (nnz[r - 1] == 0 or (nnz[r - 1] == 1 and nzc[r - 1, 0] == r - 1)):
+        r -= 1
+    return r
+
+
+@njit(cache=True)
+def row_nonzeros(Phi_t, nzc, nnz):
+    """Per matrix of ``Phi_t`` (L, n, n) and row, its non-zero columns ascending into
+    ``nzc`` (L, n, ≥n) and their count into ``nnz`` (L, n)."""
+    L, n, _ = Phi_t.shape
+    for l in range(L):
+        for i in range(n):
+            c = 0
+            for k in range(n):
+                if Phi_t[l, i, k] != 0.0:
+                    nzc[l, i, c] = k
+                    c += 1
+            nnz[l, i] = c
+
+
+@njit(cache=True)
+def copy2(dst, src):
+    """dst[:, :] = src by elements (a slice assignment from an array compiles numba's
+    shape-error message formatting: seconds on a first run)."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[i, j] = src[i, j]
+
+
+# ----------------------------------------------------------------------------------------
+# update
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def _times_h(A, h, out):
+    """out <- A h over the non-zeros of the row h (its zeros skipped, sums in column order)."""
+    for i in range(A.shape[0]):
+        t = 0.0
+        for k in range(A.shape[1]):
+            if h[k] != 0.0:
+                t += A[i, k] * h[k]
+        out[i] = t
+
+
+@njit(cache=True)
+def scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
+    """Joseph-form scalar update in place. Returns (innovation, s)."""
+    n = P.shape[0]
+    _times_h(P, h, pht)
+    s = r
+    for k in range(n):
+        s += h[k] * pht[k]
+    nu = 0.0
+    if with_x:
+        hx = 0.0
+        for k in range(n):
+            hx += h[k] * x[k]
+        nu = zi - hx
+    for i in range(n):
+        kk[i] = pht[i] / s
+    if with_x:
+        for i in range(n):
+            x[i] += kk[i] * nu
+    # B = (I - k h) P = P - k pht^T
+    for i in range(n):
+        for j in range(n):
+            B[i, j] = P[i, j] - kk[i] * pht[j]
+    _times_h(B, h, bh)
+    # P = B (I - k h)^T + r k k^T = B - bh k^T + r k k^T
+    for i in range(n):
+        for j in range(n):
+            P[i, j] = B[i, j] - bh[i] * kk[j] + r * kk[i] * kk[j]
+    for i in range(n):
+        for j in range(i + 1, n):
+            t = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = t
+            P[j, i] = t
+    return nu, s
+
+
+@njit(cache=True)
+def sequential_update(x, P, z, H, r, innov, sdiag, tmp, B):
+    """Sequential scalar updates in place; NIS. Returns −1 and leaves x, P alone when some
+    z is not finite or some r not > 0 (the caller takes the general path)."""
+    for c in range(z.shape[0]):
+        if not (math.isfinite(z[c]) and r[c] > 0.0):
+            return -1.0
+    n = x.shape[0]
+    pht = np.empty(n)
+    kk = np.empty(n)
+    nis = 0.0
+    for c in range(z.shape[0]):
+        nu, s = scalar_update(x, P, H[c], r[c], z[c], True, pht, kk, tmp, B)
+        innov[c] = nu
+        sdiag[c] = s
+        nis += nu * nu / s
+    return nis
+
+
+@njit(cache=True)
+def _matmul(A, B, C):
+    """C <- A B by scalar loops, each sum in the order of the inner index."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[k, j]
+            C[i, j] = s
+
+
+@njit(cache=True)
+def vector_update(x, P, H, R, z, used, with_x):
+    """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis).
+
+    Scalar loops with a Cholesky factor of S (no LAPACK/BLAS bindings: they and their
+    error formatting cost seconds of compilation on a first run)."""
+    n = P.shape[0]
+    mu = used.shape[0]
+    Hu = np.empty((mu, n))
+    Ru = np.empty((mu, mu))
+    for a in range(mu):
+        for j in range(n):
+            Hu[a, j] = H[used[a], j]
+        for b in range(mu):
+            Ru[a, b] = R[used[a], used[b]]
+    PHt = np.empty((n, mu))                  # P Huᵀ
+    _matmul(P, Hu.T, PHt)
+    S = np.empty((mu, mu))
+    for a in range(mu):
+        for b in range(mu):
+            s = Ru[a, b]
+            for j in range(n):
+                s += Hu[a, j] * PHt[j, b]
+            S[a, b] = s
+    # S = L Lᵀ, then Sinv = L⁻ᵀ L⁻¹
+    L = np.zeros((mu, mu))
+    for a in range(mu):
+        for b in range(a + 1):
+            s = 0.5 * (S[a, b] + S[b, a])
+            for c in range(b):
+                s -= L[a, c] * L[b, c]
+            if a == b:
+                if not s > 0.0:
+                    raise ValueError("innovation covariance is not positive definite")
+                L[a, a] = math.sqrt(s)
+            else:
+                L[a, b] = s / L[b, b]
+    Li = np.zeros((mu, mu))                  # L⁻¹
+    for a in range(mu):
+        Li[a, a] = 1.0 / L[a, a]
+        for b in range(a):
+            s = 0.0
+            for c in range(b, a):
+                s -= L[a, c] * Li[c, b]
+            Li[a, b] = s / L[a, a]
+    Sinv = np.zeros((mu, mu))
+    for a in range(mu):
+        for b in range(mu):
+            s = 0.0
+            for c in range(max(a, b), mu):
+                s += Li[c, a] * Li[c, b]
+            Sinv[a, b] = s
+    K = np.empty((n, mu))
+    _matmul(PHt, Sinv, K)
+    nu = np.zeros(mu)
+    nis = 0.0
+    if with_x:
+        for a in range(mu):
+            s = z[used[a]]
+            for j in range(n):
+                s -= Hu[a, j] * x[j]
+            nu[a] = s
+        for i in range(n):
+            s = 0.0
+            for a in range(mu):
+                s += K[i, a] * nu[a]
+            x[i] += s
+        for a in range(mu):
+            for b in range(mu):
+                nis += nu[a] * Sinv[a, b] * nu[b]
+    # P <- (I − K H) P (I − K H)ᵀ + K R Kᵀ
+    Am = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 1.0 if i == j else 0.0
+            for a in range(mu):
+                s -= K[i, a] * Hu[a, j]
+            Am[i, j] = s
+    AP = np.empty((n, n))
+    _matmul(Am, P, AP)
+    KR = np.empty((n, mu))
+    _matmul(K, Ru, KR)
+    Pn = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += AP[i, k] * Am[j, k]
+            for a in range(mu):
+                s += KR[i, a] * K[j, a]
+            Pn[i, j] = s
+    for i in range(n):
+        for j in range(n):
+            P[i, j] = 0.5 * (Pn[i, j] + Pn[j, i])
+    return nu, S, nis
+
+
+# ----------------------------------------------------------------------------------------
+# series discretisation (the "series" method of kalman.discretize, compiled)
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def _row_lists(mask, width):
+    """Per row of ``mask`` (r, c) the columns of its True entries, ascending (r, width),
+    and their counts (r,)."""
+    r, c = mask.shape
+    idx = np.zeros((r, width), dtype=np.int64)
+    cnt = np.zeros(r, dtype=np.int64)
+    for i in range(r):
+        for j in range(c):
+            if mask[i, j]:
+                idx[i, cnt[i]] = j
+                cnt[i] += 1
+    return idx, cnt
+
+
+@njit(cache=True)
+def series_structure(fnz, gnz, q):
+    """Index lists of the zeros :func:`series_step` skips, from the possible non-zeros.
+
+    Parameters
+    ----------
+    fnz : bool ndarray (n, n)
+        Entries of F that may be non-zero.
+    gnz : bool ndarray (n, p)
+        Entries of G that may be non-zero.
+    q : ndarray (p,)
+        Noise densities (columns with q = 0 are skipped).
+
+    Returns
+    -------
+    fcol, fcnt : (n, n), (n,) int
+        Non-zero columns of each row of F.
+    grow, gcnt : (p, n), (p,) int
+        Non-zero rows of each column of G.
+    R, pos : (n,), (n,) int
+        The states reached by Q̄ (first ``nr`` entries of R); ``pos[i]`` the place of
+        state i in R or −1.
+    nr : int
+    phic, phin : (n, n), (n,) int
+        Non-zero columns of each row of Φ = I + FT + (FT)²/2.
+    qr, nq : (n,) int, int
+        The rows of Φ that reach R (first ``nq`` entries): Q_k is zero elsewhere.
+    qbr, qbn : (max(nr, 1), max(nr, 1)), (max(nr, 1),) int
+        Per column b of Q̄ (places in R) the rows a where it can be non-zero: the pairs of
+        states that share a noise column.
+    prc, prn : (n, max(nr, 1)), (n,) int
+        Per row u of ``Φ[qr, R]`` (in ``qr`` order) the places b in R where it can be
+        non-zero.
+    """
+    n, m = gnz.shape
+    fcol, fcnt = _row_lists(fnz, n)
+    grow = np.zeros((m, n), dtype=np.int64)
+    gcnt = np.zeros(m, dtype=np.int64)
+    pos = np.full(n, -1, dtype=np.int64)
+    for c in range(m):
+        if q[c] == 0.0:
+            continue
+        for i in range(n):
+            if gnz[i, c]:
+                grow[c, gcnt[c]] = i
+                gcnt[c] += 1
+                pos[i] = 0
+    R = np.zeros(n, dtype=np.int64)
+    nr = 0
+    for i in range(n):
+        if pos[i] == 0:
+            R[nr] = i
+            pos[i] = nr
+            nr += 1
+    pnz = np.zeros((n, n), dtype=np.bool_)
+    for i in range(n):
+        pnz[i, i] = True
+        for a in range(fcnt[i]):
+            k = fcol[i, a]
+            pnz[i, k] = True
+            for b in range(fcnt[k]):
+                pnz[i, fcol[k, b]] = True
+    phic, phin = _row_lists(pnz, n)
+    qr = np.zeros(n, dtype=np.int64)
+    nq = 0
+    for i in range(n):
+        for a in range(nr):
+            if pnz[i, R[a]]:
+                qr[nq] = i
+                nq += 1
+                break
+    nr1 = max(nr, 1)
+    # Q̄'s pattern is symmetric: the rows of column b are the columns of row b
+    qnz = np.zeros((nr1, nr1), dtype=np.bool_)
+    for c in range(m):
+        for a in range(gcnt[c]):
+            for b in range(gcnt[c]):
+                qnz[pos[grow[c, a]], pos[grow[c, b]]] = True
+    qbr, qbn = _row_lists(qnz, nr1)
+    prz = np.zeros((n, nr1), dtype=np.bool_)
+    for u in range(nq):
+        for b in range(nr):
+            prz[u, b] = pnz[qr[u], R[b]]
+    prc, prn = _row_lists(prz, nr1)
+    return fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn
+
+
+@njit(cache=True)
+def series_phi(Fe, T, fcol, fcnt, Pe):
+    """``Pe <- Φ = I + F T + (F T)²/2`` over the non-zeros ``fcol``, ``fcnt`` of F."""
+    n = Fe.shape[0]
+    # Φ = I + FT + (FT)²/2
+    for i in range(n):
+        for j in range(n):
+            Pe[i, j] = 0.0
+        Pe[i, i] = 1.0
+        for a in range(fcnt[i]):
+            k = fcol[i, a]
+            fik = Fe[i, k] * T
+            Pe[i, k] += fik
+            h = 0.5 * fik
+            for b in range(fcnt[k]):
+                j = fcol[k, b]
+                Pe[i, j] += h * (Fe[k, j] * T)
+
+
+@njit(cache=True)
+def series_qbar(Ge, q, grow, gcnt, pos, nr, qbr, qbn, Qb):
+    """``Qb <- Q̄ = G diag(q) Gᵀ`` on the states reached (the places of
+    :func:`series_structure`), exactly symmetric."""
+    m = Ge.shape[1]
+    # Q̄ = G diag(q) Gᵀ on the reached states, exactly symmetric (entries outside the
+    # pattern stay zero from the caller's allocation)
+    for b in range(nr):
+        for a_ in range(qbn[b]):
+            Qb[qbr[b, a_], b] = 0.0
+    for c in range(m):
+        qc = q[c]
+        for a in range(gcnt[c]):
+            i = grow[c, a]
+            gi = Ge[i, c] * qc
+            pa = pos[i]
+            for b in range(gcnt[c]):
+                Qb[pa, pos[grow[c, b]]] += gi * Ge[grow[c, b], c]
+    for b in range(nr):
+        for a_ in range(qbn[b]):
+            a = qbr[b, a_]
+            if a < b:
+                v = 0.5 * (Qb[a, b] + Qb[b, a])
+                Qb[a, b] = v
+                Qb[b, a] = v
+
+
+@njit(cache=True)
+def series_qk(Pe, Qb, T, R, pos, nr, qr, nq, PR, W, Qe, qbr, qbn, prc, prn):
+    """``Qe <- Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` from ``Pe`` (Φ) and ``Qb`` (Q̄), exactly symmetric."""
+    n = Pe.shape[0]
+    # Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2 with Φ Q̄ Φᵀ = (Φ[:, R] Q̄) Φ[:, R]ᵀ; when every row of Φ
+    # reaches R the loop below writes all of Q_k
+    if nq < n:
+        for i in range(n):
+            for j in range(n):
+                Qe[i, j] = 0.0
+    for u in range(nq):
+        i = qr[u]
+        for a in range(nr):
+            PR[u, a] = Pe[i, R[a]]
+    # W = Φ[:, R] Q̄, row by row over the non-zeros of both (each W[u, b] sums its terms
+    # in the order of a)
+    for u in range(nq):
+        for b in range(nr):
+            W[u, b] = 0.0
+        for a_ in range(prn[u]):
+            a = prc[u, a_]
+            pa = PR[u, a]
+            for b_ in range(qbn[a]):
+                b = qbr[a, b_]
+                W[u, b] += pa * Qb[a, b]
+    for u in range(nq):
+        i = qr[u]
+        pi = pos[i]
+        for t in range(u, nq):
+            l = qr[t]
+            s = 0.0
+            for b_ in range(prn[t]):
+                b = prc[t, b_]
+                s += W[u, b] * PR[t, b]
+            pl = pos[l]
+            if pi >= 0 and pl >= 0:
+                s += Qb[pi, pl]
+            v = 0.5 * T * s
+            Qe[i, l] = v
+            Qe[l, i] = v
+
+
+@njit(cache=True)
+def series_step(Fe, Ge, q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb, PR, W, Pe, Qe,
+                qbr, qbn, prc, prn):
+    """One epoch of the series discretisation into ``Pe`` (Φ) and ``Qe`` (Q_k), skipping
+    the zeros listed by :func:`series_structure`; ``Qb``, ``PR``, ``W`` are work arrays
+    (max(nr, 1) columns), ``Qb`` holding zeros on the first call (``np.zeros``).
+
+    Only exact zeros are skipped, in an order that keeps every sum's other terms in place:
+    a product with a structural zero adds ±0, which leaves a finite sum unchanged, so the
+    result equals the dense loops bit for bit."""
+    series_phi(Fe, T, fcol, fcnt, Pe)
+    series_qbar(Ge, q, grow, gcnt, pos, nr, qbr, qbn, Qb)
+    series_qk(Pe, Qb, T, R, pos, nr, qr, nq, PR, W, Qe, qbr, qbn, prc, prn)

@@ -1,0 +1,128 @@
+"""The compiled prediction kernels against the dense formulas they replace.
+
+``cov_predict`` with the diagonal rows of the sensor states (Φ P Φᵀ split into its dense
+r × r part and scalar products) and the fused series step (``Φ (P + T Q̄/2) Φᵀ + T Q̄/2``,
+Q_k never formed) are checked against the dense oracle ``Φ P Φᵀ + Q_k`` with the series
+``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` (numpy products) on random SPD covariances and the Φ of KF-GINS'
+21-state model (Gauss–Markov biases and scale factors, 18 noise inputs) and of the 15-state
+default; with r = n the kernel is the dense product itself."""
+import numpy as np
+import pytest
+
+from sinslab.core import units as u
+from sinslab.estimation import kernels as K
+from sinslab.nav import errstate as es
+from sinslab.nav import errstate_kernels as ek
+
+KFGINS = [es.gyro_markov(3600.0, 1 * u.dph), es.accel_markov(3600.0, 500 * u.ug),
+          es.gyro_scale(tau=3600.0, sigma=300 * u.ppm), es.accel_scale(tau=3600.0, sigma=300 * u.ppm)]
+DEFAULT = [es.gyro_bias(), es.accel_bias()]
+T = 0.005
+
+
+def _model_epochs(blocks, S=4, seed=5):
+    """Φ, Q̄ (places of series_structure), Q_k, Q̄ (n, n) of ``S`` random navigation points."""
+    m = es.ErrorModel("full", blocks, gyro_noise=0.05 * u.dpsh, accel_noise=50 * u.ugpsHz)
+    prog = ek.program(m)
+    rng = np.random.default_rng(seed)
+    rows = np.zeros((1, S, 10))
+    rows[0, :, :4] = rng.normal(size=(S, 4))
+    rows[0, :, 4:7] = rng.normal(scale=80.0, size=(S, 3))
+    rows[0, :, 7] = rng.uniform(-1.2, 1.2, S)
+    rows[0, :, 9] = rng.uniform(0, 3000, S)
+    F, G = ek.matrices_rows(prog, rows, rng.normal(scale=0.1, size=(1, S, 3)),
+                            rng.normal(size=(1, S, 3)) + [0, 0, 9.8])
+    q = np.asarray(m.q, float)
+    fnz, gnz = ek.pattern(prog)
+    st = K.series_structure(fnz, gnz, q)
+    fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn = st
+    n = m.n
+    out = []
+    for e in range(S):
+        Phi, Qk = np.empty((n, n)), np.empty((n, n))
+        Qb = np.zeros((max(nr, 1), max(nr, 1)))
+        K.series_step(F[e], G[e], q, T, fcol, fcnt, grow, gcnt, R, pos, nr, qr, nq, Qb,
+                      np.empty((n, max(nr, 1))), np.empty((n, max(nr, 1))), Phi, Qk, qbr, qbn, prc, prn)
+        Qbar = (G[e] * q) @ G[e].T
+        out.append((Phi, Qb.copy(), Qk, 0.5 * (Qbar + Qbar.T)))
+    return st, out
+
+
+def _spd(n, rng):
+    A = rng.normal(size=(n, n)) * np.logspace(-6, 1, n)
+    return A @ A.T + 1e-12 * np.eye(n)
+
+
+def _rel(a, b):
+    """Largest difference relative to sqrt(P_ii P_jj) of the oracle."""
+    d = np.sqrt(np.diag(b))
+    return float(np.max(np.abs(a - b) / np.outer(d, d)))
+
+
+@pytest.mark.parametrize("blocks,r_expected", [(KFGINS, 9), (DEFAULT, 9)])
+def test_diagonal_rows_of_the_sensor_states(blocks, r_expected):
+    st, eps = _model_epochs(blocks)
+    phic, phin = st[7], st[8]
+    r = K.diagonal_tail(phic, phin)
+    assert r == r_expected
+    for Phi, *_ in eps:                       # the pattern holds for every epoch's Φ
+        assert not (Phi - np.diag(np.diag(Phi)))[r:].any()
+        assert (Phi - np.diag(np.diag(Phi)))[r - 1].any()
+
+
+def test_diagonal_tail_of_patterns():
+    n = 5
+    full = np.tile(np.arange(n), (n, 1))
+    assert K.diagonal_tail(full, np.full(n, n)) == n
+    eye = np.arange(n)[:, None] * np.ones((n, n), dtype=np.int64)
+    assert K.diagonal_tail(eye, np.ones(n, dtype=np.int64)) == 0
+    # a single off-diagonal entry in the last row keeps every row dense
+    nzc = eye.copy()
+    nzc[4, :2] = [0, 4]
+    cnt = np.ones(n, dtype=np.int64)
+    cnt[4] = 2
+    assert K.diagonal_tail(nzc, cnt) == n
+
+
+@pytest.mark.parametrize("blocks", [KFGINS, DEFAULT])
+def test_cov_predict_with_diagonal_rows_is_the_dense_product(blocks):
+    st, eps = _model_epochs(blocks)
+    r = K.diagonal_tail(st[7], st[8])
+    rng = np.random.default_rng(11)
+    for Phi, _, Qk, _ in eps:
+        n = Phi.shape[0]
+        P0 = _spd(n, rng)
+        ref = Phi @ P0 @ Phi.T + Qk
+        for rr in (r, n):
+            P = P0.copy()
+            K.cov_predict(P, Phi, Qk, rr, np.empty((n, n)), np.empty((rr, rr)))
+            assert np.array_equal(P, P.T)
+            assert _rel(P, ref) < 1e-13
+
+
+@pytest.mark.parametrize("blocks", [KFGINS, DEFAULT])
+def test_fused_series_step_is_phi_p_phit_plus_qk(blocks):
+    """P ← Φ (P + T Q̄/2) Φᵀ + T Q̄/2 (add_half_qbar, then predict_step with Q = T Q̄/2)
+    against Φ P Φᵀ + Q_k with the series Q_k, over a run of steps; x and c by Φ."""
+    st, eps = _model_epochs(blocks, S=6)
+    R, nr, phic, phin, qbr, qbn = st[4], st[6], st[7], st[8], st[11], st[12]
+    r = K.diagonal_tail(phic, phin)
+    rng = np.random.default_rng(3)
+    n = eps[0][0].shape[0]
+    P = _spd(n, rng)
+    x, c = rng.normal(size=n), rng.normal(size=n)
+    Pr, xr, cr = P.copy(), x.copy(), c.copy()
+    Qh = np.zeros((n, n))
+    sig, xo = np.empty(n), np.empty(n)
+    for Phi, Qb, Qk, Qbar in eps:
+        K.add_half_qbar(P, Qb, 0.5 * T, R, nr, qbr, qbn, Qh)
+        np.testing.assert_allclose(Qh, 0.5 * T * Qbar, rtol=1e-14, atol=1e-14 * np.abs(Qh).max())
+        K.predict_step(x, c, P, Phi, Qh, r, phic, phin, np.empty((n, n)), np.empty((r, r)),
+                       np.empty(n), sig, xo)
+        Pr = Phi @ Pr @ Phi.T + Qk
+        xr, cr = Phi @ xr, Phi @ cr
+        assert _rel(P, Pr) < 1e-12
+        np.testing.assert_allclose(x, xr, rtol=1e-13, atol=1e-13 * np.abs(xr).max())
+        np.testing.assert_allclose(c, cr, rtol=1e-13, atol=1e-13 * np.abs(cr).max())
+        np.testing.assert_array_equal(sig, np.sqrt(np.diag(P)))
+        np.testing.assert_array_equal(xo, x)
