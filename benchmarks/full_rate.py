@@ -52,6 +52,7 @@ import estimation as E  # noqa: E402
 from sinslab.core import units as u  # noqa: E402
 from sinslab.estimation.linear import _cov_predict, _state_predict  # noqa: E402
 from sinslab.fusion import loosely_coupled as integ  # noqa: E402
+from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec  # noqa: E402
 from sinslab.nav import errstate_kernels as ek  # noqa: E402
 
 #: Gauss–Markov processes of the model: steady-state σ and correlation time [s]
@@ -91,8 +92,8 @@ def _filter(sc, imu, model_eval="compiled"):
     orig = driver.run
     driver.run = functools.partial(orig, model_eval=model_eval)
     try:
-        return integ.loosely_coupled(imu, init, ft[sel], fix[sel], sig, P0, model=model, kf_dt=imu.dt,
-                                     nsub=1, progress=False)
+        return integ.loosely_coupled(imu, init, FixSpec(ft[sel], fix[sel], sig), P0, model,
+                                     ins=InsSpec(nsub=1), grid=FilterGrid(imu.dt), progress=False)
     finally:
         driver.run = orig
 

@@ -278,10 +278,11 @@ def speed(duration):
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from estimation import lc_scenario
     from sinslab.fusion import loosely_coupled as integ
+    from sinslab.fusion.spec import FixSpec
     meas, init, ft, fix, sig, P0, kw, truth = lc_scenario(duration)
     short = meas.slice(None, meas.t0 + 20.0)
     sel = ft <= short.t[-1]
-    w = integ.loosely_coupled(short, init, ft[sel], fix[sel], sig, P0, progress=False,
+    w = integ.loosely_coupled(short, init, FixSpec(ft[sel], fix[sel], sig), P0, progress=False,
                               history=History(0.1), **kw)
     smooth(w)                                    # compile outside the timing
     res = {}
@@ -297,10 +298,10 @@ def speed(duration):
         return out
 
     for _ in range(5):
-        timed("f", lambda: integ.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.1,
+        timed("f", lambda: integ.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0,
                                                  progress=False, **kw))
         h = History(0.1)
-        r = timed("h", lambda: integ.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.1,
+        r = timed("h", lambda: integ.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0,
                                                      progress=False, history=h, **kw))
         sm = timed("s", lambda: smooth(r))
     best_f, best_h, best_s = wall["f"], wall["h"], wall["s"]

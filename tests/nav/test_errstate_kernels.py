@@ -156,14 +156,15 @@ def test_driver_run_compiled_equals_numpy(case, monkeypatch):
     P0 = np.diag(np.r_[[(2 * u.arcmin) ** 2] * 2, (10 * u.arcmin) ** 2, [0.2 ** 2] * 3,
                        (5 / 6.4e6) ** 2, (5 / 5.4e6) ** 2, 25.0, [(1 * u.dph) ** 2] * 3,
                        [(500 * u.ug) ** 2] * 3, [(100 * u.ppm) ** 2] * (n - 15)])
-    kw = (dict(kf_dt=meas.dt, nsub=1) if case == "full-rate-21"
-          else dict(kf_dt=0.1, fix_lag=0.25))
+    from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
+    full = case == "full-rate-21"
+    fixes = FixSpec(ft, fix, [3.0, 3.0, 5.0], latency=0.0 if full else 0.25)
     run = driver.run
     out = {}
     for mode in ("compiled", "numpy"):
         monkeypatch.setattr(driver, "run", functools.partial(run, model_eval=mode))
-        out[mode] = LC.loosely_coupled(meas, init, ft, fix, [3.0, 3.0, 5.0], P0, model=model,
-                                       progress=False, **kw)
+        out[mode] = LC.loosely_coupled(meas, init, fixes, P0, model, ins=InsSpec(nsub=1 if full else 2),
+                                       grid=FilterGrid(meas.dt if full else 0.1), progress=False)
     a, b = out["compiled"], out["numpy"]
     assert a.t.size == b.t.size > 1000 if case == "full-rate-21" else a.t.size == b.t.size
     assert _rel(a.nav, b.nav) < 1e-9

@@ -92,6 +92,7 @@ from sinslab.estimation.linear import discretize_series_many
 from sinslab.fusion.lag import ExactReprocessing
 from sinslab.fusion.measurements import Epoch, Grid, NavRow
 from sinslab.fusion.propagate import CompiledPropagation
+from sinslab.fusion.spec import InsSpec
 from sinslab.nav import errstate as es
 from sinslab.nav import errstate_kernels as ek
 from sinslab.nav import strapdown as sd
@@ -212,19 +213,30 @@ class LiveStream:
 
     def __init__(self, imu, init, *, nsub=2, vertical="free", height=None, gyro_bias=None,
                  accel_bias=None, scaled=False, start=0, t_start=None):
-        if vertical not in ("free", "hold"):
-            raise ValueError(f"vertical must be 'free' or 'hold', got {vertical!r}")
+        self._setup(imu, init, InsSpec(nsub=nsub, vertical=vertical, height=height, gyro_bias=gyro_bias,
+                                       accel_bias=accel_bias, start=start, t_start=t_start), scaled)
+
+    @classmethod
+    def of(cls, imu, init, spec: InsSpec, *, scaled=False) -> "LiveStream":
+        """The stream of an INS spec (:class:`sinslab.fusion.spec.InsSpec`, checked when
+        it was made)."""
+        self = cls.__new__(cls)
+        self._setup(imu, init, spec, scaled)
+        return self
+
+    def _setup(self, imu, init, spec: InsSpec, scaled):
         self.imu = imu
-        self.nsub = int(nsub)
-        self.start = int(start)
-        self.t0 = (float(t_start) if t_start is not None
+        self.nsub = int(spec.nsub)
+        self.start = int(spec.start)
+        self.t0 = (float(spec.t_start) if spec.t_start is not None
                    else (float(imu.t[self.start - 1]) if self.start > 0 else imu.t0))
-        if vertical == "hold" and isinstance(height, sd.HeldHeight):
+        height = spec.height
+        if spec.vertical == "hold" and isinstance(height, sd.HeldHeight):
             if len(height) != len(imu) + 1 or abs(height.dt - imu.dt) > 1e-9 * imu.dt:
                 raise ValueError(f"the shared held height has {len(height)} epochs at {height.dt} s, "
                                  f"the IMU record {len(imu) + 1} at {imu.dt} s")
             self._held = height
-        elif vertical == "hold":
+        elif spec.vertical == "hold":
             hgt = np.asarray(height, dtype=float)
             if hgt.ndim == 0:
                 hgt = np.full(len(imu) + 1, float(hgt))
@@ -235,13 +247,12 @@ class LiveStream:
             self._held = sd.HeldHeight(hgt, float(imu.dt), shared=False)
         else:
             self._held = None
-        if not 1 <= self.nsub <= 5:
-            raise ValueError(f"nsub (samples per update) must be an integer in 1..5, got {nsub!r}")
         self.dt = float(imu.dt)
         self.state = sd.initial_state_array(init)
         # what feedback may correct, keyed by what a block feeds (es.COMPENSATIONS)
         self.compensation = dict(zip(es.COMPENSATIONS, (
-            units.vec3(gyro_bias, "gyro_bias", default=0.0), units.vec3(accel_bias, "accel_bias", default=0.0),
+            np.zeros(3) if spec.gyro_bias is None else spec.gyro_bias.copy(),
+            np.zeros(3) if spec.accel_bias is None else spec.accel_bias.copy(),
             np.zeros(3), np.zeros(3))))
         self.scaled = bool(scaled)
 

@@ -36,7 +36,9 @@ from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
 from sinslab.core.stamps import held_runs, stamp_step, whole_intervals
+from sinslab.fusion.lag import ExactReprocessing
 from sinslab.fusion.loosely_coupled import loosely_coupled
+from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
@@ -54,14 +56,15 @@ AIRCRAFT_MAX_ROLL = 10.0 * units.deg
 AIRCRAFT_CRAB_SIGMA = 10.0 * units.deg
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class NavOptions:
-    """Settings of :func:`navigate_recorded` (SI units)."""
+    """Settings of :func:`navigate_recorded` (SI units): a frozen value, checked once when it
+    is made (derive another with :func:`dataclasses.replace`)."""
 
     lever_arm: tuple = (0.0, 0.0, 0.0)      #: IMU -> antenna, vehicle RFU axes [m]
     outages: tuple = ()                     #: ((start, length), ...) absolute times [s]
     fix_latency: float = 0.0                #: [s]
-    lag: str = "aware"                      #: "aware" | "ignore"
+    lag: object = ExactReprocessing()       #: lag policy (sinslab.fusion.lag)
     heading: float | None = None            #: initial heading, clockwise from north [rad]
     use_velocity: bool = True
     gyro_arw: float = 0.0038 * units.deg    #: [rad/sqrt(s)] (0.0038 deg/s/sqrt(Hz))
@@ -132,12 +135,12 @@ class NavOptions:
     #: replace the fixes in the filter (tightly coupled); the fixes then only start it
     gnss_raw: object = None
 
-    def check(self):
+    def __post_init__(self):
         la = np.asarray(self.lever_arm, dtype=float)
         if la.shape != (3,) or not np.all(np.isfinite(la)):
             raise ValueError(f"lever arm must be 3 finite numbers [m], got {self.lever_arm!r}")
-        if self.lag not in ("aware", "ignore"):
-            raise ValueError(f"lag must be 'aware' or 'ignore', got {self.lag!r}")
+        object.__setattr__(self, "lever_arm", tuple(float(x) for x in la))
+        object.__setattr__(self, "outages", tuple(self.outages))
         if not (self.fix_latency >= 0 and math.isfinite(self.fix_latency)):
             raise ValueError(f"fix latency must be >= 0 s, got {self.fix_latency}")
         for o in self.outages:
@@ -592,7 +595,6 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     from sinslab.nav import strapdown as sd
 
     opt = opt or NavOptions()
-    opt.check()
     t_lo, t_hi = imu.t0, float(imu.t[-1])
     if len(fixes) == 0 or fixes.t[-1] < t_lo or fixes.t[0] > t_hi:
         span = "no fixes" if len(fixes) == 0 else f"{fixes.t[0]:.3f}..{fixes.t[-1]:.3f} s"
@@ -799,15 +801,14 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         P0[slv, spp] = (J @ Sl).T
 
     # --- the filter (the one INS + fix driver)
-    r = loosely_coupled(
-        imu, NavState(lat_i, lon_i, h_i, v0, att0), sel.t, np.stack([sel.lat, sel.lon, sel.h], -1),
-        np.maximum(sel.sigma, opt.pos_sigma_floor), P0, model=model,
-        fix_vel=_fix_vel_enu(sel) if use_vel else None,
-        vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
-        lever_arm=lever, fix_lag=opt.fix_latency, lag=opt.lag, outages=outages, kf_dt=T,
-        nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, aiding=aiding,
-        history=History(0.1) if opt.smooth else None,
-        progress=progress, label="navigating")
+    fix_spec = FixSpec(sel.t, np.stack([sel.lat, sel.lon, sel.h], -1), np.maximum(sel.sigma, opt.pos_sigma_floor),
+                       vel=_fix_vel_enu(sel) if use_vel else None,
+                       vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
+                       latency=opt.fix_latency, lever_arm=lever, outages=outages)
+    r = loosely_coupled(imu, NavState(lat_i, lon_i, h_i, v0, att0), fix_spec, P0, model,
+                        ins=InsSpec(nsub=nsub, gyro_bias=gb, start=ks, t_start=ts),
+                        grid=FilterGrid(T, model_every=0.0), lag=opt.lag, aiding=aiding,
+                        history=History(0.1) if opt.smooth else None, progress=progress, label="navigating")
     init["outages"] = outages
     init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),
                                 "rejected_spans": _spans(m.gate.rejected, 2.5 * T * m.every)}
