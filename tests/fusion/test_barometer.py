@@ -1,4 +1,4 @@
-"""A barometer with a Gauss–Markov bias state of its own (sinslab.fusion.barometer) bounds
+"""A barometer with a Gauss–Markov bias state of its own (sinslab.fusion.measurements.barometer) bounds
 the vertical channel of an INS at rest, through the fusion driver with closed-loop
 feedback: the model gains one block, nothing else changes.
 
@@ -18,7 +18,7 @@ from scipy.stats import chi2
 from sinslab.core import units as u
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.fusion import driver
-from sinslab.fusion.barometer import Barometer
+from sinslab.fusion.measurements import Barometer
 from sinslab.fusion.feedback import FeedbackLayout
 from sinslab.fusion.measurements import PositionFix
 from sinslab.nav import errstate as es
