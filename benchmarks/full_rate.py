@@ -85,17 +85,10 @@ def scenario(duration):
 
 
 def _filter(sc, imu, model_eval="compiled"):
-    import functools
-    from sinslab.fusion import driver
     meas, init, ft, fix, sig, P0, model, truth = sc
     sel = ft <= imu.t[-1]
-    orig = driver.run
-    driver.run = functools.partial(orig, model_eval=model_eval)
-    try:
-        return integ.loosely_coupled(imu, init, FixSpec(ft[sel], fix[sel], sig), P0, model,
-                                     ins=InsSpec(nsub=1), grid=FilterGrid(imu.dt), progress=False)
-    finally:
-        driver.run = orig
+    return integ.loosely_coupled(imu, init, FixSpec(ft[sel], fix[sel], sig), P0, model, ins=InsSpec(nsub=1),
+                                 grid=FilterGrid(imu.dt, model_eval=model_eval), progress=False)
 
 
 def _outputs(res):

@@ -39,6 +39,7 @@ from sinslab.core import units as u  # noqa: E402
 from sinslab.core.earth import radii  # noqa: E402
 from sinslab.core.records import NavState  # noqa: E402
 from sinslab.fusion import driver  # noqa: E402
+from sinslab.fusion.spec import FilterGrid  # noqa: E402
 from sinslab.fusion.feedback import FeedbackLayout  # noqa: E402
 from sinslab.fusion.measurements import Odometer, PositionFix, Stack, VelocityFix  # noqa: E402
 from sinslab.fusion.smoothing import History, smooth  # noqa: E402
@@ -130,7 +131,7 @@ def drive_forward(d, history=None):
     """The forward pass of :func:`drive_inputs` ``d`` on the driver (closed loop)."""
     m = d["model"]
     return driver.run([driver.LiveStream(d["imu"], d["init"], nsub=2)], m, np.diag(d["sd"] ** 2),
-                      d["measurements"], kf_dt=KF_DT, feedback=FeedbackLayout.from_model(m.layout),
+                      d["measurements"], grid=FilterGrid(KF_DT), feedback=FeedbackLayout.from_model(m.layout),
                       history=history)
 
 

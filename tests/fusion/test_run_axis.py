@@ -86,8 +86,8 @@ def test_lanes_equal_runs_alone_bit_for_bit(case):
     P0 = _P0(model.n)
     fb = None if case.startswith("feed-forward") else FeedbackLayout.from_model(model.layout)
     lag = OnArrival() if case in ("on-arrival, fused", "scale factors") else None
-    kw = dict(kf_dt=0.2, feedback=fb, lag=lag, max_block=7.0, model_every=3.0,
-              model_eval="numpy" if "numpy" in case else "compiled")
+    kw = dict(grid=FilterGrid(0.2, max_block=7.0, model_every=3.0,
+                              model_eval="numpy" if "numpy" in case else "compiled"), feedback=fb, lag=lag)
     data = [_run_data(gen, s) for s in range(3)]
 
     def lane(s):
@@ -123,11 +123,11 @@ def test_two_stream_lanes_equal_runs_alone():
                             driver.LiveStream(meas, init2, vertical="hold", height=h)),
                            (InsDifference(t, [1e-8, 1e-8, 0.01, 0.01]),))
 
-    many = driver.run_many([lane(s) for s in range(2)], m, P0, kf_dt=1.0, model_every=0.0)
+    many = driver.run_many([lane(s) for s in range(2)], m, P0, grid=FilterGrid(1.0, model_every=0.0))
     for s in range(2):
         ln = lane(s)
-        _same(many[s], driver.run(list(ln.streams), m, P0, list(ln.measurements), kf_dt=1.0,
-                                  model_every=0.0))
+        _same(many[s], driver.run(list(ln.streams), m, P0, list(ln.measurements),
+                                  grid=FilterGrid(1.0, model_every=0.0)))
 
 
 def test_loosely_coupled_many_equals_loosely_coupled():
@@ -161,9 +161,9 @@ def test_lanes_need_one_schedule_and_one_grid():
     a = driver.Lane((driver.LiveStream(meas, init),), (_fixes(gen.truth, 0, every=50),))
     b = driver.Lane((driver.LiveStream(meas, init),), (_fixes(gen.truth, 1, every=75),))
     with pytest.raises(ValueError, match="lane 1 receives measurements at other epochs"):
-        driver.run_many([a, b], model, _P0(15), kf_dt=0.2)
+        driver.run_many([a, b], model, _P0(15), grid=FilterGrid(0.2))
     c = driver.Lane((driver.LiveStream(meas, init, start=10),), (_fixes(gen.truth, 0, every=50),))
     with pytest.raises(ValueError, match="lane 1 is on the filter grid"):
-        driver.run_many([a, c], model, _P0(15), kf_dt=0.2)
+        driver.run_many([a, c], model, _P0(15), grid=FilterGrid(0.2))
     with pytest.raises(ValueError, match="at least one lane"):
-        driver.run_many([], model, _P0(15), kf_dt=0.2)
+        driver.run_many([], model, _P0(15), grid=FilterGrid(0.2))

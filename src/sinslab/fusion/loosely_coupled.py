@@ -171,9 +171,8 @@ def loosely_coupled(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsS
     LooselyCoupled
     """
     c = _compose(imu, init, fixes, model, ins, grid, lag, feedback)
-    r = driver.run([c.ins], c.model, P0, [c.meas, *aiding], kf_dt=grid.kf_dt, feedback=c.feedback,
-                   lag=lag, max_block=grid.max_block, model_every=grid.model_every,
-                   discretization=grid.discretization, progress=progress, label=label, history=history)
+    r = driver.run([c.ins], c.model, P0, [c.meas, *aiding], grid=grid, feedback=c.feedback, lag=lag,
+                   progress=progress, label=label, history=history)
     return c.result(r)
 
 
@@ -206,10 +205,8 @@ def loosely_coupled_many(runs, P0, model, *, ins: InsSpec = InsSpec(), grid: Fil
     if not comp:
         raise ValueError("loosely_coupled_many needs at least one run")
     c0 = comp[0]
-    rs = driver.run_many([driver.Lane((c.ins,), (c.meas,)) for c in comp], c0.model, P0, kf_dt=grid.kf_dt,
-                         feedback=c0.feedback, lag=lag, max_block=grid.max_block,
-                         model_every=grid.model_every, discretization=grid.discretization,
-                         progress=progress, label=label)
+    rs = driver.run_many([driver.Lane((c.ins,), (c.meas,)) for c in comp], c0.model, P0, grid=grid,
+                         feedback=c0.feedback, lag=lag, progress=progress, label=label)
     return [c.result(r) for c, r in zip(comp, rs)]
 
 

@@ -37,7 +37,7 @@ from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
 from sinslab.core.stamps import held_runs, stamp_step, whole_intervals
 from sinslab.fusion.lag import ExactReprocessing
-from sinslab.fusion.loosely_coupled import loosely_coupled
+from sinslab.fusion.loosely_coupled import LooselyCoupled, loosely_coupled
 from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 from sinslab.fusion.smoothing import History, smooth
 
@@ -141,8 +141,6 @@ class NavOptions:
             raise ValueError(f"lever arm must be 3 finite numbers [m], got {self.lever_arm!r}")
         object.__setattr__(self, "lever_arm", tuple(float(x) for x in la))
         object.__setattr__(self, "outages", tuple(self.outages))
-        if not (self.fix_latency >= 0 and math.isfinite(self.fix_latency)):
-            raise ValueError(f"fix latency must be >= 0 s, got {self.fix_latency}")
         for o in self.outages:
             s, ln = (o[2], o[1]) if o[0] == "periodic" else o
             if not (ln > 0 and math.isfinite(s)):
@@ -174,24 +172,40 @@ class NavOptions:
                     raise ValueError(f"{nm} must be {n} finite values > 0, got {v!r}")
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class RecordedNav:
-    """Result of :func:`navigate_recorded` at the filter epochs (every ``kf_dt``)."""
+    """Result of :func:`navigate_recorded` at the filter epochs (every ``kf_dt``): a view of
+    the filter's own result (``run``), with what the front end found and the options.
 
-    t: np.ndarray                  #: (M,) [s]
-    nav: np.ndarray                #: (M, 10) [q0..q3, vE, vN, vU, lat, lon, h] after feedback
-    sigma: np.ndarray              #: (M, n) filter σ
-    labels: tuple                  #: state labels
-    units_: tuple                  #: display units of the states
-    gyro_bias: np.ndarray          #: (M, 3) compensation in use [rad/s]
-    accel_bias: np.ndarray         #: (M, 3) [m/s^2]
-    scale: np.ndarray | None       #: (M, 6) gyro, accel scale-factor compensation [-]
-    fix_t: np.ndarray              #: (J,) validity times of the applied fixes
-    innovation: np.ndarray         #: (J, m)
-    nis: np.ndarray                #: (J,)
+    ``t`` (M,) [s], ``nav`` (M, 10) ``[q0..q3, vE, vN, vU, lat, lon, h]`` after feedback,
+    ``sigma`` (M, n) filter σ, ``gyro_bias`` (M, 3) [rad/s] and ``accel_bias`` (M, 3)
+    [m/s²] compensation in use, ``scale`` (M, 6) scale-factor compensation [-] or None,
+    ``fix_t`` (J,) validity times of the applied fixes, ``innovation`` (J, m), ``nis``
+    (J,) are those of ``run``; ``labels``/``units_`` the state labels and display units
+    of its layout.
+    """
+
+    run: LooselyCoupled            #: the filter's result
     init: dict = field(default_factory=dict)
     options: NavOptions = None
     smoothed: object = None        #: sinslab.fusion.smoothing.SmoothedRun (``smooth=True``)
+
+    t = property(lambda self: self.run.t)
+    nav = property(lambda self: self.run.nav)
+    sigma = property(lambda self: self.run.sigma)
+    gyro_bias = property(lambda self: self.run.gyro_bias)
+    accel_bias = property(lambda self: self.run.accel_bias)
+    scale = property(lambda self: self.run.scale)
+    fix_t = property(lambda self: self.run.fix_t)
+    innovation = property(lambda self: self.run.innovation)
+    nis = property(lambda self: self.run.nis)
+    labels = property(lambda self: self.run.layout.labels)
+    units_ = property(lambda self: self.run.layout.units)
+
+    def with_nav(self, nav):
+        """The same result with other navigation rows (e.g. the smoothed ones), for
+        :func:`fix_errors`."""
+        return dataclasses.replace(self, run=dataclasses.replace(self.run, nav=nav))
 
     @property
     def att(self):
@@ -828,9 +842,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         sl = lay.slice("nlev")
         init["nhc_lever_estimate"] = (np.asarray(opt.nhc_lever_arm, float) - Cvb @ r.x[-1, sl]).tolist()
         init["nhc_lever_sigma"] = np.sqrt(np.diag(Cvb @ np.diag(r.sigma[-1, sl] ** 2) @ Cvb.T)).tolist()
-    return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
-                       r.fix_t, r.innovation, r.nis, init, opt,
-                       smoothed=smooth(r) if opt.smooth else None)
+    return RecordedNav(r, init, opt, smoothed=smooth(r) if opt.smooth else None)
 
 
 def _spans(times, gap):

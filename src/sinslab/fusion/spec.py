@@ -56,12 +56,23 @@ class FilterGrid:
         look-ahead run of the streams (``<= kf_dt``: on the corrected path, every step).
     discretization : {"series", "vanloan"}
         Φ, Q_k of each step from F, G frozen at the epoch.
+    lag_tol : float
+        Tolerance [s] matching a lagged item to a stored epoch.
+    model_eval : {"compiled", "numpy"}
+        ``"compiled"``: F, G (and the series Φ, Q_k) from the compiled kernels of
+        :mod:`sinslab.nav.errstate_kernels` and
+        :func:`sinslab.estimation.linear.discretize_series_many` (models of
+        :mod:`sinslab.nav.errstate`; other models use numpy); ``"numpy"``: the readable
+        reference, ``model.matrices`` on :class:`~sinslab.nav.errstate.NavPoint` and
+        :func:`~sinslab.estimation.kalman.discretize`. Equal to rounding.
     """
 
     kf_dt: float = 0.1
     max_block: float = 10.0
     model_every: float = 10.0
     discretization: str = "series"
+    lag_tol: float = 1e-6
+    model_eval: str = "compiled"
 
     def __post_init__(self):
         object.__setattr__(self, "kf_dt", _positive("kf_dt", self.kf_dt))
@@ -69,6 +80,9 @@ class FilterGrid:
         object.__setattr__(self, "model_every", _positive("model_every", self.model_every, zero=True))
         if self.discretization not in DISCRETIZATIONS:
             raise ValueError(f"discretization must be one of {DISCRETIZATIONS}, got {self.discretization!r}")
+        object.__setattr__(self, "lag_tol", _positive("lag_tol", self.lag_tol))
+        if self.model_eval not in ("compiled", "numpy"):
+            raise ValueError(f"model_eval must be 'compiled' or 'numpy', got {self.model_eval!r}")
 
 
 @dataclass(frozen=True)

@@ -139,6 +139,7 @@ def integrate_ranges(imu, init, t, paths, model, P0, *, sat_lon1, sat_lon2, rang
     from sinslab.fusion.driver import LiveStream
     from sinslab.fusion.feedback import FeedbackLayout
     from sinslab.fusion.rdss import TwoGeoRanges
+    from sinslab.fusion.spec import FilterGrid
 
     lay = check_integration(mode, model, "integrate_ranges")
     t = np.asarray(t, dtype=float)
@@ -147,9 +148,9 @@ def integrate_ranges(imu, init, t, paths, model, P0, *, sat_lon1, sat_lon2, rang
                         windows=None if windows is None else check_windows(windows))
     policy = mode_policy(mode, lag)
     ins = LiveStream(imu, init, nsub=nsub, vertical="hold", height=height)
-    r = driver.run([ins], model, P0, [meas], kf_dt=kf_dt,
-                   feedback=[(0, FeedbackLayout.from_model(lay, gyro="eps_b", accel=None))], lag=policy,
-                   max_block=max_block, model_every=0.0, discretization=discretization)
+    grid = FilterGrid(kf_dt, max_block=max_block, model_every=0.0, discretization=discretization)
+    r = driver.run([ins], model, P0, [meas], grid=grid,
+                   feedback=[(0, FeedbackLayout.from_model(lay, gyro="eps_b", accel=None))], lag=policy)
     ap = r.applied
     inn = np.array(ap.innovation, dtype=float).reshape(-1, 2)
     return Integration(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], t[ap.item], ap.t_applied, inn, mode,

@@ -103,9 +103,9 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     """
     from sinslab.app.validate import check_mount, check_navigate_options
 
-    check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag, imu_delay=imu_delay,
-                           max_gap=max_gap, lag=lag, time_sync=time_sync, rest=rest, aid=aid,
-                           lever_arm=lever_arm)
+    lever_arm = check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag,
+                                       imu_delay=imu_delay, max_gap=max_gap, lag=lag, time_sync=time_sync,
+                                       rest=rest, aid=aid, lever_arm=lever_arm)
     check_mount(mount, frame)
     if isinstance(init, (str, type(None))):
         _parse_init(init)
@@ -214,8 +214,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     # the options are assembled here and made once (frozen, checked) before the run
     opt = NavOptionsDraft(options or NavOptions())
     if lever_arm is not None:
-        opt.lever_arm = tuple(_vec3(lever_arm, "length", "--lever-arm") if isinstance(lever_arm, str)
-                              else lever_arm)
+        opt.lever_arm = lever_arm
     sync = None
     if time_sync == "auto":
         # without a lever arm a clock offset cannot be told from the antenna's lag in turns
@@ -732,7 +731,6 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
 def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1):
     """Forward and smoothed solutions side by side, their errors against the fixes that
     were not used (inside outages; all fixes without outages), figures."""
-    import dataclasses
 
     from sinslab.app import plotting
     from sinslab.core import attitude as A
@@ -740,7 +738,7 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
     from sinslab.fusion.recorded import fix_errors
     sm = res.smoothed
     t, err_f, _ = fix_errors(res, fx)
-    _, err_s, _ = fix_errors(dataclasses.replace(res, nav=sm.nav), fx)
+    _, err_s, _ = fix_errors(res.with_nav(sm.nav), fx)
     hz_f, hz_s = np.hypot(err_f[:, 0], err_f[:, 1]), np.hypot(err_s[:, 0], err_s[:, 1])
     in_out = np.zeros(t.size, bool)
     mids = []
