@@ -42,10 +42,11 @@ sys.path.insert(0, sys.argv[1])
 import numpy as np
 import estimation as B
 from sinslab.fusion import loosely_coupled as integ
+from sinslab.fusion.spec import FilterGrid, FixSpec
 
 dur, states, repeat = float(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 meas, init, ft, fix, sig, P, extra, truth = B.lc_states(dur, states)
-go = lambda: integ.loosely_coupled(meas, init, ft, fix, sig, P, kf_dt=0.1, nsub=2, progress=False, **extra)
+go = lambda: integ.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P, grid=FilterGrid(0.1), progress=False, **extra)
 go()
 best = float("inf")
 for _ in range(repeat):

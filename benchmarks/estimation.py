@@ -39,6 +39,7 @@ os.environ.setdefault("SINSLAB_QUIET", "1")
 import numpy as np  # noqa: E402
 
 from sinslab.fusion import loosely_coupled as integ  # noqa: E402
+from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec  # noqa: E402
 from sinslab.estimation import kalman as kf  # noqa: E402
 from sinslab.estimation import linear as lin  # noqa: E402
 from sinslab.core import units as u  # noqa: E402
@@ -168,7 +169,7 @@ def lc_scenario(duration, rate=200.0, seed=1):
     P0 = np.diag(np.r_[[(2 * u.arcmin) ** 2] * 2, (10 * u.arcmin) ** 2, [0.2 ** 2] * 3,
                        (5 / 6.4e6) ** 2, (5 / 5.4e6) ** 2, 25.0, [(1 * u.dph) ** 2] * 3,
                        [(500 * u.ug) ** 2] * 3])
-    kw = dict(gyro_arw=0.05 * u.dpsh, accel_vrw=50 * u.ugpsHz)
+    kw = dict(model=integ.lc_model(0.05 * u.dpsh, 50 * u.ugpsHz))
     return meas, init, truth.t[idx], fix, sig, P0, kw, truth
 
 
@@ -179,11 +180,11 @@ def bench_lc(duration):
         return {"lc_missing": str(e)}
     # warm up the compiled kernels on a short slice
     short = meas.slice(None, meas.t0 + 20.0)
-    integ.loosely_coupled(short, init, ft[ft <= short.t[-1]], fix[ft <= short.t[-1]], sig, P0,
-                       progress=False, **kw)
+    integ.loosely_coupled(short, init, FixSpec(ft[ft <= short.t[-1]], fix[ft <= short.t[-1]], sig), P0,
+                          progress=False, **kw)
     c0 = time.process_time()
     t0 = time.perf_counter()
-    res = integ.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.1, progress=False, **kw)
+    res = integ.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0, grid=FilterGrid(0.1), progress=False, **kw)
     el = time.perf_counter() - t0
     cpu = time.process_time() - c0
     # accuracy at the filter epochs (truth on the IMU grid, every 20 samples)
@@ -219,7 +220,7 @@ def lc_states(duration, states):
     if states != 21:
         raise ValueError(f"states must be 15 or 21, got {states}")
     model = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(), es.accel_scale()],
-                          gyro_noise=kw["gyro_arw"], accel_noise=kw["accel_vrw"])
+                          gyro_noise=0.05 * u.dpsh, accel_noise=50 * u.ugpsHz)
     P = np.zeros((21, 21))
     P[:15, :15] = P0
     P[15:, 15:] = np.eye(6) * (100 * u.ppm) ** 2
@@ -228,19 +229,13 @@ def lc_states(duration, states):
 
 def _lc_pair(duration, kf_dt, nsub, states):
     """CPU time of loosely_coupled with the compiled and the numpy model evaluation."""
-    import functools
-    from sinslab.fusion import driver
     meas, init, ft, fix, sig, P, kwm, truth = lc_states(duration, states)
-    orig = driver.run
 
     def go(mode, imu):
-        driver.run = functools.partial(orig, model_eval=mode)
-        try:
-            sel = ft <= imu.t[-1]
-            return integ.loosely_coupled(imu, init, ft[sel], fix[sel], sig, P, kf_dt=kf_dt, nsub=nsub,
-                                         progress=False, **kwm)
-        finally:
-            driver.run = orig
+        sel = ft <= imu.t[-1]
+        return integ.loosely_coupled(imu, init, FixSpec(ft[sel], fix[sel], sig), P,
+                                     grid=FilterGrid(kf_dt, model_eval=mode), ins=InsSpec(nsub=nsub),
+                                     progress=False, **kwm)
 
     short = meas.slice(None, meas.t0 + 20.0)
     go("compiled", short)

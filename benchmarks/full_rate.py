@@ -55,6 +55,7 @@ import estimation as E  # noqa: E402
 from full_rate_kernels import k_cov, k_fill, k_phi_qbar, k_state  # noqa: E402
 from sinslab.core import units as u  # noqa: E402
 from sinslab.fusion import loosely_coupled as integ  # noqa: E402
+from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec  # noqa: E402
 from sinslab.nav import errstate_kernels as ek  # noqa: E402
 
 #: Gauss–Markov processes of the model: steady-state σ and correlation time [s]
@@ -87,17 +88,10 @@ def scenario(duration):
 
 
 def _filter(sc, imu, model_eval="compiled"):
-    import functools
-    from sinslab.fusion import driver
     meas, init, ft, fix, sig, P0, model, truth = sc
     sel = ft <= imu.t[-1]
-    orig = driver.run
-    driver.run = functools.partial(orig, model_eval=model_eval)
-    try:
-        return integ.loosely_coupled(imu, init, ft[sel], fix[sel], sig, P0, model=model, kf_dt=imu.dt,
-                                     nsub=1, progress=False)
-    finally:
-        driver.run = orig
+    return integ.loosely_coupled(imu, init, FixSpec(ft[sel], fix[sel], sig), P0, model, ins=InsSpec(nsub=1),
+                                 grid=FilterGrid(imu.dt, model_eval=model_eval), progress=False)
 
 
 def _outputs(res):

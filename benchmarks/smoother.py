@@ -39,6 +39,7 @@ from sinslab.core import units as u  # noqa: E402
 from sinslab.core.earth import radii  # noqa: E402
 from sinslab.core.records import NavState  # noqa: E402
 from sinslab.fusion import driver  # noqa: E402
+from sinslab.fusion.spec import FilterGrid  # noqa: E402
 from sinslab.fusion.feedback import FeedbackLayout  # noqa: E402
 from sinslab.fusion.measurements import Odometer, PositionFix, Stack, VelocityFix  # noqa: E402
 from sinslab.fusion.smoothing import History, smooth  # noqa: E402
@@ -130,7 +131,7 @@ def drive_forward(d, history=None):
     """The forward pass of :func:`drive_inputs` ``d`` on the driver (closed loop)."""
     m = d["model"]
     return driver.run([driver.LiveStream(d["imu"], d["init"], nsub=2)], m, np.diag(d["sd"] ** 2),
-                      d["measurements"], kf_dt=KF_DT, feedback=FeedbackLayout.from_model(m.layout),
+                      d["measurements"], grid=FilterGrid(KF_DT), feedback=FeedbackLayout.from_model(m.layout),
                       history=history)
 
 
@@ -278,10 +279,11 @@ def speed(duration):
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from estimation import lc_scenario
     from sinslab.fusion import loosely_coupled as integ
+    from sinslab.fusion.spec import FixSpec
     meas, init, ft, fix, sig, P0, kw, truth = lc_scenario(duration)
     short = meas.slice(None, meas.t0 + 20.0)
     sel = ft <= short.t[-1]
-    w = integ.loosely_coupled(short, init, ft[sel], fix[sel], sig, P0, progress=False,
+    w = integ.loosely_coupled(short, init, FixSpec(ft[sel], fix[sel], sig), P0, progress=False,
                               history=History(0.1), **kw)
     smooth(w)                                    # compile outside the timing
     res = {}
@@ -297,10 +299,10 @@ def speed(duration):
         return out
 
     for _ in range(5):
-        timed("f", lambda: integ.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.1,
+        timed("f", lambda: integ.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0,
                                                  progress=False, **kw))
         h = History(0.1)
-        r = timed("h", lambda: integ.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.1,
+        r = timed("h", lambda: integ.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0,
                                                      progress=False, history=h, **kw))
         sm = timed("s", lambda: smooth(r))
     best_f, best_h, best_s = wall["f"], wall["h"], wall["s"]

@@ -36,6 +36,7 @@ import numpy as np  # noqa: E402
 from sinslab.core import units as u  # noqa: E402
 from sinslab.core.earth import radii  # noqa: E402
 from sinslab.fusion import loosely_coupled as lc  # noqa: E402
+from sinslab.fusion.spec import FilterGrid, FixSpec  # noqa: E402
 from sinslab.fusion.gnss import SatelliteObservations  # noqa: E402
 from sinslab.fusion.tightly_coupled import RawGnss, tc_model, tightly_coupled  # noqa: E402
 from sinslab.sim import gnss as SG  # noqa: E402
@@ -70,7 +71,7 @@ def filter_speed(duration):
             if key == "tc":
                 r = tightly_coupled(meas, init, RawGnss(sv, **raw_kw), P, model=model, kf_dt=0.1)
             else:
-                r = lc.loosely_coupled(meas, init, ft, fix, sig, Plc, model=lc_model, kf_dt=0.1)
+                r = lc.loosely_coupled(meas, init, FixSpec(ft, fix, sig), Plc, lc_model, grid=FilterGrid(0.1))
             cpu[key] = min(cpu[key], time.process_time() - c0)
             wall[key] = min(wall[key], time.perf_counter() - w0)
             kk = np.rint((r.t - truth.t[0]) / meas.dt).astype(int)

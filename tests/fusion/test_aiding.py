@@ -18,6 +18,7 @@ from sinslab.fusion import stationarity as st
 from sinslab.fusion.measurements import (BodyVelocity, Epoch, Grid, LeverPositionFix,
                                          LeverVelocityFix, NavRow, NonHolonomic, Odometer,
                                          ZeroRate, ZeroVelocity, vehicle_from_body)
+from sinslab.fusion.spec import FilterGrid
 from sinslab.nav import errstate as es
 
 W = np.array([0.01, -0.02, 0.3])
@@ -222,7 +223,7 @@ def test_stop_heading_held_by_zaru():
     rates = {}
     for name, extra in (("none", []), ("zaru", [ZeroVelocity(iv, 0.01), ZeroRate(iv, 2 * arw_T)])):
         r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), [_fixes(tru, [(s0 - 1, s1 + 1)])] + extra,
-                       kf_dt=0.1, feedback=FeedbackLayout.from_model(m.layout))
+                       grid=FilterGrid(0.1), feedback=FeedbackLayout.from_model(m.layout))
         ks = np.flatnonzero((r.t > s0 + 5) & (r.t < s1 - 5))
         i = np.rint((r.t[ks] - tru.t[0]) / 0.01).astype(int)
         y = A.wrap_pi(A.quat_to_euler(r.nav[0][ks, :4])[:, 2] - tru.att[i, 2])
@@ -244,7 +245,7 @@ def test_markov_blocks_fed_back_through_an_outage():
     err = {}
     for name, fb in (("kind", FeedbackLayout.from_model(m.layout)),
                      ("names", FeedbackLayout.from_model(m.layout, gyro="eps", accel="nabla"))):
-        r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), fx, kf_dt=0.1, feedback=fb)
+        r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), fx, grid=FilterGrid(0.1), feedback=fb)
         err[name] = _horiz(r, tru, 170.0 - 0.1)
     assert err["kind"] < 0.4 * err["names"], err
 
@@ -268,7 +269,7 @@ def test_odometer_bounds_an_outage():
                                 ("odo", [Odometer(t_odo, s, 0.1, nhc_sigma=(0.1, 0.1))], [es.odometer_scale()])):
         m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), *blocks], gyro_noise=0.3 * u.deg / 60,
                           accel_noise=100 * u.ug)
-        r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), fx + extra, kf_dt=0.1,
+        r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), fx + extra, grid=FilterGrid(0.1),
                        feedback=FeedbackLayout.from_model(m.layout))
         out[name] = _horiz(r, tru, 150.0 - 0.1)
         if blocks:
@@ -301,7 +302,7 @@ def test_lever_arm_estimated_within_sigma():
     m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.lever_arm()],
                       gyro_noise=0.3 * u.deg / 60, accel_noise=100 * u.ug)
     ms = [Stack(LeverPositionFix(t, pos, [0.05, 0.05, 0.1]), LeverVelocityFix(t, vel, 0.02))]
-    r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), ms, kf_dt=0.1,
+    r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), ms, grid=FilterGrid(0.1),
                    feedback=FeedbackLayout.from_model(m.layout))
     sl = m.layout.slice("lev")
     est, sig = -r.x[-1, sl], r.sigma[-1, sl]           # δl = l_used − l_true, l_used = 0

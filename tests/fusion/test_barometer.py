@@ -1,4 +1,4 @@
-"""A barometer with a Gauss–Markov bias state of its own (sinslab.fusion.barometer) bounds
+"""A barometer with a Gauss–Markov bias state of its own (sinslab.fusion.measurements.barometer) bounds
 the vertical channel of an INS at rest, through the fusion driver with closed-loop
 feedback: the model gains one block, nothing else changes.
 
@@ -18,9 +18,10 @@ from scipy.stats import chi2
 from sinslab.core import units as u
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.fusion import driver
-from sinslab.fusion.barometer import Barometer
+from sinslab.fusion.measurements import Barometer
 from sinslab.fusion.feedback import FeedbackLayout
 from sinslab.fusion.measurements import PositionFix
+from sinslab.fusion.spec import FilterGrid
 from sinslab.nav import errstate as es
 from support import static_imu
 
@@ -78,7 +79,7 @@ def _run(seed, baro=True, history=None):
         meas.append(Barometer(tb, H0 + b + rng.normal(0, SIGMA_V, tb.size), SIGMA_V))
     model = _model(baro)
     lay = model.layout
-    r = driver.run([driver.LiveStream(imu, init, nsub=2)], model, _P0(lay), meas, kf_dt=KF_DT,
+    r = driver.run([driver.LiveStream(imu, init, nsub=2)], model, _P0(lay), meas, grid=FilterGrid(KF_DT),
                    feedback=FeedbackLayout.from_model(lay), history=history)
     dh = r.nav[0][:, 9] - H0
     sp = lay.slice("dp").start + 2

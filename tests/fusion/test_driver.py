@@ -24,6 +24,7 @@ from sinslab.fusion.loosely_coupled import lc_model
 from sinslab.fusion.measurements import (Epoch, Grid, InsDifference, NavRow, PositionFix, Stack,
                                          VelocityFix, arrival_epochs)
 from sinslab.methods.rotins import joint_rotation_model
+from sinslab.fusion.spec import FilterGrid
 from sinslab.nav import errstate as es
 from support import assert_H_is_jacobian
 
@@ -115,18 +116,18 @@ def test_precomputed_stream_feed_forward_equals_live_stream():
     fix = PositionFix(tru.t[idx], np.stack([tru.lat[idx], tru.lon[idx], tru.h[idx]], -1),
                       [3.0, 3.0, 5.0], t_arrive=tru.t[idx] + 1.0)
     live = driver.LiveStream(meas, init, nsub=2)
-    r1 = driver.run([live], model, P0, [fix], kf_dt=0.2)
+    r1 = driver.run([live], model, P0, [fix], grid=FilterGrid(0.2))
     T = 0.2
     k_kf = int(round(T / meas.dt))
     n_ep = r1.t.size - 1
     w = meas.dtheta[:n_ep * k_kf].reshape(n_ep, k_kf, 3).sum(1) / T - np.zeros(3)
     f = meas.dv[:n_ep * k_kf].reshape(n_ep, k_kf, 3).sum(1) / T - np.zeros(3)
     pre = driver.PrecomputedStream(r1.t, r1.nav[0], w, f)
-    r2 = driver.run([pre], model, P0, [fix], kf_dt=0.2)
+    r2 = driver.run([pre], model, P0, [fix], grid=FilterGrid(0.2))
     assert r1.applied.item.size == idx.size - 1              # the last fix arrives after the end
     assert np.array_equal(r2.x, r1.x) and np.array_equal(r2.sigma, r1.sigma)
     with pytest.raises(ValueError, match="cannot be fed back"):
-        driver.run([pre], model, P0, [fix], kf_dt=0.2, feedback=FeedbackLayout.from_model(model.layout))
+        driver.run([pre], model, P0, [fix], grid=FilterGrid(0.2), feedback=FeedbackLayout.from_model(model.layout))
 
 
 def test_two_stream_difference_filter_estimates_the_output_difference():
@@ -146,7 +147,7 @@ def test_two_stream_difference_filter_estimates_the_output_difference():
     P0 = np.diag(sd ** 2)
     t = 1.0 + np.arange(99)
     dif = InsDifference(t, [1e-8, 1e-8, 0.01, 0.01])
-    r = driver.run([s1, s2], m, P0, [dif], kf_dt=1.0, model_every=0.0)
+    r = driver.run([s1, s2], m, P0, [dif], grid=FilterGrid(1.0, model_every=0.0))
     assert r.applied.item.size == t.size
     sel = lay.index(["dL_1k", "dlam_1k", "dvE_1k", "dvN_1k"])
     d = np.stack([r.nav[0][:, 7] - r.nav[1][:, 7], r.nav[0][:, 8] - r.nav[1][:, 8],

@@ -9,6 +9,7 @@ import pytest
 
 from sinslab.fusion import loosely_coupled as LC
 from sinslab.fusion import recorded as I
+from sinslab.fusion.spec import FilterGrid, FixSpec
 
 
 def _lc_scenario(duration=300.0, rate=100.0, seed=1):
@@ -39,7 +40,7 @@ def _lc_scenario(duration=300.0, rate=100.0, seed=1):
     P0 = np.diag(np.r_[[(2 * u.arcmin) ** 2] * 2, (10 * u.arcmin) ** 2, [0.2 ** 2] * 3,
                        (5 / 6.4e6) ** 2, (5 / 5.4e6) ** 2, 25.0, [(1 * u.dph) ** 2] * 3,
                        [(500 * u.ug) ** 2] * 3])
-    kw = dict(gyro_arw=0.05 * u.dpsh, accel_vrw=50 * u.ugpsHz)
+    kw = dict(model=LC.lc_model(0.05 * u.dpsh, 50 * u.ugpsHz))
     return meas, init, tru.t[idx], fix, sig, P0, kw, tru
 
 
@@ -61,18 +62,19 @@ def lc_case():
 
 def test_loosely_coupled_is_consistent_and_beats_free_inertial(lc_case):
     meas, init, ft, fix, sig, P0, kw, tru = lc_case
-    res = LC.loosely_coupled(meas, init, ft, fix, sig, P0, progress=False, **kw)
+    res = LC.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0, progress=False, **kw)
     dn, de, sn, se = _horiz_err(res, tru, meas.dt)
     late = res.t > res.t[0] + 60
     ratio_n = np.sqrt(np.mean(dn[late] ** 2)) / np.sqrt(np.mean(sn[late] ** 2))
     ratio_e = np.sqrt(np.mean(de[late] ** 2)) / np.sqrt(np.mean(se[late] ** 2))
     assert 0.4 < ratio_n < 2.0 and 0.4 < ratio_e < 2.0, (ratio_n, ratio_e)
     assert 1.0 < np.mean(res.nis) < 6.0
-    free = LC.loosely_coupled(meas, init, ft[:0], fix[:0], sig, P0, progress=False, **kw)
+    free = LC.loosely_coupled(meas, init, FixSpec(ft[:0], fix[:0], sig), P0, progress=False, **kw)
     fdn, fde, _, _ = _horiz_err(free, tru, meas.dt)
     assert np.hypot(fdn[-1], fde[-1]) > 10 * np.hypot(dn[-1], de[-1])
     # the error model evaluated exactly on the corrected path gives nearly the same result
-    exact = LC.loosely_coupled(meas, init, ft, fix, sig, P0, model_every=0.1, progress=False, **kw)
+    exact = LC.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0, grid=FilterGrid(model_every=0.1),
+                               progress=False, **kw)
     edn, ede, _, _ = _horiz_err(exact, tru, meas.dt)
     assert np.max(np.abs(edn - dn)) < 0.05 and np.max(np.abs(ede - de)) < 0.05
 
@@ -81,9 +83,9 @@ def test_loosely_coupled_lagged_fixes_match_on_time(lc_case):
     """Fixes arriving 1 s late, applied at their validity time with the stored INS state,
     give (nearly) the on-time result; ignoring the lag is worse."""
     meas, init, ft, fix, sig, P0, kw, tru = lc_case
-    on = LC.loosely_coupled(meas, init, ft, fix, sig, P0, progress=False, **kw)
-    lag = LC.loosely_coupled(meas, init, ft, fix, sig, P0, fix_lag=1.0, progress=False, **kw)
-    naive = LC.loosely_coupled(meas, init, ft[:-1] + 1.0, fix[:-1], sig, P0, progress=False, **kw)
+    on = LC.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0, progress=False, **kw)
+    lag = LC.loosely_coupled(meas, init, FixSpec(ft, fix, sig, latency=1.0), P0, progress=False, **kw)
+    naive = LC.loosely_coupled(meas, init, FixSpec(ft[:-1] + 1.0, fix[:-1], sig), P0, progress=False, **kw)
     e_on = np.hypot(*_horiz_err(on, tru, meas.dt)[:2])
     e_lag = np.hypot(*_horiz_err(lag, tru, meas.dt)[:2])
     e_naive = np.hypot(*_horiz_err(naive, tru, meas.dt)[:2])
@@ -96,19 +98,19 @@ def test_loosely_coupled_lagged_fixes_match_on_time(lc_case):
 def test_loosely_coupled_bad_fixes(lc_case):
     meas, init, ft, fix, sig, P0, kw, _ = lc_case
     with pytest.raises(ValueError, match="outside the filter grid"):
-        LC.loosely_coupled(meas, init, ft + 1000.0, fix, sig, P0, progress=False, **kw)
+        LC.loosely_coupled(meas, init, FixSpec(ft + 1000.0, fix, sig), P0, progress=False, **kw)
     with pytest.raises(ValueError, match="fix_pos"):
-        LC.loosely_coupled(meas, init, ft, fix[:, :2], sig, P0, progress=False, **kw)
+        LC.loosely_coupled(meas, init, FixSpec(ft, fix[:, :2], sig), P0, progress=False, **kw)
     with pytest.raises(ValueError, match="multiple"):
-        LC.loosely_coupled(meas, init, ft, fix, sig, P0, kf_dt=0.015, progress=False, **kw)
+        LC.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0, grid=FilterGrid(0.015), progress=False, **kw)
 
 
 def test_feed_forward_estimates_the_free_ins_errors(lc_case):
     """Open loop: the INS runs free (same path as without fixes) and ``x`` estimates its
     errors; free INS minus x is about as good as the closed loop."""
     meas, init, ft, fix, sig, P0, kw, tru = lc_case
-    ff = LC.loosely_coupled(meas, init, ft[:60], fix[:60], sig, P0, feedback=False, progress=False, **kw)
-    free = LC.loosely_coupled(meas, init, ft[:0], fix[:0], sig, P0, progress=False, **kw)
+    ff = LC.loosely_coupled(meas, init, FixSpec(ft[:60], fix[:60], sig), P0, feedback=False, progress=False, **kw)
+    free = LC.loosely_coupled(meas, init, FixSpec(ft[:0], fix[:0], sig), P0, progress=False, **kw)
     assert np.array_equal(ff.nav, free.nav)
     from sinslab.core.earth import radii
     k = np.round((ff.t - tru.t[0]) / meas.dt).astype(int)
@@ -133,12 +135,12 @@ def test_lever_arm_and_velocity_fixes(lc_case):
     d = C @ lever
     rm, rn = radii(tru.lat[k], tru.h[k])
     ant = fix + np.stack([d[:, 1] / rm, d[:, 0] / (rn * np.cos(tru.lat[k])), d[:, 2]], -1)
-    on = LC.loosely_coupled(meas, init, ft, fix, sig, P0, progress=False, **kw)
-    lev = LC.loosely_coupled(meas, init, ft, ant, sig, P0, lever_arm=lever, progress=False, **kw)
+    on = LC.loosely_coupled(meas, init, FixSpec(ft, fix, sig), P0, progress=False, **kw)
+    lev = LC.loosely_coupled(meas, init, FixSpec(ft, ant, sig, lever_arm=lever), P0, progress=False, **kw)
     rng = np.random.default_rng(7)
     vfix = tru.vel[k] + rng.normal(0, 0.05, (k.size, 3))
-    vel = LC.loosely_coupled(meas, init, ft, fix, sig, P0, fix_vel=vfix, vel_sigma=0.05,
-                            progress=False, **kw)
+    vel = LC.loosely_coupled(meas, init, FixSpec(ft, fix, sig, vel=vfix, vel_sigma=0.05), P0,
+                             progress=False, **kw)
     late = on.t > on.t[0] + 60
     rms = lambda r: np.sqrt(np.mean(np.square(np.hypot(*_horiz_err(r, tru, meas.dt)[:2]))[late]))
     assert rms(lev) < 1.3 * rms(on)

@@ -9,6 +9,7 @@ from typer.testing import CliRunner
 from sinslab.core import attitude as A
 from sinslab.fusion import loosely_coupled as LC
 from sinslab.fusion import recorded as I
+from sinslab.fusion.lag import OnArrival
 from sinslab.core.records import Fixes
 from sinslab.data import rtklib
 from sinslab.sim import trajectory as tr
@@ -50,7 +51,7 @@ def test_simulated_oracle(sim):
     # 1 s latency: lag-aware within 10 % of zero lag; applying late fixes as current is much worse
     r1, oe1 = _run(imu, fx, fix_latency=1.0)
     assert np.median(oe1) <= 1.1 * np.median(oe0) + 0.05
-    _, oei = _run(imu, fx, fix_latency=1.0, lag="ignore")
+    _, oei = _run(imu, fx, fix_latency=1.0, lag=OnArrival())
     assert np.median(oei) > 5 * np.median(oe1)
 
 

@@ -11,9 +11,10 @@ from sinslab.core import units as u
 from sinslab.core.records import NavState
 from sinslab.fusion import driver
 from sinslab.fusion.feedback import FeedbackLayout
-from sinslab.fusion.lag import OnArrival
+from sinslab.fusion.lag import ExactReprocessing, OnArrival
 from sinslab.fusion.loosely_coupled import lc_model, loosely_coupled, loosely_coupled_many
 from sinslab.fusion.measurements import InsDifference, PositionFix
+from sinslab.fusion.spec import FilterGrid, FixSpec
 from sinslab.methods.rotins import joint_rotation_model
 
 
@@ -85,8 +86,8 @@ def test_lanes_equal_runs_alone_bit_for_bit(case):
     P0 = _P0(model.n)
     fb = None if case.startswith("feed-forward") else FeedbackLayout.from_model(model.layout)
     lag = OnArrival() if case in ("on-arrival, fused", "scale factors") else None
-    kw = dict(kf_dt=0.2, feedback=fb, lag=lag, max_block=7.0, model_every=3.0,
-              model_eval="numpy" if "numpy" in case else "compiled")
+    kw = dict(grid=FilterGrid(0.2, max_block=7.0, model_every=3.0,
+                              model_eval="numpy" if "numpy" in case else "compiled"), feedback=fb, lag=lag)
     data = [_run_data(gen, s) for s in range(3)]
 
     def lane(s):
@@ -122,11 +123,11 @@ def test_two_stream_lanes_equal_runs_alone():
                             driver.LiveStream(meas, init2, vertical="hold", height=h)),
                            (InsDifference(t, [1e-8, 1e-8, 0.01, 0.01]),))
 
-    many = driver.run_many([lane(s) for s in range(2)], m, P0, kf_dt=1.0, model_every=0.0)
+    many = driver.run_many([lane(s) for s in range(2)], m, P0, grid=FilterGrid(1.0, model_every=0.0))
     for s in range(2):
         ln = lane(s)
-        _same(many[s], driver.run(list(ln.streams), m, P0, list(ln.measurements), kf_dt=1.0,
-                                  model_every=0.0))
+        _same(many[s], driver.run(list(ln.streams), m, P0, list(ln.measurements),
+                                  grid=FilterGrid(1.0, model_every=0.0)))
 
 
 def test_loosely_coupled_many_equals_loosely_coupled():
@@ -140,18 +141,15 @@ def test_loosely_coupled_many_equals_loosely_coupled():
         meas, init = _run_data(gen, s)
         rng = np.random.default_rng(s)
         pos = np.stack([tru.lat[idx], tru.lon[idx], tru.h[idx]], -1) + rng.normal(0, 1, (idx.size, 3)) * [3e-7, 3e-7, 3]
-        runs.append(dict(imu=meas, init=init, fix_t=tru.t[idx], fix_pos=pos, fix_sigma=[3.0, 3.0, 5.0]))
-    shared = dict(model=model, fix_lag=0.6, lag="aware", kf_dt=0.2, max_block=5.0)
-    many = loosely_coupled_many(runs, _P0(15), **shared)
+        runs.append((meas, init, FixSpec(tru.t[idx], pos, [3.0, 3.0, 5.0], latency=0.6)))
+    shared = dict(lag=ExactReprocessing(), grid=FilterGrid(0.2, max_block=5.0))
+    many = loosely_coupled_many(runs, _P0(15), model, **shared)
     for r, got in zip(runs, many):
-        one = loosely_coupled(r["imu"], r["init"], r["fix_t"], r["fix_pos"], r["fix_sigma"], _P0(15),
-                              progress=False, **shared)
+        one = loosely_coupled(*r, _P0(15), model, progress=False, **shared)
         for f in ("t", "nav", "x", "sigma", "gyro_bias", "accel_bias", "fix_t", "t_applied", "innovation", "nis"):
             assert np.array_equal(getattr(got, f), getattr(one, f)), f
-    with pytest.raises(ValueError, match="unknown per-run argument"):
-        loosely_coupled_many([dict(runs[0], lag="ignore")], _P0(15), **shared)
-    with pytest.raises(ValueError, match="belong in the runs"):
-        loosely_coupled_many(runs, _P0(15), imu=runs[0]["imu"], **shared)
+    with pytest.raises(ValueError, match="give \\(imu, init, fixes\\)"):
+        loosely_coupled_many([runs[0][:2]], _P0(15), model, **shared)
 
 
 def test_lanes_need_one_schedule_and_one_grid():
@@ -163,9 +161,9 @@ def test_lanes_need_one_schedule_and_one_grid():
     a = driver.Lane((driver.LiveStream(meas, init),), (_fixes(gen.truth, 0, every=50),))
     b = driver.Lane((driver.LiveStream(meas, init),), (_fixes(gen.truth, 1, every=75),))
     with pytest.raises(ValueError, match="lane 1 receives measurements at other epochs"):
-        driver.run_many([a, b], model, _P0(15), kf_dt=0.2)
+        driver.run_many([a, b], model, _P0(15), grid=FilterGrid(0.2))
     c = driver.Lane((driver.LiveStream(meas, init, start=10),), (_fixes(gen.truth, 0, every=50),))
     with pytest.raises(ValueError, match="lane 1 is on the filter grid"):
-        driver.run_many([a, c], model, _P0(15), kf_dt=0.2)
+        driver.run_many([a, c], model, _P0(15), grid=FilterGrid(0.2))
     with pytest.raises(ValueError, match="at least one lane"):
-        driver.run_many([], model, _P0(15), kf_dt=0.2)
+        driver.run_many([], model, _P0(15), grid=FilterGrid(0.2))

@@ -25,6 +25,7 @@ import pytest
 
 from sinslab.core import attitude as A
 from sinslab.fusion.smoothing import History, interpolate_rows, smooth
+from sinslab.fusion.spec import FilterGrid
 
 BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "smoother.py"
 
@@ -88,7 +89,7 @@ def test_lagged_fixes_feed_forward_smooth_exactly(B):
     def run(d):
         m = d["model"]
         return driver.run([driver.LiveStream(d["imu"], d["init"], nsub=2)], m, np.diag(d["sd"] ** 2),
-                          d["measurements"], kf_dt=B.KF_DT, feedback=None, history=History(0.1))
+                          d["measurements"], grid=FilterGrid(B.KF_DT), feedback=None, history=History(0.1))
     r_on, r_late = run(B.drive_inputs(11)), run(B.drive_inputs(11, latency=0.5))
     assert np.array_equal(r_on.nav[0], r_late.nav[0])
     s_on, s_late = smooth(r_on), smooth(r_late)
@@ -106,7 +107,7 @@ def test_lagged_fixes_feed_forward_smooth_exactly(B):
     h = NoCopy(0.1)
     d = B.drive_inputs(11, latency=0.5)
     r_nc = driver.run([driver.LiveStream(d["imu"], d["init"], nsub=2)], d["model"], np.diag(d["sd"] ** 2),
-                      d["measurements"], kf_dt=B.KF_DT, feedback=None, history=h)
+                      d["measurements"], grid=FilterGrid(B.KF_DT), feedback=None, history=h)
     s_nc = smooth(r_nc, check=False)
     assert np.max(np.abs(s_nc.x_stored[j] - s_on.x_stored[i]) / sig) > 1e-3     # measured 0.04
 
@@ -187,4 +188,4 @@ def test_history_refuses_a_lag_policy_it_cannot_follow(B):
     d = B.drive_inputs(3, latency=0.5)
     with pytest.raises(ValueError, match="exact re-processing"):
         driver.run([driver.LiveStream(d["imu"], d["init"], nsub=2)], d["model"], np.diag(d["sd"] ** 2),
-                   d["measurements"], kf_dt=B.KF_DT, lag=OneStep(), history=History(0.1))
+                   d["measurements"], grid=FilterGrid(B.KF_DT), lag=OneStep(), history=History(0.1))

@@ -387,7 +387,7 @@ def test_integration_modes_on_a_short_flight(flight):
     # ignoring a 1 s lag at 300 m/s leaves hundreds of metres
     assert out["lag-ignore"][112] > 100.0
     # the exact lagged form too
-    r = ds.integrate(imu, init, exact, m, P0, mode="lag-aware", lag_method="exact", height=truth.h,
+    r = ds.integrate(imu, init, exact, m, P0, mode="lag-aware", lag=ds.lag_policy("exact"), height=truth.h,
                      windows=win)
     e = np.hypot(*ds.horizontal_errors(r.nav, tt)[2].T)
     assert e[112] == pytest.approx(out["zero-lag"][112], rel=0.1, abs=2.0)

@@ -29,6 +29,8 @@ The resolved model is returned as a flat dict of unit strings for the run's
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from pathlib import Path
 
@@ -173,10 +175,36 @@ def _per_axis_max(v):
     return float(np.max(np.abs(np.asarray(v, dtype=float))))
 
 
+class NavOptionsDraft:
+    """The fields of a :class:`sinslab.fusion.recorded.NavOptions` being assembled from
+    command-line options and files: attribute reads fall through to ``base``, assignments
+    are collected, and :meth:`build` makes the one frozen, checked options value."""
+
+    def __init__(self, base):
+        object.__setattr__(self, "_base", base)
+        object.__setattr__(self, "_set", {})
+
+    def __getattr__(self, k):
+        s = object.__getattribute__(self, "_set")
+        return s[k] if k in s else getattr(object.__getattribute__(self, "_base"), k)
+
+    def __setattr__(self, k, v):
+        if not hasattr(self._base, k):
+            raise AttributeError(f"NavOptions has no field {k!r}")
+        self._set[k] = v
+
+    def build(self):
+        """The options: ``base`` with the fields set (checked once, here)."""
+        return dataclasses.replace(self._base, **self._set)
+
+
 def apply_error_model(opt, err, extras):
     """Set the fields of a :class:`sinslab.fusion.recorded.NavOptions` from
-    :func:`load_error_model`'s ``(err, extras)``; returns ``opt``. The white noise is the
-    model's (``rest_noise`` off: no floor, no measurement at rest)."""
+    :func:`load_error_model`'s ``(err, extras)``: returns the new options (a
+    :class:`NavOptionsDraft` given is filled in and returned instead). The white noise is
+    the model's (``rest_noise`` off: no floor, no measurement at rest)."""
+    draft = isinstance(opt, NavOptionsDraft)
+    opt = opt if draft else NavOptionsDraft(opt)
     opt.gyro_arw = np.asarray(err.gyro_arw, dtype=float).copy()
     opt.accel_vrw = np.asarray(err.accel_vrw, dtype=float).copy()
     opt.rest_noise = False
@@ -226,4 +254,4 @@ def apply_error_model(opt, err, extras):
     if not math.isfinite(float(np.max(opt.gyro_arw))) or float(np.max(opt.gyro_arw)) <= 0 \
             or float(np.max(opt.accel_vrw)) <= 0:
         raise ValueError("the error model needs white noise: gyro_arw and accel_vrw > 0")
-    return opt
+    return opt if draft else opt.build()

@@ -295,8 +295,10 @@ MAX_LEVER_M = 200.0
 
 def check_navigate_options(*, fix_latency=0.0, velocity_lag=0.0, imu_delay=0.0, max_gap=1.0,
                            lag="aware", time_sync="none", rest=None, aid=None,
-                           lever_arm=None) -> None:
-    """The numeric and choice options of ``sinslab navigate``, before any file is read."""
+                           lever_arm=None):
+    """The numeric and choice options of ``sinslab navigate``, before any file is read.
+    Returns the lever arm ``(3,)`` [m] (parsed here, once, from its unit string) or the
+    value given when it is not a string."""
     option_number("--fix-latency", fix_latency, ge=0.0, le=MAX_LATENCY_S, unit="s")
     option_number("--velocity-lag", velocity_lag, ge=0.0, le=MAX_LATENCY_S, unit="s")
     option_number("--imu-delay", imu_delay, ge=-MAX_IMU_DELAY_S, le=MAX_IMU_DELAY_S, unit="s")
@@ -320,6 +322,8 @@ def check_navigate_options(*, fix_latency=0.0, velocity_lag=0.0, imu_delay=0.0, 
         if bad:
             raise CliError(f"--lever-arm {lever_arm!r}: component {bad[0]} out of range, each "
                            f"must be within ±{MAX_LEVER_M:g} m (IMU -> antenna)")
+        return tuple(float(x) for x in v)
+    return lever_arm
 
 
 def check_mount(mount, frame) -> None:

@@ -231,7 +231,7 @@ def _setup(cfg: Config, quick=False):
                     height_factor=f.height_factor)
     ep = np.arange(len(gen.imu) // k_kf + 1) * k_kf
     return dict(truth=gen.truth, imu=gen.imu, ep=ep, windows=windows, model_args=model_args, P0=P0,
-                fix_args=fix_args, kf_dt=kf_dt, nsub=int(fl.nsub), lag_method=fl.lag_method,
+                fix_args=fix_args, kf_dt=kf_dt, nsub=int(fl.nsub), lag=ds.lag_policy(fl.lag_method),
                 gyro_drift=float(im.gyro_drift))
 
 
@@ -277,7 +277,7 @@ def _filters(meas, init, fixes, S, model, height):
     """The three filters of one run on the same data: {mode: Integration}."""
     from sinslab.methods import doublestar as ds
 
-    return {mode: ds.integrate(meas, init, fixes, model, S["P0"], mode=mode, lag_method=S["lag_method"],
+    return {mode: ds.integrate(meas, init, fixes, model, S["P0"], mode=mode, lag=S["lag"],
                                height=height, windows=S["windows"], kf_dt=S["kf_dt"], nsub=S["nsub"])
             for mode in _MODES}
 
@@ -331,7 +331,7 @@ def _batch(seeds, S):
     for g0 in range(0, B, width):
         runs = [_inputs(np.random.default_rng(seed), S, plan) for seed in seeds[g0:g0 + width]]
         for i, mode in enumerate(_MODES):
-            res = ds.integrate_many(runs, model, S["P0"], mode=mode, lag_method=S["lag_method"],
+            res = ds.integrate_many(runs, model, S["P0"], mode=mode, lag=S["lag"],
                                     height=held, windows=S["windows"], kf_dt=S["kf_dt"], nsub=S["nsub"])
             for b, r in enumerate(res, g0):
                 nav[i, b] = r.nav
@@ -373,7 +373,7 @@ def _ranges_pair(runs, S, model, height):
     from sinslab.methods import doublestar_ranges as dr
 
     fa = S["fix_args"]
-    common = dict(mode="lag-aware", lag_method=S["lag_method"], height=height, windows=S["windows"],
+    common = dict(mode="lag-aware", lag=S["lag"], height=height, windows=S["windows"],
                   kf_dt=S["kf_dt"], nsub=S["nsub"])
     fix = ds.integrate_many([(m, i, d[1]) for m, i, d in runs], model, S["P0"], **common)
     rng_sigma, h_sigma = float(np.hypot(fa["m0"], fa["m1"])), fa["dH"]

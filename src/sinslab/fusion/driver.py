@@ -94,6 +94,7 @@ from sinslab.estimation.linear import discretize_series_many
 from sinslab.fusion.lag import ExactReprocessing
 from sinslab.fusion.measurements import Epoch, Grid, NavRow
 from sinslab.fusion.propagate import CompiledPropagation
+from sinslab.fusion.spec import FilterGrid, InsSpec
 from sinslab.nav import errstate as es
 from sinslab.nav import errstate_kernels as ek
 from sinslab.nav import strapdown as sd
@@ -214,19 +215,30 @@ class LiveStream:
 
     def __init__(self, imu, init, *, nsub=2, vertical="free", height=None, gyro_bias=None,
                  accel_bias=None, scaled=False, start=0, t_start=None):
-        if vertical not in ("free", "hold"):
-            raise ValueError(f"vertical must be 'free' or 'hold', got {vertical!r}")
+        self._setup(imu, init, InsSpec(nsub=nsub, vertical=vertical, height=height, gyro_bias=gyro_bias,
+                                       accel_bias=accel_bias, start=start, t_start=t_start), scaled)
+
+    @classmethod
+    def of(cls, imu, init, spec: InsSpec, *, scaled=False) -> "LiveStream":
+        """The stream of an INS spec (:class:`sinslab.fusion.spec.InsSpec`, checked when
+        it was made)."""
+        self = cls.__new__(cls)
+        self._setup(imu, init, spec, scaled)
+        return self
+
+    def _setup(self, imu, init, spec: InsSpec, scaled):
         self.imu = imu
-        self.nsub = int(nsub)
-        self.start = int(start)
-        self.t0 = (float(t_start) if t_start is not None
+        self.nsub = int(spec.nsub)
+        self.start = int(spec.start)
+        self.t0 = (float(spec.t_start) if spec.t_start is not None
                    else (float(imu.t[self.start - 1]) if self.start > 0 else imu.t0))
-        if vertical == "hold" and isinstance(height, sd.HeldHeight):
+        height = spec.height
+        if spec.vertical == "hold" and isinstance(height, sd.HeldHeight):
             if len(height) != len(imu) + 1 or abs(height.dt - imu.dt) > 1e-9 * imu.dt:
                 raise ValueError(f"the shared held height has {len(height)} epochs at {height.dt} s, "
                                  f"the IMU record {len(imu) + 1} at {imu.dt} s")
             self._held = height
-        elif vertical == "hold":
+        elif spec.vertical == "hold":
             hgt = np.asarray(height, dtype=float)
             if hgt.ndim == 0:
                 hgt = np.full(len(imu) + 1, float(hgt))
@@ -237,13 +249,12 @@ class LiveStream:
             self._held = sd.HeldHeight(hgt, float(imu.dt), shared=False)
         else:
             self._held = None
-        if not 1 <= self.nsub <= 5:
-            raise ValueError(f"nsub (samples per update) must be an integer in 1..5, got {nsub!r}")
         self.dt = float(imu.dt)
         self.state = sd.initial_state_array(init)
         # what feedback may correct, keyed by what a block feeds (es.COMPENSATIONS)
         self.compensation = dict(zip(es.COMPENSATIONS, (
-            units.vec3(gyro_bias, "gyro_bias", default=0.0), units.vec3(accel_bias, "accel_bias", default=0.0),
+            np.zeros(3) if spec.gyro_bias is None else spec.gyro_bias.copy(),
+            np.zeros(3) if spec.accel_bias is None else spec.accel_bias.copy(),
             np.zeros(3), np.zeros(3))))
         self.scaled = bool(scaled)
 
@@ -721,9 +732,8 @@ class _LaneRun:
                             self.history)
 
 
-def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=None,
-        max_block=10.0, model_every=10.0, discretization="series", progress=False,
-        label="fusion", lag_tol=1e-6, model_eval="compiled", history=None) -> DriverResult:
+def run(streams, model, P0, measurements, *, grid: FilterGrid, feedback=None, lag=None, x0=None,
+        progress=False, label="fusion", history=None) -> DriverResult:
     """Run the filter beside the streams and apply the measurements (see the module notes).
 
     Parameters
@@ -737,8 +747,11 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
         Initial covariance.
     measurements : sequence of Measurement
         See :mod:`sinslab.fusion.measurements`.
-    kf_dt : float
-        Filter step [s].
+    grid : sinslab.fusion.spec.FilterGrid
+        The filter step, the longest compiled stretch, the model look-ahead (the model is
+        evaluated for that stretch at once), the discretisation, the tolerance matching a
+        lagged item to a stored epoch, and how the model is evaluated
+        (``model_eval``: ``"compiled"`` kernels or the readable ``"numpy"`` reference).
     feedback : FeedbackLayout or sequence of (stream index, FeedbackLayout), optional
         Closed loop for those streams after every epoch with a measurement; None: feed
         forward.
@@ -746,22 +759,10 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
         Default :class:`sinslab.fusion.lag.ExactReprocessing`.
     x0 : array_like (n,), optional
         Initial estimate (default zero).
-    max_block : float
-        Longest stretch [s] the streams run in one compiled call.
-    model_every : float
-        Length [s] of the stretch the model is evaluated for at once (look-ahead).
-    discretization : {"series", "vanloan"}
     progress : bool
         Show a progress bar on a terminal.
-    lag_tol : float
-        Tolerance [s] matching a lagged item to a stored epoch.
-    model_eval : {"compiled", "numpy"}
-        ``"compiled"``: F, G (and the series Φ, Q_k) from the compiled kernels of
-        :mod:`sinslab.nav.errstate_kernels` and
-        :func:`sinslab.estimation.linear.discretize_series_many` (models of
-        :mod:`sinslab.nav.errstate`; other models use numpy); ``"numpy"``: the readable
-        reference, ``model.matrices`` on :class:`~sinslab.nav.errstate.NavPoint` and
-        :func:`~sinslab.estimation.kalman.discretize`. Equal to rounding.
+    label : str
+        The progress bar's label.
     history : sinslab.fusion.smoothing.History, optional
         Record the forward pass for :func:`sinslab.fusion.smoothing.smooth` (it is
         called after each prediction, after the measurements of an epoch and after
@@ -772,15 +773,12 @@ def run(streams, model, P0, measurements, *, kf_dt, feedback=None, lag=None, x0=
     -------
     DriverResult
     """
-    return _run_lanes([Lane(tuple(streams), tuple(measurements), x0)], [history], model, P0,
-                      kf_dt=kf_dt, feedback=feedback, lag=lag, max_block=max_block,
-                      model_every=model_every, discretization=discretization, progress=progress,
-                      label=label, lag_tol=lag_tol, model_eval=model_eval)[0]
+    return _run_lanes([Lane(tuple(streams), tuple(measurements), x0)], [history], model, P0, grid,
+                      feedback=feedback, lag=lag, progress=progress, label=label)[0]
 
 
-def run_many(lanes, model, P0, *, kf_dt, feedback=None, lag=None, max_block=10.0,
-             model_every=10.0, discretization="series", progress=False, label="fusion",
-             lag_tol=1e-6, model_eval="compiled") -> list:
+def run_many(lanes, model, P0, *, grid: FilterGrid, feedback=None, lag=None, progress=False,
+             label="fusion") -> list:
     """The runs of a Monte Carlo campaign in lockstep: :func:`run` for every lane, on a run
     axis.
 
@@ -798,8 +796,7 @@ def run_many(lanes, model, P0, *, kf_dt, feedback=None, lag=None, max_block=10.0
         (own data) and initial estimates. They must share the filter grid and the epochs
         at which measurements arrive (for instance fixes requested on one plan), because
         the block boundaries are part of the arithmetic.
-    model, P0, kf_dt, feedback, lag, max_block, model_every, discretization, progress,
-    label, lag_tol, model_eval
+    model, P0, grid, feedback, lag, progress, label
         As in :func:`run`, shared by all lanes (lag policies and feedback layouts hold no
         run state).
 
@@ -816,18 +813,16 @@ def run_many(lanes, model, P0, *, kf_dt, feedback=None, lag=None, max_block=10.0
     lanes = list(lanes)
     if not lanes:
         raise ValueError("run_many needs at least one lane")
-    return _run_lanes(lanes, [None] * len(lanes), model, P0, kf_dt=kf_dt, feedback=feedback, lag=lag,
-                      max_block=max_block, model_every=model_every, discretization=discretization,
-                      progress=progress, label=label, lag_tol=lag_tol, model_eval=model_eval)
+    return _run_lanes(lanes, [None] * len(lanes), model, P0, grid, feedback=feedback, lag=lag,
+                      progress=progress, label=label)
 
 
-def _run_lanes(lanes, histories, model, P0, *, kf_dt, feedback, lag, max_block, model_every,
-               discretization, progress, label, lag_tol, model_eval):
+def _run_lanes(lanes, histories, model, P0, spec: FilterGrid, *, feedback, lag, progress, label):
     """The loop of :func:`run` and :func:`run_many` (see the module notes)."""
     from sinslab.core.progress import progress as _progress
 
-    if model_eval not in ("compiled", "numpy"):
-        raise ValueError(f"model_eval must be 'compiled' or 'numpy', got {model_eval!r}")
+    kf_dt, max_block, model_every = spec.kf_dt, spec.max_block, spec.model_every
+    discretization, lag_tol, model_eval = spec.discretization, spec.lag_tol, spec.model_eval
     lag = ExactReprocessing() if lag is None else lag
     lay = model.layout
     n = model.n

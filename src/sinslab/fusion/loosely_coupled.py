@@ -7,8 +7,9 @@ gyro/accel scale factors; bias random walks, :func:`lc_model`) and one measureme
 antenna position (:class:`~sinslab.fusion.measurements.PositionFix`, stacked with a
 :class:`~sinslab.fusion.measurements.VelocityFix` when velocities are given), run by
 :func:`sinslab.fusion.driver.run` with feedback (closed loop) or feed-forward. Fixes are
-extrapolated from their validity time to the filter epoch with the INS velocity (at most ``kf_dt``). A fix valid at t arrives at t + latency;
-``lag="aware"`` applies it at its validity epoch, ``lag="ignore"`` on arrival as if current.
+extrapolated from their validity time to the filter epoch with the INS velocity (at most ``kf_dt``).
+The run is described by specs checked when they are made (:mod:`sinslab.fusion.spec`:
+the fixes, the INS stream, the filter grid) and a lag policy (:mod:`sinslab.fusion.lag`).
 """
 from __future__ import annotations
 
@@ -19,9 +20,10 @@ import numpy as np
 from sinslab.fusion import driver
 from sinslab.fusion.driver import LiveStream
 from sinslab.fusion.feedback import FeedbackLayout
-from sinslab.fusion.lag import ExactReprocessing, OnArrival
+from sinslab.fusion.lag import ExactReprocessing
 from sinslab.fusion.measurements import (LeverPositionFix, LeverVelocityFix, PositionFix, Stack,
                                          VelocityFix)
+from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 from sinslab.nav import errstate as es
 
 __all__ = ["loosely_coupled", "loosely_coupled_many", "LooselyCoupled", "lc_model"]
@@ -99,13 +101,9 @@ class LooselyCoupled:
     history: object = None
 
 
-def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyro_arw=None,
-                    accel_vrw=None, fix_vel=None, vel_sigma=None, lever_arm=None,
-                    fix_lag=0.0, fix_arrive=None, lag="aware", lag_method="exact",
-                    outages=(), windows=None, kf_dt=0.1, nsub=2, feedback=True,
-                    vertical="free", height=None, gyro_bias=None, accel_bias=None, start=0,
-                    t_start=None, max_block=10.0, model_every=10.0, discretization="series",
-                    aiding=(), progress=True, label="loosely coupled", history=None) -> LooselyCoupled:
+def loosely_coupled(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsSpec(),
+                    grid: FilterGrid = FilterGrid(), lag=ExactReprocessing(), feedback=True, aiding=(),
+                    history=None, progress=True, label="loosely coupled") -> LooselyCoupled:
     """INS + position(/velocity) fixes with an error-state Kalman filter, on the fusion
     driver (:func:`sinslab.fusion.driver.run`, whose notes derive the loop).
 
@@ -113,20 +111,20 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
     in compiled blocks between the epochs at which fixes are processed; the error-state
     model is evaluated for all filter epochs of a block at once and discretised
     (:func:`sinslab.estimation.kalman.discretize`); the covariance is propagated every
-    ``kf_dt`` by one :class:`sinslab.estimation.filter.KalmanFilter`. At a fix the filter
-    updates (position, with the lever arm in H, and velocity when given) and, with
+    ``grid.kf_dt`` by one :class:`sinslab.estimation.filter.KalmanFilter`. At a fix the
+    filter updates (position, with the lever arm in H, and velocity when given) and, with
     ``feedback=True``, corrects the navigation state (:func:`sinslab.nav.strapdown.correct`)
     and the sensor compensation (biases, scale factors) through
-    :class:`sinslab.fusion.feedback.FeedbackLayout`, zeroing those states. Fixes are extrapolated from their validity time to the filter epoch with the
-    INS (antenna) velocity (at most ``kf_dt``).
+    :class:`sinslab.fusion.feedback.FeedbackLayout`, zeroing those states. Fixes are
+    extrapolated from their validity time to the filter epoch with the INS (antenna)
+    velocity (at most ``kf_dt``).
 
-    Latency: a fix valid at ``t`` arrives at ``fix_arrive`` (default ``t + fix_lag``) and
-    is processed at the first epoch at or after it. ``lag="aware"`` applies it at its
-    validity epoch with the lag policy ``lag_method`` (``"exact"``:
-    :class:`sinslab.fusion.lag.ExactReprocessing`, measurement from the INS output of that
-    epoch before its feedback; or any lag policy object, e.g. the stored-state update of
-    :mod:`sinslab.methods.doublestar`); ``lag="ignore"`` applies a late fix on arrival as if it were valid
-    then (the naive filter).
+    Latency: a fix valid at ``t`` arrives at ``fixes.arrive`` and is processed at the first
+    epoch at or after it; the lag policy ``lag`` (:mod:`sinslab.fusion.lag`) says how a late
+    one is applied: :class:`~sinslab.fusion.lag.ExactReprocessing` at its validity epoch,
+    :class:`~sinslab.fusion.lag.OnArrival` on arrival as if it were valid then (the naive
+    filter), or any other policy (e.g. the stored-state update of
+    :mod:`sinslab.methods.doublestar`).
 
     Parameters
     ----------
@@ -134,152 +132,93 @@ def loosely_coupled(imu, init, fix_t, fix_pos, fix_sigma, P0, *, model=None, gyr
         IMU increments (with errors), N samples at ``dt``.
     init : sinslab.core.records.NavState
         Initial navigation state (IMU attitude) at the start: ``imu.t0``, or the end of
-        sample ``start - 1``.
-    fix_t : array_like, shape (J,)
-        Validity times of the fixes [s], increasing, inside the filter span.
-    fix_pos : array_like, shape (J, 3) or (J, 2)
-        Fix positions ``[lat, lon, h]`` [rad, rad, m] of the antenna; ``(J, 2)`` (no
-        height) only for a model with a 2-state horizontal position block.
-    fix_sigma : array_like, shape (3,), (2,), (J, 3) or (J, 2)
-        Fix standard deviations north, east[, up] [m].
+        sample ``ins.start - 1``.
+    fixes : sinslab.fusion.spec.FixSpec
+        The fixes (validity times inside the filter span), their σ, arrivals, the antenna
+        lever arm (IMU -> antenna, IMU body axes [m]), outages and windows.
     P0 : array_like, shape (n, n)
         Initial covariance of the error state.
-    model : sinslab.nav.errstate.ErrorModel, optional
+    model : sinslab.nav.errstate.ErrorModel
         Error-state model with blocks ``phi``, ``dv``, ``dp`` and optionally ``eps``
         (gyro bias, body), ``nabla`` (accel bias, body), ``kg``/``ka`` (scale factors),
-        or the horizontal model of paper 003 (``dv``, ``dp`` of 2 states; give
-        ``vertical="hold"``). Default :func:`lc_model` (``gyro_arw`` [rad/√s],
-        ``accel_vrw`` [m/s/√s] needed).
-    fix_vel, vel_sigma : array_like, shape (J, 3), optional
-        Fix (antenna) velocities ENU [m/s] and their σ (J, 3) or (3,) [m/s].
-    lever_arm : array_like (3,), optional
-        IMU -> antenna in IMU body axes [m].
-    fix_lag, fix_arrive, lag, lag_method
-        Latency, see above (``lag_method``: ``"exact"`` or a lag policy object).
-    outages : sequence of (start, length) [s]
-        Fixes valid inside are dropped.
-    windows : sequence of (start, end) [s], optional
-        Fixes are processed only at epochs inside these windows (others are dropped).
-    kf_dt : float
-        Filter step [s]; a multiple of ``nsub * imu.dt``.
-    nsub : int
-        Mechanization subsamples (coning/sculling).
+        e.g. :func:`lc_model`, or the horizontal model of paper 003 (``dv``, ``dp`` of 2
+        states; with ``ins.vertical="hold"``). A model with a lever-arm block ``lev``
+        (:func:`sinslab.nav.errstate.lever_arm`) estimates the antenna lever arm: the fixes
+        then use :class:`~sinslab.fusion.measurements.LeverPositionFix`/``LeverVelocityFix``
+        and ``x[:, lev]`` holds ``l_used − l_true`` [m].
+    ins : sinslab.fusion.spec.InsSpec
+        How the INS stream runs (subsamples, vertical channel, initial compensation, start).
+    grid : sinslab.fusion.spec.FilterGrid
+        Filter step, compiled stretch, model look-ahead and discretisation.
+    lag : lag policy
+        See above.
     feedback : bool or sinslab.fusion.feedback.FeedbackLayout
         Closed loop (``True``: every block of :meth:`FeedbackLayout.from_model`; or the
         layout of the states to feed back) or feed-forward (``False``: the INS runs free;
         ``x`` holds the estimated errors).
-    vertical : {"free", "hold"}
-        ``"hold"``: the vertical channel is held to ``height`` (N+1,) or float [m] at the
-        IMU epochs (for models without a vertical channel).
-    gyro_bias, accel_bias : array_like (3,), optional
-        Initial sensor compensation [rad/s], [m/s²].
-    start : int
-        First IMU sample used (the filter starts at the end of sample ``start - 1``).
-    t_start : float, optional
-        Start time [s] if not that end time (e.g. ``imu.t[start] - imu.dt``).
-    max_block : float
-        Longest stretch [s] the INS is run in one compiled call when no fix arrives.
-    model_every : float
-        The error model F, G (and Φ, Q_k) is evaluated for all filter epochs of the next
-        ``model_every`` seconds at once, along a look-ahead run of the INS from the current
-        (corrected) state; the linearisation point then differs from the corrected path
-        only by the feedback applied within that stretch (metres and arc-seconds with
-        1 Hz fixes). ``model_every <= kf_dt`` evaluates it on the corrected path exactly
-        (slower).
-    discretization : {"series", "vanloan"}
-        Φ, Q_k of each step from F, G frozen at the epoch.
     aiding : sequence of measurement objects
         Further measurements of :mod:`sinslab.fusion.measurements` run beside the fixes
-        (zero velocity / angular rate, non-holonomic constraints, odometer ...). A model
-        with a lever-arm block ``lev`` (:func:`sinslab.nav.errstate.lever_arm`) estimates the
-        antenna lever arm: the fixes then use
-        :class:`~sinslab.fusion.measurements.LeverPositionFix`/``LeverVelocityFix`` and
-        ``x[:, lev]`` holds ``l_used − l_true`` [m].
-    progress : bool
-        Show a progress bar (on a terminal).
+        (zero velocity / angular rate, non-holonomic constraints, odometer ...).
     history : sinslab.fusion.smoothing.History, optional
         Record the forward pass for smoothing.
+    progress : bool
+        Show a progress bar (on a terminal).
+    label : str
+        The progress bar's label.
 
     Returns
     -------
     LooselyCoupled
     """
-    c = _compose(imu, init, fix_t, fix_pos, fix_sigma, model=model, gyro_arw=gyro_arw,
-                 accel_vrw=accel_vrw, fix_vel=fix_vel, vel_sigma=vel_sigma, lever_arm=lever_arm,
-                 fix_lag=fix_lag, fix_arrive=fix_arrive, lag=lag, lag_method=lag_method,
-                 outages=outages, windows=windows, kf_dt=kf_dt, nsub=nsub, feedback=feedback,
-                 vertical=vertical, height=height, gyro_bias=gyro_bias, accel_bias=accel_bias,
-                 start=start, t_start=t_start)
-    r = driver.run([c.ins], c.model, P0, [c.meas, *aiding], kf_dt=kf_dt, feedback=c.feedback,
-                   lag=c.policy, max_block=max_block, model_every=model_every,
-                   discretization=discretization, progress=progress, label=label, history=history)
+    c = _compose(imu, init, fixes, model, ins, grid, lag, feedback)
+    r = driver.run([c.ins], c.model, P0, [c.meas, *aiding], grid=grid, feedback=c.feedback, lag=lag,
+                   progress=progress, label=label, history=history)
     return c.result(r)
 
 
-#: The arguments of :func:`loosely_coupled` that differ between the runs of
-#: :func:`loosely_coupled_many` (the data of each run); all others are shared.
-PER_RUN = ("imu", "init", "fix_t", "fix_pos", "fix_sigma", "fix_vel", "vel_sigma", "fix_arrive",
-           "gyro_bias", "accel_bias")
-
-
-def loosely_coupled_many(runs, P0, *, kf_dt=0.1, max_block=10.0, model_every=10.0,
-                         discretization="series", progress=False, label="loosely coupled",
-                         **shared) -> list:
+def loosely_coupled_many(runs, P0, model, *, ins: InsSpec = InsSpec(), grid: FilterGrid = FilterGrid(),
+                         lag=ExactReprocessing(), feedback=True, progress=False,
+                         label="loosely coupled") -> list:
     """:func:`loosely_coupled` for the runs of a Monte Carlo campaign, in lockstep on the
     run axis of the fusion driver (:func:`sinslab.fusion.driver.run_many`).
 
     Parameters
     ----------
-    runs : sequence of dict
-        Per run the arguments of :data:`PER_RUN` (``imu``, ``init``, ``fix_t``,
-        ``fix_pos``, ``fix_sigma`` required; ``fix_vel``, ``vel_sigma``, ``fix_arrive``,
-        ``gyro_bias``, ``accel_bias`` optional). The runs must share the filter grid and
-        the epochs at which fixes arrive (fixes requested on one plan).
-    P0, kf_dt, max_block, model_every, discretization, progress, label
-        As in :func:`loosely_coupled`.
-    **shared
-        The other keyword arguments of :func:`loosely_coupled` (``model``, ``lag``,
-        ``lag_method``, ``windows``, ``feedback``, ``vertical``, ``height``, ...), the
-        same for every run; ``aiding`` and ``history`` are not available here.
+    runs : sequence of (imu, init, FixSpec) or (imu, init, FixSpec, InsSpec)
+        Each run's IMU record, initial state and fixes (and its own INS spec, default
+        ``ins``). The runs must share the filter grid and the epochs at which fixes arrive
+        (fixes requested on one plan).
+    P0, model, ins, grid, lag, feedback, progress, label
+        As in :func:`loosely_coupled`, shared by the runs (no aiding, no history here).
 
     Returns
     -------
     list of LooselyCoupled
         One per run, each equal to :func:`loosely_coupled` on that run alone.
     """
-    bad = sorted(set(shared) & (set(PER_RUN) | {"aiding", "history"}))
-    if bad:
-        raise ValueError(f"loosely_coupled_many: {', '.join(bad)} belong in the runs "
-                         "(or are not available for a campaign)")
     comp = []
     for k, run in enumerate(runs):
-        extra = sorted(set(run) - set(PER_RUN))
-        if extra:
-            raise ValueError(f"run {k}: unknown per-run argument(s) {', '.join(extra)}; "
-                             f"a run gives {', '.join(PER_RUN)}")
-        args = dict(run)
-        comp.append(_compose(args.pop("imu"), args.pop("init"), args.pop("fix_t"), args.pop("fix_pos"),
-                             args.pop("fix_sigma"), kf_dt=kf_dt, **shared, **args))
+        if len(run) not in (3, 4):
+            raise ValueError(f"run {k}: give (imu, init, fixes) or (imu, init, fixes, ins)")
+        imu, init, fixes, *own = run
+        comp.append(_compose(imu, init, fixes, model, own[0] if own else ins, grid, lag, feedback))
     if not comp:
         raise ValueError("loosely_coupled_many needs at least one run")
     c0 = comp[0]
-    rs = driver.run_many([driver.Lane((c.ins,), (c.meas,)) for c in comp], c0.model, P0, kf_dt=kf_dt,
-                         feedback=c0.feedback, lag=c0.policy, max_block=max_block,
-                         model_every=model_every, discretization=discretization, progress=progress,
-                         label=label)
+    rs = driver.run_many([driver.Lane((c.ins,), (c.meas,)) for c in comp], c0.model, P0, grid=grid,
+                         feedback=c0.feedback, lag=lag, progress=progress, label=label)
     return [c.result(r) for c, r in zip(comp, rs)]
 
 
 @dataclass(frozen=True)
 class _Composed:
     """One run made ready for the driver: the model, the INS stream, the fix measurement,
-    the feedback layout and lag policy, and what :meth:`result` needs to unpack its output."""
+    the feedback layout, and what :meth:`result` needs to unpack its output."""
 
     model: object
     ins: LiveStream
     meas: object
     feedback: object
-    policy: object
     fix_t: np.ndarray
     n_z: int
     use_vel: bool
@@ -294,18 +233,11 @@ class _Composed:
                               ap.t_applied[k], ap.item[k], inn, ap.nis[k], r.layout, r.history)
 
 
-def _compose(imu, init, fix_t, fix_pos, fix_sigma, *, model=None, gyro_arw=None, accel_vrw=None,
-             fix_vel=None, vel_sigma=None, lever_arm=None, fix_lag=0.0, fix_arrive=None,
-             lag="aware", lag_method="exact", outages=(), windows=None, kf_dt=0.1, nsub=2,
-             feedback=True, vertical="free", height=None, gyro_bias=None, accel_bias=None,
-             start=0, t_start=None) -> _Composed:
-    """Check the arguments of :func:`loosely_coupled` and make the stream, the fix
-    measurement, the feedback layout and the lag policy of one run."""
+def _compose(imu, init, fixes: FixSpec, model, ins: InsSpec, grid: FilterGrid, lag, feedback) -> _Composed:
+    """The stream, the fix measurement and the feedback layout of one run. The specs are
+    valid on their own; what is checked here is how they fit together (the model's blocks
+    against the vertical channel and the fixes, the fix times against the filter grid)."""
     # --- model and layout
-    if model is None:
-        if gyro_arw is None or accel_vrw is None:
-            raise ValueError("give a model or gyro_arw [rad/sqrt(s)] and accel_vrw [m/s/sqrt(s)]")
-        model = lc_model(gyro_arw, accel_vrw)
     lay = model.layout
     names = list(lay.names)
     for req in ("phi", "dv", "dp"):
@@ -313,9 +245,7 @@ def _compose(imu, init, fix_t, fix_pos, fix_sigma, *, model=None, gyro_arw=None,
             raise ValueError(f"the model needs a {req!r} block (has {names})")
     s_vel, s_pos = lay.slice("dv"), lay.slice("dp")
     n_pos = s_pos.stop - s_pos.start
-    if vertical not in ("free", "hold"):
-        raise ValueError(f"vertical must be 'free' or 'hold', got {vertical!r}")
-    if vertical == "free" and (n_pos != 3 or s_vel.stop - s_vel.start != 3):
+    if ins.vertical == "free" and (n_pos != 3 or s_vel.stop - s_vel.start != 3):
         raise ValueError("the model needs the full core (3 velocity and 3 position errors) "
                          "unless the vertical channel is held (vertical='hold')")
     if feedback is True:
@@ -325,63 +255,40 @@ def _compose(imu, init, fix_t, fix_pos, fix_sigma, *, model=None, gyro_arw=None,
     else:
         fb = feedback
     scaled = fb is not None and (fb.gyro_scale is not None or fb.accel_scale is not None)
-    if lag not in ("aware", "ignore"):
-        raise ValueError(f"lag must be 'aware' or 'ignore', got {lag!r}")
-    if isinstance(lag_method, str):
-        if lag_method != "exact":
-            raise ValueError(f"lag_method must be 'exact' or a lag policy object, got {lag_method!r}")
-        policy = ExactReprocessing()
-    else:
-        policy = lag_method
-    if lag == "ignore":
-        policy = OnArrival()
+    for a in ("on_arrival", "corrected_nav", "needs_model", "update"):
+        if not hasattr(lag, a):
+            raise ValueError(f"lag must be a lag policy of sinslab.fusion.lag, got {lag!r}")
 
     # --- the INS stream on the filter grid
-    ins = LiveStream(imu, init, nsub=nsub, vertical=vertical, height=height, gyro_bias=gyro_bias,
-                     accel_bias=accel_bias, scaled=scaled, start=start, t_start=t_start)
-    T, t0, n_ep = ins.bind(kf_dt)
+    stream = LiveStream.of(imu, init, ins)
+    T, t0, n_ep = stream.bind(grid.kf_dt)
     t_ep = t0 + T * np.arange(n_ep + 1)
 
-    # --- fixes
-    fix_t = np.atleast_1d(np.asarray(fix_t, dtype=float))
+    # --- fixes against the model and the grid
+    fix_t = fixes.t
     J = fix_t.size
-    fix_pos = np.asarray(fix_pos, dtype=float)
     n_z = 3 if n_pos == 3 else 2
-    if fix_pos.ndim != 2 or fix_pos.shape[0] != J or fix_pos.shape[1] not in (2, 3) or fix_pos.shape[1] < n_z:
-        raise ValueError(f"fix_pos must have shape ({J}, {n_z}) for {J} fix times, got {fix_pos.shape}")
-    fix_sigma = np.asarray(fix_sigma, dtype=float)
-    fix_sigma = np.broadcast_to(fix_sigma, (J, fix_sigma.shape[-1]))[:, :n_z]
-    use_vel = fix_vel is not None
-    if use_vel:
-        if s_vel.stop - s_vel.start != 3:
-            raise ValueError("velocity fixes need a model with 3 velocity errors")
-        fix_vel = np.asarray(fix_vel, dtype=float).reshape(J, 3)
-        vel_sigma = np.broadcast_to(np.asarray(vel_sigma, dtype=float), (J, 3))
-    arrive = fix_t + float(fix_lag) if fix_arrive is None else np.asarray(fix_arrive, dtype=float)
-    if J:
-        if not (np.all(np.isfinite(fix_t)) and np.all(np.isfinite(fix_pos[:, :n_z]))):
-            raise ValueError("fix times/positions contain NaN/inf")
-        if np.any(np.diff(fix_t) <= 0):
-            raise ValueError("fix times must be strictly increasing")
-        if fix_t[0] < t_ep[0] - 1e-9 or fix_t[-1] > t_ep[-1] + 1e-9:
-            tail = (f"; the grid is whole kf_dt = {T:g} s steps from the start, the IMU data end at "
-                    f"{imu.t[-1]:.3f} s: drop the {int(np.sum(fix_t > t_ep[-1] + 1e-9))} fixes after "
-                    "the last step" if t_ep[0] - 1e-9 <= fix_t[0] <= t_ep[-1] else "")
-            raise ValueError(f"fix times {fix_t[0]:.3f}..{fix_t[-1]:.3f} s lie outside the filter grid "
-                             f"{t_ep[0]:.3f}..{t_ep[-1]:.3f} s{tail}")
-        if np.any(~(fix_sigma > 0)) or (use_vel and np.any(~(vel_sigma > 0))):
-            raise ValueError("fix_sigma and vel_sigma must be > 0")
-        if arrive.shape != (J,) or np.any(~(arrive >= fix_t)):
-            raise ValueError("fix arrival times must not precede the validity times (fix_lag >= 0)")
-    sched = dict(t_arrive=arrive, lever_arm=lever_arm, outages=outages, windows=windows)
+    if fixes.n_pos < n_z:
+        raise ValueError(f"fix_pos must have shape ({J}, {n_z}) for {J} fix times, got {fixes.pos.shape}")
+    use_vel = fixes.vel is not None
+    if use_vel and s_vel.stop - s_vel.start != 3:
+        raise ValueError("velocity fixes need a model with 3 velocity errors")
+    if J and (fix_t[0] < t_ep[0] - 1e-9 or fix_t[-1] > t_ep[-1] + 1e-9):
+        tail = (f"; the grid is whole kf_dt = {T:g} s steps from the start, the IMU data end at "
+                f"{imu.t[-1]:.3f} s: drop the {int(np.sum(fix_t > t_ep[-1] + 1e-9))} fixes after "
+                "the last step" if t_ep[0] - 1e-9 <= fix_t[0] <= t_ep[-1] else "")
+        raise ValueError(f"fix times {fix_t[0]:.3f}..{fix_t[-1]:.3f} s lie outside the filter grid "
+                         f"{t_ep[0]:.3f}..{t_ep[-1]:.3f} s{tail}")
+    sched = dict(t_arrive=fixes.arrive, lever_arm=fixes.lever_arm, outages=fixes.outages,
+                 windows=fixes.windows)
+    sigma = fixes.sigma[:, :n_z]
     if "lev" in names:
-        lev = dict(sched, lever_arm=np.zeros(3) if lever_arm is None else lever_arm)
-        meas = LeverPositionFix(fix_t, fix_pos, fix_sigma, **lev)
+        meas = LeverPositionFix(fix_t, fixes.pos, sigma, **sched)
         if use_vel:
-            meas = Stack(meas, LeverVelocityFix(fix_t, fix_vel, vel_sigma, **lev))
+            meas = Stack(meas, LeverVelocityFix(fix_t, fixes.vel, fixes.vel_sigma, **sched))
     else:
-        meas = PositionFix(fix_t, fix_pos, fix_sigma, **sched)
+        meas = PositionFix(fix_t, fixes.pos, sigma, **sched)
         if use_vel:
-            meas = Stack(meas, VelocityFix(fix_t, fix_vel, vel_sigma, **sched))
+            meas = Stack(meas, VelocityFix(fix_t, fixes.vel, fixes.vel_sigma, **sched))
 
-    return _Composed(model, ins, meas, fb, policy, fix_t, n_z, use_vel)
+    return _Composed(model, stream, meas, fb, fix_t, n_z, use_vel)

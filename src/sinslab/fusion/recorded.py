@@ -39,7 +39,9 @@ from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
 from sinslab.core.stamps import held_runs, stamp_step, whole_intervals
-from sinslab.fusion.loosely_coupled import loosely_coupled
+from sinslab.fusion.lag import ExactReprocessing
+from sinslab.fusion.loosely_coupled import LooselyCoupled, loosely_coupled
+from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
@@ -62,14 +64,15 @@ AIRCRAFT_CRAB_SIGMA = 10.0 * units.deg
 CARRY_LIMIT = 2.0
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class NavOptions:
-    """Settings of :func:`navigate_recorded` (SI units)."""
+    """Settings of :func:`navigate_recorded` (SI units): a frozen value, checked once when it
+    is made (derive another with :func:`dataclasses.replace`)."""
 
     lever_arm: tuple = (0.0, 0.0, 0.0)      #: IMU -> antenna, vehicle RFU axes [m]
     outages: tuple = ()                     #: ((start, length), ...) absolute times [s]
     fix_latency: float = 0.0                #: [s]
-    lag: str = "aware"                      #: "aware" | "ignore"
+    lag: object = ExactReprocessing()       #: lag policy (sinslab.fusion.lag)
     heading: float | None = None            #: initial heading, clockwise from north [rad]
     use_velocity: bool = True
     gyro_arw: float = 0.0038 * units.deg    #: [rad/sqrt(s)] (0.0038 deg/s/sqrt(Hz))
@@ -144,14 +147,12 @@ class NavOptions:
     #: replace the fixes in the filter (tightly coupled); the fixes then only start it
     gnss_raw: object = None
 
-    def check(self):
+    def __post_init__(self):
         la = np.asarray(self.lever_arm, dtype=float)
         if la.shape != (3,) or not np.all(np.isfinite(la)):
             raise ValueError(f"lever arm must be 3 finite numbers [m], got {self.lever_arm!r}")
-        if self.lag not in ("aware", "ignore"):
-            raise ValueError(f"lag must be 'aware' or 'ignore', got {self.lag!r}")
-        if not (self.fix_latency >= 0 and math.isfinite(self.fix_latency)):
-            raise ValueError(f"fix latency must be >= 0 s, got {self.fix_latency}")
+        object.__setattr__(self, "lever_arm", tuple(float(x) for x in la))
+        object.__setattr__(self, "outages", tuple(self.outages))
         for o in self.outages:
             s, ln = (o[2], o[1]) if o[0] == "periodic" else o
             if not (ln > 0 and math.isfinite(s)):
@@ -183,24 +184,40 @@ class NavOptions:
                     raise ValueError(f"{nm} must be {n} finite values > 0, got {v!r}")
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class RecordedNav:
-    """Result of :func:`navigate_recorded` at the filter epochs (every ``kf_dt``)."""
+    """Result of :func:`navigate_recorded` at the filter epochs (every ``kf_dt``): a view of
+    the filter's own result (``run``), with what the front end found and the options.
 
-    t: np.ndarray                  #: (M,) [s]
-    nav: np.ndarray                #: (M, 10) [q0..q3, vE, vN, vU, lat, lon, h] after feedback
-    sigma: np.ndarray              #: (M, n) filter σ
-    labels: tuple                  #: state labels
-    units_: tuple                  #: display units of the states
-    gyro_bias: np.ndarray          #: (M, 3) compensation in use [rad/s]
-    accel_bias: np.ndarray         #: (M, 3) [m/s^2]
-    scale: np.ndarray | None       #: (M, 6) gyro, accel scale-factor compensation [-]
-    fix_t: np.ndarray              #: (J,) validity times of the applied fixes
-    innovation: np.ndarray         #: (J, m)
-    nis: np.ndarray                #: (J,)
+    ``t`` (M,) [s], ``nav`` (M, 10) ``[q0..q3, vE, vN, vU, lat, lon, h]`` after feedback,
+    ``sigma`` (M, n) filter σ, ``gyro_bias`` (M, 3) [rad/s] and ``accel_bias`` (M, 3)
+    [m/s²] compensation in use, ``scale`` (M, 6) scale-factor compensation [-] or None,
+    ``fix_t`` (J,) validity times of the applied fixes, ``innovation`` (J, m), ``nis``
+    (J,) are those of ``run``; ``labels``/``units_`` the state labels and display units
+    of its layout.
+    """
+
+    run: LooselyCoupled            #: the filter's result
     init: dict = field(default_factory=dict)
     options: NavOptions = None
     smoothed: object = None        #: sinslab.fusion.smoothing.SmoothedRun (``smooth=True``)
+
+    t = property(lambda self: self.run.t)
+    nav = property(lambda self: self.run.nav)
+    sigma = property(lambda self: self.run.sigma)
+    gyro_bias = property(lambda self: self.run.gyro_bias)
+    accel_bias = property(lambda self: self.run.accel_bias)
+    scale = property(lambda self: self.run.scale)
+    fix_t = property(lambda self: self.run.fix_t)
+    innovation = property(lambda self: self.run.innovation)
+    nis = property(lambda self: self.run.nis)
+    labels = property(lambda self: self.run.layout.labels)
+    units_ = property(lambda self: self.run.layout.units)
+
+    def with_nav(self, nav):
+        """The same result with other navigation rows (e.g. the smoothed ones), for
+        :func:`fix_errors`."""
+        return dataclasses.replace(self, run=dataclasses.replace(self.run, nav=nav))
 
     @property
     def att(self):
@@ -588,7 +605,6 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     from sinslab.nav import strapdown as sd
 
     opt = opt or NavOptions()
-    opt.check()
     t_lo, t_hi = imu.t0, float(imu.t[-1])
     if len(fixes) == 0 or fixes.t[-1] < t_lo or fixes.t[0] > t_hi:
         span = "no fixes" if len(fixes) == 0 else f"{fixes.t[0]:.3f}..{fixes.t[-1]:.3f} s"
@@ -822,15 +838,14 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         P0[slv, spp] = (J @ Sl).T
 
     # --- the filter (the one INS + fix driver)
-    r = loosely_coupled(
-        imu, NavState(lat_i, lon_i, h_i, v0, att0), sel.t, np.stack([sel.lat, sel.lon, sel.h], -1),
-        np.maximum(sel.sigma, opt.pos_sigma_floor), P0, model=model,
-        fix_vel=_fix_vel_enu(sel) if use_vel else None,
-        vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
-        lever_arm=lever, fix_lag=opt.fix_latency, lag=opt.lag, outages=outages, kf_dt=T,
-        nsub=nsub, gyro_bias=gb, start=ks, t_start=ts, model_every=0.0, aiding=aiding,
-        history=History(0.1, spill=opt.smooth_spill) if opt.smooth else None,
-        progress=progress, label="navigating")
+    fix_spec = FixSpec(sel.t, np.stack([sel.lat, sel.lon, sel.h], -1), np.maximum(sel.sigma, opt.pos_sigma_floor),
+                       vel=_fix_vel_enu(sel) if use_vel else None,
+                       vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
+                       latency=opt.fix_latency, lever_arm=lever, outages=outages)
+    r = loosely_coupled(imu, NavState(lat_i, lon_i, h_i, v0, att0), fix_spec, P0, model,
+                        ins=InsSpec(nsub=nsub, gyro_bias=gb, start=ks, t_start=ts),
+                        grid=FilterGrid(T, model_every=0.0), lag=opt.lag, aiding=aiding,
+                        history=History(0.1, spill=opt.smooth_spill) if opt.smooth else None, progress=progress, label="navigating")
     init["outages"] = outages
     init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),
                                 "rejected_spans": _spans(m.gate.rejected, 2.5 * T * m.every)}
@@ -850,9 +865,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         sl = lay.slice("nlev")
         init["nhc_lever_estimate"] = (np.asarray(opt.nhc_lever_arm, float) - Cvb @ r.x[-1, sl]).tolist()
         init["nhc_lever_sigma"] = np.sqrt(np.diag(Cvb @ np.diag(r.sigma[-1, sl] ** 2) @ Cvb.T)).tolist()
-    return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
-                       r.fix_t, r.innovation, r.nis, init, opt,
-                       smoothed=smooth(r) if opt.smooth else None)
+    return RecordedNav(r, init, opt, smoothed=smooth(r) if opt.smooth else None)
 
 
 def _spans(times, gap):

@@ -21,6 +21,7 @@ import numpy as np
 
 from sinslab.fusion.gnss import Pseudoranges, RangeRates, SatelliteObservations, single_point
 from sinslab.fusion.loosely_coupled import LooselyCoupled, loosely_coupled
+from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 from sinslab.nav import errstate as es
 
 __all__ = ["RawGnss", "tightly_coupled", "TightlyCoupled", "tc_model"]
@@ -238,11 +239,12 @@ def tightly_coupled(imu, init, raw: RawGnss, P0, *, model=None, gyro_arw=None, a
         P0[sl, sl] = np.diag(raw.clock_sigmas() ** 2)
     ms = raw.make(lever_arm=lever_arm, t_start=t_start if t_start is not None else (
         float(imu.t[start - 1]) if start > 0 else imu.t0))
-    r = loosely_coupled(imu, init, np.zeros(0), np.zeros((0, 3)), np.ones(3), P0, model=model,
-                        kf_dt=kf_dt, nsub=nsub, feedback=feedback, gyro_bias=gyro_bias,
-                        accel_bias=accel_bias, start=start, t_start=t_start, max_block=max_block,
-                        model_every=model_every, aiding=(*ms, *aiding), progress=progress,
-                        label=label, history=history)
+    r = loosely_coupled(imu, init, FixSpec(np.zeros(0), np.zeros((0, 3)), np.ones(3)), P0, model,
+                        ins=InsSpec(nsub=nsub, gyro_bias=gyro_bias, accel_bias=accel_bias, start=start,
+                                    t_start=t_start),
+                        grid=FilterGrid(kf_dt, max_block=max_block, model_every=model_every),
+                        feedback=feedback, aiding=(*ms, *aiding), progress=progress, label=label,
+                        history=history)
     base = {f.name: getattr(r, f.name) for f in fields(LooselyCoupled)}
     return TightlyCoupled(**base, clock=raw.clock_estimate(r.t, r.x, lay), pseudoranges=ms[0],
                           range_rates=ms[1] if len(ms) > 1 else None)

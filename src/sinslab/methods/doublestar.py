@@ -43,7 +43,7 @@ Paper 003 (Liu, Lin, Lai, Sun 2004). Three parts, usable with any parameters and
    inside the windows), in three modes:
 
    * ``"lag-aware"``: the fix valid at t arrives at t + ΔT and is applied at t with a lag
-     policy (:class:`StoredStateUpdate`, the paper's eqs 4–10: update at t from the state
+     policy of :mod:`sinslab.fusion.lag` (:class:`StoredStateUpdate`, the paper's eqs 4–10: update at t from the state
      stored at the last step, then one prediction ``expm(A ΔT)`` with the integrated Q; or
      :class:`sinslab.fusion.lag.ExactReprocessing`: re-process the stored steps), then the
      correction is fed back to the INS;
@@ -66,13 +66,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from sinslab.core.records import Fixes
+from sinslab.fusion import lag as _lag
 
 __all__ = [
     "FixError", "fix_error", "fix_error_linearised", "fix_covariance",
     "measure_ranges", "solve_fix", "request_schedule", "FixPlan", "plan_fixes",
     "simulate_fixes",
     "horizontal_model", "initial_covariance", "FEEDBACK", "Integration", "integrate", "integrate_many",
-    "StoredStateUpdate",
+    "StoredStateUpdate", "lag_policy", "mode_policy",
     "MODES", "horizontal_errors", "check_windows", "check_geometry", "check_integration",
 ]
 
@@ -561,7 +562,8 @@ class Integration:
     gyro_comp : (K+1, 3) gyro compensation in use after the epoch [rad/s]
     applied : (J',) validity times of the fixes used; ``t_applied`` their processing times
     innovation : (J', 2) north/east [m]
-    mode, lag_method : str
+    mode : str
+    lag : lag policy of the lag-aware and zero-lag modes
     """
 
     t: np.ndarray
@@ -573,10 +575,11 @@ class Integration:
     t_applied: np.ndarray
     innovation: np.ndarray
     mode: str
-    lag_method: str
+    lag: object
 
 
 
+@dataclass(frozen=True)
 class StoredStateUpdate:
     """Paper 003's lagged update (eqs 4–10) as a lag policy of the fusion driver.
 
@@ -591,6 +594,7 @@ class StoredStateUpdate:
     to the new estimate.
     """
 
+    name = "paper003"
     on_arrival = False
     corrected_nav = True
     needs_model = True
@@ -652,7 +656,7 @@ def _epoch_of(t, t0, T, what):
 
 
 def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aware",
-              lag_method="paper003", height, windows=None, kf_dt=1.0, nsub=2, max_block=60.0,
+              lag=StoredStateUpdate(), height, windows=None, kf_dt=1.0, nsub=2, max_block=60.0,
               discretization="series") -> Integration:
     """SINS / two-GEO integration with feedback, fixes only inside windows.
 
@@ -670,9 +674,14 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
         :func:`horizontal_model` (blocks phi, dv, dp, eps_b, eps_r, nabla).
     P0 : (16, 16)
     mode : {"lag-aware", "lag-ignore", "zero-lag"}
-    lag_method : {"paper003", "exact"}
-        The lagged update of the lag-aware mode: :class:`StoredStateUpdate` or
-        :class:`sinslab.fusion.lag.ExactReprocessing`.
+        The paper's three filters: the fixes applied at their validity epochs with ``lag``,
+        on arrival as if current (:class:`sinslab.fusion.lag.OnArrival`), or by an ideal
+        receiver whose fix of time t arrives at t.
+    lag : lag policy
+        The lagged update of the lag-aware mode (:mod:`sinslab.fusion.lag`):
+        :class:`StoredStateUpdate` (paper 003) or
+        :class:`sinslab.fusion.lag.ExactReprocessing`; :func:`lag_policy` makes one of
+        their names.
     height : array_like (N+1,), float or sinslab.nav.strapdown.HeldHeight
         External height [m] at the IMU epochs (barometer / map); the vertical channel is
         held to it (the model has no vertical channel). A ``HeldHeight`` shared by the
@@ -691,25 +700,35 @@ def integrate(imu, init, fixes: Fixes, model: es.ErrorModel, P0, *, mode="lag-aw
     -------
     Integration
     """
-    return integrate_many([(imu, init, fixes)], model, P0, mode=mode, lag_method=lag_method,
+    return integrate_many([(imu, init, fixes)], model, P0, mode=mode, lag=lag,
                           height=height, windows=windows, kf_dt=kf_dt, nsub=nsub, max_block=max_block,
                           discretization=discretization)[0]
 
 
-def check_integration(mode, lag_method, model, what):
+def lag_policy(name):
+    """The lag policy of a name: ``"paper003"`` (:class:`StoredStateUpdate`) or one of
+    :data:`sinslab.fusion.lag.POLICIES`."""
+    return _lag.lag_policy(name, extra=(StoredStateUpdate,))
+
+
+def mode_policy(mode, lag):
+    """The lag policy a mode of :data:`MODES` runs with: ``lag`` but for ``"lag-ignore"``
+    (:class:`sinslab.fusion.lag.OnArrival`)."""
+    return _lag.OnArrival() if mode == "lag-ignore" else lag
+
+
+def check_integration(mode, model, what):
     """The arguments an integration shares: returns the model's layout, or ValueError
     naming the bad one."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-    if lag_method not in ("paper003", "exact"):
-        raise ValueError(f"lag_method must be 'paper003' or 'exact', got {lag_method!r}")
     lay = model.layout
     if lay.n != 16 or lay.names[:3] != ("phi", "dv", "dp"):
         raise ValueError(f"{what} needs the 16-state horizontal model, got {lay!r}")
     return lay
 
 
-def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag_method="paper003",
+def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag=StoredStateUpdate(),
                    height, windows=None, kf_dt=1.0, nsub=2, max_block=60.0,
                    discretization="series") -> list:
     """:func:`integrate` for the runs of a Monte Carlo campaign, in lockstep on the run axis
@@ -721,7 +740,7 @@ def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag_meth
         Each run's measured increments, initial state and fixes. The runs share the IMU
         grid and the fix schedule (the request plan of a constant latency,
         :func:`plan_fixes`); their errors and fix values are their own.
-    model, P0, mode, lag_method, height, windows, kf_dt, nsub, max_block, discretization
+    model, P0, mode, lag, height, windows, kf_dt, nsub, max_block, discretization
         As in :func:`integrate`, shared by the runs.
 
     Returns
@@ -731,8 +750,9 @@ def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag_meth
     """
     from sinslab.fusion.feedback import FeedbackLayout
     from sinslab.fusion.loosely_coupled import loosely_coupled_many
+    from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 
-    lay = check_integration(mode, lag_method, model, "integrate")
+    lay = check_integration(mode, model, "integrate")
     w = None if windows is None else check_windows(windows)
     lanes = []
     for imu, init, fixes in runs:
@@ -754,19 +774,19 @@ def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag_meth
         if J:
             _epoch_of(fixes.t, t0, T, "fix validity time")
         # 2-component (north, east) fixes against the horizontal model
-        lanes.append(dict(imu=imu, init=init, fix_t=fixes.t, fix_pos=np.stack([fixes.lat, fixes.lon], -1),
-                          fix_sigma=np.stack([fixes.sigma[:, 0], fixes.sigma[:, 1]], -1),
-                          fix_arrive=fixes.t if mode == "zero-lag" else fixes.t_arrive))
+        lanes.append((imu, init, FixSpec(fixes.t, np.stack([fixes.lat, fixes.lon], -1),
+                                         np.stack([fixes.sigma[:, 0], fixes.sigma[:, 1]], -1),
+                                         arrive=fixes.t if mode == "zero-lag" else fixes.t_arrive,
+                                         windows=w)))
     # the one INS + fix driver: vertical channel held; φ, δv, δp and the gyro constant drift
     # fed back (FEEDBACK)
     rs = loosely_coupled_many(
-        lanes, P0, model=model, lag="ignore" if mode == "lag-ignore" else "aware",
-        lag_method=StoredStateUpdate() if lag_method == "paper003" else "exact", windows=w,
-        kf_dt=kf_dt, nsub=nsub, feedback=FeedbackLayout.from_model(lay, gyro="eps_b", accel=None),
-        vertical="hold", height=height, max_block=max_block, model_every=0.0,
-        discretization=discretization, progress=False)
+        lanes, P0, model, ins=InsSpec(nsub=nsub, vertical="hold", height=height),
+        grid=FilterGrid(kf_dt, max_block=max_block, model_every=0.0, discretization=discretization),
+        lag=mode_policy(mode, lag), feedback=FeedbackLayout.from_model(lay, gyro="eps_b", accel=None),
+        progress=False)
     return [Integration(r.t, r.nav, r.x, r.sigma, r.gyro_bias, r.fix_t, r.t_applied, r.innovation,
-                        mode, lag_method) for r in rs]
+                        mode, lag) for r in rs]
 
 
 def horizontal_errors(nav, truth):

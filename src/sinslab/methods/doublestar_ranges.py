@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 from sinslab.core.earth import GEO_RADIUS
 from sinslab.core.records import Fixes
-from sinslab.methods.doublestar import Integration, StoredStateUpdate, check_integration, check_windows
+from sinslab.methods.doublestar import (Integration, StoredStateUpdate, check_integration, check_windows,
+                                        mode_policy)
 
 __all__ = ["integrate_ranges", "PathPlan", "plan_paths"]
 
@@ -109,13 +110,13 @@ def plan_paths(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, rng=N
 
 
 def integrate_ranges(imu, init, t, paths, model, P0, *, sat_lon1, sat_lon2, range_sigma, height_sigma,
-                     t_arrive=None, mode="lag-aware", lag_method="paper003", height, windows=None,
+                     t_arrive=None, mode="lag-aware", lag=StoredStateUpdate(), height, windows=None,
                      kf_dt=1.0, nsub=2, max_block=60.0, discretization="series") -> Integration:
     """SINS / two-GEO integration on the measured paths (see the module notes).
 
     Parameters
     ----------
-    imu, init, model, P0, mode, lag_method, height, windows, kf_dt, nsub, max_block, discretization
+    imu, init, model, P0, mode, lag, height, windows, kf_dt, nsub, max_block, discretization
         As in :func:`sinslab.methods.doublestar.integrate`.
     t : array_like (J,)
         Measurement times [s], filter epochs.
@@ -137,23 +138,20 @@ def integrate_ranges(imu, init, t, paths, model, P0, *, sat_lon1, sat_lon2, rang
     from sinslab.fusion import driver
     from sinslab.fusion.driver import LiveStream
     from sinslab.fusion.feedback import FeedbackLayout
-    from sinslab.fusion.lag import ExactReprocessing, OnArrival
     from sinslab.fusion.rdss import TwoGeoRanges
+    from sinslab.fusion.spec import FilterGrid
 
-    lay = check_integration(mode, lag_method, model, "integrate_ranges")
+    lay = check_integration(mode, model, "integrate_ranges")
     t = np.asarray(t, dtype=float)
     arrive = t if (t_arrive is None or mode == "zero-lag") else np.asarray(t_arrive, dtype=float)
     meas = TwoGeoRanges(t, paths, sat_lon1, sat_lon2, range_sigma, height_sigma, t_arrive=arrive,
                         windows=None if windows is None else check_windows(windows))
-    if mode == "lag-ignore":
-        policy = OnArrival()
-    else:
-        policy = StoredStateUpdate() if lag_method == "paper003" else ExactReprocessing()
+    policy = mode_policy(mode, lag)
     ins = LiveStream(imu, init, nsub=nsub, vertical="hold", height=height)
-    r = driver.run([ins], model, P0, [meas], kf_dt=kf_dt,
-                   feedback=[(0, FeedbackLayout.from_model(lay, gyro="eps_b", accel=None))], lag=policy,
-                   max_block=max_block, model_every=0.0, discretization=discretization)
+    grid = FilterGrid(kf_dt, max_block=max_block, model_every=0.0, discretization=discretization)
+    r = driver.run([ins], model, P0, [meas], grid=grid,
+                   feedback=[(0, FeedbackLayout.from_model(lay, gyro="eps_b", accel=None))], lag=policy)
     ap = r.applied
     inn = np.array(ap.innovation, dtype=float).reshape(-1, 2)
     return Integration(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], t[ap.item], ap.t_applied, inn, mode,
-                       lag_method)
+                       lag)

@@ -416,6 +416,7 @@ def joint_filter(stream1, streamk, model: DifferenceModel, P0, *, kf_dt, meas_ev
         ``x`` and ``sigma`` per epoch; ε_z1 is column ``model.layout.index(["eps_z_1"])``.
     """
     from sinslab.fusion import driver
+    from sinslab.fusion.spec import FilterGrid
     from sinslab.fusion.measurements import InsDifference
 
     T, t0, n_ep = streamk.bind(kf_dt)
@@ -431,9 +432,8 @@ def joint_filter(stream1, streamk, model: DifferenceModel, P0, *, kf_dt, meas_ev
         sigma = difference_sigma(stream1.row0()[0][7])
     meas = InsDifference(t, sigma, lever_arm=lever_arm, streams=(0, 1))
     every = 3600.0 if model_every is None else float(model_every)
-    return driver.run([stream1, streamk], model, P0, [meas], kf_dt=kf_dt, model_every=every,
-                      max_block=max(kf_dt * me, kf_dt), discretization=discretization, progress=progress,
-                      label=label)
+    grid = FilterGrid(kf_dt, max_block=max(kf_dt * me, kf_dt), model_every=every, discretization=discretization)
+    return driver.run([stream1, streamk], model, P0, [meas], grid=grid, progress=progress, label=label)
 
 
 def joint_transitions(model: DifferenceModel, T, rows1, rowsk, rates1, ratesk, noise_groups=None,

@@ -878,6 +878,7 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
     from sinslab.core.attitude import dcm_to_euler
     from sinslab.core.records import NavState
     from sinslab.fusion import driver as drv
+    from sinslab.fusion.spec import FilterGrid
     from sinslab.fusion.feedback import FeedbackLayout
 
     mt = master.t
@@ -911,7 +912,7 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
                            np.full(3, accel_bias_sigma0), np.full(3, accel_scale_sigma0)])
     fb = FeedbackLayout.from_model(lay, pos=None, gyro_scale=None, accel_scale=None)
     kf_dt = float(np.median(np.diff(win.t)))
-    res = drv.run([stream], model, np.diag(sig0 ** 2), [meas], kf_dt=kf_dt, feedback=fb)
+    res = drv.run([stream], model, np.diag(sig0 ** 2), [meas], grid=FilterGrid(kf_dt), feedback=fb)
     x = np.array(res.x, float)
     x[:, lay.slice("eps")] = res.gyro_bias[0]
     x[:, lay.slice("nabla")] = res.accel_bias[0]

@@ -887,7 +887,7 @@ def barometer_bias(*, tau=None, sigma=None, rw=0.0, name="baro"):
     A random constant, a random walk (``rw`` [m/√s]) or a first-order Gauss–Markov
     process (``tau`` [s], steady-state ``sigma`` [m], ``ḃ = −b/τ + w``, q = 2σ²/τ), the
     slow drift of the pressure-height relation with weather and temperature. The state
-    feeds nothing back to the INS; :class:`sinslab.fusion.barometer.Barometer` reads it.
+    feeds nothing back to the INS; :class:`sinslab.fusion.measurements.Barometer` reads it.
     """
     tau, q = _scale_noise(rw, tau, sigma, name)
     return SensorBlock(name, None, "markov" if tau else "constant", "z", "nav", tau, q, "m", "baro_bias")

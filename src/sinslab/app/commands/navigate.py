@@ -15,6 +15,9 @@ __all__ = ["NAVIGATE", "navigate_files", "register"]
 
 NAVIGATE = Command("navigate", "loosely coupled INS + position/velocity fixes on recorded data")
 
+#: ``--lag``: the lag policy (:mod:`sinslab.fusion.lag`) of each choice
+LAG_POLICY = {"aware": "exact", "ignore": "on-arrival"}
+
 
 # --------------------------------------------------------------------------- the CLI ---
 def _vec3(text, kind, what):
@@ -100,9 +103,9 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     """
     from sinslab.app.validate import check_mount, check_navigate_options
 
-    check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag, imu_delay=imu_delay,
-                           max_gap=max_gap, lag=lag, time_sync=time_sync, rest=rest, aid=aid,
-                           lever_arm=lever_arm)
+    lever_arm = check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag,
+                                       imu_delay=imu_delay, max_gap=max_gap, lag=lag, time_sync=time_sync,
+                                       rest=rest, aid=aid, lever_arm=lever_arm)
     check_mount(mount, frame)
     if isinstance(init, (str, type(None))):
         _parse_init(init)
@@ -154,9 +157,11 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         kw["columns"] = columns
     aids = _parse_aid(aid)
     # option values checked before any file is read
+    from sinslab.app.error_model import NavOptionsDraft
     from sinslab.data.columns import FIX_KEYS, parse_column_map
+    from sinslab.fusion.lag import lag_policy
     from sinslab.data.tables import parse_quality_filter
-    _vehicle_options(NavOptions(), vehicle or {}, False)
+    _vehicle_options(NavOptionsDraft(NavOptions()), vehicle or {}, False)
     parse_quality_filter(fix_quality)
     parse_column_map(fix_columns, keys=FIX_KEYS, option="--fix-columns")
     if (vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
@@ -207,10 +212,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if span > 0 and fix_latency >= span:
         raise ValueError(f"--fix-latency {fix_latency:g}: at least the {span:.1f} s the fixes and the "
                          f"IMU record share, so no fix would arrive before the record ends")
-    opt = options or NavOptions()
+    # the options are assembled here and made once (frozen, checked) before the run
+    opt = NavOptionsDraft(options or NavOptions())
     if lever_arm is not None:
-        opt.lever_arm = tuple(_vec3(lever_arm, "length", "--lever-arm") if isinstance(lever_arm, str)
-                              else lever_arm)
+        opt.lever_arm = lever_arm
     sync = None
     if time_sync == "auto":
         # without a lever arm a clock offset cannot be told from the antenna's lag in turns
@@ -258,7 +263,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
 
         check_outages("--outages", outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
     opt.fix_latency = float(fix_latency)
-    opt.lag = lag
+    opt.lag = lag_policy(LAG_POLICY[lag])
     opt.scale_factors = bool(scale_factors) or opt.scale_factors
     ini = _parse_init(init) if isinstance(init, (str, type(None))) else dict(init)
     if "heading" in ini:
@@ -268,6 +273,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if "course_spread" in ini:
         opt.heading_straight = ini["course_spread"]
     opt.gnss_raw = raw_gnss
+    opt = opt.build()
     res = navigate_recorded(imu, fx, opt)
     if res.fix_t.size == 0 and raw_gnss is None:
         raise ValueError(f"{fix_name}: no fix was applied (outages, latency or the record's end "
@@ -835,14 +841,13 @@ def _spill_smoother(opt, imu, fx):
 def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1):
     """Forward and smoothed solutions side by side, their errors against the fixes that
     were not used (inside outages; all fixes without outages), figures."""
-    import dataclasses
 
     from sinslab.app import plotting
     from sinslab.core import earth as E
     from sinslab.fusion.recorded import fix_errors
     sm = res.smoothed
     t, err_f, _ = fix_errors(res, fx)
-    _, err_s, _ = fix_errors(dataclasses.replace(res, nav=sm.nav), fx)
+    _, err_s, _ = fix_errors(res.with_nav(sm.nav), fx)
     hz_f, hz_s = np.hypot(err_f[:, 0], err_f[:, 1]), np.hypot(err_s[:, 0], err_s[:, 1])
     in_out = np.zeros(t.size, bool)
     mids = []

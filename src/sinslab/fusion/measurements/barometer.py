@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sinslab.fusion.measurements import Epoch, Timed
+from sinslab.fusion.measurements.base import Epoch
+from sinslab.fusion.measurements.schedule import Timed
 
 __all__ = ["Barometer"]
 

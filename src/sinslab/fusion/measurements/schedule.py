@@ -1,0 +1,166 @@
+"""When a measurement's items are processed: the arrival epochs of timed items
+(:func:`arrival_epochs`, :class:`Timed`), measurements held on filter epochs inside
+intervals (``_OnEpochs``) and the innovation gate that may refuse an update
+(:class:`InnovationGate`)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["arrival_epochs", "Timed", "InnovationGate"]
+
+
+def arrival_epochs(t_valid, t_arrive, grid, *, outages=(), windows=None):
+    """Arrival epochs of time-stamped records: the first filter epoch at or after each
+    arrival; records arriving after the run, valid inside an outage ``(start, length)``
+    [s], or processed outside every window ``(start, end)`` [s] are dropped.
+
+    Returns
+    -------
+    dict
+        ``{epoch index: [record indices]}``.
+    """
+    t_valid = np.asarray(t_valid, dtype=float)
+    n_ep = grid.n
+    t_ep = grid.t
+    e_arr = grid.epoch_at_or_after(t_arrive)
+    keep = e_arr <= n_ep
+    for s, ln in outages:
+        keep &= ~((t_valid >= s) & (t_valid < s + ln))
+    if windows is not None:
+        w = np.asarray(windows, dtype=float).reshape(-1, 2)
+        te = t_ep[np.minimum(e_arr, n_ep)]
+        keep &= ((te[:, None] >= w[:, 0] - 1e-9) & (te[:, None] <= w[:, 1] + 1e-9)).any(1)
+    out = {}
+    for j in np.flatnonzero(keep):
+        out.setdefault(int(e_arr[j]), []).append(int(j))
+    return out
+
+
+class Timed:
+    """Time stamps and schedule shared by the fix measurements (``t_valid``, ``t_arrive``,
+    outages and windows: :func:`arrival_epochs`); a measurement of time-stamped records
+    subclasses it and calls ``_init_times``."""
+
+    def _init_times(self, t_valid, t_arrive, outages, windows):
+        self.t_valid = np.atleast_1d(np.asarray(t_valid, dtype=float))
+        self.t_arrive = (self.t_valid.copy() if t_arrive is None
+                         else np.atleast_1d(np.asarray(t_arrive, dtype=float)))
+        if self.t_arrive.shape != self.t_valid.shape:
+            raise ValueError(f"{len(self.t_arrive)} arrival times for {len(self.t_valid)} fixes")
+        self.outages = tuple(outages)
+        self.windows = windows
+
+    def __len__(self):
+        return self.t_valid.size
+
+    def epochs(self, grid):
+        return arrival_epochs(self.t_valid, self.t_arrive, grid, outages=self.outages,
+                              windows=self.windows)
+
+    def times(self, item):
+        return float(self.t_valid[item]), float(self.t_arrive[item])
+
+
+def _intervals(intervals):
+    if intervals is None:
+        return None
+    w = np.asarray(intervals, dtype=float).reshape(-1, 2)
+    if not np.all(np.isfinite(w)) or np.any(w[:, 1] < w[:, 0]):
+        raise ValueError("intervals must be finite (start, end) pairs [s] with end >= start")
+    return w
+
+
+class InnovationGate:
+    """Reject an update whose innovation the filter's own covariance cannot explain.
+
+    An aiding measurement is an assumption (the vehicle is at rest, does not slide
+    sideways); where it is false its innovation ``ν = z − H x`` is far outside
+    ``S = H P Hᵀ + R``. The update is applied only when ``νᵀ S⁻¹ ν`` is at most the
+    ``1 − p`` quantile of χ² with ``m`` degrees of freedom (``m`` = rows of ``z``);
+    a consistent measurement is rejected with probability ``p``.
+
+    Attributes
+    ----------
+    p : float
+        False-rejection probability per update.
+    rejected : list of float
+        Times [s] of the rejected updates.
+    passed : int
+        Number of updates let through.
+    """
+
+    def __init__(self, p=1e-6):
+        if not (0 < p < 1):
+            raise ValueError(f"gate probability must be in (0, 1), got {p}")
+        self.p = float(p)
+        self.rejected = []
+        self.passed = 0
+        self._limit = {}
+
+    def limit(self, m):
+        """χ² threshold for ``m`` rows."""
+        if m not in self._limit:
+            from scipy.stats import chi2
+            self._limit[m] = float(chi2.isf(self.p, m))
+        return self._limit[m]
+
+    def passes(self, x, P, z, H, R, t):
+        """True when the update ``(z, H, R)`` against the prior ``x, P`` lies inside the
+        gate; a rejection is recorded at ``t``."""
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        H = np.atleast_2d(H)
+        R = np.asarray(R, dtype=float)
+        nu = z - H @ x
+        S = H @ P @ H.T + (np.diag(np.broadcast_to(R, z.shape)) if R.ndim < 2 else R)
+        try:
+            nis = float(nu @ np.linalg.solve(S, nu))
+        except np.linalg.LinAlgError:
+            nis = math.inf
+        if nis <= self.limit(z.size):
+            self.passed += 1
+            return True
+        self.rejected.append(float(t))
+        return False
+
+
+class _OnEpochs:
+    """Items are filter epochs (the item is the epoch index), optionally restricted to
+    time intervals and thinned to every ``every``-th epoch; available at once. ``gate``:
+    an :class:`InnovationGate` (or its false-rejection probability) the driver applies
+    before each update (None: every update applied)."""
+
+    def _init_sched(self, intervals, every, stream, gate=None):
+        self.intervals = _intervals(intervals)
+        self.every = int(every)
+        if self.every < 1:
+            raise ValueError(f"every must be >= 1, got {every}")
+        self.stream = int(stream)
+        self._t = None
+        self.gate = gate if (gate is None or isinstance(gate, InnovationGate)) else InnovationGate(gate)
+
+    def _keep(self, t):
+        keep = np.ones(t.size, dtype=bool)
+        keep[0] = False                                   # no step rate before epoch 0
+        if self.intervals is not None:
+            w = self.intervals
+            keep &= ((t[:, None] >= w[:, 0] - 1e-9) & (t[:, None] <= w[:, 1] + 1e-9)).any(1)
+        return keep
+
+    def epochs(self, grid):
+        t = grid.t
+        self._t = t
+        idx = np.flatnonzero(self._keep(t))[::self.every]
+        return {int(k): [int(k)] for k in idx}
+
+    def times(self, item):
+        t = float(self._t[item])
+        return t, t
+
+
+def _sigma(sigma, m, what):
+    s = np.broadcast_to(np.asarray(sigma, dtype=float), (m,)).copy()
+    if not np.all(s > 0) or not np.all(np.isfinite(s)):
+        raise ValueError(f"{what} sigma must be finite and > 0, got {sigma}")
+    return s
