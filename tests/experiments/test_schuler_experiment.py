@@ -87,8 +87,8 @@ def test_config_errors():
     exp = get("schuler-suppression")
     with pytest.raises(ConfigError, match="scenario.kind"):
         resolve(exp.config, sets=["scenario.kind=boat"])
-    with pytest.raises(ConfigError, match="ship.gyro_bias"):
-        resolve(exp.config, sets=["ship.gyro_bias=0.01 m"])
+    with pytest.raises(ConfigError, match="ship.imu.gyro_bias"):
+        resolve(exp.config, sets=["ship.imu.gyro_bias=0.01 m"])
     with pytest.raises(ConfigError, match="init.mode"):
         resolve(exp.config, sets=["init.mode=guess"])
     with pytest.raises(ConfigError, match="scenario.t1"):

@@ -21,10 +21,11 @@ Claims (each computed, each able to fail):
 
 Monte Carlo (``--runs N``, N > 1; ``--scheduler ADDRESS`` honoured): besides the single
 run above, N runs through :func:`sinslab.estimation.montecarlo.run_campaign` (Dask; a local cluster by
-default). In this mode the configured biases, scale factors and initial errors are **1σ
-values**: each run draws every axis N(0, σ²) independently (:func:`mc_batch`), plus its own
-white noise, navigates the same true trajectory (regenerated deterministically once per
-worker, not shipped) and returns its errors every ``montecarlo.output_interval``. A
+default). Each run draws its constant biases and scale factors from the ``imu.*_sigma`` terms
+(``imu.gyro_bias_sigma``, ...; the single run uses ``imu.gyro_bias``, ...) and its initial
+errors from the configured ``init`` errors read as **1σ values**, every axis N(0, σ²)
+independently (:func:`mc_batch`), plus its own white noise, navigates the same true
+trajectory (regenerated deterministically once per worker, not shipped) and returns its errors every ``montecarlo.output_interval``. A
 covariance analysis of the matching φ-angle model (:func:`covariance_analysis`: horizontal
 core when the height is held, full core when free; none for the damped channel) gives σ
 at the same epochs. Claims ``mc_rms_over_sigma_<error>`` (position E/N, velocity E/N, φ
@@ -40,7 +41,8 @@ import numpy as np
 from pydantic import field_validator, model_validator
 
 from sinslab.core import units
-from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
+from sinslab.experiments.base import (Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section,
+                                      imu_section)
 
 NAME = "free-inertial"
 #: The Monte Carlo campaign (and so --scheduler) needs runs >= 2; one run is the single run.
@@ -85,15 +87,18 @@ class Scenario(Section):
         return v
 
 
-class Imu(Section):
-    gyro_bias: QV("angular_rate") = Field("0.01 deg/h", description="constant gyro bias (x, y, z or one for all)")
-    gyro_arw: QV("angle_random_walk", ge="0 deg/sqrt(h)") = Field("0.001 deg/sqrt(h)",
-                                                                  description="gyro angle random walk")
-    gyro_scale_factor: QV("dimensionless", ge="-0.1", le="0.1") = Field("0 ppm", description="gyro scale-factor error")
-    accel_bias: QV("acceleration") = Field("50 ug", description="constant accelerometer bias")
-    accel_vrw: QV("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field("5 ug/sqrt(Hz)",
-                                                                      description="accelerometer velocity random walk")
-    accel_scale_factor: QV("dimensionless", ge="-0.1", le="0.1") = Field("0 ppm", description="accelerometer scale-factor error")
+Imu = imu_section("Imu", {
+    "gyro_bias": ("0.01 deg/h", "x, y, z or one for all"),
+    "gyro_arw": "0.001 deg/sqrt(h)",
+    "gyro_scale_factor": "0 ppm",
+    "accel_bias": "50 ug",
+    "accel_vrw": "5 ug/sqrt(Hz)",
+    "accel_scale_factor": "0 ppm",
+    "gyro_bias_sigma": ("0.01 deg/h", "Monte Carlo (--runs N > 1)"),
+    "gyro_scale_factor_sigma": ("0 ppm", "Monte Carlo"),
+    "accel_bias_sigma": ("50 ug", "Monte Carlo"),
+    "accel_scale_factor_sigma": ("0 ppm", "Monte Carlo"),
+})
 
 
 class Init(Section):
@@ -254,10 +259,8 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
         nsub=n.nsub, vertical=n.vertical, out_every=mc_every,
         att_sigma=np.abs(np.asarray(ini.att_err, float)), vel_sigma=np.abs(np.asarray(ini.vel_err, float)),
         pos_sigma=np.abs(np.asarray(ini.pos_err, float)),
-        gyro_bias_sigma=np.abs(np.broadcast_to(np.asarray(i.gyro_bias, float), (3,))),
-        accel_bias_sigma=np.abs(np.broadcast_to(np.asarray(i.accel_bias, float), (3,))),
-        gyro_sf_sigma=np.abs(np.broadcast_to(np.asarray(i.gyro_scale_factor, float), (3,))),
-        accel_sf_sigma=np.abs(np.broadcast_to(np.asarray(i.accel_scale_factor, float), (3,))),
+        gyro_bias_sigma=i.sigma("gyro_bias"), accel_bias_sigma=i.sigma("accel_bias"),
+        gyro_sf_sigma=i.sigma("gyro_scale_factor"), accel_sf_sigma=i.sigma("accel_scale_factor"),
         gyro_arw=np.broadcast_to(np.asarray(i.gyro_arw, float), (3,)).copy(),
         accel_vrw=np.broadcast_to(np.asarray(i.accel_vrw, float), (3,)).copy())
 
@@ -401,9 +404,9 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
     _mc_setup(spec, gen)                               # this process (sync / 1-worker paths)
     cov_every, mc_every = _mc_strides(cfg)
     upd = cfg.nav.nsub * float(cfg.scenario.sample_interval)
-    notes = [f"Monte Carlo: {n} runs; in this mode the configured biases, scale factors and "
-             "initial errors are 1σ values: every run draws each axis N(0, σ²) independently, "
-             "plus its own white noise (ARW, VRW); all runs share one true trajectory. Errors "
+    notes = [f"Monte Carlo: {n} runs; every run draws its biases and scale factors from "
+             "imu.*_sigma and its initial errors from init (read as 1σ), each axis N(0, σ²) "
+             "independently, plus its own white noise (ARW, VRW); all runs share one true trajectory. Errors "
              f"every {mc_every * upd:g} s; covariance analysis with {cov_every * upd:g} s steps."]
     cov_ok = cfg.nav.vertical != "damped"
     sigma = None
@@ -548,11 +551,7 @@ def run(cfg: Config, ctx) -> Result:
     gen = trajectory.generate(segments, start, dt, duration=T, mount=mount)
     truth_full, ideal = gen.truth, gen.imu
 
-    errors = imu_mod.ImuErrors.from_datasheet(
-        gyro_bias=cfg.imu.gyro_bias.text, gyro_arw=cfg.imu.gyro_arw.text,
-        gyro_scale_factor=cfg.imu.gyro_scale_factor.text, accel_bias=cfg.imu.accel_bias.text,
-        accel_vrw=cfg.imu.accel_vrw.text, accel_scale_factor=cfg.imu.accel_scale_factor.text)
-    meas = imu_mod.apply(ideal, errors, ctx.rng(1))
+    meas = imu_mod.apply(ideal, cfg.imu.errors(), ctx.rng(1))
 
     # initial state: truth + configured errors
     t0 = NavState.from_series(truth_full, 0)
