@@ -269,8 +269,6 @@ def _mc_setup(spec, gen=None):
     """The worker's copy of the trajectory and of what every run shares (truth at the output
     epochs, the held vertical rate): made once per process and cached."""
     from sinslab.sim import trajectory
-    from sinslab.core import earth
-    from sinslab.core.attitude import euler_to_dcm
     from sinslab.core.records import NavState
     from sinslab.nav import strapdown
 
@@ -285,13 +283,11 @@ def _mc_setup(spec, gen=None):
     m_out = (len(gen.imu) // spec["nsub"]) // spec["out_every"]
     ep = np.arange(m_out + 1) * per
     tr = truth.at(ep)
-    rm, rn = earth.radii(tr.lat, tr.h)
-    att = tr.att_imu if tr.att_imu is not None else tr.att
     h_full = truth.h.copy()
     # every run holds to the same true height: its vertical rate is computed once here
     vup = strapdown.held_vup(h_full, gen.imu.dt) if spec["vertical"] == "hold" else None
-    S = dict(ideal=gen.imu, mount=gen.mount, h_full=h_full, vup=vup, t=tr.t, lat=tr.lat, lon=tr.lon,
-             h=tr.h, vel=tr.vel, C=euler_to_dcm(att), rm=rm, rn=rn, init=NavState.from_series(truth, 0))
+    S = dict(ideal=gen.imu, mount=gen.mount, h_full=h_full, vup=vup, truth=tr,
+             init=NavState.from_series(truth, 0))
     _MC_CACHE.clear()                                  # one trajectory per process at a time
     _MC_CACHE[spec["key"]] = S
     return S
@@ -329,7 +325,7 @@ def _mc_navigate(meas, init, spec, S, vup):
     nav = strapdown.navigate(meas, init, nsub=spec["nsub"], vertical=spec["vertical"],
                              height=S["h_full"] if spec["vertical"] != "free" else None, vup=vup,
                              mount=S["mount"], out_every=spec["out_every"], progress=False)
-    if nav.t.size != S["t"].size:
+    if nav.t.size != S["truth"].t.size:
         raise RuntimeError("Monte Carlo navigation and truth epochs disagree")
     return nav
 
@@ -358,16 +354,21 @@ def _mc_rows(nav):
 
 def _mc_errors(rows, S):
     """Errors (..., M, 9) of :func:`mc_run` from rows (..., M, 9) of :func:`_mc_rows`
-    (one run or several stacked in front), element by element against the truth."""
-    from sinslab.core.attitude import euler_to_dcm, misalignment, wrap_pi
+    (one run or several stacked in front), by :func:`sinslab.nav.compare.row_errors` in one
+    pass over all runs."""
+    from sinslab.core.records import NavSeries
+    from sinslab.nav import compare
 
-    out = np.empty(rows.shape)
-    out[..., 0] = wrap_pi(rows[..., 0] - S["lon"]) * S["rn"] * np.cos(S["lat"])
-    out[..., 1] = (rows[..., 1] - S["lat"]) * S["rm"]
-    out[..., 2] = rows[..., 2] - S["h"]
-    out[..., 3:6] = rows[..., 3:6] - S["vel"]
-    out[..., 6:9] = misalignment(S["C"], euler_to_dcm(rows[..., 6:9]))
-    return out
+    flat = rows.reshape(-1, 9)
+    t = S["truth"].t
+    nav = NavSeries(t=np.tile(t, flat.shape[0] // t.size), lat=flat[:, 1], lon=flat[:, 0], h=flat[:, 2],
+                    vel=flat[:, 3:6], att=flat[:, 6:9])
+    e = compare.row_errors(nav, S["truth"], imu_frame=True)
+    return np.stack([e[k] for k in _MC_ERRORS], -1).reshape(rows.shape)
+
+
+#: The columns of a Monte Carlo run's errors, as :func:`sinslab.nav.compare.row_errors` names them.
+_MC_ERRORS = ("east", "north", "up", "vE", "vN", "vU", "phiE", "phiN", "phiU")
 
 
 def mc_batch(seeds, spec):
@@ -537,6 +538,7 @@ def run(cfg: Config, ctx) -> Result:
     from sinslab.core import earth
     from sinslab.core.attitude import wrap_pi, yaw_to_heading
     from sinslab.core.records import NavState
+    from sinslab.nav import compare
     from sinslab.methods.free_inertial import (envelopes, fit_schuler_period,
                                               linear_error_prediction)
     from sinslab.app import plotting as P
@@ -573,22 +575,17 @@ def run(cfg: Config, ctx) -> Result:
         raise RuntimeError("navigation and truth epochs disagree")
     t = nav.t - nav.t[0]
     rm_t, rn_t = earth.radii(truth.lat, truth.h)
-    pos_err = np.column_stack([wrap_pi(nav.lon - truth.lon) * rn_t * np.cos(truth.lat),
-                               (nav.lat - truth.lat) * rm_t, nav.h - truth.h])
-    vel_err = nav.vel - truth.vel
-    att_err = np.column_stack([wrap_pi(nav.att[:, 0] - truth.att[:, 0]),
-                               wrap_pi(nav.att[:, 1] - truth.att[:, 1]),
-                               -wrap_pi(nav.att[:, 2] - truth.att[:, 2])])
+    e = compare.row_errors(nav, truth)
+    pos_err = np.column_stack([e["east"], e["north"], e["up"]])
+    vel_err = np.column_stack([e["vE"], e["vN"], e["vU"]])
+    att_err = np.column_stack([e["pitch"], e["roll"], -e["yaw"]])        # heading error = −yaw error
     hpos = np.hypot(pos_err[:, 0], pos_err[:, 1])
     hvel = np.hypot(vel_err[:, 0], vel_err[:, 1])
     lat0, h_mean = float(truth.lat[0]), float(np.mean(truth.h))
 
     # ---- oracle 1: the linear error model driven by the realised sensor errors
-    from sinslab.core.attitude import euler_to_dcm, misalignment
-
-    att_t = truth.att_imu if truth.att_imu is not None else truth.att
-    att_n = nav.att_imu if nav.att_imu is not None else nav.att
-    phi_act = misalignment(euler_to_dcm(att_t), euler_to_dcm(att_n))
+    ei = compare.row_errors(nav, truth, imu_frame=True)
+    phi_act = np.column_stack([ei["phiE"], ei["phiN"], ei["phiU"]])
     core = {"hold": "horizontal", "free": "full"}.get(n.vertical)
     lin = None
     if core is not None:
