@@ -221,7 +221,7 @@ def _setup(cfg: Config, quick=False):
     start = tr.Start(lat=float(s.latitude), lon=float(s.longitude), h=float(s.height),
                      speed=float(s.speed), heading=float(s.heading))
     gen = tr.generate(presets.aircraft_mixed(T), start, dt, duration=T)
-    model_args = dict(gyro_white=float(im.gyro_arw), gyro_markov_sigma=float(im.gyro_bias_instability),
+    model_args = dict(gyro_arw=float(im.gyro_arw), gyro_markov_sigma=float(im.gyro_bias_instability),
                       gyro_markov_tau=float(im.gyro_corr_time),
                       accel_markov_sigma=float(im.accel_bias_instability),
                       accel_markov_tau=float(im.accel_corr_time))
