@@ -252,6 +252,7 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
     import pickle
 
     s, n, i, ini = cfg.scenario, cfg.nav, cfg.imu, cfg.init
+    errs = i.errors()
     cov_every, mc_every = _mc_strides(cfg)
     traj = (segments, start, mount, float(s.sample_interval), float(s.duration))
     return dict(
@@ -261,8 +262,7 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
         pos_sigma=np.abs(np.asarray(ini.pos_err, float)),
         gyro_bias_sigma=i.sigma("gyro_bias"), accel_bias_sigma=i.sigma("accel_bias"),
         gyro_sf_sigma=i.sigma("gyro_scale_factor"), accel_sf_sigma=i.sigma("accel_scale_factor"),
-        gyro_arw=np.broadcast_to(np.asarray(i.gyro_arw, float), (3,)).copy(),
-        accel_vrw=np.broadcast_to(np.asarray(i.accel_vrw, float), (3,)).copy())
+        gyro_arw=errs.gyro_arw.copy(), accel_vrw=errs.accel_vrw.copy())
 
 
 def _mc_setup(spec, gen=None):
