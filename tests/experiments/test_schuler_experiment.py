@@ -80,7 +80,7 @@ def test_turntable_aligned_quick(turntable_aligned):
             if not c["passed"]:
                 assert "noise" in c["statement"]
     assert s["config"]["scenario"]["kind"] == "turntable"
-    assert s["config"]["turntable"]["gyro_arw"] == "0.005 deg/sqrt(h)"
+    assert s["config"]["turntable"]["imu"]["gyro_arw"] == "0.005 deg/sqrt(h)"
 
 
 def test_config_errors():
