@@ -56,8 +56,8 @@ def run(hours: float) -> dict:
     meas, w, c = _timed(lambda: imu_.apply(gen.imu, errors, 1))
     res["imu_errors"] = (w, c)
     opt = schuler.AlignmentOptions(coarse_time=float(cfg.align.coarse_time),
-                                   gyro_arw=float(cfg.align.gyro_noise_floor),
-                                   accel_vrw=float(cfg.align.accel_noise_floor))
+                                   gyro_arw=float(cfg.align.gyro_arw_floor),
+                                   accel_vrw=float(cfg.align.accel_vrw_floor))
     out, w, c = _timed(lambda: schuler.delayed_alignment(meas, lat, lon, 0.0, t1, options=opt,
                                                          out_every=25, progress=False))
     res["method"] = (w, c)

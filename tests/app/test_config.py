@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from sinslab.core import units
-from sinslab.app.config import ConfigError, ExperimentConfig, Field, Q, QV, Quantity, Section, config_to_toml, describe, dump_toml, load_toml, parse_set, resolve
+from sinslab.app.config import (ConfigError, ExperimentConfig, Field, ImuSection, Q, QV, Quantity, Section,
+                                config_to_toml, describe, dump_toml, imu_section, load_toml, parse_set, resolve)
 
 
 class Scen(Section):
@@ -138,3 +139,50 @@ def test_describe_lists_dotted_keys():
     keys = {k: v for k, v, _ in describe(Cfg)}
     assert keys["scenario.latitude"] == "34.246 deg"
     assert keys["seed"] == 0 and "imu.gyro_bias" in keys
+
+
+SharedImu = imu_section("SharedImu", {
+    "gyro_bias": "[0.003, -0.002, 0.0005] deg/h", "gyro_arw": "0.001 deg/sqrt(h)",
+    "gyro_bias_instability": "0.02 deg/h", "gyro_corr_time": "300 s",
+    "accel_bias": "50 ug", "accel_vrw": "10 ug/sqrt(Hz)", "accel_scale_factor": "-120 ppm",
+    "accel_bias_sigma": "100 ug",
+}, scalar=("gyro_arw",), renamed={"gyro_noise": "gyro_arw"})
+
+
+class ImuCfg(ExperimentConfig):
+    imu: SharedImu = SharedImu()
+
+
+def test_imu_section_errors_equal_the_datasheet_parse():
+    """The shared IMU section parses once; its ImuErrors equal those the simulator's own
+    datasheet parser (an independent path, sim.imu.ImuErrors.from_datasheet) builds from the
+    same text, and the 1σ term stays out of the errors."""
+    from sinslab.sim.imu import ImuErrors
+
+    c = resolve(ImuCfg, sets=["imu.accel_vrw=[5, 6, 7] ug/sqrt(Hz)"])
+    assert isinstance(c.imu, ImuSection)
+    texts = {k: v for k, v in c.imu.model_dump(mode="json").items() if not k.endswith("_sigma")}
+    ref = ImuErrors.from_datasheet(**texts)
+    got = c.imu.errors()
+    for k in texts:
+        assert np.array_equal(getattr(got, k), getattr(ref, k)), k
+    assert np.array_equal(got.accel_bias, np.full(3, 50 * units.ug))         # not the 1σ (100 ug)
+    assert np.array_equal(c.imu.sigma("accel_bias"), np.full(3, 100 * units.ug))
+    assert not got.gyro_scale_factor.any()                                   # a term it lacks is zero
+
+
+@pytest.mark.parametrize("item, words", [
+    ("imu.gyro_noise=1 deg/sqrt(h)", ["config key imu.gyro_noise", "renamed: use imu.gyro_arw"]),
+    ("imu.gyro_nois=1 deg/sqrt(h)", ["unknown config key imu.gyro_nois", "did you mean imu.gyro_arw"]),
+    ("imu.gyro_arw=[1, 2, 3] deg/sqrt(h)", ["imu.gyro_arw"]),               # a scalar term
+    ("imu.accel_bias_sigma=-1 ug", ["imu.accel_bias_sigma", "out of range"]),
+])
+def test_imu_section_errors_name_the_key(item, words):
+    with pytest.raises(ConfigError) as e:
+        resolve(ImuCfg, sets=[item])
+    assert all(w in str(e.value) for w in words), str(e.value)
+
+
+def test_imu_section_refuses_unknown_terms():
+    with pytest.raises(ValueError, match="gyro_drift"):
+        imu_section("Bad", {"gyro_drift": "1 deg/h"})

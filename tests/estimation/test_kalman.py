@@ -183,6 +183,39 @@ def test_table_index_and_windows():
         lin.propagate_covariance(P0, Phi, Q, H, R, n_steps=K, windows=[(100, 200)], t=t)
 
 
+def test_kept_gains_are_the_batch_gain_and_rerun_the_filter():
+    """The gain kept by the covariance run (sequential scalar updates, composed) is the
+    batch gain ``P⁻Hᵀ(HP⁻Hᵀ + R)⁻¹`` of the textbook recursion (kalman.predict/update) at
+    every step, zero where nothing is measured, and the fixed-gain recursion
+    ``x⁺ = Φx + G(z − HΦx)`` reproduces the filter run on data."""
+    _, _, Phi, Q, H, R, P0, rng = _model()
+    K = 40
+    Phis = np.array([Phi * (1 + 0.01 * np.sin(k)) for k in range(K)])
+    z = rng.normal(size=(K, 2))
+    mask = rng.uniform(size=(K, 2)) < 0.6
+    x0 = rng.normal(size=6)
+    cov = lin.propagate_covariance(P0, Phis, Q, H, R, mask=mask, keep_gain=True)
+    assert cov.gain.shape == (K, 6, 2)
+    P = P0.copy()
+    for k in range(K):
+        _, P = kf.predict(np.zeros(6), P, Phis[k], Q)
+        on = mask[k]
+        G = np.zeros((6, 2))
+        if on.any():
+            Hu, Ru = H[on], R[np.ix_(on, on)]
+            G[:, on] = np.linalg.solve(Hu @ P @ Hu.T + Ru, Hu @ P).T
+            _, P, _, _ = kf.update(np.zeros(6), P, z[k], H, R, mask=on)
+        np.testing.assert_allclose(cov.gain[k], G, rtol=1e-10, atol=1e-14)
+    run = lin.run_linear(x0, P0, Phis, Q, H, R, z, mask=mask)
+    x = x0.copy()
+    for k in range(K):
+        x = Phis[k] @ x
+        x = x + cov.gain[k] @ np.where(mask[k], z[k] - H @ x, 0.0)
+        np.testing.assert_allclose(x, run.x[k + 1], rtol=1e-10, atol=1e-13)
+    with pytest.raises(ValueError, match="diagonal R"):
+        lin.propagate_covariance(P0, Phis, Q, H, R + 0.05, mask=mask, keep_gain=True)
+
+
 def test_error_budget_sums_to_total_and_scales_linearly():
     F, G, Phi, _, H, R, P0, rng = _model()
     T = 1.0

@@ -167,16 +167,17 @@ def test_quick_monte_carlo_matches_covariance_and_is_worker_independent(tmp_path
 
 
 def test_mc_batch_draws_and_navigates_like_the_covariance_model():
-    """Direct library check on a short static run (sync): the biases act as 1σ draws, so the
-    run-to-run spread of the east velocity error after 5 min matches the model's σ, and the
+    """Direct library check on a short static run (sync): the biases are drawn from their 1σ
+    (``imu.*_sigma``), so the run-to-run spread of the east velocity error after 5 min
+    matches the model's σ, and the
     covariance analysis reproduces the closed-form static tilt from an accelerometer bias."""
     from sinslab.estimation import montecarlo as mc
     from sinslab.sim import trajectory as tr
 
     cfg = resolve(fi.Config, sets=["scenario.motion=static", "scenario.duration=5 min",
-                                   "scenario.sample_interval=0.1 s", "imu.gyro_bias=0 deg/h",
+                                   "scenario.sample_interval=0.1 s", "imu.gyro_bias_sigma=0 deg/h",
                                    "imu.gyro_arw=0 deg/sqrt(h)", "imu.accel_vrw=0 ug/sqrt(Hz)",
-                                   "imu.accel_bias=100 ug", "runs=2"])
+                                   "imu.accel_bias_sigma=100 ug", "runs=2"])
     segs, start, mount = fi._motion(cfg)
     gen = tr.generate(segs, start, 0.1, duration=300.0, mount=mount)
     spec = fi._mc_spec(cfg, segs, start, mount)

@@ -80,15 +80,15 @@ def test_turntable_aligned_quick(turntable_aligned):
             if not c["passed"]:
                 assert "noise" in c["statement"]
     assert s["config"]["scenario"]["kind"] == "turntable"
-    assert s["config"]["turntable"]["gyro_arw"] == "0.005 deg/sqrt(h)"
+    assert s["config"]["turntable"]["imu"]["gyro_arw"] == "0.005 deg/sqrt(h)"
 
 
 def test_config_errors():
     exp = get("schuler-suppression")
     with pytest.raises(ConfigError, match="scenario.kind"):
         resolve(exp.config, sets=["scenario.kind=boat"])
-    with pytest.raises(ConfigError, match="ship.gyro_bias"):
-        resolve(exp.config, sets=["ship.gyro_bias=0.01 m"])
+    with pytest.raises(ConfigError, match="ship.imu.gyro_bias"):
+        resolve(exp.config, sets=["ship.imu.gyro_bias=0.01 m"])
     with pytest.raises(ConfigError, match="init.mode"):
         resolve(exp.config, sets=["init.mode=guess"])
     with pytest.raises(ConfigError, match="scenario.t1"):

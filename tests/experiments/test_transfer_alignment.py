@@ -26,7 +26,7 @@ def test_defaults_are_the_paper_scenario():
     assert cfg.runs == 200
     assert cfg.installation.large.text == "[10, 60, 8] deg"
     assert cfg.installation.error.text == "[40, 30, 20] arcmin"
-    assert cfg.imu.gyro_bias.text == "3.3 deg/h" and cfg.imu.accel_scale.text == "500 ppm"
+    assert cfg.imu.gyro_bias_sigma.text == "3.3 deg/h" and cfg.imu.accel_scale_factor_sigma.text == "500 ppm"
 
 
 def test_quick_run_contract_and_claims(quick_run):

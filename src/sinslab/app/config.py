@@ -26,6 +26,13 @@ remembers the text it came from (``q.text``), so that the resolved ``config.toml
 SI floats (``np.asarray(cfg.imu.gyro_bias)``). A bare number is refused unless the key
 names its unit (``duration_s: float``), as docs/architecture.md's conventions ask.
 
+The IMU of a simulated run is one shared section type, :class:`ImuSection`: an experiment
+builds its ``imu`` section with :func:`imu_section` from the catalogue :data:`IMU_TERMS`
+(the names of :class:`sinslab.sim.imu.ImuErrors`, one name per concept), choosing the
+terms it honours and their paper defaults, and reads the simulated errors with
+``cfg.imu.errors()``. A key that has been renamed stays known to its section
+(:attr:`Section.renamed`): using the old name is an error naming the new one.
+
 Resolution order (:func:`resolve`): model defaults (the paper's scenario) → the
 experiment's ``quick`` overrides (with ``--quick``) → the TOML file (``--config``) →
 ``--set key=value`` items. Every problem is a :class:`ConfigError` whose one-line message
@@ -39,16 +46,17 @@ import math
 import re
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any, Mapping
+from typing import Annotated, Any, ClassVar, Iterable, Mapping
 
 from pydantic import (BaseModel, PlainValidator, ConfigDict, Field, PlainSerializer,
-                      ValidationError, WithJsonSchema)
+                      ValidationError, WithJsonSchema, create_model)
 
 from sinslab.app.errors import UserError
 from sinslab.core import units
 from sinslab.core.toml import dump_toml
 
 __all__ = ["ConfigError", "Quantity", "QuantityVec", "Q", "QV", "Section", "ExperimentConfig",
+           "IMU_TERMS", "ImuSection", "imu_section",
            "load_toml", "parse_set", "deep_merge", "resolve", "dump_toml", "config_to_toml",
            "flatten", "describe", "Field"]
 
@@ -199,9 +207,15 @@ def QV(kind: str, n: int = 3, *, ge: str | None = None, gt: str | None = None,
 # ------------------------------------------------------------------ models --------------
 
 class Section(BaseModel):
-    """Base of every config section: unknown keys are errors."""
+    """Base of every config section: unknown keys are errors.
+
+    ``renamed`` maps a key this section used to have to its new key, relative to the
+    section (``{"gyro_noise": "gyro_arw"}``, or ``{"gyro_bias": "imu.gyro_bias"}`` for a key
+    moved into a sub-section): the old key is still refused, with the new one named.
+    """
 
     model_config = ConfigDict(extra="forbid", validate_default=True)
+    renamed: ClassVar[dict[str, str]] = {}
 
 
 class ExperimentConfig(Section):
@@ -209,6 +223,96 @@ class ExperimentConfig(Section):
 
     seed: int = Field(0, ge=0, description="seed of every random draw (same seed, same bytes)")
     runs: int = Field(1, ge=1, description="Monte Carlo runs (1 = a single simulation)")
+
+
+# ------------------------------------------------------------------ the IMU section ------
+
+#: The IMU error terms an ``imu`` section may expose: ``name -> (quantity kind, bounds,
+#: description)``; the names and SI meanings of :class:`sinslab.sim.imu.ImuErrors`. A true
+#: value the simulated IMU carries and a 1σ from which each run draws its own value are two
+#: concepts with two names: ``gyro_bias`` is the bias, ``gyro_bias_sigma`` its 1σ.
+IMU_TERMS: dict[str, tuple[str, dict, str]] = {
+    "gyro_bias": ("angular_rate", {}, "constant gyro bias (body x, y, z)"),
+    "gyro_bias_sigma": ("angular_rate", {"ge": "0 deg/h"},
+                        "1σ of the constant gyro bias, drawn per run"),
+    "gyro_arw": ("angle_random_walk", {"ge": "0 deg/sqrt(h)"}, "gyro angle random walk (white rate noise)"),
+    "gyro_bias_instability": ("angular_rate", {"ge": "0 deg/h"},
+                              "first-order Gauss–Markov gyro bias, steady-state σ"),
+    "gyro_corr_time": ("time", {"gt": "0 s"}, "correlation time of the Gauss–Markov gyro bias"),
+    "gyro_rrw": ("rate_random_walk", {"ge": "0 deg/h/sqrt(h)"}, "gyro rate random walk"),
+    "gyro_scale_factor": ("dimensionless", {"ge": "-0.1", "le": "0.1"}, "gyro scale-factor error"),
+    "gyro_scale_factor_sigma": ("dimensionless", {"ge": "0 ppm"}, "1σ of the gyro scale-factor error, drawn per run"),
+    "accel_bias": ("acceleration", {}, "constant accelerometer bias (body x, y, z)"),
+    "accel_bias_sigma": ("acceleration", {"ge": "0 ug"}, "1σ of the constant accelerometer bias, drawn per run"),
+    "accel_vrw": ("velocity_random_walk", {"ge": "0 ug/sqrt(Hz)"},
+                  "accelerometer velocity random walk (white specific-force noise)"),
+    "accel_bias_instability": ("acceleration", {"ge": "0 ug"},
+                               "first-order Gauss–Markov accelerometer bias, steady-state σ"),
+    "accel_corr_time": ("time", {"gt": "0 s"}, "correlation time of the Gauss–Markov accelerometer bias"),
+    "accel_rrw": ("accel_random_walk", {"ge": "0 ug/sqrt(s)"}, "accelerometer bias random walk"),
+    "accel_scale_factor": ("dimensionless", {"ge": "-0.1", "le": "0.1"}, "accelerometer scale-factor error"),
+    "accel_scale_factor_sigma": ("dimensionless", {"ge": "0 ppm"},
+                                 "1σ of the accelerometer scale-factor error, drawn per run"),
+}
+
+
+class ImuSection(Section):
+    """The IMU section of an experiment: a subset of :data:`IMU_TERMS` (built by
+    :func:`imu_section`), validated once, read by :meth:`errors`.
+
+    Each term is a :class:`Quantity` (one value for all axes) or a :class:`QuantityVec`
+    (x, y, z), SI. The ``*_sigma`` terms are not errors of the IMU but the spread a
+    campaign draws them from; :meth:`errors` leaves them out.
+    """
+
+    def errors(self):
+        """The simulated IMU's errors: :class:`sinslab.sim.imu.ImuErrors` of this section's
+        error terms (the ones it does not have are zero; ``*_sigma`` terms are left out)."""
+        import numpy as np
+        from sinslab.sim.imu import ImuErrors
+
+        return ImuErrors(**{k: np.asarray(getattr(self, k), dtype=float) for k in type(self).model_fields
+                            if k in IMU_TERMS and not k.endswith("_sigma")})
+
+    def sigma(self, name: str):
+        """The (3,) 1σ of term ``name`` (``"gyro_bias"`` reads ``gyro_bias_sigma``), SI."""
+        import numpy as np
+
+        return np.broadcast_to(np.asarray(getattr(self, f"{name}_sigma"), dtype=float), (3,)).copy()
+
+
+def imu_section(name: str, defaults: Mapping[str, str | tuple[str, str]], *,
+                scalar: bool | Iterable[str] = False, renamed: Mapping[str, str] | None = None,
+                doc: str = "") -> type[ImuSection]:
+    """An :class:`ImuSection` type exposing the terms of ``defaults`` (keys of :data:`IMU_TERMS`).
+
+    Parameters
+    ----------
+    name : str
+        Class name (shown nowhere a user sees; for reprs).
+    defaults : mapping
+        ``term -> default`` (a unit string, the paper's value) or ``term -> (default, note)``,
+        the note appended to the term's description.
+    scalar : bool or iterable of str
+        Terms taking one value for all axes (the experiment's model is isotropic); the others
+        take one value or three (x, y, z). ``True``: every term.
+    renamed : mapping, optional
+        Old key -> new key of this section (see :class:`Section`).
+    """
+    unknown = set(defaults) - set(IMU_TERMS)
+    if unknown:
+        raise ValueError(f"imu_section: unknown IMU term(s) {', '.join(sorted(unknown))}; "
+                         f"known: {', '.join(IMU_TERMS)}")
+    one = set(defaults) if scalar is True else set(scalar or ())
+    fields = {}
+    for term, value in defaults.items():
+        default, note = (value, "") if isinstance(value, str) else value
+        kind, bounds, desc = IMU_TERMS[term]
+        typ = Q(kind, **bounds) if term in one else QV(kind, **bounds)
+        fields[term] = (typ, Field(default, description=f"{desc}; {note}" if note else desc))
+    cls = create_model(name, __base__=ImuSection, __doc__=doc or ImuSection.__doc__, **fields)
+    cls.renamed = dict(renamed or {})
+    return cls
 
 
 # ------------------------------------------------------------------ sources -------------
@@ -324,8 +428,12 @@ def _format_error(model_cls, err: ValidationError, origins: dict[str, str]) -> s
             where = f" ({inner[-1]})"
     if e["type"] == "extra_forbidden":
         parent = _model_at(model_cls, [x for x in loc[:-1]])
+        new = getattr(parent, "renamed", {}).get(loc[-1]) if parent else None
+        if new:
+            return f"config key {key}{where} has been renamed: use {'.'.join(loc[:-1] + [new])}"
         known = list(parent.model_fields) if parent else []
-        hint = difflib.get_close_matches(loc[-1], known, n=1)
+        hint = difflib.get_close_matches(loc[-1], known + list(getattr(parent, "renamed", {})), n=1)
+        hint = [getattr(parent, "renamed", {}).get(h, h) for h in hint]
         msg = f"unknown config key {key}{where}"
         if hint:
             msg += f"; did you mean {'.'.join(loc[:-1] + hint)}?"

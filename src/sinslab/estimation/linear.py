@@ -40,12 +40,35 @@ __all__ = ["run_linear", "LinearRun", "propagate_covariance", "error_budget", "B
 # compiled time loops (scalar style, no temporaries inside the loop)
 # ----------------------------------------------------------------------------------------
 @njit(cache=True)
+def _compose_gain(G, h, kk, c, hg):
+    """``G ← (I − k hᵀ) G``, then ``G[:, c] += k``: the gain (n, m) of the updates so far
+    followed by a scalar update of component ``c`` (gain ``kk``, row ``h``). ``hg`` (m,)
+    is a work array."""
+    n, m = G.shape
+    for a in range(m):
+        t = 0.0
+        for j in range(n):
+            if h[j] != 0.0:
+                t += h[j] * G[j, a]
+        hg[a] = t
+    for i in range(n):
+        for a in range(m):
+            G[i, a] -= kk[i] * hg[a]
+        G[i, c] += kk[i]
+
+
+@njit(cache=True)
 def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_corr, with_x,
-                 nzc_t, nnz_t, save_flag, x_hist, pd_hist, P_save, innov, sdiag, nis):
+                 nzc_t, nnz_t, save_flag, x_hist, pd_hist, P_save, innov, sdiag, nis, gain):
     """The time loop of :func:`_run`. ``R_corr`` is None when every R of the table is
     diagonal (scalar updates), else the table itself (vector updates with the full R): a
     None argument prunes the vector branch at compile time, so a run with diagonal R
-    does not compile :func:`vector_update` (a second of a first run)."""
+    does not compile :func:`vector_update` (a second of a first run).
+
+    ``gain`` (K, n, m) or None: filled with each step's gain G, the map of the step's
+    measurements onto the updated state (``x⁺ = x⁻ + G (z − H x⁻)``; zero columns where
+    nothing is measured). The sequential scalar updates compose to it: each one maps
+    ``G ← (I − k h) G``, then adds ``k`` to its own column (diagonal R only)."""
     n = P.shape[0]
     K = phi_i.shape[0]
     m = mask.shape[1]
@@ -56,6 +79,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
     kk = np.empty(n)
     bh = np.empty(n)
     used = np.empty(m, dtype=np.int64)
+    hg = np.empty(m)
     ns = 0
     if with_x:
         for j in range(n):
@@ -89,6 +113,8 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
                     innov[k, c] = nu
                     sdiag[k, c] = s
                     nu_tot += nu * nu / s
+                    if gain is not None:
+                        _compose_gain(gain[k], Hk[c], kk, c, hg)
             else:
                 nuv, S, nisv = vector_update(x, P, Hk, R_corr[r_i[k]], z[k], used[:nm], with_x)
                 for a in range(nm):
@@ -266,6 +292,9 @@ class LinearRun:
         Normalised innovation squared per step (0 where nothing was measured).
     x_final, P_final : ndarray
         State (n,) and covariance (n, n) after the last step, to continue a run in chunks.
+    gain : ndarray, shape (K, n, m) or None
+        With ``keep_gain``: each step's gain, ``x⁺ = x⁻ + gain[k] (z[k] − H x⁻)`` (zero
+        columns where nothing was measured) — the filter to run on other data with fixed gains.
     """
 
     x: np.ndarray | None
@@ -277,6 +306,7 @@ class LinearRun:
     nis: np.ndarray
     x_final: np.ndarray | None
     P_final: np.ndarray
+    gain: np.ndarray | None = None
 
     @property
     def sigma(self):
@@ -387,8 +417,11 @@ def _prepare(x0, P0, Phi, Q, H, R, z, mask, windows, t, n_steps, Phi_index, Q_in
                 z=np.ascontiguousarray(z), mask=np.ascontiguousarray(mk), diagR=diagR)
 
 
-def _run(prep, with_x, save_at):
+def _run(prep, with_x, save_at, keep_gain=False):
     n, m, K = prep["n"], prep["m"], prep["K"]
+    if keep_gain and not prep["diagR"]:
+        raise ValueError("keep_gain needs a diagonal R (sequential scalar updates)")
+    gain = np.zeros((K, n, m)) if keep_gain else None
     x = prep["x0"].copy()
     P = np.ascontiguousarray(prep["P0"].copy())
     save_flag = np.zeros(K + 1, dtype=np.bool_)
@@ -410,11 +443,11 @@ def _run(prep, with_x, save_at):
     bad = _linear_loop(x, P, prep["Phi_t"], prep["phi_i"], prep["Q_t"], prep["q_i"],
                        prep["H_t"], prep["h_i"], prep["R_t"], prep["r_i"], prep["z"],
                        prep["mask"], None if prep["diagR"] else prep["R_t"], with_x, nzc, nnz,
-                       save_flag, x_hist, pd, P_save, innov, sdiag, nis)
+                       save_flag, x_hist, pd, P_save, innov, sdiag, nis, gain)
     if bad >= 0:
         raise ValueError(f"covariance became NaN at step {bad}: check Phi, Q, R for extreme values")
     return LinearRun(x_hist if with_x else None, pd, P_save, save_at, innov, sdiag, nis,
-                     x if with_x else None, P)
+                     x if with_x else None, P, gain)
 
 
 def run_linear(x0, P0, Phi, Q, H, R, z, *, mask=None, windows=None, t=None,
@@ -466,12 +499,15 @@ def run_linear(x0, P0, Phi, Q, H, R, z, *, mask=None, windows=None, t=None,
 
 def propagate_covariance(P0, Phi, Q, H=None, R=None, *, n_steps=None, mask=None,
                          windows=None, t=None, Phi_index=None, Q_index=None, H_index=None,
-                         R_index=None, save_at=None, check=True):
+                         R_index=None, save_at=None, check=True, keep_gain=False):
     """Covariance analysis: propagate P (no data) with an optional measurement schedule.
 
     Same conventions as :func:`run_linear`; measurements are applied where ``mask`` (or
     ``windows``) says so, or at every step if neither is given and ``H`` is. Give
-    ``n_steps`` when all of Phi, Q, H, R are constant.
+    ``n_steps`` when all of Phi, Q, H, R are constant. ``keep_gain`` (diagonal R) keeps
+    every step's gain (``LinearRun.gain``): the covariance does not depend on the data, so
+    these gains run the same filter on any number of data records as a fixed-gain
+    recursion ``x⁺ = Φ x + G (z − H Φ x)``.
 
     Returns
     -------
@@ -480,7 +516,7 @@ def propagate_covariance(P0, Phi, Q, H=None, R=None, *, n_steps=None, mask=None,
     """
     prep = _prepare(None, P0, Phi, Q, H, R, None, mask, windows, t, n_steps, Phi_index,
                     Q_index, H_index, R_index, False, check)
-    return _run(prep, False, save_at)
+    return _run(prep, False, save_at, keep_gain)
 
 
 @dataclass(frozen=True)

@@ -55,12 +55,13 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from sinslab.core import progress as _progress
-from sinslab.app.config import ExperimentConfig, Field, Q, QV, Section  # noqa: F401  (re-exported)
+from sinslab.app.config import (ExperimentConfig, Field, ImuSection, Q, QV, Section,  # noqa: F401
+                                imu_section)                                           # (re-exported)
 from sinslab.app.outputs import Figure  # noqa: F401  (re-exported: what run returns)
 from sinslab.app.claims import Claim  # noqa: F401  (re-exported: what run returns)
 
 __all__ = ["Claim", "Metric", "Figure", "Table", "Result", "RunContext", "Experiment",
-           "ExperimentConfig", "Section", "Q", "QV", "Field", "METRIC_NAME"]
+           "ExperimentConfig", "Section", "ImuSection", "imu_section", "Q", "QV", "Field", "METRIC_NAME"]
 
 #: Metric names: stable snake_case; SI unless the name carries its unit (``_arcmin``).
 METRIC_NAME = re.compile(r"^[a-z][a-zA-Z0-9]*(_[a-zA-Z0-9]+)*$")

@@ -41,7 +41,8 @@ import numpy as np
 from pydantic import model_validator
 
 from sinslab.core import units
-from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
+from sinslab.experiments.base import (Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section,
+                                      Table, imu_section)
 
 NAME = "double-star"
 PURPOSE = "paper 003: Beidou-1 two-GEO fixes with 1 s lag + SINS in covert windows (lag-aware filter)"
@@ -96,14 +97,16 @@ class Fix(Section):
         description="covert windows [start, end] in which the receiver transmits")
 
 
-class Imu(Section):
-    gyro_drift: Q("angular_rate", ge="0 deg/h") = Field("0.1 deg/h", description="gyro constant drift (1σ, random per run)")
-    gyro_markov: Q("angular_rate", ge="0 deg/h") = Field("0.1 deg/h", description="gyro first-order Markov drift (steady-state σ)")
-    gyro_markov_tau: Q("time", gt="0 s") = Field("3600 s", description="its correlation time (assumed)")
-    gyro_white: Q("angle_random_walk", ge="0 deg/sqrt(h)") = Field(
-        "0.1 deg/h*sqrt(s)", description="gyro white noise (angle random walk)")
-    accel_markov: Q("acceleration", ge="0 ug") = Field("100 ug", description="accelerometer first-order Markov bias (σ)")
-    accel_markov_tau: Q("time", gt="0 s") = Field("1800 s", description="its correlation time (assumed)")
+Imu = imu_section("Imu", {
+    "gyro_bias_sigma": "0.1 deg/h",
+    "gyro_bias_instability": "0.1 deg/h",
+    "gyro_corr_time": ("3600 s", "assumed"),
+    "gyro_arw": "0.1 deg/h*sqrt(s)",
+    "accel_bias_instability": "100 ug",
+    "accel_corr_time": ("1800 s", "assumed"),
+}, scalar=True, renamed={"gyro_drift": "gyro_bias_sigma", "gyro_markov": "gyro_bias_instability",
+                         "gyro_markov_tau": "gyro_corr_time", "gyro_white": "gyro_arw",
+                         "accel_markov": "accel_bias_instability", "accel_markov_tau": "accel_corr_time"})
 
 
 class Init(Section):
@@ -218,13 +221,14 @@ def _setup(cfg: Config, quick=False):
     start = tr.Start(lat=float(s.latitude), lon=float(s.longitude), h=float(s.height),
                      speed=float(s.speed), heading=float(s.heading))
     gen = tr.generate(presets.aircraft_mixed(T), start, dt, duration=T)
-    model_args = dict(gyro_white=float(im.gyro_white), gyro_markov_sigma=float(im.gyro_markov),
-                      gyro_markov_tau=float(im.gyro_markov_tau),
-                      accel_markov_sigma=float(im.accel_markov), accel_markov_tau=float(im.accel_markov_tau))
+    model_args = dict(gyro_arw=float(im.gyro_arw), gyro_markov_sigma=float(im.gyro_bias_instability),
+                      gyro_markov_tau=float(im.gyro_corr_time),
+                      accel_markov_sigma=float(im.accel_bias_instability),
+                      accel_markov_tau=float(im.accel_corr_time))
     model = ds.horizontal_model(**model_args)
     P0 = ds.initial_covariance(model, start.lat, start.h, np.asarray(ini.att_err), float(ini.vel_err),
-                               float(ini.pos_err), float(im.gyro_drift), float(im.gyro_markov),
-                               float(im.accel_markov))
+                               float(ini.pos_err), float(im.gyro_bias_sigma), float(im.gyro_bias_instability),
+                               float(im.accel_bias_instability))
     fix_args = dict(sat_lon1=float(f.sat_lon1), sat_lon2=float(f.sat_lon2), m0=float(f.ranging_error),
                     m1=float(f.ephemeris_error), dH=float(f.height_error), latency=float(f.latency),
                     latency_jitter=float(f.latency_jitter), grid=kf_dt, correlated=bool(f.correlated),
@@ -232,7 +236,7 @@ def _setup(cfg: Config, quick=False):
     ep = np.arange(len(gen.imu) // k_kf + 1) * k_kf
     return dict(truth=gen.truth, imu=gen.imu, ep=ep, windows=windows, model_args=model_args, P0=P0,
                 fix_args=fix_args, kf_dt=kf_dt, nsub=int(fl.nsub), lag=ds.lag_policy(fl.lag_method),
-                gyro_drift=float(im.gyro_drift))
+                imu_errors=im.errors())
 
 
 def _inputs(rng, S, plan=None, zero_errors=False):
@@ -247,18 +251,13 @@ def _inputs(rng, S, plan=None, zero_errors=False):
     from sinslab.core.attitude import apply_misalignment, dcm_to_euler, euler_to_dcm
     from sinslab.core.records import Fixes, NavState
 
-    truth, ideal, P0, ma = S["truth"], S["imu"], S["P0"], S["model_args"]
+    truth, ideal, P0 = S["truth"], S["imu"], S["P0"]
     if zero_errors:
         x0 = np.zeros(16)
         meas = ideal
     else:
         x0 = rng.standard_normal(16) * np.sqrt(np.diag(P0))
-        err = imu_mod.ImuErrors(gyro_bias=x0[7:10], gyro_arw=ma["gyro_white"],
-                                gyro_bias_instability=ma["gyro_markov_sigma"],
-                                gyro_corr_time=ma["gyro_markov_tau"],
-                                accel_bias_instability=ma["accel_markov_sigma"],
-                                accel_corr_time=ma["accel_markov_tau"])
-        meas = imu_mod.apply(ideal, err, rng)
+        meas = imu_mod.apply(ideal, S["imu_errors"].replace(gyro_bias=x0[7:10]), rng)
     att0 = dcm_to_euler(apply_misalignment(euler_to_dcm(truth.att[0]), x0[:3]))
     init = NavState(truth.lat[0] + x0[5], truth.lon[0] + x0[6], truth.h[0],
                     truth.vel[0] + np.array([x0[3], x0[4], 0.0]), att0, truth.t[0])

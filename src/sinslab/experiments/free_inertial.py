@@ -21,10 +21,11 @@ Claims (each computed, each able to fail):
 
 Monte Carlo (``--runs N``, N > 1; ``--scheduler ADDRESS`` honoured): besides the single
 run above, N runs through :func:`sinslab.estimation.montecarlo.run_campaign` (Dask; a local cluster by
-default). In this mode the configured biases, scale factors and initial errors are **1σ
-values**: each run draws every axis N(0, σ²) independently (:func:`mc_batch`), plus its own
-white noise, navigates the same true trajectory (regenerated deterministically once per
-worker, not shipped) and returns its errors every ``montecarlo.output_interval``. A
+default). Each run draws its constant biases and scale factors from the ``imu.*_sigma`` terms
+(``imu.gyro_bias_sigma``, ...; the single run uses ``imu.gyro_bias``, ...) and its initial
+errors from the configured ``init`` errors read as **1σ values**, every axis N(0, σ²)
+independently (:func:`mc_batch`), plus its own white noise, navigates the same true
+trajectory (regenerated deterministically once per worker, not shipped) and returns its errors every ``montecarlo.output_interval``. A
 covariance analysis of the matching φ-angle model (:func:`covariance_analysis`: horizontal
 core when the height is held, full core when free; none for the damped channel) gives σ
 at the same epochs. Claims ``mc_rms_over_sigma_<error>`` (position E/N, velocity E/N, φ
@@ -40,7 +41,8 @@ import numpy as np
 from pydantic import field_validator, model_validator
 
 from sinslab.core import units
-from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
+from sinslab.experiments.base import (Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section,
+                                      imu_section)
 
 NAME = "free-inertial"
 #: The Monte Carlo campaign (and so --scheduler) needs runs >= 2; one run is the single run.
@@ -85,15 +87,18 @@ class Scenario(Section):
         return v
 
 
-class Imu(Section):
-    gyro_bias: QV("angular_rate") = Field("0.01 deg/h", description="constant gyro bias (x, y, z or one for all)")
-    gyro_arw: QV("angle_random_walk", ge="0 deg/sqrt(h)") = Field("0.001 deg/sqrt(h)",
-                                                                  description="gyro angle random walk")
-    gyro_scale_factor: QV("dimensionless", ge="-0.1", le="0.1") = Field("0 ppm", description="gyro scale-factor error")
-    accel_bias: QV("acceleration") = Field("50 ug", description="constant accelerometer bias")
-    accel_vrw: QV("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field("5 ug/sqrt(Hz)",
-                                                                      description="accelerometer velocity random walk")
-    accel_scale_factor: QV("dimensionless", ge="-0.1", le="0.1") = Field("0 ppm", description="accelerometer scale-factor error")
+Imu = imu_section("Imu", {
+    "gyro_bias": ("0.01 deg/h", "x, y, z or one for all"),
+    "gyro_arw": "0.001 deg/sqrt(h)",
+    "gyro_scale_factor": "0 ppm",
+    "accel_bias": "50 ug",
+    "accel_vrw": "5 ug/sqrt(Hz)",
+    "accel_scale_factor": "0 ppm",
+    "gyro_bias_sigma": ("0.01 deg/h", "Monte Carlo (--runs N > 1)"),
+    "gyro_scale_factor_sigma": ("0 ppm", "Monte Carlo"),
+    "accel_bias_sigma": ("50 ug", "Monte Carlo"),
+    "accel_scale_factor_sigma": ("0 ppm", "Monte Carlo"),
+})
 
 
 class Init(Section):
@@ -247,6 +252,7 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
     import pickle
 
     s, n, i, ini = cfg.scenario, cfg.nav, cfg.imu, cfg.init
+    errs = i.errors()
     cov_every, mc_every = _mc_strides(cfg)
     traj = (segments, start, mount, float(s.sample_interval), float(s.duration))
     return dict(
@@ -254,20 +260,15 @@ def _mc_spec(cfg: Config, segments, start, mount) -> dict:
         nsub=n.nsub, vertical=n.vertical, out_every=mc_every,
         att_sigma=np.abs(np.asarray(ini.att_err, float)), vel_sigma=np.abs(np.asarray(ini.vel_err, float)),
         pos_sigma=np.abs(np.asarray(ini.pos_err, float)),
-        gyro_bias_sigma=np.abs(np.broadcast_to(np.asarray(i.gyro_bias, float), (3,))),
-        accel_bias_sigma=np.abs(np.broadcast_to(np.asarray(i.accel_bias, float), (3,))),
-        gyro_sf_sigma=np.abs(np.broadcast_to(np.asarray(i.gyro_scale_factor, float), (3,))),
-        accel_sf_sigma=np.abs(np.broadcast_to(np.asarray(i.accel_scale_factor, float), (3,))),
-        gyro_arw=np.broadcast_to(np.asarray(i.gyro_arw, float), (3,)).copy(),
-        accel_vrw=np.broadcast_to(np.asarray(i.accel_vrw, float), (3,)).copy())
+        gyro_bias_sigma=i.sigma("gyro_bias"), accel_bias_sigma=i.sigma("accel_bias"),
+        gyro_sf_sigma=i.sigma("gyro_scale_factor"), accel_sf_sigma=i.sigma("accel_scale_factor"),
+        gyro_arw=errs.gyro_arw.copy(), accel_vrw=errs.accel_vrw.copy())
 
 
 def _mc_setup(spec, gen=None):
     """The worker's copy of the trajectory and of what every run shares (truth at the output
     epochs, the held vertical rate): made once per process and cached."""
     from sinslab.sim import trajectory
-    from sinslab.core import earth
-    from sinslab.core.attitude import euler_to_dcm
     from sinslab.core.records import NavState
     from sinslab.nav import strapdown
 
@@ -282,13 +283,11 @@ def _mc_setup(spec, gen=None):
     m_out = (len(gen.imu) // spec["nsub"]) // spec["out_every"]
     ep = np.arange(m_out + 1) * per
     tr = truth.at(ep)
-    rm, rn = earth.radii(tr.lat, tr.h)
-    att = tr.att_imu if tr.att_imu is not None else tr.att
     h_full = truth.h.copy()
     # every run holds to the same true height: its vertical rate is computed once here
     vup = strapdown.held_vup(h_full, gen.imu.dt) if spec["vertical"] == "hold" else None
-    S = dict(ideal=gen.imu, mount=gen.mount, h_full=h_full, vup=vup, t=tr.t, lat=tr.lat, lon=tr.lon,
-             h=tr.h, vel=tr.vel, C=euler_to_dcm(att), rm=rm, rn=rn, init=NavState.from_series(truth, 0))
+    S = dict(ideal=gen.imu, mount=gen.mount, h_full=h_full, vup=vup, truth=tr,
+             init=NavState.from_series(truth, 0))
     _MC_CACHE.clear()                                  # one trajectory per process at a time
     _MC_CACHE[spec["key"]] = S
     return S
@@ -326,7 +325,7 @@ def _mc_navigate(meas, init, spec, S, vup):
     nav = strapdown.navigate(meas, init, nsub=spec["nsub"], vertical=spec["vertical"],
                              height=S["h_full"] if spec["vertical"] != "free" else None, vup=vup,
                              mount=S["mount"], out_every=spec["out_every"], progress=False)
-    if nav.t.size != S["t"].size:
+    if nav.t.size != S["truth"].t.size:
         raise RuntimeError("Monte Carlo navigation and truth epochs disagree")
     return nav
 
@@ -355,16 +354,21 @@ def _mc_rows(nav):
 
 def _mc_errors(rows, S):
     """Errors (..., M, 9) of :func:`mc_run` from rows (..., M, 9) of :func:`_mc_rows`
-    (one run or several stacked in front), element by element against the truth."""
-    from sinslab.core.attitude import euler_to_dcm, misalignment, wrap_pi
+    (one run or several stacked in front), by :func:`sinslab.nav.compare.row_errors` in one
+    pass over all runs."""
+    from sinslab.core.records import NavSeries
+    from sinslab.nav import compare
 
-    out = np.empty(rows.shape)
-    out[..., 0] = wrap_pi(rows[..., 0] - S["lon"]) * S["rn"] * np.cos(S["lat"])
-    out[..., 1] = (rows[..., 1] - S["lat"]) * S["rm"]
-    out[..., 2] = rows[..., 2] - S["h"]
-    out[..., 3:6] = rows[..., 3:6] - S["vel"]
-    out[..., 6:9] = misalignment(S["C"], euler_to_dcm(rows[..., 6:9]))
-    return out
+    flat = rows.reshape(-1, 9)
+    t = S["truth"].t
+    nav = NavSeries(t=np.tile(t, flat.shape[0] // t.size), lat=flat[:, 1], lon=flat[:, 0], h=flat[:, 2],
+                    vel=flat[:, 3:6], att=flat[:, 6:9])
+    e = compare.row_errors(nav, S["truth"], imu_frame=True)
+    return np.stack([e[k] for k in _MC_ERRORS], -1).reshape(rows.shape)
+
+
+#: The columns of a Monte Carlo run's errors, as :func:`sinslab.nav.compare.row_errors` names them.
+_MC_ERRORS = ("east", "north", "up", "vE", "vN", "vU", "phiE", "phiN", "phiU")
 
 
 def mc_batch(seeds, spec):
@@ -401,9 +405,9 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
     _mc_setup(spec, gen)                               # this process (sync / 1-worker paths)
     cov_every, mc_every = _mc_strides(cfg)
     upd = cfg.nav.nsub * float(cfg.scenario.sample_interval)
-    notes = [f"Monte Carlo: {n} runs; in this mode the configured biases, scale factors and "
-             "initial errors are 1σ values: every run draws each axis N(0, σ²) independently, "
-             "plus its own white noise (ARW, VRW); all runs share one true trajectory. Errors "
+    notes = [f"Monte Carlo: {n} runs; every run draws its biases and scale factors from "
+             "imu.*_sigma and its initial errors from init (read as 1σ), each axis N(0, σ²) "
+             "independently, plus its own white noise (ARW, VRW); all runs share one true trajectory. Errors "
              f"every {mc_every * upd:g} s; covariance analysis with {cov_every * upd:g} s steps."]
     cov_ok = cfg.nav.vertical != "damped"
     sigma = None
@@ -534,6 +538,7 @@ def run(cfg: Config, ctx) -> Result:
     from sinslab.core import earth
     from sinslab.core.attitude import wrap_pi, yaw_to_heading
     from sinslab.core.records import NavState
+    from sinslab.nav import compare
     from sinslab.methods.free_inertial import (envelopes, fit_schuler_period,
                                               linear_error_prediction)
     from sinslab.app import plotting as P
@@ -548,11 +553,7 @@ def run(cfg: Config, ctx) -> Result:
     gen = trajectory.generate(segments, start, dt, duration=T, mount=mount)
     truth_full, ideal = gen.truth, gen.imu
 
-    errors = imu_mod.ImuErrors.from_datasheet(
-        gyro_bias=cfg.imu.gyro_bias.text, gyro_arw=cfg.imu.gyro_arw.text,
-        gyro_scale_factor=cfg.imu.gyro_scale_factor.text, accel_bias=cfg.imu.accel_bias.text,
-        accel_vrw=cfg.imu.accel_vrw.text, accel_scale_factor=cfg.imu.accel_scale_factor.text)
-    meas = imu_mod.apply(ideal, errors, ctx.rng(1))
+    meas = imu_mod.apply(ideal, cfg.imu.errors(), ctx.rng(1))
 
     # initial state: truth + configured errors
     t0 = NavState.from_series(truth_full, 0)
@@ -574,22 +575,17 @@ def run(cfg: Config, ctx) -> Result:
         raise RuntimeError("navigation and truth epochs disagree")
     t = nav.t - nav.t[0]
     rm_t, rn_t = earth.radii(truth.lat, truth.h)
-    pos_err = np.column_stack([wrap_pi(nav.lon - truth.lon) * rn_t * np.cos(truth.lat),
-                               (nav.lat - truth.lat) * rm_t, nav.h - truth.h])
-    vel_err = nav.vel - truth.vel
-    att_err = np.column_stack([wrap_pi(nav.att[:, 0] - truth.att[:, 0]),
-                               wrap_pi(nav.att[:, 1] - truth.att[:, 1]),
-                               -wrap_pi(nav.att[:, 2] - truth.att[:, 2])])
+    e = compare.row_errors(nav, truth)
+    pos_err = np.column_stack([e["east"], e["north"], e["up"]])
+    vel_err = np.column_stack([e["vE"], e["vN"], e["vU"]])
+    att_err = np.column_stack([e["pitch"], e["roll"], -e["yaw"]])        # heading error = −yaw error
     hpos = np.hypot(pos_err[:, 0], pos_err[:, 1])
     hvel = np.hypot(vel_err[:, 0], vel_err[:, 1])
     lat0, h_mean = float(truth.lat[0]), float(np.mean(truth.h))
 
     # ---- oracle 1: the linear error model driven by the realised sensor errors
-    from sinslab.core.attitude import euler_to_dcm, misalignment
-
-    att_t = truth.att_imu if truth.att_imu is not None else truth.att
-    att_n = nav.att_imu if nav.att_imu is not None else nav.att
-    phi_act = misalignment(euler_to_dcm(att_t), euler_to_dcm(att_n))
+    ei = compare.row_errors(nav, truth, imu_frame=True)
+    phi_act = np.column_stack([ei["phiE"], ei["phiN"], ei["phiU"]])
     core = {"hold": "horizontal", "free": "full"}.get(n.vertical)
     lin = None
     if core is not None:

@@ -59,7 +59,8 @@ import numpy as np
 from pydantic import field_validator, model_validator
 
 from sinslab.core import units
-from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
+from sinslab.experiments.base import (Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table,
+                                      imu_section)
 from sinslab.sim import indexing as ix
 from sinslab.sim import moored
 
@@ -115,11 +116,12 @@ class Rotation(Section):
         return v
 
 
-class Imu1(Section):
-    gyro_bias: QV("angular_rate") = Field("[0.003, -0.002, 0.0005] deg/h", description="INS #1 gyro drift (x, y, z)")
-    accel_bias: QV("acceleration") = Field("[20, -40, 0] ug", description="INS #1 accelerometer bias (x, y, z)")
-    gyro_arw: Q("angle_random_walk", ge="0 deg/sqrt(h)") = Field("0.001 deg/sqrt(h)", description="gyro angle random walk")
-    accel_vrw: Q("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field("10 ug/sqrt(Hz)", description="accelerometer white noise")
+class Imu1(imu_section("Imu1Errors", {
+    "gyro_bias": ("[0.003, -0.002, 0.0005] deg/h", "INS #1"),
+    "accel_bias": ("[20, -40, 0] ug", "INS #1"),
+    "gyro_arw": "0.001 deg/sqrt(h)",
+    "accel_vrw": "10 ug/sqrt(Hz)",
+}, scalar=("gyro_arw", "accel_vrw"))):
     recorded_noise: str = Field("", description="recorded static noise file (CSV/Parquet with unit headers) used instead of white noise")
     noise_block: Q("time", ge="0 s") = Field(
         "5 min", description="analysis one: INS #1's noise (synthesised or recorded, gyros and accelerometers) "
@@ -127,11 +129,12 @@ class Imu1(Section):
         "(0: white, only the whole record's mean removed); analysis two keeps the whole record")
 
 
-class ImuK(Section):
-    gyro_bias: QV("angular_rate") = Field("[0.004, -0.005, 0.003] deg/h", description="INS #2..#4 gyro drift (x, y, z)")
-    accel_bias: QV("acceleration") = Field("[20, -30, 0] ug", description="INS #2..#4 accelerometer bias (x, y, z)")
-    gyro_arw: Q("angle_random_walk", ge="0 deg/sqrt(h)") = Field("0.001 deg/sqrt(h)", description="gyro angle random walk (β = 1)")
-    accel_vrw: Q("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field("10 ug/sqrt(Hz)", description="accelerometer white noise")
+class ImuK(imu_section("ImuKErrors", {
+    "gyro_bias": ("[0.004, -0.005, 0.003] deg/h", "INS #2..#4"),
+    "accel_bias": ("[20, -30, 0] ug", "INS #2..#4"),
+    "gyro_arw": ("0.001 deg/sqrt(h)", "β = 1"),
+    "accel_vrw": "10 ug/sqrt(Hz)",
+}, scalar=("gyro_arw", "accel_vrw"))):
     recorded_noise: str = Field("", description="recorded static noise file for INS #2..#4 (one record; each INS starts at its own offset)")
 
 
@@ -149,8 +152,9 @@ class Filter(Section):
     nsub: int = Field(2, ge=1, le=5, description="strapdown samples per update")
     meas_floor_pos: Q("length", gt="0 m") = Field("1 mm", description="R ≈ 0: position σ floor")
     meas_floor_vel: Q("velocity", gt="0 m/s") = Field("1e-5 m/s", description="R ≈ 0: velocity σ floor")
-    gyro_sigma0: Q("angular_rate", gt="0 deg/h") = Field("0.01 deg/h", description="P0: gyro drift σ (bias stability)")
-    accel_sigma0: Q("acceleration", gt="0 ug") = Field("20 ug", description="P0: accelerometer bias σ (bias stability)")
+    p0_gyro_bias: Q("angular_rate", gt="0 deg/h") = Field("0.01 deg/h", description="1σ of the gyro drift states in P0 (bias stability)")
+    p0_accel_bias: Q("acceleration", gt="0 ug") = Field("20 ug", description="1σ of the accelerometer bias states in P0 (bias stability)")
+    renamed = {"gyro_sigma0": "p0_gyro_bias", "accel_sigma0": "p0_accel_bias"}
 
 
 class Evaluation(Section):
@@ -549,12 +553,10 @@ def navigate_many(specs, nav_kw, mode="threads", workers=2, scheduler=None, bar=
 
 
 def _errors(sec, gyro_scale=1.0, white=True):
-    from sinslab.sim import imu as imu_
-
-    return imu_.ImuErrors(gyro_bias=np.broadcast_to(np.asarray(sec.gyro_bias, float), (3,)).copy(),
-                          accel_bias=np.broadcast_to(np.asarray(sec.accel_bias, float), (3,)).copy(),
-                          gyro_arw=np.full(3, float(sec.gyro_arw) if white else 0.0),
-                          accel_vrw=np.full(3, float(sec.accel_vrw))).with_noise_scale(gyro=gyro_scale)
+    """The section's IMU errors, gyro noise scaled by β (``gyro_scale``), without the gyro
+    white noise when a recorded record replaces it (``white=False``)."""
+    err = sec.errors() if white else sec.errors().replace(gyro_arw=0.0)
+    return err.with_noise_scale(gyro=gyro_scale)
 
 
 def joint_filter_setup(cfg: Config):
@@ -567,8 +569,8 @@ def joint_filter_setup(cfg: Config):
     model = rotins.joint_rotation_model(float(cfg.imu1.gyro_arw), float(cfg.imuk.gyro_arw),
                                         float(cfg.imu1.accel_vrw), float(cfg.imuk.accel_vrw))
     P0 = rotins.joint_P0(model, lat, att=np.asarray(cfg.init.att_err, float) * math.sqrt(2),
-                         gyro1=float(fl.gyro_sigma0), gyrok=float(fl.gyro_sigma0), accel1=float(fl.accel_sigma0),
-                         accelk=float(fl.accel_sigma0))
+                         gyro1=float(fl.p0_gyro_bias), gyrok=float(fl.p0_gyro_bias),
+                         accel1=float(fl.p0_accel_bias), accelk=float(fl.p0_accel_bias))
     return model, P0, rotins.difference_sigma(lat, float(fl.meas_floor_pos), float(fl.meas_floor_vel))
 
 

@@ -32,7 +32,8 @@ from typing import Literal
 import numpy as np
 
 from sinslab.core import units
-from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
+from sinslab.experiments.base import (Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section,
+                                      imu_section)
 
 NAME = "schuler-suppression"
 PURPOSE = ("Schuler oscillation suppression by delayed alignment: two solutions T_s/2 apart "
@@ -85,6 +86,21 @@ class Scenario(Section):
                                            "or a time like '42.2 min'")
 
 
+ShipImu = imu_section("ShipImu", {
+    "gyro_bias": "0.01 deg/h",
+    "gyro_arw": "0 deg/sqrt(h)",
+    "accel_bias": ("100 ug", "1e-4 g"),
+    "accel_vrw": "0 ug/sqrt(Hz)",
+})
+
+TurntableImu = imu_section("TurntableImu", {
+    "gyro_bias": "0.005 deg/h",
+    "gyro_arw": ("0.005 deg/sqrt(h)", "paper: 'random walk 0.005°/h'"),
+    "accel_bias": ("70 ug", "7e-5 g"),
+    "accel_vrw": ("50 ug/sqrt(Hz)", "paper: '5e-5 g'"),
+})
+
+
 class Ship(Section):
     duration: Q("time", gt="1 h", le="10 d") = Field("48 h", description="navigation time after t2")
     mean_speed: Q("velocity", ge="0 m/s", le="50 m/s") = Field("15 m/s", description="mean speed")
@@ -99,10 +115,8 @@ class Ship(Section):
     heave_amplitude: Q("length", ge="0 m", le="10 m") = Field("0.5 m", description="heave amplitude (10 s)")
     manoeuvre_ramp: Q("time", ge="10 s") = Field(
         "2 h", description="build-up time of the speed/course variations after the mooring")
-    gyro_bias: QV("angular_rate") = Field("0.01 deg/h", description="gyro constant drift")
-    gyro_arw: QV("angle_random_walk", ge="0 deg/sqrt(h)") = Field("0 deg/sqrt(h)", description="gyro ARW")
-    accel_bias: QV("acceleration") = Field("100 ug", description="accelerometer bias (1e-4 g)")
-    accel_vrw: QV("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field("0 ug/sqrt(Hz)", description="accelerometer VRW")
+    imu: ShipImu = ShipImu()
+    renamed = {k: f"imu.{k}" for k in ShipImu.model_fields}
 
 
 class Turntable(Section):
@@ -111,12 +125,8 @@ class Turntable(Section):
     swing_period: Q("time", gt="1 s") = Field("40 s", description="table swing period")
     swing_axis: Literal["pitch", "roll", "yaw"] = Field("pitch", description="table swing axis")
     heading: Q("angle", ge="-360 deg", le="360 deg") = Field("0 deg", description="IMU heading (clockwise from north)")
-    gyro_bias: QV("angular_rate") = Field("0.005 deg/h", description="gyro drift")
-    gyro_arw: QV("angle_random_walk", ge="0 deg/sqrt(h)") = Field(
-        "0.005 deg/sqrt(h)", description="gyro ARW (paper: 'random walk 0.005°/h')")
-    accel_bias: QV("acceleration") = Field("70 ug", description="accelerometer bias (7e-5 g)")
-    accel_vrw: QV("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field(
-        "50 ug/sqrt(Hz)", description="accelerometer VRW (paper: '5e-5 g')")
+    imu: TurntableImu = TurntableImu()
+    renamed = {k: f"imu.{k}" for k in TurntableImu.model_fields}
 
 
 class Init(Section):
@@ -132,10 +142,11 @@ class Align(Section):
     coarse_time: Q("time", gt="10 s") = Field("5 min", description="inertial-frame coarse alignment time")
     model: Literal["reduced", "full"] = Field("reduced", description="fine-alignment Kalman model (paper 000)")
     period: Q("time", gt="0 s", le="10 s") = Field("1 s", description="fine-alignment filter period")
-    gyro_noise_floor: Q("angle_random_walk", ge="0 deg/sqrt(h)") = Field(
-        "0.0005 deg/sqrt(h)", description="lowest gyro noise assumed by the filter")
-    accel_noise_floor: Q("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field(
-        "5 ug/sqrt(Hz)", description="lowest accelerometer noise assumed by the filter")
+    gyro_arw_floor: Q("angle_random_walk", ge="0 deg/sqrt(h)") = Field(
+        "0.0005 deg/sqrt(h)", description="lowest gyro angle random walk assumed by the filter")
+    accel_vrw_floor: Q("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field(
+        "5 ug/sqrt(Hz)", description="lowest accelerometer velocity random walk assumed by the filter")
+    renamed = {"gyro_noise_floor": "gyro_arw_floor", "accel_noise_floor": "accel_vrw_floor"}
 
 
 class Nav(Section):
@@ -210,7 +221,6 @@ def _sway(sh: Ship):
 
 def build(cfg: Config, t2_rel: float):
     """Segments, start, mount, IMU errors and total duration of the scenario."""
-    from sinslab.sim import imu as imu_
     from sinslab.sim import indexing
     from sinslab.sim import trajectory as tj
 
@@ -242,8 +252,7 @@ def build(cfg: Config, t2_rel: float):
         mount = indexing.Swing(axis=tt.swing_axis, amplitude=float(tt.swing_amplitude),
                                period=float(tt.swing_period))
         src = tt
-    errors = imu_.ImuErrors(gyro_bias=np.asarray(src.gyro_bias), gyro_arw=np.asarray(src.gyro_arw),
-                            accel_bias=np.asarray(src.accel_bias), accel_vrw=np.asarray(src.accel_vrw))
+    errors = src.imu.errors()
     return segs, start, mount, errors, total
 
 
@@ -285,8 +294,8 @@ def run(cfg: Config, ctx) -> Result:
         opt = schuler.AlignmentOptions(
             coarse="inertial", coarse_time=float(cfg.align.coarse_time), model=cfg.align.model,
             period=float(cfg.align.period),
-            gyro_arw=max(float(np.max(src.gyro_arw)), float(cfg.align.gyro_noise_floor)),
-            accel_vrw=max(float(np.max(src.accel_vrw)), float(cfg.align.accel_noise_floor)))
+            gyro_arw=max(float(np.max(src.imu.gyro_arw)), float(cfg.align.gyro_arw_floor)),
+            accel_vrw=max(float(np.max(src.imu.accel_vrw)), float(cfg.align.accel_vrw_floor)))
         res = schuler.delayed_alignment(meas, lat, lon, 0.0, t1, delay=delay, options=opt,
                                         nsub=cfg.nav.nsub, out_every=out_every, mount=mount_arr)
     else:

@@ -39,7 +39,8 @@ import numpy as np
 
 from sinslab.core import units
 from sinslab.core.records import NavState  # noqa: F401
-from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section
+from sinslab.experiments.base import (Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section,
+                                      imu_section)
 
 NAME = "static-alignment"
 PURPOSE = "paper 000: stationary fine alignment, full 8-state vs reduced 5-state filter vs limit accuracy"
@@ -51,7 +52,7 @@ NOTES = [
     "misalignment of the computed frame, C_b^n' = (I − φ×) C_b^n.",
     "Gyro white noise '0.001 deg/h' of the paper is read as ARW 0.001 deg/sqrt(h) (SPEC); "
     "the literal reading, '0.001 deg/h/sqrt(Hz)', is 60x smaller and can be set with "
-    "--set imu.gyro_noise=\"0.001 deg/h/sqrt(Hz)\".",
+    "--set imu.gyro_arw=\"0.001 deg/h/sqrt(Hz)\".",
     "Full filter P0 beyond the paper: εE as εN, εU; ∇E, ∇N 1σ = filter.p0_accel_bias.",
 ]
 
@@ -72,13 +73,12 @@ class Scenario(Section):
     sample_interval: Q("time", gt="0 s", le="1 s") = Field("0.01 s", description="IMU sampling interval")
 
 
-class Imu(Section):
-    gyro_bias: QV("angular_rate") = Field("0.01 deg/h", description="gyro constant drift (x, y, z or one)")
-    accel_bias: QV("acceleration") = Field("100 ug", description="accelerometer bias (x, y, z or one)")
-    gyro_noise: QV("angle_random_walk", ge="0 deg/sqrt(h)") = Field(
-        "0.001 deg/sqrt(h)", description="gyro white noise (angle random walk)")
-    accel_noise: QV("velocity_random_walk", ge="0 ug/sqrt(Hz)") = Field(
-        "10 ug/sqrt(Hz)", description="accelerometer white noise (velocity random walk)")
+Imu = imu_section("Imu", {
+    "gyro_bias": ("0.01 deg/h", "x, y, z or one"),
+    "accel_bias": ("100 ug", "x, y, z or one"),
+    "gyro_arw": "0.001 deg/sqrt(h)",
+    "accel_vrw": "10 ug/sqrt(Hz)",
+}, renamed={"gyro_noise": "gyro_arw", "accel_noise": "accel_vrw"})
 
 
 class Init(Section):
@@ -240,7 +240,7 @@ def run(config: Config, ctx) -> Result:
     from sinslab.core import attitude as A
     from sinslab.core import earth
     from sinslab.methods import alignment as al
-    from sinslab.sim.imu import ImuErrors, apply
+    from sinslab.sim.imu import apply
 
     sc, im, fc = config.scenario, config.imu, config.filter
     lat = al.check_alignment_latitude(float(sc.latitude))
@@ -253,15 +253,13 @@ def run(config: Config, ctx) -> Result:
                               trajectory.Start(lat=lat, lon=0.0, h=h, heading=float(sc.heading),
                                                pitch=float(sc.pitch), roll=float(sc.roll)), dt)
     C = A.euler_to_dcm(att)
-    gb = np.asarray(im.gyro_bias, float)
-    ab = np.asarray(im.accel_bias, float)
-    errs = ImuErrors(gyro_bias=gb, accel_bias=ab, gyro_arw=np.asarray(im.gyro_noise, float),
-                     accel_vrw=np.asarray(im.accel_noise, float))
+    errs = im.errors()
+    gb, ab = errs.gyro_bias, errs.accel_bias
     imu = apply(gen.imu, errs, ctx.rng(1))
     phi0 = np.asarray(config.init.misalignment, float)
     att0 = A.dcm_to_euler(A.apply_misalignment(C, phi0))
-    kw = dict(h=h, period=float(fc.period), gyro_arw=np.asarray(im.gyro_noise, float),
-              accel_vrw=np.asarray(im.accel_noise, float), p0_att=np.asarray(fc.p0_attitude, float),
+    kw = dict(h=h, period=float(fc.period), gyro_arw=errs.gyro_arw, accel_vrw=errs.accel_vrw,
+              p0_att=np.asarray(fc.p0_attitude, float),
               p0_gyro_bias=float(fc.p0_gyro_bias), p0_accel_bias=float(fc.p0_accel_bias),
               feedback=bool(fc.feedback))
     g = float(earth.gravity(lat, h))

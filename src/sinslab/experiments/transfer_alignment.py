@@ -46,7 +46,8 @@ from typing import Literal
 import numpy as np
 
 from sinslab.core import units
-from sinslab.experiments.base import Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section, Table
+from sinslab.experiments.base import (Claim, ExperimentConfig, Field, Figure, Metric, Q, QV, Result, Section,
+                                      Table, imu_section)
 
 NAME = "transfer-alignment"
 PURPOSE = "paper 002: transfer alignment, velocity + attitude matching, four attitude measurement forms"
@@ -90,11 +91,13 @@ class Installation(Section):
                                    "z up); rigid, known, compensated in the velocity match")
 
 
-class Imu(Section):
-    gyro_bias: Q("angular_rate", ge="0 deg/h") = Field("3.3 deg/h", description="slave gyro bias 1σ")
-    gyro_scale: Q("dimensionless", ge="0 ppm") = Field("200 ppm", description="slave gyro scale factor 1σ")
-    accel_bias: Q("acceleration", ge="0 ug") = Field("500 ug", description="slave accelerometer bias 1σ (5e-4 g)")
-    accel_scale: Q("dimensionless", ge="0 ppm") = Field("500 ppm", description="slave accelerometer scale factor 1σ")
+Imu = imu_section("Imu", {
+    "gyro_bias_sigma": ("3.3 deg/h", "slave"),
+    "gyro_scale_factor_sigma": ("200 ppm", "slave"),
+    "accel_bias_sigma": ("500 ug", "slave, 5e-4 g"),
+    "accel_scale_factor_sigma": ("500 ppm", "slave"),
+}, scalar=True, renamed={"gyro_bias": "gyro_bias_sigma", "gyro_scale": "gyro_scale_factor_sigma",
+                         "accel_bias": "accel_bias_sigma", "accel_scale": "accel_scale_factor_sigma"})
 
 
 class Master(Section):
@@ -108,9 +111,9 @@ class Filter(Section):
     kf_dt: Q("time", gt="0 s") = Field("0.1 s", description="filter (measurement) interval")
     vel_noise: Q("velocity", gt="0 m/s") = Field("0.01 m/s", description="velocity measurement noise 1σ")
     att_noise: Q("angle", gt="0 arcsec") = Field("1 arcmin", description="attitude measurement noise 1σ")
-    att_sigma0: Q("angle", gt="0 arcsec") = Field("1 deg", description="initial slave misalignment σ")
-    vel_sigma0: Q("velocity", gt="0 m/s") = Field("0.1 m/s", description="initial velocity error σ")
-    inst_sigma0: Q("angle", gt="0 arcsec") = Field("1 deg", description="initial residual installation σ")
+    p0_attitude: Q("angle", gt="0 arcsec") = Field("1 deg", description="1σ of the slave misalignment in P0")
+    p0_velocity: Q("velocity", gt="0 m/s") = Field("0.1 m/s", description="1σ of the velocity error in P0")
+    p0_installation: Q("angle", gt="0 arcsec") = Field("1 deg", description="1σ of the residual installation in P0")
     ekf_runs: int = Field(50, ge=1, description="runs of the EKF diagnosis")
     converge_ratio: float = Field(3.0, gt=0, description="converged: no run diverged and RMS error at the end <= this × filter σ (every axis)")
     divergence_bound: Q("angle", gt="0 deg", le="90 deg") = Field(
@@ -118,6 +121,7 @@ class Filter(Section):
     correction_guard: Q("angle", gt="0 deg", le="180 deg") = Field(
         "30 deg", description="an update asking for a larger attitude correction stops the run (diverged): "
                               "the small-angle error model no longer holds")
+    renamed = {"att_sigma0": "p0_attitude", "vel_sigma0": "p0_velocity", "inst_sigma0": "p0_installation"}
 
 
 class Montecarlo(Section):
@@ -280,9 +284,11 @@ def _case(cfg: Config, inst_att, heading):
 def _params(cfg):
     """The plain numbers a Monte Carlo task needs."""
     fl, im, ms = cfg.filter, cfg.imu, cfg.master
-    return dict(gyro_bias=float(im.gyro_bias), gyro_scale=float(im.gyro_scale), accel_bias=float(im.accel_bias),
-                accel_scale=float(im.accel_scale), vel_noise=float(fl.vel_noise), att_noise=float(fl.att_noise),
-                att_sigma0=float(fl.att_sigma0), vel_sigma0=float(fl.vel_sigma0), inst_sigma0=float(fl.inst_sigma0),
+    return dict(gyro_bias=float(im.gyro_bias_sigma), gyro_scale=float(im.gyro_scale_factor_sigma),
+                accel_bias=float(im.accel_bias_sigma), accel_scale=float(im.accel_scale_factor_sigma),
+                vel_noise=float(fl.vel_noise), att_noise=float(fl.att_noise),
+                att_sigma0=float(fl.p0_attitude), vel_sigma0=float(fl.p0_velocity),
+                inst_sigma0=float(fl.p0_installation),
                 master_att=float(ms.att_error), master_vel=float(ms.vel_error),
                 bound=float(fl.divergence_bound), guard=float(fl.correction_guard), slave=cfg.montecarlo.slave,
                 compare_linear=bool(cfg.montecarlo.compare_linear))

@@ -501,7 +501,7 @@ def simulate_fixes(truth, windows, *, sat_lon1, sat_lon2, m0, m1, dH, latency, r
 
 
 # ======================================================================== the filter
-def horizontal_model(gyro_white, gyro_markov_sigma, gyro_markov_tau, accel_markov_sigma,
+def horizontal_model(gyro_arw, gyro_markov_sigma, gyro_markov_tau, accel_markov_sigma,
                      accel_markov_tau, *, radius_derivatives=True) -> es.ErrorModel:
     """The paper's 16-state horizontal error model (eq 1) from :mod:`sinslab.nav.errstate`.
 
@@ -510,7 +510,7 @@ def horizontal_model(gyro_white, gyro_markov_sigma, gyro_markov_tau, accel_marko
 
     Parameters
     ----------
-    gyro_white : float or (3,)
+    gyro_arw : float or (3,)
         Gyro white noise (angle random walk) [rad/√s].
     gyro_markov_sigma, gyro_markov_tau : steady-state σ [rad/s], correlation time [s]
     accel_markov_sigma, accel_markov_tau : steady-state σ [m/s²], correlation time [s]
@@ -521,7 +521,7 @@ def horizontal_model(gyro_white, gyro_markov_sigma, gyro_markov_tau, accel_marko
                          [es.gyro_bias(name="eps_b"),
                           es.gyro_markov(gyro_markov_tau, gyro_markov_sigma, name="eps_r"),
                           es.accel_markov(accel_markov_tau, accel_markov_sigma, name="nabla")],
-                         gyro_noise=gyro_white, accel_noise=0.0, accel_noise_axes="xyz",
+                         gyro_noise=gyro_arw, accel_noise=0.0, accel_noise_axes="xyz",
                          radius_derivatives=radius_derivatives)
 
 

@@ -22,7 +22,7 @@ from sinslab.core import attitude as A
 from sinslab.core import earth
 from sinslab.estimation import observability as obs
 from sinslab.estimation.kalman import discretize
-from sinslab.estimation.linear import error_budget
+from sinslab.estimation.linear import error_budget, propagate_covariance
 from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bias
 
 __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleObservability",
@@ -667,7 +667,7 @@ def difference_measurements(rows1, rowsk):
     IMUs (longitude difference wrapped to ±π)."""
     r1 = np.asarray(rows1, float)
     rk = np.asarray(rowsk, float)
-    return np.stack([r1[:, 7] - rk[:, 7], (r1[:, 8] - rk[:, 8] + np.pi) % (2 * np.pi) - np.pi,
+    return np.stack([r1[:, 7] - rk[:, 7], A.wrap_pi(r1[:, 8] - rk[:, 8]),
                      r1[:, 4] - rk[:, 4], r1[:, 5] - rk[:, 5]], -1)
 
 
@@ -803,26 +803,16 @@ def campaign_setup(spec):
         w, V = np.linalg.eigh(Qk)
         roots[g] = V * np.sqrt(np.maximum(w, 0.0))[:, None, :]
     Q = sum(Qg.values())
-    P = spec["P0"] * (d[:, None] * d[None, :])
+    P0 = spec["P0"] * (d[:, None] * d[None, :])
     Rv = (sig * np.r_[d[0], d[1], 1.0, 1.0]) ** 2
-    gains = np.empty((K, n, 4))
-    sig_z = np.empty(K + 1)
     iz = model.layout.index(["eps_z_1"])[0]
-    sig_z[0] = math.sqrt(P[iz, iz])
-    for k in range(K):
-        u = index[k]
-        P = Phi[u] @ P @ Phi[u].T + Q[u]
-        S = P[:4, :4] + np.diag(Rv)
-        Kk = np.linalg.solve(S, P[:4, :]).T
-        IKH = np.eye(n)
-        IKH[:, :4] -= Kk
-        P = IKH @ P @ IKH.T + (Kk * Rv) @ Kk.T
-        P = 0.5 * (P + P.T)
-        gains[k] = Kk
-        sig_z[k + 1] = math.sqrt(P[iz, iz])
+    # the nominal filter's covariance does not depend on the data: its gains, computed
+    # once, are the filter of every run (campaign_batch)
+    nominal = propagate_covariance(P0, Phi, Q, _difference_H(model), np.diag(Rv), n_steps=K,
+                                   Phi_index=index, Q_index=index, keep_gain=True, check=False)
     return dict(Phi=np.ascontiguousarray(Phi), index=index, roots=roots, G1=np.ascontiguousarray(G1),
-                gains=gains, Rv=Rv, d=d, iz=iz, P0=spec["P0"] * (d[:, None] * d[None, :]),
-                t=T * np.arange(K + 1), sig_z=sig_z)
+                gains=nominal.gain, Rv=Rv, d=d, iz=iz, P0=P0, t=T * np.arange(K + 1),
+                sig_z=nominal.sigma[:, iz])
 
 
 def campaign_batch(seeds, spec, setup):

@@ -33,7 +33,7 @@ def nav_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
 
     Returns ``{"t", "vE", "vN", "vU" [m/s], "phiE", "phiN", "phiU" [rad] (misalignment φ of
     the computed attitude), "pitch", "roll", "yaw" [rad] (Euler differences), "lat",
-    "lon" [rad], "north", "east" [m]}``. ``imu_frame`` compares the IMU attitudes.
+    "lon" [rad], "north", "east", "up" [m]}``. ``imu_frame`` compares the IMU attitudes.
     """
     return row_errors(nav, truth.at(match_epochs(truth, nav.t)), imu_frame)
 
@@ -86,4 +86,5 @@ def _errors(nav: NavSeries, terms, imu_frame) -> dict:
     return {"t": nav.t, "vE": dv[:, 0], "vN": dv[:, 1], "vU": dv[:, 2],
             "phiE": phi[:, 0], "phiN": phi[:, 1], "phiU": phi[:, 2],
             "pitch": d_att[:, 0], "roll": d_att[:, 1], "yaw": d_att[:, 2],
-            "lat": dlat, "lon": dlon, "north": dlat * rep(rm), "east": dlon * rep(rn) * np.cos(lat)}
+            "lat": dlat, "lon": dlon, "north": dlat * rep(rm), "east": dlon * rep(rn) * np.cos(lat),
+            "up": nav.h - rep(truth.h)}
