@@ -6,9 +6,10 @@ import pytest
 @pytest.fixture(autouse=True)
 def _progress_state_per_test():
     """The command line sets process-wide progress switches (``--quiet``, stage lines); a
-    test that runs it in process must not decide what a later test prints."""
+    test, or a module fixture, that runs it in process must not decide what a later test
+    prints: every test starts and ends with them automatic."""
     from sinslab.core import progress
 
-    quiet, lines = progress._quiet_override, progress._lines
+    progress._quiet_override, progress._lines = None, False
     yield
-    progress._quiet_override, progress._lines = quiet, lines
+    progress._quiet_override, progress._lines = None, False
