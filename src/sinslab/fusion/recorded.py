@@ -189,6 +189,7 @@ class RecordedNav:
     init: dict = field(default_factory=dict)
     options: NavOptions = None
     smoothed: object = None        #: sinslab.fusion.smoothing.SmoothedRun (``smooth=True``)
+    innovation_sigma: np.ndarray | None = None   #: (J, m) the filter's σ of each innovation
 
     @property
     def att(self):
@@ -829,7 +830,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         init["nhc_lever_sigma"] = np.sqrt(np.diag(Cvb @ np.diag(r.sigma[-1, sl] ** 2) @ Cvb.T)).tolist()
     return RecordedNav(r.t, r.nav, r.sigma, lay.labels, lay.units, r.gyro_bias, r.accel_bias, r.scale,
                        r.fix_t, r.innovation, r.nis, init, opt,
-                       smoothed=smooth(r) if opt.smooth else None)
+                       smoothed=smooth(r) if opt.smooth else None, innovation_sigma=r.innovation_sigma)
 
 
 def _spans(times, gap):
