@@ -298,6 +298,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         "outage_end_hz_err_m": oe.tolist(),
         "hz_err_with_fixes_median_m": float(np.median(hz[~in_out])) if (~in_out).any() else None,
         "hz_err_with_fixes_max_m": float(np.max(hz[~in_out])) if (~in_out).any() else None,
+        "hz_err_with_fixes_p99_m": float(np.percentile(hz[~in_out], 99)) if (~in_out).any() else None,
         "nis_mean": float(np.mean(res.nis)) if res.nis.size else None,
         "final_pitch_deg": float(np.degrees(att[-1, 0])), "final_roll_deg": float(np.degrees(att[-1, 1])),
         "final_heading_deg": float(np.degrees(res.heading[-1])),
@@ -348,7 +349,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                        time_sync_offset_sigma_s=sync["offset_sigma"],
                        time_sync_ppm_estimate=sync["ppm_estimate"], time_sync_ppm_sigma=sync["ppm_sigma"],
                        time_sync_offset_applied=sync["offset_applied"],
-                       time_sync_ppm_applied=sync["ppm_applied"])
+                       time_sync_ppm_applied=sync["ppm_applied"], time_sync_windows=sync["windows"],
+                       time_sync_threshold_sigmas=sync["threshold_sigmas"])
     if "lever_arm_estimate" in res.init:
         metrics["lever_arm_estimate_m"] = res.init["lever_arm_estimate"]
         metrics["lever_arm_sigma_m"] = res.init["lever_arm_sigma"]
