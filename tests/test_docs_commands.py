@@ -726,7 +726,9 @@ def test_the_record_of_the_navigate_runs_is_fresh(tmp_path, monkeypatch):
         for name, v in record[label]["values"].items():
             now = summary_value(s, name)
             assert _same(now, v), (f"{RECORD.name}: `{label}` recorded {name} = {v}, the run gives {now}: "
-                          f"{REFRESH_NAV}")
+                                   f"{REFRESH_NAV}")
+    # the run's consistency monitors are silent on the drive (docs/cli.md says so)
+    assert not _SUMMARIES[" ".join(_substitute(shlex.split(DRIVE)))].get("warnings")
 
 
 def test_the_record_of_the_demo_is_of_todays_defaults():
@@ -777,3 +779,25 @@ def test_measured_figures_name_their_script():
                 bare = [r[:60] for r in rows if not _SCRIPT.search(r) and "no script" not in r]
                 assert not bare, f"README speed rows that name no script: {bare}"
     assert sections >= 4
+
+
+def test_raw_gnss_walk_tables_are_the_examples(capsys):
+    """docs/raw-gnss.md's tables of the walk are what ``examples/raw_gnss_walk.py`` prints
+    (about 8 s of CPU): every row it prints stands in the document with the same numbers
+    (bold and the typographic minus aside)."""
+    walk = DATA / "rtklib-walk"
+    if not (walk / "imu_1730.csv").is_file():
+        pytest.skip("shared data folder not available")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("raw_gnss_walk", ROOT / "examples" / "raw_gnss_walk.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    mod.main(walk)
+    printed = [r for r in capsys.readouterr().out.splitlines() if r.startswith("| ") and "---" not in r
+               and not r.startswith(("| solution", "| window"))]
+    doc = {" ".join(r.replace("**", "").replace("−", "-").split())
+           for r in (ROOT / "docs" / "raw-gnss.md").read_text(encoding="utf-8").splitlines()}
+    assert len(printed) == 8
+    missing = [r for r in printed if " ".join(r.split()) not in doc]
+    assert not missing, f"docs/raw-gnss.md lacks these rows the example prints today: {missing}"
