@@ -286,6 +286,11 @@ QUOTED = [
       "claim:earth_period_kept[3]", "earth_amp_phiN_single"], 0.0),
     ("README.md", "`rotation-evaluation` (001, 144 h, 20 seeds) | 8/12", "demo rotation-evaluation",
      ["=1", "=144", "runs", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "| 8/12 (paper: 6 of 9 reproduced · checks: 2 of 3) |", "demo rotation-evaluation",
+     ["claims:passed", "claims:total", "claims:passed@paper", "claims:total@paper", "claims:passed@check",
+      "claims:total@check"], 0.0),
+    ("README.md", "| `free-inertial` (2 h aircraft) | 8/8 |", "run free-inertial",
+     ["=2", "claims:passed", "claims:total"], 0.0),
     ("README.md", "observability rank 5 per stop, 13 stacked", "demo rotation-evaluation",
      ["obs_rank_static", "obs_rank_schedule"], 0.0),
     ("README.md", "reaches the drift at 16.0 h", "demo rotation-evaluation", ["settle_sigma_h"], 0.0),
@@ -494,10 +499,15 @@ def _numbers(text: str) -> list[tuple[float, float]]:
 
 def summary_value(summary: dict, key: str):
     """A run's value by name: ``claims:passed`` / ``claims:total`` (claims that hold, all
-    claims), ``claims:failed`` (the ids of the claims that fail, sorted), ``claim:ID`` (a
+    claims; ``claims:passed@paper``: of one origin), ``claims:failed`` (the ids of the claims
+    that fail, sorted), ``claim:ID`` (a
     claim's measured value; a dict's values in order), or a metric."""
     if key == "claims:failed":
         return sorted(c["id"] for c in summary["claims"] if not c["passed"])
+    if key.startswith(("claims:passed@", "claims:total@")):     # the claims of one origin (paper, check)
+        kind, origin = key.split("@")
+        claims = [c for c in summary["claims"] if c.get("origin") == origin]
+        return sum(bool(c["passed"]) for c in claims) if kind == "claims:passed" else len(claims)
     if key in ("claims:passed", "claims:total"):
         return sum(bool(c["passed"]) for c in summary["claims"]) if key == "claims:passed" else len(
             summary["claims"])
