@@ -35,6 +35,7 @@ re-run and the record refreshed.
 """
 import hashlib
 import json
+import math
 import re
 import shlex
 from pathlib import Path
@@ -132,15 +133,35 @@ def test_the_docs_show_commands():
 #: the text must appear in the document and equal the metrics of that run's summary.json,
 #: (or claims' measured values, ``claim:ID``) number by number, within the quoted rounding
 #: (half a unit of the last digit shown) plus the tolerance (absolute, in the text's units)
-DRIVE = ("navigate --imu rtklib-drive/imu_1934.csv --fixes rtklib-drive/gnss_1934_sf.pos "
-         "--mount rpy:180,-6.79,185.35 --frame frd --lever-arm '[-0.05, 0, 0] m' --time-sync auto "
-         "--velocity-lag 0.125 --outages 15/60@40 --out runs/drive")
+NAV = ("navigate --imu rtklib-drive/imu_1934.csv --fixes rtklib-drive/gnss_1934_sf.pos "
+       "--mount rpy:180,-6.79,185.35 --frame frd --lever-arm '[-0.05, 0, 0] m' --time-sync auto "
+       "--velocity-lag 0.125 --outages 15/60@40")
+DRIVE = NAV + " --out runs/drive"
 WALK = ('navigate --imu imu_1730.csv --format rtklib-imu --mount "rpy:180,0,-90" --frame frd '
         '--gnss-raw gnss_1730.ubx --init "course_speed=1 m/s,course_spread=10 deg" --out runs/walk-tc')
+OUTAGES = ["outage_end_hz_err_median_m", "outage_end_hz_err_max_m"]
+#: paper 001 with INS #1's noise white (not de-meaned over 5 min): a full run, no demo run
+WHITE = "full rotation-evaluation --set 'imu1.noise_block=0 s'"
+TA = ("transfer-align --slave psins-transfer/transfer_align_fog_mems.mat "
+      "--master psins-transfer/transfer_align_fog_mems.mat")
+#: docs/methods/002.md's recorded-data run: every form, the whole record and 0–60 s
+TA_ALL = TA + " --method euler --method dcm --method kain --method optimal --window 0.1:100 --window 0:60 --out runs/ta"
+
+
+def _transfer_rows():
+    """The rows of docs/methods/002.md's recorded-data table: ``(row, form, window key)``."""
+    text = (ROOT / "docs" / "methods" / "002.md").read_text(encoding="utf-8")
+    rows = re.findall(r"^(\| (euler|dcm|kain|optimal) \| (all|0–60 s) \|.*\|)$", text, re.M)
+    assert len(rows) == 8, rows
+    return [(r, f, "0p1_100s" if w == "all" else "0_60s") for r, f, w in rows]
+
+
 #: the stored record of the full demo runs the docs quote (``run`` ``"demo LABEL"`` in QUOTED)
 RECORD = ROOT / "docs" / "runs.json"
 REFRESH = ("re-run the demo (`make demo`, or `sinslab demo --only NAME`) and refresh the record: "
            "`.venv/bin/python tools/quoted_runs.py runs`, then update the numbers the docs quote")
+REFRESH_NAV = ("refresh the record of the navigate runs: `.venv/bin/python tools/quoted_runs.py --navigate` "
+               "(minutes), then update the numbers the docs quote")
 QUOTED = [
     ("raw-gnss.md", "461 of 461 epochs used, median 16 satellites, 7376 pseudoranges used and 0 rejected "
      "by the gate, 7373 range rates used and 3 rejected; 3439 observations without ephemeris", WALK,
@@ -153,6 +174,52 @@ QUOTED = [
     ("recorded-data.md", "accelerometer bias [2153, 7695, 13470] µg", DRIVE, ["accel_bias_final_ug"], 0.0),
     ("recorded-data.md", "gyro bias [−251, 96, 591] °/h", DRIVE, ["gyro_bias_final_dph"], 0.0),
     ("recorded-data.md", "NIS 1.78 of 6", DRIVE, ["nis_mean", "nis_dof"], 0.0),
+    ("recorded-data.md", "offset 78.9 ± 13.5 ms applied (9 windows, threshold 3.4σ), drift 145 ± 74 ppm not "
+     "significant", DRIVE, ["1000*time_sync_offset_estimate_s", "1000*time_sync_offset_sigma_s", "time_sync_windows",
+                            "time_sync_threshold_sigmas", "time_sync_ppm_estimate", "time_sync_ppm_sigma"], 0.0),
+    ("recorded-data.md", "(time sync: 78.9 ± 13.5 ms applied, drift not significant)", DRIVE,
+     ["1000*time_sync_offset_estimate_s", "1000*time_sync_offset_sigma_s"], 0.0),
+    ("recorded-data.md", "With fixes the horizontal error is 1.4 cm (median), 5.5 cm (99th percentile)", DRIVE,
+     ["100*hz_err_with_fixes_median_m", "100*hz_err_with_fixes_p99_m", "=99"], 0.0),
+    # docs/recorded-data.md, the table of variants of the drive (the stored record, RECORD)
+    ("recorded-data.md", "| zero latency | **4.91 m** | **20.1 m** | 7.54, 0.68, 2.28, 18.9, 20.1, 1.98, 0.60, 15.7 | "
+     "pass (NIS 1.78 of 6: pessimistic) |", DRIVE, [*OUTAGES, "outage_end_hz_err_m", "claims:failed=", "nis_mean",
+                                                   "nis_dof"], 0.0),
+    ("recorded-data.md", "| 1 s latency, lag-aware | 4.85 m | 20.1 m | 7.49, 0.47, 2.20, 18.9, 20.1, 1.95, 0.60, 15.7 | "
+     "pass |", NAV + " --fix-latency 1", ["=1", *OUTAGES, "outage_end_hz_err_m", "claims:failed="], 0.0),
+    ("recorded-data.md", "| 1 s latency, lag ignored | 37.8 m | 90.5 m | | **all 3 fail** (NIS 90) |",
+     NAV + " --fix-latency 1 --lag ignore",
+     ["=1", *OUTAGES, "claims:failed=fix_residual,fix_residual_p99,nis_not_overconfident", "=3", "nis_mean"], 0.0),
+    ("recorded-data.md", "| with scale-factor states | 5.32 m | 20.5 m | (no gain on 9 min) | pass |",
+     NAV + " --scale-factors", [*OUTAGES, "=9", "claims:failed="], 0.0),
+    ("recorded-data.md", "| `--imu-errors industrial` (grade noise, no rest measurement) | 15.1 m | 35.7 m | warning: "
+     "rest noise 44×, 7.8×, 2.4× the model's gyro noise | NIS 56 and the 99th percentile **fail**, the median passes |",
+     NAV + " --imu-errors industrial", [*OUTAGES, "rest_over_filter_noise_gyro", "nis_mean", "=99",
+                                        "claims:failed=fix_residual_p99,nis_not_overconfident"], 0.0),
+    ("recorded-data.md", "| `--imu-errors consumer` | 13.5 m | 25.5 m | warning: gyro x 13× | pass (NIS 8.3) |",
+     NAV + " --imu-errors consumer", [*OUTAGES, "rest_over_filter_noise_gyro[0]", "claims:failed=", "nis_mean"], 0.0),
+    ("recorded-data.md", "| **`--aid zupt,zaru`** | 4.91 m | 20.1 m | 3 rests (29 s), 0 of 293 ZUPT updates rejected: "
+     "no stop inside an outage, no harm | pass |", NAV + " --aid zupt,zaru",
+     [*OUTAGES, "rest_intervals", "rest_total_s", "zupt_updates_rejected", "zupt_updates_applied+zupt_updates_rejected",
+      "claims:failed="], 0.0),
+    ("recorded-data.md", "| **`--aid nhc`** (mount and NHC lever estimated) | **0.55 m** | **1.9 m** | 0.54, 1.84, 1.95, "
+     "0.37, 0.18, 0.76, 0.57, 0.28 | pass |", NAV + " --aid nhc", [*OUTAGES, "outage_end_hz_err_m", "claims:failed="],
+     0.0),
+    ("recorded-data.md", "| **`--aid zupt,zaru,nhc`** | 0.55 m | 1.9 m | the same as `--aid nhc` | pass |",
+     NAV + " --aid zupt,zaru,nhc", [*OUTAGES, "claims:failed="], 0.0),
+    ("recorded-data.md", "| **`--aid lever`** (from the given −0.05, 0, 0 m) | 7.24 m | 21.0 m | lever (−0.014, 0.166, "
+     "−0.141) ± (0.015, 0.012, 0.019) m | pass |", NAV + " --aid lever",
+     ["=-0.05", "=0", "=0", *OUTAGES, "lever_arm_estimate_m", "lever_arm_sigma_m", "claims:failed="], 0.0),
+    ("recorded-data.md", "| **`--aid zupt,zaru,nhc,lever`** | 1.04 m | 1.7 m | 1.04, 1.52, 1.70, 0.66, 1.03, 0.23, "
+     "0.16, 1.06 | pass |", NAV + " --aid zupt,zaru,nhc,lever",
+     [*OUTAGES, "outage_end_hz_err_m", "claims:failed="], 0.0),
+    ("recorded-data.md", "| `--smooth` | RMS 0.19 m inside the outages (forward 4.82 m) | | | pass |",
+     NAV + " --smooth", ["smoothed_hz_err_rms_m", "forward_hz_err_rms_m", "claims:failed="], 0.0),
+    ("recorded-data.md", "the vehicle states converge to a mount pitch 0.01 ± 0.02° and yaw 0.10 ± 0.08°",
+     NAV + " --aid nhc", ["vehicle_mount_estimate_deg[0]", "vehicle_mount_sigma_deg[0]",
+                          "vehicle_mount_estimate_deg[2]", "vehicle_mount_sigma_deg[2]"], 0.0),
+    ("recorded-data.md", "an NHC lever of (−0.07, −0.07, −0.65) ± (0.05, 0.01, 0.04) m", NAV + " --aid nhc",
+     ["nhc_lever_estimate_m", "nhc_lever_sigma_m"], 0.0),
     ("README.md", "residual − limit φE 0.10′, φU 0.13′, εN 0.002 °/h", "run static-alignment",
      ["claim:margin_phiE", "claim:margin_phiU", "claim:margin_epsN"], 0.0),
     ("README.md", "reduced filter 1890 vs 7104 flops per step", "run static-alignment",
@@ -219,6 +286,11 @@ QUOTED = [
       "claim:earth_period_kept[3]", "earth_amp_phiN_single"], 0.0),
     ("README.md", "`rotation-evaluation` (001, 144 h, 20 seeds) | 8/12", "demo rotation-evaluation",
      ["=1", "=144", "runs", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "| 8/12 (paper: 6 of 9 reproduced · checks: 2 of 3) |", "demo rotation-evaluation",
+     ["claims:passed", "claims:total", "claims:passed@paper", "claims:total@paper", "claims:passed@check",
+      "claims:total@check"], 0.0),
+    ("README.md", "| `free-inertial` (2 h aircraft) | 8/8 |", "run free-inertial",
+     ["=2", "claims:passed", "claims:total"], 0.0),
     ("README.md", "observability rank 5 per stop, 13 stacked", "demo rotation-evaluation",
      ["obs_rank_static", "obs_rank_schedule"], 0.0),
     ("README.md", "reaches the drift at 16.0 h", "demo rotation-evaluation", ["settle_sigma_h"], 0.0),
@@ -232,6 +304,34 @@ QUOTED = [
      ["ranking_probability", "ranking_probability_ci95"], 0.0),
     ("README.md", "told on 70 % of seeds only", "demo rotation-evaluation",
      ["100*p_distinguish_1p1_separate_ins"], 0.0),
+    ("README.md", "β = 1.1 told from 1.0 on 20/20 seeds", "demo rotation-evaluation",
+     ["=1.1", "=1.0", "claim:distinguish_1p1*runs", "runs"], 0.0),
+    ("README.md", "every window below 0.00005 °/h (fails at 16, 20, 28 h)", "demo rotation-evaluation",
+     ["=0.00005", "eps_z1_windows_failing_h[2]"], 0.0),
+    ("README.md", "a 48 h sine: −0.2)", "full rotation-evaluation --set analysis_two.trend=sine",
+     ["=48", "min(mc_trend_correlation_mean)"], 0.0),
+    ("README.md", "mounting within 1.5σ of the file's reference", TA + " --method kain --window 0:60",
+     ["zmax(mounting_arcmin_kain_0_60s,ref_mounting_arcmin,mounting_sigma_arcmin_kain_0_60s)"], 0.0),
+    ("README.md", "flip at a master attitude error of 2′", "demo transfer-alignment",
+     ["master_error_sweep_arcmin[3]"], 0.0),
+    # docs/methods/001.md, the paper's noise handling against white noise, and the sine trend
+    ("001.md", "falls from 34.6 h (fails)", WHITE, ["settle_band_h"], 0.0),
+    ("001.md", "to 15.4 h (holds;", "demo rotation-evaluation", ["settle_band_h"], 0.0),
+    ("001.md", "over seeds the median 19.0 →", WHITE, ["mc_settle_band_median_h"], 0.0),
+    ("001.md", "→ 15.0 h, within 20 h on", "demo rotation-evaluation", ["mc_settle_band_median_h", "=20"], 0.0),
+    ("001.md", "within 20 h on 65 →", WHITE, ["=20", "100*mc_settle_band_p_by_paper"], 0.0),
+    ("001.md", "→ 85 % of seeds", "demo rotation-evaluation", ["100*mc_settle_band_p_by_paper"], 0.0),
+    ("001.md", "The mean windowed std at β = 1 falls from 2.28e-5", WHITE,
+     ["=1", "windowed_std_eps_z1_dph[2]"], 0.0),
+    ("001.md", "to 2.03e-5 °/h, the eq-20 ratio rises", "demo rotation-evaluation",
+     ["windowed_std_eps_z1_dph[2]", "=20"], 0.0),
+    ("001.md", "the eq-20 ratio rises from 1.052", WHITE, ["=20", "eq20_ratio_mean"], 0.0),
+    ("001.md", "to 1.072, the separate-INS", "demo rotation-evaluation", ["eq20_ratio_mean"], 0.0),
+    ("001.md", "fraction goes from 0.60", WHITE, ["p_distinguish_1p1_separate_ins"], 0.0),
+    ("001.md", "to 0.70; the stability claim", "demo rotation-evaluation", ["p_distinguish_1p1_separate_ins"], 0.0),
+    ("001.md", "16, 20, 28 h de-meaned", "demo rotation-evaluation", ["eps_z1_windows_failing_h[2]"], 0.0),
+    ("001.md", "correlation −0.20, −0.20, −0.19 over seeds (this run 0.15, −0.13, 0.03)",
+     "full rotation-evaluation --set analysis_two.trend=sine", ["mc_trend_correlation_mean", "trend_correlation"], 0.0),
     ("README.md", "(mean correlation 0.67, 0.58, 0.50", "demo rotation-evaluation",
      ["mc_trend_correlation_mean"], 0.0),
     ("README.md", "`free-inertial-mc200` | 15/15 | Monte Carlo RMS / covariance σ in 0.86–1.13",
@@ -276,6 +376,35 @@ QUOTED = [
      ["=1", "eq20_noise_share_gyro_k", "eq20_sigma_ratio_predicted"], 0.0),
     ("001.md", "the 1.0996 of INS #1's share left out entirely", "demo rotation-evaluation",
      ["eq20_sigma_ratio_predicted_blocks", "=1"], 0.0),
+    # docs/methods/002.md, the recorded car data: every form and window, and the process noise
+    *[("002.md", row, TA_ALL,
+       [*(["=0", "=60"] if w == "0_60s" else []),
+        *(f"{q}_{f}_{w}[{i}]" for i in range(3) for q in ("mounting_arcmin", "mounting_sigma_arcmin")),
+        *(f"gyro_bias_dph_{f}_{w}[{i}]" for i in range(3)), f"gyro_bias_sigma_dph_{f}_{w}[0]",
+        *(f"{q}_{f}_{w}[{i}]" for i in range(3) for q in ("accel_bias_mg", "accel_bias_sigma_mg"))], 0.0)
+      for row, f, w in _transfer_rows()],
+    ("002.md", "| reference | file | −5.30, 2.47, −17.57 | −213.6, 158.9, 84.5 | 2.89, −7.23, −4.69 |", TA_ALL,
+     ["ref_mounting_arcmin", "ref_gyro_bias_dph", "ref_accel_bias_mg"], 0.0),
+    *[("002.md", f"| {what} | {row}", TA + " --window 0.1:100" + opt,
+       [*lit, *(f"{q}_optimal_0p1_100s[{i}]" for i in range(3) for q in ("mounting_arcmin", "mounting_sigma_arcmin")),
+        *(f"{q}_optimal_0p1_100s[{i}]" for i in range(3) for q in ("gyro_bias_dph", "gyro_bias_sigma_dph")),
+        *(f"zmax({q}_optimal_0p1_100s,ref_{r},{q.replace('_arcmin', '_sigma_arcmin').replace('_dph', '_sigma_dph')}"
+          f"_optimal_0p1_100s)" for q, r in (("mounting_arcmin", "mounting_arcmin"), ("gyro_bias_dph", "gyro_bias_dph")))],
+       0.0)
+      for what, opt, lit, row in [
+          ("defaults", "", [], "−3.93 ± 1.39, 3.00 ± 0.86, −18.07 ± 0.80 | −215 ± 6, 160 ± 6, 75 ± 6 | 1.0σ | 1.5σ |"),
+          ("gyro ARW 0.3°/√h", " --gyro-arw '0.3 deg/sqrt(h)'", ["=0.3"],
+           "−4.51 ± 0.54, 3.00 ± 0.86, −17.73 ± 0.48 | −215 ± 2, 160 ± 2, 75 ± 2 | 1.5σ | **5.0σ** |"),
+          ("gyro ARW 3°/√h", " --gyro-arw '3 deg/sqrt(h)'", ["=3"],
+           "−2.60 ± 2.13, 2.98 ± 0.86, −18.13 ± 0.89 | −214 ± 18, 158 ± 18, 75 ± 18 | 1.3σ | 0.5σ |"),
+          ("accel VRW 0.1 mm/s/√s", " --accel-vrw '0.1 mm/s/sqrt(s)'", ["=0.1"],
+           "−3.75 ± 1.36, 3.03 ± 0.84, −18.02 ± 0.78 | −215 ± 6, 160 ± 6, 75 ± 6 | 1.1σ | 1.5σ |"),
+          ("accel VRW 10 mm/s/√s", " --accel-vrw '10 mm/s/sqrt(s)'", ["=10"],
+           "−4.86 ± 1.68, 2.96 ± 1.77, −17.90 ± 1.26 | −215 ± 6, 160 ± 6, 75 ± 6 | 0.3σ | 1.5σ |"),
+          ("gyro bias instability 100°/h/√h", " --gyro-bias-instability '100 deg/h/sqrt(h)'", ["=100"],
+           "−3.93 ± 1.40, 3.00 ± 0.86, −18.07 ± 0.80 | −214 ± 10, 159 ± 10, 75 ± 10 | 1.0σ | 0.9σ |"),
+          ("accel bias instability 100 µg/√s", " --accel-bias-instability '100 ug/sqrt(s)'", ["=100"],
+           "−4.90 ± 1.69, 2.98 ± 1.26, −18.22 ± 1.06 | −215 ± 6, 160 ± 6, 75 ± 6 | 0.6σ | 1.5σ |")]],
     # docs/methods/002.md, its results table (arcmin) and the C22 = 0 case
     *[("002.md", f"| {form}, {case} | {est} | {row}", "demo transfer-alignment",
        [f"{k}_{form}_{case}" for k in (
@@ -370,7 +499,15 @@ def _numbers(text: str) -> list[tuple[float, float]]:
 
 def summary_value(summary: dict, key: str):
     """A run's value by name: ``claims:passed`` / ``claims:total`` (claims that hold, all
-    claims), ``claim:ID`` (a claim's measured value; a dict's values in order), or a metric."""
+    claims; ``claims:passed@paper``: of one origin), ``claims:failed`` (the ids of the claims
+    that fail, sorted), ``claim:ID`` (a
+    claim's measured value; a dict's values in order), or a metric."""
+    if key == "claims:failed":
+        return sorted(c["id"] for c in summary["claims"] if not c["passed"])
+    if key.startswith(("claims:passed@", "claims:total@")):     # the claims of one origin (paper, check)
+        kind, origin = key.split("@")
+        claims = [c for c in summary["claims"] if c.get("origin") == origin]
+        return sum(bool(c["passed"]) for c in claims) if kind == "claims:passed" else len(claims)
     if key in ("claims:passed", "claims:total"):
         return sum(bool(c["passed"]) for c in summary["claims"]) if key == "claims:passed" else len(
             summary["claims"])
@@ -381,33 +518,51 @@ def summary_value(summary: dict, key: str):
 
 
 #: one key of QUOTED: ``=X`` (a number the text shows that is not a result, such as a
-#: confidence level), ``min(K,...)``/``max(K,...)``, ``100*K`` (a percentage), ``K[i]`` (one
-#: element), ``K-L`` (a difference of two names), else a name :func:`summary_value` knows
-_KEY = re.compile(r"(?P<lit>=.+)|(?P<fn>min|max)\((?P<args>.+)\)|100\*(?P<pct>.+)|(?P<el>.+)\[(?P<i>-?\d+)\]"
-                  r"|(?P<a>[\w:]+)-(?P<b>[\w:]+)")
+#: confidence level), ``min(K,...)``/``max(K,...)``, ``zmax(EST,REF,SIG)`` (the largest
+#: ``|EST − REF| / SIG`` over the components), ``100*K`` (a percentage; any integer
+#: factor: ``1000*K`` ms from s), ``K[i]`` (one element; of a dict metric, its i-th value),
+#: ``K-L`` / ``K+L`` / ``K*L`` (a difference, sum or product of two names), ``claims:failed=ID,...`` (exactly these claims fail, none after the
+#: ``=``: the text's "pass"/"fail"; no number), else a name :func:`summary_value` knows
+_KEY = re.compile(r"(?P<lit>=.+)|(?P<fn>min|max|zmax)\((?P<args>.+)\)|(?P<k>\d+)\*(?P<pct>.+)"
+                  r"|(?P<el>.+)\[(?P<i>-?\d+)\]|(?P<a>[\w:]+)(?P<op>[-+*])(?P<b>[\w:]+)")
 
 
 def quoted_value(key: str, raw) -> list[float]:
     """The numbers a QUOTED key stands for, given ``raw(name)``: a run's value by name."""
+    if key.startswith("claims:failed="):
+        want = sorted(filter(None, key.split("=", 1)[1].split(",")))
+        got = raw("claims:failed")
+        assert got == want, f"claims failing: {got}, the text says {want or 'none'}"
+        return []
     m = _KEY.fullmatch(key)
     if m is None:
         v = raw(key)
         v = [x for e in v for x in (e if isinstance(e, list) else [e])] if isinstance(v, list) else [v]
-        return [float(x) for x in v]
+        return [math.nan if x is None else float(x) for x in v]
     if m["lit"]:
         return [float(m["lit"][1:])]
+    if m["fn"] == "zmax":                      # the worst |estimate − reference| / σ
+        est, ref, sig = (quoted_value(k.strip(), raw) for k in m["args"].split(","))
+        return [max(abs(a - b) / c for a, b, c in zip(est, ref, sig, strict=True))]
     if m["fn"]:
         vals = [x for k in m["args"].split(",") for x in quoted_value(k.strip(), raw)]
         return [min(vals) if m["fn"] == "min" else max(vals)]
     if m["pct"]:
-        return [100.0 * x for x in quoted_value(m["pct"], raw)]
+        return [float(m["k"]) * x for x in quoted_value(m["pct"], raw)]
     if m["a"]:
-        return [x - y for x, y in zip(quoted_value(m["a"], raw), quoted_value(m["b"], raw), strict=True)]
+        op = {"-": lambda x, y: x - y, "+": lambda x, y: x + y, "*": lambda x, y: x * y}[m["op"]]
+        return [op(x, y) for x, y in zip(quoted_value(m["a"], raw), quoted_value(m["b"], raw), strict=True)]
+    v = raw(m["el"]) if _KEY.fullmatch(m["el"]) is None else None
+    if isinstance(v, dict):                     # a dict metric: its i-th value, as stored
+        item = list(v.values())[int(m["i"])]
+        return [float(x) for x in (item if isinstance(item, list) else [item])]
     return [quoted_value(m["el"], raw)[int(m["i"])]]
 
 
 def quoted_names(key: str) -> list[str]:
     """The run's value names a QUOTED key reads (what the stored record must hold)."""
+    if key.startswith("claims:failed="):
+        return ["claims:failed"]
     m = _KEY.fullmatch(key)
     if m is None:
         return [key]
@@ -486,13 +641,21 @@ def test_numbers_quoted_from_runs(name, quoted, run, keys, tol, tmp_path, monkey
     doc = next(p for p in DOCS if p.name == name)
     text = " ".join(doc.read_text(encoding="utf-8").split())
     assert " ".join(quoted.split()) in text, f"{name} no longer quotes {quoted!r}: update QUOTED"
-    if run.startswith("demo "):
-        label = run.split()[1]
+    if run.startswith(("demo ", "full ")):
+        label = record_label(run)
         record = json.loads(RECORD.read_text(encoding="utf-8"))["runs"]
         assert label in record, f"{RECORD.name} has no run {label}: {REFRESH}"
         values = record[label]["values"]
         missing = [n for k in keys for n in quoted_names(k) if n not in values]
         assert not missing, f"{RECORD.name}: run {label} lacks {missing}: {REFRESH}"
+        raw = values.__getitem__
+    elif run.startswith("navigate "):
+        record = json.loads(RECORD.read_text(encoding="utf-8")).get("navigate", {})
+        label = record_label(run)
+        assert label in record, f"{RECORD.name} has no navigate run `{label}`: {REFRESH_NAV}"
+        values = record[label]["values"]
+        missing = [n for k in keys for n in quoted_names(k) if n not in values]
+        assert not missing, f"{RECORD.name}: navigate run `{label}` lacks {missing}: {REFRESH_NAV}"
         raw = values.__getitem__
     else:
         key = " ".join(_substitute(shlex.split(run)))
@@ -511,6 +674,73 @@ def test_numbers_quoted_from_runs(name, quoted, run, keys, tol, tmp_path, monkey
     assert not bad, f"{name}: {quoted!r} against the run: {got} (tolerance {tol})"
 
 
+def record_label(run: str) -> str:
+    """The name a QUOTED run has in the record: ``demo LABEL`` -> LABEL (the demo's run
+    folder), ``full NAME --set ...`` -> ``NAME --set ...``, a navigate command -> :func:`nav_label`."""
+    kind, *rest = shlex.split(run)
+    if kind == "demo":
+        return rest[0]
+    if kind == "full":
+        return shlex.join(rest)
+    return nav_label(run)
+
+
+def label_sets(label: str) -> list[str]:
+    """The ``--set`` items of a ``full`` run's label."""
+    w = shlex.split(label)
+    return [w[i + 1] for i, x in enumerate(w[:-1]) if x == "--set"]
+
+
+def nav_label(run: str) -> str:
+    """A navigate run's name in the record: its command as the docs show it, ``--out`` left out."""
+    w = shlex.split(run)
+    if "--out" in w:
+        i = w.index("--out")
+        del w[i:i + 2]
+    return shlex.join(w)
+
+
+def _same(a, b) -> bool:
+    """Equal values of a run (numbers to 1e-9 relative, lists and dicts element by element)."""
+    if isinstance(b, (list, tuple)):
+        return isinstance(a, (list, tuple)) and len(a) == len(b) and all(map(_same, a, b))
+    if isinstance(b, dict):
+        return isinstance(a, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in b)
+    if isinstance(b, (int, float)) and not isinstance(b, bool) and isinstance(a, (int, float)):
+        return abs(a - b) <= 1e-9 * max(1.0, abs(b))
+    return a == b
+
+
+def test_the_record_of_the_navigate_runs_is_fresh(tmp_path, monkeypatch):
+    """The navigate runs of the record (docs/runs.json ``navigate``) are today's: the drive
+    and walk commands the docs show run here (the test above), and every value the record
+    holds of them equals the live run's (1e-9 relative). A change that moves a navigate
+    number fails here until the record is refreshed (``tools/quoted_runs.py --navigate``)
+    and the docs updated; the variants of the drive (other options, minutes each) share the
+    code path of the command that is checked."""
+    if not DATA.is_dir():
+        pytest.skip("shared data folder not available")
+    record = json.loads(RECORD.read_text(encoding="utf-8")).get("navigate", {})
+    want = {record_label(q[2]) for q in QUOTED if q[2].startswith("navigate ")}
+    assert want <= set(record), f"{RECORD.name} lacks navigate runs {sorted(want - set(record))}: {REFRESH_NAV}"
+    shown = {nav_label(c[len("sinslab "):]): c for p, c, _ in CASES if c.startswith("sinslab navigate")}
+    live = [lb for lb in record if lb in shown]
+    assert {nav_label(DRIVE), nav_label(WALK)} <= set(live)
+    for label in live:
+        cmd = shown[label]
+        key = " ".join(_substitute(shlex.split(cmd)[1:]))
+        if key not in _SUMMARIES:               # run alone: make the run
+            doc = next(p for p, c, _ in CASES if c == cmd)
+            _run_doc(doc, tmp_path, monkeypatch, commands=[(cmd, None)])
+        s = _SUMMARIES[key]
+        for name, v in record[label]["values"].items():
+            now = summary_value(s, name)
+            assert _same(now, v), (f"{RECORD.name}: `{label}` recorded {name} = {v}, the run gives {now}: "
+                                   f"{REFRESH_NAV}")
+    # the run's consistency monitors are silent on the drive (docs/cli.md says so)
+    assert not _SUMMARIES[" ".join(_substitute(shlex.split(DRIVE)))].get("warnings")
+
+
 def test_the_record_of_the_demo_is_of_todays_defaults():
     """docs/runs.json holds the full demo runs of the experiments' current default configs
     (with each variant's ``--set`` items): a changed default makes the quoted numbers stale."""
@@ -518,13 +748,66 @@ def test_the_record_of_the_demo_is_of_todays_defaults():
     from sinslab.experiments import get
 
     record = json.loads(RECORD.read_text(encoding="utf-8"))["runs"]
-    assert {q[2].split()[1] for q in QUOTED if q[2].startswith("demo ")} <= set(record), REFRESH
+    assert {record_label(q[2]) for q in QUOTED if q[2].startswith(("demo ", "full "))} <= set(record), REFRESH
+    full = {record_label(q[2]) for q in QUOTED if q[2].startswith("full ")}
     for label, run in record.items():
         exp = get(run["experiment"])
-        want = f"{exp.name}-" + next((sfx for sfx, sets in exp.variants.items() if list(sets) == run["sets"]),
-                                     "?") if run["sets"] else exp.name
+        if label in full:                       # a full-scale run that is no demo run
+            want = shlex.join([exp.name, *(w for x in run["sets"] for w in ("--set", x))])
+        else:
+            want = f"{exp.name}-" + next((sfx for sfx, sets in exp.variants.items() if list(sets) == run["sets"]),
+                                         "?") if run["sets"] else exp.name
         assert label == want, f"{RECORD.name}: run {label} is no demo run of {exp.name} today: {REFRESH}"
         digest = config_digest(resolve(exp.config, sets=run["sets"]).model_dump(mode="json"))
         assert run["config_sha256"] == digest, (
             f"{RECORD.name}: run {label} was made with another config than today's default of "
             f"{exp.name}{' with ' + ', '.join(run['sets']) if run['sets'] else ''}: {REFRESH}")
+
+
+_SCRIPT = re.compile(r"benchmarks/[\w/]+\.py")
+
+
+def test_measured_figures_name_their_script():
+    """Speed figures cannot be re-run in a test (``make test`` times nothing): the docs
+    mark them as measured and say what measures them. Every ``benchmarks/*.py`` the docs
+    name exists; every section about speed or cost names one; every row of the README's
+    speed table names its script, or says it was timed by hand with no script."""
+    named = {m for p in DOCS for m in _SCRIPT.findall(p.read_text(encoding="utf-8"))}
+    assert named and not [n for n in named if not (ROOT / n).is_file()], sorted(
+        n for n in named if not (ROOT / n).is_file())
+    sections = 0
+    for p in DOCS:
+        text = p.read_text(encoding="utf-8")
+        for m in re.finditer(r"^(#+) (.*(?:[Ss]peed|[Cc]ost).*)$", text, re.M):
+            end = re.search(rf"^#{{1,{len(m[1])}}} ", text[m.end():], re.M)
+            body = text[m.end(): m.end() + end.start() if end else len(text)]
+            sections += 1
+            assert _SCRIPT.search(body), f"{p.name}: section {m[2]!r} names no benchmarks/ script"
+            if p.name == "README.md":
+                rows = [r for r in body.splitlines() if r.startswith("| ") and not r.startswith(("| what", "| ---"))]
+                assert len(rows) >= 15
+                bare = [r[:60] for r in rows if not _SCRIPT.search(r) and "no script" not in r]
+                assert not bare, f"README speed rows that name no script: {bare}"
+    assert sections >= 4
+
+
+def test_raw_gnss_walk_tables_are_the_examples(capsys):
+    """docs/raw-gnss.md's tables of the walk are what ``examples/raw_gnss_walk.py`` prints
+    (about 8 s of CPU): every row it prints stands in the document with the same numbers
+    (bold and the typographic minus aside)."""
+    walk = DATA / "rtklib-walk"
+    if not (walk / "imu_1730.csv").is_file():
+        pytest.skip("shared data folder not available")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("raw_gnss_walk", ROOT / "examples" / "raw_gnss_walk.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    mod.main(walk)
+    printed = [r for r in capsys.readouterr().out.splitlines() if r.startswith("| ") and "---" not in r
+               and not r.startswith(("| solution", "| window"))]
+    doc = {" ".join(r.replace("**", "").replace("−", "-").split())
+           for r in (ROOT / "docs" / "raw-gnss.md").read_text(encoding="utf-8").splitlines()}
+    assert len(printed) == 8
+    missing = [r for r in printed if " ".join(r.split()) not in doc]
+    assert not missing, f"docs/raw-gnss.md lacks these rows the example prints today: {missing}"

@@ -350,22 +350,36 @@ def test_warned_then_refused_with_strict(tmp_path, files, cid, argv, needle):
     assert not (tmp_path / "b").exists()
 
 
-def test_nis_monitor_finds_long_inconsistent_stretches():
-    """Oracle: NIS of a consistent filter is χ²(m)-distributed with mean m; scaled by 4 over
-    200 s of 1 Hz fixes it is overconfident there, and only there."""
-    from sinslab.app.plausibility import nis_findings
+def test_consistency_monitors_find_long_inconsistent_stretches():
+    """Oracle: a consistent filter's innovations are white N(0, S) (Mehra & Peschon 1971):
+    600 s of 4 Hz fixes drawn so, with a σ changing from fix to fix and a masked component,
+    raise nothing; the same fixes scaled by 2 over 200 s are overconfident there (NIS), a
+    0.6σ bias of one component over 200 s (the NIS up by only 0.36 of 6) is reported as
+    biased in that component, and a pessimistic run (innovations a third of their σ) is no
+    warning (the whole-run NIS verdict says so)."""
+    from sinslab.app.plausibility import consistency_findings
 
     rng = np.random.default_rng(0)
-    t = np.arange(600.0)
-    nis = rng.chisquare(6, t.size)
-    assert nis_findings(t, nis, 6) == []
-    bad = nis.copy()
-    bad[200:400] *= 4.0
-    (fd,) = nis_findings(t, bad, 6)
-    assert "overconfident" in fd.text and "expected 6" in fd.text and "band 3–12" in fd.text
-    assert "for 2" in fd.text                   # a stretch of about 200 s (window edges blur it)
-    (fd,) = nis_findings(t, nis / 4.0, 6)       # the whole run underconfident
-    assert "underconfident" in fd.text and "100% of the fixes" in fd.text
+    t = np.arange(0.0, 600.0, 0.25)
+    sd = rng.uniform(0.5, 3.0, (t.size, 6))
+    nu = rng.standard_normal((t.size, 6)) * sd
+    nu[::7, 5] = sd[::7, 5] = np.nan                            # a component not used
+
+    def nis(v):
+        return np.nansum((v / sd) ** 2, axis=1)
+
+    labels = ["pos N", "pos E", "pos U", "vel E", "vel N", "vel U"]
+    assert consistency_findings(t, nu, sd, nis(nu), labels) == []
+    assert consistency_findings(t, nu / 3, sd, nis(nu / 3), labels) == []
+    bad = nu.copy()
+    bad[800:1600] *= 2.0
+    (fd,) = consistency_findings(t, bad, sd, nis(bad), labels)
+    assert "overconfident for 2" in fd.text and "window's" in fd.text, fd.text
+    bias = nu.copy()
+    bias[800:1600, 1] += 0.6 * sd[800:1600, 1]
+    (fd,) = consistency_findings(t, bias, sd, nis(bias), labels)
+    assert "biased for" in fd.text and "in pos E:" in fd.text, fd.text
+    assert 170 < float(fd.text.split("biased for ")[1].split(" s")[0]) < 240, fd.text
 
 
 @pytest.mark.parametrize("argv", [["align", "--imu", "{two}", "--lat", "30 deg"], ["allan", "{zeros}"],

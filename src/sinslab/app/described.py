@@ -79,6 +79,7 @@ DESCRIPTIONS = {
         (r"^outage_end_hz_err_m$", "horizontal error at the end of each outage"),
         (r"^hz_err_with_fixes_median_m$", "horizontal solution − fix difference outside outages, median"),
         (r"^hz_err_with_fixes_max_m$", "horizontal solution − fix difference outside outages, largest"),
+        (r"^hz_err_with_fixes_p99_m$", "horizontal solution − fix difference outside outages, 99th percentile"),
         (r"^hz_err_with_fixes_median_over_sigma$", "median of horizontal solution − fix over the fixes' stated horizontal σ"),
         (r"^hz_err_settled_p99_over_sigma$", "99th percentile of horizontal solution − fix over the fixes' σ, "
          "outside outages and more than 10 s after one"),
@@ -105,6 +106,9 @@ DESCRIPTIONS = {
         (r"^time_sync_ppm_sigma$", "1σ of the clock drift estimate [ppm]"),
         (r"^time_sync_offset_applied$", "whether the offset was applied (significant at 3σ)"),
         (r"^time_sync_ppm_applied$", "whether the clock drift was applied"),
+        (r"^time_sync_windows$", "windows of turns the offset and drift were fitted from"),
+        (r"^time_sync_threshold_sigmas$", "how many σ the offset and drift had to reach to be applied (3σ, or "
+         "Student's t at 1 % for the fit's degrees of freedom)"),
         (r"^initial_heading_sigma_deg$", "1σ of the initial heading (from the fix course window)"),
         (r"^initial_attitude_sigma_deg$", "filter 1σ of the attitude error φE, φN, φU at its first epoch"),
         (r"^fixes_after_grid$", "fixes after the last whole filter step, not used"),

@@ -28,8 +28,9 @@ import numpy as np
 from sinslab.app.errors import CliError
 
 __all__ = ["Finding", "imu_findings", "rest_findings", "rest_gravity_findings", "gap_findings",
-           "nis_findings", "settle",
-           "MIN_SAMPLES", "MAX_RATE_DPS", "MAX_ACCEL_G"]
+           "consistency_findings", "settle",
+           "MIN_SAMPLES", "MAX_RATE_DPS", "MAX_ACCEL_G", "MONITOR_WINDOW_S", "MONITOR_ALPHA",
+           "MONITOR_STRETCH_S"]
 
 #: fewest samples any command can use (a levelling, an alignment, a first filter step)
 MIN_SAMPLES = 10
@@ -46,11 +47,13 @@ F_WARN = 0.05
 #: itself is this long [s] (a car turning at 10 °/s through a 0.1 s gap: 1°)
 GAP_WARN_DEG = 0.5
 GAP_WARN_S = 1.0
-#: NIS monitor: window [s] of the moving mean, and the stretch [s] (and share of the
-#: fixes) an inconsistent window must last to be reported
-NIS_WINDOW_S = 30.0
-NIS_STRETCH_S = 60.0
-NIS_STRETCH_SHARE = 0.1
+#: consistency monitors of a run (:func:`consistency_findings`): the window [s] of the
+#: NIS and innovation-mean tests, their false-alarm probability per window, and how long
+#: [s] the failing windows must last in a row to be reported (one window: a stretch that
+#: long is no run of bad luck of overlapping windows)
+MONITOR_WINDOW_S = 30.0
+MONITOR_ALPHA = 1e-3
+MONITOR_STRETCH_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -193,42 +196,103 @@ def gap_findings(imu, gaps, source: str) -> list[Finding]:
                     f"(and the velocity change across it) is interpolated, not measured")]
 
 
-def nis_findings(t, nis, dof: int, *, factor: float = 2.0) -> list[Finding]:
-    """A warning for each long stretch where the filter is inconsistent with its fixes.
+def _stretches(t, bad):
+    """``[(duration [s], start, stop)]`` of the runs of ``bad`` (stop exclusive), longest first."""
+    edges = np.flatnonzero(np.diff(np.r_[0, bad.astype(int), 0]))
+    return sorted(((float(t[b - 1] - t[a]), int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])),
+                  reverse=True)
 
-    The moving mean of the NIS over :data:`NIS_WINDOW_S` is compared with the expected
-    value, the measurement dimension ``dof``, within ``factor`` either way (the band of the
-    ``nis_consistent`` claim); a stretch outside lasting :data:`NIS_STRETCH_S` and
-    :data:`NIS_STRETCH_SHARE` of the fixes is reported with its times and mean NIS.
+
+def _window_sums(t, x):
+    """Sums of ``x`` (n, ...) over the window of :data:`MONITOR_WINDOW_S` centred on each
+    ``t``, and the window bounds ``lo, hi`` (rows ``lo[i]:hi[i]``)."""
+    lo = np.searchsorted(t, t - MONITOR_WINDOW_S / 2)
+    hi = np.searchsorted(t, t + MONITOR_WINDOW_S / 2, side="right")
+    c = np.concatenate([np.zeros((1, *x.shape[1:])), np.cumsum(x, axis=0)])
+    return c[hi] - c[lo], lo, hi
+
+
+def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> list[Finding]:
+    """Warnings where the filter is inconsistent with its fixes for a long stretch.
+
+    A consistent Kalman filter's innovations are zero-mean, white, with the covariance
+    ``S = H P Hᵀ + R`` it computes (Mehra & Peschon 1971), so over a window of
+    :data:`MONITOR_WINDOW_S` holding ``k`` fixes
+
+    - the **NIS** sum is χ² with the window's degrees of freedom (the used components of
+      its ``k`` fixes): a sum beyond its ``1 − MONITOR_ALPHA`` quantile says the errors are
+      larger than the filter's σ (overconfident). Only this side is a warning: a filter
+      whose σ are larger than its errors (a pessimistic noise model) is safe, and its
+      whole-run mean NIS says so;
+    - the **innovation mean** of each component, normalised by its σ (``√S_ii``) and
+      scaled by ``√k``, is standard normal: beyond the two-sided ``MONITOR_ALPHA`` quantile
+      (Bonferroni over the components) it is a bias the filter does not model — a lever
+      arm, time offset, mount, or a bias prior too tight — even where the NIS looks fine.
+
+    A window failing is a false alarm with probability :data:`MONITOR_ALPHA`; a warning
+    needs the failing windows to last :data:`MONITOR_STRETCH_S` in a row.
+
+    Parameters
+    ----------
+    t : array (J,)
+        Validity times of the applied fixes [s].
+    innovation, innovation_sigma : arrays (J, m)
+        Innovations and the filter's σ of each (NaN where a component was not used).
+    nis : array (J,)
+        Normalised innovation squared of each fix over its used components.
+    labels : list of str, optional
+        Names of the m components (for the message).
     """
+    from scipy import stats
+
     t = np.asarray(t, float)
+    nu = np.asarray(innovation, float).reshape(t.size, -1)
+    sd = np.asarray(innovation_sigma, float).reshape(nu.shape)
     nis = np.asarray(nis, float)
-    ok = np.isfinite(nis) & np.isfinite(t)
-    t, nis = t[ok], nis[ok]
-    if nis.size < 10:
+    keep = np.isfinite(t) & np.isfinite(nis)
+    t, nu, sd, nis = t[keep], nu[keep], sd[keep], nis[keep]
+    if t.size < 10:
         return []
-    c = np.concatenate([[0.0], np.cumsum(nis)])
-    lo = np.searchsorted(t, t - NIS_WINDOW_S / 2)
-    hi = np.searchsorted(t, t + NIS_WINDOW_S / 2, side="right")
-    mean = (c[hi] - c[lo]) / np.maximum(hi - lo, 1)
+    m = nu.shape[1]
+    labels = list(labels) if labels is not None and len(labels) == m else [f"component {i + 1}" for i in range(m)]
+    used = np.isfinite(nu) & np.isfinite(sd) & (sd > 0)
+    z = np.where(used, nu / np.where(used, sd, 1.0), 0.0)
     out = []
-    for sign, bad, what in ((1, mean > dof * factor, "overconfident: errors larger than its σ say "
-                             "(noise model, lever arm, time offset or mount off)"),
-                            (-1, mean < dof / factor, "underconfident: its σ larger than the errors "
-                             "(noise model too pessimistic)")):
-        if not bad.any():
-            continue
-        edges = np.flatnonzero(np.diff(np.r_[0, bad.astype(int), 0]))
-        runs = [(t[b - 1] - t[a], a, b) for a, b in zip(edges[::2], edges[1::2])]
-        dur, a, b = max(runs)
-        share = float(bad.mean())
-        if dur >= NIS_STRETCH_S and share >= NIS_STRETCH_SHARE:
-            out.append(Finding(
-                f"the filter is inconsistent with its fixes for {dur:.0f} s ({t[a] - t[0]:.0f}–"
-                f"{t[b - 1] - t[0]:.0f} s after the first applied fix; {share:.0%} of the fixes in "
-                f"such stretches): {NIS_WINDOW_S:g}-s mean NIS {float(np.mean(nis[a:b])):.3g} against "
-                f"the expected {dof} (the measurement dimension; band {dof / factor:g}–{dof * factor:g}), "
-                f"{what}"))
+    s_nis, lo, hi = _window_sums(t, nis)
+    dof, _, _ = _window_sums(t, used.sum(axis=1).astype(float))
+    limit = stats.chi2.isf(MONITOR_ALPHA, np.maximum(dof, 1.0))
+    bad = (s_nis > limit) & (dof > 0)
+    runs = _stretches(t, bad) if bad.any() else []
+    if runs and runs[0][0] >= MONITOR_STRETCH_S:
+        dur, a, b = runs[0]
+        i = a + int(np.argmax(s_nis[a:b] / dof[a:b]))
+        out.append(Finding(
+            f"the filter is overconfident for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
+            f"the first applied fix; {len(runs)} such stretch(es), {bad.mean():.0%} of the fixes): "
+            f"{MONITOR_WINDOW_S:g}-s NIS per component up to {s_nis[i] / dof[i]:.3g} where a consistent "
+            f"filter stays below {limit[i] / dof[i]:.3g} (χ² of the window's {dof[i]:.0f} degrees of "
+            f"freedom, false alarm {MONITOR_ALPHA:g} per window): its errors are larger than its σ say "
+            f"(noise model, lever arm, time offset or mount off)"))
+    s_z, _, _ = _window_sums(t, z)
+    k, _, _ = _window_sums(t, used.astype(float))
+    u = s_z / np.sqrt(np.maximum(k, 1.0))
+    q = stats.norm.isf(MONITOR_ALPHA / (2 * m))
+    bad_c = (np.abs(u) > q) & (k > 0)
+    bad = bad_c.any(axis=1)
+    runs = _stretches(t, bad) if bad.any() else []
+    if runs and runs[0][0] >= MONITOR_STRETCH_S:
+        dur, a, b = runs[0]
+        i, c = np.unravel_index(int(np.argmax(np.abs(u[a:b]))), u[a:b].shape)
+        i += a
+        worst = [labels[j] for j in range(m) if bad_c[a:b, j].any()]
+        out.append(Finding(
+            f"the fix innovations are biased for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
+            f"the first applied fix; {len(runs)} such stretch(es), {bad.mean():.0%} of the fixes) in "
+            f"{', '.join(worst)}: {MONITOR_WINDOW_S:g}-s mean of the {labels[c]} innovation "
+            f"{s_z[i, c] / max(k[i, c], 1.0):+.2f} σ over {k[i, c]:.0f} fixes, {abs(u[i, c]):.1f} times its "
+            f"spread 1/√{k[i, c]:.0f} where a consistent filter stays within {q:.2f} (false alarm "
+            f"{MONITOR_ALPHA:g} per window): an error the filter does not model (lever arm, time offset, "
+            f"mount, a bias prior too tight)"))
     return out
 
 

@@ -81,7 +81,7 @@ estimate after re-processing is fed back at ``e1`` like any other.
 from __future__ import annotations
 
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
@@ -417,6 +417,9 @@ class Applied:
     innovation : list of ndarray
         Innovations (NaN where a component was not used).
     nis : float array
+    innovation_sigma : list of ndarray
+        √diag(S) of each innovation, ``S = H P Hᵀ + R`` of the prior (NaN where not used):
+        the filter's own σ of each innovation component.
     """
 
     measurement: np.ndarray
@@ -425,6 +428,7 @@ class Applied:
     t_applied: np.ndarray
     innovation: list
     nis: np.ndarray
+    innovation_sigma: list = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -599,6 +603,7 @@ class _LaneRun:
         if history is not None:
             history.begin(filt, n_ep, T, set(arrivals) | {v[0] for v in e_valid.values()})
         self.a_m, self.a_j, self.a_tv, self.a_t, self.a_nu, self.a_nis = [], [], [], [], [], []
+        self.a_sd = []
         self.nav_lag = self.nav_h if lag.corrected_nav else self.nav_pre
         self.Phi_la = self.Q_la = self.stretch = None
         self.blk = self.rows = None
@@ -709,6 +714,7 @@ class _LaneRun:
             self.a_t.append(t_ep[e1])
             self.a_nu.append(res.innovation)
             self.a_nis.append(res.nis)
+            self.a_sd.append(np.sqrt(np.abs(np.diagonal(res.S))))
         if not here:
             return
         history = self.history
@@ -727,7 +733,7 @@ class _LaneRun:
     def result(self, t_ep, lay):
         applied = Applied(np.array(self.a_m, dtype=np.int64), np.array(self.a_j, dtype=np.int64),
                           np.array(self.a_tv, dtype=float), np.array(self.a_t, dtype=float), self.a_nu,
-                          np.array(self.a_nis, dtype=float))
+                          np.array(self.a_nis, dtype=float), self.a_sd)
         return DriverResult(t_ep, tuple(self.nav_h), self.x_h, self.sig_h, tuple(self.comp_h), applied, lay,
                             self.history)
 

@@ -83,6 +83,8 @@ class LooselyCoupled:
         The error-state layout of the model (names of the states).
     history : sinslab.fusion.smoothing.History or None
         The recorded forward pass (``history=``), for :func:`sinslab.fusion.smoothing.smooth`.
+    innovation_sigma : ndarray, shape (J, m) or None
+        The filter's σ of each innovation component, √diag(H P Hᵀ + R) [m, m/s].
     """
 
     t: np.ndarray
@@ -99,6 +101,7 @@ class LooselyCoupled:
     nis: np.ndarray
     layout: object
     history: object = None
+    innovation_sigma: np.ndarray | None = None
 
 
 def loosely_coupled(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsSpec(),
@@ -228,9 +231,10 @@ class _Composed:
         k = np.flatnonzero(ap.measurement == 0)            # the fixes (aiding records left out)
         m_z = self.n_z + (3 if self.use_vel else 0)
         inn = np.array([ap.innovation[i] for i in k]).reshape(-1, m_z)
+        sd = np.array([ap.innovation_sigma[i] for i in k]).reshape(-1, m_z) if ap.innovation_sigma else None
         return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
                               r.scale[0] if r.scale is not None else None, self.fix_t[ap.item[k]],
-                              ap.t_applied[k], ap.item[k], inn, ap.nis[k], r.layout, r.history)
+                              ap.t_applied[k], ap.item[k], inn, ap.nis[k], r.layout, r.history, sd)
 
 
 def _compose(imu, init, fixes: FixSpec, model, ins: InsSpec, grid: FilterGrid, lag, feedback) -> _Composed:

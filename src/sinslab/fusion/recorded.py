@@ -192,8 +192,8 @@ class RecordedNav:
     ``t`` (M,) [s], ``nav`` (M, 10) ``[q0..q3, vE, vN, vU, lat, lon, h]`` after feedback,
     ``sigma`` (M, n) filter σ, ``gyro_bias`` (M, 3) [rad/s] and ``accel_bias`` (M, 3)
     [m/s²] compensation in use, ``scale`` (M, 6) scale-factor compensation [-] or None,
-    ``fix_t`` (J,) validity times of the applied fixes, ``innovation`` (J, m), ``nis``
-    (J,) are those of ``run``; ``labels``/``units_`` the state labels and display units
+    ``fix_t`` (J,) validity times of the applied fixes, ``innovation`` (J, m), ``innovation_sigma`` (J, m)
+    (the filter's σ of each), ``nis`` (J,) are those of ``run``; ``labels``/``units_`` the state labels and display units
     of its layout.
     """
 
@@ -211,6 +211,7 @@ class RecordedNav:
     fix_t = property(lambda self: self.run.fix_t)
     innovation = property(lambda self: self.run.innovation)
     nis = property(lambda self: self.run.nis)
+    innovation_sigma = property(lambda self: self.run.innovation_sigma)   #: (J, m) or None
     labels = property(lambda self: self.run.layout.labels)
     units_ = property(lambda self: self.run.layout.units)
 

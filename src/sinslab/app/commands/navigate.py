@@ -96,8 +96,10 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
     are refused off land).
 
     Plausibility (:mod:`sinslab.app.plausibility`): the IMU record (length, dead channels,
-    ranges, |f| against gravity, gaps) and the run (long stretches where the NIS leaves its
-    band) are checked; a warning is printed and listed in the report, ``strict`` refuses.
+    ranges, |f| against gravity, gaps) and the run (long stretches where the fix NIS or the
+    mean of the normalised innovations says the filter is inconsistent,
+    :func:`sinslab.app.plausibility.consistency_findings`) are checked; a warning is printed
+    and listed in the report, ``strict`` refuses.
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
@@ -122,6 +124,14 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
         raw=dict(path=gnss_raw, nav=gnss_nav, max_satellites=max_satellites, mask_deg=elevation_mask),
         strict=strict), echo=echo)
     return (summary, *res.value)
+
+
+def _innovation_labels(m):
+    """Names of the m fix innovation components (position north, east[, up], then velocity
+    east, north, up: :class:`sinslab.fusion.loosely_coupled.LooselyCoupled`)."""
+    n_pos = m - 3 if m > 3 else m
+    return ([f"position {a}" for a in ("north", "east", "up")[:n_pos]]
+            + [f"velocity {a}" for a in ("east", "north", "up")[:m - n_pos]])
 
 
 def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
@@ -175,7 +185,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         from sinslab.app.error_model import load_error_model
         em = load_error_model(imu_errors)
     data = load_imu(imu_path, fmt_eff, **kw)
-    from sinslab.app.plausibility import imu_findings, nis_findings, settle
+    from sinslab.app.plausibility import consistency_findings, imu_findings, settle
 
     found = imu_findings(data.imu, str(imu_path), gaps=data.gaps)
     settle([fd for fd in found if fd.refuse])
@@ -296,6 +306,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         "outage_end_hz_err_m": oe.tolist(),
         "hz_err_with_fixes_median_m": float(np.median(hz[~in_out])) if (~in_out).any() else None,
         "hz_err_with_fixes_max_m": float(np.max(hz[~in_out])) if (~in_out).any() else None,
+        "hz_err_with_fixes_p99_m": float(np.percentile(hz[~in_out], 99)) if (~in_out).any() else None,
         "nis_mean": float(np.mean(res.nis)) if res.nis.size else None,
         "final_pitch_deg": float(np.degrees(att[0])), "final_roll_deg": float(np.degrees(att[1])),
         "final_heading_deg": float(np.degrees(np.mod(A.yaw_to_heading(att[2]), 2 * np.pi))),
@@ -331,7 +342,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         if res.nis.size and extra["nis_verdict"] != "consistent":
             echo(f"  mean NIS {metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: "
                  f"{extra['nis_verdict']}")
-        found += nis_findings(res.fix_t, res.nis, metrics["nis_dof"])
+        if res.innovation_sigma is not None:
+            found += consistency_findings(res.fix_t, res.innovation, res.innovation_sigma, res.nis,
+                                          _innovation_labels(res.innovation.shape[1]))
     if res.init.get("rest_start") is not None:        # |f| at the initial rest against gravity
         from sinslab.app.plausibility import rest_gravity_findings
 
@@ -344,7 +357,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                        time_sync_offset_sigma_s=sync["offset_sigma"],
                        time_sync_ppm_estimate=sync["ppm_estimate"], time_sync_ppm_sigma=sync["ppm_sigma"],
                        time_sync_offset_applied=sync["offset_applied"],
-                       time_sync_ppm_applied=sync["ppm_applied"])
+                       time_sync_ppm_applied=sync["ppm_applied"], time_sync_windows=sync["windows"],
+                       time_sync_threshold_sigmas=sync["threshold_sigmas"])
     if "lever_arm_estimate" in res.init:
         metrics["lever_arm_estimate_m"] = res.init["lever_arm_estimate"]
         metrics["lever_arm_sigma_m"] = res.init["lever_arm_sigma"]
