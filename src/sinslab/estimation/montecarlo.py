@@ -37,6 +37,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +46,7 @@ from scipy import stats
 from sinslab.core.errors import InputError
 
 __all__ = ["spawn_seeds", "run_campaign", "tree_sum", "TASK_SECONDS", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
-           "mean_ci95", "wilson_ci95", "linear_batch"]
+           "mean_ci95", "wilson_ci95", "linear_batch", "summarize_sums"]
 
 
 def spawn_seeds(seed, n_runs):
@@ -229,7 +230,10 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                 from distributed import as_completed
                 # the shared inputs as the result of a task, not scattered data: a worker
                 # that leaves with its copy costs a recomputation, not the campaign
-                a_f = client.submit(_inputs, args, kwargs, pure=False)
+                # (in the graph on purpose, so Dask's warning about a large graph is moot)
+                with warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message="Sending large graph")
+                    a_f = client.submit(_inputs, args, kwargs, pure=False)
 
                 def submit(group):
                     a, z = group[0][0], group[-1][0] + group[-1][1]
@@ -256,7 +260,8 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                 except Exception as e:                       # noqa: BLE001 - sorted below
                     if not _lost_cluster(e):
                         raise
-                    kept = f"; they are kept in {st.path}: the same command resumes" if st is not None else ""
+                    kept = (f"; they are kept in {st.path}, where a rerun of the same campaign resumes"
+                            if st is not None else "")
                     raise InputError(f"Monte Carlo: the Dask cluster lost its workers "
                                      f"({type(e).__name__}); {acc.done} of {n} runs had finished{kept}") from None
     return acc.result()
@@ -896,6 +901,26 @@ def summarize(err, *, sigma=None, P=None, nees=None, nis=None, nis_dof=None, alp
         nis_b = (lo, hi)
         nis_in = float(np.mean((nis_m[on] >= lo[on]) & (nis_m[on] <= hi[on]))) if on.any() else None
     return Summary(N, mean, rms, std, sig, nees_m, nees_b, nees_in, nis_m, nis_b, nis_in)
+
+
+def summarize_sums(n_runs, s1, s2, sigma=None):
+    """:class:`Summary` (mean, RMS, σ; no NEES/NIS) from the sums over ``n_runs`` runs of
+    the errors ``s1`` and of their squares ``s2`` (each (T, n), e.g. a campaign's
+    ``reduce`` sums), with the filter σ ``sigma`` (T, n) if given.
+
+    The mean is ``s1 / N`` and the RMS ``sqrt(s2 / N)``, as :func:`summarize` forms them
+    from all runs (up to the order of the sums); the standard deviation (ddof=1) is
+    ``sqrt((s2 - s1²/N) / (N - 1))``, which loses digits where the mean is far larger than
+    the spread (:func:`summarize` subtracts the mean from each run first).
+    """
+    N = int(n_runs)
+    if N < 2:
+        raise ValueError("need at least 2 runs for Monte Carlo statistics")
+    s1, s2 = np.asarray(s1, dtype=float), np.asarray(s2, dtype=float)
+    mean = s1 / N
+    std = np.sqrt(np.maximum(s2 - s1 * mean, 0.0) / (N - 1))
+    sig = None if sigma is None else np.asarray(sigma, dtype=float)
+    return Summary(N, mean, np.sqrt(s2 / N), std, sig, None, None, None, None, None, None)
 
 
 # ----------------------------------------------------------------------------------------
