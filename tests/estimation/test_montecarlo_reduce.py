@@ -141,3 +141,23 @@ def test_every_worker_lost_keeps_the_finished_runs(tmp_path):
                           reduce=moments, store=store)
     for k in ref:
         assert np.array_equal(out[k], ref[k]), k
+
+
+def square_dying_once(x, marker, stop=None):
+    """Kills its worker the first time it runs (the marker file says so), then squares."""
+    if os.path.exists(marker):
+        os.unlink(marker)
+        os._exit(1)
+    return x * x
+
+
+def test_map_tasks_inputs_survive_a_lost_worker(tmp_path):
+    """The inputs of map_tasks on Dask are task results, not scattered data: when the only
+    worker dies holding them, its restarted successor makes them again and every task
+    completes (scattered data would be lost with it and the tasks fail)."""
+    marker = tmp_path / "die"
+    marker.touch()
+    got = mc.map_tasks(square_dying_once, [np.arange(3.0), np.arange(4.0)], mode="processes", workers=1,
+                       kwargs=dict(marker=str(marker)))
+    assert not marker.exists()                        # a worker did die
+    assert [g.tolist() for g in got] == [[0.0, 1.0, 4.0], [0.0, 1.0, 4.0, 9.0]]

@@ -309,6 +309,10 @@ def _inputs(args, kwargs):
     return args, kwargs
 
 
+def _identity(x):
+    return x
+
+
 def _run_task(fn, blocks, seeds, args, kwargs, reduce):
     """One task: ``fn`` on each ``(first, count)`` block in turn (``seeds`` those of the
     blocks' whole range); without ``reduce`` their outputs concatenated, with it the tree
@@ -735,8 +739,12 @@ def map_tasks(fn, items, *, mode="threads", workers=2, scheduler=None, kwargs=No
         from distributed import as_completed
 
         with dask_client(scheduler or None, int(workers)) as client:
-            # large inputs are sent once rather than inside the task graph, each as one object
-            sent = client.scatter([_Sent(x) for x in items], hash=False)
+            # each input as the result of a task of its own (one object, its parts sharing
+            # their arrays): unlike scattered data, the scheduler can make it again when the
+            # worker holding it is lost
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message="Sending large graph")
+                sent = [client.submit(_identity, _Sent(x), pure=False) for x in items]
             futs = {client.submit(_call_sent, fn, f, pure=False, **kwargs): i for i, f in enumerate(sent)}
             for fut in as_completed(futs):
                 i = futs[fut]
