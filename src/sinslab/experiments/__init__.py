@@ -262,8 +262,9 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
     import shutil
 
     # beside the output folder, not in its staging folder: a failed run's finished Monte Carlo
-    # tasks outlive it, for a rerun of the same configuration into the same folder
-    campaigns = Path(out).absolute().parent / f".{Path(out).name}.campaigns"
+    # tasks outlive it, for a rerun of the same configuration into the same folder (a name
+    # that the check of a folder holding runs passes over, as it does temporary files)
+    campaigns = Path(out).absolute().parent / f".{Path(out).name}.tmp-campaigns"
     key = hashlib.sha256(json.dumps([exp.name, quick, cfg.model_dump(mode="json")], sort_keys=True,
                                     default=str).encode()).hexdigest()
     ctx = RunContext(name=exp.name, out=rd.path, seed=cfg.seed, runs=cfg.runs, quick=quick,
