@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from sinslab.core.atomic import atomic_path, atomic_write
 from sinslab.core.errors import InputError
 
 __all__ = ["spawn_seeds", "run_campaign", "tree_sum", "TASK_SECONDS", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
@@ -427,7 +428,7 @@ class _Store:
         if old != text:
             for f in self.path.glob("runs-*.npz"):
                 f.unlink()
-            _replace(m, lambda fh: fh.write(text.encode()))
+            atomic_write(m, text)
 
     def load(self):
         for f in sorted(self.path.glob("runs-*.npz")):
@@ -440,15 +441,8 @@ class _Store:
 
     def save(self, first, count, payload):
         f = self.path / f"runs-{first:09d}-{count}.npz"
-        packed = _pack(payload)
-        _replace(f, lambda fh: np.savez(fh, **packed))
-
-
-def _replace(path, write):
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as fh:
-        write(fh)
-    os.replace(tmp, path)
+        with atomic_path(f) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, **_pack(payload))
 
 
 def _pack(payload):
