@@ -533,12 +533,13 @@ def _stats(err, sg, div, ratio):
                 first_sig=sg[np.argmax(keep)] * am if keep.any() else sg[0] * am)
 
 
-def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None):
+def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, label="mc"):
     from sinslab.estimation import montecarlo as mc
 
     return mc.run_campaign(_batch, n, seed, scheduler=ctx.scheduler, tasks_per_worker=1,
                            kwargs=dict(p=p, cases=cases, record_every=record_every, ekf_runs=ekf_runs,
-                                       variants=variants, gains=_common_gains(p, cases, record_every, variants)))
+                                       variants=variants, gains=_common_gains(p, cases, record_every, variants)),
+                           **ctx.campaign_store(label))
 
 
 def _variant_stats(res, cases, variants, ratio, pre="", ekf_runs=None):
@@ -564,7 +565,8 @@ def _sweep(cfg, ctx, p, cases, record_every, field, grid):
     rows = {key: ([], [], []) for key, *_ in var}
     for v in grid:
         q = dict(p, compare_linear=False, **{field: float(v)})
-        res = _campaign(q, {c: cases[c] for c in _C}, int(cfg.sweep.runs), cfg.seed, ctx, record_every, 0, var)
+        res = _campaign(q, {c: cases[c] for c in _C}, int(cfg.sweep.runs), cfg.seed, ctx, record_every, 0, var,
+                        label=f"sweep-{field}-{float(v):g}")
         st = _variant_stats(res, cases, var, ratio)
         for key in rows:
             rows[key][0].append(st[key]["conv"])
