@@ -76,7 +76,7 @@ def _mechanization(case, lanes=200):
     return lanes * n / c_bank, lanes * n / c_step, lanes * n / c_whole
 
 
-def _scaling(cfg, runs, workers=2):
+def _scaling(cfg, runs, workers=2, rounds=2):
     """The experiment's whole campaign (every variant, three installations) in this process
     and on a local cluster of ``workers``, with the paper-form gains made in each task (as
     before they were shared) and made once for the campaign: wall seconds of each, the
@@ -104,12 +104,15 @@ def _scaling(cfg, runs, workers=2):
     res = {}
     with mc.dask_client(None, workers) as client:
         start_s = time.perf_counter() - t0
-        mc.run_campaign(ta._batch, 2, 9, batch=1, scheduler=client, progress=False, kwargs=kw)   # warm workers
+        for sched in (client, "sync"):                  # warm the workers and this process
+            mc.run_campaign(ta._batch, 2, 9, batch=1, scheduler=sched, progress=False, kwargs=kw)
         outs = {}
-        for shared in (False, True):
-            for name, sched in (("serial", "sync"), ("cluster", client)):
-                outs[(name, shared)], res[f"{name}_{'shared' if shared else 'per_task'}_gains_s"] = \
-                    campaign(sched, shared)
+        for _ in range(rounds):                         # alternated, the best of each kept
+            for shared in (False, True):
+                for name, sched in (("serial", "sync"), ("cluster", client)):
+                    key = f"{name}_{'shared' if shared else 'per_task'}_gains_s"
+                    outs[(name, shared)], wall = campaign(sched, shared)
+                    res[key] = min(wall, res.get(key, float("inf")))
     ref = outs[("serial", False)]
     same = all(np.array_equal(o[k], ref[k], equal_nan=True) for o in outs.values() for k in ref)
     res.update(runs=runs, workers=workers, cluster_start_s=start_s, same_bytes=same, load_1min=os.getloadavg()[0],
