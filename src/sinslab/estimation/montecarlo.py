@@ -241,23 +241,38 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                     return client.submit(_run_task_timed, fn, group, seeds[a:z], a_f, reduce,
                                          pure=False, retries=retries)
 
+                ac, futs = as_completed(), {}
+
+                def go(group):
+                    f = submit(group)
+                    futs[f] = (group[0][0], sum(c for _, c in group))
+                    ac.add(f)
+
+                def grouped(pending):
+                    return _group_blocks(pending, per_run, nw, tasks_per_worker,
+                                         TASK_SECONDS if task_seconds is None else task_seconds)
+
                 try:
                     if per_run is None:
-                        # the first task is one batch, timed on a worker, to size the others
-                        f0 = submit(blocks[:1])
-                        payload, el = f0.result()
-                        del f0
-                        finished(*blocks[0], payload)
-                        per_run = el / blocks[0][1]
-                        blocks = blocks[1:]
-                    groups = _group_blocks(blocks, per_run, nw, tasks_per_worker,
-                                           TASK_SECONDS if task_seconds is None else task_seconds)
-                    futs = {submit(g): (g[0][0], sum(c for _, c in g)) for g in groups}
-                    for fut in as_completed(list(futs)):
+                        # a first wave of one batch per worker; the first to end, timed on
+                        # its worker, sizes the tasks of the rest
+                        pending = blocks[nw:]
+                        for blk in blocks[:nw]:
+                            go([blk])
+                    else:
+                        pending = []
+                        for g in grouped(blocks):
+                            go(g)
+                    for fut in ac:
                         first, count = futs.pop(fut)
-                        payload = fut.result()[0]
+                        payload, elapsed = fut.result()
                         fut.release()
                         finished(first, count, payload)
+                        if pending:
+                            per_run = elapsed / count
+                            for g in grouped(pending):
+                                go(g)
+                            pending = []
                 except Exception as e:                       # noqa: BLE001 - sorted below
                     if not _lost_cluster(e):
                         raise
