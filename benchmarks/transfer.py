@@ -15,13 +15,19 @@ step for all lanes) is also timed against one :func:`sinslab.nav.strapdown.step`
 lane and filter step, and against one call per lane over the whole record (the compiled
 speed with no call overhead; a closed loop cannot do that).
 
-Run: ``.venv/bin/python benchmarks/transfer.py [--runs 200] [--wide 1000] [--lanes 200] [--quick] [--out FILE]``;
-results printed and written to ``benchmarks/results/transfer.json``.
+3. ``--scaling RUNS`` instead: the experiment's whole campaign in this process against a
+   local cluster, with the paper-form filters' gains made in every task (the former way)
+   and made once for the campaign and shipped with its shared inputs (the current way).
+
+Run: ``.venv/bin/python benchmarks/transfer.py [--runs 200] [--wide 1000] [--lanes 200] [--quick] [--out FILE]``
+or ``.venv/bin/python benchmarks/transfer.py --scaling 200``; results printed and written to
+``benchmarks/results/transfer.json`` (``transfer_scaling.json``).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import time
 from pathlib import Path
@@ -70,6 +76,57 @@ def _mechanization(case, lanes=200):
     return lanes * n / c_bank, lanes * n / c_step, lanes * n / c_whole
 
 
+def _scaling(cfg, runs, workers=2, rounds=2):
+    """The experiment's whole campaign (every variant, three installations) in this process
+    and on a local cluster of ``workers``, with the paper-form gains made in each task (as
+    before they were shared) and made once for the campaign: wall seconds of each, the
+    cluster started once beforehand (its start-up timed apart), the batches the same in
+    all four (one per worker), outputs compared."""
+    from sinslab.estimation import montecarlo as mc
+    from sinslab.experiments import transfer_alignment as ta
+
+    s, ins = cfg.scenario, cfg.installation
+    cases = {"large": ta._case(cfg, ins.large, s.heading), "small": ta._case(cfg, ins.small, s.heading),
+             "c22": ta._case(cfg, ins.small, 90.0 * units_deg())}
+    rec = max(1, int(round(0.5 / float(cfg.filter.kf_dt))))
+    p = ta._params(cfg)
+    kw = dict(p=p, cases=cases, record_every=rec, ekf_runs=min(int(cfg.filter.ekf_runs), runs))
+    batch = -(-runs // workers)
+
+    def campaign(sched, shared):
+        t0 = time.perf_counter()
+        g = ta._common_gains(p, cases, rec) if shared else None
+        out = mc.run_campaign(ta._batch, runs, 0, batch=batch, scheduler=sched, progress=False,
+                              kwargs=dict(kw, gains=g))
+        return out, time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    res = {}
+    with mc.dask_client(None, workers) as client:
+        start_s = time.perf_counter() - t0
+        for sched in (client, "sync"):                  # warm the workers and this process
+            mc.run_campaign(ta._batch, 2, 9, batch=1, scheduler=sched, progress=False, kwargs=kw)
+        outs = {}
+        for _ in range(rounds):                         # alternated, the best of each kept
+            for shared in (False, True):
+                for name, sched in (("serial", "sync"), ("cluster", client)):
+                    key = f"{name}_{'shared' if shared else 'per_task'}_gains_s"
+                    outs[(name, shared)], wall = campaign(sched, shared)
+                    res[key] = min(wall, res.get(key, float("inf")))
+    ref = outs[("serial", False)]
+    same = all(np.array_equal(o[k], ref[k], equal_nan=True) for o in outs.values() for k in ref)
+    res.update(runs=runs, workers=workers, cluster_start_s=start_s, same_bytes=same, load_1min=os.getloadavg()[0],
+               before_cluster_over_serial=res["serial_per_task_gains_s"] / res["cluster_per_task_gains_s"],
+               after_cluster_over_serial=res["serial_shared_gains_s"] / res["cluster_shared_gains_s"])
+    return res
+
+
+def units_deg():
+    from sinslab.core import units
+
+    return units.deg
+
+
 def main(argv=None) -> dict:
     from sinslab.app.config import resolve
     from sinslab.estimation import montecarlo as mc
@@ -83,9 +140,19 @@ def main(argv=None) -> dict:
     ap.add_argument("--quick", action="store_true", help="40 runs, 100 wide")
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address (default: local cluster)")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "transfer.json")
+    ap.add_argument("--scaling", type=int, default=0, metavar="RUNS",
+                    help="only the whole campaign of RUNS runs, serial against a local cluster, gains made "
+                         "per task against once (speed-ups printed as ratios)")
     a = ap.parse_args(argv)
     runs, wide = (40, 100) if a.quick else (a.runs, a.wide)
     cfg = resolve(ta.Config)
+    if a.scaling:
+        out = _scaling(cfg, a.scaling)
+        for k, v in out.items():
+            print(f"{k:>34s}: {v}")
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        a.out.with_name("transfer_scaling.json").write_text(json.dumps(out, indent=2))
+        return out
     cases, setup_cpu, _ = _cpu(lambda: {c: ta._case(cfg, getattr(cfg.installation, c), cfg.scenario.heading)
                                         for c in ta._C})
     var = ta._variants(full=False)                      # 4 forms × 2 installations

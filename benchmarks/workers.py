@@ -83,6 +83,7 @@ def main(argv=None):
     case = ta._case(cfg, cfg.installation.large, cfg.scenario.heading)
     var = [(f"{m}_large", "large", m, m == "optimal", False) for m in ta._M]
     kw = dict(p=ta._params(cfg), cases={"large": case}, record_every=5, ekf_runs=0, variants=var)
+    kw["gains"] = ta._common_gains(kw["p"], kw["cases"], 5, var)        # made once, as the experiment does
     default = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
     settings = {"Dask's default": default, "sinslab's": {**default, **mc.WORKER_ENVIRON}}
     best = {}

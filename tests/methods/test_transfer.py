@@ -263,3 +263,37 @@ def test_align_lanes_on_a_parked_carrier(kind):
     assert np.linalg.norm(e - (e @ u) * u) < 0.3 * DEG / 60
     assert not r.diverged.any() and r.sigma.ndim == 2 and r.epochs[-1] == 300
     np.testing.assert_array_equal(r.a[0], r.a[2])
+
+
+@pytest.mark.parametrize("kind", ["kain", "euler", "dcm"])
+def test_common_gains_of_the_two_filters_agree(kind):
+    """The paper form's covariance recursion made once (lane_gains for the closed loop,
+    batch_gains for the open loop) is the same Kalman recursion written with two
+    association orders: H, gains and σ agree to rounding, and the σ of the Joseph-form
+    update stays that of the standard form P⁺ = (I − KH)P within rounding too."""
+    from scipy.linalg import expm
+
+    rng = np.random.default_rng(2)
+    n, K = 21, 40
+    F = rng.normal(0, 0.02, (n, n))
+    Phi = np.broadcast_to(expm(F * 0.1), (K, n, n))
+    Cm = euler_to_dcm(np.stack([_rand_att(rng) for _ in range(K + 1)]))
+    m = tr.AttitudeMatch(kind)
+    sig0 = np.array([DEG / 60] * 3 + [0.1] * 3 + [1e-2] * 3 + [1e-7] * 3 + [1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3)
+    P0, Rv, Ra = np.diag(sig0 ** 2), np.full(3, 0.01 ** 2), np.full(3, (DEG / 60) ** 2)
+    a = tr.lane_gains(Phi, m, P0, Rv, Ra, Cm, record_every=4)
+    b = tr.batch_gains(Phi, Cm, m, P0, Rv, Ra, record_every=4)
+    np.testing.assert_array_equal(a.H, b.H)
+    np.testing.assert_allclose(a.K, b.K, rtol=1e-8, atol=1e-12 * np.abs(a.K).max())
+    np.testing.assert_allclose(a.sigma, b.sigma, rtol=1e-8)
+    # standard-form recursion, written out here
+    P = P0.copy()
+    for k in range(K + 1):
+        if k:
+            P = Phi[k - 1] @ P @ Phi[k - 1].T
+        H = a.H[k]
+        G = P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(np.r_[Rv, Ra]))
+        P = (np.eye(n) - G @ H) @ P
+        if k % 4 == 0:
+            np.testing.assert_allclose(a.sigma[k // 4], np.sqrt(np.diag(P)), rtol=1e-6)
+

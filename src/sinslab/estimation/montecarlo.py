@@ -13,10 +13,18 @@ The user supplies ``fn(seeds, *args, **kwargs)``: given a list of ``SeedSequence
 dict of such arrays. Small filters should be vectorised across the runs of a batch
 (see :func:`linear_batch`). ``fn`` must be pure: its output depends only on its inputs.
 
-Batches are Dask tasks (``dask.distributed``): by default a ``LocalCluster`` of worker
+Batches are grouped into Dask tasks (``dask.distributed``) of a few seconds each, sized
+from the measured cost of the first batch: by default on a ``LocalCluster`` of worker
 processes on this machine (one thread each); ``scheduler=ADDRESS`` sends the same
 campaign to an existing cluster, ``scheduler=client`` reuses a ``distributed.Client``,
 and ``scheduler="sync"`` runs in this process without Dask (debugging).
+
+Statistics need not travel as runs: with ``reduce=`` each task sums what the statistics
+need over its runs, in a binary tree fixed by the run index (:func:`tree_sum`), and only
+the tree's nodes reach this process, where they are merged as they arrive; the sums are
+the same bytes whatever the batches, tasks or workers. With ``store=`` every finished
+task is written to a folder as it ends, and a campaign started again on that folder
+computes only the runs not found there.
 
 :func:`summarize` turns error histories into mean, RMS and σ versus time, the filter σ,
 and NEES / NIS with their chi-square acceptance bounds.
@@ -29,15 +37,17 @@ import math
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
 
+from sinslab.core.atomic import atomic_path, atomic_write
 from sinslab.core.errors import InputError
 
-__all__ = ["spawn_seeds", "run_campaign", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
-           "mean_ci95", "wilson_ci95", "linear_batch"]
+__all__ = ["spawn_seeds", "run_campaign", "tree_sum", "TASK_SECONDS", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
+           "mean_ci95", "wilson_ci95", "linear_batch", "summarize_sums"]
 
 
 def spawn_seeds(seed, n_runs):
@@ -80,7 +90,7 @@ def _run_batch(fn, first, seeds, args, kwargs):
 
 def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None,
                  progress=True, args=(), kwargs=None, retries=0, tasks_per_worker=4,
-                 auto_serial=True):
+                 auto_serial=True, reduce=None, store=None, store_key="", task_seconds=None):
     """Run ``n_runs`` independent runs of ``fn`` in batches on Dask.
 
     Parameters
@@ -94,8 +104,8 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     seed : int or SeedSequence
         Campaign seed; run ``i`` uses ``spawn_seeds(seed, n_runs)[i]``.
     batch : int, optional
-        Runs per task (default: about ``tasks_per_worker`` tasks per worker, at most 64
-        runs).
+        Runs per call of ``fn`` (default: about ``tasks_per_worker`` calls per worker, at
+        most 64 runs). A task makes one or more consecutive calls (see ``task_seconds``).
     scheduler : None, str or distributed.Client
         None: start a LocalCluster of ``n_workers`` processes (1 thread each) for this
         campaign and close it after; an address string (``"tcp://host:8786"``): connect to
@@ -106,40 +116,84 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
         Show a progress bar (via :mod:`sinslab.core.progress`: only on a terminal, silenced by
         ``SINSLAB_QUIET=1``).
     args, kwargs
-        Extra arguments passed to every ``fn`` call (sent to the workers once).
+        Extra arguments passed to every ``fn`` call (sent to the workers once, as the result
+        of a task the scheduler can recompute when a worker holding them is lost).
     retries : int
         Re-run a task this many times if *it* raises (worker loss is handled by the
         scheduler regardless, since tasks are pure).
     tasks_per_worker : int
-        Tasks per worker when ``batch`` is not given: several balance the load; 1 suits a
-        task function whose cost hardly depends on the number of runs it stacks.
+        Calls of ``fn`` per worker when ``batch`` is not given: several balance the load; 1
+        suits a task function whose cost hardly depends on the number of runs it stacks.
     auto_serial : bool
         With ``scheduler=None``: run the first batch in this process, timed, and run the
         rest serially too when that is expected to take no longer than starting a local
         cluster (:data:`CLUSTER_START_S`) and sharing the rest among its workers; the
         decision is printed (stderr, not under ``SINSLAB_QUIET``). The batches are those
         the cluster would get, so the bytes are the same either way.
+    reduce : callable, optional
+        ``reduce(out)`` maps one call's output to a dict of per-run arrays (runs first) to
+        be summed over the runs. The sums are formed where the runs were computed and
+        merged in the fixed binary tree of :func:`tree_sum` over the run index, so only
+        the tree's nodes travel to this process (a few per task) and the bytes depend
+        neither on the batches, the tasks, the workers nor the order in which tasks end.
+        Without it every run's output is gathered here.
+    store : path-like, optional
+        Folder keeping each finished task's result (its tree nodes, or its runs' outputs
+        without ``reduce``), written atomically as the task ends. A campaign started with
+        the same ``store``, ``store_key``, runs, seed and batch takes the runs found there
+        as done and computes only the others: a lost cluster or an interrupt loses only the
+        tasks under way.
+    store_key : str
+        What else the stored results depend on (e.g. a digest of the configuration); a
+        store written under another key is not reused.
+    task_seconds : float, optional
+        Aim of a task's duration [s] (default :data:`TASK_SECONDS`): from the measured
+        cost of the first batch, a task takes as many consecutive batches as fit (at
+        least one, and no more than would leave fewer than ``tasks_per_worker`` tasks per
+        worker).
 
     Returns
     -------
     ndarray or dict of ndarray
-        The outputs of all runs concatenated along the first axis in run order.
+        Without ``reduce``: the outputs of all runs concatenated along the first axis in
+        run order. With ``reduce``: the sum over all runs of each of its arrays.
     """
     kwargs = dict(kwargs or {})
     seeds = spawn_seeds(seed, n_runs)
     n = len(seeds)
-    parts = {}
-    if scheduler is None and auto_serial:
-        # a cluster of our own: the batches it would get, and whether it pays for its
-        # start-up, judged from the first batch run here (the same batches either way)
-        nw = int(n_workers or os.cpu_count() or 1)
+    acc = _Collected(n, reduce)
+    per_run = None
+    nw = int(n_workers or os.cpu_count() or 1)
+    if scheduler is None:
         batch = _default_batch(n, nw, tasks_per_worker) if batch is None else batch
         _check_batch(batch)
-        b0 = min(int(batch), n)
+    st = None
+
+    def open_store(batch):
+        nonlocal st
+        if store is None or st is not None:
+            return
+        st = _Store(store, dict(n_runs=n, seed=_seed_words(seed), batch=int(batch), reduce=reduce is not None,
+                                key=str(store_key)))
+        for first, count, payload in st.load():
+            acc.add(first, count, payload)
+        if acc.done:
+            _say(f"Monte Carlo: {acc.done} of {n} runs found finished in {st.path}")
+
+    if scheduler is None:
+        open_store(batch)
+    if scheduler is None and auto_serial and acc.done < n:
+        # a cluster of our own: the batches it would get, and whether it pays for its
+        # start-up, judged from the first batch run here (the same batches either way)
+        b0 = _first_missing(acc, n, int(batch))
+        blk = (b0, min(int(batch), n - b0))
         t0 = time.perf_counter()
-        parts[0] = _run_batch(fn, 0, seeds[:b0], args, kwargs)[1]
-        per_run = (time.perf_counter() - t0) / b0
-        rest = n - b0
+        payload = _run_task(fn, [blk], seeds[blk[0]:blk[0] + blk[1]], args, kwargs, reduce)
+        per_run = (time.perf_counter() - t0) / blk[1]
+        acc.add(b0, blk[1], payload)
+        if st is not None:
+            st.save(b0, blk[1], payload)
+        rest = n - acc.done
         serial_s, cluster_s = rest * per_run, CLUSTER_START_S + rest * per_run / nw
         if rest and serial_s <= cluster_s:
             scheduler = "sync"
@@ -149,48 +203,84 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                     f"~{cluster_s:.3g} s with its start-up)" if scheduler == "sync" else
                     f"on a {nw}-worker local cluster (~{cluster_s:.3g} s with its start-up; serial "
                     f"~{serial_s:.3g} s)"))
-    with dask_client(scheduler if (scheduler is not None or len(parts) < n) else "sync", n_workers) as client:
+    with dask_client(scheduler if (scheduler is not None or acc.done < n) else "sync", n_workers) as client:
         nw = 1 if client is None else max(1, len(client.scheduler_info().get("workers", {})) or 1)
         if batch is None:
             batch = _default_batch(n, nw, tasks_per_worker)
         _check_batch(batch)
         batch = int(batch)
-        starts = list(range(0, n, batch))
+        open_store(batch)
         from sinslab.core.progress import progress as _progress
         ctx = _progress("Monte Carlo", total=n, unit="runs") if progress else contextlib.nullcontext()
         with ctx as bar:
-            if bar is not None and 0 in parts:
-                bar.advance(min(batch, n))
+            if bar is not None and acc.done:
+                bar.advance(acc.done)
+
+            def finished(first, count, payload):
+                acc.add(first, count, payload)
+                if st is not None:
+                    st.save(first, count, payload)
+                if bar is not None:
+                    bar.advance(count)
+
+            blocks = [(s, min(batch, n - s)) for s in range(0, n, batch) if not acc.has(s)]
             if client is None:
-                for s in starts:
-                    if s not in parts:
-                        parts[s] = _run_batch(fn, s, seeds[s:s + batch], args, kwargs)[1]
-                        if bar is not None:
-                            bar.advance(len(seeds[s:s + batch]))
-            else:
+                for blk in blocks:
+                    finished(*blk, _run_task(fn, [blk], seeds[blk[0]:blk[0] + blk[1]], args, kwargs, reduce))
+            elif blocks:
                 from distributed import as_completed
                 # the shared inputs as the result of a task, not scattered data: a worker
                 # that leaves with its copy costs a recomputation, not the campaign
-                a_f = client.submit(_inputs, args, kwargs, pure=False)
-                futs = [client.submit(_run_packed, fn, s, seeds[s:s + batch], a_f,
-                                      pure=False, retries=retries) for s in starts if s not in parts]
+                # (in the graph on purpose, so Dask's warning about a large graph is moot)
+                with warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message="Sending large graph")
+                    a_f = client.submit(_inputs, args, kwargs, pure=False)
+
+                def submit(group):
+                    a, z = group[0][0], group[-1][0] + group[-1][1]
+                    return client.submit(_run_task_timed, fn, group, seeds[a:z], a_f, reduce,
+                                         pure=False, retries=retries)
+
+                ac, futs = as_completed(), {}
+
+                def go(group):
+                    f = submit(group)
+                    futs[f] = (group[0][0], sum(c for _, c in group))
+                    ac.add(f)
+
+                def grouped(pending):
+                    return _group_blocks(pending, per_run, nw, tasks_per_worker,
+                                         TASK_SECONDS if task_seconds is None else task_seconds)
+
                 try:
-                    for fut in as_completed(futs):
-                        s, out = fut.result()
-                        parts[s] = out
-                        if bar is not None:
-                            bar.advance(len(seeds[s:s + batch]))
+                    if per_run is None:
+                        # a first wave of one batch per worker; the first to end, timed on
+                        # its worker, sizes the tasks of the rest
+                        pending = blocks[nw:]
+                        for blk in blocks[:nw]:
+                            go([blk])
+                    else:
+                        pending = []
+                        for g in grouped(blocks):
+                            go(g)
+                    for fut in ac:
+                        first, count = futs.pop(fut)
+                        payload, elapsed = fut.result()
+                        fut.release()
+                        finished(first, count, payload)
+                        if pending:
+                            per_run = elapsed / count
+                            for g in grouped(pending):
+                                go(g)
+                            pending = []
                 except Exception as e:                       # noqa: BLE001 - sorted below
                     if not _lost_cluster(e):
                         raise
-                    done = sum(len(seeds[s:s + batch]) for s in parts)
+                    kept = (f"; they are kept in {st.path}, where a rerun of the same campaign resumes"
+                            if st is not None else "")
                     raise InputError(f"Monte Carlo: the Dask cluster lost its workers "
-                                     f"({type(e).__name__}); {done} of {n} runs had finished") from None
-    ordered = [parts[s] for s in starts]
-    if isinstance(ordered[0], dict):
-        keys = ordered[0].keys()
-        return {k: np.concatenate([o[k] for o in ordered], axis=0) for k in keys}
-    return np.concatenate(ordered, axis=0)
+                                     f"({type(e).__name__}); {acc.done} of {n} runs had finished{kept}") from None
+    return acc.result()
 
 
 #: Allocator settings of the local cluster's worker processes, beside Dask's own
@@ -206,6 +296,12 @@ WORKER_ENVIRON = {"MALLOC_MMAP_THRESHOLD_": 32 * 2 ** 20}
 #: on the 2-core development machine (a campaign's first task on fresh workers included):
 #: :func:`run_campaign` runs a campaign serially when that outweighs what the workers save.
 CLUSTER_START_S = 10.0
+
+
+#: Aim of a task's duration [s] when a campaign's batches are grouped into tasks from the
+#: measured cost of its first batch: long enough that Dask's per-task cost (scheduling,
+#: transfer of the result) is small beside it, short enough that a lost worker costs little.
+TASK_SECONDS = 5.0
 
 
 def _default_batch(n, nw, tasks_per_worker):
@@ -229,8 +325,231 @@ def _inputs(args, kwargs):
     return args, kwargs
 
 
-def _run_packed(fn, first, seeds, packed):
-    return _run_batch(fn, first, seeds, packed[0], packed[1])
+def _identity(x):
+    return x
+
+
+def _run_task(fn, blocks, seeds, args, kwargs, reduce):
+    """One task: ``fn`` on each ``(first, count)`` block in turn (``seeds`` those of the
+    blocks' whole range); without ``reduce`` their outputs concatenated, with it the tree
+    nodes of the sums over the task's runs."""
+    a = blocks[0][0]
+    outs = [_run_batch(fn, s, seeds[s - a:s - a + c], args, kwargs)[1] for s, c in blocks]
+    if reduce is None:
+        return outs[0] if len(outs) == 1 else _concat(outs)
+    tree = _TreeSum()
+    for (s, c), out in zip(blocks, outs):
+        for level, index, node in _dyadic_nodes(s, _contributions(reduce(out), c)):
+            tree.add(level, index, node)
+    return tree.nodes
+
+
+def _run_task_timed(fn, blocks, seeds, packed, reduce):
+    t0 = time.perf_counter()
+    payload = _run_task(fn, blocks, seeds, packed[0], packed[1], reduce)
+    return payload, time.perf_counter() - t0
+
+
+def _contributions(d, count):
+    if not isinstance(d, dict) or not d:
+        raise ValueError("a campaign's reduce function must return a non-empty dict of per-run arrays")
+    out = {}
+    for k, v in d.items():
+        v = np.asarray(v, dtype=float)
+        if v.ndim == 0 or v.shape[0] != count:
+            raise ValueError(f"campaign reduce function returned {k!r} with shape {v.shape}; its first "
+                             f"axis must be the {count} runs of the batch")
+        out[k] = v
+    return out
+
+
+def _concat(outs):
+    if isinstance(outs[0], dict):
+        return {k: np.concatenate([o[k] for o in outs], axis=0) for k in outs[0]}
+    return np.concatenate(outs, axis=0)
+
+
+def _first_missing(acc, n, batch):
+    return next(s for s in range(0, n, batch) if not acc.has(s))
+
+
+def _group_blocks(blocks, per_run, nw, tasks_per_worker, seconds):
+    """Consecutive ``(first, count)`` blocks grouped into tasks of about ``seconds`` at
+    ``per_run`` seconds a run: at least one block each, at most as many as leave
+    ``tasks_per_worker`` tasks to each of ``nw`` workers; a gap (runs already done) ends
+    a group."""
+    if not blocks:
+        return []
+    runs = max(1.0, float(seconds) / max(float(per_run), 1e-9))
+    g = max(1, int(runs // blocks[0][1]))
+    g = max(1, min(g, len(blocks) // max(1, nw * max(1, int(tasks_per_worker)))))
+    groups, cur = [], []
+    for blk in blocks:
+        if cur and (len(cur) == g or cur[-1][0] + cur[-1][1] != blk[0]):
+            groups.append(cur)
+            cur = []
+        cur.append(blk)
+    return groups + [cur]
+
+
+class _Collected:
+    """The finished runs of a campaign: their outputs by first run, or the tree of sums."""
+
+    def __init__(self, n, reduce):
+        self.n, self.reduce = n, reduce
+        self.parts, self.tree = {}, _TreeSum()
+        self.mask = np.zeros(n, dtype=bool)
+
+    @property
+    def done(self):
+        return int(self.mask.sum())
+
+    def has(self, first):
+        return bool(self.mask[first])
+
+    def add(self, first, count, payload):
+        if self.reduce is None:
+            self.parts[first] = payload
+        else:
+            for (level, index), node in payload.items():
+                self.tree.add(level, index, node)
+        self.mask[first:first + count] = True
+
+    def result(self):
+        if self.reduce is None:
+            return _concat([self.parts[s] for s in sorted(self.parts)])
+        return self.tree.total(self.n)
+
+
+def _seed_words(seed):
+    if isinstance(seed, np.random.SeedSequence):
+        return [repr(seed.entropy), list(seed.spawn_key)]
+    return int(seed)
+
+
+class _Store:
+    """A folder of finished tasks: ``campaign.json`` (what the results belong to) and one
+    ``runs-<first>-<count>.npz`` per task, each written to a temporary name and renamed."""
+
+    def __init__(self, path, manifest):
+        import json
+        from pathlib import Path
+
+        self.path = Path(path)
+        self.path.mkdir(parents=True, exist_ok=True)
+        m = self.path / "campaign.json"
+        text = json.dumps(manifest, sort_keys=True)
+        old = m.read_text() if m.exists() else None
+        if old != text:
+            for f in self.path.glob("runs-*.npz"):
+                f.unlink()
+            atomic_write(m, text)
+
+    def load(self):
+        for f in sorted(self.path.glob("runs-*.npz")):
+            try:
+                first, count = (int(x) for x in f.stem.split("-")[1:3])
+                with np.load(f) as z:
+                    yield first, count, _unpack(dict(z))
+            except (ValueError, OSError, KeyError):
+                continue                       # unreadable: its runs are computed again
+
+    def save(self, first, count, payload):
+        f = self.path / f"runs-{first:09d}-{count}.npz"
+        with atomic_path(f) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, **_pack(payload))
+
+
+def _pack(payload):
+    if isinstance(payload, np.ndarray):
+        return {"array": payload}
+    if payload and isinstance(next(iter(payload)), tuple):
+        return {f"node-{lv}-{ix}-{k}": v for (lv, ix), d in payload.items() for k, v in d.items()}
+    return {f"out-{k}": v for k, v in payload.items()}
+
+
+def _unpack(z):
+    if "array" in z:
+        return z["array"]
+    if any(k.startswith("node-") for k in z):
+        nodes = {}
+        for k, v in z.items():
+            _, lv, ix, name = k.split("-", 3)
+            nodes.setdefault((int(lv), int(ix)), {})[name] = v
+        return nodes
+    return {k[4:]: v for k, v in z.items()}
+
+
+# ----------------------------------------------------------------------------------------
+# sums over runs in a fixed tree
+# ----------------------------------------------------------------------------------------
+class _TreeSum:
+    """Nodes ``(level, index)`` of the binary tree over run indices: node (l, i) is the sum
+    of runs ``[i 2^l, (i+1) 2^l)``, always formed as (left child) + (right child), with the
+    single runs as leaves. Two siblings present are merged into their parent at once."""
+
+    def __init__(self):
+        self.nodes = {}
+
+    def add(self, level, index, node):
+        while (level, index ^ 1) in self.nodes:
+            other = self.nodes.pop((level, index ^ 1))
+            left, right = (other, node) if index & 1 else (node, other)
+            node = {k: left[k] + right[k] for k in left}
+            level, index = level + 1, index >> 1
+        self.nodes[(level, index)] = node
+
+    def total(self, n):
+        """The sum over runs ``[0, n)``: its aligned nodes, largest (leftmost) first, added
+        left to right."""
+        out, pos = None, 0
+        for level in range(int(n).bit_length() - 1, -1, -1):
+            if n >> level & 1:
+                node = self.nodes[(level, pos >> level)]
+                out = dict(node) if out is None else {k: out[k] + node[k] for k in out}
+                pos += 1 << level
+        return out
+
+
+def _dyadic_nodes(first, x):
+    """The aligned tree nodes covering runs ``[first, first + len)`` of the per-run arrays
+    ``x`` (dict of (count, ...)), each summed pairwise level by level."""
+    count = len(next(iter(x.values())))
+    pos, end = first, first + count
+    while pos < end:
+        level = (pos & -pos).bit_length() - 1 if pos else (end - pos).bit_length()
+        while (1 << level) > end - pos:
+            level -= 1
+        blk = {k: v[pos - first:pos - first + (1 << level)] for k, v in x.items()}
+        for _ in range(level):
+            blk = {k: v[0::2] + v[1::2] for k, v in blk.items()}
+        yield level, pos >> level, {k: v[0] for k, v in blk.items()}
+        pos += 1 << level
+
+
+def tree_sum(x):
+    """Sum over the first axis of ``x`` (array or dict of arrays, runs first) in the fixed
+    tree of :func:`run_campaign`'s ``reduce``: the same bytes as a campaign's sums however
+    its runs were split into batches, tasks and workers.
+
+    The tree pairs runs (0, 1), (2, 3), ... then those pairs, and so on (pairwise
+    summation over aligned power-of-two blocks); the blocks left over at the end, largest
+    first, are added left to right. Numpy's ``x.sum(0)`` adds the runs one after another,
+    so the two differ in the last bits (a few units in the last place; the tree's rounding
+    error grows as log2 of the runs instead of their number).
+
+    Returns
+    -------
+    ndarray or dict of ndarray
+    """
+    d = x if isinstance(x, dict) else {"x": x}
+    d = {k: np.asarray(v, dtype=float) for k, v in d.items()}
+    n = len(next(iter(d.values())))
+    tree = _TreeSum()
+    for level, index, node in _dyadic_nodes(0, d):
+        tree.add(level, index, node)
+    out = tree.total(n)
+    return out if isinstance(x, dict) else out["x"]
 
 
 def _lost_cluster(e) -> bool:
@@ -429,8 +748,12 @@ def map_tasks(fn, items, *, mode="threads", workers=2, scheduler=None, kwargs=No
         from distributed import as_completed
 
         with dask_client(scheduler or None, int(workers)) as client:
-            # large inputs are sent once rather than inside the task graph, each as one object
-            sent = client.scatter([_Sent(x) for x in items], hash=False)
+            # each input as the result of a task of its own (one object, its parts sharing
+            # their arrays): unlike scattered data, the scheduler can make it again when the
+            # worker holding it is lost
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message="Sending large graph")
+                sent = [client.submit(_identity, _Sent(x), pure=False) for x in items]
             futs = {client.submit(_call_sent, fn, f, pure=False, **kwargs): i for i, f in enumerate(sent)}
             for fut in as_completed(futs):
                 i = futs[fut]
@@ -595,6 +918,26 @@ def summarize(err, *, sigma=None, P=None, nees=None, nis=None, nis_dof=None, alp
         nis_b = (lo, hi)
         nis_in = float(np.mean((nis_m[on] >= lo[on]) & (nis_m[on] <= hi[on]))) if on.any() else None
     return Summary(N, mean, rms, std, sig, nees_m, nees_b, nees_in, nis_m, nis_b, nis_in)
+
+
+def summarize_sums(n_runs, s1, s2, sigma=None):
+    """:class:`Summary` (mean, RMS, σ; no NEES/NIS) from the sums over ``n_runs`` runs of
+    the errors ``s1`` and of their squares ``s2`` (each (T, n), e.g. a campaign's
+    ``reduce`` sums), with the filter σ ``sigma`` (T, n) if given.
+
+    The mean is ``s1 / N`` and the RMS ``sqrt(s2 / N)``, as :func:`summarize` forms them
+    from all runs (up to the order of the sums); the standard deviation (ddof=1) is
+    ``sqrt((s2 - s1²/N) / (N - 1))``, which loses digits where the mean is far larger than
+    the spread (:func:`summarize` subtracts the mean from each run first).
+    """
+    N = int(n_runs)
+    if N < 2:
+        raise ValueError("need at least 2 runs for Monte Carlo statistics")
+    s1, s2 = np.asarray(s1, dtype=float), np.asarray(s2, dtype=float)
+    mean = s1 / N
+    std = np.sqrt(np.maximum(s2 - s1 * mean, 0.0) / (N - 1))
+    sig = None if sigma is None else np.asarray(sigma, dtype=float)
+    return Summary(N, mean, np.sqrt(s2 / N), std, sig, None, None, None, None, None, None)
 
 
 # ----------------------------------------------------------------------------------------

@@ -257,8 +257,18 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
               f"resolved configuration, {started.isoformat(timespec='seconds')}\n"
               f"reproduce: sinslab run {exp.name} --config config.toml")
     rd.write_text("config.toml", config_to_toml(cfg, header))
+    import hashlib
+    import json
+    import shutil
+
+    # beside the output folder, not in its staging folder: a failed run's finished Monte Carlo
+    # tasks outlive it, for a rerun of the same configuration into the same folder (a name
+    # that the check of a folder holding runs passes over, as it does temporary files)
+    campaigns = Path(out).absolute().parent / f".{Path(out).name}.tmp-campaigns"
+    key = hashlib.sha256(json.dumps([exp.name, quick, cfg.model_dump(mode="json")], sort_keys=True,
+                                    default=str).encode()).hexdigest()
     ctx = RunContext(name=exp.name, out=rd.path, seed=cfg.seed, runs=cfg.runs, quick=quick,
-                     scheduler=scheduler, log=log)
+                     scheduler=scheduler, log=log, campaigns=campaigns, config_key=key)
     t0 = time.perf_counter()
     res = exp.run(cfg, ctx)
     runtime = time.perf_counter() - t0
@@ -302,4 +312,6 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
         summary["name"] = variant[0]
         summary["variant"] = {"name": variant[0], "sets": list(variant[1])}
         summary["rerun"] = f"sinslab run {exp.name} --config config.toml"
-    return complete_timed(rd, summary)
+    done = complete_timed(rd, summary)
+    shutil.rmtree(campaigns, ignore_errors=True)
+    return done

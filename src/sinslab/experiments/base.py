@@ -116,6 +116,17 @@ class RunContext:
     quick: bool = False
     scheduler: object = None          # address, "sync", a distributed.Client, or None
     log: Callable[[str], None] = lambda msg: None
+    #: folder of the finished Monte Carlo tasks of this output folder and configuration
+    #: (kept when the run fails, reused by a rerun into the same folder, removed at the end)
+    campaigns: Path | None = None
+    config_key: str = ""
+
+    def campaign_store(self, label: str) -> dict:
+        """``store``/``store_key`` arguments of a campaign named ``label`` (see
+        :func:`sinslab.estimation.montecarlo.run_campaign`); empty without a folder."""
+        if self.campaigns is None:
+            return {}
+        return {"store": self.campaigns / label, "store_key": self.config_key}
 
     def rng(self, *stream: int) -> np.random.Generator:
         """Generator for the run's seed (and optional sub-stream ids): same seed, same bytes."""

@@ -302,6 +302,18 @@ def _one(rng, S, zero_errors=False):
 LANES = 8
 
 
+def _squares(out):
+    """What the campaign's statistics need of each run of :func:`_batch` (summed over the
+    runs where they are computed): per filter the squared errors of horizontal position
+    (north, east and their sum), velocity and attitude at every epoch; the fixes applied."""
+    sq = {"nfix": out["nfix"]}
+    for k in _KEY.values():
+        for q in ("dp", "dv", "phi"):
+            sq[f"{q}_{k}"] = out[f"{q}_{k}"] ** 2
+        sq[f"pos_h_{k}"] = sq[f"dp_{k}"].sum(-1)
+    return sq
+
+
 def _batch(seeds, S):
     """A Monte Carlo task: the runs of ``seeds`` stacked.
 
@@ -413,8 +425,21 @@ def _batch_ranges(seeds, S):
     return {"dp_fix": dp[0], "dp_ranges": dp[1], "sdp_fix": sigma[0], "sdp_ranges": sigma[1], "nreq": nreq}
 
 
+def _squares_ranges(out, scale, ends):
+    """What the path campaign's statistics need of each run of :func:`_batch_ranges` (summed
+    over the runs where they are computed): squared horizontal position errors of both
+    filters, the squared normalised errors of the path filter at the window ends ``ends``
+    (against its own σ, per axis north/east, ``scale`` (M, 2) turning (δL, δλ) into metres),
+    and the requests."""
+    z2 = (out["dp_ranges"][:, ends] / (out["sdp_ranges"][:, ends] * scale[ends])) ** 2
+    return {"pos_h_fix": (out["dp_fix"] ** 2).sum(-1), "pos_h_ranges": (out["dp_ranges"] ** 2).sum(-1),
+            "z2_ends": z2, "nreq": out["nreq"]}
+
+
 def _run_ranges(cfg, ctx, S):
     """``filter.measurement = "ranges"``: the path filter against the paper's fix filter."""
+    import functools
+
     from sinslab.app import plotting as P
     from sinslab.core.earth import radii
     from sinslab.estimation import montecarlo as mc
@@ -437,16 +462,15 @@ def _run_ranges(cfg, ctx, S):
 
     n = int(cfg.runs)
     ctx.log(f"{NAME}: Monte Carlo, {n} runs, fix and path filters on the same draws")
-    res = mc.run_campaign(_batch_ranges, n, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(S=S))
+    ends = [int(np.argmin(np.abs(t - b))) for _, b in windows]
+    res = mc.run_campaign(_batch_ranges, n, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(S=S),
+                          reduce=functools.partial(_squares_ranges, scale=scale, ends=ends),
+                          **ctx.campaign_store("mc-ranges"))
     rms = {}
     for k in ("fix", "ranges"):
-        dp = res[f"dp_{k}"]
-        rms[k] = dict(pos_h=np.sqrt(np.mean((dp ** 2).sum(-1), 0)), total=float(np.sqrt(np.mean((dp ** 2).sum(-1)))))
-    ends = [int(np.argmin(np.abs(t - b))) for _, b in windows]
-    # normalised errors of each run against its own filter σ, per axis (chi-square, 1 dof)
-    z2 = (res["dp_ranges"] / (res["sdp_ranges"] * scale)) ** 2
-    nees_n = [float(np.mean(z2[:, j, 0])) for j in ends]
-    nees_e = [float(np.mean(z2[:, j, 1])) for j in ends]
+        rms[k] = dict(pos_h=np.sqrt(res[f"pos_h_{k}"] / n), total=float(np.sqrt(np.sum(res[f"pos_h_{k}"]) / (n * t.size))))
+    nees_n = [float(v) for v in res["z2_ends"][:, 0] / n]
+    nees_e = [float(v) for v in res["z2_ends"][:, 1] / n]
     # 2 axes x W window ends: each checked at 1 % / (2 W), the family at 1 % (Bonferroni)
     lo, hi = (float(v) for v in mc.chi2_bounds(1, n, alpha=0.01 / max(1, 2 * len(ends))))
     ratio = {k: float(np.mean(rms[k]["pos_h"][1:] / s_h[k][1:])) for k in rms}
@@ -457,7 +481,7 @@ def _run_ranges(cfg, ctx, S):
         "pos_sigma_at_end_fix_m": float(s_h["fix"][-1]), "pos_sigma_at_end_ranges_m": float(s_h["ranges"][-1]),
         "mc_rms_over_sigma_pos_fix": ratio["fix"], "mc_rms_over_sigma_pos_ranges": ratio["ranges"],
         "nees_window_end_north_ranges": nees_n, "nees_window_end_east_ranges": nees_e,
-        "requests_per_run": float(np.mean(res["nreq"])), "runs": n,
+        "requests_per_run": float(res["nreq"] / n), "runs": n,
     }
     win_names = [f"{a:g}–{b:g} s" for a, b in windows]
     band = (f"inside the two-sided chi-square band of the mean over {n} runs at every window end "
@@ -603,14 +627,14 @@ def run(cfg: Config, ctx) -> Result:
     # ---- Monte Carlo
     n = int(cfg.runs)
     ctx.log(f"{NAME}: Monte Carlo, {n} runs")
-    res = mc.run_campaign(_batch, n, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(S=S))
+    res = mc.run_campaign(_batch, n, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(S=S), reduce=_squares,
+                          **ctx.campaign_store("mc"))
     rms = {}
     for mode in _MODES:
         k = _KEY[mode]
-        dp, dv, phi = res[f"dp_{k}"], res[f"dv_{k}"], res[f"phi_{k}"]
-        rms[k] = dict(pos_h=np.sqrt(np.mean((dp ** 2).sum(-1), 0)), pos=np.sqrt(np.mean(dp ** 2, 0)),
-                      vel=np.sqrt(np.mean(dv ** 2, 0)), att=np.sqrt(np.mean(phi ** 2, 0)),
-                      total=float(np.sqrt(np.mean((dp ** 2).sum(-1)))))
+        rms[k] = dict(pos_h=np.sqrt(res[f"pos_h_{k}"] / n), pos=np.sqrt(res[f"dp_{k}"] / n),
+                      vel=np.sqrt(res[f"dv_{k}"] / n), att=np.sqrt(res[f"phi_{k}"] / n),
+                      total=float(np.sqrt(np.sum(res[f"pos_h_{k}"]) / (n * t.size))))
     la = rms["lagaware"]
     ratio_pos_t = la["pos_h"] / s_pos_h
     ratio_att_t = np.sqrt((la["att"] ** 2).sum(-1) / (s_att ** 2).sum(-1))
@@ -638,7 +662,7 @@ def run(cfg: Config, ctx) -> Result:
         "max_pos_err_outside_windows_m": max_out,
         "mc_rms_over_sigma_pos": r_pos, "mc_rms_over_sigma_att": r_att, "mc_rms_over_sigma_vel": r_vel,
         "window_pos_rms_ratio": win_ratio,
-        "fixes_per_run": float(np.mean(res["nfix"])),
+        "fixes_per_run": float(res["nfix"] / n),
         "runs": n,
     }
     win_names = [f"{a:g}–{b:g} s" for a, b in windows]

@@ -391,6 +391,12 @@ def mc_batch(seeds, spec):
     return {"err": _mc_errors(rows, S)}
 
 
+def mc_moments(out):
+    """What the campaign's statistics need of each run of :func:`mc_batch` (summed over
+    the runs where they are computed): the errors and their squares."""
+    return {"err": out["err"], "err2": out["err"] ** 2}
+
+
 def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
     """Run the campaign and the covariance analysis; metrics, claims, series, figures, tables."""
     import time
@@ -418,11 +424,11 @@ def monte_carlo(cfg: Config, ctx, gen, segments, start, mount):
     t_cov = time.perf_counter() - t_cov
     ctx.log(f"{NAME}: Monte Carlo, {n} runs")
     t_mc = time.perf_counter()
-    res = mc.run_campaign(mc_batch, n, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(spec=spec))
+    sums = mc.run_campaign(mc_batch, n, cfg.seed, scheduler=ctx.scheduler, kwargs=dict(spec=spec),
+                           reduce=mc_moments, **ctx.campaign_store("mc"))
     t_mc = time.perf_counter() - t_mc
-    err = res["err"]
-    t_ep = gen.truth.t[np.arange(err.shape[1]) * mc_every * cfg.nav.nsub]
-    summ = mc.summarize(err, sigma=sigma)
+    t_ep = gen.truth.t[np.arange(sums["err"].shape[0]) * mc_every * cfg.nav.nsub]
+    summ = mc.summarize_sums(n, sums["err"], sums["err2"], sigma=sigma)
     lo, hi = mc_ratio_bounds(n)
     tr = float(cfg.montecarlo.transient)
     te = t_ep - t_ep[0]

@@ -349,7 +349,7 @@ def _run_index(seed):
     return int(key[-1]) if key else 0
 
 
-def _strapdown(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_every, cache):
+def _strapdown(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_every, cache, gains=None):
     """The closed-loop filter of one variant over the runs ``rows`` (mechanised slaves)."""
     from sinslab.core.attitude import dcm_to_euler, rotvec_to_dcm
     from sinslab.core.records import NavState
@@ -372,7 +372,7 @@ def _strapdown(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_
     bank = LaneBank(init, dth, dvv, np.arange(R), dt, nsub=2)
     res = tm.align_lanes(bank, case["k_kf"], case["Phi"], match, P0, np.full(3, p["vel_noise"] ** 2),
                          np.full(3, p["att_noise"] ** 2), mC, mv, np.arange(R), C_lin=Cm, relinearise=ekf,
-                         meas_noise=noise[rows], phi_bound=p["guard"], record_every=record_every)
+                         meas_noise=noise[rows], phi_bound=p["guard"], record_every=record_every, gains=gains)
     # the slave's true attitude error at the recorded epochs: divergence (over the second
     # half of the run, so an early transient the filter recovers from is not counted) and
     # the heading error
@@ -398,7 +398,7 @@ def _misalignment_many(C_true, C_hat):
     return np.where(ok[..., None], phi, np.nan)
 
 
-def _linear(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_every, cache):
+def _linear(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_every, cache, gains=None):
     """The open-loop linear-model filter of one variant (the slave errors propagated with
     the 21-state model along the truth, never fed back). ``cache`` keeps the propagated
     errors of a case for the other variants of the task."""
@@ -426,7 +426,8 @@ def _linear(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_eve
     z_vel = xs[:, :, 3:6] - m_vel[rows][:, None] + noise[rows][:, :, :3]
     est, sig = tm.batch_filter(case["Phi"], case["Cm"], z_vel, C_rel, match, np.zeros(n), P0,
                                np.full(3, p["vel_noise"] ** 2), np.full(3, p["att_noise"] ** 2),
-                               relinearise=ekf, record_every=record_every, att_noise=noise[rows][:, :, 3:])
+                               relinearise=ekf, record_every=record_every, att_noise=noise[rows][:, :, 3:],
+                               gains=gains)
     rec = np.arange(0, Kp1, record_every)
     sa = sig[..., 6:9] if sig.ndim == 3 else np.broadcast_to(sig[None, :, 6:9], (R,) + sig[:, 6:9].shape)
     sU = sig[..., 2] if sig.ndim == 3 else np.broadcast_to(sig[None, :, 2], (R, rec.size))
@@ -434,7 +435,32 @@ def _linear(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_eve
             np.linalg.norm(xs[:, rec, 0:3], axis=-1))
 
 
-def _batch(seeds, p, cases, record_every, ekf_runs, variants=None):
+def _common_gains(p, cases, record_every, variants=None):
+    """Per (variant key, model prefix of :func:`_batch`) the covariance recursion of the
+    paper-form filters (:func:`sinslab.methods.transfer.lane_gains` for the mechanised
+    slave, :func:`~sinslab.methods.transfer.batch_gains` for the linear model): common to
+    every run, so made once for a campaign instead of once in each task."""
+    from sinslab.methods import transfer as tm
+
+    r_vel, r_att = np.full(3, p["vel_noise"] ** 2), np.full(3, p["att_noise"] ** 2)
+    models = [("", p["slave"] == "strapdown")]
+    if p["slave"] == "strapdown" and p["compare_linear"]:
+        models.append(("lin_", False))
+    out = {}
+    for key, c, kind, comp, ekf in (variants or _variants()):
+        if c not in cases or ekf:
+            continue
+        case = cases[c]
+        match, P0 = _filter_setup(p, case, kind, comp)
+        for pre, lanes in models:
+            out[(key, pre)] = (tm.lane_gains(case["Phi"], match, P0, r_vel, r_att, case["Cm"], record_every=record_every)
+                               if lanes else
+                               tm.batch_gains(case["Phi"], case["Cm"], match, P0, r_vel, r_att,
+                                              record_every=record_every))
+    return out
+
+
+def _batch(seeds, p, cases, record_every, ekf_runs, variants=None, gains=None):
     """One Dask task: the runs of ``seeds`` through every filter variant, with the slave
     model of ``p["slave"]`` (and the linear model beside the strapdown one when asked).
 
@@ -443,6 +469,7 @@ def _batch(seeds, p, cases, record_every, ekf_runs, variants=None):
     and its σ ``sigU_<key>`` (R, M), the norm of the slave's attitude error ``phin_<key>``
     (R, M) (NaN after a run was stopped); the linear model's under ``lin_`` prefixes. EKF
     variants run on the runs with campaign index < ``ekf_runs`` only (NaN rows elsewhere).
+    ``gains``: :func:`_common_gains` of the campaign (each call makes its own when not given).
     """
     R = len(seeds)
     sens, m_att, m_vel, noise = _draws(seeds, p, cases)
@@ -464,7 +491,8 @@ def _batch(seeds, p, cases, record_every, ekf_runs, variants=None):
             full = [np.full((R, M, 3), np.nan), np.full((R, M, 3), np.nan), np.ones(R, bool),
                     np.full((R, M), np.nan), np.full((R, M), np.nan), np.full((R, M), np.nan)]
             if rows.size:
-                part = fn(case, p, match, P0, sens, m_att, m_vel, noise[c], rows, ekf, record_every, cache)
+                part = fn(case, p, match, P0, sens, m_att, m_vel, noise[c], rows, ekf, record_every, cache,
+                          gains=(gains or {}).get((key, pre)))
                 for f, v in zip(full, part):
                     f[rows] = v[:, :M] if v.ndim > 1 else v
             if ekf:
@@ -511,12 +539,13 @@ def _stats(err, sg, div, ratio):
                 first_sig=sg[np.argmax(keep)] * am if keep.any() else sg[0] * am)
 
 
-def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None):
+def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, label="mc"):
     from sinslab.estimation import montecarlo as mc
 
     return mc.run_campaign(_batch, n, seed, scheduler=ctx.scheduler, tasks_per_worker=1,
                            kwargs=dict(p=p, cases=cases, record_every=record_every, ekf_runs=ekf_runs,
-                                       variants=variants))
+                                       variants=variants, gains=_common_gains(p, cases, record_every, variants)),
+                           **ctx.campaign_store(label))
 
 
 def _variant_stats(res, cases, variants, ratio, pre="", ekf_runs=None):
@@ -542,7 +571,8 @@ def _sweep(cfg, ctx, p, cases, record_every, field, grid):
     rows = {key: ([], [], []) for key, *_ in var}
     for v in grid:
         q = dict(p, compare_linear=False, **{field: float(v)})
-        res = _campaign(q, {c: cases[c] for c in _C}, int(cfg.sweep.runs), cfg.seed, ctx, record_every, 0, var)
+        res = _campaign(q, {c: cases[c] for c in _C}, int(cfg.sweep.runs), cfg.seed, ctx, record_every, 0, var,
+                        label=f"sweep-{field}-{float(v):g}")
         st = _variant_stats(res, cases, var, ratio)
         for key in rows:
             rows[key][0].append(st[key]["conv"])

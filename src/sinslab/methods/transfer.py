@@ -51,6 +51,7 @@ printed φN, ax, az signs are right but the φE term then has the wrong sign.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,7 +62,7 @@ __all__ = [
     "KINDS", "AttitudeMatch", "VelocityMatch", "transfer_model", "jr", "jr_inv", "jl_inv",
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
     "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
-    "align_lanes", "LaneAlignment", "PARAMETERISATION", "parameterisation", "installation_parameters",
+    "align_lanes", "LaneAlignment", "CommonGains", "lane_gains", "batch_gains", "PARAMETERISATION", "parameterisation", "installation_parameters",
     "rate_correlation",
 ]
 
@@ -468,7 +469,7 @@ class TransferMeasurement(_MasterTimed):
 # ------------------------------------------------------- runs-vectorised Kalman filter --
 def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R_att,
                  Qk=None, relinearise=False, phi_slice=slice(0, 3), dv_slice=slice(3, 6),
-                 a_slice=slice(6, 9), record_every=1, att_noise=None):
+                 a_slice=slice(6, 9), record_every=1, att_noise=None, gains=None):
     """Kalman filter over many runs at once (common trajectory, per-run data), feed-forward.
 
     Parameters
@@ -494,6 +495,8 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
     relinearise : bool
         EKF form (per-run covariance); otherwise the covariance and gain are common to all
         runs and only the state recursion is per run.
+    gains : CommonGains, optional
+        :func:`batch_gains` of these arguments, made once for several calls (paper form).
 
     Returns
     -------
@@ -513,33 +516,24 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
     cols = np.r_[np.arange(phi_slice.start, phi_slice.stop), np.arange(a_slice.start, a_slice.stop)]
     r = 0
     if not relinearise:
-        P = np.array(P0, float)
-        sig = np.empty((len(idx_rec), n))
+        G = batch_gains(Phi, Cm, match, P0, R_vel, R_att, Qk, phi_slice, dv_slice, a_slice,
+                        record_every) if gains is None else gains
+        # the gains are common to the runs: the loop over epochs carries only the states
+        z_att = match.z_many(Cm, C_slave)
+        if att_noise is not None:
+            z_att = z_att + att_noise
+        zz = np.concatenate([z_vel, z_att], axis=2)
         for k in range(Kp1):
-            z_att = match.z_many(Cm[k], C_slave[:, k])
-            if att_noise is not None:
-                z_att = z_att + att_noise[:, k]
-            H6 = match.H(Cm[k])
-            Ha = np.zeros((3, n))
-            Ha[:, cols] = H6
-            H = np.vstack([Hv, Ha])
-            S = H @ P @ H.T + Rm
-            K = np.linalg.solve(S, H @ P).T
-            zz = np.concatenate([z_vel[:, k], z_att], axis=1)
-            innov = zz - x @ H.T
+            innov = zz[:, k] - x @ G.H[k].T
             if match.kind == "euler":
                 innov[:, 3:] = wrap_pi(innov[:, 3:])
-            x = x + innov @ K.T
-            IKH = np.eye(n) - K @ H
-            P = IKH @ P @ IKH.T + K @ Rm @ K.T
+            x = x + innov @ G.K[k].T
             if r < len(idx_rec) and idx_rec[r] == k:
                 xs[:, r] = x
-                sig[r] = np.sqrt(np.diag(P))
                 r += 1
             if k < Kp1 - 1:
                 x = x @ Phi[k].T
-                P = Phi[k] @ P @ Phi[k].T + Qk
-        return xs, sig
+        return xs, G.sigma
     nr = R_runs
     P = np.broadcast_to(np.array(P0, float), (R_runs, n, n)).copy()
     sig = np.empty((R_runs, len(idx_rec), n))
@@ -569,6 +563,80 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
     return xs, sig
 
 
+class CommonGains(NamedTuple):
+    """The covariance recursion of a filter whose gains do not depend on the data (paper
+    linearisation): measurement matrix ``H`` (K+1, 6, n), gain ``K`` (K+1, n, 6) at every
+    filter epoch, σ ``sigma`` (M, n) after the updates of the recorded epochs."""
+
+    H: np.ndarray
+    K: np.ndarray
+    sigma: np.ndarray
+
+
+def _stacked_H(match, C_lin, n, dv_idx, cols):
+    """[velocity rows; attitude rows at C_lin[k]] (K+1, 6, n) of the paper linearisation."""
+    H = np.zeros((C_lin.shape[0], 6, n))
+    H[:, np.arange(3), dv_idx] = 1.0
+    for k in range(C_lin.shape[0]):
+        H[k, 3:, cols] = match.H(C_lin[k]).T
+    return H
+
+
+def batch_gains(Phi, Cm, match: AttitudeMatch, P0, R_vel, R_att, Qk=None, phi_slice=slice(0, 3),
+                dv_slice=slice(3, 6), a_slice=slice(6, 9), record_every=1):
+    """:class:`CommonGains` of :func:`batch_filter` in the paper form (same arguments):
+    made once, they serve every batch of runs on the same trajectory and variant."""
+    Kp1, n = Cm.shape[0], P0.shape[0]
+    Qk = np.zeros((n, n)) if Qk is None else Qk
+    Rm = np.diag(np.concatenate([R_vel, R_att]))
+    cols = np.r_[np.arange(phi_slice.start, phi_slice.stop), np.arange(a_slice.start, a_slice.stop)]
+    Hs = _stacked_H(match, Cm, n, np.arange(dv_slice.start, dv_slice.stop), cols)
+    idx_rec = range(0, Kp1, record_every)
+    Ks = np.empty((Kp1, n, 6))
+    sig = np.empty((len(idx_rec), n))
+    P = np.array(P0, float)
+    for k in range(Kp1):
+        H = Hs[k]
+        S = H @ P @ H.T + Rm
+        K = np.linalg.solve(S, H @ P).T
+        IKH = np.eye(n) - K @ H
+        P = IKH @ P @ IKH.T + K @ Rm @ K.T
+        Ks[k] = K
+        if k % record_every == 0:
+            sig[k // record_every] = np.sqrt(np.diag(P))
+        if k < Kp1 - 1:
+            P = Phi[k] @ P @ Phi[k].T + Qk
+    return CommonGains(Hs, Ks, sig)
+
+
+def lane_gains(Phi, match: AttitudeMatch, P0, R_vel, R_att, C_lin, *, Qk=None, layout=None, record_every=1):
+    """:class:`CommonGains` of :func:`align_lanes` in the paper form (``relinearise=False``,
+    same arguments): made once, they serve every bank of lanes on the same trajectory and
+    variant."""
+    lay = transfer_model().layout if layout is None else layout
+    sl, n, K = lay.slice, lay.n, Phi.shape[0]
+    cols = np.r_[np.arange(n)[sl("phi")], np.arange(n)[sl("lam")]]
+    Rm = np.diag(np.concatenate([R_vel, R_att]))
+    Qk = np.zeros((n, n)) if Qk is None else np.asarray(Qk, float)
+    Hs = _stacked_H(match, C_lin, n, np.arange(n)[sl("dv")], cols)
+    Ks = np.empty((K + 1, n, 6))
+    sig = np.empty((len(range(0, K + 1, record_every)), n))
+    P = np.array(P0, float)
+    I = np.eye(n)
+    for k in range(K + 1):
+        if k > 0:
+            P = Phi[k - 1] @ P @ Phi[k - 1].T + Qk
+        H = Hs[k]
+        PHt = P @ H.T
+        Kg = np.linalg.solve(H @ PHt + Rm, PHt.T).T
+        IKH = I - Kg @ H
+        P = IKH @ P @ IKH.T + Kg @ Rm @ Kg.T
+        Ks[k] = Kg
+        if k % record_every == 0:
+            sig[k // record_every] = np.sqrt(np.diagonal(P, axis1=-2, axis2=-1))
+    return CommonGains(Hs, Ks, sig)
+
+
 # ---------------------------------------------------- closed loop over many slave INS ---
 class LaneAlignment:
     """Output of :func:`align_lanes` (L lanes, M recorded epochs).
@@ -592,7 +660,7 @@ class LaneAlignment:
 
 def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_C, master_v, lane_master,
                 *, C_lin=None, Qk=None, relinearise=False, meas_noise=None, layout=None, phi_bound=math.radians(30.0),
-                record_every=1):
+                record_every=1, gains=None):
     """Closed-loop transfer alignment of L slave INS at once (velocity + attitude matching).
 
     Every lane is a slave INS in ``bank`` (:class:`sinslab.nav.lanes.LaneBank`) with its
@@ -639,6 +707,8 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
         on.
     record_every : int
         Record the epochs 0, record_every, 2·record_every, ...
+    gains : CommonGains, optional
+        :func:`lane_gains` of these arguments, made once for several banks (paper form).
 
     Returns
     -------
@@ -665,8 +735,14 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
     att_out = np.full((L, M, 3, 3), np.nan)
     x = np.zeros((L, n))
     per_lane = bool(relinearise)
-    P = np.broadcast_to(np.array(P0, float), (L, n, n)).copy() if per_lane else np.array(P0, float)
-    sig = np.empty((L, M, n) if per_lane else (M, n))
+    if per_lane:
+        P = np.broadcast_to(np.array(P0, float), (L, n, n)).copy()
+        sig = np.empty((L, M, n))
+    else:
+        # the covariance and gains are common to the lanes: made before the loop over epochs
+        G = lane_gains(Phi, match, P0, R_vel, R_att, C_lin, Qk=Qk, layout=lay,
+                       record_every=record_every) if gains is None else gains
+        sig = G.sigma
     diverged_at = np.full(L, -1, dtype=np.int64)
     I = np.eye(n)
     r = 0
@@ -674,7 +750,8 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
         if k > 0:
             bank.advance(k_kf)
             x = x @ Phi[k - 1].T
-            P = Phi[k - 1] @ P @ Phi[k - 1].T + Qk
+            if per_lane:
+                P = Phi[k - 1] @ P @ Phi[k - 1].T + Qk
         Cs, vs = bank.attitude(), bank.velocity()
         Cm, vm = master_C[lane_master, k], master_v[lane_master, k]
         z = np.empty((L, 6))
@@ -685,9 +762,7 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
             z[:, 3:], H6 = match.innovation_many(Cm, Cs, x[:, i_phi], x[:, i_a])
             H[:, 3:, cols] = H6
         else:
-            H = np.zeros((6, n))
-            H[:3] = Hv
-            H[3:, cols] = match.H(C_lin[k])
+            H = G.H[k]
             z[:, 3:] = match.z_many(Cm, Cs)
         if meas_noise is not None:
             z += meas_noise[lane_master, k]
@@ -696,8 +771,7 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
             Kg = np.swapaxes(np.linalg.solve(H @ PHt + Rm, np.swapaxes(PHt, 1, 2)), 1, 2)
             innov = z - np.einsum("lij,lj->li", H, x)
         else:
-            PHt = P @ H.T
-            Kg = np.linalg.solve(H @ PHt + Rm, PHt.T).T
+            Kg = G.K[k]
             innov = z - x @ H.T
         if match.kind == "euler":
             innov[:, 3:] = wrap_pi(innov[:, 3:])
@@ -707,8 +781,6 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
             P = IKH @ P @ np.swapaxes(IKH, 1, 2) + Kg @ Rm @ np.swapaxes(Kg, 1, 2)
         else:
             x = x + innov @ Kg.T
-            IKH = I - Kg @ H
-            P = IKH @ P @ IKH.T + Kg @ Rm @ Kg.T
         # divergence guard before the correction reaches the INS
         bad = bank.active & ~(np.all(np.isfinite(x), axis=1)
                               & (np.linalg.norm(x[:, i_phi], axis=1) <= phi_bound))
@@ -723,7 +795,8 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
         if r < M and rec[r] == k:
             a_out[on, r] = x[on][:, i_a]
             att_out[on, r] = bank.attitude()[on]
-            sig[..., r, :] = np.sqrt(np.diagonal(P, axis1=-2, axis2=-1))
+            if per_lane:
+                sig[:, r] = np.sqrt(np.diagonal(P, axis1=-2, axis2=-1))
             r += 1
     diverged = diverged_at >= 0
     return LaneAlignment(a_out, sig, bank.comp.copy(), att_out, diverged, diverged_at, np.array(rec))
