@@ -84,7 +84,8 @@ def measure(names: list[str]) -> dict:
     for n, f in fresh["experiments"].items():
         w = warm["experiments"][n]
         rows[n] = {"cpu_fresh_s": f["cpu_s"], "cpu_warm_s": w["cpu_s"], "cpu_difference_s": f["cpu_s"] - w["cpu_s"],
-                   "compile_cpu_s": f["compile_cpu_s"], "kernels_compiled": len(f["compiled"])}
+                   "compile_cpu_s": f["compile_cpu_s"], "kernels_compiled": len(f["compiled"]),
+                   "kernels_compiled_warm": len(w["compiled"])}
     kernels = {}
     for f in fresh["experiments"].values():
         for k, x in f["compiled"]:
