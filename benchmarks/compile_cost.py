@@ -118,10 +118,11 @@ def main(argv=None) -> dict:
         print(f"  {x:6.2f}  {k}")
     for k, sigs in res["multi_signature"].items():
         print(f"compiled {len(sigs)} times: {k}")
-    print(f"load average before {res['machine']['load_avg_before'][0]:.1f}, after {res['machine']['load_avg_after'][0]:.1f}")
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(res, indent=2) + "\n")
+    load = res["machine"]
+    print(f"load average before {load['load_avg_before'][0]:.1f}, after {load['load_avg_after'][0]:.1f} -> {out}")
     return res
 
 
