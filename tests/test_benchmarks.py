@@ -193,3 +193,14 @@ def test_workers_script():
     it BLAS's kernel path)."""
     res = _load("workers").main(["--runs", "8", "--rounds", "1"])
     assert res["max_rel_diff"] < 1e-9 and res["sinslab_worker_cpu_s"] > 0
+
+
+def test_compile_cost_script(tmp_path):
+    """benchmarks/compile_cost.py on one experiment: the first round compiles on an empty
+    cache, the second loads what it wrote (it compiles nothing), and no kernel is compiled
+    for two signatures."""
+    res = _load("compile_cost").main(["--only", "free-inertial", "--out", str(tmp_path / "c.json")])
+    r = res["experiments"]["free-inertial"]
+    assert r["kernels_compiled"] > 0 and r["compile_cpu_s"] > 0 and r["cpu_fresh_s"] > 0
+    assert r["kernels_compiled_warm"] == 0
+    assert res["multi_signature"] == {}

@@ -35,12 +35,14 @@ _LAT_LIMIT = math.radians(89.0)
 
 
 @njit(cache=True)
-def _advance_lanes(S, dth, dvl, src, a, b, dt, nsub, comp, active, coeffs, bufth, bufv, dummy, out1):
+def _advance_lanes(S, dth, dvl, src, a, b, dt, nsub, comp, active, coeffs, bufth, bufv, dummy, out1, free):
     """Advance every active lane over the samples ``a..b−1`` of its record.
 
     ``S`` (L, NSTATE) in place; ``dth``, ``dvl`` (nrec, N, 3); ``src`` (L,) record of each
     lane; ``comp`` (L, 12) = [ε (3) rad/s, ∇ (3) m/s², k_g (3), k_a (3)]. A lane whose
-    latitude leaves ±89° or whose state turns non-finite is made inactive.
+    latitude leaves ±89° or whose state turns non-finite is made inactive. ``free`` is 0
+    (the free vertical channel, no output rows), an argument rather than a literal: a
+    literal 0 would compile the mechanization once more for its own signature.
     """
     nupd = (b - a) // nsub
     for l in range(S.shape[0]):
@@ -52,8 +54,8 @@ def _advance_lanes(S, dth, dvl, src, a, b, dt, nsub, comp, active, coeffs, bufth
                 bufth[i, c] = dth[r, a + i, c] * (1.0 - comp[l, 6 + c])
                 bufv[i, c] = dvl[r, a + i, c] * (1.0 - comp[l, 9 + c])
         s = S[l]
-        sd._kernel(s, bufth, bufv, dt, nsub, nupd, 0, dummy, dummy, 0.0, 0.0, 0.0,
-                   comp[l, 0], comp[l, 1], comp[l, 2], comp[l, 3], comp[l, 4], comp[l, 5], coeffs, out1, 0)
+        sd._kernel(s, bufth, bufv, dt, nsub, nupd, free, dummy, dummy, 0.0, 0.0, 0.0,
+                   comp[l, 0], comp[l, 1], comp[l, 2], comp[l, 3], comp[l, 4], comp[l, 5], coeffs, out1, free)
         ok = abs(s[7]) < _LAT_LIMIT
         for j in range(sd.NAV):
             if not math.isfinite(s[j]):
@@ -134,7 +136,7 @@ class LaneBank:
         buf = np.empty((n, 3))
         _advance_lanes(self.state, self.dtheta, self.dv, self.source, self.sample, self.sample + n, self.dt,
                        self.nsub, self.comp, self.active, sd.CONING_COEFFS, buf, np.empty((n, 3)),
-                       self._dummy, self._out1)
+                       self._dummy, self._out1, 0)
         self.sample += n
 
     def correct(self, phi, dvel):
