@@ -130,6 +130,10 @@ def bench_covariance(K):
     }
 
 
+#: white noise of the drive's IMU in :func:`lc_scenario` (gyro [rad/√s], accelerometer [m/s/√s])
+LC_GYRO_ARW, LC_ACCEL_VRW = 0.05 * u.dpsh, 50 * u.ugpsHz
+
+
 def lc_scenario(duration, rate=200.0, seed=1):
     """Aircraft-like motion with turns, climb and acceleration; IMU with tactical-grade
     errors; 1 Hz position fixes with 3 m / 3 m / 5 m noise."""
@@ -169,7 +173,7 @@ def lc_scenario(duration, rate=200.0, seed=1):
     P0 = np.diag(np.r_[[(2 * u.arcmin) ** 2] * 2, (10 * u.arcmin) ** 2, [0.2 ** 2] * 3,
                        (5 / 6.4e6) ** 2, (5 / 5.4e6) ** 2, 25.0, [(1 * u.dph) ** 2] * 3,
                        [(500 * u.ug) ** 2] * 3])
-    kw = dict(model=integ.lc_model(0.05 * u.dpsh, 50 * u.ugpsHz))
+    kw = dict(model=integ.lc_model(LC_GYRO_ARW, LC_ACCEL_VRW))
     return meas, init, truth.t[idx], fix, sig, P0, kw, truth
 
 

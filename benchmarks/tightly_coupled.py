@@ -44,7 +44,7 @@ from sinslab.sim import gnss as SG  # noqa: E402
 
 def filter_speed(duration):
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    from estimation import lc_scenario
+    from estimation import LC_ACCEL_VRW, LC_GYRO_ARW, lc_scenario
     meas, init, ft, fix, sig, P0, kw, truth = lc_scenario(duration)
     k = np.rint((ft - truth.t[0]) / meas.dt).astype(int)
     orbits = [SG.Walker(system="G"), SG.Walker(system="E", inclination=math.radians(56.0), planes=3,
@@ -55,8 +55,8 @@ def filter_speed(duration):
     n_sat = np.bincount(sv.epoch)
     b, d = sim.clock[0]
     raw_kw = dict(nominal=(b - d * (ft[0] - meas.t0), d, meas.t0, {"E": 12.0}), gate=None)
-    model = tc_model(kw["gyro_arw"], kw["accel_vrw"], systems=sv.systems, scale_factors=True)
-    lc_model = lc.lc_model(kw["gyro_arw"], kw["accel_vrw"], scale_factors=True)
+    model = tc_model(LC_GYRO_ARW, LC_ACCEL_VRW, systems=sv.systems, scale_factors=True)
+    lc_model = lc.lc_model(LC_GYRO_ARW, LC_ACCEL_VRW, scale_factors=True)
     n_lc = lc_model.n
     P = np.zeros((model.n, model.n))
     P[:15, :15] = P0
