@@ -329,6 +329,7 @@ QUOTED = [
     ("001.md", "to 1.072, the separate-INS", "demo rotation-evaluation", ["eq20_ratio_mean"], 0.0),
     ("001.md", "fraction goes from 0.60", WHITE, ["p_distinguish_1p1_separate_ins"], 0.0),
     ("001.md", "to 0.70; the stability claim", "demo rotation-evaluation", ["p_distinguish_1p1_separate_ins"], 0.0),
+    ("001.md", "its failing windows 16, 20, 24, 28 h white", WHITE, ["eps_z1_windows_failing_h[2]"], 0.0),
     ("001.md", "16, 20, 28 h de-meaned", "demo rotation-evaluation", ["eps_z1_windows_failing_h[2]"], 0.0),
     ("001.md", "correlation −0.20, −0.20, −0.19 over seeds (this run 0.15, −0.13, 0.03)",
      "full rotation-evaluation --set analysis_two.trend=sine", ["mc_trend_correlation_mean", "trend_correlation"], 0.0),
