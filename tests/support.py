@@ -171,3 +171,24 @@ def run_experiment(name, sets=(), quick=True):
     with tempfile.TemporaryDirectory() as d:
         return exp.run(cfg, RunContext(name=name, out=Path(d), seed=cfg.seed, runs=cfg.runs, quick=quick,
                                        scheduler="sync"))
+
+
+def assert_doc_quotes(doc, text, got, tol=0.0):
+    """A document (path from the repository root) quotes ``text`` and its numbers are ``got``
+    within their rounding (half a unit of the last digit shown) plus ``tol`` (absolute, in
+    the text's units; a number or one per value): the figures a test measures and the docs
+    quote cannot drift apart."""
+    import re
+    from pathlib import Path
+
+    body = " ".join((Path(__file__).resolve().parents[1] / doc).read_text(encoding="utf-8").split())
+    assert " ".join(text.split()) in body, f"{doc} no longer quotes {text!r}: update the test"
+    want = []
+    for x, exp in re.findall(r"((?:(?<!\w)[−-])?\d+(?:\.\d+)?)(?:e([−-]?\d+))?", text):
+        scale = 10.0 ** int(exp.replace("−", "-")) if exp else 1.0
+        want.append((float(x.replace("−", "-")) * scale, 0.5 * 10.0 ** -(len(x.split(".")[1]) if "." in x else 0) * scale))
+    got = [float(g) for g in got]
+    tols = list(tol) if np.ndim(tol) else [float(tol)] * len(got)
+    assert len(want) == len(got), (text, got)
+    bad = [(w, g) for (w, r), g, e in zip(want, got, tols) if abs(w - g) > r + e + 1e-12]
+    assert not bad, f"{doc}: {text!r} against the measurement: {got} (tolerance {tol})"

@@ -27,7 +27,7 @@ from sinslab.core import attitude as A
 from sinslab.core import units as u
 from sinslab.fusion import recorded as R
 from sinslab.sim import trajectory as tr
-from support import simulated_car_drive
+from support import assert_doc_quotes, simulated_car_drive
 
 
 @pytest.fixture(scope="module")
@@ -135,6 +135,8 @@ def test_zupt_never_where_fixes_say_the_vehicle_moves(drive):
     assert e1 <= 1.1 * e0 + 0.05, (e0, e1)
     # and the real stop is used: ZUPT applied there
     assert g["applied"] > 100
+    assert_doc_quotes("docs/aiding.md", "the 248 updates inside it are rejected, and the outage ends 0.67 m off "
+                      "(fixes only: 0.97 m)", [g["rejected"], e1, e0])
 
 
 def test_innovation_gate_threshold():
@@ -384,6 +386,10 @@ def test_nhc_with_the_vehicle_frame(misaligned):
     m, s = np.array(r.init["vehicle_mount_estimate"]), r.init["vehicle_mount_sigma"]
     for i in (0, 2):
         assert abs(m[i] - M[i]) < 3 * s[i] + math.radians(0.05), (np.degrees(m), s)
+    assert_doc_quotes("docs/aiding.md", "NHC ended 20 s outages 6–9 m off against 0.4–2.7 m with fixes only; with "
+                      "the mount given, or estimated from zero (to 0.02°/0.04°), 0.13–0.83 m",
+                      [20, naive.min(), naive.max(), e0.min(), e0.max(), *np.degrees(np.abs(m - M)[[0, 2]]),
+                       min(given.min(), est.min()), max(given.max(), est.max())])
 
 
 def test_nhc_refused_for_an_aircraft():
