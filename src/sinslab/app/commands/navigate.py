@@ -332,7 +332,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if raw_gnss is None:
         claims, extra = navigate_claims(
             res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
-            np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T),
+            np.hypot(*np.maximum(fx.sigma[idx], opt.fix.pos_sigma_floor)[~in_out, :2].T),
             ~settling[~in_out])
     else:
         from sinslab.app.commands.raw_gnss import raw_claims
@@ -372,7 +372,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              f"yaw {np.degrees(ve[2]):.2f} ± {np.degrees(vs[2]):.2f} deg; NHC lever [m] "
              + ", ".join(f"{a:.2f} ± {b:.2f}" for a, b in zip(res.init["nhc_lever_estimate"], res.init["nhc_lever_sigma"])))
     metrics["platform"] = res.init["platform"][0]
-    if opt.zupt is not None:
+    if opt.aiding.zupt is not None:
         metrics["rest_intervals"] = len(res.init.get("rest_intervals", []))
         metrics["rest_total_s"] = float(sum(b - a for a, b in res.init.get("rest_intervals", [])))
     for nm, g in res.init.get("aiding_gate", {}).items():
@@ -391,16 +391,16 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
            "fixes": (fix_name if fix_path is None else " + ".join(map(_abs, fix_path))
                      if isinstance(fix_path, list) else _abs(fix_path)),
            "format": data.format,
-           "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.lever_arm)}] m",
+           "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.fix.lever_arm)}] m",
            "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
            "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
            "init": str(init or ""), "time_sync": time_sync, "velocity_lag": f"{velocity_lag:g} s",
-           "imu_delay": f"{imu_delay:g} s", "scale_factors": bool(opt.scale_factors),
+           "imu_delay": f"{imu_delay:g} s", "scale_factors": bool(opt.errors.scale_factors),
            "columns": str(columns) if columns is not None else "auto",
            "fix_columns": str(fix_columns) if fix_columns is not None else "auto",
            "fix_quality": str(fix_quality) if fix_quality is not None else "all",
-           "aid": ",".join(sorted(aids)) or "none", "rest": opt.zupt or "none",
-           "csv_rate": f"{csv_rate:g} Hz", "heading_window": f"{opt.heading_window:g} s",
+           "aid": ",".join(sorted(aids)) or "none", "rest": opt.aiding.zupt or "none",
+           "csv_rate": f"{csv_rate:g} Hz", "heading_window": f"{opt.start.heading_window:g} s",
            "imu_errors": {**({"source": "built-in defaults (white noise measured at the initial "
                                         "rest, floored at the defaults)"} if not em_cfg else em_cfg)}}
     echo(f"{data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_name}: {len(fx)} fixes"
@@ -523,9 +523,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         notes.append("Antenna lever arm estimated (vehicle right, forward, up): "
                      + ", ".join(f"{a:.3f} ± {b:.3f}" for a, b in zip(le, ls)) + " m.")
         echo("  lever arm estimate [m] " + ", ".join(f"{a:.3f} ± {b:.3f}" for a, b in zip(le, ls)))
-    if opt.zupt is not None:
-        notes.append(f"ZUPT{'/ZARU' if opt.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
-                     f"{metrics['rest_total_s']:.0f} s in all ({opt.zupt} detection).")
+    if opt.aiding.zupt is not None:
+        notes.append(f"ZUPT{'/ZARU' if opt.aiding.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
+                     f"{metrics['rest_total_s']:.0f} s in all ({opt.aiding.zupt} detection).")
     if noise_warn:
         notes.append(noise_warn)
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
@@ -878,7 +878,7 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
         outage_mid_hz_err_forward_m=hz_f[mids].tolist(), outage_mid_hz_err_smoothed_m=hz_s[mids].tolist(),
         outage_mid_hz_err_smoothed_median_m=float(np.median(hz_s[mids])) if mids else None,
         smoothed_stored_epochs=int(sm.stored.size))
-    if res.options.odometer is not None:
+    if res.options.aiding.odometer is not None:
         i = [j for j, l in enumerate(res.labels) if l.startswith("kod")][0]
         metrics.update(odometer_scale_final_ppm=float(sm.x[-1, i] * 1e6),
                        odometer_scale_sigma_ppm=float(sm.sigma[-1, i] * 1e6))
