@@ -29,8 +29,6 @@ The resolved model is returned as a flat dict of unit strings for the run's
 """
 from __future__ import annotations
 
-import dataclasses
-
 import math
 from pathlib import Path
 

@@ -47,7 +47,8 @@ from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
            "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
-           "leveled_start", "level_in_motion", "moving_spans", "moving_speed_threshold", "subtract_spans", "platform_kind", "PLATFORMS"]
+           "leveled_start", "level_in_motion", "moving_spans", "moving_speed_threshold", "subtract_spans", "platform_kind", "PLATFORMS",
+           "ErrorSpec", "FixHandling", "AidingSpec", "StartSpec", "GridSpec"]
 
 
 #: an aircraft's heading is taken from its course only above this speed [m/s] (flying) and
