@@ -215,14 +215,14 @@ def _align_at_start(imu, fixes, ks, gb, window):
     return align_in_motion(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, k0, ks, gb)
 
 
-def leveled_start(imu, fixes: Fixes, opt: NavOptions):
+def leveled_start(imu, fixes: Fixes, start: StartSpec):
     """Index range ``(k0, k1)`` of the initial rest (see module notes) or None: until the
     first fix faster than ``static_speed``; when that leaves less than 1 s (a receiver
     whose speed noise exceeds ``static_speed``), until the first fix faster than three
     times its own speed noise (:func:`moving_speed_threshold`)."""
     sp = _fix_speed(fixes)
     k0 = int(np.searchsorted(imu.t, max(imu.t0, fixes.t[0]) - 1e-9))
-    for thr in (opt.start.static_speed, moving_speed_threshold(fixes, opt)):
+    for thr in (start.static_speed, moving_speed_threshold(fixes, start)):
         moving = np.flatnonzero(sp > thr)
         t_move = fixes.t[moving[0]] if moving.size else fixes.t[-1]
         k1 = int(np.searchsorted(imu.t, min(t_move, imu.t[0] + 120.0)))
@@ -231,7 +231,7 @@ def leveled_start(imu, fixes: Fixes, opt: NavOptions):
     return None
 
 
-def moving_speed_threshold(fixes: Fixes, opt: NavOptions):
+def moving_speed_threshold(fixes: Fixes, start: StartSpec):
     """Per fix, the horizontal speed [m/s] above which the fix says the vehicle moves:
     three times the speed's own noise (the velocity σ, or for position-only fixes the σ
     of a position difference over one interval), at least ``static_speed``."""
@@ -240,7 +240,7 @@ def moving_speed_threshold(fixes: Fixes, opt: NavOptions):
         s_sp = np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2)
     else:
         s_sp = np.hypot(fixes.sigma[:, 0], fixes.sigma[:, 1]) / stamp_step(fixes.t)[0]
-    return np.maximum(3.0 * s_sp, opt.start.static_speed)
+    return np.maximum(3.0 * s_sp, start.static_speed)
 
 
 def _fix_speed(fixes: Fixes):
@@ -288,7 +288,7 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
     if opt.errors.accel_markov is not None:
         sensors.append(es.accel_markov(opt.errors.accel_markov[1], opt.errors.accel_markov[0]))
     if opt.errors.scale_factors:
-        gs, as_ = _scale_sigmas(opt)
+        gs, as_ = _scale_sigmas(opt.errors)
         tg, ta = opt.errors.scale_tau
         sensors += [es.gyro_scale(rw=0.0 if tg else opt.errors.scale_rw[0], tau=tg, sigma=gs if tg else None),
                     es.accel_scale(rw=0.0 if ta else opt.errors.scale_rw[1], tau=ta, sigma=as_ if ta else None)]
@@ -303,9 +303,9 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
     return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
 
 
-def _scale_sigmas(opt):
-    return (opt.errors.scale_sigma if opt.errors.gyro_scale_sigma is None else opt.errors.gyro_scale_sigma,
-            opt.errors.scale_sigma if opt.errors.accel_scale_sigma is None else opt.errors.accel_scale_sigma)
+def _scale_sigmas(errors: ErrorSpec):
+    return (errors.scale_sigma if errors.gyro_scale_sigma is None else errors.gyro_scale_sigma,
+            errors.scale_sigma if errors.accel_scale_sigma is None else errors.accel_scale_sigma)
 
 
 def _imu_point_course(fixes: Fixes, imu, lever, gb):
@@ -325,7 +325,7 @@ def _imu_point_course(fixes: Fixes, imu, lever, gb):
     return crs, np.hypot(vi[:, 0], vi[:, 1])
 
 
-def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever, gb, move_speed=None,
+def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, start: StartSpec, lever, gb, move_speed=None,
                        max_roll=math.inf):
     """Heading from the first ``heading_window`` seconds of motion faster than
     ``move_speed`` in which the course of the IMU-point velocity and the heading carried by
@@ -337,13 +337,13 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
     """
     from sinslab.nav import strapdown as sd
     crs, spi = _imu_point_course(fixes, imu, lever, gb)
-    fast = spi > (opt.start.move_speed if move_speed is None else move_speed)
+    fast = spi > (start.move_speed if move_speed is None else move_speed)
     t_rest = float(imu.t[k0])
     cand = np.flatnonzero(fast & (fixes.t > t_rest))
     dt = imu.dt
     # the window is a whole number of the stream's own intervals, its length tested with
     # the stamps' own jitter (a receiver stamps "1 s" fixes 1.000019 s apart)
-    n_iv, f_dt, f_tol = whole_intervals(fixes.t, opt.start.heading_window)
+    n_iv, f_dt, f_tol = whole_intervals(fixes.t, start.heading_window)
     for j in cand:
         w = np.flatnonzero((fixes.t >= fixes.t[j]) & (fixes.t <= fixes.t[j] + n_iv * (f_dt + f_tol)))
         if fixes.t[w[-1]] - fixes.t[j] < n_iv * (f_dt - f_tol) or not fast[w].all():
@@ -364,7 +364,7 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
         if max(roll) > max_roll:                # banked: an aircraft's course leaves its heading
             continue
         off = np.unwrap(crs[w] - np.array(az))
-        if np.ptp(off) > opt.start.heading_straight:
+        if np.ptp(off) > start.heading_straight:
             continue
         mean = float(np.mean(off))
         if fixes.vel is not None:
@@ -405,7 +405,8 @@ def fixes_dt(fixes):
     return float(np.median(np.diff(fixes.t))) if len(fixes) > 1 else 1.0
 
 
-def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=None, fixes=None):
+def rest_intervals(imu: ImuRecord, aiding: AidingSpec, start: StartSpec, lat, rest=None, gyro_bias=None,
+                   fixes=None):
     """Stationary intervals for ZUPT/ZARU [s], shape (K, 2): from the log's rest flags
     (``zupt="flags"``) or the IMU detector (:func:`sinslab.fusion.stationarity.detect`)
     with thresholds calibrated on the initial rest ``rest = (k0, k1)`` (the scatter of
@@ -414,17 +415,17 @@ def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=No
     long; then cut wherever one of ``fixes`` (those the filter uses) says the vehicle
     moves (:func:`moving_spans`): a detector cannot tell rest from steady driving on a
     smooth road, a fix can."""
-    iv = _rest_candidates(imu, opt, lat, rest, gyro_bias)
+    iv = _rest_candidates(imu, aiding, lat, rest, gyro_bias)
     if fixes is not None and len(fixes) > 1 and iv.size:
-        iv = subtract_spans(iv, moving_spans(fixes, opt))
-    return iv[(iv[:, 1] - iv[:, 0]) >= max(opt.aiding.rest_min - 1.0, 0.1)] if iv.size else iv
+        iv = subtract_spans(iv, moving_spans(fixes, start))
+    return iv[(iv[:, 1] - iv[:, 0]) >= max(aiding.rest_min - 1.0, 0.1)] if iv.size else iv
 
 
-def moving_spans(fixes: Fixes, opt: NavOptions):
+def moving_spans(fixes: Fixes, start: StartSpec):
     """Time spans [s] (K, 2) in which fixes say the vehicle moves: one fix interval either
     side of every fix faster than :func:`moving_speed_threshold`."""
     fdt, _ = stamp_step(fixes.t)
-    mv = _fix_speed(fixes) > moving_speed_threshold(fixes, opt)
+    mv = _fix_speed(fixes) > moving_speed_threshold(fixes, start)
     return np.stack([fixes.t[mv] - fdt, fixes.t[mv] + fdt], -1)
 
 
@@ -447,11 +448,11 @@ def subtract_spans(iv, spans):
     return np.array(out, dtype=float).reshape(-1, 2)
 
 
-def _rest_candidates(imu, opt, lat, rest, gyro_bias):
+def _rest_candidates(imu, aiding: AidingSpec, lat, rest, gyro_bias):
     from sinslab.fusion import stationarity as st
-    if opt.aiding.zupt == "flags":
-        t, fl = opt.aiding.rest_flags
-        iv = st.from_flags(t, fl, min_duration=opt.aiding.rest_min)
+    if aiding.zupt == "flags":
+        t, fl = aiding.rest_flags
+        iv = st.from_flags(t, fl, min_duration=aiding.rest_min)
     else:
         gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, float)
         im = ImuRecord(imu.t, imu.dtheta - gb * imu.dt, imu.dv, imu.dt)
@@ -468,7 +469,7 @@ def _rest_candidates(imu, opt, lat, rest, gyro_bias):
                           f_tol=max(1.5 * float(np.abs(np.linalg.norm(f.mean(1), axis=1) - g).max()), 0.05),
                           w_max=max(1.5 * float(np.linalg.norm(w.mean(1), axis=1).max()), 0.002),
                           w_std=max(1.5 * float(np.linalg.norm(w.std(1), axis=1).max()), 1e-4))
-        iv = st.detect(im, lat, min_duration=opt.aiding.rest_min, **kw)
+        iv = st.detect(im, lat, min_duration=aiding.rest_min, **kw)
     iv = np.asarray(iv, dtype=float).reshape(-1, 2)
     return np.stack([iv[:, 0] + 0.5, iv[:, 1] - 0.5], -1) if iv.size else iv
 
@@ -525,7 +526,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     lat0 = float(fixes.lat[0])
 
     # --- initial attitude: levelling at rest, heading given or from straight motion
-    rest = leveled_start(imu, fixes, opt)
+    rest = leveled_start(imu, fixes, opt.start)
     gb = np.zeros(3)
     if rest is not None:
         k0, k1 = rest
@@ -570,7 +571,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         # an aircraft is carried, taxied and launched before its course shows its heading
         air = init["platform"][0] == "aircraft"
         move = max(opt.start.move_speed, AIRCRAFT_MOVE_SPEED) if air else opt.start.move_speed
-        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt, lever, gb, move,
+        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt.start, lever, gb, move,
                                    AIRCRAFT_MAX_ROLL if air else math.inf)
         if found is None:
             raise ValueError(f"no {opt.start.heading_window:g} s of motion faster than {move} m/s "
@@ -654,7 +655,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     if opt.errors.accel_markov is not None:
         sp0[lay.slice("nabla_m")] = opt.errors.accel_markov[0]
     if opt.errors.scale_factors:
-        sp0[lay.slice("kg")], sp0[lay.slice("ka")] = _scale_sigmas(opt)
+        sp0[lay.slice("kg")], sp0[lay.slice("ka")] = _scale_sigmas(opt.errors)
     if opt.fix.estimate_lever:
         sp0[lay.slice("lev")] = opt.fix.lever_sigma
     if opt.aiding.odometer is not None:
@@ -679,7 +680,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     named = []
     if opt.aiding.zupt is not None:
         used = sel.select(~_in_outages(sel.t, outages))
-        iv = rest_intervals(imu, opt, lat0, rest, gb, fixes=used)
+        iv = rest_intervals(imu, opt.aiding, opt.start, lat0, rest, gb, fixes=used)
         iv = iv[iv[:, 1] > ts] if iv.size else iv
         init["rest_intervals"] = iv.tolist()
         if len(iv):
