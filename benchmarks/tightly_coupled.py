@@ -69,7 +69,7 @@ def filter_speed(duration):
         for key in ("tc", "lc"):
             c0, w0 = time.process_time(), time.perf_counter()
             if key == "tc":
-                r = tightly_coupled(meas, init, RawGnss(sv, **raw_kw), P, model=model, kf_dt=0.1)
+                r = tightly_coupled(meas, init, RawGnss(sv, **raw_kw), P, model, grid=FilterGrid(0.1))
             else:
                 r = lc.loosely_coupled(meas, init, FixSpec(ft, fix, sig), Plc, lc_model, grid=FilterGrid(0.1))
             cpu[key] = min(cpu[key], time.process_time() - c0)

@@ -34,12 +34,12 @@ def main(data, figure=None):
 
     def tc(**kw):
         raw = RawGnss(prepare(obs), **kw)
-        return navigate_recorded(imu, raw.fixes(), NavOptions(gnss_raw=raw, **start)), raw
+        return navigate_recorded(imu, raw.fixes(), NavOptions.of(gnss_raw=raw, **start)), raw
 
     res_tc, raw = tc()
     spp = raw.fixes()
-    res_lc_pvt = navigate_recorded(imu, pvt, NavOptions(**start))
-    res_lc_spp = navigate_recorded(imu, spp, NavOptions(**start))
+    res_lc_pvt = navigate_recorded(imu, pvt, NavOptions.of(**start))
+    res_lc_spp = navigate_recorded(imu, spp, NavOptions.of(**start))
     t0 = float(obs.t_abs[0])
     fixed = ref.select(ref.quality == 1)
     t_lo = res_tc.t[0]                                   # compare where every filter runs
@@ -85,7 +85,7 @@ def main(data, figure=None):
         n_used = np.array([x.sum() for x in raw_w.measurements[0].log.used])
         tl = np.array(raw_w.measurements[0].log.t)
         assert np.all(n_used[(tl >= t0 + ws) & (tl < t0 + ws + wd)] <= k)
-        res_lo = navigate_recorded(imu, pvt, NavOptions(outages=((t0 + ws, wd),), **start))
+        res_lo = navigate_recorded(imu, pvt, NavOptions.of(outages=((t0 + ws, wd),), **start))
         for name, res, key in ((f"tightly coupled, {k} satellites", res_w, rows[0][0]),
                                ("loosely coupled on NAV-PVT, no fix", res_lo, rows[1][0])):
             t, e = err_of(res)

@@ -13,10 +13,10 @@ def test_grades_reach_the_options(grade):
     err, extras, resolved = M.load_error_model(grade)
     opt = M.apply_error_model(NavOptions(), err, extras)
     g = M.GRADES[grade]
-    assert opt.gyro_arw == pytest.approx(u.parse(g["gyro_arw"], "angle_random_walk"))
-    assert opt.accel_vrw == pytest.approx(u.parse(g["accel_vrw"], "velocity_random_walk"))
-    assert opt.gyro_bias_sigma == pytest.approx(u.parse(g["gyro_bias"], "angular_rate"))
-    assert opt.rest_noise is False and opt.scale_factors
+    assert opt.errors.gyro_arw == pytest.approx(u.parse(g["gyro_arw"], "angle_random_walk"))
+    assert opt.errors.accel_vrw == pytest.approx(u.parse(g["accel_vrw"], "velocity_random_walk"))
+    assert opt.errors.gyro_bias_sigma == pytest.approx(u.parse(g["gyro_bias"], "angular_rate"))
+    assert opt.errors.rest_noise is False and opt.errors.scale_factors
     assert resolved["grade"] == grade
 
 
@@ -29,16 +29,16 @@ def test_bias_models_and_overrides(tmp_path):
                  '[aiding]\nzupt_sigma = "0.01 m/s"\nlever_sigma = "0.5 m"\n')
     err, extras, resolved = M.load_error_model(p)
     opt = M.apply_error_model(NavOptions(), err, extras)
-    sig, tau = opt.gyro_markov
+    sig, tau = opt.errors.gyro_markov
     assert tau == 300.0 and sig == pytest.approx(0.5 * u.dph)
-    assert opt.accel_rrw == pytest.approx(10 * u.ug / 60)
-    assert opt.scale_tau == (3600.0, None) and opt.scale_rw[1] == pytest.approx(1e-5 / 60)
-    assert opt.att_sigma == pytest.approx((0.5 * u.deg, 0.5 * u.deg, 3 * u.deg))
-    assert opt.fix_sigma == pytest.approx((0.5, 0.5, 1.0)) and opt.vel_sigma_floor == 0.02
-    assert opt.zupt_sigma == 0.01 and opt.lever_sigma == 0.5
+    assert opt.errors.accel_rrw == pytest.approx(10 * u.ug / 60)
+    assert opt.errors.scale_tau == (3600.0, None) and opt.errors.scale_rw[1] == pytest.approx(1e-5 / 60)
+    assert opt.start.att_sigma == pytest.approx((0.5 * u.deg, 0.5 * u.deg, 3 * u.deg))
+    assert opt.fix.fix_sigma == pytest.approx((0.5, 0.5, 1.0)) and opt.fix.vel_sigma_floor == 0.02
+    assert opt.aiding.zupt_sigma == 0.01 and opt.fix.lever_sigma == 0.5
     # the model carries the blocks with their dynamics: Gauss-Markov gyro bias, GM gyro
     # scale (F = -1/tau on the diagonal), accel scale random walk (noise q = rw^2)
-    m = recorded_model(opt, opt.gyro_arw, opt.accel_vrw)
+    m = recorded_model(opt, opt.errors.gyro_arw, opt.errors.accel_vrw)
     lay = m.layout
     assert {"eps", "nabla", "eps_m", "kg", "ka"} <= set(lay.names)
     blocks = {s.name: s for s in m._ins[0]["sensors"]}

@@ -34,3 +34,29 @@ def test_bad_options(files, args, msg):
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert any("sinslab: error:" in ln and msg in ln for ln in lines), res.output
     assert not (out / "summary.json").exists()
+
+
+def test_navigate_request_parses_the_option_text_once_and_is_frozen():
+    """The CLI edge: lever arm, --aid, --init and --lag parsed into SI values and a policy
+    when the request is made; a bad one refused there, before any file is read."""
+    import dataclasses
+    import math
+
+    from sinslab.app.commands.navigate import NavigateRequest
+    from sinslab.app.errors import UserError
+    from sinslab.fusion.lag import OnArrival
+
+    r = NavigateRequest(["imu.csv"], ["fix.pos"], lever_arm="[10, -20, 30] cm", aid="zupt, NHC",
+                        init="heading=90 deg,course_speed=3 km/h", lag="ignore")
+    assert r.lever_arm == pytest.approx((0.1, -0.2, 0.3))
+    assert r.aids == {"zupt", "nhc"}
+    assert r.initial["heading"] == pytest.approx(math.pi / 2) and r.initial["course_speed"] == pytest.approx(3 / 3.6)
+    assert isinstance(r.lag_policy, OnArrival)
+    assert r.imu_path == "imu.csv" and r.fix_path == "fix.pos"
+    assert r.lag == "ignore" and r.init.startswith("heading")      # the text kept for config.toml
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        r.lever_arm = (0.0, 0.0, 0.0)
+    for bad in (dict(aid="zupt,wings"), dict(init="pitch=3 deg"), dict(lag="late"),
+                dict(lever_arm="[1, 2] m"), dict(fix_latency=-1.0)):
+        with pytest.raises((ValueError, UserError)):
+            NavigateRequest("imu.csv", "fix.pos", **bad)

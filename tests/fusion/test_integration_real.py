@@ -34,7 +34,7 @@ def sim():
 
 
 def _run(imu, fx, **kw):
-    opt = I.NavOptions(outages=[("periodic", 15.0, 60.0, 40.0)], **kw)
+    opt = I.NavOptions.of(outages=[("periodic", 15.0, 60.0, 40.0)], **kw)
     r = I.navigate_recorded(imu, fx, opt)
     return r, I.outage_end_errors(r, fx)[1]
 
@@ -61,7 +61,7 @@ def test_bad_inputs(sim):
     with pytest.raises(ValueError, match="do not overlap the IMU record"):
         I.navigate_recorded(imu, far)
     with pytest.raises(ValueError, match="lever arm"):
-        I.navigate_recorded(imu, fx, I.NavOptions(lever_arm=(1.0, 2.0)))
+        I.navigate_recorded(imu, fx, I.NavOptions.of(lever_arm=(1.0, 2.0)))
     with pytest.raises(ValueError, match="START:LEN"):
         I.parse_outages("10-5")
     assert I.parse_outages("10:5,30:2", 100.0) == [(110.0, 5.0), (130.0, 2.0)]

@@ -65,7 +65,7 @@ def _opt(err, **kw):
     base = dict(lever_arm=tuple(LEVER), rest_noise=False, gyro_arw=0.3 * u.deg / 60,
                 accel_vrw=100 * u.ug, gyro_bias_sigma=20 * u.dph, accel_bias_sigma=1e-2)
     base.update(kw)
-    return R.NavOptions(**base)
+    return R.NavOptions.of(**base)
 
 
 def _yaw_err(r, tru, t):
@@ -194,7 +194,7 @@ def test_cli_on_a_vendor_log_matches_the_api(drive, tmp_path):
     thin = pd.read_csv(out / "solution.csv")
     assert len(thin) == len(full[::25]) and np.allclose(thin["t_s"], full["t_s"][::25])
     # the same run through the Python API on the record itself
-    opt = R.NavOptions(lever_arm=tuple(LEVER), rest_noise=False, gyro_arw=0.3 * u.deg / 60,
+    opt = R.NavOptions.of(lever_arm=tuple(LEVER), rest_noise=False, gyro_arw=0.3 * u.deg / 60,
                        accel_vrw=100 * u.ug, gyro_bias_sigma=20 * u.dph, accel_bias_sigma=10000 * u.ug,
                        gyro_rrw=0.0, accel_rrw=0.0, zupt="flags", rest_flags=(imu.t, rest[k]))
     r = R.navigate_recorded(imu, fx, opt)

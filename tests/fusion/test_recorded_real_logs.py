@@ -42,7 +42,7 @@ def drive():
 
 
 def _opt(**kw):
-    return R.NavOptions(**kw)
+    return R.NavOptions.of(**kw)
 
 
 def _heading_err(r, tru):

@@ -16,6 +16,7 @@ from sinslab.core import units as u
 from sinslab.core.records import NavState
 from sinslab.estimation.montecarlo import chi2_bounds
 from sinslab.fusion.gnss import SatelliteObservations, single_point
+from sinslab.fusion.spec import FilterGrid
 from sinslab.fusion.tightly_coupled import RawGnss, tc_model, tightly_coupled
 from sinslab.sim import gnss as SG
 from sinslab.sim import imu as IM
@@ -65,7 +66,7 @@ def _run(g, seed, canyon=(), walker=SG.Walker()):
     lay = model.layout
     sd = np.r_[S_ATT, np.full(3, S_VEL), S_POS / rm, S_POS / (rn * math.cos(tru.lat[0])), S_POS,
                np.full(3, SG_B), np.full(3, SA_B), raw.clock_sigmas()]
-    r = tightly_coupled(imu, init, raw, np.diag(sd ** 2), model=model, kf_dt=0.1)
+    r = tightly_coupled(imu, init, raw, np.diag(sd ** 2), model, grid=FilterGrid(0.1))
     kt = np.searchsorted(tru.t, r.t - 1e-9)
     e = np.stack([(r.nav[:, 8] - tru.lon[kt]) * rn * math.cos(tru.lat[0]), (r.nav[:, 7] - tru.lat[kt]) * rm,
                   r.nav[:, 9] - tru.h[kt]], -1)

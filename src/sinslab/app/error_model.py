@@ -29,14 +29,13 @@ The resolved model is returned as a flat dict of unit strings for the run's
 """
 from __future__ import annotations
 
-import dataclasses
-
 import math
 from pathlib import Path
 
 import numpy as np
 
 from sinslab.core import units as U
+from sinslab.fusion.recorded_spec import FIELD_GROUP
 
 __all__ = ["GRADES", "GRADE_SOURCES", "load_error_model", "apply_error_model"]
 
@@ -176,9 +175,10 @@ def _per_axis_max(v):
 
 
 class NavOptionsDraft:
-    """The fields of a :class:`sinslab.fusion.recorded.NavOptions` being assembled from
-    command-line options and files: attribute reads fall through to ``base``, assignments
-    are collected, and :meth:`build` makes the one frozen, checked options value."""
+    """The spec fields of a :class:`sinslab.fusion.recorded.NavOptions` being assembled
+    from command-line options and files, by field name: reads fall through to ``base``,
+    assignments are collected, and :meth:`build` makes each spec concerned once (frozen,
+    checked)."""
 
     def __init__(self, base):
         object.__setattr__(self, "_base", base)
@@ -186,16 +186,16 @@ class NavOptionsDraft:
 
     def __getattr__(self, k):
         s = object.__getattribute__(self, "_set")
-        return s[k] if k in s else getattr(object.__getattribute__(self, "_base"), k)
+        return s[k] if k in s else object.__getattribute__(self, "_base").field(k)
 
     def __setattr__(self, k, v):
-        if not hasattr(self._base, k):
+        if k not in FIELD_GROUP:
             raise AttributeError(f"NavOptions has no field {k!r}")
         self._set[k] = v
 
     def build(self):
         """The options: ``base`` with the fields set (checked once, here)."""
-        return dataclasses.replace(self._base, **self._set)
+        return self._base.replace(**self._set)
 
 
 def apply_error_model(opt, err, extras):

@@ -17,7 +17,7 @@ data, outages, and evaluation against the fixes.
    whole attitude comes instead from an in-motion alignment over the fixes just before the
    start (:mod:`sinslab.nav.motion_alignment`; its heading where its σ beats the course's).
 2. **Filter**: :func:`sinslab.fusion.loosely_coupled.loosely_coupled` with the model and
-   P0 from :class:`NavOptions`.
+   P0 from the specs of :class:`NavOptions` (:mod:`sinslab.fusion.recorded_spec`).
 3. **Outages and latency.** Fixes whose validity time lies in an outage are dropped; a
    fix valid at t arrives at t + latency (``lag`` as in the filter).
 
@@ -39,18 +39,18 @@ from sinslab.core import units
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
 from sinslab.core.stamps import held_runs, stamp_step, whole_intervals
-from sinslab.fusion.lag import ExactReprocessing
 from sinslab.fusion.loosely_coupled import LooselyCoupled, loosely_coupled
+from sinslab.fusion.recorded_spec import (PLATFORMS, AidingSpec, ErrorSpec, FixHandling, GridSpec,
+                                           NavOptions, StartSpec)
 from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 from sinslab.fusion.smoothing import History, smooth
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "rest_intervals",
            "parse_outages", "periodic_outages", "fix_errors", "outage_end_errors", "level_from_rest",
-           "leveled_start", "level_in_motion", "moving_spans", "moving_speed_threshold", "subtract_spans", "platform_kind", "PLATFORMS"]
+           "leveled_start", "level_in_motion", "moving_spans", "moving_speed_threshold", "subtract_spans", "platform_kind", "PLATFORMS",
+           "ErrorSpec", "FixHandling", "AidingSpec", "StartSpec", "GridSpec"]
 
 
-#: platform kinds of :attr:`NavOptions.platform`
-PLATFORMS = ("auto", "land", "aircraft", "marine")
 #: an aircraft's heading is taken from its course only above this speed [m/s] (flying) and
 #: with the wings within this roll [rad] of level (a banked turn slips and crabs)
 AIRCRAFT_MOVE_SPEED = 10.0
@@ -62,126 +62,6 @@ AIRCRAFT_CRAB_SIGMA = 10.0 * units.deg
 #: time, white noise × √time) exceeds this many times the levelling σ: the carry then
 #: dominates (a car's slow first stretch, 26 s: 1.3 times; a taxi and launch, 61 s: 3 times)
 CARRY_LIMIT = 2.0
-
-
-@dataclass(frozen=True, eq=False)
-class NavOptions:
-    """Settings of :func:`navigate_recorded` (SI units): a frozen value, checked once when it
-    is made (derive another with :func:`dataclasses.replace`)."""
-
-    lever_arm: tuple = (0.0, 0.0, 0.0)      #: IMU -> antenna, vehicle RFU axes [m]
-    outages: tuple = ()                     #: ((start, length), ...) absolute times [s]
-    fix_latency: float = 0.0                #: [s]
-    lag: object = ExactReprocessing()       #: lag policy (sinslab.fusion.lag)
-    heading: float | None = None            #: initial heading, clockwise from north [rad]
-    use_velocity: bool = True
-    gyro_arw: float = 0.0038 * units.deg    #: [rad/sqrt(s)] (0.0038 deg/s/sqrt(Hz))
-    accel_vrw: float = 70 * units.ug        #: [m/s/sqrt(s)]
-    gyro_rrw: float = 3.8e-5 * units.deg * 2   #: gyro bias random walk [rad/s/sqrt(s)]
-    accel_rrw: float = 7 * units.ug * 4     #: accel bias random walk [m/s^2/sqrt(s)]
-    gyro_bias_sigma: float = 0.05 * units.deg   #: initial 1σ [rad/s] (after rest calibration)
-    accel_bias_sigma: float = 0.2           #: initial 1σ [m/s^2]
-    scale_factors: bool = False
-    scale_sigma: float = 0.01               #: initial 1σ of scale-factor states [-]
-    att_sigma: tuple = (1.0 * units.deg, 1.0 * units.deg, 5.0 * units.deg)  #: φE φN φU
-    pos_sigma_floor: float = 0.05           #: fix σ floor [m] (timing, antenna phase centre)
-    vel_sigma_floor: float = 0.05           #: [m/s]
-    static_speed: float = 0.05              #: [m/s] below it the vehicle is at rest
-    move_speed: float = 2.0                 #: [m/s] heading from the fix course above it
-    kf_dt: float = 0.02                     #: filter step [s]
-    nsub: int = 2
-    rest_bias: bool = True                  #: initial gyro bias from the initial rest
-    rest_noise: bool = True                 #: white noise per axis from the initial rest
-    #: (sample scatter at rest × sqrt(dt), floored at gyro_arw/accel_vrw: engine vibration
-    #: in a car is far above a datasheet's noise density); False: gyro_arw/accel_vrw as given
-    # -- the rest of the error model (defaults: none of these states)
-    gyro_markov: tuple | None = None        #: (σ [rad/s], τ [s]) Gauss–Markov gyro bias block
-    accel_markov: tuple | None = None       #: (σ [m/s²], τ [s]) Gauss–Markov accelerometer bias
-    gyro_scale_sigma: float | None = None   #: initial σ of gyro scale factors [-] (default scale_sigma)
-    accel_scale_sigma: float | None = None  #: likewise for the accelerometers
-    scale_rw: tuple = (0.0, 0.0)            #: gyro, accel scale-factor random walk [1/√s]
-    scale_tau: tuple = (None, None)         #: gyro, accel scale-factor Gauss–Markov τ [s] (σ: the scale σ)
-    fix_sigma: tuple | None = None          #: replaces every fix's σ north, east, up [m]
-    fix_vel_sigma: tuple | None = None      #: replaces every fix velocity σ east, north, up [m/s]
-    # -- aiding beyond the fixes
-    zupt: str | None = None                 #: None | "auto" (IMU detector) | "flags" (rest_flags)
-    zupt_sigma: float = 0.02                #: [m/s]
-    zaru: bool = False                      #: zero angular rate on the same intervals
-    zaru_sigma: float | None = None         #: [rad/s]; default 2 × gyro white noise / √kf_dt
-    rest_flags: tuple | None = None         #: (t (N,), flags (N,) bool) of a log's rest column
-    rest_min: float = 2.0                   #: shortest rest interval used [s]
-    nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
-    nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
-    #: body pitch on the suspension per longitudinal acceleration [rad per m/s²]: the vertical
-    #: NHC row's σ grows with it (0.30°/(m/s²): measured on a car against its RTK fixes,
-    #: docs/recorded-data.md); 0: the fixed σ alone
-    nhc_pitch_gradient: float = 0.3 * units.deg
-    nhc_correlation_time: float = 1.0       #: [s] that suspension pitch lasts (a manoeuvre)
-    vehicle_mount: tuple | None = None      #: IMU body in the vehicle frame [pitch, roll, yaw] [rad]
-    #: (what is left after the reader's mount: a case bolted 1-2° off the car's axes)
-    estimate_vehicle: bool = False          #: states for the mount's pitch and yaw and the NHC lever
-    vehicle_mount_sigma: float = 2.0 * units.deg   #: their initial σ [rad]
-    nhc_lever_sigma: float = 0.5            #: [m] per axis
-    platform: str = "auto"                  #: "auto" | "land" | "aircraft" | "marine": NHC and the
-    #: odometer assume a wheeled land vehicle and are refused otherwise ("auto": from the fixes)
-    aiding_dt: float = 0.1                  #: ZUPT/NHC applied every this [s] (ZARU: every epoch)
-    aid_gate: float | None = 1e-6           #: false-rejection probability of the innovation gate of
-    #: every ZUPT/ZARU/NHC/odometer update (:class:`~sinslab.fusion.measurements.InnovationGate`); None: no gate
-    estimate_lever: bool = False            #: estimate the antenna lever arm (3 states)
-    lever_sigma: float = 1.0                #: its initial σ per axis [m]
-    heading_window: float = 1.0             #: [s] of motion above move_speed for the heading
-    heading_straight: float = 2.0 * units.deg   #: largest spread of course − gyro heading in it [rad]
-    heading_sigma_floor: float = 1.0 * units.deg  #: added (in quadrature) to the σ of that heading
-    level_window: float = 10.0              #: [s] of fixes for levelling in motion (no initial rest)
-    #: in-motion alignment over ``level_window`` s before the start where the gyros would
-    #: carry the levelling there too long (``CARRY_LIMIT``); False: always carried
-    motion_alignment: bool = True
-    smooth: bool = False                    #: record the forward pass and smooth it (RTS)
-    smooth_spill: str | None = None         #: folder for the smoother's record on disk (None: memory)
-    odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
-    odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
-    odometer_lever: tuple = (0.0, 0.0, 0.0)  #: IMU -> wheel point, vehicle RFU [m]
-    odometer_scale_sigma: float = 0.02      #: initial 1σ of the odometer scale factor [-]
-    odometer_rate: float = 10.0             #: odometer updates per second [Hz]
-    #: raw GNSS (sinslab.fusion.tightly_coupled.RawGnss): its pseudoranges and range rates
-    #: replace the fixes in the filter (tightly coupled); the fixes then only start it
-    gnss_raw: object = None
-
-    def __post_init__(self):
-        la = np.asarray(self.lever_arm, dtype=float)
-        if la.shape != (3,) or not np.all(np.isfinite(la)):
-            raise ValueError(f"lever arm must be 3 finite numbers [m], got {self.lever_arm!r}")
-        object.__setattr__(self, "lever_arm", tuple(float(x) for x in la))
-        object.__setattr__(self, "outages", tuple(self.outages))
-        for o in self.outages:
-            s, ln = (o[2], o[1]) if o[0] == "periodic" else o
-            if not (ln > 0 and math.isfinite(s)):
-                raise ValueError(f"outage {s}:{ln}: length must be > 0")
-        if self.zupt not in (None, "auto", "flags"):
-            raise ValueError(f"zupt must be None, 'auto' or 'flags', got {self.zupt!r}")
-        if self.zupt == "flags" and self.rest_flags is None:
-            raise ValueError("zupt='flags' needs a rest-flag column (column map key 'stationary')")
-        if self.zaru and self.zupt is None:
-            raise ValueError("ZARU runs on the rest intervals of ZUPT: choose zupt='auto' or 'flags'")
-        if self.platform not in PLATFORMS:
-            raise ValueError(f"platform must be one of {', '.join(PLATFORMS)}, got {self.platform!r}")
-        if self.estimate_vehicle and self.nhc_sigma is None:
-            raise ValueError("the vehicle mount and NHC lever states need the NHC (nhc_sigma)")
-        if self.aid_gate is not None and not (0 < self.aid_gate < 1):
-            raise ValueError(f"aid_gate must be a probability in (0, 1) or None, got {self.aid_gate}")
-        if not (math.isfinite(self.nhc_pitch_gradient) and self.nhc_pitch_gradient >= 0):
-            raise ValueError(f"nhc_pitch_gradient must be >= 0, got {self.nhc_pitch_gradient}")
-        for nm in ("zupt_sigma", "lever_sigma", "aiding_dt", "heading_window", "heading_straight",
-                   "nhc_correlation_time"):
-            v = getattr(self, nm)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{nm} must be > 0, got {v}")
-        for nm, n in (("fix_sigma", 3), ("fix_vel_sigma", 3), ("nhc_sigma", 2)):
-            v = getattr(self, nm)
-            if v is not None:
-                a = np.broadcast_to(np.asarray(v, dtype=float), (n,))
-                if not np.all(np.isfinite(a) & (a > 0)):
-                    raise ValueError(f"{nm} must be {n} finite values > 0, got {v!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -335,14 +215,14 @@ def _align_at_start(imu, fixes, ks, gb, window):
     return align_in_motion(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, k0, ks, gb)
 
 
-def leveled_start(imu, fixes: Fixes, opt: NavOptions):
+def leveled_start(imu, fixes: Fixes, start: StartSpec):
     """Index range ``(k0, k1)`` of the initial rest (see module notes) or None: until the
     first fix faster than ``static_speed``; when that leaves less than 1 s (a receiver
     whose speed noise exceeds ``static_speed``), until the first fix faster than three
     times its own speed noise (:func:`moving_speed_threshold`)."""
     sp = _fix_speed(fixes)
     k0 = int(np.searchsorted(imu.t, max(imu.t0, fixes.t[0]) - 1e-9))
-    for thr in (opt.static_speed, moving_speed_threshold(fixes, opt)):
+    for thr in (start.static_speed, moving_speed_threshold(fixes, start)):
         moving = np.flatnonzero(sp > thr)
         t_move = fixes.t[moving[0]] if moving.size else fixes.t[-1]
         k1 = int(np.searchsorted(imu.t, min(t_move, imu.t[0] + 120.0)))
@@ -351,7 +231,7 @@ def leveled_start(imu, fixes: Fixes, opt: NavOptions):
     return None
 
 
-def moving_speed_threshold(fixes: Fixes, opt: NavOptions):
+def moving_speed_threshold(fixes: Fixes, start: StartSpec):
     """Per fix, the horizontal speed [m/s] above which the fix says the vehicle moves:
     three times the speed's own noise (the velocity σ, or for position-only fixes the σ
     of a position difference over one interval), at least ``static_speed``."""
@@ -360,7 +240,7 @@ def moving_speed_threshold(fixes: Fixes, opt: NavOptions):
         s_sp = np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2)
     else:
         s_sp = np.hypot(fixes.sigma[:, 0], fixes.sigma[:, 1]) / stamp_step(fixes.t)[0]
-    return np.maximum(3.0 * s_sp, opt.static_speed)
+    return np.maximum(3.0 * s_sp, start.static_speed)
 
 
 def _fix_speed(fixes: Fixes):
@@ -402,30 +282,30 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
     scale-factor states (``scale_factors``; random constant, walk or Gauss–Markov) and the
     antenna lever arm (``estimate_lever``), from :mod:`sinslab.nav.errstate`."""
     from sinslab.nav import errstate as es
-    sensors = [es.gyro_bias(rrw=opt.gyro_rrw), es.accel_bias(arw=opt.accel_rrw)]
-    if opt.gyro_markov is not None:
-        sensors.append(es.gyro_markov(opt.gyro_markov[1], opt.gyro_markov[0]))
-    if opt.accel_markov is not None:
-        sensors.append(es.accel_markov(opt.accel_markov[1], opt.accel_markov[0]))
-    if opt.scale_factors:
-        gs, as_ = _scale_sigmas(opt)
-        tg, ta = opt.scale_tau
-        sensors += [es.gyro_scale(rw=0.0 if tg else opt.scale_rw[0], tau=tg, sigma=gs if tg else None),
-                    es.accel_scale(rw=0.0 if ta else opt.scale_rw[1], tau=ta, sigma=as_ if ta else None)]
-    if opt.estimate_lever:
+    sensors = [es.gyro_bias(rrw=opt.errors.gyro_rrw), es.accel_bias(arw=opt.errors.accel_rrw)]
+    if opt.errors.gyro_markov is not None:
+        sensors.append(es.gyro_markov(opt.errors.gyro_markov[1], opt.errors.gyro_markov[0]))
+    if opt.errors.accel_markov is not None:
+        sensors.append(es.accel_markov(opt.errors.accel_markov[1], opt.errors.accel_markov[0]))
+    if opt.errors.scale_factors:
+        gs, as_ = _scale_sigmas(opt.errors)
+        tg, ta = opt.errors.scale_tau
+        sensors += [es.gyro_scale(rw=0.0 if tg else opt.errors.scale_rw[0], tau=tg, sigma=gs if tg else None),
+                    es.accel_scale(rw=0.0 if ta else opt.errors.scale_rw[1], tau=ta, sigma=as_ if ta else None)]
+    if opt.fix.estimate_lever:
         sensors.append(es.lever_arm())
-    if opt.odometer is not None:
+    if opt.aiding.odometer is not None:
         sensors.append(es.odometer_scale())
-    if opt.estimate_vehicle:
+    if opt.aiding.estimate_vehicle:
         sensors += [es.installation("vm", "xz"), es.lever_arm("nlev")]
-    if opt.gnss_raw is not None:
-        sensors.append(opt.gnss_raw.clock_block())
+    if opt.fix.gnss_raw is not None:
+        sensors.append(opt.fix.gnss_raw.clock_block())
     return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
 
 
-def _scale_sigmas(opt):
-    return (opt.scale_sigma if opt.gyro_scale_sigma is None else opt.gyro_scale_sigma,
-            opt.scale_sigma if opt.accel_scale_sigma is None else opt.accel_scale_sigma)
+def _scale_sigmas(errors: ErrorSpec):
+    return (errors.scale_sigma if errors.gyro_scale_sigma is None else errors.gyro_scale_sigma,
+            errors.scale_sigma if errors.accel_scale_sigma is None else errors.accel_scale_sigma)
 
 
 def _imu_point_course(fixes: Fixes, imu, lever, gb):
@@ -445,7 +325,7 @@ def _imu_point_course(fixes: Fixes, imu, lever, gb):
     return crs, np.hypot(vi[:, 0], vi[:, 1])
 
 
-def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever, gb, move_speed=None,
+def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, start: StartSpec, lever, gb, move_speed=None,
                        max_roll=math.inf):
     """Heading from the first ``heading_window`` seconds of motion faster than
     ``move_speed`` in which the course of the IMU-point velocity and the heading carried by
@@ -457,13 +337,13 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
     """
     from sinslab.nav import strapdown as sd
     crs, spi = _imu_point_course(fixes, imu, lever, gb)
-    fast = spi > (opt.move_speed if move_speed is None else move_speed)
+    fast = spi > (start.move_speed if move_speed is None else move_speed)
     t_rest = float(imu.t[k0])
     cand = np.flatnonzero(fast & (fixes.t > t_rest))
     dt = imu.dt
     # the window is a whole number of the stream's own intervals, its length tested with
     # the stamps' own jitter (a receiver stamps "1 s" fixes 1.000019 s apart)
-    n_iv, f_dt, f_tol = whole_intervals(fixes.t, opt.heading_window)
+    n_iv, f_dt, f_tol = whole_intervals(fixes.t, start.heading_window)
     for j in cand:
         w = np.flatnonzero((fixes.t >= fixes.t[j]) & (fixes.t <= fixes.t[j] + n_iv * (f_dt + f_tol)))
         if fixes.t[w[-1]] - fixes.t[j] < n_iv * (f_dt - f_tol) or not fast[w].all():
@@ -484,7 +364,7 @@ def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, opt: NavOptions, lever
         if max(roll) > max_roll:                # banked: an aircraft's course leaves its heading
             continue
         off = np.unwrap(crs[w] - np.array(az))
-        if np.ptp(off) > opt.heading_straight:
+        if np.ptp(off) > start.heading_straight:
             continue
         mean = float(np.mean(off))
         if fixes.vel is not None:
@@ -525,7 +405,8 @@ def fixes_dt(fixes):
     return float(np.median(np.diff(fixes.t))) if len(fixes) > 1 else 1.0
 
 
-def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=None, fixes=None):
+def rest_intervals(imu: ImuRecord, aiding: AidingSpec, start: StartSpec, lat, rest=None, gyro_bias=None,
+                   fixes=None):
     """Stationary intervals for ZUPT/ZARU [s], shape (K, 2): from the log's rest flags
     (``zupt="flags"``) or the IMU detector (:func:`sinslab.fusion.stationarity.detect`)
     with thresholds calibrated on the initial rest ``rest = (k0, k1)`` (the scatter of
@@ -534,17 +415,17 @@ def rest_intervals(imu: ImuRecord, opt: NavOptions, lat, rest=None, gyro_bias=No
     long; then cut wherever one of ``fixes`` (those the filter uses) says the vehicle
     moves (:func:`moving_spans`): a detector cannot tell rest from steady driving on a
     smooth road, a fix can."""
-    iv = _rest_candidates(imu, opt, lat, rest, gyro_bias)
+    iv = _rest_candidates(imu, aiding, lat, rest, gyro_bias)
     if fixes is not None and len(fixes) > 1 and iv.size:
-        iv = subtract_spans(iv, moving_spans(fixes, opt))
-    return iv[(iv[:, 1] - iv[:, 0]) >= max(opt.rest_min - 1.0, 0.1)] if iv.size else iv
+        iv = subtract_spans(iv, moving_spans(fixes, start))
+    return iv[(iv[:, 1] - iv[:, 0]) >= max(aiding.rest_min - 1.0, 0.1)] if iv.size else iv
 
 
-def moving_spans(fixes: Fixes, opt: NavOptions):
+def moving_spans(fixes: Fixes, start: StartSpec):
     """Time spans [s] (K, 2) in which fixes say the vehicle moves: one fix interval either
     side of every fix faster than :func:`moving_speed_threshold`."""
     fdt, _ = stamp_step(fixes.t)
-    mv = _fix_speed(fixes) > moving_speed_threshold(fixes, opt)
+    mv = _fix_speed(fixes) > moving_speed_threshold(fixes, start)
     return np.stack([fixes.t[mv] - fdt, fixes.t[mv] + fdt], -1)
 
 
@@ -567,11 +448,11 @@ def subtract_spans(iv, spans):
     return np.array(out, dtype=float).reshape(-1, 2)
 
 
-def _rest_candidates(imu, opt, lat, rest, gyro_bias):
+def _rest_candidates(imu, aiding: AidingSpec, lat, rest, gyro_bias):
     from sinslab.fusion import stationarity as st
-    if opt.zupt == "flags":
-        t, fl = opt.rest_flags
-        iv = st.from_flags(t, fl, min_duration=opt.rest_min)
+    if aiding.zupt == "flags":
+        t, fl = aiding.rest_flags
+        iv = st.from_flags(t, fl, min_duration=aiding.rest_min)
     else:
         gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, float)
         im = ImuRecord(imu.t, imu.dtheta - gb * imu.dt, imu.dv, imu.dt)
@@ -588,7 +469,7 @@ def _rest_candidates(imu, opt, lat, rest, gyro_bias):
                           f_tol=max(1.5 * float(np.abs(np.linalg.norm(f.mean(1), axis=1) - g).max()), 0.05),
                           w_max=max(1.5 * float(np.linalg.norm(w.mean(1), axis=1).max()), 0.002),
                           w_std=max(1.5 * float(np.linalg.norm(w.std(1), axis=1).max()), 1e-4))
-        iv = st.detect(im, lat, min_duration=opt.rest_min, **kw)
+        iv = st.detect(im, lat, min_duration=aiding.rest_min, **kw)
     iv = np.asarray(iv, dtype=float).reshape(-1, 2)
     return np.stack([iv[:, 0] + 0.5, iv[:, 1] - 0.5], -1) if iv.size else iv
 
@@ -622,44 +503,44 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         fixes = fixes.select(runs)
     if len(fixes) < 2:
         raise ValueError("fewer than 2 fixes inside the IMU record")
-    init["platform"] = platform_kind(fixes, opt.platform)
+    init["platform"] = platform_kind(fixes, opt.aiding.platform)
     kind, why = init["platform"]
-    if kind in ("aircraft", "marine") and (opt.nhc_sigma is not None or opt.odometer is not None):
+    if kind in ("aircraft", "marine") and (opt.aiding.nhc_sigma is not None or opt.aiding.odometer is not None):
         raise ValueError(f"the non-holonomic constraint and the odometer assume a wheeled land vehicle; "
                          f"this is {'an' if kind == 'aircraft' else 'a'} {kind} ({why}): drop nhc/odometer"
-                         + (" (or give the platform as land if it is a car)" if opt.platform == "auto" else ""))
-    if opt.fix_sigma is not None:
-        sg = np.broadcast_to(np.asarray(opt.fix_sigma, float), (3,))
+                         + (" (or give the platform as land if it is a car)" if opt.aiding.platform == "auto" else ""))
+    if opt.fix.fix_sigma is not None:
+        sg = np.broadcast_to(np.asarray(opt.fix.fix_sigma, float), (3,))
         fixes = dataclasses.replace(fixes, sigma=np.tile(sg, (len(fixes), 1)))
-    if opt.fix_vel_sigma is not None and fixes.vel is not None:
-        sg = np.broadcast_to(np.asarray(opt.fix_vel_sigma, float), (3,))
+    if opt.fix.fix_vel_sigma is not None and fixes.vel is not None:
+        sg = np.broadcast_to(np.asarray(opt.fix.fix_vel_sigma, float), (3,))
         fixes = dataclasses.replace(fixes, sigma_vel=np.tile(sg, (len(fixes), 1)))
-    outages = _expand_outages(opt.outages, float(fixes.t[0]), float(fixes.t[-1]))
-    lever = np.asarray(opt.lever_arm, dtype=float)
+    outages = _expand_outages(opt.fix.outages, float(fixes.t[0]), float(fixes.t[-1]))
+    lever = np.asarray(opt.fix.lever_arm, dtype=float)
     dt = imu.dt
-    nsub = int(opt.nsub)
-    k_kf = int(round(opt.kf_dt / dt))
-    if k_kf < nsub or k_kf % nsub or abs(k_kf * dt - opt.kf_dt) > 0.02 * dt:
-        k_kf = max(nsub, int(round(opt.kf_dt / dt / nsub)) * nsub)
+    nsub = int(opt.grid.nsub)
+    k_kf = int(round(opt.grid.kf_dt / dt))
+    if k_kf < nsub or k_kf % nsub or abs(k_kf * dt - opt.grid.kf_dt) > 0.02 * dt:
+        k_kf = max(nsub, int(round(opt.grid.kf_dt / dt / nsub)) * nsub)
     T = k_kf * dt
     lat0 = float(fixes.lat[0])
 
     # --- initial attitude: levelling at rest, heading given or from straight motion
-    rest = leveled_start(imu, fixes, opt)
+    rest = leveled_start(imu, fixes, opt.start)
     gb = np.zeros(3)
     if rest is not None:
         k0, k1 = rest
         pitch, roll, wb, fmean = level_from_rest(imu, k0, k1, lat0)
-        if opt.rest_bias:
+        if opt.errors.rest_bias:
             gb = wb.copy()
         # white-noise densities of the unit as it stands (engine vibration included)
         sq = math.sqrt(dt)
         g_meas = np.std(imu.dtheta[k0:k1], 0) / dt * sq
         a_meas = np.std(imu.dv[k0:k1], 0) / dt * sq
         init.update(rest_gyro_noise=g_meas.tolist(), rest_accel_noise=a_meas.tolist())
-        if opt.rest_noise:
-            arw = np.maximum(g_meas, opt.gyro_arw)
-            vrw = np.maximum(a_meas, opt.accel_vrw)
+        if opt.errors.rest_noise:
+            arw = np.maximum(g_meas, opt.errors.gyro_arw)
+            vrw = np.maximum(a_meas, opt.errors.accel_vrw)
             init.update(rest_gyro_arw=arw.tolist(), rest_accel_vrw=vrw.tolist())
         init.update(rest_start=float(imu.t[k0] - dt), rest_end=float(imu.t[k1 - 1]),
                     level_pitch=pitch, level_roll=roll, rest_gyro_mean=wb.tolist(),
@@ -668,7 +549,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         # no standstill (an aircraft, a log started on the move): level in motion from the
         # GNSS acceleration against the specific force, from the first fix on
         k0 = int(np.searchsorted(imu.t, max(imu.t0, float(fixes.t[0])) + dt - 1e-9))
-        lv = level_in_motion(imu, fixes, k0, lat0, opt.level_window)
+        lv = level_in_motion(imu, fixes, k0, lat0, opt.start.level_window)
         if lv is None:
             pitch, roll = 0.0, 0.0
             init.update(rest_start=None, level_source="none: no rest and too few fixes in motion; pitch "
@@ -678,10 +559,10 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
             init.update(rest_start=None, level_pitch=pitch, level_roll=roll, level_residual=resid,
                         level_source=f"in motion: fix velocity against the integrated specific force at "
                         f"{n_used} fixes (no rest at the start)")
-    if opt.heading is not None:
+    if opt.start.heading is not None:
         ks = k0
         ts = float(imu.t[ks] - dt) if ks > 0 else imu.t0
-        att0 = np.array([pitch, roll, A.heading_to_yaw(opt.heading)])
+        att0 = np.array([pitch, roll, A.heading_to_yaw(opt.start.heading)])
         init["heading_source"] = "given"
         init["heading_sigma"] = None
     else:
@@ -689,18 +570,18 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                                               np.zeros(3), np.array([pitch, roll, 0.0])))
         # an aircraft is carried, taxied and launched before its course shows its heading
         air = init["platform"][0] == "aircraft"
-        move = max(opt.move_speed, AIRCRAFT_MOVE_SPEED) if air else opt.move_speed
-        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt, lever, gb, move,
+        move = max(opt.start.move_speed, AIRCRAFT_MOVE_SPEED) if air else opt.start.move_speed
+        found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt.start, lever, gb, move,
                                    AIRCRAFT_MAX_ROLL if air else math.inf)
         if found is None:
-            raise ValueError(f"no {opt.heading_window:g} s of motion faster than {move} m/s "
+            raise ValueError(f"no {opt.start.heading_window:g} s of motion faster than {move} m/s "
                              "with a consistent course; give the initial heading (--init heading=...)")
         ks, C, h_sig, how = found
         ts = float(imu.t[ks - 1]) if ks > 0 else imu.t0
         att0 = A.dcm_to_euler(C)
         init["heading_source"] = how
         init["heading_sigma"] = h_sig
-    g_noise = np.asarray(init.get("rest_gyro_arw", opt.gyro_arw))
+    g_noise = np.asarray(init.get("rest_gyro_arw", opt.errors.gyro_arw))
     # pitch and roll levelled (at the rest or in motion) and carried by the gyros to the
     # start: when the tilt the residual gyro bias (its prior σ) and the white noise may add
     # on the way dominates the levelling's own σ (CARRY_LIMIT times it), the attitude comes
@@ -708,13 +589,13 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     # it is better; a rest just before the motion keeps its levelling
     t_lev = init["rest_end"] if init.get("rest_end") is not None else float(imu.t[k0] - dt)
     carried = max(float(ts - t_lev), 0.0)
-    tilt = math.hypot(float(np.max(opt.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
-    long_carry = opt.motion_alignment and tilt > CARRY_LIMIT * max(opt.att_sigma[:2])
-    fit = _align_at_start(imu, fixes, ks, gb, opt.level_window) if long_carry else None
+    tilt = math.hypot(float(np.max(opt.errors.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
+    long_carry = opt.start.motion_alignment and tilt > CARRY_LIMIT * max(opt.start.att_sigma[:2])
+    fit = _align_at_start(imu, fixes, ks, gb, opt.start.level_window) if long_carry else None
     if fit is not None and float(np.max(fit.sigma[:2])) < tilt:
-        h_fit = math.hypot(float(fit.sigma[2]), opt.heading_sigma_floor)
-        course = math.inf if opt.heading is not None else math.hypot(init["heading_sigma"], (
-            AIRCRAFT_CRAB_SIGMA if init["platform"][0] == "aircraft" else opt.heading_sigma_floor))
+        h_fit = math.hypot(float(fit.sigma[2]), opt.start.heading_sigma_floor)
+        course = math.inf if opt.start.heading is not None else math.hypot(init["heading_sigma"], (
+            AIRCRAFT_CRAB_SIGMA if init["platform"][0] == "aircraft" else opt.start.heading_sigma_floor))
         use_h = h_fit < course
         att0 = np.r_[fit.att[:2], fit.att[2] if use_h else att0[2]]
         init.update(motion_alignment={"window_s": fit.span, "fixes": fit.n_vectors, "sigma_v": fit.sigma_v,
@@ -732,7 +613,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                 gyro_bias0=gb.tolist())
 
     # --- model, initial covariance and the fixes used
-    a_noise = np.asarray(init.get("rest_accel_vrw", opt.accel_vrw))
+    a_noise = np.asarray(init.get("rest_accel_vrw", opt.errors.accel_vrw))
     init.update(filter_gyro_arw=np.broadcast_to(g_noise, (3,)).tolist(),
                 filter_accel_vrw=np.broadcast_to(a_noise, (3,)).tolist())
     model = recorded_model(opt, g_noise, a_noise)
@@ -740,15 +621,15 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     n = model.n
     rm0, rn0 = (float(x) for x in E.radii(lat_i, h_i))
     sp0 = np.zeros(n)
-    sp0[lay.slice("phi")] = opt.att_sigma
+    sp0[lay.slice("phi")] = opt.start.att_sigma
     if init.get("heading_sigma") is not None:
         # the heading found in motion, its σ widened by what the window cannot see (a
         # slip angle, a mount yaw error of a few tenths of a degree), never above the prior
-        sp0[lay.slice("phi").start + 2] = min(opt.att_sigma[2], math.hypot(
-            init["heading_sigma"], opt.heading_sigma_floor))
+        sp0[lay.slice("phi").start + 2] = min(opt.start.att_sigma[2], math.hypot(
+            init["heading_sigma"], opt.start.heading_sigma_floor))
         if fit is not None and init["motion_alignment"]["heading"]:
             # the fit's heading (specific force against the fix velocity: no crab, no slip)
-            sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], opt.heading_sigma_floor)
+            sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], opt.start.heading_sigma_floor)
         elif init["platform"][0] == "aircraft":
             # an aircraft crabs into the wind: its course is its heading only to ~10°
             sp0[lay.slice("phi").start + 2] = math.hypot(init["heading_sigma"], AIRCRAFT_CRAB_SIGMA)
@@ -764,26 +645,26 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         init.update(tilt_carried_s=carried, initial_tilt_sigma=float(np.max(sp0[st:st + 2])))
     jf = int(np.argmin(np.abs(fixes.t - ts)))
     vs = fixes.sigma_vel[jf] if fixes.sigma_vel is not None else np.full(3, 0.1)
-    sp0[lay.slice("dv")] = np.maximum(vs, opt.vel_sigma_floor) * 2
-    ps = np.maximum(fixes.sigma[jf], opt.pos_sigma_floor) * 2
+    sp0[lay.slice("dv")] = np.maximum(vs, opt.fix.vel_sigma_floor) * 2
+    ps = np.maximum(fixes.sigma[jf], opt.fix.pos_sigma_floor) * 2
     sp0[lay.slice("dp")] = [ps[0] / rm0, ps[1] / (rn0 * math.cos(lat_i)), ps[2]]
-    sp0[lay.slice("eps")] = opt.gyro_bias_sigma
-    sp0[lay.slice("nabla")] = opt.accel_bias_sigma
-    if opt.gyro_markov is not None:
-        sp0[lay.slice("eps_m")] = opt.gyro_markov[0]
-    if opt.accel_markov is not None:
-        sp0[lay.slice("nabla_m")] = opt.accel_markov[0]
-    if opt.scale_factors:
-        sp0[lay.slice("kg")], sp0[lay.slice("ka")] = _scale_sigmas(opt)
-    if opt.estimate_lever:
-        sp0[lay.slice("lev")] = opt.lever_sigma
-    if opt.odometer is not None:
-        sp0[lay.slice("kod")] = opt.odometer_scale_sigma
-    if opt.estimate_vehicle:
-        sp0[lay.slice("vm")] = opt.vehicle_mount_sigma
-        sp0[lay.slice("nlev")] = opt.nhc_lever_sigma
-    if opt.gnss_raw is not None:
-        sp0[lay.slice("clk")] = opt.gnss_raw.clock_sigmas()
+    sp0[lay.slice("eps")] = opt.errors.gyro_bias_sigma
+    sp0[lay.slice("nabla")] = opt.errors.accel_bias_sigma
+    if opt.errors.gyro_markov is not None:
+        sp0[lay.slice("eps_m")] = opt.errors.gyro_markov[0]
+    if opt.errors.accel_markov is not None:
+        sp0[lay.slice("nabla_m")] = opt.errors.accel_markov[0]
+    if opt.errors.scale_factors:
+        sp0[lay.slice("kg")], sp0[lay.slice("ka")] = _scale_sigmas(opt.errors)
+    if opt.fix.estimate_lever:
+        sp0[lay.slice("lev")] = opt.fix.lever_sigma
+    if opt.aiding.odometer is not None:
+        sp0[lay.slice("kod")] = opt.aiding.odometer_scale_sigma
+    if opt.aiding.estimate_vehicle:
+        sp0[lay.slice("vm")] = opt.aiding.vehicle_mount_sigma
+        sp0[lay.slice("nlev")] = opt.aiding.nhc_lever_sigma
+    if opt.fix.gnss_raw is not None:
+        sp0[lay.slice("clk")] = opt.fix.gnss_raw.clock_sigmas()
     n_ep = (len(imu) - ks) // k_kf
     if n_ep < 2:
         raise ValueError("the IMU record after the initial alignment is shorter than two filter steps")
@@ -791,82 +672,82 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     init["fixes_after_grid"] = int(np.sum(fixes.t > t_end + 1e-9))
     init["grid_end"] = t_end
     sel = fixes.select((fixes.t > ts) & (fixes.t <= t_end + 1e-9))
-    use_vel = opt.use_velocity and sel.vel is not None
+    use_vel = opt.fix.use_velocity and sel.vel is not None
 
     # --- aiding
-    every = max(1, int(round(opt.aiding_dt / T)))
-    gate = opt.aid_gate
+    every = max(1, int(round(opt.aiding.aiding_dt / T)))
+    gate = opt.aiding.aid_gate
     named = []
-    if opt.zupt is not None:
+    if opt.aiding.zupt is not None:
         used = sel.select(~_in_outages(sel.t, outages))
-        iv = rest_intervals(imu, opt, lat0, rest, gb, fixes=used)
+        iv = rest_intervals(imu, opt.aiding, opt.start, lat0, rest, gb, fixes=used)
         iv = iv[iv[:, 1] > ts] if iv.size else iv
         init["rest_intervals"] = iv.tolist()
         if len(iv):
-            named.append(("zupt", ZeroVelocity(iv, opt.zupt_sigma, every=every, gate=gate)))
-            if opt.zaru:
-                zs = opt.zaru_sigma if opt.zaru_sigma is not None else \
+            named.append(("zupt", ZeroVelocity(iv, opt.aiding.zupt_sigma, every=every, gate=gate)))
+            if opt.aiding.zaru:
+                zs = opt.aiding.zaru_sigma if opt.aiding.zaru_sigma is not None else \
                     2.0 * float(np.max(g_noise)) / math.sqrt(T)
                 init["zaru_sigma"] = zs
                 # every epoch: each holds the rate of its own step, thinning discards them
                 named.append(("zaru", ZeroRate(iv, zs, every=1, gate=gate)))
-    Cvb = A.euler_to_dcm(np.asarray(opt.vehicle_mount, float)) if opt.vehicle_mount is not None else np.eye(3)
-    if opt.nhc_sigma is not None:
+    Cvb = A.euler_to_dcm(np.asarray(opt.aiding.vehicle_mount, float)) if opt.aiding.vehicle_mount is not None else np.eye(3)
+    if opt.aiding.nhc_sigma is not None:
         named.append(("nhc", NonHolonomic(
-            opt.nhc_sigma, mount=Cvb, lever_arm=Cvb.T @ np.asarray(opt.nhc_lever_arm, float), every=every,
-            gate=gate, mount_block="vm" if opt.estimate_vehicle else None,
-            lever_block="nlev" if opt.estimate_vehicle else None, pitch_gradient=opt.nhc_pitch_gradient,
-            correlation_time=opt.nhc_correlation_time, dt=T)))
-    if opt.odometer is not None:
-        named.append(("odometer", _odometer(opt.odometer, opt, T, t_lo, t_hi)))
+            opt.aiding.nhc_sigma, mount=Cvb, lever_arm=Cvb.T @ np.asarray(opt.aiding.nhc_lever_arm, float), every=every,
+            gate=gate, mount_block="vm" if opt.aiding.estimate_vehicle else None,
+            lever_block="nlev" if opt.aiding.estimate_vehicle else None, pitch_gradient=opt.aiding.nhc_pitch_gradient,
+            correlation_time=opt.aiding.nhc_correlation_time, dt=T)))
+    if opt.aiding.odometer is not None:
+        named.append(("odometer", _odometer(opt.aiding.odometer, opt.aiding, T, t_lo, t_hi)))
     aiding = [m for _, m in named]
 
-    if opt.gnss_raw is not None:
+    if opt.fix.gnss_raw is not None:
         # tightly coupled: the satellites' own measurements in place of the fixes
-        aiding += list(opt.gnss_raw.make(lever_arm=lever, outages=outages, t_start=ts))
+        aiding += list(opt.fix.gnss_raw.make(lever_arm=lever, outages=outages, t_start=ts))
         sel = sel.select(np.zeros(len(sel), bool))
         use_vel = False
     P0 = np.diag(sp0 ** 2)
-    if opt.estimate_lever:
+    if opt.fix.estimate_lever:
         # the start position is the antenna's minus C l_used: its error is −C δl, so the
         # position and lever-arm errors start correlated (else the fixes pin a wrong start)
         D = np.array([[0.0, 1.0 / rm0, 0.0], [1.0 / (rn0 * math.cos(lat_i)), 0.0, 0.0], [0.0, 0.0, 1.0]])
         J = -D @ C0
         spp, slv = lay.slice("dp"), lay.slice("lev")
-        Sl = np.eye(3) * opt.lever_sigma ** 2
+        Sl = np.eye(3) * opt.fix.lever_sigma ** 2
         P0[spp, spp] += J @ Sl @ J.T
         P0[spp, slv] = J @ Sl
         P0[slv, spp] = (J @ Sl).T
 
     # --- the filter (the one INS + fix driver)
-    fix_spec = FixSpec(sel.t, np.stack([sel.lat, sel.lon, sel.h], -1), np.maximum(sel.sigma, opt.pos_sigma_floor),
+    fix_spec = FixSpec(sel.t, np.stack([sel.lat, sel.lon, sel.h], -1), np.maximum(sel.sigma, opt.fix.pos_sigma_floor),
                        vel=_fix_vel_enu(sel) if use_vel else None,
-                       vel_sigma=np.maximum(sel.sigma_vel, opt.vel_sigma_floor) if use_vel else None,
-                       latency=opt.fix_latency, lever_arm=lever, outages=outages)
+                       vel_sigma=np.maximum(sel.sigma_vel, opt.fix.vel_sigma_floor) if use_vel else None,
+                       latency=opt.fix.fix_latency, lever_arm=lever, outages=outages)
     r = loosely_coupled(imu, NavState(lat_i, lon_i, h_i, v0, att0), fix_spec, P0, model,
                         ins=InsSpec(nsub=nsub, gyro_bias=gb, start=ks, t_start=ts),
-                        grid=FilterGrid(T, model_every=0.0), lag=opt.lag, aiding=aiding,
-                        history=History(0.1, spill=opt.smooth_spill) if opt.smooth else None, progress=progress, label="navigating")
+                        grid=FilterGrid(T, model_every=0.0), lag=opt.fix.lag, aiding=aiding,
+                        history=History(0.1, spill=opt.grid.smooth_spill) if opt.grid.smooth else None, progress=progress, label="navigating")
     init["outages"] = outages
     init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),
                                 "rejected_spans": _spans(m.gate.rejected, 2.5 * T * m.every)}
                            for nm, m in named if getattr(m, "gate", None) is not None}
-    if opt.gnss_raw is not None:
-        init["gnss_clock"] = opt.gnss_raw.clock_estimate(r.t, r.x, lay)
-    if opt.estimate_lever:
+    if opt.fix.gnss_raw is not None:
+        init["gnss_clock"] = opt.fix.gnss_raw.clock_estimate(r.t, r.x, lay)
+    if opt.fix.estimate_lever:
         sl = lay.slice("lev")
         init["lever_arm_estimate"] = (lever - r.x[-1, sl]).tolist()     # δl = l_used − l_true
         init["lever_arm_sigma"] = r.sigma[-1, sl].tolist()
-    if opt.estimate_vehicle:
+    if opt.aiding.estimate_vehicle:
         # the true mount is (I + ψ×) C_used: small angles added to pitch (x) and yaw (z)
         psi, s_psi = r.x[-1, lay.slice("vm")], r.sigma[-1, lay.slice("vm")]
-        m0 = np.zeros(3) if opt.vehicle_mount is None else np.asarray(opt.vehicle_mount, float)
+        m0 = np.zeros(3) if opt.aiding.vehicle_mount is None else np.asarray(opt.aiding.vehicle_mount, float)
         init["vehicle_mount_estimate"] = [float(m0[0] + psi[0]), float(m0[1]), float(m0[2] + psi[1])]
         init["vehicle_mount_sigma"] = [float(s_psi[0]), None, float(s_psi[1])]
         sl = lay.slice("nlev")
-        init["nhc_lever_estimate"] = (np.asarray(opt.nhc_lever_arm, float) - Cvb @ r.x[-1, sl]).tolist()
+        init["nhc_lever_estimate"] = (np.asarray(opt.aiding.nhc_lever_arm, float) - Cvb @ r.x[-1, sl]).tolist()
         init["nhc_lever_sigma"] = np.sqrt(np.diag(Cvb @ np.diag(r.sigma[-1, sl] ** 2) @ Cvb.T)).tolist()
-    return RecordedNav(r, init, opt, smoothed=smooth(r) if opt.smooth else None)
+    return RecordedNav(r, init, opt, smoothed=smooth(r) if opt.grid.smooth else None)
 
 
 def _spans(times, gap):
@@ -886,20 +767,16 @@ def _in_outages(t, outages):
     return m
 
 
-def _odometer(odo, opt, T, t_lo, t_hi):
+def _odometer(odo, aiding: AidingSpec, T, t_lo, t_hi):
     """The wheel-speed measurement of the options (vehicle axes: the mount is applied to
     the IMU on input), updated about ``odometer_rate`` times a second."""
     from sinslab.fusion.measurements import Odometer
     if odo.t[-1] < t_lo or odo.t[0] > t_hi:
         raise ValueError(f"odometer times ({odo.source}: {odo.t[0]:.3f}..{odo.t[-1]:.3f} s) do not "
                          f"overlap the IMU record ({t_lo:.3f}..{t_hi:.3f} s): different time bases?")
-    lever = np.asarray(opt.odometer_lever, dtype=float)
-    if lever.shape != (3,) or not np.all(np.isfinite(lever)):
-        raise ValueError(f"odometer lever arm must be 3 finite numbers [m], got {opt.odometer_lever!r}")
-    if not (opt.odometer_sigma > 0 and opt.odometer_rate > 0):
-        raise ValueError("odometer sigma and rate must be > 0")
-    every = max(1, int(round(1.0 / (opt.odometer_rate * T))))
-    return Odometer(odo.t, odo.speed, opt.odometer_sigma, lever_arm=lever, every=every, gate=opt.aid_gate)
+    every = max(1, int(round(1.0 / (aiding.odometer_rate * T))))
+    return Odometer(odo.t, odo.speed, aiding.odometer_sigma, lever_arm=np.asarray(aiding.odometer_lever),
+                    every=every, gate=aiding.aid_gate)
 
 
 # ----------------------------------------------------------------------- evaluation ----
@@ -919,7 +796,7 @@ def fix_errors(res: RecordedNav, fixes: Fixes, lever_arm=None):
     Returns ``(t (K,), err (K, 3) east/north/up [m], index (K,) into fixes)``.
     """
     if lever_arm is None:
-        lever_arm = res.init.get("lever_arm_estimate", res.options.lever_arm)
+        lever_arm = res.init.get("lever_arm_estimate", res.options.fix.lever_arm)
     lever = np.asarray(lever_arm, dtype=float)
     idx = np.flatnonzero((fixes.t >= res.t[0]) & (fixes.t <= res.t[-1]))
     t = fixes.t[idx]

@@ -195,10 +195,9 @@ class TightlyCoupled(LooselyCoupled):
     range_rates: object = None
 
 
-def tightly_coupled(imu, init, raw: RawGnss, P0, *, model=None, gyro_arw=None, accel_vrw=None,
-                    lever_arm=None, kf_dt=0.1, nsub=2, feedback=True, gyro_bias=None,
-                    accel_bias=None, start=0, t_start=None, max_block=10.0, model_every=10.0,
-                    aiding=(), progress=False, label="tightly coupled", history=None) -> TightlyCoupled:
+def tightly_coupled(imu, init, raw: RawGnss, P0, model, *, ins: InsSpec = InsSpec(),
+                    grid: FilterGrid = FilterGrid(), lever_arm=None, feedback=True, aiding=(),
+                    history=None, progress=False, label="tightly coupled") -> TightlyCoupled:
     """INS + pseudoranges and range rates of each satellite with an error-state Kalman
     filter on the fusion driver.
 
@@ -213,23 +212,21 @@ def tightly_coupled(imu, init, raw: RawGnss, P0, *, model=None, gyro_arw=None, a
     P0 : array_like (n, n)
         Initial covariance; the clock block's part is replaced by ``raw.clock_sigmas()²``
         when left zero.
-    model : sinslab.nav.errstate.ErrorModel, optional
-        With a ``clk`` block for ``raw.systems`` (default :func:`tc_model` from
-        ``gyro_arw`` [rad/√s] and ``accel_vrw`` [m/s/√s]).
+    model : sinslab.nav.errstate.ErrorModel
+        With a ``clk`` block for ``raw.systems`` (e.g. :func:`tc_model`).
+    ins : InsSpec
+        How the INS stream runs (subsamples, initial compensation, start).
+    grid : FilterGrid
+        The filter step and how the driver walks the grid.
     lever_arm : array_like (3,), optional
         IMU -> antenna, body axes [m].
-    kf_dt, nsub, feedback, gyro_bias, accel_bias, start, t_start, max_block, model_every,
-    aiding, progress, history
+    feedback, aiding, progress, history
         As in :func:`sinslab.fusion.loosely_coupled.loosely_coupled`.
 
     Returns
     -------
     TightlyCoupled
     """
-    if model is None:
-        if gyro_arw is None or accel_vrw is None:
-            raise ValueError("give a model or gyro_arw [rad/sqrt(s)] and accel_vrw [m/s/sqrt(s)]")
-        model = tc_model(gyro_arw, accel_vrw, systems=raw.systems, clock_noise=raw.clock_noise)
     lay = model.layout
     sl = lay.find("receiver_clock")
     if sl is None:
@@ -237,13 +234,10 @@ def tightly_coupled(imu, init, raw: RawGnss, P0, *, model=None, gyro_arw=None, a
     P0 = np.array(P0, dtype=float)
     if not np.any(P0[sl, sl]):
         P0[sl, sl] = np.diag(raw.clock_sigmas() ** 2)
-    ms = raw.make(lever_arm=lever_arm, t_start=t_start if t_start is not None else (
-        float(imu.t[start - 1]) if start > 0 else imu.t0))
+    ms = raw.make(lever_arm=lever_arm, t_start=ins.t_start if ins.t_start is not None else (
+        float(imu.t[ins.start - 1]) if ins.start > 0 else imu.t0))
     r = loosely_coupled(imu, init, FixSpec(np.zeros(0), np.zeros((0, 3)), np.ones(3)), P0, model,
-                        ins=InsSpec(nsub=nsub, gyro_bias=gyro_bias, accel_bias=accel_bias, start=start,
-                                    t_start=t_start),
-                        grid=FilterGrid(kf_dt, max_block=max_block, model_every=model_every),
-                        feedback=feedback, aiding=(*ms, *aiding), progress=progress, label=label,
+                        ins=ins, grid=grid, feedback=feedback, aiding=(*ms, *aiding), progress=progress, label=label,
                         history=history)
     base = {f.name: getattr(r, f.name) for f in fields(LooselyCoupled)}
     return TightlyCoupled(**base, clock=raw.clock_estimate(r.t, r.x, lay), pseudoranges=ms[0],

@@ -548,9 +548,11 @@ def initial_covariance(model, lat, h, att, vel, pos, gyro_bias, gyro_markov, acc
 FEEDBACK = np.arange(10)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Integration:
-    """Output of :func:`integrate`, at the filter epochs (every ``kf_dt``).
+    """Output of :func:`integrate`, at the filter epochs (every ``kf_dt``): a view of the
+    composition's result (``run``, a :class:`sinslab.fusion.loosely_coupled.LooselyCoupled`)
+    with the mode and lag policy it ran with.
 
     Attributes
     ----------
@@ -566,17 +568,18 @@ class Integration:
     lag : lag policy of the lag-aware and zero-lag modes
     """
 
-    t: np.ndarray
-    nav: np.ndarray
-    x: np.ndarray
-    sigma: np.ndarray
-    gyro_comp: np.ndarray
-    applied: np.ndarray
-    t_applied: np.ndarray
-    innovation: np.ndarray
+    run: object
     mode: str
     lag: object
 
+    t = property(lambda self: self.run.t)
+    nav = property(lambda self: self.run.nav)
+    x = property(lambda self: self.run.x)
+    sigma = property(lambda self: self.run.sigma)
+    gyro_comp = property(lambda self: self.run.gyro_bias)
+    applied = property(lambda self: self.run.fix_t)
+    t_applied = property(lambda self: self.run.t_applied)
+    innovation = property(lambda self: self.run.innovation)
 
 
 @dataclass(frozen=True)
@@ -785,8 +788,7 @@ def integrate_many(runs, model: es.ErrorModel, P0, *, mode="lag-aware", lag=Stor
         grid=FilterGrid(kf_dt, max_block=max_block, model_every=0.0, discretization=discretization),
         lag=mode_policy(mode, lag), feedback=FeedbackLayout.from_model(lay, gyro="eps_b", accel=None),
         progress=False)
-    return [Integration(r.t, r.nav, r.x, r.sigma, r.gyro_bias, r.fix_t, r.t_applied, r.innovation,
-                        mode, lag) for r in rs]
+    return [Integration(r, mode, lag) for r in rs]
 
 
 def horizontal_errors(nav, truth):

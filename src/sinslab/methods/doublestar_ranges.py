@@ -138,6 +138,7 @@ def integrate_ranges(imu, init, t, paths, model, P0, *, sat_lon1, sat_lon2, rang
     from sinslab.fusion import driver
     from sinslab.fusion.driver import LiveStream
     from sinslab.fusion.feedback import FeedbackLayout
+    from sinslab.fusion.loosely_coupled import LooselyCoupled
     from sinslab.fusion.rdss import TwoGeoRanges
     from sinslab.fusion.spec import FilterGrid
 
@@ -153,5 +154,6 @@ def integrate_ranges(imu, init, t, paths, model, P0, *, sat_lon1, sat_lon2, rang
                    feedback=[(0, FeedbackLayout.from_model(lay, gyro="eps_b", accel=None))], lag=policy)
     ap = r.applied
     inn = np.array(ap.innovation, dtype=float).reshape(-1, 2)
-    return Integration(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], t[ap.item], ap.t_applied, inn, mode,
-                       lag)
+    return Integration(LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
+                                      None if r.scale is None else r.scale[0], t[ap.item], ap.t_applied,
+                                      ap.item, inn, ap.nis, r.layout), mode, lag)

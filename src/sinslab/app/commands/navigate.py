@@ -3,7 +3,10 @@ run folder (solution, fix errors, figures, report)."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
+from types import MappingProxyType
 from typing import Optional
 
 import numpy as np
@@ -11,7 +14,7 @@ import numpy as np
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import units
 
-__all__ = ["NAVIGATE", "navigate_files", "register"]
+__all__ = ["NAVIGATE", "NavigateRequest", "navigate_files", "register"]
 
 NAVIGATE = Command("navigate", "loosely coupled INS + position/velocity fixes on recorded data")
 
@@ -64,16 +67,101 @@ def _parse_aid(text):
     return set(toks)
 
 
-def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=None, mount=None,
-                   frame=None, outages=None, fix_latency=0.0, lag="aware", init=None,
-                   time_sync="none", velocity_lag=0.0, imu_delay=0.0, scale_factors=False,
-                   max_gap=1.0, allow_gaps=False, out=None, echo=print, options=None,
-                   columns=None, imu_errors=None, aid=None, rest=None, csv_rate=1.0, smooth=False,
-                   odometer=None, odometer_units=None, odometer_lever=None, odometer_sigma=None,
-                   fix_columns=None, fix_quality=None, vehicle_mount=None, nhc_lever=None,
-                   platform="auto", gnss_raw=None, gnss_nav=None, max_satellites=None, elevation_mask=10.0,
-                   strict=False):
-    """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder.
+@dataclass(frozen=True, eq=False)
+class NavigateRequest:
+    """The options of ``sinslab navigate`` as given, checked and parsed once at the edge
+    (before any file is read); :func:`navigate_files` and what it calls read them from here.
+
+    The option text is kept for the run's ``config.toml``; its parsed values are
+    ``lever_arm`` (3,) [m], ``aids`` (the ``--aid`` set), ``initial`` (the ``--init``
+    keys in SI) and ``lag_policy`` (a :mod:`sinslab.fusion.lag` policy). ``options`` a
+    :class:`~sinslab.fusion.recorded.NavOptions` to start from (None: the defaults).
+    See :func:`navigate_files` for the rest.
+    """
+
+    imu_path: object
+    fix_path: object = None
+    fmt: str | None = None
+    fix_format: str | None = None
+    lever_arm: object = None
+    mount: str | None = None
+    frame: str | None = None
+    outages: object = None
+    fix_latency: float = 0.0
+    lag: str = "aware"
+    init: object = None
+    time_sync: str = "none"
+    velocity_lag: float = 0.0
+    imu_delay: float = 0.0
+    scale_factors: bool = False
+    max_gap: float = 1.0
+    allow_gaps: bool = False
+    options: object = None
+    columns: str | None = None
+    imu_errors: str | None = None
+    aid: str | None = None
+    rest: str | None = None
+    csv_rate: float = 1.0
+    smooth: bool = False
+    odometer: str | None = None
+    odometer_units: str | None = None
+    odometer_lever: str | None = None
+    odometer_sigma: str | None = None
+    fix_columns: str | None = None
+    fix_quality: str | None = None
+    vehicle_mount: str | None = None
+    nhc_lever: str | None = None
+    platform: str = "auto"
+    gnss_raw: object = None
+    gnss_nav: object = None
+    max_satellites: object = None
+    elevation_mask: float = 10.0
+    strict: bool = False
+    aids: frozenset = field(init=False)
+    initial: MappingProxyType = field(init=False)
+    lag_policy: object = field(init=False)
+
+    def __post_init__(self):
+        from sinslab.app.validate import check_mount, check_navigate_options
+        from sinslab.fusion.lag import lag_policy
+
+        put = partial(object.__setattr__, self)
+        put("lever_arm", check_navigate_options(
+            fix_latency=self.fix_latency, velocity_lag=self.velocity_lag, imu_delay=self.imu_delay,
+            max_gap=self.max_gap, lag=self.lag, time_sync=self.time_sync, rest=self.rest, aid=self.aid,
+            lever_arm=self.lever_arm))
+        check_mount(self.mount, self.frame)
+        put("initial", MappingProxyType(_parse_init(self.init) if isinstance(self.init, (str, type(None)))
+                                        else dict(self.init)))
+        put("aids", frozenset(_parse_aid(self.aid)))
+        put("lag_policy", lag_policy(LAG_POLICY[self.lag]))
+        if isinstance(self.imu_path, (list, tuple)):
+            put("imu_path", self.imu_path[0] if len(self.imu_path) == 1 else list(self.imu_path))
+        if isinstance(self.fix_path, (list, tuple)):        # positions and velocities in two tables
+            put("fix_path", None if not self.fix_path else self.fix_path[0] if len(self.fix_path) == 1
+                else list(self.fix_path))
+
+    @property
+    def smo(self):
+        """``--smooth`` and ``--odometer*`` as :func:`_smooth_odometer_options` reads them."""
+        return dict(smooth=self.smooth, odometer=self.odometer, units=self.odometer_units,
+                    lever=self.odometer_lever, sigma=self.odometer_sigma)
+
+    @property
+    def vehicle(self):
+        """``--vehicle-mount``, ``--nhc-lever``, ``--platform`` as :func:`_vehicle_options` reads them."""
+        return dict(mount=self.vehicle_mount, lever=self.nhc_lever, platform=self.platform)
+
+    @property
+    def raw(self):
+        """The raw-GNSS options."""
+        return dict(path=self.gnss_raw, nav=self.gnss_nav, max_satellites=self.max_satellites,
+                    mask_deg=self.elevation_mask)
+
+
+def navigate_files(req: NavigateRequest, *, out=None, echo=print):
+    """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder
+    ``out``: ``req`` the command's options, already checked (the fields named below).
 
     Raw GNSS: ``gnss_raw`` a u-blox log or RINEX observation file (``gnss_nav`` a RINEX
     navigation file) replaces the fix file: pseudoranges and Doppler per satellite in the
@@ -103,26 +191,7 @@ def navigate_files(imu_path, fix_path, *, fmt=None, fix_format=None, lever_arm=N
 
     Returns ``(summary, RecordedNav, Fixes)``.
     """
-    from sinslab.app.validate import check_mount, check_navigate_options
-
-    lever_arm = check_navigate_options(fix_latency=fix_latency, velocity_lag=velocity_lag,
-                                       imu_delay=imu_delay, max_gap=max_gap, lag=lag, time_sync=time_sync,
-                                       rest=rest, aid=aid, lever_arm=lever_arm)
-    check_mount(mount, frame)
-    if isinstance(init, (str, type(None))):
-        _parse_init(init)
-    summary, res = run_command(NAVIGATE, out, lambda: _compute(
-        imu_path, fix_path, fmt=fmt, fix_format=fix_format, lever_arm=lever_arm, mount=mount,
-        frame=frame, outages=outages, fix_latency=fix_latency, lag=lag, init=init,
-        time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
-        scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, echo=echo,
-        options=options, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
-        csv_rate=csv_rate, smo=dict(smooth=smooth, odometer=odometer, units=odometer_units,
-                                    lever=odometer_lever, sigma=odometer_sigma),
-        fix_columns=fix_columns, fix_quality=fix_quality,
-        vehicle=dict(mount=vehicle_mount, lever=nhc_lever, platform=platform),
-        raw=dict(path=gnss_raw, nav=gnss_nav, max_satellites=max_satellites, mask_deg=elevation_mask),
-        strict=strict), echo=echo)
+    summary, res = run_command(NAVIGATE, out, lambda: _compute(req, echo), echo=echo)
     return (summary, *res.value)
 
 
@@ -134,11 +203,7 @@ def _innovation_labels(m):
             + [f"velocity {a}" for a in ("east", "north", "up")[:m - n_pos]])
 
 
-def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, outages,
-             fix_latency, lag, init, time_sync, velocity_lag, imu_delay, scale_factors, max_gap,
-             allow_gaps, echo, options, columns=None, imu_errors=None, aid=None, rest=None,
-             csv_rate=1.0, smo=None, fix_columns=None, fix_quality=None, vehicle=None,
-             raw=None, strict=False) -> Output:
+def _compute(req: NavigateRequest, echo) -> Output:
     from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import attitude as A
@@ -148,65 +213,59 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                                          navigate_recorded, outage_end_errors, parse_outages,
                                          shift_imu_time, significant_time_offset)
 
-    if isinstance(imu_path, (list, tuple)):
-        imu_path = imu_path[0] if len(imu_path) == 1 else list(imu_path)
-    imu_one = imu_path[0] if isinstance(imu_path, list) else imu_path     # the table odometer columns come from
-    fmt_eff = fmt or guess_imu_format(imu_one)
+    imu_one = req.imu_path[0] if isinstance(req.imu_path, list) else req.imu_path     # the table odometer columns come from
+    fmt_eff = req.fmt or guess_imu_format(imu_one)
     kw = {}
-    if mount is not None:
-        kw["mount"] = mount
-    if frame is not None:
-        kw["frame"] = frame
+    if req.mount is not None:
+        kw["mount"] = req.mount
+    if req.frame is not None:
+        kw["frame"] = req.frame
     if fmt_eff != "psins":
-        kw.update(max_gap=max_gap, allow_gaps=allow_gaps)
+        kw.update(max_gap=req.max_gap, allow_gaps=req.allow_gaps)
     if fmt_eff == "rtklib-imu":
-        kw["delay"] = imu_delay
-    if columns is not None:
+        kw["delay"] = req.imu_delay
+    if req.columns is not None:
         if fmt_eff not in ("csv", "parquet"):
             raise ValueError(f"--columns applies to csv and parquet tables, not {fmt_eff!r}")
-        kw["columns"] = columns
-    aids = _parse_aid(aid)
+        kw["columns"] = req.columns
+    aids = req.aids
     # option values checked before any file is read
     from sinslab.app.error_model import NavOptionsDraft
     from sinslab.data.columns import FIX_KEYS, parse_column_map
-    from sinslab.fusion.lag import lag_policy
     from sinslab.data.tables import parse_quality_filter
-    _vehicle_options(NavOptionsDraft(NavOptions()), vehicle or {}, False)
-    parse_quality_filter(fix_quality)
-    parse_column_map(fix_columns, keys=FIX_KEYS, option="--fix-columns")
-    if (vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
+    _vehicle_options(NavOptionsDraft(NavOptions()), req.vehicle or {}, False)
+    parse_quality_filter(req.fix_quality)
+    parse_column_map(req.fix_columns, keys=FIX_KEYS, option="--fix-columns")
+    if (req.vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
         raise ValueError(f"--aid nhc: the non-holonomic constraint assumes a wheeled land vehicle, "
-                         f"not --platform {vehicle['platform']}")
-    check_memory(imu_path, fmt_eff, bool((smo or {}).get("smooth")))
-    if not (isinstance(csv_rate, (int, float)) and math.isfinite(csv_rate) and csv_rate > 0):
-        raise ValueError(f"--csv-rate must be a positive number of Hz, got {csv_rate!r}")
+                         f"not --platform {req.vehicle['platform']}")
+    check_memory(req.imu_path, fmt_eff, bool((req.smo or {}).get("smooth")))
+    if not (isinstance(req.csv_rate, (int, float)) and math.isfinite(req.csv_rate) and req.csv_rate > 0):
+        raise ValueError(f"--csv-rate must be a positive number of Hz, got {req.csv_rate!r}")
     em = None
-    if imu_errors is not None:
+    if req.imu_errors is not None:
         from sinslab.app.error_model import load_error_model
-        em = load_error_model(imu_errors)
-    data = load_imu(imu_path, fmt_eff, **kw)
+        em = load_error_model(req.imu_errors)
+    data = load_imu(req.imu_path, fmt_eff, **kw)
     from sinslab.app.plausibility import consistency_findings, imu_findings, settle
 
-    found = imu_findings(data.imu, str(imu_path), gaps=data.gaps)
+    found = imu_findings(data.imu, str(req.imu_path), gaps=data.gaps)
     settle([fd for fd in found if fd.refuse])
     raw_gnss = None
-    if isinstance(fix_path, (list, tuple)):        # positions and velocities in two tables
-        fix_path = (None if not fix_path else fix_path[0] if len(fix_path) == 1
-                    else list(fix_path))
-    if raw and raw.get("path") is not None:
+    if req.raw and req.raw.get("path") is not None:
         from sinslab.app.commands.raw_gnss import load_raw
-        if fix_path is not None:
+        if req.fix_path is not None:
             raise ValueError("give either --gnss (fixes) or --gnss-raw (raw observations), not both")
-        raw_gnss, fx = load_raw(raw["path"], raw.get("nav"), raw.get("max_satellites"), data.imu, echo,
-                                mask_deg=raw.get("mask_deg", 10.0))
-        fix_name = f"{raw['path']} (single-point solution)"
-    elif fix_path is None:
+        raw_gnss, fx = load_raw(req.raw["path"], req.raw.get("nav"), req.raw.get("max_satellites"), data.imu, echo,
+                                mask_deg=req.raw.get("mask_deg", 10.0))
+        fix_name = f"{req.raw['path']} (single-point solution)"
+    elif req.fix_path is None:
         raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
     else:
-        fix_name = " + ".join(map(str, fix_path)) if isinstance(fix_path, list) else str(fix_path)
-        ffmt = fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
-        fx, fmeta = _read_fixes(lambda: load_fixes(fix_path, ffmt, velocity_lag=velocity_lag,
-                                                   columns=fix_columns, quality=fix_quality),
+        fix_name = " + ".join(map(str, req.fix_path)) if isinstance(req.fix_path, list) else str(req.fix_path)
+        ffmt = req.fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
+        fx, fmeta = _read_fixes(lambda: load_fixes(req.fix_path, ffmt, velocity_lag=req.velocity_lag,
+                                                   columns=req.fix_columns, quality=req.fix_quality),
                                 fix_name, ffmt)
         _say_fix_reading(fmeta, fix_name, echo)
     imu = data.imu
@@ -219,17 +278,17 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              + ", ".join(f"{g[1]:.3f} s at {g[0] - imu.t0:.2f} s" for g in data.gaps[:5])
              + (" ..." if len(data.gaps) > 5 else ""))
     span = min(float(fx.t[-1]), float(imu.t[-1])) - max(float(fx.t[0]), float(imu.t[0]))
-    if span > 0 and fix_latency >= span:
-        raise ValueError(f"--fix-latency {fix_latency:g}: at least the {span:.1f} s the fixes and the "
+    if span > 0 and req.fix_latency >= span:
+        raise ValueError(f"--fix-latency {req.fix_latency:g}: at least the {span:.1f} s the fixes and the "
                          f"IMU record share, so no fix would arrive before the record ends")
     # the options are assembled here and made once (frozen, checked) before the run
-    opt = NavOptionsDraft(options or NavOptions())
-    if lever_arm is not None:
-        opt.lever_arm = lever_arm
+    opt = NavOptionsDraft(req.options or NavOptions())
+    if req.lever_arm is not None:
+        opt.lever_arm = req.lever_arm
     sync = None
-    if time_sync == "auto":
+    if req.time_sync == "auto":
         # without a lever arm a clock offset cannot be told from the antenna's lag in turns
-        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if lever_arm is not None else None)
+        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if req.lever_arm is not None else None)
         sync = significant_time_offset(est)
         sync.update(windows=len(est["windows"]))
         imu = shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
@@ -241,9 +300,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              f"(significant: > {sync['threshold_sigmas']:.1f} σ)"
              + (f"; no lever arm given: a lag of {sync['speed_lag_m']:.2f} ± {sync['speed_lag_sigma_m']:.2f} m "
                 "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else ""))
-    elif time_sync != "none":
-        raise ValueError(f"--time-sync must be 'auto' or 'none', got {time_sync!r}")
-    odo_cfg = _smooth_odometer_options(opt, smo or {}, imu_one, sync)
+    elif req.time_sync != "none":
+        raise ValueError(f"--time-sync must be 'auto' or 'none', got {req.time_sync!r}")
+    odo_cfg = _smooth_odometer_options(opt, req.smo or {}, imu_one, sync)
     _spill_smoother(opt, imu, fx)
     em_cfg = {}
     if em is not None:
@@ -254,9 +313,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     opt.nhc_sigma = (nhc_cfg or (0.1, 0.1)) if "nhc" in aids else None
     if "zupt" in aids or "zaru" in aids:
         has_flags = data.meta and "stationary" in data.meta
-        src_rest = rest or ("flags" if has_flags else "auto")
+        src_rest = req.rest or ("flags" if has_flags else "auto")
         if src_rest not in ("auto", "flags"):
-            raise ValueError(f"--rest must be 'auto' or 'flags', got {rest!r}")
+            raise ValueError(f"--rest must be 'auto' or 'flags', got {req.rest!r}")
         if src_rest == "flags":
             if not has_flags:
                 raise ValueError("--rest flags: the IMU table has no rest-flag column (name it in "
@@ -265,17 +324,17 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         opt.zupt = src_rest
         opt.zaru = "zaru" in aids
     opt.estimate_lever = "lever" in aids
-    veh_cfg = _vehicle_options(opt, vehicle or {}, "nhc" in aids)
+    veh_cfg = _vehicle_options(opt, req.vehicle or {}, "nhc" in aids)
     t_ref = float(fx.t[0])
-    opt.outages = tuple(parse_outages(outages, t_ref)) if isinstance(outages, (str, type(None))) else tuple(outages)
-    if isinstance(outages, str):
+    opt.outages = tuple(parse_outages(req.outages, t_ref)) if isinstance(req.outages, (str, type(None))) else tuple(req.outages)
+    if isinstance(req.outages, str):
         from sinslab.app.validate import check_outages
 
-        check_outages("--outages", outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
-    opt.fix_latency = float(fix_latency)
-    opt.lag = lag_policy(LAG_POLICY[lag])
-    opt.scale_factors = bool(scale_factors) or opt.scale_factors
-    ini = _parse_init(init) if isinstance(init, (str, type(None))) else dict(init)
+        check_outages("--outages", req.outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
+    opt.fix_latency = float(req.fix_latency)
+    opt.lag = req.lag_policy
+    opt.scale_factors = bool(req.scale_factors) or opt.scale_factors
+    ini = req.initial
     if "heading" in ini:
         opt.heading = ini["heading"]
     if "course_speed" in ini:
@@ -332,7 +391,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if raw_gnss is None:
         claims, extra = navigate_claims(
             res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
-            np.hypot(*np.maximum(fx.sigma[idx], opt.pos_sigma_floor)[~in_out, :2].T),
+            np.hypot(*np.maximum(fx.sigma[idx], opt.fix.pos_sigma_floor)[~in_out, :2].T),
             ~settling[~in_out])
     else:
         from sinslab.app.commands.raw_gnss import raw_claims
@@ -348,8 +407,8 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if res.init.get("rest_start") is not None:        # |f| at the initial rest against gravity
         from sinslab.app.plausibility import rest_gravity_findings
 
-        rest = imu.slice(res.init["rest_start"], res.init["rest_end"])
-        found += rest_gravity_findings(rest, f"{imu_path} (initial rest)", lat=float(fx.lat[0]),
+        at_rest = imu.slice(res.init["rest_start"], res.init["rest_end"])
+        found += rest_gravity_findings(at_rest, f"{req.imu_path} (initial rest)", lat=float(fx.lat[0]),
                                        h=float(fx.h[0]))
     if sync is not None:
         metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
@@ -372,7 +431,7 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
              f"yaw {np.degrees(ve[2]):.2f} ± {np.degrees(vs[2]):.2f} deg; NHC lever [m] "
              + ", ".join(f"{a:.2f} ± {b:.2f}" for a, b in zip(res.init["nhc_lever_estimate"], res.init["nhc_lever_sigma"])))
     metrics["platform"] = res.init["platform"][0]
-    if opt.zupt is not None:
+    if opt.aiding.zupt is not None:
         metrics["rest_intervals"] = len(res.init.get("rest_intervals", []))
         metrics["rest_total_s"] = float(sum(b - a for a, b in res.init.get("rest_intervals", [])))
     for nm, g in res.init.get("aiding_gate", {}).items():
@@ -386,21 +445,21 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
                  + (" ..." if len(sp_) > 4 else ""))
     if res.scale is not None:
         metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
-    cfg = {"imu": (" + ".join(map(_abs, imu_path)) if isinstance(imu_path, (list, tuple))
-                   else _abs(imu_path)),
-           "fixes": (fix_name if fix_path is None else " + ".join(map(_abs, fix_path))
-                     if isinstance(fix_path, list) else _abs(fix_path)),
+    cfg = {"imu": (" + ".join(map(_abs, req.imu_path)) if isinstance(req.imu_path, (list, tuple))
+                   else _abs(req.imu_path)),
+           "fixes": (fix_name if req.fix_path is None else " + ".join(map(_abs, req.fix_path))
+                     if isinstance(req.fix_path, list) else _abs(req.fix_path)),
            "format": data.format,
-           "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.lever_arm)}] m",
-           "mount": str(mount) if mount is not None else "none", "frame": frame or "rfu",
-           "outages": str(outages or "none"), "fix_latency": f"{fix_latency:g} s", "lag": lag,
-           "init": str(init or ""), "time_sync": time_sync, "velocity_lag": f"{velocity_lag:g} s",
-           "imu_delay": f"{imu_delay:g} s", "scale_factors": bool(opt.scale_factors),
-           "columns": str(columns) if columns is not None else "auto",
-           "fix_columns": str(fix_columns) if fix_columns is not None else "auto",
-           "fix_quality": str(fix_quality) if fix_quality is not None else "all",
-           "aid": ",".join(sorted(aids)) or "none", "rest": opt.zupt or "none",
-           "csv_rate": f"{csv_rate:g} Hz", "heading_window": f"{opt.heading_window:g} s",
+           "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.fix.lever_arm)}] m",
+           "mount": str(req.mount) if req.mount is not None else "none", "frame": req.frame or "rfu",
+           "outages": str(req.outages or "none"), "fix_latency": f"{req.fix_latency:g} s", "lag": req.lag,
+           "init": str(req.init or ""), "time_sync": req.time_sync, "velocity_lag": f"{req.velocity_lag:g} s",
+           "imu_delay": f"{req.imu_delay:g} s", "scale_factors": bool(opt.errors.scale_factors),
+           "columns": str(req.columns) if req.columns is not None else "auto",
+           "fix_columns": str(req.fix_columns) if req.fix_columns is not None else "auto",
+           "fix_quality": str(req.fix_quality) if req.fix_quality is not None else "all",
+           "aid": ",".join(sorted(aids)) or "none", "rest": opt.aiding.zupt or "none",
+           "csv_rate": f"{req.csv_rate:g} Hz", "heading_window": f"{opt.start.heading_window:g} s",
            "imu_errors": {**({"source": "built-in defaults (white noise measured at the initial "
                                         "rest, floored at the defaults)"} if not em_cfg else em_cfg)}}
     echo(f"{data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_name}: {len(fx)} fixes"
@@ -431,10 +490,10 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
          f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
     echo(f"  gyro bias [°/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [µg] "
          f"{np.round(metrics['accel_bias_final_ug'], 0).tolist()}")
-    warnings = settle(found, strict=strict, echo=echo)
+    warnings = settle(found, strict=req.strict, echo=echo)
 
     sig = res.sigma
-    every = max(1, int(round(1.0 / (csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
+    every = max(1, int(round(1.0 / (req.csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
     tables = [Series("solution", _solution_table(res), f"navigation solution at every filter epoch with filter sigma "
                      f"(Parquet; the CSV every {every}-th epoch, {1 / (every * (res.t[1] - res.t[0])):.4g} Hz)"
                      if res.t.size > 1 else "navigation solution", csv_every=every),
@@ -523,9 +582,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
         notes.append("Antenna lever arm estimated (vehicle right, forward, up): "
                      + ", ".join(f"{a:.3f} ± {b:.3f}" for a, b in zip(le, ls)) + " m.")
         echo("  lever arm estimate [m] " + ", ".join(f"{a:.3f} ± {b:.3f}" for a, b in zip(le, ls)))
-    if opt.zupt is not None:
-        notes.append(f"ZUPT{'/ZARU' if opt.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
-                     f"{metrics['rest_total_s']:.0f} s in all ({opt.zupt} detection).")
+    if opt.aiding.zupt is not None:
+        notes.append(f"ZUPT{'/ZARU' if opt.aiding.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
+                     f"{metrics['rest_total_s']:.0f} s in all ({opt.aiding.zupt} detection).")
     if noise_warn:
         notes.append(noise_warn)
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
@@ -533,9 +592,9 @@ def _compute(imu_path, fix_path, *, fmt, fix_format, lever_arm, mount, frame, ou
     if raw_gnss is not None:
         from sinslab.app.commands.raw_gnss import raw_outputs
         raw_outputs(res, raw_gnss, metrics, tables, figures, notes, echo)
-        cfg.update(gnss_raw=str(raw["path"]), gnss_nav=str(raw.get("nav") or "none"),
-                   max_satellites=",".join(raw.get("max_satellites") or ()) or "none",
-                   elevation_mask_deg=float(raw.get("mask_deg", 10.0)))
+        cfg.update(gnss_raw=str(req.raw["path"]), gnss_nav=str(req.raw.get("nav") or "none"),
+                   max_satellites=",".join(req.raw.get("max_satellites") or ()) or "none",
+                   elevation_mask_deg=float(req.raw.get("mask_deg", 10.0)))
     return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
                   value=(res, fx), claims=claims, warnings=warnings)
 
@@ -878,7 +937,7 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
         outage_mid_hz_err_forward_m=hz_f[mids].tolist(), outage_mid_hz_err_smoothed_m=hz_s[mids].tolist(),
         outage_mid_hz_err_smoothed_median_m=float(np.median(hz_s[mids])) if mids else None,
         smoothed_stored_epochs=int(sm.stored.size))
-    if res.options.odometer is not None:
+    if res.options.aiding.odometer is not None:
         i = [j for j, l in enumerate(res.labels) if l.startswith("kod")][0]
         metrics.update(odometer_scale_final_ppm=float(sm.x[-1, i] * 1e6),
                        odometer_scale_sigma_ppm=float(sm.sigma[-1, i] * 1e6))
@@ -957,16 +1016,16 @@ def register(app):
                  platform: str = typer.Option("auto", "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)"),
                  strict: bool = typer.Option(False, "--strict", help="refuse (exit 2, nothing written) instead of warning about the data or the run")) -> None:
         """INS + position/velocity fixes (loosely coupled) or raw GNSS pseudoranges/Doppler (tightly coupled) on recorded data."""
-        cli_call(navigate_files, imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm,
-                 mount=mount, frame=frame, outages=outages, fix_latency=fix_latency, lag=lag,
-                 init=init, time_sync=time_sync, velocity_lag=velocity_lag, imu_delay=imu_delay,
-                 scale_factors=scale_factors, max_gap=max_gap, allow_gaps=allow_gaps, out=out,
-                 echo=typer.echo, columns=columns, imu_errors=imu_errors, aid=aid, rest=rest,
-                 csv_rate=csv_rate, force=force, smooth=smooth, odometer=odometer,
-                 odometer_units=odometer_units, odometer_lever=odometer_lever,
-                 odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality,
-                 vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform,
-                 gnss_raw=gnss_raw, gnss_nav=gnss_nav, max_satellites=max_satellites,
-                 elevation_mask=elevation_mask, strict=strict)
+        cli_call(lambda: navigate_files(NavigateRequest(
+            imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm, mount=mount, frame=frame,
+            outages=outages, fix_latency=fix_latency, lag=lag, init=init, time_sync=time_sync,
+            velocity_lag=velocity_lag, imu_delay=imu_delay, scale_factors=scale_factors,
+            max_gap=max_gap, allow_gaps=allow_gaps, columns=columns, imu_errors=imu_errors, aid=aid,
+            rest=rest, csv_rate=csv_rate, smooth=smooth, odometer=odometer,
+            odometer_units=odometer_units, odometer_lever=odometer_lever,
+            odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality,
+            vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform, gnss_raw=gnss_raw,
+            gnss_nav=gnss_nav, max_satellites=max_satellites, elevation_mask=elevation_mask,
+            strict=strict), out=out, echo=typer.echo), force=force)
 
     return navigate
