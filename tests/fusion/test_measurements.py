@@ -7,10 +7,12 @@ core, the difference core of two INS. The perturbation follows what each block f
 (tests/support.py: nav_with_errors), never its name, so a term placed on a block found
 by name is caught on a model whose block has another name or kind.
 
-Left out, and why: position fixes are taken at their validity epoch — moved to a later
-epoch by Δt, z gains −Δt ∂v_ant/∂x, which H leaves out (first order in Δt, as the fix is
-moved with the INS velocity taken as known); a difference model's sensor blocks are not
-perturbed, since its layout does not say which of the two streams a block feeds.
+A position fix is also taken Δt after its validity time, where z gains −Δt ∂v_ant/∂x (the
+fix is moved to the epoch with the INS antenna velocity, which carries δv, φ through the
+lever and the gyro errors through ω×l).
+
+Left out, and why: a difference model's sensor blocks are not perturbed, since its layout
+does not say which of the two streams a block feeds.
 """
 import inspect
 import math
@@ -72,6 +74,9 @@ CASES = {
          {}),
         ("lever", lambda lay, row: lambda x: M.PositionFix([0.0], _fix_pos(lay, row), [3.0, 3.0, 5.0],
                                                            lever_arm=LEVER), {}),
+        # the fix moved to a later epoch with the antenna velocity: −Δt ∂v_ant/∂x in H
+        ("extrapolated", lambda lay, row: lambda x: M.PositionFix([0.0], _fix_pos(lay, row), [3.0, 3.0, 5.0],
+                                                                  lever_arm=LEVER), {"t": 0.5}),
     ]),
     "VelocityFix": (FULL, [
         ("no-lever", lambda lay, row: lambda x: M.VelocityFix([0.0], [row[4:7]], 0.1), {}),
@@ -111,7 +116,7 @@ CASES = {
     "LeverPositionFix": (OWN, [
         ("extrapolated", lambda lay, row: lambda x: M.LeverPositionFix([0.0], [row[7:10]], [3.0, 3.0, 5.0],
                                                                        lever_arm=LEVER + x[lay.slice("lev")]),
-         {}),
+         {"t": 0.5}),
     ]),
     "LeverVelocityFix": (OWN, [
         ("lever", lambda lay, row: lambda x: M.LeverVelocityFix([0.0], [row[4:7]], 0.1,
@@ -145,11 +150,20 @@ def _odometer(lay, row, nhc):
     return make
 
 
+# H known to break the contract: (class, case) -> why
+DEFECTS = {
+    ("PositionFix", "extrapolated"): "H lacks −Δt ∂v_ant/∂x of the extrapolation",
+    ("LeverPositionFix", "extrapolated"): "H lacks −Δt ∂v_ant/∂x of the extrapolation",
+}
+
+
 def _params():
     for cls, (models, cases) in CASES.items():
         for case, build, kw in cases:
+            why = DEFECTS.get((cls, case))
+            marks = [pytest.mark.xfail(strict=True, reason=why)] if why else []
             for model in models:
-                yield pytest.param(cls, build, kw, model, id=f"{cls}-{case}-{model}")
+                yield pytest.param(cls, build, kw, model, id=f"{cls}-{case}-{model}", marks=marks)
 
 
 @pytest.mark.parametrize("cls, build, kw, model", list(_params()))
