@@ -11,8 +11,8 @@ A position fix is also taken Δt after its validity time, where z gains −Δt �
 fix is moved to the epoch with the INS antenna velocity, which carries δv, φ through the
 lever and the gyro errors through ω×l).
 
-Left out, and why: a difference model's sensor blocks are not perturbed, since its layout
-does not say which of the two streams a block feeds.
+A difference model's layout does not say which of the two streams a sensor block feeds:
+its cases name the blocks of INS 1 (the stream carrying the error) or perturb none.
 """
 import inspect
 import math
@@ -43,7 +43,9 @@ MODELS = {
     "barometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(),
                                                 es.barometer_bias(tau=600.0, sigma=2.0)]),
     "horizontal": lambda: es.ErrorModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")]),
-    "difference": lambda: es.DifferenceModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")],
+    # INS 1 with a gyro scale block beside its bias, INS k with a bias only
+    "difference": lambda: es.DifferenceModel("horizontal", [es.gyro_bias(), es.gyro_scale(axes="xz"),
+                                                            es.accel_bias(axes="xy")],
                                              [es.gyro_bias(), es.accel_bias(axes="xy")]),
 }
 SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "horizontal")
@@ -92,6 +94,10 @@ CASES = {
          {"sensor_errors": False}),
         ("lever", lambda lay, row: lambda x: M.InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01],
                                                              lever_arm=LEVER), {"sensor_errors": False}),
+        # INS 1 carries its own sensor errors: ω_1 enters through the lever's C_b1^n (ω_1×l)
+        ("lever+sensors-1", lambda lay, row: lambda x: M.InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01],
+                                                                       lever_arm=LEVER),
+         {"sensor_errors": ("eps_1", "nabla_1", "kg_1")}),
     ]),
     "ZeroVelocity": (SINGLE, [
         ("zupt", lambda lay, row: lambda x: M.ZeroVelocity([(0.0, 10.0)], 0.02), {}),
@@ -152,6 +158,7 @@ def _odometer(lay, row, nhc):
 
 # H known to break the contract: (class, case) -> why
 DEFECTS = {
+    ("InsDifference", "lever+sensors-1"): "H lacks the lever's rate term on INS 1's gyro blocks",
 }
 
 
