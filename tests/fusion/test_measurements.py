@@ -92,8 +92,6 @@ CASES = {
     "InsDifference": (("difference",), [
         ("co-located", lambda lay, row: lambda x: M.InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01]),
          {"sensor_errors": False}),
-        ("lever", lambda lay, row: lambda x: M.InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01],
-                                                             lever_arm=LEVER), {"sensor_errors": False}),
         # INS 1 carries its own sensor errors: ω_1 enters through the lever's C_b1^n (ω_1×l)
         ("lever+sensors-1", lambda lay, row: lambda x: M.InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01],
                                                                        lever_arm=LEVER),
@@ -156,19 +154,11 @@ def _odometer(lay, row, nhc):
     return make
 
 
-# H known to break the contract: (class, case) -> why
-DEFECTS = {
-    ("InsDifference", "lever+sensors-1"): "H lacks the lever's rate term on INS 1's gyro blocks",
-}
-
-
 def _params():
     for cls, (models, cases) in CASES.items():
         for case, build, kw in cases:
-            why = DEFECTS.get((cls, case))
-            marks = [pytest.mark.xfail(strict=True, reason=why)] if why else []
             for model in models:
-                yield pytest.param(cls, build, kw, model, id=f"{cls}-{case}-{model}", marks=marks)
+                yield pytest.param(cls, build, kw, model, id=f"{cls}-{case}-{model}")
 
 
 @pytest.mark.parametrize("cls, build, kw, model", list(_params()))
