@@ -58,7 +58,8 @@ def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
     the compensated rate ``ω + δω`` with ``δω = x`` for every block feeding the gyro bias
     compensation (bias, Gauss–Markov) and ``δω = diag(ω) x`` for a gyro scale block, the
     specific force likewise for the accelerometer blocks (:attr:`Block.feeds`, per axis);
-    ``sensor_errors=False`` leaves rate and specific force exact.
+    ``sensor_errors=False`` leaves rate and specific force exact, a collection of block
+    names applies those blocks only (the blocks of this INS in a two-INS layout).
 
     Returns ``(row', omega', f')``.
     """
@@ -68,7 +69,7 @@ def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
     w = np.array(omega_b, dtype=float, copy=True)
     f = np.array(f_b, dtype=float, copy=True)
     for b in layout.blocks:
-        if b.feeds is None or not sensor_errors:
+        if b.feeds is None or not sensor_errors or (sensor_errors is not True and b.name not in sensor_errors):
             continue
         sensor, kind = b.feeds.split("_")
         out, true = (w, omega_b) if sensor == "gyro" else (f, f_b)
@@ -102,9 +103,10 @@ def assert_H_is_jacobian(make, layout, rows, omegas, *, t=0.0, k=1, item=0, stre
     its ``H`` is the Jacobian of its own nonlinear ``z`` with respect to the error state.
 
     ``z(x)`` is ``make(x).matrices(epoch)`` on the navigation of stream ``stream`` carrying
-    ``x`` (:func:`nav_with_errors`; the other streams exact; ``sensor_errors=False`` for a
-    layout whose sensor blocks belong to several streams, as a difference model's, since
-    the layout does not say which stream a block feeds); ``make(x)`` builds the
+    ``x`` (:func:`nav_with_errors`; the other streams exact; for a layout whose sensor
+    blocks belong to several streams, as a difference model's, ``sensor_errors`` names the
+    blocks of stream ``stream``, or is False to leave them out, since the layout does not
+    say which stream a block feeds); ``make(x)`` builds the
     measurement, so a state the measurement owns (a lever arm, an odometer scale) enters
     through its parameters (``make`` ignores ``x`` when there is none). Central differences
     with :func:`fd_steps`; the error of each element, as the change of ``z`` it makes at

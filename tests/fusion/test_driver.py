@@ -64,8 +64,9 @@ def test_stack_concatenates_its_parts():
 @pytest.mark.parametrize("lever", [None, (0.5, 2.0, 0.3)])
 def test_ins_difference_selects_the_difference_states(lever):
     """z = [L1 − Lk, λ1 − λk, vE1 − vEk, vN1 − vNk] on paper 001's joint model: H picks
-    [δL δλ δvE δvN]_1k; with a lever arm between the IMUs its φ column is the Jacobian of
-    the lever removal (stream 1 perturbed, stream k exact)."""
+    [δL δλ δvE δvN]_1k; with a lever arm between the IMUs its φ and INS-1 gyro-bias columns
+    are the Jacobian of the lever removal (stream 1 and its sensor errors perturbed,
+    stream k exact)."""
     m = joint_rotation_model()
     lay = m.layout
     row1 = _row()
@@ -79,11 +80,12 @@ def test_ins_difference_selects_the_difference_states(lever):
         rowk[8] += d[0] / (rn * math.cos(row1[7]))
         rowk[4:7] += C @ np.cross(w, lever)
     meas = InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01], lever_arm=lever)
-    z, H, R = assert_H_is_jacobian(lambda x: meas, lay, [row1, rowk], [w, w], k=0, sensor_errors=False)
+    z, H, R = assert_H_is_jacobian(lambda x: meas, lay, [row1, rowk], [w, w], k=0,
+                                   sensor_errors=("eps_1", "nabla_1"))
     assert np.allclose(z, 0.0, atol=1e-9)
     sel = lay.selector(["dL_1k", "dlam_1k", "dvE_1k", "dvN_1k"])
     rest = np.ones(lay.n, bool)
-    rest[lay.slice("phi")] = False
+    rest[lay.slice("phi")] = rest[lay.slice("eps_1")] = False
     assert np.array_equal(H[:, rest], sel[:, rest])
 
 

@@ -7,10 +7,12 @@ core, the difference core of two INS. The perturbation follows what each block f
 (tests/support.py: nav_with_errors), never its name, so a term placed on a block found
 by name is caught on a model whose block has another name or kind.
 
-Left out, and why: position fixes are taken at their validity epoch — moved to a later
-epoch by Δt, z gains −Δt ∂v_ant/∂x, which H leaves out (first order in Δt, as the fix is
-moved with the INS velocity taken as known); a difference model's sensor blocks are not
-perturbed, since its layout does not say which of the two streams a block feeds.
+A position fix is also taken Δt after its validity time, where z gains −Δt ∂v_ant/∂x (the
+fix is moved to the epoch with the INS antenna velocity, which carries δv, φ through the
+lever and the gyro errors through ω×l).
+
+A difference model's layout does not say which of the two streams a sensor block feeds:
+its cases name the blocks of INS 1 (the stream carrying the error) or perturb none.
 """
 import inspect
 import math
@@ -41,7 +43,9 @@ MODELS = {
     "barometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(),
                                                 es.barometer_bias(tau=600.0, sigma=2.0)]),
     "horizontal": lambda: es.ErrorModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")]),
-    "difference": lambda: es.DifferenceModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")],
+    # INS 1 with a gyro scale block beside its bias, INS k with a bias only
+    "difference": lambda: es.DifferenceModel("horizontal", [es.gyro_bias(), es.gyro_scale(axes="xz"),
+                                                            es.accel_bias(axes="xy")],
                                              [es.gyro_bias(), es.accel_bias(axes="xy")]),
 }
 SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "horizontal")
@@ -72,6 +76,9 @@ CASES = {
          {}),
         ("lever", lambda lay, row: lambda x: M.PositionFix([0.0], _fix_pos(lay, row), [3.0, 3.0, 5.0],
                                                            lever_arm=LEVER), {}),
+        # the fix moved to a later epoch with the antenna velocity: −Δt ∂v_ant/∂x in H
+        ("extrapolated", lambda lay, row: lambda x: M.PositionFix([0.0], _fix_pos(lay, row), [3.0, 3.0, 5.0],
+                                                                  lever_arm=LEVER), {"t": 0.5}),
     ]),
     "VelocityFix": (FULL, [
         ("no-lever", lambda lay, row: lambda x: M.VelocityFix([0.0], [row[4:7]], 0.1), {}),
@@ -85,8 +92,10 @@ CASES = {
     "InsDifference": (("difference",), [
         ("co-located", lambda lay, row: lambda x: M.InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01]),
          {"sensor_errors": False}),
-        ("lever", lambda lay, row: lambda x: M.InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01],
-                                                             lever_arm=LEVER), {"sensor_errors": False}),
+        # INS 1 carries its own sensor errors: ω_1 enters through the lever's C_b1^n (ω_1×l)
+        ("lever+sensors-1", lambda lay, row: lambda x: M.InsDifference([0.0], [1e-7, 1e-7, 0.01, 0.01],
+                                                                       lever_arm=LEVER),
+         {"sensor_errors": ("eps_1", "nabla_1", "kg_1")}),
     ]),
     "ZeroVelocity": (SINGLE, [
         ("zupt", lambda lay, row: lambda x: M.ZeroVelocity([(0.0, 10.0)], 0.02), {}),
@@ -111,7 +120,7 @@ CASES = {
     "LeverPositionFix": (OWN, [
         ("extrapolated", lambda lay, row: lambda x: M.LeverPositionFix([0.0], [row[7:10]], [3.0, 3.0, 5.0],
                                                                        lever_arm=LEVER + x[lay.slice("lev")]),
-         {}),
+         {"t": 0.5}),
     ]),
     "LeverVelocityFix": (OWN, [
         ("lever", lambda lay, row: lambda x: M.LeverVelocityFix([0.0], [row[4:7]], 0.1,

@@ -23,7 +23,9 @@ class PositionFix(Timed):
     (north, east, up [m]; the fix extrapolated from its validity time to the epoch with
     the antenna velocity, Δt = t_epoch − t_valid), with the lever arm ``l`` (IMU ->
     antenna, body axes) added as ``+ C_b^n l`` and in H as ``(C_b^n l)×`` on φ (rows
-    reordered north, east, up). The antenna velocity is ``v + C_b^n (ω_ib^b × l)``.
+    reordered north, east, up). The antenna velocity is ``v + C_b^n (ω_ib^b × l)``; the
+    extrapolation puts ``−Δt ∂v_ant/∂x`` in H (δv, and with a lever arm φ and every block
+    feeding the gyro).
 
     Parameters
     ----------
@@ -93,6 +95,16 @@ class PositionFix(Timed):
             H[2, s_pos.start + 2] = 1.0
         if Cl is not None:
             z[0:n_z] += Cl[[1, 0, 2]][:n_z]
+        if dtf != 0.0:
+            # −Δt ∂v_ant/∂x: the INS antenna velocity that moved the fix to the epoch
+            s_vel = lay.slice("dv")
+            nv = s_vel.stop - s_vel.start
+            Hv = np.zeros((3, ep.n))
+            Hv[:nv, s_vel] = np.eye(nv)
+            if Cl is not None:
+                Hv[:, lay.slice("phi")] = A.skew(C @ np.cross(nr.omega_b, self.lever))
+                add_rate_H(Hv, lay, -C @ A.skew(self.lever), nr.omega_b)
+            H -= dtf * Hv[[1, 0, 2]][:n_z]
         return z, H, self.sigma[j, :n_z] ** 2
 
 

@@ -8,6 +8,7 @@ import numpy as np
 from sinslab.core import attitude as A
 from sinslab.core import earth as E
 from sinslab.fusion.measurements.base import Epoch
+from sinslab.fusion.measurements.jacobians import add_rate_H
 from sinslab.fusion.measurements.schedule import Timed
 
 __all__ = ["InsDifference"]
@@ -25,7 +26,9 @@ class InsDifference(Timed):
     ``C_b1^n (ω_ib1^b × l)``; the resulting φ terms (first order) go into H on the
     ``phi`` block (``∂z/∂φ_1``, exact for the difference core whose φ block is ``φ_1 − φ_k``
     only when IMU k's attitude error equals IMU 1's; give ``lever_arm=None`` when the
-    IMUs are co-located).
+    IMUs are co-located), and ``−C_b1^n (l×) ∂δω_1/∂x`` on the velocity rows of every
+    block feeding INS 1's gyro compensation (:func:`add_rate_H`; INS 1's blocks are those
+    named with ``suffix``).
 
     Parameters
     ----------
@@ -39,15 +42,19 @@ class InsDifference(Timed):
         The two streams (default 0 and 1).
     windows : sequence of (start, end) [s], optional
         Form the difference only at epochs inside these windows.
+    suffix : str
+        Ending of the names of INS 1's sensor blocks in the layout (the first of
+        :class:`sinslab.nav.errstate.DifferenceModel`'s ``suffixes``).
     """
 
-    def __init__(self, t, sigma, *, lever_arm=None, streams=(0, 1), windows=None):
+    def __init__(self, t, sigma, *, lever_arm=None, streams=(0, 1), windows=None, suffix="_1"):
         self._init_times(t, None, (), windows)
         J = self.t_valid.size
         self.sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (J, 4))
         lever = None if lever_arm is None else np.asarray(lever_arm, dtype=float).reshape(3)
         self.lever = None if (lever is None or not np.any(lever)) else lever
         self.streams = tuple(int(s) for s in streams)
+        self.suffix = str(suffix)
 
     def matrices(self, ep: Epoch):
         j = ep.item
@@ -71,6 +78,7 @@ class InsDifference(Timed):
             H[0, lay.slice("phi")] = A.skew(d)[1] / rm
             H[1, lay.slice("phi")] = A.skew(d)[0] / rnc
             H[2:4, lay.slice("phi")] = A.skew(vlev)[0:2]
+            add_rate_H(H[2:4], lay, (-C1 @ A.skew(self.lever))[0:2], a.omega_b, self.suffix)
         z[0] = a.lat - lat_k
         z[1] = A.wrap_pi(a.lon - lon_k)
         z[2:4] = a.vel[:2] - vk

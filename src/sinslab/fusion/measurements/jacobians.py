@@ -31,13 +31,14 @@ def vehicle_from_body(mount):
     raise ValueError(f"mount must be 3 Euler angles or a 3x3 matrix, got shape {m.shape}")
 
 
-def add_rate_H(H, lay, M, omega_b):
+def add_rate_H(H, lay, M, omega_b, suffix=""):
     """Add ``M ∂δω_ib^b/∂x`` to ``H`` for every block that feeds the gyro compensation
     (:attr:`sinslab.nav.errstate.Block.feeds`): a bias or Gauss–Markov block enters the
-    compensated rate as ``δω = x``, a scale block as ``δω = diag(ω) x``."""
+    compensated rate as ``δω = x``, a scale block as ``δω = diag(ω) x``. ``suffix`` keeps
+    the blocks whose names end with it (one INS's blocks in a two-INS layout)."""
     for b in lay.blocks:
         feeds = getattr(b, "feeds", None)
-        if feeds not in ("gyro_bias", "gyro_scale"):
+        if feeds not in ("gyro_bias", "gyro_scale") or not b.name.endswith(suffix):
             continue
         sl = lay.slice(b.name)
         for i, a in enumerate(b.axes):
