@@ -264,7 +264,7 @@ def _compose(imu, init, fixes: FixSpec, model, ins: InsSpec, grid: FilterGrid, l
             raise ValueError(f"lag must be a lag policy of sinslab.fusion.lag, got {lag!r}")
 
     # --- the INS stream on the filter grid
-    stream = LiveStream.of(imu, init, ins)
+    stream = LiveStream.of(imu, init, ins, scaled=scaled)
     T, t0, n_ep = stream.bind(grid.kf_dt)
     t_ep = t0 + T * np.arange(n_ep + 1)
 
