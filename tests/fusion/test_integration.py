@@ -12,11 +12,21 @@ from sinslab.fusion import recorded as I
 from sinslab.fusion.spec import FilterGrid, FixSpec
 
 
+def _noisy_fixes(tru, idx, sig, rng):
+    """Position fixes (lat, lon [rad], h [m]) at the truth samples ``idx`` with white errors
+    of σ ``sig`` (north, east, up [m])."""
+    from sinslab.core.earth import radii
+
+    rm, rn = radii(tru.lat[idx], tru.h[idx])
+    e = rng.normal(size=(idx.size, 3)) * sig
+    return np.stack([tru.lat[idx] + e[:, 0] / rm, tru.lon[idx] + e[:, 1] / (rn * np.cos(tru.lat[idx])),
+                     tru.h[idx] + e[:, 2]], -1)
+
+
 def _lc_scenario(duration=300.0, rate=100.0, seed=1):
     from sinslab.sim import imu as imu_mod
     from sinslab.sim import trajectory as tr
     from sinslab.core import units as u
-    from sinslab.core.earth import radii
     from sinslab.core.records import NavState
     segs = [tr.Level(duration=60.0), tr.Turn(duration=60.0, rate=1.5 * u.deg),
             tr.Accelerate(duration=30.0, accel=1.0), tr.Climb(duration=60.0, angle=3 * u.deg),
@@ -27,13 +37,9 @@ def _lc_scenario(duration=300.0, rate=100.0, seed=1):
                                            accel_bias="200 ug", accel_vrw="50 ug/sqrt(Hz)")
     meas = imu_mod.apply(gen.imu, err, seed)
     tru = gen.truth
-    rng = np.random.default_rng(seed + 1)
     idx = np.arange(int(rate), tru.t.size, int(rate))
     sig = np.array([3.0, 3.0, 5.0])
-    rm, rn = radii(tru.lat[idx], tru.h[idx])
-    e = rng.normal(size=(idx.size, 3)) * sig
-    fix = np.stack([tru.lat[idx] + e[:, 0] / rm, tru.lon[idx] + e[:, 1] / (rn * np.cos(tru.lat[idx])),
-                    tru.h[idx] + e[:, 2]], -1)
+    fix = _noisy_fixes(tru, idx, sig, np.random.default_rng(seed + 1))
     att0 = tru.att_imu[0] if tru.att_imu is not None else tru.att[0]
     init = NavState(tru.lat[0], tru.lon[0], tru.h[0], tru.vel[0] + [0.1, -0.1, 0.05],
                     att0 + np.array([1, 1, 5]) * u.arcmin, tru.t[0])
@@ -157,7 +163,6 @@ def test_scale_factor_states_correct_the_stream_they_are_fed_back_to():
     from sinslab.core import units as u
     from sinslab.sim import imu as imu_mod
     from sinslab.sim import trajectory as tr
-    from sinslab.core.earth import radii
     from sinslab.core.records import NavState
 
     segs = [tr.Level(duration=30.0)] + [tr.Turn(duration=60.0, rate=3 * u.deg),
@@ -169,12 +174,8 @@ def test_scale_factor_states_correct_the_stream_they_are_fed_back_to():
     meas = imu_mod.apply(gen.imu, err, 3)
     tru = gen.truth
     idx = np.arange(100, tru.t.size, 100)
-    rng = np.random.default_rng(4)
     sig = np.array([0.5, 0.5, 1.0])
-    rm, rn = radii(tru.lat[idx], tru.h[idx])
-    e = rng.normal(size=(idx.size, 3)) * sig
-    fix = np.stack([tru.lat[idx] + e[:, 0] / rm, tru.lon[idx] + e[:, 1] / (rn * np.cos(tru.lat[idx])),
-                    tru.h[idx] + e[:, 2]], -1)
+    fix = _noisy_fixes(tru, idx, sig, np.random.default_rng(4))
     att0 = tru.att_imu[0] if tru.att_imu is not None else tru.att[0]
     init = NavState(tru.lat[0], tru.lon[0], tru.h[0], tru.vel[0], att0 + np.array([1, 1, 5]) * u.arcmin, tru.t[0])
     P0 = np.diag(np.r_[[(2 * u.arcmin) ** 2] * 2, (10 * u.arcmin) ** 2, [0.1 ** 2] * 3,
