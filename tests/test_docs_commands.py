@@ -192,9 +192,9 @@ QUOTED = [
     ("recorded-data.md", "| 1 s latency, lag ignored | 37.8 m | 90.5 m | | **all 3 fail** (NIS 90) |",
      NAV + " --fix-latency 1 --lag ignore",
      ["=1", *OUTAGES, "claims:failed=fix_residual,fix_residual_p99,nis_not_overconfident", "=3", "nis_mean"], 0.0),
-    ("recorded-data.md", "| with scale-factor states | 5.32 m | 20.5 m | (no gain on 9 min) | pass |",
+    ("recorded-data.md", "| with scale-factor states | 5.30 m | 20.5 m | (no gain on 9 min) | pass |",
      NAV + " --scale-factors", [*OUTAGES, "=9", "claims:failed="], 0.0),
-    ("recorded-data.md", "| `--imu-errors industrial` (grade noise, no rest measurement) | 15.1 m | 35.7 m | warning: "
+    ("recorded-data.md", "| `--imu-errors industrial` (grade noise, no rest measurement) | 15.0 m | 35.8 m | warning: "
      "rest noise 44×, 7.8×, 2.4× the model's gyro noise | NIS 56 and the 99th percentile **fail**, the median passes |",
      NAV + " --imu-errors industrial", [*OUTAGES, "rest_over_filter_noise_gyro", "nis_mean", "=99",
                                         "claims:failed=fix_residual_p99,nis_not_overconfident"], 0.0),
@@ -217,14 +217,14 @@ QUOTED = [
      [*OUTAGES, "outage_end_hz_err_m", "claims:failed="], 0.0),
     ("recorded-data.md", "| `--smooth` | RMS 0.19 m inside the outages (forward 4.82 m) | | | pass |",
      NAV + " --smooth", ["smoothed_hz_err_rms_m", "forward_hz_err_rms_m", "claims:failed="], 0.0),
-    ("recorded-data.md", "NHC is better than fixes only in 7 of the 8 outages; the exception is the second (0.68 m",
+    ("recorded-data.md", "NHC is better than fixes only in 7 of the 8 outages; the exception is the second (0.71 m",
      DRIVE, ["=7", "n_outages", "outage_end_hz_err_m[1]"], 0.0),
-    ("recorded-data.md", "the second (0.68 m → 1.84 m), a 90° turn", NAV + " --aid nhc",
-     ["=0.68", "outage_end_hz_err_m[1]", "=90"], 0.0),
-    ("recorded-data.md", "`--outages 15/60@100`), fixes only end the second one 2.12 m off", NAV100,
+    ("recorded-data.md", "the second (0.71 m → 1.84 m), a 90° turn", NAV + " --aid nhc",
+     ["=0.71", "outage_end_hz_err_m[1]", "=90"], 0.0),
+    ("recorded-data.md", "`--outages 15/60@100`), fixes only end the second one 2.13 m off", NAV100,
      ["=15", "=60", "=100", "outage_end_hz_err_m[0]"], 0.0),
-    ("recorded-data.md", "the second one 2.12 m off and NHC 1.54 m.", NAV100 + " --aid nhc",
-     ["=2.12", "outage_end_hz_err_m[0]"], 0.0),
+    ("recorded-data.md", "the second one 2.13 m off and NHC 1.54 m.", NAV100 + " --aid nhc",
+     ["=2.13", "outage_end_hz_err_m[0]"], 0.0),
     ("recorded-data.md", "the vehicle states converge to a mount pitch 0.01 ± 0.02° and yaw 0.10 ± 0.08°",
      NAV + " --aid nhc", ["vehicle_mount_estimate_deg[0]", "vehicle_mount_sigma_deg[0]",
                           "vehicle_mount_estimate_deg[2]", "vehicle_mount_sigma_deg[2]"], 0.0),
@@ -232,8 +232,8 @@ QUOTED = [
      ["nhc_lever_estimate_m", "nhc_lever_sigma_m"], 0.0),
     # docs/methods/smoother.md, the recorded drive smoothed (the stored record of the navigate runs)
     ("smoother.md", "horizontal RMS error **0.19 m smoothed, 4.82 m forward**; at the fix nearest each outage's "
-     "middle 0.15–0.36 m smoothed (median 0.22 m) against 0.34–4.24 m forward; outage-end errors 0.60–20.1 m "
-     "forward (median 4.91 m); 6646 stored epochs", NAV + " --smooth",
+     "middle 0.14–0.37 m smoothed (median 0.21 m) against 0.34–4.24 m forward; outage-end errors 0.59–20.1 m "
+     "forward (median 4.89 m); 6646 stored epochs", NAV + " --smooth",
      ["smoothed_hz_err_rms_m", "forward_hz_err_rms_m", "min(outage_mid_hz_err_smoothed_m)",
       "max(outage_mid_hz_err_smoothed_m)", "outage_mid_hz_err_smoothed_median_m",
       "min(outage_mid_hz_err_forward_m)", "max(outage_mid_hz_err_forward_m)", "min(outage_end_hz_err_m)",
