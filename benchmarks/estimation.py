@@ -70,7 +70,7 @@ def model21(n_tab=200, T=0.1, seed=0):
     from sinslab.nav import errstate as es
     rng = np.random.default_rng(seed)
     m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(), es.accel_scale()],
-                      gyro_noise=0.01 * u.dpsh, accel_noise=10 * u.ugpsHz)
+                      gyro_arw=0.01 * u.dpsh, accel_vrw=10 * u.ugpsHz)
     assert m.n == 21, m
     k = np.arange(n_tab)
     att = np.stack([0.1 * np.sin(k / 20), 0.3 * np.sin(k / 13), k / 50.0], -1)
@@ -224,7 +224,7 @@ def lc_states(duration, states):
     if states != 21:
         raise ValueError(f"states must be 15 or 21, got {states}")
     model = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(), es.accel_scale()],
-                          gyro_noise=0.05 * u.dpsh, accel_noise=50 * u.ugpsHz)
+                          gyro_arw=0.05 * u.dpsh, accel_vrw=50 * u.ugpsHz)
     P = np.zeros((21, 21))
     P[:15, :15] = P0
     P[15:, 15:] = np.eye(6) * (100 * u.ppm) ** 2

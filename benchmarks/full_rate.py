@@ -72,7 +72,7 @@ def gm_model():
                                es.accel_markov(ACCEL_BIAS[1], ACCEL_BIAS[0]),
                                es.gyro_scale(tau=GYRO_SCALE[1], sigma=GYRO_SCALE[0]),
                                es.accel_scale(tau=ACCEL_SCALE[1], sigma=ACCEL_SCALE[0])],
-                      gyro_noise=ARW, accel_noise=VRW)
+                      gyro_arw=ARW, accel_vrw=VRW)
     assert (m.n, len(m.q)) == (21, 18), (m.n, len(m.q))
     return m
 

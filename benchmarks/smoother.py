@@ -67,7 +67,7 @@ def _trajectory():
 def drive_model(odometer=False):
     """Error model (15 states; + odometer scale) and its initial standard deviations."""
     blocks = [es.gyro_bias(), es.accel_bias()] + ([es.odometer_scale()] if odometer else [])
-    m = es.ErrorModel("full", blocks, gyro_noise=GYRO_ARW, accel_noise=ACCEL_VRW)
+    m = es.ErrorModel("full", blocks, gyro_arw=GYRO_ARW, accel_vrw=ACCEL_VRW)
     lay = m.layout
     sd = np.zeros(m.n)
     sd[lay.slice("phi")] = [0.2 * u.deg] * 2 + [2 * u.deg]

@@ -22,7 +22,7 @@ T = 0.005
 
 def _model_epochs(blocks, S=4, seed=5):
     """Φ, Q̄ (places of series_structure), Q_k, Q̄ (n, n) of ``S`` random navigation points."""
-    m = es.ErrorModel("full", blocks, gyro_noise=0.05 * u.dpsh, accel_noise=50 * u.ugpsHz)
+    m = es.ErrorModel("full", blocks, gyro_arw=0.05 * u.dpsh, accel_vrw=50 * u.ugpsHz)
     prog = ek.program(m)
     rng = np.random.default_rng(seed)
     rows = np.zeros((1, S, 10))

@@ -59,7 +59,7 @@ def _dense(F, G, q, T):
      es.gyro_scale(tau=3600.0, sigma=300 * u.ppm), es.accel_scale(tau=3600.0, sigma=300 * u.ppm)],
     [es.gyro_bias(), es.accel_bias()]])
 def test_bit_for_bit_the_dense_loops(blocks):
-    m = es.ErrorModel("full", blocks, gyro_noise=0.05 * u.dpsh, accel_noise=50 * u.ugpsHz)
+    m = es.ErrorModel("full", blocks, gyro_arw=0.05 * u.dpsh, accel_vrw=50 * u.ugpsHz)
     prog = ek.program(m)
     rng = np.random.default_rng(5)
     rows = np.zeros((1, 4, 10))

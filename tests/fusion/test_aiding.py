@@ -217,8 +217,8 @@ def test_stop_heading_held_by_zaru():
     iv = [(a + 1.0, b - 1.0) for a, b in st.from_flags(tru.t, spd < 1e-6, min_duration=5.0) if a > 5]
     assert len(iv) == 1 and iv[0][1] - iv[0][0] > 110
     s0, s1 = iv[0]
-    m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias()], gyro_noise=0.3 * u.deg / 60,
-                      accel_noise=100 * u.ug)
+    m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias()], gyro_arw=0.3 * u.deg / 60,
+                      accel_vrw=100 * u.ug)
     arw_T = 0.3 * u.deg / 60 / math.sqrt(0.1)
     rates = {}
     for name, extra in (("none", []), ("zaru", [ZeroVelocity(iv, 0.01), ZeroRate(iv, 2 * arw_T)])):
@@ -240,7 +240,7 @@ def test_markov_blocks_fed_back_through_an_outage():
     from sinslab.sim import trajectory as tr
     gen, meas, tru, init = _drive(_car(u, tr) + [tr.Level(duration=80.0)])
     m = es.ErrorModel("full", [es.gyro_markov(600.0, 10 * u.dph), es.accel_markov(600.0, 500 * u.ug)],
-                      gyro_noise=0.3 * u.deg / 60, accel_noise=100 * u.ug)
+                      gyro_arw=0.3 * u.deg / 60, accel_vrw=100 * u.ug)
     fx = [_fixes(tru, [(110.0, 170.0)])]
     err = {}
     for name, fb in (("kind", FeedbackLayout.from_model(m.layout)),
@@ -267,8 +267,8 @@ def test_odometer_bounds_an_outage():
     out = {}
     for name, extra, blocks in (("gnss", [], []),
                                 ("odo", [Odometer(t_odo, s, 0.1, nhc_sigma=(0.1, 0.1))], [es.odometer_scale()])):
-        m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), *blocks], gyro_noise=0.3 * u.deg / 60,
-                          accel_noise=100 * u.ug)
+        m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), *blocks], gyro_arw=0.3 * u.deg / 60,
+                          accel_vrw=100 * u.ug)
         r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), fx + extra, grid=FilterGrid(0.1),
                        feedback=FeedbackLayout.from_model(m.layout))
         out[name] = _horiz(r, tru, 150.0 - 0.1)
@@ -300,7 +300,7 @@ def test_lever_arm_estimated_within_sigma():
     vel = tru.vel[i] + np.einsum("kij,kj->ki", C, np.cross(omega, lev))
     from sinslab.fusion.measurements import Stack
     m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.lever_arm()],
-                      gyro_noise=0.3 * u.deg / 60, accel_noise=100 * u.ug)
+                      gyro_arw=0.3 * u.deg / 60, accel_vrw=100 * u.ug)
     ms = [Stack(LeverPositionFix(t, pos, [0.05, 0.05, 0.1]), LeverVelocityFix(t, vel, 0.02))]
     r = driver.run([driver.LiveStream(meas, init, nsub=2)], m, _P0(m), ms, grid=FilterGrid(0.1),
                    feedback=FeedbackLayout.from_model(m.layout))

@@ -36,7 +36,7 @@ RUNS = 20
 
 def _model(baro=True):
     blocks = [es.gyro_bias(), es.accel_bias()] + ([es.barometer_bias(tau=TAU, sigma=SIGMA_B)] if baro else [])
-    return es.ErrorModel("full", blocks, gyro_noise=ARW, accel_noise=VRW)
+    return es.ErrorModel("full", blocks, gyro_arw=ARW, accel_vrw=VRW)
 
 
 def _P0(lay):

@@ -52,7 +52,7 @@ def _sky(n=8, seed=4, t0=1000.0, epochs=1):
 
 def _model():
     return es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.receiver_clock(("G", "E", "C"))],
-                         gyro_noise=1e-4, accel_noise=1e-3)
+                         gyro_arw=1e-4, accel_vrw=1e-3)
 
 
 def _perturb(row, omega, lay, x):

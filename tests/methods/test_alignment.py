@@ -313,7 +313,7 @@ def test_full_model_is_the_general_error_model_at_rest(lat_deg):
     F8, G8, H8 = al.full_model(lat)
     nav = es.NavPoint.static(lat, [-5 * np.pi / 180, 2 * np.pi / 180, -235 * np.pi / 180])
     gen = es.ErrorModel("attvel", [es.gyro_bias(frame="nav"), es.accel_bias("xy", frame="nav")],
-                        gyro_noise=1.0)
+                        gyro_arw=1.0)
     F = gen.F(nav)
     idx = gen.layout.index(["phiE", "phiN", "phiU", "eps_E", "eps_N", "eps_U", "nabla_E", "nabla_N"])
     np.testing.assert_allclose(F8, F[np.ix_(idx, idx)], atol=1e-20)

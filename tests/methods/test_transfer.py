@@ -179,7 +179,7 @@ def test_align_recorded_on_a_parked_carrier(kind):
     lam = np.array([20.0, -15.0, 30.0]) * DEG / 60
     att_m = np.array([1.0, -2.0, 30.0]) * DEG
     imu, master, pos = _stationary(lam, att_m)
-    kw = dict(att_sigma=DEG / 60, gyro_noise=1e-6, accel_noise=1e-4, accel_bias_sigma0=1e-4,
+    kw = dict(att_sigma=DEG / 60, gyro_arw=1e-6, accel_vrw=1e-4, accel_bias_sigma0=1e-4,
               gyro_bias_sigma0=1e-7, gyro_scale_sigma0=1e-6, accel_scale_sigma0=1e-6)
     u = euler_to_dcm(att_m).T @ np.array([0.0, 0.0, 1.0])
     arcmin = DEG / 60

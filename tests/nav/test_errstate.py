@@ -482,8 +482,8 @@ def test_joint_model_is_paper_001_equations_3_to_8():
 def _test_F(seed=0):
     nav = es.NavPoint(LAT0, H0, V0, euler_to_dcm(ATT0), fb_true(3.0), wb_true(3.0))
     m = es.ErrorModel("full", [es.gyro_bias(rrw=1e-7), es.accel_bias(), es.gyro_markov(30.0, 1e-5),
-                               es.accel_scale()], gyro_noise=0.01 * np.pi / 180 / 60,
-                      accel_noise=50 * ug)
+                               es.accel_scale()], gyro_arw=0.01 * np.pi / 180 / 60,
+                      accel_vrw=50 * ug)
     return m, nav
 
 
@@ -668,7 +668,7 @@ def test_receiver_clock_block_dynamics():
     from sinslab.estimation.kalman import discretize
     m = es.ErrorModel("full", [es.gyro_bias(), es.receiver_clock(("G", "E"), bias_noise=0.3,
                                                                     drift_noise=0.2, isb_noise=0.01)],
-                      gyro_noise=1e-4, accel_noise=1e-3)
+                      gyro_arw=1e-4, accel_vrw=1e-3)
     lay = m.layout
     sl = lay.slice("clk")
     assert lay.labels[sl] == ("clk_bias", "clk_drift", "clk_isb_E")

@@ -25,30 +25,30 @@ from sinslab.nav import errstate_kernels as ek
 MODELS = {
     "full-21": lambda: es.ErrorModel(
         "full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale(), es.accel_scale()],
-        gyro_noise=1e-4, accel_noise=1e-3),
+        gyro_arw=1e-4, accel_vrw=1e-3),
     "horizontal-markov-subsets": lambda: es.ErrorModel(
         "horizontal", [es.gyro_markov(100.0, 1e-5, axes="xz"), es.accel_bias(axes="xy", arw=1e-4),
                        es.installation()],
-        gyro_noise=1e-4, accel_noise=1e-3, accel_noise_axes="xy", radius_derivatives=False),
+        gyro_arw=1e-4, accel_vrw=1e-3, accel_vrw_axes="xy", radius_derivatives=False),
     "attvel-nav-frame": lambda: es.ErrorModel(
         "attvel", [es.gyro_bias(frame="nav", rrw=1e-6), es.accel_bias(frame="nav")],
-        gyro_noise=1e-4, accel_noise=1e-3),
+        gyro_arw=1e-4, accel_vrw=1e-3),
     "attvel-horizontal-scale": lambda: es.ErrorModel(
         "attvel-horizontal", [es.gyro_scale(axes="z"), es.accel_scale(), es.accel_markov(30.0, 1e-4)],
-        gyro_noise=1e-4, accel_noise=1e-3),
+        gyro_arw=1e-4, accel_vrw=1e-3),
     "scale-markov-lever": lambda: es.ErrorModel(
         "full", [es.gyro_bias(), es.gyro_scale(tau=300.0, sigma=1e-4), es.accel_scale(rw=1e-6),
-                 es.lever_arm()], gyro_noise=1e-4, accel_noise=1e-3),
+                 es.lever_arm()], gyro_arw=1e-4, accel_vrw=1e-3),
     "gnss-clock": lambda: es.ErrorModel(
         "full", [es.gyro_bias(), es.accel_bias(), es.receiver_clock(("G", "E", "C"))],
-        gyro_noise=1e-4, accel_noise=1e-3),
-    "attitude": lambda: es.ErrorModel("attitude", [es.gyro_bias(), es.accel_bias()], gyro_noise=1e-4),
-    "ordered": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias()], gyro_noise=1e-4,
+        gyro_arw=1e-4, accel_vrw=1e-3),
+    "attitude": lambda: es.ErrorModel("attitude", [es.gyro_bias(), es.accel_bias()], gyro_arw=1e-4),
+    "ordered": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias()], gyro_arw=1e-4,
                                      order=["eps", "dv", "phi", "nabla", "dp"]),
     "difference": lambda: es.DifferenceModel(
         "horizontal", [es.gyro_bias(), es.accel_bias(), es.gyro_scale()],
-        [es.gyro_bias(), es.accel_markov(50.0, 1e-4)], gyro_noise1=1e-4, gyro_noisek=2e-4,
-        accel_noise1=1e-3),
+        [es.gyro_bias(), es.accel_markov(50.0, 1e-4)], gyro_arw1=1e-4, gyro_arwk=2e-4,
+        accel_vrw1=1e-3),
 }
 
 

@@ -46,7 +46,7 @@ def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=
     sensors = [es.gyro_bias(rrw=gyro_rrw), es.accel_bias(arw=accel_rrw)]
     if scale_factors:
         sensors += [es.gyro_scale(), es.accel_scale()]
-    return es.ErrorModel("full", sensors, gyro_noise=gyro_arw, accel_noise=accel_vrw)
+    return es.ErrorModel("full", sensors, gyro_arw=gyro_arw, accel_vrw=accel_vrw)
 
 
 @dataclass(frozen=True)

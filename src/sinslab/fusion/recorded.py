@@ -275,7 +275,7 @@ def _imu_pos_from_antenna(lat, lon, h, C, lever):
     return lat - d[1] / float(rm), lon - d[0] / (float(rn) * math.cos(lat)), h - d[2]
 
 
-def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
+def recorded_model(opt: NavOptions, gyro_arw, accel_vrw):
     """The error model of :func:`navigate_recorded`: the loosely coupled core (φ, δv, δp)
     with gyro and accelerometer bias states (random constant, or random walk with
     ``gyro_rrw``/``accel_rrw``), Gauss–Markov bias blocks (``gyro_markov``/``accel_markov``),
@@ -300,7 +300,7 @@ def recorded_model(opt: NavOptions, gyro_noise, accel_noise):
         sensors += [es.installation("vm", "xz"), es.lever_arm("nlev")]
     if opt.fix.gnss_raw is not None:
         sensors.append(opt.fix.gnss_raw.clock_block())
-    return es.ErrorModel("full", sensors, gyro_noise=gyro_noise, accel_noise=accel_noise)
+    return es.ErrorModel("full", sensors, gyro_arw=gyro_arw, accel_vrw=accel_vrw)
 
 
 def _scale_sigmas(errors: ErrorSpec):

@@ -177,7 +177,7 @@ def tc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, systems=("G",)
         sensors += [es.gyro_scale(), es.accel_scale()]
     bn, dn, isn = clock_noise
     sensors.append(es.receiver_clock(tuple(systems), bias_noise=bn, drift_noise=dn, isb_noise=isn))
-    return es.ErrorModel("full", sensors, gyro_noise=gyro_arw, accel_noise=accel_vrw)
+    return es.ErrorModel("full", sensors, gyro_arw=gyro_arw, accel_vrw=accel_vrw)
 
 
 @dataclass(frozen=True)

@@ -521,7 +521,7 @@ def horizontal_model(gyro_arw, gyro_markov_sigma, gyro_markov_tau, accel_markov_
                          [es.gyro_bias(name="eps_b"),
                           es.gyro_markov(gyro_markov_tau, gyro_markov_sigma, name="eps_r"),
                           es.accel_markov(accel_markov_tau, accel_markov_sigma, name="nabla")],
-                         gyro_noise=gyro_arw, accel_noise=0.0, accel_noise_axes="xyz",
+                         gyro_arw=gyro_arw, accel_vrw=0.0, accel_vrw_axes="xyz",
                          radius_derivatives=radius_derivatives)
 
 

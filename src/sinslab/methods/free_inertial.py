@@ -235,7 +235,7 @@ def covariance_analysis(truth, ideal, spec, cov_every):
         sensors.append(es.gyro_scale())
     if np.any(spec["accel_sf_sigma"] > 0):
         sensors.append(es.accel_scale())
-    model = es.ErrorModel(core, sensors, gyro_noise=spec["gyro_arw"], accel_noise=spec["accel_vrw"])
+    model = es.ErrorModel(core, sensors, gyro_arw=spec["gyro_arw"], accel_vrw=spec["accel_vrw"])
     nsub, mc_every = spec["nsub"], spec["out_every"]
     stride = cov_every * nsub
     m_out = (len(ideal) // nsub) // mc_every

@@ -36,7 +36,7 @@ __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleO
 NOISE_GROUPS = {"ins1": range(0, 5), "gyro_k": range(5, 8), "accel_k": range(8, 10)}
 
 
-def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, accel_noisek=0.0,
+def joint_rotation_model(gyro_arw1=0.0, gyro_arwk=0.0, accel_vrw1=0.0, accel_vrwk=0.0,
                          radius_derivatives=False, drift_rw1=0.0, drift_rwk=0.0) -> DifferenceModel:
     """The 17-state joint error model of INS 1 (single-axis) and INS k (dual-axis)
     (Wang, Wu et al. 2018, eqs 1–8).
@@ -61,9 +61,9 @@ def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, acc
 
     Parameters
     ----------
-    gyro_noise1, gyro_noisek : float or (3,)
+    gyro_arw1, gyro_arwk : float or (3,)
         Gyro white noise (ARW) of INS 1 / INS k [rad/√s].
-    accel_noise1, accel_noisek : float or (2,)
+    accel_vrw1, accel_vrwk : float or (2,)
         Horizontal accelerometer white noise (VRW) of INS 1 / INS k [m/s/√s].
     radius_derivatives : bool
         Keep the dR/dL and ∂g/∂L terms (exact Jacobian) instead of the paper's F.
@@ -85,7 +85,7 @@ def joint_rotation_model(gyro_noise1=0.0, gyro_noisek=0.0, accel_noise1=0.0, acc
     return DifferenceModel(
         "horizontal", [gyro_bias(rrw=drift_rw1, name="eps"), accel_bias("xy", name="nabla")],
         [gyro_bias(rrw=drift_rwk, name="eps"), accel_bias("xy", name="nabla")],
-        gyro_noise1, gyro_noisek, accel_noise1, accel_noisek, accel_noise_axes="xy",
+        gyro_arw1, gyro_arwk, accel_vrw1, accel_vrwk, accel_vrw_axes="xy",
         order=["dp", "dv", "phi", "eps_1", "eps_k", "nabla_1", "nabla_k"],
         radius_derivatives=radius_derivatives)
 

@@ -899,7 +899,7 @@ class TransferResult:
 def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, compensation=None, t_start=None,
                    t_end=None, vel_sigma=0.1, att_sigma=3e-4, att_sigma0=1e-2, vel_sigma0=0.5, inst_sigma0=1e-2,
                    gyro_bias_sigma0=1e-3, accel_bias_sigma0=0.1, gyro_scale_sigma0=1e-3, accel_scale_sigma0=1e-3,
-                   gyro_noise=0.0, accel_noise=0.0, gyro_bias_rw=0.0, accel_bias_rw=0.0, nsub=2):
+                   gyro_arw=0.0, accel_vrw=0.0, gyro_bias_rw=0.0, accel_bias_rw=0.0, nsub=2):
     """Transfer alignment of a recorded slave IMU against a recorded master solution.
 
     Runs through the fusion driver (:func:`sinslab.fusion.driver.run`): one live stream
@@ -937,7 +937,7 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
     t_start, t_end : float, optional
         Window [s]; default the overlap of the two records.
     vel_sigma [m/s], att_sigma [rad] : measurement noise σ
-    *_sigma0 : initial σ (SI); gyro_noise [rad/√s], accel_noise [m/s/√s] : process noise
+    *_sigma0 : initial σ (SI); gyro_arw [rad/√s], accel_vrw [m/s/√s] : process noise
     gyro_bias_rw [rad/s/√s], accel_bias_rw [m/s²/√s] : random walk of the bias states
         (the bias instability as the filter models it; 0: random constants)
     nsub : int
@@ -971,7 +971,7 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
     model = errstate.ErrorModel("attvel", [errstate.installation("lam"), errstate.gyro_bias(rrw=gyro_bias_rw),
                                            errstate.gyro_scale(), errstate.accel_bias(arw=accel_bias_rw),
                                            errstate.accel_scale()],
-                                gyro_noise=gyro_noise, accel_noise=accel_noise)
+                                gyro_arw=gyro_arw, accel_vrw=accel_vrw)
     lay = model.layout
     match = AttitudeMatch(kind, compensation)
     Cm0, vm0 = win.at(t0)

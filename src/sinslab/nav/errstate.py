@@ -632,11 +632,11 @@ class ErrorModel:
         ``"attvel-horizontal"``, ``"attitude"``).
     sensors : sequence of SensorBlock
         Extra states, in order after the core.
-    gyro_noise : float or (3,)
-        Gyro white noise (angle random walk) [rad/√s]; q = gyro_noise².
-    accel_noise : float or (3,)
-        Accelerometer white noise (velocity random walk) [m/s/√s]; q = accel_noise².
-    gyro_noise_axes, accel_noise_axes : str
+    gyro_arw : float or (3,)
+        Gyro white noise (angle random walk) [rad/√s]; q = gyro_arw².
+    accel_vrw : float or (3,)
+        Accelerometer white noise (velocity random walk) [m/s/√s]; q = accel_vrw².
+    gyro_arw_axes, accel_vrw_axes : str
         Body axes that carry white noise (default all three).
     order : sequence of str, optional
         Block order (names); default core then sensors.
@@ -657,15 +657,15 @@ class ErrorModel:
     ``S + (n, n)`` / ``S + (n, m)``.
     """
 
-    def __init__(self, core="full", sensors: Sequence[SensorBlock] = (), gyro_noise=0.0, accel_noise=0.0,
-                 gyro_noise_axes="xyz", accel_noise_axes="xyz", order=None, radius_derivatives=True):
+    def __init__(self, core="full", sensors: Sequence[SensorBlock] = (), gyro_arw=0.0, accel_vrw=0.0,
+                 gyro_arw_axes="xyz", accel_vrw_axes="xyz", order=None, radius_derivatives=True):
         if core not in CORES:
             raise ValueError(f"unknown core {core!r}; choose from {list(CORES)}")
         self.core = core
         self.radius_derivatives = radius_derivatives
         self._ins = [dict(sensors=tuple(sensors), sign=1.0, suffix="",
-                          gnoise=self._noise(gyro_noise, gyro_noise_axes), gaxes=gyro_noise_axes,
-                          anoise=self._noise(accel_noise, accel_noise_axes), aaxes=accel_noise_axes)]
+                          gnoise=self._noise(gyro_arw, gyro_arw_axes), gaxes=gyro_arw_axes,
+                          anoise=self._noise(accel_vrw, accel_vrw_axes), aaxes=accel_vrw_axes)]
         self._finish(order)
 
     # -- construction helpers
@@ -810,7 +810,7 @@ class DifferenceModel(ErrorModel):
         As in :class:`ErrorModel`.
     sensors1, sensorsk : sequences of SensorBlock
         Sensor states of INS 1 and INS k (block names get the suffixes).
-    gyro_noise1, gyro_noisek, accel_noise1, accel_noisek : float or array
+    gyro_arw1, gyro_arwk, accel_vrw1, accel_vrwk : float or array
         White-noise densities of each INS [rad/√s], [m/s/√s].
     suffixes : (str, str)
         Appended to the sensor block names and labels, default ``("_1", "_k")``.
@@ -823,8 +823,8 @@ class DifferenceModel(ErrorModel):
     nav supplies its own ``C_b^n`` (and ``f^b``, ``ω^b`` for scale-factor states).
     """
 
-    def __init__(self, core="horizontal", sensors1=(), sensorsk=(), gyro_noise1=0.0, gyro_noisek=0.0,
-                 accel_noise1=0.0, accel_noisek=0.0, gyro_noise_axes="xyz", accel_noise_axes="xyz",
+    def __init__(self, core="horizontal", sensors1=(), sensorsk=(), gyro_arw1=0.0, gyro_arwk=0.0,
+                 accel_vrw1=0.0, accel_vrwk=0.0, gyro_arw_axes="xyz", accel_vrw_axes="xyz",
                  suffixes=("_1", "_k"), core_suffix="_1k", order=None, radius_derivatives=True):
         if core not in CORES:
             raise ValueError(f"unknown core {core!r}; choose from {list(CORES)}")
@@ -832,11 +832,11 @@ class DifferenceModel(ErrorModel):
         self.radius_derivatives = radius_derivatives
         self._core_suffix = core_suffix
         self._ins = []
-        for sens, gn, an, sg, sfx in ((sensors1, gyro_noise1, accel_noise1, 1.0, suffixes[0]),
-                                      (sensorsk, gyro_noisek, accel_noisek, -1.0, suffixes[1])):
+        for sens, gn, an, sg, sfx in ((sensors1, gyro_arw1, accel_vrw1, 1.0, suffixes[0]),
+                                      (sensorsk, gyro_arwk, accel_vrwk, -1.0, suffixes[1])):
             self._ins.append(dict(sensors=tuple(sens), sign=sg, suffix=sfx,
-                                  gnoise=self._noise(gn, gyro_noise_axes), gaxes=gyro_noise_axes,
-                                  anoise=self._noise(an, accel_noise_axes), aaxes=accel_noise_axes))
+                                  gnoise=self._noise(gn, gyro_arw_axes), gaxes=gyro_arw_axes,
+                                  anoise=self._noise(an, accel_vrw_axes), aaxes=accel_vrw_axes))
         self._finish(order)
 
     def _finish(self, order):

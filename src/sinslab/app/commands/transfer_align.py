@@ -201,7 +201,7 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
         for m in methods:
             r = tm.align_recorded(imu, master_rec, pos, m, compensation=comp,
                                   t_start=t0, t_end=t1, vel_sigma=vel_sigma, att_sigma=att_sigma_arcmin * am,
-                                  gyro_noise=pn["gyro_arw"][0], accel_noise=pn["accel_vrw"][0],
+                                  gyro_arw=pn["gyro_arw"][0], accel_vrw=pn["accel_vrw"][0],
                                   gyro_bias_rw=pn["gyro_bias_instability"][0],
                                   accel_bias_rw=pn["accel_bias_instability"][0], nsub=nsub)
             results[(m, wkey)] = r
