@@ -136,11 +136,16 @@ def _run_tiny(tmp_path, sets):
 
 
 @pytest.mark.parametrize("sets", [[], ["filter.measurement=fix"]])
-def test_fix_measurement_keeps_the_bytes(tmp_path, sets):
+def test_fix_measurement_keeps_the_numbers(tmp_path, sets):
     """The default (``filter.measurement = "fix"``, the paper's filters) gives the metrics of
-    the experiment as it was before the path variant, to the last bit."""
+    the experiment as it was before the path variant. Within 1e-13 relative, not to the last
+    bit: the covariance step over Φ's dense rows and the Monte Carlo sums merged in a tree
+    since then reorder floating-point additions (measured: at most 1.8e-14). Metrics added
+    since then are not part of this record."""
     res = _run_tiny(tmp_path, ["runs=6"] + sets)
-    assert json.dumps(res.metrics, sort_keys=True) == json.dumps(_TINY_FIX_METRICS, sort_keys=True)
+    assert set(_TINY_FIX_METRICS) <= set(res.metrics)
+    for k, want in _TINY_FIX_METRICS.items():
+        np.testing.assert_allclose(res.metrics[k], want, rtol=1e-13, atol=0, err_msg=k)
 
 
 def test_ranges_variant_is_consistent_and_compared_on_the_same_draws(tmp_path):
