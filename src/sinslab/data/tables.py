@@ -76,8 +76,8 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     map of 1-based column positions.
 
     ``frame``/``mount``: see :func:`sinslab.data.frames.sensor_to_body`. Text is parsed by
-    numpy's text reader a block at a time (comma, semicolon or tab delimited; whitespace-delimited text
-    line by line); any malformed table raises ValueError naming the file, the line and the
+    pyarrow's CSV engine (comma, semicolon or tab delimited; whitespace-delimited text
+    by numpy); any malformed table raises ValueError naming the file, the line and the
     cause (binary data, a short line, a non-number in a used column, ...).
     """
     cmap = _columns.parse_column_map(columns)
@@ -302,8 +302,8 @@ _DELIMS = (",", ";", "\t")
 
 
 class _TextSource:
-    """A delimited text table: header found, binary data refused, columns read a block at a
-    time by numpy (line by line for whitespace-delimited text), every failure diagnosed line by line."""
+    """A delimited text table: header found, binary data refused, columns read by pyarrow
+    (or numpy for whitespace-delimited text), every failure diagnosed line by line."""
 
     def __init__(self, path, headerless=False):
         self.path = path
@@ -416,71 +416,34 @@ def _header_complete(head: bytes) -> bool:
 def iter_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):
     """Float columns ``cols`` (indices) of a delimited table, one block at a time.
 
-    The file is read ``block_size`` bytes at a time, each block cut after its last line
-    end, and the block's lines parsed by numpy's text reader (:func:`numpy.loadtxt`,
-    compiled; decimal text to the nearest double, as Python's ``float``); each block's rows
-    are yielded as a float64 array ``(rows, len(cols))``, so a caller that consumes the
-    blocks as they come holds one block, whatever the length of the file. Every line but
-    a blank one must hold ``ncol`` cells (counted by their delimiters; numpy's reader
-    alone would ignore cells beyond the last one read); a cell in double quotes is read
-    without them. Parameters and errors as in :func:`read_csv_columns`.
+    The table is parsed by pyarrow's streaming CSV reader one block (``block_size``
+    bytes) at a time; each block's rows are yielded as a float64 array
+    ``(rows, len(cols))``, so a caller that consumes the blocks as they come holds one
+    block, whatever the length of the file. Parameters and errors as in
+    :func:`read_csv_columns`.
     """
-    cols = list(cols)
-    sep = delim.encode()
-    with open(path, "rb") as fh:
-        for _ in range(skip):
-            fh.readline()
-        rest, first = b"", True
-        while True:
-            buf = fh.read(block_size)
-            data = rest + buf
-            if buf:                              # whole lines only; the rest joins the next block
-                cut = data.rfind(b"\n") + 1
-                data, rest = data[:cut], data[cut:]
-            if first and data:
-                first = False
-                if data.startswith(b"\xef\xbb\xbf"):  # UTF-8 byte-order mark on a headerless table
-                    data = data[3:]
-            if data.strip():
-                yield _parse_block(data, ncol, cols, sep, allow_empty)
-            if not buf:
-                return
+    import pyarrow as pa
+    from pyarrow import csv as pcsv
 
-
-#: an empty cell of a line: at its start or after a delimiter, blanks only, up to the next
-#: delimiter or the line's end (the delimiter is put in for ``{d}``; every line ends in ``\\n``)
-_EMPTY_CELL = rb"(?:^|(?<={d}))[ \t]*(?={d}|\r?\n)"
-
-
-def _parse_block(data: bytes, ncol, cols, sep: bytes, allow_empty):
-    """The float columns ``cols`` of the whole lines ``data`` (see :func:`iter_csv_columns`)."""
-    import io
-    import re
-
-    if not data.endswith(b"\n"):
-        data += b"\n"
-    b = np.frombuffer(data, dtype=np.uint8)
-    ends = np.flatnonzero(b == 10)                # the end of every line
-
-    def per_line(mask):                           # how many of the marked bytes each line holds
-        return np.diff(np.searchsorted(np.flatnonzero(mask), ends), prepend=0)
-
-    seps = per_line(b == sep[0])
-    if np.any(seps != ncol - 1):
-        text = per_line(~np.isin(b, (9, 10, 13, 32)))   # characters other than blanks
-        bad = (seps != ncol - 1) & (text > 0)
-        if bad.any():
-            raise ValueError(f"a line of {int(seps[np.argmax(bad)]) + 1} cells, the table has {ncol}")
-    empty = re.compile(_EMPTY_CELL.replace(b"{d}", re.escape(sep)), re.M)
-    if allow_empty:
-        data = empty.sub(b"nan", data)
-    try:
-        return np.loadtxt(io.BytesIO(data), delimiter=sep.decode(), usecols=cols, dtype=np.float64,
-                          ndmin=2, encoding="latin-1", comments=None, quotechar='"')
-    except ValueError:
-        if not allow_empty and empty.search(data):
-            raise ValueError("empty cell") from None
-        raise
+    names = [f"c{i}" for i in range(ncol)]
+    use = [names[i] for i in cols]
+    reader = pcsv.open_csv(
+        path,
+        read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=block_size,
+                                      use_threads=False),
+        parse_options=pcsv.ParseOptions(delimiter=delim),
+        convert_options=pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
+                                            strings_can_be_null=False),
+        memory_pool=pa.system_memory_pool())
+    for batch in reader:
+        m = batch.num_rows
+        out = np.empty((m, len(use)))
+        for j, c in enumerate(use):
+            col = batch.column(c)
+            if col.null_count and not allow_empty:
+                raise ValueError("empty cell")
+            out[:, j] = _float_values(col)
+        yield out
 
 
 def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):
@@ -512,8 +475,8 @@ def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow
     Raises
     ------
     ValueError
-        An empty cell (unless ``allow_empty``), a line with other than ``ncol`` cells, a
-        cell of a read column that is not a number (the caller diagnoses them line by line).
+        An empty cell in a read column (unless ``allow_empty``); pyarrow's own errors for any other malformed
+        line (the caller diagnoses them line by line).
     """
     first = None
     n = 0
