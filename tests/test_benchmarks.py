@@ -187,6 +187,16 @@ def test_navigate_cost_script(tmp_path):
     assert r["total"] == pytest.approx(r["startup"] + r["reading"] + r["compute"] + r["rest"])
 
 
+def test_navigate_memory_script(tmp_path):
+    res = _load("navigate_memory").main(["--minutes", "0.75", "--rounds", "1", "--json", str(tmp_path / "m.json")])
+    r = res["this"]
+    assert [s["stage"] for s in r["stages"]] == ["interpreter", "numpy", "cli", "parse", "reading", "filter",
+                                                 "after filter", "tables", "figures", "report"]
+    assert r["peak"] >= max(s["rss"] for s in r["stages"]) > 0
+    assert r["stages"][5]["kernels"] > 0 and "numba" in r["imports"]
+    assert json.loads((tmp_path / "m.json").read_text())["this"]["peak"] == r["peak"]
+
+
 def test_workers_script():
     """benchmarks/workers.py: Dask's default worker environment and sinslab's give the same
     results (to the last bits: an allocator setting can move an array's alignment and with

@@ -913,13 +913,13 @@ def _lsq(X, y, k, p=0.01):
     the standard error that is significant: ``k``, or Student's t of the two-sided level
     ``p`` at the fit's degrees of freedom when larger (a σ from three windows is itself
     uncertain)."""
-    from scipy import stats
+    from scipy.special import stdtrit      # Student's t quantile, without scipy.stats' import
     n, m = X.shape
     c = np.linalg.lstsq(X, y, rcond=None)[0]
     if n <= m or np.linalg.matrix_rank(X) < m:
         return c, np.full(m, math.inf), math.inf
     s2 = float(np.sum((y - X @ c) ** 2)) / (n - m)
-    kt = max(k, float(stats.t.isf(p / 2, n - X.shape[1])))
+    kt = max(k, float(-stdtrit(n - X.shape[1], p / 2)))
     return c, np.sqrt(np.maximum(np.diag(np.linalg.inv(X.T @ X)) * s2, 0.0)), kt
 
 

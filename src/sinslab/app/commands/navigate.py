@@ -204,7 +204,6 @@ def _innovation_labels(m):
 
 
 def _compute(req: NavigateRequest, echo) -> Output:
-    from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.described import navigate_claims
     from sinslab.core import attitude as A
     from sinslab.core import earth as E         # numba and scipy: only when it runs
@@ -502,6 +501,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
                      "solution (antenna) minus fix at every fix time")]
     figures = []
     # figures
+    from sinslab.app import plotting            # matplotlib: once the run has computed
     lat0, lon0 = fx.lat[0], fx.lon[0]
     rm, rn = E.radii(lat0, fx.h[0])
     xe = (fx.lon - lon0) * rn * math.cos(lat0)

@@ -102,8 +102,8 @@ class InnovationGate:
     def limit(self, m):
         """χ² threshold for ``m`` rows."""
         if m not in self._limit:
-            from scipy.stats import chi2
-            self._limit[m] = float(chi2.isf(self.p, m))
+            from scipy.special import chdtri       # χ² quantile, without scipy.stats' import
+            self._limit[m] = float(chdtri(m, self.p))
         return self._limit[m]
 
     def passes(self, x, P, z, H, R, t):
