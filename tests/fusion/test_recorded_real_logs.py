@@ -118,8 +118,7 @@ def test_zupt_never_where_fixes_say_the_vehicle_moves(drive):
     """Steady 24 m/s on a smooth (simulated) road looks like rest to an IMU detector: the
     intervals it finds there are cut where the fixes show motion; inside an outage, where
     no fix can say so, the innovation gate rejects every zero-velocity update (the INS
-    knows it moves at 24 m/s), and the outage ends no worse than with fixes only (the
-    old detector applied ZUPT at 24 m/s: 674 m)."""
+    knows it moves at 24 m/s), and the outage ends no worse than with fixes only."""
     imu, fx4, _, tru, _ = drive
     outs = ((92.0, 25.0),)
     r0 = R.navigate_recorded(imu, fx4, _opt(outages=outs, kf_dt=0.1))
