@@ -31,7 +31,10 @@ document is updated. Numbers quoted from the full ``sinslab demo`` runs (minutes
 here) are checked the same way against :data:`RECORD`, the stored record of those runs that
 ``tools/quoted_runs.py`` writes from a demo folder; the record is checked to be of the
 experiments' current default configs, so a changed default fails here until the demo is
-re-run and the record refreshed.
+re-run and the record refreshed. Figures of ``benchmarks/`` scripts (speed above all, which
+no test can assert) are checked the same way against :data:`BENCH`, the stored record of
+each script's last run with its date and the machine's load, which
+``benchmarks/record.py NAME`` writes.
 """
 import hashlib
 import json
@@ -164,6 +167,12 @@ REFRESH = ("re-run the demo (`make demo`, or `sinslab demo --only NAME`) and ref
            "`.venv/bin/python tools/quoted_runs.py runs`, then update the numbers the docs quote")
 REFRESH_NAV = ("refresh the record of the navigate runs: `.venv/bin/python tools/quoted_runs.py --navigate` "
                "(minutes), then update the numbers the docs quote")
+#: the stored record of the benchmark runs the docs quote (``run`` ``"bench NAME"`` in QUOTED):
+#: speed cannot be asserted in a test, so its figures come from this record, which
+#: ``benchmarks/record.py NAME`` writes with the date, commit and load average of the run
+BENCH = ROOT / "docs" / "benchmarks.json"
+REFRESH_BENCH = ("re-run the benchmark and refresh its record: `.venv/bin/python benchmarks/record.py {}`, "
+                 "then update the figures the docs quote (and the date and load they state)")
 QUOTED = [
     ("raw-gnss.md", "461 of 461 epochs used, median 16 satellites, 7376 pseudoranges used and 0 rejected "
      "by the gate, 7373 range rates used and 3 rejected; 3439 observations without ephemeris", WALK,
@@ -230,6 +239,43 @@ QUOTED = [
                           "vehicle_mount_estimate_deg[2]", "vehicle_mount_sigma_deg[2]"], 0.0),
     ("recorded-data.md", "an NHC lever of (−0.07, −0.07, −0.65) ± (0.05, 0.01, 0.04) m", NAV + " --aid nhc",
      ["nhc_lever_estimate_m", "nhc_lever_sigma_m"], 0.0),
+    # docs/cli.md, the terminal's claim line, and what a consistent NIS is
+    ("cli.md", "`[FAIL] nis_not_overconfident: 89.5 (expected ≤ 12)` for the drive of docs/recorded-data.md with "
+     "a 1 s fix latency the filter ignores (a mean NIS of its 6-dimensional fixes far above the 6 a consistent "
+     "filter gives, beyond the claim's 2× band)", NAV + " --fix-latency 1 --lag ignore",
+     ["claims:failed=fix_residual,fix_residual_p99,nis_not_overconfident", "nis_mean", "=12", "=1", "=6", "=6",
+      "=2"], 0.0),
+    # docs/methods/smoother.md, benchmarks/smoother.py's figures (the stored record of its last run, BENCH)
+    ("smoother.md", "| figure (100 runs) | measured |", "bench smoother", ["monte_carlo.runs"], 0.0),
+    ("smoother.md", "| smoothed RMS error / smoothed σ, 15 states × 4 epochs (50 s with fixes, 130 s outage middle, "
+     "159.9 s outage end, 190 s) | 0.84 … 1.20, inside the χ²(100) band 0.71 … 1.31 (two-sided, overall level 1e-3, "
+     "Bonferroni over 60 checks) |", "bench smoother",
+     ["=15", "=4", "monte_carlo.check_times_s", "monte_carlo.smoothed_ratio_min", "monte_carlo.smoothed_ratio_max",
+      "monte_carlo.runs", "monte_carlo.band", "=1e-3", "monte_carlo.checks"], 0.0),
+    ("smoother.md", "| forward errors measured with the smoothed σ | up to 63 (outside the band", "bench smoother",
+     ["monte_carlo.forward_over_smoothed_sigma_max"], 0.0),
+    ("smoother.md", "| horizontal error, smoothed at the outage middle / forward at the outage end (RMS) | 0.65 m / "
+     "18.6 m = **0.035** (σ: 0.66 m / 19.6 m) |", "bench smoother",
+     ["monte_carlo.outage_mid_smoothed_hz_rms_m", "monte_carlo.outage_end_forward_hz_rms_m",
+      "monte_carlo.outage_ratio", "monte_carlo.outage_mid_smoothed_hz_sigma_m",
+      "monte_carlo.outage_end_forward_hz_sigma_m"], 0.0),
+    ("smoother.md", "Wheel odometer on the same drive (20 runs each;", "bench smoother", ["=20"], 0.0),
+    ("smoother.md", "outage-end horizontal error RMS 21.2 m without, **2.66 m** with the odometer (forward); the "
+     "smoothed outage-middle error is 0.68 m without and 0.71 m with it", "bench smoother",
+     ["odometer.gnss_only_outage_end_forward_hz_rms_m", "odometer.odometer_outage_end_forward_hz_rms_m",
+      "odometer.gnss_only_outage_mid_smoothed_hz_rms_m", "odometer.odometer_outage_mid_smoothed_hz_rms_m"], 0.0),
+    ("smoother.md", "recorded 2026-12-03 on the shared 2-core machine at load average 4.5–7.0): forward 0.40 s / "
+     "0.39 s (one compiled loop per block for model, Φ, Q_k and prediction); forward recording the history 0.76 s / "
+     "0.72 s (the recorder needs every Φ, so the driver takes its unfused path; it writes 149 MB); backward pass "
+     "and corrected solution 0.24 s / 0.24 s (**0.59** / 0.61 of the forward pass); forward with history + "
+     "backward = **2.46×** / 2.44× the plain forward pass, over the 2× target", "bench smoother",
+     ["date", "cpus", "load_min", "load_max", "speed.forward_s", "speed.forward_cpu_s",
+      "speed.forward_with_history_s", "speed.forward_with_history_cpu_s", "speed.history_MB", "speed.backward_s",
+      "speed.backward_cpu_s", "speed.backward_over_forward", "speed.backward_over_forward_cpu",
+      "speed.smoothed_total_over_forward", "speed.smoothed_total_over_forward_cpu", "=2"], 0.0),
+    ("smoother.md", "History: 36001 stored epochs. Horizontal position error after 300 s: forward RMS 1.17 m, "
+     "smoothed 0.49 m", "bench smoother",
+     ["speed.history_stored_epochs", "=300", "speed.forward_hz_err_rms_m", "speed.smoothed_hz_err_rms_m"], 0.0),
     # docs/methods/smoother.md, the recorded drive smoothed (the stored record of the navigate runs)
     ("smoother.md", "horizontal RMS error **0.19 m smoothed, 4.82 m forward**; at the fix nearest each outage's "
      "middle 0.14–0.37 m smoothed (median 0.21 m) against 0.34–4.24 m forward; outage-end errors 0.59–20.1 m "
@@ -682,6 +728,13 @@ def test_numbers_quoted_from_runs(name, quoted, run, keys, tol, tmp_path, monkey
         missing = [n for k in keys for n in quoted_names(k) if n not in values]
         assert not missing, f"{RECORD.name}: navigate run `{label}` lacks {missing}: {REFRESH_NAV}"
         raw = values.__getitem__
+    elif run.startswith("bench "):
+        bench = run.split()[1]
+        record = json.loads(BENCH.read_text(encoding="utf-8")).get("benchmarks", {})
+        assert bench in record, f"{BENCH.name} has no run of benchmarks/{bench}.py: {REFRESH_BENCH.format(bench)}"
+
+        def raw(k):
+            return bench_value(record[bench], k)
     else:
         key = " ".join(_substitute(shlex.split(run)))
         if key not in _SUMMARIES:               # not run by the test above (run alone)
@@ -697,6 +750,21 @@ def test_numbers_quoted_from_runs(name, quoted, run, keys, tol, tmp_path, monkey
     assert len(want) == len(got), (quoted, got)
     bad = [(w, g) for (w, r), g in zip(want, got) if abs(w - g) > tol + r + 1e-12]
     assert not bad, f"{name}: {quoted!r} against the run: {got} (tolerance {tol})"
+
+
+def bench_value(entry: dict, key: str):
+    """A value of a benchmark's record (:data:`BENCH`): ``date`` as [year, month, day], a
+    condition of the run (``load_min``, ``load_max``, ``cpus``, ...), or a figure by its
+    dotted path in the script's output (``speed.forward_s``)."""
+    if key == "date":
+        return [int(x) for x in entry["date"].split("-")]
+    if key in entry and key != "figures":
+        return entry[key]
+    v = entry["figures"]
+    for part in key.split("."):
+        assert isinstance(v, dict) and part in v, f"{BENCH.name}: no figure {key!r}: {REFRESH_BENCH.format('NAME')}"
+        v = v[part]
+    return v
 
 
 def record_label(run: str) -> str:
