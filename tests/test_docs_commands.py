@@ -55,6 +55,10 @@ ILLUSTRATIONS = {"acme.csv", "fixes.csv"}
 FULL_SCALE = {"static-alignment", "free-inertial"}
 #: summary.json of every run made here, by its (substituted) command line
 _SUMMARIES: dict[str, dict] = {}
+#: what each command run here printed (stdout, then stderr), by its (substituted) command line
+_OUTPUTS: dict[str, str] = {}
+#: a fenced block a document shows as the terminal output of the last command before it
+_OUTPUT_BLOCK = re.compile(r"<!-- output of the command above -->\s*```[a-z]*\n(.*?)```", re.S)
 _PLACEHOLDER = re.compile(r"(?<![\w./-])(?:[A-Z][A-Z_]{1,}(?:\.[a-z]+)?)(?![\w/-])|\.\.\.")
 _DATA_SUFFIX = (".imu", ".csv", ".pos", ".mat", ".parquet", ".ubx", ".zip", ".gz")
 #: recordings of the public ``onavdata`` package (a car drive of a commercial MEMS INS/GNSS
@@ -66,7 +70,11 @@ EXTERNAL = {"n380-imu-nav.csv.zip", "n380-gnss-pvt.csv.zip", "accel_data.txt.zip
 
 def _commands(path: Path):
     """``[(command line, expected error line or None)]`` shown in one document."""
-    text = path.read_text(encoding="utf-8")
+    return _commands_in(path.read_text(encoding="utf-8"))
+
+
+def _commands_in(text: str):
+    """:func:`_commands` of a document's text."""
     found = []
     for m in re.finditer(r"```[a-z]*\n(.*?)```", text, re.S):
         lines = re.sub(r"\\\n\s*", " ", m.group(1)).splitlines()
@@ -147,6 +155,8 @@ WALK = ('navigate --imu imu_1730.csv --format rtklib-imu --mount "rpy:180,0,-90"
 OUTAGES = ["outage_end_hz_err_median_m", "outage_end_hz_err_max_m"]
 #: paper 001 with INS #1's noise white (not de-meaned over 5 min): a full run, no demo run
 WHITE = "full rotation-evaluation --set 'imu1.noise_block=0 s'"
+#: docs/methods/000.md's laser-gyro record aligned, as the page shows it
+ALIGN = "align --imu lasergyro.imu"
 TA = ("transfer-align --slave psins-transfer/transfer_align_fog_mems.mat "
       "--master psins-transfer/transfer_align_fog_mems.mat")
 #: docs/methods/002.md's recorded-data run: every form, the whole record and 0–60 s
@@ -423,6 +433,25 @@ QUOTED = [
      0.0),
     ("000.md", "~0.8 vs ~1.0 µs per step in the compiled loop", "demo static-alignment",
      ["time_per_step_us_reduced", "time_per_step_us_full"], 0.3),      # a time: the machine's load
+    ("000.md", "0.001 °/h/√Hz: `--set imu.gyro_arw=\"0.001 deg/h/sqrt(Hz)\"`, σ(εU) 0.0012 °/h at 60 min",
+     "run static-alignment --set 'scenario.duration=60 min' --set 'imu.gyro_arw=0.001 deg/h/sqrt(Hz)'",
+     ["=0.001", "=0.001", "final_sigma_epsU_dph_reduced", "=60"], 0.0),
+    # docs/methods/000.md, the PSINS laser-gyro record aligned (the command the page shows)
+    ("000.md", "1847 s at 100 Hz", ALIGN, ["duration_s", "=100"], 0.0),
+    ("000.md", "force has a magnitude of 9.79548 m/s², within 5 µg of the local normal gravity (9.79553 m/s²) "
+     "once the counts are scaled with the header's g; its horizontal part is a 0.93° pitch / 0.36° roll tilt — but "
+     "the 1-s means vary by 16 mm/s² RMS", ALIGN,
+     ["f_norm_mps2", "=5", "gravity_mps2", "coarse_pitch_deg", "coarse_roll_deg", "=1",
+      "1000*f_var_rms_mps2"], 0.0),
+    ("000.md", "The mean angular rate is 0.9875 ω_ie", ALIGN, ["w_norm_over_wie"], 0.0),
+    ("000.md", "its heading is 88.6° on the whole record", ALIGN, ["coarse_heading_deg"], 0.0),
+    ("000.md", "(R from the computed-frame specific force, 245–306 µg at 1 s) and agree: pitch 1.0025°, roll 0.387°, "
+     "heading 90.606° (σ 0.09′, 0.11′, 4.1′ from the filter)", ALIGN,
+     ["min(meas_noise_ug)", "max(meas_noise_ug)", "=1", "fine_pitch_deg", "fine_roll_deg", "fine_heading_deg",
+      "fine_sigma_pitch_arcmin", "fine_sigma_roll_arcmin", "fine_sigma_heading_arcmin"], 0.0),
+    ("000.md", "(1σ 0.01 °/h gyro drift, 100 µg accel bias per axis) they predict 0.34′ in pitch and roll and 2.8′ "
+     "in heading", ALIGN, ["=1", "=0.01", "=100", "max(limit_pitch_arcmin,limit_roll_arcmin)", "limit_heading_arcmin"],
+     0.0),
     ("000.md", "σ(εU) is still 0.0085 °/h after 60 min", "demo static-alignment-60min",
      ["final_sigma_epsU_dph_reduced", "=60"], 0.0),
     # docs/methods/001.md, the degree of observability, its results table and the eq 20 note
@@ -674,6 +703,7 @@ def _run_doc(doc: Path, tmp_path, monkeypatch, commands=None):
             continue
         before = set(Path("runs").glob("*")) if Path("runs").is_dir() else set()
         r = runner.invoke(app, ["-q", *argv])
+        _OUTPUTS[key] = r.stdout + r.stderr
         if err is not None:
             assert r.exit_code == 2 and r.stderr.strip() == err, (doc.name, cmd, r.stderr)
             continue
@@ -692,6 +722,31 @@ def test_every_command_in_the_docs_runs(doc, tmp_path, monkeypatch):
     if not DATA.is_dir():
         pytest.skip("shared data folder not available")
     _run_doc(doc, tmp_path, monkeypatch)
+
+
+def test_shown_output_is_what_the_command_prints(tmp_path, monkeypatch):
+    """A terminal output a document shows (a fenced block after ``<!-- output of the command
+    above -->``) is what the last command before it prints today, line by line (spacing
+    aside; a data file's folder may be shown as ``...``): its numbers cannot go stale."""
+    if not DATA.is_dir():
+        pytest.skip("shared data folder not available")
+    shown = 0
+    for doc in DOCS:
+        text = doc.read_text(encoding="utf-8")
+        for m in _OUTPUT_BLOCK.finditer(text):
+            cmds = _commands_in(text[:m.start()])
+            assert cmds, f"{doc.name}: an output block with no command before it"
+            cmd = cmds[-1][0]
+            key = " ".join(_substitute(shlex.split(cmd)[1:]))
+            if key not in _OUTPUTS:                 # run alone: make the run
+                _run_doc(doc, tmp_path, monkeypatch, commands=[(cmd, None)])
+            printed = {" ".join(re.sub(r"\S*/(?=[\w.-]+\.\w+\b)", ".../", ln).split())
+                       for ln in _OUTPUTS[key].splitlines()}
+            lines = [" ".join(ln.split()) for ln in m.group(1).splitlines() if ln.strip()]
+            missing = [ln for ln in lines if ln not in printed]
+            assert not missing, f"{doc.name}: `{cmd}` no longer prints {missing}; it prints:\n{_OUTPUTS[key]}"
+            shown += 1
+    assert shown >= 1
 
 
 def test_every_help_example_runs(tmp_path, monkeypatch):
@@ -753,18 +808,24 @@ def test_numbers_quoted_from_runs(name, quoted, run, keys, tol, tmp_path, monkey
 
 
 def bench_value(entry: dict, key: str):
-    """A value of a benchmark's record (:data:`BENCH`): ``date`` as [year, month, day], a
-    condition of the run (``load_min``, ``load_max``, ``cpus``, ...), or a figure by its
-    dotted path in the script's output (``speed.forward_s``)."""
+    """A value of a benchmark's record (:data:`BENCH`): ``date`` (of its last run) as
+    [year, month, day], ``runs`` (how many runs it holds), a condition of the run
+    (``load_min``, ``load_max``, ``cpus``, ...) or a figure by its dotted path in the script's
+    output (``speed.forward_s``): one value for one run, the list over the runs for several
+    (quote ``min(K)``–``max(K)``)."""
+    runs = entry["runs"]
     if key == "date":
-        return [int(x) for x in entry["date"].split("-")]
-    if key in entry and key != "figures":
-        return entry[key]
-    v = entry["figures"]
-    for part in key.split("."):
-        assert isinstance(v, dict) and part in v, f"{BENCH.name}: no figure {key!r}: {REFRESH_BENCH.format('NAME')}"
-        v = v[part]
-    return v
+        return [int(x) for x in runs[-1]["date"].split("-")]
+    if key == "runs":
+        return len(runs)
+    got = []
+    for run in runs:
+        v = run if key in run and key != "figures" else run["figures"]
+        for part in ([key] if v is run else key.split(".")):
+            assert isinstance(v, dict) and part in v, f"{BENCH.name}: no figure {key!r}: {REFRESH_BENCH}"
+            v = v[part]
+        got.append(v)
+    return got[0] if len(got) == 1 else got
 
 
 def record_label(run: str) -> str:
