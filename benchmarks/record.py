@@ -1,8 +1,8 @@
 """Run one benchmark script and store its figures in ``docs/benchmarks.json``, the record the
 docs quote speed and benchmark figures from.
 
-Run: ``.venv/bin/python benchmarks/record.py NAME [ARGS...]`` (``NAME`` a script of this
-folder without ``.py``: ``smoother``, ``speed``, ...; ``ARGS`` passed on to it).
+Run: ``.venv/bin/python benchmarks/record.py [--again] NAME [ARGS...]`` (``NAME`` a script
+of this folder without ``.py``: ``smoother``, ``speed``, ...; ``ARGS`` passed on to it).
 
 A test cannot time anything (``make test`` never does), so the figures README.md and docs/
 quote from ``benchmarks/`` come from this record instead: the script runs in a subprocess
@@ -11,8 +11,10 @@ with the date (UTC), the commit and whether the tree had changes, the machine's 
 and its 1-minute load average before, during (sampled every 5 s: min, max) and after the
 run. ``tests/test_docs_commands.py`` checks every figure the docs quote from a benchmark
 (``bench NAME`` entries of its ``QUOTED`` table) against this record, so a re-run that moves
-a figure fails there until the docs are updated. Only the newest run of each script is kept;
-the other scripts' entries are left as they are. The record is written to a temporary name
+a figure fails there until the docs are updated. A run replaces the script's earlier runs;
+with ``--again`` it is added to those made at the same commit with the same arguments (the
+spread of repeated runs on a busy machine: the docs quote its range). The other scripts'
+entries are left as they are. The record is written to a temporary name
 and renamed: an interrupted run leaves the previous record whole.
 """
 from __future__ import annotations
@@ -79,13 +81,16 @@ def run(name: str, args: list[str]) -> dict:
     }
 
 
-def store(name: str, entry: dict) -> None:
-    """Put ``entry`` under ``name`` in the record, keeping the other scripts' entries."""
+def store(name: str, entry: dict, again: bool = False) -> None:
+    """Put the run ``entry`` under ``name`` in the record (after the earlier runs of the same
+    commit and arguments with ``again``, else alone), keeping the other scripts' entries."""
     rec = json.loads(RECORD.read_text(encoding="utf-8")) if RECORD.is_file() else {}
+    old = rec.get("benchmarks", {}).get(name, {}).get("runs", []) if again else []
+    old = [r for r in old if (r["commit"], r["args"]) == (entry["commit"], entry["args"])]
     rec["about"] = ("figures of benchmarks/ scripts that README.md and docs/ quote, each with the date, commit, "
                     "CPU count and load average of its run; written by benchmarks/record.py, checked by "
                     "tests/test_docs_commands.py")
-    rec.setdefault("benchmarks", {})[name] = entry
+    rec.setdefault("benchmarks", {})[name] = {"runs": [*old, entry]}
     rec["benchmarks"] = dict(sorted(rec["benchmarks"].items()))
     tmp = RECORD.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(rec, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
@@ -93,10 +98,12 @@ def store(name: str, entry: dict) -> None:
 
 
 def main(argv: list[str]) -> None:
+    again = argv[:1] == ["--again"]
+    argv = argv[1:] if again else argv
     if not argv or argv[0].startswith("-"):
-        sys.exit("usage: benchmarks/record.py NAME [ARGS...]")
+        sys.exit("usage: benchmarks/record.py [--again] NAME [ARGS...]")
     name = argv[0].removesuffix(".py").split("/")[-1]
-    store(name, run(name, argv[1:]))
+    store(name, run(name, argv[1:]), again)
     print(RECORD)
 
 

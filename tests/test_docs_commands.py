@@ -41,6 +41,7 @@ import json
 import math
 import re
 import shlex
+import statistics
 from pathlib import Path
 
 import pytest
@@ -155,6 +156,9 @@ WALK = ('navigate --imu imu_1730.csv --format rtklib-imu --mount "rpy:180,0,-90"
 OUTAGES = ["outage_end_hz_err_median_m", "outage_end_hz_err_max_m"]
 #: paper 001 with INS #1's noise white (not de-meaned over 5 min): a full run, no demo run
 WHITE = "full rotation-evaluation --set 'imu1.noise_block=0 s'"
+#: the experiments whose ``config NAME`` start-up benchmarks/startup.py times
+STARTUP_CONFIGS = ("double-star", "free-inertial", "rotation-evaluation", "schuler-suppression", "static-alignment",
+                   "transfer-alignment")
 #: docs/methods/000.md's laser-gyro record aligned, as the page shows it
 ALIGN = "align --imu lasergyro.imu"
 TA = ("transfer-align --slave psins-transfer/transfer_align_fog_mems.mat "
@@ -255,6 +259,60 @@ QUOTED = [
      "filter gives, beyond the claim's 2× band)", NAV + " --fix-latency 1 --lag ignore",
      ["claims:failed=fix_residual,fix_residual_p99,nis_not_overconfident", "nis_mean", "=12", "=1", "=6", "=6",
       "=2"], 0.0),
+    # README.md's speed table: the rows of the scripts with a stored record (BENCH)
+    ("README.md", "| mechanization (`strapdown.step`, 2 subsamples) (`benchmarks/speed.py`) | 11–19 M samples/s, "
+     "**0.67–0.83** of the reference | ≥ 0.5 |", "bench speed",
+     ["=2", "min(step_samples_per_s)/1e6", "max(step_samples_per_s)/1e6", "min(mechanization_ratio)",
+      "max(mechanization_ratio)", "max(targets.mechanization_ratio)"], 0.0),
+    ("README.md", "| 48 h at 50 Hz navigated (full output / 1 Hz output) (`benchmarks/speed.py`) | 0.72–3.38 s / "
+     "0.48–0.91 s | < 5 s |", "bench speed",
+     ["max(long_run_hours)", "=50", "=1", "min(long_run_48h_50hz_s)", "max(long_run_48h_50hz_s)",
+      "min(long_run_1hz_output_s)", "max(long_run_1hz_output_s)", "max(targets.long_run_48h_50hz_s)"], 0.0),
+    ("README.md", "| `trajectory.generate` (aircraft manoeuvres) (`benchmarks/speed.py`) | 7.3–13.8 M samples/s, "
+     "0.41–0.53 |", "bench speed",
+     ["min(generate_samples_per_s)/1e6", "max(generate_samples_per_s)/1e6", "min(generate_ratio)",
+      "max(generate_ratio)"], 0.0),
+    ("README.md", "| `imu.apply` (bias, ARW, VRW) (`benchmarks/speed.py`) | 16–24 M samples/s, 0.73–1.40 |",
+     "bench speed", ["min(apply_samples_per_s)/1e6", "max(apply_samples_per_s)/1e6", "min(apply_ratio)",
+                     "max(apply_ratio)"], 0.0),
+    ("README.md", "| synthesis, generate + apply (`benchmarks/speed.py`) | 5.9–9.2 M samples/s, **0.28–0.42**, median "
+     "0.37 (3 runs; one below the target) | ≥ 0.3 |", "bench speed",
+     ["min(synthesis_samples_per_s)/1e6", "max(synthesis_samples_per_s)/1e6", "min(synthesis_ratio)",
+      "max(synthesis_ratio)", "median(synthesis_ratio)", "record_runs", "max(targets.synthesis_ratio)"], 0.0),
+    ("README.md", "| `sinslab list` / `--help` / `config NAME` (`benchmarks/startup.py`) | 0.34 / 0.23 / 0.38–0.51 s "
+     "(medians of 9; `config rotation-evaluation` over the target) | ≤ 0.5 s |", "bench startup",
+     ["commands.list.median_s", "commands.--help.median_s",
+      "min(" + ",".join(f"commands.config {e}.median_s" for e in STARTUP_CONFIGS) + ")",
+      "max(" + ",".join(f"commands.config {e}.median_s" for e in STARTUP_CONFIGS) + ")", "repeat", "target_s"],
+     0.0),
+    ("README.md", "| 21-state covariance propagation (compiled loop) (`benchmarks/estimation.py`) | 402 k steps/s (2.9× a "
+     "numpy loop) | ≥ 50 k |", "bench estimation", ["=21", "cov21_steps_per_s/1e3", "cov21_ratio_to_numpy", "=50"], 0.0),
+    ("README.md", "| loosely coupled INS + fixes, 1 h of 200 Hz IMU, 1 Hz fixes, P at 10 Hz (`benchmarks/estimation.py`) | "
+     "1.00 s (0.49 s CPU) | < 5 s |", "bench estimation",
+     ["lc_duration_s/3600", "lc_imu_samples/3600", "lc_fixes/3600", "=10", "lc_elapsed_s", "lc_cpu_s", "=5"], 0.0),
+    ("README.md", "| 185 k epochs per CPU second, 3.2× the numpy model evaluation, equal to 9e-12 | ≥ 100 k |",
+     "bench estimation", ["full_rate21_epochs_per_cpu_s/1e3", "full_rate21_ratio", "full_rate21_max_rel_diff", "=100"],
+     0.0),
+    ("README.md", "| paper 004 full 48 h ship run (synthesis, two alignments, two solutions, analysis) "
+     "(`benchmarks/schuler.py`) | 21.0 s wall, 8.4 s CPU (synthesis 4.4 s / 2.2 s) | < 30 s |", "bench schuler",
+     ["=4", "hours_after_t2", "total_wall_s", "total_cpu_s", "stages.synthesis.wall_s", "stages.synthesis.cpu_s",
+      "target_s"], 0.0),
+    ("README.md", "| paper 002 Monte Carlo, 1000 runs of one method (`benchmarks/transfer.py`) | 48.3 s wall on the local "
+     "cluster (the campaign 36.0 s after the cluster's 8.0 s start), 0.59 s CPU per 100 runs; 200 runs × 4 forms × 2 "
+     "installations with mechanised slave INS 8.3 s CPU, 3.0× the linear model | < 60 s |", "bench transfer",
+     ["=2", "wide_runs", "wide_wall_s", "wide_campaign_wall_s", "wide_cluster_start_s",
+      "wide_cpu_per_100_runs_s", "=100", "runs", "forms", "installations", "strapdown_cpu_s", "strapdown_over_linear",
+      "target_cpu_s"], 0.0),
+    ("README.md", "| writing a run folder (quick runs of every experiment) (`benchmarks/run_folder.py`) | writing 2.8–13.8 s "
+     "at load average 8.2–11.6: over the budget for free-inertial, schuler-suppression, static-alignment and "
+     "transfer-alignment in this run; figures drawn 2.4–3.8× faster than by the previous writer | ≤ 1 s + 20 % |",
+     "bench run_folder", ["min(" + ",".join(f"{i}.writing_s" for i in range(6)) + ")",
+                          "max(" + ",".join(f"{i}.writing_s" for i in range(6)) + ")", "load_min", "load_max",
+                          "min(" + ",".join(f"{i}.figure_speedup" for i in range(6)) + ")",
+                          "max(" + ",".join(f"{i}.figure_speedup" for i in range(6)) + ")", "=1", "=20"], 0.0),
+    ("README.md", "`docs/benchmarks.json` (made 2026-12-03; ranges are over the runs it holds; the load average during "
+     "the runs: 2.3–3.4 for `speed.py`,", "bench speed", ["date", "min(load_min)", "max(load_max)"], 0.0),
+    ("README.md", "6.0–10.7 for `transfer.py`)", "bench transfer", ["load_min", "load_max"], 0.0),
     # docs/methods/smoother.md, benchmarks/smoother.py's figures (the stored record of its last run, BENCH)
     ("smoother.md", "| figure (100 runs) | measured |", "bench smoother", ["monte_carlo.runs"], 0.0),
     ("smoother.md", "| smoothed RMS error / smoothed σ, 15 states × 4 epochs (50 s with fixes, 130 s outage middle, "
@@ -618,12 +676,13 @@ def summary_value(summary: dict, key: str):
 
 
 #: one key of QUOTED: ``=X`` (a number the text shows that is not a result, such as a
-#: confidence level), ``min(K,...)``/``max(K,...)``, ``zmax(EST,REF,SIG)`` (the largest
+#: confidence level), ``K/N`` (in other units: ``K/1e6`` millions), ``min(K,...)``/``max(K,...)``/``median(K,...)``, ``zmax(EST,REF,SIG)`` (the largest
 #: ``|EST − REF| / SIG`` over the components), ``100*K`` (a percentage; any integer
 #: factor: ``1000*K`` ms from s), ``K[i]`` (one element; of a dict metric, its i-th value),
 #: ``K-L`` / ``K+L`` / ``K*L`` (a difference, sum or product of two names), ``claims:failed=ID,...`` (exactly these claims fail, none after the
 #: ``=``: the text's "pass"/"fail"; no number), else a name :func:`summary_value` knows
-_KEY = re.compile(r"(?P<lit>=.+)|(?P<fn>min|max|zmax)\((?P<args>.+)\)|(?P<k>\d+)\*(?P<pct>.+)"
+_KEY = re.compile(r"(?P<lit>=.+)|(?P<num>.+)/(?P<den>[\d.e]+)|(?P<fn>min|max|median|zmax)\((?P<args>.+)\)"
+                  r"|(?P<k>\d+)\*(?P<pct>.+)"
                   r"|(?P<el>.+)\[(?P<i>-?\d+)\]|(?P<a>[\w:]+)(?P<op>[-+*])(?P<b>[\w:]+)")
 
 
@@ -641,12 +700,14 @@ def quoted_value(key: str, raw) -> list[float]:
         return [math.nan if x is None else float(x) for x in v]
     if m["lit"]:
         return [float(m["lit"][1:])]
+    if m["num"]:                               # in other units: M samples/s from samples/s
+        return [x / float(m["den"]) for x in quoted_value(m["num"], raw)]
     if m["fn"] == "zmax":                      # the worst |estimate − reference| / σ
         est, ref, sig = (quoted_value(k.strip(), raw) for k in m["args"].split(","))
         return [max(abs(a - b) / c for a, b, c in zip(est, ref, sig, strict=True))]
     if m["fn"]:
         vals = [x for k in m["args"].split(",") for x in quoted_value(k.strip(), raw)]
-        return [min(vals) if m["fn"] == "min" else max(vals)]
+        return [min(vals) if m["fn"] == "min" else max(vals) if m["fn"] == "max" else statistics.median(vals)]
     if m["pct"]:
         return [float(m["k"]) * x for x in quoted_value(m["pct"], raw)]
     if m["a"]:
@@ -668,6 +729,8 @@ def quoted_names(key: str) -> list[str]:
         return [key]
     if m["lit"]:
         return []
+    if m["num"]:
+        return quoted_names(m["num"])
     inner = ([k.strip() for k in m["args"].split(",")] if m["fn"] else [m["a"], m["b"]] if m["a"]
              else [m["pct"] or m["el"]])
     return [n for k in inner for n in quoted_names(k)]
@@ -809,20 +872,23 @@ def test_numbers_quoted_from_runs(name, quoted, run, keys, tol, tmp_path, monkey
 
 def bench_value(entry: dict, key: str):
     """A value of a benchmark's record (:data:`BENCH`): ``date`` (of its last run) as
-    [year, month, day], ``runs`` (how many runs it holds), a condition of the run
+    [year, month, day], ``record_runs`` (how many runs it holds), a condition of the run
     (``load_min``, ``load_max``, ``cpus``, ...) or a figure by its dotted path in the script's
-    output (``speed.forward_s``): one value for one run, the list over the runs for several
+    output (``speed.forward_s``; ``0.writing_s``: of the first row of a list): one value for one run, the list over the runs for several
     (quote ``min(K)``–``max(K)``)."""
     runs = entry["runs"]
     if key == "date":
         return [int(x) for x in runs[-1]["date"].split("-")]
-    if key == "runs":
+    if key == "record_runs":
         return len(runs)
     got = []
     for run in runs:
         v = run if key in run and key != "figures" else run["figures"]
         for part in ([key] if v is run else key.split(".")):
-            assert isinstance(v, dict) and part in v, f"{BENCH.name}: no figure {key!r}: {REFRESH_BENCH}"
+            if isinstance(v, list) and part.isdigit():      # a list of rows: the i-th
+                part = int(part)
+            assert part in (v if isinstance(v, dict) else range(len(v)) if isinstance(v, list) else ()), (
+                f"{BENCH.name}: no figure {key!r}: {REFRESH_BENCH}")
             v = v[part]
         got.append(v)
     return got[0] if len(got) == 1 else got
