@@ -620,6 +620,30 @@ QUOTED = [
      "**no (5.11–5.18)** |", "demo transfer-alignment",
      [f"{fn}({','.join(f'rms_over_sigma_{f}_small_by_master_error[{i}]' for f in ('euler', 'dcm', 'kain', 'optimal'))})"
       for i in range(5) for fn in ("min", "max")], 0.0),
+    ("002.md", "(large: worst RMS/σ 1.22 euler, 1.30 dcm, 1.19 kain", "demo transfer-alignment",
+     [f"max(rms_over_sigma_{f}_comp_large)" for f in ("euler", "dcm", "kain")], 0.0),
+    ("002.md", "estimate ends 2.3′ off in x at σ 0.22′ (10σ)", "demo transfer-alignment",
+     ["misalign_rms_end_arcmin_euler_large[0]", "misalign_sigma_end_arcmin_euler_large[0]",
+      "rms_over_sigma_euler_large[0]"], 0.0),
+    ("002.md", "The Euler and DCM forms \"fail\" at 4–7σ only", "demo transfer-alignment",
+     [f"{fn}({','.join(f'rms_over_sigma_rotvec_{f}_small[{i}]' for f in ('euler', 'dcm') for i in (0, 2))})"
+      for fn in ("min", "max")], 0.0),
+    ("002.md", "0.10, 0.01, 0.17′ RMS for the optimal form, 0.4–0.9′ for the uncompensated forms on the small "
+     "installation", "demo transfer-alignment",
+     ["linear_minus_strapdown_rms_arcmin_optimal_small",
+      "min(linear_minus_strapdown_rms_arcmin_euler_small,linear_minus_strapdown_rms_arcmin_dcm_small)",
+      "max(linear_minus_strapdown_rms_arcmin_euler_small,linear_minus_strapdown_rms_arcmin_dcm_small)"], 0.0),
+    ("002.md", "`benchmarks/transfer.py` (its last run in the record `docs/benchmarks.json`, 2026-12-03, on the 2-core "
+     "machine shared with other jobs at load average 6.0–10.7, so wall times are inflated): 200 runs × 4 forms × 2 "
+     "installations with the mechanised closed-loop slave (1600 slave INS, 60 s at 100 Hz, 600 updates each) take "
+     "8.3 s of CPU (target < 60 s), 3.0× the linear model of the same runs (2.7 s); 1000 runs of one form take "
+     "48.3 s wall on the local Dask cluster (8.0 s of it starting the cluster; target < 60 s), 0.59 s of CPU per "
+     "100 runs. The lane-stacked mechanization runs at 13.6 M samples/s, 9.5× one `strapdown.step` call per lane "
+     "and filter step, against 14.4 M/s for one call per lane", "bench transfer",
+     ["date", "cpus", "load_min", "load_max", "runs", "forms", "installations", "slave_ins", "=60", "=100", "steps",
+      "strapdown_cpu_s", "target_cpu_s", "strapdown_over_linear", "linear_cpu_s", "wide_runs", "wide_wall_s",
+      "wide_cluster_start_s", "=60", "wide_cpu_per_100_runs_s", "=100", "lanes_samples_per_s/1e6", "lanes_speedup",
+      "whole_record_per_lane_samples_per_s/1e6"], 0.0),
     # docs/methods/003.md and 004.md, their claim tables
     ("003.md", "σ_ns / σ_ew = 41.4 / 31.1 m as printed and 70.6 / 30.1 m with the derived factor; "
      "`fix_error_linearised`, the exact first-order solution on WGS-84 without `r_i ≈ r_s`, gives 69.3 / 26.8 m",
