@@ -313,6 +313,15 @@ QUOTED = [
                           "max(" + ",".join(f"{i}.writing_s" for i in range(6)) + ")", "load_min", "load_max",
                           "min(" + ",".join(f"{i}.figure_speedup" for i in range(6)) + ")",
                           "max(" + ",".join(f"{i}.figure_speedup" for i in range(6)) + ")", "=1", "=20"], 0.0),
+    ("README.md", "| worker CPU 8.30 → 9.00 s with `MALLOC_MMAP_THRESHOLD_` beside Dask's `MALLOC_TRIM_THRESHOLD_` (no gain "
+     "in this run, at load average 9.2–16.6), same bytes |", "bench workers",
+     ["default_worker_cpu_s", "sinslab_worker_cpu_s", "load_min", "load_max"], 0.0),
+    ("README.md", "| Monte Carlo task, runs stacked against one at a time (double-star, free-inertial; same bytes) "
+     "(`benchmarks/campaigns.py`) | 1.12×, 1.04×; double-star's filters over 8 runs in lockstep on the driver's run "
+     "axis against one run per driver call: 1.03× (81.8 vs 84.7 ms of CPU per run), at load average 9.0–10.9 |",
+     "bench campaigns", ["double-star.speedup", "free-inertial.speedup", "double-star lockstep.lanes",
+                         "double-star lockstep.speedup", "1000*double-star lockstep.cpu_per_run_lockstep_s",
+                         "1000*double-star lockstep.cpu_per_run_one_per_call_s", "load_min", "load_max"], 0.0),
     ("README.md", "`docs/benchmarks.json` (made 2026-12-03; ranges are over the runs it holds; the load average during "
      "the runs: 2.3–3.4 for `speed.py`,", "bench speed", ["date", "min(load_min)", "max(load_max)"], 0.0),
     ("README.md", "6.0–10.7 for `transfer.py`)", "bench transfer", ["load_min", "load_max"], 0.0),
