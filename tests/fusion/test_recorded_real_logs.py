@@ -594,6 +594,13 @@ def test_n380_car_drive_as_shipped():
     assert 1.0 < abs(math.degrees(r1.init["vehicle_mount_estimate"][2])) < 4.0
     doc = "docs/recorded-data.md"
     assert_doc_quotes(doc, "| fixes only | 21.1, 20.5, 3.83, 11.5 | 16.0 m |", [*e0, np.median(e0)])
+    assert_doc_quotes(doc, "the same: offset −168 ± 68 ms and −95 ± 191 ppm not significant (4.6σ needed)",
+                      [1e3 * sync["offset_estimate"], 1e3 * sync["offset_sigma"], sync["ppm_estimate"], sync["ppm_sigma"],
+                       sync["threshold_sigmas"]])
+    r2 = R.navigate_recorded(imu, fx, _opt(outages=outs, nhc_sigma=(0.1, 0.1)))
+    e2 = R.outage_end_errors(r2, fx)[1]
+    assert_doc_quotes(doc, "| NHC, mount and lever unknown, not estimated | 8.28, 24.8, 4.15, 32.0 |", e2)
+    assert_doc_quotes(doc, "the outages end 8.3, 24.8, 4.2, 32.0 m off", e2)
     assert_doc_quotes(doc, "| `--aid nhc` (mount and lever estimated) | **4.41, 11.1, 0.43, 8.37** | **6.39 m** |",
                       [*e1, np.median(e1)])
     m, ms = np.degrees(r1.init["vehicle_mount_estimate"]), np.degrees(r1.init["vehicle_mount_sigma"][0])
