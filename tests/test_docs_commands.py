@@ -200,6 +200,9 @@ QUOTED = [
     ("recorded-data.md", "pitch 0.15°, roll −0.28°, heading 61.70° (σ 0.23°)", DRIVE,
      ["final_pitch_deg", "final_roll_deg", "final_heading_deg", "final_sigma_heading_deg"], 0.0),
     ("recorded-data.md", "accelerometer bias [2162, 7692, 13470] µg", DRIVE, ["accel_bias_final_ug"], 0.0),
+    ("recorded-data.md", "in the parked car with the engine on: 0.01–0.22 °/√s per gyro axis, 867–1311 µg/√Hz", DRIVE,
+     ["min(rest_gyro_noise_deg_sqrth)/60", "max(rest_gyro_noise_deg_sqrth)/60", "min(rest_accel_noise_ug_sqrthz)",
+      "max(rest_accel_noise_ug_sqrthz)"], 0.0),
     ("recorded-data.md", "gyro bias [−252, 96, 591] °/h", DRIVE, ["gyro_bias_final_dph"], 0.0),
     ("recorded-data.md", "NIS 1.77 of 6", DRIVE, ["nis_mean", "nis_dof"], 0.0),
     ("recorded-data.md", "offset 78.9 ± 13.5 ms applied (9 windows, threshold 3.4σ), drift 145 ± 74 ppm not "
