@@ -707,6 +707,11 @@ QUOTED = [
       "strapdown_cpu_s", "target_cpu_s", "strapdown_over_linear", "linear_cpu_s", "wide_runs", "wide_wall_s",
       "wide_cluster_start_s", "=60", "wide_cpu_per_100_runs_s", "=100", "lanes_samples_per_s/1e6", "lanes_speedup",
       "whole_record_per_lane_samples_per_s/1e6"], 0.0),
+    ("002.md", "agrees with central differences of its exact z to 8e-10 relative", "demo transfer-alignment",
+     ["h_fd_max_rel_err"], 0.0),
+    ("002.md", "`dcm_phiU_H_norm_c22zero` = 2e-16, rank of H over [φ, λ] 2", "demo transfer-alignment",
+     ["=22", "dcm_phiU_H_norm_c22zero", "dcm_H_rank_c22zero"], 0.0),
+    ("001.md", "1.052 over 20 seeds (mean)", WHITE, ["eq20_ratio_mean", "=20"], 0.0),
     # docs/methods/003.md and 004.md, their claim tables
     ("003.md", "σ_ns / σ_ew = 41.4 / 31.1 m as printed and 70.6 / 30.1 m with the derived factor; "
      "`fix_error_linearised`, the exact first-order solution on WGS-84 without `r_i ≈ r_s`, gives 69.3 / 26.8 m",
