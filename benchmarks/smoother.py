@@ -1,6 +1,8 @@
 """RTS smoothing of fusion-driver runs: consistency, outages, odometer, speed.
 
-Run: ``.venv/bin/python benchmarks/smoother.py [--quick] [--runs N] [--out FILE]``
+Run: ``.venv/bin/python benchmarks/smoother.py [--quick] [--runs N] [--out FILE]``;
+``.venv/bin/python benchmarks/record.py smoother`` runs it and stores its figures in
+``docs/benchmarks.json``, the record docs/methods/smoother.md quotes them from.
 
 1. Monte Carlo on a simulated car drive (``drive_run``): 201 s, 1 Hz position (1, 1, 2 m)
    and velocity (0.05 m/s) fixes with their noise, a 60 s GNSS outage (100–160 s), every

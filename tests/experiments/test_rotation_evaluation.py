@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support import run_experiment
+from support import assert_doc_quotes, run_experiment
 
 from sinslab.app.config import ConfigError, resolve
 from sinslab.data.noise import load_recorded_gyro
@@ -137,6 +137,9 @@ def test_settling_does_not_depend_on_the_run_length():
         assert math.isfinite(a) and math.isfinite(b), k
         assert abs(a - b) <= 0.1 * max(a, b), (k, a, b)
         assert 8 < a < 48, (k, a)
+    for h in (48, 144):
+        assert_doc_quotes("docs/methods/001.md", "every 30 s — the settling takes hours, the grid moves it by minutes): "
+                          "16.0 h and 15.5 h for both lengths", [30, out[h]["settle_sigma_h"], out[h]["settle_band_h"]])
 
 
 def test_recorded_constant_record_is_a_gyro_bias(tmp_path):

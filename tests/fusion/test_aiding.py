@@ -20,6 +20,7 @@ from sinslab.fusion.measurements import (BodyVelocity, Epoch, Grid, LeverPositio
                                          ZeroRate, ZeroVelocity, vehicle_from_body)
 from sinslab.fusion.spec import FilterGrid
 from sinslab.nav import errstate as es
+from support import assert_doc_quotes
 
 W = np.array([0.01, -0.02, 0.3])
 
@@ -229,6 +230,8 @@ def test_stop_heading_held_by_zaru():
         y = A.wrap_pi(A.quat_to_euler(r.nav[0][ks, :4])[:, 2] - tru.att[i, 2])
         rates[name] = abs(np.polyfit(r.t[ks], y, 1)[0]) / u.dph
     assert rates["none"] > 1.0 and rates["zaru"] < 0.3, rates
+    assert_doc_quotes("docs/recorded-data.md", "with a 2-min stop and a less settled bias: 3.05 °/h without, "
+                      "0.05 °/h with ZUPT + ZARU", [2, rates["none"], rates["zaru"]])
 
 
 def test_markov_blocks_fed_back_through_an_outage():

@@ -85,6 +85,15 @@ def test_stop_in_outage_heading_held_and_errors(drive):
         tt = np.arange(s0 + 5, s1 - 5, 1.0)
         slope = abs(np.polyfit(tt, _yaw_err(r, tru, tt), 1)[0]) / u.dph
         res[name] = (slope, *R.outage_end_errors(r, fx)[1])
+    # the antenna lever arm unknown: estimated from zero (alone and with every aid), or wrongly zero
+    lever = {}
+    for name, kw in (("lever", dict(estimate_lever=True)),
+                     ("lever+all", dict(estimate_lever=True, zupt="flags", zaru=True, nhc_sigma=(0.05, 0.05))),
+                     ("lever wrong", {})):
+        r = R.navigate_recorded(imu, fx, _opt(err, outages=outs, rest_flags=(tru.t, rest), kf_dt=0.1,
+                                              lever_arm=(0.0, 0.0, 0.0), **kw))
+        lever[name] = (*R.outage_end_errors(r, fx)[1], *r.init.get("lever_arm_estimate", ()),
+                       *r.init.get("lever_arm_sigma", ()))
     # the outage spans the stop: without rest updates the INS drifts through it; NHC alone
     # cannot stop the forward drift of a standing car; the heading stays within 1 deg/h
     assert res["zupt+zaru"][1] < 0.1 * res["none"][1], res
@@ -97,6 +106,11 @@ def test_stop_in_outage_heading_held_and_errors(drive):
                       "zupt+zaru"), ("| NHC | 26.0, 1.41 | 0.55 °/h |", "nhc"),
                       ("| ZUPT + ZARU + NHC | **0.11, 1.44** | 0.43 °/h |", "all")):
         assert_doc_quotes(doc, row, [*res[name][1:], res[name][0]])
+    for row, name in (("| lever estimated from 0 | 22.3, 1.77 | lever (0.352, 1.100, 0.20) ± (0.065, 0.091, 0.98) m |",
+                       "lever"), ("| lever from 0 + ZUPT + ZARU + NHC | 0.16, 2.21 | lever (0.332, 1.172, 0.16) ± "
+                                  "(0.058, 0.031, 0.99) m |", "lever+all"),
+                      ("| lever wrongly 0, not estimated | 72.5, 12.4 | |", "lever wrong")):
+        assert_doc_quotes(doc, row, [0, *lever[name]])     # the 0 the lever starts from
     assert_doc_quotes(doc, "alone pulls the z-bias estimate (7.9 °/h drift), ZARU at every epoch brings it back to "
                       "1.8 °/h, and NHC with both to 0.4 °/h", [res["zupt"][0], res["zupt+zaru"][0], res["all"][0]])
 

@@ -118,8 +118,7 @@ def test_zupt_never_where_fixes_say_the_vehicle_moves(drive):
     """Steady 24 m/s on a smooth (simulated) road looks like rest to an IMU detector: the
     intervals it finds there are cut where the fixes show motion; inside an outage, where
     no fix can say so, the innovation gate rejects every zero-velocity update (the INS
-    knows it moves at 24 m/s), and the outage ends no worse than with fixes only (the
-    old detector applied ZUPT at 24 m/s: 674 m)."""
+    knows it moves at 24 m/s), and the outage ends no worse than with fixes only."""
     imu, fx4, _, tru, _ = drive
     outs = ((92.0, 25.0),)
     r0 = R.navigate_recorded(imu, fx4, _opt(outages=outs, kf_dt=0.1))
@@ -593,6 +592,40 @@ def test_n380_car_drive_as_shipped():
     e0, e1 = R.outage_end_errors(r0, fx)[1], R.outage_end_errors(r1, fx)[1]
     assert e0.size >= 4 and np.all(e1 < e0), (e0, e1)
     assert 1.0 < abs(math.degrees(r1.init["vehicle_mount_estimate"][2])) < 4.0
+    doc = "docs/recorded-data.md"
+
+    def with_fixes(r):                      # median horizontal error at the fixes outside the outages
+        t, err, _ = R.fix_errors(r, fx)
+        out = np.zeros(t.size, bool)
+        for a, ln in r.init["outages"]:
+            out |= (t >= a) & (t < a + ln)
+        return float(np.median(np.hypot(err[~out, 0], err[~out, 1])))
+
+    assert_doc_quotes(doc, "quality values {1: 1, 2: 2, 4: 670}", [x for kv in sorted(meta["quality_counts"].items())
+                                                                  for x in kv])
+    assert_doc_quotes(doc, "the heading is found in motion 127 s after the first fix", [r0.init["t_start"] - fx.t[0]])
+    assert_doc_quotes(doc, "the n380 hill drive carries it 26 s", [380, r0.init["tilt_carried_s"]])
+    assert_doc_quotes(doc, "| fixes only | 21.1, 20.5, 3.83, 11.5 | 16.0 m | 0.26 m |", [*e0, np.median(e0), with_fixes(r0)])
+    rz = R.navigate_recorded(imu, fx, _opt(outages=outs, zupt="auto", zaru=True))
+    ez, gz = R.outage_end_errors(rz, fx)[1], rz.init["aiding_gate"]["zupt"]
+    assert_doc_quotes(doc, "| `--aid zupt,zaru` | 21.1, 18.2, 2.61, 0.85 | 10.4 m | 0.28 m (5 rests; 4 of 2706 ZUPT "
+                      "updates rejected, at 225.6 s) |",
+                      [*ez, np.median(ez), with_fixes(rz), len(rz.init["rest_intervals"]), gz["rejected"],
+                       gz["applied"] + gz["rejected"], gz["rejected_spans"][0][0] - fx.t[0]])
+    assert_doc_quotes(doc, "the same: offset −168 ± 68 ms and −95 ± 191 ppm not significant (4.6σ needed)",
+                      [1e3 * sync["offset_estimate"], 1e3 * sync["offset_sigma"], sync["ppm_estimate"], sync["ppm_sigma"],
+                       sync["threshold_sigmas"]])
+    r2 = R.navigate_recorded(imu, fx, _opt(outages=outs, nhc_sigma=(0.1, 0.1)))
+    e2 = R.outage_end_errors(r2, fx)[1]
+    assert_doc_quotes(doc, "| NHC, mount and lever unknown, not estimated | 8.28, 24.8, 4.15, 32.0 |", e2)
+    assert_doc_quotes(doc, "the outages end 8.3, 24.8, 4.2, 32.0 m off", e2)
+    assert_doc_quotes(doc, "| `--aid nhc` (mount and lever estimated) | **4.41, 11.1, 0.43, 8.37** | **6.39 m** | 0.32 m |",
+                      [*e1, np.median(e1), with_fixes(r1)])
+    m, ms = np.degrees(r1.init["vehicle_mount_estimate"]), np.degrees(r1.init["vehicle_mount_sigma"][0])
+    lv, ls = r1.init["nhc_lever_estimate"], r1.init["nhc_lever_sigma"]
+    assert_doc_quotes(doc, "NHC estimates the case 2.33° yawed and 0.42 ± 0.02° pitched in the car and the rear axle "
+                      "1.46 m behind the IMU (lever −0.46, −1.46, −0.20 m ± 0.10, 0.01, 0.08)",
+                      [abs(m[2]), abs(m[0]), ms, -lv[1], *lv, *ls])
 
 
 def test_n380_stop_and_go_drive_nhc_helps():
@@ -610,6 +643,8 @@ def test_n380_stop_and_go_drive_nhc_helps():
     assert "motion_alignment" not in r0.init and r0.init["tilt_carried_s"] < 5.0
     e0, e1 = R.outage_end_errors(r0, fx)[1], R.outage_end_errors(r1, fx)[1]
     assert e0.size == 1 and e1[0] < 0.8 * e0[0], (e0, e1)
+    assert_doc_quotes("docs/recorded-data.md", "one 30 s outage) ends 7.40 m off with fixes only, 4.79 m with `--aid nhc`",
+                      [30, e0[0], e1[0]])
 
 
 def test_fix_positions_and_velocities_in_two_files(drive, tmp_path):
@@ -687,6 +722,9 @@ def test_uav_flight_starts_within_a_few_degrees_of_the_units_solution():
     assert dh < 6.0 and dh < 3 * sig_h, (dh, sig_h)
     assert abs(math.degrees(r.init["pitch"] - pitch)) < 5.0
     assert abs(math.degrees(r.init["roll"] - roll)) < 2.0
+    sig_p = math.degrees(r.sigma[0, r.labels.index("phiE")])
+    assert_doc_quotes("docs/recorded-data.md", "| in-motion alignment (now) | 3.4° | −0.6° | 3.4° | 1.2°, 2.7° |",
+                      [math.degrees(r.init["pitch"] - pitch), math.degrees(r.init["roll"] - roll), dh, sig_p, sig_h])
 
 
 def test_uav_flight_navigate_states_the_in_motion_alignment(tmp_path):
@@ -711,3 +749,11 @@ def test_uav_flight_navigate_states_the_in_motion_alignment(tmp_path):
     m = json.loads((tmp_path / "run" / "summary.json").read_text())["metrics"]
     s = m["initial_attitude_sigma_deg"]
     assert 1.0 < s[0] < 1.5 and 2.0 < s[2] < 3.5, s
+    # docs/recorded-data.md shows the terminal's lines of this run and quotes its mean NIS
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "recorded-data.md").read_text(encoding="utf-8")
+    block = doc[doc.index("The terminal says so"):].split("```")[1]
+    printed = {" ".join(ln.split()) for ln in res.output.splitlines()}
+    missing = [ln for ln in block.splitlines() if ln.strip() and " ".join(ln.split()) not in printed]
+    assert not missing, (missing, res.output)
+    assert_doc_quotes("docs/recorded-data.md", "The mean NIS of the fixes is 28 (the receiver's σ, defaulted to 1 m "
+                      "and 0.1 m/s", [m["nis_mean"], 1, 0.1])

@@ -20,6 +20,7 @@ from sinslab.core import units as u
 from sinslab.core.attitude import euler_to_dcm
 from sinslab.methods import rotins
 from sinslab.sim import indexing as ix
+from support import assert_doc_quotes
 
 LAT = math.radians(28.222)
 
@@ -97,6 +98,12 @@ def test_paper_schedules_rank_5_per_stop_13_stacked(model):
     sc = np.r_[[u.arcmin] * 3, [0.001 * u.dph] * 6, [20 * u.ug] * 4]
     rs = rotins.schedule_observability(model, C1, Ck, LAT, scale=sc)
     assert rs.ranks[-1] == 13 and rs.degree[5] > 0
+    # docs/methods/001.md's table of the schedules and its row of degrees with physical scales
+    doc = "docs/methods/001.md"
+    assert_doc_quotes(doc, "| `dual_axis_16` (paper) | 5 (all 27) | 5, 8, 11, 11, 11, 13 | **13** | — |",
+                      [16, r.rank_static, len(r.segment_ranks), *r.ranks[:6], r.ranks[-1]])
+    assert_doc_quotes(doc, "| physical | 0.37 | 0.29 | 0.45 | 0.18 | 0.19 | 0.070 | 0.21 | 0.15 | 0.18 | 0.020 | 0.020 | "
+                      "0.020 | 0.020 |", rs.degree)
 
 
 def test_one_stop_alone_rank_5(model):
@@ -118,6 +125,8 @@ def test_ins_k_flipping_about_azimuth_only_leaves_rank_12(model):
     e[[r.labels.index("eps_z_1"), r.labels.index("eps_z_k")]] = 1.0
     np.testing.assert_allclose(N, e, atol=1e-6)
     assert r.degree[r.labels.index("eps_z_1")] == 0.0
+    assert_doc_quotes("docs/methods/001.md", "| azimuth flip 0°/180° only | 5 | 5, 8, 12, 12, … | 12 |",
+                      [0, 180, r.rank_static, *r.ranks[:4], r.ranks[-1]])
 
 
 def test_ins_k_flipping_about_roll_only_leaves_rank_12(model):
@@ -131,6 +140,8 @@ def test_ins_k_flipping_about_roll_only_leaves_rank_12(model):
     assert r.ranks[-1] == 12
     zero = {l for l, d in zip(r.labels, r.degree) if d == 0.0}
     assert zero == {"phiE_1k", "eps_z_1", "eps_y_k", "nabla_y_k"}
+    assert_doc_quotes("docs/methods/001.md", "| roll flip 0°/180° only | 5 | 5, 10, 12, 12, … | 12 |",
+                      [0, 180, r.rank_static, *r.ranks[:4], r.ranks[-1]])
 
 
 def test_schedule_observability_bad_input(model):

@@ -11,6 +11,7 @@ from sinslab.sim import imu as IM
 
 from sinslab.core import units as u
 from sinslab.core.records import ImuRecord
+from support import assert_doc_quotes
 
 LASER = Path(__file__).resolve().parents[3] / "shared" / "data" / "psins-lasergyro" / "lasergyro.imu"
 
@@ -65,6 +66,15 @@ def test_lasergyro_and_cli(tmp_path):
     assert m["gyro_z_arw_dpsh"] == pytest.approx(0.028, rel=0.1)
     assert m["gyro_z_bias_instability_dph"] == pytest.approx(0.174, rel=0.1)
     assert m["gyro_x_bias_instability_dph"] > 5 * m["gyro_z_bias_instability_dph"]
+    doc = "docs/recorded-data.md"
+    for row, ax in (("| gyro x | 0.33 °/√h (base sway plateau) | 1.67 °/h (205 s) |", "x"),
+                    ("| gyro y | ≤ 0.32 °/√h | 2.05 °/h (205 s) |", "y"),
+                    ("| gyro z (azimuth) | **≤ 0.028 °/√h** | **0.17 °/h** (205 s) |", "z")):
+        assert_doc_quotes(doc, row, [m[f"gyro_{ax}_arw_dpsh"], m[f"gyro_{ax}_bias_instability_dph"],
+                                     m[f"gyro_{ax}_tau_floor_s"]])
+    assert_doc_quotes(doc, "| accel x, y, z | 750, 551, ≤ 55 µg/√Hz | 385 µg (1.8 s), 216 µg (2.6 s), 12.7 µg (105 s) |",
+                      [*(m[f"accel_{a}_vrw_ugpsHz"] for a in "xyz"),
+                       *(m[f"accel_{a}_{k}"] for a in "xyz" for k in ("bias_instability_ug", "tau_floor_s"))])
     assert (out / "imu_errors.toml").is_file() and (out / "allan.png").is_file()
     IM.ImuErrors.from_toml((out / "imu_errors.toml").read_text())
     res = CliRunner().invoke(app, ["allan", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "x")])
