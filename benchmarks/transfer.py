@@ -163,7 +163,8 @@ def main(argv=None) -> dict:
                                                       progress=False, kwargs=dict(kw, p=q))
     res_sd, cpu_sd, wall_sd = _cpu(lambda: camp(dict(p, compare_linear=False), runs))
     res_li, cpu_li, wall_li = _cpu(lambda: camp(dict(p, slave="linear"), runs))
-    st = ta._variant_stats(res_sd, cases, var, float(cfg.filter.converge_ratio))
+    sums = mc.tree_sum(ta._sums(res_sd, var, cases, 0, [""]))
+    st = ta._variant_stats(sums, cases, var, float(cfg.filter.converge_ratio))
     # one form, many runs, on the local cluster (wall clock)
     one = [v for v in var if v[0] == f"{a.method}_large"]
     kw1 = dict(kw, variants=one, cases={"large": cases["large"]})

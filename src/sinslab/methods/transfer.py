@@ -65,7 +65,7 @@ __all__ = [
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
     "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
     "align_lanes", "LaneAlignment", "CommonGains", "lane_gains", "batch_gains", "PARAMETERISATION", "parameterisation", "installation_parameters",
-    "rate_correlation",
+    "rate_correlation", "propagate_errors",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -667,6 +667,29 @@ def _feedforward(zz, H, Kg, Phi, x, wrap, record_every, xs):
                     xp[i] = acc
                 for i in range(n):
                     x[r, i] = xp[i]
+
+
+def propagate_errors(Phi, x0):
+    """Error states of many runs propagated open loop through the transitions ``Phi``
+    (K, n, n) from ``x0`` (R, n): ``x_{k+1} = Φ_k x_k``, (R, K+1, n). Compiled run by run,
+    so a run's numbers do not depend on the runs stacked with it."""
+    x0 = np.asarray(x0, dtype=float)
+    Phi = np.ascontiguousarray(Phi, dtype=float)
+    xs = np.empty((x0.shape[0], Phi.shape[0] + 1, x0.shape[1]))
+    xs[:, 0] = x0
+    _propagate(Phi, xs)
+    return xs
+
+
+@njit(cache=True)
+def _propagate(Phi, xs):
+    for r in range(xs.shape[0]):
+        for k in range(Phi.shape[0]):
+            for i in range(xs.shape[2]):
+                acc = 0.0
+                for j in range(xs.shape[2]):
+                    acc += Phi[k, i, j] * xs[r, k, j]
+                xs[r, k + 1, i] = acc
 
 
 # ------------------------------------------------------- runs-vectorised Kalman filter --
