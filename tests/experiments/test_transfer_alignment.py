@@ -112,7 +112,7 @@ def test_campaign_sums_same_bytes_whatever_the_batches():
     for k in gathered:
         assert np.array_equal(one[k], gathered[k], equal_nan=True), k
     outs = [mc.run_campaign(ta._batch, n, 7, batch=b, scheduler="sync", progress=False, kwargs=kw, reduce=red,
-                            keep_first=3) for b in (1, 2, n)]
+                            gather=functools.partial(ta._first_runs, n=3)) for b in (1, 2, n)]
     for sums, head in outs:
         for k in outs[0][0]:
             assert np.array_equal(sums[k], outs[0][0][k]), k

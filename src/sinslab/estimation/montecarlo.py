@@ -90,7 +90,7 @@ def _run_batch(fn, first, seeds, args, kwargs):
 
 def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None,
                  progress=True, args=(), kwargs=None, retries=0, tasks_per_worker=4,
-                 auto_serial=True, reduce=None, store=None, store_key="", task_seconds=None, keep_first=0):
+                 auto_serial=True, reduce=None, store=None, store_key="", task_seconds=None, gather=None):
     """Run ``n_runs`` independent runs of ``fn`` in batches on Dask.
 
     Parameters
@@ -137,9 +137,11 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
         the tree's nodes travel to this process (a few per task) and the bytes depend
         neither on the batches, the tasks, the workers nor the order in which tasks end.
         Without it every run's output is gathered here.
-    keep_first : int
-        With ``reduce``: the whole outputs of the runs with index below this are gathered
-        too (e.g. single runs drawn in a figure), a few runs whatever the campaign's size.
+    gather : callable, optional
+        With ``reduce``: ``gather(out)`` maps one call's output to a dict of arrays whose
+        rows are some of its runs, in run order, gathered here whole beside the sums — what
+        is not a sum but stays small: a few runs drawn in a figure, a scalar per run for a
+        median.
     store : path-like, optional
         Folder keeping each finished task's result (its tree nodes, or its runs' outputs
         without ``reduce``), written atomically as the task ends. A campaign started with
@@ -160,14 +162,13 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     ndarray or dict of ndarray
         Without ``reduce``: the outputs of all runs concatenated along the first axis in
         run order. With ``reduce``: the sum over all runs of each of its arrays; with
-        ``keep_first`` too, the pair ``(sums, outputs of the first runs)``.
+        ``gather`` too, the pair ``(sums, gathered rows concatenated in run order)``.
     """
     kwargs = dict(kwargs or {})
     seeds = spawn_seeds(seed, n_runs)
     n = len(seeds)
-    keep_first = int(keep_first) if reduce is not None else 0
-    if reduce is not None and keep_first:
-        reduce = _KeepFirst(reduce, keep_first)
+    if reduce is not None and gather is not None:
+        reduce = _Gathering(reduce, gather)
     acc = _Collected(n, reduce)
     per_run = None
     nw = int(n_workers or os.cpu_count() or 1)
@@ -181,7 +182,7 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
         if store is None or st is not None:
             return
         st = _Store(store, dict(n_runs=n, seed=_seed_words(seed), batch=int(batch), reduce=reduce is not None,
-                                keep_first=keep_first, key=str(store_key)))
+                                gather=gather is not None, key=str(store_key)))
         for first, count, payload in st.load():
             acc.add(first, count, payload)
         if acc.done:
@@ -349,33 +350,31 @@ def _run_task(fn, blocks, seeds, args, kwargs, reduce):
         for level, index, node in _dyadic_nodes(s, _contributions(reduce(out), c)):
             tree.add(level, index, node)
     nodes = tree.nodes
-    for (s, c), out in zip(blocks, outs):
-        m = min(c, getattr(reduce, "first", 0) - s)
-        if m > 0:
-            nodes[(_HEAD, s)] = _head(out, m)
+    if isinstance(reduce, _Gathering):
+        for (s, c), out in zip(blocks, outs):
+            nodes[(_GATHERED, s)] = reduce.rows(out)
     return nodes
 
 
-#: Level of the entries of a task's tree nodes that carry the whole outputs of the first
-#: runs of a campaign (``keep_first``), keyed by their first run, instead of sums.
-_HEAD = -1
+#: Level of the entries of a task's tree nodes that carry rows gathered whole (``gather``),
+#: keyed by the first run of their call, instead of sums.
+_GATHERED = -1
 
 
-class _KeepFirst:
-    """A campaign's ``reduce`` with the number of first runs whose outputs travel whole."""
+class _Gathering:
+    """A campaign's ``reduce`` with its ``gather``."""
 
-    def __init__(self, reduce, first):
-        self.reduce, self.first = reduce, int(first)
+    def __init__(self, reduce, gather):
+        self.reduce, self.gather = reduce, gather
 
     def __call__(self, out):
         return self.reduce(out)
 
-
-def _head(out, m):
-    """The first ``m`` runs of one call's output, as a dict of arrays."""
-    if isinstance(out, dict):
-        return {k: np.asarray(v)[:m] for k, v in out.items()}
-    return {"": np.asarray(out)[:m]}
+    def rows(self, out):
+        d = self.gather(out)
+        if not isinstance(d, dict) or not d:
+            raise ValueError("a campaign's gather function must return a non-empty dict of arrays")
+        return {k: np.asarray(v) for k, v in d.items()}
 
 
 def _run_task_timed(fn, blocks, seeds, packed, reduce):
@@ -446,7 +445,7 @@ class _Collected:
             self.parts[first] = payload
         else:
             for (level, index), node in payload.items():
-                if level == _HEAD:
+                if level == _GATHERED:
                     self.parts[index] = node
                 else:
                     self.tree.add(level, index, node)
@@ -456,10 +455,9 @@ class _Collected:
         if self.reduce is None:
             return _concat([self.parts[s] for s in sorted(self.parts)])
         sums = self.tree.total(self.n)
-        if not isinstance(self.reduce, _KeepFirst):
+        if not isinstance(self.reduce, _Gathering):
             return sums
-        head = _concat([self.parts[s] for s in sorted(self.parts)])
-        return sums, (head[""] if list(head) == [""] else head)
+        return sums, _concat([self.parts[s] for s in sorted(self.parts)])
 
 
 def _seed_words(seed):
@@ -505,7 +503,7 @@ def _pack(payload):
     if isinstance(payload, np.ndarray):
         return {"array": payload}
     if payload and isinstance(next(iter(payload)), tuple):
-        return {f"node-{'head' if lv == _HEAD else lv}-{ix}-{k}": v for (lv, ix), d in payload.items()
+        return {f"node-{'rows' if lv == _GATHERED else lv}-{ix}-{k}": v for (lv, ix), d in payload.items()
                 for k, v in d.items()}
     return {f"out-{k}": v for k, v in payload.items()}
 
@@ -517,7 +515,7 @@ def _unpack(z):
         nodes = {}
         for k, v in z.items():
             _, lv, ix, name = k.split("-", 3)
-            nodes.setdefault((_HEAD if lv == "head" else int(lv), int(ix)), {})[name] = v
+            nodes.setdefault((_GATHERED if lv == "rows" else int(lv), int(ix)), {})[name] = v
         return nodes
     return {k[4:]: v for k, v in z.items()}
 

@@ -544,7 +544,7 @@ FIGURE_RUNS = 9
 def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, label="mc", keep_first=0):
     """The Monte Carlo of ``variants`` over ``n`` runs, its statistics summed on the workers
     (:func:`_sums`): the sums, and with ``keep_first`` the pair (sums, whole outputs of the
-    first runs)."""
+    runs of index below it)."""
     import functools
 
     from sinslab.estimation import montecarlo as mc
@@ -557,7 +557,14 @@ def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, lab
                                        variants=variants, gains=_common_gains(p, cases, record_every, variants)),
                            reduce=functools.partial(_sums, variants=variants, scoring=scoring, ekf_runs=ekf_runs,
                                                     models=models),
-                           keep_first=keep_first, **ctx.campaign_store(label))
+                           gather=functools.partial(_first_runs, n=keep_first) if keep_first else None,
+                           **ctx.campaign_store(label))
+
+
+def _first_runs(out, n):
+    """The whole outputs of the runs of campaign index below ``n`` in one call's output."""
+    on = out["run"] < n
+    return {k: v[on] for k, v in out.items()}
 
 
 def _sums(out, variants, scoring, ekf_runs, models):
