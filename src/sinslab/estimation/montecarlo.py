@@ -47,7 +47,7 @@ from sinslab.core.atomic import atomic_path, atomic_write
 from sinslab.core.errors import InputError
 
 __all__ = ["spawn_seeds", "run_campaign", "tree_sum", "TASK_SECONDS", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
-           "mean_ci95", "wilson_ci95", "linear_batch", "summarize_sums"]
+           "mean_ci95", "mean_ci95_sums", "wilson_ci95", "linear_batch", "summarize_sums"]
 
 
 def spawn_seeds(seed, n_runs):
@@ -813,6 +813,18 @@ def mean_ci95(x):
     if x.size < 2:
         return m, [float("nan"), float("nan")]
     h = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
+    return m, [m - h, m + h]
+
+
+def mean_ci95_sums(n, s1, s2, shift=0.0):
+    """:func:`mean_ci95` of ``n`` values from the sums of ``x − shift`` (``s1``) and of its
+    squares (``s2``); a shift near the mean keeps the spread's digits."""
+    n = int(n)
+    m = float(shift + s1 / n)
+    if n < 2:
+        return m, [float("nan"), float("nan")]
+    sd = math.sqrt(max(float(s2 - s1 * s1 / n), 0.0) / (n - 1))
+    h = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n))
     return m, [m - h, m + h]
 
 
