@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from sinslab.core import attitude as A
 from sinslab.core import earth
@@ -865,32 +866,26 @@ def campaign_batch(seeds, spec, setup):
     # once they are the same numbers in the same order. The blocks hold whole noise blocks.
     per = len(noisy) * n + p1 + 4
     chunk = 2048 if nb < 1 else nb * max(1, 2048 // nb)
-    v = np.zeros((B, P_, 4))
-    for k in range(K):
-        c = k % chunk
-        if c == 0:
-            m = min(chunk, K - k)
-            draws = np.stack([g.standard_normal((m, per)) for g in rngs])
-            xis = draws[:, :, :len(noisy) * n].reshape(B, m, len(noisy), n)
-            us = draws[:, :, len(noisy) * n:len(noisy) * n + p1]
-            vs = draws[:, :, len(noisy) * n + p1:]
-            ubar = np.zeros_like(us)
-            if nb >= 1:
-                for a in range(0, m, nb):
-                    ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
-        u = index[k]
-        X[:, j_tr, iz] += tr[k]
-        X = X @ Phi[u].T
-        xi = xis[:, c]
-        for gname, js, cols in groups:
-            X[:, js] += xi[:, cols] @ roots[gname][u].T
-        X[:, 0] += us[:, c] @ G1[u].T
-        X[:, j_bl] += ubar[:, c] @ G1[u].T
-        Xh = Xh @ Phi[u].T
-        v[:, 0] = vs[:, c] * sv
-        nu = X[:, :, :4] + v - Xh[:, :, :4]
-        Xh = Xh + nu @ gains[k].T
-        ez[:, :, k + 1] = Xh[:, :, iz]
+    # per part: the noise source driving it (index into roots, -1: none) and its column
+    # among the noisy parts' draws
+    src = np.full(P_, -1, dtype=np.int64)
+    col = np.zeros(P_, dtype=np.int64)
+    for gi, (gname, js, cols) in enumerate(groups):
+        src[js], col[js] = gi, cols
+    root = np.stack([roots[g] for g, _, _ in groups])
+    index = np.ascontiguousarray(index, dtype=np.int64)
+    for k in range(0, K, chunk):
+        m = min(chunk, K - k)
+        draws = np.stack([g.standard_normal((m, per)) for g in rngs])
+        xis = np.ascontiguousarray(draws[:, :, :len(noisy) * n].reshape(B, m, len(noisy), n))
+        us = np.ascontiguousarray(draws[:, :, len(noisy) * n:len(noisy) * n + p1])
+        vs = np.ascontiguousarray(draws[:, :, len(noisy) * n + p1:])
+        ubar = np.zeros_like(us)
+        if nb >= 1:
+            for a in range(0, m, nb):
+                ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
+        _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs, sv, gains, tr, iz, j_tr, j_bl,
+                        k, m)
     t = S["t"]
     betas, scales = spec["betas"], spec["scales"]
     st, win = spec["start"], spec["window"]
@@ -922,6 +917,67 @@ def campaign_batch(seeds, spec, setup):
     final = (ez[:, 0, -1] - (ez[:, j_bl, -1] if nb >= 1 else 0.0) + ez[:, 1, -1] + ez[:, 2, -1]) - x0z
     return {"wstd": out, "wstd_sep": sep, "wstd_two": two, "final": final, "settle_band": settle,
             "trend_corr": corr}
+
+
+@njit(cache=True)
+def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs, sv, gains, tr, iz, j_tr, j_bl,
+                    k0, m):
+    """Steps ``k0 .. k0+m−1`` of :func:`campaign_batch`, seed by seed (so a seed's numbers do
+    not depend on the seeds stacked with it), in place on the true parts ``X`` and the
+    estimates ``Xh`` (B, parts, n), the estimates of ε_z1 written to ``ez`` (B, parts, K+1).
+
+    Per step k (transition ``Phi[index[k]]``): the drift trend's step ``tr[k]`` enters its
+    part, every part is propagated, the noisy parts get their process noise
+    ``root[src[p]][u] ξ`` (draws ``xis[:, c, col[p]]``), INS 1's part its step mean through
+    ``G1[u]`` (``us``) and the block-mean part that of its block (``ubar``); the filter
+    predicts, and updates every part with the gain ``gains[k]`` (n, 4) from its four
+    measured components (measurement noise ``vs · sv`` in INS 1's part only)."""
+    B, P_, n = X.shape
+    p1 = G1.shape[2]
+    t = np.empty(n)
+    nu = np.empty(4)
+    for b in range(B):
+        for c in range(m):
+            k = k0 + c
+            u = index[k]
+            X[b, j_tr, iz] += tr[k]
+            for p in range(P_):
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += Phi[u, i, j] * X[b, p, j]
+                    t[i] = acc
+                if src[p] >= 0:
+                    g, q = src[p], col[p]
+                    for i in range(n):
+                        acc = 0.0
+                        for j in range(n):
+                            acc += root[g, u, i, j] * xis[b, c, q, j]
+                        t[i] += acc
+                if p == 0 or p == j_bl:
+                    w = us if p == 0 else ubar
+                    for i in range(n):
+                        acc = 0.0
+                        for j in range(p1):
+                            acc += G1[u, i, j] * w[b, c, j]
+                        t[i] += acc
+                for i in range(n):
+                    X[b, p, i] = t[i]
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += Phi[u, i, j] * Xh[b, p, j]
+                    t[i] = acc
+                for i in range(4):
+                    nu[i] = X[b, p, i] - t[i]
+                    if p == 0:
+                        nu[i] += vs[b, c, i] * sv[i]
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(4):
+                        acc += gains[k, i, j] * nu[j]
+                    Xh[b, p, i] = t[i] + acc
+                ez[b, p, k + 1] = Xh[b, p, iz]
 
 
 def _orderings(wstd, wstd_sep, betas, sep_ratio):
