@@ -100,20 +100,24 @@ def test_drift_random_walk_leaves_the_paper_model_alone(small, tmp_path):
     assert np.all(np.array(m["windowed_std_two_rw_dph"]) > np.array(m["windowed_std_two_dph"]))
 
 
-def test_linear_campaign_matches_nonlinear_pipeline(small):
-    """The linear-domain simulation is the nonlinear pipeline's filter: the same σ of ε_z1
-    (covariance pass along the true schedule vs the driver on the navigated outputs), and
-    the nonlinear run's windowed std lies inside the spread of the linear seeds."""
-    m = small["metrics"]
-    exp = get("rotation-evaluation")
-    cfg = resolve(exp.config, sets=SMALL)
+def _small_campaign_spec():
+    """The linear campaign's spec of the SMALL scenario, as the experiment makes it."""
+    cfg = resolve(get("rotation-evaluation").config, sets=SMALL)
     lat = float(cfg.scenario.latitude)
     model, P0, sig = R.joint_filter_setup(cfg)
     m1, mk = R.mounts(cfg)
     dt, k_md, me, n_kf, _ = R._grid(cfg)
     tables = R.schedule_transitions(m1, mk, lat, float(cfg.scenario.longitude), model, float(cfg.filter.model_dt), me,
                                     n_kf, rotins.NOISE_GROUPS, inputs=True)
-    S = rotins.campaign_setup(R.campaign_spec(cfg, model, P0, sig, tables))
+    return R.campaign_spec(cfg, model, P0, sig, tables)
+
+
+def test_linear_campaign_matches_nonlinear_pipeline(small):
+    """The linear-domain simulation is the nonlinear pipeline's filter: the same σ of ε_z1
+    (covariance pass along the true schedule vs the driver on the navigated outputs), and
+    the nonlinear run's windowed std lies inside the spread of the linear seeds."""
+    m = small["metrics"]
+    S = rotins.campaign_setup(_small_campaign_spec())
     assert S["sig_z"][-1] / R.DPH == pytest.approx(m["eps_z1_sigma_final_dph"], rel=1e-3)
     mc_mean = np.array(m["mc_windowed_std_mean_dph"])
     mc_sd = np.array(m["mc_windowed_std_sd_dph"])
@@ -130,14 +134,7 @@ def test_linear_campaign_same_bytes_whatever_the_batches():
 
     from sinslab.estimation import montecarlo as mc
 
-    cfg = resolve(get("rotation-evaluation").config, sets=SMALL)
-    lat = float(cfg.scenario.latitude)
-    model, P0, sig = R.joint_filter_setup(cfg)
-    m1, mk = R.mounts(cfg)
-    dt, k_md, me, n_kf, _ = R._grid(cfg)
-    tables = R.schedule_transitions(m1, mk, lat, float(cfg.scenario.longitude), model, float(cfg.filter.model_dt), me,
-                                    n_kf, rotins.NOISE_GROUPS, inputs=True)
-    spec = R.campaign_spec(cfg, model, P0, sig, tables)
+    spec = _small_campaign_spec()
     setup = rotins.campaign_setup(spec)
     spec = {k: v for k, v in spec.items() if k not in ("Phi", "Q", "Gam", "P0")}
     kw = dict(spec=spec, setup=setup)
