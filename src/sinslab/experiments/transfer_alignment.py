@@ -516,26 +516,6 @@ def _score(a, case, kind, comp, ekf=False):
     return own, np.where(ok[..., None], rv, np.nan)
 
 
-def _stats(err, sg, div, ratio):
-    """RMS over the runs that did not diverge, mean σ, verdict and margin (arcmin, -)."""
-    am = 1.0 / units.arcmin
-    keep = ~np.asarray(div, bool)
-    n_div = int((~keep).sum())
-    if keep.any():
-        rms = np.sqrt(np.mean(err[keep] ** 2, 0)) * am          # (M, 3)
-        sig = np.mean(sg[keep], 0) * am
-    else:
-        rms = np.full(err.shape[1:], np.nan)
-        sig = np.full(err.shape[1:], np.nan)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        r_end = rms[-1] / sig[-1]
-    worst = float(np.max(r_end)) if np.all(np.isfinite(r_end)) else float("inf")
-    conv = bool(n_div == 0 and worst <= ratio)
-    return dict(rms=rms, sig=sig, conv=conv, n_div=n_div, ratio=r_end, worst=worst, margin=ratio - worst,
-                first=err[np.argmax(keep)] * am if keep.any() else err[0] * am,
-                first_sig=sg[np.argmax(keep)] * am if keep.any() else sg[0] * am)
-
-
 #: Runs of the main campaign whose outputs travel whole beside the sums: the figures draw
 #: the first run that did not diverge and, for a form whose runs all diverged, runs 0–8.
 FIGURE_RUNS = 9

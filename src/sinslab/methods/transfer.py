@@ -891,7 +891,9 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
 
     Covariance: with the paper's linearisation (``relinearise=False``) H depends only on
     the reference attitude, taken from ``C_lin`` — the attitude the filter linearises at,
-    common to the lanes — so P and the gain are common and only the states are per lane.
+    common to the lanes — so P and the gain are common and only the states are per lane:
+    each epoch is then one compiled advance of the bank and one compiled filter step over
+    the lanes, lane by lane (a lane's numbers do not depend on the lanes beside it).
     With ``relinearise`` (EKF form, H at each lane's installation estimate and master
     attitude) every lane carries its own P.
 
