@@ -20,10 +20,12 @@ speed with no call overhead; a closed loop cannot do that).
    and made once for the campaign and shipped with its shared inputs (the current way).
 
 4. ``--campaign RUNS`` instead: the experiment's main campaign as ``sinslab run`` makes it
-   (every variant, the three installations, the batches a 2-worker cluster gets, the
-   statistics summed on the workers where the code does so), serial in this process against
+   (every variant, the three installations, the batches the experiment gives a 2-worker
+   cluster, the statistics summed on the workers where the code does so), serial in this
+   process against
    a warm 2-worker local cluster: wall time, CPU of this process and of the workers, the CPU
-   of one task (one batch), the cluster's start-up apart, the load average around each.
+   of one call of 64 runs (with and without the EKF diagnosis), the cluster's start-up
+   apart, the load average around each.
    The script runs on older trees too (``PYTHONPATH=<tree>/src``; they gather instead of
    summing), so "before" and "after" are the same measurement of two trees, one after the
    other.
@@ -158,16 +160,17 @@ def _campaign(cfg, runs, workers=2):
         extra = dict(reduce=functools.partial(ta._sums, variants=var, scoring=scoring, ekf_runs=ekf,
                                               models=["", "lin_"]),
                      gather=functools.partial(ta._first_runs, n=ta.FIGURE_RUNS))
-    batch = min(64, -(-runs // workers))          # what run_campaign gives a 2-worker cluster
-    seeds = list(np.random.SeedSequence(0).spawn(batch + ekf))
+    tpw = getattr(ta, "TASKS_PER_WORKER", 1)      # older trees: one call per worker
+    batch = min(64, -(-runs // (workers * tpw)))  # what run_campaign gives a 2-worker cluster
+    seeds = list(np.random.SeedSequence(0).spawn(64 + ekf))
     ta._batch(seeds[:2], **kw)                    # compile / load the kernels here
-    # one task without the EKF diagnosis (a batch past the first ekf_runs runs) and the first one
-    _, task_cpu, task_wall = _cpu(lambda: ta._batch(seeds[ekf:ekf + batch], **kw))
-    _, task0_cpu, _ = _cpu(lambda: ta._batch(seeds[:batch], **kw))
+    # a call of 64 runs (the same in every tree) past the EKF diagnosis's runs, and the first 64
+    _, task_cpu, task_wall = _cpu(lambda: ta._batch(seeds[ekf:ekf + 64], **kw))
+    _, task0_cpu, _ = _cpu(lambda: ta._batch(seeds[:64], **kw))
 
     def camp(sched):
-        return mc.run_campaign(ta._batch, runs, 0, batch=batch, scheduler=sched, tasks_per_worker=1, progress=False,
-                               kwargs=kw, **extra)
+        return mc.run_campaign(ta._batch, runs, 0, batch=batch, scheduler=sched, tasks_per_worker=tpw,
+                               progress=False, kwargs=kw, **extra)
 
     load = [os.getloadavg()[0]]
     _, serial_cpu, serial_wall = _cpu(lambda: camp("sync"))
@@ -181,7 +184,7 @@ def _campaign(cfg, runs, workers=2):
         cl_worker_cpu = sum(client.run(_worker_cpu).values()) - w0
     load.append(os.getloadavg()[0])
     return dict(runs=runs, workers=workers, batch=batch, reduced_on_workers=bool(extra),
-                task_cpu_s=task_cpu, task_wall_s=task_wall, task_with_ekf_cpu_s=task0_cpu,
+                task64_cpu_s=task_cpu, task64_wall_s=task_wall, task64_with_ekf_cpu_s=task0_cpu,
                 serial_wall_s=serial_wall, serial_cpu_s=serial_cpu,
                 cluster_start_s=start_s, cluster_wall_s=cl_wall, cluster_client_cpu_s=cl_cpu,
                 cluster_worker_cpu_s=cl_worker_cpu, serial_over_cluster_wall=serial_wall / cl_wall,

@@ -521,7 +521,15 @@ def _score(a, case, kind, comp, ekf=False):
 FIGURE_RUNS = 9
 
 
-def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, label="mc", keep_first=0):
+#: Calls of the task function per worker in the main campaign: a call's cost grows with its
+#: runs (the lanes are stepped one by one in compiled code) and the EKF diagnosis makes the
+#: calls holding the first runs heavier, so several calls per worker balance the load. The
+#: sweep's small campaigns make one call per worker (each call has a fixed cost, ~0.15 s).
+TASKS_PER_WORKER = 4
+
+
+def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, label="mc", keep_first=0,
+              tasks_per_worker=TASKS_PER_WORKER):
     """The Monte Carlo of ``variants`` over ``n`` runs, its statistics summed on the workers
     (:func:`_sums`): the sums, and with ``keep_first`` the pair (sums, whole outputs of the
     runs of index below it)."""
@@ -532,7 +540,7 @@ def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, lab
     variants = variants or _variants()
     models = [""] + (["lin_"] if p["slave"] == "strapdown" and p["compare_linear"] else [])
     scoring = {c: {"Csm": cases[c]["Csm"], "Csm_nom": cases[c]["Csm_nom"]} for c in cases}
-    return mc.run_campaign(_batch, n, seed, scheduler=ctx.scheduler, tasks_per_worker=1,
+    return mc.run_campaign(_batch, n, seed, scheduler=ctx.scheduler, tasks_per_worker=tasks_per_worker,
                            kwargs=dict(p=p, cases=cases, record_every=record_every, ekf_runs=ekf_runs,
                                        variants=variants, gains=_common_gains(p, cases, record_every, variants)),
                            reduce=functools.partial(_sums, variants=variants, scoring=scoring, ekf_runs=ekf_runs,
@@ -646,7 +654,7 @@ def _sweep(cfg, ctx, p, cases, record_every, field, grid):
     for v in grid:
         q = dict(p, compare_linear=False, **{field: float(v)})
         res = _campaign(q, {c: cases[c] for c in _C}, int(cfg.sweep.runs), cfg.seed, ctx, record_every, 0, var,
-                        label=f"sweep-{field}-{float(v):g}")
+                        label=f"sweep-{field}-{float(v):g}", tasks_per_worker=1)
         st = _variant_stats(res, cases, var, ratio)
         for key in rows:
             rows[key][0].append(st[key]["conv"])
