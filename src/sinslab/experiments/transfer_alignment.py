@@ -431,13 +431,23 @@ def _linear(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_eve
             np.linalg.norm(xs[:, rec, 0:3], axis=-1))
 
 
-def _common_gains(p, cases, record_every, variants=None):
+#: The parameters of :func:`_params` the paper-form filters' gains depend on (noise
+#: variances and initial σ); the master's errors and the divergence bounds do not enter them.
+_GAIN_PARAMS = ("vel_noise", "att_noise", "att_sigma0", "vel_sigma0", "inst_sigma0", "gyro_bias", "gyro_scale",
+                "accel_bias", "accel_scale")
+
+
+def _common_gains(p, cases, record_every, variants=None, memo=None):
     """Per (variant key, model prefix of :func:`_batch`) the covariance recursion of the
     paper-form filters (:func:`sinslab.methods.transfer.lane_gains` for the mechanised
     slave, :func:`~sinslab.methods.transfer.batch_gains` for the linear model): common to
-    every run, so made once for a campaign instead of once in each task."""
+    every run, so made once for a campaign instead of once in each task. ``memo`` (a dict
+    kept across the campaigns of one run, on the same cases) reuses the gains of another
+    campaign whose filters are the same (the sweep over the master's error changes none)."""
     from sinslab.methods import transfer as tm
 
+    memo = {} if memo is None else memo
+    same = (record_every,) + tuple(float(p[k]) for k in _GAIN_PARAMS)
     r_vel, r_att = np.full(3, p["vel_noise"] ** 2), np.full(3, p["att_noise"] ** 2)
     models = [("", p["slave"] == "strapdown")]
     if p["slave"] == "strapdown" and p["compare_linear"]:
@@ -449,10 +459,12 @@ def _common_gains(p, cases, record_every, variants=None):
         case = cases[c]
         match, P0 = _filter_setup(p, case, kind, comp)
         for pre, lanes in models:
-            out[(key, pre)] = (tm.lane_gains(case["Phi"], match, P0, r_vel, r_att, case["Cm"], record_every=record_every)
-                               if lanes else
-                               tm.batch_gains(case["Phi"], case["Cm"], match, P0, r_vel, r_att,
-                                              record_every=record_every))
+            m = (key, lanes) + same
+            if m not in memo:
+                memo[m] = (tm.lane_gains(case["Phi"], match, P0, r_vel, r_att, case["Cm"], record_every=record_every)
+                           if lanes else
+                           tm.batch_gains(case["Phi"], case["Cm"], match, P0, r_vel, r_att, record_every=record_every))
+            out[(key, pre)] = memo[m]
     return out
 
 
@@ -529,10 +541,10 @@ TASKS_PER_WORKER = 4
 
 
 def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, label="mc", keep_first=0,
-              tasks_per_worker=TASKS_PER_WORKER):
+              tasks_per_worker=TASKS_PER_WORKER, gains_memo=None):
     """The Monte Carlo of ``variants`` over ``n`` runs, its statistics summed on the workers
     (:func:`_sums`): the sums, and with ``keep_first`` the pair (sums, whole outputs of the
-    runs of index below it)."""
+    runs of index below it); ``gains_memo``: see :func:`_common_gains`."""
     import functools
 
     from sinslab.estimation import montecarlo as mc
@@ -542,7 +554,8 @@ def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, lab
     scoring = {c: {"Csm": cases[c]["Csm"], "Csm_nom": cases[c]["Csm_nom"]} for c in cases}
     return mc.run_campaign(_batch, n, seed, scheduler=ctx.scheduler, tasks_per_worker=tasks_per_worker,
                            kwargs=dict(p=p, cases=cases, record_every=record_every, ekf_runs=ekf_runs,
-                                       variants=variants, gains=_common_gains(p, cases, record_every, variants)),
+                                       variants=variants,
+                                       gains=_common_gains(p, cases, record_every, variants, gains_memo)),
                            reduce=functools.partial(_sums, variants=variants, scoring=scoring, ekf_runs=ekf_runs,
                                                     models=models),
                            gather=functools.partial(_first_runs, n=keep_first) if keep_first else None,
@@ -646,7 +659,7 @@ def _variant_stats(sums, cases, variants, ratio, pre="", ekf_runs=None, head=Non
     return out
 
 
-def _sweep(cfg, ctx, p, cases, record_every, field, grid):
+def _sweep(cfg, ctx, p, cases, record_every, field, grid, gains_memo=None):
     """Verdicts and worst-axis RMS/σ of the four forms × two cases at each grid value."""
     ratio = float(cfg.filter.converge_ratio)
     var = _variants(full=False)
@@ -654,7 +667,7 @@ def _sweep(cfg, ctx, p, cases, record_every, field, grid):
     for v in grid:
         q = dict(p, compare_linear=False, **{field: float(v)})
         res = _campaign(q, {c: cases[c] for c in _C}, int(cfg.sweep.runs), cfg.seed, ctx, record_every, 0, var,
-                        label=f"sweep-{field}-{float(v):g}", tasks_per_worker=1)
+                        label=f"sweep-{field}-{float(v):g}", tasks_per_worker=1, gains_memo=gains_memo)
         st = _variant_stats(res, cases, var, ratio)
         for key in rows:
             rows[key][0].append(st[key]["conv"])
@@ -682,7 +695,9 @@ def run(cfg: Config, ctx) -> Result:
     p = _params(cfg)
     slave = cfg.montecarlo.slave
     ctx.log(f"{NAME}: Monte Carlo, {n} runs, {slave} slave")
-    sums, head = _campaign(p, cases, n, cfg.seed, ctx, record_every, int(fl.ekf_runs), keep_first=FIGURE_RUNS)
+    gains = {}
+    sums, head = _campaign(p, cases, n, cfg.seed, ctx, record_every, int(fl.ekf_runs), keep_first=FIGURE_RUNS,
+                           gains_memo=gains)
     variants = _variants()
     stats = _variant_stats(sums, cases, variants, ratio, ekf_runs=int(fl.ekf_runs), head=head)
     lin = (_variant_stats(sums, cases, [v for v in variants if not v[4]], ratio, pre="lin_")
@@ -760,8 +775,8 @@ def run(cfg: Config, ctx) -> Result:
     sweeps = {}
     if int(sw.runs) > 0:
         ctx.log(f"{NAME}: sweep of the attitude noise and of the master's attitude error, {sw.runs} runs a point")
-        sweeps["noise"] = _sweep(cfg, ctx, p, cases, record_every, "att_noise", grid_n)
-        sweeps["master_error"] = _sweep(cfg, ctx, p, cases, record_every, "master_att", grid_m)
+        sweeps["noise"] = _sweep(cfg, ctx, p, cases, record_every, "att_noise", grid_n, gains)
+        sweeps["master_error"] = _sweep(cfg, ctx, p, cases, record_every, "master_att", grid_m, gains)
         for what, sv in sweeps.items():
             for key, (conv, worst, _) in sv.items():
                 metrics[f"converged_{key}_by_{what}"] = conv

@@ -280,6 +280,22 @@ class AttitudeMatch:
         x = np.concatenate([phi_hat, a_hat], axis=1)
         return d + np.einsum("rij,rj->ri", H, x), H
 
+    def H_many(self, C_m_n):
+        """:meth:`H` at ``φ = 0``, ``a = 0`` (the paper's linearisation) of many master
+        attitudes (K, 3, 3): (K, 3, 6), the same formulas on stacked arrays."""
+        Cr = self.reference_many(C_m_n)
+        H = np.empty(Cr.shape[:-2] + (3, 6))
+        if self.kind in ("kain", "optimal"):
+            H[..., :3] = -np.swapaxes(Cr, -1, -2)
+            H[..., 3:] = np.eye(3)
+            return H
+        for i in range(3):
+            e = np.zeros(3)
+            e[i] = 1.0
+            H[..., i] = self._dg_many(Cr, -skew(e) @ Cr)
+            H[..., 3 + i] = self._dg_many(Cr, Cr @ skew(e))
+        return H
+
     def reference_many(self, C_m_n):
         """:meth:`reference` of one (3, 3) or many (R, 3, 3) master attitudes."""
         C = np.asarray(C_m_n, dtype=float)
@@ -795,8 +811,7 @@ def _stacked_H(match, C_lin, n, dv_idx, cols):
     """[velocity rows; attitude rows at C_lin[k]] (K+1, 6, n) of the paper linearisation."""
     H = np.zeros((C_lin.shape[0], 6, n))
     H[:, np.arange(3), dv_idx] = 1.0
-    for k in range(C_lin.shape[0]):
-        H[k, 3:, cols] = match.H(C_lin[k]).T
+    H[:, 3:, cols] = match.H_many(C_lin)
     return H
 
 
