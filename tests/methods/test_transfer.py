@@ -423,3 +423,13 @@ def test_compiled_open_loop_equals_the_numpy_recursion(kind):
     for r in range(R):
         one, _ = tr.batch_filter(Phi, Cm, zv[r:r + 1], Cs[r:r + 1], m, *args, record_every=3)
         np.testing.assert_array_equal(one[0], xs[r])
+
+
+@pytest.mark.parametrize("kind", tr.KINDS)
+def test_H_many_is_H_of_each_attitude(kind):
+    """The paper-form H of stacked master attitudes equals H of each one (the same formulas;
+    numpy's scalar square may round an Euler-form denominator one ulp apart)."""
+    rng = np.random.default_rng(8)
+    C = euler_to_dcm(np.stack([_rand_att(rng) for _ in range(50)]))
+    m = tr.AttitudeMatch(kind, euler_to_dcm(_rand_att(rng)) if kind == "optimal" else None)
+    np.testing.assert_allclose(m.H_many(C), np.stack([m.H(c) for c in C]), rtol=4e-16, atol=1e-15)
