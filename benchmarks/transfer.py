@@ -19,9 +19,21 @@ speed with no call overhead; a closed loop cannot do that).
    local cluster, with the paper-form filters' gains made in every task (the former way)
    and made once for the campaign and shipped with its shared inputs (the current way).
 
-Run: ``.venv/bin/python benchmarks/transfer.py [--runs 200] [--wide 1000] [--lanes 200] [--quick] [--out FILE]``
-or ``.venv/bin/python benchmarks/transfer.py --scaling 200``; results printed and written to
-``benchmarks/results/transfer.json`` (``transfer_scaling.json``).
+4. ``--campaign RUNS`` instead: the experiment's main campaign as ``sinslab run`` makes it
+   (every variant, the three installations, the batches the experiment gives a 2-worker
+   cluster, the statistics summed on the workers where the code does so), serial in this
+   process against
+   a warm 2-worker local cluster: wall time, CPU of this process and of the workers, the CPU
+   of one call of 64 runs (with and without the EKF diagnosis), the cluster's start-up
+   apart, the load average around each.
+   The script runs on older trees too (``PYTHONPATH=<tree>/src``; they gather instead of
+   summing), so "before" and "after" are the same measurement of two trees, one after the
+   other.
+
+Run: ``.venv/bin/python benchmarks/transfer.py [--runs 200] [--wide 1000] [--lanes 200] [--quick] [--out FILE]``,
+``.venv/bin/python benchmarks/transfer.py --scaling 200`` or ``--campaign 200``; results printed
+and written to ``benchmarks/results/transfer.json`` (``transfer_scaling.json``,
+``transfer_campaign.json``).
 """
 from __future__ import annotations
 
@@ -121,6 +133,65 @@ def _scaling(cfg, runs, workers=2, rounds=2):
     return res
 
 
+def _worker_cpu():
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def _campaign(cfg, runs, workers=2):
+    """The experiment's main campaign serial and on a warm local cluster (see the module
+    docstring, item 4)."""
+    import functools
+
+    from sinslab.estimation import montecarlo as mc
+    from sinslab.experiments import transfer_alignment as ta
+
+    s, ins = cfg.scenario, cfg.installation
+    cases = {"large": ta._case(cfg, ins.large, s.heading), "small": ta._case(cfg, ins.small, s.heading),
+             "c22": ta._case(cfg, ins.small, 90.0 * units_deg())}
+    rec = max(1, int(round(0.5 / float(cfg.filter.kf_dt))))
+    p, var, ekf = ta._params(cfg), ta._variants(), int(cfg.filter.ekf_runs)
+    kw = dict(p=p, cases=cases, record_every=rec, ekf_runs=ekf, variants=var, gains=ta._common_gains(p, cases, rec))
+    extra = {}
+    if hasattr(ta, "_sums"):                      # trees that sum the statistics on the workers
+        scoring = {c: {"Csm": cases[c]["Csm"], "Csm_nom": cases[c]["Csm_nom"]} for c in cases}
+        extra = dict(reduce=functools.partial(ta._sums, variants=var, scoring=scoring, ekf_runs=ekf,
+                                              models=["", "lin_"]),
+                     gather=functools.partial(ta._first_runs, n=ta.FIGURE_RUNS))
+    tpw = getattr(ta, "TASKS_PER_WORKER", 1)      # older trees: one call per worker
+    batch = min(64, -(-runs // (workers * tpw)))  # what run_campaign gives a 2-worker cluster
+    seeds = list(np.random.SeedSequence(0).spawn(64 + ekf))
+    ta._batch(seeds[:2], **kw)                    # compile / load the kernels here
+    # a call of 64 runs (the same in every tree) past the EKF diagnosis's runs, and the first 64
+    _, task_cpu, task_wall = _cpu(lambda: ta._batch(seeds[ekf:ekf + 64], **kw))
+    _, task0_cpu, _ = _cpu(lambda: ta._batch(seeds[:64], **kw))
+
+    def camp(sched):
+        return mc.run_campaign(ta._batch, runs, 0, batch=batch, scheduler=sched, tasks_per_worker=tpw,
+                               progress=False, kwargs=kw, **extra)
+
+    load = [os.getloadavg()[0]]
+    _, serial_cpu, serial_wall = _cpu(lambda: camp("sync"))
+    load.append(os.getloadavg()[0])
+    t0 = time.perf_counter()
+    with mc.dask_client(None, workers) as client:
+        start_s = time.perf_counter() - t0
+        mc.run_campaign(ta._batch, 2, 9, batch=1, scheduler=client, progress=False, kwargs=kw)   # warm the workers
+        w0 = sum(client.run(_worker_cpu).values())
+        _, cl_cpu, cl_wall = _cpu(lambda: camp(client))
+        cl_worker_cpu = sum(client.run(_worker_cpu).values()) - w0
+    load.append(os.getloadavg()[0])
+    return dict(runs=runs, workers=workers, batch=batch, reduced_on_workers=bool(extra),
+                task64_cpu_s=task_cpu, task64_wall_s=task_wall, task64_with_ekf_cpu_s=task0_cpu,
+                serial_wall_s=serial_wall, serial_cpu_s=serial_cpu,
+                cluster_start_s=start_s, cluster_wall_s=cl_wall, cluster_client_cpu_s=cl_cpu,
+                cluster_worker_cpu_s=cl_worker_cpu, serial_over_cluster_wall=serial_wall / cl_wall,
+                serial_over_cluster_wall_with_start=serial_wall / (cl_wall + start_s),
+                load_1min=load, cpus=os.cpu_count())
+
+
 def units_deg():
     from sinslab.core import units
 
@@ -140,18 +211,21 @@ def main(argv=None) -> dict:
     ap.add_argument("--quick", action="store_true", help="40 runs, 100 wide")
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address (default: local cluster)")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "transfer.json")
+    ap.add_argument("--campaign", type=int, default=0, metavar="RUNS",
+                    help="only the experiment's main campaign of RUNS runs, serial against a warm 2-worker cluster")
     ap.add_argument("--scaling", type=int, default=0, metavar="RUNS",
                     help="only the whole campaign of RUNS runs, serial against a local cluster, gains made "
                          "per task against once (speed-ups printed as ratios)")
     a = ap.parse_args(argv)
     runs, wide = (40, 100) if a.quick else (a.runs, a.wide)
     cfg = resolve(ta.Config)
-    if a.scaling:
-        out = _scaling(cfg, a.scaling)
+    if a.campaign or a.scaling:
+        out = _campaign(cfg, a.campaign) if a.campaign else _scaling(cfg, a.scaling)
         for k, v in out.items():
-            print(f"{k:>34s}: {v}")
+            print(f"{k:>36s}: {v}")
         a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.with_name("transfer_scaling.json").write_text(json.dumps(out, indent=2))
+        name = "transfer_campaign.json" if a.campaign else "transfer_scaling.json"
+        a.out.with_name(name).write_text(json.dumps(out, indent=2))
         return out
     cases, setup_cpu, _ = _cpu(lambda: {c: ta._case(cfg, getattr(cfg.installation, c), cfg.scenario.heading)
                                         for c in ta._C})
@@ -163,7 +237,8 @@ def main(argv=None) -> dict:
                                                       progress=False, kwargs=dict(kw, p=q))
     res_sd, cpu_sd, wall_sd = _cpu(lambda: camp(dict(p, compare_linear=False), runs))
     res_li, cpu_li, wall_li = _cpu(lambda: camp(dict(p, slave="linear"), runs))
-    st = ta._variant_stats(res_sd, cases, var, float(cfg.filter.converge_ratio))
+    sums = mc.tree_sum(ta._sums(res_sd, var, cases, 0, [""]))
+    st = ta._variant_stats(sums, cases, var, float(cfg.filter.converge_ratio))
     # one form, many runs, on the local cluster (wall clock)
     one = [v for v in var if v[0] == f"{a.method}_large"]
     kw1 = dict(kw, variants=one, cases={"large": cases["large"]})

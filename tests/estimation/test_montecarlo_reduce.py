@@ -161,3 +161,23 @@ def test_map_tasks_inputs_survive_a_lost_worker(tmp_path):
                        kwargs=dict(marker=str(marker)))
     assert not marker.exists()                        # a worker did die
     assert [g.tolist() for g in got] == [[0.0, 1.0, 4.0], [0.0, 1.0, 4.0, 9.0]]
+
+
+def first_six_and_a_scalar(out):
+    return {"x": out["x"][out["k"] < 6], "k": out["k"][out["k"] < 6]}
+
+
+def test_rows_gathered_whole_beside_the_sums(tmp_path):
+    """gather brings rows of some runs as they are, beside the tree sums: the same bytes as
+    those runs of the gathered campaign in run order, the same sums whatever the batches,
+    and a store written with them is read back whole."""
+    full = mc.run_campaign(draws, 23, 3, batch=5, scheduler="sync", progress=False)
+    ref = mc.tree_sum(moments(full))
+    for b in (1, 4, 23):
+        sums, rows = mc.run_campaign(draws, 23, 3, batch=b, scheduler="sync", progress=False, reduce=moments,
+                                     gather=first_six_and_a_scalar, store=tmp_path / f"s{b}")
+        assert all(np.array_equal(sums[k], ref[k]) for k in ref)
+        assert np.array_equal(rows["x"], full["x"][:6]) and rows["k"].tolist() == list(range(6))
+        again = mc.run_campaign(draws, 23, 3, batch=b, scheduler="sync", progress=False, reduce=moments,
+                                gather=first_six_and_a_scalar, store=tmp_path / f"s{b}")
+        assert np.array_equal(again[1]["x"], rows["x"]) and np.array_equal(again[0]["x"], sums["x"])

@@ -100,25 +100,66 @@ def test_drift_random_walk_leaves_the_paper_model_alone(small, tmp_path):
     assert np.all(np.array(m["windowed_std_two_rw_dph"]) > np.array(m["windowed_std_two_dph"]))
 
 
-def test_linear_campaign_matches_nonlinear_pipeline(small):
-    """The linear-domain simulation is the nonlinear pipeline's filter: the same σ of ε_z1
-    (covariance pass along the true schedule vs the driver on the navigated outputs), and
-    the nonlinear run's windowed std lies inside the spread of the linear seeds."""
-    m = small["metrics"]
-    exp = get("rotation-evaluation")
-    cfg = resolve(exp.config, sets=SMALL)
+def _small_campaign_spec():
+    """The linear campaign's spec of the SMALL scenario, as the experiment makes it."""
+    cfg = resolve(get("rotation-evaluation").config, sets=SMALL)
     lat = float(cfg.scenario.latitude)
     model, P0, sig = R.joint_filter_setup(cfg)
     m1, mk = R.mounts(cfg)
     dt, k_md, me, n_kf, _ = R._grid(cfg)
     tables = R.schedule_transitions(m1, mk, lat, float(cfg.scenario.longitude), model, float(cfg.filter.model_dt), me,
                                     n_kf, rotins.NOISE_GROUPS, inputs=True)
-    S = rotins.campaign_setup(R.campaign_spec(cfg, model, P0, sig, tables))
+    return R.campaign_spec(cfg, model, P0, sig, tables)
+
+
+def test_linear_campaign_matches_nonlinear_pipeline(small):
+    """The linear-domain simulation is the nonlinear pipeline's filter: the same σ of ε_z1
+    (covariance pass along the true schedule vs the driver on the navigated outputs), and
+    the nonlinear run's windowed std lies inside the spread of the linear seeds."""
+    m = small["metrics"]
+    S = rotins.campaign_setup(_small_campaign_spec())
     assert S["sig_z"][-1] / R.DPH == pytest.approx(m["eps_z1_sigma_final_dph"], rel=1e-3)
     mc_mean = np.array(m["mc_windowed_std_mean_dph"])
     mc_sd = np.array(m["mc_windowed_std_sd_dph"])
     nl = np.array(m["windowed_std_eps_z1_dph"])
     assert np.all(np.abs(nl - mc_mean) < 3 * mc_sd + 0.1 * mc_mean)
+
+
+def test_linear_campaign_same_bytes_whatever_the_batches():
+    """The linear-domain campaign steps each seed on its own (compiled), so a seed's outputs
+    are the same bytes in batches of 1, 3 or 6 seeds, and so are the statistics summed on
+    the workers; they equal those formed from the gathered seeds (fractions, ranking and
+    eq 20's interval from the same per-seed numbers, moments to rounding)."""
+    import functools
+
+    from sinslab.estimation import montecarlo as mc
+
+    spec = _small_campaign_spec()
+    setup = rotins.campaign_setup(spec)
+    spec = {k: v for k, v in spec.items() if k not in ("Phi", "Q", "Gam", "P0")}
+    kw = dict(spec=spec, setup=setup)
+    outs = [mc.run_campaign(rotins.campaign_batch, 6, 3, batch=b, scheduler="sync", progress=False, kwargs=kw)
+            for b in (1, 3, 6)]
+    for o in outs[1:]:
+        for k in o:
+            assert np.array_equal(o[k], outs[0][k]), k
+    betas = spec["betas"]
+    shift = dict(wstd=np.full(len(betas), 1e-9), wstd_sep=np.full(2, 1e-9), ratio=1.0)
+    red = functools.partial(rotins.campaign_sums, betas=betas, sep_ratio=spec["sep"], scales=spec["scales"],
+                            shift=shift)
+    sums = [mc.run_campaign(rotins.campaign_batch, 6, 3, batch=b, scheduler="sync", progress=False, kwargs=kw,
+                            reduce=red) for b in (1, 6)]
+    assert all(np.array_equal(sums[0][k], sums[1][k]) for k in sums[0])
+    st = rotins.campaign_statistics(sums[0], shift)
+    o = outs[0]
+    assert [st["p_monotone"], st["p_distinguish"], st["p_separate"]] == list(
+        rotins.fractions(o["wstd"], o["wstd_sep"], betas, spec["sep"]))
+    ratio = o["wstd"][:, betas.index(1.1)] / o["wstd"][:, betas.index(1.0)]
+    m, ci = mc.mean_ci95(ratio)
+    np.testing.assert_allclose([st["eq20_ratio_mean"], *st["eq20_ratio_ci95"]], [m, *ci], rtol=1e-13)
+    np.testing.assert_allclose(st["wstd_mean"], o["wstd"].mean(0), rtol=1e-13)
+    np.testing.assert_allclose(st["wstd_sd"], o["wstd"].std(0), rtol=1e-9)
+    np.testing.assert_allclose(st["trend_corr_mean"], o["trend_corr"].mean(0), rtol=1e-13)
 
 
 #: the paper's rotation and drifts on a coarser grid (5 Hz IMU, 2 s model steps, a measurement

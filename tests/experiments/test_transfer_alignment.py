@@ -87,6 +87,50 @@ def test_same_seed_same_numbers(tmp_path):
             assert np.array_equal(np.asarray(a[k], float), np.asarray(b[k], float), equal_nan=True), k
 
 
+def test_campaign_sums_same_bytes_whatever_the_batches():
+    """The statistics reduced on the workers: a run's outputs do not depend on the runs
+    stacked with it (bit for bit), so the tree sums of the campaign are the same bytes with
+    batches of 1, 2 or all runs (and hence on any number of workers), they equal the
+    statistics formed from the gathered runs (up to the order of the sums), and the first
+    runs kept whole are those runs' outputs."""
+    import functools
+
+    from sinslab.core import units
+    from sinslab.estimation import montecarlo as mc
+    from sinslab.experiments import transfer_alignment as ta
+
+    cfg = resolve(ta.Config, quick=ta.QUICK, sets=["scenario.duration=6 s", "filter.ekf_runs=2"])
+    s, ins = cfg.scenario, cfg.installation
+    cases = {"large": ta._case(cfg, ins.large, s.heading), "small": ta._case(cfg, ins.small, s.heading),
+             "c22": ta._case(cfg, ins.small, 90.0 * units.deg)}
+    p, var = ta._params(cfg), ta._variants()
+    kw = dict(p=p, cases=cases, record_every=5, ekf_runs=2, variants=var, gains=ta._common_gains(p, cases, 5))
+    red = functools.partial(ta._sums, variants=var, scoring=cases, ekf_runs=2, models=["", "lin_"])
+    n = 5
+    gathered = mc.run_campaign(ta._batch, n, 7, batch=n, scheduler="sync", progress=False, kwargs=kw)
+    one = mc.run_campaign(ta._batch, n, 7, batch=1, scheduler="sync", progress=False, kwargs=kw)
+    for k in gathered:
+        assert np.array_equal(one[k], gathered[k], equal_nan=True), k
+    outs = [mc.run_campaign(ta._batch, n, 7, batch=b, scheduler="sync", progress=False, kwargs=kw, reduce=red,
+                            gather=functools.partial(ta._first_runs, n=3)) for b in (1, 2, n)]
+    for sums, head in outs:
+        for k in outs[0][0]:
+            assert np.array_equal(sums[k], outs[0][0][k]), k
+        for k in gathered:
+            assert np.array_equal(head[k], gathered[k][:3], equal_nan=True), k
+    st = ta._variant_stats(outs[0][0], cases, var, 3.0, ekf_runs=2)
+    for key, c, kind, comp, ekf in var:
+        if c == "c22":
+            continue
+        rows = slice(0, 2) if ekf else slice(None)
+        own, _ = ta._score(gathered[f"a_{key}"][rows], cases[c], kind, comp, ekf)
+        keep = ~gathered[f"div_{key}"][rows]
+        assert st[key]["n_div"] == int((~keep).sum()) and st[key]["runs"] == keep.size
+        if keep.any():
+            np.testing.assert_allclose(st[key]["rms"], np.sqrt(np.mean(own[keep] ** 2, 0)) / units.arcmin,
+                                       rtol=1e-12)
+
+
 # ------------------------------------------------------------------ recorded data ----
 needs_data = pytest.mark.skipif(not DATA.exists(), reason="recorded transfer-alignment data not present")
 

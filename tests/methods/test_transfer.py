@@ -297,3 +297,139 @@ def test_common_gains_of_the_two_filters_agree(kind):
         if k % 4 == 0:
             np.testing.assert_allclose(a.sigma[k // 4], np.sqrt(np.diag(P)), rtol=1e-6)
 
+
+
+def _one_lane_at_a_time(bank, k_kf, Phi, match, G, mC, mv, noise, phi_bound, record_every):
+    """The paper-form closed loop of align_lanes written out lane by lane with numpy and
+    the library's one-run measurement (AttitudeMatch.z, scipy rotations): the reference
+    the compiled lane step must reproduce."""
+    from sinslab.nav.lanes import LaneBank
+
+    lay = tr.transfer_model().layout
+    sl = lay.slice
+    fed = np.r_[np.arange(21)[sl("phi")], np.arange(21)[sl("dv")], np.arange(9, 21)]
+    K = Phi.shape[0]
+    a = np.full((bank.lanes, K // record_every + 1, 3), np.nan)
+    for l in range(bank.lanes):
+        one = LaneBank(bank.state[l:l + 1], bank.dtheta, bank.dv, bank.source[l:l + 1], bank.dt, bank.nsub)
+        x = np.zeros(21)
+        for k in range(K + 1):
+            if k:
+                one.advance(k_kf)
+                x = Phi[k - 1] @ x
+            z = np.r_[one.velocity()[0] - mv[l, k], match.z(mC[l, k], one.attitude()[0])] + noise[l, k]
+            nu = z - G.H[k] @ x
+            if match.kind == "euler":
+                nu[3:] = tr.wrap_pi(nu[3:])
+            x = x + G.K[k] @ nu
+            if not (np.all(np.isfinite(x)) and np.linalg.norm(x[sl("phi")]) <= phi_bound):
+                break
+            one.correct(x[None, sl("phi")], x[None, sl("dv")])
+            one.compensate(x[None, sl("eps")], x[None, sl("nabla")], x[None, sl("kg")], x[None, sl("ka")])
+            x[fed] = 0.0
+            if k % record_every == 0:
+                a[l, k // record_every] = x[sl("lam")]
+    return a
+
+
+@pytest.mark.parametrize("kind", tr.KINDS)
+def test_compiled_lane_step_equals_one_lane_at_a_time(kind):
+    """The compiled closed loop of align_lanes (all lanes stepped together per epoch) gives
+    each lane the installation estimates of the same filter run on that lane alone with
+    numpy and scipy (to 1e-9 of their size: the compiled step forms the attitude
+    measurement and the products in another order), the same lanes stop at the same epochs,
+    and a lane's numbers do not depend on the lanes beside it (bit for bit)."""
+    from scipy.linalg import expm
+    from sinslab.core import earth
+    from sinslab.core.records import NavState
+    from sinslab.nav import strapdown as sd
+    from sinslab.nav.errstate import NavPoint
+    from sinslab.nav.lanes import LaneBank
+
+    rng = np.random.default_rng(11)
+    lam = np.array([20.0, -15.0, 30.0]) * DEG / 60
+    att_m = np.array([1.0, -2.0, 30.0]) * DEG
+    lat, h, K, L = 0.6, 50.0, 60, 4
+    imu, _, _ = _stationary(lam, att_m, lat=lat, h=h, n=K * 10 + 1)
+    Cmn = euler_to_dcm(att_m)
+    Csn = Cmn @ rotvec_to_dcm(lam)
+    F = tr.transfer_model().F(NavPoint(lat, h, np.zeros(3), Csn, Csn.T @ -earth.gravity_vector(lat, h),
+                                       Csn.T @ earth.wie_n(lat)))
+    Phi = np.ascontiguousarray(np.broadcast_to(expm(F * 0.1), (K, 21, 21)))
+    # every lane its own sensor errors, master and noise; the last starts 20° off in
+    # pitch: its first update asks for a correction beyond the bound and stops it
+    dth = imu.dtheta[None, :K * 10] + rng.normal(0, 1e-5, (L, 1, 3)) * 0.01
+    dv = imu.dv[None, :K * 10] + rng.normal(0, 1e-3, (L, 1, 3)) * 0.01
+    s0 = np.stack([sd.initial_state_array(NavState(lat, 0.2, h, np.zeros(3), att_m + [20 * DEG * (l == L - 1), 0, 0],
+                                                   0.0)) for l in range(L)])
+    mC = rotvec_to_dcm(rng.normal(0, 3e-4, (L, 1, 3))) @ np.broadcast_to(Cmn, (L, K + 1, 3, 3))
+    mv = np.broadcast_to(rng.normal(0, 0.01, (L, 1, 3)), (L, K + 1, 3)).copy()
+    noise = rng.normal(0, 1.0, (L, K + 1, 6)) * np.r_[[0.01] * 3, [DEG / 60] * 3]
+    match = tr.AttitudeMatch(kind, euler_to_dcm(att_m * 0.5) if kind == "optimal" else None)
+    sig0 = np.array([DEG / 60] * 3 + [0.1] * 3 + [1e-2] * 3 + [1e-5] * 3 + [1e-4] * 3 + [1e-3] * 3 + [1e-4] * 3)
+    G = tr.lane_gains(Phi, match, np.diag(sig0 ** 2), np.full(3, 0.01 ** 2), np.full(3, (DEG / 60) ** 2), mC[0])
+    bound = 0.2 * DEG
+
+    def bank(rows):
+        return LaneBank(s0[rows], dth[rows], dv[rows], np.arange(len(rows)), 0.01)
+
+    def lanes(rows):
+        return tr.align_lanes(bank(rows), 10, Phi, match, np.diag(sig0 ** 2), np.full(3, 0.01 ** 2),
+                              np.full(3, (DEG / 60) ** 2), mC[rows], mv[rows], np.arange(len(rows)),
+                              meas_noise=noise[rows], phi_bound=bound, record_every=5, gains=G)
+
+    rows = np.arange(L)
+    r = lanes(rows)
+    ref = _one_lane_at_a_time(bank(rows), 10, Phi, match, G, mC, mv, noise, bound, 5)
+    assert r.diverged.tolist() == [False, False, False, True]
+    np.testing.assert_array_equal(np.isnan(r.a), np.isnan(ref))
+    ok = ~np.isnan(ref)
+    np.testing.assert_allclose(r.a[ok], ref[ok], rtol=0, atol=1e-9 * np.abs(ref[ok]).max())
+    for l in range(L):
+        one = lanes(rows[l:l + 1])
+        np.testing.assert_array_equal(one.a[0], r.a[l])
+        np.testing.assert_array_equal(one.attitude[0], r.attitude[l])
+
+
+@pytest.mark.parametrize("kind", ["euler", "kain"])
+def test_compiled_open_loop_equals_the_numpy_recursion(kind):
+    """The paper-form batch_filter (compiled, run by run) against the recursion written
+    with numpy over the stacked runs: the same estimates to 1e-12 of their size, and a
+    run's numbers independent of the runs stacked with it (bit for bit)."""
+    from scipy.linalg import expm
+
+    rng = np.random.default_rng(4)
+    n, K, R = 21, 50, 5
+    Phi = np.ascontiguousarray(np.broadcast_to(expm(rng.normal(0, 0.02, (n, n)) * 0.1), (K, n, n)))
+    Cm = euler_to_dcm(np.stack([_rand_att(rng) for _ in range(K + 1)]))
+    m = tr.AttitudeMatch(kind)
+    Cs = rotvec_to_dcm(rng.normal(0, 0.01, (R, K + 1, 3))) @ Cm[None]
+    zv = rng.normal(0, 0.05, (R, K + 1, 3))
+    sig0 = np.array([DEG / 60] * 3 + [0.1] * 3 + [1e-2] * 3 + [1e-7] * 3 + [1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3)
+    args = (np.zeros(n), np.diag(sig0 ** 2), np.full(3, 0.01 ** 2), np.full(3, (DEG / 60) ** 2))
+    xs, _ = tr.batch_filter(Phi, Cm, zv, Cs, m, *args, record_every=3)
+    G = tr.batch_gains(Phi, Cm, m, args[1], args[2], args[3])
+    zz = np.concatenate([zv, m.z_many(Cm, Cs)], axis=2)
+    x = np.zeros((R, n))
+    for k in range(K + 1):
+        nu = zz[:, k] - x @ G.H[k].T
+        if kind == "euler":
+            nu[:, 3:] = tr.wrap_pi(nu[:, 3:])
+        x = x + nu @ G.K[k].T
+        if k % 3 == 0:
+            np.testing.assert_allclose(xs[:, k // 3], x, rtol=0, atol=1e-12 * np.abs(x).max())
+        if k < K:
+            x = x @ Phi[k].T
+    for r in range(R):
+        one, _ = tr.batch_filter(Phi, Cm, zv[r:r + 1], Cs[r:r + 1], m, *args, record_every=3)
+        np.testing.assert_array_equal(one[0], xs[r])
+
+
+@pytest.mark.parametrize("kind", tr.KINDS)
+def test_H_many_is_H_of_each_attitude(kind):
+    """The paper-form H of stacked master attitudes equals H of each one (the same formulas;
+    numpy's scalar square may round an Euler-form denominator one ulp apart)."""
+    rng = np.random.default_rng(8)
+    C = euler_to_dcm(np.stack([_rand_att(rng) for _ in range(50)]))
+    m = tr.AttitudeMatch(kind, euler_to_dcm(_rand_att(rng)) if kind == "optimal" else None)
+    np.testing.assert_allclose(m.H_many(C), np.stack([m.H(c) for c in C]), rtol=4e-16, atol=1e-15)

@@ -47,7 +47,7 @@ from sinslab.core.atomic import atomic_path, atomic_write
 from sinslab.core.errors import InputError
 
 __all__ = ["spawn_seeds", "run_campaign", "tree_sum", "TASK_SECONDS", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
-           "mean_ci95", "wilson_ci95", "linear_batch", "summarize_sums"]
+           "mean_ci95", "mean_ci95_sums", "wilson_ci95", "linear_batch", "summarize_sums"]
 
 
 def spawn_seeds(seed, n_runs):
@@ -90,7 +90,7 @@ def _run_batch(fn, first, seeds, args, kwargs):
 
 def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None,
                  progress=True, args=(), kwargs=None, retries=0, tasks_per_worker=4,
-                 auto_serial=True, reduce=None, store=None, store_key="", task_seconds=None):
+                 auto_serial=True, reduce=None, store=None, store_key="", task_seconds=None, gather=None):
     """Run ``n_runs`` independent runs of ``fn`` in batches on Dask.
 
     Parameters
@@ -137,6 +137,11 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
         the tree's nodes travel to this process (a few per task) and the bytes depend
         neither on the batches, the tasks, the workers nor the order in which tasks end.
         Without it every run's output is gathered here.
+    gather : callable, optional
+        With ``reduce``: ``gather(out)`` maps one call's output to a dict of arrays whose
+        rows are some of its runs, in run order, gathered here whole beside the sums — what
+        is not a sum but stays small: a few runs drawn in a figure, a scalar per run for a
+        median.
     store : path-like, optional
         Folder keeping each finished task's result (its tree nodes, or its runs' outputs
         without ``reduce``), written atomically as the task ends. A campaign started with
@@ -156,11 +161,14 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
     -------
     ndarray or dict of ndarray
         Without ``reduce``: the outputs of all runs concatenated along the first axis in
-        run order. With ``reduce``: the sum over all runs of each of its arrays.
+        run order. With ``reduce``: the sum over all runs of each of its arrays; with
+        ``gather`` too, the pair ``(sums, gathered rows concatenated in run order)``.
     """
     kwargs = dict(kwargs or {})
     seeds = spawn_seeds(seed, n_runs)
     n = len(seeds)
+    if reduce is not None and gather is not None:
+        reduce = _Gathering(reduce, gather)
     acc = _Collected(n, reduce)
     per_run = None
     nw = int(n_workers or os.cpu_count() or 1)
@@ -174,7 +182,7 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
         if store is None or st is not None:
             return
         st = _Store(store, dict(n_runs=n, seed=_seed_words(seed), batch=int(batch), reduce=reduce is not None,
-                                key=str(store_key)))
+                                gather=gather is not None, key=str(store_key)))
         for first, count, payload in st.load():
             acc.add(first, count, payload)
         if acc.done:
@@ -341,7 +349,32 @@ def _run_task(fn, blocks, seeds, args, kwargs, reduce):
     for (s, c), out in zip(blocks, outs):
         for level, index, node in _dyadic_nodes(s, _contributions(reduce(out), c)):
             tree.add(level, index, node)
-    return tree.nodes
+    nodes = tree.nodes
+    if isinstance(reduce, _Gathering):
+        for (s, c), out in zip(blocks, outs):
+            nodes[(_GATHERED, s)] = reduce.rows(out)
+    return nodes
+
+
+#: Level of the entries of a task's tree nodes that carry rows gathered whole (``gather``),
+#: keyed by the first run of their call, instead of sums.
+_GATHERED = -1
+
+
+class _Gathering:
+    """A campaign's ``reduce`` with its ``gather``."""
+
+    def __init__(self, reduce, gather):
+        self.reduce, self.gather = reduce, gather
+
+    def __call__(self, out):
+        return self.reduce(out)
+
+    def rows(self, out):
+        d = self.gather(out)
+        if not isinstance(d, dict) or not d:
+            raise ValueError("a campaign's gather function must return a non-empty dict of arrays")
+        return {k: np.asarray(v) for k, v in d.items()}
 
 
 def _run_task_timed(fn, blocks, seeds, packed, reduce):
@@ -412,13 +445,19 @@ class _Collected:
             self.parts[first] = payload
         else:
             for (level, index), node in payload.items():
-                self.tree.add(level, index, node)
+                if level == _GATHERED:
+                    self.parts[index] = node
+                else:
+                    self.tree.add(level, index, node)
         self.mask[first:first + count] = True
 
     def result(self):
         if self.reduce is None:
             return _concat([self.parts[s] for s in sorted(self.parts)])
-        return self.tree.total(self.n)
+        sums = self.tree.total(self.n)
+        if not isinstance(self.reduce, _Gathering):
+            return sums
+        return sums, _concat([self.parts[s] for s in sorted(self.parts)])
 
 
 def _seed_words(seed):
@@ -464,7 +503,8 @@ def _pack(payload):
     if isinstance(payload, np.ndarray):
         return {"array": payload}
     if payload and isinstance(next(iter(payload)), tuple):
-        return {f"node-{lv}-{ix}-{k}": v for (lv, ix), d in payload.items() for k, v in d.items()}
+        return {f"node-{'rows' if lv == _GATHERED else lv}-{ix}-{k}": v for (lv, ix), d in payload.items()
+                for k, v in d.items()}
     return {f"out-{k}": v for k, v in payload.items()}
 
 
@@ -475,7 +515,7 @@ def _unpack(z):
         nodes = {}
         for k, v in z.items():
             _, lv, ix, name = k.split("-", 3)
-            nodes.setdefault((int(lv), int(ix)), {})[name] = v
+            nodes.setdefault((_GATHERED if lv == "rows" else int(lv), int(ix)), {})[name] = v
         return nodes
     return {k[4:]: v for k, v in z.items()}
 
@@ -773,6 +813,18 @@ def mean_ci95(x):
     if x.size < 2:
         return m, [float("nan"), float("nan")]
     h = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
+    return m, [m - h, m + h]
+
+
+def mean_ci95_sums(n, s1, s2, shift=0.0):
+    """:func:`mean_ci95` of ``n`` values from the sums of ``x − shift`` (``s1``) and of its
+    squares (``s2``); a shift near the mean keeps the spread's digits."""
+    n = int(n)
+    m = float(shift + s1 / n)
+    if n < 2:
+        return m, [float("nan"), float("nan")]
+    sd = math.sqrt(max(float(s2 - s1 * s1 / n), 0.0) / (n - 1))
+    h = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n))
     return m, [m - h, m + h]
 
 

@@ -838,7 +838,7 @@ def run(cfg: Config, ctx) -> Result:
     mc_stats = None
     nan2 = [float("nan"), float("nan")]
     if runs > 1:
-        mc = linear_campaign(cfg, ctx, runs, model, P0, sig_meas, (Phi_u, Q_u, idx, Gam_u))
+        mc = linear_campaign(cfg, ctx, runs, model, P0, sig_meas, (Phi_u, Q_u, idx, Gam_u), near=(mean_one, mean_sep))
         mc_stats = mc
         p_mono, p_d11, p_sep = mc["p_monotone"], mc["p_distinguish"], mc["p_separate"]
         eq20_mean, eq20_ci = mc["eq20_ratio_mean"], mc["eq20_ratio_ci95"]
@@ -905,20 +905,20 @@ def run(cfg: Config, ctx) -> Result:
                        None if two_rw is None else two_rw["est"])
     tables = []
     if mc_stats is not None:
-        w = mc_stats["wstd"] / DPH
-        ws = mc_stats["wstd_sep"] / DPH
+        w_mean, w_sd = mc_stats["wstd_mean"] / DPH, mc_stats["wstd_sd"] / DPH
+        s_mean, s_sd = mc_stats["wstd_sep_mean"] / DPH, mc_stats["wstd_sep_sd"] / DPH
         tables.append(Table("montecarlo_windowed_std", {
             "beta": betas + ["separate A", "separate B"],
-            "mean_dph": [float(v) for v in w.mean(0)] + [float(v) for v in ws.mean(0)],
-            "std_over_seeds_dph": [float(v) for v in w.std(0)] + [float(v) for v in ws.std(0)],
+            "mean_dph": [float(v) for v in w_mean] + [float(v) for v in s_mean],
+            "std_over_seeds_dph": [float(v) for v in w_sd] + [float(v) for v in s_sd],
             "nonlinear_run_dph": [float(v / DPH) for v in mean_one] + [v / DPH for v in mean_sep]},
             f"Mean windowed std of ε_z1 over {runs} seeds (linear domain) next to this nonlinear run"))
-        metrics["mc_windowed_std_mean_dph"] = [float(v) for v in w.mean(0)]
-        metrics["mc_windowed_std_sd_dph"] = [float(v) for v in w.std(0)]
+        metrics["mc_windowed_std_mean_dph"] = [float(v) for v in w_mean]
+        metrics["mc_windowed_std_sd_dph"] = [float(v) for v in w_sd]
         sb = mc_stats["settle_band"] / 3600.0
         metrics["mc_settle_band_median_h"] = float(np.median(sb))
         metrics["mc_settle_band_p_by_paper"] = float(np.mean(sb <= PAPER_SETTLE_H + win / 3600.0))
-        metrics["mc_trend_correlation_mean"] = [float(v) for v in mc_stats["trend_corr"].mean(0)]
+        metrics["mc_trend_correlation_mean"] = [float(v) for v in mc_stats["trend_corr_mean"]]
     claims = _claims(cfg, metrics, so, warn_rank, runs)
     metrics["runtime_s"] = time.perf_counter() - t_start
     return Result(metrics=metrics, claims=claims, series=series, figures=figures, tables=tables, notes=notes)
@@ -947,10 +947,16 @@ def campaign_spec(cfg: Config, model, P0, sig_meas, tables):
                 band=float(ev.settle_band))
 
 
-def linear_campaign(cfg, ctx, runs, model, P0, sig_meas, tables):
+def linear_campaign(cfg, ctx, runs, model, P0, sig_meas, tables, near=None):
     """Analyses one and two over ``runs`` seeds in the linear domain, on Dask: the fixed
     part (:func:`sinslab.methods.rotins.campaign_setup`) is made here once and sent to every
-    worker once."""
+    worker once. The statistics are summed on the workers
+    (:func:`sinslab.methods.rotins.campaign_sums`; ``near``: values near the means of the
+    windowed stds per β and of the separate INS [rad/s], e.g. the nonlinear run's, default
+    0); the settling time of every seed, whose median is not a sum, comes back as one
+    number per seed."""
+    import functools
+
     from sinslab.estimation import montecarlo as mc
     from sinslab.methods import rotins
 
@@ -959,11 +965,22 @@ def linear_campaign(cfg, ctx, runs, model, P0, sig_meas, tables):
     spec = {k: v for k, v in spec.items() if k not in ("Phi", "Q", "Gam", "P0")}
     # a task runs the whole step recursion once, vectorised over its seeds: its cost hardly
     # depends on how many it stacks, so one task per worker
-    out = mc.run_campaign(rotins.campaign_batch, runs, cfg.seed, scheduler=ctx.scheduler,
-                          kwargs=dict(spec=spec, setup=setup), tasks_per_worker=1)
-    stats = rotins.campaign_statistics(out, spec["betas"], spec["sep"], spec["scales"])
-    return dict(stats, wstd=out["wstd"], wstd_sep=out["wstd_sep"], wstd_two=out["wstd_two"],
-                settle_band=out["settle_band"], trend_corr=out["trend_corr"])
+    betas = spec["betas"]
+    w, ws = (np.zeros(len(betas)), np.zeros(2)) if near is None else (np.asarray(x, float) for x in near)
+    w, ws = np.nan_to_num(w), np.nan_to_num(ws)
+    i10, i11 = betas.index(1.0), betas.index(1.1)
+    shift = dict(wstd=w, wstd_sep=ws, ratio=float(w[i11] / w[i10]) if w[i10] > 0 else 0.0)
+    sums, per_seed = mc.run_campaign(rotins.campaign_batch, runs, cfg.seed, scheduler=ctx.scheduler,
+                                     kwargs=dict(spec=spec, setup=setup), tasks_per_worker=1,
+                                     reduce=functools.partial(rotins.campaign_sums, betas=betas, sep_ratio=spec["sep"],
+                                                              scales=spec["scales"], shift=shift),
+                                     gather=_settling)
+    return dict(rotins.campaign_statistics(sums, shift), settle_band=per_seed["settle_band"])
+
+
+def _settling(out):
+    """The one number per seed a campaign brings back whole: the band settling time [s]."""
+    return {"settle_band": out["settle_band"]}
 
 
 # ---------------------------------------------------------------- claims ----------------

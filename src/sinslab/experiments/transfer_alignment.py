@@ -412,11 +412,7 @@ def _linear(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_eve
         x = np.zeros((R, n))
         x[:, 9:] = sens[rows]
         x[:, 0:3] = misalignment(case["Cs"][0], case["Cm"][0] @ case["Csm_nom"])[None, :]
-        xs = np.empty((R, Kp1, n))
-        xs[:, 0] = x
-        for k in range(Kp1 - 1):
-            x = x @ case["Phi"][k].T
-            xs[:, k + 1] = x
+        xs = tm.propagate_errors(case["Phi"], x)
         C_hat = rotvec_to_dcm(-xs[:, :, 0:3]) @ case["Cs"][None]
         mC = rotvec_to_dcm(-m_att[rows])[:, None] @ case["Cm"][None]
         # the master's attitude error as a rotation of the slave attitude seen against the
@@ -435,13 +431,23 @@ def _linear(case, p, match, P0, sens, m_att, m_vel, noise, rows, ekf, record_eve
             np.linalg.norm(xs[:, rec, 0:3], axis=-1))
 
 
-def _common_gains(p, cases, record_every, variants=None):
+#: The parameters of :func:`_params` the paper-form filters' gains depend on (noise
+#: variances and initial σ); the master's errors and the divergence bounds do not enter them.
+_GAIN_PARAMS = ("vel_noise", "att_noise", "att_sigma0", "vel_sigma0", "inst_sigma0", "gyro_bias", "gyro_scale",
+                "accel_bias", "accel_scale")
+
+
+def _common_gains(p, cases, record_every, variants=None, memo=None):
     """Per (variant key, model prefix of :func:`_batch`) the covariance recursion of the
     paper-form filters (:func:`sinslab.methods.transfer.lane_gains` for the mechanised
     slave, :func:`~sinslab.methods.transfer.batch_gains` for the linear model): common to
-    every run, so made once for a campaign instead of once in each task."""
+    every run, so made once for a campaign instead of once in each task. ``memo`` (a dict
+    kept across the campaigns of one run, on the same cases) reuses the gains of another
+    campaign whose filters are the same (the sweep over the master's error changes none)."""
     from sinslab.methods import transfer as tm
 
+    memo = {} if memo is None else memo
+    same = (record_every,) + tuple(float(p[k]) for k in _GAIN_PARAMS)
     r_vel, r_att = np.full(3, p["vel_noise"] ** 2), np.full(3, p["att_noise"] ** 2)
     models = [("", p["slave"] == "strapdown")]
     if p["slave"] == "strapdown" and p["compare_linear"]:
@@ -453,10 +459,12 @@ def _common_gains(p, cases, record_every, variants=None):
         case = cases[c]
         match, P0 = _filter_setup(p, case, kind, comp)
         for pre, lanes in models:
-            out[(key, pre)] = (tm.lane_gains(case["Phi"], match, P0, r_vel, r_att, case["Cm"], record_every=record_every)
-                               if lanes else
-                               tm.batch_gains(case["Phi"], case["Cm"], match, P0, r_vel, r_att,
-                                              record_every=record_every))
+            m = (key, lanes) + same
+            if m not in memo:
+                memo[m] = (tm.lane_gains(case["Phi"], match, P0, r_vel, r_att, case["Cm"], record_every=record_every)
+                           if lanes else
+                           tm.batch_gains(case["Phi"], case["Cm"], match, P0, r_vel, r_att, record_every=record_every))
+            out[(key, pre)] = memo[m]
     return out
 
 
@@ -467,8 +475,9 @@ def _batch(seeds, p, cases, record_every, ekf_runs, variants=None, gains=None):
     Returns per variant key the installation estimates ``a_<key>`` (R, M, 3) [rad], their σ
     ``sig_<key>``, the divergence flags ``div_<key>`` (R,), the heading error ``phiU_<key>``
     and its σ ``sigU_<key>`` (R, M), the norm of the slave's attitude error ``phin_<key>``
-    (R, M) (NaN after a run was stopped); the linear model's under ``lin_`` prefixes. EKF
-    variants run on the runs with campaign index < ``ekf_runs`` only (NaN rows elsewhere).
+    (R, M) (NaN after a run was stopped); the linear model's under ``lin_`` prefixes; the
+    campaign index of each run ``run`` (R,). EKF variants run on the runs with campaign
+    index < ``ekf_runs`` only (NaN rows elsewhere).
     ``gains``: :func:`_common_gains` of the campaign (each call makes its own when not given).
     """
     R = len(seeds)
@@ -477,7 +486,7 @@ def _batch(seeds, p, cases, record_every, ekf_runs, variants=None, gains=None):
     models = [("", _strapdown if p["slave"] == "strapdown" else _linear)]
     if p["slave"] == "strapdown" and p["compare_linear"]:
         models.append(("lin_", _linear))
-    out, cache = {}, {}
+    out, cache = {"run": idx}, {}
     for key, c, kind, comp, ekf in (variants or _variants()):
         if c not in cases:
             continue
@@ -519,52 +528,138 @@ def _score(a, case, kind, comp, ekf=False):
     return own, np.where(ok[..., None], rv, np.nan)
 
 
-def _stats(err, sg, div, ratio):
-    """RMS over the runs that did not diverge, mean σ, verdict and margin (arcmin, -)."""
+#: Runs of the main campaign whose outputs travel whole beside the sums: the figures draw
+#: the first run that did not diverge and, for a form whose runs all diverged, runs 0–8.
+FIGURE_RUNS = 9
+
+
+#: Calls of the task function per worker in the main campaign: a call's cost grows with its
+#: runs (the lanes are stepped one by one in compiled code) and the EKF diagnosis makes the
+#: calls holding the first runs heavier, so several calls per worker balance the load. The
+#: sweep's small campaigns make one call per worker (each call has a fixed cost, ~0.15 s).
+TASKS_PER_WORKER = 4
+
+
+def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, label="mc", keep_first=0,
+              tasks_per_worker=TASKS_PER_WORKER, gains_memo=None):
+    """The Monte Carlo of ``variants`` over ``n`` runs, its statistics summed on the workers
+    (:func:`_sums`): the sums, and with ``keep_first`` the pair (sums, whole outputs of the
+    runs of index below it); ``gains_memo``: see :func:`_common_gains`."""
+    import functools
+
+    from sinslab.estimation import montecarlo as mc
+
+    variants = variants or _variants()
+    models = [""] + (["lin_"] if p["slave"] == "strapdown" and p["compare_linear"] else [])
+    scoring = {c: {"Csm": cases[c]["Csm"], "Csm_nom": cases[c]["Csm_nom"]} for c in cases}
+    return mc.run_campaign(_batch, n, seed, scheduler=ctx.scheduler, tasks_per_worker=tasks_per_worker,
+                           kwargs=dict(p=p, cases=cases, record_every=record_every, ekf_runs=ekf_runs,
+                                       variants=variants,
+                                       gains=_common_gains(p, cases, record_every, variants, gains_memo)),
+                           reduce=functools.partial(_sums, variants=variants, scoring=scoring, ekf_runs=ekf_runs,
+                                                    models=models),
+                           gather=functools.partial(_first_runs, n=keep_first) if keep_first else None,
+                           **ctx.campaign_store(label))
+
+
+def _first_runs(out, n):
+    """The whole outputs of the runs of campaign index below ``n`` in one call's output."""
+    on = out["run"] < n
+    return {k: v[on] for k, v in out.items()}
+
+
+def _sums(out, variants, scoring, ekf_runs, models):
+    """What the statistics need of each run of :func:`_batch` (summed over the runs where
+    they are computed, :func:`sinslab.estimation.montecarlo.run_campaign`'s ``reduce``).
+
+    Per variant key and model prefix: the runs it was run on (``n_``: every run, or those
+    of index < ``ekf_runs`` for the EKF diagnosis), those that diverged (``nd_``) and those
+    kept (``nk_``), and over the kept runs the squared installation error in the form's own
+    parameterisation (``e2_``, (M, 3)) and read as a rotation vector (``r2_``), and the
+    filter σ (``sg_``); with the linear model beside the strapdown slave, the squared
+    difference of their final estimates over the runs neither diverged in (``dl_``, (3,))
+    and those runs (``nb_``); for the heading-90° variants the squared heading error where
+    finite (``u2_``), those runs per epoch (``nu_``) and its σ (``su_``). Sums of squares,
+    counts and σ only, so the RMS, the mean σ and the verdicts follow from the totals.
+    """
+    idx = out["run"]
+    sq = {}
+    for key, c, kind, comp, ekf in variants:
+        if c not in scoring:
+            continue
+        if c == "c22":
+            v = out[f"phiU_{key}"]
+            ok = np.isfinite(v)
+            sq[f"u2_{key}"] = np.where(ok, v, 0.0) ** 2
+            sq[f"nu_{key}"] = ok
+            sq[f"su_{key}"] = out[f"sigU_{key}"]
+            continue
+        for pre in models:
+            if ekf and pre:
+                continue
+            a, sg, div = out[f"{pre}a_{key}"], out[f"{pre}sig_{key}"], out[f"{pre}div_{key}"]
+            on = idx < ekf_runs if ekf else np.ones(idx.shape, bool)
+            keep = on & ~div
+            own, rv = _score(a, scoring[c], kind, comp, ekf)
+            k3 = keep[:, None, None]
+            sq[f"{pre}n_{key}"] = on
+            sq[f"{pre}nd_{key}"] = on & div
+            sq[f"{pre}nk_{key}"] = keep
+            sq[f"{pre}e2_{key}"] = np.where(k3, own, 0.0) ** 2
+            sq[f"{pre}r2_{key}"] = np.where(k3, rv, 0.0) ** 2
+            sq[f"{pre}sg_{key}"] = np.where(k3, sg, 0.0)
+        if len(models) > 1 and not ekf:
+            both = ~(out[f"div_{key}"] | out[f"lin_div_{key}"])
+            d = out[f"lin_a_{key}"][:, -1] - out[f"a_{key}"][:, -1]
+            sq[f"dl_{key}"] = np.where(both[:, None], d, 0.0) ** 2
+            sq[f"nb_{key}"] = both
+    return sq
+
+
+def _stats(e2, sg, nk, nd, runs, ratio):
+    """RMS over the runs that did not diverge, mean σ, verdict and margin (arcmin, -) from
+    the sums of :func:`_sums`: squared errors ``e2`` and σ ``sg`` (M, 3) over the ``nk``
+    runs kept, ``nd`` diverged of ``runs``."""
     am = 1.0 / units.arcmin
-    keep = ~np.asarray(div, bool)
-    n_div = int((~keep).sum())
-    if keep.any():
-        rms = np.sqrt(np.mean(err[keep] ** 2, 0)) * am          # (M, 3)
-        sig = np.mean(sg[keep], 0) * am
+    nk, n_div = int(nk), int(nd)
+    if nk:
+        rms = np.sqrt(e2 / nk) * am
+        sig = sg / nk * am
     else:
-        rms = np.full(err.shape[1:], np.nan)
-        sig = np.full(err.shape[1:], np.nan)
+        rms = np.full(e2.shape, np.nan)
+        sig = np.full(e2.shape, np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
         r_end = rms[-1] / sig[-1]
     worst = float(np.max(r_end)) if np.all(np.isfinite(r_end)) else float("inf")
     conv = bool(n_div == 0 and worst <= ratio)
-    return dict(rms=rms, sig=sig, conv=conv, n_div=n_div, ratio=r_end, worst=worst, margin=ratio - worst,
-                first=err[np.argmax(keep)] * am if keep.any() else err[0] * am,
-                first_sig=sg[np.argmax(keep)] * am if keep.any() else sg[0] * am)
+    return dict(rms=rms, sig=sig, conv=conv, n_div=n_div, runs=int(runs), ratio=r_end, worst=worst,
+                margin=ratio - worst)
 
 
-def _campaign(p, cases, n, seed, ctx, record_every, ekf_runs, variants=None, label="mc"):
-    from sinslab.estimation import montecarlo as mc
-
-    return mc.run_campaign(_batch, n, seed, scheduler=ctx.scheduler, tasks_per_worker=1,
-                           kwargs=dict(p=p, cases=cases, record_every=record_every, ekf_runs=ekf_runs,
-                                       variants=variants, gains=_common_gains(p, cases, record_every, variants)),
-                           **ctx.campaign_store(label))
-
-
-def _variant_stats(res, cases, variants, ratio, pre="", ekf_runs=None):
+def _variant_stats(sums, cases, variants, ratio, pre="", ekf_runs=None, head=None):
+    """Per variant key the statistics of :func:`_stats` (own parameterisation; ``"rv"``: read
+    as a rotation vector) from the campaign's sums; with ``head`` (the whole outputs of the
+    first runs) also the error history and σ of the first run kept among them (``first``,
+    ``first_sig`` [arcmin]; the first run when none of them was kept)."""
+    am = 1.0 / units.arcmin
     out = {}
     for key, c, kind, comp, ekf in variants:
         if c == "c22":
             continue
-        a, sg, div = res[f"{pre}a_{key}"], res[f"{pre}sig_{key}"], res[f"{pre}div_{key}"]
-        if ekf:
-            a, sg, div = a[:ekf_runs], sg[:ekf_runs], div[:ekf_runs]
-        own, rv = _score(a, cases[c], kind, comp, ekf)
-        st = _stats(own, sg, div, ratio)
-        st["rv"] = _stats(rv, sg, div, ratio)
-        st["a"] = a
+        g = lambda q: sums[f"{pre}{q}_{key}"]  # noqa: E731
+        st = _stats(g("e2"), g("sg"), g("nk"), g("nd"), g("n"), ratio)
+        st["rv"] = _stats(g("r2"), g("sg"), g("nk"), g("nd"), g("n"), ratio)
+        if head is not None:
+            a, sg, div = head[f"{pre}a_{key}"], head[f"{pre}sig_{key}"], head[f"{pre}div_{key}"]
+            keep = ~div & ((head["run"] < ekf_runs) if ekf else True)
+            own, _ = _score(a, cases[c], kind, comp, ekf)
+            j = int(np.argmax(keep)) if keep.any() else 0
+            st["first"], st["first_sig"] = own[j] * am, sg[j] * am
         out[key] = st
     return out
 
 
-def _sweep(cfg, ctx, p, cases, record_every, field, grid):
+def _sweep(cfg, ctx, p, cases, record_every, field, grid, gains_memo=None):
     """Verdicts and worst-axis RMS/σ of the four forms × two cases at each grid value."""
     ratio = float(cfg.filter.converge_ratio)
     var = _variants(full=False)
@@ -572,7 +667,7 @@ def _sweep(cfg, ctx, p, cases, record_every, field, grid):
     for v in grid:
         q = dict(p, compare_linear=False, **{field: float(v)})
         res = _campaign(q, {c: cases[c] for c in _C}, int(cfg.sweep.runs), cfg.seed, ctx, record_every, 0, var,
-                        label=f"sweep-{field}-{float(v):g}")
+                        label=f"sweep-{field}-{float(v):g}", tasks_per_worker=1, gains_memo=gains_memo)
         st = _variant_stats(res, cases, var, ratio)
         for key in rows:
             rows[key][0].append(st[key]["conv"])
@@ -600,10 +695,12 @@ def run(cfg: Config, ctx) -> Result:
     p = _params(cfg)
     slave = cfg.montecarlo.slave
     ctx.log(f"{NAME}: Monte Carlo, {n} runs, {slave} slave")
-    res = _campaign(p, cases, n, cfg.seed, ctx, record_every, int(fl.ekf_runs))
+    gains = {}
+    sums, head = _campaign(p, cases, n, cfg.seed, ctx, record_every, int(fl.ekf_runs), keep_first=FIGURE_RUNS,
+                           gains_memo=gains)
     variants = _variants()
-    stats = _variant_stats(res, cases, variants, ratio, ekf_runs=int(fl.ekf_runs))
-    lin = (_variant_stats(res, cases, [v for v in variants if not v[4]], ratio, pre="lin_")
+    stats = _variant_stats(sums, cases, variants, ratio, ekf_runs=int(fl.ekf_runs), head=head)
+    lin = (_variant_stats(sums, cases, [v for v in variants if not v[4]], ratio, pre="lin_")
            if slave == "strapdown" and cfg.montecarlo.compare_linear else None)
     am = 1.0 / units.arcmin
     metrics = {"slave_model": slave, "feedback": slave == "strapdown"}
@@ -618,7 +715,7 @@ def run(cfg: Config, ctx) -> Result:
         metrics[f"diverged_runs_{key}"] = st["n_div"]
         metrics[f"converged_{key}"] = st["conv"]
         row = dict(filter=key, case=c, kind=kind, compensation=comp, ekf=ekf,
-                   estimates=tm.parameterisation(kind, ekf), runs=int(st["a"].shape[0]), diverged=st["n_div"])
+                   estimates=tm.parameterisation(kind, ekf), runs=st["runs"], diverged=st["n_div"])
         if not ekf:
             metrics[f"misalign_rms_5s_arcmin_{key}"] = st["rms"][i5]
             metrics[f"misalign_sigma_5s_arcmin_{key}"] = st["sig"][i5]
@@ -636,9 +733,9 @@ def run(cfg: Config, ctx) -> Result:
         if lin is not None and not ekf:
             lk = lin[key]
             metrics[f"converged_linear_{key}"] = lk["conv"]
-            both = ~(res[f"div_{key}"] | res[f"lin_div_{key}"])
-            d = (lk["a"][both, -1] - st["a"][both, -1]) if both.any() else np.full((1, 3), np.nan)
-            metrics[f"linear_minus_strapdown_rms_arcmin_{key}"] = np.sqrt(np.mean(d ** 2, 0)) * am
+            nb = int(sums[f"nb_{key}"])
+            metrics[f"linear_minus_strapdown_rms_arcmin_{key}"] = (np.sqrt(sums[f"dl_{key}"] / nb) * am if nb
+                                                                   else np.full(3, np.nan))
             row.update(converged_linear=lk["conv"], linear_worst_ratio=lk["worst"])
             agree += int(lk["conv"] == st["conv"])
             total += 1
@@ -647,9 +744,12 @@ def run(cfg: Config, ctx) -> Result:
         metrics["linear_verdicts_agree"] = agree
         metrics["linear_verdicts_total"] = total
     # C22 = 0: the heading error of the slave (strapdown: its true φU after feedback)
-    pU = {k: res[f"phiU_{k}_c22"] for k in ("dcm", "kain")}
-    rmsU = {k: float(np.sqrt(np.nanmean(v[:, -1] ** 2))) * am for k, v in pU.items()}
-    sigU = float(np.mean(res["sigU_dcm_c22"][:, -1])) * am
+    # heading error RMS over the runs still running, and the mean σ, at every recorded epoch
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pU = {k: np.sqrt(sums[f"u2_{k}_c22"] / sums[f"nu_{k}_c22"]) for k in ("dcm", "kain")}
+    sU = {k: sums[f"su_{k}_c22"] / n for k in ("dcm", "kain")}
+    rmsU = {k: float(v[-1]) * am for k, v in pU.items()}
+    sigU = float(sU["dcm"][-1]) * am
     c22 = cases["c22"]
     Hn = [np.linalg.norm(tm.AttitudeMatch("dcm").H(C)[:, 2]) for C in c22["Cm"]]
     Hn_nom = [np.linalg.norm(tm.AttitudeMatch("dcm").H(C)[:, 2]) for C in cases["small"]["Cm"]]
@@ -675,8 +775,8 @@ def run(cfg: Config, ctx) -> Result:
     sweeps = {}
     if int(sw.runs) > 0:
         ctx.log(f"{NAME}: sweep of the attitude noise and of the master's attitude error, {sw.runs} runs a point")
-        sweeps["noise"] = _sweep(cfg, ctx, p, cases, record_every, "att_noise", grid_n)
-        sweeps["master_error"] = _sweep(cfg, ctx, p, cases, record_every, "master_att", grid_m)
+        sweeps["noise"] = _sweep(cfg, ctx, p, cases, record_every, "att_noise", grid_n, gains)
+        sweeps["master_error"] = _sweep(cfg, ctx, p, cases, record_every, "master_att", grid_m, gains)
         for what, sv in sweeps.items():
             for key, (conv, worst, _) in sv.items():
                 metrics[f"converged_{key}_by_{what}"] = conv
@@ -684,7 +784,7 @@ def run(cfg: Config, ctx) -> Result:
 
     claims = _claims(cfg, metrics, stats, rmsU, fd)
     notes = _verdict_notes(stats, ratio, lin)
-    figs = _figures(P, cfg, stats, t, n, pU, res, c22, cases, Hn, Hn_nom, sweeps, grid_n, grid_m)
+    figs = _figures(P, cfg, stats, t, n, pU, sU, head, c22, cases, Hn, Hn_nom, sweeps, grid_n, grid_m)
     import pandas as pd
     series = {}
     for key, st in stats.items():
@@ -713,7 +813,7 @@ def run(cfg: Config, ctx) -> Result:
 
 def _label(form, st):
     """A verdict's name with its numbers: RMS/σ per axis and the margin, or the divergences."""
-    if st["n_div"] and st["n_div"] == st["a"].shape[0]:
+    if st["n_div"] and st["n_div"] == st["runs"]:
         return f"{form} (all {st['n_div']} runs diverged)"
     r = ", ".join(f"{v:.2f}" for v in st["ratio"])
     div = f"; {st['n_div']} runs diverged" if st["n_div"] else ""
@@ -768,7 +868,9 @@ def _verdict_notes(stats, ratio, lin):
     return notes
 
 
-def _figures(P, cfg, stats, t, n, pU, res, c22, cases, Hn, Hn_nom, sweeps, grid_n, grid_m):
+def _figures(P, cfg, stats, t, n, pU, sU, head, c22, cases, Hn, Hn_nom, sweeps, grid_n, grid_m):
+    """The report's figures; ``pU``, ``sU``: RMS heading error and mean σ of the heading-90°
+    variants per recorded epoch [rad]; ``head``: whole outputs of the campaign's first runs."""
     s = cfg.scenario
     am = 1.0 / units.arcmin
     figs = []
@@ -776,9 +878,9 @@ def _figures(P, cfg, stats, t, n, pU, res, c22, cases, Hn, Hn_nom, sweeps, grid_
         fig, ax = P.figure(4, 3, width=12.0, row_height=2.2, title=f"{c} installation: installation estimation error ± σ")
         for i, m in enumerate(_M):
             st = stats[f"{m}_{c}"]
-            if st["n_div"] == st["a"].shape[0]:
+            if st["n_div"] == st["runs"]:
                 # every run diverged: how the slave's attitude error ran away instead
-                phin = res[f"phin_{m}_{c}"] / units.deg
+                phin = head[f"phin_{m}_{c}"] / units.deg
                 for j in range(3):
                     axx = ax[i * 3 + j]
                     for r in range(j * 3, min(j * 3 + 3, phin.shape[0])):
@@ -808,8 +910,8 @@ def _figures(P, cfg, stats, t, n, pU, res, c22, cases, Hn, Hn_nom, sweeps, grid_
                                                  "until they were stopped (dashed: the divergence bound)"))
     fig, ax = P.figure(1, 2, width=10.0, row_height=3.2, title="heading 90° (C22 = 0): heading error φU")
     for k in ("dcm", "kain"):
-        ax[0].plot(t, np.sqrt(np.nanmean(pU[k] ** 2, 0)) * am, label=f"{k} RMS")
-        ax[0].plot(t, np.mean(res[f"sigU_{k}_c22"], 0) * am, "--", label=f"{k} σ")
+        ax[0].plot(t, pU[k] * am, label=f"{k} RMS")
+        ax[0].plot(t, sU[k] * am, "--", label=f"{k} σ")
     ax[0].set_ylabel("arcmin")
     ax[0].legend(fontsize="small")
     ax[1].plot(c22["t"] - c22["t"][0], Hn, label="heading 90°")

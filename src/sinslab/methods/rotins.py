@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from sinslab.core import attitude as A
 from sinslab.core import earth
@@ -29,7 +30,7 @@ __all__ = ["joint_rotation_model", "windowed_std", "joint_subsystem", "ScheduleO
            "schedule_observability", "difference_sigma", "joint_P0", "joint_filter",
            "joint_transitions", "schedule_transitions", "joint_filter_linear", "difference_measurements",
            "noise_share", "sigma_settle_time", "band_settle_time", "NOISE_GROUPS", "CAMPAIGN_PARTS", "campaign_setup",
-           "campaign_batch", "fractions", "campaign_statistics"]
+           "campaign_batch", "fractions", "campaign_sums", "campaign_statistics"]
 
 #: Noise sources of the joint model's noise vector (:func:`joint_rotation_model`): INS 1's
 #: gyros and accelerometers, INS k's gyros, INS k's accelerometers.
@@ -865,32 +866,26 @@ def campaign_batch(seeds, spec, setup):
     # once they are the same numbers in the same order. The blocks hold whole noise blocks.
     per = len(noisy) * n + p1 + 4
     chunk = 2048 if nb < 1 else nb * max(1, 2048 // nb)
-    v = np.zeros((B, P_, 4))
-    for k in range(K):
-        c = k % chunk
-        if c == 0:
-            m = min(chunk, K - k)
-            draws = np.stack([g.standard_normal((m, per)) for g in rngs])
-            xis = draws[:, :, :len(noisy) * n].reshape(B, m, len(noisy), n)
-            us = draws[:, :, len(noisy) * n:len(noisy) * n + p1]
-            vs = draws[:, :, len(noisy) * n + p1:]
-            ubar = np.zeros_like(us)
-            if nb >= 1:
-                for a in range(0, m, nb):
-                    ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
-        u = index[k]
-        X[:, j_tr, iz] += tr[k]
-        X = X @ Phi[u].T
-        xi = xis[:, c]
-        for gname, js, cols in groups:
-            X[:, js] += xi[:, cols] @ roots[gname][u].T
-        X[:, 0] += us[:, c] @ G1[u].T
-        X[:, j_bl] += ubar[:, c] @ G1[u].T
-        Xh = Xh @ Phi[u].T
-        v[:, 0] = vs[:, c] * sv
-        nu = X[:, :, :4] + v - Xh[:, :, :4]
-        Xh = Xh + nu @ gains[k].T
-        ez[:, :, k + 1] = Xh[:, :, iz]
+    # per part: the noise source driving it (index into roots, -1: none) and its column
+    # among the noisy parts' draws
+    src = np.full(P_, -1, dtype=np.int64)
+    col = np.zeros(P_, dtype=np.int64)
+    for gi, (gname, js, cols) in enumerate(groups):
+        src[js], col[js] = gi, cols
+    root = np.stack([roots[g] for g, _, _ in groups])
+    index = np.ascontiguousarray(index, dtype=np.int64)
+    for k in range(0, K, chunk):
+        m = min(chunk, K - k)
+        draws = np.stack([g.standard_normal((m, per)) for g in rngs])
+        xis = np.ascontiguousarray(draws[:, :, :len(noisy) * n].reshape(B, m, len(noisy), n))
+        us = np.ascontiguousarray(draws[:, :, len(noisy) * n:len(noisy) * n + p1])
+        vs = np.ascontiguousarray(draws[:, :, len(noisy) * n + p1:])
+        ubar = np.zeros_like(us)
+        if nb >= 1:
+            for a in range(0, m, nb):
+                ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
+        _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs, sv, gains, tr, iz, j_tr, j_bl,
+                        k, m)
     t = S["t"]
     betas, scales = spec["betas"], spec["scales"]
     st, win = spec["start"], spec["window"]
@@ -924,25 +919,123 @@ def campaign_batch(seeds, spec, setup):
             "trend_corr": corr}
 
 
-def fractions(wstd, wstd_sep, betas, sep_ratio):
-    """Fractions of seeds: std monotone in β; β = 1.1 above β = 1.0; separate INS ordered."""
+@njit(cache=True)
+def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs, sv, gains, tr, iz, j_tr, j_bl,
+                    k0, m):
+    """Steps ``k0 .. k0+m−1`` of :func:`campaign_batch`, seed by seed (so a seed's numbers do
+    not depend on the seeds stacked with it), in place on the true parts ``X`` and the
+    estimates ``Xh`` (B, parts, n), the estimates of ε_z1 written to ``ez`` (B, parts, K+1).
+
+    Per step k (transition ``Phi[index[k]]``): the drift trend's step ``tr[k]`` enters its
+    part, every part is propagated, the noisy parts get their process noise
+    ``root[src[p]][u] ξ`` (draws ``xis[:, c, col[p]]``), INS 1's part its step mean through
+    ``G1[u]`` (``us``) and the block-mean part that of its block (``ubar``); the filter
+    predicts, and updates every part with the gain ``gains[k]`` (n, 4) from its four
+    measured components (measurement noise ``vs · sv`` in INS 1's part only)."""
+    B, P_, n = X.shape
+    p1 = G1.shape[2]
+    t = np.empty(n)
+    nu = np.empty(4)
+    for b in range(B):
+        for c in range(m):
+            k = k0 + c
+            u = index[k]
+            X[b, j_tr, iz] += tr[k]
+            for p in range(P_):
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += Phi[u, i, j] * X[b, p, j]
+                    t[i] = acc
+                if src[p] >= 0:
+                    g, q = src[p], col[p]
+                    for i in range(n):
+                        acc = 0.0
+                        for j in range(n):
+                            acc += root[g, u, i, j] * xis[b, c, q, j]
+                        t[i] += acc
+                if p == 0 or p == j_bl:
+                    w = us if p == 0 else ubar
+                    for i in range(n):
+                        acc = 0.0
+                        for j in range(p1):
+                            acc += G1[u, i, j] * w[b, c, j]
+                        t[i] += acc
+                for i in range(n):
+                    X[b, p, i] = t[i]
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += Phi[u, i, j] * Xh[b, p, j]
+                    t[i] = acc
+                for i in range(4):
+                    nu[i] = X[b, p, i] - t[i]
+                    if p == 0:
+                        nu[i] += vs[b, c, i] * sv[i]
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(4):
+                        acc += gains[k, i, j] * nu[j]
+                    Xh[b, p, i] = t[i] + acc
+                ez[b, p, k + 1] = Xh[b, p, iz]
+
+
+def _orderings(wstd, wstd_sep, betas, sep_ratio):
+    """Per seed: std monotone in β; β = 1.1 above β = 1.0; separate INS ordered (bool each)."""
     order = np.argsort(betas)
     mono = np.all(np.diff(wstd[:, order], axis=1) > 0, axis=1)
     d11 = wstd[:, betas.index(1.1)] > wstd[:, betas.index(1.0)]
     dsep = (wstd_sep[:, 1] > wstd_sep[:, 0]) if sep_ratio > 1 else (wstd_sep[:, 1] < wstd_sep[:, 0])
-    return float(mono.mean()), float(d11.mean()), float(dsep.mean())
+    return mono, d11, dsep
 
 
-def campaign_statistics(out, betas, sep_ratio, scales):
-    """The campaign's statistics: the fractions, eq 20's σ ratio at β = 1.1 (mean over seeds,
-    95 % interval) and the probability that the windowed stds of analysis two rank INS
-    #2..#4 as their noise scales (with its 95 % Wilson interval)."""
-    from sinslab.estimation.montecarlo import mean_ci95, wilson_ci95
+def fractions(wstd, wstd_sep, betas, sep_ratio):
+    """Fractions of seeds: std monotone in β; β = 1.1 above β = 1.0; separate INS ordered."""
+    return tuple(float(v.mean()) for v in _orderings(wstd, wstd_sep, betas, sep_ratio))
 
-    pm, pd, ps = fractions(out["wstd"], out["wstd_sep"], betas, sep_ratio)
-    ratio = out["wstd"][:, betas.index(1.1)] / out["wstd"][:, betas.index(1.0)]
-    rm, rci = mean_ci95(ratio)
+
+def campaign_sums(out, betas, sep_ratio, scales, shift):
+    """What :func:`campaign_statistics` needs of each seed of :func:`campaign_batch`, to be
+    summed over the seeds where they are computed (a campaign's ``reduce``).
+
+    ``shift`` (dict: ``wstd`` (len(betas),), ``wstd_sep`` (2,) [rad/s], ``ratio``) holds
+    values near the means (e.g. a single run's), subtracted before the squares are summed so
+    that the spread keeps its digits. Returns per seed: a count ``n``, the three orderings
+    of :func:`fractions`, whether analysis two ranks the filters as their noise scales
+    (``right``), eq 20's ratio at β = 1.1 and the windowed stds, each shifted, with their
+    squares, and the trend correlations.
+    """
+    w, ws = out["wstd"], out["wstd_sep"]
+    mono, d11, dsep = _orderings(w, ws, betas, sep_ratio)
+    ratio = w[:, betas.index(1.1)] / w[:, betas.index(1.0)] - shift["ratio"]
     right = np.all(np.argsort(out["wstd_two"], axis=1) == np.argsort(np.asarray(scales, float)), axis=1)
-    B = right.size
-    return dict(p_monotone=pm, p_distinguish=pd, p_separate=ps, eq20_ratio_mean=rm, eq20_ratio_ci95=rci,
-                ranking_probability=float(right.mean()), ranking_probability_ci95=wilson_ci95(int(right.sum()), B))
+    dw, dws = w - shift["wstd"], ws - shift["wstd_sep"]
+    return {"n": np.ones(len(w)), "monotone": mono, "distinguish": d11, "separate": dsep, "right": right,
+            "ratio": ratio, "ratio2": ratio ** 2, "wstd": dw, "wstd2": dw ** 2, "wstd_sep": dws, "wstd_sep2": dws ** 2,
+            "trend_corr": out["trend_corr"]}
+
+
+def campaign_statistics(sums, shift):
+    """The campaign's statistics from the sums of :func:`campaign_sums` over its seeds: the
+    fractions, eq 20's σ ratio at β = 1.1 (mean over seeds, 95 % Student-t interval), the
+    probability that the windowed stds of analysis two rank INS #2..#4 as their noise
+    scales (95 % Wilson interval), the mean and standard deviation (over seeds, ddof 0) of
+    the windowed stds per β and of the separate INS A, B [rad/s], the mean trend
+    correlation of filters 2, 3, 4."""
+    from sinslab.estimation.montecarlo import mean_ci95_sums, wilson_ci95
+
+    N = int(sums["n"])
+    rm, rci = mean_ci95_sums(N, sums["ratio"], sums["ratio2"], shift["ratio"])
+
+    def moments(k):
+        m = sums[k] / N
+        return shift[k] + m, np.sqrt(np.maximum(sums[f"{k}2"] / N - m * m, 0.0))
+
+    w_mean, w_sd = moments("wstd")
+    s_mean, s_sd = moments("wstd_sep")
+    right = int(sums["right"])
+    return dict(p_monotone=float(sums["monotone"] / N), p_distinguish=float(sums["distinguish"] / N),
+                p_separate=float(sums["separate"] / N), eq20_ratio_mean=rm, eq20_ratio_ci95=rci,
+                ranking_probability=right / N, ranking_probability_ci95=wilson_ci95(right, N),
+                wstd_mean=w_mean, wstd_sd=w_sd, wstd_sep_mean=s_mean, wstd_sep_sd=s_sd,
+                trend_corr_mean=sums["trend_corr"] / N)

@@ -54,8 +54,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
-from sinslab.core.attitude import dcm_to_euler, dcm_to_rotvec, rotvec_to_dcm, skew, wrap_pi
+from sinslab.core.attitude import (dcm_to_euler, dcm_to_quat, dcm_to_rotvec, q2dcm_s, q2euler_s, qmul_s,
+                                   rotvec_to_dcm, skew, wrap_pi, wrap_pi_s)
 from sinslab.nav import errstate
 
 __all__ = [
@@ -63,7 +65,7 @@ __all__ = [
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
     "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
     "align_lanes", "LaneAlignment", "CommonGains", "lane_gains", "batch_gains", "PARAMETERISATION", "parameterisation", "installation_parameters",
-    "rate_correlation",
+    "rate_correlation", "propagate_errors",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -278,6 +280,22 @@ class AttitudeMatch:
         x = np.concatenate([phi_hat, a_hat], axis=1)
         return d + np.einsum("rij,rj->ri", H, x), H
 
+    def H_many(self, C_m_n):
+        """:meth:`H` at ``φ = 0``, ``a = 0`` (the paper's linearisation) of many master
+        attitudes (K, 3, 3): (K, 3, 6), the same formulas on stacked arrays."""
+        Cr = self.reference_many(C_m_n)
+        H = np.empty(Cr.shape[:-2] + (3, 6))
+        if self.kind in ("kain", "optimal"):
+            H[..., :3] = -np.swapaxes(Cr, -1, -2)
+            H[..., 3:] = np.eye(3)
+            return H
+        for i in range(3):
+            e = np.zeros(3)
+            e[i] = 1.0
+            H[..., i] = self._dg_many(Cr, -skew(e) @ Cr)
+            H[..., 3 + i] = self._dg_many(Cr, Cr @ skew(e))
+        return H
+
     def reference_many(self, C_m_n):
         """:meth:`reference` of one (3, 3) or many (R, 3, 3) master attitudes."""
         C = np.asarray(C_m_n, dtype=float)
@@ -466,6 +484,230 @@ class TransferMeasurement(_MasterTimed):
         return np.concatenate([zv, za]), np.vstack([Hv, Ha]), np.concatenate([Rv, Ra])
 
 
+# ------------------------------------------- compiled epoch steps over the runs ---
+#: Codes of the measured attitude quantity in the compiled steps: Euler-angle difference,
+#: DCM-element difference, rotation vector of ``C_rᵀ Ĉ_s^n`` (Kain's and the optimal form).
+_FORM = {"euler": 0, "dcm": 1, "kain": 2, "optimal": 2}
+
+
+def _reference_rows(match, C_m_n):
+    """What the compiled steps need of the reference attitudes ``C_r`` (..., 3, 3) of the
+    form ``match.kind``: their Euler angles (euler), the elements C12, C31, C32 (dcm) or
+    their quaternion (kain, optimal); (..., 4), unused entries zero."""
+    Cr = np.asarray(C_m_n, dtype=float) @ match.compensation
+    out = np.zeros(Cr.shape[:-2] + (4,))
+    f = _FORM[match.kind]
+    if f == 0:
+        out[..., :3] = dcm_to_euler(Cr)
+    elif f == 1:
+        for c, (i, j) in enumerate(_DCM_ELEMENTS):
+            out[..., c] = Cr[..., i, j]
+    else:
+        out[:] = dcm_to_quat(Cr)
+    return out
+
+
+@njit(cache=True)
+def _rotvec_of_quat(q0, q1, q2, q3):
+    """Rotation vector [rad] (norm <= π) of a unit quaternion, the formulas of
+    ``scipy.spatial.transform.Rotation.as_rotvec`` (series below 1e-3 rad)."""
+    if q0 < 0.0:
+        q0, q1, q2, q3 = -q0, -q1, -q2, -q3
+    angle = 2.0 * math.atan2(math.sqrt(q1 * q1 + q2 * q2 + q3 * q3), q0)
+    if angle <= 1e-3:
+        a2 = angle * angle
+        scale = 2.0 + a2 / 12.0 + 7.0 * a2 * a2 / 2880.0
+    else:
+        scale = angle / math.sin(0.5 * angle)
+    return scale * q1, scale * q2, scale * q3
+
+
+@njit(cache=True)
+def _measured_attitude(form, q0, q1, q2, q3, ref, z):
+    """The attitude rows ``z[3:6]`` of a slave whose computed attitude is the unit
+    quaternion q, against the reference row ``ref`` of :func:`_reference_rows`."""
+    if form == 0:
+        p, r, y = q2euler_s(q0, q1, q2, q3)
+        z[3] = wrap_pi_s(p - ref[0])
+        z[4] = wrap_pi_s(r - ref[1])
+        z[5] = wrap_pi_s(y - ref[2])
+    elif form == 1:
+        C = q2dcm_s(q0, q1, q2, q3)
+        z[3] = C[1] - ref[0]
+        z[4] = C[6] - ref[1]
+        z[5] = C[7] - ref[2]
+    else:
+        # C_rᵀ Ĉ_s^n = C(q_r* ⊗ q)
+        a0, a1, a2, a3 = qmul_s(ref[0], -ref[1], -ref[2], -ref[3], q0, q1, q2, q3)
+        z[3], z[4], z[5] = _rotvec_of_quat(a0, a1, a2, a3)
+
+
+@njit(cache=True)
+def _stopped(l, k, x, fb, diverged_at):
+    """A stopped lane l at epoch k: NaN state, no correction, the first such epoch kept."""
+    if diverged_at[l] < 0:
+        diverged_at[l] = k
+    for i in range(x.shape[1]):
+        x[l, i] = np.nan
+    for c in range(fb.shape[1]):
+        fb[l, c] = 0.0
+
+
+@njit(cache=True)
+def _lane_step(S, active, comp, x, Phi, predict, H, Kg, ref, vm, lane_master, noise, form, fed, i_phi, i_dv, i_a,
+               i_comp, phi_bound, diverged_at, k, fb, a_rec, record):
+    """One filter epoch of the paper-form closed loop of :func:`align_lanes`, lane by lane.
+
+    In place: ``x`` (L, n) predicted with ``Phi`` (when ``predict``), updated with the
+    common ``H`` (6, n) and gain ``Kg`` (n, 6) from the lanes' INS states ``S`` (rows of
+    :class:`~sinslab.nav.lanes.LaneBank`) against their master (``ref`` (nm, 4) of
+    :func:`_reference_rows`, velocity ``vm`` (nm, 3), measurement noise ``noise`` (nm, 6));
+    a lane whose state turns non-finite or whose φ̂ exceeds ``phi_bound`` is stopped
+    (``active``) and its first stopped epoch written to ``diverged_at``; the active lanes'
+    sensor estimates (state indices ``i_comp``, in the order of the bank's ``comp``) are
+    added to ``comp``, their φ̂, δv̂ copied to ``fb`` (L, 6) for the INS correction and the
+    fed-back states (``fed``) zeroed; with ``record`` the installation estimate is copied
+    to ``a_rec`` (L, 3). Stopped lanes get NaN states and zero corrections.
+    """
+    L, n = x.shape
+    xp = np.empty(n)
+    z = np.empty(6)
+    nu = np.empty(6)
+    for l in range(L):
+        if not active[l]:
+            _stopped(l, k, x, fb, diverged_at)
+            continue
+        if predict:
+            for i in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += Phi[i, j] * x[l, j]
+                xp[i] = acc
+            for i in range(n):
+                x[l, i] = xp[i]
+        m = lane_master[l]
+        q0, q1, q2, q3 = S[l, 0], S[l, 1], S[l, 2], S[l, 3]
+        nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+        q0, q1, q2, q3 = q0 / nq, q1 / nq, q2 / nq, q3 / nq
+        for c in range(3):
+            z[c] = S[l, 4 + c] - vm[m, c]
+        _measured_attitude(form, q0, q1, q2, q3, ref[m], z)
+        for c in range(6):
+            z[c] += noise[m, c]
+        for i in range(6):
+            acc = 0.0
+            for j in range(n):
+                acc += H[i, j] * x[l, j]
+            nu[i] = z[i] - acc
+        if form == 0:
+            for i in range(3, 6):
+                nu[i] = wrap_pi_s(nu[i])
+        for i in range(n):
+            acc = 0.0
+            for j in range(6):
+                acc += Kg[i, j] * nu[j]
+            x[l, i] = x[l, i] + acc
+        # divergence guard before the correction reaches the INS
+        ok = True
+        for i in range(n):
+            if not math.isfinite(x[l, i]):
+                ok = False
+        p0, p1, p2 = x[l, i_phi], x[l, i_phi + 1], x[l, i_phi + 2]
+        if not math.sqrt(p0 * p0 + p1 * p1 + p2 * p2) <= phi_bound:
+            ok = False
+        if not ok:
+            active[l] = False
+            _stopped(l, k, x, fb, diverged_at)
+            continue
+        for c in range(12):
+            comp[l, c] += x[l, i_comp[c]]
+        for c in range(3):
+            fb[l, c] = x[l, i_phi + c]
+            fb[l, 3 + c] = x[l, i_dv + c]
+        for i in range(n):
+            if fed[i]:
+                x[l, i] = 0.0
+        if record:
+            for c in range(3):
+                a_rec[l, c] = x[l, i_a + c]
+
+
+@njit(cache=True)
+def _lane_attitudes(S, active, out):
+    """``Ĉ_s^n`` (L, 3, 3) of the active lanes' INS states into ``out`` (others untouched)."""
+    for l in range(S.shape[0]):
+        if not active[l]:
+            continue
+        q0, q1, q2, q3 = S[l, 0], S[l, 1], S[l, 2], S[l, 3]
+        nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+        C = q2dcm_s(q0 / nq, q1 / nq, q2 / nq, q3 / nq)
+        for i in range(3):
+            for j in range(3):
+                out[l, i, j] = C[3 * i + j]
+
+
+@njit(cache=True)
+def _feedforward(zz, H, Kg, Phi, x, wrap, record_every, xs):
+    """The state recursion of the paper-form :func:`batch_filter`, run by run: at every
+    epoch k the update with the common ``H[k]`` (6, n) and gain ``Kg[k]`` (n, 6) from
+    ``zz[:, k]`` (R, K+1, 6) (``wrap``: the attitude innovation wrapped to (−π, π]), the
+    state recorded into ``xs`` (R, M, n) every ``record_every`` epochs, then the prediction
+    with ``Phi[k]``. ``x`` (R, n) holds the initial states and is overwritten."""
+    R, n = x.shape
+    Kp1 = zz.shape[1]
+    nu = np.empty(6)
+    xp = np.empty(n)
+    for r in range(R):
+        for k in range(Kp1):
+            for i in range(6):
+                acc = 0.0
+                for j in range(n):
+                    acc += H[k, i, j] * x[r, j]
+                nu[i] = zz[r, k, i] - acc
+            if wrap:
+                for i in range(3, 6):
+                    nu[i] = wrap_pi_s(nu[i])
+            for i in range(n):
+                acc = 0.0
+                for j in range(6):
+                    acc += Kg[k, i, j] * nu[j]
+                x[r, i] = x[r, i] + acc
+            if k % record_every == 0:
+                for i in range(n):
+                    xs[r, k // record_every, i] = x[r, i]
+            if k < Kp1 - 1:
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += Phi[k, i, j] * x[r, j]
+                    xp[i] = acc
+                for i in range(n):
+                    x[r, i] = xp[i]
+
+
+def propagate_errors(Phi, x0):
+    """Error states of many runs propagated open loop through the transitions ``Phi``
+    (K, n, n) from ``x0`` (R, n): ``x_{k+1} = Φ_k x_k``, (R, K+1, n). Compiled run by run,
+    so a run's numbers do not depend on the runs stacked with it."""
+    x0 = np.asarray(x0, dtype=float)
+    Phi = np.ascontiguousarray(Phi, dtype=float)
+    xs = np.empty((x0.shape[0], Phi.shape[0] + 1, x0.shape[1]))
+    xs[:, 0] = x0
+    _propagate(Phi, xs)
+    return xs
+
+
+@njit(cache=True)
+def _propagate(Phi, xs):
+    for r in range(xs.shape[0]):
+        for k in range(Phi.shape[0]):
+            for i in range(xs.shape[2]):
+                acc = 0.0
+                for j in range(xs.shape[2]):
+                    acc += Phi[k, i, j] * xs[r, k, j]
+                xs[r, k + 1, i] = acc
+
+
 # ------------------------------------------------------- runs-vectorised Kalman filter --
 def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R_att,
                  Qk=None, relinearise=False, phi_slice=slice(0, 3), dv_slice=slice(3, 6),
@@ -522,17 +764,9 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
         z_att = match.z_many(Cm, C_slave)
         if att_noise is not None:
             z_att = z_att + att_noise
-        zz = np.concatenate([z_vel, z_att], axis=2)
-        for k in range(Kp1):
-            innov = zz[:, k] - x @ G.H[k].T
-            if match.kind == "euler":
-                innov[:, 3:] = wrap_pi(innov[:, 3:])
-            x = x + innov @ G.K[k].T
-            if r < len(idx_rec) and idx_rec[r] == k:
-                xs[:, r] = x
-                r += 1
-            if k < Kp1 - 1:
-                x = x @ Phi[k].T
+        zz = np.ascontiguousarray(np.concatenate([z_vel, z_att], axis=2))
+        _feedforward(zz, np.ascontiguousarray(G.H), np.ascontiguousarray(G.K), np.ascontiguousarray(Phi, dtype=float),
+                     x, match.kind == "euler", int(record_every), xs)
         return xs, G.sigma
     nr = R_runs
     P = np.broadcast_to(np.array(P0, float), (R_runs, n, n)).copy()
@@ -577,8 +811,7 @@ def _stacked_H(match, C_lin, n, dv_idx, cols):
     """[velocity rows; attitude rows at C_lin[k]] (K+1, 6, n) of the paper linearisation."""
     H = np.zeros((C_lin.shape[0], 6, n))
     H[:, np.arange(3), dv_idx] = 1.0
-    for k in range(C_lin.shape[0]):
-        H[k, 3:, cols] = match.H(C_lin[k]).T
+    H[:, 3:, cols] = match.H_many(C_lin)
     return H
 
 
@@ -673,7 +906,9 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
 
     Covariance: with the paper's linearisation (``relinearise=False``) H depends only on
     the reference attitude, taken from ``C_lin`` — the attitude the filter linearises at,
-    common to the lanes — so P and the gain are common and only the states are per lane.
+    common to the lanes — so P and the gain are common and only the states are per lane:
+    each epoch is then one compiled advance of the bank and one compiled filter step over
+    the lanes, lane by lane (a lane's numbers do not depend on the lanes beside it).
     With ``relinearise`` (EKF form, H at each lane's installation estimate and master
     attitude) every lane carries its own P.
 
@@ -744,6 +979,10 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
                        record_every=record_every) if gains is None else gains
         sig = G.sigma
     diverged_at = np.full(L, -1, dtype=np.int64)
+    if not per_lane:
+        _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master, meas_noise, lay, phi_bound,
+                          rec, x, diverged_at, a_out, att_out)
+        return LaneAlignment(a_out, sig, bank.comp.copy(), att_out, diverged_at >= 0, diverged_at, np.array(rec))
     I = np.eye(n)
     r = 0
     for k in range(K + 1):
@@ -800,6 +1039,50 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
             r += 1
     diverged = diverged_at >= 0
     return LaneAlignment(a_out, sig, bank.comp.copy(), att_out, diverged, diverged_at, np.array(rec))
+
+
+def _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master, meas_noise, lay, phi_bound, rec,
+                      x, diverged_at, a_out, att_out):
+    """The epochs of :func:`align_lanes` in the paper form (gains ``G`` common to the lanes):
+    per epoch the bank's compiled advance, one compiled filter step over the lanes
+    (:func:`_lane_step`) and the bank's compiled correction; ``x``, ``diverged_at``,
+    ``a_out`` (L, M, 3) and ``att_out`` (L, M, 3, 3) filled in place."""
+    sl = lay.slice
+    n = lay.n
+    L = bank.lanes
+    M = len(rec)
+    idx = np.arange(n)
+    i_comp = np.r_[idx[sl("eps")], idx[sl("nabla")], idx[sl("kg")], idx[sl("ka")]]
+    fed = np.zeros(n, dtype=np.bool_)
+    fed[np.r_[idx[sl("phi")], idx[sl("dv")], i_comp]] = True
+    # per epoch, contiguous rows of every master: its reference, velocity and noise
+    ref = np.ascontiguousarray(np.swapaxes(_reference_rows(match, master_C), 0, 1))
+    vm = np.ascontiguousarray(np.swapaxes(np.asarray(master_v, float), 0, 1))
+    noise = (np.zeros((ref.shape[0], ref.shape[1], 6)) if meas_noise is None
+             else np.ascontiguousarray(np.swapaxes(np.asarray(meas_noise, float), 0, 1)))
+    Phi = np.ascontiguousarray(Phi, dtype=float)
+    Hs, Ks = np.ascontiguousarray(G.H), np.ascontiguousarray(G.K)
+    lane_master = np.ascontiguousarray(lane_master, dtype=np.int64)
+    form = _FORM[match.kind]
+    fb = np.zeros((L, 6))
+    a_rec = np.full((M, L, 3), np.nan)
+    att_rec = np.full((M, L, 3, 3), np.nan)
+    no_rec = np.empty((L, 3))
+    i_phi, i_dv, i_a = sl("phi").start, sl("dv").start, sl("lam").start
+    r = 0
+    for k in range(Phi.shape[0] + 1):
+        if k > 0:
+            bank.advance(k_kf)
+        now = r < M and rec[r] == k
+        _lane_step(bank.state, bank.active, bank.comp, x, Phi[k - 1], k > 0, Hs[k], Ks[k], ref[k], vm[k], lane_master,
+                   noise[k], form, fed, i_phi, i_dv, i_a, i_comp, float(phi_bound), diverged_at, k, fb,
+                   a_rec[r] if now else no_rec, now)
+        bank.correct(fb[:, :3], fb[:, 3:])
+        if now:
+            _lane_attitudes(bank.state, bank.active, att_rec[r])
+            r += 1
+    a_out[:] = np.swapaxes(a_rec, 0, 1)
+    att_out[:] = np.swapaxes(att_rec, 0, 1)
 
 
 def rate_correlation(imu, master: MasterRecord, t_start=None, t_end=None):
