@@ -343,32 +343,38 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                         typer.echo(value[1], err=True, nl=False)        # its traceback
                         failed[job.label] = value[0]
                     else:
-                        if job.future is not None:
-                            completed_elsewhere(out / job.label)
                         _print_summary(value, out / job.label)
                         done.append((job.label, out / job.label))
                     shown += 1
 
-            for job in jobs:
-                if job.future is not None:
-                    continue
-                what = f": {job.exp.name} with {', '.join(job.sets)}" if job.sets else ""
-                _log(f"running {job.label}{' (quick)' if quick else ''}{what} ...")
-                try:
-                    summary = execute(job.exp, job.cfg, out / job.label, quick=quick, log=_log,
-                                      scheduler=shared if job.campaign else None,
-                                      variant=(job.label, list(job.sets)) if job.sets else None)
-                except (KeyboardInterrupt, *USER_ERRORS):
-                    raise
-                except Exception as e:                      # one broken experiment: go on
-                    import traceback
+            try:
+                for job in jobs:
+                    if job.future is not None:
+                        continue
+                    what = f": {job.exp.name} with {', '.join(job.sets)}" if job.sets else ""
+                    _log(f"running {job.label}{' (quick)' if quick else ''}{what} ...")
+                    try:
+                        summary = execute(job.exp, job.cfg, out / job.label, quick=quick, log=_log,
+                                          scheduler=shared if job.campaign else None,
+                                          variant=(job.label, list(job.sets)) if job.sets else None)
+                    except (KeyboardInterrupt, *USER_ERRORS):
+                        raise
+                    except Exception as e:                  # one broken experiment: go on
+                        import traceback
 
-                    abort_all()                              # its folder keeps the previous run
-                    job.outcome = ("failed", (f"{type(e).__name__}: {e}", traceback.format_exc()))
-                else:
-                    job.outcome = ("done", summary)
-                show(wait=False)
-            show(wait=True)
+                        abort_all()                          # its folder keeps the previous run
+                        job.outcome = ("failed", (f"{type(e).__name__}: {e}", traceback.format_exc()))
+                    else:
+                        job.outcome = ("done", summary)
+                    show(wait=False)
+                show(wait=True)
+            finally:
+                # stopped early (interrupt, user error): the runs the workers completed are
+                # in place, and not for this process to discard or report as unchanged
+                for job in jobs:
+                    if job.future is not None and job.future.status == "finished" \
+                            and _remote_outcome(job.future)[0] == "done":
+                        completed_elsewhere(out / job.label)
         idx = _report.index(out, done, failed)
     typer.echo(f"index: {idx}")
     if failed:
