@@ -351,8 +351,7 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                 for job in jobs:
                     if job.future is not None:
                         continue
-                    what = f": {job.exp.name} with {', '.join(job.sets)}" if job.sets else ""
-                    _log(f"running {job.label}{' (quick)' if quick else ''}{what} ...")
+                    _log(_running(job.exp.name, job.label, job.sets, quick))
                     try:
                         summary = execute(job.exp, job.cfg, out / job.label, quick=quick, log=_log,
                                           scheduler=shared if job.campaign else None,
@@ -379,6 +378,12 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
     typer.echo(f"index: {idx}")
     if failed:
         raise typer.Exit(1)
+
+
+def _running(name: str, label: str, sets, quick: bool) -> str:
+    """The progress line that starts a demo run."""
+    what = f": {name} with {', '.join(sets)}" if sets else ""
+    return f"running {label}{' (quick)' if quick else ''}{what} ..."
 
 
 class _DemoJob:
@@ -468,8 +473,7 @@ def _run_on_worker(name: str, cfg, out: str, quick: bool, variant, after=None) -
     def log(msg: str) -> None:
         worker.log_event(_DEMO_TOPIC, (name, variant[0] if variant else name, msg))
 
-    what = f": {name} with {', '.join(variant[1])}" if variant else ""
-    log(f"running {variant[0] if variant else name}{' (quick)' if quick else ''}{what} ...")
+    log(_running(name, variant[0] if variant else name, variant[1] if variant else (), quick))
     try:
         return ("done", execute(get(name), cfg, out, quick=quick, log=log, variant=variant))
     except USER_ERRORS as e:
