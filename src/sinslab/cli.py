@@ -277,12 +277,19 @@ def report(dir: Path = typer.Argument(..., metavar="DIR", help="run folder holdi
 def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for the runs and index.html"),
          quick: bool = typer.Option(False, "--quick", help="shortened runs"),
          only: Optional[List[str]] = typer.Option(None, "--only", help="run only these experiments")) -> None:
-    """Run every registered experiment (full scale) into OUT/NAME and write OUT/index.html."""
+    """Run every registered experiment (full scale) into OUT/NAME and write OUT/index.html.
+
+    With a Monte Carlo campaign among the runs, one local Dask cluster serves the whole
+    demo: the runs with a campaign run here one after another (their tasks on the
+    cluster's workers), and the others run as tasks on the same workers beside them, so
+    that both CPUs stay busy. The summaries are printed in the order of the runs, each as
+    soon as it and those before it are done.
+    """
     import contextlib
 
     from sinslab.app import report as _report
     from sinslab.app.config import resolve
-    from sinslab.app.outputs import RunDir, abort_all, is_run_dir
+    from sinslab.app.outputs import RunDir, abort_all, completed_elsewhere, is_run_dir
     from sinslab.app.validate import starts_campaign
     from sinslab.estimation.montecarlo import dask_client
     from sinslab.experiments import execute, get, registry
@@ -301,40 +308,182 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
         names = list(only) if only else list(registry())
         exps = [get(n) for n in names]
         # every experiment's default scenario followed by its declared variants (NAME-suffix)
-        jobs = [job for exp in exps for job in [(exp, exp.name, ())] + [
-            (exp, f"{exp.name}-{suffix}", sets) for suffix, sets in exp.variants.items()]]
-        for exp, label, _ in jobs:                         # check every folder first
-            RunDir(out / label, exp.name, command="run").check()
+        jobs = [_DemoJob(exp, f"{exp.name}-{suffix}" if suffix else exp.name, tuple(sets))
+                for exp in exps for suffix, sets in [("", ())] + list(exp.variants.items())]
+        for job in jobs:                                   # check every folder first
+            RunDir(out / job.label, job.exp.name, command="run").check()
+        for job in jobs:
+            job.cfg = resolve(job.exp.config, quick=job.exp.quick if quick else None, sets=list(job.sets))
+            job.campaign = starts_campaign(job.exp, job.cfg)
         with contextlib.ExitStack() as stack:
             shared = None
-            for exp, label, sets in jobs:
-                cfg = resolve(exp.config, quick=exp.quick if quick else None, sets=list(sets))
-                what = f": {exp.name} with {', '.join(sets)}" if sets else ""
-                _log(f"running {label}{' (quick)' if quick else ''}{what} ...")
-                campaign = starts_campaign(exp, cfg)
-                if campaign and shared is None:
-                    # one local cluster for every campaign of the demo: started once, its
-                    # workers keep their imports and loaded kernels from one run to the next
-                    shared = stack.enter_context(dask_client(None))
-                try:
-                    summary = execute(exp, cfg, out / label, quick=quick, log=_log,
-                                      scheduler=shared if campaign else None,
-                                      variant=(label, list(sets)) if sets else None)
-                except (KeyboardInterrupt, *USER_ERRORS):
-                    raise
-                except Exception as e:                      # one broken experiment: go on
-                    import traceback
+            if any(job.campaign for job in jobs):
+                # one local cluster for every campaign of the demo: started once, its
+                # workers keep their imports and loaded kernels from one run to the next
+                shared = stack.enter_context(dask_client(None))
+            if _can_submit(shared):
+                _submit_beside(shared, [job for job in jobs if not job.campaign], out, quick)
+            shown = 0
 
-                    abort_all()                              # its folder keeps the previous run
-                    traceback.print_exc()
-                    failed[label] = f"{type(e).__name__}: {e}"
-                    continue
-                _print_summary(summary, out / label)
-                done.append((label, out / label))
+            def show(wait: bool) -> None:
+                """Print the summaries that are due, in the order of the runs."""
+                nonlocal shown
+                while shown < len(jobs):
+                    job = jobs[shown]
+                    if job.future is not None and job.outcome is None:
+                        if not (wait or job.future.done()):
+                            return
+                        job.outcome = _remote_outcome(job.future)
+                    if job.outcome is None:
+                        return
+                    kind, value = job.outcome
+                    if kind == "user":
+                        raise value
+                    if kind == "failed":
+                        typer.echo(value[1], err=True, nl=False)        # its traceback
+                        failed[job.label] = value[0]
+                    else:
+                        _print_summary(value, out / job.label)
+                        done.append((job.label, out / job.label))
+                    shown += 1
+
+            try:
+                for job in jobs:
+                    if job.future is not None:
+                        continue
+                    _log(_running(job.exp.name, job.label, job.sets, quick))
+                    try:
+                        summary = execute(job.exp, job.cfg, out / job.label, quick=quick, log=_log,
+                                          scheduler=shared if job.campaign else None,
+                                          variant=(job.label, list(job.sets)) if job.sets else None)
+                    except (KeyboardInterrupt, *USER_ERRORS):
+                        raise
+                    except Exception as e:                  # one broken experiment: go on
+                        import traceback
+
+                        abort_all()                          # its folder keeps the previous run
+                        job.outcome = ("failed", (f"{type(e).__name__}: {e}", traceback.format_exc()))
+                    else:
+                        job.outcome = ("done", summary)
+                    show(wait=False)
+                show(wait=True)
+            finally:
+                # stopped early (interrupt, user error): the runs the workers completed are
+                # in place, and not for this process to discard or report as unchanged
+                for job in jobs:
+                    if job.future is not None and job.future.status == "finished" \
+                            and _remote_outcome(job.future)[0] == "done":
+                        completed_elsewhere(out / job.label)
         idx = _report.index(out, done, failed)
     typer.echo(f"index: {idx}")
     if failed:
         raise typer.Exit(1)
+
+
+def _running(name: str, label: str, sets, quick: bool) -> str:
+    """The progress line that starts a demo run."""
+    what = f": {name} with {', '.join(sets)}" if sets else ""
+    return f"running {label}{' (quick)' if quick else ''}{what} ..."
+
+
+class _DemoJob:
+    """One run of ``sinslab demo``: an experiment with the ``--set`` lines of a variant."""
+
+    def __init__(self, exp, label: str, sets: tuple):
+        self.exp, self.label, self.sets = exp, label, sets
+        self.cfg = None
+        self.campaign = False
+        #: the Dask future of a run handed to the workers
+        self.future = None
+        #: ("done", summary), ("failed", (line, traceback)) or ("user", exception)
+        self.outcome = None
+
+
+#: topic of the progress lines the demo's runs on Dask workers send to the command
+_DEMO_TOPIC = "sinslab-demo"
+
+
+def _can_submit(client) -> bool:
+    """True for a ``distributed.Client`` (the demo's local cluster) that runs can be
+    handed to."""
+    if client is None or isinstance(client, str):
+        return False
+    from distributed import Client
+
+    return isinstance(client, Client)
+
+
+def _submit_beside(client, jobs: list, out: Path, quick: bool) -> None:
+    """Hand the runs without a campaign to the cluster's workers, beside the campaigns.
+
+    Runs of one experiment follow each other (a run's future is an argument of the next
+    one's task): the first compiles the experiment's kernels into numba's disk cache and
+    the others load them, instead of two workers compiling the same kernels at once on a
+    fresh clone. Their tasks rank below the campaigns' (``priority``), which the command
+    waits for: a free worker takes a campaign's task first.
+    """
+    def forward(event):
+        # each line names its run: the runs' lines interleave
+        name, label, msg = event[1]
+        head, sep, rest = msg.partition(": ")
+        if sep and head in ("warning", "note"):
+            _log(f"{head}: {label}: {rest}")
+        elif msg.startswith("running "):
+            _log(msg)
+        else:
+            _log(f"{label}: {rest if sep and head == name else msg}")
+
+    client.subscribe_topic(_DEMO_TOPIC, forward)
+    last = {}
+    # the experiments with most runs first: their chains are the longest
+    order = sorted(jobs, key=lambda j: -sum(k.exp.name == j.exp.name for k in jobs))
+    for job in order:
+        variant = (job.label, list(job.sets)) if job.sets else None
+        job.future = client.submit(_run_on_worker, job.exp.name, job.cfg, str(out / job.label), quick, variant,
+                                   after=last.get(job.exp.name), pure=False, priority=-1,
+                                   key=f"sinslab-demo-{job.label}")
+        last[job.exp.name] = job.future
+
+
+def _remote_outcome(future) -> tuple:
+    """The outcome of a run handed to a worker (the worker lost with it: a failed run)."""
+    try:
+        return future.result()
+    except Exception as e:                                 # noqa: BLE001 - the run failed
+        import traceback
+
+        return ("failed", (f"{type(e).__name__}: {e}", traceback.format_exc()))
+
+
+def _run_on_worker(name: str, cfg, out: str, quick: bool, variant, after=None) -> tuple:
+    """One demo run in a Dask worker: ``("done", summary)``; a failed run returns
+    ``("failed", (line, traceback))`` (the chain of runs after it goes on) and a user error
+    ``("user", exception)``, its staging folder discarded either way. ``after``: the
+    outcome of the run this one waits for (unused). Progress lines go to the command
+    through the cluster's events; the worker shows no progress bars."""
+    from distributed import get_worker
+
+    from sinslab.app.outputs import abort_all
+    from sinslab.core.progress import set_quiet
+    from sinslab.experiments import execute, get
+
+    set_quiet(True)
+    worker = get_worker()
+
+    def log(msg: str) -> None:
+        worker.log_event(_DEMO_TOPIC, (name, variant[0] if variant else name, msg))
+
+    log(_running(name, variant[0] if variant else name, variant[1] if variant else (), quick))
+    try:
+        return ("done", execute(get(name), cfg, out, quick=quick, log=log, variant=variant))
+    except USER_ERRORS as e:
+        abort_all()
+        return ("user", e)
+    except Exception as e:                                 # noqa: BLE001 - reported by the command
+        import traceback
+
+        abort_all()
+        return ("failed", (f"{type(e).__name__}: {e}", traceback.format_exc()))
 
 
 def _is_sinslab_index(path: Path) -> bool:

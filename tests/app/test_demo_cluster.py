@@ -1,5 +1,7 @@
-"""`sinslab demo` starts one Dask cluster for all its Monte Carlo campaigns."""
+"""`sinslab demo` starts one Dask cluster for all its Monte Carlo campaigns, and hands its
+runs without a campaign to that cluster's workers."""
 import contextlib
+import json
 import sys
 import types
 
@@ -84,3 +86,95 @@ def test_demo_without_campaigns_starts_no_cluster(tmp_path, monkeypatch):
 
     _demo(tmp_path, monkeypatch, no_cluster, DEMO_VARIANTS={}, QUICK={"runs": 1})
     assert SEEN == [(1, None)]
+
+
+# ------------------------------------------------- runs without a campaign on the workers
+PLACES = {}
+
+
+def _where(label):
+    """Where this run computes: 'worker' inside a Dask task, 'command' otherwise."""
+    try:
+        from distributed import get_worker
+
+        get_worker()
+        return "worker"
+    except ValueError:
+        return "command"
+
+
+def _run_beside(cfg, ctx):
+    PLACES[(cfg.runs, cfg.seed)] = _where(ctx.name)
+    if cfg.seed == 13:
+        raise RuntimeError("a broken run")
+    return Result(metrics={"runs": cfg.runs},
+                  claims=[Claim.at_most("ok", "runs are few", float(cfg.runs), 10.0)])
+
+
+@pytest.fixture
+def threads_cluster(monkeypatch):
+    """``montecarlo.dask_client`` replaced by a Dask cluster of two worker threads in this
+    process (the dummy experiment's module is importable there, unlike in a worker process)."""
+    from distributed import Client, LocalCluster
+
+    from sinslab.estimation import montecarlo as mc
+
+    starts = []
+
+    @contextlib.contextmanager
+    def client(scheduler=None, n_workers=None):
+        if scheduler is not None:
+            yield scheduler
+            return
+        starts.append(n_workers)
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                          dashboard_address=None) as cl, Client(cl) as c:
+            yield c
+
+    monkeypatch.setattr(mc, "dask_client", client)
+    return starts
+
+
+def _demo_beside(tmp_path, monkeypatch, variants):
+    mod = _module()
+    mod.run = _run_beside
+    mod.DEMO_VARIANTS = variants
+    monkeypatch.setitem(sys.modules, mod.__name__, mod)
+    E.register(mod)
+    PLACES.clear()
+    return CliRunner().invoke(app, ["demo", "--quick", "--only", "campaign-dummy", "--out", str(tmp_path / "runs")])
+
+
+def test_demo_runs_without_a_campaign_go_to_the_workers(tmp_path, monkeypatch, threads_cluster):
+    """The runs below CAMPAIGN_MIN_RUNS are Dask tasks on the demo's cluster, the campaign
+    runs stay in the command; the summaries come in the order of the runs whatever order
+    the runs end in, and every folder holds its completed run."""
+    r = _demo_beside(tmp_path, monkeypatch, {"single": ["runs=1"], "more": ["runs=4"], "one": ["runs=1", "seed=5"]})
+    assert r.exit_code == 0, r.output
+    assert threads_cluster == [None]
+    assert PLACES == {(3, 0): "command", (1, 0): "worker", (4, 0): "command", (1, 5): "worker"}
+    lines = [ln.split(":")[0] for ln in r.stdout.splitlines() if "claims passed" in ln]
+    assert lines == ["campaign-dummy", "campaign-dummy-single", "campaign-dummy-more", "campaign-dummy-one"]
+    for label in ("campaign-dummy-single", "campaign-dummy-one"):
+        s = json.loads((tmp_path / "runs" / label / "summary.json").read_text())
+        assert s["name"] == label and s["metrics"]["runs"] == 1
+    assert not [p for p in (tmp_path / "runs").iterdir() if p.name.startswith(".")]
+
+
+def test_demo_run_failing_on_a_worker_stops_nothing(tmp_path, monkeypatch, threads_cluster):
+    """A run that fails on a worker: its traceback is printed, the index lists it, the
+    exit status is 1, its folder keeps the previous run, and the others complete."""
+    variants = {"single": ["runs=1"], "broken": ["runs=1", "seed=12"]}
+    r = _demo_beside(tmp_path, monkeypatch, variants)
+    assert r.exit_code == 0, r.output
+    broken = tmp_path / "runs" / "campaign-dummy-broken"
+    before = (broken / "summary.json").read_bytes()
+    # the same folder again, now with the broken variant failing
+    monkeypatch.setitem(variants, "broken", ["runs=1", "seed=13"])
+    r = _demo_beside(tmp_path, monkeypatch, variants)
+    assert r.exit_code == 1
+    assert "RuntimeError: a broken run" in r.output
+    assert (broken / "summary.json").read_bytes() == before
+    assert "campaign-dummy-single: 1/1 claims passed" in r.stdout
+    assert "campaign-dummy-broken" in (tmp_path / "runs" / "index.html").read_text()
+    assert not [p for p in (tmp_path / "runs").iterdir() if p.name.startswith(".")]

@@ -1,5 +1,6 @@
 """Atomic writes and run-folder rules."""
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -129,6 +130,34 @@ def test_aborted_run_leaves_nothing(tmp_path):
     rd.write_text("a.txt", "a")
     assert abort_all() == [f"nothing was written to {d}"]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_abort_removes_staging_of_processes_gone_and_forgets_runs_completed_elsewhere(tmp_path):
+    """An abort also removes the staging folders next to its folders that processes which
+    no longer run left (a demo's Dask workers, stopped with the demo); a live process's is
+    kept. A folder another process completed (:func:`outputs.completed_elsewhere`) is not
+    reported as holding the previous run."""
+    import subprocess
+    import sys
+
+    from sinslab.app.outputs import abort_all, completed_elsewhere
+
+    abort_all()                                  # runs other tests left open
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True).stdout.strip()
+    run, done = tmp_path / "run", tmp_path / "done"
+    for d in (run, done):
+        RunDir(d, "x").prepare().finish()
+    dead = tmp_path / f".run.sinslab-staging-{gone}-abc123"
+    alive = tmp_path / f".run.sinslab-staging-{os.getppid()}-def456"
+    for st in (dead, alive):
+        st.mkdir()
+        (st / "config.toml").write_text("x")
+    RunDir(run, "x").check()
+    RunDir(done, "x").check()
+    completed_elsewhere(done)
+    assert abort_all() == [f"{run} still holds the previous run, unchanged"]
+    assert not dead.exists() and alive.is_dir()
 
 
 def test_tables_csv_and_parquet(tmp_path):

@@ -38,7 +38,7 @@ def _run(exp, tmp_path, name, sets=()):
 
 def test_quick_paper_scenario_claims(exp, tmp_path):
     s = _run(exp, tmp_path, "quick")
-    # reduced_cheaper compares wall-clock times: a benchmark figure, not a test assertion
+    # reduced_cheaper compares measured CPU times: a benchmark figure, not a test assertion
     # (a loaded CI machine may reorder them); its flop part is deterministic and checked below
     failed = [c for c in s["claims"] if not c["passed"] and c["id"] != "reduced_cheaper"]
     assert not failed, failed

@@ -53,7 +53,7 @@ from sinslab.core.atomic import atomic_path, atomic_write
 
 __all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "atomic_write", "atomic_path",
            "to_jsonable", "dumps_json", "RunDir", "Figure", "default_out_dir", "is_run_dir",
-           "abort_all", "forcing"]
+           "abort_all", "completed_elsewhere", "forcing"]
 
 MARKER = ".sinslab-run"
 LARGE_ROWS = 100_000
@@ -245,6 +245,13 @@ def _exchange(a: Path, b: Path) -> bool:
 _CREATED: dict[Path, list[Path]] = {}
 #: run folders checked or being written in this process, in order
 _ACTIVE: list["RunDir"] = []
+
+
+def completed_elsewhere(path: str | os.PathLike) -> None:
+    """Another process (a Dask worker of ``sinslab demo``) completed its run in ``path``,
+    checked here: an abort of this process has nothing of it to discard or report."""
+    t = Path(path).absolute()
+    _ACTIVE[:] = [r for r in _ACTIVE if r.target.absolute() != t]
 
 
 @on_abort
@@ -447,6 +454,7 @@ class RunDir:
             _remove_tree(self._staging)
             self._staging = None
             self.path = self.target
+        _clean_stale(self.target)          # e.g. of the Dask workers a demo's cluster had
         created = self.target.absolute() in _CREATED
         if created:
             with contextlib.suppress(OSError):

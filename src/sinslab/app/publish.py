@@ -136,7 +136,8 @@ def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
     import multiprocessing as mp
 
     n = min(len(figures), os.cpu_count() or 1, MAX_FIGURE_PROCESSES)
-    if n >= 2 and "fork" in mp.get_all_start_methods():
+    # a daemonic process (a Dask worker drawing a demo run's figures) may have no children
+    if n >= 2 and "fork" in mp.get_all_start_methods() and not mp.current_process().daemon:
         ctx = mp.get_context("fork")
         pool = None
         collecting, frozen = gc.isenabled(), gc.get_freeze_count()

@@ -214,24 +214,23 @@ def _times_h(A, h, out):
 
 
 @njit(cache=True)
-def scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
-    """Joseph-form scalar update in place. Returns (innovation, s)."""
+def _scalar_gain(P, h, r, pht, kk):
+    """pht <- P h and kk <- the gain P h / s of a scalar update; returns s = h P h + r."""
     n = P.shape[0]
     _times_h(P, h, pht)
     s = r
     for k in range(n):
         s += h[k] * pht[k]
-    nu = 0.0
-    if with_x:
-        hx = 0.0
-        for k in range(n):
-            hx += h[k] * x[k]
-        nu = zi - hx
     for i in range(n):
         kk[i] = pht[i] / s
-    if with_x:
-        for i in range(n):
-            x[i] += kk[i] * nu
+    return s
+
+
+@njit(cache=True)
+def _joseph_scalar(P, h, r, pht, kk, bh, B):
+    """P <- (I − k h) P (I − k h)^T + r k k^T in place (symmetrised), from pht = P h and
+    the gain k of :func:`_scalar_gain`; B is a work array (n, n)."""
+    n = P.shape[0]
     # B = (I - k h) P = P - k pht^T
     for i in range(n):
         for j in range(n):
@@ -246,6 +245,27 @@ def scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
             t = 0.5 * (P[i, j] + P[j, i])
             P[i, j] = t
             P[j, i] = t
+
+
+@njit(cache=True)
+def scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
+    """Joseph-form scalar update in place. Returns (innovation, s).
+
+    Callers pass ``with_x`` as a constant or not, and numba compiles this function once
+    for each (``Literal[bool](True)``, ``Literal[bool](False)``, ``bool``): the covariance
+    work lives in :func:`_scalar_gain` and :func:`_joseph_scalar`, compiled once, so
+    only this small shell is compiled three times."""
+    n = P.shape[0]
+    s = _scalar_gain(P, h, r, pht, kk)
+    nu = 0.0
+    if with_x:
+        hx = 0.0
+        for k in range(n):
+            hx += h[k] * x[k]
+        nu = zi - hx
+        for i in range(n):
+            x[i] += kk[i] * nu
+    _joseph_scalar(P, h, r, pht, kk, bh, B)
     return nu, s
 
 

@@ -65,10 +65,13 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
     None argument prunes the vector branch at compile time, so a run with diagonal R
     does not compile :func:`vector_update` (a second of a first run).
 
-    ``gain`` (K, n, m) or None: filled with each step's gain G, the map of the step's
-    measurements onto the updated state (``x⁺ = x⁻ + G (z − H x⁻)``; zero columns where
-    nothing is measured). The sequential scalar updates compose to it: each one maps
-    ``G ← (I − k h) G``, then adds ``k`` to its own column (diagonal R only)."""
+    ``gain`` (K, n, m), or (0, n, m) not to keep it: filled with each step's gain G, the
+    map of the step's measurements onto the updated state (``x⁺ = x⁻ + G (z − H x⁻)``;
+    zero columns where nothing is measured). The sequential scalar updates compose to it:
+    each one maps ``G ← (I − k h) G``, then adds ``k`` to its own column (diagonal R
+    only). An empty array rather than None: runs with and without gains then share one
+    compiled loop (a compilation costs ~2 s of a fresh clone's first run, and one more in
+    every Dask worker of a campaign that runs both)."""
     n = P.shape[0]
     K = phi_i.shape[0]
     m = mask.shape[1]
@@ -113,7 +116,7 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
                     innov[k, c] = nu
                     sdiag[k, c] = s
                     nu_tot += nu * nu / s
-                    if gain is not None:
+                    if gain.shape[0] > 0:
                         _compose_gain(gain[k], Hk[c], kk, c, hg)
             else:
                 nuv, S, nisv = vector_update(x, P, Hk, R_corr[r_i[k]], z[k], used[:nm], with_x)
@@ -421,7 +424,7 @@ def _run(prep, with_x, save_at, keep_gain=False):
     n, m, K = prep["n"], prep["m"], prep["K"]
     if keep_gain and not prep["diagR"]:
         raise ValueError("keep_gain needs a diagonal R (sequential scalar updates)")
-    gain = np.zeros((K, n, m)) if keep_gain else None
+    gain = np.zeros((K if keep_gain else 0, n, m))
     x = prep["x0"].copy()
     P = np.ascontiguousarray(prep["P0"].copy())
     save_flag = np.zeros(K + 1, dtype=np.bool_)
@@ -447,7 +450,7 @@ def _run(prep, with_x, save_at, keep_gain=False):
     if bad >= 0:
         raise ValueError(f"covariance became NaN at step {bad}: check Phi, Q, R for extreme values")
     return LinearRun(x_hist if with_x else None, pd, P_save, save_at, innov, sdiag, nis,
-                     x if with_x else None, P, gain)
+                     x if with_x else None, P, gain if keep_gain else None)
 
 
 def run_linear(x0, P0, Phi, Q, H, R, z, *, mask=None, windows=None, t=None,
