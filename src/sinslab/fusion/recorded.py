@@ -726,7 +726,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                        latency=opt.fix.fix_latency, lever_arm=lever, outages=outages)
     r = loosely_coupled(imu, NavState(lat_i, lon_i, h_i, v0, att0), fix_spec, P0, model,
                         ins=InsSpec(nsub=nsub, gyro_bias=gb, start=ks, t_start=ts),
-                        grid=FilterGrid(T, model_every=0.0), lag=opt.fix.lag, aiding=aiding,
+                        grid=FilterGrid(T, model_every=0.0, spill=opt.grid.spill), lag=opt.fix.lag, aiding=aiding,
                         history=History(0.1, spill=opt.grid.smooth_spill) if opt.grid.smooth else None, progress=progress, label="navigating")
     init["outages"] = outages
     init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),

@@ -895,18 +895,30 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
 SMOOTH_SPILL_ABOVE = 64 * 2 ** 20
 
 
+#: the filter's per-epoch record (rows, estimates, σ, compensation) goes to disk when it
+#: would hold more than this in memory
+RECORD_SPILL_ABOVE = 16 * 2 ** 20
+#: bytes of that record per filter epoch (21 states: row, rates, x, σ, biases, time)
+RECORD_BYTES_PER_EPOCH = 8 * (10 + 3 + 3 + 2 * 21 + 6 + 1)
+
+
 def _spill_smoother(opt, imu, fx):
-    """With ``--smooth`` on a long log, record the forward pass on disk: the history's
-    rows are written to memory-mapped files as the filter runs and read back a chunk at a
-    time by the backward pass (:class:`sinslab.fusion.smoothing.History`), so it does not
+    """On a long log, record the filter's run on disk: the driver's per-epoch arrays
+    (:class:`sinslab.fusion.spec.FilterGrid` ``spill``) and, with ``--smooth``, the
+    forward pass' history are written to memory-mapped files as the filter runs and read
+    back a chunk at a time (:class:`sinslab.fusion.smoothing.History`), so they do not
     hold memory in proportion to the log. The numbers are the same either way."""
     from sinslab.app.commands.runner import scratch_dir
     from sinslab.fusion.smoothing import History
 
     where = scratch_dir()
-    if not opt.smooth or where is None:
+    if where is None:
         return
     duration = float(imu.t[-1] - imu.t0)
+    if duration / opt.kf_dt * RECORD_BYTES_PER_EPOCH > RECORD_SPILL_ABOVE:
+        opt.spill = str(where / "filter")
+    if not opt.smooth:
+        return
     if History.estimate_bytes(21, duration, 0.1, len(fx)) > SMOOTH_SPILL_ABOVE:
         opt.smooth_spill = str(where / "smoother")
 
