@@ -12,7 +12,7 @@ import mmap
 
 import numpy as np
 
-__all__ = ["BLOCK_ROWS", "block_ranges", "release_pages", "block_median", "kth_smallest"]
+__all__ = ["BLOCK_ROWS", "block_ranges", "release_pages", "block_median", "kth_smallest", "is_mapped"]
 
 #: rows of a record read or computed at once when it is walked a block at a time
 BLOCK_ROWS = 1 << 16
@@ -23,6 +23,17 @@ def block_ranges(n, rows=BLOCK_ROWS, multiple=1):
     ``multiple``; the last block holds what is left)."""
     step = max(multiple, (max(1, int(rows)) // multiple) * multiple)
     return [(a, min(n, a + step)) for a in range(0, n, step)]
+
+
+def is_mapped(a) -> bool:
+    """True if ``a`` is a memory-mapped array (or a view of one): read it a window at a
+    time and let the pages go."""
+    b = a
+    while isinstance(b, np.ndarray):
+        if isinstance(b, np.memmap):
+            return True
+        b = b.base
+    return isinstance(b, mmap.mmap)
 
 
 def release_pages(*arrays) -> None:

@@ -89,7 +89,7 @@ from numba import njit
 
 from sinslab.core import attitude as A
 from sinslab.core import units
-from sinslab.core.blocks import release_pages
+from sinslab.core.blocks import BLOCK_ROWS, is_mapped, release_pages
 from sinslab.estimation.filter import KalmanFilter
 from sinslab.estimation.kalman import discretize
 from sinslab.estimation.linear import discretize_series_many
@@ -279,7 +279,11 @@ class LiveStream:
             raise ValueError(f"the IMU record ({len(self.imu) - self.start} samples) is shorter "
                              "than one filter step")
         self.n_ep = n_ep
-        if not self.scaled:
+        # a record mapped from files is read a block at a time: its step sums are made
+        # per block (the same sums), not held for the whole record
+        self._mapped = is_mapped(self.imu.dtheta)
+        self._read = 0                  # samples read since the pages were last let go
+        if not self.scaled and not self._mapped:
             self._dth_sum, self._dv_sum = _imu_step_sums(self.imu, self.start, n_ep, k_kf)
         return self.T, self.t0, n_ep
 
@@ -298,15 +302,25 @@ class LiveStream:
         k_kf, T = self.k_kf, self.T
         a, b = self.start + e_a * k_kf, self.start + e_b * k_kf
         dth, dvb = self.imu.dtheta[a:b], self.imu.dv[a:b]
+        if self._mapped:
+            dth, dvb = np.asarray(dth), np.asarray(dvb)
         if self.scaled:
             m = e_b - e_a
             dth_s, dv_s = np.empty((b - a, 3)), np.empty((b - a, 3))
             ws, fs = np.empty((m, 3)), np.empty((m, 3))
             _scaled_increments(dth, dvb, self.kg, self.ka, self.gb, self.ab, k_kf, T, dth_s, dv_s, ws, fs)
             dth, dvb = dth_s, dv_s
+        elif self._mapped:
+            ws = _step_sums(dth, e_b - e_a, k_kf) / T - self.gb
+            fs = _step_sums(dvb, e_b - e_a, k_kf) / T - self.ab
         else:
             ws = self._dth_sum[e_a:e_b] / T - self.gb
             fs = self._dv_sum[e_a:e_b] / T - self.ab
+        if self._mapped:
+            self._read += b - a
+            if self._read >= BLOCK_ROWS:
+                release_pages(self.imu.t, self.imu.dtheta, self.imu.dv)
+                self._read = 0
         return dth, dvb, ws, fs, a, b
 
     def _run(self, st, e_a, e_b):

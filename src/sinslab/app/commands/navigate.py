@@ -195,6 +195,43 @@ def navigate_files(req: NavigateRequest, *, out=None, echo=print):
     return (summary, *res.value)
 
 
+#: rows of a CSV or Parquet IMU table read at once: such a table is read a block at a
+#: time into the run's scratch folder (:func:`sinslab.data.spool.spool_table_imu`) and
+#: navigated from there, so the log is never held in memory whole (0: read whole)
+IMU_BLOCK_ROWS = 1 << 16
+
+
+def _scratch(name):
+    """A folder ``name`` in the run's scratch folder (None outside a run)."""
+    from sinslab.app.commands.runner import scratch_dir
+
+    where = scratch_dir()
+    return None if where is None else where / name
+
+
+def _read_imu(path, fmt, kw):
+    """The IMU log: a plain CSV or Parquet table a block at a time into the scratch folder
+    (the same record, mapped from files), anything else (or a table the block reader
+    leaves to the whole reader: malformed, two files, whitespace-delimited) by
+    :func:`sinslab.data.load_imu`."""
+    import shutil
+
+    from sinslab.data import load_imu
+    from sinslab.data.archive import compression
+
+    where = _scratch("imu") if IMU_BLOCK_ROWS else None
+    one = path[0] if isinstance(path, list) and len(path) == 1 else path
+    if (where is not None and fmt in ("csv", "parquet") and not isinstance(one, list)
+            and Path(one).is_file() and compression(Path(one)) is None):
+        from sinslab.data.spool import spool_table_imu
+
+        d = spool_table_imu(one, where, block_rows=IMU_BLOCK_ROWS, **kw)
+        if d is not None:
+            return d
+        shutil.rmtree(where, ignore_errors=True)
+    return load_imu(path, fmt, **kw)
+
+
 def _innovation_labels(m):
     """Names of the m fix innovation components (position north, east[, up], then velocity
     east, north, up: :class:`sinslab.fusion.loosely_coupled.LooselyCoupled`)."""
@@ -208,10 +245,11 @@ def _compute(req: NavigateRequest, echo) -> Output:
     from sinslab.app.described import navigate_claims
     from sinslab.core import attitude as A
     from sinslab.core import earth as E         # numba and scipy: only when it runs
-    from sinslab.data import guess_imu_format, load_fixes, load_imu
+    from sinslab.data import guess_imu_format, load_fixes
+    from sinslab.data.spool import map_times
     from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
                                          navigate_recorded, outage_end_errors, parse_outages,
-                                         shift_imu_time, significant_time_offset)
+                                         shifted_times, significant_time_offset)
 
     imu_one = req.imu_path[0] if isinstance(req.imu_path, list) else req.imu_path     # the table odometer columns come from
     fmt_eff = req.fmt or guess_imu_format(imu_one)
@@ -246,7 +284,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
     if req.imu_errors is not None:
         from sinslab.app.error_model import load_error_model
         em = load_error_model(req.imu_errors)
-    data = load_imu(req.imu_path, fmt_eff, **kw)
+    data = _read_imu(req.imu_path, fmt_eff, kw)
     from sinslab.app.plausibility import consistency_findings, imu_findings, settle
 
     found = imu_findings(data.imu, str(req.imu_path), gaps=data.gaps)
@@ -291,7 +329,8 @@ def _compute(req: NavigateRequest, echo) -> Output:
         est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if req.lever_arm is not None else None)
         sync = significant_time_offset(est)
         sync.update(windows=len(est["windows"]))
-        imu = shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
+        imu = map_times(imu, partial(shifted_times, offset=sync["offset"], ppm=sync["ppm"], t_ref=sync["t_ref"]),
+                        imu.dt * (1.0 - sync["ppm"] * 1e-6), _scratch("imu"))
         echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
              f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
              f"{sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
