@@ -86,7 +86,10 @@ def kth_smallest(blocks, k, n=None):
         b = int(np.searchsorted(cum, rank, side="right"))
         rank -= int(cum[b - 1]) if b else 0
         prefix = prefix | (np.uint64(b) << np.uint64(shift))
-        if counts[b] <= BLOCK_ROWS or shift == 0:
+        if shift == 0:              # every bit of the key known: the value itself
+            u = prefix & ~np.uint64(1 << 63) if prefix >> np.uint64(63) else ~prefix
+            return float(np.array([u], dtype=np.uint64).view(np.float64)[0])
+        if counts[b] <= BLOCK_ROWS:
             top = np.uint64(shift)
             cand = [np.asarray(blk, dtype=np.float64)[(_keys(blk) >> top) == (prefix >> top)]
                     for blk in blocks()]

@@ -447,34 +447,51 @@ def _header_complete(head: bytes) -> bool:
 def iter_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):
     """Float columns ``cols`` (indices) of a delimited table, one block at a time.
 
-    The table is parsed by pyarrow's streaming CSV reader one block (``block_size``
-    bytes) at a time; each block's rows are yielded as a float64 array
+    The file is read one block of about ``block_size`` bytes (whole lines) at a time and
+    each block is parsed by pyarrow's CSV engine; its rows are yielded as a float64 array
     ``(rows, len(cols))``, so a caller that consumes the blocks as they come holds one
-    block, whatever the length of the file. Parameters and errors as in
-    :func:`read_csv_columns`.
+    block, whatever the length of the file. (pyarrow's own streaming reader reads ahead
+    of its consumer without bound: it held most of a large file.) Parameters and errors
+    as in :func:`read_csv_columns`.
     """
     import pyarrow as pa
     from pyarrow import csv as pcsv
 
     names = [f"c{i}" for i in range(ncol)]
     use = [names[i] for i in cols]
-    reader = pcsv.open_csv(
-        path,
-        read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=block_size,
-                                      use_threads=False),
-        parse_options=pcsv.ParseOptions(delimiter=delim),
-        convert_options=pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
-                                            strings_can_be_null=False),
-        memory_pool=pa.system_memory_pool())
-    for batch in reader:
-        m = batch.num_rows
-        out = np.empty((m, len(use)))
-        for j, c in enumerate(use):
-            col = batch.column(c)
-            if col.null_count and not allow_empty:
-                raise ValueError("empty cell")
-            out[:, j] = _float_values(col)
-        yield out
+    ropt = pcsv.ReadOptions(column_names=names, use_threads=False, block_size=max(int(block_size), 1 << 12) + (1 << 16))
+    popt = pcsv.ParseOptions(delimiter=delim)
+    copt = pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
+                               strings_can_be_null=False)
+    with open(path, "rb") as fh:
+        for _ in range(skip):
+            fh.readline()
+        rest = b""
+        while True:
+            buf = fh.read(max(int(block_size), 1 << 12))
+            if buf:
+                data = rest + buf
+                cut = data.rfind(b"\n")
+                if cut < 0:
+                    rest = data
+                    continue
+                rest, data = data[cut + 1:], data[:cut + 1]
+            else:
+                data, rest = rest, b""
+            if data.strip():
+                batch = pcsv.read_csv(pa.py_buffer(data), read_options=ropt, parse_options=popt,
+                                      convert_options=copt, memory_pool=pa.system_memory_pool())
+                m = batch.num_rows
+                out = np.empty((m, len(use)))
+                for j, c in enumerate(use):
+                    col = batch.column(c).combine_chunks()
+                    if col.null_count and not allow_empty:
+                        raise ValueError("empty cell")
+                    out[:, j] = _float_values(col)
+                del batch
+                yield out
+            if not buf:
+                return
 
 
 def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):

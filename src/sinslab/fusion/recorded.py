@@ -808,13 +808,24 @@ def _odometer(odo, aiding: AidingSpec, T, t_lo, t_hi):
 
 # ----------------------------------------------------------------------- evaluation ----
 def _interp_rows(res: RecordedNav, t):
-    nav = res.nav
-    lat = np.interp(t, res.t, nav[:, 7])
-    lon = np.interp(t, res.t, nav[:, 8])
-    h = np.interp(t, res.t, nav[:, 9])
-    q = np.stack([np.interp(t, res.t, nav[:, i]) for i in range(4)], -1)
+    """Latitude, longitude, height and attitude (DCM) of the solution at the sorted times
+    ``t``, interpolated from the epochs around each block of them (the numbers of
+    interpolating in the whole solution; a run on disk is read a window at a time)."""
+    out = np.empty((np.size(t), 7))
+    i = 0
+    span = BLOCK_ROWS * (res.t[1] - res.t[0]) if res.t.size > 1 else math.inf
+    while i < out.shape[0]:
+        j = max(i + 1, int(np.searchsorted(t, t[i] + span, side="right")))
+        lo = max(0, int(np.searchsorted(res.t, t[i])) - 2)
+        hi = min(res.t.size, int(np.searchsorted(res.t, t[j - 1])) + 3)
+        te, nav = np.asarray(res.t[lo:hi]), np.asarray(res.nav[lo:hi])
+        for c, k in enumerate((7, 8, 9, 0, 1, 2, 3)):
+            out[i:j, c] = np.interp(t[i:j], te, nav[:, k])
+        release_pages(res.t, res.nav)
+        i = j
+    q = np.ascontiguousarray(out[:, 3:])
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    return lat, lon, h, A.quat_to_dcm(q)
+    return out[:, 0].copy(), out[:, 1].copy(), out[:, 2].copy(), A.quat_to_dcm(q)
 
 
 def fix_errors(res: RecordedNav, fixes: Fixes, lever_arm=None):

@@ -13,6 +13,7 @@ import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import units
+from sinslab.core.blocks import release_pages
 
 __all__ = ["NAVIGATE", "NavigateRequest", "navigate_files", "register"]
 
@@ -545,14 +546,17 @@ def _compute(req: NavigateRequest, echo) -> Output:
     rm, rn = E.radii(lat0, fx.h[0])
     xe = (fx.lon - lon0) * rn * math.cos(lat0)
     yn = (fx.lat - lat0) * rm
-    se = (res.nav[:, 8] - lon0) * rn * math.cos(lat0)
-    sn = (res.nav[:, 7] - lat0) * rm
+    step = -(-res.t.size // TRACK_POINTS)                # every epoch up to TRACK_POINTS
+    t_tr = np.asarray(res.t[::step])
+    se = (np.asarray(res.nav[::step, 8]) - lon0) * rn * math.cos(lat0)
+    sn = (np.asarray(res.nav[::step, 7]) - lat0) * rm
+    release_pages(res.t, res.nav)
     fig, axes = plotting.figure(1, 1, width=7.5, row_height=6.5)
     ax = axes[0]
     ax.plot(xe, yn, "k.", ms=1.5, label="fixes")
     ax.plot(se, sn, "-", color=plotting.COLORS[0], lw=1, label="INS/fix solution")
     for s, ln in outs:
-        m = (res.t >= s) & (res.t < s + ln)
+        m = (t_tr >= s) & (t_tr < s + ln)
         ax.plot(se[m], sn[m], "-", color=plotting.COLORS[1], lw=2)
     ax.plot([], [], "-", color=plotting.COLORS[1], lw=2, label="during outages")
     ax.set_aspect("equal", "datalim")
@@ -579,14 +583,14 @@ def _compute(req: NavigateRequest, echo) -> Output:
                  + ("; top bar: aiding rejected by the gate" if gated else "") + ")")
     figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
     fig, axes = plotting.figure(3, 1, width=9.0)
-    ts_ = res.t - res.t[0]
-    _semilogy(axes[0], ts_, np.degrees(sig[:, 0:3]) * 60, lw=1)
+    ts_ = _Shifted(res.t)
+    _semilogy(axes[0], ts_, lambda a, b: np.degrees(sig[a:b, 0:3]) * 60, lw=1)
     axes[0].set_ylabel("attitude σ [arcmin]")
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
-    _semilogy(axes[1], ts_, sig[:, i_gb] / units.dph, lw=1)
+    _semilogy(axes[1], ts_, lambda a, b: sig[a:b, i_gb] / units.dph, lw=1)
     axes[1].set_ylabel("gyro bias σ [°/h]")
     axes[1].legend(["x", "y", "z"], fontsize=8)
-    _semilogy(axes[2], ts_, sig[:, i_ab] / units.ug, lw=1)
+    _semilogy(axes[2], ts_, lambda a, b: sig[a:b, i_ab] / units.ug, lw=1)
     axes[2].set_ylabel("accel bias σ [µg]")
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
@@ -646,12 +650,58 @@ PLOT_COLUMNS = 2000
 def _semilogy(ax, t, y, **kw):
     """``ax.semilogy`` of the columns of ``y`` against ``t``, each thinned to its envelope
     over :data:`PLOT_COLUMNS` columns first (:func:`sinslab.app.plotting.minmax_decimate`),
-    so a long run's figure does not hold a copy of every epoch until it is drawn."""
+    so a long run's figure does not hold a copy of every epoch until it is drawn.
+
+    ``y`` an array (N,) or (N, k), or a function ``(a, b) ->`` its rows ``a:b``; ``t``
+    (N,) (an array mapped from a file is fine). A long series is thinned a block of
+    groups at a time (the same points: the groups are those of the whole series), so
+    neither it nor a copy is held whole."""
     from sinslab.app.plotting import minmax_decimate
 
-    y = np.asarray(y)
-    for col in (y.T if y.ndim == 2 else [y]):
-        ax.semilogy(*minmax_decimate(t, col, PLOT_COLUMNS), **kw)
+    n = t.shape[0]
+    get = y if callable(y) else (lambda a, b: np.asarray(y)[a:b])
+    if n <= 4 * PLOT_COLUMNS:
+        ys = np.asarray(get(0, n))
+        tt = np.asarray(t[:n])
+        for col in (ys.T if ys.ndim == 2 else [ys]):
+            ax.semilogy(*minmax_decimate(tt, col, PLOT_COLUMNS), **kw)
+        return
+    edges = np.linspace(0, n, PLOT_COLUMNS + 1).astype(np.int64)
+    per = max(1, BLOCK_GROUPS)
+    pieces = None
+    for g0 in range(0, PLOT_COLUMNS, per):
+        g1 = min(PLOT_COLUMNS, g0 + per)
+        a, b = int(edges[g0]), int(edges[g1])
+        ys, tt = np.asarray(get(a, b)), np.asarray(t[a:b], dtype=float)
+        cols = ys.T if ys.ndim == 2 else [ys]
+        pieces = pieces or [([], []) for _ in cols]
+        for (px, py), col in zip(pieces, cols):
+            xk, yk = minmax_decimate(tt, col, g1 - g0, edges=edges[g0:g1 + 1] - a)
+            px.append(xk)
+            py.append(yk)
+        release_pages(t)
+    for px, py in pieces:
+        ax.semilogy(np.concatenate(px), np.concatenate(py), **kw)
+
+
+#: groups of :func:`_semilogy` thinned at once
+BLOCK_GROUPS = 64
+#: most points of the track figure: a longer solution is drawn every k-th epoch (far more
+#: points than the figure has pixels either way)
+TRACK_POINTS = 1 << 17
+
+
+class _Shifted:
+    """``t − t[0]`` of a series of times, made a slice at a time (``shape``, slicing)."""
+
+    def __init__(self, t):
+        self.t, self.t0, self.shape = t, t[0], t.shape
+
+    def __getitem__(self, key):
+        return np.asarray(self.t[key]) - self.t0
+
+    def release_pages(self):
+        release_pages(self.t)
 
 
 def _scale_of(unit):
