@@ -475,10 +475,10 @@ def iter_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow
                 if cut < 0:
                     rest = data
                     continue
-                rest, data = data[cut + 1:], data[:cut + 1]
+                rest, data = data[cut + 1:], memoryview(data)[:cut + 1]
             else:
-                data, rest = rest, b""
-            if data.strip():
+                data, rest = memoryview(rest), b""
+            if bytes(data[-64:]).strip() or bytes(data).strip():
                 batch = pcsv.read_csv(pa.py_buffer(data), read_options=ropt, parse_options=popt,
                                       convert_options=copt, memory_pool=pa.system_memory_pool())
                 m = batch.num_rows

@@ -684,6 +684,8 @@ def _semilogy(ax, t, y, **kw):
         ax.semilogy(np.concatenate(px), np.concatenate(py), **kw)
 
 
+#: filter epochs of the solution tables made and written at once (a Parquet row group each)
+TABLE_CHUNK_ROWS = 1 << 15
 #: groups of :func:`_semilogy` thinned at once
 BLOCK_GROUPS = 64
 #: most points of the track figure: a longer solution is drawn every k-th epoch (far more
@@ -735,7 +737,7 @@ def _solution_table(res):
             sol[f"accel_bias_{ax}_ug"] = res.accel_bias[a:b, k] / units.ug
         return sol
 
-    return ChunkedTable.of(rows, res.t.size)
+    return ChunkedTable.of(rows, res.t.size, TABLE_CHUNK_ROWS)
 
 
 def _smoothed_table(res):
@@ -770,7 +772,7 @@ def _smoothed_table(res):
             cols[f"smo_{name}"] = sm.sigma[a:b, i] / sc
         return cols
 
-    return ChunkedTable.of(rows, res.t.size)
+    return ChunkedTable.of(rows, res.t.size, TABLE_CHUNK_ROWS)
 
 
 def _abs(path) -> str:
