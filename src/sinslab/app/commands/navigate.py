@@ -278,7 +278,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
     if (req.vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
         raise ValueError(f"--aid nhc: the non-holonomic constraint assumes a wheeled land vehicle, "
                          f"not --platform {req.vehicle['platform']}")
-    check_memory(req.imu_path, fmt_eff, bool((req.smo or {}).get("smooth")))
+    check_memory(req.imu_path, fmt_eff, bool((req.smo or {}).get("smooth")), fix_path=req.fix_path)
     if not (isinstance(req.csv_rate, (int, float)) and math.isfinite(req.csv_rate) and req.csv_rate > 0):
         raise ValueError(f"--csv-rate must be a positive number of Hz, got {req.csv_rate!r}")
     em = None
@@ -872,14 +872,26 @@ def _vehicle_options(opt, veh, nhc):
 
 # ------------------------------------------------------------- memory estimate ---
 #: Peak resident memory of one navigate process: a fixed part (interpreter, numpy, numba
-#: and its loaded kernels, scipy, pyarrow, matplotlib) and a part per IMU sample (the
-#: record and its reading, the filter's outputs, metrics and figures; the tables are
-#: written a chunk at a time; with ``--smooth`` the smoothed solution too, and the
-#: forward pass' record in memory up to ``SMOOTH_SPILL_ABOVE``, on disk beyond), from
+#: and its loaded kernels, scipy, pyarrow, matplotlib) and, for a log read whole (not a
+#: plain CSV/Parquet table), a part per IMU sample (the record and its reading, the
+#: filter's outputs, metrics and figures; the tables are written a chunk at a time; with
+#: ``--smooth`` the smoothed solution too, and the forward pass' record in memory up to
+#: ``SMOOTH_SPILL_ABOVE``, on disk beyond), from
 #: ``benchmarks/navigate_cost.py`` (peak RSS of 10 and 60 min logs at 200 Hz: the
 #: intercept and the slope, rounded up).
 MEMORY_FIXED = 340 * 2 ** 20
 MEMORY_PER_SAMPLE = {False: 220, True: 360}
+#: A log read a block at a time (:func:`streamed`) holds, beyond the fixed part, one IMU
+#: block (:data:`IMU_BLOCK_ROWS` rows: its text and arrays, ~30 MB), one chunk of the
+#: solution table (:data:`TABLE_CHUNK_ROWS` epochs: its columns, text and Parquet row
+#: group, ~50 MB) and the track's points up to :data:`TRACK_POINTS` (~10 MB)
+MEMORY_BLOCK = 96 * 2 ** 20
+#: the filter's per-epoch record per IMU sample (200 Hz samples, 50 Hz epochs), held in
+#: memory up to :data:`RECORD_SPILL_ABOVE`
+MEMORY_RECORD_PER_SAMPLE = 130
+#: per fix: the fix itself, its measurement schedule and the filter's record of its
+#: update (innovation, σ, NIS), its error against the solution (~1 kB measured)
+MEMORY_PER_FIX = 1024
 
 
 def estimate_samples(path, fmt):
@@ -916,13 +928,35 @@ def estimate_samples(path, fmt):
     return int((size - len(lines[0]) - 1) / per_line)
 
 
-def check_memory(imu_path, fmt, smooth, available=None):
+def streamed(imu_path, fmt) -> bool:
+    """True if navigate reads this IMU log a block at a time (:func:`_read_imu`): one plain
+    CSV or Parquet table."""
+    from sinslab.data.archive import compression
+
+    one = imu_path[0] if isinstance(imu_path, (list, tuple)) and len(imu_path) == 1 else imu_path
+    if not IMU_BLOCK_ROWS or fmt not in ("csv", "parquet") or isinstance(one, (list, tuple)):
+        return False
+    try:
+        return Path(one).is_file() and compression(Path(one)) is None
+    except OSError:
+        return False
+
+
+def check_memory(imu_path, fmt, smooth, available=None, fix_path=None):
     """Refuse, before reading, an IMU log whose navigation cannot fit in memory.
 
-    The need is :data:`MEMORY_FIXED` plus :data:`MEMORY_PER_SAMPLE` per estimated sample
-    (:func:`estimate_samples`), with ``smooth`` plus the most of the smoother's record held
-    in memory (:data:`SMOOTH_SPILL_ABOVE`; a larger one goes to disk); ``available``
-    defaults to the memory the system can give a new allocation. Returns the estimate [bytes] or None (no estimate for the format).
+    A log read a block at a time (:func:`streamed`) needs :data:`MEMORY_FIXED` plus
+    :data:`MEMORY_BLOCK` (an IMU block, a table chunk, the figures' points at their caps)
+    plus what still grows with the log: the filter's per-epoch record up to
+    :data:`RECORD_SPILL_ABOVE` (on disk beyond), :data:`MEMORY_PER_FIX` per fix (their
+    rows estimated from ``fix_path``'s size, :func:`estimate_samples`) and, with
+    ``smooth``, the smoothed solution (:data:`MEMORY_PER_SAMPLE` ``[True]`` minus
+    ``[False]`` per sample) and the most of the smoother's record held in memory
+    (:data:`SMOOTH_SPILL_ABOVE`). Any other log is read whole: :data:`MEMORY_FIXED` plus
+    :data:`MEMORY_PER_SAMPLE` per estimated sample (:func:`estimate_samples`), with
+    ``smooth`` plus the smoother's record up to its spill size. ``available`` defaults to
+    the memory the system can give a new allocation. Returns the estimate [bytes] or None
+    (no estimate for the format).
 
     Raises
     ------
@@ -934,7 +968,15 @@ def check_memory(imu_path, fmt, smooth, available=None):
     n = estimate_samples(imu_path, fmt)
     if n is None:
         return None
-    need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[bool(smooth)] + (SMOOTH_SPILL_ABOVE if smooth else 0)
+    smooth_part = n * (MEMORY_PER_SAMPLE[True] - MEMORY_PER_SAMPLE[False]) + SMOOTH_SPILL_ABOVE if smooth else 0
+    if streamed(imu_path, fmt):
+        fixes = 0
+        for fp in ([] if fix_path is None else fix_path if isinstance(fix_path, (list, tuple)) else [fix_path]):
+            fixes += estimate_samples(fp, "csv") or 0
+        need = (MEMORY_FIXED + MEMORY_BLOCK + min(n * MEMORY_RECORD_PER_SAMPLE, RECORD_SPILL_ABOVE)
+                + fixes * MEMORY_PER_FIX + smooth_part)
+    else:
+        need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[False] + smooth_part
     avail = available_memory() if available is None else int(available)
     if need > avail:
         name = " + ".join(map(str, imu_path)) if isinstance(imu_path, (list, tuple)) else imu_path
