@@ -929,6 +929,8 @@ def _run_lanes(lanes, histories, model, P0, spec: FilterGrid, *, feedback, lag, 
                              "in lockstep need one measurement schedule")
     T, n_ep = grid.T, grid.n
     t_ep = _epoch_times(grid, spec.spill)
+    if spec.spill is not None:
+        runs[0].store.arrays.append(t_ep)          # its pages let go with the first lane's
     t_rel = _FilterClock(T)                      # filter clock (absolute stamps lose digits)
     max_ep = max(1, int(round(max_block / T)))
     la_ep = max(1, int(round(model_every / T)))

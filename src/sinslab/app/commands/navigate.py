@@ -584,13 +584,13 @@ def _compute(req: NavigateRequest, echo) -> Output:
     figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
     fig, axes = plotting.figure(3, 1, width=9.0)
     ts_ = _Shifted(res.t)
-    _semilogy(axes[0], ts_, lambda a, b: np.degrees(sig[a:b, 0:3]) * 60, lw=1)
+    _semilogy(axes[0], ts_, lambda a, b: np.degrees(sig[a:b, 0:3]) * 60, release=(sig,), lw=1)
     axes[0].set_ylabel("attitude σ [arcmin]")
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
-    _semilogy(axes[1], ts_, lambda a, b: sig[a:b, i_gb] / units.dph, lw=1)
+    _semilogy(axes[1], ts_, lambda a, b: sig[a:b, i_gb] / units.dph, release=(sig,), lw=1)
     axes[1].set_ylabel("gyro bias σ [°/h]")
     axes[1].legend(["x", "y", "z"], fontsize=8)
-    _semilogy(axes[2], ts_, lambda a, b: sig[a:b, i_ab] / units.ug, lw=1)
+    _semilogy(axes[2], ts_, lambda a, b: sig[a:b, i_ab] / units.ug, release=(sig,), lw=1)
     axes[2].set_ylabel("accel bias σ [µg]")
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
@@ -647,7 +647,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
 PLOT_COLUMNS = 2000
 
 
-def _semilogy(ax, t, y, **kw):
+def _semilogy(ax, t, y, release=(), **kw):
     """``ax.semilogy`` of the columns of ``y`` against ``t``, each thinned to its envelope
     over :data:`PLOT_COLUMNS` columns first (:func:`sinslab.app.plotting.minmax_decimate`),
     so a long run's figure does not hold a copy of every epoch until it is drawn.
@@ -655,7 +655,8 @@ def _semilogy(ax, t, y, **kw):
     ``y`` an array (N,) or (N, k), or a function ``(a, b) ->`` its rows ``a:b``; ``t``
     (N,) (an array mapped from a file is fine). A long series is thinned a block of
     groups at a time (the same points: the groups are those of the whole series), so
-    neither it nor a copy is held whole."""
+    neither it nor a copy is held whole; ``release``: arrays ``y`` reads, whose pages are
+    let go after each block (a run on disk)."""
     from sinslab.app.plotting import minmax_decimate
 
     n = t.shape[0]
@@ -679,7 +680,7 @@ def _semilogy(ax, t, y, **kw):
             xk, yk = minmax_decimate(tt, col, g1 - g0, edges=edges[g0:g1 + 1] - a)
             px.append(xk)
             py.append(yk)
-        release_pages(t)
+        release_pages(t, *release)
     for px, py in pieces:
         ax.semilogy(np.concatenate(px), np.concatenate(py), **kw)
 
@@ -723,6 +724,8 @@ def _solution_table(res):
               for i, (l, u_) in enumerate(zip(res.labels, res.units_))]
 
     def rows(a, b):
+        # the epochs before this chunk are written: a run on disk lets their pages go
+        release_pages(res.t, res.nav, res.sigma, res.gyro_bias, res.accel_bias)
         nav = res.nav[a:b]
         att = A.quat_to_euler(nav[:, :4])
         sol = {"t_s": res.t[a:b] - t0, "t_abs_s": res.t[a:b], "lat_deg": np.degrees(nav[:, 7]),
@@ -752,6 +755,7 @@ def _smoothed_table(res):
               for i, (l, u_) in enumerate(zip(res.labels, res.units_))]
 
     def rows(a, b):
+        release_pages(res.t, res.sigma)
         fw, sn = sm.forward_nav[a:b], sm.nav[a:b]
         att_f, att_s = A.quat_to_euler(fw[:, :4]), A.quat_to_euler(sn[:, :4])
         cols = {"t_s": res.t[a:b] - t0, "t_abs_s": res.t[a:b]}
