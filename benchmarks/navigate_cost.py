@@ -53,8 +53,10 @@ def timed(mod, name):
         finally:
             st[name] = st.get(name, 0.0) + time.process_time() - c
     setattr(mod, name, g)
-for mod, name in ((D, "load_imu"), (D, "read_fixes"), (R, "navigate_recorded")):
-    timed(mod, name)
+import sinslab.app.commands.navigate as N
+for mod, name in ((D, "load_imu"), (D, "read_fixes"), (R, "navigate_recorded"), (N, "_read_imu")):
+    if hasattr(mod, name):              # an install that reads the IMU log in blocks
+        timed(mod, name)
 try:
     app(sys.argv[1:], standalone_mode=False)
 finally:
@@ -116,7 +118,9 @@ def run_navigate(ip, fp, out, extra=(), python=None):
     if p.returncode != 0 or not line:
         raise RuntimeError(f"navigate failed ({p.returncode}): {p.stderr[-2000:]}")
     s = json.loads(line[-1][7:])
-    s["reading"] = s.pop("load_imu", 0.0) + s.pop("read_fixes", 0.0)
+    load = s.pop("load_imu", 0.0)
+    imu_read = s.pop("_read_imu", None)        # navigate's reader (load_imu inside it when it reads whole)
+    s["reading"] = (load if imu_read is None else imu_read) + s.pop("read_fixes", 0.0)
     s["compute"] = s.pop("navigate_recorded", 0.0)
     s["rest"] = s["total"] - s["startup"] - s["reading"] - s["compute"]
     s["fixed"] = s["total"] - s["compute"]

@@ -1,6 +1,7 @@
 """`sinslab navigate` estimates its memory before reading the IMU log: the sample count
-estimate against the true count (text: within 2 %; Parquet: exact), and a log that cannot
-fit refused with one line, exit status 2 and nothing written."""
+estimate against the true count (text: within 2 %; Parquet: exact), the need of a log
+read a block at a time (bounded but for the fixes) and of one read whole (per sample), and
+a log that cannot fit refused with one line, exit status 2 and nothing written."""
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -30,8 +31,34 @@ def test_sample_estimate(logs):
     assert nav.estimate_samples(d / "imu.csv", "mat") is None
 
 
-def test_need_grows_with_samples_and_smoothing(logs):
+def test_need_of_a_log_read_in_blocks(logs):
+    """A plain table is read a block at a time: fixed + one block + the filter's record
+    (up to its spill size) + the fixes; with smoothing the smoothed solution per sample
+    and the smoother's record in memory, at most."""
     d, n = logs
+    plain = nav.check_memory(d / "imu.parquet", "parquet", False, available=1 << 40)
+    with_fixes = nav.check_memory(d / "imu.parquet", "parquet", False, available=1 << 40, fix_path=d / "fx.csv")
+    smooth = nav.check_memory(d / "imu.parquet", "parquet", True, available=1 << 40)
+    assert plain == nav.MEMORY_FIXED + nav.MEMORY_BLOCK + n * nav.MEMORY_RECORD_PER_SAMPLE
+    assert with_fixes - plain == 2 * nav.MEMORY_PER_FIX
+    assert smooth - plain == (n * (nav.MEMORY_PER_SAMPLE[True] - nav.MEMORY_PER_SAMPLE[False])
+                              + nav.SMOOTH_SPILL_ABOVE)
+
+
+def test_need_of_a_long_log_read_in_blocks_is_bounded(logs, monkeypatch):
+    """1 h and 8 h at 200 Hz (as the sample estimate says): the same need (the record on
+    disk beyond its spill size), where a log read whole needs 8 times the per-sample part."""
+    d, _ = logs
+    need = {}
+    for h in (1, 8):
+        monkeypatch.setattr(nav, "estimate_samples", lambda p, f, h=h: h * 720_000 if f == "parquet" else 0)
+        need[h] = nav.check_memory(d / "imu.parquet", "parquet", False, available=1 << 40)
+    assert need[8] == need[1] < nav.MEMORY_FIXED + 720_000 * nav.MEMORY_PER_SAMPLE[False]
+
+
+def test_need_of_a_log_read_whole_grows_with_samples(logs, monkeypatch):
+    d, n = logs
+    monkeypatch.setattr(nav, "IMU_BLOCK_ROWS", 0)               # read whole
     plain = nav.check_memory(d / "imu.parquet", "parquet", False, available=1 << 40)
     smooth = nav.check_memory(d / "imu.parquet", "parquet", True, available=1 << 40)
     assert plain == nav.MEMORY_FIXED + n * nav.MEMORY_PER_SAMPLE[False]

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sinslab.app.errors import CliError
+from sinslab.core.blocks import block_median, block_ranges, release_pages
 
 __all__ = ["Finding", "imu_findings", "rest_findings", "rest_gravity_findings", "gap_findings",
            "consistency_findings", "settle",
@@ -90,35 +91,31 @@ def imu_findings(imu, source: str, *, lat=None, h=0.0, gaps=None) -> list[Findin
         return [Finding(f"{source}: only {n} sample{'s' if n != 1 else ''} "
                         f"({n * imu.dt:.3g} s); a run needs at least {MIN_SAMPLES}", True)]
     out: list[Finding] = []
-    w = imu.dtheta / imu.dt
-    f = imu.dv / imu.dt
-    if not np.any(w) and not np.any(f):
+    st = _record_stats(imu)
+    if not st["any_w"] and not st["any_f"]:
         return [Finding(f"{source}: every gyro and accelerometer sample is zero: the file "
                         f"holds no measurement", True)]
     dead = []
-    for arr, sensor, unit, sc in ((w, "gyro", "deg/s", math.degrees(1.0)), (f, "accel", "m/s^2", 1.0)):
+    for key, sensor, unit, sc in (("w", "gyro", "deg/s", math.degrees(1.0)), ("f", "accel", "m/s^2", 1.0)):
         for k, ax in enumerate("xyz"):
-            col = arr[:, k]
-            if col.min() == col.max():
-                dead.append(f"{sensor} {ax} = {col[0] * sc:.6g} {unit}")
+            if st[f"{key}_min"][k] == st[f"{key}_max"][k]:
+                dead.append(f"{sensor} {ax} = {st[f'{key}_first'][k] * sc:.6g} {unit}")
     if dead:
         out.append(Finding(f"{source}: constant over all {n} samples: {', '.join(dead)} "
                            f"(a dead, unconnected or saturated channel?)"))
-    wn = np.sqrt(np.sum(w * w, axis=1))
-    fn = np.sqrt(np.sum(f * f, axis=1))
     g = _g(lat, h)
-    for mag, lim, unit, sc, sensor in ((wn, MAX_RATE_DPS, "deg/s", math.degrees(1.0), "angular rate"),
-                                       (fn, MAX_ACCEL_G, "g", 1.0 / 9.80665, "specific force")):
-        i = int(np.argmax(mag))
-        if mag[i] * sc > lim:
+    for key, lim, unit, sc, sensor in (("wn", MAX_RATE_DPS, "deg/s", math.degrees(1.0), "angular rate"),
+                                       ("fn", MAX_ACCEL_G, "g", 1.0 / 9.80665, "specific force")):
+        i, top = st[f"{key}_argmax"], st[f"{key}_max"]
+        if top * sc > lim:
             out.insert(0, Finding(
-                f"{source}: {sensor} of {mag[i] * sc:.4g} {unit} at t = {imu.t[i]:.6g} s is beyond "
+                f"{source}: {sensor} of {top * sc:.4g} {unit} at t = {imu.t[i]:.6g} s is beyond "
                 f"any IMU's range (±{lim:g} {unit}): a wrong unit or a corrupt record", True))
-    if not np.any(f):
+    if not st["any_f"]:
         out.insert(0, Finding(f"{source}: every accelerometer sample is zero; an IMU on the Earth "
                               f"measures about 1 g: no accelerometer data (wrong columns?)", True))
     else:
-        med = float(np.median(fn))
+        med = block_median(lambda: (b for _, b in _magnitudes(imu, "dv")), n)
         r = med / g
         if abs(r - 1.0) > F_WARN:
             hint = ("a wrong accelerometer unit or column" if abs(r - 1.0) > F_REFUSE else
@@ -129,6 +126,40 @@ def imu_findings(imu, source: str, *, lat=None, h=0.0, gaps=None) -> list[Findin
     if gaps is not None and len(gaps):
         out += gap_findings(imu, gaps, source)
     return out
+
+
+def _magnitudes(imu, name):
+    """``(first sample, |x / dt| of a block of samples)`` of ``imu.<name>`` a block at a time."""
+    arr = getattr(imu, name)
+    for a, b in block_ranges(len(imu)):
+        x = arr[a:b] / imu.dt
+        yield a, np.sqrt(np.sum(x * x, axis=1))
+        release_pages(arr)
+
+
+def _record_stats(imu):
+    """What :func:`imu_findings` needs of a whole record, gathered a block at a time: any
+    non-zero rate / force, per axis the first, least and largest value, and the largest
+    magnitude of each with its (first) sample."""
+    st = {"any_w": False, "any_f": False}
+    for key, name in (("w", "dtheta"), ("f", "dv")):
+        arr = getattr(imu, name)
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for a, b in block_ranges(len(imu)):
+            x = arr[a:b] / imu.dt
+            st[f"any_{key}"] |= bool(np.any(x))
+            lo, hi = np.minimum(lo, x.min(0)), np.maximum(hi, x.max(0))
+            if a == 0:
+                st[f"{key}_first"] = x[0].copy()
+            release_pages(arr)
+        st[f"{key}_min"], st[f"{key}_max"] = lo, hi
+        top, at = -1.0, 0
+        for a, m in _magnitudes(imu, name):
+            i = int(np.argmax(m))
+            if m[i] > top:
+                top, at = float(m[i]), a + i
+        st[f"{key}n_max"], st[f"{key}n_argmax"] = top, at
+    return st
 
 
 def rest_gravity_findings(imu, source: str, *, lat=None, h=0.0) -> list[Finding]:
@@ -178,12 +209,12 @@ def gap_findings(imu, gaps, source: str) -> list[Finding]:
     """A warning for the gaps whose bridging may hide a rotation: the rate next to each gap
     times its length bounds the rotation the mean-rate bridge may have missed."""
     gaps = np.asarray(gaps, float).reshape(-1, 2)
-    w = np.degrees(np.sqrt(np.sum((imu.dtheta / imu.dt) ** 2, axis=1)))
     k = max(1, int(round(1.0 / imu.dt)))                  # 1 s of samples on each side
     worst = []
     for t0, ln in gaps:
         i = int(np.searchsorted(imu.t, t0))
-        near = w[max(0, i - k): i + k + int(ln / imu.dt)]
+        near = np.degrees(np.sqrt(np.sum((imu.dtheta[max(0, i - k): i + k + int(ln / imu.dt)] / imu.dt) ** 2,
+                                         axis=1)))
         rate = float(near.max()) if near.size else 0.0
         worst.append((rate * ln, ln, t0, rate))
     rot, ln, t0, rate = max(worst)

@@ -87,7 +87,7 @@ def error_figure(t_s, blocks, title: str | None = None):
     return fig
 
 
-def minmax_decimate(x, y, columns: int):
+def minmax_decimate(x, y, columns: int, edges=None):
     """Thin a line to what ``columns`` pixel columns can show, keeping its envelope.
 
     The samples are split into ``columns`` groups of consecutive samples (by index, so
@@ -102,6 +102,9 @@ def minmax_decimate(x, y, columns: int):
         Sorted abscissae and ordinates.
     columns : int
         Pixel columns of the axes the line is drawn in.
+    edges : array_like of int (columns + 1,), optional
+        The groups' boundaries (default: ``columns`` equal groups); given, the line is
+        thinned whatever its length (a piece of a longer line thinned on its own groups).
 
     Returns
     -------
@@ -110,9 +113,11 @@ def minmax_decimate(x, y, columns: int):
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     n = y.size
-    if n <= 4 * columns or columns < 1:
-        return x, y
-    edges = np.linspace(0, n, columns + 1).astype(np.int64)
+    if edges is None:
+        if n <= 4 * columns or columns < 1:
+            return x, y
+        edges = np.linspace(0, n, columns + 1).astype(np.int64)
+    edges = np.asarray(edges, dtype=np.int64)
     starts = edges[:-1]
     ends = edges[1:] - 1
     bad = np.isnan(y)

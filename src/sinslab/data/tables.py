@@ -80,6 +80,77 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     by numpy); any malformed table raises ValueError naming the file, the line and the
     cause (binary data, a short line, a non-number in a used column, ...).
     """
+    plan = _imu_plan(path, columns, gyro_unit, accel_unit, time_unit, kind)
+    src, cols, path = plan.src, plan.cols, plan.path
+    ti, gi, ai, si = plan.ti, plan.gi, plan.ai, plan.si
+    data = src.fetch(plan.idx)
+    lines = src.lines
+    bad = ~np.isfinite(data[:, :7])
+    if bad.any():
+        r, c = (int(x) for x in np.argwhere(bad)[0])
+        raise ValueError(f"{where(path, lines[r])}: NaN/inf or empty value in column "
+                         f"{cols[([ti] + gi + ai)[c]][0]!r}")
+    t, g, a = plan.convert(data, sensor_to_body(mount, frame))
+    check_stamps(t, path, lines)
+    meta = plan.meta()
+    if isinstance(src, _JoinedSource):
+        meta["joined"] = src.report()
+    if si is not None:
+        f = data[:, 7]
+        if not np.all(np.isin(f, (0.0, 1.0))):
+            r = int(np.flatnonzero(~np.isin(f, (0.0, 1.0)))[0])
+            raise ValueError(f"{where(path, lines[r])}: rest flag column {cols[si][0]!r} holds "
+                             f"{f[r]!r}; use 0 (moving) or 1 (at rest)")
+        meta["stationary"] = (t.copy(), f.astype(bool))
+    fmt = plan.fmt
+    if plan.gk == "rate":
+        if t.size < 2:
+            raise ValueError(f"{path}: needs at least 2 samples for rates")
+        dt_nom = float(np.median(np.diff(t)))
+        d = np.diff(t)
+        if np.all(np.abs(d - dt_nom) <= 1e-4 * dt_nom):
+            imu = ImuRecord.from_rates(t, g, a)
+            return ImuData(imu, np.zeros((0, 2)), str(path), fmt, t.size, 0.0, meta)
+        dth, dvv = rates_to_increments(t, g, a, dt_nom)
+    else:
+        dth, dvv = g, a
+    imu, gaps, jit = uniform_increments(t, dth, dvv, path=path, lines=lines,
+                                        max_gap=max_gap, allow_gaps=allow_gaps)
+    return ImuData(imu, gaps, str(path), fmt, t.size, jit, meta)
+
+
+# ----------------------------------------------------------------- table sources ---
+class _ImuPlan:
+    """What the header of an IMU table says: its source, the columns used (time, gyro,
+    accel, rest flags), their scales to SI and kind (rates or increments); the same for a
+    table read whole (:func:`read_table_imu`) or a block at a time
+    (:func:`sinslab.data.spool.spool_table_imu`)."""
+
+    def __init__(self, src, cols, path, is_parquet, hline, pick, ti, gi, ai, si, gs, gk, gu, as_, au, ts, tu, cmap):
+        self.src, self.cols, self.path, self.hline, self.pick = src, cols, path, hline, pick
+        self.ti, self.gi, self.ai, self.si = ti, gi, ai, si
+        self.gs, self.gk, self.gu, self.as_, self.au, self.ts, self.tu = gs, gk, gu, as_, au, ts, tu
+        self.cmap = cmap
+        self.fmt = "parquet" if is_parquet else "csv"
+        self.idx = [ti] + gi + ai + ([si] if si is not None else [])
+
+    def meta(self):
+        """The reader's ``meta`` of the header: units and the column map's columns."""
+        meta = {"units": {"gyro": self.gu, "accel": self.au, "time": self.tu}}
+        if self.cmap:
+            cols = self.cols
+            meta["columns"] = {k: f"{cols[i][0]}[{cols[i][1]}]" if cols[i][1] else cols[i][0]
+                               for k, i in self.pick["map"].items()}
+        return meta
+
+    def convert(self, data, R):
+        """Rows ``data`` of the used columns -> time [s] (m,), gyro and accel (m, 3) in SI
+        in the body axes (``R`` the sensor -> body rotation), as read."""
+        return data[:, 0] * self.ts, data[:, 1:4] * self.gs @ R.T, data[:, 4:7] * self.as_ @ R.T
+
+
+def _imu_plan(path, columns, gyro_unit, accel_unit, time_unit, kind):
+    """The :class:`_ImuPlan` of an IMU table (one file or two joined on time)."""
     cmap = _columns.parse_column_map(columns)
     if isinstance(path, (list, tuple)) and len(path) == 1:
         path = path[0]
@@ -95,8 +166,6 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     cols, hline = src.cols, src.hline
     pick = _select(cols, cmap, path, hline, src.raw)
     ti, gi, ai, si = pick["t"], pick["gyro"], pick["accel"], pick.get("stationary")
-    data = src.fetch([ti] + gi + ai + ([si] if si is not None else []))
-    lines = src.lines
 
     def col_scale(idx, sensor, opt):
         scales, kinds, us = [], [], []
@@ -138,47 +207,9 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     except (ValueError, KeyError):
         raise ValueError(f"{where(path, hline)}: time column {cols[ti][0]!r} has unit {tu!r}, "
                          "not a time unit (s, ms, us, ns, min, h)") from None
-    bad = ~np.isfinite(data[:, :7])
-    if bad.any():
-        r, c = (int(x) for x in np.argwhere(bad)[0])
-        raise ValueError(f"{where(path, lines[r])}: NaN/inf or empty value in column "
-                         f"{cols[([ti] + gi + ai)[c]][0]!r}")
-    t = data[:, 0] * ts
-    R = sensor_to_body(mount, frame)
-    g = data[:, 1:4] * gs @ R.T
-    a = data[:, 4:7] * as_ @ R.T
-    check_stamps(t, path, lines)
-    meta = {"units": {"gyro": gu, "accel": au, "time": tu}}
-    if isinstance(src, _JoinedSource):
-        meta["joined"] = src.report()
-    if si is not None:
-        f = data[:, 7]
-        if not np.all(np.isin(f, (0.0, 1.0))):
-            r = int(np.flatnonzero(~np.isin(f, (0.0, 1.0)))[0])
-            raise ValueError(f"{where(path, lines[r])}: rest flag column {cols[si][0]!r} holds "
-                             f"{f[r]!r}; use 0 (moving) or 1 (at rest)")
-        meta["stationary"] = (t.copy(), f.astype(bool))
-    if cmap:
-        meta["columns"] = {k: f"{cols[i][0]}[{cols[i][1]}]" if cols[i][1] else cols[i][0]
-                           for k, i in pick["map"].items()}
-    fmt = "parquet" if is_parquet else "csv"
-    if gk == "rate":
-        if t.size < 2:
-            raise ValueError(f"{path}: needs at least 2 samples for rates")
-        dt_nom = float(np.median(np.diff(t)))
-        d = np.diff(t)
-        if np.all(np.abs(d - dt_nom) <= 1e-4 * dt_nom):
-            imu = ImuRecord.from_rates(t, g, a)
-            return ImuData(imu, np.zeros((0, 2)), str(path), fmt, t.size, 0.0, meta)
-        dth, dvv = rates_to_increments(t, g, a, dt_nom)
-    else:
-        dth, dvv = g, a
-    imu, gaps, jit = uniform_increments(t, dth, dvv, path=path, lines=lines,
-                                        max_gap=max_gap, allow_gaps=allow_gaps)
-    return ImuData(imu, gaps, str(path), fmt, t.size, jit, meta)
+    return _ImuPlan(src, cols, path, is_parquet, hline, pick, ti, gi, ai, si, gs, gk, gu, as_, au, ts, tu, cmap)
 
 
-# ----------------------------------------------------------------- table sources ---
 def _positional(cmap):
     return bool(cmap) and all(isinstance(v[0], int) for v in cmap.values())
 
@@ -416,34 +447,51 @@ def _header_complete(head: bytes) -> bool:
 def iter_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):
     """Float columns ``cols`` (indices) of a delimited table, one block at a time.
 
-    The table is parsed by pyarrow's streaming CSV reader one block (``block_size``
-    bytes) at a time; each block's rows are yielded as a float64 array
+    The file is read one block of about ``block_size`` bytes (whole lines) at a time and
+    each block is parsed by pyarrow's CSV engine; its rows are yielded as a float64 array
     ``(rows, len(cols))``, so a caller that consumes the blocks as they come holds one
-    block, whatever the length of the file. Parameters and errors as in
-    :func:`read_csv_columns`.
+    block, whatever the length of the file. (pyarrow's own streaming reader reads ahead
+    of its consumer without bound: it held most of a large file.) Parameters and errors
+    as in :func:`read_csv_columns`.
     """
     import pyarrow as pa
     from pyarrow import csv as pcsv
 
     names = [f"c{i}" for i in range(ncol)]
     use = [names[i] for i in cols]
-    reader = pcsv.open_csv(
-        path,
-        read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=block_size,
-                                      use_threads=False),
-        parse_options=pcsv.ParseOptions(delimiter=delim),
-        convert_options=pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
-                                            strings_can_be_null=False),
-        memory_pool=pa.system_memory_pool())
-    for batch in reader:
-        m = batch.num_rows
-        out = np.empty((m, len(use)))
-        for j, c in enumerate(use):
-            col = batch.column(c)
-            if col.null_count and not allow_empty:
-                raise ValueError("empty cell")
-            out[:, j] = _float_values(col)
-        yield out
+    ropt = pcsv.ReadOptions(column_names=names, use_threads=False, block_size=max(int(block_size), 1 << 12) + (1 << 16))
+    popt = pcsv.ParseOptions(delimiter=delim)
+    copt = pcsv.ConvertOptions(include_columns=use, column_types={c: pa.float64() for c in use},
+                               strings_can_be_null=False)
+    with open(path, "rb") as fh:
+        for _ in range(skip):
+            fh.readline()
+        rest = b""
+        while True:
+            buf = fh.read(max(int(block_size), 1 << 12))
+            if buf:
+                data = rest + buf
+                cut = data.rfind(b"\n")
+                if cut < 0:
+                    rest = data
+                    continue
+                rest, data = data[cut + 1:], memoryview(data)[:cut + 1]
+            else:
+                data, rest = memoryview(rest), b""
+            if bytes(data[-64:]).strip() or bytes(data).strip():
+                batch = pcsv.read_csv(pa.py_buffer(data), read_options=ropt, parse_options=popt,
+                                      convert_options=copt, memory_pool=pa.system_memory_pool())
+                m = batch.num_rows
+                out = np.empty((m, len(use)))
+                for j, c in enumerate(use):
+                    col = batch.column(c).combine_chunks()
+                    if col.null_count and not allow_empty:
+                        raise ValueError("empty cell")
+                    out[:, j] = _float_values(col)
+                del batch
+                yield out
+            if not buf:
+                return
 
 
 def read_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow_empty=False):

@@ -97,7 +97,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from numba import njit
+
+from sinslab.core.blocks import release_pages  # noqa: F401 - re-exported
 
 __all__ = ["rts_smooth", "Smoothed", "storage_bytes", "release_pages"]
 
@@ -248,31 +251,6 @@ def _rts_chunk(xpost, Ppost, xprior, Pprior, Phi, xs1, Ps1, xs_out, P_out, sig_o
             for a in range(n):
                 for b in range(n):
                     P_out[i, a, b] = Ps1[a, b]
-
-
-def release_pages(*arrays) -> None:
-    """Let the pages of memory-mapped arrays go from this process' resident memory.
-
-    For each ``numpy.memmap`` (or view of one) the file mapping is told it is not needed
-    (``MADV_DONTNEED``): a shared file mapping keeps its data in the file and the page
-    cache, and a later read maps it back in from there. So a record spilled to disk and
-    walked a chunk at a time holds one chunk in the process, not every chunk it has
-    touched. An object with a ``release_pages()`` method (a view over several arrays) is
-    asked to release its own; anything else is left alone.
-    """
-    import mmap
-
-    for a in arrays:
-        if hasattr(a, "release_pages"):
-            a.release_pages()
-            continue
-        if not isinstance(a, np.memmap):
-            continue
-        b = a
-        while b is not None and not isinstance(b, mmap.mmap):
-            b = getattr(b, "base", None)
-        if b is not None and hasattr(mmap, "MADV_DONTNEED"):
-            b.madvise(mmap.MADV_DONTNEED)
 
 
 def _shape_error(name, got, want):

@@ -80,6 +80,7 @@ estimate after re-processing is fed back at ``e1`` like any other.
 """
 from __future__ import annotations
 
+import os
 import weakref
 from dataclasses import dataclass, field
 
@@ -88,6 +89,7 @@ from numba import njit
 
 from sinslab.core import attitude as A
 from sinslab.core import units
+from sinslab.core.blocks import BLOCK_ROWS, is_mapped, release_pages
 from sinslab.estimation.filter import KalmanFilter
 from sinslab.estimation.kalman import discretize
 from sinslab.estimation.linear import discretize_series_many
@@ -277,7 +279,11 @@ class LiveStream:
             raise ValueError(f"the IMU record ({len(self.imu) - self.start} samples) is shorter "
                              "than one filter step")
         self.n_ep = n_ep
-        if not self.scaled:
+        # a record mapped from files is read a block at a time: its step sums are made
+        # per block (the same sums), not held for the whole record
+        self._mapped = is_mapped(self.imu.dtheta)
+        self._read = 0                  # samples read since the pages were last let go
+        if not self.scaled and not self._mapped:
             self._dth_sum, self._dv_sum = _imu_step_sums(self.imu, self.start, n_ep, k_kf)
         return self.T, self.t0, n_ep
 
@@ -296,15 +302,25 @@ class LiveStream:
         k_kf, T = self.k_kf, self.T
         a, b = self.start + e_a * k_kf, self.start + e_b * k_kf
         dth, dvb = self.imu.dtheta[a:b], self.imu.dv[a:b]
+        if self._mapped:
+            dth, dvb = np.asarray(dth), np.asarray(dvb)
         if self.scaled:
             m = e_b - e_a
             dth_s, dv_s = np.empty((b - a, 3)), np.empty((b - a, 3))
             ws, fs = np.empty((m, 3)), np.empty((m, 3))
             _scaled_increments(dth, dvb, self.kg, self.ka, self.gb, self.ab, k_kf, T, dth_s, dv_s, ws, fs)
             dth, dvb = dth_s, dv_s
+        elif self._mapped:
+            ws = _step_sums(dth, e_b - e_a, k_kf) / T - self.gb
+            fs = _step_sums(dvb, e_b - e_a, k_kf) / T - self.ab
         else:
             ws = self._dth_sum[e_a:e_b] / T - self.gb
             fs = self._dv_sum[e_a:e_b] / T - self.ab
+        if self._mapped:
+            self._read += b - a
+            if self._read >= BLOCK_ROWS:
+                release_pages(self.imu.t, self.imu.dtheta, self.imu.dv)
+                self._read = 0
         return dth, dvb, ws, fs, a, b
 
     def _run(self, st, e_a, e_b):
@@ -478,6 +494,64 @@ class DriverResult:
                      for c in self.compensation)
 
 
+#: rows of a spilled record written between two releases of its pages
+SPILL_ROWS = 4096
+
+
+class _Record:
+    """The per-epoch arrays of one run: in memory, or (``folder`` given) memory-mapped
+    ``.npy`` files in ``folder`` whose resident pages are let go as the run passes them
+    (:func:`sinslab.estimation.smoother.release_pages`), so the process holds a few
+    thousand rows of each, not the whole run. The arrays are the same either way."""
+
+    def __init__(self, folder):
+        self.folder = folder
+        self.arrays = []
+        self._released = 0
+
+    def alloc(self, name, shape, zero=False):
+        if self.folder is None:
+            return (np.zeros if zero else np.empty)(shape)
+        os.makedirs(self.folder, exist_ok=True)
+        a = np.lib.format.open_memmap(os.path.join(os.fspath(self.folder), name + ".npy"), mode="w+",
+                                      dtype=np.float64, shape=shape)       # a new file reads zeros
+        self.arrays.append(a)
+        return a
+
+    def passed(self, e):
+        """The run will not read rows before ``e`` again (None: the run is over)."""
+        if self.folder is None or (e is not None and e - self._released < SPILL_ROWS):
+            return
+        release_pages(*self.arrays)
+        self._released = e if e is not None else self._released
+
+
+def _epoch_times(grid, spill):
+    """``grid.t`` (n + 1,), written a chunk at a time into a memory-mapped file in
+    ``spill`` (or made in memory when None); the same values."""
+    if spill is None:
+        return grid.t
+    os.makedirs(spill, exist_ok=True)
+    t = np.lib.format.open_memmap(os.path.join(os.fspath(spill), "t.npy"), mode="w+", dtype=np.float64,
+                                  shape=(grid.n + 1,))
+    for a in range(0, grid.n + 1, 1 << 16):
+        b = min(grid.n + 1, a + (1 << 16))
+        t[a:b] = grid.t0 + grid.T * np.arange(a, b)
+    release_pages(t)
+    return t
+
+
+class _FilterClock:
+    """Epoch index -> time since the first epoch [s] (``T·k``, as ``T * np.arange``
+    gives it), without an array of every epoch."""
+
+    def __init__(self, T):
+        self.T = T
+
+    def __getitem__(self, k):
+        return np.float64(self.T * float(k))
+
+
 def _model_stretch(model, prog, pts, q, T, discretization):
     """F, G, Φ, Q_k of a stretch of epochs; ``pts`` holds per stream the rows (S, 10)
     and the step rates ω, f (S, 3) at those epochs. ``prog`` (a compiled program of the
@@ -541,7 +615,7 @@ class _LaneRun:
     """The state of one lane while the loop of :func:`run_many` runs: its streams, filter,
     measurement schedule and the histories it returns."""
 
-    def __init__(self, lane, model, P0, lag, fbs, kf_dt, history):
+    def __init__(self, lane, model, P0, lag, fbs, kf_dt, history, spill=None):
         streams = list(lane.streams)
         if not streams:
             raise ValueError("the driver needs at least one navigation stream")
@@ -579,18 +653,21 @@ class _LaneRun:
         self.ns = ns = len(streams)
         self.filt = filt = KalmanFilter(np.zeros(n) if lane.x0 is None else lane.x0, P0, t0=0.0,
                                         history=hist, check=False)
-        self.nav_h = [np.empty((n_ep + 1, 10)) for _ in streams]
-        self.nav_pre = [np.empty((n_ep + 1, 10)) for _ in streams] if hist else self.nav_h
-        self.w_h = [np.empty((n_ep + 1, 3)) for _ in streams]
-        self.f_h = [np.empty((n_ep + 1, 3)) for _ in streams]
-        self.x_h = np.zeros((n_ep + 1, n))
-        self.sig_h = np.empty((n_ep + 1, n))
+        self.store = store = _Record(spill)
+        M = n_ep + 1
+        self.nav_h = [store.alloc(f"nav{i}", (M, 10)) for i in range(len(streams))]
+        self.nav_pre = [store.alloc(f"nav_pre{i}", (M, 10)) for i in range(len(streams))] if hist else self.nav_h
+        self.w_h = [store.alloc(f"omega{i}", (M, 3)) for i in range(len(streams))]
+        self.f_h = [store.alloc(f"f{i}", (M, 3)) for i in range(len(streams))]
+        self.x_h = store.alloc("x", (M, n), zero=True)
+        self.sig_h = store.alloc("sigma", (M, n))
         self.live = live = [not s.precomputed for s in streams]
         self.scaled = scaled = any(fb.gyro_scale is not None or fb.accel_scale is not None for _, fb in fbs)
         keys = es.COMPENSATIONS if scaled else es.COMPENSATIONS[:2]      # the biases always
-        self.comp_h = [{k: np.empty((n_ep + 1, 3)) for k in keys} if lv else None for lv in live]
-        self.F_h = np.empty((n_ep, n, n)) if self.keep_F else None
-        self.G_h = np.empty((n_ep, n, model.q.size)) if self.keep_F else None
+        self.comp_h = [{k: store.alloc(f"{k}{i}", (M, 3)) for k in keys} if lv else None
+                       for i, lv in enumerate(live)]
+        self.F_h = store.alloc("F", (n_ep, n, n)) if self.keep_F else None
+        self.G_h = store.alloc("G", (n_ep, n, model.q.size)) if self.keep_F else None
         for i, s in enumerate(streams):
             r0, w0, f0 = s.row0()
             self.nav_h[i][0] = r0
@@ -662,6 +739,9 @@ class _LaneRun:
             self.f_h[i][e0 + 1:e1 + 1] = fs
             if self.live[i]:
                 self._comp(i, slice(e0 + 1, e1 + 1))
+        # rows up to a few lagged epochs back are read again (the validity epoch of a late
+        # item): the pages before those are let go
+        self.store.passed(e1 - self.hist - 1)
 
     def _comp(self, i, rows):
         """Stream i's compensation into its history at ``rows``."""
@@ -731,6 +811,7 @@ class _LaneRun:
         self.sig_h[e1] = filt.sigma
 
     def result(self, t_ep, lay):
+        self.store.passed(None)
         applied = Applied(np.array(self.a_m, dtype=np.int64), np.array(self.a_j, dtype=np.int64),
                           np.array(self.a_tv, dtype=float), np.array(self.a_t, dtype=float), self.a_nu,
                           np.array(self.a_nis, dtype=float), self.a_sd)
@@ -833,7 +914,9 @@ def _run_lanes(lanes, histories, model, P0, spec: FilterGrid, *, feedback, lag, 
     lay = model.layout
     n = model.n
     fbs = _feedback_pairs(feedback)
-    runs = [_LaneRun(ln, model, P0, lag, fbs, kf_dt, h) for ln, h in zip(lanes, histories)]
+    runs = [_LaneRun(ln, model, P0, lag, fbs, kf_dt, h,
+                     None if spec.spill is None else os.path.join(os.fspath(spec.spill), f"lane{k}"))
+            for k, (ln, h) in enumerate(zip(lanes, histories))]
     grid = runs[0].grid
     stops = sorted(set(runs[0].arrivals) | {grid.n})
     for k, r in enumerate(runs[1:], 1):
@@ -845,8 +928,10 @@ def _run_lanes(lanes, histories, model, P0, spec: FilterGrid, *, feedback, lag, 
             raise ValueError(f"lane {k} receives measurements at other epochs than lane 0: lanes "
                              "in lockstep need one measurement schedule")
     T, n_ep = grid.T, grid.n
-    t_ep = grid.t
-    t_rel = T * np.arange(n_ep + 1)              # filter clock (absolute stamps lose digits)
+    t_ep = _epoch_times(grid, spec.spill)
+    if spec.spill is not None:
+        runs[0].store.arrays.append(t_ep)          # its pages let go with the first lane's
+    t_rel = _FilterClock(T)                      # filter clock (absolute stamps lose digits)
     max_ep = max(1, int(round(max_block / T)))
     la_ep = max(1, int(round(model_every / T)))
     la_end = -1

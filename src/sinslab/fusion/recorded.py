@@ -36,6 +36,7 @@ import numpy as np
 from sinslab.core import attitude as A
 from sinslab.core import earth as E
 from sinslab.core import units
+from sinslab.core.blocks import BLOCK_ROWS, release_pages
 from sinslab.core.records import ImuRecord, NavState
 from sinslab.core.records import Fixes
 from sinslab.core.stamps import held_runs, stamp_step, whole_intervals
@@ -313,7 +314,7 @@ def _imu_point_course(fixes: Fixes, imu, lever, gb):
     antenna velocity minus ``C (ω × l)``, with ω the vertical gyro (bias ``gb`` removed) and
     C's horizontal axes from the course itself (a car does not drive sideways)."""
     v = _fix_vel_enu(fixes)
-    wz = np.interp(fixes.t, imu.t - 0.5 * imu.dt, imu.dtheta[:, 2] / imu.dt - gb[2])
+    wz = _rate_z_at(imu, fixes.t, gb[2])
     crs = np.arctan2(v[:, 0], v[:, 1])
     vi = v[:, :2]
     for _ in range(2):                      # the lever correction needs the course it corrects
@@ -323,6 +324,33 @@ def _imu_point_course(fixes: Fixes, imu, lever, gb):
         vi = v[:, :2] - d
         crs = np.arctan2(vi[:, 0], vi[:, 1])
     return crs, np.hypot(vi[:, 0], vi[:, 1])
+
+
+def _rate_z_window(imu, x_lo, x_hi, gb_z=0.0):
+    """The vertical gyro rate ``dθ_z / dt − gb_z`` [rad/s] and its times (each sample's
+    rate the mean over its interval: at ``t − dt/2``) of the samples around
+    ``[x_lo, x_hi]`` [s]: enough that interpolating at any time in there gives what
+    interpolating in the whole record gives."""
+    t = imu.t
+    lo = max(0, int(np.searchsorted(t, x_lo)) - 2)
+    hi = min(len(imu), int(np.searchsorted(t, x_hi)) + 3)
+    return np.asarray(t[lo:hi]) - 0.5 * imu.dt, np.asarray(imu.dtheta[lo:hi, 2]) / imu.dt - gb_z
+
+
+def _rate_z_at(imu, x, gb_z=0.0):
+    """``np.interp`` of the vertical gyro rate (:func:`_rate_z_window`) at the sorted times
+    ``x`` [s], the samples read a window at a time (the same numbers)."""
+    x = np.asarray(x, dtype=float)
+    out = np.empty(x.size)
+    span = BLOCK_ROWS * imu.dt
+    i = 0
+    while i < x.size:
+        j = max(i + 1, int(np.searchsorted(x, x[i] + span, side="right")))
+        tw, wz = _rate_z_window(imu, x[i], x[j - 1], gb_z)
+        out[i:j] = np.interp(x[i:j], tw, wz)
+        release_pages(imu.t, imu.dtheta)
+        i = j
+    return out
 
 
 def _heading_in_motion(fixes: Fixes, imu, k0, pre0, nsub, start: StartSpec, lever, gb, move_speed=None,
@@ -455,7 +483,6 @@ def _rest_candidates(imu, aiding: AidingSpec, lat, rest, gyro_bias):
         iv = st.from_flags(t, fl, min_duration=aiding.rest_min)
     else:
         gb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, float)
-        im = ImuRecord(imu.t, imu.dtheta - gb * imu.dt, imu.dv, imu.dt)
         kw = {}
         if rest is not None:
             k0, k1 = rest
@@ -463,13 +490,13 @@ def _rest_candidates(imu, aiding: AidingSpec, lat, rest, gyro_bias):
             m = (k1 - k0) // k
             if m >= 1:
                 f = (imu.dv[k0:k0 + m * k] / imu.dt).reshape(m, k, 3)
-                w = (im.dtheta[k0:k0 + m * k] / imu.dt).reshape(m, k, 3)
+                w = ((imu.dtheta[k0:k0 + m * k] - gb * imu.dt) / imu.dt).reshape(m, k, 3)
                 g = float(E.gravity(lat, 0.0))
                 kw = dict(f_std=max(1.5 * float(np.linalg.norm(f.std(1), axis=1).max()), 0.02),
                           f_tol=max(1.5 * float(np.abs(np.linalg.norm(f.mean(1), axis=1) - g).max()), 0.05),
                           w_max=max(1.5 * float(np.linalg.norm(w.mean(1), axis=1).max()), 0.002),
                           w_std=max(1.5 * float(np.linalg.norm(w.std(1), axis=1).max()), 1e-4))
-        iv = st.detect(im, lat, min_duration=aiding.rest_min, **kw)
+        iv = st.detect(imu, lat, min_duration=aiding.rest_min, gyro_bias=gb, **kw)
     iv = np.asarray(iv, dtype=float).reshape(-1, 2)
     return np.stack([iv[:, 0] + 0.5, iv[:, 1] - 0.5], -1) if iv.size else iv
 
@@ -726,7 +753,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
                        latency=opt.fix.fix_latency, lever_arm=lever, outages=outages)
     r = loosely_coupled(imu, NavState(lat_i, lon_i, h_i, v0, att0), fix_spec, P0, model,
                         ins=InsSpec(nsub=nsub, gyro_bias=gb, start=ks, t_start=ts),
-                        grid=FilterGrid(T, model_every=0.0), lag=opt.fix.lag, aiding=aiding,
+                        grid=FilterGrid(T, model_every=0.0, spill=opt.grid.spill), lag=opt.fix.lag, aiding=aiding,
                         history=History(0.1, spill=opt.grid.smooth_spill) if opt.grid.smooth else None, progress=progress, label="navigating")
     init["outages"] = outages
     init["aiding_gate"] = {nm: {"applied": m.gate.passed, "rejected": len(m.gate.rejected),
@@ -781,13 +808,24 @@ def _odometer(odo, aiding: AidingSpec, T, t_lo, t_hi):
 
 # ----------------------------------------------------------------------- evaluation ----
 def _interp_rows(res: RecordedNav, t):
-    nav = res.nav
-    lat = np.interp(t, res.t, nav[:, 7])
-    lon = np.interp(t, res.t, nav[:, 8])
-    h = np.interp(t, res.t, nav[:, 9])
-    q = np.stack([np.interp(t, res.t, nav[:, i]) for i in range(4)], -1)
+    """Latitude, longitude, height and attitude (DCM) of the solution at the sorted times
+    ``t``, interpolated from the epochs around each block of them (the numbers of
+    interpolating in the whole solution; a run on disk is read a window at a time)."""
+    out = np.empty((np.size(t), 7))
+    i = 0
+    span = BLOCK_ROWS * (res.t[1] - res.t[0]) if res.t.size > 1 else math.inf
+    while i < out.shape[0]:
+        j = max(i + 1, int(np.searchsorted(t, t[i] + span, side="right")))
+        lo = max(0, int(np.searchsorted(res.t, t[i])) - 2)
+        hi = min(res.t.size, int(np.searchsorted(res.t, t[j - 1])) + 3)
+        te, nav = np.asarray(res.t[lo:hi]), np.asarray(res.nav[lo:hi])
+        for c, k in enumerate((7, 8, 9, 0, 1, 2, 3)):
+            out[i:j, c] = np.interp(t[i:j], te, nav[:, k])
+        release_pages(res.t, res.nav)
+        i = j
+    q = np.ascontiguousarray(out[:, 3:])
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    return lat, lon, h, A.quat_to_dcm(q)
+    return out[:, 0].copy(), out[:, 1].copy(), out[:, 2].copy(), A.quat_to_dcm(q)
 
 
 def fix_errors(res: RecordedNav, fixes: Fixes, lever_arm=None):
@@ -824,7 +862,7 @@ def outage_end_errors(res: RecordedNav, fixes: Fixes, outages=None):
 
 
 # ------------------------------------------------------------ IMU / fix time sync ---
-__all__ += ["estimate_time_offset", "significant_time_offset", "shift_imu_time"]
+__all__ += ["estimate_time_offset", "significant_time_offset", "shift_imu_time", "shifted_times"]
 
 
 def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed=2.0,
@@ -858,8 +896,6 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
     slow = sp < min_speed
     cr = -np.gradient(crs, fixes.t)                       # counter-clockwise rate
     cr[slow] = 0.0
-    wz = imu.dtheta[:, 2] / imu.dt
-    tw = imu.t - 0.5 * imu.dt                             # a rate is the mean over its interval
     lo = max(fixes.t[0], imu.t[0]) + search
     hi = min(fixes.t[-1], imu.t[-1]) - search
     if hi - lo < 20.0:
@@ -874,7 +910,10 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
         ref = np.interp(grid, fixes.t, cr)
         if np.std(ref) < 1e-3:
             continue
+        # the rate is the mean over its interval; the samples of this window only
+        tw, wz = _rate_z_window(imu, grid[0] + lags[0], grid[-1] + lags[-1])
         c = np.array([np.corrcoef(np.interp(grid + o, tw, wz), ref)[0, 1] for o in lags])
+        release_pages(imu.t, imu.dtheta)
         i = int(np.nanargmax(c))
         if c[i] < 0.5:                                        # no clear turn in this window
             continue
@@ -979,8 +1018,11 @@ def significant_time_offset(est: dict, k: float = 3.0) -> dict:
     return out
 
 
+def shifted_times(t, offset=0.0, ppm=0.0, t_ref=0.0):
+    """IMU times corrected by a clock offset and drift: ``t − (offset + ppm·1e-6·(t − t_ref))`` [s]."""
+    return t - (offset + ppm * 1e-6 * (t - t_ref))
+
+
 def shift_imu_time(imu: ImuRecord, offset=0.0, ppm=0.0, t_ref=0.0) -> ImuRecord:
-    """IMU record with times ``t − (offset + ppm·1e-6·(t − t_ref))`` (uniform grid kept)."""
-    t = imu.t - (offset + ppm * 1e-6 * (imu.t - t_ref))
-    dt = imu.dt * (1.0 - ppm * 1e-6)
-    return ImuRecord(t, imu.dtheta, imu.dv, dt)
+    """IMU record with times :func:`shifted_times` (uniform grid kept)."""
+    return ImuRecord(shifted_times(imu.t, offset, ppm, t_ref), imu.dtheta, imu.dv, imu.dt * (1.0 - ppm * 1e-6))

@@ -215,6 +215,7 @@ class GridSpec:
     nsub: int = 2                           #: mechanization subsamples per update
     smooth: bool = False                    #: record the forward pass and smooth it (RTS)
     smooth_spill: str | None = None         #: folder for the smoother's record on disk (None: memory)
+    spill: str | None = None                #: folder for the filter's per-epoch record on disk (None: memory)
 
     def __post_init__(self):
         _check_positive(self, "kf_dt")

@@ -65,6 +65,11 @@ class FilterGrid:
         :mod:`sinslab.nav.errstate`; other models use numpy); ``"numpy"``: the readable
         reference, ``model.matrices`` on :class:`~sinslab.nav.errstate.NavPoint` and
         :func:`~sinslab.estimation.kalman.discretize`. Equal to rounding.
+    spill : str or path-like, optional
+        A folder for the per-epoch record of the run (rows, estimates, σ, compensation,
+        epoch times): memory-mapped ``.npy`` files there whose pages are let go as the
+        run moves on, so a long run does not hold its record in memory (the same numbers
+        either way). None: in memory.
     """
 
     kf_dt: float = 0.1
@@ -73,6 +78,7 @@ class FilterGrid:
     discretization: str = "series"
     lag_tol: float = 1e-6
     model_eval: str = "compiled"
+    spill: object = None
 
     def __post_init__(self):
         object.__setattr__(self, "kf_dt", _positive("kf_dt", self.kf_dt))

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sinslab.core.blocks import BLOCK_ROWS, block_ranges, release_pages
 from sinslab.core.earth import gravity
 
 __all__ = ["detect", "from_flags", "intervals_from_mask"]
@@ -65,7 +66,7 @@ def from_flags(t, flags, min_duration=0.0):
 
 
 def detect(imu, lat, *, h=0.0, window=1.0, f_tol=0.05, f_std=0.05, w_max=0.005,
-           min_duration=2.0, w_std=None):
+           min_duration=2.0, w_std=None, gyro_bias=None):
     """Stationary intervals of an IMU record.
 
     A window of ``window`` seconds (non-overlapping) is at rest when all hold:
@@ -73,7 +74,9 @@ def detect(imu, lat, *, h=0.0, window=1.0, f_tol=0.05, f_std=0.05, w_max=0.005,
     specific force has norm ``< f_std`` [m/s²], and ``|ω̄| < w_max`` [rad/s] (Earth rate is
     7.3e-5 rad/s, so MEMS biases set the floor of ``w_max``); with ``w_std`` [rad/s] also
     the norm of the per-axis standard deviation of the rate (road vibration turns the
-    body even when its mean rate is zero).
+    body even when its mean rate is zero). The windows are tested a block of them at a
+    time (each window on its own samples: the same answer for any block), so a record
+    mapped from files is read a block at a time.
 
     Parameters
     ----------
@@ -85,6 +88,8 @@ def detect(imu, lat, *, h=0.0, window=1.0, f_tol=0.05, f_std=0.05, w_max=0.005,
         Height [m].
     window, f_tol, f_std, w_max, min_duration, w_std
         See above; ``min_duration`` [s] drops shorter intervals.
+    gyro_bias : array_like (3,), optional
+        Removed from the gyro increments first [rad/s].
 
     Returns
     -------
@@ -98,14 +103,22 @@ def detect(imu, lat, *, h=0.0, window=1.0, f_tol=0.05, f_std=0.05, w_max=0.005,
     N = (len(imu) // k) * k
     if N == 0:
         raise ValueError(f"the IMU record is shorter than one {window} s window")
-    f = (imu.dv[:N] / dt).reshape(-1, k, 3)
-    w = (imu.dtheta[:N] / dt).reshape(-1, k, 3)
     g = float(gravity(lat, h))
-    fm = f.mean(1)
-    rest = np.abs(np.linalg.norm(fm, axis=1) - g) < f_tol
-    rest &= np.linalg.norm(f.std(1), axis=1) < f_std
-    rest &= np.linalg.norm(w.mean(1), axis=1) < w_max
-    if w_std is not None:
-        rest &= np.linalg.norm(w.std(1), axis=1) < w_std
-    t = np.asarray(imu.t[:N], dtype=float).reshape(-1, k)
-    return intervals_from_mask(t[:, 0] - dt, t[:, -1], rest, min_duration)
+    gb = None if gyro_bias is None else np.asarray(gyro_bias, dtype=float) * imu.dt
+    rest, starts, ends = [], [], []
+    for a, b in block_ranges(N, BLOCK_ROWS, k):
+        f = (imu.dv[a:b] / dt).reshape(-1, k, 3)
+        dth = imu.dtheta[a:b] if gb is None else imu.dtheta[a:b] - gb
+        w = (dth / dt).reshape(-1, k, 3)
+        fm = f.mean(1)
+        r = np.abs(np.linalg.norm(fm, axis=1) - g) < f_tol
+        r &= np.linalg.norm(f.std(1), axis=1) < f_std
+        r &= np.linalg.norm(w.mean(1), axis=1) < w_max
+        if w_std is not None:
+            r &= np.linalg.norm(w.std(1), axis=1) < w_std
+        t = np.asarray(imu.t[a:b], dtype=float).reshape(-1, k)
+        rest.append(r)
+        starts.append(t[:, 0] - dt)
+        ends.append(t[:, -1])
+        release_pages(imu.t, imu.dtheta, imu.dv)
+    return intervals_from_mask(np.concatenate(starts), np.concatenate(ends), np.concatenate(rest), min_duration)

@@ -13,6 +13,7 @@ import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import units
+from sinslab.core.blocks import release_pages
 
 __all__ = ["NAVIGATE", "NavigateRequest", "navigate_files", "register"]
 
@@ -195,6 +196,43 @@ def navigate_files(req: NavigateRequest, *, out=None, echo=print):
     return (summary, *res.value)
 
 
+#: rows of a CSV or Parquet IMU table read at once: such a table is read a block at a
+#: time into the run's scratch folder (:func:`sinslab.data.spool.spool_table_imu`) and
+#: navigated from there, so the log is never held in memory whole (0: read whole)
+IMU_BLOCK_ROWS = 1 << 16
+
+
+def _scratch(name):
+    """A folder ``name`` in the run's scratch folder (None outside a run)."""
+    from sinslab.app.commands.runner import scratch_dir
+
+    where = scratch_dir()
+    return None if where is None else where / name
+
+
+def _read_imu(path, fmt, kw):
+    """The IMU log: a plain CSV or Parquet table a block at a time into the scratch folder
+    (the same record, mapped from files), anything else (or a table the block reader
+    leaves to the whole reader: malformed, two files, whitespace-delimited) by
+    :func:`sinslab.data.load_imu`."""
+    import shutil
+
+    from sinslab.data import load_imu
+    from sinslab.data.archive import compression
+
+    where = _scratch("imu") if IMU_BLOCK_ROWS else None
+    one = path[0] if isinstance(path, list) and len(path) == 1 else path
+    if (where is not None and fmt in ("csv", "parquet") and not isinstance(one, list)
+            and Path(one).is_file() and compression(Path(one)) is None):
+        from sinslab.data.spool import spool_table_imu
+
+        d = spool_table_imu(one, where, block_rows=IMU_BLOCK_ROWS, **kw)
+        if d is not None:
+            return d
+        shutil.rmtree(where, ignore_errors=True)
+    return load_imu(path, fmt, **kw)
+
+
 def _innovation_labels(m):
     """Names of the m fix innovation components (position north, east[, up], then velocity
     east, north, up: :class:`sinslab.fusion.loosely_coupled.LooselyCoupled`)."""
@@ -207,10 +245,11 @@ def _compute(req: NavigateRequest, echo) -> Output:
     from sinslab.app.described import navigate_claims
     from sinslab.core import attitude as A
     from sinslab.core import earth as E         # numba and scipy: only when it runs
-    from sinslab.data import guess_imu_format, load_fixes, load_imu
+    from sinslab.data import guess_imu_format, load_fixes
+    from sinslab.data.spool import map_times
     from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
                                          navigate_recorded, outage_end_errors, parse_outages,
-                                         shift_imu_time, significant_time_offset)
+                                         shifted_times, significant_time_offset)
 
     imu_one = req.imu_path[0] if isinstance(req.imu_path, list) else req.imu_path     # the table odometer columns come from
     fmt_eff = req.fmt or guess_imu_format(imu_one)
@@ -238,14 +277,14 @@ def _compute(req: NavigateRequest, echo) -> Output:
     if (req.vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
         raise ValueError(f"--aid nhc: the non-holonomic constraint assumes a wheeled land vehicle, "
                          f"not --platform {req.vehicle['platform']}")
-    check_memory(req.imu_path, fmt_eff, bool((req.smo or {}).get("smooth")))
+    check_memory(req.imu_path, fmt_eff, bool((req.smo or {}).get("smooth")), fix_path=req.fix_path)
     if not (isinstance(req.csv_rate, (int, float)) and math.isfinite(req.csv_rate) and req.csv_rate > 0):
         raise ValueError(f"--csv-rate must be a positive number of Hz, got {req.csv_rate!r}")
     em = None
     if req.imu_errors is not None:
         from sinslab.app.error_model import load_error_model
         em = load_error_model(req.imu_errors)
-    data = load_imu(req.imu_path, fmt_eff, **kw)
+    data = _read_imu(req.imu_path, fmt_eff, kw)
     from sinslab.app.plausibility import consistency_findings, imu_findings, settle
 
     found = imu_findings(data.imu, str(req.imu_path), gaps=data.gaps)
@@ -290,7 +329,8 @@ def _compute(req: NavigateRequest, echo) -> Output:
         est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if req.lever_arm is not None else None)
         sync = significant_time_offset(est)
         sync.update(windows=len(est["windows"]))
-        imu = shift_imu_time(imu, sync["offset"], sync["ppm"], sync["t_ref"])
+        imu = map_times(imu, partial(shifted_times, offset=sync["offset"], ppm=sync["ppm"], t_ref=sync["t_ref"]),
+                        imu.dt * (1.0 - sync["ppm"] * 1e-6), _scratch("imu"))
         echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
              f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
              f"{sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
@@ -506,14 +546,17 @@ def _compute(req: NavigateRequest, echo) -> Output:
     rm, rn = E.radii(lat0, fx.h[0])
     xe = (fx.lon - lon0) * rn * math.cos(lat0)
     yn = (fx.lat - lat0) * rm
-    se = (res.nav[:, 8] - lon0) * rn * math.cos(lat0)
-    sn = (res.nav[:, 7] - lat0) * rm
+    step = -(-res.t.size // TRACK_POINTS)                # every epoch up to TRACK_POINTS
+    t_tr = np.asarray(res.t[::step])
+    se = (np.asarray(res.nav[::step, 8]) - lon0) * rn * math.cos(lat0)
+    sn = (np.asarray(res.nav[::step, 7]) - lat0) * rm
+    release_pages(res.t, res.nav)
     fig, axes = plotting.figure(1, 1, width=7.5, row_height=6.5)
     ax = axes[0]
     ax.plot(xe, yn, "k.", ms=1.5, label="fixes")
     ax.plot(se, sn, "-", color=plotting.COLORS[0], lw=1, label="INS/fix solution")
     for s, ln in outs:
-        m = (res.t >= s) & (res.t < s + ln)
+        m = (t_tr >= s) & (t_tr < s + ln)
         ax.plot(se[m], sn[m], "-", color=plotting.COLORS[1], lw=2)
     ax.plot([], [], "-", color=plotting.COLORS[1], lw=2, label="during outages")
     ax.set_aspect("equal", "datalim")
@@ -540,14 +583,14 @@ def _compute(req: NavigateRequest, echo) -> Output:
                  + ("; top bar: aiding rejected by the gate" if gated else "") + ")")
     figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
     fig, axes = plotting.figure(3, 1, width=9.0)
-    ts_ = res.t - res.t[0]
-    _semilogy(axes[0], ts_, np.degrees(sig[:, 0:3]) * 60, lw=1)
+    ts_ = _Shifted(res.t)
+    _semilogy(axes[0], ts_, lambda a, b: np.degrees(sig[a:b, 0:3]) * 60, release=(sig,), lw=1)
     axes[0].set_ylabel("attitude σ [arcmin]")
     axes[0].legend(["φE", "φN", "φU"], fontsize=8)
-    _semilogy(axes[1], ts_, sig[:, i_gb] / units.dph, lw=1)
+    _semilogy(axes[1], ts_, lambda a, b: sig[a:b, i_gb] / units.dph, release=(sig,), lw=1)
     axes[1].set_ylabel("gyro bias σ [°/h]")
     axes[1].legend(["x", "y", "z"], fontsize=8)
-    _semilogy(axes[2], ts_, sig[:, i_ab] / units.ug, lw=1)
+    _semilogy(axes[2], ts_, lambda a, b: sig[a:b, i_ab] / units.ug, release=(sig,), lw=1)
     axes[2].set_ylabel("accel bias σ [µg]")
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
@@ -604,15 +647,64 @@ def _compute(req: NavigateRequest, echo) -> Output:
 PLOT_COLUMNS = 2000
 
 
-def _semilogy(ax, t, y, **kw):
+def _semilogy(ax, t, y, release=(), **kw):
     """``ax.semilogy`` of the columns of ``y`` against ``t``, each thinned to its envelope
     over :data:`PLOT_COLUMNS` columns first (:func:`sinslab.app.plotting.minmax_decimate`),
-    so a long run's figure does not hold a copy of every epoch until it is drawn."""
+    so a long run's figure does not hold a copy of every epoch until it is drawn.
+
+    ``y`` an array (N,) or (N, k), or a function ``(a, b) ->`` its rows ``a:b``; ``t``
+    (N,) (an array mapped from a file is fine). A long series is thinned a block of
+    groups at a time (the same points: the groups are those of the whole series), so
+    neither it nor a copy is held whole; ``release``: arrays ``y`` reads, whose pages are
+    let go after each block (a run on disk)."""
     from sinslab.app.plotting import minmax_decimate
 
-    y = np.asarray(y)
-    for col in (y.T if y.ndim == 2 else [y]):
-        ax.semilogy(*minmax_decimate(t, col, PLOT_COLUMNS), **kw)
+    n = t.shape[0]
+    get = y if callable(y) else (lambda a, b: np.asarray(y)[a:b])
+    if n <= 4 * PLOT_COLUMNS:
+        ys = np.asarray(get(0, n))
+        tt = np.asarray(t[:n])
+        for col in (ys.T if ys.ndim == 2 else [ys]):
+            ax.semilogy(*minmax_decimate(tt, col, PLOT_COLUMNS), **kw)
+        return
+    edges = np.linspace(0, n, PLOT_COLUMNS + 1).astype(np.int64)
+    per = max(1, BLOCK_GROUPS)
+    pieces = None
+    for g0 in range(0, PLOT_COLUMNS, per):
+        g1 = min(PLOT_COLUMNS, g0 + per)
+        a, b = int(edges[g0]), int(edges[g1])
+        ys, tt = np.asarray(get(a, b)), np.asarray(t[a:b], dtype=float)
+        cols = ys.T if ys.ndim == 2 else [ys]
+        pieces = pieces or [([], []) for _ in cols]
+        for (px, py), col in zip(pieces, cols):
+            xk, yk = minmax_decimate(tt, col, g1 - g0, edges=edges[g0:g1 + 1] - a)
+            px.append(xk)
+            py.append(yk)
+        release_pages(t, *release)
+    for px, py in pieces:
+        ax.semilogy(np.concatenate(px), np.concatenate(py), **kw)
+
+
+#: filter epochs of the solution tables made and written at once (a Parquet row group each)
+TABLE_CHUNK_ROWS = 1 << 15
+#: groups of :func:`_semilogy` thinned at once
+BLOCK_GROUPS = 64
+#: most points of the track figure: a longer solution is drawn every k-th epoch (far more
+#: points than the figure has pixels either way)
+TRACK_POINTS = 1 << 17
+
+
+class _Shifted:
+    """``t − t[0]`` of a series of times, made a slice at a time (``shape``, slicing)."""
+
+    def __init__(self, t):
+        self.t, self.t0, self.shape = t, t[0], t.shape
+
+    def __getitem__(self, key):
+        return np.asarray(self.t[key]) - self.t0
+
+    def release_pages(self):
+        release_pages(self.t)
 
 
 def _scale_of(unit):
@@ -632,6 +724,8 @@ def _solution_table(res):
               for i, (l, u_) in enumerate(zip(res.labels, res.units_))]
 
     def rows(a, b):
+        # the epochs before this chunk are written: a run on disk lets their pages go
+        release_pages(res.t, res.nav, res.sigma, res.gyro_bias, res.accel_bias)
         nav = res.nav[a:b]
         att = A.quat_to_euler(nav[:, :4])
         sol = {"t_s": res.t[a:b] - t0, "t_abs_s": res.t[a:b], "lat_deg": np.degrees(nav[:, 7]),
@@ -646,7 +740,7 @@ def _solution_table(res):
             sol[f"accel_bias_{ax}_ug"] = res.accel_bias[a:b, k] / units.ug
         return sol
 
-    return ChunkedTable.of(rows, res.t.size)
+    return ChunkedTable.of(rows, res.t.size, TABLE_CHUNK_ROWS)
 
 
 def _smoothed_table(res):
@@ -661,6 +755,7 @@ def _smoothed_table(res):
               for i, (l, u_) in enumerate(zip(res.labels, res.units_))]
 
     def rows(a, b):
+        release_pages(res.t, res.sigma)
         fw, sn = sm.forward_nav[a:b], sm.nav[a:b]
         att_f, att_s = A.quat_to_euler(fw[:, :4]), A.quat_to_euler(sn[:, :4])
         cols = {"t_s": res.t[a:b] - t0, "t_abs_s": res.t[a:b]}
@@ -681,7 +776,7 @@ def _smoothed_table(res):
             cols[f"smo_{name}"] = sm.sigma[a:b, i] / sc
         return cols
 
-    return ChunkedTable.of(rows, res.t.size)
+    return ChunkedTable.of(rows, res.t.size, TABLE_CHUNK_ROWS)
 
 
 def _abs(path) -> str:
@@ -781,14 +876,26 @@ def _vehicle_options(opt, veh, nhc):
 
 # ------------------------------------------------------------- memory estimate ---
 #: Peak resident memory of one navigate process: a fixed part (interpreter, numpy, numba
-#: and its loaded kernels, scipy, pyarrow, matplotlib) and a part per IMU sample (the
-#: record and its reading, the filter's outputs, metrics and figures; the tables are
-#: written a chunk at a time; with ``--smooth`` the smoothed solution too, and the
-#: forward pass' record in memory up to ``SMOOTH_SPILL_ABOVE``, on disk beyond), from
+#: and its loaded kernels, scipy, pyarrow, matplotlib) and, for a log read whole (not a
+#: plain CSV/Parquet table), a part per IMU sample (the record and its reading, the
+#: filter's outputs, metrics and figures; the tables are written a chunk at a time; with
+#: ``--smooth`` the smoothed solution too, and the forward pass' record in memory up to
+#: ``SMOOTH_SPILL_ABOVE``, on disk beyond), from
 #: ``benchmarks/navigate_cost.py`` (peak RSS of 10 and 60 min logs at 200 Hz: the
 #: intercept and the slope, rounded up).
 MEMORY_FIXED = 340 * 2 ** 20
 MEMORY_PER_SAMPLE = {False: 220, True: 360}
+#: A log read a block at a time (:func:`streamed`) holds, beyond the fixed part, one IMU
+#: block (:data:`IMU_BLOCK_ROWS` rows: its text and arrays, ~30 MB), one chunk of the
+#: solution table (:data:`TABLE_CHUNK_ROWS` epochs: its columns, text and Parquet row
+#: group, ~50 MB) and the track's points up to :data:`TRACK_POINTS` (~10 MB)
+MEMORY_BLOCK = 96 * 2 ** 20
+#: the filter's per-epoch record per IMU sample (200 Hz samples, 50 Hz epochs), held in
+#: memory up to :data:`RECORD_SPILL_ABOVE`
+MEMORY_RECORD_PER_SAMPLE = 130
+#: per fix: the fix itself, its measurement schedule and the filter's record of its
+#: update (innovation, σ, NIS), its error against the solution (~1 kB measured)
+MEMORY_PER_FIX = 1024
 
 
 def estimate_samples(path, fmt):
@@ -825,13 +932,35 @@ def estimate_samples(path, fmt):
     return int((size - len(lines[0]) - 1) / per_line)
 
 
-def check_memory(imu_path, fmt, smooth, available=None):
+def streamed(imu_path, fmt) -> bool:
+    """True if navigate reads this IMU log a block at a time (:func:`_read_imu`): one plain
+    CSV or Parquet table."""
+    from sinslab.data.archive import compression
+
+    one = imu_path[0] if isinstance(imu_path, (list, tuple)) and len(imu_path) == 1 else imu_path
+    if not IMU_BLOCK_ROWS or fmt not in ("csv", "parquet") or isinstance(one, (list, tuple)):
+        return False
+    try:
+        return Path(one).is_file() and compression(Path(one)) is None
+    except OSError:
+        return False
+
+
+def check_memory(imu_path, fmt, smooth, available=None, fix_path=None):
     """Refuse, before reading, an IMU log whose navigation cannot fit in memory.
 
-    The need is :data:`MEMORY_FIXED` plus :data:`MEMORY_PER_SAMPLE` per estimated sample
-    (:func:`estimate_samples`), with ``smooth`` plus the most of the smoother's record held
-    in memory (:data:`SMOOTH_SPILL_ABOVE`; a larger one goes to disk); ``available``
-    defaults to the memory the system can give a new allocation. Returns the estimate [bytes] or None (no estimate for the format).
+    A log read a block at a time (:func:`streamed`) needs :data:`MEMORY_FIXED` plus
+    :data:`MEMORY_BLOCK` (an IMU block, a table chunk, the figures' points at their caps)
+    plus what still grows with the log: the filter's per-epoch record up to
+    :data:`RECORD_SPILL_ABOVE` (on disk beyond), :data:`MEMORY_PER_FIX` per fix (their
+    rows estimated from ``fix_path``'s size, :func:`estimate_samples`) and, with
+    ``smooth``, the smoothed solution (:data:`MEMORY_PER_SAMPLE` ``[True]`` minus
+    ``[False]`` per sample) and the most of the smoother's record held in memory
+    (:data:`SMOOTH_SPILL_ABOVE`). Any other log is read whole: :data:`MEMORY_FIXED` plus
+    :data:`MEMORY_PER_SAMPLE` per estimated sample (:func:`estimate_samples`), with
+    ``smooth`` plus the smoother's record up to its spill size. ``available`` defaults to
+    the memory the system can give a new allocation. Returns the estimate [bytes] or None
+    (no estimate for the format).
 
     Raises
     ------
@@ -843,7 +972,15 @@ def check_memory(imu_path, fmt, smooth, available=None):
     n = estimate_samples(imu_path, fmt)
     if n is None:
         return None
-    need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[bool(smooth)] + (SMOOTH_SPILL_ABOVE if smooth else 0)
+    smooth_part = n * (MEMORY_PER_SAMPLE[True] - MEMORY_PER_SAMPLE[False]) + SMOOTH_SPILL_ABOVE if smooth else 0
+    if streamed(imu_path, fmt):
+        fixes = 0
+        for fp in ([] if fix_path is None else fix_path if isinstance(fix_path, (list, tuple)) else [fix_path]):
+            fixes += estimate_samples(fp, "csv") or 0
+        need = (MEMORY_FIXED + MEMORY_BLOCK + min(n * MEMORY_RECORD_PER_SAMPLE, RECORD_SPILL_ABOVE)
+                + fixes * MEMORY_PER_FIX + smooth_part)
+    else:
+        need = MEMORY_FIXED + n * MEMORY_PER_SAMPLE[False] + smooth_part
     avail = available_memory() if available is None else int(available)
     if need > avail:
         name = " + ".join(map(str, imu_path)) if isinstance(imu_path, (list, tuple)) else imu_path
@@ -895,18 +1032,30 @@ def _smooth_odometer_options(opt, smo, imu_path, sync):
 SMOOTH_SPILL_ABOVE = 64 * 2 ** 20
 
 
+#: the filter's per-epoch record (rows, estimates, σ, compensation) goes to disk when it
+#: would hold more than this in memory
+RECORD_SPILL_ABOVE = 16 * 2 ** 20
+#: bytes of that record per filter epoch (21 states: row, rates, x, σ, biases, time)
+RECORD_BYTES_PER_EPOCH = 8 * (10 + 3 + 3 + 2 * 21 + 6 + 1)
+
+
 def _spill_smoother(opt, imu, fx):
-    """With ``--smooth`` on a long log, record the forward pass on disk: the history's
-    rows are written to memory-mapped files as the filter runs and read back a chunk at a
-    time by the backward pass (:class:`sinslab.fusion.smoothing.History`), so it does not
+    """On a long log, record the filter's run on disk: the driver's per-epoch arrays
+    (:class:`sinslab.fusion.spec.FilterGrid` ``spill``) and, with ``--smooth``, the
+    forward pass' history are written to memory-mapped files as the filter runs and read
+    back a chunk at a time (:class:`sinslab.fusion.smoothing.History`), so they do not
     hold memory in proportion to the log. The numbers are the same either way."""
     from sinslab.app.commands.runner import scratch_dir
     from sinslab.fusion.smoothing import History
 
     where = scratch_dir()
-    if not opt.smooth or where is None:
+    if where is None:
         return
     duration = float(imu.t[-1] - imu.t0)
+    if duration / opt.kf_dt * RECORD_BYTES_PER_EPOCH > RECORD_SPILL_ABOVE:
+        opt.spill = str(where / "filter")
+    if not opt.smooth:
+        return
     if History.estimate_bytes(21, duration, 0.1, len(fx)) > SMOOTH_SPILL_ABOVE:
         opt.smooth_spill = str(where / "smoother")
 
