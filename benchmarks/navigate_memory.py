@@ -115,6 +115,7 @@ mark("numpy")
 from sinslab.cli import app
 mark("cli")
 import sinslab.data as D
+import sinslab.data.spool as SP
 import sinslab.fusion.recorded as R
 import sinslab.app.commands.runner as RU
 import sinslab.app.outputs as O
@@ -130,6 +131,7 @@ def staged(owner, name, before=None, after=None):
                 mark(after)
     setattr(owner, name, g)
 staged(D, "load_imu", before="parse")
+staged(SP, "spool_table_imu", before="parse")     # a CSV or Parquet log is read in blocks
 staged(D, "read_fixes", after="reading")
 staged(D, "load_fixes", after="reading")
 def filt(*a, **k):
