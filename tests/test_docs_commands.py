@@ -325,12 +325,13 @@ QUOTED = [
      "bench campaigns", ["double-star.speedup", "free-inertial.speedup", "double-star lockstep.lanes",
                          "double-star lockstep.speedup", "1000*double-star lockstep.cpu_per_run_lockstep_s",
                          "1000*double-star lockstep.cpu_per_run_one_per_call_s", "load_min", "load_max"], 0.0),
-    ("README.md", "| `sinslab navigate`, one process on a 200 Hz CSV log (`benchmarks/navigate_cost.py`) | 10 min: 2.56 s CPU "
-     "beyond the filter (start-up 0.77, reading 0.09, metrics, figures and writing 1.68); peak RSS 378 MB (10 min), "
-     "482 MB (1 h); at load average 13.1–17.3, over both targets | < 2 s, < 300 MB for 1 h |", "bench navigate_cost",
+    ("README.md", "| `sinslab navigate`, one process on a 200 Hz CSV log (`benchmarks/navigate_cost.py`) | 10 min: 1.70 s CPU "
+     "beyond the filter (start-up 0.61, reading 0.12, metrics, figures and writing 0.93); peak RSS 305 MB (10 min), "
+     "314 MB (1 h), 385 MB (8 h: the IMU is read and stepped a block at a time); at load average 0.75–0.99: CPU "
+     "target met, memory over it", "bench navigate_cost",
      ["=200", "this.10min.samples/12000", "this.10min.fixed", "this.10min.startup", "this.10min.reading",
       "this.10min.rest", "this.10min.maxrss_mb", "this.10min.samples/12000", "this.60min.maxrss_mb",
-      "this.60min.samples/720000", "load_min", "load_max", "=2", "=300", "=1"], 0.0),
+      "this.60min.samples/720000", "this.480min.maxrss_mb", "this.480min.samples/720000", "load_min", "load_max"], 0.0),
     ("raw-gnss.md", "`benchmarks/tightly_coupled.py --walk DATA_DIR` (its last run in the record `docs/benchmarks.json`, "
      "2026-12-03, on the 2-core machine at load average 13.8–17.3: CPU time, best of 3 interleaved for the filters, "
      "second of two runs for the command)", "bench tightly_coupled", ["date", "cpus", "load_min", "load_max", "=3"], 0.0),
@@ -347,14 +348,17 @@ QUOTED = [
      "measurements of 11–15 rows (the antenna geometry and elevations computed once for both). Its horizontal error "
      "there is 0.33 m RMS against 1.17 m for the loosely coupled filter on 3 m fixes", "bench tightly_coupled",
      ["tc_over_lc_cpu", "satellites_min", "satellites_max", "tc_hz_err_rms_m", "lc_hz_err_rms_m", "=3"], 0.0),
-    ("README.md", "P at every 200 Hz epoch, 1 Hz fixes, 1 h drive (`benchmarks/full_rate.py`) | 162 k epochs per CPU second "
-     "in process, 2.20× the numpy model evaluation, equal to 7e-12; fused loop 3.3 µs per epoch (P ← Φ (P + T Q̄/2) Φᵀ "
+    ("README.md", "P at every 200 Hz epoch, 1 Hz fixes, 1 h drive (`benchmarks/full_rate.py`) | 192 k epochs per CPU second "
+     "in process, 3.83× the numpy model evaluation, equal to 7e-12; fused loop 3.0 µs per epoch (P ← Φ (P + T Q̄/2) Φᵀ "
      "+ T Q̄/2: Q_k never formed, and Φ P Φᵀ on the 9 dense rows of Φ with the 12 diagonal rows of the sensor states "
-     "apart, 1.6 µs alone against 3.2 for the dense product); at load average 14.0–15.9.", "bench full_rate",
+     "apart, 2.3 µs alone against 2.9 for the dense product). Against KF-GINS itself (C++, its whole process on the "
+     "same IMU and fixes, run alternately: `--kfgins BINARY`): 12.2 s CPU against 3.74 s, **3.26×**, final horizontal "
+     "error 2.60 m against 2.60 m; at load average 1.3–2.4 |", "bench full_rate",
      ["=200", "=1", "duration_s/3600", "epochs_per_cpu_s/1e3", "ratio_to_numpy", "max_rel_diff_vs_numpy",
       "profile_us.fused loop (F, G; Φ, Q̄; P with rows r.. diagonal; x)", "=2", "=2", "=9", "=12",
       "profile_us.P ← Φ P Φᵀ + Q (rows 9.. of Φ diagonal)", "profile_us.P ← Φ P Φᵀ + Q (dense, for comparison)",
-      "load_min", "load_max"], 0.0),
+      "kfgins_cpu_s", "sinslab_cpu_s_alternated", "ratio_to_kfgins", "kfgins_final_horiz_err_m",
+      "sinslab_final_horiz_err_m", "load_min", "load_max"], 0.0),
     ("README.md", "(`benchmarks/compile_cost.py --only static-alignment`) | 17.4 s of CPU on an empty cache (15.1 s of it "
      "compiling 26 kernels) against 2.0 s warm, at load average 14.2–15.5 | ≤ 25 s |", "bench compile_cost",
      [f"experiments.static-alignment.{k}" for k in ("cpu_fresh_s", "compile_cpu_s", "kernels_compiled", "cpu_warm_s")]
