@@ -633,6 +633,7 @@ QUOTED = [
     ("001.md", "The windowed stds (1.35e-4, 1.33e-4, 1.56e-4 °/h) still do not", RW, ["windowed_std_two_rw_dph"], 0.0),
     ("001.md", "(52 M samples per INS for 144 h at 100 Hz)", "demo rotation-evaluation",
      ["imu_samples_per_ins/1e6", "=144", "=100"], 0.0),
+    ("001.md", "(cycles 1264 s and 5136 s;", "demo rotation-evaluation", ["rotation_cycle_s"], 0.0),
     ("001.md", "Each INS is 52 M samples at full scale", "demo rotation-evaluation", ["imu_samples_per_ins/1e6"], 0.0),
     ("001.md", "rank INS #2..#4 as their RMS position errors (0.73, 0.80, 1.52 nmi) do", RW,
      ["=2", "=4", "pos_err_rms_nmi[1]", "pos_err_rms_nmi[2]", "pos_err_rms_nmi[3]"], 0.0),
