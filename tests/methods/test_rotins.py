@@ -102,6 +102,12 @@ def test_paper_schedules_rank_5_per_stop_13_stacked(model):
     doc = "docs/methods/001.md"
     assert_doc_quotes(doc, "| `dual_axis_16` (paper) | 5 (all 27) | 5, 8, 11, 11, 11, 13 | **13** | — |",
                       [16, r.rank_static, len(r.segment_ranks), *r.ranks[:6], r.ranks[-1]])
+    assert_doc_quotes(doc, "one 5136 s dual-axis cycle has 27 common stops", [CYCLE, C1.shape[0]])
+    assert_doc_quotes(doc, "Computed (one dual-axis cycle, 27 stops;", [C1.shape[0]])
+    assert_doc_quotes(doc, "Rank 5 per static stop (eq 14) and 13 for the schedule reproduce",
+                      [r.rank_static, 14, r.ranks[-1]])
+    assert_doc_quotes(doc, "full rank is reached at the 6th common stop (ranks 5, 8, 11, 11, 11, 13)",
+                      [r.ranks.index(13) + 1, *r.ranks[:6]])
     assert_doc_quotes(doc, "| physical | 0.37 | 0.29 | 0.45 | 0.18 | 0.19 | 0.070 | 0.21 | 0.15 | 0.18 | 0.020 | 0.020 | "
                       "0.020 | 0.020 |", rs.degree)
 
@@ -142,6 +148,8 @@ def test_ins_k_flipping_about_roll_only_leaves_rank_12(model):
     assert zero == {"phiE_1k", "eps_z_1", "eps_y_k", "nabla_y_k"}
     assert_doc_quotes("docs/methods/001.md", "| roll flip 0°/180° only | 5 | 5, 10, 12, 12, … | 12 |",
                       [0, 180, r.rank_static, *r.ranks[:4], r.ranks[-1]])
+    assert_doc_quotes("docs/methods/001.md", "with INS 1 indexing in azimuth, meets both and the rank stays 12",
+                      [1, r.ranks[-1]])
 
 
 def test_schedule_observability_bad_input(model):
