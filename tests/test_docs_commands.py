@@ -777,6 +777,7 @@ QUOTED = [
      ["claim:ranges_nees_east"], 0.0),
     ("003.md", "horizontal position, path filter | 0.990", "demo double-star-ranges",
      ["claim:ranges_mc_consistent_pos"], 0.0),
+    ("003.md", "100 runs, seed 0 (the demo variant)", "demo double-star-ranges", ["runs", "=0"], 0.0),
     ("004.md", "## Claims at full scale (ship, aligned, defaults; 8.95 M samples)", "demo schuler-suppression",
      ["samples/1e6"], 0.0),
     ("004.md", "t1 = 3600 s, t2 = 6134 s (delay 2534 s, T_s = 84.46 min). Alignment errors [φE, φN, φU]: solution 1 "
