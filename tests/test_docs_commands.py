@@ -416,6 +416,8 @@ QUOTED = [
     ("smoother.md", "changed the smoothed estimate by 2e-4 σ and σ by 3e-4 relative at most", "bench smoother",
      ["storage.float32_max_dx_over_sigma", "storage.float32_max_rel_dsigma"], 0.0),
     # docs/methods/smoother.md, the recorded drive smoothed (the stored record of the navigate runs)
+    # (the outages are the command's, with or without --smooth: counted on the drive's run)
+    ("smoother.md", "8 outages of 15 s", DRIVE, ["n_outages", "=15"], 0.0),
     ("smoother.md", "horizontal RMS error **0.19 m smoothed, 4.82 m forward**; at the fix nearest each outage's "
      "middle 0.14–0.37 m smoothed (median 0.21 m) against 0.34–4.24 m forward; outage-end errors 0.59–20.1 m "
      "forward (median 4.89 m); 6646 stored epochs", NAV + " --smooth",
