@@ -272,6 +272,16 @@ def test_closed_loop_equals_open_loop(fb_every):
     # the history of a closed-loop run without its corrections is refused
     with pytest.raises(ValueError, match="feedback"):
         _smooth(fc, Phi=s["Phi"])
+    # the tempting mix: the zeroed post-feedback states as x_{k|k} (consistent with eq. 3
+    # without feedback, so accepted) drop d_{k+1} at every step
+    mix = rts_smooth(fc["xpost"] - fc["d"], fc["Ppost"], fc["xprior"], fc["Pprior"], s["Phi"])
+    off = _rel(mix.x, rc.x_corrected)
+    assert off > 0.1
+    if fb_every == 1:
+        from support import assert_doc_quotes
+
+        assert_doc_quotes("docs/methods/smoother.md", "test system with feedback at every epoch it is off by 33 % of "
+                          "the smoothed estimate", [100 * off])
 
 
 def test_monte_carlo_smoothed_rms_matches_sigma():

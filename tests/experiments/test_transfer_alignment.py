@@ -141,10 +141,11 @@ def test_real_data_mounting_and_biases(tmp_path):
     the same result from every attitude form and from a 60 s window."""
     from sinslab.app.commands.transfer_align import transfer_align_file
     from sinslab.core import units
+    from support import assert_doc_quotes
 
     summary, res, refs = transfer_align_file(DATA, DATA, methods=KINDS, windows=(None, (0.0, 60.0)),
                                              out=tmp_path / "run", echo=lambda s: None)
-    mu0, eb0 = refs["mu0"], refs["eb0"]
+    mu0, eb0, db0 = refs["mu0"], refs["eb0"], refs["db0"]
     assert np.all(np.abs(mu0) < 0.01) and 1e-4 < np.max(np.abs(eb0)) < 2e-3      # rad, rad/s
     for (m, w), r in res.items():
         assert np.all(np.abs(r.mounting - mu0) <= 3 * r.mounting_sigma + 0.5 * units.arcmin), (m, w)
@@ -156,6 +157,24 @@ def test_real_data_mounting_and_biases(tmp_path):
     assert res[("optimal", "all")].t[-1] == pytest.approx(100.0)
     assert np.all(np.abs(win.mounting - res[("optimal", "all")].mounting) <= 2 * win.mounting_sigma)
     assert (tmp_path / "run" / "summary.json").exists()
+    # what docs/methods/002.md says of its table: distances to the reference in σ of each row,
+    # the spread of the four forms, the window against the whole record (in σ of the window)
+    dist = {(m, w, q): np.abs(getattr(r, q) - ref) / getattr(r, q + "_sigma")
+            for (m, w), r in res.items() for q, ref in (("mounting", mu0), ("gyro_bias", eb0), ("accel_bias", db0))}
+    worst = max((d.max(), k) for k, d in dist.items() if k[2] != "accel_bias")
+    assert worst[1][1:] == ("all", "gyro_bias") and np.argmax(dist[worst[1]]) == 2   # the z gyro bias, whole record
+    assert_doc_quotes("docs/methods/002.md", "the largest distance is the z gyro bias's, 1.5σ over the whole record",
+                      [worst[0]])
+    assert all(np.argmax(dist[(m, w, "accel_bias")]) == 1 for m in KINDS for w in ("all", "0_60s"))
+    assert_doc_quotes("docs/methods/002.md", "The y accelerometer bias is 6.4σ from the reference over the whole record "
+                      "and 4.9σ in the 0–60 s window", [*(dist[("optimal", w, "accel_bias")][1] for w in ("all", "0_60s")),
+                                                        0, 60])
+    spread = [np.max(np.ptp([res[(m, w)].mounting for m in KINDS], axis=0)) / units.arcmin for w in ("all", "0_60s")]
+    assert_doc_quotes("docs/methods/002.md", "The four forms agree to 0.02′ over the whole record and 0.04′ in the window",
+                      spread)
+    moved = max(np.max(np.abs(getattr(res[(m, "0_60s")], q) - getattr(res[(m, "all")], q))
+                       / getattr(res[(m, "0_60s")], q + "_sigma")) for m in KINDS for q in ("mounting", "gyro_bias", "accel_bias"))
+    assert_doc_quotes("docs/methods/002.md", "differ from the whole record's by at most 0.97σ of the window", [moved])
 
 
 def _cli(args):
@@ -205,6 +224,17 @@ def test_unrelated_pair_refused_and_process_noise_exposed(tmp_path):
     scipy.io.savemat(m, {"fogavp": sh})
     r = _cli(["transfer-align", "--slave", str(DATA), "--master", str(m), "--out", str(tmp_path / "o1")])
     assert r.exit_code == 2 and "no common motion" in r.output and len(r.output.strip().splitlines()) == 1
+    import re
+
+    from sinslab.app.commands.transfer_align import read_master
+    from sinslab.data import load_imu
+    from sinslab.methods import transfer as tm
+    from support import assert_doc_quotes
+
+    shifted = float(re.search(r"correlate at (-?[\d.]+)", r.output)[1])
+    same, _ = tm.rate_correlation(load_imu(DATA).imu, tm.MasterRecord(*read_master(DATA)[:3]))
+    assert_doc_quotes("docs/methods/002.md", "The car record correlates at 1.00; the same master shifted by 30 s against "
+                      "the slave (a same-vehicle record on another clock) correlates at −0.33", [same, 30, shifted])
     outs = {}
     for name, arw in (("a", "1 deg/sqrt(h)"), ("b", "10 deg/sqrt(h)")):
         r = _cli(["transfer-align", "--slave", str(DATA), "--master", str(DATA), "--window", "0:30",

@@ -68,6 +68,10 @@ def test_paper_start_position_numbers():
     assert float(fe.ew_range) == pytest.approx(26.897, abs=2e-3)
     assert float(fe.ns_height) == pytest.approx(27.857, abs=2e-3)   # |cot32 - 2.1579| * 50
     assert float(fe.ew_height) == pytest.approx(8.034, abs=2e-3)
+    from support import assert_doc_quotes
+
+    assert_doc_quotes("docs/methods/003.md", "(s_ns0 27.340 m, s_ew0 26.897 m, s_nsH 27.857 m, s_ewH 8.034 m)",
+                      [0, fe.ns_range, 0, fe.ew_range, fe.ns_height, fe.ew_height])
 
 
 def test_vectorised_over_a_grid_and_covariance_diagonal():
