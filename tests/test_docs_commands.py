@@ -1208,7 +1208,8 @@ def test_measured_figures_name_their_script():
 
 def test_rtklib_drive_table_is_the_data():
     """docs/recorded-data.md's table "what the README says and what the data say" quotes
-    figures measured on the rtklib-drive files, not on a run: they are measured here again
+    figures measured on the rtklib-drive files, not on a run (and the `.pos` velocity σ its drive
+    paragraph quotes): they are measured here again
     (a few seconds) and each quoted text must equal them within its rounding plus the stated
     tolerance (the specific force at rest: 5e-4 g0 and 5e-3 m/s², for the choice of the rest
     window: here the samples before the fixes' speed first exceeds 0.05 m/s)."""
@@ -1259,6 +1260,8 @@ def test_rtklib_drive_table_is_the_data():
          "0.05 → 0.25 s with it: 376 ppm)", [est["ppm"], est["ppm_sigma"], *lag, *lag_st, est_st["ppm"]], None),
         ("(correlation 0.9998, 0.9999 with position differences) but describe the motion **0.125 s before** "
          "their stamp (RMS difference to position differences 0.10 → 0.03 m/s)", [*corr, 0.125, *rms], None),
+        # the drive's NIS paragraph: the velocity σ the .pos file states (east and north)
+        ("the `.pos` velocity σ (median 4.2 cm/s)", [100 * float(np.median(fx.sigma_vel[:, :2]))], None),
     ]
     text = " ".join((ROOT / "docs" / "recorded-data.md").read_text(encoding="utf-8").split())
     for quote, got, tol in quoted:
