@@ -276,6 +276,15 @@ QUOTED = [
                           "vehicle_mount_estimate_deg[2]", "vehicle_mount_sigma_deg[2]"], 0.0),
     ("recorded-data.md", "an NHC lever of (−0.07, −0.07, −0.65) ± (0.05, 0.01, 0.04) m", NAV + " --aid nhc",
      ["nhc_lever_estimate_m", "nhc_lever_sigma_m"], 0.0),
+    ("recorded-data.md", "The 0.71 m of fixes only there is luck", DRIVE, ["outage_end_hz_err_m[1]"], 0.0),
+    ("recorded-data.md", "Without `--aid nhc` the outages end 4.89 m (median) and 20.1 m (max) off", DRIVE, OUTAGES, 0.0),
+    # docs/recorded-data.md, the noise row of the table "what the README says and what the data say"
+    ("recorded-data.md", "with the `--imu-errors industrial` grade noise, 0.3 °/√h and 100 µg/√Hz: mean NIS 56 against "
+     "the expected 6 of a position + velocity fix, outage ends 15.0 m off (median)", NAV + " --imu-errors industrial",
+     ["filter_gyro_arw_deg_sqrth[0]", "filter_accel_vrw_ug_sqrthz[0]", "nis_mean", "nis_dof",
+      "outage_end_hz_err_median_m"], 0.0),
+    ("recorded-data.md", "with the noise measured at rest: NIS 1.77, pessimistic, and 4.89 m)", DRIVE,
+     ["nis_mean", "outage_end_hz_err_median_m"], 0.0),
     # docs/cli.md, the terminal's claim line, and what a consistent NIS is
     ("cli.md", "`[FAIL] nis_not_overconfident: 89.5 (expected ≤ 12)` for the drive of docs/recorded-data.md with "
      "a 1 s fix latency the filter ignores (a mean NIS of its 6-dimensional fixes far above the 6 a consistent "
@@ -437,6 +446,7 @@ QUOTED = [
      ["claim:margin_phiE", "claim:margin_phiU", "claim:margin_epsN"], 0.0),
     ("README.md", "reduced filter 1890 vs 7104 flops per step", "run static-alignment",
      ["flops_per_step_reduced", "flops_per_step_full"], 0.0),
+    ("README.md", "observability rank 5 computed", "run static-alignment", ["obs_rank_full"], 0.0),
     ("README.md", "initial-velocity response 84.35 min (theory 84.47)", "run free-inertial",
      ["schuler_period_min", "schuler_period_theory_min"], 0.0),
     # the README's results table, from the full demo runs (RECORD)
@@ -509,6 +519,9 @@ QUOTED = [
     ("README.md", "observability rank 5 per stop, 13 stacked", "demo rotation-evaluation",
      ["obs_rank_static", "obs_rank_schedule"], 0.0),
     ("README.md", "reaches the drift at 16.0 h", "demo rotation-evaluation", ["settle_sigma_h"], 0.0),
+    # "~16 h": both readings (σ reaching the drift, the error inside the band) within an hour of 16 h
+    ("README.md", "settled after ~16 h by both causal readings", "demo rotation-evaluation",
+     ["max(settle_sigma_h,settle_band_h)"], 0.5),
     ("README.md", "from 15.4 h, median over seeds 15.0 h", "demo rotation-evaluation",
      ["settle_band_h", "mc_settle_band_median_h"], 0.0),
     ("README.md", "(mean 2.0e-5 °/h at β = 1,", "demo rotation-evaluation",
@@ -1243,7 +1256,8 @@ def test_measured_figures_name_their_script():
 
 def test_rtklib_drive_table_is_the_data():
     """docs/recorded-data.md's table "what the README says and what the data say" quotes
-    figures measured on the rtklib-drive files, not on a run: they are measured here again
+    figures measured on the rtklib-drive files, not on a run (and the `.pos` velocity σ its drive
+    paragraph quotes): they are measured here again
     (a few seconds) and each quoted text must equal them within its rounding plus the stated
     tolerance (the specific force at rest: 5e-4 g0 and 5e-3 m/s², for the choice of the rest
     window: here the samples before the fixes' speed first exceeds 0.05 m/s)."""
@@ -1294,6 +1308,8 @@ def test_rtklib_drive_table_is_the_data():
          "0.05 → 0.25 s with it: 376 ppm)", [est["ppm"], est["ppm_sigma"], *lag, *lag_st, est_st["ppm"]], None),
         ("(correlation 0.9998, 0.9999 with position differences) but describe the motion **0.125 s before** "
          "their stamp (RMS difference to position differences 0.10 → 0.03 m/s)", [*corr, 0.125, *rms], None),
+        # the drive's NIS paragraph: the velocity σ the .pos file states (east and north)
+        ("the `.pos` velocity σ (median 4.2 cm/s)", [100 * float(np.median(fx.sigma_vel[:, :2]))], None),
     ]
     text = " ".join((ROOT / "docs" / "recorded-data.md").read_text(encoding="utf-8").split())
     for quote, got, tol in quoted:

@@ -67,8 +67,8 @@ def _quotes(root: Path, raw: Path | None) -> dict[str, list[str]]:
             docs = set(re.findall(r"docs/[\w/.-]+\.md|README\.md", src)) or {"?"}
             for c in ast.walk(node):
                 if isinstance(c, ast.Constant) and isinstance(c.value, str) and re.search(r"\d", c.value):
-                    for d in docs:
-                        quotes.setdefault(Path(d).name, []).append(c.value.replace("\\|", "|"))
+                    for d in docs:      # a table cell's escaped pipe, as written or unescaped
+                        quotes.setdefault(Path(d).name, []).extend({c.value, c.value.replace("\\|", "|")})
     if raw:
         spec = importlib.util.spec_from_file_location("_rgw", root / "examples" / "raw_gnss_walk.py")
         m = importlib.util.module_from_spec(spec)

@@ -725,6 +725,8 @@ def test_uav_flight_starts_within_a_few_degrees_of_the_units_solution():
     sig_p = math.degrees(r.sigma[0, r.labels.index("phiE")])
     assert_doc_quotes("docs/recorded-data.md", "| in-motion alignment (now) | 3.4° | −0.6° | 3.4° | 1.2°, 2.7° |",
                       [math.degrees(r.init["pitch"] - pitch), math.degrees(r.init["roll"] - roll), dh, sig_p, sig_h])
+    assert_doc_quotes("docs/recorded-data.md", "The first straight flight above 10 m/s with the wings level comes "
+                      "61 s later", [R.AIRCRAFT_MOVE_SPEED, r.init["motion_alignment"]["carried_s"]])
 
 
 def test_uav_flight_navigate_states_the_in_motion_alignment(tmp_path):
