@@ -329,9 +329,9 @@ QUOTED = [
      "(`benchmarks/schuler.py`) | 21.0 s wall, 8.4 s CPU (synthesis 4.4 s / 2.2 s) | < 30 s |", "bench schuler",
      ["=4", "hours_after_t2", "total_wall_s", "total_cpu_s", "stages.synthesis.wall_s", "stages.synthesis.cpu_s",
       "target_s"], 0.0),
-    ("README.md", "| paper 002 Monte Carlo, 1000 runs of one method (`benchmarks/transfer.py`) | 48.3 s wall on the local "
-     "cluster (the campaign 36.0 s after the cluster's 8.0 s start), 0.59 s CPU per 100 runs; 200 runs × 4 forms × 2 "
-     "installations with mechanised slave INS 8.3 s CPU, 3.0× the linear model | < 60 s |", "bench transfer",
+    ("README.md", "| paper 002 Monte Carlo, 1000 runs of one method (`benchmarks/transfer.py`) | 4.8 s wall on the local "
+     "cluster (the campaign 3.1 s after the cluster's 0.9 s start), 0.15 s CPU per 100 runs; 200 runs × 4 forms × 2 "
+     "installations with mechanised slave INS 2.3 s CPU, 1.6× the linear model | < 60 s |", "bench transfer",
      ["=2", "wide_runs", "wide_wall_s", "wide_campaign_wall_s", "wide_cluster_start_s",
       "wide_cpu_per_100_runs_s", "=100", "runs", "forms", "installations", "strapdown_cpu_s", "strapdown_over_linear",
       "target_cpu_s"], 0.0),
@@ -391,7 +391,7 @@ QUOTED = [
      + ["load_min", "load_max", "=25"], 0.0),
     ("README.md", "`docs/benchmarks.json` (made 2026-12-03; ranges are over the runs it holds; the load average during "
      "the runs: 2.3–3.4 for `speed.py`,", "bench speed", ["date", "min(load_min)", "max(load_max)"], 0.0),
-    ("README.md", "6.0–10.7 for `transfer.py`)", "bench transfer", ["load_min", "load_max"], 0.0),
+    ("README.md", "0.89–0.91 for `transfer.py`)", "bench transfer", ["load_min", "load_max"], 0.0),
     # docs/methods/smoother.md, benchmarks/smoother.py's figures (the stored record of its last run, BENCH)
     ("smoother.md", "| figure (100 runs) | measured |", "bench smoother", ["monte_carlo.runs"], 0.0),
     ("smoother.md", "| smoothed RMS error / smoothed σ, 15 states × 4 epochs (50 s with fixes, 130 s outage middle, "
