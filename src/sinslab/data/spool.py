@@ -130,7 +130,7 @@ def spool_table_imu(path, folder, *, block_rows=BLOCK_ROWS, gyro_unit=None, acce
         meta["stationary"] = (t, F.finish())
     dt_nom = block_median(lambda: _diffs(t, block_rows), n - 1)
     if plan.gk == "rate":
-        if all(np.all(np.abs(d - dt_nom) <= 1e-4 * dt_nom) for d in _diffs(t, block_rows)):
+        if _uniform(t, dt_nom, block_rows, rel_tol=1e-4):
             d = (float(t[-1]) - float(t[0])) / (n - 1)        # ImuRecord.from_rates: the mean interval
             if not _uniform(t, d, block_rows):
                 return None
