@@ -16,7 +16,8 @@ from scipy import linalg as sla
 from scipy import stats
 
 from sinslab.estimation import kalman as kf
-from sinslab.estimation.smoother import release_pages, rts_smooth, storage_bytes
+from sinslab.core.blocks import release_pages
+from sinslab.estimation.smoother import rts_smooth, storage_bytes
 
 
 # ----------------------------------------------------------------------------------------

@@ -100,9 +100,9 @@ import numpy as np
 
 from numba import njit
 
-from sinslab.core.blocks import release_pages  # noqa: F401 - re-exported
+from sinslab.core.blocks import release_pages
 
-__all__ = ["rts_smooth", "Smoothed", "storage_bytes", "release_pages"]
+__all__ = ["rts_smooth", "Smoothed", "storage_bytes"]
 
 
 @dataclass(frozen=True)

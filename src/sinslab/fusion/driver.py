@@ -501,7 +501,7 @@ SPILL_ROWS = 4096
 class _Record:
     """The per-epoch arrays of one run: in memory, or (``folder`` given) memory-mapped
     ``.npy`` files in ``folder`` whose resident pages are let go as the run passes them
-    (:func:`sinslab.estimation.smoother.release_pages`), so the process holds a few
+    (:func:`sinslab.core.blocks.release_pages`), so the process holds a few
     thousand rows of each, not the whole run. The arrays are the same either way."""
 
     def __init__(self, folder):

@@ -54,8 +54,9 @@ import numpy as np
 
 from numba import njit
 
+from sinslab.core.blocks import release_pages
 from sinslab.estimation.kernels import copy2, predict_step, row_nonzeros
-from sinslab.estimation.smoother import release_pages, rts_smooth
+from sinslab.estimation.smoother import rts_smooth
 from sinslab.nav import strapdown as sd
 
 __all__ = ["History", "SmoothedRun", "smooth", "interpolate_rows"]
@@ -143,7 +144,7 @@ class History:
     spill : str or path-like, optional
         Directory for memory-mapped ``.npy`` arrays instead of memory: the recorded rows
         go to the files as the forward pass runs (the process lets their pages go every
-        ``SPILL_ROWS`` rows, :func:`sinslab.estimation.smoother.release_pages`), and the
+        ``SPILL_ROWS`` rows, :func:`sinslab.core.blocks.release_pages`), and the
         backward pass reads them back a chunk at a time, so the memory a spilled history
         holds does not grow with the length of the run.
 
