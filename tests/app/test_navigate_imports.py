@@ -8,8 +8,9 @@ stack when each is first imported (a fresh interpreter), not by memory or time
   the readers) loads none of pyarrow, pandas, matplotlib, dask, distributed, scipy.stats;
 - a run on a CSV log reads the log and runs the filter without matplotlib (the modules
   loaded when the filter returns), imports it from the plotting module to build the
-  figures, and never imports pandas, dask, distributed or scipy.stats (pyarrow it uses:
-  it parses the CSV and writes the full-rate solution as Parquet).
+  figures, and never imports pandas, dask, distributed, scipy.stats or scipy.spatial (the
+  attitude conversions a run needs are closed forms; pyarrow it uses: it parses the CSV
+  and writes the full-rate solution as Parquet).
 """
 import json
 import os
@@ -23,7 +24,7 @@ from sinslab.sim import trajectory as tr
 from support import simulated_car_drive
 
 SRC = Path(__file__).resolve().parents[2] / "src"
-NEVER = ("pandas", "dask", "distributed", "scipy.stats")
+NEVER = ("pandas", "dask", "distributed", "scipy.stats", "scipy.spatial")
 LATE = ("matplotlib",)                        # imported to draw the outputs only
 
 _PROBE = r"""

@@ -116,6 +116,35 @@ def test_quat_round_trips():
     assert np.allclose(at.quat_to_dcm(at.quat_mul(p, q)), at.quat_to_dcm(p) @ at.quat_to_dcm(q), atol=1e-13)
 
 
+def _bits(a):
+    return np.ascontiguousarray(a, dtype=float).view(np.int64)
+
+
+def test_closed_forms_equal_scipy_rotation_to_the_bit():
+    """euler_to_dcm, euler_to_quat and quat_to_dcm are closed forms (a navigation never
+    imports scipy.spatial); they must give scipy's ``Rotation`` bits, signed zeros included,
+    so that replacing one by the other changes no output."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(7)
+    edge = np.array([0.0, -0.0, math.pi, -math.pi, math.pi / 2, -math.pi / 2, 1e-300, -1e-17])
+    att = np.concatenate([rng.uniform(-4, 4, (20000, 3)),
+                          np.stack(np.meshgrid(edge, edge, edge), -1).reshape(-1, 3)])
+    ref = Rotation.from_euler("ZXY", att[:, [2, 0, 1]])
+    assert np.array_equal(_bits(at.euler_to_dcm(att)), _bits(ref.as_matrix()))
+    q_ref = ref.as_quat()[:, [3, 0, 1, 2]]
+    q_ref *= np.where(q_ref[:, :1] < 0, -1.0, 1.0)
+    assert np.array_equal(_bits(at.euler_to_quat(att)), _bits(q_ref))
+    # one attitude (no leading axis) is the same computation
+    assert np.array_equal(_bits(at.euler_to_dcm(att[5])), _bits(ref[5].as_matrix()))
+    q = np.concatenate([rng.normal(size=(20000, 4)) * rng.uniform(1e-3, 1e3, (20000, 1)),
+                        np.eye(4), -np.eye(4)])
+    assert np.array_equal(_bits(at.quat_to_dcm(q)),
+                          _bits(Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix()))
+    with pytest.raises(ValueError, match="zero norm"):
+        at.quat_to_dcm([0.0, 0.0, 0.0, 0.0])
+
+
 def test_rotvec_round_trips():
     r = RNG.normal(size=(200, 3))
     r *= (RNG.uniform(0, 3.1, 200) / np.linalg.norm(r, axis=1))[:, None]

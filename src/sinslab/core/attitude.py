@@ -4,7 +4,7 @@ Convention (binding for the whole package)
 ------------------------------------------
 - Navigation frame n = ENU; body frame b = RFU (x right, y forward, z up).
 - Euler angles ``att = [pitch θ, roll γ, yaw ψ]`` [rad] with
-  ``C_b^n = R_z(ψ) · R_x(θ) · R_y(γ)``, i.e. scipy's ``Rotation.from_euler('ZXY', [ψ, θ, γ])``.
+  ``C_b^n = R_z(ψ) · R_x(θ) · R_y(γ)``, i.e. scipy's ``_rotation().from_euler('ZXY', [ψ, θ, γ])``.
   Yaw ψ is positive counter-clockwise about up; the heading (clockwise from north,
   0–360°) is ``-ψ``: use :func:`yaw_to_heading` / :func:`heading_to_yaw`.
 - Quaternions are scalar-first ``[q0, q1, q2, q3]``, Hamilton product, and represent
@@ -24,11 +24,18 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.spatial.transform import Rotation
 
 from sinslab.core.jitnotice import install as _compile_notice
 
 _compile_notice()   # a status line while the kernels below compile (first run)
+
+
+def _rotation():
+    """scipy's ``Rotation`` class, imported on first use: ``scipy.spatial`` takes about
+    25 MB, which a process that only needs the closed forms below never pays."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
 
 __all__ = [
     "skew", "euler_to_dcm", "dcm_to_euler", "euler_to_quat", "quat_to_euler", "quat_to_dcm",
@@ -55,15 +62,59 @@ def skew(v):
     return out
 
 
-def _rot_from_euler(att):
-    att = np.asarray(att, dtype=float)
-    return Rotation.from_euler("ZXY", np.stack([att[..., 2], att[..., 0], att[..., 1]], -1))
+# The three conversions the filters call on every run (Euler angles -> quaternion / DCM and
+# quaternion -> DCM) are closed forms here rather than scipy's ``Rotation``, so that a
+# navigation never imports ``scipy.spatial``. Their products and sums are taken in the order
+# scipy takes them, so both give the same bits (the attitude tests compare the two on random
+# inputs); the rarer conversions still go through ``Rotation``.
+def _compose(p, q):
+    """Hamilton product ``p ⊗ q`` of scalar-first quaternion rows ``(n, 4)``, summed as
+    ``p0·q_v + q0·p_v + p_v × q_v`` and ``p0·q0 − p_v·q_v`` (scipy's order)."""
+    p0, p1, p2, p3 = p.T
+    q0, q1, q2, q3 = q.T
+    return np.stack([p0 * q0 - (p1 * q1 + p2 * q2 + p3 * q3),
+                     p0 * q1 + q0 * p1 + (p2 * q3 - p3 * q2),
+                     p0 * q2 + q0 * p2 + (p3 * q1 - p1 * q3),
+                     p0 * q3 + q0 * p3 + (p1 * q2 - p2 * q1)], -1)
+
+
+def _axis_quat(axis, angle):
+    """Quaternion rows of rotations by ``angle`` [rad] ``(n,)`` about body axis 0, 1 or 2."""
+    q = np.zeros(angle.shape + (4,))
+    q[:, 0] = np.cos(angle / 2)
+    q[:, 1 + axis] = np.sin(angle / 2)
+    return q
+
+
+def _quat_of_euler(att):
+    """Scalar-first quaternion rows (not canonicalised) of ``att`` ``(n, 3)``:
+    ``q(R_z(ψ)) ⊗ q(R_x(θ)) ⊗ q(R_y(γ))``."""
+    q = _compose(_axis_quat(2, att[:, 2]), _axis_quat(0, att[:, 0]))
+    return _compose(q, _axis_quat(1, att[:, 1]))
+
+
+def _dcm_of_unit_quat(q):
+    """``C_b^n`` ``(n, 3, 3)`` of scalar-first quaternions ``(n, 4)`` taken as unit."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    C = np.empty(q.shape[:1] + (3, 3))
+    C[:, 0, 0] = x2 - y2 - z2 + w2
+    C[:, 1, 0] = 2 * (xy + zw)
+    C[:, 2, 0] = 2 * (xz - yw)
+    C[:, 0, 1] = 2 * (xy - zw)
+    C[:, 1, 1] = -x2 + y2 - z2 + w2
+    C[:, 2, 1] = 2 * (yz + xw)
+    C[:, 0, 2] = 2 * (xz + yw)
+    C[:, 1, 2] = 2 * (yz - xw)
+    C[:, 2, 2] = -x2 - y2 + z2 + w2
+    return C
 
 
 def euler_to_dcm(att):
     """``C_b^n`` from ``att = [pitch, roll, yaw]`` [rad]; shape ``(..., 3) -> (..., 3, 3)``."""
     att = np.asarray(att, dtype=float)
-    return _rot_from_euler(att.reshape(-1, 3)).as_matrix().reshape(att.shape[:-1] + (3, 3))
+    return _dcm_of_unit_quat(_quat_of_euler(att.reshape(-1, 3))).reshape(att.shape[:-1] + (3, 3))
 
 
 def dcm_to_euler(C):
@@ -91,8 +142,7 @@ def _q_ours_to_scipy(q):
 def euler_to_quat(att):
     """Scalar-first quaternion of ``C_b^n`` from ``[pitch, roll, yaw]`` [rad]."""
     att = np.asarray(att, dtype=float)
-    q = _rot_from_euler(att.reshape(-1, 3)).as_quat()
-    q = _q_scipy_to_ours(q)
+    q = _quat_of_euler(att.reshape(-1, 3))
     q *= np.where(q[:, :1] < 0, -1.0, 1.0)       # canonical: q0 >= 0
     return q.reshape(att.shape[:-1] + (4,))
 
@@ -100,14 +150,17 @@ def euler_to_quat(att):
 def quat_to_dcm(q):
     """``C_b^n`` from a scalar-first quaternion (normalised first)."""
     q = np.asarray(q, dtype=float)
-    return Rotation.from_quat(_q_ours_to_scipy(q.reshape(-1, 4))).as_matrix().reshape(
-        q.shape[:-1] + (3, 3))
+    r = q.reshape(-1, 4)
+    n = np.sqrt(r[:, 1] * r[:, 1] + r[:, 2] * r[:, 2] + r[:, 3] * r[:, 3] + r[:, 0] * r[:, 0])
+    if np.any(n == 0):
+        raise ValueError("a quaternion of zero norm has no attitude")
+    return _dcm_of_unit_quat(r / n[:, None]).reshape(q.shape[:-1] + (3, 3))
 
 
 def dcm_to_quat(C):
     """Scalar-first quaternion (q0 >= 0) of a DCM."""
     C = np.asarray(C, dtype=float)
-    q = _q_scipy_to_ours(Rotation.from_matrix(C.reshape(-1, 3, 3)).as_quat())
+    q = _q_scipy_to_ours(_rotation().from_matrix(C.reshape(-1, 3, 3)).as_quat())
     q *= np.where(q[:, :1] < 0, -1.0, 1.0)
     return q.reshape(C.shape[:-2] + (4,))
 
@@ -120,26 +173,26 @@ def quat_to_euler(q):
 def rotvec_to_dcm(r):
     """DCM ``exp(r×)`` of a rotation vector [rad]."""
     r = np.asarray(r, dtype=float)
-    return Rotation.from_rotvec(r.reshape(-1, 3)).as_matrix().reshape(r.shape[:-1] + (3, 3))
+    return _rotation().from_rotvec(r.reshape(-1, 3)).as_matrix().reshape(r.shape[:-1] + (3, 3))
 
 
 def dcm_to_rotvec(C):
     """Rotation vector [rad] (norm <= π) of a DCM."""
     C = np.asarray(C, dtype=float)
-    return Rotation.from_matrix(C.reshape(-1, 3, 3)).as_rotvec().reshape(C.shape[:-2] + (3,))
+    return _rotation().from_matrix(C.reshape(-1, 3, 3)).as_rotvec().reshape(C.shape[:-2] + (3,))
 
 
 def rotvec_to_quat(r):
     """Scalar-first quaternion of a rotation vector [rad]."""
     r = np.asarray(r, dtype=float)
-    return _q_scipy_to_ours(Rotation.from_rotvec(r.reshape(-1, 3)).as_quat()).reshape(
+    return _q_scipy_to_ours(_rotation().from_rotvec(r.reshape(-1, 3)).as_quat()).reshape(
         r.shape[:-1] + (4,))
 
 
 def quat_to_rotvec(q):
     """Rotation vector [rad] of a scalar-first quaternion."""
     q = np.asarray(q, dtype=float)
-    return Rotation.from_quat(_q_ours_to_scipy(q.reshape(-1, 4))).as_rotvec().reshape(
+    return _rotation().from_quat(_q_ours_to_scipy(q.reshape(-1, 4))).as_rotvec().reshape(
         q.shape[:-1] + (3,))
 
 
@@ -212,7 +265,7 @@ def euler_from_ned(rpy_ned):
     clockwise from north). Pitch and roll carry over unchanged; the yaw changes sign.
     """
     r = np.asarray(rpy_ned, dtype=float)
-    C = Rotation.from_euler("ZYX", np.stack([r[..., 2], r[..., 1], r[..., 0]], -1).reshape(-1, 3))
+    C = _rotation().from_euler("ZYX", np.stack([r[..., 2], r[..., 1], r[..., 0]], -1).reshape(-1, 3))
     return dcm_to_euler(dcm_from_ned(C.as_matrix())).reshape(r.shape)
 
 
@@ -220,7 +273,7 @@ def euler_to_ned(att):
     """NED-convention ``[roll, pitch, yaw]`` [rad] (yaw in (−π, π]) from sinslab ``att``."""
     att = np.asarray(att, dtype=float)
     C = dcm_to_ned(euler_to_dcm(att.reshape(-1, 3)))
-    zyx = Rotation.from_matrix(C).as_euler("ZYX")
+    zyx = _rotation().from_matrix(C).as_euler("ZYX")
     return np.stack([zyx[:, 2], zyx[:, 1], zyx[:, 0]], -1).reshape(att.shape)
 
 
