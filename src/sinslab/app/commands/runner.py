@@ -45,6 +45,7 @@ from sinslab import __version__
 from sinslab.app.errors import CliError, user_errors
 from sinslab.app.outputs import Figure, RunDir, default_out_dir, forcing
 from sinslab.app.publish import complete_timed, write_figures
+from sinslab.core.blocks import release_free_memory
 from sinslab.core.toml import dump_toml
 
 __all__ = ["Command", "Output", "Series", "Figure", "run_command", "command_summary", "cli_call",
@@ -161,11 +162,13 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
         for name, text in res.files.items():
             rd.write_text(name, text)
         t1 = time.perf_counter()
+        release_free_memory()        # the compute's working set is gone: start the tables afresh
         for t in res.tables:
             if t.csv_every is None:
                 rd.write_table(t.name, t.data, t.description)
             else:
                 rd.write_table(t.name, t.data, t.description, csv_every=t.csv_every)
+            release_free_memory()
         t2 = time.perf_counter()
         write_figures(rd, res.figures)
         written = len(res.figures)
