@@ -79,6 +79,10 @@ def csv_rows(cols) -> str:
     return "\n".join(",".join(row) for row in text.tolist()) + "\n"
 
 
+#: rows of CSV text formatted at once by :meth:`TableWriter.write`
+CSV_SLICE_ROWS = 1024
+
+
 class TableWriter:
     """Write a float table into ``folder`` as ``NAME.csv`` (every ``csv_every``-th row) and,
     with ``parquet=True``, ``NAME.parquet`` (every row), a chunk of rows at a time.
@@ -121,7 +125,11 @@ class TableWriter:
 
                 pq_tmp = self._stack.enter_context(atomic_path(self.folder / f"{self.name}.parquet"))
                 self._schema = pa.schema([(c, pa.float64()) for c in self.columns])
-                self._pq = pq.ParquetWriter(pq_tmp, self._schema)
+                # plain encoding: a float column of navigation data has few repeated values,
+                # so the dictionary pyarrow tries first is given up after costing ~1 kB of
+                # memory per row of a chunk and four times the CPU, and the file comes out
+                # larger than plain
+                self._pq = pq.ParquetWriter(pq_tmp, self._schema, use_dictionary=False)
                 self._stack.callback(self._pq.close)     # closed before its rename
         except BaseException:
             self.discard()
@@ -151,8 +159,11 @@ class TableWriter:
             self._pq.write_table(pa.Table.from_arrays(arrs, schema=self._schema))
         first = (-self.rows) % self.every               # the chunk's first row kept in the CSV
         if first < m:
-            sel = slice(first, m, self.every)
-            self._csv.write(csv_rows({c: a[sel] for c, a in zip(self.columns, cols)}))
+            kept = [a[first::self.every] for a in cols]
+            # formatted a slice at a time: the text of a whole chunk (fixed-width strings,
+            # then one Python string per field) takes several times the chunk's own memory
+            for b in range(0, kept[0].shape[0], CSV_SLICE_ROWS):
+                self._csv.write(csv_rows({c: a[b:b + CSV_SLICE_ROWS] for c, a in zip(self.columns, kept)}))
         self.rows += m
 
     def close(self) -> None:
