@@ -13,7 +13,7 @@ import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import units
-from sinslab.core.blocks import release_pages
+from sinslab.core.blocks import block_ranges, release_pages
 
 __all__ = ["NAVIGATE", "NavigateRequest", "navigate_files", "register"]
 
@@ -546,11 +546,9 @@ def _compute(req: NavigateRequest, echo) -> Output:
     rm, rn = E.radii(lat0, fx.h[0])
     xe = (fx.lon - lon0) * rn * math.cos(lat0)
     yn = (fx.lat - lat0) * rm
-    step = -(-res.t.size // TRACK_POINTS)                # every epoch up to TRACK_POINTS
-    t_tr = np.asarray(res.t[::step])
-    se = (np.asarray(res.nav[::step, 8]) - lon0) * rn * math.cos(lat0)
-    sn = (np.asarray(res.nav[::step, 7]) - lat0) * rm
-    release_pages(res.t, res.nav)
+    t_tr, lat_tr, lon_tr = _track_points(res)
+    se = (lon_tr - lon0) * rn * math.cos(lat0)
+    sn = (lat_tr - lat0) * rm
     fig, axes = plotting.figure(1, 1, width=7.5, row_height=6.5)
     ax = axes[0]
     ax.plot(xe, yn, "k.", ms=1.5, label="fixes")
@@ -686,7 +684,7 @@ def _semilogy(ax, t, y, release=(), **kw):
 
 
 #: filter epochs of the solution tables made and written at once (a Parquet row group each)
-TABLE_CHUNK_ROWS = 1 << 15
+TABLE_CHUNK_ROWS = 1 << 14
 #: groups of :func:`_semilogy` thinned at once
 BLOCK_GROUPS = 64
 #: most points of the track figure: a longer solution is drawn every k-th epoch (far more
@@ -705,6 +703,22 @@ class _Shifted:
 
     def release_pages(self):
         release_pages(self.t)
+
+
+def _track_points(res):
+    """Times [s], latitudes and longitudes [rad] of the track figure: every epoch up to
+    :data:`TRACK_POINTS`, every k-th beyond. Taken a block at a time: a stride through
+    a record on disk touches every page of it, and each block's are let go before the
+    next."""
+    step = -(-res.t.size // TRACK_POINTS)
+    t, lat, lon = [], [], []
+    for a, b in block_ranges(res.t.size, multiple=step):      # blocks start on the stride
+        # copies: a view would read the pages back in when the blocks are joined
+        t.append(np.array(res.t[a:b:step]))
+        lat.append(np.array(res.nav[a:b:step, 7]))
+        lon.append(np.array(res.nav[a:b:step, 8]))
+        release_pages(res.t, res.nav)
+    return tuple(np.concatenate(c) if c else np.empty(0) for c in (t, lat, lon))
 
 
 def _scale_of(unit):
