@@ -894,16 +894,17 @@ def _vehicle_options(opt, veh, nhc):
 #: plain CSV/Parquet table), a part per IMU sample (the record and its reading, the
 #: filter's outputs, metrics and figures; the tables are written a chunk at a time; with
 #: ``--smooth`` the smoothed solution too, and the forward pass' record in memory up to
-#: ``SMOOTH_SPILL_ABOVE``, on disk beyond), from
-#: ``benchmarks/navigate_cost.py`` (peak RSS of 10 and 60 min logs at 200 Hz: the
-#: intercept and the slope, rounded up).
-MEMORY_FIXED = 340 * 2 ** 20
+#: ``SMOOTH_SPILL_ABOVE``, on disk beyond). Upper bounds from
+#: ``benchmarks/navigate_cost.py``: a log read in blocks peaks at 281 MB for 10 and for
+#: 60 min at 200 Hz (fixed part, one block, the record up to its spill size and the
+#: fixes), the per-sample slopes were measured on logs read whole.
+MEMORY_FIXED = 300 * 2 ** 20
 MEMORY_PER_SAMPLE = {False: 220, True: 360}
 #: A log read a block at a time (:func:`streamed`) holds, beyond the fixed part, one IMU
 #: block (:data:`IMU_BLOCK_ROWS` rows: its text and arrays, ~30 MB), one chunk of the
 #: solution table (:data:`TABLE_CHUNK_ROWS` epochs: its columns, text and Parquet row
-#: group, ~50 MB) and the track's points up to :data:`TRACK_POINTS` (~10 MB)
-MEMORY_BLOCK = 96 * 2 ** 20
+#: group, ~12 MB) and the track's points up to :data:`TRACK_POINTS` (~3 MB)
+MEMORY_BLOCK = 64 * 2 ** 20
 #: the filter's per-epoch record per IMU sample (200 Hz samples, 50 Hz epochs), held in
 #: memory up to :data:`RECORD_SPILL_ABOVE`
 MEMORY_RECORD_PER_SAMPLE = 130
