@@ -1,12 +1,17 @@
 """Fixed cost and peak memory of one ``sinslab navigate`` process, by stage.
 
 Run: ``.venv/bin/python benchmarks/navigate_cost.py [--minutes 10 60] [--format csv]
-[--smooth] [--json FILE] [--reference PYTHON]``
+[--smooth] [--json FILE] [--reference PYTHON | --reference-src SRC]``
 
 ``--reference PYTHON``: the interpreter of another sinslab install (another clone's
 ``.venv/bin/python``, the code before a change) runs ``navigate`` on the same logs, its
 processes alternated with this install's, and each figure is printed beside its
 reference (the machine's load moves both alike). The load average is printed with them.
+``--reference-src SRC``: the same with the ``src`` folder of another checkout run by this
+interpreter. For memory this is the fairer reference: part of the resident memory is the
+installed libraries' files mapped from the page cache (llvmlite's alone is 180 MB), and
+a freshly installed environment, whose files are all cached, maps far more of them
+(+77 MB measured for the same code) than one whose pages have aged out of the cache.
 
 A simulated car drive (30 s at rest, then turns, straights, accelerations; 200 Hz IMU with
 consumer-MEMS errors, 1 Hz position fixes) of each length is written as an IMU table
@@ -107,11 +112,13 @@ def make_log(folder, minutes, fmt="csv", rate=200.0, seed=1):
     return ip, fp, len(imu)
 
 
-def run_navigate(ip, fp, out, extra=(), python=None):
-    """One navigate process (of ``python``, default this interpreter); returns its stage
-    times [s CPU] and peak RSS [MB]."""
+def run_navigate(ip, fp, out, extra=(), python=None, src=None):
+    """One navigate process (of ``python``, default this interpreter, with the sinslab of
+    ``src`` when given); returns its stage times [s CPU] and peak RSS [MB]."""
     env = dict(os.environ, SINSLAB_QUIET="1", MPLBACKEND="Agg", OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1", NUMBA_NUM_THREADS="1")
+    if src is not None:
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(src), os.environ.get("PYTHONPATH")) if p)
     p = subprocess.run([python or sys.executable, "-c", _CHILD, "-q", "navigate", "--imu", ip, "--fixes", fp,
                         "--out", out, "--force", *extra], capture_output=True, text=True, env=env)
     line = [ln for ln in p.stdout.splitlines() if ln.startswith("STAGES ")]
@@ -141,26 +148,31 @@ def main(argv=None):
     ap.add_argument("--smooth", action="store_true")
     ap.add_argument("--rounds", type=int, default=2, help="processes per log (best CPU of each stage)")
     ap.add_argument("--reference", help="interpreter of another sinslab install, run alternately on the same logs")
+    ap.add_argument("--reference-src", help="the src folder of another checkout, run by this interpreter (the "
+                    "same installed packages) alternately on the same logs")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     out = {}
-    who = [("this", None)] + ([("reference", a.reference)] if a.reference else [])
+    if a.reference and a.reference_src:
+        ap.error("--reference and --reference-src exclude each other")
+    who = ([("this", None, None)] + ([("reference", a.reference, None)] if a.reference else [])
+           + ([("reference", None, a.reference_src)] if a.reference_src else []))
     print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     with tempfile.TemporaryDirectory() as d:
         for mins in a.minutes:
             ip, fp, n = make_log(d, mins, a.format)
             extra = ["--smooth"] if a.smooth else []
-            runs = {w: [] for w, _ in who}
+            runs = {w: [] for w, _, _ in who}
             for _ in range(a.rounds):
-                for w, py in who:
-                    runs[w].append(run_navigate(ip, fp, os.path.join(d, "run"), extra, python=py))
+                for w, py, src in who:
+                    runs[w].append(run_navigate(ip, fp, os.path.join(d, "run"), extra, python=py, src=src))
             print(f"{mins:g} min, {n:,} samples ({a.format}{', --smooth' if a.smooth else ''}), "
                   f"load {os.getloadavg()[0]:.2f} (targets: fixed < 2 s on 10 min, peak < 300 MB on 60 min):")
-            for w, _ in who:
+            for w, _, _ in who:
                 best = {k: min(r[k] for r in runs[w]) for k in runs[w][0]}
                 out.setdefault(w, {})[f"{mins:g}min"] = dict(best, samples=n)
                 print(f"  {w:>9}: {_line(best, n)}")
-            if a.reference:
+            if len(who) > 1:
                 t, r = out["this"][f"{mins:g}min"], out["reference"][f"{mins:g}min"]
                 print(f"  this / reference: fixed {t['fixed'] / r['fixed']:.2f}, compute "
                       f"{t['compute'] / r['compute']:.2f}, peak RSS {t['maxrss_mb'] / r['maxrss_mb']:.2f}")
