@@ -351,13 +351,15 @@ QUOTED = [
      "bench campaigns", ["double-star.speedup", "free-inertial.speedup", "double-star lockstep.lanes",
                          "double-star lockstep.speedup", "1000*double-star lockstep.cpu_per_run_lockstep_s",
                          "1000*double-star lockstep.cpu_per_run_one_per_call_s", "load_min", "load_max"], 0.0),
-    ("README.md", "| `sinslab navigate`, one process on a 200 Hz CSV log (`benchmarks/navigate_cost.py`) | 10 min: 1.70 s CPU "
-     "beyond the filter (start-up 0.61, reading 0.12, metrics, figures and writing 0.93); peak RSS 305 MB (10 min), "
-     "314 MB (1 h), 385 MB (8 h: the IMU is read and stepped a block at a time); at load average 0.75–0.99: CPU "
-     "target met, memory over it", "bench navigate_cost",
+    ("README.md", "| `sinslab navigate`, one process on a 200 Hz CSV log (`benchmarks/navigate_cost.py`) | 10 min: 1.45 s CPU "
+     "beyond the filter (start-up 0.53, reading 0.10, metrics, figures and writing 0.80); peak RSS 281 MB (10 min), "
+     "281 MB (1 h), 333 MB (8 h: the IMU is read and stepped a block at a time; what still grows with the log is per "
+     "fix); the code of bec0fe3, run alternately by the same interpreter: 305, 314, 393 MB; at load average "
+     "1.74–3.37: both targets met", "bench navigate_cost",
      ["=200", "this.10min.samples/12000", "this.10min.fixed", "this.10min.startup", "this.10min.reading",
       "this.10min.rest", "this.10min.maxrss_mb", "this.10min.samples/12000", "this.60min.maxrss_mb",
-      "this.60min.samples/720000", "this.480min.maxrss_mb", "this.480min.samples/720000", "load_min", "load_max"], 0.0),
+      "this.60min.samples/720000", "this.480min.maxrss_mb", "this.480min.samples/720000", "=0", "=3", "reference.10min.maxrss_mb",
+      "reference.60min.maxrss_mb", "reference.480min.maxrss_mb", "load_min", "load_max"], 0.0),
     ("raw-gnss.md", "`benchmarks/tightly_coupled.py --walk DATA_DIR` (its last run in the record `docs/benchmarks.json`, "
      "2026-12-03, on the 2-core machine at load average 13.8–17.3: CPU time, best of 3 interleaved for the filters, "
      "second of two runs for the command)", "bench tightly_coupled", ["date", "cpus", "load_min", "load_max", "=3"], 0.0),
