@@ -169,3 +169,21 @@ def test_map_tasks_failure_stops_the_others():
     with pytest.raises(RuntimeError, match="task 0 failed"):
         mc.map_tasks(_square_or_fail, [1, 0], mode="threads", workers=2, kwargs=dict(fail_on=0, seen=seen))
     assert seen == [1]
+
+
+def test_quantiles_equal_scipy_stats_to_the_bit():
+    """The Student-t and χ² quantiles of the confidence intervals and NEES/NIS bounds come
+    from scipy.special (scipy.stats is not imported by a worker); they are the functions
+    scipy.stats.t.ppf / chi2.ppf evaluate, so the bits agree, degrees of freedom from 1
+    to 10⁶ and dof 0 (no state) bounded at 0."""
+    from scipy import stats
+
+    bits = lambda a: np.asarray(a, dtype=float).view(np.int64)
+    df = np.r_[np.arange(1, 400), np.random.default_rng(3).uniform(0.5, 1e6, 400)]
+    for q in (0.025, 0.975, 0.005, 0.995):
+        assert np.array_equal(bits(mc._chi2_ppf(q, df)), bits(stats.chi2.ppf(q, df)))
+    n = np.arange(1, 2000)
+    assert np.array_equal(bits(mc._t975(n)), bits(stats.t.ppf(0.975, n)))
+    lo, hi = mc.chi2_bounds(np.array([0.0, 1.0, 6.0, 21.0]), 200)
+    assert lo[0] == hi[0] == 0.0
+    assert np.array_equal(bits(hi[1:]), bits(stats.chi2.ppf(0.975, 200 * np.array([1.0, 6.0, 21.0])) / 200))
