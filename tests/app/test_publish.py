@@ -59,9 +59,15 @@ def _figs():
     return out
 
 
-def test_worker_processes_draw_the_same_figures(monkeypatch):
-    monkeypatch.setattr(publish, "MAX_FIGURE_PROCESSES", 1)
-    serial = publish._render_all(_figs(), 80)
-    monkeypatch.setattr(publish, "MAX_FIGURE_PROCESSES", 2)
-    forked = publish._render_all(_figs(), 80)
-    assert [p for p, _ in serial] == [p for p, _ in forked]
+def test_worker_processes_draw_the_same_figures(monkeypatch, tmp_path):
+    """Serial and forked drawing write the same PNG files (each process writes what it
+    draws, under temporary names)."""
+    images = {}
+    for procs in (1, 2):
+        monkeypatch.setattr(publish, "MAX_FIGURE_PROCESSES", procs)
+        d = tmp_path / str(procs)
+        d.mkdir()
+        images[procs] = [(open(p, "rb").read(), open(s, "rb").read())
+                         for p, s in publish._render_all(_figs(), 80, d)]
+        assert len(list(d.iterdir())) == 4
+    assert [p for p, _ in images[1]] == [p for p, _ in images[2]]

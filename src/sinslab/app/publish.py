@@ -104,9 +104,24 @@ def _worker_init():
     gc.disable()
 
 
-def _take_and_render(dpi: int) -> list[tuple[int, tuple[bytes, bytes]]]:
+def _render_to_files(fig, dpi: int, folder, key: str) -> tuple[str, str]:
+    """Draw ``fig`` (:func:`render_figure`) and write its PNG and SVG to files in
+    ``folder`` under temporary names made of ``key``; return their paths. The process that
+    draws a figure writes it: a long run's SVG is megabytes, which would otherwise be
+    held, and sent between processes, until every figure is drawn."""
+    paths = []
+    for ext, data in zip(("png", "svg"), render_figure(fig, dpi)):
+        path = os.path.join(os.fspath(folder), f".{key}.{ext}.{os.getpid()}.part")
+        with open(path, "wb") as fh:
+            fh.write(data)
+        paths.append(path)
+        del data
+    return paths[0], paths[1]
+
+
+def _take_and_render(dpi: int, folder) -> list[tuple[int, tuple[str, str]]]:
     """Take the next figure not yet taken by any process and draw it, until none is left;
-    ``[(index, (png, svg))]`` of those drawn here."""
+    ``[(index, (png path, svg path))]`` of those drawn here."""
     done = []
     while True:
         with _TAKEN.get_lock():
@@ -115,7 +130,7 @@ def _take_and_render(dpi: int) -> list[tuple[int, tuple[bytes, bytes]]]:
         if k >= len(_ORDER):
             return done
         i = _ORDER[k]
-        done.append((i, render_figure(_PENDING[i].fig, dpi)))
+        done.append((i, _render_to_files(_PENDING[i].fig, dpi, folder, f"figure{i}")))
 
 
 def _drawing_cost(fig) -> int:
@@ -125,12 +140,13 @@ def _drawing_cost(fig) -> int:
                for ax in fig.axes if ax.get_visible())
 
 
-def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
-    """PNG and SVG bytes of every figure, in order; drawn by this process and forked
-    workers, one per further core, when there are several figures and cores (drawing is
-    pure Python and holds the GIL, so threads would not help), serially otherwise or if
-    the workers cannot be used. Each process takes the costliest figure left, so that
-    cheap ones end the last turns."""
+def _render_all(figures, dpi: int, folder) -> list[tuple[str, str]]:
+    """PNG and SVG files of every figure, in order, written to temporary names in
+    ``folder`` (:func:`_render_to_files`); drawn by this process and forked workers, one
+    per further core, when there are several figures and cores (drawing is pure Python
+    and holds the GIL, so threads would not help), serially otherwise or if the workers
+    cannot be used. Each process takes the costliest figure left, so that cheap ones end
+    the last turns."""
     global _PENDING, _ORDER, _TAKEN
     import gc
     import multiprocessing as mp
@@ -150,9 +166,9 @@ def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
             _ORDER = sorted(range(len(figures)), key=lambda i: -_drawing_cost(figures[i].fig))
             _TAKEN = ctx.Value("i", 0)
             pool = ctx.Pool(n - 1, initializer=_worker_init)
-            theirs = [pool.apply_async(_take_and_render, (dpi,)) for _ in range(n - 1)]
+            theirs = [pool.apply_async(_take_and_render, (dpi, folder)) for _ in range(n - 1)]
             gc.disable()                             # as in the workers, while drawing
-            drawn = _take_and_render(dpi)
+            drawn = _take_and_render(dpi, folder)
             for r in theirs:
                 drawn += r.get()
             pool.close()                             # let the workers end on their own
@@ -172,7 +188,7 @@ def _render_all(figures, dpi: int) -> list[tuple[bytes, bytes]]:
                 gc.enable()
             if not frozen:
                 gc.unfreeze()
-    return [render_figure(f.fig, dpi) for f in figures]
+    return [_render_to_files(f.fig, dpi, folder, f"figure{i}") for i, f in enumerate(figures)]
 
 
 def _ensure_title(f) -> None:
@@ -202,23 +218,29 @@ def write_figures(rd, figures, dpi: int = 110) -> list[dict]:
         return []
     from sinslab.app.plotting import thin_lines
 
+    images = []
     try:
         for f in figures:
             _ensure_title(f)
             thin_lines(f.fig, dpi)
-        images = _render_all(figures, dpi)
+        images = _render_all(figures, dpi, rd.path)
     finally:
         for f in figures:
             if getattr(f.fig.canvas, "manager", None) is not None:
                 import matplotlib.pyplot as plt
                 plt.close(f.fig)
     out = []
-    for f, (png, svg) in zip(figures, images):
-        info = {"name": f.name, "caption": f.caption, "png": f"{f.name}.png", "svg": f"{f.name}.svg"}
-        rd.write_bytes(info["png"], png)
-        rd.write_bytes(info["svg"], svg)
-        rd.figure_files.append(info)
-        out.append(info)
+    try:
+        for f, (png, svg) in zip(figures, images):
+            info = {"name": f.name, "caption": f.caption, "png": f"{f.name}.png", "svg": f"{f.name}.svg"}
+            os.replace(png, rd._record(info["png"]))      # written whole: renamed into place
+            os.replace(svg, rd._record(info["svg"]))
+            rd.figure_files.append(info)
+            out.append(info)
+    finally:
+        for path in (p for pair in images for p in pair):
+            if os.path.exists(path):                      # not renamed: a failure on the way
+                os.remove(path)
     return out
 
 
