@@ -631,20 +631,25 @@ class _LaneRun:
         T, t0, _ = grids[0]
         n_ep = min(g[2] for g in grids)
         self.grid = Grid(t0, T, n_ep)
-        # --- schedule of every measurement
-        arrivals = {}                                 # epoch -> [(measurement, item)]
-        hist = 0
-        e_valid = {}
+        # --- schedule of every measurement: one row per item, in the order the items are
+        # processed (by arrival epoch; within an epoch by measurement, then as the
+        # measurement lists them). Arrays, not a dict of tuples: a long log has an item
+        # per fix, and Python objects would cost ~0.4 kB each for the whole run.
+        cols = ([], [], [], [], [], [])               # arrival epoch, measurement, item, validity epoch, time, late
         for mi, m in enumerate(self.measurements):
             for e, items in m.epochs(self.grid).items():
                 for j in items:
                     tv, ta = m.times(j)
-                    ev = int(self.grid.epoch_at_or_after(tv))
-                    e_valid[(mi, j)] = (ev, tv, ta > tv)
-                    arrivals.setdefault(int(e), []).append((mi, j))
-                    if ev < e and not lag.on_arrival:
-                        hist = max(hist, e - ev + 3)
-        self.arrivals, self.e_valid, self.hist = arrivals, e_valid, hist
+                    for c, v in zip(cols, (int(e), mi, int(j), int(self.grid.epoch_at_or_after(tv)), tv, ta > tv)):
+                        c.append(v)
+        order = np.argsort(np.asarray(cols[0], dtype=np.int64), kind="stable")
+        self.s_e, self.s_m, self.s_j, self.s_ev = (np.asarray(c, dtype=np.int64)[order] for c in cols[:4])
+        self.s_tv = np.asarray(cols[4], dtype=float)[order]
+        self.s_late = np.asarray(cols[5], dtype=bool)[order]
+        del cols, order
+        lagged = self.s_ev < self.s_e
+        hist = 0 if lag.on_arrival or not lagged.any() else int((self.s_e - self.s_ev)[lagged].max()) + 3
+        self.hist = hist
         self.keep_F = lag.needs_model and hist > 0
         if history is not None and hist > 0 and not isinstance(lag, ExactReprocessing):
             raise ValueError(f"smoothing a run with lagged measurements needs exact re-processing or "
@@ -678,12 +683,20 @@ class _LaneRun:
                 self._comp(i, slice(0, 1))
         self.sig_h[0] = filt.sigma
         if history is not None:
-            history.begin(filt, n_ep, T, set(arrivals) | {v[0] for v in e_valid.values()})
+            history.begin(filt, n_ep, T, set(np.union1d(self.s_e, self.s_ev).tolist()))
         self.a_m, self.a_j, self.a_tv, self.a_t, self.a_nu, self.a_nis = [], [], [], [], [], []
         self.a_sd = []
         self.nav_lag = self.nav_h if lag.corrected_nav else self.nav_pre
         self.Phi_la = self.Q_la = self.stretch = None
         self.blk = self.rows = None
+
+    def arrival_epochs(self) -> list:
+        """The epochs at which items arrive, ascending, once each."""
+        return np.unique(self.s_e).tolist()
+
+    def arriving(self, e):
+        """Rows of the schedule of the items arriving at epoch ``e`` (a range)."""
+        return range(int(np.searchsorted(self.s_e, e, "left")), int(np.searchsorted(self.s_e, e, "right")))
 
     def fusable(self, cprop, discretization):
         """Model, Φ, Q_k and prediction in the one compiled loop, unless Φ, Q_k or F must
@@ -758,9 +771,10 @@ class _LaneRun:
         filt = self.filt
         now = None
         ev_min = None
-        for (mi, j) in here:
+        for k in here:
+            mi, j, ev = int(self.s_m[k]), int(self.s_j[k]), int(self.s_ev[k])
+            tv, late = float(self.s_tv[k]), bool(self.s_late[k])
             meas = self.measurements[mi]
-            ev, tv, late = self.e_valid[(mi, j)]
             if ev < e1 and not lag.on_arrival:
                 ep = Epoch(t_ep[ev], ev, self._epoch_rows(self.nav_lag, ev), lay, n, j)
                 r = meas.matrices(ep)
@@ -918,13 +932,13 @@ def _run_lanes(lanes, histories, model, P0, spec: FilterGrid, *, feedback, lag, 
                      None if spec.spill is None else os.path.join(os.fspath(spec.spill), f"lane{k}"))
             for k, (ln, h) in enumerate(zip(lanes, histories))]
     grid = runs[0].grid
-    stops = sorted(set(runs[0].arrivals) | {grid.n})
+    stops = sorted(set(runs[0].arrival_epochs()) | {grid.n})
     for k, r in enumerate(runs[1:], 1):
         g = r.grid
         if (g.t0, g.T, g.n) != (grid.t0, grid.T, grid.n):
             raise ValueError(f"lane {k} is on the filter grid t0={g.t0} s, step {g.T} s, {g.n} steps; "
                              f"lane 0 on t0={grid.t0} s, step {grid.T} s, {grid.n} steps")
-        if sorted(set(r.arrivals) | {g.n}) != stops:
+        if sorted(set(r.arrival_epochs()) | {g.n}) != stops:
             raise ValueError(f"lane {k} receives measurements at other epochs than lane 0: lanes "
                              "in lockstep need one measurement schedule")
     T, n_ep = grid.T, grid.n
@@ -981,7 +995,7 @@ def _run_lanes(lanes, histories, model, P0, spec: FilterGrid, *, feedback, lag, 
             at_stop = e1 == stops[si]
             for r in runs:
                 r.record(e0, e1)
-                r.measure(e1, r.arrivals.get(e1, []) if at_stop else [], lag, lay, n, q, lag_tol,
+                r.measure(e1, r.arriving(e1) if at_stop else (), lag, lay, n, q, lag_tol,
                           t_ep, t_rel, fbs)
             bar.advance(e1 - e0)
             e0 = e1
