@@ -11,6 +11,8 @@ from __future__ import annotations
 import os
 import time
 
+from sinslab.core.blocks import release_free_memory
+
 #: At most this many processes (the run's own and forked workers) draw figures at once.
 MAX_FIGURE_PROCESSES = 4
 
@@ -116,6 +118,9 @@ def _render_to_files(fig, dpi: int, folder, key: str) -> tuple[str, str]:
             fh.write(data)
         paths.append(path)
         del data
+    # a figure's drawing memory (the raster, the recorded primitives, the SVG text) is
+    # freed but kept by the allocators: given back, the next figure reuses the system's
+    release_free_memory()
     return paths[0], paths[1]
 
 

@@ -25,7 +25,8 @@ import os
 
 import numpy as np
 
-from sinslab.core.blocks import BLOCK_ROWS, block_median, block_ranges, is_mapped, release_pages
+from sinslab.core.blocks import (BLOCK_ROWS, block_median, block_ranges, is_mapped, release_free_memory,
+                                 release_pages)
 from sinslab.core.records import ImuRecord
 from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData
@@ -121,6 +122,8 @@ def spool_table_imu(path, folder, *, block_rows=BLOCK_ROWS, gyro_unit=None, acce
                 prev = t[-1]
     except Exception:    # noqa: BLE001 - malformed somewhere: the whole reader says where and why
         return None
+    # the blocks' arrays came from malloc's heap, which would keep what they freed
+    release_free_memory()
     t, g, a = T.finish(), G.finish(), A.finish()
     n = t.shape[0]
     if n < 2:

@@ -13,7 +13,7 @@ import numpy as np
 
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import units
-from sinslab.core.blocks import block_ranges, release_pages
+from sinslab.core.blocks import block_ranges, release_free_memory, release_pages
 
 __all__ = ["NAVIGATE", "NavigateRequest", "navigate_files", "register"]
 
@@ -383,6 +383,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
     opt.gnss_raw = raw_gnss
     opt = opt.build()
     res = navigate_recorded(imu, fx, opt)
+    release_free_memory()              # the filter's working set, before the evaluation's
     if res.fix_t.size == 0 and raw_gnss is None:
         raise ValueError(f"{fix_name}: no fix was applied (outages, latency or the record's end "
                          f"removed all {len(fx)}); the solution would be free inertial")
@@ -689,7 +690,7 @@ TABLE_CHUNK_ROWS = 1 << 14
 BLOCK_GROUPS = 64
 #: most points of the track figure: a longer solution is drawn every k-th epoch (far more
 #: points than the figure has pixels either way)
-TRACK_POINTS = 1 << 17
+TRACK_POINTS = 1 << 15
 
 
 class _Shifted:
@@ -903,7 +904,8 @@ MEMORY_PER_SAMPLE = {False: 220, True: 360}
 #: A log read a block at a time (:func:`streamed`) holds, beyond the fixed part, one IMU
 #: block (:data:`IMU_BLOCK_ROWS` rows: its text and arrays, ~30 MB), one chunk of the
 #: solution table (:data:`TABLE_CHUNK_ROWS` epochs: its columns, text and Parquet row
-#: group, ~12 MB) and the track's points up to :data:`TRACK_POINTS` (~3 MB)
+#: group, ~12 MB) and the track's points up to :data:`TRACK_POINTS` (~1 MB, and the
+#: figure drawn from them)
 MEMORY_BLOCK = 64 * 2 ** 20
 #: the filter's per-epoch record per IMU sample (200 Hz samples, 50 Hz epochs), held in
 #: memory up to :data:`RECORD_SPILL_ABOVE`
