@@ -351,11 +351,11 @@ QUOTED = [
      "bench campaigns", ["double-star.speedup", "free-inertial.speedup", "double-star lockstep.lanes",
                          "double-star lockstep.speedup", "1000*double-star lockstep.cpu_per_run_lockstep_s",
                          "1000*double-star lockstep.cpu_per_run_one_per_call_s", "load_min", "load_max"], 0.0),
-    ("README.md", "| `sinslab navigate`, one process on a 200 Hz CSV log (`benchmarks/navigate_cost.py`) | 10 min: 1.45 s CPU "
-     "beyond the filter (start-up 0.53, reading 0.10, metrics, figures and writing 0.80); peak RSS 281 MB (10 min), "
-     "281 MB (1 h), 333 MB (8 h: the IMU is read and stepped a block at a time; what still grows with the log is per "
-     "fix); the code of bec0fe3, run alternately by the same interpreter: 305, 314, 393 MB; at load average "
-     "1.74–3.37: both targets met", "bench navigate_cost",
+    ("README.md", "| `sinslab navigate`, one process on a 200 Hz CSV log (`benchmarks/navigate_cost.py`) | 10 min: 1.64 s CPU "
+     "beyond the filter (start-up 0.63, reading 0.11, metrics, figures and writing 0.85); peak RSS 280 MB (10 min), "
+     "276 MB (1 h), 306 MB (8 h: the IMU is read and stepped a block at a time; what still grows with the log is per "
+     "fix); the code of bec0fe3, run alternately by the same interpreter: 305, 315, 392 MB; at load average "
+     "1.10–1.75: both targets met", "bench navigate_cost",
      ["=200", "this.10min.samples/12000", "this.10min.fixed", "this.10min.startup", "this.10min.reading",
       "this.10min.rest", "this.10min.maxrss_mb", "this.10min.samples/12000", "this.60min.maxrss_mb",
       "this.60min.samples/720000", "this.480min.maxrss_mb", "this.480min.samples/720000", "=0", "=3", "reference.10min.maxrss_mb",
