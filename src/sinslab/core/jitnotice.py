@@ -11,6 +11,9 @@ output. Silent when stderr is not a terminal or bars are off
 (:func:`sinslab.core.progress.is_quiet`). :func:`install` is called by the modules that
 define kernels; it costs nothing once numba is imported.
 
+:func:`install` also installs :mod:`sinslab.core.jitlock`, so that processes started
+together (a command and its Dask workers) compile each kernel once between them.
+
 :func:`compile_log` gives, after the fact, the CPU seconds each kernel's compilation took
 (own time, nested compilations of other sinslab kernels excluded), for measuring.
 """
@@ -33,11 +36,17 @@ def _ours(ev):
 
 
 def install() -> None:
-    """Register the listener on numba's compile events (once per process)."""
+    """Register the listener on numba's compile events (once per process), and the
+    compile lock that keeps processes from compiling the same kernel at once
+    (:func:`sinslab.core.jitlock.install`)."""
     global _listener
     if _listener is not None:
         return
     from numba.core import event
+
+    from sinslab.core import jitlock
+
+    jitlock.install()
 
     class _Listener(event.Listener):
         def __init__(self):

@@ -1,0 +1,125 @@
+"""``make demo`` on a fresh clone: wall and CPU time of every experiment at full scale.
+
+What a user pays the first time: the committed tree (``HEAD``) is cloned into a temporary
+folder, its ``.venv`` installed (``make .venv/.installed``, timed apart: not part of the
+figure), and ``make demo`` timed there, with numba's cache empty (a fresh clone has no
+``__pycache__``, and ``NUMBA_CACHE_DIR`` is removed from the environment so the kernels are
+cached in the clone, where they are counted afterwards), so every kernel compiles in the
+measured run. The CPU time is that of the whole process tree (the command, its Dask
+workers; user + system). Per run: its ``runtime_s`` (the experiment's own compute time, from
+its ``summary.json``). ``--warm``: ``make demo`` once more on the cache the first run filled.
+
+Run: ``.venv/bin/python benchmarks/demo.py [--warm] [--keep DIR] [--out FILE]`` (minutes;
+``DIR`` receives the runs for comparing them with another demo). Best on a quiet machine:
+the figure is a wall time on its two CPUs (``benchmarks/record.py demo`` records the load).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+
+
+def _cpu_children() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _timed(cmd: list[str], cwd: Path, env: dict, log: Path) -> dict:
+    """Run ``cmd`` to completion: wall [s], CPU of its process tree [s]; its output in ``log``."""
+    c0, w0 = _cpu_children(), time.perf_counter()
+    with open(log, "w") as fh:
+        r = subprocess.run(cmd, cwd=cwd, env=env, stdout=fh, stderr=subprocess.STDOUT)
+    wall, cpu = time.perf_counter() - w0, _cpu_children() - c0
+    if r.returncode != 0:
+        sys.exit(f"demo: error: {' '.join(cmd)} failed (exit {r.returncode}); its output:\n"
+                 f"{log.read_text(errors='replace')[-3000:]}")
+    return {"wall_s": round(wall, 2), "cpu_s": round(cpu, 2)}
+
+
+def _cached_kernels(tree: Path) -> int:
+    return sum(1 for _ in (tree / "src").rglob("*.nbi"))
+
+
+def _runs(folder: Path) -> dict:
+    """``runtime_s`` of every run of a demo folder."""
+    out = {}
+    for s in sorted(folder.glob("*/summary.json")):
+        out[s.parent.name] = round(float(json.loads(s.read_text())["metrics"].get("runtime_s", float("nan"))), 2)
+    return out
+
+
+def measure(warm: bool, keep: str | None, py: str | None) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                          text=True).stdout.strip()
+    make = ["make"] + ([f"PY={py}"] if py else [])
+    with tempfile.TemporaryDirectory(prefix="sinslab-demo-bench-") as tmp:
+        tree = Path(tmp) / "sinslab"
+        subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(ROOT), str(tree)], check=True)
+        subprocess.run(["git", "checkout", "--quiet", head], cwd=tree, check=True)
+        install = _timed(make + [".venv/.installed"], tree, env, Path(tmp) / "install.log")
+        before = _cached_kernels(tree)
+        if before:
+            sys.exit(f"demo: error: the fresh clone holds {before} cached kernels before the run")
+        load0 = os.getloadavg()
+        fresh = _timed(make + ["demo"], tree, env, Path(tmp) / "demo.log")
+        fresh["load_avg_before"] = [round(x, 2) for x in load0]
+        fresh["load_avg_after"] = [round(x, 2) for x in os.getloadavg()]
+        fresh["kernels_cached_after"] = _cached_kernels(tree)
+        fresh["runs"] = _runs(tree / "runs")
+        res = {"commit": head, "install": install, "fresh": fresh}
+        if keep:
+            dest = Path(keep)
+            if dest.exists():
+                shutil.rmtree(dest)
+            shutil.copytree(tree / "runs", dest)
+        if warm:
+            shutil.rmtree(tree / "runs")
+            load0 = os.getloadavg()
+            w = _timed(make + ["demo"], tree, env, Path(tmp) / "demo-warm.log")
+            w["load_avg_before"] = [round(x, 2) for x in load0]
+            w["load_avg_after"] = [round(x, 2) for x in os.getloadavg()]
+            w["runs"] = _runs(tree / "runs")
+            res["warm"] = w
+    res["machine"] = {"python": platform.python_version(), "cpu_count": os.cpu_count()}
+    return res
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--warm", action="store_true", help="time make demo again on the filled numba cache")
+    ap.add_argument("--keep", help="copy the fresh run's demo folder here")
+    ap.add_argument("--py", help="python for make's PY (default: the Makefile's)")
+    ap.add_argument("--out", default=str(HERE / "results" / "demo.json"))
+    a = ap.parse_args(argv)
+    res = measure(a.warm, a.keep, a.py)
+    f = res["fresh"]
+    print(f"install (not part of the figure): {res['install']['wall_s']:.1f} s wall")
+    print(f"make demo, fresh clone, empty numba cache: {f['wall_s']:.1f} s wall, {f['cpu_s']:.1f} s CPU "
+          f"(load {f['load_avg_before'][0]:.2f} before, {f['load_avg_after'][0]:.2f} after; "
+          f"{f['kernels_cached_after']} kernels cached)")
+    for name, s in f["runs"].items():
+        print(f"  {name:<32s} {s:7.2f} s")
+    if "warm" in res:
+        w = res["warm"]
+        print(f"make demo, warm cache: {w['wall_s']:.1f} s wall, {w['cpu_s']:.1f} s CPU")
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=1) + "\n")
+    return res
+
+
+if __name__ == "__main__":
+    main()
