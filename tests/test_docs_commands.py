@@ -387,9 +387,9 @@ QUOTED = [
       "profile_us.P ← Φ P Φᵀ + Q (rows 9.. of Φ diagonal)", "profile_us.P ← Φ P Φᵀ + Q (dense, for comparison)",
       "kfgins_cpu_s", "sinslab_cpu_s_alternated", "ratio_to_kfgins", "kfgins_final_horiz_err_m",
       "sinslab_final_horiz_err_m", "load_min", "load_max"], 0.0),
-    ("README.md", "numba's cache empty, the install apart (`benchmarks/demo.py`) | 120.1 s wall, 192.0 s CPU of the command "
-     "and its workers (each kernel compiled by one process, the others wait and load it); at load average 1.26–4.49, "
-     "another session's runs beside it | ≤ 2 min |", "bench demo",
+    ("README.md", "numba's cache empty, the install apart (`benchmarks/demo.py`) | 111.6 s wall, 185.6 s CPU of the command "
+     "and its workers (each kernel compiled by one process, the others wait and load it); at load average 0.79–2.07 "
+     "| ≤ 2 min |", "bench demo",
      ["fresh.wall_s", "fresh.cpu_s", "load_min", "load_max", "=2"], 0.0),
     ("README.md", "(`benchmarks/compile_cost.py --only static-alignment`) | 17.4 s of CPU on an empty cache (15.1 s of it "
      "compiling 26 kernels) against 2.0 s warm, at load average 14.2–15.5 | ≤ 25 s |", "bench compile_cost",
