@@ -482,6 +482,13 @@ class RunDir:
     def write_bytes(self, name: str, data: bytes) -> Path:
         return atomic_write(self._record(name), data)
 
+    def move_in(self, name: str, path: str | os.PathLike) -> Path:
+        """Record ``name`` and rename the finished file ``path`` (in this folder, written
+        by another process) to it: the file appears whole or not at all."""
+        dest = self._record(name)
+        os.replace(path, dest)
+        return dest
+
     def write_json(self, name: str, obj: Any) -> Path:
         return self.write_text(name, dumps_json(obj))
 

@@ -111,13 +111,14 @@ def _render_to_files(fig, dpi: int, folder, key: str) -> tuple[str, str]:
     ``folder`` under temporary names made of ``key``; return their paths. The process that
     draws a figure writes it: a long run's SVG is megabytes, which would otherwise be
     held, and sent between processes, until every figure is drawn."""
+    png, svg = render_figure(fig, dpi)
     paths = []
-    for ext, data in zip(("png", "svg"), render_figure(fig, dpi)):
+    for ext, data in (("png", png), ("svg", svg)):
         path = os.path.join(os.fspath(folder), f".{key}.{ext}.{os.getpid()}.part")
         with open(path, "wb") as fh:
             fh.write(data)
         paths.append(path)
-        del data
+    del png, svg, data
     # a figure's drawing memory (the raster, the recorded primitives, the SVG text) is
     # freed but kept by the allocators: given back, the next figure reuses the system's
     release_free_memory()
@@ -238,8 +239,8 @@ def write_figures(rd, figures, dpi: int = 110) -> list[dict]:
     try:
         for f, (png, svg) in zip(figures, images):
             info = {"name": f.name, "caption": f.caption, "png": f"{f.name}.png", "svg": f"{f.name}.svg"}
-            os.replace(png, rd._record(info["png"]))      # written whole: renamed into place
-            os.replace(svg, rd._record(info["svg"]))
+            rd.move_in(info["png"], png)
+            rd.move_in(info["svg"], svg)
             rd.figure_files.append(info)
             out.append(info)
     finally:
