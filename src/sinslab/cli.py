@@ -251,13 +251,22 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
 
 
 @app.command("config")
-def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment name"),
+def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment name, or navigate"),
             config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML config file"),
             set_: Optional[List[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE"),
             quick: bool = typer.Option(False, "--quick", help="show the --quick configuration")) -> None:
-    """Print the resolved configuration of an experiment as TOML (a starting point for --config)."""
+    """Print the resolved configuration of an experiment (or of ``navigate``) as TOML (a starting point for --config)."""
     from sinslab.app.config import config_to_toml
 
+    if name == "navigate":
+        from sinslab.app.commands import navigate_config as nc
+
+        with user_errors():
+            head = f"sinslab {__version__} — navigate: the configuration of `sinslab navigate --config FILE`"
+            text = (nc.default_toml(head) if config is None and not set_ else
+                    config_to_toml(nc.resolve_navigate(config, set_ or ()), head))
+        typer.echo(text, nl=False)
+        return
     with user_errors():
         exp, cfg = _resolve(name, config, set_, None, None, quick)
     typer.echo(config_to_toml(cfg, f"sinslab {__version__} — {exp.name}: {exp.purpose}"), nl=False)

@@ -94,7 +94,7 @@ def _fd(cls, sv, lever, t_ep, **kw):
         e[i] = steps[i]
         J[:, i] = (z(e) - z(-e)) / (2 * steps[i])
     m = cls(sv, lever_arm=lever, clock_nominal=(b0, d0, t0, {"E": 20.0, "C": -7.0}), gate=None, mask=0.0, **kw)
-    _, Hm, R = m.matrices(Epoch(t_ep, 1, (NavRow(row, w, np.zeros(3)),), lay, n, 0))
+    _, Hm, R, *_ = m.matrices(Epoch(t_ep, 1, (NavRow(row, w, np.zeros(3)),), lay, n, 0))
     return Hm, J, lay
 
 
@@ -157,10 +157,29 @@ def test_gate_rejects_one_satellite_and_limit_keeps_highest():
     prior = (np.zeros(n), np.diag(sd ** 2))
     ep = Epoch(1000.0, 1, (NavRow(row, np.zeros(3), np.zeros(3)),), lay, n, 0, prior)
     m = FG.Pseudoranges(sv2, mask=0.0, gate=5.0)
-    z, Hm, R = m.matrices(ep)
-    assert z.size == 7 and m.log.rejected[0][2] and m.log.counts()["rejected"] == 1
-    el = m.log.el[0]
+    rows = m.matrices(ep)                         # every candidate: the driver gates them
+    rej, nu, nis, streak = m.row_gate.decide(rows, prior)
+    assert rows.z.size == 8 and rej.sum() == 1 and rej[2] and streak == 0
+    assert nis[2] > 25.0 and np.all(nis[~rej] < 1e-6)
+    el = rows.meta["el"]
     m = FG.Pseudoranges(sv, mask=0.0, gate=None, max_satellites=[(3, 999.0, 5.0)])
-    m.matrices(ep0)
-    assert set(np.flatnonzero(m.log.used[0])) == set(np.argsort(-el)[:3])
-    assert m.log.counts()["over_limit"] == 5
+    rows = m.matrices(ep0)
+    assert set(np.flatnonzero(rows.formed)) == set(np.argsort(-el)[:3])
+    assert rows.skipped["over_limit"] == 5
+
+
+def test_row_gate_opens_after_every_row_was_refused():
+    """RowGate: after ``reset`` epochs whose every row was refused, one epoch goes through
+    whole (the filter, not all satellites, is then wrong); a lagged update (no prior) is
+    not gated."""
+    from sinslab.fusion.measurements import RowGate, Rows
+    g = RowGate(3.0, reset=2)
+    rows = Rows(np.full(2, 10.0), np.eye(2), np.ones(2), np.ones(2, bool), {}, {})
+    prior = (np.zeros(2), np.eye(2))                        # ν²/S = 50 > 9 for both rows
+    streak, seen = 0, []
+    for _ in range(4):
+        rej, _, _, streak = g.decide(rows, prior, streak)
+        seen.append(bool(rej.all()))
+    assert seen == [True, True, False, True]
+    rej, nu, nis, s = g.decide(rows, None, 1)
+    assert not rej.any() and np.isnan(nu).all() and s == 1

@@ -58,7 +58,8 @@ from sinslab.core.toml import dump_toml
 __all__ = ["ConfigError", "Quantity", "QuantityVec", "Q", "QV", "Section", "ExperimentConfig",
            "IMU_TERMS", "ImuSection", "imu_section",
            "load_toml", "parse_set", "deep_merge", "resolve", "dump_toml", "config_to_toml",
-           "flatten", "describe", "Field"]
+           "flatten", "describe", "Field", "Choice", "OrWord", "Number", "Mount", "MountValue", "setting_type",
+           "settings_section"]
 
 
 class ConfigError(UserError):
@@ -202,6 +203,115 @@ def QV(kind: str, n: int = 3, *, ge: str | None = None, gt: str | None = None,
     return Annotated[QuantityVec, PlainValidator(validate),
                      PlainSerializer(lambda q: q.text),
                      WithJsonSchema({"description": f"{n} x {kind} with unit"})]
+
+
+def Choice(choices, what: str = "value"):
+    """Type of a string that is one of ``choices`` (one-line error listing them)."""
+    allowed = tuple(choices)
+
+    def validate(v):
+        if not isinstance(v, str) or v.strip().lower() not in allowed:
+            raise ValueError(f"{v!r}: choose one of {', '.join(allowed)}")
+        return v.strip().lower()
+
+    return Annotated[str, PlainValidator(validate), WithJsonSchema({"enum": list(allowed)})]
+
+
+def OrWord(inner, word: str):
+    """``inner`` or the word ``word`` (``"none"``, ``"auto"``) meaning "not given": the
+    value is then None, and the config shows the word."""
+    meta = getattr(inner, "__metadata__", ())
+    val = next((m.func for m in meta if isinstance(m, PlainValidator)), None)
+    ser = next((m.func for m in meta if isinstance(m, PlainSerializer)), None)
+
+    def validate(v):
+        if v is None or (isinstance(v, str) and v.strip().lower() == word):
+            return None
+        if val is None:
+            return v
+        try:
+            return val(v)
+        except ValueError as e:
+            raise ValueError(f"{e} (or \"{word}\")") from None
+
+    def serialize(v):
+        if v is None:
+            return word
+        return ser(v) if ser is not None else v
+
+    return Annotated[Any, PlainValidator(validate), PlainSerializer(serialize),
+                     WithJsonSchema({"description": f"a value or \"{word}\""})]
+
+
+def Number(*, ge=None, gt=None, le=None, lt=None, integer: bool = False):
+    """Type of a plain number (the key names its unit, or it has none), with bounds."""
+    def validate(v):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not float(v).is_integer()):
+            raise ValueError(f"{v!r} is not {'a whole number' if integer else 'a number'}")
+        x = int(v) if integer else float(v)
+        lims = tuple(None if b is None else (b, f"{b:g}") for b in (ge, gt, le, lt))
+        if not math.isfinite(x):
+            raise ValueError(f"{v!r} is not finite")
+        _check_range(repr(v), x, lims)
+        return x
+
+    return Annotated[float, PlainValidator(validate), WithJsonSchema({"type": "number"})]
+
+
+def setting_type(st):
+    """The pydantic type of a plug-in's declared setting
+    (:class:`sinslab.fusion.aids.base.Setting`)."""
+    b = st.bounds
+    if st.kind in units.KINDS:
+        t = Q(st.kind, **b) if st.n == 1 else QV(st.kind, st.n, **b)
+    elif st.kind == "flag":
+        t = bool
+    elif st.kind == "choice":
+        t = Choice(st.choices)
+    elif st.kind in ("probability", "number", "count"):
+        t = Number(**b, integer=st.kind == "count")
+    elif st.kind == "mount":
+        t = Mount()
+    else:
+        t = str
+    return OrWord(t, st.none) if st.none is not None else t
+
+
+class MountValue(tuple):
+    """A rotation given as a mount string: ``(pitch, roll, yaw)`` [rad] of it, and the text."""
+
+    def __new__(cls, att, text):
+        obj = super().__new__(cls, (float(x) for x in att))
+        obj.text = text
+        return obj
+
+    def __reduce__(self):
+        return (MountValue, (tuple(self), self.text))
+
+
+def Mount():
+    """Type of a rotation string (``euler:P,R,Y`` deg, ``rpy:R,P,Y``, ``quat:...``,
+    ``matrix:...``) read by :func:`sinslab.data.frames.sensor_to_body`, held as the Euler
+    angles ``(pitch, roll, yaw)`` [rad] of the rotation."""
+    def validate(v):
+        if isinstance(v, MountValue):
+            return v
+        from sinslab.core import attitude as A
+        from sinslab.data.frames import sensor_to_body
+        if not isinstance(v, str):
+            raise ValueError(f"{v!r} is not a mount string (e.g. \"euler:1.2,0,-1.5\")")
+        return MountValue(A.dcm_to_euler(sensor_to_body(v.strip(), "rfu")), v.strip())
+
+    return Annotated[MountValue, PlainValidator(validate), PlainSerializer(lambda m: m.text, return_type=str),
+                     WithJsonSchema({"type": "string"})]
+
+
+def settings_section(name: str, settings: Mapping, doc: str = "") -> type[Section]:
+    """A :class:`Section` of a plug-in's declared settings (``{key: Setting}``, each with
+    its unit kind, default text and description)."""
+    fields = {k: (setting_type(st), Field(st.text, description=st.doc + (f" ({st.flag})" if st.flag else "")))
+              for k, st in settings.items()}
+    return create_model(name, __base__=Section, __doc__=doc or None, **fields)
 
 
 # ------------------------------------------------------------------ models --------------

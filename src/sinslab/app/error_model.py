@@ -20,7 +20,8 @@ factors become Gauss–Markov with that τ) or ``gyro_rw`` / ``accel_rw`` (rando
 "ppm/sqrt(h)"); ``[initial]`` ``attitude`` (σ pitch, roll, heading, e.g.
 ``["1 deg", "1 deg", "5 deg"]``); ``[fixes]`` ``position_sigma`` / ``velocity_sigma``
 (replace every fix's σ), ``position_floor`` / ``velocity_floor``; ``[aiding]``
-``zupt_sigma``, ``zaru_sigma``, ``nhc_sigma`` (lateral, vertical), ``lever_sigma``.
+``zupt_sigma``, ``zaru_sigma``, ``nhc_sigma`` (lateral, vertical), ``lever_sigma`` (the σ of
+those aids when they are enabled, :func:`aid_settings`).
 ``grade = "tactical"`` at the top starts from a named grade (:data:`GRADES`); the keys
 given replace the grade's.
 
@@ -37,7 +38,7 @@ import numpy as np
 from sinslab.core import units as U
 from sinslab.fusion.recorded_spec import FIELD_GROUP
 
-__all__ = ["GRADES", "GRADE_SOURCES", "load_error_model", "apply_error_model"]
+__all__ = ["GRADES", "GRADE_SOURCES", "load_error_model", "apply_error_model", "aid_settings", "AID_SETTINGS"]
 
 #: Named grades: representative datasheet values inside the classes of El-Sheimy & Youssef
 #: (2020), "Inertial sensors technologies for navigation applications: state of the art
@@ -242,16 +243,23 @@ def apply_error_model(opt, err, extras):
         opt.pos_sigma_floor = float(fx["position_floor"])
     if "velocity_floor" in fx:
         opt.vel_sigma_floor = float(fx["velocity_floor"])
-    ai = extras.get("aiding", {})
-    if "zupt_sigma" in ai:
-        opt.zupt_sigma = float(ai["zupt_sigma"])
-    if "zaru_sigma" in ai:
-        opt.zaru_sigma = float(ai["zaru_sigma"])
-    if "nhc_sigma" in ai:
-        opt.nhc_sigma = tuple(np.broadcast_to(np.asarray(ai["nhc_sigma"], float), (2,)))
-    if "lever_sigma" in ai:
-        opt.lever_sigma = float(ai["lever_sigma"])
     if not math.isfinite(float(np.max(opt.gyro_arw))) or float(np.max(opt.gyro_arw)) <= 0 \
             or float(np.max(opt.accel_vrw)) <= 0:
         raise ValueError("the error model needs white noise: gyro_arw and accel_vrw > 0")
     return opt if draft else opt.build()
+
+
+#: ``[aiding]`` key of an error-model file -> (aid, setting, components): the σ it gives an
+#: aid of :mod:`sinslab.fusion.aids` when that aid is enabled
+AID_SETTINGS = {"zupt_sigma": ("zupt", "sigma", 1), "zaru_sigma": ("zupt", "zaru_sigma", 1),
+                "nhc_sigma": ("nhc", "sigma", 2), "lever_sigma": ("lever", "sigma", 1)}
+
+
+def aid_settings(aid, extras):
+    """``{setting: value}`` an error model's ``[aiding]`` table gives the aid named ``aid``."""
+    out = {}
+    for key, v in extras.get("aiding", {}).items():
+        name, setting, n = AID_SETTINGS[key]
+        if name == aid:
+            out[setting] = float(v) if n == 1 else tuple(np.broadcast_to(np.asarray(v, float), (n,)))
+    return out

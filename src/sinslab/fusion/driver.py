@@ -82,7 +82,7 @@ from __future__ import annotations
 
 import os
 import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -94,7 +94,8 @@ from sinslab.estimation.filter import KalmanFilter
 from sinslab.estimation.kalman import discretize
 from sinslab.estimation.linear import discretize_series_many
 from sinslab.fusion.lag import ExactReprocessing
-from sinslab.fusion.measurements import Epoch, Grid, NavRow
+from sinslab.fusion.measurements import Epoch, Grid, NavRow, Rows, gates_of
+from sinslab.fusion.observer import Applied, Decisions, Recorder
 from sinslab.fusion.propagate import CompiledPropagation
 from sinslab.fusion.spec import FilterGrid, InsSpec
 from sinslab.nav import errstate as es
@@ -419,35 +420,6 @@ class PrecomputedStream:
 
 
 @dataclass(frozen=True)
-class Applied:
-    """Measurement records applied by :func:`run` (arrays of length J, in processing order).
-
-    Attributes
-    ----------
-    measurement : int array
-        Index of the measurement in the list given.
-    item : int array
-        Item of that measurement.
-    t_valid, t_applied : float arrays [s]
-        Validity time and the epoch at which it was processed.
-    innovation : list of ndarray
-        Innovations (NaN where a component was not used).
-    nis : float array
-    innovation_sigma : list of ndarray
-        √diag(S) of each innovation, ``S = H P Hᵀ + R`` of the prior (NaN where not used):
-        the filter's own σ of each innovation component.
-    """
-
-    measurement: np.ndarray
-    item: np.ndarray
-    t_valid: np.ndarray
-    t_applied: np.ndarray
-    innovation: list
-    nis: np.ndarray
-    innovation_sigma: list = field(default_factory=list)
-
-
-@dataclass(frozen=True)
 class DriverResult:
     """Output of :func:`run` at the filter epochs (M = K + 1 rows, row 0 = start).
 
@@ -466,9 +438,12 @@ class DriverResult:
         a precomputed stream). Viewed as ``gyro_bias``, ``accel_bias`` and ``scale``
         (``[kg, ka]`` (M, 6) or None), tuples over the streams.
     applied : Applied
+        The updates applied (:mod:`sinslab.fusion.observer`).
     layout : StateLayout
     history : sinslab.fusion.smoothing.History or None
         The forward pass recorded for smoothing (``history=`` of :func:`run`).
+    decisions : Decisions
+        What each measurement's gate and row gate decided, by measurement index.
     """
 
     t: np.ndarray
@@ -479,6 +454,7 @@ class DriverResult:
     applied: Applied
     layout: object
     history: object = None
+    decisions: Decisions = None
 
     def _key(self, key):
         return tuple(None if c is None else c[key] for c in self.compensation)
@@ -684,8 +660,9 @@ class _LaneRun:
         self.sig_h[0] = filt.sigma
         if history is not None:
             history.begin(filt, n_ep, T, set(np.union1d(self.s_e, self.s_ev).tolist()))
-        self.a_m, self.a_j, self.a_tv, self.a_t, self.a_nu, self.a_nis = [], [], [], [], [], []
-        self.a_sd = []
+        self.rec = Recorder()
+        self.gates = [gates_of(m) for m in self.measurements]
+        self.streak = [0] * len(self.measurements)          # epochs whose every row was refused
         self.nav_lag = self.nav_h if lag.corrected_nav else self.nav_pre
         self.Phi_la = self.Q_la = self.stretch = None
         self.blk = self.rows = None
@@ -775,9 +752,10 @@ class _LaneRun:
             mi, j, ev = int(self.s_m[k]), int(self.s_j[k]), int(self.s_ev[k])
             tv, late = float(self.s_tv[k]), bool(self.s_late[k])
             meas = self.measurements[mi]
+            gate, row_gate = self.gates[mi]
             if ev < e1 and not lag.on_arrival:
                 ep = Epoch(t_ep[ev], ev, self._epoch_rows(self.nav_lag, ev), lay, n, j)
-                r = meas.matrices(ep)
+                r = self._rows(mi, tv, meas.matrices(ep), row_gate, None)
                 if r is None:
                     continue
                 if self.keep_F:
@@ -795,20 +773,17 @@ class _LaneRun:
                 if now is None:
                     now = tuple(NavRow(self.rows[i][-1], self.blk[i][1][-1], self.blk[i][2][-1])
                                 for i in range(self.ns))
-                r = meas.matrices(Epoch(t_at, e1, now, lay, n, j, (filt.x, filt.P)))
+                prior = (filt.x, filt.P)
+                r = self._rows(mi, tv, meas.matrices(Epoch(t_at, e1, now, lay, n, j, prior)), row_gate, prior)
                 if r is None:
                     continue
-                gate = getattr(meas, "gate", None)
-                if gate is not None and not gate.passes(filt.x, filt.P, *r, t_at):
-                    continue
+                if gate is not None:
+                    passed, _ = gate.test(filt.x, filt.P, *r)
+                    self.rec.gated(mi, t_at, passed)
+                    if not passed:
+                        continue
                 res = filt.update(*r)
-            self.a_m.append(mi)
-            self.a_j.append(j)
-            self.a_tv.append(tv)
-            self.a_t.append(t_ep[e1])
-            self.a_nu.append(res.innovation)
-            self.a_nis.append(res.nis)
-            self.a_sd.append(np.sqrt(np.abs(np.diagonal(res.S))))
+            self.rec.applied(mi, j, tv, t_ep[e1], res)
         if not here:
             return
         history = self.history
@@ -824,13 +799,25 @@ class _LaneRun:
         self.x_h[e1] = filt.x
         self.sig_h[e1] = filt.sigma
 
+    def _rows(self, mi, tv, r, row_gate, prior):
+        """A measurement's answer as an update: ``(z, H, R)`` as given, or the rows of a
+        :class:`Rows` answer its row gate keeps against ``prior`` (all rows, none gated,
+        for a lagged update: ``prior`` None), the decisions recorded; None: nothing to apply."""
+        if not isinstance(r, Rows):
+            return r
+        if row_gate is None:
+            raise ValueError(f"measurement {mi} answered rows to gate but declares no row_gate")
+        rej, nu, nis, self.streak[mi] = row_gate.decide(r, prior, self.streak[mi])
+        self.rec.row_decisions(mi, tv, r, rej, nu, nis)
+        if not np.any(~rej):
+            return None
+        return r.z[~rej], r.H[~rej], r.R[~rej]
+
     def result(self, t_ep, lay):
         self.store.passed(None)
-        applied = Applied(np.array(self.a_m, dtype=np.int64), np.array(self.a_j, dtype=np.int64),
-                          np.array(self.a_tv, dtype=float), np.array(self.a_t, dtype=float), self.a_nu,
-                          np.array(self.a_nis, dtype=float), self.a_sd)
+        applied, decisions = self.rec.result()
         return DriverResult(t_ep, tuple(self.nav_h), self.x_h, self.sig_h, tuple(self.comp_h), applied, lay,
-                            self.history)
+                            self.history, decisions)
 
 
 def run(streams, model, P0, measurements, *, grid: FilterGrid, feedback=None, lag=None, x0=None,

@@ -25,8 +25,12 @@ Each satellite is one row, weighted by elevation and C/N0
 (``σ² = σ₀² 10^{max(0, C/N0_ref − C/N0)/10} / sin² el``); satellites below the elevation
 mask, without ephemeris or beyond the ``max_satellites`` windows are left out, and an
 innovation gate rejects single rows whose ``ν²/(H P Hᵀ + R)`` exceeds ``gate²`` against
-the filter's prior (``Epoch.prior``). What each epoch used and rejected is kept in
-:attr:`SatelliteMeasurement.log`.
+the filter's prior: the measurement declares it (``row_gate``, a
+:class:`~sinslab.fusion.measurements.RowGate`) and answers each epoch with its candidate
+rows (:class:`~sinslab.fusion.measurements.Rows`: every satellite of the epoch, the ones
+it formed a row for, their name, elevation, azimuth and C/N0, and the ones left out by
+cause); the driver gates the rows and records, epoch by epoch, what was used and refused
+(:class:`sinslab.fusion.observer.RowLog`).
 """
 from __future__ import annotations
 
@@ -38,10 +42,10 @@ import numpy as np
 from sinslab.core import attitude as Att
 from sinslab.core import earth as E
 from sinslab.core import gnss as G
-from sinslab.fusion.measurements import Epoch, add_rate_H, arrival_epochs
+from sinslab.fusion.measurements import Epoch, RowGate, Rows, add_rate_H, arrival_epochs
 
 __all__ = ["SatelliteObservations", "prepare", "Pseudoranges", "RangeRates", "single_point",
-           "SinglePoint", "F_L1", "SatelliteLog"]
+           "SinglePoint", "F_L1"]
 
 F_L1 = 1575.42e6           #: GPS L1 / Galileo E1 carrier [Hz] (the Klobuchar delay is for it)
 
@@ -159,43 +163,6 @@ def prepare(obs, *, t_offset=0.0, systems=None) -> SatelliteObservations:
         rows >= 0)
 
 
-@dataclass
-class SatelliteLog:
-    """What a measurement did at each epoch it was asked for (filled while it runs).
-
-    Lists of equal length, one entry per epoch: ``t`` [s], ``sat`` (str arrays of the
-    candidate satellites), ``el``, ``az`` [rad], ``cn0`` [dB-Hz], ``innovation`` (z − H x⁻ [m
-    or m/s], NaN where not formed), ``used`` and ``rejected`` (bool arrays: used in the
-    update; refused by the innovation gate) and ``skipped`` (counts: below the mask, beyond
-    the satellite limit, no ephemeris).
-    """
-
-    t: list
-    sat: list
-    el: list
-    az: list
-    cn0: list
-    innovation: list
-    sigma: list
-    nis: list
-    used: list
-    rejected: list
-    below_mask: list
-    over_limit: list
-    no_ephemeris: list
-
-    @classmethod
-    def new(cls):
-        return cls(*([] for _ in range(13)))
-
-    def counts(self):
-        """Totals: used, rejected by the gate, below the mask, over the limit, no ephemeris."""
-        return dict(used=int(sum(int(np.sum(u)) for u in self.used)),
-                    rejected=int(sum(int(np.sum(r)) for r in self.rejected)),
-                    below_mask=int(sum(self.below_mask)), over_limit=int(sum(self.over_limit)),
-                    no_ephemeris=int(sum(self.no_ephemeris)))
-
-
 def _enu_derivatives(lat, lon):
     """``C_n^e`` and its derivatives with respect to latitude and longitude."""
     sL, cL, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
@@ -217,7 +184,7 @@ def _limits(max_satellites):
 
 class SatelliteMeasurement:
     """Base of :class:`Pseudoranges` and :class:`RangeRates`: the schedule (one item per
-    epoch), the antenna, the satellite selection and the gate (see the module notes).
+    epoch), the antenna, the satellite selection and the row gate (see the module notes).
 
     Parameters
     ----------
@@ -252,6 +219,7 @@ class SatelliteMeasurement:
     """
 
     kind = ""
+    gate = None                 # no gate of the whole update: the rows are gated one by one
 
     def __init__(self, sv: SatelliteObservations, sigma, *, lever_arm=None, mask=math.radians(10.0),
                  cn0_ref=45.0, gate=5.0, gate_reset=10, max_satellites=(), clock=None,
@@ -264,10 +232,8 @@ class SatelliteMeasurement:
         self.lever = lever
         self.mask = float(mask)
         self.cn0_ref = float(cn0_ref)
-        # not ``gate``: the driver takes a measurement's ``gate`` for a whole-update
-        # InnovationGate; this one rejects single rows inside the update
-        self.row_gate = None if gate is None else float(gate)
-        self.gate_reset = int(gate_reset)
+        #: the gate of single rows the driver applies (``sigmas`` None: none)
+        self.row_gate = RowGate(gate, gate_reset)
         self.limits = _limits(max_satellites)
         self.clock = clock
         self.nominal = tuple(float(v) for v in clock_nominal[:3])
@@ -275,9 +241,7 @@ class SatelliteMeasurement:
         self.isb_nominal = dict(clock_nominal[3]) if len(clock_nominal) > 3 else {}
         self.outages = tuple(outages)
         self.stream = int(stream)
-        self.log = SatelliteLog.new()
         self.shared = {} if shared is None else shared
-        self._all_rejected = 0
 
     # -- schedule
     def epochs(self, grid):
@@ -355,65 +319,20 @@ class SatelliteMeasurement:
                 over = int(drop.size)
         return keep, below, over, no_eph
 
-    def _gate(self, ep, z, H, R):
-        if ep.prior is None or z.size == 0:
-            return np.zeros(z.size, bool), np.full(z.size, np.nan), np.full(z.size, np.nan)
-        x, P = ep.prior
-        nu = z - H @ x
-        S = np.einsum("ij,jk,ik->i", H, P, H) + R
-        nis = nu * nu / S
-        if self.row_gate is None:
-            return np.zeros(z.size, bool), nu, nis
-        rej = nis > self.row_gate ** 2
-        if np.all(rej):
-            self._all_rejected += 1
-            if self._all_rejected > self.gate_reset:
-                self._all_rejected = 0
-                rej[:] = False
-        else:
-            self._all_rejected = 0
-        return rej, nu, nis
-
     def _weights(self, rows, el):
         c = np.maximum(self.cn0_ref - self.sv.cn0[rows], 0.0)
         return self.sigma ** 2 * 10.0 ** (c / 10.0) / np.maximum(np.sin(el), 0.05) ** 2
 
-    def matrices(self, ep: Epoch):
+    def matrices(self, ep: Epoch) -> Rows:
         sv = self.sv
         rows = sv.rows(ep.item)
         r, Jr, v, Jv, (lat, lon, h), dt, el, az = self.antenna(ep)
         keep, below, over, no_eph = self._select(ep, rows, el)
         k = rows[keep]
         z, H = self._model(ep, k, r, Jr, v, Jv, el[keep], az[keep], (lat, lon, h), dt)
-        R = self._weights(k, el[keep])
-        rej, nu, nis = self._gate(ep, z, H, R)
-        log = self.log
-        log.t.append(float(sv.t_epoch[ep.item]))
-        log.sat.append(sv.sat[rows])
-        log.el.append(el)
-        log.az.append(az)
-        log.cn0.append(sv.cn0[rows])
-        full_nu = np.full(rows.size, np.nan)
-        full_nu[keep] = nu
-        log.innovation.append(full_nu)
-        sg = np.full(rows.size, np.nan)
-        sg[keep] = np.sqrt(R)
-        log.sigma.append(sg)
-        full_nis = np.full(rows.size, np.nan)
-        full_nis[keep] = nis
-        log.nis.append(full_nis)
-        used = np.zeros(rows.size, bool)
-        used[np.flatnonzero(keep)[~rej]] = True
-        rejected = np.zeros(rows.size, bool)
-        rejected[np.flatnonzero(keep)[rej]] = True
-        log.used.append(used)
-        log.rejected.append(rejected)
-        log.below_mask.append(below)
-        log.over_limit.append(over)
-        log.no_ephemeris.append(no_eph)
-        if not np.any(~rej):
-            return None
-        return z[~rej], H[~rej], R[~rej]
+        return Rows(z, H, self._weights(k, el[keep]), keep,
+                    dict(sat=sv.sat[rows], el=el, az=az, cn0=sv.cn0[rows]),
+                    dict(below_mask=below, over_limit=over, no_ephemeris=no_eph))
 
     def _clock_columns(self, lay, systems):
         """Columns of the clock bias, drift and of each row's inter-system bias (−1: none)."""

@@ -10,6 +10,12 @@ antenna position (:class:`~sinslab.fusion.measurements.PositionFix`, stacked wit
 extrapolated from their validity time to the filter epoch with the INS velocity (at most ``kf_dt``).
 The run is described by specs checked when they are made (:mod:`sinslab.fusion.spec`:
 the fixes, the INS stream, the filter grid) and a lag policy (:mod:`sinslab.fusion.lag`).
+
+The composition is two parts any aided run shares: :func:`ins_core` (the INS stream on
+the filter grid, the feedback layout, the model checked against them; :meth:`InsCore.run`
+runs the driver with whatever measurements) and :func:`fix_measurement` (the fixes as a
+measurement of that stream). The tightly coupled filter and the recorded front end
+compose the same core with other measurements.
 """
 from __future__ import annotations
 
@@ -26,7 +32,8 @@ from sinslab.fusion.measurements import (LeverPositionFix, LeverVelocityFix, Pos
 from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 from sinslab.nav import errstate as es
 
-__all__ = ["loosely_coupled", "loosely_coupled_many", "LooselyCoupled", "lc_model"]
+__all__ = ["loosely_coupled", "loosely_coupled_many", "LooselyCoupled", "lc_model", "ins_core", "InsCore",
+           "fix_measurement", "FixMeasurement", "FixSource"]
 
 
 def lc_model(gyro_arw, accel_vrw, gyro_rrw=0.0, accel_rrw=0.0, *, scale_factors=False):
@@ -145,10 +152,11 @@ def loosely_coupled(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsS
         Error-state model with blocks ``phi``, ``dv``, ``dp`` and optionally ``eps``
         (gyro bias, body), ``nabla`` (accel bias, body), ``kg``/``ka`` (scale factors),
         e.g. :func:`lc_model`, or the horizontal model of paper 003 (``dv``, ``dp`` of 2
-        states; with ``ins.vertical="hold"``). A model with a lever-arm block ``lev``
-        (:func:`sinslab.nav.errstate.lever_arm`) estimates the antenna lever arm: the fixes
-        then use :class:`~sinslab.fusion.measurements.LeverPositionFix`/``LeverVelocityFix``
-        and ``x[:, lev]`` holds ``l_used − l_true`` [m].
+        states; with ``ins.vertical="hold"``). A model with a lever-arm block
+        (:func:`sinslab.nav.errstate.lever_arm`) named by ``fixes.lever_block`` estimates
+        the antenna lever arm: the fixes then use
+        :class:`~sinslab.fusion.measurements.LeverPositionFix`/``LeverVelocityFix`` and the
+        block's states hold ``l_used − l_true`` [m].
     ins : sinslab.fusion.spec.InsSpec
         How the INS stream runs (subsamples, vertical channel, initial compensation, start).
     grid : sinslab.fusion.spec.FilterGrid
@@ -173,10 +181,10 @@ def loosely_coupled(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsS
     -------
     LooselyCoupled
     """
-    c = _compose(imu, init, fixes, model, ins, grid, lag, feedback)
-    r = driver.run([c.ins], c.model, P0, [c.meas, *aiding], grid=grid, feedback=c.feedback, lag=lag,
-                   progress=progress, label=label, history=history)
-    return c.result(r)
+    core = ins_core(imu, init, model, ins, grid, lag, feedback)
+    fm = fix_measurement(core, fixes)
+    r = core.run(P0, [fm.meas, *aiding], grid=grid, lag=lag, progress=progress, label=label, history=history)
+    return fm.result(r)
 
 
 def loosely_coupled_many(runs, P0, model, *, ins: InsSpec = InsSpec(), grid: FilterGrid = FilterGrid(),
@@ -204,52 +212,48 @@ def loosely_coupled_many(runs, P0, model, *, ins: InsSpec = InsSpec(), grid: Fil
         if len(run) not in (3, 4):
             raise ValueError(f"run {k}: give (imu, init, fixes) or (imu, init, fixes, ins)")
         imu, init, fixes, *own = run
-        comp.append(_compose(imu, init, fixes, model, own[0] if own else ins, grid, lag, feedback))
+        core = ins_core(imu, init, model, own[0] if own else ins, grid, lag, feedback)
+        comp.append((core, fix_measurement(core, fixes)))
     if not comp:
         raise ValueError("loosely_coupled_many needs at least one run")
-    c0 = comp[0]
-    rs = driver.run_many([driver.Lane((c.ins,), (c.meas,)) for c in comp], c0.model, P0, grid=grid,
+    c0 = comp[0][0]
+    rs = driver.run_many([driver.Lane((c.ins,), (f.meas,)) for c, f in comp], c0.model, P0, grid=grid,
                          feedback=c0.feedback, lag=lag, progress=progress, label=label)
-    return [c.result(r) for c, r in zip(comp, rs)]
+    return [f.result(r) for (_, f), r in zip(comp, rs)]
 
 
 @dataclass(frozen=True)
-class _Composed:
-    """One run made ready for the driver: the model, the INS stream, the fix measurement,
-    the feedback layout, and what :meth:`result` needs to unpack its output."""
+class InsCore:
+    """One INS stream made ready for the driver (:func:`ins_core`): the model checked
+    against it, the stream bound to the filter grid (epochs ``t_ep``) and the feedback
+    layout (None: feed-forward)."""
 
     model: object
     ins: LiveStream
-    meas: object
     feedback: object
-    fix_t: np.ndarray
-    n_z: int
-    use_vel: bool
+    t_ep: np.ndarray
+    imu: object
 
-    def result(self, r) -> LooselyCoupled:
-        ap = r.applied
-        k = np.flatnonzero(ap.measurement == 0)            # the fixes (aiding records left out)
-        m_z = self.n_z + (3 if self.use_vel else 0)
-        inn = np.array([ap.innovation[i] for i in k]).reshape(-1, m_z)
-        sd = np.array([ap.innovation_sigma[i] for i in k]).reshape(-1, m_z) if ap.innovation_sigma else None
-        return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
-                              r.scale[0] if r.scale is not None else None, self.fix_t[ap.item[k]],
-                              ap.t_applied[k], ap.item[k], inn, ap.nis[k], r.layout, r.history, sd)
+    def run(self, P0, measurements, *, grid: FilterGrid, lag=ExactReprocessing(), history=None,
+            progress=False, label="aided"):
+        """:func:`sinslab.fusion.driver.run` of the stream with ``measurements`` (in that
+        order); returns the :class:`~sinslab.fusion.driver.DriverResult`."""
+        return driver.run([self.ins], self.model, P0, list(measurements), grid=grid, feedback=self.feedback,
+                          lag=lag, progress=progress, label=label, history=history)
 
 
-def _compose(imu, init, fixes: FixSpec, model, ins: InsSpec, grid: FilterGrid, lag, feedback) -> _Composed:
-    """The stream, the fix measurement and the feedback layout of one run. The specs are
-    valid on their own; what is checked here is how they fit together (the model's blocks
-    against the vertical channel and the fixes, the fix times against the filter grid)."""
-    # --- model and layout
+def ins_core(imu, init, model, ins: InsSpec = InsSpec(), grid: FilterGrid = FilterGrid(),
+             lag=ExactReprocessing(), feedback=True) -> InsCore:
+    """The INS stream, the feedback layout and the model of one aided run. The specs are
+    valid on their own; what is checked here is how they fit together (the model's
+    blocks against the vertical channel, the lag policy)."""
     lay = model.layout
     names = list(lay.names)
     for req in ("phi", "dv", "dp"):
         if req not in names:
             raise ValueError(f"the model needs a {req!r} block (has {names})")
     s_vel, s_pos = lay.slice("dv"), lay.slice("dp")
-    n_pos = s_pos.stop - s_pos.start
-    if ins.vertical == "free" and (n_pos != 3 or s_vel.stop - s_vel.start != 3):
+    if ins.vertical == "free" and (s_pos.stop - s_pos.start != 3 or s_vel.stop - s_vel.start != 3):
         raise ValueError("the model needs the full core (3 velocity and 3 position errors) "
                          "unless the vertical channel is held (vertical='hold')")
     if feedback is True:
@@ -262,13 +266,49 @@ def _compose(imu, init, fixes: FixSpec, model, ins: InsSpec, grid: FilterGrid, l
     for a in ("on_arrival", "corrected_nav", "needs_model", "update"):
         if not hasattr(lag, a):
             raise ValueError(f"lag must be a lag policy of sinslab.fusion.lag, got {lag!r}")
-
-    # --- the INS stream on the filter grid
     stream = LiveStream.of(imu, init, ins, scaled=scaled)
     T, t0, n_ep = stream.bind(grid.kf_dt)
-    t_ep = t0 + T * np.arange(n_ep + 1)
+    return InsCore(model, stream, fb, t0 + T * np.arange(n_ep + 1), imu)
 
-    # --- fixes against the model and the grid
+
+@dataclass(frozen=True)
+class FixMeasurement:
+    """The fixes of one run as a measurement (``meas``) and what :meth:`result` needs to
+    unpack the driver's record of them."""
+
+    meas: object
+    fix_t: np.ndarray
+    n_z: int
+    use_vel: bool
+
+    def records(self, ap, mi=0):
+        """The driver's record of the fixes (measurement ``mi`` of the run's
+        :class:`~sinslab.fusion.observer.Applied` ``ap``): ``(fix_t, t_applied, fix_index,
+        innovation (J, m), nis, innovation_sigma (J, m) or None)``."""
+        k = np.flatnonzero(ap.measurement == mi)            # the fixes (aiding records left out)
+        m_z = self.n_z + (3 if self.use_vel else 0)
+        inn = np.array([ap.innovation[i] for i in k]).reshape(-1, m_z)
+        sd = np.array([ap.innovation_sigma[i] for i in k]).reshape(-1, m_z) if ap.innovation_sigma else None
+        return self.fix_t[ap.item[k]], ap.t_applied[k], ap.item[k], inn, ap.nis[k], sd
+
+    def result(self, r) -> LooselyCoupled:
+        fix_t, t_app, idx, inn, nis, sd = self.records(r.applied)
+        return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
+                              r.scale[0] if r.scale is not None else None, fix_t,
+                              t_app, idx, inn, nis, r.layout, r.history, sd)
+
+
+def fix_measurement(core: InsCore, fixes: FixSpec) -> FixMeasurement:
+    """The fix measurement of a run: positions (stacked with velocities when given), the
+    lever-arm forms when ``fixes.lever_block`` names the model's block estimating it;
+    the fix times checked against the model and the core's filter grid."""
+    return _fix_measurement(fixes, core.model.layout, core.t_ep[0], core.t_ep[-1], core.t_ep[1] - core.t_ep[0],
+                            core.imu.t[-1])
+
+
+def _fix_measurement(fixes: FixSpec, lay, t_first, t_last, T, t_imu_end) -> FixMeasurement:
+    s_vel, s_pos = lay.slice("dv"), lay.slice("dp")
+    n_pos = s_pos.stop - s_pos.start
     fix_t = fixes.t
     J = fix_t.size
     n_z = 3 if n_pos == 3 else 2
@@ -277,22 +317,61 @@ def _compose(imu, init, fixes: FixSpec, model, ins: InsSpec, grid: FilterGrid, l
     use_vel = fixes.vel is not None
     if use_vel and s_vel.stop - s_vel.start != 3:
         raise ValueError("velocity fixes need a model with 3 velocity errors")
-    if J and (fix_t[0] < t_ep[0] - 1e-9 or fix_t[-1] > t_ep[-1] + 1e-9):
+    if J and (fix_t[0] < t_first - 1e-9 or fix_t[-1] > t_last + 1e-9):
         tail = (f"; the grid is whole kf_dt = {T:g} s steps from the start, the IMU data end at "
-                f"{imu.t[-1]:.3f} s: drop the {int(np.sum(fix_t > t_ep[-1] + 1e-9))} fixes after "
-                "the last step" if t_ep[0] - 1e-9 <= fix_t[0] <= t_ep[-1] else "")
+                f"{t_imu_end:.3f} s: drop the {int(np.sum(fix_t > t_last + 1e-9))} fixes after "
+                "the last step" if t_first - 1e-9 <= fix_t[0] <= t_last else "")
         raise ValueError(f"fix times {fix_t[0]:.3f}..{fix_t[-1]:.3f} s lie outside the filter grid "
-                         f"{t_ep[0]:.3f}..{t_ep[-1]:.3f} s{tail}")
+                         f"{t_first:.3f}..{t_last:.3f} s{tail}")
     sched = dict(t_arrive=fixes.arrive, lever_arm=fixes.lever_arm, outages=fixes.outages,
                  windows=fixes.windows)
     sigma = fixes.sigma[:, :n_z]
-    if "lev" in names:
-        meas = LeverPositionFix(fix_t, fixes.pos, sigma, **sched)
+    if fixes.lever_block is not None:
+        meas = LeverPositionFix(fix_t, fixes.pos, sigma, lever_block=fixes.lever_block, **sched)
         if use_vel:
-            meas = Stack(meas, LeverVelocityFix(fix_t, fixes.vel, fixes.vel_sigma, **sched))
+            meas = Stack(meas, LeverVelocityFix(fix_t, fixes.vel, fixes.vel_sigma, lever_block=fixes.lever_block,
+                                                **sched))
     else:
         meas = PositionFix(fix_t, fixes.pos, sigma, **sched)
         if use_vel:
             meas = Stack(meas, VelocityFix(fix_t, fixes.vel, fixes.vel_sigma, **sched))
+    return FixMeasurement(meas, fix_t, n_z, use_vel)
 
-    return _Composed(model, stream, meas, fb, fix_t, n_z, use_vel)
+
+@dataclass(frozen=True)
+class FixSource:
+    """Position (and velocity) fixes as the GNSS source of a recorded run
+    (:class:`sinslab.fusion.aids.base.GnssSource`; loosely coupled): the fixes start the
+    filter and are its measurement, with the σ floors, latency and lever arm of
+    ``handling`` (:class:`sinslab.fusion.recorded_spec.FixHandling`)."""
+
+    fixes: object
+    handling: object
+    name = "fixes"
+
+    def start_fixes(self):
+        return self.fixes
+
+    def states(self):
+        return ()
+
+    def plan(self, setup, fixes, lever_block):
+        from sinslab.fusion.aids.base import Plan
+        from sinslab.fusion.recorded_start import fix_velocity
+        h = self.handling
+        use_vel = h.use_velocity and fixes.vel is not None
+        spec = FixSpec(fixes.t, np.stack([fixes.lat, fixes.lon, fixes.h], -1),
+                       np.maximum(fixes.sigma, h.pos_sigma_floor),
+                       vel=fix_velocity(fixes) if use_vel else None,
+                       vel_sigma=np.maximum(fixes.sigma_vel, h.vel_sigma_floor) if use_vel else None,
+                       latency=h.fix_latency, lever_arm=setup.lever_arm, outages=setup.outages,
+                       lever_block=lever_block)
+        fm = _fix_measurement(spec, setup.layout, setup.t_start, setup.t_end, setup.T, float(setup.imu.t[-1]))
+        return Plan((("fixes", fm.meas),), {"fix": fm})
+
+    def report(self, plan, run):
+        from sinslab.fusion.aids.base import SourceReport
+        fix_t, _, _, inn, nis, sd = plan.facts["fix"].records(run.applied["fixes"])
+        metrics = {"n_fixes_used": int(fix_t.size), "nis_mean": float(np.mean(nis)) if nis.size else None}
+        return SourceReport(self.name, "position/velocity fixes", metrics=metrics, coupling="loosely coupled",
+                            fix_records=(fix_t, inn, sd, nis), reference="fixes")

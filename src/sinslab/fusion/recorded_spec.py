@@ -1,15 +1,16 @@
-"""Run specs of :func:`sinslab.fusion.recorded.navigate_recorded`: five cohesive frozen
+"""Run specs of :func:`sinslab.fusion.recorded.navigate_recorded`: four cohesive frozen
 values, each checked once when it is made (SI units), bundled in :class:`NavOptions`.
 
 - :class:`ErrorSpec`: the IMU's error model and noise (bias, Gauss–Markov and scale-factor
   states, and whether the initial rest calibrates the bias and the white noise).
-- :class:`FixHandling`: how the position/velocity fixes (or raw GNSS) enter the filter:
-  lever arm, outages, latency, lag policy, σ overrides and floors, lever states.
-- :class:`AidingSpec`: ZUPT/ZARU, the non-holonomic constraint and the vehicle frame, the
-  odometer, the platform kind and the innovation gate.
+- :class:`FixHandling`: how the GNSS enters the filter: lever arm, outages, and for fixes
+  latency, lag policy, σ overrides and floors.
 - :class:`StartSpec`: the initial attitude and its σ (levelling, heading from the course,
-  in-motion alignment).
+  in-motion alignment) and the platform kind.
 - :class:`GridSpec`: the filter step, subsamples, and the recorded/smoothed pass.
+
+The aids (their settings, states and measurements) and the GNSS source are plug-ins of
+the run, not fields here (:mod:`sinslab.fusion.aids`).
 
 The app assembles them at its edge (from its option and unit-string machinery) and
 builds each once; nothing below re-parses them. Derive another value with
@@ -27,9 +28,9 @@ import numpy as np
 from sinslab.core import units
 from sinslab.fusion.lag import ExactReprocessing
 
-__all__ = ["ErrorSpec", "FixHandling", "AidingSpec", "StartSpec", "GridSpec", "NavOptions", "PLATFORMS"]
+__all__ = ["ErrorSpec", "FixHandling", "StartSpec", "GridSpec", "NavOptions", "PLATFORMS"]
 
-#: platform kinds of :attr:`AidingSpec.platform`
+#: platform kinds of :attr:`StartSpec.platform`
 PLATFORMS = ("auto", "land", "aircraft", "marine")
 
 
@@ -95,7 +96,9 @@ class ErrorSpec:
 
 @dataclass(frozen=True, eq=False)
 class FixHandling:
-    """How the fixes (or the raw GNSS) enter the filter."""
+    """How the GNSS enters the filter: the antenna and the outages (any source), and how
+    position/velocity fixes are applied (latency, lag policy, σ); the σ floors also bound
+    the start's position and velocity σ from whatever fixes start the run."""
 
     lever_arm: tuple = (0.0, 0.0, 0.0)      #: IMU -> antenna, vehicle RFU axes [m]
     outages: tuple = ()                     #: ((start, length), ...) absolute times [s]
@@ -106,11 +109,6 @@ class FixHandling:
     fix_vel_sigma: tuple | None = None      #: replaces every fix velocity σ east, north, up [m/s]
     pos_sigma_floor: float = 0.05           #: fix σ floor [m] (timing, antenna phase centre)
     vel_sigma_floor: float = 0.05           #: [m/s]
-    estimate_lever: bool = False            #: estimate the antenna lever arm (3 states)
-    lever_sigma: float = 1.0                #: its initial σ per axis [m]
-    #: raw GNSS (sinslab.fusion.tightly_coupled.RawGnss): its pseudoranges and range rates
-    #: replace the fixes in the filter (tightly coupled); the fixes then only start it
-    gnss_raw: object = None
 
     def __post_init__(self):
         object.__setattr__(self, "lever_arm", _lever("lever arm", self.lever_arm))
@@ -122,71 +120,13 @@ class FixHandling:
         lat = float(self.fix_latency)
         if not (math.isfinite(lat) and lat >= 0):
             raise ValueError(f"fix latency must be >= 0 s, got {self.fix_latency}")
-        _check_positive(self, "lever_sigma")
         _check_sigmas(self, ("fix_sigma", 3), ("fix_vel_sigma", 3))
-
-
-@dataclass(frozen=True, eq=False)
-class AidingSpec:
-    """Aiding beyond the fixes: rest (ZUPT/ZARU), the wheeled vehicle (NHC, its frame, the
-    odometer) and the innovation gate of every such update."""
-
-    zupt: str | None = None                 #: None | "auto" (IMU detector) | "flags" (rest_flags)
-    zupt_sigma: float = 0.02                #: [m/s]
-    zaru: bool = False                      #: zero angular rate on the same intervals
-    zaru_sigma: float | None = None         #: [rad/s]; default 2 × gyro white noise / √kf_dt
-    rest_flags: tuple | None = None         #: (t (N,), flags (N,) bool) of a log's rest column
-    rest_min: float = 2.0                   #: shortest rest interval used [s]
-    nhc_sigma: tuple | None = None          #: (lateral, vertical) [m/s]: non-holonomic constraint
-    nhc_lever_arm: tuple = (0.0, 0.0, 0.0)  #: IMU -> rear-axle centre, vehicle RFU [m]
-    #: body pitch on the suspension per longitudinal acceleration [rad per m/s²]: the vertical
-    #: NHC row's σ grows with it (0.30°/(m/s²): measured on a car against its RTK fixes,
-    #: docs/recorded-data.md); 0: the fixed σ alone
-    nhc_pitch_gradient: float = 0.3 * units.deg
-    nhc_correlation_time: float = 1.0       #: [s] that suspension pitch lasts (a manoeuvre)
-    vehicle_mount: tuple | None = None      #: IMU body in the vehicle frame [pitch, roll, yaw] [rad]
-    #: (what is left after the reader's mount: a case bolted 1-2° off the car's axes)
-    estimate_vehicle: bool = False          #: states for the mount's pitch and yaw and the NHC lever
-    vehicle_mount_sigma: float = 2.0 * units.deg   #: their initial σ [rad]
-    nhc_lever_sigma: float = 0.5            #: [m] per axis
-    platform: str = "auto"                  #: "auto" | "land" | "aircraft" | "marine": NHC and the
-    #: odometer assume a wheeled land vehicle and are refused otherwise ("auto": from the fixes)
-    aiding_dt: float = 0.1                  #: ZUPT/NHC applied every this [s] (ZARU: every epoch)
-    aid_gate: float | None = 1e-6           #: false-rejection probability of the innovation gate of
-    #: every ZUPT/ZARU/NHC/odometer update (:class:`~sinslab.fusion.measurements.InnovationGate`); None: no gate
-    odometer: object = None                 #: wheel speeds (sinslab.data.odometer.OdometerSeries)
-    odometer_sigma: float = 0.1             #: [m/s] per update (noise and quantisation)
-    odometer_lever: tuple = (0.0, 0.0, 0.0)  #: IMU -> wheel point, vehicle RFU [m]
-    odometer_scale_sigma: float = 0.02      #: initial 1σ of the odometer scale factor [-]
-    odometer_rate: float = 10.0             #: odometer updates per second [Hz]
-
-    def __post_init__(self):
-        if self.zupt not in (None, "auto", "flags"):
-            raise ValueError(f"zupt must be None, 'auto' or 'flags', got {self.zupt!r}")
-        if self.zupt == "flags" and self.rest_flags is None:
-            raise ValueError("zupt='flags' needs a rest-flag column (column map key 'stationary')")
-        if self.zaru and self.zupt is None:
-            raise ValueError("ZARU runs on the rest intervals of ZUPT: choose zupt='auto' or 'flags'")
-        if self.platform not in PLATFORMS:
-            raise ValueError(f"platform must be one of {', '.join(PLATFORMS)}, got {self.platform!r}")
-        if self.estimate_vehicle and self.nhc_sigma is None:
-            raise ValueError("the vehicle mount and NHC lever states need the NHC (nhc_sigma)")
-        if self.aid_gate is not None and not (0 < self.aid_gate < 1):
-            raise ValueError(f"aid_gate must be a probability in (0, 1) or None, got {self.aid_gate}")
-        if not (math.isfinite(self.nhc_pitch_gradient) and self.nhc_pitch_gradient >= 0):
-            raise ValueError(f"nhc_pitch_gradient must be >= 0, got {self.nhc_pitch_gradient}")
-        _check_positive(self, "zupt_sigma", "aiding_dt", "nhc_correlation_time")
-        _check_sigmas(self, ("nhc_sigma", 2))
-        object.__setattr__(self, "nhc_lever_arm", _lever("NHC lever arm", self.nhc_lever_arm))
-        object.__setattr__(self, "odometer_lever", _lever("odometer lever arm", self.odometer_lever))
-        if not (self.odometer_sigma > 0 and self.odometer_rate > 0):
-            raise ValueError("odometer σ and rate must be > 0")
 
 
 @dataclass(frozen=True, eq=False)
 class StartSpec:
     """The initial attitude: levelling at rest or in motion, heading given or from the
-    course, the in-motion alignment, and the attitude σ."""
+    course, the in-motion alignment, and the attitude σ; the platform kind."""
 
     heading: float | None = None            #: initial heading, clockwise from north [rad]
     att_sigma: tuple = (1.0 * units.deg, 1.0 * units.deg, 5.0 * units.deg)  #: φE φN φU
@@ -199,8 +139,13 @@ class StartSpec:
     #: in-motion alignment over ``level_window`` s before the start where the gyros would
     #: carry the levelling there too long (``CARRY_LIMIT``); False: always carried
     motion_alignment: bool = True
+    #: "auto" | "land" | "aircraft" | "marine" ("auto": from the fixes); an aircraft's heading
+    #: is taken from its course only when flying, and aids of a wheeled vehicle need land
+    platform: str = "auto"
 
     def __post_init__(self):
+        if self.platform not in PLATFORMS:
+            raise ValueError(f"platform must be one of {', '.join(PLATFORMS)}, got {self.platform!r}")
         if self.heading is not None and not math.isfinite(self.heading):
             raise ValueError(f"heading must be finite, got {self.heading}")
         _check_positive(self, "heading_window", "heading_straight")
@@ -223,19 +168,18 @@ class GridSpec:
             raise ValueError(f"nsub (samples per update) must be an integer in 1..5, got {self.nsub!r}")
 
 
-_GROUPS = {"errors": ErrorSpec, "fix": FixHandling, "aiding": AidingSpec, "start": StartSpec, "grid": GridSpec}
+_GROUPS = {"errors": ErrorSpec, "fix": FixHandling, "start": StartSpec, "grid": GridSpec}
 #: spec field name -> the :class:`NavOptions` group holding it
 FIELD_GROUP = {f.name: g for g, cls in _GROUPS.items() for f in dataclasses.fields(cls)}
 
 
 @dataclass(frozen=True, eq=False)
 class NavOptions:
-    """The run spec of :func:`sinslab.fusion.recorded.navigate_recorded`: its five specs,
+    """The run spec of :func:`sinslab.fusion.recorded.navigate_recorded`: its four specs,
     each already checked."""
 
     errors: ErrorSpec = ErrorSpec()
     fix: FixHandling = FixHandling()
-    aiding: AidingSpec = AidingSpec()
     start: StartSpec = StartSpec()
     grid: GridSpec = GridSpec()
 

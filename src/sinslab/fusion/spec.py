@@ -176,6 +176,10 @@ class FixSpec:
         Fixes valid inside are dropped [s].
     windows : tuple of (start, end), optional
         Fixes are processed only at epochs inside these windows [s].
+    lever_block : str, optional
+        Name of a :func:`sinslab.nav.errstate.lever_arm` block of the model that estimates
+        the antenna lever arm (``lever_arm`` is then the value its states are errors of);
+        None: the lever arm is known.
     """
 
     t: np.ndarray
@@ -188,6 +192,7 @@ class FixSpec:
     lever_arm: np.ndarray = field(default_factory=lambda: np.zeros(3))
     outages: tuple = ()
     windows: tuple | None = None
+    lever_block: str | None = None
 
     def __post_init__(self):
         t = np.atleast_1d(np.array(self.t, dtype=float))

@@ -1,12 +1,18 @@
-"""``sinslab navigate``: recorded IMU + fix files through the loosely coupled filter into a
-run folder (solution, fix errors, figures, report)."""
+"""``sinslab navigate``: a recorded IMU log, a GNSS source (position/velocity fixes, or raw
+observations) and aids through the aided filter into a run folder (solution, errors
+against the GNSS, each plug-in's report, figures).
+
+The command's options are short forms of the keys of one validated configuration
+(:mod:`sinslab.app.commands.navigate_config`: ``--config FILE.toml``, ``--set
+key=value``); the run is a pipeline of plug-ins (:mod:`sinslab.fusion.aids`,
+:func:`sinslab.fusion.recorded.navigate_recorded`) whose reports this module writes and
+draws: it names no aid's states."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
-from types import MappingProxyType
 from typing import Optional
 
 import numpy as np
@@ -15,184 +21,39 @@ from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_cal
 from sinslab.core import units
 from sinslab.core.blocks import block_ranges, release_free_memory, release_pages
 
-__all__ = ["NAVIGATE", "NavigateRequest", "navigate_files", "register"]
+__all__ = ["NAVIGATE", "navigate_files", "navigate_config", "register"]
 
-NAVIGATE = Command("navigate", "loosely coupled INS + position/velocity fixes on recorded data")
+NAVIGATE = Command("navigate", "INS + GNSS (fixes or raw observations) and aids on recorded data")
 
-#: ``--lag``: the lag policy (:mod:`sinslab.fusion.lag`) of each choice
+#: ``gnss.fixes.lag``: the lag policy (:mod:`sinslab.fusion.lag`) of each choice
 LAG_POLICY = {"aware": "exact", "ignore": "on-arrival"}
 
 
-# --------------------------------------------------------------------------- the CLI ---
-def _vec3(text, kind, what):
-    try:
-        return units.parse_vector(text, kind, 3)
-    except (ValueError, TypeError) as e:
-        raise ValueError(f"{what}: {e}") from None
+def navigate_config(file=None, sets=(), **given):
+    """The resolved configuration of a run: ``file`` (TOML), ``sets`` (``--set`` items)
+    and the options ``given`` by their Python names (``imu=["log.csv"], fixes=["x.pos"],
+    aid="nhc"``), :func:`sinslab.app.commands.navigate_config.resolve_navigate`."""
+    from sinslab.app.commands.navigate_config import resolve_navigate
+    return resolve_navigate(file, sets, {_option(k): v for k, v in given.items()
+                                         if v is not None and v is not False and not (isinstance(v, list) and not v)})
 
 
-def _parse_init(text):
-    """``heading=30 deg`` (clockwise from north) -> dict; empty -> {}."""
-    out = {}
-    if not text:
-        return out
-    from sinslab.app.validate import option_quantity
-
-    for tok in str(text).split(","):
-        k, sep, v = tok.partition("=")
-        k = k.strip().lower()
-        if not sep or k not in ("heading", "course_speed", "course_spread"):
-            raise ValueError(f"--init {text!r}: use heading=ANGLE (e.g. heading=\"30 deg\"), "
-                             "course_speed=SPEED, course_spread=ANGLE")
-        if k == "course_speed":
-            out[k] = option_quantity(f"--init {k}", v.strip(), "velocity", gt="0 m/s", le="100 m/s")
-        elif k == "course_spread":
-            out[k] = option_quantity(f"--init {k}", v.strip(), "angle", gt="0 deg", le="90 deg")
-        else:
-            out[k] = option_quantity(f"--init {k}", v.strip(), "angle", ge="-180 deg", le="360 deg")
-    return out
+def _option(name):
+    return "--" + name.replace("_", "-")
 
 
-_AIDS = ("zupt", "zaru", "nhc", "lever")
-
-
-def _parse_aid(text):
-    """``"zupt,zaru,nhc,lever"`` -> set; None/"none" -> empty."""
-    if text is None:
-        return set()
-    toks = [t.strip().lower() for t in (text if isinstance(text, (list, tuple, set)) else str(text).split(","))]
-    toks = [t for t in toks if t and t != "none"]
-    bad = [t for t in toks if t not in _AIDS]
-    if bad:
-        raise ValueError(f"--aid {text!r}: unknown {', '.join(bad)}; use a comma list of {', '.join(_AIDS)}")
-    return set(toks)
-
-
-@dataclass(frozen=True, eq=False)
-class NavigateRequest:
-    """The options of ``sinslab navigate`` as given, checked and parsed once at the edge
-    (before any file is read); :func:`navigate_files` and what it calls read them from here.
-
-    The option text is kept for the run's ``config.toml``; its parsed values are
-    ``lever_arm`` (3,) [m], ``aids`` (the ``--aid`` set), ``initial`` (the ``--init``
-    keys in SI) and ``lag_policy`` (a :mod:`sinslab.fusion.lag` policy). ``options`` a
-    :class:`~sinslab.fusion.recorded.NavOptions` to start from (None: the defaults).
-    See :func:`navigate_files` for the rest.
-    """
-
-    imu_path: object
-    fix_path: object = None
-    fmt: str | None = None
-    fix_format: str | None = None
-    lever_arm: object = None
-    mount: str | None = None
-    frame: str | None = None
-    outages: object = None
-    fix_latency: float = 0.0
-    lag: str = "aware"
-    init: object = None
-    time_sync: str = "none"
-    velocity_lag: float = 0.0
-    imu_delay: float = 0.0
-    scale_factors: bool = False
-    max_gap: float = 1.0
-    allow_gaps: bool = False
-    options: object = None
-    columns: str | None = None
-    imu_errors: str | None = None
-    aid: str | None = None
-    rest: str | None = None
-    csv_rate: float = 1.0
-    smooth: bool = False
-    odometer: str | None = None
-    odometer_units: str | None = None
-    odometer_lever: str | None = None
-    odometer_sigma: str | None = None
-    fix_columns: str | None = None
-    fix_quality: str | None = None
-    vehicle_mount: str | None = None
-    nhc_lever: str | None = None
-    platform: str = "auto"
-    gnss_raw: object = None
-    gnss_nav: object = None
-    max_satellites: object = None
-    elevation_mask: float = 10.0
-    strict: bool = False
-    aids: frozenset = field(init=False)
-    initial: MappingProxyType = field(init=False)
-    lag_policy: object = field(init=False)
-
-    def __post_init__(self):
-        from sinslab.app.validate import check_mount, check_navigate_options
-        from sinslab.fusion.lag import lag_policy
-
-        put = partial(object.__setattr__, self)
-        put("lever_arm", check_navigate_options(
-            fix_latency=self.fix_latency, velocity_lag=self.velocity_lag, imu_delay=self.imu_delay,
-            max_gap=self.max_gap, lag=self.lag, time_sync=self.time_sync, rest=self.rest, aid=self.aid,
-            lever_arm=self.lever_arm))
-        check_mount(self.mount, self.frame)
-        put("initial", MappingProxyType(_parse_init(self.init) if isinstance(self.init, (str, type(None)))
-                                        else dict(self.init)))
-        put("aids", frozenset(_parse_aid(self.aid)))
-        put("lag_policy", lag_policy(LAG_POLICY[self.lag]))
-        if isinstance(self.imu_path, (list, tuple)):
-            put("imu_path", self.imu_path[0] if len(self.imu_path) == 1 else list(self.imu_path))
-        if isinstance(self.fix_path, (list, tuple)):        # positions and velocities in two tables
-            put("fix_path", None if not self.fix_path else self.fix_path[0] if len(self.fix_path) == 1
-                else list(self.fix_path))
-
-    @property
-    def smo(self):
-        """``--smooth`` and ``--odometer*`` as :func:`_smooth_odometer_options` reads them."""
-        return dict(smooth=self.smooth, odometer=self.odometer, units=self.odometer_units,
-                    lever=self.odometer_lever, sigma=self.odometer_sigma)
-
-    @property
-    def vehicle(self):
-        """``--vehicle-mount``, ``--nhc-lever``, ``--platform`` as :func:`_vehicle_options` reads them."""
-        return dict(mount=self.vehicle_mount, lever=self.nhc_lever, platform=self.platform)
-
-    @property
-    def raw(self):
-        """The raw-GNSS options."""
-        return dict(path=self.gnss_raw, nav=self.gnss_nav, max_satellites=self.max_satellites,
-                    mask_deg=self.elevation_mask)
-
-
-def navigate_files(req: NavigateRequest, *, out=None, echo=print):
-    """Read an IMU file and a fix file, run :func:`navigate_recorded`, write the run folder
-    ``out``: ``req`` the command's options, already checked (the fields named below).
-
-    Raw GNSS: ``gnss_raw`` a u-blox log or RINEX observation file (``gnss_nav`` a RINEX
-    navigation file) replaces the fix file: pseudoranges and Doppler per satellite in the
-    filter (tightly coupled, :mod:`sinslab.app.commands.raw_gnss`); ``max_satellites``
-    limits like ``["3@60:20"]``; ``elevation_mask`` [deg] the satellites' elevation mask.
-
-    Recorded-unit options: ``columns`` a column map of the IMU table
-    (:func:`sinslab.data.columns.parse_column_map`); ``imu_errors`` the filter's error
-    model, a TOML file or grade name (:mod:`sinslab.app.error_model`); ``aid`` aiding
-    beyond the fixes, a comma list of ``zupt``, ``zaru``, ``nhc``, ``lever`` (antenna
-    lever-arm estimation); ``rest`` where ZUPT/ZARU find rest, ``auto`` (IMU detector) or
-    ``flags`` (the log's rest column, default when the column map names one);
-    ``csv_rate`` [Hz] the rate of ``solution.csv`` (``solution.parquet`` holds every filter
-    epoch); ``fix_columns`` a column map of the fix table (the syntax of ``columns``, keys
-    :data:`sinslab.data.columns.FIX_KEYS`); ``fix_quality`` the accepted values of its
-    quality/mode column (``"4,5"``); ``vehicle_mount`` the IMU body (after ``mount``) in the
-    vehicle frame, a mount string (``"euler:P,R,Y"`` degrees) — with ``nhc`` its pitch and
-    yaw are also estimated, as is the NHC lever ``nhc_lever`` (IMU -> rear-axle centre,
-    vehicle RFU) — and ``platform`` auto | land | aircraft | marine (NHC and the odometer
-    are refused off land).
+def navigate_files(cfg, *, out=None, echo=print):
+    """Navigate the resolved configuration ``cfg`` (:func:`navigate_config`) and write the
+    run folder ``out``. Returns ``(summary, RecordedNav, reference fixes)`` (the fixes, or
+    the single-point solution of raw observations).
 
     Plausibility (:mod:`sinslab.app.plausibility`): the IMU record (length, dead channels,
     ranges, |f| against gravity, gaps) and the run (long stretches where the fix NIS or the
     mean of the normalised innovations says the filter is inconsistent,
     :func:`sinslab.app.plausibility.consistency_findings`) are checked; a warning is printed
-    and listed in the report, ``strict`` refuses.
-
-    Returns ``(summary, RecordedNav, Fixes)``.
+    and listed in the report, ``output.strict`` refuses.
     """
-    summary, res = run_command(NAVIGATE, out, lambda: _compute(req, echo), echo=echo)
+    summary, res = run_command(NAVIGATE, out, lambda: _compute(cfg, echo), echo=echo)
     return (summary, *res.value)
 
 
@@ -241,71 +102,156 @@ def _innovation_labels(m):
             + [f"velocity {a}" for a in ("east", "north", "up")[:m - n_pos]])
 
 
-def _compute(req: NavigateRequest, echo) -> Output:
-    from sinslab.app.described import navigate_claims
-    from sinslab.core import attitude as A
-    from sinslab.core import earth as E         # numba and scipy: only when it runs
-    from sinslab.data import guess_imu_format, load_fixes
-    from sinslab.data.spool import map_times
-    from sinslab.fusion.recorded import (NavOptions, estimate_time_offset, fix_errors,
-                                         navigate_recorded, outage_end_errors, parse_outages,
-                                         shifted_times, significant_time_offset)
+# ----------------------------------------------------------------- before the filter ---
+@dataclass
+class _Inputs:
+    """What an aid may read (:class:`sinslab.fusion.aids.base.Inputs`): the data front
+    door, the IMU table and its rest column, the IMU clock correction of the run."""
 
-    imu_one = req.imu_path[0] if isinstance(req.imu_path, list) else req.imu_path     # the table odometer columns come from
-    fmt_eff = req.fmt or guess_imu_format(imu_one)
-    kw = {}
-    if req.mount is not None:
-        kw["mount"] = req.mount
-    if req.frame is not None:
-        kw["frame"] = req.frame
-    if fmt_eff != "psins":
-        kw.update(max_gap=req.max_gap, allow_gaps=req.allow_gaps)
-    if fmt_eff == "rtklib-imu":
-        kw["delay"] = req.imu_delay
-    if req.columns is not None:
-        if fmt_eff not in ("csv", "parquet"):
-            raise ValueError(f"--columns applies to csv and parquet tables, not {fmt_eff!r}")
-        kw["columns"] = req.columns
-    aids = req.aids
-    # option values checked before any file is read
-    from sinslab.app.error_model import NavOptionsDraft
-    from sinslab.data.columns import FIX_KEYS, parse_column_map
-    from sinslab.data.tables import parse_quality_filter
-    _vehicle_options(NavOptionsDraft(NavOptions()), req.vehicle or {}, False)
-    parse_quality_filter(req.fix_quality)
-    parse_column_map(req.fix_columns, keys=FIX_KEYS, option="--fix-columns")
-    if (req.vehicle or {}).get("platform") in ("aircraft", "marine") and "nhc" in aids:
-        raise ValueError(f"--aid nhc: the non-holonomic constraint assumes a wheeled land vehicle, "
-                         f"not --platform {req.vehicle['platform']}")
-    check_memory(req.imu_path, fmt_eff, bool((req.smo or {}).get("smooth")), fix_path=req.fix_path)
-    if not (isinstance(req.csv_rate, (int, float)) and math.isfinite(req.csv_rate) and req.csv_rate > 0):
-        raise ValueError(f"--csv-rate must be a positive number of Hz, got {req.csv_rate!r}")
+    imu_path: object
+    rest_flags: object
+    sync: dict | None
+
+    def read(self, reader, *args, **kw):
+        import sinslab.data as D
+        if not reader.startswith("read_") or reader not in D.__all__:
+            raise ValueError(f"{reader!r} is not a reader of the data front door (sinslab.data)")
+        return getattr(D, reader)(*args, **kw)
+
+    def clock(self, t):
+        from sinslab.fusion.recorded import shifted_times
+        s = self.sync
+        return t if s is None else shifted_times(t, s["offset"], s["ppm"], s["t_ref"])
+
+
+@dataclass
+class _Prepared:
+    """Everything a run needs, read and checked, before the filter."""
+
+    cfg: object
+    data: object
+    imu: object
+    fx: object
+    fix_name: str
+    source: object
+    aids: list
+    opt: object
+    sync: dict | None
+    em_cfg: dict
+    found: list
+
+
+def _files(value):
+    """A file key's value as the readers take it: one path, or a list of two."""
+    return value[0] if isinstance(value, list) and len(value) == 1 else value
+
+
+def _first(value):
+    return value[0] if isinstance(value, list) else value
+
+
+def _prepare(cfg, echo) -> _Prepared:
+    """Read and check the inputs of ``cfg``: the IMU log, the GNSS, the time sync, the
+    aids' inputs; the run's options made once."""
+    from sinslab.app.commands.navigate_config import aids_of
+    from sinslab.app.plausibility import imu_findings, settle
+    from sinslab.data import guess_imu_format
+
+    if not cfg.imu.file:
+        raise ValueError("give the IMU log: --imu FILE (imu.file)")
+    imu_path = _files(cfg.imu.file)
+    fmt = guess_imu_format(_first(imu_path)) if cfg.imu.format == "auto" else cfg.imu.format
+    kw = _reader_options(cfg, fmt)
+    _check_before_reading(cfg, fmt, imu_path)
     em = None
-    if req.imu_errors is not None:
+    if cfg.filter.imu_errors != "default":
         from sinslab.app.error_model import load_error_model
-        em = load_error_model(req.imu_errors)
-    data = _read_imu(req.imu_path, fmt_eff, kw)
-    from sinslab.app.plausibility import consistency_findings, imu_findings, settle
-
-    found = imu_findings(data.imu, str(req.imu_path), gaps=data.gaps)
+        em = load_error_model(cfg.filter.imu_errors)
+    data = _read_imu(imu_path, fmt, kw)
+    found = imu_findings(data.imu, str(imu_path), gaps=data.gaps)
     settle([fd for fd in found if fd.refuse])
-    raw_gnss = None
-    if req.raw and req.raw.get("path") is not None:
-        from sinslab.app.commands.raw_gnss import load_raw
-        if req.fix_path is not None:
-            raise ValueError("give either --gnss (fixes) or --gnss-raw (raw observations), not both")
-        raw_gnss, fx = load_raw(req.raw["path"], req.raw.get("nav"), req.raw.get("max_satellites"), data.imu, echo,
-                                mask_deg=req.raw.get("mask_deg", 10.0))
-        fix_name = f"{req.raw['path']} (single-point solution)"
-    elif req.fix_path is None:
-        raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
+    raw, fx, fix_name = _gnss(cfg, data.imu, echo)
+    _say_imu(data, echo)
+    _check_latency(cfg, fx, data.imu)
+    imu, sync = _time_sync(cfg, data.imu, fx, echo)
+    inputs = _Inputs(_first(imu_path), (data.meta or {}).get("stationary"), sync)
+    aids = _with_error_model([a.load(inputs) for a in aids_of(cfg)], em)
+    opt = _options(cfg, em, imu, fx)
+    if raw is not None:
+        from sinslab.fusion.tightly_coupled import RawSource
+        source = RawSource(raw)
     else:
-        fix_name = " + ".join(map(str, req.fix_path)) if isinstance(req.fix_path, list) else str(req.fix_path)
-        ffmt = req.fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
-        fx, fmeta = _read_fixes(lambda: load_fixes(req.fix_path, ffmt, velocity_lag=req.velocity_lag,
-                                                   columns=req.fix_columns, quality=req.fix_quality),
-                                fix_name, ffmt)
-        _say_fix_reading(fmeta, fix_name, echo)
+        from sinslab.fusion.loosely_coupled import FixSource
+        source = FixSource(fx, opt.fix)
+    return _Prepared(cfg, data, imu, fx, fix_name, source, aids, opt, sync, em[2] if em else {}, found)
+
+
+def _reader_options(cfg, fmt):
+    """The IMU reader's keywords from ``[imu]``."""
+    kw = {}
+    if cfg.imu.mount != "none":
+        kw["mount"] = cfg.imu.mount
+    if cfg.imu.frame != "auto":
+        kw["frame"] = cfg.imu.frame
+    if fmt != "psins":
+        kw.update(max_gap=cfg.imu.max_gap, allow_gaps=cfg.imu.allow_gaps)
+    if fmt == "rtklib-imu":
+        kw["delay"] = cfg.imu.delay
+    if cfg.imu.columns != "auto":
+        if fmt not in ("csv", "parquet"):
+            raise ValueError(f"--columns applies to csv and parquet tables, not {fmt!r}")
+        kw["columns"] = cfg.imu.columns
+    return kw
+
+
+def _check_before_reading(cfg, fmt, imu_path):
+    """What can be refused before any file is read: the mount, the fix table's column map
+    and quality filter, an aid of a wheeled vehicle on another platform, the memory."""
+    from sinslab.app.validate import check_mount
+    check_mount(None if cfg.imu.mount == "none" else cfg.imu.mount, None if cfg.imu.frame == "auto" else cfg.imu.frame)
+    fix_path = None
+    if cfg.gnss.source == "fixes":
+        from sinslab.data.columns import FIX_KEYS, parse_column_map
+        from sinslab.data.tables import parse_quality_filter
+        f = cfg.gnss.fixes
+        parse_quality_filter(None if f.quality == "all" else f.quality)
+        parse_column_map(None if f.columns == "auto" else f.columns, keys=FIX_KEYS, option="--fix-columns")
+        fix_path = _files(f.file) or None
+    from sinslab.fusion.aids import aid_type
+    for name in cfg.aid:
+        need = aid_type(name).land_only
+        if need and cfg.start.platform in ("aircraft", "marine"):
+            raise ValueError(f"--aid {name}: {need} assumes a wheeled land vehicle, not --platform "
+                             f"{cfg.start.platform}")
+    check_memory(imu_path, fmt, cfg.filter.smooth, fix_path=fix_path)
+
+
+def _gnss(cfg, imu, echo):
+    """``(RawGnss or None, fixes, name)``: the raw observations and their single-point
+    fixes, or the fix file read."""
+    from sinslab.data import load_fixes
+    if cfg.gnss.source == "raw":
+        from sinslab.app.commands.raw_gnss import load_raw
+        r = cfg.gnss.raw
+        if not r.file:
+            raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
+        raw, fx = load_raw(r, imu, echo)
+        return raw, fx, f"{r.file} (single-point solution)"
+    f = cfg.gnss.fixes
+    if not f.file:
+        raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
+    path = _files(f.file)
+    name = " + ".join(map(str, path)) if isinstance(path, list) else str(path)
+    ffmt = None if f.format == "auto" else f.format
+    ffmt = ffmt or ("rtklib-pos" if name.lower().endswith(".pos") else None)
+    fx, meta = _read_fixes(lambda: load_fixes(path, ffmt, velocity_lag=f.velocity_lag,
+                                              columns=None if f.columns == "auto" else f.columns,
+                                              quality=None if f.quality == "all" else f.quality), name, ffmt)
+    _say_fix_reading(meta, name, echo)
+    return None, fx, name
+
+
+def _say_imu(data, echo):
     imu = data.imu
     if data.meta and "joined" in data.meta:
         un = data.meta["joined"]["unmatched"]
@@ -315,234 +261,325 @@ def _compute(req: NavigateRequest, echo) -> Output:
         echo(f"  {len(data.gaps)} gap(s) in the IMU record bridged with the mean rate: "
              + ", ".join(f"{g[1]:.3f} s at {g[0] - imu.t0:.2f} s" for g in data.gaps[:5])
              + (" ..." if len(data.gaps) > 5 else ""))
+
+
+def _check_latency(cfg, fx, imu):
+    latency = cfg.gnss.fixes.latency if cfg.gnss.source == "fixes" else 0.0
     span = min(float(fx.t[-1]), float(imu.t[-1])) - max(float(fx.t[0]), float(imu.t[0]))
-    if span > 0 and req.fix_latency >= span:
-        raise ValueError(f"--fix-latency {req.fix_latency:g}: at least the {span:.1f} s the fixes and the "
+    if span > 0 and latency >= span:
+        raise ValueError(f"--fix-latency {latency:g}: at least the {span:.1f} s the fixes and the "
                          f"IMU record share, so no fix would arrive before the record ends")
-    # the options are assembled here and made once (frozen, checked) before the run
-    opt = NavOptionsDraft(req.options or NavOptions())
-    if req.lever_arm is not None:
-        opt.lever_arm = req.lever_arm
-    sync = None
-    if req.time_sync == "auto":
-        # without a lever arm a clock offset cannot be told from the antenna's lag in turns
-        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if req.lever_arm is not None else None)
-        sync = significant_time_offset(est)
-        sync.update(windows=len(est["windows"]))
-        imu = map_times(imu, partial(shifted_times, offset=sync["offset"], ppm=sync["ppm"], t_ref=sync["t_ref"]),
-                        imu.dt * (1.0 - sync["ppm"] * 1e-6), _scratch("imu"))
-        echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
-             f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
-             f"{sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
-             f"({'applied' if sync['ppm_applied'] else 'not significant, not applied'}); from turn "
-             f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows "
-             f"(significant: > {sync['threshold_sigmas']:.1f} σ)"
-             + (f"; no lever arm given: a lag of {sync['speed_lag_m']:.2f} ± {sync['speed_lag_sigma_m']:.2f} m "
-                "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else ""))
-    elif req.time_sync != "none":
-        raise ValueError(f"--time-sync must be 'auto' or 'none', got {req.time_sync!r}")
-    odo_cfg = _smooth_odometer_options(opt, req.smo or {}, imu_one, sync)
+
+
+def _time_sync(cfg, imu, fx, echo):
+    """``(imu, sync)``: the IMU record on the fixes' clock (the offset and drift beyond
+    doubt, :func:`sinslab.fusion.recorded.significant_time_offset`), or as read."""
+    if cfg.imu.time_sync != "auto":
+        return imu, None
+    from sinslab.data.spool import map_times
+    from sinslab.fusion.recorded import estimate_time_offset, shifted_times, significant_time_offset
+    # without a lever arm a clock offset cannot be told from the antenna's lag in turns
+    est = estimate_time_offset(imu, fx, lever_arm=cfg.gnss.lever_arm)
+    sync = significant_time_offset(est)
+    sync.update(windows=len(est["windows"]))
+    imu = map_times(imu, partial(shifted_times, offset=sync["offset"], ppm=sync["ppm"], t_ref=sync["t_ref"]),
+                    imu.dt * (1.0 - sync["ppm"] * 1e-6), _scratch("imu"))
+    echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
+         f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
+         f"{sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
+         f"({'applied' if sync['ppm_applied'] else 'not significant, not applied'}); from turn "
+         f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows "
+         f"(significant: > {sync['threshold_sigmas']:.1f} σ)"
+         + (f"; no lever arm given: a lag of {sync['speed_lag_m']:.2f} ± {sync['speed_lag_sigma_m']:.2f} m "
+            "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else ""))
+    return imu, sync
+
+
+def _with_error_model(aids, em):
+    """The aids with the σ an error-model file's ``[aiding]`` table gives them
+    (:data:`sinslab.app.error_model.AID_SETTINGS`)."""
+    if em is None:
+        return aids
+    from sinslab.app.error_model import aid_settings
+    return [replace(a, **aid_settings(a.name, em[1])) for a in aids]
+
+
+def _options(cfg, em, imu, fx):
+    """The run's options (:class:`sinslab.fusion.recorded.NavOptions`), made once."""
+    from sinslab.app.error_model import NavOptionsDraft, apply_error_model
+    from sinslab.fusion.lag import lag_policy
+    from sinslab.fusion.recorded import NavOptions, parse_outages
+    opt = NavOptionsDraft(NavOptions())
+    if cfg.gnss.lever_arm is not None:
+        opt.lever_arm = cfg.gnss.lever_arm
+    opt.smooth = bool(cfg.filter.smooth)
     _spill_smoother(opt, imu, fx)
-    em_cfg = {}
     if em is not None:
-        from sinslab.app.error_model import apply_error_model
         apply_error_model(opt, em[0], em[1])
-        em_cfg = em[2]
-    nhc_cfg = opt.nhc_sigma
-    opt.nhc_sigma = (nhc_cfg or (0.1, 0.1)) if "nhc" in aids else None
-    if "zupt" in aids or "zaru" in aids:
-        has_flags = data.meta and "stationary" in data.meta
-        src_rest = req.rest or ("flags" if has_flags else "auto")
-        if src_rest not in ("auto", "flags"):
-            raise ValueError(f"--rest must be 'auto' or 'flags', got {req.rest!r}")
-        if src_rest == "flags":
-            if not has_flags:
-                raise ValueError("--rest flags: the IMU table has no rest-flag column (name it in "
-                                 "--columns as stationary=COLUMN)")
-            opt.rest_flags = data.meta["stationary"]
-        opt.zupt = src_rest
-        opt.zaru = "zaru" in aids
-    opt.estimate_lever = "lever" in aids
-    veh_cfg = _vehicle_options(opt, req.vehicle or {}, "nhc" in aids)
     t_ref = float(fx.t[0])
-    opt.outages = tuple(parse_outages(req.outages, t_ref)) if isinstance(req.outages, (str, type(None))) else tuple(req.outages)
-    if isinstance(req.outages, str):
+    opt.outages = tuple(parse_outages(cfg.gnss.outages, t_ref))
+    if cfg.gnss.outages not in ("none", ""):
         from sinslab.app.validate import check_outages
+        check_outages("--outages", cfg.gnss.outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
+    if cfg.gnss.source == "fixes":
+        opt.fix_latency = float(cfg.gnss.fixes.latency)
+        opt.lag = lag_policy(LAG_POLICY[cfg.gnss.fixes.lag])
+    opt.scale_factors = bool(cfg.filter.scale_factors) or opt.scale_factors
+    opt.heading = cfg.start.heading
+    opt.move_speed = cfg.start.course_speed
+    opt.heading_straight = cfg.start.course_spread
+    opt.platform = cfg.start.platform
+    return opt.build()
 
-        check_outages("--outages", req.outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
-    opt.fix_latency = float(req.fix_latency)
-    opt.lag = req.lag_policy
-    opt.scale_factors = bool(req.scale_factors) or opt.scale_factors
-    ini = req.initial
-    if "heading" in ini:
-        opt.heading = ini["heading"]
-    if "course_speed" in ini:
-        opt.move_speed = ini["course_speed"]
-    if "course_spread" in ini:
-        opt.heading_straight = ini["course_spread"]
-    opt.gnss_raw = raw_gnss
-    opt = opt.build()
-    res = navigate_recorded(imu, fx, opt)
+
+# ---------------------------------------------------------------------------- the run ---
+def _compute(cfg, echo) -> Output:
+    import sinslab.fusion.recorded as R         # numba and scipy: only when it runs
+    from sinslab.app.commands.navigate_config import config_value
+    from sinslab.app.plausibility import settle
+
+    p = _prepare(cfg, echo)
+    res = R.navigate_recorded(p.imu, p.source, p.opt, aids=p.aids)
     release_free_memory()              # the filter's working set, before the evaluation's
-    if res.fix_t.size == 0 and raw_gnss is None:
-        raise ValueError(f"{fix_name}: no fix was applied (outages, latency or the record's end "
-                         f"removed all {len(fx)}); the solution would be free inertial")
-    t, err, idx = fix_errors(res, fx)
-    hz = np.hypot(err[:, 0], err[:, 1])
-    starts, oe = outage_end_errors(res, fx)
-    outs = res.init["outages"]
-    in_out = np.zeros(t.size, bool)
-    for s, ln in outs:
-        in_out |= (t >= s) & (t < s + ln)
-    lab = list(res.labels)
-    i_gb = [lab.index(f"eps_{a}") for a in "xyz"]
-    i_ab = [lab.index(f"nabla_{a}") for a in "xyz"]
-    att = A.quat_to_euler(res.nav[-1:, :4])[0]      # the last epoch's (the tables make the rest)
-    metrics = {
-        "duration_s": float(res.t[-1] - res.t[0]), "n_fixes_used": int(res.fix_t.size),
-        "n_outages": len(outs), "outage_end_hz_err_median_m": float(np.median(oe)) if oe.size else None,
-        "outage_end_hz_err_max_m": float(np.max(oe)) if oe.size else None,
-        "outage_end_hz_err_m": oe.tolist(),
-        "hz_err_with_fixes_median_m": float(np.median(hz[~in_out])) if (~in_out).any() else None,
-        "hz_err_with_fixes_max_m": float(np.max(hz[~in_out])) if (~in_out).any() else None,
-        "hz_err_with_fixes_p99_m": float(np.percentile(hz[~in_out], 99)) if (~in_out).any() else None,
-        "nis_mean": float(np.mean(res.nis)) if res.nis.size else None,
-        "final_pitch_deg": float(np.degrees(att[0])), "final_roll_deg": float(np.degrees(att[1])),
-        "final_heading_deg": float(np.degrees(np.mod(A.yaw_to_heading(att[2]), 2 * np.pi))),
-        "final_sigma_heading_deg": float(np.degrees(res.sigma[-1, 2])),
-        "gyro_bias_final_dph": (res.gyro_bias[-1] / units.dph).tolist(),
-        "gyro_bias_sigma_final_dph": (res.sigma[-1, i_gb] / units.dph).tolist(),
-        "accel_bias_final_ug": (res.accel_bias[-1] / units.ug).tolist(),
-        "accel_bias_sigma_final_ug": (res.sigma[-1, i_ab] / units.ug).tolist(),
-        "initial_heading_deg": float(np.degrees(res.init["heading"])),
-        "imu_gaps": int(len(data.gaps)),
-    }
-    hs = res.init.get("heading_sigma")
-    metrics["initial_heading_sigma_deg"] = float(np.degrees(hs)) if hs is not None else None
-    metrics["initial_attitude_sigma_deg"] = np.degrees(res.sigma[0, :3]).tolist()
-    metrics["fixes_after_grid"] = int(res.init.get("fixes_after_grid", 0))
-    metrics["filter_gyro_arw_deg_sqrth"] = (np.asarray(res.init["filter_gyro_arw"]) / (units.deg / 60)).tolist()
-    metrics["filter_accel_vrw_ug_sqrthz"] = (np.asarray(res.init["filter_accel_vrw"]) / units.ug).tolist()
-    noise_warn = _noise_check(res.init, metrics, echo)
-    from sinslab.app.described import SETTLE_S
-    settling = np.zeros(t.size, bool)
-    for s0, ln in outs:
-        settling |= (t >= s0 + ln) & (t < s0 + ln + SETTLE_S)
-    if raw_gnss is None:
-        claims, extra = navigate_claims(
-            res.nis, res.innovation.shape[1] if res.innovation.ndim == 2 else 3, hz[~in_out],
-            np.hypot(*np.maximum(fx.sigma[idx], opt.fix.pos_sigma_floor)[~in_out, :2].T),
-            ~settling[~in_out])
-    else:
-        from sinslab.app.commands.raw_gnss import raw_claims
-        claims, extra = raw_claims(raw_gnss)
-    metrics.update(extra)
-    if raw_gnss is None:            # the fix NIS (a raw run's per-row NIS is in its own claims)
-        if res.nis.size and extra["nis_verdict"] != "consistent":
-            echo(f"  mean NIS {metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: "
-                 f"{extra['nis_verdict']}")
-        if res.innovation_sigma is not None:
-            found += consistency_findings(res.fix_t, res.innovation, res.innovation_sigma, res.nis,
-                                          _innovation_labels(res.innovation.shape[1]))
-    if res.init.get("rest_start") is not None:        # |f| at the initial rest against gravity
-        from sinslab.app.plausibility import rest_gravity_findings
+    recs = res.source.fix_records
+    if recs is not None and recs[0].size == 0:
+        raise ValueError(f"{p.fix_name}: no fix was applied (outages, latency or the record's end "
+                         f"removed all {len(p.fx)}); the solution would be free inertial")
+    ev = _Evaluation.of(res, p.fx)
+    metrics = _metrics(res, p, ev)
+    noise_warn = _noise_check(res.start, metrics, echo)
+    claims = _claims(res, p, ev, metrics, echo)
+    _say(res, p, ev, metrics, echo)
+    warnings = settle(p.found, strict=cfg.output.strict, echo=echo)
+    every = max(1, int(round(1.0 / (cfg.output.csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
+    tables = _tables(res, ev, every)
+    figures = _figures(res, p, ev)
+    notes = _notes(res, p, metrics, noise_warn, echo)
+    if res.smoothed is not None:
+        _smoothed_outputs(res, p.fx, res.outages, metrics, tables, figures, echo, every)
+    for rep in (res.source, *res.aids):
+        _plugin_outputs(rep, metrics, tables, figures, notes, echo, float(res.t[0]))
+    if res.source.rows:
+        from sinslab.app.commands.raw_gnss import raw_figures
+        figures += raw_figures(res, res.source)
+    return Output(config=config_value(cfg), metrics=metrics, tables=tables, figures=figures, notes=notes,
+                  value=(res, p.fx), claims=claims, warnings=warnings)
 
-        at_rest = imu.slice(res.init["rest_start"], res.init["rest_end"])
-        found += rest_gravity_findings(at_rest, f"{req.imu_path} (initial rest)", lat=float(fx.lat[0]),
-                                       h=float(fx.h[0]))
-    if sync is not None:
-        metrics.update(time_sync_offset_s=sync["offset"], time_sync_ppm=sync["ppm"],
-                       time_sync_offset_estimate_s=sync["offset_estimate"],
-                       time_sync_offset_sigma_s=sync["offset_sigma"],
-                       time_sync_ppm_estimate=sync["ppm_estimate"], time_sync_ppm_sigma=sync["ppm_sigma"],
-                       time_sync_offset_applied=sync["offset_applied"],
-                       time_sync_ppm_applied=sync["ppm_applied"], time_sync_windows=sync["windows"],
-                       time_sync_threshold_sigmas=sync["threshold_sigmas"])
-    if "lever_arm_estimate" in res.init:
-        metrics["lever_arm_estimate_m"] = res.init["lever_arm_estimate"]
-        metrics["lever_arm_sigma_m"] = res.init["lever_arm_sigma"]
-    if "vehicle_mount_estimate" in res.init:
-        ve, vs = res.init["vehicle_mount_estimate"], res.init["vehicle_mount_sigma"]
-        metrics["vehicle_mount_estimate_deg"] = np.degrees(ve).tolist()
-        metrics["vehicle_mount_sigma_deg"] = [None if x is None else float(np.degrees(x)) for x in vs]
-        metrics["nhc_lever_estimate_m"] = res.init["nhc_lever_estimate"]
-        metrics["nhc_lever_sigma_m"] = res.init["nhc_lever_sigma"]
-        echo(f"  vehicle mount (IMU in the vehicle) pitch {np.degrees(ve[0]):.2f} ± {np.degrees(vs[0]):.2f} deg, "
-             f"yaw {np.degrees(ve[2]):.2f} ± {np.degrees(vs[2]):.2f} deg; NHC lever [m] "
-             + ", ".join(f"{a:.2f} ± {b:.2f}" for a, b in zip(res.init["nhc_lever_estimate"], res.init["nhc_lever_sigma"])))
-    metrics["platform"] = res.init["platform"][0]
-    if opt.aiding.zupt is not None:
-        metrics["rest_intervals"] = len(res.init.get("rest_intervals", []))
-        metrics["rest_total_s"] = float(sum(b - a for a, b in res.init.get("rest_intervals", [])))
-    for nm, g in res.init.get("aiding_gate", {}).items():
-        metrics[f"{nm}_updates_applied"] = g["applied"]
-        metrics[f"{nm}_updates_rejected"] = g["rejected"]
-        if g["rejected"]:
-            sp_ = g["rejected_spans"]
-            echo(f"  {nm.upper()}: {g['rejected']} of {g['applied'] + g['rejected']} updates rejected by the "
-                 f"innovation gate (the filter's own velocity/rate contradicts them), in {len(sp_)} span(s) from "
-                 + ", ".join(f"{a - fx.t[0]:.1f}-{b - fx.t[0]:.1f} s" for a, b in sp_[:4])
-                 + (" ..." if len(sp_) > 4 else ""))
+
+@dataclass
+class _Evaluation:
+    """The solution against the reference fixes: times, errors (east, north, up [m]) and
+    the fixes' rows, horizontal errors, which lie in an outage, the error at each outage's end."""
+
+    t: np.ndarray
+    err: np.ndarray
+    idx: np.ndarray
+    hz: np.ndarray
+    in_out: np.ndarray
+    oe: np.ndarray
+
+    @classmethod
+    def of(cls, res, fx):
+        from sinslab.fusion.recorded import fix_errors, outage_end_errors
+        t, err, idx = fix_errors(res, fx)
+        _, oe = outage_end_errors(res, fx)
+        in_out = np.zeros(t.size, bool)
+        for s, ln in res.outages:
+            in_out |= (t >= s) & (t < s + ln)
+        return cls(t, err, idx, np.hypot(err[:, 0], err[:, 1]), in_out, oe)
+
+
+def _metrics(res, p, ev):
+    """The run's own metrics (the plug-ins add theirs)."""
+    from sinslab.core import attitude as A
+    hz, ok, oe = ev.hz, ~ev.in_out, ev.oe
+    lab = list(res.labels)
+    i_gb, i_ab = [lab.index(f"eps_{a}") for a in "xyz"], [lab.index(f"nabla_{a}") for a in "xyz"]
+    att = A.quat_to_euler(res.nav[-1:, :4])[0]      # the last epoch's (the tables make the rest)
+    st = res.start
+    m = {"duration_s": float(res.t[-1] - res.t[0]), "n_outages": len(res.outages),
+         "outage_end_hz_err_median_m": float(np.median(oe)) if oe.size else None,
+         "outage_end_hz_err_max_m": float(np.max(oe)) if oe.size else None, "outage_end_hz_err_m": oe.tolist(),
+         "hz_err_with_fixes_median_m": float(np.median(hz[ok])) if ok.any() else None,
+         "hz_err_with_fixes_max_m": float(np.max(hz[ok])) if ok.any() else None,
+         "hz_err_with_fixes_p99_m": float(np.percentile(hz[ok], 99)) if ok.any() else None,
+         "final_pitch_deg": float(np.degrees(att[0])), "final_roll_deg": float(np.degrees(att[1])),
+         "final_heading_deg": float(np.degrees(np.mod(A.yaw_to_heading(att[2]), 2 * np.pi))),
+         "final_sigma_heading_deg": float(np.degrees(res.sigma[-1, 2])),
+         "gyro_bias_final_dph": (res.gyro_bias[-1] / units.dph).tolist(),
+         "gyro_bias_sigma_final_dph": (res.sigma[-1, i_gb] / units.dph).tolist(),
+         "accel_bias_final_ug": (res.accel_bias[-1] / units.ug).tolist(),
+         "accel_bias_sigma_final_ug": (res.sigma[-1, i_ab] / units.ug).tolist(),
+         "initial_heading_deg": float(np.degrees(st.heading)), "imu_gaps": int(len(p.data.gaps)),
+         "initial_heading_sigma_deg": float(np.degrees(st.heading_sigma)) if st.heading_sigma is not None else None,
+         "initial_attitude_sigma_deg": np.degrees(res.sigma[0, :3]).tolist(),
+         "fixes_after_grid": int(res.fixes_after_grid),
+         "filter_gyro_arw_deg_sqrth": (np.asarray(st.gyro_noise) / (units.deg / 60)).tolist(),
+         "filter_accel_vrw_ug_sqrthz": (np.asarray(st.accel_noise) / units.ug).tolist()}
+    s = p.sync
+    if s is not None:
+        m.update(time_sync_offset_s=s["offset"], time_sync_ppm=s["ppm"], time_sync_offset_estimate_s=s["offset_estimate"],
+                 time_sync_offset_sigma_s=s["offset_sigma"], time_sync_ppm_estimate=s["ppm_estimate"],
+                 time_sync_ppm_sigma=s["ppm_sigma"], time_sync_offset_applied=s["offset_applied"],
+                 time_sync_ppm_applied=s["ppm_applied"], time_sync_windows=s["windows"],
+                 time_sync_threshold_sigmas=s["threshold_sigmas"])
+    m["platform"] = res.platform[0]
     if res.scale is not None:
-        metrics["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
-    cfg = {"imu": (" + ".join(map(_abs, req.imu_path)) if isinstance(req.imu_path, (list, tuple))
-                   else _abs(req.imu_path)),
-           "fixes": (fix_name if req.fix_path is None else " + ".join(map(_abs, req.fix_path))
-                     if isinstance(req.fix_path, list) else _abs(req.fix_path)),
-           "format": data.format,
-           "lever_arm": f"[{', '.join(f'{x:g}' for x in opt.fix.lever_arm)}] m",
-           "mount": str(req.mount) if req.mount is not None else "none", "frame": req.frame or "rfu",
-           "outages": str(req.outages or "none"), "fix_latency": f"{req.fix_latency:g} s", "lag": req.lag,
-           "init": str(req.init or ""), "time_sync": req.time_sync, "velocity_lag": f"{req.velocity_lag:g} s",
-           "imu_delay": f"{req.imu_delay:g} s", "scale_factors": bool(opt.errors.scale_factors),
-           "columns": str(req.columns) if req.columns is not None else "auto",
-           "fix_columns": str(req.fix_columns) if req.fix_columns is not None else "auto",
-           "fix_quality": str(req.fix_quality) if req.fix_quality is not None else "all",
-           "aid": ",".join(sorted(aids)) or "none", "rest": opt.aiding.zupt or "none",
-           "csv_rate": f"{req.csv_rate:g} Hz", "heading_window": f"{opt.start.heading_window:g} s",
-           "imu_errors": {**({"source": "built-in defaults (white noise measured at the initial "
-                                        "rest, floored at the defaults)"} if not em_cfg else em_cfg)}}
-    echo(f"{data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {fix_name}: {len(fx)} fixes"
+        m["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()
+    return m
+
+
+def _claims(res, p, ev, metrics, echo):
+    """The source's checks: the fixes' NIS and residuals against their σ
+    (:func:`sinslab.app.described.navigate_claims`) and the run's consistency findings,
+    or the satellites' NIS (:func:`sinslab.app.commands.raw_gnss.raw_claims`); the
+    initial rest's |f| against gravity."""
+    recs = res.source.fix_records
+    if recs is None:
+        from sinslab.app.commands.raw_gnss import raw_claims
+        claims, extra = raw_claims(res.source.rows)
+    else:
+        from sinslab.app.described import SETTLE_S, navigate_claims
+        from sinslab.app.plausibility import consistency_findings
+        fix_t, inn, sd, nis = recs
+        settling = np.zeros(ev.t.size, bool)
+        for s0, ln in res.outages:
+            settling |= (ev.t >= s0 + ln) & (ev.t < s0 + ln + SETTLE_S)
+        ok = ~ev.in_out
+        claims, extra = navigate_claims(
+            nis, inn.shape[1] if inn.ndim == 2 else 3, ev.hz[ok],
+            np.hypot(*np.maximum(p.fx.sigma[ev.idx], p.opt.fix.pos_sigma_floor)[ok, :2].T), ~settling[ok])
+        if nis.size and extra["nis_verdict"] != "consistent":
+            echo(f"  mean NIS {res.source.metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: "
+                 f"{extra['nis_verdict']}")
+        if sd is not None:
+            p.found += consistency_findings(fix_t, inn, sd, nis, _innovation_labels(inn.shape[1]))
+    metrics.update(extra)
+    if res.start.rest is not None:        # |f| at the initial rest against gravity
+        from sinslab.app.plausibility import rest_gravity_findings
+        at_rest = p.imu.slice(res.start.rest.t0, res.start.rest.t1)
+        p.found += rest_gravity_findings(at_rest, f"{_files(p.cfg.imu.file)} (initial rest)", lat=float(p.fx.lat[0]),
+                                         h=float(p.fx.h[0]))
+    return claims
+
+
+def _say(res, p, ev, metrics, echo):
+    """The run on the terminal."""
+    imu, fx, st = p.imu, p.fx, res.start
+    hz, ok = ev.hz, ~ev.in_out
+    echo(f"{p.data.path}: {len(imu)} samples at {1 / imu.dt:.4g} Hz; {p.fix_name}: {len(fx)} fixes"
          f"{' with velocity' if fx.vel is not None else ''}")
-    if not res.init.get("rest_start"):
-        echo(f"  no rest at the start: pitch {np.degrees(res.init['pitch']):.2f} deg, roll "
-             f"{np.degrees(res.init['roll']):.2f} deg {res.init.get('level_source')}")
-    echo(f"  start {res.init['t_start'] - fx.t[0]:.2f} s after the first fix; heading "
-         f"{np.degrees(res.init['heading']):.2f} deg (clockwise from north, {res.init['heading_source']})")
-    if res.init.get("motion_alignment"):
-        ma = res.init["motion_alignment"]
-        echo(f"  attitude from an in-motion alignment over {ma['window_s']:.1f} s of fixes before the start (the gyros "
-             f"would have carried the levelling {ma['carried_s']:.1f} s): filter σ at the start pitch/roll "
-             f"{metrics['initial_attitude_sigma_deg'][0]:.1f}, {metrics['initial_attitude_sigma_deg'][1]:.1f} deg, "
-             f"heading {metrics['initial_attitude_sigma_deg'][2]:.1f} deg"
-             f"{'' if ma['heading'] else ' (heading from the course)'}")
-    if res.init.get("tilt_carried_s", 0.0) > 1.0:
-        echo(f"  pitch and roll carried by the gyros {res.init['tilt_carried_s']:.1f} s from the rest: filter σ at "
-             f"the start pitch/roll {metrics['initial_attitude_sigma_deg'][0]:.1f}, "
-             f"{metrics['initial_attitude_sigma_deg'][1]:.1f} deg, heading {metrics['initial_attitude_sigma_deg'][2]:.1f} deg")
-    if oe.size:
-        echo(f"  {len(outs)} outages: horizontal error at their end median {np.median(oe):.2f} m, "
-             f"max {np.max(oe):.2f} m")
-    if (~in_out).any():
-        echo(f"  with fixes: horizontal error median {np.median(hz[~in_out]):.3f} m, 99th percentile "
-             f"{np.percentile(hz[~in_out], 99):.3f} m, max {np.max(hz[~in_out]):.3f} m")
+    if st.rest is None:
+        echo(f"  no rest at the start: pitch {np.degrees(st.pitch):.2f} deg, roll "
+             f"{np.degrees(st.roll):.2f} deg {st.level.source}")
+    echo(f"  start {st.t - fx.t[0]:.2f} s after the first fix; heading "
+         f"{np.degrees(st.heading):.2f} deg (clockwise from north, {st.heading_source})")
+    sig0 = metrics["initial_attitude_sigma_deg"]
+    if st.motion_fit is not None:
+        ma = st.motion_fit
+        echo(f"  attitude from an in-motion alignment over {ma.window_s:.1f} s of fixes before the start (the gyros "
+             f"would have carried the levelling {ma.carried_s:.1f} s): filter σ at the start pitch/roll "
+             f"{sig0[0]:.1f}, {sig0[1]:.1f} deg, heading {sig0[2]:.1f} deg"
+             f"{'' if ma.heading else ' (heading from the course)'}")
+    if st.tilt_carried_s > 1.0:
+        echo(f"  pitch and roll carried by the gyros {st.tilt_carried_s:.1f} s from the rest: filter σ at "
+             f"the start pitch/roll {sig0[0]:.1f}, {sig0[1]:.1f} deg, heading {sig0[2]:.1f} deg")
+    if ev.oe.size:
+        echo(f"  {len(res.outages)} outages: horizontal error at their end median {np.median(ev.oe):.2f} m, "
+             f"max {np.max(ev.oe):.2f} m")
+    if ok.any():
+        echo(f"  against {res.source.reference}: horizontal error median {np.median(hz[ok]):.3f} m, 99th "
+             f"percentile {np.percentile(hz[ok], 99):.3f} m, max {np.max(hz[ok]):.3f} m")
     echo(f"  final attitude pitch {metrics['final_pitch_deg']:.3f} deg, roll {metrics['final_roll_deg']:.3f} deg, "
          f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
     echo(f"  gyro bias [°/h] {np.round(metrics['gyro_bias_final_dph'], 1).tolist()}, accel bias [µg] "
          f"{np.round(metrics['accel_bias_final_ug'], 0).tolist()}")
-    warnings = settle(found, strict=req.strict, echo=echo)
 
-    sig = res.sigma
-    every = max(1, int(round(1.0 / (req.csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
-    tables = [Series("solution", _solution_table(res), f"navigation solution at every filter epoch with filter sigma "
-                     f"(Parquet; the CSV every {every}-th epoch, {1 / (every * (res.t[1] - res.t[0])):.4g} Hz)"
-                     if res.t.size > 1 else "navigation solution", csv_every=every),
-              Series("fix_errors", {"t_s": t - res.t[0], "east_m": err[:, 0], "north_m": err[:, 1],
-                                    "up_m": err[:, 2], "in_outage": in_out.astype(float)},
-                     "solution (antenna) minus fix at every fix time")]
-    figures = []
-    # figures
+
+def _notes(res, p, metrics, noise_warn, echo):
+    """The report's notes on the start, the time sync and the error model."""
+    st, fx, s = res.start, p.fx, p.sync
+    notes = ["Heading is clockwise from north.",
+             f"Initial attitude: {st.heading_source}; levelling over the initial rest." if st.rest is not None else
+             f"No rest at the start: pitch and roll {st.level.source}; heading {st.heading_source}."]
+    if st.motion_fit is not None:
+        notes.append(f"Initial attitude from an in-motion alignment over {st.motion_fit.window_s:.1f} s of fixes "
+                     f"before the start, not the rest's levelling carried {st.motion_fit.carried_s:.1f} s by the gyros.")
+    if st.heading_sigma is not None:
+        notes.append(f"Initial heading {np.degrees(st.heading):.2f} deg ± {np.degrees(st.heading_sigma):.2f} deg "
+                     "(1σ of the course window).")
+    if metrics["fixes_after_grid"]:
+        notes.append(f"{metrics['fixes_after_grid']} fix(es) after the last whole filter step "
+                     f"({res.grid_end - fx.t[0]:.3f} s after the first fix) were not used.")
+        echo(f"  {metrics['fixes_after_grid']} fix(es) after the last whole filter step dropped")
+    if s is not None:
+        notes.append(f"Time sync: offset {s['offset_estimate'] * 1e3:.1f} ± {s['offset_sigma'] * 1e3:.1f} ms "
+                     f"({'applied' if s['offset_applied'] else 'not applied: not significant at 3σ'}), "
+                     f"clock {s['ppm_estimate']:.0f} ± {s['ppm_sigma']:.0f} ppm "
+                     f"({'applied' if s['ppm_applied'] else 'not applied'}).")
+    if noise_warn:
+        notes.append(noise_warn)
+    em = p.em_cfg
+    notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em.items()) if em else
+                                    "built-in defaults (white noise measured at the initial rest)."))
+    return notes
+
+
+def _plugin_outputs(rep, metrics, tables, figures, notes, echo, t0):
+    """A plug-in's report (:class:`sinslab.fusion.aids.base.Report`) into the run folder:
+    its metrics, tables, notes, terminal lines and figures of panels."""
+    metrics.update(rep.metrics)
+    for line in rep.lines:
+        echo(line)
+    notes += list(rep.notes)
+    tables += [Series(t.name, t.columns, t.description) for t in rep.tables]
+    for f in rep.figures:
+        figures.append(_panel_figure(f, t0))
+
+
+def _panel_figure(f, t0):
+    """A figure of panels (:class:`sinslab.fusion.aids.base.PanelFigure`) drawn on one
+    time axis (times from the filter start ``t0``)."""
+    from sinslab.app import plotting
+    fig, axes = plotting.figure(len(f.panels), 1, width=9.0)
+    for ax, pan in zip(np.atleast_1d(axes), f.panels):
+        for k, ln in enumerate(pan.lines):
+            t = np.asarray(ln.t, dtype=float)
+            y = np.asarray(ln.y, dtype=float)
+            c = plotting.COLORS[k % len(plotting.COLORS)]
+            (ax.semilogy if pan.log else ax.plot)(t, y, ln.style, lw=1, ms=1.5, color=c, label=ln.label or None)
+            if ln.band is not None:
+                b = np.asarray(ln.band, dtype=float)
+                ax.fill_between(t, y - b, y + b, color=c, alpha=0.2, lw=0)
+        for a, b in pan.spans:
+            ax.axvspan(a, b, color="0.85", lw=0)
+        ax.set_ylabel(pan.ylabel)
+        if any(ln.label for ln in pan.lines):
+            ax.legend(fontsize=8)
+    np.atleast_1d(axes)[-1].set_xlabel("time since the filter start [s]")
+    if f.title:
+        fig.suptitle(f.title)
+    return Figure(f.name, fig, f.caption)
+
+
+def _tables(res, ev, every):
+    sol = Series("solution", _solution_table(res), f"navigation solution at every filter epoch with filter sigma "
+                 f"(Parquet; the CSV every {every}-th epoch, {1 / (every * (res.t[1] - res.t[0])):.4g} Hz)"
+                 if res.t.size > 1 else "navigation solution", csv_every=every)
+    err = Series("fix_errors", {"t_s": ev.t - res.t[0], "east_m": ev.err[:, 0], "north_m": ev.err[:, 1],
+                                "up_m": ev.err[:, 2], "in_outage": ev.in_out.astype(float)},
+                 f"solution (antenna) minus {res.source.reference} at every fix time")
+    return [sol, err]
+
+
+def _figures(res, p, ev):
+    """The track, the errors against the reference (with what the aids mark) and the σ."""
+    return [_track_figure(res, p.fx), _error_figure(res, ev), _sigma_figure(res)]
+
+
+def _track_figure(res, fx):
     from sinslab.app import plotting            # matplotlib: once the run has computed
+    from sinslab.core import earth as E
     lat0, lon0 = fx.lat[0], fx.lon[0]
     rm, rn = E.radii(lat0, fx.h[0])
     xe = (fx.lon - lon0) * rn * math.cos(lat0)
@@ -554,7 +591,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
     ax = axes[0]
     ax.plot(xe, yn, "k.", ms=1.5, label="fixes")
     ax.plot(se, sn, "-", color=plotting.COLORS[0], lw=1, label="INS/fix solution")
-    for s, ln in outs:
+    for s, ln in res.outages:
         m = (t_tr >= s) & (t_tr < s + ln)
         ax.plot(se[m], sn[m], "-", color=plotting.COLORS[1], lw=2)
     ax.plot([], [], "-", color=plotting.COLORS[1], lw=2, label="during outages")
@@ -562,25 +599,37 @@ def _compute(req: NavigateRequest, echo) -> Output:
     ax.set_xlabel("east [m]")
     ax.set_ylabel("north [m]")
     ax.legend()
-    figures.append(Figure("track", fig, "Track on a local ENU map (origin at the first fix); outages in red."))
+    return Figure("track", fig, "Track on a local ENU map (origin at the first fix); outages in red.")
+
+
+def _error_figure(res, ev):
+    from sinslab.app import plotting
     fig, axes = plotting.figure(3, 1, width=9.0)
-    tt = t - res.t[0]
-    rest_iv = res.init.get("rest_intervals", [])
-    gated = [sp_ for g in res.init.get("aiding_gate", {}).values() for sp_ in g["rejected_spans"]]
+    tt = ev.t - res.t[0]
+    marks = [mk for rep in (res.source, *res.aids) for mk in rep.marks]
     for ax, k, nm in zip(axes, range(3), ("east", "north", "up")):
-        ax.plot(tt, err[:, k], ".", ms=1.5, color=plotting.COLORS[k])
+        ax.plot(tt, ev.err[:, k], ".", ms=1.5, color=plotting.COLORS[k])
         ax.set_ylabel(f"{nm} error [m]")
-        for s, ln in outs:
+        for s, ln in res.outages:
             ax.axvspan(s - res.t[0], s + ln - res.t[0], color="0.85", lw=0)
-        for a, b in rest_iv:
-            ax.axvspan(a - res.t[0], b - res.t[0], color=plotting.COLORS[2], alpha=0.15, lw=0)
-        for a, b in gated:
-            ax.axvspan(a - res.t[0], b - res.t[0], ymin=0.9, ymax=1.0, color=plotting.COLORS[3], lw=0)
+        for mk in marks:
+            for a, b in mk.spans:
+                if mk.kind == "band":
+                    ax.axvspan(a - res.t[0], b - res.t[0], color=plotting.COLORS[2], alpha=0.15, lw=0)
+                else:
+                    ax.axvspan(a - res.t[0], b - res.t[0], ymin=0.9, ymax=1.0, color=plotting.COLORS[3], lw=0)
     axes[-1].set_xlabel("time [s]")
-    fig.suptitle("Solution minus fixes (grey: outages"
-                 + ("; green: rest (ZUPT/ZARU)" if rest_iv else "")
-                 + ("; top bar: aiding rejected by the gate" if gated else "") + ")")
-    figures.append(Figure("errors", fig, "Position error of the solution (antenna) versus every fix."))
+    labels = list(dict.fromkeys((("; green: " if mk.kind == "band" else "; top bar: ") + mk.label)
+                                for mk in marks if mk.spans))
+    fig.suptitle(f"Solution minus {res.source.reference} (grey: outages" + "".join(labels) + ")")
+    return Figure("errors", fig, f"Position error of the solution (antenna) versus {res.source.reference}.")
+
+
+def _sigma_figure(res):
+    from sinslab.app import plotting
+    sig = res.sigma
+    lab = list(res.labels)
+    i_gb, i_ab = [lab.index(f"eps_{a}") for a in "xyz"], [lab.index(f"nabla_{a}") for a in "xyz"]
     fig, axes = plotting.figure(3, 1, width=9.0)
     ts_ = _Shifted(res.t)
     _semilogy(axes[0], ts_, lambda a, b: np.degrees(sig[a:b, 0:3]) * 60, release=(sig,), lw=1)
@@ -593,52 +642,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
     axes[2].set_ylabel("accel bias σ [µg]")
     axes[2].legend(["x", "y", "z"], fontsize=8)
     axes[2].set_xlabel("time [s]")
-    figures.append(Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases."))
-    if res.smoothed is not None:
-        _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, every)
-    cfg.update(odo_cfg)
-    cfg.update(veh_cfg)
-    notes = ["Heading is clockwise from north.",
-             f"Initial attitude: {res.init.get('heading_source')}; levelling over the initial rest."
-             if res.init.get("rest_start") else
-             f"No rest at the start: pitch and roll {res.init.get('level_source')}; heading "
-             f"{res.init.get('heading_source')}."]
-    if res.init.get("motion_alignment"):
-        notes.append(f"Initial attitude from an in-motion alignment over {res.init['motion_alignment']['window_s']:.1f} s "
-                     f"of fixes before the start, not the rest's levelling carried "
-                     f"{res.init['motion_alignment']['carried_s']:.1f} s by the gyros.")
-    if hs is not None:
-        notes.append(f"Initial heading {np.degrees(res.init['heading']):.2f} deg ± "
-                     f"{np.degrees(hs):.2f} deg (1σ of the course window).")
-    if metrics["fixes_after_grid"]:
-        notes.append(f"{metrics['fixes_after_grid']} fix(es) after the last whole filter step "
-                     f"({res.init['grid_end'] - fx.t[0]:.3f} s after the first fix) were not used.")
-        echo(f"  {metrics['fixes_after_grid']} fix(es) after the last whole filter step dropped")
-    if sync is not None:
-        notes.append(f"Time sync: offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
-                     f"({'applied' if sync['offset_applied'] else 'not applied: not significant at 3σ'}), "
-                     f"clock {sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
-                     f"({'applied' if sync['ppm_applied'] else 'not applied'}).")
-    if "lever_arm_estimate" in res.init:
-        le, ls = res.init["lever_arm_estimate"], res.init["lever_arm_sigma"]
-        notes.append("Antenna lever arm estimated (vehicle right, forward, up): "
-                     + ", ".join(f"{a:.3f} ± {b:.3f}" for a, b in zip(le, ls)) + " m.")
-        echo("  lever arm estimate [m] " + ", ".join(f"{a:.3f} ± {b:.3f}" for a, b in zip(le, ls)))
-    if opt.aiding.zupt is not None:
-        notes.append(f"ZUPT{'/ZARU' if opt.aiding.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
-                     f"{metrics['rest_total_s']:.0f} s in all ({opt.aiding.zupt} detection).")
-    if noise_warn:
-        notes.append(noise_warn)
-    notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em_cfg.items()) if em_cfg else
-                                    "built-in defaults (white noise measured at the initial rest)."))
-    if raw_gnss is not None:
-        from sinslab.app.commands.raw_gnss import raw_outputs
-        raw_outputs(res, raw_gnss, metrics, tables, figures, notes, echo)
-        cfg.update(gnss_raw=str(req.raw["path"]), gnss_nav=str(req.raw.get("nav") or "none"),
-                   max_satellites=",".join(req.raw.get("max_satellites") or ()) or "none",
-                   elevation_mask_deg=float(req.raw.get("mask_deg", 10.0)))
-    return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  value=(res, fx), claims=claims, warnings=warnings)
+    return Figure("sigma", fig, "Filter standard deviations of attitude and sensor biases.")
 
 
 #: pixel columns a filter-epoch series is thinned to before it is plotted (more than any
@@ -794,11 +798,6 @@ def _smoothed_table(res):
     return ChunkedTable.of(rows, res.t.size, TABLE_CHUNK_ROWS)
 
 
-def _abs(path) -> str:
-    """A path as the report's re-run line gives it (absolute), for config.toml."""
-    return str(Path(path).absolute())
-
-
 def _read_fixes(read, path, fmt):
     """``read()`` of the fix file, any reader error naming it: a file in another format makes
     a reader fail anywhere (an IndexError on a short line), which is the file's fault, not a
@@ -835,14 +834,14 @@ def _say_fix_reading(meta, path, echo):
 NOISE_FACTOR = 3.0
 
 
-def _noise_check(init, metrics, echo):
+def _noise_check(start, metrics, echo):
     """The unit's white noise measured at the initial rest against the filter's: the
     densities into the metrics and, when an axis differs by more than ``NOISE_FACTOR``,
     a warning on the terminal; returns the warning (or "")."""
-    if "rest_gyro_noise" not in init:
+    if start.rest is None:
         return ""
-    gm = np.asarray(init["rest_gyro_noise"]) / (units.deg / 60)
-    am = np.asarray(init["rest_accel_noise"]) / units.ug
+    gm = np.asarray(start.rest.gyro_noise) / (units.deg / 60)
+    am = np.asarray(start.rest.accel_noise) / units.ug
     gf = np.asarray(metrics["filter_gyro_arw_deg_sqrth"])
     af = np.asarray(metrics["filter_accel_vrw_ug_sqrthz"])
     metrics["rest_gyro_noise_deg_sqrth"] = gm.tolist()
@@ -861,32 +860,6 @@ def _noise_check(init, metrics, echo):
            "the filter overconfident, a noise model far above it pessimistic")
     echo("  " + msg)
     return msg
-
-
-def _vehicle_options(opt, veh, nhc):
-    """``--vehicle-mount``, ``--nhc-lever``, ``--platform`` into the options (with NHC the
-    mount's pitch and yaw and the NHC lever are estimated from the values given);
-    returns their config entries."""
-    from sinslab.core import attitude as A
-    from sinslab.data.frames import sensor_to_body
-    from sinslab.fusion.recorded import PLATFORMS
-    plat = veh.get("platform") or "auto"
-    if plat not in PLATFORMS:
-        raise ValueError(f"--platform must be one of {', '.join(PLATFORMS)}, got {plat!r}")
-    opt.platform = plat
-    cfg = {"platform": plat}
-    if veh.get("mount") is not None:
-        try:
-            opt.vehicle_mount = tuple(A.dcm_to_euler(sensor_to_body(str(veh["mount"]), "rfu")))
-        except ValueError as e:
-            raise ValueError(f"--vehicle-mount: {e}") from None
-        cfg["vehicle_mount"] = str(veh["mount"])
-    if veh.get("lever") is not None:
-        opt.nhc_lever_arm = tuple(_vec3(veh["lever"], "length", "--nhc-lever"))
-        cfg["nhc_lever"] = f"[{', '.join(f'{x:g}' for x in opt.nhc_lever_arm)}] m"
-    opt.estimate_vehicle = bool(nhc)
-    cfg["vehicle_states"] = bool(nhc)
-    return cfg
 
 
 # ------------------------------------------------------------- memory estimate ---
@@ -1007,43 +980,7 @@ def check_memory(imu_path, fmt, smooth, available=None, fix_path=None):
     return need
 
 
-# ------------------------------------------------------- smoothing and odometer ---
-#: fastest wheel speed accepted [m/s] (above any car's or train's; 720 km/h)
-MAX_WHEEL_SPEED = 200.0
-
-
-def _smooth_odometer_options(opt, smo, imu_path, sync):
-    """Put ``--smooth`` and ``--odometer*`` into the options; returns their config entries."""
-    from sinslab.data.odometer import read_odometer
-    opt.smooth = bool(smo.get("smooth"))
-    cfg = {"smooth": opt.smooth}
-    spec = smo.get("odometer")
-    if spec is None:
-        for k in ("units", "lever", "sigma"):
-            if smo.get(k) is not None:
-                raise ValueError(f"--odometer-{k} needs --odometer FILE|COLUMN")
-        return cfg
-    odo = read_odometer(spec, imu_path, speed_unit=smo.get("units"))
-    if odo.speed.size and not np.max(odo.speed) <= MAX_WHEEL_SPEED:
-        i = int(np.argmax(odo.speed))
-        raise ValueError(f"--odometer {odo.source}: speed {odo.speed[i]:.4g} m/s at t = {odo.t[i]:.6g} s "
-                         f"is beyond any wheeled vehicle (<= {MAX_WHEEL_SPEED:g} m/s); a wrong unit "
-                         f"(--odometer-units) or column?")
-    if sync is not None:
-        odo = odo.shifted(sync["offset"], sync["ppm"], sync["t_ref"])
-    opt.odometer = odo
-    if smo.get("lever") is not None:
-        opt.odometer_lever = tuple(_vec3(smo["lever"], "length", "--odometer-lever"))
-    if smo.get("sigma") is not None:
-        from sinslab.app.validate import option_quantity
-
-        opt.odometer_sigma = option_quantity("--odometer-sigma", smo["sigma"], "velocity",
-                                             gt="0 m/s", le="100 m/s")
-    cfg.update(odometer=odo.source, odometer_lever=f"[{', '.join(f'{x:g}' for x in opt.odometer_lever)}] m",
-               odometer_sigma=f"{opt.odometer_sigma:g} m/s")
-    return cfg
-
-
+# ------------------------------------------------------------------ smoothing ---
 #: the smoother's record of the forward pass goes to disk (the run's scratch folder) when
 #: it would hold more than this in memory (estimated for 21 states)
 SMOOTH_SPILL_ABOVE = 64 * 2 ** 20
@@ -1103,10 +1040,6 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
         outage_mid_hz_err_forward_m=hz_f[mids].tolist(), outage_mid_hz_err_smoothed_m=hz_s[mids].tolist(),
         outage_mid_hz_err_smoothed_median_m=float(np.median(hz_s[mids])) if mids else None,
         smoothed_stored_epochs=int(sm.stored.size))
-    if res.options.aiding.odometer is not None:
-        i = [j for j, l in enumerate(res.labels) if l.startswith("kod")][0]
-        metrics.update(odometer_scale_final_ppm=float(sm.x[-1, i] * 1e6),
-                       odometer_scale_sigma_ppm=float(sm.sigma[-1, i] * 1e6))
     echo(f"  smoothed: horizontal error RMS {metrics['smoothed_hz_err_rms_m']:.3f} m "
          f"(forward {metrics['forward_hz_err_rms_m']:.3f} m) at {metrics['smoothed_err_reference']}")
     tables.append(Series("smoothed", _smoothed_table(res), "forward (fwd_) and smoothed (smo_) solutions and σ at every "
@@ -1120,7 +1053,7 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
     axes[0].legend()
     lat = res.nav[:, 7]
     rm, rn = E.radii(lat, res.nav[:, 9])
-    ip = list(res.labels).index("dL")
+    ip = res.layout.slice("dp").start
     sh_f = np.hypot(res.sigma[:, ip] * rm, res.sigma[:, ip + 1] * rn * np.cos(lat))
     sh_s = np.hypot(sm.sigma[:, ip] * rm, sm.sigma[:, ip + 1] * rn * np.cos(lat))
     ts_ = res.t - res.t[0]
@@ -1141,37 +1074,38 @@ def register(app):
     import typer
 
     @app.command()
-    def navigate(imu: list[Path] = typer.Option(..., "--imu", help="recorded IMU file; twice for accelerometers and gyros in two tables on one time column"),
-                 fixes: Optional[list[Path]] = typer.Option(None, "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp, .ubx NAV-PVT); twice for positions and velocities in two tables on one time column"),
-                 gnss_raw: Optional[Path] = typer.Option(None, "--gnss-raw", help="raw GNSS instead of fixes (tightly coupled): u-blox log (RAWX/SFRBX) or RINEX 2/3 observations"),
+    def navigate(config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML configuration (sinslab config navigate prints the defaults; a run folder's config.toml re-runs it)"),
+                 set_: Optional[list[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE", help='override a dotted config key, e.g. nhc.sigma="[0.2, 0.1] m/s" (repeatable)'),
+                 imu: Optional[list[Path]] = typer.Option(None, "--imu", help="recorded IMU file; twice for accelerometers and gyros in two tables on one time column (imu.file)"),
+                 fixes: Optional[list[Path]] = typer.Option(None, "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp, .ubx NAV-PVT); twice for positions and velocities in two tables on one time column (gnss.fixes.file)"),
+                 gnss_raw: Optional[Path] = typer.Option(None, "--gnss-raw", help="raw GNSS instead of fixes (tightly coupled): u-blox log (RAWX/SFRBX) or RINEX 2/3 observations (gnss.raw.file)"),
                  gnss_nav: Optional[Path] = typer.Option(None, "--gnss-nav", help="RINEX 2/3 navigation file (ephemerides) for --gnss-raw"),
                  max_satellites: Optional[list[str]] = typer.Option(None, "--max-satellites", help="K@START:DURATION: at most K satellites (highest first) from START s after the first GNSS epoch (repeatable)"),
-                 elevation_mask: float = typer.Option(10.0, "--elevation-mask", help="satellites below this elevation [deg] are not used (--gnss-raw)"),
+                 elevation_mask: Optional[float] = typer.Option(None, "--elevation-mask", help="satellites below this elevation [deg] are not used (--gnss-raw; default 10)"),
                  format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
                  fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
                  lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
                  mount: Optional[str] = typer.Option(None, "--mount", help="sensor -> vehicle rotation: rpy:R,P,Y | euler:P,R,Y (deg) | quat:W,X,Y,Z | matrix:M11,...,M33"),
-                 frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu (right-forward-up, default) | frd (forward-right-down) | flu (forward-left-up) | rbd (right-back-down)"),
+                 frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu (right-forward-up) | frd (forward-right-down) | flu (forward-left-up) | rbd (right-back-down); default: the format's own"),
                  outages: Optional[str] = typer.Option(None, "--outages", help="START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
-                 fix_latency: float = typer.Option(0.0, "--fix-latency", help="simulated fix latency [s]"),
-                 lag: str = typer.Option("aware", "--lag", help="aware | ignore (how late fixes are applied)"),
+                 fix_latency: Optional[float] = typer.Option(None, "--fix-latency", help="simulated fix latency [s]"),
+                 lag: Optional[str] = typer.Option(None, "--lag", help="aware | ignore (how late fixes are applied)"),
                  init: Optional[str] = typer.Option(None, "--init", help='heading="30 deg" (clockwise from north); default: from the fix course above course_speed (2 m/s) with course − gyro heading within course_spread (2 deg)'),
-                 time_sync: str = typer.Option("none", "--time-sync", help="auto: estimate the IMU time offset and clock drift from turns"),
-                 velocity_lag: float = typer.Option(0.0, "--velocity-lag", help="fix velocities describe this many s before their stamp"),
-                 imu_delay: float = typer.Option(0.0, "--imu-delay", help="add to RTKLIB IMU time stamps [s]"),
+                 time_sync: Optional[str] = typer.Option(None, "--time-sync", help="auto: estimate the IMU time offset and clock drift from turns"),
+                 velocity_lag: Optional[float] = typer.Option(None, "--velocity-lag", help="fix velocities describe this many s before their stamp"),
+                 imu_delay: Optional[float] = typer.Option(None, "--imu-delay", help="add to RTKLIB IMU time stamps [s]"),
                  scale_factors: bool = typer.Option(False, "--scale-factors", help="estimate gyro/accel scale factors"),
-                 max_gap: float = typer.Option(1.0, "--max-gap", help="longest IMU gap bridged [s]"),
+                 max_gap: Optional[float] = typer.Option(None, "--max-gap", help="longest IMU gap bridged [s] (default 1)"),
                  allow_gaps: bool = typer.Option(False, "--allow-gaps", help="bridge IMU gaps of any length"),
                  columns: Optional[str] = typer.Option(None, "--columns", help='IMU column map "t=Time[s],dtheta_x=DeltaTheta[0][rad],..." or a TOML file'),
                  imu_errors: Optional[str] = typer.Option(None, "--imu-errors", help="filter error model: a TOML file (ImuErrors keys) or a grade: consumer | industrial | tactical | navigation"),
-                 aid: Optional[str] = typer.Option(None, "--aid", help="aiding beyond the fixes: comma list of zupt, zaru, nhc, lever"),
+                 aid: Optional[str] = typer.Option(None, "--aid", help="aids beside the GNSS: comma list of zupt, zaru, nhc, lever, odometer (each has its config section: sinslab config navigate)"),
                  rest: Optional[str] = typer.Option(None, "--rest", help="rest for ZUPT/ZARU: auto (IMU detector) | flags (the log's column)"),
-                 csv_rate: float = typer.Option(1.0, "--csv-rate", help="rate of solution.csv [Hz] (solution.parquet: every filter epoch)"),
+                 csv_rate: Optional[float] = typer.Option(None, "--csv-rate", help="rate of solution.csv [Hz] (solution.parquet: every filter epoch; default 1)"),
                  out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]"),
                  force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)"),
-                 # smoothing and wheel odometer
                  smooth: bool = typer.Option(False, "--smooth", help="also write the RTS-smoothed solution (forward + backward pass)"),
-                 odometer: Optional[str] = typer.Option(None, "--odometer", help="wheel speeds: FILE (t, speed columns) or a COLUMN of the IMU table"),
+                 odometer: Optional[str] = typer.Option(None, "--odometer", help="wheel speeds: FILE (t, speed columns) or a COLUMN of the IMU table (enables the odometer aid)"),
                  odometer_units: Optional[str] = typer.Option(None, "--odometer-units", help="speed unit if the header has none, e.g. km/h"),
                  odometer_lever: Optional[str] = typer.Option(None, "--odometer-lever", help='IMU -> wheel point, vehicle right-forward-up, e.g. "[0, -1.2, -0.3] m"'),
                  odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]'),
@@ -1179,19 +1113,14 @@ def register(app):
                  fix_quality: Optional[str] = typer.Option(None, "--fix-quality", help="accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2"),
                  vehicle_mount: Optional[str] = typer.Option(None, "--vehicle-mount", help='IMU body (after --mount) in the vehicle frame, e.g. "euler:1.2,0,-1.5" (pitch, roll, yaw deg); with --aid nhc pitch and yaw are estimated from it'),
                  nhc_lever: Optional[str] = typer.Option(None, "--nhc-lever", help='IMU -> rear-axle centre, vehicle right-forward-up, e.g. "[0, -1.4, -0.5] m" (estimated from it with --aid nhc)'),
-                 platform: str = typer.Option("auto", "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)"),
+                 platform: Optional[str] = typer.Option(None, "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)"),
                  strict: bool = typer.Option(False, "--strict", help="refuse (exit 2, nothing written) instead of warning about the data or the run")) -> None:
-        """INS + position/velocity fixes (loosely coupled) or raw GNSS pseudoranges/Doppler (tightly coupled) on recorded data."""
-        cli_call(lambda: navigate_files(NavigateRequest(
-            imu, fixes, fmt=format, fix_format=fix_format, lever_arm=lever_arm, mount=mount, frame=frame,
-            outages=outages, fix_latency=fix_latency, lag=lag, init=init, time_sync=time_sync,
-            velocity_lag=velocity_lag, imu_delay=imu_delay, scale_factors=scale_factors,
-            max_gap=max_gap, allow_gaps=allow_gaps, columns=columns, imu_errors=imu_errors, aid=aid,
-            rest=rest, csv_rate=csv_rate, smooth=smooth, odometer=odometer,
-            odometer_units=odometer_units, odometer_lever=odometer_lever,
-            odometer_sigma=odometer_sigma, fix_columns=fix_columns, fix_quality=fix_quality,
-            vehicle_mount=vehicle_mount, nhc_lever=nhc_lever, platform=platform, gnss_raw=gnss_raw,
-            gnss_nav=gnss_nav, max_satellites=max_satellites, elevation_mask=elevation_mask,
-            strict=strict), out=out, echo=typer.echo), force=force)
+        """INS + GNSS fixes (loosely coupled) or raw pseudoranges/Doppler (tightly coupled), and aids, on recorded data.
+
+        Every option is a short form of a key of the run's configuration (--config FILE.toml,
+        --set key=value); the run folder's config.toml re-runs it."""
+        given = {k: v for k, v in locals().items() if k not in ("config", "set_", "out", "force", "typer")}
+        cli_call(lambda: navigate_files(navigate_config(config, set_ or (), **given), out=out, echo=typer.echo),
+                 force=force)
 
     return navigate

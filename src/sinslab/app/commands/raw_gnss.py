@@ -1,8 +1,9 @@
 """Raw GNSS in ``sinslab navigate`` (``--gnss-raw FILE [--gnss-nav FILE]``,
-``--max-satellites K@START:DURATION``): reading and checking the observations, the
-tightly coupled settings, and what the run folder shows of the satellites — their
-claims, tables and figures (sky plot, satellites used and rejected per epoch, receiver
-clock, residuals per satellite)."""
+``--max-satellites K@START:DURATION``, the ``[gnss.raw]`` section): reading and checking
+the observations, and what the run folder shows of the satellites beside the raw
+source's report (:class:`sinslab.fusion.tightly_coupled.RawSource`) — their claims and
+figures (sky plot, satellites used and rejected per epoch, receiver clock, residuals per
+satellite)."""
 from __future__ import annotations
 
 import math
@@ -10,7 +11,7 @@ import re
 
 import numpy as np
 
-__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_outputs"]
+__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures"]
 
 
 def parse_max_satellites(items, t_first):
@@ -29,21 +30,19 @@ def parse_max_satellites(items, t_first):
     return tuple(out)
 
 
-def load_raw(path, nav, max_satellites, imu, echo=print, mask_deg=10.0):
-    """Read and check the raw GNSS of ``navigate``; returns ``(RawGnss, fixes)`` with the
-    single-point fixes that start the filter.
+def load_raw(keys, imu, echo=print):
+    """Read and check the raw GNSS of ``navigate`` (``keys`` the ``[gnss.raw]`` section);
+    returns ``(RawGnss, fixes)`` with the single-point fixes that start the filter.
 
     One-line errors (the file and the cause): no raw measurements, no ephemeris for any
-    satellite, observations outside the IMU record, satellites below the mask only (the
-    elevation mask ``mask_deg`` [deg], 0..90); satellites without ephemeris are skipped and
-    counted."""
+    satellite, observations outside the IMU record, satellites below the mask only;
+    satellites without ephemeris are skipped and counted."""
     from sinslab.core.errors import InputError
     from sinslab.data.gnss import read_gnss_raw
     from sinslab.fusion.gnss import prepare
     from sinslab.fusion.tightly_coupled import RawGnss
 
-    if not (math.isfinite(mask_deg) and 0.0 <= mask_deg < 90.0):
-        raise ValueError(f"--elevation-mask {mask_deg:g}: give an elevation in degrees, 0 to below 90")
+    path, nav = keys.file, None if keys.nav in ("none", "") else keys.nav
     obs = read_gnss_raw(path, nav)
     sv = prepare(obs)
     t0, t1 = float(imu.t0), float(imu.t[-1])
@@ -54,8 +53,9 @@ def load_raw(path, nav, max_satellites, imu, echo=print, mask_deg=10.0):
     if not sv.usable.any():
         raise InputError(f"{path}: no satellite has an ephemeris"
                          + ("" if nav is not None else " (give a navigation file with --gnss-nav)"))
-    raw = RawGnss(sv, max_satellites=parse_max_satellites(max_satellites, float(sv.t_epoch[0])),
-                  mask=math.radians(mask_deg))
+    raw = RawGnss(sv, max_satellites=parse_max_satellites(keys.max_satellites, float(sv.t_epoch[0])),
+                  mask=keys.elevation_mask, pseudorange_sigma=keys.pseudorange_sigma,
+                  doppler_sigma=keys.doppler_sigma, gate=keys.gate)
     sp = raw.single_point()
     if not np.isfinite(sp.lat).any():
         from sinslab.fusion.gnss import single_point
@@ -72,7 +72,7 @@ def load_raw(path, nav, max_satellites, imu, echo=print, mask_deg=10.0):
 _SYSTEM_NAMES = {"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS", "J": "QZSS"}
 
 
-def raw_claims(raw):
+def raw_claims(rows):
     """Claims of a tightly coupled run (the project's checks, ``origin="check"``): per kind,
     the filter is not overconfident about the rows it used — mean ν²/(H P Hᵀ + R), one row
     at a time, by the NIS rule of the loosely coupled runs
@@ -81,9 +81,9 @@ def raw_claims(raw):
     from sinslab.app.described import nis_claim
     claims = []
     extra = {}
-    for m in raw.measurements:
-        nis = np.concatenate([n[u] for n, u in zip(m.log.nis, m.log.used)]) if m.log.nis else np.zeros(0)
-        key = "pseudorange" if m.kind == "pseudorange" else "doppler"
+    for label, log in rows.items():
+        nis = np.concatenate([n[u] for n, u in zip(log.nis, log.used)]) if log.nis else np.zeros(0)
+        key = "pseudorange" if label == "pseudoranges" else "doppler"
         what = "pseudoranges" if key == "pseudorange" else "range rates (Doppler)"
         claim, mean, verdict = nis_claim(f"{key}_nis_not_overconfident", f"the {what}", nis, 1,
                                          rows=f"{what} used (one row at a time)",
@@ -94,69 +94,30 @@ def raw_claims(raw):
     return claims, extra
 
 
-def raw_outputs(res, raw, metrics, tables, figures, notes, echo=print):
-    """Satellite metrics, the ``gnss_satellites`` and ``gnss_clock`` tables and the
-    figures of a tightly coupled run."""
-    from sinslab.app import plotting
-    from sinslab.app.commands.runner import Figure, Series
 
-    pr = raw.measurements[0]
-    dp = raw.measurements[1] if len(raw.measurements) > 1 else None
-    c = pr.log.counts()
-    n_used = np.array([int(u.sum()) for u in pr.log.used])
-    metrics.update(
-        gnss_epochs_used=int(np.sum(n_used > 0)), gnss_epochs=len(pr.log.t),
-        pseudoranges_used=c["used"], pseudoranges_rejected=c["rejected"],
-        doppler_used=dp.log.counts()["used"] if dp else 0,
-        doppler_rejected=dp.log.counts()["rejected"] if dp else 0,
-        satellites_below_mask=c["below_mask"], satellites_over_limit=c["over_limit"],
-        observations_without_ephemeris=c["no_ephemeris"],
-        satellites_used_median=float(np.median(n_used)) if n_used.size else 0.0,
-        satellites_used_min=int(n_used.min()) if n_used.size else 0,
-        gnss_systems="".join(raw.systems), elevation_mask_deg=math.degrees(raw.mask))
-    echo(f"  raw GNSS: {metrics['gnss_epochs_used']} of {metrics['gnss_epochs']} epochs used, "
-         f"{c['used']} pseudoranges ({c['rejected']} rejected by the gate), median "
-         f"{metrics['satellites_used_median']:.0f} satellites ({metrics['gnss_systems']})")
-    # per satellite and epoch
-    rows = {"t_s": [], "sat": [], "elevation_deg": [], "azimuth_deg": [], "cn0_dbhz": [],
-            "pr_innovation_m": [], "pr_sigma_m": [], "pr_used": [], "pr_rejected": [],
-            "doppler_innovation_mps": [], "doppler_used": [], "doppler_rejected": []}
-    t0 = float(res.t[0])
-    for k, t in enumerate(pr.log.t):
-        n = pr.log.sat[k].size
-        rows["t_s"].append(np.full(n, t - t0))
-        rows["sat"].append(pr.log.sat[k])
-        rows["elevation_deg"].append(np.degrees(pr.log.el[k]))
-        rows["azimuth_deg"].append(np.degrees(pr.log.az[k]))
-        rows["cn0_dbhz"].append(pr.log.cn0[k])
-        rows["pr_innovation_m"].append(pr.log.innovation[k])
-        rows["pr_sigma_m"].append(pr.log.sigma[k])
-        rows["pr_used"].append(pr.log.used[k].astype(int))
-        rows["pr_rejected"].append(pr.log.rejected[k].astype(int))
-        if dp is not None and k < len(dp.log.t):
-            rows["doppler_innovation_mps"].append(dp.log.innovation[k])
-            rows["doppler_used"].append(dp.log.used[k].astype(int))
-            rows["doppler_rejected"].append(dp.log.rejected[k].astype(int))
-        else:
-            rows["doppler_innovation_mps"].append(np.full(n, np.nan))
-            rows["doppler_used"].append(np.zeros(n, int))
-            rows["doppler_rejected"].append(np.zeros(n, int))
-    cols = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in rows.items()}
-    tables.append(Series("gnss_satellites", cols, "per epoch and satellite: elevation, azimuth, C/N0, "
-                         "pseudorange and Doppler innovations (before the update), σ, used/rejected"))
-    lab = list(res.labels)
-    sl = slice(lab.index("clk_bias"), lab.index("clk_bias") + 1 + len(raw.systems))
-    clock = res.init.get("gnss_clock")
-    if clock is not None:
-        ck = {"t_s": res.t - t0, "bias_m": clock[:, 0], "drift_mps": clock[:, 1],
-              "sigma_bias_m": res.sigma[:, sl][:, 0], "sigma_drift_mps": res.sigma[:, sl][:, 1]}
-        for j, s in enumerate(raw.systems[1:]):
-            ck[f"isb_{s}_m"] = clock[:, 2 + j]
-        tables.append(Series("gnss_clock", ck, "receiver clock estimate (bias, drift, inter-system "
-                             "biases against the first system) and σ at every filter epoch"))
-    # figures
-    sats = cols["sat"]
-    # sky plot on plain axes: radius 90° − elevation, azimuth clockwise from north
+
+def raw_figures(res, rep):
+    """The sky plot, the satellites per epoch and the receiver clock of a tightly coupled
+    run, from its source's report (:class:`sinslab.fusion.aids.base.SourceReport`)."""
+    from sinslab.app import plotting
+    cols = next(t.columns for t in rep.tables if t.name == "gnss_satellites")
+    names = sorted(set(cols["sat"].tolist()))
+    colour = {}
+    for s_ in names:
+        colour.setdefault(s_[0], plotting.COLORS[len(colour) % len(plotting.COLORS)])
+    mask = math.radians(rep.metrics["elevation_mask_deg"])
+    systems = rep.metrics["gnss_systems"]
+    out = [_skyplot(cols, names, colour, mask),
+           _satellites_figure(cols, rep.rows, colour, float(res.t[0]))]
+    if rep.clock is not None:
+        out.append(_clock_figure(res, rep.clock, systems, colour))
+    return out
+
+
+def _skyplot(cols, names, colour, mask):
+    """Sky plot on plain axes: radius 90° − elevation, azimuth clockwise from north."""
+    from sinslab.app import plotting
+    from sinslab.app.commands.runner import Figure
     fig, axes = plotting.figure(1, 1, width=6.5, row_height=6.5, sharex=False)
     ax = axes[0]
     ax.grid(False)
@@ -166,13 +127,10 @@ def raw_outputs(res, raw, metrics, tables, figures, notes, echo=print):
         ax.text(2, r_ - 6, f"{90 - r_}°", fontsize=7, color="0.4")
     for a_ in range(0, 360, 45):
         ax.plot([0, 90 * np.sin(np.radians(a_))], [0, 90 * np.cos(np.radians(a_))], "-", color="0.85", lw=0.6)
-    r_mask = 90 - math.degrees(raw.mask)
+    r_mask = 90 - math.degrees(mask)
     ax.plot(r_mask * np.sin(circ), r_mask * np.cos(circ), "--", color="0.5", lw=0.8,
-            label=f"elevation mask {math.degrees(raw.mask):g}°")
-    names = sorted(set(sats.tolist()))
-    colour = {}
-    for s_ in names:
-        colour.setdefault(s_[0], plotting.COLORS[len(colour) % len(plotting.COLORS)])
+            label=f"elevation mask {math.degrees(mask):g}°")
+    sats = cols["sat"]
     for s_ in names:
         m = sats == s_
         rr_ = 90 - cols["elevation_deg"][m]
@@ -189,27 +147,35 @@ def raw_outputs(res, raw, metrics, tables, figures, notes, echo=print):
     ax.set_xlabel("west ← → east   (rings: elevation 0°, 30°, 60°)")
     ax.set_ylabel("south ← → north")
     ax.legend(fontsize=8, loc="lower right")
-    figures.append(Figure("skyplot", fig, "Sky plot: satellite tracks over the run seen from the INS "
-                          "antenna (centre: zenith; azimuth clockwise from north; label at the last epoch)."))
+    return Figure("skyplot", fig, "Sky plot: satellite tracks over the run seen from the INS "
+                  "antenna (centre: zenith; azimuth clockwise from north; label at the last epoch).")
+
+
+def _satellites_figure(cols, rows, colour, t0):
+    """Candidates, rows used and refused per epoch; pseudorange innovations per satellite."""
+    from sinslab.app import plotting
+    from sinslab.app.commands.runner import Figure
+    pr, dp = rows["pseudoranges"], rows.get("range_rates")
     t_label = "time since the filter start [s]"
     sys_colour = {k: plotting.COLORS[j % len(plotting.COLORS)] for j, k in enumerate(colour)}
     fig, axes = plotting.figure(3, 1, width=9.0, sharex=False)
-    tt = np.array(pr.log.t) - t0
-    axes[0].step(tt, [int(np.isfinite(i).sum()) for i in pr.log.innovation], where="post", lw=2.5,
+    tt = np.array(pr.t) - t0
+    axes[0].step(tt, [int(np.isfinite(i).sum()) for i in pr.innovation], where="post", lw=2.5,
                  label="candidates (with ephemeris, above the mask, within the limit)", color="0.75")
-    axes[0].step(tt, n_used, where="post", lw=1, label="pseudoranges used", color=plotting.COLORS[0])
-    axes[0].step(tt, [int(r.sum()) for r in pr.log.rejected], where="post", lw=1,
+    axes[0].step(tt, pr.used_per_epoch(), where="post", lw=1, label="pseudoranges used", color=plotting.COLORS[0])
+    axes[0].step(tt, [int(r.sum()) for r in pr.rejected], where="post", lw=1,
                  label="pseudoranges rejected by the gate", color=plotting.COLORS[1])
     if dp is not None:
-        axes[0].step(np.array(dp.log.t) - t0, [int(r.sum()) for r in dp.log.rejected], where="post",
+        axes[0].step(np.array(dp.t) - t0, [int(r.sum()) for r in dp.rejected], where="post",
                      lw=1, ls="--", label="range rates rejected by the gate", color=plotting.COLORS[4])
     axes[0].set_ylim(bottom=-0.5)
     axes[0].set_ylabel("satellites per epoch")
     axes[0].set_xlabel(t_label)
     axes[0].legend(fontsize=7, loc="center right")
-    used_sats = sorted({s for s in sats[cols["pr_used"] == 1].tolist()})
+    sats, used = cols["sat"], cols["pr_used"] == 1
+    used_sats = sorted({s for s in sats[used].tolist()})
     for s in used_sats:
-        m = (sats == s) & (cols["pr_used"] == 1)
+        m = (sats == s) & used
         axes[1].plot(cols["t_s"][m], cols["pr_innovation_m"][m], ".", ms=1.5, color=sys_colour[s[0]])
     rj = cols["pr_rejected"] == 1
     if rj.any():
@@ -220,62 +186,68 @@ def raw_outputs(res, raw, metrics, tables, figures, notes, echo=print):
     axes[1].set_ylabel("pseudorange\ninnovation z − Hx⁻ [m]")
     axes[1].set_xlabel(t_label)
     axes[1].legend(fontsize=7, ncol=4, markerscale=3, loc="lower left")
-    # per satellite: spread of the innovations of the rows used, in σ of their own R
+    _innovation_boxes(axes[2], cols, used_sats, sys_colour)
+    return Figure("satellites", fig, "Satellites used and rejected per epoch, pseudorange "
+                  "innovations per satellite. Candidates, rows used and rows refused by the "
+                  "innovation gate at each epoch; the innovation z − Hx⁻ (before the update, "
+                  "coloured by system) of every pseudorange used, and its spread per satellite.")
+
+
+def _innovation_boxes(ax, cols, used_sats, sys_colour):
+    """Per satellite: the spread of the innovations of the rows used."""
+    sats, used = cols["sat"], cols["pr_used"] == 1
     data_, labels_ = [], []
     for s in used_sats:
-        m = (sats == s) & (cols["pr_used"] == 1)
+        m = (sats == s) & used
         data_.append(cols["pr_innovation_m"][m])
         labels_.append(f"{s}\n{int(m.sum())}")
     if data_:
-        bp = axes[2].boxplot(data_, whis=(5, 95), showfliers=False, patch_artist=True)
+        bp = ax.boxplot(data_, whis=(5, 95), showfliers=False, patch_artist=True)
         for patch, s in zip(bp["boxes"], used_sats):
             patch.set_facecolor(sys_colour[s[0]])
             patch.set_alpha(0.6)
-        axes[2].set_xticks(range(1, len(labels_) + 1), labels_, fontsize=6)
-    axes[2].axhline(0, color="0.5", lw=0.6)
-    axes[2].set_ylabel("pseudorange\ninnovation [m]")
-    axes[2].set_xlabel("satellite (rows used); box: quartiles, whiskers: 5th and 95th percentiles")
+        ax.set_xticks(range(1, len(labels_) + 1), labels_, fontsize=6)
+    ax.axhline(0, color="0.5", lw=0.6)
+    ax.set_ylabel("pseudorange\ninnovation [m]")
+    ax.set_xlabel("satellite (rows used); box: quartiles, whiskers: 5th and 95th percentiles")
     skipped = sorted(set(sats.tolist()) - set(used_sats))
     if skipped:
-        axes[2].set_title(f"never used (no ephemeris, below the mask or over the limit): {', '.join(skipped)}",
-                          fontsize=7)
-    figures.append(Figure("satellites", fig, "Satellites used and rejected per epoch, pseudorange "
-                          "innovations per satellite. Candidates, rows used and rows refused by the "
-                          "innovation gate at each epoch; the innovation z − Hx⁻ (before the update, "
-                          "coloured by system) of every pseudorange used, and its spread per satellite."))
-    if clock is not None:
-        n_isb = clock.shape[1] - 2
-        fig, axes = plotting.figure(3 if n_isb else 2, 1, width=9.0)
-        ts_ = res.t - t0
-        sg = res.sigma[:, sl]
-        b_ref = round(float(clock[0, 0]))
-        axes[0].plot(ts_, clock[:, 0] - b_ref, lw=1)
-        ref_txt = f"{'+' if b_ref < 0 else '−'} {abs(b_ref):,d} m".replace(",", " ")
-        axes[0].set_ylabel(f"clock bias [m]\n({ref_txt})")
-        axes[1].plot(ts_, clock[:, 1], lw=1, label="estimate")
-        axes[1].fill_between(ts_, clock[:, 1] - sg[:, 1], clock[:, 1] + sg[:, 1], color="0.85", lw=0,
-                             label="± 1σ")
-        axes[1].set_ylabel("clock drift [m/s]")
-        axes[1].legend(fontsize=7)
-        for j, s in enumerate(raw.systems[1:]):
-            c_ = sys_colour.get(s, None)
-            axes[2].plot(ts_, clock[:, 2 + j], lw=1, color=c_,
-                         label=f"{_SYSTEM_NAMES.get(s, s)} − {_SYSTEM_NAMES.get(raw.systems[0], raw.systems[0])}")
-            axes[2].fill_between(ts_, clock[:, 2 + j] - sg[:, 2 + j], clock[:, 2 + j] + sg[:, 2 + j],
-                                 color=c_, alpha=0.15, lw=0)
-        if n_isb:
-            # the first epochs' σ (tens of metres) would flatten the estimates
-            settled = ts_ >= min(5.0, float(ts_[-1]) / 2)
-            lo_, hi_ = clock[settled, 2:].min(), clock[settled, 2:].max()
-            pad = max(1.0, 3 * float(np.median(sg[settled, 2:])), 0.2 * (hi_ - lo_))
-            axes[2].set_ylim(lo_ - pad, hi_ + pad)
-            axes[2].set_ylabel("inter-system bias [m]\n(± 1σ shaded)")
-            axes[2].legend(fontsize=7)
-        axes[-1].set_xlabel(t_label)
-        figures.append(Figure("clock", fig, "Receiver clock bias and drift estimated by the filter. Bias (1 m = 3.34 ns), "
-                              "drift (1 m/s = 3.34 ns/s) and inter-system biases against the first "
-                              "system, with ± 1σ."))
-    notes.append(f"Tightly coupled: pseudoranges{' and Doppler' if dp else ''} of {metrics['gnss_systems']} "
-                 f"satellites above {metrics['elevation_mask_deg']:g} deg; the filter starts from the "
-                 "single-point solution (GNSS-only least squares) and the fix tables compare with it. "
-                 "t_abs_s is GPS time (seconds since 1970 without leap seconds).")
+        ax.set_title(f"never used (no ephemeris, below the mask or over the limit): {', '.join(skipped)}",
+                     fontsize=7)
+
+
+def _clock_figure(res, clock_sigma, systems, colour):
+    """The receiver clock's bias, drift and inter-system biases with ± 1σ."""
+    from sinslab.app import plotting
+    from sinslab.app.commands.runner import Figure
+    clock, sg = clock_sigma
+    sys_colour = {k: plotting.COLORS[j % len(plotting.COLORS)] for j, k in enumerate(colour)}
+    n_isb = clock.shape[1] - 2
+    fig, axes = plotting.figure(3 if n_isb else 2, 1, width=9.0)
+    ts_ = res.t - float(res.t[0])
+    b_ref = round(float(clock[0, 0]))
+    axes[0].plot(ts_, clock[:, 0] - b_ref, lw=1)
+    ref_txt = f"{'+' if b_ref < 0 else '−'} {abs(b_ref):,d} m".replace(",", " ")
+    axes[0].set_ylabel(f"clock bias [m]\n({ref_txt})")
+    axes[1].plot(ts_, clock[:, 1], lw=1, label="estimate")
+    axes[1].fill_between(ts_, clock[:, 1] - sg[:, 1], clock[:, 1] + sg[:, 1], color="0.85", lw=0, label="± 1σ")
+    axes[1].set_ylabel("clock drift [m/s]")
+    axes[1].legend(fontsize=7)
+    for j, s in enumerate(systems[1:]):
+        c_ = sys_colour.get(s, None)
+        axes[2].plot(ts_, clock[:, 2 + j], lw=1, color=c_,
+                     label=f"{_SYSTEM_NAMES.get(s, s)} − {_SYSTEM_NAMES.get(systems[0], systems[0])}")
+        axes[2].fill_between(ts_, clock[:, 2 + j] - sg[:, 2 + j], clock[:, 2 + j] + sg[:, 2 + j],
+                             color=c_, alpha=0.15, lw=0)
+    if n_isb:
+        # the first epochs' σ (tens of metres) would flatten the estimates
+        settled = ts_ >= min(5.0, float(ts_[-1]) / 2)
+        lo_, hi_ = clock[settled, 2:].min(), clock[settled, 2:].max()
+        pad = max(1.0, 3 * float(np.median(sg[settled, 2:])), 0.2 * (hi_ - lo_))
+        axes[2].set_ylim(lo_ - pad, hi_ + pad)
+        axes[2].set_ylabel("inter-system bias [m]\n(± 1σ shaded)")
+        axes[2].legend(fontsize=7)
+    axes[-1].set_xlabel("time since the filter start [s]")
+    return Figure("clock", fig, "Receiver clock bias and drift estimated by the filter. Bias (1 m = 3.34 ns), "
+                  "drift (1 m/s = 3.34 ns/s) and inter-system biases against the first "
+                  "system, with ± 1σ.")

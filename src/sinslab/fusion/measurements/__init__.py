@@ -26,15 +26,15 @@ following :class:`Measurement` and, when it has states of its own, an error-stat
 (:mod:`.barometer` is the worked example).
 """
 from sinslab.fusion.measurements.barometer import Barometer
-from sinslab.fusion.measurements.base import Epoch, Grid, Measurement, NavRow, Stack
+from sinslab.fusion.measurements.base import Epoch, Grid, Measurement, NavRow, Rows, Stack, gates_of
 from sinslab.fusion.measurements.fixes import LeverPositionFix, LeverVelocityFix, PositionFix, VelocityFix
 from sinslab.fusion.measurements.ins_difference import InsDifference
 from sinslab.fusion.measurements.jacobians import add_rate_H, vehicle_from_body
 from sinslab.fusion.measurements.rest import ZeroRate, ZeroVelocity
-from sinslab.fusion.measurements.schedule import InnovationGate, Timed, arrival_epochs
+from sinslab.fusion.measurements.schedule import InnovationGate, RowGate, Timed, arrival_epochs
 from sinslab.fusion.measurements.vehicle import BodyVelocity, NonHolonomic, Odometer
 
 __all__ = ["Measurement", "NavRow", "Epoch", "Grid", "Timed", "PositionFix", "VelocityFix", "Stack",
            "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
            "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body",
-           "InnovationGate", "add_rate_H", "Barometer"]
+           "InnovationGate", "RowGate", "Rows", "gates_of", "add_rate_H", "Barometer"]

@@ -1,18 +1,19 @@
 """The contract between the fusion driver and its measurements: the filter grid
 (:class:`Grid`), the navigation row of a stream at an epoch (:class:`NavRow`), what the
 driver hands a measurement (:class:`Epoch`), the protocol every measurement follows
-(:class:`Measurement`) and the stack of several measurements applied as one
+(:class:`Measurement`), the candidate rows a measurement hands the driver to gate one by
+one (:class:`Rows`) and the stack of several measurements applied as one
 (:class:`Stack`). See the package notes for the conventions."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
 from sinslab.core import attitude as A
 
-__all__ = ["Grid", "NavRow", "Epoch", "Measurement", "Stack"]
+__all__ = ["Grid", "NavRow", "Epoch", "Measurement", "Rows", "Stack", "gates_of"]
 
 
 @dataclass(frozen=True)
@@ -129,8 +130,55 @@ class Epoch:
     prior: tuple | None = None
 
 
+class Rows(NamedTuple):
+    """Candidate rows of one update that the driver gates one by one (the answer of
+    :meth:`Measurement.matrices` for a measurement with a ``row_gate``, RTKLIB's residual
+    function with a status per satellite).
+
+    Attributes
+    ----------
+    z : ndarray (m,)
+        Residuals (computed − measured) of the rows formed.
+    H : ndarray (m, n)
+    R : ndarray (m,)
+        Variances.
+    formed : bool ndarray (c,)
+        Which of the ``c`` candidates formed a row (``m`` of them, in order); the others
+        were left out by the measurement (below a mask, beyond a limit, no model).
+    meta : dict of ndarray (c,)
+        What the measurement says of each candidate (a satellite's name, elevation ...),
+        recorded beside the driver's decisions.
+    skipped : dict of int
+        Candidates left out, counted by cause.
+    """
+
+    z: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    formed: np.ndarray
+    meta: dict
+    skipped: dict
+
+
 class Measurement(Protocol):
-    """Protocol of a measurement the driver applies."""
+    """Protocol of a measurement the driver applies.
+
+    Besides the three methods a measurement declares what the driver reads of it, both
+    None when it does not have them (an object without the attributes has neither):
+
+    ``gate``
+        An :class:`~sinslab.fusion.measurements.InnovationGate` the driver applies to
+        the whole update before each update made on arrival (refused: skipped).
+    ``row_gate``
+        A :class:`~sinslab.fusion.measurements.RowGate`: :meth:`matrices` returns
+        :class:`Rows`, which the driver gates row by row against the filter's prior.
+
+    The driver records what it decided (updates applied, refused by the gate, rows used
+    and refused with their innovations) in its result; a measurement keeps no record.
+    """
+
+    gate: object | None
+    row_gate: object | None
 
     def epochs(self, grid: Grid) -> dict:
         """``{arrival epoch index: [items, in processing order]}`` on the filter epochs
@@ -140,12 +188,22 @@ class Measurement(Protocol):
         """``(t_valid, t_arrive)`` [s] of an item."""
 
     def matrices(self, ep: Epoch):
-        """``(z (m,), H (m, n), R (m,) variances or (m, m))``, or None (nothing to apply)."""
+        """``(z (m,), H (m, n), R (m,) variances or (m, m))``, :class:`Rows` (with a
+        ``row_gate``), or None (nothing to apply)."""
+
+
+def gates_of(m) -> tuple:
+    """``(gate, row_gate)`` a measurement declares (the protocol's None for either it does
+    not have)."""
+    return getattr(m, "gate", None), getattr(m, "row_gate", None)
 
 
 class Stack:
     """Several measurements on the same schedule applied as one update (components in
-    the order given); the schedule and time stamps are those of the first."""
+    the order given); the schedule and time stamps are those of the first. No gate."""
+
+    gate = None
+    row_gate = None
 
     def __init__(self, *parts):
         if not parts:

@@ -1,14 +1,14 @@
 """When a measurement's items are processed: the arrival epochs of timed items
 (:func:`arrival_epochs`, :class:`Timed`), measurements held on filter epochs inside
 intervals (``_OnEpochs``) and the innovation gate that may refuse an update
-(:class:`InnovationGate`)."""
+(:class:`InnovationGate`), and the gate of single rows (:class:`RowGate`)."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-__all__ = ["arrival_epochs", "Timed", "InnovationGate"]
+__all__ = ["arrival_epochs", "Timed", "InnovationGate", "RowGate"]
 
 
 def arrival_epochs(t_valid, t_arrive, grid, *, outages=(), windows=None):
@@ -41,7 +41,11 @@ def arrival_epochs(t_valid, t_arrive, grid, *, outages=(), windows=None):
 class Timed:
     """Time stamps and schedule shared by the fix measurements (``t_valid``, ``t_arrive``,
     outages and windows: :func:`arrival_epochs`); a measurement of time-stamped records
-    subclasses it and calls ``_init_times``."""
+    subclasses it and calls ``_init_times``. No gate by default (the
+    :class:`~sinslab.fusion.measurements.Measurement` protocol's ``gate`` and ``row_gate``)."""
+
+    gate = None
+    row_gate = None
 
     def _init_times(self, t_valid, t_arrive, outages, windows):
         self.t_valid = np.atleast_1d(np.asarray(t_valid, dtype=float))
@@ -81,22 +85,21 @@ class InnovationGate:
     ``1 − p`` quantile of χ² with ``m`` degrees of freedom (``m`` = rows of ``z``);
     a consistent measurement is rejected with probability ``p``.
 
+    A measurement declares its gate as its ``gate`` attribute (the
+    :class:`~sinslab.fusion.measurements.Measurement` protocol); the driver applies it
+    before each update made on arrival and records each decision (the gate keeps no
+    record: :attr:`sinslab.fusion.driver.DriverResult.decisions`).
+
     Attributes
     ----------
     p : float
         False-rejection probability per update.
-    rejected : list of float
-        Times [s] of the rejected updates.
-    passed : int
-        Number of updates let through.
     """
 
     def __init__(self, p=1e-6):
         if not (0 < p < 1):
             raise ValueError(f"gate probability must be in (0, 1), got {p}")
         self.p = float(p)
-        self.rejected = []
-        self.passed = 0
         self._limit = {}
 
     def limit(self, m):
@@ -106,9 +109,9 @@ class InnovationGate:
             self._limit[m] = float(chdtri(m, self.p))
         return self._limit[m]
 
-    def passes(self, x, P, z, H, R, t):
-        """True when the update ``(z, H, R)`` against the prior ``x, P`` lies inside the
-        gate; a rejection is recorded at ``t``."""
+    def test(self, x, P, z, H, R):
+        """``(passed, nis)`` of the update ``(z, H, R)`` against the prior ``x, P``:
+        inside the gate when ``νᵀ S⁻¹ ν`` is at most :meth:`limit` of its rows."""
         z = np.atleast_1d(np.asarray(z, dtype=float))
         H = np.atleast_2d(H)
         R = np.asarray(R, dtype=float)
@@ -118,11 +121,55 @@ class InnovationGate:
             nis = float(nu @ np.linalg.solve(S, nu))
         except np.linalg.LinAlgError:
             nis = math.inf
-        if nis <= self.limit(z.size):
-            self.passed += 1
-            return True
-        self.rejected.append(float(t))
-        return False
+        return nis <= self.limit(z.size), nis
+
+
+class RowGate:
+    """Reject single rows of an update: row ``i`` is refused when
+    ``ν_i² / (H_i P H_iᵀ + R_i) > sigmas²`` against the filter's prior (a satellite whose
+    range the filter's own covariance cannot explain, RTKLIB's innovation test).
+
+    After ``reset`` consecutive epochs whose every row was refused the gate lets one
+    epoch through whole (then the filter, not every satellite, is wrong). That count is
+    the caller's (the driver keeps it per measurement), so the gate holds no run state.
+
+    Attributes
+    ----------
+    sigmas : float or None
+        The gate in σ of ``H P Hᵀ + R`` (None: every row used; ν and the NIS still formed).
+    reset : int
+    """
+
+    def __init__(self, sigmas=5.0, reset=10):
+        if sigmas is not None and not (sigmas > 0 and math.isfinite(sigmas)):
+            raise ValueError(f"row gate must be a number of σ > 0, got {sigmas!r}")
+        self.sigmas = None if sigmas is None else float(sigmas)
+        self.reset = int(reset)
+
+    def decide(self, rows, prior, streak=0):
+        """The decisions on ``rows`` (:class:`~sinslab.fusion.measurements.Rows`) against
+        ``prior = (x, P)`` (None: a lagged update, nothing gated and ν not formed).
+
+        Returns ``(rejected (m,) bool, ν (m,), ν²/S (m,), streak)`` over the rows of ``z``
+        and the new count of consecutive all-refused epochs."""
+        z, H, R = rows.z, rows.H, rows.R
+        if prior is None or z.size == 0:
+            return np.zeros(z.size, bool), np.full(z.size, np.nan), np.full(z.size, np.nan), streak
+        x, P = prior
+        nu = z - H @ x
+        S = np.einsum("ij,jk,ik->i", H, P, H) + R
+        nis = nu * nu / S
+        if self.sigmas is None:
+            return np.zeros(z.size, bool), nu, nis, streak
+        rej = nis > self.sigmas ** 2
+        if np.all(rej):
+            streak += 1
+            if streak > self.reset:
+                streak = 0
+                rej[:] = False
+        else:
+            streak = 0
+        return rej, nu, nis, streak
 
 
 class _OnEpochs:
@@ -130,6 +177,8 @@ class _OnEpochs:
     time intervals and thinned to every ``every``-th epoch; available at once. ``gate``:
     an :class:`InnovationGate` (or its false-rejection probability) the driver applies
     before each update (None: every update applied)."""
+
+    row_gate = None
 
     def _init_sched(self, intervals, every, stream, gate=None):
         self.intervals = _intervals(intervals)
