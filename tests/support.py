@@ -194,3 +194,44 @@ def assert_doc_quotes(doc, text, got, tol=0.0):
     assert len(want) == len(got), (text, got)
     bad = [(w, g) for (w, r), g, e in zip(want, got, tols) if abs(w - g) > r + e + 1e-12]
     assert not bad, f"{doc}: {text!r} against the measurement: {got} (tolerance {tol})"
+
+
+def recorded_run(imu, fixes, **kw):
+    """:func:`sinslab.fusion.recorded.navigate_recorded` of fixes with the options ``kw`` by
+    spec field name and the aids named by these keys: ``zupt`` ("auto" | "flags", with
+    ``zaru``, ``rest_flags``), ``estimate_lever`` (the antenna lever arm), ``nhc_sigma``
+    (with ``estimate_vehicle``: the mount and lever states; ``vehicle_mount``,
+    ``nhc_lever_arm``), as the aid plug-ins of
+    :mod:`sinslab.fusion.aids` (registry order)."""
+    from sinslab.fusion import recorded as R
+    from sinslab.fusion.aids.lever import AntennaLever
+    from sinslab.fusion.aids.rest import Zupt
+    from sinslab.fusion.aids.vehicle import Nhc
+
+    aids = []
+    zupt, zaru, flags = kw.pop("zupt", None), kw.pop("zaru", False), kw.pop("rest_flags", None)
+    if zupt is not None:
+        aids.append(Zupt(rest=zupt, zaru=zaru, flags=flags))
+    if kw.pop("estimate_lever", False):
+        aids.append(AntennaLever())
+    nhc, est = kw.pop("nhc_sigma", None), kw.pop("estimate_vehicle", False)
+    mount, lever = kw.pop("vehicle_mount", None), kw.pop("nhc_lever_arm", (0.0, 0.0, 0.0))
+    if nhc is not None:
+        aids.append(Nhc(sigma=tuple(nhc), estimate=est, vehicle_mount=mount, lever=tuple(lever)))
+    return R.navigate_recorded(imu, fixes, R.NavOptions.of(**kw), aids=aids)
+
+
+def gate_record(r, aid, label=None):
+    """``{"applied", "rejected", "rejected_spans"}`` of an aid's innovation gate in a
+    recorded run (its report's metrics and the spans it marks)."""
+    rep = r.report(aid)
+    label = label or aid
+    spans = [list(s) for mk in rep.marks if mk.kind == "bar" for s in mk.spans]
+    return {"applied": rep.metrics[f"{label}_updates_applied"], "rejected": rep.metrics[f"{label}_updates_rejected"],
+            "rejected_spans": spans}
+
+
+def rest_intervals_of(r):
+    """The rest intervals [s] (K, 2) the zupt aid of a recorded run used."""
+    t = next(t for t in r.report("zupt").tables if t.name == "rest_intervals").columns
+    return np.stack([t["start_s"], t["end_s"]], -1) if len(t["start_s"]) else np.zeros((0, 2))

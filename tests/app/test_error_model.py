@@ -35,7 +35,9 @@ def test_bias_models_and_overrides(tmp_path):
     assert opt.errors.scale_tau == (3600.0, None) and opt.errors.scale_rw[1] == pytest.approx(1e-5 / 60)
     assert opt.start.att_sigma == pytest.approx((0.5 * u.deg, 0.5 * u.deg, 3 * u.deg))
     assert opt.fix.fix_sigma == pytest.approx((0.5, 0.5, 1.0)) and opt.fix.vel_sigma_floor == 0.02
-    assert opt.aiding.zupt_sigma == 0.01 and opt.fix.lever_sigma == 0.5
+    # the [aiding] table goes to the aids that are enabled
+    assert M.aid_settings("zupt", extras) == {"sigma": 0.01} and M.aid_settings("lever", extras) == {"sigma": 0.5}
+    assert M.aid_settings("nhc", extras) == {}
     # the model carries the blocks with their dynamics: Gauss-Markov gyro bias, GM gyro
     # scale (F = -1/tau on the diagonal), accel scale random walk (noise q = rw^2)
     m = recorded_model(opt, opt.errors.gyro_arw, opt.errors.accel_vrw)

@@ -21,7 +21,7 @@ def files(tmp_path):
     (["--aid", "zupt,odo"], "unknown odo"),
     (["--csv-rate", "0"], "--csv-rate"),
     (["--aid", "zupt", "--rest", "flags"], "no rest-flag column"),
-    (["--aid", "zupt", "--rest", "sometimes"], "--rest 'sometimes': choose one of auto, flags"),
+    (["--aid", "zupt", "--rest", "sometimes"], "--rest 'sometimes': choose one of either, auto, flags"),
     (["--imu-errors", "platinum"], "neither a file nor a grade"),
     (["--columns", "t=time[s],speed=v"], "unknown column key 'speed'"),
     (["--mount", "quat:1,1,0,0"], "norm"),
@@ -36,27 +36,27 @@ def test_bad_options(files, args, msg):
     assert not (out / "summary.json").exists()
 
 
-def test_navigate_request_parses_the_option_text_once_and_is_frozen():
-    """The CLI edge: lever arm, --aid, --init and --lag parsed into SI values and a policy
-    when the request is made; a bad one refused there, before any file is read."""
-    import dataclasses
+def test_options_are_short_forms_of_the_configuration_parsed_once():
+    """The CLI edge: the options become keys of one configuration, unit strings parsed to
+    SI once (lever arm, --init), --aid resolved to the registered aids (an alias sets its
+    aid's key), the files made absolute; a bad one refused there, before any file is read."""
     import math
+    from pathlib import Path
 
-    from sinslab.app.commands.navigate import NavigateRequest
+    from sinslab.app.commands.navigate import navigate_config
+    from sinslab.app.commands.navigate_config import aids_of
     from sinslab.app.errors import UserError
-    from sinslab.fusion.lag import OnArrival
 
-    r = NavigateRequest(["imu.csv"], ["fix.pos"], lever_arm="[10, -20, 30] cm", aid="zupt, NHC",
-                        init="heading=90 deg,course_speed=3 km/h", lag="ignore")
-    assert r.lever_arm == pytest.approx((0.1, -0.2, 0.3))
-    assert r.aids == {"zupt", "nhc"}
-    assert r.initial["heading"] == pytest.approx(math.pi / 2) and r.initial["course_speed"] == pytest.approx(3 / 3.6)
-    assert isinstance(r.lag_policy, OnArrival)
-    assert r.imu_path == "imu.csv" and r.fix_path == "fix.pos"
-    assert r.lag == "ignore" and r.init.startswith("heading")      # the text kept for config.toml
-    with pytest.raises(dataclasses.FrozenInstanceError):
-        r.lever_arm = (0.0, 0.0, 0.0)
+    c = navigate_config(imu=[Path("imu.csv")], fixes=[Path("fix.pos")], lever_arm="[10, -20, 30] cm",
+                        aid="zaru, NHC", init="heading=90 deg,course_speed=3 km/h", lag="ignore")
+    assert c.gnss.lever_arm == pytest.approx((0.1, -0.2, 0.3))
+    assert c.aid == ["zupt", "nhc"] and c.zupt.zaru                 # zaru: ZUPT's intervals, and ZARU
+    assert c.start.heading == pytest.approx(math.pi / 2) and c.start.course_speed == pytest.approx(3 / 3.6)
+    assert c.gnss.fixes.lag == "ignore" and c.gnss.source == "fixes"
+    assert Path(c.imu.file).is_absolute() and c.imu.file.endswith("imu.csv")
+    assert c.start.heading.text == "90 deg"                         # the text kept for config.toml
+    assert [type(a).__name__ for a in aids_of(c)] == ["Zupt", "Nhc"]
     for bad in (dict(aid="zupt,wings"), dict(init="pitch=3 deg"), dict(lag="late"),
-                dict(lever_arm="[1, 2] m"), dict(fix_latency=-1.0)):
+                dict(lever_arm="[1, 2] m"), dict(fix_latency=-1.0), dict(gnss_raw=Path("x.ubx"))):
         with pytest.raises((ValueError, UserError)):
-            NavigateRequest("imu.csv", "fix.pos", **bad)
+            navigate_config(imu=[Path("imu.csv")], fixes=[Path("fix.pos")], **bad)

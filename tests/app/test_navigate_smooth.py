@@ -89,7 +89,7 @@ def test_odometer_column_and_file_read_the_same(files):
     ("nan", "nan", "non-finite"),
     ("units", ["--odometer-units", "furlong/h"], "furlong"),
     ("angle", ["--odometer-units", "deg/s"], "not a velocity unit"),
-    ("lever", ["--odometer-lever", "[0, 1, 0] m"], "needs --odometer"),
+    ("lever", ["--odometer-lever", "[0, 1, 0] m"], "the odometer aid is not enabled: add --aid odometer"),
     ("column", ["--odometer", "wheel"], "no column 'wheel'"),
 ])
 def test_odometer_bad_input(files, tmp_path, case, args, text):

@@ -52,7 +52,7 @@ def test_run_folder(tc_run):
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--gnss-nav", "NAV4"], "v4.nav: RINEX version 4"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--elevation-mask", "89.9"],
      "gnss_1730.ubx: every satellite is below the 89.9 deg elevation mask"),
-    (["--gnss-raw", WALK / "gnss_1730.ubx", "--elevation-mask", "90"], "--elevation-mask 90"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--elevation-mask", "90"], "--elevation-mask '90.0 deg' is out of range: must be < 90 deg"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--imu-delay", "3000"], "lie outside the IMU record"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "three@60:20"], "--max-satellites"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--gnss", WALK / "gnss_1730_sf.pos"], "not both"),
@@ -78,12 +78,14 @@ def test_bad_input(tc_run, tmp_path, args, msg):
 def test_satellites_below_the_mask_only():
     """Every satellite below the elevation mask (here an 89.9° mask) is one line naming the
     file, not a filter without measurements (the CLI case is in test_bad_input)."""
+    from sinslab.app.commands.navigate_config import RawKeys
     from sinslab.app.commands.raw_gnss import load_raw
     from sinslab.core.errors import InputError
     from sinslab.data import load_imu
     imu = load_imu(WALK / "imu_1730.csv", "rtklib-imu").imu
+    keys = RawKeys(file=str(WALK / "gnss_1730.ubx"), elevation_mask="89.9 deg")
     with pytest.raises(InputError, match="gnss_1730.ubx: every satellite is below the 89.9 deg"):
-        load_raw(WALK / "gnss_1730.ubx", None, None, imu, echo=lambda *a: None, mask_deg=89.9)
+        load_raw(keys, imu, echo=lambda *a: None)
 
 
 def test_raw_claims_share_the_nis_rule_of_the_loosely_coupled_runs():
@@ -99,12 +101,12 @@ def test_raw_claims_share_the_nis_rule_of_the_loosely_coupled_runs():
     rng = np.random.default_rng(1)
 
     def raw(pr_nis, dp_nis):
-        def meas(kind, nis):
+        def rows(nis):                          # the driver's record of the rows (RowLog)
             nis = np.asarray(nis, float).reshape(-1, 4)       # epochs of 4 rows, the last row unused
             used = np.ones(nis.shape, bool)
             used[:, -1] = False
-            return SimpleNamespace(kind=kind, log=SimpleNamespace(nis=list(nis), used=list(used)))
-        return SimpleNamespace(measurements=[meas("pseudorange", pr_nis), meas("doppler", dp_nis)])
+            return SimpleNamespace(nis=list(nis), used=list(used))
+        return {"pseudoranges": rows(pr_nis), "range_rates": rows(dp_nis)}
 
     # ν²/S of a consistent row is chi-square with 1 dof (mean 1)
     cases = [(0.2 * rng.chisquare(1, 400), True, "pessimistic noise model"),

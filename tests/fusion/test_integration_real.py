@@ -86,7 +86,7 @@ def test_drive_outages_and_latency(drive):
     assert np.median(oe0) < 10.0 and np.max(oe0) < 25.0
     t, err, _ = I.fix_errors(r0, fx)
     inside = np.zeros(t.size, bool)
-    for s, ln in r0.init["outages"]:
+    for s, ln in r0.outages:
         inside |= (t >= s) & (t < s + ln)
     assert np.median(np.hypot(err[~inside, 0], err[~inside, 1])) < 0.05
     assert 0.5 < np.mean(r0.nis) < 5.0

@@ -25,7 +25,7 @@ from sinslab.fusion import recorded as R
 from sinslab.fusion import stationarity as st
 from sinslab.sim import imu as IM
 from sinslab.sim import trajectory as tr
-from support import assert_doc_quotes
+from support import assert_doc_quotes, recorded_run
 
 LEVER = np.array([0.4, 1.2, 1.6])
 
@@ -65,7 +65,7 @@ def _opt(err, **kw):
     base = dict(lever_arm=tuple(LEVER), rest_noise=False, gyro_arw=0.3 * u.deg / 60,
                 accel_vrw=100 * u.ug, gyro_bias_sigma=20 * u.dph, accel_bias_sigma=1e-2)
     base.update(kw)
-    return R.NavOptions.of(**base)
+    return base
 
 
 def _yaw_err(r, tru, t):
@@ -81,7 +81,7 @@ def test_stop_in_outage_heading_held_and_errors(drive):
     for name, kw in (("none", {}), ("zupt+zaru", dict(zupt="flags", zaru=True)), ("zupt", dict(zupt="flags")),
                      ("nhc", dict(nhc_sigma=(0.05, 0.05))),
                      ("all", dict(zupt="flags", zaru=True, nhc_sigma=(0.05, 0.05)))):
-        r = R.navigate_recorded(imu, fx, _opt(err, outages=outs, rest_flags=(tru.t, rest), kf_dt=0.1, **kw))
+        r = recorded_run(imu, fx, **_opt(err, outages=outs, rest_flags=(tru.t, rest), kf_dt=0.1, **kw))
         tt = np.arange(s0 + 5, s1 - 5, 1.0)
         slope = abs(np.polyfit(tt, _yaw_err(r, tru, tt), 1)[0]) / u.dph
         res[name] = (slope, *R.outage_end_errors(r, fx)[1])
@@ -90,10 +90,11 @@ def test_stop_in_outage_heading_held_and_errors(drive):
     for name, kw in (("lever", dict(estimate_lever=True)),
                      ("lever+all", dict(estimate_lever=True, zupt="flags", zaru=True, nhc_sigma=(0.05, 0.05))),
                      ("lever wrong", {})):
-        r = R.navigate_recorded(imu, fx, _opt(err, outages=outs, rest_flags=(tru.t, rest), kf_dt=0.1,
+        r = recorded_run(imu, fx, **_opt(err, outages=outs, rest_flags=(tru.t, rest), kf_dt=0.1,
                                               lever_arm=(0.0, 0.0, 0.0), **kw))
-        lever[name] = (*R.outage_end_errors(r, fx)[1], *r.init.get("lever_arm_estimate", ()),
-                       *r.init.get("lever_arm_sigma", ()))
+        est = r.report("lever").metrics if kw.get("estimate_lever") else {}
+        lever[name] = (*R.outage_end_errors(r, fx)[1], *est.get("lever_arm_estimate_m", ()),
+                       *est.get("lever_arm_sigma_m", ()))
     # the outage spans the stop: without rest updates the INS drifts through it; NHC alone
     # cannot stop the forward drift of a standing car; the heading stays within 1 deg/h
     assert res["zupt+zaru"][1] < 0.1 * res["none"][1], res
@@ -117,16 +118,16 @@ def test_stop_in_outage_heading_held_and_errors(drive):
 
 def test_lever_arm_estimated_and_heading_from_motion(drive):
     imu, fx, tru, err, _, _ = drive
-    r = R.navigate_recorded(imu, fx, _opt(err, lever_arm=(0.0, 0.0, 0.0), estimate_lever=True))
-    est, sig = np.array(r.init["lever_arm_estimate"]), np.array(r.init["lever_arm_sigma"])
+    r = recorded_run(imu, fx, **_opt(err, lever_arm=(0.0, 0.0, 0.0), estimate_lever=True))
+    est, sig = np.array(r.report("lever").metrics["lever_arm_estimate_m"]), np.array(r.report("lever").metrics["lever_arm_sigma_m"])
     assert np.all(np.abs(est - LEVER) < 3 * sig + 0.02), (est, sig)
     assert np.all(sig[:2] < 0.1)
     # initial heading (clockwise from north) against the truth at the filter start
-    r1 = R.navigate_recorded(imu, fx, _opt(err))
-    i = int(round((r1.init["t_start"] - tru.t[0]) / 0.01))
+    r1 = recorded_run(imu, fx, **_opt(err))
+    i = int(round((r1.start.t - tru.t[0]) / 0.01))
     h_true = float(np.mod(A.yaw_to_heading(tru.att[i, 2]), 2 * np.pi))
-    dh = abs(A.wrap_pi(r1.init["heading"] - h_true))
-    assert dh < 3 * r1.init["heading_sigma"] + math.radians(0.1), (math.degrees(dh), r1.init["heading_sigma"])
+    dh = abs(A.wrap_pi(r1.start.heading - h_true))
+    assert dh < 3 * r1.start.heading_sigma + math.radians(0.1), (math.degrees(dh), r1.start.heading_sigma)
 
 
 def test_time_sync_same_clock_not_applied(drive):
@@ -158,8 +159,8 @@ def test_fixes_after_the_grid_are_dropped(drive):
     extra = Fixes(np.r_[fx.t, t_last - 0.001], np.r_[fx.lat, fx.lat[-1]], np.r_[fx.lon, fx.lon[-1]],
                   np.r_[fx.h, fx.h[-1]], np.vstack([fx.sigma, fx.sigma[-1]]), np.vstack([fx.vel, fx.vel[-1]]),
                   np.vstack([fx.sigma_vel, fx.sigma_vel[-1]]), np.r_[fx.quality, 1])
-    r = R.navigate_recorded(imu, extra, _opt(err, kf_dt=0.1))
-    assert r.init["fixes_after_grid"] >= 1 and r.init["grid_end"] < t_last - 0.001
+    r = recorded_run(imu, extra, **_opt(err, kf_dt=0.1))
+    assert r.fixes_after_grid >= 1 and r.grid_end < t_last - 0.001
 
 
 def _navigate_vendor_log(drive, tmp_path, lever, *args):
@@ -200,18 +201,18 @@ def test_cli_on_a_vendor_log_matches_the_api(drive, tmp_path):
     assert res.exit_code == 0, res.output
     s = json.loads((out / "summary.json").read_text())
     assert not s.get("warnings"), s.get("warnings")        # the consistency monitors silent
-    assert s["config"]["imu_errors"]["imu.gyro_arw"] == "0.3 deg/sqrt(h)"
-    assert s["config"]["aid"] == "zupt" and s["config"]["rest"] == "flags"
+    assert s["config"]["filter"]["imu_errors"] == str(tmp_path / "model.toml")
+    assert 'gyro_arw = "0.3 deg/sqrt(h)"' in (out / "imu_errors.toml").read_text()
+    assert s["config"]["aid"] == ["zupt"] and any("(flags detection)" in n for n in s["notes"])
     assert s["metrics"]["rest_intervals"] == 1
     import pandas as pd
     full = pd.read_parquet(out / "solution.parquet")
     thin = pd.read_csv(out / "solution.csv")
     assert len(thin) == len(full[::25]) and np.allclose(thin["t_s"], full["t_s"][::25])
     # the same run through the Python API on the record itself
-    opt = R.NavOptions.of(lever_arm=tuple(LEVER), rest_noise=False, gyro_arw=0.3 * u.deg / 60,
-                       accel_vrw=100 * u.ug, gyro_bias_sigma=20 * u.dph, accel_bias_sigma=10000 * u.ug,
-                       gyro_rrw=0.0, accel_rrw=0.0, zupt="flags", rest_flags=(imu.t, rest[k]))
-    r = R.navigate_recorded(imu, fx, opt)
+    r = recorded_run(imu, fx, lever_arm=tuple(LEVER), rest_noise=False, gyro_arw=0.3 * u.deg / 60,
+                     accel_vrw=100 * u.ug, gyro_bias_sigma=20 * u.dph, accel_bias_sigma=10000 * u.ug,
+                     gyro_rrw=0.0, accel_rrw=0.0, zupt="flags", rest_flags=(imu.t, rest[k]))
     # (to rounding: the vendor file holds times of week)
     np.testing.assert_allclose(full["lat_deg"].to_numpy(), np.degrees(r.nav[:, 7]), rtol=0, atol=1e-9)
     np.testing.assert_allclose(full["heading_deg"].to_numpy(), np.degrees(r.heading), rtol=0, atol=1e-6)
@@ -234,7 +235,7 @@ def test_consistency_monitors_on_a_run(drive, case, kw, fires):
     from sinslab.app.plausibility import consistency_findings
 
     imu, fx, tru, err, stop, rest = drive
-    r = R.navigate_recorded(imu, fx, _opt(err, **kw))
+    r = recorded_run(imu, fx, **_opt(err, **kw))
     assert r.innovation_sigma.shape == r.innovation.shape
     found = consistency_findings(r.fix_t, r.innovation, r.innovation_sigma, r.nis)
     got = tuple(w for w in ("overconfident", "biased") if any(w in f.text for f in found))

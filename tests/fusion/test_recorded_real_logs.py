@@ -27,7 +27,7 @@ from sinslab.core import attitude as A
 from sinslab.core import units as u
 from sinslab.fusion import recorded as R
 from sinslab.sim import trajectory as tr
-from support import assert_doc_quotes, simulated_car_drive
+from support import assert_doc_quotes, gate_record, recorded_run, rest_intervals_of, simulated_car_drive
 
 
 @pytest.fixture(scope="module")
@@ -42,13 +42,13 @@ def drive():
 
 
 def _opt(**kw):
-    return R.NavOptions.of(**kw)
+    return kw
 
 
 def _heading_err(r, tru):
-    i = int(round((r.init["t_start"] - tru.t[0]) / 0.01))
+    i = int(round((r.start.t - tru.t[0]) / 0.01))
     h_true = float(np.mod(A.yaw_to_heading(tru.att[i, 2]), 2 * np.pi))
-    return abs(A.wrap_pi(r.init["heading"] - h_true))
+    return abs(A.wrap_pi(r.start.heading - h_true))
 
 
 def test_tilt_sigma_at_the_start_covers_the_gyros_carrying_it(drive):
@@ -67,16 +67,16 @@ def test_tilt_sigma_at_the_start_covers_the_gyros_carrying_it(drive):
     dth[on, 0] += b * imu.dt                                         # x: the pitch axis (RFU)
     opt = _opt(move_speed=20.0, att_sigma=(math.radians(0.3), math.radians(0.3), math.radians(5.0)),
                gyro_bias_sigma=b, motion_alignment=False)
-    r0 = R.navigate_recorded(imu, fx1, opt)
-    r = R.navigate_recorded(replace(imu, dtheta=dth), fx1, opt)
-    dt_c = r.init["tilt_carried_s"]
-    assert dt_c == pytest.approx(r.init["t_start"] - r.init["rest_end"]) and dt_c > 10.0
+    r0 = recorded_run(imu, fx1, **opt)
+    r = recorded_run(replace(imu, dtheta=dth), fx1, **opt)
+    dt_c = r.start.tilt_carried_s
+    assert dt_c == pytest.approx(r.start.t - r.start.rest.t1) and dt_c > 10.0
     # the injected bias is carried into the start pitch (sign: a positive x rate pitches up)
-    np.testing.assert_allclose(r.init["pitch"] - r0.init["pitch"], b * (r.init["t_start"] - 20.5), rtol=0.1)
-    want = math.hypot(math.radians(0.3), math.hypot(b * dt_c, max(r.init["filter_gyro_arw"]) * math.sqrt(dt_c)))
-    assert r.init["initial_tilt_sigma"] == pytest.approx(want, rel=1e-12)
-    i = int(round((r.init["t_start"] - tru.t[0]) / 0.01))
-    err = abs(A.wrap_pi(r.init["pitch"] - tru.att[i, 0]))
+    np.testing.assert_allclose(r.start.pitch - r0.start.pitch, b * (r.start.t - 20.5), rtol=0.1)
+    want = math.hypot(math.radians(0.3), math.hypot(b * dt_c, max(r.start.gyro_noise) * math.sqrt(dt_c)))
+    assert r.start.tilt_sigma == pytest.approx(want, rel=1e-12)
+    i = int(round((r.start.t - tru.t[0]) / 0.01))
+    err = abs(A.wrap_pi(r.start.pitch - tru.att[i, 0]))
     assert 3 * math.radians(0.3) < err < 3 * want, (math.degrees(err), math.degrees(want))
 
 
@@ -94,14 +94,14 @@ def test_long_carry_replaced_by_the_in_motion_alignment(drive):
     dth[imu.t > 20.5, 0] += b * imu.dt
     kw = dict(move_speed=20.0, att_sigma=(math.radians(0.3), math.radians(0.3), math.radians(5.0)), gyro_bias_sigma=b)
     im = replace(imu, dtheta=dth)
-    rc = R.navigate_recorded(im, fx1, _opt(motion_alignment=False, **kw))
-    r = R.navigate_recorded(im, fx1, _opt(**kw))
-    ma = r.init["motion_alignment"]
-    assert ma["carried_s"] > 10.0 and ma["fixes"] >= 9 and "tilt_carried_s" not in r.init
-    i = int(round((r.init["t_start"] - tru.t[0]) / 0.01))
-    err = abs(A.wrap_pi(r.init["pitch"] - tru.att[i, 0]))
-    err_c = abs(A.wrap_pi(rc.init["pitch"] - tru.att[i, 0]))
-    assert err < 0.75 * err_c and err < 3 * r.init["initial_tilt_sigma"], (math.degrees(err), math.degrees(err_c))
+    rc = recorded_run(im, fx1, **_opt(motion_alignment=False, **kw))
+    r = recorded_run(im, fx1, **_opt(**kw))
+    ma = r.start.motion_fit
+    assert ma.carried_s > 10.0 and ma.fixes >= 9 and r.start.tilt_carried_s == 0.0
+    i = int(round((r.start.t - tru.t[0]) / 0.01))
+    err = abs(A.wrap_pi(r.start.pitch - tru.att[i, 0]))
+    err_c = abs(A.wrap_pi(rc.start.pitch - tru.att[i, 0]))
+    assert err < 0.75 * err_c and err < 3 * r.start.tilt_sigma, (math.degrees(err), math.degrees(err_c))
 
 
 @pytest.mark.parametrize("with_vel", [True, False])
@@ -109,9 +109,9 @@ def test_heading_from_course_on_jittered_1hz_stamps(drive, with_vel):
     imu, _, fx1, tru, _ = drive
     assert np.all(np.abs(np.diff(fx1.t) - 1.000019) < 1e-9)
     fx = fx1 if with_vel else R.dataclasses.replace(fx1, vel=None, sigma_vel=None)
-    r = R.navigate_recorded(imu, fx, _opt(kf_dt=0.1))
+    r = recorded_run(imu, fx, **_opt(kf_dt=0.1))
     dh = _heading_err(r, tru)
-    assert dh < 3 * r.init["heading_sigma"] + math.radians(0.2), (math.degrees(dh), r.init["heading_sigma"])
+    assert dh < 3 * r.start.heading_sigma + math.radians(0.2), (math.degrees(dh), r.start.heading_sigma)
 
 
 def test_zupt_never_where_fixes_say_the_vehicle_moves(drive):
@@ -121,13 +121,13 @@ def test_zupt_never_where_fixes_say_the_vehicle_moves(drive):
     knows it moves at 24 m/s), and the outage ends no worse than with fixes only."""
     imu, fx4, _, tru, _ = drive
     outs = ((92.0, 25.0),)
-    r0 = R.navigate_recorded(imu, fx4, _opt(outages=outs, kf_dt=0.1))
-    r = R.navigate_recorded(imu, fx4, _opt(outages=outs, kf_dt=0.1, zupt="auto", zaru=True))
+    r0 = recorded_run(imu, fx4, **_opt(outages=outs, kf_dt=0.1))
+    r = recorded_run(imu, fx4, **_opt(outages=outs, kf_dt=0.1, zupt="auto", zaru=True))
     spd = np.linalg.norm(tru.vel, axis=1)
-    iv = np.array(r.init["rest_intervals"])
+    iv = np.array(rest_intervals_of(r))
     outside = [(a, b) for a, b in iv if b <= outs[0][0] or a >= sum(outs[0])]
     assert outside and all(spd[(tru.t >= a) & (tru.t <= b)].max() < 1e-6 for a, b in outside), iv
-    g = r.init["aiding_gate"]["zupt"]
+    g = gate_record(r, "zupt")
     assert g["rejected"] > 0 and g["rejected_spans"][0][0] >= outs[0][0]
     assert all(spd[np.searchsorted(tru.t, a)] > 20 for a, _ in g["rejected_spans"])
     e0, e1 = R.outage_end_errors(r0, fx4)[1][0], R.outage_end_errors(r, fx4)[1][0]
@@ -143,9 +143,10 @@ def test_innovation_gate_threshold():
     gate = InnovationGate(1e-6)
     assert gate.limit(3) == pytest.approx(30.66, abs=0.01)      # χ²₃ upper 1e-6 quantile
     P = np.eye(3)
-    assert gate.passes(np.zeros(3), P, np.full(3, 3.0), np.eye(3), np.ones(3), 1.0)   # NIS 13.5
-    assert not gate.passes(np.zeros(3), P, np.full(3, 5.0), np.eye(3), np.ones(3), 2.0)  # NIS 37.5
-    assert gate.rejected == [2.0] and gate.passed == 1
+    ok, nis = gate.test(np.zeros(3), P, np.full(3, 3.0), np.eye(3), np.ones(3))        # S = 2 I
+    assert ok and nis == pytest.approx(13.5)
+    ok, nis = gate.test(np.zeros(3), P, np.full(3, 5.0), np.eye(3), np.ones(3))
+    assert not ok and nis == pytest.approx(37.5)
 
 
 # ------------------------------------------------------------ fix files as shipped ---
@@ -210,7 +211,7 @@ def test_navigate_cli_on_the_units_fix_export(drive, tmp_path):
     assert f"hold {len(fx1)} receiver epochs" in res.output and "collapsed" in res.output
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["metrics"]["n_fixes_used"] <= len(fx1)
-    assert s["config"]["fix_quality"] == "4"
+    assert s["config"]["gnss"]["fixes"]["quality"] == "4"
 
 
 def test_imu_from_two_files_and_an_archive(drive, tmp_path):
@@ -373,16 +374,18 @@ def test_nhc_with_the_vehicle_frame(misaligned):
     estimate is within 3σ + 0.05° of the truth."""
     imu, fx, M = misaligned
     outs = [("periodic", 20.0, 60.0, 40.0)]
-    run = lambda **kw: R.outage_end_errors(R.navigate_recorded(imu, fx, _opt(outages=outs, kf_dt=0.1, **kw)), fx)[1]  # noqa: E731
+    run = lambda **kw: R.outage_end_errors(recorded_run(imu, fx, **_opt(outages=outs, kf_dt=0.1, **kw)), fx)[1]  # noqa: E731
     e0 = run()
     naive = run(nhc_sigma=(0.1, 0.1))
     assert np.median(naive) > 2 * np.median(e0), (e0, naive)
-    r = R.navigate_recorded(imu, fx, _opt(outages=outs, kf_dt=0.1, nhc_sigma=(0.1, 0.1), estimate_vehicle=True))
+    r = recorded_run(imu, fx, **_opt(outages=outs, kf_dt=0.1, nhc_sigma=(0.1, 0.1), estimate_vehicle=True))
     est = R.outage_end_errors(r, fx)[1]
     given = run(nhc_sigma=(0.1, 0.1), vehicle_mount=tuple(M))
     for e in (given, est):
         assert np.all(e <= 1.1 * e0 + 0.05) and np.sum(e < e0) > e0.size / 2, (e0, e)
-    m, s = np.array(r.init["vehicle_mount_estimate"]), r.init["vehicle_mount_sigma"]
+    nhc = r.report("nhc").metrics
+    m = np.radians(nhc["vehicle_mount_estimate_deg"])
+    s = [None if x is None else math.radians(x) for x in nhc["vehicle_mount_sigma_deg"]]
     for i in (0, 2):
         assert abs(m[i] - M[i]) < 3 * s[i] + math.radians(0.05), (np.degrees(m), s)
     assert_doc_quotes("docs/aiding.md", "NHC ended 20 s outages 6–9 m off against 0.5–2.6 m with fixes only; with "
@@ -397,9 +400,9 @@ def test_nhc_refused_for_an_aircraft():
     imu, fx, _, _, _ = simulated_car_drive(segs)
     assert R.platform_kind(fx)[0] == "aircraft"
     with pytest.raises(ValueError, match="wheeled land vehicle; this is an aircraft"):
-        R.navigate_recorded(imu, fx, _opt(nhc_sigma=(0.1, 0.1), heading=0.5))
+        recorded_run(imu, fx, **_opt(nhc_sigma=(0.1, 0.1), heading=0.5))
     with pytest.raises(ValueError, match="this is a marine"):
-        R.navigate_recorded(imu, fx, _opt(nhc_sigma=(0.1, 0.1), heading=0.5, platform="marine"))
+        recorded_run(imu, fx, **_opt(nhc_sigma=(0.1, 0.1), heading=0.5, platform="marine"))
 
 
 # ------------------------------------------------------------------------ claims -------
@@ -444,10 +447,10 @@ def test_in_motion_alignment_of_a_flight_without_rest():
     imu, tru = IM.apply(g.imu, err, 1), g.truth
     fx = fu.fixes_at(tru, np.arange(0.25, tru.t[-1] - 0.3, 0.25), np.random.default_rng(2), pos_sigma=0.5,
                      vel_sigma=0.05)
-    r = R.navigate_recorded(imu, fx, _opt(kf_dt=0.1))
-    assert r.init["level_source"].startswith("in motion")
-    i = int(round((r.init["t_start"] - tru.t[0]) / 0.01))
-    d = np.degrees(np.abs(A.wrap_pi(np.array([r.init["pitch"], r.init["roll"]]) - tru.att[i, :2])))
+    r = recorded_run(imu, fx, **_opt(kf_dt=0.1))
+    assert r.start.level.source.startswith("in motion")
+    i = int(round((r.start.t - tru.t[0]) / 0.01))
+    d = np.degrees(np.abs(A.wrap_pi(np.array([r.start.pitch, r.start.roll]) - tru.att[i, :2])))
     assert np.all(d < 1.0), d
     assert _heading_err(r, tru) < math.radians(2.0)
 
@@ -500,12 +503,12 @@ def test_real_drive_aiding_only_helps():
     assert sy["offset_applied"] and not sy["ppm_applied"]
     imu = R.shift_imu_time(im.imu, sy["offset"], sy["ppm"], sy["t_ref"])
     outs = [("periodic", 15.0, 60.0, 40.0)]
-    runs = {nm: R.navigate_recorded(imu, fx, _opt(lever_arm=lev, outages=outs, **kw))
+    runs = {nm: recorded_run(imu, fx, **_opt(lever_arm=lev, outages=outs, **kw))
             for nm, kw in (("fixes", {}), ("zupt", dict(zupt="auto", zaru=True)),
                            ("nhc", dict(nhc_sigma=(0.1, 0.1), estimate_vehicle=True)))}
     e = {nm: R.outage_end_errors(r, fx)[1] for nm, r in runs.items()}
-    assert runs["zupt"].init["aiding_gate"]["zupt"]["rejected"] == 0
-    assert len(runs["zupt"].init["rest_intervals"]) == 3
+    assert gate_record(runs["zupt"], "zupt")["rejected"] == 0
+    assert len(rest_intervals_of(runs["zupt"])) == 3
     np.testing.assert_allclose(e["zupt"], e["fixes"], rtol=0.05, atol=0.05)
     assert np.sum(e["nhc"] < e["fixes"]) >= 6 and np.median(e["nhc"]) < 0.5 * np.median(e["fixes"]), e
 
@@ -519,16 +522,17 @@ def test_held_fixes_given_in_memory_are_collapsed(drive):
     j = np.searchsorted(fx1.t, rows + 1e-12, side="right") - 1
     rows, j = rows[j >= 0], j[j >= 0]
     held = Fixes(rows, fx1.lat[j], fx1.lon[j], fx1.h[j], fx1.sigma[j], fx1.vel[j], fx1.sigma_vel[j], fx1.quality[j])
-    r = R.navigate_recorded(imu, held, _opt(kf_dt=0.1))
-    rows_in, epochs = r.init["held_fixes"]
+    r = recorded_run(imu, held, **_opt(kf_dt=0.1))
+    rows_in, epochs = r.held_fixes
     assert epochs == len(fx1) and rows_in > 45 * epochs
     assert r.fix_t.size <= len(fx1)
 
 
 @pytest.mark.parametrize("args, msg", [
-    (["--platform", "boat"], "--platform must be one of"),
-    (["--vehicle-mount", "euler:1,2"], "--vehicle-mount"),
-    (["--nhc-lever", "[1, 2] m"], "--nhc-lever"),
+    (["--platform", "boat"], "--platform boat: 'boat': choose one of auto, land, aircraft, marine"),
+    (["--aid", "nhc", "--vehicle-mount", "euler:1,2"], "--vehicle-mount euler:1,2:"),
+    (["--aid", "nhc", "--nhc-lever", "[1, 2] m"], "--nhc-lever [1, 2] m:"),
+    (["--nhc-lever", "[1, 2, 3] m"], "nhc.lever (--nhc-lever [1, 2, 3] m): the nhc aid is not enabled: add --aid nhc"),
     (["--fix-columns", "t=time[s], lat=nope"], "--fix-columns lat='nope': no such column"),
     (["--fix-quality", "x"], "--fix-quality 'x'"),
     (["--aid", "nhc", "--platform", "aircraft"], "wheeled land vehicle, not --platform aircraft"),
@@ -587,42 +591,43 @@ def test_n380_car_drive_as_shipped():
     sync = R.significant_time_offset(R.estimate_time_offset(imu, fx))
     assert not sync["offset_applied"] and not sync["ppm_applied"], sync
     outs = [("periodic", 30.0, 120.0, 60.0)]
-    r0 = R.navigate_recorded(imu, fx, _opt(outages=outs))
-    r1 = R.navigate_recorded(imu, fx, _opt(outages=outs, nhc_sigma=(0.1, 0.1), estimate_vehicle=True))
+    r0 = recorded_run(imu, fx, **_opt(outages=outs))
+    r1 = recorded_run(imu, fx, **_opt(outages=outs, nhc_sigma=(0.1, 0.1), estimate_vehicle=True))
     e0, e1 = R.outage_end_errors(r0, fx)[1], R.outage_end_errors(r1, fx)[1]
     assert e0.size >= 4 and np.all(e1 < e0), (e0, e1)
-    assert 1.0 < abs(math.degrees(r1.init["vehicle_mount_estimate"][2])) < 4.0
+    assert 1.0 < abs(r1.report("nhc").metrics["vehicle_mount_estimate_deg"][2]) < 4.0
     doc = "docs/recorded-data.md"
 
     def with_fixes(r):                      # median horizontal error at the fixes outside the outages
         t, err, _ = R.fix_errors(r, fx)
         out = np.zeros(t.size, bool)
-        for a, ln in r.init["outages"]:
+        for a, ln in r.outages:
             out |= (t >= a) & (t < a + ln)
         return float(np.median(np.hypot(err[~out, 0], err[~out, 1])))
 
     assert_doc_quotes(doc, "quality values {1: 1, 2: 2, 4: 670}", [x for kv in sorted(meta["quality_counts"].items())
                                                                   for x in kv])
-    assert_doc_quotes(doc, "the heading is found in motion 127 s after the first fix", [r0.init["t_start"] - fx.t[0]])
-    assert_doc_quotes(doc, "the n380 hill drive carries it 26 s", [380, r0.init["tilt_carried_s"]])
+    assert_doc_quotes(doc, "the heading is found in motion 127 s after the first fix", [r0.start.t - fx.t[0]])
+    assert_doc_quotes(doc, "the n380 hill drive carries it 26 s", [380, r0.start.tilt_carried_s])
     assert_doc_quotes(doc, "| fixes only | 21.1, 20.5, 3.83, 11.5 | 16.0 m | 0.26 m |", [*e0, np.median(e0), with_fixes(r0)])
-    rz = R.navigate_recorded(imu, fx, _opt(outages=outs, zupt="auto", zaru=True))
-    ez, gz = R.outage_end_errors(rz, fx)[1], rz.init["aiding_gate"]["zupt"]
+    rz = recorded_run(imu, fx, **_opt(outages=outs, zupt="auto", zaru=True))
+    ez, gz = R.outage_end_errors(rz, fx)[1], gate_record(rz, "zupt")
     assert_doc_quotes(doc, "| `--aid zupt,zaru` | 21.1, 18.2, 2.61, 0.85 | 10.4 m | 0.28 m (5 rests; 4 of 2706 ZUPT "
                       "updates rejected, at 225.6 s) |",
-                      [*ez, np.median(ez), with_fixes(rz), len(rz.init["rest_intervals"]), gz["rejected"],
+                      [*ez, np.median(ez), with_fixes(rz), len(rest_intervals_of(rz)), gz["rejected"],
                        gz["applied"] + gz["rejected"], gz["rejected_spans"][0][0] - fx.t[0]])
     assert_doc_quotes(doc, "the same: offset −168 ± 68 ms and −95 ± 191 ppm not significant (4.6σ needed)",
                       [1e3 * sync["offset_estimate"], 1e3 * sync["offset_sigma"], sync["ppm_estimate"], sync["ppm_sigma"],
                        sync["threshold_sigmas"]])
-    r2 = R.navigate_recorded(imu, fx, _opt(outages=outs, nhc_sigma=(0.1, 0.1)))
+    r2 = recorded_run(imu, fx, **_opt(outages=outs, nhc_sigma=(0.1, 0.1)))
     e2 = R.outage_end_errors(r2, fx)[1]
     assert_doc_quotes(doc, "| NHC, mount and lever unknown, not estimated | 8.28, 24.8, 4.15, 32.0 |", e2)
     assert_doc_quotes(doc, "the outages end 8.3, 24.8, 4.2, 32.0 m off", e2)
     assert_doc_quotes(doc, "| `--aid nhc` (mount and lever estimated) | **4.41, 11.1, 0.43, 8.37** | **6.39 m** | 0.32 m |",
                       [*e1, np.median(e1), with_fixes(r1)])
-    m, ms = np.degrees(r1.init["vehicle_mount_estimate"]), np.degrees(r1.init["vehicle_mount_sigma"][0])
-    lv, ls = r1.init["nhc_lever_estimate"], r1.init["nhc_lever_sigma"]
+    nhc = r1.report("nhc").metrics
+    m, ms = np.array(nhc["vehicle_mount_estimate_deg"]), nhc["vehicle_mount_sigma_deg"][0]
+    lv, ls = nhc["nhc_lever_estimate_m"], nhc["nhc_lever_sigma_m"]
     assert_doc_quotes(doc, "NHC estimates the case 2.33° yawed and 0.42 ± 0.02° pitched in the car and the rear axle "
                       "1.46 m behind the IMU (lever −0.46, −1.46, −0.20 m ± 0.10, 0.01, 0.08)",
                       [abs(m[2]), abs(m[0]), ms, -lv[1], *lv, *ls])
@@ -638,9 +643,9 @@ def test_n380_stop_and_go_drive_nhc_helps():
     imu = load_imu(d / "n380-imu-nav.csv.zip", columns=N380_IMU, mount=N380_MOUNT, frame="frd").imu
     fx, _ = load_fixes(d / "n380-gnss-pvt.csv.zip", columns=N380_FIX)
     outs = [("periodic", 30.0, 120.0, 60.0)]
-    r0 = R.navigate_recorded(imu, fx, _opt(outages=outs))
-    r1 = R.navigate_recorded(imu, fx, _opt(outages=outs, nhc_sigma=(0.1, 0.1), estimate_vehicle=True))
-    assert "motion_alignment" not in r0.init and r0.init["tilt_carried_s"] < 5.0
+    r0 = recorded_run(imu, fx, **_opt(outages=outs))
+    r1 = recorded_run(imu, fx, **_opt(outages=outs, nhc_sigma=(0.1, 0.1), estimate_vehicle=True))
+    assert r0.start.motion_fit is None and r0.start.tilt_carried_s < 5.0
     e0, e1 = R.outage_end_errors(r0, fx)[1], R.outage_end_errors(r1, fx)[1]
     assert e0.size == 1 and e1[0] < 0.8 * e0[0], (e0, e1)
     assert_doc_quotes("docs/recorded-data.md", "one 30 s outage) ends 7.40 m off with fixes only, 4.79 m with `--aid nhc`",
@@ -712,21 +717,21 @@ def test_uav_flight_starts_within_a_few_degrees_of_the_units_solution():
     fx, meta = load_fixes([d / "gps_traj_data.txt.zip", d / "gps_velocity_data.txt.zip"], columns=UAV_FIX)
     with zipfile.ZipFile(d / "nav_attitude_data.txt.zip") as z:
         ref = np.loadtxt(io.TextIOWrapper(z.open(z.namelist()[0])), delimiter=",", skiprows=1)
-    r = R.navigate_recorded(imu, fx, _opt())
-    assert r.init["platform"][0] == "aircraft" and r.init["motion_alignment"]["heading"]
-    assert r.init["motion_alignment"]["carried_s"] > 60.0
-    ts = r.init["t_start"]
+    r = recorded_run(imu, fx, **_opt())
+    assert r.platform[0] == "aircraft" and r.start.motion_fit.heading
+    assert r.start.motion_fit.carried_s > 60.0
+    ts = r.start.t
     yaw, pitch, roll = (np.interp(ts, ref[:, 0], np.unwrap(ref[:, c])) for c in (1, 2, 3))   # NED: heading, pitch, roll
-    dh = math.degrees(abs(A.wrap_pi(r.init["heading"] - yaw)))
+    dh = math.degrees(abs(A.wrap_pi(r.start.heading - yaw)))
     sig_h = math.degrees(r.sigma[0, r.labels.index("phiU")])
     assert dh < 6.0 and dh < 3 * sig_h, (dh, sig_h)
-    assert abs(math.degrees(r.init["pitch"] - pitch)) < 5.0
-    assert abs(math.degrees(r.init["roll"] - roll)) < 2.0
+    assert abs(math.degrees(r.start.pitch - pitch)) < 5.0
+    assert abs(math.degrees(r.start.roll - roll)) < 2.0
     sig_p = math.degrees(r.sigma[0, r.labels.index("phiE")])
     assert_doc_quotes("docs/recorded-data.md", "| in-motion alignment (now) | 3.4° | −0.6° | 3.4° | 1.2°, 2.7° |",
-                      [math.degrees(r.init["pitch"] - pitch), math.degrees(r.init["roll"] - roll), dh, sig_p, sig_h])
+                      [math.degrees(r.start.pitch - pitch), math.degrees(r.start.roll - roll), dh, sig_p, sig_h])
     assert_doc_quotes("docs/recorded-data.md", "The first straight flight above 10 m/s with the wings level comes "
-                      "61 s later", [R.AIRCRAFT_MOVE_SPEED, r.init["motion_alignment"]["carried_s"]])
+                      "61 s later", [R.AIRCRAFT_MOVE_SPEED, r.start.motion_fit.carried_s])
 
 
 def test_uav_flight_navigate_states_the_in_motion_alignment(tmp_path):

@@ -229,10 +229,7 @@ def OrWord(inner, word: str):
             return None
         if val is None:
             return v
-        try:
-            return val(v)
-        except ValueError as e:
-            raise ValueError(f"{e} (or \"{word}\")") from None
+        return val(v)
 
     def serialize(v):
         if v is None:

@@ -114,22 +114,11 @@ DESCRIPTIONS = {
         (r"^fixes_after_grid$", "fixes after the last whole filter step, not used"),
         (r"^filter_gyro_arw_deg_sqrth$", "gyro angle random walk x, y, z the filter assumed"),
         (r"^filter_accel_vrw_ug_sqrthz$", "accelerometer velocity random walk x, y, z the filter assumed"),
-        (r"^lever_arm_estimate_m$", "estimated antenna lever arm (vehicle right, forward, up)"),
-        (r"^lever_arm_sigma_m$", "1σ of the lever-arm estimate"),
-        (r"^rest_intervals$", "rest intervals used for zero-velocity updates"),
-        (r"^rest_total_s$", "total time at rest used for zero-velocity updates"),
         (r"^rest_gyro_noise_deg_sqrth$", "gyro white noise x, y, z measured at the initial rest (vibration included)"),
         (r"^rest_accel_noise_ug_sqrthz$", "accelerometer white noise x, y, z measured at the initial rest"),
         (r"^rest_over_filter_noise_(gyro|accel)$", "{0} noise measured at rest over the filter's, per axis "
          "(a warning beyond 3 or below 1/3)"),
-        (r"^vehicle_mount_estimate_deg$", "estimated IMU mount in the vehicle frame: pitch, roll (not estimated), yaw"),
-        (r"^vehicle_mount_sigma_deg$", "1σ of the vehicle-mount estimate (pitch, -, yaw)"),
-        (r"^nhc_lever_estimate_m$", "estimated IMU -> NHC point (rear-axle centre) lever, vehicle right, forward, up"),
-        (r"^nhc_lever_sigma_m$", "1σ of the NHC lever estimate"),
         (r"^platform$", "platform kind (given, or inferred from the fixes' speed and climb rate)"),
-        (r"^(zupt|zaru|nhc|odometer)_updates_applied$", "{0} updates inside the innovation gate, applied"),
-        (r"^(zupt|zaru|nhc|odometer)_updates_rejected$", "{0} updates the innovation gate rejected (the "
-         "filter's own state contradicts the assumption, e.g. rest while moving)"),
         (r"^scale_factor_final_ppm$", "estimated gyro x, y, z and accelerometer x, y, z scale factors at the end"),
         (r"^smoothed_hz_err_rms_m$", "RMS horizontal error of the RTS-smoothed solution at the reference fixes"),
         (r"^forward_hz_err_rms_m$", "RMS horizontal error of the forward filter at the same fixes"),
@@ -138,8 +127,6 @@ DESCRIPTIONS = {
         (r"^outage_mid_hz_err_smoothed_m$", "smoothed horizontal error at the middle of each outage"),
         (r"^outage_mid_hz_err_smoothed_median_m$", "smoothed horizontal error at the middle of the outages, median"),
         (r"^smoothed_stored_epochs$", "filter epochs stored for the backward pass"),
-        (r"^odometer_scale_final_ppm$", "smoothed odometer scale-factor state at the end (k of v = (1 − k)·reading)"),
-        (r"^odometer_scale_sigma_ppm$", "smoothed 1σ of the odometer scale factor at the end"),
     ],
 }
 
@@ -154,9 +141,11 @@ def _unit(name: str) -> str:
     return ""
 
 
-def metric_info(command: str, metrics: dict) -> dict:
-    """``{name: {"unit", "description"}}`` for the metrics of ``command``."""
-    rules = DESCRIPTIONS.get(command, [])
+def metric_info(command: str, metrics: dict, extra=()) -> dict:
+    """``{name: {"unit", "description"}}`` for the metrics of ``command``; ``extra``
+    ``((regex, description), ...)`` rules of the run's plug-ins, tried first (an aid
+    describes its own metrics: :attr:`sinslab.fusion.aids.base.Report.descriptions`)."""
+    rules = [*extra, *DESCRIPTIONS.get(command, [])]
     out = {}
     for name in metrics:
         desc = ""

@@ -116,6 +116,18 @@ class RecordedNav:
         s = self.run.scale
         return None if s is None else s[0]
 
+    def _fixes(self, i):
+        recs = self.source.fix_records
+        if recs is None:
+            raise AttributeError(f"a {self.source.coupling} run applies no fixes: its rows are in source.rows")
+        return recs[i]
+
+    fix_t = property(lambda self: self._fixes(0), doc="(J,) validity times of the fixes applied [s].")
+    innovation = property(lambda self: self._fixes(1), doc="(J, m) fix innovations (north, east[, up] [m], "
+                                                           "then velocity east, north, up [m/s]).")
+    innovation_sigma = property(lambda self: self._fixes(2), doc="(J, m) the filter's σ of each, or None.")
+    nis = property(lambda self: self._fixes(3), doc="(J,) NIS of the fixes applied.")
+
     def report(self, name):
         """The report of the aid ``name``."""
         for r in self.aids:

@@ -359,11 +359,28 @@ def _compute(cfg, echo) -> Output:
         _smoothed_outputs(res, p.fx, res.outages, metrics, tables, figures, echo, every)
     for rep in (res.source, *res.aids):
         _plugin_outputs(rep, metrics, tables, figures, notes, echo, float(res.t[0]))
+    described = [d for rep in (res.source, *res.aids) for d in rep.descriptions]
     if res.source.rows:
         from sinslab.app.commands.raw_gnss import raw_figures
         figures += raw_figures(res, res.source)
     return Output(config=config_value(cfg), metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  value=(res, p.fx), claims=claims, warnings=warnings)
+                  files=_error_model_file(p.em_cfg), value=(res, p.fx), claims=claims, warnings=warnings,
+                  descriptions=described)
+
+
+def _error_model_file(em):
+    """``{"imu_errors.toml": text}``: the error model the run resolved (its grade and
+    tables, itself an ``--imu-errors`` file), when one was given."""
+    if not em:
+        return {}
+    from sinslab.core.toml import dump_toml
+    data = {"grade": em["grade"]} if "grade" in em else {}
+    for k, v in em.items():
+        if "." in k:
+            tab, key = k.split(".", 1)
+            data.setdefault(tab, {})[key] = v
+    return {"imu_errors.toml": f"# the filter's error model of this run, resolved from {em['source']}\n"
+                               + dump_toml(data)}
 
 
 @dataclass

@@ -128,21 +128,22 @@ class OutputKeys(Section):
 
 
 #: option -> (dotted key, value kind): the command's options as short forms of keys; a
-#: number is written with the unit of the kind (``--max-gap 2`` is ``imu.max_gap = "2 s"``)
+#: number is written with the unit of the kind (``--max-gap 2`` is ``imu.max_gap = "2 s"``),
+#: a file named on the command line made absolute (the run's config.toml re-runs from anywhere)
 FLAGS = {
-    "--imu": ("imu.file", "files"), "--format": ("imu.format", None), "--columns": ("imu.columns", None),
+    "--imu": ("imu.file", "files"), "--format": ("imu.format", None), "--columns": ("imu.columns", "maybe_path"),
     "--mount": ("imu.mount", None), "--frame": ("imu.frame", None), "--max-gap": ("imu.max_gap", "s"),
     "--allow-gaps": ("imu.allow_gaps", None), "--imu-delay": ("imu.delay", "s"),
     "--time-sync": ("imu.time_sync", None),
     "--fixes": ("gnss.fixes.file", "files"), "--fix-format": ("gnss.fixes.format", None),
-    "--fix-columns": ("gnss.fixes.columns", None), "--fix-quality": ("gnss.fixes.quality", None),
+    "--fix-columns": ("gnss.fixes.columns", "maybe_path"), "--fix-quality": ("gnss.fixes.quality", None),
     "--velocity-lag": ("gnss.fixes.velocity_lag", "s"), "--fix-latency": ("gnss.fixes.latency", "s"),
     "--lag": ("gnss.fixes.lag", None), "--lever-arm": ("gnss.lever_arm", None),
     "--outages": ("gnss.outages", None),
     "--gnss-raw": ("gnss.raw.file", "path"), "--gnss-nav": ("gnss.raw.nav", "path"),
     "--max-satellites": ("gnss.raw.max_satellites", "list"), "--elevation-mask": ("gnss.raw.elevation_mask", "deg"),
     "--platform": ("start.platform", None),
-    "--imu-errors": ("filter.imu_errors", None), "--scale-factors": ("filter.scale_factors", None),
+    "--imu-errors": ("filter.imu_errors", "maybe_path"), "--scale-factors": ("filter.scale_factors", None),
     "--smooth": ("filter.smooth", None),
     "--csv-rate": ("output.csv_rate", "Hz"), "--strict": ("output.strict", None),
 }
@@ -268,10 +269,14 @@ def resolve_navigate(file=None, sets=(), given=None):
 def _flag_error(model, err, origins):
     """The one-line error; a value that came from an option names the option."""
     loc = ".".join(str(x) for x in err.errors()[0]["loc"])
-    if origins.get(loc, "").startswith("--") and not origins[loc].startswith("--set"):
+    origin = origins.get(loc, "")
+    if origin.startswith("--") and not origin.startswith("--set"):
         msg = err.errors()[0]["msg"]
         msg = msg[len("Value error, "):] if msg.startswith("Value error, ") else msg
-        return f"{origins[loc]}: {msg}"
+        if msg.startswith(("'", '"')):          # the message shows the value: name the option alone
+            label = origin.split("=")[0] if origin.startswith("--init ") else origin.split(" ")[0]
+            return f"{label} {msg}"
+        return f"{origin}: {msg}"
     return _format_error(model, err, origins)
 
 
@@ -321,6 +326,8 @@ def flag_overrides(given: dict):
             value = value[0] if isinstance(value, list) and len(value) == 1 else value
         elif kind == "path":
             value = str(_abs(value))
+        elif kind == "maybe_path":                  # a file, or a text (a map, a grade)
+            value = str(_abs(value)) if Path(str(value)).is_file() else value
         elif kind == "list":
             value = list(value)
         _put(out, key, _unit(value, kind))

@@ -103,11 +103,13 @@ class Output:
     #: plausibility warnings about the data or the run (:mod:`sinslab.app.plausibility`),
     #: already printed; ``summary.json`` ``warnings`` and a flagged list in the report
     warnings: list = field(default_factory=list)
+    #: ``(regex, description)`` of metrics the command's plug-ins describe themselves
+    descriptions: list = field(default_factory=list)
 
 
 def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metrics: dict,
                     notes=(), claims=(), paper: str = "", timing: dict | None = None,
-                    warnings=()) -> dict:
+                    warnings=(), descriptions=()) -> dict:
     """The ``summary.json`` of a command: the keys of every run folder (``experiment``,
     ``sinslab_version``, ``config``, ``metrics``, ``claims``) plus what the report needs
     (units and descriptions of the metrics, the command line that re-runs it)."""
@@ -118,7 +120,7 @@ def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metric
             "claims": [c.as_dict() if hasattr(c, "as_dict") else c for c in claims],
             "purpose": purpose, "paper": paper,
             "quick": False, "started": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "metric_info": metric_info(command, metrics), "figures": rd.figure_files,
+            "metric_info": metric_info(command, metrics, descriptions), "figures": rd.figure_files,
             "series": rd.series_info, "tables": [], "notes": list(notes),
             "warnings": list(warnings),
             "rerun": invocation(), "timing": timing or {}}
@@ -178,7 +180,7 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
     summary = complete_timed(rd, command_summary(rd, command.name, command.purpose, res.config,
                                                  res.metrics, res.notes, res.claims,
                                                  paper=command.paper, timing=timing,
-                                                 warnings=res.warnings))
+                                                 warnings=res.warnings, descriptions=res.descriptions))
     if summary.get("claims"):
         from sinslab.app.report import claim_texts
 

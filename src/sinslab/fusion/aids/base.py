@@ -40,7 +40,7 @@ from sinslab.core import units
 
 __all__ = ["Setting", "setting", "settings_of", "Inputs", "State", "Setup", "Plan", "AidRun", "Estimate",
            "Line", "Panel", "PanelFigure", "Table", "Mark", "Report", "Aid", "GnssSource", "SourceReport",
-           "merged_spans", "gated", "every"]
+           "merged_spans", "gated", "every", "GATE_DESCRIPTIONS"]
 
 #: kinds of a setting that are not a quantity of :data:`sinslab.core.units.KINDS`
 PLAIN_KINDS = ("flag", "choice", "text", "file", "probability", "number", "count", "mount")
@@ -414,6 +414,12 @@ def merged_spans(times, gap):
         return ()
     br = np.flatnonzero(np.diff(t) >= gap)
     return tuple((float(t[a]), float(t[b])) for a, b in zip(np.r_[0, br + 1], np.r_[br, t.size - 1]))
+
+
+#: descriptions of the metrics :func:`gated` makes
+GATE_DESCRIPTIONS = ((r"^(\w+?)_updates_applied$", "{0} updates inside the innovation gate, applied"),
+                     (r"^(\w+?)_updates_rejected$", "{0} updates the innovation gate rejected (the filter's own "
+                      "state contradicts the assumption, e.g. rest while moving)"))
 
 
 def gated(label, log, gap, t_ref):

@@ -61,4 +61,6 @@ class AntennaLever(Aid):
         return Report(self.name, "antenna lever arm", estimates=(e,),
                       metrics={"lever_arm_estimate_m": est, "lever_arm_sigma_m": sig},
                       notes=("Antenna lever arm estimated (vehicle right, forward, up): " + e.text() + " m.",),
-                      lines=("  lever arm estimate [m] " + e.text(),))
+                      lines=("  lever arm estimate [m] " + e.text(),),
+                      descriptions=((r"^lever_arm_estimate_m$", "estimated antenna lever arm (vehicle right, forward, up)"),
+                                    (r"^lever_arm_sigma_m$", "1σ of the lever-arm estimate")))

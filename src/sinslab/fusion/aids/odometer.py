@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sinslab.fusion.aids.base import Aid, AidRun, Estimate, Plan, Report, Setup, State, gated, setting
+from sinslab.fusion.aids.base import (GATE_DESCRIPTIONS, Aid, AidRun, Estimate, Plan, Report, Setup, State, gated,
+                                     setting)
 
 __all__ = ["WheelOdometer", "MAX_WHEEL_SPEED"]
 
@@ -92,8 +93,14 @@ class WheelOdometer(Aid):
             lines += ln
             marks += [mk] if mk else []
         return Report(self.name, "wheel odometer", estimates=tuple(est), metrics=metrics,
-                      descriptions=((r"^odometer_scale_forward_ppm$", "odometer scale factor k at the end, "
-                                     "forward filter (v = (1 − k)·reading)"),
-                                    (r"^odometer_scale_forward_sigma_ppm$", "filter 1σ of the odometer scale "
-                                     "factor at the end")),
+                      descriptions=DESCRIPTIONS,
                       lines=tuple(lines), marks=tuple(marks))
+
+
+#: what the metrics of the report mean
+DESCRIPTIONS = (
+    (r"^odometer_scale_forward_ppm$", "odometer scale factor k at the end, forward filter (v = (1 − k)·reading)"),
+    (r"^odometer_scale_forward_sigma_ppm$", "filter 1σ of the odometer scale factor at the end"),
+    (r"^odometer_scale_final_ppm$", "smoothed odometer scale-factor state at the end (k of v = (1 − k)·reading)"),
+    (r"^odometer_scale_sigma_ppm$", "smoothed 1σ of the odometer scale factor at the end"),
+    *GATE_DESCRIPTIONS)

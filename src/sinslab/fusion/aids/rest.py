@@ -18,7 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sinslab.fusion.aids.base import Aid, AidRun, Mark, Plan, Report, Setup, every, gated, setting
+from sinslab.fusion.aids.base import (GATE_DESCRIPTIONS, Aid, AidRun, Mark, Plan, Report, Setup, Table, every,
+                                     gated, setting)
 
 __all__ = ["Zupt", "rest_intervals", "moving_spans", "subtract_spans"]
 
@@ -88,8 +89,14 @@ class Zupt(Aid):
             marks += [mk] if mk else []
         note = (f"ZUPT{'/ZARU' if self.zaru else ''} on {metrics['rest_intervals']} rest interval(s), "
                 f"{metrics['rest_total_s']:.0f} s in all ({self.rest} detection).")
-        return Report(self.name, "zero-velocity updates", metrics=metrics, notes=(note,), lines=tuple(lines),
-                      marks=tuple(marks))
+        arr = np.asarray(iv, dtype=float).reshape(-1, 2)
+        table = Table("rest_intervals", {"start_s": arr[:, 0], "end_s": arr[:, 1]},
+                      "rest intervals the zero-velocity updates were applied in (absolute times)")
+        return Report(self.name, "zero-velocity updates", metrics=metrics, tables=(table,), notes=(note,),
+                      lines=tuple(lines), marks=tuple(marks), descriptions=(
+                          (r"^rest_intervals$", "rest intervals used for zero-velocity updates"),
+                          (r"^rest_total_s$", "total time at rest used for zero-velocity updates"),
+                          *GATE_DESCRIPTIONS))
 
 
 def rest_intervals(imu, source, lat, rest=None, gyro_bias=None, fixes=None, *, start=None, rest_flags=None,

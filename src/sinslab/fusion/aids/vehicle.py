@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sinslab.core import units
-from sinslab.fusion.aids.base import Aid, AidRun, Estimate, Plan, Report, Setup, State, every, gated, setting
+from sinslab.fusion.aids.base import (GATE_DESCRIPTIONS, Aid, AidRun, Estimate, Plan, Report, Setup, State, every,
+                                     gated, setting)
 
 __all__ = ["Nhc"]
 
@@ -111,4 +112,13 @@ class Nhc(Aid):
             lines += ln
             marks += [mk] if mk else []
         return Report(self.name, "non-holonomic constraint and vehicle mount", estimates=tuple(est),
-                      metrics=metrics, lines=tuple(lines), marks=tuple(marks))
+                      metrics=metrics, lines=tuple(lines), marks=tuple(marks), descriptions=DESCRIPTIONS)
+
+
+#: what the metrics of the report mean
+DESCRIPTIONS = (
+    (r"^vehicle_mount_estimate_deg$", "estimated IMU mount in the vehicle frame: pitch, roll (not estimated), yaw"),
+    (r"^vehicle_mount_sigma_deg$", "1σ of the vehicle-mount estimate (pitch, -, yaw)"),
+    (r"^nhc_lever_estimate_m$", "estimated IMU -> NHC point (rear-axle centre) lever, vehicle right, forward, up"),
+    (r"^nhc_lever_sigma_m$", "1σ of the NHC lever estimate"),
+    *GATE_DESCRIPTIONS)
