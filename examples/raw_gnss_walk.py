@@ -21,7 +21,7 @@ from sinslab.data import load_imu, read_fixes
 from sinslab.data.gnss import read_gnss_raw, read_ubx_pvt
 from sinslab.fusion.gnss import prepare
 from sinslab.fusion.recorded import NavOptions, fix_errors, navigate_recorded
-from sinslab.fusion.tightly_coupled import RawGnss
+from sinslab.fusion.tightly_coupled import RawGnss, RawSource
 
 
 def main(data, figure=None):
@@ -32,9 +32,9 @@ def main(data, figure=None):
     obs = read_gnss_raw(data / "gnss_1730.ubx")
     start = dict(move_speed=1.0, heading_straight=10 * u.deg)
 
-    def tc(**kw):
+    def tc(**kw):                 # the raw observations as the GNSS source: tightly coupled
         raw = RawGnss(prepare(obs), **kw)
-        return navigate_recorded(imu, raw.fixes(), NavOptions.of(gnss_raw=raw, **start)), raw
+        return navigate_recorded(imu, RawSource(raw), NavOptions.of(**start)), raw
 
     res_tc, raw = tc()
     spp = raw.fixes()
@@ -82,8 +82,8 @@ def main(data, figure=None):
     print("| --- | --- | --- | --- |")
     for k, (ws, wd) in ((3, (60.0, 20.0)), (2, (60.0, 20.0))):
         res_w, raw_w = tc(max_satellites=((k, t0 + ws, wd),))
-        n_used = np.array([x.sum() for x in raw_w.measurements[0].log.used])
-        tl = np.array(raw_w.measurements[0].log.t)
+        log = res_w.source.rows["pseudoranges"]          # the driver's record of every row
+        n_used, tl = log.used_per_epoch(), np.array(log.t)
         assert np.all(n_used[(tl >= t0 + ws) & (tl < t0 + ws + wd)] <= k)
         res_lo = navigate_recorded(imu, pvt, NavOptions.of(outages=((t0 + ws, wd),), **start))
         for name, res, key in ((f"tightly coupled, {k} satellites", res_w, rows[0][0]),
@@ -117,10 +117,11 @@ def main(data, figure=None):
         axes[1].legend(fontsize=8)
         axes[1].set_title("at most 3 or 2 satellites from 60 to 80 s (grey): no fix for the loosely coupled filter")
         fig.savefig(figure, dpi=110)
-    c = raw.measurements[0].log.counts()
+    c = res_tc.source.rows["pseudoranges"].counts()
+    clock = res_tc.source.clock[0]
     print(f"\npseudoranges used {c['used']}, rejected by the gate {c['rejected']}, observations "
-          f"without ephemeris {c['no_ephemeris']}; clock drift {res_tc.init['gnss_clock'][0, 1]:.1f} -> "
-          f"{res_tc.init['gnss_clock'][-1, 1]:.1f} m/s")
+          f"without ephemeris {c['no_ephemeris']}; clock drift {clock[0, 1]:.1f} -> "
+          f"{clock[-1, 1]:.1f} m/s")
 
 
 if __name__ == "__main__":

@@ -529,9 +529,9 @@ def test_held_fixes_given_in_memory_are_collapsed(drive):
 
 
 @pytest.mark.parametrize("args, msg", [
-    (["--platform", "boat"], "--platform boat: 'boat': choose one of auto, land, aircraft, marine"),
+    (["--platform", "boat"], "--platform 'boat': choose one of auto, land, aircraft, marine"),
     (["--aid", "nhc", "--vehicle-mount", "euler:1,2"], "--vehicle-mount euler:1,2:"),
-    (["--aid", "nhc", "--nhc-lever", "[1, 2] m"], "--nhc-lever [1, 2] m:"),
+    (["--aid", "nhc", "--nhc-lever", "[1, 2] m"], "--nhc-lever '[1, 2] m': expected 3 values, got 2"),
     (["--nhc-lever", "[1, 2, 3] m"], "nhc.lever (--nhc-lever [1, 2, 3] m): the nhc aid is not enabled: add --aid nhc"),
     (["--fix-columns", "t=time[s], lat=nope"], "--fix-columns lat='nope': no such column"),
     (["--fix-quality", "x"], "--fix-quality 'x'"),

@@ -93,12 +93,40 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
 
 def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model,
              period, feedback, echo, strict=False) -> Output:
-    from sinslab.app import plotting            # matplotlib: only when a command runs
-    from sinslab.core import attitude as A      # numba and scipy: only when it runs
-    from sinslab.core import earth
+    from sinslab.app.plausibility import Finding, settle
+    from sinslab.methods.alignment import align_record
+
+    imu, ps, lat_r, h_r, found = _read(path, fmt, lat, h, window)
+    ga = units.parse(gyro_arw, "angle_random_walk")
+    av = None if accel_vrw in (None, "", "auto") else units.parse(accel_vrw, "velocity_random_walk")
+    gb = units.parse(gyro_bias, "angular_rate")
+    ab = units.parse(accel_bias, "acceleration")
+    T = units.parse(period, "time")
+    r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
+                     model=model, period=T, feedback=feedback)
+    fa = r["fine"]
+    hw = _heading_check(r, len(imu) * imu.dt, fa.att_sigma[2])
+    if hw:
+        r["warnings"] = list(r["warnings"]) + [hw]
+    found += [Finding(w_) for w_ in r["warnings"]]
+    cfg = {"file": str(Path(path).absolute()), "format": fmt or ("psins" if ps is not None else "csv"),
+           "latitude": f"{math.degrees(lat_r):.8g} deg", "height": f"{h_r:.6g} m",
+           "window": window or ":", "gyro_arw": gyro_arw, "accel_vrw": accel_vrw or "auto",
+           "gyro_bias": gyro_bias, "accel_bias": accel_bias, "model": model, "period": period,
+           "feedback": bool(feedback)}
+    _say(path, imu, lat_r, h_r, r, model, feedback, gyro_bias, accel_bias, echo)
+    warnings = settle(found, strict=strict, echo=echo)
+    tables, figures = _outputs(fa)
+    return Output(config=cfg, metrics=_metrics(r, imu), tables=tables, figures=figures,
+                  notes=["Heading is clockwise from north."], value=r, warnings=warnings)
+
+
+def _read(path, fmt, lat, h, window):
+    """``(imu, PSINS header or None, latitude [rad], height [m], findings)``: the record in
+    its window, checked (refusals raised)."""
+    from sinslab.app.plausibility import imu_findings, rest_findings, settle
     from sinslab.data import read_imu
     from sinslab.methods import alignment as al
-    from sinslab.methods.alignment import align_record
 
     imu, ps = read_imu(path, fmt)
     if lat is None:
@@ -114,39 +142,28 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
 
         check_window("--window", window, float(imu.t[0]) - imu.dt, float(imu.t[-1]), imu.dt)
         imu = imu.slice(lo, hi)
-    from sinslab.app.plausibility import Finding, imu_findings, rest_findings, settle
-
     src = f"{path}" + (f" (window {window})" if window else "")
     found = imu_findings(imu, src, lat=lat_r, h=h_r)
     if not any(fd.refuse for fd in found):
         found += rest_findings(imu, src, lat=lat_r, h=h_r)
     settle([fd for fd in found if fd.refuse])
     al.check_alignment_latitude(lat_r)
-    ga = units.parse(gyro_arw, "angle_random_walk")
-    av = None if accel_vrw in (None, "", "auto") else units.parse(accel_vrw, "velocity_random_walk")
-    gb = units.parse(gyro_bias, "angular_rate")
-    ab = units.parse(accel_bias, "acceleration")
-    T = units.parse(period, "time")
-    r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
-                     model=model, period=T, feedback=feedback)
+    return imu, ps, lat_r, h_r, found
+
+
+def _angles(att):
+    """Pitch, roll [deg] and heading clockwise from north [deg]."""
+    from sinslab.core import attitude as A      # numba and scipy: only when it runs
+    return (math.degrees(att[0]), math.degrees(att[1]), math.degrees(float(A.yaw_to_heading(att[2]))))
+
+
+def _say(path, imu, lat_r, h_r, r, model, feedback, gyro_bias, accel_bias, echo):
+    """The three alignments on the terminal."""
+    from sinslab.core import earth
     co, ci, fa = r["coarse"], r["inertial"], r["fine"]
-    hw = _heading_check(r, len(imu) * imu.dt, fa.att_sigma[2])
-    if hw:
-        r["warnings"] = list(r["warnings"]) + [hw]
-    found += [Finding(w_) for w_ in r["warnings"]]
-
-    def ang(att):
-        return (math.degrees(att[0]), math.degrees(att[1]),
-                math.degrees(float(A.yaw_to_heading(att[2]))))
-
-    rows = [("coarse (analytic)", ang(co.att), co.att_sigma),
-            ("coarse (inertial frame)", ang(ci.att), None),
-            (f"fine ({model}, {'closed' if feedback else 'open'} loop)", ang(fa.att), fa.att_sigma)]
-    cfg = {"file": str(Path(path).absolute()), "format": fmt or ("psins" if ps is not None else "csv"),
-           "latitude": f"{math.degrees(lat_r):.8g} deg", "height": f"{h_r:.6g} m",
-           "window": window or ":", "gyro_arw": gyro_arw, "accel_vrw": accel_vrw or "auto",
-           "gyro_bias": gyro_bias, "accel_bias": accel_bias, "model": model, "period": period,
-           "feedback": bool(feedback)}
+    rows = [("coarse (analytic)", _angles(co.att), co.att_sigma),
+            ("coarse (inertial frame)", _angles(ci.att), None),
+            (f"fine ({model}, {'closed' if feedback else 'open'} loop)", _angles(fa.att), fa.att_sigma)]
     echo(f"{path}: {len(imu)} samples, {imu.t0:.3f}..{imu.t[-1]:.3f} s, dt {imu.dt * 1e3:g} ms, "
          f"latitude {math.degrees(lat_r):.6f} deg, height {h_r:g} m")
     echo(f"  |f| = {r['f_norm']:.6f} m/s^2 (normal gravity {r['g']:.6f}); "
@@ -160,12 +177,16 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     la = r["limit_att"] / units.arcmin
     echo(f"  limit accuracy for 1-sigma biases {gyro_bias}, {accel_bias}: pitch {la[0]:.3g}', "
          f"roll {la[1]:.3g}', heading {la[2]:.3g}'")
-    warnings = settle(found, strict=strict, echo=echo)
 
+
+def _metrics(r, imu):
+    from sinslab.core import earth
+    co, ci, fa = r["coarse"], r["inertial"], r["fine"]
+    la = r["limit_att"] / units.arcmin
     metrics = {}
     for key, att, sg in (("coarse", co.att, co.att_sigma), ("inertial", ci.att, None),
                          ("fine", fa.att, fa.att_sigma)):
-        p_, r_, hd = ang(att)
+        p_, r_, hd = _angles(att)
         metrics[f"{key}_pitch_deg"], metrics[f"{key}_roll_deg"], metrics[f"{key}_heading_deg"] = p_, r_, hd
         if sg is not None:
             metrics[f"{key}_sigma_pitch_arcmin"] = float(sg[0] / units.arcmin)
@@ -177,6 +198,13 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
         limit_pitch_arcmin=float(la[0]), limit_roll_arcmin=float(la[1]),
         limit_heading_arcmin=float(la[2]), nis_mean=float(np.mean(fa.nis)),
         duration_s=float(len(imu) * imu.dt))
+    return metrics
+
+
+def _outputs(fa):
+    """The ``alignment`` table and figure of the fine alignment."""
+    from sinslab.app import plotting            # matplotlib: only when a command runs
+    from sinslab.core import attitude as A
     tm = fa.t
     hd = np.degrees(A.yaw_to_heading(fa.att_path[:, 2]))
     tables = [Series("alignment", {"t_s": tm, "pitch_deg": np.degrees(fa.att_path[:, 0]),
@@ -195,9 +223,7 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
         ax.set_ylabel(lab)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Fine alignment: attitude estimate ±1σ (heading clockwise from north)")
-    figures = [Figure("alignment", fig, "Fine-alignment attitude estimate (±1σ band) versus time.")]
-    return Output(config=cfg, metrics=metrics, tables=tables, figures=figures,
-                  notes=["Heading is clockwise from north."], value=r, warnings=warnings)
+    return tables, [Figure("alignment", fig, "Fine-alignment attitude estimate (±1σ band) versus time.")]
 
 
 def register(app):

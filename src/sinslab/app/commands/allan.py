@@ -112,7 +112,6 @@ def allan_file(path, *, fmt=None, out=None, window=None, strict=False, echo=prin
 
 
 def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
-    from sinslab.app import plotting            # matplotlib: only when a command runs
     from sinslab.app.plausibility import Finding, imu_findings, settle
     from sinslab.data import load_imu
 
@@ -144,6 +143,18 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
     errs = imu_errors_from_allan(res)
     toml = errs.to_toml("imu")
     rows = _table(res)
+    _say(path, imu, res, rows, toml, echo)
+    warnings = settle(found, strict=strict, echo=echo)
+    cfg = {"file": str(Path(path).absolute()), "format": data.format, "window": window or ":"}
+    notes = ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
+             "imu_errors.toml: paste into a simulation config ([imu] table).", toml]
+    return Output(config=cfg, metrics=_metrics(rows), tables=[_curves(res)], figures=[_figure(res)],
+                  files={"imu_errors.toml": toml}, notes=notes, value=(res, errs),
+                  warnings=warnings)
+
+
+def _say(path, imu, res, rows, toml, echo):
+    """The noise terms on the terminal."""
     echo(f"{path}: {len(imu)} samples at {1 / imu.dt:g} Hz, {res.duration:.1f} s")
     echo(f"  {'axis':<8s} {'N (ARW/VRW)':>22s} {'bias instab. B':>18s} {'at tau':>9s} {'RRW K':>22s}")
     for nm, nv, nu, bv, bu, tf, kv, ku in rows:
@@ -157,7 +168,9 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
     if any(r[2].startswith("<= ") or r[4].startswith("<= ") for r in rows):
         echo("  (≤: an upper bound — no clean −½ slope for N, or no floor before the longest "
              "cluster time for B)")
-    warnings = settle(found, strict=strict, echo=echo)
+
+
+def _metrics(rows):
     metrics = {}
     for nm, nv, nu, bv, bu, tf, kv, ku in rows:
         key = nm.replace(" ", "_")
@@ -168,7 +181,11 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
         metrics[f"{key}_rrw_{'dphpsh' if s == 'gyro' else 'ugpsh'}"] = kv
     metrics["upper_bounds"] = [f"{r[0].replace(' ', '_')}_{t}" for r in rows for t, u in
                                (("white_noise", r[2]), ("bias_instability", r[4])) if u.startswith("<= ")]
-    cfg = {"file": str(Path(path).absolute()), "format": data.format, "window": window or ":"}
+    return metrics
+
+
+def _curves(res):
+    """The ``allan`` table: the Allan deviation of every axis."""
     tab = {"tau_s": res.gyro[0].tau}
     for f in res.gyro:
         if f.tau.size == tab["tau_s"].size:
@@ -176,7 +193,11 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
     for f in res.accel:
         if f.tau.size == tab["tau_s"].size:
             tab[f"{f.name.replace(' ', '_')}_adev_ug"] = f.adev / units.ug
-    tables = [Series("allan", tab, "overlapping Allan deviation per axis")]
+    return Series("allan", tab, "overlapping Allan deviation per axis")
+
+
+def _figure(res):
+    from sinslab.app import plotting            # matplotlib: only when a command runs
     fig, axes = plotting.figure(1, 2, sharex=False, width=11.0, row_height=4.6)
     for ax, fits, sc, unit in ((axes[0], res.gyro, units.dph, "°/h"), (axes[1], res.accel, units.ug, "µg")):
         for f, c in zip(fits, plotting.COLORS):
@@ -196,17 +217,12 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
         # below the axes: the curves fill every corner of the log-log panel
         ax.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.14))
     fig.suptitle("Overlapping Allan deviation and the reported noise terms")
-    figures = [Figure("allan", fig, "Allan deviation of each gyro and accelerometer axis with the "
-                      "terms the report gives: the N/√τ line, the floor (bias instability B) and "
-                      "the K·√(τ/3) line. Where base motion or dither adds a hump the noise "
-                      "model has no term for (the horizontal axes of a vehicle that sways), N "
-                      "is the upper bound min σ·√τ: its dotted line touches the curve once and "
-                      "lies below it elsewhere, by construction.")]
-    notes = ["Bias instability B = Allan floor / 0.664 (IEEE 952).",
-             "imu_errors.toml: paste into a simulation config ([imu] table).", toml]
-    return Output(config=cfg, metrics=metrics, tables=tables, figures=figures,
-                  files={"imu_errors.toml": toml}, notes=notes, value=(res, errs),
-                  warnings=warnings)
+    return Figure("allan", fig, "Allan deviation of each gyro and accelerometer axis with the "
+                  "terms the report gives: the N/√τ line, the floor (bias instability B) and "
+                  "the K·√(τ/3) line. Where base motion or dither adds a hump the noise "
+                  "model has no term for (the horizontal axes of a vehicle that sways), N "
+                  "is the upper bound min σ·√τ: its dotted line touches the curve once and "
+                  "lies below it elsewhere, by construction.")
 
 
 def register(app):

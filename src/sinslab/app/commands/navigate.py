@@ -505,7 +505,8 @@ def _say(res, p, ev, metrics, echo):
         echo(f"  {len(res.outages)} outages: horizontal error at their end median {np.median(ev.oe):.2f} m, "
              f"max {np.max(ev.oe):.2f} m")
     if ok.any():
-        echo(f"  against {res.source.reference}: horizontal error median {np.median(hz[ok]):.3f} m, 99th "
+        against = "with fixes" if res.source.reference == "fixes" else f"against {res.source.reference}"
+        echo(f"  {against}: horizontal error median {np.median(hz[ok]):.3f} m, 99th "
              f"percentile {np.percentile(hz[ok], 99):.3f} m, max {np.max(hz[ok]):.3f} m")
     echo(f"  final attitude pitch {metrics['final_pitch_deg']:.3f} deg, roll {metrics['final_roll_deg']:.3f} deg, "
          f"heading {metrics['final_heading_deg']:.3f} deg (sigma {metrics['final_sigma_heading_deg']:.3f})")
@@ -1086,58 +1087,92 @@ def _smoothed_outputs(res, fx, outs, metrics, tables, figures, echo, csv_every=1
                           "forward filter and RTS smoother."))
 
 
-def register(app):
-    """Add ``sinslab navigate`` to the typer ``app`` (called from sinslab.cli)."""
-    import typer
+#: the command's own options: (name, type, option names, help); the aids' options come
+#: from their declared settings (:func:`_aid_options`)
+_OPTIONS = (
+    ("config", "path", ("--config", "-c"), "TOML configuration (sinslab config navigate prints the defaults; a run "
+                                           "folder's config.toml re-runs it)"),
+    ("set_", "strs", ("--set", "-s"), 'override a dotted config key, e.g. nhc.sigma="[0.2, 0.1] m/s" (repeatable)'),
+    ("imu", "paths", ("--imu",), "recorded IMU file; twice for accelerometers and gyros in two tables on one time "
+                                 "column (imu.file)"),
+    ("fixes", "paths", ("--fixes", "--gnss"), "position(/velocity) fixes (.pos, CSV, .mat avp, .ubx NAV-PVT); twice "
+                                              "for positions and velocities in two tables on one time column "
+                                              "(gnss.fixes.file)"),
+    ("gnss_raw", "path", ("--gnss-raw",), "raw GNSS instead of fixes (tightly coupled): u-blox log (RAWX/SFRBX) or "
+                                          "RINEX 2/3 observations (gnss.raw.file)"),
+    ("gnss_nav", "path", ("--gnss-nav",), "RINEX 2/3 navigation file (ephemerides) for --gnss-raw"),
+    ("max_satellites", "strs", ("--max-satellites",), "K@START:DURATION: at most K satellites (highest first) from "
+                                                      "START s after the first GNSS epoch (repeatable)"),
+    ("elevation_mask", "float", ("--elevation-mask",), "satellites below this elevation [deg] are not used "
+                                                       "(--gnss-raw; default 10)"),
+    ("format", "str", ("--format",), "IMU format: psins | csv | parquet | mat | rtklib-imu"),
+    ("fix_format", "str", ("--fix-format",), "rtklib-pos | csv | mat-avp"),
+    ("lever_arm", "str", ("--lever-arm",), 'IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
+    ("mount", "str", ("--mount",), "sensor -> vehicle rotation: rpy:R,P,Y | euler:P,R,Y (deg) | quat:W,X,Y,Z | "
+                                   "matrix:M11,...,M33"),
+    ("frame", "str", ("--frame",), "vehicle axes of the mount: rfu (right-forward-up) | frd (forward-right-down) | "
+                                   "flu (forward-left-up) | rbd (right-back-down); default: the format's own"),
+    ("outages", "str", ("--outages",), "START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
+    ("fix_latency", "float", ("--fix-latency",), "simulated fix latency [s]"),
+    ("lag", "str", ("--lag",), "aware | ignore (how late fixes are applied)"),
+    ("init", "str", ("--init",), 'heading="30 deg" (clockwise from north); default: from the fix course above '
+                                 'course_speed (2 m/s) with course − gyro heading within course_spread (2 deg)'),
+    ("time_sync", "str", ("--time-sync",), "auto: estimate the IMU time offset and clock drift from turns"),
+    ("velocity_lag", "float", ("--velocity-lag",), "fix velocities describe this many s before their stamp"),
+    ("imu_delay", "float", ("--imu-delay",), "add to RTKLIB IMU time stamps [s]"),
+    ("scale_factors", "bool", ("--scale-factors",), "estimate gyro/accel scale factors"),
+    ("max_gap", "float", ("--max-gap",), "longest IMU gap bridged [s] (default 1)"),
+    ("allow_gaps", "bool", ("--allow-gaps",), "bridge IMU gaps of any length"),
+    ("columns", "str", ("--columns",), 'IMU column map "t=Time[s],dtheta_x=DeltaTheta[0][rad],..." or a TOML file'),
+    ("imu_errors", "str", ("--imu-errors",), "filter error model: a TOML file (ImuErrors keys) or a grade: consumer | "
+                                             "industrial | tactical | navigation"),
+    ("aid", "str", ("--aid",), "aids beside the GNSS, a comma list (each has its config section: sinslab config "
+                               "navigate)"),
+    ("csv_rate", "float", ("--csv-rate",), "rate of solution.csv [Hz] (solution.parquet: every filter epoch; default 1)"),
+    ("out", "path", ("--out", "-o"), "output folder [default: runs/navigate-<timestamp>]"),
+    ("force", "bool", ("--force",), "replace whatever --out holds (another run, other files)"),
+    ("smooth", "bool", ("--smooth",), "also write the RTS-smoothed solution (forward + backward pass)"),
+    ("fix_columns", "str", ("--fix-columns",), 'fix column map "t=time[s],lat=Pos.Latitude[deg],vd=Vel.Down[m/s],'
+                                               'quality=Mode,..." or a TOML file'),
+    ("fix_quality", "str", ("--fix-quality",), "accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2"),
+    ("platform", "str", ("--platform",), "auto | land | aircraft | marine: aids of a wheeled vehicle only on land "
+                                         "(auto: from the fixes)"),
+    ("strict", "bool", ("--strict",), "refuse (exit 2, nothing written) instead of warning about the data or the run"),
+)
 
-    @app.command()
-    def navigate(config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML configuration (sinslab config navigate prints the defaults; a run folder's config.toml re-runs it)"),
-                 set_: Optional[list[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE", help='override a dotted config key, e.g. nhc.sigma="[0.2, 0.1] m/s" (repeatable)'),
-                 imu: Optional[list[Path]] = typer.Option(None, "--imu", help="recorded IMU file; twice for accelerometers and gyros in two tables on one time column (imu.file)"),
-                 fixes: Optional[list[Path]] = typer.Option(None, "--fixes", "--gnss", help="position(/velocity) fixes (.pos, CSV, .mat avp, .ubx NAV-PVT); twice for positions and velocities in two tables on one time column (gnss.fixes.file)"),
-                 gnss_raw: Optional[Path] = typer.Option(None, "--gnss-raw", help="raw GNSS instead of fixes (tightly coupled): u-blox log (RAWX/SFRBX) or RINEX 2/3 observations (gnss.raw.file)"),
-                 gnss_nav: Optional[Path] = typer.Option(None, "--gnss-nav", help="RINEX 2/3 navigation file (ephemerides) for --gnss-raw"),
-                 max_satellites: Optional[list[str]] = typer.Option(None, "--max-satellites", help="K@START:DURATION: at most K satellites (highest first) from START s after the first GNSS epoch (repeatable)"),
-                 elevation_mask: Optional[float] = typer.Option(None, "--elevation-mask", help="satellites below this elevation [deg] are not used (--gnss-raw; default 10)"),
-                 format: Optional[str] = typer.Option(None, "--format", help="IMU format: psins | csv | parquet | mat | rtklib-imu"),
-                 fix_format: Optional[str] = typer.Option(None, "--fix-format", help="rtklib-pos | csv | mat-avp"),
-                 lever_arm: Optional[str] = typer.Option(None, "--lever-arm", help='IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),
-                 mount: Optional[str] = typer.Option(None, "--mount", help="sensor -> vehicle rotation: rpy:R,P,Y | euler:P,R,Y (deg) | quat:W,X,Y,Z | matrix:M11,...,M33"),
-                 frame: Optional[str] = typer.Option(None, "--frame", help="vehicle axes of the mount: rfu (right-forward-up) | frd (forward-right-down) | flu (forward-left-up) | rbd (right-back-down); default: the format's own"),
-                 outages: Optional[str] = typer.Option(None, "--outages", help="START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
-                 fix_latency: Optional[float] = typer.Option(None, "--fix-latency", help="simulated fix latency [s]"),
-                 lag: Optional[str] = typer.Option(None, "--lag", help="aware | ignore (how late fixes are applied)"),
-                 init: Optional[str] = typer.Option(None, "--init", help='heading="30 deg" (clockwise from north); default: from the fix course above course_speed (2 m/s) with course − gyro heading within course_spread (2 deg)'),
-                 time_sync: Optional[str] = typer.Option(None, "--time-sync", help="auto: estimate the IMU time offset and clock drift from turns"),
-                 velocity_lag: Optional[float] = typer.Option(None, "--velocity-lag", help="fix velocities describe this many s before their stamp"),
-                 imu_delay: Optional[float] = typer.Option(None, "--imu-delay", help="add to RTKLIB IMU time stamps [s]"),
-                 scale_factors: bool = typer.Option(False, "--scale-factors", help="estimate gyro/accel scale factors"),
-                 max_gap: Optional[float] = typer.Option(None, "--max-gap", help="longest IMU gap bridged [s] (default 1)"),
-                 allow_gaps: bool = typer.Option(False, "--allow-gaps", help="bridge IMU gaps of any length"),
-                 columns: Optional[str] = typer.Option(None, "--columns", help='IMU column map "t=Time[s],dtheta_x=DeltaTheta[0][rad],..." or a TOML file'),
-                 imu_errors: Optional[str] = typer.Option(None, "--imu-errors", help="filter error model: a TOML file (ImuErrors keys) or a grade: consumer | industrial | tactical | navigation"),
-                 aid: Optional[str] = typer.Option(None, "--aid", help="aids beside the GNSS: comma list of zupt, zaru, nhc, lever, odometer (each has its config section: sinslab config navigate)"),
-                 rest: Optional[str] = typer.Option(None, "--rest", help="rest for ZUPT/ZARU: auto (IMU detector) | flags (the log's column)"),
-                 csv_rate: Optional[float] = typer.Option(None, "--csv-rate", help="rate of solution.csv [Hz] (solution.parquet: every filter epoch; default 1)"),
-                 out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder [default: runs/navigate-<timestamp>]"),
-                 force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)"),
-                 smooth: bool = typer.Option(False, "--smooth", help="also write the RTS-smoothed solution (forward + backward pass)"),
-                 odometer: Optional[str] = typer.Option(None, "--odometer", help="wheel speeds: FILE (t, speed columns) or a COLUMN of the IMU table (enables the odometer aid)"),
-                 odometer_units: Optional[str] = typer.Option(None, "--odometer-units", help="speed unit if the header has none, e.g. km/h"),
-                 odometer_lever: Optional[str] = typer.Option(None, "--odometer-lever", help='IMU -> wheel point, vehicle right-forward-up, e.g. "[0, -1.2, -0.3] m"'),
-                 odometer_sigma: Optional[str] = typer.Option(None, "--odometer-sigma", help='wheel speed noise per update [default "0.1 m/s"]'),
-                 fix_columns: Optional[str] = typer.Option(None, "--fix-columns", help='fix column map "t=time[s],lat=Pos.Latitude[deg],vd=Vel.Down[m/s],quality=Mode,..." or a TOML file'),
-                 fix_quality: Optional[str] = typer.Option(None, "--fix-quality", help="accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2"),
-                 vehicle_mount: Optional[str] = typer.Option(None, "--vehicle-mount", help='IMU body (after --mount) in the vehicle frame, e.g. "euler:1.2,0,-1.5" (pitch, roll, yaw deg); with --aid nhc pitch and yaw are estimated from it'),
-                 nhc_lever: Optional[str] = typer.Option(None, "--nhc-lever", help='IMU -> rear-axle centre, vehicle right-forward-up, e.g. "[0, -1.4, -0.5] m" (estimated from it with --aid nhc)'),
-                 platform: Optional[str] = typer.Option(None, "--platform", help="auto | land | aircraft | marine: NHC and odometer only on land (auto: from the fixes)"),
-                 strict: bool = typer.Option(False, "--strict", help="refuse (exit 2, nothing written) instead of warning about the data or the run")) -> None:
+
+def _aid_options():
+    """``(name, "str", (option,), help)`` of every option an aid declares (a setting's
+    ``flag``): the registry gives the command its options."""
+    from sinslab.fusion.aids import aid_types
+    from sinslab.fusion.aids.base import settings_of
+    return tuple((st.flag[2:].replace("-", "_"), "str", (st.flag,), f"{st.doc} ({name}.{key}; enables it)"
+                  if st.kind == "file" else f"{st.doc} ({name}.{key})")
+                 for name, t in aid_types().items() for key, st in settings_of(t).items() if st.flag)
+
+
+def register(app):
+    """Add ``sinslab navigate`` to the typer ``app`` (called from sinslab.cli): its own
+    options and those the aids of the registry declare, each a short form of a config key."""
+    import inspect
+
+    import typer
+    types = {"path": Optional[Path], "paths": Optional[list[Path]], "strs": Optional[list[str]],
+             "str": Optional[str], "float": Optional[float], "bool": bool}
+    params = [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, annotation=types[kind],
+                                default=typer.Option(False if kind == "bool" else None, *opts, help=text,
+                                                     **({"metavar": "KEY=VALUE"} if name == "set_" else {})))
+              for name, kind, opts, text in (*_OPTIONS, *_aid_options())]
+
+    def navigate(**kw) -> None:
         """INS + GNSS fixes (loosely coupled) or raw pseudoranges/Doppler (tightly coupled), and aids, on recorded data.
 
         Every option is a short form of a key of the run's configuration (--config FILE.toml,
         --set key=value); the run folder's config.toml re-runs it."""
-        given = {k: v for k, v in locals().items() if k not in ("config", "set_", "out", "force", "typer")}
-        cli_call(lambda: navigate_files(navigate_config(config, set_ or (), **given), out=out, echo=typer.echo),
+        config, sets, out, force = kw.pop("config"), kw.pop("set_"), kw.pop("out"), kw.pop("force")
+        cli_call(lambda: navigate_files(navigate_config(config, sets or (), **kw), out=out, echo=typer.echo),
                  force=force)
 
-    return navigate
+    navigate.__signature__ = inspect.Signature(params, return_annotation=None)
+    navigate.__annotations__ = {p.name: p.annotation for p in params}
+    return app.command()(navigate)

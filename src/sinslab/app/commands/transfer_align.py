@@ -165,7 +165,34 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
 
 
 def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_arcmin, pn, echo):
-    from sinslab.app import plotting
+    imu, master_rec, pos, nsub = _read_pair(slave, master, windows)
+    refs = _refs(master, slave)
+    metrics, rows, results = _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma,
+                                        att_sigma_arcmin, pn, echo)
+    if refs:
+        metrics.update(_reference(refs, echo))
+    cfg = {"slave": str(slave), "master": str(master), "methods": list(methods), "mount": mount or "none",
+           "windows": ["all" if w is None else f"{w[0]:g}:{w[1]:g}" for w in windows],
+           "vel_sigma_mps": vel_sigma, "att_sigma_arcmin": att_sigma_arcmin,
+           **{k: text for k, (_, text) in pn.items()}}
+    import pandas as pd
+    (m0, w0), r0 = next(iter(results.items()))
+    tables = [Series("estimates", pd.DataFrame(rows), "final estimates with σ per method and window"),
+              Series("history", {"t_s": r0.t, **{f"{l}": r0.x[:, i] for i, l in enumerate(r0.layout.labels)},
+                                 **{f"sigma_{l}": r0.sigma[:, i] for i, l in enumerate(r0.layout.labels)}},
+                     f"state estimates and σ (SI) over time, {m0}, window {w0}")]
+    notes = ["Mounting angles: the installation state a (C_s^m = exp(a×), or C_s^m = Ĉ_s^m exp(a×) with --mount), "
+             "slave axes x, y, z.",
+             "Biases: slave gyro and accelerometer biases (measured minus true), body axes.",
+             "Filter: 21 states through the fusion driver, velocity + attitude matching at the master rate, "
+             "feedback of φ, δv and biases; the slave position is navigated freely (not reset to the master's)."]
+    return Output(config=cfg, metrics=metrics, tables=tables, figures=[_figure(results, refs)], notes=notes,
+                  value=(results, refs))
+
+
+def _read_pair(slave, master, windows):
+    """``(slave IMU, master record, master positions, subsamples)``: the two files read and
+    checked against each other (overlap, windows, intervals, common motion)."""
     from sinslab.data import load_imu
     from sinslab.methods import transfer as tm
 
@@ -192,9 +219,17 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
             raise ValueError(f"slave {slave} and master {master} show no common motion{where}: their rotation rates "
                              f"correlate at {corr:.2f} (need >= {MIN_RATE_CORRELATION:g}); not the same vehicle, "
                              "or the clocks differ")
-    refs = _refs(master, slave)
+    return imu, master_rec, pos, nsub
+
+
+_AM, _DPH, _MG = units.arcmin, units.dph, 1e-3 * 9.80665
+
+
+def _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma, att_sigma_arcmin, pn, echo):
+    """Every method on every window: ``(metrics, table rows, {(method, window): result})``."""
+    from sinslab.methods import transfer as tm
     metrics, rows, results = {}, [], {}
-    am, dph, mg = units.arcmin, units.dph, 1e-3 * 9.80665
+    am, dph, mg = _AM, _DPH, _MG
     for w in windows:
         t0, t1 = (None, None) if w is None else w
         wkey = "all" if w is None else f"{t0:g}_{t1:g}s".replace(".", "p")
@@ -227,29 +262,32 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
             echo(f"{m:8s} {wkey:>10s}: mounting [{pm(r.mounting / am, r.mounting_sigma / am, '.2f')}] arcmin; "
                  f"gyro bias [{pm(r.gyro_bias / dph, r.gyro_bias_sigma / dph, '.1f')}] deg/h; "
                  f"accel bias [{pm(r.accel_bias / mg, r.accel_bias_sigma / mg, '.2f')}] mg")
-    if refs:
-        if "mu0" in refs:
-            metrics["ref_mounting_arcmin"] = refs["mu0"] / am
-        if "eb0" in refs:
-            metrics["ref_gyro_bias_dph"] = refs["eb0"] / dph
-        if "db0" in refs:
-            metrics["ref_accel_bias_mg"] = refs["db0"] / mg
-        echo("reference (file): mounting " + (f"{np.round(refs['mu0'] / am, 2).tolist()} arcmin" if "mu0" in refs else "-")
-             + ", gyro bias " + (f"{np.round(refs['eb0'] / dph, 1).tolist()} deg/h" if "eb0" in refs else "-")
-             + ", accel bias " + (f"{np.round(refs['db0'] / mg, 2).tolist()} mg" if "db0" in refs else "-"))
-    cfg = {"slave": str(slave), "master": str(master), "methods": list(methods), "mount": mount or "none",
-           "windows": ["all" if w is None else f"{w[0]:g}:{w[1]:g}" for w in windows],
-           "vel_sigma_mps": vel_sigma, "att_sigma_arcmin": att_sigma_arcmin,
-           **{k: text for k, (_, text) in pn.items()}}
-    import pandas as pd
-    (m0, w0), r0 = next(iter(results.items()))
-    tables = [Series("estimates", pd.DataFrame(rows), "final estimates with σ per method and window"),
-              Series("history", {"t_s": r0.t, **{f"{l}": r0.x[:, i] for i, l in enumerate(r0.layout.labels)},
-                                 **{f"sigma_{l}": r0.sigma[:, i] for i, l in enumerate(r0.layout.labels)}},
-                     f"state estimates and σ (SI) over time, {m0}, window {w0}")]
+    return metrics, rows, results
+
+
+def _reference(refs, echo):
+    """The file's reference values as metrics, and on the terminal."""
+    am, dph, mg = _AM, _DPH, _MG
+    metrics = {}
+    if "mu0" in refs:
+        metrics["ref_mounting_arcmin"] = refs["mu0"] / am
+    if "eb0" in refs:
+        metrics["ref_gyro_bias_dph"] = refs["eb0"] / dph
+    if "db0" in refs:
+        metrics["ref_accel_bias_mg"] = refs["db0"] / mg
+    echo("reference (file): mounting " + (f"{np.round(refs['mu0'] / am, 2).tolist()} arcmin" if "mu0" in refs else "-")
+         + ", gyro bias " + (f"{np.round(refs['eb0'] / dph, 1).tolist()} deg/h" if "eb0" in refs else "-")
+         + ", accel bias " + (f"{np.round(refs['db0'] / mg, 2).tolist()} mg" if "db0" in refs else "-"))
+    return metrics
+
+
+def _figure(results, refs):
+    """Estimates ± σ over time of every method and window, with the file's references."""
+    from sinslab.app import plotting
+    am, dph, mg = _AM, _DPH, _MG
     fig, ax = plotting.figure(3, 3, width=11.0, row_height=2.3, title="transfer alignment on recorded data")
-    sl = r0.layout.slice
     for (m, wkey), r in results.items():
+        sl = r.layout.slice
         tt = r.t - r.t[0]
         for j in range(3):
             for i, (blk, sc) in enumerate((("lam", am), ("eps", dph), ("nabla", mg))):
@@ -267,14 +305,7 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
     ax[0].legend(fontsize="x-small")
     for a in ax[-3:]:
         a.set_xlabel("time since the start of the window [s]")
-    figures = [Figure("estimates", fig, "Estimates ± σ over time per method/window; dashed: the file's reference values")]
-    notes = ["Mounting angles: the installation state a (C_s^m = exp(a×), or C_s^m = Ĉ_s^m exp(a×) with --mount), "
-             "slave axes x, y, z.",
-             "Biases: slave gyro and accelerometer biases (measured minus true), body axes.",
-             "Filter: 21 states through the fusion driver, velocity + attitude matching at the master rate, "
-             "feedback of φ, δv and biases; the slave position is navigated freely (not reset to the master's)."]
-    return Output(config=cfg, metrics=metrics, tables=tables, figures=figures, notes=notes,
-                  value=(results, refs))
+    return Figure("estimates", fig, "Estimates ± σ over time per method/window; dashed: the file's reference values")
 
 
 def _window(text):

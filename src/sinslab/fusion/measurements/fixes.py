@@ -154,11 +154,12 @@ class VelocityFix(Timed):
 
 class LeverPositionFix(PositionFix):
     """:class:`PositionFix` with the antenna lever arm estimated: the block ``lever_block``
-    (:func:`sinslab.nav.errstate.lever_arm`) holds ``δl = l_used − l_true`` and
+    (:func:`sinslab.nav.errstate.lever_arm`; None: the layout's one lever-arm block)
+    holds ``δl = l_used − l_true`` and
     ``∂z/∂δl = C_b^n`` (rows north, east, up) ``− C_b^n (ω×) Δt`` (extrapolation).
     ``lever_arm`` is the lever used (default zero, an unknown antenna offset)."""
 
-    def __init__(self, t_valid, pos, sigma, *, lever_block="lev", lever_arm=None, **kw):
+    def __init__(self, t_valid, pos, sigma, *, lever_block=None, lever_arm=None, **kw):
         super().__init__(t_valid, pos, sigma, lever_arm=lever_arm, **kw)
         self.lever_block = lever_block
 
@@ -168,19 +169,27 @@ class LeverPositionFix(PositionFix):
         C = nr.C_bn
         dtf = ep.t - self.t_valid[ep.item]
         n_z = z.size
-        H[:, ep.layout.find("lever_arm", self.lever_block)] = (C - dtf * C @ A.skew(nr.omega_b))[[1, 0, 2]][:n_z]
+        H[:, _lever_columns(ep.layout, self.lever_block)] = (C - dtf * C @ A.skew(nr.omega_b))[[1, 0, 2]][:n_z]
         return z, H, R
+
+
+def _lever_columns(layout, name):
+    """The columns of the lever-arm block ``name`` (None: the layout's one lever-arm block)."""
+    sl = layout.find("lever_arm", name)
+    if sl is None:
+        raise ValueError(f"the lever-arm fixes need a lever-arm block (the layout has {list(layout.names)})")
+    return sl
 
 
 class LeverVelocityFix(VelocityFix):
     """:class:`VelocityFix` with the antenna lever arm estimated (``∂z/∂δl = C_b^n (ω×)``)."""
 
-    def __init__(self, t_valid, vel, sigma, *, lever_block="lev", lever_arm=None, **kw):
+    def __init__(self, t_valid, vel, sigma, *, lever_block=None, lever_arm=None, **kw):
         super().__init__(t_valid, vel, sigma, lever_arm=lever_arm, **kw)
         self.lever_block = lever_block
 
     def matrices(self, ep: Epoch):
         z, H, R = super().matrices(ep)
         nr = ep.streams[self.stream]
-        H[:, ep.layout.find("lever_arm", self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
+        H[:, _lever_columns(ep.layout, self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
         return z, H, R

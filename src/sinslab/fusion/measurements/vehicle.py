@@ -179,13 +179,14 @@ class Odometer(_OnEpochs):
     mount, lever_arm, lever_block, intervals, every, stream, gate
         As in :class:`NonHolonomic` (``lever_arm``: IMU -> wheel point).
     scale_block : str or None
-        Name of the odometer scale-factor block (None: no scale state).
+        Name of the odometer scale-factor block (None: the layout's one
+        :func:`~sinslab.nav.errstate.odometer_scale` block, if it has one).
     nhc_sigma : float or array_like (2,), optional
         Also constrain lateral and vertical velocity [m/s].
     """
 
     def __init__(self, t, speed, sigma, *, mount=None, lever_arm=None, lever_block=None,
-                 scale_block="kod", nhc_sigma=None, intervals=None, every=1, stream=0, gate=None):
+                 scale_block=None, nhc_sigma=None, intervals=None, every=1, stream=0, gate=None):
         self._init_sched(intervals, every, stream, gate)
         self.t_odo = np.asarray(t, dtype=float).ravel()
         self.speed = np.asarray(speed, dtype=float).ravel()
@@ -227,7 +228,8 @@ class Odometer(_OnEpochs):
         z = vv[rows]
         z[0] -= s
         H = H[rows]
-        if self.scale_block is not None:
-            H[0, ep.layout.find("odometer_scale", self.scale_block)] = -s
+        sk = ep.layout.find("odometer_scale", self.scale_block)
+        if sk is not None:
+            H[0, sk] = -s
         R = self.sigma ** 2 if self.nhc_sigma is None else np.r_[self.sigma, self.nhc_sigma] ** 2
         return z, H, R
