@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from sinslab.core.errors import InputError
-from sinslab.core.gnss import GPS_EPOCH_UNIX, Ephemerides, GlonassEphemerides
+from sinslab.core.gnss import GPS_EPOCH_UNIX, Ephemerides, GlonassEphemerides, Signals
 from sinslab.core.records import Fixes
 
 __all__ = ["GnssObservations", "Signals", "read_gnss_raw", "read_ubx_pvt", "rinex_version"]
@@ -35,58 +35,6 @@ _SYS = {1: "G", 4: "R", 8: "E", 32: "C", 16: "J", 2: "S", 64: "I"}
 _SNR_UNIT = 1.0             # the demo5 binding gives C/N0 in dB-Hz (RTKLIB 2.4.3: 0.001 dB-Hz)
 _WEEK = 604800
 _EMPTY_SLOT = ("", np.nan, np.nan, np.nan, np.nan, np.nan, 0)
-
-
-@dataclass(frozen=True)
-class Signals:
-    """Every signal of each observation row, by RTKLIB's frequency slot (F slots).
-
-    Slot 0 is L1/E1/B1/G1; slots 1 and 2 are the second and third carriers in RTKLIB's
-    order for the system (GPS/QZSS L2, L5; Galileo E5b, E5a; BeiDou B2, B3 or B2a;
-    GLONASS G2, G3). Missing values are NaN (empty code).
-
-    Attributes
-    ----------
-    code : str ndarray (M, F)
-        RINEX signal code ("1C", "2W", "5Q", ...; "" where the slot is empty).
-    pseudorange : ndarray (M, F)
-        [m].
-    phase : ndarray (M, F)
-        Carrier phase [cycles], RINEX sign: ``λ φ`` follows the range (its rate is minus
-        the Doppler), up to an integer ambiguity and the clocks.
-    doppler : ndarray (M, F)
-        [Hz] (positive when the satellite approaches).
-    cn0 : ndarray (M, F)
-        [dB-Hz].
-    freq : ndarray (M, F)
-        Carrier frequency [Hz].
-    lli : uint8 ndarray (M, F)
-        RTKLIB's loss-of-lock indicator: bit 0 a possible cycle slip since the last
-        epoch, bit 1 the half-cycle ambiguity unresolved, bits 6/7 a half cycle added /
-        subtracted by the receiver.
-    """
-
-    code: np.ndarray
-    pseudorange: np.ndarray
-    phase: np.ndarray
-    doppler: np.ndarray
-    cn0: np.ndarray
-    freq: np.ndarray
-    lli: np.ndarray
-
-    @property
-    def slip(self):
-        """Loss of lock (a possible cycle slip) since the previous epoch, bool (M, F)."""
-        return (self.lli & 1) != 0
-
-    @property
-    def half_cycle(self):
-        """Half-cycle ambiguity unresolved, bool (M, F): the phase may be off by ½ cycle."""
-        return (self.lli & 2) != 0
-
-    def __getitem__(self, m):
-        return Signals(*(a[m] for a in (self.code, self.pseudorange, self.phase, self.doppler,
-                                          self.cn0, self.freq, self.lli)))
 
 
 @dataclass(frozen=True)
