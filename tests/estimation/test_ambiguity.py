@@ -96,6 +96,25 @@ def test_known_integers_recovered_at_the_promised_rate():
     assert wrong == 0 and fixed >= 190
 
 
+def test_success_rate():
+    """The bootstrapped success rate: one ambiguity of σ = 0.2 cycles, 2Φ(1/(2σ)) − 1 =
+    erf(1/(2√2 σ)); correlated floats: a lower bound of the integer least-squares success
+    rate measured over 1000 draws (Teunissen 1998), and close to it (within 0.1)."""
+    import math
+    assert np.isclose(AM.success_rate(np.array([[0.04]])), math.erf(1 / (2 * math.sqrt(2) * 0.2)))
+    rng = np.random.default_rng(11)
+    Q = _cov(rng, 5, 0.01)
+    L = np.linalg.cholesky(Q)
+    p = AM.success_rate(Q)
+    assert 0.5 < p < 0.99
+    hits = 0
+    for _ in range(1000):
+        a = L @ rng.normal(size=5)
+        hits += np.array_equal(AM.lambda_search(a, Q)[0][0], np.zeros(5))
+    measured = hits / 1000
+    assert p - 3 * math.sqrt(p * (1 - p) / 1000) <= measured <= p + 0.1, (p, measured)
+
+
 def test_bad_covariance():
     with pytest.raises(ValueError, match="needs Q"):
         AM.lambda_search([1.2, 3.4], np.eye(3))

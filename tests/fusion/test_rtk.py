@@ -17,6 +17,7 @@ from sinslab.fusion.gnss import SatelliteObservations
 from sinslab.fusion.gnss_alone import rtk_solve
 from sinslab.fusion.rtk import RtkBase, RtkOptions
 from sinslab.sim import gnss as SG
+from support import simulated_slips, true_double_differences
 
 LAT, LON, H = math.radians(35.3), math.radians(139.5), 50.0
 WALKERS = [SG.Walker(), SG.Walker(planes=3, per_plane=8, system="E", raan0=0.4, radius=29_600e3)]
@@ -35,29 +36,6 @@ def simulate(seed, n=60, phase=SG.PhaseErrors(), offset=(3000.0, 4000.0, 20.0), 
     return (SatelliteObservations(**sim.fields), RtkBase(SatelliteObservations(**sim.base.fields), rb), r0, sim)
 
 
-def true_dd(sim):
-    """(epoch, satellite, reference, slot) -> the true double-difference integer."""
-    f, b = sim.fields, sim.base.fields
-
-    def table(fl, amb):
-        return {(int(e), s): a for e, s, a in zip(fl["epoch"], fl["sat"], amb)}
-    tr, tb = table(f, sim.ambiguity), table(b, sim.base.ambiguity)
-    return lambda e, s, q, k: int((tr[e, s][k] - tb[e, s][k]) - (tr[e, q][k] - tb[e, q][k]))
-
-
-def _slips(sim, flagged):
-    """{(epoch, satellite, slot)} of the signals that slipped between two consecutive
-    epochs of their satellite, flagged by the receiver's LLI or not."""
-    f = sim.fields
-    out = set()
-    for sat in np.unique(f["sat"]):
-        m = np.flatnonzero(f["sat"] == sat)
-        nxt = m[1:][np.diff(f["epoch"][m]) == 1]
-        hit = sim.slip[nxt] & ((f["signals"].lli[nxt] & 1) == flagged)
-        out |= {(int(f["epoch"][nxt[i]]), sat, int(k)) for i, k in zip(*np.nonzero(hit))}
-    return out
-
-
 def _nees(err, cov):
     return np.einsum("ei,eij,ej->e", err, np.linalg.inv(cov), err)
 
@@ -69,7 +47,7 @@ def test_known_integers_fixed_and_position():
     and within 5 mm (3-D) of the truth from the tenth."""
     rov, base, r0, sim = simulate(1)
     sol = rtk_solve(rov, base, OPT, start_position=r0 + 5.0)
-    dd = true_dd(sim)
+    dd = true_double_differences(sim)
     n_checked = 0
     for e, (pairs, ints) in enumerate(sol.fixed_dd):
         for (s, q, k), v in zip(pairs, ints):
@@ -113,11 +91,11 @@ def test_slips_found_no_wrong_fix():
     truth, and the solution is fixed at ≥ 90 % of the epochs within 1 cm."""
     rov, base, r0, sim = simulate(7, n=120, phase=SG.PhaseErrors(slip_rate=0.005, slip_flagged=0.5))
     sol = rtk_solve(rov, base, OPT, start_position=r0 + 5.0)
-    dd = true_dd(sim)
+    dd = true_double_differences(sim)
     for e, (pairs, ints) in enumerate(sol.fixed_dd):
         for (s, q, k), v in zip(pairs, ints):
             assert v == dd(e, s, q, k), (e, s, q, k)
-    hidden = _slips(sim, False) | _slips(sim.base, False)
+    hidden = simulated_slips(sim, False) | simulated_slips(sim.base, False)
     assert len(hidden) > 10
     caught = {(e, s, k) for e, keys in enumerate(sol.restarted) for s, k in keys}
     assert hidden <= caught, sorted(hidden - caught)

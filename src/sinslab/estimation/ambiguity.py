@@ -10,7 +10,13 @@ the library the GNSS readers use), which returns the best and second-best intege
 vectors with their squared norms.
 
 The fix is accepted when the second-best norm is at least ``ratio`` times the best (the
-ratio test, RTKLIB's default threshold 3). When the full set fails, *partial fixing*
+ratio test, RTKLIB's default threshold 3) and the float is precise enough for integers to
+be found at all: the success rate of integer bootstrapping in LAMBDA's decorrelated space
+(Teunissen 1998, a sharp lower bound of the integer least-squares success rate),
+``P_s = Π (2Φ(1/(2√d_i)) − 1)`` with ``d_i`` the conditional variances, is at least
+``success`` (:func:`success_rate`). The ratio alone passes wrong integers of a weak float
+(a single epoch of code after an outage); the success rate refuses them. When the full
+set fails, *partial fixing*
 drops ambiguities one at a time in a caller-given order (the least reliable first, e.g.
 lowest elevation or shortest lock) and searches the rest again, while at least
 ``min_fixed`` remain. With the fixed integers ``ǎ`` of a subset ``D â`` (rows of ``D``
@@ -20,13 +26,14 @@ the conditional estimate ``x̌ = x̂ − P Dᵀ (D P Dᵀ)⁻¹ (D x̂ − ǎ)``
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from sinslab.core.errors import InputError
 
-__all__ = ["lambda_search", "resolve", "IntegerFix", "condition"]
+__all__ = ["lambda_search", "resolve", "IntegerFix", "condition", "success_rate"]
 
 
 def _lib():
@@ -86,6 +93,29 @@ def lambda_search(a, Q, candidates=2):
     return cand, np.array([s[i] for i in range(m)])
 
 
+def success_rate(Q):
+    """Success rate of integer bootstrapping of float ambiguities with covariance ``Q``
+    (n, n) [cycles²], after LAMBDA's decorrelation (RTKLIB's ``lambda_reduction``):
+    ``Π (2Φ(1/(2√d_i)) − 1)`` over the conditional variances ``d_i`` in the order the
+    search conditions them (the last transformed ambiguity first)."""
+    rtk = _lib()
+    Q = np.asarray(Q, float)
+    n = Q.shape[0]
+    QQ, Z = rtk.Arr1Ddouble(n * n), rtk.Arr1Ddouble(n * n)
+    for i, v in enumerate(Q.ravel(order="F").tolist()):
+        QQ[i] = v
+    if rtk.lambda_reduction(n, QQ, Z) != 0:
+        return 0.0
+    Zm = np.array([Z[i] for i in range(n * n)]).reshape(n, n, order="F")
+    Qz = Zm.T @ Q @ Zm
+    try:
+        L = np.linalg.cholesky(Qz[::-1, ::-1])
+    except np.linalg.LinAlgError:
+        return 0.0
+    d = np.diag(L) ** 2
+    return float(np.prod([math.erf(1.0 / (2.0 * math.sqrt(2.0 * v))) for v in d]))
+
+
 @dataclass(frozen=True)
 class IntegerFix:
     """Outcome of :func:`resolve`.
@@ -120,7 +150,7 @@ def _ratio(s):
     return float(s[1] / s[0]) if s[0] > 0 else float("inf")
 
 
-def resolve(a, Q, *, ratio=3.0, min_fixed=4, drop_order=None, max_tries=None) -> IntegerFix:
+def resolve(a, Q, *, ratio=3.0, min_fixed=4, drop_order=None, max_tries=None, success=0.0) -> IntegerFix:
     """Fix the float ambiguities ``a`` (n,) [cycles] with covariance ``Q`` by LAMBDA and the
     ratio test, partially when the full set fails.
 
@@ -138,6 +168,9 @@ def resolve(a, Q, *, ratio=3.0, min_fixed=4, drop_order=None, max_tries=None) ->
         satellite); default: one at a time, largest float variance first.
     max_tries : int, optional
         Most subsets searched (default: until ``min_fixed`` remain).
+    success : float
+        Least bootstrapped success rate of a subset fixed (:func:`success_rate`; 0: the
+        ratio test alone).
 
     Returns
     -------
@@ -163,7 +196,7 @@ def resolve(a, Q, *, ratio=3.0, min_fixed=4, drop_order=None, max_tries=None) ->
             return IntegerFix(none.used, none.integers, last, False, tries)
         tries += 1
         last = _ratio(s)
-        if last >= ratio:
+        if last >= ratio and (success <= 0.0 or success_rate(Q[np.ix_(idx, idx)]) >= success):
             ints = np.full(n, np.nan)
             ints[idx] = F[0]
             return IntegerFix(keep.copy(), ints, last, True, tries)

@@ -30,11 +30,11 @@ Cholesky factor of ``R`` so that the filter applies them as scalar rows.
 
 Integer resolution
 ------------------
-After the float update (computed here from the prior, the same arithmetic as the
-filter's), the double-difference ambiguities ``D (N₀ − x̂)`` of signals above
+After the float update (computed here from the prior, the filter's update in vector
+form), the double-difference ambiguities ``D (N₀ − x̂)`` of signals above
 ``ar_mask`` locked for ``min_lock`` seconds with their covariance ``D P Dᵀ`` go to LAMBDA
 with the ratio test and partial fixing (:func:`sinslab.estimation.ambiguity.resolve`,
-lowest elevation given up first). The fixed solution (:func:`~sinslab.estimation.ambiguity.condition`)
+the satellite with the least precise float ambiguities given up first). The fixed solution (:func:`~sinslab.estimation.ambiguity.condition`)
 is validated: every phase double difference's residual at it must be within
 ``4σ`` (RTKLIB's check of a fixed solution); otherwise the epoch stays float. With
 ``ar="hold"`` the accepted integers are applied to the filter as rows of σ
@@ -62,7 +62,7 @@ from sinslab.core import earth as E
 from sinslab.core import gnss as G
 from sinslab.core.errors import InputError
 from sinslab.estimation.ambiguity import condition, resolve
-from sinslab.fusion.carrier import AmbiguitySlots, SlipDetector, prediction_slips, signal_variance
+from sinslab.fusion.carrier import AmbiguitySlots, SlipDetector, prediction_slips, signal_variance, troposphere
 from sinslab.fusion.gnss import F_L1
 
 __all__ = ["RtkOptions", "RtkBase", "RtkEngine", "RtkLog", "STATUS"]
@@ -89,6 +89,9 @@ class RtkOptions:
         Elevation mask of the ambiguities fixed [rad].
     ratio : float
         Ratio-test threshold.
+    success : float
+        Least bootstrapped success rate of the float ambiguities fixed
+        (:func:`sinslab.estimation.ambiguity.success_rate`; 0: the ratio test alone).
     min_fixed : int
         Fewest double-difference ambiguities in a fix.
     min_lock : float
@@ -119,6 +122,7 @@ class RtkOptions:
     ar: str = "hold"
     ar_mask: float = math.radians(15.0)
     ratio: float = 3.0
+    success: float = 0.999
     min_fixed: int = 4
     min_lock: float = 0.0
     hold_sigma: float = 0.001
@@ -417,11 +421,11 @@ class RtkEngine:
         return int(need.sum())
 
     # -- step 2: the rows, the float solution and the fix
-    def rows(self, r, J, prior, up=None):
+    def rows(self, r, J, prior):
         """Double differences of the epoch :meth:`prepare` selected, at the antenna ``r``
         (ECEF [m]) whose error is ``J x`` (J (3, n)), against the filter prior
-        ``(x, P)``. Returns ``(z, H, R)`` (whitened rows and held integers, R a vector) or
-        None. ``up`` (3,), the ECEF up vector at the antenna, defaults to that of ``r``."""
+        ``(x, P)`` (P None: the rows only, without gate, integers or record). Returns
+        ``(z, H, R)`` (whitened rows and held integers, R a vector) or None."""
         cur, opt = self._cur, self.opt
         sig = cur.get("sig")
         if sig is None or sig["slot"].size < 2:
@@ -430,15 +434,10 @@ class RtkEngine:
         x, P = prior
         rv = self.rover
         i = sig["i"]
-        rho, u = G.sagnac_range(rv.sat_pos[i], r)
-        lat, lon, h = (float(v) for v in E.ecef_to_geodetic(r))
-        el, az = E.elevation_azimuth(rv.sat_pos[i], lat, lon, h)
-        trop = G.saastamoinen(lat, h, el)
-        dtrop = G.saastamoinen(lat, h + 1.0, el) - trop
-        if up is None:
-            up = E.enu_to_ecef_matrix(lat, lon)[:, 2]
         rs = rv.sat_pos[i]
-        g = -u + (E.WIE / G.C_LIGHT) * np.stack([-rs[:, 1], rs[:, 0], np.zeros(i.size)], -1) + dtrop[:, None] * up
+        rho, u = G.sagnac_range(rs, r)
+        trop, dtrop, el = troposphere(r, rs)
+        g = -u + (E.WIE / G.C_LIGHT) * np.stack([-rs[:, 1], rs[:, 0], np.zeros(i.size)], -1) + dtrop
         pred = rho + trop - rv.sat_clock[i] - self._b_pred[sig["j"]]
         gJ = g @ J
         lam = sig["lam"]
@@ -446,6 +445,8 @@ class RtkEngine:
         m = i.size
         if opt.iono == "broadcast":      # code delayed, phase advanced by γ I (γ = (f_L1/f)²)
             t_gps = float(rv.t_epoch[cur["e"]] - rv.t_ref)
+            lat, lon, h = (float(v) for v in E.ecef_to_geodetic(r))
+            _, az = E.elevation_azimuth(rs, lat, lon, h)
             I_r = G.klobuchar(t_gps, lat, lon, az, el, rv.iono)
             dI = (I_r - self._b_iono[sig["j"]]) * (F_L1 * lam / G.C_LIGHT) ** 2
         else:
@@ -454,16 +455,20 @@ class RtkEngine:
         Hph = gJ.copy()
         Hph[np.arange(m), cols] += lam
         zc = pred + dI - (sig["Pr"] - sig["Pb"])
+        # both receivers' weights at the base's elevation (the same within 0.1° over tens of
+        # kilometres): R, and so the whitened rows, do not move with the rover's state
         el_b = self._b_el[sig["j"]]
-        vph = (signal_variance(opt.phase_sigma, sig["cn0_r"], el, opt.cn0_ref)
+        vph = (signal_variance(opt.phase_sigma, sig["cn0_r"], el_b, opt.cn0_ref)
                + signal_variance(opt.phase_sigma, sig["cn0_b"], el_b, opt.cn0_ref))
-        vc = (signal_variance(opt.code_sigma, sig["cn0_r"], el, opt.cn0_ref)
+        vc = (signal_variance(opt.code_sigma, sig["cn0_r"], el_b, opt.cn0_ref)
               + signal_variance(opt.code_sigma, sig["cn0_b"], el_b, opt.cn0_ref))
         groups = self._groups(sig, el)
         dd = _double_differences(groups, (zph, Hph, vph), (zc, gJ, vc))
         if dd is None:
             self._log_none(cur)
             return None
+        if P is None:                       # no prior (a check of H): the rows alone
+            return (*_whiten(dd), np.ones(sum(b[2].size for k in dd for b in dd[k])))
         dd = self._gate(dd, groups, sig, x, P)
         if dd is None:
             self._log_none(cur)
@@ -524,7 +529,8 @@ class RtkEngine:
             if n_amb:
                 a_hat = d - Dx @ xf
                 Qa = Dx @ Pf @ Dx.T
-                fix = resolve(a_hat, Qa, ratio=opt.ratio, min_fixed=opt.min_fixed, drop_order=_by_satellite(sats, Qa))
+                fix = resolve(a_hat, Qa, ratio=opt.ratio, min_fixed=opt.min_fixed, success=opt.success,
+                              drop_order=_by_satellite(sats, Qa))
                 ratio = fix.ratio
                 if fix.fixed:
                     sel = fix.used
