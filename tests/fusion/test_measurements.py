@@ -49,6 +49,8 @@ MODELS = {
     # a barometer bias of its own (Gauss–Markov)
     "barometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(),
                                                 es.barometer_bias(tau=600.0, sigma=2.0)]),
+    # a magnetometer's residual hard iron (random constant)
+    "magnetometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.magnetometer_bias()]),
     "horizontal": lambda: es.ErrorModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")]),
     # carrier phase: ambiguity states (RTK), receiver clock and clone states (TDCP), beside
     # the 15 states or beside Gauss–Markov and scale gyro blocks with no block named "eps"
@@ -65,12 +67,15 @@ MODELS = {
                                                             es.accel_bias(axes="xy")],
                                              [es.gyro_bias(), es.accel_bias(axes="xy")]),
 }
-SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "horizontal")
+SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "magnetometer", "horizontal")
 FULL = SINGLE[:-1]                           # measurements that need three velocity errors
 RTK = ("rtk", "rtk-markov-scale")
 TDCP = ("tdcp", "tdcp-markov-scale")
 OWN = ("lever-states",)                      # models with the states a measurement owns
 BARO_BIAS = 5.0                              # true barometer bias [m]
+#: Earth's field ENU [T] (IGRF-14 at 45.3° N, 93.2° W in 2012: D = 0.6°, I = 72°)
+B_N = np.array([0.18e-6, 17.25e-6, -53.23e-6])
+MAG_BIAS = np.array([2e-6, -1e-6, 3e-6])     # residual hard iron removed by the measurement [T]
 
 
 def _row():
@@ -147,6 +152,12 @@ CASES = {
     ]),
     "Barometer": (FULL, [
         ("own-bias", lambda lay, row: _barometer(lay, row), {}),
+    ]),
+    "MagneticField": (SINGLE, [
+        ("hard-iron", lambda lay, row: _magnetometer(lay, row, M.MagneticField, 0.3e-6), {}),
+    ]),
+    "MagneticHeading": (SINGLE, [
+        ("hard-iron", lambda lay, row: _magnetometer(lay, row, M.MagneticHeading, 0.05), {}),
     ]),
     # fusion.rtk_ins and fusion.tdcp: the satellites of a simulated sky over the row
     "DoubleDifferences": (RTK, [
@@ -235,6 +246,18 @@ def _barometer(lay, row):
     sb = lay.find("baro_bias")
     return lambda x: B.Barometer([0.0], [row[9] + BARO_BIAS], 0.5,
                                  bias=BARO_BIAS + (x[sb][0] if sb is not None else 0.0))
+
+
+def _magnetometer(lay, row, cls, sigma):
+    """A magnetometer reading the true body field through a soft and hard iron the
+    calibration removes, plus a residual hard iron ``MAG_BIAS``; the measurement removes
+    ``MAG_BIAS + δβ`` (``δβ = β_used − β_true``: the state, when the model has it)."""
+    from sinslab.nav.magnetic import MagCalibration
+    cal = MagCalibration([[1.05, 0.02, -0.01], [0.02, 0.97, 0.03], [-0.01, 0.03, 1.02]], [4e-6, -7e-6, 2e-6])
+    raw = cal.distort(A.quat_to_dcm(row[:4]).T @ B_N + MAG_BIAS)
+    sb = lay.find("mag_hard_iron")
+    return lambda x: cls([0.0], raw[None], B_N, sigma, calibration=cal,
+                         bias=MAG_BIAS + (x[sb] if sb is not None else 0.0))
 
 
 def _odometer(lay, row, nhc):
