@@ -65,7 +65,19 @@ def test_another_clock_is_refused(tmp_path):
     p = tmp_path / "mag.csv"
     _mag_csv(p)
     tab = S.read_sensor_table(p, MAG)
-    S.check_time_base(tab, -1.0, 10.0)
+    from sinslab.core.stamps import check_time_base
+    check_time_base(tab.t, -1.0, 10.0, tab.path)
     with pytest.raises(ValueError, match=r"mag.csv: its times 0.000..3.980 s do not overlap the IMU record "
                                          r"345600.000..345700.000 s \(covered 0%\): a different time base"):
-        S.check_time_base(tab, 345600.0, 345700.0)
+        check_time_base(tab.t, 345600.0, 345700.0, tab.path)
+
+
+def test_magnetometer_axes_turned_like_the_imus(tmp_path):
+    """A forward-right-down sensor's field in sinslab's right-forward-up body axes:
+    x_body = y_sensor, y_body = x_sensor, z_body = −z_sensor."""
+    p = tmp_path / "mag.csv"
+    t, m = _mag_csv(p, header="time,mag_x,mag_y,mag_z")
+    tab = S.read_magnetometer(p, "t=time[s], mx=mag_x, my=mag_y, mz=mag_z", unit="uT", frame="frd")
+    np.testing.assert_allclose(tab.values["field"], np.column_stack([m[:, 1], m[:, 0], -m[:, 2]]) * 1e-6,
+                               atol=1e-10)
+    assert tab.units["mx"] == "uT"

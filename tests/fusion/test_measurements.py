@@ -322,6 +322,23 @@ def test_the_contract_sees_a_term_placed_on_a_block_by_name():
         assert_H_is_jacobian(lambda x: ByName([0.0], [row[4:7]], 0.1, lever_arm=LEVER), lay, [row], [W])
 
 
+def test_the_contract_sees_a_magnetic_heading_without_its_tilt_terms():
+    """A magnetic heading whose H had φ_U alone (the heading of a level compass) fails the
+    contract: with the dip of 72° a tilt error of the INS moves the levelled field's azimuth
+    by about three times itself, and the contract sees the missing terms."""
+    class Level(M.MagneticHeading):
+        def matrices(self, ep):
+            z, H, R = super().matrices(ep)
+            s = ep.layout.slice("phi")
+            H[:, s.start:s.start + 2] = 0.0
+            return z, H, R
+
+    lay = MODELS["magnetometer"]().layout
+    row = _row()
+    with pytest.raises(AssertionError, match="phi[EN]"):
+        assert_H_is_jacobian(_magnetometer(lay, row, Level, 0.05), lay, [row], [W])
+
+
 def test_position_fix_of_the_true_antenna_is_zero():
     lay = lc_model(1e-5, 1e-4).layout
     row = _row()

@@ -7,7 +7,10 @@ column map ``"t=time[s], mx=mag_x[G], ..."``; one-line errors naming file and li
 the rows dropped for an empty value counted; a *held* stream (a slow sensor's reading
 repeated in every row of a faster log, :func:`sinslab.core.stamps.held_runs`) is
 collapsed to its first row per reading. :func:`check_channels` refuses a dead (constant)
-or saturated channel, :func:`check_time_base` a table whose clock is not the IMU's.
+or saturated channel (a table on another clock than the IMU's:
+:func:`sinslab.core.stamps.check_time_base`).
+:func:`read_magnetometer` and :func:`read_barometer` are the readers the magnetometer and
+barometer aids use (through the data front door).
 """
 from __future__ import annotations
 
@@ -21,7 +24,11 @@ from sinslab.core import units
 from sinslab.data import columns as _columns
 from sinslab.data.increments import check_stamps, where
 
-__all__ = ["SensorTable", "read_sensor_table", "check_channels", "check_time_base", "SATURATED_SHARE"]
+__all__ = ["SensorTable", "read_sensor_table", "check_channels", "SATURATED_SHARE",
+           "read_magnetometer", "read_barometer", "MAG_KEYS"]
+
+#: The quantities of a magnetometer table: time and the field along the sensor's x, y, z.
+MAG_KEYS = ("mx", "my", "mz")
 
 #: Share of the rows at a channel's extreme value from which the channel is called saturated.
 SATURATED_SHARE = 0.01
@@ -177,15 +184,41 @@ def check_channels(table: SensorTable, keys, *, share=SATURATED_SHARE):
                                  f"rows: saturated (clipped at the sensor's range)")
 
 
-def check_time_base(table: SensorTable, t_lo, t_hi, *, least=0.5):
-    """Refuse a table whose stamps do not overlap the IMU record ``t_lo..t_hi`` [s] over at
-    least ``least`` of the shorter of the two spans: a clock other than the IMU's (GPS
-    seconds of week against seconds since power-on, UTC against GPST, milliseconds)."""
-    a, b = float(table.t[0]), float(table.t[-1])
-    over = min(b, t_hi) - max(a, t_lo)
-    span = min(b - a, t_hi - t_lo)
-    if span <= 0 or over < least * span:
-        raise ValueError(f"{table.path}: its times {a:.3f}..{b:.3f} s do not overlap the IMU record "
-                         f"{t_lo:.3f}..{t_hi:.3f} s (covered {max(over, 0.0) / max(span, 1e-300):.0%}): "
-                         "a different time base? (seconds of week vs seconds since start, ms vs s, "
-                         "UTC vs GPST)")
+def read_magnetometer(path, columns=None, *, unit=None, frame="rfu", mount=None) -> SensorTable:
+    """A three-axis magnetometer's table: ``t`` and the field ``mx my mz`` along the sensor
+    axes, turned into the IMU body axes (RFU) by ``frame`` and ``mount`` as the IMU's own
+    axes are (:func:`sinslab.data.frames.sensor_to_body`); a dead or saturated channel is
+    refused.
+
+    Parameters
+    ----------
+    path : str or Path
+    columns : column map over ``t mx my mz`` (``"t=time[s], mx=mag_x[G], ..."``), optional
+    unit : str, optional
+        The field unit when neither the map nor the header gives one (``"G"``, ``"uT"``).
+    frame, mount
+        The sensor axes' convention and mount (as the IMU's ``--frame``/``--mount``).
+
+    Returns
+    -------
+    SensorTable
+        ``values["field"]`` (J, 3): the field in body axes [T]; ``units["mx"]`` the
+        declared unit.
+    """
+    from sinslab.data.frames import sensor_to_body
+
+    C = sensor_to_body(mount, frame)
+    tab = read_sensor_table(path, {k: ("magnetic_field", unit) for k in MAG_KEYS}, columns=columns,
+                            option="magnetometer.columns")
+    check_channels(tab, MAG_KEYS)
+    raw = np.column_stack([tab.values[k] for k in MAG_KEYS])
+    return SensorTable(tab.t, {"field": raw @ C.T}, tab.units, tab.columns, tab.path, tab.rows, tab.dropped,
+                       tab.held)
+
+
+def read_barometer(path, columns=None, *, unit=None) -> SensorTable:
+    """A barometric altimeter's table: ``t`` and the pressure height ``h`` (default unit m);
+    a dead or saturated channel is refused. ``values["h"]`` (J,) [m]."""
+    tab = read_sensor_table(path, {"h": ("length", unit or "m")}, columns=columns, option="barometer.columns")
+    check_channels(tab, ("h",))
+    return tab
