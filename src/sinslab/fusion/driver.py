@@ -48,7 +48,10 @@ Per block ``[e0, e1]``:
 3. Prediction of the filter through the block in one compiled loop
    (:meth:`KalmanFilter.predict_many`; both paths step with
    :func:`sinslab.estimation.kernels.predict_step`); σ and x are recorded at every epoch.
-4. Measurements at ``e1``, in measurement order then item order. An item valid at
+4. Measurements at ``e1``, in measurement order then item order (a measurement that
+   owns re-initialised states first asks for a jump of the state, ``transform``, applied
+   by :meth:`KalmanFilter.transform` before its rows; it is applied on arrival only, and
+   not smoothed). An item valid at
    ``t_v`` (validity epoch ``e_v = ⌈(t_v − t_0)/T⌉``) that arrives at ``e1``:
 
    * on time (``e_v = e1``) or with a policy that applies on arrival: compared with the
@@ -94,7 +97,7 @@ from sinslab.estimation.filter import KalmanFilter
 from sinslab.estimation.kalman import discretize
 from sinslab.estimation.linear import discretize_series_many
 from sinslab.fusion.lag import ExactReprocessing
-from sinslab.fusion.measurements import Epoch, Grid, NavRow, Rows, gates_of
+from sinslab.fusion.measurements import Epoch, Grid, NavRow, Rows, declared
 from sinslab.fusion.observer import Applied, Decisions, Recorder
 from sinslab.fusion.propagate import CompiledPropagation
 from sinslab.fusion.spec import FilterGrid, InsSpec
@@ -601,6 +604,10 @@ class _LaneRun:
         self.streams = streams
         self.measurements = list(lane.measurements)
         self.history = history
+        self.gates = [declared(m) for m in self.measurements]
+        if history is not None and any(g.transform is not None for g in self.gates):
+            raise ValueError("smoothing a run whose measurements re-initialise filter states (carrier-phase "
+                             "ambiguities, time-differenced phase) is not supported")
         n = model.n
         # --- filter grid (stream 0 sets t0; all share the step)
         grids = [s.bind(kf_dt) for s in streams]
@@ -661,7 +668,6 @@ class _LaneRun:
         if history is not None:
             history.begin(filt, n_ep, T, set(np.union1d(self.s_e, self.s_ev).tolist()))
         self.rec = Recorder()
-        self.gates = [gates_of(m) for m in self.measurements]
         self.streak = [0] * len(self.measurements)          # epochs whose every row was refused
         self.nav_lag = self.nav_h if lag.corrected_nav else self.nav_pre
         self.Phi_la = self.Q_la = self.stretch = None
@@ -752,8 +758,11 @@ class _LaneRun:
             mi, j, ev = int(self.s_m[k]), int(self.s_j[k]), int(self.s_ev[k])
             tv, late = float(self.s_tv[k]), bool(self.s_late[k])
             meas = self.measurements[mi]
-            gate, row_gate = self.gates[mi]
+            gate, row_gate, transform = self.gates[mi]
             if ev < e1 and not lag.on_arrival:
+                if transform is not None:
+                    raise ValueError(f"{type(meas).__name__} arrives late and re-initialises filter states: it "
+                                     "must be applied on arrival (a lag policy with on_arrival)")
                 ep = Epoch(t_ep[ev], ev, self._epoch_rows(self.nav_lag, ev), lay, n, j)
                 r = self._rows(mi, tv, meas.matrices(ep), row_gate, None)
                 if r is None:
@@ -773,8 +782,12 @@ class _LaneRun:
                 if now is None:
                     now = tuple(NavRow(self.rows[i][-1], self.blk[i][1][-1], self.blk[i][2][-1])
                                 for i in range(self.ns))
-                prior = (filt.x, filt.P)
-                r = self._rows(mi, tv, meas.matrices(Epoch(t_at, e1, now, lay, n, j, prior)), row_gate, prior)
+                ep = Epoch(t_at, e1, now, lay, n, j, (filt.x, filt.P))
+                jump = transform(ep) if transform is not None else None
+                if jump is not None:            # states the measurement re-initialises or copies
+                    filt.transform(*jump)
+                    ep = Epoch(t_at, e1, now, lay, n, j, (filt.x, filt.P))
+                r = self._rows(mi, tv, meas.matrices(ep), row_gate, ep.prior)
                 if r is None:
                     continue
                 if gate is not None:

@@ -13,7 +13,7 @@ import numpy as np
 
 from sinslab.core import attitude as A
 
-__all__ = ["Grid", "NavRow", "Epoch", "Measurement", "Rows", "Stack", "gates_of"]
+__all__ = ["Grid", "NavRow", "Epoch", "Measurement", "Rows", "Stack", "Declared", "declared"]
 
 
 @dataclass(frozen=True)
@@ -163,8 +163,8 @@ class Rows(NamedTuple):
 class Measurement(Protocol):
     """Protocol of a measurement the driver applies.
 
-    Besides the three methods a measurement declares what the driver reads of it, both
-    None when it does not have them (an object without the attributes has neither):
+    Besides the three methods a measurement declares what else the driver reads of it,
+    each None when it does not have it (an object without the attribute has none):
 
     ``gate``
         An :class:`~sinslab.fusion.measurements.InnovationGate` the driver applies to
@@ -172,6 +172,13 @@ class Measurement(Protocol):
     ``row_gate``
         A :class:`~sinslab.fusion.measurements.RowGate`: :meth:`matrices` returns
         :class:`Rows`, which the driver gates row by row against the filter's prior.
+    ``transform``
+        ``transform(ep) -> (A (n, n), Q (n, n)) | None``: a jump of the filter's state
+        asked for before :meth:`matrices` of an item applied on arrival (states the
+        measurement re-initialises, as carrier-phase ambiguities after a slip, or
+        copies); the driver applies it with ``KalmanFilter.transform`` and hands
+        :meth:`matrices` the prior after it. Such a measurement cannot be lagged or
+        smoothed.
 
     The driver records what it decided (updates applied, refused by the gate, rows used
     and refused with their innovations) in its result; a measurement keeps no record.
@@ -179,6 +186,7 @@ class Measurement(Protocol):
 
     gate: object | None
     row_gate: object | None
+    transform: object | None
 
     def epochs(self, grid: Grid) -> dict:
         """``{arrival epoch index: [items, in processing order]}`` on the filter epochs
@@ -192,10 +200,18 @@ class Measurement(Protocol):
         ``row_gate``), or None (nothing to apply)."""
 
 
-def gates_of(m) -> tuple:
-    """``(gate, row_gate)`` a measurement declares (the protocol's None for either it does
-    not have)."""
-    return getattr(m, "gate", None), getattr(m, "row_gate", None)
+class Declared(NamedTuple):
+    """What a measurement declares beside its methods (:class:`Measurement`)."""
+
+    gate: object
+    row_gate: object
+    transform: object
+
+
+def declared(m) -> Declared:
+    """The ``gate``, ``row_gate`` and ``transform`` a measurement declares (the protocol's
+    None for one it does not have): read once, where the driver schedules it."""
+    return Declared(getattr(m, "gate", None), getattr(m, "row_gate", None), getattr(m, "transform", None))
 
 
 class Stack:
