@@ -252,7 +252,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
                                          shifted_times, significant_time_offset)
 
     imu_one = req.imu_path[0] if isinstance(req.imu_path, list) else req.imu_path     # the table odometer columns come from
-    fmt_eff = req.fmt or guess_imu_format(imu_one)
+    fmt_eff = req.fmt or guess_imu_format(imu_one, sniff=req.columns is None)
     kw = {}
     if req.mount is not None:
         kw["mount"] = req.mount
@@ -301,7 +301,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
         raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
     else:
         fix_name = " + ".join(map(str, req.fix_path)) if isinstance(req.fix_path, list) else str(req.fix_path)
-        ffmt = req.fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
+        ffmt = req.fix_format             # None: the reader tells the format from the name and content
         fx, fmeta = _read_fixes(lambda: load_fixes(req.fix_path, ffmt, velocity_lag=req.velocity_lag,
                                                    columns=req.fix_columns, quality=req.fix_quality),
                                 fix_name, ffmt)
@@ -323,10 +323,12 @@ def _compute(req: NavigateRequest, echo) -> Output:
     opt = NavOptionsDraft(req.options or NavOptions())
     if req.lever_arm is not None:
         opt.lever_arm = req.lever_arm
+    em = _file_says(data, fmeta if raw_gnss is None else {}, req, opt, em, echo)
     sync = None
     if req.time_sync == "auto":
         # without a lever arm a clock offset cannot be told from the antenna's lag in turns
-        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if req.lever_arm is not None else None)
+        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if (req.lever_arm is not None or (
+            raw_gnss is None and fmeta.get("lever_arm") is not None)) else None)
         sync = significant_time_offset(est)
         sync.update(windows=len(est["windows"]))
         imu = map_times(imu, partial(shifted_times, offset=sync["offset"], ppm=sync["ppm"], t_ref=sync["t_ref"]),
@@ -812,6 +814,30 @@ def _read_fixes(read, path, fmt):
         what = f"not readable as {fmt}" if fmt else "not readable"
         raise ValueError(f"--fixes {path}: {what} ({type(e).__name__ + ': ' if not isinstance(e, ValueError) else ''}"
                          f"{msg}); give --fix-format rtklib-pos | csv | mat-avp") from None
+
+
+def _file_says(data, fmeta, req, opt, em, echo):
+    """What another tool's files say about the sensor, used where no option says otherwise
+    and told once: the lever arm of a NaveGo GNSS struct, the noise model of a NaveGo IMU
+    struct. Returns the error model to use."""
+    la = fmeta.get("lever_arm")
+    if la is not None and req.lever_arm is None:
+        opt.lever_arm = tuple(float(x) for x in la)
+        echo(f"  lever arm (IMU -> antenna, right-forward-up) [{', '.join(f'{x:g}' for x in la)}] m from "
+             f"{fmeta.get('variable', 'the fix file')}.larm (--lever-arm replaces it)")
+    if fmeta.get("sigma_source"):
+        echo(f"  fix σ from {fmeta['sigma_source']}")
+    table = (data.meta or {}).get("error_model")
+    if table is not None and em is None:
+        from sinslab.app.error_model import load_error_model
+        em = load_error_model(table)
+        em[2]["source"] = f"{data.meta.get('variable', data.path)} ({', '.join(data.meta['noise_fields'])})"
+        echo(f"  IMU error model from {em[2]['source']} (--imu-errors replaces it)")
+    for key, what in (("gyro_static_bias", "gyro"), ("accel_static_bias", "accelerometer")):
+        if key in (data.meta or {}):
+            echo(f"  {what} static bias of the struct removed from every sample "
+                 f"({', '.join(f'{x:.3g}' for x in data.meta[key])} SI), as NaveGo does")
+    return em
 
 
 def _say_fix_reading(meta, path, echo):
