@@ -216,6 +216,33 @@ def _align_at_start(imu, fixes, ks, gb, window):
     return align_in_motion(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, k0, ks, gb)
 
 
+def _start_by_alignment(imu, fixes, k0, gb, start: StartSpec, move):
+    """The start found by the first in-motion alignment after IMU sample ``k0`` whose
+    heading σ beats the heading prior (:func:`sinslab.nav.motion_alignment.first_alignment`):
+    ``((ks, C_b^n, heading σ, description), fit)``. Refuses, naming what the record lacks
+    with its figures, when no window of the record qualifies."""
+    from sinslab.nav.motion_alignment import first_alignment
+    sc = first_alignment(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, float(imu.t[k0] - imu.dt),
+                         window=start.level_window, min_speed=start.move_speed,
+                         max_heading_sigma=start.att_sigma[2], gyro_bias=gb)
+    if sc.fit is None:
+        best = (f"the best of {sc.moving_windows} windows in motion fits the heading to "
+                f"{math.degrees(sc.best_heading_sigma):.1f} deg at {sc.best_t - fixes.t[0]:.0f} s after the "
+                f"first fix" if sc.moving_windows else f"none of {sc.windows} windows has every fix faster "
+                f"than {start.move_speed:g} m/s")
+        raise ValueError(
+            f"no {start.heading_window:g} s of motion faster than {move:g} m/s with a consistent course, and no "
+            f"{start.level_window:g} s of motion whose accelerations show the heading to "
+            f"{math.degrees(start.att_sigma[2]):.1f} deg ({best}; fastest fix {sc.max_speed:.1f} m/s, largest "
+            f"horizontal acceleration {sc.max_horizontal_accel:.2f} m/s²); give the initial heading "
+            "(--init heading=...)")
+    f = sc.fit
+    ks = int(np.searchsorted(imu.t, f.t_ref - 1e-9)) + 1
+    how = (f"in-motion alignment over {f.span:.1f} s of fixes in motion (fix velocity against the "
+           f"integrated specific force; no straight stretch needed)")
+    return (ks, f.C_bn, float(f.sigma[2]), how), f
+
+
 def leveled_start(imu, fixes: Fixes, start: StartSpec):
     """Index range ``(k0, k1)`` of the initial rest (see module notes) or None: until the
     first fix faster than ``static_speed``; when that leaves less than 1 s (a receiver
@@ -586,6 +613,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
             init.update(rest_start=None, level_pitch=pitch, level_roll=roll, level_residual=resid,
                         level_source=f"in motion: fix velocity against the integrated specific force at "
                         f"{n_used} fixes (no rest at the start)")
+    forced_fit = None
     if opt.start.heading is not None:
         ks = k0
         ts = float(imu.t[ks] - dt) if ks > 0 else imu.t0
@@ -601,8 +629,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt.start, lever, gb, move,
                                    AIRCRAFT_MAX_ROLL if air else math.inf)
         if found is None:
-            raise ValueError(f"no {opt.start.heading_window:g} s of motion faster than {move} m/s "
-                             "with a consistent course; give the initial heading (--init heading=...)")
+            # no straight, level stretch (an aircraft in continuous turns): the in-motion
+            # alignment sees the heading through the turns' accelerations instead
+            found, forced_fit = _start_by_alignment(imu, fixes, k0, gb, opt.start, move)
         ks, C, h_sig, how = found
         ts = float(imu.t[ks - 1]) if ks > 0 else imu.t0
         att0 = A.dcm_to_euler(C)
@@ -618,12 +647,13 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     carried = max(float(ts - t_lev), 0.0)
     tilt = math.hypot(float(np.max(opt.errors.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
     long_carry = opt.start.motion_alignment and tilt > CARRY_LIMIT * max(opt.start.att_sigma[:2])
-    fit = _align_at_start(imu, fixes, ks, gb, opt.start.level_window) if long_carry else None
-    if fit is not None and float(np.max(fit.sigma[:2])) < tilt:
+    fit = forced_fit if forced_fit is not None else (
+        _align_at_start(imu, fixes, ks, gb, opt.start.level_window) if long_carry else None)
+    if fit is not None and (forced_fit is not None or float(np.max(fit.sigma[:2])) < tilt):
         h_fit = math.hypot(float(fit.sigma[2]), opt.start.heading_sigma_floor)
         course = math.inf if opt.start.heading is not None else math.hypot(init["heading_sigma"], (
             AIRCRAFT_CRAB_SIGMA if init["platform"][0] == "aircraft" else opt.start.heading_sigma_floor))
-        use_h = h_fit < course
+        use_h = forced_fit is not None or h_fit < course
         att0 = np.r_[fit.att[:2], fit.att[2] if use_h else att0[2]]
         init.update(motion_alignment={"window_s": fit.span, "fixes": fit.n_vectors, "sigma_v": fit.sigma_v,
                                       "sigma": fit.sigma.tolist(), "heading": bool(use_h), "carried_s": carried})
