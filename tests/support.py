@@ -83,7 +83,7 @@ def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
 def fd_steps(layout):
     """Finite-difference step per state: 1e-6 for angles and sensor errors, 1e-4 m/s of
     velocity, 1e-8 rad / 1e-3 m of position, 1e-4 for the states a measurement owns
-    (lever arms [m], odometer scale [-])."""
+    (lever arms [m], odometer scale [-]; 1e-10 T for a magnetometer's hard iron)."""
     s = np.full(layout.n, 1e-6)
     for b in layout.blocks:
         sl = layout.slice(b.name)
@@ -93,7 +93,9 @@ def fd_steps(layout):
             s[sl.start:sl.start + 2] = 1e-8
             s[sl.start + 2:sl.stop] = 1e-3
         elif b.name != "phi" and b.feeds is None:
-            s[sl] = 1e-4
+            # 1e-4 of the block's display unit for a field (0.1 nT: a field step of 1e-4 T
+            # would be twice the Earth's), 1e-4 SI for the others
+            s[sl] = 1e-4 * (1e-6 if "uT" in b.units else 1.0)
     return s
 
 

@@ -42,16 +42,21 @@ MODELS = {
     # a barometer bias of its own (Gauss–Markov)
     "barometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(),
                                                 es.barometer_bias(tau=600.0, sigma=2.0)]),
+    # a magnetometer's residual hard iron (random constant)
+    "magnetometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.magnetometer_bias()]),
     "horizontal": lambda: es.ErrorModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")]),
     # INS 1 with a gyro scale block beside its bias, INS k with a bias only
     "difference": lambda: es.DifferenceModel("horizontal", [es.gyro_bias(), es.gyro_scale(axes="xz"),
                                                             es.accel_bias(axes="xy")],
                                              [es.gyro_bias(), es.accel_bias(axes="xy")]),
 }
-SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "horizontal")
+SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "magnetometer", "horizontal")
 FULL = SINGLE[:-1]                           # measurements that need three velocity errors
 OWN = ("lever-states",)                      # models with the states a measurement owns
 BARO_BIAS = 5.0                              # true barometer bias [m]
+#: Earth's field ENU [T] (IGRF-14 at 45.3° N, 93.2° W in 2012: D = 0.6°, I = 72°)
+B_N = np.array([0.18e-6, 17.25e-6, -53.23e-6])
+MAG_BIAS = np.array([2e-6, -1e-6, 3e-6])     # residual hard iron removed by the measurement [T]
 
 
 def _row():
@@ -129,6 +134,12 @@ CASES = {
     "Barometer": (FULL, [
         ("own-bias", lambda lay, row: _barometer(lay, row), {}),
     ]),
+    "MagneticField": (SINGLE, [
+        ("hard-iron", lambda lay, row: _magnetometer(lay, row, M.MagneticField, 0.3e-6), {}),
+    ]),
+    "MagneticHeading": (SINGLE, [
+        ("hard-iron", lambda lay, row: _magnetometer(lay, row, M.MagneticHeading, 0.05), {}),
+    ]),
 }
 
 
@@ -138,6 +149,18 @@ def _barometer(lay, row):
     sb = lay.find("baro_bias")
     return lambda x: B.Barometer([0.0], [row[9] + BARO_BIAS], 0.5,
                                  bias=BARO_BIAS + (x[sb][0] if sb is not None else 0.0))
+
+
+def _magnetometer(lay, row, cls, sigma):
+    """A magnetometer reading the true body field through a soft and hard iron the
+    calibration removes, plus a residual hard iron ``MAG_BIAS``; the measurement removes
+    ``MAG_BIAS + δβ`` (``δβ = β_used − β_true``: the state, when the model has it)."""
+    from sinslab.nav.magnetic import MagCalibration
+    cal = MagCalibration([[1.05, 0.02, -0.01], [0.02, 0.97, 0.03], [-0.01, 0.03, 1.02]], [4e-6, -7e-6, 2e-6])
+    raw = cal.distort(A.quat_to_dcm(row[:4]).T @ B_N + MAG_BIAS)
+    sb = lay.find("mag_hard_iron")
+    return lambda x: cls([0.0], raw[None], B_N, sigma, calibration=cal,
+                         bias=MAG_BIAS + (x[sb] if sb is not None else 0.0))
 
 
 def _odometer(lay, row, nhc):
@@ -199,6 +222,23 @@ def test_the_contract_sees_a_term_placed_on_a_block_by_name():
     row = _row()
     with pytest.raises(AssertionError, match="eps_m"):
         assert_H_is_jacobian(lambda x: ByName([0.0], [row[4:7]], 0.1, lever_arm=LEVER), lay, [row], [W])
+
+
+def test_the_contract_sees_a_magnetic_heading_without_its_tilt_terms():
+    """A magnetic heading whose H had φ_U alone (the heading of a level compass) fails the
+    contract: with the dip of 72° a tilt error of the INS moves the levelled field's azimuth
+    by about three times itself, and the contract sees the missing terms."""
+    class Level(M.MagneticHeading):
+        def matrices(self, ep):
+            z, H, R = super().matrices(ep)
+            s = ep.layout.slice("phi")
+            H[:, s.start:s.start + 2] = 0.0
+            return z, H, R
+
+    lay = MODELS["magnetometer"]().layout
+    row = _row()
+    with pytest.raises(AssertionError, match="phi[EN]"):
+        assert_H_is_jacobian(_magnetometer(lay, row, Level, 0.05), lay, [row], [W])
 
 
 def test_position_fix_of_the_true_antenna_is_zero():

@@ -67,7 +67,7 @@ __all__ = [
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices",
     "CORES", "lever_arm", "odometer_scale", "ClockBlock", "receiver_clock", "COMPENSATIONS",
-    "barometer_bias", "fix_position_error",
+    "barometer_bias", "magnetometer_bias", "fix_position_error",
 ]
 
 #: The compensations of a strapdown INS a sensor block can feed (:attr:`Block.feeds`):
@@ -77,7 +77,7 @@ COMPENSATIONS = ("gyro_bias", "accel_bias", "gyro_scale", "accel_scale")
 # ----------------------------------------------------------------------------- layout
 _DISPLAY = {  # unit name -> SI value of one display unit
     "arcmin": units.arcmin, "arcsec": units.arcsec, "m/s": 1.0, "m": 1.0, "deg/h": units.dph,
-    "ug": units.ug, "ppm": units.ppm, "rad": 1.0, "-": 1.0, "deg": units.deg,
+    "ug": units.ug, "ppm": units.ppm, "rad": 1.0, "-": 1.0, "deg": units.deg, "uT": 1e-6,
 }
 
 
@@ -103,7 +103,8 @@ class Block:
     quantity : str or None
         What the states of a block that feeds nothing are, for the measurements that read
         them (:meth:`StateLayout.find`): ``"lever_arm"``, ``"odometer_scale"``,
-        ``"installation"``, ``"receiver_clock"``, ``"baro_bias"``; None for the others.
+        ``"installation"``, ``"receiver_clock"``, ``"baro_bias"``, ``"mag_hard_iron"``; None
+        for the others.
     """
 
     name: str
@@ -891,6 +892,22 @@ def barometer_bias(*, tau=None, sigma=None, rw=0.0, name="baro"):
     """
     tau, q = _scale_noise(rw, tau, sigma, name)
     return SensorBlock(name, None, "markov" if tau else "constant", "z", "nav", tau, q, "m", "baro_bias")
+
+
+def magnetometer_bias(*, tau=None, sigma=None, rw=0.0, name="mag"):
+    """Residual hard iron of a three-axis magnetometer [T], body axes: the error of the
+    offset the measurement removes from the calibrated reading, computed minus true
+    (``δβ = β_used − β_true``), three states (labels ``<name>_x`` .. ``<name>_z``).
+
+    A random constant (a calibration error, the airframe's permanent magnetisation), a
+    random walk (``rw`` [T/√s]) or a first-order Gauss–Markov process (``tau`` [s],
+    steady-state ``sigma`` [T]: fields of slowly changing currents). The states feed
+    nothing back to the INS; the magnetometer measurements of
+    :mod:`sinslab.fusion.measurements.magnetometer` read them.
+    """
+    tau, q = _scale_noise(rw, tau, sigma, name)
+    return SensorBlock(name, None, "markov" if tau else "constant", "xyz", "body", tau, q, "uT",
+                       "mag_hard_iron")
 
 
 def fix_position_error(*, tau, sigma, name="fixerr"):
