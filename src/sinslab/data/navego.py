@@ -70,6 +70,14 @@ def find_struct(m, path, need, var=None, what="struct"):
     return None
 
 
+def _struct(m, path, need, var, what):
+    """:func:`find_struct`, or one error naming the fields a NaveGo ``what`` needs."""
+    hit = find_struct(m, path, need, var, what)
+    if hit is None:
+        raise ValueError(f"{path}: no NaveGo {what} (fields {', '.join(need)})" + (f" named {var!r}" if var else ""))
+    return hit
+
+
 def _col(f, name, path, var, n=None, width=None):
     a = np.asarray(f[name], dtype=float)
     if width is None:
@@ -160,11 +168,7 @@ def read_navego_imu(path, m=None, var=None, *, frame="frd", mount=None, max_gap=
     does, and the axes are NaveGo's forward-right-down unless ``frame``/``mount`` say
     otherwise. ``meta`` carries :func:`imu_struct_meta` and the struct's name."""
     m = loadmat(path) if m is None else m
-    hit = find_struct(m, path, IMU_FIELDS, var, "IMU struct")
-    if hit is None:
-        raise ValueError(f"{path}: no NaveGo IMU struct (fields {', '.join(IMU_FIELDS)})"
-                         + (f" named {var!r}" if var else ""))
-    var, f = hit
+    var, f = _struct(m, path, IMU_FIELDS, var, "IMU struct")
     t = _col(f, "t", path, var)
     if t.size < 2:
         raise ValueError(f"{path}: {var}.t has {t.size} samples; needs at least 2")
@@ -193,11 +197,7 @@ def read_navego_gnss(path, m=None, var=None):
     up), ``meta`` with ``variable``, ``sigma_source`` and ``lever_arm`` (``larm`` from
     forward-right-down to right-forward-up, or None)."""
     m = loadmat(path) if m is None else m
-    hit = find_struct(m, path, GNSS_FIELDS, var, "GNSS struct")
-    if hit is None:
-        raise ValueError(f"{path}: no NaveGo GNSS struct (fields {', '.join(GNSS_FIELDS)})"
-                         + (f" named {var!r}" if var else ""))
-    var, f = hit
+    var, f = _struct(m, path, GNSS_FIELDS, var, "GNSS struct")
     t = _col(f, "t", path, var)
     n = t.size
     lat, lon, h = (_col(f, k, path, var, n) for k in ("lat", "lon", "h"))
@@ -230,10 +230,7 @@ def read_navego_ref(path, m=None, var=None) -> NavSeries:
     pitch, yaw (rad, yaw clockwise from north) -> :class:`NavSeries` (ENU, sinslab
     attitude). Fields longer than ``t`` (NaveGo's own files carry some) are cut to it."""
     m = loadmat(path) if m is None else m
-    hit = find_struct(m, path, REF_FIELDS, var, "reference struct")
-    if hit is None:
-        raise ValueError(f"{path}: no NaveGo reference struct (fields {', '.join(REF_FIELDS)})")
-    var, f = hit
+    var, f = _struct(m, path, REF_FIELDS, var, "reference struct")
     t = _col(f, "t", path, var)
     n = t.size
     check_stamps(t, path, [f"{var} row {i + 1}" for i in range(n)])
