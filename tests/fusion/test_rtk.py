@@ -119,3 +119,43 @@ def test_static_pair_gnss_only():
     enu = sol.enu_errors(ref)
     assert np.max(np.hypot(enu[:, 0], enu[:, 1])) < 0.01 and np.max(np.abs(enu[:, 2])) < 0.02
     assert sol.slips["base_lli"] > 50 and sol.n_slip[18] > 50
+
+
+def test_bad_pairs_one_line_each():
+    """A base from another day, base epochs 60 s apart, a base position 3 km off, a base
+    without phase, every rover phase flagged as a slip, no carrier in common: one line
+    naming the file and the cause each; the good pair passes without warning."""
+    import dataclasses
+
+    from sinslab.core.errors import InputError
+    from sinslab.core.gnss import Signals
+    from sinslab.fusion.rtk import check_pair
+    rov, base, r0, _ = simulate(3, n=130)
+    b = RtkBase(base.sv, base.position, "base.obs")
+    assert check_pair(rov, b, "rover.obs") == []
+
+    def refused(bb, match, r=rov):
+        with pytest.raises(InputError, match=match):
+            check_pair(r, bb, "rover.obs")
+    sv = base.sv
+    refused(RtkBase(dataclasses.replace(sv, t_epoch=sv.t_epoch + 86400.0), base.position, "base.obs"),
+            r"^base.obs: its epochs .* do not overlap the rover's")
+    keep = np.isin(sv.epoch, [0, 60, 120])
+    sparse = dataclasses.replace(sv, t_epoch=sv.t_epoch, epoch=sv.epoch[keep], **{
+        k: getattr(sv, k)[keep] for k in ("sat", "system", "pseudorange", "range_rate", "freq", "cn0", "sat_pos",
+                                          "sat_vel", "sat_clock", "sat_drift", "usable")}, signals=sv.signals[keep])
+    sparse = dataclasses.replace(sparse, t_epoch=sv.t_epoch[[0, 60, 120]],
+                                 epoch=np.searchsorted([0, 60, 120], sparse.epoch))
+    refused(RtkBase(sparse, base.position, "base.obs"), r"^base.obs: base epochs every 60 s, further apart")
+    refused(RtkBase(sv, base.position + np.array([3000.0, 0.0, 0.0]), "base.obs"),
+            r"^base.obs: the base position given is 3 km from the base observations' own single-point")
+    refused(RtkBase(dataclasses.replace(sv, signals=None), base.position, "base.obs"),
+            r"^base.obs: no carrier phase in the observations")
+    S = rov.signals
+    flagged = dataclasses.replace(rov, signals=Signals(S.code, S.pseudorange, S.phase, S.doppler, S.cn0, S.freq,
+                                                       S.lli | 1))
+    refused(b, r"^rover.obs: every carrier-phase observation is flagged as a cycle slip", r=flagged)
+    Sb = sv.signals
+    other = dataclasses.replace(sv, signals=Signals(Sb.code, Sb.pseudorange, Sb.phase, Sb.doppler, Sb.cn0,
+                                                    Sb.freq * 0 + 1176.45e6, Sb.lli))
+    refused(RtkBase(other, base.position, "base.obs"), r"^base.obs: no carrier in common with the rover \(rover.obs: ")
