@@ -341,11 +341,11 @@ def _claims(cfg, m):
     ok = lambda v: bool(np.all(np.isfinite(v)) and np.all((np.asarray(v) > lo) & (np.asarray(v) < hi)))  # noqa: E731
     out = [
         Claim.at_most("fixed_rms_horizontal_ins", "RTK/INS fixed position: horizontal RMS ≤ 2 cm",
-                      m["fixed_rms_horizontal_ins"], 0.02, unit="m"),
+                      m["fixed_rms_horizontal_ins"], 0.02, unit="m", origin="check"),
         Claim.at_least("refix_1s_ins_10s", "RTK/INS fixed again within 1 s after the 10 s outages at ≥ 95 % of "
-                       "those epochs", m["refix_1s_ins_10s"], 0.95),
+                       "those epochs", m["refix_1s_ins_10s"], 0.95, origin="check"),
         Claim.equals("no_wrong_integers_ins", "RTK/INS fixes no double-difference integer wrong",
-                     m["wrong_integers_ins"], 0),
+                     m["wrong_integers_ins"], 0, origin="check"),
     ]
     if not _consistent(cfg):           # multipath the filters do not model: the NEES is no test
         return out
