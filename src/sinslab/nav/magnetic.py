@@ -123,8 +123,15 @@ def reference_field(lat, lon, h, date) -> ReferenceField:
     when = start + (_dt.datetime(y + 1, 1, 1) - start) * (year - y)
     be, bn, bu = ppigrf.igrf(np.degrees(lon), np.degrees(lat), h / 1000.0, when)
     b = np.stack([be[0], bn[0], bu[0]], -1).reshape(lat.shape + (3,)) * 1e-9
-    version = getattr(ppigrf, "__version__", None)
-    return ReferenceField(b, "IGRF-14 (ppigrf" + (f" {version})" if version else ")"))
+    return ReferenceField(b, f"IGRF-14 (ppigrf {_version('ppigrf')})")
+
+
+def _version(package):
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version(package)
+    except PackageNotFoundError:                   # a copy of the module, not installed
+        return "unknown version"
 
 
 def likely_field_unit(values, intensity) -> str:

@@ -491,19 +491,20 @@ def _receiver(rx, common, rng, rng_phase) -> SimulatedGnss:
         iono = iono + common["dI"][i] * (1.0 + 16.0 * (0.53 - el[i] / math.pi) ** 3)
         trop = G.saastamoinen(lat, h, el[i]) * (1 + se["eps_t"][i])
         bias = np.array([isb.get(sy, 0.0) for sy in systems[i]])
-        P = (rho[i] + b[e] + bias - se["sat_clk"][i] + iono + trop + se["e_orb"][i]
+        sclk = se["sat_clk"][i] + se["sat_dft"][i] * t[e]       # the satellite clock runs at its drift
+        P = (rho[i] + b[e] + bias - sclk + iono + trop + se["e_orb"][i]
              + rng.normal(0.0, errors.pseudorange_sigma, i.size) * scale)
         is_out = rng.random(i.size) < errors.outlier_rate
         P = P + is_out * rng.uniform(*errors.outlier_size, i.size)
         rate = _range_rate(p[i], v[i], u[i], rx["r"][e], rx["v"][e])
         rr_obs = rate + d[e] - se["sat_dft"][i] + rng.normal(0.0, errors.doppler_sigma, i.size) * scale
         for k, val in zip(keys, (np.full(i.size, e), sats[i], systems[i], P, rr_obs, cn0, p[i], v[i],
-                                 se["sat_clk"][i], se["sat_dft"][i], is_out)):
+                                 sclk, se["sat_dft"][i], is_out)):
             out[k].append(val)
         if track is not None:
             ctx = dict(phase=spec, errors=errors, dt=dt, bias=bias, sat_drift=se["sat_dft"][i],
                        sin_el=np.maximum(np.sin(el[i]), 0.05), beta_s=common["beta_s"])
-            cols, amb, chg = _signals(sats, i, e, ctx, track, (rho[i], rate, se["sat_clk"][i], se["e_orb"][i]),
+            cols, amb, chg = _signals(sats, i, e, ctx, track, (rho[i], rate, sclk, se["e_orb"][i]),
                                       P, rr_obs, cn0, scale, iono, trop, (b[e], d[e]), rng_phase)
             out["pseudorange"][-1] = cols[1][:, 0]          # with multipath, at the first carrier
             for lst, val in zip(sig, (*cols, amb, chg)):
