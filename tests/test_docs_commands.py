@@ -61,12 +61,15 @@ _OUTPUTS: dict[str, str] = {}
 #: a fenced block a document shows as the terminal output of the last command before it
 _OUTPUT_BLOCK = re.compile(r"<!-- output of the command above -->\s*```[a-z]*\n(.*?)```", re.S)
 _PLACEHOLDER = re.compile(r"(?<![\w./-])(?:[A-Z][A-Z_]{1,}(?:\.[a-z]+)?)(?![\w/-])|\.\.\.")
-_DATA_SUFFIX = (".imu", ".csv", ".pos", ".mat", ".parquet", ".ubx", ".zip", ".gz")
+_DATA_SUFFIX = (".imu", ".csv", ".pos", ".mat", ".parquet", ".ubx", ".zip", ".gz", ".txt", ".bag")
 #: recordings of the public ``onavdata`` package (a car drive of a commercial MEMS INS/GNSS
 #: unit, a small aircraft's flight) that docs/recorded-data.md shows for a user who has it;
 #: they are not in the data folder, so their commands are not run here
 EXTERNAL = {"n380-imu-nav.csv.zip", "n380-gnss-pvt.csv.zip", "accel_data.txt.zip", "gyro_data.txt.zip",
-            "gps_traj_data.txt.zip", "gps_velocity_data.txt.zip"}
+            "gps_traj_data.txt.zip", "gps_velocity_data.txt.zip",
+            # other tools' own example data (NaveGo's Turin drive, KF-GINS's demo data set) and a
+            # robot's bag: docs/recorded-data.md shows the one command a user of those files runs
+            "ekinox_imu.mat", "ekinox_gnss.mat", "Leador-A15.txt", "GNSS-RTK.txt", "drive.bag"}
 
 
 def _commands(path: Path):
