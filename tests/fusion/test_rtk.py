@@ -17,7 +17,7 @@ from sinslab.fusion.gnss import SatelliteObservations
 from sinslab.fusion.gnss_alone import rtk_solve
 from sinslab.fusion.rtk import RtkBase, RtkOptions
 from sinslab.sim import gnss as SG
-from support import simulated_slips, true_double_differences
+from support import assert_doc_quotes, simulated_slips, true_double_differences
 
 LAT, LON, H = math.radians(35.3), math.radians(139.5), 50.0
 WALKERS = [SG.Walker(), SG.Walker(planes=3, per_plane=8, system="E", raan0=0.4, radius=29_600e3)]
@@ -116,6 +116,48 @@ def test_static_pair_gnss_only():
     ref = np.array([-3962108.673, 3381309.574, 3668678.638])
     sol = rtk_solve(rov, RtkBase(bas, np.array([-3959400.631, 3385704.533, 3667523.111])))
     assert sol.time_to_first_fix() == (1, 0.0) and sol.fixed.all()
+    assert_doc_quotes("docs/raw-gnss.md", "a partial fix of 17 of the 50 double-difference ambiguities",
+                      [sol.n_fixed[0], sol.n_amb[0]])
     enu = sol.enu_errors(ref)
     assert np.max(np.hypot(enu[:, 0], enu[:, 1])) < 0.01 and np.max(np.abs(enu[:, 2])) < 0.02
     assert sol.slips["base_lli"] > 50 and sol.n_slip[18] > 50
+
+
+def test_bad_pairs_one_line_each():
+    """A base from another day, base epochs 60 s apart, a base position 3 km off, a base
+    without phase, every rover phase flagged as a slip, no carrier in common: one line
+    naming the file and the cause each; the good pair passes without warning."""
+    import dataclasses
+
+    from sinslab.core.errors import InputError
+    from sinslab.core.gnss import Signals
+    from sinslab.fusion.rtk import check_pair
+    rov, base, r0, _ = simulate(3, n=130)
+    b = RtkBase(base.sv, base.position, "base.obs")
+    assert check_pair(rov, b, "rover.obs") == []
+
+    def refused(bb, match, r=rov):
+        with pytest.raises(InputError, match=match):
+            check_pair(r, bb, "rover.obs")
+    sv = base.sv
+    refused(RtkBase(dataclasses.replace(sv, t_epoch=sv.t_epoch + 86400.0), base.position, "base.obs"),
+            r"^base.obs: its epochs .* do not overlap the rover's")
+    keep = np.isin(sv.epoch, [0, 60, 120])
+    sparse = dataclasses.replace(sv, t_epoch=sv.t_epoch, epoch=sv.epoch[keep], **{
+        k: getattr(sv, k)[keep] for k in ("sat", "system", "pseudorange", "range_rate", "freq", "cn0", "sat_pos",
+                                          "sat_vel", "sat_clock", "sat_drift", "usable")}, signals=sv.signals[keep])
+    sparse = dataclasses.replace(sparse, t_epoch=sv.t_epoch[[0, 60, 120]],
+                                 epoch=np.searchsorted([0, 60, 120], sparse.epoch))
+    refused(RtkBase(sparse, base.position, "base.obs"), r"^base.obs: base epochs every 60 s, further apart")
+    refused(RtkBase(sv, base.position + np.array([3000.0, 0.0, 0.0]), "base.obs"),
+            r"^base.obs: the base position given is 3 km from the base observations' own single-point")
+    refused(RtkBase(dataclasses.replace(sv, signals=None), base.position, "base.obs"),
+            r"^base.obs: no carrier phase in the observations")
+    S = rov.signals
+    flagged = dataclasses.replace(rov, signals=Signals(S.code, S.pseudorange, S.phase, S.doppler, S.cn0, S.freq,
+                                                       S.lli | 1))
+    refused(b, r"^rover.obs: every carrier-phase observation is flagged as a cycle slip", r=flagged)
+    Sb = sv.signals
+    other = dataclasses.replace(sv, signals=Signals(Sb.code, Sb.pseudorange, Sb.phase, Sb.doppler, Sb.cn0,
+                                                    Sb.freq * 0 + 1176.45e6, Sb.lli))
+    refused(RtkBase(other, base.position, "base.obs"), r"^base.obs: no carrier in common with the rover \(rover.obs: ")

@@ -107,6 +107,11 @@ DESCRIPTIONS = {
         (r"^time_sync_offset_applied$", "whether the offset was applied (significant at 3σ)"),
         (r"^time_sync_ppm_applied$", "whether the clock drift was applied"),
         (r"^time_sync_windows$", "windows of turns the offset and drift were fitted from"),
+        (r"^time_sync_speed_change_offset_s$", "IMU time-stamp offset seen in the speed changes (forward specific "
+         "force against the fixes' speed rate; a lever arm cannot fake it)"),
+        (r"^time_sync_speed_change_sigma_s$", "1σ of the offset seen in the speed changes"),
+        (r"^time_sync_offset_confirmed$", "whether the speed changes confirm the turns' offset (an offset is "
+         "applied only then)"),
         (r"^time_sync_threshold_sigmas$", "how many σ the offset and drift had to reach to be applied (3σ, or "
          "Student's t at 1 % for the fit's degrees of freedom)"),
         (r"^initial_heading_sigma_deg$", "1σ of the initial heading (from the fix course window)"),

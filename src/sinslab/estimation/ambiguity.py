@@ -98,8 +98,23 @@ def success_rate(Q):
     (n, n) [cycles²], after LAMBDA's decorrelation (RTKLIB's ``lambda_reduction``):
     ``Π (2Φ(1/(2√d_i)) − 1)`` over the conditional variances ``d_i`` in the order the
     search conditions them (the last transformed ambiguity first)."""
-    rtk = _lib()
     Q = np.asarray(Q, float)
+    return max(_bootstrap(Q), _bootstrap_decorrelated(Q))
+
+
+def _bootstrap(Q):
+    """Bootstrapped success rate of ``Q`` as it stands (the last component conditioned
+    first): a lower bound, the decorrelated one is sharper."""
+    try:
+        L = np.linalg.cholesky(Q[::-1, ::-1])
+    except np.linalg.LinAlgError:
+        return 0.0
+    d = np.diag(L) ** 2
+    return float(np.prod([math.erf(1.0 / (2.0 * math.sqrt(2.0 * v))) for v in d]))
+
+
+def _bootstrap_decorrelated(Q):
+    rtk = _lib()
     n = Q.shape[0]
     QQ, Z = rtk.Arr1Ddouble(n * n), rtk.Arr1Ddouble(n * n)
     for i, v in enumerate(Q.ravel(order="F").tolist()):
@@ -107,13 +122,12 @@ def success_rate(Q):
     if rtk.lambda_reduction(n, QQ, Z) != 0:
         return 0.0
     Zm = np.array([Z[i] for i in range(n * n)]).reshape(n, n, order="F")
-    Qz = Zm.T @ Q @ Zm
-    try:
-        L = np.linalg.cholesky(Qz[::-1, ::-1])
-    except np.linalg.LinAlgError:
-        return 0.0
-    d = np.diag(L) ** 2
-    return float(np.prod([math.erf(1.0 / (2.0 * math.sqrt(2.0 * v))) for v in d]))
+    return _bootstrap(Zm.T @ Q @ Zm)
+
+
+def _success_at_least(Q, p):
+    """``success_rate(Q) >= p``, the decorrelation skipped when the plain bound passes."""
+    return _bootstrap(Q) >= p or _bootstrap_decorrelated(Q) >= p
 
 
 @dataclass(frozen=True)
@@ -196,7 +210,7 @@ def resolve(a, Q, *, ratio=3.0, min_fixed=4, drop_order=None, max_tries=None, su
             return IntegerFix(none.used, none.integers, last, False, tries)
         tries += 1
         last = _ratio(s)
-        if last >= ratio and (success <= 0.0 or success_rate(Q[np.ix_(idx, idx)]) >= success):
+        if last >= ratio and (success <= 0.0 or _success_at_least(Q[np.ix_(idx, idx)], success)):
             ints = np.full(n, np.nan)
             ints[idx] = F[0]
             return IntegerFix(keep.copy(), ints, last, True, tries)

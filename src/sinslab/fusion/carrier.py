@@ -88,8 +88,30 @@ class SlipDetector:
         self.doppler_sigma = float(doppler_sigma)
         self.cn0_ref = float(cn0_ref)
         self.max_gap = float(max_gap)
-        self.prev = {}                 # sat -> (t, phase (F,), doppler (F,), gf, its variance)
+        self.slot_of = {}              # satellite -> its row of the arrays of the last epoch seen
+        self._t = np.zeros(0)
+        self._ph = self._d = np.zeros(0)
+        self._gf = self._gfv = np.zeros(0)
         self.counts = dict.fromkeys(SLIP_CAUSES, 0)
+
+    def _index(self, sats, nf):
+        """Rows of ``sats`` in the arrays of the last epoch seen (new satellites get rows
+        that have seen nothing)."""
+        idx = np.empty(len(sats), dtype=np.int64)
+        for q, s in enumerate(sats.tolist()):
+            k = self.slot_of.get(s)
+            if k is None:
+                k = self.slot_of[s] = len(self.slot_of)
+            idx[q] = k
+        K = len(self.slot_of)
+        if K > self._t.size:                 # room for the new satellites, doubled as it grows
+            n_new = max(K, 2 * self._t.size) - self._t.size
+            self._t = np.r_[self._t, np.full(n_new, -np.inf)]
+            self._gf = np.r_[self._gf, np.full(n_new, np.nan)]
+            self._gfv = np.r_[self._gfv, np.full(n_new, np.nan)]
+            self._ph = np.vstack([self._ph.reshape(-1, nf), np.full((n_new, nf), np.nan)])
+            self._d = np.vstack([self._d.reshape(-1, nf), np.full((n_new, nf), np.nan)])
+        return idx
 
     def check(self, t, sats, phase, doppler, freq, lli, cn0, el):
         """Slips of the signals of one epoch.
@@ -120,14 +142,10 @@ class SlipDetector:
         self.counts["lli"] += int(slip.sum())
         var = signal_variance(self.phase_sigma, cn0, el, self.cn0_ref)
         gf_now, gfv = _geometry_free(phase, lam, var)
-        # the previous epoch of each row's satellite
-        t0 = np.full(m, -np.inf)
-        ph0, d0 = np.full((m, nf), np.nan), np.full((m, nf), np.nan)
-        gf0, gfv0 = np.full(m, np.nan), np.full(m, np.nan)
-        for i, s in enumerate(sats):
-            p = self.prev.get(s)
-            if p is not None:
-                t0[i], ph0[i], d0[i], gf0[i], gfv0[i] = p
+        # the previous epoch of each row's satellite (arrays indexed by satellite)
+        idx = self._index(sats, nf)
+        t0, ph0, d0 = self._t[idx], self._ph[idx], self._d[idx]
+        gf0, gfv0 = self._gf[idx], self._gfv[idx]
         dt = t - t0
         kept = dt <= self.max_gap
         new = have & ~(kept[:, None] & np.isfinite(ph0))
@@ -152,8 +170,7 @@ class SlipDetector:
                 hit = dop & (np.abs(dev) > self.doppler_k * sd)
                 self.counts["doppler"] += int(hit.sum())
                 slip |= hit
-        for i, s in enumerate(sats):
-            self.prev[s] = (t, phase[i].copy(), doppler[i].copy(), gf_now[i], gfv[i])
+        self._t[idx], self._ph[idx], self._d[idx], self._gf[idx], self._gfv[idx] = t, phase, doppler, gf_now, gfv
         return slip | new, new
 
 

@@ -19,6 +19,7 @@ compose the same core with other measurements.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -324,7 +325,7 @@ def _fix_measurement(fixes: FixSpec, lay, t_first, t_last, T, t_imu_end) -> FixM
         raise ValueError(f"fix times {fix_t[0]:.3f}..{fix_t[-1]:.3f} s lie outside the filter grid "
                          f"{t_first:.3f}..{t_last:.3f} s{tail}")
     sched = dict(t_arrive=fixes.arrive, lever_arm=fixes.lever_arm, outages=fixes.outages,
-                 windows=fixes.windows)
+                 windows=fixes.windows, robust=fixes.robust)
     sigma = fixes.sigma[:, :n_z]
     if fixes.lever_block is not None:
         meas = LeverPositionFix(fix_t, fixes.pos, sigma, lever_block=fixes.lever_block, **sched)
@@ -338,22 +339,82 @@ def _fix_measurement(fixes: FixSpec, lay, t_first, t_last, T, t_imu_end) -> FixM
     return FixMeasurement(meas, fix_t, n_z, use_vel)
 
 
+#: a correlated fix error below this [m] (RTK) is left to the fixes' white σ
+FIX_ERROR_MIN = 0.3
+
+
 @dataclass(frozen=True)
 class FixSource:
     """Position (and velocity) fixes as the GNSS source of a recorded run
     (:class:`sinslab.fusion.aids.base.GnssSource`; loosely coupled): the fixes start the
-    filter and are its measurement, with the σ floors, latency and lever arm of
-    ``handling`` (:class:`sinslab.fusion.recorded_spec.FixHandling`)."""
+    filter and are its measurement, with the σ floors, latency, robust weighting and lever
+    arm of ``handling`` (:class:`sinslab.fusion.recorded_spec.FixHandling`). With
+    ``handling.fix_error`` their time-correlated position error becomes states of the
+    source (:meth:`prepare`)."""
 
     fixes: object
     handling: object
+    #: (τ [s], σ correlated (3,) [m]) of the fix-error states, or None (set by :meth:`prepare`)
+    fix_error: tuple | None = None
+    #: what :meth:`prepare` found of the fixes' error ({"model", "source", "used", ...}), or None
+    fix_error_info: dict | None = None
     name = "fixes"
 
     def start_fixes(self):
         return self.fixes
 
+    def prepare(self, fixes):
+        """``(fixes, source)``: the fixes' time-correlated errors taken into account
+        (``handling.fix_error``; "auto": measured from the record by
+        :func:`sinslab.fusion.fix_noise.fix_error_model`).
+
+        - Velocity: a Doppler velocity's error lasts seconds, so successive fixes do not
+          average it; each fix's σ is at least the white noise that carries the same
+          information as the measured random walk of its integral (``q_v / h`` for fixes
+          ``h`` apart).
+        - Position: a correlated part of at least :data:`FIX_ERROR_MIN` lasting more than
+          three fix intervals becomes Gauss–Markov states, and the fixes' σ their white part
+          (at least the floor): the filter no longer averages metres of correlated error away.
+        """
+        import dataclasses
+        spec = self.handling.fix_error
+        if spec is None:
+            return fixes, self
+        if not isinstance(spec, str):
+            tau, corr, white = float(spec[0]), np.broadcast_to(np.asarray(spec[1], float), (3,)), \
+                np.broadcast_to(np.asarray(spec[2], float), (3,))
+            info = {"used": True, "model": f"given: tau {tau:g} s", "source": "given"}
+            return self._white(fixes, white), dataclasses.replace(self, fix_error=(tau, np.asarray(corr, float)),
+                                                                  fix_error_info=info)
+        if spec != "auto":
+            raise ValueError(f"fix_error must be None, 'auto' or (tau, sigma, white), got {spec!r}")
+        from sinslab.fusion.fix_noise import fix_error_model
+        m = fix_error_model(fixes)
+        if m is None:
+            return fixes, dataclasses.replace(self, fix_error_info={"used": False, "model": None})
+        h = float(np.median(np.diff(fixes.t)))
+        info = {"model": m.describe(), "source": "measured from the record"}
+        if fixes.sigma_vel is not None and m.velocity_walk is not None:
+            sv = np.maximum(fixes.sigma_vel, m.velocity_walk / math.sqrt(h))
+            info["velocity_sigma"] = np.median(sv, 0).tolist()
+            fixes = dataclasses.replace(fixes, sigma_vel=sv)
+        info["used"] = bool(float(np.max(m.correlated)) >= FIX_ERROR_MIN and m.tau >= 3 * h)
+        if not info["used"]:
+            return fixes, dataclasses.replace(self, fix_error_info=info)
+        return self._white(fixes, m.white), dataclasses.replace(self, fix_error=(m.tau, m.correlated),
+                                                                fix_error_info=info)
+
+    def _white(self, fixes, white):
+        import dataclasses
+        w = np.maximum(np.asarray(white, float)[[1, 0, 2]], self.handling.pos_sigma_floor)     # north, east, up
+        return dataclasses.replace(fixes, sigma=np.tile(w, (len(fixes), 1)))
+
     def states(self):
-        return ()
+        if self.fix_error is None:
+            return ()
+        from sinslab.fusion.aids.base import State
+        tau, corr = self.fix_error
+        return (State(es.fix_position_error(tau=tau, sigma=corr), np.maximum(corr, 1e-3)),)
 
     def plan(self, setup, fixes, lever_block):
         from sinslab.fusion.aids.base import Plan
@@ -365,7 +426,7 @@ class FixSource:
                        vel=fix_velocity(fixes) if use_vel else None,
                        vel_sigma=np.maximum(fixes.sigma_vel, h.vel_sigma_floor) if use_vel else None,
                        latency=h.fix_latency, lever_arm=setup.lever_arm, outages=setup.outages,
-                       lever_block=lever_block)
+                       lever_block=lever_block, robust=h.robust)
         fm = _fix_measurement(spec, setup.layout, setup.t_start, setup.t_end, setup.T, float(setup.imu.t[-1]))
         return Plan((("fixes", fm.meas),), {"fix": fm})
 
@@ -373,5 +434,11 @@ class FixSource:
         from sinslab.fusion.aids.base import SourceReport
         fix_t, _, _, inn, nis, sd = plan.facts["fix"].records(run.applied["fixes"])
         metrics = {"n_fixes_used": int(fix_t.size), "nis_mean": float(np.mean(nis)) if nis.size else None}
-        return SourceReport(self.name, "position/velocity fixes", metrics=metrics, coupling="loosely coupled",
-                            fix_records=(fix_t, inn, sd, nis), reference="fixes")
+        notes = ()
+        fe = self.fix_error_info
+        if fe is not None:
+            notes = (f"Fix errors that last: {fe['model'] or 'no correlated error found'}"
+                     + (f" ({fe['source']})" if fe.get("source") else "")
+                     + ("; taken as Gauss–Markov states" if fe["used"] else "; the fixes stay white") + ".",)
+        return SourceReport(self.name, "position/velocity fixes", metrics=metrics, notes=notes,
+                            coupling="loosely coupled", fix_records=(fix_t, inn, sd, nis), reference="fixes")

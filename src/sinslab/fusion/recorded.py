@@ -260,6 +260,7 @@ def navigate_recorded(imu: ImuRecord, source, opt: NavOptions | None = None, *, 
         source = FixSource(source, opt.fix)
     aids = tuple(aids)
     fixes, held = _start_fixes(imu, source.start_fixes(), opt.fix)
+    fixes, source = source.prepare(fixes)
     platform = platform_kind(fixes, opt.start.platform)
     _check_land(aids, platform, opt.start.platform)
     outages = _expand_outages(opt.fix.outages, float(fixes.t[0]), float(fixes.t[-1]))

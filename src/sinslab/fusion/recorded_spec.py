@@ -109,6 +109,13 @@ class FixHandling:
     fix_vel_sigma: tuple | None = None      #: replaces every fix velocity σ east, north, up [m/s]
     pos_sigma_floor: float = 0.05           #: fix σ floor [m] (timing, antenna phase centre)
     vel_sigma_floor: float = 0.05           #: [m/s]
+    #: the fixes' time-correlated position error as Gauss-Markov states: None (white fixes),
+    #: "auto" (measured from the record, sinslab.fusion.fix_noise; used where metre-level), or
+    #: (tau [s], (σE, σN, σU) correlated [m], (σE, σN, σU) white [m]); fixes only
+    fix_error: object = None
+    #: inflate a fix's R where its innovation is beyond the 1 − robust χ² quantile (Chang 2014;
+    #: sinslab.fusion.measurements.schedule.robust_R); None: every fix as stated
+    robust: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "lever_arm", _lever("lever arm", self.lever_arm))

@@ -92,6 +92,33 @@ def _align_at_start(imu, fixes, ks, gb, window):
     return align_in_motion(imu, fixes.t, fix_velocity(fixes), fixes.lat, fixes.h, k0, ks, gb)
 
 
+def _start_by_alignment(imu, fixes, k0, gb, start: StartSpec, move):
+    """The start found by the first in-motion alignment after IMU sample ``k0`` whose
+    heading σ beats the heading prior (:func:`sinslab.nav.motion_alignment.first_alignment`):
+    ``((ks, C_b^n, heading σ, description), fit)``. Refuses, naming what the record lacks
+    with its figures, when no window of the record qualifies."""
+    from sinslab.nav.motion_alignment import first_alignment
+    sc = first_alignment(imu, fixes.t, fix_velocity(fixes), fixes.lat, fixes.h, float(imu.t[k0] - imu.dt),
+                         window=start.level_window, min_speed=start.move_speed,
+                         max_heading_sigma=start.att_sigma[2], gyro_bias=gb)
+    if sc.fit is None:
+        best = (f"the best of {sc.moving_windows} windows in motion fits the heading to "
+                f"{math.degrees(sc.best_heading_sigma):.1f} deg at {sc.best_t - fixes.t[0]:.0f} s after the "
+                f"first fix" if sc.moving_windows else f"none of {sc.windows} windows has every fix faster "
+                f"than {start.move_speed:g} m/s")
+        raise ValueError(
+            f"no {start.heading_window:g} s of motion faster than {move:g} m/s with a consistent course, and no "
+            f"{start.level_window:g} s of motion whose accelerations show the heading to "
+            f"{math.degrees(start.att_sigma[2]):.1f} deg ({best}; fastest fix {sc.max_speed:.1f} m/s, largest "
+            f"horizontal acceleration {sc.max_horizontal_accel:.2f} m/s²); give the initial heading "
+            "(--init heading=...)")
+    f = sc.fit
+    ks = int(np.searchsorted(imu.t, f.t_ref - 1e-9)) + 1
+    how = (f"in-motion alignment over {f.span:.1f} s of fixes in motion (fix velocity against the "
+           f"integrated specific force; no straight stretch needed)")
+    return (ks, f.C_bn, float(f.sigma[2]), how), f
+
+
 def leveled_start(imu, fixes: Fixes, start: StartSpec):
     """Index range ``(k0, k1)`` of the initial rest (see module notes) or None: until the
     first fix faster than ``static_speed``; when that leaves less than 1 s (a receiver
@@ -432,12 +459,14 @@ def _rest_level(imu, fixes, start: StartSpec, errors: ErrorSpec, lat0):
 
 
 def _heading(imu, fixes, k0, level, start: StartSpec, lever, gb, nsub, aircraft):
-    """``(ks, att, heading σ or None, how)``: the heading given, or found in motion
-    (:func:`_heading_in_motion`) from the levelled attitude."""
+    """``(ks, att, heading σ or None, how, forced fit or None)``: the heading given, or found
+    in motion (:func:`_heading_in_motion`) from the levelled attitude, or, without a
+    straight stretch, from the first in-motion alignment that shows it
+    (:func:`_start_by_alignment`, whose fit is then the start's)."""
     from sinslab.nav import strapdown as sd
     pitch, roll = (0.0, 0.0) if level.pitch is None else (level.pitch, level.roll)
     if start.heading is not None:
-        return k0, np.array([pitch, roll, A.heading_to_yaw(start.heading)]), None, "given"
+        return k0, np.array([pitch, roll, A.heading_to_yaw(start.heading)]), None, "given", None
     lat0 = float(fixes.lat[0])
     pre = sd.initial_state_array(NavState(lat0, float(fixes.lon[0]), float(fixes.h[0]),
                                           np.zeros(3), np.array([pitch, roll, 0.0])))
@@ -445,30 +474,34 @@ def _heading(imu, fixes, k0, level, start: StartSpec, lever, gb, nsub, aircraft)
     move = max(start.move_speed, AIRCRAFT_MOVE_SPEED) if aircraft else start.move_speed
     found = _heading_in_motion(fixes, imu, k0, pre, nsub, start, lever, gb, move,
                                AIRCRAFT_MAX_ROLL if aircraft else math.inf)
+    forced = None
     if found is None:
-        raise ValueError(f"no {start.heading_window:g} s of motion faster than {move} m/s "
-                         "with a consistent course; give the initial heading (--init heading=...)")
+        # no straight, level stretch (an aircraft in continuous turns): the in-motion
+        # alignment sees the heading through the turns' accelerations instead
+        found, forced = _start_by_alignment(imu, fixes, k0, gb, start, move)
     ks, C, h_sig, how = found
-    return ks, A.dcm_to_euler(C), h_sig, how
+    return ks, A.dcm_to_euler(C), h_sig, how, forced
 
 
 def _motion_fit(imu, fixes, ks, ts, t_lev, att0, h_sig, gb, g_noise, start: StartSpec, errors: ErrorSpec,
-                aircraft):
+                aircraft, forced=None):
     """The in-motion alignment before the start where the gyros would carry the levelling
     too long: when the tilt the residual gyro bias (its prior σ) and the white noise may
     add on the way dominates the levelling's own σ (``CARRY_LIMIT`` times it) and the fit
-    says it is better. Returns ``(att, MotionFit or None, fit or None, carried [s], tilt
-    [rad], heading σ, heading source or None)``."""
+    says it is better; or the ``forced`` fit the heading came from. Returns ``(att,
+    MotionFit or None, fit or None, carried [s], tilt [rad], heading σ, heading source or
+    None)``."""
     carried = max(float(ts - t_lev), 0.0)
     tilt = math.hypot(float(np.max(errors.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
     long_carry = start.motion_alignment and tilt > CARRY_LIMIT * max(start.att_sigma[:2])
-    fit = _align_at_start(imu, fixes, ks, gb, start.level_window) if long_carry else None
-    if fit is None or not float(np.max(fit.sigma[:2])) < tilt:
+    fit = forced if forced is not None else (
+        _align_at_start(imu, fixes, ks, gb, start.level_window) if long_carry else None)
+    if fit is None or not (forced is not None or float(np.max(fit.sigma[:2])) < tilt):
         return att0, None, None, carried, tilt, h_sig, None
     h_fit = math.hypot(float(fit.sigma[2]), start.heading_sigma_floor)
     course = math.inf if start.heading is not None else math.hypot(h_sig, (
         AIRCRAFT_CRAB_SIGMA if aircraft else start.heading_sigma_floor))
-    use_h = h_fit < course
+    use_h = forced is not None or h_fit < course
     att = np.r_[fit.att[:2], fit.att[2] if use_h else att0[2]]
     mf = MotionFit(fit.span, fit.n_vectors, fit.sigma_v, tuple(fit.sigma.tolist()), bool(use_h), carried)
     if not use_h:
@@ -516,12 +549,12 @@ def solve_start(imu: ImuRecord, fixes: Fixes, start: StartSpec, errors: ErrorSpe
     lat0 = float(fixes.lat[0])
     aircraft = platform[0] == "aircraft"
     k0, level, rest, gb, g_noise, a_noise = _rest_level(imu, fixes, start, errors, lat0)
-    ks, att0, h_sig, how = _heading(imu, fixes, k0, level, start, lever, gb, nsub, aircraft)
+    ks, att0, h_sig, how, forced = _heading(imu, fixes, k0, level, start, lever, gb, nsub, aircraft)
     ts = (float(imu.t[ks] - dt) if ks > 0 else imu.t0) if start.heading is not None else \
         (float(imu.t[ks - 1]) if ks > 0 else imu.t0)
     t_lev = rest.t1 if rest is not None else float(imu.t[k0] - dt)
     att0, mf, fit, carried, tilt, h_sig, how_fit = _motion_fit(imu, fixes, ks, ts, t_lev, att0, h_sig, gb,
-                                                               g_noise, start, errors, aircraft)
+                                                               g_noise, start, errors, aircraft, forced)
     sigma, carried_s, tilt_sigma = _attitude_sigma(start, h_sig, mf, fit, aircraft, rest, ts, carried, tilt)
     lat_a, lon_a, h_a, v0 = _interp_fix(fixes, ts)
     C0 = A.euler_to_dcm(att0)

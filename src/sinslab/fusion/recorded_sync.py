@@ -30,10 +30,15 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
     (0.1 s for 1 m at 10 m/s). A straight line through the per-window lags gives an offset
     and a clock-rate error, with standard errors from the scatter about the line.
 
+    The same windows are also read along track (:func:`_speed_change_lags`: the forward
+    specific force against the rate of change of the fixes' speed), which a lever arm
+    cannot fake; :func:`significant_time_offset` applies an offset only when they confirm it.
+
     Returns ``{"offset": lag at t_ref [s], "offset_sigma", "t_ref", "ppm": drift
     [1e-6 s/s], "ppm_sigma", "windows": [(t_mid, lag, correlation), ...],
-    "window_inv_speed": [mean 1/speed in each window's turns [s/m], ...], "lever_given"}``
-    (σ = inf when too few windows to judge); the
+    "window_inv_speed": [mean 1/speed in each window's turns [s/m], ...], "lever_given",
+    "speed_windows": [(t_mid, lag, correlation), ...]}`` (σ = inf when too few windows to
+    judge; no window at all when the record has no turn: nothing to apply); the
     corrected IMU times are ``t − (offset + ppm·1e-6·(t − t_ref))``.
     :func:`significant_time_offset` keeps only what is significant.
     """
@@ -76,8 +81,17 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
         inv_v = float(np.mean(1.0 / np.maximum(np.interp(grid[turning], fixes.t, sp), min_speed)))
         res.append((0.5 * (a + b), float(lags[i] + sh * step), float(c[i])))
         inv_speed.append(inv_v)
+    out = _lag_line(res, 0.5 * (lo + hi))
+    out.update(windows=res, step=float(step), window_inv_speed=inv_speed, lever_given=lever_arm is not None,
+               imu_dt=float(imu.dt), speed_windows=_speed_change_lags(imu, fixes, edges, lags, sp, min_speed))
+    return out
+
+
+def _lag_line(res, t_mid):
+    """Offset at the mean window time and drift of the window lags ``res`` (a line, σ from
+    the scatter about it; a mean with two windows; nothing to apply without a window)."""
     if not res:
-        raise ValueError("no turns found to estimate the IMU time offset")
+        return {"offset": 0.0, "offset_sigma": math.inf, "t_ref": float(t_mid), "ppm": 0.0, "ppm_sigma": math.inf}
     tm = np.array([r[0] for r in res])
     lg = np.array([r[1] for r in res])
     t_ref = float(tm.mean())
@@ -91,9 +105,46 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
         b_, a_ = 0.0, float(lg.mean())
         sa = float(np.std(lg, ddof=1)) / math.sqrt(n) if n == 2 else math.inf
         sb = math.inf
-    return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6),
-            "ppm_sigma": sb * 1e6, "windows": res, "step": float(step),
-            "window_inv_speed": inv_speed, "lever_given": lever_arm is not None, "imu_dt": float(imu.dt)}
+    return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6), "ppm_sigma": sb * 1e6}
+
+
+def _speed_change_lags(imu, fixes, edges, lags, speed, min_speed, highpass=4.0):
+    """Per window of ``edges``, the lag [s] of the IMU's forward specific force behind the
+    rate of change of the fixes' speed: ``[(t_mid, lag, correlation), ...]``.
+
+    A second look at the IMU clock that a lever arm cannot fake: an antenna ahead of the
+    IMU delays its course in a turn by ``l_y / v`` (what the turn lags must take out with
+    the lever arm) but not its speed, which a rigid body shares along track. Both signals
+    are high-passed (a ``highpass`` s moving mean removed: the road grade's gravity and the
+    accelerometer bias go), the IMU's averaged over one fix interval as the speed's
+    difference quotient averages it; windows whose speed changes are weak (σ < 0.05 m/s²)
+    or whose peak correlation is below 0.5 are skipped."""
+    from scipy.ndimage import uniform_filter1d
+    if len(fixes) < 3:
+        return []
+    acc = np.gradient(speed, fixes.t)
+    step_f = float(np.median(np.diff(fixes.t)))
+    n_hp, n_fix = max(1, int(round(highpass / 0.02))), max(1, int(round(2 * step_f / 0.02)))
+    out = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        grid = np.arange(a, b, 0.02)
+        ref = np.interp(grid, fixes.t, acc)
+        ref = ref - uniform_filter1d(ref, n_hp, mode="nearest")
+        if np.std(ref) < 0.05:
+            continue
+        lo_k = max(0, int(np.searchsorted(imu.t, grid[0] + lags[0])) - 2)
+        hi_k = min(len(imu), int(np.searchsorted(imu.t, grid[-1] + lags[-1])) + 3)
+        tw = np.asarray(imu.t[lo_k:hi_k]) - 0.5 * imu.dt
+        fy = np.asarray(imu.dv[lo_k:hi_k, 1]) / imu.dt
+        c = np.empty(lags.size)
+        for i, o in enumerate(lags):
+            x = uniform_filter1d(np.interp(grid + o, tw, fy), n_fix, mode="nearest")
+            c[i] = np.corrcoef(x - uniform_filter1d(x, n_hp, mode="nearest"), ref)[0, 1]
+        release_pages(imu.t, imu.dv)
+        i = int(np.nanargmax(c))
+        if c[i] >= 0.5:
+            out.append((0.5 * (a + b), float(lags[i]), float(c[i])))
+    return out
 
 
 def _lsq(X, y, k, p=0.01):
@@ -132,9 +183,16 @@ def significant_time_offset(est: dict, k: float = 3.0) -> dict:
       two agree within their σ; turns all at one speed cannot separate τ from l (σ of τ
       infinite: nothing applied).
 
+    - The offset must also show in the speed changes (``est["speed_windows"]``): the same
+      sign at one-sided 95 % (Student's t of their scatter) and within the threshold of the
+      turns' value. A wrong lever arm reads in turns as an offset of ``l_y / v`` (on the
+      one-clock n380 hill drive, a lever 1.5 m off read as a significant 268 ms); the speed
+      changes, which a rigid body shares along track, do not move with it.
+
     Returns ``{"offset", "ppm", "t_ref", "offset_applied", "ppm_applied", "offset_sigma",
     "offset_estimate", "ppm_estimate", "ppm_sigma", "speed_lag_m", "speed_lag_sigma_m",
-    "threshold_sigmas"}``.
+    "threshold_sigmas", "speed_change_offset", "speed_change_offset_sigma",
+    "speed_change_windows", "offset_confirmed"}``.
     """
     w = est["windows"]
     lg = np.array([x[1] for x in w])
@@ -162,6 +220,23 @@ def significant_time_offset(est: dict, k: float = 3.0) -> dict:
             agree = abs(r[a_] - j[a_]) <= j["kt"] * math.hypot(r[s_], j[s_])
             j[ok_] = bool(j[ok_] and r[ok_] and agree)
         r = j
+    sw = est.get("speed_windows")
+    if sw is not None:
+        # a second signature the lever arm cannot fake: the speed changes must show the
+        # offset too — the same sign at 95 % (Student's t), and within the turn fit's
+        # significance threshold of it — or it is not applied (a wrong lever arm makes the
+        # turns alone read a lag of l_y / v as an offset)
+        ls = np.array([x[1] for x in sw], dtype=float)
+        c2, sc2, _ = _lsq(np.ones((ls.size, 1)), ls, k) if ls.size else (np.array([math.nan]), [math.inf], math.inf)
+        from scipy.special import stdtrit
+        t95 = float(-stdtrit(max(ls.size - 1, 1), 0.05))           # one-sided 95 %: the sign is tested
+        seen = bool(math.isfinite(sc2[0]) and abs(c2[0]) > t95 * sc2[0] and np.sign(c2[0]) == np.sign(r["off"])
+                    and abs(c2[0] - r["off"]) <= r["kt"] * math.hypot(sc2[0], r["s_off"]))
+        out.update(speed_change_offset=float(c2[0]) if ls.size else None,
+                   speed_change_offset_sigma=float(sc2[0]) if ls.size else None,
+                   speed_change_windows=int(ls.size), offset_confirmed=seen)
+        if r["off_ok"] and not seen:
+            r = dict(r, off_ok=False)
     out.update(offset=r["off"] if r["off_ok"] else 0.0, ppm=r["ppm"] if r["ppm_ok"] else 0.0,
                offset_applied=r["off_ok"], ppm_applied=r["ppm_ok"], offset_sigma=r["s_off"],
                offset_estimate=r["off"], ppm_estimate=r["ppm"], ppm_sigma=r["s_ppm"], threshold_sigmas=r["kt"])

@@ -38,8 +38,8 @@ the satellite with the least precise float ambiguities given up first). The fixe
 is validated: every phase double difference's residual at it must be within
 ``4σ`` (RTKLIB's check of a fixed solution); otherwise the epoch stays float. With
 ``ar="hold"`` the accepted integers are applied to the filter as rows of σ
-``hold_sigma`` [cycles] beside the observations (fix and hold: the INS is corrected by the
-fixed solution); with ``ar="continuous"`` the fixed solution is reported and the filter
+``hold_sigma`` [cycles] beside the observations, once (an integer the filter already holds
+gets no row again; fix and hold: the INS is corrected by the fixed solution); with ``ar="continuous"`` the fixed solution is reported and the filter
 stays float; ``ar="off"`` reports the float solution only.
 
 Cycle slips (:class:`sinslab.fusion.carrier.SlipDetector` on both receivers: LLI,
@@ -65,7 +65,7 @@ from sinslab.estimation.ambiguity import condition, resolve
 from sinslab.fusion.carrier import AmbiguitySlots, SlipDetector, prediction_slips, signal_variance, troposphere
 from sinslab.fusion.gnss import F_L1
 
-__all__ = ["RtkOptions", "RtkBase", "RtkEngine", "RtkLog", "STATUS"]
+__all__ = ["RtkOptions", "RtkBase", "RtkEngine", "RtkLog", "STATUS", "check_pair", "check_phase"]
 
 #: Solution status per epoch: no rows, float, fixed.
 STATUS = {"none": 0, "float": 1, "fixed": 2}
@@ -298,31 +298,23 @@ class RtkEngine:
         frequency, as flat arrays; None when there are none."""
         rS, bS = self.rover.signals, self.base.sv.signals
         brow = self._base_rows(eb)
-        ri, fi, bi = [], [], []
-        for k, (i, s) in enumerate(zip(rows, self.rover.sat[rows])):
-            j = brow.get(s, -1)
-            for f in range(rS.phase.shape[1]):
-                if not (np.isfinite(rS.phase[i, f]) and np.isfinite(rS.pseudorange[i, f])):
-                    continue
-                if rS.lli[i, f] & 2:
-                    self.counts["half_cycle"] += 1
-                    continue
-                if j < 0 or not (np.isfinite(bS.phase[j, f]) and np.isfinite(bS.pseudorange[j, f])
-                                 and abs(bS.freq[j, f] - rS.freq[i, f]) < 1e3) or bS.lli[j, f] & 2:
-                    self.counts["no_base_signal"] += 1
-                    continue
-                ri.append(k), fi.append(f), bi.append(j)
-        if not ri:
+        j_of = np.array([brow.get(s, -1) for s in self.rover.sat[rows].tolist()], dtype=np.int64)
+        mine = np.isfinite(rS.phase[rows]) & np.isfinite(rS.pseudorange[rows])
+        half = mine & ((rS.lli[rows] & 2) != 0)
+        self.counts["half_cycle"] += int(half.sum())
+        mine &= ~half
+        jj = np.maximum(j_of, 0)
+        theirs = ((j_of >= 0)[:, None] & np.isfinite(bS.phase[jj]) & np.isfinite(bS.pseudorange[jj])
+                  & (np.abs(bS.freq[jj] - rS.freq[rows]) < 1e3) & ((bS.lli[jj] & 2) == 0))
+        self.counts["no_base_signal"] += int((mine & ~theirs).sum())
+        k, f = np.nonzero(mine & theirs)
+        if not k.size:
             return None
-        k = np.array(ri)
-        i = rows[k]
-        f = np.array(fi)
-        j = np.array(bi)
+        i, j = rows[k], j_of[k]
         lam = G.C_LIGHT / rS.freq[i, f]
-        return dict(k=k, i=i, f=f, j=j, el=el[k], lam=lam, sat=self.rover.sat[i],
-                    keys=list(zip(self.rover.sat[i].tolist(), f.tolist())),
-                    sys=np.array([s[0] for s in self.rover.sat[i]]),
-                    Lr=rS.phase[i, f] * lam, Pr=rS.pseudorange[i, f], Lb=bS.phase[j, f] * lam,
+        sat = self.rover.sat[i]
+        return dict(k=k, i=i, f=f, j=j, el=el[k], lam=lam, sat=sat, keys=list(zip(sat.tolist(), f.tolist())),
+                    sys=sat.astype("U1"), Lr=rS.phase[i, f] * lam, Pr=rS.pseudorange[i, f], Lb=bS.phase[j, f] * lam,
                     Pb=bS.pseudorange[j, f], cn0_r=rS.cn0[i, f], cn0_b=bS.cn0[j, f])
 
     def _slips(self, t, eb, rows, el, sig, r, pos_sigma):
@@ -351,27 +343,25 @@ class RtkEngine:
         slip flags."""
         opt, b = self.opt, self.base.sv
         S = b.signals
-        prev = self._b_prev
-        now = {}
-        for q, i in enumerate(brows):
-            for f in range(S.phase.shape[1]):
-                if np.isfinite(S.phase[i, f]):
-                    now[(b.sat[i], f)] = (S.phase[i, f] * G.C_LIGHT / S.freq[i, f], self._b_pred[i],
-                                          signal_variance(opt.phase_sigma, b.cn0[i], self._b_el[i], opt.cn0_ref))
-        self._b_prev = now
+        q, f = np.nonzero(np.isfinite(S.phase[brows]))
+        i = brows[q]
+        var = signal_variance(opt.phase_sigma, b.cn0[i], self._b_el[i], opt.cn0_ref)
+        now = dict(keys=list(zip(b.sat[i].tolist(), f.tolist())), L=S.phase[i, f] * G.C_LIGHT / S.freq[i, f],
+                   pred=self._b_pred[i], var=var)
+        prev, self._b_prev = self._b_prev, now
         if prev is None or opt.prediction_k is None:
             return
-        keys = [k for k in now if k in prev and not self._base_slip.get(k, False)]
-        if len(keys) < 3:
+        pk = {k: n for n, k in enumerate(prev["keys"])}
+        a = [n for n, k in enumerate(now["keys"]) if k in pk and not self._base_slip.get(k, False)]
+        if len(a) < 3:
             return
-        dphi = np.array([now[k][0] - prev[k][0] for k in keys])
-        dpred = np.array([now[k][1] - prev[k][1] for k in keys])
-        var = np.array([now[k][2] + prev[k][2] for k in keys])
-        hit = prediction_slips(dphi, dpred, var, opt.prediction_k)
+        a = np.array(a)
+        p = np.array([pk[now["keys"][n]] for n in a])
+        hit = prediction_slips(now["L"][a] - prev["L"][p], now["pred"][a] - prev["pred"][p],
+                               now["var"][a] + prev["var"][p], opt.prediction_k)
         self.det_b.counts["prediction"] += int(hit.sum())
-        for k, hh in zip(keys, hit):
-            if hh:
-                self._base_slip[k] = True
+        for n in a[hit]:
+            self._base_slip[now["keys"][n]] = True
 
     def _predicted(self, t, sig, r, pos_sigma):
         """The prediction test on the rover: phase change against the range change from the
@@ -480,7 +470,7 @@ class RtkEngine:
         """(system, carrier) groups of two or more signals: (reference index, other indices),
         the reference the highest of the signals not restarted now (of all, if none)."""
         out = []
-        key = np.char.add(sig["sys"].astype("U1"), sig["f"].astype("U1"))
+        key = np.array([ord(c) for c in sig["sys"].tolist()]) * 8 + sig["f"]
         for gk in np.unique(key):
             idx = np.flatnonzero(key == gk)
             if idx.size < 2:
@@ -496,24 +486,32 @@ class RtkEngine:
         their ambiguities restarted at the next epoch (most of a phase group failing: its
         reference's, the whole group dropped)."""
         g2 = self.opt.gate ** 2
+        blocks = dd["ph"] + dd["code"]
+        Hs = np.vstack([b[3] for b in blocks])
+        nu_all = np.concatenate([b[2] for b in blocks]) - Hs @ x
+        s_all = np.einsum("ij,ij->i", Hs @ P, Hs)
         out = {"ph": [], "code": []}
-        for kind in ("ph", "code"):
-            for ref, oth, z, H, R in dd[kind]:
-                nu = z - H @ x
-                S = np.einsum("ij,jk,ik->i", H, P, H) + np.diag(R)
-                bad = nu * nu > g2 * S
-                if kind == "code":
-                    self.counts["code_rejected"] += int(bad.sum())
-                elif bad.sum() * 2 > bad.size and bad.size >= 2:
-                    self._gated.add(int(sig["slot"][ref]))
-                    self.counts["phase_rejected"] += int(bad.size)
-                    continue
-                else:
-                    self._gated.update(int(s) for s in sig["slot"][oth[bad]])
-                    self.counts["phase_rejected"] += int(bad.sum())
+        at = 0
+        for j, (ref, oth, z, H, R) in enumerate(blocks):
+            kind = "ph" if j < len(dd["ph"]) else "code"
+            m = z.size
+            nu, S = nu_all[at:at + m], s_all[at:at + m] + np.diag(R)
+            at += m
+            bad = nu * nu > g2 * S
+            if kind == "code":
+                self.counts["code_rejected"] += int(bad.sum())
+            elif bad.sum() * 2 > bad.size and bad.size >= 2:
+                self._gated.add(int(sig["slot"][ref]))
+                self.counts["phase_rejected"] += int(bad.size)
+                continue
+            elif bad.any():
+                self._gated.update(int(s_) for s_ in sig["slot"][oth[bad]])
+                self.counts["phase_rejected"] += int(bad.sum())
+            if not bad.any():
+                out[kind].append((ref, oth, z, H, R))
+            elif not bad.all():
                 ok = ~bad
-                if ok.any():
-                    out[kind].append((ref, oth[ok], z[ok], H[ok], R[np.ix_(ok, ok)]))
+                out[kind].append((ref, oth[ok], z[ok], H[ok], R[np.ix_(ok, ok)]))
         return out if (out["ph"] or out["code"]) else None
 
     def _solve(self, zw, Hw, dd, groups, sig, el, x, P, r, J):
@@ -538,14 +536,18 @@ class RtkEngine:
                     x_fix, P_fix = condition(xf, Pf, Dx[sel], dsel)
                     if self._valid(dd["ph"], x_fix):
                         n_fixed = int(sel.sum())
-                        fix_rows = (Dx[sel], dsel)
+                        # an integer already held (float within 3 hold σ of it, variance below
+                        # (3 hold σ)²) needs no row again: the filter carries it
+                        h = opt.hold_sigma
+                        new = sel & ((np.diag(Qa) > 9 * h * h) | (np.abs(a_hat - np.nan_to_num(fix.integers)) > 3 * h))
+                        fix_rows = (Dx[new], d[new] - fix.integers[new])
                         cur["fixed"] = ([p for p, u in zip(cur["pairs"], sel) if u], fix.integers[sel])
                     else:
                         self.counts["fix_rejected"] += 1
                         x_fix = P_fix = None
         status = STATUS["fixed"] if fix_rows is not None else STATUS["float"]
         self._record(cur, status, ratio, n_fixed, n_amb, dd, r, J, xf, Pf, x_fix, P_fix, sig)
-        if fix_rows is not None and opt.ar == "hold":
+        if fix_rows is not None and opt.ar == "hold" and fix_rows[1].size:
             k = fix_rows[1].size
             return (np.concatenate([zw, fix_rows[1]]), np.vstack([Hw, fix_rows[0]]),
                     np.concatenate([np.ones(zw.size), np.full(k, opt.hold_sigma ** 2)]))
@@ -672,22 +674,28 @@ def _float_update(x, P, z, H):
     S = HP @ H.T
     S.flat[::S.shape[0] + 1] += 1.0
     L = np.linalg.cholesky(S)
-    W = solve_triangular(L, HP, lower=True)
-    v = solve_triangular(L, z - H @ x, lower=True)
+    Wv = solve_triangular(L, np.column_stack([HP, z - H @ x]), lower=True, check_finite=False)
+    W, v = Wv[:, :-1], Wv[:, -1]
     Pf = P - W.T @ W
     return x + W.T @ v, 0.5 * (Pf + Pf.T)
 
 
 def _whiten(dd):
-    """Every block's rows times the inverse Cholesky factor of its R: uncorrelated rows of
-    unit variance (the filter applies them one at a time)."""
-    zs, Hs = [], []
-    for kind in ("ph", "code"):
-        for _, _, z, H, R in dd[kind]:
-            L = np.linalg.cholesky(R)
-            zs.append(solve_triangular(L, z, lower=True))
-            Hs.append(solve_triangular(L, H, lower=True))
-    return np.concatenate(zs), np.vstack(Hs)
+    """Every block's rows times the inverse Cholesky factor of its R (one block-diagonal
+    factor for all): uncorrelated rows of unit variance (the filter applies them one at a
+    time)."""
+    blocks = dd["ph"] + dd["code"]
+    z = np.concatenate([b[2] for b in blocks])
+    H = np.vstack([b[3] for b in blocks])
+    R = np.zeros((z.size, z.size))
+    at = 0
+    for b in blocks:
+        m = b[2].size
+        R[at:at + m, at:at + m] = b[4]
+        at += m
+    L = np.linalg.cholesky(R)
+    zH = solve_triangular(L, np.column_stack([z, H]), lower=True, check_finite=False)
+    return zH[:, 0], zH[:, 1:]
 
 
 def _pair_epochs(t_rover, t_base, max_age):
@@ -697,3 +705,73 @@ def _pair_epochs(t_rover, t_base, max_age):
     ok = (j >= 0)
     age = np.where(ok, np.asarray(t_rover) - t_base[np.maximum(j, 0)], np.inf)
     return np.where(ok & (age <= max_age), j, -1)
+
+
+def _carriers(sv):
+    """{(system, rounded carrier frequency [MHz])} with a carrier phase."""
+    S = sv.signals
+    i, f = np.nonzero(np.isfinite(S.phase))
+    return {(s[0], int(round(fr / 1e6))) for s, fr in zip(sv.sat[i], S.freq[i, f])}
+
+
+def _gps_time(t):
+    """GPS seconds since 1970 (no leap seconds) as a date and time of GPS time."""
+    import datetime as dt
+    return dt.datetime.fromtimestamp(float(t), dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S") + " GPST"
+
+
+def check_phase(sv, name):
+    """One-line errors of observations that cannot carry phase measurements: no carrier
+    phase at all, or every phase flagged as a loss of lock."""
+    if sv.signals is None or not np.isfinite(sv.signals.phase).any():
+        raise InputError(f"{name}: no carrier phase in the observations (RTK and time-differenced phase need it)")
+    S = sv.signals
+    have = np.isfinite(S.phase)
+    if have.sum() > 0 and np.all(S.slip[have]):
+        raise InputError(f"{name}: every carrier-phase observation is flagged as a cycle slip (loss of lock): "
+                         "no ambiguity lasts two epochs")
+
+
+def check_pair(rover, base: RtkBase, rover_name="rover", options: RtkOptions = RtkOptions(), *,
+               position_tolerance=100.0, baseline_warning=50e3):
+    """Refuse a rover/base pair RTK cannot use, with one line naming the file and the cause
+    (:class:`~sinslab.core.errors.InputError`): either without phase or with every phase
+    flagged, a base whose epochs do not overlap the rover's (another day) or come further
+    apart than ``options.max_age``, no carrier in common, a base position more than
+    ``position_tolerance`` [m] from the base observations' own single-point solution.
+    Returns warnings (a baseline longer than ``baseline_warning`` [m])."""
+    from sinslab.fusion.gnss import single_point
+    bname = base.source
+    check_phase(rover, rover_name)
+    check_phase(base.sv, bname)
+    tr, tb = rover.t_epoch, base.sv.t_epoch
+    if tb[0] > tr[-1] or tb[-1] + options.max_age < tr[0]:
+        raise InputError(f"{bname}: its epochs ({_gps_time(tb[0])} .. {_gps_time(tb[-1])}) do not overlap the "
+                         f"rover's ({_gps_time(tr[0])} .. {_gps_time(tr[-1])}): a base file of another day or time")
+    step = float(np.median(np.diff(tb))) if tb.size > 1 else 0.0
+    if step > options.max_age:
+        raise InputError(f"{bname}: base epochs every {step:g} s, further apart than the {options.max_age:g} s a "
+                         "base epoch may be used for (RTK needs a base at 1–30 s)")
+    common = _carriers(rover) & _carriers(base.sv)
+    if not common:
+        fmt = lambda c: ", ".join(f"{s} {f} MHz" for s, f in sorted(c))  # noqa: E731
+        raise InputError(f"{bname}: no carrier in common with the rover ({rover_name}: {fmt(_carriers(rover))}; "
+                         f"base: {fmt(_carriers(base.sv))})")
+    sp = single_point(base.sv)
+    ok = np.isfinite(sp.lat)
+    if ok.any():
+        r = E.geodetic_to_ecef(np.median(sp.lat[ok]), np.median(sp.lon[ok]), np.median(sp.h[ok]))
+        off = float(np.linalg.norm(r - np.asarray(base.position, float)))
+        if off > position_tolerance:
+            raise InputError(f"{bname}: the base position given is {off / 1e3:.3g} km from the base observations' own "
+                             f"single-point solution ({r[0]:.1f}, {r[1]:.1f}, {r[2]:.1f} m): check the base position")
+    warnings = []
+    spr = single_point(rover)
+    okr = np.isfinite(spr.lat)
+    if okr.any():
+        rr = E.geodetic_to_ecef(spr.lat[okr][0], spr.lon[okr][0], spr.h[okr][0])
+        dist = float(np.linalg.norm(rr - np.asarray(base.position, float)))
+        if dist > baseline_warning:
+            warnings.append(f"baseline {dist / 1e3:.0f} km: beyond {baseline_warning / 1e3:.0f} km the ionosphere and "
+                            "troposphere no longer cancel in double differences; integers may not be found")
+    return warnings

@@ -180,6 +180,9 @@ class FixSpec:
         Name of a :func:`sinslab.nav.errstate.lever_arm` block of the model that estimates
         the antenna lever arm (``lever_arm`` is then the value its states are errors of);
         None: the lever arm is known.
+    robust : float, optional
+        Down-weight a fix whose innovation the filter cannot explain (probability ``robust``
+        that a consistent fix is touched): :func:`sinslab.fusion.measurements.schedule.robust_R`.
     """
 
     t: np.ndarray
@@ -193,6 +196,7 @@ class FixSpec:
     outages: tuple = ()
     windows: tuple | None = None
     lever_block: str | None = None
+    robust: float | None = None
 
     def __post_init__(self):
         t = np.atleast_1d(np.array(self.t, dtype=float))

@@ -287,6 +287,9 @@ class RawSource:
     def start_fixes(self):
         return self.raw.fixes()
 
+    def prepare(self, fixes):
+        return fixes, self
+
     def states(self):
         from sinslab.fusion.aids.base import State
         return (State(self.raw.clock_block(), self.raw.clock_sigmas()),)

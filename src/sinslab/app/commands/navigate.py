@@ -160,7 +160,8 @@ def _prepare(cfg, echo) -> _Prepared:
     if not cfg.imu.file:
         raise ValueError("give the IMU log: --imu FILE (imu.file)")
     imu_path = _files(cfg.imu.file)
-    fmt = guess_imu_format(_first(imu_path)) if cfg.imu.format == "auto" else cfg.imu.format
+    fmt = guess_imu_format(_first(imu_path), sniff=cfg.imu.columns == "auto") if cfg.imu.format == "auto" \
+        else cfg.imu.format
     kw = _reader_options(cfg, fmt)
     _check_before_reading(cfg, fmt, imu_path)
     em = None
@@ -170,13 +171,15 @@ def _prepare(cfg, echo) -> _Prepared:
     data = _read_imu(imu_path, fmt, kw)
     found = imu_findings(data.imu, str(imu_path), gaps=data.gaps)
     settle([fd for fd in found if fd.refuse])
-    raw, fx, fix_name = _gnss(cfg, data.imu, echo)
+    raw, fx, fix_name, fmeta = _gnss(cfg, data.imu, echo)
+    _check_clocks(data.imu, fx, fix_name, imu_path)
     _say_imu(data, echo)
     _check_latency(cfg, fx, data.imu)
-    imu, sync = _time_sync(cfg, data.imu, fx, echo)
+    lever, em = _file_says(data, fmeta, cfg, em, echo)
+    imu, sync = _time_sync(cfg, data.imu, fx, lever, echo)
     inputs = _Inputs(_first(imu_path), (data.meta or {}).get("stationary"), sync)
     aids = _with_error_model([a.load(inputs) for a in aids_of(cfg)], em)
-    opt = _options(cfg, em, imu, fx)
+    opt = _options(cfg, em, imu, fx, lever)
     if raw is not None:
         from sinslab.fusion.tightly_coupled import RawSource
         source = RawSource(raw)
@@ -227,8 +230,8 @@ def _check_before_reading(cfg, fmt, imu_path):
 
 
 def _gnss(cfg, imu, echo):
-    """``(RawGnss or None, fixes, name)``: the raw observations and their single-point
-    fixes, or the fix file read."""
+    """``(RawGnss or None, fixes, name, what the reader says of them)``: the raw
+    observations and their single-point fixes, or the fix file read."""
     from sinslab.data import load_fixes
     if cfg.gnss.source == "raw":
         from sinslab.app.commands.raw_gnss import load_raw
@@ -236,19 +239,18 @@ def _gnss(cfg, imu, echo):
         if not r.file:
             raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
         raw, fx = load_raw(r, imu, echo)
-        return raw, fx, f"{r.file} (single-point solution)"
+        return raw, fx, f"{r.file} (single-point solution)", {}
     f = cfg.gnss.fixes
     if not f.file:
         raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
     path = _files(f.file)
     name = " + ".join(map(str, path)) if isinstance(path, list) else str(path)
-    ffmt = None if f.format == "auto" else f.format
-    ffmt = ffmt or ("rtklib-pos" if name.lower().endswith(".pos") else None)
+    ffmt = None if f.format == "auto" else f.format         # None: the reader tells from name and content
     fx, meta = _read_fixes(lambda: load_fixes(path, ffmt, velocity_lag=f.velocity_lag,
                                               columns=None if f.columns == "auto" else f.columns,
                                               quality=None if f.quality == "all" else f.quality), name, ffmt)
     _say_fix_reading(meta, name, echo)
-    return None, fx, name
+    return None, fx, name, meta
 
 
 def _say_imu(data, echo):
@@ -271,7 +273,7 @@ def _check_latency(cfg, fx, imu):
                          f"IMU record share, so no fix would arrive before the record ends")
 
 
-def _time_sync(cfg, imu, fx, echo):
+def _time_sync(cfg, imu, fx, lever, echo):
     """``(imu, sync)``: the IMU record on the fixes' clock (the offset and drift beyond
     doubt, :func:`sinslab.fusion.recorded.significant_time_offset`), or as read."""
     if cfg.imu.time_sync != "auto":
@@ -279,20 +281,76 @@ def _time_sync(cfg, imu, fx, echo):
     from sinslab.data.spool import map_times
     from sinslab.fusion.recorded import estimate_time_offset, shifted_times, significant_time_offset
     # without a lever arm a clock offset cannot be told from the antenna's lag in turns
-    est = estimate_time_offset(imu, fx, lever_arm=cfg.gnss.lever_arm)
+    est = estimate_time_offset(imu, fx, lever_arm=lever)
     sync = significant_time_offset(est)
     sync.update(windows=len(est["windows"]))
     imu = map_times(imu, partial(shifted_times, offset=sync["offset"], ppm=sync["ppm"], t_ref=sync["t_ref"]),
                     imu.dt * (1.0 - sync["ppm"] * 1e-6), _scratch("imu"))
     echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
-         f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
+         f"({_offset_verdict(sync)}), clock "
          f"{sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
          f"({'applied' if sync['ppm_applied'] else 'not significant, not applied'}); from turn "
          f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows "
          f"(significant: > {sync['threshold_sigmas']:.1f} σ)"
          + (f"; no lever arm given: a lag of {sync['speed_lag_m']:.2f} ± {sync['speed_lag_sigma_m']:.2f} m "
-            "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else ""))
+            "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else "")
+         + _speed_change_words(sync))
     return imu, sync
+
+
+def _offset_verdict(sync):
+    """Applied, or why not: not significant in the turns, or not confirmed by the speed changes."""
+    if sync["offset_applied"]:
+        return "applied"
+    turns = abs(sync["offset_estimate"]) > sync["threshold_sigmas"] * sync["offset_sigma"]
+    return ("significant in the turns but not seen in the speed changes: not applied" if turns
+            else "not significant, not applied")
+
+
+def _speed_change_words(sync):
+    """The speed changes' view of the IMU clock, for the time-sync line."""
+    n = sync.get("speed_change_windows") or 0
+    if not n:
+        return "; no speed changes to check an offset against" if sync["windows"] else ""
+    v, sg = sync["speed_change_offset"] * 1e3, sync["speed_change_offset_sigma"] * 1e3
+    return f"; speed changes {v:.1f} ± {sg:.1f} ms in {n} windows"
+
+
+def _check_clocks(imu, fx, fix_name, imu_path):
+    """Refuse an IMU and GNSS whose clocks differ by a second or more (an IMU stamped in UTC
+    beside a receiver in GPS time is 18 s off): the turns show it
+    (:func:`sinslab.fusion.clock_check.clock_check`); the filter would converge to a wrong
+    heading and pass its claims."""
+    from sinslab.fusion.clock_check import clock_check
+    c = clock_check(imu, fx)
+    if c is not None and c.off:
+        raise ValueError(f"{imu_path} against {fix_name}: the clocks differ by {c.lag:+.1f} s — "
+                         f"{c.describe()}; put the IMU and the GNSS on one time scale")
+
+
+def _file_says(data, fmeta, cfg, em, echo):
+    """What another tool's files say about the sensor, used where no option says otherwise
+    and told once: the lever arm of a NaveGo GNSS struct, the noise model of a NaveGo IMU
+    struct. Returns ``(lever arm or None, error model)``."""
+    lever = cfg.gnss.lever_arm
+    la = fmeta.get("lever_arm")
+    if la is not None and lever is None:
+        lever = tuple(float(x) for x in la)
+        echo(f"  lever arm (IMU -> antenna, right-forward-up) [{', '.join(f'{x:g}' for x in la)}] m from "
+             f"{fmeta.get('variable', 'the fix file')}.larm (--lever-arm replaces it)")
+    if fmeta.get("sigma_source"):
+        echo(f"  fix σ from {fmeta['sigma_source']}")
+    table = (data.meta or {}).get("error_model")
+    if table is not None and em is None:
+        from sinslab.app.error_model import load_error_model
+        em = load_error_model(table)
+        em[2]["source"] = f"{data.meta.get('variable', data.path)} ({', '.join(data.meta['noise_fields'])})"
+        echo(f"  IMU error model from {em[2]['source']} (--imu-errors replaces it)")
+    for key, what in (("gyro_static_bias", "gyro"), ("accel_static_bias", "accelerometer")):
+        if key in (data.meta or {}):
+            echo(f"  {what} static bias of the struct removed from every sample "
+                 f"({', '.join(f'{x:.3g}' for x in data.meta[key])} SI), as NaveGo does")
+    return lever, em
 
 
 def _with_error_model(aids, em):
@@ -304,14 +362,14 @@ def _with_error_model(aids, em):
     return [replace(a, **aid_settings(a.name, em[1])) for a in aids]
 
 
-def _options(cfg, em, imu, fx):
+def _options(cfg, em, imu, fx, lever):
     """The run's options (:class:`sinslab.fusion.recorded.NavOptions`), made once."""
     from sinslab.app.error_model import NavOptionsDraft, apply_error_model
     from sinslab.fusion.lag import lag_policy
     from sinslab.fusion.recorded import NavOptions, parse_outages
     opt = NavOptionsDraft(NavOptions())
-    if cfg.gnss.lever_arm is not None:
-        opt.lever_arm = cfg.gnss.lever_arm
+    if lever is not None:
+        opt.lever_arm = lever
     opt.smooth = bool(cfg.filter.smooth)
     _spill_smoother(opt, imu, fx)
     if em is not None:
@@ -322,8 +380,11 @@ def _options(cfg, em, imu, fx):
         from sinslab.app.validate import check_outages
         check_outages("--outages", cfg.gnss.outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
     if cfg.gnss.source == "fixes":
-        opt.fix_latency = float(cfg.gnss.fixes.latency)
-        opt.lag = lag_policy(LAG_POLICY[cfg.gnss.fixes.lag])
+        f = cfg.gnss.fixes
+        opt.fix_latency = float(f.latency)
+        opt.lag = lag_policy(LAG_POLICY[f.lag])
+        opt.fix_error = None if f.error == "none" else f.error
+        opt.robust = f.robust
     opt.scale_factors = bool(cfg.filter.scale_factors) or opt.scale_factors
     opt.heading = cfg.start.heading
     opt.move_speed = cfg.start.course_speed
@@ -439,7 +500,10 @@ def _metrics(res, p, ev):
                  time_sync_offset_sigma_s=s["offset_sigma"], time_sync_ppm_estimate=s["ppm_estimate"],
                  time_sync_ppm_sigma=s["ppm_sigma"], time_sync_offset_applied=s["offset_applied"],
                  time_sync_ppm_applied=s["ppm_applied"], time_sync_windows=s["windows"],
-                 time_sync_threshold_sigmas=s["threshold_sigmas"])
+                 time_sync_threshold_sigmas=s["threshold_sigmas"],
+                 time_sync_speed_change_offset_s=s.get("speed_change_offset"),
+                 time_sync_speed_change_sigma_s=s.get("speed_change_offset_sigma"),
+                 time_sync_offset_confirmed=s.get("offset_confirmed"))
     m["platform"] = res.platform[0]
     if res.scale is not None:
         m["scale_factor_final_ppm"] = (res.scale[-1] * 1e6).tolist()

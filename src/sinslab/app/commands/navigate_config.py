@@ -38,8 +38,8 @@ class ImuKeys(Section):
 
     file: Files = Field("", description="recorded IMU file; two for accelerometers and gyros in two tables "
                                         "on one time column (--imu)")
-    format: Choice(("auto", "psins", "csv", "parquet", "mat", "rtklib-imu")) = Field(
-        "auto", description="IMU format (--format)")
+    format: Choice(("auto", "psins", "csv", "parquet", "mat", "navego", "kf-gins", "rosbag", "rtklib-imu")) = Field(
+        "auto", description="IMU format; auto: from the name and what the file holds (--format)")
     columns: str = Field("auto", description="column map of a CSV/Parquet table or a TOML file (--columns)")
     mount: str = Field("none", description="sensor -> vehicle rotation rpy:R,P,Y | euler:P,R,Y | quat:... | "
                                            "matrix:... (--mount)")
@@ -59,14 +59,20 @@ class FixesKeys(Section):
 
     file: Files = Field("", description="fixes (.pos, CSV, .mat avp, .ubx NAV-PVT); two for positions and "
                                         "velocities in two tables (--fixes, --gnss)")
-    format: Choice(("auto", "rtklib-pos", "csv", "mat-avp", "ubx")) = Field(
-        "auto", description="fix format (--fix-format)")
+    format: Choice(("auto", "rtklib-pos", "csv", "mat-avp", "navego", "kf-gins", "rosbag", "two-geo", "ubx")) = Field(
+        "auto", description="fix format; auto: from the name and what the file holds (--fix-format)")
     columns: str = Field("auto", description="column map of the fix table or a TOML file (--fix-columns)")
     quality: str = Field("all", description="accepted values of the quality/mode column, e.g. 1,2 (--fix-quality)")
     velocity_lag: Q("time", ge="0 s", le=MAX_LATENCY) = Field(
         "0 s", description="fix velocities describe this long before their stamp (--velocity-lag)")
     latency: Q("time", ge="0 s", le=MAX_LATENCY) = Field("0 s", description="simulated fix latency (--fix-latency)")
     lag: Choice(("aware", "ignore")) = Field("aware", description="how late fixes are applied (--lag)")
+    error: Choice(("none", "auto")) = Field(
+        "none", description="the fixes' time-correlated error: none (white, as stated) | auto (measured from the "
+                            "record and taken as Gauss-Markov states where metre-level)")
+    robust: OrWord(Number(gt=0.0, lt=1.0), "none") = Field(
+        "none", description="down-weight a fix whose innovation the filter cannot explain at this probability "
+                            "(Chang 2014); none: every fix as stated")
 
 
 class RawKeys(Section):

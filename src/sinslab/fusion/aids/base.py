@@ -395,8 +395,14 @@ class GnssSource(Protocol):
         """The :class:`~sinslab.core.records.Fixes` that start the filter (levelling in
         motion, heading from the course) and that the solution is compared with."""
 
+    def prepare(self, fixes):
+        """``(fixes, source)``: what the source makes of its start fixes once they are in the
+        record (the fix source measures their time-correlated error and may take it as
+        states of its own); the source returned is the one the run goes on with."""
+
     def states(self) -> tuple:
-        """Its error-state blocks (a receiver clock) with their prior σ."""
+        """Its error-state blocks (a receiver clock, the fixes' correlated error) with their
+        prior σ."""
 
     def plan(self, setup: Setup, fixes, lever_block) -> Plan:
         """Its measurements (first in the run): ``fixes`` the start fixes inside the

@@ -21,7 +21,11 @@ from sinslab.core import units
 from sinslab.fusion.aids.base import (GATE_DESCRIPTIONS, Aid, AidRun, Estimate, Plan, Report, Setup, State, every,
                                      gated, setting)
 
-__all__ = ["Nhc"]
+__all__ = ["Nhc", "OBSERVED_SIGMA_RATIO"]
+
+#: an estimated state whose σ at the end is above this fraction of its prior σ is reported as
+#: not observable on the record (the data added less than three times the prior's information)
+OBSERVED_SIGMA_RATIO = 0.5
 
 
 @dataclass(frozen=True)
@@ -92,20 +96,38 @@ class Nhc(Aid):
         lever_sigma = np.sqrt(np.diag(Cvb @ np.diag(run.sigma[-1, sl] ** 2) @ Cvb.T)).tolist()
         return mount, mount_sigma, lever, lever_sigma
 
+    def _words(self, ve, vs, vo, le, ls, lo):
+        """The vehicle states on the terminal: value ± σ where the drive observed them, "not
+        observable" (with the σ left of the prior's) where it did not."""
+        d = np.degrees
+
+        def angle(i, name):
+            if vo[i]:
+                return f"{name} {d(ve[i]):.2f} ± {d(vs[i]):.2f} deg"
+            return f"{name} not observable (σ {d(vs[i]):.2f} of the prior {d(self.mount_sigma):.2f} deg)"
+        lev = [f"{a:.2f} ± {b:.2f}" if ok else f"{'xyz'[i]} not observable (σ {b:.2f} of the prior "
+               f"{self.lever_sigma:.2f})" for i, (a, b, ok) in enumerate(zip(le, ls, lo))]
+        return (f"  vehicle mount (IMU in the vehicle) {angle(0, 'pitch')}, {angle(2, 'yaw')}; NHC lever [m] "
+                + ", ".join(lev))
+
     def report(self, plan: Plan, run: AidRun) -> Report:
         (_, m), = plan.measurements
         metrics, lines, marks, est = {}, [], [], []
         if self.estimate:
             ve, vs, le, ls = self._estimates(run)
+            # a state the drive told little about keeps most of its prior σ: its estimate is the
+            # prior's guess, not a measurement (a flat drive does not see the lever's height)
+            lo = [bool(x <= OBSERVED_SIGMA_RATIO * self.lever_sigma) for x in ls]
+            vo = [bool(vs[0] <= OBSERVED_SIGMA_RATIO * self.mount_sigma), None,
+                  bool(vs[2] <= OBSERVED_SIGMA_RATIO * self.mount_sigma)]
             metrics.update(vehicle_mount_estimate_deg=np.degrees(ve).tolist(),
                            vehicle_mount_sigma_deg=[None if x is None else float(np.degrees(x)) for x in vs],
-                           nhc_lever_estimate_m=le, nhc_lever_sigma_m=ls)
+                           nhc_lever_estimate_m=le, nhc_lever_sigma_m=ls, nhc_lever_observable=lo,
+                           vehicle_mount_observable=vo)
             est = [Estimate("vehicle_mount", tuple(np.degrees(ve)), tuple(None if x is None else float(np.degrees(x))
                                                                         for x in vs), "deg", ("pitch", "roll", "yaw")),
                    Estimate("nhc_lever", tuple(le), tuple(ls), "m", ("right", "forward", "up"))]
-            lines.append(f"  vehicle mount (IMU in the vehicle) pitch {np.degrees(ve[0]):.2f} ± "
-                         f"{np.degrees(vs[0]):.2f} deg, yaw {np.degrees(ve[2]):.2f} ± {np.degrees(vs[2]):.2f} deg; "
-                         "NHC lever [m] " + ", ".join(f"{a:.2f} ± {b:.2f}" for a, b in zip(le, ls)))
+            lines.append(self._words(ve, vs, vo, le, ls, lo))
         if m.gate is not None:
             mt, ln, mk = gated("nhc", run.gates["nhc"], 2.5 * run.T * m.every, run.t_ref)
             metrics.update(mt)
@@ -121,4 +143,6 @@ DESCRIPTIONS = (
     (r"^vehicle_mount_sigma_deg$", "1σ of the vehicle-mount estimate (pitch, -, yaw)"),
     (r"^nhc_lever_estimate_m$", "estimated IMU -> NHC point (rear-axle centre) lever, vehicle right, forward, up"),
     (r"^nhc_lever_sigma_m$", "1σ of the NHC lever estimate"),
+    (r"^nhc_lever_observable$", "per axis, whether the drive observed the NHC lever (σ at most half its prior)"),
+    (r"^vehicle_mount_observable$", "whether the drive observed the mount pitch, -, yaw (σ at most half its prior)"),
     *GATE_DESCRIPTIONS)
