@@ -146,17 +146,17 @@ def _velocity_factor(gtsam, kx, kv, v_fix, wl, noise):
     return gtsam.CustomFactor(noise, [kx, kv], err)
 
 
-def fix_factors(gtsam, frame, fixes, plan, seg, lever, robust, keys):
+def fix_factors(gtsam, frame, fixes, plan, seg, lever, robust, keys, stage="batch"):
     """Position (``GPSFactorArm``: ``t + R l`` against the fix) and velocity factors of the
-    used fixes, robust when ``robust`` is set; returns a list of
-    ``(keyframe, [factors])``."""
+    used fixes, robust when ``robust`` is set (the kernel of ``stage``:
+    :func:`~sinslab.fusion.graph.translate.robust_kernel`); returns ``{keyframe: [factors]}``."""
     nm = gtsam.noiseModel
-    kern = robust_kernel(robust)
+    kern = robust_kernel(robust, stage)
     X, V = keys
     idx = plan.fix_index
     pw = frame.to_w(fixes.pos[idx, 0], fixes.pos[idx, 1], fixes.pos[idx, 2])
     Rwn = frame.R_wn(fixes.pos[idx, 0], fixes.pos[idx, 1])
-    out = []
+    out = {}
     for m, (j, k) in enumerate(zip(idx, plan.fix_key)):
         g = nm.Gaussian.Covariance(fix_covariance_w(fixes.sigma[j], Rwn[m]))
         fs = [gtsam.GPSFactorArm(X(k), pw[m], lever, g if kern is None else nm.Robust.Create(kern, g))]
@@ -171,7 +171,7 @@ def fix_factors(gtsam, frame, fixes, plan, seg, lever, robust, keys):
                 fs.append(_velocity_factor(gtsam, X(k), V(k), vw, wl, gv))
             else:
                 fs.append(gtsam.PriorFactorVector(V(k), vw, gv))
-        out.append((int(k), fs))
+        out.setdefault(int(k), []).extend(fs)
     return out
 
 

@@ -147,7 +147,8 @@ class GraphRun:
 @dataclass
 class GraphProblem:
     """What the solvers share: frame, preintegration parameters, the IMU cut at the
-    keyframes, the plan, priors, the start values and the fix factors per keyframe."""
+    keyframes, the plan, priors, the start values and the fix factors per keyframe (those
+    of the online pass and of the batch: they differ in their robust kernel only)."""
 
     frame: LocalFrame
     imu_model: GraphImuModel
@@ -159,6 +160,7 @@ class GraphProblem:
     vel0: np.ndarray
     bias0: object
     fixes_at: dict
+    fixes_batch: dict
     layout: object
 
     def params(self, p_w):
@@ -183,12 +185,12 @@ def _problem(gtsam, imu, init, fixes: FixSpec, P0, model, ins: InsSpec, t_end, s
     ab = np.zeros(3) if ins.accel_bias is None else np.asarray(ins.accel_bias, dtype=float)
     bias0 = gtsam.imuBias.ConstantBias(ab, gb)
     priors, pose0, vel0 = build.prior_factors(gtsam, frame, row0, bias0, P0, model.layout, keys)
-    fixes_at = {}
-    for k, fs in build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2]):
-        fixes_at.setdefault(k, []).extend(fs)
+    fixes_at = build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2], "online")
+    fixes_batch = fixes_at if fixes.robust is None or fixes.robust.kind != "igg3" else \
+        build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2], "batch")
     notes = tuple(f"{n} bias random walk raised to the graph's floor" for n in imu_model.floored)
     return GraphProblem(frame, imu_model, spec.gravity, seg, plan, priors, pose0, vel0, bias0, fixes_at,
-                        model.layout), notes
+                        fixes_batch, model.layout), notes
 
 
 def graph_navigate(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsSpec(),

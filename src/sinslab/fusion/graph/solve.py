@@ -108,7 +108,7 @@ def batch_solve(gtsam, ctx, init, imu_factors, *, max_iterations=100):
         g.add(fac)
     for fac in imu_factors:
         g.add(fac)
-    for fs in ctx.fixes_at.values():
+    for fs in ctx.fixes_batch.values():
         for fac in fs:
             g.add(fac)
     p = gtsam.LevenbergMarquardtParams()
@@ -118,7 +118,10 @@ def batch_solve(gtsam, ctx, init, imu_factors, *, max_iterations=100):
     p.setLinearSolverType("MULTIFRONTAL_QR")
     opt = gtsam.LevenbergMarquardtOptimizer(g, init, p)
     res = opt.optimize()
-    marg = gtsam.Marginals(g, res)
+    # the marginals from a QR elimination of the whole problem at the optimum (ISAM2's batch
+    # step: gtsam.Marginals factors by Cholesky, indeterminate for the same reason as above)
+    marg = gtsam.ISAM2(_isam_params(gtsam))
+    marg.update(g, res)
     covs = [(marg.marginalCovariance(X(i)), marg.marginalCovariance(V(i)), marg.marginalCovariance(B(i)))
             for i in range(ctx.plan.t.size)]
     return res, covs, int(opt.iterations()), float(g.error(res))

@@ -161,19 +161,20 @@ def fix_covariance_w(sigma_neu, R_wn):
     return R_wn @ S_n @ R_wn.T
 
 
-def robust_kernel(robust):
+def robust_kernel(robust, stage="batch"):
     """GTSAM's m-estimator for a robust weighting (:class:`sinslab.fusion.measurements.
-    schedule.RobustWeighting`; None: none): Huber with its k, or for IGG-III the
-    smooth redescending kernel closest to it, Tukey's biweight with c = k1 (GTSAM has no
-    IGG-III; both keep a residual below k0 σ at full weight only approximately for Tukey)."""
+    schedule.RobustWeighting`; None: none). Huber keeps its k0; Chang's whole-fix rule is
+    Huber on the Mahalanobis distance with k = √χ²₃(1 − p); IGG-III, which GTSAM lacks, is
+    Tukey's biweight with c = k1 (a residual past k1 σ gets no weight) in the batch stage,
+    and Huber with k0 in the online pass: a redescending kernel needs a start near the
+    answer (the graph whitens by the fix σ alone, not by the state's uncertainty as the
+    filter's innovation does), and from the online pass's values it has one."""
     if robust is None:
         return None
     gtsam = require_gtsam()
     me = gtsam.noiseModel.mEstimator
-    if robust.kind == "huber":
-        return me.Huber.Create(robust.k0)
-    if robust.kind == "igg3":
+    if robust.kind == "igg3" and stage == "batch":
         return me.Tukey.Create(robust.k1)
-    # Chang's whole-vector inflation: d/χ² past the quantile is Huber on the Mahalanobis
-    # distance with k = sqrt(χ²)
-    return me.Huber.Create(float(np.sqrt(robust.limit(3))))
+    if robust.kind == "chang":
+        return me.Huber.Create(float(np.sqrt(robust.limit(3))))
+    return me.Huber.Create(robust.k0)
