@@ -36,7 +36,9 @@ class RtkSolution:
     ``float_pos``, ``fixed_pos`` (E, 3) and ``float_cov``, ``fixed_cov`` (E, 3, 3) ECEF
     [m, m²]; ``counts`` (signals skipped by cause), ``slips`` (restarts by cause);
     ``fixed_dd`` per epoch the double-difference integers fixed and ``restarted`` the signals
-    whose ambiguity was (re)started (see :class:`sinslab.fusion.rtk.RtkLog`)."""
+    whose ambiguity was (re)started (see :class:`sinslab.fusion.rtk.RtkLog`); ``nis``
+    ``{"ph" | "code": (mean ν²/(H P Hᵀ + R) of the double differences used, one row at a
+    time, rows)}``."""
 
     t: np.ndarray
     status: np.ndarray
@@ -55,6 +57,7 @@ class RtkSolution:
     slips: dict
     fixed_dd: list = None
     restarted: list = None
+    nis: dict = None
 
     @property
     def fixed(self):
@@ -89,6 +92,9 @@ class RtkSolution:
                    signals_half_cycle=c["half_cycle"], signals_without_state=c["no_slot"],
                    code_rows_rejected=c["code_rejected"], phase_rows_rejected=c["phase_rejected"],
                    fixes_refused_by_validation=c["fix_rejected"])
+        if self.nis:
+            out.update(phase_nis_mean=self.nis["ph"][0], phase_rows=self.nis["ph"][1],
+                       code_nis_mean=self.nis["code"][0], code_rows=self.nis["code"][1])
         return out
 
     def table(self):
@@ -232,4 +238,5 @@ def _solution(rover, eng, e0):
     return RtkSolution(rover.t_epoch.copy(), st, full(a["ratio"], np.nan), *ints.values(), pos, fpos, xpos,
                        full(a["float_cov"], np.nan, (3, 3)), full(a["fixed_cov"], np.nan, (3, 3)),
                        dict(eng.counts, no_slot=eng.slots.full), eng.slip_counts,
-                       [([], np.zeros(0))] * e0 + list(a["fixed_dd"]), [[]] * e0 + list(a["restarted"]))
+                       [([], np.zeros(0))] * e0 + list(a["fixed_dd"]), [[]] * e0 + list(a["restarted"]),
+                       {k: (v[0] / v[1] if v[1] else None, v[1]) for k, v in eng.nis.items()})
