@@ -83,7 +83,7 @@ def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
 def fd_steps(layout):
     """Finite-difference step per state: 1e-6 for angles and sensor errors, 1e-4 m/s of
     velocity, 1e-8 rad / 1e-3 m of position, 1e-4 for the states a measurement owns
-    (lever arms [m], odometer scale [-])."""
+    (lever arms [m], odometer scale [-]; 1e-10 T for a magnetometer's hard iron)."""
     s = np.full(layout.n, 1e-6)
     for b in layout.blocks:
         sl = layout.slice(b.name)
@@ -93,7 +93,9 @@ def fd_steps(layout):
             s[sl.start:sl.start + 2] = 1e-8
             s[sl.start + 2:sl.stop] = 1e-3
         elif b.name != "phi" and b.feeds is None:
-            s[sl] = 1e-4
+            # 1e-4 of the block's display unit for a field (0.1 nT: a field step of 1e-4 T
+            # would be twice the Earth's), 1e-4 SI for the others
+            s[sl] = 1e-4 * (1e-6 if "uT" in b.units else 1.0)
     return s
 
 
@@ -194,3 +196,83 @@ def assert_doc_quotes(doc, text, got, tol=0.0):
     assert len(want) == len(got), (text, got)
     bad = [(w, g) for (w, r), g, e in zip(want, got, tols) if abs(w - g) > r + e + 1e-12]
     assert not bad, f"{doc}: {text!r} against the measurement: {got} (tolerance {tol})"
+
+
+# ------------------------------------------------------------------ carrier phase, RTK
+def phase_drive(seed, *, canyon=(), code_sigma=0.3, phase=None, systems=2, base_offset=(2000.0, 3000.0, 10.0),
+                dt=0.01, duration=None):
+    """A car drive (near 35.3° N, 139.5° E, 50 m; accelerate, turns; 170 s unless
+    ``duration`` cuts it) with an automotive MEMS IMU (gyro bias σ 10 °/h, ARW 0.2 °/√h,
+    accelerometer bias σ 1 mg, VRW 0.05 m/s/√h, drawn from ``seed``), 1 Hz GPS (+ Galileo
+    with ``systems=2``) observations on two carriers at the antenna (the IMU point) and a
+    base ``base_offset`` (ENU [m]) away (sinslab.sim.gnss), and an initial state drawn from
+    its σ (1 m, 0.1 m/s, 0.5°/0.5°/2°).
+
+    Returns a dict: imu, init, truth, rover, base (RtkBase), sim, sigma0 (the 15 core and
+    sensor σ of the draws), arw, vrw.
+    """
+    import math
+
+    from sinslab.core import attitude as A
+    from sinslab.core import earth as E
+    from sinslab.core import units as u
+    from sinslab.core.records import NavState
+    from sinslab.fusion.gnss import SatelliteObservations
+    from sinslab.fusion.rtk import RtkBase
+    from sinslab.sim import gnss as SG
+    from sinslab.sim import imu as IM
+    from sinslab.sim import trajectory as tr
+
+    segs = [tr.Accelerate(duration=10.0, accel=1.5), tr.Level(duration=30.0), tr.Turn(duration=20.0, rate=4.5 * u.deg),
+            tr.Level(duration=40.0), tr.Turn(duration=10.0, rate=-9 * u.deg), tr.Level(duration=60.0)]
+    g = tr.generate(segs, tr.Start(lat=math.radians(35.3), lon=math.radians(139.5), h=50.0,
+                                   heading=math.radians(30)), dt, duration=duration)
+    tru = g.truth
+    rng = np.random.default_rng(seed)
+    arw, vrw = 0.2 * u.deg / 60.0, 0.05 / 60.0
+    gb, ab = 10 * u.dph, 1e-3 * 9.80665
+    err = IM.ImuErrors.from_datasheet(gyro_bias=[f"{v} deg/h" for v in rng.normal(0, 10, 3)],
+                                      accel_bias=[f"{v} ug" for v in rng.normal(0, 1000, 3)],
+                                      gyro_arw="0.2 deg/sqrt(h)", accel_vrw="0.05 m/s/sqrt(h)")
+    imu = IM.apply(g.imu, err, rng)
+    te = np.arange(1.0, tru.t[-1] - 0.5, 1.0)
+    k = np.searchsorted(tru.t, te - 1e-9)
+    lat0, lon0, h0 = tru.lat[0], tru.lon[0], tru.h[0]
+    rb = E.geodetic_to_ecef(lat0, lon0, h0) + E.enu_to_ecef_matrix(lat0, lon0) @ np.asarray(base_offset)
+    walkers = [SG.Walker(), SG.Walker(planes=3, per_plane=8, system="E", raan0=0.4, radius=29_600e3)][:systems]
+    sim = SG.simulate_observations(te, tru.lat[k], tru.lon[k], tru.h[k], tru.vel[k], walkers,
+                                   SG.GnssErrors(pseudorange_sigma=code_sigma, canyon=canyon), seed=rng,
+                                   phase=phase or SG.PhaseErrors(), base=SG.BaseStation(position=tuple(rb)))
+    rm, rn = E.radii(lat0, h0)
+    s_att = np.radians([0.5, 0.5, 2.0])
+    dp, phi = rng.normal(0, 1.0, 3), rng.normal(0, s_att)
+    C = A.apply_misalignment(A.euler_to_dcm(tru.att[0]), phi)
+    init = NavState(lat0 + dp[1] / rm, lon0 + dp[0] / (rn * math.cos(lat0)), h0 + dp[2],
+                    tru.vel[0] + rng.normal(0, 0.1, 3), A.dcm_to_euler(C))
+    sigma0 = np.r_[s_att, np.full(3, 0.1), 1.0 / rm, 1.0 / (rn * math.cos(lat0)), 1.0, np.full(3, gb), np.full(3, ab)]
+    return dict(imu=imu, init=init, truth=tru, rover=SatelliteObservations(**sim.fields),
+                base=RtkBase(SatelliteObservations(**sim.base.fields), rb), sim=sim, sigma0=sigma0, arw=arw, vrw=vrw)
+
+
+def true_double_differences(sim):
+    """``f(epoch, satellite, reference, slot)``: the true double-difference integer of a
+    simulated rover and base (sinslab.sim.gnss with a base station)."""
+    f, b = sim.fields, sim.base.fields
+
+    def table(fl, amb):
+        return {(int(e), s): a for e, s, a in zip(fl["epoch"], fl["sat"], amb)}
+    tr_, tb = table(f, sim.ambiguity), table(b, sim.base.ambiguity)
+    return lambda e, s, q, k: int((tr_[e, s][k] - tb[e, s][k]) - (tr_[e, q][k] - tb[e, q][k]))
+
+
+def simulated_slips(sim, flagged):
+    """{(epoch, satellite, slot)} of the signals of a simulated receiver that slipped
+    between two consecutive epochs of their satellite, flagged by the LLI or not."""
+    f = sim.fields
+    out = set()
+    for sat in np.unique(f["sat"]):
+        m = np.flatnonzero(f["sat"] == sat)
+        nxt = m[1:][np.diff(f["epoch"][m]) == 1]
+        hit = sim.slip[nxt] & ((f["signals"].lli[nxt] & 1) == flagged)
+        out |= {(int(f["epoch"][nxt[i]]), sat, int(k)) for i, k in zip(*np.nonzero(hit))}
+    return out
