@@ -17,7 +17,7 @@ from sinslab.fusion.gnss import SatelliteObservations
 from sinslab.fusion.gnss_alone import rtk_solve
 from sinslab.fusion.rtk import RtkBase, RtkOptions
 from sinslab.sim import gnss as SG
-from support import simulated_slips, true_double_differences
+from support import assert_doc_quotes, simulated_slips, true_double_differences
 
 LAT, LON, H = math.radians(35.3), math.radians(139.5), 50.0
 WALKERS = [SG.Walker(), SG.Walker(planes=3, per_plane=8, system="E", raan0=0.4, radius=29_600e3)]
@@ -116,6 +116,8 @@ def test_static_pair_gnss_only():
     ref = np.array([-3962108.673, 3381309.574, 3668678.638])
     sol = rtk_solve(rov, RtkBase(bas, np.array([-3959400.631, 3385704.533, 3667523.111])))
     assert sol.time_to_first_fix() == (1, 0.0) and sol.fixed.all()
+    assert_doc_quotes("docs/raw-gnss.md", "a partial fix of 17 of the 50 double-difference ambiguities",
+                      [sol.n_fixed[0], sol.n_amb[0]])
     enu = sol.enu_errors(ref)
     assert np.max(np.hypot(enu[:, 0], enu[:, 1])) < 0.01 and np.max(np.abs(enu[:, 2])) < 0.02
     assert sol.slips["base_lli"] > 50 and sol.n_slip[18] > 50

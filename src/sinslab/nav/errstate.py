@@ -68,6 +68,7 @@ __all__ = [
     "ErrorModel", "DifferenceModel", "core_matrices",
     "CORES", "lever_arm", "odometer_scale", "ClockBlock", "receiver_clock", "COMPENSATIONS",
     "barometer_bias", "magnetometer_bias", "MeasurementStates", "carrier_ambiguities", "phase_clones",
+    "fix_position_error",
 ]
 
 #: The compensations of a strapdown INS a sensor block can feed (:attr:`Block.feeds`):
@@ -908,6 +909,22 @@ def magnetometer_bias(*, tau=None, sigma=None, rw=0.0, name="mag"):
     tau, q = _scale_noise(rw, tau, sigma, name)
     return SensorBlock(name, None, "markov" if tau else "constant", "xyz", "body", tau, q, "uT",
                        "mag_hard_iron")
+
+
+def fix_position_error(*, tau, sigma, name="fixerr"):
+    """Time-correlated error of the position fixes [m], east, north, up: the fix minus the
+    true antenna position, a first-order Gauss–Markov process per axis (``tau`` [s],
+    steady-state ``sigma`` (3,) [m], ``ė = −e/τ + w``, q = 2σ²/τ) — multipath and
+    atmosphere errors of a receiver's solution that last tens of seconds. Treated as white
+    noise at several fixes a second they pull the INS velocity by their rate of change; as
+    states the position fixes are read against them
+    (:class:`sinslab.fusion.measurements.PositionFix` finds the block by its quantity
+    ``"fix_error"``). The states feed nothing back to the INS."""
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(sig)) or np.any(sig < 0):
+        raise ValueError(f"block {name!r}: fix-error sigma must be finite and >= 0, got {sigma!r}")
+    tau = _check_tau(tau, name)
+    return SensorBlock(name, None, "markov", "xyz", "nav", tau, 2.0 * sig ** 2 / tau, "m", "fix_error")
 
 
 @dataclass(frozen=True)
