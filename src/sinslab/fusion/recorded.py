@@ -1024,12 +1024,17 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
         inv_v = float(np.mean(1.0 / np.maximum(np.interp(grid[turning], fixes.t, sp), min_speed)))
         res.append((0.5 * (a + b), float(lags[i] + sh * step), float(c[i])))
         inv_speed.append(inv_v)
-    along = _speed_change_lags(imu, fixes, edges, lags, sp, min_speed)
+    out = _lag_line(res, 0.5 * (lo + hi))
+    out.update(windows=res, step=float(step), window_inv_speed=inv_speed, lever_given=lever_arm is not None,
+               imu_dt=float(imu.dt), speed_windows=_speed_change_lags(imu, fixes, edges, lags, sp, min_speed))
+    return out
+
+
+def _lag_line(res, t_mid):
+    """Offset at the mean window time and drift of the window lags ``res`` (a line, σ from
+    the scatter about it; a mean with two windows; nothing to apply without a window)."""
     if not res:
-        # no turn: nothing to estimate from, so nothing is applied (said by the caller)
-        return {"offset": 0.0, "offset_sigma": math.inf, "t_ref": 0.5 * (lo + hi), "ppm": 0.0,
-                "ppm_sigma": math.inf, "windows": [], "step": float(step), "window_inv_speed": [],
-                "lever_given": lever_arm is not None, "imu_dt": float(imu.dt), "speed_windows": along}
+        return {"offset": 0.0, "offset_sigma": math.inf, "t_ref": float(t_mid), "ppm": 0.0, "ppm_sigma": math.inf}
     tm = np.array([r[0] for r in res])
     lg = np.array([r[1] for r in res])
     t_ref = float(tm.mean())
@@ -1043,10 +1048,7 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
         b_, a_ = 0.0, float(lg.mean())
         sa = float(np.std(lg, ddof=1)) / math.sqrt(n) if n == 2 else math.inf
         sb = math.inf
-    return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6),
-            "ppm_sigma": sb * 1e6, "windows": res, "step": float(step),
-            "window_inv_speed": inv_speed, "lever_given": lever_arm is not None, "imu_dt": float(imu.dt),
-            "speed_windows": along}
+    return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6), "ppm_sigma": sb * 1e6}
 
 
 def _speed_change_lags(imu, fixes, edges, lags, speed, min_speed, highpass=4.0):
