@@ -134,7 +134,7 @@ def test_rts_smoother_and_batch_graph_agree_within_a_tenth_of_sigma(drive):
     lay = drive["m"].layout
     assert np.array_equal(g.t, s.t)
     z = _disagreement(s.nav, g.nav, s.sigma, lay)
-    assert z.max() < 0.1, z.max(0)                                   # measured 0.089
+    assert z.max() < 0.1, z.max(0)                                   # measured 0.038
     keys = np.searchsorted(s.t, g.key_t - 1e-9)
     cols = np.r_[lay.slice("phi"), lay.slice("dv"), lay.slice("dp"), lay.slice("eps"), lay.slice("nabla")]
     ratio = g.sigma[keys][:, cols] / s.sigma[keys][:, cols]

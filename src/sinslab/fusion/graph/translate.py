@@ -107,13 +107,20 @@ class GraphImuModel:
             raise InputError("the graph estimator needs white gyro and accelerometer noise on every axis")
         return cls(garw, avrw, rrw[0], rrw[1], tuple(floored))
 
-    def params(self, frame, at=None):
+    def params(self, frame, at=None, centrifugal=True):
         """GTSAM ``PreintegrationCombinedParams`` in the world frame of ``frame``
         (:class:`sinslab.fusion.graph.frame.LocalFrame`): normal gravity at the w point
-        ``at`` (None: at the origin, GTSAM's usual constant gravity), the Earth rate as the
-        Coriolis rate of the frame."""
+        ``at`` (None: at the origin, GTSAM's usual constant gravity), less the centrifugal
+        term GTSAM adds (``centrifugal``, with ``at``), the Earth rate as the Coriolis rate
+        of the frame."""
         gtsam = require_gtsam()
-        p = gtsam.PreintegrationCombinedParams(frame.gravity_w(at))
+        g = frame.gravity_w(at)
+        if at is not None and centrifugal:
+            # GTSAM adds the centrifugal term −ω×(ω×p) of the frame's origin-relative
+            # position p; normal gravity holds the whole centrifugal part already
+            w = frame.earth_rate_w()
+            g = g + np.cross(w, np.cross(w, np.asarray(at, dtype=float)))
+        p = gtsam.PreintegrationCombinedParams(g)
         p.setGyroscopeCovariance(np.diag(self.gyro_arw ** 2))
         p.setAccelerometerCovariance(np.diag(self.accel_vrw ** 2))
         p.setBiasOmegaCovariance(np.diag(self.gyro_rrw ** 2))
