@@ -46,7 +46,7 @@ except ImportError:                     # pragma: no cover
     from click import exceptions as _cx
 
 from sinslab import __version__
-from sinslab.app.errors import USER_ERRORS, CliError, cli_process, error_line, pause, user_errors
+from sinslab.app.errors import USER_ERRORS, CliError, cli_process, error_line, exit_now, pause, user_errors
 from sinslab.core.errors import InputError
 
 __all__ = ["app", "main", "user_errors", "CliError", "USER_ERRORS"]
@@ -585,8 +585,11 @@ def main() -> None:
     cli_process()
     try:
         app(prog_name="sinslab")
-    finally:
-        pause("exit")
+        code = 0
+    except SystemExit as e:
+        code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+    pause("exit")
+    exit_now(code)
 
 
 if __name__ == "__main__":  # pragma: no cover

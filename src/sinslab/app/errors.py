@@ -42,7 +42,7 @@ from sinslab.core.units import UnitError
 
 __all__ = ["UserError", "CliError", "USER_ERRORS", "user_errors", "error_line", "cut",
            "Terminated", "on_abort", "published", "deferred_signals", "install_signal_handlers",
-           "cli_process", "finish_command", "pause"]
+           "cli_process", "finish_command", "exit_now", "pause"]
 
 #: What :func:`user_errors` calls when a command fails or is interrupted, each returning
 #: one phrase per output folder saying what it holds now (:func:`on_abort`).
@@ -213,6 +213,22 @@ def finish_command(status: int | None = 0) -> None:
     global _FINISHED, _STATUS
     _FINISHED = True
     _STATUS = int(status) if isinstance(status, int) else (0 if status is None else 1)
+
+
+def exit_now(status: int) -> None:
+    """End the command line's process with ``status`` once its work is done: its other
+    threads joined and its exit handlers run here, under the command's signal handlers
+    (a signal now ends it with ``status``), then the process exits without the
+    interpreter's own finalisation, during which Python puts back the default handlers
+    and a SIGTERM would kill the process after it has reported success."""
+    import atexit
+
+    finish_command(status)
+    for t in threading.enumerate():
+        if t is not threading.current_thread() and not t.daemon:
+            t.join()
+    atexit._run_exitfuncs()
+    _exit_quietly()
 
 
 def cli_process() -> None:

@@ -295,15 +295,14 @@ def _pause(point: str, count: int = 0, hold_s: float | None = None) -> None:
     pause(point, count, hold_s)
 
 
-#: folders holding a replaced run, deleted once the new one is in place (and by an abort,
-#: should a signal come between)
-_LEFTOVERS: list[Path] = []
+#: run folders in place whose replaced run (and obsolete folders) are still to delete
+#: (by :meth:`RunDir._commit`, or by an abort should a signal come between)
+_LEFTOVERS: list["RunDir"] = []
 
 
 def _remove_leftovers() -> None:
-    while _LEFTOVERS:
-        _remove_tree(_LEFTOVERS[0])
-        _LEFTOVERS.pop(0)
+    for rd in list(_LEFTOVERS):
+        rd._remove_leftovers()
 
 class RunDir:
     """The output folder of one run, written as a transaction.
@@ -341,6 +340,7 @@ class RunDir:
         self._done = False
         self._made: list[Path] = []
         self._obsolete: list[Path] = []
+        self._leftovers: list[Path] = []
 
     # -- folder rules
     def _describe(self, m: dict) -> str:
@@ -464,7 +464,8 @@ class RunDir:
             except OSError as e:
                 raise OutputDirError(f"output folder {target}: cannot put the completed run in place "
                                      f"({e.strerror or e}); it keeps what it held") from None
-            _LEFTOVERS.extend(([old] if old is not None else []) + self._obsolete)
+            self._leftovers = ([old] if old is not None else []) + self._obsolete
+            _LEFTOVERS.append(self)
             self._done = True
             self.path = target
             self._staging = None
@@ -472,7 +473,18 @@ class RunDir:
             published(target)
             _pause("exchange", hold_s=60.0)
         _pause("published")
-        _remove_leftovers()
+        self._remove_leftovers()
+
+    def _remove_leftovers(self) -> None:
+        """Delete the replaced run and the obsolete folders of this (committed) run."""
+        while True:
+            try:                                   # an abort in another thread may take one first
+                path = self._leftovers.pop(0)
+            except IndexError:
+                break
+            _remove_tree(path)
+        with contextlib.suppress(ValueError):
+            _LEFTOVERS.remove(self)
 
     def abort(self) -> str:
         """Discard the unfinished run (staging folder, an empty default folder); return
