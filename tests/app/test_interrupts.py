@@ -100,7 +100,10 @@ pids = {{}}
 for c in cases:
     pid = os.fork()
     if pid == 0:
-        T.child(c)
+        try:
+            T.child(c)
+        finally:                   # never back into this loop: a child must not fork or report
+            os._exit(3)
     pids[pid] = c["id"]
 print(json.dumps({{i: p for p, i in pids.items()}}), flush=True)
 status = {{}}
@@ -217,6 +220,7 @@ def test_signals_at_every_point_leave_the_old_or_the_complete_new_run(tmp_path):
     try:
         pids = json.loads(proc.stdout.readline() or "{}")
         assert len(pids) == len(cases), proc.communicate(timeout=30)[1][-3000:]
+        assert all(isinstance(p, int) and p > 1 for p in pids.values()), pids     # never kill(0)
         deadline = time.time() + 240
         for c, (point, sig, want) in zip(cases, CASES):
             d = Path(c["dir"])
