@@ -157,10 +157,12 @@ def _velocity_factor(gtsam, kx, kv, v_fix, wl, noise):
     return gtsam.CustomFactor(noise, [kx, kv], err)
 
 
-def fix_factors(gtsam, frame, fixes, plan, seg, lever, robust, keys, stage="batch"):
+def fix_factors(gtsam, frame, fixes, plan, seg, lever, robust, keys, stage="batch", gyro_bias=np.zeros(3)):
     """Position (``GPSFactorArm``: ``t + R l`` against the fix) and velocity factors of the
     used fixes, robust when ``robust`` is set (the kernel of ``stage``:
-    :func:`~sinslab.fusion.graph.translate.robust_kernel`); returns ``{keyframe: [factors]}``."""
+    :func:`~sinslab.fusion.graph.translate.robust_kernel`); returns ``{keyframe: [factors]}``.
+    The lever arm's rate term uses the gyro rate of the fix's sample less ``gyro_bias``
+    (the start's compensation)."""
     nm = gtsam.noiseModel
     kern = robust_kernel(robust, stage)
     X, V = keys
@@ -177,7 +179,7 @@ def fix_factors(gtsam, frame, fixes, plan, seg, lever, robust, keys, stage="batc
             gv = gv if kern is None else nm.Robust.Create(kern, gv)
             vw = Rwn[m] @ fixes.vel[j]
             s = min(int(np.floor((fixes.t[j] - seg.t0) / seg.dt)), seg.w.shape[0] - 1)
-            wl = np.cross(seg.w[s], lever)
+            wl = np.cross(seg.w[s] - gyro_bias, lever)
             if np.any(lever):
                 fs.append(_velocity_factor(gtsam, X(k), V(k), vw, wl, gv))
             else:

@@ -111,8 +111,9 @@ class GraphRun:
         The keyframes.
     fix_t, fix_index : ndarray (J,)
         The fixes used and their rows.
-    residual : ndarray (J, 3)
-        Antenna position minus fix, north, east, up [m] (post-fit).
+    residual : ndarray (J, 3) or (J, 6)
+        Post-fit antenna minus fix: position north, east, up [m], then (velocity fixes)
+        velocity east, north, up [m/s].
     kind : str
     lag : float
     iterations : int
@@ -185,9 +186,9 @@ def _problem(gtsam, imu, init, fixes: FixSpec, P0, model, ins: InsSpec, t_end, s
     ab = np.zeros(3) if ins.accel_bias is None else np.asarray(ins.accel_bias, dtype=float)
     bias0 = gtsam.imuBias.ConstantBias(ab, gb)
     priors, pose0, vel0 = build.prior_factors(gtsam, frame, row0, bias0, P0, model.layout, keys)
-    fixes_at = build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2], "online")
+    fixes_at = build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2], "online", gb)
     fixes_batch = fixes_at if fixes.robust is None or fixes.robust.kind != "igg3" else \
-        build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2], "batch")
+        build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2], "batch", gb)
     notes = tuple(f"{n} bias random walk raised to the graph's floor" for n in imu_model.floored)
     return GraphProblem(frame, imu_model, spec.gravity, seg, plan, priors, pose0, vel0, bias0, fixes_at,
                         fixes_batch, model.layout), notes
@@ -251,11 +252,28 @@ def _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes):
     key_sig = np.array([key_sigma(ctx.frame, lay, Rwb[i], *key_nav[i, 7:10], covs[i]) for i in range(K)])
     rows, gb, ab = dense_solution(gtsam, ctx, vals, t_out)
     sig = np.column_stack([np.interp(t_out, ctx.plan.t, key_sig[:, j]) for j in range(lay.n)])
+    res = _residuals(ctx, fixes, Rwb, pw, vw, vals, gtsam)
+    idx = ctx.plan.fix_index
+    return GraphRun(t_out, rows, sig, gb, ab, lay, ctx.plan.t, key_nav, key_sig, fixes.t[idx], idx, res,
+                    spec.kind, spec.lag, it, err, {}, notes)
+
+
+def _residuals(ctx, fixes, Rwb, pw, vw, vals, gtsam):
+    """Post-fit residuals of the fixes used (antenna minus fix): position north, east, up
+    [m] and, with velocity fixes, velocity east, north, up [m/s]."""
     idx = ctx.plan.fix_index
     kf = ctx.plan.fix_key
     ant_w = pw[kf] + np.einsum("kij,j->ki", Rwb[kf], fixes.lever_arm)
     fix_w = ctx.frame.to_w(fixes.pos[idx, 0], fixes.pos[idx, 1], fixes.pos[idx, 2])
     Rnw = np.swapaxes(ctx.frame.R_wn(fixes.pos[idx, 0], fixes.pos[idx, 1]), -1, -2)
     res = np.einsum("kij,kj->ki", Rnw, ant_w - fix_w)[:, [1, 0, 2]]
-    return GraphRun(t_out, rows, sig, gb, ab, lay, ctx.plan.t, key_nav, key_sig, fixes.t[idx], idx, res,
-                    spec.kind, spec.lag, it, err, {}, notes)
+    if fixes.vel is None:
+        return res
+    seg = ctx.seg
+    s = np.minimum(np.floor((fixes.t[idx] - seg.t0) / seg.dt).astype(int), seg.w.shape[0] - 1)
+    B = gtsam.symbol_shorthand.B
+    gb = np.array([vals.atConstantBias(B(int(k))).gyroscope() for k in kf])
+    wl = np.cross(seg.w[s] - gb, fixes.lever_arm)
+    v_ant = vw[kf] + np.einsum("kij,kj->ki", Rwb[kf], wl)
+    dv = np.einsum("kij,kj->ki", Rnw, v_ant) - fixes.vel[idx]
+    return np.column_stack([res, dv])
