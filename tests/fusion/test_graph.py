@@ -83,6 +83,10 @@ def test_rts_smoother_and_batch_graph_agree_within_a_tenth_of_sigma(drive):
     assert g.residual.shape == (g.fix_t.size, 6)
     chi = np.mean((g.residual / [1.0, 1.0, 2.0, 0.05, 0.05, 0.05]) ** 2, 0)
     assert np.all(chi < 1.0) and np.all(chi > 0.1), chi
+    # the same solution as the driver's result of one stream (what the front end reads)
+    dr = g.as_driver_result()
+    assert np.array_equal(dr.nav[0], g.nav) and np.array_equal(dr.gyro_bias[0], g.gyro_bias)
+    assert dr.applied.nis.shape == g.fix_t.shape and not np.any(dr.x)
     # power: GTSAM's constant gravity of the origin leaves a tilt the cross-check sees
     o = _graph(drive, GraphSpec("batch", gravity="origin"))
     assert _disagreement(s.nav, o.nav, s.sigma, lay)[:, :2].max() > 0.3

@@ -123,6 +123,8 @@ class GraphRun:
     cpu : dict
         CPU time [s] of the stages.
     notes : tuple of str
+    fix_sigma : ndarray (J, 3) or (J, 6)
+        The σ of the fixes used, in the order of ``residual`` [m, m/s].
     """
 
     t: np.ndarray
@@ -143,6 +145,24 @@ class GraphRun:
     error: float
     cpu: dict
     notes: tuple = ()
+    fix_sigma: np.ndarray | None = None
+
+
+    def as_driver_result(self):
+        """The solution as a :class:`sinslab.fusion.driver.DriverResult` of one stream
+        (what the recorded front end and the outputs read): ``x`` zero (the graph's solution
+        is the navigation itself, nothing is left to feed back), σ, the bias compensation,
+        and as the applied records the fixes used with their post-fit residuals and
+        ``Σ (r/σ_fix)²`` in place of innovations and NIS (σ: the fixes' own)."""
+        from sinslab.fusion.driver import Applied, DriverResult
+        J = self.fix_t.size
+        comp = {"gyro_bias": self.gyro_bias, "accel_bias": self.accel_bias}
+        r = self.residual
+        sd = self.fix_sigma if self.fix_sigma is not None else np.ones_like(r)
+        applied = Applied(np.zeros(J, dtype=np.int64), self.fix_index.astype(np.int64), self.fix_t, self.fix_t,
+                          list(r), np.sum((r / sd) ** 2, axis=1), list(sd))
+        return DriverResult(self.t, (self.nav,), np.zeros_like(self.sigma), self.sigma, (comp,), applied,
+                            self.layout, None)
 
 
 @dataclass
@@ -254,8 +274,9 @@ def _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes):
     sig = np.column_stack([np.interp(t_out, ctx.plan.t, key_sig[:, j]) for j in range(lay.n)])
     res = _residuals(ctx, fixes, Rwb, pw, vw, vals, gtsam)
     idx = ctx.plan.fix_index
+    sd = fixes.sigma[idx][:, :3] if fixes.vel is None else np.column_stack([fixes.sigma[idx][:, :3], fixes.vel_sigma[idx]])
     return GraphRun(t_out, rows, sig, gb, ab, lay, ctx.plan.t, key_nav, key_sig, fixes.t[idx], idx, res,
-                    spec.kind, spec.lag, it, err, {}, notes)
+                    spec.kind, spec.lag, it, err, {}, notes, sd)
 
 
 def _residuals(ctx, fixes, Rwb, pw, vw, vals, gtsam):
