@@ -95,13 +95,14 @@ def test_distributions_carry_the_licence_and_the_changelog(installed):
     sdist = next(dist.glob("sinslab-*.tar.gz"))
     with tarfile.open(sdist) as tf:
         names = {n.split("/", 1)[1] for n in tf.getnames() if "/" in n}
-    assert {"LICENSE", "CHANGELOG.md", "README.md", "pyproject.toml", "src/sinslab/py.typed"} <= names
+    assert {"LICENSE", "CHANGELOG.md", "README.md", "pyproject.toml", "src/sinslab/py.typed",
+            "src/sinslab/app/fonts/cjk-subset.otf"} <= names
     wheel = next(dist.glob("sinslab-*.whl"))
     with zipfile.ZipFile(wheel) as zf:
         names = set(zf.namelist())
         meta = zf.read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
-    assert "sinslab/py.typed" in names and "sinslab/__main__.py" in names
+    assert {"sinslab/py.typed", "sinslab/__main__.py", "sinslab/app/fonts/cjk-subset.otf"} <= names
     from sinslab import __version__
 
     assert f"\nVersion: {__version__}\n" in meta
