@@ -233,3 +233,13 @@ def test_demo_script_parts(tmp_path):
     assert mod._cached_kernels(tmp_path) == 0
     (tmp_path / "src" / "p" / "__pycache__" / "k-1.py311.nbi").touch()
     assert mod._cached_kernels(tmp_path) == 1
+
+
+def test_linear_batch_script(tmp_path):
+    out = tmp_path / "linear_batch.json"
+    res = _load("linear_batch").main(["--repeat", "1", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    for case in ("small", "ins"):
+        assert saved[case]["task_cpu_s"] > 0 and saved[case]["numpy_cpu_s"] > 0
+        # the task and its textbook numpy form are the same filter: they agree to rounding
+        assert max(res[case]["max_rel_diff"].values()) < 1e-6
