@@ -23,6 +23,7 @@ from sinslab.core import attitude as A
 from sinslab.core import earth
 from sinslab.estimation import observability as obs
 from sinslab.estimation.kalman import discretize
+from sinslab.estimation.kernels import gain_correct, row_nonzeros, state_predict
 from sinslab.estimation.linear import error_budget, propagate_covariance
 from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bias
 
@@ -931,9 +932,15 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
     ``root[src[p]][u] ξ`` (draws ``xis[:, c, col[p]]``), INS 1's part its step mean through
     ``G1[u]`` (``us``) and the block-mean part that of its block (``ubar``); the filter
     predicts, and updates every part with the gain ``gains[k]`` (n, 4) from its four
-    measured components (measurement noise ``vs · sv`` in INS 1's part only)."""
+    measured components (measurement noise ``vs · sv`` in INS 1's part only). Every part is
+    propagated by estimation's state prediction and the filter updated by its fixed-gain
+    update (:mod:`sinslab.estimation.kernels`)."""
     B, P_, n = X.shape
     p1 = G1.shape[2]
+    L = Phi.shape[0]
+    nzc = np.zeros((L, n, n), dtype=np.int64)
+    nnz = np.zeros((L, n), dtype=np.int64)
+    row_nonzeros(Phi, nzc, nnz)
     t = np.empty(n)
     nu = np.empty(4)
     for b in range(B):
@@ -942,42 +949,32 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
             u = index[k]
             X[b, j_tr, iz] += tr[k]
             for p in range(P_):
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(n):
-                        acc += Phi[u, i, j] * X[b, p, j]
-                    t[i] = acc
+                x = X[b, p]
+                state_predict(x, Phi[u], nzc[u], nnz[u], t)
                 if src[p] >= 0:
                     g, q = src[p], col[p]
                     for i in range(n):
                         acc = 0.0
                         for j in range(n):
                             acc += root[g, u, i, j] * xis[b, c, q, j]
-                        t[i] += acc
+                        x[i] += acc
                 if p == 0 or p == j_bl:
                     w = us if p == 0 else ubar
                     for i in range(n):
                         acc = 0.0
                         for j in range(p1):
                             acc += G1[u, i, j] * w[b, c, j]
-                        t[i] += acc
-                for i in range(n):
-                    X[b, p, i] = t[i]
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(n):
-                        acc += Phi[u, i, j] * Xh[b, p, j]
-                    t[i] = acc
+                        x[i] += acc
+                # the nominal filter: estimation's prediction and fixed-gain update, the
+                # innovation the measured differences (truth + noise) minus the prediction
+                xh = Xh[b, p]
+                state_predict(xh, Phi[u], nzc[u], nnz[u], t)
                 for i in range(4):
-                    nu[i] = X[b, p, i] - t[i]
+                    nu[i] = x[i] - xh[i]
                     if p == 0:
                         nu[i] += vs[b, c, i] * sv[i]
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(4):
-                        acc += gains[k, i, j] * nu[j]
-                    Xh[b, p, i] = t[i] + acc
-                ez[b, p, k + 1] = Xh[b, p, iz]
+                gain_correct(xh, gains[k], nu)
+                ez[b, p, k + 1] = xh[iz]
 
 
 def _orderings(wstd, wstd_sep, betas, sep_ratio):
