@@ -10,8 +10,8 @@ recursion gives the gains of the filters whose covariance does not depend on the
 discretisation + prediction of :mod:`sinslab.fusion.propagate` and the recording prediction
 of :mod:`sinslab.fusion.smoothing` (:func:`predict_step`), and the methods' own loops over
 many runs: transfer alignment's common-gain lanes and per-lane EKFs
-(:func:`state_predict`, :func:`innovation`, :func:`gain_correct`, :func:`predict_lanes`,
-:func:`sequential_update_lanes`), the rotation-evaluation campaign, double-star's
+(:func:`state_predict_dense`, :func:`innovation`, :func:`gain_correct`,
+:func:`predict_lanes`, :func:`sequential_update_lanes`), the rotation-evaluation campaign, double-star's
 stored-state update and the Monte Carlo of a linear system — so one epoch of prediction or
 update has one arithmetic wherever it runs. Scalar style, no array temporaries inside a
 time loop; the work arrays are the caller's.
@@ -43,7 +43,7 @@ _compile_notice()   # a status line while the kernels below compile (first run)
 
 __all__ = ["cov_predict", "state_predict", "predict_step", "predict_steps", "predict_steps_dense",
            "predict_lanes", "scalar_update", "sequential_update", "sequential_update_lanes", "vector_update",
-           "innovation", "gain_correct", "innovation_cov", "row_nonzeros", "copy2",
+           "state_predict_dense", "innovation", "gain_correct", "innovation_cov", "row_nonzeros", "copy2",
            "diagonal_tail", "series_structure", "series_phi", "series_qbar", "series_qk",
            "series_step", "add_half_qbar"]
 
@@ -105,6 +105,22 @@ def state_predict(x, Phi, nzc, nnz, tmp):
         for a in range(nnz[i]):
             k = nzc[i, a]
             s += Phi[i, k] * x[k]
+        tmp[i] = s
+    for i in range(n):
+        x[i] = tmp[i]
+
+
+@njit(cache=True, inline="always")
+def state_predict_dense(x, Phi, tmp):
+    """``x <- Φ x`` in place over every column of Φ (n, n), each sum in column order; ``tmp``
+    (n,) a work array. The same numbers as :func:`state_predict` wherever x is finite (a
+    product with a zero of Φ adds ±0), for the per-run loops where Φ's rows are mostly full
+    and the row lists would cost more than they skip."""
+    n = x.shape[0]
+    for i in range(n):
+        s = 0.0
+        for j in range(n):
+            s += Phi[i, j] * x[j]
         tmp[i] = s
     for i in range(n):
         x[i] = tmp[i]
@@ -328,7 +344,11 @@ def sequential_update_lanes(X, Ps, Z, H, r, nis):
         nis[l] = _sequential(X[l], Ps[l], Z[l], H[l], r, innov, sdiag, pht, kk, tmp, B)
 
 
-@njit(cache=True)
+# The fixed-gain kernels below (and state_predict_dense) are inlined into their callers: a
+# run of a fixed-gain filter is a few hundred multiply-adds per step, and a call per step
+# (its array views counted in and out) cost the per-run loops of paper 002's campaign a
+# third of their time.
+@njit(cache=True, inline="always")
 def innovation(x, H, z, nu):
     """``nu <- z − H x``: the innovation (m,) of the rows ``H`` (m, n) against the estimate
     ``x`` (n,); each product summed in column order."""
@@ -340,7 +360,7 @@ def innovation(x, H, z, nu):
         nu[i] = z[i] - acc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gain_correct(x, G, nu):
     """``x <- x + G nu`` in place: the update of a filter whose gain ``G`` (n, m) does not
     depend on the data (made once by a covariance recursion:

@@ -23,7 +23,7 @@ from sinslab.core import attitude as A
 from sinslab.core import earth
 from sinslab.estimation import observability as obs
 from sinslab.estimation.kalman import discretize
-from sinslab.estimation.kernels import gain_correct, row_nonzeros, state_predict
+from sinslab.estimation.kernels import gain_correct, state_predict_dense
 from sinslab.estimation.linear import error_budget, propagate_covariance
 from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bias
 
@@ -937,10 +937,6 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
     update (:mod:`sinslab.estimation.kernels`)."""
     B, P_, n = X.shape
     p1 = G1.shape[2]
-    L = Phi.shape[0]
-    nzc = np.zeros((L, n, n), dtype=np.int64)
-    nnz = np.zeros((L, n), dtype=np.int64)
-    row_nonzeros(Phi, nzc, nnz)
     t = np.empty(n)
     nu = np.empty(4)
     for b in range(B):
@@ -950,7 +946,7 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
             X[b, j_tr, iz] += tr[k]
             for p in range(P_):
                 x = X[b, p]
-                state_predict(x, Phi[u], nzc[u], nnz[u], t)
+                state_predict_dense(x, Phi[u], t)
                 if src[p] >= 0:
                     g, q = src[p], col[p]
                     for i in range(n):
@@ -968,7 +964,7 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
                 # the nominal filter: estimation's prediction and fixed-gain update, the
                 # innovation the measured differences (truth + noise) minus the prediction
                 xh = Xh[b, p]
-                state_predict(xh, Phi[u], nzc[u], nnz[u], t)
+                state_predict_dense(xh, Phi[u], t)
                 for i in range(4):
                     nu[i] = x[i] - xh[i]
                     if p == 0:

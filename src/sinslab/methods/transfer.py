@@ -59,7 +59,7 @@ from numba import njit
 from sinslab.core.attitude import (dcm_to_euler, dcm_to_quat, dcm_to_rotvec, q2dcm_s, q2euler_s, qmul_s,
                                    rotvec_to_dcm, skew, wrap_pi, wrap_pi_s)
 from sinslab.estimation.kernels import (gain_correct, innovation, predict_lanes, sequential_update_lanes,
-                                        state_predict)
+                                        state_predict_dense)
 from sinslab.estimation.linear import propagate_covariance, sparsity
 from sinslab.nav import errstate
 
@@ -577,7 +577,7 @@ def _lane_measurements(S, active, ref, vm, lane_master, noise, form, Z):
             z[c] += noise[m, c]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _matched_update(x, H, G, z, wrap, nu):
     """The paper-form update of one filter, ``x <- x + G (z − H x)`` with the common gain
     ``G`` (n, 6) (estimation's :func:`~sinslab.estimation.kernels.innovation` and
@@ -591,17 +591,16 @@ def _matched_update(x, H, G, z, wrap, nu):
 
 
 @njit(cache=True)
-def _lane_filters(X, active, Phi, nzc, nnz, predict, H, G, Z, wrap, nu, tmp):
+def _lane_filters(X, active, Phi, predict, H, G, Z, wrap, nu, tmp):
     """One epoch of the paper-form filters of the active lanes, in place on ``X`` (L, n):
-    the prediction with ``Phi`` (when ``predict``; row lists ``nzc``, ``nnz``), then
-    :func:`_matched_update` with the common ``H`` (6, n), gain ``G`` (n, 6) and each
-    lane's measurement ``Z[l]``."""
+    the prediction with ``Phi`` (when ``predict``), then :func:`_matched_update` with the
+    common ``H`` (6, n), gain ``G`` (n, 6) and each lane's measurement ``Z[l]``."""
     for l in range(X.shape[0]):
         if not active[l]:
             continue
         x = X[l]
         if predict:
-            state_predict(x, Phi, nzc, nnz, tmp)
+            state_predict_dense(x, Phi, tmp)
         _matched_update(x, H, G, Z[l], wrap, nu)
 
 
@@ -655,12 +654,12 @@ def _lane_attitudes(S, active, out):
 
 
 @njit(cache=True)
-def _feedforward(zz, H, Kg, Phi, nzc, nnz, x, wrap, record_every, xs):
+def _feedforward(zz, H, Kg, Phi, x, wrap, record_every, xs):
     """The state recursion of the paper-form :func:`batch_filter`, run by run: at every
     epoch k :func:`_matched_update` with the common ``H[k]`` (6, n) and gain ``Kg[k]``
     (n, 6) from ``zz[:, k]`` (R, K+1, 6), the state recorded into ``xs`` (R, M, n) every
-    ``record_every`` epochs, then the prediction with ``Phi[k]`` (row lists ``nzc[k]``,
-    ``nnz[k]``). ``x`` (R, n) holds the initial states and is overwritten."""
+    ``record_every`` epochs, then the prediction with ``Phi[k]``. ``x`` (R, n) holds the
+    initial states and is overwritten."""
     R, n = x.shape
     Kp1 = zz.shape[1]
     nu = np.empty(6)
@@ -673,7 +672,7 @@ def _feedforward(zz, H, Kg, Phi, nzc, nnz, x, wrap, record_every, xs):
                 for i in range(n):
                     xs[r, k // record_every, i] = xr[i]
             if k < Kp1 - 1:
-                state_predict(xr, Phi[k], nzc[k], nnz[k], tmp)
+                state_predict_dense(xr, Phi[k], tmp)
 
 
 def propagate_errors(Phi, x0):
@@ -685,13 +684,12 @@ def propagate_errors(Phi, x0):
     Phi = np.ascontiguousarray(Phi, dtype=float)
     xs = np.empty((x0.shape[0], Phi.shape[0] + 1, x0.shape[1]))
     xs[:, 0] = x0
-    nzc, nnz = sparsity(Phi)
-    _propagate(Phi, nzc, nnz, xs)
+    _propagate(Phi, xs)
     return xs
 
 
 @njit(cache=True)
-def _propagate(Phi, nzc, nnz, xs):
+def _propagate(Phi, xs):
     n = xs.shape[2]
     tmp = np.empty(n)
     for r in range(xs.shape[0]):
@@ -699,7 +697,7 @@ def _propagate(Phi, nzc, nnz, xs):
             x = xs[r, k + 1]
             for i in range(n):
                 x[i] = xs[r, k, i]
-            state_predict(x, Phi[k], nzc[k], nnz[k], tmp)
+            state_predict_dense(x, Phi[k], tmp)
 
 
 # ------------------------------------------------------- runs-vectorised Kalman filter --
@@ -758,8 +756,7 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
         if att_noise is not None:
             z_att = z_att + att_noise
         zz = np.ascontiguousarray(np.concatenate([z_vel, z_att], axis=2))
-        Phi = np.ascontiguousarray(Phi, dtype=float)
-        _feedforward(zz, np.ascontiguousarray(G.H), np.ascontiguousarray(G.K), Phi, *sparsity(Phi),
+        _feedforward(zz, np.ascontiguousarray(G.H), np.ascontiguousarray(G.K), np.ascontiguousarray(Phi, dtype=float),
                      x, match.kind == "euler", int(record_every), xs)
         return xs, G.sigma
     P = np.broadcast_to(np.array(P0, float), (R_runs, n, n)).copy()
@@ -1065,7 +1062,6 @@ def _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master
     noise = (np.zeros((ref.shape[0], ref.shape[1], 6)) if meas_noise is None
              else np.ascontiguousarray(np.swapaxes(np.asarray(meas_noise, float), 0, 1)))
     Phi = np.ascontiguousarray(Phi, dtype=float)
-    nzc, nnz = sparsity(Phi)
     Hs, Ks = np.ascontiguousarray(G.H), np.ascontiguousarray(G.K)
     lane_master = np.ascontiguousarray(lane_master, dtype=np.int64)
     form, wrap = _FORM[match.kind], match.kind == "euler"
@@ -1077,7 +1073,7 @@ def _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master
         if k > 0:
             bank.advance(k_kf)
         _lane_measurements(bank.state, bank.active, ref[k], vm[k], lane_master, noise[k], form, Z)
-        _lane_filters(x, bank.active, Phi[k - 1], nzc[k - 1], nnz[k - 1], k > 0, Hs[k], Ks[k], Z, wrap, nu, tmp)
+        _lane_filters(x, bank.active, Phi[k - 1], k > 0, Hs[k], Ks[k], Z, wrap, nu, tmp)
         _lane_feedback(x, bank.active, bank.comp, i_comp, fed, i_fb, float(phi_bound), diverged_at, k, fb)
         bank.correct(fb[:, :3], fb[:, 3:])
         if r < M and rec[r] == k:
