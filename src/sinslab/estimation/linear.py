@@ -29,7 +29,8 @@ from numba import njit
 
 from sinslab.estimation.kalman import _as_square, _is_diag, check_covariance
 from sinslab.estimation.kernels import (copy2, cov_predict, gain_correct, innovation, innovation_cov, row_nonzeros,
-                                         scalar_update, series_step, series_structure, state_predict, vector_update)
+                                         scalar_update, series_step, series_structure, state_predict,
+                                         state_predict_dense, vector_update)
 
 from sinslab.core.jitnotice import install as _compile_notice
 
@@ -538,37 +539,37 @@ def propagate_covariance(P0, Phi, Q, H=None, R=None, *, n_steps=None, mask=None,
 
 
 @njit(cache=True)
-def _gain_runs(X, Phi_t, phi_i, nzc_t, nnz_t, H_t, h_i, gain, z, mask, x_hist, nu_hist):
+def _gain_runs(X, Phi_t, phi_i, H_t, h_i, gain, z, mask, x_hist, nu_hist):
     """The time loop of :func:`fixed_gain_runs`, record by record (a record's numbers do not
-    depend on the records beside it)."""
+    depend on the records beside it); each step's estimate is stepped in its row of
+    ``x_hist``."""
     B, n = X.shape
     K, m = mask.shape
     tmp = np.empty(n)
     for b in range(B):
-        x = X[b]
         for j in range(n):
-            x_hist[b, 0, j] = x[j]
+            x_hist[b, 0, j] = X[b, j]
         for k in range(K):
-            ip = phi_i[k]
-            state_predict(x, Phi_t[ip], nzc_t[ip], nnz_t[ip], tmp)
+            x = x_hist[b, k + 1]
+            for j in range(n):
+                x[j] = x_hist[b, k, j]
+            state_predict_dense(x, Phi_t[phi_i[k]], tmp)
             nu = nu_hist[b, k]
             on = False
             for c in range(m):
                 on = on or mask[k, c]
-            if on:
-                innovation(x, H_t[h_i[k]], z[b, k], nu)
-                for c in range(m):
-                    if not mask[k, c]:
-                        nu[c] = 0.0
-                gain_correct(x, gain[k], nu)
-                for c in range(m):
-                    if not mask[k, c]:
-                        nu[c] = np.nan
-            else:
+            if not on:
                 for c in range(m):
                     nu[c] = np.nan
-            for j in range(n):
-                x_hist[b, k + 1, j] = x[j]
+                continue
+            innovation(x, H_t[h_i[k]], z[b, k], nu)
+            for c in range(m):
+                if not mask[k, c]:
+                    nu[c] = 0.0
+            gain_correct(x, gain[k], nu)
+            for c in range(m):
+                if not mask[k, c]:
+                    nu[c] = np.nan
 
 
 def fixed_gain_runs(x0, Phi, H, gain, z, *, mask=None, Phi_index=None, H_index=None):
@@ -614,10 +615,9 @@ def fixed_gain_runs(x0, Phi, H, gain, z, *, mask=None, Phi_index=None, H_index=N
         mk = np.repeat(mk[:, None], m, axis=1)
     if mk.shape != (K, m):
         raise ValueError(f"mask must have shape ({K}, {m}) or ({K},), got {mk.shape}")
-    nzc, nnz = _sparsity(Phi_t)
     xs = np.empty((B, K + 1, n))
     nu = np.empty((B, K, m))
-    _gain_runs(X, Phi_t, phi_i, nzc, nnz, H_t, h_i, gain, z, np.ascontiguousarray(mk), xs, nu)
+    _gain_runs(X, Phi_t, phi_i, H_t, h_i, gain, z, np.ascontiguousarray(mk), xs, nu)
     return xs, nu
 
 
