@@ -43,7 +43,7 @@ _compile_notice()   # a status line while the kernels below compile (first run)
 
 __all__ = ["cov_predict", "state_predict", "predict_step", "predict_steps", "predict_steps_dense",
            "predict_lanes", "scalar_update", "sequential_update", "sequential_update_lanes", "vector_update",
-           "state_predict_dense", "innovation", "gain_correct", "innovation_cov", "row_nonzeros", "copy2",
+           "predicted_dense", "state_predict_dense", "innovation", "gain_correct", "innovation_cov", "row_nonzeros", "copy2",
            "diagonal_tail", "series_structure", "series_phi", "series_qbar", "series_qk",
            "series_step", "add_half_qbar"]
 
@@ -111,18 +111,24 @@ def state_predict(x, Phi, nzc, nnz, tmp):
 
 
 @njit(cache=True, inline="always")
-def state_predict_dense(x, Phi, tmp):
-    """``x <- Φ x`` in place over every column of Φ (n, n), each sum in column order; ``tmp``
-    (n,) a work array. The same numbers as :func:`state_predict` wherever x is finite (a
-    product with a zero of Φ adds ±0), for the per-run loops where Φ's rows are mostly full
-    and the row lists would cost more than they skip."""
+def predicted_dense(x, Phi, out):
+    """``out <- Φ x`` over every column of Φ (n, n), each sum in column order (``out`` not
+    ``x``). The same numbers as :func:`state_predict` wherever x is finite (a product with
+    a zero of Φ adds ±0), for the per-run loops where Φ's rows are mostly full and the row
+    lists would cost more than they skip."""
     n = x.shape[0]
     for i in range(n):
         s = 0.0
         for j in range(n):
             s += Phi[i, j] * x[j]
-        tmp[i] = s
-    for i in range(n):
+        out[i] = s
+
+
+@njit(cache=True, inline="always")
+def state_predict_dense(x, Phi, tmp):
+    """``x <- Φ x`` in place by :func:`predicted_dense`; ``tmp`` (n,) a work array."""
+    predicted_dense(x, Phi, tmp)
+    for i in range(x.shape[0]):
         x[i] = tmp[i]
 
 
@@ -344,7 +350,7 @@ def sequential_update_lanes(X, Ps, Z, H, r, nis):
         nis[l] = _sequential(X[l], Ps[l], Z[l], H[l], r, innov, sdiag, pht, kk, tmp, B)
 
 
-# The fixed-gain kernels below (and state_predict_dense) are inlined into their callers: a
+# The fixed-gain kernels below (and the dense state prediction) are inlined into their callers: a
 # run of a fixed-gain filter is a few hundred multiply-adds per step, and a call per step
 # (its array views counted in and out) cost the per-run loops of paper 002's campaign a
 # third of their time.

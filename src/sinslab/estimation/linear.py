@@ -29,8 +29,8 @@ from numba import njit
 
 from sinslab.estimation.kalman import _as_square, _is_diag, check_covariance
 from sinslab.estimation.kernels import (copy2, cov_predict, gain_correct, innovation, innovation_cov, row_nonzeros,
-                                         scalar_update, series_step, series_structure, state_predict,
-                                         state_predict_dense, vector_update)
+                                         predicted_dense, scalar_update, series_step, series_structure,
+                                         state_predict, vector_update)
 
 from sinslab.core.jitnotice import install as _compile_notice
 
@@ -545,15 +545,12 @@ def _gain_runs(X, Phi_t, phi_i, H_t, h_i, gain, z, mask, x_hist, nu_hist):
     ``x_hist``."""
     B, n = X.shape
     K, m = mask.shape
-    tmp = np.empty(n)
     for b in range(B):
         for j in range(n):
             x_hist[b, 0, j] = X[b, j]
         for k in range(K):
             x = x_hist[b, k + 1]
-            for j in range(n):
-                x[j] = x_hist[b, k, j]
-            state_predict_dense(x, Phi_t[phi_i[k]], tmp)
+            predicted_dense(x_hist[b, k], Phi_t[phi_i[k]], x)
             nu = nu_hist[b, k]
             on = False
             for c in range(m):

@@ -23,7 +23,7 @@ from sinslab.core import attitude as A
 from sinslab.core import earth
 from sinslab.estimation import observability as obs
 from sinslab.estimation.kalman import discretize
-from sinslab.estimation.kernels import gain_correct, state_predict_dense
+from sinslab.estimation.kernels import gain_correct, predicted_dense
 from sinslab.estimation.linear import error_budget, propagate_covariance
 from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bias
 
@@ -932,9 +932,10 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
     ``root[src[p]][u] ξ`` (draws ``xis[:, c, col[p]]``), INS 1's part its step mean through
     ``G1[u]`` (``us``) and the block-mean part that of its block (``ubar``); the filter
     predicts, and updates every part with the gain ``gains[k]`` (n, 4) from its four
-    measured components (measurement noise ``vs · sv`` in INS 1's part only). Every part is
-    propagated by estimation's state prediction and the filter updated by its fixed-gain
-    update (:mod:`sinslab.estimation.kernels`)."""
+    measured components (measurement noise ``vs · sv`` in INS 1's part only). The filter
+    steps with estimation's dense prediction and fixed-gain update
+    (:mod:`sinslab.estimation.kernels`); the true parts' propagation is fused with their
+    noise terms here."""
     B, P_, n = X.shape
     p1 = G1.shape[2]
     t = np.empty(n)
@@ -945,32 +946,39 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
             u = index[k]
             X[b, j_tr, iz] += tr[k]
             for p in range(P_):
-                x = X[b, p]
-                state_predict_dense(x, Phi[u], t)
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += Phi[u, i, j] * X[b, p, j]
+                    t[i] = acc
                 if src[p] >= 0:
                     g, q = src[p], col[p]
                     for i in range(n):
                         acc = 0.0
                         for j in range(n):
                             acc += root[g, u, i, j] * xis[b, c, q, j]
-                        x[i] += acc
+                        t[i] += acc
                 if p == 0 or p == j_bl:
                     w = us if p == 0 else ubar
                     for i in range(n):
                         acc = 0.0
                         for j in range(p1):
                             acc += G1[u, i, j] * w[b, c, j]
-                        x[i] += acc
+                        t[i] += acc
+                for i in range(n):
+                    X[b, p, i] = t[i]
                 # the nominal filter: estimation's prediction and fixed-gain update, the
                 # innovation the measured differences (truth + noise) minus the prediction
                 xh = Xh[b, p]
-                state_predict_dense(xh, Phi[u], t)
+                predicted_dense(xh, Phi[u], t)
                 for i in range(4):
-                    nu[i] = x[i] - xh[i]
+                    nu[i] = X[b, p, i] - t[i]
                     if p == 0:
                         nu[i] += vs[b, c, i] * sv[i]
-                gain_correct(xh, gains[k], nu)
-                ez[b, p, k + 1] = xh[iz]
+                gain_correct(t, gains[k], nu)
+                for i in range(n):
+                    xh[i] = t[i]
+                ez[b, p, k + 1] = t[iz]
 
 
 def _orderings(wstd, wstd_sep, betas, sep_ratio):

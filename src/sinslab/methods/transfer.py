@@ -58,8 +58,8 @@ from numba import njit
 
 from sinslab.core.attitude import (dcm_to_euler, dcm_to_quat, dcm_to_rotvec, q2dcm_s, q2euler_s, qmul_s,
                                    rotvec_to_dcm, skew, wrap_pi, wrap_pi_s)
-from sinslab.estimation.kernels import (gain_correct, innovation, predict_lanes, sequential_update_lanes,
-                                        state_predict_dense)
+from sinslab.estimation.kernels import (gain_correct, innovation, predict_lanes, predicted_dense,
+                                        sequential_update_lanes, state_predict_dense)
 from sinslab.estimation.linear import propagate_covariance, sparsity
 from sinslab.nav import errstate
 
@@ -690,14 +690,9 @@ def propagate_errors(Phi, x0):
 
 @njit(cache=True)
 def _propagate(Phi, xs):
-    n = xs.shape[2]
-    tmp = np.empty(n)
     for r in range(xs.shape[0]):
         for k in range(Phi.shape[0]):
-            x = xs[r, k + 1]
-            for i in range(n):
-                x[i] = xs[r, k, i]
-            state_predict_dense(x, Phi[k], tmp)
+            predicted_dense(xs[r, k], Phi[k], xs[r, k + 1])
 
 
 # ------------------------------------------------------- runs-vectorised Kalman filter --
