@@ -69,24 +69,18 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
     None argument prunes the vector branch at compile time, so a run with diagonal R
     does not compile :func:`vector_update` (a second of a first run).
 
-    ``gain`` (K, n, m), or (0, n, m) not to keep it: filled with each step's gain G, the
-    map of the step's measurements onto the updated state (``x⁺ = x⁻ + G (z − H x⁻)``;
-    zero columns where nothing is measured). The sequential scalar updates compose to it:
-    each one maps ``G ← (I − k h) G``, then adds ``k`` to its own column; a vector update
-    gives it whole. ``S_prior`` (K, m, m) likewise, or (0, m, m): each step's innovation
-    covariance ``H P⁻ Hᵀ + R`` of all m components (what the NIS of a fixed-gain run needs).
-    Empty arrays rather than None: runs with and without them then share one
-    compiled loop (a compilation costs ~2 s of a fresh clone's first run, and one more in
-    every Dask worker of a campaign that runs both)."""
+    ``gain`` (K, n, m) and ``S_prior`` (K, m, m), or (0, …) not to keep them: each step's
+    gain G (``x⁺ = x⁻ + G (z − H x⁻)``, zero columns where nothing is measured; the scalar
+    updates compose to it, each mapping ``G ← (I − k h) G`` and adding ``k`` to its own
+    column, a vector update gives it whole) and innovation covariance ``H P⁻ Hᵀ + R``.
+    Empty arrays rather than None: runs with and without them share one compiled loop (a
+    compilation costs ~2 s of a fresh clone's first run, and one more in every Dask worker
+    of a campaign that runs both)."""
     n = P.shape[0]
     K = phi_i.shape[0]
     m = mask.shape[1]
-    T1 = np.empty((n, n))
-    T2 = np.empty((n, n))
-    tmp = np.empty(n)
-    pht = np.empty(n)
-    kk = np.empty(n)
-    bh = np.empty(n)
+    T1, T2 = np.empty((n, n)), np.empty((n, n))
+    tmp, pht, kk, bh = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     used = np.empty(m, dtype=np.int64)
     hg = np.empty(m)
     PHt = np.empty((n, m))

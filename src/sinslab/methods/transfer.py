@@ -901,12 +901,10 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
     Covariance: with the paper's linearisation (``relinearise=False``) H depends only on
     the reference attitude, taken from ``C_lin`` — the attitude the filter linearises at,
     common to the lanes — so P and the gain are common (:func:`lane_gains`) and only the
-    states are per lane: each epoch is then one compiled advance of the bank and compiled
-    calls over the lanes, lane by lane (a lane's numbers do not depend on the lanes beside
-    it), for their measurements, their filters' step and their guard and feedback.
-    With ``relinearise`` (EKF form, H at each lane's installation estimate and master
-    attitude) every lane carries its own P. Either way the filters step with estimation's
-    kernels (:mod:`sinslab.estimation.kernels`), the one Kalman core.
+    states are per lane, stepped by compiled calls over the lanes, lane by lane (a lane's
+    numbers do not depend on the lanes beside it). With ``relinearise`` (EKF form, H at
+    each lane's installation estimate and master attitude) every lane carries its own P.
+    Either way the filters step with estimation's kernels, the one Kalman core.
 
     Parameters
     ----------
@@ -952,11 +950,8 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
     lane_master = np.asarray(lane_master, dtype=np.int64)
     Qk = np.zeros((n, n)) if Qk is None else np.asarray(Qk, float)
     rec = list(range(0, K + 1, record_every))
-    M = len(rec)
-    a_out = np.full((L, M, 3), np.nan)
-    att_out = np.full((L, M, 3, 3), np.nan)
-    x = np.zeros((L, n))
-    diverged_at = np.full(L, -1, dtype=np.int64)
+    a_out, att_out = np.full((L, len(rec), 3), np.nan), np.full((L, len(rec), 3, 3), np.nan)
+    x, diverged_at = np.zeros((L, n)), np.full(L, -1, dtype=np.int64)
     if relinearise:
         sig = _per_lane_loop(bank, k_kf, Phi, match, P0, R_vel, R_att, Qk, master_C, master_v, lane_master,
                              meas_noise, lay, phi_bound, rec, x, diverged_at, a_out, att_out)
