@@ -322,6 +322,19 @@ def test_common_gains_are_the_textbook_recursion(kind):
             np.testing.assert_allclose(a.sigma[k // 4], np.sqrt(np.diag(P)), rtol=1e-6)
 
 
+def _fed_back(one, x, phi_bound):
+    """The reference loops' guard and feedback of one lane: False (the lane stops) when x
+    is not finite or asks for |φ̂| > ``phi_bound``; else its INS ``one`` corrected by φ̂, δv̂,
+    its sensor compensation increased and those states of ``x`` zeroed."""
+    sl = tr.transfer_model().layout.slice
+    if not (np.all(np.isfinite(x)) and np.linalg.norm(x[sl("phi")]) <= phi_bound):
+        return False
+    one.correct(x[None, sl("phi")], x[None, sl("dv")])
+    one.compensate(x[None, sl("eps")], x[None, sl("nabla")], x[None, sl("kg")], x[None, sl("ka")])
+    x[np.r_[np.arange(21)[sl("phi")], np.arange(21)[sl("dv")], np.arange(9, 21)]] = 0.0
+    return True
+
+
 def _one_lane_at_a_time(bank, k_kf, Phi, match, G, mC, mv, noise, phi_bound, record_every):
     """The paper-form closed loop of align_lanes written out lane by lane with numpy and
     the library's one-run measurement (AttitudeMatch.z, scipy rotations): the reference
@@ -330,7 +343,6 @@ def _one_lane_at_a_time(bank, k_kf, Phi, match, G, mC, mv, noise, phi_bound, rec
 
     lay = tr.transfer_model().layout
     sl = lay.slice
-    fed = np.r_[np.arange(21)[sl("phi")], np.arange(21)[sl("dv")], np.arange(9, 21)]
     K = Phi.shape[0]
     a = np.full((bank.lanes, K // record_every + 1, 3), np.nan)
     for l in range(bank.lanes):
@@ -345,11 +357,8 @@ def _one_lane_at_a_time(bank, k_kf, Phi, match, G, mC, mv, noise, phi_bound, rec
             if match.kind == "euler":
                 nu[3:] = tr.wrap_pi(nu[3:])
             x = x + G.K[k] @ nu
-            if not (np.all(np.isfinite(x)) and np.linalg.norm(x[sl("phi")]) <= phi_bound):
+            if not _fed_back(one, x, phi_bound):
                 break
-            one.correct(x[None, sl("phi")], x[None, sl("dv")])
-            one.compensate(x[None, sl("eps")], x[None, sl("nabla")], x[None, sl("kg")], x[None, sl("ka")])
-            x[fed] = 0.0
             if k % record_every == 0:
                 a[l, k // record_every] = x[sl("lam")]
     return a
@@ -428,7 +437,6 @@ def _ekf_one_lane_at_a_time(c, record_every):
 
     lay = tr.transfer_model().layout
     sl = lay.slice
-    fed = np.r_[np.arange(21)[sl("phi")], np.arange(21)[sl("dv")], np.arange(9, 21)]
     Phi, match, L = c["Phi"], c["match"], c["L"]
     K = Phi.shape[0]
     a = np.full((L, K // record_every + 1, 3), np.nan)
@@ -449,11 +457,8 @@ def _ekf_one_lane_at_a_time(c, record_every):
             H[3:, sl("phi")], H[3:, sl("lam")] = h6[:, :3], h6[:, 3:]
             res = kf.update(x, P, z, H, np.diag(np.r_[c["Rv"], c["Ra"]]))
             x, P = res.x.copy(), res.P
-            if not (np.all(np.isfinite(x)) and np.linalg.norm(x[sl("phi")]) <= c["bound"]):
+            if not _fed_back(one, x, c["bound"]):
                 break
-            one.correct(x[None, sl("phi")], x[None, sl("dv")])
-            one.compensate(x[None, sl("eps")], x[None, sl("nabla")], x[None, sl("kg")], x[None, sl("ka")])
-            x[fed] = 0.0
             if k % record_every == 0:
                 a[l, k // record_every] = x[sl("lam")]
                 sa[l, k // record_every] = np.sqrt(np.diag(P))[sl("lam")]
