@@ -46,7 +46,7 @@ except ImportError:                     # pragma: no cover
     from click import exceptions as _cx
 
 from sinslab import __version__
-from sinslab.app.errors import USER_ERRORS, CliError, error_line, user_errors
+from sinslab.app.errors import USER_ERRORS, CliError, cli_process, error_line, exit_now, pause, user_errors
 from sinslab.core.errors import InputError
 
 __all__ = ["app", "main", "user_errors", "CliError", "USER_ERRORS"]
@@ -91,12 +91,27 @@ class _Group(TyperGroup):
             return super().make_context(*args, **kwargs)
         except _cx.UsageError as e:
             raise _one_line(e) from None
+        except KeyboardInterrupt as e:
+            raise _stopped(e) from None
 
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
         except _cx.UsageError as e:
             raise _one_line(e) from None
+        except KeyboardInterrupt as e:          # before or after a command's own handling
+            raise _stopped(e) from None
+
+
+def _stopped(e: KeyboardInterrupt) -> _cx.Exit:
+    """Ctrl-C or SIGTERM outside a command's body (while the command line is parsed):
+    nothing was started; one line, exit 130 / 143."""
+    from sinslab.app.errors import Terminated
+
+    code = 143 if isinstance(e, Terminated) else 130
+    typer.echo(f"sinslab: error: {'terminated' if code == 143 else 'interrupted'}; nothing was written",
+               err=True)
+    return _cx.Exit(code)
 
 
 app = typer.Typer(cls=_Group, add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -239,7 +254,10 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
             if workers == 0:
                 cluster = contextlib.nullcontext("sync")
             else:
+                from sinslab.app.validate import check_workers
                 from sinslab.estimation.montecarlo import dask_client
+
+                check_workers(workers)
 
                 cluster = dask_client(None, n_workers=workers)
         if out is None:
@@ -251,12 +269,16 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
                 summary = execute(exp, cfg, out, quick=quick, scheduler=sched, log=_log, force=force,
                                   robustness="full" if robustness else None)
         except InputError as e:                 # absurd values found while computing
-            given = [f"--set {x}" for x in (set_ or [])] + ([f"--config {config}"] if config else [])
+            from sinslab.estimation.montecarlo import ClusterError
+
+            given = [] if isinstance(e, ClusterError) else (
+                [f"--set {x}" for x in (set_ or [])] + ([f"--config {config}"] if config else []))
             raise CliError(f"{exp.name}: {error_line(e)}"
                            + (f"; check the values given ({', '.join(given)})" if given else "")) from None
-    _print_summary(summary, Path(out))
-    if strict and not all(c["passed"] for c in summary["claims"]):
-        raise typer.Exit(1)
+        pause("summary")
+        _print_summary(summary, Path(out))
+        if strict and not all(c["passed"] for c in summary["claims"]):
+            raise typer.Exit(1)
 
 
 @app.command("config")
@@ -385,9 +407,9 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                             and _remote_outcome(job.future)[0] == "done":
                         completed_elsewhere(out / job.label)
         idx = _report.index(out, done, failed)
-    typer.echo(f"index: {idx}")
-    if failed:
-        raise typer.Exit(1)
+        typer.echo(f"index: {idx}")
+        if failed:
+            raise typer.Exit(1)
 
 
 def _running(name: str, label: str, sets, quick: bool) -> str:
@@ -566,9 +588,18 @@ _add_examples()
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. Signals are handled for the whole process
+    (:func:`sinslab.app.errors.cli_process`): one arriving after the command's work is
+    done ends the process with the command's status."""
     os.environ.setdefault("MPLBACKEND", "Agg")
-    app(prog_name="sinslab")
+    cli_process()
+    try:
+        app(prog_name="sinslab")
+        code = 0
+    except SystemExit as e:
+        code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+    pause("exit")
+    exit_now(code)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -68,7 +68,7 @@ __all__ = [
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
     "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
     "align_lanes", "LaneAlignment", "CommonGains", "lane_gains", "batch_gains", "PARAMETERISATION", "parameterisation", "installation_parameters",
-    "rate_correlation", "propagate_errors",
+    "rate_correlation", "rate_norms", "rate_lag", "propagate_errors",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -1074,6 +1074,32 @@ def _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master
     att_out[:] = np.swapaxes(att_rec, 0, 1)
 
 
+def rate_norms(imu, master: MasterRecord, t_start=None, t_end=None, shift=0.0, _cum=None):
+    """``(t, |ω_m|, |ω_s|)`` [s, rad/s, rad/s] over the master intervals in the window: the
+    master's rotation rate from its attitude change, the slave's from its increments over
+    the same interval with the slave's clock read ``shift`` [s] later (``shift`` > 0: the
+    master's stamps are late by that much). None when fewer than 11 master epochs."""
+    mt = master.t
+    lo = max(mt[0], imu.t0) if t_start is None else max(float(t_start), mt[0], imu.t0)
+    hi = min(mt[-1], imu.t[-1]) if t_end is None else min(float(t_end), mt[-1], imu.t[-1])
+    sel = np.flatnonzero((mt >= lo - 1e-9) & (mt <= hi + 1e-9))
+    if sel.size < 11:
+        return None
+    t = mt[sel]
+    C = master.C[sel]
+    w_m = np.linalg.norm(dcm_to_rotvec(np.swapaxes(C[:-1], 1, 2) @ C[1:]), axis=1) / np.diff(t)
+    th, te = _cum if _cum is not None else _cumulative_angle(imu)
+    i = np.clip(np.searchsorted(te, t - shift - 0.5 * imu.dt), 0, te.size - 1)
+    w_s = np.linalg.norm(np.diff(th[i], axis=0), axis=1) / np.diff(t)
+    return t, w_m, w_s
+
+
+def _cumulative_angle(imu):
+    """The slave's summed increments (N+1, 3) [rad] at the times (N+1,) [s] they end."""
+    return (np.vstack([np.zeros(3), np.cumsum(imu.dtheta, axis=0)]),
+            np.concatenate([[imu.t0], imu.t]))
+
+
 def rate_correlation(imu, master: MasterRecord, t_start=None, t_end=None):
     """Whether a slave IMU and a master solution share their motion.
 
@@ -1095,23 +1121,46 @@ def rate_correlation(imu, master: MasterRecord, t_start=None, t_end=None):
     motion : float
         Standard deviation of ``|ω_m|`` [rad/s] (how much the master's rate varies).
     """
-    mt = master.t
-    lo = max(mt[0], imu.t0) if t_start is None else max(float(t_start), mt[0], imu.t0)
-    hi = min(mt[-1], imu.t[-1]) if t_end is None else min(float(t_end), mt[-1], imu.t[-1])
-    sel = np.flatnonzero((mt >= lo - 1e-9) & (mt <= hi + 1e-9))
-    if sel.size < 11:
+    r = rate_norms(imu, master, t_start, t_end)
+    if r is None:
         return float("nan"), 0.0
-    t = mt[sel]
-    C = master.C[sel]
-    w_m = np.linalg.norm(dcm_to_rotvec(np.swapaxes(C[:-1], 1, 2) @ C[1:]), axis=1) / np.diff(t)
-    th = np.vstack([np.zeros(3), np.cumsum(imu.dtheta, axis=0)])
-    te = np.concatenate([[imu.t0], imu.t])
-    i = np.clip(np.searchsorted(te, t - 0.5 * imu.dt), 0, te.size - 1)
-    w_s = np.linalg.norm(np.diff(th[i], axis=0), axis=1) / np.diff(t)
+    _, w_m, w_s = r
     motion = float(np.std(w_m))
     if motion == 0.0 or np.std(w_s) == 0.0:
         return float("nan"), motion
     return float(np.corrcoef(w_m, w_s)[0, 1]), motion
+
+
+def rate_lag(imu, master: MasterRecord, t_start=None, t_end=None, max_lag=2.0):
+    """The clock offset that lines the slave's rotation rate up with the master's best.
+
+    The correlation of ``|ω_m|`` and ``|ω_s|`` (:func:`rate_norms`) over slave-clock shifts
+    in ``±max_lag`` [s] in steps of the slave interval, its peak refined by a parabola
+    through the three best. Returns ``(lag [s], correlation there, correlation at 0,
+    scale)``: ``lag`` > 0 means the master's stamps are late; ``scale`` is the least-squares
+    ``k`` of ``|ω_m| ≈ k |ω_s|`` at the lag (1 when both are in the same unit). NaNs when the
+    window has too few epochs or no motion.
+    """
+    step = float(imu.dt)
+    lags = np.arange(-max_lag, max_lag + 0.5 * step, step)
+    c = np.full(lags.size, np.nan)
+    cum = _cumulative_angle(imu)
+    for k, lag in enumerate(lags):
+        r = rate_norms(imu, master, t_start, t_end, shift=lag, _cum=cum)
+        if r is not None and np.std(r[1]) > 0 and np.std(r[2]) > 0:
+            c[k] = np.corrcoef(r[1], r[2])[0, 1]
+    if not np.isfinite(c).any():
+        return float("nan"), float("nan"), float("nan"), float("nan")
+    k = int(np.nanargmax(c))
+    lag = float(lags[k])
+    if 0 < k < lags.size - 1 and np.all(np.isfinite(c[k - 1:k + 2])):
+        den = c[k - 1] - 2 * c[k] + c[k + 1]
+        if den < 0:
+            lag += 0.5 * step * float(c[k - 1] - c[k + 1]) / float(den)
+    zero = int(np.argmin(np.abs(lags)))
+    _, w_m, w_s = rate_norms(imu, master, t_start, t_end, shift=lag, _cum=cum)
+    scale = float(np.dot(w_m, w_s) / np.dot(w_s, w_s)) if np.dot(w_s, w_s) > 0 else float("nan")
+    return lag, float(c[k]), float(c[zero]), scale
 
 
 # -------------------------------------------------- what each form's estimate means ---
@@ -1160,8 +1209,11 @@ class TransferResult:
     gyro_bias, accel_bias : (3,) final slave bias estimates [rad/s], [m/s²] with σ
     """
 
-    def __init__(self, t, x, sigma, layout):
+    def __init__(self, t, x, sigma, layout, applied=None):
         self.t, self.x, self.sigma, self.layout = t, x, sigma, layout
+        #: the matching updates (:class:`sinslab.fusion.driver.Applied`: innovations, their
+        #: σ and NIS), for the caller's consistency checks
+        self.applied = applied
         sl = layout.slice
         self.mounting, self.mounting_sigma = x[-1, sl("lam")], sigma[-1, sl("lam")]
         self.gyro_bias, self.gyro_bias_sigma = x[-1, sl("eps")], sigma[-1, sl("eps")]
@@ -1261,4 +1313,4 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
     x = np.array(res.x, float)
     x[:, lay.slice("eps")] = res.gyro_bias[0]
     x[:, lay.slice("nabla")] = res.accel_bias[0]
-    return TransferResult(np.asarray(res.t), x, np.asarray(res.sigma), lay)
+    return TransferResult(np.asarray(res.t), x, np.asarray(res.sigma), lay, res.applied)
