@@ -114,7 +114,7 @@ def _stopped(e: KeyboardInterrupt) -> _cx.Exit:
     return _cx.Exit(code)
 
 
-app = typer.Typer(cls=_Group, add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+app = typer.Typer(cls=_Group, add_completion=True, no_args_is_help=True, rich_markup_mode=None,
                   pretty_exceptions_enable=False,
                   help="sinslab: strapdown inertial navigation — experiments, runs and reports.")
 
@@ -133,16 +133,33 @@ def _log(msg: str) -> None:
     typer.echo(f"sinslab: {msg}", err=True)
 
 
-def _version(value: bool):
+def version_line() -> str:
+    """``sinslab X (numpy Y, numba Z, Python W)``: the versions that decide the numbers.
+
+    Read from the installed packages' metadata, without importing numpy or numba."""
+    import platform
+    from importlib import metadata
+
+    def v(dist: str) -> str:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return "not installed"
+
+    return (f"sinslab {__version__} (numpy {v('numpy')}, numba {v('numba')}, "
+            f"Python {platform.python_version()})")
+
+
+def _version(value: bool) -> None:
     if value:
-        typer.echo(f"sinslab {__version__}")
+        typer.echo(version_line())
         raise typer.Exit()
 
 
 @app.callback()
 def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars or progress lines"),
           version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
-                                       help="print the version and exit")):
+                                       help="print the version (and numpy's and numba's) and exit")):
     """sinslab: strapdown inertial navigation — experiments, runs and reports."""
     os.environ.setdefault("MPLBACKEND", "Agg")         # matplotlib is imported only when drawing
     global _QUIET
@@ -214,8 +231,16 @@ def _print_summary(summary: dict, out: Path) -> None:
                f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s{swept} -> {out / 'report.html'}")
 
 
+def _complete_experiment(incomplete: str) -> list[str]:
+    """Shell completion of an experiment name (read from the sources, nothing imported)."""
+    from sinslab.experiments import catalog
+
+    return [n for n in catalog() if n.startswith(incomplete)]
+
+
 @app.command()
-def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (see `sinslab list`)"),
+def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (see `sinslab list`)",
+                                   autocompletion=_complete_experiment),
         config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML config file"),
         set_: Optional[List[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE",
                                                  help='override a dotted config key, e.g. imu.gyro_bias="0.02 deg/h" (repeatable)'),
@@ -282,7 +307,8 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
 
 
 @app.command("config")
-def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment name"),
+def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment name",
+                                       autocompletion=_complete_experiment),
             config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML config file"),
             set_: Optional[List[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE"),
             quick: bool = typer.Option(False, "--quick", help="show the --quick configuration")) -> None:
@@ -534,6 +560,7 @@ COMMAND_MODULES = (
     "sinslab.app.commands.allan",
     "sinslab.app.commands.align",
     "sinslab.app.commands.transfer_align",
+    "sinslab.app.commands.export",
 )
 _BROKEN_COMMANDS: dict[str, str] = {}
 
@@ -552,6 +579,7 @@ EXAMPLES = {
     "align": "sinslab align --imu psins-lasergyro/lasergyro.imu --window 600:1200 --out runs/align",
     "transfer-align": ("sinslab transfer-align --slave psins-transfer/transfer_align_fog_mems.mat "
                        "--master psins-transfer/transfer_align_fog_mems.mat --method kain --window 0:60"),
+    "export": "sinslab export runs/drive --to kml --out drive.kml",
 }
 
 

@@ -13,10 +13,14 @@ import dataclasses
 from dataclasses import dataclass, field, fields
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sinslab.core.errors import InputError
+
+if TYPE_CHECKING:                       # to_pandas imports pandas when it is called
+    import pandas
 
 __all__ = ["Fixes", "ImuRecord", "NavSeries", "NavState", "check_times"]
 
@@ -136,6 +140,21 @@ class ImuRecord:
         d = check_times(t, "IMU time") if dt is None else float(dt)
         return cls(t, np.asarray(gyro, float) * d, np.asarray(accel, float) * d, d)
 
+    def to_pandas(self) -> "pandas.DataFrame":
+        """The record as a table, one row per sample, units in the column names:
+        ``t_s`` (interval end time), ``dtheta_x_rad`` .. ``dtheta_z_rad`` (angle increments)
+        and ``dv_x_mps`` .. ``dv_z_mps`` (velocity increments), body axes x right, y
+        forward, z up. ``ImuRecord(df.t_s, df[dtheta cols], df[dv cols])`` gives the record
+        back."""
+        import pandas as pd
+
+        cols = {"t_s": self.t}
+        for i, ax in enumerate("xyz"):
+            cols[f"dtheta_{ax}_rad"] = self.dtheta[:, i]
+        for i, ax in enumerate("xyz"):
+            cols[f"dv_{ax}_mps"] = self.dv[:, i]
+        return pd.DataFrame(cols)
+
     def slice(self, start=None, stop=None):
         """Samples whose end times lie in ``(start, stop]`` [s]."""
         lo = 0 if start is None else int(np.searchsorted(self.t, start, side="right"))
@@ -194,6 +213,29 @@ class NavSeries:
     def pos(self):
         """``(M, 3)`` array of ``[lat, lon, h]`` [rad, rad, m]."""
         return np.stack([self.lat, self.lon, self.h], -1)
+
+    def to_pandas(self) -> "pandas.DataFrame":
+        """The series as a table, one row per epoch, units in the column names (the columns
+        of a ``navigate`` run's ``solution.csv``): ``t_s``, ``lat_deg``, ``lon_deg``, ``h_m``
+        (ellipsoidal), ``vE_mps``, ``vN_mps``, ``vU_mps``, ``pitch_deg``, ``roll_deg`` and
+        ``heading_deg`` (clockwise from north, 0–360: ``−yaw``); with ``att_imu``, the IMU
+        frame's ``imu_pitch_deg``, ``imu_roll_deg``, ``imu_heading_deg`` too."""
+        import pandas as pd
+
+        from sinslab.core.attitude import yaw_to_heading
+
+        def heading(yaw: np.ndarray) -> np.ndarray:
+            return np.degrees(yaw_to_heading(yaw))
+
+        cols = {"t_s": self.t, "lat_deg": np.degrees(self.lat), "lon_deg": np.degrees(self.lon), "h_m": self.h,
+                "vE_mps": self.vel[:, 0], "vN_mps": self.vel[:, 1], "vU_mps": self.vel[:, 2],
+                "pitch_deg": np.degrees(self.att[:, 0]), "roll_deg": np.degrees(self.att[:, 1]),
+                "heading_deg": heading(self.att[:, 2])}
+        if self.att_imu is not None:
+            cols.update({"imu_pitch_deg": np.degrees(self.att_imu[:, 0]),
+                         "imu_roll_deg": np.degrees(self.att_imu[:, 1]),
+                         "imu_heading_deg": heading(self.att_imu[:, 2])})
+        return pd.DataFrame(cols)
 
     def at(self, idx):
         """A new series with the epochs selected by ``idx`` (slice, mask or indices)."""
