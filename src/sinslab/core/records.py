@@ -16,6 +16,7 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sinslab.core.errors import InputError
 
@@ -25,7 +26,7 @@ if TYPE_CHECKING:                       # to_pandas imports pandas when it is ca
 __all__ = ["Fixes", "ImuRecord", "NavSeries", "NavState", "check_times"]
 
 
-def check_times(t, name="time", rel_tol=1e-3, uniform=True) -> float:
+def check_times(t: ArrayLike, name: str = "time", rel_tol: float = 1e-3, uniform: bool = True) -> float:
     """Check a time column: finite, strictly increasing, (optionally) uniform.
 
     Returns the mean sampling interval [s]. Raises ValueError naming the first problem:
@@ -112,7 +113,7 @@ class ImuRecord:
         object.__setattr__(self, "dt", float(dt))
 
     @classmethod
-    def checked(cls, t, dtheta, dv, dt):
+    def checked(cls, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float) -> ImuRecord:
         """A record of arrays checked already (finite, increasing, uniform: a reader that
         checked them a block at a time), taken as they are — memory-mapped arrays stay
         mapped, nothing is copied or scanned again. ``dt`` the mean interval [s]."""
@@ -130,7 +131,7 @@ class ImuRecord:
         return self.t.size
 
     @classmethod
-    def from_rates(cls, t, gyro, accel, dt=None):
+    def from_rates(cls, t: ArrayLike, gyro: ArrayLike, accel: ArrayLike, dt: float | None = None) -> ImuRecord:
         """Build from rates ω [rad/s] and specific force f [m/s^2] sampled at ``t``.
 
         The increments are rate × dt (rectangular rule): exact for constant rates over a
@@ -155,7 +156,7 @@ class ImuRecord:
             cols[f"dv_{ax}_mps"] = self.dv[:, i]
         return pd.DataFrame(cols)
 
-    def slice(self, start=None, stop=None):
+    def slice(self, start: float | None = None, stop: float | None = None) -> ImuRecord:
         """Samples whose end times lie in ``(start, stop]`` [s]."""
         lo = 0 if start is None else int(np.searchsorted(self.t, start, side="right"))
         hi = self.t.size if stop is None else int(np.searchsorted(self.t, stop, side="right"))
@@ -210,7 +211,7 @@ class NavSeries:
         return self.t.size
 
     @property
-    def pos(self):
+    def pos(self) -> np.ndarray:
         """``(M, 3)`` array of ``[lat, lon, h]`` [rad, rad, m]."""
         return np.stack([self.lat, self.lon, self.h], -1)
 
@@ -237,7 +238,7 @@ class NavSeries:
                          "imu_heading_deg": heading(self.att_imu[:, 2])})
         return pd.DataFrame(cols)
 
-    def at(self, idx):
+    def at(self, idx: slice | int | np.ndarray) -> NavSeries:
         """A new series with the epochs selected by ``idx`` (slice, mask or indices)."""
         return NavSeries(self.t[idx], self.lat[idx], self.lon[idx], self.h[idx],
                          self.vel[idx], self.att[idx],
@@ -284,7 +285,7 @@ class NavState:
             object.__setattr__(self, name, a)
 
     @classmethod
-    def from_series(cls, s: "NavSeries", k: int = 0, imu_frame: bool = True):
+    def from_series(cls, s: NavSeries, k: int = 0, imu_frame: bool = True) -> NavState:
         """Epoch ``k`` of a series; with ``imu_frame`` the IMU attitude is taken when present."""
         att = s.att_imu[k] if (imu_frame and s.att_imu is not None) else s.att[k]
         return cls(s.lat[k], s.lon[k], s.h[k], s.vel[k], att, s.t[k])
@@ -376,7 +377,7 @@ class Fixes:
     def __len__(self):
         return self.t.size
 
-    def with_velocity_lag(self, lag):
+    def with_velocity_lag(self, lag: float) -> Fixes:
         """The same fixes with velocities that describe the motion ``lag`` [s] *before* their
         stamps re-timed to the stamps: ``vel(t) := vel_recorded(t + lag)`` by linear
         interpolation over the record (receivers that report a Doppler velocity averaged
@@ -398,9 +399,9 @@ class Fixes:
         vel = np.stack([np.interp(self.t + lag, self.t, self.vel[:, i]) for i in range(3)], -1)
         return dataclasses.replace(self, vel=vel)
 
-    def select(self, mask):
+    def select(self, mask: slice | np.ndarray) -> Fixes:
         """The fixes selected by ``mask`` (boolean mask, slice or indices)."""
         m = np.asarray(mask) if not isinstance(mask, slice) else mask
         opt = lambda a: None if a is None else a[m]      # noqa: E731
         return Fixes(self.t[m], self.lat[m], self.lon[m], self.h[m], self.sigma[m], opt(self.vel),
-                     opt(self.sigma_vel), self.quality[m], self.path, self.t_arrive[m], opt(self.err))
+                     opt(self.sigma_vel), opt(self.quality), self.path, opt(self.t_arrive), opt(self.err))
