@@ -235,6 +235,16 @@ def test_demo_script_parts(tmp_path):
     assert mod._cached_kernels(tmp_path) == 1
 
 
+def test_linear_batch_script(tmp_path):
+    out = tmp_path / "linear_batch.json"
+    res = _load("linear_batch").main(["--repeat", "1", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    for case in ("small", "ins"):
+        assert saved[case]["task_cpu_s"] > 0 and saved[case]["numpy_cpu_s"] > 0
+        # the task and its textbook numpy form are the same filter: they agree to rounding
+        assert max(res[case]["max_rel_diff"].values()) < 1e-6
+
+
 def test_graph_script_parts():
     """benchmarks/graph.py: a free integration of its frame section (10 s) and the urban
     drive's fixes (jumps, biased stretches) run on the current API."""

@@ -569,6 +569,7 @@ COMMAND_MODULES = (
     "sinslab.app.commands.allan",
     "sinslab.app.commands.align",
     "sinslab.app.commands.transfer_align",
+    "sinslab.app.commands.export",
 )
 _BROKEN_COMMANDS: dict[str, str] = {}
 
@@ -587,6 +588,7 @@ EXAMPLES = {
     "align": "sinslab align --imu psins-lasergyro/lasergyro.imu --window 600:1200 --out runs/align",
     "transfer-align": ("sinslab transfer-align --slave psins-transfer/transfer_align_fog_mems.mat "
                        "--master psins-transfer/transfer_align_fog_mems.mat --method kain --window 0:60"),
+    "export": "sinslab export runs/drive --to kml --out drive.kml",
 }
 
 

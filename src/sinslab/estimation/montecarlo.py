@@ -273,7 +273,7 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                     while futs:
                         for fut in watch.done(list(futs)):
                             first, count = futs.pop(fut)
-                            payload, elapsed = fut.result()
+                            payload, elapsed = watch.result(fut)
                             fut.release()
                             finished(first, count, payload)
                             if pending:
@@ -333,6 +333,17 @@ class _Watch:
             except TimeoutError:
                 pass
             self.check()
+
+    def result(self, fut):
+        """``fut``'s result, waited for as :meth:`done` waits: a future the scheduler
+        reports as lost (its worker left between computing and handing it over) is
+        recomputed, and with no worker left to do it that is a :class:`ClusterError`,
+        not a wait without end."""
+        while True:
+            try:
+                return fut.result(timeout=WATCH_POLL_S)
+            except TimeoutError:
+                self.check()
 
     def workers(self) -> int:
         try:
@@ -1098,16 +1109,19 @@ def summarize_sums(n_runs, s1, s2, sigma=None):
 
 
 # ----------------------------------------------------------------------------------------
-# a vectorised linear-system campaign function
+# a linear-system campaign function
 # ----------------------------------------------------------------------------------------
 def linear_batch(seeds, Phi, Q, H, R, P0, n_steps, mask=None, x0_bias=None):
-    """Simulate and filter a linear system for a batch of runs, vectorised across runs.
+    """Simulate and filter a linear system for a batch of runs.
 
     Truth: ``x_0 ~ N(0, P0)`` (plus ``x0_bias``), ``x_{k+1} = Phi x_k + w_k``,
     ``w_k ~ N(0, Q)``; measurement ``z_k = H x_{k+1} + v_k``, ``v_k ~ N(0, R)`` where
-    ``mask[k]``. The filter starts from ``x̂_0 = 0``, ``P0``. Because the gains of a
-    linear filter do not depend on the data, the covariance is propagated once for the
-    batch and the estimates of all runs are updated together.
+    ``mask[k]``, vectorised across runs. The filter starts from ``x̂_0 = 0``, ``P0``.
+    Because the gains of a linear filter do not depend on the data, the covariance is
+    propagated once for the batch (:func:`sinslab.estimation.linear.propagate_covariance`
+    with ``keep_gain``) and every run is filtered with those gains in one compiled loop
+    (:func:`sinslab.estimation.linear.fixed_gain_runs`): the arithmetic of
+    :mod:`sinslab.estimation.kernels`, as in every filter of the package.
 
     Each run draws its numbers from its own ``default_rng(seed)`` in a fixed order, so
     the outputs of a run do not depend on the batch it was in.
@@ -1131,26 +1145,15 @@ def linear_batch(seeds, Phi, Q, H, R, P0, n_steps, mask=None, x0_bias=None):
         ``err`` (B, K+1, n) estimate − truth; ``sigma`` (B, K+1, n) filter σ (identical
         rows); ``nees`` (B, K+1); ``nis`` (B, K) (0 where not measured).
     """
+    from sinslab.estimation import linear
+
     Phi, Q, H, R, P0 = (np.asarray(a, dtype=float) for a in (Phi, Q, H, R, P0))
     n, m, K, B = Phi.shape[0], H.shape[0], int(n_steps), len(seeds)
     mask = np.ones(K, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
-    # gains and covariances (shared by the batch)
-    P = P0.copy()
-    Ps = np.empty((K + 1, n, n))
-    Ps[0] = P
-    gains = np.zeros((K, n, m))
-    Sinv = np.zeros((K, m, m))
-    for k in range(K):
-        P = Phi @ P @ Phi.T + Q
-        if mask[k]:
-            S = H @ P @ H.T + R
-            Si = np.linalg.inv(S)
-            Kg = P @ H.T @ Si
-            A = np.eye(n) - Kg @ H
-            P = A @ P @ A.T + Kg @ R @ Kg.T
-            gains[k], Sinv[k] = Kg, Si
-        P = 0.5 * (P + P.T)
-        Ps[k + 1] = P
+    # gains and covariances (shared by the batch), stepped with the estimation kernels
+    cov = linear.propagate_covariance(P0, Phi, Q, H, R, n_steps=K, mask=mask, save_at=np.arange(K + 1),
+                                      keep_gain=True)
+    Ps = cov.P_saved
     # per-run random draws, in a fixed order per run
     Lp = np.linalg.cholesky(P0) if np.all(np.linalg.eigvalsh(P0) > 0) else None
     x0 = np.empty((B, n))
@@ -1163,20 +1166,20 @@ def linear_batch(seeds, Phi, Q, H, R, P0, n_steps, mask=None, x0_bias=None):
         V[b] = rng.multivariate_normal(np.zeros(m), R, size=K)
     if x0_bias is not None:
         x0 += np.asarray(x0_bias, dtype=float)
-    xt = x0
-    xe = np.zeros((B, n))
-    err = np.empty((B, K + 1, n))
-    nis = np.zeros((B, K))
-    err[:, 0] = xe - xt
+    # the truth and its measurements
+    xt = np.empty((B, K + 1, n))
+    xt[:, 0] = x0
+    z = np.zeros((B, K, m))
     for k in range(K):
-        xt = xt @ Phi.T + W[:, k]
-        xe = xe @ Phi.T
+        xt[:, k + 1] = xt[:, k] @ Phi.T + W[:, k]
         if mask[k]:
-            z = xt @ H.T + V[:, k]
-            nu = z - xe @ H.T
-            xe = xe + nu @ gains[k].T
-            nis[:, k] = np.einsum("bi,ij,bj->b", nu, Sinv[k], nu)
-        err[:, k + 1] = xe - xt
+            z[:, k] = xt[:, k + 1] @ H.T + V[:, k]
+    # the filter of every run from x̂_0 = 0 with the common gains
+    xe, nu = linear.fixed_gain_runs(np.zeros((B, n)), Phi, H, cov.gain, z, mask=mask)
+    err = xe - xt
+    nis = np.zeros((B, K))
+    for k in np.flatnonzero(mask):
+        nis[:, k] = np.einsum("bi,ij,bj->b", nu[:, k], np.linalg.inv(cov.S[k]), nu[:, k])
     Pinv = np.linalg.pinv(Ps, hermitian=True)
     nees = np.einsum("bti,tij,btj->bt", err, Pinv, err)
     sigma = np.broadcast_to(np.sqrt(np.diagonal(Ps, axis1=1, axis2=2)), (B, K + 1, n)).copy()
