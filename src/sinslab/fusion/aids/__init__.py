@@ -20,6 +20,7 @@ AIDS = (
     "sinslab.fusion.aids.lever:AntennaLever",
     "sinslab.fusion.aids.vehicle:Nhc",
     "sinslab.fusion.aids.odometer:WheelOdometer",
+    "sinslab.fusion.aids.magnetometer:Magnetometer",
 )
 
 _TYPES: dict = {}
