@@ -21,6 +21,7 @@ AIDS = (
     "sinslab.fusion.aids.vehicle:Nhc",
     "sinslab.fusion.aids.odometer:WheelOdometer",
     "sinslab.fusion.aids.magnetometer:Magnetometer",
+    "sinslab.fusion.aids.barometer:BarometricAltimeter",
 )
 
 _TYPES: dict = {}
