@@ -66,7 +66,7 @@ _DATA_SUFFIX = (".imu", ".csv", ".pos", ".mat", ".parquet", ".ubx", ".zip", ".gz
 #: unit, a small aircraft's flight) that docs/recorded-data.md shows for a user who has it;
 #: they are not in the data folder, so their commands are not run here
 EXTERNAL = {"n380-imu-nav.csv.zip", "n380-gnss-pvt.csv.zip", "accel_data.txt.zip", "gyro_data.txt.zip",
-            "gps_traj_data.txt.zip", "gps_velocity_data.txt.zip",
+            "gps_traj_data.txt.zip", "gps_velocity_data.txt.zip", "mag_data.txt.zip", "baroalt_data.txt.zip",
             # other tools' own example data (NaveGo's Turin drive, KF-GINS's demo data set) and a
             # robot's bag: docs/recorded-data.md shows the one command a user of those files runs
             "ekinox_imu.mat", "ekinox_gnss.mat", "Leador-A15.txt", "GNSS-RTK.txt", "drive.bag"}
@@ -514,6 +514,27 @@ QUOTED = [
       "frame.exact_graph_origin_att_max_deg"], 0.0),
     ("graph.md", "recorded 2026-12-05 on the shared 2-core machine at load average 12.8–19.6", "bench graph",
      ["date", "cpus", "load_min", "load_max"], 0.0),
+    # docs/aiding.md, the UAV flights' outages (benchmarks/uav_aiding.py's record, BENCH)
+    ("aiding.md", '| THOR-75, 3 × 30 s | 1.71° (3.36°) / 1.46° (3.06°) | 2.36° (3.66°) / 2.06° (3.35°) | 10.7 m (18.2 m) / 1.3 m (3.6 m) | 10.7 m (18.2 m) / 3.7 m (4.3 m) |',
+     "bench uav_aiding", ['=75', 'thor75.s30.none.n_outages', '=30', 'thor75.s30.none.heading_end_median_deg', 'thor75.s30.none.heading_end_max_deg', 'thor75.s30.magnetometer.heading_end_median_deg', 'thor75.s30.magnetometer.heading_end_max_deg', 'thor75.s30.none.heading_through_median_deg', 'thor75.s30.none.heading_through_max_deg', 'thor75.s30.magnetometer.heading_through_median_deg', 'thor75.s30.magnetometer.heading_through_max_deg', 'thor75.s30.none.height_end_median_m', 'thor75.s30.none.height_end_max_m', 'thor75.s30.barometer.height_end_median_m', 'thor75.s30.barometer.height_end_max_m', 'thor75.s30.none.height_through_median_m', 'thor75.s30.none.height_through_max_m', 'thor75.s30.barometer.height_through_median_m', 'thor75.s30.barometer.height_through_max_m'], 0.0),
+    ("aiding.md", '| THOR-75, 2 × 60 s | 2.45° (3.09°) / 2.43° (2.75°) | 2.92° (3.52°) / 2.87° (3.05°) | 41.1 m (61.8 m) / 4.8 m (5.2 m) | 41.3 m (61.8 m) / 7.3 m (9.0 m) |',
+     "bench uav_aiding", ['=75', 'thor75.s60.none.n_outages', '=60', 'thor75.s60.none.heading_end_median_deg', 'thor75.s60.none.heading_end_max_deg', 'thor75.s60.magnetometer.heading_end_median_deg', 'thor75.s60.magnetometer.heading_end_max_deg', 'thor75.s60.none.heading_through_median_deg', 'thor75.s60.none.heading_through_max_deg', 'thor75.s60.magnetometer.heading_through_median_deg', 'thor75.s60.magnetometer.heading_through_max_deg', 'thor75.s60.none.height_end_median_m', 'thor75.s60.none.height_end_max_m', 'thor75.s60.barometer.height_end_median_m', 'thor75.s60.barometer.height_end_max_m', 'thor75.s60.none.height_through_median_m', 'thor75.s60.none.height_through_max_m', 'thor75.s60.barometer.height_through_median_m', 'thor75.s60.barometer.height_through_max_m'], 0.0),
+    ("aiding.md", '| THOR-60, 5 × 30 s | 0.40° (3.49°) / 0.38° (3.23°) | 3.71° (5.07°) / 3.46° (4.82°) | 10.8 m (17.3 m) / 2.1 m (6.7 m) | 11.0 m (17.7 m) / 4.5 m (9.1 m) |',
+     "bench uav_aiding", ['=60', 'thor60.s30.none.n_outages', '=30', 'thor60.s30.none.heading_end_median_deg', 'thor60.s30.none.heading_end_max_deg', 'thor60.s30.magnetometer.heading_end_median_deg', 'thor60.s30.magnetometer.heading_end_max_deg', 'thor60.s30.none.heading_through_median_deg', 'thor60.s30.none.heading_through_max_deg', 'thor60.s30.magnetometer.heading_through_median_deg', 'thor60.s30.magnetometer.heading_through_max_deg', 'thor60.s30.none.height_end_median_m', 'thor60.s30.none.height_end_max_m', 'thor60.s30.barometer.height_end_median_m', 'thor60.s30.barometer.height_end_max_m', 'thor60.s30.none.height_through_median_m', 'thor60.s30.none.height_through_max_m', 'thor60.s30.barometer.height_through_median_m', 'thor60.s30.barometer.height_through_max_m'], 0.0),
+    ("aiding.md", '| THOR-60, 4 × 60 s | 1.27° (2.92°) / 1.18° (2.80°) | 2.60° (5.07°) / 2.51° (4.82°) | 39.0 m (56.5 m) / 4.6 m (6.4 m) | 39.0 m (56.5 m) / 6.4 m (7.6 m) |',
+     "bench uav_aiding", ['=60', 'thor60.s60.none.n_outages', '=60', 'thor60.s60.none.heading_end_median_deg', 'thor60.s60.none.heading_end_max_deg', 'thor60.s60.magnetometer.heading_end_median_deg', 'thor60.s60.magnetometer.heading_end_max_deg', 'thor60.s60.none.heading_through_median_deg', 'thor60.s60.none.heading_through_max_deg', 'thor60.s60.magnetometer.heading_through_median_deg', 'thor60.s60.magnetometer.heading_through_max_deg', 'thor60.s60.none.height_end_median_m', 'thor60.s60.none.height_end_max_m', 'thor60.s60.barometer.height_end_median_m', 'thor60.s60.barometer.height_end_max_m', 'thor60.s60.none.height_through_median_m', 'thor60.s60.none.height_through_max_m', 'thor60.s60.barometer.height_through_median_m', 'thor60.s60.barometer.height_through_max_m'], 0.0),
+    ("aiding.md", "its last run is in `docs/benchmarks.json` (2026-12-05; the load average of 8.5–11.1 changes "
+     "no figure", "bench uav_aiding", ["date", "load_min", "load_max"], 0.0),
+    ("aiding.md", "ends a 60 s outage 39.0–41.1 m off the unit's height (median per flight), the barometer 4.6–4.8 m",
+     "bench uav_aiding", ["=60", "min(thor75.s60.none.height_end_median_m,thor60.s60.none.height_end_median_m)",
+                          "max(thor75.s60.none.height_end_median_m,thor60.s60.none.height_end_median_m)",
+                          "min(thor75.s60.barometer.height_end_median_m,thor60.s60.barometer.height_end_median_m)",
+                          "max(thor75.s60.barometer.height_end_median_m,thor60.s60.barometer.height_end_median_m)"], 0.0),
+    ("aiding.md", "solutions' disagreement with the fixes (0.72–1.18° median)", "bench uav_aiding",
+     ["min(thor75.s30.none.heading_with_fixes_median_deg,thor75.s60.none.heading_with_fixes_median_deg,"
+      "thor60.s30.none.heading_with_fixes_median_deg,thor60.s60.none.heading_with_fixes_median_deg)",
+      "max(thor75.s30.none.heading_with_fixes_median_deg,thor75.s60.none.heading_with_fixes_median_deg,"
+      "thor60.s30.none.heading_with_fixes_median_deg,thor60.s60.none.heading_with_fixes_median_deg)"], 0.0),
     # docs/methods/smoother.md, benchmarks/smoother.py's figures (the stored record of its last run, BENCH)
     ("smoother.md", "| figure (100 runs) | measured |", "bench smoother", ["monte_carlo.runs"], 0.0),
     ("smoother.md", "| smoothed RMS error / smoothed σ, 15 states × 4 epochs (50 s with fixes, 130 s outage middle, "
@@ -1105,7 +1126,8 @@ def _run_doc(doc: Path, tmp_path, monkeypatch, commands=None):
         done.add(key)
         missing = [w for w in argv if w.lower().endswith(_DATA_SUFFIX) and not Path(w).exists()]
         if missing:
-            assert all(Path(w).name in ILLUSTRATIONS | EXTERNAL for w in missing), (
+            # a file may be the value of a key (--set magnetometer.file=mag_data.txt.zip)
+            assert all(Path(w.rpartition("=")[2]).name in ILLUSTRATIONS | EXTERNAL for w in missing), (
                 f"{doc.name}: `{cmd}` names {missing}: no such file in the repository or the data folder")
             continue
         before = set(Path("runs").glob("*")) if Path("runs").is_dir() else set()
