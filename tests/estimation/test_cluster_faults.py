@@ -1,6 +1,7 @@
 """Dask faults end in one line, never in a wait without end (the battery's "hang" class):
 a live scheduler without workers, a cluster whose every worker is gone. Each is bounded
 here by a short :data:`~sinslab.estimation.montecarlo.NO_WORKERS_S`."""
+import re
 import sys
 import time
 
@@ -77,8 +78,11 @@ def test_every_worker_gone_says_what_finished_and_where_it_is_kept(short_waits, 
     msg = str(e.value)
     assert "\n" not in msg
     assert "every worker of the local Dask cluster is gone" in msg, msg
-    assert f"2 of 6 runs had finished; they are kept in {tmp_path / 'mc'}" in msg, msg
-    # the rerun on a working cluster computes only the 4 others, with the same numbers
+    # the worker may leave before the scheduler has collected the last batch it
+    # computed: what the message counts is what the store kept, at most the two batches
+    m = re.search(r"(\d) of 6 runs had finished; they are kept in (\S+), where", msg)
+    assert m and 1 <= int(m[1]) <= _KILL_AFTER and m[2] == str(tmp_path / "mc"), msg
+    # the rerun on a working cluster computes only the others, with the same numbers
     ref = mc.run_campaign(slow_draws, 6, 0, batch=1, scheduler="sync", progress=False)
     again = mc.run_campaign(slow_draws, 6, 0, batch=1, scheduler="sync", progress=False,
                             store=tmp_path / "mc", store_key="k")

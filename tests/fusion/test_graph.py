@@ -122,3 +122,31 @@ def test_estimator_names_windows_and_models_refused(drive, monkeypatch):
     monkeypatch.setitem(sys.modules, "gtsam", None)
     with pytest.raises(InputError, match=r"sinslab\[graph\]"):
         graph_navigate(drive["d"]["imu"], drive["d"]["init"], drive["fx"], drive["P0"], drive["m"])
+
+
+def test_lever_arm_velocity_factor_jacobian():
+    """The velocity fix with a lever arm (``v + R (ω × l)`` against the fix) has the
+    Jacobian of its own error: central differences on the pose's and velocity's tangent
+    spaces (GTSAM's retract) against its linearisation."""
+    from sinslab.fusion.graph.build import _velocity_factor
+    rng = np.random.default_rng(4)
+    X, V = gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.V
+    wl = np.cross([0.1, -0.3, 0.5], [0.4, 1.2, -0.8])
+    f = _velocity_factor(gtsam, X(0), V(0), rng.normal(size=3), wl, gtsam.noiseModel.Unit.Create(3))
+    pose = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3))
+    vel = rng.normal(size=3)
+
+    def err(dx, dv):
+        v = gtsam.Values()
+        v.insert(X(0), pose.retract(dx))
+        v.insert(V(0), vel + dv)
+        return f.unwhitenedError(v)
+
+    v0 = gtsam.Values()
+    v0.insert(X(0), pose)
+    v0.insert(V(0), vel)
+    A = f.linearize(v0).jacobian()[0]
+    h = 1e-6
+    num = np.column_stack([(err(h * e, np.zeros(3)) - err(-h * e, np.zeros(3))) / (2 * h) for e in np.eye(6)]
+                          + [(err(np.zeros(6), h * e) - err(np.zeros(6), -h * e)) / (2 * h) for e in np.eye(3)])
+    assert np.allclose(A, num, atol=1e-7), np.abs(A - num).max()

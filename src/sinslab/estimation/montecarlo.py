@@ -273,7 +273,7 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                     while futs:
                         for fut in watch.done(list(futs)):
                             first, count = futs.pop(fut)
-                            payload, elapsed = fut.result()
+                            payload, elapsed = watch.result(fut)
                             fut.release()
                             finished(first, count, payload)
                             if pending:
@@ -333,6 +333,17 @@ class _Watch:
             except TimeoutError:
                 pass
             self.check()
+
+    def result(self, fut):
+        """``fut``'s result, waited for as :meth:`done` waits: a future the scheduler
+        reports as lost (its worker left between computing and handing it over) is
+        recomputed, and with no worker left to do it that is a :class:`ClusterError`,
+        not a wait without end."""
+        while True:
+            try:
+                return fut.result(timeout=WATCH_POLL_S)
+            except TimeoutError:
+                self.check()
 
     def workers(self) -> int:
         try:

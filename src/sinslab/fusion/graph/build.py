@@ -144,15 +144,18 @@ def integrate(gtsam, params, seg, ta, tb, bias, marks=(), on_mark=None):
 
 def _velocity_factor(gtsam, kx, kv, v_fix, wl, noise):
     """Antenna velocity ``v + R (ω × l)`` against a fix (w axes): ``wl = ω × l`` (body)."""
-    skew = A.skew(wl)
+    skew = -A.skew(wl)
+    eye = np.eye(3)
 
     def err(this, values, H):
+        # GTSAM calls this back at every linearisation: no temporaries beyond the needed
         R = values.atPose3(kx).rotation().matrix()
-        v = values.atVector(kv)
         if H is not None:
-            H[0] = np.hstack([-R @ skew, np.zeros((3, 3))])
-            H[1] = np.eye(3)
-        return v + R @ wl - v_fix
+            J = np.zeros((3, 6))
+            np.matmul(R, skew, out=J[:, :3])
+            H[0] = J
+            H[1] = eye
+        return values.atVector(kv) + R @ wl - v_fix
 
     return gtsam.CustomFactor(noise, [kx, kv], err)
 
