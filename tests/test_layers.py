@@ -19,6 +19,8 @@ ALLOWED = {
     "app": {"core", "data", "sim", "nav", "estimation", "fusion", "methods"},
     "experiments": {"core", "data", "sim", "nav", "estimation", "fusion", "methods", "app"},
     "cli": {"core", "data", "sim", "nav", "estimation", "fusion", "methods", "app", "experiments"},
+    # sinslab compile: runs the commands of the CLI on simulated inputs
+    "precompile": {"core", "data", "sim", "nav", "estimation", "fusion", "methods", "app", "experiments", "cli"},
 }
 #: third-party packages the core may use (plus the standard library)
 CORE_THIRD_PARTY = {"numpy", "scipy", "numba", "rich"}
