@@ -74,8 +74,10 @@ def _run(cmd, cwd, env, log):
         r = subprocess.run(cmd, cwd=cwd, env=env, stdout=fh, stderr=subprocess.STDOUT)
     c1 = os.times()
     if r.returncode:
-        sys.exit(f"cold_start: error: {' '.join(map(str, cmd))} failed (exit {r.returncode}); see {log}:\n"
-                 + Path(log).read_text(errors="replace")[-3000:])
+        text = Path(log).read_text(errors="replace")
+        said = [ln for ln in text.splitlines() if "sinslab: error" in ln or "Error:" in ln]
+        sys.exit(f"cold_start: error: {' '.join(map(str, cmd))} failed (exit {r.returncode}):\n"
+                 + "\n".join(said[:20]) + "\n" + text[-2000:])
     return {"wall_s": round(time.perf_counter() - w0, 2),
             "cpu_s": round((c1.children_user - c0.children_user) + (c1.children_system - c0.children_system), 2)}
 
