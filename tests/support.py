@@ -83,7 +83,7 @@ def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
 def fd_steps(layout):
     """Finite-difference step per state: 1e-6 for angles and sensor errors, 1e-4 m/s of
     velocity, 1e-8 rad / 1e-3 m of position, 1e-4 for the states a measurement owns
-    (lever arms [m], odometer scale [-])."""
+    (lever arms [m], odometer scale [-]; 1e-10 T for a magnetometer's hard iron)."""
     s = np.full(layout.n, 1e-6)
     for b in layout.blocks:
         sl = layout.slice(b.name)
@@ -93,7 +93,9 @@ def fd_steps(layout):
             s[sl.start:sl.start + 2] = 1e-8
             s[sl.start + 2:sl.stop] = 1e-3
         elif b.name != "phi" and b.feeds is None:
-            s[sl] = 1e-4
+            # 1e-4 of the block's display unit for a field (0.1 nT: a field step of 1e-4 T
+            # would be twice the Earth's), 1e-4 SI for the others
+            s[sl] = 1e-4 * (1e-6 if "uT" in b.units else 1.0)
     return s
 
 
@@ -194,3 +196,39 @@ def assert_doc_quotes(doc, text, got, tol=0.0):
     assert len(want) == len(got), (text, got)
     bad = [(w, g) for (w, r), g, e in zip(want, got, tols) if abs(w - g) > r + e + 1e-12]
     assert not bad, f"{doc}: {text!r} against the measurement: {got} (tolerance {tol})"
+
+
+# ------------------------------------------------------------------ carrier phase, RTK
+def phase_drive(seed, *, canyon=(), code_sigma=0.3, phase=None, systems=2, base_offset=(2000.0, 3000.0, 10.0),
+                dt=0.01, duration=None):
+    """A simulated car drive with raw GNSS at the antenna and a base station
+    (:func:`sinslab.experiments.rtk_outages.simulate_drive`: accelerate and turn near
+    35.3° N with an automotive MEMS IMU; 1 Hz GPS (+ Galileo with ``systems=2``) on two
+    carriers; the initial state drawn from its σ), ``duration`` [s] (default 170 s)."""
+    from sinslab.experiments.rtk_outages import simulate_drive
+    return simulate_drive(seed, duration=170.0 if duration is None else duration, canyon=canyon,
+                          systems="GE"[:systems], code_sigma=code_sigma, phase=phase, base_offset=base_offset, dt=dt)
+
+
+def true_double_differences(sim):
+    """``f(epoch, satellite, reference, slot)``: the true double-difference integer of a
+    simulated rover and base (sinslab.sim.gnss with a base station)."""
+    f, b = sim.fields, sim.base.fields
+
+    def table(fl, amb):
+        return {(int(e), s): a for e, s, a in zip(fl["epoch"], fl["sat"], amb)}
+    tr_, tb = table(f, sim.ambiguity), table(b, sim.base.ambiguity)
+    return lambda e, s, q, k: int((tr_[e, s][k] - tb[e, s][k]) - (tr_[e, q][k] - tb[e, q][k]))
+
+
+def simulated_slips(sim, flagged):
+    """{(epoch, satellite, slot)} of the signals of a simulated receiver that slipped
+    between two consecutive epochs of their satellite, flagged by the LLI or not."""
+    f = sim.fields
+    out = set()
+    for sat in np.unique(f["sat"]):
+        m = np.flatnonzero(f["sat"] == sat)
+        nxt = m[1:][np.diff(f["epoch"][m]) == 1]
+        hit = sim.slip[nxt] & ((f["signals"].lli[nxt] & 1) == flagged)
+        out |= {(int(f["epoch"][nxt[i]]), sat, int(k)) for i, k in zip(*np.nonzero(hit))}
+    return out

@@ -181,16 +181,22 @@ def _print_summary(summary: dict, out: Path) -> None:
 
     claims = summary["claims"]
     n = sum(c["passed"] for c in claims)
+    robust = summary.get("robustness") or {}
+    labels = {k: v.get("label", "") for k, v in (robust.get("claims") or {}).items() if v.get("label") != "not varied"}
     for c in claims:
         measured, expected = claim_texts(c)
-        o = f" ({c['origin']})" if c.get("origin") else ""
+        tags = [t for t in (c.get("origin"), labels.get(c["id"])) if t]
+        o = f" ({'; '.join(tags)})" if tags else ""
         typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}{o}: {measured} (expected "
                    f"{expected}) — {c['statement']}")
     from sinslab.app.claims import tally
 
+    swept = ""
+    if robust.get("swept") and robust.get("cpu_s") is not None:
+        swept = f", robustness sweep {robust['wall_s']:.3g} s"
     typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed"
-               + (f" ({tally(claims)})" if any(c.get("origin") for c in claims) else "") + ", "
-               f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s -> {out / 'report.html'}")
+               + (f" ({tally(claims, robust)})" if any(c.get("origin") for c in claims) else "") + ", "
+               f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s{swept} -> {out / 'report.html'}")
 
 
 @app.command()
@@ -205,6 +211,8 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
         workers: Optional[int] = typer.Option(None, "--workers", min=0, help="worker processes of the local Dask cluster for Monte Carlo campaigns (0: run them in this process)"),
         quick: bool = typer.Option(False, "--quick", help="shortened run for tests and demos"),
         strict: bool = typer.Option(False, "--strict", help="exit status 1 if any claim fails"),
+        robustness: bool = typer.Option(False, "--robustness", help="also re-run the experiment under the physics "
+                                        "alternatives of its claims and label each claim robust or what it depends on"),
         force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
     """Run an experiment; write config.toml, summary.json, series, figures, report.html."""
     import contextlib
@@ -240,7 +248,8 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
             RunDir(out, exp.name, command="run", force=force).check()
         try:
             with cluster as sched:
-                summary = execute(exp, cfg, out, quick=quick, scheduler=sched, log=_log, force=force)
+                summary = execute(exp, cfg, out, quick=quick, scheduler=sched, log=_log, force=force,
+                                  robustness="full" if robustness else None)
         except InputError as e:                 # absurd values found while computing
             given = [f"--set {x}" for x in (set_ or [])] + ([f"--config {config}"] if config else [])
             raise CliError(f"{exp.name}: {error_line(e)}"
@@ -370,7 +379,8 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                     try:
                         summary = execute(job.exp, job.cfg, out / job.label, quick=quick, log=_log,
                                           scheduler=shared if job.campaign else None,
-                                          variant=(job.label, list(job.sets)) if job.sets else None)
+                                          variant=(job.label, list(job.sets)) if job.sets else None,
+                                          robustness="demo")
                     except (KeyboardInterrupt, *USER_ERRORS):
                         raise
                     except Exception as e:                  # one broken experiment: go on
@@ -490,7 +500,7 @@ def _run_on_worker(name: str, cfg, out: str, quick: bool, variant, after=None) -
 
     log(_running(name, variant[0] if variant else name, variant[1] if variant else (), quick))
     try:
-        return ("done", execute(get(name), cfg, out, quick=quick, log=log, variant=variant))
+        return ("done", execute(get(name), cfg, out, quick=quick, log=log, variant=variant, robustness="demo"))
     except USER_ERRORS as e:
         abort_all()
         return ("user", e)

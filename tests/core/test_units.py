@@ -151,3 +151,16 @@ def test_vec3_forms_and_errors():
                        (None, {}, "b is missing")]:
         with pytest.raises(ValueError, match=msg):
             u.vec3(v, "b", **kw)
+
+
+def test_magnetic_field_units():
+    """A magnetometer's units: tesla and gauss (1 G = 1e-4 T) and their parts, a kind of
+    their own (a field is never a length or an acceleration, "G" is not "g")."""
+    from sinslab.core import units as u
+    assert u.parse("0.55 G", "magnetic_field") == pytest.approx(55e-6)
+    assert u.parse("55 µT", "magnetic_field") == pytest.approx(55e-6)
+    assert u.parse("55000 nT", "magnetic_field") == pytest.approx(55e-6)
+    assert u.parse("550 mG", "magnetic_field") == pytest.approx(55e-6)
+    with pytest.raises(u.UnitError, match="magnetic_field, expected acceleration"):
+        u.parse("1 G", "acceleration")
+    assert u.parse("1 g", "acceleration") == u.g0

@@ -50,9 +50,58 @@ def test_doppler_is_minus_the_pseudorange_rate(walk):
 
 
 @needs_walk
+def test_phase_rate_is_minus_the_doppler(walk):
+    """Carrier phase of every slot: its rate over 0.25 s is minus the Doppler (RINEX sign)
+    to 0.2 Hz in the median (the Doppler is ~±3 kHz: a wrong sign
+    would miss by twice it), code minus carrier changes by centimetres between epochs
+    without a slip flag (ionosphere divergence is mm/s), and 85–95 % of the pseudoranges
+    have a phase beside them."""
+    from sinslab.core.gnss import C_LIGHT
+    g = walk
+    S = g.signals
+    share = np.isfinite(S.phase).sum() / np.isfinite(S.pseudorange).sum()
+    assert 0.85 < share < 0.95
+    assert set(S.code[:, 1][S.code[:, 1] != ""]) == {"2X"} and "5X" in set(S.code[:, 2])
+    for s in ("G10", "E07", "C21"):
+        m = g.sat == s
+        for j in range(3):
+            L, D, f = S.phase[m, j], S.doppler[m, j], S.freq[m, j]
+            ok = (np.diff(g.epoch[m]) == 1) & np.isfinite(np.diff(L)) & ~S.slip[m, j][1:]
+            if ok.sum() < 50:
+                continue
+            assert abs(np.median((np.diff(L) / 0.25 + 0.5 * (D[1:] + D[:-1]))[ok])) < 0.2, (s, j)
+            cmc = S.pseudorange[m, j] - L * C_LIGHT / f
+            assert np.median(np.abs(np.diff(cmc)[ok])) < 0.1, (s, j)
+
+
+def test_static_pair_signals():
+    """The static pair's RINEX 3.04 files: rover and base carry the same carriers with
+    other tracking codes (rover L2W/E5bQ/E5aQ, base L2W/E7X/E5X), every slot with phase;
+    the rover flags no loss of lock, the base flags every signal at 12:00:18 (its
+    geometry-free combination continuous there: a receiver event, not slips) and G02 at
+    12:00:39–40, where its code and phase jump by tens of metres and back."""
+    from sinslab.data.gnss import read_gnss_raw
+    d = Path(__file__).resolve().parents[3] / "shared" / "data" / "cssrlib-static-rtk"
+    if not d.exists():
+        pytest.skip("cssrlib-static-rtk not available")
+    rov = read_gnss_raw(d / "SEPT078M1.21O", d / "SEPT078M.21P")
+    base = read_gnss_raw(d / "3034078M1.21O", d / "SEPT078M.21P")
+    assert rov.epoch_t.size == base.epoch_t.size == 60 and np.allclose(rov.epoch_t, base.epoch_t)
+    gal = rov.sat.astype("U1") == "E"
+    assert set(map(tuple, rov.signals.code[gal])) == {("1C", "7Q", "5Q")}
+    assert set(map(tuple, base.signals.code[base.sat.astype("U1") == "E"])) == {("1X", "7X", "5X")}
+    has = rov.signals.code != ""
+    assert np.sum(~np.isfinite(rov.signals.phase[has])) == 2
+    assert not rov.signals.slip.any()
+    flagged = {(int(e), s) for e, s in zip(base.epoch[base.signals.slip.any(1)], base.sat[base.signals.slip.any(1)])}
+    assert flagged == {(18, s) for s in base.sat[base.epoch == 18]} | {(39, "G02"), (40, "G02")}
+
+
+@needs_walk
 def test_rinex_round_trip(tmp_path, walk):
     """The log converted to RINEX 3.04 observations + navigation by RTKLIB's convrnx and
-    read back: the same epochs, pseudoranges to the file's 1 mm, the same satellite
+    read back: the same epochs, pseudoranges to the file's 1 mm, phases to its 1e-3 cycles with
+    their slip flags, the same satellite
     positions from the navigation file's ephemerides."""
     rtk = pytest.importorskip("pyrtklib5")
     from sinslab.core.gnss import transmit_states
@@ -60,7 +109,7 @@ def test_rinex_round_trip(tmp_path, walk):
     opt = rtk.rnxopt_t()
     opt.rnxver = 304
     opt.navsys = rtk.SYS_GPS | rtk.SYS_GAL | rtk.SYS_CMP
-    opt.obstype = 1 | 4 | 8
+    opt.obstype = 1 | 2 | 4 | 8           # pseudorange, phase, Doppler, C/N0
     opt.freqtype = 1 | 2 | 4
     opt.ttol = 0.005
     obs, nav = tmp_path / "w.obs", tmp_path / "w.nav"
@@ -73,6 +122,15 @@ def test_rinex_round_trip(tmp_path, walk):
     common = set(keys_g) & set(keys_r)
     assert len(common) > 0.9 * len(keys_g)
     assert max(abs(keys_g[k] - keys_r[k]) for k in common) < 1e-3
+    # carrier phase of every slot: the file's 1e-3 cycles, and the slip flags kept
+    ph_g = {(e, s, j): (p, f) for e, s, row, fl in zip(g.epoch, g.sat, g.signals.phase, g.signals.slip)
+            if s[0] in "GEC" for j, (p, f) in enumerate(zip(row, fl)) if np.isfinite(p)}
+    ph_r = {(e, s, j): (p, f) for e, s, row, fl in zip(r.epoch, r.sat, r.signals.phase, r.signals.slip)
+            for j, (p, f) in enumerate(zip(row, fl)) if np.isfinite(p)}
+    both = set(ph_g) & set(ph_r)
+    assert len(both) > 0.9 * len(ph_g)
+    assert max(abs(ph_g[k][0] - ph_r[k][0]) for k in both) < 2e-3
+    assert sum(ph_g[k][1] for k in both) == sum(ph_r[k][1] for k in both) > 0
     m = g.sat == "G10"
     pg = transmit_states(g.eph, None, g.sat[m][-1:], g.epoch_t[g.epoch[m][-1:]], g.pseudorange[m][-1:])[0]
     mr = r.sat == "G10"

@@ -515,3 +515,29 @@ def test_estimation_imports_nothing_from_the_ins():
             for mod in mods:
                 if mod == "sinslab" or mod.startswith("sinslab."):
                     assert mod.startswith(allowed), f"{path.name} imports {mod}"
+
+
+def test_transform_restarts_and_copies_states():
+    """KalmanFilter.transform: a restart (row of A zero, its variance in Q) leaves the
+    state uncorrelated with the others; a copy (a row of A forming a linear combination)
+    carries the combination's covariance exactly, P <- A P Aᵀ + Q; a filter with a history
+    for lagged updates refuses a transform."""
+    from sinslab.estimation.filter import KalmanFilter
+    rng = np.random.default_rng(3)
+    A0 = rng.normal(size=(5, 5))
+    P0 = A0 @ A0.T + np.eye(5)
+    x0 = rng.normal(size=5)
+    kf = KalmanFilter(x0, P0)
+    A = np.eye(5)
+    A[4] = 0.0
+    A[4, :2] = [1.0, -2.0]                   # state 4 <- x0 − 2 x1
+    A[3, 3] = 0.0                            # state 3 restarted
+    Q = np.zeros((5, 5))
+    Q[3, 3] = 100.0
+    kf.transform(A, Q)
+    assert np.allclose(kf.x, A @ x0) and np.allclose(kf.P, A @ P0 @ A.T + Q)
+    assert np.allclose(kf.P[3, [0, 1, 2, 4]], 0.0) and kf.P[3, 3] == 100.0
+    v = np.array([1.0, -2.0, 0, 0, 0])
+    assert np.isclose(kf.P[4, 4], v @ P0 @ v) and np.allclose(kf.P[4, :3], (P0 @ v)[:3])
+    with pytest.raises(ValueError, match="lagged updates"):
+        KalmanFilter(x0, P0, history=3).transform(A, Q)

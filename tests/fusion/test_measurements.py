@@ -13,7 +13,14 @@ lever and the gyro errors through ω×l).
 
 A difference model's layout does not say which of the two streams a sensor block feeds:
 its cases name the blocks of INS 1 (the stream carrying the error) or perturb none.
+
+The carrier-phase measurements (RTK double differences, time-differenced phase) live
+beside the other satellite measurements outside the package and are held to the same
+contract on models with their own states: the ambiguities enter through the nominal
+ambiguities the measurement keeps, the clock through its nominal clock, the clone states
+through the antenna position and clock bias recorded at the epoch before.
 """
+import functools
 import inspect
 import math
 
@@ -42,16 +49,33 @@ MODELS = {
     # a barometer bias of its own (Gauss–Markov)
     "barometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(),
                                                 es.barometer_bias(tau=600.0, sigma=2.0)]),
+    # a magnetometer's residual hard iron (random constant)
+    "magnetometer": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.magnetometer_bias()]),
     "horizontal": lambda: es.ErrorModel("horizontal", [es.gyro_bias(), es.accel_bias(axes="xy")]),
+    # carrier phase: ambiguity states (RTK), receiver clock and clone states (TDCP), beside
+    # the 15 states or beside Gauss–Markov and scale gyro blocks with no block named "eps"
+    "rtk": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.carrier_ambiguities(60)]),
+    "rtk-markov-scale": lambda: es.ErrorModel("full", [es.gyro_markov(100.0, 1e-5), es.gyro_scale(axes="xy"),
+                                                       es.accel_bias(), es.carrier_ambiguities(60)]),
+    "tdcp": lambda: es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.receiver_clock(("G", "E")),
+                                           es.phase_clones()]),
+    "tdcp-markov-scale": lambda: es.ErrorModel("full", [es.gyro_markov(100.0, 1e-5), es.gyro_scale(axes="xy"),
+                                                        es.accel_bias(), es.receiver_clock(("G", "E")),
+                                                        es.phase_clones()]),
     # INS 1 with a gyro scale block beside its bias, INS k with a bias only
     "difference": lambda: es.DifferenceModel("horizontal", [es.gyro_bias(), es.gyro_scale(axes="xz"),
                                                             es.accel_bias(axes="xy")],
                                              [es.gyro_bias(), es.accel_bias(axes="xy")]),
 }
-SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "horizontal")
+SINGLE = ("15-state", "gauss-markov", "scale-factors", "lever-states", "barometer", "magnetometer", "horizontal")
 FULL = SINGLE[:-1]                           # measurements that need three velocity errors
+RTK = ("rtk", "rtk-markov-scale")
+TDCP = ("tdcp", "tdcp-markov-scale")
 OWN = ("lever-states",)                      # models with the states a measurement owns
 BARO_BIAS = 5.0                              # true barometer bias [m]
+#: Earth's field ENU [T] (IGRF-14 at 45.3° N, 93.2° W in 2012: D = 0.6°, I = 72°)
+B_N = np.array([0.18e-6, 17.25e-6, -53.23e-6])
+MAG_BIAS = np.array([2e-6, -1e-6, 3e-6])     # residual hard iron removed by the measurement [T]
 
 
 def _row():
@@ -129,7 +153,91 @@ CASES = {
     "Barometer": (FULL, [
         ("own-bias", lambda lay, row: _barometer(lay, row), {}),
     ]),
+    "MagneticField": (SINGLE, [
+        ("hard-iron", lambda lay, row: _magnetometer(lay, row, M.MagneticField, 0.3e-6), {}),
+    ]),
+    "MagneticHeading": (SINGLE, [
+        ("hard-iron", lambda lay, row: _magnetometer(lay, row, M.MagneticHeading, 0.05), {}),
+    ]),
+    # fusion.rtk_ins and fusion.tdcp: the satellites of a simulated sky over the row
+    "DoubleDifferences": (RTK, [
+        ("lever", lambda lay, row: _double_differences(lay, row, 100.0), {"t": 100.0}),
+        ("extrapolated", lambda lay, row: _double_differences(lay, row, 100.4), {"t": 100.4}),
+    ]),
+    "TimeDifferencedPhase": (TDCP, [
+        ("lever", lambda lay, row: _tdcp(lay, row, 101.0), {"t": 101.0, "item": 1}),
+        ("extrapolated", lambda lay, row: _tdcp(lay, row, 101.3), {"t": 101.3, "item": 1}),
+    ]),
 }
+#: modules of satellite measurements outside the package held to the same contract
+CARRIER_MODULES = ("sinslab.fusion.rtk_ins", "sinslab.fusion.tdcp")
+F_TRUE = np.array([0.3, -0.2, 9.8])         # the specific force of assert_H_is_jacobian
+
+
+@functools.lru_cache(maxsize=1)
+def _sky():
+    """Rover (two epochs, 1 s apart) and base 3 km away under GPS + Galileo on two
+    carriers, at the row's position."""
+    from sinslab.core import earth as E
+    from sinslab.fusion.gnss import SatelliteObservations
+    from sinslab.fusion.rtk import RtkBase
+    from sinslab.sim import gnss as SG
+    lat, lon, h = _row()[7:10]
+    t = np.array([100.0, 101.0])
+    rb = E.geodetic_to_ecef(lat, lon, h) + np.array([2000.0, -1500.0, 1500.0])
+    sim = SG.simulate_observations(t, np.full(2, lat), np.full(2, lon), np.full(2, h), np.zeros((2, 3)),
+                                   [SG.Walker(), SG.Walker(planes=3, per_plane=8, system="E", raan0=0.4)],
+                                   seed=3, phase=SG.PhaseErrors(), base=SG.BaseStation(position=tuple(rb)))
+    return SatelliteObservations(**sim.fields), RtkBase(SatelliteObservations(**sim.base.fields), rb)
+
+
+def _double_differences(lay, row, t):
+    """Double differences prepared once at the true navigation (signals and their nominal
+    ambiguities); ``x`` moves the nominal ambiguities (``N₀ = N + δN``, the states the
+    measurement owns)."""
+    import copy
+
+    from sinslab.fusion.rtk import RtkOptions
+    from sinslab.fusion.rtk_ins import DoubleDifferences
+    sv, base = _sky()
+    m0 = DoubleDifferences(sv, base, RtkOptions(mask=0.2), lever_arm=LEVER)
+    m0.transform(M.Epoch(t, 1, (M.NavRow(row, W, F_TRUE),), lay, lay.n, 0))
+    sl = lay.find("ambiguity")
+
+    def make(x):
+        m = copy.deepcopy(m0)
+        m.engine.slots.n0 += x[sl]
+        return m
+    return make
+
+
+def _tdcp(lay, row, t):
+    """Time-differenced phase of epoch 1 against the record of epoch 0 made at the true
+    navigation (0.7 m and 0.1 s behind); ``x`` moves the nominal clock (the clock
+    states, errors of it) and the recorded antenna position and bias (the clone states of
+    the set the record was copied into)."""
+    import copy
+
+    from sinslab.fusion.tdcp import TimeDifferencedPhase
+    sv, _ = _sky()
+    b0, d0, t0 = 3.0e4, -50.0, 100.0
+    # the slip tests off: the row's INS moves, the simulated antenna does not
+    m0 = TimeDifferencedPhase(sv, lever_arm=LEVER, clock_nominal=(b0, d0, t0), mask=0.2, gf=None, doppler_k=None,
+                              prediction_k=None)
+    before = row.copy()
+    before[7] -= 1e-7
+    m0.transform(M.Epoch(t - 1.0, 1, (M.NavRow(before, W, F_TRUE),), lay, lay.n, 0))
+    sc, cl = lay.find("receiver_clock"), lay.find("phase_clone")
+    c0 = cl.start + 4 * m0.rec["slot"]
+
+    def make(x):
+        m = copy.deepcopy(m0)
+        xb, xd = x[sc.start], x[sc.start + 1]
+        m.nominal = (b0 + xb + xd * (t0 - t), d0 + xd, t0)
+        m.rec["r"] = m0.rec["r"] + x[c0:c0 + 3]
+        m.rec["b"] = m0.rec["b"] + x[c0 + 3]
+        return m
+    return make
 
 
 def _barometer(lay, row):
@@ -138,6 +246,18 @@ def _barometer(lay, row):
     sb = lay.find("baro_bias")
     return lambda x: B.Barometer([0.0], [row[9] + BARO_BIAS], 0.5,
                                  bias=BARO_BIAS + (x[sb][0] if sb is not None else 0.0))
+
+
+def _magnetometer(lay, row, cls, sigma):
+    """A magnetometer reading the true body field through a soft and hard iron the
+    calibration removes, plus a residual hard iron ``MAG_BIAS``; the measurement removes
+    ``MAG_BIAS + δβ`` (``δβ = β_used − β_true``: the state, when the model has it)."""
+    from sinslab.nav.magnetic import MagCalibration
+    cal = MagCalibration([[1.05, 0.02, -0.01], [0.02, 0.97, 0.03], [-0.01, 0.03, 1.02]], [4e-6, -7e-6, 2e-6])
+    raw = cal.distort(A.quat_to_dcm(row[:4]).T @ B_N + MAG_BIAS)
+    sb = lay.find("mag_hard_iron")
+    return lambda x: cls([0.0], raw[None], B_N, sigma, calibration=cal,
+                         bias=MAG_BIAS + (x[sb] if sb is not None else 0.0))
 
 
 def _odometer(lay, row, nhc):
@@ -173,11 +293,12 @@ def test_H_is_the_jacobian_of_z(cls, build, kw, model):
 
 def test_every_measurement_class_is_under_the_contract():
     """Every public class with ``matrices`` in every file of the measurement package (a new
-    sensor family's file included) has a case in CASES."""
+    sensor family's file included) and in the carrier-phase modules has a case in CASES."""
     import importlib
     import pkgutil
 
     mods = [importlib.import_module(f"{M.__name__}.{m.name}") for m in pkgutil.iter_modules(M.__path__)]
+    mods += [importlib.import_module(m) for m in CARRIER_MODULES]
     classes = {name for mod in mods for name, c in inspect.getmembers(mod, inspect.isclass)
                if c.__module__ == mod.__name__ and hasattr(c, "matrices") and c is not M.Measurement
                and not name.startswith("_")}
@@ -199,6 +320,23 @@ def test_the_contract_sees_a_term_placed_on_a_block_by_name():
     row = _row()
     with pytest.raises(AssertionError, match="eps_m"):
         assert_H_is_jacobian(lambda x: ByName([0.0], [row[4:7]], 0.1, lever_arm=LEVER), lay, [row], [W])
+
+
+def test_the_contract_sees_a_magnetic_heading_without_its_tilt_terms():
+    """A magnetic heading whose H had φ_U alone (the heading of a level compass) fails the
+    contract: with the dip of 72° a tilt error of the INS moves the levelled field's azimuth
+    by about three times itself, and the contract sees the missing terms."""
+    class Level(M.MagneticHeading):
+        def matrices(self, ep):
+            z, H, R = super().matrices(ep)
+            s = ep.layout.slice("phi")
+            H[:, s.start:s.start + 2] = 0.0
+            return z, H, R
+
+    lay = MODELS["magnetometer"]().layout
+    row = _row()
+    with pytest.raises(AssertionError, match="phi[EN]"):
+        assert_H_is_jacobian(_magnetometer(lay, row, Level, 0.05), lay, [row], [W])
 
 
 def test_position_fix_of_the_true_antenna_is_zero():

@@ -628,6 +628,53 @@ def test_n380_car_drive_as_shipped():
                       [abs(m[2]), abs(m[0]), ms, -lv[1], *lv, *ls])
 
 
+@pytest.mark.parametrize("name", ["2021-04-27C-car-hill-drive", "2021-03-29-automotive-stoplight-to-stoplight"])
+def test_n380_one_clock_gets_no_offset_whatever_the_lever_arm(name):
+    """One clock (the unit stamps IMU and receiver alike): no offset is applied without a
+    lever arm, with a plausible one (antenna 1 m ahead, 1.2 m up) or with a wrong one (the
+    NHC lever, 1.46 m behind). Before the speed changes were asked, the turns read a wrong
+    lever's l_y / v as an offset and applied it (268 ms with the NHC lever, −131 ms with the
+    plausible one on the hill drive); the speed changes, which a lever arm cannot move, see
+    33–46 ± 42–49 ms there."""
+    from sinslab.data import load_fixes, load_imu
+    d = _n380_drive(name)
+    imu = load_imu(d / "n380-imu-nav.csv.zip", columns=N380_IMU, mount=N380_MOUNT, frame="frd").imu
+    fx, _ = load_fixes(d / "n380-gnss-pvt.csv.zip", columns=N380_FIX)
+    got = {}
+    for lever in (None, (0.0, 1.0, 1.2), (-0.46, -1.46, -0.2)):
+        sync = R.significant_time_offset(R.estimate_time_offset(imu, fx, lever_arm=lever))
+        assert not sync["offset_applied"] and sync["offset"] == 0.0 and not sync["ppm_applied"], (lever, sync)
+        got[lever] = sync
+        if name.startswith("2021-04-27C") and lever is not None:
+            sc, ss = sync["speed_change_offset"], sync["speed_change_offset_sigma"]
+            assert sync["speed_change_windows"] == 6 and abs(sc) < 2 * ss, sync
+            # the turns alone would have applied it (what the old rule did)
+            assert abs(sync["offset_estimate"]) > sync["threshold_sigmas"] * sync["offset_sigma"], sync
+    if name.startswith("2021-04-27C"):
+        a, b = got[(-0.46, -1.46, -0.2)], got[(0.0, 1.0, 1.2)]
+        assert_doc_quotes("docs/recorded-data.md", "the turns read 268 ± 49 ms with the NHC lever given as the "
+                          "antenna's and −131 ± 19 ms with an antenna 1 m ahead and 1.2 m up, both \"significant\"; "
+                          "the speed changes see 33 ± 42 and 46 ± 49 ms",
+                          [1e3 * a["offset_estimate"], 1e3 * a["offset_sigma"], 1e3 * b["offset_estimate"],
+                           1e3 * b["offset_sigma"], 1, 1.2, 1e3 * a["speed_change_offset"],
+                           1e3 * a["speed_change_offset_sigma"], 1e3 * b["speed_change_offset"],
+                           1e3 * b["speed_change_offset_sigma"]])
+
+
+def test_walk_time_sync_applies_nothing():
+    """The pedestrian walk (one RTKLIB logger, 1 Hz fixes, walking speed below the 2 m/s of
+    a course rate): no turn to read, so no offset — said, not refused (it raised "no turns
+    found" before)."""
+    from sinslab.data import load_fixes, load_imu
+    walk = Path(__file__).resolve().parents[3] / "shared" / "data" / "rtklib-walk"
+    if not (walk / "imu_1730.csv").exists():
+        pytest.skip("rtklib-walk not available")
+    imu = load_imu(walk / "imu_1730.csv").imu
+    fx, _ = load_fixes(walk / "gnss_1730_sf.pos")
+    sync = R.significant_time_offset(R.estimate_time_offset(imu, fx))
+    assert not sync["offset_applied"] and sync["offset"] == 0.0 and not sync["ppm_applied"], sync
+
+
 def test_n380_stop_and_go_drive_nhc_helps():
     """The package's stop-and-go drive (one 30 s outage, 60 s after the first fix): its
     rest ends 2 s before the start, so the rest levelling is kept (no in-motion alignment);

@@ -107,6 +107,11 @@ DESCRIPTIONS = {
         (r"^time_sync_offset_applied$", "whether the offset was applied (significant at 3σ)"),
         (r"^time_sync_ppm_applied$", "whether the clock drift was applied"),
         (r"^time_sync_windows$", "windows of turns the offset and drift were fitted from"),
+        (r"^time_sync_speed_change_offset_s$", "IMU time-stamp offset seen in the speed changes (forward specific "
+         "force against the fixes' speed rate; a lever arm cannot fake it)"),
+        (r"^time_sync_speed_change_sigma_s$", "1σ of the offset seen in the speed changes"),
+        (r"^time_sync_offset_confirmed$", "whether the speed changes confirm the turns' offset (an offset is "
+         "applied only then)"),
         (r"^time_sync_threshold_sigmas$", "how many σ the offset and drift had to reach to be applied (3σ, or "
          "Student's t at 1 % for the fit's degrees of freedom)"),
         (r"^initial_heading_sigma_deg$", "1σ of the initial heading (from the fix course window)"),
@@ -126,6 +131,8 @@ DESCRIPTIONS = {
         (r"^vehicle_mount_sigma_deg$", "1σ of the vehicle-mount estimate (pitch, -, yaw)"),
         (r"^nhc_lever_estimate_m$", "estimated IMU -> NHC point (rear-axle centre) lever, vehicle right, forward, up"),
         (r"^nhc_lever_sigma_m$", "1σ of the NHC lever estimate"),
+        (r"^nhc_lever_observable$", "per axis, whether the drive observed the NHC lever (σ at most half its prior)"),
+        (r"^vehicle_mount_observable$", "whether the drive observed the mount pitch, -, yaw (σ at most half its prior)"),
         (r"^platform$", "platform kind (given, or inferred from the fixes' speed and climb rate)"),
         (r"^(zupt|zaru|nhc|odometer)_updates_applied$", "{0} updates inside the innovation gate, applied"),
         (r"^(zupt|zaru|nhc|odometer)_updates_rejected$", "{0} updates the innovation gate rejected (the "

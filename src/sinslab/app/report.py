@@ -10,6 +10,9 @@ Sections: header (run name — a demo variant's own name, with the ``--set`` lin
 make it —, purpose, version, date, quick or full for experiments, computation and
 writing time), claims table (``id="claims"``, one row per claim, measured and expected
 values labelled with their units, pass/fail; no section when the run checked no claim),
+robustness (``id="robustness"``: per claim its label — robust, depends on …, decided by
+construction, not swept —, its verdict under each alternative, flips marked, and the
+assumptions with their defaults and whose they are),
 metrics table (value, unit, description), figures, tables (Monte Carlo statistics etc.),
 notes, time-series files (each described), configuration with the command line that
 re-runs the run. Wide tables scroll inside their box, never the page. After the page has loaded, a small script writes the number of figures
@@ -29,7 +32,7 @@ import os
 import re
 from pathlib import Path
 
-from sinslab.app.claims import tally
+from sinslab.app.claims import declared, tally
 from sinslab.app.errors import UserError
 from sinslab.core.atomic import atomic_write
 
@@ -326,7 +329,7 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     rt = timing.get("compute_s", s["metrics"].get("runtime_s"))
     if isinstance(rt, (int, float)):
         meta.append(f"computation {with_unit(float(rt), 's')}")
-    out_s = sum(v for k, v in timing.items() if k != "compute_s" and isinstance(v, (int, float)))
+    out_s = sum(v for k, v in timing.items() if k not in ("compute_s", "robustness_s") and isinstance(v, (int, float)))
     if out_s:
         meta.append(f"writing the run folder {with_unit(float(out_s), 's')}")
     parts.append("<p class='sub'>" + " · ".join(meta) + "</p>")
@@ -338,12 +341,14 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     if claims:
         badge = "ok" if all_ok else "bad"
         parts.append(f"<p><span class='badge {badge}' id='verdict'>{n_pass} of {len(claims)} claims "
-                     f"passed</span>" + (f" <span class='sub' id='origins'>{e(tally(claims))}</span>"
+                     f"passed</span>" + (f" <span class='sub' id='origins'>{e(tally(claims, s.get('robustness')))}</span>"
                                           if any(c.get("origin") for c in claims) else "") + "</p>")
         parts.append("<h2>Claims</h2>" + _wide(
             "<table id='claims'><tr><th>id</th><th>origin</th><th>statement</th>"
             "<th>measured</th><th>expected</th><th>result</th></tr>" + "".join(
                 _claim_row(c) for c in claims) + "</table>"))
+        if declared(s.get("robustness")):
+            parts.append(_robustness_html(s["robustness"], claims))
 
     parts.append("<h2>Metrics</h2>")
     rows = []
@@ -411,6 +416,65 @@ def _claim_row(c: dict) -> str:
             f"<td class='verdict'>{'pass' if ok else 'FAIL'}</td></tr>")
 
 
+#: the robustness section's own rules (kept inside the section)
+_ROBUST_CSS = ("#robustness td.flip{background:#fff4d6}#robustness td.label{font-weight:bold}"
+               "#robustness ul{margin:0;padding-left:1.1em}#robustness li.flip{color:#8a5a00}"
+               "#robustness .src{color:#666;font-size:.9em}")
+
+
+def _robustness_html(rob: dict, claims: list) -> str:
+    """The robustness section: the assumptions once (default, whose, the claims resting on
+    them), then per claim its label and its verdict at the default and under each
+    alternative (flipped verdicts marked)."""
+    entries = rob.get("claims") or {}
+    head = f"{rob.get('paper_claims_robust', 0)} of {rob.get('paper_claims', 0)} paper claims robust"
+    if rob.get("swept"):
+        cpu = rob.get("cpu_s")
+        head += (f"; physics alternatives re-run ({len(rob.get('axes') or [])} assumptions"
+                 + (f", {with_unit(float(cpu), 's')} CPU in this process" if isinstance(cpu, (int, float)) else "")
+                 + ")")
+    else:
+        head += "; physics alternatives not run (sinslab run NAME --robustness runs them)"
+    assumptions = {}
+    for c in claims:
+        for x in (entries.get(c.get("id")) or {}).get("assumptions", []):
+            a = assumptions.setdefault(x["name"], {**x, "claims": []})
+            a["claims"].append(str(c.get("id")))
+    arows = "".join(f"<tr><td>{e(a['name'])}</td><td>{e(a['default'])}</td>"
+                    f"<td>{'the paper' if a.get('source') == 'paper' else 'the project'}</td>"
+                    f"<td>{', '.join(f'<code>{e(i)}</code>' for i in a['claims'])}</td></tr>"
+                    for a in assumptions.values())
+    rows = []
+    for c in claims:
+        r = entries.get(c.get("id"))
+        if r is None:
+            continue
+        names, unit = (c.get("measured") or {}).get("names"), (c.get("measured") or {}).get("unit", "")
+        default = bool(r.get("default"))
+        items = []
+        for a in r.get("alternatives", []):
+            base = a.get("baseline", default)
+            ok = a.get("passed")
+            flip = ok is not None and bool(ok) != bool(base)
+            verdict = "undecided" if ok is None else ("pass" if ok else "FAIL")
+            val = "" if a.get("value") is None else f": {quantity(a['value'], names, unit)}"
+            extra = f" ({a['note']})" if a.get("note") else ""
+            if "baseline" in a and bool(base) != default:
+                extra += f" [the reduced run at the default: {'pass' if base else 'FAIL'}]"
+            items.append(f"<li class='{'flip' if flip else ''}'>{e(a['assumption'])} — {e(a['name'])}{e(val)} → "
+                         f"<b>{verdict}</b>{e(extra)} <span class='src'>({e(a.get('how', ''))})</span></li>")
+        flipped = bool(r.get("depends_on"))
+        rows.append(f"<tr class='{'pass' if default else 'fail'}' data-robust='{e(str(c.get('id')))}'>"
+                    f"<td><code class='id'>{e(str(c.get('id')))}</code></td><td>{e(c.get('origin') or '')}</td>"
+                    f"<td class='label{' flip' if flipped else ''}'>{e(r.get('label', ''))}</td>"
+                    f"<td class='verdict'>{'pass' if default else 'FAIL'}</td><td><ul>{''.join(items)}</ul></td></tr>")
+    return (f"<h2>Robustness</h2><style>{_ROBUST_CSS}</style><p class='sub' id='robust-summary'>{e(head)}</p>"
+            + _wide("<table id='assumptions'><tr><th>assumption</th><th>default</th><th>whose</th>"
+                    "<th>claims</th></tr>" + arows + "</table>")
+            + _wide("<table id='robustness'><tr><th>claim</th><th>origin</th><th>label</th><th>default</th>"
+                    "<th>alternatives (verdict)</th></tr>" + "".join(rows) + "</table>"))
+
+
 def _series_description(t: dict) -> str:
     """A description for a time-series file that declared none: what its columns hold."""
     cols = [c for c in t.get("columns", []) if c not in ("t_s", "t", "time_s")]
@@ -437,7 +501,8 @@ def index(out: str | os.PathLike, runs: list[tuple[str, str | os.PathLike]],
             s = _load_summary(rd)
             claims = s.get("claims", [])
             n = sum(bool(c.get("passed")) for c in claims)
-            verdict = f"{n}/{len(claims)}" + (f" ({tally(claims)})" if any(c.get("origin") for c in claims) else "")
+            verdict = f"{n}/{len(claims)}" + (f" ({tally(claims, s.get('robustness'))})"
+                                               if any(c.get("origin") for c in claims) else "")
             cls = "ok" if n == len(claims) else "bad"
             purpose = s.get("purpose", "")
             sets = (s.get("variant") or {}).get("sets")

@@ -25,7 +25,7 @@ from sinslab.core.earth import WIE, ecef_to_geodetic, elevation_azimuth
 
 __all__ = ["C_LIGHT", "GPS_EPOCH_UNIX", "SYSTEMS", "Ephemerides", "GlonassEphemerides",
            "kepler_states", "glonass_states", "transmit_states", "sagnac_range",
-           "klobuchar", "KLOBUCHAR_DEFAULT", "saastamoinen", "MAX_AGE"]
+           "klobuchar", "KLOBUCHAR_DEFAULT", "saastamoinen", "MAX_AGE", "Signals"]
 
 C_LIGHT = 299792458.0                 #: speed of light [m/s]
 GPS_EPOCH_UNIX = 315964800            #: 1980-01-06 00:00:00 in seconds since 1970 (GPST)
@@ -135,6 +135,59 @@ class GlonassEphemerides:
     def take(self, idx):
         kw = {f: getattr(self, f)[idx] for f in self.__dataclass_fields__ if f != "t_ref"}
         return GlonassEphemerides(self.t_ref, **kw)
+
+
+# ---------------------------------------------------------------------------- signals
+@dataclass(frozen=True)
+class Signals:
+    """Every signal of each observation row, by RTKLIB's frequency slot (F slots).
+
+    Slot 0 is L1/E1/B1/G1; slots 1 and 2 are the second and third carriers in RTKLIB's
+    order for the system (GPS/QZSS L2, L5; Galileo E5b, E5a; BeiDou B2, B3 or B2a;
+    GLONASS G2, G3). Missing values are NaN (empty code).
+
+    Attributes
+    ----------
+    code : str ndarray (M, F)
+        RINEX signal code ("1C", "2W", "5Q", ...; "" where the slot is empty).
+    pseudorange : ndarray (M, F)
+        [m].
+    phase : ndarray (M, F)
+        Carrier phase [cycles], RINEX sign: ``λ φ`` follows the range (its rate is minus
+        the Doppler), up to an integer ambiguity and the clocks.
+    doppler : ndarray (M, F)
+        [Hz] (positive when the satellite approaches).
+    cn0 : ndarray (M, F)
+        [dB-Hz].
+    freq : ndarray (M, F)
+        Carrier frequency [Hz].
+    lli : uint8 ndarray (M, F)
+        RTKLIB's loss-of-lock indicator: bit 0 a possible cycle slip since the last
+        epoch, bit 1 the half-cycle ambiguity unresolved, bits 6/7 a half cycle added /
+        subtracted by the receiver.
+    """
+
+    code: np.ndarray
+    pseudorange: np.ndarray
+    phase: np.ndarray
+    doppler: np.ndarray
+    cn0: np.ndarray
+    freq: np.ndarray
+    lli: np.ndarray
+
+    @property
+    def slip(self):
+        """Loss of lock (a possible cycle slip) since the previous epoch, bool (M, F)."""
+        return (self.lli & 1) != 0
+
+    @property
+    def half_cycle(self):
+        """Half-cycle ambiguity unresolved, bool (M, F): the phase may be off by ½ cycle."""
+        return (self.lli & 2) != 0
+
+    def __getitem__(self, m):
+        return Signals(*(a[m] for a in (self.code, self.pseudorange, self.phase, self.doppler,
+                                          self.cn0, self.freq, self.lli)))
 
 
 # ----------------------------------------------------------------------------- orbits

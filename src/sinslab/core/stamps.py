@@ -11,6 +11,10 @@ A unit that logs a 1 Hz receiver's solution in every row of a 50 Hz record repea
 fix until the next one: the repeats are not independent measurements (50 updates with
 one error would weigh it 50 times) and their stamps are not the fix's validity time.
 :func:`held_runs` finds such a stream and the first row of each receiver epoch.
+
+A sensor logged on another clock than the IMU's (seconds of GPS week against seconds since
+power-on, milliseconds, UTC against GPST) barely overlaps the IMU record, if at all:
+:func:`check_time_base` refuses it.
 """
 from __future__ import annotations
 
@@ -18,7 +22,7 @@ import math
 
 import numpy as np
 
-__all__ = ["stamp_step", "whole_intervals", "held_runs"]
+__all__ = ["stamp_step", "whole_intervals", "held_runs", "check_time_base"]
 
 #: robust jitter multiples a stamp interval may deviate by and still be "one interval"
 JITTER_SIGMAS = 6.0
@@ -92,3 +96,17 @@ def held_runs(values, *, min_fraction=0.5) -> np.ndarray | None:
     if not math.isfinite(min_fraction) or same.mean() < min_fraction:
         return None
     return np.flatnonzero(np.r_[True, ~same])
+
+
+def check_time_base(t, t_lo, t_hi, source, *, least=0.5):
+    """Refuse stamps ``t`` (increasing) that overlap the IMU record ``t_lo..t_hi`` [s] over
+    less than ``least`` of the shorter of the two spans: another clock. Raises ValueError
+    naming ``source`` (a file) and both spans."""
+    a, b = float(t[0]), float(t[-1])
+    over = min(b, t_hi) - max(a, t_lo)
+    span = min(b - a, t_hi - t_lo)
+    if span <= 0 or over < least * span:
+        raise ValueError(f"{source}: its times {a:.3f}..{b:.3f} s do not overlap the IMU record "
+                         f"{t_lo:.3f}..{t_hi:.3f} s (covered {max(over, 0.0) / max(span, 1e-300):.0%}): "
+                         "a different time base? (seconds of week vs seconds since start, ms vs s, "
+                         "UTC vs GPST)")

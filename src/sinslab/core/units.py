@@ -43,15 +43,15 @@ ppm = 1e-6                        #: parts per million [-]
 nm = 1852.0                       #: nautical mile [m]
 
 # --- parser -----------------------------------------------------------------------------
-# Dimension = exponents of (angle, length, time).  Angles are a dimension here on purpose:
-# it catches "10 m" where "10 arcmin" was meant.
-_A, _L, _T = (Fraction(1), Fraction(0), Fraction(0)), (Fraction(0), Fraction(1), Fraction(0)), (
-    Fraction(0), Fraction(0), Fraction(1))
-_ONE = (Fraction(0), Fraction(0), Fraction(0))
+# Dimension = exponents of (angle, length, time, magnetic flux density).  Angles are a
+# dimension here on purpose: it catches "10 m" where "10 arcmin" was meant. The flux
+# density is a base dimension of its own (no mass or current here): a magnetometer's "G"
+# is never read as anything but a field.
+_ONE = (Fraction(0), Fraction(0), Fraction(0), Fraction(0))
 
 
-def _dim(a=0, l=0, t=0):
-    return (Fraction(a), Fraction(l), Fraction(t))
+def _dim(a=0, l=0, t=0, b=0):
+    return (Fraction(a), Fraction(l), Fraction(t), Fraction(b))
 
 
 _ATOMS: dict[str, tuple[float, tuple]] = {
@@ -67,10 +67,13 @@ _ATOMS: dict[str, tuple[float, tuple]] = {
     "Gal": (1e-2, _dim(0, 1, -2)), "mGal": (1e-5, _dim(0, 1, -2)),
     "kn": (nm / hour, _dim(0, 1, -1)), "knot": (nm / hour, _dim(0, 1, -1)),
     "ppm": (ppm, _ONE), "ppb": (1e-9, _ONE), "%": (1e-2, _ONE), "1": (1.0, _ONE),
+    "T": (1.0, _dim(b=1)), "mT": (1e-3, _dim(b=1)), "uT": (1e-6, _dim(b=1)), "nT": (1e-9, _dim(b=1)),
+    "G": (1e-4, _dim(b=1)), "mG": (1e-7, _dim(b=1)),
 }
 _ALIASES = {"°": "deg", "degree": "deg", "degrees": "deg", "'": "arcmin", "′": "arcmin",
             '"': "arcsec", "″": "arcsec", "sec": "s", "hour": "h", "hours": "h",
-            "µg": "ug", "μg": "ug", "minutes": "min", "percent": "%"}
+            "µg": "ug", "μg": "ug", "µT": "uT", "μT": "uT", "gauss": "G", "Gauss": "G",
+            "tesla": "T", "minutes": "min", "percent": "%"}
 
 #: Named physical kinds accepted by :func:`parse` and their dimensions.
 KINDS: dict[str, tuple] = {
@@ -86,6 +89,7 @@ KINDS: dict[str, tuple] = {
     "accel_random_walk": _dim(0, 1, Fraction(-5, 2)),     # ug/sqrt(s)  (acceleration RRW)
     "time": _dim(0, 0, 1),
     "frequency": _dim(0, 0, -1),
+    "magnetic_field": _dim(b=1),              # T, uT, nT, G (gauss), mG
 }
 
 _NUM = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
@@ -100,7 +104,7 @@ def _dim_name(d):
     for k, v in KINDS.items():
         if v == d:
             return k
-    parts = [f"{n}^{e}" for n, e in zip(("angle", "length", "time"), d) if e != 0]
+    parts = [f"{n}^{e}" for n, e in zip(("angle", "length", "time", "magnetic field"), d) if e != 0]
     return " ".join(parts) or "dimensionless"
 
 

@@ -8,9 +8,11 @@ RTKLIB 2.4.3 (``pyrtklib``) because on a current u-blox log 2.4.3 decodes no Gal
 ephemeris and drops the BeiDou B1C/B2a signals. The receiver's own solution (UBX
 NAV-PVT), which RTKLIB ignores, is read with ``pyubx2``.
 
-One pseudorange per satellite and epoch is kept: the first carrier slot that has one
-(GPS/QZSS L1, Galileo E1, BeiDou B1, GLONASS G1), with its Doppler, C/N0 and carrier
-frequency. Times are GPS time: reception epochs by the receiver's clock and ephemeris
+One row per satellite and epoch. Its pseudorange, Doppler, C/N0 and carrier frequency
+are those of the first carrier slot that has a pseudorange (GPS/QZSS L1, Galileo E1,
+BeiDou B1, GLONASS G1); every signal of the row — pseudorange, carrier phase [cycles],
+Doppler, C/N0, loss-of-lock and half-cycle flags, by RTKLIB's frequency slot — is kept
+beside it in :class:`Signals`. Times are GPS time: reception epochs by the receiver's clock and ephemeris
 reference times are seconds relative to ``t_ref``, the start of the GPS week of the first
 epoch, given in seconds since 1970-01-01 counted without leap seconds (the convention of
 RTKLIB's time-tag files and ``.pos`` readers here, so ``t_ref + t`` is on the time axis of
@@ -24,14 +26,15 @@ from pathlib import Path
 import numpy as np
 
 from sinslab.core.errors import InputError
-from sinslab.core.gnss import GPS_EPOCH_UNIX, Ephemerides, GlonassEphemerides
+from sinslab.core.gnss import GPS_EPOCH_UNIX, Ephemerides, GlonassEphemerides, Signals
 from sinslab.core.records import Fixes
 
-__all__ = ["GnssObservations", "read_gnss_raw", "read_ubx_pvt", "rinex_version"]
+__all__ = ["GnssObservations", "Signals", "read_gnss_raw", "read_ubx_pvt", "rinex_version"]
 
 _SYS = {1: "G", 4: "R", 8: "E", 32: "C", 16: "J", 2: "S", 64: "I"}
 _SNR_UNIT = 1.0             # the demo5 binding gives C/N0 in dB-Hz (RTKLIB 2.4.3: 0.001 dB-Hz)
 _WEEK = 604800
+_EMPTY_SLOT = ("", np.nan, np.nan, np.nan, np.nan, np.nan, 0)
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,8 @@ class GnssObservations:
         Klobuchar α0..α3, β0..β3 broadcast in the log (zeros: none broadcast).
     source : str
         The file(s) read.
+    signals : Signals
+        Every signal of each row (carrier phase and its flags among them).
     """
 
     t_ref: int
@@ -85,6 +90,7 @@ class GnssObservations:
     geph_decoded: np.ndarray
     iono: np.ndarray
     source: str
+    signals: Signals = None
 
     def __len__(self):
         return int(self.sat.size)
@@ -105,7 +111,12 @@ class GnssObservations:
         return GnssObservations(self.t_ref, self.epoch_t, self.epoch[m], self.sat[m], self.code[m],
                                 self.pseudorange[m], self.doppler[m], self.freq[m], self.cn0[m],
                                 self.eph, self.geph, self.eph_decoded, self.geph_decoded, self.iono,
-                                self.source)
+                                self.source, None if self.signals is None else self.signals[m])
+
+    @property
+    def has_phase(self):
+        """Whether any signal carries a carrier phase."""
+        return self.signals is not None and bool(np.isfinite(self.signals.phase).any())
 
 
 def _lib():
@@ -142,6 +153,9 @@ class _Collector:
         self.rtk = rtk
         self.t_int, self.t_frac = [], []
         self.rows = []                      # (epoch, sat, code, P, D, f, cn0)
+        self.sig = []                       # per row, per slot: (code, P, L, D, cn0, f, lli)
+        self.code_freq = {}
+        self.n_slots = rtk.NFREQ + rtk.NEXOBS
         self.eph = {}                       # (sat, toe, set) -> (fields, decoded at)
         self.geph = {}
         self.nav = None
@@ -168,6 +182,27 @@ class _Collector:
             D = float(d.D[j])
             self.rows.append((e, sid, rtk.code2obs(code), float(P), D if D != 0.0 else np.nan, f,
                               float(d.SNR[j]) * _SNR_UNIT))
+            self.sig.append(self._signals(d, nav))
+
+    def _signals(self, d, nav):
+        """(code, P, L, D, C/N0, f, LLI) of every slot of one satellite's record."""
+        rtk, out = self.rtk, []
+        codes, Ps, Ls, Ds, snr, lli = d.code, d.P, d.L, d.D, d.SNR, d.LLI
+        for j in range(self.n_slots):
+            c = int(codes[j])
+            if c == 0:
+                out.append(_EMPTY_SLOT)
+                continue
+            key = (d.sat, c)
+            cf = self.code_freq.get(key)
+            if cf is None:
+                cf = (rtk.code2obs(c), rtk.sat2freq(d.sat, c, nav))
+                if cf[1] > 0 and _satid(rtk, d.sat)[0] != "R":   # a GLONASS channel may come later
+                    self.code_freq[key] = cf
+            P, L, D = float(Ps[j]), float(Ls[j]), float(Ds[j])
+            out.append((cf[0], P if P != 0.0 else np.nan, L if L != 0.0 else np.nan,
+                        D if D != 0.0 else np.nan, float(snr[j]) * _SNR_UNIT, cf[1], int(lli[j])))
+        return out
 
     def ephemeris(self, e, t_dec, eset=0):
         sid = _satid(self.rtk, e.sat)
@@ -239,7 +274,14 @@ class _Collector:
         return GnssObservations(
             t_ref, epoch_t, np.array(cols[0], np.int64), np.array(cols[1]), np.array(cols[2]),
             np.array(cols[3], float), np.array(cols[4], float), np.array(cols[5], float),
-            np.array(cols[6], float), eph, geph, dec, gdec, np.asarray(iono, float), source)
+            np.array(cols[6], float), eph, geph, dec, gdec, np.asarray(iono, float), source,
+            self._signal_arrays())
+
+    def _signal_arrays(self):
+        sig = self.sig
+        return Signals(np.array([[x[0] for x in r] for r in sig], dtype="<U3"),
+                       *(np.array([[x[k] for x in r] for r in sig], float) for k in range(1, 6)),
+                       np.array([[x[6] for x in r] for r in sig], np.uint8))
 
 
 def rinex_version(path) -> tuple:

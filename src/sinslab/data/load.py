@@ -7,12 +7,23 @@ format                  reader                                       writer
 IMU ``psins``           :func:`sinslab.data.psins.load_psins`        --
 IMU ``csv``/``parquet`` :func:`sinslab.data.tables.read_table_imu`   :func:`write_imu`
 IMU ``mat``             :func:`sinslab.data.matlab.read_mat_imu`     :func:`write_imu`
+IMU ``navego``          :func:`sinslab.data.navego.read_navego_imu`  --
+IMU ``kf-gins``         :func:`sinslab.data.kfgins.read_kfgins_imu`  ``kfgins.write_kfgins_imu``
+IMU ``rosbag``          :func:`sinslab.data.rosbag.read_rosbag_imu`  --
 IMU ``rtklib-imu``      :func:`sinslab.data.rtklib.read_rtklib_imu`  --
 fixes ``rtklib-pos``    :func:`sinslab.data.rtklib.read_rtklib_pos`  --
 fixes ``csv``           :func:`sinslab.data.tables.read_fix_csv`     :func:`write_fixes`
 fixes ``mat-avp``       :func:`sinslab.data.matlab.read_mat_fixes`   --
+fixes ``navego``        :func:`sinslab.data.navego.read_navego_gnss` --
+fixes ``kf-gins``       :func:`sinslab.data.kfgins.read_kfgins_gnss` ``kfgins.write_kfgins_gnss``
+fixes ``rosbag``        :func:`sinslab.data.rosbag.read_rosbag_fixes` --
 fixes ``two-geo``       :func:`sinslab.data.tables.read_two_geo_csv` --
+truth                   :func:`read_truth`: KF-GINS ``.nav``, NaveGo reference struct, PSINS avp
 ======================  ===========================================  ==================
+
+Other tools' files are chosen by what they hold as well as by their name: a ``.mat`` with
+a NaveGo struct, a headerless table of 7 numbers a line (KF-GINS / OB_GINS), a ``.pos``
+without RTKLIB's ``%`` header, a ROS bag (``.bag``, or a ROS 2 folder).
 """
 from __future__ import annotations
 
@@ -22,32 +33,64 @@ from pathlib import Path
 import numpy as np
 
 from sinslab.core.records import Fixes, ImuRecord
-from sinslab.data import matlab, psins, rtklib, tables
+from sinslab.data import kfgins, matlab, psins, rosbag, rtklib, tables
 from sinslab.data.increments import ImuData
 
-__all__ = ["IMU_FORMATS", "FIX_FORMATS", "guess_imu_format", "load_imu", "read_imu",
-           "read_fixes", "load_fixes", "write_imu", "write_fixes"]
+__all__ = ["IMU_FORMATS", "FIX_FORMATS", "guess_imu_format", "guess_fix_format", "load_imu", "read_imu",
+           "read_fixes", "load_fixes", "read_truth", "write_imu", "write_fixes"]
 
 #: IMU formats understood by :func:`load_imu` (``--format``).
-IMU_FORMATS = ("psins", "csv", "parquet", "mat", "rtklib-imu")
+IMU_FORMATS = ("psins", "csv", "parquet", "mat", "navego", "kf-gins", "rosbag", "rtklib-imu")
 #: Fix/solution formats understood by :func:`read_fixes`.
-FIX_FORMATS = ("rtklib-pos", "csv", "mat-avp", "two-geo", "ubx")
+FIX_FORMATS = ("rtklib-pos", "csv", "mat-avp", "navego", "kf-gins", "rosbag", "two-geo", "ubx")
 
 
-def guess_imu_format(path) -> str:
-    """IMU format from the file name: ``.imu`` psins, ``.parquet`` parquet, ``.mat`` mat, a
-    file with an RTKLIB ``.tag`` next to it rtklib-imu, else csv."""
+def guess_imu_format(path, sniff=True) -> str:
+    """IMU format from the file name and, with ``sniff``, what it holds: a ROS bag rosbag,
+    ``.imu`` psins, ``.parquet`` parquet, ``.mat`` mat (a NaveGo struct in it is found by
+    the reader), ``.bin`` or a headerless table of 7/8 numbers a line in the KF-GINS layout
+    kf-gins, a file with an RTKLIB ``.tag`` next to it rtklib-imu, else csv."""
     p = Path(path)
     suf = p.suffix.lower()
-    return ("psins" if suf == ".imu" else "parquet" if suf in (".parquet", ".pq") else
-            "mat" if suf == ".mat" else "rtklib-imu" if Path(str(p) + ".tag").exists() else "csv")
+    if rosbag.is_rosbag(p):
+        return "rosbag"
+    if suf == ".imu":
+        return "psins"
+    if suf in (".parquet", ".pq"):
+        return "parquet"
+    if suf == ".mat":
+        return "mat"
+    if Path(str(p) + ".tag").exists():
+        return "rtklib-imu"
+    if sniff and p.is_file() and kfgins.sniff(p) == "kf-gins-imu":
+        return "kf-gins"
+    return "csv"
+
+
+def guess_fix_format(path) -> str:
+    """Fix format from the name and what the file holds: a ROS bag rosbag, ``.mat``
+    mat-avp (a NaveGo struct in it is found by the reader), ``.ubx`` ubx, a headerless
+    table of 7 or 13 numbers a line (latitude, longitude in degrees) kf-gins — also under
+    the ``.pos`` name KF-GINS and OB_GINS give it —, another ``.pos`` rtklib-pos, else csv."""
+    p = Path(path)
+    suf = p.suffix.lower()
+    if rosbag.is_rosbag(p):
+        return "rosbag"
+    if suf in (".mat", ".ubx"):
+        return {".mat": "mat-avp", ".ubx": "ubx"}[suf]
+    if p.is_file() and kfgins.sniff(p) == "kf-gins-gnss":
+        return "kf-gins"
+    return "rtklib-pos" if suf == ".pos" else "csv"
 
 
 def _existing_file(path) -> Path:
-    """``path`` as a Path, or one clear error when it is missing or not a regular file."""
+    """``path`` as a Path, or one clear error when it is missing or not a regular file (a
+    ROS 2 bag folder is taken as the file it stands for)."""
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file")
+    if p.is_dir() and rosbag.is_rosbag(p):
+        return p
     if not p.is_file():
         raise ValueError(f"{p}: is a directory, not a file" if p.is_dir() else f"{p}: not a regular file")
     return p
@@ -65,9 +108,12 @@ def load_imu(path, fmt=None, **kw) -> ImuData:
     from sinslab.data.archive import compression, plain_file
     paths = list(path) if isinstance(path, (list, tuple)) else [path]
     ps = [_existing_file(p) for p in paths]
+    if fmt in (None, "rosbag") and rosbag.is_rosbag(ps[0]):
+        return rosbag.read_rosbag_imu(ps[0], **kw)
     with contextlib.ExitStack() as stack:
         qs = [stack.enter_context(plain_file(p)) for p in ps]
-        fmt = fmt or guess_imu_format(ps[0] if compression(ps[0]) is None else qs[0])
+        fmt = fmt or guess_imu_format(ps[0] if compression(ps[0]) is None else qs[0],
+                                      sniff="columns" not in kw)
         if len(qs) > 1 and fmt not in ("csv", "parquet"):
             raise ValueError(f"IMU channels from two files: csv or parquet tables only, not {fmt!r}")
         if fmt == "psins":
@@ -76,6 +122,13 @@ def load_imu(path, fmt=None, **kw) -> ImuData:
             d = tables.read_table_imu(qs if len(qs) > 1 else qs[0], **kw)
         elif fmt == "mat":
             d = matlab.read_mat_imu(qs[0], **kw)
+        elif fmt == "navego":
+            from sinslab.data.navego import read_navego_imu
+            d = read_navego_imu(qs[0], **kw)
+        elif fmt == "kf-gins":
+            d = kfgins.read_kfgins_imu(qs[0], **kw)
+        elif fmt == "rosbag":
+            d = rosbag.read_rosbag_imu(qs[0], **kw)
         elif fmt == "rtklib-imu":
             d = rtklib.read_rtklib_imu(qs[0], **kw)
         else:
@@ -122,11 +175,16 @@ def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, 
     paths = list(path) if isinstance(path, (list, tuple)) else [path]
     ps = [_existing_file(x) for x in paths]
     p = ps[0] if len(ps) == 1 else " + ".join(map(str, ps))
-    comp = compression(ps[0])
+    if len(ps) == 1 and fmt in (None, "rosbag") and rosbag.is_rosbag(ps[0]):
+        fx, meta = rosbag.read_rosbag_fixes(ps[0], **{k: v for k, v in kw.items()
+                                                      if k in ("topic", "velocity_topic", "sigma")})
+        meta["compressed"] = None
+        return fx.with_velocity_lag(velocity_lag), meta
+    comp = None if ps[0].is_dir() else compression(ps[0])
     with contextlib.ExitStack() as stack:
         qs = [stack.enter_context(plain_file(x)) for x in ps]
         q = qs[0]
-        fmt = fmt or {".pos": "rtklib-pos", ".mat": "mat-avp", ".ubx": "ubx"}.get(q.suffix.lower(), "csv")
+        fmt = fmt or guess_fix_format(q)
         if len(qs) > 1 and fmt != "csv":
             raise ValueError(f"fixes from two files: csv tables only, not {fmt!r}")
         if columns is not None and fmt != "csv":
@@ -145,8 +203,16 @@ def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, 
             meta.update(m)
         elif keep_q is not None:
             raise ValueError(f"--fix-quality applies to csv and rtklib-pos fixes, not {fmt!r}")
-        elif fmt == "mat-avp":
-            fx = matlab.read_mat_fixes(q, kw.get("var"), kw.get("sigma", 1.0), kw.get("sigma_vel", 0.1))
+        elif fmt in ("mat-avp", "navego"):
+            fx, m = matlab.read_mat_fixes_any(q, kw.get("var"), kw.get("sigma", 1.0), kw.get("sigma_vel", 0.1))
+            if fmt == "navego" and m["format"] != "navego":
+                raise ValueError(f"{p}: no NaveGo GNSS struct (fields t, lat, lon, h)")
+            meta.update(m)
+        elif fmt == "kf-gins":
+            fx, m = kfgins.read_kfgins_gnss(q)
+            meta.update(m)
+        elif fmt == "rosbag":
+            raise ValueError(f"{p}: not a ROS bag (a .bag file, or a ROS 2 folder with metadata.yaml)")
         elif fmt == "two-geo":
             fx = tables.read_two_geo_csv(q)
         elif fmt == "ubx":
@@ -160,6 +226,19 @@ def load_fixes(path, fmt=None, *, columns=None, quality=None, velocity_lag=0.0, 
 def _named(fx, p, comp):
     """Fixes read from an unpacked copy (or two files) carry the given name(s)."""
     return dataclasses.replace(fx, path=str(p)) if (comp or not isinstance(p, Path)) else fx
+
+
+def read_truth(path, fmt=None):
+    """A reference trajectory (:class:`sinslab.core.records.NavSeries`): a KF-GINS /
+    OB_GINS ``.nav`` (11 columns), a NaveGo reference struct or a PSINS ``avp`` matrix in a
+    ``.mat`` (``fmt`` "kf-gins" | "mat"; default from the name and content)."""
+    p = _existing_file(path)
+    fmt = fmt or ("mat" if p.suffix.lower() == ".mat" else "kf-gins")
+    if fmt == "mat":
+        return matlab.read_mat_truth(p)
+    if fmt == "kf-gins":
+        return kfgins.read_kfgins_nav(p)
+    raise ValueError(f"unknown truth format {fmt!r}; use kf-gins or mat")
 
 
 def write_imu(path, imu: ImuRecord, fmt=None):

@@ -335,6 +335,38 @@ class KalmanFilter:
         """Sequential scalar Joseph updates in compiled code (diagonal R, finite z)."""
         return compiled_update(self._x, self._P, z, H, R, self._tmp, self._T1)
 
+    def transform(self, A, Q=None):
+        """A jump of the state at the present time: ``x <- A x``, ``c <- A c``,
+        ``P <- A P Aᵀ + Q`` (no time passes).
+
+        For states a measurement re-initialises or copies (a carrier-phase ambiguity
+        after a cycle slip: its row of ``A`` zero and its variance in ``Q``; the copy of
+        the antenna position that time-differenced phase compares with: rows of ``A``
+        forming it from the other states). Not re-processed by lagged updates, so a
+        filter keeping a history refuses it.
+
+        Parameters
+        ----------
+        A : array_like, shape (n, n)
+        Q : array_like, shape (n, n), optional
+        """
+        if self._buf is not None:
+            raise ValueError("a state transform cannot be re-processed by lagged updates: use a filter "
+                             "without history")
+        n = self.n
+        A = np.asarray(A, dtype=float)
+        if A.shape != (n, n):
+            raise ValueError(f"A must have shape ({n}, {n}), got {A.shape}")
+        P = A @ self._P @ A.T
+        if Q is not None:
+            Q = np.asarray(Q, dtype=float)
+            if self.check:
+                check_covariance(Q, "Q")
+            P = P + Q
+        self._P = np.ascontiguousarray(0.5 * (P + P.T))
+        self._x = A @ self._x
+        self._c = A @ self._c
+
     def feedback(self, indices=None):
         """Return the estimate of the given states and zero them (closed-loop correction).
 

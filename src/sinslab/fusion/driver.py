@@ -48,7 +48,10 @@ Per block ``[e0, e1]``:
 3. Prediction of the filter through the block in one compiled loop
    (:meth:`KalmanFilter.predict_many`; both paths step with
    :func:`sinslab.estimation.kernels.predict_step`); σ and x are recorded at every epoch.
-4. Measurements at ``e1``, in measurement order then item order. An item valid at
+4. Measurements at ``e1``, in measurement order then item order (a measurement that
+   owns re-initialised states first asks for a jump of the state, ``transform``, applied
+   by :meth:`KalmanFilter.transform` before its rows; it is applied on arrival only, and
+   not smoothed). An item valid at
    ``t_v`` (validity epoch ``e_v = ⌈(t_v − t_0)/T⌉``) that arrives at ``e1``:
 
    * on time (``e_v = e1``) or with a policy that applies on arrival: compared with the
@@ -625,6 +628,9 @@ class _LaneRun:
         self.streams = streams
         self.measurements = list(lane.measurements)
         self.history = history
+        if history is not None and any(hasattr(m, "transform") for m in self.measurements):
+            raise ValueError("smoothing a run whose measurements re-initialise filter states (carrier-phase "
+                             "ambiguities, time-differenced phase) is not supported")
         n = model.n
         # --- filter grid (stream 0 sets t0; all share the step)
         grids = [s.bind(kf_dt) for s in streams]
@@ -776,6 +782,9 @@ class _LaneRun:
             tv, late = float(self.s_tv[k]), bool(self.s_late[k])
             meas = self.measurements[mi]
             if ev < e1 and not lag.on_arrival:
+                if hasattr(meas, "transform"):
+                    raise ValueError(f"{type(meas).__name__} arrives late and re-initialises filter states: it "
+                                     "must be applied on arrival (a lag policy with on_arrival)")
                 ep = Epoch(t_ep[ev], ev, self._epoch_rows(self.nav_lag, ev), lay, n, j)
                 r = meas.matrices(ep)
                 if r is None:
@@ -795,7 +804,12 @@ class _LaneRun:
                 if now is None:
                     now = tuple(NavRow(self.rows[i][-1], self.blk[i][1][-1], self.blk[i][2][-1])
                                 for i in range(self.ns))
-                r = meas.matrices(Epoch(t_at, e1, now, lay, n, j, (filt.x, filt.P)))
+                ep = Epoch(t_at, e1, now, lay, n, j, (filt.x, filt.P))
+                jump = meas.transform(ep) if hasattr(meas, "transform") else None
+                if jump is not None:            # states the measurement re-initialises or copies
+                    filt.transform(*jump)
+                    ep = Epoch(t_at, e1, now, lay, n, j, (filt.x, filt.P))
+                r = meas.matrices(ep)
                 if r is None:
                     continue
                 gate = getattr(meas, "gate", None)

@@ -77,6 +77,8 @@ class SatelliteObservations:
         Klobuchar coefficients (zeros: the default set).
     usable : bool ndarray (M,)
         An ephemeris was found (the others are skipped and counted).
+    signals : sinslab.core.gnss.Signals, optional
+        Every signal of each row (carrier phase among them), as read.
     """
 
     t_ref: int
@@ -94,6 +96,7 @@ class SatelliteObservations:
     sat_drift: np.ndarray
     iono: np.ndarray
     usable: np.ndarray
+    signals: object = None
 
     @property
     def systems(self):
@@ -156,7 +159,7 @@ def prepare(obs, *, t_offset=0.0, systems=None) -> SatelliteObservations:
         int(obs.t_ref), obs.t_ref + obs.epoch_t + float(t_offset), ep, sat,
         np.array([s[0] for s in sat]), P - tgd, -lam * obs.doppler[keep], obs.freq[keep],
         obs.cn0[keep], pos, vel, G.C_LIGHT * dts, G.C_LIGHT * ddts, np.asarray(obs.iono, float),
-        rows >= 0)
+        rows >= 0, None if getattr(obs, "signals", None) is None else obs.signals[keep])
 
 
 @dataclass

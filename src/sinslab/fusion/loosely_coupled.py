@@ -284,7 +284,7 @@ def _compose(imu, init, fixes: FixSpec, model, ins: InsSpec, grid: FilterGrid, l
         raise ValueError(f"fix times {fix_t[0]:.3f}..{fix_t[-1]:.3f} s lie outside the filter grid "
                          f"{t_ep[0]:.3f}..{t_ep[-1]:.3f} s{tail}")
     sched = dict(t_arrive=fixes.arrive, lever_arm=fixes.lever_arm, outages=fixes.outages,
-                 windows=fixes.windows)
+                 windows=fixes.windows, robust=fixes.robust)
     sigma = fixes.sigma[:, :n_z]
     if "lev" in names:
         meas = LeverPositionFix(fix_t, fixes.pos, sigma, **sched)

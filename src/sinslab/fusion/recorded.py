@@ -63,6 +63,9 @@ AIRCRAFT_CRAB_SIGMA = 10.0 * units.deg
 #: time, white noise × √time) exceeds this many times the levelling σ: the carry then
 #: dominates (a car's slow first stretch, 26 s: 1.3 times; a taxi and launch, 61 s: 3 times)
 CARRY_LIMIT = 2.0
+#: an estimated state whose σ at the end is above this fraction of its prior σ is reported as
+#: not observable on the record (the data added less than three times the prior's information)
+OBSERVED_SIGMA_RATIO = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,6 +219,82 @@ def _align_at_start(imu, fixes, ks, gb, window):
     return align_in_motion(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, k0, ks, gb)
 
 
+def _start_by_alignment(imu, fixes, k0, gb, start: StartSpec, move):
+    """The start found by the first in-motion alignment after IMU sample ``k0`` whose
+    heading σ beats the heading prior (:func:`sinslab.nav.motion_alignment.first_alignment`):
+    ``((ks, C_b^n, heading σ, description), fit)``. Refuses, naming what the record lacks
+    with its figures, when no window of the record qualifies."""
+    from sinslab.nav.motion_alignment import first_alignment
+    sc = first_alignment(imu, fixes.t, _fix_vel_enu(fixes), fixes.lat, fixes.h, float(imu.t[k0] - imu.dt),
+                         window=start.level_window, min_speed=start.move_speed,
+                         max_heading_sigma=start.att_sigma[2], gyro_bias=gb)
+    if sc.fit is None:
+        best = (f"the best of {sc.moving_windows} windows in motion fits the heading to "
+                f"{math.degrees(sc.best_heading_sigma):.1f} deg at {sc.best_t - fixes.t[0]:.0f} s after the "
+                f"first fix" if sc.moving_windows else f"none of {sc.windows} windows has every fix faster "
+                f"than {start.move_speed:g} m/s")
+        raise ValueError(
+            f"no {start.heading_window:g} s of motion faster than {move:g} m/s with a consistent course, and no "
+            f"{start.level_window:g} s of motion whose accelerations show the heading to "
+            f"{math.degrees(start.att_sigma[2]):.1f} deg ({best}; fastest fix {sc.max_speed:.1f} m/s, largest "
+            f"horizontal acceleration {sc.max_horizontal_accel:.2f} m/s²); give the initial heading "
+            "(--init heading=...)")
+    f = sc.fit
+    ks = int(np.searchsorted(imu.t, f.t_ref - 1e-9)) + 1
+    how = (f"in-motion alignment over {f.span:.1f} s of fixes in motion (fix velocity against the "
+           f"integrated specific force; no straight stretch needed)")
+    return (ks, f.C_bn, float(f.sigma[2]), how), f
+
+
+#: a correlated fix error below this [m] (RTK) is left to the fixes' white σ
+FIX_ERROR_MIN = 0.3
+
+
+def _fix_error_states(fixes, opt, init):
+    """``(fixes, (τ, σ correlated (3,)) or None)``: the fixes' time-correlated errors taken
+    into account (``opt.fix.fix_error``; "auto": measured from the record by
+    :func:`sinslab.fusion.fix_noise.fix_error_model`).
+
+    - Velocity: a Doppler velocity's error lasts seconds, so successive fixes do not average
+      it; each fix's σ is at least the white noise that carries the same information as
+      the measured random walk of its integral (``q_v / h`` for fixes ``h`` apart).
+    - Position: a correlated part of at least :data:`FIX_ERROR_MIN` lasting more than three
+      fix intervals becomes Gauss–Markov states, and the fixes' σ their white part (at
+      least the floor): the filter no longer averages metres of correlated error away.
+    """
+    spec = opt.fix.fix_error
+    if spec is None or opt.fix.gnss_raw is not None:
+        return fixes, None
+    if not isinstance(spec, str):
+        tau, corr, white = float(spec[0]), np.broadcast_to(np.asarray(spec[1], float), (3,)), \
+            np.broadcast_to(np.asarray(spec[2], float), (3,))
+        init["fix_error"] = {"used": True, "model": f"given: tau {tau:g} s", "source": "given"}
+        return _fix_white(fixes, white, opt), (tau, np.asarray(corr, float))
+    if spec != "auto":
+        raise ValueError(f"fix_error must be None, 'auto' or (tau, sigma, white), got {spec!r}")
+    from sinslab.fusion.fix_noise import fix_error_model
+    m = fix_error_model(fixes)
+    if m is None:
+        init["fix_error"] = {"used": False, "model": None}
+        return fixes, None
+    h = float(np.median(np.diff(fixes.t)))
+    init["fix_error"] = {"model": m.describe(), "source": "measured from the record"}
+    if fixes.sigma_vel is not None and m.velocity_walk is not None:
+        sv = np.maximum(fixes.sigma_vel, m.velocity_walk / math.sqrt(h))
+        init["fix_error"]["velocity_sigma"] = np.median(sv, 0).tolist()
+        fixes = dataclasses.replace(fixes, sigma_vel=sv)
+    used = float(np.max(m.correlated)) >= FIX_ERROR_MIN and m.tau >= 3 * h
+    init["fix_error"]["used"] = bool(used)
+    if not used:
+        return fixes, None
+    return _fix_white(fixes, m.white, opt), (m.tau, m.correlated)
+
+
+def _fix_white(fixes, white, opt):
+    w = np.maximum(np.asarray(white, float)[[1, 0, 2]], opt.fix.pos_sigma_floor)     # north, east, up
+    return dataclasses.replace(fixes, sigma=np.tile(w, (len(fixes), 1)))
+
+
 def leveled_start(imu, fixes: Fixes, start: StartSpec):
     """Index range ``(k0, k1)`` of the initial rest (see module notes) or None: until the
     first fix faster than ``static_speed``; when that leaves less than 1 s (a receiver
@@ -276,7 +355,7 @@ def _imu_pos_from_antenna(lat, lon, h, C, lever):
     return lat - d[1] / float(rm), lon - d[0] / (float(rn) * math.cos(lat)), h - d[2]
 
 
-def recorded_model(opt: NavOptions, gyro_arw, accel_vrw):
+def recorded_model(opt: NavOptions, gyro_arw, accel_vrw, fix_error=None):
     """The error model of :func:`navigate_recorded`: the loosely coupled core (φ, δv, δp)
     with gyro and accelerometer bias states (random constant, or random walk with
     ``gyro_rrw``/``accel_rrw``), Gauss–Markov bias blocks (``gyro_markov``/``accel_markov``),
@@ -295,6 +374,8 @@ def recorded_model(opt: NavOptions, gyro_arw, accel_vrw):
                     es.accel_scale(rw=0.0 if ta else opt.errors.scale_rw[1], tau=ta, sigma=as_ if ta else None)]
     if opt.fix.estimate_lever:
         sensors.append(es.lever_arm())
+    if fix_error is not None:
+        sensors.append(es.fix_position_error(tau=fix_error[0], sigma=fix_error[1]))
     if opt.aiding.odometer is not None:
         sensors.append(es.odometer_scale())
     if opt.aiding.estimate_vehicle:
@@ -542,6 +623,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     if opt.fix.fix_vel_sigma is not None and fixes.vel is not None:
         sg = np.broadcast_to(np.asarray(opt.fix.fix_vel_sigma, float), (3,))
         fixes = dataclasses.replace(fixes, sigma_vel=np.tile(sg, (len(fixes), 1)))
+    fixes, fix_error = _fix_error_states(fixes, opt, init)
     outages = _expand_outages(opt.fix.outages, float(fixes.t[0]), float(fixes.t[-1]))
     lever = np.asarray(opt.fix.lever_arm, dtype=float)
     dt = imu.dt
@@ -586,6 +668,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
             init.update(rest_start=None, level_pitch=pitch, level_roll=roll, level_residual=resid,
                         level_source=f"in motion: fix velocity against the integrated specific force at "
                         f"{n_used} fixes (no rest at the start)")
+    forced_fit = None
     if opt.start.heading is not None:
         ks = k0
         ts = float(imu.t[ks] - dt) if ks > 0 else imu.t0
@@ -601,8 +684,9 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         found = _heading_in_motion(fixes, imu, k0, pre, nsub, opt.start, lever, gb, move,
                                    AIRCRAFT_MAX_ROLL if air else math.inf)
         if found is None:
-            raise ValueError(f"no {opt.start.heading_window:g} s of motion faster than {move} m/s "
-                             "with a consistent course; give the initial heading (--init heading=...)")
+            # no straight, level stretch (an aircraft in continuous turns): the in-motion
+            # alignment sees the heading through the turns' accelerations instead
+            found, forced_fit = _start_by_alignment(imu, fixes, k0, gb, opt.start, move)
         ks, C, h_sig, how = found
         ts = float(imu.t[ks - 1]) if ks > 0 else imu.t0
         att0 = A.dcm_to_euler(C)
@@ -618,12 +702,13 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     carried = max(float(ts - t_lev), 0.0)
     tilt = math.hypot(float(np.max(opt.errors.gyro_bias_sigma)) * carried, float(np.max(g_noise)) * math.sqrt(carried))
     long_carry = opt.start.motion_alignment and tilt > CARRY_LIMIT * max(opt.start.att_sigma[:2])
-    fit = _align_at_start(imu, fixes, ks, gb, opt.start.level_window) if long_carry else None
-    if fit is not None and float(np.max(fit.sigma[:2])) < tilt:
+    fit = forced_fit if forced_fit is not None else (
+        _align_at_start(imu, fixes, ks, gb, opt.start.level_window) if long_carry else None)
+    if fit is not None and (forced_fit is not None or float(np.max(fit.sigma[:2])) < tilt):
         h_fit = math.hypot(float(fit.sigma[2]), opt.start.heading_sigma_floor)
         course = math.inf if opt.start.heading is not None else math.hypot(init["heading_sigma"], (
             AIRCRAFT_CRAB_SIGMA if init["platform"][0] == "aircraft" else opt.start.heading_sigma_floor))
-        use_h = h_fit < course
+        use_h = forced_fit is not None or h_fit < course
         att0 = np.r_[fit.att[:2], fit.att[2] if use_h else att0[2]]
         init.update(motion_alignment={"window_s": fit.span, "fixes": fit.n_vectors, "sigma_v": fit.sigma_v,
                                       "sigma": fit.sigma.tolist(), "heading": bool(use_h), "carried_s": carried})
@@ -643,7 +728,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     a_noise = np.asarray(init.get("rest_accel_vrw", opt.errors.accel_vrw))
     init.update(filter_gyro_arw=np.broadcast_to(g_noise, (3,)).tolist(),
                 filter_accel_vrw=np.broadcast_to(a_noise, (3,)).tolist())
-    model = recorded_model(opt, g_noise, a_noise)
+    model = recorded_model(opt, g_noise, a_noise, fix_error)
     lay = model.layout
     n = model.n
     rm0, rn0 = (float(x) for x in E.radii(lat_i, h_i))
@@ -677,6 +762,8 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     sp0[lay.slice("dp")] = [ps[0] / rm0, ps[1] / (rn0 * math.cos(lat_i)), ps[2]]
     sp0[lay.slice("eps")] = opt.errors.gyro_bias_sigma
     sp0[lay.slice("nabla")] = opt.errors.accel_bias_sigma
+    if fix_error is not None:
+        sp0[lay.find("fix_error")] = np.maximum(fix_error[1], 1e-3)
     if opt.errors.gyro_markov is not None:
         sp0[lay.slice("eps_m")] = opt.errors.gyro_markov[0]
     if opt.errors.accel_markov is not None:
@@ -750,7 +837,7 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
     fix_spec = FixSpec(sel.t, np.stack([sel.lat, sel.lon, sel.h], -1), np.maximum(sel.sigma, opt.fix.pos_sigma_floor),
                        vel=_fix_vel_enu(sel) if use_vel else None,
                        vel_sigma=np.maximum(sel.sigma_vel, opt.fix.vel_sigma_floor) if use_vel else None,
-                       latency=opt.fix.fix_latency, lever_arm=lever, outages=outages)
+                       latency=opt.fix.fix_latency, lever_arm=lever, outages=outages, robust=opt.fix.robust)
     r = loosely_coupled(imu, NavState(lat_i, lon_i, h_i, v0, att0), fix_spec, P0, model,
                         ins=InsSpec(nsub=nsub, gyro_bias=gb, start=ks, t_start=ts),
                         grid=FilterGrid(T, model_every=0.0, spill=opt.grid.spill), lag=opt.fix.lag, aiding=aiding,
@@ -774,6 +861,12 @@ def navigate_recorded(imu: ImuRecord, fixes: Fixes, opt: NavOptions | None = Non
         sl = lay.slice("nlev")
         init["nhc_lever_estimate"] = (np.asarray(opt.aiding.nhc_lever_arm, float) - Cvb @ r.x[-1, sl]).tolist()
         init["nhc_lever_sigma"] = np.sqrt(np.diag(Cvb @ np.diag(r.sigma[-1, sl] ** 2) @ Cvb.T)).tolist()
+        # a state the drive told little about keeps most of its prior σ: its estimate is the
+        # prior's guess, not a measurement (a flat drive does not see the lever's height)
+        init["nhc_lever_observable"] = [bool(x <= OBSERVED_SIGMA_RATIO * opt.aiding.nhc_lever_sigma)
+                                        for x in init["nhc_lever_sigma"]]
+        init["vehicle_mount_observable"] = [bool(s_psi[0] <= OBSERVED_SIGMA_RATIO * opt.aiding.vehicle_mount_sigma),
+                                            None, bool(s_psi[1] <= OBSERVED_SIGMA_RATIO * opt.aiding.vehicle_mount_sigma)]
     return RecordedNav(r, init, opt, smoothed=smooth(r) if opt.grid.smooth else None)
 
 
@@ -880,10 +973,15 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
     (0.1 s for 1 m at 10 m/s). A straight line through the per-window lags gives an offset
     and a clock-rate error, with standard errors from the scatter about the line.
 
+    The same windows are also read along track (:func:`_speed_change_lags`: the forward
+    specific force against the rate of change of the fixes' speed), which a lever arm
+    cannot fake; :func:`significant_time_offset` applies an offset only when they confirm it.
+
     Returns ``{"offset": lag at t_ref [s], "offset_sigma", "t_ref", "ppm": drift
     [1e-6 s/s], "ppm_sigma", "windows": [(t_mid, lag, correlation), ...],
-    "window_inv_speed": [mean 1/speed in each window's turns [s/m], ...], "lever_given"}``
-    (σ = inf when too few windows to judge); the
+    "window_inv_speed": [mean 1/speed in each window's turns [s/m], ...], "lever_given",
+    "speed_windows": [(t_mid, lag, correlation), ...]}`` (σ = inf when too few windows to
+    judge; no window at all when the record has no turn: nothing to apply); the
     corrected IMU times are ``t − (offset + ppm·1e-6·(t − t_ref))``.
     :func:`significant_time_offset` keeps only what is significant.
     """
@@ -926,8 +1024,17 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
         inv_v = float(np.mean(1.0 / np.maximum(np.interp(grid[turning], fixes.t, sp), min_speed)))
         res.append((0.5 * (a + b), float(lags[i] + sh * step), float(c[i])))
         inv_speed.append(inv_v)
+    out = _lag_line(res, 0.5 * (lo + hi))
+    out.update(windows=res, step=float(step), window_inv_speed=inv_speed, lever_given=lever_arm is not None,
+               imu_dt=float(imu.dt), speed_windows=_speed_change_lags(imu, fixes, edges, lags, sp, min_speed))
+    return out
+
+
+def _lag_line(res, t_mid):
+    """Offset at the mean window time and drift of the window lags ``res`` (a line, σ from
+    the scatter about it; a mean with two windows; nothing to apply without a window)."""
     if not res:
-        raise ValueError("no turns found to estimate the IMU time offset")
+        return {"offset": 0.0, "offset_sigma": math.inf, "t_ref": float(t_mid), "ppm": 0.0, "ppm_sigma": math.inf}
     tm = np.array([r[0] for r in res])
     lg = np.array([r[1] for r in res])
     t_ref = float(tm.mean())
@@ -941,9 +1048,46 @@ def estimate_time_offset(imu: ImuRecord, fixes: Fixes, *, window=60.0, min_speed
         b_, a_ = 0.0, float(lg.mean())
         sa = float(np.std(lg, ddof=1)) / math.sqrt(n) if n == 2 else math.inf
         sb = math.inf
-    return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6),
-            "ppm_sigma": sb * 1e6, "windows": res, "step": float(step),
-            "window_inv_speed": inv_speed, "lever_given": lever_arm is not None, "imu_dt": float(imu.dt)}
+    return {"offset": float(a_), "offset_sigma": sa, "t_ref": t_ref, "ppm": float(b_ * 1e6), "ppm_sigma": sb * 1e6}
+
+
+def _speed_change_lags(imu, fixes, edges, lags, speed, min_speed, highpass=4.0):
+    """Per window of ``edges``, the lag [s] of the IMU's forward specific force behind the
+    rate of change of the fixes' speed: ``[(t_mid, lag, correlation), ...]``.
+
+    A second look at the IMU clock that a lever arm cannot fake: an antenna ahead of the
+    IMU delays its course in a turn by ``l_y / v`` (what the turn lags must take out with
+    the lever arm) but not its speed, which a rigid body shares along track. Both signals
+    are high-passed (a ``highpass`` s moving mean removed: the road grade's gravity and the
+    accelerometer bias go), the IMU's averaged over one fix interval as the speed's
+    difference quotient averages it; windows whose speed changes are weak (σ < 0.05 m/s²)
+    or whose peak correlation is below 0.5 are skipped."""
+    from scipy.ndimage import uniform_filter1d
+    if len(fixes) < 3:
+        return []
+    acc = np.gradient(speed, fixes.t)
+    step_f = float(np.median(np.diff(fixes.t)))
+    n_hp, n_fix = max(1, int(round(highpass / 0.02))), max(1, int(round(2 * step_f / 0.02)))
+    out = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        grid = np.arange(a, b, 0.02)
+        ref = np.interp(grid, fixes.t, acc)
+        ref = ref - uniform_filter1d(ref, n_hp, mode="nearest")
+        if np.std(ref) < 0.05:
+            continue
+        lo_k = max(0, int(np.searchsorted(imu.t, grid[0] + lags[0])) - 2)
+        hi_k = min(len(imu), int(np.searchsorted(imu.t, grid[-1] + lags[-1])) + 3)
+        tw = np.asarray(imu.t[lo_k:hi_k]) - 0.5 * imu.dt
+        fy = np.asarray(imu.dv[lo_k:hi_k, 1]) / imu.dt
+        c = np.empty(lags.size)
+        for i, o in enumerate(lags):
+            x = uniform_filter1d(np.interp(grid + o, tw, fy), n_fix, mode="nearest")
+            c[i] = np.corrcoef(x - uniform_filter1d(x, n_hp, mode="nearest"), ref)[0, 1]
+        release_pages(imu.t, imu.dv)
+        i = int(np.nanargmax(c))
+        if c[i] >= 0.5:
+            out.append((0.5 * (a + b), float(lags[i]), float(c[i])))
+    return out
 
 
 def _lsq(X, y, k, p=0.01):
@@ -982,9 +1126,16 @@ def significant_time_offset(est: dict, k: float = 3.0) -> dict:
       two agree within their σ; turns all at one speed cannot separate τ from l (σ of τ
       infinite: nothing applied).
 
+    - The offset must also show in the speed changes (``est["speed_windows"]``): the same
+      sign at one-sided 95 % (Student's t of their scatter) and within the threshold of the
+      turns' value. A wrong lever arm reads in turns as an offset of ``l_y / v`` (on the
+      one-clock n380 hill drive, a lever 1.5 m off read as a significant 268 ms); the speed
+      changes, which a rigid body shares along track, do not move with it.
+
     Returns ``{"offset", "ppm", "t_ref", "offset_applied", "ppm_applied", "offset_sigma",
     "offset_estimate", "ppm_estimate", "ppm_sigma", "speed_lag_m", "speed_lag_sigma_m",
-    "threshold_sigmas"}``.
+    "threshold_sigmas", "speed_change_offset", "speed_change_offset_sigma",
+    "speed_change_windows", "offset_confirmed"}``.
     """
     w = est["windows"]
     lg = np.array([x[1] for x in w])
@@ -1012,6 +1163,23 @@ def significant_time_offset(est: dict, k: float = 3.0) -> dict:
             agree = abs(r[a_] - j[a_]) <= j["kt"] * math.hypot(r[s_], j[s_])
             j[ok_] = bool(j[ok_] and r[ok_] and agree)
         r = j
+    sw = est.get("speed_windows")
+    if sw is not None:
+        # a second signature the lever arm cannot fake: the speed changes must show the
+        # offset too — the same sign at 95 % (Student's t), and within the turn fit's
+        # significance threshold of it — or it is not applied (a wrong lever arm makes the
+        # turns alone read a lag of l_y / v as an offset)
+        ls = np.array([x[1] for x in sw], dtype=float)
+        c2, sc2, _ = _lsq(np.ones((ls.size, 1)), ls, k) if ls.size else (np.array([math.nan]), [math.inf], math.inf)
+        from scipy.special import stdtrit
+        t95 = float(-stdtrit(max(ls.size - 1, 1), 0.05))           # one-sided 95 %: the sign is tested
+        seen = bool(math.isfinite(sc2[0]) and abs(c2[0]) > t95 * sc2[0] and np.sign(c2[0]) == np.sign(r["off"])
+                    and abs(c2[0] - r["off"]) <= r["kt"] * math.hypot(sc2[0], r["s_off"]))
+        out.update(speed_change_offset=float(c2[0]) if ls.size else None,
+                   speed_change_offset_sigma=float(sc2[0]) if ls.size else None,
+                   speed_change_windows=int(ls.size), offset_confirmed=seen)
+        if r["off_ok"] and not seen:
+            r = dict(r, off_ok=False)
     out.update(offset=r["off"] if r["off_ok"] else 0.0, ppm=r["ppm"] if r["ppm_ok"] else 0.0,
                offset_applied=r["off_ok"], ppm_applied=r["ppm_ok"], offset_sigma=r["s_off"],
                offset_estimate=r["off"], ppm_estimate=r["ppm"], ppm_sigma=r["s_ppm"], threshold_sigmas=r["kt"])

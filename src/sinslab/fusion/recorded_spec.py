@@ -108,6 +108,13 @@ class FixHandling:
     vel_sigma_floor: float = 0.05           #: [m/s]
     estimate_lever: bool = False            #: estimate the antenna lever arm (3 states)
     lever_sigma: float = 1.0                #: its initial σ per axis [m]
+    #: the fixes' time-correlated position error as Gauss-Markov states: None (white fixes),
+    #: "auto" (measured from the record, sinslab.fusion.fix_noise; used where metre-level), or
+    #: (tau [s], (σE, σN, σU) correlated [m], (σE, σN, σU) white [m])
+    fix_error: object = None
+    #: inflate a fix's R where its innovation is beyond the 1 − robust χ² quantile (Chang 2014;
+    #: sinslab.fusion.measurements.schedule.robust_R); None: every fix as stated
+    robust: float | None = None
     #: raw GNSS (sinslab.fusion.tightly_coupled.RawGnss): its pseudoranges and range rates
     #: replace the fixes in the filter (tightly coupled); the fixes then only start it
     gnss_raw: object = None

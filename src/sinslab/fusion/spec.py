@@ -176,6 +176,9 @@ class FixSpec:
         Fixes valid inside are dropped [s].
     windows : tuple of (start, end), optional
         Fixes are processed only at epochs inside these windows [s].
+    robust : float, optional
+        Down-weight a fix whose innovation the filter cannot explain (probability ``robust``
+        that a consistent fix is touched): :func:`sinslab.fusion.measurements.schedule.robust_R`.
     """
 
     t: np.ndarray
@@ -188,6 +191,7 @@ class FixSpec:
     lever_arm: np.ndarray = field(default_factory=lambda: np.zeros(3))
     outages: tuple = ()
     windows: tuple | None = None
+    robust: float | None = None
 
     def __post_init__(self):
         t = np.atleast_1d(np.array(self.t, dtype=float))

@@ -67,7 +67,8 @@ __all__ = [
     "gyro_markov", "accel_markov", "gyro_scale", "accel_scale", "installation",
     "ErrorModel", "DifferenceModel", "core_matrices",
     "CORES", "lever_arm", "odometer_scale", "ClockBlock", "receiver_clock", "COMPENSATIONS",
-    "barometer_bias",
+    "barometer_bias", "magnetometer_bias", "MeasurementStates", "carrier_ambiguities", "phase_clones",
+    "fix_position_error",
 ]
 
 #: The compensations of a strapdown INS a sensor block can feed (:attr:`Block.feeds`):
@@ -77,7 +78,7 @@ COMPENSATIONS = ("gyro_bias", "accel_bias", "gyro_scale", "accel_scale")
 # ----------------------------------------------------------------------------- layout
 _DISPLAY = {  # unit name -> SI value of one display unit
     "arcmin": units.arcmin, "arcsec": units.arcsec, "m/s": 1.0, "m": 1.0, "deg/h": units.dph,
-    "ug": units.ug, "ppm": units.ppm, "rad": 1.0, "-": 1.0, "deg": units.deg,
+    "ug": units.ug, "ppm": units.ppm, "rad": 1.0, "-": 1.0, "deg": units.deg, "uT": 1e-6, "cycle": 1.0,
 }
 
 
@@ -103,7 +104,8 @@ class Block:
     quantity : str or None
         What the states of a block that feeds nothing are, for the measurements that read
         them (:meth:`StateLayout.find`): ``"lever_arm"``, ``"odometer_scale"``,
-        ``"installation"``, ``"receiver_clock"``, ``"baro_bias"``; None for the others.
+        ``"installation"``, ``"receiver_clock"``, ``"baro_bias"``, ``"mag_hard_iron"``; None
+        for the others.
     """
 
     name: str
@@ -893,6 +895,38 @@ def barometer_bias(*, tau=None, sigma=None, rw=0.0, name="baro"):
     return SensorBlock(name, None, "markov" if tau else "constant", "z", "nav", tau, q, "m", "baro_bias")
 
 
+def magnetometer_bias(*, tau=None, sigma=None, rw=0.0, name="mag"):
+    """Residual hard iron of a three-axis magnetometer [T], body axes: the error of the
+    offset the measurement removes from the calibrated reading, computed minus true
+    (``δβ = β_used − β_true``), three states (labels ``<name>_x`` .. ``<name>_z``).
+
+    A random constant (a calibration error, the airframe's permanent magnetisation), a
+    random walk (``rw`` [T/√s]) or a first-order Gauss–Markov process (``tau`` [s],
+    steady-state ``sigma`` [T]: fields of slowly changing currents). The states feed
+    nothing back to the INS; the magnetometer measurements of
+    :mod:`sinslab.fusion.measurements.magnetometer` read them.
+    """
+    tau, q = _scale_noise(rw, tau, sigma, name)
+    return SensorBlock(name, None, "markov" if tau else "constant", "xyz", "body", tau, q, "uT",
+                       "mag_hard_iron")
+
+
+def fix_position_error(*, tau, sigma, name="fixerr"):
+    """Time-correlated error of the position fixes [m], east, north, up: the fix minus the
+    true antenna position, a first-order Gauss–Markov process per axis (``tau`` [s],
+    steady-state ``sigma`` (3,) [m], ``ė = −e/τ + w``, q = 2σ²/τ) — multipath and
+    atmosphere errors of a receiver's solution that last tens of seconds. Treated as white
+    noise at several fixes a second they pull the INS velocity by their rate of change; as
+    states the position fixes are read against them
+    (:class:`sinslab.fusion.measurements.PositionFix` finds the block by its quantity
+    ``"fix_error"``). The states feed nothing back to the INS."""
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(sig)) or np.any(sig < 0):
+        raise ValueError(f"block {name!r}: fix-error sigma must be finite and >= 0, got {sigma!r}")
+    tau = _check_tau(tau, name)
+    return SensorBlock(name, None, "markov", "xyz", "nav", tau, 2.0 * sig ** 2 / tau, "m", "fix_error")
+
+
 @dataclass(frozen=True)
 class ClockBlock:
     """GNSS receiver clock states in range units: bias ``b = c·δt_r`` [m], drift
@@ -955,3 +989,72 @@ def receiver_clock(systems=("G",), *, bias_noise=0.1, drift_noise=0.1, isb_noise
     if not np.all(np.isfinite(q)):
         raise ValueError("receiver clock noise densities must be finite")
     return ClockBlock(name, systems, q)
+
+
+@dataclass(frozen=True)
+class MeasurementStates:
+    """States that belong to a measurement, which re-initialises or copies them itself
+    (through the driver's state transform, :meth:`sinslab.estimation.filter.KalmanFilter.transform`):
+    no coupling to the INS, no dynamics, optional random-walk noise, fed back to nothing.
+
+    Build with :func:`carrier_ambiguities` or :func:`phase_clones`.
+
+    Attributes
+    ----------
+    name : str
+    labels : tuple of str
+        One per state (``<name>_<label>``).
+    unit : str
+    q : ndarray (k,)
+        Random-walk densities [unit²/s].
+    quantity : str
+        What the measurements find the block by (:meth:`StateLayout.find`).
+    """
+
+    name: str
+    labels: tuple
+    unit: str
+    q: np.ndarray
+    quantity: str
+    sensor = None
+    kind = "constant"
+    frame = "body"
+    tau = None
+    axes = ""
+    feeds = None
+
+    @property
+    def size(self):
+        return len(self.labels)
+
+    def block(self, suffix="") -> Block:
+        return Block(self.name + suffix, tuple(f"{self.name}_{lab}{suffix}" for lab in self.labels),
+                     (self.unit,) * self.size, quantity=self.quantity)
+
+    def dynamics(self) -> np.ndarray:
+        """Diagonal of the block's own dynamics matrix (zeros), shape (k,)."""
+        return np.zeros(self.size)
+
+
+def carrier_ambiguities(slots, *, noise=1e-4, name="amb"):
+    """Carrier-phase ambiguity states [cycles], ``slots`` of them: each holds the error of
+    one signal's single-difference ambiguity while the signal is tracked, and is handed to
+    another signal after it is lost (:class:`sinslab.fusion.carrier.AmbiguitySlots`).
+    ``noise`` [cycles/√s] lets a held float ambiguity follow slow phase-bias wander
+    (RTKLIB's default process noise of the bias states, 1e-4)."""
+    slots = int(slots)
+    if slots < 1:
+        raise ValueError(f"carrier_ambiguities: at least one slot, got {slots}")
+    if not (np.isfinite(noise) and noise >= 0):
+        raise ValueError(f"carrier_ambiguities: noise must be finite and >= 0, got {noise!r}")
+    return MeasurementStates(name, tuple(str(i) for i in range(slots)), "cycle", np.full(slots, float(noise) ** 2),
+                             "ambiguity")
+
+
+def phase_clones(name="clone"):
+    """The errors of the antenna position (ECEF x, y, z [m]) and receiver clock bias [m]
+    recorded at an epoch, twice (sets a and b, used in turn): time-differenced carrier
+    phase compares the present with the epoch before through them (stochastic cloning;
+    :class:`sinslab.fusion.tdcp.TimeDifferencedPhase`)."""
+    labels = tuple(f"{c}{k}" for k in "ab" for c in ("x", "y", "z", "b"))
+    return MeasurementStates(name, labels, "m", np.zeros(8), "phase_clone")

@@ -48,8 +48,8 @@ from sinslab.core import attitude as A
 from sinslab.core import earth as E
 from sinslab.core.records import ImuRecord
 
-__all__ = ["MotionAlignment", "align_in_motion", "body_integrals", "davenport", "wahba_covariance",
-           "velocity_integrals"]
+__all__ = ["MotionAlignment", "AlignmentScan", "align_in_motion", "first_alignment", "body_integrals",
+           "davenport", "wahba_covariance", "velocity_integrals"]
 
 
 @dataclass(frozen=True)
@@ -200,3 +200,62 @@ def align_in_motion(imu: ImuRecord, t_fix, vel, lat, h, k0: int, k1: int, gyro_b
     # carried to the end: φ there is C_n^{n0}ᵀ φ0 (the frame n turned by ω_in)
     C_end = C_nn0.T @ C0 @ C_bb0
     return MotionAlignment(C_end, float(tau[-1]), C0, float(tau[0]), C_nn0.T @ cov @ C_nn0, s, int(j.size), float(tj[-1] - tj[0]))
+
+
+@dataclass(frozen=True)
+class AlignmentScan:
+    """What :func:`first_alignment` found: the fit it accepts (or None) and, for a refusal
+    that names what the record lacks, the figures of the windows it tried."""
+
+    fit: MotionAlignment | None     #: the first window whose heading σ met the bound
+    windows: int                    #: windows tried
+    moving_windows: int             #: of which the fixes were all faster than the speed bound
+    best_heading_sigma: float       #: [rad] the smallest heading σ of the moving windows (inf: none)
+    best_t: float                   #: [s] end of that window (nan: none)
+    max_speed: float                #: [m/s] the fastest fix after ``t_from``
+    max_horizontal_accel: float     #: [m/s²] the largest horizontal acceleration of the fixes there
+
+
+def first_alignment(imu: ImuRecord, t_fix, vel, lat, h, t_from, *, window=10.0, step=1.0,
+                    min_speed=2.0, max_heading_sigma=math.radians(3.0), gyro_bias=None):
+    """The first in-motion alignment (:func:`align_in_motion`) over ``window`` s of fixes,
+    slid by ``step`` s from ``t_from`` [s], whose heading σ is at most
+    ``max_heading_sigma`` [rad] and whose fixes are all faster than ``min_speed`` [m/s].
+
+    Unlike a heading taken from the course, the fit needs no straight line: the heading is
+    seen through the horizontal accelerations (turns, speed changes, a climb), so a
+    vehicle in continuous coordinated turns aligns best. Returns an
+    :class:`AlignmentScan` (``fit`` None when no window qualifies, with the figures a
+    refusal names).
+    """
+    t_fix = np.asarray(t_fix, dtype=float)
+    vel = np.asarray(vel, dtype=float)
+    spd = np.hypot(vel[:, 0], vel[:, 1])
+    after = t_fix >= t_from
+    if after.sum() >= 3:
+        tv, vv = t_fix[after], vel[after]
+        acc = np.hypot(np.gradient(vv[:, 0], tv), np.gradient(vv[:, 1], tv))
+        max_acc = float(np.max(acc))
+    else:
+        max_acc = 0.0
+    max_spd = float(np.max(spd[after])) if after.any() else 0.0
+    n_win = n_mov = 0
+    best, best_t = math.inf, math.nan
+    t_end = min(float(t_fix[-1]), float(imu.t[-1]))
+    t0 = max(float(t_from), float(imu.t0))
+    while t0 + window <= t_end + 1e-9:
+        n_win += 1
+        w = (t_fix >= t0) & (t_fix <= t0 + window)
+        if w.sum() >= 4 and np.all(spd[w] > min_speed):
+            n_mov += 1
+            k0 = int(np.searchsorted(imu.t, t0 + imu.dt - 1e-9))
+            k1 = int(np.searchsorted(imu.t, t0 + window + 1e-9))
+            fit = align_in_motion(imu, t_fix, vel, lat, h, k0, k1, gyro_bias)
+            if fit is not None:
+                hs = float(fit.sigma[2])
+                if hs < best:
+                    best, best_t = hs, fit.t_ref
+                if hs <= max_heading_sigma:
+                    return AlignmentScan(fit, n_win, n_mov, best, best_t, max_spd, max_acc)
+        t0 += step
+    return AlignmentScan(None, n_win, n_mov, best, best_t, max_spd, max_acc)

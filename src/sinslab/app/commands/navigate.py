@@ -252,7 +252,7 @@ def _compute(req: NavigateRequest, echo) -> Output:
                                          shifted_times, significant_time_offset)
 
     imu_one = req.imu_path[0] if isinstance(req.imu_path, list) else req.imu_path     # the table odometer columns come from
-    fmt_eff = req.fmt or guess_imu_format(imu_one)
+    fmt_eff = req.fmt or guess_imu_format(imu_one, sniff=req.columns is None)
     kw = {}
     if req.mount is not None:
         kw["mount"] = req.mount
@@ -301,12 +301,13 @@ def _compute(req: NavigateRequest, echo) -> Output:
         raise ValueError("give --gnss FILE (fixes) or --gnss-raw FILE (raw observations)")
     else:
         fix_name = " + ".join(map(str, req.fix_path)) if isinstance(req.fix_path, list) else str(req.fix_path)
-        ffmt = req.fix_format or ("rtklib-pos" if fix_name.lower().endswith(".pos") else None)
+        ffmt = req.fix_format             # None: the reader tells the format from the name and content
         fx, fmeta = _read_fixes(lambda: load_fixes(req.fix_path, ffmt, velocity_lag=req.velocity_lag,
                                                    columns=req.fix_columns, quality=req.fix_quality),
                                 fix_name, ffmt)
         _say_fix_reading(fmeta, fix_name, echo)
     imu = data.imu
+    _check_clocks(imu, fx, fix_name, req)
     if data.meta and "joined" in data.meta:
         un = data.meta["joined"]["unmatched"]
         echo(f"  IMU channels from two files joined on time; rows without a partner dropped: {un[0]} "
@@ -323,22 +324,25 @@ def _compute(req: NavigateRequest, echo) -> Output:
     opt = NavOptionsDraft(req.options or NavOptions())
     if req.lever_arm is not None:
         opt.lever_arm = req.lever_arm
+    em = _file_says(data, fmeta if raw_gnss is None else {}, req, opt, em, echo)
     sync = None
     if req.time_sync == "auto":
         # without a lever arm a clock offset cannot be told from the antenna's lag in turns
-        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if req.lever_arm is not None else None)
+        est = estimate_time_offset(imu, fx, lever_arm=opt.lever_arm if (req.lever_arm is not None or (
+            raw_gnss is None and fmeta.get("lever_arm") is not None)) else None)
         sync = significant_time_offset(est)
         sync.update(windows=len(est["windows"]))
         imu = map_times(imu, partial(shifted_times, offset=sync["offset"], ppm=sync["ppm"], t_ref=sync["t_ref"]),
                         imu.dt * (1.0 - sync["ppm"] * 1e-6), _scratch("imu"))
         echo(f"  IMU time offset {sync['offset_estimate'] * 1e3:.1f} ± {sync['offset_sigma'] * 1e3:.1f} ms "
-             f"({'applied' if sync['offset_applied'] else 'not significant, not applied'}), clock "
+             f"({_offset_verdict(sync)}), clock "
              f"{sync['ppm_estimate']:.0f} ± {sync['ppm_sigma']:.0f} ppm "
              f"({'applied' if sync['ppm_applied'] else 'not significant, not applied'}); from turn "
              f"rates vs the IMU-point course rate of the fixes in {len(est['windows'])} windows "
              f"(significant: > {sync['threshold_sigmas']:.1f} σ)"
              + (f"; no lever arm given: a lag of {sync['speed_lag_m']:.2f} ± {sync['speed_lag_sigma_m']:.2f} m "
-                "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else ""))
+                "/ speed fitted too (an antenna ahead of the IMU)" if sync["speed_lag_m"] is not None else "")
+             + _speed_change_words(sync))
     elif req.time_sync != "none":
         raise ValueError(f"--time-sync must be 'auto' or 'none', got {req.time_sync!r}")
     odo_cfg = _smooth_odometer_options(opt, req.smo or {}, imu_one, sync)
@@ -457,7 +461,10 @@ def _compute(req: NavigateRequest, echo) -> Output:
                        time_sync_ppm_estimate=sync["ppm_estimate"], time_sync_ppm_sigma=sync["ppm_sigma"],
                        time_sync_offset_applied=sync["offset_applied"],
                        time_sync_ppm_applied=sync["ppm_applied"], time_sync_windows=sync["windows"],
-                       time_sync_threshold_sigmas=sync["threshold_sigmas"])
+                       time_sync_threshold_sigmas=sync["threshold_sigmas"],
+                       time_sync_speed_change_offset_s=sync.get("speed_change_offset"),
+                       time_sync_speed_change_sigma_s=sync.get("speed_change_offset_sigma"),
+                       time_sync_offset_confirmed=sync.get("offset_confirmed"))
     if "lever_arm_estimate" in res.init:
         metrics["lever_arm_estimate_m"] = res.init["lever_arm_estimate"]
         metrics["lever_arm_sigma_m"] = res.init["lever_arm_sigma"]
@@ -467,9 +474,9 @@ def _compute(req: NavigateRequest, echo) -> Output:
         metrics["vehicle_mount_sigma_deg"] = [None if x is None else float(np.degrees(x)) for x in vs]
         metrics["nhc_lever_estimate_m"] = res.init["nhc_lever_estimate"]
         metrics["nhc_lever_sigma_m"] = res.init["nhc_lever_sigma"]
-        echo(f"  vehicle mount (IMU in the vehicle) pitch {np.degrees(ve[0]):.2f} ± {np.degrees(vs[0]):.2f} deg, "
-             f"yaw {np.degrees(ve[2]):.2f} ± {np.degrees(vs[2]):.2f} deg; NHC lever [m] "
-             + ", ".join(f"{a:.2f} ± {b:.2f}" for a, b in zip(res.init["nhc_lever_estimate"], res.init["nhc_lever_sigma"])))
+        metrics["nhc_lever_observable"] = res.init["nhc_lever_observable"]
+        metrics["vehicle_mount_observable"] = res.init["vehicle_mount_observable"]
+        echo(_vehicle_words(res.init, opt.aiding))
     metrics["platform"] = res.init["platform"][0]
     if opt.aiding.zupt is not None:
         metrics["rest_intervals"] = len(res.init.get("rest_intervals", []))
@@ -812,6 +819,77 @@ def _read_fixes(read, path, fmt):
         what = f"not readable as {fmt}" if fmt else "not readable"
         raise ValueError(f"--fixes {path}: {what} ({type(e).__name__ + ': ' if not isinstance(e, ValueError) else ''}"
                          f"{msg}); give --fix-format rtklib-pos | csv | mat-avp") from None
+
+
+def _vehicle_words(init, aiding):
+    """The vehicle states on the terminal: value ± σ where the drive observed them, "not
+    observable" (with the σ left of the prior's) where it did not."""
+    ve, vs, vo = init["vehicle_mount_estimate"], init["vehicle_mount_sigma"], init["vehicle_mount_observable"]
+    d = np.degrees
+
+    def angle(i, name):
+        if vo[i]:
+            return f"{name} {d(ve[i]):.2f} ± {d(vs[i]):.2f} deg"
+        return f"{name} not observable (σ {d(vs[i]):.2f} of the prior {d(aiding.vehicle_mount_sigma):.2f} deg)"
+    lev = [f"{a:.2f} ± {b:.2f}" if ok else f"{'xyz'[i]} not observable (σ {b:.2f} of the prior "
+           f"{aiding.nhc_lever_sigma:.2f})" for i, (a, b, ok) in
+           enumerate(zip(init["nhc_lever_estimate"], init["nhc_lever_sigma"], init["nhc_lever_observable"]))]
+    return (f"  vehicle mount (IMU in the vehicle) {angle(0, 'pitch')}, {angle(2, 'yaw')}; NHC lever [m] "
+            + ", ".join(lev))
+
+
+def _offset_verdict(sync):
+    """Applied, or why not: not significant in the turns, or not confirmed by the speed changes."""
+    if sync["offset_applied"]:
+        return "applied"
+    turns = abs(sync["offset_estimate"]) > sync["threshold_sigmas"] * sync["offset_sigma"]
+    return ("significant in the turns but not seen in the speed changes: not applied" if turns
+            else "not significant, not applied")
+
+
+def _check_clocks(imu, fx, fix_name, req):
+    """Refuse an IMU and GNSS whose clocks differ by a second or more (an IMU stamped in UTC
+    beside a receiver in GPS time is 18 s off): the turns show it
+    (:func:`sinslab.fusion.clock_check.clock_check`); the filter would converge to a wrong
+    heading and pass its claims."""
+    from sinslab.fusion.clock_check import clock_check
+    c = clock_check(imu, fx)
+    if c is not None and c.off:
+        raise ValueError(f"{req.imu_path} against {fix_name}: the clocks differ by {c.lag:+.1f} s — "
+                         f"{c.describe()}; put the IMU and the GNSS on one time scale")
+
+
+def _speed_change_words(sync):
+    """The speed changes' view of the IMU clock, for the time-sync line."""
+    n = sync.get("speed_change_windows") or 0
+    if not n:
+        return "; no speed changes to check an offset against" if sync["windows"] else ""
+    v, sg = sync["speed_change_offset"] * 1e3, sync["speed_change_offset_sigma"] * 1e3
+    return f"; speed changes {v:.1f} ± {sg:.1f} ms in {n} windows"
+
+
+def _file_says(data, fmeta, req, opt, em, echo):
+    """What another tool's files say about the sensor, used where no option says otherwise
+    and told once: the lever arm of a NaveGo GNSS struct, the noise model of a NaveGo IMU
+    struct. Returns the error model to use."""
+    la = fmeta.get("lever_arm")
+    if la is not None and req.lever_arm is None:
+        opt.lever_arm = tuple(float(x) for x in la)
+        echo(f"  lever arm (IMU -> antenna, right-forward-up) [{', '.join(f'{x:g}' for x in la)}] m from "
+             f"{fmeta.get('variable', 'the fix file')}.larm (--lever-arm replaces it)")
+    if fmeta.get("sigma_source"):
+        echo(f"  fix σ from {fmeta['sigma_source']}")
+    table = (data.meta or {}).get("error_model")
+    if table is not None and em is None:
+        from sinslab.app.error_model import load_error_model
+        em = load_error_model(table)
+        em[2]["source"] = f"{data.meta.get('variable', data.path)} ({', '.join(data.meta['noise_fields'])})"
+        echo(f"  IMU error model from {em[2]['source']} (--imu-errors replaces it)")
+    for key, what in (("gyro_static_bias", "gyro"), ("accel_static_bias", "accelerometer")):
+        if key in (data.meta or {}):
+            echo(f"  {what} static bias of the struct removed from every sample "
+                 f"({', '.join(f'{x:.3g}' for x in data.meta[key])} SI), as NaveGo does")
+    return em
 
 
 def _say_fix_reading(meta, path, echo):

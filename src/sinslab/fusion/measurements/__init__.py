@@ -21,7 +21,8 @@ kind: a mount's rotation, the lever-arm rate term on every block feeding the gyr
 sensor family has its own file: :mod:`.fixes` (position/velocity fixes),
 :mod:`.vehicle` (non-holonomic constraint, body velocity, odometer), :mod:`.rest`
 (ZUPT/ZARU), :mod:`.ins_difference` (two INS compared), :mod:`.barometer` (a barometric
-altimeter with a bias state of its own). A new sensor is a file here with a class
+altimeter with a bias state of its own), :mod:`.magnetometer` (the field vector or the
+heading of a three-axis magnetometer, with a residual hard-iron state of its own). A new sensor is a file here with a class
 following :class:`Measurement` and, when it has states of its own, an error-state block
 (:mod:`.barometer` is the worked example).
 """
@@ -30,6 +31,7 @@ from sinslab.fusion.measurements.base import Epoch, Grid, Measurement, NavRow, S
 from sinslab.fusion.measurements.fixes import LeverPositionFix, LeverVelocityFix, PositionFix, VelocityFix
 from sinslab.fusion.measurements.ins_difference import InsDifference
 from sinslab.fusion.measurements.jacobians import add_rate_H, vehicle_from_body
+from sinslab.fusion.measurements.magnetometer import MagneticField, MagneticHeading
 from sinslab.fusion.measurements.rest import ZeroRate, ZeroVelocity
 from sinslab.fusion.measurements.schedule import InnovationGate, Timed, arrival_epochs
 from sinslab.fusion.measurements.vehicle import BodyVelocity, NonHolonomic, Odometer
@@ -37,4 +39,4 @@ from sinslab.fusion.measurements.vehicle import BodyVelocity, NonHolonomic, Odom
 __all__ = ["Measurement", "NavRow", "Epoch", "Grid", "Timed", "PositionFix", "VelocityFix", "Stack",
            "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
            "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body",
-           "InnovationGate", "add_rate_H", "Barometer"]
+           "InnovationGate", "add_rate_H", "Barometer", "MagneticField", "MagneticHeading"]

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from sinslab.fusion.measurements.base import Epoch
-from sinslab.fusion.measurements.schedule import Timed
+from sinslab.fusion.measurements.schedule import InnovationGate, Timed
 
 __all__ = ["Barometer"]
 
@@ -47,12 +47,15 @@ class Barometer(Timed):
     bias_block : str, optional
         Name of the :func:`~sinslab.nav.errstate.barometer_bias` block, when a layout has
         several; by default the layout's one block of that quantity (or none).
+    gate : InnovationGate or float, optional
+        Innovation gate (or its false-rejection probability): a pressure jump, ground
+        effect at take-off.
     t_arrive, outages, windows, stream
         As in :class:`sinslab.fusion.measurements.PositionFix`.
     """
 
     def __init__(self, t_valid, height, sigma, *, bias=0.0, bias_block=None, t_arrive=None,
-                 outages=(), windows=None, stream=0):
+                 outages=(), windows=None, stream=0, gate=None):
         self._init_times(t_valid, t_arrive, outages, windows)
         J = self.t_valid.size
         self.height = np.asarray(height, dtype=float).reshape(-1)
@@ -64,6 +67,7 @@ class Barometer(Timed):
         self.bias = float(bias)
         self.bias_block = bias_block
         self.stream = int(stream)
+        self.gate = gate if (gate is None or isinstance(gate, InnovationGate)) else InnovationGate(gate)
 
     def matrices(self, ep: Epoch):
         j = ep.item

@@ -142,6 +142,12 @@ class Measurement(Protocol):
     def matrices(self, ep: Epoch):
         """``(z (m,), H (m, n), R (m,) variances or (m, m))``, or None (nothing to apply)."""
 
+    # Optional: ``transform(ep) -> (A (n, n), Q (n, n)) | None``, a jump of the filter's
+    # state asked for before ``matrices`` of an item applied on arrival (states the
+    # measurement re-initialises, as carrier-phase ambiguities after a slip, or copies);
+    # the driver applies it with ``KalmanFilter.transform`` and hands ``matrices`` the
+    # prior after it. Such a measurement cannot be lagged or smoothed.
+
 
 class Stack:
     """Several measurements on the same schedule applied as one update (components in

@@ -11,7 +11,7 @@ from sinslab.core import attitude as A
 from sinslab.core import earth as E
 from sinslab.fusion.measurements.base import Epoch, NavRow
 from sinslab.fusion.measurements.jacobians import add_rate_H
-from sinslab.fusion.measurements.schedule import Timed
+from sinslab.fusion.measurements.schedule import Timed, robust_R
 
 __all__ = ["PositionFix", "VelocityFix", "LeverPositionFix", "LeverVelocityFix"]
 
@@ -25,7 +25,9 @@ class PositionFix(Timed):
     antenna, body axes) added as ``+ C_b^n l`` and in H as ``(C_b^n l)×`` on φ (rows
     reordered north, east, up). The antenna velocity is ``v + C_b^n (ω_ib^b × l)``; the
     extrapolation puts ``−Δt ∂v_ant/∂x`` in H (δv, and with a lever arm φ and every block
-    feeding the gyro).
+    feeding the gyro). With a ``fix_error`` block in the layout
+    (:func:`sinslab.nav.errstate.fix_position_error`: the fixes' time-correlated error e,
+    east, north, up) ``z = δp − e`` and H carries −1 on it.
 
     Parameters
     ----------
@@ -43,11 +45,17 @@ class PositionFix(Timed):
         See :func:`arrival_epochs`.
     stream : int
         Index of the stream the fix is compared with.
+    robust : float, optional
+        Inflate R where the innovation is inconsistent at this probability
+        (:func:`sinslab.fusion.measurements.schedule.robust_R`; None: never). The times and
+        factors are kept in ``downweighted``.
     """
 
     def __init__(self, t_valid, pos, sigma, *, t_arrive=None, lever_arm=None, outages=(),
-                 windows=None, stream=0):
+                 windows=None, stream=0, robust=None):
         self._init_times(t_valid, t_arrive, outages, windows)
+        self.robust = robust
+        self.downweighted = []
         self.pos = np.asarray(pos, dtype=float)
         J = self.t_valid.size
         if self.pos.ndim != 2 or self.pos.shape[0] != J or self.pos.shape[1] not in (2, 3):
@@ -71,6 +79,9 @@ class PositionFix(Timed):
         return C, Cl, nr.vel + vlev, vlev
 
     def matrices(self, ep: Epoch):
+        return self._robust(ep, *self._zHR(ep))
+
+    def _zHR(self, ep: Epoch):
         j = ep.item
         lay = ep.layout
         nr = ep.streams[self.stream]
@@ -95,6 +106,12 @@ class PositionFix(Timed):
             H[2, s_pos.start + 2] = 1.0
         if Cl is not None:
             z[0:n_z] += Cl[[1, 0, 2]][:n_z]
+        fe = lay.find("fix_error")
+        if fe is not None:
+            # z = INS − fix = δp − e (e: the fix's own correlated error, east, north, up)
+            H[0, fe.start + 1] = H[1, fe.start] = -1.0
+            if n_z == 3:
+                H[2, fe.start + 2] = -1.0
         if dtf != 0.0:
             # −Δt ∂v_ant/∂x: the INS antenna velocity that moved the fix to the epoch
             s_vel = lay.slice("dv")
@@ -106,6 +123,14 @@ class PositionFix(Timed):
                 add_rate_H(Hv, lay, -C @ A.skew(self.lever), nr.omega_b)
             H -= dtf * Hv[[1, 0, 2]][:n_z]
         return z, H, self.sigma[j, :n_z] ** 2
+
+    def _robust(self, ep, z, H, R):
+        """``(z, H, R)`` with R inflated where the innovation is inconsistent (``robust``,
+        :func:`robust_R`); the times of the inflated fixes are kept in ``downweighted``."""
+        R, f = robust_R(ep, z, H, R, self.robust)
+        if f > 1.0:
+            self.downweighted.append((float(ep.t), f))
+        return z, H, R
 
 
 class VelocityFix(Timed):
@@ -127,8 +152,10 @@ class VelocityFix(Timed):
     """
 
     def __init__(self, t_valid, vel, sigma, *, t_arrive=None, lever_arm=None, outages=(),
-                 windows=None, stream=0):
+                 windows=None, stream=0, robust=None):
         self._init_times(t_valid, t_arrive, outages, windows)
+        self.robust = robust
+        self.downweighted = []
         J = self.t_valid.size
         self.vel = np.asarray(vel, dtype=float).reshape(J, 3)
         self.sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (J, 3))
@@ -137,6 +164,9 @@ class VelocityFix(Timed):
         self.stream = int(stream)
 
     def matrices(self, ep: Epoch):
+        return PositionFix._robust(self, ep, *self._zHR(ep))
+
+    def _zHR(self, ep: Epoch):
         j = ep.item
         lay = ep.layout
         nr = ep.streams[self.stream]
@@ -162,8 +192,8 @@ class LeverPositionFix(PositionFix):
         super().__init__(t_valid, pos, sigma, lever_arm=lever_arm, **kw)
         self.lever_block = lever_block
 
-    def matrices(self, ep: Epoch):
-        z, H, R = super().matrices(ep)
+    def _zHR(self, ep: Epoch):
+        z, H, R = super()._zHR(ep)
         nr = ep.streams[self.stream]
         C = nr.C_bn
         dtf = ep.t - self.t_valid[ep.item]
@@ -179,8 +209,8 @@ class LeverVelocityFix(VelocityFix):
         super().__init__(t_valid, vel, sigma, lever_arm=lever_arm, **kw)
         self.lever_block = lever_block
 
-    def matrices(self, ep: Epoch):
-        z, H, R = super().matrices(ep)
+    def _zHR(self, ep: Epoch):
+        z, H, R = super()._zHR(ep)
         nr = ep.streams[self.stream]
         H[:, ep.layout.find("lever_arm", self.lever_block)] = nr.C_bn @ A.skew(nr.omega_b)
         return z, H, R

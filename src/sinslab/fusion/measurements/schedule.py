@@ -72,6 +72,36 @@ def _intervals(intervals):
     return w
 
 
+def robust_R(ep, z, H, R, p, limits={}):
+    """``R`` inflated for a measurement its prior cannot explain (Chang 2014, "Robust
+    Kalman filtering based on Mahalanobis distance as outlier judging criterion", J.
+    Geodesy 88): with ``d = νᵀ S⁻¹ ν`` (``ν = z − H x``, ``S = H P Hᵀ + R``) above the
+    ``1 − p`` quantile χ² of its dimension, ``R`` is multiplied by ``d / χ²`` — a biased
+    stretch of fixes (multipath that makes a receiver's velocity 0.3 m/s wrong for seconds
+    under a stated 0.05 m/s) pulls the filter as little as its consistency allows instead
+    of setting its velocity and tilt. Returns ``(R, factor)`` (factor 1: untouched; no
+    prior, for a lagged item: untouched)."""
+    if p is None or ep.prior is None:
+        return R, 1.0
+    x, P = ep.prior
+    z = np.atleast_1d(np.asarray(z, dtype=float))
+    R = np.broadcast_to(np.asarray(R, dtype=float), z.shape).copy()
+    nu = z - H @ x
+    S = H @ P @ H.T + np.diag(R)
+    try:
+        d = float(nu @ np.linalg.solve(S, nu))
+    except np.linalg.LinAlgError:
+        return R, 1.0
+    m = z.size
+    if (m, p) not in limits:
+        from scipy.special import chdtri
+        limits[(m, p)] = float(chdtri(m, p))
+    lim = limits[(m, p)]
+    if not d > lim:
+        return R, 1.0
+    return R * (d / lim), d / lim
+
+
 class InnovationGate:
     """Reject an update whose innovation the filter's own covariance cannot explain.
 

@@ -1,0 +1,55 @@
+"""The whole-second IMU–GNSS clock check (:mod:`sinslab.fusion.clock_check`). Oracle: a
+simulated drive on one clock is found on it; its IMU stamps moved by the 18 leap seconds
+(an IMU logged in UTC beside a receiver in GPS time) or by one second are found off by
+that many seconds; a drive without turns gives no verdict."""
+import numpy as np
+import pytest
+
+from sinslab.core import units as u
+from sinslab.fusion import recorded as R
+from sinslab.fusion.clock_check import clock_check
+from sinslab.sim import trajectory as tr
+from support import simulated_car_drive
+
+
+@pytest.fixture(scope="module")
+def drive():
+    segs = [tr.Static(duration=10.0), tr.Accelerate(duration=5.0, accel=2.0)]
+    for k in range(6):
+        segs += [tr.Level(duration=8.0 + 3 * k), tr.Turn(duration=6.0, rate=(12 if k % 2 else -9) * u.deg,
+                                                          coordinated=False)]
+    segs.append(tr.Level(duration=30.0))
+    imu, fx, _, _, _ = simulated_car_drive(segs)
+    return imu, fx
+
+
+@pytest.mark.parametrize("shift", [0.0, 18.0, -1.0])
+def test_clock_check_finds_whole_seconds(drive, shift):
+    imu, fx = drive
+    c = clock_check(R.shift_imu_time(imu, -shift), fx)
+    assert c.whole_seconds == int(shift) and abs(c.lag - shift) < 0.15, c
+    assert c.off == (shift != 0.0), c
+    if shift == 18.0:
+        assert "GPST − UTC" in c.describe()
+
+
+def test_no_turn_no_verdict():
+    imu, fx, _, _, _ = simulated_car_drive([tr.Static(duration=10.0), tr.Accelerate(duration=5.0, accel=2.0),
+                                            tr.Level(duration=80.0)])
+    assert clock_check(imu, fx) is None
+
+
+def test_navigate_refuses_an_imu_18_s_off(drive, tmp_path):
+    """Before: the run converged to a wrong heading and passed its claims."""
+    from typer.testing import CliRunner
+
+    from sinslab.cli import app
+    from sinslab.data import write_fixes, write_imu
+    imu, fx = drive
+    write_imu(tmp_path / "imu.csv", R.shift_imu_time(imu, -18.0))
+    write_fixes(tmp_path / "fixes.csv", fx)
+    r = CliRunner().invoke(app, ["navigate", "--imu", str(tmp_path / "imu.csv"), "--fixes", str(tmp_path / "fixes.csv"),
+                                 "--out", str(tmp_path / "run")])
+    assert r.exit_code == 2, r.output
+    assert "the clocks differ by +18.0 s" in r.output and "GPST − UTC" in r.output, r.output
+    assert not (tmp_path / "run").exists()
