@@ -54,7 +54,10 @@ class build_py(_build_py):
         if getattr(self, "editable_mode", False) or not _wanted():
             return
         lib = Path(self.build_lib).resolve()
-        env = dict(os.environ, PYTHONPATH=str(lib), PYTHONDONTWRITEBYTECODE="1")
+        # the built package first; the rest of PYTHONPATH is how an isolated build (pip)
+        # gives its processes the build environment's packages
+        path = os.pathsep.join([str(lib)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
+        env = dict(os.environ, PYTHONPATH=path, PYTHONDONTWRITEBYTECODE="1")
         env.pop("NUMBA_CACHE_DIR", None)        # the kernels go beside the built modules
         r = subprocess.run([sys.executable, "-m", "sinslab.precompile", "--portable"], env=env,
                            cwd=str(lib.parent))
