@@ -63,8 +63,6 @@ print("COLD " + json.dumps({"code": code, "cpu_s": r.ru_utime + r.ru_stime, "pea
 """
 
 TARGET_CPU_S, TARGET_PEAK_MB = 3.0, 300.0
-#: the user the wheel's commands run as when this process is root (``nobody``)
-_UNPRIVILEGED = 65534
 
 
 def _run(cmd, cwd, env, log):
@@ -129,20 +127,19 @@ def install(kind: str, tmp: Path, env: dict) -> dict:
     return {**info, "python": str(py), "site": str(site)}
 
 
-def _as_user(uid):
-    """A ``preexec_fn`` running the child as ``uid`` (None: as this process)."""
-    if uid is None:
-        return None
+def _read_only(folder: Path) -> list | None:
+    """A command prefix that runs its command with ``folder`` mounted read-only in a mount
+    namespace of its own (``unshare``: permission bits alone do not stop root, and the
+    interpreter may live where another user cannot go); None where that cannot be done."""
+    prefix = ["unshare", "--mount", "--propagation", "private", "sh", "-c",
+              f'mount --bind "{folder}" "{folder}" && mount -o remount,bind,ro "{folder}" && exec "$@"', "sh"]
+    probe = subprocess.run(prefix + ["sh", "-c", f'! touch "{folder}/.w" 2>/dev/null'], capture_output=True)
+    return prefix if probe.returncode == 0 else None
 
-    def drop():
-        os.setgid(uid)
-        os.setuid(uid)
-    return drop
 
-
-def _command(py, args, cwd, env, uid=None) -> dict:
-    p = subprocess.run([py, "-c", _CHILD, "-q", *args, "--force"], cwd=cwd, env=env, capture_output=True,
-                       text=True, preexec_fn=_as_user(uid))
+def _command(py, args, cwd, env, prefix=None) -> dict:
+    p = subprocess.run([*(prefix or []), py, "-c", _CHILD, "-q", *args, "--force"], cwd=cwd, env=env,
+                       capture_output=True, text=True)
     line = [ln for ln in p.stdout.splitlines() if ln.startswith("COLD ")]
     if not line:
         sys.exit(f"cold_start: error: sinslab {' '.join(args)} failed:\n{p.stderr[-3000:]}")
@@ -165,26 +162,23 @@ def measure(kinds, minutes, experiment) -> dict:
             ip, fp, n = navigate_cost.make_log(str(folder), m)
             logs[f"navigate {m:g} min"] = ["navigate", "--imu", ip, "--fixes", fp]
         logs[f"run {experiment} --quick"] = ["run", experiment, "--quick"]
-        d.chmod(0o755)
         for kind in kinds:
             tmp = d / kind
             tmp.mkdir()
             env = _env(tmp / "home")
             load0 = os.getloadavg()[0]
             inst = install(kind, tmp, env)
-            # permission bits do not stop root: the wheel's commands run as an unprivileged
-            # user, for whom its site-packages is read-only indeed
-            uid = _UNPRIVILEGED if kind == "wheel" and os.geteuid() == 0 else None
+            prefix = None
+            if kind == "wheel":
+                prefix = _read_only(Path(inst["site"]))
+                inst["read_only"] = "mount" if prefix else ("permission bits" if os.geteuid() else "no (root)")
             work = tmp / "work"
             work.mkdir()
-            if uid is not None:
-                for p in (tmp / "home", work, *(tmp / "home").rglob("*")):
-                    os.chown(p, uid, uid)
             rows = {}
             for name, args in logs.items():
                 out = ["--out", str(work / "run")]
-                cold = _command(inst["python"], args + out, work, env, uid)
-                warm = _command(inst["python"], args + out, work, env, uid)
+                cold = _command(inst["python"], args + out, work, env, prefix)
+                warm = _command(inst["python"], args + out, work, env, prefix)
                 rows[name] = {"cold": cold, "warm": warm, "cpu_difference_s": cold["cpu_s"] - warm["cpu_s"]}
             user_cache = sum(1 for _ in (tmp / "home" / ".cache").rglob("*.nbi")) if (tmp / "home" / ".cache").exists() else 0
             res["installs"][kind] = {**{k: v for k, v in inst.items() if k not in ("python",)},
@@ -206,7 +200,8 @@ def main(argv=None) -> dict:
     for kind, r in res["installs"].items():
         t = " + ".join(f"{k} {r[k]['wall_s']:.0f} s" for k in ("venv", "wheel", "pip", "compile") if k in r)
         print(f"{kind}: install {t} (wall) at load {r['load_before']:.2f}-{r['load_after']:.2f}"
-              + (f"; {r['shipped_kernels']} kernels in the wheel, site-packages read-only" if "shipped_kernels" in r else ""))
+              + (f"; {r['shipped_kernels']} kernels in the wheel, site-packages read-only: {r['read_only']}"
+                 if "shipped_kernels" in r else ""))
         for name, c in r["commands"].items():
             cold, warm = c["cold"], c["warm"]
             ok = c["cpu_difference_s"] <= TARGET_CPU_S and cold["peak_mb"] < TARGET_PEAK_MB
