@@ -86,17 +86,13 @@ def _model(cfg):
 
 
 def _columns(res):
-    """The solution's columns in :data:`COLUMNS` order, each (M,) (views of the result;
-    attitude angles made a block of rows at a time)."""
-    from sinslab.core.attitude import quat_to_euler
+    """The solution's columns in :data:`COLUMNS` order, each (M,): the navigation rows split
+    into position, velocity and attitude angles by
+    :func:`sinslab.nav.strapdown.rows_to_series` (compiled), the rest views of the result."""
+    from sinslab.nav.strapdown import rows_to_series
 
-    def attitude(j):
-        for a in range(0, res.t.size, 1 << 16):
-            yield quat_to_euler(res.nav[a:a + (1 << 16), :4])[:, j]
-
-    nav = res.nav
-    return ([res.t, nav[:, 7], nav[:, 8], nav[:, 9], nav[:, 4], nav[:, 5], nav[:, 6]]
-            + [attitude(j) for j in range(3)]
+    s = rows_to_series(res.t, res.nav)
+    return ([s.t, s.lat, s.lon, s.h] + [s.vel[:, j] for j in range(3)] + [s.att[:, j] for j in range(3)]
             + [res.gyro_bias[:, j] for j in range(3)] + [res.accel_bias[:, j] for j in range(3)]
             + [res.scale[:, j] for j in range(6)] + [res.sigma[:, j] for j in range(21)])
 
@@ -113,13 +109,7 @@ def write_solution(path, res):
         np.lib.format.write_array_header_2_0(fh, {"descr": "<f8", "fortran_order": True,
                                                   "shape": (m, len(COLUMNS))})
         for col in _columns(res):
-            if isinstance(col, np.ndarray):
-                np.copyto(buf, col)
-            else:
-                i = 0
-                for part in col:
-                    buf[i:i + part.size] = part
-                    i += part.size
+            np.copyto(buf, col)
             buf.tofile(fh)
 
 
