@@ -53,7 +53,7 @@ def radii_s(lat: float, h: float) -> tuple[float, float]:
 
 
 @njit(cache=True, inline="always")
-def radii_sin_s(sl, h):
+def radii_sin_s(sl: float, h: float) -> tuple[float, float]:
     """:func:`radii_s` from the sine of the latitude ``sl``."""
     sq2 = 1.0 - E2 * sl * sl
     sq = math.sqrt(sq2)
@@ -67,7 +67,7 @@ def gravity_s(lat: float, h: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def gravity_sin_s(sl, h):
+def gravity_sin_s(sl: float, h: float) -> float:
     """:func:`gravity_s` from the sine of the latitude ``sl``."""
     return G_EQ * (1.0 + K_SOM * sl * sl) / math.sqrt(1.0 - E2 * sl * sl) - DGDH * h
 
