@@ -461,8 +461,9 @@ def test_recorded_data_commands_announce_their_stages_off_a_terminal(tmp_path, f
             assert r.exit_code == 0, r.stderr
             lines = [ln for ln in r.stderr.splitlines() if ln.startswith("sinslab: ")]
             stages = [ln.split(": ")[1] for ln in lines if ln.endswith(": started")]
-            assert stages == ["reading rest.imu", work, f"writing {tmp_path / args[0]}"], lines
-            assert sum(": done in " in ln for ln in lines) == 3, lines
+            assert stages == [f"{args[0]}, computing", "reading rest.imu", work,
+                              f"writing {tmp_path / args[0]}"], lines
+            assert sum(": done in " in ln for ln in lines) == 4, lines
     finally:
         P.set_quiet(None)
 

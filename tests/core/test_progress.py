@@ -77,3 +77,29 @@ def test_failed_stage_stops_its_timer_without_an_end_line(monkeypatch, capsys):
     err = capsys.readouterr().err.splitlines()
     assert err == ["sinslab: failing: started"]
     assert not [t for t in threading.enumerate() if t.name == "sinslab-progress"]
+
+
+def test_nested_stages_print_the_innermost_heartbeat(monkeypatch, capsys):
+    """A command's computation around the filter's stage: while the inner stage runs only
+    it prints the periodic lines; the outer one counts its next interval from the inner
+    one's end (one line per interval in the log, from the work that runs)."""
+    import time
+
+    monkeypatch.setattr(P, "HEARTBEAT_S", 0.06)
+    P.set_quiet(None)
+    P.set_lines(True)
+    try:
+        with P.stage("outer"):
+            with P.stage("inner", total=4, unit="steps") as bar:
+                for _ in range(4):
+                    time.sleep(0.05)
+                    bar.advance(1)
+            time.sleep(0.03)                # shorter than an interval: no outer line yet
+    finally:
+        P.set_lines(False)
+    err = capsys.readouterr().err.splitlines()
+    assert err[:2] == ["sinslab: outer: started", "sinslab: inner: started"], err
+    assert err[-1].startswith("sinslab: outer: done in ") and err[-2].startswith("sinslab: inner: done in ")
+    middle = err[2:-2]
+    assert middle and all(ln.startswith("sinslab: inner: ") and " % of 4 steps after " in ln
+                          for ln in middle), err

@@ -122,7 +122,12 @@ class _LineBar(Bar):
 
     The timer prints between two Python steps of the working thread: a compiled call
     that holds the interpreter lock delays its line until the call returns (the loops of
-    sinslab's long stages return to Python between blocks)."""
+    sinslab's long stages return to Python between blocks).
+
+    Stages nest (a command's computation, the filter inside it): only the innermost open
+    stage of a thread prints its 30 s lines, and the one around it counts its next 30 s
+    from the end of the inner one, so a log gets one line per interval, from the work
+    that is running."""
 
     def __init__(self, description: str, total, unit: str):
         import time
@@ -133,6 +138,11 @@ class _LineBar(Bar):
         self.t0 = self.last = time.monotonic()
         self._lock = threading.Lock()
         self._stop = threading.Event()
+        stack = getattr(_state, "lines", None)
+        if stack is None:
+            stack = _state.lines = []
+        self._stack: list = stack           # this thread's open line stages, innermost last
+        stack.append(self)
         self._say("started")
         self._timer = threading.Thread(target=self._run, name="sinslab-progress", daemon=True)
         self._timer.start()
@@ -151,7 +161,7 @@ class _LineBar(Bar):
 
         with self._lock:
             now = time.monotonic()
-            if now - self.last < HEARTBEAT_S or self._stop.is_set():
+            if now - self.last < HEARTBEAT_S or self._stop.is_set() or self._stack[-1:] != [self]:
                 return
             self.last = now
             u = f" {self.unit}" if self.unit else ""
@@ -177,9 +187,15 @@ class _LineBar(Bar):
 
     def stop(self) -> None:
         """End the timer without a line (the stage failed: its error says why)."""
+        import time
+
         with self._lock:
             self._stop.set()
         self._timer.join()
+        if self in self._stack:
+            self._stack.remove(self)
+        if self._stack:                     # the stage around this one: 30 s from now
+            self._stack[-1].last = max(self._stack[-1].last, time.monotonic())
 
     def end(self) -> None:
         import time

@@ -147,7 +147,10 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
     t0 = time.perf_counter()
     token = _SCRATCH.set(rd.scratch_path())
     try:
-        res = compute()
+        # the whole computation is a stage: off a terminal a log shows the command alive
+        # every 30 s even where no stage of its own runs (the stages inside it nest)
+        with stage(f"{command.name}, computing"):
+            res = compute()
     finally:
         _remove_scratch(_SCRATCH.get())
         _SCRATCH.reset(token)
