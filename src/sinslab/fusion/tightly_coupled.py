@@ -32,7 +32,8 @@ __all__ = ["RawGnss", "RawSource", "tightly_coupled", "TightlyCoupled", "tc_mode
 
 @dataclass(frozen=True, eq=False)
 class RawGnss:
-    """Raw GNSS aiding: the prepared observations and how they are used.
+    """Raw GNSS aiding: the prepared observations and how they are used. The single-point
+    solution of the observations is computed once (:attr:`spp`).
 
     Attributes
     ----------
