@@ -79,6 +79,7 @@ from typing import Callable
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from sinslab.core.attitude import (euler2q_s, euler_to_quat, q2dcm_s, q2euler_s, qmul_s, quat_mul, rotvec_to_quat,
                                    rv2q_s)
@@ -174,7 +175,7 @@ class VerticalDamping:
         return 2.0 * self.zeta / t, 1.0 / t ** 2 + 2.0 * ws2, 0.0
 
     @classmethod
-    def coerce(cls, d) -> "VerticalDamping":
+    def coerce(cls, d: "VerticalDamping | dict | None") -> "VerticalDamping":
         """From None (defaults), a VerticalDamping, or a dict of its fields."""
         if d is None:
             return cls()
@@ -592,7 +593,8 @@ def state_to_navstate(state: np.ndarray, t: float = 0.0) -> NavState:
     return NavState(s[7], s[8], s[9], s[4:7].copy(), att, t)
 
 
-def correct(state: np.ndarray, phi=None, dvel=None, dpos=None) -> np.ndarray:
+def correct(state: np.ndarray, phi: ArrayLike | None = None, dvel: ArrayLike | None = None,
+            dpos: ArrayLike | None = None) -> np.ndarray:
     """Apply a feedback correction to a state array in place (and return it): the compiled
     form of :func:`correct_rows` on one state (equal to rounding).
 
@@ -627,7 +629,7 @@ def correct(state: np.ndarray, phi=None, dvel=None, dpos=None) -> np.ndarray:
     return s
 
 
-def _pad3(e):
+def _pad3(e: ArrayLike | None) -> np.ndarray | None:
     """Errors (..., k), k <= 3, padded with zeros to (..., 3) (a horizontal block leaves the
     vertical alone), or None."""
     if e is None:
@@ -638,7 +640,8 @@ def _pad3(e):
     return np.concatenate([e, np.zeros(e.shape[:-1] + (3 - e.shape[-1],))], -1)
 
 
-def correct_rows(rows, phi=None, dvel=None, dpos=None):
+def correct_rows(rows: ArrayLike, phi: ArrayLike | None = None, dvel: ArrayLike | None = None,
+                 dpos: ArrayLike | None = None) -> np.ndarray:
     """Navigation rows corrected by an error state, as a feedback corrects the INS.
 
     The definition of the correction (the errors are computed minus true, the conventions
@@ -672,7 +675,8 @@ def correct_rows(rows, phi=None, dvel=None, dpos=None):
     return out
 
 
-def with_errors(rows, phi=None, dvel=None, dpos=None):
+def with_errors(rows: ArrayLike, phi: ArrayLike | None = None, dvel: ArrayLike | None = None,
+                dpos: ArrayLike | None = None) -> np.ndarray:
     """Navigation rows an INS carrying an error state shows: the inverse of
     :func:`correct_rows` (``q ← q(−φ) ⊗ q``, ``v ← v + δv``, ``p ← p + δp``; to first
     order ``C_b^{n'} = (I − φ×) C_b^n``). Arguments and result as in :func:`correct_rows`."""
@@ -703,7 +707,7 @@ def _height_series(height, n_epochs, what):
     return np.ascontiguousarray(a)
 
 
-def held_vup(href, dt):
+def held_vup(href: np.ndarray, dt: float) -> np.ndarray:
     """Vertical velocity [m/s] of a held height series ``href`` [m] at interval ``dt`` [s]:
     second-order finite differences (one-sided at the ends), contiguous."""
     n_epochs = href.shape[0]
@@ -735,18 +739,18 @@ class HeldHeight:
         call and keep nothing (the height of one stream).
     """
 
-    def __init__(self, height, dt, *, shared=True):
+    def __init__(self, height: ArrayLike, dt: float, *, shared: bool = True):
         h = np.asarray(height, dtype=float)
         if h.ndim != 1 or h.size < 2:
             raise ValueError(f"held height must be a series of >= 2 epochs, got shape {h.shape}")
         self.h = _height_series(h, h.size, "held")
         self.dt = float(dt)
-        self._vup = {} if shared else None
+        self._vup: dict[tuple[int, int], np.ndarray] | None = {} if shared else None
 
     def __len__(self):
         return self.h.size
 
-    def slice(self, a, b):
+    def slice(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
         """Heights and vertical rates [m/s] of epochs ``a..b`` (inclusive), contiguous."""
         if self._vup is None:
             return self.h[a:b + 1], held_vup(self.h[a:b + 1], self.dt)
@@ -756,7 +760,9 @@ class HeldHeight:
         return self.h[a:b + 1], v
 
 
-def advance(full, dth, dvl, dt, nsub, mode, href, vref, gains, gb, ab, out, out_every):
+def advance(full: np.ndarray, dth: np.ndarray, dvl: np.ndarray, dt: float, nsub: int, mode: int,
+            href: np.ndarray, vref: np.ndarray, gains: tuple[float, float, float], gb: np.ndarray,
+            ab: np.ndarray, out: np.ndarray, out_every: int) -> int:
     """The compiled update loop on inputs already checked (what :func:`step` runs after
     its checks; the fusion driver's streams call it per block with inputs checked once).
 
@@ -796,8 +802,9 @@ def _vertical(vertical, height, damping, n_epochs, dt, lat, h, vup=None):
 
 
 def step(state: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float, nsub: int = 2, *,
-         vertical: str = "free", height=None, vup=None, damping=None, gyro_bias=None,
-         accel_bias=None, out: np.ndarray | None = None, out_every: int = 1) -> int:
+         vertical: str = "free", height: ArrayLike | None = None, vup: ArrayLike | None = None,
+         damping: VerticalDamping | dict | None = None, gyro_bias: ArrayLike | None = None,
+         accel_bias: ArrayLike | None = None, out: np.ndarray | None = None, out_every: int = 1) -> int:
     """Advance a state array in place over a chunk of IMU samples (compiled loop).
 
     Parameters
@@ -899,8 +906,10 @@ def _progress_ctx(progress, total):
 
 
 def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "free",
-             height=None, vup=None, damping=None, mount=None, out_every: int = 1, gyro_bias=None,
-             accel_bias=None, progress: bool | Callable | None = None,
+             height: ArrayLike | NavSeries | None = None, vup: ArrayLike | None = None,
+             damping: VerticalDamping | dict | None = None, mount: ArrayLike | None = None,
+             out_every: int = 1, gyro_bias: ArrayLike | None = None, accel_bias: ArrayLike | None = None,
+             progress: bool | Callable | None = None,
              chunk: int = 1 << 20) -> NavSeries:
     """Strapdown navigation of an IMU record (ENU frame, compiled loop).
 
@@ -1006,7 +1015,7 @@ def navigate(imu: ImuRecord, init: NavState, *, nsub: int = 2, vertical: str = "
     return rows_to_series(t_all, rows, None if mount is None else mount[ep])
 
 
-def rows_to_series(t, rows, mount=None) -> NavSeries:
+def rows_to_series(t: ArrayLike, rows: np.ndarray, mount: ArrayLike | None = None) -> NavSeries:
     """A :class:`~sinslab.core.records.NavSeries` from state rows of :func:`step`.
 
     Parameters
