@@ -196,29 +196,31 @@ def ROBUSTNESS(cfg):
              {f"the turntable IMU's ({lab[0]})": [f"{sec}.imu.gyro_arw={lab[1]}", f"{sec}.imu.accel_vrw={lab[2]}"],
               "a tenth of it": [f"{sec}.imu.gyro_arw=0.0005 deg/sqrt(h)", f"{sec}.imu.accel_vrw=5 ug/sqrt(Hz)"]})
     site = {"30° N": ["scenario.latitude=30 deg"]}
+    # the demo sweeps the paper's simulation (aligned ship) and the still base; its turntable
+    # and injected variants show their readings only
+    main = (sc.kind == "ship" and cfg.init.mode == "aligned") or _still(cfg)
+    init = ({"the paper's injected errors": ["init.mode=injected"]} if cfg.init.mode == "aligned"
+            else {"real alignments on the stream": ["init.mode=aligned"]})
     if sc.kind != "ship":
         demo = () if float(sc.sample_interval) >= 0.05 else ("scenario.sample_interval=0.05 s",)
-        init = ({"the paper's injected errors": ["init.mode=injected"]} if cfg.init.mode == "aligned"
-                else {"real alignments on the stream": ["init.mode=aligned"]})
-        axes = [Axis(NOISE, _default(cfg, NOISE), noise, claims=kept, demo=demo),
-                Axis(SITE, _default(cfg, SITE), site, claims=kept, demo=demo),
-                Axis(INIT, _default(cfg, INIT), init, claims=kept, demo=demo)]
+        axes = [Axis(NOISE, _default(cfg, NOISE), noise, claims=kept, demo=demo, in_demo=main),
+                Axis(SITE, _default(cfg, SITE), site, claims=kept, demo=demo, in_demo=main),
+                Axis(INIT, _default(cfg, INIT), init, claims=kept, demo=demo, in_demo=main)]
         if float(cfg.turntable.duration) > 24 * 3600:
             axes.append(Axis("record length", f"{float(cfg.turntable.duration) / 3600:g} h after t2",
-                             {"24 h": ["turntable.duration=24 h"]}, claims=kept, demo=demo))
+                             {"24 h": ["turntable.duration=24 h"]}, claims=kept, demo=demo, in_demo=main))
         return axes
     red = ("ship.duration=24 h",)
     demo = red + ("scenario.sample_interval=0.05 s",)
-    init = ({"the paper's injected errors": ["init.mode=injected"]} if cfg.init.mode == "aligned"
-            else {"real alignments on the stream": ["init.mode=aligned"]})
     return [
         Axis(ONSET, _default(cfg, ONSET), {"abrupt (60 s)": ["ship.manoeuvre_ramp=60 s"],
                                            "30 min": ["ship.manoeuvre_ramp=30 min"],
                                            "6 h": ["ship.manoeuvre_ramp=6 h"]},
-             claims=kept, reduced=red, demo=demo),
-        Axis(INIT, _default(cfg, INIT), init, claims=_SUPPRESSION + ("earth_period_kept",), reduced=red, demo=demo),
-        Axis(NOISE, _default(cfg, NOISE), noise, claims=kept, reduced=red, demo=demo, source="paper"),
-        Axis(SITE, _default(cfg, SITE), site, claims=kept, reduced=red, demo=demo),
+             claims=kept, reduced=red, demo=demo, in_demo=main),
+        Axis(INIT, _default(cfg, INIT), init, claims=_SUPPRESSION + ("earth_period_kept",), reduced=red, demo=demo,
+             in_demo=main),
+        Axis(NOISE, _default(cfg, NOISE), noise, claims=kept, reduced=red, demo=demo, source="paper", in_demo=main),
+        Axis(SITE, _default(cfg, SITE), site, claims=kept, reduced=red, demo=demo, in_demo=main),
     ]
 
 
