@@ -36,7 +36,7 @@ from sinslab.app.claims import declared, tally
 from sinslab.app.errors import UserError
 from sinslab.core.atomic import atomic_write
 
-__all__ = ["ReportError", "render", "build", "index"]
+__all__ = ["ReportError", "render", "build", "index", "figure_caption", "is_cjk"]
 
 
 class ReportError(UserError):
@@ -44,7 +44,7 @@ class ReportError(UserError):
 
 
 _CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em auto;
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,"sinslab CJK subset",sans-serif;margin:2em auto;
 max-width:1100px;padding:0 1em;color:#1d1d1f;line-height:1.4}
 h1{margin-bottom:.1em}h2{border-bottom:1px solid #ddd;padding-bottom:.2em;margin-top:1.6em}
 .sub{color:#666;margin-top:0}table{border-collapse:collapse;margin:.5em 0;font-size:.92em}
@@ -57,8 +57,11 @@ tr.fail td.verdict{background:#fde2e1;color:#a11;font-weight:bold}
 ul.warn li{background:#fff4d6;color:#6b4b00;padding:.2em .5em;margin:.2em 0;list-style:none}
 figure{margin:1em 0;text-align:center}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}
-#claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}
-#claims td:nth-child(3){min-width:16em}.scroll{max-width:100%;overflow-x:auto}
+#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}.scroll{max-width:100%;overflow-x:auto}
+#claims{table-layout:fixed;width:100%}#claims td{overflow-wrap:anywhere}#claims td.num{white-space:normal}
+#claims col.id{width:13%}#claims col.origin{width:6.5%}#claims col.statement{width:33%}
+#claims col.measured,#claims col.expected{width:20%}#claims col.result{width:7.5%}
+#claims code.id,#claims span.q{white-space:normal;overflow-wrap:anywhere}
 td.cols{overflow-wrap:anywhere;max-width:28em}.variant{background:#f4f7fb;padding:.4em .8em;border-left:3px solid #4a7bd0}
 code.id,#runs td:first-child{white-space:nowrap}span.q{white-space:nowrap}#rerun{overflow-wrap:anywhere}
 """
@@ -72,8 +75,45 @@ window.addEventListener('load', function () {
   document.body.setAttribute('data-figures-loaded', String(ok));
   document.body.setAttribute('data-page-width', String(document.documentElement.scrollWidth));
   document.body.setAttribute('data-view-width', String(document.documentElement.clientWidth));
+  var right = 0, cells = document.querySelectorAll('#claims td.verdict');
+  for (var j = 0; j < cells.length; j++) { right = Math.max(right, cells[j].getBoundingClientRect().right); }
+  document.body.setAttribute('data-claims-right', String(Math.ceil(right)));
+  var over = 0, tds = document.querySelectorAll('#claims td');
+  for (var k = 0; k < tds.length; k++) { if (tds[k].scrollWidth > tds[k].clientWidth + 1) over++; }
+  document.body.setAttribute('data-claims-overflow', String(over));
+  if (!document.fonts) return;
+  document.fonts.ready.then(function () {
+    var cjk = 'none';
+    document.fonts.forEach(function (f) { if (f.family.indexOf('sinslab CJK') >= 0) cjk = f.status; });
+    document.body.setAttribute('data-cjk-font', cjk);
+  });
 });
 """
+
+#: Unicode blocks of CJK text (punctuation, ideographs and their extensions, compatibility
+#: ideographs, full-width forms): shown with the embedded font subset
+_CJK = ((0x3000, 0x303F), (0x3400, 0x4DBF), (0x4E00, 0x9FFF), (0xF900, 0xFAFF), (0xFF00, 0xFFEF))
+
+
+def is_cjk(ch: str) -> bool:
+    """True for a character of the CJK blocks the report's font subset serves."""
+    o = ord(ch)
+    return any(a <= o <= b for a, b in _CJK)
+
+
+def _cjk_font_css(text: str) -> str:
+    """An ``@font-face`` of the CJK subset (fonts/cjk-subset.otf, embedded) when ``text``
+    holds CJK characters: a reader's machine without a CJK font shows them, not boxes."""
+    if not any(is_cjk(c) for c in text):
+        return ""
+    font = Path(__file__).with_name("fonts") / "cjk-subset.otf"
+    try:
+        b64 = base64.b64encode(font.read_bytes()).decode("ascii")
+    except OSError:
+        return ""
+    ranges = ",".join(f"U+{a:04X}-{b:04X}" for a, b in _CJK)
+    return (f"@font-face{{font-family:'sinslab CJK subset';src:url(data:font/otf;base64,{b64}) "
+            f"format('opentype');unicode-range:{ranges}}}")
 
 e = html.escape
 
@@ -196,7 +236,7 @@ def criterion(exp: dict, names=None, n: int | None = None) -> str:
             parts = [f"{with_unit(v, _unit_at(unit, i) if isinstance(unit, list) else unit)} ± "
                      f"{pm or with_unit(tols[i], _unit_at(unit, i) if isinstance(unit, list) else unit)}"
                      for i, v in enumerate(val)]
-            return " · ".join(f"{names[i]} {p}" if names and i < len(names) else p
+            return " · ".join(f"{_short(names[i])} {p}" if names and i < len(names) else p
                               for i, p in enumerate(parts))
         u = unit if isinstance(unit, str) else ""
         return f"{with_unit(val, u)} ± {pm or with_unit(tol, u)}"
@@ -208,12 +248,19 @@ def criterion(exp: dict, names=None, n: int | None = None) -> str:
         parts = [f"{op} {_values(v, _unit_at(unit, i) if isinstance(unit, list) else unit)}"
                  for i, v in enumerate(val)]
         if names and len(names) == len(val):
-            return " · ".join(f"{nm} {p}" for nm, p in zip(names, parts))
+            return " · ".join(f"{_short(nm)} {p}" for nm, p in zip(names, parts))
         if len(set(parts)) == 1:
             return parts[0] + " each"
         return " · ".join(parts)
     t = f"{op} {with_unit(val, unit if isinstance(unit, str) else '')}"
     return t + (" each" if n and n > 1 else "")
+
+
+def _short(name: str) -> str:
+    """A component's name without the measured details in brackets ("euler (RMS/σ 1.2)"
+    -> "euler"): the expected column names what is expected, it does not repeat the
+    measured column."""
+    return str(name).split(" (", 1)[0]
 
 
 def claim_texts(c: dict) -> tuple[str, str]:
@@ -262,17 +309,33 @@ def _figure_html(d: Path, fig: dict, k: int = 0) -> str:
     b64 = base64.b64encode(png.read_bytes()).decode("ascii")
     svg = fig.get("svg")
     link = f' <a href="{e(svg)}">SVG</a>' if svg and (d / svg).is_file() else ""
+    label, caption = figure_caption(fig["name"], fig.get("caption", ""))
     return (f'<figure id="fig-{e(fig["name"])}"><img class="figure" alt="{e(fig["name"])}" '
             f'src="data:image/png;base64,{b64}">'
-            f'<figcaption><b>Figure {k}: {e(_figure_label(fig["name"]))}</b> — '
-            f'{e(fig.get("caption", ""))}{link}</figcaption></figure>')
+            f'<figcaption><b>Figure {k}: {e(label)}</b> — {e(caption)}{link}</figcaption></figure>')
 
 
-def _figure_label(name: str) -> str:
-    """A figure's title next to the page's own numbering: ``fig2_reduced`` (a file named
-    after the paper's figure) reads ``reduced (the paper's Fig. 2)``, not a second number."""
-    m = re.match(r"fig(\d+)_(.+)$", name)
-    return f"{m[2].replace('_', ' ')} (the paper's Fig. {m[1]})" if m else name
+_LEADING_NUMBER = re.compile(r"^\s*Fig(?:ure|\.)?\s*(\d+)\s*[:.]\s*", re.I)
+_PAPER_FIG = re.compile(r"paper(?:'s)? Figs?\.?\s*\d", re.I)
+
+
+def figure_caption(name: str, caption: str) -> tuple[str, str]:
+    """``(label, caption)`` of a figure under the page's own numbering ("Figure k:"), so
+    that a page numbers its figures once: a file named after the paper's figure
+    (``fig2_reduced``) or a caption starting "Fig. 2:" becomes the reference "(the paper's
+    Fig. 2)" — once, not where the caption cites the paper's figure already."""
+    caption = caption or ""
+    m = _LEADING_NUMBER.match(caption)
+    paper = m[1] if m else None
+    if m:
+        caption = caption[m.end():]
+        caption = caption[:1].upper() + caption[1:]
+    mn = re.match(r"fig(\d+)_(.+)$", name)
+    label = mn[2].replace("_", " ") if mn else name
+    paper = paper or (mn[1] if mn else None)
+    if paper and not _PAPER_FIG.search(caption):
+        label += f" (the paper's Fig. {paper})"
+    return label, caption
 
 
 def _table_html(d: Path, t: dict) -> str:
@@ -344,7 +407,8 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
                      f"passed</span>" + (f" <span class='sub' id='origins'>{e(tally(claims, s.get('robustness')))}</span>"
                                           if any(c.get("origin") for c in claims) else "") + "</p>")
         parts.append("<h2>Claims</h2>" + _wide(
-            "<table id='claims'><tr><th>id</th><th>origin</th><th>statement</th>"
+            "<table id='claims'>" + "".join(f"<col class='{c}'>" for c in _CLAIM_COLUMNS)
+            + "<tr><th>id</th><th>origin</th><th>statement</th>"
             "<th>measured</th><th>expected</th><th>result</th></tr>" + "".join(
                 _claim_row(c) for c in claims) + "</table>"))
         if declared(s.get("robustness")):
@@ -356,7 +420,8 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
         mi = info.get(name, {})
         rows.append(f"<tr data-metric='{e(name)}'><td><code>{_breakable(name)}</code></td>"
                     f"<td class='num'>{e(_metric_text(v, mi.get('unit', '')))}</td>"
-                    f"<td class='unit'>{e(unit_sign(mi.get('unit', '')))}</td><td>{e(mi.get('description', ''))}</td></tr>")
+                    f"<td class='unit'>{e('' if isinstance(v, bool) else unit_sign(mi.get('unit', '')))}</td>"
+                    f"<td>{e(mi.get('description', ''))}</td></tr>")
     parts.append(_wide("<table id='metrics'><tr><th>metric</th><th>value</th><th>unit</th>"
                        "<th>description</th></tr>" + "".join(rows) + "</table>"))
 
@@ -391,7 +456,13 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     parts.append(f"<h2>Configuration</h2><p>Re-run from this folder with <code id='rerun'>{e(rerun)}</code>.</p>"
                  f"<pre id='config'>{e(cfg_text)}</pre>")
     parts.append(f"<script>{_SCRIPT}</script></body></html>\n")
-    return "".join(parts)
+    page = "".join(parts)
+    return page.replace("</style>", _cjk_font_css(page) + "</style>", 1)
+
+
+#: the claims table's columns (their widths in the page's CSS: the table fits the page,
+#: its verdicts in view at 1400 px and less)
+_CLAIM_COLUMNS = ("id", "origin", "statement", "measured", "expected", "result")
 
 
 def _parts(text: str) -> str:

@@ -281,7 +281,6 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
     rd.write_text("config.toml", config_to_toml(cfg, header))
     import hashlib
     import json
-    import shutil
 
     # beside the output folder, not in its staging folder: a failed run's finished Monte Carlo
     # tasks outlive it, for a rerun of the same configuration into the same folder (a name
@@ -337,6 +336,5 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
         summary["name"] = variant[0]
         summary["variant"] = {"name": variant[0], "sets": list(variant[1])}
         summary["rerun"] = f"sinslab run {exp.name} --config config.toml"
-    done = complete_timed(rd, summary)
-    shutil.rmtree(campaigns, ignore_errors=True)
-    return done
+    rd.obsolete_when_complete(campaigns)
+    return complete_timed(rd, summary)

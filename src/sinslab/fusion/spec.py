@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sinslab.core import units
+from sinslab.fusion.measurements.schedule import robust_weighting
 
 __all__ = ["FilterGrid", "InsSpec", "FixSpec", "DISCRETIZATIONS", "VERTICAL"]
 
@@ -176,9 +177,11 @@ class FixSpec:
         Fixes valid inside are dropped [s].
     windows : tuple of (start, end), optional
         Fixes are processed only at epochs inside these windows [s].
-    robust : float, optional
-        Down-weight a fix whose innovation the filter cannot explain (probability ``robust``
-        that a consistent fix is touched): :func:`sinslab.fusion.measurements.schedule.robust_R`.
+    robust : RobustWeighting, float or str, optional
+        Down-weight a fix whose innovation the filter cannot explain
+        (:class:`sinslab.fusion.measurements.schedule.RobustWeighting`: a probability is
+        Chang's whole-fix rule, :func:`~sinslab.fusion.measurements.schedule.robust_R`;
+        ``"huber[:k0]"``, ``"igg3[:k0:k1]"`` row weights); held as a ``RobustWeighting``.
     """
 
     t: np.ndarray
@@ -191,7 +194,7 @@ class FixSpec:
     lever_arm: np.ndarray = field(default_factory=lambda: np.zeros(3))
     outages: tuple = ()
     windows: tuple | None = None
-    robust: float | None = None
+    robust: object = None
 
     def __post_init__(self):
         t = np.atleast_1d(np.array(self.t, dtype=float))
@@ -232,6 +235,7 @@ class FixSpec:
                         ("arrive", arrive), ("lever_arm", lever)):
             object.__setattr__(self, name, None if v is None else _frozen(v))
         object.__setattr__(self, "latency", lat)
+        object.__setattr__(self, "robust", robust_weighting(self.robust))
         object.__setattr__(self, "outages", outs)
         object.__setattr__(self, "windows", win)
 

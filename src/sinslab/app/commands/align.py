@@ -114,17 +114,17 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
 
         check_window("--window", window, float(imu.t[0]) - imu.dt, float(imu.t[-1]), imu.dt)
         imu = imu.slice(lo, hi)
-    from sinslab.app.plausibility import Finding, imu_findings, rest_findings, settle
+    from sinslab.app.plausibility import Finding, imu_findings, rest_findings, rest_rate_findings, settle
 
+    gb = units.parse(gyro_bias, "angular_rate")
     src = f"{path}" + (f" (window {window})" if window else "")
     found = imu_findings(imu, src, lat=lat_r, h=h_r)
     if not any(fd.refuse for fd in found):
-        found += rest_findings(imu, src, lat=lat_r, h=h_r)
+        found += rest_findings(imu, src, lat=lat_r, h=h_r) + rest_rate_findings(imu, src, lat=lat_r, gyro_bias=gb)
     settle([fd for fd in found if fd.refuse])
     al.check_alignment_latitude(lat_r)
     ga = units.parse(gyro_arw, "angle_random_walk")
     av = None if accel_vrw in (None, "", "auto") else units.parse(accel_vrw, "velocity_random_walk")
-    gb = units.parse(gyro_bias, "angular_rate")
     ab = units.parse(accel_bias, "acceleration")
     T = units.parse(period, "time")
     r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
