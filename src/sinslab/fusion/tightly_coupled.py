@@ -58,8 +58,6 @@ class RawGnss:
     nominal : tuple, optional
         ``(b0, d0, t0, {system: isb})``; default from the first single-point solution at
         or after the start (:meth:`clock_nominal`).
-
-    The single-point solution of the observations is computed once (:attr:`spp`).
     """
 
     sv: SatelliteObservations
