@@ -55,6 +55,8 @@ class RtkSolution:
     slips: dict
     fixed_dd: list = None
     restarted: list = None
+    log: dict = None
+    nis_sums: dict = None
 
     @property
     def fixed(self):
@@ -192,4 +194,5 @@ def _solution(rover, eng, e0):
     return RtkSolution(rover.t_epoch.copy(), st, full(a["ratio"], np.nan), *ints.values(), pos, fpos, xpos,
                        full(a["float_cov"], np.nan, (3, 3)), full(a["fixed_cov"], np.nan, (3, 3)),
                        dict(eng.counts, no_slot=eng.slots.full), eng.slip_counts,
-                       [([], np.zeros(0))] * e0 + list(a["fixed_dd"]), [[]] * e0 + list(a["restarted"]))
+                       [([], np.zeros(0))] * e0 + list(a["fixed_dd"]), [[]] * e0 + list(a["restarted"]), a,
+                       getattr(eng, "nis", None))

@@ -57,6 +57,10 @@ class RawGnss:
     nominal : tuple, optional
         ``(b0, d0, t0, {system: isb})``; default from the first single-point solution at
         or after the start (:meth:`clock_nominal`).
+    phase : {"none", "tdcp"}
+        ``"tdcp"``: the time-differenced carrier phase of every signal beside
+        (:class:`sinslab.fusion.tdcp.TimeDifferencedPhase`, in the raw source of a
+        recorded run), with its phase σ₀ ``phase_sigma`` [m].
 
     The single-point solution of the observations is computed once (:attr:`spp`).
     """
@@ -71,6 +75,8 @@ class RawGnss:
     max_satellites: tuple = ()
     outages: tuple = ()
     clock_noise: tuple = (0.5, 0.5, 1e-3)
+    phase: str = "none"
+    phase_sigma: float = 0.003
     clock_sigma0: tuple = (30.0, 5.0, 10.0)
     nominal: tuple | None = None
 
@@ -292,7 +298,8 @@ class RawSource:
 
     def states(self):
         from sinslab.fusion.aids.base import State
-        return (State(self.raw.clock_block(), self.raw.clock_sigmas()),)
+        clones = (State(es.phase_clones(), 0.0),) if self.raw.phase == "tdcp" else ()
+        return (State(self.raw.clock_block(), self.raw.clock_sigmas()), *clones)
 
     def plan(self, setup, fixes, lever_block):
         from sinslab.fusion.aids.base import Plan
@@ -301,15 +308,27 @@ class RawSource:
                              "velocity fixes; with raw GNSS the lever arm given (--lever-arm) is used")
         nominal = self.raw.clock_nominal(setup.t_start)
         ms = self.raw.make(nominal, lever_arm=setup.lever_arm, outages=setup.outages)
-        return Plan(tuple((_LABELS[m.kind], m) for m in ms), {"nominal": nominal})
+        plan = [(_LABELS[m.kind], m) for m in ms]
+        facts = {"nominal": nominal}
+        if self.raw.phase == "tdcp":
+            from sinslab.fusion.tdcp import TimeDifferencedPhase
+            facts["tdcp"] = TimeDifferencedPhase(
+                self.raw.sv, self.raw.phase_sigma, lever_arm=setup.lever_arm, mask=self.raw.mask,
+                cn0_ref=self.raw.cn0_ref, clock_nominal=nominal, outages=setup.outages, shared=ms[0].shared)
+            plan.append(("tdcp", facts["tdcp"]))
+        return Plan(tuple(plan), facts)
 
     def report(self, plan, run):
         from sinslab.fusion.aids.base import SourceReport, Table
         from sinslab.fusion.observer import RowLog
-        rows = {label: run.rows.get(label) or RowLog() for label, _ in plan.measurements}
+        rows = {label: run.rows.get(label) or RowLog() for label, _ in plan.measurements if label != "tdcp"}
         clock = self.raw.clock_estimate(run.t, run.x, run.layout, plan.facts["nominal"])
         sigma = run.sigma[:, run.layout.find("receiver_clock")]
         metrics, lines = _satellite_metrics(rows, self.raw)
+        if "tdcp" in plan.facts:
+            m, line = _tdcp_metrics(plan.facts["tdcp"], run.applied.get("tdcp"))
+            metrics.update(m)
+            lines = (*lines, line)
         tables = (Table("gnss_satellites", _satellite_table(rows, float(run.t[0])),
                         "per epoch and satellite: elevation, azimuth, C/N0, pseudorange and Doppler innovations "
                         "(before the update), σ, used/rejected"),
@@ -323,6 +342,21 @@ class RawSource:
         return SourceReport(self.name, "raw GNSS: pseudoranges and Doppler per satellite", metrics=metrics,
                             tables=tables, notes=(note,), lines=lines, coupling="tightly coupled", rows=rows,
                             reference="the single-point solution", clock=(clock, sigma))
+
+
+def _tdcp_metrics(m, applied):
+    """Rows of time-differenced phase used and rejected, ambiguity restarts by cause,
+    mean ν²/(H P Hᵀ + R) per row (the driver's NIS of each update over its rows)."""
+    c = m.counts()
+    out = dict(tdcp_rows_used=c["used"], tdcp_rows_rejected=c["rejected"],
+               **{f"tdcp_restarts_{k}": int(c[k]) for k in ("lli", "geometry_free", "doppler", "prediction")})
+    if applied is not None and len(applied.nis):
+        rows = sum(int(np.sum(np.isfinite(nu))) for nu in applied.innovation)
+        out["tdcp_nis_mean"] = float(np.sum(applied.nis) / max(rows, 1))
+    line = (f"  time-differenced phase: {c['used']} rows used, {c['rejected']} rejected by the gate; "
+            f"restarts: {c['lli']} loss of lock, {c['geometry_free']} geometry-free, {c['doppler']} Doppler, "
+            f"{c['prediction']} prediction")
+    return out, line
 
 
 def _satellite_metrics(rows, raw):

@@ -1,0 +1,119 @@
+"""GNSS alone in ``sinslab navigate`` (no ``--imu``): the rover's raw observations solved
+without an INS — the single-point solution, or RTK against a base station
+(``--gnss-base BASE --base-position "X,Y,Z m"``, :func:`sinslab.fusion.gnss_alone.rtk_solve`
+with the motion model ``gnss.raw.dynamics``) — so that one command line compares GNSS
+alone with INS/GNSS (the same line with ``--imu``).
+
+The run folder holds ``solution.csv`` (per epoch: time, status, position ± σ; for RTK the
+ratio, integers fixed and formed, double differences, restarts), the figures ``track``
+(horizontal position about the first epoch, fixed epochs marked) and, for RTK, ``rtk``
+(fix status, ratio, integers, restarts per epoch), and the metrics of the RTK engine
+(:func:`sinslab.fusion.rtk_source.rtk_metrics`: epochs fixed, first fix, restarts and
+skipped signals by cause, the NIS of the double differences)."""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["gnss_alone"]
+
+
+def _rover(keys):
+    from sinslab.core.errors import InputError
+    from sinslab.data.gnss import read_gnss_raw
+    from sinslab.fusion.gnss import prepare
+    nav = None if keys.nav in ("none", "") else keys.nav
+    sv = prepare(read_gnss_raw(keys.file, nav))
+    if not sv.usable.any():
+        raise InputError(f"{keys.file}: no satellite has an ephemeris"
+                         + ("" if nav is not None else " (give a navigation file with --gnss-nav)"))
+    return sv
+
+
+def gnss_alone(cfg, echo=print):
+    """The GNSS-only run of ``cfg`` (:mod:`sinslab.app.commands.navigate_config`): a
+    :class:`~sinslab.app.commands.runner.Output` whose value is ``(solution, None)`` (the
+    :class:`~sinslab.fusion.gnss_alone.RtkSolution` or
+    :class:`~sinslab.fusion.gnss.SinglePoint`; no reference fixes)."""
+    from sinslab.app.commands.navigate_config import config_value
+    from sinslab.app.commands.raw_gnss import check_phase_keys
+    from sinslab.app.commands.runner import Output
+    keys = cfg.gnss.raw
+    if cfg.gnss.source != "raw" or not keys.file:
+        raise ValueError("give the IMU log (--imu FILE), or raw GNSS observations (--gnss-raw FILE) to solve "
+                         "GNSS alone")
+    check_phase_keys(keys)
+    if keys.phase == "tdcp":
+        raise ValueError("--phase tdcp compares each phase change with the INS's position change: give --imu, "
+                         "or a base (--gnss-base, --base-position) for RTK without an IMU")
+    sv = _rover(keys)
+    metrics, table, figures, notes, sol = (_rtk if keys.base else _single_point)(keys, sv, echo)
+    from sinslab.app.commands.runner import Series
+    return Output(config=config_value(cfg), metrics=metrics,
+                  tables=[Series("solution", table, "GNSS-alone solution per epoch (t_s from the first epoch)")],
+                  figures=figures, notes=notes, value=(sol, None))
+
+
+def _single_point(keys, sv, echo):
+    from sinslab.fusion.gnss import single_point
+    sp = single_point(sv, mask=keys.elevation_mask, sigma=keys.pseudorange_sigma, sigma_rate=keys.doppler_sigma)
+    ok = np.isfinite(sp.lat)
+    if not ok.any():
+        from sinslab.core.errors import InputError
+        raise InputError(f"{keys.file}: no epoch has 4 satellites with ephemeris above the mask")
+    m = dict(gnss_epochs=int(sp.t.size), gnss_epochs_solved=int(ok.sum()),
+             satellites_used_median=float(np.median(sp.n_sat[ok])))
+    echo(f"{keys.file}: GNSS alone, single point: {m['gnss_epochs_solved']} of {m['gnss_epochs']} epochs solved, "
+         f"median {m['satellites_used_median']:.0f} satellites")
+    table = dict(t_s=sp.t - sp.t[0], t_abs_s=sp.t, status=ok.astype(np.int64), lat_deg=np.degrees(sp.lat),
+                 lon_deg=np.degrees(sp.lon), h_m=sp.h, sigma_e_m=sp.sigma[:, 1], sigma_n_m=sp.sigma[:, 0],
+                 sigma_u_m=sp.sigma[:, 2], n_sat=sp.n_sat)
+    return m, table, [_track(table, "single-point solution")], [
+        "GNSS alone: the single-point solution (weighted least squares per epoch, the models of the tightly "
+        "coupled rows); status 1 where solved."], sp
+
+
+def _rtk(keys, sv, echo):
+    from sinslab.app.commands.navigate import _panel_figure
+    from sinslab.app.commands.raw_gnss import load_base, rtk_options
+    from sinslab.fusion.aids.base import PanelFigure
+    from sinslab.fusion.gnss_alone import rtk_solve
+    from sinslab.fusion.rtk import check_phase
+    from sinslab.fusion.rtk_source import rtk_columns, rtk_metrics, rtk_panels
+    check_phase(sv, str(keys.file))
+    base = load_base(keys, sv, echo)
+    sol = rtk_solve(sv, base, rtk_options(keys), dynamics=keys.dynamics)
+    m = rtk_metrics(sol.log, sol.counts, sol.slips, sol.nis_sums)
+    cols = rtk_columns(sol.log, float(sv.t_epoch[0]))
+    echo(f"{keys.file}: GNSS alone, RTK against {keys.base} ({keys.dynamics}): {m['rtk_epochs_fixed']} of "
+         f"{m['rtk_epochs_solved']} epochs fixed ({100 * m['rtk_fixed_fraction']:.1f} %), first fix at epoch "
+         f"{m['rtk_first_fix_epochs']}, median {m['rtk_integers_fixed_median']:.0f} integers")
+    figs = [_track(cols, "RTK solution", fixed=cols["status"] == 2),
+            _panel_figure(PanelFigure("rtk", "RTK per epoch: fix status, ratio, integers fixed and formed, "
+                                      "ambiguities restarted", rtk_panels(cols)), 0.0)]
+    note = (f"GNSS alone, RTK: double-differenced code and phase against {keys.base} at the base position given, "
+            f"{keys.dynamics} motion model, integers by LAMBDA (ratio ≥ {keys.ratio:g}, bootstrapped success rate, "
+            f"partial fixing, validated, {keys.ar}).")
+    return m, cols, figs, [note], sol
+
+
+def _track(cols, what, fixed=None):
+    """The horizontal track about the first epoch [m], fixed epochs marked."""
+    from sinslab.app import plotting
+    from sinslab.app.commands.runner import Figure
+    from sinslab.core import earth as E
+    lat, lon = np.radians(cols["lat_deg"]), np.radians(cols["lon_deg"])
+    ok = np.isfinite(lat)
+    fig, axes = plotting.figure(1, 1, sharex=False, width=6.5, row_height=5.5, title=f"{what}: horizontal track")
+    ax = axes[0]
+    if ok.any():
+        i0 = int(np.flatnonzero(ok)[0])
+        rm, rn = E.radii(lat[i0], float(cols["h_m"][i0]))
+        east, north = (lon - lon[i0]) * rn * np.cos(lat[i0]), (lat - lat[i0]) * rm
+        ax.plot(east[ok], north[ok], ".-", lw=0.6, ms=2, color=plotting.COLORS[0], label=what)
+        if fixed is not None and fixed.any():
+            ax.plot(east[fixed], north[fixed], ".", ms=3, color=plotting.COLORS[1], label="fixed")
+        ax.legend(fontsize=8)
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    return Figure("track", fig, f"Horizontal track of the {what} about its first epoch.")
