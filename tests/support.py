@@ -242,57 +242,13 @@ def rest_intervals_of(r):
 # ------------------------------------------------------------------ carrier phase, RTK
 def phase_drive(seed, *, canyon=(), code_sigma=0.3, phase=None, systems=2, base_offset=(2000.0, 3000.0, 10.0),
                 dt=0.01, duration=None):
-    """A car drive (near 35.3° N, 139.5° E, 50 m; accelerate, turns; 170 s unless
-    ``duration`` cuts it) with an automotive MEMS IMU (gyro bias σ 10 °/h, ARW 0.2 °/√h,
-    accelerometer bias σ 1 mg, VRW 0.05 m/s/√h, drawn from ``seed``), 1 Hz GPS (+ Galileo
-    with ``systems=2``) observations on two carriers at the antenna (the IMU point) and a
-    base ``base_offset`` (ENU [m]) away (sinslab.sim.gnss), and an initial state drawn from
-    its σ (1 m, 0.1 m/s, 0.5°/0.5°/2°).
-
-    Returns a dict: imu, init, truth, rover, base (RtkBase), sim, sigma0 (the 15 core and
-    sensor σ of the draws), arw, vrw.
-    """
-    import math
-
-    from sinslab.core import attitude as A
-    from sinslab.core import earth as E
-    from sinslab.core import units as u
-    from sinslab.core.records import NavState
-    from sinslab.fusion.gnss import SatelliteObservations
-    from sinslab.fusion.rtk import RtkBase
-    from sinslab.sim import gnss as SG
-    from sinslab.sim import imu as IM
-    from sinslab.sim import trajectory as tr
-
-    segs = [tr.Accelerate(duration=10.0, accel=1.5), tr.Level(duration=30.0), tr.Turn(duration=20.0, rate=4.5 * u.deg),
-            tr.Level(duration=40.0), tr.Turn(duration=10.0, rate=-9 * u.deg), tr.Level(duration=60.0)]
-    g = tr.generate(segs, tr.Start(lat=math.radians(35.3), lon=math.radians(139.5), h=50.0,
-                                   heading=math.radians(30)), dt, duration=duration)
-    tru = g.truth
-    rng = np.random.default_rng(seed)
-    arw, vrw = 0.2 * u.deg / 60.0, 0.05 / 60.0
-    gb, ab = 10 * u.dph, 1e-3 * 9.80665
-    err = IM.ImuErrors.from_datasheet(gyro_bias=[f"{v} deg/h" for v in rng.normal(0, 10, 3)],
-                                      accel_bias=[f"{v} ug" for v in rng.normal(0, 1000, 3)],
-                                      gyro_arw="0.2 deg/sqrt(h)", accel_vrw="0.05 m/s/sqrt(h)")
-    imu = IM.apply(g.imu, err, rng)
-    te = np.arange(1.0, tru.t[-1] - 0.5, 1.0)
-    k = np.searchsorted(tru.t, te - 1e-9)
-    lat0, lon0, h0 = tru.lat[0], tru.lon[0], tru.h[0]
-    rb = E.geodetic_to_ecef(lat0, lon0, h0) + E.enu_to_ecef_matrix(lat0, lon0) @ np.asarray(base_offset)
-    walkers = [SG.Walker(), SG.Walker(planes=3, per_plane=8, system="E", raan0=0.4, radius=29_600e3)][:systems]
-    sim = SG.simulate_observations(te, tru.lat[k], tru.lon[k], tru.h[k], tru.vel[k], walkers,
-                                   SG.GnssErrors(pseudorange_sigma=code_sigma, canyon=canyon), seed=rng,
-                                   phase=phase or SG.PhaseErrors(), base=SG.BaseStation(position=tuple(rb)))
-    rm, rn = E.radii(lat0, h0)
-    s_att = np.radians([0.5, 0.5, 2.0])
-    dp, phi = rng.normal(0, 1.0, 3), rng.normal(0, s_att)
-    C = A.apply_misalignment(A.euler_to_dcm(tru.att[0]), phi)
-    init = NavState(lat0 + dp[1] / rm, lon0 + dp[0] / (rn * math.cos(lat0)), h0 + dp[2],
-                    tru.vel[0] + rng.normal(0, 0.1, 3), A.dcm_to_euler(C))
-    sigma0 = np.r_[s_att, np.full(3, 0.1), 1.0 / rm, 1.0 / (rn * math.cos(lat0)), 1.0, np.full(3, gb), np.full(3, ab)]
-    return dict(imu=imu, init=init, truth=tru, rover=SatelliteObservations(**sim.fields),
-                base=RtkBase(SatelliteObservations(**sim.base.fields), rb), sim=sim, sigma0=sigma0, arw=arw, vrw=vrw)
+    """A simulated car drive with raw GNSS at the antenna and a base station
+    (:func:`sinslab.experiments.rtk_outages.simulate_drive`: accelerate and turn near
+    35.3° N with an automotive MEMS IMU; 1 Hz GPS (+ Galileo with ``systems=2``) on two
+    carriers; the initial state drawn from its σ), ``duration`` [s] (default 170 s)."""
+    from sinslab.experiments.rtk_outages import simulate_drive
+    return simulate_drive(seed, duration=170.0 if duration is None else duration, canyon=canyon,
+                          systems="GE"[:systems], code_sigma=code_sigma, phase=phase, base_offset=base_offset, dt=dt)
 
 
 def true_double_differences(sim):

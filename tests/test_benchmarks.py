@@ -233,3 +233,30 @@ def test_demo_script_parts(tmp_path):
     assert mod._cached_kernels(tmp_path) == 0
     (tmp_path / "src" / "p" / "__pycache__" / "k-1.py311.nbi").touch()
     assert mod._cached_kernels(tmp_path) == 1
+
+
+def test_linear_batch_script(tmp_path):
+    out = tmp_path / "linear_batch.json"
+    res = _load("linear_batch").main(["--repeat", "1", "--out", str(out)])
+    saved = json.loads(out.read_text())
+    for case in ("small", "ins"):
+        assert saved[case]["task_cpu_s"] > 0 and saved[case]["numpy_cpu_s"] > 0
+        # the task and its textbook numpy form are the same filter: they agree to rounding
+        assert max(res[case]["max_rel_diff"].values()) < 1e-6
+
+
+def test_graph_script_parts():
+    """benchmarks/graph.py: a free integration of its frame section (10 s) and the urban
+    drive's fixes (jumps, biased stretches) run on the current API."""
+    pytest.importorskip("gtsam", reason="gtsam (sinslab[graph]) is not installable here")
+    import gtsam
+
+    from sinslab.fusion.graph.frame import LocalFrame
+    G = _load("graph")
+    B = G._bench_smoother()
+    g = B._trajectory()
+    tru = g.truth
+    row = G._free_graph(gtsam, g, LocalFrame(tru.lat[0], tru.lon[0], tru.h[0]), tru.t[0] + 10.0, "sinslab")
+    assert G._pos_err(row, tru, 1000) < 0.01
+    d, kw = G._urban_fixes(B, 1)
+    assert kw["pos"].shape == (kw["t"].size, 3) and d["imu"] is not None

@@ -66,7 +66,7 @@ _DATA_SUFFIX = (".imu", ".csv", ".pos", ".mat", ".parquet", ".ubx", ".zip", ".gz
 #: unit, a small aircraft's flight) that docs/recorded-data.md shows for a user who has it;
 #: they are not in the data folder, so their commands are not run here
 EXTERNAL = {"n380-imu-nav.csv.zip", "n380-gnss-pvt.csv.zip", "accel_data.txt.zip", "gyro_data.txt.zip",
-            "gps_traj_data.txt.zip", "gps_velocity_data.txt.zip",
+            "gps_traj_data.txt.zip", "gps_velocity_data.txt.zip", "mag_data.txt.zip", "baroalt_data.txt.zip",
             # other tools' own example data (NaveGo's Turin drive, KF-GINS's demo data set) and a
             # robot's bag: docs/recorded-data.md shows the one command a user of those files runs
             "ekinox_imu.mat", "ekinox_gnss.mat", "Leador-A15.txt", "GNSS-RTK.txt", "drive.bag"}
@@ -428,6 +428,113 @@ QUOTED = [
     ("README.md", "`docs/benchmarks.json` (made 2026-12-03; ranges are over the runs it holds; the load average during "
      "the runs: 2.3–3.4 for `speed.py`,", "bench speed", ["date", "min(load_min)", "max(load_max)"], 0.0),
     ("README.md", "0.89–0.91 for `transfer.py`)", "bench transfer", ["load_min", "load_max"], 0.0),
+    # docs/methods/graph.md, benchmarks/graph.py's figures (the stored record of its last run, BENCH)
+    ("graph.md", "| forward filter | 4.89 m | 1.52 m | 0.25°, 0.42°, 0.67° | 0.71 s | 316 MB |", "bench graph",
+     ["median(real.rtklib-drive.filter.outage_end_hz_m)", "median(real.rtklib-drive.filter.outage_mid_hz_m)",
+      "real.rtklib-drive.filter.att_vs_rts_rms_deg", "real.rtklib-drive.filter.cpu_s",
+      "real.rtklib-drive.filter.peak_rss_mb"], 0.0),
+    ("graph.md", "| RTS smoother | 0.016 m | 0.21 m | — | 1.32 s | 369 MB |", "bench graph",
+     ["median(real.rtklib-drive.rts.outage_end_hz_m)", "median(real.rtklib-drive.rts.outage_mid_hz_m)",
+      "real.rtklib-drive.rts.cpu_s", "real.rtklib-drive.rts.peak_rss_mb"], 0.0),
+    ("graph.md", "| fixed-lag graph (5 s) | 0.016 m | 1.39 m | 0.18°, 0.26°, 0.72° | 6.21 s | 296 MB |", "bench graph",
+     ["=5", "median(real.rtklib-drive.graph_fixed_lag.outage_end_hz_m)",
+      "median(real.rtklib-drive.graph_fixed_lag.outage_mid_hz_m)",
+      "real.rtklib-drive.graph_fixed_lag.att_vs_rts_rms_deg", "real.rtklib-drive.graph_fixed_lag.cpu_s",
+      "real.rtklib-drive.graph_fixed_lag.peak_rss_mb"], 0.0),
+    ("graph.md", "| fixed-lag graph (20 s) | 0.014 m | 0.23 m | 0.076°, 0.092°, 0.57° | 12.0 s | 297 MB |", "bench graph",
+     ["=20", "median(real.rtklib-drive.graph_fixed_lag:20.outage_end_hz_m)",
+      "median(real.rtklib-drive.graph_fixed_lag:20.outage_mid_hz_m)",
+      "real.rtklib-drive.graph_fixed_lag:20.att_vs_rts_rms_deg", "real.rtklib-drive.graph_fixed_lag:20.cpu_s",
+      "real.rtklib-drive.graph_fixed_lag:20.peak_rss_mb"], 0.0),
+    ("graph.md", "| batch graph | 0.018 m | 0.18 m | 0.011°, 0.013°, 0.021° | 19.5 s | 332 MB |", "bench graph",
+     ["median(real.rtklib-drive.graph_batch.outage_end_hz_m)",
+      "median(real.rtklib-drive.graph_batch.outage_mid_hz_m)",
+      "real.rtklib-drive.graph_batch.att_vs_rts_rms_deg", "real.rtklib-drive.graph_batch.cpu_s",
+      "real.rtklib-drive.graph_batch.peak_rss_mb"], 0.0),
+    ("graph.md", "| forward filter | 16.0 m | 3.74 m | 0.24°, 0.43°, 2.39° | 0.28 s | 351 MB |", "bench graph",
+     ["median(real.n380.filter.outage_end_hz_m)", "median(real.n380.filter.outage_mid_hz_m)",
+      "real.n380.filter.att_vs_rts_rms_deg", "real.n380.filter.cpu_s", "real.n380.filter.peak_rss_mb"], 0.0),
+    ("graph.md", "| RTS smoother | 0.16 m | 0.81 m | — | 0.61 s | 399 MB |", "bench graph",
+     ["median(real.n380.rts.outage_end_hz_m)", "median(real.n380.rts.outage_mid_hz_m)", "real.n380.rts.cpu_s",
+      "real.n380.rts.peak_rss_mb"], 0.0),
+    ("graph.md", "| fixed-lag graph (5 s) | 0.19 m | 3.82 m | 0.15°, 0.39°, 1.96° | 2.64 s | 369 MB |", "bench graph",
+     ["=5", "median(real.n380.graph_fixed_lag.outage_end_hz_m)",
+      "median(real.n380.graph_fixed_lag.outage_mid_hz_m)", "real.n380.graph_fixed_lag.att_vs_rts_rms_deg",
+      "real.n380.graph_fixed_lag.cpu_s", "real.n380.graph_fixed_lag.peak_rss_mb"], 0.0),
+    ("graph.md", "| fixed-lag graph (40 s) | 0.19 m | 1.11 m | 0.052°, 0.037°, 0.91° | 7.28 s | 369 MB |", "bench graph",
+     ["=40", "median(real.n380.graph_fixed_lag:40.outage_end_hz_m)",
+      "median(real.n380.graph_fixed_lag:40.outage_mid_hz_m)", "real.n380.graph_fixed_lag:40.att_vs_rts_rms_deg",
+      "real.n380.graph_fixed_lag:40.cpu_s", "real.n380.graph_fixed_lag:40.peak_rss_mb"], 0.0),
+    ("graph.md", "| batch graph | 0.13 m | 0.78 m | 0.030°, 0.018°, 0.064° | 2.81 s | 381 MB |", "bench graph",
+     ["median(real.n380.graph_batch.outage_end_hz_m)", "median(real.n380.graph_batch.outage_mid_hz_m)",
+      "real.n380.graph_batch.att_vs_rts_rms_deg", "real.n380.graph_batch.cpu_s",
+      "real.n380.graph_batch.peak_rss_mb"], 0.0),
+    ("graph.md", "| filter | none | 2.33 m | 9.01 m | 95.0 |", "bench graph",
+     ["urban.filter.hz_rms_m", "urban.filter.hz_max_m", "urban.filter.nees_mean"], 0.0),
+    ("graph.md", "| filter | Chang (p = 0.01) | 0.97 m | 6.80 m | 8.25 |", "bench graph",
+     ["=0.01", "urban.filter_chang.hz_rms_m", "urban.filter_chang.hz_max_m", "urban.filter_chang.nees_mean"], 0.0),
+    ("graph.md", "| filter | Huber (1.5) | 0.97 m | 6.72 m | 8.66 |", "bench graph",
+     ["=1.5", "urban.filter_huber.hz_rms_m", "urban.filter_huber.hz_max_m", "urban.filter_huber.nees_mean"], 0.0),
+    ("graph.md", "| filter | IGG-III (1.5, 3.0) | 0.69 m | 4.36 m | 4.46 |", "bench graph",
+     ["=1.5", "=3.0", "urban.filter_igg3.hz_rms_m", "urban.filter_igg3.hz_max_m", "urban.filter_igg3.nees_mean"], 0.0),
+    ("graph.md", "| batch graph | none | 1.64 m | 2.63 m | 139.7 |", "bench graph",
+     ["urban.graph.hz_rms_m", "urban.graph.hz_max_m", "urban.graph.nees_mean"], 0.0),
+    ("graph.md", "| batch graph | Huber (1.5) | 0.57 m | 0.95 m | 12.5 |", "bench graph",
+     ["=1.5", "urban.graph_huber.hz_rms_m", "urban.graph_huber.hz_max_m", "urban.graph_huber.nees_mean"], 0.0),
+    ("graph.md", "| batch graph | IGG-III as Tukey (c = 3.0) | **0.30 m** | **0.63 m** | **3.02** |", "bench graph",
+     ["=3.0", "urban.graph_igg3.hz_rms_m", "urban.graph_igg3.hz_max_m", "urban.graph_igg3.nees_mean"], 0.0),
+    ("graph.md", "| sinslab strapdown | 6.7e-5 | 5.2e-5 | 1.2e-6 |", "bench graph",
+     ["frame.sinslab_m"], 0.0),
+    ("graph.md", "| GTSAM as usually set up (constant gravity of the origin), origin at the start | 0.001 | "
+     "0.85 | 34.1 |", "bench graph",
+     ["frame.gtsam_stock_m.0"], 0.0),
+    ("graph.md", "| the same, origin 10 km away | 0.77 | 28.3 | 339.5 |", "bench graph",
+     ["=10", "frame.gtsam_stock_m.2"], 0.0),
+    ("graph.md", "| the same, origin 100 km away | 7.7 | 278 | 3112 |", "bench graph",
+     ["=100", "frame.gtsam_stock_m.3"], 0.0),
+    ("graph.md", "| with the rotation term, origin at the start | 0.0011 | 0.84 | 32.0 |", "bench graph",
+     ["frame.gtsam_rotation_m.0"], 0.0),
+    ("graph.md", "| and normal gravity per 1 s interval, origin at the start | 2.2e-4 | 0.024 | 0.34 |", "bench graph",
+     ["=1", "frame.gtsam_gravity_m.0"], 0.0),
+    ("graph.md", "| the same, origin 100 km away | 0.027 | 0.98 | 10.9 |", "bench graph",
+     ["=100", "frame.gtsam_gravity_m.3"], 0.0),
+    ("graph.md", "| and GTSAM's centrifugal term taken out (the estimator), origin 100 km away | 2.2e-4 | 0.023 "
+     "| 0.24 |", "bench graph",
+     ["=100", "frame.gtsam_sinslab_m.3"], 0.0),
+    ("graph.md", "(the same 0.24 m after 200 s at 0, 1, 10 and 100 km)", "bench graph",
+     ["frame.gtsam_sinslab_m.0.2", "=200", "frame.origin_km"], 0.0),
+    ("graph.md", "position error of free inertial navigation [m] after 10 s, 60 s and 200 s (0.09, 1.09 and "
+     "3.89 km driven)", "bench graph",
+     ["frame.durations_s", "frame.distance_travelled_km"], 0.0),
+    ("graph.md", "is 0.5 mm and 3e-6° for the filter, 0.06 mm and 1.5e-6° for the RTS smoother, **0.18 mm and "
+     "4e-5°** for the batch graph, and 13 mm and 0.030° for the graph with GTSAM's constant gravity", "bench graph",
+     ["1000*frame.exact_filter_pos_max_m", "frame.exact_filter_att_max_deg", "1000*frame.exact_rts_pos_max_m",
+      "frame.exact_rts_att_max_deg", "1000*frame.exact_graph_local_pos_max_m",
+      "frame.exact_graph_local_att_max_deg", "1000*frame.exact_graph_origin_pos_max_m",
+      "frame.exact_graph_origin_att_max_deg"], 0.0),
+    ("graph.md", "recorded 2026-12-05 on the shared 2-core machine at load average 12.8–19.6", "bench graph",
+     ["date", "cpus", "load_min", "load_max"], 0.0),
+    # docs/aiding.md, the UAV flights' outages (benchmarks/uav_aiding.py's record, BENCH)
+    ("aiding.md", '| THOR-75, 3 × 30 s | 1.71° (3.36°) / 1.46° (3.06°) | 2.36° (3.66°) / 2.06° (3.35°) | 10.7 m (18.2 m) / 1.3 m (3.6 m) | 10.7 m (18.2 m) / 3.7 m (4.3 m) |',
+     "bench uav_aiding", ['=75', 'thor75.s30.none.n_outages', '=30', 'thor75.s30.none.heading_end_median_deg', 'thor75.s30.none.heading_end_max_deg', 'thor75.s30.magnetometer.heading_end_median_deg', 'thor75.s30.magnetometer.heading_end_max_deg', 'thor75.s30.none.heading_through_median_deg', 'thor75.s30.none.heading_through_max_deg', 'thor75.s30.magnetometer.heading_through_median_deg', 'thor75.s30.magnetometer.heading_through_max_deg', 'thor75.s30.none.height_end_median_m', 'thor75.s30.none.height_end_max_m', 'thor75.s30.barometer.height_end_median_m', 'thor75.s30.barometer.height_end_max_m', 'thor75.s30.none.height_through_median_m', 'thor75.s30.none.height_through_max_m', 'thor75.s30.barometer.height_through_median_m', 'thor75.s30.barometer.height_through_max_m'], 0.0),
+    ("aiding.md", '| THOR-75, 2 × 60 s | 2.45° (3.09°) / 2.43° (2.75°) | 2.92° (3.52°) / 2.87° (3.05°) | 41.1 m (61.8 m) / 4.8 m (5.2 m) | 41.3 m (61.8 m) / 7.3 m (9.0 m) |',
+     "bench uav_aiding", ['=75', 'thor75.s60.none.n_outages', '=60', 'thor75.s60.none.heading_end_median_deg', 'thor75.s60.none.heading_end_max_deg', 'thor75.s60.magnetometer.heading_end_median_deg', 'thor75.s60.magnetometer.heading_end_max_deg', 'thor75.s60.none.heading_through_median_deg', 'thor75.s60.none.heading_through_max_deg', 'thor75.s60.magnetometer.heading_through_median_deg', 'thor75.s60.magnetometer.heading_through_max_deg', 'thor75.s60.none.height_end_median_m', 'thor75.s60.none.height_end_max_m', 'thor75.s60.barometer.height_end_median_m', 'thor75.s60.barometer.height_end_max_m', 'thor75.s60.none.height_through_median_m', 'thor75.s60.none.height_through_max_m', 'thor75.s60.barometer.height_through_median_m', 'thor75.s60.barometer.height_through_max_m'], 0.0),
+    ("aiding.md", '| THOR-60, 5 × 30 s | 0.40° (3.49°) / 0.38° (3.23°) | 3.71° (5.07°) / 3.46° (4.82°) | 10.8 m (17.3 m) / 2.1 m (6.7 m) | 11.0 m (17.7 m) / 4.5 m (9.1 m) |',
+     "bench uav_aiding", ['=60', 'thor60.s30.none.n_outages', '=30', 'thor60.s30.none.heading_end_median_deg', 'thor60.s30.none.heading_end_max_deg', 'thor60.s30.magnetometer.heading_end_median_deg', 'thor60.s30.magnetometer.heading_end_max_deg', 'thor60.s30.none.heading_through_median_deg', 'thor60.s30.none.heading_through_max_deg', 'thor60.s30.magnetometer.heading_through_median_deg', 'thor60.s30.magnetometer.heading_through_max_deg', 'thor60.s30.none.height_end_median_m', 'thor60.s30.none.height_end_max_m', 'thor60.s30.barometer.height_end_median_m', 'thor60.s30.barometer.height_end_max_m', 'thor60.s30.none.height_through_median_m', 'thor60.s30.none.height_through_max_m', 'thor60.s30.barometer.height_through_median_m', 'thor60.s30.barometer.height_through_max_m'], 0.0),
+    ("aiding.md", '| THOR-60, 4 × 60 s | 1.27° (2.92°) / 1.18° (2.80°) | 2.60° (5.07°) / 2.51° (4.82°) | 39.0 m (56.5 m) / 4.6 m (6.4 m) | 39.0 m (56.5 m) / 6.4 m (7.6 m) |',
+     "bench uav_aiding", ['=60', 'thor60.s60.none.n_outages', '=60', 'thor60.s60.none.heading_end_median_deg', 'thor60.s60.none.heading_end_max_deg', 'thor60.s60.magnetometer.heading_end_median_deg', 'thor60.s60.magnetometer.heading_end_max_deg', 'thor60.s60.none.heading_through_median_deg', 'thor60.s60.none.heading_through_max_deg', 'thor60.s60.magnetometer.heading_through_median_deg', 'thor60.s60.magnetometer.heading_through_max_deg', 'thor60.s60.none.height_end_median_m', 'thor60.s60.none.height_end_max_m', 'thor60.s60.barometer.height_end_median_m', 'thor60.s60.barometer.height_end_max_m', 'thor60.s60.none.height_through_median_m', 'thor60.s60.none.height_through_max_m', 'thor60.s60.barometer.height_through_median_m', 'thor60.s60.barometer.height_through_max_m'], 0.0),
+    ("aiding.md", "its last run is in `docs/benchmarks.json` (2026-12-05; the load average of 8.5–11.1 changes "
+     "no figure", "bench uav_aiding", ["date", "load_min", "load_max"], 0.0),
+    ("aiding.md", "ends a 60 s outage 39.0–41.1 m off the unit's height (median per flight), the barometer 4.6–4.8 m",
+     "bench uav_aiding", ["=60", "min(thor75.s60.none.height_end_median_m,thor60.s60.none.height_end_median_m)",
+                          "max(thor75.s60.none.height_end_median_m,thor60.s60.none.height_end_median_m)",
+                          "min(thor75.s60.barometer.height_end_median_m,thor60.s60.barometer.height_end_median_m)",
+                          "max(thor75.s60.barometer.height_end_median_m,thor60.s60.barometer.height_end_median_m)"], 0.0),
+    ("aiding.md", "solutions' disagreement with the fixes (0.72–1.18° median)", "bench uav_aiding",
+     ["min(thor75.s30.none.heading_with_fixes_median_deg,thor75.s60.none.heading_with_fixes_median_deg,"
+      "thor60.s30.none.heading_with_fixes_median_deg,thor60.s60.none.heading_with_fixes_median_deg)",
+      "max(thor75.s30.none.heading_with_fixes_median_deg,thor75.s60.none.heading_with_fixes_median_deg,"
+      "thor60.s30.none.heading_with_fixes_median_deg,thor60.s60.none.heading_with_fixes_median_deg)"], 0.0),
     # docs/methods/smoother.md, benchmarks/smoother.py's figures (the stored record of its last run, BENCH)
     ("smoother.md", "| figure (100 runs) | measured |", "bench smoother", ["monte_carlo.runs"], 0.0),
     ("smoother.md", "| smoothed RMS error / smoothed σ, 15 states × 4 epochs (50 s with fixes, 130 s outage middle, "
@@ -1019,7 +1126,8 @@ def _run_doc(doc: Path, tmp_path, monkeypatch, commands=None):
         done.add(key)
         missing = [w for w in argv if w.lower().endswith(_DATA_SUFFIX) and not Path(w).exists()]
         if missing:
-            assert all(Path(w).name in ILLUSTRATIONS | EXTERNAL for w in missing), (
+            # a file may be the value of a key (--set magnetometer.file=mag_data.txt.zip)
+            assert all(Path(w.rpartition("=")[2]).name in ILLUSTRATIONS | EXTERNAL for w in missing), (
                 f"{doc.name}: `{cmd}` names {missing}: no such file in the repository or the data folder")
             continue
         before = set(Path("runs").glob("*")) if Path("runs").is_dir() else set()

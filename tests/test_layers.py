@@ -19,9 +19,11 @@ ALLOWED = {
     "app": {"core", "data", "sim", "nav", "estimation", "fusion", "methods"},
     "experiments": {"core", "data", "sim", "nav", "estimation", "fusion", "methods", "app"},
     "cli": {"core", "data", "sim", "nav", "estimation", "fusion", "methods", "app", "experiments"},
+    "__main__": {"cli"},                # `python -m sinslab`: the command line, nothing else
 }
 #: third-party packages the core may use (plus the standard library)
-CORE_THIRD_PARTY = {"numpy", "scipy", "numba", "rich"}
+CORE_THIRD_PARTY = {"numpy", "scipy", "numba", "rich",
+                    "pandas"}                # the records' to_pandas, imported when called
 #: what the top-level sinslab/__init__.py may import eagerly
 TOP_LIGHT = set(sys.stdlib_module_names)
 

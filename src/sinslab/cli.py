@@ -46,7 +46,7 @@ except ImportError:                     # pragma: no cover
     from click import exceptions as _cx
 
 from sinslab import __version__
-from sinslab.app.errors import USER_ERRORS, CliError, error_line, user_errors
+from sinslab.app.errors import USER_ERRORS, CliError, cli_process, error_line, exit_now, pause, user_errors
 from sinslab.core.errors import InputError
 
 __all__ = ["app", "main", "user_errors", "CliError", "USER_ERRORS"]
@@ -91,15 +91,30 @@ class _Group(TyperGroup):
             return super().make_context(*args, **kwargs)
         except _cx.UsageError as e:
             raise _one_line(e) from None
+        except KeyboardInterrupt as e:
+            raise _stopped(e) from None
 
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
         except _cx.UsageError as e:
             raise _one_line(e) from None
+        except KeyboardInterrupt as e:          # before or after a command's own handling
+            raise _stopped(e) from None
 
 
-app = typer.Typer(cls=_Group, add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+def _stopped(e: KeyboardInterrupt) -> _cx.Exit:
+    """Ctrl-C or SIGTERM outside a command's body (while the command line is parsed):
+    nothing was started; one line, exit 130 / 143."""
+    from sinslab.app.errors import Terminated
+
+    code = 143 if isinstance(e, Terminated) else 130
+    typer.echo(f"sinslab: error: {'terminated' if code == 143 else 'interrupted'}; nothing was written",
+               err=True)
+    return _cx.Exit(code)
+
+
+app = typer.Typer(cls=_Group, add_completion=True, no_args_is_help=True, rich_markup_mode=None,
                   pretty_exceptions_enable=False,
                   help="sinslab: strapdown inertial navigation — experiments, runs and reports.")
 
@@ -118,16 +133,33 @@ def _log(msg: str) -> None:
     typer.echo(f"sinslab: {msg}", err=True)
 
 
-def _version(value: bool):
+def version_line() -> str:
+    """``sinslab X (numpy Y, numba Z, Python W)``: the versions that decide the numbers.
+
+    Read from the installed packages' metadata, without importing numpy or numba."""
+    import platform
+    from importlib import metadata
+
+    def v(dist: str) -> str:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return "not installed"
+
+    return (f"sinslab {__version__} (numpy {v('numpy')}, numba {v('numba')}, "
+            f"Python {platform.python_version()})")
+
+
+def _version(value: bool) -> None:
     if value:
-        typer.echo(f"sinslab {__version__}")
+        typer.echo(version_line())
         raise typer.Exit()
 
 
 @app.callback()
 def _main(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars or progress lines"),
           version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
-                                       help="print the version and exit")):
+                                       help="print the version (and numpy's and numba's) and exit")):
     """sinslab: strapdown inertial navigation — experiments, runs and reports."""
     os.environ.setdefault("MPLBACKEND", "Agg")         # matplotlib is imported only when drawing
     global _QUIET
@@ -181,20 +213,34 @@ def _print_summary(summary: dict, out: Path) -> None:
 
     claims = summary["claims"]
     n = sum(c["passed"] for c in claims)
+    robust = summary.get("robustness") or {}
+    labels = {k: v.get("label", "") for k, v in (robust.get("claims") or {}).items() if v.get("label") != "not varied"}
     for c in claims:
         measured, expected = claim_texts(c)
-        o = f" ({c['origin']})" if c.get("origin") else ""
+        tags = [t for t in (c.get("origin"), labels.get(c["id"])) if t]
+        o = f" ({'; '.join(tags)})" if tags else ""
         typer.echo(f"  [{'pass' if c['passed'] else 'FAIL'}] {c['id']}{o}: {measured} (expected "
                    f"{expected}) — {c['statement']}")
     from sinslab.app.claims import tally
 
+    swept = ""
+    if robust.get("swept") and robust.get("cpu_s") is not None:
+        swept = f", robustness sweep {robust['wall_s']:.3g} s"
     typer.echo(f"{summary.get('name') or summary['experiment']}: {n}/{len(claims)} claims passed"
-               + (f" ({tally(claims)})" if any(c.get("origin") for c in claims) else "") + ", "
-               f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s -> {out / 'report.html'}")
+               + (f" ({tally(claims, robust)})" if any(c.get("origin") for c in claims) else "") + ", "
+               f"{summary['metrics'].get('runtime_s', float('nan')):.3g} s{swept} -> {out / 'report.html'}")
+
+
+def _complete_experiment(incomplete: str) -> list[str]:
+    """Shell completion of an experiment name (read from the sources, nothing imported)."""
+    from sinslab.experiments import catalog
+
+    return [n for n in catalog() if n.startswith(incomplete)]
 
 
 @app.command()
-def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (see `sinslab list`)"),
+def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (see `sinslab list`)",
+                                   autocompletion=_complete_experiment),
         config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML config file"),
         set_: Optional[List[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE",
                                                  help='override a dotted config key, e.g. imu.gyro_bias="0.02 deg/h" (repeatable)'),
@@ -205,6 +251,8 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
         workers: Optional[int] = typer.Option(None, "--workers", min=0, help="worker processes of the local Dask cluster for Monte Carlo campaigns (0: run them in this process)"),
         quick: bool = typer.Option(False, "--quick", help="shortened run for tests and demos"),
         strict: bool = typer.Option(False, "--strict", help="exit status 1 if any claim fails"),
+        robustness: bool = typer.Option(False, "--robustness", help="also re-run the experiment under the physics "
+                                        "alternatives of its claims and label each claim robust or what it depends on"),
         force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
     """Run an experiment; write config.toml, summary.json, series, figures, report.html."""
     import contextlib
@@ -231,7 +279,10 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
             if workers == 0:
                 cluster = contextlib.nullcontext("sync")
             else:
+                from sinslab.app.validate import check_workers
                 from sinslab.estimation.montecarlo import dask_client
+
+                check_workers(workers)
 
                 cluster = dask_client(None, n_workers=workers)
         if out is None:
@@ -240,18 +291,24 @@ def run(name: str = typer.Argument(..., metavar="NAME", help="experiment name (s
             RunDir(out, exp.name, command="run", force=force).check()
         try:
             with cluster as sched:
-                summary = execute(exp, cfg, out, quick=quick, scheduler=sched, log=_log, force=force)
+                summary = execute(exp, cfg, out, quick=quick, scheduler=sched, log=_log, force=force,
+                                  robustness="full" if robustness else None)
         except InputError as e:                 # absurd values found while computing
-            given = [f"--set {x}" for x in (set_ or [])] + ([f"--config {config}"] if config else [])
+            from sinslab.estimation.montecarlo import ClusterError
+
+            given = [] if isinstance(e, ClusterError) else (
+                [f"--set {x}" for x in (set_ or [])] + ([f"--config {config}"] if config else []))
             raise CliError(f"{exp.name}: {error_line(e)}"
                            + (f"; check the values given ({', '.join(given)})" if given else "")) from None
-    _print_summary(summary, Path(out))
-    if strict and not all(c["passed"] for c in summary["claims"]):
-        raise typer.Exit(1)
+        pause("summary")
+        _print_summary(summary, Path(out))
+        if strict and not all(c["passed"] for c in summary["claims"]):
+            raise typer.Exit(1)
 
 
 @app.command("config")
-def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment name, or navigate"),
+def config_(name: str = typer.Argument(..., metavar="NAME", help="experiment name, or navigate",
+                                       autocompletion=_complete_experiment),
             config: Optional[Path] = typer.Option(None, "--config", "-c", help="TOML config file"),
             set_: Optional[List[str]] = typer.Option(None, "--set", "-s", metavar="KEY=VALUE"),
             quick: bool = typer.Option(False, "--quick", help="show the --quick configuration")) -> None:
@@ -364,7 +421,8 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                     try:
                         summary = execute(job.exp, job.cfg, out / job.label, quick=quick, log=_log,
                                           scheduler=shared if job.campaign else None,
-                                          variant=(job.label, list(job.sets)) if job.sets else None)
+                                          variant=(job.label, list(job.sets)) if job.sets else None,
+                                          robustness="demo")
                     except (KeyboardInterrupt, *USER_ERRORS):
                         raise
                     except Exception as e:                  # one broken experiment: go on
@@ -384,9 +442,9 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                             and _remote_outcome(job.future)[0] == "done":
                         completed_elsewhere(out / job.label)
         idx = _report.index(out, done, failed)
-    typer.echo(f"index: {idx}")
-    if failed:
-        raise typer.Exit(1)
+        typer.echo(f"index: {idx}")
+        if failed:
+            raise typer.Exit(1)
 
 
 def _running(name: str, label: str, sets, quick: bool) -> str:
@@ -484,7 +542,7 @@ def _run_on_worker(name: str, cfg, out: str, quick: bool, variant, after=None) -
 
     log(_running(name, variant[0] if variant else name, variant[1] if variant else (), quick))
     try:
-        return ("done", execute(get(name), cfg, out, quick=quick, log=log, variant=variant))
+        return ("done", execute(get(name), cfg, out, quick=quick, log=log, variant=variant, robustness="demo"))
     except USER_ERRORS as e:
         abort_all()
         return ("user", e)
@@ -511,6 +569,7 @@ COMMAND_MODULES = (
     "sinslab.app.commands.allan",
     "sinslab.app.commands.align",
     "sinslab.app.commands.transfer_align",
+    "sinslab.app.commands.export",
 )
 _BROKEN_COMMANDS: dict[str, str] = {}
 
@@ -529,6 +588,7 @@ EXAMPLES = {
     "align": "sinslab align --imu psins-lasergyro/lasergyro.imu --window 600:1200 --out runs/align",
     "transfer-align": ("sinslab transfer-align --slave psins-transfer/transfer_align_fog_mems.mat "
                        "--master psins-transfer/transfer_align_fog_mems.mat --method kain --window 0:60"),
+    "export": "sinslab export runs/drive --to kml --out drive.kml",
 }
 
 
@@ -565,9 +625,18 @@ _add_examples()
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. Signals are handled for the whole process
+    (:func:`sinslab.app.errors.cli_process`): one arriving after the command's work is
+    done ends the process with the command's status."""
     os.environ.setdefault("MPLBACKEND", "Agg")
-    app(prog_name="sinslab")
+    cli_process()
+    try:
+        app(prog_name="sinslab")
+        code = 0
+    except SystemExit as e:
+        code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+    pause("exit")
+    exit_now(code)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -42,16 +42,26 @@ def body_attrs(dom: str) -> dict:
     return dict(re.findall(r'([\w-]+)="([^"]*)"', body.group(1)))
 
 
-def problems(run_dir: Path, tmp: Path) -> list[str]:
-    """What is wrong with ``run_dir/report.html`` as a reader sees it (empty: nothing)."""
+def problems(run_dir: Path, tmp: Path, width: int = 1280) -> list[str]:
+    """What is wrong with ``run_dir/report.html`` as a reader sees it at ``width`` px
+    (empty: nothing)."""
     run_dir = Path(run_dir)
-    dom = render(run_dir / "report.html", tmp)
+    dom = render(run_dir / "report.html", tmp, width)
     out = []
     a = body_attrs(dom)
     if a.get("data-figures-total") != a.get("data-figures-loaded"):
         out.append(f"figures loaded {a.get('data-figures-loaded')} of {a.get('data-figures-total')}")
     if int(a.get("data-page-width", 0)) > int(a.get("data-view-width", 0)):
         out.append(f"page overflows: {a.get('data-page-width')} px wide in {a.get('data-view-width')} px")
+    if int(a.get("data-claims-right", 0)) > int(a.get("data-view-width", 0)):
+        out.append(f"claims table: verdicts end at {a.get('data-claims-right')} px in {a.get('data-view-width')} px")
+    if int(a.get("data-claims-overflow", 0)):
+        out.append(f"claims table: {a.get('data-claims-overflow')} cell(s) overflow their column")
+    html_text = (run_dir / "report.html").read_text(encoding="utf-8")
+    from sinslab.app.report import is_cjk
+
+    if any(is_cjk(c) for c in html_text) and a.get("data-cjk-font") != "loaded":
+        out.append(f"CJK text without its font (font {a.get('data-cjk-font')})")
     claims = re.search(r'<table id="claims">(.*?)</table>', dom, re.S)
     if claims:
         for cell in re.findall(r'<td class="num">(.*?)</td>', claims.group(1), re.S):

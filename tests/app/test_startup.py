@@ -20,6 +20,9 @@ _PROBE = """
 import json, sys
 sys.argv = ["sinslab"] + {argv!r}
 import sinslab.cli
+def _exit(code):                     # the command line ends its process at once; the probe
+    raise SystemExit(code)           # looks at the modules loaded after the command
+sinslab.cli.exit_now = _exit
 if sys.argv[1:]:
     try:
         sinslab.cli.main()

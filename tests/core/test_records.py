@@ -176,3 +176,33 @@ def test_fixes_defaults_and_select():
 def test_fixes_validation(change, msg):
     with pytest.raises(ValueError, match=msg):
         Fixes(**{**_fixes(), **change})
+
+
+def test_imu_record_to_pandas_round_trip():
+    rng = np.random.default_rng(0)
+    t = 0.005 * np.arange(1, 201)
+    r = ImuRecord(t, rng.normal(size=(200, 3)) * 1e-5, rng.normal(size=(200, 3)) * 1e-3)
+    df = r.to_pandas()
+    assert list(df.columns) == ["t_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad",
+                                "dv_x_mps", "dv_y_mps", "dv_z_mps"]
+    back = ImuRecord(df["t_s"], df.filter(like="dtheta_"), df.filter(like="dv_"))
+    assert np.array_equal(back.t, r.t) and np.array_equal(back.dtheta, r.dtheta) and np.array_equal(back.dv, r.dv)
+
+
+def test_nav_series_to_pandas_degrees_and_heading():
+    """Columns of navigate's solution.csv; heading = −yaw in [0, 360) deg (README conventions)."""
+    m = 5
+    yaw = np.radians([0.0, 90.0, -90.0, 180.0, -30.0])
+    att = np.c_[np.radians(np.arange(m)), np.radians(-np.arange(m)), yaw]
+    s = NavSeries(np.arange(m, dtype=float), np.full(m, 0.5), np.full(m, -1.0), np.full(m, 100.0),
+                  np.tile([1.0, 2.0, 3.0], (m, 1)), att, att_imu=att[::-1])
+    df = s.to_pandas()
+    assert list(df.columns)[:10] == ["t_s", "lat_deg", "lon_deg", "h_m", "vE_mps", "vN_mps", "vU_mps",
+                                     "pitch_deg", "roll_deg", "heading_deg"]
+    assert list(df.columns)[10:] == ["imu_pitch_deg", "imu_roll_deg", "imu_heading_deg"]
+    np.testing.assert_allclose(df["heading_deg"], [0.0, 270.0, 90.0, 180.0, 30.0], atol=1e-12)
+    np.testing.assert_allclose(df["lat_deg"], math.degrees(0.5))
+    np.testing.assert_allclose(df["pitch_deg"], np.arange(m), atol=1e-12)
+    np.testing.assert_allclose(df["imu_heading_deg"], [30.0, 180.0, 90.0, 270.0, 0.0], atol=1e-12)
+    assert df["vN_mps"].eq(2.0).all()
+    assert "imu_pitch_deg" not in NavSeries(s.t, s.lat, s.lon, s.h, s.vel, s.att).to_pandas()

@@ -185,3 +185,29 @@ def test_log_without_raw_measurements(tmp_path):
                 w.write(raw)
     with pytest.raises(InputError, match="pvt_only.ubx: no raw measurements"):
         read_gnss_raw(out)
+
+
+STATIC = Path(__file__).resolve().parents[3] / "shared" / "data" / "cssrlib-static-rtk"
+needs_static = pytest.mark.skipif(not (STATIC / "SEPT078M1.21O").exists(), reason="cssrlib-static-rtk not available")
+
+
+@needs_static
+def test_rinex_faults_name_their_real_cause(tmp_path):
+    """A header without END OF HEADER (it read as 'without records'), a navigation file of
+    another day (the error named the observation file: 'no satellite has an ephemeris') and
+    a folder given as the log (IsADirectoryError)."""
+    from sinslab.data.gnss import read_gnss_raw
+
+    obs, nav = STATIC / "SEPT078M1.21O", STATIC / "SEPT078M.21P"
+    text = obs.read_text()
+    cut = tmp_path / "noend.21O"
+    cut.write_text("".join(ln for ln in text.splitlines(True) if "END OF HEADER" not in ln))
+    with pytest.raises(InputError, match=r"noend.21O: the RINEX header has no END OF HEADER line"):
+        read_gnss_raw(cut, nav)
+    later = tmp_path / "later.21O"
+    later.write_text("".join(ln.replace("> 2021 03 19", "> 2021 03 26", 1) for ln in text.splitlines(True)))
+    with pytest.raises(InputError, match=r"SEPT078M.21P: its ephemerides are for 2021-03-19 .* the observations of "
+                                         r".*later.21O for 2021-03-26 .* a navigation file of another day"):
+        read_gnss_raw(later, nav)
+    with pytest.raises(InputError, match="is a folder, not a file"):
+        read_gnss_raw(tmp_path, nav)

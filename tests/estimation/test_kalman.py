@@ -183,22 +183,28 @@ def test_table_index_and_windows():
         lin.propagate_covariance(P0, Phi, Q, H, R, n_steps=K, windows=[(100, 200)], t=t)
 
 
-def test_kept_gains_are_the_batch_gain_and_rerun_the_filter():
-    """The gain kept by the covariance run (sequential scalar updates, composed) is the
-    batch gain ``P⁻Hᵀ(HP⁻Hᵀ + R)⁻¹`` of the textbook recursion (kalman.predict/update) at
-    every step, zero where nothing is measured, and the fixed-gain recursion
-    ``x⁺ = Φx + G(z − HΦx)`` reproduces the filter run on data."""
+@pytest.mark.parametrize("correlated", [False, True])
+def test_kept_gains_are_the_batch_gain_and_rerun_the_filter(correlated):
+    """The gain kept by the covariance run (sequential scalar updates, composed; with a
+    correlated R the vector update's) is the batch gain ``P⁻Hᵀ(HP⁻Hᵀ + R)⁻¹`` of the
+    textbook recursion (kalman.predict/update) at every step, zero where nothing is
+    measured, the kept S is ``HP⁻Hᵀ + R``, and the fixed-gain recursion
+    ``x⁺ = Φx + G(z − HΦx)`` (written out here, and compiled over several records by
+    fixed_gain_runs) reproduces the filter run on data."""
     _, _, Phi, Q, H, R, P0, rng = _model()
+    if correlated:
+        R = R + 0.05
     K = 40
     Phis = np.array([Phi * (1 + 0.01 * np.sin(k)) for k in range(K)])
     z = rng.normal(size=(K, 2))
     mask = rng.uniform(size=(K, 2)) < 0.6
     x0 = rng.normal(size=6)
     cov = lin.propagate_covariance(P0, Phis, Q, H, R, mask=mask, keep_gain=True)
-    assert cov.gain.shape == (K, 6, 2)
+    assert cov.gain.shape == (K, 6, 2) and cov.S.shape == (K, 2, 2)
     P = P0.copy()
     for k in range(K):
         _, P = kf.predict(np.zeros(6), P, Phis[k], Q)
+        np.testing.assert_allclose(cov.S[k], H @ P @ H.T + R, rtol=1e-12)
         on = mask[k]
         G = np.zeros((6, 2))
         if on.any():
@@ -208,12 +214,21 @@ def test_kept_gains_are_the_batch_gain_and_rerun_the_filter():
         np.testing.assert_allclose(cov.gain[k], G, rtol=1e-10, atol=1e-14)
     run = lin.run_linear(x0, P0, Phis, Q, H, R, z, mask=mask)
     x = x0.copy()
+    prior_nu = np.empty((K, 2))
     for k in range(K):
         x = Phis[k] @ x
-        x = x + cov.gain[k] @ np.where(mask[k], z[k] - H @ x, 0.0)
+        prior_nu[k] = z[k] - H @ x
+        x = x + cov.gain[k] @ np.where(mask[k], prior_nu[k], 0.0)
         np.testing.assert_allclose(x, run.x[k + 1], rtol=1e-10, atol=1e-13)
-    with pytest.raises(ValueError, match="diagonal R"):
-        lin.propagate_covariance(P0, Phis, Q, H, R + 0.05, mask=mask, keep_gain=True)
+    # three records: the second is the run above; a record's numbers do not depend on the others
+    zs = np.stack([rng.normal(size=(K, 2)), np.where(mask, z, np.nan), rng.normal(size=(K, 2))])
+    x0s = np.stack([rng.normal(size=6), x0, rng.normal(size=6)])
+    xs, nu = lin.fixed_gain_runs(x0s, Phis, H, cov.gain, zs, mask=mask)
+    np.testing.assert_allclose(xs[1], run.x, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(nu[1][mask], prior_nu[mask], rtol=1e-10, atol=1e-13)
+    assert np.isnan(nu[1][~mask]).all()
+    one, _ = lin.fixed_gain_runs(x0s[2:], Phis, H, cov.gain, zs[2:], mask=mask)
+    np.testing.assert_array_equal(one[0], xs[2])
 
 
 def test_error_budget_sums_to_total_and_scales_linearly():

@@ -5,7 +5,9 @@ r × r part and scalar products) and the fused series step (``Φ (P + T Q̄/2) �
 Q_k never formed) are checked against the dense oracle ``Φ P Φᵀ + Q_k`` with the series
 ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` (numpy products) on random SPD covariances and the Φ of KF-GINS'
 21-state model (Gauss–Markov biases and scale factors, 18 noise inputs) and of the 15-state
-default; with r = n the kernel is the dense product itself."""
+default; with r = n the kernel is the dense product itself. The lane forms (many filters in
+one call) are the one-filter kernels lane by lane, and the sequential scalar update, the
+fixed-gain update and the innovation covariance equal their textbook numpy forms."""
 import numpy as np
 import pytest
 
@@ -126,3 +128,71 @@ def test_fused_series_step_is_phi_p_phit_plus_qk(blocks):
         np.testing.assert_allclose(c, cr, rtol=1e-13, atol=1e-13 * np.abs(cr).max())
         np.testing.assert_array_equal(sig, np.sqrt(np.diag(P)))
         np.testing.assert_array_equal(xo, x)
+
+
+def test_lane_forms_are_the_one_filter_kernels():
+    """predict_lanes and sequential_update_lanes step each lane exactly as cov_predict +
+    state_predict and sequential_update step one filter (bit for bit), a lane with a
+    non-finite z is left alone (NIS −1); the sequential update equals the textbook
+    vector Joseph update (Joseph 1968 form, numpy) to rounding."""
+    rng = np.random.default_rng(21)
+    n, m, L = 7, 3, 4
+    Phi = rng.normal(size=(n, n)) * (rng.uniform(size=(n, n)) < 0.5) + np.eye(n)
+    Q = _spd(n, rng) * 1e-3
+    X = rng.normal(size=(L, n))
+    Ps = np.stack([_spd(n, rng) for _ in range(L)])
+    nzc = np.zeros((1, n, n), dtype=np.int64)
+    nnz = np.zeros((1, n), dtype=np.int64)
+    K.row_nonzeros(Phi[None], nzc, nnz)
+    X1, P1 = X.copy(), Ps.copy()
+    K.predict_lanes(X1, P1, Phi, Q, n, nzc[0], nnz[0], np.empty((n, n)), np.empty((n, n)), np.empty(n))
+    for l in range(L):
+        x, P = X[l].copy(), Ps[l].copy()
+        K.cov_predict(P, Phi, Q, n, np.empty((n, n)), np.empty((n, n)))
+        K.state_predict(x, Phi, nzc[0], nnz[0], np.empty(n))
+        np.testing.assert_array_equal(P1[l], P)
+        np.testing.assert_array_equal(X1[l], x)
+    Z = rng.normal(size=(L, m))
+    Z[2, 1] = np.nan
+    H = rng.normal(size=(L, m, n))
+    r = rng.uniform(0.1, 1.0, m)
+    nis = np.empty(L)
+    X2, P2 = X1.copy(), P1.copy()
+    K.sequential_update_lanes(X2, P2, Z, H, r, nis)
+    assert nis[2] == -1.0 and np.array_equal(X2[2], X1[2]) and np.array_equal(P2[2], P1[2])
+    for l in (0, 1, 3):
+        x, P = X1[l].copy(), P1[l].copy()
+        nis1 = K.sequential_update(x, P, Z[l], H[l], r, np.empty(m), np.empty(m), np.empty(n), np.empty((n, n)))
+        assert nis1 == nis[l]
+        np.testing.assert_array_equal(X2[l], x)
+        np.testing.assert_array_equal(P2[l], P)
+        # the textbook vector Joseph update
+        S = H[l] @ P1[l] @ H[l].T + np.diag(r)
+        G = np.linalg.solve(S, H[l] @ P1[l]).T
+        A = np.eye(n) - G @ H[l]
+        nu = Z[l] - H[l] @ X1[l]
+        np.testing.assert_allclose(X2[l], X1[l] + G @ nu, rtol=1e-10, atol=1e-12)
+        assert _rel(P2[l], A @ P1[l] @ A.T + G @ np.diag(r) @ G.T) < 1e-10
+        assert nis[l] == pytest.approx(nu @ np.linalg.solve(S, nu), rel=1e-10)
+
+
+def test_fixed_gain_update_and_innovation_covariance():
+    """innovation, gain_correct and innovation_cov against numpy's z − H x, x + G ν and
+    H P Hᵀ + R (to rounding; S exactly symmetric, R's halves averaged)."""
+    rng = np.random.default_rng(22)
+    n, m = 9, 4
+    x, z = rng.normal(size=n), rng.normal(size=m)
+    H = rng.normal(size=(m, n)) * (rng.uniform(size=(m, n)) < 0.6)
+    G = rng.normal(size=(n, m))
+    nu = np.empty(m)
+    K.innovation(x, H, z, nu)
+    np.testing.assert_allclose(nu, z - H @ x, rtol=1e-14, atol=1e-14)
+    y = x.copy()
+    K.gain_correct(y, G, nu)
+    np.testing.assert_allclose(y, x + G @ nu, rtol=1e-14, atol=1e-14)
+    P = _spd(n, rng)
+    R = _spd(m, rng)
+    S = np.empty((m, m))
+    K.innovation_cov(H, P, R, np.empty((n, m)), S)
+    assert np.array_equal(S, S.T)
+    np.testing.assert_allclose(S, H @ P @ H.T + R, rtol=1e-13, atol=1e-13 * np.abs(S).max())

@@ -21,7 +21,7 @@ from support import simulated_car_drive
 def test_registry_declares_every_aid_whole():
     from sinslab.app.config import settings_section
     types = AI.aid_types()
-    assert list(types) == ["zupt", "lever", "nhc", "odometer"]          # the order they enter a run
+    assert list(types) == ["zupt", "lever", "nhc", "odometer", "magnetometer", "barometer"]  # the order they enter a run
     flags = []
     for name, t in types.items():
         assert t.name == name and t.summary and issubclass(t, Aid)

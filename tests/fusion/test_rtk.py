@@ -121,6 +121,9 @@ def test_static_pair_gnss_only():
     enu = sol.enu_errors(ref)
     assert np.max(np.hypot(enu[:, 0], enu[:, 1])) < 0.01 and np.max(np.abs(enu[:, 2])) < 0.02
     assert sol.slips["base_lli"] > 50 and sol.n_slip[18] > 50
+    m, tab = sol.summary(), sol.table()
+    assert m["rtk_first_fix_epochs"] == 1 and m["rtk_fixed_fraction"] == 1.0 and m["restarts_base_lli"] > 50
+    assert np.all(tab["status"] == 2) and np.all(tab["sigma_u_m"] < 0.02) and abs(tab["lat_deg"][0] - 35.339) < 1e-3
 
 
 def test_bad_pairs_one_line_each():

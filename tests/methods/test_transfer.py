@@ -265,12 +265,33 @@ def test_align_lanes_on_a_parked_carrier(kind):
     np.testing.assert_array_equal(r.a[0], r.a[2])
 
 
+def _vector_joseph_gains(Phi, Hs, P0, Rd, Q=None):
+    """The paper form's covariance recursion written out with numpy: the update at epoch 0,
+    then per step the prediction and the update, each a vector Joseph update of the six
+    rows (the textbook recursion, and this module's own before it stepped with
+    estimation's kernels): gains (K+1, n, 6) and σ (K+1, n)."""
+    n = P0.shape[0]
+    R = np.diag(Rd)
+    P, Ks, sig = P0.copy(), [], []
+    for k in range(Hs.shape[0]):
+        if k:
+            P = Phi[k - 1] @ P @ Phi[k - 1].T + (0.0 if Q is None else Q)
+        H = Hs[k]
+        K = np.linalg.solve(H @ P @ H.T + R, H @ P).T
+        A = np.eye(n) - K @ H
+        P = A @ P @ A.T + K @ R @ K.T
+        Ks.append(K)
+        sig.append(np.sqrt(np.diag(P)))
+    return np.array(Ks), np.array(sig)
+
+
 @pytest.mark.parametrize("kind", ["kain", "euler", "dcm"])
-def test_common_gains_of_the_two_filters_agree(kind):
+def test_common_gains_are_the_textbook_recursion(kind):
     """The paper form's covariance recursion made once (lane_gains for the closed loop,
-    batch_gains for the open loop) is the same Kalman recursion written with two
-    association orders: H, gains and σ agree to rounding, and the σ of the Joseph-form
-    update stays that of the standard form P⁺ = (I − KH)P within rounding too."""
+    batch_gains for the open loop) is one recursion, stepped with estimation's kernels
+    (sequential scalar Joseph updates, gains composed): the two give the same bits; gains
+    and σ equal the textbook vector Joseph recursion to rounding, and its σ that of the
+    standard form P⁺ = (I − KH)P within rounding too."""
     from scipy.linalg import expm
 
     rng = np.random.default_rng(2)
@@ -281,22 +302,37 @@ def test_common_gains_of_the_two_filters_agree(kind):
     m = tr.AttitudeMatch(kind)
     sig0 = np.array([DEG / 60] * 3 + [0.1] * 3 + [1e-2] * 3 + [1e-7] * 3 + [1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3)
     P0, Rv, Ra = np.diag(sig0 ** 2), np.full(3, 0.01 ** 2), np.full(3, (DEG / 60) ** 2)
-    a = tr.lane_gains(Phi, m, P0, Rv, Ra, Cm, record_every=4)
-    b = tr.batch_gains(Phi, Cm, m, P0, Rv, Ra, record_every=4)
-    np.testing.assert_array_equal(a.H, b.H)
-    np.testing.assert_allclose(a.K, b.K, rtol=1e-8, atol=1e-12 * np.abs(a.K).max())
-    np.testing.assert_allclose(a.sigma, b.sigma, rtol=1e-8)
+    Q = np.diag(np.r_[[1e-12] * 3, [1e-8] * 3, [0.0] * 15])
+    a = tr.lane_gains(Phi, m, P0, Rv, Ra, Cm, Qk=Q, record_every=4)
+    b = tr.batch_gains(Phi, Cm, m, P0, Rv, Ra, Qk=Q, record_every=4)
+    for u, v in zip(a, b):
+        np.testing.assert_array_equal(u, v)
+    Ko, so = _vector_joseph_gains(Phi, a.H, P0, np.r_[Rv, Ra], Q)
+    np.testing.assert_allclose(a.K, Ko, rtol=1e-8, atol=1e-12 * np.abs(Ko).max())
+    np.testing.assert_allclose(a.sigma, so[::4], rtol=1e-8)
     # standard-form recursion, written out here
     P = P0.copy()
     for k in range(K + 1):
         if k:
-            P = Phi[k - 1] @ P @ Phi[k - 1].T
+            P = Phi[k - 1] @ P @ Phi[k - 1].T + Q
         H = a.H[k]
         G = P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(np.r_[Rv, Ra]))
         P = (np.eye(n) - G @ H) @ P
         if k % 4 == 0:
             np.testing.assert_allclose(a.sigma[k // 4], np.sqrt(np.diag(P)), rtol=1e-6)
 
+
+def _fed_back(one, x, phi_bound):
+    """The reference loops' guard and feedback of one lane: False (the lane stops) when x
+    is not finite or asks for |φ̂| > ``phi_bound``; else its INS ``one`` corrected by φ̂, δv̂,
+    its sensor compensation increased and those states of ``x`` zeroed."""
+    sl = tr.transfer_model().layout.slice
+    if not (np.all(np.isfinite(x)) and np.linalg.norm(x[sl("phi")]) <= phi_bound):
+        return False
+    one.correct(x[None, sl("phi")], x[None, sl("dv")])
+    one.compensate(x[None, sl("eps")], x[None, sl("nabla")], x[None, sl("kg")], x[None, sl("ka")])
+    x[np.r_[np.arange(21)[sl("phi")], np.arange(21)[sl("dv")], np.arange(9, 21)]] = 0.0
+    return True
 
 
 def _one_lane_at_a_time(bank, k_kf, Phi, match, G, mC, mv, noise, phi_bound, record_every):
@@ -307,7 +343,6 @@ def _one_lane_at_a_time(bank, k_kf, Phi, match, G, mC, mv, noise, phi_bound, rec
 
     lay = tr.transfer_model().layout
     sl = lay.slice
-    fed = np.r_[np.arange(21)[sl("phi")], np.arange(21)[sl("dv")], np.arange(9, 21)]
     K = Phi.shape[0]
     a = np.full((bank.lanes, K // record_every + 1, 3), np.nan)
     for l in range(bank.lanes):
@@ -322,23 +357,18 @@ def _one_lane_at_a_time(bank, k_kf, Phi, match, G, mC, mv, noise, phi_bound, rec
             if match.kind == "euler":
                 nu[3:] = tr.wrap_pi(nu[3:])
             x = x + G.K[k] @ nu
-            if not (np.all(np.isfinite(x)) and np.linalg.norm(x[sl("phi")]) <= phi_bound):
+            if not _fed_back(one, x, phi_bound):
                 break
-            one.correct(x[None, sl("phi")], x[None, sl("dv")])
-            one.compensate(x[None, sl("eps")], x[None, sl("nabla")], x[None, sl("kg")], x[None, sl("ka")])
-            x[fed] = 0.0
             if k % record_every == 0:
                 a[l, k // record_every] = x[sl("lam")]
     return a
 
 
-@pytest.mark.parametrize("kind", tr.KINDS)
-def test_compiled_lane_step_equals_one_lane_at_a_time(kind):
-    """The compiled closed loop of align_lanes (all lanes stepped together per epoch) gives
-    each lane the installation estimates of the same filter run on that lane alone with
-    numpy and scipy (to 1e-9 of their size: the compiled step forms the attitude
-    measurement and the products in another order), the same lanes stop at the same epochs,
-    and a lane's numbers do not depend on the lanes beside it (bit for bit)."""
+def _lanes_case(kind, K=60, L=4):
+    """Lanes on the parked carrier of _stationary: every lane its own sensor errors, master
+    and noise; the last starts 20° off in pitch, so its first update asks for a correction
+    beyond the bound and stops it. Returns the case as a dict (``bank(rows)`` makes a
+    fresh bank of those lanes)."""
     from scipy.linalg import expm
     from sinslab.core import earth
     from sinslab.core.records import NavState
@@ -349,38 +379,45 @@ def test_compiled_lane_step_equals_one_lane_at_a_time(kind):
     rng = np.random.default_rng(11)
     lam = np.array([20.0, -15.0, 30.0]) * DEG / 60
     att_m = np.array([1.0, -2.0, 30.0]) * DEG
-    lat, h, K, L = 0.6, 50.0, 60, 4
+    lat, h = 0.6, 50.0
     imu, _, _ = _stationary(lam, att_m, lat=lat, h=h, n=K * 10 + 1)
     Cmn = euler_to_dcm(att_m)
     Csn = Cmn @ rotvec_to_dcm(lam)
     F = tr.transfer_model().F(NavPoint(lat, h, np.zeros(3), Csn, Csn.T @ -earth.gravity_vector(lat, h),
                                        Csn.T @ earth.wie_n(lat)))
-    Phi = np.ascontiguousarray(np.broadcast_to(expm(F * 0.1), (K, 21, 21)))
-    # every lane its own sensor errors, master and noise; the last starts 20° off in
-    # pitch: its first update asks for a correction beyond the bound and stops it
     dth = imu.dtheta[None, :K * 10] + rng.normal(0, 1e-5, (L, 1, 3)) * 0.01
     dv = imu.dv[None, :K * 10] + rng.normal(0, 1e-3, (L, 1, 3)) * 0.01
     s0 = np.stack([sd.initial_state_array(NavState(lat, 0.2, h, np.zeros(3), att_m + [20 * DEG * (l == L - 1), 0, 0],
                                                    0.0)) for l in range(L)])
-    mC = rotvec_to_dcm(rng.normal(0, 3e-4, (L, 1, 3))) @ np.broadcast_to(Cmn, (L, K + 1, 3, 3))
-    mv = np.broadcast_to(rng.normal(0, 0.01, (L, 1, 3)), (L, K + 1, 3)).copy()
-    noise = rng.normal(0, 1.0, (L, K + 1, 6)) * np.r_[[0.01] * 3, [DEG / 60] * 3]
-    match = tr.AttitudeMatch(kind, euler_to_dcm(att_m * 0.5) if kind == "optimal" else None)
     sig0 = np.array([DEG / 60] * 3 + [0.1] * 3 + [1e-2] * 3 + [1e-5] * 3 + [1e-4] * 3 + [1e-3] * 3 + [1e-4] * 3)
-    G = tr.lane_gains(Phi, match, np.diag(sig0 ** 2), np.full(3, 0.01 ** 2), np.full(3, (DEG / 60) ** 2), mC[0])
-    bound = 0.2 * DEG
+    return dict(
+        Phi=np.ascontiguousarray(np.broadcast_to(expm(F * 0.1), (K, 21, 21))),
+        mC=rotvec_to_dcm(rng.normal(0, 3e-4, (L, 1, 3))) @ np.broadcast_to(Cmn, (L, K + 1, 3, 3)),
+        mv=np.broadcast_to(rng.normal(0, 0.01, (L, 1, 3)), (L, K + 1, 3)).copy(),
+        noise=rng.normal(0, 1.0, (L, K + 1, 6)) * np.r_[[0.01] * 3, [DEG / 60] * 3],
+        match=tr.AttitudeMatch(kind, euler_to_dcm(att_m * 0.5) if kind == "optimal" else None),
+        P0=np.diag(sig0 ** 2), Rv=np.full(3, 0.01 ** 2), Ra=np.full(3, (DEG / 60) ** 2), bound=0.2 * DEG,
+        bank=lambda rows: LaneBank(s0[rows], dth[rows], dv[rows], np.arange(len(rows)), 0.01), L=L)
 
-    def bank(rows):
-        return LaneBank(s0[rows], dth[rows], dv[rows], np.arange(len(rows)), 0.01)
+
+@pytest.mark.parametrize("kind", tr.KINDS)
+def test_compiled_lane_step_equals_one_lane_at_a_time(kind):
+    """The compiled closed loop of align_lanes (all lanes stepped together per epoch) gives
+    each lane the installation estimates of the same filter run on that lane alone with
+    numpy and scipy (to 1e-9 of their size: the compiled step forms the attitude
+    measurement and the products in another order), the same lanes stop at the same epochs,
+    and a lane's numbers do not depend on the lanes beside it (bit for bit)."""
+    c = _lanes_case(kind)
+    Phi, match, mC, mv, noise, bound, L = c["Phi"], c["match"], c["mC"], c["mv"], c["noise"], c["bound"], c["L"]
+    G = tr.lane_gains(Phi, match, c["P0"], c["Rv"], c["Ra"], mC[0])
 
     def lanes(rows):
-        return tr.align_lanes(bank(rows), 10, Phi, match, np.diag(sig0 ** 2), np.full(3, 0.01 ** 2),
-                              np.full(3, (DEG / 60) ** 2), mC[rows], mv[rows], np.arange(len(rows)),
-                              meas_noise=noise[rows], phi_bound=bound, record_every=5, gains=G)
+        return tr.align_lanes(c["bank"](rows), 10, Phi, match, c["P0"], c["Rv"], c["Ra"], mC[rows], mv[rows],
+                              np.arange(len(rows)), meas_noise=noise[rows], phi_bound=bound, record_every=5, gains=G)
 
     rows = np.arange(L)
     r = lanes(rows)
-    ref = _one_lane_at_a_time(bank(rows), 10, Phi, match, G, mC, mv, noise, bound, 5)
+    ref = _one_lane_at_a_time(c["bank"](rows), 10, Phi, match, G, mC, mv, noise, bound, 5)
     assert r.diverged.tolist() == [False, False, False, True]
     np.testing.assert_array_equal(np.isnan(r.a), np.isnan(ref))
     ok = ~np.isnan(ref)
@@ -389,6 +426,73 @@ def test_compiled_lane_step_equals_one_lane_at_a_time(kind):
         one = lanes(rows[l:l + 1])
         np.testing.assert_array_equal(one.a[0], r.a[l])
         np.testing.assert_array_equal(one.attitude[0], r.attitude[l])
+
+
+def _ekf_one_lane_at_a_time(c, record_every):
+    """The EKF form of align_lanes written out lane by lane with the textbook numpy core
+    (kalman.predict, kalman.update) and the one-run measurement (innovation_z): installation
+    estimates and σ (L, M, 3), NaN once a lane stopped."""
+    from sinslab.estimation import kalman as kf
+    from sinslab.nav.lanes import LaneBank
+
+    lay = tr.transfer_model().layout
+    sl = lay.slice
+    Phi, match, L = c["Phi"], c["match"], c["L"]
+    K = Phi.shape[0]
+    a = np.full((L, K // record_every + 1, 3), np.nan)
+    sa = np.full(a.shape, np.nan)
+    bank = c["bank"](np.arange(L))
+    for l in range(L):
+        one = LaneBank(bank.state[l:l + 1], bank.dtheta[l:l + 1], bank.dv[l:l + 1], np.zeros(1, int), bank.dt)
+        x, P = np.zeros(21), c["P0"].copy()
+        for k in range(K + 1):
+            if k:
+                one.advance(10)
+                x, P = kf.predict(x, P, Phi[k - 1], np.zeros((21, 21)))
+            za, h6 = match.innovation_z(c["mC"][l, k], one.attitude()[0], x[sl("phi")], x[sl("lam")],
+                                        relinearise=True)
+            z = np.r_[one.velocity()[0] - c["mv"][l, k], za] + c["noise"][l, k]
+            H = np.zeros((6, 21))
+            H[np.arange(3), np.arange(21)[sl("dv")]] = 1.0
+            H[3:, sl("phi")], H[3:, sl("lam")] = h6[:, :3], h6[:, 3:]
+            res = kf.update(x, P, z, H, np.diag(np.r_[c["Rv"], c["Ra"]]))
+            x, P = res.x.copy(), res.P
+            if not _fed_back(one, x, c["bound"]):
+                break
+            if k % record_every == 0:
+                a[l, k // record_every] = x[sl("lam")]
+                sa[l, k // record_every] = np.sqrt(np.diag(P))[sl("lam")]
+    return a, sa
+
+
+@pytest.mark.parametrize("kind", ["euler", "kain"])
+def test_ekf_lanes_equal_the_textbook_filter_one_lane_at_a_time(kind):
+    """The EKF form of align_lanes (a covariance per lane, stepped with estimation's lane
+    kernels) gives each lane the installation estimates and σ of the textbook EKF (numpy
+    kalman.predict/update, one-run measurement) run on that lane alone, to 1e-9 of their
+    size; the same lanes stop, a stopped lane's σ turns NaN from the next epoch, and a
+    lane's numbers do not depend on the lanes beside it (bit for bit)."""
+    c = _lanes_case(kind, K=30)
+    L = c["L"]
+
+    def lanes(rows):
+        return tr.align_lanes(c["bank"](rows), 10, c["Phi"], c["match"], c["P0"], c["Rv"], c["Ra"], c["mC"][rows],
+                              c["mv"][rows], np.arange(len(rows)), meas_noise=c["noise"][rows], phi_bound=c["bound"],
+                              record_every=5, relinearise=True)
+
+    r = lanes(np.arange(L))
+    a, sa = _ekf_one_lane_at_a_time(c, 5)
+    assert r.diverged.tolist() == [False, False, False, True] and r.sigma.shape == (L, 7, 21)
+    np.testing.assert_array_equal(np.isnan(r.a), np.isnan(a))
+    ok = ~np.isnan(a)
+    np.testing.assert_allclose(r.a[ok], a[ok], rtol=0, atol=1e-9 * np.abs(a[ok]).max())
+    np.testing.assert_allclose(r.sigma[:3, :, 6:9], sa[:3], rtol=1e-9)
+    d = r.diverged_at[3]
+    assert np.isfinite(r.sigma[3, r.epochs <= d]).all() and np.isnan(r.sigma[3, r.epochs > d]).all()
+    for l in range(L):
+        one = lanes(np.array([l]))
+        np.testing.assert_array_equal(one.a[0], r.a[l])
+        np.testing.assert_array_equal(one.sigma[0], r.sigma[l])
 
 
 @pytest.mark.parametrize("kind", ["euler", "kain"])
@@ -423,6 +527,46 @@ def test_compiled_open_loop_equals_the_numpy_recursion(kind):
     for r in range(R):
         one, _ = tr.batch_filter(Phi, Cm, zv[r:r + 1], Cs[r:r + 1], m, *args, record_every=3)
         np.testing.assert_array_equal(one[0], xs[r])
+
+
+@pytest.mark.parametrize("kind", ["dcm", "optimal"])
+def test_ekf_open_loop_equals_the_textbook_filter_run_by_run(kind):
+    """The EKF form of batch_filter (a covariance per run, stepped with estimation's lane
+    kernels) against the textbook EKF (numpy kalman.predict/update, the one-run
+    innovation_z) run by run: estimates and σ to 1e-9 of their size; a run's numbers do not
+    depend on the runs stacked with it (bit for bit)."""
+    from scipy.linalg import expm
+    from sinslab.estimation import kalman as kf
+
+    rng = np.random.default_rng(6)
+    n, K, R = 21, 30, 3
+    Phi = np.ascontiguousarray(np.broadcast_to(expm(rng.normal(0, 0.02, (n, n)) * 0.1), (K, n, n)))
+    Cm = euler_to_dcm(np.stack([_rand_att(rng) for _ in range(K + 1)]))
+    m = tr.AttitudeMatch(kind, euler_to_dcm(_rand_att(rng) * 0.1) if kind == "optimal" else None)
+    Cs = rotvec_to_dcm(rng.normal(0, 0.01, (R, K + 1, 3))) @ Cm[None] @ m.compensation
+    zv = rng.normal(0, 0.05, (R, K + 1, 3))
+    sig0 = np.array([DEG / 60] * 3 + [0.1] * 3 + [1e-2] * 3 + [1e-7] * 3 + [1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3)
+    Q = np.diag(np.r_[[1e-12] * 3, [1e-8] * 3, [0.0] * 15])
+    args = (np.zeros(n), np.diag(sig0 ** 2), np.full(3, 0.01 ** 2), np.full(3, (DEG / 60) ** 2))
+    xs, sig = tr.batch_filter(Phi, Cm, zv, Cs, m, *args, Qk=Q, relinearise=True, record_every=3)
+    Rm = np.diag(np.r_[args[2], args[3]])
+    for r in range(R):
+        x, P = np.zeros(n), args[1].copy()
+        for k in range(K + 1):
+            za, h6 = m.innovation_z(Cm[k], Cs[r, k], x[:3], x[6:9], relinearise=True)
+            H = np.zeros((6, n))
+            H[np.arange(3), np.arange(3, 6)] = 1.0
+            H[3:, :3], H[3:, 6:9] = h6[:, :3], h6[:, 3:]
+            res = kf.update(x, P, np.r_[zv[r, k], za], H, Rm)
+            x, P = res.x, res.P
+            if k % 3 == 0:
+                np.testing.assert_allclose(xs[r, k // 3], x, rtol=0, atol=1e-9 * np.abs(x).max())
+                np.testing.assert_allclose(sig[r, k // 3], np.sqrt(np.diag(P)), rtol=1e-9)
+            if k < K:
+                x, P = kf.predict(x, P, Phi[k], Q)
+        one, s1 = tr.batch_filter(Phi, Cm, zv[r:r + 1], Cs[r:r + 1], m, *args, Qk=Q, relinearise=True, record_every=3)
+        np.testing.assert_array_equal(one[0], xs[r])
+        np.testing.assert_array_equal(s1[0], sig[r])
 
 
 @pytest.mark.parametrize("kind", tr.KINDS)

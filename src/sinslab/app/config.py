@@ -321,7 +321,9 @@ class Section(BaseModel):
     moved into a sub-section): the old key is still refused, with the new one named.
     """
 
-    model_config = ConfigDict(extra="forbid", validate_default=True)
+    # strict: a TOML boolean is no seed or count, a float no integer, a number no flag
+    # (pydantic's lax mode takes true as 1 and 2.0 as 2); quantities have their own checks
+    model_config = ConfigDict(extra="forbid", validate_default=True, strict=True)
     renamed: ClassVar[dict[str, str]] = {}
 
 
@@ -548,13 +550,29 @@ def _format_error(model_cls, err: ValidationError, origins: dict[str, str]) -> s
             msg += f"; known keys{' in ' + '.'.join(loc[:-1]) if loc[:-1] else ''}: {', '.join(known)}"
         return msg
     msg = e["msg"]
+    got = e.get("input")
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, "):]
+    elif e["type"] in ("int_type", "float_type") and isinstance(got, (bool, str, float)):
+        want = "an integer" if e["type"] == "int_type" else "a number"
+        msg = (f"{str(got).lower()} is a boolean, not {want}" if isinstance(got, bool) else
+               f"{got!r} is text, not {want}" + (" (write it without quotes)" if _is_number(got) else "")
+               if isinstance(got, str) else f"{got!r} is not {want} (a whole number)")
+    elif e["type"] == "bool_type" and isinstance(got, (int, float, str)):
+        msg = f"{got!r} is not a boolean: write true or false"
     elif "input" in e and not isinstance(e["input"], (dict, list)):
         msg = f"{msg[0].lower()}{msg[1:]} (got {e['input']!r})"
     if not key:                              # a check across keys (model validator)
         return f"config: {msg}"
     return f"config key {key}{where}: {msg}"
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
 
 
 def resolve(model_cls: type[ExperimentConfig], *, quick: Mapping | None = None,
@@ -577,9 +595,62 @@ def resolve(model_cls: type[ExperimentConfig], *, quick: Mapping | None = None,
         origins[k] = f"--set {item}"
     data = deep_merge(data, sdata)
     try:
-        return model_cls.model_validate(data)
+        cfg = model_cls.model_validate(data)
     except ValidationError as err:
         raise ConfigError(_format_error(model_cls, err, origins)) from None
+    _check_steps(cfg, origins)
+    _check_used_when(cfg, origins)
+    return cfg
+
+
+#: Names of a filter's step (a time quantity): a step holds at least one IMU sample
+STEP_NAMES = ("period", "kf_dt", "model_dt")
+
+
+def _fields(model, prefix=""):
+    """``(dotted key, value, field info, section)`` of every leaf field of a config."""
+    for name, f in type(model).model_fields.items():
+        v = getattr(model, name)
+        if isinstance(v, BaseModel):
+            yield from _fields(v, f"{prefix}{name}.")
+        else:
+            yield f"{prefix}{name}", v, f, model
+
+
+def _origin(key: str, origins: Mapping[str, str]) -> str:
+    return f" ({origins[key]})" if key in origins else ""
+
+
+def _check_steps(cfg, origins) -> None:
+    """A filter step (:data:`STEP_NAMES`, a time) shorter than the IMU's sample interval
+    (a ``sample_interval`` key of the same config) holds no sample: refused, naming both."""
+    leaves = list(_fields(cfg))
+    dts = [(k, v) for k, v, _, _ in leaves if k.rsplit(".", 1)[-1] == "sample_interval" and isinstance(v, Quantity)]
+    if not dts:
+        return
+    dk, dt = max(dts, key=lambda kv: float(kv[1]))
+    for key, v, _, _ in leaves:
+        if key.rsplit(".", 1)[-1] in STEP_NAMES and isinstance(v, Quantity) and v.kind == "time" \
+                and float(v) < float(dt) * (1 - 1e-9):
+            raise ConfigError(f"config key {key}{_origin(key, origins)}: {v.text!r} is shorter than the IMU sample "
+                              f"interval {dk} = {dt.text!r}: a filter step holds at least one sample")
+
+
+def _check_used_when(cfg, origins) -> None:
+    """A key the user set (file or ``--set``) that the configuration's mode ignores is
+    refused: its field declares ``json_schema_extra={"used_when": {other_key: value}}``
+    (keys of its section) and the section's ``other_key`` has another value."""
+    for key, _, f, sec in _fields(cfg):
+        cond = (f.json_schema_extra or {}).get("used_when") if isinstance(f.json_schema_extra, dict) else None
+        if not cond or key not in origins:
+            continue
+        base = key.rsplit(".", 1)[0] + "." if "." in key else ""
+        for other, want in cond.items():
+            have = getattr(sec, other)
+            if have != want:
+                raise ConfigError(f"config key {key}{_origin(key, origins)} is used only with {base}{other} = "
+                                  f"{want!r} (here {have!r}) and would be ignored: set {base}{other} = {want!r} "
+                                  f"or drop it")
 
 
 def config_to_toml(cfg: BaseModel, header: str = "") -> str:

@@ -162,6 +162,8 @@ def metric_info(command: str, metrics: dict, extra=()) -> dict:
         unit = _unit(name)
         if name.endswith("_ppm"):
             unit = "ppm"
+        if isinstance(metrics[name], bool):          # a yes/no answer has no unit
+            unit = ""
         out[name] = {"unit": unit, "description": desc}
     if "runtime_s" in metrics:
         out["runtime_s"] = {"unit": "s", "description": "wall time of the computation"}

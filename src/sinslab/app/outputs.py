@@ -48,7 +48,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from sinslab.app import report
-from sinslab.app.errors import UserError, on_abort
+from sinslab.app.errors import UserError, deferred_signals, on_abort, published
 from sinslab.core.atomic import atomic_path, atomic_write
 
 __all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "atomic_write", "atomic_path",
@@ -186,6 +186,20 @@ def _check_not_in_run(p: Path) -> None:
                                  f"(it holds a {MARKER} marker); choose an --out outside it")
 
 
+def _check_replaceable(p: Path) -> None:
+    """Refuse a folder that a completed run cannot take the place of: the current folder
+    or one of its parents (``--out .`` or ``--out ''``), the root, a mount point."""
+    if not p.exists():
+        return
+    rp, cwd = p.resolve(), Path.cwd().resolve()
+    what = ("the current folder" if rp == cwd else "a parent of the current folder" if rp in cwd.parents
+            else "a mount point" if os.path.ismount(rp) else None)
+    if what:
+        raise OutputDirError(f"output folder {str(p) or '.'} is {what}: a run is put in place as a whole "
+                             f"folder when it completes, which this one cannot be replaced by; give a "
+                             f"folder inside it, e.g. --out {Path(str(p) or '.') / 'run1'}")
+
+
 def _pid_alive(pid: int) -> bool:
     if pid == os.getpid():
         return True
@@ -210,7 +224,7 @@ def _clean_stale(target: Path) -> None:
     if not parent.is_dir():
         return
     for st in parent.glob(f".{target.name}{_STAGING}*"):
-        pid = st.name[len(f".{target.name}{_STAGING}"):].split("-", 1)[0]
+        pid = st.name[len(f".{target.name}{_STAGING}"):].removeprefix("old-").split("-", 1)[0]
         if pid.isdigit() and not _pid_alive(int(pid)) and st.is_dir():
             _remove_tree(st)
 
@@ -252,6 +266,7 @@ def completed_elsewhere(path: str | os.PathLike) -> None:
     checked here: an abort of this process has nothing of it to discard or report."""
     t = Path(path).absolute()
     _ACTIVE[:] = [r for r in _ACTIVE if r.target.absolute() != t]
+    published(path)
 
 
 @on_abort
@@ -259,6 +274,7 @@ def abort_all() -> list[str]:
     """Discard every unfinished run of this process; return one phrase per run folder
     saying what it holds now (for the interrupt/error message)."""
     said: list[str] = []
+    _remove_leftovers()
     while _ACTIVE:
         s = _ACTIVE.pop(0).abort()
         if s and s not in said:
@@ -266,19 +282,27 @@ def abort_all() -> list[str]:
     return said
 
 
-def _pause(point: str, count: int = 0) -> None:
+def _pause(point: str, count: int = 0, hold_s: float | None = None) -> None:
     """Test hook: ``SINSLAB_PAUSE_AT=point`` stops the process there, announced on stderr,
-    until a signal arrives, so that interrupt tests hit that exact moment. Points:
-    ``checked`` (folder checked, nothing staged), ``write:N`` (N files staged), ``swap``
-    (run complete in staging, before the swap)."""
-    want = os.environ.get("SINSLAB_PAUSE_AT")
-    if want and want in (point, f"{point}:{count}"):
-        import sys
-        import time
+    until a signal arrives (for ``hold_s`` seconds where signals are held), so that
+    interrupt tests hit that exact moment. Points of a run folder: ``checked`` (folder
+    checked, nothing staged), ``write:N`` (N files staged), ``figures`` (figures being
+    drawn), ``swap`` (run complete in staging, before the exchange), ``exchange`` (run
+    exchanged, signals held), ``published`` (run in place, the previous one not yet
+    deleted); :func:`sinslab.app.errors.pause` names the others."""
+    from sinslab.app.errors import pause
 
-        print(f"sinslab: paused at {want}", file=sys.stderr, flush=True)
-        while True:
-            time.sleep(0.05)
+    pause(point, count, hold_s)
+
+
+#: run folders in place whose replaced run (and obsolete folders) are still to delete
+#: (by :meth:`RunDir._commit`, or by an abort should a signal come between)
+_LEFTOVERS: list["RunDir"] = []
+
+
+def _remove_leftovers() -> None:
+    for rd in list(_LEFTOVERS):
+        rd._remove_leftovers()
 
 class RunDir:
     """The output folder of one run, written as a transaction.
@@ -315,6 +339,8 @@ class RunDir:
         self._had_run = False
         self._done = False
         self._made: list[Path] = []
+        self._obsolete: list[Path] = []
+        self._leftovers: list[Path] = []
 
     # -- folder rules
     def _describe(self, m: dict) -> str:
@@ -360,6 +386,7 @@ class RunDir:
             if self.force and names:
                 self._check_force_target(p)
                 self._had_run = True
+        _check_replaceable(p)
         if self not in _ACTIVE:
             _ACTIVE.append(self)
         _pause("checked")
@@ -393,6 +420,11 @@ class RunDir:
         self._write_marker("running")
         return self
 
+    def obsolete_when_complete(self, path: str | os.PathLike) -> None:
+        """Delete ``path`` (a folder beside the run) once the run is in place, not before:
+        e.g. the finished tasks of its Monte Carlo campaigns, kept for a rerun until then."""
+        self._obsolete.append(Path(path))
+
     def scratch_path(self) -> Path:
         """A folder name next to the run folder for a run's temporary files (a record
         spilled to disk while it computes); not created here. Named like a staging
@@ -411,37 +443,48 @@ class RunDir:
         self._commit()
 
     def _commit(self) -> None:
-        import signal
-
         st, target = self._staging, self.target
         if st is None:
             raise RuntimeError("RunDir.finish() before prepare()")
         _pause("swap")
-        blocked = {signal.SIGINT, signal.SIGTERM}
-        try:
-            old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, blocked)
-        except (AttributeError, ValueError):
-            old_mask = None
-        try:
+        # from the exchange to the bookkeeping that says the run is in place, a signal
+        # waits: cut in between, an abort would take the new run for an unfinished one
+        with deferred_signals():
             old = None
-            if target.is_dir() and not target.is_symlink():
-                if _exchange(st, target):
-                    old = st                           # the staging name now holds the old run
+            try:
+                if target.is_dir() and not target.is_symlink():
+                    if _exchange(st, target):
+                        old = st                       # the staging name now holds the old run
+                    else:
+                        old = st.with_name(st.name.replace(_STAGING, _STAGING + "old-"))
+                        os.rename(target, old)
+                        os.rename(st, target)
                 else:
-                    old = st.with_name(st.name.replace(_STAGING, _STAGING + "old-"))
-                    os.rename(target, old)
                     os.rename(st, target)
-            else:
-                os.rename(st, target)
+            except OSError as e:
+                raise OutputDirError(f"output folder {target}: cannot put the completed run in place "
+                                     f"({e.strerror or e}); it keeps what it held") from None
+            self._leftovers = ([old] if old is not None else []) + self._obsolete
+            _LEFTOVERS.append(self)
             self._done = True
             self.path = target
             self._staging = None
             _ACTIVE[:] = [r for r in _ACTIVE if r.target.absolute() != target.absolute()]
-        finally:
-            if old_mask is not None:
-                signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
-        if old is not None:
-            _remove_tree(old)
+            published(target)
+            _pause("exchange", hold_s=60.0)
+        _pause("published")
+        self._remove_leftovers()
+
+    def _remove_leftovers(self) -> None:
+        """Delete the replaced run and the obsolete folders of this (committed) run."""
+        while True:
+            try:                                   # an abort in another thread may take one first
+                path = self._leftovers.pop(0)
+            except IndexError:
+                break
+            _remove_tree(path)
+        with contextlib.suppress(ValueError):
+            _LEFTOVERS.remove(self)
 
     def abort(self) -> str:
         """Discard the unfinished run (staging folder, an empty default folder); return

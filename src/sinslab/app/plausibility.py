@@ -29,7 +29,8 @@ from sinslab.app.errors import CliError
 from sinslab.core.blocks import block_median, block_ranges, release_pages
 
 __all__ = ["Finding", "imu_findings", "rest_findings", "rest_gravity_findings", "gap_findings",
-           "consistency_findings", "settle",
+           "consistency_findings", "settle", "rest_rate_findings", "bias_findings", "overconfidence_findings",
+           "grade_of", "GRADES", "unit_slip",
            "MIN_SAMPLES", "MAX_RATE_DPS", "MAX_ACCEL_G", "MONITOR_WINDOW_S", "MONITOR_ALPHA",
            "MONITOR_STRETCH_S"]
 
@@ -203,6 +204,117 @@ def rest_findings(imu, source: str, *, lat=None, h=0.0, pieces: int = 10) -> lis
                 f"{t[i, 0]:.0f}–{t[i, -1]:.0f} s and {t[j, 0]:.0f}–{t[j, -1]:.0f} s (noise allows "
                 f"{s:.2g} deg): the window holds motion; choose a window at rest"))
     return out
+
+
+#: |ω| at rest within this fraction of Earth rate needs no explanation (a nearly level,
+#: quasi-static record of a navigation-grade IMU measures 0.98 ω_ie: sway, scale errors);
+#: beyond it the gyro bias must explain it (--gyro-bias), or the heading from
+#: gyrocompassing means nothing
+W_REST_TOL = 0.5
+#: a ratio within this fraction of 180/π (or π/180) is the signature of a unit slip
+UNIT_SLIP_TOL = 0.1
+_DEG = math.degrees(1.0)
+
+
+def unit_slip(ratio: float, what: str) -> str | None:
+    """The likely unit slip behind ``ratio`` (a measured over an expected magnitude)."""
+    if abs(ratio / _DEG - 1.0) < UNIT_SLIP_TOL:
+        return f"the ratio is close to 180/π = {_DEG:.1f}: {what} in degrees read as radians?"
+    if abs(ratio * _DEG - 1.0) < UNIT_SLIP_TOL:
+        return f"the ratio is close to π/180 = {1 / _DEG:.4f}: {what} in radians read as degrees?"
+    return None
+
+
+def rest_rate_findings(imu, source: str, *, lat=None, gyro_bias=None) -> list[Finding]:
+    """|mean ω| of a record at rest against Earth rate.
+
+    At rest a gyro triad measures Earth rate ω_ie (15.04 °/h) plus its bias, whatever its
+    heading. A ratio beyond :data:`W_REST_TOL` (or five times the assumed 1σ gyro bias
+    ``gyro_bias`` [rad/s], when larger) is reported with its likely cause: a unit slip
+    when the ratio is 180/π, else a bias larger than assumed or motion. Without
+    ``gyro_bias`` (no grade known) only a unit slip is reported.
+    """
+    from sinslab.core import earth
+
+    w = np.asarray(imu.dtheta, float).sum(axis=0) / (len(imu) * imu.dt)
+    wm = float(np.linalg.norm(w))
+    r = wm / earth.WIE
+    slip = unit_slip(r, "the gyro data")
+    dph = 3600.0 * _DEG
+    if gyro_bias is None:
+        if slip is None:
+            return []
+        return [Finding(f"{source}: mean angular rate at rest |ω| = {r:.3g} × Earth rate ({wm * dph:.4g} °/h "
+                        f"against {earth.WIE * dph:.4g} °/h): {slip} (check the gyro columns' unit; every gyro "
+                        f"figure from it is off by that ratio)")]
+    tol = max(W_REST_TOL, 5.0 * float(gyro_bias) / earth.WIE)
+    if abs(r - 1.0) <= tol:
+        return []
+    cause = slip or (f"a gyro bias near {abs(wm - earth.WIE) * dph:.3g} °/h, far beyond the assumed "
+                     f"{float(gyro_bias) * dph:.3g} °/h (--gyro-bias), or motion in the window")
+    return [Finding(f"{source}: mean angular rate at rest |ω| = {r:.3g} × Earth rate ({wm * dph:.4g} °/h "
+                    f"against {earth.WIE * dph:.4g} °/h; the assumed gyro bias allows {1 - tol:.2g}–{1 + tol:.3g} ×): "
+                    f"{cause}; the heading from gyrocompassing means nothing")]
+
+
+#: IMU grades: (name, largest gyro angle random walk [°/√h], largest gyro bias [°/h],
+#: largest accelerometer bias [mg]), after the typical ranges of Groves, Principles of
+#: GNSS, Inertial, and Multisensor Integrated Navigation Systems (2nd ed., 2013), §4.4.
+#: A bias beyond the last row is beyond any IMU on sale.
+GRADES = (("navigation-grade", 0.01, 0.1, 0.3),
+          ("tactical-grade", 0.5, 100.0, 10.0),
+          ("industrial MEMS", 5.0, 3600.0, 100.0),
+          ("consumer MEMS", math.inf, 36000.0, 500.0))
+
+
+def grade_of(gyro_arw) -> tuple:
+    """The :data:`GRADES` row of a gyro angle random walk [rad/√s] (its noise sets its class)."""
+    arw = float(gyro_arw) * _DEG * 60.0                      # rad/√s -> °/√h
+    return next(g for g in GRADES if arw <= g[1])
+
+
+def bias_findings(gyro_bias, accel_bias, source: str, *, gyro_arw=None) -> list[Finding]:
+    """Estimated biases (3,) [rad/s], [m/s²] against the grade that ``gyro_arw`` [rad/√s]
+    implies (:func:`grade_of`; without it, against any IMU): a bias beyond its grade's
+    range is an estimate that absorbed something else (a unit or scale error, a time
+    offset, motion the model lacks)."""
+    grade = grade_of(gyro_arw) if gyro_arw is not None else GRADES[-1]
+    name, _, gb_max, ab_max = grade
+    gb = float(np.max(np.abs(gyro_bias))) * 3600.0 * _DEG
+    ab = float(np.max(np.abs(accel_bias))) / 9.80665e-3
+    out = []
+    beyond = "any IMU" if grade is GRADES[-1] else f"a {name} IMU, whose gyro noise was given"
+    if gb > gb_max:
+        out.append(Finding(f"{source}: estimated gyro bias {gb:.4g} °/h is beyond {beyond} (up to {gb_max:g} °/h): "
+                           f"the estimate absorbed a unit or scale error, a time offset or motion the model lacks"))
+    if ab > ab_max:
+        out.append(Finding(f"{source}: estimated accelerometer bias {ab:.4g} mg is beyond {beyond} (up to "
+                           f"{ab_max:g} mg): the estimate absorbed a unit or scale error, a time offset or motion "
+                           f"the model lacks"))
+    return out
+
+
+def overconfidence_findings(applied, source: str, what: str) -> list[Finding]:
+    """σ implausibly tight for the data: over a whole run the normalised innovations of a
+    consistent filter average to 1 per component (χ² over the total degrees of freedom D:
+    beyond its ``1 − MONITOR_ALPHA`` quantile over D the errors are larger than the σ). The
+    estimates' σ (``what``) then understate their error by about √(NIS per component)."""
+    from scipy.special import chdtri
+
+    nu = [np.asarray(v, float) for v in applied.innovation]
+    dof = float(sum(int(np.isfinite(v).sum()) for v in nu))
+    nis = np.asarray(applied.nis, float)
+    nis = nis[np.isfinite(nis)]
+    if dof < 10 or nis.size == 0:
+        return []
+    per = float(nis.sum()) / dof
+    limit = float(chdtri(dof, MONITOR_ALPHA)) / dof
+    if per <= limit:
+        return []
+    return [Finding(f"{source}: the σ of {what} are implausibly tight for the data: the matching innovations "
+                    f"are {math.sqrt(per):.3g} times larger than the filter's σ say (NIS per component {per:.3g}, "
+                    f"a consistent filter stays below {limit:.3g}); the estimates absorb an error the model "
+                    f"lacks (a time offset, a unit or scale error, a lever arm)")]
 
 
 def gap_findings(imu, gaps, source: str) -> list[Finding]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import time
 
+from sinslab.app.errors import pause
 from sinslab.core.blocks import release_free_memory
 
 #: At most this many processes (the run's own and forked workers) draw figures at once.
@@ -173,6 +174,7 @@ def _render_all(figures, dpi: int, folder) -> list[tuple[str, str]]:
             _TAKEN = ctx.Value("i", 0)
             pool = ctx.Pool(n - 1, initializer=_worker_init)
             theirs = [pool.apply_async(_take_and_render, (dpi, folder)) for _ in range(n - 1)]
+            pause("figures")
             gc.disable()                             # as in the workers, while drawing
             drawn = _take_and_render(dpi, folder)
             for r in theirs:
@@ -194,6 +196,7 @@ def _render_all(figures, dpi: int, folder) -> list[tuple[str, str]]:
                 gc.enable()
             if not frozen:
                 gc.unfreeze()
+    pause("figures")
     return [_render_to_files(f.fig, dpi, folder, f"figure{i}") for i, f in enumerate(figures)]
 
 

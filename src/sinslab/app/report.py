@@ -10,6 +10,9 @@ Sections: header (run name — a demo variant's own name, with the ``--set`` lin
 make it —, purpose, version, date, quick or full for experiments, computation and
 writing time), claims table (``id="claims"``, one row per claim, measured and expected
 values labelled with their units, pass/fail; no section when the run checked no claim),
+robustness (``id="robustness"``: per claim its label — robust, depends on …, decided by
+construction, not swept —, its verdict under each alternative, flips marked, and the
+assumptions with their defaults and whose they are),
 metrics table (value, unit, description), figures, tables (Monte Carlo statistics etc.),
 notes, time-series files (each described), configuration with the command line that
 re-runs the run. Wide tables scroll inside their box, never the page. After the page has loaded, a small script writes the number of figures
@@ -29,11 +32,11 @@ import os
 import re
 from pathlib import Path
 
-from sinslab.app.claims import tally
+from sinslab.app.claims import declared, tally
 from sinslab.app.errors import UserError
 from sinslab.core.atomic import atomic_write
 
-__all__ = ["ReportError", "render", "build", "index"]
+__all__ = ["ReportError", "render", "build", "index", "figure_caption", "is_cjk"]
 
 
 class ReportError(UserError):
@@ -41,7 +44,7 @@ class ReportError(UserError):
 
 
 _CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em auto;
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,"sinslab CJK subset",sans-serif;margin:2em auto;
 max-width:1100px;padding:0 1em;color:#1d1d1f;line-height:1.4}
 h1{margin-bottom:.1em}h2{border-bottom:1px solid #ddd;padding-bottom:.2em;margin-top:1.6em}
 .sub{color:#666;margin-top:0}table{border-collapse:collapse;margin:.5em 0;font-size:.92em}
@@ -54,8 +57,11 @@ tr.fail td.verdict{background:#fde2e1;color:#a11;font-weight:bold}
 ul.warn li{background:#fff4d6;color:#6b4b00;padding:.2em .5em;margin:.2em 0;list-style:none}
 figure{margin:1em 0;text-align:center}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{color:#444;font-size:.92em}pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}
-#claims td.num,#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}
-#claims td:nth-child(3){min-width:16em}.scroll{max-width:100%;overflow-x:auto}
+#metrics td.num{white-space:normal;overflow-wrap:anywhere;max-width:22em}.scroll{max-width:100%;overflow-x:auto}
+#claims{table-layout:fixed;width:100%}#claims td{overflow-wrap:anywhere}#claims td.num{white-space:normal}
+#claims col.id{width:13%}#claims col.origin{width:6.5%}#claims col.statement{width:33%}
+#claims col.measured,#claims col.expected{width:20%}#claims col.result{width:7.5%}
+#claims code.id,#claims span.q{white-space:normal;overflow-wrap:anywhere}
 td.cols{overflow-wrap:anywhere;max-width:28em}.variant{background:#f4f7fb;padding:.4em .8em;border-left:3px solid #4a7bd0}
 code.id,#runs td:first-child{white-space:nowrap}span.q{white-space:nowrap}#rerun{overflow-wrap:anywhere}
 """
@@ -69,8 +75,45 @@ window.addEventListener('load', function () {
   document.body.setAttribute('data-figures-loaded', String(ok));
   document.body.setAttribute('data-page-width', String(document.documentElement.scrollWidth));
   document.body.setAttribute('data-view-width', String(document.documentElement.clientWidth));
+  var right = 0, cells = document.querySelectorAll('#claims td.verdict');
+  for (var j = 0; j < cells.length; j++) { right = Math.max(right, cells[j].getBoundingClientRect().right); }
+  document.body.setAttribute('data-claims-right', String(Math.ceil(right)));
+  var over = 0, tds = document.querySelectorAll('#claims td');
+  for (var k = 0; k < tds.length; k++) { if (tds[k].scrollWidth > tds[k].clientWidth + 1) over++; }
+  document.body.setAttribute('data-claims-overflow', String(over));
+  if (!document.fonts) return;
+  document.fonts.ready.then(function () {
+    var cjk = 'none';
+    document.fonts.forEach(function (f) { if (f.family.indexOf('sinslab CJK') >= 0) cjk = f.status; });
+    document.body.setAttribute('data-cjk-font', cjk);
+  });
 });
 """
+
+#: Unicode blocks of CJK text (punctuation, ideographs and their extensions, compatibility
+#: ideographs, full-width forms): shown with the embedded font subset
+_CJK = ((0x3000, 0x303F), (0x3400, 0x4DBF), (0x4E00, 0x9FFF), (0xF900, 0xFAFF), (0xFF00, 0xFFEF))
+
+
+def is_cjk(ch: str) -> bool:
+    """True for a character of the CJK blocks the report's font subset serves."""
+    o = ord(ch)
+    return any(a <= o <= b for a, b in _CJK)
+
+
+def _cjk_font_css(text: str) -> str:
+    """An ``@font-face`` of the CJK subset (fonts/cjk-subset.otf, embedded) when ``text``
+    holds CJK characters: a reader's machine without a CJK font shows them, not boxes."""
+    if not any(is_cjk(c) for c in text):
+        return ""
+    font = Path(__file__).with_name("fonts") / "cjk-subset.otf"
+    try:
+        b64 = base64.b64encode(font.read_bytes()).decode("ascii")
+    except OSError:
+        return ""
+    ranges = ",".join(f"U+{a:04X}-{b:04X}" for a, b in _CJK)
+    return (f"@font-face{{font-family:'sinslab CJK subset';src:url(data:font/otf;base64,{b64}) "
+            f"format('opentype');unicode-range:{ranges}}}")
 
 e = html.escape
 
@@ -193,7 +236,7 @@ def criterion(exp: dict, names=None, n: int | None = None) -> str:
             parts = [f"{with_unit(v, _unit_at(unit, i) if isinstance(unit, list) else unit)} ± "
                      f"{pm or with_unit(tols[i], _unit_at(unit, i) if isinstance(unit, list) else unit)}"
                      for i, v in enumerate(val)]
-            return " · ".join(f"{names[i]} {p}" if names and i < len(names) else p
+            return " · ".join(f"{_short(names[i])} {p}" if names and i < len(names) else p
                               for i, p in enumerate(parts))
         u = unit if isinstance(unit, str) else ""
         return f"{with_unit(val, u)} ± {pm or with_unit(tol, u)}"
@@ -205,12 +248,19 @@ def criterion(exp: dict, names=None, n: int | None = None) -> str:
         parts = [f"{op} {_values(v, _unit_at(unit, i) if isinstance(unit, list) else unit)}"
                  for i, v in enumerate(val)]
         if names and len(names) == len(val):
-            return " · ".join(f"{nm} {p}" for nm, p in zip(names, parts))
+            return " · ".join(f"{_short(nm)} {p}" for nm, p in zip(names, parts))
         if len(set(parts)) == 1:
             return parts[0] + " each"
         return " · ".join(parts)
     t = f"{op} {with_unit(val, unit if isinstance(unit, str) else '')}"
     return t + (" each" if n and n > 1 else "")
+
+
+def _short(name: str) -> str:
+    """A component's name without the measured details in brackets ("euler (RMS/σ 1.2)"
+    -> "euler"): the expected column names what is expected, it does not repeat the
+    measured column."""
+    return str(name).split(" (", 1)[0]
 
 
 def claim_texts(c: dict) -> tuple[str, str]:
@@ -259,17 +309,33 @@ def _figure_html(d: Path, fig: dict, k: int = 0) -> str:
     b64 = base64.b64encode(png.read_bytes()).decode("ascii")
     svg = fig.get("svg")
     link = f' <a href="{e(svg)}">SVG</a>' if svg and (d / svg).is_file() else ""
+    label, caption = figure_caption(fig["name"], fig.get("caption", ""))
     return (f'<figure id="fig-{e(fig["name"])}"><img class="figure" alt="{e(fig["name"])}" '
             f'src="data:image/png;base64,{b64}">'
-            f'<figcaption><b>Figure {k}: {e(_figure_label(fig["name"]))}</b> — '
-            f'{e(fig.get("caption", ""))}{link}</figcaption></figure>')
+            f'<figcaption><b>Figure {k}: {e(label)}</b> — {e(caption)}{link}</figcaption></figure>')
 
 
-def _figure_label(name: str) -> str:
-    """A figure's title next to the page's own numbering: ``fig2_reduced`` (a file named
-    after the paper's figure) reads ``reduced (the paper's Fig. 2)``, not a second number."""
-    m = re.match(r"fig(\d+)_(.+)$", name)
-    return f"{m[2].replace('_', ' ')} (the paper's Fig. {m[1]})" if m else name
+_LEADING_NUMBER = re.compile(r"^\s*Fig(?:ure|\.)?\s*(\d+)\s*[:.]\s*", re.I)
+_PAPER_FIG = re.compile(r"paper(?:'s)? Figs?\.?\s*\d", re.I)
+
+
+def figure_caption(name: str, caption: str) -> tuple[str, str]:
+    """``(label, caption)`` of a figure under the page's own numbering ("Figure k:"), so
+    that a page numbers its figures once: a file named after the paper's figure
+    (``fig2_reduced``) or a caption starting "Fig. 2:" becomes the reference "(the paper's
+    Fig. 2)" — once, not where the caption cites the paper's figure already."""
+    caption = caption or ""
+    m = _LEADING_NUMBER.match(caption)
+    paper = m[1] if m else None
+    if m:
+        caption = caption[m.end():]
+        caption = caption[:1].upper() + caption[1:]
+    mn = re.match(r"fig(\d+)_(.+)$", name)
+    label = mn[2].replace("_", " ") if mn else name
+    paper = paper or (mn[1] if mn else None)
+    if paper and not _PAPER_FIG.search(caption):
+        label += f" (the paper's Fig. {paper})"
+    return label, caption
 
 
 def _table_html(d: Path, t: dict) -> str:
@@ -326,7 +392,7 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     rt = timing.get("compute_s", s["metrics"].get("runtime_s"))
     if isinstance(rt, (int, float)):
         meta.append(f"computation {with_unit(float(rt), 's')}")
-    out_s = sum(v for k, v in timing.items() if k != "compute_s" and isinstance(v, (int, float)))
+    out_s = sum(v for k, v in timing.items() if k not in ("compute_s", "robustness_s") and isinstance(v, (int, float)))
     if out_s:
         meta.append(f"writing the run folder {with_unit(float(out_s), 's')}")
     parts.append("<p class='sub'>" + " · ".join(meta) + "</p>")
@@ -338,12 +404,15 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     if claims:
         badge = "ok" if all_ok else "bad"
         parts.append(f"<p><span class='badge {badge}' id='verdict'>{n_pass} of {len(claims)} claims "
-                     f"passed</span>" + (f" <span class='sub' id='origins'>{e(tally(claims))}</span>"
+                     f"passed</span>" + (f" <span class='sub' id='origins'>{e(tally(claims, s.get('robustness')))}</span>"
                                           if any(c.get("origin") for c in claims) else "") + "</p>")
         parts.append("<h2>Claims</h2>" + _wide(
-            "<table id='claims'><tr><th>id</th><th>origin</th><th>statement</th>"
+            "<table id='claims'>" + "".join(f"<col class='{c}'>" for c in _CLAIM_COLUMNS)
+            + "<tr><th>id</th><th>origin</th><th>statement</th>"
             "<th>measured</th><th>expected</th><th>result</th></tr>" + "".join(
                 _claim_row(c) for c in claims) + "</table>"))
+        if declared(s.get("robustness")):
+            parts.append(_robustness_html(s["robustness"], claims))
 
     parts.append("<h2>Metrics</h2>")
     rows = []
@@ -351,7 +420,8 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
         mi = info.get(name, {})
         rows.append(f"<tr data-metric='{e(name)}'><td><code>{_breakable(name)}</code></td>"
                     f"<td class='num'>{e(_metric_text(v, mi.get('unit', '')))}</td>"
-                    f"<td class='unit'>{e(unit_sign(mi.get('unit', '')))}</td><td>{e(mi.get('description', ''))}</td></tr>")
+                    f"<td class='unit'>{e('' if isinstance(v, bool) else unit_sign(mi.get('unit', '')))}</td>"
+                    f"<td>{e(mi.get('description', ''))}</td></tr>")
     parts.append(_wide("<table id='metrics'><tr><th>metric</th><th>value</th><th>unit</th>"
                        "<th>description</th></tr>" + "".join(rows) + "</table>"))
 
@@ -386,7 +456,13 @@ def render(run_dir: str | os.PathLike, summary: dict | None = None) -> str:
     parts.append(f"<h2>Configuration</h2><p>Re-run from this folder with <code id='rerun'>{e(rerun)}</code>.</p>"
                  f"<pre id='config'>{e(cfg_text)}</pre>")
     parts.append(f"<script>{_SCRIPT}</script></body></html>\n")
-    return "".join(parts)
+    page = "".join(parts)
+    return page.replace("</style>", _cjk_font_css(page) + "</style>", 1)
+
+
+#: the claims table's columns (their widths in the page's CSS: the table fits the page,
+#: its verdicts in view at 1400 px and less)
+_CLAIM_COLUMNS = ("id", "origin", "statement", "measured", "expected", "result")
 
 
 def _parts(text: str) -> str:
@@ -409,6 +485,65 @@ def _claim_row(c: dict) -> str:
             f"<td>{e(str(c.get('statement', '')))}</td>"
             f"<td class='num'>{_parts(measured)}</td><td class='num'>{_parts(expected)}</td>"
             f"<td class='verdict'>{'pass' if ok else 'FAIL'}</td></tr>")
+
+
+#: the robustness section's own rules (kept inside the section)
+_ROBUST_CSS = ("#robustness td.flip{background:#fff4d6}#robustness td.label{font-weight:bold}"
+               "#robustness ul{margin:0;padding-left:1.1em}#robustness li.flip{color:#8a5a00}"
+               "#robustness .src{color:#666;font-size:.9em}")
+
+
+def _robustness_html(rob: dict, claims: list) -> str:
+    """The robustness section: the assumptions once (default, whose, the claims resting on
+    them), then per claim its label and its verdict at the default and under each
+    alternative (flipped verdicts marked)."""
+    entries = rob.get("claims") or {}
+    head = f"{rob.get('paper_claims_robust', 0)} of {rob.get('paper_claims', 0)} paper claims robust"
+    if rob.get("swept"):
+        cpu = rob.get("cpu_s")
+        head += (f"; physics alternatives re-run ({len(rob.get('axes') or [])} assumptions"
+                 + (f", {with_unit(float(cpu), 's')} CPU in this process" if isinstance(cpu, (int, float)) else "")
+                 + ")")
+    else:
+        head += "; physics alternatives not run (sinslab run NAME --robustness runs them)"
+    assumptions = {}
+    for c in claims:
+        for x in (entries.get(c.get("id")) or {}).get("assumptions", []):
+            a = assumptions.setdefault(x["name"], {**x, "claims": []})
+            a["claims"].append(str(c.get("id")))
+    arows = "".join(f"<tr><td>{e(a['name'])}</td><td>{e(a['default'])}</td>"
+                    f"<td>{'the paper' if a.get('source') == 'paper' else 'the project'}</td>"
+                    f"<td>{', '.join(f'<code>{e(i)}</code>' for i in a['claims'])}</td></tr>"
+                    for a in assumptions.values())
+    rows = []
+    for c in claims:
+        r = entries.get(c.get("id"))
+        if r is None:
+            continue
+        names, unit = (c.get("measured") or {}).get("names"), (c.get("measured") or {}).get("unit", "")
+        default = bool(r.get("default"))
+        items = []
+        for a in r.get("alternatives", []):
+            base = a.get("baseline", default)
+            ok = a.get("passed")
+            flip = ok is not None and bool(ok) != bool(base)
+            verdict = "undecided" if ok is None else ("pass" if ok else "FAIL")
+            val = "" if a.get("value") is None else f": {quantity(a['value'], names, unit)}"
+            extra = f" ({a['note']})" if a.get("note") else ""
+            if "baseline" in a and bool(base) != default:
+                extra += f" [the reduced run at the default: {'pass' if base else 'FAIL'}]"
+            items.append(f"<li class='{'flip' if flip else ''}'>{e(a['assumption'])} — {e(a['name'])}{e(val)} → "
+                         f"<b>{verdict}</b>{e(extra)} <span class='src'>({e(a.get('how', ''))})</span></li>")
+        flipped = bool(r.get("depends_on"))
+        rows.append(f"<tr class='{'pass' if default else 'fail'}' data-robust='{e(str(c.get('id')))}'>"
+                    f"<td><code class='id'>{e(str(c.get('id')))}</code></td><td>{e(c.get('origin') or '')}</td>"
+                    f"<td class='label{' flip' if flipped else ''}'>{e(r.get('label', ''))}</td>"
+                    f"<td class='verdict'>{'pass' if default else 'FAIL'}</td><td><ul>{''.join(items)}</ul></td></tr>")
+    return (f"<h2>Robustness</h2><style>{_ROBUST_CSS}</style><p class='sub' id='robust-summary'>{e(head)}</p>"
+            + _wide("<table id='assumptions'><tr><th>assumption</th><th>default</th><th>whose</th>"
+                    "<th>claims</th></tr>" + arows + "</table>")
+            + _wide("<table id='robustness'><tr><th>claim</th><th>origin</th><th>label</th><th>default</th>"
+                    "<th>alternatives (verdict)</th></tr>" + "".join(rows) + "</table>"))
 
 
 def _series_description(t: dict) -> str:
@@ -437,7 +572,8 @@ def index(out: str | os.PathLike, runs: list[tuple[str, str | os.PathLike]],
             s = _load_summary(rd)
             claims = s.get("claims", [])
             n = sum(bool(c.get("passed")) for c in claims)
-            verdict = f"{n}/{len(claims)}" + (f" ({tally(claims)})" if any(c.get("origin") for c in claims) else "")
+            verdict = f"{n}/{len(claims)}" + (f" ({tally(claims, s.get('robustness'))})"
+                                               if any(c.get("origin") for c in claims) else "")
             cls = "ok" if n == len(claims) else "bad"
             purpose = s.get("purpose", "")
             sets = (s.get("variant") or {}).get("sets")

@@ -18,9 +18,10 @@ import socket
 import threading
 
 from sinslab.app.errors import CliError
+from sinslab.core.memory import available_memory, human_size
 
 __all__ = ["option_quantity", "option_number", "check_scheduler", "starts_campaign", "check_memory",
-           "available_memory", "CONNECT_TIMEOUT_S"]
+           "available_memory", "check_workers", "usable_cores", "CONNECT_TIMEOUT_S"]
 
 #: longest wait for a scheduler's host name to resolve and its port to answer [s]
 CONNECT_TIMEOUT_S = 3.0
@@ -179,33 +180,45 @@ def check_scheduler(address: str, exp=None, cfg=None, timeout: float = CONNECT_T
     raise CliError(f"--scheduler {address!r}: no scheduler answers at {host}:{port} ({why})")
 
 
+#: resident memory of one worker process of the local Dask cluster [bytes]: its imports
+#: (numpy, scipy, numba and the loaded kernels, distributed) and a task's arrays; about
+#: 190-240 MB measured on free-inertial's campaign, rounded up
+WORKER_MEMORY = 300 * 2 ** 20
+
+
+def usable_cores() -> int:
+    """The CPU cores this process may run on (its affinity; the machine's count elsewhere)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def check_workers(workers: int, available: int | None = None) -> None:
+    """Refuse a ``--workers`` the machine cannot give: more worker processes than cores
+    (they would only share them, each with its own memory) or more than fit in the
+    available memory (:data:`WORKER_MEMORY` each)."""
+    cores = usable_cores()
+    if workers > cores:
+        raise CliError(f"--workers {workers}: this machine gives this process {cores} core(s), and worker "
+                       f"processes beyond one per core only share them (each with its own ~"
+                       f"{_size(WORKER_MEMORY)} of memory); give at most {cores}")
+    avail = available_memory() if available is None else int(available)
+    fit = int(avail // WORKER_MEMORY)
+    if workers > fit:
+        raise CliError(f"--workers {workers}: each worker process needs about {_size(WORKER_MEMORY)}, "
+                       f"{workers} need {_size(workers * WORKER_MEMORY)} but {_size(avail)} of memory is "
+                       f"available; give at most {max(fit, 0)}" + (" (or 0: run in this process)" if fit < 1 else ""))
+
+
 # ------------------------------------------------------------------ memory -------------
 #: bytes per simulated sample kept in arrays by an experiment (truth, IMU increments,
 #: navigation solution, errors: ~40 float64 columns) — a lower bound of what runs need
 BYTES_PER_SAMPLE = 40 * 8
 
 
-def available_memory() -> int:
-    """Bytes of memory available to a new allocation (MemAvailable, else physical size)."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return 1 << 62
-
-
 def _size(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"):
-        if n < 1024 or unit == "EiB":
-            return f"{n:.3g} {unit}"
-        n /= 1024
-    return f"{n:.3g} EiB"
+    return human_size(n)
 
 
 def check_memory(cfg, available: int | None = None) -> None:

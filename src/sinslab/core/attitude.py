@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from sinslab.core.jitnotice import install as _compile_notice
 
@@ -49,7 +50,7 @@ __all__ = [
 M_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 
 
-def skew(v):
+def skew(v: ArrayLike) -> np.ndarray:
     """Cross-product matrix ``(v×)`` with ``skew(a) @ b == cross(a, b)``; shape ``(..., 3, 3)``."""
     v = np.asarray(v, dtype=float)
     out = np.zeros(v.shape[:-1] + (3, 3))      # filled in place: called per epoch in loops
@@ -111,13 +112,13 @@ def _dcm_of_unit_quat(q):
     return C
 
 
-def euler_to_dcm(att):
+def euler_to_dcm(att: ArrayLike) -> np.ndarray:
     """``C_b^n`` from ``att = [pitch, roll, yaw]`` [rad]; shape ``(..., 3) -> (..., 3, 3)``."""
     att = np.asarray(att, dtype=float)
     return _dcm_of_unit_quat(_quat_of_euler(att.reshape(-1, 3))).reshape(att.shape[:-1] + (3, 3))
 
 
-def dcm_to_euler(C):
+def dcm_to_euler(C: ArrayLike) -> np.ndarray:
     """``att = [pitch, roll, yaw]`` [rad] from ``C_b^n``; pitch in [−90°, 90°], others in (−180°, 180°].
 
     Closed form: θ = asin(C32), γ = atan2(−C31, C33), ψ = atan2(−C12, C22)
@@ -139,7 +140,7 @@ def _q_ours_to_scipy(q):
     return np.concatenate([q[..., 1:4], q[..., 0:1]], -1)
 
 
-def euler_to_quat(att):
+def euler_to_quat(att: ArrayLike) -> np.ndarray:
     """Scalar-first quaternion of ``C_b^n`` from ``[pitch, roll, yaw]`` [rad]."""
     att = np.asarray(att, dtype=float)
     q = _quat_of_euler(att.reshape(-1, 3))
@@ -147,7 +148,7 @@ def euler_to_quat(att):
     return q.reshape(att.shape[:-1] + (4,))
 
 
-def quat_to_dcm(q):
+def quat_to_dcm(q: ArrayLike) -> np.ndarray:
     """``C_b^n`` from a scalar-first quaternion (normalised first)."""
     q = np.asarray(q, dtype=float)
     r = q.reshape(-1, 4)
@@ -157,7 +158,7 @@ def quat_to_dcm(q):
     return _dcm_of_unit_quat(r / n[:, None]).reshape(q.shape[:-1] + (3, 3))
 
 
-def dcm_to_quat(C):
+def dcm_to_quat(C: ArrayLike) -> np.ndarray:
     """Scalar-first quaternion (q0 >= 0) of a DCM."""
     C = np.asarray(C, dtype=float)
     q = _q_scipy_to_ours(_rotation().from_matrix(C.reshape(-1, 3, 3)).as_quat())
@@ -165,38 +166,38 @@ def dcm_to_quat(C):
     return q.reshape(C.shape[:-2] + (4,))
 
 
-def quat_to_euler(q):
+def quat_to_euler(q: ArrayLike) -> np.ndarray:
     """``[pitch, roll, yaw]`` [rad] from a scalar-first quaternion of ``C_b^n``."""
     return dcm_to_euler(quat_to_dcm(q))
 
 
-def rotvec_to_dcm(r):
+def rotvec_to_dcm(r: ArrayLike) -> np.ndarray:
     """DCM ``exp(r×)`` of a rotation vector [rad]."""
     r = np.asarray(r, dtype=float)
     return _rotation().from_rotvec(r.reshape(-1, 3)).as_matrix().reshape(r.shape[:-1] + (3, 3))
 
 
-def dcm_to_rotvec(C):
+def dcm_to_rotvec(C: ArrayLike) -> np.ndarray:
     """Rotation vector [rad] (norm <= π) of a DCM."""
     C = np.asarray(C, dtype=float)
     return _rotation().from_matrix(C.reshape(-1, 3, 3)).as_rotvec().reshape(C.shape[:-2] + (3,))
 
 
-def rotvec_to_quat(r):
+def rotvec_to_quat(r: ArrayLike) -> np.ndarray:
     """Scalar-first quaternion of a rotation vector [rad]."""
     r = np.asarray(r, dtype=float)
     return _q_scipy_to_ours(_rotation().from_rotvec(r.reshape(-1, 3)).as_quat()).reshape(
         r.shape[:-1] + (4,))
 
 
-def quat_to_rotvec(q):
+def quat_to_rotvec(q: ArrayLike) -> np.ndarray:
     """Rotation vector [rad] of a scalar-first quaternion."""
     q = np.asarray(q, dtype=float)
     return _rotation().from_quat(_q_ours_to_scipy(q.reshape(-1, 4))).as_rotvec().reshape(
         q.shape[:-1] + (3,))
 
 
-def quat_mul(p, q):
+def quat_mul(p: ArrayLike, q: ArrayLike) -> np.ndarray:
     """Hamilton product ``p ⊗ q`` of scalar-first quaternions (broadcasts)."""
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -208,30 +209,30 @@ def quat_mul(p, q):
                      p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0], -1)
 
 
-def quat_conj(q):
+def quat_conj(q: ArrayLike) -> np.ndarray:
     """Conjugate (inverse for unit quaternions) of a scalar-first quaternion."""
     q = np.array(q, dtype=float)
     q[..., 1:] *= -1.0
     return q
 
 
-def wrap_pi(a):
+def wrap_pi(a: ArrayLike) -> np.ndarray:
     """Wrap angles [rad] to (−π, π]. :func:`wrap_pi_s` is the compiled scalar form."""
     a = np.asarray(a, dtype=float)
     return np.pi - np.mod(np.pi - a, 2 * np.pi)
 
 
-def yaw_to_heading(yaw):
+def yaw_to_heading(yaw: ArrayLike) -> np.ndarray:
     """Heading clockwise from north in [0, 2π) [rad] from sinslab yaw ψ (CCW about up)."""
     return np.mod(-np.asarray(yaw, dtype=float), 2 * np.pi)
 
 
-def heading_to_yaw(heading):
+def heading_to_yaw(heading: ArrayLike) -> np.ndarray:
     """sinslab yaw ψ in (−π, π] [rad] from a heading clockwise from north [rad]."""
     return wrap_pi(-np.asarray(heading, dtype=float))
 
 
-def misalignment(C_true, C_computed):
+def misalignment(C_true: ArrayLike, C_computed: ArrayLike) -> np.ndarray:
     """Misalignment φ [rad] of a computed attitude: ``C_computed = exp(−φ×) C_true``.
 
     Both arguments are ``C_b^n`` (``(..., 3, 3)``). For small angles this is the
@@ -242,23 +243,23 @@ def misalignment(C_true, C_computed):
     return -dcm_to_rotvec(C_computed @ np.swapaxes(C_true, -1, -2))
 
 
-def apply_misalignment(C_true, phi):
+def apply_misalignment(C_true: ArrayLike, phi: ArrayLike) -> np.ndarray:
     """``C_b^{n'} = exp(−φ×) C_b^n``: the computed attitude for a misalignment φ [rad]."""
     return rotvec_to_dcm(-np.asarray(phi, dtype=float)) @ np.asarray(C_true, dtype=float)
 
 
 # --- NED/FRD conversions --------------------------------------------------------------------
-def dcm_from_ned(C_frd_ned):
+def dcm_from_ned(C_frd_ned: ArrayLike) -> np.ndarray:
     """``C_rfu^enu`` from a NED-tool attitude matrix ``C_frd^ned``."""
     return M_ENU_NED @ np.asarray(C_frd_ned, dtype=float) @ M_ENU_NED
 
 
-def dcm_to_ned(C_rfu_enu):
+def dcm_to_ned(C_rfu_enu: ArrayLike) -> np.ndarray:
     """``C_frd^ned`` from sinslab's ``C_rfu^enu``."""
     return M_ENU_NED @ np.asarray(C_rfu_enu, dtype=float) @ M_ENU_NED
 
 
-def euler_from_ned(rpy_ned):
+def euler_from_ned(rpy_ned: ArrayLike) -> np.ndarray:
     """sinslab ``[pitch, roll, yaw]`` from NED-convention ``[roll φ, pitch θ, yaw ψ]`` [rad].
 
     The NED convention is aerospace 3-2-1 (``C_frd^ned = R_z(ψ) R_y(θ) R_x(φ)``, yaw
@@ -269,7 +270,7 @@ def euler_from_ned(rpy_ned):
     return dcm_to_euler(dcm_from_ned(C.as_matrix())).reshape(r.shape)
 
 
-def euler_to_ned(att):
+def euler_to_ned(att: ArrayLike) -> np.ndarray:
     """NED-convention ``[roll, pitch, yaw]`` [rad] (yaw in (−π, π]) from sinslab ``att``."""
     att = np.asarray(att, dtype=float)
     C = dcm_to_ned(euler_to_dcm(att.reshape(-1, 3)))
@@ -277,7 +278,7 @@ def euler_to_ned(att):
     return np.stack([zyx[:, 2], zyx[:, 1], zyx[:, 0]], -1).reshape(att.shape)
 
 
-def vec_ned_to_enu(v):
+def vec_ned_to_enu(v: ArrayLike) -> np.ndarray:
     """Vector(s) from NED to ENU (also FRD -> RFU): ``[y, x, -z]``."""
     v = np.asarray(v, dtype=float)
     return np.stack([v[..., 1], v[..., 0], -v[..., 2]], -1)
@@ -288,14 +289,15 @@ vec_enu_to_ned = vec_ned_to_enu  # the permutation is its own inverse
 
 # --- numba scalar kernels for hot loops -----------------------------------------------------
 @njit(cache=True, inline="always")
-def qmul_s(a0, a1, a2, a3, b0, b1, b2, b3):
+def qmul_s(a0: float, a1: float, a2: float, a3: float,
+           b0: float, b1: float, b2: float, b3: float) -> tuple[float, float, float, float]:
     """Hamilton product of scalar-first quaternions, scalar form."""
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3, a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
             a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1, a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
 
 
 @njit(cache=True, inline="always")
-def rv2q_s(x, y, z):
+def rv2q_s(x: float, y: float, z: float) -> tuple[float, float, float, float]:
     """Quaternion of rotation vector (x, y, z) [rad], scalar form (series near 0)."""
     n2 = x * x + y * y + z * z
     if n2 < 1e-16:
@@ -312,7 +314,7 @@ _INV2PI = 1.0 / (2.0 * math.pi)
 
 
 @njit(cache=True)
-def wrap_pi_s(a):
+def wrap_pi_s(a: float) -> float:
     """Wrap an angle [rad] to (−π, π], scalar form: unchanged inside the interval (where
     :func:`wrap_pi` may round it by an ulp of π). (Multiplying by 1/2π instead of
     dividing: the same result except where the quotient is within an ulp of an integer,
@@ -326,7 +328,7 @@ def wrap_pi_s(a):
 
 
 @njit(cache=True, inline="always")
-def q2dcm_s(q0, q1, q2, q3):
+def q2dcm_s(q0: float, q1: float, q2: float, q3: float) -> tuple[float, ...]:
     """DCM elements (row-major, 9 scalars) of a unit scalar-first quaternion."""
     return (1 - 2 * (q2 * q2 + q3 * q3), 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2),
             2 * (q1 * q2 + q0 * q3), 1 - 2 * (q1 * q1 + q3 * q3), 2 * (q2 * q3 - q0 * q1),
@@ -334,7 +336,7 @@ def q2dcm_s(q0, q1, q2, q3):
 
 
 @njit(cache=True, inline="always")
-def euler2q_s(pitch, roll, yaw):
+def euler2q_s(pitch: float, roll: float, yaw: float) -> tuple[float, float, float, float]:
     """Scalar-first quaternion of ``R_z(yaw) R_x(pitch) R_y(roll)``, scalar form."""
     cz, sz = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
     cx, sx = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
@@ -345,7 +347,7 @@ def euler2q_s(pitch, roll, yaw):
 
 
 @njit(cache=True, inline="always")
-def q2euler_s(q0, q1, q2, q3):
+def q2euler_s(q0: float, q1: float, q2: float, q3: float) -> tuple[float, float, float]:
     """``(pitch, roll, yaw)`` [rad] of a unit scalar-first quaternion, scalar form."""
     c12 = 2 * (q1 * q2 - q0 * q3)
     c22 = 1 - 2 * (q1 * q1 + q3 * q3)
@@ -360,7 +362,7 @@ def q2euler_s(q0, q1, q2, q3):
 
 
 @njit(cache=True, inline="always")
-def euler_dcm_sc(sp, cp, sr, cr, sy, cy):
+def euler_dcm_sc(sp: float, cp: float, sr: float, cr: float, sy: float, cy: float) -> tuple[float, ...]:
     """``C_b^n = R_z(yaw) R_x(pitch) R_y(roll)`` (9 scalars, row-major) from the sines and
     cosines of pitch, roll and yaw: scalar form for hot loops that cache the trigonometry."""
     return (cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr,
@@ -369,7 +371,8 @@ def euler_dcm_sc(sp, cp, sr, cr, sy, cy):
 
 
 @njit(cache=True, inline="always")
-def euler_rates_to_body_sc(sp, cp, sr, cr, pitchd, rolld, yawd):
+def euler_rates_to_body_sc(sp: float, cp: float, sr: float, cr: float, pitchd: float, rolld: float,
+                           yawd: float) -> tuple[float, float, float]:
     """Body angular rate ω_nb^b [rad/s] from Euler-angle rates (same convention as
     :func:`euler_dcm_sc`; sines/cosines of pitch and roll given):
     ``ω = R_y(−γ)[θ̇, 0, 0] + [0, γ̇, 0] + R_y(−γ) R_x(−θ)[0, 0, ψ̇]``."""

@@ -14,6 +14,7 @@ import mmap
 import sys
 
 import numpy as np
+from typing import Any, Callable, Iterable
 
 __all__ = ["BLOCK_ROWS", "block_ranges", "release_pages", "block_median", "kth_smallest", "is_mapped",
            "release_free_memory"]
@@ -22,14 +23,14 @@ __all__ = ["BLOCK_ROWS", "block_ranges", "release_pages", "block_median", "kth_s
 BLOCK_ROWS = 1 << 16
 
 
-def block_ranges(n, rows=BLOCK_ROWS, multiple=1):
+def block_ranges(n: int, rows: int = BLOCK_ROWS, multiple: int = 1) -> list[tuple[int, int]]:
     """``(a, b)`` ranges covering ``0..n`` in blocks of about ``rows`` rows (a multiple of
     ``multiple``; the last block holds what is left)."""
     step = max(multiple, (max(1, int(rows)) // multiple) * multiple)
     return [(a, min(n, a + step)) for a in range(0, n, step)]
 
 
-def is_mapped(a) -> bool:
+def is_mapped(a: object) -> bool:
     """True if ``a`` is a memory-mapped array (or a view of one): read it a window at a
     time and let the pages go."""
     b = a
@@ -40,7 +41,7 @@ def is_mapped(a) -> bool:
     return isinstance(b, mmap.mmap)
 
 
-def release_pages(*arrays) -> None:
+def release_pages(*arrays: object) -> None:
     """Let the pages of memory-mapped arrays go from this process' resident memory.
 
     For each ``numpy.memmap`` (or view of one) the file mapping is told it is not needed
@@ -56,7 +57,7 @@ def release_pages(*arrays) -> None:
             continue
         if not isinstance(a, np.ndarray):
             continue
-        b = a
+        b: Any = a
         while b is not None and not isinstance(b, mmap.mmap):
             b = getattr(b, "base", None)
         if b is not None and hasattr(mmap, "MADV_DONTNEED"):
@@ -70,7 +71,7 @@ def _keys(x):
     return np.where(neg, ~u, u | np.uint64(1 << 63))
 
 
-def kth_smallest(blocks, k, n=None):
+def kth_smallest(blocks: Callable[[], Iterable[np.ndarray]], k: int, n: int | None = None) -> float:
     """The ``k``-th smallest (0-based) of the values of ``blocks()`` (a function returning
     a new iterator of 1-D float arrays each time; NaN-free), exactly, holding one block
     and a histogram: a radix selection on the values' bit patterns, 16 bits a pass, the
@@ -101,7 +102,7 @@ def kth_smallest(blocks, k, n=None):
     raise AssertionError("unreachable")
 
 
-def block_median(blocks, n):
+def block_median(blocks: Callable[[], Iterable[np.ndarray]], n: int) -> float:
     """``numpy.median`` of the ``n`` values of ``blocks()`` (see :func:`kth_smallest`),
     the same number: the middle value, or the mean of the two middle ones."""
     if n < 1:

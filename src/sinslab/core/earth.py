@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from sinslab.core.errors import InputError
 from sinslab.core.jitnotice import install as _compile_notice
@@ -46,7 +47,7 @@ DGDH = 3.086e-6                   #: free-air gradient [1/s^2]
 
 
 @njit(cache=True, inline="always")
-def radii_s(lat, h):
+def radii_s(lat: float, h: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii plus height, ``(R_M + h, R_N + h)`` [m]."""
     sl = math.sin(lat)
     sq2 = 1.0 - E2 * sl * sl
@@ -55,19 +56,19 @@ def radii_s(lat, h):
 
 
 @njit(cache=True, inline="always")
-def gravity_s(lat, h):
+def gravity_s(lat: float, h: float) -> float:
     """Normal gravity magnitude [m/s^2] at latitude ``lat`` [rad] and height ``h`` [m]."""
     sl = math.sin(lat)
     return G_EQ * (1.0 + K_SOM * sl * sl) / math.sqrt(1.0 - E2 * sl * sl) - DGDH * h
 
 
-def check_latitude(lat) -> None:
+def check_latitude(lat: ArrayLike) -> None:
     """Raise :class:`~sinslab.core.errors.InputError` (a ValueError) if any latitude [rad]
     is beyond ±90° or not finite: a bad input, or errors that carried a solution over a pole."""
     if isinstance(lat, (float, np.floating)):        # the per-call check of compiled loops
         if not math.isfinite(lat):
             raise InputError("latitude is not finite")
-        if abs(lat) > math.pi / 2:
+        if abs(float(lat)) > math.pi / 2:
             raise InputError(f"latitude {math.degrees(lat):.6g} deg is beyond ±90 deg")
         return
     lat = np.asarray(lat, dtype=float)
@@ -78,7 +79,7 @@ def check_latitude(lat) -> None:
         raise InputError(f"latitude {bad:.6g} deg is beyond ±90 deg")
 
 
-def radii(lat, h=0.0):
+def radii(lat: ArrayLike, h: ArrayLike = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Meridian radius R_M and prime-vertical radius R_N, each plus height.
 
     Parameters
@@ -99,14 +100,14 @@ def radii(lat, h=0.0):
     return A * (1.0 - E2) / sq2 ** 1.5 + h, A / np.sqrt(sq2) + h
 
 
-def gravity(lat, h=0.0):
+def gravity(lat: ArrayLike, h: ArrayLike = 0.0) -> float | np.ndarray:
     """Normal gravity magnitude [m/s^2] (Somigliana + free-air), positive number."""
     lat = np.asarray(lat, dtype=float)
     sl2 = np.sin(lat) ** 2
     return G_EQ * (1.0 + K_SOM * sl2) / np.sqrt(1.0 - E2 * sl2) - DGDH * np.asarray(h)
 
 
-def gravity_vector(lat, h=0.0):
+def gravity_vector(lat: ArrayLike, h: ArrayLike = 0.0) -> np.ndarray:
     """Normal gravity in ENU, ``[0, 0, -g]`` [m/s^2], shape ``(..., 3)``."""
     g = np.asarray(gravity(lat, h))
     out = np.zeros(g.shape + (3,))
@@ -114,7 +115,7 @@ def gravity_vector(lat, h=0.0):
     return out
 
 
-def wie_n(lat):
+def wie_n(lat: ArrayLike) -> np.ndarray:
     """Earth rate in ENU, ``[0, ω cos L, ω sin L]`` [rad/s], shape ``(..., 3)``."""
     lat = np.asarray(lat, dtype=float)
     out = np.zeros(lat.shape + (3,))
@@ -123,7 +124,7 @@ def wie_n(lat):
     return out
 
 
-def wen_n(lat, h, v):
+def wen_n(lat: ArrayLike, h: ArrayLike, v: ArrayLike) -> np.ndarray:
     """Transport rate in ENU, ``[-vN/(R_M+h), vE/(R_N+h), vE tan L/(R_N+h)]`` [rad/s]."""
     lat = np.asarray(lat, dtype=float)
     v = np.asarray(v, dtype=float)
@@ -135,35 +136,35 @@ def wen_n(lat, h, v):
     return out
 
 
-def win_n(lat, h, v):
+def win_n(lat: ArrayLike, h: ArrayLike, v: ArrayLike) -> np.ndarray:
     """Rate of the navigation frame w.r.t. inertial space, ω_ie + ω_en [rad/s]."""
     return wie_n(lat) + wen_n(lat, h, v)
 
 
-def metres_per_rad(lat, h=0.0):
+def metres_per_rad(lat: ArrayLike, h: ArrayLike = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Metres per radian of latitude and of longitude: ``(R_M + h, (R_N + h) cos L)``."""
     rm, rn = radii(lat, h)
     return rm, rn * np.cos(lat)
 
 
-def schuler_frequency(lat=0.0, h=0.0):
+def schuler_frequency(lat: ArrayLike = 0.0, h: ArrayLike = 0.0) -> float | np.ndarray:
     """Schuler angular frequency ω_s = sqrt(g / R) [rad/s], R = sqrt(R_M R_N) + h."""
     rm, rn = radii(lat, 0.0)
     return np.sqrt(gravity(lat, h) / (np.sqrt(rm * rn) + h))
 
 
-def schuler_period(lat=0.0, h=0.0):
+def schuler_period(lat: ArrayLike = 0.0, h: ArrayLike = 0.0) -> float | np.ndarray:
     """Schuler period 2π sqrt(R/g) [s] (≈ 84.4 min), R = sqrt(R_M R_N) + h."""
     return 2.0 * np.pi / schuler_frequency(lat, h)
 
 
-def foucault_frequency(lat):
+def foucault_frequency(lat: ArrayLike) -> float | np.ndarray:
     """Foucault frequency ω_ie sin L [rad/s] (sign follows the hemisphere)."""
     return WIE * np.sin(np.asarray(lat, dtype=float))
 
 
 # ------------------------------------------------------------------ ECEF <-> geodetic
-def geodetic_to_ecef(lat, lon, h):
+def geodetic_to_ecef(lat: ArrayLike, lon: ArrayLike, h: ArrayLike) -> np.ndarray:
     """Earth-centred Earth-fixed coordinates [m] of geodetic ``lat``, ``lon`` [rad] and
     ellipsoidal height ``h`` [m] on WGS-84; arrays broadcast, result shape ``S + (3,)``."""
     lat, lon, h = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (lat, lon, h)))
@@ -173,7 +174,7 @@ def geodetic_to_ecef(lat, lon, h):
                      (rn * (1.0 - E2) + h) * sl], axis=-1)
 
 
-def ecef_to_geodetic(r):
+def ecef_to_geodetic(r: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Geodetic ``(lat, lon, h)`` [rad, rad, m] of ECEF points ``r`` (..., 3) [m] on WGS-84.
 
     Fixed-point iteration on the latitude (the prime-vertical radius from the latest
@@ -198,7 +199,7 @@ def ecef_to_geodetic(r):
     return lat, np.arctan2(y, x), h
 
 
-def enu_to_ecef_matrix(lat, lon):
+def enu_to_ecef_matrix(lat: ArrayLike, lon: ArrayLike) -> np.ndarray:
     """``C_n^e`` (..., 3, 3): columns are the east, north and up unit vectors in ECEF."""
     lat, lon = np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
     sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
@@ -209,13 +210,13 @@ def enu_to_ecef_matrix(lat, lon):
     return np.stack([e, n, u], axis=-1)
 
 
-def ecef_to_enu(d, lat, lon):
+def ecef_to_enu(d: ArrayLike, lat: ArrayLike, lon: ArrayLike) -> np.ndarray:
     """ECEF vectors ``d`` (..., 3) in the local east-north-up axes at ``lat``, ``lon`` [rad]."""
     C = enu_to_ecef_matrix(lat, lon)
     return np.einsum("...ji,...j->...i", C, np.asarray(d, dtype=float))
 
 
-def elevation_azimuth(r_sat, lat, lon, h):
+def elevation_azimuth(r_sat: ArrayLike, lat: ArrayLike, lon: ArrayLike, h: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Elevation and azimuth [rad] of ECEF points ``r_sat`` (..., 3) [m] seen from the
     geodetic point ``lat``, ``lon``, ``h``: elevation above the ellipsoid's tangent plane,
     azimuth clockwise from north in [0, 2π)."""

@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sinslab.core.earth import WIE, ecef_to_geodetic, elevation_azimuth
 
@@ -94,12 +95,12 @@ class Ephemerides:
         return int(self.sat.size)
 
     @classmethod
-    def empty(cls, t_ref=0):
+    def empty(cls, t_ref: int = 0) -> Ephemerides:
         z = np.zeros(0)
-        return cls(int(t_ref), np.zeros(0, "U3"), np.zeros(0, np.int64), *([z] * 21),
-                   np.zeros((0, 2)), np.zeros(0, np.int64))
+        columns = [np.zeros(0, "U3"), np.zeros(0, np.int64), *([z] * 21), np.zeros((0, 2)), np.zeros(0, np.int64)]
+        return cls(int(t_ref), *columns)
 
-    def take(self, idx):
+    def take(self, idx: np.ndarray) -> Ephemerides:
         """The ephemerides ``idx`` (int array) as a new table."""
         kw = {f: getattr(self, f)[idx] for f in self.__dataclass_fields__ if f != "t_ref"}
         return Ephemerides(self.t_ref, **kw)
@@ -121,18 +122,18 @@ class GlonassEphemerides:
     taun: np.ndarray
     gamn: np.ndarray
     frq: np.ndarray
-    svh: np.ndarray = field(default=None)
+    svh: np.ndarray | None = None
 
     def __len__(self):
         return int(self.sat.size)
 
     @classmethod
-    def empty(cls, t_ref=0):
+    def empty(cls, t_ref: int = 0) -> GlonassEphemerides:
         z3 = np.zeros((0, 3))
         return cls(int(t_ref), np.zeros(0, "U3"), np.zeros(0, np.int64), np.zeros(0), z3, z3, z3,
                    np.zeros(0), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64))
 
-    def take(self, idx):
+    def take(self, idx: np.ndarray) -> GlonassEphemerides:
         kw = {f: getattr(self, f)[idx] for f in self.__dataclass_fields__ if f != "t_ref"}
         return GlonassEphemerides(self.t_ref, **kw)
 
@@ -176,12 +177,12 @@ class Signals:
     lli: np.ndarray
 
     @property
-    def slip(self):
+    def slip(self) -> np.ndarray:
         """Loss of lock (a possible cycle slip) since the previous epoch, bool (M, F)."""
         return (self.lli & 1) != 0
 
     @property
-    def half_cycle(self):
+    def half_cycle(self) -> np.ndarray:
         """Half-cycle ambiguity unresolved, bool (M, F): the phase may be off by ½ cycle."""
         return (self.lli & 2) != 0
 
@@ -236,7 +237,8 @@ def _kepler_pos(eph, rows, t):
     return pos, dts
 
 
-def kepler_states(eph: Ephemerides, rows, t, *, step=1e-3):
+def kepler_states(eph: Ephemerides, rows: np.ndarray, t: ArrayLike, *,
+                  step: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Satellite position, velocity, clock offset and drift from Keplerian ephemerides.
 
     Parameters
@@ -302,7 +304,8 @@ def _glo_pos(geph, rows, t, tstep=60.0):
     return x, dts
 
 
-def glonass_states(geph: GlonassEphemerides, rows, t):
+def glonass_states(geph: GlonassEphemerides, rows: np.ndarray,
+                   t: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`kepler_states` for GLONASS (position and velocity from the integration,
     clock drift ``gamn``)."""
     rows = np.asarray(rows, dtype=np.int64)
@@ -326,7 +329,8 @@ def _select(sat_e, toe_e, svh_e, sats, t):
     return out
 
 
-def transmit_states(eph: Ephemerides, geph: GlonassEphemerides | None, sats, t_rx, pseudorange):
+def transmit_states(eph: Ephemerides, geph: GlonassEphemerides | None, sats: np.ndarray, t_rx: ArrayLike,
+                    pseudorange: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Satellite states at the transmission time of each observation.
 
     ``t_tx = t_rx − P/c − dts(t_tx)``: the signal left ``P/c`` before its reception by the
@@ -392,7 +396,7 @@ def transmit_states(eph: Ephemerides, geph: GlonassEphemerides | None, sats, t_r
 
 
 # ----------------------------------------------------------------------- signal path
-def sagnac_range(r_sat, r_rcv):
+def sagnac_range(r_sat: ArrayLike, r_rcv: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Geometric range [m] from the receiver ``r_rcv`` (ECEF at reception) to the
     satellite ``r_sat`` (ECEF at transmission), with the Earth's rotation during the flight
     (Sagnac term ``ω_e (x_s y_r − y_s x_r) / c``), and the unit line of sight (receiver to
@@ -404,7 +408,8 @@ def sagnac_range(r_sat, r_rcv):
     return rho + sag, d / rho[..., None]
 
 
-def klobuchar(t_gps_s, lat, lon, az, el, coeffs=None):
+def klobuchar(t_gps_s: ArrayLike, lat: ArrayLike, lon: ArrayLike, az: ArrayLike, el: ArrayLike,
+              coeffs: ArrayLike | None = None) -> np.ndarray:
     """Klobuchar ionospheric delay on GPS L1 [m] (IS-GPS-200 §20.3.3.5.2.5).
 
     Parameters
@@ -443,7 +448,7 @@ def klobuchar(t_gps_s, lat, lon, az, el, coeffs=None):
     return np.where(el > 0, d, 0.0)
 
 
-def saastamoinen(lat, h, el, humidity=0.7):
+def saastamoinen(lat: ArrayLike, h: ArrayLike, el: ArrayLike, humidity: float = 0.7) -> np.ndarray:
     """Saastamoinen tropospheric delay [m] in a standard atmosphere (pressure and
     temperature from the height, relative ``humidity`` [0..1]), mapped with 1/cos z.
 
@@ -463,7 +468,7 @@ def saastamoinen(lat, h, el, humidity=0.7):
     return np.where(ok, trph + trpw, 0.0)
 
 
-def sky(r_sat, r_rcv):
+def sky(r_sat: ArrayLike, r_rcv: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Elevation and azimuth [rad] of ECEF satellites seen from an ECEF receiver."""
     lat, lon, h = ecef_to_geodetic(r_rcv)
     return elevation_azimuth(r_sat, lat, lon, h)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+from typing import Any, Iterator
 
 __all__ = ["install", "kernel_lock"]
 
@@ -43,7 +44,7 @@ def _lock_path(dispatcher):
 
 
 @contextlib.contextmanager
-def kernel_lock(dispatcher):
+def kernel_lock(dispatcher: Any) -> Iterator[None]:
     """Hold ``dispatcher``'s compile lock (re-entrant within the process); a no-op for a
     function this module does not lock."""
     from numba.core.compiler_lock import global_compiler_lock
@@ -112,5 +113,5 @@ def install() -> None:
             return compile_(self, sig)
 
     compile.__doc__ = compile_.__doc__
-    Dispatcher.compile = compile
+    setattr(Dispatcher, "compile", compile)
     _installed = True

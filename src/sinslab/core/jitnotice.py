@@ -32,7 +32,7 @@ def _ours(ev):
     d = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
     f = getattr(d, "py_func", None)
     mod = getattr(f, "__module__", "") or ""
-    return (mod + "." + f.__qualname__) if mod.startswith("sinslab") else None
+    return (mod + "." + f.__qualname__) if f is not None and mod.startswith("sinslab") else None
 
 
 def install() -> None:
@@ -82,7 +82,7 @@ def install() -> None:
             from sinslab.core.progress import is_quiet
             if is_quiet():
                 return
-            el = time.perf_counter() - self.t0
+            el = time.perf_counter() - (self.t0 or time.perf_counter())
             try:
                 sys.stderr.write(f"\r{MESSAGE} {self.count} done, {el:.0f} s: {name}\x1b[K")
                 sys.stderr.flush()
@@ -103,7 +103,7 @@ def install() -> None:
     event.register("numba:compile", _listener)
 
 
-def compile_log():
+def compile_log() -> list[tuple[str, float]]:
     """``[(kernel, own CPU seconds), ...]`` of the compilations seen so far in this
     process (empty when everything came from the cache)."""
     return list(_listener.log) if _listener is not None else []

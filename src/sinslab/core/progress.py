@@ -42,7 +42,7 @@ import contextlib
 import os
 import sys
 import threading
-from typing import Iterable, Iterator, TypeVar
+from typing import Any, Iterable, Iterator, TypeVar
 
 __all__ = ["progress", "track", "set_quiet", "set_lines", "is_quiet", "Bar", "HEARTBEAT_S"]
 
@@ -80,7 +80,7 @@ class Bar:
     A quiet bar accepts the same calls and does nothing.
     """
 
-    def __init__(self, prog=None, task=None):
+    def __init__(self, prog: Any = None, task: Any = None) -> None:
         self._p, self._t = prog, task
 
     def advance(self, n: float = 1) -> None:

@@ -13,15 +13,20 @@ import dataclasses
 from dataclasses import dataclass, field, fields
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sinslab.core.errors import InputError
+
+if TYPE_CHECKING:                       # to_pandas imports pandas when it is called
+    import pandas
 
 __all__ = ["Fixes", "ImuRecord", "NavSeries", "NavState", "check_times"]
 
 
-def check_times(t, name="time", rel_tol=1e-3, uniform=True) -> float:
+def check_times(t: ArrayLike, name: str = "time", rel_tol: float = 1e-3, uniform: bool = True) -> float:
     """Check a time column: finite, strictly increasing, (optionally) uniform.
 
     Returns the mean sampling interval [s]. Raises ValueError naming the first problem:
@@ -108,7 +113,7 @@ class ImuRecord:
         object.__setattr__(self, "dt", float(dt))
 
     @classmethod
-    def checked(cls, t, dtheta, dv, dt):
+    def checked(cls, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float) -> ImuRecord:
         """A record of arrays checked already (finite, increasing, uniform: a reader that
         checked them a block at a time), taken as they are — memory-mapped arrays stay
         mapped, nothing is copied or scanned again. ``dt`` the mean interval [s]."""
@@ -126,7 +131,7 @@ class ImuRecord:
         return self.t.size
 
     @classmethod
-    def from_rates(cls, t, gyro, accel, dt=None):
+    def from_rates(cls, t: ArrayLike, gyro: ArrayLike, accel: ArrayLike, dt: float | None = None) -> ImuRecord:
         """Build from rates ω [rad/s] and specific force f [m/s^2] sampled at ``t``.
 
         The increments are rate × dt (rectangular rule): exact for constant rates over a
@@ -136,7 +141,22 @@ class ImuRecord:
         d = check_times(t, "IMU time") if dt is None else float(dt)
         return cls(t, np.asarray(gyro, float) * d, np.asarray(accel, float) * d, d)
 
-    def slice(self, start=None, stop=None):
+    def to_pandas(self) -> "pandas.DataFrame":
+        """The record as a table, one row per sample, units in the column names:
+        ``t_s`` (interval end time), ``dtheta_x_rad`` .. ``dtheta_z_rad`` (angle increments)
+        and ``dv_x_mps`` .. ``dv_z_mps`` (velocity increments), body axes x right, y
+        forward, z up. ``ImuRecord(df.t_s, df[dtheta cols], df[dv cols])`` gives the record
+        back."""
+        import pandas as pd
+
+        cols = {"t_s": self.t}
+        for i, ax in enumerate("xyz"):
+            cols[f"dtheta_{ax}_rad"] = self.dtheta[:, i]
+        for i, ax in enumerate("xyz"):
+            cols[f"dv_{ax}_mps"] = self.dv[:, i]
+        return pd.DataFrame(cols)
+
+    def slice(self, start: float | None = None, stop: float | None = None) -> ImuRecord:
         """Samples whose end times lie in ``(start, stop]`` [s]."""
         lo = 0 if start is None else int(np.searchsorted(self.t, start, side="right"))
         hi = self.t.size if stop is None else int(np.searchsorted(self.t, stop, side="right"))
@@ -191,11 +211,34 @@ class NavSeries:
         return self.t.size
 
     @property
-    def pos(self):
+    def pos(self) -> np.ndarray:
         """``(M, 3)`` array of ``[lat, lon, h]`` [rad, rad, m]."""
         return np.stack([self.lat, self.lon, self.h], -1)
 
-    def at(self, idx):
+    def to_pandas(self) -> "pandas.DataFrame":
+        """The series as a table, one row per epoch, units in the column names (the columns
+        of a ``navigate`` run's ``solution.csv``): ``t_s``, ``lat_deg``, ``lon_deg``, ``h_m``
+        (ellipsoidal), ``vE_mps``, ``vN_mps``, ``vU_mps``, ``pitch_deg``, ``roll_deg`` and
+        ``heading_deg`` (clockwise from north, 0–360: ``−yaw``); with ``att_imu``, the IMU
+        frame's ``imu_pitch_deg``, ``imu_roll_deg``, ``imu_heading_deg`` too."""
+        import pandas as pd
+
+        from sinslab.core.attitude import yaw_to_heading
+
+        def heading(yaw: np.ndarray) -> np.ndarray:
+            return np.degrees(yaw_to_heading(yaw))
+
+        cols = {"t_s": self.t, "lat_deg": np.degrees(self.lat), "lon_deg": np.degrees(self.lon), "h_m": self.h,
+                "vE_mps": self.vel[:, 0], "vN_mps": self.vel[:, 1], "vU_mps": self.vel[:, 2],
+                "pitch_deg": np.degrees(self.att[:, 0]), "roll_deg": np.degrees(self.att[:, 1]),
+                "heading_deg": heading(self.att[:, 2])}
+        if self.att_imu is not None:
+            cols.update({"imu_pitch_deg": np.degrees(self.att_imu[:, 0]),
+                         "imu_roll_deg": np.degrees(self.att_imu[:, 1]),
+                         "imu_heading_deg": heading(self.att_imu[:, 2])})
+        return pd.DataFrame(cols)
+
+    def at(self, idx: slice | int | np.ndarray) -> NavSeries:
         """A new series with the epochs selected by ``idx`` (slice, mask or indices)."""
         return NavSeries(self.t[idx], self.lat[idx], self.lon[idx], self.h[idx],
                          self.vel[idx], self.att[idx],
@@ -242,7 +285,7 @@ class NavState:
             object.__setattr__(self, name, a)
 
     @classmethod
-    def from_series(cls, s: "NavSeries", k: int = 0, imu_frame: bool = True):
+    def from_series(cls, s: NavSeries, k: int = 0, imu_frame: bool = True) -> NavState:
         """Epoch ``k`` of a series; with ``imu_frame`` the IMU attitude is taken when present."""
         att = s.att_imu[k] if (imu_frame and s.att_imu is not None) else s.att[k]
         return cls(s.lat[k], s.lon[k], s.h[k], s.vel[k], att, s.t[k])
@@ -334,7 +377,7 @@ class Fixes:
     def __len__(self):
         return self.t.size
 
-    def with_velocity_lag(self, lag):
+    def with_velocity_lag(self, lag: float) -> Fixes:
         """The same fixes with velocities that describe the motion ``lag`` [s] *before* their
         stamps re-timed to the stamps: ``vel(t) := vel_recorded(t + lag)`` by linear
         interpolation over the record (receivers that report a Doppler velocity averaged
@@ -356,9 +399,9 @@ class Fixes:
         vel = np.stack([np.interp(self.t + lag, self.t, self.vel[:, i]) for i in range(3)], -1)
         return dataclasses.replace(self, vel=vel)
 
-    def select(self, mask):
+    def select(self, mask: slice | np.ndarray) -> Fixes:
         """The fixes selected by ``mask`` (boolean mask, slice or indices)."""
         m = np.asarray(mask) if not isinstance(mask, slice) else mask
         opt = lambda a: None if a is None else a[m]      # noqa: E731
         return Fixes(self.t[m], self.lat[m], self.lon[m], self.h[m], self.sigma[m], opt(self.vel),
-                     opt(self.sigma_vel), self.quality[m], self.path, self.t_arrive[m], opt(self.err))
+                     opt(self.sigma_vel), opt(self.quality), self.path, opt(self.t_arrive), opt(self.err))

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["stamp_step", "whole_intervals", "held_runs", "check_time_base"]
 
@@ -28,7 +29,7 @@ __all__ = ["stamp_step", "whole_intervals", "held_runs", "check_time_base"]
 JITTER_SIGMAS = 6.0
 
 
-def stamp_step(t) -> tuple[float, float]:
+def stamp_step(t: ArrayLike) -> tuple[float, float]:
     """Nominal interval and the tolerance of one interval of strictly increasing stamps.
 
     ``dt`` is the median interval; the tolerance is ``JITTER_SIGMAS`` × the robust scatter
@@ -57,7 +58,7 @@ def stamp_step(t) -> tuple[float, float]:
     return dt, float(min(max(JITTER_SIGMAS * jit, 1e-6 * dt), 0.25 * dt))
 
 
-def whole_intervals(t, length) -> tuple[int, float, float]:
+def whole_intervals(t: ArrayLike, length: float) -> tuple[int, float, float]:
     """``length`` [s] as a whole number of the stream's intervals.
 
     Returns ``(n, dt, tol)``: ``n >= 1`` intervals nearest to ``length``, and
@@ -69,7 +70,7 @@ def whole_intervals(t, length) -> tuple[int, float, float]:
     return n, dt, tol
 
 
-def held_runs(values, *, min_fraction=0.5) -> np.ndarray | None:
+def held_runs(values: ArrayLike, *, min_fraction: float = 0.5) -> np.ndarray | None:
     """First rows of the runs of a held (sample-and-hold) stream, or None.
 
     A row is a repeat when every one of its values equals the row before bit for bit. The
@@ -98,7 +99,7 @@ def held_runs(values, *, min_fraction=0.5) -> np.ndarray | None:
     return np.flatnonzero(np.r_[True, ~same])
 
 
-def check_time_base(t, t_lo, t_hi, source, *, least=0.5):
+def check_time_base(t: np.ndarray, t_lo: float, t_hi: float, source: str, *, least: float = 0.5) -> None:
     """Refuse stamps ``t`` (increasing) that overlap the IMU record ``t_lo..t_hi`` [s] over
     less than ``least`` of the shorter of the two spans: another clock. Raises ValueError
     naming ``source`` (a file) and both spans."""

@@ -16,7 +16,7 @@ def _tkey(k: str) -> str:
     return k if _BARE.match(k) else json.dumps(k, ensure_ascii=False)
 
 
-def toml_value(v) -> str:
+def toml_value(v: object) -> str:
     """One TOML value: bool, int, float (``nan``/``inf`` included), string, list/tuple
     (an array) or mapping (an inline table; ``None`` entries omitted)."""
     if isinstance(v, bool):

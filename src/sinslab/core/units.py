@@ -18,8 +18,10 @@ from __future__ import annotations
 import math
 import re
 from fractions import Fraction
+from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = [
     "deg", "arcmin", "arcsec", "dph", "dpsh", "dphpsh", "g0", "mg", "ug", "ugpsHz",
@@ -247,7 +249,7 @@ def parse(text: str | float | int, kind: str | None = None) -> float:
     return value * scale
 
 
-def parse_vector(text, kind: str | None = None, n: int = 3) -> np.ndarray:
+def parse_vector(text: str | float | Sequence[str | float], kind: str | None = None, n: int = 3) -> np.ndarray:
     """Parse one quantity (broadcast to ``n``) or a list of ``n`` quantities into SI.
 
     Accepts ``"0.01 deg/h"``, ``["0.003 deg/h", "-0.002 deg/h", "0.0005 deg/h"]`` or
@@ -284,8 +286,8 @@ def format_quantity(value_si: float, unit: str, digits: int = 6) -> str:
 
 
 # --- small validators -------------------------------------------------------------------
-def vec3(value, name: str = "value", *, default=None, nonneg: bool = False, finite: bool = False,
-         readonly: bool = False) -> np.ndarray:
+def vec3(value: ArrayLike | None, name: str = "value", *, default: ArrayLike | None = None, nonneg: bool = False,
+         finite: bool = False, readonly: bool = False) -> np.ndarray:
     """A per-axis quantity (SI numbers, not unit strings) as a new float array of shape (3,).
 
     Parameters

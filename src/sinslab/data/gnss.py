@@ -329,12 +329,30 @@ def _read_ubx(rtk, path, col):
     return iono
 
 
+#: lines a RINEX header may take before its END OF HEADER label (real ones take tens)
+MAX_HEADER_LINES = 2000
+
+
+def _check_header_end(path) -> None:
+    """A RINEX header ends with the label END OF HEADER (columns 61-80); without it the
+    reader finds no record and said so, not what is wrong."""
+    with open(path, "r", encoding="ascii", errors="replace") as fh:
+        for n, line in enumerate(fh, 1):
+            if "END OF HEADER" in line[60:]:
+                return
+            if n >= MAX_HEADER_LINES:
+                break
+    raise InputError(f"{path}: the RINEX header has no END OF HEADER line (label in columns 61-80) in its "
+                     f"first {min(n, MAX_HEADER_LINES)} lines: the header is cut or damaged")
+
+
 def _read_rinex_nav(rtk, path, col):
     ver, kind = rinex_version(path)
     if not (2.0 <= ver < 4.0):
         raise InputError(f"{path}: RINEX version {ver:g} (this reader takes versions 2 and 3)")
     if kind not in ("N", "G", "M", "L", "C", "E"):
         raise InputError(f"{path}: RINEX type {kind!r} is not a navigation file")
+    _check_header_end(path)
     obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
     if rtk.readrnx(str(path), 1, "", obs, nav, sta) <= 0 or (nav.n + nav.ng) == 0:
         raise InputError(f"{path}: no ephemeris could be read (RINEX {ver:g} navigation)")
@@ -351,6 +369,7 @@ def _read_rinex_obs(rtk, path, col):
         raise InputError(f"{path}: RINEX version {ver:g} (this reader takes versions 2 and 3)")
     if kind != "O":
         raise InputError(f"{path}: RINEX type {kind!r} is not an observation file")
+    _check_header_end(path)
     obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
     if rtk.readrnx(str(path), 1, "", obs, nav, sta) <= 0 or obs.n == 0:
         raise InputError(f"{path}: no raw measurements (RINEX {ver:g} observation file without records)")
@@ -395,6 +414,8 @@ def read_gnss_raw(path, nav=None) -> GnssObservations:
             continue
         if not Path(p).exists():
             raise InputError(f"{p}: no such file")
+        if Path(p).is_dir():
+            raise InputError(f"{p}: is a folder, not a file (give the log or RINEX file in it)")
         if Path(p).stat().st_size == 0:
             raise InputError(f"{p}: empty file")
     col = _Collector(rtk)
@@ -409,10 +430,42 @@ def read_gnss_raw(path, nav=None) -> GnssObservations:
             iono = io2
     src = str(path) + (f" + {nav}" if nav is not None else "")
     g = col.finish(iono, src, path)
+    if not np.isfinite(g.pseudorange).any():
+        raise InputError(f"{path}: every pseudorange is NaN ({len(g)} observations in {len(g.epoch_t)} epochs): "
+                         "the receiver reported no range")
     if len(g.eph) + len(g.geph) == 0:
         raise InputError(f"{path}: no broadcast ephemeris in the log"
                          + ("" if nav is not None else "; give a RINEX navigation file (--gnss-nav)"))
+    if nav is not None:
+        _check_nav_dates(g, path, nav)
     return g
+
+
+#: a broadcast ephemeris describes its satellite for a few hours around its reference time
+#: (GPS: a 4 h fit interval); a navigation file none of whose ephemerides comes this close
+#: to the observations [s] is of another day
+NAV_REACH_S = 4 * 3600.0
+
+
+def _check_nav_dates(g, path, nav) -> None:
+    """Refuse a navigation file whose ephemerides are all far from the observations' time,
+    naming both files and their dates (else the error said 'no satellite has an ephemeris'
+    of the observation file)."""
+    import datetime as dt
+
+    toe = np.concatenate([np.asarray(g.eph.toe, float)[np.isneginf(g.eph_decoded)],
+                          np.asarray(g.geph.toe, float)[np.isneginf(g.geph_decoded)]])
+    if toe.size == 0:
+        return
+    t = np.asarray(g.epoch_t, float)
+    near = np.min(np.abs(toe[:, None] - t[[0, -1]][None, :]))
+    inside = np.any((toe >= t[0] - NAV_REACH_S) & (toe <= t[-1] + NAV_REACH_S))
+    if inside:
+        return
+    day = lambda x: dt.datetime.fromtimestamp(g.t_ref + float(x), dt.timezone.utc).strftime("%Y-%m-%d %H:%M")  # noqa: E731
+    raise InputError(f"{nav}: its ephemerides are for {day(toe.min())} to {day(toe.max())} (GPS time), the "
+                     f"observations of {path} for {day(t[0])} to {day(t[-1])}: {near / 3600:.3g} h apart, beyond "
+                     f"the {NAV_REACH_S / 3600:g} h an ephemeris holds — a navigation file of another day?")
 
 
 def read_ubx_pvt(path, *, week_of=None) -> Fixes:

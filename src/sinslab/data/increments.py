@@ -61,7 +61,8 @@ def check_stamps(t, path, lines):
         raise ValueError(f"{where(path, lines[i])}: duplicated time stamp {float(t[i])!r}")
     if (d < 0).any():
         i = int(np.argmax(d < 0)) + 1
-        raise ValueError(f"{where(path, lines[i])}: time stamps not sorted ({float(t[i])!r} follows {float(t[i - 1])!r})")
+        order = "decrease throughout: the record is in reverse order" if d.size > 1 and (d < 0).all() else "not sorted"
+        raise ValueError(f"{where(path, lines[i])}: time stamps {order} ({float(t[i])!r} follows {float(t[i - 1])!r})")
 
 
 def uniform_increments(t, dth, dv, *, path="", lines=None, dt=None, max_gap=1.0, allow_gaps=False):

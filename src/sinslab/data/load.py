@@ -37,7 +37,7 @@ from sinslab.data import kfgins, matlab, psins, rosbag, rtklib, tables
 from sinslab.data.increments import ImuData
 
 __all__ = ["IMU_FORMATS", "FIX_FORMATS", "guess_imu_format", "guess_fix_format", "load_imu", "read_imu",
-           "read_fixes", "load_fixes", "read_truth", "write_imu", "write_fixes"]
+           "read_fixes", "load_fixes", "read_truth", "write_imu", "write_fixes", "check_fits", "estimate_rows"]
 
 #: IMU formats understood by :func:`load_imu` (``--format``).
 IMU_FORMATS = ("psins", "csv", "parquet", "mat", "navego", "kf-gins", "rosbag", "rtklib-imu")
@@ -96,6 +96,61 @@ def _existing_file(path) -> Path:
     return p
 
 
+#: Peak memory of reading a log whole, per sample [bytes], beyond the process' own: the
+#: parsed columns, the rates, the increments and the reader's temporaries (measured on a
+#: million samples: a CSV table 220 B, a PSINS log 129 B; an RTKLIB log keeps its text
+#: lines too; a MAT file is loaded whole by scipy, then converted), rounded up.
+WHOLE_READ_BYTES = {"csv": 256, "parquet": 256, "psins": 160, "rtklib-imu": 512, "mat": 256}
+
+
+def estimate_rows(path, fmt) -> int | None:
+    """Samples in an IMU file estimated without reading it: a Parquet file's row count, a
+    MAT file's size over 7 float64 per sample, a text log's size (up to a binary tail,
+    :func:`sinslab.data.textguard.text_extent`) over the mean length of its first lines."""
+    import os
+
+    from sinslab.data.textguard import text_extent
+
+    try:
+        if fmt == "parquet":
+            import pyarrow.parquet as pq
+
+            return int(pq.ParquetFile(path).metadata.num_rows)
+        size = os.path.getsize(path)
+        if fmt == "mat":
+            return size // 56
+        size = text_extent(path) or size
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16)
+    except Exception:                                      # noqa: BLE001 - the reader names what is wrong
+        return None
+    lines = [ln for ln in head.split(b"\n")[1:-1] if ln.strip()]
+    if not lines:
+        return None
+    return int(size / ((sum(len(ln) for ln in lines) + len(lines)) / len(lines)))
+
+
+def check_fits(path, fmt, available=None) -> None:
+    """Refuse, before reading, an IMU file that a reader holding it whole cannot fit in
+    memory: its estimated samples (:func:`estimate_rows`) times
+    :data:`WHOLE_READ_BYTES` against the memory available. A text log ending in binary
+    data is refused for that first (:func:`sinslab.data.textguard.check_text_tail`)."""
+    from sinslab.core.memory import available_memory, human_size
+    from sinslab.data.textguard import check_text_tail
+
+    if fmt in ("csv", "psins", "rtklib-imu"):
+        check_text_tail(path)
+    n = estimate_rows(path, fmt)
+    if n is None or fmt not in WHOLE_READ_BYTES:
+        return
+    need = n * WHOLE_READ_BYTES[fmt]
+    avail = available_memory() if available is None else int(available)
+    if need > avail:
+        raise ValueError(f"{path}: about {n:,} IMU samples; reading it ({fmt}) takes about "
+                         f"{human_size(need)} of memory, {human_size(avail)} is available (split the "
+                         "log, or run where more memory is free)")
+
+
 def load_imu(path, fmt=None, **kw) -> ImuData:
     """Read any supported IMU file into :class:`~sinslab.data.increments.ImuData` (``fmt``
     from :data:`IMU_FORMATS`, default from the suffix: ``.imu`` psins, ``.parquet``
@@ -116,6 +171,8 @@ def load_imu(path, fmt=None, **kw) -> ImuData:
                                       sniff="columns" not in kw)
         if len(qs) > 1 and fmt not in ("csv", "parquet"):
             raise ValueError(f"IMU channels from two files: csv or parquet tables only, not {fmt!r}")
+        for q in qs:
+            check_fits(q, fmt)
         if fmt == "psins":
             d = psins.load_psins(qs[0], **kw)
         elif fmt in ("csv", "parquet"):

@@ -49,6 +49,9 @@ class OdometerSeries:
 
 
 def _table(path):
+    from sinslab.data.textguard import check_text_tail
+
+    check_text_tail(path)
     with open(path, "r", encoding="utf-8", errors="replace") as fh:
         lines = fh.read().splitlines()
     body = [(i + 1, s) for i, s in enumerate(lines) if s.strip() and not s.lstrip().startswith(("#", "%"))]

@@ -118,7 +118,10 @@ def _bad_sample_line(path, first_lineno):
 
 def read_psins_imu(path) -> PsinsImu:
     """Read a PSINS ``.imu`` text log (see the module notes). ValueError on a bad file."""
+    from sinslab.data.textguard import check_text_tail
+
     path = Path(path)
+    check_text_tail(path)
     headers = []
     with open(path, "r", encoding="utf-8", errors="replace") as fh:
         lineno = 0

@@ -13,6 +13,7 @@ from sinslab.core import units
 from sinslab.core.records import Fixes
 from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, rates_to_increments, uniform_increments
+from sinslab.data.textguard import check_text_tail
 
 __all__ = ["RTKLIB_DRIVE", "read_rtklib_pos", "read_rtklib_tag", "read_rtklib_imu"]
 
@@ -59,6 +60,7 @@ def read_rtklib_pos(path, *, min_quality=None, velocity_lag=0.0) -> Fixes:
     hdr = None
     t, vals, lines = [], [], []
     ncol = None
+    check_text_tail(path)
     with open(path, "r", encoding="utf-8", errors="replace") as fh:
         for ln, line in enumerate(fh, 1):
             s = line.strip()
@@ -183,6 +185,7 @@ def read_rtklib_imu(path, *, tag=None, delay=0.0, mount=None, frame="frd", accel
     if not tagp.exists():
         raise ValueError(f"{path}: no time-tag file {tagp} (RTKLIB writes NAME.tag next to the log)")
     tg = read_rtklib_tag(tagp)
+    check_text_tail(path)
     with open(path, "r", encoding="utf-8", errors="replace") as fh:
         text = fh.read().splitlines()
     rows = [(i + 1, s) for i, s in enumerate(text) if s.strip()]

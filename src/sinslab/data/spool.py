@@ -30,6 +30,7 @@ from sinslab.core.blocks import (BLOCK_ROWS, block_median, block_ranges, is_mapp
 from sinslab.core.records import ImuRecord
 from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData
+from sinslab.data.textguard import BinaryData
 
 __all__ = ["spool_table_imu", "SpoolColumn", "map_times", "spooled"]
 
@@ -120,6 +121,8 @@ def spool_table_imu(path, folder, *, block_rows=BLOCK_ROWS, gyro_unit=None, acce
             A.append(a)
             if t.size:
                 prev = t[-1]
+    except BinaryData:   # the whole reader would stop at the same byte, after reading up to it again
+        raise
     except Exception:    # noqa: BLE001 - malformed somewhere: the whole reader says where and why
         return None
     # the blocks' arrays came from malloc's heap, which would keep what they freed

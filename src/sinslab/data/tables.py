@@ -14,6 +14,7 @@ from sinslab.core.records import Fixes, ImuRecord
 from sinslab.data import columns as _columns
 from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, rates_to_increments, uniform_increments, where
+from sinslab.data.textguard import MAX_LINE_BYTES, BinaryData, BlockGuard, check_text_tail, keep_hint
 
 __all__ = ["read_table_imu", "write_table_imu", "read_fix_csv", "read_fix_table", "write_fix_csv",
            "read_csv_columns", "iter_csv_columns", "read_parquet_columns", "iter_parquet_columns",
@@ -338,6 +339,7 @@ class _TextSource:
 
     def __init__(self, path, headerless=False):
         self.path = path
+        check_text_tail(path)
         with open(path, "rb") as fh:
             head = fh.read(1 << 16)
             # a header wider than the first read (tens of thousands of columns): read on to its end
@@ -346,8 +348,8 @@ class _TextSource:
                 if not more:
                     break
                 head += more
-        if head.startswith(b"\xef\xbb\xbf"):          # UTF-8 byte-order mark (Excel, Notepad)
-            head = head[3:]
+        bom = 3 if head.startswith(b"\xef\xbb\xbf") else 0      # UTF-8 byte-order mark (Excel, Notepad)
+        head = head[bom:]
         nul = head.find(b"\x00")
         try:
             text = head.decode("utf-8")
@@ -355,8 +357,10 @@ class _TextSource:
             if e.start < len(head) - 4:              # not just a character cut at the end
                 nul = e.start if nul < 0 else min(nul, e.start)
             text = head[:e.start].decode("utf-8")
+        if nul >= 0 and head.count(b"\n", 0, nul) >= 2:     # text lines, then binary data
+            BlockGuard(path, bom).check(head[:nul + 1])
         if nul >= 0:
-            raise ValueError(f"{path}: not a text table (binary data at byte {nul}); a Parquet, MAT "
+            raise ValueError(f"{path}: not a text table (binary data at byte {nul + bom}); a Parquet, MAT "
                              "or raw binary log? give its format (--format)")
         lines = text.splitlines()
         hline = next((i + 1 for i, s in enumerate(lines)
@@ -390,6 +394,8 @@ class _TextSource:
         self.allow_empty = allow_empty
         try:
             arr = self._fast(uniq)
+        except BinaryData:
+            raise
         except Exception:        # noqa: BLE001 - any parse failure: find the line and say why
             self._diagnose(uniq)
             arr = self._slow(uniq)
@@ -407,11 +413,10 @@ class _TextSource:
                                 allow_empty=self.allow_empty)
 
     def _rows(self):
-        with open(self.path, "r", encoding="utf-8-sig", errors="replace") as fh:
-            for n, s in enumerate(fh, 1):
-                if n <= self.skip or not s.strip() or s.lstrip().startswith(("#", "%")):
-                    continue
-                yield n, [p.strip() for p in (s.split(self.delim) if self.delim else s.split())]
+        for n, s in _text_lines(self.path):
+            if n <= self.skip or not s.strip() or s.lstrip().startswith(("#", "%")):
+                continue
+            yield n, [p.strip() for p in (s.split(self.delim) if self.delim else s.split())]
 
     def _diagnose(self, uniq):
         used = set(uniq)
@@ -433,6 +438,33 @@ class _TextSource:
             lines.append(n)
         self.lines = lines
         return np.array(rows, dtype=float).reshape(len(rows), len(uniq))
+
+
+def _text_lines(path):
+    """``(line number, text)`` of a text file, read a line at a time and never more than
+    :data:`~sinslab.data.textguard.MAX_LINE_BYTES` at once: binary data (a NUL byte, bytes
+    that are not UTF-8 after the first line, a "line" without end) raises
+    :class:`~sinslab.data.textguard.BinaryData` with its offset."""
+    guard = BlockGuard(path)
+    with open(path, "rb") as fh:
+        n = 0
+        while True:
+            raw = fh.readline(MAX_LINE_BYTES + 1)
+            if not raw:
+                return
+            n += 1
+            guard.check(raw)
+            if not raw.endswith(b"\n"):
+                guard.long_line(len(raw))
+            s = raw.decode("utf-8", errors="replace")
+            if "\ufffd" in s and n > 1:
+                try:
+                    raw.decode("utf-8")
+                except UnicodeDecodeError as e:
+                    at = guard.offset - len(raw) + e.start
+                    raise BinaryData(f"{path}:{n}: binary data (bytes that are not UTF-8 text) at byte {at:,}: "
+                                     f"not text from there — a corrupt log? {keep_hint(path, at)}") from None
+            yield n, (s.lstrip("\ufeff") if n == 1 else s)
 
 
 def _header_complete(head: bytes) -> bool:
@@ -465,14 +497,17 @@ def iter_csv_columns(path, skip, ncol, cols, delim, *, block_size=1 << 20, allow
                                strings_can_be_null=False)
     with open(path, "rb") as fh:
         for _ in range(skip):
-            fh.readline()
+            fh.readline(MAX_LINE_BYTES + 1)
+        guard = BlockGuard(path, fh.tell(), skip + 1)
         rest = b""
         while True:
             buf = fh.read(max(int(block_size), 1 << 12))
+            guard.check(buf)
             if buf:
                 data = rest + buf
                 cut = data.rfind(b"\n")
                 if cut < 0:
+                    guard.long_line(len(data))
                     rest = data
                     continue
                 rest, data = data[cut + 1:], memoryview(data)[:cut + 1]

@@ -479,9 +479,11 @@ class KalmanFilter:
             ei = buf[i]
             if i > j:
                 prev = buf[i - 1]
+                # the arithmetic of predict(): x by Φ x, P by the kernel (on a copy: the
+                # update results handed out keep theirs)
                 xff = prev.Phi @ xff
-                P = prev.Phi @ P @ prev.Phi.T + prev.Q
-                P = 0.5 * (P + P.T)
+                P = np.array(P, dtype=float, order="C", copy=True)
+                cov_predict(P, prev.Phi, prev.Q, self.n, self._T1, self._T2)
                 ei.x_prior = xff - ei.c_prior
                 ei.P_prior = P.copy()
             ups = ei.updates

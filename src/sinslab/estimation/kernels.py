@@ -1,13 +1,20 @@
 """The compiled Kalman kernels: covariance and state prediction, the series
-discretisation of an error model, scalar and vector Joseph updates.
+discretisation of an error model, scalar and vector Joseph updates, the fixed-gain update.
 
 Every compiled filter loop of the package steps with these kernels — the stepped
-:class:`sinslab.estimation.filter.KalmanFilter` (:func:`predict_steps`), the linear
-time loops of :mod:`sinslab.estimation.linear`, the fused model + discretisation +
-prediction of :mod:`sinslab.fusion.propagate` and the recording prediction of
-:mod:`sinslab.fusion.smoothing` (:func:`predict_step`) — so one epoch of prediction has one
-arithmetic wherever it runs. Scalar style, no array temporaries inside a time loop; the
-work arrays are the caller's.
+:class:`sinslab.estimation.filter.KalmanFilter` (:func:`cov_predict`,
+:func:`predict_steps`, :func:`sequential_update`, also when it re-processes a lagged
+measurement), the linear time loops of :mod:`sinslab.estimation.linear` (their covariance
+recursion gives the gains of the filters whose covariance does not depend on the data, and
+:func:`~sinslab.estimation.linear.fixed_gain_runs` runs those filters), the fused model +
+discretisation + prediction of :mod:`sinslab.fusion.propagate` and the recording prediction
+of :mod:`sinslab.fusion.smoothing` (:func:`predict_step`), and the methods' own loops over
+many runs: transfer alignment's common-gain lanes and per-lane EKFs
+(:func:`state_predict_dense`, :func:`innovation`, :func:`gain_correct`,
+:func:`predict_lanes`, :func:`sequential_update_lanes`), the rotation-evaluation campaign, double-star's
+stored-state update and the Monte Carlo of a linear system — so one epoch of prediction or
+update has one arithmetic wherever it runs. Scalar style, no array temporaries inside a
+time loop; the work arrays are the caller's.
 
 Shapes: ``n`` states, ``P`` (n, n) C-contiguous float64, stepped in place; ``Φ`` (n, n);
 row lists ``nzc`` (n, ≥1) int with counts ``nnz`` (n,) name the non-zero columns of each
@@ -35,7 +42,8 @@ from sinslab.core.jitnotice import install as _compile_notice
 _compile_notice()   # a status line while the kernels below compile (first run)
 
 __all__ = ["cov_predict", "state_predict", "predict_step", "predict_steps", "predict_steps_dense",
-           "scalar_update", "sequential_update", "vector_update", "row_nonzeros", "copy2",
+           "predict_lanes", "scalar_update", "sequential_update", "sequential_update_lanes", "vector_update",
+           "predicted_dense", "state_predict_dense", "innovation", "gain_correct", "innovation_cov", "row_nonzeros", "copy2",
            "diagonal_tail", "series_structure", "series_phi", "series_qbar", "series_qk",
            "series_step", "add_half_qbar"]
 
@@ -102,6 +110,28 @@ def state_predict(x, Phi, nzc, nnz, tmp):
         x[i] = tmp[i]
 
 
+@njit(cache=True, inline="always")
+def predicted_dense(x, Phi, out):
+    """``out <- Φ x`` over every column of Φ (n, n), each sum in column order (``out`` not
+    ``x``). The same numbers as :func:`state_predict` wherever x is finite (a product with
+    a zero of Φ adds ±0), for the per-run loops where Φ's rows are mostly full and the row
+    lists would cost more than they skip."""
+    n = x.shape[0]
+    for i in range(n):
+        s = 0.0
+        for j in range(n):
+            s += Phi[i, j] * x[j]
+        out[i] = s
+
+
+@njit(cache=True, inline="always")
+def state_predict_dense(x, Phi, tmp):
+    """``x <- Φ x`` in place by :func:`predicted_dense`; ``tmp`` (n,) a work array."""
+    predicted_dense(x, Phi, tmp)
+    for i in range(x.shape[0]):
+        x[i] = tmp[i]
+
+
 @njit(cache=True)
 def predict_step(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp, sig, xo):
     """One filter prediction: ``P`` by :func:`cov_predict`, then the estimate ``x`` and the
@@ -114,6 +144,16 @@ def predict_step(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp, sig, xo):
     for j in range(n):
         sig[j] = math.sqrt(max(P[j, j], 0.0))
         xo[j] = x[j]
+
+
+@njit(cache=True)
+def predict_lanes(X, Ps, Phi, Q, r, nzc, nnz, T1, W, tmp):
+    """One prediction of L filters (lanes) with a common ``Φ``, ``Q``: each covariance
+    ``Ps[l]`` (n, n) by :func:`cov_predict`, each estimate ``X[l]`` (n,) by
+    :func:`state_predict`, in place (``r``, ``nzc``, ``nnz``, work arrays as there)."""
+    for l in range(X.shape[0]):
+        cov_predict(Ps[l], Phi, Q, r, T1, W)
+        state_predict(X[l], Phi, nzc, nnz, tmp)
 
 
 @njit(cache=True)
@@ -270,15 +310,11 @@ def scalar_update(x, P, h, r, zi, with_x, pht, kk, bh, B):
 
 
 @njit(cache=True)
-def sequential_update(x, P, z, H, r, innov, sdiag, tmp, B):
-    """Sequential scalar updates in place; NIS. Returns −1 and leaves x, P alone when some
-    z is not finite or some r not > 0 (the caller takes the general path)."""
+def _sequential(x, P, z, H, r, innov, sdiag, pht, kk, tmp, B):
+    """:func:`sequential_update` with the caller's work arrays ``pht``, ``kk`` (n,)."""
     for c in range(z.shape[0]):
         if not (math.isfinite(z[c]) and r[c] > 0.0):
             return -1.0
-    n = x.shape[0]
-    pht = np.empty(n)
-    kk = np.empty(n)
     nis = 0.0
     for c in range(z.shape[0]):
         nu, s = scalar_update(x, P, H[c], r[c], z[c], True, pht, kk, tmp, B)
@@ -286,6 +322,84 @@ def sequential_update(x, P, z, H, r, innov, sdiag, tmp, B):
         sdiag[c] = s
         nis += nu * nu / s
     return nis
+
+
+@njit(cache=True)
+def sequential_update(x, P, z, H, r, innov, sdiag, tmp, B):
+    """Sequential scalar updates in place; NIS. Returns −1 and leaves x, P alone when some
+    z is not finite or some r not > 0 (the caller takes the general path)."""
+    n = x.shape[0]
+    return _sequential(x, P, z, H, r, innov, sdiag, np.empty(n), np.empty(n), tmp, B)
+
+
+@njit(cache=True)
+def sequential_update_lanes(X, Ps, Z, H, r, nis):
+    """:func:`sequential_update` of L filters (lanes) at once, each with its own estimate
+    ``X[l]`` (n,), covariance ``Ps[l]`` (n, n), measurement ``Z[l]`` (m,) and rows ``H[l]``
+    (m, n), the variances ``r`` (m,) common; in place. NIS of each lane into ``nis`` (L,),
+    −1 for a lane left alone (some z not finite: a stopped lane)."""
+    L, n = X.shape
+    m = Z.shape[1]
+    innov = np.empty(m)
+    sdiag = np.empty(m)
+    pht = np.empty(n)
+    kk = np.empty(n)
+    tmp = np.empty(n)
+    B = np.empty((n, n))
+    for l in range(L):
+        nis[l] = _sequential(X[l], Ps[l], Z[l], H[l], r, innov, sdiag, pht, kk, tmp, B)
+
+
+# The fixed-gain kernels below (and the dense state prediction) are inlined into their callers: a
+# run of a fixed-gain filter is a few hundred multiply-adds per step, and a call per step
+# (its array views counted in and out) cost the per-run loops of paper 002's campaign a
+# third of their time.
+@njit(cache=True, inline="always")
+def innovation(x, H, z, nu):
+    """``nu <- z − H x``: the innovation (m,) of the rows ``H`` (m, n) against the estimate
+    ``x`` (n,); each product summed in column order."""
+    n = x.shape[0]
+    for i in range(H.shape[0]):
+        acc = 0.0
+        for j in range(n):
+            acc += H[i, j] * x[j]
+        nu[i] = z[i] - acc
+
+
+@njit(cache=True, inline="always")
+def gain_correct(x, G, nu):
+    """``x <- x + G nu`` in place: the update of a filter whose gain ``G`` (n, m) does not
+    depend on the data (made once by a covariance recursion:
+    :func:`sinslab.estimation.linear.propagate_covariance` with ``keep_gain``), from the
+    innovation ``nu`` (m,) of :func:`innovation`."""
+    m = nu.shape[0]
+    for i in range(G.shape[0]):
+        acc = 0.0
+        for j in range(m):
+            acc += G[i, j] * nu[j]
+        x[i] = x[i] + acc
+
+
+@njit(cache=True)
+def innovation_cov(H, P, R, PHt, S):
+    """``S <- H P Hᵀ + R`` (m, m), exactly symmetric: the covariance of the innovation of the
+    rows ``H`` (m, n) against the prior ``P`` (n, n) with measurement noise ``R`` (m, m);
+    ``PHt`` (n, m) a work array (receives ``P Hᵀ``)."""
+    m, n = H.shape
+    for i in range(n):
+        for b in range(m):
+            t = 0.0
+            for j in range(n):
+                t += P[i, j] * H[b, j]
+            PHt[i, b] = t
+    for a in range(m):
+        for b in range(a, m):
+            s = 0.0
+            for i in range(n):
+                s += H[a, i] * PHt[i, b]
+            v = s + 0.5 * (R[a, b] + R[b, a])
+            S[a, b] = v
+            S[b, a] = v
 
 
 @njit(cache=True)
@@ -301,7 +415,8 @@ def _matmul(A, B, C):
 
 @njit(cache=True)
 def vector_update(x, P, H, R, z, used, with_x):
-    """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis).
+    """Joseph-form vector update over the used rows (correlated R). Returns (nu, S, nis, K),
+    K (n, len(used)) the gain of the used rows.
 
     Scalar loops with a Cholesky factor of S (no LAPACK/BLAS bindings: they and their
     error formatting cost seconds of compilation on a first run)."""
@@ -393,7 +508,7 @@ def vector_update(x, P, H, R, z, used, with_x):
     for i in range(n):
         for j in range(n):
             P[i, j] = 0.5 * (Pn[i, j] + Pn[j, i])
-    return nu, S, nis
+    return nu, S, nis, K
 
 
 # ----------------------------------------------------------------------------------------

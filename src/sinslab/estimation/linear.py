@@ -2,12 +2,15 @@
 error budgets.
 
 :func:`run_linear` (state and covariance with data), :func:`propagate_covariance` (no
-data: covariance analysis) and :func:`error_budget`, which splits the variance into the
-contributions of P0, each process-noise source and each measurement-noise source.
+data: covariance analysis, and the gains of a filter whose covariance does not depend on
+the data), :func:`fixed_gain_runs` (that filter over many data records) and
+:func:`error_budget`, which splits the variance into the contributions of P0, each
+process-noise source and each measurement-noise source.
 Time-varying systems are given as *tables* of matrices plus per-step *index* arrays, so
 a piecewise-constant or periodically varying system costs no memory per step. Their
 steps are the kernels of :mod:`sinslab.estimation.kernels` (covariance prediction, sparse
-state prediction, Joseph scalar and vector updates), those of every compiled filter loop.
+state prediction, Joseph scalar and vector updates, the fixed-gain update), those of every
+compiled filter loop.
 
 Conventions
 -----------
@@ -25,14 +28,15 @@ import numpy as np
 from numba import njit
 
 from sinslab.estimation.kalman import _as_square, _is_diag, check_covariance
-from sinslab.estimation.kernels import (copy2, cov_predict, row_nonzeros, scalar_update, series_step,
-                                         series_structure, state_predict, vector_update)
+from sinslab.estimation.kernels import (copy2, cov_predict, gain_correct, innovation, innovation_cov, row_nonzeros,
+                                         predicted_dense, scalar_update, series_step, series_structure,
+                                         state_predict, vector_update)
 
 from sinslab.core.jitnotice import install as _compile_notice
 
 _compile_notice()   # a status line while the kernels below compile (first run)
 
-__all__ = ["run_linear", "LinearRun", "propagate_covariance", "error_budget", "Budget",
+__all__ = ["run_linear", "LinearRun", "propagate_covariance", "fixed_gain_runs", "error_budget", "Budget",
            "sparsity"]
 
 
@@ -59,30 +63,27 @@ def _compose_gain(G, h, kk, c, hg):
 
 @njit(cache=True)
 def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_corr, with_x,
-                 nzc_t, nnz_t, save_flag, x_hist, pd_hist, P_save, innov, sdiag, nis, gain):
+                 nzc_t, nnz_t, save_flag, x_hist, pd_hist, P_save, innov, sdiag, nis, gain, S_prior):
     """The time loop of :func:`_run`. ``R_corr`` is None when every R of the table is
     diagonal (scalar updates), else the table itself (vector updates with the full R): a
     None argument prunes the vector branch at compile time, so a run with diagonal R
     does not compile :func:`vector_update` (a second of a first run).
 
-    ``gain`` (K, n, m), or (0, n, m) not to keep it: filled with each step's gain G, the
-    map of the step's measurements onto the updated state (``x⁺ = x⁻ + G (z − H x⁻)``;
-    zero columns where nothing is measured). The sequential scalar updates compose to it:
-    each one maps ``G ← (I − k h) G``, then adds ``k`` to its own column (diagonal R
-    only). An empty array rather than None: runs with and without gains then share one
-    compiled loop (a compilation costs ~2 s of a fresh clone's first run, and one more in
-    every Dask worker of a campaign that runs both)."""
+    ``gain`` (K, n, m) and ``S_prior`` (K, m, m), or (0, …) not to keep them: each step's
+    gain G (``x⁺ = x⁻ + G (z − H x⁻)``, zero columns where nothing is measured; the scalar
+    updates compose to it, each mapping ``G ← (I − k h) G`` and adding ``k`` to its own
+    column, a vector update gives it whole) and innovation covariance ``H P⁻ Hᵀ + R``.
+    Empty arrays rather than None: runs with and without them share one compiled loop (a
+    compilation costs ~2 s of a fresh clone's first run, and one more in every Dask worker
+    of a campaign that runs both)."""
     n = P.shape[0]
     K = phi_i.shape[0]
     m = mask.shape[1]
-    T1 = np.empty((n, n))
-    T2 = np.empty((n, n))
-    tmp = np.empty(n)
-    pht = np.empty(n)
-    kk = np.empty(n)
-    bh = np.empty(n)
+    T1, T2 = np.empty((n, n)), np.empty((n, n))
+    tmp, pht, kk, bh = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     used = np.empty(m, dtype=np.int64)
     hg = np.empty(m)
+    PHt = np.empty((n, m))
     ns = 0
     if with_x:
         for j in range(n):
@@ -103,6 +104,8 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
             if mask[k, c]:
                 used[nm] = c
                 nm += 1
+        if S_prior.shape[0] > 0:
+            innovation_cov(H_t[h_i[k]], P, R_t[r_i[k]], PHt, S_prior[k])
         if nm > 0:
             Hk = H_t[h_i[k]]
             if R_corr is None:
@@ -119,10 +122,13 @@ def _linear_loop(x, P, Phi_t, phi_i, Q_t, q_i, H_t, h_i, R_t, r_i, z, mask, R_co
                     if gain.shape[0] > 0:
                         _compose_gain(gain[k], Hk[c], kk, c, hg)
             else:
-                nuv, S, nisv = vector_update(x, P, Hk, R_corr[r_i[k]], z[k], used[:nm], with_x)
+                nuv, S, nisv, Kv = vector_update(x, P, Hk, R_corr[r_i[k]], z[k], used[:nm], with_x)
                 for a in range(nm):
                     innov[k, used[a]] = nuv[a]
                     sdiag[k, used[a]] = S[a, a]
+                    if gain.shape[0] > 0:
+                        for i in range(n):
+                            gain[k, i, used[a]] = Kv[i, a]
                 nu_tot = nisv
         nis[k] = nu_tot
         if with_x:
@@ -298,6 +304,9 @@ class LinearRun:
     gain : ndarray, shape (K, n, m) or None
         With ``keep_gain``: each step's gain, ``x⁺ = x⁻ + gain[k] (z[k] − H x⁻)`` (zero
         columns where nothing was measured) — the filter to run on other data with fixed gains.
+    S : ndarray, shape (K, m, m) or None
+        With ``keep_gain``: each step's innovation covariance ``H P⁻ Hᵀ + R`` of all m
+        components (the NIS of that fixed-gain filter is ``νᵀ S⁻¹ ν``).
     """
 
     x: np.ndarray | None
@@ -310,6 +319,7 @@ class LinearRun:
     x_final: np.ndarray | None
     P_final: np.ndarray
     gain: np.ndarray | None = None
+    S: np.ndarray | None = None
 
     @property
     def sigma(self):
@@ -422,9 +432,8 @@ def _prepare(x0, P0, Phi, Q, H, R, z, mask, windows, t, n_steps, Phi_index, Q_in
 
 def _run(prep, with_x, save_at, keep_gain=False):
     n, m, K = prep["n"], prep["m"], prep["K"]
-    if keep_gain and not prep["diagR"]:
-        raise ValueError("keep_gain needs a diagonal R (sequential scalar updates)")
     gain = np.zeros((K if keep_gain else 0, n, m))
+    S_prior = np.empty((K if keep_gain else 0, m, m))
     x = prep["x0"].copy()
     P = np.ascontiguousarray(prep["P0"].copy())
     save_flag = np.zeros(K + 1, dtype=np.bool_)
@@ -446,11 +455,11 @@ def _run(prep, with_x, save_at, keep_gain=False):
     bad = _linear_loop(x, P, prep["Phi_t"], prep["phi_i"], prep["Q_t"], prep["q_i"],
                        prep["H_t"], prep["h_i"], prep["R_t"], prep["r_i"], prep["z"],
                        prep["mask"], None if prep["diagR"] else prep["R_t"], with_x, nzc, nnz,
-                       save_flag, x_hist, pd, P_save, innov, sdiag, nis, gain)
+                       save_flag, x_hist, pd, P_save, innov, sdiag, nis, gain, S_prior)
     if bad >= 0:
         raise ValueError(f"covariance became NaN at step {bad}: check Phi, Q, R for extreme values")
     return LinearRun(x_hist if with_x else None, pd, P_save, save_at, innov, sdiag, nis,
-                     x if with_x else None, P, gain if keep_gain else None)
+                     x if with_x else None, P, gain if keep_gain else None, S_prior if keep_gain else None)
 
 
 def run_linear(x0, P0, Phi, Q, H, R, z, *, mask=None, windows=None, t=None,
@@ -507,10 +516,11 @@ def propagate_covariance(P0, Phi, Q, H=None, R=None, *, n_steps=None, mask=None,
 
     Same conventions as :func:`run_linear`; measurements are applied where ``mask`` (or
     ``windows``) says so, or at every step if neither is given and ``H`` is. Give
-    ``n_steps`` when all of Phi, Q, H, R are constant. ``keep_gain`` (diagonal R) keeps
-    every step's gain (``LinearRun.gain``): the covariance does not depend on the data, so
-    these gains run the same filter on any number of data records as a fixed-gain
-    recursion ``x⁺ = Φ x + G (z − H Φ x)``.
+    ``n_steps`` when all of Phi, Q, H, R are constant. ``keep_gain`` keeps every step's
+    gain and innovation covariance (``LinearRun.gain``, ``LinearRun.S``): the covariance
+    does not depend on the data, so these gains run the same filter on any number of data
+    records as a fixed-gain recursion ``x⁺ = Φ x + G (z − H Φ x)``
+    (:func:`fixed_gain_runs`).
 
     Returns
     -------
@@ -520,6 +530,86 @@ def propagate_covariance(P0, Phi, Q, H=None, R=None, *, n_steps=None, mask=None,
     prep = _prepare(None, P0, Phi, Q, H, R, None, mask, windows, t, n_steps, Phi_index,
                     Q_index, H_index, R_index, False, check)
     return _run(prep, False, save_at, keep_gain)
+
+
+@njit(cache=True)
+def _gain_runs(X, Phi_t, phi_i, H_t, h_i, gain, z, mask, x_hist, nu_hist):
+    """The time loop of :func:`fixed_gain_runs`, record by record (a record's numbers do not
+    depend on the records beside it); each step's estimate is stepped in its row of
+    ``x_hist``."""
+    B, n = X.shape
+    K, m = mask.shape
+    for b in range(B):
+        for j in range(n):
+            x_hist[b, 0, j] = X[b, j]
+        for k in range(K):
+            x = x_hist[b, k + 1]
+            predicted_dense(x_hist[b, k], Phi_t[phi_i[k]], x)
+            nu = nu_hist[b, k]
+            on = False
+            for c in range(m):
+                on = on or mask[k, c]
+            if not on:
+                for c in range(m):
+                    nu[c] = np.nan
+                continue
+            innovation(x, H_t[h_i[k]], z[b, k], nu)
+            for c in range(m):
+                if not mask[k, c]:
+                    nu[c] = 0.0
+            gain_correct(x, gain[k], nu)
+            for c in range(m):
+                if not mask[k, c]:
+                    nu[c] = np.nan
+
+
+def fixed_gain_runs(x0, Phi, H, gain, z, *, mask=None, Phi_index=None, H_index=None):
+    """A filter with fixed gains (those of :func:`propagate_covariance` with ``keep_gain``)
+    over many data records, compiled, record by record.
+
+    Same conventions as :func:`run_linear`: step k predicts ``x ← Φ_k x`` and, where
+    measured, updates ``x ← x + gain[k] (z[k] − H_k x)``.
+
+    Parameters
+    ----------
+    x0 : array_like, shape (B, n)
+        Initial estimate of each record.
+    Phi : array_like, shape (n, n), (K, n, n) or (L, n, n) with ``Phi_index``
+    H : array_like, shape (m, n), (K, m, n) or (L, m, n) with ``H_index``
+    gain : array_like, shape (K, n, m)
+        Each step's gain (``LinearRun.gain``).
+    z : array_like, shape (B, K, m)
+        Measurements of each record; ``z[:, k]`` is valid at epoch ``k+1``.
+    mask : array_like of bool, shape (K, m) or (K,), optional
+        Components measured at each step (default all).
+
+    Returns
+    -------
+    x : ndarray, shape (B, K+1, n)
+        Estimates (row 0 = x0).
+    innovation : ndarray, shape (B, K, m)
+        Innovations against the prediction (NaN where not measured).
+    """
+    X = np.array(x0, dtype=float, ndmin=2, order="C")
+    z = np.ascontiguousarray(z, dtype=float)
+    gain = np.ascontiguousarray(gain, dtype=float)
+    B, n = X.shape
+    if z.ndim != 3 or z.shape[0] != B:
+        raise ValueError(f"z must have shape ({B}, K, m) for {B} records, got {z.shape}")
+    K, m = z.shape[1], z.shape[2]
+    if gain.shape != (K, n, m):
+        raise ValueError(f"gain must have shape ({K}, {n}, {m}), got {gain.shape}")
+    Phi_t, phi_i = _table(Phi, Phi_index, K, (n, n), "Phi")
+    H_t, h_i = _table(H, H_index, K, (m, n), "H")
+    mk = np.ones((K, m), dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    if mk.shape == (K,):
+        mk = np.repeat(mk[:, None], m, axis=1)
+    if mk.shape != (K, m):
+        raise ValueError(f"mask must have shape ({K}, {m}) or ({K},), got {mk.shape}")
+    xs = np.empty((B, K + 1, n))
+    nu = np.empty((B, K, m))
+    _gain_runs(X, Phi_t, phi_i, H_t, h_i, gain, z, np.ascontiguousarray(mk), xs, nu)
+    return xs, nu
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ from sinslab.core.atomic import atomic_path, atomic_write
 from sinslab.core.errors import InputError
 
 __all__ = ["spawn_seeds", "run_campaign", "tree_sum", "TASK_SECONDS", "dask_client", "map_tasks", "summarize", "Summary", "chi2_bounds",
+           "ClusterError", "NO_WORKERS_S",
            "mean_ci95", "mean_ci95_sums", "wilson_ci95", "linear_batch", "summarize_sums"]
 
 
@@ -235,7 +236,6 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                 for blk in blocks:
                     finished(*blk, _run_task(fn, [blk], seeds[blk[0]:blk[0] + blk[1]], args, kwargs, reduce))
             elif blocks:
-                from distributed import as_completed
                 # the shared inputs as the result of a task, not scattered data: a worker
                 # that leaves with its copy costs a recomputation, not the campaign
                 # (in the graph on purpose, so Dask's warning about a large graph is moot)
@@ -248,12 +248,11 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                     return client.submit(_run_task_timed, fn, group, seeds[a:z], a_f, reduce,
                                          pure=False, retries=retries)
 
-                ac, futs = as_completed(), {}
+                futs = {}
 
                 def go(group):
                     f = submit(group)
                     futs[f] = (group[0][0], sum(c for _, c in group))
-                    ac.add(f)
 
                 def grouped(pending):
                     return _group_blocks(pending, per_run, nw, tasks_per_worker,
@@ -270,24 +269,120 @@ def run_campaign(fn, n_runs, seed, *, batch=None, scheduler=None, n_workers=None
                         pending = []
                         for g in grouped(blocks):
                             go(g)
-                    for fut in ac:
-                        first, count = futs.pop(fut)
-                        payload, elapsed = fut.result()
-                        fut.release()
-                        finished(first, count, payload)
-                        if pending:
-                            per_run = elapsed / count
-                            for g in grouped(pending):
-                                go(g)
-                            pending = []
+                    watch = _Watch(client, lambda: _finished_text(acc.done, n, st))
+                    while futs:
+                        for fut in watch.done(list(futs)):
+                            first, count = futs.pop(fut)
+                            payload, elapsed = watch.result(fut)
+                            fut.release()
+                            finished(first, count, payload)
+                            if pending:
+                                per_run = elapsed / count
+                                for g in grouped(pending):
+                                    go(g)
+                                pending = []
                 except Exception as e:                       # noqa: BLE001 - sorted below
                     if not _lost_cluster(e):
                         raise
-                    kept = (f"; they are kept in {st.path}, where a rerun of the same campaign resumes"
-                            if st is not None else "")
-                    raise InputError(f"Monte Carlo: the Dask cluster lost its workers "
-                                     f"({type(e).__name__}); {acc.done} of {n} runs had finished{kept}") from None
+                    raise ClusterError(f"Monte Carlo: the Dask cluster lost its workers ({type(e).__name__}); "
+                                       f"{_finished_text(acc.done, n, st)}") from None
     return acc.result()
+
+
+def _finished_text(done, n, store) -> str:
+    """What a failed campaign leaves: the runs finished and where they are kept."""
+    kept = (f"; they are kept in {store.path}, where a rerun of the same campaign resumes"
+            if store is not None and done else "")
+    return f"{done} of {n} runs had finished{kept}"
+
+
+class ClusterError(InputError):
+    """A Dask cluster that cannot run the work: no workers at its scheduler, every worker
+    lost, the scheduler gone. One line saying what happened, what had finished and what
+    to do."""
+
+
+#: How long a campaign waits for a worker when its cluster has none [s]: workers started
+#: beside the scheduler join within seconds; none in this time means none are coming.
+NO_WORKERS_S = 30.0
+#: How often a waiting campaign checks that its cluster still has workers [s].
+WATCH_POLL_S = 2.0
+
+
+class _Watch:
+    """Waits for a cluster's futures, never forever: every :data:`WATCH_POLL_S` without a
+    finished one it asks the scheduler for its workers, and with none for
+    :data:`NO_WORKERS_S` (or the scheduler gone) raises :class:`ClusterError` naming the
+    cluster, what to start and ``status()`` (what had finished)."""
+
+    def __init__(self, client, status, work: str = "Monte Carlo"):
+        self.client, self.status, self.work = client, status, work
+        self.since = None
+        self.had_workers = False
+        self.gone = None
+
+    def done(self, futs):
+        """The finished futures among ``futs`` (at least one)."""
+        from distributed import wait
+
+        while True:
+            try:
+                finished, _ = wait(futs, timeout=WATCH_POLL_S, return_when="FIRST_COMPLETED")
+                if finished:
+                    return finished
+            except TimeoutError:
+                pass
+            self.check()
+
+    def result(self, fut):
+        """``fut``'s result, waited for as :meth:`done` waits: a future the scheduler
+        reports as lost (its worker left between computing and handing it over) is
+        recomputed, and with no worker left to do it that is a :class:`ClusterError`,
+        not a wait without end."""
+        while True:
+            try:
+                return fut.result(timeout=WATCH_POLL_S)
+            except TimeoutError:
+                self.check()
+
+    def workers(self) -> int:
+        try:
+            n = len(self.client.scheduler_info().get("workers", {}))
+            self.gone = None
+            return n
+        except Exception as e:                               # noqa: BLE001 - the scheduler is gone
+            self.gone = e
+            return 0
+
+    def check(self) -> None:
+        now = time.monotonic()
+        if self.workers():
+            self.had_workers, self.since = True, None
+            return
+        self.since = now if self.since is None else self.since
+        if now - self.since >= NO_WORKERS_S:
+            raise ClusterError(f"{self.what()} (for {now - self.since:.0f} s); {self.status()}")
+
+    def what(self) -> str:
+        addr = _address(self.client)
+        local = getattr(self.client, "cluster", None) is not None
+        if self.gone is not None:
+            return f"{self.work}: the Dask scheduler at {addr} no longer answers"
+        if local:
+            return (f"{self.work}: every worker of the local Dask cluster is gone (killed, or out of "
+                    "memory?) and none came back")
+        if self.had_workers:
+            return (f"{self.work}: every worker of the Dask scheduler at {addr} has left; start workers "
+                    f"with `dask worker {addr}` and run the same command again")
+        return (f"{self.work}: the Dask scheduler at {addr} has no workers; start some with "
+                f"`dask worker {addr}` (or run without a scheduler address, on a local cluster)")
+
+
+def _address(client) -> str:
+    try:
+        return str(client.scheduler.address)
+    except Exception:                                        # noqa: BLE001
+        return "?"
 
 
 #: Allocator settings of the local cluster's worker processes, beside Dask's own
@@ -643,6 +738,9 @@ def dask_client(scheduler=None, n_workers=None):
     elif isinstance(scheduler, str):
         client = _connect(scheduler)
         own = (client, None)
+        if not _Watch(client, str).workers():
+            _say(f"Monte Carlo: no workers at the Dask scheduler {_address(client)} yet; waiting up to "
+                 f"{NO_WORKERS_S:g} s for some to join (start them with `dask worker {_address(client)}`)")
     else:
         client = scheduler
     failed = False
@@ -784,8 +882,6 @@ def map_tasks(fn, items, *, mode="threads", workers=2, scheduler=None, kwargs=No
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
     else:
-        from distributed import as_completed
-
         with dask_client(scheduler or None, int(workers)) as client:
             # each input as the result of a task of its own (one object, its parts sharing
             # their arrays): unlike scattered data, the scheduler can make it again when the
@@ -794,11 +890,14 @@ def map_tasks(fn, items, *, mode="threads", workers=2, scheduler=None, kwargs=No
                 warnings.filterwarnings("ignore", message="Sending large graph")
                 sent = [client.submit(_identity, _Sent(x), pure=False) for x in items]
             futs = {client.submit(_call_sent, fn, f, pure=False, **kwargs): i for i, f in enumerate(sent)}
-            for fut in as_completed(futs):
-                i = futs[fut]
-                results[i] = fut.result()
-                if on_done is not None:
-                    on_done(i, results[i])
+            n = len(futs)
+            watch = _Watch(client, lambda: f"{n - len(futs)} of {n} tasks had finished", work="tasks")
+            while futs:
+                for fut in watch.done(list(futs)):
+                    i = futs.pop(fut)
+                    results[i] = fut.result()
+                    if on_done is not None:
+                        on_done(i, results[i])
     return results
 
 
@@ -1010,16 +1109,19 @@ def summarize_sums(n_runs, s1, s2, sigma=None):
 
 
 # ----------------------------------------------------------------------------------------
-# a vectorised linear-system campaign function
+# a linear-system campaign function
 # ----------------------------------------------------------------------------------------
 def linear_batch(seeds, Phi, Q, H, R, P0, n_steps, mask=None, x0_bias=None):
-    """Simulate and filter a linear system for a batch of runs, vectorised across runs.
+    """Simulate and filter a linear system for a batch of runs.
 
     Truth: ``x_0 ~ N(0, P0)`` (plus ``x0_bias``), ``x_{k+1} = Phi x_k + w_k``,
     ``w_k ~ N(0, Q)``; measurement ``z_k = H x_{k+1} + v_k``, ``v_k ~ N(0, R)`` where
-    ``mask[k]``. The filter starts from ``x̂_0 = 0``, ``P0``. Because the gains of a
-    linear filter do not depend on the data, the covariance is propagated once for the
-    batch and the estimates of all runs are updated together.
+    ``mask[k]``, vectorised across runs. The filter starts from ``x̂_0 = 0``, ``P0``.
+    Because the gains of a linear filter do not depend on the data, the covariance is
+    propagated once for the batch (:func:`sinslab.estimation.linear.propagate_covariance`
+    with ``keep_gain``) and every run is filtered with those gains in one compiled loop
+    (:func:`sinslab.estimation.linear.fixed_gain_runs`): the arithmetic of
+    :mod:`sinslab.estimation.kernels`, as in every filter of the package.
 
     Each run draws its numbers from its own ``default_rng(seed)`` in a fixed order, so
     the outputs of a run do not depend on the batch it was in.
@@ -1043,26 +1145,15 @@ def linear_batch(seeds, Phi, Q, H, R, P0, n_steps, mask=None, x0_bias=None):
         ``err`` (B, K+1, n) estimate − truth; ``sigma`` (B, K+1, n) filter σ (identical
         rows); ``nees`` (B, K+1); ``nis`` (B, K) (0 where not measured).
     """
+    from sinslab.estimation import linear
+
     Phi, Q, H, R, P0 = (np.asarray(a, dtype=float) for a in (Phi, Q, H, R, P0))
     n, m, K, B = Phi.shape[0], H.shape[0], int(n_steps), len(seeds)
     mask = np.ones(K, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
-    # gains and covariances (shared by the batch)
-    P = P0.copy()
-    Ps = np.empty((K + 1, n, n))
-    Ps[0] = P
-    gains = np.zeros((K, n, m))
-    Sinv = np.zeros((K, m, m))
-    for k in range(K):
-        P = Phi @ P @ Phi.T + Q
-        if mask[k]:
-            S = H @ P @ H.T + R
-            Si = np.linalg.inv(S)
-            Kg = P @ H.T @ Si
-            A = np.eye(n) - Kg @ H
-            P = A @ P @ A.T + Kg @ R @ Kg.T
-            gains[k], Sinv[k] = Kg, Si
-        P = 0.5 * (P + P.T)
-        Ps[k + 1] = P
+    # gains and covariances (shared by the batch), stepped with the estimation kernels
+    cov = linear.propagate_covariance(P0, Phi, Q, H, R, n_steps=K, mask=mask, save_at=np.arange(K + 1),
+                                      keep_gain=True)
+    Ps = cov.P_saved
     # per-run random draws, in a fixed order per run
     Lp = np.linalg.cholesky(P0) if np.all(np.linalg.eigvalsh(P0) > 0) else None
     x0 = np.empty((B, n))
@@ -1075,20 +1166,20 @@ def linear_batch(seeds, Phi, Q, H, R, P0, n_steps, mask=None, x0_bias=None):
         V[b] = rng.multivariate_normal(np.zeros(m), R, size=K)
     if x0_bias is not None:
         x0 += np.asarray(x0_bias, dtype=float)
-    xt = x0
-    xe = np.zeros((B, n))
-    err = np.empty((B, K + 1, n))
-    nis = np.zeros((B, K))
-    err[:, 0] = xe - xt
+    # the truth and its measurements
+    xt = np.empty((B, K + 1, n))
+    xt[:, 0] = x0
+    z = np.zeros((B, K, m))
     for k in range(K):
-        xt = xt @ Phi.T + W[:, k]
-        xe = xe @ Phi.T
+        xt[:, k + 1] = xt[:, k] @ Phi.T + W[:, k]
         if mask[k]:
-            z = xt @ H.T + V[:, k]
-            nu = z - xe @ H.T
-            xe = xe + nu @ gains[k].T
-            nis[:, k] = np.einsum("bi,ij,bj->b", nu, Sinv[k], nu)
-        err[:, k + 1] = xe - xt
+            z[:, k] = xt[:, k + 1] @ H.T + V[:, k]
+    # the filter of every run from x̂_0 = 0 with the common gains
+    xe, nu = linear.fixed_gain_runs(np.zeros((B, n)), Phi, H, cov.gain, z, mask=mask)
+    err = xe - xt
+    nis = np.zeros((B, K))
+    for k in np.flatnonzero(mask):
+        nis[:, k] = np.einsum("bi,ij,bj->b", nu[:, k], np.linalg.inv(cov.S[k]), nu[:, k])
     Pinv = np.linalg.pinv(Ps, hermitian=True)
     nees = np.einsum("bti,tij,btj->bt", err, Pinv, err)
     sigma = np.broadcast_to(np.sqrt(np.diagonal(Ps, axis1=1, axis2=2)), (B, K + 1, n)).copy()

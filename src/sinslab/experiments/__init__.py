@@ -39,7 +39,7 @@ from sinslab.experiments.base import Experiment, Result, RunContext
 
 __all__ = ["registry", "register", "get", "names", "catalog", "execute", "UnknownExperiment", "Experiment"]
 
-_SKIP = {"base"}
+_SKIP = {"base", "sweep"}
 _registry: dict[str, Experiment] | None = None
 _broken: dict[str, str] = {}
 #: ``{module: Experiment}`` imported one at a time by :func:`get` before the registry is built
@@ -235,9 +235,25 @@ def _check_result(exp: Experiment, res: Result, log) -> None:
         raise ValueError(f"{exp.module}: duplicate claim ids {ids}")
 
 
+def _robustness(exp, cfg, res, ctx, quick, mode) -> dict:
+    """The robustness section of a run (its sweep made when ``mode`` asks for it)."""
+    from sinslab.app.claims import robustness_section
+    from sinslab.experiments import sweep
+
+    if mode not in (None, "full", "demo"):
+        raise ValueError(f"robustness must be None, 'full' or 'demo', got {mode!r}")
+    if mode is None:
+        return robustness_section(res.claims, swept=False, pending=sweep.pending(exp, cfg, res.claims))
+    t0, c0 = time.perf_counter(), time.process_time()
+    axes = sweep.sweep(exp, cfg, res, ctx, quick=quick, demo=mode == "demo")
+    return robustness_section(res.claims, swept=True, axes=axes, cpu_s=time.process_time() - c0,
+                              wall_s=time.perf_counter() - t0)
+
+
 def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: bool = False,
             scheduler: object = None, log: Callable[[str], None] | None = None,
-            variant: tuple[str, list[str]] | None = None, force: bool | None = None) -> dict:
+            variant: tuple[str, list[str]] | None = None, force: bool | None = None,
+            robustness: str | None = None) -> dict:
     """Run ``exp`` with the resolved ``cfg`` into folder ``out``; return the summary dict.
 
     Everything is written into a staging folder that replaces ``out``'s previous contents
@@ -248,6 +264,12 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
     ``variant=(name, sets)`` names a demo variant (its report carries that name and the
     ``--set`` lines that make it). ``summary["timing"]`` holds the seconds spent
     computing and writing series, figures and the report.
+
+    ``robustness``: ``"full"`` (``--robustness``) or ``"demo"`` (the demo's sizes) re-runs the
+    experiment under the physics alternatives of its claims (:mod:`sinslab.experiments.sweep`);
+    None leaves them out. The readings and thresholds each claim carries are evaluated by the
+    run either way; ``summary["robustness"]`` holds the labels
+    (:func:`sinslab.app.claims.robustness_section`).
     """
 
     log = log or (lambda msg: None)
@@ -259,7 +281,6 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
     rd.write_text("config.toml", config_to_toml(cfg, header))
     import hashlib
     import json
-    import shutil
 
     # beside the output folder, not in its staging folder: a failed run's finished Monte Carlo
     # tasks outlive it, for a rerun of the same configuration into the same folder (a name
@@ -275,6 +296,7 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
     _check_result(exp, res, log)
     metrics = dict(res.metrics)
     metrics.setdefault("runtime_s", runtime)
+    robust = _robustness(exp, cfg, res, ctx, quick, robustness)
 
     t1 = time.perf_counter()
     for name, table in res.series.items():
@@ -286,7 +308,8 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
     t2 = time.perf_counter()
     write_figures(rd, res.figures)
     t3 = time.perf_counter()
-    timing = {"compute_s": runtime, "series_s": t2 - t1, "figures_s": t3 - t2, "report_s": None}
+    timing = {"compute_s": runtime, "series_s": t2 - t1, "figures_s": t3 - t2, "report_s": None,
+              "robustness_s": robust["wall_s"]}
 
     summary = {
         "experiment": exp.name,
@@ -294,6 +317,7 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
         "config": cfg.model_dump(mode="json"),
         "metrics": metrics,
         "claims": [c.as_dict() for c in res.claims],
+        "robustness": robust,
         # --- beyond the contract: what the report needs to rebuild itself
         "purpose": exp.purpose,
         "paper": exp.paper,
@@ -312,6 +336,5 @@ def execute(exp: Experiment, cfg: ExperimentConfig, out: str | Path, *, quick: b
         summary["name"] = variant[0]
         summary["variant"] = {"name": variant[0], "sets": list(variant[1])}
         summary["rerun"] = f"sinslab run {exp.name} --config config.toml"
-    done = complete_timed(rd, summary)
-    shutil.rmtree(campaigns, ignore_errors=True)
-    return done
+    rd.obsolete_when_complete(campaigns)
+    return complete_timed(rd, summary)

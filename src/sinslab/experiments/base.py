@@ -44,6 +44,23 @@ campaigns share; None starts a local cluster per campaign) are passed through; a
 shown in the report and written as CSV) and extra figures. Nothing else changes. A module
 whose campaign starts only from some number of runs declares it as ``CAMPAIGN_MIN_RUNS``
 (default 1), so that ``--scheduler`` with fewer runs is refused instead of ignored.
+
+Robustness: every claim declares what its verdict rests on and the alternatives a referee
+would try (:mod:`sinslab.app.claims`: :meth:`Claim.assume`, :meth:`Claim.vary`,
+:meth:`Claim.with_limits` for readings and thresholds, evaluated by ``run`` on its own
+results). An alternative that changes the physics is an :class:`Axis` of the module's
+``ROBUSTNESS(cfg)`` (a function of the resolved config, returning a list)::
+
+    def ROBUSTNESS(cfg):
+        return [Axis("master attitude error", "0′: the master is error-free (paper)",
+                     {"0.5′": ["master.att_error=0.5 arcmin"], "2′": ["master.att_error=2 arcmin"]},
+                     claims=("small_all_converge",), reduced=("runs=60",), source="paper")]
+
+``sinslab run NAME --robustness`` re-runs the experiment for each alternative, with the
+axis's ``reduced`` ``--set`` items (a smaller scenario that decides the same: the reduced
+run at the default assumptions is made too and its verdicts are the baseline the
+alternatives are compared with), and adds each listed claim's verdict as an alternative. A
+re-run has ``ctx.claims_only`` set: ``run`` may skip figures and series files.
 """
 from __future__ import annotations
 
@@ -60,7 +77,7 @@ from sinslab.app.config import (ExperimentConfig, Field, ImuSection, Q, QV, Sect
 from sinslab.app.outputs import Figure  # noqa: F401  (re-exported: what run returns)
 from sinslab.app.claims import Claim  # noqa: F401  (re-exported: what run returns)
 
-__all__ = ["Claim", "Metric", "Figure", "Table", "Result", "RunContext", "Experiment",
+__all__ = ["Claim", "Axis", "Metric", "Figure", "Table", "Result", "RunContext", "Experiment",
            "ExperimentConfig", "Section", "ImuSection", "imu_section", "Q", "QV", "Field", "METRIC_NAME"]
 
 #: Metric names: stable snake_case; SI unless the name carries its unit (``_arcmin``).
@@ -73,6 +90,36 @@ class Metric:
 
     unit: str
     description: str
+
+
+@dataclass(frozen=True)
+class Axis:
+    """A physics assumption of the robustness sweep.
+
+    assumption : str
+        What is varied ("master attitude error"); the name the claims declare it by.
+    default : str
+        The run's default, as text, and whose it is (``source``: "paper" or "project").
+    alternatives : {name: [dotted key=value, ...]}
+        Each alternative's ``--set`` items (on top of the run's configuration).
+    claims : ids of the claims whose verdicts it may change (empty: every claim).
+    reduced : ``--set`` items of the smaller scenario the alternatives are run at (empty:
+        at the run's own size); ``demo``: those of ``sinslab demo`` (None: as ``reduced``).
+    readings : also record, per alternative, the verdicts of the re-run claims' own readings.
+    """
+
+    assumption: str
+    default: str
+    alternatives: Mapping[str, tuple]
+    claims: tuple = ()
+    reduced: tuple = ()
+    demo: tuple | None = None
+    source: str = "project"
+    readings: bool = False
+
+    def sets(self, demo: bool = False) -> tuple:
+        """The reduction's ``--set`` items at the sweep's size."""
+        return tuple(self.reduced if (self.demo is None or not demo) else self.demo)
 
 
 @dataclass
@@ -120,6 +167,9 @@ class RunContext:
     #: (kept when the run fails, reused by a rerun into the same folder, removed at the end)
     campaigns: Path | None = None
     config_key: str = ""
+    #: a re-run of the robustness sweep: only the claims are used (figures and series may
+    #: be skipped)
+    claims_only: bool = False
 
     def campaign_store(self, label: str) -> dict:
         """``store``/``store_key`` arguments of a campaign named ``label`` (see
@@ -132,11 +182,11 @@ class RunContext:
         """Generator for the run's seed (and optional sub-stream ids): same seed, same bytes."""
         return np.random.default_rng([self.seed, *stream])
 
-    @staticmethod
-    def progress(description: str, total: float | None = None, unit: str = "", *,
+    def progress(self, description: str, total: float | None = None, unit: str = "", *,
                  enabled: bool = True):
-        """Progress bar context manager (:func:`sinslab.core.progress.progress`)."""
-        return _progress.progress(description, total, unit, enabled=enabled)
+        """Progress bar context manager (:func:`sinslab.core.progress.progress`; none in a
+        re-run of the robustness sweep)."""
+        return _progress.progress(description, total, unit, enabled=enabled and not self.claims_only)
 
 
 @dataclass(frozen=True)
@@ -155,6 +205,15 @@ class Experiment:
     #: ``{suffix: [dotted key=value, ...]}``: further scenarios that ``sinslab demo`` runs
     #: as ``NAME-suffix`` (e.g. the paper's laboratory variant or a Monte Carlo campaign).
     variants: Mapping[str, tuple] = field(default_factory=dict)
+    #: ``ROBUSTNESS(cfg) -> [Axis]`` of the module (None: no physics alternatives)
+    robustness: Callable | None = None
+
+    def axes(self, cfg) -> list:
+        """The physics alternatives of the robustness sweep for the resolved ``cfg``."""
+        axes = list(self.robustness(cfg)) if self.robustness is not None else []
+        if not all(isinstance(a, Axis) for a in axes):
+            raise TypeError(f"{self.module}.ROBUSTNESS must return Axis objects")
+        return axes
 
     @classmethod
     def from_module(cls, mod) -> "Experiment":
@@ -172,4 +231,5 @@ class Experiment:
                    quick=dict(getattr(mod, "QUICK", {})), metrics=metrics,
                    paper=getattr(mod, "PAPER", ""), notes=tuple(getattr(mod, "NOTES", ())),
                    module=mod.__name__,
-                   variants={k: tuple(v) for k, v in getattr(mod, "DEMO_VARIANTS", {}).items()})
+                   variants={k: tuple(v) for k, v in getattr(mod, "DEMO_VARIANTS", {}).items()},
+                   robustness=getattr(mod, "ROBUSTNESS", None))

@@ -714,12 +714,12 @@ def run(cfg: Config, ctx) -> Result:
 
     # ---- figures (paper Figs 2-4 + comparison + map)
     figs = []
-    specs = [("att", "Fig. 2: attitude error", s_att / units.arcsec, la["att"] / units.arcsec,
+    specs = [("att", "Attitude error", 2, s_att / units.arcsec, la["att"] / units.arcsec,
               ["φE", "φN", "φU"], "arcsec"),
-             ("vel", "Fig. 3: horizontal velocity error", s_vel, la["vel"], ["δvE", "δvN"], "m/s"),
-             ("pos", "Fig. 4: horizontal position error", s_pos, la["pos"], ["north", "east"], "m")]
-    for name, title, sg, rm_, labels, unit in specs:
-        fig, ax = P.figure(len(labels), row_height=2.1, title=title)
+             ("vel", "Horizontal velocity error", 3, s_vel, la["vel"], ["δvE", "δvN"], "m/s"),
+             ("pos", "Horizontal position error", 4, s_pos, la["pos"], ["north", "east"], "m")]
+    for name, title, paper_fig, sg, rm_, labels, unit in specs:
+        fig, ax = P.figure(len(labels), row_height=2.1, title=f"{title} (the paper's Fig. {paper_fig})")
         for i, a in enumerate(ax):
             _shade(a, windows)
             a.plot(t, sg[:, i], color=P.COLORS[i], lw=1.3, label=f"{labels[i]} σ (covariance analysis)")
@@ -728,7 +728,8 @@ def run(cfg: Config, ctx) -> Result:
             a.legend(fontsize="x-small", loc="best", framealpha=0.6)
         ax[-1].set_xlabel("time [s]")
         figs.append(Figure(f"{name}_sigma", fig, f"{title} σ of the lag-aware filter (covariance analysis) "
-                                                 f"and Monte Carlo RMS; orange: fix windows"))
+                                                 f"and Monte Carlo RMS; orange: fix windows (the paper's "
+                                                 f"Fig. {paper_fig})"))
     fig, ax = P.figure(1, row_height=3.6)
     _shade(ax[0], windows)
     for i, (k, lab) in enumerate((("lagaware", "lag-aware (paper eqs 4-10)"), ("lagignore", "lag ignored"),

@@ -191,8 +191,10 @@ class AnalysisTwo(Section):
         "the paper's constant-drift model stops following)")
     trend_amplitude: Q("angular_rate") = Field("0.0005 deg/h", description="trend amplitude: the warm-up's total "
                                                "change, or the sine's amplitude")
-    trend_time: Q("time", gt="0 s") = Field("24 h", description="warm-up time constant (trend = 'warmup')")
-    trend_period: Q("time", gt="0 s") = Field("48 h", description="sine period (trend = 'sine')")
+    trend_time: Q("time", gt="0 s") = Field("24 h", description="warm-up time constant (trend = 'warmup')",
+                                            json_schema_extra={"used_when": {"trend": "warmup"}})
+    trend_period: Q("time", gt="0 s") = Field("48 h", description="sine period (trend = 'sine')",
+                                              json_schema_extra={"used_when": {"trend": "sine"}})
     trend_ramp: Q("angular_rate") = Field("0.0003 deg/h", description="plus a linear rise over the whole run")
     drift_rw: Q("rate_random_walk", ge="0 deg/h/sqrt(h)") = Field(
         "0 deg/h/sqrt(h)", description="if > 0: the trend filters are run a second time with this random walk "

@@ -85,7 +85,7 @@ from __future__ import annotations
 
 import os
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
@@ -446,7 +446,8 @@ class DriverResult:
     history : sinslab.fusion.smoothing.History or None
         The forward pass recorded for smoothing (``history=`` of :func:`run`).
     decisions : Decisions
-        What each measurement's gate and row gate decided, by measurement index.
+        What each measurement's gate and row gate decided, by measurement index (none
+        recorded for a result made elsewhere, e.g. the factor graph's).
     """
 
     t: np.ndarray
@@ -457,7 +458,7 @@ class DriverResult:
     applied: Applied
     layout: object
     history: object = None
-    decisions: Decisions = None
+    decisions: Decisions = field(default_factory=lambda: Decisions({}, {}))
 
     def _key(self, key):
         return tuple(None if c is None else c[key] for c in self.compensation)

@@ -36,7 +36,9 @@ class RtkSolution:
     ``float_pos``, ``fixed_pos`` (E, 3) and ``float_cov``, ``fixed_cov`` (E, 3, 3) ECEF
     [m, m²]; ``counts`` (signals skipped by cause), ``slips`` (restarts by cause);
     ``fixed_dd`` per epoch the double-difference integers fixed and ``restarted`` the signals
-    whose ambiguity was (re)started (see :class:`sinslab.fusion.rtk.RtkLog`)."""
+    whose ambiguity was (re)started (see :class:`sinslab.fusion.rtk.RtkLog`); ``nis``
+    ``{"ph" | "code": (mean ν²/(H P Hᵀ + R) of the double differences used, one row at a
+    time, rows)}``."""
 
     t: np.ndarray
     status: np.ndarray
@@ -55,8 +57,7 @@ class RtkSolution:
     slips: dict
     fixed_dd: list = None
     restarted: list = None
-    log: dict = None
-    nis_sums: dict = None
+    nis: dict = None
 
     @property
     def fixed(self):
@@ -70,6 +71,49 @@ class RtkSolution:
         if not fx.size:
             return None, None
         return int(fx[0] - have[0] + 1), float(self.t[fx[0]] - self.t[have[0]])
+
+    def summary(self):
+        """Metrics of the run: epochs with a solution, fixed (share), time to the first
+        fix [epochs, s], median ratio of the fixed epochs, integers fixed (median per fixed
+        epoch), ambiguity restarts by cause and receiver, signals left out by cause, rows
+        rejected by the gate, fixes refused by the validation."""
+        seen = self.status > 0
+        n_fix = int(self.fixed.sum())
+        ep, sec = self.time_to_first_fix()
+        fr = self.ratio[self.fixed]
+        fr = fr[np.isfinite(fr)]
+        out = dict(rtk_epochs=int(self.t.size), rtk_epochs_solved=int(seen.sum()), rtk_epochs_fixed=n_fix,
+                   rtk_fixed_fraction=float(n_fix / max(int(seen.sum()), 1)), rtk_first_fix_epochs=ep,
+                   rtk_first_fix_s=sec, rtk_ratio_median=float(np.median(fr)) if fr.size else None,
+                   rtk_integers_fixed_median=float(np.median(self.n_fixed[self.fixed])) if n_fix else 0.0)
+        out.update({f"restarts_{k}": int(v) for k, v in self.slips.items()})
+        c = self.counts
+        out.update(epochs_without_base=c["no_base_epoch"], signals_without_base_signal=c["no_base_signal"],
+                   signals_half_cycle=c["half_cycle"], signals_without_state=c["no_slot"],
+                   code_rows_rejected=c["code_rejected"], phase_rows_rejected=c["phase_rejected"],
+                   fixes_refused_by_validation=c["fix_rejected"])
+        if self.nis:
+            out.update(phase_nis_mean=self.nis["ph"][0], phase_rows=self.nis["ph"][1],
+                       code_nis_mean=self.nis["code"][0], code_rows=self.nis["code"][1])
+        return out
+
+    def table(self):
+        """Per epoch: t [s], status, ratio, integers fixed and formed, double differences
+        of phase and code, restarts, and the solution (fixed where fixed, else float) as
+        latitude, longitude [deg], height [m] with its σ east, north, up [m]."""
+        ok = np.all(np.isfinite(self.pos), 1)
+        lat = np.full(self.t.size, np.nan)
+        lon, h = lat.copy(), lat.copy()
+        if ok.any():
+            lat[ok], lon[ok], h[ok] = E.ecef_to_geodetic(self.pos[ok])
+        cov = np.where(self.fixed[:, None, None], self.fixed_cov, self.float_cov)
+        sig = np.full((self.t.size, 3), np.nan)
+        for i in np.flatnonzero(ok):
+            C = E.enu_to_ecef_matrix(lat[i], lon[i])
+            sig[i] = np.sqrt(np.maximum(np.diag(C.T @ cov[i] @ C), 0.0))
+        return dict(t_s=self.t, status=self.status, ratio=self.ratio, n_fixed=self.n_fixed, n_amb=self.n_amb,
+                    n_phase=self.n_phase, n_code=self.n_code, n_slip=self.n_slip, lat_deg=np.degrees(lat),
+                    lon_deg=np.degrees(lon), h_m=h, sigma_e_m=sig[:, 0], sigma_n_m=sig[:, 1], sigma_u_m=sig[:, 2])
 
     def enu_errors(self, reference, which="pos"):
         """East, north, up errors (E, 3) [m] of ``pos`` (or ``float_pos``, ``fixed_pos``)
@@ -194,5 +238,5 @@ def _solution(rover, eng, e0):
     return RtkSolution(rover.t_epoch.copy(), st, full(a["ratio"], np.nan), *ints.values(), pos, fpos, xpos,
                        full(a["float_cov"], np.nan, (3, 3)), full(a["fixed_cov"], np.nan, (3, 3)),
                        dict(eng.counts, no_slot=eng.slots.full), eng.slip_counts,
-                       [([], np.zeros(0))] * e0 + list(a["fixed_dd"]), [[]] * e0 + list(a["restarted"]), a,
-                       getattr(eng, "nis", None))
+                       [([], np.zeros(0))] * e0 + list(a["fixed_dd"]), [[]] * e0 + list(a["restarted"]),
+                       {k: (v[0] / v[1] if v[1] else None, v[1]) for k, v in eng.nis.items()})

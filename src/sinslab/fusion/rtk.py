@@ -239,6 +239,8 @@ class RtkEngine:
         self._b_prev = None
         self._gated = set()                 # slots whose double difference failed the gate
         self.n = int(n)
+        #: ν²/(H P Hᵀ + R) of the rows used, one row at a time: [sum, rows] per kind
+        self.nis = {"ph": [0.0, 0], "code": [0.0, 0]}
 
     # -- set-up
     def _base_terms(self):
@@ -507,6 +509,9 @@ class RtkEngine:
             elif bad.any():
                 self._gated.update(int(s_) for s_ in sig["slot"][oth[bad]])
                 self.counts["phase_rejected"] += int(bad.sum())
+            keep = ~bad
+            self.nis[kind][0] += float(np.sum(nu[keep] ** 2 / S[keep]))
+            self.nis[kind][1] += int(keep.sum())
             if not bad.any():
                 out[kind].append((ref, oth, z, H, R))
             elif not bad.all():

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sinslab.core import units
+from sinslab.fusion.measurements.schedule import robust_weighting
 
 __all__ = ["FilterGrid", "InsSpec", "FixSpec", "DISCRETIZATIONS", "VERTICAL"]
 
@@ -180,9 +181,11 @@ class FixSpec:
         Name of a :func:`sinslab.nav.errstate.lever_arm` block of the model that estimates
         the antenna lever arm (``lever_arm`` is then the value its states are errors of);
         None: the lever arm is known.
-    robust : float, optional
-        Down-weight a fix whose innovation the filter cannot explain (probability ``robust``
-        that a consistent fix is touched): :func:`sinslab.fusion.measurements.schedule.robust_R`.
+    robust : RobustWeighting, float or str, optional
+        Down-weight a fix whose innovation the filter cannot explain
+        (:class:`sinslab.fusion.measurements.schedule.RobustWeighting`: a probability is
+        Chang's whole-fix rule, :func:`~sinslab.fusion.measurements.schedule.robust_R`;
+        ``"huber[:k0]"``, ``"igg3[:k0:k1]"`` row weights); held as a ``RobustWeighting``.
     """
 
     t: np.ndarray
@@ -196,7 +199,7 @@ class FixSpec:
     outages: tuple = ()
     windows: tuple | None = None
     lever_block: str | None = None
-    robust: float | None = None
+    robust: object = None
 
     def __post_init__(self):
         t = np.atleast_1d(np.array(self.t, dtype=float))
@@ -237,6 +240,7 @@ class FixSpec:
                         ("arrive", arrive), ("lever_arm", lever)):
             object.__setattr__(self, name, None if v is None else _frozen(v))
         object.__setattr__(self, "latency", lat)
+        object.__setattr__(self, "robust", robust_weighting(self.robust))
         object.__setattr__(self, "outages", outs)
         object.__setattr__(self, "windows", win)
 

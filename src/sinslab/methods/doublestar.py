@@ -608,6 +608,7 @@ class StoredStateUpdate:
         :class:`~sinslab.estimation.kalman.UpdateResult` of the update at ``t_m``."""
         from sinslab.estimation.filter import compiled_update
         from sinslab.estimation.kalman import update, van_loan
+        from sinslab.estimation.kernels import cov_predict
 
         if F is None or Qc is None:
             raise ValueError("the stored-state update needs F and Qc (continuous model at t_m)")
@@ -620,30 +621,34 @@ class StoredStateUpdate:
         x_post, P_post, c_post = filt.posterior_at(j)
         z = np.atleast_1d(np.asarray(z, dtype=float))
         Hm = np.atleast_2d(np.asarray(H, dtype=float))
+        n = F.shape[0]
+        T1, W = np.empty((n, n)), np.empty((n, n))
         xff = x_post + c_post
         tau = max(t_m - e.t, 0.0)
+        # the predictions are those of KalmanFilter.predict: P by estimation's kernel
+        # (exactly symmetric), x by Φ x
+        P = np.array(P_post, dtype=float, order="C", copy=True)
         if tau > 0:
             Phi1, Q1 = van_loan(F, Qc, tau)
             xff = Phi1 @ xff
-            P = Phi1 @ P_post @ Phi1.T + Q1
+            cov_predict(P, np.ascontiguousarray(Phi1), np.ascontiguousarray(Q1), n, T1, W)
         else:
-            P = P_post.copy()
+            P = 0.5 * (P + P.T)
         # the measurement was formed from the navigation state at t_m, which carried the
         # cumulative feedback of epoch j propagated to t_m
         c_m = (van_loan(F, np.zeros_like(F), tau)[0] @ c_post) if tau > 0 else c_post
-        P = 0.5 * (P + P.T)
         zc = z + Hm @ c_m
         res = (compiled_update(xff, P, zc, Hm, R) if mask is None and sequential is not False
                else None)
         if res is None:
             res = update(xff, P, zc, Hm, R, mask=mask, sequential=sequential)
         dT = filt.t - t_m
+        P = np.array(res.P, dtype=float, order="C", copy=True)
+        xff = res.x
         if dT > 0:
             Phi2, Q2 = van_loan(F, Qc, dT)
-            xff = Phi2 @ res.x
-            P = Phi2 @ res.P @ Phi2.T + Q2
-        else:
-            xff, P = res.x, res.P
+            xff = Phi2 @ xff
+            cov_predict(P, np.ascontiguousarray(Phi2), np.ascontiguousarray(Q2), n, T1, W)
         filt.restart_history(xff - filt.c, 0.5 * (P + P.T))
         return res
 

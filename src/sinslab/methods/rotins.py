@@ -23,6 +23,7 @@ from sinslab.core import attitude as A
 from sinslab.core import earth
 from sinslab.estimation import observability as obs
 from sinslab.estimation.kalman import discretize
+from sinslab.estimation.kernels import gain_correct, predicted_dense
 from sinslab.estimation.linear import error_budget, propagate_covariance
 from sinslab.nav.errstate import DifferenceModel, NavPoint, accel_bias, gyro_bias
 
@@ -931,7 +932,10 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
     ``root[src[p]][u] ξ`` (draws ``xis[:, c, col[p]]``), INS 1's part its step mean through
     ``G1[u]`` (``us``) and the block-mean part that of its block (``ubar``); the filter
     predicts, and updates every part with the gain ``gains[k]`` (n, 4) from its four
-    measured components (measurement noise ``vs · sv`` in INS 1's part only)."""
+    measured components (measurement noise ``vs · sv`` in INS 1's part only). The filter
+    steps with estimation's dense prediction and fixed-gain update
+    (:mod:`sinslab.estimation.kernels`); the true parts' propagation is fused with their
+    noise terms here."""
     B, P_, n = X.shape
     p1 = G1.shape[2]
     t = np.empty(n)
@@ -963,21 +967,18 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
                         t[i] += acc
                 for i in range(n):
                     X[b, p, i] = t[i]
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(n):
-                        acc += Phi[u, i, j] * Xh[b, p, j]
-                    t[i] = acc
+                # the nominal filter: estimation's prediction and fixed-gain update, the
+                # innovation the measured differences (truth + noise) minus the prediction
+                xh = Xh[b, p]
+                predicted_dense(xh, Phi[u], t)
                 for i in range(4):
                     nu[i] = X[b, p, i] - t[i]
                     if p == 0:
                         nu[i] += vs[b, c, i] * sv[i]
+                gain_correct(t, gains[k], nu)
                 for i in range(n):
-                    acc = 0.0
-                    for j in range(4):
-                        acc += gains[k, i, j] * nu[j]
-                    Xh[b, p, i] = t[i] + acc
-                ez[b, p, k + 1] = Xh[b, p, iz]
+                    xh[i] = t[i]
+                ez[b, p, k + 1] = t[iz]
 
 
 def _orderings(wstd, wstd_sep, betas, sep_ratio):

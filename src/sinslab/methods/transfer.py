@@ -58,6 +58,9 @@ from numba import njit
 
 from sinslab.core.attitude import (dcm_to_euler, dcm_to_quat, dcm_to_rotvec, q2dcm_s, q2euler_s, qmul_s,
                                    rotvec_to_dcm, skew, wrap_pi, wrap_pi_s)
+from sinslab.estimation.kernels import (gain_correct, innovation, predict_lanes, predicted_dense,
+                                        sequential_update_lanes, state_predict_dense)
+from sinslab.estimation.linear import propagate_covariance, sparsity
 from sinslab.nav import errstate
 
 __all__ = [
@@ -65,7 +68,7 @@ __all__ = [
     "AttitudeMeasurement", "VelocityMeasurement", "MasterRecord", "batch_filter",
     "paper_euler_H", "FLOPS", "align_recorded", "TransferResult", "TransferMeasurement",
     "align_lanes", "LaneAlignment", "CommonGains", "lane_gains", "batch_gains", "PARAMETERISATION", "parameterisation", "installation_parameters",
-    "rate_correlation", "propagate_errors",
+    "rate_correlation", "rate_norms", "rate_lag", "propagate_errors",
 ]
 
 KINDS = ("euler", "dcm", "kain", "optimal")
@@ -554,82 +557,86 @@ def _stopped(l, k, x, fb, diverged_at):
 
 
 @njit(cache=True)
-def _lane_step(S, active, comp, x, Phi, predict, H, Kg, ref, vm, lane_master, noise, form, fed, i_phi, i_dv, i_a,
-               i_comp, phi_bound, diverged_at, k, fb, a_rec, record):
-    """One filter epoch of the paper-form closed loop of :func:`align_lanes`, lane by lane.
-
-    In place: ``x`` (L, n) predicted with ``Phi`` (when ``predict``), updated with the
-    common ``H`` (6, n) and gain ``Kg`` (n, 6) from the lanes' INS states ``S`` (rows of
-    :class:`~sinslab.nav.lanes.LaneBank`) against their master (``ref`` (nm, 4) of
-    :func:`_reference_rows`, velocity ``vm`` (nm, 3), measurement noise ``noise`` (nm, 6));
-    a lane whose state turns non-finite or whose φ̂ exceeds ``phi_bound`` is stopped
-    (``active``) and its first stopped epoch written to ``diverged_at``; the active lanes'
-    sensor estimates (state indices ``i_comp``, in the order of the bank's ``comp``) are
-    added to ``comp``, their φ̂, δv̂ copied to ``fb`` (L, 6) for the INS correction and the
-    fed-back states (``fed``) zeroed; with ``record`` the installation estimate is copied
-    to ``a_rec`` (L, 3). Stopped lanes get NaN states and zero corrections.
-    """
-    L, n = x.shape
-    xp = np.empty(n)
-    z = np.empty(6)
-    nu = np.empty(6)
-    for l in range(L):
+def _lane_measurements(S, active, ref, vm, lane_master, noise, form, Z):
+    """The velocity + attitude measurement ``Z`` (L, 6) of the active lanes: their INS
+    states ``S`` (rows of :class:`~sinslab.nav.lanes.LaneBank`) against their master
+    (``ref`` (nm, 4) of :func:`_reference_rows`, velocity ``vm`` (nm, 3)) plus the
+    measurement noise ``noise`` (nm, 6) of that master; ``form`` a code of :data:`_FORM`."""
+    for l in range(S.shape[0]):
         if not active[l]:
-            _stopped(l, k, x, fb, diverged_at)
             continue
-        if predict:
-            for i in range(n):
-                acc = 0.0
-                for j in range(n):
-                    acc += Phi[i, j] * x[l, j]
-                xp[i] = acc
-            for i in range(n):
-                x[l, i] = xp[i]
         m = lane_master[l]
         q0, q1, q2, q3 = S[l, 0], S[l, 1], S[l, 2], S[l, 3]
         nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
         q0, q1, q2, q3 = q0 / nq, q1 / nq, q2 / nq, q3 / nq
+        z = Z[l]
         for c in range(3):
             z[c] = S[l, 4 + c] - vm[m, c]
         _measured_attitude(form, q0, q1, q2, q3, ref[m], z)
         for c in range(6):
             z[c] += noise[m, c]
-        for i in range(6):
-            acc = 0.0
-            for j in range(n):
-                acc += H[i, j] * x[l, j]
-            nu[i] = z[i] - acc
-        if form == 0:
-            for i in range(3, 6):
-                nu[i] = wrap_pi_s(nu[i])
-        for i in range(n):
-            acc = 0.0
-            for j in range(6):
-                acc += Kg[i, j] * nu[j]
-            x[l, i] = x[l, i] + acc
-        # divergence guard before the correction reaches the INS
+
+
+@njit(cache=True, inline="always")
+def _matched_update(x, H, G, z, wrap, nu):
+    """The paper-form update of one filter, ``x <- x + G (z − H x)`` with the common gain
+    ``G`` (n, 6) (estimation's :func:`~sinslab.estimation.kernels.innovation` and
+    :func:`~sinslab.estimation.kernels.gain_correct`); with ``wrap`` (Euler-angle form) the
+    attitude innovation rows 3..5 wrapped to (−π, π]. ``nu`` (6,) a work array."""
+    innovation(x, H, z, nu)
+    if wrap:
+        for i in range(3, 6):
+            nu[i] = wrap_pi_s(nu[i])
+    gain_correct(x, G, nu)
+
+
+@njit(cache=True)
+def _lane_filters(X, active, Phi, predict, H, G, Z, wrap, nu, tmp):
+    """One epoch of the paper-form filters of the active lanes, in place on ``X`` (L, n):
+    the prediction with ``Phi`` (when ``predict``), then :func:`_matched_update` with the
+    common ``H`` (6, n), gain ``G`` (n, 6) and each lane's measurement ``Z[l]``."""
+    for l in range(X.shape[0]):
+        if not active[l]:
+            continue
+        x = X[l]
+        if predict:
+            state_predict_dense(x, Phi, tmp)
+        _matched_update(x, H, G, Z[l], wrap, nu)
+
+
+@njit(cache=True)
+def _lane_feedback(X, active, comp, i_comp, fed, i_fb, phi_bound, diverged_at, k, fb):
+    """The divergence guard and feedback of epoch k after the lanes' updates.
+
+    A lane whose state is not finite or whose φ̂ (states ``i_fb[:3]``) exceeds
+    ``phi_bound`` is stopped (``active``), its first stopped epoch written to
+    ``diverged_at``; stopped lanes get NaN states and zero corrections. The active lanes'
+    sensor estimates (states ``i_comp``, in the order of the bank's ``comp``) are added to
+    ``comp``, their φ̂, δv̂ (states ``i_fb``) copied to ``fb`` (L, 6) for the INS
+    correction and the fed-back states (``fed``) zeroed."""
+    L, n = X.shape
+    for l in range(L):
+        if not active[l]:
+            _stopped(l, k, X, fb, diverged_at)
+            continue
         ok = True
         for i in range(n):
-            if not math.isfinite(x[l, i]):
+            if not math.isfinite(X[l, i]):
                 ok = False
-        p0, p1, p2 = x[l, i_phi], x[l, i_phi + 1], x[l, i_phi + 2]
+        p0, p1, p2 = X[l, i_fb[0]], X[l, i_fb[1]], X[l, i_fb[2]]
         if not math.sqrt(p0 * p0 + p1 * p1 + p2 * p2) <= phi_bound:
             ok = False
         if not ok:
             active[l] = False
-            _stopped(l, k, x, fb, diverged_at)
+            _stopped(l, k, X, fb, diverged_at)
             continue
         for c in range(12):
-            comp[l, c] += x[l, i_comp[c]]
-        for c in range(3):
-            fb[l, c] = x[l, i_phi + c]
-            fb[l, 3 + c] = x[l, i_dv + c]
+            comp[l, c] += X[l, i_comp[c]]
+        for c in range(6):
+            fb[l, c] = X[l, i_fb[c]]
         for i in range(n):
             if fed[i]:
-                x[l, i] = 0.0
-        if record:
-            for c in range(3):
-                a_rec[l, c] = x[l, i_a + c]
+                X[l, i] = 0.0
 
 
 @njit(cache=True)
@@ -649,46 +656,30 @@ def _lane_attitudes(S, active, out):
 @njit(cache=True)
 def _feedforward(zz, H, Kg, Phi, x, wrap, record_every, xs):
     """The state recursion of the paper-form :func:`batch_filter`, run by run: at every
-    epoch k the update with the common ``H[k]`` (6, n) and gain ``Kg[k]`` (n, 6) from
-    ``zz[:, k]`` (R, K+1, 6) (``wrap``: the attitude innovation wrapped to (−π, π]), the
-    state recorded into ``xs`` (R, M, n) every ``record_every`` epochs, then the prediction
-    with ``Phi[k]``. ``x`` (R, n) holds the initial states and is overwritten."""
+    epoch k :func:`_matched_update` with the common ``H[k]`` (6, n) and gain ``Kg[k]``
+    (n, 6) from ``zz[:, k]`` (R, K+1, 6), the state recorded into ``xs`` (R, M, n) every
+    ``record_every`` epochs, then the prediction with ``Phi[k]``. ``x`` (R, n) holds the
+    initial states and is overwritten."""
     R, n = x.shape
     Kp1 = zz.shape[1]
     nu = np.empty(6)
-    xp = np.empty(n)
+    tmp = np.empty(n)
     for r in range(R):
+        xr = x[r]
         for k in range(Kp1):
-            for i in range(6):
-                acc = 0.0
-                for j in range(n):
-                    acc += H[k, i, j] * x[r, j]
-                nu[i] = zz[r, k, i] - acc
-            if wrap:
-                for i in range(3, 6):
-                    nu[i] = wrap_pi_s(nu[i])
-            for i in range(n):
-                acc = 0.0
-                for j in range(6):
-                    acc += Kg[k, i, j] * nu[j]
-                x[r, i] = x[r, i] + acc
+            _matched_update(xr, H[k], Kg[k], zz[r, k], wrap, nu)
             if k % record_every == 0:
                 for i in range(n):
-                    xs[r, k // record_every, i] = x[r, i]
+                    xs[r, k // record_every, i] = xr[i]
             if k < Kp1 - 1:
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(n):
-                        acc += Phi[k, i, j] * x[r, j]
-                    xp[i] = acc
-                for i in range(n):
-                    x[r, i] = xp[i]
+                state_predict_dense(xr, Phi[k], tmp)
 
 
 def propagate_errors(Phi, x0):
     """Error states of many runs propagated open loop through the transitions ``Phi``
-    (K, n, n) from ``x0`` (R, n): ``x_{k+1} = Φ_k x_k``, (R, K+1, n). Compiled run by run,
-    so a run's numbers do not depend on the runs stacked with it."""
+    (K, n, n) from ``x0`` (R, n): ``x_{k+1} = Φ_k x_k``, (R, K+1, n). Compiled run by run
+    (estimation's state prediction), so a run's numbers do not depend on the runs stacked
+    with it."""
     x0 = np.asarray(x0, dtype=float)
     Phi = np.ascontiguousarray(Phi, dtype=float)
     xs = np.empty((x0.shape[0], Phi.shape[0] + 1, x0.shape[1]))
@@ -701,11 +692,7 @@ def propagate_errors(Phi, x0):
 def _propagate(Phi, xs):
     for r in range(xs.shape[0]):
         for k in range(Phi.shape[0]):
-            for i in range(xs.shape[2]):
-                acc = 0.0
-                for j in range(xs.shape[2]):
-                    acc += Phi[k, i, j] * xs[r, k, j]
-                xs[r, k + 1, i] = acc
+            predicted_dense(xs[r, k], Phi[k], xs[r, k + 1])
 
 
 # ------------------------------------------------------- runs-vectorised Kalman filter --
@@ -749,7 +736,6 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
     R_runs = z_vel.shape[0]
     n = P0.shape[0]
     Qk = np.zeros((n, n)) if Qk is None else Qk
-    Rm = np.diag(np.concatenate([R_vel, R_att]))
     Hv = np.zeros((3, n))
     Hv[np.arange(3), np.arange(dv_slice.start, dv_slice.stop)] = 1.0
     idx_rec = list(range(0, Kp1, record_every))
@@ -768,10 +754,9 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
         _feedforward(zz, np.ascontiguousarray(G.H), np.ascontiguousarray(G.K), np.ascontiguousarray(Phi, dtype=float),
                      x, match.kind == "euler", int(record_every), xs)
         return xs, G.sigma
-    nr = R_runs
     P = np.broadcast_to(np.array(P0, float), (R_runs, n, n)).copy()
     sig = np.empty((R_runs, len(idx_rec), n))
-    I = np.eye(n)
+    runs = _PerLane(Phi, Qk, R_vel, R_att, R_runs)
     for k in range(Kp1):
         H = np.zeros((R_runs, 6, n))
         H[:, :3] = Hv
@@ -779,22 +764,47 @@ def batch_filter(Phi, Cm, z_vel, C_slave, match: AttitudeMatch, x0, P0, R_vel, R
         zz[:, :3] = z_vel[:, k]
         z6, H6 = match.innovation_many(Cm[k], C_slave[:, k], x[:, phi_slice], x[:, a_slice])
         H[:, 3:, cols] = H6
-        zz[:, 3:] = z6 if att_noise is None else z6 + att_noise[:nr, k]
-        PHt = P @ np.swapaxes(H, 1, 2)
-        S = H @ PHt + Rm
-        K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)
-        innov = zz - np.einsum("rij,rj->ri", H, x)
-        x = x + np.einsum("rij,rj->ri", K, innov)
-        IKH = I - K @ H
-        P = IKH @ P @ np.swapaxes(IKH, 1, 2) + K @ Rm @ np.swapaxes(K, 1, 2)
+        zz[:, 3:] = z6 if att_noise is None else z6 + att_noise[:R_runs, k]
+        runs.update(x, P, zz, H)
         if r < len(idx_rec) and idx_rec[r] == k:
             xs[:, r] = x
             sig[:, r] = np.sqrt(np.diagonal(P, axis1=1, axis2=2))
             r += 1
         if k < Kp1 - 1:
-            x = x @ Phi[k].T
-            P = Phi[k] @ P @ Phi[k].T + Qk
+            runs.predict(k, x, P)
     return xs, sig
+
+
+class _PerLane:
+    """The filters of the EKF form, one covariance per lane (run), stepped with
+    estimation's kernels: :meth:`predict` (``P <- Φ_k P Φ_kᵀ + Q_k``, ``x <- Φ_k x``) and
+    :meth:`update` (sequential scalar Joseph updates of the six rows, R diagonal)."""
+
+    def __init__(self, Phi, Qk, R_vel, R_att, lanes):
+        self.Phi = np.ascontiguousarray(Phi, dtype=float)
+        self.Q = np.ascontiguousarray(Qk, dtype=float)
+        self.r = np.ascontiguousarray(np.concatenate([R_vel, R_att]), dtype=float)
+        self.nzc, self.nnz = sparsity(self.Phi)
+        n = self.Q.shape[0]
+        # the sensor and installation states (random constants) are the diagonal rows of
+        # every Φ_k: the dense part of Φ P Φᵀ is the first `tail` rows
+        off = np.any((self.Phi != 0.0) & ~np.eye(n, dtype=bool), axis=(0, 2))
+        self.tail = int(np.flatnonzero(off)[-1]) + 1 if off.any() else 0
+        self.T1, self.W, self.tmp = np.empty((n, n)), np.empty((self.tail, self.tail)), np.empty(n)
+        self.nis = np.empty(lanes)
+
+    def predict(self, k, x, P):
+        """Predict the lanes' ``x`` (L, n), ``P`` (L, n, n) in place with ``Φ_k``."""
+        predict_lanes(x, P, self.Phi[k], self.Q, self.tail, self.nzc[k], self.nnz[k], self.T1, self.W, self.tmp)
+
+    def update(self, x, P, z, H):
+        """Update each lane in place with its ``z`` (L, 6) and ``H`` (L, 6, n). A lane with a
+        non-finite z (a stopped lane, or an INS gone wrong) gets a NaN estimate and
+        covariance, as the update of such a z would give, so the caller's guard stops it."""
+        sequential_update_lanes(x, P, z, H, self.r, self.nis)
+        bad = self.nis < 0.0
+        x[bad] = np.nan
+        P[bad] = np.nan
 
 
 class CommonGains(NamedTuple):
@@ -815,31 +825,31 @@ def _stacked_H(match, C_lin, n, dv_idx, cols):
     return H
 
 
+def _common_gains(Phi, Hs, P0, R_vel, R_att, Qk, record_every):
+    """:class:`CommonGains` of the paper form's covariance recursion: the update at epoch 0
+    with ``Hs[0]``, then per step k the prediction with ``Phi[k]``, ``Qk`` and the update at
+    epoch k+1 with ``Hs[k+1]``, all stepped by estimation's covariance loop
+    (:func:`~sinslab.estimation.linear.propagate_covariance`: sequential scalar Joseph
+    updates of the six rows, their gains composed into each epoch's gain). The loop
+    predicts before it updates, so its first step is the identity without noise (no time
+    passes before the first update; exact: ``I P Iᵀ`` is P)."""
+    K, n = Phi.shape[0], P0.shape[0]
+    Phi_t = np.concatenate([np.eye(n)[None], np.asarray(Phi, dtype=float)])
+    Q_t = np.stack([np.zeros((n, n)), np.asarray(Qk, dtype=float)])
+    run = propagate_covariance(P0, Phi_t, Q_t, Hs, np.diag(np.concatenate([R_vel, R_att])),
+                               Q_index=np.minimum(np.arange(K + 1), 1), keep_gain=True)
+    return CommonGains(Hs, run.gain, run.sigma[1::record_every])
+
+
 def batch_gains(Phi, Cm, match: AttitudeMatch, P0, R_vel, R_att, Qk=None, phi_slice=slice(0, 3),
                 dv_slice=slice(3, 6), a_slice=slice(6, 9), record_every=1):
     """:class:`CommonGains` of :func:`batch_filter` in the paper form (same arguments):
     made once, they serve every batch of runs on the same trajectory and variant."""
-    Kp1, n = Cm.shape[0], P0.shape[0]
+    n = P0.shape[0]
     Qk = np.zeros((n, n)) if Qk is None else Qk
-    Rm = np.diag(np.concatenate([R_vel, R_att]))
     cols = np.r_[np.arange(phi_slice.start, phi_slice.stop), np.arange(a_slice.start, a_slice.stop)]
     Hs = _stacked_H(match, Cm, n, np.arange(dv_slice.start, dv_slice.stop), cols)
-    idx_rec = range(0, Kp1, record_every)
-    Ks = np.empty((Kp1, n, 6))
-    sig = np.empty((len(idx_rec), n))
-    P = np.array(P0, float)
-    for k in range(Kp1):
-        H = Hs[k]
-        S = H @ P @ H.T + Rm
-        K = np.linalg.solve(S, H @ P).T
-        IKH = np.eye(n) - K @ H
-        P = IKH @ P @ IKH.T + K @ Rm @ K.T
-        Ks[k] = K
-        if k % record_every == 0:
-            sig[k // record_every] = np.sqrt(np.diag(P))
-        if k < Kp1 - 1:
-            P = Phi[k] @ P @ Phi[k].T + Qk
-    return CommonGains(Hs, Ks, sig)
+    return _common_gains(Phi, Hs, P0, R_vel, R_att, Qk, record_every)
 
 
 def lane_gains(Phi, match: AttitudeMatch, P0, R_vel, R_att, C_lin, *, Qk=None, layout=None, record_every=1):
@@ -847,27 +857,11 @@ def lane_gains(Phi, match: AttitudeMatch, P0, R_vel, R_att, C_lin, *, Qk=None, l
     same arguments): made once, they serve every bank of lanes on the same trajectory and
     variant."""
     lay = transfer_model().layout if layout is None else layout
-    sl, n, K = lay.slice, lay.n, Phi.shape[0]
+    sl, n = lay.slice, lay.n
     cols = np.r_[np.arange(n)[sl("phi")], np.arange(n)[sl("lam")]]
-    Rm = np.diag(np.concatenate([R_vel, R_att]))
     Qk = np.zeros((n, n)) if Qk is None else np.asarray(Qk, float)
     Hs = _stacked_H(match, C_lin, n, np.arange(n)[sl("dv")], cols)
-    Ks = np.empty((K + 1, n, 6))
-    sig = np.empty((len(range(0, K + 1, record_every)), n))
-    P = np.array(P0, float)
-    I = np.eye(n)
-    for k in range(K + 1):
-        if k > 0:
-            P = Phi[k - 1] @ P @ Phi[k - 1].T + Qk
-        H = Hs[k]
-        PHt = P @ H.T
-        Kg = np.linalg.solve(H @ PHt + Rm, PHt.T).T
-        IKH = I - Kg @ H
-        P = IKH @ P @ IKH.T + Kg @ Rm @ Kg.T
-        Ks[k] = Kg
-        if k % record_every == 0:
-            sig[k // record_every] = np.sqrt(np.diagonal(P, axis1=-2, axis2=-1))
-    return CommonGains(Hs, Ks, sig)
+    return _common_gains(Phi, Hs, P0, R_vel, R_att, Qk, record_every)
 
 
 # ---------------------------------------------------- closed loop over many slave INS ---
@@ -906,11 +900,11 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
 
     Covariance: with the paper's linearisation (``relinearise=False``) H depends only on
     the reference attitude, taken from ``C_lin`` — the attitude the filter linearises at,
-    common to the lanes — so P and the gain are common and only the states are per lane:
-    each epoch is then one compiled advance of the bank and one compiled filter step over
-    the lanes, lane by lane (a lane's numbers do not depend on the lanes beside it).
-    With ``relinearise`` (EKF form, H at each lane's installation estimate and master
-    attitude) every lane carries its own P.
+    common to the lanes — so P and the gain are common (:func:`lane_gains`) and only the
+    states are per lane, stepped by compiled calls over the lanes, lane by lane (a lane's
+    numbers do not depend on the lanes beside it). With ``relinearise`` (EKF form, H at
+    each lane's installation estimate and master attitude) every lane carries its own P.
+    Either way the filters step with estimation's kernels, the one Kalman core.
 
     Parameters
     ----------
@@ -950,76 +944,62 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
     LaneAlignment
     """
     lay = transfer_model().layout if layout is None else layout
-    sl = lay.slice
     n = lay.n
     K = Phi.shape[0]
     L = bank.lanes
     lane_master = np.asarray(lane_master, dtype=np.int64)
-    C_lin = master_C[0] if C_lin is None else C_lin
+    Qk = np.zeros((n, n)) if Qk is None else np.asarray(Qk, float)
+    rec = list(range(0, K + 1, record_every))
+    a_out, att_out = np.full((L, len(rec), 3), np.nan), np.full((L, len(rec), 3, 3), np.nan)
+    x, diverged_at = np.zeros((L, n)), np.full(L, -1, dtype=np.int64)
+    if relinearise:
+        sig = _per_lane_loop(bank, k_kf, Phi, match, P0, R_vel, R_att, Qk, master_C, master_v, lane_master,
+                             meas_noise, lay, phi_bound, rec, x, diverged_at, a_out, att_out)
+    else:
+        # the covariance and gains are common to the lanes: made before the loop over epochs
+        C_lin = master_C[0] if C_lin is None else C_lin
+        G = lane_gains(Phi, match, P0, R_vel, R_att, C_lin, Qk=Qk, layout=lay,
+                       record_every=record_every) if gains is None else gains
+        sig = G.sigma
+        _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master, meas_noise, lay, phi_bound,
+                          rec, x, diverged_at, a_out, att_out)
+    return LaneAlignment(a_out, sig, bank.comp.copy(), att_out, diverged_at >= 0, diverged_at, np.array(rec))
+
+
+def _per_lane_loop(bank, k_kf, Phi, match, P0, R_vel, R_att, Qk, master_C, master_v, lane_master, meas_noise, lay,
+                   phi_bound, rec, x, diverged_at, a_out, att_out):
+    """The epochs of :func:`align_lanes` in the EKF form: every lane its own covariance
+    (:class:`_PerLane`) and H at its own installation estimate and master attitude; ``x``,
+    ``diverged_at``, ``a_out`` and ``att_out`` filled in place. Returns σ (L, M, n)."""
+    sl = lay.slice
+    n, L, M = lay.n, bank.lanes, len(rec)
     i_phi, i_dv, i_a = sl("phi"), sl("dv"), sl("lam")
     fed = np.r_[np.arange(n)[i_phi], np.arange(n)[i_dv], np.arange(n)[sl("eps")], np.arange(n)[sl("nabla")],
                 np.arange(n)[sl("kg")], np.arange(n)[sl("ka")]]
     cols = np.r_[np.arange(n)[i_phi], np.arange(n)[i_a]]
-    Rm = np.diag(np.concatenate([R_vel, R_att]))
-    Hv = np.zeros((3, n))
-    Hv[np.arange(3), np.arange(n)[i_dv]] = 1.0
-    Qk = np.zeros((n, n)) if Qk is None else np.asarray(Qk, float)
-    rec = list(range(0, K + 1, record_every))
-    M = len(rec)
-    a_out = np.full((L, M, 3), np.nan)
-    att_out = np.full((L, M, 3, 3), np.nan)
-    x = np.zeros((L, n))
-    per_lane = bool(relinearise)
-    if per_lane:
-        P = np.broadcast_to(np.array(P0, float), (L, n, n)).copy()
-        sig = np.empty((L, M, n))
-    else:
-        # the covariance and gains are common to the lanes: made before the loop over epochs
-        G = lane_gains(Phi, match, P0, R_vel, R_att, C_lin, Qk=Qk, layout=lay,
-                       record_every=record_every) if gains is None else gains
-        sig = G.sigma
-    diverged_at = np.full(L, -1, dtype=np.int64)
-    if not per_lane:
-        _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master, meas_noise, lay, phi_bound,
-                          rec, x, diverged_at, a_out, att_out)
-        return LaneAlignment(a_out, sig, bank.comp.copy(), att_out, diverged_at >= 0, diverged_at, np.array(rec))
-    I = np.eye(n)
+    P = np.broadcast_to(np.array(P0, float), (L, n, n)).copy()
+    sig = np.empty((L, M, n))
+    lanes = _PerLane(Phi, Qk, R_vel, R_att, L)
     r = 0
-    for k in range(K + 1):
+    for k in range(Phi.shape[0] + 1):
         if k > 0:
             bank.advance(k_kf)
-            x = x @ Phi[k - 1].T
-            if per_lane:
-                P = Phi[k - 1] @ P @ Phi[k - 1].T + Qk
-        Cs, vs = bank.attitude(), bank.velocity()
-        Cm, vm = master_C[lane_master, k], master_v[lane_master, k]
-        z = np.empty((L, 6))
-        z[:, :3] = vs - vm
-        if per_lane:
-            H = np.zeros((L, 6, n))
-            H[:, :3] = Hv
-            z[:, 3:], H6 = match.innovation_many(Cm, Cs, x[:, i_phi], x[:, i_a])
-            H[:, 3:, cols] = H6
-        else:
-            H = G.H[k]
-            z[:, 3:] = match.z_many(Cm, Cs)
+            lanes.predict(k - 1, x, P)
+        # the measurement of the active lanes (a stopped lane's NaN state has no attitude:
+        # its z stays NaN, and the update leaves it NaN)
+        on = bank.active.copy()
+        mk = lane_master[on]
+        z = np.full((L, 6), np.nan)
+        H = np.zeros((L, 6, n))
+        H[:, np.arange(3), np.arange(n)[i_dv]] = 1.0
+        z[on, :3] = bank.velocity()[on] - master_v[mk, k]
+        z[on, 3:], H6 = match.innovation_many(master_C[mk, k], bank.attitude()[on], x[on][:, i_phi], x[on][:, i_a])
+        H[np.ix_(on, np.arange(3, 6), cols)] = H6
         if meas_noise is not None:
-            z += meas_noise[lane_master, k]
-        if per_lane:
-            PHt = P @ np.swapaxes(H, 1, 2)
-            Kg = np.swapaxes(np.linalg.solve(H @ PHt + Rm, np.swapaxes(PHt, 1, 2)), 1, 2)
-            innov = z - np.einsum("lij,lj->li", H, x)
-        else:
-            Kg = G.K[k]
-            innov = z - x @ H.T
+            z[on] += meas_noise[mk, k]
         if match.kind == "euler":
-            innov[:, 3:] = wrap_pi(innov[:, 3:])
-        if per_lane:
-            x = x + np.einsum("lij,lj->li", Kg, innov)
-            IKH = I - Kg @ H
-            P = IKH @ P @ np.swapaxes(IKH, 1, 2) + Kg @ Rm @ np.swapaxes(Kg, 1, 2)
-        else:
-            x = x + innov @ Kg.T
+            _wrap_attitude_innovation(z, H, x)
+        lanes.update(x, P, z, H)
         # divergence guard before the correction reaches the INS
         bad = bank.active & ~(np.all(np.isfinite(x), axis=1)
                               & (np.linalg.norm(x[:, i_phi], axis=1) <= phi_bound))
@@ -1034,27 +1014,38 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
         if r < M and rec[r] == k:
             a_out[on, r] = x[on][:, i_a]
             att_out[on, r] = bank.attitude()[on]
-            if per_lane:
-                sig[:, r] = np.sqrt(np.diagonal(P, axis1=-2, axis2=-1))
+            sig[:, r] = np.sqrt(np.diagonal(P, axis1=-2, axis2=-1))
             r += 1
-    diverged = diverged_at >= 0
-    return LaneAlignment(a_out, sig, bank.comp.copy(), att_out, diverged, diverged_at, np.array(rec))
+    return sig
+
+
+def _wrap_attitude_innovation(z, H, x):
+    """Shift the attitude rows of ``z`` (L, 6) by the multiple of 2π that brings their
+    innovation against ``x`` (L, n) (rows ``H`` (L, 6, n)) into (−π, π] (Euler-angle form;
+    rows already inside are left as they are)."""
+    nu = z[:, 3:] - np.einsum("lij,lj->li", H[:, 3:], x)
+    out = ~((nu > -np.pi) & (nu <= np.pi))
+    z[:, 3:] -= np.where(out, nu - wrap_pi(nu), 0.0)
 
 
 def _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master, meas_noise, lay, phi_bound, rec,
                       x, diverged_at, a_out, att_out):
     """The epochs of :func:`align_lanes` in the paper form (gains ``G`` common to the lanes):
-    per epoch the bank's compiled advance, one compiled filter step over the lanes
-    (:func:`_lane_step`) and the bank's compiled correction; ``x``, ``diverged_at``,
-    ``a_out`` (L, M, 3) and ``att_out`` (L, M, 3, 3) filled in place."""
+    per epoch the bank's compiled advance, the lanes' measurements, their filters' step
+    (:func:`_lane_filters`: estimation's kernels) and the guard and feedback
+    (:func:`_lane_feedback`), each one compiled call over the lanes, and the bank's compiled
+    correction; ``x``, ``diverged_at``, ``a_out`` (L, M, 3) and ``att_out`` (L, M, 3, 3)
+    filled in place."""
     sl = lay.slice
     n = lay.n
     L = bank.lanes
     M = len(rec)
     idx = np.arange(n)
     i_comp = np.r_[idx[sl("eps")], idx[sl("nabla")], idx[sl("kg")], idx[sl("ka")]]
+    i_fb = np.r_[idx[sl("phi")], idx[sl("dv")]]
     fed = np.zeros(n, dtype=np.bool_)
-    fed[np.r_[idx[sl("phi")], idx[sl("dv")], i_comp]] = True
+    fed[np.r_[i_fb, i_comp]] = True
+    i_a = sl("lam")
     # per epoch, contiguous rows of every master: its reference, velocity and noise
     ref = np.ascontiguousarray(np.swapaxes(_reference_rows(match, master_C), 0, 1))
     vm = np.ascontiguousarray(np.swapaxes(np.asarray(master_v, float), 0, 1))
@@ -1063,26 +1054,50 @@ def _common_gain_loop(bank, k_kf, Phi, match, G, master_C, master_v, lane_master
     Phi = np.ascontiguousarray(Phi, dtype=float)
     Hs, Ks = np.ascontiguousarray(G.H), np.ascontiguousarray(G.K)
     lane_master = np.ascontiguousarray(lane_master, dtype=np.int64)
-    form = _FORM[match.kind]
-    fb = np.zeros((L, 6))
-    a_rec = np.full((M, L, 3), np.nan)
+    form, wrap = _FORM[match.kind], match.kind == "euler"
+    Z, fb = np.zeros((L, 6)), np.zeros((L, 6))
+    nu, tmp = np.empty(6), np.empty(n)
     att_rec = np.full((M, L, 3, 3), np.nan)
-    no_rec = np.empty((L, 3))
-    i_phi, i_dv, i_a = sl("phi").start, sl("dv").start, sl("lam").start
     r = 0
     for k in range(Phi.shape[0] + 1):
         if k > 0:
             bank.advance(k_kf)
-        now = r < M and rec[r] == k
-        _lane_step(bank.state, bank.active, bank.comp, x, Phi[k - 1], k > 0, Hs[k], Ks[k], ref[k], vm[k], lane_master,
-                   noise[k], form, fed, i_phi, i_dv, i_a, i_comp, float(phi_bound), diverged_at, k, fb,
-                   a_rec[r] if now else no_rec, now)
+        _lane_measurements(bank.state, bank.active, ref[k], vm[k], lane_master, noise[k], form, Z)
+        _lane_filters(x, bank.active, Phi[k - 1], k > 0, Hs[k], Ks[k], Z, wrap, nu, tmp)
+        _lane_feedback(x, bank.active, bank.comp, i_comp, fed, i_fb, float(phi_bound), diverged_at, k, fb)
         bank.correct(fb[:, :3], fb[:, 3:])
-        if now:
-            _lane_attitudes(bank.state, bank.active, att_rec[r])
+        if r < M and rec[r] == k:
+            on = bank.active
+            a_out[on, r] = x[on, i_a]
+            _lane_attitudes(bank.state, on, att_rec[r])
             r += 1
-    a_out[:] = np.swapaxes(a_rec, 0, 1)
     att_out[:] = np.swapaxes(att_rec, 0, 1)
+
+
+def rate_norms(imu, master: MasterRecord, t_start=None, t_end=None, shift=0.0, _cum=None):
+    """``(t, |ω_m|, |ω_s|)`` [s, rad/s, rad/s] over the master intervals in the window: the
+    master's rotation rate from its attitude change, the slave's from its increments over
+    the same interval with the slave's clock read ``shift`` [s] later (``shift`` > 0: the
+    master's stamps are late by that much). None when fewer than 11 master epochs."""
+    mt = master.t
+    lo = max(mt[0], imu.t0) if t_start is None else max(float(t_start), mt[0], imu.t0)
+    hi = min(mt[-1], imu.t[-1]) if t_end is None else min(float(t_end), mt[-1], imu.t[-1])
+    sel = np.flatnonzero((mt >= lo - 1e-9) & (mt <= hi + 1e-9))
+    if sel.size < 11:
+        return None
+    t = mt[sel]
+    C = master.C[sel]
+    w_m = np.linalg.norm(dcm_to_rotvec(np.swapaxes(C[:-1], 1, 2) @ C[1:]), axis=1) / np.diff(t)
+    th, te = _cum if _cum is not None else _cumulative_angle(imu)
+    i = np.clip(np.searchsorted(te, t - shift - 0.5 * imu.dt), 0, te.size - 1)
+    w_s = np.linalg.norm(np.diff(th[i], axis=0), axis=1) / np.diff(t)
+    return t, w_m, w_s
+
+
+def _cumulative_angle(imu):
+    """The slave's summed increments (N+1, 3) [rad] at the times (N+1,) [s] they end."""
+    return (np.vstack([np.zeros(3), np.cumsum(imu.dtheta, axis=0)]),
+            np.concatenate([[imu.t0], imu.t]))
 
 
 def rate_correlation(imu, master: MasterRecord, t_start=None, t_end=None):
@@ -1106,23 +1121,46 @@ def rate_correlation(imu, master: MasterRecord, t_start=None, t_end=None):
     motion : float
         Standard deviation of ``|ω_m|`` [rad/s] (how much the master's rate varies).
     """
-    mt = master.t
-    lo = max(mt[0], imu.t0) if t_start is None else max(float(t_start), mt[0], imu.t0)
-    hi = min(mt[-1], imu.t[-1]) if t_end is None else min(float(t_end), mt[-1], imu.t[-1])
-    sel = np.flatnonzero((mt >= lo - 1e-9) & (mt <= hi + 1e-9))
-    if sel.size < 11:
+    r = rate_norms(imu, master, t_start, t_end)
+    if r is None:
         return float("nan"), 0.0
-    t = mt[sel]
-    C = master.C[sel]
-    w_m = np.linalg.norm(dcm_to_rotvec(np.swapaxes(C[:-1], 1, 2) @ C[1:]), axis=1) / np.diff(t)
-    th = np.vstack([np.zeros(3), np.cumsum(imu.dtheta, axis=0)])
-    te = np.concatenate([[imu.t0], imu.t])
-    i = np.clip(np.searchsorted(te, t - 0.5 * imu.dt), 0, te.size - 1)
-    w_s = np.linalg.norm(np.diff(th[i], axis=0), axis=1) / np.diff(t)
+    _, w_m, w_s = r
     motion = float(np.std(w_m))
     if motion == 0.0 or np.std(w_s) == 0.0:
         return float("nan"), motion
     return float(np.corrcoef(w_m, w_s)[0, 1]), motion
+
+
+def rate_lag(imu, master: MasterRecord, t_start=None, t_end=None, max_lag=2.0):
+    """The clock offset that lines the slave's rotation rate up with the master's best.
+
+    The correlation of ``|ω_m|`` and ``|ω_s|`` (:func:`rate_norms`) over slave-clock shifts
+    in ``±max_lag`` [s] in steps of the slave interval, its peak refined by a parabola
+    through the three best. Returns ``(lag [s], correlation there, correlation at 0,
+    scale)``: ``lag`` > 0 means the master's stamps are late; ``scale`` is the least-squares
+    ``k`` of ``|ω_m| ≈ k |ω_s|`` at the lag (1 when both are in the same unit). NaNs when the
+    window has too few epochs or no motion.
+    """
+    step = float(imu.dt)
+    lags = np.arange(-max_lag, max_lag + 0.5 * step, step)
+    c = np.full(lags.size, np.nan)
+    cum = _cumulative_angle(imu)
+    for k, lag in enumerate(lags):
+        r = rate_norms(imu, master, t_start, t_end, shift=lag, _cum=cum)
+        if r is not None and np.std(r[1]) > 0 and np.std(r[2]) > 0:
+            c[k] = np.corrcoef(r[1], r[2])[0, 1]
+    if not np.isfinite(c).any():
+        return float("nan"), float("nan"), float("nan"), float("nan")
+    k = int(np.nanargmax(c))
+    lag = float(lags[k])
+    if 0 < k < lags.size - 1 and np.all(np.isfinite(c[k - 1:k + 2])):
+        den = c[k - 1] - 2 * c[k] + c[k + 1]
+        if den < 0:
+            lag += 0.5 * step * float(c[k - 1] - c[k + 1]) / float(den)
+    zero = int(np.argmin(np.abs(lags)))
+    _, w_m, w_s = rate_norms(imu, master, t_start, t_end, shift=lag, _cum=cum)
+    scale = float(np.dot(w_m, w_s) / np.dot(w_s, w_s)) if np.dot(w_s, w_s) > 0 else float("nan")
+    return lag, float(c[k]), float(c[zero]), scale
 
 
 # -------------------------------------------------- what each form's estimate means ---
@@ -1171,8 +1209,11 @@ class TransferResult:
     gyro_bias, accel_bias : (3,) final slave bias estimates [rad/s], [m/s²] with σ
     """
 
-    def __init__(self, t, x, sigma, layout):
+    def __init__(self, t, x, sigma, layout, applied=None):
         self.t, self.x, self.sigma, self.layout = t, x, sigma, layout
+        #: the matching updates (:class:`sinslab.fusion.driver.Applied`: innovations, their
+        #: σ and NIS), for the caller's consistency checks
+        self.applied = applied
         sl = layout.slice
         self.mounting, self.mounting_sigma = x[-1, sl("lam")], sigma[-1, sl("lam")]
         self.gyro_bias, self.gyro_bias_sigma = x[-1, sl("eps")], sigma[-1, sl("eps")]
@@ -1272,4 +1313,4 @@ def align_recorded(imu, master: MasterRecord, master_pos, kind="optimal", *, com
     x = np.array(res.x, float)
     x[:, lay.slice("eps")] = res.gyro_bias[0]
     x[:, lay.slice("nabla")] = res.accel_bias[0]
-    return TransferResult(np.asarray(res.t), x, np.asarray(res.sigma), lay)
+    return TransferResult(np.asarray(res.t), x, np.asarray(res.sigma), lay, res.applied)

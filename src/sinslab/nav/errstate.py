@@ -712,6 +712,21 @@ class ErrorModel:
         """Number of states."""
         return self.layout.n
 
+    @property
+    def white_noise(self):
+        """``(gyro_arw (3,), accel_vrw (3,))`` of the INS [rad/√s], [m/s/√s] (zero on an
+        axis without white noise)."""
+        ins = self._ins[0]
+        g, a = np.zeros(3), np.zeros(3)
+        g[[_AXES[c] for c in ins["gaxes"]]] = ins["gnoise"]
+        a[[_AXES[c] for c in ins["aaxes"]]] = ins["anoise"]
+        return g, a
+
+    @property
+    def sensor_blocks(self):
+        """The sensor blocks of the INS, in the order given."""
+        return self._ins[0]["sensors"]
+
     def __repr__(self):
         return f"{type(self).__name__}(core={self.core!r}, {self.layout!r}, noises={len(self.q)})"
 

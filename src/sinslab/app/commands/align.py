@@ -96,10 +96,10 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     from sinslab.app.plausibility import Finding, settle
     from sinslab.methods.alignment import align_record
 
-    imu, ps, lat_r, h_r, found = _read(path, fmt, lat, h, window)
+    gb = units.parse(gyro_bias, "angular_rate")
+    imu, ps, lat_r, h_r, found = _read(path, fmt, lat, h, window, gb)
     ga = units.parse(gyro_arw, "angle_random_walk")
     av = None if accel_vrw in (None, "", "auto") else units.parse(accel_vrw, "velocity_random_walk")
-    gb = units.parse(gyro_bias, "angular_rate")
     ab = units.parse(accel_bias, "acceleration")
     T = units.parse(period, "time")
     r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
@@ -121,10 +121,11 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
                   notes=["Heading is clockwise from north."], value=r, warnings=warnings)
 
 
-def _read(path, fmt, lat, h, window):
+def _read(path, fmt, lat, h, window, gb):
     """``(imu, PSINS header or None, latitude [rad], height [m], findings)``: the record in
-    its window, checked (refusals raised)."""
-    from sinslab.app.plausibility import imu_findings, rest_findings, settle
+    its window, checked (refusals raised; ``gb`` the gyro bias [rad/s] the rest's rate may
+    carry)."""
+    from sinslab.app.plausibility import imu_findings, rest_findings, rest_rate_findings, settle
     from sinslab.data import read_imu
     from sinslab.methods import alignment as al
 
@@ -145,7 +146,7 @@ def _read(path, fmt, lat, h, window):
     src = f"{path}" + (f" (window {window})" if window else "")
     found = imu_findings(imu, src, lat=lat_r, h=h_r)
     if not any(fd.refuse for fd in found):
-        found += rest_findings(imu, src, lat=lat_r, h=h_r)
+        found += rest_findings(imu, src, lat=lat_r, h=h_r) + rest_rate_findings(imu, src, lat=lat_r, gyro_bias=gb)
     settle([fd for fd in found if fd.refuse])
     al.check_alignment_latitude(lat_r)
     return imu, ps, lat_r, h_r, found

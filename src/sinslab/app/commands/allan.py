@@ -112,7 +112,7 @@ def allan_file(path, *, fmt=None, out=None, window=None, strict=False, echo=prin
 
 
 def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
-    from sinslab.app.plausibility import Finding, imu_findings, settle
+    from sinslab.app.plausibility import Finding, imu_findings, rest_rate_findings, settle
     from sinslab.data import load_imu
 
     data = load_imu(path, fmt, **read_kw)
@@ -125,6 +125,7 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
     src = f"{path}" + (f" (window {window})" if window else "")
     found = imu_findings(imu, src, gaps=data.gaps)
     settle([fd for fd in found if fd.refuse])
+    found += rest_rate_findings(imu, src)
     if strict:
         settle(found, strict=True)
     _check_clusters(imu, src)

@@ -92,6 +92,7 @@ def _refs(*paths):
 
 
 def _parse_mount(text):
+    """``--mount [pitch, roll, yaw]``: pitch within ±90°, roll and yaw within ±180°."""
     if text is None:
         return None
     from sinslab.core.attitude import euler_to_dcm
@@ -99,6 +100,10 @@ def _parse_mount(text):
         v = units.parse_vector(text, "angle", 3)
     except ValueError as e:
         raise ValueError(f"--mount {text!r}: {e} (give units, e.g. \"[10, 60, 8] deg\")") from None
+    for name, x, lim in zip(("pitch", "roll", "yaw"), v, (90.0, 180.0, 180.0)):
+        if not (np.isfinite(x) and abs(np.degrees(x)) <= lim):
+            raise ValueError(f"--mount {text!r}: {name} {np.degrees(x):.6g} deg is out of range, must be within "
+                             f"±{lim:g} deg ([pitch, roll, yaw] of the installation)")
     return euler_to_dcm(np.asarray(v, float))
 
 
@@ -111,6 +116,10 @@ PROCESS_NOISE = {"gyro_arw": "1 deg/sqrt(h)", "accel_vrw": "1 mm/s/sqrt(s)",
                  "gyro_bias_instability": "0 deg/h/sqrt(h)", "accel_bias_instability": "0 ug/sqrt(s)"}
 _NOISE_KINDS = {"gyro_arw": "angle_random_walk", "accel_vrw": "velocity_random_walk",
                 "gyro_bias_instability": "rate_random_walk", "accel_bias_instability": "accel_random_walk"}
+#: Largest process noise accepted: beyond these no IMU is meant (the noisiest consumer
+#: MEMS: ARW ~ 5 °/√h, VRW ~ 1 mm/s/√s·10, bias random walks tens of °/h/√h and µg/√s·100)
+_NOISE_MAX = {"gyro_arw": "100 deg/sqrt(h)", "accel_vrw": "1 m/s/sqrt(s)",
+              "gyro_bias_instability": "1000 deg/h/sqrt(h)", "accel_bias_instability": "0.1 m/s^2/sqrt(s)"}
 #: Rotation rates of slave and master that correlate less than this (when the master moves)
 #: mean an unrelated pair.
 MIN_RATE_CORRELATION = 0.5
@@ -125,8 +134,8 @@ def _process_noise(noise):
     out = {}
     for k, default in PROCESS_NOISE.items():
         text = (noise or {}).get(k) or default
-        out[k] = (option_quantity("--" + k.replace("_", "-"), text, _NOISE_KINDS[k], ge="0 " + default.split(" ", 1)[1]),
-                  text)
+        out[k] = (option_quantity("--" + k.replace("_", "-"), text, _NOISE_KINDS[k], ge="0 " + default.split(" ", 1)[1],
+                                  le=_NOISE_MAX[k]), text)
     unknown = set(noise or {}) - set(PROCESS_NOISE)
     if unknown:
         raise ValueError(f"unknown process-noise setting(s) {sorted(unknown)}; known: {sorted(PROCESS_NOISE)}")
@@ -134,7 +143,7 @@ def _process_noise(noise):
 
 
 def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, windows=(None,), out=None,
-                        vel_sigma=0.1, att_sigma_arcmin=1.0, noise=None, echo=print):
+                        vel_sigma=0.1, att_sigma_arcmin=1.0, noise=None, strict=False, echo=print):
     """Run the alignment for each method and window; write the run folder.
 
     ``noise`` maps the keys of :data:`PROCESS_NOISE` to unit strings (defaults for the
@@ -159,18 +168,22 @@ def transfer_align_file(slave, master, *, methods=("optimal",), mount=None, wind
         if not any(k in mm for k in ("avp", "fogavp", "avpr")):
             raise ValueError(f"{master}: .mat lacks the master solution variable (avp, fogavp or avpr)")
     summary, res = run_command(TRANSFER_ALIGN, out, lambda: _compute(slave, master, methods, comp, mount, windows,
-                                                                  vel_sigma, att_sigma_arcmin, pn, echo), echo=echo)
+                                                                  vel_sigma, att_sigma_arcmin, pn, echo, strict),
+                               echo=echo)
     results, refs = res.value
     return summary, results, refs
 
 
-def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_arcmin, pn, echo):
-    imu, master_rec, pos, nsub = _read_pair(slave, master, windows)
+def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_arcmin, pn, echo, strict=False):
+    from sinslab.app.plausibility import settle
+
+    imu, master_rec, pos, nsub, found = _read_pair(slave, master, windows)
     refs = _refs(master, slave)
     metrics, rows, results = _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma,
-                                        att_sigma_arcmin, pn, echo)
+                                        att_sigma_arcmin, pn, echo, found)
     if refs:
         metrics.update(_reference(refs, echo))
+    warnings = settle(found, strict=strict, echo=echo)
     cfg = {"slave": str(slave), "master": str(master), "methods": list(methods), "mount": mount or "none",
            "windows": ["all" if w is None else f"{w[0]:g}:{w[1]:g}" for w in windows],
            "vel_sigma_mps": vel_sigma, "att_sigma_arcmin": att_sigma_arcmin,
@@ -187,18 +200,23 @@ def _compute(slave, master, methods, comp, mount, windows, vel_sigma, att_sigma_
              "Filter: 21 states through the fusion driver, velocity + attitude matching at the master rate, "
              "feedback of φ, δv and biases; the slave position is navigated freely (not reset to the master's)."]
     return Output(config=cfg, metrics=metrics, tables=tables, figures=[_figure(results, refs)], notes=notes,
-                  value=(results, refs))
+                  value=(results, refs), warnings=warnings)
 
 
 def _read_pair(slave, master, windows):
-    """``(slave IMU, master record, master positions, subsamples)``: the two files read and
-    checked against each other (overlap, windows, intervals, common motion)."""
+    """``(slave IMU, master record, master positions, subsamples, findings)``: the two files
+    read and checked, each on its own and against each other (overlap, windows, intervals,
+    common motion, rates); refusals raised."""
+    from sinslab.app.plausibility import imu_findings, settle
     from sinslab.data import load_imu
     from sinslab.methods import transfer as tm
 
     data = load_imu(slave)
     imu = data.imu
+    found = imu_findings(imu, f"slave {slave}", lat=None, gaps=data.gaps)
+    settle([fd for fd in found if fd.refuse])
     mt, att, vel, pos = read_master(master)
+    _check_master(master, mt, att, vel, pos)
     lo, hi = max(mt[0], imu.t[0]), min(mt[-1], imu.t[-1])
     if hi - lo <= 0:
         raise ValueError(f"slave [{imu.t[0]:g}, {imu.t[-1]:g}] s and master [{mt[0]:g}, {mt[-1]:g}] s do not overlap in time")
@@ -219,14 +237,17 @@ def _read_pair(slave, master, windows):
             raise ValueError(f"slave {slave} and master {master} show no common motion{where}: their rotation rates "
                              f"correlate at {corr:.2f} (need >= {MIN_RATE_CORRELATION:g}); not the same vehicle, "
                              "or the clocks differ")
-    return imu, master_rec, pos, nsub
+    found += _rate_findings(imu, master_rec, slave, master, dtm)
+    settle([fd for fd in found if fd.refuse])
+    return imu, master_rec, pos, nsub, found
 
 
 _AM, _DPH, _MG = units.arcmin, units.dph, 1e-3 * 9.80665
 
 
-def _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma, att_sigma_arcmin, pn, echo):
-    """Every method on every window: ``(metrics, table rows, {(method, window): result})``."""
+def _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma, att_sigma_arcmin, pn, echo, found):
+    """Every method on every window: ``(metrics, table rows, {(method, window): result})``;
+    the checks of each result added to ``found``."""
     from sinslab.methods import transfer as tm
     metrics, rows, results = {}, [], {}
     am, dph, mg = _AM, _DPH, _MG
@@ -240,6 +261,7 @@ def _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma, at
                                   gyro_bias_rw=pn["gyro_bias_instability"][0],
                                   accel_bias_rw=pn["accel_bias_instability"][0], nsub=nsub)
             results[(m, wkey)] = r
+            found += _result_findings(r, f"{m}, window {wkey}", pn)
             k = f"{m}_{wkey}"
             metrics[f"mounting_arcmin_{k}"] = r.mounting / am
             metrics[f"mounting_sigma_arcmin_{k}"] = r.mounting_sigma / am
@@ -247,22 +269,28 @@ def _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma, at
             metrics[f"gyro_bias_sigma_dph_{k}"] = r.gyro_bias_sigma / dph
             metrics[f"accel_bias_mg_{k}"] = r.accel_bias / mg
             metrics[f"accel_bias_sigma_mg_{k}"] = r.accel_bias_sigma / mg
-            row = dict(method=m, window=wkey, t_start=r.t[0], t_end=r.t[-1])
-            for j, a in enumerate("xyz"):
-                row[f"mount_{a}_arcmin"] = r.mounting[j] / am
-                row[f"mount_{a}_sigma_arcmin"] = r.mounting_sigma[j] / am
-            for j, a in enumerate("xyz"):
-                row[f"eb_{a}_dph"] = r.gyro_bias[j] / dph
-                row[f"eb_{a}_sigma_dph"] = r.gyro_bias_sigma[j] / dph
-            for j, a in enumerate("xyz"):
-                row[f"db_{a}_mg"] = r.accel_bias[j] / mg
-                row[f"db_{a}_sigma_mg"] = r.accel_bias_sigma[j] / mg
-            rows.append(row)
+            rows.append(_row(m, wkey, r))
             pm = lambda v, s, f: ", ".join(f"{a:{f}} ± {b:{f}}" for a, b in zip(v, s))  # noqa: E731
             echo(f"{m:8s} {wkey:>10s}: mounting [{pm(r.mounting / am, r.mounting_sigma / am, '.2f')}] arcmin; "
                  f"gyro bias [{pm(r.gyro_bias / dph, r.gyro_bias_sigma / dph, '.1f')}] deg/h; "
                  f"accel bias [{pm(r.accel_bias / mg, r.accel_bias_sigma / mg, '.2f')}] mg")
     return metrics, rows, results
+
+
+def _row(m, wkey, r):
+    """The ``estimates`` table's row of one method and window."""
+    am, dph, mg = _AM, _DPH, _MG
+    row = dict(method=m, window=wkey, t_start=r.t[0], t_end=r.t[-1])
+    for j, a in enumerate("xyz"):
+        row[f"mount_{a}_arcmin"] = r.mounting[j] / am
+        row[f"mount_{a}_sigma_arcmin"] = r.mounting_sigma[j] / am
+    for j, a in enumerate("xyz"):
+        row[f"eb_{a}_dph"] = r.gyro_bias[j] / dph
+        row[f"eb_{a}_sigma_dph"] = r.gyro_bias_sigma[j] / dph
+    for j, a in enumerate("xyz"):
+        row[f"db_{a}_mg"] = r.accel_bias[j] / mg
+        row[f"db_{a}_sigma_mg"] = r.accel_bias_sigma[j] / mg
+    return row
 
 
 def _reference(refs, echo):
@@ -286,8 +314,8 @@ def _figure(results, refs):
     from sinslab.app import plotting
     am, dph, mg = _AM, _DPH, _MG
     fig, ax = plotting.figure(3, 3, width=11.0, row_height=2.3, title="transfer alignment on recorded data")
+    sl = next(iter(results.values())).layout.slice
     for (m, wkey), r in results.items():
-        sl = r.layout.slice
         tt = r.t - r.t[0]
         for j in range(3):
             for i, (blk, sc) in enumerate((("lam", am), ("eps", dph), ("nabla", mg))):
@@ -306,6 +334,90 @@ def _figure(results, refs):
     for a in ax[-3:]:
         a.set_xlabel("time since the start of the window [s]")
     return Figure("estimates", fig, "Estimates ± σ over time per method/window; dashed: the file's reference values")
+
+
+#: a master faster than this [m/s] is no vehicle a slave IMU rides on with it
+MAX_MASTER_SPEED = 1000.0
+#: heights of a master solution [m]: below the deepest mine, above any aircraft
+MASTER_HEIGHT = (-12e3, 100e3)
+#: slave and master rotation rates lining up best at a clock shift beyond this many master
+#: intervals (and at least 50 ms) mean their clocks differ
+MAX_LAG_INTERVALS = 1.0
+#: the master's rotation rate over the slave's differing from 1 by more than this is a
+#: scale error (a unit slip: 180/π)
+RATE_SCALE_TOL = 0.1
+
+
+def _check_master(path, t, att, vel, pos) -> None:
+    """Refuse a master solution that cannot be one: time stamps not increasing (reversed
+    or unsorted), an attitude, latitude, speed or height beyond the physical ranges (the
+    angles' likely unit slip named)."""
+    d = np.diff(t)
+    if d.size and not np.all(d > 0):
+        i = int(np.argmax(~(d > 0)))
+        order = "in reverse order" if np.all(d < 0) else "not sorted by time"
+        raise ValueError(f"{path}: master time stamps do not increase at epoch {i + 2} ({t[i]:.6g} s, then "
+                         f"{t[i + 1]:.6g} s): the record is {order}")
+    deg = np.degrees
+    checks = (("pitch", att[:, 0], 90.0), ("roll", att[:, 1], 360.0), ("yaw", att[:, 2], 720.0),
+              ("latitude", pos[:, 0], 90.0))
+    for name, x, lim in checks:
+        i = int(np.argmax(np.abs(x)))
+        if abs(deg(x[i])) > lim:
+            hint = (" — degrees read as radians?" if abs(x[i]) <= lim else "")
+            raise ValueError(f"{path}: master {name} {deg(x[i]):.6g} deg at t = {t[i]:.6g} s is beyond ±{lim:g} deg"
+                             f"{hint} (the angles are read in radians unless the column says [deg])")
+    sp = np.linalg.norm(vel, axis=1)
+    i = int(np.argmax(sp))
+    if sp[i] > MAX_MASTER_SPEED:
+        raise ValueError(f"{path}: master speed {sp[i]:.6g} m/s at t = {t[i]:.6g} s is beyond any vehicle "
+                         f"(<= {MAX_MASTER_SPEED:g} m/s): a wrong velocity unit or column?")
+    lo, hi = MASTER_HEIGHT
+    bad = np.flatnonzero((pos[:, 2] < lo) | (pos[:, 2] > hi))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"{path}: master height {pos[i, 2]:.6g} m at t = {t[i]:.6g} s is outside {lo:g}..{hi:g} m: "
+                         f"a wrong unit or column?")
+
+
+def _rate_findings(imu, master_rec, slave, master, dtm) -> list:
+    """Whether slave and master measure the same rotation on the same clock: the scale of
+    the master's rotation rate against the slave's (1; 180/π is a unit slip: refused) and
+    the clock shift that lines them up best (:func:`sinslab.methods.transfer.rate_lag`)."""
+    import math
+
+    from sinslab.app.plausibility import Finding, unit_slip
+    from sinslab.methods import transfer as tm
+
+    lag, c_best, c0, scale = tm.rate_lag(imu, master_rec)
+    if not np.isfinite(lag):
+        return []
+    out = []
+    if abs(scale - 1.0) > RATE_SCALE_TOL:
+        slip = unit_slip(scale, "")
+        if slip is not None:
+            big, small = (("master's attitude", "slave's gyro data") if scale > 1 else
+                          ("slave's gyro data", "master's attitude"))
+            slip = (f"a unit slip (180/π = {math.degrees(1.0):.1f}): the {big} in degrees read as radians, or the "
+                    f"{small} in radians read as degrees")
+        out.append(Finding(f"the master's rotation rate ({master}) is {scale:.4g} × the slave's ({slave}), where both "
+                           f"measure the same rotation: " + (slip or "a unit or scale error of one of them"),
+                           slip is not None))
+    if abs(lag) > max(MAX_LAG_INTERVALS * dtm, 0.05):
+        out.append(Finding(f"slave and master rotation rates line up best with the master's clock {abs(lag):.3g} s "
+                           f"{'late' if lag > 0 else 'early'} (correlation {c_best:.3f} there, {c0:.3f} as stamped): "
+                           f"their clocks differ by about that, and the mounting and biases absorb it — correct the "
+                           f"master's time column (or the slave's)"))
+    return out
+
+
+def _result_findings(r, what, pn) -> list:
+    """Plausibility of one alignment's estimates: biases within the grade of the gyro
+    noise given (``--gyro-arw``), σ consistent with the matching innovations."""
+    from sinslab.app.plausibility import bias_findings, overconfidence_findings
+
+    return (bias_findings(r.gyro_bias, r.accel_bias, what, gyro_arw=pn["gyro_arw"][0])
+            + (overconfidence_findings(r.applied, what, "the mounting and biases") if r.applied is not None else []))
 
 
 def _window(text):
@@ -334,6 +446,7 @@ def register(app):
                        accel_bias_instability: str = typer.Option(PROCESS_NOISE["accel_bias_instability"], "--accel-bias-instability",
                                                                   help="random walk of the accelerometer bias states"),
                        out: Optional[Path] = typer.Option(None, "--out", "-o", help="output folder"),
+                       strict: bool = typer.Option(False, "--strict", help="refuse (exit 2, nothing written) instead of warning about the data or the estimates"),
                        force: bool = typer.Option(False, "--force", help="replace whatever --out holds (another run, other files)")) -> None:
         """Transfer alignment on recorded data: mounting angles and slave biases with σ."""
         def go():
@@ -341,6 +454,6 @@ def register(app):
             noise = dict(gyro_arw=gyro_arw, accel_vrw=accel_vrw, gyro_bias_instability=gyro_bias_instability,
                          accel_bias_instability=accel_bias_instability)
             return transfer_align_file(slave, master, methods=tuple(method), mount=mount, windows=wins, out=out,
-                                       noise=noise, echo=typer.echo)
+                                       noise=noise, strict=strict, echo=typer.echo)
 
         cli_call(go, force=force)

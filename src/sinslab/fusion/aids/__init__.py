@@ -20,6 +20,8 @@ AIDS = (
     "sinslab.fusion.aids.lever:AntennaLever",
     "sinslab.fusion.aids.vehicle:Nhc",
     "sinslab.fusion.aids.odometer:WheelOdometer",
+    "sinslab.fusion.aids.magnetometer:Magnetometer",
+    "sinslab.fusion.aids.barometer:BarometricAltimeter",
 )
 
 _TYPES: dict = {}

@@ -16,7 +16,7 @@ model). Position measurements are metres north, east[, up].
 
 The package's public contract is :mod:`.base` (``Grid``, ``NavRow``, ``Epoch``, the
 ``Measurement`` protocol, ``Stack``), :mod:`.schedule` (arrival epochs, timed and
-interval-held items, the innovation gate) and :mod:`.jacobians` (terms placed by block
+interval-held items, the innovation gate, robust weighting) and :mod:`.jacobians` (terms placed by block
 kind: a mount's rotation, the lever-arm rate term on every block feeding the gyro). Each
 sensor family has its own file: :mod:`.fixes` (position/velocity fixes),
 :mod:`.vehicle` (non-holonomic constraint, body velocity, odometer), :mod:`.rest`
@@ -33,11 +33,11 @@ from sinslab.fusion.measurements.ins_difference import InsDifference
 from sinslab.fusion.measurements.jacobians import add_rate_H, vehicle_from_body
 from sinslab.fusion.measurements.magnetometer import MagneticField, MagneticHeading
 from sinslab.fusion.measurements.rest import ZeroRate, ZeroVelocity
-from sinslab.fusion.measurements.schedule import InnovationGate, RowGate, Timed, arrival_epochs
+from sinslab.fusion.measurements.schedule import InnovationGate, RobustWeighting, RowGate, Timed, arrival_epochs
 from sinslab.fusion.measurements.vehicle import BodyVelocity, NonHolonomic, Odometer
 
 __all__ = ["Measurement", "NavRow", "Epoch", "Grid", "Timed", "PositionFix", "VelocityFix", "Stack",
            "InsDifference", "arrival_epochs", "ZeroVelocity", "ZeroRate", "NonHolonomic",
            "BodyVelocity", "Odometer", "LeverPositionFix", "LeverVelocityFix", "vehicle_from_body",
-           "InnovationGate", "RowGate", "Rows", "declared", "add_rate_H", "Barometer", "MagneticField",
-           "MagneticHeading"]
+           "InnovationGate", "RobustWeighting", "RowGate", "Rows", "declared", "add_rate_H", "Barometer",
+           "MagneticField", "MagneticHeading"]

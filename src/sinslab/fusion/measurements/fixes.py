@@ -11,7 +11,7 @@ from sinslab.core import attitude as A
 from sinslab.core import earth as E
 from sinslab.fusion.measurements.base import Epoch, NavRow
 from sinslab.fusion.measurements.jacobians import add_rate_H
-from sinslab.fusion.measurements.schedule import Timed, robust_R
+from sinslab.fusion.measurements.schedule import Timed, robust_weighting
 
 __all__ = ["PositionFix", "VelocityFix", "LeverPositionFix", "LeverVelocityFix"]
 
@@ -45,16 +45,17 @@ class PositionFix(Timed):
         See :func:`arrival_epochs`.
     stream : int
         Index of the stream the fix is compared with.
-    robust : float, optional
-        Inflate R where the innovation is inconsistent at this probability
-        (:func:`sinslab.fusion.measurements.schedule.robust_R`; None: never). The times and
-        factors are kept in ``downweighted``.
+    robust : RobustWeighting, float or str, optional
+        Inflate R where the innovation is inconsistent
+        (:class:`sinslab.fusion.measurements.schedule.RobustWeighting`: Chang's whole-fix
+        rule for a probability, Huber or IGG-III row weights; None: never). The times and
+        largest factors are kept in ``downweighted``.
     """
 
     def __init__(self, t_valid, pos, sigma, *, t_arrive=None, lever_arm=None, outages=(),
                  windows=None, stream=0, robust=None):
         self._init_times(t_valid, t_arrive, outages, windows)
-        self.robust = robust
+        self.robust = robust_weighting(robust)
         self.downweighted = []
         self.pos = np.asarray(pos, dtype=float)
         J = self.t_valid.size
@@ -126,8 +127,10 @@ class PositionFix(Timed):
 
     def _robust(self, ep, z, H, R):
         """``(z, H, R)`` with R inflated where the innovation is inconsistent (``robust``,
-        :func:`robust_R`); the times of the inflated fixes are kept in ``downweighted``."""
-        R, f = robust_R(ep, z, H, R, self.robust)
+        :class:`RobustWeighting`); the times of the inflated fixes are kept in ``downweighted``."""
+        if self.robust is None:
+            return z, H, R
+        R, f = self.robust.weigh(ep, z, H, R)
         if f > 1.0:
             self.downweighted.append((float(ep.t), f))
         return z, H, R
@@ -154,7 +157,7 @@ class VelocityFix(Timed):
     def __init__(self, t_valid, vel, sigma, *, t_arrive=None, lever_arm=None, outages=(),
                  windows=None, stream=0, robust=None):
         self._init_times(t_valid, t_arrive, outages, windows)
-        self.robust = robust
+        self.robust = robust_weighting(robust)
         self.downweighted = []
         J = self.t_valid.size
         self.vel = np.asarray(vel, dtype=float).reshape(J, 3)

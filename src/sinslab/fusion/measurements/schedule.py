@@ -1,14 +1,16 @@
 """When a measurement's items are processed: the arrival epochs of timed items
 (:func:`arrival_epochs`, :class:`Timed`), measurements held on filter epochs inside
 intervals (``_OnEpochs``) and the innovation gate that may refuse an update
-(:class:`InnovationGate`), and the gate of single rows (:class:`RowGate`)."""
+(:class:`InnovationGate`), the robust weighting that may soften one
+(:class:`RobustWeighting`), and the gate of single rows (:class:`RowGate`)."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["arrival_epochs", "Timed", "InnovationGate", "RowGate"]
+__all__ = ["arrival_epochs", "Timed", "InnovationGate", "RobustWeighting", "robust_weighting", "robust_R", "RowGate"]
 
 
 def arrival_epochs(t_valid, t_arrive, grid, *, outages=(), windows=None):
@@ -76,7 +78,7 @@ def _intervals(intervals):
     return w
 
 
-def robust_R(ep, z, H, R, p, limits={}):
+def robust_R(ep, z, H, R, p):
     """``R`` inflated for a measurement its prior cannot explain (Chang 2014, "Robust
     Kalman filtering based on Mahalanobis distance as outlier judging criterion", J.
     Geodesy 88): with ``d = νᵀ S⁻¹ ν`` (``ν = z − H x``, ``S = H P Hᵀ + R``) above the
@@ -96,14 +98,122 @@ def robust_R(ep, z, H, R, p, limits={}):
         d = float(nu @ np.linalg.solve(S, nu))
     except np.linalg.LinAlgError:
         return R, 1.0
-    m = z.size
-    if (m, p) not in limits:
-        from scipy.special import chdtri
-        limits[(m, p)] = float(chdtri(m, p))
-    lim = limits[(m, p)]
+    lim = _chi2_limit(z.size, p)
     if not d > lim:
         return R, 1.0
     return R * (d / lim), d / lim
+
+
+#: the weight below which a row counts as rejected (IGG-III past k1): its R is divided by it
+MIN_WEIGHT = 1e-10
+
+
+@dataclass(frozen=True)
+class RobustWeighting:
+    """How a measurement its prior cannot explain is softened before the update.
+
+    Kinds
+    -----
+    ``"chang"``
+        The whole measurement (Chang 2014, :func:`robust_R`): ``R · d/χ²`` where the
+        Mahalanobis distance ``d`` passes the ``1 − p`` quantile.
+    ``"huber"``
+        Row by row (an M-estimate in one step, the Huber weight of each standardised
+        innovation ``ṽ_i = ν_i / √S_ii``, ``S = H P Hᵀ + R``): ``w = 1`` for ``|ṽ| <= k0``,
+        else ``k0/|ṽ|``; ``R_ii ← R_ii / w``.
+    ``"igg3"``
+        Row by row with Yang's IGG-III weights (Yang, Song & Xu 2002, "Robust estimator for
+        correlated observations based on bifactor equivalent weights", J. Geodesy 76):
+        ``w = 1`` for ``|ṽ| <= k0``, ``(k0/|ṽ|)((k1 − |ṽ|)/(k1 − k0))²`` up to ``k1``,
+        and the row rejected beyond (``w =`` :data:`MIN_WEIGHT`).
+
+    The existing innovation gate (:class:`InnovationGate`) refuses an update whole; a
+    robust weighting keeps the consistent rows of a fix and lets an outlying one pull
+    as little as its residual allows. A lagged item (no prior at hand) is used as stated.
+
+    Attributes
+    ----------
+    kind : {"chang", "huber", "igg3"}
+    p : float
+        ``chang``: probability that a consistent measurement is touched.
+    k0, k1 : float
+        ``huber``: k0 [σ]; ``igg3``: k0 < k1 [σ].
+    """
+
+    kind: str = "huber"
+    p: float = 0.01
+    k0: float = 1.5
+    k1: float = 3.0
+
+    def __post_init__(self):
+        if self.kind not in ("chang", "huber", "igg3"):
+            raise ValueError(f"robust weighting must be chang, huber or igg3, got {self.kind!r}")
+        if not 0 < self.p < 1:
+            raise ValueError(f"robust probability must be in (0, 1), got {self.p}")
+        if not (0 < self.k0 < self.k1 and math.isfinite(self.k1)):
+            raise ValueError(f"robust thresholds need 0 < k0 < k1, got {self.k0}, {self.k1}")
+
+    def limit(self, m):
+        """``chang``: the χ² quantile of ``m`` rows."""
+        return _chi2_limit(m, self.p)
+
+    def row_weights(self, v):
+        """Weights (m,) of standardised innovations ``v`` (m,)."""
+        a = np.abs(np.asarray(v, dtype=float))
+        w = np.ones_like(a)
+        big = a > self.k0
+        if self.kind == "huber":
+            w[big] = self.k0 / a[big]
+        elif self.kind == "igg3":
+            mid = big & (a <= self.k1)
+            w[mid] = self.k0 / a[mid] * ((self.k1 - a[mid]) / (self.k1 - self.k0)) ** 2
+            w[a > self.k1] = MIN_WEIGHT
+            w = np.maximum(w, MIN_WEIGHT)
+        return w
+
+    def weigh(self, ep, z, H, R):
+        """``(R, factor)``: ``R`` (m,) with its rows inflated, the largest inflation (1:
+        untouched)."""
+        if self.kind == "chang":
+            return robust_R(ep, z, H, R, self.p)
+        if ep.prior is None:
+            return np.asarray(R, dtype=float), 1.0
+        x, P = ep.prior
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        R = np.broadcast_to(np.asarray(R, dtype=float), z.shape).copy()
+        nu = z - H @ x
+        s = np.sqrt(np.einsum("ij,jk,ik->i", H, P, H) + R)
+        w = self.row_weights(nu / s)
+        if np.all(w == 1.0):
+            return R, 1.0
+        return R / w, float(1.0 / w.min())
+
+
+def robust_weighting(spec):
+    """A :class:`RobustWeighting` from ``spec``: None (none), a probability (Chang's rule,
+    as ``FixSpec.robust`` always took it), a weighting, or text ``"huber[:k0]"``,
+    ``"igg3[:k0:k1]"``, ``"chang[:p]"``."""
+    if spec is None or isinstance(spec, RobustWeighting):
+        return spec
+    if isinstance(spec, str):
+        kind, *args = spec.strip().lower().split(":")
+        try:
+            vals = [float(a) for a in args]
+        except ValueError:
+            raise ValueError(f"robust weighting {spec!r}: the numbers after the kind must be numbers") from None
+        if kind == "chang" and len(vals) <= 1:
+            return RobustWeighting("chang", *vals)
+        if kind in ("huber", "igg3") and len(vals) <= (1 if kind == "huber" else 2):
+            return RobustWeighting(kind, 0.01, *vals)
+        raise ValueError(f"robust weighting {spec!r}: give huber[:k0], igg3[:k0:k1] or chang[:p]")
+    return RobustWeighting("chang", float(spec))
+
+
+def _chi2_limit(m, p, limits={}):
+    if (m, p) not in limits:
+        from scipy.special import chdtri       # χ² quantile, without scipy.stats' import
+        limits[(m, p)] = float(chdtri(m, p))
+    return limits[(m, p)]
 
 
 class InnovationGate:
