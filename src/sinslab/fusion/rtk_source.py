@@ -2,7 +2,7 @@
 observations against a base station's, double-differenced code and phase with integer
 ambiguities (:class:`sinslab.fusion.rtk_ins.DoubleDifferences`) in place of the
 satellites' pseudoranges; and what a run of the RTK engine reports — with an INS or
-without (:func:`rtk_metrics`, :func:`rtk_columns`, :func:`rtk_panels`).
+without (:func:`rtk_report`, :func:`rtk_panels`).
 
 The source plugs into :func:`sinslab.fusion.recorded.navigate_recorded` like the fix and
 raw sources (:class:`sinslab.fusion.aids.base.GnssSource`): the rover's single-point
@@ -17,64 +17,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sinslab.core import earth as E
-from sinslab.fusion.rtk import STATUS, RtkBase, RtkOptions
+from sinslab.fusion.rtk import RtkBase, RtkOptions
 
-__all__ = ["RtkSource", "rtk_metrics", "rtk_columns", "rtk_panels"]
-
-
-def rtk_metrics(a, counts, slips, nis=None):
-    """The metrics of a run of the RTK engine from its per-epoch record ``a``
-    (:meth:`sinslab.fusion.rtk.RtkLog.arrays`): epochs solved and fixed, the share fixed,
-    the first fix [epochs from the first solved, s], the median ratio and number of
-    integers of the fixed epochs, ambiguity restarts by cause and receiver (``slips``),
-    signals left out, rows rejected and fixes refused (``counts``), and the mean NIS of
-    the double differences used (``nis`` ``{"ph" | "code": [sum, rows]}``)."""
-    st = np.asarray(a["status"])
-    seen = st > STATUS["none"]
-    fx = st == STATUS["fixed"]
-    first = np.flatnonzero(fx)
-    t = np.asarray(a["t"], float)
-    s0 = np.flatnonzero(seen)
-    ratio = np.asarray(a["ratio"], float)[fx]
-    ratio = ratio[np.isfinite(ratio)]
-    m = dict(rtk_epochs=int(st.size), rtk_epochs_solved=int(seen.sum()), rtk_epochs_fixed=int(fx.sum()),
-             rtk_fixed_fraction=float(fx.sum() / max(int(seen.sum()), 1)),
-             rtk_first_fix_epochs=int(first[0] - s0[0] + 1) if first.size else None,
-             rtk_first_fix_s=float(t[first[0]] - t[s0[0]]) if first.size else None,
-             rtk_ratio_median=float(np.median(ratio)) if ratio.size else None,
-             rtk_integers_fixed_median=float(np.median(np.asarray(a["n_fixed"])[fx])) if fx.any() else 0.0)
-    m.update({f"restarts_{k}": int(v) for k, v in slips.items()})
-    m.update(epochs_without_base=counts["no_base_epoch"], signals_without_base_signal=counts["no_base_signal"],
-             signals_half_cycle=counts["half_cycle"], signals_without_state=counts["no_slot"],
-             code_rows_rejected=counts["code_rejected"], phase_rows_rejected=counts["phase_rejected"],
-             fixes_refused_by_validation=counts["fix_rejected"])
-    for k, name in (("ph", "phase"), ("code", "code")):
-        if nis is not None and nis[k][1]:
-            m[f"{name}_dd_nis_mean"], m[f"{name}_dd_rows"] = nis[k][0] / nis[k][1], int(nis[k][1])
-    return m
+__all__ = ["RtkSource", "rtk_report", "rtk_panels"]
 
 
-def rtk_columns(a, t_ref=0.0):
-    """Per epoch of the record ``a``: time [s from ``t_ref``], status (0 none, 1 float,
-    2 fixed), ratio, integers fixed and formed, double differences of phase and code,
-    ambiguities restarted, and the antenna (fixed where fixed, else float) as latitude,
-    longitude [deg], height [m] with σ east, north, up [m]."""
-    st = np.asarray(a["status"])
-    fixed = st == STATUS["fixed"]
-    pos = np.where(fixed[:, None], np.asarray(a["fixed_pos"]), np.asarray(a["float_pos"]))
-    cov = np.where(fixed[:, None, None], np.asarray(a["fixed_cov"]), np.asarray(a["float_cov"]))
-    ok = np.all(np.isfinite(pos), 1)
-    lat, lon, h = (np.full(st.size, np.nan) for _ in range(3))
-    sig = np.full((st.size, 3), np.nan)
-    if ok.any():
-        lat[ok], lon[ok], h[ok] = E.ecef_to_geodetic(pos[ok])
-        C = E.enu_to_ecef_matrix(lat[ok], lon[ok])
-        sig[ok] = np.sqrt(np.maximum(np.einsum("nji,njk,nki->ni", C, cov[ok], C), 0.0))
-    return dict(t_s=np.asarray(a["t"], float) - t_ref, status=st, ratio=np.asarray(a["ratio"], float),
-                n_fixed=np.asarray(a["n_fixed"]), n_amb=np.asarray(a["n_amb"]), n_phase=np.asarray(a["n_phase"]),
-                n_code=np.asarray(a["n_code"]), n_slip=np.asarray(a["n_slip"]), lat_deg=np.degrees(lat),
-                lon_deg=np.degrees(lon), h_m=h, sigma_e_m=sig[:, 0], sigma_n_m=sig[:, 1], sigma_u_m=sig[:, 2])
+def rtk_report(sol, t_ref):
+    """What a run of the RTK engine reports (with an INS or without), from its
+    :class:`~sinslab.fusion.gnss_alone.RtkSolution`: ``(metrics, per-epoch columns, terminal
+    line)`` — the metrics of :meth:`~sinslab.fusion.gnss_alone.RtkSolution.summary`, the
+    columns of :meth:`~sinslab.fusion.gnss_alone.RtkSolution.table` with ``t_s`` from
+    ``t_ref`` and ``t_abs_s`` the receiver's time [s]."""
+    m = sol.summary()
+    cols = sol.table()
+    cols = dict(t_s=cols["t_s"] - t_ref, t_abs_s=cols["t_s"], **{k: v for k, v in cols.items() if k != "t_s"})
+    first = "no fix" if m["rtk_first_fix_epochs"] is None else f"first fix at epoch {m['rtk_first_fix_epochs']}"
+    ratio = "" if m["rtk_ratio_median"] is None else f", median ratio {m['rtk_ratio_median']:.1f}"
+    line = (f"{m['rtk_epochs_fixed']} of {m['rtk_epochs_solved']} epochs fixed "
+            f"({100 * m['rtk_fixed_fraction']:.1f} %), {first}, median {m['rtk_integers_fixed_median']:.0f} "
+            f"integers fixed{ratio}; {sum(v for k, v in m.items() if k.startswith('restarts_'))} ambiguity restarts")
+    return m, cols, line
 
 
 def rtk_panels(cols):
@@ -130,23 +92,19 @@ class RtkSource:
 
     def report(self, plan, run):
         from sinslab.fusion.aids.base import PanelFigure, SourceReport, Table
+        from sinslab.fusion.gnss_alone import solution_of
         eng = plan.facts["dd"].engine
-        if eng is None:
+        if eng is None or not eng.log.t:
             raise ValueError("no GNSS epoch reached the RTK measurement (outages or the record's end removed them)")
-        a = eng.log.arrays()
-        m = rtk_metrics(a, dict(eng.counts, no_slot=eng.slots.full), eng.slip_counts, getattr(eng, "nis", None))
-        cols = rtk_columns(a, float(run.t[0]))
-        line = (f"  RTK against {self.base.source}: {m['rtk_epochs_fixed']} of {m['rtk_epochs_solved']} epochs "
-                f"fixed ({100 * m['rtk_fixed_fraction']:.1f} %), first fix at epoch {m['rtk_first_fix_epochs']}, "
-                f"median {m['rtk_integers_fixed_median']:.0f} integers")
+        m, cols, line = rtk_report(solution_of(eng), float(run.t[0]))
         note = ("RTK: double-differenced code and phase of every carrier against the base, single-difference "
                 "ambiguity states, integers by LAMBDA (ratio test, bootstrapped success rate, partial fixing, "
-                "validated, held); the filter starts from the rover's single-point solution and the fix tables "
-                "compare with it. t_abs_s is GPS time.")
+                f"validated, {self.options.ar}); the filter starts from the rover's single-point solution and the fix "
+                "tables compare with it. rtk_epochs: t_abs_s is the receiver's GPS time.")
         return SourceReport(self.name, "RTK: double differences against a base station", metrics=m,
                             tables=(Table("rtk_epochs", cols, "per GNSS epoch: fix status, ratio, integers fixed "
                                           "and formed, double differences, restarts, antenna position ± σ"),),
                             figures=(PanelFigure("rtk", "RTK per epoch: fix status, ratio, integers fixed and "
                                                  "formed, ambiguities restarted", rtk_panels(cols)),),
-                            notes=(note,), lines=(line,), coupling="RTK (double differences)",
-                            reference="the single-point solution")
+                            notes=(note,), lines=(f"  RTK against {self.base.source}: {line}",),
+                            coupling="RTK (double differences)", reference="the single-point solution")

@@ -97,14 +97,17 @@ class RawGnss:
     def fixes(self):
         """The single-point solutions as :class:`~sinslab.core.records.Fixes` (quality 5,
         RTKLIB's 'single'), for what needs fixes: the start (levelling, heading from the
-        course) and the GNSS-only reference."""
+        course) and the GNSS-only reference. Observations without Doppler (a RINEX file of
+        code and phase only) give position fixes without velocity."""
         from sinslab.core.records import Fixes
         sp = self.single_point()
-        ok = np.isfinite(sp.lat) & np.all(np.isfinite(sp.vel), 1)
+        has_vel = bool(np.all(np.isfinite(sp.vel), 1).any())
+        ok = np.isfinite(sp.lat) & (np.all(np.isfinite(sp.vel), 1) if has_vel else True)
         if ok.sum() < 2:
             raise ValueError(f"{int(ok.sum())} single-point solution(s) in the GNSS log: at least 2 "
                              "epochs with 4 or more satellites above the mask are needed to start")
-        return Fixes(sp.t[ok], sp.lat[ok], sp.lon[ok], sp.h[ok], sp.sigma[ok], sp.vel[ok], sp.sigma_vel[ok],
+        vel, sig_vel = (sp.vel[ok], sp.sigma_vel[ok]) if has_vel else (None, None)
+        return Fixes(sp.t[ok], sp.lat[ok], sp.lon[ok], sp.h[ok], sp.sigma[ok], vel, sig_vel,
                      np.full(int(ok.sum()), 5), "single-point solution")
 
     def clock_nominal(self, t_start=None):

@@ -8,8 +8,9 @@ The run folder holds ``solution.csv`` (per epoch: time, status, position ± σ; 
 ratio, integers fixed and formed, double differences, restarts), the figures ``track``
 (horizontal position about the first epoch, fixed epochs marked) and, for RTK, ``rtk``
 (fix status, ratio, integers, restarts per epoch), and the metrics of the RTK engine
-(:func:`sinslab.fusion.rtk_source.rtk_metrics`: epochs fixed, first fix, restarts and
-skipped signals by cause, the NIS of the double differences)."""
+(:func:`sinslab.fusion.rtk_source.rtk_report`: epochs fixed, first fix, ratio, restarts
+and skipped signals by cause, the NIS of the double differences) with the mean fixed
+antenna, its distance from the base and its spread."""
 from __future__ import annotations
 
 import numpy as np
@@ -73,27 +74,43 @@ def _single_point(keys, sv, echo):
 
 
 def _rtk(keys, sv, echo):
-    from sinslab.app.commands.navigate import _panel_figure
+    from sinslab.app.commands.panels import panel_figure
     from sinslab.app.commands.raw_gnss import load_base, rtk_options
     from sinslab.fusion.aids.base import PanelFigure
     from sinslab.fusion.gnss_alone import rtk_solve
     from sinslab.fusion.rtk import check_phase
-    from sinslab.fusion.rtk_source import rtk_columns, rtk_metrics, rtk_panels
+    from sinslab.fusion.rtk_source import rtk_panels, rtk_report
     check_phase(sv, str(keys.file))
     base = load_base(keys, sv, echo)
     sol = rtk_solve(sv, base, rtk_options(keys), dynamics=keys.dynamics)
-    m = rtk_metrics(sol.log, sol.counts, sol.slips, sol.nis_sums)
-    cols = rtk_columns(sol.log, float(sv.t_epoch[0]))
-    echo(f"{keys.file}: GNSS alone, RTK against {keys.base} ({keys.dynamics}): {m['rtk_epochs_fixed']} of "
-         f"{m['rtk_epochs_solved']} epochs fixed ({100 * m['rtk_fixed_fraction']:.1f} %), first fix at epoch "
-         f"{m['rtk_first_fix_epochs']}, median {m['rtk_integers_fixed_median']:.0f} integers")
+    m, cols, line = rtk_report(sol, float(sv.t_epoch[0]))
+    m.update(_baseline(sol, base))
+    echo(f"{keys.file}: GNSS alone, RTK against {keys.base} ({keys.dynamics}): {line}")
+    if "rtk_baseline_m" in m:
+        echo(f"  mean fixed antenna {m['rtk_baseline_m']:.3f} m from the base, spread (1σ) east/north/up "
+             f"{1e3 * m['rtk_fixed_spread_e_m']:.1f}/{1e3 * m['rtk_fixed_spread_n_m']:.1f}/"
+             f"{1e3 * m['rtk_fixed_spread_u_m']:.1f} mm")
     figs = [_track(cols, "RTK solution", fixed=cols["status"] == 2),
-            _panel_figure(PanelFigure("rtk", "RTK per epoch: fix status, ratio, integers fixed and formed, "
-                                      "ambiguities restarted", rtk_panels(cols)), 0.0)]
+            panel_figure(PanelFigure("rtk", "RTK per epoch: fix status, ratio, integers fixed and formed, "
+                                     "ambiguities restarted", rtk_panels(cols)), 0.0)]
     note = (f"GNSS alone, RTK: double-differenced code and phase against {keys.base} at the base position given, "
             f"{keys.dynamics} motion model, integers by LAMBDA (ratio ≥ {keys.ratio:g}, bootstrapped success rate, "
-            f"partial fixing, validated, {keys.ar}).")
+            f"partial fixing, validated, {keys.ar}). t_s from the first epoch; t_abs_s the receiver's GPS time.")
     return m, cols, figs, [note], sol
+
+
+def _baseline(sol, base):
+    """The mean fixed antenna: ECEF [m], its distance from the base [m] and the spread
+    (1σ east, north, up [m]) of the fixed epochs about it (a static survey's check)."""
+    fx = sol.fixed & np.all(np.isfinite(sol.fixed_pos), 1)
+    if not fx.any():
+        return {}
+    mean = sol.fixed_pos[fx].mean(0)
+    e = sol.enu_errors(mean, "fixed_pos")[fx]
+    return dict(rtk_fixed_mean_x_m=float(mean[0]), rtk_fixed_mean_y_m=float(mean[1]),
+                rtk_fixed_mean_z_m=float(mean[2]),
+                rtk_baseline_m=float(np.linalg.norm(mean - np.asarray(base.position, float))),
+                **{f"rtk_fixed_spread_{c}_m": float(np.std(e[:, k])) for k, c in enumerate("enu")})
 
 
 def _track(cols, what, fixed=None):
