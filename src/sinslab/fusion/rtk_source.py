@@ -22,17 +22,20 @@ from sinslab.fusion.rtk import RtkBase, RtkOptions
 __all__ = ["RtkSource", "rtk_report", "rtk_panels"]
 
 
-def rtk_report(sol, t_ref):
+def rtk_report(sol, t_ref, base_position):
     """What a run of the RTK engine reports (with an INS or without), from its
     :class:`~sinslab.fusion.gnss_alone.RtkSolution`: ``(metrics, per-epoch columns, terminal
     line)`` — the metrics of :meth:`~sinslab.fusion.gnss_alone.RtkSolution.summary`, the
     columns of :meth:`~sinslab.fusion.gnss_alone.RtkSolution.table` with ``t_s`` from
-    ``t_ref`` and ``t_abs_s`` the receiver's time [s]."""
+    ``t_ref`` and ``t_abs_s`` the receiver's time [s], and the baseline: the antenna minus
+    ``base_position`` (ECEF [m]) east, north, up at the base [m]."""
     m = sol.summary()
     cols = sol.table()
     cols = dict(t_s=cols["t_s"] - t_ref, t_abs_s=cols["t_s"], **{k: v for k, v in cols.items() if k != "t_s"})
+    enu = sol.enu_errors(base_position)
+    cols.update(baseline_e_m=enu[:, 0], baseline_n_m=enu[:, 1], baseline_u_m=enu[:, 2])
     first = "no fix" if m["rtk_first_fix_epochs"] is None else f"first fix at epoch {m['rtk_first_fix_epochs']}"
-    ratio = "" if m["rtk_ratio_median"] is None else f", median ratio {m['rtk_ratio_median']:.1f}"
+    ratio = "" if m["rtk_ratio_min"] is None else f", least ratio {m['rtk_ratio_min']:.1f}"
     line = (f"{m['rtk_epochs_fixed']} of {m['rtk_epochs_solved']} epochs fixed "
             f"({100 * m['rtk_fixed_fraction']:.1f} %), {first}, median {m['rtk_integers_fixed_median']:.0f} "
             f"integers fixed{ratio}; {sum(v for k, v in m.items() if k.startswith('restarts_'))} ambiguity restarts")
@@ -96,14 +99,15 @@ class RtkSource:
         eng = plan.facts["dd"].engine
         if eng is None or not eng.log.t:
             raise ValueError("no GNSS epoch reached the RTK measurement (outages or the record's end removed them)")
-        m, cols, line = rtk_report(solution_of(eng), float(run.t[0]))
+        m, cols, line = rtk_report(solution_of(eng), float(run.t[0]), self.base.position)
         note = ("RTK: double-differenced code and phase of every carrier against the base, single-difference "
                 "ambiguity states, integers by LAMBDA (ratio test, bootstrapped success rate, partial fixing, "
                 f"validated, {self.options.ar}); the filter starts from the rover's single-point solution and the fix "
                 "tables compare with it. rtk_epochs: t_abs_s is the receiver's GPS time.")
         return SourceReport(self.name, "RTK: double differences against a base station", metrics=m,
                             tables=(Table("rtk_epochs", cols, "per GNSS epoch: fix status, ratio, integers fixed "
-                                          "and formed, double differences, restarts, antenna position ± σ"),),
+                                          "and formed, double differences, restarts, antenna position ± σ, "
+                                          "baseline from the base east/north/up"),),
                             figures=(PanelFigure("rtk", "RTK per epoch: fix status, ratio, integers fixed and "
                                                  "formed, ambiguities restarted", rtk_panels(cols)),),
                             notes=(note,), lines=(f"  RTK against {self.base.source}: {line}",),

@@ -83,7 +83,7 @@ def _rtk(keys, sv, echo):
     check_phase(sv, str(keys.file))
     base = load_base(keys, sv, echo)
     sol = rtk_solve(sv, base, rtk_options(keys), dynamics=keys.dynamics)
-    m, cols, line = rtk_report(sol, float(sv.t_epoch[0]))
+    m, cols, line = rtk_report(sol, float(sv.t_epoch[0]), base.position)
     m.update(_baseline(sol, base))
     echo(f"{keys.file}: GNSS alone, RTK against {keys.base} ({keys.dynamics}): {line}")
     if "rtk_baseline_m" in m:
