@@ -124,6 +124,10 @@ def main(data, figure=None):
     print(f"\npseudoranges used {c['used']}, rejected by the gate {c['rejected']}, observations "
           f"without ephemeris {c['no_ephemeris']}; clock drift {clock[0, 1]:.1f} -> "
           f"{clock[-1, 1]:.1f} m/s")
+    m = res_tdcp.source.metrics
+    restarts = sum(v for k, v in m.items() if k.startswith("tdcp_restarts_"))
+    print(f"time-differenced phase: {m['tdcp_rows_used']} rows used, {m['tdcp_rows_rejected']} rejected, "
+          f"{restarts} ambiguity restarts, mean NIS {m['tdcp_nis_mean']:.2f}")
 
 
 if __name__ == "__main__":

@@ -87,8 +87,8 @@ def _rtk(keys, sv, echo):
     m.update(_baseline(sol, base))
     echo(f"{keys.file}: GNSS alone, RTK against {keys.base} ({keys.dynamics}): {line}")
     if "rtk_baseline_m" in m:
-        echo(f"  mean fixed antenna {m['rtk_baseline_m']:.3f} m from the base, spread (1σ) east/north/up "
-             f"{1e3 * m['rtk_fixed_spread_e_m']:.1f}/{1e3 * m['rtk_fixed_spread_n_m']:.1f}/"
+        echo(f"  mean fixed antenna {m['rtk_baseline_m']:.3f} m from the base, spread (1σ) east "
+             f"{1e3 * m['rtk_fixed_spread_e_m']:.1f}, north {1e3 * m['rtk_fixed_spread_n_m']:.1f}, up "
              f"{1e3 * m['rtk_fixed_spread_u_m']:.1f} mm")
     figs = [_track(cols, "RTK solution", fixed=cols["status"] == 2),
             panel_figure(PanelFigure("rtk", "RTK per epoch: fix status, ratio, integers fixed and formed, "
