@@ -75,7 +75,8 @@ class TimeDifferencedPhase(SatelliteMeasurement):
     max_gap : float
         Longest interval compared [s].
     Other parameters as :class:`sinslab.fusion.gnss.SatelliteMeasurement` (lever arm,
-    mask, C/N0 reference, gate, receiver-clock block and its nominal, outages, stream).
+    mask, C/N0 reference, at most K satellites over a window, receiver-clock block and its
+    nominal, outages, stream).
     """
 
     kind = "time-differenced phase"
@@ -102,6 +103,10 @@ class TimeDifferencedPhase(SatelliteMeasurement):
         rows, el = rows[ok], el[ok]
         S = sv.signals
         t = float(sv.t_epoch[ep.item])
+        for k, a, b in self.limits:          # at most k satellites, highest first (as the pseudoranges)
+            if a <= t < b and rows.size > k:
+                top = np.sort(np.argsort(-el, kind="stable")[:k])
+                rows, el = rows[top], el[top]
         slip, new = self.detector.check(t, sv.sat[rows], S.phase[rows], S.doppler[rows], S.freq[rows], S.lli[rows],
                                         sv.cn0[rows], el)
         use = np.isfinite(S.phase[rows]) & ~slip & ((S.lli[rows] & 2) == 0)

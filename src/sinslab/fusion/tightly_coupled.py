@@ -317,7 +317,8 @@ class RawSource:
             from sinslab.fusion.tdcp import TimeDifferencedPhase
             facts["tdcp"] = TimeDifferencedPhase(
                 self.raw.sv, self.raw.phase_sigma, lever_arm=setup.lever_arm, mask=self.raw.mask,
-                cn0_ref=self.raw.cn0_ref, clock_nominal=nominal, outages=setup.outages, shared=ms[0].shared)
+                cn0_ref=self.raw.cn0_ref, max_satellites=self.raw.max_satellites, clock_nominal=nominal,
+                outages=setup.outages, shared=ms[0].shared)
             plan.append(("tdcp", facts["tdcp"]))
         return Plan(tuple(plan), facts)
 
@@ -328,16 +329,19 @@ class RawSource:
         clock = self.raw.clock_estimate(run.t, run.x, run.layout, plan.facts["nominal"])
         sigma = run.sigma[:, run.layout.find("receiver_clock")]
         metrics, lines = _satellite_metrics(rows, self.raw)
-        if "tdcp" in plan.facts:
-            m, line = _tdcp_metrics(plan.facts["tdcp"], run.applied.get("tdcp"))
-            metrics.update(m)
-            lines = (*lines, line)
         tables = (Table("gnss_satellites", _satellite_table(rows, float(run.t[0])),
                         "per epoch and satellite: elevation, azimuth, C/N0, pseudorange and Doppler innovations "
                         "(before the update), σ, used/rejected"),
                   Table("gnss_clock", _clock_table(run.t, clock, sigma, self.raw.systems),
                         "receiver clock estimate (bias, drift, inter-system biases against the first system) "
                         "and σ at every filter epoch"))
+        if "tdcp" in plan.facts:
+            m, line = _tdcp_metrics(plan.facts["tdcp"], run.applied.get("tdcp"))
+            metrics.update(m)
+            lines = (*lines, line)
+            tables += (Table("tdcp_epochs", _tdcp_table(plan.facts["tdcp"].tdcp, float(run.t[0])),
+                             "per GNSS epoch: time-differenced phase rows used and rejected, signals restarted "
+                             "by a slip test, the interval compared [s], RMS of the innovations used [m]"),)
         note = (f"Tightly coupled: pseudoranges{' and Doppler' if 'range_rates' in rows else ''} of "
                 f"{metrics['gnss_systems']} satellites above {metrics['elevation_mask_deg']:g} deg; the filter "
                 "starts from the single-point solution (GNSS-only least squares) and the fix tables compare "
@@ -360,6 +364,14 @@ def _tdcp_metrics(m, applied):
             f"restarts: {c['lli']} loss of lock, {c['geometry_free']} geometry-free, {c['doppler']} Doppler, "
             f"{c['prediction']} prediction")
     return out, line
+
+
+def _tdcp_table(log, t0):
+    """The columns of the time-differenced phase's record per epoch (times from ``t0``)."""
+    rms = [float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else np.nan for v in log.innovation]
+    return dict(t_s=np.asarray(log.t, float) - t0, rows_used=np.asarray(log.used, np.int64),
+                rows_rejected=np.asarray(log.rejected, np.int64), restarts=np.asarray(log.slips, np.int64),
+                interval_s=np.asarray(log.interval, float), innovation_rms_m=np.asarray(rms, float))
 
 
 def _satellite_metrics(rows, raw):
