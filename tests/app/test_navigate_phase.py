@@ -166,3 +166,25 @@ def test_time_differenced_phase_on_the_walk(tmp_path):
     win = tab.t_s.round(2).map(n_pr).le(3).to_numpy()
     assert win.sum() >= 15 and tab.rows_used[win].max() <= 9 and tab.rows_used[~win].median() > 9
     assert "time-differenced phase:" in r.output
+
+
+@needs_static
+def test_gnss_alone_outages(tmp_path):
+    """``--outages`` without ``--imu``: the epochs inside are not used (status 0, no
+    position), RTK carries the static model over them and is fixed again at the first
+    epoch back (this pair: three carriers of two systems fix in one epoch); the
+    single-point solution leaves them out too."""
+    out = tmp_path / "rtk"
+    r = invoke(*ROVER, "--gnss-base", STATIC / "3034078M1.21O", "--base-position", BASE_XYZ, "--outages", "20:10",
+               "--set", "gnss.raw.dynamics=static", "--out", out)
+    assert r.exit_code == 0, r.output
+    sol = pd.read_csv(out / "solution.csv")
+    gap = (sol.t_s >= 20) & (sol.t_s < 30)
+    assert gap.sum() == 10 and (sol.status[gap] == 0).all() and sol.lat_deg[gap].isna().all()
+    assert (sol.status[~gap] == 2).all()
+    m = json.loads((out / "summary.json").read_text())["metrics"]
+    assert m["rtk_epochs_solved"] == 50 and m["rtk_epochs_fixed"] == 50
+    r = invoke(*ROVER, "--outages", "20:10", "--out", tmp_path / "spp")
+    assert r.exit_code == 0, r.output
+    sp = pd.read_csv(tmp_path / "spp" / "solution.csv")
+    assert (sp.status[gap] == 0).all() and (sp.status[~gap] == 1).all() and sp.h_m[gap].isna().all()

@@ -47,17 +47,19 @@ def gnss_alone(cfg, echo=print):
         raise ValueError("--phase tdcp compares each phase change with the INS's position change: give --imu, "
                          "or a base (--gnss-base, --base-position) for RTK without an IMU")
     sv = _rover(keys)
-    metrics, table, figures, notes, sol = (_rtk if keys.base else _single_point)(keys, sv, echo)
+    metrics, table, figures, notes, sol = (_rtk if keys.base else _single_point)(cfg, keys, sv, echo)
     from sinslab.app.commands.runner import Series
     return Output(config=config_value(cfg), metrics=metrics,
                   tables=[Series("solution", table, "GNSS-alone solution per epoch (t_s from the first epoch)")],
                   figures=figures, notes=notes, value=(sol, None))
 
 
-def _single_point(keys, sv, echo):
+def _single_point(cfg, keys, sv, echo):
     from sinslab.fusion.gnss import single_point
     sp = single_point(sv, mask=keys.elevation_mask, sigma=keys.pseudorange_sigma, sigma_rate=keys.doppler_sigma)
     ok = np.isfinite(sp.lat)
+    for a, ln in _outages(cfg, sv):                 # epochs not used: no solution there
+        ok &= ~((sp.t >= a) & (sp.t < a + ln))
     if not ok.any():
         from sinslab.core.errors import InputError
         raise InputError(f"{keys.file}: no epoch has 4 satellites with ephemeris above the mask")
@@ -65,15 +67,17 @@ def _single_point(keys, sv, echo):
              satellites_used_median=float(np.median(sp.n_sat[ok])))
     echo(f"{keys.file}: GNSS alone, single point: {m['gnss_epochs_solved']} of {m['gnss_epochs']} epochs solved, "
          f"median {m['satellites_used_median']:.0f} satellites")
-    table = dict(t_s=sp.t - sp.t[0], t_abs_s=sp.t, status=ok.astype(np.int64), lat_deg=np.degrees(sp.lat),
-                 lon_deg=np.degrees(sp.lon), h_m=sp.h, sigma_e_m=sp.sigma[:, 1], sigma_n_m=sp.sigma[:, 0],
-                 sigma_u_m=sp.sigma[:, 2], n_sat=sp.n_sat)
+    sig = np.where(ok[:, None], sp.sigma, np.nan)
+    table = dict(t_s=sp.t - sp.t[0], t_abs_s=sp.t, status=ok.astype(np.int64),
+                 lat_deg=np.where(ok, np.degrees(sp.lat), np.nan), lon_deg=np.where(ok, np.degrees(sp.lon), np.nan),
+                 h_m=np.where(ok, sp.h, np.nan), sigma_e_m=sig[:, 1], sigma_n_m=sig[:, 0], sigma_u_m=sig[:, 2],
+                 n_sat=sp.n_sat)
     return m, table, [_track(table, "single-point solution")], [
         "GNSS alone: the single-point solution (weighted least squares per epoch, the models of the tightly "
         "coupled rows); status 1 where solved."], sp
 
 
-def _rtk(keys, sv, echo):
+def _rtk(cfg, keys, sv, echo):
     from sinslab.app.commands.panels import panel_figure
     from sinslab.app.commands.raw_gnss import load_base, rtk_options
     from sinslab.fusion.aids.base import PanelFigure
@@ -82,7 +86,7 @@ def _rtk(keys, sv, echo):
     from sinslab.fusion.rtk_source import rtk_panels, rtk_report
     check_phase(sv, str(keys.file))
     base = load_base(keys, sv, echo)
-    sol = rtk_solve(sv, base, rtk_options(keys), dynamics=keys.dynamics)
+    sol = rtk_solve(sv, base, rtk_options(keys), dynamics=keys.dynamics, outages=_outages(cfg, sv))
     m, cols, line = rtk_report(sol, float(sv.t_epoch[0]), base.position)
     m.update(_baseline(sol, base))
     echo(f"{keys.file}: GNSS alone, RTK against {keys.base} ({keys.dynamics}): {line}")
@@ -97,6 +101,17 @@ def _rtk(keys, sv, echo):
             f"{keys.dynamics} motion model, integers by LAMBDA (ratio ≥ {keys.ratio:g}, bootstrapped success rate, "
             f"partial fixing, validated, {keys.ar}). t_s from the first epoch; t_abs_s the receiver's GPS time.")
     return m, cols, figs, [note], sol
+
+
+def _outages(cfg, sv):
+    """``--outages`` (s from the first GNSS epoch) as absolute ``(start, length)`` [s]."""
+    from sinslab.app.validate import check_outages
+    from sinslab.fusion.recorded import parse_outages, periodic_outages
+    t0, t1 = float(sv.t_epoch[0]), float(sv.t_epoch[-1])
+    outs = parse_outages(cfg.gnss.outages, t0)
+    if outs:
+        check_outages("--outages", cfg.gnss.outages, outs, t0, t1)
+    return [o for x in outs for o in (periodic_outages(t0, t1, *x[1:]) if x[0] == "periodic" else [x])]
 
 
 def _baseline(sol, base):
