@@ -17,6 +17,9 @@ by ``examples/rtk_static_pair.py``; the heading given 5° off), each with intege
 columns (antenna minus base, east/north/up at the base) minus the reference baseline; the
 fixed figures are over the fixed epochs, the float ones over every epoch and at the
 first, 10th and last epoch. CPU time is of the whole command (reading, filter, run folder).
+The cross-check: RTKLIB's own RTK (``postpos`` of pyrtklib5, kinematic, fix and hold, the
+same mask, carriers and base position, :data:`RTKLIB_CONF`) on the same files, its fixed
+antenna against the reference and against sinslab's at the epochs both fixed.
 """
 from __future__ import annotations
 
@@ -70,6 +73,73 @@ def write_imu(data: Path, path: Path):
     for k, c in enumerate("xyz"):
         cols[f"dv_{c}"] = imu.dv[:, k]
     pd.DataFrame(cols).to_csv(path, index=False, float_format="%.17g")
+
+
+#: RTKLIB's options for the cross-check (postpos through pyrtklib5): the rover's three
+#: carriers of GPS, Galileo and QZSS above 10°, broadcast ionosphere, Saastamoinen, fix
+#: and hold with the ratio test at 3, the base at the README's coordinates; the rest its defaults
+RTKLIB_CONF = """pos1-posmode=kinematic
+pos1-frequency=l1+l2+l5
+pos1-soltype=forward
+pos1-elmask=10
+pos1-ionoopt=brdc
+pos1-tropopt=saas
+pos1-sateph=brdc
+pos1-navsys=13
+pos2-armode=fix-and-hold
+pos2-arthres=3
+out-solformat=xyz
+ant2-postype=xyz
+ant2-pos1={0}
+ant2-pos2={1}
+ant2-pos3={2}
+"""
+
+
+def rtklib(data: Path, root: Path) -> dict:
+    """RTKLIB's RTK solution of the pair (``postpos``, kinematic): per epoch its status
+    (1 fixed), ratio and the baseline east/north/up at the base [m]."""
+    import pyrtklib5 as rk
+
+    from sinslab.core import earth as E
+    conf, out = root / "rtklib.conf", root / "rtklib.pos"
+    conf.write_text(RTKLIB_CONF.format(*BASE))
+    rk.resetsysopts()
+    if not rk.loadopts(str(conf), rk.sysopts[0]):
+        sys.exit("rtk_static_pair: RTKLIB did not read its options")
+    popt, sopt, fopt = rk.prcopt_t(), rk.solopt_t(), rk.filopt_t()
+    rk.getsysopts(popt, sopt, fopt)
+    files = [str(data / f) for f in ("SEPT078M1.21O", "3034078M1.21O", "SEPT078M.21P")]
+    if rk.postpos(rk.gtime_t(), rk.gtime_t(), 0.0, 0.0, popt, sopt, fopt, files, len(files), str(out), "", ""):
+        sys.exit("rtk_static_pair: RTKLIB's postpos failed")
+    rows = [ln.split() for ln in out.read_text().splitlines() if ln.strip() and not ln.startswith("%")]
+    xyz = np.array([[float(v) for v in r[2:5]] for r in rows])
+    lat, lon, _ = E.ecef_to_geodetic(BASE)
+    return dict(q=np.array([int(r[5]) for r in rows]), ratio=np.array([float(r[14]) for r in rows]),
+                baseline=(xyz - BASE) @ E.enu_to_ecef_matrix(lat, lon))
+
+
+def rtklib_figures(rt: dict, ours: Path) -> dict:
+    """RTKLIB's figures as :func:`figures` computes them, and its fixed baseline against the
+    fixed one of the run folder ``ours`` (the epochs both fixed)."""
+    import pandas as pd
+    fx = rt["q"] == 1
+    err = rt["baseline"] - reference_baseline()
+    hz = np.hypot(err[:, 0], err[:, 1])
+    res = dict(rtk_epochs=int(fx.size), rtk_epochs_fixed=int(fx.sum()),
+               rtk_first_fix_epochs=int(np.flatnonzero(fx)[0]) + 1 if fx.any() else None,
+               rtk_ratio_min=float(rt["ratio"][fx].min()), rtk_ratio_median=float(np.median(rt["ratio"][fx])))
+    res["fixed_hz_rms_m"], res["fixed_hz_max_m"] = _rms_max(hz[fx])
+    res["fixed_up_rms_m"], res["fixed_up_max_m"] = _rms_max(err[fx, 2])
+    mean = err[fx].mean(0)
+    res["fixed_mean_error_enu_m"], res["fixed_mean_error_3d_m"] = [float(v) for v in mean], float(np.linalg.norm(mean))
+    tab = pd.read_csv(ours / "solution.csv")
+    both = fx & (tab["status"].to_numpy() == 2)
+    d = tab[["baseline_e_m", "baseline_n_m", "baseline_u_m"]].to_numpy()[both] - rt["baseline"][both]
+    res["vs_sinslab_epochs"] = int(both.sum())
+    res["vs_sinslab_hz_rms_m"], res["vs_sinslab_hz_max_m"] = _rms_max(np.hypot(d[:, 0], d[:, 1]))
+    res["vs_sinslab_up_rms_m"], res["vs_sinslab_up_max_m"] = _rms_max(d[:, 2])
+    return res
 
 
 def reference_baseline():
@@ -151,6 +221,14 @@ def main(argv=None):
                   + (f" | fixed mean 3D {1e3 * res['fixed_mean_error_3d_m']:.1f} mm, baseline "
                      f"{res['fixed_baseline_m']:.4f} m (reference {res['reference_baseline_m']:.4f})"
                      if "fixed_mean_error_3d_m" in res else "") + f" | {cpu:.1f} s CPU", flush=True)
+        res = out["rtklib_kinematic"] = rtklib_figures(rtklib(data, root), root / "rtk_kinematic")
+        print(f"RTKLIB kinematic: fixed {res['rtk_epochs_fixed']}/{res['rtk_epochs']}, first fix "
+              f"{res['rtk_first_fix_epochs']}, ratio min {res['rtk_ratio_min']} | fixed hz {100 * res['fixed_hz_rms_m']:.2f}"
+              f" / {100 * res['fixed_hz_max_m']:.2f} cm, up {100 * res['fixed_up_rms_m']:.2f} / "
+              f"{100 * res['fixed_up_max_m']:.2f} cm, mean 3D {1e3 * res['fixed_mean_error_3d_m']:.1f} mm | against "
+              f"sinslab's fixed epochs ({res['vs_sinslab_epochs']}): hz {1e3 * res['vs_sinslab_hz_rms_m']:.1f} / "
+              f"{1e3 * res['vs_sinslab_hz_max_m']:.1f} mm, up {1e3 * res['vs_sinslab_up_rms_m']:.1f} / "
+              f"{1e3 * res['vs_sinslab_up_max_m']:.1f} mm", flush=True)
     if a.out:
         Path(a.out).write_text(json.dumps(out, indent=1))
 
