@@ -38,10 +38,10 @@ def gnss_alone(cfg, echo=print):
     from sinslab.app.commands.navigate_config import config_value
     from sinslab.app.commands.raw_gnss import check_phase_keys
     from sinslab.app.commands.runner import Output
+    if cfg.gnss.source != "raw" or not cfg.gnss.raw.file:
+        raise ValueError("give the IMU log: --imu FILE (imu.file); without an IMU, raw GNSS observations "
+                         "(--gnss-raw FILE) are solved GNSS alone")
     keys = cfg.gnss.raw
-    if cfg.gnss.source != "raw" or not keys.file:
-        raise ValueError("give the IMU log (--imu FILE), or raw GNSS observations (--gnss-raw FILE) to solve "
-                         "GNSS alone")
     check_phase_keys(keys)
     if keys.phase == "tdcp":
         raise ValueError("--phase tdcp compares each phase change with the INS's position change: give --imu, "
