@@ -32,7 +32,8 @@ __all__ = ["RawGnss", "RawSource", "tightly_coupled", "TightlyCoupled", "tc_mode
 
 @dataclass(frozen=True, eq=False)
 class RawGnss:
-    """Raw GNSS aiding: the prepared observations and how they are used.
+    """Raw GNSS aiding: the prepared observations and how they are used. The single-point
+    solution of the observations is computed once (:attr:`spp`).
 
     Attributes
     ----------
@@ -57,12 +58,12 @@ class RawGnss:
     nominal : tuple, optional
         ``(b0, d0, t0, {system: isb})``; default from the first single-point solution at
         or after the start (:meth:`clock_nominal`).
-    phase : {"none", "tdcp"}
-        ``"tdcp"``: the time-differenced carrier phase of every signal beside
-        (:class:`sinslab.fusion.tdcp.TimeDifferencedPhase`, in the raw source of a
-        recorded run), with its phase σ₀ ``phase_sigma`` [m].
-
-    The single-point solution of the observations is computed once (:attr:`spp`).
+    phase : str
+        ``"tdcp"``: the time-differenced carrier phase of every signal beside the
+        pseudoranges (:class:`sinslab.fusion.tdcp.TimeDifferencedPhase`, in the raw source
+        of a recorded run); ``"none"``: no phase.
+    phase_sigma : float
+        σ₀ of one carrier phase [m] (zenith, strong signal).
     """
 
     sv: SatelliteObservations
