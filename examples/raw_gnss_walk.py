@@ -37,6 +37,7 @@ def main(data, figure=None):
         return navigate_recorded(imu, RawSource(raw), NavOptions.of(**start)), raw
 
     res_tc, raw = tc()
+    res_tdcp, _ = tc(phase="tdcp")               # and the phase change of every signal between epochs
     spp = raw.fixes()
     res_lc_pvt = navigate_recorded(imu, pvt, NavOptions.of(**start))
     res_lc_spp = navigate_recorded(imu, spp, NavOptions.of(**start))
@@ -60,6 +61,7 @@ def main(data, figure=None):
         return fixed.t[ok], e
 
     rows = [("tightly coupled (pseudorange + Doppler)", *err_of(res_tc)),
+            ("tightly coupled + time-differenced phase", *err_of(res_tdcp)),
             ("loosely coupled on the receiver's NAV-PVT", *err_of(res_lc_pvt)),
             ("loosely coupled on the single-point fixes", *err_of(res_lc_spp)),
             ("GNSS-only single-point solution", *err_spp(spp))]
@@ -87,7 +89,7 @@ def main(data, figure=None):
         assert np.all(n_used[(tl >= t0 + ws) & (tl < t0 + ws + wd)] <= k)
         res_lo = navigate_recorded(imu, pvt, NavOptions.of(outages=((t0 + ws, wd),), **start))
         for name, res, key in ((f"tightly coupled, {k} satellites", res_w, rows[0][0]),
-                               ("loosely coupled on NAV-PVT, no fix", res_lo, rows[1][0])):
+                               ("loosely coupled on NAV-PVT, no fix", res_lo, rows[2][0])):
             t, e = err_of(res)
             d = e - offsets[key]
             m = (t >= t0 + ws) & (t < t0 + ws + wd)
@@ -102,13 +104,13 @@ def main(data, figure=None):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, layout="constrained")
-        for name, t, hz in curves[:4]:
+        for name, t, hz in curves[:5]:
             axes[0].plot(t, hz, lw=1, label=name)
         axes[0].set_ylabel("horizontal error [m]")
         axes[0].set_yscale("log")
         axes[0].legend(fontsize=8)
         axes[0].set_title("against the RTK-fixed epochs (each solution's mean offset removed)")
-        for name, t, hz in curves[4:]:
+        for name, t, hz in curves[5:]:
             axes[1].plot(t, hz, lw=1, label=name)
         axes[1].axvspan(window[0], window[0] + window[1], color="0.9", lw=0)
         axes[1].set_yscale("log")
@@ -122,6 +124,10 @@ def main(data, figure=None):
     print(f"\npseudoranges used {c['used']}, rejected by the gate {c['rejected']}, observations "
           f"without ephemeris {c['no_ephemeris']}; clock drift {clock[0, 1]:.1f} -> "
           f"{clock[-1, 1]:.1f} m/s")
+    m = res_tdcp.source.metrics
+    restarts = sum(v for k, v in m.items() if k.startswith("tdcp_restarts_"))
+    print(f"time-differenced phase: {m['tdcp_rows_used']} rows used, {m['tdcp_rows_rejected']} rejected, "
+          f"{restarts} ambiguity restarts, mean NIS {m['tdcp_nis_mean']:.2f}")
 
 
 if __name__ == "__main__":

@@ -61,7 +61,7 @@ _OUTPUTS: dict[str, str] = {}
 #: a fenced block a document shows as the terminal output of the last command before it
 _OUTPUT_BLOCK = re.compile(r"<!-- output of the command above -->\s*```[a-z]*\n(.*?)```", re.S)
 _PLACEHOLDER = re.compile(r"(?<![\w./-])(?:[A-Z][A-Z_]{1,}(?:\.[a-z]+)?)(?![\w/-])|\.\.\.")
-_DATA_SUFFIX = (".imu", ".csv", ".pos", ".mat", ".parquet", ".ubx", ".zip", ".gz", ".txt", ".bag")
+_DATA_SUFFIX = (".imu", ".csv", ".pos", ".mat", ".parquet", ".ubx", ".zip", ".gz", ".txt", ".bag", ".21o", ".21p")
 #: recordings of the public ``onavdata`` package (a car drive of a commercial MEMS INS/GNSS
 #: unit, a small aircraft's flight) that docs/recorded-data.md shows for a user who has it;
 #: they are not in the data folder, so their commands are not run here
@@ -410,6 +410,36 @@ QUOTED = [
      ["duration_s/3600", "imu_rate_hz", "gnss_epochs/3600", "satellites_min", "satellites_max", "satellites_mean",
       "rtk_states", "=15", "=8", "=0.1", "rtk_cpu_s", "rtk_wall_s", "tc_states", "tc_cpu_s", "rtk_over_tc_cpu"], 0.0),
     ("raw-gnss.md", "The target is 15 s of CPU: met in this run", "bench rtk_ins", ["=15"], 0.0),
+    # carrier phase on the real static pair from the command line (benchmarks/rtk_static_pair.py)
+    ("raw-gnss.md", "`benchmarks/rtk_static_pair.py` runs these commands on the static pair (its last run in the "
+     "record `docs/benchmarks.json`, 2026-12-05, on the 2-core machine at load average 21.8–32.0", "bench rtk_static_pair",
+     ["date", "cpus", "load_min", "load_max"], 0.0),
+    *[("raw-gnss.md", f"| {label} | {cells} |", "bench rtk_static_pair",
+       [f"{fx}.rtk_first_fix_epochs", f"{fx}.rtk_epochs_fixed", f"{fx}.rtk_epochs_solved", f"{fx}.rtk_ratio_min",
+        f"{fx}.rtk_integers_fixed_median", f"100*{fx}.fixed_hz_rms_m", f"100*{fx}.fixed_hz_max_m",
+        f"100*{fx}.fixed_up_rms_m", f"100*{fx}.fixed_up_max_m", f"100*{fl}.hz_epoch10_m", f"100*{fl}.up_epoch10_m",
+        f"100*{fl}.hz_last_m", f"100*{fl}.up_last_m"], 0.0)
+      for label, fx, fl, cells in (
+          ("GNSS alone, constant velocity", "rtk_kinematic", "float_kinematic",
+           "1 | 60 of 60 | 12.4 | 51 | 0.17 / 0.53 | 0.31 / 0.84 | 12.4 / −3.0, 7.3 / 14.0"),
+          ("GNSS alone, static", "rtk_static", "float_static",
+           "1 | 60 of 60 | 12.4 | 51 | 0.14 / 0.48 | 0.22 / 0.32 | 12.2 / 1.6, 11.4 / 3.1"),
+          ("RTK/INS, consumer IMU at rest (simulated)", "rtk_ins", "float_ins",
+           "1 | 60 of 60 | 12.4 | 51 | 0.17 / 0.48 | 0.27 / 0.65 | 14.2 / −6.0, 6.5 / 12.4"))],
+    ("raw-gnss.md", "The mean fixed antenna of the first row is 1.3 mm from the reference coordinates (the baseline "
+     "5290.027 m against 5290.028 m between the two reference points)", "bench rtk_static_pair",
+     ["1000*rtk_kinematic.fixed_mean_error_3d_m", "rtk_kinematic.fixed_baseline_m",
+      "rtk_kinematic.reference_baseline_m"], 0.0),
+    ("raw-gnss.md", "The whole command takes 4.4 s of CPU", "bench rtk_static_pair", ["rtk_kinematic.cpu_s"], 0.0),
+    ("raw-gnss.md", "| RTKLIB's own RTK, kinematic (the cross-check) | 7 | 54 of 60 | 13.6 | — | 0.10 / 0.21 | 0.40 / 0.88 | — |",
+     "bench rtk_static_pair", ["rtklib_kinematic.rtk_first_fix_epochs", "rtklib_kinematic.rtk_epochs_fixed",
+                               "rtklib_kinematic.rtk_epochs", "rtklib_kinematic.rtk_ratio_min",
+                               "100*rtklib_kinematic.fixed_hz_rms_m", "100*rtklib_kinematic.fixed_hz_max_m",
+                               "100*rtklib_kinematic.fixed_up_rms_m", "100*rtklib_kinematic.fixed_up_max_m"], 0.0),
+    ("raw-gnss.md", "its fixed antenna and sinslab's differ by 1.1 mm RMS horizontally and 3.3 mm vertically at the 54 "
+     "epochs both fixed", "bench rtk_static_pair",
+     ["1000*rtklib_kinematic.vs_sinslab_hz_rms_m", "1000*rtklib_kinematic.vs_sinslab_up_rms_m",
+      "rtklib_kinematic.vs_sinslab_epochs"], 0.0),
     ("raw-gnss.md", "The tightly coupled filter costs 5.9× the loosely coupled one: per epoch, two Python-level "
      "measurements of 11–15 rows (the antenna geometry and elevations computed once for both). Its horizontal error "
      "there is 0.33 m RMS against 1.17 m for the loosely coupled filter on 3 m fixes", "bench tightly_coupled",
@@ -1683,13 +1713,15 @@ def test_raw_gnss_walk_tables_are_the_examples(capsys):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     mod.main(walk)
-    printed = [r for r in capsys.readouterr().out.splitlines() if r.startswith("| ") and "---" not in r
+    out = capsys.readouterr().out
+    printed = [r for r in out.splitlines() if r.startswith("| ") and "---" not in r
                and not r.startswith(("| solution", "| window"))]
     doc = {" ".join(r.replace("**", "").replace("−", "-").split())
            for r in (ROOT / "docs" / "raw-gnss.md").read_text(encoding="utf-8").splitlines()}
-    assert len(printed) == 8
+    assert len(printed) == 9
     missing = [r for r in printed if " ".join(r.split()) not in doc]
     assert not missing, f"docs/raw-gnss.md lacks these rows the example prints today: {missing}"
+    phase = _numbers(next(r for r in out.splitlines() if r.startswith("time-differenced phase:")))
     # the text's comparisons of those rows: RMS horizontal / vertical, and the 20 s window's ends
     rms, end = {}, {}
     for c in (r.replace("*", "").replace("−", "-").split("|") for r in printed):
@@ -1703,6 +1735,16 @@ def test_raw_gnss_walk_tables_are_the_examples(capsys):
                       "vertically than the loosely coupled filter on the single-point fixes made from them, and "
                       "2.1× / 2.9× better than the single-point solution itself",
                       [100 * (1 - tc[0] / lc[0]), 100 * (1 - tc[1] / lc[1]), spp[0] / tc[0], spp[1] / tc[1]])
+    ph = rms["tightly coupled + time-differenced phase"]
+    hz_max = {c[1].strip(): _numbers(c[3])[1][0] for c in (r.replace("*", "").split("|") for r in printed)}
+    assert_doc_quotes("docs/raw-gnss.md", "11715 rows used, 0 rejected, 669 ambiguity restarts",
+                      [x for x, _ in phase[:3]])
+    assert_doc_quotes("docs/raw-gnss.md", "take the RMS from 0.349 to 0.223 m horizontally and from 0.500 to "
+                      "0.215 m vertically", [tc[0], ph[0], tc[1], ph[1]])
+    assert_doc_quotes("docs/raw-gnss.md", "the largest horizontal error (0.962 m against 1.030 m)",
+                      [hz_max["tightly coupled + time-differenced phase"],
+                       hz_max["tightly coupled (pseudorange + Doppler)"]])
+    assert_doc_quotes("docs/raw-gnss.md", "mean NIS is 1.99", [phase[3][0]])
     free = end["60..80 s, ≤ 2 sat loosely coupled on NAV-PVT, no fix"]
     assert_doc_quotes("docs/raw-gnss.md", "drifts 29 m in 20 s", [free, 20])
     assert_doc_quotes("docs/raw-gnss.md", "17.4 m at the window's end against 28.8 m without GNSS",

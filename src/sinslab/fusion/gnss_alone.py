@@ -25,7 +25,7 @@ from sinslab.fusion.carrier import max_signals, slot_count
 from sinslab.fusion.gnss import single_point
 from sinslab.fusion.rtk import STATUS, RtkBase, RtkEngine, RtkOptions
 
-__all__ = ["rtk_solve", "RtkSolution"]
+__all__ = ["rtk_solve", "RtkSolution", "solution_of"]
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ class RtkSolution:
 
     def summary(self):
         """Metrics of the run: epochs with a solution, fixed (share), time to the first
-        fix [epochs, s], median ratio of the fixed epochs, integers fixed (median per fixed
+        fix [epochs, s], median and least ratio of the fixed epochs, integers fixed (median per fixed
         epoch), ambiguity restarts by cause and receiver, signals left out by cause, rows
         rejected by the gate, fixes refused by the validation."""
         seen = self.status > 0
@@ -85,6 +85,7 @@ class RtkSolution:
         out = dict(rtk_epochs=int(self.t.size), rtk_epochs_solved=int(seen.sum()), rtk_epochs_fixed=n_fix,
                    rtk_fixed_fraction=float(n_fix / max(int(seen.sum()), 1)), rtk_first_fix_epochs=ep,
                    rtk_first_fix_s=sec, rtk_ratio_median=float(np.median(fr)) if fr.size else None,
+                   rtk_ratio_min=float(np.min(fr)) if fr.size else None,
                    rtk_integers_fixed_median=float(np.median(self.n_fixed[self.fixed])) if n_fix else 0.0)
         out.update({f"restarts_{k}": int(v) for k, v in self.slips.items()})
         c = self.counts
@@ -125,7 +126,7 @@ class RtkSolution:
 
 
 def rtk_solve(rover, base: RtkBase, options: RtkOptions = RtkOptions(), *, dynamics="static", accel_noise=1.0,
-              pos_sigma0=30.0, vel_sigma0=10.0, slots=None, start_position=None) -> RtkSolution:
+              pos_sigma0=30.0, vel_sigma0=10.0, slots=None, start_position=None, outages=()) -> RtkSolution:
     """RTK without an INS on the epochs of ``rover`` (see the module notes).
 
     Parameters
@@ -143,6 +144,9 @@ def rtk_solve(rover, base: RtkBase, options: RtkOptions = RtkOptions(), *, dynam
         Ambiguity states (default from the most satellites of an epoch and the carriers).
     start_position : array_like (3,), optional
         ECEF start [m] instead of the single-point solution.
+    outages : sequence of (start, length) [s]
+        Rover epochs not used (``start <= t < start + length``): the motion model carries
+        the solution over them (status 0 there).
 
     Returns
     -------
@@ -169,6 +173,8 @@ def rtk_solve(rover, base: RtkBase, options: RtkOptions = RtkOptions(), *, dynam
     fb = np.arange(nm)
     for e in range(e0, rover.t_epoch.size):
         t = float(rover.t_epoch[e])
+        if any(a <= t < a + ln for a, ln in outages):
+            continue
         dt = t - t_prev
         if dt > 0:
             Phi, Q = _motion(n, nm, dt, accel_noise, q_amb)
@@ -186,7 +192,7 @@ def rtk_solve(rover, base: RtkBase, options: RtkOptions = RtkOptions(), *, dynam
             r_nom = r_nom - d[:3]
             if nm == 6:
                 v_nom = v_nom - d[3:6]
-    return _solution(rover, eng, e0)
+    return solution_of(eng, rover.t_epoch)
 
 
 def _start(rover, start_position):
@@ -216,14 +222,21 @@ def _motion(n, nm, dt, q, q_amb):
     return Phi, Q
 
 
-def _solution(rover, eng, e0):
+def solution_of(eng, t=None) -> RtkSolution:
+    """The :class:`RtkSolution` of a run of the RTK engine ``eng``
+    (:class:`sinslab.fusion.rtk.RtkEngine`, with an INS or without): per epoch ``t`` [s]
+    (default: the epochs the engine was asked for, from its record); the epochs of ``t``
+    the engine was not asked for (before the start, in an outage) without a solution."""
     a = eng.log.arrays()
-    E_ = rover.t_epoch.size
-    m = np.arange(e0, E_)
+    ta = np.asarray(a["t"], float)
+    t = ta if t is None else np.asarray(t, float)
+    E_ = t.size
+    m = np.searchsorted(t, ta)
 
     def full(v, fill, shape=()):
         out = np.full((E_,) + shape, fill, dtype=float)
-        out[m] = v
+        if m.size:
+            out[m] = v
         return out
 
     st = np.zeros(E_, np.int64)
@@ -235,8 +248,10 @@ def _solution(rover, eng, e0):
     ints = {k: np.zeros(E_, np.int64) for k in ("n_fixed", "n_amb", "n_phase", "n_code", "n_slip")}
     for k in ints:
         ints[k][m] = a[k]
-    return RtkSolution(rover.t_epoch.copy(), st, full(a["ratio"], np.nan), *ints.values(), pos, fpos, xpos,
+    fixed_dd, restarted = [([], np.zeros(0))] * E_, [[]] * E_
+    for j, k in enumerate(m):
+        fixed_dd[k], restarted[k] = a["fixed_dd"][j], a["restarted"][j]
+    return RtkSolution(t.copy(), st, full(a["ratio"], np.nan), *ints.values(), pos, fpos, xpos,
                        full(a["float_cov"], np.nan, (3, 3)), full(a["fixed_cov"], np.nan, (3, 3)),
-                       dict(eng.counts, no_slot=eng.slots.full), eng.slip_counts,
-                       [([], np.zeros(0))] * e0 + list(a["fixed_dd"]), [[]] * e0 + list(a["restarted"]),
+                       dict(eng.counts, no_slot=eng.slots.full), eng.slip_counts, fixed_dd, restarted,
                        {k: (v[0] / v[1] if v[1] else None, v[1]) for k, v in eng.nis.items()})

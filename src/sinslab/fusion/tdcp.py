@@ -75,7 +75,8 @@ class TimeDifferencedPhase(SatelliteMeasurement):
     max_gap : float
         Longest interval compared [s].
     Other parameters as :class:`sinslab.fusion.gnss.SatelliteMeasurement` (lever arm,
-    mask, C/N0 reference, gate, receiver-clock block and its nominal, outages, stream).
+    mask, C/N0 reference, at most K satellites over a window, receiver-clock block and its
+    nominal, outages, stream).
     """
 
     kind = "time-differenced phase"
@@ -102,6 +103,10 @@ class TimeDifferencedPhase(SatelliteMeasurement):
         rows, el = rows[ok], el[ok]
         S = sv.signals
         t = float(sv.t_epoch[ep.item])
+        for k, a, b in self.limits:          # at most k satellites, highest first (as the pseudoranges)
+            if a <= t < b and rows.size > k:
+                top = np.sort(np.argsort(-el, kind="stable")[:k])
+                rows, el = rows[top], el[top]
         slip, new = self.detector.check(t, sv.sat[rows], S.phase[rows], S.doppler[rows], S.freq[rows], S.lli[rows],
                                         sv.cn0[rows], el)
         use = np.isfinite(S.phase[rows]) & ~slip & ((S.lli[rows] & 2) == 0)
@@ -110,7 +115,7 @@ class TimeDifferencedPhase(SatelliteMeasurement):
         lam = G.C_LIGHT / S.freq[i, f]
         trop, dtrop, _ = troposphere(r, sv.sat_pos[i])
         now = dict(t=t, r=r, b=self._bias_nominal(t), keys=list(zip(sv.sat[i].tolist(), f.tolist())),
-                   L=S.phase[i, f] * lam, clk=sv.sat_clock[i], pos=sv.sat_pos[i], el=el[q],
+                   L=S.phase[i, f] * lam, sat_clk=sv.sat_clock[i], pos=sv.sat_pos[i], el=el[q],
                    trop=trop, dtrop=dtrop,
                    var=signal_variance(self.sigma, sv.cn0[i], el[q], self.cn0_ref), ok=use[q, f], i=i,
                    n_slip=int((slip & ~new).sum()), dt=ep.t - t,
@@ -162,7 +167,7 @@ class TimeDifferencedPhase(SatelliteMeasurement):
         rho1, u1 = G.sagnac_range(now["pos"][q], r1)
         rho0 = G.sagnac_range(prev["pos"][p], r0)[0]
         dphi = now["L"][q] - prev["L"][p]
-        dpred = (rho1 - rho0) - (now["clk"][q] - prev["clk"][p])
+        dpred = (rho1 - rho0) - (now["sat_clk"][q] - prev["sat_clk"][p])
         var = now["var"][q] + prev["var"][p] + np.einsum("ij,jk,ik->i", u1, Sd, u1)
         hit = prediction_slips(dphi, dpred, var, self.prediction_k)
         self.detector.counts["prediction"] += int(hit.sum())
@@ -221,7 +226,7 @@ class TimeDifferencedPhase(SatelliteMeasurement):
         g1 = -u1 + w * np.stack([-rs1[:, 1], rs1[:, 0], zero], -1) + now["dtrop"][q]
         g0 = -u0 + w * np.stack([-rs0[:, 1], rs0[:, 0], zero], -1) + dtrop0
         z = ((rho1 - rho0) + (now["trop"][q] - trop0) + (now["b"] - prev["b"])
-             - (now["clk"][q] - prev["clk"][p]) - (now["L"][q] - prev["L"][p]))
+             - (now["sat_clk"][q] - prev["sat_clk"][p]) - (now["L"][q] - prev["L"][p]))
         H = g1 @ Jr
         H[:, ib[0]] += 1.0
         H[:, ib[1]] -= now["dt"]           # the bias at the observation time

@@ -58,6 +58,12 @@ class RawGnss:
     nominal : tuple, optional
         ``(b0, d0, t0, {system: isb})``; default from the first single-point solution at
         or after the start (:meth:`clock_nominal`).
+    phase : str
+        ``"tdcp"``: the time-differenced carrier phase of every signal beside the
+        pseudoranges (:class:`sinslab.fusion.tdcp.TimeDifferencedPhase`, in the raw source
+        of a recorded run); ``"none"``: no phase.
+    phase_sigma : float
+        σ₀ of one carrier phase [m] (zenith, strong signal).
     """
 
     sv: SatelliteObservations
@@ -70,6 +76,8 @@ class RawGnss:
     max_satellites: tuple = ()
     outages: tuple = ()
     clock_noise: tuple = (0.5, 0.5, 1e-3)
+    phase: str = "none"
+    phase_sigma: float = 0.003
     clock_sigma0: tuple = (30.0, 5.0, 10.0)
     nominal: tuple | None = None
 
@@ -90,14 +98,17 @@ class RawGnss:
     def fixes(self):
         """The single-point solutions as :class:`~sinslab.core.records.Fixes` (quality 5,
         RTKLIB's 'single'), for what needs fixes: the start (levelling, heading from the
-        course) and the GNSS-only reference."""
+        course) and the GNSS-only reference. Observations without Doppler (a RINEX file of
+        code and phase only) give position fixes without velocity."""
         from sinslab.core.records import Fixes
         sp = self.single_point()
-        ok = np.isfinite(sp.lat) & np.all(np.isfinite(sp.vel), 1)
+        has_vel = bool(np.all(np.isfinite(sp.vel), 1).any())
+        ok = np.isfinite(sp.lat) & (np.all(np.isfinite(sp.vel), 1) if has_vel else True)
         if ok.sum() < 2:
             raise ValueError(f"{int(ok.sum())} single-point solution(s) in the GNSS log: at least 2 "
                              "epochs with 4 or more satellites above the mask are needed to start")
-        return Fixes(sp.t[ok], sp.lat[ok], sp.lon[ok], sp.h[ok], sp.sigma[ok], sp.vel[ok], sp.sigma_vel[ok],
+        vel, sig_vel = (sp.vel[ok], sp.sigma_vel[ok]) if has_vel else (None, None)
+        return Fixes(sp.t[ok], sp.lat[ok], sp.lon[ok], sp.h[ok], sp.sigma[ok], vel, sig_vel,
                      np.full(int(ok.sum()), 5), "single-point solution")
 
     def clock_nominal(self, t_start=None):
@@ -291,7 +302,8 @@ class RawSource:
 
     def states(self):
         from sinslab.fusion.aids.base import State
-        return (State(self.raw.clock_block(), self.raw.clock_sigmas()),)
+        clones = (State(es.phase_clones(), 0.0),) if self.raw.phase == "tdcp" else ()
+        return (State(self.raw.clock_block(), self.raw.clock_sigmas()), *clones)
 
     def plan(self, setup, fixes, lever_block):
         from sinslab.fusion.aids.base import Plan
@@ -300,12 +312,21 @@ class RawSource:
                              "velocity fixes; with raw GNSS the lever arm given (--lever-arm) is used")
         nominal = self.raw.clock_nominal(setup.t_start)
         ms = self.raw.make(nominal, lever_arm=setup.lever_arm, outages=setup.outages)
-        return Plan(tuple((_LABELS[m.kind], m) for m in ms), {"nominal": nominal})
+        plan = [(_LABELS[m.kind], m) for m in ms]
+        facts = {"nominal": nominal}
+        if self.raw.phase == "tdcp":
+            from sinslab.fusion.tdcp import TimeDifferencedPhase
+            facts["tdcp"] = TimeDifferencedPhase(
+                self.raw.sv, self.raw.phase_sigma, lever_arm=setup.lever_arm, mask=self.raw.mask,
+                cn0_ref=self.raw.cn0_ref, max_satellites=self.raw.max_satellites, clock_nominal=nominal,
+                outages=setup.outages, shared=ms[0].shared)
+            plan.append(("tdcp", facts["tdcp"]))
+        return Plan(tuple(plan), facts)
 
     def report(self, plan, run):
         from sinslab.fusion.aids.base import SourceReport, Table
         from sinslab.fusion.observer import RowLog
-        rows = {label: run.rows.get(label) or RowLog() for label, _ in plan.measurements}
+        rows = {label: run.rows.get(label) or RowLog() for label, _ in plan.measurements if label != "tdcp"}
         clock = self.raw.clock_estimate(run.t, run.x, run.layout, plan.facts["nominal"])
         sigma = run.sigma[:, run.layout.find("receiver_clock")]
         metrics, lines = _satellite_metrics(rows, self.raw)
@@ -315,6 +336,13 @@ class RawSource:
                   Table("gnss_clock", _clock_table(run.t, clock, sigma, self.raw.systems),
                         "receiver clock estimate (bias, drift, inter-system biases against the first system) "
                         "and σ at every filter epoch"))
+        if "tdcp" in plan.facts:
+            m, line = _tdcp_metrics(plan.facts["tdcp"], run.applied.get("tdcp"))
+            metrics.update(m)
+            lines = (*lines, line)
+            tables += (Table("tdcp_epochs", _tdcp_table(plan.facts["tdcp"].tdcp, float(run.t[0])),
+                             "per GNSS epoch: time-differenced phase rows used and rejected, signals restarted "
+                             "by a slip test, the interval compared [s], RMS of the innovations used [m]"),)
         note = (f"Tightly coupled: pseudoranges{' and Doppler' if 'range_rates' in rows else ''} of "
                 f"{metrics['gnss_systems']} satellites above {metrics['elevation_mask_deg']:g} deg; the filter "
                 "starts from the single-point solution (GNSS-only least squares) and the fix tables compare "
@@ -322,6 +350,29 @@ class RawSource:
         return SourceReport(self.name, "raw GNSS: pseudoranges and Doppler per satellite", metrics=metrics,
                             tables=tables, notes=(note,), lines=lines, coupling="tightly coupled", rows=rows,
                             reference="the single-point solution", clock=(clock, sigma))
+
+
+def _tdcp_metrics(m, applied):
+    """Rows of time-differenced phase used and rejected, ambiguity restarts by cause,
+    mean ν²/(H P Hᵀ + R) per row (the driver's NIS of each update over its rows)."""
+    c = m.counts()
+    out = dict(tdcp_rows_used=c["used"], tdcp_rows_rejected=c["rejected"],
+               **{f"tdcp_restarts_{k}": int(c[k]) for k in ("lli", "geometry_free", "doppler", "prediction")})
+    if applied is not None and len(applied.nis):
+        rows = sum(int(np.sum(np.isfinite(nu))) for nu in applied.innovation)
+        out["tdcp_nis_mean"] = float(np.sum(applied.nis) / max(rows, 1))
+    line = (f"  time-differenced phase: {c['used']} rows used, {c['rejected']} rejected by the gate; "
+            f"restarts: {c['lli']} loss of lock, {c['geometry_free']} geometry-free, {c['doppler']} Doppler, "
+            f"{c['prediction']} prediction")
+    return out, line
+
+
+def _tdcp_table(log, t0):
+    """The columns of the time-differenced phase's record per epoch (times from ``t0``)."""
+    rms = [float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else np.nan for v in log.innovation]
+    return dict(t_s=np.asarray(log.t, float) - t0, rows_used=np.asarray(log.used, np.int64),
+                rows_rejected=np.asarray(log.rejected, np.int64), restarts=np.asarray(log.slips, np.int64),
+                interval_s=np.asarray(log.interval, float), innovation_rms_m=np.asarray(rms, float))
 
 
 def _satellite_metrics(rows, raw):

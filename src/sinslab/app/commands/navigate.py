@@ -17,6 +17,7 @@ from typing import Optional
 
 import numpy as np
 
+from sinslab.app.commands.panels import panel_figure
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
 from sinslab.core import units
 from sinslab.core.blocks import block_ranges, release_free_memory, release_pages
@@ -45,7 +46,8 @@ def _option(name):
 def navigate_files(cfg, *, out=None, echo=print):
     """Navigate the resolved configuration ``cfg`` (:func:`navigate_config`) and write the
     run folder ``out``. Returns ``(summary, RecordedNav, reference fixes)`` (the fixes, or
-    the single-point solution of raw observations).
+    the single-point solution of raw observations); without an IMU (GNSS alone,
+    :mod:`sinslab.app.commands.gnss_alone`) ``(summary, GNSS solution, None)``.
 
     Plausibility (:mod:`sinslab.app.plausibility`): the IMU record (length, dead channels,
     ranges, |f| against gravity, gaps) and the run (long stretches where the fix NIS or the
@@ -181,8 +183,8 @@ def _prepare(cfg, echo) -> _Prepared:
     aids = _with_error_model([a.load(inputs) for a in aids_of(cfg)], em)
     opt = _options(cfg, em, imu, fx, lever)
     if raw is not None:
-        from sinslab.fusion.tightly_coupled import RawSource
-        source = RawSource(raw)
+        from sinslab.app.commands.raw_gnss import gnss_source
+        source = gnss_source(cfg.gnss.raw, raw, echo)
     else:
         from sinslab.fusion.loosely_coupled import FixSource
         source = FixSource(fx, opt.fix)
@@ -399,6 +401,9 @@ def _compute(cfg, echo) -> Output:
     from sinslab.app.commands.navigate_config import config_value
     from sinslab.app.plausibility import settle
 
+    if not cfg.imu.file:                       # the same command without an IMU: GNSS alone
+        from sinslab.app.commands.gnss_alone import gnss_alone
+        return gnss_alone(cfg, echo)
     p = _prepare(cfg, echo)
     res = R.navigate_recorded(p.imu, p.source, p.opt, aids=p.aids)
     release_free_memory()              # the filter's working set, before the evaluation's
@@ -616,32 +621,7 @@ def _plugin_outputs(rep, metrics, tables, figures, notes, echo, t0):
     notes += list(rep.notes)
     tables += [Series(t.name, t.columns, t.description) for t in rep.tables]
     for f in rep.figures:
-        figures.append(_panel_figure(f, t0))
-
-
-def _panel_figure(f, t0):
-    """A figure of panels (:class:`sinslab.fusion.aids.base.PanelFigure`) drawn on one
-    time axis (times from the filter start ``t0``)."""
-    from sinslab.app import plotting
-    fig, axes = plotting.figure(len(f.panels), 1, width=9.0)
-    for ax, pan in zip(np.atleast_1d(axes), f.panels):
-        for k, ln in enumerate(pan.lines):
-            t = np.asarray(ln.t, dtype=float)
-            y = np.asarray(ln.y, dtype=float)
-            c = plotting.COLORS[k % len(plotting.COLORS)]
-            (ax.semilogy if pan.log else ax.plot)(t, y, ln.style, lw=1, ms=1.5, color=c, label=ln.label or None)
-            if ln.band is not None:
-                b = np.asarray(ln.band, dtype=float)
-                ax.fill_between(t, y - b, y + b, color=c, alpha=0.2, lw=0)
-        for a, b in pan.spans:
-            ax.axvspan(a, b, color="0.85", lw=0)
-        ax.set_ylabel(pan.ylabel)
-        if any(ln.label for ln in pan.lines):
-            ax.legend(fontsize=8)
-    np.atleast_1d(axes)[-1].set_xlabel("time since the filter start [s]")
-    if f.title:
-        fig.suptitle(f.title)
-    return Figure(f.name, fig, f.caption)
+        figures.append(panel_figure(f, t0))
 
 
 def _tables(res, ev, every):
@@ -1169,6 +1149,12 @@ _OPTIONS = (
                                                       "START s after the first GNSS epoch (repeatable)"),
     ("elevation_mask", "float", ("--elevation-mask",), "satellites below this elevation [deg] are not used "
                                                        "(--gnss-raw; default 10)"),
+    ("gnss_base", "path", ("--gnss-base",), "RTK: the base station's raw observations (RINEX or u-blox; navigation "
+                                            "from --gnss-nav) beside --gnss-raw (gnss.raw.base)"),
+    ("base_position", "str", ("--base-position",), 'RTK: the base antenna\'s ECEF position, e.g. '
+                                                   '"-3959400.631,3385704.533,3667523.111 m" (gnss.raw.base_position)'),
+    ("phase", "str", ("--phase",), "carrier phase without a base: tdcp (time-differenced phase) | none "
+                                   "(gnss.raw.phase)"),
     ("format", "str", ("--format",), "IMU format: psins | csv | parquet | mat | rtklib-imu"),
     ("fix_format", "str", ("--fix-format",), "rtklib-pos | csv | mat-avp"),
     ("lever_arm", "str", ("--lever-arm",), 'IMU -> antenna in vehicle right-forward-up axes, e.g. "[-0.05, 0, 0] m"'),

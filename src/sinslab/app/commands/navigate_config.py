@@ -88,6 +88,21 @@ class RawKeys(Section):
     doppler_sigma: Q("velocity", gt="0 m/s", le="100 m/s") = Field(
         "0.05 m/s", description="σ of a range rate at zenith and strong signal")
     gate: OrWord(Number(gt=0.0), "none") = Field(5.0, description="innovation gate of single rows [σ] (none: no gate)")
+    phase: Choice(("none", "tdcp")) = Field(
+        "none", description="carrier phase without a base: tdcp (time-differenced phase of every signal) | none "
+                            "(--phase); with a base station (base) RTK uses the phase")
+    phase_sigma: Q("length", gt="0 m", le="1 m") = Field(
+        "3 mm", description="σ of a carrier phase at zenith and strong signal (TDCP, RTK)")
+    base: str = Field("", description="the base station's raw observations for RTK (--gnss-base); navigation from "
+                                      "gnss.raw.nav")
+    base_position: OrWord(QV("length"), "none") = Field(
+        "none", description="the base antenna's ECEF position \"[X, Y, Z] m\" or \"X,Y,Z m\" (--base-position)")
+    ar: Choice(("hold", "continuous", "off")) = Field(
+        "hold", description="RTK integer resolution: hold (fix and hold) | continuous (fixed solution reported, "
+                            "filter float) | off (float only)")
+    ratio: Number(gt=1.0) = Field(3.0, description="RTK ratio-test threshold")
+    dynamics: Choice(("static", "kinematic")) = Field(
+        "kinematic", description="motion model of RTK without an IMU: static antenna | constant velocity")
 
 
 class GnssKeys(Section):
@@ -148,6 +163,8 @@ FLAGS = {
     "--outages": ("gnss.outages", None),
     "--gnss-raw": ("gnss.raw.file", "path"), "--gnss-nav": ("gnss.raw.nav", "path"),
     "--max-satellites": ("gnss.raw.max_satellites", "list"), "--elevation-mask": ("gnss.raw.elevation_mask", "deg"),
+    "--gnss-base": ("gnss.raw.base", "path"), "--base-position": ("gnss.raw.base_position", "position"),
+    "--phase": ("gnss.raw.phase", None),
     "--platform": ("start.platform", None),
     "--imu-errors": ("filter.imu_errors", "maybe_path"), "--scale-factors": ("filter.scale_factors", None),
     "--smooth": ("filter.smooth", None),
@@ -336,12 +353,26 @@ def flag_overrides(given: dict):
             value = str(_abs(value)) if Path(str(value)).is_file() else value
         elif kind == "list":
             value = list(value)
+        elif kind == "position":                    # "X,Y,Z m" as the vector key takes it
+            value = _position_text(value)
         _put(out, key, _unit(value, kind))
         origins[key] = f"{opt} {shown}"
         if opt in ("--fixes", "--gnss-raw"):
             _put(out, "gnss.source", "fixes" if opt == "--fixes" else "raw")
             origins["gnss.source"] = f"{opt} {shown}"
     return out, origins, enable
+
+
+def _position_text(text):
+    """``"X,Y,Z m"`` or ``"[X, Y, Z] m"`` -> ``"[X, Y, Z] m"`` (a unit is required)."""
+    t = str(text).strip()
+    if t.startswith("["):
+        return t
+    nums, _, unit = t.rpartition(" ")
+    if not nums or "," not in nums:
+        raise ConfigError(f"--base-position {text!r}: give the base antenna's ECEF X,Y,Z with a unit, e.g. "
+                          "\"-3959400.631,3385704.533,3667523.111 m\"")
+    return f"[{nums}] {unit}"
 
 
 def _init_items(text):

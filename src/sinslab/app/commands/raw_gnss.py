@@ -11,7 +11,8 @@ import re
 
 import numpy as np
 
-__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures"]
+__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures", "gnss_source", "load_base",
+           "check_phase_keys", "rtk_options"]
 
 
 def parse_max_satellites(items, t_first):
@@ -55,7 +56,7 @@ def load_raw(keys, imu, echo=print):
                          + ("" if nav is not None else " (give a navigation file with --gnss-nav)"))
     raw = RawGnss(sv, max_satellites=parse_max_satellites(keys.max_satellites, float(sv.t_epoch[0])),
                   mask=keys.elevation_mask, pseudorange_sigma=keys.pseudorange_sigma,
-                  doppler_sigma=keys.doppler_sigma, gate=keys.gate)
+                  doppler_sigma=keys.doppler_sigma, gate=keys.gate, phase=keys.phase, phase_sigma=keys.phase_sigma)
     sp = raw.single_point()
     if not np.isfinite(sp.lat).any():
         from sinslab.fusion.gnss import single_point
@@ -67,6 +68,56 @@ def load_raw(keys, imu, echo=print):
     if no_eph:
         echo(f"  {len(no_eph)} satellite(s) without ephemeris skipped: {', '.join(no_eph)}")
     return raw, raw.fixes()
+
+
+def check_phase_keys(keys):
+    """The carrier-phase keys of ``[gnss.raw]`` that contradict each other: one line."""
+    has_base, has_pos = bool(keys.base), keys.base_position is not None
+    if has_base and not has_pos:
+        raise ValueError("--gnss-base needs --base-position: the base antenna's ECEF X,Y,Z (e.g. "
+                         "\"-3959400.631,3385704.533,3667523.111 m\")")
+    if has_pos and not has_base:
+        raise ValueError("--base-position needs --gnss-base (the base station's observations)")
+    if has_base and keys.phase == "tdcp":
+        raise ValueError("--phase tdcp is the carrier phase without a base; with --gnss-base RTK uses the phase")
+
+
+def load_base(keys, rover, echo=print):
+    """The base station of ``[gnss.raw]`` (``base``, ``base_position``; navigation from
+    ``nav``) read, prepared and checked against the rover (:func:`sinslab.fusion.rtk.check_pair`:
+    one-line errors; its warnings printed). Returns the :class:`~sinslab.fusion.rtk.RtkBase`."""
+    from sinslab.data.gnss import read_gnss_raw
+    from sinslab.fusion.gnss import prepare
+    from sinslab.fusion.rtk import RtkBase, check_pair
+
+    nav = None if keys.nav in ("none", "") else keys.nav
+    base = RtkBase(prepare(read_gnss_raw(keys.base, nav)), np.asarray(keys.base_position, float), str(keys.base))
+    for w in check_pair(rover, base, str(keys.file), rtk_options(keys)):
+        echo(f"  warning: {w}")
+    return base
+
+
+def rtk_options(keys):
+    """The RTK options of ``[gnss.raw]``."""
+    from sinslab.fusion.rtk import RtkOptions
+    return RtkOptions(phase_sigma=keys.phase_sigma, code_sigma=keys.pseudorange_sigma, mask=keys.elevation_mask,
+                      ar_mask=keys.elevation_mask, ar=keys.ar, ratio=keys.ratio,
+                      gate=keys.gate if keys.gate is not None else 1e6)
+
+
+def gnss_source(keys, raw, echo=print):
+    """The GNSS source of raw observations: RTK against a base
+    (:class:`sinslab.fusion.rtk_source.RtkSource`) or the satellites' own rows, with
+    time-differenced phase when ``phase = "tdcp"`` (:class:`sinslab.fusion.tightly_coupled.RawSource`)."""
+    check_phase_keys(keys)
+    if keys.base or keys.phase == "tdcp":
+        from sinslab.fusion.rtk import check_phase
+        check_phase(raw.sv, str(keys.file))
+    if keys.base:
+        from sinslab.fusion.rtk_source import RtkSource
+        return RtkSource(raw, load_base(keys, raw.sv, echo), rtk_options(keys))
+    from sinslab.fusion.tightly_coupled import RawSource
+    return RawSource(raw)
 
 
 _SYSTEM_NAMES = {"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS", "J": "QZSS"}
