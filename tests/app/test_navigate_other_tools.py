@@ -74,6 +74,8 @@ def test_kfgins_files_as_shipped(drive, tmp_path):
                    "--lever-arm", "[0.3, 1.2, 1.0] m"], tmp_path / "kfgins")
     assert "fix σ from GNSS_RTK.pos (per line)" in out, out
     assert s["metrics"]["hz_err_with_fixes_median_m"] < 0.1, s["metrics"]
+    assert "built-in default" not in out                           # a rest: the noise measured there
+    assert s["metrics"]["start_source_white_noise"].startswith("measured at the initial rest (")
 
 
 def test_ros2_bag_as_shipped(drive, tmp_path):
@@ -88,3 +90,85 @@ def test_ros2_bag_as_shipped(drive, tmp_path):
                    "--lever-arm", "[0.3, 1.2, 1.0] m"], tmp_path / "ros")
     assert "fix σ from /gnss/fix position_covariance" in out, out
     assert s["metrics"]["hz_err_with_fixes_median_m"] < 0.1, s["metrics"]
+
+
+T_WEEK = 138000.0                       # the files' first stamp, seconds of the GPS week
+
+
+def _truth_at(tru, t):
+    i = int(np.argmin(np.abs(tru.t - t)))
+    return float(tru.lat[i]), float(tru.lon[i]), float(tru.h[i]), tru.vel[i].tolist(), tru.att[i].tolist()
+
+
+def test_init_gives_the_whole_start_and_outages_count_on_the_log_clock(drive, tmp_path):
+    """NaveGo hands its filter the reference's attitude, KF-GINS its init file's position,
+    velocity, attitude and their σ at a start time: `--init` takes all of them (units
+    carried) and the filter starts there, at that time, with those σ; `--outages` at the
+    log's own stamps, at GPS seconds of week and at a GPS calendar time name the same
+    outage as seconds from the first fix."""
+    d, tru = drive
+    lat, lon, h, vel, att = _truth_at(tru, 40.0)                  # moving at 10 m/s, no rest to level on
+    hd = float(np.degrees(np.mod(A.yaw_to_heading(att[2]), 2 * np.pi)))
+    init = (f"pitch={float(np.degrees(att[0]))!r} deg, roll={float(np.degrees(att[1]))!r} deg, heading={hd!r} deg, "
+            f"attitude_sigma=[0.05, 0.05, 0.1] deg, time={T_WEEK + 40.0!r} s, latitude={float(np.degrees(lat))!r} deg, "
+            f"longitude={float(np.degrees(lon))!r} deg, height={h!r} m, velocity=[{vel[0]!r}, {vel[1]!r}, {vel[2]!r}] m/s, "
+            "position_sigma=[0.1, 0.1, 0.2] m, velocity_sigma=[0.05, 0.05, 0.05] m/s")
+    base = ["--imu", str(d / "imu.mat"), "--gnss", str(d / "gnss.mat"), "--init", init]
+    out, s = _run([*base, "--outage-clock", "log", "--outages", f"{T_WEEK + 55.0!r}:10"], tmp_path / "log")
+    m = s["metrics"]
+    assert "start 39.80 s after the first fix" in out, out            # first fix at 0.2 s
+    assert m["initial_heading_deg"] == pytest.approx(hd, abs=1e-6)
+    assert m["initial_attitude_sigma_deg"] == pytest.approx([0.05, 0.05, 0.1], rel=0.05)
+    for k in ("attitude", "position", "velocity", "position_sigma", "velocity_sigma"):
+        assert m[f"start_source_{k}"].startswith("given"), (k, m[f"start_source_{k}"])
+    assert m["start_source_attitude_sigma"] == "given"
+    assert m["n_outages"] == 1 and m["hz_err_with_fixes_median_m"] < 0.1, m
+    _, s2 = _run([*base, "--outages", "54.8:10"], tmp_path / "first")
+    assert s2["metrics"]["outage_end_hz_err_m"] == m["outage_end_hz_err_m"]
+    assert s["config"]["gnss"]["outage_clock"] == "log"
+
+
+def test_outage_clocks_name_the_same_times():
+    """GPS seconds of week and a GPS calendar time (no leap seconds) land on the log's
+    stamps whether the log counts seconds of week (NaveGo, KF-GINS) or GPS seconds since
+    1970 (RTKLIB .pos as read); a periodic FIRST on an absolute clock likewise."""
+    from sinslab.app.commands.navigate import _outages
+    from sinslab.core.gnss import GPS_EPOCH_UNIX
+    week = T_WEEK, T_WEEK + 80.0
+    assert _outages("138055:10", "log", *week) == ((138055.0, 10.0),)
+    assert _outages("138055:10", "gps", *week) == ((138055.0, 10.0),)
+    assert _outages("2026-12-07T14:20:55:10", "gps", *week) == ((138055.0, 10.0),)
+    assert _outages("54.8:10", "first-fix", *week) == ((T_WEEK + 54.8, 10.0),)
+    t70 = GPS_EPOCH_UNIX + 2448 * 604800.0 + T_WEEK                   # GPS week 2448, 138000 s
+    since_1970 = t70, t70 + 80.0
+    assert _outages("138055:10", "gps", *since_1970) == ((t70 + 55.0, 10.0),)
+    assert _outages("2026-12-07T14:20:55:10", "gps", *since_1970) == ((t70 + 55.0, 10.0),)
+    assert _outages("10/30@138010", "log", *week) == (("periodic", 10.0, 30.0, 10.0),)
+
+
+def test_outages_off_the_record_on_an_absolute_clock_are_one_line(drive, tmp_path):
+    from sinslab.cli import app
+    d, _ = drive
+    for clock, outages, words in (("log", "55:10", "is outside the record (138000.200..138079.800 s"),
+                                  ("gps", "2026-12-07T18:00:00:10", "is outside the record (GPS 138000.2 s"),
+                                  ("gps", "700000:10", "is not a second of the GPS week")):
+        res = CliRunner().invoke(app, ["navigate", "--imu", str(d / "imu.mat"), "--gnss", str(d / "gnss.mat"),
+                                       "--outage-clock", clock, "--outages", outages, "--out", str(tmp_path / "x")])
+        assert res.exit_code == 2 and words in res.output, (clock, res.output)
+        assert not (tmp_path / "x" / "summary.json").exists()
+
+
+def test_a_start_in_motion_says_its_noise_is_a_default(drive, tmp_path):
+    """No rest at the start and no error model given: the white noise is the built-in
+    default, said once on the terminal with the option that sets it and in the summary
+    (not "measured at the initial rest"); with a rest it is the rest's (the KF-GINS test above)."""
+    d, _ = drive
+    rows = np.loadtxt(d / "imu.txt")
+    np.savetxt(tmp_path / "moving.txt", rows[rows[:, 0] >= T_WEEK + 40.0], fmt="%.6f" + " %.17g" * 6)
+    out, s = _run(["--imu", str(tmp_path / "moving.txt"), "--gnss", str(d / "gnss.mat")], tmp_path / "moving")
+    m = s["metrics"]
+    assert out.count("white noise: the built-in default") == 1 and "--imu-errors" in out, out
+    assert m["start_source_white_noise"] == "the error model's: no rest at the start to measure it"
+    assert m["start_source_gyro_bias"].startswith("zero with the error model's σ: no rest"), m
+    assert not any("measured at the initial rest" in n for n in s["notes"]), s["notes"]
+    assert any(n.startswith("Error model: white noise: the built-in default") for n in s["notes"]), s["notes"]

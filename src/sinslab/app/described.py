@@ -116,6 +116,8 @@ DESCRIPTIONS = {
          "Student's t at 1 % for the fit's degrees of freedom)"),
         (r"^initial_heading_sigma_deg$", "1σ of the initial heading (from the fix course window)"),
         (r"^initial_attitude_sigma_deg$", "filter 1σ of the attitude error φE, φN, φU at its first epoch"),
+        (r"^start_source_(\w+)$", "where the start's {0} came from: measured (at the rest, in motion), given "
+         "(--init), or a default because the record has nothing to measure it from"),
         (r"^fixes_after_grid$", "fixes after the last whole filter step, not used"),
         (r"^filter_gyro_arw_deg_sqrth$", "gyro angle random walk x, y, z the filter assumed"),
         (r"^filter_accel_vrw_ug_sqrthz$", "accelerometer velocity random walk x, y, z the filter assumed"),
