@@ -628,7 +628,11 @@ def _claims(res, p, ev, metrics, echo):
     recs = res.source.fix_records
     if recs is None:
         from sinslab.app.commands.raw_gnss import raw_claims
+        from sinslab.app.plausibility import row_consistency_findings
         claims, extra = raw_claims(res.source.rows)
+        found, window = row_consistency_findings(res.source.rows)
+        p.found += found
+        extra.update(window)
     else:
         from sinslab.app.described import SETTLE_S, navigate_claims
         from sinslab.app.plausibility import consistency_findings
