@@ -146,15 +146,24 @@ def test_outage_clocks_name_the_same_times():
     assert _outages("10/30@138010", "log", *week) == (("periodic", 10.0, 30.0, 10.0),)
 
 
-def test_outages_off_the_record_on_an_absolute_clock_are_one_line(drive, tmp_path):
+def test_outages_off_the_record_and_a_start_half_given_are_one_line(drive, tmp_path):
     from sinslab.cli import app
     d, _ = drive
-    for clock, outages, words in (("log", "55:10", "is outside the record (138000.200..138079.800 s"),
-                                  ("gps", "2026-12-07T18:00:00:10", "is outside the record (GPS 138000.2 s"),
-                                  ("gps", "700000:10", "is not a second of the GPS week")):
+    for args, words in ((["--outage-clock", "log", "--outages", "55:10"],
+                         "is outside the record (138000.200..138079.800 s"),
+                        (["--outage-clock", "gps", "--outages", "2026-12-07T18:00:00:10"],
+                         "is outside the record (GPS 138000.2 s"),
+                        (["--outage-clock", "gps", "--outages", "700000:10"], "is not a second of the GPS week"),
+                        (["--init", "latitude=45 deg"], "needs latitude, longitude and height; longitude, height "
+                                                        "missing"),
+                        (["--init", "heading=30 deg, time=138010 s"], "the start time needs the whole attitude"),
+                        (["--init", "velocity=[1, 2] m/s"], "velocity"),
+                        (["--init", "time=139000 s, pitch=1 deg, roll=0 deg, heading=3 deg"],
+                         "the start time 139000.000 s is outside the IMU record")):
         res = CliRunner().invoke(app, ["navigate", "--imu", str(d / "imu.mat"), "--gnss", str(d / "gnss.mat"),
-                                       "--outage-clock", clock, "--outages", outages, "--out", str(tmp_path / "x")])
-        assert res.exit_code == 2 and words in res.output, (clock, res.output)
+                                       *args, "--out", str(tmp_path / "x")])
+        assert res.exit_code == 2 and words in res.output, (args, res.output)
+        assert len([ln for ln in res.output.splitlines() if "sinslab: error" in ln]) == 1, res.output
         assert not (tmp_path / "x" / "summary.json").exists()
 
 
