@@ -631,6 +631,8 @@ def _sources(start: StartSpec, errors: ErrorSpec, rest, level, how, mf, fit, car
         att += f", holding at {start.init_time:.3f} s"
     if start.attitude_given or (start.pitch is not None and start.roll is not None):
         att_sig = "given" if start.att_sigma != StartSpec().att_sigma else "the default prior (1, 1, 5 deg)"
+        if not start.attitude_given:
+            att_sig = f"pitch and roll {att_sig}; heading's from how it was found"
     elif fit is not None:
         att_sig = "the in-motion alignment's fit σ with the levelling prior"
     elif carried_sigma is not None:
