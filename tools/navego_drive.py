@@ -83,7 +83,7 @@ def given_start(fx, tru):
     """The reference's attitude at the first fix as the start options (NaveGo's ini_align)."""
     from sinslab.core import attitude as A
     t0 = float(fx.t[0])
-    k = int(np.argmin(np.abs(tru.t - t0)))
+    k = int(np.searchsorted(tru.t, t0 - 1e-9))                # the first reference sample from the first fix
     return dict(pitch=float(tru.att[k, 0]), roll=float(tru.att[k, 1]), init_time=float(tru.t[k]),
                 heading=float(np.mod(A.yaw_to_heading(tru.att[k, 2]), 2 * np.pi)))
 
