@@ -173,10 +173,16 @@ def test_a_start_in_motion_says_its_noise_is_a_default(drive, tmp_path):
     (not "measured at the initial rest"); with a rest it is the rest's (the KF-GINS test above)."""
     d, _ = drive
     rows = np.loadtxt(d / "imu.txt")
-    np.savetxt(tmp_path / "moving.txt", rows[rows[:, 0] >= T_WEEK + 40.0], fmt="%.6f" + " %.17g" * 6)
+    rows = rows[rows[:, 0] >= T_WEEK + 40.0]
+    rng = np.random.default_rng(5)                  # a vibrating unit: 50x the default white noise
+    rows[:, 1:4] += rng.normal(0, 50 * 0.0038 * u.deg * 0.1, (len(rows), 3))
+    rows[:, 4:7] += rng.normal(0, 50 * 70 * u.ug * 0.1, (len(rows), 3))
+    np.savetxt(tmp_path / "moving.txt", rows, fmt="%.6f" + " %.17g" * 6)
     out, s = _run(["--imu", str(tmp_path / "moving.txt"), "--gnss", str(d / "gnss.mat")], tmp_path / "moving")
     m = s["metrics"]
     assert out.count("white noise: the built-in default") == 1 and "--imu-errors" in out, out
+    assert m["nis_verdict"] == "overconfident noise model", m["nis_mean"]
+    assert "overconfident noise model; the white noise is the built-in default, not measured" in out, out
     assert m["start_source_white_noise"] == "the error model's: no rest at the start to measure it"
     assert m["start_source_gyro_bias"].startswith("zero with the error model's σ: no rest"), m
     assert not any("measured at the initial rest" in n for n in s["notes"]), s["notes"]

@@ -645,8 +645,11 @@ def _claims(res, p, ev, metrics, echo):
             nis, inn.shape[1] if inn.ndim == 2 else 3, ev.hz[ok],
             np.hypot(*np.maximum(p.fx.sigma[ev.idx], p.opt.fix.pos_sigma_floor)[ok, :2].T), ~settling[ok])
         if nis.size and extra["nis_verdict"] != "consistent":
+            hint = ("; the white noise is the built-in default, not measured (no rest at the start): the "
+                    "unit's, --imu-errors FILE or a grade, may explain it" if extra["nis_verdict"].startswith(
+                        "overconfident") and not res.start.noise_measured and not p.em_cfg else "")
             echo(f"  mean NIS {res.source.metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: "
-                 f"{extra['nis_verdict']}")
+                 f"{extra['nis_verdict']}{hint}")
         if sd is not None:
             p.found += consistency_findings(fix_t, inn, sd, nis, _innovation_labels(inn.shape[1]))
     metrics.update(extra)
