@@ -187,3 +187,26 @@ def test_a_start_in_motion_says_its_noise_is_a_default(drive, tmp_path):
     assert m["start_source_gyro_bias"].startswith("zero with the error model's σ: no rest"), m
     assert not any("measured at the initial rest" in n for n in s["notes"]), s["notes"]
     assert any(n.startswith("Error model: white noise: the built-in default") for n in s["notes"]), s["notes"]
+
+
+def test_navego_ini_align_starts_the_run_at_the_first_sample(drive, tmp_path):
+    """A NaveGo IMU struct with `ini_align` (roll, pitch, yaw of NED, the reference's at
+    imu.t(1)) and `ini_align_err`: the run starts there, at the first sample, with that
+    attitude and σ, as NaveGo's filter does — not 30 s later after the rest and the first
+    straight stretch — and says where the attitude came from."""
+    d, tru = drive
+    m = scipy.io.loadmat(d / "imu.mat", squeeze_me=True, struct_as_record=False)["imu"]
+    k = int(np.argmin(np.abs(tru.t - m.t[0] + T_WEEK)))
+    pitch, roll, yaw = tru.att[k]
+    hd = float(np.mod(A.yaw_to_heading(yaw), 2 * np.pi))
+    fields = {f: getattr(m, f) for f in m._fieldnames}
+    fields.update(ini_align=np.array([roll, pitch, hd]), ini_align_err=np.radians([0.2, 0.3, 0.5]))
+    scipy.io.savemat(tmp_path / "imu.mat", {"imu": fields})
+    out, s = _run(["--imu", str(tmp_path / "imu.mat"), "--gnss", str(d / "gnss.mat")], tmp_path / "run")
+    assert f"heading {np.degrees(hd):.3f} deg at the first IMU sample from imu.ini_align (σ from ini_align_err)" \
+        in out, out
+    assert "start -0.19 s after the first fix" in out, out             # the first sample, 0.01 s
+    mt = s["metrics"]
+    assert mt["initial_heading_deg"] == pytest.approx(np.degrees(hd), abs=1e-6)
+    assert mt["initial_attitude_sigma_deg"] == pytest.approx([0.3, 0.2, 0.5], rel=0.05)
+    assert mt["start_source_attitude"].startswith("given") and mt["hz_err_with_fixes_median_m"] < 0.1, mt

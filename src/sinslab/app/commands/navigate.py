@@ -179,7 +179,7 @@ def _prepare(cfg, echo) -> _Prepared:
     imu, sync = _time_sync(cfg, data.imu, fx, lever, echo)
     inputs = _Inputs(_first(imu_path), (data.meta or {}).get("stationary"), sync)
     aids = _with_error_model([a.load(inputs) for a in aids_of(cfg)], em)
-    opt = _options(cfg, em, imu, fx, lever)
+    opt = _start_from_file(_options(cfg, em, imu, fx, lever), cfg.start, data, imu, echo)
     if raw is not None:
         from sinslab.fusion.tightly_coupled import RawSource
         source = RawSource(raw)
@@ -351,6 +351,27 @@ def _file_says(data, fmeta, cfg, em, echo):
             echo(f"  {what} static bias of the struct removed from every sample "
                  f"({', '.join(f'{x:.3g}' for x in data.meta[key])} SI), as NaveGo does")
     return lever, em
+
+
+def _start_from_file(opt, st, data, imu, echo):
+    """The initial attitude another tool's IMU file holds (NaveGo's ``ini_align``, with
+    ``ini_align_err`` its σ), given to the filter at the first IMU sample as that tool
+    gives it, and told once; any attitude or start time given in ``[start]`` wins."""
+    meta = data.meta or {}
+    att = meta.get("initial_attitude")
+    if att is None or any(getattr(st, k) is not None for k in ("pitch", "roll", "heading", "time")):
+        return opt
+    from sinslab.core import attitude as A
+    hd = float(np.mod(A.yaw_to_heading(att[2]), 2 * np.pi))
+    kw = dict(pitch=float(att[0]), roll=float(att[1]), heading=hd, init_time=float(imu.t[0]))
+    sig = meta.get("initial_attitude_sigma")
+    if sig is not None and st.attitude_sigma is None and np.all(np.asarray(sig) > 0):
+        kw["att_sigma"] = tuple(float(x) for x in sig)
+    name = meta.get("variable", "the IMU file")
+    echo(f"  initial attitude pitch {np.degrees(att[0]):.3f}, roll {np.degrees(att[1]):.3f}, heading "
+         f"{np.degrees(hd):.3f} deg at the first IMU sample from {name}.ini_align"
+         f"{' (σ from ini_align_err)' if 'att_sigma' in kw else ''} (--init replaces it)")
+    return opt.replace(**kw)
 
 
 def _with_error_model(aids, em):
