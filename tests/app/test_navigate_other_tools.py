@@ -210,3 +210,33 @@ def test_navego_ini_align_starts_the_run_at_the_first_sample(drive, tmp_path):
     assert mt["initial_heading_deg"] == pytest.approx(np.degrees(hd), abs=1e-6)
     assert mt["initial_attitude_sigma_deg"] == pytest.approx([0.3, 0.2, 0.5], rel=0.05)
     assert mt["start_source_attitude"].startswith("given") and mt["hz_err_with_fixes_median_m"] < 0.1, mt
+
+
+def test_kfgins_init_file_as_shipped(drive, tmp_path):
+    """A KF-GINS configuration's initial state (YAML as its dataset ships it: starttime,
+    initpos deg/deg/m, initvel NED, initatt roll/pitch/yaw deg, their std) given whole by
+    `--init kf-gins.yaml`: the run starts at starttime with the truth 40 s into the drive,
+    where nothing could be found; a file without an initial state is one line."""
+    d, tru = drive
+    lat, lon, h, vel, att = _truth_at(tru, 40.0)
+    rpy = np.degrees(A.euler_to_ned(np.array(att))).tolist()
+    (tmp_path / "kf-gins.yaml").write_text(
+        "# KF-GINS configuration file\nimupath: \"./imu.txt\"\nstarttime: 138040\nendtime: -1\n"
+        f"initpos: [ {float(np.degrees(lat))!r}, {float(np.degrees(lon))!r}, {h!r} ]\n"
+        f"initvel: [ {vel[1]!r}, {vel[0]!r}, {-vel[2]!r} ]  # north east down\n"
+        f"initatt: [ {rpy[0]!r}, {rpy[1]!r}, {rpy[2]!r} ]\n"
+        "initposstd: [ 0.1, 0.1, 0.2 ]\ninitvelstd: [ 0.05, 0.05, 0.05 ]\ninitattstd: [ 0.05, 0.05, 0.1 ]\n"
+        "imunoise:\n  arw: [0.003, 0.003, 0.003]\nantlever:  [ 1.2, 0.3, -1.0 ]\n")
+    out, s = _run(["--imu", str(d / "imu.txt"), "--gnss", str(d / "GNSS_RTK.pos"), "--lever-arm", "[0.3, 1.2, 1.0] m",
+                   "--init", str(tmp_path / "kf-gins.yaml")], tmp_path / "kf")
+    m = s["metrics"]
+    assert "start 39.80 s after the first fix" in out, out
+    assert m["initial_heading_deg"] == pytest.approx(float(np.mod(rpy[2], 360)), abs=1e-6)
+    assert m["initial_attitude_sigma_deg"] == pytest.approx([0.05, 0.05, 0.1], rel=0.05)
+    assert all(m[f"start_source_{k}"] == "given" for k in ("attitude_sigma", "position", "velocity_sigma")), m
+    assert m["hz_err_with_fixes_median_m"] < 0.1, m
+    (tmp_path / "other.yaml").write_text("imupath: x\n")
+    from sinslab.cli import app
+    res = CliRunner().invoke(app, ["navigate", "--imu", str(d / "imu.txt"), "--gnss", str(d / "GNSS_RTK.pos"),
+                                   "--init", str(tmp_path / "other.yaml"), "--out", str(tmp_path / "x")])
+    assert res.exit_code == 2 and "other.yaml: no initial state (initpos, initvel, initatt" in res.output, res.output

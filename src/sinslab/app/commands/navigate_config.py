@@ -342,9 +342,10 @@ def flag_overrides(given: dict):
     for opt, value in given.items():
         shown = value[0] if isinstance(value, (list, tuple)) and value else value
         if opt == "--init":
-            for k, v in _init_items(value).items():
+            from_file = Path(str(value)).is_file()
+            for k, v in (_init_file(value) if from_file else _init_items(value)).items():
                 _put(out, f"start.{INIT_KEYS[k]}", v)
-                origins[f"start.{INIT_KEYS[k]}"] = f"--init {k}={v}"
+                origins[f"start.{INIT_KEYS[k]}"] = f"--init {value} ({k})" if from_file else f"--init {k}={v}"
             continue
         if opt == "--aid":
             out["aid"], origins["aid"] = value, f"--aid {value}"
@@ -389,6 +390,16 @@ def _init_items(text):
                               f"velocity=\"[3, 4, 0] m/s\"; keys: {', '.join(INIT_KEYS)}")
         out[k] = v.strip().strip("\"'")
     return out
+
+
+def _init_file(path):
+    """``--init FILE``: the initial state of a KF-GINS configuration (YAML) as start keys
+    (:func:`sinslab.data.kfgins.read_kfgins_start`)."""
+    from sinslab.data.kfgins import read_kfgins_start
+    try:
+        return read_kfgins_start(path)
+    except ValueError as e:
+        raise ConfigError(f"--init: {e}") from None
 
 
 def _split_outside_brackets(text):
