@@ -1335,7 +1335,8 @@ _OPTIONS = (
     ("init", "str", ("--init",), 'the start as KEY=VALUE items: heading, pitch, roll, attitude_sigma, time, latitude, '
                                  'longitude, height, velocity (ENU), position_sigma, velocity_sigma (ENU), e.g. '
                                  '"pitch=1.2 deg, roll=-0.4 deg, heading=30 deg, attitude_sigma=[0.1, 0.1, 0.5] deg"; '
-                                 'default: found in the data (heading from the fix course above course_speed, 2 m/s)'),
+                                 'or a KF-GINS YAML configuration (its initial state); default: found in the data '
+                                 '(heading from the fix course above course_speed, 2 m/s)'),
     ("time_sync", "str", ("--time-sync",), "auto: estimate the IMU time offset and clock drift from turns"),
     ("velocity_lag", "float", ("--velocity-lag",), "fix velocities describe this many s before their stamp"),
     ("imu_delay", "float", ("--imu-delay",), "add to RTKLIB IMU time stamps [s]"),
