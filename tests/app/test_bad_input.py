@@ -183,7 +183,7 @@ CASES = [
     ("nav-time-sync-choice", NAV + ["--time-sync", "maybe"], "navigate", "--time-sync"),
     ("nav-init-no-unit", NAV + ["--init", "heading=30"], "navigate", "--init heading"),
     ("nav-init-out-of-range", NAV + ["--init", "heading=400 deg"], "navigate", "--init heading"),
-    ("nav-init-unknown", NAV + ["--init", "pitch=3 deg"], "navigate", "--init"),
+    ("nav-init-unknown", NAV + ["--init", "yaw=3 deg"], "navigate", "--init"),
     ("nav-imu-folder", ["navigate", "--imu", "{dir}", "--fixes", "{rest}"], "navigate", "folder"),
     ("nav-missing-option", ["navigate", "--fixes", "{rest}"], "navigate", "give the IMU log: --imu FILE"),
     # -- align

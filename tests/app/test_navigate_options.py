@@ -56,7 +56,7 @@ def test_options_are_short_forms_of_the_configuration_parsed_once():
     assert Path(c.imu.file).is_absolute() and c.imu.file.endswith("imu.csv")
     assert c.start.heading.text == "90 deg"                         # the text kept for config.toml
     assert [type(a).__name__ for a in aids_of(c)] == ["Zupt", "Nhc"]
-    for bad in (dict(aid="zupt,wings"), dict(init="pitch=3 deg"), dict(lag="late"),
+    for bad in (dict(aid="zupt,wings"), dict(init="yaw=3 deg"), dict(init="pitch=3"), dict(lag="late"),
                 dict(lever_arm="[1, 2] m"), dict(fix_latency=-1.0), dict(gnss_raw=Path("x.ubx"))):
         with pytest.raises((ValueError, UserError)):
             navigate_config(imu=[Path("imu.csv")], fixes=[Path("fix.pos")], **bad)

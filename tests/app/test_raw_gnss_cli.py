@@ -43,6 +43,7 @@ def test_run_folder(tc_run):
     for f in ("skyplot.png", "satellites.png", "clock.png", "gnss_clock.csv"):
         assert (tc_run / f).is_file()
     assert win.any()
+    assert 0 < m["pseudorange_nis_window_max"] and 0 <= m["doppler_nis_window_failing"] <= 1, m
 
 
 @pytest.mark.parametrize("args, msg", [
@@ -123,3 +124,34 @@ def test_raw_claims_share_the_nis_rule_of_the_loosely_coupled_runs():
         assert claims[0].expected == NIS_FACTOR and verdict in claims[0].statement
         # the same verdict as the loosely coupled rule for a 1-dof measurement
         assert nis_claim("x", "the fixes", used, 1)[2] == verdict
+
+
+def test_windowed_nis_monitor_on_the_rows():
+    """The windowed NIS monitor of the fix rows on the pseudorange and range-rate rows: the
+    sum of one-at-a-time ν²/S of the rows used over 30 s is χ² with as many degrees of
+    freedom (Mehra & Peschon 1971). Consistent rows (χ²(1) draws) give no warning; a 60-s
+    stretch of pseudoranges four times their σ² is named with its span; the consistent
+    range rates beside it are not."""
+    from sinslab.app.plausibility import row_consistency_findings
+    from sinslab.fusion.observer import RowLog
+
+    rng = np.random.default_rng(3)
+    t = np.arange(300.0)
+
+    def log(scale):
+        nis = rng.chisquare(1, (t.size, 8)) * scale[:, None]
+        used = np.ones(nis.shape, bool)
+        used[:, -2:] = False                                    # two rows refused: not counted
+        nis[:, -2:] = 1e6
+        return RowLog(t=list(t), nis=list(nis), used=list(used))
+
+    calm = np.ones(t.size)
+    found, m = row_consistency_findings({"pseudoranges": log(calm), "range_rates": log(calm)})
+    assert found == [] and m["pseudorange_nis_window_failing"] == 0.0, m
+    assert 0.7 < m["pseudorange_nis_window_max"] < m["pseudorange_nis_window_limit"] < 1.5, m
+    bad = np.where((t >= 120) & (t < 180), 4.0, 1.0)
+    found, m = row_consistency_findings({"pseudoranges": log(bad), "range_rates": log(calm)})
+    assert len(found) == 1 and "its pseudorange rows for" in found[0].text, [f.text for f in found]
+    dur = float(found[0].text.split(" rows for ")[1].split(" s ")[0])
+    assert 60 <= dur <= 90, found[0].text                       # the stretch and the windows reaching into it
+    assert m["pseudorange_nis_window_max"] > 3.0 and m["doppler_nis_window_failing"] == 0.0, m

@@ -73,3 +73,40 @@ def test_a_record_without_a_visible_heading_is_refused_with_its_figures():
     assert "whose accelerations show the heading to 5.0 deg (the best of" in msg, msg
     assert re.search(r"fastest fix 7\.\d m/s, largest horizontal acceleration 0\.\d+ m/s²\); give the initial "
                      r"heading", msg), msg
+
+
+def test_a_start_given_whole_holds_where_and_as_given(turning_flight):
+    """The start a user gives (NaveGo's ini_align, KF-GINS's init file): attitude, the IMU
+    point's position and velocity at the time given, and their σ, are where and what the
+    filter starts from — the truth of the flight 30 s in, in the middle of a turn, where
+    nothing could be found; the sources say "given". Pitch and roll given alone keep the
+    heading search, and keep their values through it."""
+    from sinslab.fusion.recorded_spec import ErrorSpec, StartSpec
+    from sinslab.fusion.recorded_start import solve_start
+    imu, fx, tru = turning_flight
+    k = int(np.argmin(np.abs(tru.t - 30.0)))
+    t0 = float(tru.t[k])
+    hd = float(A.yaw_to_heading(tru.att[k, 2]))
+    given = dict(pitch=float(tru.att[k, 0]), roll=float(tru.att[k, 1]), heading=hd, init_time=t0,
+                 init_position=(float(tru.lat[k]), float(tru.lon[k]), float(tru.h[k])),
+                 init_velocity=tuple(tru.vel[k].tolist()), att_sigma=(0.001, 0.001, 0.002),
+                 init_position_sigma=(0.3, 0.4, 0.5), init_velocity_sigma=(0.03, 0.04, 0.05))
+    res = navigate_recorded(imu, fx, NavOptions.of(**given))
+    st = res.start
+    assert st.t == pytest.approx(t0, abs=1e-9)
+    assert np.allclose(st.att, tru.att[k], atol=1e-12) and st.position == given["init_position"]
+    assert np.array_equal(st.velocity, tru.vel[k])
+    assert all(st.sources[f].startswith("given") for f in ("attitude", "attitude_sigma", "position", "velocity",
+                                                             "position_sigma", "velocity_sigma")), st.sources
+    lab = list(res.labels)
+    sig0 = res.sigma[0]                                       # after one 0.02 s step: the prior, barely grown
+    assert sig0[[lab.index(f"dv{a}") for a in "ENU"]] == pytest.approx([0.03, 0.04, 0.05], rel=0.05)
+    assert sig0[:3] == pytest.approx([0.001, 0.001, 0.002], rel=0.05)
+    _, err, _ = fix_errors(res, fx)
+    assert float(np.median(np.hypot(err[:, 0], err[:, 1]))) < 1.5
+    tilt = StartSpec(pitch=0.1, roll=-0.05)
+    part = solve_start(imu, fx, tilt, ErrorSpec(), np.zeros(3), 2, ("aircraft", ""))
+    assert (part.pitch, part.roll) == (0.1, -0.05) and part.sources["attitude"].startswith("pitch and roll given")
+    assert part.heading_source != "given" and part.heading_sigma is not None, part.heading_source
+    with pytest.raises(ValueError, match="start time needs the whole attitude"):
+        StartSpec(heading=1.0, init_time=5.0)

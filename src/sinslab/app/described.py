@@ -90,6 +90,12 @@ DESCRIPTIONS = {
         (r"^(pseudorange|doppler)_nis_mean$", "mean ν²/(H P Hᵀ + R) of the {0} rows used, one at a time (expected: 1)"),
         (r"^(pseudorange|doppler)_nis_verdict$", "the {0} noise model judged by its mean NIS: consistent, pessimistic "
          "(NIS too low: σ stated too large) or overconfident (NIS too high)"),
+        (r"^(pseudorange|doppler)_nis_window_max$", "largest NIS per degree of freedom of the {0} rows over a "
+         "30-s window, epoch by epoch (expected near 1)"),
+        (r"^(pseudorange|doppler)_nis_window_limit$", "the χ² bound per degree of freedom of that window (false "
+         "alarm 0.001 per window)"),
+        (r"^(pseudorange|doppler)_nis_window_failing$", "share of the epochs whose 30-s window NIS of the {0} rows "
+         "is over its χ² bound (a warning where that lasts 30 s)"),
         (r"^final_(pitch|roll|heading)_deg$", "{0} at the end (heading clockwise from north)"),
         (r"^final_sigma_heading_deg$", "filter 1σ of the heading at the end"),
         (r"^gyro_bias_final_dph$", "estimated gyro biases x, y, z at the end"),
@@ -116,6 +122,8 @@ DESCRIPTIONS = {
          "Student's t at 1 % for the fit's degrees of freedom)"),
         (r"^initial_heading_sigma_deg$", "1σ of the initial heading (from the fix course window)"),
         (r"^initial_attitude_sigma_deg$", "filter 1σ of the attitude error φE, φN, φU at its first epoch"),
+        (r"^start_source_(\w+)$", "where the start's {0} came from: measured (at the rest, in motion), given "
+         "(--init), or a default because the record has nothing to measure it from"),
         (r"^fixes_after_grid$", "fixes after the last whole filter step, not used"),
         (r"^filter_gyro_arw_deg_sqrth$", "gyro angle random walk x, y, z the filter assumed"),
         (r"^filter_accel_vrw_ug_sqrthz$", "accelerometer velocity random walk x, y, z the filter assumed"),

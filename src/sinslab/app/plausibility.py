@@ -32,7 +32,7 @@ __all__ = ["Finding", "imu_findings", "rest_findings", "rest_gravity_findings", 
            "consistency_findings", "settle", "rest_rate_findings", "bias_findings", "overconfidence_findings",
            "grade_of", "GRADES", "unit_slip",
            "MIN_SAMPLES", "MAX_RATE_DPS", "MAX_ACCEL_G", "MONITOR_WINDOW_S", "MONITOR_ALPHA",
-           "MONITOR_STRETCH_S"]
+           "MONITOR_STRETCH_S", "windowed_nis", "WindowedNis", "row_consistency_findings"]
 
 #: fewest samples any command can use (a levelling, an alignment, a first filter step)
 MIN_SAMPLES = 10
@@ -355,6 +355,75 @@ def _window_sums(t, x):
     return c[hi] - c[lo], lo, hi
 
 
+@dataclass(frozen=True)
+class WindowedNis:
+    """The NIS of :data:`MONITOR_WINDOW_S` windows against their χ² bound
+    (:func:`windowed_nis`): ``worst`` the largest window NIS per degree of freedom,
+    ``limit`` the bound per degree of freedom there, ``failing`` the share of windows over
+    their bound, ``stretches`` how many runs of failing windows; ``finding`` (the longest
+    run's span words) where one lasts :data:`MONITOR_STRETCH_S`, else None."""
+
+    worst: float
+    limit: float
+    failing: float
+    stretches: int
+    finding: str | None
+    worst_words: str
+
+
+def windowed_nis(t, nis, dof) -> WindowedNis:
+    """The NIS summed over the window of :data:`MONITOR_WINDOW_S` around each time ``t``
+    [s] (sorted): ``nis`` (n,) the NIS of each record, ``dof`` (n,) its degrees of freedom.
+    Under consistency a window's sum is χ² with the window's degrees of freedom (Mehra &
+    Peschon 1971); beyond its ``1 − MONITOR_ALPHA`` quantile the errors are larger than the
+    filter's σ say. Only this side is judged: a pessimistic model is safe."""
+    from scipy.special import chdtri
+    t, nis, dof = (np.asarray(x, float) for x in (t, nis, dof))
+    s_nis, _, _ = _window_sums(t, nis)
+    d, _, _ = _window_sums(t, dof)
+    limit = chdtri(np.maximum(d, 1.0), MONITOR_ALPHA)
+    ok = d > 0
+    if not ok.any():
+        return WindowedNis(math.nan, math.nan, 0.0, 0, None, "no window with a record used")
+    bad = (s_nis > limit) & ok
+    runs = _stretches(t, bad) if bad.any() else []
+    ratio = np.where(ok, s_nis / np.maximum(d, 1.0), -np.inf)
+    i = int(np.argmax(ratio))
+    finding = None
+    if runs and runs[0][0] >= MONITOR_STRETCH_S:
+        dur, a, b = runs[0]
+        i = a + int(np.argmax(ratio[a:b]))
+        finding = f"{dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after"
+    words = (f"{MONITOR_WINDOW_S:g}-s NIS per degree of freedom up to {ratio[i]:.3g} where a consistent filter "
+             f"stays below {limit[i] / d[i]:.3g} (χ² of the window's {d[i]:.0f} degrees of freedom, false alarm "
+             f"{MONITOR_ALPHA:g} per window)")
+    return WindowedNis(float(ratio[i]), float(limit[i] / d[i]), float(bad[ok].mean()), len(runs), finding, words)
+
+
+def row_consistency_findings(rows) -> tuple[list[Finding], dict]:
+    """The windowed NIS monitor (:func:`windowed_nis`) on the rows of a tightly coupled run
+    (``{label: RowLog}``: pseudoranges, range rates), epoch by epoch: a warning where a
+    kind's window NIS stays over its bound for :data:`MONITOR_STRETCH_S`, and per kind the
+    metrics ``<kind>_nis_window_max`` (per degree of freedom), ``<kind>_nis_window_limit``
+    there and ``<kind>_nis_window_failing`` (share of epochs)."""
+    out, metrics = [], {}
+    for label, log in rows.items():
+        key = "pseudorange" if label == "pseudoranges" else "doppler"
+        what = "pseudorange" if key == "pseudorange" else "range-rate (Doppler)"
+        t, nis, dof = log.nis_per_epoch()
+        if t.size < 10:
+            continue
+        w = windowed_nis(t, nis, dof)
+        metrics.update({f"{key}_nis_window_max": w.worst, f"{key}_nis_window_limit": w.limit,
+                        f"{key}_nis_window_failing": w.failing})
+        if w.finding is not None:
+            out.append(Finding(
+                f"the filter is overconfident about its {what} rows for {w.finding} the first GNSS epoch; "
+                f"{w.stretches} such stretch(es), {w.failing:.0%} of the epochs): {w.worst_words}: their errors "
+                "are larger than their σ say (multipath, a clock jump, a wrong σ, an IMU–GNSS time offset)"))
+    return out, metrics
+
+
 def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> list[Finding]:
     """Warnings where the filter is inconsistent with its fixes for a long stretch.
 
@@ -388,7 +457,7 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
     """
     # scipy.special's χ² and normal quantiles (what scipy.stats' chi2.isf and norm.isf
     # evaluate, the same values), not scipy.stats: its import takes ~35 MB and ~0.4 s
-    from scipy.special import chdtri, ndtri
+    from scipy.special import ndtri
 
     t = np.asarray(t, float)
     nu = np.asarray(innovation, float).reshape(t.size, -1)
@@ -403,20 +472,11 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
     used = np.isfinite(nu) & np.isfinite(sd) & (sd > 0)
     z = np.where(used, nu / np.where(used, sd, 1.0), 0.0)
     out = []
-    s_nis, lo, hi = _window_sums(t, nis)
-    dof, _, _ = _window_sums(t, used.sum(axis=1).astype(float))
-    limit = chdtri(np.maximum(dof, 1.0), MONITOR_ALPHA)
-    bad = (s_nis > limit) & (dof > 0)
-    runs = _stretches(t, bad) if bad.any() else []
-    if runs and runs[0][0] >= MONITOR_STRETCH_S:
-        dur, a, b = runs[0]
-        i = a + int(np.argmax(s_nis[a:b] / dof[a:b]))
+    w = windowed_nis(t, nis, used.sum(axis=1).astype(float))
+    if w.finding is not None:
         out.append(Finding(
-            f"the filter is overconfident for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
-            f"the first applied fix; {len(runs)} such stretch(es), {bad.mean():.0%} of the fixes): "
-            f"{MONITOR_WINDOW_S:g}-s NIS per component up to {s_nis[i] / dof[i]:.3g} where a consistent "
-            f"filter stays below {limit[i] / dof[i]:.3g} (χ² of the window's {dof[i]:.0f} degrees of "
-            f"freedom, false alarm {MONITOR_ALPHA:g} per window): its errors are larger than its σ say "
+            f"the filter is overconfident for {w.finding} the first applied fix; {w.stretches} such stretch(es), "
+            f"{w.failing:.0%} of the fixes): {w.worst_words}: its errors are larger than its σ say "
             f"(noise model, lever arm, time offset or mount off)"))
     s_z, _, _ = _window_sums(t, z)
     k, _, _ = _window_sums(t, used.astype(float))

@@ -32,8 +32,8 @@ from sinslab.core.records import Fixes, NavSeries
 from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, uniform_increments
 
-__all__ = ["sniff", "read_kfgins_imu", "read_kfgins_gnss", "read_kfgins_nav", "write_kfgins_imu",
-           "write_kfgins_gnss", "write_kfgins_nav"]
+__all__ = ["sniff", "read_kfgins_imu", "read_kfgins_gnss", "read_kfgins_nav", "read_kfgins_start",
+           "write_kfgins_imu", "write_kfgins_gnss", "write_kfgins_nav"]
 
 _IMU_MAP = ("t=1[s],dtheta_x=2[rad],dtheta_y=3[rad],dtheta_z=4[rad],"
             "dv_x=5[m/s],dv_y=6[m/s],dv_z=7[m/s]")
@@ -218,6 +218,63 @@ def read_kfgins_nav(path) -> NavSeries:
     att = _att.euler_from_ned(np.radians(a[:, 8:11]))
     return NavSeries(a[:, 1], np.radians(a[:, 2]), np.radians(a[:, 3]), a[:, 4],
                      _att.vec_ned_to_enu(a[:, 5:8]), att)
+
+
+#: KF-GINS configuration keys of the initial state: name -> (length, unit of its numbers)
+_START_KEYS = {"initpos": (3, "deg, deg, m"), "initvel": (3, "m/s"), "initatt": (3, "deg"),
+               "initposstd": (3, "m"), "initvelstd": (3, "m/s"), "initattstd": (3, "deg")}
+
+
+def _start_value(cfg, key, path):
+    v = cfg.get(key)
+    n, unit = _START_KEYS[key]
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    if a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{path}: {key} must be {n} numbers [{unit}], got {v!r}")
+    return [float(x) for x in a]
+
+
+def read_kfgins_start(path) -> dict:
+    """The initial state of a KF-GINS configuration file (YAML: ``starttime``; ``initpos``
+    latitude, longitude [deg], height [m]; ``initvel`` north, east, down [m/s]; ``initatt``
+    roll, pitch, yaw [deg, ZYX]; their ``…std``, the position and velocity ones north, east,
+    down) as sinslab's ``[start]`` keys, unit strings (``pitch``, ``roll``, ``heading``,
+    ``attitude_sigma`` (about east, north, up ≈ pitch, roll, yaw σ), ``time``,
+    ``latitude``, ``longitude``, ``height``, ``velocity``, ``position_sigma``,
+    ``velocity_sigma``; east, north, up). The keys it lacks are left out; a key of the
+    wrong shape is one line naming it."""
+    import yaml
+    p = Path(path)
+    try:
+        cfg = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
+        raise ValueError(f"{p}: cannot read it as a KF-GINS YAML configuration ({type(e).__name__})") from None
+    if not isinstance(cfg, dict) or not any(k in cfg for k in _START_KEYS):
+        raise ValueError(f"{p}: no initial state (initpos, initvel, initatt, their std) of a KF-GINS configuration")
+    out = {}
+    if "initatt" in cfg:
+        rpy = _start_value(cfg, "initatt", p)
+        pitch, roll, yaw = _att.euler_from_ned(np.radians(rpy))
+        heading = float(np.degrees(np.mod(_att.yaw_to_heading(yaw), 2 * math.pi)))
+        out.update(pitch=f"{float(np.degrees(pitch))!r} deg", roll=f"{float(np.degrees(roll))!r} deg",
+                   heading=f"{heading!r} deg")
+        if cfg.get("starttime") is not None:
+            out["time"] = f"{float(cfg['starttime'])!r} s"
+    if "initattstd" in cfg:
+        r, pt, y = _start_value(cfg, "initattstd", p)
+        out["attitude_sigma"] = f"[{pt!r}, {r!r}, {y!r}] deg"
+    if "initpos" in cfg:
+        lat, lon, h = _start_value(cfg, "initpos", p)
+        out.update(latitude=f"{lat!r} deg", longitude=f"{lon!r} deg", height=f"{h!r} m")
+    for key, name, unit in (("initvel", "velocity", "m/s"), ("initposstd", "position_sigma", "m"),
+                            ("initvelstd", "velocity_sigma", "m/s")):
+        if key in cfg:
+            n, e, d = _start_value(cfg, key, p)
+            out[name] = f"[{e!r}, {n!r}, {abs(d) if 'std' in key else -d + 0.0!r}] {unit}"
+    return out
 
 
 def write_kfgins_imu(path, imu, binary=None):

@@ -88,6 +88,16 @@ class RowLog:
         """(E,) int: rows used at each epoch."""
         return np.array([int(u.sum()) for u in self.used], dtype=np.int64)
 
+    def nis_per_epoch(self):
+        """``(t, nis, dof)`` (E,) each: the epochs' times [s], the sum of ν²/(H P Hᵀ + R)
+        over the rows used at each epoch and their number. The rows of an epoch are applied
+        one at a time, each against the covariance the previous ones left, so their NIS are
+        independent χ²(1) under consistency and the sum is χ² with ``dof`` degrees of
+        freedom (Bar-Shalom, Li & Kirubarajan 2001, §5.4)."""
+        t = np.asarray(self.t, dtype=float)
+        nis = np.array([float(np.sum(n[u])) for n, u in zip(self.nis, self.used)])
+        return t, nis, self.used_per_epoch().astype(float)
+
     def add(self, t, rows, rejected, nu, nis):
         """One epoch: ``rows`` (:class:`~sinslab.fusion.measurements.Rows`) and the
         gate's decisions over the rows formed."""

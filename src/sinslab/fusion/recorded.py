@@ -345,8 +345,8 @@ def _filter_step(dt, grid: GridSpec):
 
 
 def _prior(setup: Setup, fixes, opt: NavOptions, states, aids):
-    """``P0``: the start's attitude σ, the velocity and position σ of the fix nearest the
-    start (twice, floored), the IMU error states' σ, each plug-in state's σ, and the
+    """``P0``: the start's attitude σ, the velocity and position σ given or those of the fix
+    nearest the start (twice, floored), the IMU error states' σ, each plug-in state's σ, and the
     correlations the aids add."""
     lay, start = setup.layout, setup.start
     lat_i, _, h_i = start.position
@@ -356,7 +356,11 @@ def _prior(setup: Setup, fixes, opt: NavOptions, states, aids):
     jf = int(np.argmin(np.abs(fixes.t - start.t)))
     vs = fixes.sigma_vel[jf] if fixes.sigma_vel is not None else np.full(3, 0.1)
     sp0[lay.slice("dv")] = np.maximum(vs, opt.fix.vel_sigma_floor) * 2
-    ps = np.maximum(fixes.sigma[jf], opt.fix.pos_sigma_floor) * 2
+    ps = np.maximum(fixes.sigma[jf], opt.fix.pos_sigma_floor) * 2          # north, east, up
+    if start.velocity_sigma is not None:                                   # given, east, north, up
+        sp0[lay.slice("dv")] = start.velocity_sigma
+    if start.position_sigma is not None:
+        ps = np.asarray(start.position_sigma)[[1, 0, 2]]
     sp0[lay.slice("dp")] = [ps[0] / rm0, ps[1] / (rn0 * math.cos(lat_i)), ps[2]]
     e = opt.errors
     sp0[lay.slice("eps")] = e.gyro_bias_sigma

@@ -149,14 +149,44 @@ class StartSpec:
     #: "auto" | "land" | "aircraft" | "marine" ("auto": from the fixes); an aircraft's heading
     #: is taken from its course only when flying, and aids of a wheeled vehicle need land
     platform: str = "auto"
+    #: initial pitch and roll [rad] given (None: levelled at the rest or in motion)
+    pitch: float | None = None
+    roll: float | None = None
+    #: the IMU point's initial position (lat [rad], lon [rad], h [m]) and ENU velocity [m/s]
+    #: given (None: the fixes' at the start, the position moved from the antenna by the lever arm)
+    init_position: tuple | None = None
+    init_velocity: tuple | None = None
+    #: their 1σ, east, north, up [m] and [m/s] (None: twice the σ of the fix nearest the start)
+    init_position_sigma: tuple | None = None
+    init_velocity_sigma: tuple | None = None
+    #: the time [s] (the IMU's time base) a fully given attitude holds at (None: the first fix)
+    init_time: float | None = None
 
     def __post_init__(self):
         if self.platform not in PLATFORMS:
             raise ValueError(f"platform must be one of {', '.join(PLATFORMS)}, got {self.platform!r}")
-        if self.heading is not None and not math.isfinite(self.heading):
-            raise ValueError(f"heading must be finite, got {self.heading}")
+        for nm in ("heading", "pitch", "roll", "init_time"):
+            v = getattr(self, nm)
+            if v is not None and not math.isfinite(v):
+                raise ValueError(f"{nm} must be finite, got {v}")
+        for nm, n in (("init_position", 3), ("init_velocity", 3)):
+            v = getattr(self, nm)
+            if v is not None:
+                a = np.asarray(v, dtype=float)
+                if a.shape != (n,) or not np.all(np.isfinite(a)):
+                    raise ValueError(f"{nm} must be {n} finite numbers, got {v!r}")
+                object.__setattr__(self, nm, tuple(float(x) for x in a))
+        _check_sigmas(self, ("init_position_sigma", 3), ("init_velocity_sigma", 3))
+        if self.init_time is not None and not self.attitude_given:
+            raise ValueError("a start time needs the whole attitude given (pitch, roll and heading): the "
+                             "attitude found in the data holds where the data shows it")
         _check_positive(self, "heading_window", "heading_straight")
         _check_sigmas(self, ("att_sigma", 3))
+
+    @property
+    def attitude_given(self) -> bool:
+        """Pitch, roll and heading all given: nothing of the attitude is found in the data."""
+        return self.heading is not None and self.pitch is not None and self.roll is not None
 
 
 @dataclass(frozen=True, eq=False)

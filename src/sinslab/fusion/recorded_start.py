@@ -19,7 +19,7 @@ start (:mod:`sinslab.nav.motion_alignment`; its heading where its σ beats the c
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -384,6 +384,14 @@ class StartSolution:
         Initial gyro-bias compensation [rad/s] (the rest's mean rate, or zero).
     gyro_noise, accel_noise : ndarray (3,)
         White noise the filter assumes [rad/√s], [m/s/√s].
+    position_sigma, velocity_sigma : ndarray (3,) or None
+        Prior σ east, north, up of the position [m] and velocity [m/s] when given (None:
+        the run takes twice the σ of the fix nearest the start).
+    sources : dict
+        ``{figure: where it came from}`` for ``attitude``, ``attitude_sigma``,
+        ``position``, ``velocity``, ``position_sigma``, ``velocity_sigma``,
+        ``gyro_bias`` and ``white_noise``: whether measured (at the rest, in motion),
+        given, or a default because the record has nothing to measure it from.
     """
 
     t: float
@@ -402,6 +410,14 @@ class StartSolution:
     gyro_bias: np.ndarray
     gyro_noise: np.ndarray
     accel_noise: np.ndarray
+    position_sigma: np.ndarray | None = None
+    velocity_sigma: np.ndarray | None = None
+    sources: dict = field(default_factory=dict)
+
+    @property
+    def noise_measured(self) -> bool:
+        """The white noise was measured at the initial rest (not the error model's)."""
+        return self.sources.get("white_noise", "").startswith("measured")
 
     @property
     def pitch(self):
@@ -542,6 +558,8 @@ def solve_start(imu: ImuRecord, fixes: Fixes, start: StartSpec, errors: ErrorSpe
     """The start of the filter from the data (see the module notes): levelling, heading,
     in-motion alignment where the levelling would be carried too long, and the IMU point's
     position and velocity at the start from the fixes (antenna, ``lever`` body axes [m]).
+    What ``start`` gives (attitude angles, position, velocity, their σ, the time) replaces
+    what would be found; :attr:`StartSolution.sources` says which figure came from where.
 
     Raises ValueError when the vehicle never moves fast and straight enough for a heading
     and none is given."""
@@ -549,16 +567,87 @@ def solve_start(imu: ImuRecord, fixes: Fixes, start: StartSpec, errors: ErrorSpe
     lat0 = float(fixes.lat[0])
     aircraft = platform[0] == "aircraft"
     k0, level, rest, gb, g_noise, a_noise = _rest_level(imu, fixes, start, errors, lat0)
+    level, k0 = _given_level(level, k0, imu, start)
     ks, att0, h_sig, how, forced = _heading(imu, fixes, k0, level, start, lever, gb, nsub, aircraft)
     ts = (float(imu.t[ks] - dt) if ks > 0 else imu.t0) if start.heading is not None else \
         (float(imu.t[ks - 1]) if ks > 0 else imu.t0)
     t_lev = rest.t1 if rest is not None else float(imu.t[k0] - dt)
-    att0, mf, fit, carried, tilt, h_sig, how_fit = _motion_fit(imu, fixes, ks, ts, t_lev, att0, h_sig, gb,
-                                                               g_noise, start, errors, aircraft, forced)
+    if start.pitch is not None and start.roll is not None:      # the tilt given holds at the start
+        mf = fit = None
+        carried, tilt = 0.0, 0.0
+        how_fit = None
+    else:
+        att0, mf, fit, carried, tilt, h_sig, how_fit = _motion_fit(imu, fixes, ks, ts, t_lev, att0, h_sig, gb,
+                                                                   g_noise, start, errors, aircraft, forced)
+    att0 = np.array([a if g is None else g for a, g in zip(att0, (start.pitch, start.roll, None))])
     sigma, carried_s, tilt_sigma = _attitude_sigma(start, h_sig, mf, fit, aircraft, rest, ts, carried, tilt)
     lat_a, lon_a, h_a, v0 = _interp_fix(fixes, ts)
     C0 = A.euler_to_dcm(att0)
     pos = _imu_pos_from_antenna(lat_a, lon_a, h_a, C0, np.asarray(lever, dtype=float))
+    if start.init_position is not None:
+        pos = tuple(start.init_position)
+    if start.init_velocity is not None:
+        v0 = np.array(start.init_velocity)
+    sources = _sources(start, errors, rest, level, how_fit or how, mf, fit, tilt_sigma if carried_s else None)
     return StartSolution(ts, ks, att0, pos, v0, sigma, how_fit or how, h_sig, level, rest, mf, carried_s,
                          tilt_sigma, gb, np.broadcast_to(g_noise, (3,)).copy(),
-                         np.broadcast_to(a_noise, (3,)).copy())
+                         np.broadcast_to(a_noise, (3,)).copy(), _opt_array(start.init_position_sigma),
+                         _opt_array(start.init_velocity_sigma), sources)
+
+
+def _opt_array(v):
+    return None if v is None else np.array(v, dtype=float)
+
+
+def _given_level(level: Level, k0, imu, start: StartSpec):
+    """The levelling with the pitch and roll ``start`` gives in place of those found, and
+    the first sample: the one after ``start.init_time`` when the whole attitude is given."""
+    if start.pitch is not None or start.roll is not None:
+        p = start.pitch if start.pitch is not None else level.pitch
+        r = start.roll if start.roll is not None else level.roll
+        what = " and ".join(n for n, v in (("pitch", start.pitch), ("roll", start.roll)) if v is not None)
+        level = Level(p if p is not None else 0.0, r if r is not None else 0.0, f"given ({what})")
+    if start.init_time is not None:
+        if not (imu.t0 <= start.init_time < float(imu.t[-1])):
+            raise ValueError(f"the start time {start.init_time:.3f} s is outside the IMU record "
+                             f"({imu.t0:.3f}..{float(imu.t[-1]):.3f} s)")
+        k0 = int(np.searchsorted(imu.t, start.init_time + imu.dt - 1e-9))
+    return level, k0
+
+
+def _sources(start: StartSpec, errors: ErrorSpec, rest, level, how, mf, fit, carried_sigma):
+    """Where each start figure came from (:attr:`StartSolution.sources`)."""
+    no_rest = "no rest at the start to measure it"
+    if rest is not None and errors.rest_noise:
+        noise = (f"measured at the initial rest ({rest.t1 - rest.t0:.1f} s), floored at the error model's")
+    elif rest is not None:
+        noise = "the error model's (not measured at the rest)"
+    else:
+        noise = f"the error model's: {no_rest}"
+    att = ("given" if start.attitude_given else
+           f"pitch and roll {'levelled at the initial rest' if level.source is None else level.source}; "
+           f"heading {how}")
+    if start.init_time is not None:
+        att += f", holding at {start.init_time:.3f} s"
+    if start.attitude_given or (start.pitch is not None and start.roll is not None):
+        att_sig = "given" if start.att_sigma != StartSpec().att_sigma else "the default prior (1, 1, 5 deg)"
+        if not start.attitude_given:
+            att_sig = f"pitch and roll {att_sig}; heading's from how it was found"
+    elif fit is not None:
+        att_sig = "the in-motion alignment's fit σ with the levelling prior"
+    elif carried_sigma is not None:
+        att_sig = "the levelling prior widened by the tilt the gyros may add carrying it to the start"
+    else:
+        att_sig = "the levelling prior; the heading's from how it was found"
+    fix = "twice the σ of the fix nearest the start (floored)"
+    return {
+        "attitude": att, "attitude_sigma": att_sig,
+        "position": "given" if start.init_position is not None else
+        "the fixes at the start, moved from the antenna to the IMU by the lever arm",
+        "velocity": "given" if start.init_velocity is not None else "the fixes' at the start",
+        "position_sigma": "given" if start.init_position_sigma is not None else fix,
+        "velocity_sigma": "given" if start.init_velocity_sigma is not None else fix,
+        "gyro_bias": ("the mean rate at the initial rest" if rest is not None and errors.rest_bias
+                      else f"zero with the error model's σ{'' if rest is not None else ': ' + no_rest}"),
+        "white_noise": noise,
+    }

@@ -181,7 +181,7 @@ def _prepare(cfg, echo) -> _Prepared:
     imu, sync = _time_sync(cfg, data.imu, fx, lever, echo)
     inputs = _Inputs(_first(imu_path), (data.meta or {}).get("stationary"), sync)
     aids = _with_error_model([a.load(inputs) for a in aids_of(cfg)], em)
-    opt = _options(cfg, em, imu, fx, lever)
+    opt = _start_from_file(_options(cfg, em, imu, fx, lever), cfg.start, data, imu, echo)
     if raw is not None:
         from sinslab.app.commands.raw_gnss import gnss_source
         source = gnss_source(cfg.gnss.raw, raw, echo)
@@ -355,6 +355,27 @@ def _file_says(data, fmeta, cfg, em, echo):
     return lever, em
 
 
+def _start_from_file(opt, st, data, imu, echo):
+    """The initial attitude another tool's IMU file holds (NaveGo's ``ini_align``, with
+    ``ini_align_err`` its σ), given to the filter at the first IMU sample as that tool
+    gives it, and told once; any attitude or start time given in ``[start]`` wins."""
+    meta = data.meta or {}
+    att = meta.get("initial_attitude")
+    if att is None or any(getattr(st, k) is not None for k in ("pitch", "roll", "heading", "time")):
+        return opt
+    from sinslab.core import attitude as A
+    hd = float(np.mod(A.yaw_to_heading(att[2]), 2 * np.pi))
+    kw = dict(pitch=float(att[0]), roll=float(att[1]), heading=hd, init_time=float(imu.t[0]))
+    sig = meta.get("initial_attitude_sigma")
+    if sig is not None and st.attitude_sigma is None and np.all(np.asarray(sig) > 0):
+        kw["att_sigma"] = tuple(float(x) for x in sig)
+    name = meta.get("variable", "the IMU file")
+    echo(f"  initial attitude pitch {np.degrees(att[0]):.3f}, roll {np.degrees(att[1]):.3f}, heading "
+         f"{np.degrees(hd):.3f} deg at the first IMU sample from {name}.ini_align"
+         f"{' (σ from ini_align_err)' if 'att_sigma' in kw else ''} (--init replaces it)")
+    return opt.replace(**kw)
+
+
 def _with_error_model(aids, em):
     """The aids with the σ an error-model file's ``[aiding]`` table gives them
     (:data:`sinslab.app.error_model.AID_SETTINGS`)."""
@@ -368,7 +389,7 @@ def _options(cfg, em, imu, fx, lever):
     """The run's options (:class:`sinslab.fusion.recorded.NavOptions`), made once."""
     from sinslab.app.error_model import NavOptionsDraft, apply_error_model
     from sinslab.fusion.lag import lag_policy
-    from sinslab.fusion.recorded import NavOptions, parse_outages
+    from sinslab.fusion.recorded import NavOptions
     opt = NavOptionsDraft(NavOptions())
     if lever is not None:
         opt.lever_arm = lever
@@ -376,11 +397,11 @@ def _options(cfg, em, imu, fx, lever):
     _spill_smoother(opt, imu, fx)
     if em is not None:
         apply_error_model(opt, em[0], em[1])
-    t_ref = float(fx.t[0])
-    opt.outages = tuple(parse_outages(cfg.gnss.outages, t_ref))
+    t_ref, t_end = float(fx.t[0]), min(float(fx.t[-1]), float(imu.t[-1]))
+    opt.outages = _outages(cfg.gnss.outages, cfg.gnss.outage_clock, t_ref, t_end)
     if cfg.gnss.outages not in ("none", ""):
         from sinslab.app.validate import check_outages
-        check_outages("--outages", cfg.gnss.outages, opt.outages, t_ref, min(float(fx.t[-1]), float(imu.t[-1])))
+        check_outages("--outages", cfg.gnss.outages, opt.outages, t_ref, t_end)
     if cfg.gnss.source == "fixes":
         f = cfg.gnss.fixes
         opt.fix_latency = float(f.latency)
@@ -388,11 +409,120 @@ def _options(cfg, em, imu, fx, lever):
         opt.fix_error = None if f.error == "none" else f.error
         opt.robust = f.robust
     opt.scale_factors = bool(cfg.filter.scale_factors) or opt.scale_factors
-    opt.heading = cfg.start.heading
     opt.move_speed = cfg.start.course_speed
     opt.heading_straight = cfg.start.course_spread
     opt.platform = cfg.start.platform
+    _start_given(opt, cfg.start)
     return opt.build()
+
+
+def _outages(text, clock, t_first, t_end):
+    """The outages of ``text`` (``START:LEN,...`` or ``LEN/PERIOD[@FIRST]``) as absolute
+    ``(start, length)`` [s] of the log (periodic ones as :func:`parse_outages` gives them,
+    their FIRST from the first fix), their START counted on ``clock``: ``first-fix`` (s
+    from the first fix at ``t_first``), ``log`` (the log's own stamps) or ``gps`` (GPS
+    seconds of week or a GPS calendar time, :func:`_gps_to_log`). An absolute START outside
+    ``[t_first, t_end]`` is one line naming the record's span on that clock."""
+    from sinslab.fusion.recorded import parse_outages
+    if text in (None, "", "none") or clock == "first-fix":
+        return tuple(parse_outages(text, t_first))
+    s = str(text).strip()
+    if "/" in s:
+        head, _, first = s.rpartition("@")
+        if not head:
+            raise ValueError(f"--outages {text!r}: with --outage-clock {clock} give the first outage's time, "
+                             "LEN/PERIOD@FIRST")
+        t0 = _clock_time(first, clock, t_first, text)
+        return tuple(parse_outages(f"{head}@{t0 - t_first!r}", t_first))
+    out = []
+    for tok in s.split(","):
+        a, sep, ln = tok.rpartition(":")          # a calendar START has colons of its own
+        if not sep:
+            raise ValueError(f"cannot read the outage {tok!r}; use START:LEN, START on the {clock} clock")
+        t0 = _clock_time(a, clock, t_first, text)
+        if not t_first <= t0 <= t_end:
+            span = (f"{t_first:.3f}..{t_end:.3f} s as the log stamps it" if clock == "log" else
+                    f"GPS {_log_to_gps_words(t_first)} .. {_log_to_gps_words(t_end)}")
+            raise ValueError(f"--outages {text!r}: outage at {a.strip()} ({clock} clock) is outside the record "
+                             f"({span})")
+        out += parse_outages(f"{t0 - t_first!r}:{ln}", t_first)
+    return tuple(out)
+
+
+def _clock_time(text, clock, t_first, whole):
+    """One START on ``clock`` as a log stamp [s]."""
+    text = text.strip()
+    if clock == "gps":
+        return _gps_to_log(text, t_first, whole)
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"--outages {whole!r}: {text!r} is not a time stamp of the log [s]") from None
+
+
+#: seconds in a GPS week
+WEEK_S = 604800.0
+
+
+def _gps_to_log(text, t_first, whole):
+    """A GPS time (seconds of week, or ``YYYY-MM-DDTHH:MM:SS[.s]`` counted without leap
+    seconds) as a stamp of a log that counts GPS seconds of week (NaveGo's, KF-GINS's) or
+    GPS seconds since 1970 (RTKLIB ``.pos`` as read); a log on another clock is refused."""
+    import datetime as dt
+
+    from sinslab.core.gnss import GPS_EPOCH_UNIX
+    week_log = 0.0 <= t_first < WEEK_S + 86400.0
+    if not (week_log or t_first > GPS_EPOCH_UNIX):
+        raise ValueError(f"--outage-clock gps: the log's stamps (first fix at {t_first:.3f} s) count neither GPS "
+                         "seconds of week nor seconds since 1970; give the outages with --outage-clock log")
+    try:
+        if "T" in text or "-" in text[1:]:
+            d = dt.datetime.fromisoformat(text.replace("Z", "")).replace(tzinfo=dt.timezone.utc)
+            since_1970 = d.timestamp()
+            return since_1970 if not week_log else (since_1970 - GPS_EPOCH_UNIX) % WEEK_S
+        tow = float(text)
+    except ValueError:
+        raise ValueError(f"--outages {whole!r}: {text!r} is neither GPS seconds of week nor a GPS time "
+                         "YYYY-MM-DDTHH:MM:SS") from None
+    if not 0.0 <= tow < WEEK_S:
+        raise ValueError(f"--outages {whole!r}: {text!r} s is not a second of the GPS week (0..604800)")
+    if week_log:
+        return tow
+    week_start = GPS_EPOCH_UNIX + math.floor((t_first - GPS_EPOCH_UNIX) / WEEK_S) * WEEK_S
+    t = week_start + tow
+    return t + WEEK_S if t < t_first - WEEK_S / 2 else t      # a log across the week's turn
+
+
+def _log_to_gps_words(t):
+    """A log stamp [s] as GPS time words (for the message): seconds of week, or the GPS
+    calendar time of a stamp counted from 1970."""
+    import datetime as dt
+    if t < WEEK_S + 86400.0:
+        return f"{t:.1f} s"
+    return dt.datetime.fromtimestamp(t, dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-5]
+
+
+def _start_given(opt, st):
+    """The start's figures ``[start]`` gives (angles, position, velocity, their σ, time)
+    into the options; a position is given whole (latitude, longitude and height)."""
+    opt.heading, opt.pitch, opt.roll = st.heading, st.pitch, st.roll
+    if st.attitude_sigma is not None:
+        opt.att_sigma = tuple(float(x) for x in st.attitude_sigma)
+    pos = (st.latitude, st.longitude, st.height)
+    if any(v is not None for v in pos):
+        if any(v is None for v in pos):
+            missing = [n for n, v in zip(("latitude", "longitude", "height"), pos) if v is None]
+            raise ValueError(f"--init: a start position needs latitude, longitude and height; {', '.join(missing)} "
+                             "missing (start." + ", start.".join(missing) + ")")
+        opt.init_position = pos
+    for key, name in (("velocity", "init_velocity"), ("position_sigma", "init_position_sigma"),
+                      ("velocity_sigma", "init_velocity_sigma"), ("time", "init_time")):
+        v = getattr(st, key)
+        if v is not None:
+            setattr(opt, name, tuple(float(x) for x in v) if np.ndim(v) else float(v))
+    if st.time is not None and not (st.heading is not None and st.pitch is not None and st.roll is not None):
+        raise ValueError("--init time=: the start time needs the whole attitude given (pitch, roll and heading); "
+                         "an attitude found in the data holds where the data shows it")
 
 
 # ---------------------------------------------------------------------------- the run ---
@@ -499,6 +629,7 @@ def _metrics(res, p, ev):
          "fixes_after_grid": int(res.fixes_after_grid),
          "filter_gyro_arw_deg_sqrth": (np.asarray(st.gyro_noise) / (units.deg / 60)).tolist(),
          "filter_accel_vrw_ug_sqrthz": (np.asarray(st.accel_noise) / units.ug).tolist()}
+    m.update({f"start_source_{k}": v for k, v in st.sources.items()})
     s = p.sync
     if s is not None:
         m.update(time_sync_offset_s=s["offset"], time_sync_ppm=s["ppm"], time_sync_offset_estimate_s=s["offset_estimate"],
@@ -523,7 +654,11 @@ def _claims(res, p, ev, metrics, echo):
     recs = res.source.fix_records
     if recs is None:
         from sinslab.app.commands.raw_gnss import raw_claims
+        from sinslab.app.plausibility import row_consistency_findings
         claims, extra = raw_claims(res.source.rows)
+        found, window = row_consistency_findings(res.source.rows)
+        p.found += found
+        extra.update(window)
     else:
         from sinslab.app.described import SETTLE_S, navigate_claims
         from sinslab.app.plausibility import consistency_findings
@@ -536,8 +671,11 @@ def _claims(res, p, ev, metrics, echo):
             nis, inn.shape[1] if inn.ndim == 2 else 3, ev.hz[ok],
             np.hypot(*np.maximum(p.fx.sigma[ev.idx], p.opt.fix.pos_sigma_floor)[ok, :2].T), ~settling[ok])
         if nis.size and extra["nis_verdict"] != "consistent":
+            hint = ("; the white noise is the built-in default, not measured (no rest at the start): the "
+                    "unit's, --imu-errors FILE or a grade, may explain it" if extra["nis_verdict"].startswith(
+                        "overconfident") and not res.start.noise_measured and not p.em_cfg else "")
             echo(f"  mean NIS {res.source.metrics['nis_mean']:.2f} for a fix of dimension {extra['nis_dof']}: "
-                 f"{extra['nis_verdict']}")
+                 f"{extra['nis_verdict']}{hint}")
         if sd is not None:
             p.found += consistency_findings(fix_t, inn, sd, nis, _innovation_labels(inn.shape[1]))
     metrics.update(extra)
@@ -558,6 +696,8 @@ def _say(res, p, ev, metrics, echo):
     if st.rest is None:
         echo(f"  no rest at the start: pitch {np.degrees(st.pitch):.2f} deg, roll "
              f"{np.degrees(st.roll):.2f} deg {st.level.source}")
+    if not st.noise_measured and not p.em_cfg:
+        echo(f"  {_default_noise_words(metrics)}")
     echo(f"  start {st.t - fx.t[0]:.2f} s after the first fix; heading "
          f"{np.degrees(st.heading):.2f} deg (clockwise from north, {st.heading_source})")
     sig0 = metrics["initial_attitude_sigma_deg"]
@@ -608,8 +748,18 @@ def _notes(res, p, metrics, noise_warn, echo):
         notes.append(noise_warn)
     em = p.em_cfg
     notes.append("Error model: " + ("; ".join(f"{k} = {v}" for k, v in em.items()) if em else
-                                    "built-in defaults (white noise measured at the initial rest)."))
+                                    "built-in defaults (white noise measured at the initial rest)." if
+                                    st.noise_measured else _default_noise_words(metrics)))
+    notes.append("Start: " + "; ".join(f"{k.replace('_', ' ')} {v}" for k, v in st.sources.items()) + ".")
     return notes
+
+
+def _default_noise_words(metrics):
+    """The one line that says the white noise is the built-in default, not measured."""
+    return (f"white noise: the built-in default (gyro {np.round(metrics['filter_gyro_arw_deg_sqrth'], 4).tolist()} "
+            f"deg/sqrt(h), accel {np.round(metrics['filter_accel_vrw_ug_sqrthz'], 0).tolist()} ug/sqrt(Hz)), not "
+            "measured: no rest at the start; give the unit's with --imu-errors FILE or a grade (consumer | "
+            "industrial | tactical | navigation)")
 
 
 def _plugin_outputs(rep, metrics, tables, figures, notes, echo, t0):
@@ -1162,11 +1312,17 @@ _OPTIONS = (
                                    "matrix:M11,...,M33"),
     ("frame", "str", ("--frame",), "vehicle axes of the mount: rfu (right-forward-up) | frd (forward-right-down) | "
                                    "flu (forward-left-up) | rbd (right-back-down); default: the format's own"),
-    ("outages", "str", ("--outages",), "START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST]"),
+    ("outages", "str", ("--outages",), "START:LEN,... or LEN/PERIOD[@FIRST]; START and FIRST on --outage-clock "
+                                       "(default s from the first fix)"),
+    ("outage_clock", "str", ("--outage-clock",), "first-fix | log (the log's own stamps) | gps (GPS seconds of week or "
+                                                 "YYYY-MM-DDTHH:MM:SS): what an outage's START counts"),
     ("fix_latency", "float", ("--fix-latency",), "simulated fix latency [s]"),
     ("lag", "str", ("--lag",), "aware | ignore (how late fixes are applied)"),
-    ("init", "str", ("--init",), 'heading="30 deg" (clockwise from north); default: from the fix course above '
-                                 'course_speed (2 m/s) with course − gyro heading within course_spread (2 deg)'),
+    ("init", "str", ("--init",), 'the start as KEY=VALUE items: heading, pitch, roll, attitude_sigma, time, latitude, '
+                                 'longitude, height, velocity (ENU), position_sigma, velocity_sigma (ENU), e.g. '
+                                 '"pitch=1.2 deg, roll=-0.4 deg, heading=30 deg, attitude_sigma=[0.1, 0.1, 0.5] deg"; '
+                                 'or a KF-GINS YAML configuration (its initial state); default: found in the data '
+                                 '(heading from the fix course above course_speed, 2 m/s)'),
     ("time_sync", "str", ("--time-sync",), "auto: estimate the IMU time offset and clock drift from turns"),
     ("velocity_lag", "float", ("--velocity-lag",), "fix velocities describe this many s before their stamp"),
     ("imu_delay", "float", ("--imu-delay",), "add to RTKLIB IMU time stamps [s]"),

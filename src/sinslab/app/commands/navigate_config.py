@@ -113,8 +113,12 @@ class GnssKeys(Section):
     lever_arm: OrWord(QV("length", ge="-" + MAX_LEVER, le=MAX_LEVER), "none") = Field(
         "none", description="IMU -> antenna, vehicle right-forward-up (--lever-arm); none: not measured, "
                             "taken as zero (the time sync then fits the antenna's lag in turns too)")
-    outages: str = Field("none", description="START:LEN,... (s from the first fix) or LEN/PERIOD[@FIRST] "
-                                             "(--outages)")
+    outages: str = Field("none", description="START:LEN,... or LEN/PERIOD[@FIRST] (--outages); START and "
+                                             "FIRST on the outage_clock")
+    outage_clock: Choice(("first-fix", "log", "gps")) = Field(
+        "first-fix", description="what an outage's START counts: first-fix (s from the first fix) | log (the "
+                                 "log's own stamps, as the files hold them) | gps (GPS time: seconds of week "
+                                 "or YYYY-MM-DDTHH:MM:SS) (--outage-clock)")
 
 
 class StartKeys(Section):
@@ -128,6 +132,31 @@ class StartKeys(Section):
         "2 deg", description="largest spread of course − gyro heading in the window (--init course_spread=)")
     platform: Choice(("auto", "land", "aircraft", "marine")) = Field(
         "auto", description="aids of a wheeled vehicle only on land; auto: from the fixes (--platform)")
+    pitch: OrWord(Q("angle", ge="-90 deg", le="90 deg"), "none") = Field(
+        "none", description="initial pitch, nose up (--init pitch=); none: levelled at the rest or in motion")
+    roll: OrWord(Q("angle", ge="-180 deg", le="180 deg"), "none") = Field(
+        "none", description="initial roll, right wing down (--init roll=); none: levelled at the rest or in motion")
+    attitude_sigma: OrWord(QV("angle", gt="0 deg", le="180 deg"), "default") = Field(
+        "default", description="1σ of the initial attitude errors east, north, up (≈ pitch/roll, heading) "
+                               "(--init attitude_sigma=); default: [1, 1, 5] deg, narrowed where the start "
+                               "measures better")
+    time: OrWord(Q("time", ge="-1e10 s", le="1e10 s"), "none") = Field(
+        "none", description="time the given attitude holds at, as the log stamps it (--init time=); needs "
+                            "pitch, roll and heading; none: the first fix (or the rest's start)")
+    latitude: OrWord(Q("angle", ge="-90 deg", le="90 deg"), "none") = Field(
+        "none", description="the IMU's initial latitude (--init latitude=); none: the fixes' at the start")
+    longitude: OrWord(Q("angle", ge="-180 deg", le="360 deg"), "none") = Field(
+        "none", description="the IMU's initial longitude (--init longitude=)")
+    height: OrWord(Q("length", ge="-1000 km", le="100 km"), "none") = Field(
+        "none", description="the IMU's initial ellipsoidal height (--init height=)")
+    velocity: OrWord(QV("velocity", ge="-2000 m/s", le="2000 m/s"), "none") = Field(
+        "none", description="initial velocity east, north, up (--init velocity=); none: the fixes' at the start")
+    position_sigma: OrWord(QV("length", gt="0 m", le="1000 km"), "auto") = Field(
+        "auto", description="1σ of the initial position east, north, up (--init position_sigma=); auto: twice "
+                            "the σ of the fix nearest the start")
+    velocity_sigma: OrWord(QV("velocity", gt="0 m/s", le="1000 m/s"), "auto") = Field(
+        "auto", description="1σ of the initial velocity east, north, up (--init velocity_sigma=); auto: twice "
+                            "the σ of the fix nearest the start")
 
 
 class FilterKeys(Section):
@@ -160,7 +189,7 @@ FLAGS = {
     "--fix-columns": ("gnss.fixes.columns", "maybe_path"), "--fix-quality": ("gnss.fixes.quality", None),
     "--velocity-lag": ("gnss.fixes.velocity_lag", "s"), "--fix-latency": ("gnss.fixes.latency", "s"),
     "--lag": ("gnss.fixes.lag", None), "--lever-arm": ("gnss.lever_arm", None),
-    "--outages": ("gnss.outages", None),
+    "--outages": ("gnss.outages", None), "--outage-clock": ("gnss.outage_clock", None),
     "--gnss-raw": ("gnss.raw.file", "path"), "--gnss-nav": ("gnss.raw.nav", "path"),
     "--max-satellites": ("gnss.raw.max_satellites", "list"), "--elevation-mask": ("gnss.raw.elevation_mask", "deg"),
     "--gnss-base": ("gnss.raw.base", "path"), "--base-position": ("gnss.raw.base_position", "position"),
@@ -171,7 +200,9 @@ FLAGS = {
     "--csv-rate": ("output.csv_rate", "Hz"), "--strict": ("output.strict", None),
 }
 #: ``--init`` keys -> start keys
-INIT_KEYS = {"heading": "heading", "course_speed": "course_speed", "course_spread": "course_spread"}
+INIT_KEYS = {k: k for k in ("heading", "pitch", "roll", "attitude_sigma", "time", "latitude", "longitude",
+                            "height", "velocity", "position_sigma", "velocity_sigma", "course_speed",
+                            "course_spread")}
 
 
 def _aid_types():
@@ -328,9 +359,10 @@ def flag_overrides(given: dict):
     for opt, value in given.items():
         shown = value[0] if isinstance(value, (list, tuple)) and value else value
         if opt == "--init":
-            for k, v in _init_items(value).items():
+            from_file = Path(str(value)).is_file()
+            for k, v in (_init_file(value) if from_file else _init_items(value)).items():
                 _put(out, f"start.{INIT_KEYS[k]}", v)
-                origins[f"start.{INIT_KEYS[k]}"] = f"--init {k}={v}"
+                origins[f"start.{INIT_KEYS[k]}"] = f"--init {value} ({k})" if from_file else f"--init {k}={v}"
             continue
         if opt == "--aid":
             out["aid"], origins["aid"] = value, f"--aid {value}"
@@ -376,18 +408,42 @@ def _position_text(text):
 
 
 def _init_items(text):
-    """``--init "heading=30 deg,course_speed=1 m/s"`` -> ``{key: text}``."""
+    """``--init "pitch=1.2 deg, roll=-0.4 deg, heading=30 deg, velocity=[3, 4, 0] m/s"`` ->
+    ``{key: text}`` (commas inside brackets belong to a vector)."""
     out = {}
-    for tok in str(text or "").split(","):
+    for tok in _split_outside_brackets(str(text or "")):
         if not tok.strip():
             continue
         k, sep, v = tok.partition("=")
         k = k.strip().lower()
         if not sep or k not in INIT_KEYS:
-            raise ConfigError(f"--init {text!r}: use heading=ANGLE (e.g. heading=\"30 deg\"), "
-                              "course_speed=SPEED, course_spread=ANGLE")
-        out[k] = v.strip()
+            raise ConfigError(f"--init {text!r}: use KEY=VALUE items, e.g. heading=\"30 deg\", "
+                              f"velocity=\"[3, 4, 0] m/s\"; keys: {', '.join(INIT_KEYS)}")
+        out[k] = v.strip().strip("\"'")
     return out
+
+
+def _init_file(path):
+    """``--init FILE``: the initial state of a KF-GINS configuration (YAML) as start keys
+    (:func:`sinslab.data.kfgins.read_kfgins_start`)."""
+    from sinslab.data.kfgins import read_kfgins_start
+    try:
+        return read_kfgins_start(path)
+    except ValueError as e:
+        raise ConfigError(f"--init: {e}") from None
+
+
+def _split_outside_brackets(text):
+    """``text`` split at the commas that are not inside ``[...]``."""
+    out, depth, cur = [], 0, ""
+    for ch in text:
+        depth += {"[": 1, "]": -1}.get(ch, 0)
+        if ch == "," and depth == 0:
+            out.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    return out + [cur]
 
 
 def _put(d, key, value):
