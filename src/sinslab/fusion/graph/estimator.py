@@ -15,15 +15,11 @@ from sinslab.core.errors import InputError
 from sinslab.fusion.graph import build
 from sinslab.fusion.graph.frame import LocalFrame
 from sinslab.fusion.graph.solve import batch_solve, dense_solution, key_sigma, online_pass
-from sinslab.fusion.graph.translate import GraphImuModel, require_gtsam
+from sinslab.fusion.graph.translate import GraphImuModel, fix_covariance_w, require_gtsam
 from sinslab.fusion.spec import FilterGrid, FixSpec, InsSpec
 from sinslab.nav import strapdown as sd
 
-__all__ = ["GraphSpec", "GraphRun", "graph_navigate", "parse_estimator"]
-
-#: estimator names of the recorded front end
-ESTIMATORS = ("filter", "graph", "fixed-lag:SECONDS")
-
+__all__ = ["GraphSpec", "GraphRun", "GraphEstimator", "graph_navigate"]
 
 @dataclass(frozen=True)
 class GraphSpec:
@@ -71,25 +67,6 @@ class GraphSpec:
                                  f"{step:g} s: the window must hold at least two fixes")
 
 
-def parse_estimator(text):
-    """``"filter"`` (None), ``"graph"`` or ``"fixed-lag:SECONDS"`` as a :class:`GraphSpec`;
-    anything else one line naming the choices."""
-    s = str(text).strip().lower()
-    if s in ("filter", "kalman", ""):
-        return None
-    if s in ("graph", "batch"):
-        return GraphSpec("batch")
-    if s.startswith("fixed-lag:"):
-        try:
-            lag = float(s.split(":", 1)[1].removesuffix("s"))
-        except ValueError:
-            lag = float("nan")
-        if not (math.isfinite(lag) and lag > 0):
-            raise InputError(f"estimator {text!r}: the fixed-lag window must be a number of seconds > 0")
-        return GraphSpec("fixed-lag", lag)
-    raise InputError(f"unknown estimator {text!r}: choose filter, graph or fixed-lag:SECONDS")
-
-
 @dataclass(frozen=True)
 class GraphRun:
     """Output of :func:`graph_navigate` at the filter epochs (the fields a
@@ -125,6 +102,13 @@ class GraphRun:
     notes : tuple of str
     fix_sigma : ndarray (J, 3) or (J, 6)
         The σ of the fixes used, in the order of ``residual`` [m, m/s].
+    residual_sigma : ndarray (J, 3) or (J, 6)
+        σ of each post-fit residual, ``√diag(R − H P Hᵀ)`` (P the marginal of the
+        keyframe the fix is at): the residual of a consistent graph over it is N(0, 1).
+    residual_chi2 : ndarray (J,)
+        The studentised post-fit residual of each fix, ``rᵀ (R − H P Hᵀ)⁻¹ r`` (position
+        and velocity blocks apart): its mean is the fix dimension for a consistent graph,
+        as the filter's NIS is.
     """
 
     t: np.ndarray
@@ -146,21 +130,21 @@ class GraphRun:
     cpu: dict
     notes: tuple = ()
     fix_sigma: np.ndarray | None = None
-
+    residual_sigma: np.ndarray | None = None
+    residual_chi2: np.ndarray | None = None
 
     def as_driver_result(self):
         """The solution as a :class:`sinslab.fusion.driver.DriverResult` of one stream
         (what the recorded front end and the outputs read): ``x`` zero (the graph's solution
         is the navigation itself, nothing is left to feed back), σ, the bias compensation,
-        and as the applied records the fixes used with their post-fit residuals and
-        ``Σ (r/σ_fix)²`` in place of innovations and NIS (σ: the fixes' own)."""
+        and as the applied records the fixes used with their post-fit residuals, their σ
+        and their studentised χ² in place of innovations, innovation σ and NIS."""
         from sinslab.fusion.driver import Applied, DriverResult
         J = self.fix_t.size
         comp = {"gyro_bias": self.gyro_bias, "accel_bias": self.accel_bias}
         r = self.residual
-        sd = self.fix_sigma if self.fix_sigma is not None else np.ones_like(r)
         applied = Applied(np.zeros(J, dtype=np.int64), self.fix_index.astype(np.int64), self.fix_t, self.fix_t,
-                          list(r), np.sum((r / sd) ** 2, axis=1), list(sd))
+                          list(r), self.residual_chi2, list(self.residual_sigma))
         return DriverResult(self.t, (self.nav,), np.zeros_like(self.sigma), self.sigma, (comp,), applied,
                             self.layout, None)
 
@@ -275,8 +259,37 @@ def _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes):
     res = _residuals(ctx, fixes, Rwb, pw, vw, vals, gtsam)
     idx = ctx.plan.fix_index
     sd = fixes.sigma[idx][:, :3] if fixes.vel is None else np.column_stack([fixes.sigma[idx][:, :3], fixes.vel_sigma[idx]])
+    rsd, chi2 = _studentised(ctx, fixes, Rwb, covs, res)
     return GraphRun(t_out, rows, sig, gb, ab, lay, ctx.plan.t, key_nav, key_sig, fixes.t[idx], idx, res,
-                    spec.kind, spec.lag, it, err, {}, notes, sd)
+                    spec.kind, spec.lag, it, err, {}, notes, sd, rsd, chi2)
+
+
+def _studentised(ctx, fixes, Rwb, covs, res):
+    """σ and χ² of the post-fit residuals (:class:`GraphRun`): ``S = R − H P Hᵀ`` with
+    ``H = [−R_wb [l×], R_wb]`` on the keyframe's pose marginal for the position (GTSAM's
+    tangent: rotation, then body-axis translation) and the velocity marginal for the
+    velocity (its lever-arm term, ``ω × l``, left out: mm/s against the fix σ)."""
+    idx, kf = ctx.plan.fix_index, ctx.plan.fix_key
+    lever = np.asarray(fixes.lever_arm, dtype=float)
+    Rwn = ctx.frame.R_wn(fixes.pos[idx, 0], fixes.pos[idx, 1])
+    sd = np.empty_like(res)
+    chi2 = np.zeros(idx.size)
+    for m, (j, k) in enumerate(zip(idx, kf)):
+        Cx, Cv, _ = covs[k]
+        R = Rwb[k]
+        H = np.hstack([-R @ A.skew(lever), R])
+        blocks = [(slice(0, 3), fix_covariance_w(fixes.sigma[j], Rwn[m]) - H @ Cx @ H.T, [1, 0, 2])]
+        if fixes.vel is not None:
+            blocks.append((slice(3, 6), Rwn[m] @ np.diag(fixes.vel_sigma[j] ** 2) @ Rwn[m].T - Cv, [0, 1, 2]))
+        for sl, S_w, order in blocks:
+            S_n = Rwn[m].T @ S_w @ Rwn[m]                     # ENU
+            S_n = 0.5 * (S_n + S_n.T)
+            w, V = np.linalg.eigh(S_n)
+            w = np.maximum(w, 1e-6 * max(float(w.max()), 1e-30))     # a fix the graph follows exactly
+            r_n = res[m, sl][np.argsort(order)]              # back to E, N, U
+            chi2[m] += float(np.sum((V.T @ r_n) ** 2 / w))
+            sd[m, sl] = np.sqrt(np.diag(S_n))[order]
+    return sd, chi2
 
 
 def _residuals(ctx, fixes, Rwb, pw, vw, vals, gtsam):
@@ -298,3 +311,71 @@ def _residuals(ctx, fixes, Rwb, pw, vw, vals, gtsam):
     v_ant = vw[kf] + np.einsum("kij,kj->ki", Rwb[kf], wl)
     dv = np.einsum("kij,kj->ki", Rnw, v_ant) - fixes.vel[idx]
     return np.column_stack([res, dv])
+
+
+# ------------------------------------------------------------- the recorded front end ---
+@dataclass(frozen=True)
+class GraphEstimator:
+    """The factor graph as the estimator of a recorded run
+    (:class:`sinslab.fusion.estimators.Estimator`): the GNSS fix source's fixes (σ, lever
+    arm, outages, robust weighting), the start, the IMU error model and its prior, solved
+    by :func:`graph_navigate`; what the graph cannot take is refused in one line."""
+
+    spec: GraphSpec = GraphSpec()
+
+    @property
+    def name(self):
+        return "graph" if self.spec.kind == "batch" else "fixed-lag"
+
+    def label(self):
+        return ("factor graph (batch Levenberg–Marquardt)" if self.spec.kind == "batch"
+                else f"factor graph (fixed-lag smoother, {self.spec.lag:g} s window)")
+
+    def ready(self):
+        """GTSAM importable (one line naming the extra otherwise)."""
+        require_gtsam()
+
+    def check(self, smooth, source, aids) -> None:
+        self.ready()
+        if smooth:
+            raise InputError(f"the {self.name} estimator smooths already: --smooth (filter.smooth) goes with "
+                             "the filter estimator")
+        if source != "fixes":
+            raise InputError(f"the {self.name} estimator takes position/velocity fixes (--fixes); raw "
+                             "observations go through the filter estimator")
+        if aids:
+            raise InputError(f"the {self.name} estimator takes the IMU and the GNSS fixes only: drop --aid "
+                             + ",".join(aids) + " (or use the filter estimator)")
+
+    def estimate(self, e) -> tuple:
+        plan = e.plans[0]
+        fixes = plan.facts["spec"]
+        run = graph_navigate(e.imu, e.start.nav_state, fixes, e.P0, e.model, ins=e.ins, grid=e.grid,
+                             spec=self.spec)
+        return run.as_driver_result(), None, self.report(run)
+
+    def report(self, run: GraphRun):
+        """The graph's own report (:class:`sinslab.fusion.aids.base.Report`)."""
+        from sinslab.fusion.aids.base import Report
+        cpu = float(sum(run.cpu.values()))
+        m = {"estimator": self.name, "graph_keyframes": int(run.key_t.size), "graph_fixes_used": int(run.fix_t.size),
+             "graph_iterations": int(run.iterations), "graph_cpu_s": cpu,
+             "graph_residual_chi2_mean": float(np.mean(run.residual_chi2)) if run.fix_t.size else None}
+        if self.spec.kind == "fixed-lag":
+            m["graph_lag_s"] = float(self.spec.lag)
+        else:
+            m["graph_final_error"] = float(run.error)
+        solved = (f"{run.iterations} Levenberg–Marquardt iterations from the fixed-lag pass"
+                  if self.spec.kind == "batch" else "each keyframe as it left the window")
+        notes = (f"Estimator: {self.label()} with GTSAM over {run.key_t.size} keyframes (the fixes' own times, "
+                 f"one a second in outages), {solved}; σ from the marginals. The fix records are post-fit "
+                 "residuals (antenna − fix), their NIS the studentised residual rᵀ(R − H P Hᵀ)⁻¹r, whose "
+                 "mean is the fix dimension for a consistent graph.", *run.notes)
+        lines = (f"  {self.label()}: {run.key_t.size} keyframes, {run.fix_t.size} fixes, "
+                 + (f"{run.iterations} iterations, " if self.spec.kind == "batch" else "")
+                 + f"CPU {cpu:.2f} s",)
+        desc = (("^estimator$", "the estimator: filter, graph (batch) or fixed-lag"),
+                ("^graph_residual_chi2_mean$", "mean studentised post-fit χ² of the fixes (their dimension "
+                                               "for a consistent graph)"),
+                ("^graph_", "the factor graph's solution: keyframes, fixes, iterations, CPU [s]"))
+        return Report("graph", self.label(), metrics=m, notes=notes, lines=lines, descriptions=desc)
