@@ -301,7 +301,7 @@ class RawSource:
                              "velocity fixes; with raw GNSS the lever arm given (--lever-arm) is used")
         nominal = self.raw.clock_nominal(setup.t_start)
         ms = self.raw.make(nominal, lever_arm=setup.lever_arm, outages=setup.outages)
-        return Plan(tuple((_LABELS[m.kind], m) for m in ms), {"nominal": nominal})
+        return Plan(tuple((_LABELS[m.kind], m) for m in ms), {"nominal": nominal, "raw": self.raw})
 
     def report(self, plan, run):
         from sinslab.fusion.aids.base import SourceReport, Table

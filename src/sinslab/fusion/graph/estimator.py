@@ -109,6 +109,11 @@ class GraphRun:
         The studentised post-fit residual of each fix, ``rᵀ (R − H P Hᵀ)⁻¹ r`` (position
         and velocity blocks apart): its mean is the fix dimension for a consistent graph,
         as the filter's NIS is.
+    raw : dict or None
+        Raw GNSS (:func:`sinslab.fusion.graph.raw.graph_navigate_raw`): ``clock`` and
+        ``clock_sigma`` (M, k) at the epochs (bias [m], drift [m/s], inter-system biases
+        [m]), ``key_clock`` (K, k), ``residuals`` ``{kind: (epoch, row, post-fit residual
+        predicted − measured, σ)}`` of every satellite used.
     """
 
     t: np.ndarray
@@ -132,6 +137,7 @@ class GraphRun:
     fix_sigma: np.ndarray | None = None
     residual_sigma: np.ndarray | None = None
     residual_chi2: np.ndarray | None = None
+    raw: dict | None = None
 
     def as_driver_result(self):
         """The solution as a :class:`sinslab.fusion.driver.DriverResult` of one stream
@@ -167,6 +173,9 @@ class GraphProblem:
     fixes_at: dict
     fixes_batch: dict
     layout: object
+    #: variables of each keyframe beside pose, velocity and bias (the receiver clock of raw
+    #: GNSS, :class:`sinslab.fusion.graph.raw.ClockChain`), or None
+    extra: object = None
 
     def params(self, p_w):
         """Preintegration parameters of an interval that starts at the w point ``p_w``."""
@@ -218,26 +227,11 @@ def graph_navigate(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsSp
     """
     gtsam = require_gtsam()
     spec.check_fix_interval(fixes.t)
-    cpu = {}
     c = time.process_time()
-    start = int(ins.start)
-    T = grid.kf_dt
-    k_kf = int(round(T / imu.dt))
-    if k_kf < 1 or abs(k_kf * imu.dt - T) > 1e-6 * T:
-        raise ValueError(f"kf_dt={T} s must be a multiple of the IMU interval {imu.dt} s")
-    n_ep = (len(imu) - start) // k_kf
-    t0 = float(ins.t_start) if ins.t_start is not None else (float(imu.t[start - 1]) if start > 0 else imu.t0)
-    t_out = t0 + T * np.arange(n_ep + 1)
+    t_out = output_epochs(imu, ins, grid)
     ctx, notes = _problem(gtsam, imu, init, fixes, P0, model, ins, float(t_out[-1]), spec)
-    cpu["build"] = time.process_time() - c
-    c = time.process_time()
-    vals, covs, imu_f = online_pass(gtsam, ctx, spec.lag, want_sigma=spec.kind == "fixed-lag")
-    cpu["online"] = time.process_time() - c
-    it, err = 0, float("nan")
-    if spec.kind == "batch":
-        c = time.process_time()
-        vals, covs, it, err = batch_solve(gtsam, ctx, vals, imu_f)
-        cpu["batch"] = time.process_time() - c
+    cpu = {"build": time.process_time() - c}
+    vals, covs, it, err = solve(gtsam, ctx, spec, cpu)
     c = time.process_time()
     run = _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes)
     cpu["output"] = time.process_time() - c
@@ -245,8 +239,37 @@ def graph_navigate(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsSp
     return run
 
 
-def _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes):
-    X, V, B = gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.V, gtsam.symbol_shorthand.B
+def output_epochs(imu, ins: InsSpec, grid: FilterGrid):
+    """The filter epochs [s] of a run: every ``grid.kf_dt`` from the start while IMU
+    samples last (whole steps)."""
+    start = int(ins.start)
+    T = grid.kf_dt
+    k_kf = int(round(T / imu.dt))
+    if k_kf < 1 or abs(k_kf * imu.dt - T) > 1e-6 * T:
+        raise ValueError(f"kf_dt={T} s must be a multiple of the IMU interval {imu.dt} s")
+    n_ep = (len(imu) - start) // k_kf
+    t0 = float(ins.t_start) if ins.t_start is not None else (float(imu.t[start - 1]) if start > 0 else imu.t0)
+    return t0 + T * np.arange(n_ep + 1)
+
+
+def solve(gtsam, ctx, spec: GraphSpec, cpu: dict):
+    """The online pass, then (batch) Levenberg–Marquardt from it: ``(values, covariances,
+    iterations, final error)``; CPU times into ``cpu``."""
+    c = time.process_time()
+    vals, covs, process = online_pass(gtsam, ctx, spec.lag, want_sigma=spec.kind == "fixed-lag")
+    cpu["online"] = time.process_time() - c
+    it, err = 0, float("nan")
+    if spec.kind == "batch":
+        c = time.process_time()
+        vals, covs, it, err = batch_solve(gtsam, ctx, vals, process)
+        cpu["batch"] = time.process_time() - c
+    return vals, covs, it, err
+
+
+def keyframe_states(gtsam, ctx, vals, covs, t_out):
+    """The solution at the keyframes and at the output epochs: ``(Rwb, pw, vw, key_nav,
+    key_sigma, rows, gyro_bias, accel_bias, sigma)``."""
+    X, V = gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.V
     K = ctx.plan.t.size
     Rwb = np.array([vals.atPose3(X(i)).rotation().matrix() for i in range(K)])
     pw = np.array([vals.atPose3(X(i)).translation() for i in range(K)])
@@ -256,6 +279,12 @@ def _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes):
     key_sig = np.array([key_sigma(ctx.frame, lay, Rwb[i], *key_nav[i, 7:10], covs[i]) for i in range(K)])
     rows, gb, ab = dense_solution(gtsam, ctx, vals, t_out)
     sig = np.column_stack([np.interp(t_out, ctx.plan.t, key_sig[:, j]) for j in range(lay.n)])
+    return Rwb, pw, vw, key_nav, key_sig, rows, gb, ab, sig
+
+
+def _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes):
+    Rwb, pw, vw, key_nav, key_sig, rows, gb, ab, sig = keyframe_states(gtsam, ctx, vals, covs, t_out)
+    lay = ctx.layout
     res = _residuals(ctx, fixes, Rwb, pw, vw, vals, gtsam)
     idx = ctx.plan.fix_index
     sd = fixes.sigma[idx][:, :3] if fixes.vel is None else np.column_stack([fixes.sigma[idx][:, :3], fixes.vel_sigma[idx]])
@@ -275,7 +304,7 @@ def _studentised(ctx, fixes, Rwb, covs, res):
     sd = np.empty_like(res)
     chi2 = np.zeros(idx.size)
     for m, (j, k) in enumerate(zip(idx, kf)):
-        Cx, Cv, _ = covs[k]
+        Cx, Cv = covs[k][:2]
         R = Rwb[k]
         H = np.hstack([-R @ A.skew(lever), R])
         blocks = [(slice(0, 3), fix_covariance_w(fixes.sigma[j], Rwn[m]) - H @ Cx @ H.T, [1, 0, 2])]
