@@ -182,28 +182,52 @@ class GraphProblem:
         return self.imu_model.params(self.frame, p_w if self.gravity == "local" else None)
 
 
-def _problem(gtsam, imu, init, fixes: FixSpec, P0, model, ins: InsSpec, t_end, spec: GraphSpec):
-    imu_model = GraphImuModel.from_error_model(model)
+@dataclass(frozen=True)
+class GraphStart:
+    """What every graph of a run starts from: the first row ``[q, v, lat, lon, h]``, the
+    frame at it, the start time, the IMU cut from it, the start's gyro compensation, the
+    first bias value and the priors on the first pose, velocity and bias."""
+
+    row0: np.ndarray
+    frame: LocalFrame
+    t0: float
+    seg: build.Segments
+    gyro_bias: np.ndarray
+    bias0: object
+    priors: list
+    pose0: object
+    vel0: np.ndarray
+
+
+def graph_start(gtsam, imu, init, P0, layout, ins: InsSpec) -> GraphStart:
+    """The :class:`GraphStart` of a run (the filter's start, compensation and ``P0``)."""
     if ins.vertical != "free":
         raise InputError("the graph estimator integrates a free vertical channel (vertical='free')")
-    if fixes.n_pos != 3:
-        raise InputError("the graph estimator needs 3-D fixes (a height with each)")
     row0 = sd.initial_state_array(init)[:10]
     frame = LocalFrame(row0[7], row0[8], row0[9])
     start = int(ins.start)
     t0 = float(ins.t_start) if ins.t_start is not None else (float(imu.t[start - 1]) if start > 0 else imu.t0)
-    seg = build.Segments(imu, start, t0)
-    plan = build.plan_keyframes(fixes, t0, t_end, spec.max_gap)
     keys = (gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.V, gtsam.symbol_shorthand.B)
     gb = np.zeros(3) if ins.gyro_bias is None else np.asarray(ins.gyro_bias, dtype=float)
     ab = np.zeros(3) if ins.accel_bias is None else np.asarray(ins.accel_bias, dtype=float)
     bias0 = gtsam.imuBias.ConstantBias(ab, gb)
-    priors, pose0, vel0 = build.prior_factors(gtsam, frame, row0, bias0, P0, model.layout, keys)
+    priors, pose0, vel0 = build.prior_factors(gtsam, frame, row0, bias0, P0, layout, keys)
+    return GraphStart(row0, frame, t0, build.Segments(imu, start, t0), gb, bias0, priors, pose0, vel0)
+
+
+def _problem(gtsam, imu, init, fixes: FixSpec, P0, model, ins: InsSpec, t_end, spec: GraphSpec):
+    imu_model = GraphImuModel.from_error_model(model)
+    if fixes.n_pos != 3:
+        raise InputError("the graph estimator needs 3-D fixes (a height with each)")
+    st = graph_start(gtsam, imu, init, P0, model.layout, ins)
+    frame, seg, gb = st.frame, st.seg, st.gyro_bias
+    plan = build.plan_keyframes(fixes, st.t0, t_end, spec.max_gap)
+    keys = (gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.V, gtsam.symbol_shorthand.B)
     fixes_at = build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2], "online", gb)
     fixes_batch = fixes_at if fixes.robust is None or fixes.robust.kind != "igg3" else \
         build.fix_factors(gtsam, frame, fixes, plan, seg, fixes.lever_arm, fixes.robust, keys[:2], "batch", gb)
     notes = tuple(f"{n} bias random walk raised to the graph's floor" for n in imu_model.floored)
-    return GraphProblem(frame, imu_model, spec.gravity, seg, plan, priors, pose0, vel0, bias0, fixes_at,
+    return GraphProblem(frame, imu_model, spec.gravity, seg, plan, st.priors, st.pose0, st.vel0, st.bias0, fixes_at,
                         fixes_batch, model.layout), notes
 
 
@@ -227,13 +251,23 @@ def graph_navigate(imu, init, fixes: FixSpec, P0, model, *, ins: InsSpec = InsSp
     """
     gtsam = require_gtsam()
     spec.check_fix_interval(fixes.t)
+    return run_graph(gtsam, imu, ins, grid, spec,
+                     lambda t_end: _problem(gtsam, imu, init, fixes, P0, model, ins, t_end, spec),
+                     lambda ctx, vals, covs, t_out, it, err, notes:
+                     _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes))
+
+
+def run_graph(gtsam, imu, ins, grid, spec, make, finish) -> GraphRun:
+    """Build (``make(t_end) -> (GraphProblem, facts)``), solve and read out
+    (``finish(ctx, values, covariances, t_out, iterations, error, facts) -> GraphRun``) a
+    graph over the output epochs of the run, the CPU time of each stage in ``cpu``."""
     c = time.process_time()
     t_out = output_epochs(imu, ins, grid)
-    ctx, notes = _problem(gtsam, imu, init, fixes, P0, model, ins, float(t_out[-1]), spec)
+    ctx, facts = make(float(t_out[-1]))
     cpu = {"build": time.process_time() - c}
     vals, covs, it, err = solve(gtsam, ctx, spec, cpu)
     c = time.process_time()
-    run = _result(gtsam, ctx, vals, covs, t_out, fixes, spec, it, err, notes)
+    run = finish(ctx, vals, covs, t_out, it, err, facts)
     cpu["output"] = time.process_time() - c
     run.cpu.update(cpu)
     return run

@@ -271,23 +271,15 @@ def graph_navigate_raw(imu, init, raw, measurements, P0, model, *, ins=None, gri
         With ``raw`` set: the clock (M, k) and its σ at the output epochs, the post-fit
         residuals of every satellite used.
     """
-    import time
-
-    from sinslab.fusion.graph.estimator import GraphSpec, output_epochs, solve
+    from sinslab.fusion.graph.estimator import GraphSpec, run_graph
     from sinslab.fusion.graph.translate import require_gtsam
     from sinslab.fusion.spec import FilterGrid, InsSpec
     gtsam = require_gtsam()
     ins, grid, spec = ins or InsSpec(), grid or FilterGrid(), spec or GraphSpec()
-    c = time.process_time()
-    t_out = output_epochs(imu, ins, grid)
-    ctx, record, notes = _raw_problem(gtsam, imu, init, raw, measurements, P0, model, ins, float(t_out[-1]), spec)
-    cpu = {"build": time.process_time() - c}
-    vals, covs, it, err = solve(gtsam, ctx, spec, cpu)
-    c = time.process_time()
-    run = _raw_result(gtsam, ctx, vals, covs, t_out, record, spec, it, err, notes)
-    cpu["output"] = time.process_time() - c
-    run.cpu.update(cpu)
-    return run
+    return run_graph(gtsam, imu, ins, grid, spec,
+                     lambda t_end: _raw_problem(gtsam, imu, init, raw, measurements, P0, model, ins, t_end, spec),
+                     lambda ctx, vals, covs, t_out, it, err, facts:
+                     _raw_result(gtsam, ctx, vals, covs, t_out, facts[0], spec, it, err, facts[1]))
 
 
 def _positions(raw, init_row):
@@ -304,35 +296,25 @@ def _positions(raw, init_row):
 
 def _raw_problem(gtsam, imu, init, raw, measurements, P0, model, ins, t_end, spec):
     from sinslab.fusion.graph import build
-    from sinslab.fusion.graph.estimator import GraphProblem
-    from sinslab.fusion.graph.frame import LocalFrame
+    from sinslab.fusion.graph.estimator import GraphProblem, graph_start
     from sinslab.fusion.graph.translate import GraphImuModel
-    from sinslab.nav import strapdown as sd
     imu_model = GraphImuModel.from_error_model(model, clock=True)
-    row0 = sd.initial_state_array(init)[:10]
-    frame = LocalFrame(row0[7], row0[8], row0[9])
-    start = int(ins.start)
-    t0 = float(ins.t_start) if ins.t_start is not None else (float(imu.t[start - 1]) if start > 0 else imu.t0)
-    seg = build.Segments(imu, start, t0)
+    lay = model.layout
+    st = graph_start(gtsam, imu, init, P0, lay, ins)
     sv = measurements[0].sv
     epochs = SimpleNamespace(t=sv.t_epoch, outages=tuple(measurements[0].outages), windows=None, arrive=sv.t_epoch)
-    plan = build.plan_keyframes(epochs, t0, t_end, spec.max_gap)
-    keys = (gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.V, gtsam.symbol_shorthand.B)
-    gb = np.zeros(3) if ins.gyro_bias is None else np.asarray(ins.gyro_bias, dtype=float)
-    ab = np.zeros(3) if ins.accel_bias is None else np.asarray(ins.accel_bias, dtype=float)
-    bias0 = gtsam.imuBias.ConstantBias(ab, gb)
-    lay = model.layout
-    priors, pose0, vel0 = build.prior_factors(gtsam, frame, row0, bias0, P0, lay, keys)
+    plan = build.plan_keyframes(epochs, st.t0, t_end, spec.max_gap)
     block = next(s for s in model.sensor_blocks if s.kind == "clock")
-    b0, d0, tn, isb = raw.clock_nominal(t0)
+    b0, d0, tn, isb = raw.clock_nominal(st.t0)
     chain = ClockChain(plan.t, np.asarray(block.q, float),
-                       np.r_[b0 + d0 * (t0 - tn), d0, [isb.get(s, 0.0) for s in block.systems[1:]]])
+                       np.r_[b0 + d0 * (st.t0 - tn), d0, [isb.get(s, 0.0) for s in block.systems[1:]]])
     sl = lay.find("receiver_clock")
-    priors.append(chain.prior(np.asarray(P0, float)[sl, sl]))
-    fac, record = satellite_factors(gtsam, frame, measurements, plan, seg, _positions(raw, row0), block.systems, gb)
+    priors = [*st.priors, chain.prior(np.asarray(P0, float)[sl, sl])]
+    fac, record = satellite_factors(gtsam, st.frame, measurements, plan, st.seg, _positions(raw, st.row0),
+                                    block.systems, st.gyro_bias)
     notes = tuple(f"{n} bias random walk raised to the graph's floor" for n in imu_model.floored)
-    return GraphProblem(frame, imu_model, spec.gravity, seg, plan, priors, pose0, vel0, bias0, fac, fac, lay,
-                        chain), record, notes
+    return GraphProblem(st.frame, imu_model, spec.gravity, st.seg, plan, priors, st.pose0, st.vel0, st.bias0, fac,
+                        fac, lay, chain), (record, notes)
 
 
 def _raw_result(gtsam, ctx, vals, covs, t_out, record, spec, it, err, notes):
