@@ -12,7 +12,10 @@ is solved, so the core never needs it).
   the marginals, the solution at the filter epochs;
 - :mod:`.estimator`: :func:`graph_navigate`, the entry point, its result
   :class:`GraphRun`, and :class:`GraphEstimator`, the graph as the estimator of a recorded
-  run (``sinslab navigate --estimator graph``, :mod:`sinslab.fusion.estimators`).
+  run (``sinslab navigate --estimator graph``, :mod:`sinslab.fusion.estimators`);
+- :mod:`.raw`: raw GNSS in the graph — the receiver clock (bias, drift, inter-system biases)
+  as a variable of every keyframe, pseudorange and range-rate factors with the tightly
+  coupled filter's observation model (:func:`~sinslab.fusion.graph.raw.graph_navigate_raw`).
 
 The physics differ from the filter's in one place, the frame: GTSAM integrates in a fixed
 frame with the constant gravity of its origin and a Coriolis term, sinslab in the moving
