@@ -25,6 +25,7 @@ the record docs/methods/graph.md quotes them from. Needs ``sinslab[graph]`` (gts
    process: horizontal error at each outage end against the withheld fix, attitude against
    the RTS smoother (RMS, degrees), CPU time of the estimator and peak resident memory of
    the process (reading and start included, the same for all four).
+Raw GNSS in the graph on the walk: ``benchmarks/graph_raw.py``.
 """
 from __future__ import annotations
 
@@ -259,63 +260,43 @@ def _n380_folder():
     return hits[0].parent
 
 
-class _Captured(BaseException):
-    pass
-
-
 def one_drive(drive, estimator, out_json):
-    """Child process: navigate ``drive`` with ``estimator`` and write its figures."""
+    """Child process: ``sinslab navigate`` of ``drive`` with ``estimator`` (``filter``,
+    ``rts``: ``--smooth``, else an ``--estimator`` value) and its figures: the estimator's
+    CPU time (its ``estimate`` call alone), the process's peak memory, the errors at the
+    withheld fixes of each outage."""
     import tempfile
 
     from sinslab import cli
-    from sinslab.fusion import recorded
+    from sinslab.fusion.estimators import KalmanEstimator
+    from sinslab.fusion.graph.estimator import GraphEstimator
     D = str(DATA.resolve())
     args = [a.replace("{D}", D).replace("{N}", str(_n380_folder()) if drive == "n380" else "") for a in DRIVES[drive]]
     got = {}
-    real_lc, real_smooth = recorded.loosely_coupled, recorded.smooth
 
-    def lc(imu, init, fixes, P0, model, **kw):
-        got.update(imu=imu, init=init, fixes=fixes, P0=P0, model=model, ins=kw["ins"], grid=kw["grid"])
-        if estimator.startswith("graph"):
-            raise _Captured
-        c = time.process_time()
-        r = real_lc(imu, init, fixes, P0, model, **kw)
-        got["cpu"] = time.process_time() - c
-        got["filter"] = r
-        return r
+    def timed(cls):
+        orig = cls.estimate
 
-    def sm(r):
-        c = time.process_time()
-        s = real_smooth(r)
-        got["cpu"] += time.process_time() - c
-        got["rts"] = s
-        return s
+        def estimate(self, e):
+            c = time.process_time()
+            out = orig(self, e)
+            got.update(cpu=time.process_time() - c, fixes=e.plans[0].facts["spec"], out=out)
+            return out
+        cls.estimate = estimate
 
-    recorded.loosely_coupled, recorded.smooth = lc, sm
-    extra = ["--smooth"] if estimator == "rts" else []
+    timed(KalmanEstimator)
+    timed(GraphEstimator)
+    extra = ["--smooth"] if estimator == "rts" else [] if estimator == "filter" else ["--estimator", estimator]
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            cli.app(["navigate", *args, *extra, "--out", str(Path(tmp) / "run")], prog_name="sinslab",
+            cli.app(["-q", "navigate", *args, *extra, "--out", str(Path(tmp) / "run")], prog_name="sinslab",
                     standalone_mode=False)
-        except _Captured:
-            pass
         except SystemExit:
             pass
-    res = {"estimator": estimator}
-    if estimator.startswith("graph"):
-        from sinslab.fusion.graph import GraphSpec, graph_navigate
-        lag = float(estimator.split(":")[1]) if ":" in estimator else 5.0
-        spec = GraphSpec("fixed-lag", lag) if estimator.startswith("graph_fixed_lag") else GraphSpec("batch", 5.0)
-        c = time.process_time()
-        g = graph_navigate(got["imu"], got["init"], got["fixes"], got["P0"], got["model"], ins=got["ins"],
-                           grid=got["grid"], spec=spec)
-        res["cpu_s"] = time.process_time() - c
-        t, nav = g.t, g.nav
-    else:
-        res["cpu_s"] = got["cpu"]
-        t = got["filter"].t
-        nav = got["rts"].nav if estimator == "rts" else got["filter"].nav
-    res["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    r, smoothed, _ = got["out"]
+    t, nav = (smoothed.t, smoothed.nav) if estimator == "rts" else (r.t, r.nav[0])
+    res = {"estimator": estimator, "cpu_s": got["cpu"],
+           "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     np.savez(Path(out_json).with_suffix(".npz"), t=t, nav=nav)
     oe = _outage_errors(got["fixes"], t, nav)
     res["outage_end_hz_m"], res["outage_mid_hz_m"] = oe["end"], oe["mid"]
@@ -351,11 +332,13 @@ def real_drives(drives):
     for drive in drives:
         rows = {}
         with tempfile.TemporaryDirectory() as tmp:
-            for est in ("filter", "rts", "graph_fixed_lag", f"graph_fixed_lag:{LONG_LAG[drive]:g}", "graph_batch"):
-                f = Path(tmp) / f"{est.replace(':', '_')}.json"
+            lag = f"{LONG_LAG[drive]:g}"
+            for key, est in (("filter", "filter"), ("rts", "rts"), ("graph_fixed_lag", "fixed-lag:5"),
+                             (f"graph_fixed_lag:{lag}", f"fixed-lag:{lag}"), ("graph_batch", "graph")):
+                f = Path(tmp) / f"{key.replace(':', '_')}.json"
                 subprocess.run([sys.executable, __file__, "--one", drive, est, str(f)], check=True)
-                rows[est] = json.loads(f.read_text())
-                rows[est]["_sol"] = np.load(f.with_suffix(".npz"))
+                rows[key] = json.loads(f.read_text())
+                rows[key]["_sol"] = np.load(f.with_suffix(".npz"))
             ref = rows["rts"]["_sol"]
             for est, r in rows.items():
                 sol = r.pop("_sol")

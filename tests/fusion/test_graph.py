@@ -107,13 +107,16 @@ def test_fixed_lag_sigma_bounds_the_batch(drive):
 
 # ------------------------------------------------------------------ bad input
 def test_estimator_names_windows_and_models_refused(drive, monkeypatch):
-    from sinslab.fusion.graph import GraphSpec, graph_navigate, parse_estimator
+    from sinslab.fusion.estimators import KalmanEstimator, canonical_estimator, estimator_of
+    from sinslab.fusion.graph import GraphSpec, graph_navigate
     from sinslab.nav import errstate as es
-    assert parse_estimator("filter") is None
-    assert parse_estimator("fixed-lag:10") == GraphSpec("fixed-lag", 10.0)
-    for bad in ("kalmann", "fixed-lag:", "fixed-lag:-3"):
+    assert estimator_of("filter") == KalmanEstimator()
+    assert estimator_of("fixed-lag:10").spec == GraphSpec("fixed-lag", 10.0)
+    assert estimator_of("fixed-lag:1 min").spec == GraphSpec("fixed-lag", 60.0)
+    assert estimator_of("graph").spec == GraphSpec("batch") and canonical_estimator("fixed-lag:10") == "fixed-lag:10 s"
+    for bad in ("kalmann", "fixed-lag:", "fixed-lag:-3", "fixed-lag:3 m"):
         with pytest.raises(InputError):
-            parse_estimator(bad)
+            estimator_of(bad)
     with pytest.raises(InputError, match="shorter than the fix interval"):
         _graph(drive, GraphSpec("fixed-lag", lag=0.5))
     m = es.ErrorModel("full", [es.gyro_bias(), es.accel_bias(), es.gyro_scale()], gyro_arw=1e-4, accel_vrw=1e-3)

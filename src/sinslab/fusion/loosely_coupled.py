@@ -428,7 +428,7 @@ class FixSource:
                        latency=h.fix_latency, lever_arm=setup.lever_arm, outages=setup.outages,
                        lever_block=lever_block, robust=h.robust)
         fm = _fix_measurement(spec, setup.layout, setup.t_start, setup.t_end, setup.T, float(setup.imu.t[-1]))
-        return Plan((("fixes", fm.meas),), {"fix": fm})
+        return Plan((("fixes", fm.meas),), {"fix": fm, "spec": spec})
 
     def report(self, plan, run):
         from sinslab.fusion.aids.base import SourceReport

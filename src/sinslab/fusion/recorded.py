@@ -9,11 +9,12 @@ and the filter, and the evaluation against the fixes.
 2. **The start** (:mod:`sinslab.fusion.recorded_start`): levelling at a rest or in
    motion, the heading given or from the course, the in-motion alignment where the
    levelling would be carried too long; the position and velocity from the fixes.
-3. **The filter**: the error model of :func:`recorded_model` (the IMU's error states,
-   then each aid's and the source's own), its prior from the start, the fixes and the
-   plug-ins' :class:`~sinslab.fusion.aids.base.State`; the source's measurements, then
-   each aid's (:meth:`~sinslab.fusion.aids.base.Aid.plan`), on one INS core
-   (:func:`sinslab.fusion.loosely_coupled.ins_core`) with the lag policy of the fixes.
+3. **The estimator** (:mod:`sinslab.fusion.estimators`): the error model of
+   :func:`recorded_model` (the IMU's error states, then each aid's and the source's own),
+   its prior from the start, the fixes and the plug-ins'
+   :class:`~sinslab.fusion.aids.base.State`; the source's measurements, then each aid's
+   (:meth:`~sinslab.fusion.aids.base.Aid.plan`), through the filter on one INS core with
+   the lag policy of the fixes (the default), or the factor graph on the same inputs.
    Outages: no GNSS measurement valid inside one is used; a fix valid at t arrives at
    t + latency.
 4. **The reports**: the source's and one per aid (:class:`RecordedNav`), each from the
@@ -37,12 +38,12 @@ from sinslab.core.blocks import BLOCK_ROWS, release_pages
 from sinslab.core.records import Fixes, ImuRecord
 from sinslab.core.stamps import held_runs
 from sinslab.fusion.aids.base import AidRun, Setup
-from sinslab.fusion.loosely_coupled import FixSource, ins_core
+from sinslab.fusion.estimators import Estimation, KalmanEstimator
+from sinslab.fusion.loosely_coupled import FixSource
 from sinslab.fusion.recorded_spec import PLATFORMS, ErrorSpec, FixHandling, GridSpec, NavOptions, StartSpec
 from sinslab.fusion.recorded_start import (AIRCRAFT_MOVE_SPEED, StartSolution, platform_kind, solve_start)
 from sinslab.fusion.recorded_sync import (estimate_time_offset, shift_imu_time, shifted_times,
                                           significant_time_offset)
-from sinslab.fusion.smoothing import History, smooth
 from sinslab.fusion.spec import FilterGrid, InsSpec
 
 __all__ = ["NavOptions", "RecordedNav", "navigate_recorded", "recorded_model", "parse_outages",
@@ -80,6 +81,8 @@ class RecordedNav:
         each fix in many rows (collapsed to one per epoch).
     smoothed : sinslab.fusion.smoothing.SmoothedRun or None
         The RTS-smoothed run (``options.grid.smooth``).
+    estimator : sinslab.fusion.aids.base.Report or None
+        The estimator's own report (the factor graph's; None for the filter).
 
     ``t`` (M,) [s], ``nav`` (M, 10) ``[q0..q3, vE, vN, vU, lat, lon, h]`` after feedback,
     ``x``, ``sigma`` (M, n), ``gyro_bias`` (M, 3) [rad/s] and ``accel_bias`` (M, 3) [m/s²]
@@ -99,6 +102,7 @@ class RecordedNav:
     fixes_after_grid: int
     held_fixes: tuple | None = None
     smoothed: object = None
+    estimator: object = None
 
     t = property(lambda self: self.run.t)
     nav = property(lambda self: self.run.nav[0])
@@ -235,7 +239,7 @@ def _scale_sigmas(errors: ErrorSpec):
 
 # ------------------------------------------------------------------------ the pipeline ---
 def navigate_recorded(imu: ImuRecord, source, opt: NavOptions | None = None, *, aids=(),
-                      progress=False) -> RecordedNav:
+                      estimator=None, progress=False) -> RecordedNav:
     """INS + a GNSS source + aids on a recorded IMU stream (see the module notes).
 
     Parameters
@@ -249,6 +253,9 @@ def navigate_recorded(imu: ImuRecord, source, opt: NavOptions | None = None, *, 
     aids : sequence of sinslab.fusion.aids.base.Aid
         Loaded aids (:meth:`~sinslab.fusion.aids.base.Aid.load`), in the order their
         states and measurements enter the run.
+    estimator : sinslab.fusion.estimators.Estimator, optional
+        The filter (default; with the RTS smoother when ``opt.grid.smooth``) or the
+        factor graph (:func:`sinslab.fusion.estimators.estimator_of`).
 
     Raises ValueError when the fix times do not overlap the IMU record, when there is no
     usable fix, when an aid of a wheeled vehicle meets another platform, or when the
@@ -259,6 +266,8 @@ def navigate_recorded(imu: ImuRecord, source, opt: NavOptions | None = None, *, 
     if isinstance(source, Fixes):
         source = FixSource(source, opt.fix)
     aids = tuple(aids)
+    estimator = estimator or KalmanEstimator()
+    estimator.check(opt.grid.smooth, source.name, [a.name for a in aids])
     fixes, held = _start_fixes(imu, source.start_fixes(), opt.fix)
     fixes, source = source.prepare(fixes)
     platform = platform_kind(fixes, opt.start.platform)
@@ -281,17 +290,14 @@ def navigate_recorded(imu: ImuRecord, source, opt: NavOptions | None = None, *, 
     plans = [source.plan(setup, sel, lever_block), *(a.plan(setup) for a in aids)]
     grid = FilterGrid(T, model_every=0.0, spill=opt.grid.spill)
     ins = InsSpec(nsub=nsub, gyro_bias=start.gyro_bias, start=start.k, t_start=start.t)
-    core = ins_core(imu, start.nav_state, model, ins, grid, opt.fix.lag, True)
-    r = core.run(P0, [m for p in plans for _, m in p.measurements], grid=grid, lag=opt.fix.lag,
-                 history=History(0.1, spill=opt.grid.smooth_spill) if opt.grid.smooth else None,
-                 progress=progress, label="navigating")
-    sm = smooth(r) if opt.grid.smooth else None
+    r, sm, est_report = estimator.estimate(Estimation(imu, start, model, P0, ins, grid, plans, opt, progress))
     views = _views(r, plans, sm, T, float(fixes.t[0]))
     if lever_block is not None:
         lever = lever - r.x[-1, model.layout.slice(lever_block)]          # δl = l_used − l_true
     return RecordedNav(r, start, source.report(plans[0], views[0]),
                        tuple(a.report(p, v) for a, p, v in zip(aids, plans[1:], views[1:])), opt, platform,
-                       tuple(outages), lever, t_end, int(np.sum(fixes.t > t_end + 1e-9)), held, smoothed=sm)
+                       tuple(outages), lever, t_end, int(np.sum(fixes.t > t_end + 1e-9)), held, smoothed=sm,
+                       estimator=est_report)
 
 
 def _start_fixes(imu, fixes: Fixes, fix: FixHandling):

@@ -313,7 +313,7 @@ class RawSource:
         nominal = self.raw.clock_nominal(setup.t_start)
         ms = self.raw.make(nominal, lever_arm=setup.lever_arm, outages=setup.outages)
         plan = [(_LABELS[m.kind], m) for m in ms]
-        facts = {"nominal": nominal}
+        facts = {"nominal": nominal, "raw": self.raw}
         if self.raw.phase == "tdcp":
             from sinslab.fusion.tdcp import TimeDifferencedPhase
             facts["tdcp"] = TimeDifferencedPhase(

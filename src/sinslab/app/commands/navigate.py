@@ -534,8 +534,11 @@ def _compute(cfg, echo) -> Output:
     if not cfg.imu.file:                       # the same command without an IMU: GNSS alone
         from sinslab.app.commands.gnss_alone import gnss_alone
         return gnss_alone(cfg, echo)
+    from sinslab.fusion.estimators import estimator_of
+    est = estimator_of(cfg.estimator)
+    est.check(cfg.filter.smooth, cfg.gnss.source, list(cfg.aid))     # before any file is read
     p = _prepare(cfg, echo)
-    res = R.navigate_recorded(p.imu, p.source, p.opt, aids=p.aids)
+    res = R.navigate_recorded(p.imu, p.source, p.opt, aids=p.aids, estimator=est)
     release_free_memory()              # the filter's working set, before the evaluation's
     recs = res.source.fix_records
     if recs is not None and recs[0].size == 0:
@@ -553,9 +556,10 @@ def _compute(cfg, echo) -> Output:
     notes = _notes(res, p, metrics, noise_warn, echo)
     if res.smoothed is not None:
         _smoothed_outputs(res, p.fx, res.outages, metrics, tables, figures, echo, every)
-    for rep in (res.source, *res.aids):
+    for rep in (res.source, *res.aids, *((res.estimator,) if res.estimator is not None else ())):
         _plugin_outputs(rep, metrics, tables, figures, notes, echo, float(res.t[0]))
-    described = [d for rep in (res.source, *res.aids) for d in rep.descriptions]
+    described = [d for rep in (res.source, *res.aids, *((res.estimator,) if res.estimator is not None else ()))
+                 for d in rep.descriptions]
     if res.source.rows:
         from sinslab.app.commands.raw_gnss import raw_figures
         figures += raw_figures(res, res.source)
@@ -1338,6 +1342,8 @@ _OPTIONS = (
     ("out", "path", ("--out", "-o"), "output folder [default: runs/navigate-<timestamp>]"),
     ("force", "bool", ("--force",), "replace whatever --out holds (another run, other files)"),
     ("smooth", "bool", ("--smooth",), "also write the RTS-smoothed solution (forward + backward pass)"),
+    ("estimator", "str", ("--estimator",), "filter | graph (factor graph, batch; needs sinslab[graph]) | "
+                                           "fixed-lag:SECONDS (the graph's fixed-lag smoother)"),
     ("fix_columns", "str", ("--fix-columns",), 'fix column map "t=time[s],lat=Pos.Latitude[deg],vd=Vel.Down[m/s],'
                                                'quality=Mode,..." or a TOML file'),
     ("fix_quality", "str", ("--fix-quality",), "accepted values of the fixes' quality/mode column (RTKLIB Q), e.g. 1,2"),

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Union
+from typing import Annotated, Any, Union
 
-from pydantic import Field, ValidationError, create_model
+from pydantic import Field, PlainValidator, ValidationError, create_model
 
 from sinslab.app.config import (QV, Choice, ConfigError, Number, OrWord, Q, Section, _format_error, deep_merge,
                                 flatten, load_toml, parse_set, settings_section)
@@ -177,6 +177,19 @@ class OutputKeys(Section):
                                             "(--strict)")
 
 
+def _estimator(v):
+    from sinslab.core.errors import InputError
+    from sinslab.fusion.estimators import canonical_estimator
+    try:
+        return canonical_estimator(v)
+    except InputError as e:
+        raise ValueError(str(e)) from None
+
+
+#: the estimator, a strategy (:mod:`sinslab.fusion.estimators`)
+Estimator = Annotated[str, PlainValidator(_estimator)]
+
+
 #: option -> (dotted key, value kind): the command's options as short forms of keys; a
 #: number is written with the unit of the kind (``--max-gap 2`` is ``imu.max_gap = "2 s"``),
 #: a file named on the command line made absolute (the run's config.toml re-runs from anywhere)
@@ -196,7 +209,7 @@ FLAGS = {
     "--phase": ("gnss.raw.phase", None),
     "--platform": ("start.platform", None),
     "--imu-errors": ("filter.imu_errors", "maybe_path"), "--scale-factors": ("filter.scale_factors", None),
-    "--smooth": ("filter.smooth", None),
+    "--smooth": ("filter.smooth", None), "--estimator": ("estimator", None),
     "--csv-rate": ("output.csv_rate", "Hz"), "--strict": ("output.strict", None),
 }
 #: ``--init`` keys -> start keys
@@ -217,7 +230,10 @@ def navigate_model(aids=(), source="fixes"):
     sub = {"fixes": (FixesKeys, FixesKeys()), "raw": (RawKeys, RawKeys())}[source]
     gnss = create_model(f"Gnss_{source}", __base__=GnssKeys, **{source: sub})
     fields = {"aid": (list[str], Field([], description="aids beside the GNSS (--aid): "
-                                                       + ", ".join(types)))}
+                                                       + ", ".join(types))),
+              "estimator": (Estimator, Field("filter", description="filter (Kalman; --smooth adds the RTS "
+                                                                   "smoother) | graph (factor graph, batch) | "
+                                                                   "fixed-lag:SECONDS (--estimator)"))}
     fields.update(imu=(ImuKeys, ImuKeys()), gnss=(gnss, gnss()), start=(StartKeys, StartKeys()),
                   filter=(FilterKeys, FilterKeys()), output=(OutputKeys, OutputKeys()))
     for name in aids:

@@ -41,20 +41,21 @@ def _isam_params(gtsam):
 def online_pass(gtsam, ctx, lag, *, want_sigma=True):
     """The fixed-lag smoother over the keyframes of ``ctx`` (:class:`GraphProblem`).
 
-    Returns ``(values, covariances, imu_factors)``: every keyframe's estimate as it left
-    the window (``gtsam.Values``), its marginal covariances ``(pose, vel, bias)`` per
-    keyframe (None without ``want_sigma``), and the ``CombinedImuFactor`` of every
-    interval (for the batch)."""
+    Returns ``(values, covariances, process_factors)``: every keyframe's estimate as it
+    left the window (``gtsam.Values``), its marginal covariances ``(pose, vel, bias[,
+    extra...])`` per keyframe (None without ``want_sigma``), and the factors between
+    consecutive keyframes (the ``CombinedImuFactor`` of every interval and the extra
+    variables' process factors, for the batch)."""
     X, V, B = _keys(gtsam)
     t = ctx.plan.t
+    ex = ctx.extra
     sm = gtsam.IncrementalFixedLagSmoother(float(lag), _isam_params(gtsam))
     f, v, ts = gtsam.NonlinearFactorGraph(), gtsam.Values(), gtsam.FixedLagSmootherKeyTimestampMap()
     for fac in ctx.priors:
         f.add(fac)
-    v.insert(X(0), ctx.pose0)
-    v.insert(V(0), ctx.vel0)
-    v.insert(B(0), ctx.bias0)
-    for k in (X(0), V(0), B(0)):
+    start = [(X(0), ctx.pose0), (V(0), ctx.vel0), (B(0), ctx.bias0), *(ex.initial(0, None) if ex else ())]
+    for k, val in start:
+        v.insert(k, val)
         ts.insert((k, float(t[0])))
     for fac in ctx.fixes_at.get(0, ()):
         f.add(fac)
@@ -63,50 +64,55 @@ def online_pass(gtsam, ctx, lag, *, want_sigma=True):
     bias = ctx.bias0
     out = gtsam.Values()
     covs = [None] * t.size
-    imu = []
+    process = []
     done = 0
     for i in range(1, t.size):
         pim, _ = integrate(gtsam, ctx.params(nav.position()), ctx.seg, t[i - 1], t[i], bias)
-        fac = gtsam.CombinedImuFactor(X(i - 1), V(i - 1), X(i), V(i), B(i - 1), B(i), pim)
-        imu.append(fac)
+        between = [gtsam.CombinedImuFactor(X(i - 1), V(i - 1), X(i), V(i), B(i - 1), B(i), pim),
+                   *(ex.process(i) if ex else ())]
+        process += between
         pred = pim.predict(nav, bias)
         f, v, ts = gtsam.NonlinearFactorGraph(), gtsam.Values(), gtsam.FixedLagSmootherKeyTimestampMap()
-        f.add(fac)
-        for extra in ctx.fixes_at.get(i, ()):
-            f.add(extra)
-        v.insert(X(i), pred.pose())
-        v.insert(V(i), pred.velocity())
-        v.insert(B(i), bias)
-        for k in (X(i), V(i), B(i)):
+        for fac in (*between, *ctx.fixes_at.get(i, ())):
+            f.add(fac)
+        new = [(X(i), pred.pose()), (V(i), pred.velocity()), (B(i), bias),
+               *(ex.initial(i, [sm.calculateEstimateVector(k) for k in ex.keys(i - 1)]) if ex else ())]
+        for k, val in new:
+            v.insert(k, val)
             ts.insert((k, float(t[i])))
         while done < i and t[done] < t[i] - lag:          # leaves the window in this update
-            _record(sm, done, out, covs, want_sigma, X, V, B)
+            _record(sm, done, out, covs, want_sigma, ctx)
             done += 1
         sm.update(f, v, ts)
         nav = gtsam.NavState(sm.calculateEstimatePose3(X(i)), sm.calculateEstimateVector(V(i)))
         bias = sm.calculateEstimateConstantBias(B(i))
     while done < t.size:
-        _record(sm, done, out, covs, want_sigma, X, V, B)
+        _record(sm, done, out, covs, want_sigma, ctx)
         done += 1
-    return out, (covs if want_sigma else None), imu
+    return out, (covs if want_sigma else None), process
 
 
-def _record(sm, i, out, covs, want_sigma, X, V, B):
+def _record(sm, i, out, covs, want_sigma, ctx):
+    import gtsam
+    X, V, B = _keys(gtsam)
     out.insert(X(i), sm.calculateEstimatePose3(X(i)))
     out.insert(V(i), sm.calculateEstimateVector(V(i)))
     out.insert(B(i), sm.calculateEstimateConstantBias(B(i)))
+    extra = ctx.extra.keys(i) if ctx.extra else ()
+    for k in extra:
+        out.insert(k, sm.calculateEstimateVector(k))
     if want_sigma:
-        covs[i] = (sm.marginalCovariance(X(i)), sm.marginalCovariance(V(i)), sm.marginalCovariance(B(i)))
+        covs[i] = tuple(sm.marginalCovariance(k) for k in (X(i), V(i), B(i), *extra))
 
 
-def batch_solve(gtsam, ctx, init, imu_factors, *, max_iterations=100):
+def batch_solve(gtsam, ctx, init, process_factors, *, max_iterations=100):
     """Levenberg–Marquardt over the whole record from ``init`` (gtsam.Values); returns
     ``(values, covariances, iterations, final error)``."""
     X, V, B = _keys(gtsam)
     g = gtsam.NonlinearFactorGraph()
     for fac in ctx.priors:
         g.add(fac)
-    for fac in imu_factors:
+    for fac in process_factors:
         g.add(fac)
     for fs in ctx.fixes_batch.values():
         for fac in fs:
@@ -122,7 +128,7 @@ def batch_solve(gtsam, ctx, init, imu_factors, *, max_iterations=100):
     # step: gtsam.Marginals factors by Cholesky, indeterminate for the same reason as above)
     marg = gtsam.ISAM2(_isam_params(gtsam))
     marg.update(g, res)
-    covs = [(marg.marginalCovariance(X(i)), marg.marginalCovariance(V(i)), marg.marginalCovariance(B(i)))
+    covs = [tuple(marg.marginalCovariance(k) for k in (X(i), V(i), B(i), *(ctx.extra.keys(i) if ctx.extra else ())))
             for i in range(ctx.plan.t.size)]
     return res, covs, int(opt.iterations()), float(g.error(res))
 
@@ -132,7 +138,7 @@ def key_sigma(frame, layout, Rwb, lat, lon, h, cov):
     bias 6×6)``: attitude and position turned from body to the local level axes,
     position in ``[δL, δλ, δh]``; states the graph does not have are NaN."""
     from sinslab.core import earth as E
-    Cx, Cv, Cb = cov
+    Cx, Cv, Cb = cov[:3]
     Rnw = frame.R_wn(lat, lon).T
     Rnb = Rnw @ Rwb
     sig = np.full(layout.n, np.nan)

@@ -77,9 +77,11 @@ class GraphImuModel:
     floored: tuple = ()
 
     @classmethod
-    def from_error_model(cls, model):
+    def from_error_model(cls, model, clock=False):
         """The filter's :class:`sinslab.nav.errstate.ErrorModel` (full core, body-frame
-        gyro and accelerometer bias blocks on all three axes, nothing else)."""
+        gyro and accelerometer bias blocks on all three axes, nothing else; with
+        ``clock`` a receiver-clock block too, which the raw GNSS graph makes variables of
+        its own, :mod:`sinslab.fusion.graph.raw`)."""
         lay = model.layout
         extra = [n for n in lay.names if n not in ("phi", "dv", "dp")]
         if getattr(model, "core", None) != "full":
@@ -90,9 +92,10 @@ class GraphImuModel:
         for s in model.sensor_blocks:
             if s.kind == "bias" and s.frame == "body" and s.axes == "xyz" and s.sensor in ("gyro", "accel"):
                 bias[s.sensor] = s
-            else:
+            elif not (clock and s.kind == "clock"):
                 other.append(s.name)
         other += [n for n in extra if n not in {b.name for b in model.sensor_blocks}]
+        extra = [n for n in extra if n not in {b.name for b in model.sensor_blocks if clock and b.kind == "clock"}]
         if other or set(bias) != {"gyro", "accel"}:
             raise InputError("the graph estimator takes a random-walk gyro and accelerometer bias and "
                              f"nothing else (CombinedImuFactor); the model has {', '.join(extra) or 'no sensor'} states")
