@@ -55,6 +55,8 @@ def test_run_folder(tc_run):
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--elevation-mask", "90"], "--elevation-mask '90.0 deg' is out of range: must be < 90 deg"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--imu-delay", "3000"], "lie outside the IMU record"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "three@60:20"], "--max-satellites"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "3@1e9:10"],          # was taken as a no-op
+     "--max-satellites '3@1e9:10': START 1e+09 s is after the run's last GNSS epoch (133.8 s after the first)"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--gnss", WALK / "gnss_1730_sf.pos"], "not both"),
 ])
 def test_bad_input(tc_run, tmp_path, args, msg):
@@ -73,6 +75,25 @@ def test_bad_input(tc_run, tmp_path, args, msg):
     lines = [ln for ln in r.output.splitlines() if "error" in ln]
     assert len(lines) == 1 and lines[0].startswith("sinslab: error:") and msg in lines[0], r.output
     assert {p.name: p.read_bytes() for p in tc_run.iterdir() if p.is_file()} == before
+
+
+def test_report_says_tightly_coupled_and_leads_with_its_rows(tc_run):
+    """The report of a raw run: the line under the title names the coupling and the
+    constellations; the metrics start with the satellites' rows, not the loosely coupled
+    run's fix rows; rows named after fixes say they compare with the single-point solution."""
+    from sinslab.app.commands.raw_gnss import _RAW_FIRST
+    s = json.loads((tc_run / "summary.json").read_text())
+    assert s["purpose"].startswith("INS + GNSS tightly coupled: pseudoranges and range rates")
+    assert "(GPS, Galileo, BeiDou)" in s["purpose"]
+    names = list(s["metrics"])
+    assert names[:len(_RAW_FIRST)] == list(_RAW_FIRST)
+    assert names[-1] == "outage_end_hz_err_m"              # no outage: its rows last, not first
+    info = s["metric_info"]
+    assert all(info[k]["description"] for k in _RAW_FIRST)
+    assert "single-point solution" in info["hz_err_with_fixes_median_m"]["description"]
+    assert "single-point" in info["fixes_after_grid"]["description"]
+    html = (tc_run / "report.html").read_text()
+    assert "tightly coupled" in html and "loosely coupled" not in html
 
 
 def test_satellites_below_the_mask_only():

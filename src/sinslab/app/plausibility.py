@@ -30,7 +30,7 @@ from sinslab.core.blocks import block_median, block_ranges, release_pages
 
 __all__ = ["Finding", "imu_findings", "rest_findings", "rest_gravity_findings", "gap_findings",
            "consistency_findings", "settle", "rest_rate_findings", "bias_findings", "overconfidence_findings",
-           "grade_of", "GRADES", "unit_slip",
+           "grade_of", "GRADES", "unit_slip", "interval_findings", "declared_findings",
            "MIN_SAMPLES", "MAX_RATE_DPS", "MAX_ACCEL_G", "MONITOR_WINDOW_S", "MONITOR_ALPHA",
            "MONITOR_STRETCH_S"]
 
@@ -91,6 +91,9 @@ def imu_findings(imu, source: str, *, lat=None, h=0.0, gaps=None) -> list[Findin
     if n < MIN_SAMPLES:
         return [Finding(f"{source}: only {n} sample{'s' if n != 1 else ''} "
                         f"({n * imu.dt:.3g} s); a run needs at least {MIN_SAMPLES}", True)]
+    slow = interval_findings(imu, source)
+    if slow:
+        return slow
     out: list[Finding] = []
     st = _record_stats(imu)
     if not st["any_w"] and not st["any_f"]:
@@ -127,6 +130,25 @@ def imu_findings(imu, source: str, *, lat=None, h=0.0, gaps=None) -> list[Findin
     if gaps is not None and len(gaps):
         out += gap_findings(imu, gaps, source)
     return out
+
+
+#: the longest sample interval of a strapdown IMU log [s]: the slowest units on sale
+#: output 1 Hz averages; a longer interval is a time column in another unit (ms read as s)
+MAX_SAMPLE_INTERVAL_S = 1.0
+
+
+def interval_findings(imu, source: str) -> list[Finding]:
+    """A sample interval no strapdown IMU logs (beyond :data:`MAX_SAMPLE_INTERVAL_S`): the
+    time column is in another unit than declared — milliseconds read as seconds when the
+    interval over 1000 is that of a 50 Hz–2 kHz IMU. Every rate, increment and |f| figure
+    from such a record is off by the same factor, so this comes before them."""
+    dt = float(imu.dt)
+    if dt <= MAX_SAMPLE_INTERVAL_S:
+        return []
+    hint = (f"a time column in milliseconds read as seconds? (then {1e3 / dt:.4g} Hz; declare it t[ms])"
+            if 5e-4 <= dt * 1e-3 <= 0.02 else "a time column in another unit than declared?")
+    return [Finding(f"{source}: sample interval {dt:.6g} s ({1 / dt:.3g} Hz): no strapdown IMU logs "
+                    f"slower than every {MAX_SAMPLE_INTERVAL_S:g} s; {hint}", True)]
 
 
 def _magnitudes(imu, name):
@@ -291,6 +313,36 @@ def bias_findings(gyro_bias, accel_bias, source: str, *, gyro_arw=None) -> list[
         out.append(Finding(f"{source}: estimated accelerometer bias {ab:.4g} mg is beyond {beyond} (up to "
                            f"{ab_max:g} mg): the estimate absorbed a unit or scale error, a time offset or motion "
                            f"the model lacks"))
+    return out
+
+
+#: an estimate beyond this many times the 1σ its declared error model gives it (a Gaussian
+#: prior's 5σ: probability 6e-7 per axis) says the model or the estimate is wrong
+DECLARED_FACTOR = 5.0
+#: and beyond this many of its own final σ (else the data do not determine it)
+SIGNIFICANT_SIGMAS = 3.0
+
+
+def declared_findings(estimates, source: str, declared: str) -> list[Finding]:
+    """Estimated sensor errors against the error model the user declared (``declared``:
+    how, e.g. ``--imu-errors industrial``). ``estimates``: ``[(what, estimate (3,), final σ
+    (3,), declared 1σ, unit, scale to the unit)]`` in SI; a finding for each kind whose
+    largest significant estimate exceeds :data:`DECLARED_FACTOR` × its declared 1σ: the
+    IMU is of a lower grade than declared, or the estimate absorbed another error."""
+    out = []
+    for what, est, sig, dec, unit, sc in estimates:
+        est, sig = np.abs(np.asarray(est, float)), np.asarray(sig, float)
+        dec = float(np.max(dec)) if np.size(dec) else 0.0
+        ok = np.isfinite(est) & (est > SIGNIFICANT_SIGMAS * np.nan_to_num(sig, nan=np.inf))
+        if dec <= 0 or not ok.any():
+            continue
+        k = int(np.argmax(np.where(ok, est, -1.0)))
+        if est[k] > DECLARED_FACTOR * dec:
+            out.append(Finding(
+                f"{source}: estimated {what} {'xyz'[k]} {est[k] * sc:.4g} {unit} is {est[k] / dec:.3g} × the "
+                f"{dec * sc:.4g} {unit} (1σ) of the declared error model ({declared}; plausible up to "
+                f"{DECLARED_FACTOR:g}σ): an IMU of a lower grade than declared, or an estimate that absorbed a "
+                f"unit or scale error, a time offset or motion the model lacks"))
     return out
 
 

@@ -11,12 +11,13 @@ import re
 
 import numpy as np
 
-__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures"]
+__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures", "raw_report", "RAW_DESCRIPTIONS"]
 
 
-def parse_max_satellites(items, t_first):
+def parse_max_satellites(items, t_first, t_last=math.inf):
     """``["3@60:20", ...]`` -> ``((3, t_first + 60, 20), ...)``: at most K satellites from
-    START [s after the first GNSS epoch] for DURATION [s]."""
+    START [s after the first GNSS epoch] for DURATION [s]. A window that starts after the
+    run's last epoch ``t_last`` [s] limits nothing: refused, not taken as a no-op."""
     out = []
     for text in items or ():
         m = re.fullmatch(r"\s*(\d+)\s*@\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*", str(text))
@@ -26,6 +27,9 @@ def parse_max_satellites(items, t_first):
         k, s, d = int(m.group(1)), float(m.group(2)), float(m.group(3))
         if not (math.isfinite(s) and s >= 0 and math.isfinite(d) and d > 0):
             raise ValueError(f"--max-satellites {text!r}: START must be >= 0 s and DURATION > 0 s")
+        if t_first + s > t_last:
+            raise ValueError(f"--max-satellites {text!r}: START {s:g} s is after the run's last GNSS epoch "
+                             f"({t_last - t_first:.1f} s after the first): the limit would apply to no epoch")
         out.append((k, t_first + s, d))
     return tuple(out)
 
@@ -53,7 +57,8 @@ def load_raw(keys, imu, echo=print):
     if not sv.usable.any():
         raise InputError(f"{path}: no satellite has an ephemeris"
                          + ("" if nav is not None else " (give a navigation file with --gnss-nav)"))
-    raw = RawGnss(sv, max_satellites=parse_max_satellites(keys.max_satellites, float(sv.t_epoch[0])),
+    raw = RawGnss(sv, max_satellites=parse_max_satellites(keys.max_satellites, float(sv.t_epoch[0]),
+                                                                 min(float(sv.t_epoch[-1]), t1)),
                   mask=keys.elevation_mask, pseudorange_sigma=keys.pseudorange_sigma,
                   doppler_sigma=keys.doppler_sigma, gate=keys.gate)
     sp = raw.single_point()
@@ -70,6 +75,54 @@ def load_raw(keys, imu, echo=print):
 
 
 _SYSTEM_NAMES = {"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS", "J": "QZSS"}
+
+#: the report rows of a tightly coupled run: its own rows (satellites, rows used and
+#: refused, their NIS) described, and the rows the loosely coupled run names after its
+#: fixes described against what they compare with here, the single-point solution
+RAW_DESCRIPTIONS = [
+    (r"^gnss_epochs_used$", "GNSS epochs with at least one pseudorange used"),
+    (r"^gnss_epochs$", "GNSS epochs inside the run"),
+    (r"^pseudoranges_used$", "pseudorange rows the filter used"),
+    (r"^pseudoranges_rejected$", "pseudorange rows refused by the innovation gate"),
+    (r"^doppler_used$", "range-rate (Doppler) rows the filter used"),
+    (r"^doppler_rejected$", "range-rate (Doppler) rows refused by the innovation gate"),
+    (r"^satellites_below_mask$", "pseudorange rows left out: satellite below the elevation mask"),
+    (r"^satellites_over_limit$", "pseudorange rows left out by --max-satellites"),
+    (r"^observations_without_ephemeris$", "observations of satellites without an ephemeris, skipped"),
+    (r"^satellites_used_median$", "satellites whose pseudorange was used per epoch, median"),
+    (r"^satellites_used_min$", "satellites whose pseudorange was used per epoch, fewest"),
+    (r"^gnss_systems$", "constellations used (G GPS, E Galileo, C BeiDou, R GLONASS, J QZSS)"),
+    (r"^elevation_mask_deg$", "satellites below it are not used"),
+    (r"^hz_err_with_fixes_median_m$", "horizontal solution − single-point solution outside outages, median"),
+    (r"^hz_err_with_fixes_max_m$", "horizontal solution − single-point solution outside outages, largest"),
+    (r"^hz_err_with_fixes_p99_m$", "horizontal solution − single-point solution outside outages, 99th percentile"),
+    (r"^outage_end_hz_err_median_m$", "horizontal error against the single-point solution at the end of the "
+                                      "outages, median"),
+    (r"^outage_end_hz_err_max_m$", "horizontal error against the single-point solution at the end of the "
+                                   "outages, largest"),
+    (r"^outage_end_hz_err_m$", "horizontal error against the single-point solution at the end of each outage"),
+    (r"^fixes_after_grid$", "single-point fixes after the last whole filter step, not used"),
+]
+#: the tightly coupled run's rows first (the loosely coupled run leads with its fixes')
+_RAW_FIRST = ("gnss_systems", "gnss_epochs_used", "gnss_epochs", "satellites_used_median", "satellites_used_min",
+              "pseudoranges_used", "pseudoranges_rejected", "pseudorange_nis_mean", "pseudorange_nis_verdict",
+              "doppler_used", "doppler_rejected", "doppler_nis_mean", "doppler_nis_verdict",
+              "satellites_below_mask", "satellites_over_limit", "observations_without_ephemeris",
+              "elevation_mask_deg")
+
+
+def raw_report(metrics, n_outages):
+    """``(metrics, purpose)`` of a tightly coupled run's report: its own rows first, the
+    outage rows last when there was no outage, and the line under the title that says what
+    the run coupled."""
+    first = {k: metrics[k] for k in _RAW_FIRST if k in metrics}
+    rest = {k: v for k, v in metrics.items() if k not in first}
+    last = {k: rest.pop(k) for k in list(rest) if k.startswith("outage_end_") or k == "n_outages"} \
+        if n_outages == 0 else {}
+    systems = ", ".join(_SYSTEM_NAMES.get(c, c) for c in str(metrics.get("gnss_systems", "")))
+    purpose = (f"INS + GNSS tightly coupled: pseudoranges and range rates of raw observations"
+               f"{f' ({systems})' if systems else ''} in the filter, and aids, on recorded data")
+    return {**first, **rest, **last}, purpose
 
 
 def raw_claims(rows):
