@@ -407,7 +407,12 @@ def _window_sums(t, x):
     return c[hi] - c[lo], lo, hi
 
 
-def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> list[Finding]:
+#: what a bias of the fix innovations that lasts points to
+BIAS_CAUSES = "lever arm, time offset, mount, a bias prior too tight"
+
+
+def consistency_findings(t, innovation, innovation_sigma, nis, labels=None, *, item="fix",
+                         items="fixes", source="fix", causes=BIAS_CAUSES, bias_floor=0.0) -> list[Finding]:
     """Warnings where the filter is inconsistent with its fixes for a long stretch.
 
     A consistent Kalman filter's innovations are zero-mean, white, with the covariance
@@ -437,6 +442,16 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
         Normalised innovation squared of each fix over its used components.
     labels : list of str, optional
         Names of the m components (for the message).
+    bias_floor : float
+        Report a component's window mean only beyond this many σ too (0: wherever it is
+        significant). Errors that stay within σ for minutes are the noise model's
+        business where they are known to be correlated (a satellite's ionospheric
+        residual and multipath): there only a mean beyond the σ itself is an error.
+    item, items, source, causes : str
+        What a row of ``t`` is, in the singular and the plural, whose innovations these
+        are and what a lasting bias of them points to, for the messages: the loosely
+        coupled source's fixes by default; the epochs of a measurement's rows (``item="epoch",
+        items="epochs", source="pseudorange"``).
     """
     # scipy.special's χ² and normal quantiles (what scipy.stats' chi2.isf and norm.isf
     # evaluate, the same values), not scipy.stats: its import takes ~35 MB and ~0.4 s
@@ -464,8 +479,9 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
         dur, a, b = runs[0]
         i = a + int(np.argmax(s_nis[a:b] / dof[a:b]))
         out.append(Finding(
-            f"the filter is overconfident for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
-            f"the first applied fix; {len(runs)} such stretch(es), {bad.mean():.0%} of the fixes): "
+            f"the filter is overconfident{'' if source == 'fix' else f' about the {source}s'} for {dur:.0f} s "
+            f"({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
+            f"the first applied {item}; {len(runs)} such stretch(es), {bad.mean():.0%} of the {items}): "
             f"{MONITOR_WINDOW_S:g}-s NIS per component up to {s_nis[i] / dof[i]:.3g} where a consistent "
             f"filter stays below {limit[i] / dof[i]:.3g} (χ² of the window's {dof[i]:.0f} degrees of "
             f"freedom, false alarm {MONITOR_ALPHA:g} per window): its errors are larger than its σ say "
@@ -474,7 +490,7 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
     k, _, _ = _window_sums(t, used.astype(float))
     u = s_z / np.sqrt(np.maximum(k, 1.0))
     q = -ndtri(MONITOR_ALPHA / (2 * m))
-    bad_c = (np.abs(u) > q) & (k > 0)
+    bad_c = (np.abs(u) > q) & (k > 0) & (np.abs(s_z) >= bias_floor * np.maximum(k, 1.0))
     bad = bad_c.any(axis=1)
     runs = _stretches(t, bad) if bad.any() else []
     if runs and runs[0][0] >= MONITOR_STRETCH_S:
@@ -483,13 +499,12 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
         i += a
         worst = [labels[j] for j in range(m) if bad_c[a:b, j].any()]
         out.append(Finding(
-            f"the fix innovations are biased for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
-            f"the first applied fix; {len(runs)} such stretch(es), {bad.mean():.0%} of the fixes) in "
+            f"the {source} innovations are biased for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
+            f"the first applied {item}; {len(runs)} such stretch(es), {bad.mean():.0%} of the {items}) in "
             f"{', '.join(worst)}: {MONITOR_WINDOW_S:g}-s mean of the {labels[c]} innovation "
-            f"{s_z[i, c] / max(k[i, c], 1.0):+.2f} σ over {k[i, c]:.0f} fixes, {abs(u[i, c]):.1f} times its "
+            f"{s_z[i, c] / max(k[i, c], 1.0):+.2f} σ over {k[i, c]:.0f} {items}, {abs(u[i, c]):.1f} times its "
             f"spread 1/√{k[i, c]:.0f} where a consistent filter stays within {q:.2f} (false alarm "
-            f"{MONITOR_ALPHA:g} per window): an error the filter does not model (lever arm, time offset, "
-            f"mount, a bias prior too tight)"))
+            f"{MONITOR_ALPHA:g} per window): an error the filter does not model ({causes})"))
     return out
 
 

@@ -567,8 +567,9 @@ def _claims(res, p, ev, metrics, echo):
     initial rest's |f| against gravity."""
     recs = res.source.fix_records
     if recs is None:
-        from sinslab.app.commands.raw_gnss import raw_claims
+        from sinslab.app.commands.raw_gnss import raw_claims, raw_consistency_findings
         claims, extra = raw_claims(res.source.rows)
+        p.found += raw_consistency_findings(res.source.rows)
     else:
         from sinslab.app.described import SETTLE_S, navigate_claims
         from sinslab.app.plausibility import consistency_findings

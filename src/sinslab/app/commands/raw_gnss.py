@@ -11,7 +11,8 @@ import re
 
 import numpy as np
 
-__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures", "raw_report", "RAW_DESCRIPTIONS"]
+__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures", "raw_report", "RAW_DESCRIPTIONS",
+           "raw_consistency_findings"]
 
 
 def parse_max_satellites(items, t_first, t_last=math.inf):
@@ -147,6 +148,44 @@ def raw_claims(rows):
     return claims, extra
 
 
+
+
+#: a satellite's innovations averaging beyond this many σ over a monitor window: beyond
+#: what its noise model allows at all (within σ, a bias lasting minutes is the normal
+#: ionospheric residual and multipath of single-frequency pseudoranges, not a finding)
+RAW_BIAS_FLOOR = 3.0
+
+
+def raw_consistency_findings(rows):
+    """The innovation windows of a tightly coupled run (:func:`sinslab.app.plausibility.consistency_findings`
+    over the epochs, each satellite a component): a stretch where the rows used are
+    larger than the filter's σ say (the windowed NIS), or where one satellite's
+    innovations average beyond :data:`RAW_BIAS_FLOOR` σ (multipath, a wrong inter-system
+    bias). The σ of a row's
+    innovation is √(H P Hᵀ + R) = |ν| / √NIS."""
+    from sinslab.app.plausibility import consistency_findings
+    out = []
+    for label, what in (("pseudoranges", "pseudorange"), ("range_rates", "range rate")):
+        log = rows.get(label)
+        if log is None or not log.t or "sat" not in log.meta:
+            continue
+        sats = log.meta["sat"]
+        names = sorted({str(x) for a in sats for x in a})
+        col = {n: j for j, n in enumerate(names)}
+        nu = np.full((len(log.t), len(names)), np.nan)
+        sd = nu.copy()
+        nis = np.zeros(len(log.t))
+        for k, (v, n, u, sk) in enumerate(zip(log.innovation, log.nis, log.used, sats)):
+            v, n, u = np.asarray(v, float), np.asarray(n, float), np.asarray(u, bool)
+            ok = u & np.isfinite(v) & np.isfinite(n) & (n > 0)
+            j = [col[str(x)] for x in np.asarray(sk)[ok]]
+            nu[k, j], sd[k, j] = v[ok], np.abs(v[ok]) / np.sqrt(n[ok])
+            nis[k] = float(np.sum(n[ok]))
+        out += consistency_findings(np.asarray(log.t, float), nu, sd, nis, [f"{what} {x}" for x in names],
+                                    item="epoch", items="epochs", source=what, bias_floor=RAW_BIAS_FLOOR,
+                                    causes="multipath or a badly tracked signal of that satellite, an inter-system "
+                                           "bias, a lever arm or time offset")
+    return out
 
 
 def raw_figures(res, rep):
