@@ -12,8 +12,7 @@ from typer.testing import CliRunner
 
 from sinslab.app.plausibility import DECLARED_FACTOR, declared_findings
 from sinslab.core import units as u
-from sinslab.sim import trajectory as tr
-from support import simulated_car_drive
+from support import simulated_car_drive, turning_drive_segments
 
 
 def _gyro(est_dph, sig_dph, dec_dph):
@@ -48,12 +47,7 @@ def test_without_a_declared_model_the_rest_noise_sets_the_class():
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory):
     from sinslab.data import write_fixes, write_imu
-    segs = [tr.Static(duration=10.0), tr.Accelerate(duration=5.0, accel=2.0)]
-    for k in range(6):
-        segs += [tr.Level(duration=8.0 + 3 * k), tr.Turn(duration=6.0, rate=(12 if k % 2 else -9) * u.deg,
-                                                          coordinated=False)]
-    segs.append(tr.Level(duration=30.0))
-    imu, fx, _, err, _ = simulated_car_drive(segs)
+    imu, fx, _, err, _ = simulated_car_drive(turning_drive_segments())
     d = tmp_path_factory.mktemp("drive")
     write_imu(d / "imu.csv", imu)
     write_fixes(d / "fixes.csv", fx)

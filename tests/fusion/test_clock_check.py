@@ -5,21 +5,15 @@ that many seconds; a drive without turns gives no verdict."""
 import numpy as np
 import pytest
 
-from sinslab.core import units as u
 from sinslab.fusion import recorded as R
 from sinslab.fusion.clock_check import clock_check
 from sinslab.sim import trajectory as tr
-from support import simulated_car_drive
+from support import simulated_car_drive, turning_drive_segments
 
 
 @pytest.fixture(scope="module")
 def drive():
-    segs = [tr.Static(duration=10.0), tr.Accelerate(duration=5.0, accel=2.0)]
-    for k in range(6):
-        segs += [tr.Level(duration=8.0 + 3 * k), tr.Turn(duration=6.0, rate=(12 if k % 2 else -9) * u.deg,
-                                                          coordinated=False)]
-    segs.append(tr.Level(duration=30.0))
-    imu, fx, _, _, _ = simulated_car_drive(segs)
+    imu, fx, _, _, _ = simulated_car_drive(turning_drive_segments())
     return imu, fx
 
 
