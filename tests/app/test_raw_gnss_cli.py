@@ -57,6 +57,8 @@ def test_run_folder(tc_run):
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "three@60:20"], "--max-satellites"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "3@1e9:10"],          # was taken as a no-op
      "--max-satellites '3@1e9:10': START 1e+09 s is after the run's last GNSS epoch (133.8 s after the first)"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "40@60:20"],
+     "--max-satellites '40@60:20': no epoch of the window has more than 16 satellite(s) with an ephemeris"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--gnss", WALK / "gnss_1730_sf.pos"], "not both"),
 ])
 def test_bad_input(tc_run, tmp_path, args, msg):

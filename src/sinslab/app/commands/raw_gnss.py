@@ -15,10 +15,12 @@ __all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures", "raw
            "raw_consistency_findings"]
 
 
-def parse_max_satellites(items, t_first, t_last=math.inf):
+def parse_max_satellites(items, t_first, t_last=math.inf, seen=None):
     """``["3@60:20", ...]`` -> ``((3, t_first + 60, 20), ...)``: at most K satellites from
-    START [s after the first GNSS epoch] for DURATION [s]. A window that starts after the
-    run's last epoch ``t_last`` [s] limits nothing: refused, not taken as a no-op."""
+    START [s after the first GNSS epoch] for DURATION [s]. A limit that changes nothing is
+    refused, not taken as a no-op: a window that starts after the run's last epoch
+    ``t_last`` [s], or a K no epoch of the window exceeds (``seen``: ``(epoch times,
+    satellites with an ephemeris at each)``)."""
     out = []
     for text in items or ():
         m = re.fullmatch(r"\s*(\d+)\s*@\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*", str(text))
@@ -31,6 +33,13 @@ def parse_max_satellites(items, t_first, t_last=math.inf):
         if t_first + s > t_last:
             raise ValueError(f"--max-satellites {text!r}: START {s:g} s is after the run's last GNSS epoch "
                              f"({t_last - t_first:.1f} s after the first): the limit would apply to no epoch")
+        if seen is not None:
+            t_e, n_e = seen
+            inside = (t_e >= t_first + s) & (t_e <= t_first + s + d)
+            most = int(n_e[inside].max()) if inside.any() else 0
+            if k >= most:
+                raise ValueError(f"--max-satellites {text!r}: no epoch of the window has more than {most} "
+                                 f"satellite(s) with an ephemeris, so at most {k} changes nothing")
         out.append((k, t_first + s, d))
     return tuple(out)
 
@@ -58,8 +67,9 @@ def load_raw(keys, imu, echo=print):
     if not sv.usable.any():
         raise InputError(f"{path}: no satellite has an ephemeris"
                          + ("" if nav is not None else " (give a navigation file with --gnss-nav)"))
+    seen = (sv.t_epoch, np.bincount(sv.epoch[sv.usable], minlength=sv.t_epoch.size))
     raw = RawGnss(sv, max_satellites=parse_max_satellites(keys.max_satellites, float(sv.t_epoch[0]),
-                                                                 min(float(sv.t_epoch[-1]), t1)),
+                                                          min(float(sv.t_epoch[-1]), t1), seen),
                   mask=keys.elevation_mask, pseudorange_sigma=keys.pseudorange_sigma,
                   doppler_sigma=keys.doppler_sigma, gate=keys.gate)
     sp = raw.single_point()
