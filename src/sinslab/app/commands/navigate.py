@@ -472,7 +472,7 @@ def _compute(cfg, echo) -> Output:
     if res.source.rows:
         from sinslab.app.commands.raw_gnss import RAW_DESCRIPTIONS, raw_figures, raw_report
         figures += raw_figures(res, res.source)
-        metrics, purpose = raw_report(metrics, len(res.outages))
+        metrics, purpose = raw_report(metrics, len(res.outages), tuple(res.source.rows))
         described = [*described, *RAW_DESCRIPTIONS]
     return Output(config=config_value(cfg), metrics=metrics, tables=tables, figures=figures, notes=notes,
                   files=_error_model_file(p.em_cfg), value=(res, p.fx), claims=claims, warnings=warnings,

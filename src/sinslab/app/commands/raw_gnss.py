@@ -122,16 +122,18 @@ _RAW_FIRST = ("gnss_systems", "gnss_epochs_used", "gnss_epochs", "satellites_use
               "elevation_mask_deg")
 
 
-def raw_report(metrics, n_outages):
+def raw_report(metrics, n_outages, kinds=("pseudoranges", "range_rates")):
     """``(metrics, purpose)`` of a tightly coupled run's report: its own rows first, the
     outage rows last when there was no outage, and the line under the title that says what
-    the run coupled."""
+    the run coupled (``kinds``: the names of the source's row records)."""
     first = {k: metrics[k] for k in _RAW_FIRST if k in metrics}
     rest = {k: v for k, v in metrics.items() if k not in first}
     last = {k: rest.pop(k) for k in list(rest) if k.startswith("outage_end_") or k == "n_outages"} \
         if n_outages == 0 else {}
     systems = ", ".join(_SYSTEM_NAMES.get(c, c) for c in str(metrics.get("gnss_systems", "")))
-    purpose = (f"INS + GNSS tightly coupled: pseudoranges and range rates of raw observations"
+    names = [k.replace("_", " ") for k in kinds]
+    what = " and ".join(names) if len(names) < 3 else ", ".join(names[:-1]) + " and " + names[-1]
+    purpose = (f"INS + GNSS tightly coupled: {what} of raw observations"
                f"{f' ({systems})' if systems else ''} in the filter, and aids, on recorded data")
     return {**first, **rest, **last}, purpose
 
