@@ -3,7 +3,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench clean typecheck
+.PHONY: demo test bench clean typecheck docs notebooks
 
 $(BIN)/python:
 	@command -v $(PY) >/dev/null 2>&1 || { echo "need $(PY) on PATH (or: make PY=python3)"; exit 2; }
@@ -12,6 +12,7 @@ $(BIN)/python:
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e ".[dev]"
+	$(BIN)/sinslab compile
 	@touch $(STAMP)
 
 demo: $(STAMP)
@@ -24,8 +25,17 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/speed.py
 
 clean:
-	rm -rf $(VENV) runs
+	rm -rf $(VENV) runs site
 
 # the type checker over the modules mypy.ini lists (also run by make test)
 typecheck: $(STAMP)
 	$(BIN)/python -m mypy
+
+# the documentation with the API reference into site/ (open site/index.html); warnings are errors
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -b html -n -W --keep-going -q -d site/.doctrees docs site
+	@echo "site/index.html"
+
+# the notebooks of notebooks/, each run top to bottom in a fresh kernel (not part of make test)
+notebooks: $(STAMP)
+	$(BIN)/python -m pytest -x -p no:cacheprovider -m notebook tests/test_notebooks.py

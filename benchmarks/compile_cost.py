@@ -65,7 +65,7 @@ def _child(names: list[str], out_dir: str) -> dict:
 
 
 def _round(names: list[str], cache: str) -> dict:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache, SINSLAB_QUIET="1",
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, SINSLAB_QUIET="1", SINSLAB_JITCACHE="0",
                PYTHONPATH=os.pathsep.join(p for p in (str(SRC), os.environ.get("PYTHONPATH")) if p))
     with tempfile.TemporaryDirectory(prefix="sinslab-compile-runs-") as runs:
         r = subprocess.run([sys.executable, __file__, "--child", runs, *[a for n in names for a in ("--only", n)]],

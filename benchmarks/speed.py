@@ -1,15 +1,22 @@
-"""Speed benchmark of sinslab against the reference strapdown kernel (DESIGN.md §3).
+"""Speed benchmark of sinslab against the reference strapdown kernel (DESIGN.md §3) and its
+port to C.
 
-Everything is measured in one process, as ratios to ``reference_strapdown.nav`` run on the
-same data, because the machine is noisy:
+Everything is measured in one process, as ratios to yardsticks run on the same data in the
+same rounds (the contenders take turns), in CPU time of this process, because the machine
+is shared. The yardsticks: ``reference_strapdown.nav`` (numba) and
+``benchmarks/reference_strapdown.c``, the same loop statement for statement in C, compiled
+here with ``cc -O2`` when a C compiler is found (``CC`` chooses it) and called through
+ctypes; it ends on the numba kernel's state bit for bit.
 
-- mechanization throughput (IMU samples/s) of ``sinslab.nav.strapdown.step`` (nsub = 2, no
-  output, like the reference) and of ``navigate`` (with output) / reference; target >= 0.5;
+- mechanization throughput (IMU samples per CPU second) of ``sinslab.nav.strapdown.step``
+  (nsub = 2, no output, like the reference) and of ``navigate`` (with output), against
+  both yardsticks; target >= 0.9 of the C port;
 - 48 h at 50 Hz navigated with ``navigate`` (full output and 1 Hz output); target < 5 s;
-- synthesis throughput (``sinslab.sim.trajectory.generate`` + ``sinslab.sim.imu.apply``) / reference
-  on ``aircraft_mixed`` at 100 Hz with a navigation-grade error model (bias + ARW + VRW),
-  and each of the two alone; target >= 0.3 for the sum (skipped with a message if those
-  modules cannot be imported). All single thread.
+- synthesis throughput (``sinslab.sim.trajectory.generate`` + ``sinslab.sim.imu.apply``,
+  outputs allocated as a caller gets them) on ``aircraft_mixed`` at 100 Hz with a
+  navigation-grade error model (bias + ARW + VRW), and each of the two alone; target >= 0.5
+  of the C port for the sum (skipped with a message if those modules cannot be imported).
+  All single thread.
 
 Run: ``.venv/bin/python benchmarks/speed.py [--samples 1e7] [--repeat 3] [--quick]``.
 The reference is ``../shared/bench/reference_strapdown.py`` relative to the repository
@@ -34,7 +41,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_REFERENCE = HERE.parents[0] / ".." / "shared" / "bench" / "reference_strapdown.py"
-TARGETS = {"mechanization_ratio": 0.5, "long_run_48h_50hz_s": 5.0, "synthesis_ratio": 0.3}
+TARGETS = {"mechanization_ratio_c": 0.9, "long_run_48h_50hz_s": 5.0, "synthesis_ratio_c": 0.5}
 
 
 def load_reference():
@@ -58,6 +65,48 @@ def load_reference():
     return mod, path
 
 
+C_SOURCE = HERE / "reference_strapdown.c"
+
+
+def load_c_reference():
+    """The C port of the reference kernel (``benchmarks/reference_strapdown.c``) compiled
+    with ``cc -O2`` into a temporary folder and called through ctypes on the same arrays:
+    ``nav(dth, dvl, dt, state)`` with ``state`` (10,) in and out. Returns ``(nav, compiler
+    line)`` or ``(None, reason)`` when no C compiler is found or the build fails."""
+    import ctypes
+    import subprocess
+
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if not cc:
+        return None, "no C compiler (set CC)"
+    tmp = Path(tempfile.mkdtemp(prefix="sinslab-cref-"))
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+    lib_path = tmp / "reference_strapdown.so"
+    cmd = [cc, "-O2", "-shared", "-fPIC", "-o", str(lib_path), str(C_SOURCE), "-lm"]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode:
+        return None, f"{' '.join(cmd)} failed: {r.stderr.strip()[-300:]}"
+    lib = ctypes.CDLL(str(lib_path))
+    dp = ctypes.POINTER(ctypes.c_double)
+    lib.nav.argtypes = [dp, dp, ctypes.c_long, ctypes.c_double, dp]
+    lib.nav.restype = None
+
+    def nav(dth, dvl, dt, state):
+        dth = np.ascontiguousarray(dth, dtype=np.float64)
+        dvl = np.ascontiguousarray(dvl, dtype=np.float64)
+        lib.nav(dth.ctypes.data_as(dp), dvl.ctypes.data_as(dp), dth.shape[0], float(dt), state.ctypes.data_as(dp))
+        return state
+    version = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()
+    return nav, f"{' '.join(cmd[:3])} ({version[0] if version else cc})"
+
+
+def _cpu(fn):
+    """CPU seconds of this process spent in ``fn()`` (one thread: the kernels are serial)."""
+    c = time.process_time()
+    fn()
+    return time.process_time() - c
+
+
 def _best(fn, repeat):
     best = float("inf")
     for _ in range(repeat):
@@ -76,15 +125,23 @@ def test_data(n, dt=0.01, seed=0):
     return dth, dvl
 
 
-def reference_rate(ref, dth, dvl, dt, repeat):
-    """Reference throughput [samples/s] (after a warm-up compile)."""
-    ref.nav(dth[:4], dvl[:4], dt, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 2.0, 0.0)
-    el = _best(lambda: ref.nav(dth, dvl, dt, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 2.0, 0.0), repeat)
-    return dth.shape[0] / el
+def _yardsticks(ref, c_nav, dth, dvl, dt):
+    """CPU-time rates [samples per CPU s] of one run of the numba reference and of its C
+    port (None without a compiler) on ``dth``, ``dvl``."""
+    n = dth.shape[0]
+    r = n / _cpu(lambda: ref.nav(dth, dvl, dt, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 2.0, 0.0))
+    c = None
+    if c_nav is not None:
+        st = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 2.0, 0.0])
+        c = n / _cpu(lambda: c_nav(dth, dvl, dt, st))
+    return r, c
 
 
-def bench_mechanization(ref, n, repeat, dt=0.01):
-    """Throughputs of reference, sinslab ``step`` and ``navigate`` on the same n samples."""
+def bench_mechanization(ref, c_nav, n, repeat, dt=0.01):
+    """Throughputs [samples per CPU second] of the numba reference, its C port, sinslab
+    ``step`` and ``navigate`` on the same n samples, the contenders taking turns in each
+    of ``repeat`` rounds (best of each kept); and whether ``step`` ends on the same state
+    as the two references (it integrates more: it need not)."""
     from sinslab.nav import strapdown as sd
     from sinslab.core.records import ImuRecord, NavState
 
@@ -92,18 +149,19 @@ def bench_mechanization(ref, n, repeat, dt=0.01):
     init = NavState(0.6, 2.0, 0.0, np.zeros(3), np.zeros(3))
     s = sd.initial_state_array(init)
     sd.step(s.copy(), dth[:4], dvl[:4], dt, 2)                       # warm-up compile
-    rates = {}
-    # interleave to share the machine's noise
-    r_ref, r_step = [], []
-    for _ in range(repeat):
-        r_ref.append(reference_rate(ref, dth, dvl, dt, 1))
-        r_step.append(n / _best(lambda: sd.step(s.copy(), dth, dvl, dt, 2), 1))
-    rates["reference"] = max(r_ref)
-    rates["sinslab_step"] = max(r_step)
+    ref.nav(dth[:4], dvl[:4], dt, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 2.0, 0.0)
+    r_ref, r_c, r_step = [], [], []
+    for _ in range(repeat):                 # interleaved: the machine's noise falls on all alike
+        r, c = _yardsticks(ref, c_nav, dth, dvl, dt)
+        r_ref.append(r)
+        if c is not None:
+            r_c.append(c)
+        r_step.append(n / _cpu(lambda: sd.step(s.copy(), dth, dvl, dt, 2)))
+    rates = {"reference": max(r_ref), "c_reference": max(r_c) if r_c else None, "sinslab_step": max(r_step)}
     imu = ImuRecord(dt * np.arange(1, n + 1), dth, dvl, dt)
     sd.navigate(ImuRecord(imu.t[:8], dth[:8], dvl[:8], dt), init, progress=False)
-    rates["sinslab_navigate"] = n / _best(
-        lambda: sd.navigate(imu, init, nsub=2, out_every=1, progress=False), repeat)
+    rates["sinslab_navigate"] = n / min(_cpu(lambda: sd.navigate(imu, init, nsub=2, out_every=1, progress=False))
+                                        for _ in range(repeat))
     return rates
 
 
@@ -146,9 +204,11 @@ def synthesis_case(n, dt=0.01):
     return (lambda: tr.generate(segs, start, dt, duration=n * dt)), errors
 
 
-def bench_synthesis(n, repeat):
-    """Synthesis throughputs [samples/s] of generate alone, apply alone and both, or a
-    string saying why it was skipped. Single thread: both kernels are serial numba loops."""
+def bench_synthesis(n, repeat, ref, c_nav):
+    """Synthesis throughputs [samples per CPU second] of generate alone, apply alone and
+    both (allocating their outputs, as a caller does), each round beside one run of the
+    yardsticks on n samples (:func:`_yardsticks`), or a string saying why it was skipped.
+    Single thread: every kernel is a serial numba loop."""
     try:
         from sinslab.sim import imu as imu_mod
         gen, errors = synthesis_case(1000)
@@ -157,10 +217,23 @@ def bench_synthesis(n, repeat):
         return f"skipped: trajectory/imu not importable yet ({type(e).__name__}: {e})"
     gen, errors = synthesis_case(n)
     g = gen()
-    t_gen = _best(gen, repeat)
-    t_apply = _best(lambda: imu_mod.apply(g.imu, errors, 0), repeat)
-    t_both = _best(lambda: imu_mod.apply(gen().imu, errors, 0), repeat)
-    return {"generate": n / t_gen, "apply": n / t_apply, "both": n / t_both}
+    dth, dvl = test_data(n)
+    rates = {"generate": [], "apply": [], "both": [], "reference": [], "c_reference": []}
+    for _ in range(repeat):
+        r, c = _yardsticks(ref, c_nav, dth, dvl, 0.01)
+        rates["reference"].append(r)
+        if c is not None:
+            rates["c_reference"].append(c)
+        rates["generate"].append(n / _cpu(gen))
+        rates["apply"].append(n / _cpu(lambda: imu_mod.apply(g.imu, errors, 0)))
+        rates["both"].append(n / _cpu(lambda: imu_mod.apply(gen().imu, errors, 0)))
+    return {k: (max(v) if v else None) for k, v in rates.items()}
+
+
+def _ratios(res, prefix, rate, ref, cref):
+    """``prefix_ratio`` (to the numba reference) and ``prefix_ratio_c`` (to its C port)."""
+    res[f"{prefix}_ratio"] = rate / ref
+    res[f"{prefix}_ratio_c"] = None if cref is None else rate / cref
 
 
 def main(argv=None):
@@ -175,58 +248,63 @@ def main(argv=None):
     ns = int(2e5 if a.quick else a.synth_samples)
     hours = 2.0 if a.quick else 48.0
     ref, ref_path = load_reference()
+    c_nav, c_note = load_c_reference()
 
-    mech = bench_mechanization(ref, n, a.repeat)
+    mech = bench_mechanization(ref, c_nav, n, a.repeat)
     long = bench_long_run(hours=hours, rate_hz=50.0)
-    syn = bench_synthesis(ns, a.repeat)
-    ref_rate = mech["reference"]
+    syn = bench_synthesis(ns, a.repeat, ref, c_nav)
+    ref_rate, c_rate = mech["reference"], mech["c_reference"]
     res = {
         "python": sys.version.split()[0], "machine": platform.machine(),
-        "cpu_count": os.cpu_count(), "reference": str(ref_path),
-        "samples": n, "reference_samples_per_s": ref_rate,
+        "cpu_count": os.cpu_count(), "reference": str(ref_path), "c_reference": c_note if c_nav else None,
+        "c_reference_note": None if c_nav else c_note, "timing": "CPU time of this process, best of the rounds",
+        "samples": n, "reference_samples_per_s": ref_rate, "c_reference_samples_per_s": c_rate,
         "step_samples_per_s": mech["sinslab_step"], "navigate_samples_per_s": mech["sinslab_navigate"],
-        "mechanization_ratio": mech["sinslab_step"] / ref_rate,
-        "navigate_ratio": mech["sinslab_navigate"] / ref_rate,
         "long_run_hours": hours, "long_run_samples": long["samples"],
         "long_run_48h_50hz_s": long["full_output_s"], "long_run_1hz_output_s": long["output_1hz_s"],
         "synthesis_samples": ns,
     }
+    _ratios(res, "mechanization", mech["sinslab_step"], ref_rate, c_rate)
+    _ratios(res, "navigate", mech["sinslab_navigate"], ref_rate, c_rate)
     if isinstance(syn, str):
-        res["synthesis_ratio"] = None
+        res["synthesis_ratio"] = res["synthesis_ratio_c"] = None
         res["synthesis_note"] = syn
     else:
         res["synthesis_case"] = {"motion": "presets.aircraft_mixed, 100 Hz", "errors": NAV_GRADE}
-        res["synthesis_samples_per_s"] = syn["both"]
-        res["synthesis_ratio"] = syn["both"] / ref_rate
-        res["generate_samples_per_s"] = syn["generate"]
-        res["generate_ratio"] = syn["generate"] / ref_rate
-        res["apply_samples_per_s"] = syn["apply"]
-        res["apply_ratio"] = syn["apply"] / ref_rate
+        res["synthesis_reference_samples_per_s"] = syn["reference"]
+        res["synthesis_c_reference_samples_per_s"] = syn["c_reference"]
+        for key, k in (("synthesis", "both"), ("generate", "generate"), ("apply", "apply")):
+            res[f"{key}_samples_per_s"] = syn[k]
+            _ratios(res, key, syn[k], syn["reference"], syn["c_reference"])
     res["targets"] = TARGETS
 
-    rows = [
-        ("reference kernel", f"{ref_rate / 1e6:8.2f} M samples/s", "", ""),
-        ("strapdown.step (nsub=2)", f"{mech['sinslab_step'] / 1e6:8.2f} M samples/s",
-         f"{res['mechanization_ratio']:.2f}", ">= 0.5"),
-        ("strapdown.navigate (full output)", f"{mech['sinslab_navigate'] / 1e6:8.2f} M samples/s",
-         f"{res['navigate_ratio']:.2f}", ""),
-        (f"{hours:g} h @ 50 Hz navigate, full output", f"{long['full_output_s']:8.2f} s", "",
-         "< 5 s" if hours == 48.0 else ""),
-        (f"{hours:g} h @ 50 Hz navigate, 1 Hz output", f"{long['output_1hz_s']:8.2f} s", "", ""),
-    ]
+    def ratio(key):
+        r, c = res.get(f"{key}_ratio"), res.get(f"{key}_ratio_c")
+        return f"{r:.2f}" + ("" if c is None else f" / {c:.2f}")
+
+    rows = [("reference kernel (numba / C -O2)", f"{ref_rate / 1e6:.2f} / " + (f"{c_rate / 1e6:.2f}" if c_rate else "-")
+             + " M samples/s", "", ""),
+            ("strapdown.step (nsub=2)", f"{mech['sinslab_step'] / 1e6:8.2f} M samples/s", ratio("mechanization"),
+             f">= {TARGETS['mechanization_ratio_c']} of C"),
+            ("strapdown.navigate (full output)", f"{mech['sinslab_navigate'] / 1e6:8.2f} M samples/s",
+             ratio("navigate"), ""),
+            (f"{hours:g} h @ 50 Hz navigate, full output", f"{long['full_output_s']:8.2f} s", "",
+             "< 5 s" if hours == 48.0 else ""),
+            (f"{hours:g} h @ 50 Hz navigate, 1 Hz output", f"{long['output_1hz_s']:8.2f} s", "", "")]
     if isinstance(syn, str):
-        rows.append(("synthesis (generate + apply)", syn, "", ">= 0.3"))
+        rows.append(("synthesis (generate + apply)", syn, "", ""))
     else:
-        rows.append(("trajectory.generate (aircraft_mixed)", f"{syn['generate'] / 1e6:8.2f} M samples/s",
-                     f"{res['generate_ratio']:.2f}", ""))
-        rows.append(("imu.apply (bias + ARW + VRW)", f"{syn['apply'] / 1e6:8.2f} M samples/s",
-                     f"{res['apply_ratio']:.2f}", ""))
-        rows.append(("synthesis (generate + apply)", f"{syn['both'] / 1e6:8.2f} M samples/s",
-                     f"{res['synthesis_ratio']:.2f}", ">= 0.3"))
+        rows += [("trajectory.generate (aircraft_mixed)", f"{syn['generate'] / 1e6:8.2f} M samples/s",
+                  ratio("generate"), ""),
+                 ("imu.apply (bias + ARW + VRW)", f"{syn['apply'] / 1e6:8.2f} M samples/s", ratio("apply"), ""),
+                 ("synthesis (generate + apply)", f"{syn['both'] / 1e6:8.2f} M samples/s", ratio("synthesis"),
+                  f">= {TARGETS['synthesis_ratio_c']} of C")]
     w = max(len(r[0]) for r in rows)
-    print(f"{'benchmark':<{w}}  {'measured':>22}  {'ratio':>6}  target")
-    for name, val, ratio, tgt in rows:
-        print(f"{name:<{w}}  {val:>22}  {ratio:>6}  {tgt}")
+    print(f"{'benchmark (CPU time)':<{w}}  {'measured':>24}  {'ratio (numba / C)':>17}  target")
+    for name, val, rt, tgt in rows:
+        print(f"{name:<{w}}  {val:>24}  {rt:>17}  {tgt}")
+    if c_nav is None:
+        print(f"no C port: {c_note}")
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_suffix(".json.tmp")

@@ -180,6 +180,31 @@ def test_full_rate_script(tmp_path):
     assert all(v > 0 for v in res["profile_us"].values())
 
 
+def test_kfgins_process_reads_kfgins_files_and_writes_every_epoch(tmp_path):
+    """sinslab's side of the whole-process comparison (benchmarks/kfgins_process.py) on a
+    30 s drive written in KF-GINS' formats by full_rate.py: it reads the YAML configuration
+    and the text files KF-GINS reads and writes the solution of every IMU epoch, which
+    ends where the in-process filter of the same drive ends (the text files round the
+    increments to 13 digits)."""
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    fr = _load("full_rate")
+    sc = fr.scenario(30.0)
+    cfg = fr._kfgins_inputs(sc, str(tmp_path))
+    p = subprocess.run([sys.executable, str(BENCH / "kfgins_process.py"), cfg, "--stages"], capture_output=True,
+                       text=True, env=dict(os.environ, SINSLAB_QUIET="1"))
+    assert p.returncode == 0, p.stderr
+    stages = dict(x.split("=") for x in p.stdout.split("STAGES ")[1].split())
+    assert set(stages) == {"start-up_and_imports", "reading", "filter", "writing"}
+    sol = np.load(tmp_path / "sinslab_solution.npy")
+    assert sol.shape == (6001, 43) and np.all(np.isfinite(sol))
+    res = fr._filter(sc, sc[0])
+    assert abs(sol[-1, 1] - res.nav[-1, 7]) * 6.4e6 < 0.05 and abs(sol[-1, 2] - res.nav[-1, 8]) * 5.4e6 < 0.05
+
+
 def test_navigate_cost_script(tmp_path):
     res = _load("navigate_cost").main(["--minutes", "1.5", "--rounds", "1", "--json", str(tmp_path / "n.json")])
     r = res["this"]["1.5min"]

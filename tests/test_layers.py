@@ -19,6 +19,8 @@ ALLOWED = {
     "app": {"core", "data", "sim", "nav", "estimation", "fusion", "methods"},
     "experiments": {"core", "data", "sim", "nav", "estimation", "fusion", "methods", "app"},
     "cli": {"core", "data", "sim", "nav", "estimation", "fusion", "methods", "app", "experiments"},
+    # sinslab compile: runs the commands of the CLI on simulated inputs
+    "precompile": {"core", "data", "sim", "nav", "estimation", "fusion", "methods", "app", "experiments", "cli"},
     "__main__": {"cli"},                # `python -m sinslab`: the command line, nothing else
 }
 #: third-party packages the core may use (plus the standard library)

@@ -339,6 +339,21 @@ def report(dir: Path = typer.Argument(..., metavar="DIR", help="run folder holdi
     typer.echo(str(path))
 
 
+@app.command("compile")
+def compile_(jobs: int = typer.Option(2, "--jobs", "-j", min=1, max=2, help="processes compiling side by side"),
+             portable: bool = typer.Option(False, "--portable",
+                                           help="machine code for any CPU of the architecture (what a wheel ships)")) -> None:
+    """Compile the numerical kernels now, so that the first run starts warm (an install step:
+    `make` runs it after pip install)."""
+    import subprocess
+
+    # its own process: the module runs commands of this one
+    r = subprocess.run([sys.executable, "-m", "sinslab.precompile", "--jobs", str(jobs)]
+                       + (["--portable"] if portable else []))
+    if r.returncode:
+        raise typer.Exit(r.returncode)
+
+
 @app.command()
 def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for the runs and index.html"),
          quick: bool = typer.Option(False, "--quick", help="shortened runs"),

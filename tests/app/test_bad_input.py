@@ -472,6 +472,26 @@ def test_stage_lines_with_elapsed_time_off_a_terminal(capsys):
     P.set_lines(False)
 
 
+def test_recorded_data_commands_announce_their_stages_off_a_terminal(tmp_path, files):
+    """align and allan (like navigate and transfer-align) print a line as each stage starts
+    and ends, with its time, reading included; the run folder's writing is a stage too."""
+    import sinslab.core.progress as P
+
+    P.set_quiet(None)
+    try:
+        for args, work in ((["align", "--imu", files["rest"]], "alignment over 60 s"),
+                           (["allan", files["rest"]], "Allan deviation of 60 s")):
+            r = invoke(*args, "--out", tmp_path / args[0])
+            assert r.exit_code == 0, r.stderr
+            lines = [ln for ln in r.stderr.splitlines() if ln.startswith("sinslab: ")]
+            stages = [ln.split(": ")[1] for ln in lines if ln.endswith(": started")]
+            assert stages == [f"{args[0]}, computing", "reading rest.imu", work,
+                              f"writing {tmp_path / args[0]}"], lines
+            assert sum(": done in " in ln for ln in lines) == 4, lines
+    finally:
+        P.set_quiet(None)
+
+
 def test_config_overriding_quick_says_so(tmp_path, dummy):
     cfg = tmp_path / "c.toml"
     cfg.write_text('[scenario]\nduration = "30 s"\n')

@@ -186,6 +186,20 @@ def test_numba_kernels_match_numpy():
     assert np.allclose(at.qmul_s(*a, *b), at.quat_mul(a, b), atol=1e-15)
 
 
+def test_rv2q_s_series_agrees_with_the_closed_form_to_rounding():
+    """Below 1e-3 rad rv2q_s takes the closed form's Taylor series to n⁴ (the dropped terms
+    < 1e-22): it agrees with cos(n/2), sin(n/2)/n·r to the rounding of either, on both
+    sides of the switch."""
+    import math
+
+    for n in np.geomspace(1e-9, 3e-3, 60):
+        for r in RNG.normal(size=(3, 3)):
+            v = n * r / np.linalg.norm(r)
+            s = math.sin(0.5 * n) / n
+            exact = np.array([math.cos(0.5 * n), *(v * s)])
+            np.testing.assert_allclose(at.rv2q_s(*v), exact, rtol=0, atol=3e-16)
+
+
 def test_q2euler_s_clamps_at_the_pitch_singularity():
     q = at.euler2q_s(90 * D, 0.0, 0.3)
     p, r, y = at.q2euler_s(*q)

@@ -49,7 +49,7 @@ def test_second_process_waits_and_loads_instead_of_compiling(tmp_path):
     import json
 
     cache = tmp_path / "cache"
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), SINSLAB_QUIET="1")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), SINSLAB_QUIET="1", SINSLAB_JITCACHE="0")
     a = _start("A", tmp_path, env)
     _wait_for(tmp_path / "locked", a)
     b = _start("B", tmp_path, env)

@@ -488,3 +488,16 @@ def test_truncates_trailing_samples_and_out_grid():
     calls = []
     sd.navigate(imu, init, nsub=3, progress=lambda d, t: calls.append((d, t)), chunk=6)
     assert calls[-1] == (21, 21)
+
+
+def test_sine_and_cosine_near_a_known_angle_agree_with_libm():
+    """The mid-interval Earth model takes sin, cos of the latitude from those of the
+    update's start (a Taylor series to d³ for |d| < 1e-5 rad): equal to math.sin/cos to
+    rounding on both sides of the switch, and math.sin/cos themselves beyond it."""
+    import math
+
+    rng = np.random.default_rng(11)
+    for a in rng.uniform(-1.5, 1.5, 40):
+        for d in (*rng.uniform(-1e-5, 1e-5, 5), 2e-5, -3e-3):
+            s, c = sd._sincos_near(a + d, a, math.sin(a), math.cos(a))
+            assert abs(s - math.sin(a + d)) <= 3e-16 and abs(c - math.cos(a + d)) <= 3e-16

@@ -26,7 +26,7 @@ _compile_notice()   # a status line while the kernels below compile (first run)
 __all__ = [
     "A", "F", "E2", "B", "WIE", "GM", "GEO_RADIUS", "radii", "gravity", "gravity_vector", "wie_n",
     "wen_n", "win_n", "schuler_frequency", "schuler_period", "foucault_frequency",
-    "check_latitude", "radii_s", "gravity_s", "metres_per_rad", "geodetic_to_ecef",
+    "check_latitude", "radii_s", "gravity_s", "radii_sin_s", "gravity_sin_s", "metres_per_rad", "geodetic_to_ecef",
     "ecef_to_geodetic", "enu_to_ecef_matrix", "ecef_to_enu", "elevation_azimuth",
 ]
 
@@ -49,7 +49,12 @@ DGDH = 3.086e-6                   #: free-air gradient [1/s^2]
 @njit(cache=True, inline="always")
 def radii_s(lat: float, h: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii plus height, ``(R_M + h, R_N + h)`` [m]."""
-    sl = math.sin(lat)
+    return radii_sin_s(math.sin(lat), h)
+
+
+@njit(cache=True, inline="always")
+def radii_sin_s(sl: float, h: float) -> tuple[float, float]:
+    """:func:`radii_s` from the sine of the latitude ``sl``."""
     sq2 = 1.0 - E2 * sl * sl
     sq = math.sqrt(sq2)
     return A * (1.0 - E2) / (sq2 * sq) + h, A / sq + h
@@ -58,7 +63,12 @@ def radii_s(lat: float, h: float) -> tuple[float, float]:
 @njit(cache=True, inline="always")
 def gravity_s(lat: float, h: float) -> float:
     """Normal gravity magnitude [m/s^2] at latitude ``lat`` [rad] and height ``h`` [m]."""
-    sl = math.sin(lat)
+    return gravity_sin_s(math.sin(lat), h)
+
+
+@njit(cache=True, inline="always")
+def gravity_sin_s(sl: float, h: float) -> float:
+    """:func:`gravity_s` from the sine of the latitude ``sl``."""
     return G_EQ * (1.0 + K_SOM * sl * sl) / math.sqrt(1.0 - E2 * sl * sl) - DGDH * h
 
 

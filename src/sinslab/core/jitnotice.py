@@ -12,7 +12,9 @@ output. Silent when stderr is not a terminal or bars are off
 define kernels; it costs nothing once numba is imported.
 
 :func:`install` also installs :mod:`sinslab.core.jitlock`, so that processes started
-together (a command and its Dask workers) compile each kernel once between them.
+together (a command and its Dask workers) compile each kernel once between them, and
+:mod:`sinslab.core.jitcache`, so that kernels compiled at install are found (in a
+read-only package folder, or compiled for any CPU of the architecture).
 
 :func:`compile_log` gives, after the fact, the CPU seconds each kernel's compilation took
 (own time, nested compilations of other sinslab kernels excluded), for measuring.
@@ -44,9 +46,10 @@ def install() -> None:
         return
     from numba.core import event
 
-    from sinslab.core import jitlock
+    from sinslab.core import jitcache, jitlock
 
     jitlock.install()
+    jitcache.install()
 
     class _Listener(event.Listener):
         def __init__(self):

@@ -27,11 +27,14 @@ loop needs no second branch::
 (import it as ``from sinslab.core.progress import progress as progress_bar`` where the
 function's own flag is called ``progress``).
 
+A command announces its stages with :func:`stage` (``with stage("reading imu.csv"):``);
+the stage's lines, its timer and its spinner come from here.
+
 The bars go to stderr and are shown only when stderr is a terminal. Off a terminal (a
 log file, CI, a pipe) the command line (:func:`set_lines`) turns each bar into lines: one
-when the stage starts, one every :data:`HEARTBEAT_S` seconds of a long stage (as it
-advances) and one at its end, each with the elapsed time, so that long work is visible in
-a log; a library caller off a terminal (a notebook, a Dask worker, a loop over records)
+when the stage starts, one every :data:`HEARTBEAT_S` seconds of a long stage (from a
+timer, whether the stage advances or not) and one at its end, each with the elapsed time,
+so that long work is visible in a log; a library caller off a terminal (a notebook, a Dask worker, a loop over records)
 gets neither. Both are silenced for the whole process by ``SINSLAB_QUIET=1`` or
 :func:`set_quiet`; the CLI's ``--quiet`` flag and test runners use that. Nested bars share
 one live display.
@@ -44,7 +47,7 @@ import sys
 import threading
 from typing import Any, Iterable, Iterator, TypeVar
 
-__all__ = ["progress", "track", "set_quiet", "set_lines", "is_quiet", "Bar", "HEARTBEAT_S"]
+__all__ = ["progress", "stage", "track", "set_quiet", "set_lines", "is_quiet", "Bar", "HEARTBEAT_S"]
 
 #: seconds between the progress lines of a long stage off a terminal
 HEARTBEAT_S = 30.0
@@ -113,7 +116,18 @@ def _lines_wanted() -> bool:
 
 
 class _LineBar(Bar):
-    """A bar off a terminal: a line at the start, every HEARTBEAT_S as it advances, at the end."""
+    """A bar off a terminal: a line at the start, one every HEARTBEAT_S while the stage
+    runs (from a timer thread, so that a stage that never advances — one long compiled
+    call, figures being drawn — still shows it is alive) and one at the end.
+
+    The timer prints between two Python steps of the working thread: a compiled call
+    that holds the interpreter lock delays its line until the call returns (the loops of
+    sinslab's long stages return to Python between blocks).
+
+    Stages nest (a command's computation, the filter inside it): only the innermost open
+    stage of a thread prints its 30 s lines, and the one around it counts its next 30 s
+    from the end of the inner one, so a log gets one line per interval, from the work
+    that is running."""
 
     def __init__(self, description: str, total, unit: str):
         import time
@@ -122,19 +136,41 @@ class _LineBar(Bar):
         self.description, self.total, self.unit = description, total, unit
         self.done = 0.0
         self.t0 = self.last = time.monotonic()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        stack = getattr(_state, "lines", None)
+        if stack is None:
+            stack = _state.lines = []
+        self._stack: list = stack           # this thread's open line stages, innermost last
+        stack.append(self)
         self._say("started")
+        self._timer = threading.Thread(target=self._run, name="sinslab-progress", daemon=True)
+        self._timer.start()
 
     def _say(self, what: str) -> None:
         print(f"sinslab: {self.description}: {what}", file=sys.stderr, flush=True)
 
+    def _run(self) -> None:
+        import time
+
+        while not self._stop.wait(max(0.05, self.last + HEARTBEAT_S - time.monotonic())):
+            self._beat()
+
     def _beat(self) -> None:
         import time
 
-        now = time.monotonic()
-        if now - self.last >= HEARTBEAT_S:
+        with self._lock:
+            now = time.monotonic()
+            if now - self.last < HEARTBEAT_S or self._stop.is_set() or self._stack[-1:] != [self]:
+                return
             self.last = now
-            part = (f"{100.0 * self.done / self.total:.0f} % of {self.total:g}{' ' + self.unit if self.unit else ''}"
-                    if self.total else f"{self.done:g}{' ' + self.unit if self.unit else ''}")
+            u = f" {self.unit}" if self.unit else ""
+            if self.total:
+                part = f"{100.0 * self.done / self.total:.0f} % of {self.total:g}{u}"
+            elif self.done:
+                part = f"{self.done:g}{u}"
+            else:
+                part = "still running"
             self._say(f"{part} after {now - self.t0:.0f} s")
 
     def advance(self, n: float = 1) -> None:
@@ -149,9 +185,22 @@ class _LineBar(Bar):
             self.total = total
         self._beat()
 
+    def stop(self) -> None:
+        """End the timer without a line (the stage failed: its error says why)."""
+        import time
+
+        with self._lock:
+            self._stop.set()
+        self._timer.join()
+        if self in self._stack:
+            self._stack.remove(self)
+        if self._stack:                     # the stage around this one: 30 s from now
+            self._stack[-1].last = max(self._stack[-1].last, time.monotonic())
+
     def end(self) -> None:
         import time
 
+        self.stop()
         self._say(f"done in {time.monotonic() - self.t0:.1f} s")
 
 
@@ -167,7 +216,11 @@ def progress(description: str, total: float | None = None, unit: str = "", *,
     if not enabled or is_quiet():
         if enabled and _lines_wanted():
             bar = _LineBar(description, total, unit)
-            yield bar
+            try:
+                yield bar
+            except BaseException:
+                bar.stop()
+                raise
             bar.end()
             return
         yield Bar()
@@ -195,6 +248,16 @@ def progress(description: str, total: float | None = None, unit: str = "", *,
             yield Bar(prog, task)
     finally:
         _state.progress = None
+
+
+def stage(description: str, total: float | None = None, unit: str = "") -> contextlib.AbstractContextManager:
+    """One stage of a command — reading a log, the filter, drawing the figures — announced
+    by the command: :func:`progress` under the stage's name. Off a terminal (with the
+    command line's lines on) it prints ``sinslab: <description>: started``, a line every
+    :data:`HEARTBEAT_S` while it runs and ``sinslab: <description>: done in <t> s``; on a
+    terminal a spinner (a bar with ``total``); nothing when quiet. A stage's bars (the
+    filter's own) nest inside it."""
+    return progress(description, total, unit)
 
 
 def track(iterable: Iterable[T], description: str, total: float | None = None, *,

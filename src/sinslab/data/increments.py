@@ -20,7 +20,7 @@ def where(path, line=None):
 
 @dataclass(frozen=True)
 class ImuData:
-    """An IMU recording read by :func:`sinslab.data.load_imu` (any format).
+    """An IMU recording read by :func:`~sinslab.data.load.load_imu` (any format).
 
     Attributes
     ----------

@@ -1,20 +1,20 @@
 """The text and binary files of KF-GINS and OB_GINS (i2Nav, Wuhan University) and of the
 data sets published in their layout, as their READMEs define them.
 
-=============  ======================================================================
-file           columns
-=============  ======================================================================
-IMU text       seconds of GPS week; Δθ x y z (rad); Δv x y z (m/s); OB_GINS: an 8th
-               column, the odometer speed (m/s). Axes forward-right-down.
-IMU ``.bin``   the same 7 values as little-endian doubles, record after record
-GNSS position  seconds of week; latitude, longitude (deg); ellipsoidal height (m); σ
-               north, east, down (m). The 13-column form KF-GINS also reads holds the
-               velocity north, east, down (m/s) after the height and its σ after the
-               position σ.
+==============  ======================================================================
+file            columns
+==============  ======================================================================
+IMU text        seconds of GPS week; Δθ x y z (rad); Δv x y z (m/s); OB_GINS: an 8th
+                column, the odometer speed (m/s). Axes forward-right-down.
+IMU ``.bin``    the same 7 values as little-endian doubles, record after record
+GNSS position   seconds of week; latitude, longitude (deg); ellipsoidal height (m); σ
+                north, east, down (m). The 13-column form KF-GINS also reads holds the
+                velocity north, east, down (m/s) after the height and its σ after the
+                position σ.
 truth ``.nav``  GPS week; seconds of week; latitude, longitude (deg); height (m);
-               velocity north, east, down (m/s); roll, pitch, yaw (deg, yaw clockwise
-               from north)
-=============  ======================================================================
+                velocity north, east, down (m/s); roll, pitch, yaw (deg, yaw clockwise
+                from north)
+==============  ======================================================================
 
 Files carry no header; :func:`sniff` tells them from other tables by what they hold (the
 number of columns, and values of the right size), so that ``load_imu``/``read_fixes``

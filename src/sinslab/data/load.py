@@ -1,29 +1,30 @@
 """The front door of :mod:`sinslab.data`: read any IMU or fix file by format name (or
 from its suffix) and write the formats sinslab can write.
 
-======================  ===========================================  ==================
-format                  reader                                       writer
-======================  ===========================================  ==================
-IMU ``psins``           :func:`sinslab.data.psins.load_psins`        --
-IMU ``csv``/``parquet`` :func:`sinslab.data.tables.read_table_imu`   :func:`write_imu`
-IMU ``mat``             :func:`sinslab.data.matlab.read_mat_imu`     :func:`write_imu`
-IMU ``navego``          :func:`sinslab.data.navego.read_navego_imu`  --
-IMU ``kf-gins``         :func:`sinslab.data.kfgins.read_kfgins_imu`  ``kfgins.write_kfgins_imu``
-IMU ``rosbag``          :func:`sinslab.data.rosbag.read_rosbag_imu`  --
-IMU ``rtklib-imu``      :func:`sinslab.data.rtklib.read_rtklib_imu`  --
-fixes ``rtklib-pos``    :func:`sinslab.data.rtklib.read_rtklib_pos`  --
-fixes ``csv``           :func:`sinslab.data.tables.read_fix_csv`     :func:`write_fixes`
-fixes ``mat-avp``       :func:`sinslab.data.matlab.read_mat_fixes`   --
-fixes ``navego``        :func:`sinslab.data.navego.read_navego_gnss` --
-fixes ``kf-gins``       :func:`sinslab.data.kfgins.read_kfgins_gnss` ``kfgins.write_kfgins_gnss``
-fixes ``rosbag``        :func:`sinslab.data.rosbag.read_rosbag_fixes` --
-fixes ``two-geo``       :func:`sinslab.data.tables.read_two_geo_csv` --
-truth                   :func:`read_truth`: KF-GINS ``.nav``, NaveGo reference struct, PSINS avp
-======================  ===========================================  ==================
+=======================  ==============================================  ==============================
+format                   reader                                          writer
+=======================  ==============================================  ==============================
+IMU ``psins``            :func:`sinslab.data.psins.load_psins`           --
+IMU ``csv``/``parquet``  :func:`sinslab.data.tables.read_table_imu`      :func:`write_imu`
+IMU ``mat``              :func:`sinslab.data.matlab.read_mat_imu`        :func:`write_imu`
+IMU ``navego``           :func:`sinslab.data.navego.read_navego_imu`     --
+IMU ``kf-gins``          :func:`sinslab.data.kfgins.read_kfgins_imu`     ``kfgins.write_kfgins_imu``
+IMU ``rosbag``           :func:`sinslab.data.rosbag.read_rosbag_imu`     --
+IMU ``rtklib-imu``       :func:`sinslab.data.rtklib.read_rtklib_imu`     --
+fixes ``rtklib-pos``     :func:`sinslab.data.rtklib.read_rtklib_pos`     --
+fixes ``csv``            :func:`sinslab.data.tables.read_fix_csv`        :func:`write_fixes`
+fixes ``mat-avp``        :func:`sinslab.data.matlab.read_mat_fixes`      --
+fixes ``navego``         :func:`sinslab.data.navego.read_navego_gnss`    --
+fixes ``kf-gins``        :func:`sinslab.data.kfgins.read_kfgins_gnss`    ``kfgins.write_kfgins_gnss``
+fixes ``rosbag``         :func:`sinslab.data.rosbag.read_rosbag_fixes`   --
+fixes ``two-geo``        :func:`sinslab.data.tables.read_two_geo_csv`    --
+truth                    :func:`read_truth`                              --
+=======================  ==============================================  ==============================
 
-Other tools' files are chosen by what they hold as well as by their name: a ``.mat`` with
-a NaveGo struct, a headerless table of 7 numbers a line (KF-GINS / OB_GINS), a ``.pos``
-without RTKLIB's ``%`` header, a ROS bag (``.bag``, or a ROS 2 folder).
+The truth (a reference solution) comes from a KF-GINS ``.nav``, a NaveGo reference struct
+or a PSINS avp file. Other tools' files are chosen by what they hold as well as by their
+name: a ``.mat`` with a NaveGo struct, a headerless table of 7 numbers a line (KF-GINS /
+OB_GINS), a ``.pos`` without RTKLIB's ``%`` header, a ROS bag (``.bag``, or a ROS 2 folder).
 """
 from __future__ import annotations
 

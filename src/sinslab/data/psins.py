@@ -9,7 +9,7 @@ Lines starting with ``%`` are comments. Then three header lines::
 and one line per sample of six integer counts: gyro x y z, accel x y z. Angle increments
 are ``counts · gf`` arcsec; velocity increments ``counts · af · 1e-6 · g`` m/s with the
 header's ``g`` (checked on ``lasergyro.imu``: the mean vertical increment then gives
-|f| = 9.7955 m/s², the local normal gravity at 34.246° N, 380 m; with 9.80665 it would
+‖f‖ = 9.7955 m/s², the local normal gravity at 34.246° N, 380 m; with 9.80665 it would
 be 0.25 % high). Axes X right, Y forward, Z up: sinslab's RFU body frame. The header yaw
 is counter-clockwise from north, i.e. sinslab's yaw ψ (heading = −ψ).
 """

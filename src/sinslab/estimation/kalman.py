@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from numpy.typing import ArrayLike
 from scipy import linalg as sla
 
 from sinslab.core.errors import InputError
@@ -33,14 +34,14 @@ __all__ = [
 # ----------------------------------------------------------------------------------------
 # validation
 # ----------------------------------------------------------------------------------------
-def _as_square(M, n, name):
+def _as_square(M: ArrayLike, n: int, name: str) -> np.ndarray:
     M = np.asarray(M, dtype=float)
     if M.ndim != 2 or M.shape != (n, n):
         raise ValueError(f"{name} must have shape ({n}, {n}), got {M.shape}")
     return M
 
 
-def check_covariance(M, name="P", *, definite=False, rtol=1e-9):
+def check_covariance(M: ArrayLike, name: str = "P", *, definite: bool = False, rtol: float = 1e-9) -> np.ndarray:
     """Check that ``M`` is a finite, symmetric, positive (semi-)definite matrix.
 
     Parameters
@@ -102,7 +103,7 @@ def _is_diag(R):
 # ----------------------------------------------------------------------------------------
 # plain functions
 # ----------------------------------------------------------------------------------------
-def predict(x, P, Phi, Qk):
+def predict(x: ArrayLike, P: ArrayLike, Phi: ArrayLike, Qk: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """One Kalman time update ``x <- Phi x``, ``P <- Phi P Phi^T + Q_k`` (symmetrised).
 
     Parameters
@@ -165,7 +166,8 @@ class UpdateResult:
         return iter((self.x, self.P, self.innovation, self.S))
 
 
-def _check_update_args(x, P, z, H, R, mask):
+def _check_update_args(x: ArrayLike, P: ArrayLike, z: ArrayLike, H: ArrayLike, R: ArrayLike,
+                       mask: ArrayLike | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     x = np.asarray(x, dtype=float)
     if x.ndim != 1:
         raise ValueError(f"x must be a vector, got shape {x.shape}")
@@ -186,19 +188,20 @@ def _check_update_args(x, P, z, H, R, mask):
         R = np.diag(np.broadcast_to(R, (m,)).astype(float))
     R = _as_square(R, m, "R")
     if mask is None:
-        mask = np.isfinite(z)
+        use = np.isfinite(z)
     else:
-        mask = np.asarray(mask, dtype=bool)
-        if mask.shape != (m,):
-            raise ValueError(f"mask must have shape ({m},), got {mask.shape}")
-        if np.any(~np.isfinite(z[mask])):
+        use = np.asarray(mask, dtype=bool)
+        if use.shape != (m,):
+            raise ValueError(f"mask must have shape ({m},), got {use.shape}")
+        if np.any(~np.isfinite(z[use])):
             raise ValueError("z has NaN/inf in a component the mask marks as available")
     if not np.all(np.isfinite(H)):
         raise ValueError("H has NaN/inf elements")
-    return x, P, z, H, R, mask
+    return x, P, z, H, R, use
 
 
-def update(x, P, z, H, R, *, mask=None, sequential=None):
+def update(x: ArrayLike, P: ArrayLike, z: ArrayLike, H: ArrayLike, R: ArrayLike, *,
+           mask: ArrayLike | None = None, sequential: bool | None = None) -> UpdateResult:
     """Kalman measurement update in Joseph form.
 
     ``K = P H^T S^-1``, ``x <- x + K (z - H x)``,
@@ -228,17 +231,17 @@ def update(x, P, z, H, R, *, mask=None, sequential=None):
     UpdateResult
         Unpacks as ``x, P, innovation, S``; also has ``nis`` and ``used``.
     """
-    x, P, z, H, R, mask = _check_update_args(x, P, z, H, R, mask)
+    xv, Pv, z, H, R, mask = _check_update_args(x, P, z, H, R, mask)
     m = z.size
     idx = np.flatnonzero(mask)
     innov = np.full(m, np.nan)
     S_full = np.full((m, m), np.nan)
     if idx.size == 0:
-        return UpdateResult(x.copy(), P.copy(), innov, S_full, 0.0, mask)
+        return UpdateResult(xv.copy(), Pv.copy(), innov, S_full, 0.0, mask)
     Ru = check_covariance(R[np.ix_(idx, idx)], "R (used components)", definite=True)
     Hu, zu = H[idx], z[idx]
-    S = Hu @ P @ Hu.T + Ru
-    nu = zu - Hu @ x
+    S = Hu @ Pv @ Hu.T + Ru
+    nu = zu - Hu @ xv
     innov[idx] = nu
     S_full[np.ix_(idx, idx)] = S
     diag = _is_diag(Ru)
@@ -247,12 +250,12 @@ def update(x, P, z, H, R, *, mask=None, sequential=None):
     if sequential and not diag:
         raise ValueError("sequential updates need a diagonal R (the used components are correlated)")
     if sequential:
-        x = x.copy()
-        P = P.copy()
+        xv = xv.copy()
+        Pv = Pv.copy()
         nis = 0.0
         for i in range(idx.size):
             h, r = Hu[i], Ru[i, i]
-            pht = P @ h
+            pht = Pv @ h
             s = float(h @ pht + r)
             if not s > 0:
                 # Non-finite or negative: the covariance has lost its meaning, which in
@@ -261,30 +264,30 @@ def update(x, P, z, H, R, *, mask=None, sequential=None):
                 raise InputError(f"innovation variance of component {idx[i]} is {s:.3g} "
                                  "(not > 0): the filter covariance diverged; check the "
                                  "initial errors and noise levels")
-            nu_i = zu[i] - h @ x
+            nu_i = zu[i] - h @ xv
             k = pht / s
-            x = x + k * nu_i
-            A = np.eye(x.size) - np.outer(k, h)
-            P = A @ P @ A.T + r * np.outer(k, k)
-            P = 0.5 * (P + P.T)
+            xv = xv + k * nu_i
+            A = np.eye(xv.size) - np.outer(k, h)
+            Pv = A @ Pv @ A.T + r * np.outer(k, k)
+            Pv = 0.5 * (Pv + Pv.T)
             nis += nu_i * nu_i / s
     else:
         try:
             cf = sla.cho_factor(S)
         except np.linalg.LinAlgError as e:
             raise ValueError(f"innovation covariance is not positive definite: {e}") from None
-        K = sla.cho_solve(cf, Hu @ P).T
-        x = x + K @ nu
-        A = np.eye(x.size) - K @ Hu
-        P = A @ P @ A.T + K @ Ru @ K.T
-        P = 0.5 * (P + P.T)
+        K = sla.cho_solve(cf, Hu @ Pv).T
+        xv = xv + K @ nu
+        A = np.eye(xv.size) - K @ Hu
+        Pv = A @ Pv @ A.T + K @ Ru @ K.T
+        Pv = 0.5 * (Pv + Pv.T)
         nis = float(nu @ sla.cho_solve(cf, nu))
-    if not np.all(np.isfinite(P)):
+    if not np.all(np.isfinite(Pv)):
         raise ValueError("update produced a non-finite covariance")
-    return UpdateResult(x, P, innov, S_full, float(nis), mask)
+    return UpdateResult(xv, Pv, innov, S_full, float(nis), mask)
 
 
-def van_loan(F, Qc, T):
+def van_loan(F: ArrayLike, Qc: ArrayLike, T: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact ``(Φ, Q_k)`` of ``ẋ = F x + w``, ``E[w wᵀ] = Qc δ(t)``, over T (Van Loan 1978).
 
     ``Φ = expm(F T)``, ``Q_k = ∫₀ᵀ Φ(s) Qc Φ(s)ᵀ ds`` from one block exponential
@@ -306,7 +309,8 @@ def van_loan(F, Qc, T):
     return Phi, 0.5 * (Qk + np.swapaxes(Qk, -1, -2))
 
 
-def discretize(F, Qc, T, *, G=None, method="vanloan"):
+def discretize(F: ArrayLike, Qc: ArrayLike, T: float, *, G: ArrayLike | None = None,
+               method: str = "vanloan") -> tuple[np.ndarray, np.ndarray]:
     """Discrete transition and process-noise matrices of ``ẋ = F x + G w`` over a step T.
 
     Parameters
@@ -359,12 +363,10 @@ def discretize(F, Qc, T, *, G=None, method="vanloan"):
             Qc = G @ Qc @ G.T
         Qbar = check_covariance(_as_square(Qc, n, "Qc"), "Qc")
     else:
-        if G is not None:
-            G = np.asarray(G, dtype=float)
-            Qc = G @ Qc @ np.swapaxes(G, -1, -2)
-        if F.shape[-2] != n or Qc.shape[-2:] != (n, n):
-            raise ValueError(f"shape mismatch: F {F.shape}, Qc {Qc.shape}")
-        Qbar = 0.5 * (Qc + np.swapaxes(Qc, -1, -2))
+        Qs = Qc if G is None else np.asarray(G, dtype=float) @ Qc @ np.swapaxes(np.asarray(G, dtype=float), -1, -2)
+        if F.shape[-2] != n or Qs.shape[-2:] != (n, n):
+            raise ValueError(f"shape mismatch: F {F.shape}, Qc {Qs.shape}")
+        Qbar = 0.5 * (Qs + np.swapaxes(Qs, -1, -2))
     if not T >= 0:
         raise ValueError(f"step T must be >= 0, got {T}")
     T = float(T)
@@ -397,7 +399,7 @@ class SteadyState:
     K: np.ndarray
 
 
-def steady_state(Phi, Qk, H, R):
+def steady_state(Phi: ArrayLike, Qk: ArrayLike, H: ArrayLike, R: ArrayLike) -> SteadyState:
     """Steady-state covariance and gain of a time-invariant filter (predict, then update).
 
     Solves ``P = Phi (P - P H^T (H P H^T + R)^-1 H P) Phi^T + Q`` with

@@ -139,7 +139,18 @@ def predict_step(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp, sig, xo):
     and x after the step into the rows ``sig``, ``xo`` (n,)."""
     n = x.shape[0]
     cov_predict(P, Phi, Q, r, T1, W)
-    state_predict(x, Phi, nzc, nnz, tmp)
+    # closed loop: the estimate is zero from one update's feedback to the next update, and
+    # Φ·0 is +0.0 in every component (Φ finite): the product is skipped, the same numbers
+    zero = True
+    for j in range(n):
+        if x[j] != 0.0:
+            zero = False
+            break
+    if zero:
+        for j in range(n):
+            x[j] = 0.0
+    else:
+        state_predict(x, Phi, nzc, nnz, tmp)
     state_predict(c, Phi, nzc, nnz, tmp)
     for j in range(n):
         sig[j] = math.sqrt(max(P[j, j], 0.0))

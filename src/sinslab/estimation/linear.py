@@ -12,8 +12,8 @@ steps are the kernels of :mod:`sinslab.estimation.kernels` (covariance predictio
 state prediction, Joseph scalar and vector updates, the fixed-gain update), those of every
 compiled filter loop.
 
-Conventions
------------
+Conventions of the loops
+------------------------
 ``n`` states, ``m`` measurement components, ``K`` steps. Step ``k`` (0-based) predicts
 from epoch ``k`` to epoch ``k+1`` with ``Phi_k``, ``Q_k`` and then applies the measurement
 ``z[k]`` (valid at epoch ``k+1``) where ``mask[k]`` is true. Histories have ``K+1`` rows:
@@ -22,10 +22,12 @@ row 0 is the initial condition.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from sinslab.estimation.kalman import _as_square, _is_diag, check_covariance
 from sinslab.estimation.kernels import (copy2, cov_predict, gain_correct, innovation, innovation_cov, row_nonzeros,
@@ -37,7 +39,7 @@ from sinslab.core.jitnotice import install as _compile_notice
 _compile_notice()   # a status line while the kernels below compile (first run)
 
 __all__ = ["run_linear", "LinearRun", "propagate_covariance", "fixed_gain_runs", "error_budget", "Budget",
-           "sparsity"]
+           "sparsity", "discretize_series_many"]
 
 
 # ----------------------------------------------------------------------------------------
@@ -322,7 +324,7 @@ class LinearRun:
     S: np.ndarray | None = None
 
     @property
-    def sigma(self):
+    def sigma(self) -> np.ndarray:
         """Standard deviations, shape (K+1, n)."""
         return np.sqrt(np.maximum(self.P_diag, 0.0))
 
@@ -462,9 +464,11 @@ def _run(prep, with_x, save_at, keep_gain=False):
                      x if with_x else None, P, gain if keep_gain else None, S_prior if keep_gain else None)
 
 
-def run_linear(x0, P0, Phi, Q, H, R, z, *, mask=None, windows=None, t=None,
-               Phi_index=None, Q_index=None, H_index=None, R_index=None, save_at=None,
-               check=True):
+def run_linear(x0: ArrayLike, P0: ArrayLike, Phi: ArrayLike, Q: ArrayLike, H: ArrayLike, R: ArrayLike,
+               z: ArrayLike, *, mask: ArrayLike | None = None, windows: Sequence[tuple[float, float]] | None = None,
+               t: ArrayLike | None = None, Phi_index: ArrayLike | None = None, Q_index: ArrayLike | None = None,
+               H_index: ArrayLike | None = None, R_index: ArrayLike | None = None, save_at: ArrayLike | None = None,
+               check: bool = True) -> LinearRun:
     """Run a linear Kalman filter over K steps in a compiled loop.
 
     Parameters
@@ -509,9 +513,12 @@ def run_linear(x0, P0, Phi, Q, H, R, z, *, mask=None, windows=None, t=None,
     return _run(prep, True, save_at)
 
 
-def propagate_covariance(P0, Phi, Q, H=None, R=None, *, n_steps=None, mask=None,
-                         windows=None, t=None, Phi_index=None, Q_index=None, H_index=None,
-                         R_index=None, save_at=None, check=True, keep_gain=False):
+def propagate_covariance(P0: ArrayLike, Phi: ArrayLike, Q: ArrayLike, H: ArrayLike | None = None,
+                         R: ArrayLike | None = None, *, n_steps: int | None = None, mask: ArrayLike | None = None,
+                         windows: Sequence[tuple[float, float]] | None = None, t: ArrayLike | None = None,
+                         Phi_index: ArrayLike | None = None, Q_index: ArrayLike | None = None,
+                         H_index: ArrayLike | None = None, R_index: ArrayLike | None = None,
+                         save_at: ArrayLike | None = None, check: bool = True, keep_gain: bool = False) -> LinearRun:
     """Covariance analysis: propagate P (no data) with an optional measurement schedule.
 
     Same conventions as :func:`run_linear`; measurements are applied where ``mask`` (or
@@ -563,7 +570,9 @@ def _gain_runs(X, Phi_t, phi_i, H_t, h_i, gain, z, mask, x_hist, nu_hist):
                     nu[c] = np.nan
 
 
-def fixed_gain_runs(x0, Phi, H, gain, z, *, mask=None, Phi_index=None, H_index=None):
+def fixed_gain_runs(x0: ArrayLike, Phi: ArrayLike, H: ArrayLike, gain: ArrayLike, z: ArrayLike, *,
+                    mask: ArrayLike | None = None, Phi_index: ArrayLike | None = None,
+                    H_index: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A filter with fixed gains (those of :func:`propagate_covariance` with ``keep_gain``)
     over many data records, compiled, record by record.
 
@@ -634,15 +643,18 @@ class Budget:
     total: np.ndarray
     history: np.ndarray | None
 
-    def fraction(self):
+    def fraction(self) -> np.ndarray:
         """Share of each source in the final variance, shape (S, n)."""
         with np.errstate(invalid="ignore", divide="ignore"):
             return self.variance / self.total
 
 
-def error_budget(P0_parts, Phi, Q_parts, H, R_parts, *, n_steps=None, mask=None,
-                 windows=None, t=None, Phi_index=None, Q_index=None, H_index=None,
-                 R_index=None, names=None, history_every=0):
+def error_budget(P0_parts: ArrayLike, Phi: ArrayLike, Q_parts: ArrayLike, H: ArrayLike, R_parts: ArrayLike, *,
+                 n_steps: int | None = None, mask: ArrayLike | None = None,
+                 windows: Sequence[tuple[float, float]] | None = None, t: ArrayLike | None = None,
+                 Phi_index: ArrayLike | None = None, Q_index: ArrayLike | None = None,
+                 H_index: ArrayLike | None = None, R_index: ArrayLike | None = None,
+                 names: Sequence[str] | None = None, history_every: int = 0) -> Budget:
     """Split the variance of a covariance analysis into contributions of its sources.
 
     For fixed gains the covariance is linear in (P0, Q, R). The full filter (P0 = ΣP0_i,
@@ -728,7 +740,7 @@ def error_budget(P0_parts, Phi, Q_parts, H, R_parts, *, n_steps=None, mask=None,
 
 
 
-def sparsity(Phi_t):
+def sparsity(Phi_t: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Per row, the columns where Φ is non-zero (zero entries are skipped in products).
 
     Parameters
@@ -773,7 +785,8 @@ def _series_many(F, G, q, T, Phi, Q):
                     Phi[e], Q[e], qbr, qbn, prc, prn)
 
 
-def discretize_series_many(F, G, q, T, Phi=None, Q=None):
+def discretize_series_many(F: ArrayLike, G: ArrayLike, q: ArrayLike, T: float, Phi: np.ndarray | None = None,
+                           Q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The ``"series"`` discretisation of :func:`sinslab.estimation.kalman.discretize`
     for many epochs, compiled and using the zeros of F and G.
 

@@ -42,6 +42,7 @@ from typing import Sequence
 
 import numpy as np
 import scipy.linalg
+from numpy.typing import ArrayLike
 
 __all__ = [
     "observability_matrix", "ObservabilityResult", "analyze", "rank", "unobservable_subspace",
@@ -53,7 +54,7 @@ DEFAULT_RTOL = 1e-9          #: relative singular-value tolerance for ranks
 _ROW_DROP = 1e-13            #: rows below this fraction of the largest are numerical zeros
 
 
-def _check(F, H):
+def _check(F: ArrayLike, H: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     F = np.asarray(F, dtype=float)
     H = np.atleast_2d(np.asarray(H, dtype=float))
     n = F.shape[0]
@@ -66,7 +67,7 @@ def _check(F, H):
     return F, H
 
 
-def observability_matrix(F, H, k=None, time_scale=1.0):
+def observability_matrix(F: ArrayLike, H: ArrayLike, k: int | None = None, time_scale: float = 1.0) -> np.ndarray:
     """Observability matrix ``[H; H A; …; H A^{k−1}]`` with ``A = F · time_scale``.
 
     Parameters
@@ -95,7 +96,7 @@ def _normalised_O(F, H, D):
     """Stripped O of the state-scaled system (F' = D⁻¹FD, H' = HD), time-scaled."""
     Fp = F * D[None, :] / D[:, None]
     Hp = H * D[None, :]
-    s = np.linalg.norm(Fp, 2)
+    s = float(np.linalg.norm(Fp, 2))
     return observability_matrix(Fp, Hp, time_scale=1.0 / s if s > 0 else 1.0)
 
 
@@ -180,7 +181,7 @@ class ObservabilityResult:
     def observable(self) -> bool:
         return self.rank == self.n
 
-    def table(self, labels=None) -> str:
+    def table(self, labels: Sequence[str] | None = None) -> str:
         """Per-state degree as text."""
         labels = labels or [f"x{i}" for i in range(self.n)]
         return "\n".join(f"{l:>10s} {d:.3e}" for l, d in zip(labels, self.degree))
@@ -216,7 +217,7 @@ def _result_from(O_scaled, D, rtol):
     return ObservabilityResult(r, n, svn, N, deg, frac, dom, D, rtol)
 
 
-def analyze(F, H, scale=None, rtol=DEFAULT_RTOL) -> ObservabilityResult:
+def analyze(F: ArrayLike, H: ArrayLike, scale: ArrayLike | None = None, rtol: float = DEFAULT_RTOL) -> ObservabilityResult:
     """Rank, unobservable subspace and per-state degree of a time-invariant (F, H).
 
     Parameters
@@ -237,19 +238,20 @@ def analyze(F, H, scale=None, rtol=DEFAULT_RTOL) -> ObservabilityResult:
     return _result_from(fn(D), D, rtol)
 
 
-def _check_scale(scale, n):
+def _check_scale(scale: ArrayLike, n: int) -> np.ndarray:
     D = np.broadcast_to(np.asarray(scale, dtype=float), (n,)).copy()
     if not (np.all(np.isfinite(D)) and np.all(D > 0)):
         raise ValueError("scale must be finite and > 0 for every state")
     return D
 
 
-def rank(F, H, scale=None, rtol=DEFAULT_RTOL) -> int:
+def rank(F: ArrayLike, H: ArrayLike, scale: ArrayLike | None = None, rtol: float = DEFAULT_RTOL) -> int:
     """Numerical rank of the observability matrix of (F, H) (see :func:`analyze`)."""
     return analyze(F, H, scale, rtol).rank
 
 
-def unobservable_subspace(F, H, scale=None, rtol=DEFAULT_RTOL) -> np.ndarray:
+def unobservable_subspace(F: ArrayLike, H: ArrayLike, scale: ArrayLike | None = None,
+                          rtol: float = DEFAULT_RTOL) -> np.ndarray:
     """Basis (n, n − rank) of the unobservable subspace of (F, H), SI coordinates (see
     :attr:`ObservabilityResult.null_space`)."""
     return analyze(F, H, scale, rtol).null_space
@@ -274,7 +276,8 @@ class PiecewiseResult:
     method: str
 
 
-def piecewise(segments: Sequence, method="som", scale=None, rtol=DEFAULT_RTOL) -> PiecewiseResult:
+def piecewise(segments: Sequence, method: str = "som", scale: ArrayLike | None = None,
+              rtol: float = DEFAULT_RTOL) -> PiecewiseResult:
     """Observability of a piecewise-constant system, rank after each segment.
 
     Parameters
@@ -323,7 +326,7 @@ def piecewise(segments: Sequence, method="som", scale=None, rtol=DEFAULT_RTOL) -
     return PiecewiseResult(ranks, _result_from(blocks(D, len(segs)), D, rtol), method)
 
 
-def covariance_degree(P0, P):
+def covariance_degree(P0: ArrayLike, P: ArrayLike) -> np.ndarray:
     """Covariance-based degree of observability ``sqrt(P0_jj / P_jj)`` per state.
 
     Parameters
@@ -356,7 +359,7 @@ def covariance_degree(P0, P):
     return np.sqrt(d0 / d)
 
 
-def covariance_eigen_degree(P0, P):
+def covariance_eigen_degree(P0: ArrayLike, P: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Ham & Brown's eigen-analysis of the normalised covariance ``P' = D⁻¹ P D⁻¹``, D = sqrt(diag P0).
 
     Returns eigenvalues (ascending; small = well-observable direction) and eigenvectors

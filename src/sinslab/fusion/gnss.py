@@ -44,8 +44,8 @@ from sinslab.core import earth as E
 from sinslab.core import gnss as G
 from sinslab.fusion.measurements import Epoch, RowGate, Rows, add_rate_H, arrival_epochs
 
-__all__ = ["SatelliteObservations", "prepare", "Pseudoranges", "RangeRates", "single_point",
-           "SinglePoint", "F_L1"]
+__all__ = ["SatelliteObservations", "SatelliteMeasurement", "prepare", "Pseudoranges", "RangeRates",
+           "single_point", "SinglePoint", "F_L1"]
 
 F_L1 = 1575.42e6           #: GPS L1 / Galileo E1 carrier [Hz] (the Klobuchar delay is for it)
 

@@ -1,6 +1,6 @@
 """Filter prediction with the error model evaluated inside one compiled loop.
 
-Per epoch: ``F``, ``G`` from the navigation rows (:func:`sinslab.nav.errstate_kernels.fill_varying`),
+Per epoch: ``F``, ``G`` from the navigation rows (``fill_varying`` of :mod:`sinslab.nav.errstate_kernels`),
 the series ``Φ = I + F T + (F T)²/2`` and ``Q̄ = G diag(q) Gᵀ``
 (:func:`sinslab.estimation.kernels.series_phi`, :func:`~sinslab.estimation.kernels.series_qbar`),
 then the filter's own prediction step (:func:`sinslab.estimation.kernels.predict_step`:

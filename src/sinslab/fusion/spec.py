@@ -184,7 +184,7 @@ class FixSpec:
     robust : RobustWeighting, float or str, optional
         Down-weight a fix whose innovation the filter cannot explain
         (:class:`sinslab.fusion.measurements.schedule.RobustWeighting`: a probability is
-        Chang's whole-fix rule, :func:`~sinslab.fusion.measurements.schedule.robust_R`;
+        Chang's whole-fix rule, ``robust_R`` of the measurement schedule;
         ``"huber[:k0]"``, ``"igg3[:k0:k1]"`` row weights); held as a ``RobustWeighting``.
     """
 

@@ -63,9 +63,11 @@ from __future__ import annotations
 import math
 import warnings as _warnings
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from sinslab.core import attitude as att_
 from sinslab.core import earth, units
@@ -97,7 +99,7 @@ class NotAtRestWarning(UserWarning):
 
 
 # ------------------------------------------------------------------------------ models
-def check_alignment_latitude(lat) -> float:
+def check_alignment_latitude(lat: float) -> float:
     """Return ``lat`` [rad] as float; ValueError beyond ±90°, InputError (a ValueError)
     within 1° of a pole."""
     lat = float(lat)
@@ -113,7 +115,7 @@ def _rates(lat):
     return earth.WIE * math.cos(lat), earth.WIE * math.sin(lat)
 
 
-def full_model(lat, g=None):
+def full_model(lat: float, g: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Paper 000's 8-state stationary fine-alignment model (ENU), eqs 11, 16.
 
     States ``X = [φE φN φU εE εN εU ∇E ∇N]`` (ε, ∇ in n, random constants)::
@@ -149,7 +151,7 @@ def full_model(lat, g=None):
     return F, G, H
 
 
-def reduced_model(lat, g):
+def reduced_model(lat: float, g: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Paper eq 24: ``(F' (5,5), G' (5,3), H' (2,5))`` of ``[φE' φN' φU' εN' εU']``."""
     wN, wU = _rates(float(lat))
     F = np.zeros((5, 5))
@@ -164,7 +166,7 @@ def reduced_model(lat, g):
     return F, G, H
 
 
-def reduction_matrix(lat, g):
+def reduction_matrix(lat: float, g: float) -> np.ndarray:
     """``T`` (5×8) of paper eq 21: reduced state ``X' = T X`` of the full state X."""
     lat = float(lat)
     g = float(g)
@@ -189,7 +191,8 @@ def _nav_biases(att, gyro_bias, accel_bias, frame):
     raise ValueError(f"frame must be 'body' or 'nav', got {frame!r}")
 
 
-def limit_accuracy(lat, att, gyro_bias, accel_bias, *, h=0.0, g=None, frame="body"):
+def limit_accuracy(lat: float, att: ArrayLike, gyro_bias: float | ArrayLike, accel_bias: float | ArrayLike, *,
+                   h: float = 0.0, g: float | None = None, frame: str = "body") -> np.ndarray:
     """Limit accuracy of stationary alignment (residual = true − estimated, t → ∞).
 
     Parameters
@@ -223,7 +226,7 @@ def limit_accuracy(lat, att, gyro_bias, accel_bias, *, h=0.0, g=None, frame="bod
                      nab[1] * wU / g, -nab[1] * wN / g])
 
 
-def full_filter_limit(lat, g, x0, P0):
+def full_filter_limit(lat: float, g: float, x0: ArrayLike, P0: ArrayLike) -> np.ndarray:
     """Noise-free limit of the full 8-state filter started at X0 = 0 with covariance P0.
 
     The observable part ``T X`` is learned exactly; the rest is split by the prior:
@@ -272,7 +275,7 @@ def _block_means(a, nper):
     return a[: n * nper].reshape(n, nper, -1).sum(1)
 
 
-def rest_check(imu: ImuRecord, threshold=REST_THRESHOLD, window=1.0) -> RestCheck:
+def rest_check(imu: ImuRecord, threshold: float = REST_THRESHOLD, window: float = 1.0) -> RestCheck:
     """Check the record for motion: RMS of 1-s mean specific-force deviations vs ``threshold``."""
     nper = max(1, int(round(window / imu.dt)))
     if len(imu) < 2 * nper:
@@ -287,7 +290,7 @@ def rest_check(imu: ImuRecord, threshold=REST_THRESHOLD, window=1.0) -> RestChec
     return RestCheck(rms, mx, nper * imu.dt, float(threshold), ok, msg)
 
 
-def noise_from_data(imu: ImuRecord, tau=1.0):
+def noise_from_data(imu: ImuRecord, tau: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Estimate white-noise densities from the record: Allan deviation at ``tau`` × sqrt(tau).
 
     Returns ``(gyro_arw [rad/sqrt(s)] (3,), accel_vrw [m/s/sqrt(s)] (3,))``. Any
@@ -306,7 +309,7 @@ def noise_from_data(imu: ImuRecord, tau=1.0):
 
 
 # ------------------------------------------------------------------------ helpers
-def euler_sigma(C, P_phi, delta=1e-6):
+def euler_sigma(C: ArrayLike, P_phi: ArrayLike, delta: float = 1e-6) -> np.ndarray:
     """1σ of ``[pitch, roll, yaw]`` [rad] for a misalignment covariance ``P_phi`` (3×3).
 
     Uses the numerical Jacobian of the Euler angles of ``exp(−φ×) C`` w.r.t. φ.
@@ -365,7 +368,7 @@ class CoarseAlignment:
     warnings: tuple = ()
 
     @property
-    def heading(self):
+    def heading(self) -> float:
         """Heading clockwise from north [rad], 0..2π."""
         return float(att_.yaw_to_heading(self.att[2]))
 
@@ -389,8 +392,9 @@ def _phi_noise_sigma(lat, g, sf, sw):
                      math.sqrt((sw[0] / wN) ** 2 + (math.tan(lat) * sf[0] / g) ** 2)])
 
 
-def coarse_align(imu: ImuRecord, lat, h=0.0, *, gyro_bias=None, accel_bias=None,
-                 gyro_arw=None, accel_vrw=None, rest_threshold=REST_THRESHOLD) -> CoarseAlignment:
+def coarse_align(imu: ImuRecord, lat: float, h: float = 0.0, *, gyro_bias: float | ArrayLike | None = None,
+                 accel_bias: float | ArrayLike | None = None, gyro_arw: float | ArrayLike | None = None,
+                 accel_vrw: float | ArrayLike | None = None, rest_threshold: float = REST_THRESHOLD) -> CoarseAlignment:
     """Analytic (double-vector) coarse alignment at rest from averaged Δθ and Δv.
 
     The mean specific force ``f̄^b`` and angular rate ``ω̄^b`` are matched to ``[0, 0, g]``
@@ -491,8 +495,8 @@ def _gravity_integral_i0(lat, g, t):
     return M @ np.array([0.0, 0.0, g])
 
 
-def coarse_align_inertial(imu: ImuRecord, lat, h=0.0, *, t_mid=None,
-                          rest_threshold=None) -> CoarseAlignment:
+def coarse_align_inertial(imu: ImuRecord, lat: float, h: float = 0.0, *, t_mid: float | None = None,
+                          rest_threshold: float | None = None) -> CoarseAlignment:
     """Inertial-frame coarse alignment, robust to sway (angular and linear oscillation).
 
     ``C_b^n(t) = C_{i0}^n(t) · C_{ib0}^{i0} · C_b^{ib0}(t)``: ``C_b^{ib0}`` integrates the
@@ -542,7 +546,7 @@ def coarse_align_inertial(imu: ImuRecord, lat, h=0.0, *, t_mid=None,
     C_n_i0 = att_.rotvec_to_dcm(earth.WIE * t2 * u)
     C = C_n_i0.T @ C_ib0_i0 @ att_.quat_to_dcm(qb)
     T = N * imu.dt
-    warns = ()
+    warns: tuple[str, ...] = ()
     rest = None
     if rest_threshold is not None:
         rest = rest_check(imu, rest_threshold)
@@ -651,33 +655,36 @@ class FineAlignment:
     rest: RestCheck
     gyro_arw: np.ndarray
     accel_vrw: np.ndarray
-    P_final: np.ndarray = field(repr=False, default=None)
-    R: np.ndarray = field(repr=False, default=None)
-    z: np.ndarray = field(repr=False, default=None)
-    Phi: np.ndarray = field(repr=False, default=None)
-    Qk: np.ndarray = field(repr=False, default=None)
-    P0: np.ndarray = field(repr=False, default=None)
+    P_final: np.ndarray | None = field(repr=False, default=None)
+    R: np.ndarray | None = field(repr=False, default=None)
+    z: np.ndarray | None = field(repr=False, default=None)
+    Phi: np.ndarray | None = field(repr=False, default=None)
+    Qk: np.ndarray | None = field(repr=False, default=None)
+    P0: np.ndarray | None = field(repr=False, default=None)
     warnings: tuple = ()
 
     @property
-    def phi(self):
+    def phi(self) -> np.ndarray:
         """Estimated misalignment φ̂ (K+1, 3) [rad] of the computed attitude ``q``."""
         return self.x[:, :3]
 
     @property
-    def heading(self):
+    def heading(self) -> float:
+        """Heading clockwise from north [rad], 0..2π."""
         return float(att_.yaw_to_heading(self.att[2]))
 
-    def estimates(self):
+    def estimates(self) -> np.ndarray:
         """``(K+1, 5)`` estimates of ``[φE φN φU εN εU]`` (order :data:`LIMIT_STATES`)."""
         return self.x[:, _FULL_SUB] if self.model == "full" else self.x
 
 
-def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
-               gyro_arw=None, accel_vrw=None,
-               p0_att=(100 * units.arcmin, 100 * units.arcmin, 600 * units.arcmin),
-               p0_gyro_bias=0.01 * units.dph, p0_accel_bias=100 * units.ug,
-               feedback=False, rest_threshold=REST_THRESHOLD, t0_propagate=None) -> FineAlignment:
+def fine_align(imu: ImuRecord, lat: float, att0: ArrayLike, *, h: float = 0.0, model: str = "reduced",
+               period: float = 1.0, gyro_arw: float | ArrayLike | None = None,
+               accel_vrw: float | ArrayLike | None = None,
+               p0_att: ArrayLike = (100 * units.arcmin, 100 * units.arcmin, 600 * units.arcmin),
+               p0_gyro_bias: float = 0.01 * units.dph, p0_accel_bias: float = 100 * units.ug,
+               feedback: bool = False, rest_threshold: float = REST_THRESHOLD,
+               t0_propagate: float | None = None) -> FineAlignment:
     """Kalman fine alignment at rest (paper 000), full 8-state or reduced 5-state.
 
     The computed attitude starts at ``att0`` and is propagated with the gyros (Earth
@@ -750,16 +757,16 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
                    0, nper, K, np.empty((K, 4)), fm)
         adev = np.sqrt(0.5 * np.mean(np.diff(fm[:, :2], axis=0) ** 2, axis=0))
         R = np.diag(np.maximum(adev, 1e-12) ** 2)
-        accel_vrw = np.r_[adev, adev.mean()] * math.sqrt(T)
+        vrw = np.r_[adev, adev.mean()] * math.sqrt(T)
     else:
-        accel_vrw = units.vec3(accel_vrw, "accel_vrw", nonneg=True, finite=True)
-        R = (C0 @ np.diag(accel_vrw ** 2) @ C0.T)[:2, :2] / T
+        vrw = units.vec3(accel_vrw, "accel_vrw", nonneg=True, finite=True)
+        R = (C0 @ np.diag(vrw ** 2) @ C0.T)[:2, :2] / T
         if abs(R[0, 1]) <= 1e-9 * math.sqrt(R[0, 0] * R[1, 1]):
             R = np.diag(np.diag(R))          # isotropic noise: exactly diagonal (scalar updates)
     if model == "full":
         F, G, H = full_model(lat, g)
         sig0 = np.r_[np.asarray(p0_att, float), [p0_gyro_bias] * 3, [p0_accel_bias] * 2]
-        names = FULL_STATES
+        names: tuple[str, ...] = FULL_STATES
     else:
         F, G, H = reduced_model(lat, g)
         sig0 = np.r_[np.asarray(p0_att, float), [p0_gyro_bias] * 2]
@@ -777,6 +784,7 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
         _propagate(q, imu.dtheta, imu.dv, imu.dt, wn, 0, nper, K, qs[1:], fm)
         zs = fm[:, :2].copy()
         run = linear.run_linear(np.zeros(n), P0, Phi, Qk, H, R, zs)
+        assert run.x is not None                # a data run keeps its estimates
         x, sig, nis = run.x, run.sigma, run.nis
         Pf = run.P_saved[-1]
     else:
@@ -805,10 +813,10 @@ def fine_align(imu: ImuRecord, lat, att0, *, h=0.0, model="reduced", period=1.0,
     att_sigma = euler_sigma(Cc[-1], Pf[:3, :3])
     return FineAlignment(model, names, t, x, sig, qs, att_path[-1], att_sigma, att_path,
                          np.asarray(nis), lat, float(h), g, T, bool(feedback), rest,
-                         gyro_arw, accel_vrw, Pf, R, zs, Phi, Qk, P0, tuple(warns))
+                         gyro_arw, vrw, Pf, R, zs, Phi, Qk, P0, tuple(warns))
 
 
-def residuals(fine: FineAlignment, C_true, gyro_bias_n):
+def residuals(fine: FineAlignment, C_true: ArrayLike, gyro_bias_n: ArrayLike) -> np.ndarray:
     """Residual (true − estimated) of ``[φE φN φU εN εU]`` at every epoch, (K+1, 5).
 
     ``C_true`` is the true ``C_b^n`` (3×3, or (K+1, 3, 3)); ``gyro_bias_n`` the true
@@ -820,15 +828,17 @@ def residuals(fine: FineAlignment, C_true, gyro_bias_n):
     return true - fine.estimates()
 
 
-def align_record(imu, lat, h=0.0, *, gyro_arw=0.01 * units.dpsh, accel_vrw=None,
-                 gyro_bias=0.01 * units.dph, accel_bias=100 * units.ug, model="reduced",
-                 period=1.0, feedback=True):
+def align_record(imu: ImuRecord, lat: float, h: float = 0.0, *, gyro_arw: float | ArrayLike = 0.01 * units.dpsh,
+                 accel_vrw: float | ArrayLike | None = None, gyro_bias: float = 0.01 * units.dph,
+                 accel_bias: float = 100 * units.ug, model: str = "reduced",
+                 period: float = 1.0, feedback: bool = True) -> dict[str, Any]:
     """Coarse (analytic and inertial-frame) and fine alignment of a record at rest.
 
     ``gyro_bias``/``accel_bias`` are assumed 1σ sensor biases, used only for the limit
     accuracy the result cannot beat (``limit_*``: RSS over axes of the limit formulas
     with the body biases projected by the aligned attitude). Returns a dict of results
-    (angles in rad, see :func:`align_file` for the printed units) and the fine result.
+    (angles in rad; ``sinslab align`` prints them in display units), the fine result under
+    ``fine``.
     """
     import warnings as _w
 

@@ -104,7 +104,7 @@ class FixError:
 def check_geometry(lat, sat_lon1, sat_lon2):
     """The geometry checks of :func:`fix_error`: user latitude and satellite longitudes
     [rad] as float arrays, or ValueError where the two-GEO fix has no solution (non-finite
-    values, satellites at equal or opposite longitudes, |latitude| >= 90 deg, the equator)."""
+    values, satellites at equal or opposite longitudes, a latitude beyond ±90 deg, the equator)."""
     lat = np.asarray(lat, dtype=float)
     l1 = np.asarray(sat_lon1, dtype=float)
     l2 = np.asarray(sat_lon2, dtype=float)

@@ -148,8 +148,8 @@ def envelopes(t, *, lat, h, eps, n_g, nabla, n_a, sf_g, sf_a, phi0_h, psi0, dv0,
     position ≤ 2∇/ω_s²; initial tilt φ0 — φ0, gφ0/ω_s, 2Rφ0; initial velocity δv0 —
     δv0/(Rω_s), δv0, δv0/ω_s; white noise at 4σ through the same loop. The heading error
     ψ(t) = ψ0 + εt + sf_g·rot + 4N√t + (ω_ie + V/R)·tilt·t couples into the level channels
-    as a drift (ω_ie + V/R)ψ and, in manoeuvres, as velocity impulses ψ·|Δv| (plus the
-    accelerometer scale factor times |Δv|).
+    as a drift (ω_ie + V/R)ψ and, in manoeuvres, as velocity impulses ψ·‖Δv‖ (plus the
+    accelerometer scale factor times ‖Δv‖).
 
     Returns a dict of arrays: ``pos``, ``vel``, ``tilt``, ``heading``.
     """

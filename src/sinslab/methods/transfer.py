@@ -930,7 +930,7 @@ def align_lanes(bank, k_kf, Phi, match: AttitudeMatch, P0, R_vel, R_att, master_
     layout : StateLayout, optional
         Default ``transfer_model().layout``.
     phi_bound : float
-        A lane whose update asks for a correction |φ̂| above this [rad] (beyond which the
+        A lane whose update asks for a correction ‖φ̂‖ above this [rad] (beyond which the
         small-angle error model does not hold), or whose state turns non-finite, or whose
         INS leaves the valid latitudes, is stopped and counted as diverged; the others go
         on.

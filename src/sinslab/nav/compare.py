@@ -6,7 +6,10 @@ differences [rad], latitude/longitude errors [rad] and their north/east lengths 
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sinslab.core import attitude as att_
 from sinslab.core import earth
@@ -15,7 +18,7 @@ from sinslab.core.records import NavSeries
 __all__ = ["nav_errors", "nav_errors_many", "row_errors", "match_epochs"]
 
 
-def match_epochs(truth: NavSeries, t, tol: float = 1e-6) -> np.ndarray:
+def match_epochs(truth: NavSeries, t: ArrayLike, tol: float = 1e-6) -> np.ndarray:
     """Indices of the truth epochs equal (within ``tol`` s) to the times ``t``.
 
     Raises ValueError when the truth lacks any of them (the truth may be denser).
@@ -27,7 +30,7 @@ def match_epochs(truth: NavSeries, t, tol: float = 1e-6) -> np.ndarray:
     return idx
 
 
-def nav_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
+def nav_errors(nav: NavSeries, truth: NavSeries, imu_frame: bool = False) -> dict[str, np.ndarray]:
     """Errors (computed − true) of a solution against a truth series on the same epochs
     (truth epochs are matched by time; the truth may be denser).
 
@@ -38,7 +41,7 @@ def nav_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
     return row_errors(nav, truth.at(match_epochs(truth, nav.t)), imu_frame)
 
 
-def row_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
+def row_errors(nav: NavSeries, truth: NavSeries, imu_frame: bool = False) -> dict[str, np.ndarray]:
     """:func:`nav_errors` against truth rows given row for row (no matching by time).
 
     ``nav`` may hold several runs stacked along the rows, each on the epochs of ``truth``
@@ -47,7 +50,7 @@ def row_errors(nav: NavSeries, truth: NavSeries, imu_frame=False) -> dict:
     return _errors(nav, _truth_terms(truth, imu_frame), imu_frame)
 
 
-def nav_errors_many(navs, truth: NavSeries, imu_frame=False) -> list:
+def nav_errors_many(navs: Iterable[NavSeries], truth: NavSeries, imu_frame: bool = False) -> list[dict[str, np.ndarray]]:
     """:func:`nav_errors` of several solutions on the same epochs against one truth: the
     epochs are matched and the truth's attitude matrices and radii computed once (the same
     numbers as one call per solution). Solutions on different epochs are compared one by one."""

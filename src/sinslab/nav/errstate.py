@@ -919,7 +919,7 @@ def magnetometer_bias(*, tau=None, sigma=None, rw=0.0, name="mag"):
     random walk (``rw`` [T/√s]) or a first-order Gauss–Markov process (``tau`` [s],
     steady-state ``sigma`` [T]: fields of slowly changing currents). The states feed
     nothing back to the INS; the magnetometer measurements of
-    :mod:`sinslab.fusion.measurements.magnetometer` read them.
+    :class:`~sinslab.fusion.measurements.MagneticField` and :class:`~sinslab.fusion.measurements.MagneticHeading` read them.
     """
     tau, q = _scale_noise(rw, tau, sigma, name)
     return SensorBlock(name, None, "markov" if tau else "constant", "xyz", "body", tau, q, "uT",

@@ -266,7 +266,7 @@ def _core(L, h, vE, vN, vU, fE, fN, fU, rd, Fc):
 def fill_one(rows, w, f, e, rd, F0, G0, core_k, core_r, f_row, f_col, f_ins, f_k, f_j, f_src,
              f_sign, g_row, g_col, g_ins, g_k, g_j, g_sign, C, Fc, Fe, Ge):
     """F and G of epoch ``e`` into ``Fe`` (n, n), ``Ge`` (n, m); ``C`` (k, 3, 3) and
-    ``Fc`` (9, 9) are work arrays. Returns False for a non-finite input or |lat| >= 90°."""
+    ``Fc`` (9, 9) are work arrays. Returns False for a non-finite input or a latitude beyond ±90°."""
     n, m = F0.shape[0], G0.shape[1]
     for i in range(n):
         for j in range(n):
@@ -283,7 +283,7 @@ def fill_varying(rows, w, f, e, rd, core_k, core_r, f_row, f_col, f_ins, f_k, f_
     """The entries of F and G that vary with the navigation point (those :func:`fill_one`
     writes after the constant ``F0``, ``G0``; the two sets do not overlap), for a caller
     that keeps ``Fe``, ``Ge`` from one epoch to the next and copied the constants once.
-    Returns False for a non-finite input or |lat| >= 90°."""
+    Returns False for a non-finite input or a latitude beyond ±90°."""
     n_ins = rows.shape[0]
     for i in range(n_ins):
         for c in range(10):

@@ -169,7 +169,7 @@ class PhaseErrors:
     slip_rate : float
         Cycle slips per signal per second.
     slip_cycles : int
-        Largest |slip| [cycles] (uniform over ±1..±slip_cycles).
+        Largest slip magnitude [cycles] (uniform over ±1..±slip_cycles).
     slip_flagged : float
         Share of the slips the receiver flags (loss-of-lock bit); a loss of lock (the
         satellite hidden, then seen again) is always flagged.

@@ -11,7 +11,7 @@ value per sensor axis (IMU body frame, RFU). Build it from a datasheet with unit
 and write it back as a config fragment with :meth:`ImuErrors.to_toml` / :meth:`ImuErrors.to_dict`.
 
 Error terms (per sensor, per axis; "rate" means ω [rad/s] for gyros, f [m/s^2] for accels)
------------------------------------------------------------------------------------------
+------------------------------------------------------------------------------------------
 The output increment of sample k (interval ``(t_k − dt, t_k]``) is ::
 
     Δθ_out = (I + S + M)·Δθ_true + (b + x_GM,k + x_RW,k)·dt + ∫trend dt + β·σ_w·w_k + β·rec_k

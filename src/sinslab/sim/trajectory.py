@@ -50,7 +50,8 @@ import math
 import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import ClassVar
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -131,7 +132,7 @@ def _parse_fields(cls, d, where, extra=None):
         raise ValueError(f"{where}: expected a table, got {type(d).__name__}")
     extra = extra or {}
     flds = {f.name: f for f in fields(cls)}
-    out = {}
+    out: dict[str, Any] = {}
     for key, value in d.items():
         if key == "kind" or key in extra:
             continue
@@ -180,6 +181,8 @@ class Segment:
     """Base of the motion segments: a duration [s] (> 0) and kind-specific fields (SI)."""
 
     kind: ClassVar[str] = ""
+    if TYPE_CHECKING:                   # every kind declares it, first (a field of the kinds only)
+        duration: float
 
     def __post_init__(self):
         for f in fields(self):
@@ -204,7 +207,7 @@ class Segment:
 
     def _transition_ok(self):
         """Default ``transition`` (min(5 s, duration)) and check it fits (Climb, Level)."""
-        if self.transition is None:
+        if getattr(self, "transition") is None:
             object.__setattr__(self, "transition", min(5.0, self.duration))
         self._ramp_ok("transition", 1)
 
@@ -399,7 +402,7 @@ class Ship(Segment):
         self._ramp_ok("ramp")
 
 
-SEGMENT_KINDS: dict[str, type] = {c.kind: c for c in
+SEGMENT_KINDS: dict[str, type[Segment]] = {c.kind: c for c in
                                   (Static, Accelerate, Turn, Climb, Level, WingRock, Ship)}
 _NEGATED = {"decelerate": ("accelerate", "accel"), "descend": ("climb", "angle")}
 
@@ -425,7 +428,7 @@ def segment_from_dict(d: dict, index: int | None = None) -> Segment:
     return SEGMENT_KINDS[kind].from_dict(d, index)
 
 
-def segments_from_list(items) -> list[Segment]:
+def segments_from_list(items: Iterable[Segment | dict]) -> list[Segment]:
     """Segments from a list of tables or :class:`Segment` objects."""
     out = []
     for i, s in enumerate(items):
@@ -433,7 +436,7 @@ def segments_from_list(items) -> list[Segment]:
     return out
 
 
-def total_duration(segments) -> float:
+def total_duration(segments: Iterable[Segment]) -> float:
     """Sum of segment durations [s]."""
     return float(sum(s.duration for s in segments))
 
@@ -448,7 +451,8 @@ class Motion:
     mount: object = None
 
 
-def dump_segments(segments, path, *, start: Start | None = None, mount=None) -> None:
+def dump_segments(segments: Iterable[Segment | dict], path: str | Path, *, start: Start | dict | None = None,
+                  mount: object = None) -> None:
     """Write segments (and optionally the start and the mount) to a TOML file, atomically.
 
     Layout: an optional ``[start]`` table, an optional ``[mount]`` table and one
@@ -462,7 +466,7 @@ def dump_segments(segments, path, *, start: Start | None = None, mount=None) -> 
                  + dump_toml(doc, array_tables=True))
 
 
-def load_motion(path) -> Motion:
+def load_motion(path: str | Path) -> Motion:
     """Read a motion TOML file (see :func:`dump_segments`)."""
     path = Path(path)
     try:
@@ -485,7 +489,7 @@ def load_motion(path) -> Motion:
         raise ValueError(f"{path}: {e}") from None
 
 
-def load_segments(path) -> list[Segment]:
+def load_segments(path: str | Path) -> list[Segment]:
     """Segments of a motion TOML file."""
     return load_motion(path).segments
 
@@ -557,6 +561,7 @@ def _compile(segments, start: Start, mount, t_end):
         elif isinstance(s, (Climb, Level)):
             target = s.angle if isinstance(s, Climb) else 0.0
             d = target - cur[CH_THETA]
+            assert s.transition is not None         # set by __post_init__
             if d != 0.0 and s.transition > 0:
                 cur[CH_THETA] += terms.step(CH_THETA, t, s.transition, d)
             elif d != 0.0:
@@ -593,12 +598,12 @@ def _compile(segments, start: Start, mount, t_end):
 
 def _tables(terms: _Terms, init, t_end):
     rows = terms.rows
-    bp = [0.0]
+    points = [0.0]
     for r in rows:
-        bp.extend(r[5])
+        points.extend(r[5])
     for a, b in terms.coord:
-        bp.extend((a, b))
-    bp = np.unique(np.asarray(bp, dtype=float))
+        points.extend((a, b))
+    bp = np.unique(np.asarray(points, dtype=float))
     bp = bp[bp >= 0.0]
     keep = np.concatenate([[True], np.diff(bp) > 1e-9])      # merge near-duplicates
     bp = bp[keep]
@@ -675,8 +680,9 @@ class Generated:
         return self.imu.dt
 
 
-def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_every=1,
-             quadrature="stencil", nodes=8) -> Generated:
+def generate(segments: Iterable[Segment | dict], start: Start | dict, dt: float, *, duration: float | None = None,
+             mount: object = None, t0: float = 0.0, out_every: int = 1, quadrature: str = "stencil",
+             nodes: int = 8) -> Generated:
     """Synthesize the truth and exact IMU increments of a segment motion.
 
     Parameters
@@ -733,7 +739,7 @@ def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_ever
     else:
         c, b, A = _rule(quadrature, int(nodes))
         sw, lo = np.zeros(0), 0
-    tabs = _compile(segments, start, mount, n * dt)
+    bp, base, flag, plo, phi, act, ttype, tch, tta, tpar = _compile(segments, start, mount, n * dt)
     m = n // out_every + 1
     dth = np.empty((n, 3))
     dvl = np.empty((n, 3))
@@ -750,7 +756,7 @@ def generate(segments, start, dt, *, duration=None, mount=None, t0=0.0, out_ever
     has_mount = mount is not None
     atti = np.empty((m, 3) if has_mount else (1, 3))
     mnt = np.empty((n + 1, 3) if has_mount else (1, 3))
-    chk = _synth(n, dt, out_every, sw, lo, c, b, A, has_mount, *tabs,
+    chk = _synth(n, dt, out_every, sw, lo, c, b, A, has_mount, bp, base, flag, plo, phi, act, ttype, tch, tta, tpar,
            start.lat, start.lon, start.h, float(t0), dth, dvl, t_imu, olat, olon, oh, t_nav,
            vel, att, atti, mnt)
     if not math.isfinite(chk):

@@ -94,6 +94,7 @@ def align_file(path, *, fmt=None, lat=None, h=None, window=None, out=None,
 def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel_bias, model,
              period, feedback, echo, strict=False) -> Output:
     from sinslab.app.plausibility import Finding, settle
+    from sinslab.core.progress import stage
     from sinslab.methods.alignment import align_record
 
     gb = units.parse(gyro_bias, "angular_rate")
@@ -102,8 +103,9 @@ def _compute(path, *, fmt, lat, h, window, gyro_arw, accel_vrw, gyro_bias, accel
     av = None if accel_vrw in (None, "", "auto") else units.parse(accel_vrw, "velocity_random_walk")
     ab = units.parse(accel_bias, "acceleration")
     T = units.parse(period, "time")
-    r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
-                     model=model, period=T, feedback=feedback)
+    with stage(f"alignment over {len(imu) * imu.dt:.0f} s"):
+        r = align_record(imu, lat_r, h_r, gyro_arw=ga, accel_vrw=av, gyro_bias=gb, accel_bias=ab,
+                         model=model, period=T, feedback=feedback)
     fa = r["fine"]
     hw = _heading_check(r, len(imu) * imu.dt, fa.att_sigma[2])
     if hw:
@@ -128,8 +130,10 @@ def _read(path, fmt, lat, h, window, gb):
     from sinslab.app.plausibility import imu_findings, rest_findings, rest_rate_findings, settle
     from sinslab.data import read_imu
     from sinslab.methods import alignment as al
+    from sinslab.core.progress import stage
 
-    imu, ps = read_imu(path, fmt)
+    with stage(f"reading {Path(path).name}"):
+        imu, ps = read_imu(path, fmt)
     if lat is None:
         if ps is None:
             raise ValueError("--lat is required for a CSV file (PSINS logs carry it in the header)")

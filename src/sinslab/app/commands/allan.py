@@ -113,9 +113,11 @@ def allan_file(path, *, fmt=None, out=None, window=None, strict=False, echo=prin
 
 def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
     from sinslab.app.plausibility import Finding, imu_findings, rest_rate_findings, settle
+    from sinslab.core.progress import stage
     from sinslab.data import load_imu
 
-    data = load_imu(path, fmt, **read_kw)
+    with stage(f"reading {Path(path).name}"):
+        data = load_imu(path, fmt, **read_kw)
     imu = data.imu
     if window:
         from sinslab.app.validate import check_window, option_window
@@ -134,7 +136,8 @@ def _compute(path, fmt, window, echo, read_kw, strict=False) -> Output:
     if dead:
         raise ValueError(f"{src}: {', '.join(dead)} constant over all {len(imu)} samples: no Allan "
                          f"deviation to fit (a dead or unconnected channel?)")
-    res = allan(imu)
+    with stage(f"Allan deviation of {len(imu) * imu.dt:.0f} s"):
+        res = allan(imu)
     short = [f.name for f in res.gyro + res.accel if _at_longest(f)]
     if short:
         found.append(Finding(f"{src}: the Allan curve of {', '.join(short)} still falls at the longest "

@@ -46,6 +46,7 @@ from sinslab.app.errors import CliError, user_errors
 from sinslab.app.outputs import Figure, RunDir, default_out_dir, forcing
 from sinslab.app.publish import complete_timed, write_figures
 from sinslab.core.blocks import release_free_memory
+from sinslab.core.progress import stage
 from sinslab.core.toml import dump_toml
 
 __all__ = ["Command", "Output", "Series", "Figure", "run_command", "command_summary", "cli_call",
@@ -150,7 +151,10 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
     t0 = time.perf_counter()
     token = _SCRATCH.set(rd.scratch_path())
     try:
-        res = compute()
+        # the whole computation is a stage: off a terminal a log shows the command alive
+        # every 30 s even where no stage of its own runs (the stages inside it nest)
+        with stage(f"{command.name}, computing"):
+            res = compute()
     finally:
         _remove_scratch(_SCRATCH.get())
         _SCRATCH.reset(token)
@@ -160,23 +164,24 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
                         f"got {type(res).__name__}")
     written = 0
     try:
-        rd.prepare()
-        rd.write_text("config.toml", f"# sinslab {__version__} — {command.name}\n"
-                      + dump_toml(res.config))
-        for name, text in res.files.items():
-            rd.write_text(name, text)
-        t1 = time.perf_counter()
-        release_free_memory()        # the compute's working set is gone: start the tables afresh
-        for t in res.tables:
-            if t.csv_every is None:
-                rd.write_table(t.name, t.data, t.description)
-            else:
-                rd.write_table(t.name, t.data, t.description, csv_every=t.csv_every)
-            release_free_memory()
-        t2 = time.perf_counter()
-        write_figures(rd, res.figures)
-        written = len(res.figures)
-        timing.update(series_s=t2 - t1, figures_s=time.perf_counter() - t2)
+        with stage(f"writing {out}"):
+            rd.prepare()
+            rd.write_text("config.toml", f"# sinslab {__version__} — {command.name}\n"
+                          + dump_toml(res.config))
+            for name, text in res.files.items():
+                rd.write_text(name, text)
+            t1 = time.perf_counter()
+            release_free_memory()        # the compute's working set is gone: start the tables afresh
+            for t in res.tables:
+                if t.csv_every is None:
+                    rd.write_table(t.name, t.data, t.description)
+                else:
+                    rd.write_table(t.name, t.data, t.description, csv_every=t.csv_every)
+                release_free_memory()
+            t2 = time.perf_counter()
+            write_figures(rd, res.figures)
+            written = len(res.figures)
+            timing.update(series_s=t2 - t1, figures_s=time.perf_counter() - t2)
     finally:
         _close(res.figures[written:])
     summary = complete_timed(rd, command_summary(rd, command.name, res.purpose or command.purpose, res.config,

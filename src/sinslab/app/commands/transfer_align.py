@@ -209,14 +209,16 @@ def _read_pair(slave, master, windows):
     common motion, rates); refusals raised."""
     from sinslab.app.plausibility import imu_findings, settle
     from sinslab.data import load_imu
+    from sinslab.core.progress import stage
     from sinslab.methods import transfer as tm
 
-    data = load_imu(slave)
-    imu = data.imu
-    found = imu_findings(imu, f"slave {slave}", lat=None, gaps=data.gaps)
-    settle([fd for fd in found if fd.refuse])
-    mt, att, vel, pos = read_master(master)
-    _check_master(master, mt, att, vel, pos)
+    with stage("reading " + " and ".join(dict.fromkeys(Path(p).name for p in (slave, master)))):
+        data = load_imu(slave)
+        imu = data.imu
+        found = imu_findings(imu, f"slave {slave}", lat=None, gaps=data.gaps)
+        settle([fd for fd in found if fd.refuse])
+        mt, att, vel, pos = read_master(master)
+        _check_master(master, mt, att, vel, pos)
     lo, hi = max(mt[0], imu.t[0]), min(mt[-1], imu.t[-1])
     if hi - lo <= 0:
         raise ValueError(f"slave [{imu.t[0]:g}, {imu.t[-1]:g}] s and master [{mt[0]:g}, {mt[-1]:g}] s do not overlap in time")
@@ -255,11 +257,12 @@ def _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma, at
         t0, t1 = (None, None) if w is None else w
         wkey = "all" if w is None else f"{t0:g}_{t1:g}s".replace(".", "p")
         for m in methods:
-            r = tm.align_recorded(imu, master_rec, pos, m, compensation=comp,
-                                  t_start=t0, t_end=t1, vel_sigma=vel_sigma, att_sigma=att_sigma_arcmin * am,
-                                  gyro_arw=pn["gyro_arw"][0], accel_vrw=pn["accel_vrw"][0],
-                                  gyro_bias_rw=pn["gyro_bias_instability"][0],
-                                  accel_bias_rw=pn["accel_bias_instability"][0], nsub=nsub)
+            with stage(f"transfer alignment, {m}" + ("" if w is None else f", window {t0:g}:{t1:g} s")):
+                r = tm.align_recorded(imu, master_rec, pos, m, compensation=comp,
+                                      t_start=t0, t_end=t1, vel_sigma=vel_sigma, att_sigma=att_sigma_arcmin * am,
+                                      gyro_arw=pn["gyro_arw"][0], accel_vrw=pn["accel_vrw"][0],
+                                      gyro_bias_rw=pn["gyro_bias_instability"][0],
+                                      accel_bias_rw=pn["accel_bias_instability"][0], nsub=nsub)
             results[(m, wkey)] = r
             found += _result_findings(r, f"{m}, window {wkey}", pn)
             k = f"{m}_{wkey}"

@@ -1,0 +1,114 @@
+"""sinslab's compiled kernels found where an install put them ahead of time.
+
+numba compiles a kernel on its first call and caches it on disk (``cache=True``): in the
+``__pycache__`` folder beside the module when that folder is writable, else in the user's
+cache folder (``~/.cache/numba``). A first run would pay every compilation (15–25 s of
+CPU for ``navigate``); ``sinslab compile`` (:mod:`sinslab.precompile`) does them at
+install instead — the clone's ``make`` runs it, and a wheel is built with them inside.
+
+Two things keep numba from using such a cache as is, and :func:`install` mends both for
+sinslab's kernels (a cache miss of numba's own lookup goes on to these, in order):
+
+* **read-only install.** In a wheel installed into a read-only ``site-packages`` numba
+  looks in the user's cache folder, which is empty after the install: the kernels
+  shipped in the package's ``__pycache__`` folders are read from there.
+* **portable machine code.** A cache entry is keyed on the CPU it was compiled for
+  (name and features), so a wheel built on one machine would match no other. Kernels
+  compiled ahead of time for a wheel are built for the baseline CPU of the architecture
+  (``NUMBA_CPU_NAME=generic``, no extra features: :data:`PORTABLE_ENV`), which every
+  processor of the architecture runs, and are loaded when no entry for this CPU exists.
+  Without ``fastmath`` the arithmetic is IEEE on any target, so the numbers are the same;
+  ``benchmarks/cold_start.py`` measures the speed.
+
+The source stamp that says whether a cache entry is fresh is numba's: a hash of the
+source file's content (numba 0.68; earlier versions use its time and size, which a
+checkout or an install may change — the kernels then compile once, as without a cache).
+A new signature, or a kernel whose source changed, compiles as before and is cached in
+numba's usual place. ``SINSLAB_JITCACHE=0`` turns the two lookups off (numba's own cache
+only: what a measurement of compile times wants with ``NUMBA_CACHE_DIR`` set).
+"""
+from __future__ import annotations
+
+import os
+
+__all__ = ["install", "PORTABLE_ENV", "shipped_folder"]
+
+#: environment of a process that compiles kernels to ship (any CPU of the architecture)
+PORTABLE_ENV = {"NUMBA_CPU_NAME": "generic", "NUMBA_CPU_FEATURES": ""}
+
+_installed = False
+
+
+def _ours(cache) -> bool:
+    f = getattr(cache, "_py_func", None)
+    return (getattr(f, "__module__", "") or "").startswith("sinslab")
+
+
+def shipped_folder(py_file: str) -> str:
+    """The ``__pycache__`` folder beside a module: where an install leaves its kernels."""
+    return os.path.join(os.path.dirname(os.path.abspath(py_file)), "__pycache__")
+
+
+class _PortableCodegen:
+    """Stands in for the codegen in numba's cache key: the key of the baseline CPU."""
+
+    def __init__(self, codegen):
+        self._triple = codegen.magic_tuple()[0]
+
+    def magic_tuple(self):
+        return (self._triple, PORTABLE_ENV["NUMBA_CPU_NAME"], PORTABLE_ENV["NUMBA_CPU_FEATURES"])
+
+
+def _index_files(cache):
+    """numba's index of the kernel, then the one in the package folder if that is another."""
+    from numba.core.caching import IndexDataCacheFile
+
+    primary = cache._cache_file
+    yield primary
+    py_file = getattr(cache._impl.locator, "_py_file", None)
+    if py_file is None:
+        return
+    folder = shipped_folder(py_file)
+    if os.path.abspath(cache._cache_path) != folder and os.path.isdir(folder):
+        yield IndexDataCacheFile(cache_path=folder, filename_base=cache._impl.filename_base,
+                                 source_stamp=primary._source_stamp)
+
+
+def _load_elsewhere(cache, sig, target_context):
+    """The kernel from the package folder (this CPU's entry, then the portable one) or the
+    portable entry of numba's own index; None when there is none."""
+    codegen = target_context.codegen()
+    keys = [cache._index_key(sig, codegen), cache._index_key(sig, _PortableCodegen(codegen))]
+    for i, f in enumerate(_index_files(cache)):
+        for k, key in enumerate(keys):
+            if i == 0 and k == 0:
+                continue                        # numba's own lookup, already missed
+            try:
+                data = f.load(key)
+            except Exception:                   # noqa: BLE001 - an unreadable index is a miss
+                data = None
+            if data is not None:
+                return cache._impl.rebuild(target_context, data)
+    return None
+
+
+def install() -> None:
+    """Let numba's cache lookup of sinslab's kernels go on to the package folder and to
+    portable entries (once per process; other packages' functions are left alone)."""
+    global _installed
+    if _installed or os.environ.get("SINSLAB_JITCACHE", "") == "0":
+        return
+    from numba.core.caching import Cache
+
+    load = Cache.load_overload
+
+    def load_overload(self, sig, target_context):
+        data = load(self, sig, target_context)
+        if data is None and getattr(self, "_enabled", False) and _ours(self):
+            target_context.refresh()
+            data = _load_elsewhere(self, sig, target_context)
+        return data
+
+    load_overload.__doc__ = load.__doc__
+    setattr(Cache, "load_overload", load_overload)   # a method replaced on purpose
+    _installed = True
