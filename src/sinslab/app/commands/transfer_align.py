@@ -250,6 +250,7 @@ _AM, _DPH, _MG = units.arcmin, units.dph, 1e-3 * 9.80665
 def _align_all(imu, master_rec, pos, nsub, methods, comp, windows, vel_sigma, att_sigma_arcmin, pn, echo, found):
     """Every method on every window: ``(metrics, table rows, {(method, window): result})``;
     the checks of each result added to ``found``."""
+    from sinslab.core.progress import stage
     from sinslab.methods import transfer as tm
     metrics, rows, results = {}, [], {}
     am, dph, mg = _AM, _DPH, _MG
