@@ -49,6 +49,10 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 TARGET_S = 60.0
 
+#: the 60 s wing rock the recorded figures were measured on (the experiment's default is the
+#: paper's 5 s now): the benchmark keeps timing the same work
+SIXTY_S = ("scenario.duration=60 s", "scenario.wing_rock_ramp=6 s")
+
 
 def _cpu(fn):
     c0, w0 = time.process_time(), time.perf_counter()
@@ -218,7 +222,7 @@ def main(argv=None) -> dict:
                          "per task against once (speed-ups printed as ratios)")
     a = ap.parse_args(argv)
     runs, wide = (40, 100) if a.quick else (a.runs, a.wide)
-    cfg = resolve(ta.Config)
+    cfg = resolve(ta.Config, sets=list(SIXTY_S))
     if a.campaign or a.scaling:
         out = _campaign(cfg, a.campaign) if a.campaign else _scaling(cfg, a.scaling)
         for k, v in out.items():

@@ -22,6 +22,10 @@ import time
 
 import numpy as np
 
+#: the 60 s wing rock the recorded figures were measured on (the experiment's default is the
+#: paper's 5 s now): the benchmark keeps timing the same work
+SIXTY_S = ("scenario.duration=60 s", "scenario.wing_rock_ramp=6 s")
+
 
 def _worker_cpu():
     r = resource.getrusage(resource.RUSAGE_SELF)
@@ -79,7 +83,7 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--json", help="write the figures to this file")
     a = ap.parse_args(argv)
-    cfg = resolve(ta.Config)
+    cfg = resolve(ta.Config, sets=list(SIXTY_S))
     case = ta._case(cfg, cfg.installation.large, cfg.scenario.heading)
     var = [(f"{m}_large", "large", m, m == "optimal", False) for m in ta._M]
     kw = dict(p=ta._params(cfg), cases={"large": case}, record_every=5, ekf_runs=0, variants=var)

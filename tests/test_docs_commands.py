@@ -167,6 +167,12 @@ STARTUP_CONFIGS = ("double-star", "free-inertial", "rotation-evaluation", "schul
                    "transfer-alignment")
 #: docs/methods/000.md's laser-gyro record aligned, as the page shows it
 ALIGN = "align --imu lasergyro.imu"
+#: the full-scale runs of the robustness sweep (docs/runs.json: tools/quoted_runs.py --full)
+TA_ROBUST = "full transfer-alignment --robustness"
+SA_ROBUST = "full static-alignment --robustness"
+RE_ROBUST = "full rotation-evaluation --robustness"
+DS_ROBUST = "full double-star --robustness"
+SS_ROBUST = "full schuler-suppression --robustness"
 TA = ("transfer-align --slave psins-transfer/transfer_align_fog_mems.mat "
       "--master psins-transfer/transfer_align_fog_mems.mat")
 #: docs/methods/002.md's recorded-data run: every form, the whole record and 0–60 s
@@ -593,21 +599,32 @@ QUOTED = [
     ("README.md", "initial-velocity response 84.35 min (theory 84.47)", "run free-inertial",
      ["schuler_period_min", "schuler_period_theory_min"], 0.0),
     # the README's results table, from the full demo runs (RECORD)
-    ("README.md", "`rtk-outages` (20 simulated car drives with a base) | 5/5 | RTK/INS fixed again within 1 s after "
+    ("README.md", "`rtk-outages` (20 simulated car drives with a base) | 5/5 | | RTK/INS fixed again within 1 s after "
      "100 % of the 10 s outages (RTK alone, GPS only: 0 %, first fix after a median 4 s); fixed antenna 0.57 cm RMS "
      "horizontally, 0 integers fixed wrong", "demo rtk-outages",
      ["=20", "claims:passed", "claims:total", "=1", "100*refix_1s_ins_10s", "=10", "100*refix_1s_alone_10s",
       "refix_time_alone_10s_median", "100*fixed_rms_horizontal_ins", "wrong_integers_ins"], 0.0),
     ("README.md", "float and fixed NEES inside the 99 % χ² band (docs/raw-gnss.md)", "demo rtk-outages",
      ["=99"], 0.0),
-    ("README.md", "`static-alignment` (000, 1200 s) | 7/7 |", "demo static-alignment",
-     ["=0", "=1200", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "`static-alignment` (000, 1200 s) | 7/7 | 3 of 7 |", SA_ROBUST,
+     ["=0", "=1200", "claims:passed", "claims:total", "robust:paper", "claims:total@paper"], 0.0),
+    ("README.md", "The φE and εN margins pass the project's bars, not the paper's ≈0.07′ and ≈0.002 °/h (0.098′, "
+     "0.0023 °/h; closed loop 0.0035′ passes both); full ≡ reduced depends on the full filter's ∇ prior, which the "
+     "paper does not give (1000 µg: Δφ_E 0.29′)", SA_ROBUST,
+     ["=0.07", "=0.002", "claim:margin_phiE", "claim:margin_epsN", "alt:margin_phiE@closed loop (filter.feedback)",
+      "label:margin_phiE=depends on: bar on |phiE − limit|", "label:margin_epsN=depends on: bar on |epsN − limit|",
+      "label:full_vs_reduced=depends on: ∇ prior of the full filter", "=1000",
+      "alt:full_vs_reduced@1000 µg[0]"], 0.0),
     ("README.md", "`static-alignment-60min` | 6/7 |", "demo static-alignment-60min",
      ["=60", "claims:passed", "claims:total"], 0.0),
     ("README.md", "(σ(εU) still 85 % of its initial value)", "demo static-alignment-60min",
      ["100*epsU_sigma_ratio"], 0.0),
-    ("README.md", "`double-star` (003, 200 runs) | 6/6 |", "demo double-star",
-     ["=3", "runs", "claims:passed", "claims:total"], 0.0),
+    ("README.md", "`double-star` (003, 200 runs) | 6/6 | 1 of 1 |", DS_ROBUST,
+     ["=3", "runs", "claims:passed", "claims:total", "robust:paper", "claims:total@paper"], 0.0),
+    ("README.md", "Every verdict robust to the height factor, the gyro noise reading, the Markov times, fix "
+     "correlation and latency jitter", DS_ROBUST,
+     [f"label:{c}=robust" for c in ("lagaware_beats_lagignore", "lagaware_near_zerolag", "mc_consistent_pos",
+                                    "mc_consistent_att", "fixes_reduce_error", "fixes_reduce_sigma")], 0.0),
     ("README.md", "fix σ 41 m N/S, 31 m E/W at the start", "demo double-star",
      ["fix_sigma_ns_m", "fix_sigma_ew_m"], 0.0),
     ("README.md", '`fix.height_factor="geometric"` gives 71/30 m', "demo double-star",
@@ -631,39 +648,54 @@ QUOTED = [
      ["mc_rms_over_sigma_pos_fix"], 0.0),
     ("README.md", "eqs 11–15 give 41 m N/S where the paths' first-order fix error is 69 m", "demo double-star",
      ["=11", "=15", "fix_sigma_ns_m", "fix_sigma_ns_linearised_m"], 0.0),
-    ("README.md", "`transfer-alignment` (002, 200 runs) | 7/7 |", "demo transfer-alignment",
-     ["=2", "runs", "claims:passed", "claims:total"], 0.0),
-    ("README.md", "the optimal form (4) converges (RMS/σ 1.15, 1.19, 0.98), Kain (3) and DCM (2) diverge in "
-     "all 200 runs, the Euler form (1) ends 10σ off", "demo transfer-alignment",
+    ("README.md", "`transfer-alignment` (002, 200 runs, the paper's 5 s, error-free master) | 7/7 | 2 of 5 |", TA_ROBUST,
+     ["=2", "runs", "=5", "claims:passed", "claims:total", "robust:paper", "claims:total@paper"], 0.0),
+    ("README.md", "the optimal form (4) converges (RMS/σ 0.97, 1.03, 0.97), Kain (3) and DCM (2) diverge in "
+     "all 200 runs, the Euler form (1) ends 4.55σ off", "demo transfer-alignment",
      ["=4", "rms_over_sigma_optimal_large", "=3", "=2", "diverged_runs_kain_large", "=1",
       "rms_over_sigma_euler_large[0]"], 0.0),
-    ("README.md", "all four converge (RMS/σ ≤ 1.44)", "demo transfer-alignment",
-     ["max(rms_over_sigma_euler_small,rms_over_sigma_dcm_small,rms_over_sigma_kain_small,"
-      "rms_over_sigma_optimal_small)"], 0.0),
-    ("README.md", "DCM form at C22 = 0: heading RMS 34.4′ vs Kain 0.53′", "demo transfer-alignment",
+    ("README.md", "DCM form at C22 = 0: heading RMS 19.4′ vs Kain 0.62′", "demo transfer-alignment",
      ["=22", "=0", "dcm_heading_rms_c22zero_arcmin", "kain_heading_rms_c22zero_arcmin"], 0.0),
-    ("README.md", "`schuler-suppression` (004, ship 48 h) | 6/6 | Schuler band reduced 3.7–4.3× in vE, vN, "
-     "φE, φN (2.5× in longitude), 24 h line kept (ratio 1.02–1.03)", "demo schuler-suppression",
-     ["=4", "=48", "claims:passed", "claims:total",
+    ("README.md", "Methods 1–3 failing depends on the bar, the onset and the horizon (the Euler form converges at 5σ, "
+     "with a 3 s onset, or at 5 s inside a 60 s run); the small installation on the attitude noise (0.1′: three forms "
+     "miss 3σ); no master error up to 3′ moves a verdict at 5 s", TA_ROBUST,
+     ["=1", "=3", "label:large_methods_1_3_fail=depends on: convergence bar, horizon, wing-rock onset", "=5", "=3",
+      "verdict:large_methods_1_3_fail@3 s=fail", "=5", "=60",
+      "verdict:large_methods_1_3_fail@a 60 s run, 6 s onset (the project's former default); judged at 5 s inside "
+      "the run=fail", "label:small_all_converge=depends on: attitude measurement noise", "=0.1", "=3",
+      "verdict:small_all_converge@3′=pass", "=3", "=5"], 0.0),
+    ("README.md", "`schuler-suppression` (004, ship 48 h) | 6/6 | 2 of 5 | Schuler band reduced 3.7–4.3× in vE, vN, "
+     "φE, φN (2.5× in longitude), 24 h line kept (ratio 1.02–1.03)", SS_ROBUST,
+     ["=4", "=48", "claims:passed", "claims:total", "robust:paper", "claims:total@paper",
       "min(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)",
       "max(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)", "suppression_lon", "=24",
       "min(claim:earth_period_kept)", "max(claim:earth_period_kept)"], 0.0),
+    ("README.md", "The suppression depends on the manoeuvre onset (an abrupt start: 1.09–1.18×; 30 min: 1.5–1.6×; the "
+     "default builds up over 2 h) and on sensor noise (a tenth of the turntable IMU's: 1.2×)", SS_ROBUST,
+     ["min(alt:suppression_velocity@abrupt (60 s),alt:suppression_level_attitude@abrupt (60 s))",
+      "max(alt:suppression_velocity@abrupt (60 s),alt:suppression_level_attitude@abrupt (60 s))", "=30",
+      "min(alt:suppression_velocity@30 min,alt:suppression_level_attitude@30 min)",
+      "max(alt:suppression_velocity@30 min,alt:suppression_level_attitude@30 min)", "=2",
+      "min(alt:suppression_velocity@a tenth of it,alt:suppression_level_attitude@a tenth of it)"], 0.0),
     ("README.md", "`schuler-suppression-turntable` | 3/6 |", "demo schuler-suppression-turntable",
      ["claims:passed", "claims:total"], 0.0),
     ("README.md", "common to both solutions; suppression 1.06–1.13", "demo schuler-suppression-turntable",
      ["min(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)",
       "max(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)"], 0.0),
-    ("README.md", "`schuler-suppression-injected` | 3/4 | Schuler band reduced 16–21×; the φN 24 h ratio "
-     "(1.66) fails on a 0.017′ line", "demo schuler-suppression-injected",
+    ("README.md", "`schuler-suppression-injected` | 4/4 | | Schuler band reduced 16–21×; 24 h line kept where it is "
+     "above the amplitude floor (the φE, φN lines are below 5 % of their channel)", "demo schuler-suppression-injected",
      ["claims:passed", "claims:total",
       "min(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)",
-      "max(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)", "=24",
-      "claim:earth_period_kept[3]", "earth_amp_phiN_single"], 0.0),
+      "max(suppression_vE,suppression_vN,suppression_phiE,suppression_phiN)", "=24", "=5"], 0.0),
+    ("README.md", "`schuler-suppression-still` (still base, noise-free, 48 h) | 5/5 | | the closed-form ceiling "
+     "1/sin(ω_f·T_s/4) = 15.1× against the measured 14.7–15.7×", "demo schuler-suppression-still",
+     ["=48", "claims:passed", "claims:total", "=1", "=4", "=15.1", "min(claim:still_base_ceiling)",
+      "max(claim:still_base_ceiling)"], 0.0),
     ("README.md", "`rotation-evaluation` (001, 144 h, 20 seeds) | 8/12", "demo rotation-evaluation",
      ["=1", "=144", "runs", "claims:passed", "claims:total"], 0.0),
-    ("README.md", "| 8/12 (paper: 6 of 9 reproduced · checks: 2 of 3) |", "demo rotation-evaluation",
+    ("README.md", "| 8/12 (paper: 7 of 9 reproduced · checks: 1 of 3) | 3 of 9 |", RE_ROBUST,
      ["claims:passed", "claims:total", "claims:passed@paper", "claims:total@paper", "claims:passed@check",
-      "claims:total@check"], 0.0),
+      "claims:total@check", "robust:paper", "claims:total@paper"], 0.0),
     ("README.md", "| `free-inertial` (2 h aircraft) | 8/8 |", "run free-inertial",
      ["=2", "claims:passed", "claims:total"], 0.0),
     ("README.md", "observability rank 5 per stop, 13 stacked", "demo rotation-evaluation",
@@ -672,26 +704,25 @@ QUOTED = [
     # "~16 h": both readings (σ reaching the drift, the error inside the band) within an hour of 16 h
     ("README.md", "settled after ~16 h by both causal readings", "demo rotation-evaluation",
      ["max(settle_sigma_h,settle_band_h)"], 0.5),
-    ("README.md", "from 15.4 h, median over seeds 15.0 h", "demo rotation-evaluation",
-     ["settle_band_h", "mc_settle_band_median_h"], 0.0),
-    ("README.md", "(mean 2.0e-5 °/h at β = 1,", "demo rotation-evaluation",
-     ["mc_windowed_std_mean_dph[2]", "=1"], 0.0),
-    ("README.md", "over seeds 1.072, 95 % interval [1.069, 1.075]", "demo rotation-evaluation",
-     ["eq20_ratio_mean", "=95", "eq20_ratio_ci95"], 0.0),
-    ("README.md", "with probability 0.60 [0.39, 0.78]", "demo rotation-evaluation",
-     ["ranking_probability", "ranking_probability_ci95"], 0.0),
-    ("README.md", "told on 70 % of seeds only", "demo rotation-evaluation",
-     ["100*p_distinguish_1p1_separate_ins"], 0.0),
-    ("README.md", "β = 1.1 told from 1.0 on 20/20 seeds", "demo rotation-evaluation",
-     ["=1.1", "=1.0", "claim:distinguish_1p1*runs", "runs"], 0.0),
-    ("README.md", "every window below 0.00005 °/h (fails at 16, 20, 28 h)", "demo rotation-evaluation",
-     ["=0.00005", "eps_z1_windows_failing_h[2]"], 0.0),
-    ("README.md", "a 48 h sine: −0.2)", "full rotation-evaluation --set analysis_two.trend=sine",
-     ["=48", "min(mc_trend_correlation_mean)"], 0.0),
+    ("README.md", "from 15.4 h, median over seeds 15.0 h; at half the drift 40.4 h)", "demo rotation-evaluation",
+     ["settle_band_h", "mc_settle_band_median_h", "settle_half_h[0]"], 0.0),
+    ("README.md", "β = 1.1 told from 1.0 on 20/20 seeds by construction (two separate INS: 15/20)",
+     "demo rotation-evaluation",
+     ["=1.1", "=1.0", "claim:distinguish_1p1*runs", "runs", "claim:distinguish_separate*runs", "runs"], 0.0),
+    ("README.md", "over seeds 1.072, 95 % interval [1.069, 1.075]: the variance grows with α, not as eq 20 taken "
+     "literally", "demo rotation-evaluation", ["eq20_ratio_mean", "=95", "eq20_ratio_ci95", "=20"], 0.0),
+    ("README.md", "with probability 0.60 [0.39, 0.78], above chance, not above 0.5 (and 0.15 with steps 1, 1.05, "
+     "1.1)", RE_ROBUST,
+     ["ranking_probability", "ranking_probability_ci95", "verdict:ranking_two@its interval above 0.5 (right more "
+      "often than not)=fail", "=0.5", "alt:ranking_two@1, 1.05, 1.1[0]", "=1", "=1.05", "=1.1"], 0.0),
+    ("README.md", "every window below 0.00005 °/h (fails at 16, 20, 28 h; the mean windowed std passes)",
+     RE_ROBUST, ["=0.00005", "eps_z1_windows_failing_h[2]",
+                 "verdict:eps_z1_stability@the mean windowed std, worst β=pass"], 0.0),
+    ("README.md", "tracking the warm-up trend (mean correlation 0.68, 0.58, 0.50 < 0.7; one realisation, as the "
+     "paper shows, 0.85, 0.78, 0.92)", "demo rotation-evaluation",
+     ["mc_trend_correlation_mean", "=0.7", "trend_correlation"], 0.0),
     ("README.md", "mounting within 1.5σ of the file's reference", TA + " --method kain --window 0:60",
      ["zmax(mounting_arcmin_kain_0_60s,ref_mounting_arcmin,mounting_sigma_arcmin_kain_0_60s)"], 0.0),
-    ("README.md", "flip at a master attitude error of 2′", "demo transfer-alignment",
-     ["master_error_sweep_arcmin[3]"], 0.0),
     # docs/methods/001.md, the paper's noise handling against white noise, and the sine trend
     # one verdict moves: the white run fails eps_z1_settles besides the demo run's four
     ("001.md", "falls from 34.6 h (fails)", WHITE,
@@ -699,7 +730,7 @@ QUOTED = [
      0.0),
     ("001.md", "to 15.4 h (holds;", "demo rotation-evaluation",
      ["settle_band_h", "claims:failed=distinguish_separate,eps_z1_stability,eq20_literal,tracks_trend"], 0.0),
-    ("001.md", "over seeds the median 19.0 →", WHITE, ["mc_settle_band_median_h"], 0.0),
+    ("001.md", "over seeds the median 19.1 →", WHITE, ["mc_settle_band_median_h"], 0.0),
     ("001.md", "→ 15.0 h, within 20 h on", "demo rotation-evaluation", ["mc_settle_band_median_h", "=20"], 0.0),
     ("001.md", "within 20 h on 65 →", WHITE, ["=20", "100*mc_settle_band_p_by_paper"], 0.0),
     ("001.md", "→ 85 % of seeds", "demo rotation-evaluation", ["100*mc_settle_band_p_by_paper"], 0.0),
@@ -709,11 +740,11 @@ QUOTED = [
      ["windowed_std_eps_z1_dph[2]", "=20"], 0.0),
     ("001.md", "the eq-20 ratio rises from 1.052", WHITE, ["=20", "eq20_ratio_mean"], 0.0),
     ("001.md", "to 1.072, the separate-INS", "demo rotation-evaluation", ["eq20_ratio_mean"], 0.0),
-    ("001.md", "fraction goes from 0.60", WHITE, ["p_distinguish_1p1_separate_ins"], 0.0),
-    ("001.md", "to 0.70; the stability claim", "demo rotation-evaluation", ["p_distinguish_1p1_separate_ins"], 0.0),
+    ("001.md", "fraction goes from 0.55", WHITE, ["p_distinguish_1p1_separate_ins"], 0.0),
+    ("001.md", "to 0.75; the stability claim", "demo rotation-evaluation", ["p_distinguish_1p1_separate_ins"], 0.0),
     ("001.md", "its failing windows 16, 20, 24, 28 h white", WHITE, ["eps_z1_windows_failing_h[2]"], 0.0),
     ("001.md", "16, 20, 28 h de-meaned", "demo rotation-evaluation", ["eps_z1_windows_failing_h[2]"], 0.0),
-    ("001.md", "correlation −0.20, −0.20, −0.19 over seeds (this run 0.15, −0.13, 0.03)",
+    ("001.md", "correlation −0.21, −0.20, −0.19 over seeds (this run 0.15, −0.13, 0.03)",
      "full rotation-evaluation --set analysis_two.trend=sine", ["mc_trend_correlation_mean", "trend_correlation"], 0.0),
     ("001.md", "| correlation with the true drift after 16 h, paper model | −0.06 | −0.18 | 0.16 |", RW,
      ["=16", "trend_correlation"], 0.0),
@@ -724,9 +755,7 @@ QUOTED = [
     ("001.md", "| the same with the random walk [°/h] | 1.35e-4 | 1.33e-4 | 1.56e-4 |", RW,
      ["windowed_std_two_rw_dph"], 0.0),
     ("001.md", "Full run of the sine variant, seed 1 (144 h, 100 Hz,", RW, ["=1", "=144", "=100"], 0.0),
-    ("README.md", "(mean correlation 0.67, 0.58, 0.50", "demo rotation-evaluation",
-     ["mc_trend_correlation_mean"], 0.0),
-    ("README.md", "`free-inertial-mc200` | 15/15 | Monte Carlo RMS / covariance σ in 0.86–1.13",
+    ("README.md", "`free-inertial-mc200` | 15/15 | | Monte Carlo RMS / covariance σ in 0.86–1.13",
      "demo free-inertial-mc200",
      ["=200", "claims:passed", "claims:total", "mc_rms_over_sigma_min", "mc_rms_over_sigma_max"], 0.0),
     ("README.md", "(chi-square band for 200 runs: 0.8–1.2)", "demo free-inertial-mc200",
@@ -746,6 +775,39 @@ QUOTED = [
      "run static-alignment --set 'scenario.duration=60 min' --set 'imu.gyro_arw=0.001 deg/h/sqrt(Hz)'",
      ["=0.001", "=0.001", "final_sigma_epsU_dph_reduced", "=60"], 0.0),
     # docs/methods/000.md, the PSINS laser-gyro record aligned (the command the page shows)
+    # docs/cli.md, the terminal's count of robust paper claims (static-alignment --robustness)
+    ("cli.md", "robust paper claims (`paper: 7 of 7 reproduced, 3 robust`)", SA_ROBUST,
+     ["claims:passed@paper", "claims:total@paper", "robust:paper"], 0.0),
+    # docs/methods/000.md, what the verdicts rest on (the full --robustness run)
+    ("000.md", "| `margin_phiE` | pass, 0.098′ ≤ 0.15′ | depends on: the bar | the paper's ≈0.07′ fails it (open loop "
+     "adds ½φN·φU); closed loop 0.0035′ passes any bar |", SA_ROBUST,
+     ["claim:margin_phiE", "=0.15", "label:margin_phiE=depends on: bar on |phiE − limit|",
+      "verdict:margin_phiE@the paper's figure 0.07 ′=fail", "=0.07",
+      "alt:margin_phiE@closed loop (filter.feedback)"], 0.0),
+    ("000.md", "| `margin_phiU` | pass, 0.13′ ≤ 2′ | robust | the paper's low end, 1′, passes too; the worst alternative "
+     "0.59′ (seed 1) |", SA_ROBUST,
+     ["claim:margin_phiU", "=2", "label:margin_phiU=robust", "=1", "alt:margin_phiU@seed 1", "=1"], 0.0),
+    ("000.md", "| `margin_epsN` | pass, 0.0023 °/h ≤ 3σ = 0.0053 °/h | depends on: the bar | the paper's ≈0.002 °/h alone "
+     "fails it |", SA_ROBUST,
+     ["claim:margin_epsN", "=3", "3*final_sigma_epsN_dph_reduced", "label:margin_epsN=depends on: bar on |epsN − limit|",
+      "verdict:margin_epsN@the paper's figure 0.002 °/h=fail", "=0.002"], 0.0),
+    ("000.md", "| `epsU_1200s` | pass, σ(εU) still 99 % of its initial value | robust | 88 % with the literal gyro noise |",
+     SA_ROBUST, ["=1200", "100*claim:epsU_1200s", "label:epsU_1200s=robust",
+                 "100*alt:epsU_1200s@white rate noise 0.001 °/h/√Hz (the literal reading)"], 0.0),
+    ("000.md", "| `full_vs_reduced` | pass, Δφ_E 0.005′ | depends on: the ∇ prior | a 1000 µg prior (10× the project's): "
+     "Δφ_E 0.29′ at 1200 s, 1.0′ in the noise-free limit (`alignment.full_filter_limit`, closed form); 100 µg: 0.032′ "
+     "in that limit |", SA_ROBUST,
+     ["claim:full_vs_reduced[0]", "label:full_vs_reduced=depends on: ∇ prior of the full filter", "=1000", "=10",
+      "alt:full_vs_reduced@1000 µg[0]", "=1200",
+      "alt:full_vs_reduced@1000 µg; noise-free limit t → ∞ (closed form: the full filter's prior split against the "
+      "paper's limit)[0]", "=100",
+      "alt:full_vs_reduced@noise-free limit t → ∞ (closed form: the full filter's prior split against the paper's "
+      "limit)[0]"], 0.0),
+    ("000.md", "| `reduced_cheaper` | pass | decided by construction | 5 states against 8 |", SA_ROBUST,
+     ["label:reduced_cheaper=decided by construction: 5 states against 8: the flop count follows from the "
+      "dimensions, the compiled loop's time with it", "=5", "=8"], 0.0),
+    ("000.md", "| `obs_rank` | pass, 5 and 5 | robust | rank tolerance 1e-6 to 1e-12, other sites and seeds |", SA_ROBUST,
+     ["claim:obs_rank", "label:obs_rank=robust", "=1e-6", "=1e-12"], 0.0),
     ("000.md", "1847 s at 100 Hz", ALIGN, ["duration_s", "=100"], 0.0),
     ("000.md", "force has a magnitude of 9.79548 m/s², within 5 µg of the local normal gravity (9.79553 m/s²) "
      "once the counts are scaled with the header's g; its horizontal part is a 0.93° pitch / 0.36° roll tilt — but "
@@ -769,19 +831,62 @@ QUOTED = [
     ("001.md", "| rank 5 per stop, 13 stacked | paper | 5, 13 (cumulative 5, 8, 11, 11, 11, 13) | holds |",
      "demo rotation-evaluation", ["=5", "=13", "obs_rank_static", "obs_rank_schedule",
                                   *(f"obs_rank_by_segment[{i}]" for i in range(6))], 0.0),
-    ("001.md", "the windows above the limit start at 16, 20, 28 h for every β (16 and 28 h at β = 0.8, also 56 h at "
-     "β = 1.5), the worst 1.1e-4 °/h", "demo rotation-evaluation",
-     ["eps_z1_windows_failing_h[2]", "eps_z1_windows_failing_h[0]", "=0.8", "max(eps_z1_windows_failing_h[5])",
-      "=1.5", "max(eps_z1_windows_worst_dph)"], 0.0),
+    ("001.md", "read as every 4 h window after 16 h: the windows above the limit start at 16, 20, 28 h for every β "
+     "but 0.8 (16, 28 h; also 56 h at β = 1.5), the worst 1.1e-4 °/h", "demo rotation-evaluation",
+     ["=4", "=16", "eps_z1_windows_failing_h[2]", "=0.8", "eps_z1_windows_failing_h[0]",
+      "max(eps_z1_windows_failing_h[5])", "=1.5", "max(eps_z1_windows_worst_dph)"], 0.0),
+    ("001.md", "depends on the reading: the mean windowed std (2.0e-5 °/h at β = 1, worst β 2.7e-5) passes, one std "
+     "over the whole span from 16 h (7.8e-5 °/h at β = 1) fails", RE_ROBUST,
+     ["label:eps_z1_stability=depends on: reading of 'stability'", "windowed_std_eps_z1_dph[2]", "=1",
+      "max(windowed_std_eps_z1_dph)", "=16", "eps_z1_std_after_start_dph[2]", "=1"], 0.0),
+    ("001.md", "depends on the level of \"stable\": at ½\\|ε_z1\\| (known to within half of itself) 40.4 h and "
+     "35.6 h; and on the realisation: with seed 1 the band reading is 20.2 h", RE_ROBUST,
+     ["=1", "label:eps_z1_settles=depends on: level of 'relatively stable', noise realisation", "settle_half_h", "=1",
+      "alt:eps_z1_settles@seed 1[1]"], 0.0),
+    ("001.md", "| ε_z1 estimate within 3σ of the truth | check | error 2.4e-6 °/h, σ 1.2e-4 °/h | holds | robust |",
+     RE_ROBUST, ["=1", "=3", "claim:eps_z1_accuracy", "eps_z1_sigma_final_dph", "label:eps_z1_accuracy=robust"], 0.0),
+    ("001.md", "| holds | decided by construction: one record rescaled by β |", RE_ROBUST,
+     ["label:monotone_in_beta=decided by construction: one noise record rescaled by β: its windowed std scales "
+      "with β nearly in proportion"], 0.0),
+    ("001.md", "| holds | decided by construction; two separate INS 10 % apart: 15/20 |", RE_ROBUST,
+     ["label:distinguish_1p1=decided by construction: one noise record rescaled by β: its windowed std scales "
+      "with β nearly in proportion", "=10", "claim:distinguish_separate*runs", "runs",
+      "verdict:distinguish_1p1@two separate INS 1.1× apart=fail"], 0.0),
+    ("001.md", "| **fails** the 90 % bar | depends on the bar (the project's): more often than not, it holds |",
+     RE_ROBUST, ["=90", "label:distinguish_separate=depends on: bar on a fraction of seeds",
+                 "verdict:distinguish_separate@more often than not (0.5)=pass"], 0.0),
+    ("001.md", "| holds | depends on the bar and on the noise steps: the interval is not above 0.5 nor the probability 0.9; "
+     "with steps 1, 1.05, 1.1 instead of 1, 1.15, 1.5 (neither is in the paper) 0.15 [0.05, 0.36] |", RE_ROBUST,
+     ["label:ranking_two=depends on: bar on the ranking probability, noise steps of INS #2..#4", "=0.5", "=0.9",
+      "=1", "=1.05", "=1.1", "=1", "=1.15", "=1.5", "alt:ranking_two@1, 1.05, 1.1"], 0.0),
+    ("001.md", "| **fails** | depends on the realisation and the bar: this run alone (the paper shows one) 0.85, 0.78, "
+     "0.92 passes, so does a 0.5 bar; a 48 h sine trend fails every reading |", RE_ROBUST,
+     ["label:tracks_trend=depends on: realisation, bar on the correlation", "trend_correlation", "=0.5", "=48",
+      "verdict:tracks_trend@a sine of 48 h=fail"], 0.0),
+    ("001.md", "| eq 19–20: the variance grows with α (σ ratio at β = 1.1 over seeds above 1) | paper | 1.072, [1.069, "
+     "1.075] | holds | robust", RE_ROBUST,
+     ["=19", "=20", "=1.1", "=1", "eq20_ratio_mean", "eq20_ratio_ci95", "label:eq20_grows=robust"], 0.0),
+    ("001.md", "robust (white INS #1: 1.052) |", WHITE, ["=1", "eq20_ratio_mean"], 0.0),
+    ("001.md", "| eq 20 taken literally: ratio β = 1.1 (the project's inference) | check | as above | **fails** | "
+     "robust: only INS #2's gyro noise is scaled |", RE_ROBUST,
+     ["=20", "=1.1", "label:eq20_literal=robust", "=2"], 0.0),
+    ("001.md", "| rank 5 per stop, 13 stacked | paper | 5, 13 (cumulative 5, 8, 11, 11, 11, 13) | holds | robust (rank "
+     "tolerance 1e-6 to 1e-12) |", RE_ROBUST,
+     ["label:obs_rank_static=robust", "label:obs_rank_schedule=robust", "=5", "=13", "=5", "=13", "=5", "=8", "=11",
+      "=11", "=11", "=13", "=1e-6", "=1e-12"], 0.0),
+    ("001.md", "The project's additions change no verdict: the dual-axis INS's trend moves no claim (the white "
+     "alternative gives the same verdicts", RE_ROBUST,
+     [f"verdict:{c}@white (the project's former default)={v}" for c, v in (
+         ("eps_z1_stability", "fail"), ("eps_z1_settles", "pass"), ("eps_z1_accuracy", "pass"),
+         ("monotone_in_beta", "pass"), ("distinguish_1p1", "pass"), ("distinguish_separate", "fail"),
+         ("ranking_two", "pass"), ("tracks_trend", "fail"), ("eq20_grows", "pass"), ("eq20_literal", "fail"))], 0.0),
     ("001.md", "| windowed std monotone in β (one record rescaled) | paper | 20/20 seeds;", "demo rotation-evaluation",
      ["claim:monotone_in_beta*runs", "runs"], 0.0),
     ("001.md", "| β = 1.1 told from 1.0 (one record rescaled) | paper | 20/20 seeds |", "demo rotation-evaluation",
      ["=1.1", "=1.0", "claim:distinguish_1p1*runs", "runs"], 0.0),
-    ("001.md", "| two separate INS, 10 % noise difference | check | 14/20 seeds (70 %) | **fails** the 90 % bar",
+    ("001.md", "| two separate INS, 10 % noise difference | check | 15/20 seeds (75 %) | **fails** the 90 % bar",
      "demo rotation-evaluation", ["=10", "claim:distinguish_separate*runs", "runs", "100*claim:distinguish_separate",
                                   "=90"], 0.0),
-    ("001.md", "mean windowed std 2.0e-5 °/h at β = 1;", "demo rotation-evaluation",
-     ["mc_windowed_std_mean_dph[2]", "=1"], 0.0),
     ("001.md", "the worst 1.1e-4 °/h", "demo rotation-evaluation", ["max(eps_z1_windows_worst_dph)"], 0.0),
     ("001.md", "σ reading 16.0 h, band reading 15.4 h; over 20 seeds the band reading's median is 15.0 h "
      "and 85 % of seeds are within 20 h", "demo rotation-evaluation",
@@ -789,23 +894,20 @@ QUOTED = [
       "=20"], 0.0),
     ("001.md", "error 2.4e-6 °/h, σ 1.2e-4 °/h", "demo rotation-evaluation",
      ["claim:eps_z1_accuracy", "eps_z1_sigma_final_dph"], 0.0),
-    ("001.md", "probability 0.60, 95 % interval [0.39, 0.78]", "demo rotation-evaluation",
-     ["ranking_probability", "=95", "ranking_probability_ci95"], 0.0),
-    ("001.md", "filters 2, 3, 4: 0.67, 0.58, 0.50 (this run alone: 0.85, 0.78, 0.92)", "demo rotation-evaluation",
-     ["=2", "=3", "=4", "mc_trend_correlation_mean", "trend_correlation"], 0.0),
-    ("001.md", "| check | 1.072, [1.069, 1.075] |", "demo rotation-evaluation",
-     ["eq20_ratio_mean", "eq20_ratio_ci95"], 0.0),
+    ("001.md", "probability of the right ranking 0.60, 95 % interval [0.39, 0.78], above chance (1/6)",
+     "demo rotation-evaluation", ["ranking_probability", "=95", "ranking_probability_ci95", "=1", "=6"], 0.0),
+    ("001.md", "filters 2, 3, 4: 0.68, 0.58, 0.50 |", "demo rotation-evaluation",
+     ["=2", "=3", "=4", "mc_trend_correlation_mean"], 0.0),
     ("001.md", "with INS #1 white (share 0.50) σ ratio 1.051 predicted", "demo rotation-evaluation",
      ["=1", "eq20_noise_share_gyro_k", "eq20_sigma_ratio_predicted"], 0.0),
     ("001.md", "the 1.0996 of INS #1's share left out entirely", "demo rotation-evaluation",
      ["eq20_sigma_ratio_predicted_blocks", "=1"], 0.0),
     ("001.md", "more: 1.072 [1.069, 1.075] — between the white prediction", "demo rotation-evaluation",
      ["eq20_ratio_mean", "eq20_ratio_ci95"], 0.0),
-    ("001.md", "seed 0, 20 linear-domain seeds): **paper: 6 of 9 reproduced · checks: 2 of 3**",
+    ("001.md", "seed 0, 20 linear-domain seeds): **paper: 7 of 9 reproduced · checks: 1 of 3**",
      "demo rotation-evaluation", ["=0", "runs", "claims:passed@paper", "claims:total@paper", "claims:passed@check",
                                   "claims:total@check"], 0.0),
-    ("001.md", 'read it as "right 6 times in 10"', "demo rotation-evaluation", ["10*ranking_probability", "=10"], 0.0),
-    ("001.md", "windowed std at β = 1 over 20 seeds 2.00e-5 ± 0.19e-5 °/h, the nonlinear run 2.03e-5 °/h",
+    ("001.md", "windowed std at β = 1 over 20 seeds 1.99e-5 ± 0.19e-5 °/h, the nonlinear run 2.03e-5 °/h",
      "demo rotation-evaluation", ["=1", "runs", "mc_windowed_std_mean_dph[2]", "mc_windowed_std_sd_dph[2]",
                                   "windowed_std_eps_z1_dph[2]"], 0.0),
     ("001.md", "(INS #1 de-meaned; white: 2.38e-5 ± 0.21e-5 and 2.28e-5)", WHITE,
@@ -821,7 +923,7 @@ QUOTED = [
      ["imu_samples_per_ins/1e6", "=144", "=100"], 0.0),
     ("001.md", "(cycles 1264 s and 5136 s;", "demo rotation-evaluation", ["rotation_cycle_s"], 0.0),
     ("001.md", "Each INS is 52 M samples at full scale", "demo rotation-evaluation", ["imu_samples_per_ins/1e6"], 0.0),
-    ("001.md", "rank INS #2..#4 as their RMS position errors (0.73, 0.80, 1.52 nmi) do", RW,
+    ("001.md", "rank INS #2..#4 as their RMS position errors (0.73, 0.80, 1.51 nmi) do", RW,
      ["=2", "=4", "pos_err_rms_nmi[1]", "pos_err_rms_nmi[2]", "pos_err_rms_nmi[3]"], 0.0),
     # docs/methods/002.md, the recorded car data: every form and window, and the process noise
     *[("002.md", row, TA_ALL,
@@ -844,87 +946,66 @@ QUOTED = [
     ("002.md", "at 0.3°/√h the z bias (75 vs 84.5°/h) is 5σ off", TA_PN + " --gyro-arw '0.3 deg/sqrt(h)'",
      ["=0.3", "gyro_bias_dph_optimal_0p1_100s[2]", "ref_gyro_bias_dph[2]",
       "zmax(gyro_bias_dph_optimal_0p1_100s,ref_gyro_bias_dph,gyro_bias_sigma_dph_optimal_0p1_100s)"], 0.0),
-    # docs/methods/002.md, its results table (arcmin) and the C22 = 0 case
+    # docs/methods/002.md, its results table (arcmin) at the paper's 5 s and the C22 = 0 case
     *[("002.md", f"| {form}, {case} | {est} | {row}", "demo transfer-alignment",
        [f"{k}_{form}_{case}" for k in (
-           "misalign_rms_5s_arcmin", "misalign_sigma_5s_arcmin", "misalign_rms_end_arcmin",
-           "misalign_sigma_end_arcmin", "rms_over_sigma", *(("rms_over_sigma_rotvec",) if "same" not in row else ()),
-           "diverged_runs", "margin")], 0.0)
+           "misalign_rms_end_arcmin", "misalign_sigma_end_arcmin", "rms_over_sigma",
+           *(("rms_over_sigma_rotvec",) if "same" not in row else ()), "diverged_runs", "margin")], 0.0)
       for form, case, est, row in [
-          ("euler", "large", "Euler", "2.20, 2.24, 2.93 | 0.97, 1.85, 1.14 | 2.29, 0.90, 0.70 | 0.22, 0.73, 0.19 | "
-           "10.2, 1.23, 3.59 | 1717, 95, 479 | 0 | **fails** (−7.2) |"),
-          ("optimal", "large", "rot. vector", "1.15, 2.06, 1.04 | 1.13, 1.82, 1.03 | 0.27, 0.85, 0.23 | "
-           "0.24, 0.71, 0.24 | 1.15, 1.19, 0.98 | the same | 0 | converges (+1.81) |"),
-          ("euler", "small", "Euler", "0.96, 1.77, 1.14 | 0.96, 1.68, 1.13 | 0.17, 0.83, 0.18 | 0.18, 0.58, 0.18 | "
-           "0.99, 1.44, 1.00 | 5.91, 2.15, 7.13 | 0 | converges (+1.56) |"),
-          ("dcm", "small", "Euler", "1.24, 1.77, 1.10 | 1.16, 1.68, 1.13 | 0.25, 0.80, 0.18 | 0.25, 0.58, 0.18 | "
-           "1.01, 1.37, 1.01 | 4.07, 2.48, 7.37 | 0 | converges (+1.63) |"),
-          ("kain", "small", "rot. vector", "0.93, 1.77, 1.30 | 0.96, 1.68, 1.13 | 0.17, 0.81, 0.18 | "
-           "0.18, 0.58, 0.18 | 0.98, 1.39, 1.01 | the same | 0 | converges (+1.61) |"),
-          ("optimal", "small", "rot. vector", "0.94, 1.77, 1.17 | 0.96, 1.68, 1.13 | 0.17, 0.81, 0.18 | "
-           "0.18, 0.58, 0.18 | 0.98, 1.39, 1.00 | the same | 0 | converges (+1.61) |")]],
-    ("002.md", "| dcm, large | Euler | – | – | – | – | – | – | **200** | **fails** |", "demo transfer-alignment",
+          ("euler", "large", "Euler", "2.74, 6.08, 1.55 | 0.60, 1.49, 0.62 | 4.55, 4.08, 2.49 | 641, 43, 150 | 0 | "
+           "**fails** (−1.55) |"),
+          ("optimal", "large", "rot. vector", "0.66, 1.51, 0.60 | 0.68, 1.46, 0.62 | 0.97, 1.03, 0.97 | the same | 0 | "
+           "converges (+1.97) |"),
+          ("euler", "small", "Euler", "0.62, 1.58, 0.58 | 0.58, 1.47, 0.62 | 1.06, 1.07, 0.94 | 2.18, 1.24, 2.18 | 0 | "
+           "converges (+1.93) |"),
+          ("dcm", "small", "Euler", "0.75, 1.53, 0.64 | 0.76, 1.48, 0.62 | 0.99, 1.04, 1.04 | 1.51, 1.31, 2.42 | 0 | "
+           "converges (+1.96) |"),
+          ("kain", "small", "rot. vector", "0.60, 1.57, 0.58 | 0.58, 1.47, 0.62 | 1.03, 1.06, 0.94 | the same | 0 | "
+           "converges (+1.94) |"),
+          ("optimal", "small", "rot. vector", "0.60, 1.56, 0.58 | 0.58, 1.47, 0.62 | 1.02, 1.06, 0.94 | the same | 0 | "
+           "converges (+1.94) |")]],
+    ("002.md", "| dcm, large | Euler | – | – | – | – | **200** | **fails** |", "demo transfer-alignment",
      ["diverged_runs_dcm_large"], 0.0),
-    ("002.md", "| kain, large | rot. vector | – | – | – | – | – | – | **200** | **fails** |",
+    ("002.md", "| kain, large | rot. vector | – | – | – | – | **200** | **fails** |",
      "demo transfer-alignment", ["diverged_runs_kain_large"], 0.0),
-    ("002.md", "the DCM form's heading error at the end 34.4′ RMS (its σ 53.7′) against 0.53′ for Kain's",
+    ("002.md", "### Results at the paper's 5 s (200 runs;", "demo transfer-alignment",
+     ["=5", "runs", "claims:failed="], 0.0),
+    ("002.md", "the DCM form's heading error at the end 19.4′ RMS (its σ 59.6′) against 0.62′ for Kain's",
      "demo transfer-alignment", ["dcm_heading_rms_c22zero_arcmin", "dcm_heading_sigma_c22zero_arcmin",
                                  "kain_heading_rms_c22zero_arcmin"], 0.0),
-    # docs/methods/002.md, the sweeps (worst-axis RMS/σ at the end)
-    ("002.md", "| attitude noise (drawn = assumed) | 0.1′ | 0.3′ | 1′ | 3′ | 10′ |", "demo transfer-alignment",
-     ["noise_sweep_arcmin"], 0.0),
-    ("002.md", "| euler, large | no (12.2) | no (11.7) | no (10.2) | no (5.3) | no (4.7) |", "demo transfer-alignment",
-     ["rms_over_sigma_euler_large_by_noise"], 0.0),
-    ("002.md", "| dcm, large | all diverge | all diverge | all diverge | all diverge | no (793) |",
-     "demo transfer-alignment", ["rms_over_sigma_dcm_large_by_noise[4]"], 0.0),
-    ("002.md", "| kain, large | all diverge | all diverge | all diverge | no (111) | no (36) |", "demo transfer-alignment",
-     ["rms_over_sigma_kain_large_by_noise[3]", "rms_over_sigma_kain_large_by_noise[4]"], 0.0),
-    ("002.md", "| master attitude error (1σ per axis) | 0′ | 0.3′ | 1′ | 2′ | 3′ |", "demo transfer-alignment",
-     ["=1", "master_error_sweep_arcmin"], 0.0),
-    ("002.md", "moves no verdict between 0.1′ and 10′ once the slave is closed loop (the DCM form on the small "
-     "installation comes to 2.98 at 0.1′", "demo transfer-alignment",
-     ["noise_sweep_arcmin[0]", "noise_sweep_arcmin[4]", "rms_over_sigma_dcm_small_by_noise[0]",
-      "noise_sweep_arcmin[0]"], 0.0),
-    ("002.md", "from 2′ (1σ per axis) no form passes on the small installation, from 3′ not even method 4",
-     "demo transfer-alignment", ["master_error_sweep_arcmin[3]", "=1", "master_error_sweep_arcmin[4]", "=4"], 0.0),
-    ("002.md", "The y axis sits at RMS/σ 1.37–1.44 for every form", "demo transfer-alignment",
-     [f"{fn}({','.join(f'rms_over_sigma_{f}_small[1]' for f in ('euler', 'dcm', 'kain', 'optimal'))})"
-      for fn in ("min", "max")], 0.0),
-    ("002.md", "attitude error (0.5′), which the filter does not model (worst axis 1.08–1.12 without it",
-     "demo transfer-alignment",
-     ["=0.5", *(f"{fn}({','.join(f'rms_over_sigma_{f}_small_by_master_error[0]' for f in ('euler', 'dcm', 'kain', 'optimal'))})"
-                for fn in ("min", "max"))], 0.0),
-    ("002.md", "φU column of H 2e-16, rank 2", "demo transfer-alignment",
-     ["dcm_phiU_H_norm_c22zero", "dcm_H_rank_c22zero"], 0.0),
-    ("002.md", "| optimal, large | yes (1.18) | yes (1.17) | yes (1.16) | yes (1.14) | yes (1.09) |",
-     "demo transfer-alignment", ["rms_over_sigma_optimal_large_by_noise"], 0.0),
-    ("002.md", "| euler / kain / optimal, small | yes (1.46–1.48) | yes (1.46–1.48) | yes (1.45–1.47) | "
-     "yes (1.43–1.45) | yes (1.28–1.31) |", "demo transfer-alignment",
-     [f"{fn}({','.join(f'rms_over_sigma_{f}_small_by_noise[{i}]' for f in ('euler', 'kain', 'optimal'))})"
-      for i in range(5) for fn in ("min", "max")], 0.0),
-    ("002.md", "| dcm, small | yes (**2.98**) | yes (1.51) | yes (1.51) | yes (1.49) | yes (1.36) |",
-     "demo transfer-alignment", ["rms_over_sigma_dcm_small_by_noise"], 0.0),
-    ("002.md", "| euler, large | no (10.2) | no (10.2) | no (10.3) | no (10.3) | no (10.3) |",
-     "demo transfer-alignment", ["rms_over_sigma_euler_large_by_master_error"], 0.0),
-    ("002.md", "| optimal, large | yes (1.04) | yes (1.07) | yes (1.65) | yes (2.82) | **no (4.05)** |",
-     "demo transfer-alignment", ["rms_over_sigma_optimal_large_by_master_error"], 0.0),
-    ("002.md", "| every form, small | yes (1.08–1.12) | yes (1.26–1.31) | yes (2.08–2.14) | **no (3.56–3.62)** | "
-     "**no (5.11–5.18)** |", "demo transfer-alignment",
-     [f"{fn}({','.join(f'rms_over_sigma_{f}_small_by_master_error[{i}]' for f in ('euler', 'dcm', 'kain', 'optimal'))})"
-      for i in range(5) for fn in ("min", "max")], 0.0),
-    ("002.md", "(large: worst RMS/σ 1.22 euler, 1.30 dcm, 1.19 kain", "demo transfer-alignment",
+    ("002.md", "(worst RMS/σ 1.06 euler, 1.04 dcm, 1.03 kain", "demo transfer-alignment",
      [f"max(rms_over_sigma_{f}_comp_large)" for f in ("euler", "dcm", "kain")], 0.0),
-    ("002.md", "estimate ends 2.3′ off in x at σ 0.22′ (10σ)", "demo transfer-alignment",
-     ["misalign_rms_end_arcmin_euler_large[0]", "misalign_sigma_end_arcmin_euler_large[0]",
-      "rms_over_sigma_euler_large[0]"], 0.0),
-    ("002.md", "The Euler and DCM forms \"fail\" at 4–7σ only", "demo transfer-alignment",
-     [f"{fn}({','.join(f'rms_over_sigma_rotvec_{f}_small[{i}]' for f in ('euler', 'dcm') for i in (0, 2))})"
-      for fn in ("min", "max")], 0.0),
-    ("002.md", "0.10, 0.01, 0.17′ RMS for the optimal form, 0.4–0.9′ for the uncompensated forms on the small "
-     "installation", "demo transfer-alignment",
-     ["linear_minus_strapdown_rms_arcmin_optimal_small",
-      "min(linear_minus_strapdown_rms_arcmin_euler_small,linear_minus_strapdown_rms_arcmin_dcm_small)",
-      "max(linear_minus_strapdown_rms_arcmin_euler_small,linear_minus_strapdown_rms_arcmin_dcm_small)"], 0.0),
+    ("002.md", "The EKF forms of methods 1–3 (re-linearised at the estimate) converge on none of them in 5 s. The "
+     "linear model and the mechanised slaves give the same verdict on 14 of the 14 forms and installations.",
+     "demo transfer-alignment", ["=1", "=3", "=5", "linear_verdicts_agree", "linear_verdicts_total",
+                                 "claims:failed="], 0.0),
+    ("002.md", "estimate ends 4.55σ off in x;", "demo transfer-alignment", ["rms_over_sigma_euler_large[0]"], 0.0),
+    # docs/methods/002.md, what the verdicts rest on (the sweep of the full --robustness run)
+    ("002.md", "| methods 1–3 fail on the large installation | pass | depends on: convergence bar, horizon, wing-rock "
+     "onset | the Euler form converges with a 5σ bar (4.55σ), with the wing rock building up over 3 s instead of "
+     "1.25 s, and at 5 s inside a 60 s run with a 6 s onset", TA_ROBUST,
+     ["=1", "=3", "label:large_methods_1_3_fail=depends on: convergence bar, horizon, wing-rock onset", "=5",
+      "rms_over_sigma_euler_large[0]", "=3", "=1.25", "=5", "=60", "=6",
+      "verdict:large_methods_1_3_fail@RMS ≤ 5 σ=fail", "verdict:large_methods_1_3_fail@3 s=fail"], 0.0),
+    ("002.md", "| method 4 converges on the large installation | pass | robust | no alternative moves it: master errors "
+     "up to 3′, 60 s, any onset, attitude noise 0.1–10′, velocity noise 0.1 m/s, another seed |", TA_ROBUST,
+     ["=4", "label:large_method_4_converges=robust", "=3", "=60", "=0.1", "=10", "=0.1"], 0.0),
+    ("002.md", "| all four converge on the small installation | pass | depends on: attitude measurement noise | with "
+     "0.1′ attitude noise the Euler, DCM and Kain forms miss the 3σ bar in 5 s; in a 60 s run the Euler and DCM "
+     "estimates scored as rotation vectors fail, scored as they estimate they pass |", TA_ROBUST,
+     ["label:small_all_converge=depends on: attitude measurement noise", "=0.1", "=3", "=5", "=60",
+      "verdict:small_all_converge@0.1′=fail",
+      "verdict:small_all_converge@a 60 s run, 6 s onset (the project's former default); every estimate read as a "
+      "rotation vector=fail",
+      "verdict:small_all_converge@a 60 s run, 6 s onset (the project's former default)=pass"], 0.0),
+    ("002.md", "| DCM at C22 = 0: heading ≥ 2 × Kain's | pass | robust | from 31× down to 3.6× at 10′ attitude noise |",
+     TA_ROBUST, ["=22", "=0", "=2", "label:c22_heading_worse=robust", "claim:c22_heading_worse",
+                 "alt:c22_heading_worse@10′", "=10"], 0.0),
+    ("002.md", "| φU column of H vanishes at C22 = 0 | pass | decided by construction |", TA_ROBUST,
+     ["=22", "=0", "label:c22_phiU_column_zero=decided by construction: the flight is set at heading 90°, where "
+      "C22 = cos θ cos ψ is zero whatever the wing rock"], 0.0),
+    ("002.md", "move no verdict at the paper's 5 s horizon, nor do 1′, 2′ or 3′", TA_ROBUST,
+     ["=5", "verdict:small_all_converge@1′=pass", "=1", "verdict:small_all_converge@2′=pass", "=2", "verdict:small_all_converge@3′=pass", "=3"], 0.0),
     ("002.md", "agrees with central differences of its exact z to 8e-10 relative", "demo transfer-alignment",
      ["h_fd_max_rel_err"], 0.0),
     ("002.md", "`dcm_phiU_H_norm_c22zero` = 2e-16, rank of H over [φ, λ] 2", "demo transfer-alignment",
@@ -975,6 +1056,61 @@ QUOTED = [
     ("003.md", "horizontal position, path filter | 0.990", "demo double-star-ranges",
      ["claim:ranges_mc_consistent_pos"], 0.0),
     ("003.md", "100 runs, seed 0 (the demo variant)", "demo double-star-ranges", ["runs", "=0"], 0.0),
+    # docs/methods/003.md and 004.md, what the verdicts rest on (the full --robustness runs)
+    ("003.md", "Every verdict is robust: the lag-aware / lag-ignoring ratio stays 0.25–0.37, the lag-aware / zero-lag "
+     "ratio 1.006–1.009, the Monte Carlo RMS / σ 0.94–1.05.", DS_ROBUST,
+     [*(f"label:{c}=robust" for c in ("lagaware_beats_lagignore", "lagaware_near_zerolag", "mc_consistent_pos",
+                                       "mc_consistent_att", "fixes_reduce_error", "fixes_reduce_sigma")),
+      "min(claim:lagaware_beats_lagignore,alt:lagaware_beats_lagignore@derived: (R_N + h)/r_GEO,alt:lagaware_beats_lagignore@ten times it,alt:lagaware_beats_lagignore@300 s each,alt:lagaware_beats_lagignore@correlated as eqs 11-15 give them,alt:lagaware_beats_lagignore@± 0.5 s)",
+      "max(claim:lagaware_beats_lagignore,alt:lagaware_beats_lagignore@derived: (R_N + h)/r_GEO,alt:lagaware_beats_lagignore@ten times it,alt:lagaware_beats_lagignore@300 s each,alt:lagaware_beats_lagignore@correlated as eqs 11-15 give them,alt:lagaware_beats_lagignore@± 0.5 s)",
+      "min(claim:lagaware_near_zerolag,alt:lagaware_near_zerolag@derived: (R_N + h)/r_GEO,alt:lagaware_near_zerolag@ten times it,alt:lagaware_near_zerolag@300 s each,alt:lagaware_near_zerolag@correlated as eqs 11-15 give them,alt:lagaware_near_zerolag@± 0.5 s)",
+      "max(claim:lagaware_near_zerolag,alt:lagaware_near_zerolag@derived: (R_N + h)/r_GEO,alt:lagaware_near_zerolag@ten times it,alt:lagaware_near_zerolag@300 s each,alt:lagaware_near_zerolag@correlated as eqs 11-15 give them,alt:lagaware_near_zerolag@± 0.5 s)",
+      "min(claim:mc_consistent_pos,alt:mc_consistent_pos@derived: (R_N + h)/r_GEO,alt:mc_consistent_pos@ten times it,alt:mc_consistent_pos@300 s each,alt:mc_consistent_pos@correlated as eqs 11-15 give them,alt:mc_consistent_pos@± 0.5 s,claim:mc_consistent_att,alt:mc_consistent_att@derived: (R_N + h)/r_GEO,alt:mc_consistent_att@ten times it,alt:mc_consistent_att@300 s each,alt:mc_consistent_att@correlated as eqs 11-15 give them,alt:mc_consistent_att@± 0.5 s)",
+      "max(claim:mc_consistent_pos,alt:mc_consistent_pos@derived: (R_N + h)/r_GEO,alt:mc_consistent_pos@ten times it,alt:mc_consistent_pos@300 s each,alt:mc_consistent_pos@correlated as eqs 11-15 give them,alt:mc_consistent_pos@± 0.5 s,claim:mc_consistent_att,alt:mc_consistent_att@derived: (R_N + h)/r_GEO,alt:mc_consistent_att@ten times it,alt:mc_consistent_att@300 s each,alt:mc_consistent_att@correlated as eqs 11-15 give them,alt:mc_consistent_att@± 0.5 s)"],
+     0.0),
+    ("003.md", "re-run (50 runs at 20 Hz, which decides as the full run does)", DS_ROBUST,
+     ["=50", "=20", "claims:failed="], 0.0),
+    ("004.md", "| Schuler band of vE, vN reduced ≥ 2× | pass, 3.94, 3.73 | depends on: manoeuvre onset, sensor noise | "
+     "abrupt start 1.09, 1.17; over 30 min 1.55, 1.47; over 6 h 21.4, 22.9; the turntable IMU's noise 1.03, 1.05, a "
+     "tenth of it 1.19, 1.23 (the other alternatives pass: the injected errors 15.4, 22.0; 30° N 4.11, 3.96; the "
+     "spectral peak 2.92, 2.92) |", SS_ROBUST,
+     ["=2", "claim:suppression_velocity", "label:suppression_velocity=depends on: manoeuvre onset, sensor noise",
+      "alt:suppression_velocity@abrupt (60 s)", "=30", "alt:suppression_velocity@30 min", "=6",
+      "alt:suppression_velocity@6 h", "alt:suppression_velocity@the turntable IMU's (ARW 0.005 °/√h, 50 µg/√Hz)",
+      "alt:suppression_velocity@a tenth of it", "alt:suppression_velocity@the paper's injected errors", "=30",
+      "alt:suppression_velocity@30° N",
+      "alt:suppression_velocity@the amplitude spectrum's peak within ω_s ± 2ω_f"], 0.0),
+    ("004.md", "abrupt (60 s) or over 30 min the suppression fails, over 6 h it is 21–24×.", SS_ROBUST,
+     ["=60", "=30", "verdict:suppression_velocity@abrupt (60 s)=fail", "verdict:suppression_velocity@30 min=fail",
+      "=6", "min(alt:suppression_velocity@6 h,alt:suppression_level_attitude@6 h)",
+      "max(alt:suppression_velocity@6 h,alt:suppression_level_attitude@6 h)"], 0.0),
+    ("004.md", "a tenth of the turntable's noise on the ship already takes the suppression down to 1.2×.", SS_ROBUST,
+     ["min(alt:suppression_velocity@a tenth of it,alt:suppression_level_attitude@a tenth of it)"], 0.0),
+    ("004.md", "the φE and φN lines (0.003′ and 0.017′ beside a 0.6′ Schuler band) are not, and the claim that failed "
+     "on φN's 1.66 no longer does", "demo schuler-suppression-injected",
+     ["earth_amp_phiE_single", "earth_amp_phiN_single", "min(schuler_amp_phiE_single,schuler_amp_phiN_single)",
+      "claim:earth_period_kept[3]"], 0.0),
+    ("004.md", "| the same for φE, φN | pass, 3.91, 4.27 | depends on: manoeuvre onset, sensor noise | as above |",
+     SS_ROBUST, ["claim:suppression_level_attitude",
+                 "label:suppression_level_attitude=depends on: manoeuvre onset, sensor noise"], 0.0),
+    ("004.md", "| Foucault side lines reduced ≥ 2× | pass | depends on: manoeuvre onset, sensor noise | as above |",
+     SS_ROBUST, ["=2", "label:foucault_suppressed=depends on: manoeuvre onset, sensor noise"], 0.0),
+    ("004.md", "| 24 h component kept (single / mean ≤ 1.5) | pass, 1.02–1.03 | robust | every alternative, floor and bar "
+     "(1.2, 2) |", SS_ROBUST,
+     ["=24", "=1.5", "min(claim:earth_period_kept)", "max(claim:earth_period_kept)", "label:earth_period_kept=robust",
+      "=1.2", "=2"], 0.0),
+    ("004.md", "| the two alignment errors agree | pass | robust | a 10 % bar, every alternative |", SS_ROBUST,
+     ["label:alignment_errors_agree=robust", "=10"], 0.0),
+    ("004.md", "| both solutions real alignments | pass | decided by construction | the method runs two alignments |",
+     SS_ROBUST, ["label:real_alignments=decided by construction: the method runs two alignments on prefixes of the "
+                 "stream; this checks the plumbing"], 0.0),
+    ("004.md", "The ship run is re-run (24 h after t2, which decides as the 48 h run does)", SS_ROBUST,
+     ["=24", "=2", "=48", "claims:failed="], 0.0),
+    ("004.md", "1/sin(ω_f·T_s/4) = 15.1× against 14.7–15.7× in vE, vN, φE, φN (within 10 %", "demo schuler-suppression-still",
+     ["=1", "=4", "=15.1", "min(claim:still_base_ceiling)", "max(claim:still_base_ceiling)", "=10"], 0.0),
+    ("004.md", "its sweep) the suppression is 18.3–19.8×, off the closed form", "demo schuler-suppression-still",
+     ["min(alt:still_base_ceiling@real alignments on the stream)",
+      "max(alt:still_base_ceiling@real alignments on the stream)"], 0.0),
     ("004.md", "## Claims at full scale (ship, aligned, defaults; 8.95 M samples)", "demo schuler-suppression",
      ["samples/1e6"], 0.0),
     ("004.md", "t1 = 3600 s, t2 = 6134 s (delay 2534 s, T_s = 84.46 min). Alignment errors [φE, φN, φU]: solution 1 "
@@ -1024,7 +1160,23 @@ def summary_value(summary: dict, key: str):
     """A run's value by name: ``claims:passed`` / ``claims:total`` (claims that hold, all
     claims; ``claims:passed@paper``: of one origin), ``claims:failed`` (the ids of the claims
     that fail, sorted), ``claim:ID`` (a
-    claim's measured value; a dict's values in order), or a metric."""
+    claim's measured value; a dict's values in order), ``robust:paper`` (the paper claims
+    labelled robust), ``label:ID`` (a claim's robustness label), ``alt:ID@NAME`` (the value
+    of the claim's alternative NAME; a dict's values in order), ``verdict:ID@NAME`` (its
+    verdict: "pass", "fail" or "undecided"), or a metric."""
+    if key == "robust:paper":
+        return summary["robustness"]["paper_claims_robust"]
+    if key.startswith("label:"):
+        return summary["robustness"]["claims"][key[6:]]["label"]
+    if key.startswith(("alt:", "verdict:")):
+        kind, rest = key.split(":", 1)
+        cid, name = rest.split("@", 1)
+        alt = next((a for a in summary["robustness"]["claims"][cid]["alternatives"] if a["name"] == name), None)
+        assert alt is not None, f"claim {cid} has no alternative {name!r}"
+        if kind == "verdict":
+            return "undecided" if alt["passed"] is None else ("pass" if alt["passed"] else "fail")
+        v = alt["value"]
+        return list(v.values()) if isinstance(v, dict) else v
     if key == "claims:failed":
         return sorted(c["id"] for c in summary["claims"] if not c["passed"])
     if key.startswith(("claims:passed@", "claims:total@")):     # the claims of one origin (paper, check)
@@ -1053,6 +1205,17 @@ _KEY = re.compile(r"(?P<lit>=.+)|(?P<num>.+)/(?P<den>[\d.e]+)|(?P<fn>min|max|med
 
 def quoted_value(key: str, raw) -> list[float]:
     """The numbers a QUOTED key stands for, given ``raw(name)``: a run's value by name."""
+    if key.startswith(("label:", "verdict:")) and "=" in key:   # a label or a verdict, as text: no number
+        name, want = key.rsplit("=", 1) if key.startswith("verdict:") else key.split("=", 1)
+        got = raw(name)
+        assert got == want, f"{name} is {got!r}, the text says {want!r}"
+        return []
+    if key.startswith("alt:"):                        # names hold any character: no arithmetic
+        m = re.fullmatch(r"(alt:.+)\[(-?\d+)\]", key)     # one element: alt:ID@NAME[i]
+        v = raw(m[1] if m else key)
+        v = [x for e in v for x in (e if isinstance(e, list) else [e])] if isinstance(v, list) else [v]
+        v = [math.nan if x is None else float(x) for x in v]
+        return [v[int(m[2])]] if m else v
     if key.startswith("claims:failed="):
         want = sorted(filter(None, key.split("=", 1)[1].split(",")))
         got = raw("claims:failed")
@@ -1089,6 +1252,13 @@ def quoted_names(key: str) -> list[str]:
     """The run's value names a QUOTED key reads (what the stored record must hold)."""
     if key.startswith("claims:failed="):
         return ["claims:failed"]
+    if key.startswith("label:") and "=" in key:
+        return [key.split("=", 1)[0]]
+    if key.startswith("verdict:") and "=" in key:
+        return [key.rsplit("=", 1)[0]]
+    if key.startswith("alt:"):
+        m = re.fullmatch(r"(alt:.+)\[(-?\d+)\]", key)
+        return [m[1] if m else key]
     m = _KEY.fullmatch(key)
     if m is None:
         return [key]
@@ -1367,7 +1537,8 @@ def test_the_record_of_the_demo_is_of_todays_defaults():
     for label, run in record.items():
         exp = get(run["experiment"])
         if label in full:                       # a full-scale run that is no demo run
-            want = shlex.join([exp.name, *(w for x in run["sets"] for w in ("--set", x))])
+            want = shlex.join([exp.name, *(w for x in run["sets"] for w in ("--set", x))]
+                              + (["--robustness"] if label.endswith(" --robustness") else []))
         else:
             want = f"{exp.name}-" + next((sfx for sfx, sets in exp.variants.items() if list(sets) == run["sets"]),
                                          "?") if run["sets"] else exp.name

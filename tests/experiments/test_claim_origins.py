@@ -17,6 +17,11 @@ def test_every_claim_of_a_quick_run_has_an_origin(name):
     assert res.claims, f"{name}: no claims"
     missing = [c.id for c in res.claims if c.origin not in ("paper", "check")]
     assert not missing, f"{name}: claims without an origin ('paper' or 'check'): {missing}"
+    # an experiment with a robustness sweep says, for every claim, what its verdict rests on
+    # (an assumption with alternatives) or that its set-up decides it
+    if E.registry()[name].robustness is not None:
+        bare = [c.id for c in res.claims if not (c.construction or c.assumptions)]
+        assert not bare, f"{name}: claims that declare no assumption: {bare}"
 
 
 def test_tally_counts_by_origin_and_reads_old_summaries():

@@ -84,7 +84,7 @@ def _axes(cfg):
             base.Axis("size", "100", {"40": ["scenario.size=40"]}, claims=("big",)),
             base.Axis("breakage", "none", {"broken": ["scenario.broken=true"]}, claims=("small",)),
             base.Axis("reduced too far", "100", {"1.2": ["scenario.gain=1.2"]}, claims=("big",),
-                      reduced=("scenario.size=10",))]
+                      reduced=("scenario.size=10",), in_demo=False)]
 
 
 def _toy():
@@ -130,6 +130,15 @@ def test_without_the_sweep_the_physics_is_pending(tmp_path):
     assert not rob["swept"] and rob["claims"]["small"]["label"].startswith("not swept")
     assert rob["claims"]["small"]["pending"] == ["gain", "breakage"]
     assert rob["paper_claims_robust"] == 0
+
+
+def test_the_demo_leaves_out_the_axes_it_cannot_afford(tmp_path):
+    exp = _toy()
+    rob = execute(exp, resolve(exp.config), tmp_path / "r", robustness="demo")["robustness"]
+    assert [a["assumption"] for a in rob["axes"]] == ["gain", "size", "breakage"]
+    big = rob["claims"]["big"]
+    assert big["pending"] == ["reduced too far"] and big["label"] == "depends on: size"
+    assert all(a["assumption"] != S.SIZE for a in big["alternatives"])
 
 
 def test_cli_prints_the_labels_and_the_robust_count(tmp_path, monkeypatch):

@@ -16,7 +16,8 @@ KINDS = ("euler", "dcm", "kain", "optimal")
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     exp = get("transfer-alignment")
-    cfg = resolve(exp.config, quick=exp.quick)
+    # 30 s: long enough for the forms' parameterisations to part (at the paper's 5 s they do not)
+    cfg = resolve(exp.config, quick=exp.quick, sets=["scenario.duration=30 s", "scenario.wing_rock_ramp=6 s"])
     out = tmp_path_factory.mktemp("ta") / "run"
     return execute(exp, cfg, out, quick=True, scheduler="sync"), out
 
@@ -27,6 +28,24 @@ def test_defaults_are_the_paper_scenario():
     assert cfg.installation.large.text == "[10, 60, 8] deg"
     assert cfg.installation.error.text == "[40, 30, 20] arcmin"
     assert cfg.imu.gyro_bias_sigma.text == "3.3 deg/h" and cfg.imu.accel_scale_factor_sigma.text == "500 ppm"
+    # the paper: an error-free master, 5 s simulated
+    assert float(cfg.master.att_error) == 0 and float(cfg.master.vel_error) == 0
+    assert float(cfg.scenario.duration) == 5.0 == float(cfg.scenario.report_time)
+
+
+def test_robustness_axes_are_valid_configurations():
+    """Every physics alternative of the sweep is a configuration the experiment accepts,
+    and the horizon axis holds the project's former 60 s run."""
+    from sinslab.experiments import transfer_alignment as ta
+
+    exp = get("transfer-alignment")
+    cfg = exp.config()
+    axes = {a.assumption: a for a in exp.axes(cfg)}
+    assert set(axes) >= {ta.MASTER, ta.HORIZON, ta.ONSET, ta.ATT_NOISE}
+    for a in axes.values():
+        for sets in a.alternatives.values():
+            resolve(exp.config, sets=list(a.reduced) + list(sets))
+    assert any("scenario.duration=60 s" in v for v in axes[ta.HORIZON].alternatives.values())
 
 
 def test_quick_run_contract_and_claims(quick_run):
@@ -35,8 +54,6 @@ def test_quick_run_contract_and_claims(quick_run):
     summary, out = quick_run
     m = summary["metrics"]
     assert m["slave_model"] == "strapdown" and m["feedback"] is True
-    grid = m["noise_sweep_arcmin"]
-    assert len(grid) >= 3 and min(grid) <= 0.3 and max(grid) >= 3.0
     for k in KINDS:
         for c in ("large", "small"):
             forms = [k] + ([f"{k}_comp"] if k != "optimal" else [])
@@ -46,9 +63,6 @@ def test_quick_run_contract_and_claims(quick_run):
                 assert isinstance(m[f"converged_{f}_{c}"], bool)
                 assert isinstance(m[f"diverged_runs_{f}_{c}"], int)
                 assert isinstance(m[f"converged_linear_{f}_{c}"], bool)
-            by = m[f"converged_{k}_{c}_by_noise"]
-            assert len(by) == len(grid) and all(isinstance(b, bool) for b in by)
-            assert len(m[f"converged_{k}_{c}_by_master_error"]) == len(m["master_error_sweep_arcmin"])
         assert m[f"update_cost_us_{k}"] > 0
     for k in ("dcm_heading_rms_c22zero_arcmin", "dcm_phiU_H_norm_c22zero", "h_fd_max_rel_err", "runs"):
         assert k in m
@@ -64,14 +78,22 @@ def test_quick_run_contract_and_claims(quick_run):
     assert np.all(rs <= 3) and m["diverged_runs_optimal_large"] == 0 and m["margin_optimal_large"] > 0
     assert max(m["rms_over_sigma_euler_small"]) < 3 < max(m["rms_over_sigma_rotvec_euler_small"])
     assert m["dcm_heading_rms_c22zero_arcmin"] > 2 * m["kain_heading_rms_c22zero_arcmin"]
-    for f in ("misalign_large.png", "c22_zero.png", "verdict_sweep.png"):
+    for f in ("misalign_large.png", "c22_zero.png"):
         assert (out / f).exists()
+    # the readings beside each convergence verdict: the scoring as a rotation vector fails the
+    # small installation's Euler form; inside this longer run the verdict at 5 s is read too
+    rob = summary["robustness"]["claims"]["small_all_converge"]
+    alts = {a["name"]: a for a in rob["alternatives"]}
+    assert alts["every estimate read as a rotation vector"]["passed"] is False
+    assert "judged at 5 s inside the run" in alts and "RMS ≤ 2 σ" in alts
+    assert rob["label"].startswith("depends on: ") and "scoring of the estimate" in rob["depends_on"]
+    assert summary["robustness"]["claims"]["c22_phiU_column_zero"]["label"].startswith("decided by construction")
 
 
 def test_linear_mode_is_the_open_loop_model(tmp_path):
     exp = get("transfer-alignment")
     cfg = resolve(exp.config, quick=exp.quick, sets=["runs=4", "scenario.duration=6 s", "montecarlo.slave=linear",
-                                                      "sweep.runs=0", "filter.ekf_runs=2"])
+                                                      "filter.ekf_runs=2"])
     m = execute(exp, cfg, tmp_path / "lin", quick=True, scheduler="sync")["metrics"]
     assert m["slave_model"] == "linear" and m["feedback"] is False
     assert "converged_linear_kain_small" not in m and m["diverged_runs_kain_large"] == 0
@@ -79,7 +101,7 @@ def test_linear_mode_is_the_open_loop_model(tmp_path):
 
 def test_same_seed_same_numbers(tmp_path):
     exp = get("transfer-alignment")
-    cfg = resolve(exp.config, quick=exp.quick, sets=["runs=3", "scenario.duration=6 s", "sweep.runs=2"])
+    cfg = resolve(exp.config, quick=exp.quick, sets=["runs=3", "scenario.duration=6 s"])
     a = execute(exp, cfg, tmp_path / "a", quick=True, scheduler="sync")["metrics"]
     b = execute(exp, cfg, tmp_path / "b", quick=True, scheduler="sync")["metrics"]
     for k in a:

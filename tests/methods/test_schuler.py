@@ -32,6 +32,32 @@ def test_half_schuler_delay_and_principle():
     assert math.cos(earth.WIE * d / 2) > 0.99
 
 
+def test_foucault_residual_is_sin_of_a_quarter_schuler_period():
+    """The mean of a Foucault-modulated Schuler term ``A cos(ω_f t) sin(ω_s t)`` and its
+    T_s/2-delayed copy is ``−A sin(ω_f T_s/4) sin(ω_f (t − T_s/4)) sin(ω_s t)`` (derived
+    with sum-to-product): a residual sin(ω_f T_s/4) ≈ 0.066 at 45.75°, a ceiling of ≈ 15×
+    on the band's suppression — not the 1 − cos(ω_f T_s/2) ≈ 0.008 once written here.
+    ``mean_factors`` gives the same per line."""
+    lat = math.radians(45.75)
+    d = schuler.half_schuler_delay(lat)
+    ws, wf = float(earth.schuler_frequency(lat)), abs(float(earth.foucault_frequency(lat)))
+    t = np.linspace(0, 3 * 86400, 20001)
+    f = lambda tt: np.cos(wf * tt) * np.sin(ws * tt)  # noqa: E731
+    m = 0.5 * (f(t) + f(t - d))
+    closed = -math.sin(wf * d / 2) * np.sin(wf * (t - d / 2)) * np.sin(ws * t)
+    assert np.max(np.abs(m - closed)) < 1e-12
+    fac = schuler.mean_factors(lat)
+    assert fac["schuler"] < 1e-12 and fac["earth"] == pytest.approx(math.cos(earth.WIE * d / 2), abs=1e-15)
+    assert fac["schuler_minus"] == pytest.approx(math.sin(wf * d / 2), rel=1e-12)
+    assert fac["schuler_plus"] == pytest.approx(math.sin(wf * d / 2), rel=1e-12)
+    assert 1 / fac["schuler_plus"] == pytest.approx(15.1, abs=0.05)
+    # another delay: each line's mean with its delayed copy, numerically, against the factor
+    fac = schuler.mean_factors(lat, 1234.0)
+    for name, w in (("schuler", ws), ("schuler_plus", ws + wf), ("earth", earth.WIE)):
+        mm = 0.5 * (np.cos(w * t) + np.cos(w * (t - 1234.0)))
+        assert np.max(np.abs(mm)) == pytest.approx(fac[name], rel=1e-4), name
+
+
 def test_check_delay():
     assert schuler.check_delay("42.2 min") == pytest.approx(2532.0)
     assert schuler.check_delay(100) == 100.0

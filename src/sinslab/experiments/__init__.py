@@ -245,8 +245,8 @@ def _robustness(exp, cfg, res, ctx, quick, mode) -> dict:
     if mode is None:
         return robustness_section(res.claims, swept=False, pending=sweep.pending(exp, cfg, res.claims))
     t0, c0 = time.perf_counter(), time.process_time()
-    axes = sweep.sweep(exp, cfg, res, ctx, quick=quick, demo=mode == "demo")
-    return robustness_section(res.claims, swept=True, axes=axes, cpu_s=time.process_time() - c0,
+    axes, left = sweep.sweep(exp, cfg, res, ctx, quick=quick, demo=mode == "demo")
+    return robustness_section(res.claims, swept=True, pending=left, axes=axes, cpu_s=time.process_time() - c0,
                               wall_s=time.perf_counter() - t0)
 
 

@@ -106,6 +106,8 @@ class Axis:
     reduced : ``--set`` items of the smaller scenario the alternatives are run at (empty:
         at the run's own size); ``demo``: those of ``sinslab demo`` (None: as ``reduced``).
     readings : also record, per alternative, the verdicts of the re-run claims' own readings.
+    in_demo : False leaves the axis out of ``sinslab demo``'s sweep (its claims say "not
+        swept" there; ``sinslab run NAME --robustness`` runs it).
     """
 
     assumption: str
@@ -116,6 +118,7 @@ class Axis:
     demo: tuple | None = None
     source: str = "project"
     readings: bool = False
+    in_demo: bool = True
 
     def sets(self, demo: bool = False) -> tuple:
         """The reduction's ``--set`` items at the sweep's size."""

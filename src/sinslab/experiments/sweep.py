@@ -30,12 +30,12 @@ __all__ = ["sweep", "pending", "SIZE"]
 SIZE = "size of the sweep's runs"
 
 
-def pending(exp, cfg, claims) -> dict:
+def pending(exp, cfg, claims, axes=None) -> dict:
     """``{claim id: [assumption, ...]}``: the physics alternatives declared for each claim
-    (not run: the sweep was not asked for)."""
+    (of ``axes``, default all of the experiment's: not run, the sweep was not asked for)."""
     ids = [c.id for c in claims]
     out: dict[str, list] = {}
-    for ax in exp.axes(cfg):
+    for ax in (exp.axes(cfg) if axes is None else axes):
         for cid in (ax.claims or ids):
             if cid in ids and ax.assumption not in out.setdefault(cid, []):
                 out[cid].append(ax.assumption)
@@ -111,21 +111,27 @@ def _record(claim, axis, name, got, base):
                 continue
             ref = next((x for x in (b.alternatives if b is not None else claim.alternatives)
                         if x.assumption == a.assumption and x.name == a.name), None)
+            # a reading of the axis's own assumption (the report time inside a longer run)
+            # varies that one assumption, not two
             claim.alternatives.append(Alternative(
                 axis.assumption, f"{name}; {a.name}", a.value, a.passed, "rerun",
-                baseline=None if ref is None else ref.passed, combined=a.assumption))
+                baseline=None if ref is None else ref.passed,
+                combined="" if a.assumption == axis.assumption else a.assumption))
 
 
-def sweep(exp, cfg, result, ctx, *, quick: bool = False, demo: bool = False) -> list[dict]:
+def sweep(exp, cfg, result, ctx, *, quick: bool = False, demo: bool = False) -> tuple[list[dict], dict]:
     """Re-run ``exp`` for every alternative of its axes and add the verdicts to the claims
-    of ``result`` (in place). Returns the record of the axes run: per axis its assumption,
+    of ``result`` (in place). Returns the record of the axes run — per axis its assumption,
     default, source, alternatives with their ``--set`` items, the reduction used, the
-    claims it applies to and the CPU seconds of its re-runs (this process's)."""
+    claims it applies to and the CPU seconds of its re-runs (this process's) — and the
+    :func:`pending` alternatives of the axes the demo leaves out (``demo``)."""
     runner = _Runner(exp, cfg, ctx, quick)
     by_id = {c.id: c for c in result.claims}
     sized = set()
     record = []
-    for axis in exp.axes(cfg):
+    axes = exp.axes(cfg)
+    left = [a for a in axes if demo and not a.in_demo]
+    for axis in (a for a in axes if a not in left):
         cpu0 = runner.cpu
         red = () if quick else axis.sets(demo)
         ids = [i for i in (axis.claims or by_id) if i in by_id]
@@ -147,4 +153,4 @@ def sweep(exp, cfg, result, ctx, *, quick: bool = False, demo: bool = False) -> 
         record.append({"assumption": axis.assumption, "default": axis.default, "source": axis.source,
                        "alternatives": {k: list(v) for k, v in axis.alternatives.items()}, "reduced": list(red),
                        "claims": ids, "cpu_s": runner.cpu - cpu0})
-    return record
+    return record, pending(exp, cfg, result.claims, left)

@@ -808,12 +808,13 @@ def campaign_setup(spec):
     P0 = spec["P0"] * (d[:, None] * d[None, :])
     Rv = (sig * np.r_[d[0], d[1], 1.0, 1.0]) ** 2
     iz = model.layout.index(["eps_z_1"])[0]
+    jk = model.layout.index(["eps_x_k"])[0]
     # the nominal filter's covariance does not depend on the data: its gains, computed
     # once, are the filter of every run (campaign_batch)
     nominal = propagate_covariance(P0, Phi, Q, _difference_H(model), np.diag(Rv), n_steps=K,
                                    Phi_index=index, Q_index=index, keep_gain=True, check=False)
     return dict(Phi=np.ascontiguousarray(Phi), index=index, roots=roots, G1=np.ascontiguousarray(G1),
-                gains=nominal.gain, Rv=Rv, d=d, iz=iz, P0=P0, t=T * np.arange(K + 1),
+                gains=nominal.gain, Rv=Rv, d=d, iz=iz, jk=jk, P0=P0, t=T * np.arange(K + 1),
                 sig_z=nominal.sigma[:, iz])
 
 
@@ -828,6 +829,13 @@ def campaign_batch(seeds, spec, setup):
     minus the block-mean part, and the drift trend a part of its own. Vectorised over seeds
     and parts. INS B, #3 and #4 share INS #2's initial state (its effect is gone long before
     the first window).
+
+    A trend in the gyro noise of INS #2, B, #3 and #4 (their records keep one):
+    ``spec["ktrend_steps"]`` (K,) holds the steps of its shape, a unit trend [rad/s], which
+    each of those INS has on each gyro axis times a factor drawn per seed (standard normal,
+    from a stream of its own, so the process and measurement draws are those without the
+    trend); it enters the INS's gyro part, so a record rescaled by β has its trend rescaled
+    too. Absent or all zero: no trend.
 
     Returns
     -------
@@ -859,6 +867,13 @@ def campaign_batch(seeds, spec, setup):
               for g in ("ins1", "accel_k", "gyro_k")]
     j_tr, j_bl = CAMPAIGN_PARTS.index(None), CAMPAIGN_PARTS.index("blocks")
     tr = spec["trend_steps"] * S["d"][iz]
+    jk = S["jk"]
+    ktr = np.asarray(spec.get("ktrend_steps", np.zeros(K)), float)
+    kfac = np.zeros((B, P_, 3))
+    if np.any(ktr):
+        gyro_parts = [j for j, s in enumerate(CAMPAIGN_PARTS) if s == "gyro_k"]
+        for b, sd in enumerate(seeds):
+            kfac[b, gyro_parts] = _trend_stream(sd).standard_normal((len(gyro_parts), 3)) * S["d"][jk:jk + 3]
     sv = np.sqrt(S["Rv"])
     ez = np.empty((B, P_, K + 1))
     ez[:, :, 0] = 0.0
@@ -886,7 +901,7 @@ def campaign_batch(seeds, spec, setup):
             for a in range(0, m, nb):
                 ubar[:, a:a + nb] = us[:, a:a + nb].mean(1, keepdims=True)
         _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs, sv, gains, tr, iz, j_tr, j_bl,
-                        k, m)
+                        ktr, kfac, jk, k, m)
     t = S["t"]
     betas, scales = spec["betas"], spec["scales"]
     st, win = spec["start"], spec["window"]
@@ -920,15 +935,23 @@ def campaign_batch(seeds, spec, setup):
             "trend_corr": corr}
 
 
+def _trend_stream(seed) -> np.random.Generator:
+    """The generator of a seed's trend factors: a stream of its own beside the seed's."""
+    if isinstance(seed, np.random.SeedSequence):
+        return np.random.default_rng(np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, 97)))
+    return np.random.default_rng([int(seed), 97])
+
+
 @njit(cache=True)
 def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs, sv, gains, tr, iz, j_tr, j_bl,
-                    k0, m):
+                    ktr, kfac, jk, k0, m):
     """Steps ``k0 .. k0+m−1`` of :func:`campaign_batch`, seed by seed (so a seed's numbers do
     not depend on the seeds stacked with it), in place on the true parts ``X`` and the
     estimates ``Xh`` (B, parts, n), the estimates of ε_z1 written to ``ez`` (B, parts, K+1).
 
     Per step k (transition ``Phi[index[k]]``): the drift trend's step ``tr[k]`` enters its
-    part, every part is propagated, the noisy parts get their process noise
+    part, the gyro trend of INS k ``ktr[k] · kfac[b, p]`` the drifts of INS k (states
+    ``jk..jk+2``) of part p, every part is propagated, the noisy parts get their process noise
     ``root[src[p]][u] ξ`` (draws ``xis[:, c, col[p]]``), INS 1's part its step mean through
     ``G1[u]`` (``us``) and the block-mean part that of its block (``ubar``); the filter
     predicts, and updates every part with the gain ``gains[k]`` (n, 4) from its four
@@ -945,6 +968,10 @@ def _campaign_steps(X, Xh, ez, Phi, index, root, src, col, G1, xis, us, ubar, vs
             k = k0 + c
             u = index[k]
             X[b, j_tr, iz] += tr[k]
+            if ktr[k] != 0.0:
+                for p in range(P_):
+                    for a in range(3):
+                        X[b, p, jk + a] += ktr[k] * kfac[b, p, a]
             for p in range(P_):
                 for i in range(n):
                     acc = 0.0

@@ -17,10 +17,13 @@ For the Schuler part ``f_s(t) = A sin(ω_s t + α)``,
     ½ [f_s(t − t1) + f_s(t − t1 − π/ω_s)] = ½ A [sin(θ) + sin(θ − π)] = 0,
 
 while a 24 h part ``B sin(ω_ie t + β)`` becomes ``B cos(ω_ie π/(2ω_s)) sin(...)`` — scaled by
-cos(π·T_s/(2·86164 s)) ≈ 0.992, i.e. kept; a Foucault-modulated Schuler term
-``A cos(ω_f t) sin(ω_s t)`` (paper eq 11) is cancelled up to ``1 − cos(ω_f T_s/2)`` (≈ 0.008
-at 45°). From t2 on, the output is the mean of the two solutions (paper eq 12) — position,
-velocity and attitude (quaternion mean).
+cos(π·T_s/(2·86164 s)) ≈ 0.996, i.e. kept. A Foucault-modulated Schuler term
+``A cos(ω_f t) sin(ω_s t)`` (paper eq 11, ω_f = ω_ie sin L) is not cancelled: its mean is
+``−A sin(ω_f T_s/4) sin(ω_f (t − T_s/4)) sin(ω_s t)``, a residual of ``sin(ω_f T_s/4)``
+(≈ 0.066 at 45.75°), so on a still base the mean reduces the Schuler band by at most
+``1/sin(ω_f T_s/4)`` (≈ 15×). Line by line, a component of frequency ω is scaled by
+``|cos(ω d/2)|`` for a delay d (:func:`mean_factors`). From t2 on, the output is the mean of
+the two solutions (paper eq 12) — position, velocity and attitude (quaternion mean).
 
 What the mean does *not* remove: oscillations excited after t2 (manoeuvres, sensor noise)
 are excited identically in both solutions, so they stay in the mean; the method removes the
@@ -59,7 +62,7 @@ from sinslab.nav import strapdown
 from sinslab.core.records import ImuRecord, NavSeries, NavState
 from sinslab.core.errors import InputError
 
-__all__ = ["AlignmentOptions", "InitialErrors", "DelayedResult", "half_schuler_delay",
+__all__ = ["AlignmentOptions", "InitialErrors", "DelayedResult", "half_schuler_delay", "mean_factors",
            "delayed_alignment", "delayed_injected", "navigate_pair", "mean_solution",
            "check_delay"]
 
@@ -67,6 +70,25 @@ __all__ = ["AlignmentOptions", "InitialErrors", "DelayedResult", "half_schuler_d
 def half_schuler_delay(lat, h=0.0) -> float:
     """T_s/2 = π sqrt(R/g) [s] at latitude ``lat`` [rad] and height ``h`` [m] (≈ 42.2 min)."""
     return 0.5 * float(earth.schuler_period(lat, h))
+
+
+def mean_factors(lat, delay=None, h=0.0) -> dict:
+    """How the mean of two solutions ``delay`` apart scales each line of a time-invariant
+    error history: ``|½ (1 + e^{−iωd})| = |cos(ω d/2)|`` for the Schuler line ω_s, the
+    Foucault side lines ω_s ∓ ω_f (ω_f = ω_ie sin L) and the 24 h line ω_ie.
+
+    With the default delay T_s/2 the Schuler line is cancelled (0), both side lines are
+    scaled by ``sin(ω_f T_s/4)`` and the 24 h line by ``cos(ω_ie T_s/4)``; on a still base,
+    where the history is Foucault-modulated, ``1/sin(ω_f T_s/4)`` is the most the mean can
+    reduce the Schuler band by. Returns ``{"schuler", "schuler_minus", "schuler_plus",
+    "earth"}``: factors (mean / single amplitude, 0..1).
+    """
+    d = half_schuler_delay(lat, h) if delay is None else check_delay(delay)
+    ws = float(earth.schuler_frequency(lat, h))
+    wf = abs(float(earth.foucault_frequency(lat)))
+    return {name: abs(math.cos(w * d / 2.0))
+            for name, w in (("schuler", ws), ("schuler_minus", ws - wf), ("schuler_plus", ws + wf),
+                            ("earth", earth.WIE))}
 
 
 def check_delay(delay) -> float:
