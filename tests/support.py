@@ -48,6 +48,18 @@ def simulated_car_drive(segments):
 
 
 # ------------------------------------------------------------------ measurement contract
+def turning_drive_segments():
+    """A 3-min car drive of six turns (−9 and 12 °/s, 6 s each) between straights, after
+    10 s at rest and an acceleration to 10 m/s (:func:`simulated_car_drive` segments)."""
+    from sinslab.core import units as u
+    from sinslab.sim import trajectory as tr
+    segs = [tr.Static(duration=10.0), tr.Accelerate(duration=5.0, accel=2.0)]
+    for k in range(6):
+        segs += [tr.Level(duration=8.0 + 3 * k), tr.Turn(duration=6.0, rate=(12 if k % 2 else -9) * u.deg,
+                                                          coordinated=False)]
+    return segs + [tr.Level(duration=30.0)]
+
+
 def nav_with_errors(row, omega_b, f_b, layout, x, sensor_errors=True):
     """What an INS carrying the error state ``x`` (computed − true) shows, given the true
     navigation row ``[q0..q3, vE, vN, vU, lat, lon, h]`` and true body rate / specific force.

@@ -106,6 +106,15 @@ def files(tmp_path_factory):
         "wide": ",".join([f"extra_column_with_a_long_name_{i}" for i in range(3000)]) + "\n1,2\n",
         "binary_toml": None,
         "fixes_csv": "t[s],lat[deg],lon[deg],h[m]\n" + "".join(f"{k}.0,30,110,10\n" for k in range(1, 20)),
+        "table": _table_text(),
+        # increments stamped in ms under a [s] header (it read as 'a wrong accelerometer unit')
+        "ms_inc": "t[s],dtheta_x[rad],dtheta_y[rad],dtheta_z[rad],dv_x[m/s],dv_y[m/s],dv_z[m/s]\n"
+                  + "".join(f"{10 * (k + 1)},0,0,1e-6,0,0,0.0981\n" for k in range(500)),
+        # a fix at 95° (it ended in 'latitude 95 deg is beyond ±90 deg' naming no file)
+        "lat95": "t[s],lat[deg],lon[deg],h[m]\n" + "".join(f"{k}.0,{95 if k == 4 else 30 + 1e-5 * k},110,10\n"
+                                                         for k in range(1, 20)),
+        "late_fixes": "t[s],lat[deg],lon[deg],h[m]\n" + "".join(f"{1000 + k}.0,{30 + 1e-5 * k},110,10\n"
+                                                              for k in range(1, 20)),
     }.items():
         f[name] = d / (name + (".toml" if "toml" in name else ".csv"))
         if text is None:
@@ -243,6 +252,21 @@ CASES = [
     ("nav-rest-without-zupt", NAV + ["--rest", "auto"], "navigate", "add --aid zupt"),
     ("nav-fix-latency-huge", NAV + ["--fix-latency", "1e9"], "navigate", "--fix-latency '1000000000.0 s' is out of range: must be <= 60 s"),
     ("align-long-header", ["align", "--imu", "{wide}", "--lat", "30 deg"], "align", "characters cut"),
+    # -- the real cause, named with its file
+    ("nav-time-in-ms", ["navigate", "--imu", "{ms_inc}", "--fixes", "{fixes_csv}"], "navigate",
+     "ms_inc.csv: sample interval 10 s (0.1 Hz): no strapdown IMU logs slower than every 1 s; a time column in "
+     "milliseconds read as seconds? (then 100 Hz; declare it t[ms])"),
+    ("align-time-in-ms", ["align", "--imu", "{ms_inc}", "--lat", "30 deg"], "align", "milliseconds read as seconds"),
+    ("nav-fix-latitude-95", ["navigate", "--imu", "{table}", "--fixes", "{lat95}"], "navigate",
+     "lat95.csv:5: latitude 95 deg (column 'lat') is beyond ±90 deg"),
+    ("nav-fixes-one-epoch", ["navigate", "--imu", "{table}", "--fixes", "{fixes_csv}"], "navigate",
+     "fixes_csv.csv: only one receiver epoch: a run needs fixes at two times at least"),
+    ("nav-fixes-other-time-base", ["navigate", "--imu", "{table}", "--fixes", "{late_fixes}"], "navigate",
+     "late_fixes.csv: the fix times (1001.000..1019.000 s) do not overlap the IMU record"),
+    ("nav-gnss-raw-folder", ["navigate", "--imu", "{table}", "--gnss-raw", "{dir}"], "navigate",
+     "folder: is a folder, not a file"),
+    ("nav-gnss-nav-with-fixes", NAV + ["--gnss-nav", "{afile}"], "navigate",
+     "config key gnss.raw.nav (--gnss-nav"),
     # -- no run inside another run's folder
     ("run-out-inside-a-run", ["run", "dummy", "--out", "{out}/sub"], "run", "inside the run folder"),
     ("demo-out-is-a-run", ["demo", "--quick", "--only", "dummy"], "run", "is a run folder"),

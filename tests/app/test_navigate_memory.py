@@ -79,3 +79,27 @@ def test_refused_in_one_line(logs, tmp_path, monkeypatch):
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and "IMU samples" in lines[0] and "100 MiB is available" in lines[0], res.output
     assert not out.exists()
+
+
+def test_a_nul_tail_is_no_samples(logs, tmp_path, monkeypatch):
+    """A logger's preallocated file: the text, then a 200 GiB hole of NUL bytes (sparse: no
+    disk used). The estimate counts the text's rows only, so --smooth is not refused for
+    memory the hole would need; the reader refuses the hole at its byte offset."""
+    from sinslab.app import validate
+    from sinslab.cli import app
+
+    d, n = logs
+    padded = tmp_path / "padded.csv"
+    padded.write_bytes((d / "imu.csv").read_bytes())
+    text = padded.stat().st_size
+    with open(padded, "r+b") as fh:
+        fh.truncate(200 * 2 ** 30)
+    assert abs(nav.estimate_samples(padded, "csv") - n) <= 0.02 * n
+    monkeypatch.setattr(validate, "available_memory", lambda: 4 * 2 ** 30)
+    out = tmp_path / "run"
+    res = CliRunner().invoke(app, ["-q", "navigate", "--imu", str(padded), "--fixes", str(d / "fx.csv"), "--smooth",
+                                   "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and f"binary data (NUL bytes) from byte {text:,}" in lines[0], res.output
+    assert not out.exists()

@@ -56,6 +56,10 @@ def test_run_folder(tc_run):
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--elevation-mask", "90"], "--elevation-mask '90.0 deg' is out of range: must be < 90 deg"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--imu-delay", "3000"], "lie outside the IMU record"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "three@60:20"], "--max-satellites"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "3@1e9:10"],          # was taken as a no-op
+     "--max-satellites '3@1e9:10': START 1e+09 s is after the run's last GNSS epoch (133.8 s after the first)"),
+    (["--gnss-raw", WALK / "gnss_1730.ubx", "--max-satellites", "40@60:20"],
+     "--max-satellites '40@60:20': no epoch of the window has more than 16 satellite(s) with an ephemeris"),
     (["--gnss-raw", WALK / "gnss_1730.ubx", "--gnss", WALK / "gnss_1730_sf.pos"], "not both"),
 ])
 def test_bad_input(tc_run, tmp_path, args, msg):
@@ -74,6 +78,25 @@ def test_bad_input(tc_run, tmp_path, args, msg):
     lines = [ln for ln in r.output.splitlines() if "error" in ln]
     assert len(lines) == 1 and lines[0].startswith("sinslab: error:") and msg in lines[0], r.output
     assert {p.name: p.read_bytes() for p in tc_run.iterdir() if p.is_file()} == before
+
+
+def test_report_says_tightly_coupled_and_leads_with_its_rows(tc_run):
+    """The report of a raw run: the line under the title names the coupling and the
+    constellations; the metrics start with the satellites' rows, not the loosely coupled
+    run's fix rows; rows named after fixes say they compare with the single-point solution."""
+    from sinslab.app.commands.raw_gnss import _RAW_FIRST
+    s = json.loads((tc_run / "summary.json").read_text())
+    assert s["purpose"].startswith("INS + GNSS tightly coupled: pseudoranges and range rates")
+    assert "(GPS, Galileo, BeiDou)" in s["purpose"]
+    names = list(s["metrics"])
+    assert names[:len(_RAW_FIRST)] == list(_RAW_FIRST)
+    assert names[-1] == "outage_end_hz_err_m"              # no outage: its rows last, not first
+    info = s["metric_info"]
+    assert all(info[k]["description"] for k in _RAW_FIRST)
+    assert "single-point solution" in info["hz_err_with_fixes_median_m"]["description"]
+    assert "single-point" in info["fixes_after_grid"]["description"]
+    html = (tc_run / "report.html").read_text()
+    assert "tightly coupled" in html and "loosely coupled" not in html
 
 
 def test_satellites_below_the_mask_only():
@@ -155,3 +178,48 @@ def test_windowed_nis_monitor_on_the_rows():
     dur = float(found[0].text.split(" rows for ")[1].split(" s ")[0])
     assert 60 <= dur <= 90, found[0].text                       # the stretch and the windows reaching into it
     assert m["pseudorange_nis_window_max"] > 3.0 and m["doppler_nis_window_failing"] == 0.0, m
+
+
+def _rows(seed, bias=None, scale=1.0, n=240):
+    """A RowLog-like record of n 1-Hz epochs of 6 satellites' pseudoranges: innovations
+    ν ~ N(0, scale² S) with S = 4 m²; ``bias=(sat, t0, t1, b)`` adds b·√S to one satellite."""
+    from types import SimpleNamespace
+    rng = np.random.default_rng(seed)
+    sats = np.array(["G02", "G05", "G07", "E11", "E12", "C20"])
+    t = np.arange(n, dtype=float)
+    nu = 2.0 * scale * rng.standard_normal((n, sats.size))
+    if bias is not None:
+        j, t0, t1, b = bias
+        nu[(t >= t0) & (t < t1), j] += 2.0 * b
+    used = np.ones(sats.size, bool)
+    return SimpleNamespace(t=list(t), meta={"sat": [sats] * n}, innovation=list(nu), nis=list(nu ** 2 / 4.0),
+                           used=[used] * n)
+
+
+def test_raw_innovation_windows():
+    """The windowed monitors of the loosely coupled runs on the satellites' rows: a
+    consistent record gives no finding (false alarm 1e-3 per window, 30 s in a row); ν
+    three times its σ is an overconfident stretch (first of the findings); one satellite's innovations shifted by
+    4 σ for 90 s are that satellite's bias, found and named (by 1.5 σ: below the floor of
+    RAW_BIAS_FLOOR = 3 σ, no finding)."""
+    from sinslab.app.commands.raw_gnss import raw_consistency_findings
+    assert raw_consistency_findings({"pseudoranges": _rows(1)}) == []
+    f = raw_consistency_findings({"pseudoranges": _rows(2, scale=3.0)})[0]      # (its means spread 3× too)
+    assert f.text.startswith("the filter is overconfident about the pseudoranges for ") and "of the epochs" in f.text
+    # within σ for 90 s: significant, but what single-frequency ranges do (ionosphere, multipath)
+    assert raw_consistency_findings({"pseudoranges": _rows(3, bias=(2, 100, 190, 1.5))}) == []
+    (f,) = [x for x in raw_consistency_findings({"pseudoranges": _rows(3, bias=(2, 100, 190, 4.0))})
+            if "biased" in x.text]                  # (its NIS windows are over too)
+    assert f.text.startswith("the pseudorange innovations are biased for ") and " in pseudorange G07: " in f.text \
+        and "pseudorange G07 innovation +4." in f.text
+    assert "multipath" in f.text
+    dur = float(f.text.split("biased for ")[1].split(" s")[0])
+    assert 60 <= dur <= 120, f.text
+
+
+def test_the_walk_run_is_consistent_in_its_windows(tc_run):
+    """The recorded walk (mean NIS 0.2: a pessimistic noise model; satellites' innovations
+    biased by up to 1.1 σ for the whole run, as single-frequency ranges are) raises no
+    window warning."""
+    s = json.loads((tc_run / "summary.json").read_text())
+    assert not [w for w in s["warnings"] if "pseudorange" in w or "range rate" in w], s["warnings"]

@@ -211,3 +211,43 @@ def test_rinex_faults_name_their_real_cause(tmp_path):
         read_gnss_raw(later, nav)
     with pytest.raises(InputError, match="is a folder, not a file"):
         read_gnss_raw(tmp_path, nav)
+
+
+def _code_fields_set_to(text, fill):
+    """The RINEX 3 observation ``text`` with every code (pseudorange, type C..) field set to
+    ``fill`` (right-aligned in its 14 columns; blank when empty)."""
+    types, out, body, cur = {}, [], False, None
+    for ln in text.splitlines(True):
+        if not body:
+            if ln[60:].startswith("SYS / # / OBS TYPES"):
+                cur = ln[0] if ln[0] != " " else cur
+                types[cur] = types.get(cur, []) + ln[7:60].split()
+            body = "END OF HEADER" in ln[60:]
+            out.append(ln)
+            continue
+        if ln[0] in types:
+            row = list(ln.rstrip("\n"))
+            for j, code in enumerate(types[ln[0]]):
+                a = 3 + 16 * j
+                if code.startswith("C") and a < len(row):
+                    row[a:a + 14] = f"{fill:>14}"[: len(row) - a]
+            ln = "".join(row) + "\n"
+        out.append(ln)
+    return "".join(out)
+
+
+@needs_static
+@pytest.mark.parametrize("fill, msg", [
+    ("", r"60 epochs of raw observations without a single pseudorange \(every code observation empty or zero\)"),
+    ("0.000", r"60 epochs of raw observations without a single pseudorange"),
+    ("nan", r"every pseudorange is NaN \(1382 observations in 60 epochs\): the receiver reported no range"),
+])
+def test_no_pseudorange_in_any_epoch(tmp_path, fill, msg):
+    """Every pseudorange empty, zero or NaN: said so, naming the file (it ended in 'no
+    satellite has an ephemeris')."""
+    from sinslab.data.gnss import read_gnss_raw
+
+    obs = tmp_path / "noranges.21O"
+    obs.write_text(_code_fields_set_to((STATIC / "SEPT078M1.21O").read_text(), fill))
+    with pytest.raises(InputError, match="noranges.21O: " + msg):
+        read_gnss_raw(obs, STATIC / "SEPT078M.21P")

@@ -30,7 +30,7 @@ from sinslab.core.blocks import block_median, block_ranges, release_pages
 
 __all__ = ["Finding", "imu_findings", "rest_findings", "rest_gravity_findings", "gap_findings",
            "consistency_findings", "settle", "rest_rate_findings", "bias_findings", "overconfidence_findings",
-           "grade_of", "GRADES", "unit_slip",
+           "grade_of", "GRADES", "unit_slip", "interval_findings", "declared_findings",
            "MIN_SAMPLES", "MAX_RATE_DPS", "MAX_ACCEL_G", "MONITOR_WINDOW_S", "MONITOR_ALPHA",
            "MONITOR_STRETCH_S", "windowed_nis", "WindowedNis", "row_consistency_findings"]
 
@@ -91,6 +91,9 @@ def imu_findings(imu, source: str, *, lat=None, h=0.0, gaps=None) -> list[Findin
     if n < MIN_SAMPLES:
         return [Finding(f"{source}: only {n} sample{'s' if n != 1 else ''} "
                         f"({n * imu.dt:.3g} s); a run needs at least {MIN_SAMPLES}", True)]
+    slow = interval_findings(imu, source)
+    if slow:
+        return slow
     out: list[Finding] = []
     st = _record_stats(imu)
     if not st["any_w"] and not st["any_f"]:
@@ -127,6 +130,25 @@ def imu_findings(imu, source: str, *, lat=None, h=0.0, gaps=None) -> list[Findin
     if gaps is not None and len(gaps):
         out += gap_findings(imu, gaps, source)
     return out
+
+
+#: the longest sample interval of a strapdown IMU log [s]: the slowest units on sale
+#: output 1 Hz averages; a longer interval is a time column in another unit (ms read as s)
+MAX_SAMPLE_INTERVAL_S = 1.0
+
+
+def interval_findings(imu, source: str) -> list[Finding]:
+    """A sample interval no strapdown IMU logs (beyond :data:`MAX_SAMPLE_INTERVAL_S`): the
+    time column is in another unit than declared — milliseconds read as seconds when the
+    interval over 1000 is that of a 50 Hz–2 kHz IMU. Every rate, increment and |f| figure
+    from such a record is off by the same factor, so this comes before them."""
+    dt = float(imu.dt)
+    if dt <= MAX_SAMPLE_INTERVAL_S:
+        return []
+    hint = (f"a time column in milliseconds read as seconds? (then {1e3 / dt:.4g} Hz; declare it t[ms])"
+            if 5e-4 <= dt * 1e-3 <= 0.02 else "a time column in another unit than declared?")
+    return [Finding(f"{source}: sample interval {dt:.6g} s ({1 / dt:.3g} Hz): no strapdown IMU logs "
+                    f"slower than every {MAX_SAMPLE_INTERVAL_S:g} s; {hint}", True)]
 
 
 def _magnitudes(imu, name):
@@ -294,6 +316,36 @@ def bias_findings(gyro_bias, accel_bias, source: str, *, gyro_arw=None) -> list[
     return out
 
 
+#: an estimate beyond this many times the 1σ its declared error model gives it (a Gaussian
+#: prior's 5σ: probability 6e-7 per axis) says the model or the estimate is wrong
+DECLARED_FACTOR = 5.0
+#: and beyond this many of its own final σ (else the data do not determine it)
+SIGNIFICANT_SIGMAS = 3.0
+
+
+def declared_findings(estimates, source: str, declared: str) -> list[Finding]:
+    """Estimated sensor errors against the error model the user declared (``declared``:
+    how, e.g. ``--imu-errors industrial``). ``estimates``: ``[(what, estimate (3,), final σ
+    (3,), declared 1σ, unit, scale to the unit)]`` in SI; a finding for each kind whose
+    largest significant estimate exceeds :data:`DECLARED_FACTOR` × its declared 1σ: the
+    IMU is of a lower grade than declared, or the estimate absorbed another error."""
+    out = []
+    for what, est, sig, dec, unit, sc in estimates:
+        est, sig = np.abs(np.asarray(est, float)), np.asarray(sig, float)
+        dec = float(np.max(dec)) if np.size(dec) else 0.0
+        ok = np.isfinite(est) & (est > SIGNIFICANT_SIGMAS * np.nan_to_num(sig, nan=np.inf))
+        if dec <= 0 or not ok.any():
+            continue
+        k = int(np.argmax(np.where(ok, est, -1.0)))
+        if est[k] > DECLARED_FACTOR * dec:
+            out.append(Finding(
+                f"{source}: estimated {what} {'xyz'[k]} {est[k] * sc:.4g} {unit} is {est[k] / dec:.3g} × the "
+                f"{dec * sc:.4g} {unit} (1σ) of the declared error model ({declared}; plausible up to "
+                f"{DECLARED_FACTOR:g}σ): an IMU of a lower grade than declared, or an estimate that absorbed a "
+                f"unit or scale error, a time offset or motion the model lacks"))
+    return out
+
+
 def overconfidence_findings(applied, source: str, what: str) -> list[Finding]:
     """σ implausibly tight for the data: over a whole run the normalised innovations of a
     consistent filter average to 1 per component (χ² over the total degrees of freedom D:
@@ -424,7 +476,12 @@ def row_consistency_findings(rows) -> tuple[list[Finding], dict]:
     return out, metrics
 
 
-def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> list[Finding]:
+#: what a bias of the fix innovations that lasts points to
+BIAS_CAUSES = "lever arm, time offset, mount, a bias prior too tight"
+
+
+def consistency_findings(t, innovation, innovation_sigma, nis, labels=None, *, item="fix",
+                         items="fixes", source="fix", causes=BIAS_CAUSES, bias_floor=0.0) -> list[Finding]:
     """Warnings where the filter is inconsistent with its fixes for a long stretch.
 
     A consistent Kalman filter's innovations are zero-mean, white, with the covariance
@@ -454,6 +511,16 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
         Normalised innovation squared of each fix over its used components.
     labels : list of str, optional
         Names of the m components (for the message).
+    bias_floor : float
+        Report a component's window mean only beyond this many σ too (0: wherever it is
+        significant). Errors that stay within σ for minutes are the noise model's
+        business where they are known to be correlated (a satellite's ionospheric
+        residual and multipath): there only a mean beyond the σ itself is an error.
+    item, items, source, causes : str
+        What a row of ``t`` is, in the singular and the plural, whose innovations these
+        are and what a lasting bias of them points to, for the messages: the loosely
+        coupled source's fixes by default; the epochs of a measurement's rows (``item="epoch",
+        items="epochs", source="pseudorange"``).
     """
     # scipy.special's χ² and normal quantiles (what scipy.stats' chi2.isf and norm.isf
     # evaluate, the same values), not scipy.stats: its import takes ~35 MB and ~0.4 s
@@ -475,14 +542,15 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
     w = windowed_nis(t, nis, used.sum(axis=1).astype(float))
     if w.finding is not None:
         out.append(Finding(
-            f"the filter is overconfident for {w.finding} the first applied fix; {w.stretches} such stretch(es), "
-            f"{w.failing:.0%} of the fixes): {w.worst_words}: its errors are larger than its σ say "
+            f"the filter is overconfident{'' if source == 'fix' else f' about the {source}s'} for {w.finding} the "
+            f"first applied {item}; {w.stretches} such stretch(es), {w.failing:.0%} of the {items}): {w.worst_words}: "
+            f"its errors are larger than its σ say "
             f"(noise model, lever arm, time offset or mount off)"))
     s_z, _, _ = _window_sums(t, z)
     k, _, _ = _window_sums(t, used.astype(float))
     u = s_z / np.sqrt(np.maximum(k, 1.0))
     q = -ndtri(MONITOR_ALPHA / (2 * m))
-    bad_c = (np.abs(u) > q) & (k > 0)
+    bad_c = (np.abs(u) > q) & (k > 0) & (np.abs(s_z) >= bias_floor * np.maximum(k, 1.0))
     bad = bad_c.any(axis=1)
     runs = _stretches(t, bad) if bad.any() else []
     if runs and runs[0][0] >= MONITOR_STRETCH_S:
@@ -491,13 +559,12 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None) -> l
         i += a
         worst = [labels[j] for j in range(m) if bad_c[a:b, j].any()]
         out.append(Finding(
-            f"the fix innovations are biased for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
-            f"the first applied fix; {len(runs)} such stretch(es), {bad.mean():.0%} of the fixes) in "
+            f"the {source} innovations are biased for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
+            f"the first applied {item}; {len(runs)} such stretch(es), {bad.mean():.0%} of the {items}) in "
             f"{', '.join(worst)}: {MONITOR_WINDOW_S:g}-s mean of the {labels[c]} innovation "
-            f"{s_z[i, c] / max(k[i, c], 1.0):+.2f} σ over {k[i, c]:.0f} fixes, {abs(u[i, c]):.1f} times its "
+            f"{s_z[i, c] / max(k[i, c], 1.0):+.2f} σ over {k[i, c]:.0f} {items}, {abs(u[i, c]):.1f} times its "
             f"spread 1/√{k[i, c]:.0f} where a consistent filter stays within {q:.2f} (false alarm "
-            f"{MONITOR_ALPHA:g} per window): an error the filter does not model (lever arm, time offset, "
-            f"mount, a bias prior too tight)"))
+            f"{MONITOR_ALPHA:g} per window): an error the filter does not model ({causes})"))
     return out
 
 

@@ -233,7 +233,8 @@ class _Collector:
             raise InputError(f"{path_for_errors}: no raw measurements (no RXM-RAWX epoch or RINEX "
                              "observation record)")
         if not self.rows:
-            raise InputError(f"{path_for_errors}: raw epochs without a single pseudorange")
+            raise InputError(f"{path_for_errors}: {len(self.t_int)} epochs of raw observations without a single "
+                             "pseudorange (every code observation empty or zero): the receiver reported no range")
         week0 = (self.t_int[0] - GPS_EPOCH_UNIX) // _WEEK
         t_ref = int(GPS_EPOCH_UNIX + week0 * _WEEK)
         rel = lambda ti_tf: (ti_tf[0] - t_ref) + ti_tf[1]  # noqa: E731

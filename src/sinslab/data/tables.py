@@ -878,6 +878,22 @@ def _fix_select(cols, raw, cmap, path, hline):
     return out
 
 
+def _check_geodetic(col, keep, cols, pick, path, lines):
+    """The first kept row whose latitude is beyond ±90° or longitude beyond ±360°: one line
+    naming the file, the line, the value and, when the declared unit makes it so, the
+    likely unit slip (degrees under a radian header)."""
+    for k, lim in (("lat", 90.0), ("lon", 360.0)):
+        deg = np.degrees(col[k])
+        bad = keep & (np.abs(deg) > lim)
+        if bad.any():
+            i = int(np.argmax(bad))
+            name, un = cols[pick[k]][0], cols[pick[k]][1] or "deg"
+            slip = (f" (the column is declared in {un}: values in degrees labelled radians?)"
+                    if un.strip().lower().startswith("rad") and abs(deg[i]) <= lim * 180 / np.pi else "")
+            raise ValueError(f"{where(path, lines[i])}: {'latitude' if k == 'lat' else 'longitude'} "
+                             f"{deg[i]:.6g} deg (column {name!r}) is beyond ±{lim:g} deg{slip}")
+
+
 def read_fix_table(path, *, columns=None, quality=None) -> tuple:
     """Read position(/velocity) fixes from a CSV (or other delimited text) or Parquet table,
     as units export them.
@@ -955,6 +971,7 @@ def read_fix_table(path, *, columns=None, quality=None) -> tuple:
     nopos = ~(np.isfinite(col["lat"]) & np.isfinite(col["lon"]))
     meta["no_position"] = int(np.sum(nopos & keep))
     keep &= ~nopos
+    _check_geodetic(col, keep, cols, pick, path, lines)
     for k in ("h", "ve", "vn", "vu", "vd"):
         if k in col:
             b = keep & ~np.isfinite(col[k])

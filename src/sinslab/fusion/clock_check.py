@@ -34,6 +34,11 @@ class ClockCheck:
     at_zero: float         #: correlation at lag 0 (within ±0.5 s)
     whole_seconds: int     #: the lag rounded to whole seconds
     turning: float         #: [s] of the overlap with a clear turn (course rate above 2 °/s)
+    #: vertical gyro rate over course rate in the turns, at the lag within ±0.5 s of the
+    #: strongest correlation of either sign (least squares; 1 for a level IMU read in its
+    #: own units, 180/π for degrees read as radians, −1 for a z axis pointing down)
+    rate_ratio: float = math.nan
+    rate_correlation: float = math.nan   #: the correlation at that lag
 
     @property
     def off(self) -> bool:
@@ -92,4 +97,9 @@ def clock_check(imu: ImuRecord, fixes: Fixes, *, search=30.0, step=0.1, min_spee
     c = np.nan_to_num(c, nan=-1.0)
     i = int(np.argmax(c))
     near0 = np.abs(lags) <= 0.5
-    return ClockCheck(float(lags[i]), float(c[i]), float(np.max(c[near0])), int(round(float(lags[i]))), turning)
+    k0 = int(np.flatnonzero(near0)[np.argmax(np.abs(c[near0]))])
+    turn = np.abs(ref) > math.radians(2.0)
+    gz = np.interp(grid + lags[k0], tw, wz)[turn]
+    ratio = float(np.dot(gz, ref[turn]) / np.dot(ref[turn], ref[turn]))
+    return ClockCheck(float(lags[i]), float(c[i]), float(np.max(c[near0])), int(round(float(lags[i]))), turning,
+                      ratio, float(c[k0]))

@@ -141,6 +141,7 @@ class _Prepared:
     sync: dict | None
     em_cfg: dict
     found: list
+    errors: object = None       #: the declared error model (ImuErrors) of --imu-errors, or None
 
 
 def _files(value):
@@ -174,7 +175,7 @@ def _prepare(cfg, echo) -> _Prepared:
     found = imu_findings(data.imu, str(imu_path), gaps=data.gaps)
     settle([fd for fd in found if fd.refuse])
     raw, fx, fix_name, fmeta = _gnss(cfg, data.imu, echo)
-    _check_clocks(data.imu, fx, fix_name, imu_path)
+    found += _check_clocks(data.imu, fx, fix_name, imu_path)
     _say_imu(data, echo)
     _check_latency(cfg, fx, data.imu)
     lever, em = _file_says(data, fmeta, cfg, em, echo)
@@ -188,7 +189,8 @@ def _prepare(cfg, echo) -> _Prepared:
     else:
         from sinslab.fusion.loosely_coupled import FixSource
         source = FixSource(fx, opt.fix)
-    return _Prepared(cfg, data, imu, fx, fix_name, source, aids, opt, sync, em[2] if em else {}, found)
+    return _Prepared(cfg, data, imu, fx, fix_name, source, aids, opt, sync, em[2] if em else {}, found,
+                     em[0] if em else None)
 
 
 def _reader_options(cfg, fmt):
@@ -252,7 +254,22 @@ def _gnss(cfg, imu, echo):
                                               columns=None if f.columns == "auto" else f.columns,
                                               quality=None if f.quality == "all" else f.quality), name, ffmt)
     _say_fix_reading(meta, name, echo)
+    _check_fixes(fx, name)
     return None, fx, name, meta
+
+
+def _check_fixes(fx, name):
+    """Fixes no filter can start from, named by their file: fewer than two receiver
+    epochs, a position off the Earth (whatever the reader's format)."""
+    if len(fx) < 2:                     # after the reader collapsed a logger's repeated rows
+        raise ValueError(f"{name}: {'only one receiver epoch' if len(fx) else 'no fix'}: a run needs fixes "
+                         "at two times at least")
+    for what, v, lim in (("latitude", fx.lat, 90.0), ("longitude", fx.lon, 360.0)):
+        bad = np.flatnonzero(~(np.abs(np.degrees(v)) <= lim))
+        if bad.size:
+            i = int(bad[0])
+            raise ValueError(f"{name}: fix {i + 1} (t = {fx.t[i]:.3f} s): {what} {np.degrees(v[i]):.6g} deg is "
+                             f"beyond ±{lim:g} deg")
 
 
 def _say_imu(data, echo):
@@ -324,10 +341,39 @@ def _check_clocks(imu, fx, fix_name, imu_path):
     (:func:`sinslab.fusion.clock_check.clock_check`); the filter would converge to a wrong
     heading and pass its claims."""
     from sinslab.fusion.clock_check import clock_check
+    if fx.t[-1] < imu.t0 or fx.t[0] > imu.t[-1]:
+        raise ValueError(f"{fix_name}: the fix times ({fx.t[0]:.3f}..{fx.t[-1]:.3f} s) do not overlap the IMU "
+                         f"record {imu_path} ({imu.t0:.3f}..{imu.t[-1]:.3f} s): different time bases? (GPST vs "
+                         "UTC differ by 18 s; seconds of week vs seconds since 1970; a logging delay)")
     c = clock_check(imu, fx)
     if c is not None and c.off:
         raise ValueError(f"{imu_path} against {fix_name}: the clocks differ by {c.lag:+.1f} s — "
                          f"{c.describe()}; put the IMU and the GNSS on one time scale")
+    return [] if c is None else _turn_rate_findings(c, fix_name, imu_path)
+
+
+#: a vertical gyro rate that follows the course rate this closely (correlation) has its
+#: scale and sign read from the turns
+TURN_CORRELATION = 0.6
+
+
+def _turn_rate_findings(c, fix_name, imu_path):
+    """The turns against the gyros (:class:`sinslab.fusion.clock_check.ClockCheck`): a
+    vertical rate 180/π times the course rate is a gyro unit slip (refused: every angle of
+    the run would be off by it); one that turns against the course, a vertical axis
+    pointing down (a wrong --frame or --mount; a warning)."""
+    from sinslab.app.plausibility import Finding, unit_slip
+    if abs(c.rate_correlation) < TURN_CORRELATION or not np.isfinite(c.rate_ratio):
+        return []
+    said = (f"{imu_path}: in {c.turning:.0f} s of turns the vertical gyro rate is {c.rate_ratio:.3g} × the course "
+            f"rate of {fix_name} (correlation {c.rate_correlation:.2f})")
+    slip = unit_slip(abs(c.rate_ratio), "the gyro data")
+    if slip is not None:
+        raise ValueError(f"{said}: {slip} (check the gyro columns' unit)")
+    if c.rate_ratio < 0:
+        return [Finding(f"{said}: the IMU's vertical axis points down — check --frame and --mount (a body z "
+                        "axis up turns with the course)")]
+    return []
 
 
 def _file_says(data, fmeta, cfg, em, echo):
@@ -549,6 +595,7 @@ def _compute(cfg, echo) -> Output:
     noise_warn = _noise_check(res.start, metrics, echo)
     claims = _claims(res, p, ev, metrics, echo)
     _say(res, p, ev, metrics, echo)
+    p.found += _estimate_findings(res, p, metrics)
     warnings = settle(p.found, strict=cfg.output.strict, echo=echo)
     every = max(1, int(round(1.0 / (cfg.output.csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
     tables = _tables(res, ev, every)
@@ -560,12 +607,15 @@ def _compute(cfg, echo) -> Output:
         _plugin_outputs(rep, metrics, tables, figures, notes, echo, float(res.t[0]))
     described = [d for rep in (res.source, *res.aids, *((res.estimator,) if res.estimator is not None else ()))
                  for d in rep.descriptions]
+    purpose = "INS + GNSS loosely coupled: position (and velocity) fixes in the filter, and aids, on recorded data"
     if res.source.rows:
-        from sinslab.app.commands.raw_gnss import raw_figures
+        from sinslab.app.commands.raw_gnss import RAW_DESCRIPTIONS, raw_figures, raw_report
         figures += raw_figures(res, res.source)
+        metrics, purpose = raw_report(metrics, len(res.outages), tuple(res.source.rows))
+        described = [*described, *RAW_DESCRIPTIONS]
     return Output(config=config_value(cfg), metrics=metrics, tables=tables, figures=figures, notes=notes,
                   files=_error_model_file(p.em_cfg), value=(res, p.fx), claims=claims, warnings=warnings,
-                  descriptions=described)
+                  descriptions=described, purpose=purpose)
 
 
 def _error_model_file(em):
@@ -657,11 +707,13 @@ def _claims(res, p, ev, metrics, echo):
     initial rest's |f| against gravity."""
     recs = res.source.fix_records
     if recs is None:
-        from sinslab.app.commands.raw_gnss import raw_claims
+        from sinslab.app.commands.raw_gnss import raw_claims, raw_consistency_findings
         from sinslab.app.plausibility import row_consistency_findings
         claims, extra = raw_claims(res.source.rows)
         found, window = row_consistency_findings(res.source.rows)
-        p.found += found
+        # the windowed NIS above judges overconfidence; the satellites' windows add their biases
+        p.found += found + [f for f in raw_consistency_findings(res.source.rows)
+                            if not f.text.startswith("the filter is overconfident")]
         extra.update(window)
     else:
         from sinslab.app.described import SETTLE_S, navigate_claims
@@ -689,6 +741,28 @@ def _claims(res, p, ev, metrics, echo):
         p.found += rest_gravity_findings(at_rest, f"{_files(p.cfg.imu.file)} (initial rest)", lat=float(p.fx.lat[0]),
                                          h=float(p.fx.h[0]))
     return claims
+
+
+def _estimate_findings(res, p, metrics):
+    """The run's estimated biases (and scale factors) against the IMU's grade: the declared
+    error model's 1σ (``--imu-errors``, :func:`sinslab.app.plausibility.declared_findings`),
+    else the class the noise measured at the initial rest puts the IMU in
+    (:func:`sinslab.app.plausibility.bias_findings`)."""
+    from sinslab.app import plausibility as P
+    src = f"{_files(p.cfg.imu.file)} (the run's estimates)"
+    gb, ab = np.asarray(metrics["gyro_bias_final_dph"]) * units.dph, np.asarray(metrics["accel_bias_final_ug"]) * units.ug
+    if p.errors is None:
+        return P.bias_findings(gb, ab, src, gyro_arw=float(np.median(res.start.gyro_noise)))
+    e = p.errors
+    est = [("gyro bias", gb, np.asarray(metrics["gyro_bias_sigma_final_dph"]) * units.dph, e.gyro_bias,
+            "°/h", 1 / units.dph),
+           ("accelerometer bias", ab, np.asarray(metrics["accel_bias_sigma_final_ug"]) * units.ug, e.accel_bias,
+            "µg", 1 / units.ug)]
+    if res.scale is not None:
+        sc = res.scale[-1]
+        est += [("gyro scale factor", sc[:3], np.zeros(3), e.gyro_scale_factor, "ppm", 1e6),
+                ("accelerometer scale factor", sc[3:], np.zeros(3), e.accel_scale_factor, "ppm", 1e6)]
+    return P.declared_findings(est, src, f"--imu-errors {p.cfg.filter.imu_errors}")
 
 
 def _say(res, p, ev, metrics, echo):
@@ -1106,7 +1180,8 @@ MEMORY_PER_FIX = 1024
 
 def estimate_samples(path, fmt):
     """Number of IMU samples in ``path`` estimated without reading it: the row count of a
-    Parquet file, or a text table's size over the mean length of its first lines; None
+    Parquet file, or a text table's size (up to a NUL tail,
+    :func:`sinslab.data.textguard.text_extent`) over the mean length of its first lines; None
     for other formats and compressed files. Of channels in two tables joined on time
     (``path`` a list) the first table is counted."""
     import os
@@ -1124,10 +1199,13 @@ def estimate_samples(path, fmt):
             return None
     if fmt != "csv":
         return None
+    from sinslab.data.textguard import text_extent
     try:
         size = os.path.getsize(path)
         with open(path, "rb") as fh:
             head = fh.read(1 << 16)
+        # a preallocated log's NUL tail holds no sample (the reader refuses it at its offset)
+        size = text_extent(path) or size
     except OSError:
         return None
     lines = head.split(b"\n")

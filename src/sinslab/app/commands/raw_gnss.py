@@ -11,13 +11,16 @@ import re
 
 import numpy as np
 
-__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures", "gnss_source", "load_base",
-           "check_phase_keys", "rtk_options"]
+__all__ = ["load_raw", "parse_max_satellites", "raw_claims", "raw_figures", "raw_report", "RAW_DESCRIPTIONS",
+           "raw_consistency_findings", "gnss_source", "load_base", "check_phase_keys", "rtk_options"]
 
 
-def parse_max_satellites(items, t_first):
+def parse_max_satellites(items, t_first, t_last=math.inf, seen=None):
     """``["3@60:20", ...]`` -> ``((3, t_first + 60, 20), ...)``: at most K satellites from
-    START [s after the first GNSS epoch] for DURATION [s]."""
+    START [s after the first GNSS epoch] for DURATION [s]. A limit that changes nothing is
+    refused, not taken as a no-op: a window that starts after the run's last epoch
+    ``t_last`` [s], or a K no epoch of the window exceeds (``seen``: ``(epoch times,
+    satellites with an ephemeris at each)``)."""
     out = []
     for text in items or ():
         m = re.fullmatch(r"\s*(\d+)\s*@\s*([0-9.eE+-]+)\s*:\s*([0-9.eE+-]+)\s*", str(text))
@@ -27,6 +30,16 @@ def parse_max_satellites(items, t_first):
         k, s, d = int(m.group(1)), float(m.group(2)), float(m.group(3))
         if not (math.isfinite(s) and s >= 0 and math.isfinite(d) and d > 0):
             raise ValueError(f"--max-satellites {text!r}: START must be >= 0 s and DURATION > 0 s")
+        if t_first + s > t_last:
+            raise ValueError(f"--max-satellites {text!r}: START {s:g} s is after the run's last GNSS epoch "
+                             f"({t_last - t_first:.1f} s after the first): the limit would apply to no epoch")
+        if seen is not None:
+            t_e, n_e = seen
+            inside = (t_e >= t_first + s) & (t_e <= t_first + s + d)
+            most = int(n_e[inside].max()) if inside.any() else 0
+            if k >= most:
+                raise ValueError(f"--max-satellites {text!r}: no epoch of the window has more than {most} "
+                                 f"satellite(s) with an ephemeris, so at most {k} changes nothing")
         out.append((k, t_first + s, d))
     return tuple(out)
 
@@ -54,7 +67,9 @@ def load_raw(keys, imu, echo=print):
     if not sv.usable.any():
         raise InputError(f"{path}: no satellite has an ephemeris"
                          + ("" if nav is not None else " (give a navigation file with --gnss-nav)"))
-    raw = RawGnss(sv, max_satellites=parse_max_satellites(keys.max_satellites, float(sv.t_epoch[0])),
+    seen = (sv.t_epoch, np.bincount(sv.epoch[sv.usable], minlength=sv.t_epoch.size))
+    raw = RawGnss(sv, max_satellites=parse_max_satellites(keys.max_satellites, float(sv.t_epoch[0]),
+                                                          min(float(sv.t_epoch[-1]), t1), seen),
                   mask=keys.elevation_mask, pseudorange_sigma=keys.pseudorange_sigma,
                   doppler_sigma=keys.doppler_sigma, gate=keys.gate, phase=keys.phase, phase_sigma=keys.phase_sigma)
     sp = raw.single_point()
@@ -122,6 +137,56 @@ def gnss_source(keys, raw, echo=print):
 
 _SYSTEM_NAMES = {"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS", "J": "QZSS"}
 
+#: the report rows of a tightly coupled run: its own rows (satellites, rows used and
+#: refused, their NIS) described, and the rows the loosely coupled run names after its
+#: fixes described against what they compare with here, the single-point solution
+RAW_DESCRIPTIONS = [
+    (r"^gnss_epochs_used$", "GNSS epochs with at least one pseudorange used"),
+    (r"^gnss_epochs$", "GNSS epochs inside the run"),
+    (r"^pseudoranges_used$", "pseudorange rows the filter used"),
+    (r"^pseudoranges_rejected$", "pseudorange rows refused by the innovation gate"),
+    (r"^doppler_used$", "range-rate (Doppler) rows the filter used"),
+    (r"^doppler_rejected$", "range-rate (Doppler) rows refused by the innovation gate"),
+    (r"^satellites_below_mask$", "pseudorange rows left out: satellite below the elevation mask"),
+    (r"^satellites_over_limit$", "pseudorange rows left out by --max-satellites"),
+    (r"^observations_without_ephemeris$", "observations of satellites without an ephemeris, skipped"),
+    (r"^satellites_used_median$", "satellites whose pseudorange was used per epoch, median"),
+    (r"^satellites_used_min$", "satellites whose pseudorange was used per epoch, fewest"),
+    (r"^gnss_systems$", "constellations used (G GPS, E Galileo, C BeiDou, R GLONASS, J QZSS)"),
+    (r"^elevation_mask_deg$", "satellites below it are not used"),
+    (r"^hz_err_with_fixes_median_m$", "horizontal solution − single-point solution outside outages, median"),
+    (r"^hz_err_with_fixes_max_m$", "horizontal solution − single-point solution outside outages, largest"),
+    (r"^hz_err_with_fixes_p99_m$", "horizontal solution − single-point solution outside outages, 99th percentile"),
+    (r"^outage_end_hz_err_median_m$", "horizontal error against the single-point solution at the end of the "
+                                      "outages, median"),
+    (r"^outage_end_hz_err_max_m$", "horizontal error against the single-point solution at the end of the "
+                                   "outages, largest"),
+    (r"^outage_end_hz_err_m$", "horizontal error against the single-point solution at the end of each outage"),
+    (r"^fixes_after_grid$", "single-point fixes after the last whole filter step, not used"),
+]
+#: the tightly coupled run's rows first (the loosely coupled run leads with its fixes')
+_RAW_FIRST = ("gnss_systems", "gnss_epochs_used", "gnss_epochs", "satellites_used_median", "satellites_used_min",
+              "pseudoranges_used", "pseudoranges_rejected", "pseudorange_nis_mean", "pseudorange_nis_verdict",
+              "doppler_used", "doppler_rejected", "doppler_nis_mean", "doppler_nis_verdict",
+              "satellites_below_mask", "satellites_over_limit", "observations_without_ephemeris",
+              "elevation_mask_deg")
+
+
+def raw_report(metrics, n_outages, kinds=("pseudoranges", "range_rates")):
+    """``(metrics, purpose)`` of a tightly coupled run's report: its own rows first, the
+    outage rows last when there was no outage, and the line under the title that says what
+    the run coupled (``kinds``: the names of the source's row records)."""
+    first = {k: metrics[k] for k in _RAW_FIRST if k in metrics}
+    rest = {k: v for k, v in metrics.items() if k not in first}
+    last = {k: rest.pop(k) for k in list(rest) if k.startswith("outage_end_") or k == "n_outages"} \
+        if n_outages == 0 else {}
+    systems = ", ".join(_SYSTEM_NAMES.get(c, c) for c in str(metrics.get("gnss_systems", "")))
+    names = [k.replace("_", " ") for k in kinds]
+    what = " and ".join(names) if len(names) < 3 else ", ".join(names[:-1]) + " and " + names[-1]
+    purpose = (f"INS + GNSS tightly coupled: {what} of raw observations"
+               f"{f' ({systems})' if systems else ''} in the filter, and aids, on recorded data")
+    return {**first, **rest, **last}, purpose
+
 
 def raw_claims(rows):
     """Claims of a tightly coupled run (the project's checks, ``origin="check"``): per kind,
@@ -145,6 +210,44 @@ def raw_claims(rows):
     return claims, extra
 
 
+
+
+#: a satellite's innovations averaging beyond this many σ over a monitor window: beyond
+#: what its noise model allows at all (within σ, a bias lasting minutes is the normal
+#: ionospheric residual and multipath of single-frequency pseudoranges, not a finding)
+RAW_BIAS_FLOOR = 3.0
+
+
+def raw_consistency_findings(rows):
+    """The innovation windows of a tightly coupled run (:func:`sinslab.app.plausibility.consistency_findings`
+    over the epochs, each satellite a component): a stretch where the rows used are
+    larger than the filter's σ say (the windowed NIS), or where one satellite's
+    innovations average beyond :data:`RAW_BIAS_FLOOR` σ (multipath, a wrong inter-system
+    bias). The σ of a row's
+    innovation is √(H P Hᵀ + R) = |ν| / √NIS."""
+    from sinslab.app.plausibility import consistency_findings
+    out = []
+    for label, what in (("pseudoranges", "pseudorange"), ("range_rates", "range rate")):
+        log = rows.get(label)
+        if log is None or not log.t or "sat" not in log.meta:
+            continue
+        sats = log.meta["sat"]
+        names = sorted({str(x) for a in sats for x in a})
+        col = {n: j for j, n in enumerate(names)}
+        nu = np.full((len(log.t), len(names)), np.nan)
+        sd = nu.copy()
+        nis = np.zeros(len(log.t))
+        for k, (v, n, u, sk) in enumerate(zip(log.innovation, log.nis, log.used, sats)):
+            v, n, u = np.asarray(v, float), np.asarray(n, float), np.asarray(u, bool)
+            ok = u & np.isfinite(v) & np.isfinite(n) & (n > 0)
+            j = [col[str(x)] for x in np.asarray(sk)[ok]]
+            nu[k, j], sd[k, j] = v[ok], np.abs(v[ok]) / np.sqrt(n[ok])
+            nis[k] = float(np.sum(n[ok]))
+        out += consistency_findings(np.asarray(log.t, float), nu, sd, nis, [f"{what} {x}" for x in names],
+                                    item="epoch", items="epochs", source=what, bias_floor=RAW_BIAS_FLOOR,
+                                    causes="multipath or a badly tracked signal of that satellite, an inter-system "
+                                           "bias, a lever arm or time offset")
+    return out
 
 
 def raw_figures(res, rep):

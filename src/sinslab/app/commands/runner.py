@@ -106,6 +106,8 @@ class Output:
     warnings: list = field(default_factory=list)
     #: ``(regex, description)`` of metrics the command's plug-ins describe themselves
     descriptions: list = field(default_factory=list)
+    #: what this run did, under the report's title (empty: the command's purpose)
+    purpose: str = ""
 
 
 def command_summary(rd: RunDir, command: str, purpose: str, config: dict, metrics: dict,
@@ -182,7 +184,7 @@ def run_command(command: Command, out: str | os.PathLike | None, compute: Callab
             timing.update(series_s=t2 - t1, figures_s=time.perf_counter() - t2)
     finally:
         _close(res.figures[written:])
-    summary = complete_timed(rd, command_summary(rd, command.name, command.purpose, res.config,
+    summary = complete_timed(rd, command_summary(rd, command.name, res.purpose or command.purpose, res.config,
                                                  res.metrics, res.notes, res.claims,
                                                  paper=command.paper, timing=timing,
                                                  warnings=res.warnings, descriptions=res.descriptions))
