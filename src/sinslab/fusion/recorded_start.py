@@ -312,7 +312,7 @@ def fixes_dt(fixes):
 class Rest:
     """The stationary stretch the run starts with: IMU samples ``k0:k1``, from ``t0`` to
     ``t1`` [s]; the mean gyro output there ``gyro_mean`` (3,) [rad/s] (minus the Earth
-    rate's vertical part), ``f_norm`` |mean specific force| [m/s²], and the white noise
+    rate's vertical part), ``f_norm`` ‖mean specific force‖ [m/s²], and the white noise
     measured there, ``gyro_noise`` [rad/√s] and ``accel_noise`` [m/s/√s] (3,) each."""
 
     k0: int

@@ -32,7 +32,8 @@ __all__ = ["RawGnss", "RawSource", "tightly_coupled", "TightlyCoupled", "tc_mode
 
 @dataclass(frozen=True, eq=False)
 class RawGnss:
-    """Raw GNSS aiding: the prepared observations and how they are used.
+    """Raw GNSS aiding: the prepared observations and how they are used. The single-point
+    solution of the observations is computed once (:attr:`spp`).
 
     Attributes
     ----------
@@ -57,8 +58,6 @@ class RawGnss:
     nominal : tuple, optional
         ``(b0, d0, t0, {system: isb})``; default from the first single-point solution at
         or after the start (:meth:`clock_nominal`).
-
-    The single-point solution of the observations is computed once (:attr:`spp`).
     """
 
     sv: SatelliteObservations

@@ -131,6 +131,8 @@ class OutputKeys(Section):
     csv_rate: Q("frequency", gt="0 Hz") = Field("1 Hz", description="rate of solution.csv (--csv-rate)")
     strict: bool = Field(False, description="refuse (exit 2) instead of warning about the data or the run "
                                             "(--strict)")
+    kml: bool = Field(False, description="also write the track, the fixes and the outages as RUN.kml beside the "
+                                         "run folder, as sinslab export RUN --to kml (--kml)")
 
 
 #: option -> (dotted key, value kind): the command's options as short forms of keys; a
@@ -151,7 +153,7 @@ FLAGS = {
     "--platform": ("start.platform", None),
     "--imu-errors": ("filter.imu_errors", "maybe_path"), "--scale-factors": ("filter.scale_factors", None),
     "--smooth": ("filter.smooth", None),
-    "--csv-rate": ("output.csv_rate", "Hz"), "--strict": ("output.strict", None),
+    "--csv-rate": ("output.csv_rate", "Hz"), "--strict": ("output.strict", None), "--kml": ("output.kml", None),
 }
 #: ``--init`` keys -> start keys
 INIT_KEYS = {"heading": "heading", "course_speed": "course_speed", "course_spread": "course_spread"}
