@@ -34,6 +34,7 @@ import numpy as np
 
 from sinslab.core import attitude as A
 from sinslab.core import earth as E
+from sinslab.core import units
 from sinslab.core.blocks import BLOCK_ROWS, release_pages
 from sinslab.core.records import Fixes, ImuRecord
 from sinslab.core.stamps import held_runs
@@ -143,6 +144,38 @@ class RecordedNav:
         """The same result with other navigation rows (e.g. the smoothed ones), for
         :func:`fix_errors`."""
         return dataclasses.replace(self, run=dataclasses.replace(self.run, nav=(nav, *self.run.nav[1:])))
+
+    def to_pandas(self, smoothed: bool = False) -> "pandas.DataFrame":
+        """The solution as a table, one row per filter epoch, units in the column names (the
+        columns of a ``navigate`` run's ``solution.csv``): ``t_s`` (since the first epoch)
+        and ``t_abs_s`` (the record's time), ``lat_deg``, ``lon_deg``, ``h_m``
+        (ellipsoidal), ``vE_mps``, ``vN_mps``, ``vU_mps``, the vehicle's ``pitch_deg``,
+        ``roll_deg`` and ``heading_deg`` (clockwise from north, 0–360), the filter σ of every
+        state (``sigma_<state>_<display unit>``, e.g. ``sigma_phiU_arcmin``) and the sensor
+        compensation in use (``gyro_bias_x_dph`` .., ``accel_bias_x_ug`` ..).
+
+        ``smoothed=True``: the RTS-smoothed navigation and σ instead (a run with
+        ``options.grid.smooth``); the compensation columns stay the forward run's.
+        """
+        import pandas as pd
+
+        if smoothed and (self.smoothed is None or self.smoothed.nav is None):
+            raise ValueError("this run was not smoothed (NavOptions.grid.smooth)")
+        nav = self.smoothed.nav if smoothed else self.nav
+        sigma = self.smoothed.sigma if smoothed else self.sigma
+        att = A.quat_to_euler(nav[:, :4])
+        cols = {"t_s": self.t - self.t[0], "t_abs_s": self.t, "lat_deg": np.degrees(nav[:, 7]),
+                "lon_deg": np.degrees(nav[:, 8]), "h_m": nav[:, 9],
+                "vE_mps": nav[:, 4], "vN_mps": nav[:, 5], "vU_mps": nav[:, 6],
+                "pitch_deg": np.degrees(att[:, 0]), "roll_deg": np.degrees(att[:, 1]),
+                "heading_deg": np.degrees(np.mod(A.yaw_to_heading(att[:, 2]), 2 * np.pi))}
+        scale = self.layout.display_scale
+        for i, (label, unit) in enumerate(zip(self.labels, self.units_)):
+            cols[f"sigma_{label}_{unit.replace('/', 'p')}"] = sigma[:, i] / scale[i]
+        for k, ax in enumerate("xyz"):
+            cols[f"gyro_bias_{ax}_dph"] = self.gyro_bias[:, k] / units.dph
+            cols[f"accel_bias_{ax}_ug"] = self.accel_bias[:, k] / units.ug
+        return pd.DataFrame(cols)
 
     @property
     def att(self):

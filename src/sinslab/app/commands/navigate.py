@@ -19,6 +19,7 @@ import numpy as np
 
 from sinslab.app.commands.panels import panel_figure
 from sinslab.app.commands.runner import Command, Figure, Output, Series, cli_call, run_command
+from sinslab.app.outputs import default_out_dir
 from sinslab.core import units
 from sinslab.core.blocks import block_ranges, release_free_memory, release_pages
 
@@ -55,7 +56,11 @@ def navigate_files(cfg, *, out=None, echo=print):
     :func:`sinslab.app.plausibility.consistency_findings`) are checked; a warning is printed
     and listed in the report, ``output.strict`` refuses.
     """
+    out = Path(out) if out is not None else default_out_dir(NAVIGATE.name)
     summary, res = run_command(NAVIGATE, out, lambda: _compute(cfg, echo), echo=echo)
+    if cfg.output.kml:
+        from sinslab.app.export import export_run
+        echo(f"  -> {export_run(out, 'kml')}")
     return (summary, *res.value)
 
 
@@ -598,7 +603,7 @@ def _compute(cfg, echo) -> Output:
     p.found += _estimate_findings(res, p, metrics)
     warnings = settle(p.found, strict=cfg.output.strict, echo=echo)
     every = max(1, int(round(1.0 / (cfg.output.csv_rate * (res.t[1] - res.t[0]))))) if res.t.size > 1 else 1
-    tables = _tables(res, ev, every)
+    tables = _tables(res, ev, every, p.fx)
     figures = _figures(res, p, ev)
     notes = _notes(res, p, metrics, noise_warn, echo)
     if res.smoothed is not None:
@@ -852,14 +857,19 @@ def _plugin_outputs(rep, metrics, tables, figures, notes, echo, t0):
         figures.append(panel_figure(f, t0))
 
 
-def _tables(res, ev, every):
+def _tables(res, ev, every, fx):
     sol = Series("solution", _solution_table(res), f"navigation solution at every filter epoch with filter sigma "
                  f"(Parquet; the CSV every {every}-th epoch, {1 / (every * (res.t[1] - res.t[0])):.4g} Hz)"
                  if res.t.size > 1 else "navigation solution", csv_every=every)
     err = Series("fix_errors", {"t_s": ev.t - res.t[0], "east_m": ev.err[:, 0], "north_m": ev.err[:, 1],
                                 "up_m": ev.err[:, 2], "in_outage": ev.in_out.astype(float)},
                  f"solution (antenna) minus {res.source.reference} at every fix time")
-    return [sol, err]
+    # the reference positions themselves, for the map (sinslab export, --kml)
+    ref = Series("fixes", {"t_s": ev.t - res.t[0], "lat_deg": np.degrees(fx.lat[ev.idx]),
+                           "lon_deg": np.degrees(fx.lon[ev.idx]), "h_m": fx.h[ev.idx],
+                           "in_outage": ev.in_out.astype(float)},
+                 f"the {res.source.reference} inside the solution's span (in_outage 1: withheld)")
+    return [sol, err, ref]
 
 
 def _figures(res, p, ev):
@@ -1428,6 +1438,8 @@ _OPTIONS = (
     ("platform", "str", ("--platform",), "auto | land | aircraft | marine: aids of a wheeled vehicle only on land "
                                          "(auto: from the fixes)"),
     ("strict", "bool", ("--strict",), "refuse (exit 2, nothing written) instead of warning about the data or the run"),
+    ("kml", "bool", ("--kml",), "also write the track, the GNSS fixes and the outages as RUN.kml beside the run "
+                                "folder (Google Earth; sinslab export RUN --to kml|geojson does it later)"),
 )
 
 

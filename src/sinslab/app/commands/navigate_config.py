@@ -175,6 +175,8 @@ class OutputKeys(Section):
     csv_rate: Q("frequency", gt="0 Hz") = Field("1 Hz", description="rate of solution.csv (--csv-rate)")
     strict: bool = Field(False, description="refuse (exit 2) instead of warning about the data or the run "
                                             "(--strict)")
+    kml: bool = Field(False, description="also write the track, the fixes and the outages as RUN.kml beside the "
+                                         "run folder, as sinslab export RUN --to kml (--kml)")
 
 
 def _estimator(v):
@@ -210,7 +212,7 @@ FLAGS = {
     "--platform": ("start.platform", None),
     "--imu-errors": ("filter.imu_errors", "maybe_path"), "--scale-factors": ("filter.scale_factors", None),
     "--smooth": ("filter.smooth", None), "--estimator": ("estimator", None),
-    "--csv-rate": ("output.csv_rate", "Hz"), "--strict": ("output.strict", None),
+    "--csv-rate": ("output.csv_rate", "Hz"), "--strict": ("output.strict", None), "--kml": ("output.kml", None),
 }
 #: ``--init`` keys -> start keys
 INIT_KEYS = {k: k for k in ("heading", "pitch", "roll", "attitude_sigma", "time", "latitude", "longitude",
