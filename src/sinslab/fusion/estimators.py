@@ -1,5 +1,5 @@
 """The estimator of a recorded run, a strategy: the error-state Kalman filter (with its
-RTS smoother when asked) or the factor graph (:mod:`sinslab.fusion.graph`, batch or
+RTS smoother when asked) or the factor graph (``sinslab.fusion.graph``, the optional GTSAM extra: batch or
 fixed-lag) on the same inputs.
 
 :func:`sinslab.fusion.recorded.navigate_recorded` makes the inputs once — the IMU, the
