@@ -522,10 +522,6 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None, *, i
         coupled source's fixes by default; the epochs of a measurement's rows (``item="epoch",
         items="epochs", source="pseudorange"``).
     """
-    # scipy.special's χ² and normal quantiles (what scipy.stats' chi2.isf and norm.isf
-    # evaluate, the same values), not scipy.stats: its import takes ~35 MB and ~0.4 s
-    from scipy.special import ndtri
-
     t = np.asarray(t, float)
     nu = np.asarray(innovation, float).reshape(t.size, -1)
     sd = np.asarray(innovation_sigma, float).reshape(nu.shape)
@@ -546,6 +542,23 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None, *, i
             f"first applied {item}; {w.stretches} such stretch(es), {w.failing:.0%} of the {items}): {w.worst_words}: "
             f"its errors are larger than its σ say "
             f"(noise model, lever arm, time offset or mount off)"))
+    bias = _bias_finding(t, z, used, labels, item=item, items=items, source=source, causes=causes,
+                         bias_floor=bias_floor)
+    if bias is not None:
+        out.append(bias)
+    return out
+
+
+def _bias_finding(t, z, used, labels, *, item, items, source, causes, bias_floor):
+    """The innovation-mean half of :func:`consistency_findings`: ``z`` (J, m) the
+    innovations over their σ (0 where ``used`` is False); a :class:`Finding` where some
+    component's :data:`MONITOR_WINDOW_S` mean, scaled by √k, stays beyond the two-sided
+    Bonferroni quantile for :data:`MONITOR_STRETCH_S`, else None."""
+    # scipy.special's normal quantile (what scipy.stats' norm.isf evaluates, the same
+    # value), not scipy.stats: its import takes ~35 MB and ~0.4 s
+    from scipy.special import ndtri
+
+    m = z.shape[1]
     s_z, _, _ = _window_sums(t, z)
     k, _, _ = _window_sums(t, used.astype(float))
     u = s_z / np.sqrt(np.maximum(k, 1.0))
@@ -558,14 +571,14 @@ def consistency_findings(t, innovation, innovation_sigma, nis, labels=None, *, i
         i, c = np.unravel_index(int(np.argmax(np.abs(u[a:b]))), u[a:b].shape)
         i += a
         worst = [labels[j] for j in range(m) if bad_c[a:b, j].any()]
-        out.append(Finding(
+        return Finding(
             f"the {source} innovations are biased for {dur:.0f} s ({t[a] - t[0]:.0f}–{t[b - 1] - t[0]:.0f} s after "
             f"the first applied {item}; {len(runs)} such stretch(es), {bad.mean():.0%} of the {items}) in "
             f"{', '.join(worst)}: {MONITOR_WINDOW_S:g}-s mean of the {labels[c]} innovation "
             f"{s_z[i, c] / max(k[i, c], 1.0):+.2f} σ over {k[i, c]:.0f} {items}, {abs(u[i, c]):.1f} times its "
             f"spread 1/√{k[i, c]:.0f} where a consistent filter stays within {q:.2f} (false alarm "
-            f"{MONITOR_ALPHA:g} per window): an error the filter does not model ({causes})"))
-    return out
+            f"{MONITOR_ALPHA:g} per window): an error the filter does not model ({causes})")
+    return None
 
 
 def settle(findings, *, strict: bool = False, echo=print) -> list[str]:
