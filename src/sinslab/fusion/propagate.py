@@ -3,8 +3,9 @@
 Per epoch: ``F``, ``G`` from the navigation rows (``fill_varying`` of :mod:`sinslab.nav.errstate_kernels`),
 the series ``Φ = I + F T + (F T)²/2`` and ``Q̄ = G diag(q) Gᵀ``
 (:func:`sinslab.estimation.kernels.series_phi`, :func:`~sinslab.estimation.kernels.series_qbar`),
-then the filter's own prediction step (:func:`sinslab.estimation.kernels.predict_step`:
-``P``, ``x ← Φ x``, ``c ← Φ c``). The series ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` is never formed:
+then the filter's own prediction step
+(:func:`sinslab.estimation.kernels.predict_step_sparse_x`: ``P``, ``x ← Φ x``, ``c ← Φ c``;
+x recorded where it is not zero). The series ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` is never formed:
 ``P ← Φ P Φᵀ + Q_k = Φ (P + T Q̄/2) Φᵀ + T Q̄/2``
 (:func:`~sinslab.estimation.kernels.add_half_qbar`), and ``Φ P Φᵀ`` uses the diagonal rows
 of the sensor states (the module notes of :mod:`sinslab.estimation.kernels`). The
