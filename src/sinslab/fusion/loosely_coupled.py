@@ -358,6 +358,9 @@ class FixSource:
     fix_error: tuple | None = None
     #: what :meth:`prepare` found of the fixes' error ({"model", "source", "used", ...}), or None
     fix_error_info: dict | None = None
+    #: σ floors of the fixes ((3,) north, east, up [m]; (3,) east, north, up [m/s]) measured
+    #: from the innovations of an earlier pass (sinslab.fusion.fix_noise.innovation_noise), or None
+    sigma_floor: tuple | None = None
     name = "fixes"
 
     def start_fixes(self):
@@ -421,10 +424,11 @@ class FixSource:
         from sinslab.fusion.recorded_start import fix_velocity
         h = self.handling
         use_vel = h.use_velocity and fixes.vel is not None
+        pf, vf = self.sigma_floor if self.sigma_floor is not None else (0.0, 0.0)
         spec = FixSpec(fixes.t, np.stack([fixes.lat, fixes.lon, fixes.h], -1),
-                       np.maximum(fixes.sigma, h.pos_sigma_floor),
+                       np.maximum(np.maximum(fixes.sigma, h.pos_sigma_floor), pf),
                        vel=fix_velocity(fixes) if use_vel else None,
-                       vel_sigma=np.maximum(fixes.sigma_vel, h.vel_sigma_floor) if use_vel else None,
+                       vel_sigma=np.maximum(np.maximum(fixes.sigma_vel, h.vel_sigma_floor), vf) if use_vel else None,
                        latency=h.fix_latency, lever_arm=setup.lever_arm, outages=setup.outages,
                        lever_block=lever_block, robust=h.robust)
         fm = _fix_measurement(spec, setup.layout, setup.t_start, setup.t_end, setup.T, float(setup.imu.t[-1]))
@@ -432,7 +436,11 @@ class FixSource:
 
     def report(self, plan, run):
         from sinslab.fusion.aids.base import SourceReport
-        fix_t, _, _, inn, nis, sd = plan.facts["fix"].records(run.applied["fixes"])
+        fix_t, _, idx, inn, nis, sd = plan.facts["fix"].records(run.applied["fixes"])
+        spec = plan.facts["spec"]
+        sg = spec.sigma[idx, :plan.facts["fix"].n_z]
+        if spec.vel is not None:
+            sg = np.hstack([sg, spec.vel_sigma[idx]])
         metrics = {"n_fixes_used": int(fix_t.size), "nis_mean": float(np.mean(nis)) if nis.size else None}
         notes = ()
         fe = self.fix_error_info
@@ -441,4 +449,5 @@ class FixSource:
                      + (f" ({fe['source']})" if fe.get("source") else "")
                      + ("; taken as Gauss–Markov states" if fe["used"] else "; the fixes stay white") + ".",)
         return SourceReport(self.name, "position/velocity fixes", metrics=metrics, notes=notes,
-                            coupling="loosely coupled", fix_records=(fix_t, inn, sd, nis), reference="fixes")
+                            coupling="loosely coupled", fix_records=(fix_t, inn, sd, nis), reference="fixes",
+                            fix_sigma=sg)
