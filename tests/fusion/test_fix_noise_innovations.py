@@ -132,3 +132,22 @@ def test_optimistic_receiver_sigma_measured_from_the_innovations(optimistic_rece
     assert np.all(used[:3] > 1.0) and np.all(used[3:] > 0.3), used           # raised 5–20×, where the errors are
     assert 2 <= m["fix_noise_runs"] <= 6
     assert any(nt.startswith("Fix σ from the innovations") for nt in res.source.notes)
+
+
+def test_the_configuration_key_reaches_the_run(optimistic_receiver):
+    """``--set gnss.fixes.noise=innovations`` (the one option) becomes ``fix_noise`` of the
+    run's options; a value it does not know is refused."""
+    from pathlib import Path
+
+    from sinslab.app.commands.navigate import _options, navigate_config
+    from sinslab.app.errors import UserError
+
+    imu, fx, _ = optimistic_receiver
+    c = navigate_config(imu=[Path("imu.csv")], fixes=[Path("fix.pos")], sets=["gnss.fixes.noise=innovations"])
+    assert _options(c, None, imu, fx, None).fix.fix_noise == "innovations"
+    c = navigate_config(imu=[Path("imu.csv")], fixes=[Path("fix.pos")])
+    assert _options(c, None, imu, fx, None).fix.fix_noise == "stated"
+    with pytest.raises((ValueError, UserError)):
+        navigate_config(imu=[Path("imu.csv")], fixes=[Path("fix.pos")], sets=["gnss.fixes.noise=adaptive"])
+    with pytest.raises(ValueError, match="fix_noise"):
+        NavOptions.of(fix_noise="adaptive")
