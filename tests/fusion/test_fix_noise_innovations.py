@@ -30,12 +30,11 @@ from sinslab.sim import trajectory as tr
 
 
 def _ar1(rng, n, sigma, rho):
-    x = np.empty(n)
-    x[0] = rng.normal(0, sigma)
+    """``x_k = ρ x_{k−1} + w_k`` of steady-state σ (x_0 drawn from it)."""
+    from scipy.signal import lfilter
     w = rng.normal(0, sigma * math.sqrt(1 - rho * rho), n)
-    for k in range(1, n):
-        x[k] = rho * x[k - 1] + w[k]
-    return x
+    w[0] = rng.normal(0, sigma)
+    return lfilter([1.0], [1.0, -rho], w)
 
 
 def test_white_innovations_give_back_R():
