@@ -323,15 +323,10 @@ def _fix_noise_passes(run, source: FixSource) -> RecordedNav:
     at what the previous run's innovations measured
     (:func:`sinslab.fusion.fix_noise.innovation_noise`: the long-run variance, a
     variance-component estimate) until they ask for no more than :data:`FIX_NOISE_TOL` above
-    the σ used, at most :data:`FIX_NOISE_PASSES` runs. The first run's velocity σ are floored
-    at the fixes' velocity walk against their own positions
-    (:func:`sinslab.fusion.fix_noise.velocity_walk_sigma`): the part of a lasting velocity
-    error a filter that follows its fixes absorbs and its innovations cannot show. The last
-    run is returned, its source report saying which σ were used and why."""
-    from sinslab.fusion.fix_noise import innovation_noise, velocity_walk_sigma
-    walk = velocity_walk_sigma(source.fixes) if source.handling.use_velocity else None
-    if walk is not None:
-        source = dataclasses.replace(source, sigma_floor=(np.zeros(3), walk))
+    the σ used, at most :data:`FIX_NOISE_PASSES` runs (every run's velocity σ floored at the
+    fixes' velocity walk, :meth:`FixSource.prepare`). The last run is returned, its source
+    report saying which σ were used and why."""
+    from sinslab.fusion.fix_noise import innovation_noise
     history = []
     for _ in range(FIX_NOISE_PASSES):
         res = run(source)
@@ -339,17 +334,17 @@ def _fix_noise_passes(run, source: FixSource) -> RecordedNav:
         t, inn, sd, _ = rep.fix_records
         est = innovation_noise(t, inn, sd, rep.fix_sigma)
         if est is None:
-            return _with_fix_noise(res, source, walk, history, "too few whole 10 s batches of fixes")
+            return _with_fix_noise(res, source, history, "too few whole 10 s batches of fixes")
         used = np.median(rep.fix_sigma, 0)
         history.append((est[0], used))
         if np.all(est[0] <= used * (1 + FIX_NOISE_TOL)):
-            return _with_fix_noise(res, source, walk, history, None)
+            return _with_fix_noise(res, source, history, None)
         floor = np.maximum(used, est[0])
         n_p = floor.size - (3 if rep.fix_sigma.shape[1] in (5, 6) else 0)   # position rows: 3, or 2 (horizontal)
         pos = np.zeros(3)
         pos[:n_p] = floor[:n_p]
         source = dataclasses.replace(source, sigma_floor=(pos, floor[n_p:] if floor.size > n_p else 0.0))
-    return _with_fix_noise(res, source, walk, history, f"not settled after {FIX_NOISE_PASSES} runs")
+    return _with_fix_noise(res, source, history, f"not settled after {FIX_NOISE_PASSES} runs")
 
 
 def _stated_sigma(source: FixSource, n_p, with_vel):
@@ -365,7 +360,7 @@ def _stated_sigma(source: FixSource, n_p, with_vel):
     return np.concatenate(out)
 
 
-def _with_fix_noise(res: RecordedNav, source, walk, history, trouble):
+def _with_fix_noise(res: RecordedNav, source, history, trouble):
     """``res`` with its source report saying what the innovation runs did (metrics
     ``fix_noise_*``: the σ stated, measured by the velocity walk and by the last run's
     innovations, and used; one note)."""
@@ -379,8 +374,8 @@ def _with_fix_noise(res: RecordedNav, source, walk, history, trouble):
                    fix_noise_sigma_stated=stated.tolist(), fix_noise_sigma_used=used.tolist())
     fmt = lambda a: ", ".join(f"{x:.3g}" for x in a)
     words = [f"the file states {fmt(stated)}"]
+    walk = rep.metrics.get("fix_noise_velocity_walk_sigma")
     if walk is not None and m > n_p:
-        metrics["fix_noise_velocity_walk_sigma"] = walk.tolist()
         words.append(f"the velocity fixes' walk against the positions asks for {fmt(walk)} (vE, vN, vU)")
     if history:
         metrics["fix_noise_sigma_measured"] = history[-1][0].tolist()
