@@ -176,6 +176,29 @@ def test_lane_forms_are_the_one_filter_kernels():
         assert nis[l] == pytest.approx(nu @ np.linalg.solve(S, nu), rel=1e-10)
 
 
+def test_sparse_x_record_step_is_predict_step():
+    """predict_step_sparse_x steps P, x and c and writes σ exactly as predict_step (bit for
+    bit); its x row is left as it was (zero) when the estimate is zero — the closed-loop
+    epochs without an update — and written otherwise."""
+    rng = np.random.default_rng(8)
+    n = 7
+    Phi = rng.normal(size=(n, n)) * (rng.uniform(size=(n, n)) < 0.5) + np.eye(n)
+    Q = _spd(n, rng) * 1e-3
+    nzc = np.zeros((1, n, n), dtype=np.int64)
+    nnz = np.zeros((1, n), dtype=np.int64)
+    K.row_nonzeros(Phi[None], nzc, nnz)
+    for x0 in (np.zeros(n), rng.normal(size=n)):
+        outs = []
+        for step in (K.predict_step, K.predict_step_sparse_x):
+            x, c, P = x0.copy(), np.ones(n), _spd(n, np.random.default_rng(3))
+            sig, xo = np.empty(n), np.zeros(n)
+            step(x, c, P, Phi, Q, n, nzc[0], nnz[0], np.empty((n, n)), np.empty((n, n)), np.empty(n), sig, xo)
+            outs.append((x, c, P, sig, xo))
+        for a, b in zip(*outs):
+            np.testing.assert_array_equal(a, b)
+        assert np.any(outs[1][4] != 0.0) == np.any(x0 != 0.0)
+
+
 def test_fixed_gain_update_and_innovation_covariance():
     """innovation, gain_correct and innovation_cov against numpy's z − H x, x + G ν and
     H P Hᵀ + R (to rounding; S exactly symmetric, R's halves averaged)."""
