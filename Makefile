@@ -18,8 +18,10 @@ $(STAMP): pyproject.toml | $(BIN)/python
 demo: $(STAMP)
 	$(BIN)/sinslab demo --out runs
 
+# two processes, each taking whole test files (module fixtures are made once, and the docs
+# tests that share their runs stay in one process)
 test: $(STAMP)
-	$(BIN)/python -m pytest -x -p no:cacheprovider
+	$(BIN)/python -m pytest -x -p no:cacheprovider -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/speed.py
