@@ -182,7 +182,7 @@ def profile(sc, res, n_ep=20000):
         fn(10)
         out[name] = min(_cpu(lambda: fn(n_ep))[0] for _ in range(3))
     stretch = (rows[None], w[None], f[None])
-    so, xo = np.empty((n_ep, n)), np.empty((n_ep, n))
+    so, xo = np.empty((n_ep, n)), np.zeros((n_ep, n))
 
     def fused(k):
         kf = KalmanFilter(np.zeros(n), P0, check=False)

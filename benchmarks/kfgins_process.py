@@ -35,6 +35,8 @@ import math  # noqa: E402
 import os  # noqa: E402
 import sys  # noqa: E402
 
+import sinslab  # noqa: E402,F401 - its process settings take effect before numpy loads, as in the CLI
+
 #: columns of the solution table, in order
 COLUMNS = (["t", "lat", "lon", "h", "ve", "vn", "vu", "pitch", "roll", "yaw"]
            + [f"gyro_bias_{a}" for a in "xyz"] + [f"accel_bias_{a}" for a in "xyz"]
@@ -85,32 +87,41 @@ def _model(cfg):
     return model, np.diag(sd ** 2)
 
 
-def _columns(res):
-    """The solution's columns in :data:`COLUMNS` order, each (M,): the navigation rows split
-    into position, velocity and attitude angles by
+def _columns(res, a, b):
+    """Rows ``a..b−1`` of the solution's columns in :data:`COLUMNS` order: the navigation
+    rows split into position, velocity and attitude angles by
     :func:`sinslab.nav.strapdown.rows_to_series` (compiled), the rest views of the result."""
     from sinslab.nav.strapdown import rows_to_series
 
-    s = rows_to_series(res.t, res.nav)
+    s = rows_to_series(res.t[a:b], res.nav[a:b])
+    sl = slice(a, b)
     return ([s.t, s.lat, s.lon, s.h] + [s.vel[:, j] for j in range(3)] + [s.att[:, j] for j in range(3)]
-            + [res.gyro_bias[:, j] for j in range(3)] + [res.accel_bias[:, j] for j in range(3)]
-            + [res.scale[:, j] for j in range(6)] + [res.sigma[:, j] for j in range(21)])
+            + [res.gyro_bias[sl, j] for j in range(3)] + [res.accel_bias[sl, j] for j in range(3)]
+            + [res.scale[sl, j] for j in range(6)] + [res.sigma[sl, j] for j in range(21)])
+
+
+#: rows of the solution assembled per write (a 11 MB buffer that stays in cache-friendly
+#: reach of the sources, which are each read once, in order)
+BLOCK = 32768
 
 
 def write_solution(path, res):
-    """The solution as one ``.npy`` table (M, 43), float64, written a column at a time
-    (Fortran order: the file holds column after column) through one column buffer, so that
-    no second copy of the solution is made in memory."""
+    """The solution as one ``.npy`` table (M, 43), float64, row after row, written a block of
+    :data:`BLOCK` rows at a time through one buffer, so that no second copy of the solution
+    is made in memory and each source array is read once, in order."""
     import numpy as np
 
     m = res.t.size
-    buf = np.empty(m)
+    buf = np.empty((min(m, BLOCK), len(COLUMNS)))
     with open(path, "wb") as fh:
-        np.lib.format.write_array_header_2_0(fh, {"descr": "<f8", "fortran_order": True,
+        np.lib.format.write_array_header_2_0(fh, {"descr": "<f8", "fortran_order": False,
                                                   "shape": (m, len(COLUMNS))})
-        for col in _columns(res):
-            np.copyto(buf, col)
-            buf.tofile(fh)
+        for a in range(0, m, BLOCK):
+            b = min(m, a + BLOCK)
+            blk = buf[:b - a]
+            for j, col in enumerate(_columns(res, a, b)):
+                blk[:, j] = col
+            blk.tofile(fh)
 
 
 def main(argv=None):

@@ -16,6 +16,8 @@ each outage end and the velocity error when each outage starts, for
 - ``default``: the fixes as the file states them (σ 1 m, 0.05 m/s: white);
 - ``fix errors measured``: ``fix_error="auto"`` (sinslab.fusion.fix_noise: the fixes'
   correlation measured from the record and taken into account);
+- ``fix σ from innovations``: ``fix_noise="innovations"`` (the fixes' σ floored at the
+  long-run variance of the filter's own innovations, the run repeated until they agree);
 - ``start given``: the default with the reference's attitude at the first fix handed to
   the filter as NaveGo hands its ``ini_align`` (``--init pitch=,roll=,heading=,time=``):
   the run starts at the first fix instead of where the course first shows the heading;
@@ -90,7 +92,7 @@ def given_start(fx, tru):
 
 def run(imu, fx, tru, meta, grade, **kw):
     """One filter run: ``(hz RMS, vertical RMS, outage ends (7,), |δv| at outage starts (7,),
-    NIS, start [s after the first fix])``."""
+    NIS, start [s after the first fix], the RecordedNav)``."""
     from sinslab.core import units as U
     from sinslab.fusion import recorded as R
     f = GRADES[grade][1]
@@ -109,7 +111,7 @@ def run(imu, fx, tru, meta, grade, **kw):
         ends.append(float(hz[j1]))
         dv0.append(float(np.hypot(*dv[j0, :2])))
     return (float(np.sqrt(np.mean(hz ** 2))), float(np.sqrt(np.mean(e[:, 2] ** 2))), np.array(ends),
-            np.array(dv0), float(np.mean(res.nis)), float(res.start.t - fx.t[0]))
+            np.array(dv0), float(np.mean(res.nis)), float(res.start.t - fx.t[0]), res)
 
 
 def _row(name, r):
@@ -134,6 +136,7 @@ def main(argv=None):
         print(_row("default", run(*d, grade)))
         print(_row("start given", run(*d, grade, **given_start(d[1], d[2]))))
         print(_row("fix errors measured", run(*d, grade, fix_error="auto")))
+        print(_row("fix σ from innovations", run(*d, grade, fix_noise="innovations")))
         best = None
         for ps, vs in itertools.product((1.0, 2.5), (0.05, 0.15, 0.3, 0.5)):
             r = run(*d, grade, fix_sigma=(ps, ps, 2 * ps), fix_vel_sigma=(vs, vs, vs))

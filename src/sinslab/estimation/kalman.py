@@ -19,9 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import ArrayLike
-from scipy import linalg as sla
 
 from sinslab.core.errors import InputError
 
@@ -272,6 +270,8 @@ def update(x: ArrayLike, P: ArrayLike, z: ArrayLike, H: ArrayLike, R: ArrayLike,
             Pv = 0.5 * (Pv + Pv.T)
             nis += nu_i * nu_i / s
     else:
+        from scipy import linalg as sla   # here: scipy.linalg costs a whole-process run ~0.2 s to import
+
         try:
             cf = sla.cho_factor(S)
         except np.linalg.LinAlgError as e:
@@ -303,7 +303,9 @@ def van_loan(F: ArrayLike, Qc: ArrayLike, T: float) -> tuple[np.ndarray, np.ndar
     M[..., :n, :n] = -F * T
     M[..., :n, n:] = Qc * T
     M[..., n:, n:] = np.swapaxes(F, -1, -2) * T
-    E = scipy.linalg.expm(M)
+    from scipy.linalg import expm
+
+    E = expm(M)
     Phi = np.swapaxes(E[..., n:, n:], -1, -2)
     Qk = Phi @ E[..., :n, n:]
     return Phi, 0.5 * (Qk + np.swapaxes(Qk, -1, -2))
@@ -418,6 +420,8 @@ def steady_state(Phi: ArrayLike, Qk: ArrayLike, H: ArrayLike, R: ArrayLike) -> S
     if R.ndim < 2:
         R = np.diag(np.broadcast_to(R, (m,)).astype(float))
     R = check_covariance(_as_square(R, m, "R"), "R", definite=True)
+    from scipy import linalg as sla
+
     try:
         Pp = sla.solve_discrete_are(Phi.T, H.T, Qk, R)
     except (np.linalg.LinAlgError, ValueError) as e:

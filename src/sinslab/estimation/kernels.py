@@ -41,7 +41,7 @@ from sinslab.core.jitnotice import install as _compile_notice
 
 _compile_notice()   # a status line while the kernels below compile (first run)
 
-__all__ = ["cov_predict", "state_predict", "predict_step", "predict_steps", "predict_steps_dense",
+__all__ = ["cov_predict", "state_predict", "predict_step", "predict_step_sparse_x", "predict_steps", "predict_steps_dense",
            "predict_lanes", "scalar_update", "sequential_update", "sequential_update_lanes", "vector_update",
            "predicted_dense", "state_predict_dense", "innovation", "gain_correct", "innovation_cov", "row_nonzeros", "copy2",
            "diagonal_tail", "series_structure", "series_phi", "series_qbar", "series_qk",
@@ -132,11 +132,10 @@ def state_predict_dense(x, Phi, tmp):
         x[i] = tmp[i]
 
 
-@njit(cache=True)
-def predict_step(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp, sig, xo):
-    """One filter prediction: ``P`` by :func:`cov_predict`, then the estimate ``x`` and the
-    cumulative feedback ``c`` (n,) by :func:`state_predict`, in that order; σ = sqrt(diag P)
-    and x after the step into the rows ``sig``, ``xo`` (n,)."""
+@njit(cache=True, inline="always")
+def _predict_xc(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp):
+    """``P`` by :func:`cov_predict`, then ``x`` and ``c`` by :func:`state_predict`; returns
+    whether x is zero (then left as +0.0 everywhere, the product skipped)."""
     n = x.shape[0]
     cov_predict(P, Phi, Q, r, T1, W)
     # closed loop: the estimate is zero from one update's feedback to the next update, and
@@ -152,9 +151,31 @@ def predict_step(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp, sig, xo):
     else:
         state_predict(x, Phi, nzc, nnz, tmp)
     state_predict(c, Phi, nzc, nnz, tmp)
-    for j in range(n):
+    return zero
+
+
+@njit(cache=True)
+def predict_step(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp, sig, xo):
+    """One filter prediction: ``P`` by :func:`cov_predict`, then the estimate ``x`` and the
+    cumulative feedback ``c`` (n,) by :func:`state_predict`, in that order; σ = sqrt(diag P)
+    and x after the step into the rows ``sig``, ``xo`` (n,)."""
+    _predict_xc(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp)
+    for j in range(x.shape[0]):
         sig[j] = math.sqrt(max(P[j, j], 0.0))
         xo[j] = x[j]
+
+
+@njit(cache=True)
+def predict_step_sparse_x(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp, sig, xo):
+    """:func:`predict_step` into an ``xo`` row that holds zeros on entry, written only where
+    x is not zero: the record of a closed-loop filter, whose estimate is zero at every epoch
+    without an update, stays untouched memory (never faulted in) but for those epochs."""
+    zero = _predict_xc(x, c, P, Phi, Q, r, nzc, nnz, T1, W, tmp)
+    for j in range(x.shape[0]):
+        sig[j] = math.sqrt(max(P[j, j], 0.0))
+    if not zero:
+        for j in range(x.shape[0]):
+            xo[j] = x[j]
 
 
 @njit(cache=True)

@@ -19,6 +19,25 @@ integral grows like a random walk, whatever the σ the receiver states). σ_w²,
 q_v are fitted by non-negative least squares (relative residuals) for each τ of a
 logarithmic grid up to half the longest lag, the τ of the smallest residual kept. The filter then carries the Gauss–Markov part as states
 (:func:`sinslab.nav.errstate.fix_position_error`) and the white part as the fixes' σ.
+
+**From the filter's innovations** (:func:`innovation_noise`): a receiver's stated σ can be
+optimistic and its errors last, so ``N`` successive fixes carry far less than ``N`` fixes'
+information. A filter with the right white R has innovations ``ν = z − H x⁻`` that are
+white with covariance ``S = H P⁻ Hᵀ + R`` (Mehra & Peschon 1971); for errors that last,
+the R a white-noise filter needs is their *long-run* variance (the spectral density at
+zero frequency over the fix interval, ``σ² (1 + 2 Σ_k ρ_k)``: the variance that governs an
+average of many fixes). It is measured by batch means (Mohamed & Schwarz's 1999 windowed
+innovation covariance, taken over batches instead of single fixes so that a correlation
+within a batch counts): per batch ``b`` of ``n_b`` fixes ``n_b ν̄_b²`` has expectation
+``mean_b S`` for white innovations and the long-run variance otherwise, so per component::
+
+    σ̂² = mean_b( n_b ν̄_b² − mean_b(H P⁻ Hᵀ) )
+
+with ``H P⁻ Hᵀ = S − R`` of each fix. The filter that follows optimistic fixes absorbs part
+of their error, so one pass sees only part of it: the passes are iterated (a
+variance-component estimate), each taking ``max(σ used, σ̂)`` as the fixes' σ floor, until
+the innovations ask for no more (:func:`sinslab.fusion.recorded.navigate_recorded` with
+``FixHandling.fix_noise = "innovations"``). The floor never lowers a σ the file states.
 """
 from __future__ import annotations
 
@@ -30,7 +49,7 @@ import numpy as np
 from sinslab.core import earth as E
 from sinslab.core.records import Fixes
 
-__all__ = ["FixErrorModel", "fix_error_model"]
+__all__ = ["FixErrorModel", "fix_error_model", "innovation_noise", "velocity_walk_sigma", "INNOVATION_BATCH_S", "MIN_BATCHES"]
 
 
 @dataclass(frozen=True)
@@ -104,3 +123,64 @@ def _fit(D, lags, h):
     _, tau, coef = best
     return FixErrorModel(np.sqrt(coef[:, 0]), np.sqrt(coef[:, 1]), float(tau), lags, D,
                          np.sqrt(coef[:, 2]))
+
+
+#: batch length of :func:`innovation_noise` [s]: longer than a Doppler velocity error lasts
+#: (seconds), short enough for many batches in a drive
+INNOVATION_BATCH_S = 10.0
+#: fewest whole batches :func:`innovation_noise` estimates from
+MIN_BATCHES = 10
+
+
+def innovation_noise(t, innovation, innovation_sigma, sigma, *, batch=INNOVATION_BATCH_S,
+                     min_batches=MIN_BATCHES):
+    """The fixes' white σ that matches the long-run variance of the filter's innovations
+    (see the module notes).
+
+    Parameters
+    ----------
+    t : array (J,)
+        Validity times of the applied fixes [s], increasing.
+    innovation, innovation_sigma : arrays (J, m)
+        Innovations ``ν`` and the filter's σ of each (``√S_ii``).
+    sigma : array (J, m)
+        The σ each fix was applied with (``√R_ii``).
+    batch : float
+        Batch length [s]; only batches holding at least 80 % of the fixes a whole batch
+        holds are used (none straddles an outage or a gap).
+    min_batches : int
+
+    Returns
+    -------
+    (σ̂ (m,), batches) or None
+        ``σ̂`` per component (0 where the innovations are smaller than the filter's own
+        uncertainty explains), and the number of batches; None with fewer than
+        ``min_batches``.
+    """
+    t = np.asarray(t, float)
+    nu = np.asarray(innovation, float).reshape(t.size, -1)
+    hph = np.asarray(innovation_sigma, float).reshape(nu.shape) ** 2 - np.asarray(sigma, float).reshape(nu.shape) ** 2
+    if t.size < 2:
+        return None
+    h = float(np.median(np.diff(t)))
+    b = np.floor((t - t[0]) / batch).astype(np.int64)
+    n = np.bincount(b).astype(float)
+    full = n >= 0.8 * batch / h
+    if int(full.sum()) < min_batches:
+        return None
+    cols = range(nu.shape[1])
+    s_nu = np.stack([np.bincount(b, nu[:, i]) for i in cols], -1)[full]
+    s_hph = np.stack([np.bincount(b, hph[:, i]) for i in cols], -1)[full]
+    nf = n[full, None]
+    est = np.mean(s_nu ** 2 / nf - s_hph / nf, axis=0)
+    return np.sqrt(np.maximum(est, 0.0)), int(full.sum())
+
+
+def velocity_walk_sigma(fixes: Fixes):
+    """The white σ per velocity component (east, north, up [m/s]) that carries the
+    information of the velocity walk :func:`fix_error_model` measures (``q_v / h`` for
+    fixes ``h`` apart), or None (no velocities, too short a record)."""
+    m = fix_error_model(fixes)
+    if m is None or m.velocity_walk is None:
+        return None
+    return m.velocity_walk / math.sqrt(float(np.median(np.diff(fixes.t))))

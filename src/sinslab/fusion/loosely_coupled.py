@@ -358,12 +358,32 @@ class FixSource:
     fix_error: tuple | None = None
     #: what :meth:`prepare` found of the fixes' error ({"model", "source", "used", ...}), or None
     fix_error_info: dict | None = None
+    #: σ floors of the fixes ((3,) north, east, up [m]; (3,) east, north, up [m/s]) measured
+    #: from the innovations of an earlier pass (sinslab.fusion.fix_noise.innovation_noise), or None
+    sigma_floor: tuple | None = None
+    #: with ``handling.fix_noise = "innovations"``: the velocity σ floor (3,) east, north, up
+    #: [m/s] of the fixes' velocity walk against their positions (set by :meth:`prepare`), or None
+    walk_floor: np.ndarray | None = None
     name = "fixes"
 
     def start_fixes(self):
         return self.fixes
 
     def prepare(self, fixes):
+        """``(fixes, source)``: the fixes' time-correlated errors taken into account
+        (:meth:`_lasting_errors`) and, with ``handling.fix_noise = "innovations"``, the
+        velocity σ floor of their measured velocity walk
+        (:func:`sinslab.fusion.fix_noise.velocity_walk_sigma`: the part of a lasting velocity
+        error a filter that follows its fixes absorbs and its innovations cannot show)."""
+        import dataclasses
+        fixes, source = self._lasting_errors(fixes)
+        h = self.handling
+        if h.fix_noise == "innovations" and h.use_velocity and fixes.vel is not None:
+            from sinslab.fusion.fix_noise import velocity_walk_sigma
+            source = dataclasses.replace(source, walk_floor=velocity_walk_sigma(fixes))
+        return fixes, source
+
+    def _lasting_errors(self, fixes):
         """``(fixes, source)``: the fixes' time-correlated errors taken into account
         (``handling.fix_error``; "auto": measured from the record by
         :func:`sinslab.fusion.fix_noise.fix_error_model`).
@@ -421,10 +441,13 @@ class FixSource:
         from sinslab.fusion.recorded_start import fix_velocity
         h = self.handling
         use_vel = h.use_velocity and fixes.vel is not None
+        pf, vf = self.sigma_floor if self.sigma_floor is not None else (0.0, 0.0)
+        if self.walk_floor is not None:
+            vf = np.maximum(vf, self.walk_floor)
         spec = FixSpec(fixes.t, np.stack([fixes.lat, fixes.lon, fixes.h], -1),
-                       np.maximum(fixes.sigma, h.pos_sigma_floor),
+                       np.maximum(np.maximum(fixes.sigma, h.pos_sigma_floor), pf),
                        vel=fix_velocity(fixes) if use_vel else None,
-                       vel_sigma=np.maximum(fixes.sigma_vel, h.vel_sigma_floor) if use_vel else None,
+                       vel_sigma=np.maximum(np.maximum(fixes.sigma_vel, h.vel_sigma_floor), vf) if use_vel else None,
                        latency=h.fix_latency, lever_arm=setup.lever_arm, outages=setup.outages,
                        lever_block=lever_block, robust=h.robust)
         fm = _fix_measurement(spec, setup.layout, setup.t_start, setup.t_end, setup.T, float(setup.imu.t[-1]))
@@ -432,8 +455,14 @@ class FixSource:
 
     def report(self, plan, run):
         from sinslab.fusion.aids.base import SourceReport
-        fix_t, _, _, inn, nis, sd = plan.facts["fix"].records(run.applied["fixes"])
+        fix_t, _, idx, inn, nis, sd = plan.facts["fix"].records(run.applied["fixes"])
+        spec = plan.facts["spec"]
+        sg = spec.sigma[idx, :plan.facts["fix"].n_z]
+        if spec.vel is not None:
+            sg = np.hstack([sg, spec.vel_sigma[idx]])
         metrics = {"n_fixes_used": int(fix_t.size), "nis_mean": float(np.mean(nis)) if nis.size else None}
+        if self.walk_floor is not None:
+            metrics["fix_noise_velocity_walk_sigma"] = self.walk_floor.tolist()
         notes = ()
         fe = self.fix_error_info
         if fe is not None:
@@ -441,4 +470,5 @@ class FixSource:
                      + (f" ({fe['source']})" if fe.get("source") else "")
                      + ("; taken as Gauss–Markov states" if fe["used"] else "; the fixes stay white") + ".",)
         return SourceReport(self.name, "position/velocity fixes", metrics=metrics, notes=notes,
-                            coupling="loosely coupled", fix_records=(fix_t, inn, sd, nis), reference="fixes")
+                            coupling="loosely coupled", fix_records=(fix_t, inn, sd, nis), reference="fixes",
+                            fix_sigma=sg)

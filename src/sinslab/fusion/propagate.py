@@ -3,8 +3,9 @@
 Per epoch: ``F``, ``G`` from the navigation rows (``fill_varying`` of :mod:`sinslab.nav.errstate_kernels`),
 the series ``Φ = I + F T + (F T)²/2`` and ``Q̄ = G diag(q) Gᵀ``
 (:func:`sinslab.estimation.kernels.series_phi`, :func:`~sinslab.estimation.kernels.series_qbar`),
-then the filter's own prediction step (:func:`sinslab.estimation.kernels.predict_step`:
-``P``, ``x ← Φ x``, ``c ← Φ c``). The series ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` is never formed:
+then the filter's own prediction step
+(:func:`sinslab.estimation.kernels.predict_step_sparse_x`: ``P``, ``x ← Φ x``, ``c ← Φ c``;
+x recorded where it is not zero). The series ``Q_k = T (Q̄ + Φ Q̄ Φᵀ)/2`` is never formed:
 ``P ← Φ P Φᵀ + Q_k = Φ (P + T Q̄/2) Φᵀ + T Q̄/2``
 (:func:`~sinslab.estimation.kernels.add_half_qbar`), and ``Φ P Φᵀ`` uses the diagonal rows
 of the sensor states (the module notes of :mod:`sinslab.estimation.kernels`). The
@@ -23,8 +24,8 @@ import numpy as np
 from numba import njit
 
 from sinslab.estimation.filter import KalmanFilter
-from sinslab.estimation.kernels import (add_half_qbar, diagonal_tail, predict_step, series_phi, series_qbar,
-                                         series_structure)
+from sinslab.estimation.kernels import (add_half_qbar, diagonal_tail, predict_step_sparse_x, series_phi,
+                                         series_qbar, series_structure)
 from sinslab.nav import errstate_kernels as ek
 
 __all__ = ["CompiledPropagation"]
@@ -36,9 +37,9 @@ def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_co
                    grow, gcnt, R, pos, nr, qbr, qbn, phic, phin, r, x, c, P, sig_out, x_out):
     """Epochs ``e_a..e_b−1`` of L lanes, one lane after the other with the same work arrays:
     ``rows`` (L, k, S, 10), ``w``, ``f`` (L, k, S, 3); ``x``, ``c`` (L, n), ``P`` (L, n, n)
-    stepped in place; ``sig_out``, ``x_out`` (L, e_b − e_a, n); rows ``r..n−1`` of Φ
-    diagonal. Returns ``(lane, epoch)`` of the first invalid navigation point, or
-    ``(−1, −1)``."""
+    stepped in place; ``sig_out``, ``x_out`` (L, e_b − e_a, n), ``x_out`` zero on entry
+    (written where x is not); rows ``r..n−1`` of Φ diagonal. Returns ``(lane, epoch)`` of
+    the first invalid navigation point, or ``(−1, −1)``."""
     n = F0.shape[0]
     C = np.empty((rows.shape[1], 3, 3))
     Fc = np.empty((9, 9))
@@ -66,7 +67,7 @@ def _predict_model(rows, w, f, e_a, e_b, rd, F0, G0, core_k, core_r, f_row, f_co
             series_qbar(Ge, q, grow, gcnt, pos, nr, qbr, qbn, Qb)
             add_half_qbar(Pl, Qb, h, R, nr, qbr, qbn, Qh)
             i = e - e_a
-            predict_step(xl, cl, Pl, Pe, Qh, r, phic, phin, T1, W, tmp, sig_out[ln, i], x_out[ln, i])
+            predict_step_sparse_x(xl, cl, Pl, Pe, Qh, r, phic, phin, T1, W, tmp, sig_out[ln, i], x_out[ln, i])
     return -1, -1
 
 
@@ -119,7 +120,9 @@ class CompiledPropagation:
         T : float
             Step [s].
         sigma_out, x_out : sequence of ndarray, shape (b − a, n)
-            Per lane, receive σ and x after each step.
+            Per lane, receive σ and x after each step; ``x_out`` holds zeros on entry and
+            is written where x is not zero (a closed-loop record stays untouched memory
+            between updates).
         """
         rows, w, f = stretch
         fcol, fcnt, grow, gcnt, R, pos, nr, phic, phin, qr, nq, qbr, qbn, prc, prn = self.structure
@@ -129,7 +132,7 @@ class CompiledPropagation:
             so, xo = sigma_out[0][None], x_out[0][None]
         else:
             n = filts[0].n
-            so, xo = np.empty((L, b - a, n)), np.empty((L, b - a, n))
+            so, xo = np.empty((L, b - a, n)), np.zeros((L, b - a, n))
 
         def step(x, c, P):
             return _predict_model(rows, w, f, a, b, *self._tables, self.q, float(T), fcol, fcnt, grow,

@@ -16,7 +16,8 @@ and the filter, and the evaluation against the fixes.
    (:meth:`~sinslab.fusion.aids.base.Aid.plan`), through the filter on one INS core with
    the lag policy of the fixes (the default), or the factor graph on the same inputs.
    Outages: no GNSS measurement valid inside one is used; a fix valid at t arrives at
-   t + latency.
+   t + latency. With the fixes' noise from the innovations (``FixHandling.fix_noise``)
+   the filter runs until the σ it takes the fixes with match its own innovations.
 4. **The reports**: the source's and one per aid (:class:`RecordedNav`), each from the
    driver's record of its own measurements.
 
@@ -290,15 +291,103 @@ def navigate_recorded(imu: ImuRecord, source, opt: NavOptions | None = None, *, 
         The filter (default; with the RTS smoother when ``opt.grid.smooth``) or the
         factor graph (:func:`sinslab.fusion.estimators.estimator_of`).
 
+    With ``opt.fix.fix_noise = "innovations"`` the run is repeated, the fixes' σ floored
+    at what the previous run's innovations measured, until they agree (at most
+    :data:`FIX_NOISE_PASSES` runs; the source report says which σ were used and why).
+
     Raises ValueError when the fix times do not overlap the IMU record, when there is no
-    usable fix, when an aid of a wheeled vehicle meets another platform, or when the
-    vehicle never moves and no heading is given. Fixes after the last whole filter step
+    usable fix, when an aid of a wheeled vehicle meets another platform, when the
+    vehicle never moves and no heading is given, or when the fix noise from the
+    innovations meets the factor graph. Fixes after the last whole filter step
     are dropped (:attr:`RecordedNav.fixes_after_grid` counts them).
     """
     opt = opt or NavOptions()
     if isinstance(source, Fixes):
         source = FixSource(source, opt.fix)
     aids = tuple(aids)
+    if isinstance(source, FixSource) and opt.fix.fix_noise == "innovations":
+        if estimator is not None and not isinstance(estimator, KalmanEstimator):
+            raise ValueError("fix noise from the innovations needs the filter's innovations: not with the "
+                             "factor graph (use the filter, or the fixes' σ as stated)")
+        return _fix_noise_passes(lambda src: _navigate(imu, src, opt, aids, estimator, progress), source)
+    return _navigate(imu, source, opt, aids, estimator, progress)
+
+
+#: most passes of ``fix_noise = "innovations"`` and the relative σ change that ends them
+FIX_NOISE_PASSES = 6
+FIX_NOISE_TOL = 0.05
+
+
+def _fix_noise_passes(run, source: FixSource) -> RecordedNav:
+    """``FixHandling.fix_noise = "innovations"``: the run repeated with the fixes' σ floored
+    at what the previous run's innovations measured
+    (:func:`sinslab.fusion.fix_noise.innovation_noise`: the long-run variance, a
+    variance-component estimate) until they ask for no more than :data:`FIX_NOISE_TOL` above
+    the σ used, at most :data:`FIX_NOISE_PASSES` runs (every run's velocity σ floored at the
+    fixes' velocity walk, :meth:`FixSource.prepare`). The last run is returned, its source
+    report saying which σ were used and why."""
+    from sinslab.fusion.fix_noise import innovation_noise
+    history = []
+    for _ in range(FIX_NOISE_PASSES):
+        res = run(source)
+        rep = res.source
+        t, inn, sd, _ = rep.fix_records
+        est = innovation_noise(t, inn, sd, rep.fix_sigma)
+        if est is None:
+            return _with_fix_noise(res, source, history, "too few whole 10 s batches of fixes")
+        used = np.median(rep.fix_sigma, 0)
+        history.append((est[0], used))
+        if np.all(est[0] <= used * (1 + FIX_NOISE_TOL)):
+            return _with_fix_noise(res, source, history, None)
+        floor = np.maximum(used, est[0])
+        n_p = floor.size - (3 if rep.fix_sigma.shape[1] in (5, 6) else 0)   # position rows: 3, or 2 (horizontal)
+        pos = np.zeros(3)
+        pos[:n_p] = floor[:n_p]
+        source = dataclasses.replace(source, sigma_floor=(pos, floor[n_p:] if floor.size > n_p else 0.0))
+    return _with_fix_noise(res, source, history, f"not settled after {FIX_NOISE_PASSES} runs")
+
+
+def _stated_sigma(source: FixSource, n_p, with_vel):
+    """Median σ the fixes are stated with (the σ overrides and floors of the handling
+    applied): position north, east[, up] [m] then velocity east, north, up [m/s]."""
+    h, fx = source.handling, source.fixes
+    ps = np.broadcast_to(np.asarray(h.fix_sigma, float), (3,)) if h.fix_sigma is not None else np.median(fx.sigma, 0)
+    out = [np.maximum(ps, h.pos_sigma_floor)[:n_p]]
+    if with_vel:
+        vs = (np.broadcast_to(np.asarray(h.fix_vel_sigma, float), (3,)) if h.fix_vel_sigma is not None
+              else np.median(fx.sigma_vel, 0))
+        out.append(np.maximum(vs, h.vel_sigma_floor))
+    return np.concatenate(out)
+
+
+def _with_fix_noise(res: RecordedNav, source, history, trouble):
+    """``res`` with its source report saying what the innovation runs did (metrics
+    ``fix_noise_*``: the σ stated, measured by the velocity walk and by the last run's
+    innovations, and used; one note)."""
+    rep = res.source
+    m = rep.fix_sigma.shape[1]
+    n_p = m - 3 if m in (5, 6) else m
+    labels = (["north", "east", "up"][:n_p] + (["vE", "vN", "vU"] if m > n_p else []))
+    stated = _stated_sigma(source, n_p, m > n_p)
+    used = np.median(rep.fix_sigma, 0)
+    metrics = dict(rep.metrics, fix_noise_runs=len(history), fix_noise_components=labels,
+                   fix_noise_sigma_stated=stated.tolist(), fix_noise_sigma_used=used.tolist())
+    fmt = lambda a: ", ".join(f"{x:.3g}" for x in a)
+    words = [f"the file states {fmt(stated)}"]
+    walk = rep.metrics.get("fix_noise_velocity_walk_sigma")
+    if walk is not None and m > n_p:
+        words.append(f"the velocity fixes' walk against the positions asks for {fmt(walk)} (vE, vN, vU)")
+    if history:
+        metrics["fix_noise_sigma_measured"] = history[-1][0].tolist()
+        words.append(f"the innovations of the last run ask for {fmt(history[-1][0])}")
+    note = (f"Fix σ from the innovations ({len(history)} run(s); long-run variance over 10 s batches; "
+            f"{', '.join(labels)} [m, m/s]): " + "; ".join(words) + f"; used {fmt(used)}"
+            + (f" ({trouble})" if trouble else "") + ".")
+    return dataclasses.replace(res, source=dataclasses.replace(rep, metrics=metrics, notes=tuple(rep.notes) + (note,)))
+
+
+def _navigate(imu, source, opt, aids, estimator, progress):
+    """One run of :func:`navigate_recorded` (its steps 1–4)."""
     estimator = estimator or KalmanEstimator()
     estimator.check(opt.grid.smooth, source.name, [a.name for a in aids])
     fixes, held = _start_fixes(imu, source.start_fixes(), opt.fix)

@@ -28,10 +28,12 @@ import numpy as np
 from sinslab.core import units
 from sinslab.fusion.lag import ExactReprocessing
 
-__all__ = ["ErrorSpec", "FixHandling", "StartSpec", "GridSpec", "NavOptions", "PLATFORMS"]
+__all__ = ["ErrorSpec", "FixHandling", "StartSpec", "GridSpec", "NavOptions", "PLATFORMS", "FIX_NOISE"]
 
 #: platform kinds of :attr:`StartSpec.platform`
 PLATFORMS = ("auto", "land", "aircraft", "marine")
+#: how the fixes' σ are taken (:attr:`FixHandling.fix_noise`)
+FIX_NOISE = ("stated", "innovations")
 
 
 def _check_positive(spec, *names):
@@ -116,9 +118,15 @@ class FixHandling:
     #: inflate a fix's R where its innovation is beyond the 1 − robust χ² quantile (Chang 2014;
     #: sinslab.fusion.measurements.schedule.robust_R); None: every fix as stated
     robust: float | None = None
+    #: the fixes' σ: "stated" (as the file gives them, floored) or "innovations" (floored at the
+    #: long-run variance of the filter's own innovations, the run repeated until they agree:
+    #: optimistic σ and errors that last; sinslab.fusion.fix_noise.innovation_noise)
+    fix_noise: str = "stated"
 
     def __post_init__(self):
         object.__setattr__(self, "lever_arm", _lever("lever arm", self.lever_arm))
+        if self.fix_noise not in FIX_NOISE:
+            raise ValueError(f"fix_noise must be one of {', '.join(FIX_NOISE)}, got {self.fix_noise!r}")
         object.__setattr__(self, "outages", tuple(self.outages))
         for o in self.outages:
             s, ln = (o[2], o[1]) if o[0] == "periodic" else o

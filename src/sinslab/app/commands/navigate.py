@@ -459,6 +459,7 @@ def _options(cfg, em, imu, fx, lever):
         opt.lag = lag_policy(LAG_POLICY[f.lag])
         opt.fix_error = None if f.error == "none" else f.error
         opt.robust = f.robust
+        opt.fix_noise = f.noise
     opt.scale_factors = bool(cfg.filter.scale_factors) or opt.scale_factors
     opt.move_speed = cfg.start.course_speed
     opt.heading_straight = cfg.start.course_spread

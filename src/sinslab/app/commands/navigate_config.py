@@ -70,6 +70,9 @@ class FixesKeys(Section):
     error: Choice(("none", "auto")) = Field(
         "none", description="the fixes' time-correlated error: none (white, as stated) | auto (measured from the "
                             "record and taken as Gauss-Markov states where metre-level)")
+    noise: Choice(("stated", "innovations")) = Field(
+        "stated", description="the fixes' σ: stated (as the file gives them) | innovations (raised to the long-run "
+                              "variance of the fixes' own innovations where larger: optimistic σ, errors that last)")
     robust: OrWord(Number(gt=0.0, lt=1.0), "none") = Field(
         "none", description="down-weight a fix whose innovation the filter cannot explain at this probability "
                             "(Chang 2014); none: every fix as stated")

@@ -374,10 +374,12 @@ class SourceReport(Report):
     ``(t (J,), innovation (J, m), innovation σ (J, m) or None, nis (J,))`` of the fixes
     applied; ``rows`` ``{label: RowLog}`` the satellites' rows and ``clock`` ``(estimate
     (M, k), σ (M, k))`` the receiver clock (raw only); ``reference`` what the solution is
-    compared with (the fixes, or the single-point solution)."""
+    compared with (the fixes, or the single-point solution); ``fix_sigma`` (J, m) the σ
+    each applied fix was taken with (fixes only)."""
 
     coupling: str = ""
     fix_records: tuple | None = None
+    fix_sigma: np.ndarray | None = None
     rows: dict = field(default_factory=dict)
     clock: tuple | None = None
     reference: str = "fixes"
