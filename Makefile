@@ -18,8 +18,10 @@ $(STAMP): pyproject.toml | $(BIN)/python
 demo: $(STAMP)
 	$(BIN)/sinslab demo --out runs
 
+# two processes, each taking whole test files (module fixtures are made once, and the docs
+# tests that share their runs stay in one process)
 test: $(STAMP)
-	$(BIN)/python -m pytest -x -p no:cacheprovider
+	$(BIN)/python -m pytest -x -p no:cacheprovider -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/speed.py
@@ -36,6 +38,6 @@ docs: $(STAMP)
 	$(BIN)/python -m sphinx -b html -n -W --keep-going -q -d site/.doctrees docs site
 	@echo "site/index.html"
 
-# the notebooks of notebooks/, each run top to bottom in a fresh kernel (not part of make test)
+# the notebooks of notebooks/ alone, each run top to bottom in a fresh kernel (make test runs them too)
 notebooks: $(STAMP)
 	$(BIN)/python -m pytest -x -p no:cacheprovider -m notebook tests/test_notebooks.py

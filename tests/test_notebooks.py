@@ -1,10 +1,9 @@
 """The notebooks of notebooks/: kept in git without outputs, and every one runs from top to
 bottom in a fresh kernel (nbclient) without an error, drawing what it says it draws.
 
-Running them takes a minute or more on a busy machine, so they carry the ``notebook``
-marker, which ``make test`` leaves out and ``make notebooks`` runs (pyproject's pytest
-options deselect it; ``pytest -m notebook`` selects it). The check that outputs are
-stripped is cheap and always runs.
+``make test`` runs them with the rest; they carry the ``notebook`` marker, so ``make
+notebooks`` (``pytest -m notebook``) runs them alone, and ``-m 'not notebook'`` leaves
+them out of a quick local run.
 """
 from __future__ import annotations
 

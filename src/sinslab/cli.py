@@ -342,14 +342,16 @@ def report(dir: Path = typer.Argument(..., metavar="DIR", help="run folder holdi
 @app.command("compile")
 def compile_(jobs: int = typer.Option(2, "--jobs", "-j", min=1, max=2, help="processes compiling side by side"),
              portable: bool = typer.Option(False, "--portable",
-                                           help="machine code for any CPU of the architecture (what a wheel ships)")) -> None:
+                                           help="machine code for any CPU of the architecture (what a wheel ships)"),
+             force: bool = typer.Option(False, "--force", help="compile even when nothing changed since the last compile")) -> None:
     """Compile the numerical kernels now, so that the first run starts warm (an install step:
-    `make` runs it after pip install)."""
+    `make` runs it after pip install). Run again with nothing changed (sources, numba, CPU,
+    the cached kernels), it says so and returns."""
     import subprocess
 
     # its own process: the module runs commands of this one
     r = subprocess.run([sys.executable, "-m", "sinslab.precompile", "--jobs", str(jobs)]
-                       + (["--portable"] if portable else []))
+                       + (["--portable"] if portable else []) + (["--force"] if force else []))
     if r.returncode:
         raise typer.Exit(r.returncode)
 

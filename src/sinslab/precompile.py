@@ -17,9 +17,17 @@ tightly coupled navigation, a non-default option) still compile on their first u
 
 The work is split between ``jobs`` processes; :mod:`sinslab.core.jitlock` lets each kernel
 compile in one of them while the others wait for it.
+
+A compile for this machine leaves a stamp (:func:`fingerprint`: the package's sources, the
+numba and Python versions, the CPU; and the kernel cache files it left). ``sinslab
+compile`` run again with nothing changed finds the stamp true and says so instead of
+running the commands a second time (a minute of CPU on a small machine); ``--force``
+compiles anyway. A compile for any CPU (``--portable``, a wheel's build) leaves no stamp.
 """
 from __future__ import annotations
 
+import datetime
+import hashlib
 import json
 import math
 import os
@@ -29,7 +37,7 @@ import tempfile
 import time
 from pathlib import Path
 
-__all__ = ["precompile", "JOBS"]
+__all__ = ["precompile", "JOBS", "fingerprint"]
 
 #: the commands, in two groups of about equal compile work (one per process of a 2-core
 #: machine); each entry is the argument list of one ``sinslab`` command (``{d}``: the
@@ -161,20 +169,105 @@ def precompile(jobs: int = 2, env: dict | None = None, echo=print) -> dict:
     return res
 
 
+def _package() -> Path:
+    return Path(__file__).resolve().parent
+
+
+def _kernel_files(pkg: Path) -> list[Path]:
+    """numba's cache files (index and data) of sinslab's kernels: beside the modules, under
+    ``NUMBA_CACHE_DIR``, and in numba's per-user folder (where a read-only install's
+    kernels go), one folder per source folder in the last two."""
+    from numba.core import caching
+    from numba.misc.appdirs import AppDirs
+
+    folders = {p.parent / "__pycache__" for p in pkg.rglob("*.py")}
+    roots = [Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)]
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        roots.append(Path(os.environ["NUMBA_CACHE_DIR"]))
+    for src in {p.parent for p in pkg.rglob("*.py")}:
+        sub = caching._CacheLocator.get_suitable_cache_subpath(str(src / "x.py"))
+        folders.update(r / sub for r in roots)
+    return sorted(p for f in folders if f.is_dir() for p in f.iterdir() if p.suffix in (".nbi", ".nbc"))
+
+
+def fingerprint() -> dict:
+    """What this machine's compiled kernels depend on: the package's source files (their
+    content), numba, Python and the CPU."""
+    import llvmlite.binding as llvm
+    import numba
+
+    pkg = _package()
+    src = hashlib.sha256()
+    for p in sorted(pkg.rglob("*.py")):
+        src.update(str(p.relative_to(pkg)).encode() + b"\0" + p.read_bytes())
+    return {"sources": src.hexdigest(), "numba": numba.__version__, "python": sys.version,
+            "cpu": os.environ.get("NUMBA_CPU_NAME") or llvm.get_host_cpu_name()}
+
+
+def _stamp_path() -> Path:
+    """Where the stamp of the last compile is kept: the package's ``__pycache__`` folder
+    when it is writable, else the user's cache folder (one file per installed package)."""
+    folder = _package() / "__pycache__"
+    if os.access(folder if folder.is_dir() else _package(), os.W_OK):
+        return folder / "sinslab-compiled.json"
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    tag = hashlib.sha256(str(_package()).encode()).hexdigest()[:12]
+    return base / "sinslab" / f"compiled-{tag}.json"
+
+
+def up_to_date() -> dict | None:
+    """The stamp of the last compile for this machine when nothing it depends on has
+    changed since and every cache file it left is still there (else None). Kernels compiled
+    since (another signature, another command) add files and change nothing."""
+    try:
+        stamp = json.loads(_stamp_path().read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    now = fingerprint()
+    if {k: stamp.get(k) for k in now} != now or not stamp.get("files"):
+        return None
+    return stamp if all(Path(f).is_file() for f in stamp["files"]) else None
+
+
+def _write_stamp(res: dict) -> None:
+    path = _stamp_path()
+    stamp = dict(fingerprint(), kernels=res["kernels"], commands=len(res["commands"]),
+                 compiled_at=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+                 files=[str(p) for p in _kernel_files(_package())])
+    try:
+        from sinslab.core.atomic import atomic_write
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, json.dumps(stamp, indent=1))
+    except OSError:
+        pass                                            # no stamp: the next compile runs again
+
+
 def main(argv=None) -> int:
-    """``python -m sinslab.precompile [--jobs N] [--portable]`` (what ``sinslab compile`` runs)."""
+    """``python -m sinslab.precompile [--jobs N] [--portable] [--force]`` (what ``sinslab
+    compile`` runs)."""
     import argparse
 
     ap = argparse.ArgumentParser(prog="sinslab compile", description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=2, help="processes (1 or 2)")
     ap.add_argument("--portable", action="store_true", help="compile for any CPU of the architecture (wheels)")
+    ap.add_argument("--force", action="store_true", help="compile even when the last compile is up to date")
     a = ap.parse_args(argv)
     from sinslab.core.jitcache import PORTABLE_ENV
+
+    if not (a.portable or a.force):
+        stamp = up_to_date()
+        if stamp is not None:
+            print(f"kernels up to date: compiled {stamp.get('compiled_at', '?')} for these sources, numba "
+                  f"{stamp['numba']} and this CPU ({stamp['cpu']}); nothing changed since (--force compiles again)")
+            return 0
     try:
-        precompile(a.jobs, PORTABLE_ENV if a.portable else None)
+        res = precompile(a.jobs, PORTABLE_ENV if a.portable else None)
     except RuntimeError as e:
         print(f"sinslab: error: {e}", file=sys.stderr)
         return 2
+    if not a.portable:
+        _write_stamp(res)
     return 0
 
 

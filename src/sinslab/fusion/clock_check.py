@@ -39,14 +39,23 @@ class ClockCheck:
     #: own units, 180/π for degrees read as radians, −1 for a z axis pointing down)
     rate_ratio: float = math.nan
     rate_correlation: float = math.nan   #: the correlation at that lag
+    #: [s] the median interval of the fixes: the course rate is known at that spacing only
+    fix_interval: float = 1.0
+
+    @property
+    def resolution(self) -> float:
+        """[s] the smallest lag the check can tell from zero: half a second, or half the fix
+        interval where the fixes are sparser than 1 Hz (the course rate between two fixes
+        is interpolated, so where in that interval a turn starts is not known)."""
+        return max(0.5, 0.5 * self.fix_interval)
 
     @property
     def off(self) -> bool:
         """The clocks differ by a second or more: a clear peak (correlation at least 0.6)
-        at least half a second from zero and above the correlation of the stamps as given
-        (the fine estimator of :func:`sinslab.fusion.recorded.estimate_time_offset` searches
-        ±1 s and would lock on a wrong turn beyond it)."""
-        return (abs(self.lag) >= 0.5 and self.correlation >= 0.6
+        at least :attr:`resolution` from zero and above the correlation of the stamps as
+        given (the fine estimator of :func:`sinslab.fusion.recorded.estimate_time_offset`
+        searches ±1 s and would lock on a wrong turn beyond it)."""
+        return (abs(self.lag) >= self.resolution and self.correlation >= 0.6
                 and self.correlation - self.at_zero >= 0.01)
 
     def describe(self) -> str:
@@ -102,4 +111,4 @@ def clock_check(imu: ImuRecord, fixes: Fixes, *, search=30.0, step=0.1, min_spee
     gz = np.interp(grid + lags[k0], tw, wz)[turn]
     ratio = float(np.dot(gz, ref[turn]) / np.dot(ref[turn], ref[turn]))
     return ClockCheck(float(lags[i]), float(c[i]), float(np.max(c[near0])), int(round(float(lags[i]))), turning,
-                      ratio, float(c[k0]))
+                      ratio, float(c[k0]), float(np.median(np.diff(fixes.t))))
