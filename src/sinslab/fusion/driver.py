@@ -646,8 +646,9 @@ class _LaneRun:
         M = n_ep + 1
         self.nav_h = [store.alloc(f"nav{i}", (M, 10)) for i in range(len(streams))]
         self.nav_pre = [store.alloc(f"nav_pre{i}", (M, 10)) for i in range(len(streams))] if hist else self.nav_h
-        self.w_h = [store.alloc(f"omega{i}", (M, 3)) for i in range(len(streams))]
-        self.f_h = [store.alloc(f"f{i}", (M, 3)) for i in range(len(streams))]
+        # the step rates are read back only by lagged items (None: nothing lags)
+        self.w_h = [store.alloc(f"omega{i}", (M, 3)) for i in range(len(streams))] if hist else None
+        self.f_h = [store.alloc(f"f{i}", (M, 3)) for i in range(len(streams))] if hist else None
         self.x_h = store.alloc("x", (M, n), zero=True)
         self.sig_h = store.alloc("sigma", (M, n))
         self.live = live = [not s.precomputed for s in streams]
@@ -661,8 +662,9 @@ class _LaneRun:
             r0, w0, f0 = s.row0()
             self.nav_h[i][0] = r0
             self.nav_pre[i][0] = r0
-            self.w_h[i][0] = w0
-            self.f_h[i][0] = f0
+            if hist:
+                self.w_h[i][0] = w0
+                self.f_h[i][0] = f0
             if live[i]:
                 self._comp(i, slice(0, 1))
         self.sig_h[0] = filt.sigma
@@ -732,8 +734,8 @@ class _LaneRun:
             self.nav_h[i][e0 + 1:e1 + 1] = self.rows[i][1:]
             if self.hist:
                 self.nav_pre[i][e0 + 1:e1 + 1] = self.rows[i][1:]
-            self.w_h[i][e0 + 1:e1 + 1] = ws
-            self.f_h[i][e0 + 1:e1 + 1] = fs
+                self.w_h[i][e0 + 1:e1 + 1] = ws
+                self.f_h[i][e0 + 1:e1 + 1] = fs
             if self.live[i]:
                 self._comp(i, slice(e0 + 1, e1 + 1))
         # rows up to a few lagged epochs back are read again (the validity epoch of a late
