@@ -147,7 +147,10 @@ class _ImuPlan:
     def convert(self, data, R):
         """Rows ``data`` of the used columns -> time [s] (m,), gyro and accel (m, 3) in SI
         in the body axes (``R`` the sensor -> body rotation), as read."""
-        return data[:, 0] * self.ts, data[:, 1:4] * self.gs @ R.T, data[:, 4:7] * self.as_ @ R.T
+        # a scale of 1 (SI columns) multiplies nothing: x·1 is x, the product skipped (one
+        # array fewer of the record's size)
+        return (data[:, 0] * self.ts, (data[:, 1:4] if self.gs == 1.0 else data[:, 1:4] * self.gs) @ R.T,
+                (data[:, 4:7] if self.as_ == 1.0 else data[:, 4:7] * self.as_) @ R.T)
 
 
 def _imu_plan(path, columns, gyro_unit, accel_unit, time_unit, kind):

@@ -470,8 +470,18 @@ class DriverResult:
     def scale(self):
         if not any(c is not None and "gyro_scale" in c for c in self.compensation):
             return None
-        return tuple(None if c is None else np.concatenate([c["gyro_scale"], c["accel_scale"]], 1)
-                     for c in self.compensation)
+        return tuple(None if c is None else _joined(c["gyro_scale"], c["accel_scale"]) for c in self.compensation)
+
+
+def _joined(a, b):
+    """``[a, b]`` (M, 6) of two (M, 3) arrays: their common array when they are its two
+    halves (the driver's record), else a new one."""
+    base = a.base
+    if (base is not None and b.base is base and base.ndim == 2 and base.shape == (a.shape[0], 6)
+            and a.strides == b.strides == base.strides and a.ctypes.data == base.ctypes.data
+            and b.ctypes.data == base.ctypes.data + 3 * base.itemsize):
+        return base
+    return np.concatenate([a, b], 1)
 
 
 #: rows of a spilled record written between two releases of its pages
@@ -654,8 +664,7 @@ class _LaneRun:
         self.live = live = [not s.precomputed for s in streams]
         self.scaled = scaled = any(fb.gyro_scale is not None or fb.accel_scale is not None for _, fb in fbs)
         keys = es.COMPENSATIONS if scaled else es.COMPENSATIONS[:2]      # the biases always
-        self.comp_h = [{k: store.alloc(f"{k}{i}", (M, 3)) for k in keys} if lv else None
-                       for i, lv in enumerate(live)]
+        self.comp_h = [self._comp_record(store, keys, i, M) if lv else None for i, lv in enumerate(live)]
         self.F_h = store.alloc("F", (n_ep, n, n)) if self.keep_F else None
         self.G_h = store.alloc("G", (n_ep, n, model.q.size)) if self.keep_F else None
         for i, s in enumerate(streams):
@@ -675,6 +684,16 @@ class _LaneRun:
         self.nav_lag = self.nav_h if lag.corrected_nav else self.nav_pre
         self.Phi_la = self.Q_la = self.stretch = None
         self.blk = self.rows = None
+
+    @staticmethod
+    def _comp_record(store, keys, i, M):
+        """Stream i's compensation record ``{key: (M, 3)}``; the two scale factors are the
+        halves of one (M, 6) array, the ``scale`` of the result without a copy."""
+        rec = {k: store.alloc(f"{k}{i}", (M, 3)) for k in keys if not k.endswith("_scale")}
+        if "gyro_scale" in keys:
+            both = store.alloc(f"scale{i}", (M, 6))
+            rec["gyro_scale"], rec["accel_scale"] = both[:, :3], both[:, 3:]
+        return rec
 
     def arrival_epochs(self) -> list:
         """The epochs at which items arrive, ascending, once each."""
