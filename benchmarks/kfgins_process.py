@@ -87,22 +87,21 @@ def _model(cfg):
     return model, np.diag(sd ** 2)
 
 
-def _columns(res, a, b):
-    """Rows ``a..b−1`` of the solution's columns in :data:`COLUMNS` order: the navigation
-    rows split into position, velocity and attitude angles by
+def _pieces(res, a, b):
+    """Rows ``a..b−1`` of the solution as blocks of columns in :data:`COLUMNS` order: the
+    navigation rows split into position, velocity and attitude angles by
     :func:`sinslab.nav.strapdown.rows_to_series` (compiled), the rest views of the result."""
     from sinslab.nav.strapdown import rows_to_series
 
     s = rows_to_series(res.t[a:b], res.nav[a:b])
     sl = slice(a, b)
-    return ([s.t, s.lat, s.lon, s.h] + [s.vel[:, j] for j in range(3)] + [s.att[:, j] for j in range(3)]
-            + [res.gyro_bias[sl, j] for j in range(3)] + [res.accel_bias[sl, j] for j in range(3)]
-            + [res.scale[sl, j] for j in range(6)] + [res.sigma[sl, j] for j in range(21)])
+    return (s.t[:, None], s.lat[:, None], s.lon[:, None], s.h[:, None], s.vel, s.att, res.gyro_bias[sl],
+            res.accel_bias[sl], res.scale[sl], res.sigma[sl])
 
 
-#: rows of the solution assembled per write (a 11 MB buffer that stays in cache-friendly
-#: reach of the sources, which are each read once, in order)
-BLOCK = 32768
+#: rows of the solution assembled per write (a 1.4 MB buffer: the pieces of a block are
+#: copied into it while it stays in the processor's cache)
+BLOCK = 4096
 
 
 def write_solution(path, res):
@@ -119,9 +118,8 @@ def write_solution(path, res):
         for a in range(0, m, BLOCK):
             b = min(m, a + BLOCK)
             blk = buf[:b - a]
-            for j, col in enumerate(_columns(res, a, b)):
-                blk[:, j] = col
-            blk.tofile(fh)
+            np.concatenate(_pieces(res, a, b), axis=1, out=blk)
+            fh.write(blk.data)
 
 
 def main(argv=None):

@@ -52,8 +52,13 @@ def test_speed_script(tmp_path, monkeypatch):
     res = mod.main(["--quick", "--repeat", "1", "--out", str(out)])
     saved = json.loads(out.read_text())
     for key in ("mechanization_ratio", "synthesis_ratio", "generate_ratio", "apply_ratio",
-                "long_run_48h_50hz_s"):
+                "long_run_48h_50hz_s", "first_touch_samples_per_s"):
         assert saved[key] == pytest.approx(res[key]) and saved[key] > 0
+    # what the synthesis writes per sample: truth (time, lat, lon, h, velocity, attitude)
+    # at n + 1 epochs, the exact and the erroneous increments (6 + 6), 8 bytes each
+    n = saved["synthesis_samples"]
+    assert saved["synthesis_new_bytes_per_sample"] == (10 * (n + 1) + 12 * n) * 8 / n
+    assert isinstance(saved["numpy_madvise_hugepage"], (bool, type(None)))
 
 
 def test_estimation_script(tmp_path):

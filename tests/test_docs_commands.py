@@ -369,26 +369,30 @@ QUOTED = [
       "=2"], 0.0),
     # README.md's speed table: the rows of the scripts with a stored record (BENCH)
     ("README.md", "| mechanization (`strapdown.step`, 2 subsamples; one call, warm, CPU time) (`benchmarks/speed.py`) | "
-     "24.6 M samples/s: 0.92 of the numba reference, **0.86** of its C port (`cc -O2`), at load average 21–38: under "
-     "the target in this run | ≥ 0.9 of the C port |", "bench speed",
-     ["=2", "step_samples_per_s/1e6", "mechanization_ratio", "mechanization_ratio_c", "=2", "load_min", "load_max",
-      "max(targets.mechanization_ratio_c)"], 0.0),
+     "22.2 M samples/s: 0.97 of the numba reference, **0.86** of its C port (`cc -O2`), at load average 4.1–4.5: under "
+     "the target in this run.", "bench speed",
+     ["=2", "step_samples_per_s/1e6", "mechanization_ratio", "mechanization_ratio_c", "=2", "load_min", "load_max"],
+     0.0),
+    ("README.md", "and that chain, not the arithmetic, sets its pace | ≥ 0.9 of the C port |", "bench speed",
+     ["max(targets.mechanization_ratio_c)"], 0.0),
     ("README.md", "| 48 h at 50 Hz navigated (full output / 1 Hz output; one call, warm, wall time) (`benchmarks/speed.py`) "
-     "| 21.8 s / 6.1 s at load average 21–38 (a wall time: each process had a fraction of a core), over the target in "
-     "this run | < 5 s |", "bench speed",
+     "| 1.16 s / 0.54 s at load average 4.1–4.5: the target met | < 5 s |", "bench speed",
      ["max(long_run_hours)", "=50", "=1", "long_run_48h_50hz_s", "long_run_1hz_output_s", "load_min", "load_max",
       "max(targets.long_run_48h_50hz_s)"], 0.0),
-    ("README.md", "| `trajectory.generate` (aircraft manoeuvres; one call, warm) (`benchmarks/speed.py`) | 10.2 M samples/s: "
-     "0.42 of the numba reference, 0.37 of the C port |", "bench speed",
+    ("README.md", "| `trajectory.generate` (aircraft manoeuvres; one call, warm) (`benchmarks/speed.py`) | 8.6 M samples/s: "
+     "0.38 of the numba reference, 0.33 of the C port |", "bench speed",
      ["generate_samples_per_s/1e6", "generate_ratio", "generate_ratio_c"], 0.0),
-    ("README.md", "| `imu.apply` (bias, ARW, VRW; one call, warm) (`benchmarks/speed.py`) | 25.2 M samples/s: 1.05 of the "
-     "numba reference, 0.92 of the C port |", "bench speed",
+    ("README.md", "| `imu.apply` (bias, ARW, VRW; one call, warm) (`benchmarks/speed.py`) | 20.1 M samples/s: 0.89 of the "
+     "numba reference, 0.77 of the C port |", "bench speed",
      ["apply_samples_per_s/1e6", "apply_ratio", "apply_ratio_c"], 0.0),
-    ("README.md", "| synthesis, generate + apply (one call, warm) (`benchmarks/speed.py`) | 5.1 M samples/s: 0.21 of the "
-     "numba reference, **0.19** of the C port: under the target", "bench speed",
-     ["synthesis_samples_per_s/1e6", "synthesis_ratio", "synthesis_ratio_c"], 0.0),
-    ("README.md", "(`trajectory.generate` is the slower half; not reworked yet) | ≥ 0.5 of the C port |", "bench speed",
-     ["max(targets.synthesis_ratio_c)"], 0.0),
+    ("README.md", "(`benchmarks/speed.py`) | 5.9 M samples/s: 0.26 of the numba reference, **0.23** of the C port: under "
+     "the target. Per sample it writes 176 bytes of new arrays", "bench speed",
+     ["synthesis_samples_per_s/1e6", "synthesis_ratio", "synthesis_ratio_c", "synthesis_new_bytes_per_sample"], 0.0),
+    ("README.md", "new arrays of that size filled alone in the same rounds: 13.5 M samples/s", "bench speed",
+     ["first_touch_samples_per_s/1e6"], 0.0),
+    ("README.md", "the synthesis less that time, an estimate: 11.8 M samples/s, 0.45 of the C port, under the target too "
+     "(`trajectory.generate` is the slower half) | ≥ 0.5 of the C port |", "bench speed",
+     ["synthesis_compute_samples_per_s/1e6", "synthesis_compute_ratio_c", "max(targets.synthesis_ratio_c)"], 0.0),
     ("README.md", "| `sinslab list` / `--help` / `config NAME` (`benchmarks/startup.py`) | 0.34 / 0.23 / 0.38–0.51 s "
      "(medians of 9; `config rotation-evaluation` over the target) | ≤ 0.5 s |", "bench startup",
      ["commands.list.median_s", "commands.--help.median_s",
@@ -555,7 +559,7 @@ QUOTED = [
      [f"experiments.static-alignment.{k}" for k in ("cpu_fresh_s", "compile_cpu_s", "kernels_compiled", "cpu_warm_s")]
      + ["load_min", "load_max", "=25"], 0.0),
     ("README.md", "`docs/benchmarks.json` (made 2026-12-03 to 2026-12-05; ranges are over the runs it holds; the load "
-     "average during the runs: 21–38 for `speed.py`,", "bench speed",
+     "average during the runs: 4.1–4.5 for `speed.py`,", "bench speed",
      ["=2026", "=12", "=3", "date", "min(load_min)", "max(load_max)"], 0.0),
     ("README.md", "0.89–0.91 for `transfer.py`)", "bench transfer", ["load_min", "load_max"], 0.0),
     # docs/methods/graph.md, benchmarks/graph.py's figures (the stored record of its last run, BENCH)

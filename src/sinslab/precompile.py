@@ -8,7 +8,8 @@ kernels inside (its build runs this module on the built package).
 
 The calls are the commands themselves, on small inputs simulated here: ``navigate`` on a
 three-minute car drive (loosely coupled; smoothed; with vehicle constraints, scale factors
-and time synchronisation), ``align`` and ``allan`` on a rest record, and every experiment's
+and time synchronisation), ``align`` and ``allan`` on a rest record (as whitespace-delimited
+text), and every experiment's
 ``--quick`` run with its campaigns in the process. Going through the commands, rather than
 calling kernels with types written down here, compiles each kernel for the argument types
 the commands give it (an array read from a memory-mapped file is read-only, for
@@ -47,8 +48,8 @@ JOBS = (
     [["navigate", *DRIVE],
      ["navigate", *DRIVE, "--smooth", "--time-sync", "auto"],
      ["navigate", *DRIVE, "--aid", "nhc,zupt", "--scale-factors"],
-     ["align", "--imu", "{d}/rest.csv", "--lat", "34 deg"],
-     ["allan", "{d}/rest.csv"]],
+     ["align", "--imu", "{d}/rest.txt", "--lat", "34 deg"],
+     ["allan", "{d}/rest.txt"]],
     "experiments",
 )
 
@@ -56,7 +57,7 @@ JOBS = (
 def _drive(folder: Path, minutes: float = 3.0, rate: float = 200.0) -> None:
     """A car drive (30 s at rest, then turns, straights and speed changes) with
     consumer-grade IMU errors and 1 Hz fixes, as ``drive.csv`` and ``fixes.csv``; and a
-    rest record ``rest.csv`` (2 min) for ``align`` and ``allan``."""
+    rest record ``rest.csv`` (2 min), and as ``rest.txt`` for ``align`` and ``allan``."""
     import numpy as np
 
     from sinslab.core import units as u
@@ -94,6 +95,10 @@ def _drive(folder: Path, minutes: float = 3.0, rate: float = 200.0) -> None:
     rest = ImuRecord(dt * np.arange(1, n + 1), w * dt + rng.normal(0, 2e-7, (n, 3)),
                      np.array([0.0, 0.0, 9.7966]) * dt + rng.normal(0, 2e-5, (n, 3)), dt)
     write_imu(folder / "rest.csv", rest)
+    # the rest record as whitespace-delimited text (KF-GINS', PSINS' layout), whose
+    # compiled reader the commands on it compile
+    text = (folder / "rest.csv").read_text(encoding="utf-8")
+    (folder / "rest.txt").write_text(text.replace(",", " "), encoding="utf-8")
 
 
 def _commands(group, folder: Path) -> list:

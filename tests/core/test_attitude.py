@@ -143,6 +143,11 @@ def test_closed_forms_equal_scipy_rotation_to_the_bit():
                           _bits(Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix()))
     with pytest.raises(ValueError, match="zero norm"):
         at.quat_to_dcm([0.0, 0.0, 0.0, 0.0])
+    # euler_from_ned's 3-2-1 closed form against scipy's from_euler("ZYX")
+    rpy = att[:, [1, 0, 2]]
+    C_ned = Rotation.from_euler("ZYX", rpy[:, ::-1]).as_matrix()
+    assert np.array_equal(_bits(at.euler_from_ned(rpy)), _bits(at.dcm_to_euler(at.dcm_from_ned(C_ned))))
+    assert np.array_equal(_bits(at.euler_from_ned(rpy[7])), _bits(at.dcm_to_euler(at.dcm_from_ned(C_ned[7]))))
 
 
 def test_rotvec_round_trips():

@@ -130,6 +130,28 @@ def test_dual_axis_records_keep_a_trend_rescaled_with_them():
     assert R.ins_plan(off)[0]["ins3"].trend is None and not np.any(R.k_trend_shape(off, t))
 
 
+@pytest.mark.parametrize("sets", [[], ["analysis_two.trend=sine"]])
+def test_chunk_trends_add_what_trend_evaluate_gives_bit_for_bit(sets):
+    """The trends of a chunk added with their time functions shared between the INS
+    (R.ChunkTrends) are the bytes of ``dth += Trend.evaluate(s) * dt`` for every INS of a
+    run: the warm-ups of INS #2..#4 at every β, INS #1's warm-up or sine on one axis, a
+    trend with no term, late in a run and on a ragged chunk."""
+    cfg = resolve(get("rotation-evaluation").config, sets=SMALL + sets)
+    specs, *_ = R.ins_plan(cfg)
+    trends = [s.trend for s in specs.values() if s.trend is not None] + [imu_.Trend()]
+    assert len(trends) >= 5
+    dt = 0.01
+    for i0, L in ((0, 1000), (5_000_000, 777)):
+        t = (i0 + 1 + np.arange(L)) * dt
+        base = np.random.default_rng(i0).standard_normal((len(trends), L, 3)) * 1e-6
+        want, got = base.copy(), base.copy()
+        chunk = R.ChunkTrends(t - 0.5 * dt)
+        for j, tr in enumerate(trends):
+            want[j] += tr.evaluate(t - 0.5 * dt) * dt
+            chunk.add(tr, got[j], dt)
+        assert want.tobytes() == got.tobytes()
+
+
 def _small_campaign_spec():
     """The linear campaign's spec of the SMALL scenario, as the experiment makes it."""
     cfg = resolve(get("rotation-evaluation").config, sets=SMALL)

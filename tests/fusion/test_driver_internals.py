@@ -64,3 +64,24 @@ def test_streams_on_one_imu_record_share_its_step_sums_while_it_lives():
     del imu, other, a, b, c
     gc.collect()
     assert not any(k in driver._IMU_SUMS for k in keys)
+
+
+def test_scale_record_is_one_array_whose_halves_are_the_scale_factors(tmp_path):
+    """The (M, 6) scale record of a result is the array the driver wrote the gyro and
+    accelerometer scale factors into (no copy), in memory and spilled to disk; two
+    unrelated (M, 3) arrays are joined into a new one."""
+    from sinslab.fusion.driver import _joined, _LaneRun, _Record
+    from sinslab.nav import errstate as es
+
+    for folder in (None, tmp_path / "spill"):
+        rec = _LaneRun._comp_record(_Record(folder), es.COMPENSATIONS, 0, 5)
+        rec["gyro_scale"][:] = 1.0
+        rec["accel_scale"][:] = 2.0
+        both = _joined(rec["gyro_scale"], rec["accel_scale"])
+        assert np.shares_memory(both, rec["gyro_scale"]) and both.shape == (5, 6)
+        assert both[:, :3].tolist() == [[1.0] * 3] * 5 and both[:, 3:].tolist() == [[2.0] * 3] * 5
+    a, b = np.ones((4, 3)), np.zeros((4, 3))
+    j = _joined(a, b)
+    assert not np.shares_memory(j, a) and j.tolist() == [[1.0] * 3 + [0.0] * 3] * 4
+    w = np.arange(24.0).reshape(4, 6)
+    assert not np.shares_memory(_joined(w[:, 3:], w[:, :3]), w)          # halves swapped: a copy

@@ -266,8 +266,11 @@ def euler_from_ned(rpy_ned: ArrayLike) -> np.ndarray:
     clockwise from north). Pitch and roll carry over unchanged; the yaw changes sign.
     """
     r = np.asarray(rpy_ned, dtype=float)
-    C = _rotation().from_euler("ZYX", np.stack([r[..., 2], r[..., 1], r[..., 0]], -1).reshape(-1, 3))
-    return dcm_to_euler(dcm_from_ned(C.as_matrix())).reshape(r.shape)
+    e = r.reshape(-1, 3)
+    # q(R_z(ψ)) ⊗ q(R_y(θ)) ⊗ q(R_x(φ)): scipy's ``from_euler("ZYX")`` in its order, so
+    # the same bits without importing scipy.spatial
+    q = _compose(_compose(_axis_quat(2, e[:, 2]), _axis_quat(1, e[:, 1])), _axis_quat(0, e[:, 0]))
+    return dcm_to_euler(dcm_from_ned(_dcm_of_unit_quat(q))).reshape(r.shape)
 
 
 def euler_to_ned(att: ArrayLike) -> np.ndarray:

@@ -56,6 +56,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numba import njit
 from pydantic import field_validator, model_validator
 
 from sinslab.core import units
@@ -417,6 +418,67 @@ def navigate_chunked(spec: InsSpec, seed, lat, lon, dt, n_steps, k_kf, nsub, att
     return navigate_group([spec], seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, chunk_steps, rates)[0]
 
 
+class ChunkTrends:
+    """The gyro trends of a group's INS over one chunk, added to their increments.
+
+    ``s``: the midpoints of the chunk's samples [s since the run start]. :meth:`add` adds
+    ``trend.evaluate(s) * dt`` (:meth:`sinslab.sim.imu.Trend.evaluate`) to ``dth`` bit for
+    bit, but the functions of time in it (the warm-up's ``expm1``, the sine) are evaluated
+    once per chunk for all the INS that share their time constant, period and phase (INS
+    #2 at every β, #3 and #4: one warm-up time constant), and the rest is one compiled
+    pass without temporaries: a chunk holds an hour of samples, and evaluating each INS's
+    trend on its own cost as much as navigating it.
+    """
+
+    def __init__(self, s):
+        self.s = np.asarray(s, dtype=float)[..., None]
+        self._terms = {}
+
+    def _term(self, key, make):
+        v = self._terms.get(key)
+        if v is None:
+            v = self._terms[key] = make()
+        return v
+
+    def add(self, trend, dth, dt):
+        """``dth += trend.evaluate(s) * dt`` for ``dth`` (L, 3) [rad]."""
+        s = self.s
+        ax = (trend.ramp != 0) | (trend.exp_amplitude != 0) | (trend.sin_amplitude != 0)
+        if not ax.any():
+            dth += 0.0                  # evaluate's zeros, times dt
+            return
+        ea, sa, et, ph = (trend.exp_amplitude[ax], trend.sin_amplitude[ax], trend.exp_time[ax],
+                          trend.sin_phase[ax])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            w = np.where(sa != 0, 2 * np.pi / trend.sin_period[ax], 0.0)
+            decay = self._term(("exp", ax.tobytes(), et.tobytes()), lambda: -np.expm1(-s / et))
+        if not (w.any() or ph.any()):
+            wave = np.zeros((1, ph.size))      # sin(0·s + 0) = +0 at every sample: one row
+        else:
+            wave = self._term(("sin", ax.tobytes(), w.tobytes(), ph.tobytes()), lambda: np.sin(w * s + ph))
+        k_of = np.full(3, -1, dtype=np.int64)
+        k_of[ax] = np.arange(int(ax.sum()))
+        _add_trend(dth, self.s[:, 0], k_of, np.ascontiguousarray(trend.ramp[ax]), np.ascontiguousarray(ea), decay,
+                   np.ascontiguousarray(sa), wave, float(dt))
+
+
+@njit(cache=True, nogil=True)
+def _add_trend(dth, s, k_of, ramp, ea, decay, sa, wave, dt):
+    """``dth[:, a] += (ramp[k]·s + (ea[k]·decay[:, k] if ea[k] ≠ 0 else 0) + sa[k]·wave[:, k])·dt``
+    for the axes ``a`` with a trend term (``k = k_of[a] ≥ 0``), ``+= 0`` for the others: the
+    operations of :meth:`sinslab.sim.imu.Trend.evaluate` in its order, sample by sample
+    (no fused multiply-add: the same bits). ``wave`` of one row: the same at every sample."""
+    step = 1 if wave.shape[0] > 1 else 0
+    for i in range(dth.shape[0]):
+        for a in range(3):
+            k = k_of[a]
+            if k < 0:
+                dth[i, a] += 0.0
+            else:
+                e = ea[k] * decay[i, k] if ea[k] != 0 else 0.0
+                dth[i, a] += (ramp[k] * s[i] + e + sa[k] * wave[i * step, k]) * dt
+
+
 class _Stopped(Exception):
     """A group navigation given up between two chunks (the run was interrupted)."""
 
@@ -467,7 +529,8 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
     count = np.arange(Lmax)
     tile_th, tile_v = np.empty((Lmax, 3)), np.empty((Lmax, 3))
     noisy = (np.empty((V, Lmax, 3)), np.empty((V, Lmax, 3)))
-    height = np.zeros(Lmax + 1)
+    # the held (sea-level) height and its vertical rate, computed once per chunk length
+    held = sd.HeldHeight(np.zeros(Lmax + 1), dt)
     rec_buf = np.empty((Lmax, 3)) if any(s.recorded is not None for s in specs) else None
     done = 0
     while done < n_steps:
@@ -481,9 +544,10 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
         # draws are scaled exactly as imu.apply on that record would scale them
         dt_rec = float((t[-1] - t[0]) / (L - 1)) if L > 1 else dt
         out = noisy if L == Lmax else None
-        dth_all, dv_all = imu_.apply_arrays_shared(moored.tile(cyc.dth, i0, L, tile_th),
-                                                   moored.tile(cyc.dv, i0, L, tile_v), t, dt_rec, errors, rng,
-                                                   out=out)
+        trends = ChunkTrends(t - 0.5 * dt)
+        true_th, true_v = moored.tile(cyc.dth, i0, L, tile_th), moored.tile(cyc.dv, i0, L, tile_v)
+        dth_all, dv_all = imu_.apply_arrays_shared(true_th, true_v, t, dt_rec, errors, rng, out=out)
+        height, vup = held.slice(0, L)
         for j, spec in enumerate(specs):
             dth, dv = dth_all[j], dv_all[j]
             if spec.recorded is not None:
@@ -493,13 +557,12 @@ def navigate_group(specs, seed, lat, lon, dt, n_steps, k_kf, nsub, att_sigma, ch
                 # the noise, synthesised or recorded, loses its block means; the chunks hold
                 # whole blocks, so the blocks are counted from the start of the run
                 e = spec.errors
-                for inc, true, bias in ((dth, moored.tile(cyc.dth, i0, L, tile_th), e.gyro_bias),
-                                        (dv, moored.tile(cyc.dv, i0, L, tile_v), e.accel_bias)):
+                for inc, true, bias in ((dth, true_th, e.gyro_bias), (dv, true_v, e.accel_bias)):
                     err = moored.remove_block_means(inc - true, spec.demean, np.asarray(bias, float) * dt)
                     np.add(true, err, out=inc)
             if spec.trend is not None:
-                dth += spec.trend.evaluate(t - 0.5 * dt) * dt
-            sd.step(states[j], dth, dv, dt, nsub, vertical="hold", height=height[:L + 1],
+                trends.add(spec.trend, dth, dt)
+            sd.step(states[j], dth, dv, dt, nsub, vertical="hold", height=height, vup=vup,
                     out=rows[j][done + 1:done + 1 + m], out_every=per)
             if rates:
                 omega[j][done:done + m] = dth.reshape(m, k_kf, 3).sum(1) / T

@@ -31,6 +31,7 @@ within a second or two as well.
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Literal
 
@@ -142,18 +143,12 @@ def simulate_drive(seed, *, duration=200.0, canyon=(), systems="GE", code_sigma=
     from sinslab.fusion.rtk import RtkBase
     from sinslab.sim import gnss as SG
     from sinslab.sim import imu as IM
-    from sinslab.sim import trajectory as tr
 
     gb = 10 * u.dph if gyro_bias_sigma is None else gyro_bias_sigma
     ab = 1e-3 * 9.80665 if accel_bias_sigma is None else accel_bias_sigma
     arw = 0.2 * u.deg / 60.0 if gyro_arw is None else gyro_arw
     vrw = 50e-6 * 9.80665 if accel_vrw is None else accel_vrw
-    segs = segments or [tr.Accelerate(duration=10.0, accel=1.5), tr.Level(duration=30.0),
-                        tr.Turn(duration=20.0, rate=4.5 * u.deg), tr.Level(duration=40.0),
-                        tr.Turn(duration=10.0, rate=-9 * u.deg), tr.Level(duration=60.0),
-                        tr.Turn(duration=20.0, rate=4.5 * u.deg), tr.Level(duration=60.0)]
-    g = tr.generate(segs, tr.Start(lat=math.radians(35.3), lon=math.radians(139.5), h=50.0,
-                                   heading=math.radians(30)), dt, duration=duration)
+    g = _motion(dt, duration) if segments is None else _motion.__wrapped__(dt, duration, segments)
     tru = g.truth
     rng = np.random.default_rng(seed)
     err = IM.ImuErrors(gyro_bias=rng.normal(0, gb, 3), accel_bias=rng.normal(0, ab, 3), gyro_arw=arw, accel_vrw=vrw)
@@ -177,6 +172,23 @@ def simulate_drive(seed, *, duration=200.0, canyon=(), systems="GE", code_sigma=
                    np.broadcast_to(ab, 3)]
     return dict(imu=imu, init=init, truth=tru, rover=SatelliteObservations(**sim.fields),
                 base=RtkBase(SatelliteObservations(**sim.base.fields), rb), sim=sim, sigma0=sigma0, arw=arw, vrw=vrw)
+
+
+@functools.lru_cache(maxsize=2)
+def _motion(dt, duration, segments=None):
+    """The car's error-free motion and IMU increments (``segments``, default: accelerate,
+    straight, turns) sampled every ``dt`` [s] for ``duration`` [s]. The default drive is
+    made once per process and shared by the runs of a campaign: they differ only in the
+    errors drawn onto it (its arrays are only read)."""
+    from sinslab.core import units as u
+    from sinslab.sim import trajectory as tr
+
+    segs = segments or [tr.Accelerate(duration=10.0, accel=1.5), tr.Level(duration=30.0),
+                        tr.Turn(duration=20.0, rate=4.5 * u.deg), tr.Level(duration=40.0),
+                        tr.Turn(duration=10.0, rate=-9 * u.deg), tr.Level(duration=60.0),
+                        tr.Turn(duration=20.0, rate=4.5 * u.deg), tr.Level(duration=60.0)]
+    return tr.generate(segs, tr.Start(lat=math.radians(35.3), lon=math.radians(139.5), h=50.0,
+                                      heading=math.radians(30)), dt, duration=duration)
 
 
 # ------------------------------------------------------------------------- one drive

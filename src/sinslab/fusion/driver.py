@@ -470,8 +470,18 @@ class DriverResult:
     def scale(self):
         if not any(c is not None and "gyro_scale" in c for c in self.compensation):
             return None
-        return tuple(None if c is None else np.concatenate([c["gyro_scale"], c["accel_scale"]], 1)
-                     for c in self.compensation)
+        return tuple(None if c is None else _joined(c["gyro_scale"], c["accel_scale"]) for c in self.compensation)
+
+
+def _joined(a, b):
+    """``[a, b]`` (M, 6) of two (M, 3) arrays: their common array when they are its two
+    halves (the driver's record), else a new one."""
+    base = a.base
+    if (base is not None and b.base is base and base.ndim == 2 and base.shape == (a.shape[0], 6)
+            and a.strides == b.strides == base.strides and a.ctypes.data == base.ctypes.data
+            and b.ctypes.data == base.ctypes.data + 3 * base.itemsize):
+        return base
+    return np.concatenate([a, b], 1)
 
 
 #: rows of a spilled record written between two releases of its pages
@@ -646,23 +656,24 @@ class _LaneRun:
         M = n_ep + 1
         self.nav_h = [store.alloc(f"nav{i}", (M, 10)) for i in range(len(streams))]
         self.nav_pre = [store.alloc(f"nav_pre{i}", (M, 10)) for i in range(len(streams))] if hist else self.nav_h
-        self.w_h = [store.alloc(f"omega{i}", (M, 3)) for i in range(len(streams))]
-        self.f_h = [store.alloc(f"f{i}", (M, 3)) for i in range(len(streams))]
+        # the step rates are read back only by lagged items (None: nothing lags)
+        self.w_h = [store.alloc(f"omega{i}", (M, 3)) for i in range(len(streams))] if hist else None
+        self.f_h = [store.alloc(f"f{i}", (M, 3)) for i in range(len(streams))] if hist else None
         self.x_h = store.alloc("x", (M, n), zero=True)
         self.sig_h = store.alloc("sigma", (M, n))
         self.live = live = [not s.precomputed for s in streams]
         self.scaled = scaled = any(fb.gyro_scale is not None or fb.accel_scale is not None for _, fb in fbs)
         keys = es.COMPENSATIONS if scaled else es.COMPENSATIONS[:2]      # the biases always
-        self.comp_h = [{k: store.alloc(f"{k}{i}", (M, 3)) for k in keys} if lv else None
-                       for i, lv in enumerate(live)]
+        self.comp_h = [self._comp_record(store, keys, i, M) if lv else None for i, lv in enumerate(live)]
         self.F_h = store.alloc("F", (n_ep, n, n)) if self.keep_F else None
         self.G_h = store.alloc("G", (n_ep, n, model.q.size)) if self.keep_F else None
         for i, s in enumerate(streams):
             r0, w0, f0 = s.row0()
             self.nav_h[i][0] = r0
             self.nav_pre[i][0] = r0
-            self.w_h[i][0] = w0
-            self.f_h[i][0] = f0
+            if hist:
+                self.w_h[i][0] = w0
+                self.f_h[i][0] = f0
             if live[i]:
                 self._comp(i, slice(0, 1))
         self.sig_h[0] = filt.sigma
@@ -673,6 +684,16 @@ class _LaneRun:
         self.nav_lag = self.nav_h if lag.corrected_nav else self.nav_pre
         self.Phi_la = self.Q_la = self.stretch = None
         self.blk = self.rows = None
+
+    @staticmethod
+    def _comp_record(store, keys, i, M):
+        """Stream i's compensation record ``{key: (M, 3)}``; the two scale factors are the
+        halves of one (M, 6) array, the ``scale`` of the result without a copy."""
+        rec = {k: store.alloc(f"{k}{i}", (M, 3)) for k in keys if not k.endswith("_scale")}
+        if "gyro_scale" in keys:
+            both = store.alloc(f"scale{i}", (M, 6))
+            rec["gyro_scale"], rec["accel_scale"] = both[:, :3], both[:, 3:]
+        return rec
 
     def arrival_epochs(self) -> list:
         """The epochs at which items arrive, ascending, once each."""
@@ -732,8 +753,8 @@ class _LaneRun:
             self.nav_h[i][e0 + 1:e1 + 1] = self.rows[i][1:]
             if self.hist:
                 self.nav_pre[i][e0 + 1:e1 + 1] = self.rows[i][1:]
-            self.w_h[i][e0 + 1:e1 + 1] = ws
-            self.f_h[i][e0 + 1:e1 + 1] = fs
+                self.w_h[i][e0 + 1:e1 + 1] = ws
+                self.f_h[i][e0 + 1:e1 + 1] = fs
             if self.live[i]:
                 self._comp(i, slice(e0 + 1, e1 + 1))
         # rows up to a few lagged epochs back are read again (the validity epoch of a late

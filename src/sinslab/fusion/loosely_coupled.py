@@ -294,8 +294,9 @@ class FixMeasurement:
 
     def result(self, r) -> LooselyCoupled:
         fix_t, t_app, idx, inn, nis, sd = self.records(r.applied)
+        scale = r.scale                         # made on each call: once
         return LooselyCoupled(r.t, r.nav[0], r.x, r.sigma, r.gyro_bias[0], r.accel_bias[0],
-                              r.scale[0] if r.scale is not None else None, fix_t,
+                              scale[0] if scale is not None else None, fix_t,
                               t_app, idx, inn, nis, r.layout, r.history, sd)
 
 

@@ -258,7 +258,7 @@ def _correct_s(s, px, py, pz, dve, dvn, dvu, dlat, dlon, dh):
     s[9] -= dh
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _kernel(s, dth, dvl, dt, nsub, nupd, vmode, href, vref, k1, k2, k3,
             gbx, gby, gbz, abx, aby, abz, cs, out, out_every):
     """Advance state ``s`` (length NSTATE) by ``nupd`` updates of ``nsub`` samples.
@@ -267,6 +267,11 @@ def _kernel(s, dth, dvl, dt, nsub, nupd, vmode, href, vref, k1, k2, k3,
     nupd·nsub + 1, epoch 0 = start of the chunk) for vmode 1 (hold) and 2 (damped; vref
     unused). ``out`` (rows >= nupd // out_every, >= 10 columns) receives s[:10] after every
     ``out_every``-th update. Returns nothing; everything is in place.
+
+    Compiled with IEEE division (numba's numpy error model): no divisor of an update is zero
+    off the poles, which the callers check, so the test numba adds before every division to
+    raise ZeroDivisionError would only cost instructions; the samples are read with unsigned
+    indices, which spares a negative-index wraparound per load. Neither changes a value.
     """
     if s[13] == 0.0:
         _init_aux(s)
@@ -287,16 +292,18 @@ def _kernel(s, dth, dvl, dt, nsub, nupd, vmode, href, vref, k1, k2, k3,
     iout = 0
     since = 0                      # updates since the last output row
     c2 = cs[1, 0]
+    one = np.uint64(1)
     for k in range(nupd):
         i0 = k * nsub
+        u0 = np.uint64(i0)         # unsigned sample index: no negative-index wraparound per load
         # --- coning / sculling -----------------------------------------------------
         if nsub == 1:
-            wx = dth[i0, 0] - gdx
-            wy = dth[i0, 1] - gdy
-            wz = dth[i0, 2] - gdz
-            ux = dvl[i0, 0] - adx
-            uy = dvl[i0, 1] - ady
-            uz = dvl[i0, 2] - adz
+            wx = dth[u0, 0] - gdx
+            wy = dth[u0, 1] - gdy
+            wz = dth[u0, 2] - gdz
+            ux = dvl[u0, 0] - adx
+            uy = dvl[u0, 1] - ady
+            uz = dvl[u0, 2] - adz
             if has_prev:
                 c = cs[0, 0]
                 cnx, cny, cnz = _cross(p1x, p1y, p1z, wx, wy, wz)
@@ -319,18 +326,18 @@ def _kernel(s, dth, dvl, dt, nsub, nupd, vmode, href, vref, k1, k2, k3,
         elif nsub == 2:
             # the general branch below for N = 2, written out: the same operations in the
             # same order (the zeros they start from included), without its loop and table
-            w1x = dth[i0, 0] - gdx
-            w1y = dth[i0, 1] - gdy
-            w1z = dth[i0, 2] - gdz
-            u1x = dvl[i0, 0] - adx
-            u1y = dvl[i0, 1] - ady
-            u1z = dvl[i0, 2] - adz
-            wx = dth[i0 + 1, 0] - gdx
-            wy = dth[i0 + 1, 1] - gdy
-            wz = dth[i0 + 1, 2] - gdz
-            ux = dvl[i0 + 1, 0] - adx
-            uy = dvl[i0 + 1, 1] - ady
-            uz = dvl[i0 + 1, 2] - adz
+            w1x = dth[u0, 0] - gdx
+            w1y = dth[u0, 1] - gdy
+            w1z = dth[u0, 2] - gdz
+            u1x = dvl[u0, 0] - adx
+            u1y = dvl[u0, 1] - ady
+            u1z = dvl[u0, 2] - adz
+            wx = dth[u0 + one, 0] - gdx
+            wy = dth[u0 + one, 1] - gdy
+            wz = dth[u0 + one, 2] - gdz
+            ux = dvl[u0 + one, 0] - adx
+            uy = dvl[u0 + one, 1] - ady
+            uz = dvl[u0 + one, 2] - adz
             awx = 0.0 + c2 * w1x
             awy = 0.0 + c2 * w1y
             awz = 0.0 + c2 * w1z
@@ -355,12 +362,13 @@ def _kernel(s, dth, dvl, dt, nsub, nupd, vmode, href, vref, k1, k2, k3,
             awx = awy = awz = 0.0
             avx = avy = avz = 0.0
             for i in range(nsub - 1):
-                wx = dth[i0 + i, 0] - gdx
-                wy = dth[i0 + i, 1] - gdy
-                wz = dth[i0 + i, 2] - gdz
-                ux = dvl[i0 + i, 0] - adx
-                uy = dvl[i0 + i, 1] - ady
-                uz = dvl[i0 + i, 2] - adz
+                ui = u0 + np.uint64(i)
+                wx = dth[ui, 0] - gdx
+                wy = dth[ui, 1] - gdy
+                wz = dth[ui, 2] - gdz
+                ux = dvl[ui, 0] - adx
+                uy = dvl[ui, 1] - ady
+                uz = dvl[ui, 2] - adz
                 c = cs[nsub - 1, i]
                 awx += c * wx
                 awy += c * wy
@@ -374,7 +382,7 @@ def _kernel(s, dth, dvl, dt, nsub, nupd, vmode, href, vref, k1, k2, k3,
                 sx += ux
                 sy += uy
                 sz += uz
-            j = i0 + nsub - 1
+            j = u0 + np.uint64(nsub - 1)
             wx = dth[j, 0] - gdx
             wy = dth[j, 1] - gdy
             wz = dth[j, 2] - gdz

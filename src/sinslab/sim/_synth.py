@@ -653,11 +653,20 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 mnt[0, 0] = K[21, ib]
                 mnt[0, 1] = wrap_pi_s(K[22, ib])
                 mnt[0, 2] = wrap_pi_s(K[23, ib])
+        # the whole block by stencils when the first breakpoint after its first stencil's
+        # start lies beyond its last stencil's end: then the test below would find the same
+        # breakpoint and pass for every interval of the block, so it is made once
+        clear = False
+        if m > 0 and K0 + lo_off >= 0:
+            t_lo = (K0 + lo_off) * dt
+            while bq < nbp and bp[bq] <= t_lo + tol:
+                bq += 1
+            clear = not (bq < nbp and bp[bq] < (K0 + nk - 1 + lo_off + m - 1) * dt - tol)
         for ik in range(nk):
             k = K0 + ik
             c1 = ib + ik + 1                # column of epoch k + 1
-            use_stencil = False
-            if m > 0:
+            use_stencil = clear
+            if m > 0 and not clear:
                 t_lo = (k + lo_off) * dt
                 t_hi = (k + lo_off + m - 1) * dt
                 while bq < nbp and bp[bq] <= t_lo + tol:
