@@ -249,7 +249,7 @@ def test_compile_cost_script(tmp_path):
 def test_demo_script_parts(tmp_path):
     """benchmarks/demo.py (minutes: ``make demo`` on a fresh clone, not run here): its timer
     counts the CPU of the whole process tree, not only of the child it starts, and it reads
-    the runs' compute times and the cached kernels of a tree."""
+    the runs' compute times (and their robustness re-runs') and the cached kernels of a tree."""
     mod = _load("demo")
     burn = "import time\nt = time.process_time()\nwhile time.process_time() - t < 0.3: pass\n"
     cmd = [os.sys.executable, "-c",
@@ -258,7 +258,10 @@ def test_demo_script_parts(tmp_path):
     assert r["cpu_s"] >= 0.3 and r["wall_s"] >= 0.3           # the grandchild's CPU is counted
     (tmp_path / "runs" / "a").mkdir(parents=True)
     (tmp_path / "runs" / "a" / "summary.json").write_text(json.dumps({"metrics": {"runtime_s": 1.234}}))
-    assert mod._runs(tmp_path / "runs") == {"a": 1.23}
+    (tmp_path / "runs" / "b").mkdir()
+    (tmp_path / "runs" / "b" / "summary.json").write_text(json.dumps({"metrics": {"runtime_s": 2.0},
+                                                                      "robustness": {"wall_s": 3.456}}))
+    assert mod._runs(tmp_path / "runs") == ({"a": 1.23, "b": 2.0}, {"a": 0.0, "b": 3.46})
     (tmp_path / "src" / "p" / "__pycache__").mkdir(parents=True)
     assert mod._cached_kernels(tmp_path) == 0
     (tmp_path / "src" / "p" / "__pycache__" / "k-1.py311.nbi").touch()

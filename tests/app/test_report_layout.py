@@ -81,6 +81,17 @@ def test_a_page_without_cjk_embeds_no_font(tmp_path):
     assert "@font-face" not in report.render(d)
 
 
+def test_the_page_search_finds_the_cjk_characters_is_cjk_names():
+    """The one-pass search of a page for CJK text agrees with is_cjk on both edges of every
+    block and just outside them, and embeds the font only for a page that has one."""
+    for a, b in report._CJK:
+        for o in (a - 1, a, b, b + 1):
+            ch = chr(o)
+            assert (report._CJK_CHAR.search(f"plain {ch} text") is not None) == report.is_cjk(ch), hex(o)
+    assert report._cjk_font_css("a page, no CJK: é ü — ∑") == ""
+    assert report._cjk_font_css("姿态误差").startswith("@font-face")
+
+
 @pytest.mark.parametrize("name, caption, label, text", [
     ("att_sigma", "Fig. 2: attitude error σ", "att_sigma (the paper's Fig. 2)", "Attitude error σ"),
     ("fig2_reduced", "Reduced filter: residual and limit (paper Fig. 2)", "reduced",
