@@ -56,7 +56,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from numba import njit
 from pydantic import field_validator, model_validator
 
 from sinslab.core import units
@@ -458,25 +457,10 @@ class ChunkTrends:
             wave = self._term(("sin", ax.tobytes(), w.tobytes(), ph.tobytes()), lambda: np.sin(w * s + ph))
         k_of = np.full(3, -1, dtype=np.int64)
         k_of[ax] = np.arange(int(ax.sum()))
-        _add_trend(dth, self.s[:, 0], k_of, np.ascontiguousarray(trend.ramp[ax]), np.ascontiguousarray(ea), decay,
+        from sinslab.sim.imu import add_trend_terms
+
+        add_trend_terms(dth, self.s[:, 0], k_of, np.ascontiguousarray(trend.ramp[ax]), np.ascontiguousarray(ea), decay,
                    np.ascontiguousarray(sa), wave, float(dt))
-
-
-@njit(cache=True, nogil=True)
-def _add_trend(dth, s, k_of, ramp, ea, decay, sa, wave, dt):
-    """``dth[:, a] += (ramp[k]·s + (ea[k]·decay[:, k] if ea[k] ≠ 0 else 0) + sa[k]·wave[:, k])·dt``
-    for the axes ``a`` with a trend term (``k = k_of[a] ≥ 0``), ``+= 0`` for the others: the
-    operations of :meth:`sinslab.sim.imu.Trend.evaluate` in its order, sample by sample
-    (no fused multiply-add: the same bits). ``wave`` of one row: the same at every sample."""
-    step = 1 if wave.shape[0] > 1 else 0
-    for i in range(dth.shape[0]):
-        for a in range(3):
-            k = k_of[a]
-            if k < 0:
-                dth[i, a] += 0.0
-            else:
-                e = ea[k] * decay[i, k] if ea[k] != 0 else 0.0
-                dth[i, a] += (ramp[k] * s[i] + e + sa[k] * wave[i * step, k]) * dt
 
 
 class _Stopped(Exception):
