@@ -28,7 +28,8 @@ collector is off while the modules load and the objects they made are then froze
 (:func:`gc.freeze`: later collections do not walk them); at its end the process freezes the
 objects it leaves before the interpreter exits, whose last collections would otherwise walk
 numba's compiler objects, ~0.4 s of CPU. Nothing else is skipped: every finaliser and flush
-runs. (``sinslab navigate`` does neither yet.)
+runs. (The ``sinslab`` commands end their process once their files are closed and
+their exit handlers have run, without the interpreter's exit and its collections.)
 """
 from __future__ import annotations
 
