@@ -20,13 +20,18 @@ Printed, against the reference solution:
 - **the filter's innovations** with the σ as stated: the per-axis mean of ν²/S over the run
   and over the 30 s before each outage, and the innovations' lag-1 autocorrelation (a
   consistent filter's innovations are white, Mehra & Peschon 1971);
-- **four runs per grade**: ``default`` (the file's σ), ``auto`` (``fix_error="auto"``: the
+- **six runs per grade**: ``default`` (the file's σ), ``auto`` (``fix_error="auto"``: the
   fixes' error structure measured from the record, :mod:`sinslab.fusion.fix_noise`),
   ``innovations`` (``fix_noise="innovations"``: the σ measured from the filter's own
-  innovations, :func:`sinslab.fusion.fix_noise.innovation_noise`) and ``navego`` (the same
-  filter with NaveGo's own tuning, 2.5 m and 0.5 m/s: a well-tuned reference): horizontal and
-  vertical RMS, the horizontal error at each outage end (and their median), the velocity
-  error at each outage start; for ``innovations`` the σ used.
+  innovations, :func:`sinslab.fusion.fix_noise.innovation_noise`), ``check``
+  (``velocity_check=10``: each velocity fix checked against the position fixes over the 10 s
+  before it, :func:`sinslab.fusion.fix_noise.velocity_check`), ``innov+check`` (both) and
+  ``navego`` (the same filter with NaveGo's own tuning, 2.5 m and 0.5 m/s: a well-tuned
+  reference): horizontal and vertical RMS, the horizontal error at each outage end (and
+  their median), the velocity error at each outage start; for the innovation runs the σ used;
+- **the IMU's noise drawn again** (seeds 2–4, the same real fixes): the outage ends of
+  ``innov+check`` and ``navego`` and at how many outages the first is no worse (within
+  0.05 m): whether one filter's lead at an outage is its own or the IMU noise's.
 """
 from __future__ import annotations
 
@@ -91,6 +96,7 @@ def innovation_figures(res, outs):
 
 
 RUNS = (("default", {}), ("auto", {"fix_error": "auto"}), ("innovations", {"fix_noise": "innovations"}),
+        ("check", {"velocity_check": 10.0}), ("innov+check", {"fix_noise": "innovations", "velocity_check": 10.0}),
         ("navego", {"fix_sigma": (2.5, 2.5, 2.5), "fix_vel_sigma": (0.5, 0.5, 0.5)}))
 
 
@@ -103,6 +109,25 @@ def _runs(nd, d, grade):
         m = r[6].source.metrics
         if "fix_noise_sigma_used" in m:
             out[name].update(sigma_used=m["fix_noise_sigma_used"], runs=m["fix_noise_runs"])
+    return out
+
+
+#: the IMU noise seeds of the repeat: which of two filters ends an outage closer moves with the IMU's own noise
+SEEDS = (2, 3, 4)
+COMPARED = ("innov+check", "navego")
+
+
+def _seeds(nd, ref, gnss, grade):
+    """The outage ends of the two :data:`COMPARED` runs with the IMU's noise drawn again
+    (:data:`SEEDS`; the same real fixes): per seed the ends of each and how many of the
+    first ends no worse than the second's."""
+    kw = dict(RUNS)
+    out = []
+    for seed in SEEDS:
+        d = nd._drive(ref, gnss, grade, seed=seed)
+        ends = {name: nd.run(*d, grade, **kw[name])[2] for name in COMPARED}
+        out.append({"seed": seed, **{k: v.tolist() for k, v in ends.items()},
+                    "no_worse": int(np.sum(ends[COMPARED[0]] <= ends[COMPARED[1]] + 0.05))})
     return out
 
 
@@ -126,6 +151,10 @@ def _print(fig):
             print(f"{'':{len(grade) + 2}}{name:<12} {r['hz_rms']:6.2f} {r['vert_rms']:6.2f} {r['outage_end_median']:6.2f}  "
                   + " ".join(f"{x:5.1f}" for x in r["outage_ends"]) + "   " + " ".join(f"{x:4.2f}" for x in r["dv_at_starts"])
                   + (f"   σ used {fmt(r['sigma_used'])} ({r['runs']} runs)" if "sigma_used" in r else ""))
+        for r in fig.get(f"{grade}_seeds", ()):
+            print(f"{'':{len(grade) + 2}}IMU seed {r['seed']}: " + "; ".join(
+                f"{k} " + " ".join(f"{x:.1f}" for x in r[k]) for k in COMPARED)
+                + f"; {COMPARED[0]} no worse (±0.05 m) at {r['no_worse']} of {len(r[COMPARED[0]])}")
 
 
 def measure(ref, gnss):
@@ -146,7 +175,8 @@ def measure(ref, gnss):
                           accel_bias_sigma=U.parse(g["ab"], "acceleration"))
     res = R.navigate_recorded(imu, fx, opt)
     fig = {"fixes": fix_figures(fx, tru, meta, outs), "innovations": innovation_figures(res, outs),
-           "ekinox": _runs(nd, d, "ekinox"), "mpu": _runs(nd, nd._drive(ref, gnss, "mpu"), "mpu")}
+           "ekinox": _runs(nd, d, "ekinox"), "mpu": _runs(nd, nd._drive(ref, gnss, "mpu"), "mpu"),
+           "ekinox_seeds": _seeds(nd, ref, gnss, "ekinox"), "mpu_seeds": _seeds(nd, ref, gnss, "mpu")}
     fig.update(load_before=load, load_after=os.getloadavg()[0], seconds=time.time() - t0)
     return fig
 

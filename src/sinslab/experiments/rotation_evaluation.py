@@ -455,11 +455,11 @@ class ChunkTrends:
             wave = np.zeros((1, ph.size))      # sin(0·s + 0) = +0 at every sample: one row
         else:
             wave = self._term(("sin", ax.tobytes(), w.tobytes(), ph.tobytes()), lambda: np.sin(w * s + ph))
-        from sinslab.experiments._trend_kernel import add_trend   # numba: not for `sinslab config`
-
         k_of = np.full(3, -1, dtype=np.int64)
         k_of[ax] = np.arange(int(ax.sum()))
-        add_trend(dth, self.s[:, 0], k_of, np.ascontiguousarray(trend.ramp[ax]), np.ascontiguousarray(ea), decay,
+        from sinslab.sim.imu import add_trend_terms
+
+        add_trend_terms(dth, self.s[:, 0], k_of, np.ascontiguousarray(trend.ramp[ax]), np.ascontiguousarray(ea), decay,
                    np.ascontiguousarray(sa), wave, float(dt))
 
 

@@ -38,6 +38,13 @@ of their error, so one pass sees only part of it: the passes are iterated (a
 variance-component estimate), each taking ``max(σ used, σ̂)`` as the fixes' σ floor, until
 the innovations ask for no more (:func:`sinslab.fusion.recorded.navigate_recorded` with
 ``FixHandling.fix_noise = "innovations"``). The floor never lowers a σ the file states.
+
+**A velocity bias while it lasts** (:func:`velocity_check`): a σ measured over a whole
+drive cannot see a receiver whose velocity is 0.2 m/s off for ten seconds, and a filter
+that believes it enters the next outage that far off. Each velocity fix is checked against
+the position fixes over the window before it (the position change against the integrated
+velocities) and de-weighted by the lasting error they contradict, from earlier fixes only:
+the filter cannot know that an outage follows, so the check runs all the time.
 """
 from __future__ import annotations
 
@@ -49,7 +56,8 @@ import numpy as np
 from sinslab.core import earth as E
 from sinslab.core.records import Fixes
 
-__all__ = ["FixErrorModel", "fix_error_model", "innovation_noise", "velocity_walk_sigma", "INNOVATION_BATCH_S", "MIN_BATCHES"]
+__all__ = ["FixErrorModel", "fix_error_model", "innovation_noise", "velocity_walk_sigma", "velocity_check",
+           "VELOCITY_CHECK_S", "VELOCITY_CHECK_SIGMAS", "VELOCITY_CHECK_WINDOWS", "INNOVATION_BATCH_S", "MIN_BATCHES"]
 
 
 @dataclass(frozen=True)
@@ -75,6 +83,11 @@ def _enu_positions(fixes):
                      fixes.h - fixes.h[0]], -1)
 
 
+def _integrated_velocity(t, v):
+    """The fixes' velocities (J, 3) integrated from the first by the trapezoid rule [m]."""
+    return np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], 0)])
+
+
 def fix_error_model(fixes: Fixes, *, max_lag=120.0, n_lags=24, gap=None):
     """The :class:`FixErrorModel` of ``fixes`` (see the module notes), or None when they
     have no velocities or span less than four lags. Gaps longer than ``gap`` [s]
@@ -85,9 +98,8 @@ def fix_error_model(fixes: Fixes, *, max_lag=120.0, n_lags=24, gap=None):
     h = float(np.median(np.diff(t)))
     gap = 3.0 * h if gap is None else float(gap)
     p = _enu_positions(fixes)
-    v = fixes.vel
     seg = np.concatenate([[0], np.cumsum(np.diff(t) > gap)])       # integration segments
-    iv = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], 0)])
+    iv = _integrated_velocity(t, fixes.vel)
     span = float(t[-1] - t[0])
     max_lag = min(max_lag, span / 4)
     if max_lag < 4 * h:
@@ -184,3 +196,81 @@ def velocity_walk_sigma(fixes: Fixes):
     if m is None or m.velocity_walk is None:
         return None
     return m.velocity_walk / math.sqrt(float(np.median(np.diff(fixes.t))))
+
+
+#: trailing window of :func:`velocity_check` [s]: as long as the receiver's velocity errors
+#: last (the 10 s batches of :func:`innovation_noise`); shorter windows let a receiver that
+#: moves its positions with its biased velocity hide the bias
+VELOCITY_CHECK_S = 10.0
+#: :func:`velocity_check` raises a σ only where the window's mean error passes this many of
+#: the check's own robust scatter (a 3σ detector: the position fixes' noise alone rarely does)
+VELOCITY_CHECK_SIGMAS = 3.0
+#: :func:`velocity_check` raises no σ before it has seen this many windows' worth of checks
+VELOCITY_CHECK_WINDOWS = 3
+
+
+def velocity_check(fixes: Fixes, window=VELOCITY_CHECK_S, *, sigmas=VELOCITY_CHECK_SIGMAS, gap=None):
+    """Each velocity fix checked against the position fixes over the ``window`` [s] before it.
+
+    Over the window ``[t_j, t_k]`` the position change minus the integrated velocities
+    (trapezoid rule) is the change of the position error minus the window's velocity error
+    integrated, so ``d_k = ((p_k − p_j) − ∫ v dt) / (t_k − t_j)`` is the window's mean
+    velocity error the positions contradict (east, north, up [m/s]), plus the position
+    fixes' own error change over the window. That second part sets the check's scatter
+    where nothing lasts: per axis ``s_k = 1.4826 median |d|`` over the checks up to fix ``k``
+    (a robust σ: a short biased stretch moves it little; none before
+    :data:`VELOCITY_CHECK_WINDOWS` windows' worth of checks). An error that lasts the window is not averaged by
+    the ``n_k = k − j`` fixes in it: a white σ carrying the same information is
+    ``√n_k |d_k|`` (one batch's long-run variance, as the batch means of
+    :func:`innovation_noise`, from the fixes alone). With the scatter a detector may
+    not count (``sigmas`` of it) taken off, each fix's velocity σ becomes::
+
+        σ_k² = σ_stated² + n_k max(0, d_k² − (sigmas · s_k)²)
+
+    per axis: a velocity bias that lasts is de-weighted while it lasts, from fixes up to
+    ``t_k`` only (the filter cannot know an outage follows); elsewhere the σ stay as stated.
+    Fixes without a whole window behind them (the first ``window``, after a gap longer than
+    ``gap``, default three fix intervals) keep their σ, and so does the vertical of 2-D
+    fixes (no height).
+
+    Returns
+    -------
+    (σ (J, 3) [m/s], d (J, 3) [m/s], s (3,) [m/s] at the last fix, NaN if never reached) or
+    None (no velocities, fewer than three fixes)
+    """
+    if fixes.vel is None or len(fixes) < 3:
+        return None
+    t = np.asarray(fixes.t, float)
+    h = float(np.median(np.diff(t)))
+    gap = 3.0 * h if gap is None else float(gap)
+    p = _enu_positions(fixes)
+    iv = _integrated_velocity(t, np.asarray(fixes.vel, float))
+    j = np.searchsorted(t, t - float(window) + 1e-9)              # the first fix of each window
+    seg = np.concatenate([[0], np.cumsum(np.diff(t) > gap)])
+    ok = (seg[j] == seg) & (t - t[j] >= 0.8 * float(window))
+    d = np.zeros_like(p)
+    d[ok] = ((p[ok] - p[j[ok]]) - (iv[ok] - iv[j[ok]])) / (t[ok] - t[j[ok]])[:, None]
+    d = np.nan_to_num(d, nan=0.0)                                 # 2-D fixes: no height to check against
+    scatter = _running_scatter(d, ok, VELOCITY_CHECK_WINDOWS * max(int(round(float(window) / h)), 1))
+    n = np.where(ok, np.arange(t.size) - j, 0).astype(float)[:, None]
+    base = np.broadcast_to(np.asarray(0.0 if fixes.sigma_vel is None else fixes.sigma_vel, float), d.shape)
+    excess = np.maximum(d ** 2 - (float(sigmas) * scatter) ** 2, 0.0)     # 0 where no scatter yet (inf)
+    last = scatter[-1] if np.all(np.isfinite(scatter[-1])) else np.full(3, np.nan)
+    return np.sqrt(base ** 2 + n * excess), d, last
+
+
+
+def _running_scatter(d, ok, min_count):
+    """Per fix and axis the robust σ (``1.4826 median |d|``) of the checks ``d`` (J, 3) of
+    the fixes up to it where ``ok``; inf before ``min_count`` of them."""
+    import bisect
+    out = np.full(d.shape, np.inf)
+    seen = [[], [], []]
+    for k in range(d.shape[0]):
+        if ok[k]:
+            for i in range(3):
+                bisect.insort(seen[i], abs(float(d[k, i])))
+        m = len(seen[0])
+        if m >= min_count:
+            out[k] = [1.4826 * seen[i][m // 2] for i in range(3)]
+    return out

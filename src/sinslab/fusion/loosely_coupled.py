@@ -365,6 +365,8 @@ class FixSource:
     #: with ``handling.fix_noise = "innovations"``: the velocity σ floor (3,) east, north, up
     #: [m/s] of the fixes' velocity walk against their positions (set by :meth:`prepare`), or None
     walk_floor: np.ndarray | None = None
+    #: what the velocity check (``handling.velocity_check``) found, or None (set by :meth:`prepare`)
+    velocity_check_info: dict | None = None
     name = "fixes"
 
     def start_fixes(self):
@@ -379,10 +381,31 @@ class FixSource:
         import dataclasses
         fixes, source = self._lasting_errors(fixes)
         h = self.handling
+        if h.velocity_check is not None and h.use_velocity and fixes.vel is not None:
+            fixes, source = source._velocity_check(fixes)
         if h.fix_noise == "innovations" and h.use_velocity and fixes.vel is not None:
             from sinslab.fusion.fix_noise import velocity_walk_sigma
             source = dataclasses.replace(source, walk_floor=velocity_walk_sigma(fixes))
         return fixes, source
+
+    def _velocity_check(self, fixes):
+        """``(fixes, source)``: each velocity fix's σ raised by the lasting error the
+        position fixes over the window before it contradict
+        (:func:`sinslab.fusion.fix_noise.velocity_check`); what it found in
+        :attr:`velocity_check_info`."""
+        import dataclasses
+        from sinslab.fusion.fix_noise import velocity_check
+        got = velocity_check(fixes, self.handling.velocity_check)
+        if got is None:
+            return fixes, self
+        sv, d, scatter = got
+        stated = np.broadcast_to(np.asarray(0.0 if fixes.sigma_vel is None else fixes.sigma_vel, float), sv.shape)
+        info = {"window_s": float(self.handling.velocity_check), "sigma_stated_median": np.median(stated, 0).tolist(),
+                "sigma_median": np.median(sv, 0).tolist(), "sigma_p99": np.percentile(sv, 99, 0).tolist(),
+                "sigma_max": np.max(sv, 0).tolist(),
+                "mean_error_rms": np.sqrt(np.mean(d ** 2, 0)).tolist(), "scatter": scatter.tolist(),
+                "raised_fraction": float(np.mean(np.any(sv > stated * (1 + 1e-9), axis=1)))}
+        return dataclasses.replace(fixes, sigma_vel=sv), dataclasses.replace(self, velocity_check_info=info)
 
     def _lasting_errors(self, fixes):
         """``(fixes, source)``: the fixes' time-correlated errors taken into account
@@ -465,11 +488,22 @@ class FixSource:
         if self.walk_floor is not None:
             metrics["fix_noise_velocity_walk_sigma"] = self.walk_floor.tolist()
         notes = ()
+        vc = self.velocity_check_info
+        if vc is not None:
+            from sinslab.fusion.fix_noise import VELOCITY_CHECK_SIGMAS
+            fmt = lambda a: ", ".join(f"{x:.3g}" for x in a)  # noqa: E731
+            metrics.update({f"fix_velocity_check_{k}": v for k, v in vc.items()})
+            notes += (f"Velocity fixes checked against the positions over {vc['window_s']:g} s: the error they "
+                      f"contradict {fmt(vc['mean_error_rms'])} m/s RMS (vE, vN, vU; robust scatter "
+                      f"{fmt(vc['scatter'])}); {100 * vc['raised_fraction']:.1f} % of the fixes past "
+                      f"{VELOCITY_CHECK_SIGMAS:g}× the scatter, their σ (stated "
+                      f"{fmt(vc['sigma_stated_median'])}) raised to median {fmt(vc['sigma_median'])}, 99th percentile "
+                      f"{fmt(vc['sigma_p99'])}, largest {fmt(vc['sigma_max'])} m/s.",)
         fe = self.fix_error_info
         if fe is not None:
-            notes = (f"Fix errors that last: {fe['model'] or 'no correlated error found'}"
-                     + (f" ({fe['source']})" if fe.get("source") else "")
-                     + ("; taken as Gauss–Markov states" if fe["used"] else "; the fixes stay white") + ".",)
+            notes += (f"Fix errors that last: {fe['model'] or 'no correlated error found'}"
+                      + (f" ({fe['source']})" if fe.get("source") else "")
+                      + ("; taken as Gauss–Markov states" if fe["used"] else "; the fixes stay white") + ".",)
         return SourceReport(self.name, "position/velocity fixes", metrics=metrics, notes=notes,
                             coupling="loosely coupled", fix_records=(fix_t, inn, sd, nis), reference="fixes",
                             fix_sigma=sg)

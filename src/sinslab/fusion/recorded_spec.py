@@ -122,6 +122,10 @@ class FixHandling:
     #: long-run variance of the filter's own innovations, the run repeated until they agree:
     #: optimistic σ and errors that last; sinslab.fusion.fix_noise.innovation_noise)
     fix_noise: str = "stated"
+    #: check each velocity fix against the position fixes over this trailing window [s] and
+    #: raise its σ by the lasting velocity error they contradict
+    #: (sinslab.fusion.fix_noise.velocity_check); None: no check
+    velocity_check: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "lever_arm", _lever("lever arm", self.lever_arm))
@@ -136,6 +140,8 @@ class FixHandling:
         if not (math.isfinite(lat) and lat >= 0):
             raise ValueError(f"fix latency must be >= 0 s, got {self.fix_latency}")
         _check_sigmas(self, ("fix_sigma", 3), ("fix_vel_sigma", 3))
+        if self.velocity_check is not None and not (math.isfinite(self.velocity_check) and self.velocity_check > 0):
+            raise ValueError(f"velocity check window must be > 0 s, got {self.velocity_check}")
 
 
 @dataclass(frozen=True, eq=False)

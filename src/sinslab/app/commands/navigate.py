@@ -460,6 +460,7 @@ def _options(cfg, em, imu, fx, lever):
         opt.fix_error = None if f.error == "none" else f.error
         opt.robust = f.robust
         opt.fix_noise = f.noise
+        opt.velocity_check = None if f.velocity_check is None else float(f.velocity_check)
     opt.scale_factors = bool(cfg.filter.scale_factors) or opt.scale_factors
     opt.move_speed = cfg.start.course_speed
     opt.heading_straight = cfg.start.course_spread

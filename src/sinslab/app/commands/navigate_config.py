@@ -73,6 +73,10 @@ class FixesKeys(Section):
     noise: Choice(("stated", "innovations")) = Field(
         "stated", description="the fixes' σ: stated (as the file gives them) | innovations (raised to the long-run "
                               "variance of the fixes' own innovations where larger: optimistic σ, errors that last)")
+    velocity_check: OrWord(Q("time", gt="0 s", le="600 s"), "none") = Field(
+        "none", description="check each velocity fix against the position fixes over this trailing window "
+                            "(e.g. 10 s) and raise its σ by the lasting velocity error they contradict; "
+                            "none: no check")
     robust: OrWord(Number(gt=0.0, lt=1.0), "none") = Field(
         "none", description="down-weight a fix whose innovation the filter cannot explain at this probability "
                             "(Chang 2014); none: every fix as stated")
