@@ -518,10 +518,10 @@ QUOTED = [
     ("README.md", "each program started on the same YAML configuration, reading 1 h of 200 Hz IMU text (720 k lines) and "
      "1 Hz fixes, filtering with KF-GINS' model (21 states, P at every epoch) and writing the solution of every epoch",
      "bench full_rate", ["=1", "=200", "whole_process.epochs/1e3", "=1", "=21"], 0.0),
-    ("README.md", "KF-GINS built by its own CMake Release (-O3) | **2.67×** median (2.51–2.82 over 5 rounds): KF-GINS 13.0 s "
-     "CPU, sinslab 4.82 s (start-up and imports 0.37, reading 0.68, filter 3.47, writing 0.21; the rest the "
-     "interpreter's own start and exit); final horizontal error 2.60 m against 2.60 m; at load average 9.2–10.7, "
-     "other sessions' tests beside it. Under the target in this run",
+    ("README.md", "KF-GINS built by its own CMake Release (-O3) | **2.86×** median (2.76–2.94 over 5 rounds): KF-GINS 11.9 s "
+     "CPU, sinslab 4.18 s (start-up and imports 0.35, reading 0.61, filter 2.96, writing 0.16; the rest the "
+     "interpreter's own start and exit); final horizontal error 2.60 m against 2.60 m; at load average 1.0–1.1, "
+     "the machine quiet. Under the target",
      "bench full_rate",
      ["=3", "whole_process.ratio_median", "whole_process.ratio_min", "whole_process.ratio_max", "=5",
       "whole_process.kfgins_cpu_s_median", "whole_process.sinslab_cpu_s_median"]
@@ -529,10 +529,10 @@ QUOTED = [
      + ["whole_process.kfgins_final_horiz_err_m", "whole_process.sinslab_final_horiz_err_m", "whole_process.load_min",
         "whole_process.load_max"], 0.0),
     ("README.md", "P at every 200 Hz epoch, 1 Hz fixes, 1 h drive (`benchmarks/full_rate.py`): one call, warm, nothing read or "
-     "written | 189 k epochs per CPU second in process, 4.18× the numpy model evaluation, equal to 7e-12; fused "
-     "loop 3.3 µs per epoch (P ← Φ (P + T Q̄/2) Φᵀ + T Q̄/2: Q_k never formed, and Φ P Φᵀ on the 9 dense rows of Φ "
-     "with the 12 diagonal rows of the sensor states apart, 1.8 µs alone against 2.2 for the dense product); at "
-     "load average 8.8–12.9 | ≥ 120 k |", "bench full_rate",
+     "written | 224 k epochs per CPU second in process, 4.26× the numpy model evaluation, equal to 6.5e-12; fused "
+     "loop 2.9 µs per epoch (P ← Φ (P + T Q̄/2) Φᵀ + T Q̄/2: Q_k never formed, and Φ P Φᵀ on the 9 dense rows of Φ "
+     "with the 12 diagonal rows of the sensor states apart, 1.6 µs alone against 1.9 for the dense product); at "
+     "load average 1.0–1.1 | ≥ 120 k |", "bench full_rate",
      ["=200", "=1", "duration_s/3600", "epochs_per_cpu_s/1e3", "ratio_to_numpy", "max_rel_diff_vs_numpy",
       "profile_us.fused loop (F, G; Φ, Q̄; P with rows r.. diagonal; x)", "=2", "=2", "=9", "=12",
       "profile_us.P ← Φ P Φᵀ + Q (rows 9.. of Φ diagonal)", "profile_us.P ← Φ P Φᵀ + Q (dense, for comparison)",
