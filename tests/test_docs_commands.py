@@ -537,14 +537,14 @@ QUOTED = [
       "profile_us.fused loop (F, G; Φ, Q̄; P with rows r.. diagonal; x)", "=2", "=2", "=9", "=12",
       "profile_us.P ← Φ P Φᵀ + Q (rows 9.. of Φ diagonal)", "profile_us.P ← Φ P Φᵀ + Q (dense, for comparison)",
       "load_min", "load_max", "=120"], 0.0),
-    ("README.md", "numba's cache empty, the install apart (`benchmarks/demo.py`) | 562.7 s wall, 358.0 s CPU of the "
-     "command and its workers (the kernels compiled at install by `sinslab compile`, 68 of them: 433 s wall, 81 s CPU; "
-     "the whole install with pip 1121 s wall); at load average 7.2–31.4, other sessions' test suites beside it on the "
-     "two cores: over the target in this run, the longest runs double-star 183 s (and 44 s of robustness re-runs), "
-     "rtk-outages 179 s and rotation-evaluation 169 s (and 20 s) | ≤ 2 min |", "bench demo",
+    ("README.md", "numba's cache empty, the install apart (`benchmarks/demo.py`) | 119.9 s wall, 211.9 s CPU of the "
+     "command and its workers (the kernels compiled at install by `sinslab compile`, 68 of them: 46 s wall, 30 s CPU; "
+     "the whole install with pip 82 s wall); at load average 1.4–2.1, the quiet machine: the target met, the longest "
+     "runs rotation-evaluation 40 s (and 8 s of robustness re-runs), double-star 34 s (and 9 s) and rtk-outages 30 s "
+     "| ≤ 2 min |", "bench demo",
      ["fresh.wall_s", "fresh.cpu_s", "compile.kernels", "compile.wall_s", "compile.compile_cpu_s", "install.wall_s",
-      "load_min", "load_max", "fresh.runs.double-star", "fresh.robustness_s.double-star", "fresh.runs.rtk-outages",
-      "fresh.runs.rotation-evaluation", "fresh.robustness_s.rotation-evaluation", "=2"], 0.0),
+      "load_min", "load_max", "fresh.runs.rotation-evaluation", "fresh.robustness_s.rotation-evaluation",
+      "fresh.runs.double-star", "fresh.robustness_s.double-star", "fresh.runs.rtk-outages", "=2"], 0.0),
     ("README.md", "`navigate` on a 10 min and a 1 h log of 200 Hz, and `run static-alignment --quick`, each install fresh",
      "bench cold_start", ["=10", "=1", "=200"], 0.0),
     ("README.md", "the clone as `make` installs it (`pip install -e`, then `sinslab compile`: 127 s CPU): 10 min 3.7 s / 283 MB "
