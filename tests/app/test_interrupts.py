@@ -315,3 +315,44 @@ def test_the_current_folder_is_refused_before_any_work(tmp_path, monkeypatch, ou
     assert r.stderr.startswith("sinslab: error: output folder . is the current folder") \
         and r.stderr.count("\n") == 1, r.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def _library_that_swallows_everything(signum):
+    """Stands in for C code that clears any error (a dict lookup calling ``__eq__``, an
+    extension's callback): the interrupt's exception is raised inside it and lost."""
+    try:
+        signal.raise_signal(signum)
+    except BaseException:
+        pass
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["INT", "TERM"])
+def test_an_interrupt_whose_exception_was_lost_still_stops_the_commit(tmp_path, sig, code):
+    """The handler's exception dies in a library and the run goes on to its end: the commit
+    raises the interrupt instead of replacing the previous run; the next command is not
+    interrupted by it."""
+    import typer
+
+    from sinslab.app.errors import user_errors
+    from sinslab.app.outputs import RunDir
+
+    out = tmp_path / "out"
+    with user_errors():
+        rd = RunDir(out, "x").prepare()
+        rd.write_text("a.txt", "old\n")
+        rd.finish()
+    before = snapshot(out)
+    with pytest.raises(typer.Exit) as e:
+        with user_errors():
+            rd = RunDir(out, "x").prepare()
+            rd.write_text("a.txt", "new\n")
+            _library_that_swallows_everything(sig)
+            rd.finish()
+    assert e.value.exit_code == code
+    assert snapshot(out) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    with user_errors():
+        rd = RunDir(out, "x").prepare()
+        rd.write_text("a.txt", "newer\n")
+        rd.finish()
+    assert (out / "a.txt").read_text() == "newer\n"

@@ -102,13 +102,34 @@ def published(folder) -> None:
         _PUBLISHED.append(text)
 
 
+#: interrupts this process received that no command has reported yet. The exception a
+#: handler raises can still be lost: C code that clears every error (a dictionary lookup
+#: calling ``__eq__``, some extension modules) swallows it when it lands in Python code
+#: called from there. A run's commit looks here (:func:`raise_pending_interrupt`), so
+#: that an interrupt received before it never lets the run replace the folder.
+_PENDING: list[int] = []
+
+
+def _interrupt(signum: int) -> BaseException:
+    if signum not in _PENDING:
+        _PENDING.append(signum)
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def raise_pending_interrupt() -> None:
+    """Raise the interrupt this process received and that was not handled (its exception
+    lost on the way up, or a redelivery still waiting), as the handler would have."""
+    if _PENDING:
+        raise _interrupt(_PENDING[0])
+
+
 def _on_sigterm(signum, frame):
     if _FINISHED:
         _exit_quietly()
     if _swallowing(frame):
         _redeliver(signum)
         return
-    raise Terminated()
+    raise _interrupt(signum)
 
 
 def _on_sigint(signum, frame):
@@ -117,7 +138,7 @@ def _on_sigint(signum, frame):
     if _swallowing(frame):
         _redeliver(signum)
         return
-    raise KeyboardInterrupt()
+    raise _interrupt(signum)
 
 
 def _exit_quietly() -> None:
@@ -160,6 +181,8 @@ def _redeliver(signum: int) -> None:
 
     main = threading.main_thread().ident
     _REDELIVERING.append(signum)
+    if signum not in _PENDING:
+        _PENDING.append(signum)
 
     def later():
         while True:
@@ -355,6 +378,7 @@ def user_errors():
         _err(error_line(e))
         raise typer.Exit(2) from None
     except KeyboardInterrupt as e:
+        _PENDING.clear()
         code = 143 if isinstance(e, Terminated) else 130
         held = _hold_signals()
         try:

@@ -48,7 +48,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from sinslab.app import report
-from sinslab.app.errors import UserError, deferred_signals, on_abort, published
+from sinslab.app.errors import UserError, deferred_signals, on_abort, published, raise_pending_interrupt
 from sinslab.core.atomic import atomic_path, atomic_write
 
 __all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "atomic_write", "atomic_path",
@@ -447,6 +447,7 @@ class RunDir:
         if st is None:
             raise RuntimeError("RunDir.finish() before prepare()")
         _pause("swap")
+        raise_pending_interrupt()
         # from the exchange to the bookkeeping that says the run is in place, a signal
         # waits: cut in between, an abort would take the new run for an unfinished one
         with deferred_signals():
