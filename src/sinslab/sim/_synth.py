@@ -711,6 +711,45 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
             while bq < nbp and bp[bq] <= t_lo + tol:
                 bq += 1
             clear = not (bq < nbp and bp[bq] < (K0 + nk - 1 + lo_off + m - 1) * dt - tol)
+        if clear and out_every == 1 and not has_mount:
+            # the common case (every interval by its stencil, the truth at every epoch, no
+            # mount) as the loop below does it, in three passes without its per-interval
+            # tests: the position sums, the increments, the rest of the truth
+            for ik in range(nk):
+                k = K0 + ik
+                lat += S[6, ik]
+                lon += S[7, ik]
+                h += S[8, ik]
+                olat[k + 1] = lat
+                olon[k + 1] = lon
+                oh[k + 1] = h
+            for ik in range(nk):
+                k = K0 + ik
+                th0 = S[0, ik]
+                th1 = S[1, ik]
+                th2 = S[2, ik]
+                v0 = S[3, ik]
+                v1 = S[4, ik]
+                v2 = S[5, ik]
+                dth[k, 0] = th0
+                dth[k, 1] = th1
+                dth[k, 2] = th2
+                dvl[k, 0] = v0
+                dvl[k, 1] = v1
+                dvl[k, 2] = v2
+                chk += th0 + th1 + th2 + v0 + v1 + v2
+            for ik in range(nk):
+                k = K0 + ik
+                c1 = ib + ik + 1
+                t_nav[k + 1] = (k + 1) * tstep + t0
+                vel[k + 1, 0] = K[0, c1]
+                vel[k + 1, 1] = K[1, c1]
+                vel[k + 1, 2] = K[2, c1]
+                att[k + 1, 0] = K[18, c1]
+                att[k + 1, 1] = wrap_pi_s(K[19, c1])
+                att[k + 1, 2] = wrap_pi_s(K[20, c1])
+            mo += nk                        # oc stays 0: out_every is 1
+            continue
         for ik in range(nk):
             k = K0 + ik
             c1 = ib + ik + 1                # column of epoch k + 1
