@@ -143,6 +143,15 @@ _NONE = np.zeros(1)      # the height arguments of a free vertical channel (unus
 
 
 @njit(cache=True)
+def _fill_rows(h, a, b, v):
+    """``h[a:b] = v``: rows ``a..b−1`` of ``h`` (M, 3) set to ``v`` (3,) (numpy's
+    broadcast runs a 3-element inner loop per row)."""
+    for i in range(a, b):
+        for c in range(3):
+            h[i, c] = v[c]
+
+
+@njit(cache=True)
 def _step_sums_kernel(x, k, acc):
     for e in range(acc.shape[0]):
         i = e * k
@@ -786,7 +795,7 @@ class _LaneRun:
         if end > a:
             c = self.streams[i].compensation
             for k, h in self.comp_h[i].items():
-                h[a:end] = c[k]
+                _fill_rows(h, a, end, c[k])
             self.comp_next[i] = end
 
     def _epoch_rows(self, rows_list, k):
