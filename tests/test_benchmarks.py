@@ -293,3 +293,10 @@ def test_graph_script_parts():
     assert G._pos_err(row, tru, 1000) < 0.01
     d, kw = G._urban_fixes(B, 1)
     assert kw["pos"].shape == (kw["t"].size, 3) and d["imu"] is not None
+
+
+def test_noise_shared_script(tmp_path):
+    out = tmp_path / "noise_shared.json"
+    res = _load("noise_shared").main(["--samples", "2000", "--repeat", "1", "--out", str(out)])
+    assert [c["models"] for c in json.loads(out.read_text())["cases"]] == [1, 2, 7]
+    assert all(c["identical"] and c["ratio"] > 0 for c in res["cases"])
