@@ -194,6 +194,32 @@ def test_kinematics_channel_sums_equal_the_array_evaluation():
             assert np.array_equal(np.array(got).view(np.int64), np.array(want).view(np.int64))
 
 
+@pytest.mark.parametrize("m", [2, 4, 6, 8, 10])
+def test_stencil_block_sums_in_the_order_of_the_pairwise_loop(m):
+    """_stencil_block writes each stencil sum as one expression; it must give the bits of
+    adding the symmetric pairs one after another to a zero (here in plain Python floats:
+    the same IEEE operations), also where every pair is −0 (the sum is then +0), and touch
+    no row but its outputs. m = 2 and 10 take its general loop."""
+    rng = np.random.default_rng(5)
+    mh, NB = m // 2, _synth._NB
+    Z = rng.normal(0.0, 1.0, (_synth._NROW, NB)) * 10.0 ** rng.integers(-12, 3, (_synth._NROW, NB))
+    Z[24:33, ::7] = -0.0
+    Z[24:33, 20:40] = -0.0
+    swd = rng.normal(0.0, 1.0, mh)
+    off = 1
+    nk = min(_synth._BLOCK, NB - off - m + 1)
+    before = Z.copy()
+    _synth._stencil_block(nk, off, swd, Z.reshape(-1))
+    want = before.copy()
+    for q in range(9):
+        for k in range(nk):
+            acc = 0.0
+            for j in range(mh):
+                acc += float(swd[j]) * (float(Z[24 + q, off + k + j]) + float(Z[24 + q, off + k + m - 1 - j]))
+            want[35 + q, k] = acc
+    assert np.array_equal(Z.view(np.int64), want.view(np.int64))
+
+
 @pytest.mark.parametrize("n", [1, 2, 7, 63, 64, 65, 71, 72, 128, 130])
 def test_run_length_does_not_change_the_samples(n):
     """Runs are synthesised in blocks of 64 intervals with a halo of look-ahead epochs: a

@@ -143,6 +143,15 @@ _NONE = np.zeros(1)      # the height arguments of a free vertical channel (unus
 
 
 @njit(cache=True)
+def _fill_rows(h, a, b, v):
+    """``h[a:b] = v``: rows ``a..b−1`` of ``h`` (M, 3) set to ``v`` (3,) (numpy's
+    broadcast runs a 3-element inner loop per row)."""
+    for i in range(a, b):
+        for c in range(3):
+            h[i, c] = v[c]
+
+
+@njit(cache=True)
 def _step_sums_kernel(x, k, acc):
     for e in range(acc.shape[0]):
         i = e * k
@@ -644,7 +653,9 @@ class _LaneRun:
         self.s_e, self.s_m, self.s_j, self.s_ev = (np.asarray(c, dtype=np.int64)[order] for c in cols[:4])
         self.s_tv = np.asarray(cols[4], dtype=float)[order]
         self.s_late = np.asarray(cols[5], dtype=bool)[order]
-        self._s_e = memoryview(self.s_e)            # items read as Python ints (arriving)
+        # the schedule read item by item as Python numbers (arriving, measure)
+        self._s_e, self._s_m, self._s_j, self._s_ev, self._s_tv, self._s_late = (
+            memoryview(a) for a in (self.s_e, self.s_m, self.s_j, self.s_ev, self.s_tv, self.s_late))
         self._next = 0
         del cols, order
         lagged = self.s_ev < self.s_e
@@ -786,7 +797,7 @@ class _LaneRun:
         if end > a:
             c = self.streams[i].compensation
             for k, h in self.comp_h[i].items():
-                h[a:end] = c[k]
+                _fill_rows(h, a, end, c[k])
             self.comp_next[i] = end
 
     def _epoch_rows(self, rows_list, k):
@@ -799,8 +810,7 @@ class _LaneRun:
         now = None
         ev_min = None
         for k in here:
-            mi, j, ev = int(self.s_m[k]), int(self.s_j[k]), int(self.s_ev[k])
-            tv, late = float(self.s_tv[k]), bool(self.s_late[k])
+            mi, j, ev, tv, late = self._s_m[k], self._s_j[k], self._s_ev[k], self._s_tv[k], self._s_late[k]
             meas = self.measurements[mi]
             gate, row_gate, transform = self.gates[mi]
             if ev < e1 and not lag.on_arrival:

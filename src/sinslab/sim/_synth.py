@@ -296,8 +296,10 @@ def _asin1(x):
 
 _BLOCK = 64        # intervals per block: the vectorised passes run over ~70 epochs at a time
 _NB = _BLOCK + 8   # buffer columns: a block and its stencil halo (at most 7 epochs)
-_NROW = 35         # buffer rows: kinematics 0..23, Earth terms 24..32, predicted offsets 33, 34
+_NROW = 44         # buffer rows: kinematics 0..23, Earth terms 24..32, predicted offsets 33, 34,
+                   # stencil sums 35..43
 _R = tuple(np.uint64(r * _NB) for r in range(_NROW))     # row offsets in the flat buffer
+_U = tuple(np.uint64(j) for j in range(8))                # column steps within a row
 
 
 _ROT_MAX = 0.02      # largest angle step [rad] taken by rotation instead of sin/cos
@@ -590,23 +592,58 @@ def _earth_block(i0, i1, ib, dt, lat, h, Z):
 
 
 @njit(cache=True)
-def _stencil_block(nk, off, swd, W, S):
-    """S[q, k] = Σ_j swd_j·W[q, off + k + j], q = 0..8, k < nk: the stencil integrals of
-    ω_ib^b, f^b and the position rates over nk consecutive intervals (symmetric weights
-    swd = dt·sw[:m/2], paired; vectorised over k)."""
+def _stencil_block(nk, off, swd, Z):
+    """Z[35 + q, k] = Σ_j swd_j·Z[24 + q, off + k + j], q = 0..8, k < nk: the stencil
+    integrals of ω_ib^b, f^b and the position rates (rows 24..32 of the flat block buffer
+    ``Z``, see :func:`_earth_block`) over nk consecutive intervals (symmetric weights swd =
+    dt·sw[:m/2], paired; vectorised over k).
+
+    Each sum is one expression in the order of adding the pairs one after another to a
+    zero (the leading 0 turns a −0 sum into +0, as such a loop does), for the 4-, 6- and
+    8-point stencils written out; flat indices as in :func:`_earth_block`: with row arrays
+    and a store and reload of each sum per pair, this took twice the time.
+    """
     mh = swd.shape[0]
     m = 2 * mh
+    uo = np.uint64(off)
+    one = np.uint64(1)
     for q in range(9):
-        Sq = S[q]                      # row views: see _earth_block
-        Wq = W[q]
-        for k in range(nk):
-            Sq[k] = 0.0
-        for jj in range(mh):
-            wq = swd[jj]
-            Wa = Wq[off + jj:]
-            Wb = Wq[off + m - 1 - jj:]
+        rw = _R[24] + np.uint64(q * _NB) + uo
+        rs = _R[35] + np.uint64(q * _NB)
+        if mh == 2:
+            w0 = swd[0]
+            w1 = swd[1]
             for k in range(nk):
-                Sq[k] += wq * (Wa[k] + Wb[k])
+                uk = np.uint64(k)
+                i = rw + uk
+                Z[rs + uk] = (0.0 + w0 * (Z[i] + Z[i + _U[3]])) + w1 * (Z[i + one] + Z[i + _U[2]])
+        elif mh == 3:
+            w0 = swd[0]
+            w1 = swd[1]
+            w2 = swd[2]
+            for k in range(nk):
+                uk = np.uint64(k)
+                i = rw + uk
+                Z[rs + uk] = (((0.0 + w0 * (Z[i] + Z[i + _U[5]])) + w1 * (Z[i + one] + Z[i + _U[4]]))
+                              + w2 * (Z[i + _U[2]] + Z[i + _U[3]]))
+        elif mh == 4:
+            w0 = swd[0]
+            w1 = swd[1]
+            w2 = swd[2]
+            w3 = swd[3]
+            for k in range(nk):
+                uk = np.uint64(k)
+                i = rw + uk
+                Z[rs + uk] = (((((0.0 + w0 * (Z[i] + Z[i + _U[7]])) + w1 * (Z[i + one] + Z[i + _U[6]]))
+                                + w2 * (Z[i + _U[2]] + Z[i + _U[5]])) + w3 * (Z[i + _U[3]] + Z[i + _U[4]])))
+        else:
+            for k in range(nk):
+                uk = np.uint64(k)
+                i = rw + uk
+                acc = 0.0
+                for jj in range(mh):
+                    acc += swd[jj] * (Z[i + np.uint64(jj)] + Z[i + np.uint64(m - 1 - jj)])
+                Z[rs + uk] = acc
 
 
 @njit(cache=True)
@@ -638,7 +675,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     Zf = Z.reshape(_NROW * _NB)
     K = Z[:24]
     W = Z[24:33]
-    S = np.zeros((9, B))
+    S = Z[35:44]                           # the stencil sums of the block's intervals
     cache = np.full(22, math.nan)
     cache[17:] = 0.0
     tc = np.zeros((ttype.shape[0], 4))     # per term: argument, sin, cos, rotations
@@ -683,7 +720,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
             enew = hi - lo
         if m > 0:
             _earth_block(enew, ib + nk + hi, ib, dt, lat, h, Zf)
-            _stencil_block(nk, lo_off - lo, swd, W, S)
+            _stencil_block(nk, lo_off - lo, swd, Zf)
         if K0 == 0:
             t_nav[0] = t0
             olat[0] = lat
