@@ -262,6 +262,13 @@ def test_demo_script_parts(tmp_path):
     (tmp_path / "runs" / "b" / "summary.json").write_text(json.dumps({"metrics": {"runtime_s": 2.0},
                                                                       "robustness": {"wall_s": 3.456}}))
     assert mod._runs(tmp_path / "runs") == ({"a": 1.23, "b": 2.0}, {"a": 0.0, "b": 3.46})
+    # the timeline: start stamp after t0, and the end after the run's stages
+    for name, started, timing in (("a", "2026-01-01T00:00:10+00:00", {"compute_s": 2.0, "figures_s": 0.5}),
+                                  ("b", "2026-01-01T00:00:04+00:00", {"compute_s": 1.0, "robustness_s": 3.0})):
+        f = tmp_path / "runs" / name / "summary.json"
+        f.write_text(json.dumps({**json.loads(f.read_text()), "started": started, "timing": timing}))
+    t0 = 1767225600.0                                        # 2026-01-01T00:00:00Z
+    assert list(mod._timeline(tmp_path / "runs", t0).items()) == [("b", [4.0, 8.0]), ("a", [10.0, 12.5])]
     (tmp_path / "src" / "p" / "__pycache__").mkdir(parents=True)
     assert mod._cached_kernels(tmp_path) == 0
     (tmp_path / "src" / "p" / "__pycache__" / "k-1.py311.nbi").touch()
@@ -293,3 +300,10 @@ def test_graph_script_parts():
     assert G._pos_err(row, tru, 1000) < 0.01
     d, kw = G._urban_fixes(B, 1)
     assert kw["pos"].shape == (kw["t"].size, 3) and d["imu"] is not None
+
+
+def test_noise_shared_script(tmp_path):
+    out = tmp_path / "noise_shared.json"
+    res = _load("noise_shared").main(["--samples", "2000", "--repeat", "1", "--out", str(out)])
+    assert [c["models"] for c in json.loads(out.read_text())["cases"]] == [1, 2, 7]
+    assert all(c["identical"] and c["ratio"] > 0 for c in res["cases"])
