@@ -202,8 +202,11 @@ def test_kfgins_process_reads_kfgins_files_and_writes_every_epoch(tmp_path):
     p = subprocess.run([sys.executable, str(BENCH / "kfgins_process.py"), cfg, "--stages"], capture_output=True,
                        text=True, env=dict(os.environ, SINSLAB_QUIET="1"))
     assert p.returncode == 0, p.stderr
-    stages = dict(x.split("=") for x in p.stdout.split("STAGES ")[1].split())
+    lines = dict(ln.split(" ", 1) for ln in p.stdout.splitlines() if ln.startswith(("STAGES ", "SINSLAB ")))
+    stages = dict(x.split("=") for x in lines["STAGES"].split())
     assert set(stages) == {"start-up_and_imports", "reading", "filter", "writing"}
+    import sinslab
+    assert os.path.samefile(lines["SINSLAB"], os.path.dirname(sinslab.__file__))   # the sinslab under test
     sol = np.load(tmp_path / "sinslab_solution.npy")
     assert sol.shape == (6001, 43) and np.all(np.isfinite(sol))
     res = fr._filter(sc, sc[0])
