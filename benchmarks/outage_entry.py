@@ -31,7 +31,8 @@ Printed, against the reference solution:
   their median), the velocity error at each outage start; for the innovation runs the σ used;
 - **paired over IMU noise seeds** (``--seeds N``, default 10: seeds 1..N, the same real
   fixes; each seed's IMU drawn once and run by both filters of :data:`COMPARED`, ours and
-  NaveGo's tuning): per grade and per outage the mean outage-end horizontal error of each,
+  NaveGo's tuning): per grade and per outage the mean outage-end horizontal error of each
+  (and the mean horizontal velocity error at the outage's start),
   the mean paired difference ``d̄`` (ours − reference) and its standard error
   ``SE = std(d, ddof=1)/√N``, and a verdict fixed before any result was seen: an outage is
   **no worse** when ``d̄ ≤ 0``, or when ``d̄ ≤ 2 SE`` (not significantly worse) *and*
@@ -155,9 +156,12 @@ def _paired(nd, ref, gnss, grade, n_seeds=PAIRED_SEEDS, compared=COMPARED):
             for key, v in zip(("hz_rms", "vert_rms", "ends", "dv_at_starts"), (r[0], r[1], r[2], r[3])):
                 per[name][key].append(np.asarray(v).tolist())
     ours, refr = (np.array(per[name]["ends"]) for name in compared)
+    dv = [np.mean(per[name]["dv_at_starts"], 0) for name in compared]
+    outages = [dict(paired_verdict(ours[:, i], refr[:, i]), ours_dv_start=float(dv[0][i]), ref_dv_start=float(dv[1][i]))
+               for i in range(ours.shape[1])]
     stats = lambda a: {"mean": float(np.mean(a)), "std": float(np.std(a, ddof=1)) if len(a) > 1 else 0.0}  # noqa: E731
     return {"seeds": n_seeds, "ours": compared[0], "reference": compared[1],
-            "outages": [paired_verdict(ours[:, i], refr[:, i]) for i in range(ours.shape[1])],
+            "outages": outages,
             "hz_rms": {name: stats(per[name]["hz_rms"]) for name in compared},
             "vert_rms": {name: stats(per[name]["vert_rms"]) for name in compared},
             "per_seed": per}
@@ -193,10 +197,10 @@ def _print_paired(grade, p):
     o, r = p["ours"], p["reference"]
     print(f"{grade}, paired over IMU seeds 1..{p['seeds']}: {o} against {r} "
           f"(no worse: d̄ ≤ 0, or d̄ ≤ {NO_WORSE_SE:g} SE and ≤ {100 * NO_WORSE_FRACTION:g} % of the reference)")
-    print(f"  {'outage':>6} {o:>12} {r:>8} {'d̄ ± SE [m]':>16}  verdict")
+    print(f"  {'outage':>6} {o:>12} {r:>8} {'d̄ ± SE [m]':>16}  {'verdict':<9} |δv| at the start [m/s]")
     for i, x in enumerate(p["outages"]):
         print(f"  {i + 1:6d} {x['ours_mean']:12.2f} {x['ref_mean']:8.2f} {x['diff_mean']:+8.2f} ± {x['diff_se']:5.2f}  "
-              f"{x['verdict']}")
+              f"{x['verdict']:<9} {x['ours_dv_start']:.3f} {x['ref_dv_start']:.3f}")
     for key in ("hz_rms", "vert_rms"):
         print(f"  {key}: " + "; ".join(f"{n} {p[key][n]['mean']:.2f} ± {p[key][n]['std']:.2f} m" for n in (o, r)))
 

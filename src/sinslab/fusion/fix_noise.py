@@ -45,6 +45,12 @@ that believes it enters the next outage that far off. Each velocity fix is check
 the position fixes over the window before it (the position change against the integrated
 velocities) and de-weighted by the lasting error they contradict, from earlier fixes only:
 the filter cannot know that an outage follows, so the check runs all the time.
+
+With both, a velocity fix the check de-weighted above the common σ is not followed by the
+filter, so its innovation shows its whole lasting error; counted in the batch means it
+would raise every other fix's σ for an error already de-weighted where it happened. The
+batches holding such a fix are left out of that velocity component's estimate
+(``governed`` of :func:`innovation_noise`): the floor is measured on the fixes it governs.
 """
 from __future__ import annotations
 
