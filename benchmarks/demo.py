@@ -9,7 +9,8 @@ itself shows as one more). The figure is the kernel compilation of the install p
 demo (the packages' own installation is timed apart, not part of it): what a fresh clone
 pays beyond pip. The CPU time is that of the whole process tree (the command, its Dask
 workers; user + system). Per run: its ``runtime_s`` (the experiment's own compute time, from
-its ``summary.json``). ``--warm``: ``make demo`` once more on the same cache.
+its ``summary.json``), and when it started and ended (its timeline). ``--warm``: ``make
+demo`` once more on the same cache.
 
 Run: ``.venv/bin/python benchmarks/demo.py [--warm] [--keep DIR] [--out FILE]`` (minutes;
 ``DIR`` receives the runs for comparing them with another demo). Best on a quiet machine:
@@ -74,6 +75,21 @@ def _runs(folder: Path) -> tuple[dict, dict]:
     return out, robust
 
 
+def _timeline(folder: Path, t0: float) -> dict:
+    """When each run of a demo folder started and ended [s after ``t0``, a Unix time]: its
+    ``started`` stamp (whole seconds) and that plus its stages (``timing``: compute,
+    series, figures, report, robustness re-runs). The run that ends last and the ones that
+    started late show where the wall time goes."""
+    import datetime as dt
+
+    out = {}
+    for s in sorted(folder.glob("*/summary.json")):
+        summary = json.loads(s.read_text())
+        start = dt.datetime.fromisoformat(summary["started"]).timestamp() - t0
+        out[s.parent.name] = [round(start, 1), round(start + sum((summary.get("timing") or {}).values()), 1)]
+    return dict(sorted(out.items(), key=lambda kv: kv[1][0]))
+
+
 def measure(warm: bool, keep: str | None, py: str | None) -> dict:
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
@@ -89,12 +105,14 @@ def measure(warm: bool, keep: str | None, py: str | None) -> dict:
         install = _timed(make + [".venv/.installed"], tree, env, Path(tmp) / "install.log")
         compiled = _compile_step(Path(tmp) / "install.log")
         before = _cached_kernels(tree)
+        t0 = time.time()
         fresh = _timed(make + ["demo"], tree, env, Path(tmp) / "demo.log")
         fresh["load_avg_before"] = [round(x, 2) for x in load0]
         fresh["load_avg_after"] = [round(x, 2) for x in os.getloadavg()]
         fresh["kernels_cached_before"] = before
         fresh["kernels_cached_after"] = _cached_kernels(tree)
         fresh["runs"], fresh["robustness_s"] = _runs(tree / "runs")
+        fresh["timeline_s"] = _timeline(tree / "runs", t0)
         res = {"commit": head, "install": install, "compile": compiled, "fresh": fresh,
                "compile_and_demo_wall_s": round(fresh["wall_s"] + (compiled or {}).get("wall_s", 0.0), 2),
                # what `make demo` on the fresh clone takes in all: pip, the kernels, the demo
@@ -135,6 +153,9 @@ def main(argv=None) -> dict:
           f"{res['install_and_demo_wall_s']:.1f} s wall, {res['install_and_demo_cpu_s']:.1f} s CPU")
     for name, s in f["runs"].items():
         print(f"  {name:<32s} {s:7.2f} s, robustness re-runs {f['robustness_s'][name]:6.2f} s")
+    print("timeline of the runs (s after make demo started):")
+    for name, (a, b) in f["timeline_s"].items():
+        print(f"  {name:<32s} {a:6.1f} .. {b:6.1f}")
     if "warm" in res:
         w = res["warm"]
         print(f"make demo, warm cache: {w['wall_s']:.1f} s wall, {w['cpu_s']:.1f} s CPU")

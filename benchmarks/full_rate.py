@@ -35,7 +35,8 @@ model with constant biases and 6 noise inputs).
    alternated rounds (default 5; the two take turns going first), each process' CPU (user
    + system) and the load average per round; the ratio's median and range, sinslab's CPU
    by stage (start-up and imports, reading, filter, writing) and the final horizontal error
-   of both. The in-process filter of item 1 is a second figure: it leaves out what a
+   of both. sinslab's modules are compiled to bytecode before the rounds, as an install
+   leaves them. The in-process filter of item 1 is a second figure: it leaves out what a
    process does besides filtering (starting Python, reading, writing).
 """
 from __future__ import annotations
@@ -281,8 +282,15 @@ def bench_kfgins(binary, sc, rounds=5):
     one first in even rounds and the other first in odd ones, and records each process'
     CPU (user + system), wall time and the load average before the round. One unrecorded
     run of each comes first (the files in the page cache, numba's kernels loaded from its
-    disk cache as in any run after the first)."""
+    disk cache as in any run after the first). sinslab's modules are compiled to bytecode
+    first, as an install leaves them (pip compiles every module it installs): a checkout run
+    with ``PYTHONDONTWRITEBYTECODE`` set would otherwise compile them from source at every
+    start of the process."""
+    import compileall
+
+    import sinslab
     here = os.path.dirname(os.path.abspath(__file__))
+    compileall.compile_dir(os.path.dirname(os.path.abspath(sinslab.__file__)), quiet=1)
     with tempfile.TemporaryDirectory() as d:
         cfg = _kfgins_inputs(sc, d)
         k_cmd = [binary, cfg]

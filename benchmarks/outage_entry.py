@@ -243,6 +243,9 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, default=PAIRED_SEEDS, help="IMU noise seeds of the paired evaluation (1..N)")
     ap.add_argument("--paired-only", action="store_true", help="only the paired evaluation")
     a = ap.parse_args(argv)
+    if a.seeds < 2:
+        print("outage_entry: error: --seeds must be at least 2 (a standard error needs two)", file=sys.stderr)
+        return 2
     if a.navego and not (a.ref or a.gnss):
         a.ref, a.gnss = str(Path(a.navego) / "ref.mat"), str(Path(a.navego) / "ekinox_gnss.mat")
     missing = [p for p in (a.ref, a.gnss) if not p or not Path(p).is_file()]
@@ -251,9 +254,6 @@ def main(argv=None):
         print(f"outage_entry: {why}")
         fig = {"skipped": why}
     else:
-        if a.seeds < 2:
-            print("outage_entry: error: --seeds must be at least 2 (a standard error needs two)", file=sys.stderr)
-            return 2
         fig = measure(a.ref, a.gnss, a.seeds, a.paired_only)
         if a.paired_only:
             for grade in ("ekinox", "mpu"):

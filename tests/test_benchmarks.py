@@ -263,6 +263,13 @@ def test_demo_script_parts(tmp_path):
     (tmp_path / "runs" / "b" / "summary.json").write_text(json.dumps({"metrics": {"runtime_s": 2.0},
                                                                       "robustness": {"wall_s": 3.456}}))
     assert mod._runs(tmp_path / "runs") == ({"a": 1.23, "b": 2.0}, {"a": 0.0, "b": 3.46})
+    # the timeline: start stamp after t0, and the end after the run's stages
+    for name, started, timing in (("a", "2026-01-01T00:00:10+00:00", {"compute_s": 2.0, "figures_s": 0.5}),
+                                  ("b", "2026-01-01T00:00:04+00:00", {"compute_s": 1.0, "robustness_s": 3.0})):
+        f = tmp_path / "runs" / name / "summary.json"
+        f.write_text(json.dumps({**json.loads(f.read_text()), "started": started, "timing": timing}))
+    t0 = 1767225600.0                                        # 2026-01-01T00:00:00Z
+    assert list(mod._timeline(tmp_path / "runs", t0).items()) == [("b", [4.0, 8.0]), ("a", [10.0, 12.5])]
     (tmp_path / "src" / "p" / "__pycache__").mkdir(parents=True)
     assert mod._cached_kernels(tmp_path) == 0
     (tmp_path / "src" / "p" / "__pycache__" / "k-1.py311.nbi").touch()
@@ -316,3 +323,11 @@ def test_outage_entry_no_worse_rule(tmp_path, monkeypatch):
     monkeypatch.delenv("NAVEGO_REAL_DATA", raising=False)
     out = tmp_path / "f.json"
     assert mod.main(["--out", str(out)]) == 0 and "skipped" in json.loads(out.read_text())
+    assert mod.main(["--seeds", "1"]) == 2
+
+
+def test_noise_shared_script(tmp_path):
+    out = tmp_path / "noise_shared.json"
+    res = _load("noise_shared").main(["--samples", "2000", "--repeat", "1", "--out", str(out)])
+    assert [c["models"] for c in json.loads(out.read_text())["cases"]] == [1, 2, 7]
+    assert all(c["identical"] and c["ratio"] > 0 for c in res["cases"])

@@ -391,7 +391,8 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
         names = list(only) if only else list(registry())
         exps = [get(n) for n in names]
         # every experiment's default scenario followed by its declared variants (NAME-suffix)
-        jobs = [_DemoJob(exp, f"{exp.name}-{suffix}" if suffix else exp.name, tuple(sets))
+        jobs = [_DemoJob(exp, f"{exp.name}-{suffix}" if suffix else exp.name, tuple(sets),
+                         exp.demo_cost.get(suffix, 0.0))
                 for exp in exps for suffix, sets in [("", ())] + list(exp.variants.items())]
         for job in jobs:                                   # check every folder first
             RunDir(out / job.label, job.exp.name, command="run").check()
@@ -431,9 +432,11 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                     shown += 1
 
             try:
-                for job in jobs:
-                    if job.future is not None:
-                        continue
+                here = [job for job in jobs if job.future is None]
+                # beside a cluster, the campaigns longest first: the last ones, short and
+                # spread over the workers, keep both CPUs busy up to the end instead of a
+                # long one computing alone (one after another, the order gains nothing)
+                for job in _longest_first(here) if shared is not None else here:
                     _log(_running(job.exp.name, job.label, job.sets, quick))
                     try:
                         summary = execute(job.exp, job.cfg, out / job.label, quick=quick, log=_log,
@@ -473,14 +476,22 @@ def _running(name: str, label: str, sets, quick: bool) -> str:
 class _DemoJob:
     """One run of ``sinslab demo``: an experiment with the ``--set`` lines of a variant."""
 
-    def __init__(self, exp, label: str, sets: tuple):
+    def __init__(self, exp, label: str, sets: tuple, cost: float = 0.0):
         self.exp, self.label, self.sets = exp, label, sets
+        #: its CPU time at full scale as the experiment declares it [s] (0: not declared)
+        self.cost = cost
         self.cfg = None
         self.campaign = False
         #: the Dask future of a run handed to the workers
         self.future = None
         #: ("done", summary), ("failed", (line, traceback)) or ("user", exception)
         self.outcome = None
+
+
+def _longest_first(jobs: list) -> list:
+    """``jobs`` by declared cost, longest first (a stable sort: the order of the runs among
+    equal costs and those without one)."""
+    return sorted(jobs, key=lambda j: -j.cost)
 
 
 #: topic of the progress lines the demo's runs on Dask workers send to the command
@@ -504,7 +515,9 @@ def _submit_beside(client, jobs: list, out: Path, quick: bool) -> None:
     one's task): the first compiles the experiment's kernels into numba's disk cache and
     the others load them, instead of two workers compiling the same kernels at once on a
     fresh clone. Their tasks rank below the campaigns' (``priority``), which the command
-    waits for: a free worker takes a campaign's task first.
+    waits for: a free worker takes a campaign's task first. The experiments' chains are
+    handed out longest first (their declared costs added), and the runs of a chain too: a
+    long run started last would end alone on one CPU.
     """
     def forward(event):
         # each line names its run: the runs' lines interleave
@@ -519,8 +532,10 @@ def _submit_beside(client, jobs: list, out: Path, quick: bool) -> None:
 
     client.subscribe_topic(_DEMO_TOPIC, forward)
     last = {}
-    # the experiments with most runs first: their chains are the longest
-    order = sorted(jobs, key=lambda j: -sum(k.exp.name == j.exp.name for k in jobs))
+    chains = {}
+    for job in _longest_first(jobs):
+        chains.setdefault(job.exp.name, []).append(job)
+    order = [job for chain in sorted(chains.values(), key=lambda c: -sum(j.cost for j in c)) for job in chain]
     for job in order:
         variant = (job.label, list(job.sets)) if job.sets else None
         job.future = client.submit(_run_on_worker, job.exp.name, job.cfg, str(out / job.label), quick, variant,

@@ -80,6 +80,29 @@ def test_demo_shares_one_cluster_among_its_campaigns(tmp_path, monkeypatch):
     assert (tmp_path / "runs" / "campaign-dummy-more" / "summary.json").is_file()
 
 
+def test_demo_runs_the_longest_campaign_first_and_prints_in_run_order(tmp_path, monkeypatch):
+    """Beside the shared cluster the runs go longest first by their declared CPU cost
+    (LPT: the short ones fill the CPUs at the end); a run without a declared cost goes
+    last; the summaries still come in the order of the runs."""
+    @contextlib.contextmanager
+    def fake_client(scheduler=None, n_workers=None):
+        yield "the shared client" if scheduler is None else scheduler
+
+    mod = _module()
+    mod.DEMO_COST_S = {"more": 30.0, "single": 2.0}
+    monkeypatch.setitem(sys.modules, mod.__name__, mod)
+    from sinslab.estimation import montecarlo as mc
+
+    monkeypatch.setattr(mc, "dask_client", fake_client)
+    E.register(mod)
+    SEEN.clear()
+    r = CliRunner().invoke(app, ["demo", "--quick", "--only", "campaign-dummy", "--out", str(tmp_path / "runs")])
+    assert r.exit_code == 0, r.output
+    assert SEEN == [(4, "the shared client"), (1, None), (3, "the shared client")]
+    lines = [ln.split(":")[0] for ln in r.stdout.splitlines() if "claims passed" in ln]
+    assert lines == ["campaign-dummy", "campaign-dummy-single", "campaign-dummy-more"]
+
+
 def test_demo_without_campaigns_starts_no_cluster(tmp_path, monkeypatch):
     def no_cluster(*a, **k):
         raise AssertionError("a cluster was started")
@@ -178,3 +201,14 @@ def test_demo_run_failing_on_a_worker_stops_nothing(tmp_path, monkeypatch, threa
     assert "campaign-dummy-single: 1/1 claims passed" in r.stdout
     assert "campaign-dummy-broken" in (tmp_path / "runs" / "index.html").read_text()
     assert not [p for p in (tmp_path / "runs").iterdir() if p.name.startswith(".")]
+
+
+def test_every_demo_run_declares_its_cost():
+    """``DEMO_COST_S`` names exactly the runs of the experiment's demo (the default "" and
+    its DEMO_VARIANTS suffixes), each with a positive number of seconds: a misspelt suffix
+    would leave its run last, unnoticed."""
+    for exp in E.registry().values():
+        if exp.name == "campaign-dummy":
+            continue
+        assert set(exp.demo_cost) == {"", *exp.variants}, exp.name
+        assert all(v > 0 for v in exp.demo_cost.values()), exp.name

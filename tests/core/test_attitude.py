@@ -292,3 +292,16 @@ def test_scalar_euler_dcm_and_body_rate_kernels():
         s, c = np.sin(att), np.cos(att)
         w = euler_rates_to_body_sc(s[0], c[0], s[1], c[1], rate[0], rate[1], rate[2])
         np.testing.assert_allclose(w, w_fd, atol=1e-8)
+
+
+def test_wrap_pi_float_is_wrap_pi_bit_for_bit():
+    """wrap_pi_float (Python floats) gives wrap_pi's bits: Python's float % and numpy's mod
+    are one algorithm (fmod, the divisor added when the signs differ, a zero signed as the
+    divisor), over random angles, the interval ends and their neighbours, zeros and huge values."""
+    ends = [math.pi, -math.pi, 2 * math.pi, -2 * math.pi, 3 * math.pi]
+    a = np.r_[RNG.uniform(-40, 40, 20000), RNG.normal(0, 1e6, 2000), ends,
+              [math.nextafter(v, w) for v in ends for w in (-math.inf, math.inf)],
+              [0.0, -0.0, 1e-300, -1e-300, 1e300, -1e300]]
+    got = np.array([at.wrap_pi_float(v) for v in a])
+    assert np.array_equal(got.view(np.int64), at.wrap_pi(a).view(np.int64))
+    assert all(type(at.wrap_pi_float(v)) is float for v in (np.float64(4.0), 4.0, 4))

@@ -556,3 +556,22 @@ def test_transform_restarts_and_copies_states():
     assert np.isclose(kf.P[4, 4], v @ P0 @ v) and np.allclose(kf.P[4, :3], (P0 @ v)[:3])
     with pytest.raises(ValueError, match="lagged updates"):
         KalmanFilter(x0, P0, history=3).transform(A, Q)
+
+
+def test_feedback_of_every_state_equals_the_indexed_feedback_bit_for_bit():
+    """``feedback()`` (every state) returns, zeroes and accumulates in ``c`` exactly what
+    the indexed form does with all the indices, and what a caller's subset leaves alone
+    stays (the amounts are zero outside it)."""
+    rng = np.random.default_rng(7)
+    x0 = np.r_[rng.normal(size=7), -0.0, np.nan]
+    P0 = np.eye(9)
+    a, b = KalmanFilter(x0, P0), KalmanFilter(x0, P0)
+    for f in (a, b):
+        f._c[:] = rng.normal(size=9) if f is a else a._c       # the same cumulative feedback
+    da, db = a.feedback(), b.feedback(np.arange(9))
+    for u, v in ((da, db), (a.x, b.x), (a.c, b.c)):
+        assert np.array_equal(u.view(np.int64), v.view(np.int64))
+    assert np.array_equal(da.view(np.int64), x0.view(np.int64)) and not np.any(a.x)
+    c = KalmanFilter(x0, P0)
+    d = c.feedback(np.array([0, 3]))
+    assert d[1] == 0.0 and c.x[1] == x0[1] and c.x[0] == 0.0 and d[3] == x0[3]

@@ -85,3 +85,56 @@ def test_scale_record_is_one_array_whose_halves_are_the_scale_factors(tmp_path):
     assert not np.shares_memory(j, a) and j.tolist() == [[1.0] * 3 + [0.0] * 3] * 4
     w = np.arange(24.0).reshape(4, 6)
     assert not np.shares_memory(_joined(w[:, 3:], w[:, :3]), w)          # halves swapped: a copy
+
+
+
+@pytest.mark.parametrize("comp_rows", [4096, 7])
+def test_compensation_record_holds_the_compensation_in_use_after_each_epoch(monkeypatch, comp_rows):
+    """The compensation record (written when feedback is about to change it, every
+    ``COMP_ROWS`` rows and at the end) holds at every epoch the compensation the stream used
+    after that epoch: the initial one up to the first feedback, then the one each feedback
+    left, bit for bit with the stream's own arrays (scale factors too); a run without
+    feedback keeps its initial compensation in every row."""
+    from sinslab.core import units as u
+    from sinslab.core.records import NavState
+    from sinslab.fusion import driver
+    from sinslab.fusion.feedback import FeedbackLayout
+    from sinslab.fusion.loosely_coupled import lc_model
+    from sinslab.fusion.measurements import PositionFix
+    from sinslab.fusion.spec import FilterGrid
+    from support import static_imu
+
+    monkeypatch.setattr(driver, "COMP_ROWS", comp_rows)
+    dt, n = 0.01, 1200
+    imu = static_imu(0.6, np.array([0.01, -0.02, 0.5]), dt, n, gyro_err=(2e-5, -1e-5, 3e-5),
+                     accel_err=(3e-3, -2e-3, 1e-3))
+    init = NavState(0.6, 1.0, 0.0, np.zeros(3), np.array([0.01, -0.02, 0.5]), imu.t0)
+    model = lc_model(0.02 * u.dpsh, 20 * u.ugpsHz, scale_factors=True)
+    P0 = np.diag(np.r_[[1e-6] * 3, [0.01] * 3, 1e-12, 1e-12, 1.0, [1e-9] * 3, [1e-5] * 3, [1e-8] * 6])
+    tf = imu.t0 + np.arange(1, 12) * 1.0
+    fix = PositionFix(tf, np.tile([0.6, 1.0, 0.0], (tf.size, 1)), [1.0, 1.0, 2.0])
+    after = []
+    feedback = driver.LiveStream.feedback
+
+    def recorded(self, filt, layout):
+        d = feedback(self, filt, layout)
+        after.append({k: v.copy() for k, v in self.compensation.items()})
+        return d
+    monkeypatch.setattr(driver.LiveStream, "feedback", recorded)
+    grid = FilterGrid(0.05)
+    stream = driver.LiveStream(imu, init, nsub=1, scaled=True)
+    res = driver.run([stream], model, P0, [fix], grid=grid, feedback=FeedbackLayout.from_model(model.layout))
+    comp, M = res.compensation[0], res.t.size
+    epochs = np.searchsorted(res.t, res.applied.t_applied).tolist()
+    assert len(after) == len(epochs) > 3 and M > 10 * comp_rows or comp_rows > M
+    assert set(comp) == {"gyro_bias", "accel_bias", "gyro_scale", "accel_scale"}
+    for key in comp:
+        want = np.empty((M, 3))
+        want[:epochs[0]] = 0.0
+        for e, nxt, c in zip(epochs, epochs[1:] + [M], after):
+            want[e:nxt] = c[key]
+        assert np.array_equal(comp[key], want), key
+        assert np.any(want != 0.0), key
+    ab = np.array([1e-3, -2e-3, 3e-3])
+    free = driver.run([driver.LiveStream(imu, init, nsub=1, accel_bias=ab)], model, P0, [fix], grid=grid)
+    assert np.array_equal(free.compensation[0]["accel_bias"], np.broadcast_to(ab, (M, 3)))

@@ -157,6 +157,69 @@ def test_sincos_rotation_stays_within_a_few_ulps():
     assert rotated > 0.75 * steps.size and max(runs) == _synth._ROT_RUN
 
 
+def test_kinematics_channel_sums_equal_the_array_evaluation():
+    """The kinematics sum the channel terms in scalars (_channel_sums); the fallback path's
+    _channels sums them into arrays indexed by channel. On random tables (all term types,
+    every channel, several terms per channel) both must give the same numbers bit for bit:
+    same terms, same order of the additions. A fresh per-term cache makes the sine terms'
+    sines exact, as _channels takes them."""
+    rng = np.random.default_rng(11)
+    nt = 40
+    ttype = rng.integers(0, 3, nt)
+    tch = np.concatenate([np.arange(_synth.NCH), rng.integers(0, _synth.NCH, nt - _synth.NCH)])
+    tta = rng.uniform(0.0, 5.0, nt)
+    T = rng.uniform(0.5, 8.0, nt)
+    tpar = np.zeros((nt, 6))
+    tpar[:, 0] = rng.normal(0.0, 2.0, nt)
+    tpar[:, 1] = np.where(ttype == _synth.T_SINE, rng.uniform(0.1, 5.0, nt), T)
+    tpar[:, 2] = np.where(ttype == _synth.T_TRAP, T * rng.uniform(0.0, 0.5, nt), rng.uniform(-3, 3, nt))
+    tpar[:, 3] = T
+    tpar[:, 4] = T * rng.uniform(0.0, 0.5, nt) * (rng.random(nt) < 0.7)
+    tpar[:, 5] = T * rng.uniform(0.0, 0.5, nt) * (rng.random(nt) < 0.7)
+    base = rng.normal(0.0, 1.0, (2, _synth.NCH))
+    plo = np.array([0, 3], dtype=np.int64)
+    phi = np.array([3, nt], dtype=np.int64)
+    act = rng.permutation(nt).astype(np.int64)
+    val, d1, d2 = np.empty(_synth.NCH), np.empty(_synth.NCH), np.empty(_synth.NCH)
+    V, P, TH, R, PI, Y, H, MP, MR, MY = range(_synth.NCH)
+    for t in rng.uniform(0.0, 14.0, 300):
+        for j in (0, 1):
+            tc = np.zeros((nt, 4))
+            tc[:, 0] = np.nan
+            got = _synth._channel_sums(t, j, base, plo, phi, act, ttype, tch, tta, tpar, tc)
+            _synth._channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2)
+            want = (val[V], d1[V], val[P], d1[P], d2[P], val[TH], d1[TH], val[R], d1[R], val[PI],
+                    d1[PI], val[Y], d1[Y], d1[H], d2[H], val[MP], val[MR], val[MY], d1[MP], d1[MR],
+                    d1[MY])
+            assert np.array_equal(np.array(got).view(np.int64), np.array(want).view(np.int64))
+
+
+@pytest.mark.parametrize("m", [2, 4, 6, 8, 10])
+def test_stencil_block_sums_in_the_order_of_the_pairwise_loop(m):
+    """_stencil_block writes each stencil sum as one expression; it must give the bits of
+    adding the symmetric pairs one after another to a zero (here in plain Python floats:
+    the same IEEE operations), also where every pair is −0 (the sum is then +0), and touch
+    no row but its outputs. m = 2 and 10 take its general loop."""
+    rng = np.random.default_rng(5)
+    mh, NB = m // 2, _synth._NB
+    Z = rng.normal(0.0, 1.0, (_synth._NROW, NB)) * 10.0 ** rng.integers(-12, 3, (_synth._NROW, NB))
+    Z[24:33, ::7] = -0.0
+    Z[24:33, 20:40] = -0.0
+    swd = rng.normal(0.0, 1.0, mh)
+    off = 1
+    nk = min(_synth._BLOCK, NB - off - m + 1)
+    before = Z.copy()
+    _synth._stencil_block(nk, off, swd, Z.reshape(-1))
+    want = before.copy()
+    for q in range(9):
+        for k in range(nk):
+            acc = 0.0
+            for j in range(mh):
+                acc += float(swd[j]) * (float(Z[24 + q, off + k + j]) + float(Z[24 + q, off + k + m - 1 - j]))
+            want[35 + q, k] = acc
+    assert np.array_equal(Z.view(np.int64), want.view(np.int64))
+
+
 @pytest.mark.parametrize("n", [1, 2, 7, 63, 64, 65, 71, 72, 128, 130])
 def test_run_length_does_not_change_the_samples(n):
     """Runs are synthesised in blocks of 64 intervals with a halo of look-ahead epochs: a
@@ -198,14 +261,18 @@ def test_attitude_increments_match_truth_attitude():
     assert np.abs(rel - approx).max() < 1e-8
 
 
-def test_out_every_decimates_truth_only():
-    full = tr.generate(presets.aircraft_mixed(100.0), START_003, 0.01, mount=indexing.Swing())
-    dec = tr.generate(presets.aircraft_mixed(100.0), START_003, 0.01, mount=indexing.Swing(), out_every=7)
+@pytest.mark.parametrize("mount", [indexing.Swing(), None])
+def test_out_every_decimates_truth_only(mount):
+    """Without a mount, full-rate truth takes the kernel's three-pass path for blocks away
+    from breakpoints, decimated truth its general per-interval loop: the same bits."""
+    full = tr.generate(presets.aircraft_mixed(100.0), START_003, 0.01, mount=mount)
+    dec = tr.generate(presets.aircraft_mixed(100.0), START_003, 0.01, mount=mount, out_every=7)
     np.testing.assert_array_equal(dec.imu.dtheta, full.imu.dtheta)
+    np.testing.assert_array_equal(dec.imu.dv, full.imu.dv)
     np.testing.assert_array_equal(dec.mount, full.mount)
     sel = np.arange(0, len(full.truth), 7)
     np.testing.assert_allclose(dec.truth.t, full.truth.t[sel])
-    for name in ("lat", "lon", "h", "vel", "att", "att_imu"):
+    for name in ("lat", "lon", "h", "vel", "att") + (("att_imu",) if mount else ()):
         np.testing.assert_array_equal(getattr(dec.truth, name), getattr(full.truth, name)[sel])
 
 

@@ -43,7 +43,7 @@ __all__ = [
     "dcm_to_quat", "rotvec_to_dcm", "dcm_to_rotvec", "rotvec_to_quat", "quat_to_rotvec",
     "quat_mul", "quat_conj", "yaw_to_heading", "heading_to_yaw", "misalignment",
     "apply_misalignment", "M_ENU_NED", "dcm_from_ned", "dcm_to_ned", "euler_from_ned",
-    "euler_to_ned", "vec_ned_to_enu", "vec_enu_to_ned", "wrap_pi", "wrap_pi_s",
+    "euler_to_ned", "vec_ned_to_enu", "vec_enu_to_ned", "wrap_pi", "wrap_pi_float", "wrap_pi_s",
 ]
 
 #: Maps NED to ENU and FRD to RFU (and back: it is symmetric and its own inverse).
@@ -220,6 +220,13 @@ def wrap_pi(a: ArrayLike) -> np.ndarray:
     """Wrap angles [rad] to (−π, π]. :func:`wrap_pi_s` is the compiled scalar form."""
     a = np.asarray(a, dtype=float)
     return np.pi - np.mod(np.pi - a, 2 * np.pi)
+
+
+def wrap_pi_float(a: float) -> float:
+    """:func:`wrap_pi` of one angle [rad] as a Python float, the same bits: Python's float
+    ``%`` and numpy's ``mod`` are one algorithm (``fmod``, then the divisor added when
+    the signs differ; a zero takes the divisor's sign), without numpy's per-call cost."""
+    return math.pi - (math.pi - float(a)) % (2 * math.pi)
 
 
 def yaw_to_heading(yaw: ArrayLike) -> np.ndarray:

@@ -50,7 +50,7 @@ def compiled_update(x, P, z, H, R, tmp=None, B=None):
     if H.shape != (m, n):
         return None
     S = H @ P @ H.T
-    S.flat[::m + 1] += r
+    S.reshape(-1)[::m + 1] += r                 # the diagonal (S is a new C-contiguous array)
     # the innovation reported is the prior z − H x of all components, as the vector update
     # gives; the kernel's are those of each scalar step, after the earlier components
     innov = z - H @ x
@@ -381,10 +381,15 @@ class KalmanFilter:
             The fed-back amounts (zero outside ``indices``); the caller subtracts them
             from the navigation state / adds them to the sensor compensation.
         """
-        d = np.zeros(self.n)
         if indices is None:
-            idx = np.arange(self.n)
-        elif type(indices) is np.ndarray and indices.dtype == np.int64:
+            # every state: the amounts are the estimate as it stands (the values the
+            # indexed copy below gives)
+            d = self._x.copy()
+            self._x[:] = 0.0
+            self._c += d
+            return d
+        d = np.zeros(self.n)
+        if type(indices) is np.ndarray and indices.dtype == np.int64:
             idx = indices                   # what np.arange(n)[indices] would return
         else:
             idx = np.arange(self.n)[indices]

@@ -208,6 +208,10 @@ class Experiment:
     #: ``{suffix: [dotted key=value, ...]}``: further scenarios that ``sinslab demo`` runs
     #: as ``NAME-suffix`` (e.g. the paper's laboratory variant or a Monte Carlo campaign).
     variants: Mapping[str, tuple] = field(default_factory=dict)
+    #: ``{suffix: seconds}`` ("" the default scenario): the CPU time of each demo run at full
+    #: scale, its robustness re-runs included; ``sinslab demo`` starts the longest first
+    #: (an estimate that orders the runs, never read as a result; a run without one: 0).
+    demo_cost: Mapping[str, float] = field(default_factory=dict)
     #: ``ROBUSTNESS(cfg) -> [Axis]`` of the module (None: no physics alternatives)
     robustness: Callable | None = None
 
@@ -235,4 +239,5 @@ class Experiment:
                    paper=getattr(mod, "PAPER", ""), notes=tuple(getattr(mod, "NOTES", ())),
                    module=mod.__name__,
                    variants={k: tuple(v) for k, v in getattr(mod, "DEMO_VARIANTS", {}).items()},
+                   demo_cost={k: float(v) for k, v in getattr(mod, "DEMO_COST_S", {}).items()},
                    robustness=getattr(mod, "ROBUSTNESS", None))

@@ -168,6 +168,10 @@ QUICK = {"runs": 40, "scenario": {"sample_interval": "0.05 s"}}
 #: paper's fix filter, 100 runs.
 DEMO_VARIANTS = {"ranges": ["filter.measurement=ranges", "runs=100"]}
 
+#: CPU seconds of each ``sinslab demo`` run at full scale, robustness re-runs included
+#: (quiet machine): the demo starts the longest first.
+DEMO_COST_S = {"": 44, "ranges": 8}
+
 METRICS = {
     "fix_sigma_ns_m": Metric("m", "two-GEO fix σ north-south at the start position (eqs 11-15, configured height factor)"),
     "fix_sigma_ew_m": Metric("m", "two-GEO fix σ east-west at the start position"),

@@ -175,6 +175,10 @@ QUICK = {"scenario": {"duration": "10 min", "sample_interval": "0.02 s"}}
 #: Further scenarios for ``sinslab demo``: Monte Carlo RMS next to covariance-analysis σ.
 DEMO_VARIANTS = {"mc200": ["runs=200"]}
 
+#: CPU seconds of each ``sinslab demo`` run at full scale, robustness re-runs included
+#: (quiet machine): the demo starts the longest first.
+DEMO_COST_S = {"": 2, "mc200": 9}
+
 METRICS = {
     "max_horiz_pos_err_m": Metric("m", "largest horizontal position error over the run"),
     "final_horiz_pos_err_m": Metric("m", "horizontal position error at the end"),

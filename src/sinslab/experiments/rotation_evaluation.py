@@ -267,6 +267,10 @@ class Config(ExperimentConfig):
 QUICK = {"runs": 4, "scenario": {"duration": "32 h", "sample_interval": "0.05 s"},
          "evaluation": {"start": "16 h", "window": "4 h"}}
 
+#: CPU seconds of each ``sinslab demo`` run at full scale, robustness re-runs included
+#: (quiet machine): the demo starts the longest first.
+DEMO_COST_S = {"": 48}
+
 METRICS = {
     "obs_rank_static": Metric("-", "rank of the 13-state subsystem at one stop (paper: 5)"),
     "obs_rank_schedule": Metric("-", "rank stacked over the stops of the schedule (paper: 13)"),

@@ -88,6 +88,10 @@ class Config(ExperimentConfig):
 
 QUICK = {"runs": 3}
 
+#: CPU seconds of each ``sinslab demo`` run at full scale, robustness re-runs included
+#: (quiet machine): the demo starts the longest first.
+DEMO_COST_S = {"": 30}
+
 METRICS = {}
 for _L in LENGTHS:
     for _w, _d in (("ins", "RTK/INS"), ("alone", "RTK alone")):

@@ -175,6 +175,10 @@ DEMO_VARIANTS = {"turntable": ["scenario.kind=turntable"], "injected": ["init.mo
                            "turntable.imu.gyro_arw=0 deg/sqrt(h)", "turntable.imu.accel_vrw=0 ug/sqrt(Hz)",
                            "init.mode=injected", "turntable.duration=48 h", "scenario.sample_interval=0.1 s"]}
 
+#: CPU seconds of each ``sinslab demo`` run at full scale, robustness re-runs included
+#: (quiet machine): the demo starts the longest first.
+DEMO_COST_S = {"": 17, "turntable": 3, "injected": 4, "still": 6}
+
 #: Assumptions of the verdicts (names shared by the claims and the sweep's axes)
 ONSET, INIT, NOISE, SITE, MEASURE, KEPT_BAR, FLOOR = (
     "manoeuvre onset", "initial errors", "sensor noise", "site", "Schuler amplitude measure",

@@ -83,6 +83,7 @@ estimate after re-processing is fed back at ``e1`` like any other.
 """
 from __future__ import annotations
 
+import bisect
 import os
 import weakref
 from dataclasses import dataclass, field
@@ -139,6 +140,15 @@ def _scaled_increments(dth, dv, kg, ka, gb, ab, k, T, dth_s, dv_s, ws, fs):
 
 
 _NONE = np.zeros(1)      # the height arguments of a free vertical channel (unused)
+
+
+@njit(cache=True)
+def _fill_rows(h, a, b, v):
+    """``h[a:b] = v``: rows ``a..b−1`` of ``h`` (M, 3) set to ``v`` (3,) (numpy's
+    broadcast runs a 3-element inner loop per row)."""
+    for i in range(a, b):
+        for c in range(3):
+            h[i, c] = v[c]
 
 
 @njit(cache=True)
@@ -486,6 +496,9 @@ def _joined(a, b):
 
 #: rows of a spilled record written between two releases of its pages
 SPILL_ROWS = 4096
+#: rows of the compensation record left to write at most (the record of a run without
+#: feedback is written as the run passes, as a spilled record's pages are let go)
+COMP_ROWS = 4096
 
 
 class _Record:
@@ -640,6 +653,10 @@ class _LaneRun:
         self.s_e, self.s_m, self.s_j, self.s_ev = (np.asarray(c, dtype=np.int64)[order] for c in cols[:4])
         self.s_tv = np.asarray(cols[4], dtype=float)[order]
         self.s_late = np.asarray(cols[5], dtype=bool)[order]
+        # the schedule read item by item as Python numbers (arriving, measure)
+        self._s_e, self._s_m, self._s_j, self._s_ev, self._s_tv, self._s_late = (
+            memoryview(a) for a in (self.s_e, self.s_m, self.s_j, self.s_ev, self.s_tv, self.s_late))
+        self._next = 0
         del cols, order
         lagged = self.s_ev < self.s_e
         hist = 0 if lag.on_arrival or not lagged.any() else int((self.s_e - self.s_ev)[lagged].max()) + 3
@@ -674,8 +691,8 @@ class _LaneRun:
             if hist:
                 self.w_h[i][0] = w0
                 self.f_h[i][0] = f0
-            if live[i]:
-                self._comp(i, slice(0, 1))
+        # rows of comp_h before comp_next[i] hold stream i's compensation (see _comp)
+        self.comp_next = [0] * len(streams)
         self.sig_h[0] = filt.sigma
         if history is not None:
             history.begin(filt, n_ep, T, set(np.union1d(self.s_e, self.s_ev).tolist()))
@@ -701,7 +718,16 @@ class _LaneRun:
 
     def arriving(self, e):
         """Rows of the schedule of the items arriving at epoch ``e`` (a range)."""
-        return range(int(np.searchsorted(self.s_e, e, "left")), int(np.searchsorted(self.s_e, e, "right")))
+        # the loop asks epoch after epoch: the items from where the last answer ended,
+        # found without a search while one item arrives per epoch
+        s_e, a = self._s_e, self._next
+        if not (a < len(s_e) and s_e[a] == e and (a == 0 or s_e[a - 1] < e)):
+            a = bisect.bisect_left(s_e, e)
+        b = a
+        while b < len(s_e) and s_e[b] == e:
+            b += 1
+        self._next = b
+        return range(a, b)
 
     def fusable(self, cprop, discretization):
         """Model, Φ, Q_k and prediction in the one compiled loop, unless Φ, Q_k or F must
@@ -755,17 +781,24 @@ class _LaneRun:
                 self.nav_pre[i][e0 + 1:e1 + 1] = self.rows[i][1:]
                 self.w_h[i][e0 + 1:e1 + 1] = ws
                 self.f_h[i][e0 + 1:e1 + 1] = fs
-            if self.live[i]:
-                self._comp(i, slice(e0 + 1, e1 + 1))
+            if self.live[i] and e1 - self.comp_next[i] >= COMP_ROWS:
+                self._comp(i, e1)
         # rows up to a few lagged epochs back are read again (the validity epoch of a late
         # item): the pages before those are let go
         self.store.passed(e1 - self.hist - 1)
 
-    def _comp(self, i, rows):
-        """Stream i's compensation into its history at ``rows``."""
-        c = self.streams[i].compensation
-        for k, h in self.comp_h[i].items():
-            h[rows] = c[k]
+    def _comp(self, i, end):
+        """Stream i's compensation into its history up to row ``end`` (exclusive).
+
+        The compensation changes only by feedback, so its rows are written when it is
+        about to change (and every :data:`COMP_ROWS` rows, and at the end): one write per
+        fix instead of one per block and one per feedback; the rows are the same."""
+        a = self.comp_next[i]
+        if end > a:
+            c = self.streams[i].compensation
+            for k, h in self.comp_h[i].items():
+                _fill_rows(h, a, end, c[k])
+            self.comp_next[i] = end
 
     def _epoch_rows(self, rows_list, k):
         return tuple(NavRow(rows_list[i][k], self.w_h[i][k], self.f_h[i][k]) for i in range(self.ns))
@@ -777,8 +810,7 @@ class _LaneRun:
         now = None
         ev_min = None
         for k in here:
-            mi, j, ev = int(self.s_m[k]), int(self.s_j[k]), int(self.s_ev[k])
-            tv, late = float(self.s_tv[k]), bool(self.s_late[k])
+            mi, j, ev, tv, late = self._s_m[k], self._s_j[k], self._s_ev[k], self._s_tv[k], self._s_late[k]
             meas = self.measurements[mi]
             gate, row_gate, transform = self.gates[mi]
             if ev < e1 and not lag.on_arrival:
@@ -826,11 +858,11 @@ class _LaneRun:
             history.updated(e1, filt, ev_min)
         for si_, fb in fbs:
             s = self.streams[si_]
+            self._comp(si_, e1)                 # the rows before e1 hold the compensation before
             d = s.feedback(filt, fb)
             if history is not None:
                 history.fed_back(e1, d)
             self.nav_h[si_][e1] = s.row()
-            self._comp(si_, e1)
         self.x_h[e1] = filt.x
         self.sig_h[e1] = filt.sigma
 
@@ -849,6 +881,9 @@ class _LaneRun:
         return r.z[~rej], r.H[~rej], r.R[~rej]
 
     def result(self, t_ep, lay):
+        for i, lv in enumerate(self.live):
+            if lv:
+                self._comp(i, self.x_h.shape[0])
         self.store.passed(None)
         applied, decisions = self.rec.result()
         return DriverResult(t_ep, tuple(self.nav_h), self.x_h, self.sig_h, tuple(self.comp_h), applied, lay,

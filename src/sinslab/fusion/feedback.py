@@ -160,7 +160,8 @@ class FeedbackLayout:
         if missing:
             raise ValueError(f"the INS has no {missing[0]} compensation for the blocks that feed it "
                              f"(it has {sorted(compensation)})")
-        d = filt.feedback(self.indices(filt.n))
+        idx = self.indices(filt.n)
+        d = filt.feedback(None if idx.size == filt.n else idx)       # sorted, once each: all states
         sd.correct(state, *self.nav_errors(d))
         out = dict(compensation)
         for key, entry in self.compensation:

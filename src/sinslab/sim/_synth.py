@@ -296,8 +296,10 @@ def _asin1(x):
 
 _BLOCK = 64        # intervals per block: the vectorised passes run over ~70 epochs at a time
 _NB = _BLOCK + 8   # buffer columns: a block and its stencil halo (at most 7 epochs)
-_NROW = 35         # buffer rows: kinematics 0..23, Earth terms 24..32, predicted offsets 33, 34
+_NROW = 44         # buffer rows: kinematics 0..23, Earth terms 24..32, predicted offsets 33, 34,
+                   # stencil sums 35..43
 _R = tuple(np.uint64(r * _NB) for r in range(_NROW))     # row offsets in the flat buffer
+_U = tuple(np.uint64(j) for j in range(8))                # column steps within a row
 
 
 _ROT_MAX = 0.02      # largest angle step [rad] taken by rotation instead of sin/cos
@@ -322,6 +324,86 @@ def _sincos_step(x, a, s, c, n):
     return x, math.sin(x), math.cos(x), 0
 
 
+@njit(cache=True, inline="always")
+def _channel_sums(te, je, base, plo, phi, act, ttype, tch, tta, tpar, tc):
+    """The channel values and derivatives at time te (piece je) that the kinematics use, as
+    scalars: the 21-tuple V, V̇, ψ, ψ̇, ψ̈ (track), θ, θ̇ (path angle), roll and its rate, body
+    pitch and yaw offsets and their rates, ḣ and ḧ of the heave, mount pitch, roll, yaw and
+    their rates.
+    The same sums in the same order as :func:`_channels` (its arrays, indexed by channel at
+    run time, kept every sum in memory: a fifth of the kinematics' time); sines and cosines
+    of the sine terms by :func:`_sincos_step` on the per-term cache ``tc``."""
+    v_v = base[je, CH_V]
+    v_ps = base[je, CH_PSI]
+    v_th = base[je, CH_THETA]
+    v_r = base[je, CH_ROLL]
+    v_p = base[je, CH_PITCH]
+    v_y = base[je, CH_YAW]
+    v_mp = base[je, CH_MP]
+    v_mr = base[je, CH_MR]
+    v_my = base[je, CH_MY]
+    d_v = 0.0
+    d_ps = 0.0
+    d_th = 0.0
+    d_r = 0.0
+    d_p = 0.0
+    d_y = 0.0
+    d_h = 0.0
+    d_mp = 0.0
+    d_mr = 0.0
+    d_my = 0.0
+    e_ps = 0.0
+    e_h = 0.0
+    for a in range(plo[je], phi[je]):
+        kk = act[a]
+        u = te - tta[kk]
+        if ttype[kk] == T_SINE:
+            ag, sg, cg, ng = _sincos_step(tpar[kk, 1] * u + tpar[kk, 2], tc[kk, 0],
+                                          tc[kk, 1], tc[kk, 2], int(tc[kk, 3]))
+            tc[kk, 0] = ag
+            tc[kk, 1] = sg
+            tc[kk, 2] = cg
+            tc[kk, 3] = ng
+            x0, x1, x2 = _sine_term(u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 3], tpar[kk, 4],
+                                    tpar[kk, 5], sg, cg)
+        else:
+            x0, x1, x2 = _term(ttype[kk], u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 2])
+        ch = tch[kk]
+        if ch == CH_V:
+            v_v += x0
+            d_v += x1
+        elif ch == CH_PSI:
+            v_ps += x0
+            d_ps += x1
+            e_ps += x2
+        elif ch == CH_THETA:
+            v_th += x0
+            d_th += x1
+        elif ch == CH_ROLL:
+            v_r += x0
+            d_r += x1
+        elif ch == CH_PITCH:
+            v_p += x0
+            d_p += x1
+        elif ch == CH_YAW:
+            v_y += x0
+            d_y += x1
+        elif ch == CH_HEAVE:
+            d_h += x1
+            e_h += x2
+        elif ch == CH_MP:
+            v_mp += x0
+            d_mp += x1
+        elif ch == CH_MR:
+            v_mr += x0
+            d_mr += x1
+        else:
+            v_my += x0
+            d_my += x1
+    return (v_v, d_v, v_ps, d_ps, e_ps, v_th, d_th, v_r, d_r, v_p, d_p, v_y, d_y, d_h, e_h,
+            v_mp, v_mr, v_my, d_mp, d_mr, d_my)
+
+
 @njit(cache=True)
 def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype, tch, tta,
                 tpar, K, cache, tc, je):
@@ -336,9 +418,6 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
     ``tc`` (per term) between calls. An epoch in a piece with no active term copies the
     previous column.
     """
-    val = np.empty(NCH)
-    d1 = np.empty(NCH)
-    d2 = np.empty(NCH)
     nbp = bp.shape[0]
     a_th = cache[0]
     s_th = cache[1]
@@ -372,60 +451,32 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
             for q in range(24):
                 K[q, i] = K[q, i - 1]
             continue
-        for c in range(NCH):
-            val[c] = base[je, c]
-            d1[c] = 0.0
-            d2[c] = 0.0
-        for a in range(plo[je], phi[je]):
-            kk = act[a]
-            u = te - tta[kk]
-            if ttype[kk] == T_SINE:
-                ag, sg, cg, ng = _sincos_step(tpar[kk, 1] * u + tpar[kk, 2], tc[kk, 0],
-                                              tc[kk, 1], tc[kk, 2], int(tc[kk, 3]))
-                tc[kk, 0] = ag
-                tc[kk, 1] = sg
-                tc[kk, 2] = cg
-                tc[kk, 3] = ng
-                x0, x1, x2 = _sine_term(u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 3], tpar[kk, 4],
-                                        tpar[kk, 5], sg, cg)
-            else:
-                x0, x1, x2 = _term(ttype[kk], u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 2])
-            ch = tch[kk]
-            val[ch] += x0
-            d1[ch] += x1
-            d2[ch] += x2
-        V = val[CH_V]
-        Vd = d1[CH_V]
-        psv = val[CH_PSI]
-        psd = d1[CH_PSI]
-        thv = val[CH_THETA]
-        thd = d1[CH_THETA]
-        roll = val[CH_ROLL]
-        rolld = d1[CH_ROLL]
+        (V, Vd, psv, psd, psdd, thv, thd, roll, rolld, p_off, p_offd, y_off, y_offd, hd1, hd2,
+         mp, mr, my, mpd, mrd, myd) = _channel_sums(te, je, base, plo, phi, act, ttype, tch, tta,
+                                                    tpar, tc)
         if flag[je] != 0:
             u = -V * psd / G0
             if u != a_u:
                 a_u = u
                 t_u = math.atan(u)
             roll += t_u
-            rolld += -(Vd * psd + V * d2[CH_PSI]) / G0 / (1.0 + u * u)
+            rolld += -(Vd * psd + V * psdd) / G0 / (1.0 + u * u)
         a_th, s_th, c_th, n_th = _sincos_step(thv, a_th, s_th, c_th, n_th)
         a_ps, s_ps, c_ps, n_ps = _sincos_step(psv, a_ps, s_ps, c_ps, n_ps)
-        pitch = thv + val[CH_PITCH]
+        pitch = thv + p_off
         if pitch == thv:                    # no sway: the body pitch is the path angle
             a_p, s_p, c_p, n_p = a_th, s_th, c_th, n_th
         else:
             a_p, s_p, c_p, n_p = _sincos_step(pitch, a_p, s_p, c_p, n_p)
-        yaw = psv + val[CH_YAW]
+        yaw = psv + y_off
         if yaw == psv:
             a_y, s_y, c_y, n_y = a_ps, s_ps, c_ps, n_ps
         else:
             a_y, s_y, c_y, n_y = _sincos_step(yaw, a_y, s_y, c_y, n_y)
         a_r, s_r, c_r, n_r = _sincos_step(roll, a_r, s_r, c_r, n_r)
-        out = _kin(V, Vd, thd, s_th, c_th, s_ps, c_ps, psd, d1[CH_HEAVE], d2[CH_HEAVE],
-                   pitch, thd + d1[CH_PITCH], s_p, c_p, yaw, psd + d1[CH_YAW], s_y, c_y,
-                   roll, rolld, s_r, c_r, has_mount,
-                   val[CH_MP], val[CH_MR], val[CH_MY], d1[CH_MP], d1[CH_MR], d1[CH_MY])
+        out = _kin(V, Vd, thd, s_th, c_th, s_ps, c_ps, psd, hd1, hd2,
+                   pitch, thd + p_offd, s_p, c_p, yaw, psd + y_offd, s_y, c_y,
+                   roll, rolld, s_r, c_r, has_mount, mp, mr, my, mpd, mrd, myd)
         # one store per element: a loop over the tuple would index it at run time (through
         # a stack copy), a third of this function's time
         K[0, i] = out[0]
@@ -541,23 +592,58 @@ def _earth_block(i0, i1, ib, dt, lat, h, Z):
 
 
 @njit(cache=True)
-def _stencil_block(nk, off, swd, W, S):
-    """S[q, k] = Σ_j swd_j·W[q, off + k + j], q = 0..8, k < nk: the stencil integrals of
-    ω_ib^b, f^b and the position rates over nk consecutive intervals (symmetric weights
-    swd = dt·sw[:m/2], paired; vectorised over k)."""
+def _stencil_block(nk, off, swd, Z):
+    """Z[35 + q, k] = Σ_j swd_j·Z[24 + q, off + k + j], q = 0..8, k < nk: the stencil
+    integrals of ω_ib^b, f^b and the position rates (rows 24..32 of the flat block buffer
+    ``Z``, see :func:`_earth_block`) over nk consecutive intervals (symmetric weights swd =
+    dt·sw[:m/2], paired; vectorised over k).
+
+    Each sum is one expression in the order of adding the pairs one after another to a
+    zero (the leading 0 turns a −0 sum into +0, as such a loop does), for the 4-, 6- and
+    8-point stencils written out; flat indices as in :func:`_earth_block`: with row arrays
+    and a store and reload of each sum per pair, this took twice the time.
+    """
     mh = swd.shape[0]
     m = 2 * mh
+    uo = np.uint64(off)
+    one = np.uint64(1)
     for q in range(9):
-        Sq = S[q]                      # row views: see _earth_block
-        Wq = W[q]
-        for k in range(nk):
-            Sq[k] = 0.0
-        for jj in range(mh):
-            wq = swd[jj]
-            Wa = Wq[off + jj:]
-            Wb = Wq[off + m - 1 - jj:]
+        rw = _R[24] + np.uint64(q * _NB) + uo
+        rs = _R[35] + np.uint64(q * _NB)
+        if mh == 2:
+            w0 = swd[0]
+            w1 = swd[1]
             for k in range(nk):
-                Sq[k] += wq * (Wa[k] + Wb[k])
+                uk = np.uint64(k)
+                i = rw + uk
+                Z[rs + uk] = (0.0 + w0 * (Z[i] + Z[i + _U[3]])) + w1 * (Z[i + one] + Z[i + _U[2]])
+        elif mh == 3:
+            w0 = swd[0]
+            w1 = swd[1]
+            w2 = swd[2]
+            for k in range(nk):
+                uk = np.uint64(k)
+                i = rw + uk
+                Z[rs + uk] = (((0.0 + w0 * (Z[i] + Z[i + _U[5]])) + w1 * (Z[i + one] + Z[i + _U[4]]))
+                              + w2 * (Z[i + _U[2]] + Z[i + _U[3]]))
+        elif mh == 4:
+            w0 = swd[0]
+            w1 = swd[1]
+            w2 = swd[2]
+            w3 = swd[3]
+            for k in range(nk):
+                uk = np.uint64(k)
+                i = rw + uk
+                Z[rs + uk] = (((((0.0 + w0 * (Z[i] + Z[i + _U[7]])) + w1 * (Z[i + one] + Z[i + _U[6]]))
+                                + w2 * (Z[i + _U[2]] + Z[i + _U[5]])) + w3 * (Z[i + _U[3]] + Z[i + _U[4]])))
+        else:
+            for k in range(nk):
+                uk = np.uint64(k)
+                i = rw + uk
+                acc = 0.0
+                for jj in range(mh):
+                    acc += swd[jj] * (Z[i + np.uint64(jj)] + Z[i + np.uint64(m - 1 - jj)])
+                Z[rs + uk] = acc
 
 
 @njit(cache=True)
@@ -589,7 +675,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     Zf = Z.reshape(_NROW * _NB)
     K = Z[:24]
     W = Z[24:33]
-    S = np.zeros((9, B))
+    S = Z[35:44]                           # the stencil sums of the block's intervals
     cache = np.full(22, math.nan)
     cache[17:] = 0.0
     tc = np.zeros((ttype.shape[0], 4))     # per term: argument, sin, cos, rotations
@@ -634,7 +720,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
             enew = hi - lo
         if m > 0:
             _earth_block(enew, ib + nk + hi, ib, dt, lat, h, Zf)
-            _stencil_block(nk, lo_off - lo, swd, W, S)
+            _stencil_block(nk, lo_off - lo, swd, Zf)
         if K0 == 0:
             t_nav[0] = t0
             olat[0] = lat
@@ -662,6 +748,45 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
             while bq < nbp and bp[bq] <= t_lo + tol:
                 bq += 1
             clear = not (bq < nbp and bp[bq] < (K0 + nk - 1 + lo_off + m - 1) * dt - tol)
+        if clear and out_every == 1 and not has_mount:
+            # the common case (every interval by its stencil, the truth at every epoch, no
+            # mount) as the loop below does it, in three passes without its per-interval
+            # tests: the position sums, the increments, the rest of the truth
+            for ik in range(nk):
+                k = K0 + ik
+                lat += S[6, ik]
+                lon += S[7, ik]
+                h += S[8, ik]
+                olat[k + 1] = lat
+                olon[k + 1] = lon
+                oh[k + 1] = h
+            for ik in range(nk):
+                k = K0 + ik
+                th0 = S[0, ik]
+                th1 = S[1, ik]
+                th2 = S[2, ik]
+                v0 = S[3, ik]
+                v1 = S[4, ik]
+                v2 = S[5, ik]
+                dth[k, 0] = th0
+                dth[k, 1] = th1
+                dth[k, 2] = th2
+                dvl[k, 0] = v0
+                dvl[k, 1] = v1
+                dvl[k, 2] = v2
+                chk += th0 + th1 + th2 + v0 + v1 + v2
+            for ik in range(nk):
+                k = K0 + ik
+                c1 = ib + ik + 1
+                t_nav[k + 1] = (k + 1) * tstep + t0
+                vel[k + 1, 0] = K[0, c1]
+                vel[k + 1, 1] = K[1, c1]
+                vel[k + 1, 2] = K[2, c1]
+                att[k + 1, 0] = K[18, c1]
+                att[k + 1, 1] = wrap_pi_s(K[19, c1])
+                att[k + 1, 2] = wrap_pi_s(K[20, c1])
+            mo += nk                        # oc stays 0: out_every is 1
+            continue
         for ik in range(nk):
             k = K0 + ik
             c1 = ib + ik + 1                # column of epoch k + 1

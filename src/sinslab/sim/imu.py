@@ -850,21 +850,29 @@ def _kernel_white_all_shared(dth, dv, state, bias_dt, wsig, out_dth, out_dv):
     """:func:`_kernel_white_all` for V error models on one random stream: ``bias_dt``,
     ``wsig`` (V, 6), ``out_dth``, ``out_dv`` (V, n, 3). Each normal is drawn once and used
     by every model with the single kernel's arithmetic ``x + (b + σ·z)``, so model j gets
-    the bytes :func:`_kernel_white_all` gives it from the same state."""
+    the bytes :func:`_kernel_white_all` gives it from the same state. The six draws of a
+    sample are unrolled into scalars before the loop over the models, which then writes
+    each model's six values: a loop over the channels around the models' loop cost ~1.5x
+    the time (the draws stay in the same order, so the stream and the bytes are the same)."""
     n = dth.shape[0]
     V = bias_dt.shape[0]
     s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
     for k in range(n):
-        for c in range(6):
-            z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
-            if c < 3:
-                x = dth[k, c]
-                for j in range(V):
-                    out_dth[j, k, c] = x + (bias_dt[j, c] + wsig[j, c] * z)
-            else:
-                x = dv[k, c - 3]
-                for j in range(V):
-                    out_dv[j, k, c - 3] = x + (bias_dt[j, c] + wsig[j, c] * z)
+        z0, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        z1, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        z2, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        z3, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        z4, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        z5, s0, s1, s2, s3 = _normal(s0, s1, s2, s3)
+        x0, x1, x2 = dth[k, 0], dth[k, 1], dth[k, 2]
+        y0, y1, y2 = dv[k, 0], dv[k, 1], dv[k, 2]
+        for j in range(V):
+            out_dth[j, k, 0] = x0 + (bias_dt[j, 0] + wsig[j, 0] * z0)
+            out_dth[j, k, 1] = x1 + (bias_dt[j, 1] + wsig[j, 1] * z1)
+            out_dth[j, k, 2] = x2 + (bias_dt[j, 2] + wsig[j, 2] * z2)
+            out_dv[j, k, 0] = y0 + (bias_dt[j, 3] + wsig[j, 3] * z3)
+            out_dv[j, k, 1] = y1 + (bias_dt[j, 4] + wsig[j, 4] * z4)
+            out_dv[j, k, 2] = y2 + (bias_dt[j, 5] + wsig[j, 5] * z5)
 
 
 def _prepare(errors: ImuErrors, dt, n):

@@ -82,12 +82,24 @@ class PositionFix(Timed):
     def matrices(self, ep: Epoch):
         return self._robust(ep, *self._zHR(ep))
 
+    def _places(self, lay):
+        """``(δp slice, rows, φ slice, fix-error slice, δv slice)`` of a layout (None where it
+        has no such block), looked up once for the layout of the run."""
+        kept = self.__dict__.get("_layout_places")
+        if kept is not None and kept[0] is lay:
+            return kept[1]
+        s_pos = lay.slice("dp")
+        names = lay.names
+        places = (s_pos, self.size(lay), lay.slice("phi") if "phi" in names else None, lay.find("fix_error"),
+                  lay.slice("dv") if "dv" in names else None)
+        self._layout_places = (lay, places)
+        return places
+
     def _zHR(self, ep: Epoch):
         j = ep.item
         lay = ep.layout
         nr = ep.streams[self.stream]
-        s_pos = lay.slice("dp")
-        n_z = self.size(lay)
+        s_pos, n_z, s_phi, fe, s_vel = self._places(lay)
         lat, lon, h = nr.lat, nr.lon, nr.h
         rm, rn = E.radii(lat, h)
         rm, rnc = float(rm), float(rn) * math.cos(lat)
@@ -95,9 +107,9 @@ class PositionFix(Timed):
         z = np.empty(n_z)
         H = np.zeros((n_z, ep.n))
         if Cl is not None:
-            H[0:3, lay.slice("phi")] = A.skew(Cl)[[1, 0, 2]][:n_z]
+            H[0:3, s_phi] = A.skew(Cl)[[1, 0, 2]][:n_z]
         dtf = ep.t - self.t_valid[j]                 # fix extrapolated to the epoch
-        dlon = float(A.wrap_pi(lon - self.pos[j, 1]))
+        dlon = A.wrap_pi_float(lon - self.pos[j, 1])
         z[0] = (lat - self.pos[j, 0]) * rm - v_ant[1] * dtf
         z[1] = dlon * rnc - v_ant[0] * dtf
         H[0, s_pos.start] = rm
@@ -107,7 +119,6 @@ class PositionFix(Timed):
             H[2, s_pos.start + 2] = 1.0
         if Cl is not None:
             z[0:n_z] += Cl[[1, 0, 2]][:n_z]
-        fe = lay.find("fix_error")
         if fe is not None:
             # z = INS − fix = δp − e (e: the fix's own correlated error, east, north, up)
             H[0, fe.start + 1] = H[1, fe.start] = -1.0
@@ -115,12 +126,13 @@ class PositionFix(Timed):
                 H[2, fe.start + 2] = -1.0
         if dtf != 0.0:
             # −Δt ∂v_ant/∂x: the INS antenna velocity that moved the fix to the epoch
-            s_vel = lay.slice("dv")
+            if s_vel is None:
+                s_vel = lay.slice("dv")                 # raises: the layout has no δv block
             nv = s_vel.stop - s_vel.start
             Hv = np.zeros((3, ep.n))
             Hv[:nv, s_vel] = np.eye(nv)
             if Cl is not None:
-                Hv[:, lay.slice("phi")] = A.skew(C @ np.cross(nr.omega_b, self.lever))
+                Hv[:, s_phi] = A.skew(C @ np.cross(nr.omega_b, self.lever))
                 add_rate_H(Hv, lay, -C @ A.skew(self.lever), nr.omega_b)
             H -= dtf * Hv[[1, 0, 2]][:n_z]
         return z, H, self.sigma[j, :n_z] ** 2
