@@ -35,8 +35,8 @@ model with constant biases and 6 noise inputs).
    alternated rounds (default 5; the two take turns going first), each process' CPU (user
    + system) and the load average per round; the ratio's median and range, sinslab's CPU
    by stage (start-up and imports, reading, filter, writing) and the final horizontal error
-   of both. sinslab's modules are compiled to bytecode before the rounds, as an install
-   leaves them. The in-process filter of item 1 is a second figure: it leaves out what a
+   of both. The sinslab process runs the sinslab this script imported, its modules
+   compiled to bytecode before the rounds as an install leaves them. The in-process filter of item 1 is a second figure: it leaves out what a
    process does besides filtering (starting Python, reading, writing).
 """
 from __future__ import annotations
@@ -250,11 +250,22 @@ antlever: [ 0, 0, 0 ]
     return path
 
 
+def _child_env():
+    """This process' environment for a child that runs in another folder: sinslab's own
+    folder first on ``PYTHONPATH`` and the entries there made absolute, so that the child
+    imports the sinslab this process imported (a relative ``PYTHONPATH=src`` would
+    otherwise name no folder from the child's and leave it the installed one)."""
+    import sinslab
+    root = os.path.dirname(os.path.dirname(os.path.abspath(sinslab.__file__)))
+    paths = [os.path.abspath(p) for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    return dict(os.environ, SINSLAB_QUIET="1", PYTHONPATH=os.pathsep.join([root] + paths))
+
+
 def _timed(cmd, cwd=None):
     """Run ``cmd`` to its end: CPU (user + system) [s], wall [s], its stdout."""
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         w0 = time.perf_counter()
-        p = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=err, env=dict(os.environ, SINSLAB_QUIET="1"))
+        p = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=err, env=_child_env())
         _, status, ru = os.wait4(p.pid, 0)
         wall = time.perf_counter() - w0
         p.returncode = os.waitstatus_to_exitcode(status)
@@ -285,7 +296,8 @@ def bench_kfgins(binary, sc, rounds=5):
     disk cache as in any run after the first). sinslab's modules are compiled to bytecode
     first, as an install leaves them (pip compiles every module it installs): a checkout run
     with ``PYTHONDONTWRITEBYTECODE`` set would otherwise compile them from source at every
-    start of the process."""
+    start of the process. The sinslab process imports the sinslab this one did
+    (:func:`_child_env`) and says which (``SINSLAB`` line), checked."""
     import compileall
 
     import sinslab
@@ -306,6 +318,9 @@ def bench_kfgins(binary, sc, rounds=5):
                 t = _timed(cmd, d)
                 row[who] = {k: v for k, v in t.items() if k != "stdout"}
                 if who == "sinslab":
+                    used = [ln for ln in t["stdout"].splitlines() if ln.startswith("SINSLAB ")][-1].split(" ", 1)[1]
+                    if os.path.realpath(used) != os.path.realpath(os.path.dirname(sinslab.__file__)):
+                        raise RuntimeError(f"the sinslab process ran {used}, not {os.path.dirname(sinslab.__file__)}")
                     line = [ln for ln in t["stdout"].splitlines() if ln.startswith("STAGES ")][-1]
                     row["sinslab_stages"] = {k: float(v) for k, v in (x.split("=") for x in line.split()[1:])}
             row["ratio"] = row["kfgins"]["cpu_s"] / row["sinslab"]["cpu_s"]

@@ -23,7 +23,8 @@ The process does what KF-GINS' executable does with the same configuration file:
    43 columns :data:`COLUMNS`, SI units, ENU velocity and sinslab's attitude angles) where
    KF-GINS writes three text files.
 
-Prints the CPU time of each stage (``--stages``) for the benchmark's breakdown. The garbage
+Prints the CPU time of each stage (``--stages``) for the benchmark's breakdown, and the
+folder of the sinslab it ran. The garbage
 collector is off while the modules load and the objects they made are then frozen
 (:func:`gc.freeze`: later collections do not walk them); at its end the process freezes the
 objects it leaves before the interpreter exits, whose last collections would otherwise walk
@@ -174,6 +175,7 @@ def main(argv=None):
     mark("writing")
     if stages:
         print("STAGES " + " ".join(f"{k.replace(' ', '_')}={v:.3f}" for k, v in cpu.items()))
+        print("SINSLAB " + os.path.dirname(os.path.abspath(sinslab.__file__)))
     # the work is done and its file closed: the objects left (numba's compiler among them)
     # are frozen, so that the interpreter's exit does not walk them in its last garbage
     # collections (~0.4 s of CPU once numba has loaded a kernel; nothing else is skipped:
