@@ -29,9 +29,17 @@ Printed, against the reference solution:
   ``navego`` (the same filter with NaveGo's own tuning, 2.5 m and 0.5 m/s: a well-tuned
   reference): horizontal and vertical RMS, the horizontal error at each outage end (and
   their median), the velocity error at each outage start; for the innovation runs the σ used;
-- **the IMU's noise drawn again** (seeds 2–4, the same real fixes): the outage ends of
-  ``innov+check`` and ``navego`` and at how many outages the first is no worse (within
-  0.05 m): whether one filter's lead at an outage is its own or the IMU noise's.
+- **paired over IMU noise seeds** (``--seeds N``, default 10: seeds 1..N, the same real
+  fixes; each seed's IMU drawn once and run by both filters of :data:`COMPARED`, ours and
+  NaveGo's tuning): per grade and per outage the mean outage-end horizontal error of each
+  (and the mean horizontal velocity error at the outage's start),
+  the mean paired difference ``d̄`` (ours − reference) and its standard error
+  ``SE = std(d, ddof=1)/√N``, and a verdict fixed before any result was seen: an outage is
+  **no worse** when ``d̄ ≤ 0``, or when ``d̄ ≤ 2 SE`` (not significantly worse) *and*
+  ``d̄ ≤ 0.05 × `` the reference's mean end (worse by no more than 5 %); otherwise it is
+  **worse**. Beside it, each filter's horizontal and vertical RMS over the drive, mean and
+  sample standard deviation over the seeds. ``--paired-only`` skips the single-seed
+  figures above.
 """
 from __future__ import annotations
 
@@ -112,23 +120,51 @@ def _runs(nd, d, grade):
     return out
 
 
-#: the IMU noise seeds of the repeat: which of two filters ends an outage closer moves with the IMU's own noise
-SEEDS = (2, 3, 4)
+#: the IMU noise seeds of the paired evaluation: seeds 1..N (which of two filters ends an
+#: outage closer moves with the IMU's own noise, so one seed cannot decide)
+PAIRED_SEEDS = 10
+#: the two runs compared per seed: ours, then the reference
 COMPARED = ("innov+check", "navego")
+#: the verdict's rule (chosen before the results): no worse when d̄ ≤ 0, or when
+#: d̄ ≤ NO_WORSE_SE standard errors and d̄ ≤ NO_WORSE_FRACTION of the reference's mean end
+NO_WORSE_SE = 2.0
+NO_WORSE_FRACTION = 0.05
 
 
-def _seeds(nd, ref, gnss, grade):
-    """The outage ends of the two :data:`COMPARED` runs with the IMU's noise drawn again
-    (:data:`SEEDS`; the same real fixes): per seed the ends of each and how many of the
-    first ends no worse than the second's."""
+def paired_verdict(ours, ref):
+    """The paired comparison of one outage over seeds: ``ours``, ``ref`` (N,) outage-end
+    errors [m] of the same IMU draws. Returns ``{"ours_mean", "ref_mean", "diff_mean",
+    "diff_se", "verdict"}`` with the rule of the module notes."""
+    ours, ref = np.asarray(ours, float), np.asarray(ref, float)
+    d = ours - ref
+    dm = float(np.mean(d))
+    se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
+    rm = float(np.mean(ref))
+    ok = dm <= 0.0 or (dm <= NO_WORSE_SE * se and dm <= NO_WORSE_FRACTION * rm)
+    return {"ours_mean": float(np.mean(ours)), "ref_mean": rm, "diff_mean": dm, "diff_se": se,
+            "verdict": "no worse" if ok else "worse"}
+
+
+def _paired(nd, ref, gnss, grade, n_seeds=PAIRED_SEEDS, compared=COMPARED):
+    """The paired evaluation over IMU noise seeds 1..``n_seeds`` (see the module notes)."""
     kw = dict(RUNS)
-    out = []
-    for seed in SEEDS:
+    per = {name: {"ends": [], "hz_rms": [], "vert_rms": [], "dv_at_starts": []} for name in compared}
+    for seed in range(1, n_seeds + 1):
         d = nd._drive(ref, gnss, grade, seed=seed)
-        ends = {name: nd.run(*d, grade, **kw[name])[2] for name in COMPARED}
-        out.append({"seed": seed, **{k: v.tolist() for k, v in ends.items()},
-                    "no_worse": int(np.sum(ends[COMPARED[0]] <= ends[COMPARED[1]] + 0.05))})
-    return out
+        for name in compared:
+            r = nd.run(*d, grade, **kw[name])
+            for key, v in zip(("hz_rms", "vert_rms", "ends", "dv_at_starts"), (r[0], r[1], r[2], r[3])):
+                per[name][key].append(np.asarray(v).tolist())
+    ours, refr = (np.array(per[name]["ends"]) for name in compared)
+    dv = [np.mean(per[name]["dv_at_starts"], 0) for name in compared]
+    outages = [dict(paired_verdict(ours[:, i], refr[:, i]), ours_dv_start=float(dv[0][i]), ref_dv_start=float(dv[1][i]))
+               for i in range(ours.shape[1])]
+    stats = lambda a: {"mean": float(np.mean(a)), "std": float(np.std(a, ddof=1)) if len(a) > 1 else 0.0}  # noqa: E731
+    return {"seeds": n_seeds, "ours": compared[0], "reference": compared[1],
+            "outages": outages,
+            "hz_rms": {name: stats(per[name]["hz_rms"]) for name in compared},
+            "vert_rms": {name: stats(per[name]["vert_rms"]) for name in compared},
+            "per_seed": per}
 
 
 def _print(fig):
@@ -151,17 +187,33 @@ def _print(fig):
             print(f"{'':{len(grade) + 2}}{name:<12} {r['hz_rms']:6.2f} {r['vert_rms']:6.2f} {r['outage_end_median']:6.2f}  "
                   + " ".join(f"{x:5.1f}" for x in r["outage_ends"]) + "   " + " ".join(f"{x:4.2f}" for x in r["dv_at_starts"])
                   + (f"   σ used {fmt(r['sigma_used'])} ({r['runs']} runs)" if "sigma_used" in r else ""))
-        for r in fig.get(f"{grade}_seeds", ()):
-            print(f"{'':{len(grade) + 2}}IMU seed {r['seed']}: " + "; ".join(
-                f"{k} " + " ".join(f"{x:.1f}" for x in r[k]) for k in COMPARED)
-                + f"; {COMPARED[0]} no worse (±0.05 m) at {r['no_worse']} of {len(r[COMPARED[0]])}")
+    for grade in ("ekinox", "mpu"):
+        p = fig.get(f"{grade}_paired")
+        if p:
+            _print_paired(grade, p)
 
 
-def measure(ref, gnss):
+def _print_paired(grade, p):
+    o, r = p["ours"], p["reference"]
+    print(f"{grade}, paired over IMU seeds 1..{p['seeds']}: {o} against {r} "
+          f"(no worse: d̄ ≤ 0, or d̄ ≤ {NO_WORSE_SE:g} SE and ≤ {100 * NO_WORSE_FRACTION:g} % of the reference)")
+    print(f"  {'outage':>6} {o:>12} {r:>8} {'d̄ ± SE [m]':>16}  {'verdict':<9} |δv| at the start [m/s]")
+    for i, x in enumerate(p["outages"]):
+        print(f"  {i + 1:6d} {x['ours_mean']:12.2f} {x['ref_mean']:8.2f} {x['diff_mean']:+8.2f} ± {x['diff_se']:5.2f}  "
+              f"{x['verdict']:<9} {x['ours_dv_start']:.3f} {x['ref_dv_start']:.3f}")
+    for key in ("hz_rms", "vert_rms"):
+        print(f"  {key}: " + "; ".join(f"{n} {p[key][n]['mean']:.2f} ± {p[key][n]['std']:.2f} m" for n in (o, r)))
+
+
+def measure(ref, gnss, n_seeds=PAIRED_SEEDS, paired_only=False):
     """All the figures (see the module notes)."""
     t0 = time.time()
     load = os.getloadavg()[0]
     nd = _navego_drive()
+    if paired_only:
+        fig = {f"{g}_paired": _paired(nd, ref, gnss, g, n_seeds) for g in ("ekinox", "mpu")}
+        fig.update(load_before=load, load_after=os.getloadavg()[0], seconds=time.time() - t0)
+        return fig
     d = nd._drive(ref, gnss, "ekinox")
     imu, fx, tru, meta = d
     outs = nd._outages(fx)
@@ -176,7 +228,7 @@ def measure(ref, gnss):
     res = R.navigate_recorded(imu, fx, opt)
     fig = {"fixes": fix_figures(fx, tru, meta, outs), "innovations": innovation_figures(res, outs),
            "ekinox": _runs(nd, d, "ekinox"), "mpu": _runs(nd, nd._drive(ref, gnss, "mpu"), "mpu"),
-           "ekinox_seeds": _seeds(nd, ref, gnss, "ekinox"), "mpu_seeds": _seeds(nd, ref, gnss, "mpu")}
+           "ekinox_paired": _paired(nd, ref, gnss, "ekinox", n_seeds), "mpu_paired": _paired(nd, ref, gnss, "mpu", n_seeds)}
     fig.update(load_before=load, load_after=os.getloadavg()[0], seconds=time.time() - t0)
     return fig
 
@@ -188,7 +240,12 @@ def main(argv=None):
     ap.add_argument("--ref", help="NaveGo's examples/real-data/ref.mat")
     ap.add_argument("--gnss", help="NaveGo's examples/real-data/ekinox_gnss.mat")
     ap.add_argument("--out", help="write the figures as JSON here")
+    ap.add_argument("--seeds", type=int, default=PAIRED_SEEDS, help="IMU noise seeds of the paired evaluation (1..N)")
+    ap.add_argument("--paired-only", action="store_true", help="only the paired evaluation")
     a = ap.parse_args(argv)
+    if a.seeds < 2:
+        print("outage_entry: error: --seeds must be at least 2 (a standard error needs two)", file=sys.stderr)
+        return 2
     if a.navego and not (a.ref or a.gnss):
         a.ref, a.gnss = str(Path(a.navego) / "ref.mat"), str(Path(a.navego) / "ekinox_gnss.mat")
     missing = [p for p in (a.ref, a.gnss) if not p or not Path(p).is_file()]
@@ -197,8 +254,12 @@ def main(argv=None):
         print(f"outage_entry: {why}")
         fig = {"skipped": why}
     else:
-        fig = measure(a.ref, a.gnss)
-        _print(fig)
+        fig = measure(a.ref, a.gnss, a.seeds, a.paired_only)
+        if a.paired_only:
+            for grade in ("ekinox", "mpu"):
+                _print_paired(grade, fig[f"{grade}_paired"])
+        else:
+            _print(fig)
         print(f"(load {fig['load_before']:.2f} before, {fig['load_after']:.2f} after; {fig['seconds']:.0f} s)")
     if a.out:
         Path(a.out).write_text(json.dumps(fig, indent=1))

@@ -7,6 +7,7 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -303,6 +304,29 @@ def test_graph_script_parts():
     assert G._pos_err(row, tru, 1000) < 0.01
     d, kw = G._urban_fixes(B, 1)
     assert kw["pos"].shape == (kw["t"].size, 3) and d["imu"] is not None
+
+
+def test_outage_entry_no_worse_rule(tmp_path, monkeypatch):
+    """benchmarks/outage_entry.py's verdict per outage (paired over IMU seeds): d̄ and its
+    standard error ``std(d, ddof=1)/√N`` in closed form, and the rule's three cases: no
+    worse when d̄ ≤ 0; when d̄ ≤ 2 SE and ≤ 5 % of the reference's mean; worse past either.
+    Without NaveGo's files the script says so and exits 0; one seed is refused (status 2)."""
+    mod = _load("outage_entry")
+    ref = [10.0, 10.0, 10.0, 10.0]
+    v = mod.paired_verdict([9.0, 10.5, 9.5, 10.2], ref)            # d = −1, 0.5, −0.5, 0.2: d̄ = −0.2
+    assert v["diff_mean"] == pytest.approx(-0.2)
+    assert v["diff_se"] == pytest.approx(float(np.std([-1, 0.5, -0.5, 0.2], ddof=1)) / 2)
+    assert v["verdict"] == "no worse" and v["ref_mean"] == 10.0
+    # d̄ = 0.4 ≤ 5 % of 10, SE = 0.346: within 2 SE
+    assert mod.paired_verdict([9.8, 11.0, 9.8, 11.0], ref)["verdict"] == "no worse"
+    # d̄ = 0.6 > 5 % of 10 although within 2 SE (0.346): worse
+    assert mod.paired_verdict([10.0, 11.2, 10.0, 11.2], ref)["verdict"] == "worse"
+    # d̄ = 0.4 ≤ 5 % but 0.4 > 2 SE (2 × 0.0577): worse
+    assert mod.paired_verdict([10.3, 10.5, 10.3, 10.5], ref)["verdict"] == "worse"
+    monkeypatch.delenv("NAVEGO_REAL_DATA", raising=False)
+    out = tmp_path / "f.json"
+    assert mod.main(["--out", str(out)]) == 0 and "skipped" in json.loads(out.read_text())
+    assert mod.main(["--seeds", "1"]) == 2
 
 
 def test_noise_shared_script(tmp_path):

@@ -150,3 +150,70 @@ def test_the_configuration_key_reaches_the_run(optimistic_receiver):
         navigate_config(imu=[Path("imu.csv")], fixes=[Path("fix.pos")], sets=["gnss.fixes.noise=adaptive"])
     with pytest.raises(ValueError, match="fix_noise"):
         NavOptions.of(fix_noise="adaptive")
+
+
+def test_fixes_another_sigma_governs_are_left_out_of_the_estimate():
+    """Velocity fixes the velocity check de-weighted keep their whole lasting error in the
+    innovations (the filter does not follow them): white innovations of σ 0.3 with a bias
+    of 2 in 10 % of the batches give back 0.3 when those fixes are marked as not governed
+    (the estimate of the other 360 batches, within 3·√(2/360)), and ≈ √(0.09 + 0.1·50·4)
+    (the bias counted over every fix) when they are not marked."""
+    rng = np.random.default_rng(11)
+    n, h, sig = 20000, 0.2, 0.3
+    t = h * np.arange(n)
+    nu = rng.normal(0, sig, (n, 2))
+    b = np.floor(t / 10.0).astype(int)
+    biased = b % 10 == 3                                            # 40 of 400 batches
+    nu[biased, 1] += 2.0
+    sd = np.full((n, 2), sig)                                       # HPHᵀ = 0
+    governed = np.ones((n, 2), bool)
+    governed[biased, 1] = False
+    plain, nb = innovation_noise(t, nu, sd, sd)
+    est, nb2 = innovation_noise(t, nu, sd, sd, governed=governed)
+    assert nb == nb2 == 400
+    assert plain[1] == pytest.approx(math.sqrt(sig ** 2 + 0.1 * 50 * 4.0), rel=0.05)    # the defect
+    assert est[1] ** 2 == pytest.approx(sig ** 2, abs=3 * math.sqrt(2 / 360) * sig ** 2)
+    assert est[0] == plain[0]                                       # a fully governed component: unchanged
+    # fewer clean batches than the minimum: the component falls back to all its batches
+    few = np.ones((n, 2), bool)
+    few[b % 40 != 0, 1] = False                                     # 10 clean batches of 400
+    assert innovation_noise(t, nu, sd, sd, governed=few, min_batches=11)[0][1] == plain[1]
+    assert innovation_noise(t, nu, sd, sd, governed=few, min_batches=10)[0][1] < 1.5 * sig
+
+
+def test_the_velocity_check_marks_the_fixes_it_raised():
+    """:func:`sinslab.fusion.recorded._governed` (the mask the innovation passes use): the
+    velocity columns of the fixes whose σ the velocity check raised above the floor the
+    others are taken with are not governed; every other entry is (a fix raised less is taken
+    with the floor); without the check there is no mask."""
+    import dataclasses
+
+    from sinslab.fusion.fix_noise import velocity_check
+    from sinslab.fusion.loosely_coupled import FixSource
+    from sinslab.fusion.recorded import _governed
+    from sinslab.fusion.recorded_spec import FixHandling
+
+    rng = np.random.default_rng(5)
+    t = 0.2 * np.arange(1500)
+    psi = 0.01 * t
+    vel = np.column_stack([12 * np.sin(psi), 12 * np.cos(psi), np.zeros_like(t)])
+    pos = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (vel[1:] + vel[:-1]) * np.diff(t)[:, None], 0)])
+    pos += rng.normal(0, 0.3, pos.shape)
+    vf = vel + rng.normal(0, 0.02, vel.shape)
+    vf[(t >= 150.0) & (t < 180.0), 1] += 0.3
+    rm, rn = (float(x) for x in radii(math.radians(45.07), 300.0))
+    n = t.size
+    fx = Fixes(t, math.radians(45.07) + pos[:, 1] / rm, pos[:, 0] / (rn * math.cos(math.radians(45.07))),
+               300.0 + pos[:, 2], np.full((n, 3), 1.0), vf, np.full((n, 3), 0.05), np.ones(n, int))
+    src = FixSource(fx, FixHandling(velocity_check=10.0, fix_noise="innovations"))
+    checked = velocity_check(fx, 10.0)[0]
+    floor = 0.2
+    above = checked > floor
+    assert above[:, 1].sum() > 50                                   # the check found the stretch
+    assert np.any((checked[:, 1] > 0.05 * (1 + 1e-9)) & ~above[:, 1])   # and raised some fixes less
+    applied = np.arange(0, n, 2)                                    # the fixes the filter applied
+    used = np.hstack([np.ones((applied.size, 3)), np.maximum(checked[applied], floor)])
+    g = _governed(src, t[applied], used)
+    assert g.shape == (applied.size, 6) and g[:, :3].all()
+    assert np.array_equal(~g[:, 3:], above[applied])
+    assert _governed(dataclasses.replace(src, handling=FixHandling(fix_noise="innovations")), t, used) is None

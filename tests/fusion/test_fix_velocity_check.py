@@ -189,6 +189,6 @@ def test_the_check_leaves_the_n380_drive_alone():
     assert e0.size == 4 and np.allclose(e1, e0, rtol=0.05, atol=0.2), (e0, e1)
     from support import assert_doc_quotes
     m = r1.source.metrics
-    assert_doc_quotes("docs/recorded-data.md", "On the n380 hill drive it raises the σ of 2.1 % of the fixes "
+    assert_doc_quotes("docs/recorded-data.md", "On the n380 hill drive the check raises the σ of 2.1 % of the fixes "
                       "and the outage ends move by 0.8 m at most", [380, 100 * m["fix_velocity_check_raised_fraction"],
                                                                       np.max(np.abs(e1 - e0))])

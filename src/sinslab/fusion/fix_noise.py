@@ -45,6 +45,12 @@ that believes it enters the next outage that far off. Each velocity fix is check
 the position fixes over the window before it (the position change against the integrated
 velocities) and de-weighted by the lasting error they contradict, from earlier fixes only:
 the filter cannot know that an outage follows, so the check runs all the time.
+
+With both, a velocity fix the check de-weighted above the common σ is not followed by the
+filter, so its innovation shows its whole lasting error; counted in the batch means it
+would raise every other fix's σ for an error already de-weighted where it happened. The
+batches holding such a fix are left out of that velocity component's estimate
+(``governed`` of :func:`innovation_noise`): the floor is measured on the fixes it governs.
 """
 from __future__ import annotations
 
@@ -145,7 +151,7 @@ MIN_BATCHES = 10
 
 
 def innovation_noise(t, innovation, innovation_sigma, sigma, *, batch=INNOVATION_BATCH_S,
-                     min_batches=MIN_BATCHES):
+                     min_batches=MIN_BATCHES, governed=None):
     """The fixes' white σ that matches the long-run variance of the filter's innovations
     (see the module notes).
 
@@ -161,6 +167,13 @@ def innovation_noise(t, innovation, innovation_sigma, sigma, *, batch=INNOVATION
         Batch length [s]; only batches holding at least 80 % of the fixes a whole batch
         holds are used (none straddles an outage or a gap).
     min_batches : int
+    governed : bool array (J, m), optional
+        Where the σ this estimate sets governs the fix (default: everywhere). A fix whose
+        σ something else set (a velocity fix the :func:`velocity_check` de-weighted) is not
+        followed by the filter, so its innovation shows its whole lasting error: counted,
+        it would raise every other fix's σ for an error already de-weighted where it
+        happened. A component's batches holding such a fix are left out of its estimate
+        (all its batches are used when fewer than ``min_batches`` would remain).
 
     Returns
     -------
@@ -184,7 +197,15 @@ def innovation_noise(t, innovation, innovation_sigma, sigma, *, batch=INNOVATION
     s_nu = np.stack([np.bincount(b, nu[:, i]) for i in cols], -1)[full]
     s_hph = np.stack([np.bincount(b, hph[:, i]) for i in cols], -1)[full]
     nf = n[full, None]
-    est = np.mean(s_nu ** 2 / nf - s_hph / nf, axis=0)
+    stat = s_nu ** 2 / nf - s_hph / nf
+    if governed is None:
+        est = np.mean(stat, axis=0)
+    else:
+        off = np.asarray(governed, bool).reshape(nu.shape) == 0
+        clean = np.stack([np.bincount(b, off[:, i], minlength=n.size) for i in cols], -1)[full] == 0
+        enough = clean.sum(0) >= min_batches
+        keep = np.where(enough, clean, True)
+        est = np.sum(stat * keep, 0) / np.sum(keep, 0)
     return np.sqrt(np.maximum(est, 0.0)), int(full.sum())
 
 

@@ -332,7 +332,7 @@ def _fix_noise_passes(run, source: FixSource) -> RecordedNav:
         res = run(source)
         rep = res.source
         t, inn, sd, _ = rep.fix_records
-        est = innovation_noise(t, inn, sd, rep.fix_sigma)
+        est = innovation_noise(t, inn, sd, rep.fix_sigma, governed=_governed(source, t, rep.fix_sigma))
         if est is None:
             return _with_fix_noise(res, source, history, "too few whole 10 s batches of fixes")
         used = np.median(rep.fix_sigma, 0)
@@ -345,6 +345,30 @@ def _fix_noise_passes(run, source: FixSource) -> RecordedNav:
         pos[:n_p] = floor[:n_p]
         source = dataclasses.replace(source, sigma_floor=(pos, floor[n_p:] if floor.size > n_p else 0.0))
     return _with_fix_noise(res, source, history, f"not settled after {FIX_NOISE_PASSES} runs")
+
+
+def _governed(source: FixSource, t, sigma):
+    """(J, m) bool: where the innovations' σ floor governs the applied fixes at ``t`` taken
+    with σ ``sigma`` (J, m): everywhere but the velocity components the velocity check
+    (:func:`sinslab.fusion.fix_noise.velocity_check`, ``handling.velocity_check``) raised
+    above the σ the other fixes were taken with (their σ is the check's; a fix it raised
+    less is taken with the floor like any other), or None without the check."""
+    h, fx = source.handling, source.fixes
+    m = sigma.shape[1]
+    if h.velocity_check is None or not h.use_velocity or fx.vel is None or m not in (5, 6):
+        return None
+    from sinslab.fusion.fix_noise import velocity_check
+    got = velocity_check(fx, h.velocity_check)
+    if got is None:
+        return None
+    stated = np.broadcast_to(np.asarray(0.0 if fx.sigma_vel is None else fx.sigma_vel, float), got[0].shape)
+    k = np.clip(np.searchsorted(fx.t, t), 0, len(fx) - 1)
+    raised = (got[0] > stated * (1 + 1e-9))[k] & (np.abs(fx.t[k] - t) < 1e-6)[:, None]
+    sv = sigma[:, m - 3:]
+    floor = np.array([np.median(sv[~raised[:, i], i]) if np.any(~raised[:, i]) else 0.0 for i in range(3)])
+    out = np.ones(sigma.shape, bool)
+    out[:, m - 3:] = ~(raised & (sv > floor * (1 + 1e-9)))
+    return out
 
 
 def _stated_sigma(source: FixSource, n_p, with_vel):
