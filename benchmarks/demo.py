@@ -154,8 +154,8 @@ def main(argv=None) -> dict:
     for name, s in f["runs"].items():
         print(f"  {name:<32s} {s:7.2f} s, robustness re-runs {f['robustness_s'][name]:6.2f} s")
     print("timeline of the runs (s after make demo started):")
-    for name, (a, b) in f["timeline_s"].items():
-        print(f"  {name:<32s} {a:6.1f} .. {b:6.1f}")
+    for name, (start, end) in f["timeline_s"].items():
+        print(f"  {name:<32s} {start:6.1f} .. {end:6.1f}")
     if "warm" in res:
         w = res["warm"]
         print(f"make demo, warm cache: {w['wall_s']:.1f} s wall, {w['cpu_s']:.1f} s CPU")

@@ -279,6 +279,25 @@ def test_demo_script_parts(tmp_path):
     assert mod._cached_kernels(tmp_path) == 1
 
 
+def test_demo_script_prints_and_saves_what_it_measured(tmp_path, monkeypatch, capsys):
+    """benchmarks/demo.py's report of a measurement (the minutes of measuring stubbed): every
+    run's line and its timeline printed, the figures saved to ``--out`` as measured."""
+    mod = _load("demo")
+    fresh = {"wall_s": 100.0, "cpu_s": 190.0, "load_avg_before": [0.5, 0.5, 0.5], "load_avg_after": [2.0, 1.0, 0.5],
+             "kernels_cached_before": 83, "kernels_cached_after": 83, "runs": {"a": 1.5},
+             "robustness_s": {"a": 0.25}, "timeline_s": {"a": [1.0, 3.0]}}
+    res = {"commit": "abc", "install": {"wall_s": 90.0, "cpu_s": 120.0}, "compile": {"wall_s": 50.0, "kernels": 70},
+           "fresh": fresh, "compile_and_demo_wall_s": 150.0, "install_and_demo_wall_s": 190.0,
+           "install_and_demo_cpu_s": 310.0}
+    monkeypatch.setattr(mod, "measure", lambda warm, keep, py: res)
+    out = tmp_path / "demo.json"
+    assert mod.main(["--out", str(out)]) == res
+    text = capsys.readouterr().out
+    assert "100.0 s wall, 190.0 s CPU" in text and "1.50 s, robustness re-runs   0.25 s" in text
+    assert "1.0 ..    3.0" in text
+    assert json.loads(out.read_text()) == res
+
+
 def test_linear_batch_script(tmp_path):
     out = tmp_path / "linear_batch.json"
     res = _load("linear_batch").main(["--repeat", "1", "--out", str(out)])
