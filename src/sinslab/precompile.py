@@ -9,8 +9,8 @@ kernels inside (its build runs this module on the built package).
 The calls are the commands themselves, on small inputs simulated here: ``navigate`` on a
 three-minute car drive (loosely coupled; smoothed; with vehicle constraints, scale factors
 and time synchronisation), ``align`` and ``allan`` on a rest record (as whitespace-delimited
-text), and every experiment's
-``--quick`` run with its campaigns in the process. Going through the commands, rather than
+text), and every experiment's ``--quick`` run with the variants ``sinslab demo`` adds
+(campaigns in the process). Going through the commands, rather than
 calling kernels with types written down here, compiles each kernel for the argument types
 the commands give it (an array read from a memory-mapped file is read-only, for
 instance, and that is another signature). Kernels that only other calls reach (a
@@ -110,8 +110,12 @@ def _commands(group, folder: Path) -> list:
         cmds = []
         for n in names():
             exp = get(n)
-            campaign = starts_campaign(exp, resolve(exp.config, quick=exp.quick, sets=[]))
-            cmds.append(["run", n, "--quick"] + (["--workers", "0"] if campaign else []))
+            # the default scenario and the variants ``sinslab demo`` runs: a variant may take
+            # another path (a turntable mount, another mode) to kernels of its own
+            for sets in [()] + list(exp.variants.values()):
+                opts = [a for kv in sets for a in ("--set", kv)]
+                campaign = starts_campaign(exp, resolve(exp.config, quick=exp.quick, sets=list(sets)))
+                cmds.append(["run", n, "--quick", *opts] + (["--workers", "0"] if campaign else []))
         return cmds
     return [[a.format(d=folder) for a in c] for c in group]
 

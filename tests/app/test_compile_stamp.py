@@ -86,3 +86,19 @@ def test_read_only_package_keeps_its_stamp_in_the_user_cache(package, tmp_path, 
     monkeypatch.setattr(pc.os, "access", lambda p, mode: False)
     assert pc.main([]) == 0 and pc.main([]) == 0 and calls == [2]
     assert list((tmp_path / "cache" / "sinslab").glob("compiled-*.json"))
+
+
+def test_compile_runs_every_run_of_the_demo(tmp_path):
+    """The experiments' commands of ``sinslab compile`` are the runs ``sinslab demo`` makes,
+    variants included (a variant may reach a kernel of its own: the turntable's mount), each
+    at its quick scale."""
+    import sinslab.experiments as E
+
+    cmds = pc._commands("experiments", tmp_path)
+    own = [e for e in E.registry().values() if e.module.startswith("sinslab.experiments.")]
+    want = {(e.name, tuple(a for kv in sets for a in ("--set", kv)))
+            for e in own for sets in [()] + list(e.variants.values())}
+    got = {(c[1], tuple(c[3:c.index("--workers")] if "--workers" in c else c[3:])) for c in cmds}
+    assert all(c[0] == "run" and c[2] == "--quick" for c in cmds)
+    assert want <= got and len(cmds) == len(want)
+    assert ("schuler-suppression", ("--set", "scenario.kind=turntable")) in got
