@@ -47,7 +47,8 @@ def _registered_only_here():
 
 def _demo(tmp_path, monkeypatch, client, **declared):
     """``sinslab demo --quick`` of the campaign dummy with ``montecarlo.dask_client``
-    replaced by ``client``; returns the exit code."""
+    replaced by ``client`` and the module's names ``declared`` set; the command's result
+    (its exit code checked)."""
     from sinslab.estimation import montecarlo as mc
 
     mod = _module()
@@ -59,6 +60,7 @@ def _demo(tmp_path, monkeypatch, client, **declared):
     SEEN.clear()
     r = CliRunner().invoke(app, ["demo", "--quick", "--only", "campaign-dummy", "--out", str(tmp_path / "runs")])
     assert r.exit_code == 0, r.output
+    return r
 
 
 def test_demo_shares_one_cluster_among_its_campaigns(tmp_path, monkeypatch):
@@ -88,16 +90,7 @@ def test_demo_runs_the_longest_campaign_first_and_prints_in_run_order(tmp_path, 
     def fake_client(scheduler=None, n_workers=None):
         yield "the shared client" if scheduler is None else scheduler
 
-    mod = _module()
-    mod.DEMO_COST_S = {"more": 30.0, "single": 2.0}
-    monkeypatch.setitem(sys.modules, mod.__name__, mod)
-    from sinslab.estimation import montecarlo as mc
-
-    monkeypatch.setattr(mc, "dask_client", fake_client)
-    E.register(mod)
-    SEEN.clear()
-    r = CliRunner().invoke(app, ["demo", "--quick", "--only", "campaign-dummy", "--out", str(tmp_path / "runs")])
-    assert r.exit_code == 0, r.output
+    r = _demo(tmp_path, monkeypatch, fake_client, DEMO_COST_S={"more": 30.0, "single": 2.0})
     assert SEEN == [(4, "the shared client"), (1, None), (3, "the shared client")]
     lines = [ln.split(":")[0] for ln in r.stdout.splitlines() if "claims passed" in ln]
     assert lines == ["campaign-dummy", "campaign-dummy-single", "campaign-dummy-more"]
