@@ -26,12 +26,26 @@ checkout or an install may change — the kernels then compile once, as without 
 A new signature, or a kernel whose source changed, compiles as before and is cached in
 numba's usual place. ``SINSLAB_JITCACHE=0`` turns the two lookups off (numba's own cache
 only: what a measurement of compile times wants with ``NUMBA_CACHE_DIR`` set).
+
+BLAS table without ``scipy.linalg``
+-----------------------------------
+The first kernel a process runs makes numba load its array implementations, which check
+that a BLAS is there by importing ``scipy.linalg.cython_blas`` — the table of BLAS
+function pointers that the compiled ``np.dot`` calls. Importing it imports the package
+``scipy.linalg`` first, and with it scipy's array-API layer, which walks numpy's lazily
+loaded submodules (``numpy.f2py``, ``numpy.testing``, ...): ~0.1 s of CPU in every process,
+a fortieth of a 1 h full-rate ``navigate``, for a table that loads in 3 ms on its own.
+:func:`preload_blas_table` loads that extension module alone under its own name before
+numba asks for it, so numba finds it imported; code that uses ``scipy.linalg`` still
+imports the package as usual and gets the same module object. It does nothing when
+``scipy.linalg`` is already imported, and anything unexpected (no scipy, another layout)
+leaves the import to numba.
 """
 from __future__ import annotations
 
 import os
 
-__all__ = ["install", "PORTABLE_ENV", "shipped_folder"]
+__all__ = ["install", "preload_blas_table", "PORTABLE_ENV", "shipped_folder"]
 
 #: environment of a process that compiles kernels to ship (any CPU of the architecture)
 PORTABLE_ENV = {"NUMBA_CPU_NAME": "generic", "NUMBA_CPU_FEATURES": ""}
@@ -90,6 +104,47 @@ def _load_elsewhere(cache, sig, target_context):
             if data is not None:
                 return cache._impl.rebuild(target_context, data)
     return None
+
+
+#: the extension module numba's compiled ``np.dot`` takes its BLAS functions from
+BLAS_TABLE = "scipy.linalg.cython_blas"
+
+
+def preload_blas_table() -> bool:
+    """Import :data:`BLAS_TABLE` without importing ``scipy.linalg`` (see the module notes).
+
+    Returns whether the module is imported now (by this call or before)."""
+    import sys
+
+    if BLAS_TABLE in sys.modules:
+        return True
+    if "scipy.linalg" in sys.modules:
+        return False                          # the package is there: numba's import is cheap
+    try:
+        import importlib.machinery
+        import importlib.util
+
+        import scipy
+        folder = os.path.join(os.path.dirname(os.path.abspath(scipy.__file__)), "linalg")
+        for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+            path = os.path.join(folder, "cython_blas" + suffix)
+            if os.path.isfile(path):
+                break
+        else:
+            return False
+        spec = importlib.util.spec_from_file_location(BLAS_TABLE, path)
+        if spec is None or spec.loader is None:
+            return False
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[BLAS_TABLE] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[BLAS_TABLE]
+            raise
+    except Exception:                         # noqa: BLE001 - numba imports it its own way then
+        return False
+    return True
 
 
 def install() -> None:

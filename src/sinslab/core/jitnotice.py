@@ -14,7 +14,9 @@ define kernels; it costs nothing once numba is imported.
 :func:`install` also installs :mod:`sinslab.core.jitlock`, so that processes started
 together (a command and its Dask workers) compile each kernel once between them, and
 :mod:`sinslab.core.jitcache`, so that kernels compiled at install are found (in a
-read-only package folder, or compiled for any CPU of the architecture).
+read-only package folder, or compiled for any CPU of the architecture), and loads the BLAS
+table of numba's ``np.dot`` without ``scipy.linalg``
+(:func:`sinslab.core.jitcache.preload_blas_table`).
 
 :func:`compile_log` gives, after the fact, the CPU seconds each kernel's compilation took
 (own time, nested compilations of other sinslab kernels excluded), for measuring.
@@ -44,9 +46,11 @@ def install() -> None:
     global _listener
     if _listener is not None:
         return
-    from numba.core import event
-
     from sinslab.core import jitcache, jitlock
+
+    # before numba's array implementations load (at the first kernel call)
+    jitcache.preload_blas_table()
+    from numba.core import event
 
     jitlock.install()
     jitcache.install()
