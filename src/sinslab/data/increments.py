@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sinslab.core.records import ImuRecord
+from sinslab.core.records import ImuRecord, all_finite
 
 __all__ = ["ImuData", "uniform_increments", "rates_to_increments", "check_stamps", "where"]
 
@@ -51,18 +51,28 @@ class ImuData:
 def check_stamps(t, path, lines):
     """Raise ValueError naming the file line of the first non-finite, duplicated or
     decreasing stamp of ``t`` (``lines[i]`` is the line of sample i)."""
-    bad = ~np.isfinite(t)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"{where(path, lines[i])}: time stamp is not a finite number")
+    _steps(t, path, lines)
+
+
+def _steps(t, path, lines):
+    """:func:`check_stamps`, returning the intervals ``np.diff(t)``. Each test screens by
+    reductions (no array of the record's size made) and looks for the first offender only
+    when the screen fails."""
+    if not all_finite(t):
+        bad = ~np.isfinite(t)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"{where(path, lines[i])}: time stamp is not a finite number")
     d = np.diff(t)
-    if (d == 0).any():
-        i = int(np.argmax(d == 0)) + 1
-        raise ValueError(f"{where(path, lines[i])}: duplicated time stamp {float(t[i])!r}")
-    if (d < 0).any():
-        i = int(np.argmax(d < 0)) + 1
-        order = "decrease throughout: the record is in reverse order" if d.size > 1 and (d < 0).all() else "not sorted"
-        raise ValueError(f"{where(path, lines[i])}: time stamps {order} ({float(t[i])!r} follows {float(t[i - 1])!r})")
+    if d.size and not d.min() > 0:
+        if (d == 0).any():
+            i = int(np.argmax(d == 0)) + 1
+            raise ValueError(f"{where(path, lines[i])}: duplicated time stamp {float(t[i])!r}")
+        if (d < 0).any():
+            i = int(np.argmax(d < 0)) + 1
+            order = "decrease throughout: the record is in reverse order" if d.size > 1 and (d < 0).all() else "not sorted"
+            raise ValueError(f"{where(path, lines[i])}: time stamps {order} ({float(t[i])!r} follows {float(t[i - 1])!r})")
+    return d
 
 
 def uniform_increments(t, dth, dv, *, path="", lines=None, dt=None, max_gap=1.0, allow_gaps=False):
@@ -78,10 +88,9 @@ def uniform_increments(t, dth, dv, *, path="", lines=None, dt=None, max_gap=1.0,
     lines = list(range(1, n + 1)) if lines is None else lines
     if n < 2:
         raise ValueError(f"{where(path)}: needs at least 2 samples, got {n}")
-    check_stamps(t, path, lines)
-    d = np.diff(t)
+    d = _steps(t, path, lines)
     dt_nom = float(np.median(d)) if dt is None else float(dt)
-    gap_i = np.flatnonzero(d > 1.5 * dt_nom)
+    gap_i = np.flatnonzero(d > 1.5 * dt_nom) if d.max() > 1.5 * dt_nom else np.zeros(0, dtype=np.intp)
     gaps = np.stack([t[gap_i], d[gap_i]], -1) if gap_i.size else np.zeros((0, 2))
     if gap_i.size and not allow_gaps:
         long_ = gap_i[d[gap_i] > max_gap]
@@ -90,10 +99,18 @@ def uniform_increments(t, dth, dv, *, path="", lines=None, dt=None, max_gap=1.0,
             raise ValueError(f"{where(path, lines[i + 1])}: gap of {d[i]:.3f} s in the IMU record "
                              f"after t = {t[i]:.3f} s (longer than max_gap = {max_gap:g} s); "
                              "allow it explicitly to navigate across")
-    ok = d <= 1.5 * dt_nom
-    jitter = float(np.sqrt(np.mean((d[ok] - dt_nom) ** 2))) if ok.any() else 0.0
-    if gap_i.size == 0 and abs(t[-1] - t[0] - (n - 1) * dt_nom) <= 1e-9 * max(1.0, abs(t[-1])) \
-            and np.all(np.abs(d - dt_nom) <= 1e-4 * dt_nom):
+    if gap_i.size == 0:
+        # every interval counts (d[ok] is d); the deviations r squared in place, the bound
+        # on |r| tested on its extremes: the values of the expressions below in the
+        # other branch, without their arrays of the record's size
+        r = d - dt_nom
+        uniform = r.max() <= 1e-4 * dt_nom and -r.min() <= 1e-4 * dt_nom
+        jitter = float(np.sqrt(np.mean(np.square(r, out=r))))
+    else:
+        ok = d <= 1.5 * dt_nom
+        jitter = float(np.sqrt(np.mean((d[ok] - dt_nom) ** 2))) if ok.any() else 0.0
+        uniform = False
+    if uniform and abs(t[-1] - t[0] - (n - 1) * dt_nom) <= 1e-9 * max(1.0, abs(t[-1])):
         return ImuRecord(t, dth, dv, dt_nom), gaps, jitter
     tc = np.concatenate([[t[0] - dt_nom], t])
     m = int(math.floor((tc[-1] - tc[0]) / dt_nom + 1e-9))

@@ -10,7 +10,7 @@ import numpy as np
 
 from sinslab.core import units
 from sinslab.core.atomic import atomic_path
-from sinslab.core.records import Fixes, ImuRecord
+from sinslab.core.records import Fixes, ImuRecord, all_finite
 from sinslab.data import columns as _columns
 from sinslab.data.frames import sensor_to_body
 from sinslab.data.increments import ImuData, check_stamps, rates_to_increments, uniform_increments, where
@@ -86,11 +86,12 @@ def read_table_imu(path, *, gyro_unit=None, accel_unit=None, time_unit=None, kin
     ti, gi, ai, si = plan.ti, plan.gi, plan.ai, plan.si
     data = src.fetch(plan.idx)
     lines = src.lines
-    bad = ~np.isfinite(data[:, :7])
-    if bad.any():
-        r, c = (int(x) for x in np.argwhere(bad)[0])
-        raise ValueError(f"{where(path, lines[r])}: NaN/inf or empty value in column "
-                         f"{cols[([ti] + gi + ai)[c]][0]!r}")
+    if not all_finite(data[:, :7]):
+        bad = ~np.isfinite(data[:, :7])
+        if bad.any():
+            r, c = (int(x) for x in np.argwhere(bad)[0])
+            raise ValueError(f"{where(path, lines[r])}: NaN/inf or empty value in column "
+                             f"{cols[([ti] + gi + ai)[c]][0]!r}")
     t, g, a = plan.convert(data, sensor_to_body(mount, frame))
     check_stamps(t, path, lines)
     meta = plan.meta()
