@@ -301,21 +301,24 @@ def fill_varying(rows, w, f, e, rd, core_k, core_r, f_row, f_col, f_ins, f_k, f_
     fN = C[0, 1, 0] * f0 + C[0, 1, 1] * f1 + C[0, 1, 2] * f2
     fU = C[0, 2, 0] * f0 + C[0, 2, 1] * f1 + C[0, 2, 2] * f2
     _core(L, rows[0, e, 9], rows[0, e, 4], rows[0, e, 5], rows[0, e, 6], fE, fN, fU, rd, Fc)
+    # the tables hold places, never negative: as unsigned integers they index without
+    # numba's test for an index counted from the end (see sinslab.estimation.kernels)
     nk = core_k.shape[0]
     for a in range(nk):
-        ra, ka = core_r[a], core_k[a]
+        ra, ka = np.uint64(core_r[a]), np.uint64(core_k[a])
         for b in range(nk):
-            Fe[ra, core_r[b]] = Fc[ka, core_k[b]]
+            Fe[ra, np.uint64(core_r[b])] = Fc[ka, np.uint64(core_k[b])]
     for t in range(f_row.shape[0]):
-        ii, j = f_ins[t], f_j[t]
-        v = f_sign[t] * C[ii, f_k[t], j]
+        ii, j = np.uint64(f_ins[t]), np.uint64(f_j[t])
+        v = f_sign[t] * C[ii, np.uint64(f_k[t]), j]
         if f_src[t] == 1:
             v *= w[ii, e, j]
         elif f_src[t] == 2:
             v *= f[ii, e, j]
-        Fe[f_row[t], f_col[t]] = v
+        Fe[np.uint64(f_row[t]), np.uint64(f_col[t])] = v
     for t in range(g_row.shape[0]):
-        Ge[g_row[t], g_col[t]] = g_sign[t] * C[g_ins[t], g_k[t], g_j[t]]
+        Ge[np.uint64(g_row[t]), np.uint64(g_col[t])] = g_sign[t] * C[np.uint64(g_ins[t]), np.uint64(g_k[t]),
+                                                                      np.uint64(g_j[t])]
     return True
 
 
