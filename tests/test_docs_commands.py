@@ -559,10 +559,10 @@ QUOTED = [
      "1 Hz fixes, filtering with KF-GINS' model (21 states, P at every epoch) and writing the solution of every epoch",
      "bench full_rate", ["=1", "=200", "whole_process.epochs/1e3", "=1", "=21"], 0.0),
     ("README.md", "KF-GINS built by its own CMake Release (-O3); sinslab's modules compiled to bytecode first, as an install leaves "
-     "them | **2.92×** median (2.88–3.05 over 7 rounds): KF-GINS 12.1 s "
-     "CPU, sinslab 4.14 s (start-up and imports 0.25, reading 0.49, filter 3.19, writing 0.15; the rest the "
-     "interpreter's own start and exit); final horizontal error 2.60 m against 2.60 m; at load average 1.1–1.5, "
-     "the machine quiet. Under the target",
+     "them | **3.55×** median (3.07–3.78 over 7 rounds): KF-GINS 12.4 s "
+     "CPU, sinslab 3.41 s (start-up and imports 0.28, reading 0.33, filter 2.63, writing 0.13; the rest the "
+     "interpreter's own start and exit); final horizontal error 2.60 m against 2.60 m; at load average 1.1–1.2, "
+     "the machine quiet. The target met",
      "bench full_rate",
      ["=3", "whole_process.ratio_median", "whole_process.ratio_min", "whole_process.ratio_max", "=7",
       "whole_process.kfgins_cpu_s_median", "whole_process.sinslab_cpu_s_median"]
@@ -570,10 +570,10 @@ QUOTED = [
      + ["whole_process.kfgins_final_horiz_err_m", "whole_process.sinslab_final_horiz_err_m", "whole_process.load_min",
         "whole_process.load_max"], 0.0),
     ("README.md", "P at every 200 Hz epoch, 1 Hz fixes, 1 h drive (`benchmarks/full_rate.py`): one call, warm, nothing read or "
-     "written | 226 k epochs per CPU second in process, 2.77× the numpy model evaluation, equal to 6.5e-12; fused "
-     "loop 3.1 µs per epoch (P ← Φ (P + T Q̄/2) Φᵀ + T Q̄/2: Q_k never formed, and Φ P Φᵀ on the 9 dense rows of Φ "
-     "with the 12 diagonal rows of the sensor states apart, 1.6 µs alone against 2.4 for the dense product); at "
-     "load average 1.1–1.9 | ≥ 120 k |", "bench full_rate",
+     "written | 289 k epochs per CPU second in process, 3.72× the numpy model evaluation, equal to 6.5e-12; fused "
+     "loop 2.5 µs per epoch (P ← Φ (P + T Q̄/2) Φᵀ + T Q̄/2: Q_k never formed, and Φ P Φᵀ on the 9 dense rows of Φ "
+     "with the 12 diagonal rows of the sensor states apart, 1.6 µs alone against 2.5 for the dense product); at "
+     "load average 1.1–1.4 | ≥ 120 k |", "bench full_rate",
      ["=200", "=1", "duration_s/3600", "epochs_per_cpu_s/1e3", "ratio_to_numpy", "max_rel_diff_vs_numpy",
       "profile_us.fused loop (F, G; Φ, Q̄; P with rows r.. diagonal; x)", "=2", "=2", "=9", "=12",
       "profile_us.P ← Φ P Φᵀ + Q (rows 9.. of Φ diagonal)", "profile_us.P ← Φ P Φᵀ + Q (dense, for comparison)",
