@@ -135,6 +135,9 @@ def _parse(buf, i, row, ns, ncol, out, slow):
                         break
                     m = m * 10000 + (d0 * 1000 + d1 * 100 + d2 * 10 + d3)
                     i += 4
+                # the rest as the integer part's loop: not a shared helper, which given
+                # the buffer costs an atomic reference-count update and its undoing per
+                # number
                 while i < n:
                     d = np.int64(buf[u(i)]) - 48
                     if d < 0 or d > 9:
