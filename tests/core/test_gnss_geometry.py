@@ -227,3 +227,18 @@ def test_geodetic_to_ecef_broadcasts_mixed_shapes():
     for i, lo in enumerate(lon):
         assert np.array_equal(grid[i], E.geodetic_to_ecef(0.5, lo, 1000.0))
     assert E.geodetic_to_ecef(lon[:, None] / 3, 0.2, np.array([0.0, 10.0])).shape == (7, 2, 3)
+
+
+def test_one_point_paths_are_the_array_paths_bit_for_bit():
+    """enu_to_ecef_matrix and geodetic_to_ecef of one point (their shortcut without stacks)
+    give the bytes of the same point taken from an array, signed zeros included (the
+    poles, the equator and the prime meridian put zeros in the matrix)."""
+    lats = np.array([0.0, -0.0, 0.6, -1.1, math.pi / 2, -math.pi / 2])
+    lons = np.array([0.0, -0.0, 2.1, -3.0, math.pi, -math.pi / 2])
+    C = E.enu_to_ecef_matrix(lats[:, None], lons[None, :])
+    r = E.geodetic_to_ecef(lats[:, None], lons[None, :], 120.0)
+    for i, la in enumerate(lats):
+        for j, lo in enumerate(lons):
+            for a, b in ((la, lo), (float(la), float(lo)), (np.array(la), np.array(lo))):
+                assert E.enu_to_ecef_matrix(a, b).tobytes() == C[i, j].tobytes()
+                assert E.geodetic_to_ecef(a, b, 120.0).tobytes() == r[i, j].tobytes()

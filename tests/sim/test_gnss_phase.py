@@ -160,3 +160,26 @@ def _firsts(f):
 def test_base_needs_phase():
     with pytest.raises(ValueError, match="base station needs the carrier phase"):
         _sim(phase=None)
+
+
+def test_walker_positions_keep_the_bytes_of_the_full_formula():
+    """Walker.positions with its time-independent terms computed once per constellation
+    gives the bytes of the formula evaluated whole at every call (circular orbits, planes
+    at equal right ascensions, Earth rotation), for one time and for one time per
+    satellite."""
+    for w in WALKERS:
+        for t in (0.0, 1234.5678, np.linspace(10.0, 90_000.0, w.planes * w.per_plane)):
+            t = np.asarray(t, dtype=float)
+            n = math.sqrt(E.GM / w.radius ** 3)
+            S = w.planes * w.per_plane
+            j = np.repeat(np.arange(w.planes), w.per_plane)
+            k = np.tile(np.arange(w.per_plane), w.planes)
+            raan = w.raan0 + 2 * math.pi * j / w.planes
+            u = w.u0 + 2 * math.pi * k / w.per_plane + 2 * math.pi * w.phasing * j / S + n * t
+            ci, si = math.cos(w.inclination), math.sin(w.inclination)
+            x, y = w.radius * np.cos(u), w.radius * np.sin(u)
+            xi = x * np.cos(raan) - y * ci * np.sin(raan)
+            yi = x * np.sin(raan) + y * ci * np.cos(raan)
+            a = E.WIE * t
+            want = np.stack([np.cos(a) * xi + np.sin(a) * yi, -np.sin(a) * xi + np.cos(a) * yi, y * si + 0 * a], -1)
+            assert w.positions(t).tobytes() == want.tobytes()

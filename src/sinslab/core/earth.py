@@ -177,11 +177,15 @@ def foucault_frequency(lat: ArrayLike) -> float | np.ndarray:
 def geodetic_to_ecef(lat: ArrayLike, lon: ArrayLike, h: ArrayLike) -> np.ndarray:
     """Earth-centred Earth-fixed coordinates [m] of geodetic ``lat``, ``lon`` [rad] and
     ellipsoidal height ``h`` [m] on WGS-84; arrays broadcast, result shape ``S + (3,)``."""
-    lat, lon, h = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (lat, lon, h)))
+    lat, lon, h = (np.asarray(v, dtype=float) for v in (lat, lon, h))
+    one = lat.ndim == lon.ndim == h.ndim == 0
+    if not one:
+        lat, lon, h = np.broadcast_arrays(lat, lon, h)
     sl, cl = np.sin(lat), np.cos(lat)
     rn = A / np.sqrt(1.0 - E2 * sl * sl)
-    return np.stack([(rn + h) * cl * np.cos(lon), (rn + h) * cl * np.sin(lon),
-                     (rn * (1.0 - E2) + h) * sl], axis=-1)
+    xyz = [(rn + h) * cl * np.cos(lon), (rn + h) * cl * np.sin(lon), (rn * (1.0 - E2) + h) * sl]
+    # one point (a receiver epoch by epoch): the same numbers without stack's overhead
+    return np.array(xyz) if one else np.stack(xyz, axis=-1)
 
 
 def ecef_to_geodetic(r: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -213,6 +217,10 @@ def enu_to_ecef_matrix(lat: ArrayLike, lon: ArrayLike) -> np.ndarray:
     """``C_n^e`` (..., 3, 3): columns are the east, north and up unit vectors in ECEF."""
     lat, lon = np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
     sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+    if lat.ndim == lon.ndim == 0:
+        # one point (a receiver epoch by epoch): the entries below without four stacks
+        # (``+ 0.0`` as there: a −0 entry becomes +0)
+        return np.array([[-so + 0.0, -sl * co, cl * co], [co + 0.0, -sl * so, cl * so], [0.0, cl + 0.0, sl + 0.0]])
     z = np.zeros_like(sl * so)
     e = np.stack([-so + z, co + z, z], -1)
     n = np.stack([-sl * co, -sl * so, cl + z], -1)

@@ -31,6 +31,7 @@ frequency noise, drawn with the exact discrete covariance) and white noise of σ
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -88,20 +89,33 @@ class Walker:
         time per satellite (S,)); the Earth-fixed frame coincides with the inertial one at
         t = 0."""
         t = np.asarray(t, dtype=float)
-        n = math.sqrt(E.GM / self.radius ** 3)
-        T = self.planes * self.per_plane
-        j = np.repeat(np.arange(self.planes), self.per_plane)
-        k = np.tile(np.arange(self.per_plane), self.planes)
-        raan = self.raan0 + 2 * math.pi * j / self.planes
-        u = self.u0 + 2 * math.pi * k / self.per_plane + 2 * math.pi * self.phasing * j / T + n * t
-        ci, si = math.cos(self.inclination), math.sin(self.inclination)
+        n, u_at_0, cr, sr, ci, si = _walker_terms(self)
+        u = u_at_0 + n * t
         x, y = self.radius * np.cos(u), self.radius * np.sin(u)
-        xi = x * np.cos(raan) - y * ci * np.sin(raan)
-        yi = x * np.sin(raan) + y * ci * np.cos(raan)
+        xi = x * cr - y * ci * sr
+        yi = x * sr + y * ci * cr
         zi = y * si
         a = E.WIE * t
         ca, sa = np.cos(a), np.sin(a)
         return np.stack([ca * xi + sa * yi, -sa * xi + ca * yi, zi + 0 * a], -1)
+
+
+@functools.lru_cache(maxsize=16)
+def _walker_terms(w: Walker):
+    """The parts of :meth:`Walker.positions` that do not depend on time, in the order of
+    its sums (the same bits): mean motion n [rad/s], argument of latitude at t = 0 and
+    cos, sin of the right ascension per satellite (S,), cos, sin of the inclination. A
+    simulation asks for the positions three times per epoch."""
+    n = math.sqrt(E.GM / w.radius ** 3)
+    T = w.planes * w.per_plane
+    j = np.repeat(np.arange(w.planes), w.per_plane)
+    k = np.tile(np.arange(w.per_plane), w.planes)
+    raan = w.raan0 + 2 * math.pi * j / w.planes
+    u_at_0 = w.u0 + 2 * math.pi * k / w.per_plane + 2 * math.pi * w.phasing * j / T
+    cr, sr = np.cos(raan), np.sin(raan)
+    for a in (u_at_0, cr, sr):             # shared by every call: read only
+        a.flags.writeable = False
+    return n, u_at_0, cr, sr, math.cos(w.inclination), math.sin(w.inclination)
 
 
 @dataclass(frozen=True)
