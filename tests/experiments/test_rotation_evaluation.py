@@ -135,11 +135,16 @@ def test_chunk_trends_add_what_trend_evaluate_gives_bit_for_bit(sets):
     """The trends of a chunk added with their time functions shared between the INS
     (R.ChunkTrends) are the bytes of ``dth += Trend.evaluate(s) * dt`` for every INS of a
     run: the warm-ups of INS #2..#4 at every β, INS #1's warm-up or sine on one axis, a
-    trend with no term, late in a run and on a ragged chunk."""
+    trend with no term, time constants that differ between the axes, late in a run and
+    on a ragged chunk."""
     cfg = resolve(get("rotation-evaluation").config, sets=SMALL + sets)
     specs, *_ = R.ins_plan(cfg)
     trends = [s.trend for s in specs.values() if s.trend is not None] + [imu_.Trend()]
     assert len(trends) >= 5
+    # time constants that differ between the axes, repeated and out of order, and an
+    # axis with a ramp only (its time constant inf)
+    trends += [imu_.Trend(exp_amplitude=[1e-9, 2e-9, 3e-9], exp_time=[9e4, 3e4, 9e4]),
+               imu_.Trend(exp_amplitude=[1e-9, 2e-9, 0.0], exp_time=[5e4, 2e4, math.inf], ramp=[0.0, 0.0, 1e-12])]
     dt = 0.01
     for i0, L in ((0, 1000), (5_000_000, 777)):
         t = (i0 + 1 + np.arange(L)) * dt

@@ -443,6 +443,17 @@ class ChunkTrends:
             v = self._terms[key] = make()
         return v
 
+    def _decay(self, et):
+        """``-expm1(-s / et)`` (L, et.size), each distinct time constant evaluated once:
+        the warm-ups of INS #2..#4 share one on all three axes, and the expm1 of an hour
+        of samples per axis cost as much as the rest of the trend (a column repeated
+        without copying when there is only one)."""
+        u, inv = np.unique(et, return_inverse=True)
+        d = -np.expm1(-self.s / u)
+        if u.size == 1:
+            return np.broadcast_to(d, (d.shape[0], et.size))
+        return d if (inv == np.arange(et.size)).all() else d[:, inv]
+
     def add(self, trend, dth, dt):
         """``dth += trend.evaluate(s) * dt`` for ``dth`` (L, 3) [rad]."""
         s = self.s
@@ -454,7 +465,7 @@ class ChunkTrends:
                           trend.sin_phase[ax])
         with np.errstate(invalid="ignore", divide="ignore"):
             w = np.where(sa != 0, 2 * np.pi / trend.sin_period[ax], 0.0)
-            decay = self._term(("exp", ax.tobytes(), et.tobytes()), lambda: -np.expm1(-s / et))
+            decay = self._term(("exp", et.tobytes()), lambda: self._decay(et))
         if not (w.any() or ph.any()):
             wave = np.zeros((1, ph.size))      # sin(0·s + 0) = +0 at every sample: one row
         else:

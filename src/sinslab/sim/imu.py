@@ -296,15 +296,18 @@ def add_trend_terms(dth, s, k_of, ramp, ea, decay, sa, wave, dt):
     for the axes ``a`` with a trend term (``k = k_of[a] ≥ 0``), ``+= 0`` for the others: the
     operations of :meth:`Trend.evaluate` in its order, sample by sample
     (no fused multiply-add: the same bits). ``wave`` of one row: the same at every sample."""
-    step = 1 if wave.shape[0] > 1 else 0
-    for i in range(dth.shape[0]):
-        for a in range(3):
+    step = np.uint64(1 if wave.shape[0] > 1 else 0)
+    for i_ in range(dth.shape[0]):
+        i = np.uint64(i_)          # unsigned: no negative-index wraparound per load
+        for a_ in range(3):
+            a = np.uint64(a_)
             k = k_of[a]
             if k < 0:
                 dth[i, a] += 0.0
             else:
-                e = ea[k] * decay[i, k] if ea[k] != 0 else 0.0
-                dth[i, a] += (ramp[k] * s[i] + e + sa[k] * wave[i * step, k]) * dt
+                u = np.uint64(k)
+                e = ea[u] * decay[i, u] if ea[u] != 0 else 0.0
+                dth[i, a] += (ramp[u] * s[i] + e + sa[u] * wave[i * step, u]) * dt
 
 
 # --- recorded noise -------------------------------------------------------------------------
