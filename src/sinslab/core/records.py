@@ -68,7 +68,7 @@ def check_times(t: ArrayLike, name: str = "time", rel_tol: float = 1e-3, uniform
         if dev.any():
             i = int(np.argmax(dev))
             raise ValueError(f"{name} is not uniformly sampled: interval {float(d[i])!r} s at index "
-                             f"{i + 1} vs mean {dt!r} s (tolerance {rel_tol:g} relative)")
+                             f"{i + 1} vs mean {float(dt)!r} s (tolerance {rel_tol:g} relative)")
     return float(dt)
 
 
