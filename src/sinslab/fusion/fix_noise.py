@@ -8,17 +8,42 @@ into the next outage.
 
 The error's time structure is measured against the fixes' own velocities: over a lag Δ
 the position change minus the integrated velocity (trapezoid rule) is the change of the
-position error plus the velocity noise integrated, so per axis its mean square (the
-structure function)::
+position error minus the velocity error integrated. Per axis, with the position error a
+white part σ_w plus a first-order Gauss–Markov part (σ_c, τ) and the velocity error a
+first-order Gauss–Markov process of variance σ_v² and correlation time T (independent of
+the position error), its mean square (the structure function) is::
 
-    D(Δ) = 2σ_w² + 2σ_c² (1 − e^(−Δ/τ)) + q_v Δ
+    D(Δ) = 2σ_w² + 2σ_c² (1 − e^(−Δ/τ)) + q_v (Δ − T (1 − e^(−Δ/T))),   q_v = 2σ_v² T
 
-with σ_w the white part, σ_c and τ a first-order Gauss–Markov part and q_v the random
-walk of the integrated velocity error (a Doppler velocity's errors last seconds: their
-integral grows like a random walk, whatever the σ the receiver states). σ_w², σ_c² and
-q_v are fitted by non-negative least squares (relative residuals) for each τ of a
-logarithmic grid up to half the longest lag, the τ of the smallest residual kept. The filter then carries the Gauss–Markov part as states
-(:func:`sinslab.nav.errstate.fix_position_error`) and the white part as the fixes' σ.
+the last term being the variance of a Gauss–Markov process integrated over Δ, the double
+integral of its autocovariance ``σ_v² e^(−|s−u|/T)`` over ``[0, Δ]²``:
+``2σ_v² T² (Δ/T − 1 + e^(−Δ/T))``. For
+``Δ ≫ T`` it is the random walk ``q_v Δ`` (minus a constant): a Doppler velocity's errors
+last seconds, so their integral grows like a random walk, whatever the σ the receiver
+states. For ``Δ ≲ T`` it grows like ``σ_v² Δ²``: convex. Without it a random walk alone,
+``q_v Δ``, is the only velocity term, and a structure function whose short lags bend up
+with the velocity error's own correlation can only be fitted by taking the concave
+Gauss–Markov position part out — a receiver whose velocity errors last seconds is then
+fitted with no position error at all (``T → 0`` gives back the random walk: the grid of T
+starts at 0).
+
+**At rest** a receiver's position error is held (the multipath geometry is frozen and
+static receivers hold their solution) and its velocity reads zero: over a stop neither
+the position error nor the integrated velocity error moves. Pairs within a stop add zeros
+to every lag and pairs across one see a lag the error did not evolve over, so a record
+with long stops shows a structure function scaled down and bent where its error process
+has none. The fixes taken at rest (:func:`at_rest`: a horizontal speed that cannot be told
+from zero given its stated σ) are left out and the moving stretches joined: a lag is time
+in motion. (For a receiver whose error does evolve at rest a pair across a stop is then
+counted at a shorter lag than it spans: the structure function, which grows with the lag,
+comes out larger, not smaller.)
+
+σ_w², σ_c² and q_v are fitted by non-negative least squares (relative residuals) for each
+(τ, T) of logarithmic grids up to half the longest lag, the pair of the smallest residual
+(summed over the axes) kept. The filter then carries the Gauss–Markov part as states
+(:func:`sinslab.nav.errstate.fix_position_error`), the white part as the fixes' σ and the
+velocity error as the white σ of the same long-run variance, ``√(q_v / h)`` for fixes ``h``
+apart.
 
 **From the filter's innovations** (:func:`innovation_noise`): a receiver's stated σ can be
 optimistic and its errors last, so ``N`` successive fixes carry far less than ``N`` fixes'
@@ -54,6 +79,7 @@ batches holding such a fix are left out of that velocity component's estimate
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -63,7 +89,8 @@ from sinslab.core import earth as E
 from sinslab.core.records import Fixes
 
 __all__ = ["FixErrorModel", "fix_error_model", "innovation_noise", "velocity_walk_sigma", "velocity_check",
-           "VELOCITY_CHECK_S", "VELOCITY_CHECK_SIGMAS", "VELOCITY_CHECK_WINDOWS", "INNOVATION_BATCH_S", "MIN_BATCHES"]
+           "at_rest", "REST_CHI2", "VELOCITY_CHECK_S", "VELOCITY_CHECK_SIGMAS", "VELOCITY_CHECK_WINDOWS",
+           "INNOVATION_BATCH_S", "MIN_BATCHES"]
 
 
 @dataclass(frozen=True)
@@ -75,11 +102,19 @@ class FixErrorModel:
     tau: float               #: [s] (one for the three axes)
     lags: np.ndarray         #: (k,) [s] the lags of the structure function
     structure: np.ndarray    #: (k, 3) its measured values [m²]
-    velocity_walk: np.ndarray = None  #: (3,) [m/√s] the integrated velocity error's random walk
+    velocity_walk: np.ndarray = None  #: (3,) [m/√s] the integrated velocity error's random walk, √q_v
+    velocity_tau: float = 0.0         #: [s] the velocity error's correlation time T (0: white)
+    rest_fraction: float = 0.0        #: the share of the fixes left out as taken at rest
 
     def describe(self):
-        return (f"white {', '.join(f'{x:.2f}' for x in self.white)} m, correlated "
-                f"{', '.join(f'{x:.2f}' for x in self.correlated)} m over {self.tau:.0f} s (east, north, up)")
+        s = (f"white {', '.join(f'{x:.2f}' for x in self.white)} m, correlated "
+             f"{', '.join(f'{x:.2f}' for x in self.correlated)} m over {self.tau:.0f} s (east, north, up)")
+        if self.velocity_walk is not None:
+            s += (f"; velocity walk {', '.join(f'{x:.2f}' for x in self.velocity_walk)} m/√s, the velocity error "
+                  f"lasting {self.velocity_tau:.0f} s")
+        if self.rest_fraction > 0:
+            s += f"; {100 * self.rest_fraction:.0f} % of the fixes at rest left out"
+        return s
 
 
 def _enu_positions(fixes):
@@ -94,10 +129,47 @@ def _integrated_velocity(t, v):
     return np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], 0)])
 
 
+#: :func:`at_rest`: a fix is at rest when the χ² of its horizontal speed against its stated
+#: velocity σ (two degrees of freedom) is below its 99 % quantile, ``−2 ln 0.01`` (a speed
+#: that cannot be told from zero)
+REST_CHI2 = -2.0 * math.log(0.01)
+
+
+def at_rest(vel, sigma_vel):
+    """(J,) bool: the fixes whose horizontal velocity cannot be told from zero,
+    ``(v_E/σ_E)² + (v_N/σ_N)² < REST_CHI2`` (:data:`REST_CHI2`); a fix without a positive
+    σ is not at rest.
+
+    Parameters
+    ----------
+    vel : array (J, 3)
+        The fixes' velocities, east, north, up [m/s].
+    sigma_vel : array (J, 3) or (3,)
+        Their stated σ [m/s].
+    """
+    v = np.asarray(vel, float)[:, :2]
+    s = np.broadcast_to(np.asarray(sigma_vel, float), np.shape(vel))[:, :2]
+    good = np.all(np.isfinite(s) & (s > 0), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        chi2 = np.sum((v / np.where(s > 0, s, 1.0)) ** 2, axis=1)
+    return good & (chi2 < REST_CHI2)
+
+
 def fix_error_model(fixes: Fixes, *, max_lag=120.0, n_lags=24, gap=None):
     """The :class:`FixErrorModel` of ``fixes`` (see the module notes), or None when they
-    have no velocities or span less than four lags. Gaps longer than ``gap`` [s]
-    (default 3 fix intervals) break the integration: pairs across them are not used."""
+    have no velocities or, without the fixes at rest, span less than four lags. Gaps longer
+    than ``gap`` [s] (default 3 fix intervals) break the integration: pairs across them are
+    not used. A stop is not a gap: the moving stretches either side of it are joined."""
+    got = _structure(fixes, max_lag, n_lags, gap, stops=False)
+    if got is None:
+        return None
+    D, lags, h, rest = got
+    return dataclasses.replace(_fit(D, lags, h), rest_fraction=float(np.mean(rest)))
+
+
+def _structure(fixes, max_lag, n_lags, gap, *, stops):
+    """``(D (k, 3) [m²], lags (k,) [s], h [s], rest (J,) bool)``: the structure function of
+    the module notes, the fixes at rest left out (``stops`` False) or counted, or None."""
     if fixes.vel is None or len(fixes) < 20:
         return None
     t = fixes.t
@@ -106,7 +178,13 @@ def fix_error_model(fixes: Fixes, *, max_lag=120.0, n_lags=24, gap=None):
     p = _enu_positions(fixes)
     seg = np.concatenate([[0], np.cumsum(np.diff(t) > gap)])       # integration segments
     iv = _integrated_velocity(t, fixes.vel)
-    span = float(t[-1] - t[0])
+    rest = np.zeros(len(fixes), bool)
+    if not stops and fixes.sigma_vel is not None:
+        rest = at_rest(fixes.vel, fixes.sigma_vel)
+        p, iv, seg = p[~rest], iv[~rest], seg[~rest]
+        if p.shape[0] < 20:
+            return None
+    span = float(t[-1] - t[0]) - h * int(rest.sum())
     max_lag = min(max_lag, span / 4)
     if max_lag < 4 * h:
         return None
@@ -121,26 +199,37 @@ def fix_error_model(fixes: Fixes, *, max_lag=120.0, n_lags=24, gap=None):
         used.append(m * h)
     if len(used) < 4:
         return None
-    D, lags = np.array(D), np.array(used)
-    return _fit(D, lags, h)
+    return np.array(D), np.array(used), h, rest
 
 
-def _fit(D, lags, h):
+def _fit(D, lags, h, *, velocity_correlation=True):
+    """The model of the module notes fitted to the structure function ``D`` (k, 3) [m²]
+    at ``lags`` (k,) [s]: non-negative least squares in relative residuals for each
+    (τ, T) of the grids, the pair of the smallest residual summed over the axes kept
+    (``velocity_correlation`` False: T = 0 only, the velocity error white)."""
     from scipy.optimize import nnls
+    top = 0.5 * float(lags[-1])
+    taus = np.geomspace(max(2 * h, 0.5), top, 40)
+    tvs = np.array([0.0])                                                   # 0: the random-walk limit
+    if velocity_correlation:
+        tvs = np.concatenate([tvs, np.geomspace(max(h, 0.5), top, 20)])
     best = None
-    for tau in np.geomspace(max(2 * h, 0.5), 0.5 * float(lags[-1]), 40):
-        A = np.column_stack([np.full(lags.size, 2.0), 2.0 * (1.0 - np.exp(-lags / tau)), lags])
-        cost, coef = 0.0, []
-        for k in range(3):
-            w = 1.0 / np.maximum(D[:, k], 1e-8)
-            c, r = nnls(A * w[:, None], D[:, k] * w)
-            cost += r * r
-            coef.append(c)
-        if best is None or cost < best[0]:
-            best = (cost, tau, np.array(coef))
-    _, tau, coef = best
+    for tau in taus:
+        gm = 2.0 * (1.0 - np.exp(-lags / tau))
+        for tv in tvs:
+            walk = lags if tv == 0.0 else lags - tv * (1.0 - np.exp(-lags / tv))
+            A = np.column_stack([np.full(lags.size, 2.0), gm, walk])
+            cost, coef = 0.0, []
+            for k in range(3):
+                w = 1.0 / np.maximum(D[:, k], 1e-8)
+                c, r = nnls(A * w[:, None], D[:, k] * w)
+                cost += r * r
+                coef.append(c)
+            if best is None or cost < best[0]:
+                best = (cost, tau, tv, np.array(coef))
+    _, tau, tv, coef = best
     return FixErrorModel(np.sqrt(coef[:, 0]), np.sqrt(coef[:, 1]), float(tau), lags, D,
-                         np.sqrt(coef[:, 2]))
+                         np.sqrt(coef[:, 2]), float(tv))
 
 
 #: batch length of :func:`innovation_noise` [s]: longer than a Doppler velocity error lasts
@@ -210,13 +299,23 @@ def innovation_noise(t, innovation, innovation_sigma, sigma, *, batch=INNOVATION
 
 
 def velocity_walk_sigma(fixes: Fixes):
-    """The white σ per velocity component (east, north, up [m/s]) that carries the
-    information of the velocity walk :func:`fix_error_model` measures (``q_v / h`` for
-    fixes ``h`` apart), or None (no velocities, too short a record)."""
-    m = fix_error_model(fixes)
-    if m is None or m.velocity_walk is None:
+    """The velocity σ floor of ``fix_noise = "innovations"``: per velocity component (east,
+    north, up [m/s]) the white σ that carries the information of the random walk ``q_v`` of
+    the fixes' integrated velocity against their positions (``q_v / h`` for fixes ``h``
+    apart), or None (no velocities, too short a record).
+
+    That filter carries no fix-error states and one floor for every velocity fix, at rest
+    too: ``q_v`` is fitted over the whole record with its stops counted, the velocity error
+    taken white (``T = 0``), so the walk stands for every lasting error of the fixes a
+    filter without position states can absorb through its velocity. (:func:`fix_error_model`
+    separates the velocity error's own correlation and the position's Gauss–Markov part,
+    which only a filter carrying those states can use.)"""
+    got = _structure(fixes, 120.0, 24, None, stops=True)
+    if got is None:
         return None
-    return m.velocity_walk / math.sqrt(float(np.median(np.diff(fixes.t))))
+    D, lags, h, _ = got
+    m = _fit(D, lags, h, velocity_correlation=False)
+    return m.velocity_walk / math.sqrt(h)
 
 
 #: trailing window of :func:`velocity_check` [s]: as long as the receiver's velocity errors
