@@ -20,8 +20,9 @@ Printed, against the reference solution:
 - **the filter's innovations** with the σ as stated: the per-axis mean of ν²/S over the run
   and over the 30 s before each outage, and the innovations' lag-1 autocorrelation (a
   consistent filter's innovations are white, Mehra & Peschon 1971);
-- **six runs per grade**: ``default`` (the file's σ), ``auto`` (``fix_error="auto"``: the
-  fixes' error structure measured from the record, :mod:`sinslab.fusion.fix_noise`),
+- **seven runs per grade**: ``default`` (the file's σ), ``auto`` (``fix_error="auto"``: the
+  fixes' error structure measured from the record, :mod:`sinslab.fusion.fix_noise`: the
+  position's Gauss–Markov part as states of the filter), ``auto+check`` (with the check below),
   ``innovations`` (``fix_noise="innovations"``: the σ measured from the filter's own
   innovations, :func:`sinslab.fusion.fix_noise.innovation_noise`), ``check``
   (``velocity_check=10``: each velocity fix checked against the position fixes over the 10 s
@@ -30,8 +31,9 @@ Printed, against the reference solution:
   reference): horizontal and vertical RMS, the horizontal error at each outage end (and
   their median), the velocity error at each outage start; for the innovation runs the σ used;
 - **paired over IMU noise seeds** (``--seeds N``, default 10: seeds 1..N, the same real
-  fixes; each seed's IMU drawn once and run by both filters of :data:`COMPARED`, ours and
-  NaveGo's tuning): per grade and per outage the mean outage-end horizontal error of each
+  fixes; each seed's IMU drawn once and run by every filter of :data:`COMPARED`: ours,
+  ``auto+check`` and ``innov+check``, and NaveGo's tuning): per grade, per filter of ours
+  and per outage the mean outage-end horizontal error of each
   (and the mean horizontal velocity error at the outage's start),
   the mean paired difference ``d̄`` (ours − reference) and its standard error
   ``SE = std(d, ddof=1)/√N``, and a verdict fixed before any result was seen: an outage is
@@ -103,7 +105,8 @@ def innovation_figures(res, outs):
             "autocorr_lag1": [float(np.corrcoef(z[:-1, i], z[1:, i])[0, 1]) for i in range(z.shape[1])]}
 
 
-RUNS = (("default", {}), ("auto", {"fix_error": "auto"}), ("innovations", {"fix_noise": "innovations"}),
+RUNS = (("default", {}), ("auto", {"fix_error": "auto"}), ("auto+check", {"fix_error": "auto", "velocity_check": 10.0}),
+        ("innovations", {"fix_noise": "innovations"}),
         ("check", {"velocity_check": 10.0}), ("innov+check", {"fix_noise": "innovations", "velocity_check": 10.0}),
         ("navego", {"fix_sigma": (2.5, 2.5, 2.5), "fix_vel_sigma": (0.5, 0.5, 0.5)}))
 
@@ -123,8 +126,8 @@ def _runs(nd, d, grade):
 #: the IMU noise seeds of the paired evaluation: seeds 1..N (which of two filters ends an
 #: outage closer moves with the IMU's own noise, so one seed cannot decide)
 PAIRED_SEEDS = 10
-#: the two runs compared per seed: ours, then the reference
-COMPARED = ("innov+check", "navego")
+#: the runs compared per seed: ours (each compared with the reference), then the reference
+COMPARED = ("auto+check", "innov+check", "navego")
 #: the verdict's rule (chosen before the results): no worse when d̄ ≤ 0, or when
 #: d̄ ≤ NO_WORSE_SE standard errors and d̄ ≤ NO_WORSE_FRACTION of the reference's mean end
 NO_WORSE_SE = 2.0
@@ -146,7 +149,8 @@ def paired_verdict(ours, ref):
 
 
 def _paired(nd, ref, gnss, grade, n_seeds=PAIRED_SEEDS, compared=COMPARED):
-    """The paired evaluation over IMU noise seeds 1..``n_seeds`` (see the module notes)."""
+    """The paired evaluation over IMU noise seeds 1..``n_seeds`` (see the module notes):
+    each of ``compared[:-1]`` against ``compared[-1]``."""
     kw = dict(RUNS)
     per = {name: {"ends": [], "hz_rms": [], "vert_rms": [], "dv_at_starts": []} for name in compared}
     for seed in range(1, n_seeds + 1):
@@ -155,12 +159,17 @@ def _paired(nd, ref, gnss, grade, n_seeds=PAIRED_SEEDS, compared=COMPARED):
             r = nd.run(*d, grade, **kw[name])
             for key, v in zip(("hz_rms", "vert_rms", "ends", "dv_at_starts"), (r[0], r[1], r[2], r[3])):
                 per[name][key].append(np.asarray(v).tolist())
-    ours, refr = (np.array(per[name]["ends"]) for name in compared)
-    dv = [np.mean(per[name]["dv_at_starts"], 0) for name in compared]
-    outages = [dict(paired_verdict(ours[:, i], refr[:, i]), ours_dv_start=float(dv[0][i]), ref_dv_start=float(dv[1][i]))
-               for i in range(ours.shape[1])]
+    *ours, reference = compared
+    refr = np.array(per[reference]["ends"])
+    ref_dv = np.mean(per[reference]["dv_at_starts"], 0)
+    outages = {}
+    for name in ours:
+        o = np.array(per[name]["ends"])
+        dv = np.mean(per[name]["dv_at_starts"], 0)
+        outages[name] = [dict(paired_verdict(o[:, i], refr[:, i]), ours_dv_start=float(dv[i]),
+                              ref_dv_start=float(ref_dv[i])) for i in range(o.shape[1])]
     stats = lambda a: {"mean": float(np.mean(a)), "std": float(np.std(a, ddof=1)) if len(a) > 1 else 0.0}  # noqa: E731
-    return {"seeds": n_seeds, "ours": compared[0], "reference": compared[1],
+    return {"seeds": n_seeds, "ours": list(ours), "reference": reference,
             "outages": outages,
             "hz_rms": {name: stats(per[name]["hz_rms"]) for name in compared},
             "vert_rms": {name: stats(per[name]["vert_rms"]) for name in compared},
@@ -194,15 +203,17 @@ def _print(fig):
 
 
 def _print_paired(grade, p):
-    o, r = p["ours"], p["reference"]
-    print(f"{grade}, paired over IMU seeds 1..{p['seeds']}: {o} against {r} "
-          f"(no worse: d̄ ≤ 0, or d̄ ≤ {NO_WORSE_SE:g} SE and ≤ {100 * NO_WORSE_FRACTION:g} % of the reference)")
-    print(f"  {'outage':>6} {o:>12} {r:>8} {'d̄ ± SE [m]':>16}  {'verdict':<9} |δv| at the start [m/s]")
-    for i, x in enumerate(p["outages"]):
-        print(f"  {i + 1:6d} {x['ours_mean']:12.2f} {x['ref_mean']:8.2f} {x['diff_mean']:+8.2f} ± {x['diff_se']:5.2f}  "
-              f"{x['verdict']:<9} {x['ours_dv_start']:.3f} {x['ref_dv_start']:.3f}")
-    for key in ("hz_rms", "vert_rms"):
-        print(f"  {key}: " + "; ".join(f"{n} {p[key][n]['mean']:.2f} ± {p[key][n]['std']:.2f} m" for n in (o, r)))
+    r = p["reference"]
+    for o in p["ours"]:
+        print(f"{grade}, paired over IMU seeds 1..{p['seeds']}: {o} against {r} "
+              f"(no worse: d̄ ≤ 0, or d̄ ≤ {NO_WORSE_SE:g} SE and ≤ {100 * NO_WORSE_FRACTION:g} % of the reference)")
+        print(f"  {'outage':>6} {o:>12} {r:>8} {'d̄ ± SE [m]':>16} {'d̄/ref':>7}  {'verdict':<9} |δv| at the start [m/s]")
+        for i, x in enumerate(p["outages"][o]):
+            print(f"  {i + 1:6d} {x['ours_mean']:12.2f} {x['ref_mean']:8.2f} {x['diff_mean']:+8.2f} ± {x['diff_se']:5.2f} "
+                  f"{100 * x['diff_mean'] / x['ref_mean']:+6.1f}%  {x['verdict']:<9} {x['ours_dv_start']:.3f} "
+                  f"{x['ref_dv_start']:.3f}")
+        for key in ("hz_rms", "vert_rms"):
+            print(f"  {key}: " + "; ".join(f"{n} {p[key][n]['mean']:.2f} ± {p[key][n]['std']:.2f} m" for n in (o, r)))
 
 
 def measure(ref, gnss, n_seeds=PAIRED_SEEDS, paired_only=False):
