@@ -16,7 +16,10 @@ Printed, against the reference solution:
   and its *long-run* σ (``√(mean n ē²)`` over 10 s batches: the white σ that carries the
   information N successive fixes really carry); the height error's mean and scatter (the
   floor of the vertical RMS: the fixes are the only height source); the receiver's own
-  velocity error in the 10 s before each outage;
+  velocity error in the 10 s before each outage; the fixes' error model ``fix_error="auto"``
+  measures from them alone (:func:`sinslab.fusion.fix_noise.fix_error_model`: white and
+  Gauss–Markov position σ, τ, the velocity error's walk and correlation time, the share of
+  fixes at rest left out);
 - **the filter's innovations** with the σ as stated: the per-axis mean of ν²/S over the run
   and over the 30 s before each outage, and the innovations' lag-1 autocorrelation (a
   consistent filter's innovations are white, Mehra & Peschon 1971);
@@ -88,11 +91,16 @@ def fix_figures(fx, tru, meta, outs):
     s = np.stack([np.bincount(b, ev[:, i]) for i in range(3)], -1)[n > 0]
     long_run = np.sqrt(np.mean(s ** 2 / n[n > 0, None], 0) * h)         # σ of a white noise with that density
     before = [np.mean(ev[(fx.t >= st - 10.0) & (fx.t < st), :2], 0).tolist() for st, _ in outs]
+    from sinslab.fusion.fix_noise import fix_error_model
+    m = fix_error_model(fx)
+    model = None if m is None else {"white": m.white.tolist(), "correlated": m.correlated.tolist(), "tau": m.tau,
+                                    "velocity_walk": m.velocity_walk.tolist(), "velocity_tau": m.velocity_tau,
+                                    "rest_fraction": m.rest_fraction}
     return {"pos_sigma_stated": np.median(fx.sigma, 0).tolist(), "pos_err_rms": np.sqrt(np.mean(ep ** 2, 0)).tolist(),
             "vel_sigma_stated": np.median(fx.sigma_vel, 0).tolist(), "vel_err_rms": np.sqrt(np.mean(ev ** 2, 0)).tolist(),
             "vel_err_autocorr": ac, "vel_long_run_sigma": (long_run / np.sqrt(h)).tolist(),
             "height_err_mean": float(np.mean(ep[:, 2])), "height_err_std": float(np.std(ep[:, 2])),
-            "vel_err_before_outages": before}
+            "vel_err_before_outages": before, "fix_error_model": model}
 
 
 def innovation_figures(res, outs):
@@ -186,6 +194,11 @@ def _print(fig):
     print(f"       height error {f['height_err_mean']:.2f} ± {f['height_err_std']:.2f} m")
     print("       receiver velocity error (E N) in the 10 s before each outage [m/s]: "
           + "  ".join(fmt(v) for v in f["vel_err_before_outages"]))
+    m = f["fix_error_model"]
+    if m:
+        print(f"       fix error model (E N U): white {fmt(m['white'])} m, correlated {fmt(m['correlated'])} m over "
+              f"{m['tau']:.0f} s; velocity walk {fmt(m['velocity_walk'])} m/√s lasting {m['velocity_tau']:.0f} s; "
+              f"{100 * m['rest_fraction']:.0f} % of the fixes at rest left out")
     i = fig["innovations"]
     print(f"innovations (σ as stated): mean NIS {i['nis_mean']:.2f}; mean ν²/S {fmt(i['z2_mean'])} "
           f"(pN pE pU vE vN vU); lag-1 autocorrelation {fmt(i['autocorr_lag1'])}")
