@@ -32,8 +32,10 @@ command, and list the module in ``COMMAND_MODULES``::
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
+import threading
 from pathlib import Path
 from typing import List, Optional
 
@@ -362,14 +364,16 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
          only: Optional[List[str]] = typer.Option(None, "--only", help="run only these experiments")) -> None:
     """Run every registered experiment (full scale) into OUT/NAME and write OUT/index.html.
 
-    With a Monte Carlo campaign among the runs, one local Dask cluster serves the whole
-    demo: the runs with a campaign run here one after another (their tasks on the
-    cluster's workers), and the others run as tasks on the same workers beside them, so
-    that both CPUs stay busy. The summaries are printed in the order of the runs, each as
-    soon as it and those before it are done.
+    With a Monte Carlo campaign among the runs, one local Dask cluster (a worker per CPU)
+    serves the whole demo: the run with the highest declared cost computes here and every
+    other run is a task on the workers, longest first, each run serial (a campaign
+    computed in its own process, ``scheduler="sync"``). Three processes computing whole
+    runs side by side keep both CPUs busy to the end; a campaign spread over the workers
+    instead waits for a worker at every step while the others' runs hold them, and its
+    serial parts leave the workers idle. Each run's seeds fix its numbers wherever it
+    computes. The summaries are printed in the order of the runs, each as soon as it and
+    those before it are done.
     """
-    import contextlib
-
     from sinslab.app import report as _report
     from sinslab.app.config import resolve
     from sinslab.app.outputs import RunDir, abort_all, completed_elsewhere, is_run_dir
@@ -405,8 +409,10 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                 # one local cluster for every campaign of the demo: started once, its
                 # workers keep their imports and loaded kernels from one run to the next
                 shared = stack.enter_context(dask_client(None))
+            lanes = None
             if _can_submit(shared):
-                _submit_beside(shared, [job for job in jobs if not job.campaign], out, quick)
+                longest = max(jobs, key=lambda j: j.cost)
+                lanes = _Lanes(shared, [job for job in jobs if job is not longest], out, quick)
             shown = 0
 
             def show(wait: bool) -> None:
@@ -414,10 +420,12 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                 nonlocal shown
                 while shown < len(jobs):
                     job = jobs[shown]
-                    if job.future is not None and job.outcome is None:
-                        if not (wait or job.future.done()):
+                    if job.remote and job.outcome is None:
+                        if not (wait or (job.future is not None and job.future.done())):
                             return
-                        job.outcome = _remote_outcome(job.future)
+                        job.submitted.wait()
+                        if job.outcome is None:
+                            job.outcome = _remote_outcome(job.future)
                     if job.outcome is None:
                         return
                     kind, value = job.outcome
@@ -432,15 +440,14 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                     shown += 1
 
             try:
-                here = [job for job in jobs if job.future is None]
-                # beside a cluster, the campaigns longest first: the last ones, short and
-                # spread over the workers, keep both CPUs busy up to the end instead of a
-                # long one computing alone (one after another, the order gains nothing)
+                here = [job for job in jobs if not job.remote]
+                # with a cluster that takes no runs, the campaigns longest first: the last
+                # ones, short and spread over the workers, keep both CPUs busy to the end
                 for job in _longest_first(here) if shared is not None else here:
                     _log(_running(job.exp.name, job.label, job.sets, quick))
                     try:
                         summary = execute(job.exp, job.cfg, out / job.label, quick=quick, log=_log,
-                                          scheduler=shared if job.campaign else None,
+                                          scheduler=("sync" if lanes else shared) if job.campaign else None,
                                           variant=(job.label, list(job.sets)) if job.sets else None,
                                           robustness="demo")
                     except (KeyboardInterrupt, *USER_ERRORS):
@@ -455,6 +462,8 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
                     show(wait=False)
                 show(wait=True)
             finally:
+                if lanes is not None:
+                    lanes.close()
                 # stopped early (interrupt, user error): the runs the workers completed are
                 # in place, and not for this process to discard or report as unchanged
                 for job in jobs:
@@ -482,8 +491,12 @@ class _DemoJob:
         self.cost = cost
         self.cfg = None
         self.campaign = False
+        #: computed on the cluster's workers (its future comes when a worker is free)
+        self.remote = False
         #: the Dask future of a run handed to the workers
         self.future = None
+        #: set once ``future`` is there
+        self.submitted = threading.Event()
         #: ("done", summary), ("failed", (line, traceback)) or ("user", exception)
         self.outcome = None
 
@@ -508,40 +521,66 @@ def _can_submit(client) -> bool:
     return isinstance(client, Client)
 
 
-def _submit_beside(client, jobs: list, out: Path, quick: bool) -> None:
-    """Hand the runs without a campaign to the cluster's workers, beside the campaigns.
+class _Lanes:
+    """Hands demo runs to the cluster's workers, one per free worker thread, longest first
+    by declared cost (LPT: the short runs fill the CPUs at the end).
 
-    Runs of one experiment follow each other (a run's future is an argument of the next
-    one's task): the first compiles the experiment's kernels into numba's disk cache and
-    the others load them, instead of two workers compiling the same kernels at once on a
-    fresh clone. Their tasks rank below the campaigns' (``priority``), which the command
-    waits for: a free worker takes a campaign's task first. The experiments' chains are
-    handed out longest first (their declared costs added), and the runs of a chain too: a
-    long run started last would end alone on one CPU.
+    A run is submitted only when a worker thread is free for it (when a run ends, the next
+    one goes out from the thread that learns of it): handed to a busy worker, a run would
+    wait behind another run there while the other worker idles, and Dask, not knowing the
+    runs' lengths, keeps no order among them. A run with a campaign computes it serially in
+    its worker (``scheduler="sync"``): a worker starts no cluster of its own. Kernels two
+    workers need at once are compiled by one of them (:mod:`sinslab.core.jitlock`).
     """
-    def forward(event):
-        # each line names its run: the runs' lines interleave
-        name, label, msg = event[1]
-        head, sep, rest = msg.partition(": ")
-        if sep and head in ("warning", "note"):
-            _log(f"{head}: {label}: {rest}")
-        elif msg.startswith("running "):
-            _log(msg)
-        else:
-            _log(f"{label}: {rest if sep and head == name else msg}")
 
-    client.subscribe_topic(_DEMO_TOPIC, forward)
-    last = {}
-    chains = {}
-    for job in _longest_first(jobs):
-        chains.setdefault(job.exp.name, []).append(job)
-    order = [job for chain in sorted(chains.values(), key=lambda c: -sum(j.cost for j in c)) for job in chain]
-    for job in order:
-        variant = (job.label, list(job.sets)) if job.sets else None
-        job.future = client.submit(_run_on_worker, job.exp.name, job.cfg, str(out / job.label), quick, variant,
-                                   after=last.get(job.exp.name), pure=False, priority=-1,
-                                   key=f"sinslab-demo-{job.label}")
-        last[job.exp.name] = job.future
+    def __init__(self, client, jobs: list, out: Path, quick: bool):
+        self.client, self.out, self.quick = client, out, quick
+        self.queue = _longest_first(jobs)
+        for job in self.queue:
+            job.remote = True
+        self.lock = threading.Lock()
+        self.closed = False
+
+        def forward(event):
+            # each line names its run: the runs' lines interleave
+            name, label, msg = event[1]
+            head, sep, rest = msg.partition(": ")
+            if sep and head in ("warning", "note"):
+                _log(f"{head}: {label}: {rest}")
+            elif msg.startswith("running "):
+                _log(msg)
+            else:
+                _log(f"{label}: {rest if sep and head == name else msg}")
+
+        client.subscribe_topic(_DEMO_TOPIC, forward)
+        slots = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
+        for _ in range(max(1, slots)):
+            self._next()
+
+    def _next(self, _ended=None) -> None:
+        """Submit the next run, if any (also the callback of every run's future)."""
+        with self.lock:
+            if self.closed or not self.queue:
+                return
+            job = self.queue.pop(0)
+            variant = (job.label, list(job.sets)) if job.sets else None
+            try:
+                job.future = self.client.submit(_run_on_worker, job.exp.name, job.cfg, str(self.out / job.label),
+                                                self.quick, variant, scheduler="sync" if job.campaign else None,
+                                                pure=False, key=f"sinslab-demo-{job.label}")
+            except Exception as e:                         # noqa: BLE001 - the cluster is gone
+                job.outcome = ("failed", (f"{type(e).__name__}: {e}", f"{job.label}: not started: {e}\n"))
+            finally:
+                job.submitted.set()
+        if job.future is None:
+            self._next()
+        else:
+            job.future.add_done_callback(self._next)
+
+    def close(self) -> None:
+        """Submit nothing more (the command stops)."""
+        with self.lock:
+            self.closed = True
 
 
 def _remote_outcome(future) -> tuple:
@@ -554,15 +593,15 @@ def _remote_outcome(future) -> tuple:
         return ("failed", (f"{type(e).__name__}: {e}", traceback.format_exc()))
 
 
-def _run_on_worker(name: str, cfg, out: str, quick: bool, variant, after=None) -> tuple:
+def _run_on_worker(name: str, cfg, out: str, quick: bool, variant, scheduler=None) -> tuple:
     """One demo run in a Dask worker: ``("done", summary)``; a failed run returns
-    ``("failed", (line, traceback))`` (the chain of runs after it goes on) and a user error
-    ``("user", exception)``, its staging folder discarded either way. ``after``: the
-    outcome of the run this one waits for (unused). Progress lines go to the command
-    through the cluster's events; the worker shows no progress bars."""
+    ``("failed", (line, traceback))`` (the other runs go on) and a user error
+    ``("user", exception)``, its staging folder discarded either way. ``scheduler``: the
+    run's (``"sync"`` for a campaign). Progress lines go to the command through the
+    cluster's events; the worker shows no progress bars."""
     from distributed import get_worker
 
-    from sinslab.app.outputs import abort_all
+    from sinslab.app.outputs import abort_run
     from sinslab.core.progress import set_quiet
     from sinslab.experiments import execute, get
 
@@ -574,14 +613,15 @@ def _run_on_worker(name: str, cfg, out: str, quick: bool, variant, after=None) -
 
     log(_running(name, variant[0] if variant else name, variant[1] if variant else (), quick))
     try:
-        return ("done", execute(get(name), cfg, out, quick=quick, log=log, variant=variant, robustness="demo"))
+        return ("done", execute(get(name), cfg, out, quick=quick, log=log, variant=variant, robustness="demo",
+                                scheduler=scheduler))
     except USER_ERRORS as e:
-        abort_all()
+        abort_run(out)
         return ("user", e)
     except Exception as e:                                 # noqa: BLE001 - reported by the command
         import traceback
 
-        abort_all()
+        abort_run(out)
         return ("failed", (f"{type(e).__name__}: {e}", traceback.format_exc()))
 
 

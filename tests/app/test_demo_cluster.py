@@ -1,5 +1,6 @@
-"""`sinslab demo` starts one Dask cluster for all its Monte Carlo campaigns, and hands its
-runs without a campaign to that cluster's workers."""
+"""`sinslab demo` starts one Dask cluster when a run has a Monte Carlo campaign, computes
+its costliest run itself and hands every other run to that cluster's workers, one per free
+worker, longest first."""
 import contextlib
 import json
 import sys
@@ -106,6 +107,7 @@ def test_demo_without_campaigns_starts_no_cluster(tmp_path, monkeypatch):
 
 # ------------------------------------------------- runs without a campaign on the workers
 PLACES = {}
+SCHEDULERS = {}
 
 
 def _where(label):
@@ -121,6 +123,7 @@ def _where(label):
 
 def _run_beside(cfg, ctx):
     PLACES[(cfg.runs, cfg.seed)] = _where(ctx.name)
+    SCHEDULERS[(cfg.runs, cfg.seed)] = ctx.scheduler if ctx.scheduler in (None, "sync") else "client"
     if cfg.seed == 13:
         raise RuntimeError("a broken run")
     return Result(metrics={"runs": cfg.runs},
@@ -151,30 +154,98 @@ def threads_cluster(monkeypatch):
     return starts
 
 
-def _demo_beside(tmp_path, monkeypatch, variants):
+def _demo_beside(tmp_path, monkeypatch, variants, **declared):
     mod = _module()
     mod.run = _run_beside
     mod.DEMO_VARIANTS = variants
+    for k, v in declared.items():
+        setattr(mod, k, v)
     monkeypatch.setitem(sys.modules, mod.__name__, mod)
     E.register(mod)
     PLACES.clear()
+    SCHEDULERS.clear()
     return CliRunner().invoke(app, ["demo", "--quick", "--only", "campaign-dummy", "--out", str(tmp_path / "runs")])
 
 
-def test_demo_runs_without_a_campaign_go_to_the_workers(tmp_path, monkeypatch, threads_cluster):
-    """The runs below CAMPAIGN_MIN_RUNS are Dask tasks on the demo's cluster, the campaign
-    runs stay in the command; the summaries come in the order of the runs whatever order
-    the runs end in, and every folder holds its completed run."""
-    r = _demo_beside(tmp_path, monkeypatch, {"single": ["runs=1"], "more": ["runs=4"], "one": ["runs=1", "seed=5"]})
+def test_demo_computes_its_costliest_run_and_hands_the_others_to_the_workers(tmp_path, monkeypatch,
+                                                                           threads_cluster):
+    """Beside a cluster, the run with the highest declared cost computes in the command and
+    every other run is a task on the workers, a campaign there computed serially (its
+    scheduler ``"sync"``: a worker starts no cluster); the summaries come in the order of
+    the runs whatever order the runs end in, and every folder holds its completed run."""
+    r = _demo_beside(tmp_path, monkeypatch, {"single": ["runs=1"], "more": ["runs=4"], "one": ["runs=1", "seed=5"]},
+                     DEMO_COST_S={"": 1.0, "single": 1.0, "more": 5.0, "one": 1.0})
     assert r.exit_code == 0, r.output
     assert threads_cluster == [None]
-    assert PLACES == {(3, 0): "command", (1, 0): "worker", (4, 0): "command", (1, 5): "worker"}
+    assert PLACES == {(3, 0): "worker", (1, 0): "worker", (4, 0): "command", (1, 5): "worker"}
+    assert SCHEDULERS == {(3, 0): "sync", (1, 0): None, (4, 0): "sync", (1, 5): None}
     lines = [ln.split(":")[0] for ln in r.stdout.splitlines() if "claims passed" in ln]
     assert lines == ["campaign-dummy", "campaign-dummy-single", "campaign-dummy-more", "campaign-dummy-one"]
     for label in ("campaign-dummy-single", "campaign-dummy-one"):
         s = json.loads((tmp_path / "runs" / label / "summary.json").read_text())
         assert s["name"] == label and s["metrics"]["runs"] == 1
     assert not [p for p in (tmp_path / "runs").iterdir() if p.name.startswith(".")]
+
+
+class _Future:
+    """A run's future that ends when the test says so."""
+
+    def __init__(self):
+        self.callbacks = []
+
+    def add_done_callback(self, fn):
+        self.callbacks.append(fn)
+
+    def end(self):
+        for fn in self.callbacks:
+            fn(self)
+
+
+class _Client:
+    """Two one-thread workers; records what is submitted."""
+
+    def __init__(self):
+        self.submitted = []
+
+    def subscribe_topic(self, topic, handler):
+        pass
+
+    def scheduler_info(self):
+        return {"workers": {"tcp://a": {"nthreads": 1}, "tcp://b": {"nthreads": 1}}}
+
+    def submit(self, fn, name, cfg, out, quick, variant, *, scheduler=None, pure=True, key=None):
+        fut = _Future()
+        self.submitted.append((key.removeprefix("sinslab-demo-"), scheduler, fut))
+        return fut
+
+
+def test_lanes_hand_out_one_run_per_free_worker_longest_first(tmp_path):
+    """LPT list scheduling: the two longest runs go out at once, then one run each time a
+    run ends, always the longest of those left (a stable order among equal costs); never
+    more runs out than worker threads; a campaign's run computes serially (``"sync"``)."""
+    from sinslab.cli import _DemoJob, _Lanes
+
+    exp = types.SimpleNamespace(name="x")
+    costs = {"a": 2.0, "b": 9.0, "c": 5.0, "d": 1.0, "e": 7.0, "f": 5.0}
+    jobs = [_DemoJob(exp, label, (), cost) for label, cost in costs.items()]
+    jobs[2].campaign = True
+    client = _Client()
+    _Lanes(client, jobs, tmp_path, quick=False)
+    assert [k for k, _, _ in client.submitted] == ["b", "e"]
+    running = {k: f for k, _, f in client.submitted}
+    order = ["b", "e"]
+    for ends in ["e", "b", "c", "f", "a", "d"]:
+        running.pop(ends).end()
+        new = [(k, f) for k, _, f in client.submitted if k not in order]
+        assert len(new) <= 1
+        for k, f in new:
+            order.append(k)
+            running[k] = f
+        assert len(running) <= 2
+    assert order == ["b", "e", "c", "f", "a", "d"]
+    assert {k: s for k, s, _ in client.submitted} == {"a": None, "b": None, "c": "sync", "d": None, "e": None,
+                                                      "f": None}
+    assert all(job.remote and job.submitted.is_set() for job in jobs)
 
 
 def test_demo_run_failing_on_a_worker_stops_nothing(tmp_path, monkeypatch, threads_cluster):
@@ -191,7 +262,7 @@ def test_demo_run_failing_on_a_worker_stops_nothing(tmp_path, monkeypatch, threa
     assert r.exit_code == 1
     assert "RuntimeError: a broken run" in r.output
     assert (broken / "summary.json").read_bytes() == before
-    assert "campaign-dummy-single: 1/1 claims passed" in r.stdout
+    assert "campaign-dummy-single: 1/1 claims passed" in r.stdout, r.output
     assert "campaign-dummy-broken" in (tmp_path / "runs" / "index.html").read_text()
     assert not [p for p in (tmp_path / "runs").iterdir() if p.name.startswith(".")]
 

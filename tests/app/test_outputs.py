@@ -132,6 +132,27 @@ def test_aborted_run_leaves_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_abort_run_discards_that_run_alone(tmp_path):
+    """Two runs being written by one process (a demo worker's threads): the one aborted by
+    :func:`outputs.abort_run` is discarded, its folder as before; the other goes on and
+    completes."""
+    from sinslab.app.outputs import abort_all, abort_run
+
+    abort_all()                                  # runs other tests left open
+    failed, going = tmp_path / "failed", tmp_path / "going"
+    a = RunDir(failed, "x").prepare()
+    b = RunDir(going, "x").prepare()
+    a.write_text("a.txt", "a")
+    b.write_text("b.txt", "b")
+    assert abort_run(failed) == f"nothing was written to {failed}"
+    assert abort_run(tmp_path / "never") is None
+    b.write_text("c.txt", "c")
+    b.finish()
+    assert not failed.exists()
+    assert sorted(p.name for p in going.iterdir() if not p.name.startswith(".")) == ["b.txt", "c.txt"]
+    assert abort_all() == []
+
+
 def test_abort_removes_staging_of_processes_gone_and_forgets_runs_completed_elsewhere(tmp_path):
     """An abort also removes the staging folders next to its folders that processes which
     no longer run left (a demo's Dask workers, stopped with the demo); a live process's is

@@ -51,7 +51,7 @@ from sinslab.app import report
 from sinslab.app.errors import UserError, deferred_signals, on_abort, published, raise_pending_interrupt
 from sinslab.core.atomic import atomic_path, atomic_write
 
-__all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "atomic_write", "atomic_path",
+__all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "abort_run", "atomic_write", "atomic_path",
            "to_jsonable", "dumps_json", "RunDir", "Figure", "default_out_dir", "is_run_dir",
            "abort_all", "completed_elsewhere", "forcing"]
 
@@ -279,6 +279,18 @@ def abort_all() -> list[str]:
         s = _ACTIVE.pop(0).abort()
         if s and s not in said:
             said.append(s)
+    return said
+
+
+def abort_run(path: str | os.PathLike) -> str | None:
+    """Discard this process's unfinished run in ``path`` alone; return what the folder
+    holds now (None: no run of this process was being written there). Runs of the
+    process in other folders go on: a demo's worker computing runs in several threads
+    discards only the one that failed."""
+    t = Path(path).absolute()
+    said = None
+    for r in [r for r in _ACTIVE if r.target.absolute() == t]:
+        said = r.abort()
     return said
 
 

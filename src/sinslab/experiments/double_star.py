@@ -170,7 +170,7 @@ DEMO_VARIANTS = {"ranges": ["filter.measurement=ranges", "runs=100"]}
 
 #: CPU seconds of each ``sinslab demo`` run at full scale, robustness re-runs included
 #: (quiet machine): the demo starts the longest first.
-DEMO_COST_S = {"": 44, "ranges": 8}
+DEMO_COST_S = {"": 19, "ranges": 9}
 
 METRICS = {
     "fix_sigma_ns_m": Metric("m", "two-GEO fix σ north-south at the start position (eqs 11-15, configured height factor)"),

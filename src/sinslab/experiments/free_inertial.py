@@ -177,7 +177,7 @@ DEMO_VARIANTS = {"mc200": ["runs=200"]}
 
 #: CPU seconds of each ``sinslab demo`` run at full scale, robustness re-runs included
 #: (quiet machine): the demo starts the longest first.
-DEMO_COST_S = {"": 2, "mc200": 9}
+DEMO_COST_S = {"": 3.4, "mc200": 15}
 
 METRICS = {
     "max_horiz_pos_err_m": Metric("m", "largest horizontal position error over the run"),

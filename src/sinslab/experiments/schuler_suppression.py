@@ -177,7 +177,7 @@ DEMO_VARIANTS = {"turntable": ["scenario.kind=turntable"], "injected": ["init.mo
 
 #: CPU seconds of each ``sinslab demo`` run at full scale, robustness re-runs included
 #: (quiet machine): the demo starts the longest first.
-DEMO_COST_S = {"": 17, "turntable": 3, "injected": 4, "still": 6}
+DEMO_COST_S = {"": 14, "turntable": 5, "injected": 7.5, "still": 8}
 
 #: Assumptions of the verdicts (names shared by the claims and the sweep's axes)
 ONSET, INIT, NOISE, SITE, MEASURE, KEPT_BAR, FLOOR = (
