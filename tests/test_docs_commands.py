@@ -609,17 +609,17 @@ QUOTED = [
       "profile_us.fused loop (F, G; Φ, Q̄; P with rows r.. diagonal; x)", "=2", "=2", "=9", "=12",
       "profile_us.P ← Φ P Φᵀ + Q (rows 9.. of Φ diagonal)", "profile_us.P ← Φ P Φᵀ + Q (dense, for comparison)",
       "load_min", "load_max", "=120"], 0.0),
-    ("README.md", "numba's cache empty, the install apart (`benchmarks/demo.py`) | 125.1 s wall, 229.6 s CPU of the "
-     "command and its workers (the kernels compiled at install by `sinslab compile`, 75 of them: 74 s wall, 40 s CPU; "
-     "the whole install with pip 122 s wall; none compiled by the demo); at load average 1.1–3.2, nothing else "
-     "running: over the target", "bench demo",
+    ("README.md", "numba's cache empty, the install apart (`benchmarks/demo.py`) | 107.0 s wall, 209.6 s CPU of the "
+     "command and its workers (the kernels compiled at install by `sinslab compile`, 75 of them: 69 s wall, 39 s CPU; "
+     "the whole install with pip 113 s wall; none compiled by the demo); at load average 0.7–3.3, nothing else "
+     "running", "bench demo",
      ["fresh.wall_s", "fresh.cpu_s", "compile.kernels", "compile.wall_s", "compile.compile_cpu_s", "install.wall_s",
       "load_min", "load_max"], 0.0),
-    ("README.md", "The runs start longest first; the longest, rotation-evaluation (70 s wall "
-     "beside the workers, and 11 s of robustness re-runs), rtk-outages (65 s) and schuler-suppression (15 s and 19 s) "
-     "share the two CPUs from the start, the campaigns follow | ≤ 2 min |", "bench demo",
+    ("README.md", "rotation-evaluation (68 s, and 15 s of robustness re-runs) in the command, the other twelve on the "
+     "two workers, each handed out when a worker frees, longest first: rtk-outages (66 s) and double-star (31 s and "
+     "9 s) first, the short ones last | ≤ 2 min |", "bench demo",
      ["fresh.runs.rotation-evaluation", "fresh.robustness_s.rotation-evaluation", "fresh.runs.rtk-outages",
-      "fresh.runs.schuler-suppression", "fresh.robustness_s.schuler-suppression", "=2"], 0.0),
+      "fresh.runs.double-star", "fresh.robustness_s.double-star", "=2"], 0.0),
     ("README.md", "`navigate` on a 10 min and a 1 h log of 200 Hz, and `run static-alignment --quick`, each install fresh",
      "bench cold_start", ["=10", "=1", "=200"], 0.0),
     ("README.md", "the clone as `make` installs it (`pip install -e`, then `sinslab compile`: 127 s CPU): 10 min 3.7 s / 283 MB "
