@@ -33,6 +33,7 @@ command, and list the module in ``COMMAND_MODULES``::
 from __future__ import annotations
 
 import contextlib
+import datetime
 import os
 import sys
 import threading
@@ -404,6 +405,8 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
             job.cfg = resolve(job.exp.config, quick=job.exp.quick if quick else None, sets=list(job.sets))
             job.campaign = starts_campaign(job.exp, job.cfg)
         with contextlib.ExitStack() as stack:
+            # registered first, so called last, once the cluster is closed
+            stack.callback(_completed_while_closing, jobs, out, datetime.datetime.now())
             shared = None
             if any(job.campaign for job in jobs):
                 # one local cluster for every campaign of the demo: started once, its
@@ -480,6 +483,19 @@ def _running(name: str, label: str, sets, quick: bool) -> str:
     """The progress line that starts a demo run."""
     what = f": {name} with {', '.join(sets)}" if sets else ""
     return f"running {label}{' (quick)' if quick else ''}{what} ..."
+
+
+def _completed_while_closing(jobs: list, out: Path, started) -> None:
+    """The runs the demo's workers put in place after the command last looked, marked as
+    completed elsewhere (:func:`sinslab.app.outputs.completed_elsewhere`). Stopped early
+    (an interrupt, a user error), the command closes the cluster, which lets a running
+    run end: that folder then holds the new run, and an abort's message must say so (a
+    run stopped mid-way is never half in place). ``started``: when the demo started."""
+    from sinslab.app.outputs import completed_elsewhere, completed_since
+
+    for job in jobs:
+        if job.remote and job.future is not None and completed_since(out / job.label, started):
+            completed_elsewhere(out / job.label)
 
 
 class _DemoJob:

@@ -153,6 +153,26 @@ def test_abort_run_discards_that_run_alone(tmp_path):
     assert abort_all() == []
 
 
+def test_completed_since_tells_a_run_put_in_place_after_a_moment(tmp_path):
+    """:func:`outputs.completed_since`: a complete run whose marker was written at or after
+    the moment (whole seconds, as the marker keeps them) is new; one written before, a run
+    still being written and a folder without a run are not."""
+    import datetime as dt
+
+    from sinslab.app.outputs import abort_all, completed_since
+
+    abort_all()                                  # runs other tests left open
+    before = dt.datetime.now()
+    done = tmp_path / "done"
+    RunDir(done, "x").prepare().finish()
+    assert completed_since(done, before)
+    assert not completed_since(done, dt.datetime.now() + dt.timedelta(seconds=2))
+    writing = RunDir(tmp_path / "writing", "x").prepare()
+    assert not completed_since(writing.path, before)
+    assert not completed_since(tmp_path / "none", before)
+    abort_all()
+
+
 def test_abort_removes_staging_of_processes_gone_and_forgets_runs_completed_elsewhere(tmp_path):
     """An abort also removes the staging folders next to its folders that processes which
     no longer run left (a demo's Dask workers, stopped with the demo); a live process's is

@@ -53,7 +53,7 @@ from sinslab.core.atomic import atomic_path, atomic_write
 
 __all__ = ["MARKER", "LARGE_ROWS", "OutputDirError", "abort_run", "atomic_write", "atomic_path",
            "to_jsonable", "dumps_json", "RunDir", "Figure", "default_out_dir", "is_run_dir",
-           "abort_all", "completed_elsewhere", "forcing"]
+           "abort_all", "completed_elsewhere", "completed_since", "forcing"]
 
 MARKER = ".sinslab-run"
 LARGE_ROWS = 100_000
@@ -267,6 +267,18 @@ def completed_elsewhere(path: str | os.PathLike) -> None:
     t = Path(path).absolute()
     _ACTIVE[:] = [r for r in _ACTIVE if r.target.absolute() != t]
     published(path)
+
+
+def completed_since(path: str | os.PathLike, since: _dt.datetime) -> bool:
+    """True if ``path`` holds a complete run whose marker was written at or after
+    ``since`` (local time; the marker keeps whole seconds): a run another process put in
+    place after that moment, as opposed to the run the folder held before."""
+    m = _read_marker(Path(path))
+    try:
+        return m.get("status") == "complete" and \
+            _dt.datetime.fromisoformat(m["updated"]) >= since.replace(microsecond=0)
+    except (KeyError, TypeError, ValueError):
+        return False
 
 
 @on_abort
