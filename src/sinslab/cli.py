@@ -376,34 +376,13 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
     those before it are done.
     """
     from sinslab.app import report as _report
-    from sinslab.app.config import resolve
-    from sinslab.app.outputs import RunDir, abort_all, completed_elsewhere, is_run_dir
-    from sinslab.app.validate import starts_campaign
+    from sinslab.app.outputs import abort_all, completed_elsewhere
     from sinslab.estimation.montecarlo import dask_client
-    from sinslab.experiments import execute, get, registry
+    from sinslab.experiments import execute
 
     done, failed = [], {}
     with user_errors():
-        if out.exists() and not out.is_dir():
-            raise CliError(f"output folder {out} exists and is a file")
-        if is_run_dir(out):
-            raise CliError(f"--out {out} is a run folder; demo writes one run folder per "
-                           f"experiment under --out, never inside another run: choose another --out")
-        idx_file = out / "index.html"
-        if idx_file.exists() and not _is_sinslab_index(idx_file):
-            raise CliError(f"{idx_file} exists and was not written by sinslab demo; "
-                           f"choose another --out (it is never overwritten)")
-        names = list(only) if only else list(registry())
-        exps = [get(n) for n in names]
-        # every experiment's default scenario followed by its declared variants (NAME-suffix)
-        jobs = [_DemoJob(exp, f"{exp.name}-{suffix}" if suffix else exp.name, tuple(sets),
-                         exp.demo_cost.get(suffix, 0.0))
-                for exp in exps for suffix, sets in [("", ())] + list(exp.variants.items())]
-        for job in jobs:                                   # check every folder first
-            RunDir(out / job.label, job.exp.name, command="run").check()
-        for job in jobs:
-            job.cfg = resolve(job.exp.config, quick=job.exp.quick if quick else None, sets=list(job.sets))
-            job.campaign = starts_campaign(job.exp, job.cfg)
+        jobs = _demo_jobs(out, only, quick)
         with contextlib.ExitStack() as stack:
             # registered first, so called last, once the cluster is closed
             stack.callback(_completed_while_closing, jobs, out, datetime.datetime.now())
@@ -419,28 +398,8 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
             shown = 0
 
             def show(wait: bool) -> None:
-                """Print the summaries that are due, in the order of the runs."""
                 nonlocal shown
-                while shown < len(jobs):
-                    job = jobs[shown]
-                    if job.remote and job.outcome is None:
-                        if not (wait or (job.future is not None and job.future.done())):
-                            return
-                        job.submitted.wait()
-                        if job.outcome is None:
-                            job.outcome = _remote_outcome(job.future)
-                    if job.outcome is None:
-                        return
-                    kind, value = job.outcome
-                    if kind == "user":
-                        raise value
-                    if kind == "failed":
-                        typer.echo(value[1], err=True, nl=False)        # its traceback
-                        failed[job.label] = value[0]
-                    else:
-                        _print_summary(value, out / job.label)
-                        done.append((job.label, out / job.label))
-                    shown += 1
+                shown = _show_due(jobs, shown, wait, out, done, failed)
 
             try:
                 here = [job for job in jobs if not job.remote]
@@ -477,6 +436,63 @@ def demo(out: Path = typer.Option(Path("runs"), "--out", "-o", help="folder for 
         typer.echo(f"index: {idx}")
         if failed:
             raise typer.Exit(1)
+
+
+def _demo_jobs(out: Path, only, quick: bool) -> list:
+    """The runs of a demo into ``out``, every folder checked before any is written: each
+    experiment's default scenario followed by its declared variants (``NAME-suffix``),
+    configuration resolved and campaign known. One-line errors for an unusable ``out``."""
+    from sinslab.app.config import resolve
+    from sinslab.app.outputs import RunDir, is_run_dir
+    from sinslab.app.validate import starts_campaign
+    from sinslab.experiments import get, registry
+
+    if out.exists() and not out.is_dir():
+        raise CliError(f"output folder {out} exists and is a file")
+    if is_run_dir(out):
+        raise CliError(f"--out {out} is a run folder; demo writes one run folder per "
+                       f"experiment under --out, never inside another run: choose another --out")
+    idx_file = out / "index.html"
+    if idx_file.exists() and not _is_sinslab_index(idx_file):
+        raise CliError(f"{idx_file} exists and was not written by sinslab demo; "
+                       f"choose another --out (it is never overwritten)")
+    exps = [get(n) for n in (list(only) if only else list(registry()))]
+    jobs = [_DemoJob(exp, f"{exp.name}-{suffix}" if suffix else exp.name, tuple(sets),
+                     exp.demo_cost.get(suffix, 0.0))
+            for exp in exps for suffix, sets in [("", ())] + list(exp.variants.items())]
+    for job in jobs:
+        RunDir(out / job.label, job.exp.name, command="run").check()
+    for job in jobs:
+        job.cfg = resolve(job.exp.config, quick=job.exp.quick if quick else None, sets=list(job.sets))
+        job.campaign = starts_campaign(job.exp, job.cfg)
+    return jobs
+
+
+def _show_due(jobs: list, shown: int, wait: bool, out: Path, done: list, failed: dict) -> int:
+    """Print the summaries that are due, in the order of the runs, from run ``shown`` on:
+    a run on the workers waited for only with ``wait``; a failed run's traceback to stderr
+    and its line into ``failed``; a user error raised. Returns how many are shown now."""
+    while shown < len(jobs):
+        job = jobs[shown]
+        if job.remote and job.outcome is None:
+            if not (wait or (job.future is not None and job.future.done())):
+                return shown
+            job.submitted.wait()
+            if job.outcome is None:
+                job.outcome = _remote_outcome(job.future)
+        if job.outcome is None:
+            return shown
+        kind, value = job.outcome
+        if kind == "user":
+            raise value
+        if kind == "failed":
+            typer.echo(value[1], err=True, nl=False)        # its traceback
+            failed[job.label] = value[0]
+        else:
+            _print_summary(value, out / job.label)
+            done.append((job.label, out / job.label))
+        shown += 1
+    return shown
 
 
 def _running(name: str, label: str, sets, quick: bool) -> str:
