@@ -406,17 +406,21 @@ def _channel_sums(te, je, base, plo, phi, act, ttype, tch, tta, tpar, tc):
 
 @njit(cache=True)
 def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype, tch, tta,
-                tpar, K, cache, tc, je):
+                tpar, Z, cache, tc, je):
     """Kinematic state of epochs e0..e1−1 (t_e = e·dt) into columns i0, i0+1, ... of
-    K (24, NB): v(3) v̇(3) C_b^n(9) ω_nb^b(3) carrier att(3) mount(3). Returns the piece of
-    the last epoch (``je`` is that of the epoch before e0).
+    rows 0..23 of the flat block buffer ``Z`` (see :func:`_earth_block`): v(3) v̇(3)
+    C_b^n(9) ω_nb^b(3) carrier att(3) mount(3). Returns the piece of the last epoch (``je``
+    is that of the epoch before e0).
 
     Scalar code. Sines and cosines of the Euler angles and of the sine terms' arguments
     follow their angles by small rotations (:func:`_sincos_step`; exact sin/cos at least
     every _ROT_RUN epochs, so they stay within ~1e-15 of it), and are reused, like the bank
     angle's arctangent, while the argument is unchanged; the caches live in ``cache`` and
-    ``tc`` (per term) between calls. An epoch in a piece with no active term copies the
-    previous column.
+    ``tc`` (per term) between calls. The epochs of a piece with no active term repeat the
+    previous column: one vectorised fill per row for the whole run (copied epoch by epoch
+    and column by column, such epochs cost half as much as computed ones). The stores go
+    to unsigned flat indices with compile-time row offsets: through a 2-D array, each
+    needed a row pointer kept on the stack and a negative-index wraparound.
     """
     nbp = bp.shape[0]
     a_th = cache[0]
@@ -441,16 +445,32 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
     n_p = int(cache[19])
     n_y = int(cache[20])
     n_r = int(cache[21])
-    for e in range(e0, e1):
+    e = e0
+    while e < e1:
         i = i0 + e - e0
+        ui = np.uint64(i)
         te = e * dt
         jprev = je
         while je + 1 < nbp and te >= bp[je + 1]:
             je += 1
         if e > 0 and je == jprev and plo[je] == phi[je] and flag[je] == 0:
+            # a piece with no active term: the epochs up to its end (or the call's) repeat
+            # the previous column, filled row by row (vectorised)
+            er = e + 1
+            if je + 1 < nbp:
+                while er < e1 and er * dt < bp[je + 1]:
+                    er += 1
+            else:
+                er = e1
+            nr = np.uint64(er - e)
             for q in range(24):
-                K[q, i] = K[q, i - 1]
+                rq = _R[q] + ui
+                v = Z[rq - np.uint64(1)]
+                for c in range(nr):
+                    Z[rq + c] = v
+            e = er
             continue
+        e += 1
         (V, Vd, psv, psd, psdd, thv, thd, roll, rolld, p_off, p_offd, y_off, y_offd, hd1, hd2,
          mp, mr, my, mpd, mrd, myd) = _channel_sums(te, je, base, plo, phi, act, ttype, tch, tta,
                                                     tpar, tc)
@@ -479,30 +499,30 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                    roll, rolld, s_r, c_r, has_mount, mp, mr, my, mpd, mrd, myd)
         # one store per element: a loop over the tuple would index it at run time (through
         # a stack copy), a third of this function's time
-        K[0, i] = out[0]
-        K[1, i] = out[1]
-        K[2, i] = out[2]
-        K[3, i] = out[3]
-        K[4, i] = out[4]
-        K[5, i] = out[5]
-        K[6, i] = out[6]
-        K[7, i] = out[7]
-        K[8, i] = out[8]
-        K[9, i] = out[9]
-        K[10, i] = out[10]
-        K[11, i] = out[11]
-        K[12, i] = out[12]
-        K[13, i] = out[13]
-        K[14, i] = out[14]
-        K[15, i] = out[15]
-        K[16, i] = out[16]
-        K[17, i] = out[17]
-        K[18, i] = out[18]
-        K[19, i] = out[19]
-        K[20, i] = out[20]
-        K[21, i] = out[21]
-        K[22, i] = out[22]
-        K[23, i] = out[23]
+        Z[_R[0] + ui] = out[0]
+        Z[_R[1] + ui] = out[1]
+        Z[_R[2] + ui] = out[2]
+        Z[_R[3] + ui] = out[3]
+        Z[_R[4] + ui] = out[4]
+        Z[_R[5] + ui] = out[5]
+        Z[_R[6] + ui] = out[6]
+        Z[_R[7] + ui] = out[7]
+        Z[_R[8] + ui] = out[8]
+        Z[_R[9] + ui] = out[9]
+        Z[_R[10] + ui] = out[10]
+        Z[_R[11] + ui] = out[11]
+        Z[_R[12] + ui] = out[12]
+        Z[_R[13] + ui] = out[13]
+        Z[_R[14] + ui] = out[14]
+        Z[_R[15] + ui] = out[15]
+        Z[_R[16] + ui] = out[16]
+        Z[_R[17] + ui] = out[17]
+        Z[_R[18] + ui] = out[18]
+        Z[_R[19] + ui] = out[19]
+        Z[_R[20] + ui] = out[20]
+        Z[_R[21] + ui] = out[21]
+        Z[_R[22] + ui] = out[22]
+        Z[_R[23] + ui] = out[23]
     cache[0] = a_th
     cache[1] = s_th
     cache[2] = c_th
@@ -706,7 +726,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         nk = min(B, n - K0)
         if K0 == 0:
             je = _kinematics(K0, nk + hi, ib, dt, has_mount, bp, base, flag, plo, phi, act,
-                             ttype, tch, tta, tpar, K, cache, tc, je)
+                             ttype, tch, tta, tpar, Zf, cache, tc, je)
             enew = ib
         else:
             for q in range(24):             # halo: the epochs K0+lo .. K0+hi−1 shift left
@@ -716,7 +736,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 for c in range(hi - lo):
                     W[q, c] = W[q, B + c]
             je = _kinematics(K0 + hi, K0 + nk + hi, hi - lo, dt, has_mount, bp, base, flag,
-                             plo, phi, act, ttype, tch, tta, tpar, K, cache, tc, je)
+                             plo, phi, act, ttype, tch, tta, tpar, Zf, cache, tc, je)
             enew = hi - lo
         if m > 0:
             _earth_block(enew, ib + nk + hi, ib, dt, lat, h, Zf)
