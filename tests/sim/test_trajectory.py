@@ -157,15 +157,19 @@ def test_sincos_rotation_stays_within_a_few_ulps():
     assert rotated > 0.75 * steps.size and max(runs) == _synth._ROT_RUN
 
 
-def test_kinematics_channel_sums_equal_the_array_evaluation():
-    """The kinematics sum the channel terms in scalars (_channel_sums); the fallback path's
-    _channels sums them into arrays indexed by channel. On random tables (all term types,
-    every channel, several terms per channel) both must give the same numbers bit for bit:
-    same terms, same order of the additions. A fresh per-term cache makes the sine terms'
-    sines exact, as _channels takes them."""
+@pytest.mark.parametrize("with_sines", [True, False])
+def test_channel_rows_equal_the_array_evaluation(with_sines):
+    """The kinematics evaluate the channel terms row by row over runs of epochs
+    (_channel_rows); the fallback path's _channels sums them epoch by epoch into arrays
+    indexed by channel. On random tables (all term types, every channel, several terms per
+    channel) both must give the same numbers bit for bit: same terms, same order of the
+    additions. With sine terms the runs are single epochs with a fresh per-term cache (its
+    sines are then exact, as _channels takes them); without, runs of up to 60 epochs. One
+    buffer throughout, pieces alternating: the rows of a channel without terms keep their
+    constant from an earlier run only while it is the piece's value (rowb)."""
     rng = np.random.default_rng(11)
     nt = 40
-    ttype = rng.integers(0, 3, nt)
+    ttype = rng.integers(0, 3 if with_sines else 2, nt)
     tch = np.concatenate([np.arange(_synth.NCH), rng.integers(0, _synth.NCH, nt - _synth.NCH)])
     tta = rng.uniform(0.0, 5.0, nt)
     T = rng.uniform(0.5, 8.0, nt)
@@ -176,22 +180,33 @@ def test_kinematics_channel_sums_equal_the_array_evaluation():
     tpar[:, 3] = T
     tpar[:, 4] = T * rng.uniform(0.0, 0.5, nt) * (rng.random(nt) < 0.7)
     tpar[:, 5] = T * rng.uniform(0.0, 0.5, nt) * (rng.random(nt) < 0.7)
-    base = rng.normal(0.0, 1.0, (2, _synth.NCH))
-    plo = np.array([0, 3], dtype=np.int64)
-    phi = np.array([3, nt], dtype=np.int64)
+    base = rng.normal(0.0, 1.0, (3, _synth.NCH))
+    base[2] = base[0]
+    base[2, 3] = -0.0                                   # a zero of the other sign than piece 3's
+    base = np.vstack([base, base[2:3]])
+    base[3, 3] = 0.0
+    plo = np.array([0, 3, 3, 3], dtype=np.int64)
+    phi = np.array([3, nt, 3, 3], dtype=np.int64)
     act = rng.permutation(nt).astype(np.int64)
     val, d1, d2 = np.empty(_synth.NCH), np.empty(_synth.NCH), np.empty(_synth.NCH)
-    V, P, TH, R, PI, Y, H, MP, MR, MY = range(_synth.NCH)
-    for t in rng.uniform(0.0, 14.0, 300):
-        for j in (0, 1):
-            tc = np.zeros((nt, 4))
-            tc[:, 0] = np.nan
-            got = _synth._channel_sums(t, j, base, plo, phi, act, ttype, tch, tta, tpar, tc)
-            _synth._channels(t, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2)
-            want = (val[V], d1[V], val[P], d1[P], d2[P], val[TH], d1[TH], val[R], d1[R], val[PI],
-                    d1[PI], val[Y], d1[Y], d1[H], d2[H], val[MP], val[MR], val[MY], d1[MP], d1[MR],
-                    d1[MY])
-            assert np.array_equal(np.array(got).view(np.int64), np.array(want).view(np.int64))
+    NB, dt = _synth._NB, 0.01
+    Z = np.zeros(_synth._NROW * NB)
+    rowb = np.full(_synth.NCH, np.nan)
+    rows = Z.reshape(_synth._NROW, NB)[44:44 + 3 * _synth.NCH].reshape(_synth.NCH, 3, NB)
+    for _ in range(300):
+        j = int(rng.integers(0, 4))
+        nr = 1 if with_sines else int(rng.integers(1, 61))
+        e = int(rng.integers(0, 1400))
+        ui = int(rng.integers(0, NB - nr + 1))
+        tc = np.zeros((nt, 4))
+        tc[:, 0] = np.nan
+        _synth._channel_rows(e, nr, np.uint64(ui), dt, j, base, plo, phi, act, ttype, tch, tta,
+                             tpar, tc, rowb, Z)
+        for k in range(nr):
+            _synth._channels((e + k) * dt, j, base, plo, phi, act, ttype, tch, tta, tpar, val, d1, d2)
+            got = rows[:, :, ui + k]
+            want = np.stack([val, d1, d2], axis=1)
+            assert np.array_equal(got.view(np.int64), want.view(np.int64))
 
 
 @pytest.mark.parametrize("m", [2, 4, 6, 8, 10])

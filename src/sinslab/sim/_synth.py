@@ -296,8 +296,8 @@ def _asin1(x):
 
 _BLOCK = 64        # intervals per block: the vectorised passes run over ~70 epochs at a time
 _NB = _BLOCK + 8   # buffer columns: a block and its stencil halo (at most 7 epochs)
-_NROW = 44         # buffer rows: kinematics 0..23, Earth terms 24..32, predicted offsets 33, 34,
-                   # stencil sums 35..43
+_NROW = 74         # buffer rows: kinematics 0..23, Earth terms 24..32, predicted offsets 33, 34,
+                   # stencil sums 35..43, channel c's value, rate and acceleration 44 + 3c .. 46 + 3c
 _R = tuple(np.uint64(r * _NB) for r in range(_NROW))     # row offsets in the flat buffer
 _U = tuple(np.uint64(j) for j in range(8))                # column steps within a row
 
@@ -324,103 +324,122 @@ def _sincos_step(x, a, s, c, n):
     return x, math.sin(x), math.cos(x), 0
 
 
-@njit(cache=True, inline="always")
-def _channel_sums(te, je, base, plo, phi, act, ttype, tch, tta, tpar, tc):
-    """The channel values and derivatives at time te (piece je) that the kinematics use, as
-    scalars: the 21-tuple V, V̇, ψ, ψ̇, ψ̈ (track), θ, θ̇ (path angle), roll and its rate, body
-    pitch and yaw offsets and their rates, ḣ and ḧ of the heave, mount pitch, roll, yaw and
-    their rates.
-    The same sums in the same order as :func:`_channels` (its arrays, indexed by channel at
-    run time, kept every sum in memory: a fifth of the kinematics' time); sines and cosines
-    of the sine terms by :func:`_sincos_step` on the per-term cache ``tc``."""
-    v_v = base[je, CH_V]
-    v_ps = base[je, CH_PSI]
-    v_th = base[je, CH_THETA]
-    v_r = base[je, CH_ROLL]
-    v_p = base[je, CH_PITCH]
-    v_y = base[je, CH_YAW]
-    v_mp = base[je, CH_MP]
-    v_mr = base[je, CH_MR]
-    v_my = base[je, CH_MY]
-    d_v = 0.0
-    d_ps = 0.0
-    d_th = 0.0
-    d_r = 0.0
-    d_p = 0.0
-    d_y = 0.0
-    d_h = 0.0
-    d_mp = 0.0
-    d_mr = 0.0
-    d_my = 0.0
-    e_ps = 0.0
-    e_h = 0.0
+@njit(cache=True)
+def _same(x, y):
+    """x and y equal, zeros of the same sign (then every function of them is the same)."""
+    return x == y and math.copysign(1.0, x) == math.copysign(1.0, y)
+
+
+@njit(cache=True, error_model="numpy")
+def _channel_rows(e, nr, ui, dt, je, base, plo, phi, act, ttype, tch, tta, tpar, tc, rowb, Z):
+    """Values, rates and accelerations of all channels at the nr epochs e, e+1, ... of piece
+    je (t = e·dt) into columns ui, ui+1, ... of rows 44 + 3c, 45 + 3c, 46 + 3c of the flat
+    block buffer ``Z`` (channel c; layout as in :func:`_earth_block`).
+
+    The same sums as :func:`_channels` — the piece's base value (rates 0), then its active
+    terms in order — row by row: every term's parameters are read once per run and its
+    values computed in a loop of its own (vectorised for trapezoids and steps, divisions
+    included); epoch by epoch, fetching each term's type, channel and parameters and
+    dispatching on them cost more than the evaluation. Sines and cosines of the sine terms by :func:`_sincos_step` on
+    the per-term cache ``tc``. ``rowb[c]``: the constant that fills every column of channel
+    c's rows (rates 0), or NaN.
+    """
+    nb = np.uint64(_NB)
+    active = 0
+    for a in range(plo[je], phi[je]):
+        active |= 1 << tch[act[a]]
+    for c in range(NCH):
+        b = base[je, c]
+        o = np.uint64((44 + 3 * c) * _NB)
+        if active & (1 << c):
+            o += ui
+            for k in range(nr):
+                uk = np.uint64(k)
+                Z[o + uk] = b
+                Z[o + nb + uk] = 0.0
+                Z[o + nb + nb + uk] = 0.0
+            rowb[c] = math.nan
+        elif not _same(b, rowb[c]):
+            # a channel without terms: its rows hold the constant in every column, written
+            # once for as long as it stays so (the memory traffic of filling all rows for
+            # every run cost more than the evaluation saved)
+            for k in range(_NB):
+                uk = np.uint64(k)
+                Z[o + uk] = b
+                Z[o + nb + uk] = 0.0
+                Z[o + nb + nb + uk] = 0.0
+            rowb[c] = b
     for a in range(plo[je], phi[je]):
         kk = act[a]
-        u = te - tta[kk]
-        if ttype[kk] == T_SINE:
-            ag, sg, cg, ng = _sincos_step(tpar[kk, 1] * u + tpar[kk, 2], tc[kk, 0],
-                                          tc[kk, 1], tc[kk, 2], int(tc[kk, 3]))
+        ov = np.uint64((44 + 3 * tch[kk]) * _NB) + ui
+        od = ov + nb
+        oa = od + nb
+        ta = tta[kk]
+        typ = ttype[kk]
+        if typ == T_SINE:
+            amp = tpar[kk, 0]
+            w = tpar[kk, 1]
+            ph = tpar[kk, 2]
+            T = tpar[kk, 3]
+            ri = tpar[kk, 4]
+            ro = tpar[kk, 5]
+            ag = tc[kk, 0]
+            sg = tc[kk, 1]
+            cg = tc[kk, 2]
+            ng = int(tc[kk, 3])
+            for k in range(nr):
+                u = (e + k) * dt - ta
+                ag, sg, cg, ng = _sincos_step(w * u + ph, ag, sg, cg, ng)
+                x0, x1, x2 = _sine_term(u, amp, w, T, ri, ro, sg, cg)
+                uk = np.uint64(k)
+                Z[ov + uk] += x0
+                Z[od + uk] += x1
+                Z[oa + uk] += x2
             tc[kk, 0] = ag
             tc[kk, 1] = sg
             tc[kk, 2] = cg
             tc[kk, 3] = ng
-            x0, x1, x2 = _sine_term(u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 3], tpar[kk, 4],
-                                    tpar[kk, 5], sg, cg)
+        elif typ == T_TRAP:
+            p0 = tpar[kk, 0]
+            p1 = tpar[kk, 1]
+            p2 = tpar[kk, 2]
+            for k in range(nr):
+                x0, x1, x2 = _term(T_TRAP, (e + k) * dt - ta, p0, p1, p2)
+                uk = np.uint64(k)
+                Z[ov + uk] += x0
+                Z[od + uk] += x1
+                Z[oa + uk] += x2
         else:
-            x0, x1, x2 = _term(ttype[kk], u, tpar[kk, 0], tpar[kk, 1], tpar[kk, 2])
-        ch = tch[kk]
-        if ch == CH_V:
-            v_v += x0
-            d_v += x1
-        elif ch == CH_PSI:
-            v_ps += x0
-            d_ps += x1
-            e_ps += x2
-        elif ch == CH_THETA:
-            v_th += x0
-            d_th += x1
-        elif ch == CH_ROLL:
-            v_r += x0
-            d_r += x1
-        elif ch == CH_PITCH:
-            v_p += x0
-            d_p += x1
-        elif ch == CH_YAW:
-            v_y += x0
-            d_y += x1
-        elif ch == CH_HEAVE:
-            d_h += x1
-            e_h += x2
-        elif ch == CH_MP:
-            v_mp += x0
-            d_mp += x1
-        elif ch == CH_MR:
-            v_mr += x0
-            d_mr += x1
-        else:
-            v_my += x0
-            d_my += x1
-    return (v_v, d_v, v_ps, d_ps, e_ps, v_th, d_th, v_r, d_r, v_p, d_p, v_y, d_y, d_h, e_h,
-            v_mp, v_mr, v_my, d_mp, d_mr, d_my)
+            p0 = tpar[kk, 0]
+            p1 = tpar[kk, 1]
+            p2 = tpar[kk, 2]
+            for k in range(nr):
+                x0, x1, x2 = _term(T_STEP, (e + k) * dt - ta, p0, p1, p2)
+                uk = np.uint64(k)
+                Z[ov + uk] += x0
+                Z[od + uk] += x1
+                Z[oa + uk] += x2
 
 
 @njit(cache=True)
 def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype, tch, tta,
-                tpar, Z, cache, tc, je):
+                tpar, Z, cache, tc, rowb, je):
     """Kinematic state of epochs e0..e1−1 (t_e = e·dt) into columns i0, i0+1, ... of
     rows 0..23 of the flat block buffer ``Z`` (see :func:`_earth_block`): v(3) v̇(3)
     C_b^n(9) ω_nb^b(3) carrier att(3) mount(3). Returns the piece of the last epoch (``je``
     is that of the epoch before e0).
 
-    Scalar code. Sines and cosines of the Euler angles and of the sine terms' arguments
-    follow their angles by small rotations (:func:`_sincos_step`; exact sin/cos at least
-    every _ROT_RUN epochs, so they stay within ~1e-15 of it), and are reused, like the bank
-    angle's arctangent, while the argument is unchanged; the caches live in ``cache`` and
-    ``tc`` (per term) between calls. The epochs of a piece with no active term repeat the
-    previous column: one vectorised fill per row for the whole run (copied epoch by epoch
-    and column by column, such epochs cost half as much as computed ones). The stores go
-    to unsigned flat indices with compile-time row offsets: through a 2-D array, each
-    needed a row pointer kept on the stack and a negative-index wraparound.
+    The epochs go in runs within one piece: the channels of a run by :func:`_channel_rows`
+    (rows 44.. of ``Z``), then epoch by epoch in scalar code the bank angle, the sines and
+    cosines and the state. Sines and cosines of the Euler angles and of the sine terms'
+    arguments follow their angles by small rotations (:func:`_sincos_step`; exact sin/cos
+    at least every _ROT_RUN epochs, so they stay within ~1e-15 of it), and are reused, like
+    the bank angle's arctangent, while the argument is unchanged; the caches live in
+    ``cache``, ``tc`` (per term) and ``rowb`` between calls. The epochs of a piece with no
+    active term repeat the previous column: one vectorised fill per row for the whole run
+    (copied epoch by epoch and column by column, such epochs cost half as much as computed
+    ones). The stores go to unsigned flat indices with compile-time row offsets: through a
+    2-D array, each needed a row pointer kept on the stack and a negative-index wraparound.
     """
     nbp = bp.shape[0]
     a_th = cache[0]
@@ -446,34 +465,67 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
     n_y = int(cache[20])
     n_r = int(cache[21])
     e = e0
-    while e < e1:
-        i = i0 + e - e0
-        ui = np.uint64(i)
-        te = e * dt
-        jprev = je
-        while je + 1 < nbp and te >= bp[je + 1]:
-            je += 1
-        if e > 0 and je == jprev and plo[je] == phi[je] and flag[je] == 0:
-            # a piece with no active term: the epochs up to its end (or the call's) repeat
-            # the previous column, filled row by row (vectorised)
+    nk = 0
+    ui = np.uint64(0)
+    while True:
+        if nk == 0:
+            # the next run: epochs e .. er−1 of one piece
+            if e >= e1:
+                break
+            i = i0 + e - e0
+            ui = np.uint64(i)
+            te = e * dt
+            jprev = je
+            while je + 1 < nbp and te >= bp[je + 1]:
+                je += 1
+            const = plo[je] == phi[je] and flag[je] == 0
             er = e + 1
-            if je + 1 < nbp:
+            if je + 1 >= nbp:
+                er = e1
+            else:
                 while er < e1 and er * dt < bp[je + 1]:
                     er += 1
-            else:
-                er = e1
-            nr = np.uint64(er - e)
-            for q in range(24):
-                rq = _R[q] + ui
-                v = Z[rq - np.uint64(1)]
-                for c in range(nr):
-                    Z[rq + c] = v
+            if const and e > 0 and je == jprev:
+                # a piece with no active term: its epochs repeat the previous column,
+                # filled row by row (vectorised)
+                nr = np.uint64(er - e)
+                for q in range(24):
+                    rq = _R[q] + ui
+                    v = Z[rq - np.uint64(1)]
+                    for c in range(nr):
+                        Z[rq + c] = v
+                e = er
+                continue
+            if const:
+                er = e + 1                  # the first epoch of such a piece; the next ones copy it
+            nk = er - e
+            _channel_rows(e, nk, ui, dt, je, base, plo, phi, act, ttype, tch, tta, tpar, tc,
+                          rowb, Z)
             e = er
-            continue
-        e += 1
-        (V, Vd, psv, psd, psdd, thv, thd, roll, rolld, p_off, p_offd, y_off, y_offd, hd1, hd2,
-         mp, mr, my, mpd, mrd, myd) = _channel_sums(te, je, base, plo, phi, act, ttype, tch, tta,
-                                                    tpar, tc)
+        else:
+            ui += np.uint64(1)
+        nk -= 1
+        V = Z[_R[44] + ui]
+        Vd = Z[_R[45] + ui]
+        psv = Z[_R[47] + ui]
+        psd = Z[_R[48] + ui]
+        psdd = Z[_R[49] + ui]
+        thv = Z[_R[50] + ui]
+        thd = Z[_R[51] + ui]
+        roll = Z[_R[53] + ui]
+        rolld = Z[_R[54] + ui]
+        p_off = Z[_R[56] + ui]
+        p_offd = Z[_R[57] + ui]
+        y_off = Z[_R[59] + ui]
+        y_offd = Z[_R[60] + ui]
+        hd1 = Z[_R[63] + ui]
+        hd2 = Z[_R[64] + ui]
+        mp = Z[_R[65] + ui]
+        mpd = Z[_R[66] + ui]
+        mr = Z[_R[68] + ui]
+        mrd = Z[_R[69] + ui]
+        my = Z[_R[71] + ui]
+        myd = Z[_R[72] + ui]
         if flag[je] != 0:
             u = -V * psd / G0
             if u != a_u:
@@ -700,6 +752,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
     cache[17:] = 0.0
     tc = np.zeros((ttype.shape[0], 4))     # per term: argument, sin, cos, rotations
     tc[:, 0] = math.nan
+    rowb = np.full(NCH, math.nan)          # see _channel_rows
     ns = cn.shape[0]
     SN = np.zeros((ns, 24))
     WN = np.zeros((ns, 6))
@@ -726,7 +779,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
         nk = min(B, n - K0)
         if K0 == 0:
             je = _kinematics(K0, nk + hi, ib, dt, has_mount, bp, base, flag, plo, phi, act,
-                             ttype, tch, tta, tpar, Zf, cache, tc, je)
+                             ttype, tch, tta, tpar, Zf, cache, tc, rowb, je)
             enew = ib
         else:
             for q in range(24):             # halo: the epochs K0+lo .. K0+hi−1 shift left
@@ -736,7 +789,7 @@ def _synth(n, dt, out_every, sw, lo_off, cn, wn, amat, has_mount,
                 for c in range(hi - lo):
                     W[q, c] = W[q, B + c]
             je = _kinematics(K0 + hi, K0 + nk + hi, hi - lo, dt, has_mount, bp, base, flag,
-                             plo, phi, act, ttype, tch, tta, tpar, Zf, cache, tc, je)
+                             plo, phi, act, ttype, tch, tta, tpar, Zf, cache, tc, rowb, je)
             enew = hi - lo
         if m > 0:
             _earth_block(enew, ib + nk + hi, ib, dt, lat, h, Zf)
