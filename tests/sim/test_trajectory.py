@@ -209,6 +209,35 @@ def test_channel_rows_equal_the_array_evaluation(with_sines):
             assert np.array_equal(got.view(np.int64), want.view(np.int64))
 
 
+@pytest.mark.parametrize("has_mount", [False, True])
+def test_state_rows_equal_the_scalar_state(has_mount):
+    """_state_rows evaluates _kin over a run of columns in one vectorised loop, reading its
+    inputs from rows it then overwrites (0..20). Every column must hold the bits of _kin
+    called on that column's inputs alone: no reassociation or fused multiply-add in the
+    SIMD code, each input read before its column is written."""
+    rng = np.random.default_rng(5)
+    NB, R = _synth._NB, lambda r: r * _synth._NB
+    for _ in range(20):
+        Z = rng.normal(0.0, 1.0, _synth._NROW * NB) * 10.0 ** rng.integers(-3, 3, _synth._NROW * NB)
+        nr = int(rng.integers(1, NB + 1))
+        ui = int(rng.integers(0, NB - nr + 1))
+        before = Z.copy()
+        _synth._state_rows(np.uint64(ui), nr, has_mount, Z)
+        for c in range(ui, ui + nr):
+            z = lambda r: before[R(r) + c]
+            want = _synth._kin(z(44), z(45), z(51), z(6), z(7), z(8), z(9), z(48), z(63), z(64),
+                               z(18), z(51) + z(57), z(10), z(11), z(20), z(48) + z(60), z(12),
+                               z(13), z(19), z(16), z(14), z(15), has_mount,
+                               (z(65), z(68), z(71), z(66), z(69), z(72), z(0), z(1), z(2),
+                                z(3), z(4), z(5)))
+            got = Z[[R(q) + c for q in range(24)]]
+            assert np.array_equal(got.view(np.int64), np.array(want).view(np.int64))
+        outside = np.ones(_synth._NROW * NB, bool)
+        for q in range(24):
+            outside[R(q) + ui:R(q) + ui + nr] = False
+        assert np.array_equal(Z[outside], before[outside])
+
+
 @pytest.mark.parametrize("m", [2, 4, 6, 8, 10])
 def test_stencil_block_sums_in_the_order_of_the_pairwise_loop(m):
     """_stencil_block writes each stencil sum as one expression; it must give the bits of
