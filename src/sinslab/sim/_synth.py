@@ -421,6 +421,32 @@ def _channel_rows(e, nr, ui, dt, je, base, plo, phi, act, ttype, tch, tta, tpar,
                 Z[oa + uk] += x2
 
 
+@njit(cache=True, error_model="numpy")
+def _bank_rows(ui, nr, Z):
+    """The coordinated turn's tan φ = −V·ψ̇/g0 (``u``) and roll rate −(V̇ψ̇ + Vψ̈)/g0/(1 + u²)
+    at columns ui .. ui+nr−1 of the flat block buffer ``Z``, from the channel rows, into
+    its rows 17 and 21 (free until :func:`_state_rows`): the divisions vectorised, only
+    the arctangent's cache stays in the sequential loop."""
+    for k in range(nr):
+        uk = ui + np.uint64(k)
+        V = Z[_R[44] + uk]
+        psd = Z[_R[48] + uk]
+        u = -V * psd / G0
+        Z[_R[17] + uk] = u
+        Z[_R[21] + uk] = -(Z[_R[45] + uk] * psd + V * Z[_R[49] + uk]) / G0 / (1.0 + u * u)
+
+
+@njit(cache=True)
+def _fill_run(Z, r0, nrow, ui, nr):
+    """Columns ui+1 .. ui+nr−1 of rows r0 .. r0+nrow−1 of the flat block buffer ``Z`` set
+    to the value in column ui."""
+    for r in range(r0, r0 + nrow):
+        o = np.uint64(r * _NB) + ui
+        v = Z[o]
+        for k in range(1, nr):
+            Z[o + np.uint64(k)] = v
+
+
 @njit(cache=True)
 def _state_rows(ui, nr, has_mount, Z):
     """Kinematic state (:func:`_kin`) of columns ui .. ui+nr−1 of the flat block buffer
@@ -553,52 +579,67 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
         nr = er - e
         _channel_rows(e, nr, ui, dt, je, base, plo, phi, act, ttype, tch, tta, tpar, tc, rowb, Z)
         coord = flag[je] != 0
+        # the angles whose channels have no term keep their value over the run: their
+        # sines are those of its first epoch, filled into the other columns after the loop
+        v_th = math.isnan(rowb[CH_THETA])
+        v_ps = math.isnan(rowb[CH_PSI])
+        v_p = v_th or math.isnan(rowb[CH_PITCH])
+        v_y = v_ps or math.isnan(rowb[CH_YAW])
+        v_r = coord or math.isnan(rowb[CH_ROLL])
+        v_m = has_mount and (math.isnan(rowb[CH_MP]) or math.isnan(rowb[CH_MR])
+                             or math.isnan(rowb[CH_MY]))
+        if coord:
+            _bank_rows(ui, nr, Z)
         for k in range(nr):
             # sequential: the bank angle's and the sines' caches. Into rows the state
             # pass reads: the sines and cosines (6..15; mount 0..5), the roll rate (16) and
             # the carrier's Euler angles (18..20)
             uk = ui + np.uint64(k)
+            f = k == 0
             thv = Z[_R[50] + uk]
             psv = Z[_R[47] + uk]
-            roll = Z[_R[53] + uk]
-            rolld = Z[_R[54] + uk]
-            if coord:
-                V = Z[_R[44] + uk]
-                psd = Z[_R[48] + uk]
-                u = -V * psd / G0
-                if u != a_u:
-                    a_u = u
-                    t_u = math.atan(u)
-                roll += t_u
-                rolld += -(Z[_R[45] + uk] * psd + V * Z[_R[49] + uk]) / G0 / (1.0 + u * u)
-            a_th, s_th, c_th, n_th = _sincos_step(thv, a_th, s_th, c_th, n_th)
-            a_ps, s_ps, c_ps, n_ps = _sincos_step(psv, a_ps, s_ps, c_ps, n_ps)
-            pitch = thv + Z[_R[56] + uk]
-            if pitch == thv:                # no sway: the body pitch is the path angle
-                a_p, s_p, c_p, n_p = a_th, s_th, c_th, n_th
-            else:
-                a_p, s_p, c_p, n_p = _sincos_step(pitch, a_p, s_p, c_p, n_p)
-            yaw = psv + Z[_R[59] + uk]
-            if yaw == psv:
-                a_y, s_y, c_y, n_y = a_ps, s_ps, c_ps, n_ps
-            else:
-                a_y, s_y, c_y, n_y = _sincos_step(yaw, a_y, s_y, c_y, n_y)
-            a_r, s_r, c_r, n_r = _sincos_step(roll, a_r, s_r, c_r, n_r)
-            Z[_R[6] + uk] = s_th
-            Z[_R[7] + uk] = c_th
-            Z[_R[8] + uk] = s_ps
-            Z[_R[9] + uk] = c_ps
-            Z[_R[10] + uk] = s_p
-            Z[_R[11] + uk] = c_p
-            Z[_R[12] + uk] = s_y
-            Z[_R[13] + uk] = c_y
-            Z[_R[14] + uk] = s_r
-            Z[_R[15] + uk] = c_r
-            Z[_R[16] + uk] = rolld
-            Z[_R[18] + uk] = pitch
-            Z[_R[19] + uk] = roll
-            Z[_R[20] + uk] = yaw
-            if has_mount:
+            if f or v_th:
+                a_th, s_th, c_th, n_th = _sincos_step(thv, a_th, s_th, c_th, n_th)
+                Z[_R[6] + uk] = s_th
+                Z[_R[7] + uk] = c_th
+            if f or v_ps:
+                a_ps, s_ps, c_ps, n_ps = _sincos_step(psv, a_ps, s_ps, c_ps, n_ps)
+                Z[_R[8] + uk] = s_ps
+                Z[_R[9] + uk] = c_ps
+            if f or v_p:
+                pitch = thv + Z[_R[56] + uk]
+                if pitch == thv:            # no sway: the body pitch is the path angle
+                    a_p, s_p, c_p, n_p = a_th, s_th, c_th, n_th
+                else:
+                    a_p, s_p, c_p, n_p = _sincos_step(pitch, a_p, s_p, c_p, n_p)
+                Z[_R[10] + uk] = s_p
+                Z[_R[11] + uk] = c_p
+                Z[_R[18] + uk] = pitch
+            if f or v_y:
+                yaw = psv + Z[_R[59] + uk]
+                if yaw == psv:
+                    a_y, s_y, c_y, n_y = a_ps, s_ps, c_ps, n_ps
+                else:
+                    a_y, s_y, c_y, n_y = _sincos_step(yaw, a_y, s_y, c_y, n_y)
+                Z[_R[12] + uk] = s_y
+                Z[_R[13] + uk] = c_y
+                Z[_R[20] + uk] = yaw
+            if f or v_r:
+                roll = Z[_R[53] + uk]
+                rolld = Z[_R[54] + uk]
+                if coord:
+                    u = Z[_R[17] + uk]
+                    if u != a_u:
+                        a_u = u
+                        t_u = math.atan(u)
+                    roll += t_u
+                    rolld += Z[_R[21] + uk]
+                a_r, s_r, c_r, n_r = _sincos_step(roll, a_r, s_r, c_r, n_r)
+                Z[_R[14] + uk] = s_r
+                Z[_R[15] + uk] = c_r
+                Z[_R[16] + uk] = rolld
+                Z[_R[19] + uk] = roll
+            if has_mount and (f or v_m):
                 # exact sines of the mount angles, reused while an angle stays the same
                 mp = Z[_R[65] + uk]
                 if not _same(mp, a_mp):
@@ -621,6 +662,22 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                 Z[_R[3] + uk] = c_mr
                 Z[_R[4] + uk] = s_my
                 Z[_R[5] + uk] = c_my
+        if nr > 1:
+            if not v_th:
+                _fill_run(Z, 6, 2, ui, nr)
+            if not v_ps:
+                _fill_run(Z, 8, 2, ui, nr)
+            if not v_p:
+                _fill_run(Z, 10, 2, ui, nr)
+                _fill_run(Z, 18, 1, ui, nr)
+            if not v_y:
+                _fill_run(Z, 12, 2, ui, nr)
+                _fill_run(Z, 20, 1, ui, nr)
+            if not v_r:
+                _fill_run(Z, 14, 3, ui, nr)
+                _fill_run(Z, 19, 1, ui, nr)
+            if has_mount and not v_m:
+                _fill_run(Z, 0, 6, ui, nr)
         if has_mount:
             _state_rows(ui, nr, True, Z)
         else:
