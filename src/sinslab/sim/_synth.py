@@ -448,6 +448,53 @@ def _fill_run(Z, r0, nrow, ui, nr):
 
 
 @njit(cache=True)
+def _sines_run(Z, rx, rs, rn, ui, nr, a, s, c, n):
+    """:func:`_sincos_step` along the angles in row rx of the flat block buffer ``Z``,
+    columns ui .. ui+nr−1, from the cache (a, s, c, n): sines into row rs, cosines into
+    rs + 1, rotation counts into rn. Returns the cache after the last column."""
+    ox = np.uint64(rx * _NB) + ui
+    os = np.uint64(rs * _NB) + ui
+    oc = os + np.uint64(_NB)
+    on = np.uint64(rn * _NB) + ui
+    for k in range(nr):
+        uk = np.uint64(k)
+        a, s, c, n = _sincos_step(Z[ox + uk], a, s, c, n)
+        Z[os + uk] = s
+        Z[oc + uk] = c
+        Z[on + uk] = n
+    return a, s, c, n
+
+
+@njit(cache=True)
+def _offset_sines_run(Z, rx, rd, rs0, rn0, rs, ra, ui, nr, a, s, c, n):
+    """As :func:`_sines_run` for the body angle x = (row rx) + (row rd), written to row ra:
+    where x equals the path angle (row rx) the cache becomes the path angle's (its sines in
+    rows rs0, rs0 + 1, its rotation count in row rn0), as in the epoch-by-epoch loop."""
+    ox = np.uint64(rx * _NB) + ui
+    od = np.uint64(rd * _NB) + ui
+    os0 = np.uint64(rs0 * _NB) + ui
+    on0 = np.uint64(rn0 * _NB) + ui
+    os = np.uint64(rs * _NB) + ui
+    oa = np.uint64(ra * _NB) + ui
+    one = np.uint64(_NB)
+    for k in range(nr):
+        uk = np.uint64(k)
+        x0 = Z[ox + uk]
+        x = x0 + Z[od + uk]
+        if x == x0:
+            a = x0
+            s = Z[os0 + uk]
+            c = Z[os0 + one + uk]
+            n = int(Z[on0 + uk])
+        else:
+            a, s, c, n = _sincos_step(x, a, s, c, n)
+        Z[os + uk] = s
+        Z[os + one + uk] = c
+        Z[oa + uk] = x
+    return a, s, c, n
+
+
+@njit(cache=True)
 def _state_rows(ui, nr, has_mount, Z):
     """Kinematic state (:func:`_kin`) of columns ui .. ui+nr−1 of the flat block buffer
     ``Z`` into its rows 0..23, from the channel rows (44..) and the rows of sines,
@@ -590,57 +637,50 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                              or math.isnan(rowb[CH_MY]))
         if coord:
             _bank_rows(ui, nr, Z)
-        for k in range(nr):
-            # sequential: the bank angle's and the sines' caches. Into rows the state
-            # pass reads: the sines and cosines (6..15; mount 0..5), the roll rate (16) and
-            # the carrier's Euler angles (18..20)
+        # sequential: the sines' and the arctangent's caches, one loop per angle (into rows
+        # the state pass reads: sines and cosines 6..15, mount 0..5, roll rate 16, the
+        # carrier's Euler angles 18..20; rotation counts of θ and ψ 22, 23 for the body
+        # pitch and yaw, which take their path's sines where they equal it)
+        n1 = nr if v_th else 1
+        a_th, s_th, c_th, n_th = _sines_run(Z, 50, 6, 22, ui, n1, a_th, s_th, c_th, n_th)
+        _fill_run(Z, 6, 2, ui, nr - n1 + 1)
+        _fill_run(Z, 22, 1, ui, nr - n1 + 1)
+        n1 = nr if v_ps else 1
+        a_ps, s_ps, c_ps, n_ps = _sines_run(Z, 47, 8, 23, ui, n1, a_ps, s_ps, c_ps, n_ps)
+        _fill_run(Z, 8, 2, ui, nr - n1 + 1)
+        _fill_run(Z, 23, 1, ui, nr - n1 + 1)
+        n1 = nr if v_p else 1
+        a_p, s_p, c_p, n_p = _offset_sines_run(Z, 50, 56, 6, 22, 10, 18, ui, n1, a_p, s_p, c_p, n_p)
+        _fill_run(Z, 10, 2, ui, nr - n1 + 1)
+        _fill_run(Z, 18, 1, ui, nr - n1 + 1)
+        n1 = nr if v_y else 1
+        a_y, s_y, c_y, n_y = _offset_sines_run(Z, 47, 59, 8, 23, 12, 20, ui, n1, a_y, s_y, c_y, n_y)
+        _fill_run(Z, 12, 2, ui, nr - n1 + 1)
+        _fill_run(Z, 20, 1, ui, nr - n1 + 1)
+        n1 = nr if v_r else 1
+        for k in range(n1):
             uk = ui + np.uint64(k)
-            f = k == 0
-            thv = Z[_R[50] + uk]
-            psv = Z[_R[47] + uk]
-            if f or v_th:
-                a_th, s_th, c_th, n_th = _sincos_step(thv, a_th, s_th, c_th, n_th)
-                Z[_R[6] + uk] = s_th
-                Z[_R[7] + uk] = c_th
-            if f or v_ps:
-                a_ps, s_ps, c_ps, n_ps = _sincos_step(psv, a_ps, s_ps, c_ps, n_ps)
-                Z[_R[8] + uk] = s_ps
-                Z[_R[9] + uk] = c_ps
-            if f or v_p:
-                pitch = thv + Z[_R[56] + uk]
-                if pitch == thv:            # no sway: the body pitch is the path angle
-                    a_p, s_p, c_p, n_p = a_th, s_th, c_th, n_th
-                else:
-                    a_p, s_p, c_p, n_p = _sincos_step(pitch, a_p, s_p, c_p, n_p)
-                Z[_R[10] + uk] = s_p
-                Z[_R[11] + uk] = c_p
-                Z[_R[18] + uk] = pitch
-            if f or v_y:
-                yaw = psv + Z[_R[59] + uk]
-                if yaw == psv:
-                    a_y, s_y, c_y, n_y = a_ps, s_ps, c_ps, n_ps
-                else:
-                    a_y, s_y, c_y, n_y = _sincos_step(yaw, a_y, s_y, c_y, n_y)
-                Z[_R[12] + uk] = s_y
-                Z[_R[13] + uk] = c_y
-                Z[_R[20] + uk] = yaw
-            if f or v_r:
-                roll = Z[_R[53] + uk]
-                rolld = Z[_R[54] + uk]
-                if coord:
-                    u = Z[_R[17] + uk]
-                    if u != a_u:
-                        a_u = u
-                        t_u = math.atan(u)
-                    roll += t_u
-                    rolld += Z[_R[21] + uk]
-                a_r, s_r, c_r, n_r = _sincos_step(roll, a_r, s_r, c_r, n_r)
-                Z[_R[14] + uk] = s_r
-                Z[_R[15] + uk] = c_r
-                Z[_R[16] + uk] = rolld
-                Z[_R[19] + uk] = roll
-            if has_mount and (f or v_m):
+            roll = Z[_R[53] + uk]
+            rolld = Z[_R[54] + uk]
+            if coord:
+                u = Z[_R[17] + uk]
+                if u != a_u:
+                    a_u = u
+                    t_u = math.atan(u)
+                roll += t_u
+                rolld += Z[_R[21] + uk]
+            a_r, s_r, c_r, n_r = _sincos_step(roll, a_r, s_r, c_r, n_r)
+            Z[_R[14] + uk] = s_r
+            Z[_R[15] + uk] = c_r
+            Z[_R[16] + uk] = rolld
+            Z[_R[19] + uk] = roll
+        _fill_run(Z, 14, 3, ui, nr - n1 + 1)
+        _fill_run(Z, 19, 1, ui, nr - n1 + 1)
+        if has_mount:
+            n1 = nr if v_m else 1
+            for k in range(n1):
                 # exact sines of the mount angles, reused while an angle stays the same
+                uk = ui + np.uint64(k)
                 mp = Z[_R[65] + uk]
                 if not _same(mp, a_mp):
                     a_mp = mp
@@ -662,22 +702,7 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                 Z[_R[3] + uk] = c_mr
                 Z[_R[4] + uk] = s_my
                 Z[_R[5] + uk] = c_my
-        if nr > 1:
-            if not v_th:
-                _fill_run(Z, 6, 2, ui, nr)
-            if not v_ps:
-                _fill_run(Z, 8, 2, ui, nr)
-            if not v_p:
-                _fill_run(Z, 10, 2, ui, nr)
-                _fill_run(Z, 18, 1, ui, nr)
-            if not v_y:
-                _fill_run(Z, 12, 2, ui, nr)
-                _fill_run(Z, 20, 1, ui, nr)
-            if not v_r:
-                _fill_run(Z, 14, 3, ui, nr)
-                _fill_run(Z, 19, 1, ui, nr)
-            if has_mount and not v_m:
-                _fill_run(Z, 0, 6, ui, nr)
+            _fill_run(Z, 0, 6, ui, nr - n1 + 1)
         if has_mount:
             _state_rows(ui, nr, True, Z)
         else:
