@@ -6,6 +6,10 @@ of layer, 1 sign bit, 52 bits of abscissa; exact tail and wedge rejections). It 
 faster than ``Generator.standard_normal`` and needs no buffer of normals between passes, so
 the whole error model is one pass over the record. The generator's state (four uint64) is
 drawn from a numpy Generator (:func:`_kernel_state`), so a seed fixes every bit.
+
+:func:`_normal` is inlined into the kernels of :mod:`sinslab.sim.imu`, and numba's cache
+keys a kernel on its own file's source: a change here reaches their cached machine code
+only when that file changes too.
 """
 from __future__ import annotations
 
@@ -84,9 +88,13 @@ def _normal_reject(idx, rabs, x, s0, s1, s2, s3):
     return x, ok, s0, s1, s2, s3
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _normal(s0, s1, s2, s3):
-    """One standard normal and the new generator state."""
+    """One standard normal and the new generator state.
+
+    Inlined into each caller by numba (LLVM did not inline it): called, it returned its
+    value and state through memory, half of a kernel's time. The rare cases stay out of
+    line in :func:`_normal_reject`."""
     while True:
         r, s0, s1, s2, s3 = _xoshiro(s0, s1, s2, s3)
         idx = r & np.uint64(0xFF)
