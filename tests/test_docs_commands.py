@@ -431,8 +431,8 @@ QUOTED = [
       "=2"], 0.0),
     # README.md's speed table: the rows of the scripts with a stored record (BENCH)
     ("README.md", "| mechanization (`strapdown.step`, 2 subsamples; one call, warm, CPU time) (`benchmarks/speed.py`) | "
-     "23.1–23.5 M samples/s: 1.03–1.04 of the numba reference, **0.98–0.99** of its C port (`cc -O2`), at load average "
-     "0.67–0.87: the target met", "bench speed",
+     "23.49–23.50 M samples/s: 1.04–1.05 of the numba reference, **0.99–1.00** of its C port (`cc -O2`), at load average "
+     "0.97–1.36: the target met", "bench speed",
      ["=2", "min(step_samples_per_s)/1e6", "max(step_samples_per_s)/1e6", "min(mechanization_ratio)",
       "max(mechanization_ratio)", "min(mechanization_ratio_c)", "max(mechanization_ratio_c)", "=2", "min(load_min)",
       "max(load_max)"],
@@ -440,26 +440,26 @@ QUOTED = [
     ("README.md", "and that chain, not the arithmetic, sets its pace | ≥ 0.9 of the C port |", "bench speed",
      ["max(targets.mechanization_ratio_c)"], 0.0),
     ("README.md", "| 48 h at 50 Hz navigated (full output / 1 Hz output; one call, warm, wall time) (`benchmarks/speed.py`) "
-     "| 0.98–1.01 s / 0.47–0.49 s at load average 0.67–0.87: the target met | < 5 s |", "bench speed",
+     "| 0.98–0.99 s / 0.465–0.472 s at load average 0.97–1.36: the target met | < 5 s |", "bench speed",
      ["max(long_run_hours)", "=50", "=1", "min(long_run_48h_50hz_s)", "max(long_run_48h_50hz_s)",
       "min(long_run_1hz_output_s)", "max(long_run_1hz_output_s)", "min(load_min)", "max(load_max)",
       "max(targets.long_run_48h_50hz_s)"], 0.0),
-    ("README.md", "| `trajectory.generate` (aircraft manoeuvres; one call, warm) (`benchmarks/speed.py`) | 8.3–10.5 M samples/s: "
-     "0.39–0.48 of the numba reference, 0.35–0.44 of the C port |", "bench speed",
+    ("README.md", "| `trajectory.generate` (aircraft manoeuvres; one call, warm) (`benchmarks/speed.py`) | 10.0–10.1 M samples/s: "
+     "0.46–0.47 of the numba reference, 0.42–0.43 of the C port |", "bench speed",
      ["min(generate_samples_per_s)/1e6", "max(generate_samples_per_s)/1e6", "min(generate_ratio)", "max(generate_ratio)",
       "min(generate_ratio_c)", "max(generate_ratio_c)"], 0.0),
-    ("README.md", "| `imu.apply` (bias, ARW, VRW; one call, warm) (`benchmarks/speed.py`) | 18.0–22.2 M samples/s: 0.83–1.03 of the "
-     "numba reference, 0.76–0.94 of the C port |", "bench speed",
+    ("README.md", "| `imu.apply` (bias, ARW, VRW; one call, warm) (`benchmarks/speed.py`) | 35.0–36.3 M samples/s: 1.61–1.68 of the "
+     "numba reference, 1.49–1.53 of the C port |", "bench speed",
      ["min(apply_samples_per_s)/1e6", "max(apply_samples_per_s)/1e6", "min(apply_ratio)", "max(apply_ratio)",
       "min(apply_ratio_c)", "max(apply_ratio_c)"], 0.0),
-    ("README.md", "(`benchmarks/speed.py`) | 6.1–6.5 M samples/s: 0.28–0.30 of the numba reference, **0.26–0.28** of the C port: "
+    ("README.md", "(`benchmarks/speed.py`) | 7.57–7.60 M samples/s: 0.349–0.351 of the numba reference, **0.320–0.324** of the C port: "
      "under the target. Per sample it writes 176 bytes of new arrays", "bench speed",
      ["min(synthesis_samples_per_s)/1e6", "max(synthesis_samples_per_s)/1e6", "min(synthesis_ratio)",
       "max(synthesis_ratio)", "min(synthesis_ratio_c)", "max(synthesis_ratio_c)", "max(synthesis_new_bytes_per_sample)"],
      0.0),
-    ("README.md", "new arrays of that size filled alone in the same rounds: 11.9–13.7 M samples/s", "bench speed",
+    ("README.md", "new arrays of that size filled alone in the same rounds: 13.2–14.4 M samples/s", "bench speed",
      ["min(first_touch_samples_per_s)/1e6", "max(first_touch_samples_per_s)/1e6"], 0.0),
-    ("README.md", "the synthesis less that time, an estimate: 13.0–17.2 M samples/s, 0.55–0.73 of the C port: the "
+    ("README.md", "the synthesis less that time, an estimate: 20.9–24.6 M samples/s, 0.89–1.04 of the C port: the "
      "arithmetic alone would meet the target, the first write to the new arrays keeps the whole job under it "
      "(`trajectory.generate` is the slower half) | ≥ 0.5 of the C port |", "bench speed",
      ["min(synthesis_compute_samples_per_s)/1e6", "max(synthesis_compute_samples_per_s)/1e6",
@@ -637,7 +637,7 @@ QUOTED = [
      [f"experiments.static-alignment.{k}" for k in ("cpu_fresh_s", "compile_cpu_s", "kernels_compiled", "cpu_warm_s")]
      + ["load_min", "load_max", "=25"], 0.0),
     ("README.md", "`docs/benchmarks.json` (made 2026-12-03 to 2026-12-06; ranges are over the runs it holds; the load "
-     "average during the runs: 0.67–0.87 for `speed.py`,", "bench speed",
+     "average during the runs: 0.97–1.36 for `speed.py`,", "bench speed",
      ["=2026", "=12", "=3", "date", "min(load_min)", "max(load_max)"], 0.0),
     ("README.md", "0.89–0.91 for `transfer.py`)", "bench transfer", ["load_min", "load_max"], 0.0),
     # docs/methods/graph.md, benchmarks/graph.py's figures (the stored record of its last run, BENCH)

@@ -90,3 +90,42 @@ def test_numbas_blas_table_loads_without_scipy_linalg_and_gives_the_same_numbers
     assert res["sinslab"]["P"] == res["linalg"]["P"]
     for r in res.values():
         assert r["same_module"] and r["expm"] == 1.0
+
+
+_STALE = r"""
+from sinslab.core import jitnotice
+jitnotice.install()
+from sinslab._stamp_a import f
+print(f(1.0))
+"""
+
+
+def _value(src):
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "SINSLAB_JITCACHE"))}
+    env.update(PYTHONPATH=str(src), SINSLAB_QUIET="1", PYTHONDONTWRITEBYTECODE="1")
+    p = subprocess.run([sys.executable, "-c", _STALE], env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    return float(p.stdout.strip().splitlines()[-1])
+
+
+def test_a_cached_kernel_is_stale_when_a_module_it_imports_changes(tmp_path):
+    """A cached kernel holds the machine code of the compiled functions it calls and the
+    values of the global constants it reads, from whatever module: ``a.f`` calls ``b.g``,
+    which reads ``c.K``. Changing ``c`` (imported through ``b``), then ``b``, recompiles
+    ``a.f``; numba's own stamp (``a``'s source) would load the first result every time."""
+    src = tmp_path / "src"
+    shutil.copytree(SRC / "sinslab", src / "sinslab",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc", "*.lock"))
+    pkg = src / "sinslab"
+    (pkg / "_stamp_a.py").write_text("from numba import njit\nfrom sinslab._stamp_b import g\n\n\n"
+                                     "@njit(cache=True)\ndef f(x):\n    return g(x) + 1.0\n")
+    b = "from numba import njit\nfrom sinslab._stamp_c import K\n\n\n@njit(cache=True)\ndef g(x):\n    return {} * x + K\n"
+    (pkg / "_stamp_b.py").write_text(b.format("2.0"))
+    (pkg / "_stamp_c.py").write_text("K = 10.0\n")
+    assert _value(src) == 13.0
+    assert list((pkg / "__pycache__").glob("_stamp_a.f-*.nbc"))        # cached, then
+    assert _value(src) == 13.0                                          # loaded from the cache
+    (pkg / "_stamp_c.py").write_text("K = 20.0\n")
+    assert _value(src) == 23.0
+    (pkg / "_stamp_b.py").write_text(b.format("3.0"))
+    assert _value(src) == 24.0

@@ -20,11 +20,16 @@ sinslab's kernels (a cache miss of numba's own lookup goes on to these, in order
   Without ``fastmath`` the arithmetic is IEEE on any target, so the numbers are the same;
   ``benchmarks/cold_start.py`` measures the speed.
 
-The source stamp that says whether a cache entry is fresh is numba's: a hash of the
+The source stamp that says whether a cache entry is fresh is numba's — a hash of the
 source file's content (numba 0.68; earlier versions use its time and size, which a
-checkout or an install may change — the kernels then compile once, as without a cache).
-A new signature, or a kernel whose source changed, compiles as before and is cached in
-numba's usual place. ``SINSLAB_JITCACHE=0`` turns the two lookups off (numba's own cache
+checkout or an install may change — the kernels then compile once, as without a cache) —
+and, for sinslab's kernels, a hash of the package modules that file imports, directly or
+through others (:func:`dependency_digest`). numba's stamp covers the kernel's own file
+only, yet a cached kernel holds the machine code of every compiled function it calls and
+the value of every global constant it reads, wherever they are defined: after a change to
+``sim/_rng.py`` alone the kernels of ``sim/imu.py`` that draw from it would load from the
+cache as they were, and compute with the old generator. A new signature, or a kernel whose
+source or imports changed, compiles as before and is cached in numba's usual place. ``SINSLAB_JITCACHE=0`` turns the two lookups off (numba's own cache
 only: what a measurement of compile times wants with ``NUMBA_CACHE_DIR`` set).
 
 BLAS table without ``scipy.linalg``
@@ -43,9 +48,12 @@ leaves the import to numba.
 """
 from __future__ import annotations
 
+import hashlib
 import os
+import re
+import sys
 
-__all__ = ["install", "preload_blas_table", "PORTABLE_ENV", "shipped_folder"]
+__all__ = ["install", "preload_blas_table", "PORTABLE_ENV", "shipped_folder", "dependency_digest"]
 
 #: environment of a process that compiles kernels to ship (any CPU of the architecture)
 PORTABLE_ENV = {"NUMBA_CPU_NAME": "generic", "NUMBA_CPU_FEATURES": ""}
@@ -56,6 +64,116 @@ _installed = False
 def _ours(cache) -> bool:
     f = getattr(cache, "_py_func", None)
     return (getattr(f, "__module__", "") or "").startswith("sinslab")
+
+
+#: ``import pkg.mod``, ``from pkg.mod import a, b`` or ``from pkg import (mod, ...)`` at any
+#: indentation (imports inside functions count too); group 1 the module, group 2 the names
+_IMPORT = re.compile(r"^[ \t]*(?:import[ \t]+([\w.]+)|from[ \t]+([\w.]+)[ \t]+import[ \t]+"
+                     r"(\([^)]*\)|[^\n#]*))", re.M)
+
+
+_files_memo: dict = {}
+
+
+def _module_file(root: str, top: str, name: str) -> str | None:
+    """The source file of module ``name`` of the package ``top`` whose folder is
+    ``root`` (a module or a package's ``__init__``), or None."""
+    if name != top and not name.startswith(top + "."):
+        return None
+    files = _files_memo.get(root)
+    if files is None:                       # the package's modules, listed once
+        files = _files_memo[root] = {os.path.join(d, f) for d, _, fs in os.walk(root) for f in fs
+                                     if f.endswith(".py")}
+    base = os.path.join(root, *name.split(".")[1:])
+    for path in (base + ".py", os.path.join(base, "__init__.py")):
+        if path in files:
+            return path
+    return None
+
+
+_imports_memo: dict = {}
+
+
+def _imported_files(path: str, root: str, top: str) -> tuple:
+    """The package's source files that the file at ``path`` imports (its own imports
+    only), read from the text: a static over-approximation, which can only make a kernel
+    compile once more than needed, never load a stale one. Each file is read once a
+    process (the sources do not change under a running process)."""
+    got = _imports_memo.get(path)
+    if got is not None:
+        return got
+    with open(path, encoding="utf-8", errors="replace") as f:
+        text = f.read()
+    found = set()
+    for m in _IMPORT.finditer(text):
+        if m.group(1):
+            mods = [m.group(1)]
+        else:
+            names = re.findall(r"[A-Za-z_]\w*", re.sub(r"\bas[ \t]+\w+", "", m.group(3)))
+            mods = [m.group(2)] + [f"{m.group(2)}.{n}" for n in names]
+        for name in mods:
+            parts = name.split(".")
+            for i in range(len(parts)):            # the parents' __init__ run too
+                file = _module_file(root, top, ".".join(parts[:i + 1]))
+                if file is not None:
+                    found.add(file)
+    got = _imports_memo[path] = tuple(sorted(found))
+    return got
+
+
+def dependency_digest(module: str) -> str | None:
+    """A hash of the sources of the package modules ``module`` imports, directly or
+    through others (its own file excluded: numba's stamp covers it), or None when it is
+    not a module of an importable package with source files.
+
+    A cached kernel holds the compiled code of every function it calls and the values of
+    the global constants it reads: a change to any of those files must make it stale."""
+    if module in _digest_memo:
+        return _digest_memo[module]
+    top = module.split(".")[0]
+    pkg = sys.modules.get(top)
+    own = getattr(sys.modules.get(module), "__file__", None)
+    if pkg is None or not getattr(pkg, "__file__", None) or not own:
+        return None
+    root = os.path.dirname(os.path.abspath(pkg.__file__))
+    own = os.path.abspath(own)
+    seen, todo = {own}, [own]
+    while todo:
+        for f in _imported_files(todo.pop(), root, top):
+            if f not in seen:
+                seen.add(f)
+                todo.append(f)
+    h = hashlib.sha256()
+    for f in sorted(seen - {own}):
+        h.update(os.path.relpath(f, root).encode())
+        h.update(_file_hash(f))
+    got = _digest_memo[module] = h.hexdigest()
+    return got
+
+
+_digest_memo: dict = {}
+
+
+_hash_memo: dict = {}
+
+
+def _file_hash(path: str) -> bytes:
+    """sha256 of a file's bytes (each file read once a process)."""
+    got = _hash_memo.get(path)
+    if got is None:
+        with open(path, "rb") as f:
+            got = _hash_memo[path] = hashlib.sha256(f.read()).digest()
+    return got
+
+
+def _stamp_dependencies(cache) -> None:
+    """Extend the source stamp of a sinslab kernel's cache index with
+    :func:`dependency_digest` (once per cache object; before its first lookup or save)."""
+    f = cache._cache_file
+    if getattr(f, "_sinslab_deps", False):
+        return
+    f._source_stamp = (f._source_stamp, dependency_digest(cache._py_func.__module__))
+    f._sinslab_deps = True
 
 
 def shipped_folder(py_file: str) -> str:
@@ -148,22 +266,36 @@ def preload_blas_table() -> bool:
 
 
 def install() -> None:
-    """Let numba's cache lookup of sinslab's kernels go on to the package folder and to
-    portable entries (once per process; other packages' functions are left alone)."""
+    """Stamp sinslab's cached kernels with their imports' sources too, and let numba's
+    cache lookup of them go on to the package folder and to portable entries (once per
+    process; other packages' functions are left alone). ``SINSLAB_JITCACHE=0`` turns off
+    the extra lookups, not the stamp."""
     global _installed
-    if _installed or os.environ.get("SINSLAB_JITCACHE", "") == "0":
+    if _installed:
         return
     from numba.core.caching import Cache
 
     load = Cache.load_overload
+    save = Cache.save_overload
+    lookups = os.environ.get("SINSLAB_JITCACHE", "") != "0"
 
     def load_overload(self, sig, target_context):
+        ours = _ours(self)
+        if ours:
+            _stamp_dependencies(self)
         data = load(self, sig, target_context)
-        if data is None and getattr(self, "_enabled", False) and _ours(self):
+        if data is None and lookups and ours and getattr(self, "_enabled", False):
             target_context.refresh()
             data = _load_elsewhere(self, sig, target_context)
         return data
 
+    def save_overload(self, sig, data):
+        if _ours(self):
+            _stamp_dependencies(self)
+        return save(self, sig, data)
+
     load_overload.__doc__ = load.__doc__
-    setattr(Cache, "load_overload", load_overload)   # a method replaced on purpose
+    save_overload.__doc__ = save.__doc__
+    setattr(Cache, "load_overload", load_overload)   # methods replaced on purpose
+    setattr(Cache, "save_overload", save_overload)
     _installed = True

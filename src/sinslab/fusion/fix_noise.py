@@ -88,7 +88,7 @@ import numpy as np
 from sinslab.core import earth as E
 from sinslab.core.records import Fixes
 
-__all__ = ["FixErrorModel", "fix_error_model", "innovation_noise", "velocity_walk_sigma", "velocity_check",
+__all__ = ["FixErrorModel", "fix_error_model", "given_fix_error", "innovation_noise", "velocity_walk_sigma", "velocity_check",
            "at_rest", "REST_CHI2", "VELOCITY_CHECK_S", "VELOCITY_CHECK_SIGMAS", "VELOCITY_CHECK_WINDOWS",
            "INNOVATION_BATCH_S", "MIN_BATCHES"]
 
@@ -105,16 +105,82 @@ class FixErrorModel:
     velocity_walk: np.ndarray = None  #: (3,) [m/√s] the integrated velocity error's random walk, √q_v
     velocity_tau: float = 0.0         #: [s] the velocity error's correlation time T (0: white)
     rest_fraction: float = 0.0        #: the share of the fixes left out as taken at rest
+    #: (3,) [m/s] the velocity error's σ when it is known (a model given by hand), else None
+    velocity_sigma: np.ndarray = None
+
+    def velocity_floor(self, h):
+        """(3,) [m/s] the white σ of velocity fixes ``h`` [s] apart that carries the
+        information of the velocity error (the random walk of its integral, ``√(q_v / h)``,
+        and at least its own σ where known), or None when the model has no velocity part."""
+        if self.velocity_walk is None:
+            return None
+        f = self.velocity_walk / math.sqrt(h)
+        return f if self.velocity_sigma is None else np.maximum(f, self.velocity_sigma)
 
     def describe(self):
         s = (f"white {', '.join(f'{x:.2f}' for x in self.white)} m, correlated "
              f"{', '.join(f'{x:.2f}' for x in self.correlated)} m over {self.tau:.0f} s (east, north, up)")
-        if self.velocity_walk is not None:
+        if self.velocity_sigma is not None:
+            s += (f"; velocity error {', '.join(f'{x:.3f}' for x in self.velocity_sigma)} m/s lasting "
+                  f"{self.velocity_tau:g} s")
+        elif self.velocity_walk is not None:
             s += (f"; velocity walk {', '.join(f'{x:.2f}' for x in self.velocity_walk)} m/√s, the velocity error "
                   f"lasting {self.velocity_tau:.0f} s")
         if self.rest_fraction > 0:
             s += f"; {100 * self.rest_fraction:.0f} % of the fixes at rest left out"
         return s
+
+
+def given_fix_error(spec) -> FixErrorModel:
+    """The :class:`FixErrorModel` of a fix error given by hand (``FixHandling.fix_error``).
+
+    Parameters
+    ----------
+    spec : FixErrorModel or tuple
+        A model (a fit of an earlier record by :func:`fix_error_model`, returned as it is),
+        or ``(τ, σ_c, σ_w)``: the position error's Gauss–Markov correlation time [s], its
+        steady-state σ and the white σ [m] (each a scalar or east, north, up), or
+        ``(τ, σ_c, σ_w, σ_v, T)`` with the velocity fixes' error as a first-order
+        Gauss–Markov process of σ ``σ_v`` [m/s] (scalar or east, north, up) and correlation
+        time ``T`` [s] (0: white).
+
+    Without the velocity part the velocity fixes keep their stated σ. A receiver's velocity
+    error that lasts seconds then holds the filter's velocity, the position follows the
+    integral of that error and the fix-error states take the difference: given the true
+    position model alone, a filter can end outages farther off than with white fixes. The
+    velocity part gives the integrated error's random walk ``q_v = 2σ_v² T`` of the module
+    notes (``σ_v² h`` for fixes ``h`` apart when ``T < h/2``: the error is white at the
+    fixes), from which the fixes' velocity σ is raised as for a measured model.
+
+    Raises
+    ------
+    ValueError
+        For anything else, or a non-positive τ, a negative or non-finite σ or T.
+    """
+    if isinstance(spec, FixErrorModel):
+        return spec
+    if isinstance(spec, (str, bytes)) or not hasattr(spec, "__len__") or len(spec) not in (3, 5):
+        raise ValueError("fix_error must be None, 'auto', a FixErrorModel, (tau [s], sigma [m], white [m]) "
+                         f"or (tau, sigma, white, velocity sigma [m/s], velocity tau [s]), got {spec!r}")
+
+    def vec(x, what):
+        v = np.broadcast_to(np.asarray(x, float), (3,)).copy()
+        if not np.all(np.isfinite(v) & (v >= 0)):
+            raise ValueError(f"fix_error: {what} must be finite and >= 0, got {x!r}")
+        return v
+
+    tau = float(spec[0])
+    if not (math.isfinite(tau) and tau > 0):
+        raise ValueError(f"fix_error: tau must be > 0 s, got {spec[0]!r}")
+    corr, white = vec(spec[1], "sigma"), vec(spec[2], "white sigma")
+    walk = sv = None
+    tv = 0.0
+    if len(spec) == 5:
+        sv, tv = vec(spec[3], "velocity sigma"), float(spec[4])
+        if not (math.isfinite(tv) and tv >= 0):
+            raise ValueError(f"fix_error: velocity tau must be >= 0 s, got {spec[4]!r}")
+        walk = sv * math.sqrt(2.0 * tv)
+    return FixErrorModel(white, corr, tau, np.zeros(0), np.zeros((0, 3)), walk, tv, velocity_sigma=sv)
 
 
 def _enu_positions(fixes):
@@ -314,8 +380,7 @@ def velocity_walk_sigma(fixes: Fixes):
     if got is None:
         return None
     D, lags, h, _ = got
-    m = _fit(D, lags, h, velocity_correlation=False)
-    return m.velocity_walk / math.sqrt(h)
+    return _fit(D, lags, h, velocity_correlation=False).velocity_floor(h)
 
 
 #: trailing window of :func:`velocity_check` [s]: as long as the receiver's velocity errors

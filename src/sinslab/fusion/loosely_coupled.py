@@ -410,39 +410,39 @@ class FixSource:
     def _lasting_errors(self, fixes):
         """``(fixes, source)``: the fixes' time-correlated errors taken into account
         (``handling.fix_error``; "auto": measured from the record by
-        :func:`sinslab.fusion.fix_noise.fix_error_model`).
+        :func:`sinslab.fusion.fix_noise.fix_error_model`; a model or tuple: given, see
+        :func:`sinslab.fusion.fix_noise.given_fix_error`).
 
         - Velocity: a Doppler velocity's error lasts seconds, so successive fixes do not
           average it; each fix's σ is at least the white noise that carries the same
           information as the measured random walk of its integral (``q_v / h`` for fixes
           ``h`` apart).
-        - Position: a correlated part of at least :data:`FIX_ERROR_MIN` lasting more than
-          three fix intervals becomes Gauss–Markov states, and the fixes' σ their white part
+        - Position: a correlated part (measured: of at least :data:`FIX_ERROR_MIN` lasting
+          more than three fix intervals; given: as given) becomes Gauss–Markov states, and the fixes' σ their white part
           (at least the floor): the filter no longer averages metres of correlated error away.
         """
         import dataclasses
+        from sinslab.fusion.fix_noise import fix_error_model, given_fix_error
         spec = self.handling.fix_error
         if spec is None:
             return fixes, self
-        if not isinstance(spec, str):
-            tau, corr, white = float(spec[0]), np.broadcast_to(np.asarray(spec[1], float), (3,)), \
-                np.broadcast_to(np.asarray(spec[2], float), (3,))
-            info = {"used": True, "model": f"given: tau {tau:g} s", "source": "given"}
-            return self._white(fixes, white), dataclasses.replace(self, fix_error=(tau, np.asarray(corr, float)),
-                                                                  fix_error_info=info)
-        if spec != "auto":
-            raise ValueError(f"fix_error must be None, 'auto' or (tau, sigma, white), got {spec!r}")
-        from sinslab.fusion.fix_noise import fix_error_model
-        m = fix_error_model(fixes)
-        if m is None:
-            return fixes, dataclasses.replace(self, fix_error_info={"used": False, "model": None})
+        if isinstance(spec, str) and spec == "auto":
+            m = fix_error_model(fixes)
+            if m is None:
+                return fixes, dataclasses.replace(self, fix_error_info={"used": False, "model": None})
+            info = {"model": m.describe(), "source": "measured from the record"}
+        else:
+            m = given_fix_error(spec)
+            info = {"model": m.describe(), "source": "given"}
         h = float(np.median(np.diff(fixes.t)))
-        info = {"model": m.describe(), "source": "measured from the record"}
-        if fixes.sigma_vel is not None and m.velocity_walk is not None:
-            sv = np.maximum(fixes.sigma_vel, m.velocity_walk / math.sqrt(h))
+        floor = m.velocity_floor(h)
+        if fixes.sigma_vel is not None and floor is not None:
+            sv = np.maximum(fixes.sigma_vel, floor)
             info["velocity_sigma"] = np.median(sv, 0).tolist()
             fixes = dataclasses.replace(fixes, sigma_vel=sv)
-        info["used"] = bool(float(np.max(m.correlated)) >= FIX_ERROR_MIN and m.tau >= 3 * h)
+        # a model given by hand is used as given; a measured one where it is metre-level and lasts
+        info["used"] = info["source"] == "given" or bool(float(np.max(m.correlated)) >= FIX_ERROR_MIN
+                                                         and m.tau >= 3 * h)
         if not info["used"]:
             return fixes, dataclasses.replace(self, fix_error_info=info)
         return self._white(fixes, m.white), dataclasses.replace(self, fix_error=(m.tau, m.correlated),

@@ -113,7 +113,9 @@ class FixHandling:
     vel_sigma_floor: float = 0.05           #: [m/s]
     #: the fixes' time-correlated position error as Gauss-Markov states: None (white fixes),
     #: "auto" (measured from the record, sinslab.fusion.fix_noise; used where metre-level), or
-    #: (tau [s], (σE, σN, σU) correlated [m], (σE, σN, σU) white [m]); fixes only
+    #: given: a FixErrorModel, (tau [s], (σE, σN, σU) correlated [m], (σE, σN, σU) white [m]),
+    #: or that with the velocity error's (σE, σN, σU) [m/s] and correlation time [s] appended
+    #: (sinslab.fusion.fix_noise.given_fix_error); fixes only
     fix_error: object = None
     #: inflate a fix's R where its innovation is beyond the 1 − robust χ² quantile (Chang 2014;
     #: sinslab.fusion.measurements.schedule.robust_R); None: every fix as stated
@@ -140,6 +142,9 @@ class FixHandling:
         if not (math.isfinite(lat) and lat >= 0):
             raise ValueError(f"fix latency must be >= 0 s, got {self.fix_latency}")
         _check_sigmas(self, ("fix_sigma", 3), ("fix_vel_sigma", 3))
+        if self.fix_error is not None and not (isinstance(self.fix_error, str) and self.fix_error == "auto"):
+            from sinslab.fusion.fix_noise import given_fix_error
+            given_fix_error(self.fix_error)                 # a clear error now, not at the first fix
         if self.velocity_check is not None and not (math.isfinite(self.velocity_check) and self.velocity_check > 0):
             raise ValueError(f"velocity check window must be > 0 s, got {self.velocity_check}")
 
