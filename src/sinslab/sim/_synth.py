@@ -297,7 +297,8 @@ def _asin1(x):
 _BLOCK = 64        # intervals per block: the vectorised passes run over ~70 epochs at a time
 _NB = _BLOCK + 8   # buffer columns: a block and its stencil halo (at most 7 epochs)
 _NROW = 74         # buffer rows: kinematics 0..23, Earth terms 24..32, predicted offsets 33, 34,
-                   # stencil sums 35..43, channel c's value, rate and acceleration 44 + 3c .. 46 + 3c
+                   # stencil sums 35..43, channel c's value, rate and acceleration 44 + 3c ..
+                   # 46 + 3c
 _R = tuple(np.uint64(r * _NB) for r in range(_NROW))     # row offsets in the flat buffer
 _U = tuple(np.uint64(j) for j in range(8))                # column steps within a row
 
@@ -340,9 +341,9 @@ def _channel_rows(e, nr, ui, dt, je, base, plo, phi, act, ttype, tch, tta, tpar,
     terms in order — row by row: every term's parameters are read once per run and its
     values computed in a loop of its own (vectorised for trapezoids and steps, divisions
     included); epoch by epoch, fetching each term's type, channel and parameters and
-    dispatching on them cost more than the evaluation. Sines and cosines of the sine terms by :func:`_sincos_step` on
-    the per-term cache ``tc``. ``rowb[c]``: the constant that fills every column of channel
-    c's rows (rates 0), or NaN.
+    dispatching on them cost more than the evaluation. Sines and cosines of the sine terms
+    by :func:`_sincos_step` on the per-term cache ``tc``. ``rowb[c]``: the constant that
+    fills every column of channel c's rows (rates 0), or NaN.
     """
     nb = np.uint64(_NB)
     active = 0
@@ -437,11 +438,12 @@ def _bank_rows(ui, nr, Z):
 
 
 @njit(cache=True)
-def _fill_run(Z, r0, nrow, ui, nr):
-    """Columns ui+1 .. ui+nr−1 of rows r0 .. r0+nrow−1 of the flat block buffer ``Z`` set
-    to the value in column ui."""
-    for r in range(r0, r0 + nrow):
-        o = np.uint64(r * _NB) + ui
+def _fill_run(Z, o0, nrow, ui, nr):
+    """Columns ui+1 .. ui+nr−1 of the nrow rows from offset o0 (a row's, see _R) of the
+    flat block buffer ``Z`` set to the value in column ui. (Row offsets and counts from the
+    tuples _R, _U, not literal ints: numba compiles a function once per literal argument.)"""
+    for r in range(nrow):
+        o = o0 + np.uint64(r * _NB) + ui
         v = Z[o]
         for k in range(1, nr):
             Z[o + np.uint64(k)] = v
@@ -451,11 +453,12 @@ def _fill_run(Z, r0, nrow, ui, nr):
 def _sines_run(Z, rx, rs, rn, ui, nr, a, s, c, n):
     """:func:`_sincos_step` along the angles in row rx of the flat block buffer ``Z``,
     columns ui .. ui+nr−1, from the cache (a, s, c, n): sines into row rs, cosines into
-    rs + 1, rotation counts into rn. Returns the cache after the last column."""
-    ox = np.uint64(rx * _NB) + ui
-    os = np.uint64(rs * _NB) + ui
+    the next row, rotation counts into row rn (rows given by their offsets, see _R).
+    Returns the cache after the last column."""
+    ox = rx + ui
+    os = rs + ui
     oc = os + np.uint64(_NB)
-    on = np.uint64(rn * _NB) + ui
+    on = rn + ui
     for k in range(nr):
         uk = np.uint64(k)
         a, s, c, n = _sincos_step(Z[ox + uk], a, s, c, n)
@@ -469,13 +472,13 @@ def _sines_run(Z, rx, rs, rn, ui, nr, a, s, c, n):
 def _offset_sines_run(Z, rx, rd, rs0, rn0, rs, ra, ui, nr, a, s, c, n):
     """As :func:`_sines_run` for the body angle x = (row rx) + (row rd), written to row ra:
     where x equals the path angle (row rx) the cache becomes the path angle's (its sines in
-    rows rs0, rs0 + 1, its rotation count in row rn0), as in the epoch-by-epoch loop."""
-    ox = np.uint64(rx * _NB) + ui
-    od = np.uint64(rd * _NB) + ui
-    os0 = np.uint64(rs0 * _NB) + ui
-    on0 = np.uint64(rn0 * _NB) + ui
-    os = np.uint64(rs * _NB) + ui
-    oa = np.uint64(ra * _NB) + ui
+    rows rs0 and the next, its rotation count in row rn0), as in the epoch-by-epoch loop."""
+    ox = rx + ui
+    od = rd + ui
+    os0 = rs0 + ui
+    on0 = rn0 + ui
+    os = rs + ui
+    oa = ra + ui
     one = np.uint64(_NB)
     for k in range(nr):
         uk = np.uint64(k)
@@ -642,21 +645,25 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
         # carrier's Euler angles 18..20; rotation counts of θ and ψ 22, 23 for the body
         # pitch and yaw, which take their path's sines where they equal it)
         n1 = nr if v_th else 1
-        a_th, s_th, c_th, n_th = _sines_run(Z, 50, 6, 22, ui, n1, a_th, s_th, c_th, n_th)
-        _fill_run(Z, 6, 2, ui, nr - n1 + 1)
-        _fill_run(Z, 22, 1, ui, nr - n1 + 1)
+        a_th, s_th, c_th, n_th = _sines_run(Z, _R[50], _R[6], _R[22], ui, n1,
+                                            a_th, s_th, c_th, n_th)
+        _fill_run(Z, _R[6], _U[2], ui, nr - n1 + 1)
+        _fill_run(Z, _R[22], _U[1], ui, nr - n1 + 1)
         n1 = nr if v_ps else 1
-        a_ps, s_ps, c_ps, n_ps = _sines_run(Z, 47, 8, 23, ui, n1, a_ps, s_ps, c_ps, n_ps)
-        _fill_run(Z, 8, 2, ui, nr - n1 + 1)
-        _fill_run(Z, 23, 1, ui, nr - n1 + 1)
+        a_ps, s_ps, c_ps, n_ps = _sines_run(Z, _R[47], _R[8], _R[23], ui, n1,
+                                            a_ps, s_ps, c_ps, n_ps)
+        _fill_run(Z, _R[8], _U[2], ui, nr - n1 + 1)
+        _fill_run(Z, _R[23], _U[1], ui, nr - n1 + 1)
         n1 = nr if v_p else 1
-        a_p, s_p, c_p, n_p = _offset_sines_run(Z, 50, 56, 6, 22, 10, 18, ui, n1, a_p, s_p, c_p, n_p)
-        _fill_run(Z, 10, 2, ui, nr - n1 + 1)
-        _fill_run(Z, 18, 1, ui, nr - n1 + 1)
+        a_p, s_p, c_p, n_p = _offset_sines_run(Z, _R[50], _R[56], _R[6], _R[22], _R[10], _R[18],
+                                               ui, n1, a_p, s_p, c_p, n_p)
+        _fill_run(Z, _R[10], _U[2], ui, nr - n1 + 1)
+        _fill_run(Z, _R[18], _U[1], ui, nr - n1 + 1)
         n1 = nr if v_y else 1
-        a_y, s_y, c_y, n_y = _offset_sines_run(Z, 47, 59, 8, 23, 12, 20, ui, n1, a_y, s_y, c_y, n_y)
-        _fill_run(Z, 12, 2, ui, nr - n1 + 1)
-        _fill_run(Z, 20, 1, ui, nr - n1 + 1)
+        a_y, s_y, c_y, n_y = _offset_sines_run(Z, _R[47], _R[59], _R[8], _R[23], _R[12], _R[20],
+                                               ui, n1, a_y, s_y, c_y, n_y)
+        _fill_run(Z, _R[12], _U[2], ui, nr - n1 + 1)
+        _fill_run(Z, _R[20], _U[1], ui, nr - n1 + 1)
         n1 = nr if v_r else 1
         for k in range(n1):
             uk = ui + np.uint64(k)
@@ -674,8 +681,8 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
             Z[_R[15] + uk] = c_r
             Z[_R[16] + uk] = rolld
             Z[_R[19] + uk] = roll
-        _fill_run(Z, 14, 3, ui, nr - n1 + 1)
-        _fill_run(Z, 19, 1, ui, nr - n1 + 1)
+        _fill_run(Z, _R[14], _U[3], ui, nr - n1 + 1)
+        _fill_run(Z, _R[19], _U[1], ui, nr - n1 + 1)
         if has_mount:
             n1 = nr if v_m else 1
             for k in range(n1):
@@ -702,11 +709,8 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                 Z[_R[3] + uk] = c_mr
                 Z[_R[4] + uk] = s_my
                 Z[_R[5] + uk] = c_my
-            _fill_run(Z, 0, 6, ui, nr - n1 + 1)
-        if has_mount:
-            _state_rows(ui, nr, True, Z)
-        else:
-            _state_rows(ui, nr, False, Z)
+            _fill_run(Z, _R[0], _U[6], ui, nr - n1 + 1)
+        _state_rows(ui, nr, has_mount, Z)
         e = er
     cache[0] = a_th
     cache[1] = s_th
