@@ -229,6 +229,15 @@ def _earth(sl, cl, h, ve, vn, vu, a0, a1, a2, c00, c01, c02, c10, c11, c12, c20,
     v^n, v̇^n (a), C_b^n and ω_nb^b (w). Radii and gravity: the formulas of earth.radii_s /
     earth.gravity_s, with the four reciprocals (1/√(1−e²sin²L), 1/R_M, 1/R_N, 1/cos L) taken
     from one division (a few ulps)."""
+    irm, irn, icl, g = _earth_radii(sl, cl, h)
+    return _earth_terms(sl, cl, irm, irn, icl, g, ve, vn, vu, a0, a1, a2, c00, c01, c02, c10,
+                        c11, c12, c20, c21, c22, w0, w1, w2)
+
+
+@njit(cache=True, inline="always")
+def _earth_radii(sl, cl, h):
+    """1/(R_M + h), 1/(R_N + h), 1/cos L and normal gravity at latitude (sin, cos) and
+    height h (the first part of :func:`_earth`)."""
     s = math.sqrt(1.0 - earth.E2 * sl * sl)
     s3 = s * s * s
     P = earth.A * (1.0 - earth.E2) + h * s3          # R_M = P / s³
@@ -241,6 +250,13 @@ def _earth(sl, cl, h, ve, vn, vu, a0, a1, a2, c00, c01, c02, c10, c11, c12, c20,
     irn = inv * sP * cl * s
     icl = inv * sP * Q
     g = earth.G_EQ * (1.0 + earth.K_SOM * sl * sl) * rsq - earth.DGDH * h
+    return irm, irn, icl, g
+
+
+@njit(cache=True, inline="always")
+def _earth_terms(sl, cl, irm, irn, icl, g, ve, vn, vu, a0, a1, a2, c00, c01, c02, c10, c11,
+                 c12, c20, c21, c22, w0, w1, w2):
+    """The rest of :func:`_earth`, from :func:`_earth_radii`'s values."""
     wiy = earth.WIE * cl
     wiz = earth.WIE * sl
     ex = -vn * irm
@@ -757,11 +773,16 @@ def _earth_block(i0, i1, ib, dt, lat, h, Z):
     correction (error O(dt⁴)) and turns the north distance into latitude with R_M + h to
     first order in the height and latitude changes. Over one block (~0.7 s at 100 Hz,
     ~7 s at 10 Hz) that is good to well below a micrometre; without the latitude term of
-    R_M the ~0.1 mm error of a 50 Hz block showed as 3e-14 m/s in Δv (test_trajectory). The first loop is a running sum; the second has no branch
-    and no call, and is vectorised (SIMD) — which is why the synthesis works in blocks. It
-    indexes one flat array with unsigned indices and compile-time row offsets: signed
-    indices make numba emit a negative-index wraparound, and separate row arrays need more
-    run-time alias checks than LLVM allows; either way it would stay scalar.
+    R_M the ~0.1 mm error of a 50 Hz block showed as 3e-14 m/s in Δv (test_trajectory).
+    The first loop is a running sum; the others have no branch and no call, and are
+    vectorised (SIMD) — which is why the synthesis works in blocks. They are three (the
+    predicted position into rows 33, 34, 24; :func:`_earth_radii` into rows 25..28;
+    :func:`_earth_terms`, each reading a column before writing it): in one loop, the chain
+    of the prediction, the square root, the division and the terms made it wait on latency,
+    7.4 ns per epoch instead of 5.4. They index one flat array with unsigned indices and
+    compile-time row offsets: signed indices make numba emit a negative-index wraparound,
+    and separate row arrays need more run-time alias checks than LLVM allows; either way
+    they would stay scalar.
     """
     sb = math.sin(lat)
     cb = math.cos(lat)
@@ -793,11 +814,24 @@ def _earth_block(i0, i1, ib, dt, lat, h, Z):
         d = d0 * (1.0 - 0.5 * kk * d0)
         d2 = 0.5 * d * d
         d3 = d * (1.0 - d2 * (1.0 / 3.0))
-        w = _earth(sb * (1.0 - d2) + cb * d3, cb * (1.0 - d2) - sb * d3, h + dhp,
-                   Z[i], Z[_R[1] + i], Z[_R[2] + i], Z[_R[3] + i], Z[_R[4] + i],
-                   Z[_R[5] + i], Z[_R[6] + i], Z[_R[7] + i], Z[_R[8] + i], Z[_R[9] + i],
-                   Z[_R[10] + i], Z[_R[11] + i], Z[_R[12] + i], Z[_R[13] + i],
-                   Z[_R[14] + i], Z[_R[15] + i], Z[_R[16] + i], Z[_R[17] + i])
+        Z[_R[33] + i] = sb * (1.0 - d2) + cb * d3
+        Z[_R[34] + i] = cb * (1.0 - d2) - sb * d3
+        Z[_R[24] + i] = h + dhp
+    for j in range(i1 - i0):
+        i = u0 + np.uint64(j)
+        rm_, rn_, rc_, g_ = _earth_radii(Z[_R[33] + i], Z[_R[34] + i], Z[_R[24] + i])
+        Z[_R[25] + i] = rm_
+        Z[_R[26] + i] = rn_
+        Z[_R[27] + i] = rc_
+        Z[_R[28] + i] = g_
+    for j in range(i1 - i0):
+        i = u0 + np.uint64(j)
+        w = _earth_terms(Z[_R[33] + i], Z[_R[34] + i], Z[_R[25] + i], Z[_R[26] + i],
+                         Z[_R[27] + i], Z[_R[28] + i], Z[i], Z[_R[1] + i], Z[_R[2] + i],
+                         Z[_R[3] + i], Z[_R[4] + i], Z[_R[5] + i], Z[_R[6] + i],
+                         Z[_R[7] + i], Z[_R[8] + i], Z[_R[9] + i], Z[_R[10] + i],
+                         Z[_R[11] + i], Z[_R[12] + i], Z[_R[13] + i], Z[_R[14] + i],
+                         Z[_R[15] + i], Z[_R[16] + i], Z[_R[17] + i])
         Z[_R[24] + i] = w[0]
         Z[_R[25] + i] = w[1]
         Z[_R[26] + i] = w[2]
