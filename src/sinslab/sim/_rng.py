@@ -8,9 +8,9 @@ between passes, so the whole error model is one pass over the record. The genera
 state (four uint64) is drawn from a numpy Generator (:func:`_kernel_state`), so a seed
 fixes every bit.
 
-:func:`_normal` is inlined into the kernels of :mod:`sinslab.sim.imu`, and numba's cache
-keys a kernel on its own file's source: a change here reaches their cached machine code
-only when that file changes too.
+:func:`_normal` is inlined into the kernels of :mod:`sinslab.sim.imu`; their cached machine
+code is stamped with this file's source too (:func:`sinslab.core.jitcache.dependency_digest`),
+so a change here compiles them again.
 """
 from __future__ import annotations
 

@@ -722,8 +722,8 @@ def gm_sigma_from_allan_floor(value, convention="ieee"):
 
 # --- compiled kernels ----------------------------------------------------------------------------
 # one pass over the record per error model; normals from the in-kernel generator of
-# sinslab.sim._rng, whose draw is inlined into each kernel: numba's cache keys these kernels
-# on this file's source, so they are compiled again only when this file changes
+# sinslab.sim._rng, whose draw is inlined into each kernel (a change there compiles them
+# again: sinslab.core.jitcache stamps a cached kernel with the modules its file imports)
 @njit(cache=True, nogil=True)
 def _kernel(dth, dv, tend, t0, dt, state, K, use_k, bias_dt, wsig, wact, gsig, gphi, gdrv, gact,
             rstep, ract, has_trend, tr_ramp, tr_ea, tr_et, tr_esh, tr_sa, tr_sw, tr_ssh, tr_sp,
