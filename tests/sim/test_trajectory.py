@@ -238,6 +238,36 @@ def test_state_rows_equal_the_scalar_state(has_mount):
         assert np.array_equal(Z[outside], before[outside])
 
 
+@pytest.mark.parametrize("zero", [0.0, -0.0])
+def test_zero_body_offset_takes_the_path_angles_sines(zero):
+    """With a body pitch (or yaw) offset of 0 over a run, the kinematics copy the path
+    angle's sines and cache (_add_copy_rows) instead of stepping the body angle
+    (_offset_sines_run): x + 0 == x, so the loop takes the path angle's values at every
+    epoch, and the copy must give the same bits, the angle's row and the cache after the
+    run included. _rows_same, which decides when a steady turn's bank angle is taken once,
+    must tell the zeros apart."""
+    rng = np.random.default_rng(3)
+    NB, R = _synth._NB, lambda r: np.uint64(r * _synth._NB)
+    nr, ui = 60, np.uint64(5)
+    Z = rng.normal(0.0, 1.0, _synth._NROW * NB)
+    row = Z[int(R(50)) + 5:int(R(50)) + 5 + nr]
+    row[:] = np.cumsum(rng.normal(0.0, 3e-3, nr)) + 0.4
+    row[10:14] = row[9]                                   # an angle that stops for a while
+    Z[int(R(56)):int(R(57))] = zero
+    th = _synth._sines_run(Z, R(50), R(6), R(22), ui, nr, np.nan, 0.0, 0.0, 0)
+    A, B = Z.copy(), Z.copy()
+    got = _synth._offset_sines_run(A, R(50), R(56), R(6), R(22), R(10), R(18), ui, nr,
+                                   np.nan, 0.0, 0.0, 0)
+    _synth._add_copy_rows(B, R(50), R(56), R(18), R(6), R(10), ui, nr)
+    assert np.array_equal(A.view(np.int64), B.view(np.int64))
+    assert np.array_equal(np.array(got).view(np.int64), np.array(th).view(np.int64))
+    Zi = Z.view(np.int64)
+    Z[int(R(48)):int(R(50))] = 0.0
+    assert _synth._rows_same(Zi, R(48), np.uint64(2), ui, nr)
+    Z[int(R(49)) + 30] = -0.0
+    assert not _synth._rows_same(Zi, R(48), np.uint64(2), ui, nr)
+
+
 @pytest.mark.parametrize("m", [2, 4, 6, 8, 10])
 def test_stencil_block_sums_in_the_order_of_the_pairwise_loop(m):
     """_stencil_block writes each stencil sum as one expression; it must give the bits of

@@ -466,6 +466,31 @@ def _fill_run(Z, o0, nrow, ui, nr):
 
 
 @njit(cache=True)
+def _rows_same(Zi, o0, nrow, ui, nr):
+    """Whether each of the nrow rows from offset o0 holds the same bits in columns
+    ui .. ui+nr−1 (``Zi``: the block buffer viewed as int64)."""
+    d = 0
+    for r in range(nrow):
+        o = o0 + np.uint64(r * _NB) + ui
+        v = Zi[o]
+        for k in range(nr):
+            d |= Zi[o + np.uint64(k)] ^ v
+    return d == 0
+
+
+@njit(cache=True)
+def _add_copy_rows(Z, rx, rd, ra, rs0, rs, ui, nr):
+    """Columns ui .. ui+nr−1: row ra = row rx + row rd, rows rs, rs + 1 = rows rs0,
+    rs0 + 1 (row offsets, see _R)."""
+    one = np.uint64(_NB)
+    for k in range(nr):
+        uk = ui + np.uint64(k)
+        Z[ra + uk] = Z[rx + uk] + Z[rd + uk]
+        Z[rs + uk] = Z[rs0 + uk]
+        Z[rs + one + uk] = Z[rs0 + one + uk]
+
+
+@njit(cache=True)
 def _sines_run(Z, rx, rs, rn, ui, nr, a, s, c, n):
     """:func:`_sincos_step` along the angles in row rx of the flat block buffer ``Z``,
     columns ui .. ui+nr−1, from the cache (a, s, c, n): sines into row rs, cosines into
@@ -606,6 +631,7 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
     n_y = int(cache[20])
     n_r = int(cache[21])
     kfrom = int(cache[31])
+    Zi = Z.view(np.int64)
     a_mp = cache[22]
     s_mp = cache[23]
     c_mp = cache[24]
@@ -662,7 +688,15 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
         v_m = has_mount and (math.isnan(rowb[CH_MP]) or math.isnan(rowb[CH_MR])
                              or math.isnan(rowb[CH_MY]))
         if coord:
-            _bank_rows(ui, nr, Z)
+            if _rows_same(Zi, _R[44], _U[2], ui, nr) and _rows_same(Zi, _R[48], _U[2], ui, nr):
+                # V, V̇, ψ̇, ψ̈ the same bits over the run (a steady turn): so are the bank
+                # angle and its rate term, and the roll too if its channel has no term
+                _bank_rows(ui, 1, Z)
+                _fill_run(Z, _R[17], _U[1], ui, nr)
+                _fill_run(Z, _R[21], _U[1], ui, nr)
+                v_r = math.isnan(rowb[CH_ROLL])
+            else:
+                _bank_rows(ui, nr, Z)
         # sequential: the sines' and the arctangent's caches, one loop per angle (into rows
         # the state pass reads: sines and cosines 6..15, mount 0..5, roll rate 16, the
         # carrier's Euler angles 18..20; rotation counts of θ and ψ 22, 23 for the body
@@ -677,16 +711,26 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                                             a_ps, s_ps, c_ps, n_ps)
         _fill_run(Z, _R[8], _U[2], ui, nr - n1 + 1)
         _fill_run(Z, _R[23], _U[1], ui, nr - n1 + 1)
-        n1 = nr if v_p else 1
-        a_p, s_p, c_p, n_p = _offset_sines_run(Z, _R[50], _R[56], _R[6], _R[22], _R[10], _R[18],
-                                               ui, n1, a_p, s_p, c_p, n_p)
-        _fill_run(Z, _R[10], _U[2], ui, nr - n1 + 1)
-        _fill_run(Z, _R[18], _U[1], ui, nr - n1 + 1)
-        n1 = nr if v_y else 1
-        a_y, s_y, c_y, n_y = _offset_sines_run(Z, _R[47], _R[59], _R[8], _R[23], _R[12], _R[20],
-                                               ui, n1, a_y, s_y, c_y, n_y)
-        _fill_run(Z, _R[12], _U[2], ui, nr - n1 + 1)
-        _fill_run(Z, _R[20], _U[1], ui, nr - n1 + 1)
+        # a body pitch or yaw offset that is 0 over the run: x + 0 == x, so the body angle
+        # takes its path angle's sines and cache at every epoch (rows copied, vectorised)
+        if v_p and rowb[CH_PITCH] == 0.0:
+            _add_copy_rows(Z, _R[50], _R[56], _R[18], _R[6], _R[10], ui, nr)
+            a_p, s_p, c_p, n_p = a_th, s_th, c_th, n_th
+        else:
+            n1 = nr if v_p else 1
+            a_p, s_p, c_p, n_p = _offset_sines_run(Z, _R[50], _R[56], _R[6], _R[22], _R[10],
+                                                   _R[18], ui, n1, a_p, s_p, c_p, n_p)
+            _fill_run(Z, _R[10], _U[2], ui, nr - n1 + 1)
+            _fill_run(Z, _R[18], _U[1], ui, nr - n1 + 1)
+        if v_y and rowb[CH_YAW] == 0.0:
+            _add_copy_rows(Z, _R[47], _R[59], _R[20], _R[8], _R[12], ui, nr)
+            a_y, s_y, c_y, n_y = a_ps, s_ps, c_ps, n_ps
+        else:
+            n1 = nr if v_y else 1
+            a_y, s_y, c_y, n_y = _offset_sines_run(Z, _R[47], _R[59], _R[8], _R[23], _R[12],
+                                                   _R[20], ui, n1, a_y, s_y, c_y, n_y)
+            _fill_run(Z, _R[12], _U[2], ui, nr - n1 + 1)
+            _fill_run(Z, _R[20], _U[1], ui, nr - n1 + 1)
         n1 = nr if v_r else 1
         for k in range(n1):
             uk = ui + np.uint64(k)
