@@ -317,6 +317,7 @@ _NROW = 74         # buffer rows: kinematics 0..23, Earth terms 24..32, predicte
                    # 46 + 3c
 _R = tuple(np.uint64(r * _NB) for r in range(_NROW))     # row offsets in the flat buffer
 _U = tuple(np.uint64(j) for j in range(8))                # column steps within a row
+_ONE = np.int64(1)    # a run of one epoch (typed: a literal 1 would compile _bank_rows again)
 
 
 _ROT_MAX = 0.02      # largest angle step [rad] taken by rotation instead of sin/cos
@@ -691,7 +692,7 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
             if _rows_same(Zi, _R[44], _U[2], ui, nr) and _rows_same(Zi, _R[48], _U[2], ui, nr):
                 # V, V̇, ψ̇, ψ̈ the same bits over the run (a steady turn): so are the bank
                 # angle and its rate term, and the roll too if its channel has no term
-                _bank_rows(ui, 1, Z)
+                _bank_rows(ui, _ONE, Z)
                 _fill_run(Z, _R[17], _U[1], ui, nr)
                 _fill_run(Z, _R[21], _U[1], ui, nr)
                 v_r = math.isnan(rowb[CH_ROLL])
