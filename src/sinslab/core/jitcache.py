@@ -131,11 +131,11 @@ def dependency_digest(module: str) -> str | None:
     if module in _digest_memo:
         return _digest_memo[module]
     top = module.split(".")[0]
-    pkg = sys.modules.get(top)
+    pkg_file = getattr(sys.modules.get(top), "__file__", None)
     own = getattr(sys.modules.get(module), "__file__", None)
-    if pkg is None or not getattr(pkg, "__file__", None) or not own:
+    if not pkg_file or not own:
         return None
-    root = os.path.dirname(os.path.abspath(pkg.__file__))
+    root = os.path.dirname(os.path.abspath(pkg_file))
     own = os.path.abspath(own)
     seen, todo = {own}, [own]
     while todo:
