@@ -417,22 +417,12 @@ def _channel_rows(e, nr, ui, dt, je, base, plo, phi, act, ttype, tch, tta, tpar,
             tc[kk, 1] = sg
             tc[kk, 2] = cg
             tc[kk, 3] = ng
-        elif typ == T_TRAP:
+        else:                               # T_TRAP or T_STEP
             p0 = tpar[kk, 0]
             p1 = tpar[kk, 1]
             p2 = tpar[kk, 2]
             for k in range(nr):
-                x0, x1, x2 = _term(T_TRAP, (e + k) * dt - ta, p0, p1, p2)
-                uk = np.uint64(k)
-                Z[ov + uk] += x0
-                Z[od + uk] += x1
-                Z[oa + uk] += x2
-        else:
-            p0 = tpar[kk, 0]
-            p1 = tpar[kk, 1]
-            p2 = tpar[kk, 2]
-            for k in range(nr):
-                x0, x1, x2 = _term(T_STEP, (e + k) * dt - ta, p0, p1, p2)
+                x0, x1, x2 = _term(typ, (e + k) * dt - ta, p0, p1, p2)
                 uk = np.uint64(k)
                 Z[ov + uk] += x0
                 Z[od + uk] += x1
