@@ -578,6 +578,126 @@ def _state_rows(ui, nr, has_mount, Z):
 
 
 @njit(cache=True)
+def _path_angles_run(Z, ui, nr, v_th, v_ps, v_p, v_y, rowb, cache):
+    """Sines and cosines of the path angles θ, ψ and of the body pitch and yaw over the run
+    of ``nr`` columns from ``ui`` of the flat block buffer ``Z`` (see :func:`_kinematics`),
+    each angle's :func:`_sincos_step` cache (angle, sine, cosine) in ``cache[0:12]`` (θ, ψ,
+    pitch, yaw) and its rotation count in ``cache[17:21]``, read here and written back. An
+    angle whose channel has no term over the run (``v_*``) is stepped at its first column
+    only and filled into the others."""
+    a_th, s_th, c_th, n_th = cache[0], cache[1], cache[2], int(cache[17])
+    a_ps, s_ps, c_ps, n_ps = cache[3], cache[4], cache[5], int(cache[18])
+    a_p, s_p, c_p, n_p = cache[6], cache[7], cache[8], int(cache[19])
+    a_y, s_y, c_y, n_y = cache[9], cache[10], cache[11], int(cache[20])
+    # sequential: the sines' and the arctangent's caches, one loop per angle (into rows
+    # the state pass reads: sines and cosines 6..15, mount 0..5, roll rate 16, the
+    # carrier's Euler angles 18..20; rotation counts of θ and ψ 22, 23 for the body
+    # pitch and yaw, which take their path's sines where they equal it)
+    n1 = nr if v_th else 1
+    a_th, s_th, c_th, n_th = _sines_run(Z, _R[50], _R[6], _R[22], ui, n1,
+                                        a_th, s_th, c_th, n_th)
+    _fill_run(Z, _R[6], _U[2], ui, nr - n1 + 1)
+    _fill_run(Z, _R[22], _U[1], ui, nr - n1 + 1)
+    n1 = nr if v_ps else 1
+    a_ps, s_ps, c_ps, n_ps = _sines_run(Z, _R[47], _R[8], _R[23], ui, n1,
+                                        a_ps, s_ps, c_ps, n_ps)
+    _fill_run(Z, _R[8], _U[2], ui, nr - n1 + 1)
+    _fill_run(Z, _R[23], _U[1], ui, nr - n1 + 1)
+    # a body pitch or yaw offset that is 0 over the run: x + 0 == x, so the body angle
+    # takes its path angle's sines and cache at every epoch (rows copied, vectorised)
+    if v_p and rowb[CH_PITCH] == 0.0:
+        _add_copy_rows(Z, _R[50], _R[56], _R[18], _R[6], _R[10], ui, nr)
+        a_p, s_p, c_p, n_p = a_th, s_th, c_th, n_th
+    else:
+        n1 = nr if v_p else 1
+        a_p, s_p, c_p, n_p = _offset_sines_run(Z, _R[50], _R[56], _R[6], _R[22], _R[10],
+                                               _R[18], ui, n1, a_p, s_p, c_p, n_p)
+        _fill_run(Z, _R[10], _U[2], ui, nr - n1 + 1)
+        _fill_run(Z, _R[18], _U[1], ui, nr - n1 + 1)
+    if v_y and rowb[CH_YAW] == 0.0:
+        _add_copy_rows(Z, _R[47], _R[59], _R[20], _R[8], _R[12], ui, nr)
+        a_y, s_y, c_y, n_y = a_ps, s_ps, c_ps, n_ps
+    else:
+        n1 = nr if v_y else 1
+        a_y, s_y, c_y, n_y = _offset_sines_run(Z, _R[47], _R[59], _R[8], _R[23], _R[12],
+                                               _R[20], ui, n1, a_y, s_y, c_y, n_y)
+        _fill_run(Z, _R[12], _U[2], ui, nr - n1 + 1)
+        _fill_run(Z, _R[20], _U[1], ui, nr - n1 + 1)
+    cache[0], cache[1], cache[2], cache[17] = a_th, s_th, c_th, n_th
+    cache[3], cache[4], cache[5], cache[18] = a_ps, s_ps, c_ps, n_ps
+    cache[6], cache[7], cache[8], cache[19] = a_p, s_p, c_p, n_p
+    cache[9], cache[10], cache[11], cache[20] = a_y, s_y, c_y, n_y
+
+
+@njit(cache=True)
+def _roll_run(Z, ui, nr, coord, v_r, cache):
+    """The roll over the run (see :func:`_path_angles_run`): the channel's roll plus, in a
+    coordinated turn, the bank angle's arctangent (cached on its argument in
+    ``cache[15:17]``), stepped from its cache ``cache[12:15]``, ``cache[21]``."""
+    a_r, s_r, c_r, n_r = cache[12], cache[13], cache[14], int(cache[21])
+    a_u, t_u = cache[15], cache[16]
+    n1 = nr if v_r else 1
+    for k in range(n1):
+        uk = ui + np.uint64(k)
+        roll = Z[_R[53] + uk]
+        rolld = Z[_R[54] + uk]
+        if coord:
+            u = Z[_R[17] + uk]
+            if u != a_u:
+                a_u = u
+                t_u = math.atan(u)
+            roll += t_u
+            rolld += Z[_R[21] + uk]
+        a_r, s_r, c_r, n_r = _sincos_step(roll, a_r, s_r, c_r, n_r)
+        Z[_R[14] + uk] = s_r
+        Z[_R[15] + uk] = c_r
+        Z[_R[16] + uk] = rolld
+        Z[_R[19] + uk] = roll
+    _fill_run(Z, _R[14], _U[3], ui, nr - n1 + 1)
+    _fill_run(Z, _R[19], _U[1], ui, nr - n1 + 1)
+    cache[12], cache[13], cache[14], cache[21] = a_r, s_r, c_r, n_r
+    cache[15], cache[16] = a_u, t_u
+
+
+@njit(cache=True)
+def _mount_run(Z, ui, nr, v_m, cache):
+    """Exact sines and cosines of the mount angles over the run, each reused while its
+    angle keeps its bits (caches in ``cache[22:31]``)."""
+    a_mp, s_mp, c_mp = cache[22], cache[23], cache[24]
+    a_mr, s_mr, c_mr = cache[25], cache[26], cache[27]
+    a_my, s_my, c_my = cache[28], cache[29], cache[30]
+    n1 = nr if v_m else 1
+    for k in range(n1):
+        # exact sines of the mount angles, reused while an angle stays the same
+        uk = ui + np.uint64(k)
+        mp = Z[_R[65] + uk]
+        if not _same(mp, a_mp):
+            a_mp = mp
+            s_mp = math.sin(mp)
+            c_mp = math.cos(mp)
+        mr = Z[_R[68] + uk]
+        if not _same(mr, a_mr):
+            a_mr = mr
+            s_mr = math.sin(mr)
+            c_mr = math.cos(mr)
+        my = Z[_R[71] + uk]
+        if not _same(my, a_my):
+            a_my = my
+            s_my = math.sin(my)
+            c_my = math.cos(my)
+        Z[uk] = s_mp
+        Z[_R[1] + uk] = c_mp
+        Z[_R[2] + uk] = s_mr
+        Z[_R[3] + uk] = c_mr
+        Z[_R[4] + uk] = s_my
+        Z[_R[5] + uk] = c_my
+    _fill_run(Z, _R[0], _U[6], ui, nr - n1 + 1)
+    cache[22], cache[23], cache[24] = a_mp, s_mp, c_mp
+    cache[25], cache[26], cache[27] = a_mr, s_mr, c_mr
+    cache[28], cache[29], cache[30] = a_my, s_my, c_my
+
+
+@njit(cache=True)
 def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype, tch, tta,
                 tpar, Z, cache, tc, rowb, je):
     """Kinematic state of epochs e0..e1−1 (t_e = e·dt) into columns i0, i0+1, ... of
@@ -592,46 +712,16 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
     rotations (:func:`_sincos_step`; exact sin/cos at least every _ROT_RUN epochs, so they
     stay within ~1e-15 of it), and are reused, like the bank angle's arctangent and the
     mount angles' sines, while the argument is unchanged; the caches live in ``cache``,
-    ``tc`` (per term) and ``rowb`` between calls. The epochs of a piece with no
+    ``tc`` (per term) and ``rowb`` between calls (the angles' slots of ``cache``: see
+    :func:`_path_angles_run`, :func:`_roll_run`, :func:`_mount_run`). The epochs of a piece with no
     active term repeat the previous column: one vectorised fill per row for the whole run
     (copied epoch by epoch and column by column, such epochs cost half as much as computed
     ones). The stores go to unsigned flat indices with compile-time row offsets: through a
     2-D array, each needed a row pointer kept on the stack and a negative-index wraparound.
     """
     nbp = bp.shape[0]
-    a_th = cache[0]
-    s_th = cache[1]
-    c_th = cache[2]
-    a_ps = cache[3]
-    s_ps = cache[4]
-    c_ps = cache[5]
-    a_p = cache[6]
-    s_p = cache[7]
-    c_p = cache[8]
-    a_y = cache[9]
-    s_y = cache[10]
-    c_y = cache[11]
-    a_r = cache[12]
-    s_r = cache[13]
-    c_r = cache[14]
-    a_u = cache[15]
-    t_u = cache[16]
-    n_th = int(cache[17])
-    n_ps = int(cache[18])
-    n_p = int(cache[19])
-    n_y = int(cache[20])
-    n_r = int(cache[21])
     kfrom = int(cache[31])
     Zi = Z.view(np.int64)
-    a_mp = cache[22]
-    s_mp = cache[23]
-    c_mp = cache[24]
-    a_mr = cache[25]
-    s_mr = cache[26]
-    c_mr = cache[27]
-    a_my = cache[28]
-    s_my = cache[29]
-    c_my = cache[30]
     e = e0
     while e < e1:
         i = i0 + e - e0
@@ -688,120 +778,14 @@ def _kinematics(e0, e1, i0, dt, has_mount, bp, base, flag, plo, phi, act, ttype,
                 v_r = math.isnan(rowb[CH_ROLL])
             else:
                 _bank_rows(ui, nr, Z)
-        # sequential: the sines' and the arctangent's caches, one loop per angle (into rows
-        # the state pass reads: sines and cosines 6..15, mount 0..5, roll rate 16, the
-        # carrier's Euler angles 18..20; rotation counts of θ and ψ 22, 23 for the body
-        # pitch and yaw, which take their path's sines where they equal it)
-        n1 = nr if v_th else 1
-        a_th, s_th, c_th, n_th = _sines_run(Z, _R[50], _R[6], _R[22], ui, n1,
-                                            a_th, s_th, c_th, n_th)
-        _fill_run(Z, _R[6], _U[2], ui, nr - n1 + 1)
-        _fill_run(Z, _R[22], _U[1], ui, nr - n1 + 1)
-        n1 = nr if v_ps else 1
-        a_ps, s_ps, c_ps, n_ps = _sines_run(Z, _R[47], _R[8], _R[23], ui, n1,
-                                            a_ps, s_ps, c_ps, n_ps)
-        _fill_run(Z, _R[8], _U[2], ui, nr - n1 + 1)
-        _fill_run(Z, _R[23], _U[1], ui, nr - n1 + 1)
-        # a body pitch or yaw offset that is 0 over the run: x + 0 == x, so the body angle
-        # takes its path angle's sines and cache at every epoch (rows copied, vectorised)
-        if v_p and rowb[CH_PITCH] == 0.0:
-            _add_copy_rows(Z, _R[50], _R[56], _R[18], _R[6], _R[10], ui, nr)
-            a_p, s_p, c_p, n_p = a_th, s_th, c_th, n_th
-        else:
-            n1 = nr if v_p else 1
-            a_p, s_p, c_p, n_p = _offset_sines_run(Z, _R[50], _R[56], _R[6], _R[22], _R[10],
-                                                   _R[18], ui, n1, a_p, s_p, c_p, n_p)
-            _fill_run(Z, _R[10], _U[2], ui, nr - n1 + 1)
-            _fill_run(Z, _R[18], _U[1], ui, nr - n1 + 1)
-        if v_y and rowb[CH_YAW] == 0.0:
-            _add_copy_rows(Z, _R[47], _R[59], _R[20], _R[8], _R[12], ui, nr)
-            a_y, s_y, c_y, n_y = a_ps, s_ps, c_ps, n_ps
-        else:
-            n1 = nr if v_y else 1
-            a_y, s_y, c_y, n_y = _offset_sines_run(Z, _R[47], _R[59], _R[8], _R[23], _R[12],
-                                                   _R[20], ui, n1, a_y, s_y, c_y, n_y)
-            _fill_run(Z, _R[12], _U[2], ui, nr - n1 + 1)
-            _fill_run(Z, _R[20], _U[1], ui, nr - n1 + 1)
-        n1 = nr if v_r else 1
-        for k in range(n1):
-            uk = ui + np.uint64(k)
-            roll = Z[_R[53] + uk]
-            rolld = Z[_R[54] + uk]
-            if coord:
-                u = Z[_R[17] + uk]
-                if u != a_u:
-                    a_u = u
-                    t_u = math.atan(u)
-                roll += t_u
-                rolld += Z[_R[21] + uk]
-            a_r, s_r, c_r, n_r = _sincos_step(roll, a_r, s_r, c_r, n_r)
-            Z[_R[14] + uk] = s_r
-            Z[_R[15] + uk] = c_r
-            Z[_R[16] + uk] = rolld
-            Z[_R[19] + uk] = roll
-        _fill_run(Z, _R[14], _U[3], ui, nr - n1 + 1)
-        _fill_run(Z, _R[19], _U[1], ui, nr - n1 + 1)
+        # sequential, one loop per angle, each from and back to its cache slots
+        _path_angles_run(Z, ui, nr, v_th, v_ps, v_p, v_y, rowb, cache)
+        _roll_run(Z, ui, nr, coord, v_r, cache)
         if has_mount:
-            n1 = nr if v_m else 1
-            for k in range(n1):
-                # exact sines of the mount angles, reused while an angle stays the same
-                uk = ui + np.uint64(k)
-                mp = Z[_R[65] + uk]
-                if not _same(mp, a_mp):
-                    a_mp = mp
-                    s_mp = math.sin(mp)
-                    c_mp = math.cos(mp)
-                mr = Z[_R[68] + uk]
-                if not _same(mr, a_mr):
-                    a_mr = mr
-                    s_mr = math.sin(mr)
-                    c_mr = math.cos(mr)
-                my = Z[_R[71] + uk]
-                if not _same(my, a_my):
-                    a_my = my
-                    s_my = math.sin(my)
-                    c_my = math.cos(my)
-                Z[uk] = s_mp
-                Z[_R[1] + uk] = c_mp
-                Z[_R[2] + uk] = s_mr
-                Z[_R[3] + uk] = c_mr
-                Z[_R[4] + uk] = s_my
-                Z[_R[5] + uk] = c_my
-            _fill_run(Z, _R[0], _U[6], ui, nr - n1 + 1)
+            _mount_run(Z, ui, nr, v_m, cache)
         _state_rows(ui, nr, has_mount, Z)
         e = er
-    cache[0] = a_th
-    cache[1] = s_th
-    cache[2] = c_th
-    cache[3] = a_ps
-    cache[4] = s_ps
-    cache[5] = c_ps
-    cache[6] = a_p
-    cache[7] = s_p
-    cache[8] = c_p
-    cache[9] = a_y
-    cache[10] = s_y
-    cache[11] = c_y
-    cache[12] = a_r
-    cache[13] = s_r
-    cache[14] = c_r
-    cache[15] = a_u
-    cache[16] = t_u
-    cache[17] = n_th
-    cache[18] = n_ps
-    cache[19] = n_p
-    cache[20] = n_y
-    cache[21] = n_r
     cache[31] = kfrom
-    cache[22] = a_mp
-    cache[23] = s_mp
-    cache[24] = c_mp
-    cache[25] = a_mr
-    cache[26] = s_mr
-    cache[27] = c_mr
-    cache[28] = a_my
-    cache[29] = s_my
-    cache[30] = c_my
     return je
 
 
